@@ -1,0 +1,1 @@
+"""Disturbance model, controller authority and precomputed cost maps (no planner imports here)."""

@@ -1,0 +1,165 @@
+"""Disturbance wrench on a target vehicle in the downwash of a hovering source (S0 section II).
+
+Frames: world z up; both vehicles hover level with their body axes aligned to the world axes, so
+body and world vectors coincide. ``offsets_m`` are ``p_target - p_source`` (N, 3), m; vertical
+separation dz = -offset_z (positive when the target is below).
+
+Two mechanisms are summed:
+
+* frame drag (S0-3, S0-4): each frame area element feels 1/2 C_D rho V^2 dA along -z, C_D = 1.18;
+  its torque is (r' - r) x F about the target's centre of mass;
+* propeller thrust change (S0-5..S0-8): Delta f_i = -b_v v_on,i omega_i^2 with omega_i^2 = f_hover / k1
+  and v_on,i the oncoming speed averaged over rotor i's disk; torque (r_i - r) x z_B Delta f_i.
+
+Each offset carries a validity flag: the field model holds in the zone of established flow,
+dz > 3 L of the source (S0 II-A).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from costmaps.geometry import Discretisation, disk_samples, frame_elements
+from costmaps.vehicles import AIR_DENSITY_KGPM3, Vehicle
+from costmaps.velocity_field import DEFAULT_FIELD_FORM, FIELD_FORMS, downwash_speed_mps
+
+FLAT_PLATE_DRAG_COEFFICIENT = 1.18
+"""C_D of a flat plate normal to the flow (S0 II-B, McCormick), -."""
+
+VALIDITY_FACTOR_L = 3.0
+"""The field is valid for dz > VALIDITY_FACTOR_L * L of the source (S0 II-A), -."""
+
+_CHUNK = 8192  # offsets per vectorised block (bounds temporary memory to a few tens of MB)
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """Options of the disturbance model; the defaults are the product's standard model."""
+
+    field_form: str = DEFAULT_FIELD_FORM  # "inverse-z" or "printed" form of (S0-1)
+    drag_coefficient: float = FLAT_PLATE_DRAG_COEFFICIENT  # C_D, -
+    air_density_kgpm3: float = AIR_DENSITY_KGPM3  # rho, kg/m^3
+    discretisation: Discretisation = Discretisation()
+
+    def __post_init__(self) -> None:
+        if self.field_form not in FIELD_FORMS:
+            raise ValueError(f"field_form must be one of {FIELD_FORMS}, got {self.field_form!r}")
+
+
+DEFAULT_OPTIONS = ModelOptions()
+
+
+@dataclass(frozen=True)
+class WrenchBatch:
+    """Disturbance wrenches on the target for N offsets; forces in N, torques in N m, world frame."""
+
+    offsets_m: np.ndarray  # (N, 3) target minus source position, m
+    drag_force_N: np.ndarray  # (N, 3)
+    drag_torque_Nm: np.ndarray  # (N, 3) about the target's centre of mass
+    thrust_force_N: np.ndarray  # (N, 3) from propeller thrust change
+    thrust_torque_Nm: np.ndarray  # (N, 3)
+    valid: np.ndarray  # (N,) bool: dz > 3 L of the source (zone of established flow)
+
+    @property
+    def force_N(self) -> np.ndarray:
+        """Total force (N, 3), N."""
+        return self.drag_force_N + self.thrust_force_N
+
+    @property
+    def torque_Nm(self) -> np.ndarray:
+        """Total torque (N, 3) about the target's centre of mass, N m."""
+        return self.drag_torque_Nm + self.thrust_torque_Nm
+
+
+def validity_mask(source: Vehicle, offsets_m: np.ndarray) -> np.ndarray:
+    """True where the target is in the source's zone of established flow, dz > 3 L, shape (N,)."""
+    return -np.asarray(offsets_m)[:, 2] > VALIDITY_FACTOR_L * source.size_m
+
+
+def _vertical_force_and_torque(
+    points_m: np.ndarray, force_z_N: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sum vertical point forces (N, K) at body points (K, 3) into force (N, 3), torque (N, 3)."""
+    n = force_z_N.shape[0]
+    force = np.zeros((n, 3))
+    force[:, 2] = force_z_N.sum(axis=1)
+    torque = np.zeros((n, 3))
+    torque[:, 0] = force_z_N @ points_m[:, 1]  # tau_x = y F_z
+    torque[:, 1] = -(force_z_N @ points_m[:, 0])  # tau_y = -x F_z
+    return force, torque
+
+
+def _speed_at_points(
+    source: Vehicle, offsets_m: np.ndarray, points_m: np.ndarray, options: ModelOptions
+) -> np.ndarray:
+    """Downwash speed (N, K) at target body points (K, 3) for offsets (N, 3), m/s."""
+    rel = offsets_m[:, None, :] + points_m[None, :, :]
+    r_sq = rel[..., 0] ** 2 + rel[..., 1] ** 2
+    return downwash_speed_mps(
+        source,
+        -rel[..., 2],
+        r_sq,
+        form=options.field_form,
+        air_density_kgpm3=options.air_density_kgpm3,
+    )
+
+
+def _wrench_block(
+    source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    frame = frame_elements(target, options.discretisation)
+    v_frame = _speed_at_points(source, offsets_m, frame.position_m, options)
+    # (S0-3): dF = -z 1/2 C_D rho V^2 dA ; (S0-4) torque of each element about the CoM
+    drag_z = -0.5 * options.drag_coefficient * options.air_density_kgpm3 * v_frame**2 * frame.area_m2
+    drag_f, drag_t = _vertical_force_and_torque(frame.position_m, drag_z)
+
+    disks = disk_samples(target, options.discretisation)  # (4, P, 3)
+    n_rotor, n_pts, _ = disks.position_m.shape
+    v_disk = _speed_at_points(source, offsets_m, disks.position_m.reshape(-1, 3), options)
+    v_on = v_disk.reshape(-1, n_rotor, n_pts).mean(axis=2)  # (N, 4) disk-averaged oncoming flow
+    # (S0-6): Delta f_i = -b_v v_on,i omega_i^2, omega_i^2 = f_hover / k1 ; (S0-7, S0-8) sums
+    delta_f = -target.b_v * target.hover_omega_sq_rad2ps2 * v_on
+    thrust_f, thrust_t = _vertical_force_and_torque(target.rotor_positions_m, delta_f)
+    return drag_f, drag_t, thrust_f, thrust_t
+
+
+def disturbance_wrench(
+    source: Vehicle,
+    target: Vehicle,
+    offsets_m: np.ndarray,
+    options: ModelOptions = DEFAULT_OPTIONS,
+) -> WrenchBatch:
+    """Wrench on ``target`` from the downwash of ``source`` for each offset, vectorised.
+
+    Args:
+        source: hovering vehicle producing the downwash.
+        target: vehicle receiving it (hovering, level, yaw aligned with the source).
+        offsets_m: (N, 3) or (3,) positions of the target relative to the source, world frame, m.
+        options: field form, C_D, air density and discretisation.
+
+    Returns:
+        A :class:`WrenchBatch` with (N, 3) arrays; a (3,) input gives N = 1.
+    """
+    offsets = np.atleast_2d(np.asarray(offsets_m, dtype=float))
+    if offsets.ndim != 2 or offsets.shape[1] != 3:
+        raise ValueError(f"offsets_m must have shape (N, 3), got {np.shape(offsets_m)}")
+    if not np.all(np.isfinite(offsets)):
+        raise ValueError("offsets_m must be finite")
+    blocks = [
+        _wrench_block(source, target, offsets[i : i + _CHUNK], options)
+        for i in range(0, offsets.shape[0], _CHUNK)
+    ]
+    if blocks:
+        drag_f, drag_t, thrust_f, thrust_t = (np.concatenate(parts) for parts in zip(*blocks))
+    else:
+        drag_f = drag_t = thrust_f = thrust_t = np.zeros((0, 3))
+    return WrenchBatch(
+        offsets_m=offsets,
+        drag_force_N=drag_f,
+        drag_torque_Nm=drag_t,
+        thrust_force_N=thrust_f,
+        thrust_torque_Nm=thrust_t,
+        valid=validity_mask(source, offsets),
+    )

@@ -1,0 +1,1 @@
+"""Closed-loop multirotor simulation with downwash (RotorPy) and synthetic flight logs."""

@@ -1,0 +1,1 @@
+"""Scenario loading, multi-vehicle planning (OMPL, CasADi, Ruckig) and plan verification."""

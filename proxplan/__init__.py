@@ -1,0 +1,1 @@
+"""Command-line entry point of proxplan (the `proxplan` console script)."""

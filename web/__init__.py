@@ -1,0 +1,1 @@
+"""Viser review app for scenarios and plans."""
