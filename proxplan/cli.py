@@ -18,10 +18,12 @@ import sys
 from costmaps.errors import UserError
 
 COMMAND_MODULES = (
-    "costmaps.commands",
-    "planner.commands",
-    "flightsim.commands",
-    "web.commands",
+    "costmaps.commands",  # vehicles, wrench
+    "costmaps.costmap_command",  # costmap
+    "planner.commands",  # plan, verify
+    "flightsim.commands",  # simulate
+    "web.commands",  # view
+    "costmaps.identify_command",  # identify
 )
 
 
