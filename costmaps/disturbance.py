@@ -78,10 +78,11 @@ def validity_mask(source: Vehicle, offsets_m: np.ndarray) -> np.ndarray:
     return -np.asarray(offsets_m)[:, 2] > VALIDITY_FACTOR_L * source.size_m
 
 
-def _vertical_force_and_torque(
+def vertical_point_wrench(
     points_m: np.ndarray, force_z_N: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Sum vertical point forces (N, K) at body points (K, 3) into force (N, 3), torque (N, 3)."""
+    """Sum vertical point forces (N, K), N, at body points (K, 3), m, into force (N, 3), N, and
+    torque about the centre of mass (N, 3), N m: tau = r x (0, 0, F_z) (S0-4, S0-8)."""
     n = force_z_N.shape[0]
     force = np.zeros((n, 3))
     force[:, 2] = force_z_N.sum(axis=1)
@@ -106,6 +107,42 @@ def _speed_at_points(
     )
 
 
+def _disk_average_speed(
+    source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
+) -> np.ndarray:
+    disks = disk_samples(target, options.discretisation)  # (4, P, 3)
+    n_rotor, n_pts, _ = disks.position_m.shape
+    v_disk = _speed_at_points(source, offsets_m, disks.position_m.reshape(-1, 3), options)
+    return v_disk.reshape(-1, n_rotor, n_pts).mean(axis=2)
+
+
+def oncoming_speed_per_rotor_mps(
+    source: Vehicle,
+    target: Vehicle,
+    offsets_m: np.ndarray,
+    options: ModelOptions = DEFAULT_OPTIONS,
+) -> np.ndarray:
+    """Oncoming downwash speed averaged over each target rotor disk (N, 4), m/s, (S0-6) v_on,i.
+
+    Rotor order (S0-14); offsets (N, 3) = p_target - p_source, world frame, m.
+    """
+    offsets = _checked_offsets(offsets_m)
+    parts = [
+        _disk_average_speed(source, target, offsets[i : i + _CHUNK], options)
+        for i in range(0, offsets.shape[0], _CHUNK)
+    ]
+    return np.concatenate(parts) if parts else np.zeros((0, 4))
+
+
+def _checked_offsets(offsets_m: np.ndarray) -> np.ndarray:
+    offsets = np.atleast_2d(np.asarray(offsets_m, dtype=float))
+    if offsets.ndim != 2 or offsets.shape[1] != 3:
+        raise ValueError(f"offsets_m must have shape (N, 3), got {np.shape(offsets_m)}")
+    if not np.all(np.isfinite(offsets)):
+        raise ValueError("offsets_m must be finite")
+    return offsets
+
+
 def _wrench_block(
     source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -113,15 +150,12 @@ def _wrench_block(
     v_frame = _speed_at_points(source, offsets_m, frame.position_m, options)
     # (S0-3): dF = -z 1/2 C_D rho V^2 dA ; (S0-4) torque of each element about the CoM
     drag_z = -0.5 * options.drag_coefficient * options.air_density_kgpm3 * v_frame**2 * frame.area_m2
-    drag_f, drag_t = _vertical_force_and_torque(frame.position_m, drag_z)
+    drag_f, drag_t = vertical_point_wrench(frame.position_m, drag_z)
 
-    disks = disk_samples(target, options.discretisation)  # (4, P, 3)
-    n_rotor, n_pts, _ = disks.position_m.shape
-    v_disk = _speed_at_points(source, offsets_m, disks.position_m.reshape(-1, 3), options)
-    v_on = v_disk.reshape(-1, n_rotor, n_pts).mean(axis=2)  # (N, 4) disk-averaged oncoming flow
+    v_on = _disk_average_speed(source, target, offsets_m, options)
     # (S0-6): Delta f_i = -b_v v_on,i omega_i^2, omega_i^2 = f_hover / k1 ; (S0-7, S0-8) sums
     delta_f = -target.b_v * target.hover_omega_sq_rad2ps2 * v_on
-    thrust_f, thrust_t = _vertical_force_and_torque(target.rotor_positions_m, delta_f)
+    thrust_f, thrust_t = vertical_point_wrench(target.rotor_positions_m, delta_f)
     return drag_f, drag_t, thrust_f, thrust_t
 
 
@@ -142,11 +176,7 @@ def disturbance_wrench(
     Returns:
         A :class:`WrenchBatch` with (N, 3) arrays; a (3,) input gives N = 1.
     """
-    offsets = np.atleast_2d(np.asarray(offsets_m, dtype=float))
-    if offsets.ndim != 2 or offsets.shape[1] != 3:
-        raise ValueError(f"offsets_m must have shape (N, 3), got {np.shape(offsets_m)}")
-    if not np.all(np.isfinite(offsets)):
-        raise ValueError("offsets_m must be finite")
+    offsets = _checked_offsets(offsets_m)
     blocks = [
         _wrench_block(source, target, offsets[i : i + _CHUNK], options)
         for i in range(0, offsets.shape[0], _CHUNK)
