@@ -34,24 +34,26 @@ def mixer_matrix(vehicle: Vehicle) -> np.ndarray:
     )
 
 
-def motor_thrusts_N(vehicle: Vehicle, force_N: np.ndarray, torque_Nm: np.ndarray) -> np.ndarray:
-    """Per-motor thrusts (N, 4) that hold hover against disturbance force/torque (N, 3), N."""
+def motor_thrust_changes_N(vehicle: Vehicle, force_N: np.ndarray, torque_Nm: np.ndarray) -> np.ndarray:
+    """Per-motor thrust changes from hover (N, 4), N, that cancel force/torque (N, 3) (S0-14)."""
     force = np.atleast_2d(force_N)
     torque = np.atleast_2d(torque_Nm)
-    demand = np.column_stack(
-        [vehicle.mass_kg * GRAVITY_MPS2 - force[:, 2], -torque[:, 0], -torque[:, 1], -torque[:, 2]]
-    )
+    demand = -np.column_stack([force[:, 2], torque[:, 0], torque[:, 1], torque[:, 2]])
     return np.linalg.solve(mixer_matrix(vehicle), demand.T).T
+
+
+def motor_thrusts_N(vehicle: Vehicle, force_N: np.ndarray, torque_Nm: np.ndarray) -> np.ndarray:
+    """Per-motor thrusts (N, 4), N, that hold hover (m g - F_z, -tau) against force/torque (N, 3)."""
+    return vehicle.hover_thrust_per_rotor_N + motor_thrust_changes_N(vehicle, force_N, torque_Nm)
 
 
 def authority_usage(vehicle: Vehicle, force_N: np.ndarray, torque_Nm: np.ndarray) -> np.ndarray:
     """Authority usage (N,) of ``vehicle`` rejecting force (N, 3) N and torque (N, 3) N m, -."""
-    thrusts = motor_thrusts_N(vehicle, force_N, torque_Nm)
+    change = motor_thrust_changes_N(vehicle, force_N, torque_Nm)
     hover = vehicle.hover_thrust_per_rotor_N
     up_N = vehicle.max_thrust_per_rotor_N - hover
     down_N = hover - vehicle.min_motor_thrust_N
     if up_N <= 0.0 or down_N <= 0.0:
         raise ValueError(f"vehicle {vehicle.name!r} cannot hover within its motor thrust range")
-    change = thrusts - hover
     ratio = np.where(change > 0.0, change / up_N, -change / down_N)
     return ratio.max(axis=1)
