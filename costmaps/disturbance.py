@@ -23,7 +23,13 @@ import numpy as np
 
 from costmaps.geometry import Discretisation, disk_samples, frame_elements
 from costmaps.vehicles import AIR_DENSITY_KGPM3, Vehicle
-from costmaps.velocity_field import DEFAULT_FIELD_FORM, FIELD_FORMS, downwash_speed_mps
+from costmaps.velocity_field import (
+    DEFAULT_FIELD_FORM,
+    FIELD_FORMS,
+    axial_distance_m,
+    centreline_speed_mps,
+    radial_profile,
+)
 
 FLAT_PLATE_DRAG_COEFFICIENT = 1.18
 """C_D of a flat plate normal to the flow (S0 II-B, McCormick), -."""
@@ -92,28 +98,47 @@ def vertical_point_wrench(
     return force, torque
 
 
-def _speed_at_points(
-    source: Vehicle, offsets_m: np.ndarray, points_m: np.ndarray, options: ModelOptions
-) -> np.ndarray:
-    """Downwash speed (N, K) at target body points (K, 3) for offsets (N, 3), m/s."""
-    rel = offsets_m[:, None, :] + points_m[None, :, :]
-    r_sq = rel[..., 0] ** 2 + rel[..., 1] ** 2
-    return downwash_speed_mps(
-        source,
-        -rel[..., 2],
-        r_sq,
-        form=options.field_form,
-        air_density_kgpm3=options.air_density_kgpm3,
+def _planar_profile(
+    source: Vehicle,
+    offsets_m: np.ndarray,
+    points_m: np.ndarray,
+    options: ModelOptions,
+    *,
+    power: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Factored (S0-2) at body points that share one height (the rotor plane, geometry module).
+
+    Returns V_max (N,), m/s, and radial_profile((r / (dz - z0))^2)^power (N, K), -, for offsets
+    (N, 3) and points (K, 3); V at a point is V_max * profile (power 1), V^2 is V_max^2 * profile
+    (power 2). r^2 is expanded as |o|^2 + 2 o.p + |p|^2, computed in place, so the (N, K) work is
+    one matrix product and one exponential.
+    """
+    plane_z_m = points_m[0, 2]
+    if np.any(points_m[:, 2] != plane_z_m):
+        raise ValueError("target sample points must lie in one plane (body z = const)")
+    dz_m = -(offsets_m[:, 2] + plane_z_m)
+    v_max = centreline_speed_mps(
+        source, dz_m, form=options.field_form, air_density_kgpm3=options.air_density_kgpm3
     )
+    inv_axial_sq = power / axial_distance_m(source, dz_m) ** 2
+    off_xy, pts_xy = offsets_m[:, :2], points_m[:, :2]
+    scaled = off_xy @ (2.0 * pts_xy.T)  # 2 o.p, (N, K)
+    scaled += (off_xy**2).sum(axis=1)[:, None]
+    scaled += (pts_xy**2).sum(axis=1)[None, :]
+    np.maximum(scaled, 0.0, out=scaled)  # r^2 >= 0 despite rounding
+    scaled *= inv_axial_sq[:, None]
+    return v_max, radial_profile(source, scaled)
 
 
 def _disk_average_speed(
     source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
 ) -> np.ndarray:
+    """(N, 4) disk-averaged oncoming speed, m/s (equal-weight quadrature of the geometry module)."""
     disks = disk_samples(target, options.discretisation)  # (4, P, 3)
     n_rotor, n_pts, _ = disks.position_m.shape
-    v_disk = _speed_at_points(source, offsets_m, disks.position_m.reshape(-1, 3), options)
-    return v_disk.reshape(-1, n_rotor, n_pts).mean(axis=2)
+    v_max, profile = _planar_profile(source, offsets_m, disks.position_m.reshape(-1, 3), options)
+    averaging = np.kron(np.eye(n_rotor), np.full((n_pts, 1), 1.0 / n_pts))  # (4 P, 4)
+    return v_max[:, None] * (profile @ averaging)
 
 
 def oncoming_speed_per_rotor_mps(
@@ -147,10 +172,11 @@ def _wrench_block(
     source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     frame = frame_elements(target, options.discretisation)
-    v_frame = _speed_at_points(source, offsets_m, frame.position_m, options)
-    # (S0-3): dF = -z 1/2 C_D rho V^2 dA ; (S0-4) torque of each element about the CoM
-    drag_z = -0.5 * options.drag_coefficient * options.air_density_kgpm3 * v_frame**2 * frame.area_m2
-    drag_f, drag_t = vertical_point_wrench(frame.position_m, drag_z)
+    v_max, profile_sq = _planar_profile(source, offsets_m, frame.position_m, options, power=2.0)
+    # (S0-3): dF_z = -1/2 C_D rho V^2 dA with V^2 = V_max^2 profile^2; (S0-4) torque about the CoM
+    profile_sq *= frame.area_m2
+    profile_sq *= ((-0.5 * options.drag_coefficient * options.air_density_kgpm3) * v_max**2)[:, None]
+    drag_f, drag_t = vertical_point_wrench(frame.position_m, profile_sq)
 
     v_on = _disk_average_speed(source, target, offsets_m, options)
     # (S0-6): Delta f_i = -b_v v_on,i omega_i^2, omega_i^2 = f_hover / k1 ; (S0-7, S0-8) sums

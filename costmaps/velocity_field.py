@@ -39,7 +39,7 @@ def induced_velocity_mps(source: Vehicle, air_density_kgpm3: float = AIR_DENSITY
     )
 
 
-def _axial_distance_m(source: Vehicle, dz_m: np.ndarray) -> np.ndarray:
+def axial_distance_m(source: Vehicle, dz_m: np.ndarray) -> np.ndarray:
     """dz - z0, floored at L/2 so the field stays finite in the near field, m."""
     return np.maximum(dz_m - source.downwash.z0_m, 0.5 * source.size_m)
 
@@ -54,7 +54,7 @@ def centreline_speed_mps(
     """V_max(dz) of (S0-1) in the named ``form``, any shape, m/s; zero where dz <= 0."""
     dz_m = np.asarray(dz_m, dtype=float)
     v_i = induced_velocity_mps(source, air_density_kgpm3)
-    decay = source.downwash.c_ax * source.size_m / _axial_distance_m(source, dz_m)
+    decay = source.downwash.c_ax * source.size_m / axial_distance_m(source, dz_m)
     if form == "inverse-z":
         v_max = v_i * decay
     elif form == "printed":
@@ -62,6 +62,14 @@ def centreline_speed_mps(
     else:
         raise ValueError(f"unknown field form {form!r}; expected one of {', '.join(FIELD_FORMS)}")
     return np.where(dz_m > 0.0, v_max, 0.0)
+
+
+def radial_profile(source: Vehicle, r_over_axial_sq: np.ndarray) -> np.ndarray:
+    """Gaussian radial factor exp(-c_rad (r / (dz - z0))^2) of (S0-2), given (r / (dz - z0))^2, -."""
+    exponent = np.multiply(-source.downwash.c_rad, r_over_axial_sq)
+    if isinstance(exponent, np.ndarray) and exponent.ndim > 0:
+        return np.exp(exponent, out=exponent)  # in place: batches are large
+    return np.exp(exponent)
 
 
 def downwash_speed_mps(
@@ -77,6 +85,6 @@ def downwash_speed_mps(
     Takes the squared horizontal distance ``r_sq_m2`` (m^2) so batches avoid a square root.
     """
     dz_m = np.asarray(dz_m, dtype=float)
-    axial_m = _axial_distance_m(source, dz_m)
+    axial_m = axial_distance_m(source, dz_m)
     v_max = centreline_speed_mps(source, dz_m, form=form, air_density_kgpm3=air_density_kgpm3)
-    return v_max * np.exp(-source.downwash.c_rad * np.asarray(r_sq_m2) / (axial_m * axial_m))
+    return v_max * radial_profile(source, np.asarray(r_sq_m2) / (axial_m * axial_m))

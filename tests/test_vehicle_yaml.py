@@ -1,0 +1,59 @@
+"""Custom vehicles from YAML: validation errors name the file and key."""
+
+import pytest
+
+from costmaps.builtin_vehicles import LARGE_QUAD
+from costmaps.errors import UserError
+from costmaps.vehicle_yaml import load_vehicle_file, resolve_vehicle, vehicle_from_dict, vehicle_to_yaml_dict
+
+
+def write(tmp_path, text):
+    path = tmp_path / "vehicles.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_round_trip_of_a_builtin_vehicle():
+    data = vehicle_to_yaml_dict(LARGE_QUAD)
+    vehicle = vehicle_from_dict("copy", data)
+    assert vehicle.to_dict()["propeller"] == LARGE_QUAD.to_dict()["propeller"]
+    assert vehicle.inertia_diag_kgm2 == pytest.approx(LARGE_QUAD.inertia_diag_kgm2)
+
+
+def test_base_and_override(tmp_path):
+    path = write(tmp_path, "vehicles:\n  heavy:\n    base: large-quad\n    mass_kg: 0.9\n    propeller: {diameter_m: 0.254}\n")
+    heavy = load_vehicle_file(path)["heavy"]
+    assert heavy.mass_kg == 0.9 and heavy.propeller.diameter_m == 0.254
+    assert heavy.arm_length_m == LARGE_QUAD.arm_length_m
+    assert resolve_vehicle("heavy", {"heavy": heavy}) is heavy
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        ("    base: large-quad\n    mass_kg: -1\n", "vehicles.v.mass_kg: expected a positive number"),
+        ("    base: large-quad\n    propeller: {diameter_m: 0}\n", "vehicles.v.propeller.diameter_m: expected a positive number"),
+        ("    mass_kg: 1.0\n", "vehicles.v: missing key"),
+        ("    base: nope\n", "vehicles.v.base: unknown vehicle type 'nope'"),
+        ("    base: large-quad\n    colour: red\n", "unknown key 'colour'"),
+        ("    base: large-quad\n    inertia_diag_kgm2: [1, 2]\n", "inertia_diag_kgm2: expected a list of 3"),
+        ("    base: large-quad\n    max_thrust_N: 5\n", "max_thrust_N: 5.0 N cannot lift"),
+        ("    base: large-quad\n    mass_kg: .nan\n", "expected a finite number"),
+    ],
+)
+def test_bad_vehicles_name_file_and_key(tmp_path, body, message):
+    path = write(tmp_path, "vehicles:\n  v:\n" + body)
+    with pytest.raises(UserError) as err:
+        load_vehicle_file(path)
+    assert str(path) in str(err.value) and message in str(err.value)
+
+
+def test_bad_files(tmp_path):
+    with pytest.raises(UserError, match="cannot read"):
+        load_vehicle_file(tmp_path / "missing.yaml")
+    with pytest.raises(UserError, match="not valid YAML"):
+        load_vehicle_file(write(tmp_path, "vehicles: [\n"))
+    with pytest.raises(UserError, match="top-level 'vehicles:'"):
+        load_vehicle_file(write(tmp_path, "- 1\n"))
+    with pytest.raises(UserError, match="unknown vehicle type 'x'"):
+        resolve_vehicle("x")
