@@ -52,6 +52,7 @@ class OcpAgent:
     max_speed_mps: float = 1.0
     max_accel_mps2: float = 2.0
     max_jerk_mps3: float = 5.0
+    body_radius_m: float = 0.1  # disc holding frame and propellers (arm + propeller radius), m
     warm_position_m: np.ndarray | None = None  # (n+1, 3)
     warm_velocity_mps: np.ndarray | None = None  # (n+1, 3)
     warm_acceleration_mps2: np.ndarray | None = None  # (n+1, 3)
@@ -85,7 +86,7 @@ class OcpProblem:
     limit_norm: str = "axis"  # "axis": per-axis limits (as Ruckig); "euclidean": norm limits
     kinematic_margin: float = 0.97  # node limits are this fraction of the true ones (between nodes)
     authority_margin: float = 0.9  # node authority bound is this fraction of authority_fraction
-    obstacle_margin_m: float = 0.05  # extra clearance to boxes (chords between nodes), m
+    obstacle_margin_m: float = 0.1  # clearance to boxes beyond the body radius (incl. chords), m
     separation_margin_m: float = 0.02  # extra separation at nodes, m
     interaction_radius_m: float = 2.0  # horizontal range beyond which a source is ignored, m
     max_iterations: int = 300
@@ -190,7 +191,7 @@ def build_and_solve(problem: OcpProblem, *, progress: Callable[[str], None] | No
         opti.set_initial(U, np.clip(wj, -jmax, jmax).T)
         # obstacles: side selection from the warm start, one linear constraint per node and box
         for lo_b, hi_b in problem.obstacles:
-            infl = 0.5 * a.vehicle.size_m + problem.obstacle_margin_m
+            infl = a.body_radius_m + problem.obstacle_margin_m
             blo = np.asarray(lo_b, float) - infl
             bhi = np.asarray(hi_b, float) + infl
             for k in range(n + 1):
@@ -213,12 +214,18 @@ def build_and_solve(problem: OcpProblem, *, progress: Callable[[str], None] | No
                          np.tile(np.asarray(a.start_m, float), (n + 1, 1))) for a in problem.agents}
     names = [a.name for a in problem.agents]
 
-    # separation between every pair with at least one moving vehicle
-    dmin = problem.min_separation_m + problem.separation_margin_m
+    # separation between every pair with at least one moving vehicle: at least min_separation_m
+    # and the sum of the body radii; a dock pair may come as close as its dock offset
     for i, ni in enumerate(names):
         for nj in names[i + 1:]:
             if not (agents[ni].moving or agents[nj].moving):
                 continue
+            dmin = problem.separation_margin_m + max(
+                problem.min_separation_m, agents[ni].body_radius_m + agents[nj].body_radius_m
+            )
+            for x, y in ((ni, nj), (nj, ni)):
+                if agents[x].dock_with == y and agents[x].dock_offset_m is not None:
+                    dmin = min(dmin, float(np.linalg.norm(agents[x].dock_offset_m)))
             dist = np.linalg.norm(warm_pos[ni] - warm_pos[nj], axis=1)
             ks = [k for k in range(n + 1) if dist[k] < dmin + problem.interaction_radius_m]
             if not ks:
