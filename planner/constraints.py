@@ -1,0 +1,278 @@
+"""Constraint checks used by the sampling planner: workspace, obstacles, separation and downwash.
+
+Frames: world z up, positions of centres of mass in m, times in s. A vehicle being planned is
+checked against the vehicles planned before it (moving disturbance sources, sampled on a time grid)
+and the start positions of those not planned yet.
+
+Modes (``--method``):
+
+``downwash``    separation + the disturbance-cutoff maps of the cost-map issue: target T at
+                horizontal distance r and vertical separation dz below source S is invalid when
+                r < r_cut_{S->T}(dz) at level ``limits.authority_fraction``
+                (``costmaps.map_store.pair_maps(S, T).cutoff.r_cut_m``); checked both ways.
+``no-downwash`` separation only (baseline).
+``ellipsoid``   Crazyswarm-style keep-out ellipsoid: horizontal radius r, vertical radius 3 r, with
+                r = sum of the two body radii (arm + propeller radius), scaled to the vehicles' size.
+
+Invalid zone of the model (0 < dz <= 3 L of the source, S0 II-A): ``limits.invalid_zone_rule``.
+``conservative`` (default) takes the map's conservative cutoff and at least the footprint overlap
+radius (sum of body radii); ``forbid`` keeps targets out of the whole invalid cylinder up to the sum
+of body radii plus the largest valid-zone cutoff; ``model`` uses the map as is.
+Scalar Python math is used per state because OMPL calls the checker once per state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from costmaps.disturbance import VALIDITY_FACTOR_L
+from costmaps.vehicles import Vehicle
+
+MODES = ("downwash", "no-downwash", "ellipsoid")
+DZ_STEP_M = 0.02  # resolution of the per-pair cutoff lookup, m
+DZ_MAX_M = 6.0  # beyond this vertical separation the cutoff is taken as 0, m
+
+
+def body_radius_m(vehicle: Vehicle) -> float:
+    """Radius of the disc holding frame and propellers: arm length + propeller radius, m."""
+    return vehicle.arm_length_m + vehicle.propeller.radius_m
+
+
+@dataclass(frozen=True)
+class CutoffTable:
+    """r_cut (m) of one ordered (source -> target) pair on a uniform dz grid ``k * dz_step_m``."""
+
+    source: str
+    target: str
+    level: float
+    dz_step_m: float
+    r_cut_m: tuple[float, ...]  # (K,) m; conservative lookup takes the larger bracketing sample
+    invalid_dz_m: float  # 3 L of the source, m
+    provenance: str  # "costmaps.map_store" or "local stand-in"
+
+    def lookup(self, dz_m: float) -> float:
+        """Cutoff radius at vertical separation ``dz_m`` (target below > 0), m; 0 when dz <= 0."""
+        if dz_m <= 0.0:
+            return 0.0
+        k = int(dz_m / self.dz_step_m)
+        if k + 1 >= len(self.r_cut_m):
+            return 0.0
+        a, b = self.r_cut_m[k], self.r_cut_m[k + 1]
+        return a if a > b else b
+
+
+def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, field_form: str | None) -> tuple[np.ndarray, str]:
+    """r_cut(dz) from the cost maps (costmaps.map_store), or a local stand-in until they exist."""
+    from costmaps.disturbance import ModelOptions
+
+    options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
+    try:
+        from costmaps.map_store import pair_maps
+    except ImportError:
+        return _standin_r_cut(source, target, dz, level, options), "local stand-in (costmaps.map_store missing)"
+    maps = pair_maps(source, target, options=options)
+    return np.asarray(maps.cutoff.r_cut_m(dz, level=level), dtype=float), "costmaps.map_store"
+
+
+def _standin_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, options) -> np.ndarray:
+    """Stand-in used only while costmaps.map_store is absent: usage on an (r, azimuth) grid."""
+    from costmaps.authority import authority_usage
+    from costmaps.disturbance import disturbance_wrench
+
+    r = np.linspace(0.0, 2.0, 81)
+    az = np.array([0.0, math.pi / 4])
+    rr, aa, zz = np.meshgrid(r, az, dz[::5], indexing="ij")
+    off = np.column_stack([(rr * np.cos(aa)).ravel(), (rr * np.sin(aa)).ravel(), -zz.ravel()])
+    w = disturbance_wrench(source, target, off, options)
+    u = authority_usage(target, w.force_N, w.torque_Nm).reshape(rr.shape).max(axis=1)  # (R, Kc)
+    over = u >= level
+    idx = np.where(over.any(axis=0), over.shape[0] - 1 - np.argmax(over[::-1], axis=0), -1)
+    rc = np.where(idx >= 0, r[np.minimum(idx + 1, r.size - 1)], 0.0)
+    coarse = dz[::5]
+    return np.interp(dz, coarse, rc)
+
+
+@lru_cache(maxsize=256)
+def cutoff_table(source: Vehicle, target: Vehicle, *, level: float, rule: str = "conservative", field_form: str | None = None) -> CutoffTable:
+    """The per-pair cutoff lookup at authority ``level`` with the invalid-zone ``rule`` applied."""
+    dz = np.arange(0.0, DZ_MAX_M + DZ_STEP_M, DZ_STEP_M)
+    r_cut, provenance = _map_r_cut(source, target, dz, level, field_form)
+    r_cut = np.where(dz > 0, np.maximum(r_cut, 0.0), 0.0)
+    invalid_dz = VALIDITY_FACTOR_L * source.size_m
+    inside = (dz > 0) & (dz <= invalid_dz)
+    overlap = body_radius_m(source) + body_radius_m(target)
+    if rule == "conservative":
+        r_cut = np.where(inside, np.maximum(r_cut, overlap), r_cut)
+    elif rule == "forbid":
+        valid_max = float(r_cut[~inside & (dz > 0)].max(initial=0.0))
+        r_cut = np.where(inside, np.maximum(r_cut, overlap + valid_max), r_cut)
+    return CutoffTable(source.name, target.name, float(level), DZ_STEP_M, tuple(float(v) for v in r_cut), float(invalid_dz), provenance)
+
+
+@dataclass
+class Track:
+    """Another vehicle's motion, sampled every ``dt_s`` from t = 0: ``xyz`` lists of length N, m.
+
+    Before 0 and after the last sample it holds its first/last position. ``until_s`` ends its
+    presence (used for the starts of vehicles not planned yet: assumed to leave by then), s.
+    """
+
+    name: str
+    vehicle: Vehicle
+    dt_s: float
+    x: list[float]
+    y: list[float]
+    z: list[float]
+    until_s: float = math.inf
+
+    @classmethod
+    def static(cls, name: str, vehicle: Vehicle, p_m: np.ndarray, *, until_s: float = math.inf) -> "Track":
+        return cls(name, vehicle, 1.0, [float(p_m[0])], [float(p_m[1])], [float(p_m[2])], until_s)
+
+    @classmethod
+    def from_arrays(cls, name: str, vehicle: Vehicle, dt_s: float, position_m: np.ndarray) -> "Track":
+        """From positions (N, 3), m, sampled at k * dt_s."""
+        p = np.asarray(position_m, dtype=float)
+        return cls(name, vehicle, float(dt_s), p[:, 0].tolist(), p[:, 1].tolist(), p[:, 2].tolist())
+
+    @property
+    def end_s(self) -> float:
+        return (len(self.x) - 1) * self.dt_s
+
+    def at(self, t_s: float) -> tuple[float, float, float]:
+        """Linearly interpolated position at ``t_s``, m."""
+        n = len(self.x)
+        u = t_s / self.dt_s
+        if u <= 0.0 or n == 1:
+            return self.x[0], self.y[0], self.z[0]
+        k = int(u)
+        if k >= n - 1:
+            return self.x[-1], self.y[-1], self.z[-1]
+        f = u - k
+        return (
+            self.x[k] + f * (self.x[k + 1] - self.x[k]),
+            self.y[k] + f * (self.y[k + 1] - self.y[k]),
+            self.z[k] + f * (self.z[k + 1] - self.z[k]),
+        )
+
+
+@dataclass
+class PairRule:
+    """What the planned vehicle must keep from one other vehicle."""
+
+    track: Track
+    separation_m: float
+    cut_from_other: CutoffTable | None  # other is the source, planned vehicle the target
+    cut_on_other: CutoffTable | None  # planned vehicle is the source, other the target
+    ellipsoid_r_m: float | None
+
+
+@dataclass
+class ConflictChecker:
+    """Validity of states (x, y, z, t) of one vehicle; counts rejections per constraint kind."""
+
+    name: str
+    lo: tuple[float, float, float]  # workspace minus body margins, m
+    hi: tuple[float, float, float]
+    boxes: list[tuple[float, float, float, float, float, float]]  # inflated obstacles, m
+    rules: list[PairRule]
+    rejections: dict[str, int] = field(default_factory=dict)
+
+    def static_conflict(self, x: float, y: float, z: float) -> str | None:
+        lo, hi = self.lo, self.hi
+        if not (lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1] and lo[2] <= z <= hi[2]):
+            return "workspace"
+        for i, b in enumerate(self.boxes):
+            if b[0] <= x <= b[3] and b[1] <= y <= b[4] and b[2] <= z <= b[5]:
+                return f"obstacle[{i}]"
+        return None
+
+    def conflict(self, x: float, y: float, z: float, t: float, *, exclude: str | None = None) -> str | None:
+        """The first violated constraint at a state ("workspace", "obstacle[i]", "separation from B",
+        "downwash of B", "downwash on B", "ellipsoid of B") or None when valid."""
+        c = self.static_conflict(x, y, z)
+        if c is not None:
+            return c
+        for rule in self.rules:
+            tr = rule.track
+            if t > tr.until_s or tr.name == exclude:
+                continue
+            ox, oy, oz = tr.at(t)
+            dx, dy, dz = x - ox, y - oy, z - oz
+            r2 = dx * dx + dy * dy
+            if r2 + dz * dz < rule.separation_m * rule.separation_m:
+                return f"separation from {tr.name}"
+            if rule.ellipsoid_r_m is not None:
+                re = rule.ellipsoid_r_m
+                if r2 / (re * re) + dz * dz / (9.0 * re * re) < 1.0:
+                    return f"ellipsoid of {tr.name}"
+                continue
+            if dz < 0.0 and rule.cut_from_other is not None:
+                rc = rule.cut_from_other.lookup(-dz)
+                if r2 < rc * rc:
+                    return f"downwash of {tr.name}"
+            elif dz > 0.0 and rule.cut_on_other is not None:
+                rc = rule.cut_on_other.lookup(dz)
+                if r2 < rc * rc:
+                    return f"downwash on {tr.name}"
+        return None
+
+    def valid(self, x: float, y: float, z: float, t: float) -> bool:
+        c = self.conflict(x, y, z, t)
+        if c is None:
+            return True
+        kind = c.split(" ")[0] if not c.startswith("obstacle") else "obstacle"
+        key = c if kind in ("separation", "downwash", "ellipsoid") else kind
+        self.rejections[key] = self.rejections.get(key, 0) + 1
+        return False
+
+    def most_rejected(self) -> str | None:
+        """The constraint that rejected most states so far (names the blocking vehicle)."""
+        if not self.rejections:
+            return None
+        return max(self.rejections.items(), key=lambda kv: kv[1])[0]
+
+
+def build_checker(
+    scenario,
+    name: str,
+    tracks: list[Track],
+    *,
+    mode: str = "downwash",
+    level: float | None = None,
+) -> ConflictChecker:
+    """The checker of vehicle ``name`` against ``tracks`` (other vehicles) for one ``mode``.
+
+    ``level`` is the authority-usage level of the cutoff (default ``limits.authority_fraction``).
+    Workspace and obstacles are inflated by the body radius horizontally and by
+    ``limits.obstacle_margin_m`` vertically (vehicles are flat).
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    task = scenario.vehicles[name]
+    lim = scenario.limits
+    rb = body_radius_m(task.vehicle)
+    mz = lim.obstacle_margin_m
+    lo = scenario.workspace_min_m + np.array([rb, rb, mz])
+    hi = scenario.workspace_max_m - np.array([rb, rb, mz])
+    boxes = []
+    for box in scenario.obstacles:
+        grow = np.array([rb + lim.obstacle_margin_m, rb + lim.obstacle_margin_m, mz])
+        boxes.append(tuple((box.min_m - grow).tolist() + (box.max_m + grow).tolist()))
+    level = lim.authority_fraction if level is None else level
+    rules = []
+    for tr in tracks:
+        other = tr.vehicle
+        sep = max(lim.min_separation_m, rb + body_radius_m(other))
+        cut_from = cut_on = ell = None
+        if mode == "downwash":
+            cut_from = cutoff_table(other, task.vehicle, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
+            cut_on = cutoff_table(task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
+        elif mode == "ellipsoid":
+            ell = rb + body_radius_m(other)
+        rules.append(PairRule(tr, sep, cut_from, cut_on, ell))
+    return ConflictChecker(name, tuple(lo.tolist()), tuple(hi.tolist()), boxes, rules)

@@ -1,0 +1,318 @@
+"""Multi-vehicle planning pipeline: prioritised space-time sampling, Ruckig timing, optional
+refinement (``planner.optimize.refine_plan``), metrics.
+
+Vehicles are planned one after another (hovering vehicles first, then the others in file order with
+every dock target before the vehicles docking to it). Each one is searched in space-time
+(:mod:`planner.sampling`) against the trajectories already planned (moving disturbance sources) and
+the start positions of vehicles not planned yet (assumed to leave within ``LEAVE_START_S``). Its
+path is timed with Ruckig (:mod:`planner.timing`) and the timed trajectory is re-checked on the time
+grid; a failed check retries with another seed. When a vehicle cannot be planned, planning restarts
+once with that vehicle first; after that :class:`InfeasibleError` names the vehicle and constraint.
+
+Docking: the search ends at an approach point on the dock axis, outside the source's invalid zone
+(dz > 3 L, S0 II-A); the final straight approach to the dock at half speed crosses the invalid zone,
+where the cutoff rule is suspended for the dock pair only (the two must meet there). The plan reports
+the time spent in the invalid zone and ``proxplan verify`` checks the model's extrapolated authority
+usage there.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Callable
+
+import numpy as np
+
+from costmaps.disturbance import VALIDITY_FACTOR_L
+from planner.constraints import Track, body_radius_m, build_checker
+from planner.plan_io import PlanResult, VehicleTrajectory
+from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
+from planner.scenario import Scenario
+from planner.timing import KinematicLimits, TimedPath, common_grid, time_parameterize
+
+METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
+MODE_OF_METHOD = {"optimized": "downwash", "sampling": "downwash", "no-downwash": "no-downwash", "ellipsoid": "ellipsoid"}
+DT_S = 0.05  # common time grid of plan.json, s
+LEAVE_START_S = 2.5  # vehicles not planned yet are assumed to have left their start by then, s
+ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
+DOCK_APPROACH_MARGIN_M = 0.1  # approach point this far beyond the invalid zone, m
+DOCK_SPEED_FACTOR = 0.5  # final dock approach at this fraction of the vehicle's limits
+
+
+class InfeasibleError(Exception):
+    """No plan: ``vehicle`` could not meet ``constraint`` (e.g. "downwash of carrier")."""
+
+    def __init__(self, vehicle: str, constraint: str, message: str):
+        super().__init__(message)
+        self.vehicle = vehicle
+        self.constraint = constraint
+        self.message = message
+
+
+class _VehicleFailed(Exception):
+    def __init__(self, vehicle: str, constraint: str, message: str):
+        super().__init__(message)
+        self.vehicle, self.constraint, self.message = vehicle, constraint, message
+
+
+def priority_order(scenario: Scenario) -> list[str]:
+    """Hovering vehicles first, then the rest in file order with dock targets before dockers."""
+    hover = [n for n, t in scenario.vehicles.items() if t.hover]
+    return hover + [n for n in scenario.dock_order() if n not in hover]
+
+
+def kinematic_limits(task) -> KinematicLimits:
+    return KinematicLimits(task.max_speed_mps, task.max_accel_mps2, task.max_jerk_mps3)
+
+
+def dock_geometry(scenario: Scenario, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(approach point A (3,), dock point D (3,)), world frame, m, of a docking vehicle.
+
+    A lies on the dock axis (the offset direction from the target) beyond the invalid zone of
+    whichever vehicle is above: 3 L of that vehicle plus ``DOCK_APPROACH_MARGIN_M``; for mostly
+    horizontal offsets it lies 0.5 m further out than the dock point.
+    """
+    task = scenario.vehicles[name]
+    target = scenario.vehicles[task.dock_with]
+    p_target = scenario.final_position_m(task.dock_with)
+    off = task.dock_offset_m
+    d = p_target + off
+    n = float(np.linalg.norm(off))
+    u = off / n if n > 0 else np.array([0.0, 0.0, 1.0])
+    if abs(u[2]) >= 0.5:
+        upper = task.vehicle if off[2] > 0 else target.vehicle
+        reach = max(n + 0.3, (VALIDITY_FACTOR_L * upper.size_m + DOCK_APPROACH_MARGIN_M) / abs(u[2]))
+    else:
+        reach = n + 0.5
+    a = p_target + u * reach
+    a = np.clip(a, scenario.workspace_min_m + body_radius_m(task.vehicle), scenario.workspace_max_m - body_radius_m(task.vehicle))
+    return a, d
+
+
+def _plan_order(
+    scenario: Scenario, order: list[str], *, mode: str, seed: int, options: SamplingOptions, progress
+) -> tuple[dict[str, TimedPath], dict]:
+    timed: dict[str, TimedPath] = {}
+    tracks: dict[str, Track] = {}
+    info: dict = {"attempts": {}, "rrt_vertices": {}}
+    horizon = scenario.limits.time_horizon_s
+    for idx, name in enumerate(order):
+        task = scenario.vehicles[name]
+        if progress:
+            progress(f"planning {name}", idx / max(1, len(order)))
+        others = [tracks[n] for n in timed]
+        others += [
+            Track.static(n, scenario.vehicles[n].vehicle, scenario.vehicles[n].start_m,
+                         until_s=math.inf if scenario.vehicles[n].hover else LEAVE_START_S)
+            for n in order if n not in timed and n != name
+        ]
+        checker = build_checker(scenario, name, others, mode=mode)
+        bad = start_conflict(checker, task.start_m)
+        if bad is not None:
+            raise InfeasibleError(name, bad, f"vehicle {name!r}: its start {task.start_m.tolist()} violates '{bad}' at t = 0")
+        if task.hover:
+            path = TimedPath(np.array([0.0]), task.start_m[None, :].copy(), [])
+            timed[name] = path
+            tracks[name] = Track.static(name, task.vehicle, task.start_m)
+            continue
+        limits = kinematic_limits(task)
+        hold_until = max([tr.end_s for tr in others if math.isfinite(tr.until_s) is False] + [LEAVE_START_S, 0.0]) + 1.0
+        hold_until = max(hold_until, max([tr.end_s for tr in others] + [0.0]) + 1.0)
+        if task.dock_with is not None:
+            a, d = dock_geometry(scenario, name)
+            slow = KinematicLimits(*(DOCK_SPEED_FACTOR * np.array([limits.max_speed_mps, limits.max_accel_mps2, limits.max_jerk_mps3])))
+            goal = GoalSpec(position_m=a, hold_until_s=hold_until, tail=[d], tail_exempt=task.dock_with, tail_limits=slow)
+        else:
+            goal = GoalSpec(position_m=task.goal_m, hold_until_s=hold_until)
+        accepted = None
+        last_problem = None
+        for attempt in range(ATTEMPTS):
+            sp = plan_space_time(checker, task.start_m, goal, limits, horizon_s=horizon,
+                                 seed=seed * 1009 + idx * 31 + attempt, options=options)
+            if sp is None:
+                last_problem = checker.most_rejected() or "no valid arrival time at the goal"
+                continue
+            if goal.tail:  # the dock approach is timed at the slower limits
+                tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
+            else:
+                tp = time_parameterize(sp.waypoints_m, sp.times_s, limits)
+            problem = _recheck(checker, tp, goal, hold_until)
+            if problem is None:
+                accepted = tp
+                info["attempts"][name] = attempt + 1
+                info["rrt_vertices"][name] = sp.info.get("rrt_vertices")
+                break
+            last_problem = problem
+            info.setdefault("rejected", []).append(f"{name} attempt {attempt + 1}: timed trajectory violates '{problem}'")
+        if accepted is None:
+            raise _VehicleFailed(name, last_problem or "unknown", f"vehicle {name!r}: no path found; most limiting constraint: '{last_problem}'")
+        timed[name] = accepted
+        t_grid = common_grid(accepted.duration_s, DT_S)
+        p, _, _ = accepted.sample(t_grid)
+        tracks[name] = Track.from_arrays(name, task.vehicle, DT_S, p)
+    return timed, info
+
+
+def _retime_with_tail(sp, limits: KinematicLimits, tail_limits: KinematicLimits, n_tail: int) -> TimedPath:
+    main = time_parameterize(sp.waypoints_m[: len(sp.waypoints_m) - n_tail], sp.times_s[: len(sp.times_s) - n_tail], limits)
+    tail = time_parameterize(sp.waypoints_m[len(sp.waypoints_m) - n_tail - 1 :], None, tail_limits)
+    knots = np.concatenate([main.knot_t_s, main.knot_t_s[-1] + tail.knot_t_s[1:]])
+    return TimedPath(knots, sp.waypoints_m.copy(), main.segments + tail.segments)
+
+
+def _recheck(checker, tp: TimedPath, goal: GoalSpec, hold_until: float) -> str | None:
+    """First conflict of the timed trajectory on a fine grid (dock target exempt on the tail)."""
+    t_tail = tp.knot_t_s[-1 - len(goal.tail)] if goal.tail else math.inf
+    t = np.arange(0.0, max(tp.duration_s, hold_until) + 1e-9, DT_S / 2)
+    p, _, _ = tp.sample(t)
+    for ti, pi in zip(t, p):
+        exclude = goal.tail_exempt if ti >= t_tail - 1e-9 else None
+        c = checker.conflict(pi[0], pi[1], pi[2], float(ti), exclude=exclude)
+        if c is not None:
+            return c
+    return None
+
+
+def plan_scenario(
+    scenario: Scenario,
+    *,
+    method: str = "optimized",
+    seed: int = 0,
+    progress: Callable[[str, float], None] | None = None,
+    options: SamplingOptions = SamplingOptions(),
+) -> PlanResult:
+    """Plan every vehicle of ``scenario``; raises :class:`InfeasibleError` when impossible.
+
+    ``method``: "optimized" (sampling, then ``planner.optimize.refine_plan`` when available),
+    "sampling", "no-downwash" (separation only) or "ellipsoid" (keep-out ellipsoid baseline).
+    ``progress(message, fraction)`` is called as vehicles are planned.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    t0 = time.perf_counter()
+    mode = MODE_OF_METHOD[method]
+    order = priority_order(scenario)
+    notes: list[str] = []
+    for restart in range(2):
+        try:
+            timed, info = _plan_order(scenario, order, mode=mode, seed=seed, options=options, progress=progress)
+            break
+        except _VehicleFailed as fail:
+            if restart == 1 or order[0] == fail.vehicle:
+                raise InfeasibleError(fail.vehicle, fail.constraint, fail.message) from None
+            notes.append(f"priority restart: {fail.vehicle} failed ({fail.constraint}); planned first instead")
+            order = [fail.vehicle] + [n for n in order if n != fail.vehicle]
+            hovers = [n for n in order if scenario.vehicles[n].hover]
+            order = hovers + [n for n in order if n not in hovers]
+            # a dock target must stay before its dockers
+            order = [n for n in scenario.dock_order() if n in hovers] + _respect_docks(scenario, [n for n in order if n not in hovers])
+    plan = assemble_plan(scenario, timed, method=method if method != "optimized" else "sampling", notes=notes)
+    plan.metrics["priority_order"] = order
+    plan.metrics["sampling_attempts"] = info["attempts"]
+    plan.metrics["seed"] = seed
+    if method == "optimized":
+        plan = _refine(scenario, plan, seed=seed, progress=progress)
+    finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - t0)
+    if progress:
+        progress("done", 1.0)
+    return plan
+
+
+def _respect_docks(scenario: Scenario, names: list[str]) -> list[str]:
+    out: list[str] = []
+    def add(n):
+        if n in out:
+            return
+        w = scenario.vehicles[n].dock_with
+        if w is not None and w in names:
+            add(w)
+        out.append(n)
+    for n in names:
+        add(n)
+    return out
+
+
+def _refine(scenario: Scenario, plan: PlanResult, *, seed: int, progress) -> PlanResult:
+    try:
+        from planner.optimize import refine_plan
+    except ImportError as err:
+        plan.notes.append(f"optimized: planner.optimize is not available ({err}); this is the sampling result")
+        plan.method = "sampling (optimizer unavailable)"
+        return plan
+    result = refine_plan(scenario, plan, seed=seed, progress=progress)
+    refined = result.plan
+    if not getattr(result, "success", False):
+        plan.notes.append(f"optimized: refinement failed ({getattr(result, 'message', '')}); this is the sampling result")
+        plan.method = "sampling (optimizer fell back)"
+        return plan
+    refined.method = "optimized"
+    refined.notes = list(plan.notes) + list(refined.notes or [])
+    for key in ("priority_order", "sampling_attempts", "seed"):
+        refined.metrics.setdefault(key, plan.metrics.get(key))
+    refined.metrics["optimizer_solve_time_s"] = getattr(result, "solve_time_s", None)
+    refined.metrics["optimizer_iterations"] = getattr(result, "iterations", None)
+    refined.scenario_file = plan.scenario_file
+    refined.scenario_spec = plan.scenario_spec
+    return refined
+
+
+def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: str, notes: list[str]) -> PlanResult:
+    """Sample every timed path on one common grid (file order of vehicles) into a PlanResult."""
+    end = max([tp.duration_s for tp in timed.values()] + [DT_S])
+    grid = common_grid(end, DT_S)
+    vehicles = {}
+    for name, task in scenario.vehicles.items():
+        p, v, a = timed[name].sample(grid)
+        vehicles[name] = VehicleTrajectory(name, task.type_name, grid.copy(), p, v, a)
+    notes = list(notes)
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is not None:
+            a_pt, d_pt = dock_geometry(scenario, name)
+            notes.append(
+                f"dock {name} -> {task.dock_with}: final approach from {np.round(a_pt, 3).tolist()} to "
+                f"{np.round(d_pt, 3).tolist()} at {DOCK_SPEED_FACTOR:g} x speed crosses the model's invalid zone "
+                f"(dz <= 3 L, S0 II-A); the cutoff rule is suspended for this pair there and verify checks the "
+                f"model's extrapolated usage"
+            )
+    return PlanResult(
+        scenario=scenario.name,
+        dt_s=DT_S,
+        vehicles=vehicles,
+        metrics={},
+        method=method,
+        notes=notes,
+        scenario_file=scenario.source_path,
+        scenario_spec=scenario.spec,
+    )
+
+
+def finish_metrics(scenario: Scenario, plan: PlanResult, *, planning_time_s: float) -> None:
+    """Fill the DESIGN metrics (planning_time_s, max_authority_usage, min_separation_m, makespan_s)
+    and extras (per-vehicle usage, path length, arrival time, invalid-zone time of docks)."""
+    from planner.verify import separation_summary, wrench_along_plan
+
+    t = plan.t_s
+    along = wrench_along_plan(plan, scenario, t_s=t)
+    usage = {n: float(a.usage.max()) for n, a in along.items()}
+    sep = separation_summary(plan, scenario)
+    moving_end = 0.0
+    for tr in plan.vehicles.values():
+        moving = np.linalg.norm(tr.velocity_mps, axis=1) > 1e-4
+        if moving.any():
+            moving_end = max(moving_end, float(tr.t_s[np.nonzero(moving)[0][-1] + 1 if np.nonzero(moving)[0][-1] + 1 < tr.t_s.size else -1]))
+    plan.metrics.update(
+        {
+            "planning_time_s": round(float(planning_time_s), 4),
+            "max_authority_usage": max(usage.values()) if usage else 0.0,
+            "min_separation_m": sep["min_separation_m"],
+            "makespan_s": float(moving_end),
+            "authority_fraction": scenario.limits.authority_fraction,
+            "authority_usage_by_vehicle": usage,
+            "invalid_zone_s_by_vehicle": {n: float(a.invalid_zone.sum() * plan.dt_s) for n, a in along.items()},
+            "min_dock_separation_m": sep["min_dock_separation_m"],
+            "path_length_m": {
+                n: float(np.linalg.norm(np.diff(tr.position_m, axis=0), axis=1).sum()) for n, tr in plan.vehicles.items()
+            },
+        }
+    )

@@ -1,0 +1,321 @@
+"""OMPL space-time sampling planner for one vehicle against already-planned (moving) vehicles.
+
+State space: R^3 x time, as an OMPL ``RealVectorStateSpace(4)`` with coordinates (x, y, z, tau),
+m, where tau = v_ref t (m) so that the Euclidean metric used for nearest neighbours weighs a second
+like ``v_ref`` metres. A Python ``MotionValidator`` makes the space directed: a motion is valid only
+forward in time, no faster than the vehicle's jerk-limited rest-to-rest time over its length
+(:class:`planner.timing.DurationTable`), and with every intermediate state (at most
+``check_step_m`` / ``check_step_s`` apart, linear interpolation) valid for the
+:class:`planner.constraints.ConflictChecker` (workspace, inflated obstacles, separation, downwash
+cutoffs of the other vehicles at that time).
+
+Planner: OMPL ``RRT`` with goal bias. The goal is a set of goal states at the goal position, one
+per candidate arrival time from which holding the goal (or flying the dock approach and holding the
+dock) stays valid. RRT is chosen because it only ever checks motions from the tree towards new
+states (forward in time), which a directed space needs; RRTConnect grows a second tree backwards
+from a goal whose arrival time is unknown. After the first solution, OMPL's ``PathSimplifier``
+shortcuts the path (shortcuts are checked with the same directed validator) and a time-compression
+pass moves every waypoint to its earliest valid time, which minimises flight time along the path.
+Runs are reproducible: ``ompl.util.RNG.setSeed(seed + 1)`` is set once per process before the
+first solve (OMPL allows no re-seeding after sampling started).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from planner.constraints import ConflictChecker
+from planner.timing import DurationTable, KinematicLimits, duration_table
+
+
+@dataclass(frozen=True)
+class SamplingOptions:
+    """Knobs of the space-time search (defaults suit the shipped scenarios)."""
+
+    time_budget_s: float = 1.5  # OMPL solve time per attempt, s
+    range_m: float = 0.8  # RRT extension range in (x, y, z, tau), m
+    goal_bias: float = 0.15  # probability of sampling a goal state, -
+    check_step_m: float = 0.04  # spatial resolution of motion checks, m
+    check_step_s: float = 0.1  # temporal resolution of motion checks, s
+    goal_time_step_s: float = 0.2  # spacing of candidate arrival times, s
+    hold_check_step_s: float = 0.05  # resolution of goal-hold checks, s
+    compress_step_s: float = 0.05  # resolution of the time-compression pass, s
+    planning_speed_factor: float = 0.7  # speed bound inside the RRT search, fraction of max speed
+
+
+@dataclass
+class SpaceTimePath:
+    """Waypoints (K, 3), m, and the times (K,), s, at which the vehicle is there (at rest)."""
+
+    waypoints_m: np.ndarray
+    times_s: np.ndarray
+    info: dict = field(default_factory=dict)
+
+
+@dataclass
+class GoalSpec:
+    """Where the search ends and what must stay valid afterwards.
+
+    ``position_m`` (3,) is the search goal; ``tail`` is a list of further waypoints (3,) flown after
+    arrival at rest-to-rest minimum time (the dock approach), during which the vehicle named
+    ``tail_exempt`` (the dock target) is not checked; ``hold_until_s`` is how long the final
+    position must stay valid, s.
+    """
+
+    position_m: np.ndarray
+    hold_until_s: float
+    tail: list[np.ndarray] = field(default_factory=list)
+    tail_exempt: str | None = None
+    tail_limits: KinematicLimits | None = None
+
+
+_SEEDED: list[int] = []
+
+
+def seed_ompl_once(seed: int) -> bool:
+    """Seed OMPL's global RNG (possible once per process, before any sampling); True if applied.
+
+    Later planners in the same process draw from the continuing seeded sequence, so a whole
+    ``proxplan plan`` run is reproducible for a given ``--seed``.
+    """
+    from ompl import util as ou
+
+    if _SEEDED:
+        return _SEEDED[0] == int(seed)
+    ou.RNG.setSeed(int(seed) + 1)
+    _SEEDED.append(int(seed))
+    return True
+
+
+class _Planner:
+    def __init__(self, checker: ConflictChecker, limits: KinematicLimits, horizon_s: float, opts: SamplingOptions):
+        self.checker = checker
+        self.limits = limits
+        self.horizon_s = horizon_s
+        self.opts = opts
+        self.v_ref = max(0.25, 0.5 * limits.max_speed_mps)  # tau = v_ref t
+        self.v_plan = opts.planning_speed_factor * limits.max_speed_mps
+        self.durations = duration_table(limits)
+
+    # -- motion checks ---------------------------------------------------------------------
+    def motion_ok(self, p1, t1: float, p2, t2: float, *, exclude: str | None = None, strict: bool = True) -> bool:
+        """Directed motion check: forward in time, not faster than allowed, every state valid.
+
+        ``strict``: the duration must cover a jerk-limited rest-to-rest motion (used on the final
+        path); otherwise only the planning speed ``planning_speed_factor x max speed`` is enforced
+        (used inside the RRT search, whose short edges are later merged by simplification)."""
+        dt = t2 - t1
+        if dt <= 0.0:
+            return False
+        dx, dy, dz = p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if strict:
+            if dt < self.durations.duration_s(dist):
+                return False
+        elif dist > self.v_plan * dt:
+            return False
+        n = max(1, int(math.ceil(max(dist / self.opts.check_step_m, dt / self.opts.check_step_s))))
+        chk = self.checker
+        for k in range(1, n + 1):
+            f = k / n
+            if exclude is None:
+                if not chk.valid(p1[0] + f * dx, p1[1] + f * dy, p1[2] + f * dz, t1 + f * dt):
+                    return False
+            elif chk.conflict(p1[0] + f * dx, p1[1] + f * dy, p1[2] + f * dz, t1 + f * dt, exclude=exclude) is not None:
+                return False
+        return True
+
+    def hold_ok_from(self, p, t_from: float, t_until: float, *, exclude: str | None = None) -> bool:
+        step = self.opts.hold_check_step_s
+        n = max(1, int(math.ceil((t_until - t_from) / step)))
+        for k in range(n + 1):
+            t = t_from + k * step
+            if self.checker.conflict(p[0], p[1], p[2], t, exclude=exclude) is not None:
+                return False
+        return True
+
+    def earliest_hold_s(self, p, t_until: float, *, exclude: str | None = None) -> float:
+        """Earliest time from which position ``p`` stays valid until ``t_until``; inf if never."""
+        step = self.opts.hold_check_step_s
+        n = int(math.ceil(t_until / step))
+        last_bad = -1
+        for k in range(n + 1):
+            if self.checker.conflict(p[0], p[1], p[2], k * step, exclude=exclude) is not None:
+                last_bad = k
+        if last_bad == n:
+            return math.inf
+        return (last_bad + 1) * step
+
+    def tail_ok(self, goal: GoalSpec, t_arrive: float) -> tuple[bool, float]:
+        """Whether the dock approach from arrival time ``t_arrive`` is valid; its end time, s."""
+        lim = goal.tail_limits or self.limits
+        table = self.durations if goal.tail_limits is None else duration_table(goal.tail_limits)
+        p, t = goal.position_m, t_arrive
+        for q in goal.tail:
+            d = float(np.linalg.norm(q - p))
+            t2 = t + table.duration_s(d)
+            if not self.motion_ok_exempt(p, t, q, t2, goal.tail_exempt, lim):
+                return False, t2
+            p, t = q, t2
+        return True, t
+
+    def motion_ok_exempt(self, p1, t1, p2, t2, exempt, lim) -> bool:
+        n = max(1, int(math.ceil(max(float(np.linalg.norm(p2 - p1)) / self.opts.check_step_m, (t2 - t1) / self.opts.check_step_s))))
+        for k in range(n + 1):
+            f = k / n
+            q = p1 + f * (p2 - p1)
+            if self.checker.conflict(q[0], q[1], q[2], t1 + f * (t2 - t1), exclude=exempt) is not None:
+                return False
+        return True
+
+    # -- goal arrival times --------------------------------------------------------------------
+    def goal_times(self, start, goal: GoalSpec) -> list[float]:
+        t_min = self.durations.duration_s(float(np.linalg.norm(goal.position_m - start)))
+        end_p = goal.tail[-1] if goal.tail else goal.position_m
+        hold_from = self.earliest_hold_s(end_p, goal.hold_until_s, exclude=goal.tail_exempt)
+        times = []
+        t = max(t_min, self.opts.goal_time_step_s)
+        step = self.opts.goal_time_step_s
+        while t <= self.horizon_s:
+            if goal.tail:
+                ok, t_end = self.tail_ok(goal, t)
+                ok = ok and t_end >= hold_from
+            else:
+                ok = t >= hold_from
+            if ok:
+                times.append(t)
+            t += step
+        return times
+
+    # -- OMPL search ----------------------------------------------------------------------------
+    def solve(self, start: np.ndarray, goal: GoalSpec, seed: int) -> SpaceTimePath | None:
+        from ompl import base as ob
+        from ompl import geometric as og
+        from ompl import util as ou
+
+        ou.setLogLevel(ou.LogLevel.LOG_ERROR)
+        seed_ompl_once(seed)
+        chk = self.checker
+        v_ref = self.v_ref
+        space = ob.RealVectorStateSpace(4)
+        bounds = ob.RealVectorBounds(4)
+        for i in range(3):
+            bounds.setLow(i, chk.lo[i])
+            bounds.setHigh(i, chk.hi[i])
+        bounds.setLow(3, 0.0)
+        bounds.setHigh(3, self.horizon_s * v_ref)
+        space.setBounds(bounds)
+        si = ob.SpaceInformation(space)
+        planner_self = self
+
+        class DirectedMotion(ob.MotionValidator):
+            def checkMotion(self, s1, s2, *args):  # noqa: N802 (OMPL name)
+                return planner_self.motion_ok(
+                    (s1[0], s1[1], s1[2]), s1[3] / v_ref, (s2[0], s2[1], s2[2]), s2[3] / v_ref, strict=False
+                )
+
+        validator = DirectedMotion(si)
+        si.setMotionValidator(validator)
+        si.setStateValidityChecker(lambda s: chk.valid(s[0], s[1], s[2], s[3] / v_ref))
+        si.setup()
+
+        def state(p, t):
+            s = space.allocState()
+            s[0], s[1], s[2], s[3] = float(p[0]), float(p[1]), float(p[2]), float(t * v_ref)
+            return s
+
+        times = self.goal_times(start, goal)
+        if not times:
+            return None
+        pdef = ob.ProblemDefinition(si)
+        pdef.addStartState(state(start, 0.0))
+        goals = ob.GoalStates(si)
+        for t in times:
+            goals.addState(state(goal.position_m, t))
+        goals.setThreshold(1e-6)
+        pdef.setGoal(goals)
+        planner = og.RRT(si)
+        planner.setRange(self.opts.range_m)
+        planner.setGoalBias(self.opts.goal_bias)
+        planner.setProblemDefinition(pdef)
+        planner.setup()
+        status = planner.solve(self.opts.time_budget_s)
+        if not pdef.hasExactSolution():
+            del status
+            return None
+        path = pdef.getSolutionPath()
+        simplifier = og.PathSimplifier(si)
+        simplifier.reduceVertices(path)
+        simplifier.ropeShortcutPath(path)
+        pts = np.array([[path.getState(i)[j] for j in range(3)] for i in range(path.getStateCount())])
+        ts = np.array([path.getState(i)[3] / v_ref for i in range(path.getStateCount())])
+        pts, ts = self.compress(pts, ts, goal)
+        return SpaceTimePath(pts, ts, {"rrt_vertices": int(path.getStateCount())})
+
+    def compress(self, pts: np.ndarray, ts: np.ndarray, goal: GoalSpec) -> tuple[np.ndarray, np.ndarray]:
+        """Move every waypoint to its earliest valid time (keeps the next waypoint's time)."""
+        ts = ts.copy()
+        step = self.opts.compress_step_s
+        allowed = set(round(t, 6) for t in self.goal_times(pts[0], goal)) if goal is not None else None
+        for i in range(1, len(pts)):
+            lb = ts[i - 1] + self.durations.duration_s(float(np.linalg.norm(pts[i] - pts[i - 1])))
+            if ts[i] < lb:  # the search's schedule is too fast for a rest stop here: push back
+                ts[i:] += lb - ts[i]
+                continue
+            t = lb
+            while t < ts[i] - 1e-9:
+                ok = self.motion_ok(pts[i - 1], ts[i - 1], pts[i], t)
+                if ok and i + 1 < len(pts):
+                    ok = self.motion_ok(pts[i], t, pts[i + 1], ts[i + 1])
+                if ok and i + 1 == len(pts):
+                    ok = self._arrival_ok(goal, t)
+                if ok:
+                    ts[i] = t
+                    break
+                t += step
+        return pts, ts
+
+    def _arrival_ok(self, goal: GoalSpec, t: float) -> bool:
+        end_p = goal.tail[-1] if goal.tail else goal.position_m
+        if goal.tail:
+            ok, t_end = self.tail_ok(goal, t)
+            if not ok:
+                return False
+        else:
+            t_end = t
+        return self.hold_ok_from(end_p, t_end, goal.hold_until_s, exclude=goal.tail_exempt)
+
+
+def plan_space_time(
+    checker: ConflictChecker,
+    start_m: np.ndarray,
+    goal: GoalSpec,
+    limits: KinematicLimits,
+    *,
+    horizon_s: float,
+    seed: int = 0,
+    options: SamplingOptions = SamplingOptions(),
+) -> SpaceTimePath | None:
+    """Plan one vehicle from ``start_m`` (3,) at t = 0 to ``goal``; None when no path was found.
+
+    The returned waypoints end at ``goal.position_m`` followed by the ``goal.tail`` waypoints, with
+    rest-to-rest minimum times on the tail.
+    """
+    planner = _Planner(checker, limits, horizon_s, options)
+    path = planner.solve(np.asarray(start_m, dtype=float), goal, seed)
+    if path is None:
+        return None
+    pts, ts = list(path.waypoints_m), list(path.times_s)
+    table = planner.durations if goal.tail_limits is None else DurationTable(goal.tail_limits)
+    for q in goal.tail:
+        ts.append(ts[-1] + table.duration_s(float(np.linalg.norm(q - pts[-1]))))
+        pts.append(np.asarray(q, dtype=float))
+    return SpaceTimePath(np.array(pts), np.array(ts), path.info)
+
+
+def start_conflict(checker: ConflictChecker, start_m: np.ndarray) -> str | None:
+    """The constraint the start state violates at t = 0, or None."""
+    return checker.conflict(float(start_m[0]), float(start_m[1]), float(start_m[2]), 0.0)

@@ -1,0 +1,172 @@
+"""Jerk-limited time parameterisation of waypoint paths with Ruckig (community edition).
+
+Each path is a chain of state-to-state Ruckig segments between consecutive waypoints (world frame,
+m), never Ruckig's intermediate-waypoint feature (that one calls a cloud API). Segments end at rest
+(target velocity 0) and use phase synchronisation, so every segment is a straight line in space;
+per-axis limits are the vehicle's limits scaled by the segment's direction cosines, so the norms of
+velocity (m/s), acceleration (m/s^2) and jerk (m/s^3) stay within the vehicle's limits. A segment's
+``minimum_duration`` is the time the space-time planner scheduled for it, so the timed trajectory
+reaches every waypoint exactly when the planner said (waits are plain holds).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class KinematicLimits:
+    """Norm limits of one vehicle: speed m/s, acceleration m/s^2, jerk m/s^3."""
+
+    max_speed_mps: float
+    max_accel_mps2: float
+    max_jerk_mps3: float
+
+
+class DurationTable:
+    """Time-optimal rest-to-rest duration over a straight distance, tabulated with Ruckig.
+
+    ``duration_s(d)`` returns the tabulated duration at the next grid distance above ``d`` (m),
+    so it is never shorter than the optimum and Ruckig can always meet it as a minimum duration.
+    """
+
+    def __init__(self, limits: KinematicLimits, *, max_distance_m: float = 20.0, step_m: float = 0.01):
+        from ruckig import InputParameter, Ruckig, Trajectory
+
+        self.step_m = step_m
+        n = int(math.ceil(max_distance_m / step_m)) + 1
+        otg, inp, traj = Ruckig(1), InputParameter(1), Trajectory(1)
+        inp.max_velocity, inp.max_acceleration, inp.max_jerk = (
+            [limits.max_speed_mps], [limits.max_accel_mps2], [limits.max_jerk_mps3])
+        table = [0.0]
+        for k in range(1, n):
+            inp.current_position, inp.target_position = [0.0], [k * step_m]
+            otg.calculate(inp, traj)
+            table.append(float(traj.duration) * 1.0005 + 1e-6)
+        self.table = table
+
+    def duration_s(self, distance_m: float) -> float:
+        if distance_m <= 0.0:
+            return 0.0
+        k = int(math.ceil(distance_m / self.step_m))
+        if k >= len(self.table):
+            return self.table[-1] * distance_m / ((len(self.table) - 1) * self.step_m)
+        return self.table[k]
+
+
+def min_segment_duration_s(distance_m: float, limits: KinematicLimits) -> float:
+    """Time-optimal rest-to-rest duration over ``distance_m`` (m) for the norm limits, s."""
+    return duration_table(limits).duration_s(distance_m)
+
+
+_TABLES: dict[KinematicLimits, DurationTable] = {}
+
+
+def duration_table(limits: KinematicLimits) -> DurationTable:
+    """The (cached) :class:`DurationTable` of ``limits``."""
+    if limits not in _TABLES:
+        _TABLES[limits] = DurationTable(limits)
+    return _TABLES[limits]
+
+
+@dataclass
+class TimedPath:
+    """A chain of Ruckig segments; ``knot_t_s`` (K,) are the waypoint times, s."""
+
+    knot_t_s: np.ndarray
+    knot_p_m: np.ndarray  # (K, 3)
+    segments: list  # ruckig.Trajectory or None (hold) per segment
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.knot_t_s[-1])
+
+    def sample(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position m, velocity m/s, acceleration m/s^2 at times ``t_s`` (M,), each (M, 3).
+
+        Before the first knot and after the last the vehicle holds its first/last waypoint."""
+        t_s = np.asarray(t_s, dtype=float)
+        p = np.empty((t_s.size, 3))
+        v = np.zeros((t_s.size, 3))
+        a = np.zeros((t_s.size, 3))
+        seg = np.clip(np.searchsorted(self.knot_t_s, t_s, side="right") - 1, 0, len(self.segments) - 1) if self.segments else None
+        for i, t in enumerate(t_s):
+            if not self.segments or t <= self.knot_t_s[0]:
+                p[i] = self.knot_p_m[0]
+                continue
+            if t >= self.knot_t_s[-1]:
+                p[i] = self.knot_p_m[-1]
+                continue
+            k = int(seg[i])
+            traj = self.segments[k]
+            if traj is None:
+                p[i] = self.knot_p_m[k]
+                continue
+            pos, vel, acc = traj.at_time(float(t - self.knot_t_s[k]))
+            p[i], v[i], a[i] = pos, vel, acc
+        return p, v, a
+
+
+def time_parameterize(
+    waypoints_m: np.ndarray,
+    times_s: np.ndarray | None,
+    limits: KinematicLimits,
+) -> TimedPath:
+    """Ruckig-time a waypoint path.
+
+    Args:
+        waypoints_m: (K, 3) waypoints, world frame, m (K >= 1).
+        times_s: (K,) scheduled arrival times, s, non-decreasing, or None for time-optimal
+            segments starting at t = 0. A segment is never shorter than the schedule; if the
+            schedule is shorter than the jerk-limited minimum, the later knots are pushed back.
+        limits: norm limits of the vehicle.
+
+    Returns:
+        A :class:`TimedPath` whose knot times are the actual (possibly pushed back) arrival times.
+    """
+    from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
+
+    pts = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
+    sched = None if times_s is None else np.asarray(times_s, dtype=float)
+    t0 = 0.0 if sched is None else float(sched[0])
+    knots = [t0]
+    segments = []
+    otg = Ruckig(3)
+    for k in range(len(pts) - 1):
+        d = pts[k + 1] - pts[k]
+        dist = float(np.linalg.norm(d))
+        want = 0.0 if sched is None else float(sched[k + 1]) - knots[-1]  # time left to the schedule
+        if dist < 1e-9:
+            segments.append(None)
+            knots.append(knots[-1] + max(want, 0.0))
+            continue
+        u = np.abs(d) / dist
+        eps = 1e-9
+        inp = InputParameter(3)
+        inp.current_position = pts[k].tolist()
+        inp.target_position = pts[k + 1].tolist()
+        inp.current_velocity = [0.0, 0.0, 0.0]
+        inp.target_velocity = [0.0, 0.0, 0.0]
+        inp.max_velocity = (limits.max_speed_mps * u + eps).tolist()
+        inp.max_acceleration = (limits.max_accel_mps2 * u + eps).tolist()
+        inp.max_jerk = (limits.max_jerk_mps3 * u + eps).tolist()
+        inp.synchronization = Synchronization.Phase
+        if want > 0.0:
+            inp.minimum_duration = want
+        traj = Trajectory(3)
+        result = otg.calculate(inp, traj)
+        if result not in (Result.Working, Result.Finished):
+            raise RuntimeError(f"Ruckig failed on segment {k} ({result})")
+        segments.append(traj)
+        dur = float(traj.duration)
+        knots.append(knots[-1] + dur)
+    return TimedPath(np.array(knots), pts.copy(), segments)
+
+
+def common_grid(end_s: float, dt_s: float) -> np.ndarray:
+    """The common time grid 0, dt, ..., >= end_s (M,), s."""
+    n = int(math.ceil(end_s / dt_s - 1e-9)) + 1
+    return np.arange(n) * dt_s
