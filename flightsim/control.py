@@ -1,80 +1,83 @@
 """RotorPy's geometric SE(3) tracking controller (``rotorpy.controllers.quadrotor_control.SE3Control``,
-Lee et al. 2010), vectorised over V vehicles.
+Lee et al. 2010), written with scalar arithmetic (floats or CasADi SX) for :mod:`flightsim.stepper`.
 
 Same law and same gains as RotorPy's ``SE3Control.update`` (tests compare the two):
-F_des = m (-K_p e_x - K_d e_v + a_ref + g e_z); thrust u1 = F_des . b3; attitude error from
-R_des (b3_des along F_des, yaw 0); moment u2 = J (-k_R e_R - k_w e_w) + w x J w; motor thrusts from
-the inverse mixer; motor speeds omega = sqrt(f / k_eta). Frames: world z up; quaternions [x, y, z, w].
+F_des = m (-K_p e_x - K_d e_v + a_ref + g e_z); thrust u1 = F_des . b3; R_des with b3_des along
+F_des and yaw 0; moment u2 = J (-k_R e_R - k_w w) + w x J w; motor thrusts from RotorPy's inverse
+mixer TM_to_f; motor speeds omega = sign(f) sqrt(|f| / k_eta). Frames: world z up, [x, y, z, w].
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 from rotorpy.controllers.quadrotor_control import SE3Control
 
-from flightsim.dynamics import GRAVITY_ROTORPY_MPS2, BatchState, rotation_matrices
+from flightsim.dynamics import GRAVITY_ROTORPY_MPS2, cross, matvec, rotation
 
 
 @dataclass(frozen=True)
-class ControlOutput:
-    """Commands for V vehicles."""
+class ControllerConstants:
+    """Gains and allocation of RotorPy's SE3Control for one vehicle."""
 
-    cmd_motor_speeds_radps: np.ndarray  # (V, 4), unclipped
-    cmd_motor_thrusts_N: np.ndarray  # (V, 4)
-    cmd_thrust_N: np.ndarray  # (V,) collective thrust
-    cmd_moment_Nm: np.ndarray  # (V, 3) body frame
+    mass_kg: float
+    inertia: tuple  # 3x3, kg m^2
+    kp_pos: tuple  # (3,) 1/s^2
+    kd_pos: tuple  # (3,) 1/s
+    kp_att: float  # 1/s^2
+    kd_att: float  # 1/s
+    tm_to_f: tuple  # 4x4 inverse mixer: (T, tau_x, tau_y, tau_z) -> rotor thrusts
+    k_eta: float  # N/(rad/s)^2
 
-
-class BatchSE3Control:
-    """SE3Control for V vehicles, gains read from RotorPy's own ``SE3Control`` objects."""
-
-    def __init__(self, params: list[dict]):
-        ctrls = [SE3Control(p) for p in params]
-        self.mass_kg = np.array([c.mass for c in ctrls])
-        self.inertia = np.array([c.inertia for c in ctrls])
-        self.kp_pos = np.array([c.kp_pos for c in ctrls], dtype=float)
-        self.kd_pos = np.array([c.kd_pos for c in ctrls], dtype=float)
-        self.kp_att = np.array([c.kp_att for c in ctrls], dtype=float)
-        self.kd_att = np.array([c.kd_att for c in ctrls], dtype=float)
-        self.tm_to_f = np.array([c.TM_to_f for c in ctrls])
-        self.k_eta = np.array([c.k_eta for c in ctrls])
-
-    def update(
-        self,
-        state: BatchState,
-        ref_position_m: np.ndarray,
-        ref_velocity_mps: np.ndarray,
-        ref_acceleration_mps2: np.ndarray,
-    ) -> ControlOutput:
-        """Commands for reference position, velocity, acceleration (V, 3), world frame; yaw 0."""
-        rot = rotation_matrices(state.q)
-        f_des = self.mass_kg[:, None] * (
-            -self.kp_pos * (state.x - ref_position_m)
-            - self.kd_pos * (state.v - ref_velocity_mps)
-            + ref_acceleration_mps2
+    @classmethod
+    def from_params(cls, p: dict) -> "ControllerConstants":
+        ctrl = SE3Control(p)
+        tup = lambda a: tuple(tuple(float(v) for v in row) for row in np.asarray(a))  # noqa: E731
+        return cls(
+            mass_kg=float(ctrl.mass), inertia=tup(ctrl.inertia),
+            kp_pos=tuple(float(k) for k in ctrl.kp_pos), kd_pos=tuple(float(k) for k in ctrl.kd_pos),
+            kp_att=float(ctrl.kp_att), kd_att=float(ctrl.kd_att), tm_to_f=tup(ctrl.TM_to_f),
+            k_eta=float(ctrl.k_eta),
         )
-        f_des[:, 2] += self.mass_kg * GRAVITY_ROTORPY_MPS2
-        b3 = rot[:, :, 2]
-        u1 = np.einsum("vi,vi->v", f_des, b3)
-        b3_des = f_des / np.linalg.norm(f_des, axis=1, keepdims=True)
-        c1 = np.array([1.0, 0.0, 0.0])
-        b2_des = np.cross(b3_des, c1)
-        b2_des /= np.linalg.norm(b2_des, axis=1, keepdims=True)
-        b1_des = np.cross(b2_des, b3_des)
-        r_des = np.stack([b1_des, b2_des, b3_des], axis=2)
-        s_err = 0.5 * (
-            np.einsum("vji,vjk->vik", r_des, rot) - np.einsum("vji,vjk->vik", rot, r_des)
-        )
-        att_err = np.stack([-s_err[:, 1, 2], s_err[:, 0, 2], -s_err[:, 0, 1]], axis=1)
-        w = state.w
-        iw = np.einsum("vij,vj->vi", self.inertia, w)
-        u2 = np.einsum(
-            "vij,vj->vi", self.inertia, -self.kp_att[:, None] * att_err - self.kd_att[:, None] * w
-        ) + np.cross(w, iw)
-        tm = np.concatenate([u1[:, None], u2], axis=1)
-        thrusts = np.einsum("vij,vj->vi", self.tm_to_f, tm)
-        speeds = thrusts / self.k_eta[:, None]
-        speeds = np.sign(speeds) * np.sqrt(np.abs(speeds))
-        return ControlOutput(speeds, thrusts, u1, u2)
+
+
+def _normalize(a):
+    n = ca.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    return [a[0] / n, a[1] / n, a[2] / n]
+
+
+def se3_control(c: ControllerConstants, s, ref_x, ref_v, ref_a):
+    """Commands for state ``s`` (17, see flightsim.dynamics) and reference position, velocity,
+    acceleration (3 each), world frame. Returns (motor speeds (4) rad/s unclipped, motor thrusts
+    (4) N, collective thrust u1 N, body moments u2 (3) N m)."""
+    x, v, q, w = s[0:3], s[3:6], s[6:10], s[10:13]
+    rot = rotation(q)
+    f_des = [
+        c.mass_kg * (-c.kp_pos[k] * (x[k] - ref_x[k]) - c.kd_pos[k] * (v[k] - ref_v[k]) + ref_a[k]
+                     + (GRAVITY_ROTORPY_MPS2 if k == 2 else 0.0))
+        for k in range(3)
+    ]
+    b3 = [rot[0][2], rot[1][2], rot[2][2]]
+    u1 = f_des[0] * b3[0] + f_des[1] * b3[1] + f_des[2] * b3[2]
+    b3_des = _normalize(f_des)
+    b2_des = _normalize(cross(b3_des, [1.0, 0.0, 0.0]))
+    b1_des = cross(b2_des, b3_des)
+    r_des = [[b1_des[i], b2_des[i], b3_des[i]] for i in range(3)]  # columns b1, b2, b3
+
+    def rtr(a, b, i, j):  # (a^T b)_ij
+        return a[0][i] * b[0][j] + a[1][i] * b[1][j] + a[2][i] * b[2][j]
+
+    s12 = 0.5 * (rtr(r_des, rot, 1, 2) - rtr(rot, r_des, 1, 2))
+    s02 = 0.5 * (rtr(r_des, rot, 0, 2) - rtr(rot, r_des, 0, 2))
+    s01 = 0.5 * (rtr(r_des, rot, 0, 1) - rtr(rot, r_des, 0, 1))
+    att_err = [-s12, s02, -s01]
+    iw = matvec(c.inertia, w)
+    u2_core = matvec(c.inertia, [-c.kp_att * att_err[k] - c.kd_att * w[k] for k in range(3)])
+    wxiw = cross(w, iw)
+    u2 = [u2_core[k] + wxiw[k] for k in range(3)]
+    tm = [u1, u2[0], u2[1], u2[2]]
+    thrusts = [sum(c.tm_to_f[i][j] * tm[j] for j in range(4)) for i in range(4)]
+    speeds = [ca.sign(f) * ca.sqrt(ca.fabs(f) / c.k_eta) for f in thrusts]
+    return speeds, thrusts, u1, u2

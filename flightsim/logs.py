@@ -1,0 +1,139 @@
+"""Synthetic flight logs in the Neural-Swarm column layout, plus a DESIGN.md section 6 manifest.
+
+Per vehicle, ``<out>/<flight>/<vehicle>.csv.gz``, 100 Hz by default, with the header of the real
+files (``../shared/data/neural-swarm/README.md``), in this order:
+
+* ``time[ms]`` — like the real files, counts MICROseconds (since the plan start);
+* ``x, y, z [m]`` — true position plus motion-capture noise; ``vx, vy, vz [m/s]`` — true velocity
+  plus noise; world frame, z up;
+* ``ax, ay, az [m/s^2]`` — the simulated IMU accelerometer (specific force, noise, bias) rotated into
+  the world frame with the true attitude (about +9.81 on z in hover);
+* ``qx, qy, qz, qw`` — true attitude, body to world;
+* ``u1..u4 [N]`` — per-motor thrust k_eta omega^2 of the ACTUAL (lagged) rotor speeds, (S0-14) order
+  (a perfect static calibration; the real logs derive it from the PWM command instead);
+* ``u1..u4 [PWM]`` — normalised motor command, commanded thrust / max thrust per motor (0..1, the
+  scale the real files hold);
+* ``Vbat [V]`` — constant 4.0 V; ``thrust_des [g]`` — commanded collective thrust in grams-force;
+* ``torquex..z [Nm]`` — commanded body moments; ``wx, wy, wz [rad/s]`` — simulated gyro, body frame.
+
+Beside each log, ``<vehicle>_truth.csv.gz`` holds what was applied (not part of the layout, for
+tests and evaluation): time in s, the external force (N) and torque (N m) applied in total and by
+the base model alone, world frame.
+
+The truth effects applied go to ``<out>/<flight>/truth.yaml`` (NOT into the manifest, so they stay
+undeclared to ``proxplan identify``). The manifest ``<out>/manifest.yaml`` (``format: neural-swarm``, ``root: .``) lists every flight
+written to ``<out>``; writing a flight again replaces its entry. Files are written to a temporary
+name and renamed, so nothing half-written is left on failure.
+"""
+
+from __future__ import annotations
+
+import gzip
+import io
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from costmaps.errors import UserError
+
+NEURAL_SWARM_HEADER = (
+    "# time[ms],x[m],y[m],z[m],vx[m/s],vy[m/s],vz[m/s],ax[m/s^2],ay[m/s^2],az[m/s^2],qx,qy,qz,qw,"
+    "u1[N],u2[N],u3[N],u4[N],u1[PWM],u2[PWM],u3[PWM],u4[PWM],Vbat[V],thrust_des[g],"
+    "torquex[Nm],torquey[Nm],torquez[Nm],wx[rad/s],wy[rad/s],wz[rad/s]"
+)
+TRUTH_HEADER = (
+    "t_s,fx_applied_N,fy_applied_N,fz_applied_N,tx_applied_Nm,ty_applied_Nm,tz_applied_Nm,"
+    "fx_model_N,fy_model_N,fz_model_N,tx_model_Nm,ty_model_Nm,tz_model_Nm"
+)
+BATTERY_VOLTAGE_V = 4.0
+GRAVITY_MPS2 = 9.81
+SPLITS = ("train", "test")
+
+
+def _atomic_write_bytes(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _csv_gz(header: str, table: np.ndarray) -> bytes:
+    buf = io.StringIO()
+    np.savetxt(buf, table, delimiter=",", header=header, comments="", fmt="%.10g")
+    return gzip.compress(buf.getvalue().encode(), compresslevel=6, mtime=0)
+
+
+def neural_swarm_table(record, *, rng: np.random.Generator, mocap_noise_std_m: float = 0.0005,
+                       velocity_noise_std_mps: float = 0.005) -> np.ndarray:
+    """The (M, 30) Neural-Swarm table of one :class:`flightsim.simulate.VehicleRecord`."""
+    m = record.t_s.size
+    veh = record.vehicle
+    pos = record.position_m + rng.normal(scale=mocap_noise_std_m, size=(m, 3)) if mocap_noise_std_m > 0 else record.position_m
+    vel = record.velocity_mps + rng.normal(scale=velocity_noise_std_mps, size=(m, 3)) if velocity_noise_std_mps > 0 else record.velocity_mps
+    acc_world = Rotation.from_quat(record.q_xyzw).apply(record.accel_meas_body_mps2)
+    pwm = np.clip(record.cmd_motor_thrust_N / veh.max_thrust_per_rotor_N, 0.0, 1.0)
+    return np.column_stack([
+        np.round(record.t_s * 1e6),
+        pos, vel, acc_world, record.q_xyzw,
+        record.motor_thrust_N, pwm,
+        np.full(m, BATTERY_VOLTAGE_V),
+        record.cmd_thrust_N / GRAVITY_MPS2 * 1000.0,
+        record.cmd_moment_Nm,
+        record.gyro_meas_radps,
+    ])
+
+
+def _truth_table(record) -> np.ndarray:
+    return np.column_stack([record.t_s, record.applied_force_N, record.applied_torque_Nm,
+                            record.model_force_N, record.model_torque_Nm])
+
+
+def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: str = "train",
+                      seed: int | None = None, vehicles_file: str | None = None) -> Path:
+    """Write every vehicle of ``result`` (a :class:`flightsim.simulate.SimulationResult`) as a
+    Neural-Swarm log under ``out_dir/flight_name/`` and add the flight to ``out_dir/manifest.yaml``
+    (created when missing). ``vehicles_file`` (relative to the manifest) names custom vehicle types.
+    Returns the manifest path."""
+    import yaml
+
+    if split not in SPLITS:
+        raise UserError(f"split: expected one of {', '.join(SPLITS)}, got {split!r}")
+    if not flight_name or "/" in flight_name or flight_name.startswith("."):
+        raise UserError(f"flight_name: expected a plain name (no '/'), got {flight_name!r}")
+    out = Path(out_dir)
+    opts = result.options
+    rng = np.random.default_rng(opts.seed + 7919 if seed is None else seed)
+    entry_vehicles = {}
+    for name, rec in result.records.items():
+        mocap = opts.mocap_noise_std_m if opts.imu_noise else 0.0
+        veln = opts.velocity_noise_std_mps if opts.imu_noise else 0.0
+        table = neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln)
+        rel = f"{flight_name}/{name}.csv.gz"
+        _atomic_write_bytes(out / rel, _csv_gz(NEURAL_SWARM_HEADER, table))
+        _atomic_write_bytes(out / f"{flight_name}/{name}_truth.csv.gz", _csv_gz(TRUTH_HEADER, _truth_table(rec)))
+        entry_vehicles[name] = {"type": rec.type_name, "log": rel, "ground_z_m": float(opts.ground_z_m)}
+    manifest = out / "manifest.yaml"
+    if manifest.exists():
+        doc = yaml.safe_load(manifest.read_text()) or {}
+        if not isinstance(doc, dict) or doc.get("format") != "neural-swarm":
+            raise UserError(f"{manifest}: exists but is not a neural-swarm manifest; choose another --out")
+    else:
+        doc = {"format": "neural-swarm", "root": ".", "flights": []}
+    if vehicles_file is not None:
+        doc["vehicles_file"] = vehicles_file
+    flights = [f for f in doc.get("flights", []) if f.get("name") != flight_name]
+    flights.append({"name": flight_name, "split": split, "vehicles": entry_vehicles})
+    # the truth applied stays out of the manifest (effects are undeclared to identification)
+    _atomic_write_bytes(out / flight_name / "truth.yaml", yaml.safe_dump(result.truth.to_dict(), sort_keys=False).encode())
+    doc["flights"] = flights
+    _atomic_write_bytes(manifest, yaml.safe_dump(doc, sort_keys=False).encode())
+    return manifest

@@ -1,0 +1,111 @@
+"""The simulator's "truth": effects beyond the planner's model, from a YAML file.
+
+Format (every key optional)::
+
+    field_form: inverse-z          # form of (S0-1) used by the simulated world: inverse-z | printed
+    wind_mps: [1.0, 0.0, 0.0]      # steady wind, world frame, m/s: rotor drag in RotorPy's model,
+                                   # and the default wind of a wake_advection effect
+    effects:                       # names and parameters: costmaps.effects.PARAMETERS
+      - name: ground_effect
+        params: {gain_k: 1.0}
+      - name: near_field
+        params: {amplitude: 0.5, decay_L: 3.0}
+
+Unknown keys, names or parameters, and non-finite numbers are user errors naming file and key.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from costmaps.errors import UserError
+
+TOP_KEYS = ("field_form", "wind_mps", "effects")
+
+
+@dataclass(frozen=True)
+class TruthSpec:
+    """Truth for one simulation: extra effects, steady wind (3,) m/s world frame, field form."""
+
+    effects: tuple = ()  # tuple[costmaps.effects.Effect, ...]
+    wind_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    field_form: str = "inverse-z"
+
+    def to_dict(self) -> dict:
+        return {
+            "field_form": self.field_form,
+            "wind_mps": list(self.wind_mps),
+            "effects": [{"name": e.name, "params": e.full_params()} for e in self.effects],
+        }
+
+
+def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
+    """Validate a truth mapping (see module docstring) into a :class:`TruthSpec`."""
+    from costmaps.effects import EFFECT_NAMES, PARAMETERS, Effect
+    from costmaps.velocity_field import FIELD_FORMS
+
+    if doc is None:
+        doc = {}
+    if not isinstance(doc, dict):
+        raise UserError(f"{source}: expected a mapping with keys {', '.join(TOP_KEYS)}")
+    unknown = sorted(set(doc) - set(TOP_KEYS))
+    if unknown:
+        raise UserError(f"{source}: unknown key {unknown[0]!r}; expected {', '.join(TOP_KEYS)}")
+    form = doc.get("field_form", "inverse-z")
+    if form not in FIELD_FORMS:
+        raise UserError(f"{source}: field_form: expected one of {', '.join(FIELD_FORMS)}, got {form!r}")
+    wind = doc.get("wind_mps", [0.0, 0.0, 0.0])
+    try:
+        wind_arr = np.asarray(wind, dtype=float)
+    except (TypeError, ValueError):
+        wind_arr = np.zeros(0)
+    if wind_arr.shape != (3,) or not np.all(np.isfinite(wind_arr)):
+        raise UserError(f"{source}: wind_mps: expected [wx, wy, wz] in m/s, got {wind!r}")
+    items = doc.get("effects", []) or []
+    if not isinstance(items, list):
+        raise UserError(f"{source}: effects: expected a list of {{name: ..., params: {{...}}}}")
+    effects = []
+    for i, item in enumerate(items):
+        where = f"{source}: effects[{i}]"
+        if not isinstance(item, dict) or "name" not in item or set(item) - {"name", "params"}:
+            raise UserError(f"{where}: expected {{name: <effect>, params: {{...}}}}")
+        name = item["name"]
+        if name not in EFFECT_NAMES:
+            raise UserError(f"{where}.name: unknown effect {name!r}; expected one of {', '.join(EFFECT_NAMES)}")
+        params = item.get("params", {}) or {}
+        if not isinstance(params, dict):
+            raise UserError(f"{where}.params: expected a mapping of parameter: number")
+        clean = {}
+        for key, value in params.items():
+            if key not in PARAMETERS[name]:
+                raise UserError(
+                    f"{where}.params.{key}: unknown parameter of {name}; expected {', '.join(PARAMETERS[name])}"
+                )
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+                raise UserError(f"{where}.params.{key}: expected a finite number, got {value!r}")
+            clean[key] = float(value)
+        if name == "wake_advection":
+            clean.setdefault("wind_x_mps", float(wind_arr[0]))
+            clean.setdefault("wind_y_mps", float(wind_arr[1]))
+        effects.append(Effect(name, clean))
+    return TruthSpec(tuple(effects), tuple(float(w) for w in wind_arr), form)
+
+
+def load_truth_file(path: str | Path) -> TruthSpec:
+    """Read a truth YAML file; UserError on any problem."""
+    import yaml
+
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise UserError(f"{path}: cannot read truth file ({err.strerror})") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise UserError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    return truth_from_dict(doc, source=str(path))
