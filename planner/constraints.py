@@ -14,10 +14,9 @@ Modes (``--method``):
 ``ellipsoid``   Crazyswarm-style keep-out ellipsoid: horizontal radius r, vertical radius 3 r, with
                 r = sum of the two body radii (arm + propeller radius), scaled to the vehicles' size.
 
-Invalid zone of the model (0 < dz <= 3 L of the source, S0 II-A): ``limits.invalid_zone_rule``.
-``conservative`` (default) takes the map's conservative cutoff and at least the footprint overlap
-radius (sum of body radii); ``forbid`` keeps targets out of the whole invalid cylinder up to the sum
-of body radii plus the largest valid-zone cutoff; ``model`` uses the map as is.
+Invalid zone of the model (0 < dz <= 3 L of the source, S0 II-A): ``limits.invalid_zone_rule`` is
+passed to the cost map (``CutoffMap.r_cut_m(..., invalid_rule=...)``, documented in
+:mod:`costmaps.cutoff`): ``conservative`` (default), ``model`` or ``forbid``.
 Scalar Python math is used per state because OMPL calls the checker once per state.
 """
 
@@ -65,17 +64,30 @@ class CutoffTable:
         return a if a > b else b
 
 
-def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, field_form: str | None) -> tuple[np.ndarray, str]:
-    """r_cut(dz) from the cost maps (costmaps.map_store), or a local stand-in until they exist."""
+def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None) -> tuple[np.ndarray, str]:
+    """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store), or a
+    local stand-in (rule applied here) while they are missing."""
     from costmaps.disturbance import ModelOptions
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     try:
         from costmaps.map_store import pair_maps
     except ImportError:
-        return _standin_r_cut(source, target, dz, level, options), "local stand-in (costmaps.map_store missing)"
+        r = _standin_r_cut(source, target, dz, level, options)
+        return _apply_rule(source, target, dz, r, rule), "local stand-in (costmaps.map_store missing)"
     maps = pair_maps(source, target, options=options)
-    return np.asarray(maps.cutoff.r_cut_m(dz, level=level), dtype=float), "costmaps.map_store"
+    return np.asarray(maps.cutoff.r_cut_m(dz, level=level, invalid_rule=rule), dtype=float), "costmaps.map_store"
+
+
+def _apply_rule(source: Vehicle, target: Vehicle, dz: np.ndarray, r_cut: np.ndarray, rule: str) -> np.ndarray:
+    invalid_dz = VALIDITY_FACTOR_L * source.size_m
+    inside = (dz > 0) & (dz <= invalid_dz)
+    overlap = body_radius_m(source) + body_radius_m(target)
+    if rule == "conservative":
+        return np.where(inside, np.maximum(r_cut, max(overlap, float(np.interp(invalid_dz, dz, r_cut)))), r_cut)
+    if rule == "forbid":
+        return np.where(inside, max(overlap, float(r_cut.max(initial=0.0))), r_cut)
+    return r_cut
 
 
 def _standin_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, options) -> np.ndarray:
@@ -100,16 +112,9 @@ def _standin_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: floa
 def cutoff_table(source: Vehicle, target: Vehicle, *, level: float, rule: str = "conservative", field_form: str | None = None) -> CutoffTable:
     """The per-pair cutoff lookup at authority ``level`` with the invalid-zone ``rule`` applied."""
     dz = np.arange(0.0, DZ_MAX_M + DZ_STEP_M, DZ_STEP_M)
-    r_cut, provenance = _map_r_cut(source, target, dz, level, field_form)
+    r_cut, provenance = _map_r_cut(source, target, dz, level, rule, field_form)
     r_cut = np.where(dz > 0, np.maximum(r_cut, 0.0), 0.0)
     invalid_dz = VALIDITY_FACTOR_L * source.size_m
-    inside = (dz > 0) & (dz <= invalid_dz)
-    overlap = body_radius_m(source) + body_radius_m(target)
-    if rule == "conservative":
-        r_cut = np.where(inside, np.maximum(r_cut, overlap), r_cut)
-    elif rule == "forbid":
-        valid_max = float(r_cut[~inside & (dz > 0)].max(initial=0.0))
-        r_cut = np.where(inside, np.maximum(r_cut, overlap + valid_max), r_cut)
     return CutoffTable(source.name, target.name, float(level), DZ_STEP_M, tuple(float(v) for v in r_cut), float(invalid_dz), provenance)
 
 

@@ -240,7 +240,12 @@ def _refine(scenario: Scenario, plan: PlanResult, *, seed: int, progress) -> Pla
         plan.notes.append(f"optimized: planner.optimize is not available ({err}); this is the sampling result")
         plan.method = "sampling (optimizer unavailable)"
         return plan
-    result = refine_plan(scenario, plan, seed=seed, progress=progress)
+    try:
+        result = refine_plan(scenario, plan, seed=seed, progress=progress)
+    except Exception as err:  # noqa: BLE001 - the optimiser must never lose the sampling plan
+        plan.notes.append(f"optimized: refinement raised {type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}; this is the sampling result")
+        plan.method = "sampling (optimizer failed)"
+        return plan
     refined = result.plan
     if not getattr(result, "success", False):
         plan.notes.append(f"optimized: refinement failed ({getattr(result, 'message', '')}); this is the sampling result")

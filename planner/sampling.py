@@ -249,34 +249,45 @@ class _Planner:
         path = pdef.getSolutionPath()
         simplifier = og.PathSimplifier(si)
         simplifier.reduceVertices(path)
-        simplifier.ropeShortcutPath(path)
         pts = np.array([[path.getState(i)[j] for j in range(3)] for i in range(path.getStateCount())])
         ts = np.array([path.getState(i)[3] / v_ref for i in range(path.getStateCount())])
         pts, ts = self.compress(pts, ts, goal)
         return SpaceTimePath(pts, ts, {"rrt_vertices": int(path.getStateCount())})
 
     def compress(self, pts: np.ndarray, ts: np.ndarray, goal: GoalSpec) -> tuple[np.ndarray, np.ndarray]:
-        """Move every waypoint to its earliest valid time (keeps the next waypoint's time)."""
-        ts = ts.copy()
-        step = self.opts.compress_step_s
-        allowed = set(round(t, 6) for t in self.goal_times(pts[0], goal)) if goal is not None else None
-        for i in range(1, len(pts)):
-            lb = ts[i - 1] + self.durations.duration_s(float(np.linalg.norm(pts[i] - pts[i - 1])))
-            if ts[i] < lb:  # the search's schedule is too fast for a rest stop here: push back
-                ts[i:] += lb - ts[i]
-                continue
-            t = lb
-            while t < ts[i] - 1e-9:
-                ok = self.motion_ok(pts[i - 1], ts[i - 1], pts[i], t)
-                if ok and i + 1 < len(pts):
-                    ok = self.motion_ok(pts[i], t, pts[i + 1], ts[i + 1])
-                if ok and i + 1 == len(pts):
-                    ok = self._arrival_ok(goal, t)
-                if ok:
-                    ts[i] = t
+        """Greedy space-time shortcut with earliest times.
+
+        From the current waypoint, connect to the farthest later waypoint j that a strict (jerk-
+        limited rest-to-rest) straight motion reaches validly, at the earliest of a few candidate
+        times between the minimum duration and the search's own time for j (waiting longer is
+        sometimes needed to let another vehicle pass). The last waypoint must also allow the
+        arrival (dock approach and hold). Falls back to the next waypoint, pushed back if needed.
+        """
+        step = self.opts.compress_step_s * 5
+        out_p, out_t = [pts[0]], [float(ts[0])]
+        i, last = 0, len(pts) - 1
+        while i < last:
+            chosen = None
+            for j in range(last, i, -1):
+                lb = out_t[-1] + self.durations.duration_s(float(np.linalg.norm(pts[j] - out_p[-1])))
+                upper = max(float(ts[j]), lb) if j > i + 1 else max(float(ts[j]), lb)
+                upper = min(upper, lb + 12 * step)
+                t = lb
+                while t <= upper + 1e-9:
+                    if self.motion_ok(out_p[-1], out_t[-1], pts[j], t) and (j < last or self._arrival_ok(goal, t)):
+                        chosen = (j, t)
+                        break
+                    t += step
+                if chosen is not None:
                     break
-                t += step
-        return pts, ts
+            if chosen is None:  # keep the search's waypoint; the timed re-check decides
+                j = i + 1
+                lb = out_t[-1] + self.durations.duration_s(float(np.linalg.norm(pts[j] - out_p[-1])))
+                chosen = (j, max(float(ts[j]), lb))
+            out_p.append(pts[chosen[0]])
+            out_t.append(chosen[1])
+            i = chosen[0]
+        return np.array(out_p), np.array(out_t)
 
     def _arrival_ok(self, goal: GoalSpec, t: float) -> bool:
         end_p = goal.tail[-1] if goal.tail else goal.position_m
