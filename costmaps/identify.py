@@ -52,7 +52,7 @@ class IdentifyOptions:
     effects: tuple[str, ...] = EFFECT_NAMES  # candidates to try
     min_gain: float = 0.05  # relative cut of a test RMSE an effect must bring to be kept, -
     max_fit_samples: int = 2000  # train samples per least-squares fit
-    max_eval_samples: int = 20000  # test samples per candidate score
+    max_eval_samples: int = 10000  # test samples per candidate score
     max_effects: int = 3  # at most this many effects are kept
     progress: bool = False  # tqdm bars on stderr
 
@@ -203,10 +203,11 @@ class Errors:
         return {"rmse_fz_N": self.rmse_fz_N, "rmse_torque_Nm": self.rmse_torque_Nm, "rmse_tz_Nm": self.rmse_tz_Nm, "n_samples": self.n_samples}
 
 
-def errors(units: Sequence[Unit], model: Model) -> Errors:
+def errors(units: Sequence[Unit], model: Model, *, bases: Sequence | None = None) -> Errors:
+    """RMSEs of ``model`` on ``units``; ``bases`` optionally holds each unit's precomputed base wrench."""
     df, dt = [], []
-    for u in units:
-        f, t = predict(u, model)
+    for k, u in enumerate(units):
+        f, t = predict(u, model, base=None if bases is None else bases[k])
         df.append(u.force_N[:, 2] - f[:, 2])
         dt.append(u.torque_Nm - t)
     df_a, dt_a = np.concatenate(df), np.concatenate(dt)
@@ -368,7 +369,15 @@ def select_effects(
     baseline of the gains is the better start.
     """
     test_eval = subsample(test, options.max_eval_samples)
-    scored = [(errors(test_eval, m), m) for m in starts]
+    cache: dict[int, tuple[Any, list]] = {}  # id(vehicles) -> (vehicles, base wrench per test unit)
+
+    def test_errors(m: Model) -> Errors:
+        key = id(m.vehicles)
+        if key not in cache:  # effect fits keep the vehicles: one base evaluation per start model
+            cache[key] = (m.vehicles, [base_wrench(unit_inputs(u, m)) for u in test_eval])
+        return errors(test_eval, m, bases=cache[key][1])
+
+    scored = [(test_errors(m), m) for m in starts]
     current, model = min(scored, key=lambda em: em[0].rmse_fz_N / max(scored[0][0].rmse_fz_N, 1e-12)
                          + em[0].rmse_tz_Nm / max(scored[0][0].rmse_tz_Nm, 1e-15))  # fmt: skip
     trials: list[EffectTrial] = []
@@ -382,7 +391,7 @@ def select_effects(
             best_here = None
             for base in bases:
                 eff, cand = fit_effect(name, train, base, options=options)
-                err = errors(test_eval, cand)
+                err = test_errors(cand)
                 gf = _gain(err.rmse_fz_N, current.rmse_fz_N, 1e-6)
                 gt = _gain(err.rmse_tz_Nm, current.rmse_tz_Nm, 1e-7)
                 if best_here is None or gf + gt > best_here[0].gain_fz + best_here[0].gain_tz:
