@@ -136,20 +136,40 @@ def _base_source_wrench(
     return batch.force_N, batch.torque_Nm
 
 
-def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
-    """Base model (S0-3..S0-8) summed over all sources: force (N, 3), N; torque (N, 3), N m."""
+class _BaseCache:
+    """Base wrench of each source of one :class:`EffectInputs`, computed once when first needed."""
+
+    def __init__(self, inputs: EffectInputs):
+        self.inputs = inputs
+        self._per_source: list | None = None
+
+    def per_source(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        if self._per_source is None:
+            self._per_source = [
+                _base_source_wrench(src, self.inputs.target, self.inputs.options) for src in self.inputs.sources
+            ]
+        return self._per_source
+
+
+def _sum_base(inputs: EffectInputs, cache: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     force, torque = _zeros(inputs.n_samples)
-    for src in inputs.sources:
-        f, t = _base_source_wrench(src, inputs.target, inputs.options)
+    for f, t in cache.per_source():
         force += f
         torque += t
     return force, torque
 
 
+def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+    """Base model (S0-3..S0-8) summed over all sources: force (N, 3), N; torque (N, 3), N m."""
+    return _sum_base(inputs, _BaseCache(inputs))
+
+
 # --------------------------------------------------------------------------- effects
 
 
-def _thrust_bias(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+def _thrust_bias(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
     """Constant vertical force ``force_z_N`` (N, world z): a thrust-calibration error (k1 or the
     PWM-to-thrust map off by a constant), seen by the S0-11 measurement as a steady bias."""
     force, torque = _zeros(inputs.n_samples)
@@ -157,7 +177,9 @@ def _thrust_bias(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray,
     return force, torque
 
 
-def _ground_effect(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+def _ground_effect(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
     """Cheeseman-Bennett ground effect: T_IGE / T_OGE = 1 / (1 - k (R / 4h)^2), R rotor radius (m),
     h rotor plane height above ground (m), k = ``gain_k`` (1 in the original method-of-images
     derivation). Applied to the target's hover thrust (its weight, N): Delta F_z = W (ratio - 1),
@@ -172,13 +194,14 @@ def _ground_effect(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarra
     return force, torque
 
 
-def _near_field(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+def _near_field(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
     """Downwash stronger than the far-field model close to the source (the zone of flow
     establishment, S0 II-A): extra wrench = base source wrench * ``amplitude`` *
     exp(-dz / (``decay_L`` * L_source)) for dz > 0 (target below), zero otherwise; L = 2 x arm (m)."""
     force, torque = _zeros(inputs.n_samples)
-    for src in inputs.sources:
-        f, t = _base_source_wrench(src, inputs.target, inputs.options)
+    for src, (f, t) in zip(inputs.sources, base.per_source()):
         dz_m = -np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)[:, 2]
         scale = np.where(
             dz_m > 0.0,
@@ -190,30 +213,34 @@ def _near_field(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray, 
     return force, torque
 
 
-def _wake_swirl(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+def _wake_swirl(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
     """Yaw torque from the swirl of the source's wake, proportional to the base vertical force it
     causes: tau_z = ``yaw_per_force_m`` * F_z,base (N m; F_z,base < 0 in a downwash, so a positive
     parameter gives a negative, clockwise-from-above torque). No force."""
     force, torque = _zeros(inputs.n_samples)
-    for src in inputs.sources:
-        f, _ = _base_source_wrench(src, inputs.target, inputs.options)
+    for f, _ in base.per_source():
         torque[:, 2] += p["yaw_per_force_m"] * f[:, 2]
     return force, torque
 
 
-def _wake_advection(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+def _wake_advection(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
     """A steady horizontal wind (``wind_x_mps``, ``wind_y_mps``) carries the wake downstream while
     it descends at ``convection_speed_mps``: at depth dz > 0 the wake axis is displaced by
     wind_xy * dz / convection_speed, so the target sees the base field at the effective offset
     offset_xy - wind_xy * dz / convection_speed. Effect = base(effective) - base(actual)."""
     force, torque = _zeros(inputs.n_samples)
     wind = np.array([p["wind_x_mps"], p["wind_y_mps"]])
-    for src in inputs.sources:
+    if not np.any(wind):
+        return force, torque
+    for src, (f0, t0) in zip(inputs.sources, base.per_source()):
         offsets = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
         dz_m = np.maximum(-offsets[:, 2], 0.0)
         shifted = offsets.copy()
         shifted[:, :2] -= wind[None, :] * (dz_m / p["convection_speed_mps"])[:, None]
-        f0, t0 = _base_source_wrench(src, inputs.target, inputs.options)
         f1, t1 = _base_source_wrench(
             SourceSample(src.vehicle, shifted), inputs.target, inputs.options
         )
@@ -222,7 +249,9 @@ def _wake_advection(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarr
     return force, torque
 
 
-def _own_velocity(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+def _own_velocity(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
     """Thrust change of the target with its own motion, after seed 001 eq. 25
     (C_T = C_T0 + C_Tlambda lambda + C_Tmu mu + C_Tw w + C_Tmu2 mu^2, S1-25), written per unit weight:
 
@@ -240,7 +269,9 @@ def _own_velocity(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray
     return force, torque
 
 
-def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+def _thrust_quadratic(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
     """Nonlinear thrust loss in the oncoming downwash, beyond the linear (S0-6):
     Delta f_i = -b_q v_on,i^2 omega_i^2 with b_q = ``b_q_rel_spm`` * b_v of the target
     (b_q in N s^4 m^-2 rad^-2; the parameter, s/m, is the ratio b_q / b_v, so one value suits any
@@ -272,7 +303,7 @@ _EFFECT_FUNCTIONS = {
 def effect_wrench(effect: Effect, inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
     """ADDITIONAL force (N, 3), N, and torque (N, 3), N m, of ``effect`` beyond the base model,
     world frame, for the N samples of ``inputs``."""
-    return _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs)
+    return _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, _BaseCache(inputs))
 
 
 def total_wrench(
@@ -280,9 +311,10 @@ def total_wrench(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Base model summed over all sources plus every effect in ``effects``: force (N, 3), N, and
     torque (N, 3), N m, world frame."""
-    force, torque = base_wrench(inputs)
+    cache = _BaseCache(inputs)
+    force, torque = _sum_base(inputs, cache)
     for effect in effects:
-        f, t = effect_wrench(effect, inputs)
+        f, t = _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, cache)
         force += f
         torque += t
     return force, torque
