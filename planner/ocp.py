@@ -9,19 +9,27 @@ input j_mps3 per interval; multiple shooting with the exact discretisation of th
 
 so the node states describe the continuous trajectory exactly. Hovering vehicles are constants.
 
-Constraints (nodes k = 0..n): start at rest, goal (absolute, or the dock partner's final position
-plus the dock offset) at rest; speed / acceleration / jerk limits (per axis or Euclidean, matching
-the verifier); workspace box; axis-aligned box obstacles by side selection from the warm start (the
-face the warm-start node is furthest outside of, per node); pairwise separation; and **authority
-usage <= authority_fraction** for every vehicle: the disturbance wrench (F_z, tau_x, tau_y) on a
-target from each source above it comes from the differentiable wrench table of
-``costmaps.map_store`` (the same numbers as ``costmaps.disturbance``); it is summed over sources and
-mapped through the inverse mixer of (S0-14) (``costmaps.authority.mixer_matrix``) to per-motor thrust
-changes, each bounded by ``fraction x headroom`` in its direction (DESIGN.md section 3). That is
-exactly ``authority usage <= fraction`` without a non-smooth max.
+Path constraints are imposed at *check points*: every node and every interval midpoint (the exact
+midpoint position p + h/2 v + h^2/8 a + h^3/48 j), so nothing slips through between nodes:
+start at rest, goal (absolute, or the dock partner's final position plus the dock offset) at rest;
+speed / acceleration / jerk norms (the verifier's convention); workspace box shrunk by the body
+radius; axis-aligned box obstacles by side selection from the warm start (the face the warm-start
+point is furthest outside of); pairwise separation; the model's invalid zone (0 < dz <= 3 L of a
+source with overlapping footprints, S0 II-A) by side selection (above / below / beside); a dock pair
+on its final approach stays on the dock axis instead; and **authority usage <= authority_fraction**
+for every vehicle: the disturbance wrench (F_z, tau_x, tau_y) on a target from each other vehicle
+comes from the differentiable wrench table of ``costmaps.map_store`` (the same numbers as
+``costmaps.disturbance``), is summed over sources and mapped through the inverse mixer of (S0-14)
+(``costmaps.authority.mixer_matrix``) to per-motor thrust changes, each bounded by
+``fraction x headroom`` in its direction (DESIGN.md section 3) -- exactly ``usage <= fraction``
+without a non-smooth max.
 
-Objective: T + w_smooth * integral of |j / j_max|^2 + w_exposure * integral of the summed squared
+Objective: T + w_smooth * integral |j / j_max|^2 dt + w_exposure * integral of the summed squared
 normalised motor changes (disturbance exposure).
+
+The table's ``casadi.Function.bspline`` has no SX form, so the NLP is solved as MX
+(``expand=False``); the problem is built from vectorised matrix expressions and ``Function.map``
+so that this costs little.
 """
 
 from __future__ import annotations
@@ -33,9 +41,8 @@ from typing import Callable, Mapping
 import numpy as np
 
 from costmaps.authority import mixer_matrix
+from costmaps.disturbance import VALIDITY_FACTOR_L
 from costmaps.vehicles import Vehicle
-
-WrenchFunction = Callable  # casadi.Function: offset_m (3x1, p_target - p_source) -> (F_z N, tau_x N m, tau_y N m)
 
 
 @dataclass(frozen=True)
@@ -49,6 +56,7 @@ class OcpAgent:
     goal_m: np.ndarray | None = None  # (3,) absolute goal; None with dock_with or when hovering
     dock_with: str | None = None  # partner whose final position + dock_offset_m is the goal
     dock_offset_m: np.ndarray | None = None  # (3,), m
+    dock_reach_m: float = 0.0  # radius around the dock point of the axis-bound final approach, m
     max_speed_mps: float = 1.0
     max_accel_mps2: float = 2.0
     max_jerk_mps3: float = 5.0
@@ -69,8 +77,9 @@ class OcpWeights:
 
 @dataclass(frozen=True)
 class OcpProblem:
-    """Everything the OCP needs; ``wrench_functions[(source_name, target_name)]`` per ordered pair
-    of vehicle names (pairs without an entry have no interaction)."""
+    """Everything the OCP needs; ``wrench_functions[(source_name, target_name)]`` is a
+    casadi.Function offset_m (3x1, p_target - p_source) -> (F_z N, tau_x N m, tau_y N m) per ordered
+    pair of vehicle names (pairs without an entry have no interaction)."""
 
     agents: tuple[OcpAgent, ...]
     n_intervals: int
@@ -83,12 +92,13 @@ class OcpProblem:
     authority_fraction: float = 0.5
     wrench_functions: Mapping[tuple[str, str], object] = field(default_factory=dict)
     weights: OcpWeights = OcpWeights()
-    limit_norm: str = "axis"  # "axis": per-axis limits (as Ruckig); "euclidean": norm limits
-    kinematic_margin: float = 0.97  # node limits are this fraction of the true ones (between nodes)
-    authority_margin: float = 0.9  # node authority bound is this fraction of authority_fraction
-    obstacle_margin_m: float = 0.1  # clearance to boxes beyond the body radius (incl. chords), m
-    separation_margin_m: float = 0.02  # extra separation at nodes, m
-    interaction_radius_m: float = 2.0  # horizontal range beyond which a source is ignored, m
+    invalid_zone_keep_out: bool = True  # False for invalid_zone_rule "model"
+    kinematic_margin: float = 0.97  # node limits are this fraction of the true ones
+    dock_speed_factor: float = 0.5  # speed limit on the dock approach, fraction of max speed
+    authority_margin: float = 0.9  # check-point bound is this fraction of authority_fraction
+    obstacle_margin_m: float = 0.05  # clearance to boxes beyond the body radius, m
+    chord_margin_m: float = 0.03  # extra clearance for the path between check points, m
+    interaction_radius_m: float = 2.0  # horizontal range beyond which a pair is ignored, m
     max_iterations: int = 300
     max_cpu_time_s: float = 40.0
 
@@ -125,191 +135,6 @@ def normalised_motor_map(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray, np.n
     return a, up, down
 
 
-def _side_constraint(point: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[int, float]:
-    """Face of the box [lo, hi] that ``point`` is furthest outside of: (axis * 2 + side, depth_m)."""
-    outside = np.concatenate([lo - point, point - hi])  # (6,): -x,-y,-z faces then +x,+y,+z
-    face = int(np.argmax(outside))
-    return face, float(outside[face])
-
-
-def build_and_solve(problem: OcpProblem, *, progress: Callable[[str], None] | None = None) -> OcpSolution:
-    """Build the Opti problem, warm-start it and solve with IPOPT (``expand=True``, print_level 0)."""
-    import casadi as ca
-
-    t_build = time.perf_counter()
-    n = problem.n_intervals
-    agents = {a.name: a for a in problem.agents}
-    opti = ca.Opti()
-    T = opti.variable()
-    h = T / n
-    opti.subject_to(opti.bounded(0.2 * problem.warm_duration_s, T, problem.max_duration_s))
-    opti.set_initial(T, problem.warm_duration_s)
-
-    pos: dict[str, object] = {}
-    vel: dict[str, object] = {}
-    acc: dict[str, object] = {}
-    jerk: dict[str, object] = {}
-    cost = problem.weights.time * T
-    margin = problem.kinematic_margin
-    for a in problem.agents:
-        if not a.moving:
-            pos[a.name] = ca.DM(np.tile(np.asarray(a.start_m, float)[:, None], (1, n + 1)))
-            continue
-        X = opti.variable(9, n + 1)
-        U = opti.variable(3, n)
-        p, v, ac = X[0:3, :], X[3:6, :], X[6:9, :]
-        pos[a.name], vel[a.name], acc[a.name], jerk[a.name] = p, v, ac, U
-        # multiple shooting with the exact triple-integrator step
-        p_next = p[:, :-1] + h * v[:, :-1] + h**2 / 2 * ac[:, :-1] + h**3 / 6 * U
-        v_next = v[:, :-1] + h * ac[:, :-1] + h**2 / 2 * U
-        a_next = ac[:, :-1] + h * U
-        opti.subject_to(ca.vertcat(p[:, 1:] - p_next, v[:, 1:] - v_next, ac[:, 1:] - a_next) == 0)
-        opti.subject_to(X[:, 0] == ca.vertcat(ca.DM(np.asarray(a.start_m, float)), ca.DM.zeros(6)))
-        opti.subject_to(X[3:9, n] == 0)
-        if a.goal_m is not None and a.dock_with is None:
-            opti.subject_to(p[:, n] == ca.DM(np.asarray(a.goal_m, float)))
-        # kinematic limits
-        vmax, amax, jmax = (margin * a.max_speed_mps, margin * a.max_accel_mps2, margin * a.max_jerk_mps3)
-        if problem.limit_norm == "euclidean":
-            opti.subject_to(ca.sum1(v**2) <= vmax**2)
-            opti.subject_to(ca.sum1(ac**2) <= amax**2)
-            opti.subject_to(ca.sum1(U**2) <= jmax**2)
-        else:
-            opti.subject_to(opti.bounded(-vmax, v, vmax))
-            opti.subject_to(opti.bounded(-amax, ac, amax))
-            opti.subject_to(opti.bounded(-jmax, U, jmax))
-        lo = np.asarray(problem.workspace_min_m, float)
-        hi = np.asarray(problem.workspace_max_m, float)
-        opti.subject_to(opti.bounded(ca.repmat(ca.DM(lo), 1, n + 1), p, ca.repmat(ca.DM(hi), 1, n + 1)))
-        cost += problem.weights.smoothness * h * ca.sumsqr(U / a.max_jerk_mps3)
-        # warm start
-        wp = _warm(a.warm_position_m, a.start_m, n)
-        wv = _warm(a.warm_velocity_mps, np.zeros(3), n)
-        wa = _warm(a.warm_acceleration_mps2, np.zeros(3), n)
-        opti.set_initial(X, np.vstack([wp.T, wv.T, wa.T]))
-        wj = np.diff(wa, axis=0) / (problem.warm_duration_s / n)
-        opti.set_initial(U, np.clip(wj, -jmax, jmax).T)
-        # obstacles: side selection from the warm start, one linear constraint per node and box
-        for lo_b, hi_b in problem.obstacles:
-            infl = a.body_radius_m + problem.obstacle_margin_m
-            blo = np.asarray(lo_b, float) - infl
-            bhi = np.asarray(hi_b, float) + infl
-            for k in range(n + 1):
-                face, depth = _side_constraint(wp[k], blo, bhi)
-                if depth > 3.0:  # far from this box in the warm start and cannot get there
-                    continue
-                axis, upper = face % 3, face >= 3
-                if upper:
-                    opti.subject_to(p[axis, k] >= bhi[axis])
-                else:
-                    opti.subject_to(p[axis, k] <= blo[axis])
-
-    # dock boundary conditions (partner may itself be moving)
-    for a in problem.agents:
-        if a.moving and a.dock_with is not None:
-            partner = pos[a.dock_with]
-            opti.subject_to(pos[a.name][:, n] == partner[:, n] + ca.DM(np.asarray(a.dock_offset_m, float)))
-
-    warm_pos = {a.name: (_warm(a.warm_position_m, a.start_m, n) if a.moving else
-                         np.tile(np.asarray(a.start_m, float), (n + 1, 1))) for a in problem.agents}
-    names = [a.name for a in problem.agents]
-
-    # separation between every pair with at least one moving vehicle: at least min_separation_m
-    # and the sum of the body radii; a dock pair may come as close as its dock offset
-    for i, ni in enumerate(names):
-        for nj in names[i + 1:]:
-            if not (agents[ni].moving or agents[nj].moving):
-                continue
-            dmin = problem.separation_margin_m + max(
-                problem.min_separation_m, agents[ni].body_radius_m + agents[nj].body_radius_m
-            )
-            for x, y in ((ni, nj), (nj, ni)):
-                if agents[x].dock_with == y and agents[x].dock_offset_m is not None:
-                    dmin = min(dmin, float(np.linalg.norm(agents[x].dock_offset_m)))
-            dist = np.linalg.norm(warm_pos[ni] - warm_pos[nj], axis=1)
-            ks = [k for k in range(n + 1) if dist[k] < dmin + problem.interaction_radius_m]
-            if not ks:
-                continue
-            diff = pos[ni][:, ks] - pos[nj][:, ks]
-            opti.subject_to(ca.sum1(diff**2) >= dmin**2)
-
-    # authority usage <= fraction for every vehicle, summed over the sources above it
-    frac = problem.authority_fraction * problem.authority_margin
-    for nt in names:
-        target = agents[nt]
-        a_map, up, down = normalised_motor_map(target.vehicle)
-        terms: dict[int, list] = {}
-        for ns in names:
-            fn = problem.wrench_functions.get((ns, nt))
-            if ns == nt or fn is None or not (agents[ns].moving or target.moving):
-                continue
-            rel = warm_pos[nt] - warm_pos[ns]
-            horiz = np.linalg.norm(rel[:, :2], axis=1)
-            for k in range(n + 1):
-                if horiz[k] > problem.interaction_radius_m:
-                    continue
-                w = fn(pos[nt][:, k] - pos[ns][:, k])
-                terms.setdefault(k, []).append(w)
-        for k, ws in sorted(terms.items()):
-            delta_f = ca.mtimes(ca.DM(a_map), sum(ws[1:], ws[0]))  # (4,) N
-            opti.subject_to(opti.bounded(-frac * ca.DM(down), delta_f, frac * ca.DM(up)))
-            if target.moving or any(agents[ns].moving for ns in names):
-                norm_sq = ca.sumsqr(delta_f / ca.DM(np.minimum(up, down)))
-                cost += problem.weights.exposure * h * norm_sq
-
-    opti.minimize(cost)
-    opti.solver(
-        "ipopt",
-        {"expand": True, "print_time": False},
-        {
-            "print_level": 0,
-            "sb": "yes",
-            "max_iter": problem.max_iterations,
-            "max_cpu_time": problem.max_cpu_time_s,
-            "tol": 1e-6,
-            "acceptable_tol": 1e-4,
-            "mu_strategy": "adaptive",
-        },
-    )
-    build_time = time.perf_counter() - t_build
-    if progress is not None:
-        progress(f"optimiser: {opti.nx} variables, {opti.ng} constraints, built in {build_time:.2f} s")
-    t0 = time.perf_counter()
-    try:
-        sol = opti.solve()
-        value, stats, ok = sol.value, sol.stats(), True
-    except RuntimeError:
-        value, stats, ok = opti.debug.value, opti.stats(), False
-    solve_time = time.perf_counter() - t0
-    status = str(stats.get("return_status", "unknown"))
-    ok = ok and bool(stats.get("success", False))
-    out_p, out_v, out_a, out_j = {}, {}, {}, {}
-    for a in problem.agents:
-        if a.moving:
-            out_p[a.name] = np.asarray(value(pos[a.name])).T.reshape(n + 1, 3)
-            out_v[a.name] = np.asarray(value(vel[a.name])).T.reshape(n + 1, 3)
-            out_a[a.name] = np.asarray(value(acc[a.name])).T.reshape(n + 1, 3)
-            out_j[a.name] = np.asarray(value(jerk[a.name])).T.reshape(n, 3)
-        else:
-            out_p[a.name] = np.tile(np.asarray(a.start_m, float), (n + 1, 1))
-            out_v[a.name] = np.zeros((n + 1, 3))
-            out_a[a.name] = np.zeros((n + 1, 3))
-            out_j[a.name] = np.zeros((n, 3))
-    return OcpSolution(
-        success=ok,
-        status=status,
-        duration_s=float(value(T)),
-        position_m=out_p,
-        velocity_mps=out_v,
-        acceleration_mps2=out_a,
-        jerk_mps3=out_j,
-        iterations=int(stats.get("iter_count", 0)),
-        solve_time_s=solve_time,
-        build_time_s=build_time,
-        objective=float(value(cost)),
-    )
-
-
 def _warm(values: np.ndarray | None, default: np.ndarray, n: int) -> np.ndarray:
     if values is None:
         return np.tile(np.asarray(default, float), (n + 1, 1))
@@ -319,10 +144,288 @@ def _warm(values: np.ndarray | None, default: np.ndarray, n: int) -> np.ndarray:
     return arr
 
 
-def sample_solution(solution: OcpSolution, times_s: np.ndarray, *, time_scale: float = 1.0) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def _check_points_warm(nodes: np.ndarray) -> np.ndarray:
+    """Warm positions at the check points: nodes (n+1) then midpoints (n), shape (2n+1, 3)."""
+    return np.vstack([nodes, 0.5 * (nodes[:-1] + nodes[1:])])
+
+
+class _Builder:
+    """Holds the Opti problem while it is assembled (one call of :func:`build_and_solve`)."""
+
+    def __init__(self, problem: OcpProblem):
+        import casadi as ca
+
+        self.ca = ca
+        self.pb = problem
+        self.n = problem.n_intervals
+        self.opti = ca.Opti()
+        self.T = self.opti.variable()
+        self.h = self.T / self.n
+        self.agents = {a.name: a for a in problem.agents}
+        self.names = [a.name for a in problem.agents]
+        self.X: dict[str, object] = {}
+        self.U: dict[str, object] = {}
+        self.Q: dict[str, object] = {}  # positions at check points (3, 2n+1)
+        self.Qw: dict[str, np.ndarray] = {}  # warm positions at check points (2n+1, 3)
+        self.exempt: dict[tuple[str, str], np.ndarray] = {}  # dock pair -> (2n+1,) bool
+        self.cost = problem.weights.time * self.T
+
+    # ---------------------------------------------------------------- vehicles
+    def add_vehicles(self) -> None:
+        ca, opti, n, h, pb = self.ca, self.opti, self.n, self.h, self.pb
+        opti.subject_to(opti.bounded(0.1 * pb.warm_duration_s, self.T, pb.max_duration_s))
+        opti.set_initial(self.T, min(pb.warm_duration_s, pb.max_duration_s))
+        for a in pb.agents:
+            wp = _warm(a.warm_position_m, a.start_m, n) if a.moving else np.tile(np.asarray(a.start_m, float), (n + 1, 1))
+            self.Qw[a.name] = _check_points_warm(wp)
+            if not a.moving:
+                self.Q[a.name] = ca.DM(np.tile(np.asarray(a.start_m, float)[:, None], (1, 2 * n + 1)))
+                continue
+            X, U = opti.variable(9, n + 1), opti.variable(3, n)
+            self.X[a.name], self.U[a.name] = X, U
+            p, v, ac = X[0:3, :], X[3:6, :], X[6:9, :]
+            p0, v0, a0 = p[:, :-1], v[:, :-1], ac[:, :-1]
+            # multiple shooting with the exact triple-integrator step
+            opti.subject_to(p[:, 1:] == p0 + h * v0 + h**2 / 2 * a0 + h**3 / 6 * U)
+            opti.subject_to(v[:, 1:] == v0 + h * a0 + h**2 / 2 * U)
+            opti.subject_to(ac[:, 1:] == a0 + h * U)
+            mid_p = p0 + h / 2 * v0 + h**2 / 8 * a0 + h**3 / 48 * U
+            mid_v = v0 + h / 2 * a0 + h**2 / 8 * U
+            self.Q[a.name] = ca.horzcat(p, mid_p)
+            opti.subject_to(X[:, 0] == ca.vertcat(ca.DM(np.asarray(a.start_m, float)), ca.DM.zeros(6)))
+            opti.subject_to(X[3:9, n] == 0)
+            if a.goal_m is not None and a.dock_with is None:
+                opti.subject_to(p[:, n] == ca.DM(np.asarray(a.goal_m, float)))
+            m = pb.kinematic_margin
+            opti.subject_to(ca.sum1(ca.horzcat(v, mid_v) ** 2) <= (m * a.max_speed_mps) ** 2)
+            opti.subject_to(ca.sum1(ac**2) <= (m * a.max_accel_mps2) ** 2)
+            opti.subject_to(ca.sum1(U**2) <= (m * a.max_jerk_mps3) ** 2)
+            rb = a.body_radius_m
+            lo = np.asarray(pb.workspace_min_m, float) + np.array([rb, rb, 0.0])
+            hi = np.asarray(pb.workspace_max_m, float) - np.array([rb, rb, 0.0])
+            Q = self.Q[a.name]
+            opti.subject_to(opti.bounded(ca.repmat(ca.DM(lo), 1, 2 * n + 1), Q, ca.repmat(ca.DM(hi), 1, 2 * n + 1)))
+            self.cost += pb.weights.smoothness * h * ca.sumsqr(U / a.max_jerk_mps3)
+            # warm start
+            wv = _warm(a.warm_velocity_mps, np.zeros(3), n)
+            wa = _warm(a.warm_acceleration_mps2, np.zeros(3), n)
+            opti.set_initial(X, np.vstack([wp.T, wv.T, wa.T]))
+            wj = np.diff(wa, axis=0) / (pb.warm_duration_s / n)
+            opti.set_initial(U, wj.T)
+            self._obstacles(a, Q, self.Qw[a.name])
+        for a in pb.agents:  # dock boundary conditions (the partner may itself be moving)
+            if a.moving and a.dock_with is not None:
+                partner = self.Q[a.dock_with][:, n]
+                opti.subject_to(self.Q[a.name][:, n] == partner + ca.DM(np.asarray(a.dock_offset_m, float)))
+                self._dock_approach(a)
+
+    def _obstacles(self, a: OcpAgent, Q, Qw: np.ndarray) -> None:
+        pb = self.pb
+        grow_xy = a.body_radius_m + pb.obstacle_margin_m + pb.chord_margin_m
+        grow = np.array([grow_xy, grow_xy, pb.obstacle_margin_m + pb.chord_margin_m])
+        for lo_b, hi_b in pb.obstacles:
+            blo, bhi = np.asarray(lo_b, float) - grow, np.asarray(hi_b, float) + grow
+            outside = np.hstack([blo - Qw, Qw - bhi])  # (2n+1, 6): -x,-y,-z then +x,+y,+z faces
+            face = np.argmax(outside, axis=1)
+            near = outside[np.arange(len(face)), face] < 3.0
+            for f in range(6):
+                ks = np.flatnonzero((face == f) & near).tolist()
+                if not ks:
+                    continue
+                axis = f % 3
+                if f >= 3:
+                    self.opti.subject_to(Q[axis, ks] >= bhi[axis])
+                else:
+                    self.opti.subject_to(Q[axis, ks] <= blo[axis])
+
+    def _dock_approach(self, a: OcpAgent) -> None:
+        """On the final approach (warm start within ``dock_reach_m`` of the dock point) the docker
+        stays on the dock axis, on the near side of the dock point, at reduced speed."""
+        ca, opti = self.ca, self.opti
+        off = np.asarray(a.dock_offset_m, float)
+        u = off / max(np.linalg.norm(off), 1e-9)
+        rel_w = self.Qw[a.name] - self.Qw[a.dock_with] - off
+        exempt = np.linalg.norm(rel_w, axis=1) <= a.dock_reach_m
+        self.exempt[(a.name, a.dock_with)] = exempt
+        ks = np.flatnonzero(exempt).tolist()
+        if not ks:
+            return
+        rel = self.Q[a.name][:, ks] - self.Q[a.dock_with][:, ks] - ca.DM(off)
+        along = ca.mtimes(ca.DM(u).T, rel)
+        perp = rel - ca.mtimes(ca.DM(u), along)
+        opti.subject_to(ca.sum1(perp**2) <= 0.03**2)
+        opti.subject_to(along >= 0)
+        nodes = [k for k in ks if k <= self.n]
+        if nodes:
+            v = self.X[a.name][3:6, nodes]
+            vmax = self.pb.dock_speed_factor * a.max_speed_mps
+            opti.subject_to(ca.sum1(v**2) <= vmax**2)
+
+    def _is_exempt(self, x: str, y: str) -> np.ndarray:
+        m = np.zeros(2 * self.n + 1, dtype=bool)
+        for key in ((x, y), (y, x)):
+            if key in self.exempt:
+                m |= self.exempt[key]
+        return m
+
+    # ---------------------------------------------------------------- pairs
+    def add_pairs(self) -> None:
+        ca, opti, pb = self.ca, self.opti, self.pb
+        for i, ni in enumerate(self.names):
+            for nj in self.names[i + 1 :]:
+                ai, aj = self.agents[ni], self.agents[nj]
+                if not (ai.moving or aj.moving):
+                    continue
+                exempt = self._is_exempt(ni, nj)
+                rel_w = self.Qw[ni] - self.Qw[nj]
+                dist_w = np.linalg.norm(rel_w, axis=1)
+                sep = max(pb.min_separation_m, ai.body_radius_m + aj.body_radius_m) + pb.chord_margin_m
+                ks = np.flatnonzero(~exempt & (dist_w < sep + pb.interaction_radius_m)).tolist()
+                if ks:
+                    diff = self.Q[ni][:, ks] - self.Q[nj][:, ks]
+                    opti.subject_to(ca.sum1(diff**2) >= sep**2)
+                if pb.invalid_zone_keep_out:
+                    for s, t in ((ni, nj), (nj, ni)):
+                        self._invalid_zone(s, t, exempt)
+
+    def _invalid_zone(self, s: str, t: str, exempt: np.ndarray) -> None:
+        """Keep target t out of source s's invalid zone (0 < dz <= 3 L_s, r < r_s + r_t) by side
+        selection from the warm start: above s, below the zone, or beside it."""
+        ca, opti, pb = self.ca, self.opti, self.pb
+        src, tgt = self.agents[s], self.agents[t]
+        depth = VALIDITY_FACTOR_L * src.vehicle.size_m
+        radius = src.body_radius_m + tgt.body_radius_m
+        eps = pb.chord_margin_m
+        rel_w = self.Qw[t] - self.Qw[s]
+        dz_w, r_w = -rel_w[:, 2], np.hypot(rel_w[:, 0], rel_w[:, 1])
+        near = ~exempt & (r_w < radius + 1.0) & (dz_w > -1.0) & (dz_w < depth + 1.0)
+        slack = np.column_stack([-dz_w, dz_w - depth, r_w - radius])  # above, below, beside
+        choice = np.argmax(slack, axis=1)
+        rel = self.Q[t] - self.Q[s]
+        for c in range(3):
+            ks = np.flatnonzero(near & (choice == c)).tolist()
+            if not ks:
+                continue
+            if c == 0:
+                opti.subject_to(rel[2, ks] >= eps)
+            elif c == 1:
+                opti.subject_to(-rel[2, ks] >= depth + eps)
+            else:
+                opti.subject_to(ca.sum1(rel[0:2, ks] ** 2) >= (radius + eps) ** 2)
+
+    # ---------------------------------------------------------------- authority
+    def add_authority(self) -> None:
+        ca, opti, pb, n = self.ca, self.opti, self.pb, self.n
+        nq = 2 * n + 1
+        weights = np.r_[0.5, np.ones(n - 1), 0.5, np.ones(n)] * 0.5  # trapezoid-ish over check points
+        for nt in self.names:
+            target = self.agents[nt]
+            a_map, up, down = normalised_motor_map(target.vehicle)
+            total = None
+            active = np.zeros(nq, dtype=bool)
+            for ns in self.names:
+                fn = pb.wrench_functions.get((ns, nt))
+                if ns == nt or fn is None or not (self.agents[ns].moving or target.moving):
+                    continue
+                rel_w = self.Qw[nt] - self.Qw[ns]
+                near = (np.hypot(rel_w[:, 0], rel_w[:, 1]) <= pb.interaction_radius_m) & (rel_w[:, 2] < 0.5)
+                ks = np.flatnonzero(near)
+                if ks.size == 0:
+                    continue
+                offsets = self.Q[nt][:, ks.tolist()] - self.Q[ns][:, ks.tolist()]
+                w = fn.map(int(ks.size))(offsets)  # (3, m)
+                select = ca.DM.triplet(list(range(int(ks.size))), ks.tolist(), ca.DM.ones(int(ks.size)), int(ks.size), nq)
+                contrib = ca.mtimes(ca.mtimes(ca.DM(a_map), w), select)  # (4, nq) N
+                total = contrib if total is None else total + contrib
+                active[ks] = True
+            if total is None:
+                continue
+            frac = np.full(nq, pb.authority_fraction * pb.authority_margin)
+            frac[n] = pb.authority_fraction - 2e-4  # the final state is static: full fraction
+            for key, ex in self.exempt.items():
+                if nt in key:
+                    frac[ex] = pb.authority_fraction - 2e-4
+            ks = np.flatnonzero(active).tolist()
+            df = total[:, ks]
+            lo = -ca.DM(np.outer(down, frac[ks]))
+            hi = ca.DM(np.outer(up, frac[ks]))
+            opti.subject_to(opti.bounded(lo, df, hi))
+            scale = ca.DM(1.0 / np.minimum(up, down))
+            exposure = ca.mtimes(ca.sum1((df * ca.repmat(scale, 1, len(ks))) ** 2), ca.DM(weights[ks]))
+            self.cost += pb.weights.exposure * self.h * exposure
+
+    # ---------------------------------------------------------------- solve
+    def solve(self, progress) -> OcpSolution:
+        ca, opti, pb, n = self.ca, self.opti, self.pb, self.n
+        opti.minimize(self.cost)
+        opti.solver(
+            "ipopt",
+            {"expand": False, "print_time": False},
+            {
+                "print_level": 0,
+                "sb": "yes",
+                "max_iter": pb.max_iterations,
+                "max_cpu_time": pb.max_cpu_time_s,
+                "tol": 1e-6,
+                "acceptable_tol": 1e-4,
+                "mu_strategy": "adaptive",
+            },
+        )
+        if progress is not None:
+            progress(f"optimiser: {opti.nx} variables, {opti.ng} constraints")
+        t0 = time.perf_counter()
+        try:
+            sol = opti.solve()
+            value, stats, ok = sol.value, sol.stats(), True
+        except RuntimeError:
+            value, stats, ok = opti.debug.value, opti.stats(), False
+        solve_time = time.perf_counter() - t0
+        status = str(stats.get("return_status", "unknown"))
+        ok = ok and bool(stats.get("success", False))
+        out_p, out_v, out_a, out_j = {}, {}, {}, {}
+        for a in pb.agents:
+            if a.moving:
+                x = np.asarray(value(self.X[a.name])).reshape(9, n + 1)
+                out_p[a.name], out_v[a.name], out_a[a.name] = x[0:3].T, x[3:6].T, x[6:9].T
+                out_j[a.name] = np.asarray(value(self.U[a.name])).reshape(3, n).T
+            else:
+                out_p[a.name] = np.tile(np.asarray(a.start_m, float), (n + 1, 1))
+                out_v[a.name] = np.zeros((n + 1, 3))
+                out_a[a.name] = np.zeros((n + 1, 3))
+                out_j[a.name] = np.zeros((n, 3))
+        return OcpSolution(
+            success=ok,
+            status=status,
+            duration_s=float(value(self.T)),
+            position_m=out_p,
+            velocity_mps=out_v,
+            acceleration_mps2=out_a,
+            jerk_mps3=out_j,
+            iterations=int(stats.get("iter_count", 0)),
+            solve_time_s=solve_time,
+            build_time_s=0.0,
+            objective=float(value(self.cost)),
+        )
+
+
+def build_and_solve(problem: OcpProblem, *, progress: Callable[[str], None] | None = None) -> OcpSolution:
+    """Build the Opti problem, warm-start it and solve it with IPOPT (print_level 0)."""
+    t0 = time.perf_counter()
+    b = _Builder(problem)
+    b.add_vehicles()
+    b.add_pairs()
+    b.add_authority()
+    build_time = time.perf_counter() - t0
+    sol = b.solve(progress)
+    return OcpSolution(**{**sol.__dict__, "build_time_s": build_time})
+
+
+def sample_solution(
+    solution: OcpSolution, times_s: np.ndarray, *, time_scale: float = 1.0
+) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Evaluate the piecewise-constant-jerk trajectories exactly at ``times_s`` (M,), s.
 
-    ``time_scale`` >= 1 slows the whole solution uniformly (duration x scale; v / s, a / s^2).
+    ``time_scale`` >= 1 slows the whole solution uniformly (duration x s; v / s, a / s^2).
     Returns {name: (position_m (M, 3), velocity_mps (M, 3), acceleration_mps2 (M, 3))}.
     """
     n = next(iter(solution.jerk_mps3.values())).shape[0]
