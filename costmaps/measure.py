@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter, savgol_filter
+from scipy.signal import lfilter, lfilter_zi, savgol_filter
 from scipy.signal.windows import triang
 from scipy.spatial.transform import Rotation
 
@@ -86,8 +86,9 @@ def motor_lag_compensated_N(commanded_N: np.ndarray, dt_s: float, time_constant_
     Exact discretisation for a zero-order-hold command; starts at steady state.
     """
     a = float(np.exp(-dt_s / time_constant_s))
-    zi = (a * commanded_N[0])[None, :]
-    out, _ = lfilter([1.0 - a], [1.0, -a], commanded_N, axis=0, zi=zi)
+    b_coef, a_coef = [0.0, 1.0 - a], [1.0, -a]  # f[k] = a f[k-1] + (1 - a) f_cmd[k-1]
+    zi = lfilter_zi(b_coef, a_coef)[:, None] * commanded_N[0][None, :]
+    out, _ = lfilter(b_coef, a_coef, commanded_N, axis=0, zi=zi)
     return out
 
 

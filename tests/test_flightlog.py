@@ -1,0 +1,121 @@
+"""Flight-log reading, canonical writer round trip, manifest and quality checks."""
+
+from __future__ import annotations
+
+import gzip
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from costmaps.builtin_vehicles import BUILTIN_VEHICLES
+from costmaps.errors import UserError
+from costmaps.flightlog import (
+    NEURAL_SWARM_COLUMNS, FlightEntry, VehicleEntry, VehicleLog, check_log, load_flight, load_manifest,
+    read_log, write_canonical_csv,
+)  # fmt: skip
+
+CF = BUILTIN_VEHICLES["crazyflie-2.1"]
+
+
+def _log(n: int = 300, t0: float = 0.0, z: float = 1.0) -> VehicleLog:
+    t = t0 + 0.01 * np.arange(n)
+    rng = np.random.default_rng(1)
+    return VehicleLog(
+        t_s=t,
+        position_m=np.column_stack([np.sin(t), np.cos(t), z + 0 * t]),
+        velocity_mps=rng.normal(size=(n, 3)),
+        accel_mps2=rng.normal(size=(n, 3)) + [0, 0, 9.81],
+        quat_xyzw=np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)),
+        motor_thrust_N=np.full((n, 4), CF.hover_thrust_per_rotor_N),
+        gyro_radps=rng.normal(size=(n, 3)),
+    )
+
+
+def _write_ns(path: Path, log: VehicleLog, *, drop: str | None = None) -> None:
+    """A Neural-Swarm layout file (time in microseconds) with extra columns."""
+    cols = [c for c in NEURAL_SWARM_COLUMNS.values()] + ["Vbat[V]"]
+    table = np.column_stack([log.as_table(), np.full(len(log), 3.9)])
+    table[:, 0] *= 1e6
+    if drop:
+        k = cols.index(drop)
+        cols.pop(k)
+        table = np.delete(table, k, axis=1)
+    body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
+    path.write_bytes(gzip.compress(("# " + ",".join(cols) + "\n" + body + "\n").encode()))
+
+
+def test_canonical_round_trip(tmp_path: Path) -> None:
+    log = _log()
+    back = read_log(write_canonical_csv(log, tmp_path / "a.csv.gz"))
+    np.testing.assert_allclose(back.as_table(), log.as_table(), rtol=1e-7, atol=1e-9)
+
+
+def test_neural_swarm_microseconds_and_missing_column(tmp_path: Path) -> None:
+    log = _log()
+    _write_ns(tmp_path / "cf.csv.gz", log)
+    back = read_log(tmp_path / "cf.csv.gz")
+    np.testing.assert_allclose(back.t_s, log.t_s, atol=1e-8)  # microseconds -> seconds
+    _write_ns(tmp_path / "bad.csv.gz", log, drop="wz[rad/s]")
+    with pytest.raises(UserError, match=r"bad.csv.gz.*wz\[rad/s\]"):
+        read_log(tmp_path / "bad.csv.gz")
+
+
+def test_time_backwards_is_error_with_row() -> None:
+    log = _log()
+    t = log.t_s.copy()
+    t[100] = t[98]
+    with pytest.raises(UserError, match="row 101"):
+        check_log(VehicleLog(t, *[getattr(log, k) for k in ("position_m", "velocity_mps", "accel_mps2", "quat_xyzw", "motor_thrust_N", "gyro_radps")]), weight_N=CF.weight_N)
+
+
+def test_nan_gap_and_ground_are_counted() -> None:
+    log = _log(400)
+    acc = log.accel_mps2.copy()
+    acc[50:53] = np.nan  # a short NaN run
+    pos = log.position_m.copy()
+    pos[300:, 2] = 0.01  # sits on the ground for the last 100 samples
+    t = log.t_s.copy()
+    t[200:] += 0.5  # a gap
+    bad = VehicleLog(t, pos, log.velocity_mps, acc, log.quat_xyzw, log.motor_thrust_N, log.gyro_radps)
+    clean, ex = check_log(bad, weight_N=CF.weight_N, ground_z_m=0.0)
+    assert ex.nan_rows == 3 and ex.ground_samples == 100 and ex.gap_segments >= 1
+    assert len(clean) == 400 - 3 - 100 - ex.short_segment_samples
+    assert len(np.unique(clean.segment)) >= 2  # the gap splits the log
+    assert np.all(np.isfinite(clean.as_table()))
+
+
+def test_non_overlapping_flight_is_error_and_overlap_trimmed(tmp_path: Path) -> None:
+    write_canonical_csv(_log(300, 0.0), tmp_path / "a.csv")
+    write_canonical_csv(_log(300, 10.0), tmp_path / "b.csv")
+    write_canonical_csv(_log(300, 1.0), tmp_path / "c.csv")
+    veh = {"a": CF, "b": CF, "c": CF}
+    entry = FlightEntry("f", "train", (VehicleEntry("a", "crazyflie-2.1", tmp_path / "a.csv"), VehicleEntry("b", "crazyflie-2.1", tmp_path / "b.csv")))
+    with pytest.raises(UserError, match="do not overlap"):
+        load_flight(entry, veh)
+    entry = FlightEntry("f", "train", (VehicleEntry("a", "crazyflie-2.1", tmp_path / "a.csv"), VehicleEntry("c", "crazyflie-2.1", tmp_path / "c.csv")))
+    fl = load_flight(entry, veh)
+    assert fl.exclusions["a"].outside_overlap_samples == 100 and fl.exclusions["c"].outside_overlap_samples == 100
+    assert fl.logs["a"].t_s[0] >= 1.0 - 1e-9
+
+
+def test_manifest_root_relative_to_file_and_errors(tmp_path: Path) -> None:
+    (tmp_path / "data").mkdir()
+    sub = tmp_path / "m"
+    sub.mkdir()
+    doc = {"format": "canonical", "root": "../data", "flights": [
+        {"name": "a", "split": "train", "vehicles": {"x": {"type": "crazyflie-2.1", "log": "x.csv"}}},
+        {"name": "b", "split": "test", "vehicles": {"x": {"type": "crazyflie-2.1", "log": "y.csv", "ground_z_m": 0.05}}}]}  # fmt: skip
+    (sub / "m.yaml").write_text(yaml.safe_dump(doc))
+    man = load_manifest(sub / "m.yaml")
+    assert man.flights[0].vehicles[0].log.resolve() == (tmp_path / "data" / "x.csv").resolve()
+    assert man.flights[1].vehicles[0].ground_z_m == 0.05
+    doc["flights"][1]["split"] = "validation"
+    (sub / "m.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(UserError, match=r"flights\[1\]\.split"):
+        load_manifest(sub / "m.yaml")
+    doc["flights"][1]["split"] = "train"
+    (sub / "m.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(UserError, match="test"):
+        load_manifest(sub / "m.yaml")

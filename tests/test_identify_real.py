@@ -1,0 +1,29 @@
+"""The shipped Neural-Swarm manifest on the real logs (skips when ../shared is absent)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+MANIFEST = Path(__file__).resolve().parents[1] / "manifests" / "neural-swarm.yaml"
+DATA = SHARED / "data" / "neural-swarm"
+
+
+@pytest.mark.skipif(not DATA.is_dir(), reason=f"Neural-Swarm logs not found at {DATA} (../shared absent)")
+def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
+    from costmaps.flightlog import load_manifest
+    from costmaps.identify import run_identify
+
+    manifest = load_manifest(MANIFEST)
+    train_runs = {f.name for f in manifest.flights if f.split == "train"}
+    test_runs = {f.name for f in manifest.flights if f.split == "test"}
+    assert train_runs and test_runs and not train_runs & test_runs
+    train_logs = {v.log for f in manifest.flights if f.split == "train" for v in f.vehicles}
+    assert not train_logs & {v.log for f in manifest.flights if f.split == "test" for v in f.vehicles}
+    result = run_identify(manifest, thrust_summary=False)
+    assert result.after.rmse_fz_N < result.before.rmse_fz_N
+    assert result.after.n_samples == result.before.n_samples > 1000
+    # the swaps are partly inside 3 L of the source: reported, not hidden
+    assert result.validity["samples_below_a_source"] > 0
