@@ -61,7 +61,11 @@ def render_series(series: WrenchSeries, *, name: str, limit: float, width_px: in
     axes[2].plot(t, series.usage, color="k", lw=1.2, label="usage")
     axes[2].axhline(limit, color="m", ls="--", lw=1, label=f"limit {limit:.2f}")
     axes[2].set_ylabel("authority usage [-]", fontsize=8)
-    axes[2].set_ylim(0.0, max(1.1 * limit, 1.1 * float(np.max(series.usage, initial=0.0)), 1e-3))
+    y_top = max(1.1 * limit, 1.1 * float(np.max(series.usage, initial=0.0)), 1e-3)
+    if series.invalid_zone is not None and np.any(series.invalid_zone):
+        axes[2].fill_between(t, 0.0, y_top, where=series.invalid_zone, color="0.6", alpha=0.35, lw=0,
+                             label="dz <= 3 L (model not valid)")
+    axes[2].set_ylim(0.0, y_top)
     axes[2].set_xlabel("time [s]", fontsize=8)
     axes[0].set_title(f"predicted disturbance on {name}", fontsize=9)
     for ax in axes:

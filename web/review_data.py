@@ -67,18 +67,14 @@ class ReviewData:
 
 
 def _scenario_of_plan(plan: Any, path: Path) -> tuple[Any, str]:
-    """The planner Scenario a plan refers to (its ``scenario_file`` if that still exists, else its
-    embedded ``scenario_spec``) and a note; (None, why) when there is none or it does not load."""
-    from planner.scenario import load_scenario, scenario_from_dict
+    """The planner Scenario a plan was made for (``planner.verify.scenario_of_plan``) and a note;
+    (None, why) when it carries none or it does not load."""
+    from planner.verify import scenario_of_plan
 
     try:
-        if plan.scenario_file and Path(plan.scenario_file).exists():
-            return load_scenario(plan.scenario_file), ""
-        if plan.scenario_spec:
-            return scenario_from_dict(plan.scenario_spec, source_path=plan.scenario_file), ""
+        return scenario_of_plan(plan, label=str(path)), ""
     except UserError as err:
-        return None, f"scenario not loaded ({err}); showing the plan alone, editing disabled"
-    return None, "the plan carries no scenario; workspace drawn around the trajectories, editing disabled"
+        return None, f"scenario not loaded ({err}); showing the trajectories alone (no disturbance, no editing)"
 
 
 def _fallback_bounds(position_m: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
