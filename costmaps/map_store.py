@@ -177,7 +177,7 @@ def save_pair_maps(maps: PairMaps, path: str | Path) -> Path:
     arrays = {
         "format_version": np.array(FORMAT_VERSION),
         "metadata_json": np.array(json.dumps(maps.metadata, sort_keys=True)),
-        "dz_m": c.dz_m.astype(f32),
+        "dz_m": c.dz_m.astype(np.float64),  # float64: the validity boundary is a node
         "r_cut_m": c.default_r_cut_m.astype(f32),
         "levels": c.levels.astype(f32),
         "r_cut_levels_m": c.r_cut_levels_m.astype(f32),
@@ -190,7 +190,7 @@ def save_pair_maps(maps: PairMaps, path: str | Path) -> Path:
         "cutoff_usage": c.usage.astype(f32),
         "table_xi": t.xi.astype(f32),
         "table_eta": t.eta.astype(f32),
-        "table_dz_m": t.dz_m.astype(f32),
+        "table_dz_m": t.dz_m.astype(np.float64),
         "table_scale": np.array([t.scale.a_m, t.scale.b, t.scale.c_m]),
         "table_valid": t.valid,
         "table_boundary_usage": np.array(t.boundary_usage),
@@ -214,17 +214,16 @@ _REQUIRED_KEYS = (
 )  # fmt: skip
 
 
-def _first_difference(stored: dict, expected: dict, prefix: str = "") -> str | None:
-    """Dotted key of the first parameter that differs between two nested dicts."""
+def _differences(stored: dict, expected: dict, prefix: str = "") -> list[str]:
+    """Dotted keys (with both values) of every parameter that differs between two nested dicts."""
+    found: list[str] = []
     for key in sorted(set(stored) | set(expected)):
         a, b = stored.get(key), expected.get(key)
         if isinstance(a, dict) and isinstance(b, dict):
-            found = _first_difference(a, b, f"{prefix}{key}.")
-            if found:
-                return found
+            found += _differences(a, b, f"{prefix}{key}.")
         elif a != b:
-            return f"{prefix}{key} (map {a!r}, expected {b!r})"
-    return None
+            found.append(f"{prefix}{key} (map {a!r}, expected {b!r})")
+    return found
 
 
 def load_pair_maps(
@@ -263,7 +262,7 @@ def load_pair_maps(
         opts = DEFAULT_OPTIONS if options is None else options
         expected = param_hash(expect_source, expect_target, opts)
         if metadata.get("param_hash") != expected:
-            diff = _first_difference(
+            diffs = _differences(
                 {
                     "source": {k: v for k, v in metadata.get("source", {}).items() if k not in _FREE_TEXT_KEYS},
                     "target": {k: v for k, v in metadata.get("target", {}).items() if k not in _FREE_TEXT_KEYS},
@@ -278,7 +277,8 @@ def load_pair_maps(
             raise UserError(
                 f"{path}: cost map was made for other parameters than "
                 f"{expect_source.name} -> {expect_target.name} with these model options "
-                f"(first difference: {diff or 'unknown'}); regenerate it with `proxplan costmap`"
+                f"(differences: {'; '.join(diffs[:4]) or 'format or hash only'}"
+                f"{'; ...' if len(diffs) > 4 else ''}); regenerate it with `proxplan costmap`"
             )
     return _maps_from_arrays(data, metadata)
 
