@@ -15,7 +15,7 @@ start at rest, goal (absolute, or the dock partner's final position plus the doc
 speed / acceleration / jerk norms (the verifier's convention); workspace box shrunk by the body
 radius; axis-aligned box obstacles by side selection from the warm start (the face the warm-start
 point is furthest outside of); pairwise separation; the model's invalid zone (0 < dz <= 3 L of a
-source with overlapping footprints, S0 II-A) by side selection (above / below / beside); a dock pair
+source with overlapping footprints, S0 II-A) enclosed by a smooth super-ellipsoid; a dock pair
 on its final approach stays on the dock axis instead; and **authority usage <= authority_fraction**
 for every vehicle: the disturbance wrench (F_z, tau_x, tau_y) on a target from each other vehicle
 comes from the differentiable wrench table of ``costmaps.map_store`` (the same numbers as
@@ -289,29 +289,26 @@ class _Builder:
                         self._invalid_zone(s, t, exempt)
 
     def _invalid_zone(self, s: str, t: str, exempt: np.ndarray) -> None:
-        """Keep target t out of source s's invalid zone (0 < dz <= 3 L_s, r < r_s + r_t) by side
-        selection from the warm start: above s, below the zone, or beside it."""
+        """Keep target t out of source s's invalid zone, the cylinder 0 < dz <= 3 L_s, r < r_s + r_t
+        (S0 II-A), with one smooth super-ellipsoid constraint (r / A)^4 + ((dz - c) / B)^4 >= 1 that
+        encloses the cylinder grown by the chord margin (A, B = 2^(1/4) x its half sizes)."""
         ca, opti, pb = self.ca, self.opti, self.pb
         src, tgt = self.agents[s], self.agents[t]
-        depth = VALIDITY_FACTOR_L * src.vehicle.size_m
-        radius = src.body_radius_m + tgt.body_radius_m
         eps = pb.chord_margin_m
+        half_h = 0.5 * VALIDITY_FACTOR_L * src.vehicle.size_m + eps
+        centre = 0.5 * VALIDITY_FACTOR_L * src.vehicle.size_m
+        k = 2.0**0.25
+        a_m, b_m = k * (src.body_radius_m + tgt.body_radius_m + eps), k * half_h
         rel_w = self.Qw[t] - self.Qw[s]
         dz_w, r_w = -rel_w[:, 2], np.hypot(rel_w[:, 0], rel_w[:, 1])
-        near = ~exempt & (r_w < radius + 1.0) & (dz_w > -1.0) & (dz_w < depth + 1.0)
-        slack = np.column_stack([-dz_w, dz_w - depth, r_w - radius])  # above, below, beside
-        choice = np.argmax(slack, axis=1)
-        rel = self.Q[t] - self.Q[s]
-        for c in range(3):
-            ks = np.flatnonzero(near & (choice == c)).tolist()
-            if not ks:
-                continue
-            if c == 0:
-                opti.subject_to(rel[2, ks] >= eps)
-            elif c == 1:
-                opti.subject_to(-rel[2, ks] >= depth + eps)
-            else:
-                opti.subject_to(ca.sum1(rel[0:2, ks] ** 2) >= (radius + eps) ** 2)
+        near = ~exempt & (r_w < a_m + 1.0) & (np.abs(dz_w - centre) < b_m + 1.0)
+        ks = np.flatnonzero(near).tolist()
+        if not ks:
+            return
+        rel = self.Q[t][:, ks] - self.Q[s][:, ks]
+        r_sq = ca.sum1(rel[0:2, :] ** 2) / a_m**2
+        dz = (-rel[2, :] - centre) / b_m
+        opti.subject_to(r_sq**2 + dz**4 >= 1.0)
 
     # ---------------------------------------------------------------- authority
     def add_authority(self) -> None:

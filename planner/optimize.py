@@ -1,0 +1,284 @@
+"""Refine a sampling plan with the CasADi optimiser (:mod:`planner.ocp`) into a tighter plan.
+
+``refine_plan(scenario, initial_plan)`` warm-starts the joint optimal-control problem from the
+sampling planner's result, solves it with IPOPT, samples the piecewise-constant-jerk solution
+exactly on the plan's time grid (``dt_s``; the optimised duration is rounded up to a whole number of
+steps by a uniform slow-down, which keeps every limit), and re-checks the result with
+``planner.verify.verify_plan`` (the model evaluated directly, not the table). A failed solve or a
+refined plan that fails the check returns the initial plan with ``success=False`` and a message
+saying why; the caller never gets a silently worse plan.
+
+The solution is already a jerk-limited time parameterisation, so no Ruckig pass is needed for it;
+if the dense check finds a speed/acceleration/jerk breach between grid nodes, the whole plan is
+slowed uniformly (factor s: v / s, a / s^2, j / s^3) until it holds.
+
+``seed`` is accepted for API symmetry with the sampling planner; IPOPT is deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Callable
+
+import numpy as np
+
+from planner.ocp import OcpAgent, OcpProblem, OcpSolution, OcpWeights, build_and_solve, sample_solution
+
+WrenchProvider = Callable  # (source Vehicle, target Vehicle, scenario) -> casadi.Function offset_m -> (F_z, tau_x, tau_y)
+
+
+@dataclass(frozen=True)
+class RefineResult:
+    """Result of :func:`refine_plan`: the plan to use (refined, or the initial one on failure)."""
+
+    plan: object  # planner.plan_io.PlanResult
+    success: bool
+    message: str
+    solve_time_s: float  # IPOPT wall time, s
+    iterations: int  # IPOPT iterations
+
+
+@dataclass(frozen=True)
+class RefineOptions:
+    """Tuning of the refinement; the defaults are the product's."""
+
+    interval_s: float = 0.2  # target grid step of the OCP, s
+    min_intervals: int = 20
+    max_intervals: int = 80
+    weights: OcpWeights = OcpWeights()
+    max_cpu_time_s: float = 40.0  # IPOPT time limit, s
+    max_slowdown: float = 1.3  # largest uniform slow-down accepted to repair a kinematic breach, -
+
+
+def default_wrench_provider(source, target, scenario):
+    """The differentiable wrench table of the cost maps (same numbers as costmaps.disturbance)."""
+    from costmaps.disturbance import ModelOptions
+    from costmaps.map_store import pair_maps
+
+    form = getattr(scenario, "field_form", None)
+    options = ModelOptions(field_form=form) if form else ModelOptions()
+    return pair_maps(source, target, options=options).table.casadi_function()
+
+
+def moving_end_s(plan) -> float:
+    """Time after which no vehicle of ``plan`` moves any more (the makespan of DESIGN.md), s."""
+    end = 0.0
+    for tr in plan.vehicles.values():
+        moving = np.flatnonzero(np.linalg.norm(tr.velocity_mps, axis=1) > 1e-4)
+        if moving.size:
+            end = max(end, float(tr.t_s[min(moving[-1] + 1, tr.t_s.size - 1)]))
+    return end
+
+
+def check_final_configuration(scenario) -> None:
+    """Raise ``planner.pipeline.InfeasibleError`` when the final configuration itself (every vehicle
+    at rest at its goal / hover point / dock) needs more than ``limits.authority_fraction`` of some
+    vehicle's authority: then no trajectory can satisfy the limit (model evaluated directly)."""
+    from costmaps.authority import authority_usage
+    from costmaps.disturbance import ModelOptions, disturbance_wrench
+    from planner.pipeline import InfeasibleError
+
+    form = getattr(scenario, "field_form", None)
+    options = ModelOptions(field_form=form) if form else ModelOptions()
+    final = {n: scenario.final_position_m(n) for n in scenario.vehicles}
+    fraction = scenario.limits.authority_fraction
+    for nt, tgt in scenario.vehicles.items():
+        force, torque = np.zeros((1, 3)), np.zeros((1, 3))
+        worst = None
+        for ns, src in scenario.vehicles.items():
+            off = final[nt] - final[ns]
+            if ns == nt or off[2] >= -1e-6:
+                continue
+            w = disturbance_wrench(src.vehicle, tgt.vehicle, off[None, :], options)
+            force, torque = force + w.force_N, torque + w.torque_Nm
+            worst = ns if worst is None else worst
+        usage = float(authority_usage(tgt.vehicle, force, torque)[0])
+        if usage > fraction:
+            raise InfeasibleError(
+                nt,
+                "authority",
+                f"vehicle {nt!r}: at its final position it needs {usage:.3f} of its authority in the "
+                f"downwash of {worst!r}, more than limits.authority_fraction = {fraction:g}; no plan can "
+                f"meet that limit (raise authority_fraction or change the dock offset / goals)",
+            )
+
+
+def _n_intervals(makespan_s: float, options: RefineOptions) -> int:
+    return int(np.clip(math.ceil(makespan_s / options.interval_s), options.min_intervals, options.max_intervals))
+
+
+def build_problem(
+    scenario, initial_plan, *, options: RefineOptions = RefineOptions(), wrench_provider: WrenchProvider | None = None
+) -> OcpProblem:
+    """The :class:`planner.ocp.OcpProblem` of ``scenario`` warm-started from ``initial_plan``."""
+    provider = wrench_provider or default_wrench_provider
+    T0 = moving_end_s(initial_plan) or float(initial_plan.makespan_s)
+    n = _n_intervals(T0, options)
+    t_nodes = np.linspace(0.0, T0, n + 1)
+    agents = []
+    for name, task in scenario.vehicles.items():
+        moving = not task.hover
+        warm = initial_plan.vehicles[name].state_at(t_nodes) if moving else (None, None, None)
+        radius = float(task.body_radius_m)
+        reach = 0.0
+        if task.dock_with is not None:
+            from planner.pipeline import dock_geometry
+            from planner.verify import GOAL_TOLERANCE_M
+
+            approach, dock = dock_geometry(scenario, name)
+            reach = float(np.linalg.norm(approach - dock)) + GOAL_TOLERANCE_M - 0.02
+        agents.append(
+            OcpAgent(
+                name=name,
+                vehicle=task.vehicle,
+                moving=moving,
+                start_m=np.asarray(task.start_m, float),
+                goal_m=None if task.goal_m is None else np.asarray(task.goal_m, float),
+                dock_with=task.dock_with,
+                dock_offset_m=None if task.dock_offset_m is None else np.asarray(task.dock_offset_m, float),
+                dock_reach_m=reach,
+                max_speed_mps=task.max_speed_mps,
+                max_accel_mps2=task.max_accel_mps2,
+                max_jerk_mps3=task.max_jerk_mps3,
+                body_radius_m=radius,
+                warm_position_m=warm[0],
+                warm_velocity_mps=warm[1],
+                warm_acceleration_mps2=warm[2],
+            )
+        )
+    cache: dict[tuple[int, int], object] = {}
+    wrench = {}
+    tasks = scenario.vehicles
+    for ns, src in tasks.items():
+        for nt, tgt in tasks.items():
+            if ns == nt or (src.hover and tgt.hover):
+                continue
+            key = (id(src.vehicle), id(tgt.vehicle))
+            if key not in cache:
+                cache[key] = provider(src.vehicle, tgt.vehicle, scenario)
+            wrench[(ns, nt)] = cache[key]
+    limits = scenario.limits
+    return OcpProblem(
+        agents=tuple(agents),
+        n_intervals=n,
+        warm_duration_s=T0,
+        max_duration_s=T0,
+        workspace_min_m=np.asarray(scenario.workspace_min_m, float),
+        workspace_max_m=np.asarray(scenario.workspace_max_m, float),
+        obstacles=tuple((np.asarray(b.min_m, float), np.asarray(b.max_m, float)) for b in scenario.obstacles),
+        min_separation_m=float(limits.min_separation_m),
+        authority_fraction=float(limits.authority_fraction),
+        wrench_functions=wrench,
+        weights=options.weights,
+        obstacle_margin_m=float(limits.obstacle_margin_m),
+        invalid_zone_keep_out=limits.invalid_zone_rule != "model",
+        max_cpu_time_s=options.max_cpu_time_s,
+    )
+
+
+def solution_to_plan(solution: OcpSolution, scenario, initial_plan, *, time_scale: float = 1.0):
+    """Sample ``solution`` on the plan grid (step ``initial_plan.dt_s``), rounding the duration up to
+    a whole number of steps by a uniform slow-down. Returns a PlanResult (method "optimized")."""
+    from planner.plan_io import PlanResult, VehicleTrajectory
+
+    dt = float(initial_plan.dt_s)
+    duration = solution.duration_s * time_scale
+    steps = max(1, math.ceil(duration / dt - 1e-6))
+    scale = steps * dt / solution.duration_s
+    t = np.arange(steps + 1) * dt
+    sampled = sample_solution(solution, t, time_scale=scale)
+    vehicles = {}
+    for name, task in scenario.vehicles.items():
+        p, v, a = sampled[name]
+        vehicles[name] = VehicleTrajectory(name, task.type_name, t, p, v, a)
+    return PlanResult(
+        scenario=initial_plan.scenario,
+        dt_s=dt,
+        vehicles=vehicles,
+        metrics=dict(initial_plan.metrics),
+        method="optimized",
+        notes=list(initial_plan.notes),
+        scenario_file=getattr(initial_plan, "scenario_file", None),
+        scenario_spec=getattr(initial_plan, "scenario_spec", None),
+    )
+
+
+_KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
+
+
+def _verify(plan, scenario) -> list:
+    try:
+        from planner.verify import verify_plan
+    except ImportError:  # verifier not available: nothing to check against
+        return []
+    return list(verify_plan(plan, scenario))
+
+
+def _describe(violations: list) -> str:
+    v = violations[0]
+    more = f" (+{len(violations) - 1} more)" if len(violations) > 1 else ""
+    return f"{getattr(v, 'vehicle', '?')} {getattr(v, 'kind', '?')} at t={getattr(v, 't_s', float('nan')):.2f} s: {getattr(v, 'detail', '')}{more}"
+
+
+def refine_plan(
+    scenario,
+    initial_plan,
+    *,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+    options: RefineOptions = RefineOptions(),
+    wrench_provider: WrenchProvider | None = None,
+) -> RefineResult:
+    """Optimise ``initial_plan`` (a PlanResult of ``scenario``) jointly for all moving vehicles.
+
+    Returns a :class:`RefineResult`; on any failure its ``plan`` is ``initial_plan`` unchanged and
+    ``success`` is False with the reason in ``message``.
+    """
+    del seed  # IPOPT is deterministic
+    check_final_configuration(scenario)
+    if not any(not t.hover for t in scenario.vehicles.values()):
+        return RefineResult(initial_plan, True, "nothing moves; plan kept", 0.0, 0)
+    problem = build_problem(scenario, initial_plan, options=options, wrench_provider=wrench_provider)
+    solution = build_and_solve(problem, progress=progress)
+    if not solution.success:
+        return RefineResult(
+            initial_plan,
+            False,
+            f"optimiser did not converge (IPOPT: {solution.status} after {solution.iterations} iterations, "
+            f"{solution.solve_time_s:.2f} s); kept the sampling plan",
+            solution.solve_time_s,
+            solution.iterations,
+        )
+    scale = 1.0
+    while True:
+        plan = solution_to_plan(solution, scenario, initial_plan, time_scale=scale)
+        violations = _verify(plan, scenario)
+        kinematic = [v for v in violations if any(k in str(getattr(v, "kind", "")) for k in _KINEMATIC_KINDS)]
+        if not violations or len(kinematic) < len(violations) or scale * 1.05 > options.max_slowdown:
+            break
+        scale *= 1.05  # only kinematic breaches between nodes: slow the whole plan down uniformly
+    if violations:
+        return RefineResult(
+            initial_plan,
+            False,
+            f"optimised plan failed verification ({_describe(violations)}); kept the sampling plan",
+            solution.solve_time_s,
+            solution.iterations,
+        )
+    if moving_end_s(plan) > moving_end_s(initial_plan) + 1e-9:
+        return RefineResult(
+            initial_plan, False, "optimised plan was not faster; kept the sampling plan",
+            solution.solve_time_s, solution.iterations,
+        )
+    note = (
+        f"optimized: CasADi/IPOPT {solution.status} in {solution.iterations} iterations, "
+        f"{solution.solve_time_s:.2f} s solve ({solution.build_time_s:.2f} s build, "
+        f"{problem.n_intervals} intervals); makespan {moving_end_s(initial_plan):.2f} s -> {moving_end_s(plan):.2f} s"
+        + (f"; slowed x{scale:.2f} to keep kinematic limits between nodes" if scale > 1.0 else "")
+    )
+    plan = replace(plan, notes=list(plan.notes) + [note])
+    plan.metrics["optimizer_solve_time_s"] = solution.solve_time_s
+    plan.metrics["optimizer_iterations"] = solution.iterations
+    plan.metrics["makespan_s"] = plan.makespan_s
+    return RefineResult(plan, True, note, solution.solve_time_s, solution.iterations)
