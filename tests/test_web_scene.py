@@ -204,3 +204,53 @@ def test_cli_export_prints_one_json_object(plan_path, tmp_path):
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert Path(doc["export_dir"], "recording.viser").exists()
+
+
+def test_play_advances_time(app):
+    app.time_slider.value = 0.0
+    app.speed.value = 2.0
+    app.play.value = True
+    try:
+        import time
+
+        time.sleep(0.6)
+    finally:
+        app.play.value = False
+    assert 0.4 < app.t_s < 3.0  # about 0.6 s x 2 of plan time (thread timing is loose)
+    np.testing.assert_allclose(app._handles.vehicles["shuttle"].position,
+                               _plan_positions(app.loaded.data.source_path, app.t_s)["shuttle"], atol=1e-6)
+
+
+SHIPPED_SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "battery_swap.yaml"
+
+
+@pytest.mark.skipif(not SHIPPED_SCENARIO.exists(), reason="scenarios/battery_swap.yaml not shipped")
+def test_scenario_is_planned_then_dock_offset_edit_replans_in_background():
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    stages: list[str] = []
+    review = ReviewApp(server, SHIPPED_SCENARIO, terminal_progress=lambda s, f: stages.append(s))
+    try:
+        review.load()
+        review.wait_idle(120.0)
+        assert review.loaded is not None, review.status.content
+        assert stages, "planning progress must be reported"
+        first = review.loaded
+        docked = [n for n, v in first.data.vehicles.items() if v.dock_with]
+        assert docked
+        name = docked[0]
+        partner = first.data.vehicles[name].dock_with
+        review.edit_vehicle.value = name
+        origin = first.data.vehicles[partner].position_m[-1]
+        new_offset = first.data.vehicles[name].dock_offset_m + [0.0, 0.0, 0.2]
+        review._gizmo.position = tuple(origin + new_offset)
+        assert review.replan()
+        assert review._jobs.busy or review.loaded is not first  # runs in the background
+        review.wait_idle(120.0)
+        assert review.loaded is not first, review.status.content
+        new = review.loaded.data
+        np.testing.assert_allclose(new.vehicles[name].dock_offset_m, new_offset, atol=1e-9)
+        end_gap = new.vehicles[name].position_m[-1] - new.vehicles[partner].position_m[-1]
+        np.testing.assert_allclose(end_gap, new_offset, atol=0.05)
+    finally:
+        review.stop()
+        server.stop()

@@ -198,10 +198,11 @@ class ReviewApp:
         self.show(loaded)
         _log(f"showing {loaded.data.name} ({len(loaded.data.vehicles)} vehicles)")
 
-    def _on_error(self, _arg: Any, message: str) -> None:
+    def _on_error(self, arg: Any, message: str) -> None:
         self.progress.visible = False
-        self.edit_note.content = "planning failed; the previous plan stays" if self.loaded else ""
-        self._report_error(message)
+        what = "loading failed" if isinstance(arg, Path) else "re-planning failed"
+        self.edit_note.content = f"{what}; the previous plan stays" if self.loaded else ""
+        self._report_error(f"{what}: {message}")
 
     def show(self, loaded: Loaded) -> None:
         """Replace the scene with ``loaded`` (keeps the time, clamped to the new plan)."""

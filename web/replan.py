@@ -7,7 +7,9 @@ with, m) gives a new Scenario; the worker plans it and reports through callbacks
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import sys
 import threading
 import traceback
 from typing import Any, Callable
@@ -15,16 +17,31 @@ from typing import Any, Callable
 import numpy as np
 
 
+def _edited_spec(scenario: Any, name: str, keys: tuple[str, ...], value: np.ndarray) -> dict:
+    """Copy of the scenario's YAML mapping with ``vehicles.<name>.<keys...>`` set to ``value``, so a
+    plan written from the edited scenario embeds what was actually planned."""
+    spec = copy.deepcopy(getattr(scenario, "spec", None) or {})
+    node = spec.setdefault("vehicles", {}).setdefault(name, {})
+    for key in keys[:-1]:
+        node = node.setdefault(key, {})
+    node[keys[-1]] = [float(x) for x in value]
+    return spec
+
+
 def with_goal(scenario: Any, name: str, goal_m: np.ndarray) -> Any:
     """Copy of ``scenario`` where vehicle ``name`` flies to ``goal_m`` (3,), world frame, m."""
-    task = dataclasses.replace(scenario.vehicles[name], goal_m=tuple(float(x) for x in goal_m))
-    return dataclasses.replace(scenario, vehicles={**scenario.vehicles, name: task})
+    goal = np.asarray(goal_m, dtype=float).reshape(3)
+    task = dataclasses.replace(scenario.vehicles[name], goal_m=goal)
+    return dataclasses.replace(scenario, vehicles={**scenario.vehicles, name: task},
+                               spec=_edited_spec(scenario, name, ("goal",), goal))
 
 
 def with_dock_offset(scenario: Any, name: str, offset_m: np.ndarray) -> Any:
     """Copy of ``scenario`` where vehicle ``name`` docks at ``offset_m`` (3,) from its partner, m."""
-    task = dataclasses.replace(scenario.vehicles[name], dock_offset_m=tuple(float(x) for x in offset_m))
-    return dataclasses.replace(scenario, vehicles={**scenario.vehicles, name: task})
+    offset = np.asarray(offset_m, dtype=float).reshape(3)
+    task = dataclasses.replace(scenario.vehicles[name], dock_offset_m=offset)
+    return dataclasses.replace(scenario, vehicles={**scenario.vehicles, name: task},
+                               spec=_edited_spec(scenario, name, ("dock", "offset"), offset))
 
 
 class Replanner:
@@ -79,8 +96,11 @@ class Replanner:
             from costmaps.errors import UserError
 
             kind = type(err).__name__
-            message = str(err) if isinstance(err, UserError) or kind == "InfeasibleError" else (
-                f"{kind}: {err}\n{traceback.format_exc(limit=3)}")
+            if isinstance(err, UserError) or kind == "InfeasibleError":
+                message = str(err)
+            else:  # a bug somewhere: the page gets one line, the terminal the traceback
+                traceback.print_exc(file=sys.stderr)
+                message = f"{kind}: {err}"
             try:
                 self._on_error(scenario, message)
             except Exception:  # noqa: BLE001
