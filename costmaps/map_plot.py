@@ -28,7 +28,9 @@ def plot_cutoff(cutoff: CutoffMap, path: str | Path, *, title: str | None = None
     fig, (ax_cut, ax_map) = plt.subplots(1, 2, figsize=(12, 5.2), sharey=True, constrained_layout=True)
     dz = cutoff.dz_m
     dz_fine = np.linspace(0.0, dz[-1], 400)
-    r_top = float(np.max(cutoff.r_grid_m[-1]))
+    r_grid_top = float(np.max(cutoff.r_grid_m[-1]))
+    widest = max(float(cutoff.r_cut_m(dz_fine, level=float(min(cutoff.levels))).max()), cutoff.overlap_radius_m)
+    r_top = min(r_grid_top, 1.3 * widest)  # zoom on the informative part of the map
     for level in cutoff.levels:
         style = "-" if np.isclose(level, cutoff.default_level) else "--"
         ax_cut.plot(cutoff.r_cut_m(dz_fine, level=level), dz_fine, style, label=f"usage {level:g}")
@@ -59,6 +61,8 @@ def plot_cutoff(cutoff: CutoffMap, path: str | Path, *, title: str | None = None
         cutoff.r_grid_m, dz_grid, usage, shading="gouraud", norm=LogNorm(vmin=1e-3, vmax=max(1.0, usage.max()))
     )
     ax_map.contour(cutoff.r_grid_m, dz_grid, cutoff.usage, levels=list(cutoff.levels), colors="white", linewidths=0.7)
+    ax_map.set_facecolor(mesh.cmap(0.0))  # beyond the grid the usage is below 1e-3 (see wrench_table)
+    ax_map.set_xlim(0.0, r_top)
     fig.colorbar(mesh, ax=ax_map, label="authority usage (max over azimuth), -")
     ax_map.set_title("authority usage in (r, dz); white: stored levels")
     fig.suptitle(title or f"{cutoff.source_name} (source, above) -> {cutoff.target_name} (target, below)")
