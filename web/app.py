@@ -442,8 +442,12 @@ class ReviewApp:
         return write_export(out_dir, payload, name=d.name, frames=frames, duration_s=d.t_end_s - d.t_start_s)
 
     def default_export_dir(self) -> Path:
-        base = self.loaded.data.source_path if self.loaded and self.loaded.data.source_path else Path("plan")
-        return base.parent / f"{self.loaded.data.name if self.loaded else 'plan'}_recording"
+        """Beside the plan.json that is shown, else in the working directory."""
+        d = self.loaded.data if self.loaded else None
+        name = f"{d.name if d else 'plan'}_recording"
+        if d is not None and d.source_path is not None and d.source_path.suffix == ".json":
+            return d.source_path.parent / name
+        return Path.cwd() / name
 
     def _export_clicked(self, client: Any) -> None:
         out = self.export(self.default_export_dir())
