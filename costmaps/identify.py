@@ -51,7 +51,8 @@ class IdentifyOptions:
     calibrate: bool = True
     effects: tuple[str, ...] = EFFECT_NAMES  # candidates to try
     min_gain: float = 0.05  # relative cut of a test RMSE an effect must bring to be kept, -
-    max_fit_samples: int = 2000  # train samples per least-squares fit
+    max_fit_samples: int = 2000  # train samples of the calibration fit
+    max_effect_fit_samples: int = 1000  # train samples per candidate-effect fit
     max_eval_samples: int = 10000  # test samples per candidate score
     max_effects: int = 3  # at most this many effects are kept
     progress: bool = False  # tqdm bars on stderr
@@ -182,11 +183,36 @@ def _bar(items: Sequence, desc: str, enabled: bool):
     return tqdm(items, desc=desc, unit="item", leave=False)
 
 
+def merge_units(units: Sequence[Unit]) -> list[Unit]:
+    """Concatenate units that share target type and source types (one model call per group).
+
+    The result is for pooled errors and fits only: its ``t_s`` is not monotonic."""
+    groups: dict[tuple, list[Unit]] = {}
+    for u in units:
+        if len(u):
+            groups.setdefault((u.split, u.type, u.source_types), []).append(u)
+    out = []
+    for (split, vtype, stypes), us in groups.items():
+        if len(us) == 1:
+            out.append(us[0])
+            continue
+        cat = lambda key: np.concatenate([getattr(u, key) for u in us])  # noqa: E731
+        out.append(Unit(
+            flight="+".join(u.flight for u in us), split=split, name="+".join(u.name for u in us), type=vtype,
+            t_s=cat("t_s"), velocity_mps=cat("velocity_mps"), height_above_ground_m=cat("height_above_ground_m"),
+            thrust_z_N=cat("thrust_z_N"), source_types=stypes,
+            source_offsets_m=tuple(np.concatenate([u.source_offsets_m[k] for u in us]) for k in range(len(stypes))),
+            force_N=cat("force_N"), torque_Nm=cat("torque_Nm"),
+        ))  # fmt: skip
+    return out
+
+
 def subsample(units: Sequence[Unit], max_samples: int) -> list[Unit]:
-    """Uniform-stride subsample of ``units`` keeping at most ``max_samples`` samples in total."""
+    """Uniform-stride subsample of ``units`` keeping at most ``max_samples`` samples in total,
+    merged by :func:`merge_units`."""
     total = sum(len(u) for u in units)
     stride = max(1, int(np.ceil(total / max(max_samples, 1))))
-    return [u.take(np.arange(0, len(u), stride)) for u in units if len(u)]
+    return merge_units([u.take(np.arange(0, len(u), stride)) for u in units if len(u)])
 
 
 # ------------------------------------------------------------------------------ errors
@@ -311,7 +337,7 @@ _START_GRID: dict[str, list[dict[str, float]]] = {
 
 def fit_effect(name: str, units: Sequence[Unit], model: Model, *, options: IdentifyOptions) -> tuple[Effect, Model]:
     """Fit one candidate effect (and the thrust scales) on train ``units``; returns it and the model with it."""
-    fit_units = subsample(units, options.max_fit_samples)
+    fit_units = subsample(units, options.max_effect_fit_samples)
     bases = [base_wrench(unit_inputs(u, model)) for u in fit_units]  # vehicles frozen: reuse base
     p0 = _initial_params(name, fit_units, model)
     keys = list(PARAMETERS[name])
@@ -485,15 +511,16 @@ def run_identify(manifest: Manifest | str | Path, *, options: IdentifyOptions = 
     if not train or not test:
         raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
     base = Model(vehicles=types, thrust_scale={t: 1.0 for t in types}, options=ModelOptions(field_form=options.field_form))
-    before = errors(test, base)
+    test_all = merge_units(test)  # every test sample, pooled
+    before = errors(test_all, base)
     calibration = None
     model = base
     if options.calibrate:
         model, calibration = calibrate_model(train, base, options=options)
-    calibrated = errors(test, model)
+    calibrated = errors(test_all, model)
     corr_before = _residual_analysis(subsample(train, 20000), model)
     final, trials = select_effects(train, test, [model, base] if options.calibrate else [base], options=options)
-    after = errors(test, final)
+    after = errors(test_all, final)
     corr = _residual_analysis(subsample(test, 50000), final)
     unexplained = None
     if corr and corr[0].strength >= 0.3:
