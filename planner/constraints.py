@@ -174,6 +174,8 @@ class PairRule:
     cut_from_other: CutoffTable | None  # other is the source, planned vehicle the target
     cut_on_other: CutoffTable | None  # planned vehicle is the source, other the target
     ellipsoid_r_m: float | None
+    margin_m: float = 0.0  # added to the cutoff radius, m
+    until_margin_s: float = 0.0  # added to the track's presence, s
 
 
 @dataclass
@@ -204,7 +206,7 @@ class ConflictChecker:
             return c
         for rule in self.rules:
             tr = rule.track
-            if t > tr.until_s or tr.name == exclude:
+            if t >= tr.until_s + rule.until_margin_s or tr.name == exclude:
                 continue
             ox, oy, oz = tr.at(t)
             dx, dy, dz = x - ox, y - oy, z - oz
@@ -218,10 +220,12 @@ class ConflictChecker:
                 continue
             if dz < 0.0 and rule.cut_from_other is not None:
                 rc = rule.cut_from_other.lookup(-dz)
+                rc = rc + rule.margin_m if rc > 0.0 else 0.0
                 if r2 < rc * rc:
                     return f"downwash of {tr.name}"
             elif dz > 0.0 and rule.cut_on_other is not None:
                 rc = rule.cut_on_other.lookup(dz)
+                rc = rc + rule.margin_m if rc > 0.0 else 0.0
                 if r2 < rc * rc:
                     return f"downwash on {tr.name}"
         return None
@@ -249,12 +253,17 @@ def build_checker(
     *,
     mode: str = "downwash",
     level: float | None = None,
+    margin_m: float = 0.0,
+    until_margin_s: float = 0.0,
 ) -> ConflictChecker:
     """The checker of vehicle ``name`` against ``tracks`` (other vehicles) for one ``mode``.
 
     ``level`` is the authority-usage level of the cutoff (default ``limits.authority_fraction``).
     Workspace and obstacles are inflated by the body radius horizontally and by
-    ``limits.obstacle_margin_m`` vertically (vehicles are flat).
+    ``limits.obstacle_margin_m`` vertically (vehicles are flat). ``margin_m`` (m) is added to the
+    separation, cutoff and ellipsoid radii and to the obstacle inflation, ``until_margin_s`` (s)
+    to the presence of vehicles not planned yet: the planner searches with small margins so that
+    the timed trajectory passes the nominal re-check although both sample the motion differently.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
@@ -262,22 +271,22 @@ def build_checker(
     lim = scenario.limits
     rb = body_radius_m(task.vehicle)
     mz = lim.obstacle_margin_m
-    lo = scenario.workspace_min_m + np.array([rb, rb, mz])
-    hi = scenario.workspace_max_m - np.array([rb, rb, mz])
+    lo = scenario.workspace_min_m + np.array([rb, rb, mz]) + margin_m
+    hi = scenario.workspace_max_m - np.array([rb, rb, mz]) - margin_m
     boxes = []
     for box in scenario.obstacles:
-        grow = np.array([rb + lim.obstacle_margin_m, rb + lim.obstacle_margin_m, mz])
+        grow = np.array([rb + lim.obstacle_margin_m, rb + lim.obstacle_margin_m, mz]) + margin_m
         boxes.append(tuple((box.min_m - grow).tolist() + (box.max_m + grow).tolist()))
     level = lim.authority_fraction if level is None else level
     rules = []
     for tr in tracks:
         other = tr.vehicle
-        sep = max(lim.min_separation_m, rb + body_radius_m(other))
+        sep = max(lim.min_separation_m, rb + body_radius_m(other)) + margin_m
         cut_from = cut_on = ell = None
         if mode == "downwash":
             cut_from = cutoff_table(other, task.vehicle, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
             cut_on = cutoff_table(task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
         elif mode == "ellipsoid":
-            ell = rb + body_radius_m(other)
-        rules.append(PairRule(tr, sep, cut_from, cut_on, ell))
+            ell = rb + body_radius_m(other) + margin_m
+        rules.append(PairRule(tr, sep, cut_from, cut_on, ell, margin_m, until_margin_s))
     return ConflictChecker(name, tuple(lo.tolist()), tuple(hi.tolist()), boxes, rules)

@@ -29,7 +29,7 @@ from planner.constraints import Track, body_radius_m, build_checker
 from planner.plan_io import PlanResult, VehicleTrajectory
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
 from planner.scenario import Scenario
-from planner.timing import KinematicLimits, TimedPath, common_grid, time_parameterize
+from planner.timing import KinematicLimits, TimedPath, common_grid, min_segment_duration_s, time_parameterize
 
 METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
 MODE_OF_METHOD = {"optimized": "downwash", "sampling": "downwash", "no-downwash": "no-downwash", "ellipsoid": "ellipsoid"}
@@ -38,6 +38,8 @@ LEAVE_START_S = 2.5  # vehicles not planned yet are assumed to have left their s
 ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
 DOCK_APPROACH_MARGIN_M = 0.1  # approach point this far beyond the invalid zone, m
 DOCK_SPEED_FACTOR = 0.5  # final dock approach at this fraction of the vehicle's limits
+PLAN_MARGIN_M = 0.02  # the search keeps this much more than the nominal limits, m (see build_checker)
+PLAN_MARGIN_S = 0.2  # and assumes not-yet-planned vehicles leave their start this much later, s
 
 
 class InfeasibleError(Exception):
@@ -107,8 +109,9 @@ def _plan_order(
                          until_s=math.inf if scenario.vehicles[n].hover else LEAVE_START_S)
             for n in order if n not in timed and n != name
         ]
-        checker = build_checker(scenario, name, others, mode=mode)
-        bad = start_conflict(checker, task.start_m)
+        checker = build_checker(scenario, name, others, mode=mode, margin_m=PLAN_MARGIN_M, until_margin_s=PLAN_MARGIN_S)
+        nominal = build_checker(scenario, name, others, mode=mode)
+        bad = start_conflict(nominal, task.start_m)
         if bad is not None:
             raise InfeasibleError(name, bad, f"vehicle {name!r}: its start {task.start_m.tolist()} violates '{bad}' at t = 0")
         if task.hover:
@@ -127,8 +130,12 @@ def _plan_order(
             goal = GoalSpec(position_m=task.goal_m, hold_until_s=hold_until)
         accepted = None
         last_problem = None
+        t_direct = min_segment_duration_s(float(np.linalg.norm(goal.position_m - task.start_m)), limits)
+        t_busy = max([tr.end_s for tr in others] + [0.0])
         for attempt in range(ATTEMPTS):
-            sp = plan_space_time(checker, task.start_m, goal, limits, horizon_s=horizon,
+            # search a short time window first (an RRT over a long one schedules slow paths)
+            window = (max(2.0 * t_direct, t_direct + 6.0, t_busy + 2.0), max(4.0 * t_direct, t_busy + 15.0), horizon)[attempt]
+            sp = plan_space_time(checker, task.start_m, goal, limits, horizon_s=min(horizon, window),
                                  seed=seed * 1009 + idx * 31 + attempt, options=options)
             if sp is None:
                 last_problem = checker.most_rejected() or "no valid arrival time at the goal"
@@ -137,7 +144,7 @@ def _plan_order(
                 tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
             else:
                 tp = time_parameterize(sp.waypoints_m, sp.times_s, limits)
-            problem = _recheck(checker, tp, goal, hold_until)
+            problem = _recheck(nominal, tp, goal, hold_until)
             if problem is None:
                 accepted = tp
                 info["attempts"][name] = attempt + 1

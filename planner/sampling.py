@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.constraints import ConflictChecker
-from planner.timing import DurationTable, KinematicLimits, duration_table
+from planner.timing import DurationTable, KinematicLimits, duration_table, ruckig_segment
 
 
 @dataclass(frozen=True)
@@ -44,6 +44,7 @@ class SamplingOptions:
     hold_check_step_s: float = 0.05  # resolution of goal-hold checks, s
     compress_step_s: float = 0.05  # resolution of the time-compression pass, s
     planning_speed_factor: float = 0.7  # speed bound inside the RRT search, fraction of max speed
+    strict_search: bool = False  # RRT edges are exact Ruckig rest-to-rest segments (else linear, speed-bounded)
 
 
 @dataclass
@@ -113,18 +114,40 @@ class _Planner:
         dx, dy, dz = p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]
         dist = math.sqrt(dx * dx + dy * dy + dz * dz)
         if strict:
-            if dt < self.durations.duration_s(dist):
+            if dt < self.durations.duration_s(dist) - 1e-9:
                 return False
-        elif dist > self.v_plan * dt:
+            return self.timed_segment_ok(p1, t1, p2, t2, self.limits, exclude=exclude, count=exclude is None)
+        if dist > self.v_plan * dt:
             return False
         n = max(1, int(math.ceil(max(dist / self.opts.check_step_m, dt / self.opts.check_step_s))))
         chk = self.checker
         for k in range(1, n + 1):
             f = k / n
-            if exclude is None:
-                if not chk.valid(p1[0] + f * dx, p1[1] + f * dy, p1[2] + f * dz, t1 + f * dt):
+            if not chk.valid(p1[0] + f * dx, p1[1] + f * dy, p1[2] + f * dz, t1 + f * dt):
+                return False
+        return True
+
+    def timed_segment_ok(self, p1, t1: float, p2, t2: float, limits: KinematicLimits, *, exclude: str | None = None, count: bool = False) -> bool:
+        """Check the exact Ruckig segment (rest to rest, at least t2 - t1 long) that
+        :func:`planner.timing.time_parameterize` will fly, state by state."""
+        dt = t2 - t1
+        p1 = np.asarray(p1, dtype=float)
+        p2 = np.asarray(p2, dtype=float)
+        dist = float(np.linalg.norm(p2 - p1))
+        chk = self.checker
+        n = max(1, int(math.ceil(max(dist / self.opts.check_step_m, dt / self.opts.check_step_s))))
+        traj = None
+        if dist > 1e-9:
+            traj = ruckig_segment(p1, p2, limits, minimum_duration_s=dt)
+            if traj.duration > dt + 1e-6:
+                return False
+        for k in range(1, n + 1):
+            tau = dt * k / n
+            q = p1 if traj is None else traj.at_time(tau)[0]
+            if count:
+                if not chk.valid(q[0], q[1], q[2], t1 + tau):
                     return False
-            elif chk.conflict(p1[0] + f * dx, p1[1] + f * dy, p1[2] + f * dz, t1 + f * dt, exclude=exclude) is not None:
+            elif chk.conflict(q[0], q[1], q[2], t1 + tau, exclude=exclude) is not None:
                 return False
         return True
 
@@ -157,19 +180,10 @@ class _Planner:
         for q in goal.tail:
             d = float(np.linalg.norm(q - p))
             t2 = t + table.duration_s(d)
-            if not self.motion_ok_exempt(p, t, q, t2, goal.tail_exempt, lim):
+            if not self.timed_segment_ok(p, t, q, t2, lim, exclude=goal.tail_exempt):
                 return False, t2
             p, t = q, t2
         return True, t
-
-    def motion_ok_exempt(self, p1, t1, p2, t2, exempt, lim) -> bool:
-        n = max(1, int(math.ceil(max(float(np.linalg.norm(p2 - p1)) / self.opts.check_step_m, (t2 - t1) / self.opts.check_step_s))))
-        for k in range(n + 1):
-            f = k / n
-            q = p1 + f * (p2 - p1)
-            if self.checker.conflict(q[0], q[1], q[2], t1 + f * (t2 - t1), exclude=exempt) is not None:
-                return False
-        return True
 
     # -- goal arrival times --------------------------------------------------------------------
     def goal_times(self, start, goal: GoalSpec) -> list[float]:
@@ -214,7 +228,7 @@ class _Planner:
         class DirectedMotion(ob.MotionValidator):
             def checkMotion(self, s1, s2, *args):  # noqa: N802 (OMPL name)
                 return planner_self.motion_ok(
-                    (s1[0], s1[1], s1[2]), s1[3] / v_ref, (s2[0], s2[1], s2[2]), s2[3] / v_ref, strict=False
+                    (s1[0], s1[1], s1[2]), s1[3] / v_ref, (s2[0], s2[1], s2[2]), s2[3] / v_ref, strict=planner_self.opts.strict_search
                 )
 
         validator = DirectedMotion(si)
@@ -257,30 +271,42 @@ class _Planner:
     def compress(self, pts: np.ndarray, ts: np.ndarray, goal: GoalSpec) -> tuple[np.ndarray, np.ndarray]:
         """Greedy space-time shortcut with earliest times.
 
-        From the current waypoint, connect to the farthest later waypoint j that a strict (jerk-
-        limited rest-to-rest) straight motion reaches validly, at the earliest of a few candidate
-        times between the minimum duration and the search's own time for j (waiting longer is
-        sometimes needed to let another vehicle pass). The last waypoint must also allow the
-        arrival (dock approach and hold). Falls back to the next waypoint, pushed back if needed.
+        From the current waypoint, try every later waypoint j with a strict (jerk-limited
+        rest-to-rest, exact Ruckig profile) straight motion at the earliest valid time within a
+        window of ``12 x 0.25 s`` after its minimum duration (waiting lets another vehicle pass);
+        keep the j with the earliest lower bound on the final arrival (time at j + minimum time
+        from j to the goal). The last waypoint must also allow the arrival (dock approach, hold).
+        Without any valid candidate, the search's own schedule for the next waypoint is kept.
         """
         step = self.opts.compress_step_s * 5
+        window = 12
         out_p, out_t = [pts[0]], [float(ts[0])]
         i, last = 0, len(pts) - 1
+        end_p = pts[last]
         while i < last:
             chosen = None
+            best_eta = math.inf
             for j in range(last, i, -1):
                 lb = out_t[-1] + self.durations.duration_s(float(np.linalg.norm(pts[j] - out_p[-1])))
-                upper = max(float(ts[j]), lb) if j > i + 1 else max(float(ts[j]), lb)
-                upper = min(upper, lb + 12 * step)
+                eta_floor = lb + self.durations.duration_s(float(np.linalg.norm(end_p - pts[j])))
+                if eta_floor >= best_eta:
+                    continue
                 t = lb
-                while t <= upper + 1e-9:
-                    if self.motion_ok(out_p[-1], out_t[-1], pts[j], t) and (j < last or self._arrival_ok(goal, t)):
-                        chosen = (j, t)
+                for _ in range(window + 1):
+                    if self.motion_ok(out_p[-1], out_t[-1], pts[j], t) and (
+                        self._arrival_ok(goal, t) if j == last else self._rejoin_ok(pts[j], t, float(ts[j]))
+                    ):
+                        eta = t + self.durations.duration_s(float(np.linalg.norm(end_p - pts[j])))
+                        if eta < best_eta:
+                            best_eta, chosen = eta, (j, t)
                         break
                     t += step
-                if chosen is not None:
-                    break
-            if chosen is None:  # keep the search's waypoint; the timed re-check decides
+            if chosen is None:
+                # fall back to the search's own schedule from here: wait at this waypoint until the
+                # search's time for it, then fly to the next waypoint at the search's time
+                if out_t[-1] < float(ts[i]) - 1e-9:
+                    out_p.append(pts[i])
+                    out_t.append(float(ts[i]))
                 j = i + 1
                 lb = out_t[-1] + self.durations.duration_s(float(np.linalg.norm(pts[j] - out_p[-1])))
                 chosen = (j, max(float(ts[j]), lb))
@@ -288,6 +314,11 @@ class _Planner:
             out_t.append(chosen[1])
             i = chosen[0]
         return np.array(out_p), np.array(out_t)
+
+    def _rejoin_ok(self, p, t: float, t_search: float) -> bool:
+        """Whether waiting at ``p`` from ``t`` until the search's own time ``t_search`` is valid,
+        so that the search's schedule can always be resumed from there."""
+        return t >= t_search or self.hold_ok_from(p, t, t_search)
 
     def _arrival_ok(self, goal: GoalSpec, t: float) -> bool:
         end_p = goal.tail[-1] if goal.tail else goal.position_m

@@ -110,6 +110,47 @@ class TimedPath:
         return p, v, a
 
 
+def ruckig_segment(p0_m, p1_m, limits: KinematicLimits, *, minimum_duration_s: float | None = None):
+    """One rest-to-rest, phase-synchronised (straight-line) Ruckig segment from ``p0_m`` to
+    ``p1_m`` (3,), m, taking at least ``minimum_duration_s``; a ``ruckig.Trajectory``."""
+    from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
+
+    p0 = np.asarray(p0_m, dtype=float)
+    p1 = np.asarray(p1_m, dtype=float)
+    d = p1 - p0
+    dist = float(np.linalg.norm(d))
+    u = np.abs(d) / dist
+    eps = 1e-9
+    inp = InputParameter(3)
+    inp.current_position = p0.tolist()
+    inp.target_position = p1.tolist()
+    inp.current_velocity = [0.0, 0.0, 0.0]
+    inp.target_velocity = [0.0, 0.0, 0.0]
+    inp.max_velocity = (limits.max_speed_mps * u + eps).tolist()
+    inp.max_acceleration = (limits.max_accel_mps2 * u + eps).tolist()
+    inp.max_jerk = (limits.max_jerk_mps3 * u + eps).tolist()
+    inp.synchronization = Synchronization.Phase
+    if minimum_duration_s is not None:
+        inp.minimum_duration = float(minimum_duration_s)
+    traj = Trajectory(3)
+    result = _OTG.calculate(inp, traj)
+    if result not in (Result.Working, Result.Finished):
+        raise RuntimeError(f"Ruckig failed on a segment ({result})")
+    return traj
+
+
+class _LazyOTG:
+    def calculate(self, inp, traj):
+        from ruckig import Ruckig
+
+        global _OTG
+        _OTG = Ruckig(3)
+        return _OTG.calculate(inp, traj)
+
+
+_OTG = _LazyOTG()
+
+
 def time_parameterize(
     waypoints_m: np.ndarray,
     times_s: np.ndarray | None,
@@ -127,14 +168,11 @@ def time_parameterize(
     Returns:
         A :class:`TimedPath` whose knot times are the actual (possibly pushed back) arrival times.
     """
-    from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
-
     pts = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
     sched = None if times_s is None else np.asarray(times_s, dtype=float)
     t0 = 0.0 if sched is None else float(sched[0])
     knots = [t0]
     segments = []
-    otg = Ruckig(3)
     for k in range(len(pts) - 1):
         d = pts[k + 1] - pts[k]
         dist = float(np.linalg.norm(d))
@@ -143,23 +181,7 @@ def time_parameterize(
             segments.append(None)
             knots.append(knots[-1] + max(want, 0.0))
             continue
-        u = np.abs(d) / dist
-        eps = 1e-9
-        inp = InputParameter(3)
-        inp.current_position = pts[k].tolist()
-        inp.target_position = pts[k + 1].tolist()
-        inp.current_velocity = [0.0, 0.0, 0.0]
-        inp.target_velocity = [0.0, 0.0, 0.0]
-        inp.max_velocity = (limits.max_speed_mps * u + eps).tolist()
-        inp.max_acceleration = (limits.max_accel_mps2 * u + eps).tolist()
-        inp.max_jerk = (limits.max_jerk_mps3 * u + eps).tolist()
-        inp.synchronization = Synchronization.Phase
-        if want > 0.0:
-            inp.minimum_duration = want
-        traj = Trajectory(3)
-        result = otg.calculate(inp, traj)
-        if result not in (Result.Working, Result.Finished):
-            raise RuntimeError(f"Ruckig failed on segment {k} ({result})")
+        traj = ruckig_segment(pts[k], pts[k + 1], limits, minimum_duration_s=want if want > 0.0 else None)
         segments.append(traj)
         dur = float(traj.duration)
         knots.append(knots[-1] + dur)
