@@ -130,15 +130,24 @@ class LateralScale:
 
 
 def _spline_fit(values: np.ndarray, axes: tuple[np.ndarray, ...]) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
-    """Tensor-product cubic interpolating B-spline: knots per axis and coefficients (n0, n1, n2, m)."""
-    from scipy.interpolate import make_interp_spline
+    """Tensor-product cubic interpolating B-spline (not-a-knot) through ``values`` (n0, n1, n2, m)
+    on the grids ``axes``: knots per axis and coefficients (n0, n1, n2, m).
+
+    Per axis the not-a-knot knots come from ``scipy.interpolate.make_interp_spline``; the
+    coefficients solve the collocation system B c = values along that axis (B = design matrix,
+    n x n), applied to all other axes at once.
+    """
+    from scipy.interpolate import BSpline, make_interp_spline
 
     coeffs = np.asarray(values, dtype=float)
     knots = []
     for axis, grid in enumerate(axes):
-        spl = make_interp_spline(grid, coeffs, k=SPLINE_DEGREE, axis=axis)
-        coeffs = np.moveaxis(spl.c, 0, axis)  # BSpline keeps the spline axis first
-        knots.append(np.asarray(spl.t, dtype=float))
+        t = np.asarray(make_interp_spline(grid, np.zeros(grid.size), k=SPLINE_DEGREE).t, dtype=float)
+        design = BSpline.design_matrix(grid, t, SPLINE_DEGREE).toarray()  # (n, n)
+        moved = np.moveaxis(coeffs, axis, 0)
+        solved = np.linalg.solve(design, moved.reshape(grid.size, -1)).reshape(moved.shape)
+        coeffs = np.moveaxis(solved, 0, axis)
+        knots.append(t)
     return tuple(knots), coeffs
 
 
