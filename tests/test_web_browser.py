@@ -197,3 +197,40 @@ def test_view_renders_plan_in_headless_chromium(tmp_path):
         codes = (_stop(good_proc), _stop(bad_proc))
     assert codes == (0, 0), [p.stderr.read() for p in (good_proc, bad_proc)]
     assert "not valid JSON" in bad_proc.stderr.read()  # the terminal got the message too
+
+
+@pytest.mark.slow
+def test_exported_recording_replays_without_the_app(tmp_path):
+    """`--export` output served by a plain static web server replays in Chromium (no proxplan)."""
+    pytest.importorskip("websockets")
+    pytest.importorskip("PIL")
+    import functools
+    import threading
+    from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+
+    from web.demo import write_demo_plan
+
+    plan = write_demo_plan(tmp_path / "demo")
+    out = tmp_path / "rec"
+    proc = subprocess.run([sys.executable, "-m", "proxplan.cli", "view", str(plan), "--export", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    class Quiet(SimpleHTTPRequestHandler):
+        def log_message(self, *args) -> None:  # keep the test output clean
+            pass
+
+    handler = functools.partial(Quiet, directory=str(out))
+    httpd = ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    browser = Chromium()
+    try:
+        browser.call("Page.navigate", url=f"http://127.0.0.1:{httpd.server_port}/?playbackPath=recording.viser")
+        time.sleep(3.0)
+        shot = _settled_screenshot(browser)
+        ARTIFACTS.mkdir(exist_ok=True)
+        (ARTIFACTS / "web_recording_replay.png").write_bytes(shot)
+        assert _canvas_spread(shot) > 5.0  # an empty viser page measures about 0.5 here
+    finally:
+        browser.close()
+        httpd.shutdown()

@@ -366,7 +366,17 @@ class ReviewApp:
             _, end = self._gizmo_anchor(name)
             self._gizmo = self.server.scene.add_transform_controls(
                 "/edit/target", scale=0.4, disable_rotations=True, position=tuple(end))
-            self.edit_note.content = f"drag the gizmo to move the goal of **{name}**, then press re-plan"
+            what = "dock offset" if self.loaded.data.vehicles[name].dock_with else "goal"
+            self.edit_note.content = f"drag the gizmo to move the {what} of **{name}**, then press re-plan"
+            self._gizmo.on_update(self._guard(lambda _e: self._gizmo_moved(name, what)))
+
+    def _gizmo_moved(self, name: str, what: str) -> None:
+        if self._gizmo is None or self.loaded is None:
+            return
+        origin, _ = self._gizmo_anchor(name)
+        value = np.asarray(self._gizmo.position, float) - (origin if what == "dock offset" else 0.0)
+        self.edit_note.content = (f"new {what} of **{name}**: [{value[0]:.2f}, {value[1]:.2f}, {value[2]:.2f}] m "
+                                  "— press re-plan")
 
     def edited_scenario(self) -> Any:
         """The scenario with the gizmo's goal or dock offset applied (None when nothing is edited)."""
