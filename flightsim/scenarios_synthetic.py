@@ -88,20 +88,18 @@ def swap_plan(*, top_type: str = "crazyflie-2.1", bottom_type: str = "crazyflie-
     a = c + np.array([radius_m, 0.0, 0.5 * vertical_gap_m])
     b = c + np.array([-radius_m, 0.0, 0.5 * vertical_gap_m])
     dz = np.array([0.0, 0.0, vertical_gap_m])
-    top_wp, bot_wp, times = [a], [b - dz], [0.0]
+    top_wp, bot_wp, times = [a, a], [b - dz, b - dz], [0.0, hold_s]  # leading pause
     t = hold_s
     for k in range(n_swaps):
-        top_wp.append(b if k % 2 == 0 else a)
-        bot_wp.append((a if k % 2 == 0 else b) - dz)
-        times.append(t + swap_s)
-        top_wp.append(top_wp[-1])
-        bot_wp.append(bot_wp[-1])
-        t += swap_s + hold_s
+        top_to, bot_to = (b, a - dz) if k % 2 == 0 else (a, b - dz)
+        t += swap_s
+        top_wp.append(top_to)
+        bot_wp.append(bot_to)
         times.append(t)
-    # a leading pause
-    top_wp.insert(0, a)
-    bot_wp.insert(0, b - dz)
-    times = [0.0] + [x + hold_s for x in times]
+        t += hold_s
+        top_wp.append(top_to)
+        bot_wp.append(bot_to)
+        times.append(t)
     return _plan("swap", [
         waypoint_trajectory("top", top_type, top_wp, times, dt_s=dt_s),
         waypoint_trajectory("bottom", bottom_type, bot_wp, times, dt_s=dt_s),
