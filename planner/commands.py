@@ -77,7 +77,7 @@ def _plan(args: argparse.Namespace) -> int:
         from costmaps.errors import UserError
 
         raise UserError(f"--out {out}: exists and is not a folder; expected a folder path")
-    bar, report = _progress_bar(sys.stderr.isatty() or not args.json)
+    bar, report = _progress_bar(sys.stderr.isatty())
     try:
         plan = plan_scenario(scenario, method=args.method, seed=args.seed, progress=report)
     except InfeasibleError as err:

@@ -138,7 +138,7 @@ def _plan_order(
             sp = plan_space_time(checker, task.start_m, goal, limits, horizon_s=min(horizon, window),
                                  seed=seed * 1009 + idx * 31 + attempt, options=options)
             if sp is None:
-                last_problem = checker.most_rejected() or "no valid arrival time at the goal"
+                last_problem = _goal_problem(nominal, goal) or checker.most_rejected() or "no path within the time budget"
                 continue
             if goal.tail:  # the dock approach is timed at the slower limits
                 tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
@@ -159,6 +159,16 @@ def _plan_order(
         p, _, _ = accepted.sample(t_grid)
         tracks[name] = Track.from_arrays(name, task.vehicle, DT_S, p)
     return timed, info
+
+
+def _goal_problem(checker, goal: GoalSpec) -> str | None:
+    """The constraint that keeps the goal (or dock) occupied at the end of the horizon, if any."""
+    end = goal.tail[-1] if goal.tail else goal.position_m
+    for p, exclude in ((goal.position_m, None), (end, goal.tail_exempt)):
+        c = checker.conflict(float(p[0]), float(p[1]), float(p[2]), goal.hold_until_s, exclude=exclude)
+        if c is not None:
+            return f"{c} at the goal" if p is end else f"{c} at the dock approach point"
+    return None
 
 
 def _retime_with_tail(sp, limits: KinematicLimits, tail_limits: KinematicLimits, n_tail: int) -> TimedPath:

@@ -52,10 +52,10 @@ def plot_plan(plan: PlanResult, scenario, path: str | Path, *, usage: dict | Non
     ax_u.grid(alpha=0.3)
     ax_u.legend(fontsize=8)
     fig.suptitle(f"{plan.scenario}: {plan.method}, makespan {plan.metrics.get('makespan_s', float('nan')):.2f} s")
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.05, right=0.98, bottom=0.1, top=0.87, wspace=0.25)
     path = Path(path)
     tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=90)
+    fig.savefig(tmp, dpi=80)
     plt.close(fig)
     tmp.replace(path)
     return path

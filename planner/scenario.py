@@ -191,7 +191,7 @@ def _positive(value: Any, where: str, *, upper: float | None = None) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
         raise UserError(f"{where}: expected a positive number, got {value!r}")
     if upper is not None and value > upper:
-        raise UserError(f"{where}: expected a number in (0, {upper}], got {value!r}")
+        raise UserError(f"{where}: expected a number in (0, {upper:g}], got {value!r}")
     return float(value)
 
 

@@ -1,0 +1,139 @@
+"""Space-time sampling planner and its constraint checks."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from costmaps.authority import authority_usage
+from costmaps.builtin_vehicles import BUILTIN_VEHICLES
+from costmaps.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
+from planner.constraints import Track, body_radius_m, build_checker
+from planner.pipeline import DT_S, dock_geometry, kinematic_limits
+from planner.sampling import GoalSpec, SamplingOptions, plan_space_time
+from planner.scenario import scenario_from_dict
+from planner.timing import common_grid, time_parameterize
+
+ROOT = Path(__file__).resolve().parents[1]
+LARGE, SMALL = BUILTIN_VEHICLES["large-quad"], BUILTIN_VEHICLES["small-quad"]
+
+
+def _scenario(fraction=0.15):
+    return scenario_from_dict(
+        {
+            "name": "s",
+            "workspace": {"min": [-3, -3, 0], "max": [3, 3, 3.5]},
+            "limits": {"authority_fraction": fraction, "min_separation_m": 0.3},
+            "vehicles": {
+                "big": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
+                "small": {"type": "small-quad", "start": [-2, 0.1, 0.9], "goal": [2, -0.1, 0.9]},
+            },
+        }
+    )
+
+
+def test_checker_downwash_agrees_with_the_model():
+    sc = _scenario(fraction=0.1)
+    checker = build_checker(sc, "small", [Track.static("big", LARGE, np.array([0, 0, 2.0]))])
+    rng = np.random.default_rng(1)
+    dz = rng.uniform(VALIDITY_FACTOR_L * LARGE.size_m + 0.05, 2.5, 400)
+    r = rng.uniform(0.0, 0.6, 400)
+    phi = rng.uniform(0, 2 * np.pi, 400)
+    pts = np.column_stack([r * np.cos(phi), r * np.sin(phi), 2.0 - dz])
+    verdict = [checker.conflict(*p, 0.0) for p in pts]
+    w = disturbance_wrench(LARGE, SMALL, pts - np.array([0, 0, 2.0]))
+    usage = authority_usage(SMALL, w.force_N, w.torque_Nm)
+    ok = np.array([v is None for v in verdict])
+    blocked = np.array([v == "downwash of big" for v in verdict])
+    assert ok.any() and blocked.any()
+    assert usage[ok].max() <= 0.1 + 0.01  # accepted states keep usage under the level
+    assert usage[blocked].max() > 0.1  # and the cutoff does block where the model is over it
+
+
+def test_invalid_zone_is_blocked_conservatively():
+    sc = _scenario()
+    checker = build_checker(sc, "small", [Track.static("big", LARGE, np.array([0, 0, 2.0]))])
+    inside = checker.conflict(0.0, 0.3, 2.0 - 0.5, 0.0)  # dz = 0.5 m < 3 L, footprints overlap
+    assert inside is not None and "big" in inside
+    assert checker.conflict(0.0, 0.0, 2.0 + 0.5, 0.0) is None  # above the source: no downwash on it from big
+    sep_only = build_checker(sc, "small", [Track.static("big", LARGE, np.array([0, 0, 2.0]))], mode="no-downwash")
+    assert sep_only.conflict(0.0, 0.0, 1.4, 0.0) is None
+
+
+def test_ellipsoid_mode_radii():
+    sc = _scenario()
+    checker = build_checker(sc, "small", [Track.static("big", LARGE, np.array([0, 0, 2.0]))], mode="ellipsoid")
+    r = body_radius_m(LARGE) + body_radius_m(SMALL)
+    assert checker.conflict(0, 0, 2.0 - 2.9 * r, 0.0) is not None  # vertical radius 3 r
+    assert checker.conflict(0, 0, 2.0 - 3.1 * r, 0.0) is None
+    assert checker.conflict(1.05 * r, 0, 2.0, 0.0) is None  # horizontal radius r
+
+
+def test_moving_track_is_interpolated_in_time():
+    tr = Track.from_arrays("m", SMALL, 0.5, np.array([[0, 0, 1], [1, 0, 1], [2, 0, 1]], dtype=float))
+    np.testing.assert_allclose(tr.at(0.25), [0.5, 0, 1])
+    np.testing.assert_allclose(tr.at(10.0), [2, 0, 1])  # holds the last sample
+
+
+def test_space_time_plan_avoids_the_hovering_source_and_is_timed_validly():
+    sc = _scenario(fraction=0.1)
+    others = [Track.static("big", LARGE, sc.vehicles["big"].start_m)]
+    checker = build_checker(sc, "small", others, margin_m=0.02)
+    nominal = build_checker(sc, "small", others)
+    task = sc.vehicles["small"]
+    limits = kinematic_limits(task)
+    # the straight line passes right under the source: it must be rejected
+    straight = np.linspace(task.start_m, task.goal_m, 60)
+    assert any(nominal.conflict(*p, 0.0) for p in straight)
+    path = None
+    for seed in range(3):
+        path = plan_space_time(checker, task.start_m, GoalSpec(task.goal_m, hold_until_s=5.0), limits,
+                               horizon_s=30.0, seed=seed, options=SamplingOptions(time_budget_s=2.0))
+        if path is not None:
+            break
+    assert path is not None
+    assert np.all(np.diff(path.times_s) >= 0)
+    tp = time_parameterize(path.waypoints_m, path.times_s, limits)
+    t = common_grid(tp.duration_s, DT_S / 5)
+    p, v, _ = tp.sample(t)
+    assert all(nominal.conflict(*pi, float(ti)) is None for ti, pi in zip(t, p))
+    np.testing.assert_allclose(p[-1], task.goal_m, atol=1e-6)
+    assert np.linalg.norm(v, axis=1).max() <= task.max_speed_mps * (1 + 1e-6)
+
+
+def test_dock_approach_point_is_outside_the_invalid_zone():
+    sc = scenario_from_dict(
+        {
+            "workspace": {"min": [-3, -3, 0], "max": [3, 3, 4]},
+            "vehicles": {
+                "carrier": {"type": "large-quad", "start": [0, 0, 1.5], "hover": True},
+                "shuttle": {"type": "small-quad", "start": [2, 1, 2.5], "dock": {"with": "carrier", "offset": [0, 0, 0.3]}},
+            },
+        }
+    )
+    a, d = dock_geometry(sc, "shuttle")
+    np.testing.assert_allclose(d, [0, 0, 1.8])
+    assert a[2] - 1.5 > VALIDITY_FACTOR_L * SMALL.size_m  # the carrier is outside the shuttle's invalid zone at A
+    np.testing.assert_allclose(a[:2], 0.0)
+
+
+def _plan_in_subprocess(tmp_path, seed, tag):
+    out = tmp_path / tag
+    res = subprocess.run(
+        [sys.executable, "-m", "proxplan.cli", "plan", str(ROOT / "scenarios" / "crossing_4.yaml"), "--out", str(out),
+         "--method", "sampling", "--seed", str(seed), "--no-plot", "--json"],
+        capture_output=True, text=True, timeout=120, cwd=ROOT,
+    )
+    assert res.returncode == 0, res.stderr
+    return json.loads((out / "plan.json").read_text())["vehicles"]
+
+
+def test_same_seed_same_plan(tmp_path):
+    a = _plan_in_subprocess(tmp_path, 3, "a")
+    b = _plan_in_subprocess(tmp_path, 3, "b")
+    assert a == b

@@ -1,0 +1,114 @@
+"""Independent verifier on hand-made plans: downwash, separation, goals, limits; wrench along a plan."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from costmaps.authority import authority_usage
+from costmaps.builtin_vehicles import BUILTIN_VEHICLES
+from costmaps.disturbance import disturbance_wrench
+from planner.plan_io import PlanResult, VehicleTrajectory
+from planner.scenario import scenario_from_dict
+from planner.verify import verify_plan, wrench_along_plan
+
+DT = 0.05
+
+
+def _scenario(low_start, low_goal, *, fraction=0.15, rule="conservative"):
+    return scenario_from_dict(
+        {
+            "name": "hand-made",
+            "workspace": {"min": [-3, -3, 0], "max": [3, 3, 3]},
+            "limits": {"authority_fraction": fraction, "min_separation_m": 0.3, "invalid_zone_rule": rule},
+            "vehicles": {
+                "top": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
+                "low": {"type": "small-quad", "start": list(low_start), "goal": list(low_goal)},
+            },
+        }
+    )
+
+
+def _line(p0, p1, duration_s, *, total_s):
+    """Smooth (cosine) rest-to-rest line p0 -> p1 over duration_s, then hold; sampled every DT."""
+    t = np.arange(0.0, total_s + DT / 2, DT)
+    u = np.clip(t / duration_s, 0.0, 1.0)
+    s = 0.5 - 0.5 * np.cos(np.pi * u)
+    ds = np.where(u < 1, 0.5 * np.pi / duration_s * np.sin(np.pi * u), 0.0)
+    dds = np.where(u < 1, 0.5 * (np.pi / duration_s) ** 2 * np.cos(np.pi * u), 0.0)
+    d = np.asarray(p1, float) - np.asarray(p0, float)
+    return t, np.asarray(p0, float) + s[:, None] * d, ds[:, None] * d, dds[:, None] * d
+
+
+def _plan(scenario, low_path):
+    t, p, v, a = low_path
+    top = scenario.vehicles["top"].start_m
+    z = np.zeros_like(p)
+    return PlanResult(
+        scenario=scenario.name,
+        dt_s=DT,
+        vehicles={
+            "top": VehicleTrajectory("top", "large-quad", t, np.repeat(top[None], t.size, axis=0), z, z),
+            "low": VehicleTrajectory("low", "small-quad", t, p, v, a),
+        },
+    )
+
+
+def test_flying_through_downwash_is_named(tmp_path):
+    # straight under the hovering large-quad, 1.2 m below it (valid zone, 3 L = 0.99 m)
+    sc = _scenario([-2, 0, 0.8], [2, 0, 0.8], fraction=0.1)
+    plan = _plan(sc, _line([-2, 0, 0.8], [2, 0, 0.8], 8.0, total_s=9.0))
+    violations = verify_plan(plan, sc)
+    kinds = {(v.vehicle, v.kind) for v in violations}
+    assert ("low", "authority") in kinds, violations
+    auth = next(v for v in violations if v.kind == "authority")
+    assert "top" in auth.detail  # the source is named
+    assert auth.value > 0.1 and auth.limit == pytest.approx(0.1)
+    assert 2.0 < auth.t_s < 5.0  # it happens when passing under the source (t = 4 s)
+    assert all(v.kind == "authority" for v in violations)
+
+
+def test_invalid_zone_is_flagged_unless_rule_is_model():
+    path = _line([-2, 0, 1.5], [2, 0, 1.5], 8.0, total_s=9.0)  # 0.5 m under: invalid zone
+    sc = _scenario([-2, 0, 1.5], [2, 0, 1.5], fraction=0.9)
+    kinds = {v.kind for v in verify_plan(_plan(sc, path), sc)}
+    assert "invalid-zone" in kinds
+    sc_model = _scenario([-2, 0, 1.5], [2, 0, 1.5], fraction=0.9, rule="model")
+    assert "invalid-zone" not in {v.kind for v in verify_plan(_plan(sc_model, path), sc_model)}
+
+
+def test_clean_detour_passes():
+    sc = _scenario([-2, -1.5, 1.0], [2, -1.5, 1.0])
+    plan = _plan(sc, _line([-2, -1.5, 1.0], [2, -1.5, 1.0], 8.0, total_s=9.0))
+    assert verify_plan(plan, sc) == []
+
+
+def test_separation_goal_and_speed_violations():
+    sc = _scenario([-2, 0, 2.0], [2, -1, 1.0], fraction=0.9)
+    # level with the top vehicle straight through it, too fast, ending at the wrong place
+    plan = _plan(sc, _line([-2, 0, 2.0], [2, 0, 2.0], 2.0, total_s=3.0))
+    kinds = {v.kind for v in verify_plan(plan, sc)}
+    assert {"separation", "goal", "speed"} <= kinds
+
+
+def test_hover_drift_and_missing_vehicle():
+    sc = _scenario([-2, -1.5, 1.0], [2, -1.5, 1.0])
+    plan = _plan(sc, _line([-2, -1.5, 1.0], [2, -1.5, 1.0], 8.0, total_s=9.0))
+    plan.vehicles["top"].position_m = plan.vehicles["top"].position_m + np.array([0.2, 0, 0])
+    assert "hover" in {v.kind for v in verify_plan(plan, sc)}
+    del plan.vehicles["top"]
+    assert [v.kind for v in verify_plan(plan, sc)] == ["missing"]
+
+
+def test_wrench_along_plan_is_the_direct_model():
+    sc = _scenario([-2, 0, 0.8], [2, 0, 0.8])
+    plan = _plan(sc, _line([-2, 0, 0.8], [2, 0, 0.8], 8.0, total_s=9.0))
+    t = np.array([1.0, 4.0, 6.5])
+    along = wrench_along_plan(plan, sc, t_s=t)
+    low_p = plan.vehicles["low"].state_at(t)[0]  # grid times: interpolation is exact here
+    offsets = low_p - sc.vehicles["top"].start_m
+    w = disturbance_wrench(BUILTIN_VEHICLES["large-quad"], BUILTIN_VEHICLES["small-quad"], offsets)
+    np.testing.assert_allclose(along["low"].force_N, w.force_N, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(along["low"].usage, authority_usage(BUILTIN_VEHICLES["small-quad"], w.force_N, w.torque_Nm), rtol=1e-9)
+    assert along["low"].usage[1] > along["low"].usage[0]  # strongest right under the source
+    np.testing.assert_allclose(along["top"].force_N, 0.0)  # nothing above the top vehicle
