@@ -89,13 +89,17 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"{result.scenario}: {result.sim_time_s:.2f} s flown in {result.wall_time_s:.2f} s "
           f"({result.real_time_factor:.1f}x real time)")
-    print(f"{'vehicle':<12}{'type':<18}{'pos max/rms [cm]':>18}{'alt max/rms [cm]':>18}{'sat [s]':>9}{'authority':>10}{'motor':>7}")
+    print(f"{'vehicle':<12}{'type':<18}{'pos max/rms [cm]':>18}{'alt max/rms [cm]':>18}{'sat [s]':>9}{'authority':>10}{'motor':>7}{'invalid [s]':>12}")
     for name, m in summary["vehicles"].items():
         print(f"{name:<12}{m['type']:<18}"
               f"{100 * m['max_position_error_m']:>9.1f}/{100 * m['rms_position_error_m']:<8.1f}"
               f"{100 * m['max_altitude_error_m']:>9.1f}/{100 * m['rms_altitude_error_m']:<8.1f}"
-              f"{m['motor_saturation_time_s']:>9.2f}{m['max_authority_usage']:>10.2f}{m['max_motor_usage']:>7.2f}")
+              f"{m['motor_saturation_time_s']:>9.2f}{m['max_authority_usage']:>10.2f}{m['max_motor_usage']:>7.2f}"
+              f"{m['time_in_invalid_zone_s']:>12.2f}")
     print(f"plot: {plot}")
     if manifest:
         print(f"logs: {manifest}")
+    if any(m["time_in_invalid_zone_s"] > 0 for m in summary["vehicles"].values()):
+        print("note: 'invalid' is time spent within dz <= 3 L below another vehicle, where the downwash "
+              "model is extrapolated (S0 II-A)")
     return 0

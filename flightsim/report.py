@@ -5,7 +5,8 @@ position error |p - p_ref| (max, RMS), altitude error |z - z_ref| (max, RMS), m;
 motor command clipped (physics-step resolution), s; the largest authority usage (DESIGN.md
 section 3, costmaps.authority) of the disturbance wrench actually applied; the largest motor usage
 actually commanded (thrust change from hover over the headroom in that direction, tracking
-included: 1 = a motor at its limit).
+included: 1 = a motor at its limit); the time spent below another vehicle inside its invalid zone
+(dz <= 3 L, S0 II-A), where the applied model value is an extrapolation.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ class VehicleMetrics:
     max_authority_usage: float  # of the applied disturbance wrench, -
     max_motor_usage: float  # commanded, tracking included, -
     max_disturbance_force_N: float  # largest |applied external force|, N
+    time_in_invalid_zone_s: float  # time below another vehicle within dz <= 3 L of it (S0 II-A), s
 
 
 def motor_usage(vehicle, cmd_motor_thrust_N: np.ndarray) -> np.ndarray:
@@ -43,7 +45,25 @@ def motor_usage(vehicle, cmd_motor_thrust_N: np.ndarray) -> np.ndarray:
     return np.where(change > 0, change / up, -change / down).max(axis=1)
 
 
-def vehicle_metrics(record, saturation_time_s: float) -> VehicleMetrics:
+def invalid_zone_time_s(result, name: str) -> float:
+    """Time (log resolution) ``name`` spends where the field model is not valid: 0 < dz <= 3 L of
+    another vehicle within 1 L horizontally plus the wake spread; the simulator still applies the
+    model's (extrapolated) value there, so such stretches deserve scepticism, s."""
+    from costmaps.disturbance import validity_mask
+
+    rec = result.records[name]
+    bad = np.zeros(rec.t_s.size, dtype=bool)
+    for other, orec in result.records.items():
+        if other == name:
+            continue
+        offsets = rec.position_m - orec.position_m
+        dz = -offsets[:, 2]
+        near = np.hypot(offsets[:, 0], offsets[:, 1]) < 0.5 * (rec.vehicle.size_m + orec.vehicle.size_m) + dz
+        bad |= (dz > 0) & near & ~validity_mask(orec.vehicle, offsets)
+    return float(bad.sum() * result.options.log_dt_s)
+
+
+def vehicle_metrics(record, saturation_time_s: float, invalid_s: float = 0.0) -> VehicleMetrics:
     err = record.position_m - record.ref_position_m
     pos = np.linalg.norm(err, axis=1)
     alt = np.abs(err[:, 2])
@@ -58,12 +78,16 @@ def vehicle_metrics(record, saturation_time_s: float) -> VehicleMetrics:
         max_authority_usage=float(usage.max()),
         max_motor_usage=float(motor_usage(record.vehicle, record.cmd_motor_thrust_N).max()),
         max_disturbance_force_N=float(np.linalg.norm(record.applied_force_N, axis=1).max()),
+        time_in_invalid_zone_s=float(invalid_s),
     )
 
 
 def simulation_metrics(result) -> dict[str, VehicleMetrics]:
     """:class:`VehicleMetrics` of every vehicle of a :class:`flightsim.simulate.SimulationResult`."""
-    return {n: vehicle_metrics(r, result.saturation_time_s[n]) for n, r in result.records.items()}
+    return {
+        n: vehicle_metrics(r, result.saturation_time_s[n], invalid_zone_time_s(result, n))
+        for n, r in result.records.items()
+    }
 
 
 def summary_dict(result, *, plan_path: str | None = None, plot_path: str | None = None,
