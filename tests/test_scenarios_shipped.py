@@ -1,0 +1,29 @@
+"""Every shipped scenario plans (sampling planner) and passes the independent verifier."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from planner.pipeline import plan_scenario
+from planner.scenario import load_scenario
+from planner.verify import verify_plan
+
+SCENARIOS = sorted((Path(__file__).resolve().parents[1] / "scenarios").glob("*.yaml"))
+REQUIRED = {"battery_swap", "package_handoff", "crossing_4", "swap_8", "corridor_stack"}
+
+
+def test_the_required_scenarios_are_shipped():
+    assert REQUIRED <= {p.stem for p in SCENARIOS}
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_shipped_scenario_plans_and_verifies(path):
+    scenario = load_scenario(path)
+    plan = plan_scenario(scenario, method="sampling", seed=0)
+    violations = verify_plan(plan, scenario)
+    assert violations == [], "\n".join(map(str, violations))
+    assert set(plan.vehicles) == set(scenario.vehicles)
+    assert plan.metrics["max_authority_usage"] <= scenario.limits.authority_fraction
+    assert plan.metrics["makespan_s"] > 0
