@@ -9,7 +9,8 @@ evaluated on a radial grid and maximised over the azimuth phi in [0, pi/4] (the 
 the axisymmetric jet make every other azimuth a mirror image of one in that sector). The map keeps
 this usage grid U(r, dz), so ``r_cut_m`` answers any threshold ``level``: r_cut is the *outermost*
 radius where U >= level (linear interpolation between radial nodes), so for r > r_cut the usage
-stays below the level.
+stays below the level. Between dz nodes the larger of the two bracketing values is taken
+(conservative where a contour closes between nodes and r_cut drops to 0).
 
 Invalid zone. The field model holds for dz > 3 L_source (S0 II-A). For 0 < dz <= 3 L_source the
 cutoff is never silently zero; the rule is one of :data:`INVALID_RULES`:
@@ -144,10 +145,10 @@ class CutoffMap:
             raise ValueError(f"invalid_rule must be one of {INVALID_RULES}, got {rule!r}")
         dz = np.asarray(dz_m, dtype=float)
         raw = self._raw_r_cut(level)
-        r = np.interp(dz, self.dz_m, raw)
+        r = _bracket_max(self.dz_m, raw, dz)
         invalid = (dz > 0.0) & (dz <= self.validity_dz_m)
         if rule == "conservative":
-            at_boundary = float(np.interp(self.validity_dz_m, self.dz_m, raw))
+            at_boundary = float(_bracket_max(self.dz_m, raw, np.array(self.validity_dz_m)))
             floor = max(at_boundary, self.overlap_radius_m)
             r = np.where(invalid, np.maximum(r, floor), r)
         elif rule == "forbid":
@@ -159,6 +160,17 @@ class CutoffMap:
     def default_r_cut_m(self) -> np.ndarray:
         """r_cut at ``default_level`` on the grid (K,), m (the ``r_cut_m`` array of the .npz)."""
         return self.r_cut_m(self.dz_m)
+
+
+def _bracket_max(nodes_m: np.ndarray, values: np.ndarray, dz_m: np.ndarray) -> np.ndarray:
+    """Conservative lookup between dz nodes: the larger of the two bracketing node values (the value
+    itself on a node; the last value beyond the last node). Linear interpolation would cut corners
+    where a usage contour closes between two nodes (r_cut dropping to 0)."""
+    k = np.clip(np.searchsorted(nodes_m, dz_m, side="right") - 1, 0, nodes_m.size - 1)
+    upper = np.minimum(k + 1, nodes_m.size - 1)
+    on_node = np.asarray(dz_m) == nodes_m[k]
+    below_grid = np.asarray(dz_m) < nodes_m[0]
+    return np.where(on_node | below_grid, values[k], np.maximum(values[k], values[upper]))
 
 
 def cutoff_dz_grid_m(source: Vehicle, resolution: CutoffResolution) -> np.ndarray:

@@ -151,3 +151,27 @@ def test_build_rejects_bad_options():
     with pytest.raises(ValueError):
         build_cutoff_map(SMALL, LARGE, levels=(0.001,))
     assert set(INVALID_RULES) == {"conservative", "model", "forbid"}
+
+
+@pytest.mark.parametrize("source_name", list(BUILTIN_VEHICLES))
+def test_every_shipped_pair_brackets_the_level(source_name):
+    """Shipped maps of every pair: direct-model usage < level just outside r_cut, and >= level just
+    inside wherever the usage contour is not closing between two dz nodes."""
+    from costmaps.map_store import pair_maps
+
+    source = BUILTIN_VEHICLES[source_name]
+    for target in BUILTIN_VEHICLES.values():
+        cmap = pair_maps(source, target).cutoff
+        for level in cmap.levels:
+            for dz in np.linspace(cmap.validity_dz_m * 1.05, 3.0, 5):
+                r_cut = float(cmap.r_cut_m(np.array(dz), level=level))
+                if r_cut <= 0.02:
+                    continue
+                delta = max(0.01, 0.03 * r_cut)
+                assert _max_usage_over_azimuth(source, target, r_cut + delta, dz) < level, (target.name, level, dz)
+                # inside: only where the contour is not closing within this dz cell (there the
+                # lookup takes the larger bracketing node on purpose, see costmaps.cutoff)
+                k = np.searchsorted(cmap.dz_m, dz) - 1
+                spread = abs(np.subtract(*cmap.r_cut_m(cmap.dz_m[k : k + 2], level=level)))
+                if spread < 0.5 * delta:
+                    assert _max_usage_over_azimuth(source, target, r_cut - delta, dz) >= level, (target.name, level, dz)
