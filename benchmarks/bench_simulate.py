@@ -4,7 +4,7 @@ Prints real-time factors (simulated s per wall-clock s) of
   * baseline: RotorPy's own classes stepped per vehicle (SE3Control.update + Multirotor.step via
     scipy solve_ivp, the external wrench from costmaps.effects.total_wrench at every step),
   * flightsim.simulate_plan with the wrench evaluated every step (horizon 1) and batched over
-    5 steps at predicted positions (the default), with no truth effects and with all of them,
+    10 steps at predicted positions (the default), with no truth effects and with all of them,
 and their ratios to the baseline measured in the same run. Optionally (``--plans``) flies the
 battery-swap plans of the planner (sampling, no-downwash, optimized) and prints the carrier's max
 altitude error.
@@ -80,7 +80,7 @@ def main() -> None:
     truth = load_truth_file(REPO / "examples" / "truth" / "all_effects.yaml")
     for label, kw in (
         ("flightsim, wrench every step (horizon 1)", {"wrench_horizon_steps": 1}),
-        ("flightsim, default (horizon 5)", {}),
+        ("flightsim, default (horizon 10)", {}),
         ("flightsim, default + all truth effects", {"truth": truth}),
     ):
         rtf = ours_rtf(plan, **kw)

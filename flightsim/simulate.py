@@ -41,7 +41,7 @@ class SimulationOptions:
     physics_dt_s: float = 0.002  # RK4 step of the dynamics and controller period, s
     log_dt_s: float = 0.01  # log / record period, s (a multiple of physics_dt_s)
     settle_s: float = 1.0  # hover at the final reference after the plan ends, s
-    wrench_horizon_steps: int = 5  # physics steps per batched wrench evaluation, -
+    wrench_horizon_steps: int = 10  # physics steps per batched wrench evaluation, -
     imu_noise: bool = True  # white noise on the logged IMU samples
     imu: ImuOptions = ImuOptions()
     mocap_noise_std_m: float = 0.0005  # noise of the logged positions, m
@@ -141,7 +141,7 @@ def simulate_plan(
     log_dt_s: float = 0.01,
     imu_noise: bool = True,
     settle_s: float = 1.0,
-    wrench_horizon_steps: int = 5,
+    wrench_horizon_steps: int = 10,
     options: SimulationOptions | None = None,
     progress: bool = False,
 ) -> SimulationResult:
