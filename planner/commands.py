@@ -63,6 +63,7 @@ def _progress_bar(enabled: bool):
 
 
 def _plan(args: argparse.Namespace) -> int:
+    import time
     from pathlib import Path
 
     from planner.pipeline import InfeasibleError, plan_scenario
@@ -87,15 +88,19 @@ def _plan(args: argparse.Namespace) -> int:
             print(json.dumps({"feasible": False, "vehicle": err.vehicle, "constraint": err.constraint, "message": err.message}))
         return 1
     bar.close()
+    t_verify = time.perf_counter()
     violations = verify_plan(plan, scenario)
+    t_verify = time.perf_counter() - t_verify
     plan.metrics["verify_violations"] = len(violations)
     out.mkdir(parents=True, exist_ok=True)
     plan_path = write_plan(plan, out)
     png = None
+    t_plot = time.perf_counter()
     if not args.no_plot:
         from planner.plot import plot_plan
 
         png = plot_plan(plan, scenario, out / "plan.png")
+    t_plot = time.perf_counter() - t_plot
     text = plan_summary(plan, violations=violations)
     summary_path = atomic_write_text(out / "summary.txt", text)
     if args.json:
@@ -108,6 +113,7 @@ def _plan(args: argparse.Namespace) -> int:
             "metrics": _jsonable(plan.metrics),
             "notes": plan.notes,
             "verify": {"passed": not violations, "violations": [_violation_dict(v) for v in violations]},
+            "stage_times_s": {"plan": plan.metrics.get("planning_time_s"), "verify": round(t_verify, 3), "plot": round(t_plot, 3)},
         }))
     else:
         sys.stdout.write(text)

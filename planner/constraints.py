@@ -118,6 +118,45 @@ def cutoff_table(source: Vehicle, target: Vehicle, *, level: float, rule: str = 
     return CutoffTable(source.name, target.name, float(level), DZ_STEP_M, tuple(float(v) for v in r_cut), float(invalid_dz), provenance)
 
 
+@dataclass(frozen=True)
+class UsageTable:
+    """Predicted authority usage of the target at (r, dz) from a source, for the planner's
+    objective: the cost map's usage grid (maximised over azimuth, ``CutoffMap.usage``) resampled on
+    a regular grid ``usage[k_dz][k_r]`` (steps ``dz_step_m``, ``r_step_m``, m); 0 outside."""
+
+    dz_step_m: float
+    r_step_m: float
+    usage: tuple[tuple[float, ...], ...]
+
+    def lookup(self, r_m: float, dz_m: float) -> float:
+        if dz_m <= 0.0:
+            return 0.0
+        k = int(dz_m / self.dz_step_m + 0.5)
+        j = int(r_m / self.r_step_m + 0.5)
+        if k >= len(self.usage) or j >= len(self.usage[0]):
+            return 0.0
+        return self.usage[k][j]
+
+
+@lru_cache(maxsize=256)
+def usage_table(source: Vehicle, target: Vehicle, *, field_form: str | None = None) -> UsageTable | None:
+    """The :class:`UsageTable` of an ordered pair from the cost maps; None when they are missing."""
+    from costmaps.disturbance import ModelOptions
+
+    try:
+        from costmaps.map_store import pair_maps
+    except ImportError:
+        return None
+    options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
+    cmap = pair_maps(source, target, options=options).cutoff
+    dz = np.arange(0.0, float(cmap.dz_m[-1]) + 1e-9, 0.05)
+    r = np.arange(0.0, float(cmap.r_grid_m.max()) + 1e-9, 0.02)
+    cols = np.stack([np.interp(r, cmap.r_grid_m[:, k], cmap.usage[:, k], right=0.0) for k in range(cmap.dz_m.size)], axis=1)
+    grid = np.stack([np.interp(dz, cmap.dz_m, cols[j]) for j in range(r.size)], axis=1)  # (n_dz, n_r)
+    grid[0] = 0.0
+    return UsageTable(0.05, 0.02, tuple(tuple(float(v) for v in row) for row in grid))
+
+
 @dataclass
 class Track:
     """Another vehicle's motion, sampled every ``dt_s`` from t = 0: ``xyz`` lists of length N, m.
@@ -174,6 +213,7 @@ class PairRule:
     cut_from_other: CutoffTable | None  # other is the source, planned vehicle the target
     cut_on_other: CutoffTable | None  # planned vehicle is the source, other the target
     ellipsoid_r_m: float | None
+    usage_from_other: UsageTable | None = None  # other is the source (objective only)
     margin_m: float = 0.0  # added to the cutoff radius, m
     until_margin_s: float = 0.0  # added to the track's presence, s
 
@@ -230,6 +270,20 @@ class ConflictChecker:
                     return f"downwash on {tr.name}"
         return None
 
+    def predicted_usage(self, x: float, y: float, z: float, t: float) -> float:
+        """Sum over the other vehicles above of the map's predicted authority usage at a state
+        (a conservative proxy for the combined usage), for the planner's objective, -."""
+        total = 0.0
+        for rule in self.rules:
+            table = rule.usage_from_other
+            tr = rule.track
+            if table is None or t >= tr.until_s:
+                continue
+            ox, oy, oz = tr.at(t)
+            if oz > z:
+                total += table.lookup(math.hypot(x - ox, y - oy), oz - z)
+        return total
+
     def valid(self, x: float, y: float, z: float, t: float) -> bool:
         c = self.conflict(x, y, z, t)
         if c is None:
@@ -283,10 +337,11 @@ def build_checker(
         other = tr.vehicle
         sep = max(lim.min_separation_m, rb + body_radius_m(other)) + margin_m
         cut_from = cut_on = ell = None
+        usage_from = usage_table(other, task.vehicle, field_form=scenario.field_form)
         if mode == "downwash":
             cut_from = cutoff_table(other, task.vehicle, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
             cut_on = cutoff_table(task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
         elif mode == "ellipsoid":
             ell = rb + body_radius_m(other) + margin_m
-        rules.append(PairRule(tr, sep, cut_from, cut_on, ell, margin_m, until_margin_s))
+        rules.append(PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s))
     return ConflictChecker(name, tuple(lo.tolist()), tuple(hi.tolist()), boxes, rules)

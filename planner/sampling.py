@@ -44,6 +44,8 @@ class SamplingOptions:
     hold_check_step_s: float = 0.05  # resolution of goal-hold checks, s
     compress_step_s: float = 0.05  # resolution of the time-compression pass, s
     planning_speed_factor: float = 0.7  # speed bound inside the RRT search, fraction of max speed
+    usage_weight_s: float = 20.0  # objective: seconds of flight time one usage-second is worth, s
+    candidates: int = 2  # RRT solutions compared by the objective per attempt
     strict_search: bool = False  # RRT edges are exact Ruckig rest-to-rest segments (else linear, speed-bounded)
 
 
@@ -251,22 +253,27 @@ class _Planner:
             goals.addState(state(goal.position_m, t))
         goals.setThreshold(1e-6)
         pdef.setGoal(goals)
-        planner = og.RRT(si)
-        planner.setRange(self.opts.range_m)
-        planner.setGoalBias(self.opts.goal_bias)
-        planner.setProblemDefinition(pdef)
-        planner.setup()
-        status = planner.solve(self.opts.time_budget_s)
-        if not pdef.hasExactSolution():
-            del status
-            return None
-        path = pdef.getSolutionPath()
-        simplifier = og.PathSimplifier(si)
-        simplifier.reduceVertices(path)
-        pts = np.array([[path.getState(i)[j] for j in range(3)] for i in range(path.getStateCount())])
-        ts = np.array([path.getState(i)[3] / v_ref for i in range(path.getStateCount())])
-        pts, ts = self.compress(pts, ts, goal)
-        return SpaceTimePath(pts, ts, {"rrt_vertices": int(path.getStateCount())})
+        best = None
+        for _ in range(self.opts.candidates):
+            pdef.clearSolutionPaths()
+            planner = og.RRT(si)
+            planner.setRange(self.opts.range_m)
+            planner.setGoalBias(self.opts.goal_bias)
+            planner.setProblemDefinition(pdef)
+            planner.setup()
+            planner.solve(self.opts.time_budget_s)
+            if not pdef.hasExactSolution():
+                continue
+            path = pdef.getSolutionPath()
+            simplifier = og.PathSimplifier(si)
+            simplifier.reduceVertices(path)
+            pts = np.array([[path.getState(i)[j] for j in range(3)] for i in range(path.getStateCount())])
+            ts = np.array([path.getState(i)[3] / v_ref for i in range(path.getStateCount())])
+            pts, ts = self.compress(pts, ts, goal)
+            cost = self.objective(pts, ts)
+            if best is None or cost < best.info["objective_s"]:
+                best = SpaceTimePath(pts, ts, {"rrt_vertices": int(path.getStateCount()), "objective_s": cost})
+        return best
 
     def compress(self, pts: np.ndarray, ts: np.ndarray, goal: GoalSpec) -> tuple[np.ndarray, np.ndarray]:
         """Greedy space-time shortcut with earliest times.
@@ -297,6 +304,7 @@ class _Planner:
                         self._arrival_ok(goal, t) if j == last else self._rejoin_ok(pts[j], t, float(ts[j]))
                     ):
                         eta = t + self.durations.duration_s(float(np.linalg.norm(end_p - pts[j])))
+                        eta += self.opts.usage_weight_s * self.exposure(out_p[-1], out_t[-1], pts[j], t)
                         if eta < best_eta:
                             best_eta, chosen = eta, (j, t)
                         break
@@ -314,6 +322,26 @@ class _Planner:
             out_t.append(chosen[1])
             i = chosen[0]
         return np.array(out_p), np.array(out_t)
+
+    def exposure(self, p1, t1: float, p2, t2: float) -> float:
+        """Predicted authority-usage integral along a straight motion, usage x s (objective term)."""
+        dt = t2 - t1
+        if dt <= 0.0:
+            return 0.0
+        n = max(2, int(math.ceil(dt / self.opts.check_step_s)))
+        total = 0.0
+        for k in range(n):
+            f = (k + 0.5) / n
+            total += self.checker.predicted_usage(
+                p1[0] + f * (p2[0] - p1[0]), p1[1] + f * (p2[1] - p1[1]), p1[2] + f * (p2[2] - p1[2]), t1 + f * dt
+            )
+        return total * dt / n
+
+    def objective(self, pts: np.ndarray, ts: np.ndarray) -> float:
+        """Arrival time + ``usage_weight_s`` x predicted usage integral of a waypoint path, s."""
+        return float(ts[-1]) + self.opts.usage_weight_s * sum(
+            self.exposure(pts[k], ts[k], pts[k + 1], ts[k + 1]) for k in range(len(pts) - 1)
+        )
 
     def _rejoin_ok(self, p, t: float, t_search: float) -> bool:
         """Whether waiting at ``p`` from ``t`` until the search's own time ``t_search`` is valid,
