@@ -76,11 +76,11 @@ class ReviewApp:
         gui = self.server.gui
         self.status = gui.add_markdown("**proxplan** — loading …")
         self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
-        with gui.add_folder("Time"):
+        with gui.add_folder("Time", visible=False) as self._folder_time:
             self.time_slider = gui.add_slider("t [s]", min=0.0, max=1.0, step=0.01, initial_value=0.0)
             self.play = gui.add_checkbox("play", initial_value=False)
             self.speed = gui.add_slider("speed [x]", min=0.1, max=5.0, step=0.1, initial_value=1.0)
-        with gui.add_folder("Layers"):
+        with gui.add_folder("Layers", visible=False) as self._folder_layers:
             self.show_traj = gui.add_checkbox("trajectories", initial_value=True)
             self.show_obst = gui.add_checkbox("obstacles", initial_value=True)
             self.show_iso = gui.add_checkbox("downwash iso-speed", initial_value=True)
@@ -89,10 +89,10 @@ class ReviewApp:
             self.model_scale = gui.add_slider("model scale [x]", min=1.0, max=20.0, step=0.5, initial_value=1.0)
             self.layer_note = gui.add_markdown("")
             self.legend = gui.add_image(np.full((70, 420, 3), 255, np.uint8), label="usage colours")
-        with gui.add_folder("Vehicle plots"):
+        with gui.add_folder("Vehicle plots", visible=False) as self._folder_plots:
             self.plot_vehicle = gui.add_dropdown("vehicle", options=("(none)",), initial_value="(none)")
             self.plot_image = gui.add_image(np.full((420, 420, 3), 255, np.uint8), label="disturbance")
-        with gui.add_folder("Edit and re-plan"):
+        with gui.add_folder("Edit and re-plan", visible=False) as self._folder_edit:
             self.edit_vehicle = gui.add_dropdown("goal / dock of", options=("(none)",), initial_value="(none)")
             self.replan_button = gui.add_button("re-plan")
             self.edit_note = gui.add_markdown("")
@@ -247,6 +247,9 @@ class ReviewApp:
             if self.edit_vehicle.value not in editable:
                 self.edit_vehicle.value = "(none)"
             self.legend.image = plots.render_usage_legend(d.authority_fraction)
+            for folder in (self._folder_time, self._folder_layers, self._folder_plots, self._folder_edit):
+                folder.visible = True
+            self._folder_edit.visible = d.scenario is not None
             self.status.content = self._status_text()
             self._rebuild_layers()
             self._rebuild_plot()
