@@ -126,24 +126,24 @@ class VehicleLog:
 _ARRAYS = ("t_s", "position_m", "velocity_mps", "accel_mps2", "quat_xyzw", "motor_thrust_N", "gyro_radps", "segment")
 
 
-def _open_text(path: Path) -> str:
+def _open_bytes(path: Path) -> bytes:
     try:
         if path.suffix == ".gz":
-            with gzip.open(path, "rt") as fh:
+            with gzip.open(path, "rb") as fh:
                 return fh.read()
-        return path.read_text()
+        return path.read_bytes()
     except FileNotFoundError:
         raise UserError(f"{path}: log file not found") from None
     except (OSError, EOFError, UnicodeDecodeError) as err:
         raise UserError(f"{path}: cannot read log ({err})") from None
 
 
-def _parse_numeric(body: str, path: Path, n_cols: int) -> np.ndarray:
+def _parse_numeric(body: bytes, path: Path, n_cols: int) -> np.ndarray:
     """Rows of comma-separated numbers -> (N, n_cols) float array (pandas' C parser when present)."""
     try:
         import pandas as pd
 
-        data = pd.read_csv(io.StringIO(body), header=None, dtype=float, engine="c").to_numpy()
+        data = pd.read_csv(io.BytesIO(body), header=None, dtype=float, engine="c").to_numpy()
     except ImportError:
         data = None
     except (ValueError, TypeError) as err:
@@ -155,7 +155,7 @@ def _parse_numeric(body: str, path: Path, n_cols: int) -> np.ndarray:
             raise UserError(f"{path}: not a numeric CSV ({str(err).splitlines()[0]})") from None
     if data is None:
         try:
-            data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2)
+            data = np.loadtxt(io.BytesIO(body), delimiter=",", ndmin=2)
         except ValueError as err:
             raise UserError(f"{path}: not a numeric CSV ({str(err).splitlines()[0]})") from None
     if data.shape[0] == 0 or data.shape[1] != n_cols:
@@ -169,8 +169,12 @@ def read_log(path: str | Path) -> VehicleLog:
     NaN values are kept here; :func:`check_log` removes and counts them.
     """
     path = Path(path)
-    text = _open_text(path)
-    header, _, body = text.partition("\n")
+    raw = _open_bytes(path)
+    header_b, _, body = raw.partition(b"\n")
+    try:
+        header = header_b.decode()
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: header line is not text; expected a CSV header") from None
     names = [h.strip() for h in header.lstrip("#").strip().split(",")]
     if "time[ms]" in names:
         wanted, time_scale = NEURAL_SWARM_COLUMNS, 1e-6  # the column counts microseconds

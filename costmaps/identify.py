@@ -512,15 +512,23 @@ def run_identify(manifest: Manifest | str | Path, *, options: IdentifyOptions = 
         raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
     base = Model(vehicles=types, thrust_scale={t: 1.0 for t in types}, options=ModelOptions(field_form=options.field_form))
     test_all = merge_units(test)  # every test sample, pooled
-    before = errors(test_all, base)
+    cache: dict[int, tuple[Any, list]] = {}  # id(vehicles) -> (vehicles, base wrench per unit)
+
+    def full_errors(m: Model) -> Errors:
+        key = id(m.vehicles)
+        if key not in cache:
+            cache[key] = (m.vehicles, [base_wrench(unit_inputs(u, m)) for u in test_all])
+        return errors(test_all, m, bases=cache[key][1])
+
+    before = full_errors(base)
     calibration = None
     model = base
     if options.calibrate:
         model, calibration = calibrate_model(train, base, options=options)
-    calibrated = errors(test_all, model)
+    calibrated = full_errors(model)
     corr_before = _residual_analysis(subsample(train, 20000), model)
     final, trials = select_effects(train, test, [model, base] if options.calibrate else [base], options=options)
-    after = errors(test_all, final)
+    after = full_errors(final)
     corr = _residual_analysis(subsample(test, 50000), final)
     unexplained = None
     if corr and corr[0].strength >= 0.3:
