@@ -165,3 +165,26 @@ def test_truth_wind_pushes_a_hovering_vehicle_by_rotorpy_rotor_drag():
     drift = (rec.position_m - rec.ref_position_m)[rec.t_s > 3.5].mean(axis=0)
     np.testing.assert_allclose(drift[0], drag_x / (veh.mass_kg * 6.5), rtol=0.05)  # kp_x = 6.5 1/s^2
     assert np.all(rec.applied_force_N == 0.0)  # no downwash: the wind acts through RotorPy only
+
+
+def test_simulate_cli_with_custom_vehicle_types(tmp_path, capsys):
+    from proxplan.cli import main
+
+    vfile = tmp_path / "vehicles.yaml"
+    vfile.write_text("vehicles:\n  heavy-cf: {base: crazyflie-2.1, mass_kg: 0.040}\n")
+    plan = hover_stack_plan(bottom_type="heavy-cf", separation_m=1.0, duration_s=1.0)
+    path = _write_plan(tmp_path, plan)
+    out = tmp_path / "sim"
+    assert main(["simulate", str(path), "--out", str(out)]) == 2
+    assert "unknown vehicle type 'heavy-cf'" in capsys.readouterr().err
+    assert main(["simulate", str(path), "--out", str(out), "--vehicles", str(vfile), "--json", "--log",
+                 "--settle", "0.2"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["vehicles"]["bottom"]["type"] == "heavy-cf"
+    man_path = out / "manifest.yaml"
+    text = man_path.read_text()
+    assert "vehicles_file" in text
+    import yaml
+
+    doc = yaml.safe_load(text)
+    assert (man_path.parent / doc["vehicles_file"]).resolve() == vfile.resolve()
