@@ -55,7 +55,7 @@ class CutoffResolution:
     """Grid of the usage map.
 
     ``n_dz`` nodes dz = dz_max u^``dz_power`` (u uniform in [0, 1], dense near the source; dz_max
-    None = max(5 m, 15 L_source)); ``n_r`` radial nodes r = rho S(dz), rho uniform in [0, 1], with
+    None = max(6 m, 15 L_source)); ``n_r`` radial nodes r = rho S(dz), rho uniform in [0, 1], with
     the jet-following half-width S(dz) of :class:`costmaps.wrench_table.LateralScale` widened by
     ``lateral_widths``; ``n_azimuth`` azimuths in [0, pi/4].
     """

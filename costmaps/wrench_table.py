@@ -21,7 +21,7 @@ by ``casadi.Function.bspline`` (CasADi, differentiable), so both give the same n
 Outside the table the wrench is zero. That is safe because the extent is chosen, and checked at
 build time (``boundary_usage``), so that on the table's lateral boundary the target's authority usage
 is below ``USAGE_FLOOR`` (0.01), smaller than every cutoff level offered; above the source (dz <= 0)
-the model itself gives zero. Beyond ``dz_max_m`` (default max(5 m, 15 L_source), deeper than any
+the model itself gives zero. Beyond ``dz_max_m`` (default max(6 m, 15 L_source), deeper than any
 default workspace is tall) the downwash still exists but is not tabulated: ``beyond_dz_usage`` in
 the table records the largest usage on its deepest layer so callers can see what is cut off.
 By default the table starts where the model becomes valid, dz_min = 3 L_source (S0 II-A). Closer
@@ -67,7 +67,7 @@ class TableResolution:
     model) and h_target is the target's arm + propeller radius. ``n_dz`` nodes in
     dz = dz_min + (dz_max - dz_min) u^``dz_power``, u uniform in [0, 1] (dense near the source).
     ``dz_min_m`` None = 3 L_source (start of the valid zone); 0 tabulates the invalid zone too.
-    ``dz_max_m`` None = max(5 m, 15 L_source).
+    ``dz_max_m`` None = max(6 m, 15 L_source).
     """
 
     n_xy: int = 41
@@ -94,8 +94,8 @@ DEFAULT_RESOLUTION = TableResolution()
 
 
 def default_dz_max_m(source: Vehicle) -> float:
-    """Deepest vertical separation tabulated by default, max(5 m, 15 L_source), m."""
-    return max(5.0, 15.0 * source.size_m)
+    """Deepest vertical separation tabulated by default, max(6 m, 15 L_source), m."""
+    return max(6.0, 15.0 * source.size_m)
 
 
 def target_half_extent_m(vehicle: Vehicle) -> float:
