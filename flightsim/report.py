@@ -45,10 +45,10 @@ def motor_usage(vehicle, cmd_motor_thrust_N: np.ndarray) -> np.ndarray:
     return np.where(change > 0, change / up, -change / down).max(axis=1)
 
 
-def invalid_zone_time_s(result, name: str) -> float:
-    """Time (log resolution) ``name`` spends where the field model is not valid: 0 < dz <= 3 L of
-    another vehicle within 1 L horizontally plus the wake spread; the simulator still applies the
-    model's (extrapolated) value there, so such stretches deserve scepticism, s."""
+def invalid_zone_mask(result, name: str) -> np.ndarray:
+    """(M,) True where ``name`` is below another vehicle inside its invalid zone: 0 < dz <= 3 L of
+    that vehicle (S0 II-A), horizontally within half the two sizes plus dz (the wake's spread). The
+    simulator still applies the model's (extrapolated) value there."""
     from costmaps.disturbance import validity_mask
 
     rec = result.records[name]
@@ -60,7 +60,12 @@ def invalid_zone_time_s(result, name: str) -> float:
         dz = -offsets[:, 2]
         near = np.hypot(offsets[:, 0], offsets[:, 1]) < 0.5 * (rec.vehicle.size_m + orec.vehicle.size_m) + dz
         bad |= (dz > 0) & near & ~validity_mask(orec.vehicle, offsets)
-    return float(bad.sum() * result.options.log_dt_s)
+    return bad
+
+
+def invalid_zone_time_s(result, name: str) -> float:
+    """Time (log resolution) ``name`` spends in another vehicle's invalid zone, s."""
+    return float(invalid_zone_mask(result, name).sum() * result.options.log_dt_s)
 
 
 def vehicle_metrics(record, saturation_time_s: float, invalid_s: float = 0.0) -> VehicleMetrics:
@@ -126,6 +131,10 @@ def plot_errors(result, path: str | Path) -> Path:
         ax1.plot(rec.t_s, 100 * err[:, 2], color=color, ls="--", label=f"{name} altitude error")
         usage = authority_usage(rec.vehicle, rec.applied_force_N, rec.applied_torque_Nm)
         ax2.plot(rec.t_s, usage, color=color, label=name)
+        bad = invalid_zone_mask(result, name)
+        if bad.any():
+            ax2.fill_between(rec.t_s, 0, 1, where=bad, color=color, alpha=0.12, lw=0,
+                             transform=ax2.get_xaxis_transform(), label=f"{name} in invalid zone (dz <= 3 L)")
     for ax in (ax1, ax2):
         ax.axvline(result.plan_duration_s, color="0.5", lw=0.8, ls=":")
         ax.grid(alpha=0.3)

@@ -46,7 +46,7 @@ def _measured_force_s011(vehicle, table: np.ndarray) -> np.ndarray:
         return vehicle.mass_kg * table[:, 7:10] - table[:, 14:18].sum(axis=1)[:, None] * z_b
     t = table[:, 0] * 1e-6
     return measure_disturbance(vehicle, t, table[:, 10:14], table[:, 7:10], table[:, 14:18], table[:, 27:30],
-                               options=MeasureOptions(derivative="difference", window_s=0.0)).force_N
+                               options=MeasureOptions()).force_N
 
 
 def _read_gz(path: Path) -> tuple[str, np.ndarray]:
