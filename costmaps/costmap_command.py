@@ -35,7 +35,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--source", metavar="TYPE", help="vehicle type producing the downwash (above)")
     p.add_argument("--target", metavar="TYPE", help="vehicle type receiving it (below)")
     p.add_argument("--out", metavar="PATH.npz", help="output map file (a PNG of the same stem is written beside it)")
-    p.add_argument("--all", action="store_true", help="every ordered pair of built-in vehicle types")
+    p.add_argument("--all", action="store_true",
+                   help="every ordered pair of built-in vehicle types (and those of --vehicle-file)")
     p.add_argument("--out-dir", metavar="DIR", help="with --all: directory for SOURCE__TARGET.npz files")
     p.add_argument(
         "--levels", nargs="+", default=list(_DEFAULT_LEVELS), metavar="U",
@@ -76,8 +77,8 @@ def _pairs(args: argparse.Namespace, custom: dict) -> list[tuple]:
             raise UserError("--all builds every pair: give --out-dir DIR, not --source/--target/--out")
         if not args.out_dir:
             raise UserError("--all needs --out-dir DIR (e.g. --out-dir costmaps/data)")
-        names = list(BUILTIN_VEHICLES)
-        return [(BUILTIN_VEHICLES[s], BUILTIN_VEHICLES[t]) for s in names for t in names]
+        vehicles = {**BUILTIN_VEHICLES, **custom}  # custom types of --vehicle-file too
+        return [(vehicles[s], vehicles[t]) for s in vehicles for t in vehicles]
     missing = [flag for flag, value in (("--source", args.source), ("--target", args.target), ("--out", args.out)) if not value]
     if missing:
         raise UserError(f"missing {', '.join(missing)} (or use --all --out-dir DIR)")

@@ -83,3 +83,22 @@ def test_help(capsys):
         main(["costmap", "--help"])
     assert exc.value.code == 0
     assert "--invalid-rule" in capsys.readouterr().out
+
+
+def test_all_pairs_with_custom_vehicles(tmp_path, capsys, monkeypatch):
+    import costmaps.builtin_vehicles as builtins
+
+    # keep it fast: one built-in type plus one custom type -> 4 ordered pairs
+    monkeypatch.setattr(builtins, "BUILTIN_VEHICLES", {"crazyflie-2.1": builtins.BUILTIN_VEHICLES["crazyflie-2.1"]})
+    vehicles = tmp_path / "v.yaml"
+    vehicles.write_text("vehicles:\n  cf-heavy:\n    base: crazyflie-2.1\n    mass_kg: 0.036\n")
+    code, stdout, stderr = _run(
+        ["costmap", "--all", "--out-dir", str(tmp_path / "maps"), "--vehicle-file", str(vehicles), "--no-plot", "--json"],
+        capsys,
+    )
+    assert code == 0
+    doc = json.loads(stdout)
+    pairs = {(m["source"], m["target"]) for m in doc["maps"]}
+    assert pairs == {(s, t) for s in ("crazyflie-2.1", "cf-heavy") for t in ("crazyflie-2.1", "cf-heavy")}
+    assert sorted(p.name for p in (tmp_path / "maps").glob("*.npz")) == sorted(f"{s}__{t}.npz" for s, t in pairs)
+    assert "costmap" in stderr  # the progress bar goes to stderr
