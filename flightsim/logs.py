@@ -10,7 +10,9 @@ files (``../shared/data/neural-swarm/README.md``), in this order:
   the world frame with the true attitude (about +9.81 on z in hover);
 * ``qx, qy, qz, qw`` — true attitude, body to world;
 * ``u1..u4 [N]`` — per-motor thrust k_eta omega^2 of the ACTUAL (lagged) rotor speeds, (S0-14) order
-  (a perfect static calibration; the real logs derive it from the PWM command instead);
+  (a perfect static calibration); with ``logged_thrust="commanded"`` the controller's command
+  clipped to the motor range instead, as the real logs (PWM command through a static calibration):
+  then the motor lag (``flightsim.vehicle_params.motor_time_constant_s``) shows in S0-11;
 * ``u1..u4 [PWM]`` — normalised motor command, commanded thrust / max thrust per motor (0..1, the
   scale the real files hold);
 * ``Vbat [V]`` — constant 4.0 V; ``thrust_des [g]`` — commanded collective thrust in grams-force;
@@ -72,19 +74,27 @@ def _csv_gz(header: str, table: np.ndarray) -> bytes:
     return gzip.compress(buf.getvalue().encode(), compresslevel=6, mtime=0)
 
 
+LOGGED_THRUSTS = ("actual", "commanded")
+
+
 def neural_swarm_table(record, *, rng: np.random.Generator, mocap_noise_std_m: float = 0.0005,
-                       velocity_noise_std_mps: float = 0.005) -> np.ndarray:
+                       velocity_noise_std_mps: float = 0.005, logged_thrust: str = "actual") -> np.ndarray:
     """The (M, 30) Neural-Swarm table of one :class:`flightsim.simulate.VehicleRecord`."""
+    if logged_thrust not in LOGGED_THRUSTS:
+        raise UserError(f"logged_thrust: expected one of {', '.join(LOGGED_THRUSTS)}, got {logged_thrust!r}")
     m = record.t_s.size
     veh = record.vehicle
     pos = record.position_m + rng.normal(scale=mocap_noise_std_m, size=(m, 3)) if mocap_noise_std_m > 0 else record.position_m
     vel = record.velocity_mps + rng.normal(scale=velocity_noise_std_mps, size=(m, 3)) if velocity_noise_std_mps > 0 else record.velocity_mps
     acc_world = Rotation.from_quat(record.q_xyzw).apply(record.accel_meas_body_mps2)
     pwm = np.clip(record.cmd_motor_thrust_N / veh.max_thrust_per_rotor_N, 0.0, 1.0)
+    thrust = record.motor_thrust_N
+    if logged_thrust == "commanded":
+        thrust = np.clip(record.cmd_motor_thrust_N, veh.min_motor_thrust_N, veh.max_thrust_per_rotor_N)
     return np.column_stack([
         np.round(record.t_s * 1e6),
         pos, vel, acc_world, record.q_xyzw,
-        record.motor_thrust_N, pwm,
+        thrust, pwm,
         np.full(m, BATTERY_VOLTAGE_V),
         record.cmd_thrust_N / GRAVITY_MPS2 * 1000.0,
         record.cmd_moment_Nm,
@@ -98,10 +108,12 @@ def _truth_table(record) -> np.ndarray:
 
 
 def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: str = "train",
-                      seed: int | None = None, vehicles_file: str | None = None) -> Path:
+                      seed: int | None = None, vehicles_file: str | None = None,
+                      logged_thrust: str = "actual") -> Path:
     """Write every vehicle of ``result`` (a :class:`flightsim.simulate.SimulationResult`) as a
     Neural-Swarm log under ``out_dir/flight_name/`` and add the flight to ``out_dir/manifest.yaml``
-    (created when missing). ``vehicles_file`` (relative to the manifest) names custom vehicle types.
+    (created when missing). ``vehicles_file`` (relative to the manifest) names custom vehicle types;
+    ``logged_thrust`` is "actual" (k_eta omega^2) or "commanded" (see the module docstring).
     Returns the manifest path."""
     import yaml
 
@@ -116,7 +128,8 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
     for name, rec in result.records.items():
         mocap = opts.mocap_noise_std_m if opts.imu_noise else 0.0
         veln = opts.velocity_noise_std_mps if opts.imu_noise else 0.0
-        table = neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln)
+        table = neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln,
+                                   logged_thrust=logged_thrust)
         rel = f"{flight_name}/{name}.csv.gz"
         _atomic_write_bytes(out / rel, _csv_gz(NEURAL_SWARM_HEADER, table))
         _atomic_write_bytes(out / f"{flight_name}/{name}_truth.csv.gz", _csv_gz(TRUTH_HEADER, _truth_table(rec)))

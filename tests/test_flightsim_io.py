@@ -188,3 +188,16 @@ def test_simulate_cli_with_custom_vehicle_types(tmp_path, capsys):
 
     doc = yaml.safe_load(text)
     assert (man_path.parent / doc["vehicles_file"]).resolve() == vfile.resolve()
+
+
+def test_commanded_thrust_logs_differ_from_actual_only_through_the_motor_lag(tmp_path):
+    plan = swap_plan(n_swaps=1, swap_s=1.5, hold_s=0.5)
+    res = simulate_plan(plan, imu_noise=False, settle_s=1.5)
+    write_flight_logs(res, tmp_path / "a", flight_name="f", logged_thrust="actual")
+    write_flight_logs(res, tmp_path / "c", flight_name="f", logged_thrust="commanded")
+    act = np.loadtxt(tmp_path / "a" / "f" / "bottom.csv.gz", delimiter=",", skiprows=1)[:, 14:18]
+    cmd = np.loadtxt(tmp_path / "c" / "f" / "bottom.csv.gz", delimiter=",", skiprows=1)[:, 14:18]
+    assert np.abs(act - cmd).max() > 1e-3 * np.abs(act).max()  # differ while manoeuvring
+    np.testing.assert_allclose(act[-20:], cmd[-20:], rtol=2e-3)  # agree once settled
+    with pytest.raises(UserError, match="logged_thrust"):
+        write_flight_logs(res, tmp_path / "x", flight_name="f", logged_thrust="pwm")
