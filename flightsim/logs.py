@@ -150,3 +150,24 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
     doc["flights"] = flights
     _atomic_write_bytes(manifest, yaml.safe_dump(doc, sort_keys=False).encode())
     return manifest
+
+
+def vehicle_logs(result, *, logged_thrust: str = "actual", seed: int | None = None) -> dict:
+    """The logs :func:`write_flight_logs` would write, in memory: ``{name: costmaps.flightlog.VehicleLog}``
+    (same noise for the same ``seed``; world-frame accelerometer, body gyro, (S0-14) thrusts)."""
+    from costmaps.flightlog import VehicleLog
+
+    opts = result.options
+    rng = np.random.default_rng(opts.seed + 7919 if seed is None else seed)
+    out = {}
+    for name, rec in result.records.items():
+        mocap = opts.mocap_noise_std_m if opts.imu_noise else 0.0
+        veln = opts.velocity_noise_std_mps if opts.imu_noise else 0.0
+        tab = neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln,
+                                 logged_thrust=logged_thrust)
+        out[name] = VehicleLog(
+            t_s=tab[:, 0] * 1e-6, position_m=tab[:, 1:4], velocity_mps=tab[:, 4:7], accel_mps2=tab[:, 7:10],
+            quat_xyzw=tab[:, 10:14], motor_thrust_N=tab[:, 14:18], gyro_radps=tab[:, 27:30],
+            source=f"flightsim:{result.scenario}:{name}",
+        )
+    return out

@@ -201,3 +201,17 @@ def test_commanded_thrust_logs_differ_from_actual_only_through_the_motor_lag(tmp
     np.testing.assert_allclose(act[-20:], cmd[-20:], rtol=2e-3)  # agree once settled
     with pytest.raises(UserError, match="logged_thrust"):
         write_flight_logs(res, tmp_path / "x", flight_name="f", logged_thrust="pwm")
+
+
+def test_in_memory_vehicle_logs_equal_the_written_ones(tmp_path):
+    from costmaps.flightlog import read_log
+    from flightsim.logs import vehicle_logs
+
+    res = simulate_plan(hover_stack_plan(duration_s=1.0), settle_s=0.2)
+    write_flight_logs(res, tmp_path, flight_name="f")
+    mem = vehicle_logs(res)
+    for name in res.records:
+        disk = read_log(tmp_path / "f" / f"{name}.csv.gz")
+        np.testing.assert_allclose(mem[name].t_s, disk.t_s, atol=1e-9)
+        for key in ("position_m", "velocity_mps", "accel_mps2", "quat_xyzw", "motor_thrust_N", "gyro_radps"):
+            np.testing.assert_allclose(getattr(mem[name], key), getattr(disk, key), rtol=1e-8, atol=1e-12)
