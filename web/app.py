@@ -448,11 +448,18 @@ class ReviewApp:
             try:
                 payload, frames = record_scene(
                     self.server, lambda t: scene.set_time(self._handles, d, t),
-                    t_start_s=d.t_start_s, t_end_s=d.t_end_s, frame_dt_s=frame_dt_s)
+                    t_start_s=d.t_start_s, t_end_s=d.t_end_s, frame_dt_s=frame_dt_s,
+                    prelude=self._record_initial_camera)
             finally:
                 self.set_time(t_keep, force=True)
                 self.play.value = playing
         return write_export(out_dir, payload, name=d.name, frames=frames, duration_s=d.t_end_s - d.t_start_s)
+
+    def _record_initial_camera(self) -> None:
+        """Re-send the initial camera so a recording opens framed on the workspace."""
+        position, look_at = self._camera_pose()
+        self.server.initial_camera.position = position
+        self.server.initial_camera.look_at = look_at
 
     def default_export_dir(self) -> Path:
         """Beside the plan.json that is shown, else in the working directory."""

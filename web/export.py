@@ -37,15 +37,19 @@ def viser_client_index() -> Path:
 
 
 def record_scene(server, set_time: Callable[[float], None], *, t_start_s: float, t_end_s: float,
-                 frame_dt_s: float = 0.1, speed: float = 1.0) -> tuple[bytes, int]:
+                 frame_dt_s: float = 0.1, speed: float = 1.0,
+                 prelude: Callable[[], None] | None = None) -> tuple[bytes, int]:
     """Serialize the current scene and one frame per ``frame_dt_s`` of plan time.
 
-    ``set_time(t_s)`` must move the scene to plan time ``t_s`` (it is called for every frame and
-    finally at ``t_start_s``). Playback runs at ``speed`` times real time. Returns (bytes, frames).
+    ``set_time(t_s)`` must move the scene to plan time ``t_s`` (it is called for every frame).
+    ``prelude()`` runs once at the start of the recording (e.g. to record the initial camera).
+    Playback runs at ``speed`` times real time. Returns (bytes, number of frames).
     """
     times = np.arange(t_start_s, t_end_s + 0.5 * frame_dt_s, frame_dt_s)
     serializer = server.get_scene_serializer()
     try:
+        if prelude is not None:
+            prelude()
         for t in times:
             set_time(float(t))
             serializer.insert_sleep(frame_dt_s / speed)
