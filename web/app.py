@@ -67,7 +67,6 @@ class ReviewApp:
         self._jobs = Replanner(self._replan_job, on_progress=self._on_progress, on_done=self._on_done,
                                on_error=self._on_error)
         self._build_gui()
-        server.on_client_connect(self._guard(self._on_connect))
         self._player = threading.Thread(target=self._play_loop, name="proxplan-play", daemon=True)
         self._player.start()
 
@@ -162,12 +161,16 @@ class ReviewApp:
         span = float(np.max(d.workspace_max_m - d.workspace_min_m))
         return centre + np.array([-0.75, -0.95, 0.65]) * span, centre
 
-    def _on_connect(self, client: Any) -> None:
-        if self.loaded is None:
-            return
+    def _frame_client(self, client: Any) -> None:
+        """Point an already connected browser's camera at the workspace (new browsers get the
+        server's initial camera). Best effort: a client that has not reported its camera yet, or
+        that is disconnecting, is left alone."""
         position, look_at = self._camera_pose()
-        client.camera.position = position
-        client.camera.look_at = look_at
+        try:
+            client.camera.position = position
+            client.camera.look_at = look_at
+        except Exception:  # noqa: BLE001 - cosmetic only
+            pass
 
     # ----- loading and showing ---------------------------------------------------------------
     def load(self, path: Path | None = None) -> bool:
@@ -227,7 +230,7 @@ class ReviewApp:
                 self.server.initial_camera.position = position
                 self.server.initial_camera.look_at = look_at
                 for client in self.server.get_clients().values():
-                    self._on_connect(client)
+                    self._frame_client(client)
             names = tuple(d.vehicles)
             step = self._time_step(d)
             self.time_slider.step = step
