@@ -61,6 +61,10 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
     "thrust_quadratic": {"b_q_rel_spm": (0.1, -1.0, 1.0)},
 }
 
+TARGET_ONLY_EFFECTS = ("thrust_bias", "ground_effect", "own_velocity")
+"""Effects that depend on the target alone (counted once, whatever the sources); every other effect
+is a sum over the sources, and like the base model is zero for a source not above the target."""
+
 MAX_GROUND_EFFECT_RATIO = 2.0
 """Cap on T_IGE / T_OGE: the Cheeseman-Bennett form diverges as the rotor nears the ground, -."""
 

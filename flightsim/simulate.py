@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from costmaps.disturbance import ModelOptions
-from costmaps.effects import Effect, EffectInputs, SourceSample, base_wrench, total_wrench
+from costmaps.effects import TARGET_ONLY_EFFECTS, Effect, EffectInputs, SourceSample, total_wrench
 from costmaps.errors import UserError
 from costmaps.vehicles import Vehicle
 from flightsim.stepper import CompiledStepper
@@ -298,18 +298,48 @@ def _stepper(params: list[dict], dt_s: float, wind_mps) -> CompiledStepper:
 
 def _wrench_for(target_index: int, positions_m: np.ndarray, velocity_mps: np.ndarray, vehs: list[Vehicle],
                 effects: tuple, model_options: ModelOptions, ground_z_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Wrench (N, 3) x2 on vehicle ``target_index`` for positions (N, V, 3) of all vehicles."""
+    """Wrench (K, 3) x2 on vehicle ``target_index`` for positions (K, V, 3) of all vehicles and the
+    target's velocity (K, 3): :func:`costmaps.effects.total_wrench` with every other vehicle as a
+    source. For speed, sources of the same vehicle type are stacked into one model call, and a
+    source never above the target over the K samples is skipped (its downwash, and every
+    per-source effect, is exactly zero there); target-only effects are evaluated once."""
     i = target_index
-    sources = tuple(
-        SourceSample(vehs[j], positions_m[:, i] - positions_m[:, j]) for j in range(len(vehs)) if j != i
-    )
-    inputs = EffectInputs(
-        target=vehs[i], height_above_ground_m=positions_m[:, i, 2] - ground_z_m,
-        velocity_mps=velocity_mps, sources=sources, options=model_options,
-    )
-    if effects:
-        return total_wrench(inputs, effects)
-    return base_wrench(inputs)
+    k = positions_m.shape[0]
+    target = vehs[i]
+    height = positions_m[:, i, 2] - ground_z_m
+    per_source = tuple(e for e in effects if e.name not in TARGET_ONLY_EFFECTS)
+    target_only = tuple(e for e in effects if e.name in TARGET_ONLY_EFFECTS)
+    groups: list[tuple[Vehicle, list[np.ndarray]]] = []
+    for j, src in enumerate(vehs):
+        if j == i:
+            continue
+        offsets = positions_m[:, i] - positions_m[:, j]
+        if np.all(offsets[:, 2] >= 0.0):
+            continue
+        for veh, offs in groups:
+            if veh == src:
+                offs.append(offsets)
+                break
+        else:
+            groups.append((src, [offsets]))
+    force = np.zeros((k, 3))
+    torque = np.zeros((k, 3))
+    for src, offs in groups:
+        n = len(offs)
+        inputs = EffectInputs(
+            target=target, height_above_ground_m=np.tile(height, n), velocity_mps=np.tile(velocity_mps, (n, 1)),
+            sources=(SourceSample(src, np.concatenate(offs)),), options=model_options,
+        )
+        f, t = total_wrench(inputs, per_source)
+        force += f.reshape(n, k, 3).sum(axis=0)
+        torque += t.reshape(n, k, 3).sum(axis=0)
+    if target_only:
+        inputs = EffectInputs(target=target, height_above_ground_m=height, velocity_mps=velocity_mps,
+                              sources=(), options=model_options)
+        f, t = total_wrench(inputs, target_only)
+        force += f
+        torque += t
+    return force, torque
 
 
 def _fill_wrench(buf_f, buf_t, x: np.ndarray, v: np.ndarray, acc: np.ndarray, tau: np.ndarray, vehs, effects,

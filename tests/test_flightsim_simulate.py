@@ -178,3 +178,29 @@ def test_optimized_battery_swap_disturbs_the_carrier_less_than_no_downwash_basel
     optimized = _fly_planned_battery_swap(tmp_path, "optimized", capsys)
     baseline = _fly_planned_battery_swap(tmp_path, "no-downwash", capsys)
     assert optimized < baseline, (optimized, baseline)
+
+
+def test_grouped_wrench_equals_total_wrench_with_every_source():
+    """The simulator's stacking of same-type sources, skipping of sources below the target and
+    single evaluation of target-only effects give exactly costmaps.effects.total_wrench."""
+    from costmaps.effects import EFFECT_NAMES, EffectInputs, SourceSample, default_effect, total_wrench
+    from costmaps.disturbance import ModelOptions
+    from flightsim.simulate import _wrench_for
+
+    rng = np.random.default_rng(0)
+    vehs = [BUILTIN_VEHICLES[n] for n in ("crazyflie-2.1", "crazyflie-parrot", "crazyflie-2.1", "crazyflie-parrot", "crazyflie-2.1")]
+    k = 6
+    pos = np.zeros((k, 5, 3))
+    pos[:, :, :2] = rng.normal(scale=0.15, size=(1, 5, 2)) + rng.normal(scale=0.01, size=(k, 5, 2))
+    pos[:, :, 2] = np.array([0.5, 1.0, 1.6, 2.2, 0.3])[None, :] + 0.01 * np.arange(k)[:, None]
+    vel = rng.normal(scale=0.3, size=(k, 3))
+    effects = tuple(default_effect(n) for n in EFFECT_NAMES) + (Effect("wake_advection", {"wind_x_mps": 1.0}),)
+    opts = ModelOptions()
+    for i in range(5):
+        f, t = _wrench_for(i, pos, vel, vehs, effects, opts, 0.0)
+        inputs = EffectInputs(vehs[i], pos[:, i, 2], vel,
+                              tuple(SourceSample(vehs[j], pos[:, i] - pos[:, j]) for j in range(5) if j != i), opts)
+        f_ref, t_ref = total_wrench(inputs, effects)
+        np.testing.assert_allclose(f, f_ref, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(t, t_ref, rtol=1e-10, atol=1e-16)
+    assert np.abs(_wrench_for(0, pos, vel, vehs, (), opts, 0.0)[0]).max() > 0.0  # the lowest one is hit
