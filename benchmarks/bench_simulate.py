@@ -5,7 +5,7 @@ Prints real-time factors (simulated s per wall-clock s) of
     scipy solve_ivp, the external wrench from costmaps.effects.total_wrench at every step),
   * flightsim.simulate_plan with the wrench evaluated every step (horizon 1) and batched over
     10 steps at predicted positions (the default), with no truth effects and with all of them,
-and their ratios to the baseline measured in the same run. Optionally (``--plans``) flies the
+and their ratios to the baseline measured in the same run; then 8 vehicles (4 swapping pairs). Optionally (``--plans``) flies the
 battery-swap plans of the planner (sampling, no-downwash, optimized) and prints the carrier's max
 altitude error.
 
@@ -85,8 +85,24 @@ def main() -> None:
     ):
         rtf = ours_rtf(plan, **kw)
         print(f"{label:<44}: {rtf:6.1f}x real time  ({rtf / base:5.1f}x baseline)")
+    eight = eight_vehicle_plan(swap_s=max(args.seconds - 1.0, 1.0))
+    rtf8 = ours_rtf(eight)
+    print(f"{'flightsim, 8 vehicles (4 swapping pairs)':<44}: {rtf8:6.1f}x real time")
     if args.plans:
         fly_planner_plans()
+
+
+def eight_vehicle_plan(*, swap_s: float):
+    """Four Neural-Swarm-like swapping pairs side by side, 1 m apart (8 vehicles)."""
+    from flightsim.plan_file import PlanArrays
+
+    vehicles = {}
+    for k in range(4):
+        pair = swap_plan(vertical_gap_m=0.4, swap_s=swap_s, n_swaps=1, hold_s=0.5, centre_m=(1.0 * k, 0.0, 1.0))
+        for name, tr in pair.vehicles.items():
+            vehicles[f"{name}{k}"] = type(tr)(f"{name}{k}", tr.type_name, tr.t_s, tr.position_m,
+                                              tr.velocity_mps, tr.acceleration_mps2)
+    return PlanArrays("eight", pair.dt_s, vehicles)
 
 
 def fly_planner_plans() -> None:
