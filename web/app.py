@@ -100,10 +100,8 @@ class ReviewApp:
             self.export_button = gui.add_button("export recording")
         g = self._guard
         self.time_slider.on_update(g(lambda _e: self.set_time(self.time_slider.value)))
-        for box, kind in ((self.show_traj, "traj"), (self.show_obst, "obst")):
-            box.on_update(g(lambda _e, kind=kind: self._apply_visibility()))
-        self.show_iso.on_update(g(lambda _e: self._apply_visibility()))
-        self.show_cut.on_update(g(lambda _e: self._apply_visibility()))
+        for box in (self.show_traj, self.show_obst, self.show_iso, self.show_cut):
+            box.on_update(g(lambda _e: self._apply_visibility()))
         self.source.on_update(g(lambda _e: self._rebuild_layers()))
         self.model_scale.on_update(g(lambda _e: scene.set_model_scale(self._handles, self.model_scale.value)))
         self.plot_vehicle.on_update(g(lambda _e: self._plot_vehicle_changed()))
