@@ -99,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"plot: {plot}")
     if manifest:
         print(f"logs: {manifest}")
+    for note in summary["notes"]:
+        print(f"note: {note}")
     if any(m["time_in_invalid_zone_s"] > 0 for m in summary["vehicles"].values()):
         print("note: 'invalid' is time spent within dz <= 3 L below another vehicle, where the downwash "
               "model is extrapolated (S0 II-A)")

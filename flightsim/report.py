@@ -111,6 +111,7 @@ def summary_dict(result, *, plan_path: str | None = None, plot_path: str | None 
         "vehicles": {n: asdict(m) for n, m in simulation_metrics(result).items()},
         "plot": plot_path,
         "logs_manifest": manifest_path,
+        "notes": list(result.notes),
     }
 
 

@@ -276,7 +276,13 @@ def simulate_plan(
             applied_force_N=rec["Fa"][:, vi], applied_torque_Nm=rec["Ta"][:, vi],
             model_force_N=rec["Fm"][:, vi], model_torque_Nm=rec["Tm"][:, vi],
         )
+    notes = []
+    for name, rec in records.items():
+        low = float(rec.position_m[:, 2].min())
+        if low < options.ground_z_m:
+            notes.append(f"{name} went below the ground plane (min z = {low:.3f} m): ground contact is not modelled")
     return SimulationResult(
+        notes=notes,
         scenario=str(plan.scenario), options=options, truth=truth, plan_duration_s=plan_duration,
         records=records, saturation_time_s={n: float(sat_steps[i] * dt) for i, n in enumerate(names)},
         wall_time_s=wall, sim_time_s=(n_steps - 1) * dt,

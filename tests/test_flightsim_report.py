@@ -51,3 +51,15 @@ def test_wake_swirl_torque_shows_in_the_steady_motor_torques():
     assert applied[2] < -1e-4
     tau_p = rec.motor_thrust_N[late] @ mixer_matrix(rec.vehicle)[1:].T  # body torques of the motors
     np.testing.assert_allclose(-tau_p.mean(axis=0)[2], applied[2], rtol=0.02)
+
+
+def test_going_below_the_ground_is_noted_in_the_summary():
+    from flightsim.report import summary_dict
+    from flightsim.scenarios_synthetic import single_hover_plan
+
+    res = simulate_plan(single_hover_plan(position_m=(0, 0, 0.02), duration_s=1.0),
+                        truth_effects=[Effect("thrust_bias", {"force_z_N": -0.05})], imu_noise=False)
+    notes = summary_dict(res)["notes"]
+    assert len(notes) == 1 and "below the ground plane" in notes[0]
+    ok = simulate_plan(single_hover_plan(position_m=(0, 0, 1.0), duration_s=1.0), imu_noise=False)
+    assert summary_dict(ok)["notes"] == []
