@@ -287,3 +287,10 @@ def test_plan_without_scenario_shows_trajectories_and_says_why_editing_is_off(pl
     finally:
         review.stop()
         server.stop()
+
+
+def test_cli_bad_host_is_one_line_user_error(plan_path):
+    proc = subprocess.run([sys.executable, "-m", "proxplan.cli", "view", str(plan_path), "--host", "999.1.1.1"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "--host 999.1.1.1" in proc.stderr

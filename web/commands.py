@@ -44,6 +44,29 @@ def _terminal_progress():
     return update
 
 
+def _check_listen_address(host: str, port: int) -> None:
+    """UserError unless ``host`` can be listened on (viser would retry forever on a bad host). A
+    port already in use is fine: viser takes the next free one and the printed URL says which."""
+    import errno
+    import socket
+
+    from costmaps.errors import UserError
+
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except socket.gaierror as err:
+        raise UserError(f"--host {host}: cannot resolve this address ({err.strerror}); "
+                        "expected e.g. 127.0.0.1 or 0.0.0.0") from err
+    family, socktype, proto, _, addr = infos[0]
+    with socket.socket(family, socktype, proto) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind(addr)
+        except OSError as err:
+            if err.errno != errno.EADDRINUSE:
+                raise UserError(f"--host {host} --port {port}: cannot listen here ({err.strerror})") from err
+
+
 def run(args: argparse.Namespace) -> int:
     import contextlib
     import json
@@ -62,16 +85,17 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.port <= 65535:
         raise UserError(f"--port: expected 0..65535, got {args.port}")
 
+    if not args.export:
+        _check_listen_address(args.host, args.port)
+
     import viser
 
     from web.app import ReviewApp
 
     logging.getLogger("websockets").setLevel(logging.CRITICAL)
-    try:
-        with contextlib.redirect_stdout(sys.stderr):  # viser's banner must not mix with --json output
-            server = viser.ViserServer(host=args.host, port=args.port if not args.export else 0, verbose=False)
-    except OSError as err:
-        raise UserError(f"--host {args.host} --port {args.port}: cannot listen ({err.strerror or err})") from err
+    with contextlib.redirect_stdout(sys.stderr):  # viser's banner must not mix with --json output
+        server = viser.ViserServer(host="127.0.0.1" if args.export else args.host,
+                                   port=0 if args.export else args.port, verbose=False)
     app = ReviewApp(server, path, terminal_progress=_terminal_progress())
     try:
         if args.export:
