@@ -176,6 +176,9 @@ class ReviewApp:
         path = path or self.input_path
         if path is None:
             return False
+        if self._jobs.busy:
+            self.status.content = self._status_text(note="busy: a plan is being loaded or planned; try again when it is shown")
+            return False
         self.input_path = Path(path)
         self.progress.visible = True
         self.progress.value = 0.0
