@@ -18,6 +18,7 @@ dz > 3 L of the source (S0 II-A).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -103,24 +104,18 @@ def _planar_profile(
     offsets_m: np.ndarray,
     points_m: np.ndarray,
     options: ModelOptions,
-    *,
-    power: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Factored (S0-2) at body points that share one height (the rotor plane, geometry module).
 
-    Returns V_max (N,), m/s, and radial_profile((r / (dz - z0))^2)^power (N, K), -, for offsets
-    (N, 3) and points (K, 3); V at a point is V_max * profile (power 1), V^2 is V_max^2 * profile
-    (power 2). r^2 is expanded as |o|^2 + 2 o.p + |p|^2, computed in place, so the (N, K) work is
+    Returns V_max (N,), m/s, and radial_profile((r / (dz - z0))^2) (N, K), -, for offsets (N, 3)
+    and points (K, 3); V at a point is V_max * profile. r^2 is expanded as |o|^2 + 2 o.p + |p|^2, computed in place, so the (N, K) work is
     one matrix product and one exponential.
     """
-    plane_z_m = points_m[0, 2]
-    if np.any(points_m[:, 2] != plane_z_m):
-        raise ValueError("target sample points must lie in one plane (body z = const)")
-    dz_m = -(offsets_m[:, 2] + plane_z_m)
+    dz_m = -(offsets_m[:, 2] + points_m[0, 2])  # all points share the rotor plane (geometry)
     v_max = centreline_speed_mps(
         source, dz_m, form=options.field_form, air_density_kgpm3=options.air_density_kgpm3
     )
-    inv_axial_sq = power / axial_distance_m(source, dz_m) ** 2
+    inv_axial_sq = 1.0 / axial_distance_m(source, dz_m) ** 2
     off_xy, pts_xy = offsets_m[:, :2], points_m[:, :2]
     scaled = off_xy @ (2.0 * pts_xy.T)  # 2 o.p, (N, K)
     scaled += (off_xy**2).sum(axis=1)[:, None]
@@ -134,11 +129,9 @@ def _disk_average_speed(
     source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
 ) -> np.ndarray:
     """(N, 4) disk-averaged oncoming speed, m/s (equal-weight quadrature of the geometry module)."""
-    disks = disk_samples(target, options.discretisation)  # (4, P, 3)
-    n_rotor, n_pts, _ = disks.position_m.shape
-    v_max, profile = _planar_profile(source, offsets_m, disks.position_m.reshape(-1, 3), options)
-    averaging = np.kron(np.eye(n_rotor), np.full((n_pts, 1), 1.0 / n_pts))  # (4 P, 4)
-    return v_max[:, None] * (profile @ averaging)
+    disks = disk_samples(target, options.discretisation)
+    v_max, profile = _planar_profile(source, offsets_m, disks.flat_position_m, options)
+    return v_max[:, None] * (profile @ disks.averaging)
 
 
 def oncoming_speed_per_rotor_mps(
@@ -168,19 +161,40 @@ def _checked_offsets(offsets_m: np.ndarray) -> np.ndarray:
     return offsets
 
 
+@dataclass(frozen=True)
+class _TargetSamples:
+    """All sample points of a target in one array: frame elements first, then disk points."""
+
+    points_m: np.ndarray  # (E + 4 P, 3) body frame, m
+    n_frame: int  # E
+    frame_points_m: np.ndarray  # (E, 3)
+    frame_area_m2: np.ndarray  # (E,)
+    disk_averaging: np.ndarray  # (4 P, 4)
+
+
+@lru_cache(maxsize=64)
+def _target_samples(target: Vehicle, disc: Discretisation) -> _TargetSamples:
+    frame = frame_elements(target, disc)
+    disks = disk_samples(target, disc)
+    points = np.concatenate([frame.position_m, disks.flat_position_m])
+    return _TargetSamples(points, len(frame.area_m2), frame.position_m, frame.area_m2, disks.averaging)
+
+
 def _wrench_block(
     source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    frame = frame_elements(target, options.discretisation)
-    v_max, profile_sq = _planar_profile(source, offsets_m, frame.position_m, options, power=2.0)
+    samples = _target_samples(target, options.discretisation)
+    v_max, profile = _planar_profile(source, offsets_m, samples.points_m, options)
     # (S0-3): dF_z = -1/2 C_D rho V^2 dA with V^2 = V_max^2 profile^2; (S0-4) torque about the CoM
-    profile_sq *= frame.area_m2
-    profile_sq *= ((-0.5 * options.drag_coefficient * options.air_density_kgpm3) * v_max**2)[:, None]
-    drag_f, drag_t = vertical_point_wrench(frame.position_m, profile_sq)
+    drag_z = profile[:, : samples.n_frame] ** 2
+    drag_z *= samples.frame_area_m2
+    drag_z *= ((-0.5 * options.drag_coefficient * options.air_density_kgpm3) * v_max**2)[:, None]
+    drag_f, drag_t = vertical_point_wrench(samples.frame_points_m, drag_z)
 
-    v_on = _disk_average_speed(source, target, offsets_m, options)
+    # disk-averaged oncoming speed v_on,i (N, 4)
+    v_on = v_max[:, None] * (profile[:, samples.n_frame :] @ samples.disk_averaging)
     # (S0-6): Delta f_i = -b_v v_on,i omega_i^2, omega_i^2 = f_hover / k1 ; (S0-7, S0-8) sums
-    delta_f = -target.b_v * target.hover_omega_sq_rad2ps2 * v_on
+    delta_f = (-target.b_v * target.hover_omega_sq_rad2ps2) * v_on
     thrust_f, thrust_t = vertical_point_wrench(target.rotor_positions_m, delta_f)
     return drag_f, drag_t, thrust_f, thrust_t
 

@@ -1,7 +1,7 @@
 """Sample points on a target vehicle: frame area elements and propeller-disk quadrature.
 
 Body frame x forward, y left, z up, origin at the centre of mass; all points lie in the rotor plane
-(z = 0). These discretisations feed the drag integral (S0-3, S0-4) and the disk-averaged oncoming
+(z = 0), which the disturbance module relies on. These discretisations feed the drag integral (S0-3, S0-4) and the disk-averaged oncoming
 flow of the thrust change (S0-6..S0-8).
 """
 
@@ -37,9 +37,15 @@ class FrameElements:
 
 @dataclass(frozen=True)
 class DiskSamples:
-    """Quadrature over each propeller disk: ``position_m`` (4, P, 3) body frame, m; equal weights."""
+    """Quadrature over each propeller disk, equal weights.
+
+    ``position_m`` (4, P, 3) body frame, m; ``flat_position_m`` the same as (4 P, 3);
+    ``averaging`` (4 P, 4) maps values at the points to per-disk means (values @ averaging).
+    """
 
     position_m: np.ndarray
+    flat_position_m: np.ndarray
+    averaging: np.ndarray
 
 
 @lru_cache(maxsize=64)
@@ -92,4 +98,7 @@ def disk_samples(vehicle: Vehicle, disc: Discretisation = Discretisation()) -> D
     pos = np.zeros((4, disk_xy.shape[0], 3))
     pos[:, :, :2] = rotors[:, None, :2] + disk_xy[None, :, :]
     pos.setflags(write=False)
-    return DiskSamples(position_m=pos)
+    n_rotor, n_pts = pos.shape[:2]
+    averaging = np.kron(np.eye(n_rotor), np.full((n_pts, 1), 1.0 / n_pts))
+    averaging.setflags(write=False)
+    return DiskSamples(position_m=pos, flat_position_m=pos.reshape(-1, 3), averaging=averaging)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -136,13 +137,15 @@ class Vehicle:
         """omega^2 at hover, f_hover / k1 (S0-5), rad^2/s^2."""
         return self.hover_thrust_per_rotor_N / self.propeller.k1_Ns2prad2
 
-    @property
+    @cached_property
     def rotor_positions_m(self) -> np.ndarray:
-        """Rotor hub positions in the body frame, (S0-14) order, shape (4, 3), m."""
+        """Rotor hub positions in the body frame, (S0-14) order, shape (4, 3), m (read-only)."""
         xy = MOTOR_DIRECTIONS_XY * (self.arm_length_m / math.sqrt(2.0))
-        return np.column_stack([xy, np.zeros(4)])
+        positions = np.column_stack([xy, np.zeros(4)])
+        positions.setflags(write=False)
+        return positions
 
-    @property
+    @cached_property
     def b_v(self) -> float:
         """Thrust decay coefficient b_v (S0-5), N m^-1 rad^-2 s^3: measured, else from S1 theory."""
         if self.propeller.b_v_measured is not None:
