@@ -106,6 +106,12 @@ def run(args: argparse.Namespace) -> int:
             out = app.export(Path(args.export))
             print(json.dumps({"export_dir": str(out)}) if args.json else f"wrote {out}")
             return 0
+        import signal
+
+        def _terminate(_signum, _frame):  # SIGTERM (e.g. a service manager): shut down like Ctrl-C
+            raise KeyboardInterrupt
+
+        signal.signal(signal.SIGTERM, _terminate)
         host = "localhost" if args.host in ("0.0.0.0", "127.0.0.1", "::") else args.host
         url = f"http://{host}:{server.get_port()}"
         print(json.dumps({"url": url}) if args.json else f"proxplan view: open {url}", flush=True)
