@@ -1,8 +1,10 @@
 """Identification pipeline on synthetic logs with a known hidden effect (must-show of issue 8).
 
-The logs come from :func:`costmaps.flightlog.synthetic_logs` (the effect library evaluated along
-scripted trajectories, written in the canonical layout): the simulator's log writer was not
-available when these tests were written.
+Default run: closed-loop RotorPy flights from the simulator (flightsim.simulate.simulate_plan with
+``truth_effects``, logs and manifest by flightsim.logs.write_flight_logs), one test per effect of
+the library plus one without any. Marked slow: the same checks on measurement-level logs from
+:func:`costmaps.flightlog.synthetic_logs` (the effect library evaluated along scripted trajectories,
+written in the canonical layout), which were the stand-in before the simulator landed.
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ def make_manifest(tmp: Path, effects: tuple, *, n_train: int = 2, duration_s: fl
     return path
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("hidden", list(HIDDEN))
 def test_pipeline_finds_hidden_effect(tmp_path: Path, hidden: str) -> None:
     result = run_identify(make_manifest(tmp_path, (HIDDEN[hidden],)), options=FAST, thrust_summary=False)
@@ -74,6 +77,7 @@ def test_pipeline_finds_hidden_effect(tmp_path: Path, hidden: str) -> None:
         assert result.after.rmse_fz_N <= 0.5 * result.before.rmse_fz_N
 
 
+@pytest.mark.slow
 def test_no_hidden_effect_selects_nothing_beyond_thrust_bias(tmp_path: Path) -> None:
     result = run_identify(make_manifest(tmp_path, ()), options=FAST, thrust_summary=False)
     assert set(result.selected) <= {"thrust_bias"}, result.selected
@@ -109,3 +113,40 @@ def test_cli_bad_manifest_is_one_line_error(tmp_path: Path, capsys) -> None:
     assert main(["identify", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "m.yaml" in err
+
+
+# ----------------------------------------------------------------- closed-loop simulator logs (the must-show)
+
+
+def simulator_manifest(tmp: Path, effects: list, *, ground: bool = False) -> Path:
+    """Three closed-loop RotorPy flights (flightsim) with the hidden ``effects``, written as
+    Neural-Swarm logs + manifest by flightsim.logs: two small quads swapping places stacked
+    0.3 / 1.0 m (train) and 0.45 m (test) apart, or take-off/hover sweeps near the ground."""
+    from flightsim.logs import write_flight_logs
+    from flightsim.scenarios_synthetic import swap_plan, takeoff_hover_plan
+    from flightsim.simulate import simulate_plan
+
+    manifest = None
+    for k, split in enumerate(("train", "train", "test")):
+        if ground:
+            plan = takeoff_hover_plan(type_name=VEHICLE_TYPE, low_z_m=0.06 + 0.01 * k, high_z_m=0.6, climb_s=2.0, hold_s=1.5)
+        else:
+            plan = swap_plan(top_type=VEHICLE_TYPE, bottom_type=VEHICLE_TYPE, vertical_gap_m=(0.3, 1.0, 0.45)[k], n_swaps=2, swap_s=2.5)
+        manifest = write_flight_logs(simulate_plan(plan, truth_effects=effects, seed=k), tmp, flight_name=f"f{k}", split=split)
+    return manifest
+
+
+@pytest.mark.parametrize("hidden", list(HIDDEN))
+def test_simulator_logs_hidden_effect(tmp_path: Path, hidden: str) -> None:
+    manifest = simulator_manifest(tmp_path, [HIDDEN[hidden]], ground=hidden == "ground_effect")
+    result = run_identify(manifest, options=FAST, thrust_summary=False)
+    assert hidden in result.selected, (result.selected, [(t.name, t.gain_fz, t.gain_tz) for t in result.trials])
+    if hidden == "wake_swirl":
+        assert result.after.rmse_tz_Nm <= 0.5 * result.before.rmse_tz_Nm
+    else:
+        assert result.after.rmse_fz_N <= 0.5 * result.before.rmse_fz_N
+
+
+def test_simulator_logs_no_hidden_effect(tmp_path: Path) -> None:
+    result = run_identify(simulator_manifest(tmp_path, []), options=FAST, thrust_summary=False)
+    assert set(result.selected) <= {"thrust_bias"}, result.selected
