@@ -3,7 +3,8 @@
 :func:`fit_parameters` is the generic bounded nonlinear least-squares fit with a one-sigma
 uncertainty from the Jacobian at the solution, cov = s^2 (J^T J)^+ with s^2 = 2 cost / (m - p)
 (the usual Gauss-Newton estimate; it assumes independent residuals of equal variance, so for
-autocorrelated flight data it is optimistic — read it as a lower bound).
+autocorrelated flight data it is optimistic — read it as a lower bound). Parameters that end on a
+bound are flagged (``at_bound``) and held fixed in the covariance.
 
 :func:`apply_vehicle_parameters` puts calibrated values into a :class:`Vehicle` with
 ``dataclasses.replace`` — downwash (c_ax, z0_m, c_rad of S0-1, S0-2) and the propeller's measured
@@ -44,13 +45,15 @@ class CalibrationResult:
     n_residuals: int
     success: bool
     message: str
+    at_bound: tuple[bool, ...] = ()  # per parameter: ended on a bound (its std is then not meaningful)
 
     def as_dict(self) -> dict[str, float]:
         return dict(zip(self.names, (float(v) for v in self.values)))
 
     def to_json(self) -> dict[str, dict[str, float]]:
-        return {n: {"value": float(v), "std": float(s) if np.isfinite(s) else None}
-                for n, v, s in zip(self.names, self.values, self.std)}  # fmt: skip
+        bounds = self.at_bound or (False,) * len(self.names)
+        return {n: {"value": float(v), "std": float(s) if np.isfinite(s) else None, "at_bound": bool(b)}
+                for n, v, s, b in zip(self.names, self.values, self.std, bounds)}  # fmt: skip
 
 
 def fit_parameters(
@@ -74,12 +77,18 @@ def fit_parameters(
     sol = least_squares(residual_fn, x0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, loss=loss)
     m, p = sol.fun.size, len(specs)
     jac = np.atleast_2d(sol.jac)
+    at_bound = np.isclose(sol.x, lo, rtol=1e-6, atol=1e-12) | np.isclose(sol.x, hi, rtol=1e-6, atol=1e-12)
     s2 = 2.0 * sol.cost / max(m - p, 1)
-    jtj = jac.T @ jac
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cov = s2 * np.linalg.pinv(jtj)
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    std = np.where(np.diag(jtj) > 0.0, std, np.inf)
+    # covariance of the free parameters (those on a bound are held fixed), computed on unit-norm
+    # Jacobian columns so that parameters of very different magnitude (b_v ~ 1e-9, c_rad ~ 1e2)
+    # do not defeat the pseudo-inverse's cut-off
+    col = np.linalg.norm(jac, axis=0)
+    free = (~at_bound) & (col > 0.0)
+    std = np.full(p, np.inf)
+    if free.any():
+        js = jac[:, free] / col[free]
+        cov_s = s2 * np.linalg.pinv(js.T @ js)
+        std[free] = np.sqrt(np.clip(np.diag(cov_s), 0.0, None)) / col[free]
     return CalibrationResult(
         names=names,
         values=sol.x,
@@ -88,6 +97,7 @@ def fit_parameters(
         n_residuals=m,
         success=bool(sol.success),
         message=str(sol.message),
+        at_bound=tuple(bool(b) for b in at_bound),
     )
 
 

@@ -348,7 +348,7 @@ def load_manifest(path: str | Path) -> Manifest:
     root = root if root.is_absolute() else (path.parent / root)
     if not root.is_dir():
         raise UserError(f"{where}: root: directory {root} not found (resolved relative to the manifest)")
-    vfile = doc.get("vehicles_file")
+    vfile = doc.get("vehicles_file", doc.get("vehicle_file"))  # both spellings accepted
     vfile = None if vfile is None else (path.parent / str(vfile))
     qual = doc.get("quality", {}) or {}
     if not isinstance(qual, Mapping):

@@ -69,7 +69,7 @@ def save_model(result, path: str | Path) -> Path:
     path = Path(path)
     header = (
         "# written by proxplan identify: calibrated vehicles and kept effects.\n"
-        "# Use with: proxplan costmap --vehicles THIS_FILE ... / scenario vehicles_file.\n"
+        "# Use with: proxplan costmap --vehicle-file THIS_FILE ..., or 'vehicle_file: THIS_FILE' in a scenario.\n"
     )
     _atomic_write(path, header + yaml.safe_dump(model_yaml_dict(result), sort_keys=False))
     return path

@@ -141,8 +141,12 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: list[Path] = 
         lines.append(f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {100 * tr.gain_fz:.1f} % | {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} |")
     if result.calibration is not None:
         lines += ["", "## Calibrated parameters (train flights; one-sigma from the Jacobian)", "", "| parameter | value | std |", "|---|---|---|"]
-        for n, v, s in zip(result.calibration.names, result.calibration.values, result.calibration.std):
-            lines.append(f"| {n} | {v:.5g} | {_fmt(float(s)) if np.isfinite(s) else 'not identifiable'} |")
+        cal = result.calibration
+        for n, v, s, b in zip(cal.names, cal.values, cal.std, cal.at_bound or (False,) * len(cal.names)):
+            std = "at a fit bound" if b else (_fmt(float(s)) if np.isfinite(s) else "not identifiable")
+            lines.append(f"| {n} | {v:.5g} | {std} |")
+        lines += ["", "Thrust scales are nuisance parameters of the calibration (they keep a thrust-sensor "
+                  "error out of the aerodynamic parameters); only `thrust_bias`, if kept, carries one into the model."]
     lines += ["", "## Residual analysis (final model, test flights, F_z)", "", "| feature | pearson | eta |", "|---|---|---|"]
     for corr in result.correlations:
         lines.append(f"| {corr.feature} | {corr.pearson:.3f} | {corr.eta:.3f} |")
