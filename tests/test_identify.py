@@ -150,3 +150,38 @@ def test_simulator_logs_hidden_effect(tmp_path: Path, hidden: str) -> None:
 def test_simulator_logs_no_hidden_effect(tmp_path: Path) -> None:
     result = run_identify(simulator_manifest(tmp_path, []), options=FAST, thrust_summary=False)
     assert set(result.selected) <= {"thrust_bias"}, result.selected
+
+
+# ----------------------------------------------------------------- residual analysis
+
+
+def test_correlate_finds_the_feature_behind_a_residual() -> None:
+    from costmaps.residuals import correlate, sample_features
+
+    rng = np.random.default_rng(0)
+    n = 3000
+    vel = rng.normal(0, 0.5, (n, 3))
+    offsets = [np.column_stack([rng.uniform(-0.5, 0.5, n), rng.uniform(-0.5, 0.5, n), -rng.uniform(0.2, 1.5, n)])]
+    feats = sample_features(rng.uniform(0.1, 2.0, n), vel, offsets)
+    r = np.hypot(offsets[0][:, 0], offsets[0][:, 1])
+    np.testing.assert_allclose(feats["r_m"], r)
+    residual = np.exp(-((r / 0.1) ** 2)) + rng.normal(0, 0.05, n)  # a peak at small r: not monotonic in anything else
+    ranked = correlate(residual, feats)
+    assert ranked[0].feature == "r_m" and ranked[0].eta > 0.5
+    assert all(c.strength < 0.2 for c in ranked[1:] if c.feature not in ("r_m",))
+
+
+def test_unexplained_residual_is_reported(tmp_path: Path) -> None:
+    """A force that follows v_z |v_z| (no effect of the library has that shape) is reported with v_z."""
+    from costmaps.flightlog import read_log
+
+    manifest = make_manifest(tmp_path, (), n_train=1, duration_s=10.0)
+    for path in tmp_path.glob("f*_b.csv.gz"):
+        log = read_log(path)
+        vz = log.velocity_mps[:, 2]
+        acc = log.accel_mps2.copy()
+        extra_force_N = 0.3 * vz * np.abs(vz)  # N, with v_z in m/s
+        acc[:, 2] += extra_force_N / BUILTIN_VEHICLES[VEHICLE_TYPE].mass_kg
+        write_canonical_csv(type(log)(**{**log.__dict__, "accel_mps2": acc}), path)
+    result = run_identify(manifest, options=FAST, thrust_summary=False)
+    assert result.unexplained is not None and result.unexplained["feature"] == "v_z_mps", result.correlations
