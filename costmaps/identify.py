@@ -475,19 +475,44 @@ class IdentifyResult:
         }
 
 
-def _validity(units: Sequence[Unit], model: Model) -> dict[str, Any]:
-    """How many samples with a source above (dz > 0, r < 3 L) lie in the zone dz > 3 L (S0 II-A)."""
-    near = valid = 0
+def _zone_masks(u: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample of ``u``: below some source within r < 3 L (N,), and of those, in dz > 3 L (N,)."""
+    below = np.zeros(len(u), dtype=bool)
+    valid = np.zeros(len(u), dtype=bool)
+    for t, off in zip(u.source_types, u.source_offsets_m):
+        L = model.vehicles[t].size_m
+        dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
+        here = (dz > 0.0) & (r < 3.0 * L)
+        below |= here
+        valid |= here & (dz > VALIDITY_FACTOR_L * L)
+    return below, valid
+
+
+def _validity(units: Sequence[Unit], before: Model, after: Model) -> dict[str, Any]:
+    """Samples below a source (dz > 0, r < 3 L) inside / outside the zone dz > 3 L (S0 II-A), with
+    the test RMSE of F_z before and after on each part."""
+    below, valid, res_b, res_a = [], [], [], []
     for u in units:
-        for t, off in zip(u.source_types, u.source_offsets_m):
-            L = model.vehicles[t].size_m
-            dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
-            above = (dz > 0.0) & (r < 3.0 * L)
-            near += int(above.sum())
-            valid += int((above & (dz > VALIDITY_FACTOR_L * L)).sum())
-    return {"samples_below_a_source": near, "samples_in_valid_zone": valid,
-            "fraction_valid": (valid / near) if near else None,
-            "note": "model valid for dz > 3 L of the source (S0 II-A); closer samples are still compared"}  # fmt: skip
+        b, v = _zone_masks(u, before)
+        below.append(b)
+        valid.append(v)
+        res_b.append(u.force_N[:, 2] - predict(u, before)[0][:, 2])
+        res_a.append(u.force_N[:, 2] - predict(u, after)[0][:, 2])
+    below_a, valid_a = np.concatenate(below), np.concatenate(valid)
+    rb, ra = np.concatenate(res_b), np.concatenate(res_a)
+
+    def rmse(r: np.ndarray, m: np.ndarray) -> float | None:
+        return float(np.sqrt(np.mean(r[m] ** 2))) if m.any() else None
+
+    inside, outside = below_a & valid_a, below_a & ~valid_a
+    return {
+        "samples_below_a_source": int(below_a.sum()),
+        "samples_in_valid_zone": int(inside.sum()),
+        "fraction_valid": float(inside.sum() / below_a.sum()) if below_a.any() else None,
+        "rmse_fz_N_valid_zone": {"before": rmse(rb, inside), "after": rmse(ra, inside)},
+        "rmse_fz_N_inside_3L": {"before": rmse(rb, outside), "after": rmse(ra, outside)},
+        "note": "model valid for dz > 3 L of the source (S0 II-A); closer samples are still compared",
+    }
 
 
 def _residual_analysis(units: Sequence[Unit], model: Model):
@@ -539,7 +564,7 @@ def run_identify(manifest: Manifest | str | Path, *, options: IdentifyOptions = 
         before=before, after=after, calibrated=calibrated, trials=trials,
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
-        unexplained=unexplained, validity=_validity(test, base), thrust_coefficient=thrust, units=units,
+        unexplained=unexplained, validity=_validity(test_all, base, final), thrust_coefficient=thrust, units=units,
     )  # fmt: skip
 
 

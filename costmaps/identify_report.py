@@ -155,7 +155,10 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: list[Path] = 
         lines += ["", f"**Unexplained residual**: it still correlates with `{u['feature']}` (pearson {u['pearson']:.2f}, eta {u['eta']:.2f}); no effect of the library removed it."]
     v = result.validity
     lines += ["", "## Validity", "", f"Samples below a source (r < 3 L): {v['samples_below_a_source']}; in the model's zone dz > 3 L: "
-              f"{v['samples_in_valid_zone']} ({_fmt(v['fraction_valid'], 3)}). {v['note']}."]  # fmt: skip
+              f"{v['samples_in_valid_zone']} ({_fmt(v['fraction_valid'], 3)}). {v['note']}.", "",
+              "| test samples below a source | RMSE F_z before [N] | after [N] |", "|---|---|---|",
+              f"| in the valid zone dz > 3 L | {_fmt(v['rmse_fz_N_valid_zone']['before'])} | {_fmt(v['rmse_fz_N_valid_zone']['after'])} |",
+              f"| inside 3 L (outside validity) | {_fmt(v['rmse_fz_N_inside_3L']['before'])} | {_fmt(v['rmse_fz_N_inside_3L']['after'])} |"]  # fmt: skip
     if result.thrust_coefficient:
         lines += ["", "## Thrust coefficient (seed 001, S1-25 LS fit on train logs)", ""]
         for t, d in result.thrust_coefficient.items():
