@@ -207,8 +207,33 @@ def plan_scenario(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    from planner.verify import verify_plan
+
     t0 = time.perf_counter()
     mode = MODE_OF_METHOD[method]
+    plan = _sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
+    if mode == "downwash":
+        # safety net: the timed plan is re-checked per vehicle, but the verifier is independent
+        bad = verify_plan(plan, scenario)
+        if bad:
+            retry = _sampling_plan(scenario, mode=mode, seed=seed + 7919, options=options, progress=progress)
+            bad_retry = verify_plan(retry, scenario)
+            note = f"the first sampling plan failed verification ({bad[0]}); re-planned"
+            if len(bad_retry) < len(bad):
+                plan = retry
+            retry_note = note + ("" if not bad_retry else f"; still {len(bad_retry)} violation(s)")
+            plan.notes.append(retry_note)
+    plan.method = method if method != "optimized" else "sampling"
+    if method == "optimized":
+        plan = _refine(scenario, plan, seed=seed, progress=progress)
+    finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - t0)
+    if progress:
+        progress("done", 1.0)
+    return plan
+
+
+def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: SamplingOptions, progress) -> PlanResult:
+    """Prioritised sampling with one priority restart; the assembled plan (metrics not final)."""
     order = priority_order(scenario)
     notes: list[str] = []
     for restart in range(2):
@@ -221,18 +246,12 @@ def plan_scenario(
             notes.append(f"priority restart: {fail.vehicle} failed ({fail.constraint}); planned first instead")
             order = [fail.vehicle] + [n for n in order if n != fail.vehicle]
             hovers = [n for n in order if scenario.vehicles[n].hover]
-            order = hovers + [n for n in order if n not in hovers]
-            # a dock target must stay before its dockers
+            # hovering vehicles stay first and a dock target stays before its dockers
             order = [n for n in scenario.dock_order() if n in hovers] + _respect_docks(scenario, [n for n in order if n not in hovers])
-    plan = assemble_plan(scenario, timed, method=method if method != "optimized" else "sampling", notes=notes)
+    plan = assemble_plan(scenario, timed, method="sampling", notes=notes)
     plan.metrics["priority_order"] = order
     plan.metrics["sampling_attempts"] = info["attempts"]
     plan.metrics["seed"] = seed
-    if method == "optimized":
-        plan = _refine(scenario, plan, seed=seed, progress=progress)
-    finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - t0)
-    if progress:
-        progress("done", 1.0)
     return plan
 
 

@@ -23,6 +23,7 @@ first solve (OMPL allows no re-seeding after sampling started).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +45,7 @@ class SamplingOptions:
     hold_check_step_s: float = 0.05  # resolution of goal-hold checks, s
     compress_step_s: float = 0.05  # resolution of the time-compression pass, s
     planning_speed_factor: float = 0.7  # speed bound inside the RRT search, fraction of max speed
+    time_scale_factor: float = 0.5  # v_ref = this x max speed; the search's 4th axis is tau = v_ref t, -
     usage_weight_s: float = 20.0  # objective: seconds of flight time one usage-second is worth, s
     candidates: int = 2  # RRT solutions compared by the objective per attempt
     strict_search: bool = False  # RRT edges are exact Ruckig rest-to-rest segments (else linear, speed-bounded)
@@ -99,7 +101,7 @@ class _Planner:
         self.limits = limits
         self.horizon_s = horizon_s
         self.opts = opts
-        self.v_ref = max(0.25, 0.5 * limits.max_speed_mps)  # tau = v_ref t
+        self.v_ref = max(0.25, opts.time_scale_factor * limits.max_speed_mps)  # tau = v_ref t
         self.v_plan = opts.planning_speed_factor * limits.max_speed_mps
         self.durations = duration_table(limits)
 
@@ -254,7 +256,10 @@ class _Planner:
         goals.setThreshold(1e-6)
         pdef.setGoal(goals)
         best = None
+        t_start = time.perf_counter()
         for _ in range(self.opts.candidates):
+            if best is not None and time.perf_counter() - t_start > 0.5 * self.opts.time_budget_s:
+                break  # a second solution only when the first came quickly
             pdef.clearSolutionPaths()
             planner = og.RRT(si)
             planner.setRange(self.opts.range_m)
