@@ -23,7 +23,6 @@ first solve (OMPL allows no re-seeding after sampling started).
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -256,10 +255,7 @@ class _Planner:
         goals.setThreshold(1e-6)
         pdef.setGoal(goals)
         best = None
-        t_start = time.perf_counter()
-        for _ in range(self.opts.candidates):
-            if best is not None and time.perf_counter() - t_start > 0.5 * self.opts.time_budget_s:
-                break  # a second solution only when the first came quickly
+        for _ in range(self.opts.candidates):  # a fixed count keeps runs reproducible
             pdef.clearSolutionPaths()
             planner = og.RRT(si)
             planner.setRange(self.opts.range_m)
