@@ -113,7 +113,11 @@ def _plan_order(
         nominal = build_checker(scenario, name, others, mode=mode)
         bad = start_conflict(nominal, task.start_m)
         if bad is not None:
-            raise InfeasibleError(name, bad, f"vehicle {name!r}: its start {task.start_m.tolist()} violates '{bad}' at t = 0")
+            why = ""
+            if bad == "workspace" or bad.startswith("obstacle"):
+                why = (f" (the body, radius {body_radius_m(task.vehicle):.3f} m, must keep clear horizontally and "
+                       f"{scenario.limits.obstacle_margin_m:g} m vertically)")
+            raise InfeasibleError(name, bad, f"vehicle {name!r}: its start {task.start_m.tolist()} violates '{bad}' at t = 0{why}")
         if task.hover:
             path = TimedPath(np.array([0.0]), task.start_m[None, :].copy(), [])
             timed[name] = path
@@ -335,7 +339,7 @@ def finish_metrics(scenario: Scenario, plan: PlanResult, *, planning_time_s: flo
 
     t = plan.t_s
     along = wrench_along_plan(plan, scenario, t_s=t)
-    usage = {n: float(a.usage.max()) for n, a in along.items()}
+    usage = {n: max(0.0, float(a.usage.max())) for n, a in along.items()}
     sep = separation_summary(plan, scenario)
     moving_end = 0.0
     for tr in plan.vehicles.values():
