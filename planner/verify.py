@@ -27,6 +27,7 @@ from planner.plan_io import PlanResult
 from planner.scenario import Scenario
 
 GOAL_TOLERANCE_M = 0.05
+DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
 USAGE_TOLERANCE = 1e-3
 KINEMATIC_TOLERANCE = 1.02  # 2 % on speed / acceleration; jerk from finite differences gets 10 %
 
@@ -123,16 +124,22 @@ def wrench_along_plan(plan: PlanResult, scenario: Scenario, *, t_s: np.ndarray) 
 
 
 def _dock_exempt(plan: PlanResult, scenario: Scenario, a: str, b: str, pos: dict, t_s: np.ndarray) -> np.ndarray:
-    """(M,) True where pair (a, b) is a dock pair on its final approach or docked."""
+    """(M,) True where pair (a, b) is a dock pair and the docker is on its final approach: within
+    ``DOCK_TUBE_M`` of the segment from the approach point A to the dock point D, both taken
+    relative to the dock target's current position."""
     from planner.pipeline import dock_geometry
 
     for docker, target in ((a, b), (b, a)):
         task = scenario.vehicles[docker]
         if task.dock_with == target:
             ap, dp = dock_geometry(scenario, docker)
-            reach = float(np.linalg.norm(ap - dp)) + GOAL_TOLERANCE_M
-            dock_point = pos[target] + task.dock_offset_m
-            return np.linalg.norm(pos[docker] - dock_point, axis=1) <= reach
+            base = scenario.final_position_m(target)
+            a_rel, d_rel = ap - base, dp - base  # relative to the target
+            rel = pos[docker] - pos[target]
+            seg = a_rel - d_rel
+            f = np.clip((rel - d_rel) @ seg / max(float(seg @ seg), 1e-12), 0.0, 1.0)
+            dist = np.linalg.norm(rel - (d_rel + f[:, None] * seg), axis=1)
+            return dist <= DOCK_TUBE_M
     return np.zeros(t_s.size, dtype=bool)
 
 

@@ -112,3 +112,27 @@ def test_wrench_along_plan_is_the_direct_model():
     np.testing.assert_allclose(along["low"].usage, authority_usage(BUILTIN_VEHICLES["small-quad"], w.force_N, w.torque_Nm), rtol=1e-9)
     assert along["low"].usage[1] > along["low"].usage[0]  # strongest right under the source
     np.testing.assert_allclose(along["top"].force_N, 0.0)  # nothing above the top vehicle
+
+
+def test_dock_pair_is_exempt_only_on_the_approach_tube():
+    sc = scenario_from_dict(
+        {
+            "name": "dock",
+            "workspace": {"min": [-3, -3, 0], "max": [3, 3, 3]},
+            "limits": {"authority_fraction": 0.5},
+            "vehicles": {
+                "top": {"type": "large-quad", "start": [0, 0, 1.5], "hover": True},
+                "low": {"type": "small-quad", "start": [0, 0, 2.5], "dock": {"with": "top", "offset": [0, 0, 0.3]}},
+            },
+        }
+    )
+    # straight down the dock axis: exempt, passes
+    plan = _plan(sc, _line([0, 0, 2.5], [0, 0, 1.8], 4.0, total_s=5.0))
+    assert verify_plan(plan, sc) == []
+    # sideways through the target's level, then to the dock point: separation is flagged
+    t1, p1, v1, a1 = _line([-1.5, 0, 1.5], [1.5, 0, 1.5], 6.0, total_s=6.0)
+    t2, p2, v2, a2 = _line([1.5, 0, 1.5], [0, 0, 1.8], 4.0, total_s=5.0)
+    path = (np.concatenate([t1, t2[1:] + t1[-1]]), np.concatenate([p1, p2[1:]]),
+            np.concatenate([v1, v2[1:]]), np.concatenate([a1, a2[1:]]))
+    kinds = {v.kind for v in verify_plan(_plan(sc, path), sc)}
+    assert "separation" in kinds
