@@ -488,16 +488,16 @@ def _zone_masks(u: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:
     return below, valid
 
 
-def _validity(units: Sequence[Unit], before: Model, after: Model) -> dict[str, Any]:
+def _validity(units: Sequence[Unit], before: Model, after: Model, bases_before: list, bases_after: list) -> dict[str, Any]:
     """Samples below a source (dz > 0, r < 3 L) inside / outside the zone dz > 3 L (S0 II-A), with
     the test RMSE of F_z before and after on each part."""
     below, valid, res_b, res_a = [], [], [], []
-    for u in units:
+    for u, bb, ba in zip(units, bases_before, bases_after):
         b, v = _zone_masks(u, before)
         below.append(b)
         valid.append(v)
-        res_b.append(u.force_N[:, 2] - predict(u, before)[0][:, 2])
-        res_a.append(u.force_N[:, 2] - predict(u, after)[0][:, 2])
+        res_b.append(u.force_N[:, 2] - predict(u, before, base=bb)[0][:, 2])
+        res_a.append(u.force_N[:, 2] - predict(u, after, base=ba)[0][:, 2])
     below_a, valid_a = np.concatenate(below), np.concatenate(valid)
     rb, ra = np.concatenate(res_b), np.concatenate(res_a)
 
@@ -539,11 +539,14 @@ def run_identify(manifest: Manifest | str | Path, *, options: IdentifyOptions = 
     test_all = merge_units(test)  # every test sample, pooled
     cache: dict[int, tuple[Any, list]] = {}  # id(vehicles) -> (vehicles, base wrench per unit)
 
-    def full_errors(m: Model) -> Errors:
+    def full_bases(m: Model) -> list:
         key = id(m.vehicles)
         if key not in cache:
             cache[key] = (m.vehicles, [base_wrench(unit_inputs(u, m)) for u in test_all])
-        return errors(test_all, m, bases=cache[key][1])
+        return cache[key][1]
+
+    def full_errors(m: Model) -> Errors:
+        return errors(test_all, m, bases=full_bases(m))
 
     before = full_errors(base)
     calibration = None
@@ -564,7 +567,7 @@ def run_identify(manifest: Manifest | str | Path, *, options: IdentifyOptions = 
         before=before, after=after, calibrated=calibrated, trials=trials,
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
-        unexplained=unexplained, validity=_validity(test_all, base, final), thrust_coefficient=thrust, units=units,
+        unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
     )  # fmt: skip
 
 
