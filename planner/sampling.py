@@ -17,7 +17,14 @@ from a goal whose arrival time is unknown. After the first solution, OMPL's ``Pa
 shortcuts the path (shortcuts are checked with the same directed validator) and a time-compression
 pass moves every waypoint to its earliest valid time, which minimises flight time along the path.
 Runs are reproducible: ``ompl.util.RNG.setSeed(seed + 1)`` is set once per process before the
-first solve (OMPL allows no re-seeding after sampling started).
+first solve (OMPL allows no re-seeding after sampling started), and every solve ends after a fixed
+number of RRT iterations (a Python ``PlannerTerminationCondition``), not after a wall time, so the
+random sequence does not depend on the machine's load (a generous wall-time cap remains as a safety
+net only).
+
+Objective: among ``candidates`` RRT solutions (and in every shortcut choice) the planner keeps the
+one with the lowest arrival time + ``usage_weight_s`` x predicted authority-usage integral, the
+prediction being the cost map's usage grid of the sources above (``ConflictChecker.predicted_usage``).
 """
 
 from __future__ import annotations
@@ -35,7 +42,8 @@ from planner.timing import DurationTable, KinematicLimits, duration_table, rucki
 class SamplingOptions:
     """Knobs of the space-time search (defaults suit the shipped scenarios)."""
 
-    time_budget_s: float = 1.5  # OMPL solve time per attempt, s
+    time_budget_s: float = 1.5  # wall-time safety net per solve (x 4), s; the budget is max_iterations
+    max_iterations: int = 100000  # RRT iterations per solve (deterministic termination)
     range_m: float = 0.8  # RRT extension range in (x, y, z, tau), m
     goal_bias: float = 0.15  # probability of sampling a goal state, -
     check_step_m: float = 0.04  # spatial resolution of motion checks, m
@@ -76,6 +84,25 @@ class GoalSpec:
     tail_limits: KinematicLimits | None = None
 
 
+class _IterationBudget:
+    """Planner termination after ``max_calls`` iterations (deterministic, keeps ``--seed``
+    reproducible) or, as a safety net only, ``max_wall_s`` seconds of wall time."""
+
+    def __init__(self, max_calls: int, max_wall_s: float):
+        import time
+
+        self.max_calls = max_calls
+        self.deadline = time.perf_counter() + max_wall_s
+        self.calls = 0
+        self._clock = time.perf_counter
+
+    def __call__(self) -> bool:
+        self.calls += 1
+        if self.calls > self.max_calls:
+            return True
+        return (self.calls & 255) == 0 and self._clock() > self.deadline
+
+
 _SEEDED: list[int] = []
 
 
@@ -103,6 +130,7 @@ class _Planner:
         self.v_ref = max(0.25, opts.time_scale_factor * limits.max_speed_mps)  # tau = v_ref t
         self.v_plan = opts.planning_speed_factor * limits.max_speed_mps
         self.durations = duration_table(limits)
+        self.iterations: list[int] = []
 
     # -- motion checks ---------------------------------------------------------------------
     def motion_ok(self, p1, t1: float, p2, t2: float, *, exclude: str | None = None, strict: bool = True) -> bool:
@@ -262,7 +290,9 @@ class _Planner:
             planner.setGoalBias(self.opts.goal_bias)
             planner.setProblemDefinition(pdef)
             planner.setup()
-            planner.solve(self.opts.time_budget_s)
+            counter = _IterationBudget(self.opts.max_iterations, 4.0 * self.opts.time_budget_s)
+            planner.solve(ob.PlannerTerminationCondition(counter))
+            self.iterations.append(counter.calls)
             if not pdef.hasExactSolution():
                 continue
             path = pdef.getSolutionPath()
