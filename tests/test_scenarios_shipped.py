@@ -7,6 +7,8 @@ from pathlib import Path
 import pytest
 
 from planner.pipeline import plan_scenario
+from planner.plan_io import write_plan
+from proxplan.cli import main
 from planner.scenario import load_scenario
 from planner.verify import verify_plan
 
@@ -19,11 +21,14 @@ def test_the_required_scenarios_are_shipped():
 
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
-def test_shipped_scenario_plans_and_verifies(path):
+def test_shipped_scenario_plans_and_verifies(path, tmp_path, capsys):
     scenario = load_scenario(path)
     plan = plan_scenario(scenario, method="sampling", seed=0)
     violations = verify_plan(plan, scenario)
     assert violations == [], "\n".join(map(str, violations))
+    write_plan(plan, tmp_path)
+    assert main(["verify", str(tmp_path / "plan.json")]) == 0  # `proxplan verify` on the written file
+    assert "PASS" in capsys.readouterr().out
     assert set(plan.vehicles) == set(scenario.vehicles)
     assert plan.metrics["max_authority_usage"] <= scenario.limits.authority_fraction
     assert plan.metrics["makespan_s"] > 0
