@@ -100,7 +100,15 @@ class OcpProblem:
     chord_margin_m: float = 0.03  # extra clearance for the path between check points, m
     interaction_radius_m: float = 2.0  # horizontal range beyond which a pair is ignored, m
     max_iterations: int = 300
-    max_cpu_time_s: float = 40.0
+    max_cpu_time_s: float = 40.0  # IPOPT CPU limit per solve; also the wall budget of all rounds, s
+    hessian: str = "exact"  # IPOPT hessian_approximation: "exact" or "limited-memory"
+    expand: bool = False  # SX-expand the NLP (only when every wrench function has an SX form)
+    linear_solver: str = "mumps"  # IPOPT linear solver ("mumps" or "spral" in the PyPI casadi)
+    fixed_duration_s: float | None = None  # solve for this T instead of a free one, s
+    linearize: bool = True  # sequential linearisation of the wrench table (SX-expanded NLP)
+    max_linearizations: int = 4  # solves of the sequential linearisation
+    linearization_tol: float = 0.01  # stop when the usage error of the linear model is below this
+    proximal_weight: float = 0.05  # weight on |O - O0|^2 (m^-2) keeping steps near the linearisation
 
 
 @dataclass(frozen=True)
@@ -159,7 +167,7 @@ class _Builder:
         self.pb = problem
         self.n = problem.n_intervals
         self.opti = ca.Opti()
-        self.T = self.opti.variable()
+        self.T = self.opti.variable() if problem.fixed_duration_s is None else problem.fixed_duration_s
         self.h = self.T / self.n
         self.agents = {a.name: a for a in problem.agents}
         self.names = [a.name for a in problem.agents]
@@ -173,8 +181,9 @@ class _Builder:
     # ---------------------------------------------------------------- vehicles
     def add_vehicles(self) -> None:
         ca, opti, n, h, pb = self.ca, self.opti, self.n, self.h, self.pb
-        opti.subject_to(opti.bounded(0.1 * pb.warm_duration_s, self.T, pb.max_duration_s))
-        opti.set_initial(self.T, min(pb.warm_duration_s, pb.max_duration_s))
+        if pb.fixed_duration_s is None:
+            opti.subject_to(opti.bounded(0.1 * pb.warm_duration_s, self.T, pb.max_duration_s))
+            opti.set_initial(self.T, min(pb.warm_duration_s, pb.max_duration_s))
         for a in pb.agents:
             wp = _warm(a.warm_position_m, a.start_m, n) if a.moving else np.tile(np.asarray(a.start_m, float), (n + 1, 1))
             self.Qw[a.name] = _check_points_warm(wp)
@@ -201,8 +210,9 @@ class _Builder:
             opti.subject_to(ca.sum1(ac**2) <= (m * a.max_accel_mps2) ** 2)
             opti.subject_to(ca.sum1(U**2) <= (m * a.max_jerk_mps3) ** 2)
             rb = a.body_radius_m
-            lo = np.asarray(pb.workspace_min_m, float) + np.array([rb, rb, 0.0])
-            hi = np.asarray(pb.workspace_max_m, float) - np.array([rb, rb, 0.0])
+            grow = np.array([rb, rb, 0.0]) + pb.chord_margin_m
+            lo = np.asarray(pb.workspace_min_m, float) + grow
+            hi = np.asarray(pb.workspace_max_m, float) - grow
             Q = self.Q[a.name]
             opti.subject_to(opti.bounded(ca.repmat(ca.DM(lo), 1, 2 * n + 1), Q, ca.repmat(ca.DM(hi), 1, 2 * n + 1)))
             self.cost += pb.weights.smoothness * h * ca.sumsqr(U / a.max_jerk_mps3)
@@ -301,63 +311,107 @@ class _Builder:
         a_m, b_m = k * (src.body_radius_m + tgt.body_radius_m + eps), k * half_h
         rel_w = self.Qw[t] - self.Qw[s]
         dz_w, r_w = -rel_w[:, 2], np.hypot(rel_w[:, 0], rel_w[:, 1])
-        near = ~exempt & (r_w < a_m + 1.0) & (np.abs(dz_w - centre) < b_m + 1.0)
+        near = ~exempt & (r_w < a_m + 0.6) & (np.abs(dz_w - centre) < b_m + 0.6)
         ks = np.flatnonzero(near).tolist()
         if not ks:
             return
         rel = self.Q[t][:, ks] - self.Q[s][:, ks]
         r_sq = ca.sum1(rel[0:2, :] ** 2) / a_m**2
         dz = (-rel[2, :] - centre) / b_m
-        opti.subject_to(r_sq**2 + dz**4 >= 1.0)
+        opti.subject_to((r_sq**2 + dz**4) ** 0.25 >= 1.0)  # degree-1 form: well scaled far away
 
     # ---------------------------------------------------------------- authority
     def add_authority(self) -> None:
+        """Authority usage <= fraction at the check points. All offsets that share one wrench
+        function (one vehicle-type pair) go through a single ``Function.map`` call; sparse
+        selection matrices scatter the per-motor changes to (target, check point)."""
         ca, opti, pb, n = self.ca, self.opti, self.pb, self.n
         nq = 2 * n + 1
-        weights = np.r_[0.5, np.ones(n - 1), 0.5, np.ones(n)] * 0.5  # trapezoid-ish over check points
+        weights = np.r_[0.5, np.ones(n - 1), 0.5, np.ones(n)] * 0.5  # quadrature over check points
+        groups: dict[int, dict] = {}  # id(fn) -> {"fn", "offsets": [MX], "rows": [(target, ks)]}
         for nt in self.names:
-            target = self.agents[nt]
-            a_map, up, down = normalised_motor_map(target.vehicle)
-            total = None
-            active = np.zeros(nq, dtype=bool)
             for ns in self.names:
                 fn = pb.wrench_functions.get((ns, nt))
-                if ns == nt or fn is None or not (self.agents[ns].moving or target.moving):
+                if ns == nt or fn is None or not (self.agents[ns].moving or self.agents[nt].moving):
                     continue
                 rel_w = self.Qw[nt] - self.Qw[ns]
                 near = (np.hypot(rel_w[:, 0], rel_w[:, 1]) <= pb.interaction_radius_m) & (rel_w[:, 2] < 0.5)
                 ks = np.flatnonzero(near)
                 if ks.size == 0:
                     continue
-                offsets = self.Q[nt][:, ks.tolist()] - self.Q[ns][:, ks.tolist()]
-                w = fn.map(int(ks.size))(offsets)  # (3, m)
-                select = ca.DM.triplet(list(range(int(ks.size))), ks.tolist(), ca.DM.ones(int(ks.size)), int(ks.size), nq)
-                contrib = ca.mtimes(ca.mtimes(ca.DM(a_map), w), select)  # (4, nq) N
-                total = contrib if total is None else total + contrib
-                active[ks] = True
-            if total is None:
-                continue
+                g = groups.setdefault(id(fn), {"fn": fn, "offsets": [], "rows": []})
+                g["offsets"].append(self.Q[nt][:, ks.tolist()] - self.Q[ns][:, ks.tolist()])
+                g["rows"].append((nt, ks))
+        totals: dict[str, object] = {}
+        active: dict[str, np.ndarray] = {}
+        self.linear_groups = []
+        for g in groups.values():
+            offsets = ca.horzcat(*g["offsets"])
+            m_all = int(offsets.shape[1])
+            if pb.linearize:
+                # first-order model of the table about parameters O0: W0 + J (O - O0), re-linearised
+                # by build_and_solve between solves (keeps the NLP SX-expandable)
+                o0, w0, jac = opti.parameter(3, m_all), opti.parameter(3, m_all), opti.parameter(9, m_all)
+                d = offsets - o0
+                w = ca.vertcat(*[w0[i, :] + ca.sum1(jac[3 * i : 3 * i + 3, :] * d) for i in range(3)])
+                self.linear_groups.append({"fn": g["fn"], "offsets": offsets, "o0": o0, "w0": w0, "jac": jac})
+                self.cost += pb.proximal_weight * ca.sumsqr(d)
+            else:
+                w = g["fn"].map(m_all)(offsets)  # (3, M): F_z N, tau_x N m, tau_y N m
+            col = 0
+            for nt, ks in g["rows"]:
+                m = int(ks.size)
+                a_map = normalised_motor_map(self.agents[nt].vehicle)[0]
+                select = ca.DM.triplet(list(range(m)), ks.tolist(), ca.DM.ones(m), m, nq)
+                contrib = ca.mtimes(ca.mtimes(ca.DM(a_map), w[:, col : col + m]), select)  # (4, nq) N
+                totals[nt] = contrib if nt not in totals else totals[nt] + contrib
+                active.setdefault(nt, np.zeros(nq, dtype=bool))[ks] = True
+                col += m
+        for nt, total in totals.items():
+            _, up, down = normalised_motor_map(self.agents[nt].vehicle)
             frac = np.full(nq, pb.authority_fraction * pb.authority_margin)
             frac[n] = pb.authority_fraction - 2e-4  # the final state is static: full fraction
             for key, ex in self.exempt.items():
                 if nt in key:
                     frac[ex] = pb.authority_fraction - 2e-4
-            ks = np.flatnonzero(active).tolist()
+            ks = np.flatnonzero(active[nt]).tolist()
             df = total[:, ks]
-            lo = -ca.DM(np.outer(down, frac[ks]))
-            hi = ca.DM(np.outer(up, frac[ks]))
-            opti.subject_to(opti.bounded(lo, df, hi))
+            opti.subject_to(opti.bounded(-ca.DM(np.outer(down, frac[ks])), df, ca.DM(np.outer(up, frac[ks]))))
             scale = ca.DM(1.0 / np.minimum(up, down))
             exposure = ca.mtimes(ca.sum1((df * ca.repmat(scale, 1, len(ks))) ** 2), ca.DM(weights[ks]))
             self.cost += pb.weights.exposure * self.h * exposure
 
     # ---------------------------------------------------------------- solve
+    def _linearize(self, evaluate) -> float:
+        """Set the table's linear models about the offsets ``evaluate(expr)`` gives; returns the
+        largest change of the offsets from the previous linearisation point, m."""
+        ca = self.ca
+        moved = 0.0
+        for g in self.linear_groups:
+            o = np.asarray(evaluate(g["offsets"]), float).reshape(3, -1)
+            m = o.shape[1]
+            fn = g["fn"]
+            if "jac_map" not in g:
+                g["val_map"] = fn.map(m)
+                g["jac_map"] = fn.jacobian().map(m)
+            w = np.asarray(g["val_map"](o)).reshape(3, m)
+            jac = np.asarray(g["jac_map"](o, ca.DM.zeros(3, m))).reshape(3, 3 * m, order="F")
+            # jacobian().map gives (3, 3 m): block k is d wrench / d offset at column k
+            jac = jac.reshape(3, m, 3).transpose(0, 2, 1)  # (out i, in j, point k)
+            if "last" in g:
+                moved = max(moved, float(np.abs(o - g["last"]).max()))
+            g["last"] = o
+            self.opti.set_value(g["o0"], o)
+            self.opti.set_value(g["w0"], w)
+            self.opti.set_value(g["jac"], jac.reshape(9, m))
+        return moved
+
     def solve(self, progress) -> OcpSolution:
         ca, opti, pb, n = self.ca, self.opti, self.pb, self.n
         opti.minimize(self.cost)
         opti.solver(
             "ipopt",
-            {"expand": False, "print_time": False},
+            {"expand": pb.expand or pb.linearize, "print_time": False},
             {
                 "print_level": 0,
                 "sb": "yes",
@@ -366,19 +420,42 @@ class _Builder:
                 "tol": 1e-6,
                 "acceptable_tol": 1e-4,
                 "mu_strategy": "adaptive",
+                "hessian_approximation": pb.hessian,
+                "linear_solver": pb.linear_solver,
             },
         )
         if progress is not None:
             progress(f"optimiser: {opti.nx} variables, {opti.ng} constraints")
         t0 = time.perf_counter()
-        try:
-            sol = opti.solve()
-            value, stats, ok = sol.value, sol.stats(), True
-        except RuntimeError:
-            value, stats, ok = opti.debug.value, opti.stats(), False
+        iterations = 0
+        rounds = pb.max_linearizations if self.linear_groups else 1
+        if self.linear_groups:
+            self._linearize(lambda e: opti.debug.value(e, opti.initial()))
+        best = None
+        for r in range(rounds):
+            try:
+                sol = opti.solve()
+                value, stats, ok = sol.value, sol.stats(), True
+            except RuntimeError:
+                value, stats, ok = opti.debug.value, opti.stats(), False
+            iterations += int(stats.get("iter_count", 0))
+            ok = ok and bool(stats.get("success", False))
+            if not ok:
+                if best is not None:  # keep the last converged linearisation round
+                    value, stats, ok = best
+                break
+            best = (value, stats, ok)
+            if not self.linear_groups or r == rounds - 1 or time.perf_counter() - t0 > pb.max_cpu_time_s:
+                break
+            moved = self._linearize(value)
+            if progress is not None:
+                progress(f"optimiser: linearisation {r + 1}: offsets moved {moved:.3f} m, {iterations} iterations")
+            if moved < pb.linearization_tol:
+                break
+            opti.set_initial(sol.value_variables())
+            opti.set_initial(opti.lam_g, sol.value(opti.lam_g))
         solve_time = time.perf_counter() - t0
         status = str(stats.get("return_status", "unknown"))
-        ok = ok and bool(stats.get("success", False))
         out_p, out_v, out_a, out_j = {}, {}, {}, {}
         for a in pb.agents:
             if a.moving:
@@ -393,12 +470,12 @@ class _Builder:
         return OcpSolution(
             success=ok,
             status=status,
-            duration_s=float(value(self.T)),
+            duration_s=float(value(self.T)) if pb.fixed_duration_s is None else float(pb.fixed_duration_s),
             position_m=out_p,
             velocity_mps=out_v,
             acceleration_mps2=out_a,
             jerk_mps3=out_j,
-            iterations=int(stats.get("iter_count", 0)),
+            iterations=iterations,
             solve_time_s=solve_time,
             build_time_s=0.0,
             objective=float(value(self.cost)),

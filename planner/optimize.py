@@ -46,8 +46,9 @@ class RefineOptions:
     interval_s: float = 0.2  # target grid step of the OCP, s
     min_intervals: int = 20
     max_intervals: int = 80
+    max_node_vehicles: int = 160  # cap on n_intervals x moving vehicles
     weights: OcpWeights = OcpWeights()
-    max_cpu_time_s: float = 40.0  # IPOPT time limit, s
+    max_cpu_time_s: float = 30.0  # IPOPT time limit per solve and wall budget of the rounds, s
     max_slowdown: float = 1.3  # largest uniform slow-down accepted to repair a kinematic breach, -
 
 
@@ -104,8 +105,11 @@ def check_final_configuration(scenario) -> None:
             )
 
 
-def _n_intervals(makespan_s: float, options: RefineOptions) -> int:
-    return int(np.clip(math.ceil(makespan_s / options.interval_s), options.min_intervals, options.max_intervals))
+def _n_intervals(makespan_s: float, n_moving: int, options: RefineOptions) -> int:
+    """Grid size: one interval per ``interval_s`` of the warm start, capped so that the joint
+    problem keeps about ``max_node_vehicles`` vehicle-nodes (IPOPT time grows fast beyond)."""
+    cap = max(options.min_intervals, min(options.max_intervals, options.max_node_vehicles // max(1, n_moving)))
+    return int(np.clip(math.ceil(makespan_s / options.interval_s), options.min_intervals, cap))
 
 
 def build_problem(
@@ -114,7 +118,7 @@ def build_problem(
     """The :class:`planner.ocp.OcpProblem` of ``scenario`` warm-started from ``initial_plan``."""
     provider = wrench_provider or default_wrench_provider
     T0 = moving_end_s(initial_plan) or float(initial_plan.makespan_s)
-    n = _n_intervals(T0, options)
+    n = _n_intervals(T0, sum(not t.hover for t in scenario.vehicles.values()), options)
     t_nodes = np.linspace(0.0, T0, n + 1)
     agents = []
     for name, task in scenario.vehicles.items():

@@ -134,18 +134,24 @@ def test_single_vehicle_around_obstacle_respects_limits_and_boundary_conditions(
     assert not inside.any()
 
 
-def test_authority_constraint_keeps_target_out_of_the_jet():
-    """A small quad crossing 1 m below a hovering large quad must bend its path out of the jet."""
+@pytest.mark.parametrize("linearize", [False, True])
+def test_authority_constraint_keeps_target_out_of_the_jet(linearize):
+    """A small quad crossing 1.2 m below a hovering large quad must bend its path out of the jet,
+    with the exact table (MX) and with its sequential linearisation (SX). The linearised model needs
+    a lateral gradient at the warm start, so its warm path is 0.1 m off the jet axis (still inside)."""
     n, T0 = 30, 8.0
     source_pos = np.array([0.0, 0.0, 2.4])
     start, goal = np.array([-1.2, 0.0, 1.2]), np.array([1.2, 0.0, 1.2])
     fraction = 0.07
     table = model_interpolant(LARGE, SMALL, dz_min_m=0.5, dz_max_m=1.9)
+    warm = _quintic(start, goal, n)
+    warm[:, 1] += 0.1 * np.sin(np.linspace(0.0, np.pi, n + 1)) if linearize else 0.0
     agents = (
         OcpAgent(name="src", vehicle=LARGE, moving=False, start_m=source_pos, body_radius_m=0.27),
-        _single_agent(start, goal, n),
+        _single_agent(start, goal, n, warm=warm),
     )
     base = dict(
+        linearize=linearize,
         n_intervals=n,
         warm_duration_s=T0,
         max_duration_s=T0,
@@ -153,7 +159,7 @@ def test_authority_constraint_keeps_target_out_of_the_jet():
         workspace_max_m=np.array([3.0, 3.0, 3.0]),
         authority_fraction=fraction,
     )
-    straight = disturbance_wrench(LARGE, SMALL, _quintic(start, goal, n) - source_pos)
+    straight = disturbance_wrench(LARGE, SMALL, warm - source_pos)
     assert authority_usage(SMALL, straight.force_N, straight.torque_Nm).max() > 2 * fraction
     sol = build_and_solve(OcpProblem(agents=agents, wrench_functions={("src", "a"): table}, **base))
     assert sol.success, sol.status
