@@ -1,0 +1,97 @@
+"""Tests of planner.optimize: refine_plan on the pipeline's sampling plan, fall-back, infeasibility."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("casadi")
+pytest.importorskip("ompl")
+
+from planner.optimize import (  # noqa: E402
+    RefineOptions,
+    build_problem,
+    check_final_configuration,
+    moving_end_s,
+    refine_plan,
+)
+from planner.pipeline import InfeasibleError, plan_scenario  # noqa: E402
+from planner.scenario import load_scenario, scenario_from_dict  # noqa: E402
+from planner.verify import verify_plan  # noqa: E402
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+
+
+@pytest.fixture(scope="module")
+def battery_swap():
+    scenario = load_scenario(SCENARIOS / "battery_swap.yaml")
+    return scenario, plan_scenario(scenario, method="sampling", seed=0)
+
+
+def test_refined_battery_swap_is_faster_verified_and_docked(battery_swap):
+    scenario, initial = battery_swap
+    result = refine_plan(scenario, initial)
+    assert result.success, result.message
+    plan = result.plan
+    assert plan.method == "optimized"
+    assert verify_plan(plan, scenario) == []
+    assert moving_end_s(plan) < moving_end_s(initial)
+    assert result.iterations > 0 and result.solve_time_s > 0.0
+    # common uniform grid of the initial plan's step, start and dock reached at rest
+    t = plan.t_s
+    np.testing.assert_allclose(np.diff(t), plan.dt_s, atol=1e-9)
+    shuttle, carrier = plan.vehicles["shuttle"], plan.vehicles["carrier"]
+    np.testing.assert_allclose(shuttle.position_m[0], scenario.vehicles["shuttle"].start_m, atol=1e-6)
+    dock = carrier.position_m[-1] + scenario.vehicles["shuttle"].dock_offset_m
+    np.testing.assert_allclose(shuttle.position_m[-1], dock, atol=1e-3)
+    assert np.linalg.norm(shuttle.velocity_mps[-1]) < 1e-3
+    np.testing.assert_allclose(carrier.position_m, np.tile(scenario.vehicles["carrier"].start_m, (t.size, 1)))
+    assert any("CasADi/IPOPT" in note for note in plan.notes)
+
+
+def test_problem_warm_start_and_bounds_come_from_the_initial_plan(battery_swap):
+    scenario, initial = battery_swap
+    problem = build_problem(scenario, initial, options=RefineOptions(interval_s=0.25, min_intervals=10))
+    assert problem.max_duration_s == pytest.approx(moving_end_s(initial))
+    assert problem.n_intervals == max(10, int(np.ceil(moving_end_s(initial) / 0.25)))
+    shuttle = next(a for a in problem.agents if a.name == "shuttle")
+    carrier = next(a for a in problem.agents if a.name == "carrier")
+    assert shuttle.moving and not carrier.moving
+    np.testing.assert_allclose(shuttle.warm_position_m[0], initial.vehicles["shuttle"].position_m[0])
+    np.testing.assert_allclose(shuttle.warm_position_m[-1], initial.vehicles["shuttle"].position_m[-1], atol=1e-9)
+    assert shuttle.dock_reach_m > 0.0
+    # both directions of the pair get a wrench function; a hovering pair would get none
+    assert set(problem.wrench_functions) == {("carrier", "shuttle"), ("shuttle", "carrier")}
+
+
+def test_failed_solve_falls_back_to_the_initial_plan(battery_swap):
+    scenario, initial = battery_swap
+    result = refine_plan(scenario, initial, options=RefineOptions(max_cpu_time_s=1e-3))
+    assert not result.success
+    assert result.plan is initial
+    assert "kept the sampling plan" in result.message
+
+
+def test_pipeline_optimized_method_uses_the_refinement(battery_swap):
+    scenario, _ = battery_swap
+    plan = plan_scenario(scenario, method="optimized", seed=0)
+    assert plan.method == "optimized"
+    assert plan.metrics["optimizer_iterations"] > 0
+    assert verify_plan(plan, scenario) == []
+
+
+def test_infeasible_authority_at_the_dock_is_reported_clearly():
+    spec = copy.deepcopy(load_scenario(SCENARIOS / "battery_swap.yaml").spec)
+    spec["limits"]["authority_fraction"] = 0.001
+    scenario = scenario_from_dict(spec)
+    with pytest.raises(InfeasibleError) as info:
+        check_final_configuration(scenario)
+    assert info.value.vehicle == "carrier"
+    assert info.value.constraint == "authority"
+    assert "shuttle" in info.value.message and "0.001" in info.value.message
+    # a feasible limit passes the same check
+    spec["limits"]["authority_fraction"] = 0.15
+    check_final_configuration(scenario_from_dict(spec))
