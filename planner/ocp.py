@@ -177,6 +177,7 @@ class _Builder:
         self.Qw: dict[str, np.ndarray] = {}  # warm positions at check points (2n+1, 3)
         self.exempt: dict[tuple[str, str], np.ndarray] = {}  # dock pair -> (2n+1,) bool
         self.cost = problem.weights.time * self.T
+        self.linear_groups: list[dict] = []
 
     # ---------------------------------------------------------------- vehicles
     def add_vehicles(self) -> None:
