@@ -329,15 +329,10 @@ def load_manifest(path: str | Path) -> Manifest:
     manifest), per-vehicle ``ground_z_m`` (default 0), ``quality: {max_gap_s, min_segment_s,
     ground_clearance_m, min_thrust_fraction, min_overlap_s}``.
     """
-    import yaml
+    from costmaps.user_files import read_yaml
 
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise UserError(f"{path}: manifest not found") from None
-    except yaml.YAMLError as err:
-        raise UserError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    doc = read_yaml(path, what="manifest")
     where = str(path)
     if not isinstance(doc, Mapping):
         raise UserError(f"{where}: expected a mapping with format, root, flights")

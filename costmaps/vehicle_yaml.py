@@ -29,10 +29,9 @@ import math
 from pathlib import Path
 from typing import Any, Mapping
 
-import yaml
-
 from costmaps.builtin_vehicles import BUILTIN_VEHICLES
 from costmaps.errors import UserError
+from costmaps.user_files import read_yaml
 from costmaps.vehicles import DownwashSpec, FrameSpec, PropellerSpec, Vehicle
 
 _TOP_KEYS = {
@@ -148,14 +147,7 @@ def vehicle_from_dict(name: str, data: Any, *, source: str = "<vehicle>") -> Veh
 def load_vehicle_file(path: str | Path) -> dict[str, Vehicle]:
     """Read a vehicles YAML file into ``{name: Vehicle}``; UserError on any problem."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as err:
-        raise UserError(f"{path}: cannot read vehicle file ({err.strerror})") from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise UserError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    doc = read_yaml(path, what="vehicle file")
     if not isinstance(doc, Mapping) or not isinstance(doc.get("vehicles"), Mapping):
         raise UserError(f"{path}: expected a top-level 'vehicles:' mapping of NAME: parameters")
     unknown = set(doc) - {"vehicles", "model"}
@@ -166,7 +158,7 @@ def load_vehicle_file(path: str | Path) -> dict[str, Vehicle]:
 
 def load_model_section(path: str | Path) -> dict[str, Any]:
     """The optional top-level ``model:`` mapping of a vehicles file ({} when absent)."""
-    doc = yaml.safe_load(Path(path).read_text()) or {}
+    doc = read_yaml(path, what="vehicle file") or {}
     model = doc.get("model", {}) if isinstance(doc, Mapping) else {}
     if not isinstance(model, Mapping):
         raise UserError(f"{path}: model: expected a mapping (field_form, effects)")

@@ -97,15 +97,8 @@ def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
 
 def load_truth_file(path: str | Path) -> TruthSpec:
     """Read a truth YAML file; UserError on any problem."""
-    import yaml
+    from costmaps.user_files import read_yaml
 
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as err:
-        raise UserError(f"{path}: cannot read truth file ({err.strerror})") from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise UserError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    doc = read_yaml(path, what="truth file")
     return truth_from_dict(doc, source=str(path))

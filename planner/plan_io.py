@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from costmaps.errors import UserError
+from costmaps.user_files import read_json
 
 PLAN_FORMAT_VERSION = 1
 PLAN_FILENAME = "plan.json"
@@ -200,12 +201,5 @@ def read_plan(path: str | Path) -> PlanResult:
     path = Path(path)
     if path.is_dir():
         path = path / PLAN_FILENAME
-    try:
-        text = path.read_text()
-    except OSError as err:
-        raise UserError(f"{path}: cannot read plan file ({err.strerror})") from None
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise UserError(f"{path}: not valid JSON ({err.msg} at line {err.lineno})") from None
+    doc = read_json(path, what="plan file")
     return plan_from_dict(doc, label=str(path))

@@ -27,9 +27,9 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-import yaml
 
 from costmaps.errors import UserError
+from costmaps.user_files import read_yaml
 from costmaps.vehicles import GRAVITY_MPS2, Vehicle
 
 TOP_KEYS = ("name", "description", "vehicle_file", "model", "workspace", "obstacles", "limits", "vehicles")
@@ -396,12 +396,5 @@ def scenario_from_dict(doc: Any, *, source_path: str | Path | None = None) -> Sc
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario YAML file; UserError naming the file, key and expected form."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as err:
-        raise UserError(f"{path}: cannot read scenario file ({err.strerror})") from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        raise UserError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    doc = read_yaml(path, what="scenario file")
     return scenario_from_dict(doc, source_path=path)
