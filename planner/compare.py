@@ -166,7 +166,7 @@ def to_png(rows: list[ComparisonRow], path: Path) -> Path:
         table[i, 6].set_facecolor(colour)
     ax.set_title("proxplan: every method on every shipped scenario", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
+    fig.savefig(path, dpi=130, bbox_inches="tight")
     plt.close(fig)
     return path
 
