@@ -104,6 +104,10 @@ def run_costmap(args: argparse.Namespace) -> int:
 
         custom = load_vehicle_file(args.vehicle_file)
         model = load_model_section(args.vehicle_file)
+        from costmaps.vehicle_yaml import unapplied_model_notes
+
+        for note in unapplied_model_notes(args.vehicle_file):
+            print(f"proxplan costmap: note: {note}", file=sys.stderr)
     levels = tuple(_level(v, "--levels") for v in args.levels)
     default_level = _level(args.default_level, "--default-level")
     field_form = args.field_form or model.get("field_form") or "inverse-z"

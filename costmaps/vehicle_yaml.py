@@ -165,6 +165,23 @@ def load_model_section(path: str | Path) -> dict[str, Any]:
     return dict(model)
 
 
+def unapplied_model_notes(path: str | Path) -> list[str]:
+    """Notes for the parts of a vehicle file's ``model:`` section that planning does not apply.
+
+    Cost maps, planner and verifier use the calibrated vehicle parameters and the field form; the
+    extra effects found by ``proxplan identify`` (``model.effects``) describe what the base model
+    missed in the logs and are used by the simulator and the identification report, not by planning.
+    """
+    effects = load_model_section(path).get("effects") or []
+    names = [str(e.get("name")) for e in effects if isinstance(e, Mapping)]
+    if not names:
+        return []
+    return [
+        f"{path}: model.effects ({', '.join(names)}) are not applied by cost maps and planning; "
+        "they use the calibrated vehicle parameters and field form only"
+    ]
+
+
 def resolve_vehicle(name: str, custom: Mapping[str, Vehicle] | None = None, *, where: str = "") -> Vehicle:
     """A vehicle by type name: custom ones first, then built-ins; UserError for unknown names."""
     if custom and name in custom:

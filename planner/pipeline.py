@@ -239,7 +239,7 @@ def plan_scenario(
 def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: SamplingOptions, progress) -> PlanResult:
     """Prioritised sampling with one priority restart; the assembled plan (metrics not final)."""
     order = priority_order(scenario)
-    notes: list[str] = []
+    notes: list[str] = list(scenario.load_notes)
     for restart in range(2):
         try:
             timed, info = _plan_order(scenario, order, mode=mode, seed=seed, options=options, progress=progress)

@@ -150,6 +150,7 @@ class Scenario:
     vehicles: dict[str, VehicleTask]
     spec: dict = field(default_factory=dict, compare=False)
     field_form: str | None = None  # disturbance-model field form ("inverse-z" or "printed"), None = default
+    load_notes: tuple[str, ...] = ()  # things the user should know about how the file was read
 
     def final_position_m(self, name: str) -> np.ndarray:
         """Where vehicle ``name`` ends, world frame (3,), m (follows dock chains)."""
@@ -232,6 +233,15 @@ def _vehicle_types(doc: Mapping, path: Path | None, label: str) -> dict[str, Veh
     if not vfile.exists():
         raise UserError(f"{label}: vehicle_file: file {vfile} does not exist (paths are relative to the scenario file)")
     return load_vehicle_file(vfile)
+
+
+def _vehicle_file_notes(doc: Mapping, path: Path | None) -> list[str]:
+    if "vehicle_file" not in doc:
+        return []
+    from costmaps.vehicle_yaml import unapplied_model_notes
+
+    base = path.parent if path is not None else Path.cwd()
+    return unapplied_model_notes((base / doc["vehicle_file"]).resolve())
 
 
 def _task(name: str, data: Any, where: str, custom: dict[str, Vehicle]) -> VehicleTask:
@@ -388,6 +398,7 @@ def scenario_from_dict(doc: Any, *, source_path: str | Path | None = None) -> Sc
         vehicles=vehicles,
         spec=copy.deepcopy(dict(doc)),
         field_form=field_form,
+        load_notes=tuple(_vehicle_file_notes(doc, path)),
     )
     _check_geometry(sc, label)
     return sc

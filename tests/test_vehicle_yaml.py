@@ -57,3 +57,16 @@ def test_bad_files(tmp_path):
         load_vehicle_file(write(tmp_path, "- 1\n"))
     with pytest.raises(UserError, match="unknown vehicle type 'x'"):
         resolve_vehicle("x")
+
+
+def test_effects_in_a_vehicle_file_are_reported_as_not_used_by_planning(tmp_path):
+    from costmaps.vehicle_yaml import unapplied_model_notes
+
+    plain = write(tmp_path, "vehicles:\n  v: {base: small-quad}\n")
+    assert unapplied_model_notes(plain) == []
+    with_effects = tmp_path / "model.yaml"
+    with_effects.write_text(
+        "vehicles:\n  v: {base: small-quad}\nmodel:\n  effects: [{name: near_field, params: {amplitude: 1.0}}]\n"
+    )
+    (note,) = unapplied_model_notes(with_effects)
+    assert "near_field" in note and str(with_effects) in note
