@@ -99,6 +99,10 @@ class OcpProblem:
     obstacle_margin_m: float = 0.05  # clearance to boxes beyond the body radius, m
     chord_margin_m: float = 0.03  # extra clearance for the path between check points, m
     interaction_radius_m: float = 2.0  # horizontal range beyond which a pair is ignored, m
+    # optional per ordered pair: dz_m (K,) -> lateral half-width (K,) m beyond which the pair's
+    # wrench table is zero; authority terms are then kept only within it + extent_margin_m
+    interaction_extent: Mapping[tuple[str, str], Callable] = field(default_factory=dict)
+    extent_margin_m: float = 0.5
     max_iterations: int = 300
     max_cpu_time_s: float = 40.0  # IPOPT CPU limit per solve; also the wall budget of all rounds, s
     hessian: str = "exact"  # IPOPT hessian_approximation: "exact" or "limited-memory"
@@ -336,7 +340,12 @@ class _Builder:
                 if ns == nt or fn is None or not (self.agents[ns].moving or self.agents[nt].moving):
                     continue
                 rel_w = self.Qw[nt] - self.Qw[ns]
-                near = (np.hypot(rel_w[:, 0], rel_w[:, 1]) <= pb.interaction_radius_m) & (rel_w[:, 2] < 0.5)
+                r_w = np.hypot(rel_w[:, 0], rel_w[:, 1])
+                near = (r_w <= pb.interaction_radius_m) & (rel_w[:, 2] < 0.5)
+                extent = pb.interaction_extent.get((ns, nt))
+                if extent is not None:
+                    dz_w = np.maximum(-rel_w[:, 2], 0.0)
+                    near &= (r_w <= np.asarray(extent(dz_w)) + pb.extent_margin_m) & (rel_w[:, 2] < pb.extent_margin_m)
                 ks = np.flatnonzero(near)
                 if ks.size == 0:
                     continue
@@ -380,7 +389,7 @@ class _Builder:
             opti.subject_to(opti.bounded(-ca.DM(np.outer(down, frac[ks])), df, ca.DM(np.outer(up, frac[ks]))))
             scale = ca.DM(1.0 / np.minimum(up, down))
             exposure = ca.mtimes(ca.sum1((df * ca.repmat(scale, 1, len(ks))) ** 2), ca.DM(weights[ks]))
-            self.cost += pb.weights.exposure * self.h * exposure
+            self.cost += pb.weights.exposure * (pb.warm_duration_s / n) * exposure  # fixed quadrature step
 
     # ---------------------------------------------------------------- solve
     def _linearize(self, evaluate) -> float:
