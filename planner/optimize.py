@@ -51,6 +51,7 @@ class RefineOptions:
     # (+ 0.5 m), with a second pass about the first solution; faster, but on the 8-vehicle swap
     # the relative timing moves enough that the result failed verification, so it is off
     prune_by_table_extent: bool = False
+    exact_retry_node_vehicles: int = 60  # retry a failed solve with the exact MX table up to this size
     weights: OcpWeights = OcpWeights()
     max_cpu_time_s: float = 30.0  # IPOPT time limit per solve and wall budget of the rounds, s
     max_slowdown: float = 1.3  # largest uniform slow-down accepted to repair a kinematic breach, -
@@ -293,6 +294,14 @@ def refine_plan(
     problem = build_problem(scenario, initial_plan, options=options, wrench_provider=wrench_provider)
     solution = build_and_solve(problem, progress=progress)
     solve_time, iterations, passes = solution.solve_time_s, solution.iterations, 1
+    small = problem.n_intervals * sum(a.moving for a in problem.agents) <= options.exact_retry_node_vehicles
+    if not solution.success and small:
+        # small problem: retry with the exact (MX) wrench table instead of its linearisation
+        if progress is not None:
+            progress(f"optimiser: linearised solve failed ({solution.status}); retrying with the exact table")
+        solution = build_and_solve(replace(problem, linearize=False), progress=progress)
+        solve_time += solution.solve_time_s
+        iterations += solution.iterations
     if not solution.success:
         return RefineResult(
             initial_plan,
