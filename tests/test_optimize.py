@@ -95,3 +95,26 @@ def test_infeasible_authority_at_the_dock_is_reported_clearly():
     # a feasible limit passes the same check
     spec["limits"]["authority_fraction"] = 0.15
     check_final_configuration(scenario_from_dict(spec))
+
+
+def test_rewarm_and_extent_pruning(battery_swap):
+    from planner.ocp import build_and_solve
+    from planner.optimize import rewarm
+
+    scenario, initial = battery_swap
+    full = build_problem(scenario, initial)
+    pruned = build_problem(scenario, initial, options=RefineOptions(prune_by_table_extent=True))
+    assert not full.interaction_extent
+    assert set(pruned.interaction_extent) == set(pruned.wrench_functions)
+    # the extent widens with depth below the source (the jet spreads, S0-2)
+    width = pruned.interaction_extent[("shuttle", "carrier")]
+    assert width(2.0) > width(0.5) > 0.0
+    sol = build_and_solve(full)
+    assert sol.success, sol.status
+    again = rewarm(full, sol)
+    assert again.warm_duration_s == pytest.approx(sol.duration_s)
+    shuttle = next(a for a in again.agents if a.name == "shuttle")
+    np.testing.assert_allclose(shuttle.warm_position_m, sol.position_m["shuttle"])
+    resolved = build_and_solve(again)  # a new local problem (sides, dock approach from the new warm start)
+    assert resolved.success, resolved.status
+    assert resolved.duration_s <= full.max_duration_s + 1e-6
