@@ -416,7 +416,7 @@ class _Builder:
             self.opti.set_value(g["jac"], jac.reshape(9, m))
         return moved
 
-    def solve(self, progress) -> OcpSolution:
+    def solve(self, progress, accept=None) -> OcpSolution:
         ca, opti, pb, n = self.ca, self.opti, self.pb, self.n
         opti.minimize(self.cost)
         opti.solver(
@@ -457,6 +457,8 @@ class _Builder:
             best = (value, stats, ok)
             if not self.linear_groups or r == rounds - 1 or time.perf_counter() - t0 > pb.max_cpu_time_s:
                 break
+            if accept is not None and accept(self._collect(value, stats, ok, iterations, time.perf_counter() - t0)):
+                break  # the caller's check (the verifier) already passes: no further linearisation
             moved = self._linearize(value)
             if progress is not None:
                 progress(f"optimiser: linearisation {r + 1}: offsets moved {moved:.3f} m, {iterations} iterations")
@@ -464,8 +466,10 @@ class _Builder:
                 break
             opti.set_initial(sol.value_variables())
             opti.set_initial(opti.lam_g, sol.value(opti.lam_g))
-        solve_time = time.perf_counter() - t0
-        status = str(stats.get("return_status", "unknown"))
+        return self._collect(value, stats, ok, iterations, time.perf_counter() - t0)
+
+    def _collect(self, value, stats, ok: bool, iterations: int, solve_time: float) -> OcpSolution:
+        pb, n = self.pb, self.n
         out_p, out_v, out_a, out_j = {}, {}, {}, {}
         for a in pb.agents:
             if a.moving:
@@ -479,7 +483,7 @@ class _Builder:
                 out_j[a.name] = np.zeros((n, 3))
         return OcpSolution(
             success=ok,
-            status=status,
+            status=str(stats.get("return_status", "unknown")),
             duration_s=float(value(self.T)) if pb.fixed_duration_s is None else float(pb.fixed_duration_s),
             position_m=out_p,
             velocity_mps=out_v,
@@ -492,15 +496,23 @@ class _Builder:
         )
 
 
-def build_and_solve(problem: OcpProblem, *, progress: Callable[[str], None] | None = None) -> OcpSolution:
-    """Build the Opti problem, warm-start it and solve it with IPOPT (print_level 0)."""
+def build_and_solve(
+    problem: OcpProblem,
+    *,
+    progress: Callable[[str], None] | None = None,
+    accept: Callable[[OcpSolution], bool] | None = None,
+) -> OcpSolution:
+    """Build the Opti problem, warm-start it and solve it with IPOPT (print_level 0).
+
+    With the linearised table, ``accept(solution)`` is asked after each converged round; True stops
+    the re-linearisation early (e.g. when the verifier already passes)."""
     t0 = time.perf_counter()
     b = _Builder(problem)
     b.add_vehicles()
     b.add_pairs()
     b.add_authority()
     build_time = time.perf_counter() - t0
-    sol = b.solve(progress)
+    sol = b.solve(progress, accept)
     return OcpSolution(**{**sol.__dict__, "build_time_s": build_time})
 
 

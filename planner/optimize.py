@@ -51,6 +51,9 @@ class RefineOptions:
     # (+ 0.5 m), with a second pass about the first solution; faster, but on the 8-vehicle swap
     # the relative timing moves enough that the result failed verification, so it is off
     prune_by_table_extent: bool = False
+    # stop re-linearising as soon as a round passes the verifier: about 2x faster on the swap of 8,
+    # but later rounds tighten the plan (swap of 8: makespan 7.15 s after one round, 5.95 s after four)
+    stop_when_verified: bool = False
     exact_retry_node_vehicles: int = 60  # retry a failed solve with the exact MX table up to this size
     weights: OcpWeights = OcpWeights()
     max_cpu_time_s: float = 30.0  # IPOPT time limit per solve and wall budget of the rounds, s
@@ -292,7 +295,10 @@ def refine_plan(
     if not any(not t.hover for t in scenario.vehicles.values()):
         return RefineResult(initial_plan, True, "nothing moves; plan kept", 0.0, 0)
     problem = build_problem(scenario, initial_plan, options=options, wrench_provider=wrench_provider)
-    solution = build_and_solve(problem, progress=progress)
+    def accept(candidate: OcpSolution) -> bool:
+        return not _sample_and_verify(candidate, scenario, initial_plan, options)[1]
+
+    solution = build_and_solve(problem, progress=progress, accept=accept if options.stop_when_verified else None)
     solve_time, iterations, passes = solution.solve_time_s, solution.iterations, 1
     small = problem.n_intervals * sum(a.moving for a in problem.agents) <= options.exact_retry_node_vehicles
     if not solution.success and small:

@@ -118,3 +118,13 @@ def test_rewarm_and_extent_pruning(battery_swap):
     resolved = build_and_solve(again)  # a new local problem (sides, dock approach from the new warm start)
     assert resolved.success, resolved.status
     assert resolved.duration_s <= full.max_duration_s + 1e-6
+
+
+def test_stop_when_verified_ends_after_a_verified_round(battery_swap):
+    scenario, initial = battery_swap
+    quick = refine_plan(scenario, initial, options=RefineOptions(stop_when_verified=True))
+    full = refine_plan(scenario, initial)
+    assert quick.success and full.success
+    assert verify_plan(quick.plan, scenario) == []
+    assert quick.iterations <= full.iterations
+    assert moving_end_s(quick.plan) <= moving_end_s(initial)
