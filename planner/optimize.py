@@ -57,6 +57,7 @@ class RefineOptions:
     exact_retry_node_vehicles: int = 60  # retry a failed solve with the exact MX table up to this size
     weights: OcpWeights = OcpWeights()
     max_cpu_time_s: float = 30.0  # IPOPT time limit per solve and wall budget of the rounds, s
+    max_iterations: int = 600  # IPOPT iterations per solve
     max_slowdown: float = 1.3  # largest uniform slow-down accepted to repair a kinematic breach, -
 
 
@@ -200,6 +201,7 @@ def build_problem(
         obstacle_margin_m=float(limits.obstacle_margin_m),
         invalid_zone_keep_out=limits.invalid_zone_rule != "model",
         max_cpu_time_s=options.max_cpu_time_s,
+        max_iterations=options.max_iterations,
     )
 
 
