@@ -320,12 +320,22 @@ def refine_plan(
             iterations,
         )
     plan, violations, scale = _sample_and_verify(solution, scenario, initial_plan, options)
-    if violations and problem.interaction_extent:
-        # the optimiser moved vehicles into interactions the warm start did not have (relative
-        # timing changed): one more pass, pruned and warm-started about the first solution
+    if violations:
+        if problem.interaction_extent:
+            # the optimiser moved vehicles into interactions the warm start did not have (relative
+            # timing changed): one more pass, pruned and warm-started about the first solution
+            retry = rewarm(problem, solution)
+        else:
+            # a breach between check points: once more from the same warm start with wider
+            # margins (chord margin x 3, authority bound 0.1 lower)
+            retry = replace(
+                problem,
+                chord_margin_m=3.0 * problem.chord_margin_m,
+                authority_margin=max(0.5, problem.authority_margin - 0.1),
+            )
         if progress is not None:
             progress(f"optimiser: second pass ({_describe(violations)})")
-        second = build_and_solve(rewarm(problem, solution), progress=progress)
+        second = build_and_solve(retry, progress=progress)
         solve_time += second.solve_time_s
         iterations += second.iterations
         if second.success:
