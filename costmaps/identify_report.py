@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from costmaps.identify import IdentifyResult, predict
+from costmaps.identify import IdentifyResult
+from costmaps.identify_data import predict
 from costmaps.residuals import sample_features
 
 
@@ -65,7 +66,7 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
     written.append(p)
     # 2. residual vs features
     res, feats = [], {}
-    from costmaps.identify import subsample
+    from costmaps.identify_data import subsample
 
     for u in subsample(test, 50000):
         f, _ = predict(u, result.final_model)
