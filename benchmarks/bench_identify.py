@@ -20,7 +20,8 @@ import yaml
 
 from costmaps.builtin_vehicles import BUILTIN_VEHICLES
 from costmaps.effects import Effect, EffectInputs, SourceSample, base_wrench
-from costmaps.flightlog import read_log, synthetic_logs, write_canonical_csv
+from costmaps.flightlog import read_log, write_canonical_csv
+from costmaps.synthetic_logs import synthetic_logs
 from costmaps.identify import run_identify
 from costmaps.identify_report import write_report
 

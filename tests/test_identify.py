@@ -3,7 +3,7 @@
 Default run: closed-loop RotorPy flights from the simulator (flightsim.simulate.simulate_plan with
 ``truth_effects``, logs and manifest by flightsim.logs.write_flight_logs), one test per effect of
 the library plus one without any. Marked slow: the same checks on measurement-level logs from
-:func:`costmaps.flightlog.synthetic_logs` (the effect library evaluated along scripted trajectories,
+:func:`costmaps.synthetic_logs.synthetic_logs` (the effect library evaluated along scripted trajectories,
 written in the canonical layout), which were the stand-in before the simulator landed.
 """
 
@@ -18,7 +18,8 @@ import yaml
 
 from costmaps.builtin_vehicles import BUILTIN_VEHICLES
 from costmaps.effects import Effect
-from costmaps.flightlog import synthetic_logs, write_canonical_csv
+from costmaps.flightlog import write_canonical_csv
+from costmaps.synthetic_logs import synthetic_logs
 from costmaps.identify import IdentifyOptions, run_identify
 
 VEHICLE_TYPE = "small-quad"
