@@ -51,8 +51,8 @@ class RefineOptions:
     # (+ 0.5 m), with a second pass about the first solution; faster, but on the 8-vehicle swap
     # the relative timing moves enough that the result failed verification, so it is off
     prune_by_table_extent: bool = False
-    # stop re-linearising as soon as a round passes the verifier: about 2x faster on the swap of 8,
-    # but later rounds tighten the plan (swap of 8: makespan 7.15 s after one round, 5.95 s after four)
+    # stop re-linearising as soon as a round passes the verifier: faster (swap of 8: 5.0 s instead of
+    # 8.4 s of IPOPT) but later rounds tighten the plan (makespan 7.10 s after one round, 5.95 s after four)
     stop_when_verified: bool = False
     exact_retry_node_vehicles: int = 60  # retry a failed solve with the exact MX table up to this size
     weights: OcpWeights = OcpWeights()
