@@ -423,7 +423,7 @@ class _Builder:
         return moved
 
     def solve(self, progress, accept=None) -> OcpSolution:
-        ca, opti, pb, n = self.ca, self.opti, self.pb, self.n
+        opti, pb = self.opti, self.pb
         opti.minimize(self.cost)
         opti.solver(
             "ipopt",
