@@ -6,7 +6,8 @@ Writes ``DIR/comparison.md``, ``DIR/comparison.png`` and ``DIR/comparison.json``
 (s, last time any vehicle moves), total path length (m, all vehicles), max authority usage (-, with
 the scenario's limit), min separation (m, non-dock pairs), verify result (``planner.verify``: the
 disturbance model evaluated directly, so the baselines' violations show) and planning time (s,
-in-process; the scenario's cost maps are loaded once before timing so every method is timed warm).
+whole ``proxplan plan`` process, which runs in a fresh process per plan so that every method starts
+from the same seeded sampling stage).
 A method that finds no plan gets a row saying why (``InfeasibleError``).
 """
 
@@ -41,35 +42,36 @@ class ComparisonRow:
     note: str = ""  # method actually used (e.g. optimiser fall-back) or why it failed
 
 
-def _warm_caches(scenario) -> None:
-    """Load every pair's cost maps and wrench functions so planning times compare like for like."""
-    from costmaps.disturbance import ModelOptions
-    from costmaps.map_store import pair_maps
+def run_one(scenario_path: Path, method: str, *, seed: int = 0) -> ComparisonRow:
+    """Plan the scenario with ``method`` in a fresh ``proxplan plan`` process, verify, summarise.
 
-    options = ModelOptions(field_form=scenario.field_form) if scenario.field_form else ModelOptions()
-    seen = set()
-    for a in scenario.vehicles.values():
-        for b in scenario.vehicles.values():
-            key = (id(a.vehicle), id(b.vehicle))
-            if a is b or key in seen:
-                continue
-            seen.add(key)
-            pair_maps(a.vehicle, b.vehicle, options=options).table.casadi_function()
+    A fresh process per run makes every method start from the same seeded OMPL sequence (OMPL's
+    RNG can be seeded once per process only), so ``optimized`` refines exactly the plan that
+    ``sampling`` reports, and the planning time is the whole-process time a user sees.
+    """
+    import subprocess
+    import tempfile
 
-
-def run_one(scenario, method: str, *, seed: int = 0) -> ComparisonRow:
-    """Plan ``scenario`` with ``method``, verify it and summarise it as a row."""
-    from planner.pipeline import InfeasibleError, plan_scenario
+    from planner.plan_io import read_plan
+    from planner.scenario import load_scenario
     from planner.verify import verify_plan
 
+    scenario = load_scenario(scenario_path)
     fraction = float(scenario.limits.authority_fraction)
-    t0 = time.perf_counter()
-    try:
-        plan = plan_scenario(scenario, method=method, seed=seed)
-    except InfeasibleError as err:
-        return ComparisonRow(scenario.name, method, False, None, None, None, fraction, None, None, (),
-                             time.perf_counter() - t0, f"infeasible: {err.vehicle}: {err.constraint}")
-    elapsed = time.perf_counter() - t0
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "proxplan.cli", "plan", str(scenario_path), "--out", out,
+               "--method", method, "--seed", str(seed), "--json", "--no-plot"]  # fmt: skip
+        t0 = time.perf_counter()
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+        elapsed = time.perf_counter() - t0
+        if proc.returncode == 1 and '"feasible": false' in proc.stdout:
+            info = json.loads(proc.stdout)
+            return ComparisonRow(scenario.name, method, False, None, None, None, fraction, None, None, (),
+                                 elapsed, f"infeasible: {info['vehicle']}: {info['constraint']}")  # fmt: skip
+        if proc.returncode not in (0, 1):
+            last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+            raise RuntimeError(f"proxplan plan {scenario_path} --method {method} failed: {last}")
+        plan = read_plan(Path(out) / "plan.json")
     violations = verify_plan(plan, scenario)
     kinds: dict[str, int] = {}
     for v in violations:
@@ -87,7 +89,7 @@ def run_one(scenario, method: str, *, seed: int = 0) -> ComparisonRow:
         min_separation_m=None if m.get("min_separation_m") is None else float(m["min_separation_m"]),
         verify_passed=not violations,
         violations=tuple(f"{k} x{c}" for k, c in sorted(kinds.items())),
-        planning_time_s=float(m.get("planning_time_s", elapsed)),
+        planning_time_s=elapsed,
         note="" if plan.method == method else f"ran as {plan.method}",
     )
 
@@ -95,16 +97,12 @@ def run_one(scenario, method: str, *, seed: int = 0) -> ComparisonRow:
 def compare(scenario_paths: list[Path], methods: tuple[str, ...] = METHOD_ORDER, *, seed: int = 0,
             progress=None) -> list[ComparisonRow]:
     """Every method on every scenario; ``progress(message)`` is called before each run."""
-    from planner.scenario import load_scenario
-
     rows = []
     for path in scenario_paths:
-        scenario = load_scenario(path)
-        _warm_caches(scenario)
         for method in methods:
             if progress is not None:
-                progress(f"{scenario.name}: {method}")
-            rows.append(run_one(scenario, method, seed=seed))
+                progress(f"{Path(path).stem}: {method}")
+            rows.append(run_one(Path(path), method, seed=seed))
     return rows
 
 
@@ -140,7 +138,7 @@ def to_markdown(rows: list[ComparisonRow]) -> str:
         "the worst vehicle's, from the disturbance model evaluated directly (DESIGN.md s. 3), against "
         "the scenario's `limits.authority_fraction`. Min separation: centre distance over non-dock pairs. "
         "Verify: `proxplan verify` checks (model numbers, separation, invalid zone, limits, goals). "
-        "Planning time: in-process with the cost maps already loaded. "
+        "Planning time: whole `proxplan plan` process (one fresh process per plan, same seed). "
         "Regenerate with `python -m planner.compare --out docs`.\n"
     )
     return "\n".join(lines) + "\n" + legend

@@ -25,17 +25,18 @@ SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 BASELINE_ORDER = ("swap_8.yaml", "corridor_stack.yaml", "battery_swap.yaml", "package_handoff.yaml", "crossing_4.yaml")
 
 
-def _scenario(name: str):
+def _scenario_path(name: str) -> Path:
     path = SCENARIOS / name
     if not path.exists():
         pytest.skip(f"scenario {name} is not shipped")
-    return load_scenario(path)
+    return path
 
 
 def _check_optimized_vs_sampling(name: str) -> None:
-    scenario = _scenario(name)
-    optimized = run_one(scenario, "optimized")
-    sampling = run_one(scenario, "sampling")
+    path = _scenario_path(name)
+    scenario = load_scenario(path)
+    optimized = run_one(path, "optimized")
+    sampling = run_one(path, "sampling")
     assert optimized.feasible and sampling.feasible
     assert optimized.verify_passed, optimized.violations
     assert optimized.note == "", optimized.note  # the optimiser ran and was kept (no fall-back)
@@ -47,7 +48,6 @@ def test_optimized_battery_swap_passes_verify_and_is_not_slower_than_sampling():
     _check_optimized_vs_sampling("battery_swap.yaml")
 
 
-@pytest.mark.slow
 def test_optimized_swap_8_passes_verify_and_is_not_slower_than_sampling():  # about 15 s
     _check_optimized_vs_sampling("swap_8.yaml")
 
@@ -57,7 +57,7 @@ def test_no_downwash_baseline_breaks_the_authority_limit_somewhere():
     for name in BASELINE_ORDER:
         if not (SCENARIOS / name).exists():
             continue
-        row = run_one(load_scenario(SCENARIOS / name), "no-downwash")
+        row = run_one(SCENARIOS / name, "no-downwash")
         seen.append((name, row.violations))
         if row.feasible and any(v.startswith("authority") for v in row.violations):
             assert row.max_authority_usage > row.authority_fraction
@@ -70,11 +70,10 @@ def test_ellipsoid_baseline_is_violated_or_slower_than_optimized_somewhere():
     for name in BASELINE_ORDER:
         if not (SCENARIOS / name).exists():
             continue
-        scenario = load_scenario(SCENARIOS / name)
-        ell = run_one(scenario, "ellipsoid")
+        ell = run_one(SCENARIOS / name, "ellipsoid")
         if ell.feasible and not ell.verify_passed:
             return
-        opt = run_one(scenario, "optimized")
+        opt = run_one(SCENARIOS / name, "optimized")
         if opt.feasible and opt.verify_passed and (not ell.feasible or ell.makespan_s > opt.makespan_s):
             return
         seen.append((name, ell.violations, ell.makespan_s, opt.makespan_s))
