@@ -292,7 +292,7 @@ def _refine(scenario: Scenario, plan: PlanResult, *, seed: int, progress) -> Pla
         plan.method = "sampling (optimizer fell back)"
         return plan
     refined.method = "optimized"
-    refined.notes = list(plan.notes) + list(refined.notes or [])
+    refined.notes = list(dict.fromkeys(list(plan.notes) + list(refined.notes or [])))  # keep order, once each
     for key in ("priority_order", "sampling_attempts", "seed"):
         refined.metrics.setdefault(key, plan.metrics.get(key))
     refined.metrics["optimizer_solve_time_s"] = getattr(result, "solve_time_s", None)
