@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import gzip
 import io
-import os
-import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
@@ -33,6 +31,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from costmaps.errors import UserError
+from costmaps.user_files import atomic_write_bytes
 
 CANONICAL_COLUMNS = (
     "t_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "ax_mps2", "ay_mps2", "az_mps2",
@@ -215,11 +214,7 @@ def write_canonical_csv(log: VehicleLog, path: str | Path) -> Path:
     payload = buf.getvalue().encode()
     if path.suffix == ".gz":
         payload = gzip.compress(payload, mtime=0)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "wb") as fh:
-        fh.write(payload)
-    os.replace(tmp, path)
-    return path
+    return atomic_write_bytes(path, payload)
 
 
 def check_log(

@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 from pathlib import Path
+from costmaps.user_files import atomic_write_text
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -37,12 +36,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
 
 
 def model_yaml_dict(result) -> dict:
@@ -71,7 +64,7 @@ def save_model(result, path: str | Path) -> Path:
         "# written by proxplan identify: calibrated vehicles and kept effects.\n"
         "# Use with: proxplan costmap --vehicle-file THIS_FILE ..., or 'vehicle_file: THIS_FILE' in a scenario.\n"
     )
-    _atomic_write(path, header + yaml.safe_dump(model_yaml_dict(result), sort_keys=False))
+    atomic_write_text(path, header + yaml.safe_dump(model_yaml_dict(result), sort_keys=False))
     return path
 
 
@@ -98,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     doc["report"] = str(report)
     if args.save_model:
         doc["saved_model"] = str(save_model(result, args.save_model))
-    _atomic_write(out / "identify.json", json.dumps(doc, indent=2, default=float))
+    atomic_write_text(out / "identify.json", json.dumps(doc, indent=2, default=float))
     if args.json:
         print(json.dumps(doc, default=float))
     else:

@@ -9,8 +9,6 @@ Files written into DIR (each atomically, temp file + rename):
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -18,20 +16,11 @@ import numpy as np
 from costmaps.identify import IdentifyResult
 from costmaps.identify_data import predict
 from costmaps.residuals import sample_features
+from costmaps.user_files import atomic_write_text, save_figure
 
 
 def _save(fig, path: Path) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".png")
-    os.close(fd)
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
-    os.replace(tmp, path)
-
-
-def _write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
+    save_figure(fig, path, dpi=110, bbox_inches="tight")
 
 
 def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
@@ -179,5 +168,5 @@ def write_report(result: IdentifyResult, out_dir: str | Path, *, manifest: str =
     out.mkdir(parents=True, exist_ok=True)
     plots = write_plots(result, out)
     path = out / "report.md"
-    _write_text(path, markdown(result, manifest=manifest, plots=plots))
+    atomic_write_text(path, markdown(result, manifest=manifest, plots=plots))
     return path

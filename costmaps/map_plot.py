@@ -7,13 +7,12 @@ flight; horizontal separation r (m) on the horizontal axis. The invalid zone of 
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from costmaps.cutoff import CutoffMap
+from costmaps.user_files import save_figure
 
 
 def plot_cutoff(cutoff: CutoffMap, path: str | Path, *, title: str | None = None) -> Path:
@@ -66,15 +65,4 @@ def plot_cutoff(cutoff: CutoffMap, path: str | Path, *, title: str | None = None
     fig.colorbar(mesh, ax=ax_map, label="authority usage (max over azimuth), -")
     ax_map.set_title("authority usage in (r, dz); white: stored levels")
     fig.suptitle(title or f"{cutoff.source_name} (source, above) -> {cutoff.target_name} (target, below)")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=90, format="png")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    finally:
-        plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=90)

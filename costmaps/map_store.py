@@ -26,8 +26,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -46,6 +44,7 @@ from costmaps.cutoff import (
 from costmaps.disturbance import DEFAULT_OPTIONS, ModelOptions
 from costmaps.errors import UserError
 from costmaps.vehicles import Vehicle
+from costmaps.user_files import atomic_output
 from costmaps.wrench_table import (
     DEFAULT_RESOLUTION,
     LateralScale,
@@ -157,16 +156,9 @@ def build_pair_maps(
 
 
 def _atomic_write_npz(path: Path, arrays: dict) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".npz", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
+    with atomic_output(path, suffix=".npz") as tmp:
+        with open(tmp, "wb") as handle:
             np.savez_compressed(handle, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def save_pair_maps(maps: PairMaps, path: str | Path) -> Path:

@@ -81,9 +81,9 @@ def run(args: argparse.Namespace) -> int:
         manifest = write_flight_logs(result, out, flight_name=flight, split=args.split, vehicles_file=vfile)
     summary = summary_dict(result, plan_path=str(plan_path), plot_path=str(plot),
                            manifest_path=None if manifest is None else str(manifest))
-    from flightsim.logs import _atomic_write_bytes
+    from costmaps.user_files import atomic_write_bytes
 
-    _atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=1).encode())
+    atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=1).encode())
     if args.json:
         print(json.dumps(summary))
         return 0

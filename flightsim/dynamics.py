@@ -112,7 +112,7 @@ def state_derivative(c: VehicleConstants, s, cmd_rotor_speeds, ext_force_world_N
                      wind_mps=(0.0, 0.0, 0.0)):
     """d/dt of the 17-entry state ``s`` (RotorPy's ``_s_dot_fn``) with rotor speed commands (4)
     rad/s (already clipped), external force (3) N, world frame, and torque (3) N m, body frame."""
-    x, v, q, w, om = s[0:3], s[3:6], s[6:10], s[10:13], s[13:17]
+    v, q, w, om = s[3:6], s[6:10], s[10:13], s[13:17]  # position s[0:3] does not enter
     rot = rotation(q)
     rotor_accel = [(cmd_rotor_speeds[i] - om[i]) / c.tau_m_s for i in range(4)]
     qx, qy, qz, qw = q

@@ -32,14 +32,13 @@ from __future__ import annotations
 
 import gzip
 import io
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from costmaps.errors import UserError
+from costmaps.user_files import atomic_write_bytes
 
 NEURAL_SWARM_HEADER = (
     "# time[ms],x[m],y[m],z[m],vx[m/s],vy[m/s],vz[m/s],ax[m/s^2],ay[m/s^2],az[m/s^2],qx,qy,qz,qw,"
@@ -53,19 +52,6 @@ TRUTH_HEADER = (
 BATTERY_VOLTAGE_V = 4.0
 GRAVITY_MPS2 = 9.81
 SPLITS = ("train", "test")
-
-
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _csv_gz(header: str, table: np.ndarray) -> bytes:
@@ -131,8 +117,8 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
         table = neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln,
                                    logged_thrust=logged_thrust)
         rel = f"{flight_name}/{name}.csv.gz"
-        _atomic_write_bytes(out / rel, _csv_gz(NEURAL_SWARM_HEADER, table))
-        _atomic_write_bytes(out / f"{flight_name}/{name}_truth.csv.gz", _csv_gz(TRUTH_HEADER, _truth_table(rec)))
+        atomic_write_bytes(out / rel, _csv_gz(NEURAL_SWARM_HEADER, table))
+        atomic_write_bytes(out / f"{flight_name}/{name}_truth.csv.gz", _csv_gz(TRUTH_HEADER, _truth_table(rec)))
         entry_vehicles[name] = {"type": rec.type_name, "log": rel, "ground_z_m": float(opts.ground_z_m)}
     manifest = out / "manifest.yaml"
     if manifest.exists():
@@ -146,9 +132,9 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
     flights = [f for f in doc.get("flights", []) if f.get("name") != flight_name]
     flights.append({"name": flight_name, "split": split, "vehicles": entry_vehicles})
     # the truth applied stays out of the manifest (effects are undeclared to identification)
-    _atomic_write_bytes(out / flight_name / "truth.yaml", yaml.safe_dump(result.truth.to_dict(), sort_keys=False).encode())
+    atomic_write_bytes(out / flight_name / "truth.yaml", yaml.safe_dump(result.truth.to_dict(), sort_keys=False).encode())
     doc["flights"] = flights
-    _atomic_write_bytes(manifest, yaml.safe_dump(doc, sort_keys=False).encode())
+    atomic_write_bytes(manifest, yaml.safe_dump(doc, sort_keys=False).encode())
     return manifest
 
 

@@ -11,14 +11,13 @@ included: 1 = a motor at its limit); the time spent below another vehicle inside
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from costmaps.authority import authority_usage
+from costmaps.user_files import save_figure
 
 
 @dataclass(frozen=True)
@@ -146,14 +145,4 @@ def plot_errors(result, path: str | Path) -> Path:
     ax2.legend(fontsize=8)
     fig.suptitle(f"{result.scenario}: closed-loop flight ({len(result.records)} vehicles)")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=110)
-        os.replace(tmp, path)
-    finally:
-        plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return save_figure(fig, path, dpi=110)

@@ -67,7 +67,8 @@ def _plan(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from planner.pipeline import InfeasibleError, plan_scenario
-    from planner.plan_io import atomic_write_text, write_plan
+    from costmaps.user_files import atomic_write_text
+    from planner.plan_io import write_plan
     from planner.scenario import load_scenario
     from planner.summary import plan_summary
     from planner.verify import verify_plan

@@ -164,22 +164,19 @@ def to_png(rows: list[ComparisonRow], path: Path) -> Path:
         table[i, 6].set_facecolor(colour)
     ax.set_title("proxplan: every method on every shipped scenario", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=130, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    from costmaps.user_files import save_figure
+
+    return save_figure(fig, path, dpi=130, bbox_inches="tight")
 
 
 def write_outputs(rows: list[ComparisonRow], out_dir: Path) -> dict[str, Path]:
     """Write comparison.md / .png / .json into ``out_dir`` (each atomically)."""
-    from planner.plan_io import atomic_write_text
+    from costmaps.user_files import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
     md = atomic_write_text(out_dir / "comparison.md", "# Planner comparison\n\n" + to_markdown(rows))
     js = atomic_write_text(out_dir / "comparison.json", json.dumps([asdict(r) for r in rows], indent=1))
-    tmp = out_dir / ".comparison.tmp.png"
-    to_png(rows, tmp)
-    png = out_dir / "comparison.png"
-    tmp.replace(png)
+    png = to_png(rows, out_dir / "comparison.png")
     return {"markdown": md, "png": png, "json": js}
 
 

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from costmaps.errors import UserError
-from costmaps.user_files import read_json
+from costmaps.user_files import atomic_write_text, read_json
 
 PLAN_FORMAT_VERSION = 1
 PLAN_FILENAME = "plan.json"
@@ -113,22 +111,6 @@ def plan_to_dict(plan: PlanResult) -> dict:
             "scenario_spec": plan.scenario_spec,
         }
     )
-
-
-def atomic_write_text(path: str | Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
 
 
 def write_plan(plan: PlanResult, out_dir: str | Path) -> Path:

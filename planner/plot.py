@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 
 from planner.plan_io import PlanResult
+from costmaps.user_files import save_figure
 
 
 def plot_plan(plan: PlanResult, scenario, path: str | Path, *, usage: dict | None = None) -> Path:
@@ -53,9 +53,4 @@ def plot_plan(plan: PlanResult, scenario, path: str | Path, *, usage: dict | Non
     ax_u.legend(fontsize=8)
     fig.suptitle(f"{plan.scenario}: {plan.method}, makespan {plan.metrics.get('makespan_s', float('nan')):.2f} s")
     fig.subplots_adjust(left=0.05, right=0.98, bottom=0.1, top=0.87, wspace=0.25)
-    path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=80)
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    return save_figure(fig, path, dpi=80)

@@ -113,7 +113,7 @@ class TimedPath:
 def ruckig_segment(p0_m, p1_m, limits: KinematicLimits, *, minimum_duration_s: float | None = None):
     """One rest-to-rest, phase-synchronised (straight-line) Ruckig segment from ``p0_m`` to
     ``p1_m`` (3,), m, taking at least ``minimum_duration_s``; a ``ruckig.Trajectory``."""
-    from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
+    from ruckig import InputParameter, Result, Synchronization, Trajectory
 
     p0 = np.asarray(p0_m, dtype=float)
     p1 = np.asarray(p1_m, dtype=float)

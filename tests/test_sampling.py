@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from costmaps.authority import authority_usage
 from costmaps.builtin_vehicles import BUILTIN_VEHICLES
