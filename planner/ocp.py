@@ -27,109 +27,24 @@ without a non-smooth max.
 Objective: T + w_smooth * integral |j / j_max|^2 dt + w_exposure * integral of the summed squared
 normalised motor changes (disturbance exposure).
 
-The table's ``casadi.Function.bspline`` has no SX form, so the NLP is solved as MX
-(``expand=False``); the problem is built from vectorised matrix expressions and ``Function.map``
-so that this costs little.
+The table's ``casadi.Function.bspline`` has no SX form. By default the table is therefore
+linearised at the current offsets (value and Jacobian from its own CasADi function), the NLP is
+SX-expanded and solved, and the linearisation is repeated a few times (sequential linearisation);
+the exact table (MX, ``expand=False``) remains available. The final plan is always checked against
+the model directly by :mod:`planner.verify`. Problem data and results: :mod:`planner.ocp_problem`.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Callable, Mapping
+from typing import Callable
 
 import numpy as np
 
 from costmaps.authority import mixer_matrix
 from costmaps.disturbance import VALIDITY_FACTOR_L
 from costmaps.vehicles import Vehicle
-
-
-@dataclass(frozen=True)
-class OcpAgent:
-    """One vehicle of the problem. Arrays are world frame; warm start on the n+1 grid nodes."""
-
-    name: str
-    vehicle: Vehicle
-    moving: bool
-    start_m: np.ndarray  # (3,)
-    goal_m: np.ndarray | None = None  # (3,) absolute goal; None with dock_with or when hovering
-    dock_with: str | None = None  # partner whose final position + dock_offset_m is the goal
-    dock_offset_m: np.ndarray | None = None  # (3,), m
-    dock_reach_m: float = 0.0  # radius around the dock point of the axis-bound final approach, m
-    max_speed_mps: float = 1.0
-    max_accel_mps2: float = 2.0
-    max_jerk_mps3: float = 5.0
-    body_radius_m: float = 0.1  # disc holding frame and propellers (arm + propeller radius), m
-    warm_position_m: np.ndarray | None = None  # (n+1, 3)
-    warm_velocity_mps: np.ndarray | None = None  # (n+1, 3)
-    warm_acceleration_mps2: np.ndarray | None = None  # (n+1, 3)
-
-
-@dataclass(frozen=True)
-class OcpWeights:
-    """Objective weights: time in s, the others dimensionless per second of flight."""
-
-    time: float = 1.0
-    smoothness: float = 0.02  # on |j / j_max|^2
-    exposure: float = 0.5  # on sum over motors of (delta f / headroom)^2
-
-
-@dataclass(frozen=True)
-class OcpProblem:
-    """Everything the OCP needs; ``wrench_functions[(source_name, target_name)]`` is a
-    casadi.Function offset_m (3x1, p_target - p_source) -> (F_z N, tau_x N m, tau_y N m) per ordered
-    pair of vehicle names (pairs without an entry have no interaction)."""
-
-    agents: tuple[OcpAgent, ...]
-    n_intervals: int
-    warm_duration_s: float  # T of the warm start, s
-    max_duration_s: float  # upper bound on T, s
-    workspace_min_m: np.ndarray  # (3,)
-    workspace_max_m: np.ndarray  # (3,)
-    obstacles: tuple[tuple[np.ndarray, np.ndarray], ...] = ()  # ((3,) min_m, (3,) max_m) boxes
-    min_separation_m: float = 0.3
-    authority_fraction: float = 0.5
-    wrench_functions: Mapping[tuple[str, str], object] = field(default_factory=dict)
-    weights: OcpWeights = OcpWeights()
-    invalid_zone_keep_out: bool = True  # False for invalid_zone_rule "model"
-    kinematic_margin: float = 0.97  # node limits are this fraction of the true ones
-    dock_speed_factor: float = 0.5  # speed limit on the dock approach, fraction of max speed
-    authority_margin: float = 0.9  # check-point bound is this fraction of authority_fraction
-    obstacle_margin_m: float = 0.05  # clearance to boxes beyond the body radius, m
-    chord_margin_m: float = 0.03  # extra clearance for the path between check points, m
-    interaction_radius_m: float = 2.0  # horizontal range beyond which a pair is ignored, m
-    # optional per ordered pair: dz_m (K,) -> lateral half-width (K,) m beyond which the pair's
-    # wrench table is zero; authority terms are then kept only within it + extent_margin_m
-    interaction_extent: Mapping[tuple[str, str], Callable] = field(default_factory=dict)
-    extent_margin_m: float = 0.5
-    max_iterations: int = 300
-    max_cpu_time_s: float = 40.0  # IPOPT CPU limit per solve; also the wall budget of all rounds, s
-    hessian: str = "exact"  # IPOPT hessian_approximation: "exact" or "limited-memory"
-    expand: bool = False  # SX-expand the NLP (only when every wrench function has an SX form)
-    linear_solver: str = "mumps"  # IPOPT linear solver ("mumps" or "spral" in the PyPI casadi)
-    fixed_duration_s: float | None = None  # solve for this T instead of a free one, s
-    linearize: bool = True  # sequential linearisation of the wrench table (SX-expanded NLP)
-    max_linearizations: int = 4  # solves of the sequential linearisation
-    linearization_tol: float = 0.01  # stop when the usage error of the linear model is below this
-    proximal_weight: float = 0.05  # weight on |O - O0|^2 (m^-2) keeping steps near the linearisation
-
-
-@dataclass(frozen=True)
-class OcpSolution:
-    """Solver result. Trajectories map vehicle name to arrays on the n+1 nodes (jerk on n intervals)."""
-
-    success: bool
-    status: str  # IPOPT return status
-    duration_s: float  # optimised T, s
-    position_m: dict[str, np.ndarray]  # (n+1, 3)
-    velocity_mps: dict[str, np.ndarray]  # (n+1, 3)
-    acceleration_mps2: dict[str, np.ndarray]  # (n+1, 3)
-    jerk_mps3: dict[str, np.ndarray]  # (n, 3)
-    iterations: int
-    solve_time_s: float  # wall time of IPOPT, s
-    build_time_s: float  # wall time to build the problem, s
-    objective: float
+from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
 
 
 def normalised_motor_map(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -23,7 +23,8 @@ from typing import Callable
 
 import numpy as np
 
-from planner.ocp import OcpAgent, OcpProblem, OcpSolution, OcpWeights, build_and_solve, sample_solution
+from planner.ocp import build_and_solve, sample_solution
+from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights
 
 WrenchProvider = Callable  # (source Vehicle, target Vehicle, scenario) -> casadi.Function offset_m -> (F_z, tau_x, tau_y)
 

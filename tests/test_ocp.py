@@ -14,14 +14,8 @@ casadi = pytest.importorskip("casadi")
 from costmaps.authority import authority_usage  # noqa: E402
 from costmaps.builtin_vehicles import BUILTIN_VEHICLES  # noqa: E402
 from costmaps.disturbance import disturbance_wrench  # noqa: E402
-from planner.ocp import (  # noqa: E402
-    OcpAgent,
-    OcpProblem,
-    OcpSolution,
-    build_and_solve,
-    normalised_motor_map,
-    sample_solution,
-)
+from planner.ocp import build_and_solve, normalised_motor_map, sample_solution  # noqa: E402
+from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution  # noqa: E402
 
 LARGE = BUILTIN_VEHICLES["large-quad"]
 SMALL = BUILTIN_VEHICLES["small-quad"]
