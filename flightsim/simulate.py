@@ -48,6 +48,8 @@ class SimulationOptions:
     velocity_noise_std_mps: float = 0.005  # noise of the logged velocities, m/s
     ground_z_m: float = 0.0  # ground plane height, world frame, m
     seed: int = 0
+    position_integral_rate_ps: float = 0.0  # integral action k_i / k_p per axis, 1/s (0 = RotorPy's PD)
+    position_integral_limit_ms: float = 0.2  # anti-windup bound of the integrated position error, m s
 
 
 @dataclass(frozen=True)
@@ -142,6 +144,7 @@ def simulate_plan(
     imu_noise: bool = True,
     settle_s: float = 1.0,
     wrench_horizon_steps: int = 10,
+    position_integral_rate_ps: float = 0.0,
     options: SimulationOptions | None = None,
     progress: bool = False,
 ) -> SimulationResult:
@@ -149,6 +152,12 @@ def simulate_plan(
 
     ``truth`` (or just ``truth_effects``) adds effects beyond the model; ``vehicles`` maps custom
     type names to vehicles. ``options``, when given, overrides the keyword numbers.
+
+    Controller: RotorPy's SE3Control; ``position_integral_rate_ps`` > 0 adds integral action on the
+    position error, as the seed's cascaded PID (S0 IV-D). With diagonal gains,
+    k_p e + k_i int(e) dt = k_p (e + (k_i / k_p) int(e) dt), so the integral enters as a shift of the
+    position reference fed to SE3Control; the integrated error is clipped to
+    +-``position_integral_limit_ms`` (anti-windup).
     """
     if isinstance(plan, (str, Path)):
         plan = read_plan_file(plan)
@@ -160,6 +169,7 @@ def simulate_plan(
         options = SimulationOptions(
             physics_dt_s=physics_dt_s, log_dt_s=log_dt_s, settle_s=settle_s,
             wrench_horizon_steps=wrench_horizon_steps, imu_noise=imu_noise, seed=seed,
+            position_integral_rate_ps=position_integral_rate_ps,
         )
     dt = options.physics_dt_s
     log_every = int(round(options.log_dt_s / dt))
@@ -216,6 +226,9 @@ def simulate_plan(
     buf_t = np.zeros((n_veh, horizon, 3))
     tau = dt * np.arange(horizon)
     ref_all = np.concatenate([ref_x, ref_v, ref_a], axis=2)  # (n_steps, V, 9)
+    integral_ms = np.zeros((n_veh, 3))  # integrated position error, m s
+    ki_rate = float(options.position_integral_rate_ps)
+    windup = float(options.position_integral_limit_ms)
     try:
         for k in range(n_steps):
             j = k % horizon
@@ -223,6 +236,10 @@ def simulate_plan(
                 _fill_wrench(buf_f, buf_t, S[:, 0:3], S[:, 3:6], acc_est, tau, vehs, effects, model_options,
                              options.ground_z_m)
             stepper.ref[:] = ref_all[k]
+            if ki_rate > 0.0:
+                integral_ms += (S[:, 0:3] - ref_all[k][:, 0:3]) * dt
+                np.clip(integral_ms, -windup, windup, out=integral_ms)
+                stepper.ref[:, 0:3] -= ki_rate * integral_ms
             stepper.ext_force_N[:] = buf_f[:, j]
             stepper.ext_torque_Nm[:] = buf_t[:, j]
             stepper.step()

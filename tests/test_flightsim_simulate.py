@@ -165,21 +165,7 @@ def _fly_planned_battery_swap(tmp_path, method: str) -> float:
     return float(np.abs(rec.position_m[:, 2] - rec.ref_position_m[:, 2]).max())
 
 
-@pytest.mark.parametrize(
-    "method",
-    [
-        pytest.param(
-            "optimized",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="known shortfall: the optimised plan docks sooner and "
-                "its carrier error (4.13 cm) is 1 % above no-downwash's (4.08 cm); both maxima are the "
-                "steady docked sag (PD controller), which no plan changes",
-            ),
-        ),
-        "sampling",
-    ],
-)
+@pytest.mark.parametrize("method", ["optimized", "sampling"])
 def test_planned_battery_swap_disturbs_the_carrier_less_than_no_downwash_baseline(tmp_path, method):
     """The downwash-aware plans are flown with a smaller max altitude error of the docking vehicle's
     partner than the no-downwash baseline plan of the same scenario (each planned in a fresh
@@ -187,6 +173,18 @@ def test_planned_battery_swap_disturbs_the_carrier_less_than_no_downwash_baselin
     planned = _fly_planned_battery_swap(tmp_path, method)
     baseline = _fly_planned_battery_swap(tmp_path, "no-downwash")
     assert planned < baseline, (planned, baseline)
+
+
+def test_integral_action_removes_the_steady_sag_below_another_vehicle():
+    """With the seed's integral action (S0 IV-D) the steady error under a constant downwash decays;
+    RotorPy's PD law keeps F / (m k_p)."""
+    plan = hover_stack_plan(top_type="small-quad", bottom_type="large-quad", separation_m=1.5, duration_s=6.0)
+    errors = {}
+    for rate in (0.0, 1.0):
+        res = simulate_plan(plan, imu_noise=False, position_integral_rate_ps=rate)
+        rec = res.records["bottom"]
+        errors[rate] = abs(float(rec.position_m[-1, 2] - rec.ref_position_m[-1, 2]))
+    assert errors[1.0] < 0.2 * errors[0.0], errors
 
 
 def test_grouped_wrench_equals_total_wrench_with_every_source():
