@@ -32,6 +32,11 @@ def register(subparsers) -> None:
     p.add_argument("--log-dt", type=float, default=0.01, metavar="S", help="log period, s (default 0.01)")
     p.add_argument("--settle", type=float, default=1.0, metavar="S", help="hover after the plan ends, s (default 1)")
     p.add_argument("--no-noise", action="store_true", help="noise-free sensors and logs")
+    p.add_argument(
+        "--integral-rate", type=float, default=0.0, metavar="PER_S",
+        help="add integral action on the position error, k_i / k_p in 1/s, as the seed's PID "
+             "(default 0: RotorPy's PD law, which keeps a steady error under a steady disturbance)",
+    )  # fmt: skip
     p.set_defaults(func=run)
 
 
@@ -53,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
     for name, value in (("--physics-dt", args.physics_dt), ("--log-dt", args.log_dt)):
         if not value > 0:
             raise UserError(f"{name}: expected a positive number of seconds, got {value}")
+    if not args.integral_rate >= 0:
+        raise UserError(f"--integral-rate: expected a number >= 0 (1/s), got {args.integral_rate}")
     if args.settle < 0:
         raise UserError(f"--settle: expected a non-negative number of seconds, got {args.settle}")
     plan = read_plan_file(plan_path)
@@ -64,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         custom = load_vehicle_file(args.vehicles)
     options = SimulationOptions(
         physics_dt_s=args.physics_dt, log_dt_s=args.log_dt, settle_s=args.settle,
-        imu_noise=not args.no_noise, seed=args.seed,
+        imu_noise=not args.no_noise, seed=args.seed, position_integral_rate_ps=args.integral_rate,
     )
     result = simulate_plan(plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty())
     out = Path(args.out)

@@ -135,6 +135,8 @@ def test_simulate_cli_json_png_logs_and_user_errors(tmp_path, capsys):
     assert "plan not found" in capsys.readouterr().err
     assert main(["simulate", str(plan_path), "--out", str(out), "--physics-dt", "0.002", "--log-dt", "0.003"]) == 2
     assert "multiple" in capsys.readouterr().err
+    assert main(["simulate", str(plan_path), "--out", str(out), "--integral-rate", "-1"]) == 2
+    assert "--integral-rate: expected a number >= 0" in capsys.readouterr().err
 
 
 def test_planner_plan_result_is_accepted_like_a_path(tmp_path):
