@@ -93,6 +93,19 @@ def _truth_table(record) -> np.ndarray:
                             record.model_force_N, record.model_torque_Nm])
 
 
+def _noisy_tables(result, *, seed: int | None, logged_thrust: str) -> dict[str, np.ndarray]:
+    """Neural-Swarm tables of every vehicle with mocap/velocity noise drawn from one seeded stream."""
+    opts = result.options
+    rng = np.random.default_rng(opts.seed + 7919 if seed is None else seed)
+    mocap = opts.mocap_noise_std_m if opts.imu_noise else 0.0
+    veln = opts.velocity_noise_std_mps if opts.imu_noise else 0.0
+    return {
+        name: neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln,
+                                 logged_thrust=logged_thrust)
+        for name, rec in result.records.items()
+    }
+
+
 def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: str = "train",
                       seed: int | None = None, vehicles_file: str | None = None,
                       logged_thrust: str = "actual") -> Path:
@@ -109,13 +122,9 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
         raise UserError(f"flight_name: expected a plain name (no '/'), got {flight_name!r}")
     out = Path(out_dir)
     opts = result.options
-    rng = np.random.default_rng(opts.seed + 7919 if seed is None else seed)
     entry_vehicles = {}
-    for name, rec in result.records.items():
-        mocap = opts.mocap_noise_std_m if opts.imu_noise else 0.0
-        veln = opts.velocity_noise_std_mps if opts.imu_noise else 0.0
-        table = neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln,
-                                   logged_thrust=logged_thrust)
+    for name, table in _noisy_tables(result, seed=seed, logged_thrust=logged_thrust).items():
+        rec = result.records[name]
         rel = f"{flight_name}/{name}.csv.gz"
         atomic_write_bytes(out / rel, _csv_gz(NEURAL_SWARM_HEADER, table))
         atomic_write_bytes(out / f"{flight_name}/{name}_truth.csv.gz", _csv_gz(TRUTH_HEADER, _truth_table(rec)))
@@ -143,14 +152,8 @@ def vehicle_logs(result, *, logged_thrust: str = "actual", seed: int | None = No
     (same noise for the same ``seed``; world-frame accelerometer, body gyro, (S0-14) thrusts)."""
     from costmaps.flightlog import VehicleLog
 
-    opts = result.options
-    rng = np.random.default_rng(opts.seed + 7919 if seed is None else seed)
     out = {}
-    for name, rec in result.records.items():
-        mocap = opts.mocap_noise_std_m if opts.imu_noise else 0.0
-        veln = opts.velocity_noise_std_mps if opts.imu_noise else 0.0
-        tab = neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln,
-                                 logged_thrust=logged_thrust)
+    for name, tab in _noisy_tables(result, seed=seed, logged_thrust=logged_thrust).items():
         out[name] = VehicleLog(
             t_s=tab[:, 0] * 1e-6, position_m=tab[:, 1:4], velocity_mps=tab[:, 4:7], accel_mps2=tab[:, 7:10],
             quat_xyzw=tab[:, 10:14], motor_thrust_N=tab[:, 14:18], gyro_radps=tab[:, 27:30],
