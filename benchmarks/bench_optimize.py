@@ -40,8 +40,8 @@ def in_process(scenario_path: Path, *, exact: bool) -> dict:
     from planner import ocp
     from planner.optimize import build_problem, moving_end_s, solution_to_plan
     from planner.pipeline import plan_scenario
-    from planner.scenario import load_scenario
-    from planner.verify import verify_plan
+    from planfile.scenario import load_scenario
+    from verify.checks import verify_plan
 
     scenario = load_scenario(scenario_path)
     initial = plan_scenario(scenario, method="sampling", seed=0)

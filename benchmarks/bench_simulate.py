@@ -2,7 +2,7 @@
 
 Prints real-time factors (simulated s per wall-clock s) of
   * baseline: RotorPy's own classes stepped per vehicle (SE3Control.update + Multirotor.step via
-    scipy solve_ivp, the external wrench from costmaps.effects.total_wrench at every step),
+    scipy solve_ivp, the external wrench from physics.effects.total_wrench at every step),
   * flightsim.simulate_plan with the wrench evaluated every step (horizon 1) and batched over
     10 steps at predicted positions (the default), with no truth effects and with all of them,
 and their ratios to the baseline measured in the same run; then 8 vehicles (4 swapping pairs). Optionally (``--plans``) flies the
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.effects import EffectInputs, SourceSample, total_wrench
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.effects import EffectInputs, SourceSample, total_wrench
 from flightsim.scenarios_synthetic import swap_plan
 from flightsim.simulate import simulate_plan
 from flightsim.truth import load_truth_file

@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 
-from costmaps.authority import authority_usage
-from costmaps.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
-from costmaps.disturbance import disturbance_wrench
+from physics.authority import authority_usage
+from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
+from physics.disturbance import disturbance_wrench
 
 
 def main() -> None:

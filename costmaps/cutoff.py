@@ -4,7 +4,7 @@ Frames and signs: world z up; the target sits at p_target - p_source = (r cos ph
 dz > 0 when the target is below the source. Both vehicles hover level with aligned axes.
 
 For every vertical separation dz on a grid the target's authority usage (DESIGN.md section 3, from
-:func:`costmaps.disturbance.disturbance_wrench` and :func:`costmaps.authority.authority_usage`) is
+:func:`physics.disturbance.disturbance_wrench` and :func:`physics.authority.authority_usage`) is
 evaluated on a radial grid and maximised over the azimuth phi in [0, pi/4] (the X-frame target and
 the axisymmetric jet make every other azimuth a mirror image of one in that sector). The map keeps
 this usage grid U(r, dz), so ``r_cut_m`` answers any threshold ``level``: r_cut is the *outermost*
@@ -36,9 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from costmaps.authority import authority_usage
-from costmaps.disturbance import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
-from costmaps.vehicles import Vehicle
+from physics.authority import authority_usage
+from physics.disturbance import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
+from physics.vehicles import Vehicle
 from costmaps.wrench_table import USAGE_FLOOR, LateralScale, default_dz_max_m, target_half_extent_m
 
 INVALID_RULES = ("conservative", "model", "forbid")

@@ -1,12 +1,12 @@
 """3-D wrench table: the disturbance model sampled on an (x, y, dz) grid, with a smooth interpolant.
 
-Frames: world z up; both vehicles hover level with aligned axes (as in :mod:`costmaps.disturbance`).
+Frames: world z up; both vehicles hover level with aligned axes (as in :mod:`physics.disturbance`).
 The table holds the wrench on ``target`` in the downwash of a hovering ``source`` at offsets
 ``p_target - p_source = (x, y, -dz)``; dz > 0 means the target is below. In the axial-flow model of
 (S0-3..S0-8) the force is vertical and the yaw torque is zero, so three channels are stored:
 F_z (N), tau_x (N m), tau_y (N m).
 
-Numbers come from :func:`costmaps.disturbance.disturbance_wrench` (one physics implementation). The
+Numbers come from :func:`physics.disturbance.disturbance_wrench` (one physics implementation). The
 model is evaluated on one quadrant (x >= 0, y >= 0) and mirrored: the source field is axisymmetric
 and the X-frame target is symmetric under x -> -x and y -> -y, under which
 F_z(-x, y) = F_z(x, y), tau_x(-x, y) = tau_x(x, y), tau_y(-x, y) = -tau_y(x, y) and
@@ -42,9 +42,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from costmaps.authority import authority_usage
-from costmaps.disturbance import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
-from costmaps.vehicles import Vehicle
+from physics.authority import authority_usage
+from physics.disturbance import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
+from physics.vehicles import Vehicle
 
 if TYPE_CHECKING:  # pragma: no cover
     import casadi

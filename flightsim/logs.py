@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from costmaps.errors import UserError
-from costmaps.user_files import atomic_write_bytes
+from fileio.errors import UserError
+from fileio.files import atomic_write_bytes
 
 NEURAL_SWARM_HEADER = (
     "# time[ms],x[m],y[m],z[m],vx[m/s],vy[m/s],vz[m/s],ax[m/s^2],ay[m/s^2],az[m/s^2],qx,qy,qz,qw,"
@@ -148,9 +148,9 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
 
 
 def vehicle_logs(result, *, logged_thrust: str = "actual", seed: int | None = None) -> dict:
-    """The logs :func:`write_flight_logs` would write, in memory: ``{name: costmaps.flightlog.VehicleLog}``
+    """The logs :func:`write_flight_logs` would write, in memory: ``{name: identify.flightlog.VehicleLog}``
     (same noise for the same ``seed``; world-frame accelerometer, body gyro, (S0-14) thrusts)."""
-    from costmaps.flightlog import VehicleLog
+    from identify.flightlog import VehicleLog
 
     out = {}
     for name, tab in _noisy_tables(result, seed=seed, logged_thrust=logged_thrust).items():

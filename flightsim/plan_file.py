@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from costmaps.errors import UserError
+from fileio.errors import UserError
 
 
 @dataclass(frozen=True)

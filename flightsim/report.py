@@ -3,7 +3,7 @@
 Per vehicle, over the whole record (the plan plus the settle time after it):
 position error |p - p_ref| (max, RMS), altitude error |z - z_ref| (max, RMS), m; time with any
 motor command clipped (physics-step resolution), s; the largest authority usage (DESIGN.md
-section 3, costmaps.authority) of the disturbance wrench actually applied; the largest motor usage
+section 3, physics.authority) of the disturbance wrench actually applied; the largest motor usage
 actually commanded (thrust change from hover over the headroom in that direction, tracking
 included: 1 = a motor at its limit); the time spent below another vehicle inside its invalid zone
 (dz <= 3 L, S0 II-A), where the applied model value is an extrapolation.
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from costmaps.authority import authority_usage
-from costmaps.user_files import save_figure
+from physics.authority import authority_usage
+from fileio.files import save_figure
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,7 @@ def invalid_zone_mask(result, name: str) -> np.ndarray:
     """(M,) True where ``name`` is below another vehicle inside its invalid zone: 0 < dz <= 3 L of
     that vehicle (S0 II-A), horizontally within half the two sizes plus dz (the wake's spread). The
     simulator still applies the model's (extrapolated) value there."""
-    from costmaps.disturbance import validity_mask
+    from physics.disturbance import validity_mask
 
     rec = result.records[name]
     bad = np.zeros(rec.t_s.size, dtype=bool)

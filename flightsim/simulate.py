@@ -3,11 +3,11 @@
 Each vehicle is RotorPy's multirotor model (:mod:`flightsim.dynamics`, parameters from
 :mod:`flightsim.vehicle_params`) flown by RotorPy's SE(3) controller (:mod:`flightsim.control`)
 tracking the plan's position, velocity and acceleration (yaw 0). Every physics step (default
-500 Hz) each vehicle receives the external wrench of :func:`costmaps.effects.total_wrench`: the
+500 Hz) each vehicle receives the external wrench of :func:`physics.effects.total_wrench`: the
 base downwash model (S0-3..S0-8) of every other vehicle plus the "truth" effects.
 
 Frames: world z up, ground plane at z = ``ground_z_m``; the model wrench is computed for level
-vehicles (world = body axes, as in costmaps.disturbance): its force is applied in the world frame,
+vehicles (world = body axes, as in physics.disturbance): its force is applied in the world frame,
 its torque rotated into the body frame.
 
 Speed: the wrench is evaluated for ``wrench_horizon_steps`` physics steps at once, at the positions
@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from costmaps.disturbance import ModelOptions
-from costmaps.effects import TARGET_ONLY_EFFECTS, Effect, EffectInputs, SourceSample, total_wrench
-from costmaps.errors import UserError
-from costmaps.vehicles import Vehicle
+from physics.disturbance import ModelOptions
+from physics.effects import TARGET_ONLY_EFFECTS, Effect, EffectInputs, SourceSample, total_wrench
+from fileio.errors import UserError
+from physics.vehicles import Vehicle
 from flightsim.stepper import CompiledStepper
 from flightsim.imu import ImuOptions, imu_samples
 from flightsim.plan_file import PlanArrays, read_plan_file
@@ -106,9 +106,9 @@ class SimulationResult:
 
 def _resolve(type_name: str, custom: Mapping[str, Vehicle] | None, where: str) -> Vehicle:
     try:
-        from costmaps.vehicle_yaml import resolve_vehicle
+        from physics.vehicle_yaml import resolve_vehicle
     except ModuleNotFoundError:  # pragma: no cover - lead's module missing
-        from costmaps.builtin_vehicles import BUILTIN_VEHICLES
+        from physics.builtin_vehicles import BUILTIN_VEHICLES
 
         if custom and type_name in custom:
             return custom[type_name]
@@ -322,7 +322,7 @@ def _stepper(params: list[dict], dt_s: float, wind_mps) -> CompiledStepper:
 def _wrench_for(target_index: int, positions_m: np.ndarray, velocity_mps: np.ndarray, vehs: list[Vehicle],
                 effects: tuple, model_options: ModelOptions, ground_z_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Wrench (K, 3) x2 on vehicle ``target_index`` for positions (K, V, 3) of all vehicles and the
-    target's velocity (K, 3): :func:`costmaps.effects.total_wrench` with every other vehicle as a
+    target's velocity (K, 3): :func:`physics.effects.total_wrench` with every other vehicle as a
     source. For speed, sources of the same vehicle type are stacked into one model call, and a
     source never above the target over the K samples is skipped (its downwash, and every
     per-source effect, is exactly zero there); target-only effects are evaluated once."""

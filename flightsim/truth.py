@@ -5,7 +5,7 @@ Format (every key optional)::
     field_form: inverse-z          # form of (S0-1) used by the simulated world: inverse-z | printed
     wind_mps: [1.0, 0.0, 0.0]      # steady wind, world frame, m/s: rotor drag in RotorPy's model,
                                    # and the default wind of a wake_advection effect
-    effects:                       # names and parameters: costmaps.effects.PARAMETERS
+    effects:                       # names and parameters: physics.effects.PARAMETERS
       - name: ground_effect
         params: {gain_k: 1.0}
       - name: near_field
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from costmaps.errors import UserError
+from fileio.errors import UserError
 
 TOP_KEYS = ("field_form", "wind_mps", "effects")
 
@@ -31,7 +31,7 @@ TOP_KEYS = ("field_form", "wind_mps", "effects")
 class TruthSpec:
     """Truth for one simulation: extra effects, steady wind (3,) m/s world frame, field form."""
 
-    effects: tuple = ()  # tuple[costmaps.effects.Effect, ...]
+    effects: tuple = ()  # tuple[physics.effects.Effect, ...]
     wind_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
     field_form: str = "inverse-z"
 
@@ -45,8 +45,8 @@ class TruthSpec:
 
 def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
     """Validate a truth mapping (see module docstring) into a :class:`TruthSpec`."""
-    from costmaps.effects import EFFECT_NAMES, PARAMETERS, Effect
-    from costmaps.velocity_field import FIELD_FORMS
+    from physics.effects import EFFECT_NAMES, PARAMETERS, Effect
+    from physics.velocity_field import FIELD_FORMS
 
     if doc is None:
         doc = {}
@@ -97,7 +97,7 @@ def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
 
 def load_truth_file(path: str | Path) -> TruthSpec:
     """Read a truth YAML file; UserError on any problem."""
-    from costmaps.user_files import read_yaml
+    from fileio.files import read_yaml
 
     path = Path(path)
     doc = read_yaml(path, what="truth file")

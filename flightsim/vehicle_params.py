@@ -1,4 +1,4 @@
-"""Our :class:`costmaps.vehicles.Vehicle` -> RotorPy ``quad_params`` dict.
+"""Our :class:`physics.vehicles.Vehicle` -> RotorPy ``quad_params`` dict.
 
 Motor numbering: RotorPy takes rotor positions as an ordered dict ``r1..r4`` and a yaw-direction
 sign per rotor, with no fixed convention of its own. We pass our rotors in (S0-14) order
@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from costmaps.vehicles import MOTOR_YAW_SIGNS, Vehicle
+from physics.vehicles import MOTOR_YAW_SIGNS, Vehicle
 
 CRAZYFLIE_K_ETA = 2.3e-08  # N/(rad/s)^2, rotorpy crazyflie_params
 CRAZYFLIE_HOVER_OMEGA_RADPS = math.sqrt(0.03 * 9.81 / 4 / CRAZYFLIE_K_ETA)  # rotorpy CF at 30 g

@@ -28,8 +28,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from costmaps.disturbance import VALIDITY_FACTOR_L
-from costmaps.vehicles import Vehicle
+from physics.disturbance import VALIDITY_FACTOR_L
+from physics.vehicles import Vehicle
 
 MODES = ("downwash", "no-downwash", "ellipsoid")
 DZ_STEP_M = 0.02  # resolution of the per-pair cutoff lookup, m
@@ -67,7 +67,7 @@ class CutoffTable:
 def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None) -> tuple[np.ndarray, str]:
     """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store), or a
     local stand-in (rule applied here) while they are missing."""
-    from costmaps.disturbance import ModelOptions
+    from physics.disturbance import ModelOptions
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     try:
@@ -92,8 +92,8 @@ def _apply_rule(source: Vehicle, target: Vehicle, dz: np.ndarray, r_cut: np.ndar
 
 def _standin_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, options) -> np.ndarray:
     """Stand-in used only while costmaps.map_store is absent: usage on an (r, azimuth) grid."""
-    from costmaps.authority import authority_usage
-    from costmaps.disturbance import disturbance_wrench
+    from physics.authority import authority_usage
+    from physics.disturbance import disturbance_wrench
 
     r = np.linspace(0.0, 2.0, 81)
     az = np.array([0.0, math.pi / 4])
@@ -141,7 +141,7 @@ class UsageTable:
 @lru_cache(maxsize=256)
 def usage_table(source: Vehicle, target: Vehicle, *, field_form: str | None = None) -> UsageTable | None:
     """The :class:`UsageTable` of an ordered pair from the cost maps; None when they are missing."""
-    from costmaps.disturbance import ModelOptions
+    from physics.disturbance import ModelOptions
 
     try:
         from costmaps.map_store import pair_maps

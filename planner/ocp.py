@@ -19,8 +19,8 @@ source with overlapping footprints, S0 II-A) enclosed by a smooth super-ellipsoi
 on its final approach stays on the dock axis instead; and **authority usage <= authority_fraction**
 for every vehicle: the disturbance wrench (F_z, tau_x, tau_y) on a target from each other vehicle
 comes from the differentiable wrench table of ``costmaps.map_store`` (the same numbers as
-``costmaps.disturbance``), is summed over sources and mapped through the inverse mixer of (S0-14)
-(``costmaps.authority.mixer_matrix``) to per-motor thrust changes, each bounded by
+``physics.disturbance``), is summed over sources and mapped through the inverse mixer of (S0-14)
+(``physics.authority.mixer_matrix``) to per-motor thrust changes, each bounded by
 ``fraction x headroom`` in its direction (DESIGN.md section 3) -- exactly ``usage <= fraction``
 without a non-smooth max.
 
@@ -31,7 +31,7 @@ The table's ``casadi.Function.bspline`` has no SX form. By default the table is 
 linearised at the current offsets (value and Jacobian from its own CasADi function), the NLP is
 SX-expanded and solved, and the linearisation is repeated a few times (sequential linearisation);
 the exact table (MX, ``expand=False``) remains available. The final plan is always checked against
-the model directly by :mod:`planner.verify`. Problem data and results: :mod:`planner.ocp_problem`.
+the model directly by :mod:`verify.checks`. Problem data and results: :mod:`planner.ocp_problem`.
 """
 
 from __future__ import annotations
@@ -41,9 +41,9 @@ from typing import Callable
 
 import numpy as np
 
-from costmaps.authority import mixer_matrix
-from costmaps.disturbance import VALIDITY_FACTOR_L
-from costmaps.vehicles import Vehicle
+from physics.authority import mixer_matrix
+from physics.disturbance import VALIDITY_FACTOR_L
+from physics.vehicles import Vehicle
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
 
 

@@ -10,7 +10,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from costmaps.vehicles import Vehicle
+from physics.vehicles import Vehicle
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@
 sampling planner's result, solves it with IPOPT, samples the piecewise-constant-jerk solution
 exactly on the plan's time grid (``dt_s``; the optimised duration is rounded up to a whole number of
 steps by a uniform slow-down, which keeps every limit), and re-checks the result with
-``planner.verify.verify_plan`` (the model evaluated directly, not the table). A failed solve or a
+``verify.checks.verify_plan`` (the model evaluated directly, not the table). A failed solve or a
 refined plan that fails the check returns the initial plan with ``success=False`` and a message
 saying why; the caller never gets a silently worse plan.
 
@@ -33,7 +33,7 @@ WrenchProvider = Callable  # (source Vehicle, target Vehicle, scenario) -> casad
 class RefineResult:
     """Result of :func:`refine_plan`: the plan to use (refined, or the initial one on failure)."""
 
-    plan: object  # planner.plan_io.PlanResult
+    plan: object  # planfile.plan.PlanResult
     success: bool
     message: str
     solve_time_s: float  # IPOPT wall time, s
@@ -63,8 +63,8 @@ class RefineOptions:
 
 
 def default_wrench_provider(source, target, scenario):
-    """The differentiable wrench table of the cost maps (same numbers as costmaps.disturbance)."""
-    from costmaps.disturbance import ModelOptions
+    """The differentiable wrench table of the cost maps (same numbers as physics.disturbance)."""
+    from physics.disturbance import ModelOptions
     from costmaps.map_store import pair_maps
 
     form = getattr(scenario, "field_form", None)
@@ -74,7 +74,7 @@ def default_wrench_provider(source, target, scenario):
 
 def _table_extent(source, target, scenario):
     """dz_m -> lateral half-width (m) of the pair's wrench table (zero beyond it)."""
-    from costmaps.disturbance import ModelOptions
+    from physics.disturbance import ModelOptions
     from costmaps.map_store import pair_maps
 
     form = getattr(scenario, "field_form", None)
@@ -96,8 +96,8 @@ def check_final_configuration(scenario) -> None:
     """Raise ``planner.pipeline.InfeasibleError`` when the final configuration itself (every vehicle
     at rest at its goal / hover point / dock) needs more than ``limits.authority_fraction`` of some
     vehicle's authority: then no trajectory can satisfy the limit (model evaluated directly)."""
-    from costmaps.authority import authority_usage
-    from costmaps.disturbance import ModelOptions, disturbance_wrench
+    from physics.authority import authority_usage
+    from physics.disturbance import ModelOptions, disturbance_wrench
     from planner.pipeline import InfeasibleError
 
     form = getattr(scenario, "field_form", None)
@@ -148,7 +148,7 @@ def build_problem(
         reach = 0.0
         if task.dock_with is not None:
             from planner.pipeline import dock_geometry
-            from planner.verify import GOAL_TOLERANCE_M
+            from verify.checks import GOAL_TOLERANCE_M
 
             approach, dock = dock_geometry(scenario, name)
             reach = float(np.linalg.norm(approach - dock)) + GOAL_TOLERANCE_M - 0.02
@@ -209,7 +209,7 @@ def build_problem(
 def solution_to_plan(solution: OcpSolution, scenario, initial_plan, *, time_scale: float = 1.0):
     """Sample ``solution`` on the plan grid (step ``initial_plan.dt_s``), rounding the duration up to
     a whole number of steps by a uniform slow-down. Returns a PlanResult (method "optimized")."""
-    from planner.plan_io import PlanResult, VehicleTrajectory
+    from planfile.plan import PlanResult, VehicleTrajectory
 
     dt = float(initial_plan.dt_s)
     duration = solution.duration_s * time_scale
@@ -238,7 +238,7 @@ _KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
 
 def _verify(plan, scenario) -> list:
     try:
-        from planner.verify import verify_plan
+        from verify.checks import verify_plan
     except ImportError:  # verifier not available: nothing to check against
         return []
     return list(verify_plan(plan, scenario))

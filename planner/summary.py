@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from planner.plan_io import PlanResult
+from planfile.plan import PlanResult
 
 
 def _fmt(value, unit: str = "") -> str:

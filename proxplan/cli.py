@@ -15,15 +15,15 @@ import argparse
 import importlib
 import sys
 
-from costmaps.errors import UserError
+from fileio.errors import UserError
 
 COMMAND_MODULES = (
-    "costmaps.commands",  # vehicles, wrench
-    "costmaps.costmap_command",  # costmap
-    "planner.commands",  # plan, verify
-    "flightsim.commands",  # simulate
-    "web.commands",  # view
-    "costmaps.identify_command",  # identify
+    "proxplan.commands.model",  # vehicles, wrench
+    "proxplan.commands.costmap",  # costmap
+    "proxplan.commands.plan",  # plan, verify
+    "proxplan.commands.simulate",  # simulate
+    "proxplan.commands.view",  # view
+    "proxplan.commands.identify",  # identify
 )
 
 

@@ -16,8 +16,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from costmaps.builtin_vehicles import LARGE_QUAD, SMALL_QUAD  # noqa: E402
-from costmaps.disturbance import ModelOptions, disturbance_wrench  # noqa: E402
+from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD  # noqa: E402
+from physics.disturbance import ModelOptions, disturbance_wrench  # noqa: E402
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """Tests of planner.compare and the method comparison claims of issue 5.
 
-Claims (each asserted on the shipped scenarios, planned for real and checked by planner.verify):
+Claims (each asserted on the shipped scenarios, planned for real and checked by verify.checks):
 * ``optimized`` passes verify and is no slower than ``sampling`` on the battery swap and on the
   8-vehicle swap (about 15 s, marked slow);
 * ``no-downwash`` breaks the authority limit on at least one shipped scenario;
@@ -18,7 +18,7 @@ pytest.importorskip("casadi")
 pytest.importorskip("ompl")
 
 from planner.compare import ComparisonRow, main, run_one, to_markdown, write_outputs  # noqa: E402
-from planner.scenario import load_scenario  # noqa: E402
+from planfile.scenario import load_scenario  # noqa: E402
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 # cheapest first: the loops below stop at the first scenario that shows the claim

@@ -86,7 +86,7 @@ def test_help(capsys):
 
 
 def test_all_pairs_with_custom_vehicles(tmp_path, capsys, monkeypatch):
-    import costmaps.builtin_vehicles as builtins
+    import physics.builtin_vehicles as builtins
 
     # keep it fast: one built-in type plus one custom type -> 4 ordered pairs
     monkeypatch.setattr(builtins, "BUILTIN_VEHICLES", {"crazyflie-2.1": builtins.BUILTIN_VEHICLES["crazyflie-2.1"]})

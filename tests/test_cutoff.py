@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from costmaps.authority import authority_usage
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
+from physics.authority import authority_usage
+from physics.builtin_vehicles import BUILTIN_VEHICLES
 from costmaps.cutoff import INVALID_RULES, build_cutoff_map, r_cut_from_usage
-from costmaps.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
+from physics.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]

@@ -1,13 +1,13 @@
-"""Tests of the shared effect library costmaps.effects."""
+"""Tests of the shared effect library physics.effects."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.disturbance import disturbance_wrench
-from costmaps.effects import (
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.disturbance import disturbance_wrench
+from physics.effects import (
     EFFECT_NAMES,
     PARAMETERS,
     Effect,

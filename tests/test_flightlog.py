@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import yaml
 
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.errors import UserError
-from costmaps.flightlog import (
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from fileio.errors import UserError
+from identify.flightlog import (
     NEURAL_SWARM_COLUMNS, FlightEntry, VehicleEntry, VehicleLog, check_log, load_flight, load_manifest,
     read_log, write_canonical_csv,
 )  # fmt: skip

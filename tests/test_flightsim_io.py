@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from costmaps.errors import UserError
+from fileio.errors import UserError
 from flightsim.logs import NEURAL_SWARM_HEADER, write_flight_logs
 from flightsim.plan_file import read_plan_file
 from flightsim.scenarios_synthetic import hover_stack_plan, swap_plan
@@ -99,7 +99,7 @@ def test_logs_have_neural_swarm_layout_and_manifest_loads(tmp_path):
     hover = table[:, 0] < 0.4e6
     np.testing.assert_allclose(table[hover, 9].mean(), 9.81, atol=0.05)  # az ~ +g in hover
     # the identification side reads it
-    from costmaps.flightlog import load_manifest, read_log
+    from identify.flightlog import load_manifest, read_log
 
     man = load_manifest(manifest)
     assert [f.name for f in man.flights] == ["swap_00", "swap_01"]
@@ -140,12 +140,12 @@ def test_simulate_cli_json_png_logs_and_user_errors(tmp_path, capsys):
 
 
 def test_planner_plan_result_is_accepted_like_a_path(tmp_path):
-    plan_io = pytest.importorskip("planner.plan_io", reason="planner not available")
+    plan_io = pytest.importorskip("planfile.plan", reason="planner not available")
     path = _write_plan(tmp_path, hover_stack_plan(separation_m=1.0, duration_s=1.0))
     try:
         result = plan_io.read_plan(path)
     except Exception as err:  # pragma: no cover - the planner's reader wants extra keys
-        pytest.skip(f"planner.plan_io.read_plan rejects a minimal plan.json: {err}")
+        pytest.skip(f"planfile.plan.read_plan rejects a minimal plan.json: {err}")
     a = simulate_plan(result, imu_noise=False, settle_s=0.2)
     b = simulate_plan(path, imu_noise=False, settle_s=0.2)
     for name in a.records:
@@ -153,7 +153,7 @@ def test_planner_plan_result_is_accepted_like_a_path(tmp_path):
 
 
 def test_truth_wind_pushes_a_hovering_vehicle_by_rotorpy_rotor_drag():
-    from costmaps.builtin_vehicles import BUILTIN_VEHICLES
+    from physics.builtin_vehicles import BUILTIN_VEHICLES
     from flightsim.scenarios_synthetic import single_hover_plan
     from flightsim.vehicle_params import quad_params
 
@@ -206,7 +206,7 @@ def test_commanded_thrust_logs_differ_from_actual_only_through_the_motor_lag(tmp
 
 
 def test_in_memory_vehicle_logs_equal_the_written_ones(tmp_path):
-    from costmaps.flightlog import read_log
+    from identify.flightlog import read_log
     from flightsim.logs import vehicle_logs
 
     res = simulate_plan(hover_stack_plan(duration_s=1.0), settle_s=0.2)

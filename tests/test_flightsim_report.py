@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from costmaps.authority import authority_usage
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.effects import Effect
+from physics.authority import authority_usage
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.effects import Effect
 from flightsim.report import motor_usage, plot_errors, simulation_metrics
 from flightsim.scenarios_synthetic import hover_stack_plan
 from flightsim.simulate import simulate_plan
@@ -40,7 +40,7 @@ def test_motor_usage_is_one_at_either_limit():
 def test_wake_swirl_torque_shows_in_the_steady_motor_torques():
     """At steady hover (w = 0, w_dot = 0) S0-13 reduces to tau_a = -R tau_p: the motors cancel the
     applied yaw torque of the wake_swirl truth effect."""
-    from costmaps.authority import mixer_matrix
+    from physics.authority import mixer_matrix
 
     res = simulate_plan(hover_stack_plan(top_type="crazyflie-2.1", bottom_type="crazyflie-parrot",
                                          separation_m=1.0, duration_s=4.0),

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.disturbance import disturbance_wrench
-from costmaps.effects import Effect
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.disturbance import disturbance_wrench
+from physics.effects import Effect
 from flightsim.logs import write_flight_logs
 from flightsim.scenarios_synthetic import (
     hover_stack_plan,
@@ -37,10 +37,10 @@ def test_vehicle_hovering_alone_holds_position_within_a_few_centimetres():
 
 
 def _measured_force_s011(vehicle, table: np.ndarray) -> np.ndarray:
-    """(S0-11) f_a = m R alpha - sum(f_i) z_B on a Neural-Swarm table; uses costmaps.measure when
+    """(S0-11) f_a = m R alpha - sum(f_i) z_B on a Neural-Swarm table; uses identify.measure when
     present (the identification engineer's implementation), else this one-line form."""
     try:
-        from costmaps.measure import MeasureOptions, measure_disturbance
+        from identify.measure import MeasureOptions, measure_disturbance
     except ImportError:  # pragma: no cover
         z_b = Rotation.from_quat(table[:, 10:14]).apply([0.0, 0.0, 1.0])
         return vehicle.mass_kg * table[:, 7:10] - table[:, 14:18].sum(axis=1)[:, None] * z_b
@@ -189,9 +189,9 @@ def test_integral_action_removes_the_steady_sag_below_another_vehicle():
 
 def test_grouped_wrench_equals_total_wrench_with_every_source():
     """The simulator's stacking of same-type sources, skipping of sources below the target and
-    single evaluation of target-only effects give exactly costmaps.effects.total_wrench."""
-    from costmaps.effects import EFFECT_NAMES, EffectInputs, SourceSample, default_effect, total_wrench
-    from costmaps.disturbance import ModelOptions
+    single evaluation of target-only effects give exactly physics.effects.total_wrench."""
+    from physics.effects import EFFECT_NAMES, EffectInputs, SourceSample, default_effect, total_wrench
+    from physics.disturbance import ModelOptions
     from flightsim.simulate import _wrench_for
 
     rng = np.random.default_rng(0)

@@ -3,7 +3,7 @@
 Default run: closed-loop RotorPy flights from the simulator (flightsim.simulate.simulate_plan with
 ``truth_effects``, logs and manifest by flightsim.logs.write_flight_logs), one test per effect of
 the library plus one without any. Marked slow: the same checks on measurement-level logs from
-:func:`costmaps.synthetic_logs.synthetic_logs` (the effect library evaluated along scripted trajectories,
+:func:`identify.synthetic_logs.synthetic_logs` (the effect library evaluated along scripted trajectories,
 written in the canonical layout), which were the stand-in before the simulator landed.
 """
 
@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 import yaml
 
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.effects import Effect
-from costmaps.flightlog import write_canonical_csv
-from costmaps.synthetic_logs import synthetic_logs
-from costmaps.identify import IdentifyOptions, run_identify
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.effects import Effect
+from identify.flightlog import write_canonical_csv
+from identify.synthetic_logs import synthetic_logs
+from identify.pipeline import IdentifyOptions, run_identify
 
 VEHICLE_TYPE = "small-quad"
 HIDDEN = {
@@ -87,7 +87,7 @@ def test_no_hidden_effect_selects_nothing_beyond_thrust_bias(tmp_path: Path) -> 
 
 
 def test_cli_json_report_and_saved_model(tmp_path: Path, capsys) -> None:
-    from costmaps.vehicle_yaml import load_model_section, load_vehicle_file
+    from physics.vehicle_yaml import load_model_section, load_vehicle_file
     from proxplan.cli import main
 
     manifest = make_manifest(tmp_path, (HIDDEN["thrust_bias"],), n_train=1, duration_s=8.0)
@@ -157,7 +157,7 @@ def test_simulator_logs_no_hidden_effect(tmp_path: Path) -> None:
 
 
 def test_correlate_finds_the_feature_behind_a_residual() -> None:
-    from costmaps.residuals import correlate, sample_features
+    from identify.residuals import correlate, sample_features
 
     rng = np.random.default_rng(0)
     n = 3000
@@ -174,7 +174,7 @@ def test_correlate_finds_the_feature_behind_a_residual() -> None:
 
 def test_unexplained_residual_is_reported(tmp_path: Path) -> None:
     """A force that follows v_z |v_z| (no effect of the library has that shape) is reported with v_z."""
-    from costmaps.flightlog import read_log
+    from identify.flightlog import read_log
 
     manifest = make_manifest(tmp_path, (), n_train=1, duration_s=10.0)
     for path in tmp_path.glob("f*_b.csv.gz"):

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.disturbance import ModelOptions
-from costmaps.errors import UserError
-from costmaps.geometry import Discretisation
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.disturbance import ModelOptions
+from fileio.errors import UserError
+from physics.geometry import Discretisation
 from costmaps.map_store import (
     DATA_DIR,
     FORMAT_VERSION,

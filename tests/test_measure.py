@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from costmaps.authority import mixer_matrix
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.measure import MeasureOptions, measure_disturbance, motor_lag_compensated_N
+from physics.authority import mixer_matrix
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from identify.measure import MeasureOptions, measure_disturbance, motor_lag_compensated_N
 
 VEH = BUILTIN_VEHICLES["small-quad"]
 

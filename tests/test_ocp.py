@@ -1,6 +1,6 @@
 """Tests of planner.ocp: the CasADi trajectory problem.
 
-The wrench table here is a small casadi bspline interpolant built from costmaps.disturbance on a
+The wrench table here is a small casadi bspline interpolant built from physics.disturbance on a
 coarse grid (tests only); the product uses costmaps.map_store's table of the same numbers.
 """
 
@@ -11,9 +11,9 @@ import pytest
 
 casadi = pytest.importorskip("casadi")
 
-from costmaps.authority import authority_usage  # noqa: E402
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES  # noqa: E402
-from costmaps.disturbance import disturbance_wrench  # noqa: E402
+from physics.authority import authority_usage  # noqa: E402
+from physics.builtin_vehicles import BUILTIN_VEHICLES  # noqa: E402
+from physics.disturbance import disturbance_wrench  # noqa: E402
 from planner.ocp import build_and_solve, normalised_motor_map, sample_solution  # noqa: E402
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution  # noqa: E402
 
@@ -23,7 +23,7 @@ SMALL = BUILTIN_VEHICLES["small-quad"]
 
 def model_interpolant(source, target, *, half_width_m=1.5, dz_min_m=-0.4, dz_max_m=2.5, step_m=0.1):
     """casadi bspline of (F_z N, tau_x N m, tau_y N m) over offsets p_target - p_source (3,), m,
-    on a grid x, y in [-w, w] and offset_z in [-dz_max, -dz_min], from costmaps.disturbance."""
+    on a grid x, y in [-w, w] and offset_z in [-dz_max, -dz_min], from physics.disturbance."""
     gxy = np.arange(-half_width_m, half_width_m + 1e-9, step_m)
     gz = np.arange(-dz_max_m, -dz_min_m + 1e-9, step_m)
     X, Y, Z = np.meshgrid(gxy, gxy, gz, indexing="ij")

@@ -19,8 +19,8 @@ from planner.optimize import (  # noqa: E402
     refine_plan,
 )
 from planner.pipeline import InfeasibleError, plan_scenario  # noqa: E402
-from planner.scenario import load_scenario, scenario_from_dict  # noqa: E402
-from planner.verify import verify_plan  # noqa: E402
+from planfile.scenario import load_scenario, scenario_from_dict  # noqa: E402
+from verify.checks import verify_plan  # noqa: E402
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 

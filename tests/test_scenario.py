@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from costmaps.errors import UserError
-from planner.scenario import KINEMATIC_DEFAULTS, Limits, load_scenario
+from fileio.errors import UserError
+from planfile.scenario import KINEMATIC_DEFAULTS, Limits, load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 

@@ -7,10 +7,10 @@ from pathlib import Path
 import pytest
 
 from planner.pipeline import plan_scenario
-from planner.plan_io import write_plan
+from planfile.plan import write_plan
 from proxplan.cli import main
-from planner.scenario import load_scenario
-from planner.verify import verify_plan
+from planfile.scenario import load_scenario
+from verify.checks import verify_plan
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[1] / "scenarios").glob("*.yaml"))
 REQUIRED = {"battery_swap", "package_handoff", "crossing_4", "swap_8", "corridor_stack"}

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.thrust_rls import fit_ls, rls, thrust_samples
-from costmaps.vehicles import AIR_DENSITY_KGPM3, GRAVITY_MPS2
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from identify.thrust_rls import fit_ls, rls, thrust_samples
+from physics.vehicles import AIR_DENSITY_KGPM3, GRAVITY_MPS2
 
 
 def test_hover_thrust_coefficient_matches_k1() -> None:

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from costmaps.authority import authority_usage
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.disturbance import disturbance_wrench
-from planner.plan_io import PlanResult, VehicleTrajectory
-from planner.scenario import scenario_from_dict
-from planner.verify import verify_plan, wrench_along_plan
+from physics.authority import authority_usage
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.disturbance import disturbance_wrench
+from planfile.plan import PlanResult, VehicleTrajectory
+from planfile.scenario import scenario_from_dict
+from verify.checks import verify_plan, wrench_along_plan
 
 DT = 0.05
 

@@ -12,10 +12,10 @@ import pytest
 
 viser = pytest.importorskip("viser")
 
-from costmaps.authority import authority_usage  # noqa: E402
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES  # noqa: E402
-from costmaps.disturbance import VALIDITY_FACTOR_L, disturbance_wrench  # noqa: E402
-from costmaps.velocity_field import downwash_speed_mps  # noqa: E402
+from physics.authority import authority_usage  # noqa: E402
+from physics.builtin_vehicles import BUILTIN_VEHICLES  # noqa: E402
+from physics.disturbance import VALIDITY_FACTOR_L, disturbance_wrench  # noqa: E402
+from physics.velocity_field import downwash_speed_mps  # noqa: E402
 from web import layers, plots  # noqa: E402
 from web.app import ReviewApp, prepare  # noqa: E402
 from web.demo import DEMO_SPEC, write_demo_plan  # noqa: E402

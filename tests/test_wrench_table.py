@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from costmaps.authority import authority_usage
-from costmaps.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
+from physics.authority import authority_usage
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
 from costmaps.wrench_table import (
     USAGE_FLOOR,
     TableResolution,

@@ -4,7 +4,7 @@ Both are surfaces of revolution about the source's vertical axis, in the source'
 origin at the source's centre of mass, z up; the jet points down, so z = -dz).
 
 * Iso-speed surfaces: where the downwash speed V(dz, r) of (S0-1, S0-2) equals a level, found on a
-  grid from ``costmaps.velocity_field.downwash_speed_mps`` (the model's own code; no inversion by hand).
+  grid from ``physics.velocity_field.downwash_speed_mps`` (the model's own code; no inversion by hand).
 * Cutoff surface r_cut(dz): beyond it a target's authority usage stays below the limit, from the
   pair's cutoff map (``costmaps.map_store.pair_maps``, with its invalid-zone rule for dz <= 3 L).
 """
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from costmaps.vehicles import Vehicle
+from physics.vehicles import Vehicle
 from web import meshes
 
 
@@ -76,7 +76,7 @@ def iso_speed_profiles(
 ) -> list[Profile]:
     """Iso-speed profiles of the source's jet down to ``depth_m`` below it (default levels
     ``DEFAULT_ISO_LEVELS_MPS``, m/s)."""
-    from costmaps.velocity_field import downwash_speed_mps
+    from physics.velocity_field import downwash_speed_mps
 
     levels_mps = DEFAULT_ISO_LEVELS_MPS if levels_mps is None else levels_mps
     dz = np.linspace(0.0, depth_m, n_dz)

@@ -1,8 +1,8 @@
 """What the review app shows, loaded from a plan.json or planned from a scenario YAML.
 
 Frames: world z up, positions in m, times in s. Every vehicle of a plan shares one time grid
-(DESIGN.md section 4). Reading, validation and planning are the planner's (``planner.plan_io.read_plan``,
-``planner.scenario``, ``planner.pipeline.plan_scenario``); this module only reshapes the result.
+(DESIGN.md section 4). Reading, validation and planning are the planner's (``planfile.plan.read_plan``,
+``planfile.scenario``, ``planner.pipeline.plan_scenario``); this module only reshapes the result.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from costmaps.errors import UserError
-from costmaps.vehicles import Vehicle
+from fileio.errors import UserError
+from physics.vehicles import Vehicle
 
 Progress = Callable[[str, float], None]
 
@@ -49,8 +49,8 @@ class ReviewData:
     authority_fraction: float = 0.5  # limits.authority_fraction, -
     metrics: dict[str, Any] = field(default_factory=dict)
     source_path: Path | None = None
-    scenario: Any = None  # planner.scenario.Scenario, None when the plan carries none
-    plan: Any = None  # planner.plan_io.PlanResult
+    scenario: Any = None  # planfile.scenario.Scenario, None when the plan carries none
+    plan: Any = None  # planfile.plan.PlanResult
     note: str = ""  # what the user should know (e.g. why editing is disabled)
 
     @property
@@ -67,9 +67,9 @@ class ReviewData:
 
 
 def _scenario_of_plan(plan: Any, path: Path) -> tuple[Any, str]:
-    """The planner Scenario a plan was made for (``planner.verify.scenario_of_plan``) and a note;
+    """The planner Scenario a plan was made for (``verify.checks.scenario_of_plan``) and a note;
     (None, why) when it carries none or it does not load."""
-    from planner.verify import scenario_of_plan
+    from verify.checks import scenario_of_plan
 
     try:
         return scenario_of_plan(plan, label=str(path)), ""
@@ -86,7 +86,7 @@ def _fallback_bounds(position_m: list[np.ndarray]) -> tuple[np.ndarray, np.ndarr
 
 def review_from_plan_result(plan: Any, scenario: Any, *, source_path: Path | None = None, note: str = "") -> ReviewData:
     """Review data of a planner ``PlanResult`` and its ``Scenario`` (or None: types resolved by name)."""
-    from costmaps.vehicle_yaml import resolve_vehicle
+    from physics.vehicle_yaml import resolve_vehicle
 
     vehicles: dict[str, ReviewVehicle] = {}
     for name, tr in plan.vehicles.items():
@@ -129,7 +129,7 @@ def review_from_plan_result(plan: Any, scenario: Any, *, source_path: Path | Non
 
 def load_plan_file(path: str | Path) -> ReviewData:
     """Read a plan.json (or a directory holding one) for review; UserError on a bad file."""
-    from planner.plan_io import read_plan
+    from planfile.plan import read_plan
 
     path = Path(path)
     if path.is_dir():
@@ -154,7 +154,7 @@ def load_input(path: str | Path, *, progress: Progress | None = None) -> ReviewD
     if not path.exists():
         raise UserError(f"{path}: no such file; expected SCENARIO.yaml, DIR/plan.json or DIR")
     if path.suffix in (".yaml", ".yml"):
-        from planner.scenario import load_scenario
+        from planfile.scenario import load_scenario
 
         scenario = load_scenario(path)
         plan = plan_scenario(scenario, progress=progress)

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from costmaps.vehicles import Vehicle
+from physics.vehicles import Vehicle
 from web import meshes
 from web.review_data import ReviewData
 

@@ -1,0 +1,87 @@
+"""Reading user files with one-line errors, and writing output files atomically.
+
+Every loader of user input (vehicles, scenarios, truth files, manifests, plans) reads through
+these helpers, so a missing file or a syntax error reads the same everywhere; every writer of
+results goes through a temporary file and a rename, so nothing is left half-written on failure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+from fileio.errors import UserError
+
+
+def read_text(path: str | Path, *, what: str) -> str:
+    """The file's text; UserError ``"<path>: cannot read <what> (<reason>)"`` otherwise."""
+    try:
+        return Path(path).read_text()
+    except OSError as err:
+        raise UserError(f"{path}: cannot read {what} ({err.strerror or err})") from None
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: cannot read {what} (not a text file)") from None
+
+
+def read_yaml(path: str | Path, *, what: str) -> Any:
+    """The parsed YAML document (None for an empty file); UserError on unreadable or bad YAML."""
+    import yaml
+
+    text = read_text(path, what=what)
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise UserError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+
+
+def read_json(path: str | Path, *, what: str) -> Any:
+    """The parsed JSON document; UserError on unreadable or bad JSON."""
+    text = read_text(path, what=what)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as err:
+        raise UserError(f"{path}: not valid JSON ({err.msg} at line {err.lineno})") from None
+
+
+@contextmanager
+def atomic_output(path: str | Path, *, suffix: str = ".tmp") -> Iterator[Path]:
+    """A temporary path beside ``path`` to write to; renamed onto ``path`` on success, removed
+    on failure, so a failed run never leaves a half-written file. Creates the parent folder."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file + rename); returns the path."""
+    with atomic_output(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically (temporary file + rename); returns the path."""
+    return atomic_write_bytes(path, text.encode())
+
+
+def save_figure(fig: Any, path: str | Path, **savefig_kwargs: Any) -> Path:
+    """Save a matplotlib figure as PNG atomically and close it; returns the path."""
+    import matplotlib.pyplot as plt
+
+    try:
+        with atomic_output(path, suffix=".png") as tmp:
+            fig.savefig(tmp, format="png", **savefig_kwargs)
+    finally:
+        plt.close(fig)
+    return Path(path)

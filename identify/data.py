@@ -1,0 +1,221 @@
+"""Samples, models and errors of the identification pipeline (:mod:`identify.pipeline`).
+
+A :class:`Unit` is one vehicle of one flight: its measured disturbance (S0-11, S0-13) and the
+logged relative positions of the other vehicles; a :class:`Model` is the vehicles plus effects
+and thrust scales that predict it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from physics.disturbance import ModelOptions
+from physics.effects import EFFECT_NAMES, Effect, EffectInputs, SourceSample, base_wrench, effect_wrench
+from identify.flightlog import Flight, Manifest, interpolate_position_m, load_flight
+from identify.measure import MeasureOptions, measure_log
+from physics.vehicles import Vehicle
+
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """Options of the identification pipeline."""
+
+    measure: MeasureOptions = MeasureOptions()
+    field_form: str = "inverse-z"  # form of (S0-1) used for prediction
+    calibrate: bool = True
+    effects: tuple[str, ...] = EFFECT_NAMES  # candidates to try
+    min_gain: float = 0.05  # relative cut of a test RMSE an effect must bring to be kept, -
+    max_fit_samples: int = 2000  # train samples of the calibration fit
+    max_effect_fit_samples: int = 1000  # train samples per candidate-effect fit
+    max_eval_samples: int = 10000  # test samples per candidate score
+    max_effects: int = 3  # at most this many effects are kept
+    progress: bool = False  # tqdm bars on stderr
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One vehicle of one flight, N cleaned samples, ready for prediction."""
+
+    flight: str
+    split: str
+    name: str  # vehicle name in the flight (e.g. cf51)
+    type: str  # vehicle type
+    t_s: np.ndarray  # (N,) own clock, s
+    velocity_mps: np.ndarray  # (N, 3) world
+    height_above_ground_m: np.ndarray  # (N,)
+    thrust_z_N: np.ndarray  # (N,) sum of logged motor thrusts times (z_B)_z, N
+    source_types: tuple[str, ...]
+    source_offsets_m: tuple[np.ndarray, ...]  # each (N, 3) p_target - p_source, world
+    force_N: np.ndarray  # (N, 3) measured, world
+    torque_Nm: np.ndarray  # (N, 3) measured, world
+    thrust: Any = None  # identify.thrust_rls.ThrustSamples of the full unit (None after take)
+
+    def take(self, idx: np.ndarray) -> "Unit":
+        return replace(
+            self,
+            t_s=self.t_s[idx],
+            velocity_mps=self.velocity_mps[idx],
+            height_above_ground_m=self.height_above_ground_m[idx],
+            thrust_z_N=self.thrust_z_N[idx],
+            source_offsets_m=tuple(o[idx] for o in self.source_offsets_m),
+            force_N=self.force_N[idx],
+            torque_Nm=self.torque_Nm[idx],
+            thrust=None,
+        )
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+
+@dataclass(frozen=True)
+class Model:
+    """Vehicles by type, per-type thrust scales and effects: everything a prediction needs."""
+
+    vehicles: Mapping[str, Vehicle]
+    thrust_scale: Mapping[str, float] = field(default_factory=dict)
+    effects: tuple[Effect, ...] = ()
+    options: ModelOptions = ModelOptions()
+
+
+def unit_inputs(unit: Unit, model: Model) -> EffectInputs:
+    return EffectInputs(
+        target=model.vehicles[unit.type],
+        height_above_ground_m=unit.height_above_ground_m,
+        velocity_mps=unit.velocity_mps,
+        sources=tuple(SourceSample(model.vehicles[t], o) for t, o in zip(unit.source_types, unit.source_offsets_m)),
+        options=model.options,
+    )
+
+
+def predict(unit: Unit, model: Model, *, base: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted measured wrench (force (N, 3) N, torque (N, 3) N m, world) of ``unit``.
+
+    ``base`` may pass a precomputed base wrench for the same vehicles (saves the model call).
+    """
+    inputs = unit_inputs(unit, model)
+    force, torque = (base[0].copy(), base[1].copy()) if base is not None else base_wrench(inputs)
+    for eff in model.effects:
+        f, t = effect_wrench(eff, inputs)
+        force += f
+        torque += t
+    force[:, 2] += (model.thrust_scale.get(unit.type, 1.0) - 1.0) * unit.thrust_z_N
+    return force, torque
+
+
+# ------------------------------------------------------------------------------ loading + measuring
+
+
+def load_units(manifest: Manifest, *, options: IdentifyOptions = IdentifyOptions()) -> tuple[list[Unit], dict, dict[str, Vehicle]]:
+    """Load, check and measure every flight; returns units, exclusions per flight/vehicle, vehicles by type."""
+    from scipy.spatial.transform import Rotation
+
+    from identify.thrust_rls import thrust_samples
+    from physics.vehicle_yaml import load_vehicle_file, resolve_vehicle
+
+    custom = load_vehicle_file(manifest.vehicles_file) if manifest.vehicles_file else None
+    types: dict[str, Vehicle] = {}
+    units, exclusions = [], {}
+    flights = manifest.flights
+    bar = progress_bar(flights, "load+measure", options.progress)
+    for entry in bar:
+        vehicles = {}
+        for v in entry.vehicles:
+            vehicles[v.name] = types.setdefault(v.type, resolve_vehicle(v.type, custom, where=f"{manifest.path}: flight {entry.name}: {v.name}.type"))
+        flight: Flight = load_flight(entry, vehicles, options=manifest.quality)
+        exclusions[entry.name] = {n: e.to_dict() | {"kept_samples": len(flight.logs[n])} for n, e in flight.exclusions.items()}
+        types_of = {v.name: v.type for v in entry.vehicles}
+        for v in entry.vehicles:
+            log = flight.logs[v.name]
+            meas = measure_log(vehicles[v.name], log, options=options.measure)
+            z_b = Rotation.from_quat(log.quat_xyzw).apply(np.array([0.0, 0.0, 1.0]))
+            others = [o for o in entry.vehicles if o.name != v.name]
+            units.append(
+                Unit(
+                    flight=entry.name,
+                    split=entry.split,
+                    name=v.name,
+                    type=v.type,
+                    t_s=log.t_s,
+                    velocity_mps=log.velocity_mps,
+                    height_above_ground_m=log.position_m[:, 2] - v.ground_z_m,
+                    thrust_z_N=log.motor_thrust_N.sum(axis=1) * z_b[:, 2],
+                    source_types=tuple(types_of[o.name] for o in others),
+                    source_offsets_m=tuple(log.position_m - interpolate_position_m(flight.logs[o.name], log.t_s) for o in others),
+                    force_N=meas.force_N,
+                    torque_Nm=meas.torque_Nm,
+                    thrust=thrust_samples(vehicles[v.name], log.quat_xyzw, log.accel_mps2, log.velocity_mps, log.motor_thrust_N),
+                )
+            )
+    return units, exclusions, types
+
+
+def progress_bar(items: Sequence, desc: str, enabled: bool):
+    if not enabled:
+        return items
+    from tqdm import tqdm
+
+    return tqdm(items, desc=desc, unit="item", leave=False)
+
+
+def merge_units(units: Sequence[Unit]) -> list[Unit]:
+    """Concatenate units that share target type and source types (one model call per group).
+
+    The result is for pooled errors and fits only: its ``t_s`` is not monotonic."""
+    groups: dict[tuple, list[Unit]] = {}
+    for u in units:
+        if len(u):
+            groups.setdefault((u.split, u.type, u.source_types), []).append(u)
+    out = []
+    for (split, vtype, stypes), us in groups.items():
+        if len(us) == 1:
+            out.append(us[0])
+            continue
+        cat = lambda key: np.concatenate([getattr(u, key) for u in us])  # noqa: E731
+        out.append(Unit(
+            flight="+".join(u.flight for u in us), split=split, name="+".join(u.name for u in us), type=vtype,
+            t_s=cat("t_s"), velocity_mps=cat("velocity_mps"), height_above_ground_m=cat("height_above_ground_m"),
+            thrust_z_N=cat("thrust_z_N"), source_types=stypes,
+            source_offsets_m=tuple(np.concatenate([u.source_offsets_m[k] for u in us]) for k in range(len(stypes))),
+            force_N=cat("force_N"), torque_Nm=cat("torque_Nm"),
+        ))  # fmt: skip
+    return out
+
+
+def subsample(units: Sequence[Unit], max_samples: int) -> list[Unit]:
+    """Uniform-stride subsample of ``units`` keeping at most ``max_samples`` samples in total,
+    merged by :func:`merge_units`."""
+    total = sum(len(u) for u in units)
+    stride = max(1, int(np.ceil(total / max(max_samples, 1))))
+    return merge_units([u.take(np.arange(0, len(u), stride)) for u in units if len(u)])
+
+
+# ------------------------------------------------------------------------------ errors
+
+
+@dataclass(frozen=True)
+class Errors:
+    rmse_fz_N: float
+    rmse_torque_Nm: float  # RMS of the torque error vector norm
+    rmse_tz_Nm: float  # yaw torque
+    n_samples: int
+
+    def to_json(self) -> dict[str, float]:
+        return {"rmse_fz_N": self.rmse_fz_N, "rmse_torque_Nm": self.rmse_torque_Nm, "rmse_tz_Nm": self.rmse_tz_Nm, "n_samples": self.n_samples}
+
+
+def errors(units: Sequence[Unit], model: Model, *, bases: Sequence | None = None) -> Errors:
+    """RMSEs of ``model`` on ``units``; ``bases`` optionally holds each unit's precomputed base wrench."""
+    df, dt = [], []
+    for k, u in enumerate(units):
+        f, t = predict(u, model, base=None if bases is None else bases[k])
+        df.append(u.force_N[:, 2] - f[:, 2])
+        dt.append(u.torque_Nm - t)
+    df_a, dt_a = np.concatenate(df), np.concatenate(dt)
+    return Errors(
+        rmse_fz_N=float(np.sqrt(np.mean(df_a**2))),
+        rmse_torque_Nm=float(np.sqrt(np.mean(np.sum(dt_a**2, axis=1)))),
+        rmse_tz_Nm=float(np.sqrt(np.mean(dt_a[:, 2] ** 2))),
+        n_samples=int(df_a.size),
+    )

@@ -1,0 +1,425 @@
+"""Flight logs for ``proxplan identify``: readers, the canonical writer, the manifest, quality checks.
+
+Two CSV layouts (plain or gzip, ``*.gz``) are read, told apart by their header line:
+
+* ``neural-swarm`` — the original Neural-Swarm files (``../shared/data/neural-swarm/README.md``):
+  ``# time[ms],x[m],...,u1[N]..u4[N],u1[PWM]..,wx[rad/s],..``. The ``time[ms]`` column counts
+  **microseconds**; it is converted to seconds here.
+* ``canonical`` — our own layout, written by :func:`write_canonical_csv` (documented in
+  ``docs/identify.md``): ``t_s,x_m,y_m,z_m,vx_mps,vy_mps,vz_mps,ax_mps2,ay_mps2,az_mps2,qx,qy,qz,qw,
+  f1_N,f2_N,f3_N,f4_N,wx_radps,wy_radps,wz_radps``.
+
+Both map onto :class:`VehicleLog`. Frames: positions, velocities and the accelerometer reading
+(specific force, +9.81 m/s^2 on z in hover) in the world frame, z up; the quaternion (x, y, z, w)
+rotates body to world; the gyro is in the body frame; motor thrusts in (S0-14) order.
+
+Quality checks (:func:`check_log`, :func:`load_flight`) never let a bad sample through silently:
+missing columns and time going backwards are :class:`UserError` naming the file and the row; NaN
+rows, gaps, ground contact and samples outside the time overlap of the flight's vehicles are
+excluded and counted in :class:`Exclusions`; a flight whose vehicles do not overlap in time is a
+UserError.
+"""
+
+from __future__ import annotations
+
+import gzip
+import io
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from fileio.errors import UserError
+from fileio.files import atomic_write_bytes
+
+CANONICAL_COLUMNS = (
+    "t_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "ax_mps2", "ay_mps2", "az_mps2",
+    "qx", "qy", "qz", "qw", "f1_N", "f2_N", "f3_N", "f4_N", "wx_radps", "wy_radps", "wz_radps",
+)  # fmt: skip
+"""Header of the canonical CSV layout, in this order."""
+
+NEURAL_SWARM_COLUMNS = {
+    "t_s": "time[ms]", "x_m": "x[m]", "y_m": "y[m]", "z_m": "z[m]",
+    "vx_mps": "vx[m/s]", "vy_mps": "vy[m/s]", "vz_mps": "vz[m/s]",
+    "ax_mps2": "ax[m/s^2]", "ay_mps2": "ay[m/s^2]", "az_mps2": "az[m/s^2]",
+    "qx": "qx", "qy": "qy", "qz": "qz", "qw": "qw",
+    "f1_N": "u1[N]", "f2_N": "u2[N]", "f3_N": "u3[N]", "f4_N": "u4[N]",
+    "wx_radps": "wx[rad/s]", "wy_radps": "wy[rad/s]", "wz_radps": "wz[rad/s]",
+}  # fmt: skip
+"""Canonical name -> Neural-Swarm column name (the time column holds microseconds)."""
+
+FORMATS = ("neural-swarm", "canonical")
+
+
+@dataclass(frozen=True)
+class QualityOptions:
+    """Thresholds of the log quality checks."""
+
+    max_gap_s: float = 0.05  # a time step longer than this splits the log into segments, s
+    min_segment_s: float = 0.5  # shorter segments are dropped (too short for derivatives), s
+    ground_clearance_m: float = 0.03  # samples closer to the ground are ground contact, m
+    min_thrust_fraction: float = 0.3  # total motor thrust below this x weight: motors idle/ground, -
+    min_overlap_s: float = 1.0  # vehicles of a flight must share at least this much time, s
+
+
+@dataclass(frozen=True)
+class Exclusions:
+    """Counts of samples excluded by each quality check (reported, never silent)."""
+
+    nan_rows: int = 0
+    gap_segments: int = 0  # number of gaps found (each splits the log)
+    short_segment_samples: int = 0
+    ground_samples: int = 0
+    outside_overlap_samples: int = 0
+
+    def total(self) -> int:
+        return self.nan_rows + self.short_segment_samples + self.ground_samples + self.outside_overlap_samples
+
+    def __add__(self, other: "Exclusions") -> "Exclusions":
+        return Exclusions(*(a + b for a, b in zip(_fields(self), _fields(other))))
+
+    def to_dict(self) -> dict[str, int]:
+        return dict(zip(("nan_rows", "gap_segments", "short_segment_samples", "ground_samples",
+                         "outside_overlap_samples"), _fields(self)))  # fmt: skip
+
+
+def _fields(e: Exclusions) -> tuple[int, ...]:
+    return (e.nan_rows, e.gap_segments, e.short_segment_samples, e.ground_samples, e.outside_overlap_samples)
+
+
+@dataclass(frozen=True)
+class VehicleLog:
+    """One vehicle's log over N samples (see the module docstring for frames and units)."""
+
+    t_s: np.ndarray  # (N,) own clock, s
+    position_m: np.ndarray  # (N, 3) world
+    velocity_mps: np.ndarray  # (N, 3) world
+    accel_mps2: np.ndarray  # (N, 3) accelerometer specific force rotated to world, m/s^2
+    quat_xyzw: np.ndarray  # (N, 4) body -> world, scalar last
+    motor_thrust_N: np.ndarray  # (N, 4) per-motor thrust, (S0-14) order
+    gyro_radps: np.ndarray  # (N, 3) body rates, rad/s
+    segment: np.ndarray = field(default=None)  # (N,) int: contiguous-segment id (gaps split)
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        if self.segment is None:
+            object.__setattr__(self, "segment", np.zeros(len(self.t_s), dtype=int))
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    def take(self, mask: np.ndarray) -> "VehicleLog":
+        """The samples where ``mask`` (N,) is True (or index array)."""
+        return replace(
+            self,
+            **{k: getattr(self, k)[mask] for k in _ARRAYS},
+        )
+
+    def as_table(self) -> np.ndarray:
+        """(N, 21) array in :data:`CANONICAL_COLUMNS` order."""
+        return np.column_stack([self.t_s, self.position_m, self.velocity_mps, self.accel_mps2,
+                                self.quat_xyzw, self.motor_thrust_N, self.gyro_radps])  # fmt: skip
+
+
+_ARRAYS = ("t_s", "position_m", "velocity_mps", "accel_mps2", "quat_xyzw", "motor_thrust_N", "gyro_radps", "segment")
+
+
+def _open_bytes(path: Path) -> bytes:
+    try:
+        if path.suffix == ".gz":
+            with gzip.open(path, "rb") as fh:
+                return fh.read()
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise UserError(f"{path}: log file not found") from None
+    except (OSError, EOFError, UnicodeDecodeError) as err:
+        raise UserError(f"{path}: cannot read log ({err})") from None
+
+
+def _parse_numeric(body: bytes, path: Path, n_cols: int) -> np.ndarray:
+    """Rows of comma-separated numbers -> (N, n_cols) float array (pandas' C parser when present)."""
+    try:
+        import pandas as pd
+
+        data = pd.read_csv(io.BytesIO(body), header=None, dtype=float, engine="c").to_numpy()
+    except ImportError:
+        data = None
+    except (ValueError, TypeError) as err:
+        raise UserError(f"{path}: not a numeric CSV ({str(err).splitlines()[0]})") from None
+    except Exception as err:  # pandas.errors.EmptyDataError / ParserError
+        if type(err).__name__ == "EmptyDataError":
+            data = np.zeros((0, n_cols))
+        else:
+            raise UserError(f"{path}: not a numeric CSV ({str(err).splitlines()[0]})") from None
+    if data is None:
+        try:
+            data = np.loadtxt(io.BytesIO(body), delimiter=",", ndmin=2)
+        except ValueError as err:
+            raise UserError(f"{path}: not a numeric CSV ({str(err).splitlines()[0]})") from None
+    if data.shape[0] == 0 or data.shape[1] != n_cols:
+        raise UserError(f"{path}: expected {n_cols} columns per row and at least one row")
+    return data
+
+
+def read_log(path: str | Path) -> VehicleLog:
+    """Read one vehicle log (either layout, plain or .gz) without cleaning; UserError if unusable.
+
+    NaN values are kept here; :func:`check_log` removes and counts them.
+    """
+    path = Path(path)
+    raw = _open_bytes(path)
+    header_b, _, body = raw.partition(b"\n")
+    try:
+        header = header_b.decode()
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: header line is not text; expected a CSV header") from None
+    names = [h.strip() for h in header.lstrip("#").strip().split(",")]
+    if "time[ms]" in names:
+        wanted, time_scale = NEURAL_SWARM_COLUMNS, 1e-6  # the column counts microseconds
+    elif "t_s" in names:
+        wanted, time_scale = {c: c for c in CANONICAL_COLUMNS}, 1.0
+    else:
+        raise UserError(
+            f"{path}: unknown log layout; expected a header with 'time[ms]' (neural-swarm) "
+            f"or 't_s' (canonical, see docs/identify.md)"
+        )
+    missing = [col for col in wanted.values() if col not in names]
+    if missing:
+        raise UserError(f"{path}: missing column(s) {', '.join(missing)}")
+    data = _parse_numeric(body, path, len(names))
+    col = {name: data[:, names.index(src)] for name, src in wanted.items()}
+
+    def stack(*keys: str) -> np.ndarray:
+        return np.column_stack([col[k] for k in keys])
+
+    return VehicleLog(
+        t_s=col["t_s"] * time_scale,
+        position_m=stack("x_m", "y_m", "z_m"),
+        velocity_mps=stack("vx_mps", "vy_mps", "vz_mps"),
+        accel_mps2=stack("ax_mps2", "ay_mps2", "az_mps2"),
+        quat_xyzw=stack("qx", "qy", "qz", "qw"),
+        motor_thrust_N=stack("f1_N", "f2_N", "f3_N", "f4_N"),
+        gyro_radps=stack("wx_radps", "wy_radps", "wz_radps"),
+        source=str(path),
+    )
+
+
+def write_canonical_csv(log: VehicleLog, path: str | Path) -> Path:
+    """Write ``log`` in the canonical layout (gzip when the name ends in .gz), atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    buf = io.StringIO()
+    np.savetxt(buf, log.as_table(), delimiter=",", header=",".join(CANONICAL_COLUMNS), comments="", fmt="%.9g")
+    payload = buf.getvalue().encode()
+    if path.suffix == ".gz":
+        payload = gzip.compress(payload, mtime=0)
+    return atomic_write_bytes(path, payload)
+
+
+def check_log(
+    log: VehicleLog, *, weight_N: float, ground_z_m: float = 0.0, options: QualityOptions = QualityOptions()
+) -> tuple[VehicleLog, Exclusions]:
+    """Clean one log: drop NaN rows, split at gaps, drop short segments and ground contact.
+
+    Args:
+        log: as read by :func:`read_log`.
+        weight_N: the vehicle's weight (idle-motor check), N.
+        ground_z_m: ground height in the log's world frame, m.
+    Returns:
+        The cleaned log (``segment`` numbers contiguous stretches) and the exclusion counts.
+    Raises:
+        UserError: time going backwards or repeating (names the file and the row).
+    """
+    t = log.t_s
+    dt = np.diff(t)
+    finite_t = np.isfinite(t)
+    bad = np.flatnonzero(np.isfinite(dt) & (dt <= 0.0))
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise UserError(
+            f"{log.source}: time goes backwards or repeats at data row {i + 1} "
+            f"({t[i - 1]:.6f} s -> {t[i]:.6f} s); logs must have increasing time"
+        )
+    table = log.as_table()
+    finite = finite_t & np.all(np.isfinite(table), axis=1)
+    nan_rows = int((~finite).sum())
+    log = log.take(finite)
+    if len(log) < 2:
+        raise UserError(f"{log.source}: fewer than 2 usable rows (NaN rows: {nan_rows})")
+    # ground contact / idle motors (before segmenting, so they split segments too)
+    airborne = (log.position_m[:, 2] - ground_z_m > options.ground_clearance_m) & (
+        log.motor_thrust_N.sum(axis=1) > options.min_thrust_fraction * weight_N
+    )
+    ground = int((~airborne).sum())
+    # segments: a new one starts after every gap and every excluded stretch
+    step = np.diff(log.t_s)
+    breaks = np.concatenate([[True], (step > options.max_gap_s)])
+    gaps = int((step > options.max_gap_s).sum())
+    breaks |= np.concatenate([[True], airborne[1:] & ~airborne[:-1]])
+    seg = np.cumsum(breaks) - 1
+    log = replace(log, segment=seg).take(airborne)
+    short = 0
+    if len(log):
+        ids, counts = np.unique(log.segment, return_counts=True)
+        keep = np.ones(len(log), dtype=bool)
+        for sid, n in zip(ids, counts):
+            m = log.segment == sid
+            if log.t_s[m][-1] - log.t_s[m][0] < options.min_segment_s:
+                keep &= ~m
+                short += int(n)
+        log = log.take(keep)
+        _, seg = np.unique(log.segment, return_inverse=True)
+        log = replace(log, segment=seg)
+    return log, Exclusions(nan_rows=nan_rows, gap_segments=gaps, short_segment_samples=short, ground_samples=ground)
+
+
+# --------------------------------------------------------------------------------------- manifest
+
+
+@dataclass(frozen=True)
+class VehicleEntry:
+    """One vehicle of a flight in the manifest."""
+
+    name: str  # e.g. cf51
+    type: str  # vehicle type (built-in or from ``vehicles_file``)
+    log: Path  # resolved log path
+    ground_z_m: float = 0.0  # ground height in the log's world frame, m
+
+
+@dataclass(frozen=True)
+class FlightEntry:
+    name: str
+    split: str  # "train" or "test"
+    vehicles: tuple[VehicleEntry, ...]
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """DESIGN.md section 6 manifest, paths resolved."""
+
+    path: Path
+    format: str
+    root: Path
+    flights: tuple[FlightEntry, ...]
+    vehicles_file: Path | None = None  # optional custom vehicle types (physics.vehicle_yaml)
+    quality: QualityOptions = QualityOptions()
+
+
+def _need(mapping: Any, key: str, where: str, kind: type | tuple[type, ...]) -> Any:
+    if not isinstance(mapping, Mapping) or key not in mapping:
+        raise UserError(f"{where}: missing key '{key}'")
+    value = mapping[key]
+    if not isinstance(value, kind):
+        names = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
+        raise UserError(f"{where}.{key}: expected {names}, got {value!r}")
+    return value
+
+
+def load_manifest(path: str | Path) -> Manifest:
+    """Read and validate a manifest YAML (DESIGN.md section 6).
+
+    ``root`` is resolved relative to the directory of the manifest file (absolute paths are kept);
+    each ``log`` is resolved relative to ``root``. Optional keys: ``vehicles_file`` (relative to the
+    manifest), per-vehicle ``ground_z_m`` (default 0), ``quality: {max_gap_s, min_segment_s,
+    ground_clearance_m, min_thrust_fraction, min_overlap_s}``.
+    """
+    from fileio.files import read_yaml
+
+    path = Path(path)
+    doc = read_yaml(path, what="manifest")
+    where = str(path)
+    if not isinstance(doc, Mapping):
+        raise UserError(f"{where}: expected a mapping with format, root, flights")
+    fmt = doc.get("format", "neural-swarm")
+    if fmt not in FORMATS:
+        raise UserError(f"{where}: format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    root = Path(_need(doc, "root", where, str))
+    root = root if root.is_absolute() else (path.parent / root)
+    if not root.is_dir():
+        raise UserError(f"{where}: root: directory {root} not found (resolved relative to the manifest)")
+    vfile = doc.get("vehicles_file", doc.get("vehicle_file"))  # both spellings accepted
+    vfile = None if vfile is None else (path.parent / str(vfile))
+    qual = doc.get("quality", {}) or {}
+    if not isinstance(qual, Mapping):
+        raise UserError(f"{where}: quality: expected a mapping")
+    try:
+        quality = QualityOptions(**{k: float(v) for k, v in qual.items()})
+    except (TypeError, ValueError) as err:
+        raise UserError(f"{where}: quality: {err}") from None
+    flights_raw = _need(doc, "flights", where, list)
+    flights, seen = [], set()
+    for i, fl in enumerate(flights_raw):
+        fw = f"{where}: flights[{i}]"
+        name = str(_need(fl, "name", fw, (str, int)))
+        if name in seen:
+            raise UserError(f"{fw}.name: duplicate flight name {name!r}")
+        seen.add(name)
+        split = _need(fl, "split", fw, str)
+        if split not in ("train", "test"):
+            raise UserError(f"{fw}.split: expected train or test, got {split!r}")
+        vraw = _need(fl, "vehicles", fw, Mapping)
+        entries = []
+        for vname, v in vraw.items():
+            vw = f"{fw}.vehicles.{vname}"
+            vtype = _need(v, "type", vw, str)
+            log = root / _need(v, "log", vw, str)
+            gz = v.get("ground_z_m", 0.0)
+            if isinstance(gz, bool) or not isinstance(gz, (int, float)):
+                raise UserError(f"{vw}.ground_z_m: expected a number (m), got {gz!r}")
+            entries.append(VehicleEntry(name=str(vname), type=vtype, log=log, ground_z_m=float(gz)))
+        if not entries:
+            raise UserError(f"{fw}.vehicles: expected at least one vehicle")
+        flights.append(FlightEntry(name=name, split=split, vehicles=tuple(entries)))
+    splits = {f.split for f in flights}
+    if splits != {"train", "test"}:
+        raise UserError(f"{where}: flights: need at least one train and one test flight, got {sorted(splits)}")
+    return Manifest(path=path, format=fmt, root=root, flights=tuple(flights), vehicles_file=vfile, quality=quality)
+
+
+@dataclass(frozen=True)
+class Flight:
+    """A loaded, cleaned flight: every vehicle's log restricted to the common time span."""
+
+    name: str
+    split: str
+    vehicles: Mapping[str, Any]  # vehicle name -> physics.vehicles.Vehicle
+    logs: Mapping[str, VehicleLog]
+    ground_z_m: Mapping[str, float]
+    exclusions: Mapping[str, Exclusions]
+
+
+def load_flight(entry: FlightEntry, vehicles: Mapping[str, Any], *, options: QualityOptions = QualityOptions()) -> Flight:
+    """Read, check and time-align the logs of one flight (each vehicle keeps its own clock).
+
+    ``vehicles`` maps each vehicle name of the entry to its :class:`Vehicle`. Samples outside the
+    time overlap of all the flight's vehicles are excluded (counted); no overlap is a UserError.
+    """
+    logs, excl = {}, {}
+    for v in entry.vehicles:
+        log, ex = check_log(read_log(v.log), weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options)
+        if len(log) == 0:
+            raise UserError(f"{v.log}: no usable samples after quality checks (ground/idle/NaN); flight {entry.name}")
+        logs[v.name], excl[v.name] = log, ex
+    t0 = max(log.t_s[0] for log in logs.values())
+    t1 = min(log.t_s[-1] for log in logs.values())
+    if len(logs) > 1 and t1 - t0 < options.min_overlap_s:
+        spans = ", ".join(f"{n} {log.t_s[0]:.2f}-{log.t_s[-1]:.2f} s" for n, log in logs.items())
+        raise UserError(f"flight {entry.name}: vehicles do not overlap in time ({spans}); need {options.min_overlap_s} s")
+    for name, log in list(logs.items()):
+        inside = (log.t_s >= t0) & (log.t_s <= t1)
+        logs[name] = log.take(inside)
+        excl[name] = excl[name] + Exclusions(outside_overlap_samples=int((~inside).sum()))
+    return Flight(
+        name=entry.name,
+        split=entry.split,
+        vehicles=dict(vehicles),
+        logs=logs,
+        ground_z_m={v.name: v.ground_z_m for v in entry.vehicles},
+        exclusions=excl,
+    )
+
+
+def interpolate_position_m(log: VehicleLog, t_s: np.ndarray) -> np.ndarray:
+    """Position (M, 3), m, of ``log`` at times ``t_s`` (M,) on another vehicle's clock (linear)."""
+    return np.column_stack([np.interp(t_s, log.t_s, log.position_m[:, k]) for k in range(3)])

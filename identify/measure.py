@@ -1,0 +1,158 @@
+"""Disturbance wrench measured from IMU and motor data (S0-9..S0-14).
+
+Force (S0-11), world frame:   f_a = m R alpha - (sum_i f_i) R z_B
+    with R alpha the accelerometer's specific force rotated to the world frame (+g on z in hover).
+Torque (S0-13) plus the gyroscopic term S0-13 omits, world frame:
+    tau_a = R (J omega_dot + omega x J omega) - R tau_p
+    with tau_p the body torque of the motors from the (S0-14) mixer (arms l/sqrt2, k_t), taken from
+    :func:`physics.authority.mixer_matrix` so the mixer exists once.
+
+omega_dot comes from a Savitzky-Golay derivative of the gyro (default; ``scipy.signal.savgol_filter``
+over ``window_s``), or from the paper's smoothing — a triangular moving average followed by the
+forward difference (S0-12) — or from the raw forward difference. The same smoother is applied to
+the measured force and torque. Optional first-order motor-lag compensation passes the commanded
+thrusts through f' = (f_cmd - f) / tau_motor before they enter (S0-11, S0-14).
+
+Derivatives and smoothing run per contiguous segment (``segment`` ids from the log checks) and
+assume a uniform sample time within a segment (the median step).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter, lfilter_zi, savgol_filter
+from scipy.signal.windows import triang
+from scipy.spatial.transform import Rotation
+
+from physics.vehicles import Vehicle
+
+DERIVATIVES = ("savgol", "triangular", "difference")
+
+
+@dataclass(frozen=True)
+class MeasureOptions:
+    """How the disturbance is measured."""
+
+    derivative: str = "savgol"  # one of DERIVATIVES
+    window_s: float = 0.15  # smoothing / derivative window, s
+    polyorder: int = 2  # Savitzky-Golay polynomial order, -
+    motor_time_constant_s: float | None = None  # first-order motor lag tau to compensate, s
+    thrust_scale: float = 1.0  # multiplies the logged motor thrusts (calibrated), -
+
+    def __post_init__(self) -> None:
+        if self.derivative not in DERIVATIVES:
+            raise ValueError(f"derivative must be one of {DERIVATIVES}, got {self.derivative!r}")
+
+
+@dataclass(frozen=True)
+class MeasuredWrench:
+    """Measured aerodynamic disturbance on one vehicle over N samples, world frame."""
+
+    force_N: np.ndarray  # (N, 3), N
+    torque_Nm: np.ndarray  # (N, 3), N m
+
+
+def _window_samples(window_s: float, dt_s: float, n: int, polyorder: int) -> int:
+    w = max(int(round(window_s / dt_s)) | 1, polyorder + 2 | 1)
+    return min(w, n if n % 2 else n - 1)
+
+
+def _smooth(x: np.ndarray, dt_s: float, options: MeasureOptions, *, deriv: int) -> np.ndarray:
+    """Smoothed signal or its time derivative (deriv=1), rows = time, one segment."""
+    n = x.shape[0]
+    if options.derivative == "savgol" and n > options.polyorder + 1:
+        w = _window_samples(options.window_s, dt_s, n, options.polyorder)
+        if w > options.polyorder:
+            return savgol_filter(x, w, options.polyorder, deriv=deriv, delta=dt_s, axis=0, mode="interp")
+    if options.derivative == "triangular" and n >= 3:
+        w = min(max(int(round(options.window_s / dt_s)) | 1, 3), n if n % 2 else n - 1)
+        kern = triang(w)
+        kern /= kern.sum()
+        pad = w // 2
+        xp = np.pad(x, [(pad, pad)] + [(0, 0)] * (x.ndim - 1), mode="edge")
+        x = np.apply_along_axis(lambda c: np.convolve(c, kern, mode="valid"), 0, xp)
+    if deriv == 0:
+        return x
+    # (S0-12) forward difference, last sample repeated
+    d = np.diff(x, axis=0) / dt_s
+    return np.concatenate([d, d[-1:]], axis=0) if len(d) else np.zeros_like(x)
+
+
+def motor_lag_compensated_N(commanded_N: np.ndarray, dt_s: float, time_constant_s: float) -> np.ndarray:
+    """Actual thrusts (N, 4) of first-order motors f' = (f_cmd - f)/tau fed ``commanded_N`` (N, 4), N.
+
+    Exact discretisation for a zero-order-hold command; starts at steady state.
+    """
+    a = float(np.exp(-dt_s / time_constant_s))
+    b_coef, a_coef = [0.0, 1.0 - a], [1.0, -a]  # f[k] = a f[k-1] + (1 - a) f_cmd[k-1]
+    zi = lfilter_zi(b_coef, a_coef)[:, None] * commanded_N[0][None, :]
+    out, _ = lfilter(b_coef, a_coef, commanded_N, axis=0, zi=zi)
+    return out
+
+
+def measure_disturbance(
+    vehicle: Vehicle,
+    t_s: np.ndarray,
+    quat_xyzw: np.ndarray,
+    accel_mps2: np.ndarray,
+    motor_thrust_N: np.ndarray,
+    gyro_radps: np.ndarray,
+    *,
+    segment: np.ndarray | None = None,
+    options: MeasureOptions = MeasureOptions(),
+) -> MeasuredWrench:
+    """Measured disturbance force and torque on ``vehicle`` (S0-11, S0-13 + gyroscopic term).
+
+    Args:
+        t_s: (N,) sample times, s.
+        quat_xyzw: (N, 4) body-to-world attitude, scalar last.
+        accel_mps2: (N, 3) accelerometer specific force in the world frame, m/s^2.
+        motor_thrust_N: (N, 4) per-motor thrust, (S0-14) order, N.
+        gyro_radps: (N, 3) body rates, rad/s.
+        segment: (N,) contiguous-segment ids; derivatives never cross a segment boundary.
+    Returns:
+        :class:`MeasuredWrench`, world frame.
+    """
+    from physics.authority import mixer_matrix
+
+    n = len(t_s)
+    segment = np.zeros(n, dtype=int) if segment is None else np.asarray(segment)
+    rot = Rotation.from_quat(quat_xyzw)
+    J = np.asarray(vehicle.inertia_diag_kgm2)
+    mix = mixer_matrix(vehicle)[1:]  # (3, 4): motor thrusts -> body torque (S0-14a-c)
+    force = np.empty((n, 3))
+    torque = np.empty((n, 3))
+    for sid in np.unique(segment):
+        idx = np.flatnonzero(segment == sid)
+        t = t_s[idx]
+        dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.01
+        thrust = motor_thrust_N[idx] * options.thrust_scale
+        if options.motor_time_constant_s:
+            thrust = motor_lag_compensated_N(thrust, dt, options.motor_time_constant_s)
+        r = rot[idx]
+        z_b = r.apply(np.array([0.0, 0.0, 1.0]))  # (M, 3) body z in world
+        f_a = vehicle.mass_kg * accel_mps2[idx] - thrust.sum(axis=1)[:, None] * z_b  # (S0-11)
+        w = gyro_radps[idx]
+        w_dot = _smooth(w, dt, options, deriv=1)
+        w_s = _smooth(w, dt, options, deriv=0)
+        tau_p = thrust @ mix.T  # body torque of the motors (S0-14)
+        body = J * w_dot + np.cross(w_s, J * w_s) - _smooth(tau_p, dt, options, deriv=0)
+        force[idx] = _smooth(f_a, dt, options, deriv=0)
+        torque[idx] = r.apply(body)  # (S0-13): tau_a = R J w_dot (+ gyroscopic) - R tau_p
+    return MeasuredWrench(force_N=force, torque_Nm=torque)
+
+
+def measure_log(vehicle: Vehicle, log, *, options: MeasureOptions = MeasureOptions()) -> MeasuredWrench:
+    """:func:`measure_disturbance` on a :class:`identify.flightlog.VehicleLog`."""
+    return measure_disturbance(
+        vehicle,
+        log.t_s,
+        log.quat_xyzw,
+        log.accel_mps2,
+        log.motor_thrust_N,
+        log.gyro_radps,
+        segment=log.segment,
+        options=options,
+    )

@@ -1,0 +1,245 @@
+"""``proxplan identify`` pipeline: measure -> predict -> calibrate -> residuals -> effects -> report.
+
+Stages (DESIGN.md section 6):
+
+1. Load every flight of the manifest (:mod:`identify.flightlog`), clean it and measure the disturbance
+   on every vehicle (:mod:`identify.measure`, S0-11, S0-13 + gyroscopic term).
+2. Predict it with the model: :func:`physics.effects.total_wrench`, i.e. the base model
+   (:func:`physics.disturbance.disturbance_wrench`) summed over all other vehicles of the flight at
+   their logged relative positions (interpolated onto the target's own clock), plus effects.
+3. Calibrate on TRAIN flights only (:mod:`identify.calibrate`): per source type c_ax, z0_m, c_rad;
+   per target type b_v; jointly with a per-type thrust scale s as a nuisance parameter (logged motor
+   thrusts off by a factor put (s - 1) sum(f_i) z_B into the measured force), so that a
+   thrust-calibration error does not distort the aerodynamic parameters. Fitted on F_z (world z
+   force), the quantity the model predicts best. The scales are then dropped: a thrust correction is
+   kept only if the ``thrust_bias`` candidate (global bias + per-type scales) earns it on test data.
+4. Residual analysis (:mod:`identify.residuals`).
+5. Effects: each candidate of :data:`physics.effects.EFFECT_NAMES` is fitted on train flights on top
+   of the calibrated model (vehicle parameters frozen) and scored on TEST flights; the one that
+   cuts the test RMSE of F_z or of the yaw torque most (by at least ``min_gain``, without making the
+   other worse by more than 1 %) is kept, and the search repeats with the rest (greedy).
+6. Errors before (model as given) and after (calibrated + kept effects) on test flights.
+
+Fits use at most ``max_fit_samples`` train samples and scoring ``max_eval_samples`` test samples
+(uniform strides); the before/after figures use every test sample.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from identify.calibrate import CalibrationResult, ParamSpec, apply_vehicle_parameters, fit_parameters, vehicle_param_specs
+from physics.disturbance import ModelOptions, VALIDITY_FACTOR_L
+from physics.effects import base_wrench
+from fileio.errors import UserError
+from identify.flightlog import Manifest, load_manifest
+from identify.residuals import correlate, sample_features
+from identify.effect_selection import EffectTrial, select_effects
+from identify.data import Errors, IdentifyOptions, Model, Unit, errors, load_units, merge_units, predict, subsample, unit_inputs
+
+# ------------------------------------------------------------------------------ calibration
+
+
+def _roles(units: Sequence[Unit]) -> tuple[set[str], set[str], list[str]]:
+    sources = {t for u in units for t in u.source_types}
+    targets = {u.type for u in units if u.source_types}
+    types = sorted({u.type for u in units})
+    return sources, targets, types
+
+
+def calibrate_model(units: Sequence[Unit], model: Model, *, options: IdentifyOptions) -> tuple[Model, CalibrationResult]:
+    """Fit c_ax, z0_m, c_rad (source types), b_v (target types), thrust scale (all types) on F_z."""
+    fit_units = subsample(units, options.max_fit_samples)
+    sources, targets, types = _roles(fit_units)
+    specs: list[ParamSpec] = []
+    for t in types:
+        specs += vehicle_param_specs(model.vehicles[t], f"{t}.", as_source=t in sources, as_target=t in targets)
+        specs.append(ParamSpec(f"{t}.thrust_scale", model.thrust_scale.get(t, 1.0), 0.7, 1.3))
+    y = np.concatenate([u.force_N[:, 2] for u in fit_units])
+
+    def model_of(theta: np.ndarray) -> Model:
+        per_type: dict[str, dict[str, float]] = {}
+        for spec, val in zip(specs, theta):
+            t, key = spec.name.rsplit(".", 1)
+            per_type.setdefault(t, {})[key] = float(val)
+        vehicles = dict(model.vehicles)
+        scales = dict(model.thrust_scale)
+        for t, vals in per_type.items():
+            scales[t] = vals.pop("thrust_scale", 1.0)
+            vehicles[t] = apply_vehicle_parameters(model.vehicles[t], **vals)
+        return replace(model, vehicles=vehicles, thrust_scale=scales)
+
+    def residual(theta: np.ndarray) -> np.ndarray:
+        m = model_of(theta)
+        return np.concatenate([predict(u, m)[0][:, 2] for u in fit_units]) - y
+
+    result = fit_parameters(residual, specs, max_nfev=60 + 10 * len(specs))
+    # the thrust scales were nuisance parameters (so a thrust-calibration error does not distort the
+    # aerodynamic ones); whether to keep a thrust correction is decided by test error (thrust_bias)
+    calibrated = model_of(result.values)
+    return replace(calibrated, thrust_scale=dict(model.thrust_scale)), result
+
+
+# ------------------------------------------------------------------------------ pipeline
+
+
+@dataclass(frozen=True)
+class IdentifyResult:
+    before: Errors
+    after: Errors
+    calibrated: Errors  # calibrated, no effects
+    trials: list[EffectTrial]
+    selected: list[str]
+    base_model: Model
+    final_model: Model
+    calibration: CalibrationResult | None
+    exclusions: dict
+    correlations: list  # FeatureCorrelation of the final test F_z residual, strongest first
+    correlations_before: list
+    unexplained: dict | None
+    validity: dict
+    thrust_coefficient: dict
+    units: list[Unit]
+
+    def to_json(self) -> dict[str, Any]:
+        cal = {}
+        if self.calibration is not None:
+            cal = {"parameters": self.calibration.to_json(), "rmse_fz_N_train": self.calibration.rmse, "success": self.calibration.success}
+        return {
+            "before": self.before.to_json(),
+            "after": self.after.to_json(),
+            "calibrated_only": self.calibrated.to_json(),
+            "effects": [t.to_json() for t in self.trials],
+            "selected": list(self.selected),
+            "calibration": cal,
+            "thrust_scale": dict(self.final_model.thrust_scale),
+            "exclusions": self.exclusions,
+            "residual_correlations": [{"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations],
+            "unexplained": self.unexplained,
+            "validity": self.validity,
+            "thrust_coefficient": {t: {k: v for k, v in d.items() if not k.startswith("_")} for t, d in self.thrust_coefficient.items()},
+        }
+
+
+def _zone_masks(u: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample of ``u``: below some source within r < 3 L (N,), and of those, in dz > 3 L (N,)."""
+    below = np.zeros(len(u), dtype=bool)
+    valid = np.zeros(len(u), dtype=bool)
+    for t, off in zip(u.source_types, u.source_offsets_m):
+        L = model.vehicles[t].size_m
+        dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
+        here = (dz > 0.0) & (r < 3.0 * L)
+        below |= here
+        valid |= here & (dz > VALIDITY_FACTOR_L * L)
+    return below, valid
+
+
+def _validity(units: Sequence[Unit], before: Model, after: Model, bases_before: list, bases_after: list) -> dict[str, Any]:
+    """Samples below a source (dz > 0, r < 3 L) inside / outside the zone dz > 3 L (S0 II-A), with
+    the test RMSE of F_z before and after on each part."""
+    below, valid, res_b, res_a = [], [], [], []
+    for u, bb, ba in zip(units, bases_before, bases_after):
+        b, v = _zone_masks(u, before)
+        below.append(b)
+        valid.append(v)
+        res_b.append(u.force_N[:, 2] - predict(u, before, base=bb)[0][:, 2])
+        res_a.append(u.force_N[:, 2] - predict(u, after, base=ba)[0][:, 2])
+    below_a, valid_a = np.concatenate(below), np.concatenate(valid)
+    rb, ra = np.concatenate(res_b), np.concatenate(res_a)
+
+    def rmse(r: np.ndarray, m: np.ndarray) -> float | None:
+        return float(np.sqrt(np.mean(r[m] ** 2))) if m.any() else None
+
+    inside, outside = below_a & valid_a, below_a & ~valid_a
+    return {
+        "samples_below_a_source": int(below_a.sum()),
+        "samples_in_valid_zone": int(inside.sum()),
+        "fraction_valid": float(inside.sum() / below_a.sum()) if below_a.any() else None,
+        "rmse_fz_N_valid_zone": {"before": rmse(rb, inside), "after": rmse(ra, inside)},
+        "rmse_fz_N_inside_3L": {"before": rmse(rb, outside), "after": rmse(ra, outside)},
+        "note": "model valid for dz > 3 L of the source (S0 II-A); closer samples are still compared",
+    }
+
+
+def _residual_analysis(units: Sequence[Unit], model: Model):
+    res, feats = [], {}
+    for u in units:
+        f, _ = predict(u, model)
+        res.append(u.force_N[:, 2] - f[:, 2])
+        fe = sample_features(u.height_above_ground_m, u.velocity_mps, list(u.source_offsets_m))
+        for k, v in fe.items():
+            feats.setdefault(k, []).append(v)
+    return correlate(np.concatenate(res), {k: np.concatenate(v) for k, v in feats.items()})
+
+
+def run_identify(manifest: Manifest | str | Path, *, options: IdentifyOptions = IdentifyOptions(), thrust_summary: bool = True) -> IdentifyResult:
+    """The whole pipeline on a manifest; errors are on TEST flights."""
+    if not isinstance(manifest, Manifest):
+        manifest = load_manifest(manifest)
+    units, exclusions, types = load_units(manifest, options=options)
+    train = [u for u in units if u.split == "train" and len(u)]
+    test = [u for u in units if u.split == "test" and len(u)]
+    if not train or not test:
+        raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
+    base = Model(vehicles=types, thrust_scale={t: 1.0 for t in types}, options=ModelOptions(field_form=options.field_form))
+    test_all = merge_units(test)  # every test sample, pooled
+    cache: dict[int, tuple[Any, list]] = {}  # id(vehicles) -> (vehicles, base wrench per unit)
+
+    def full_bases(m: Model) -> list:
+        key = id(m.vehicles)
+        if key not in cache:
+            cache[key] = (m.vehicles, [base_wrench(unit_inputs(u, m)) for u in test_all])
+        return cache[key][1]
+
+    def full_errors(m: Model) -> Errors:
+        return errors(test_all, m, bases=full_bases(m))
+
+    before = full_errors(base)
+    calibration = None
+    model = base
+    if options.calibrate:
+        model, calibration = calibrate_model(train, base, options=options)
+    calibrated = full_errors(model)
+    corr_before = _residual_analysis(subsample(train, 20000), model)
+    final, trials = select_effects(train, test, [model, base] if options.calibrate else [base], options=options)
+    after = full_errors(final)
+    corr = _residual_analysis(subsample(test, 50000), final)
+    unexplained = None
+    if corr and corr[0].strength >= 0.3:
+        unexplained = {"feature": corr[0].feature, "pearson": corr[0].pearson, "eta": corr[0].eta,
+                       "note": "the residual after the kept effects still follows this feature; no effect in the library explained it"}  # fmt: skip
+    thrust = thrust_coefficient_summary(train) if thrust_summary else {}
+    return IdentifyResult(
+        before=before, after=after, calibrated=calibrated, trials=trials,
+        selected=[e.name for e in final.effects], base_model=base, final_model=final,
+        calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
+        unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
+    )  # fmt: skip
+
+
+def thrust_coefficient_summary(units: Sequence[Unit]) -> dict:
+    """Seed 001 on the given (train) units: LS fit of (S1-25) per vehicle type and a decimated RLS
+    history (S1-28..S1-30, forgetting factor 0.99, started from the LS solution as the paper does)."""
+    from identify.thrust_rls import REGRESSOR_NAMES, fit_ls, rls
+
+    out: dict[str, Any] = {}
+    for t in sorted({u.type for u in units if u.thrust is not None}):
+        samples = [u.thrust for u in units if u.type == t and u.thrust is not None]
+        x = np.concatenate([s.regressors for s in samples])
+        y = np.concatenate([s.c_t for s in samples])
+        fit = fit_ls(x, y)
+        step = max(1, len(y) // 2000)
+        hist = rls(x[::step], y[::step], forgetting=0.99, theta0=fit.theta)
+        out[t] = {
+            "ls": {n: float(v) for n, v in zip(REGRESSOR_NAMES, fit.theta)},
+            "ls_std": {n: float(v) for n, v in zip(REGRESSOR_NAMES, fit.std)},
+            "r2": fit.r2,
+            "n_samples": int(len(y)),
+            "rls_final": {n: float(v) for n, v in zip(REGRESSOR_NAMES, hist[-1])},
+            "_rls_history": hist,  # (M, 6) for the report plot; not in the JSON
+        }
+    return out

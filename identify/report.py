@@ -1,0 +1,172 @@
+"""Markdown report and PNG plots of an identification run (``proxplan identify --out DIR``).
+
+Files written into DIR (each atomically, temp file + rename):
+``report.md``, ``measured_vs_predicted.png`` (test F_z over time, before and after),
+``residual_vs_features.png`` (final test F_z residual vs dz, r, height above ground),
+``effects.png`` (test RMSE of F_z and yaw torque per candidate effect, before/after),
+``thrust_coefficient.png`` (seed 001 RLS history of the S1-25 parameters, when available).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from identify.pipeline import IdentifyResult
+from identify.data import predict
+from identify.residuals import sample_features
+from fileio.files import atomic_write_text, save_figure
+
+
+def _save(fig, path: Path) -> None:
+    save_figure(fig, path, dpi=110, bbox_inches="tight")
+
+
+def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    test = [u for u in result.units if u.split == "test" and len(u)]
+    # 1. measured vs predicted F_z, the test vehicle with the strongest base disturbance
+    strength = [float(np.std(u.force_N[:, 2])) if u.source_types else 0.0 for u in test]
+    unit = test[int(np.argmax(strength))]  # the most disturbed test vehicle (measured F_z spread)
+    if len(unit) > 6000:  # plot a 60 s window around its strongest disturbance
+        k = int(np.argmin(unit.force_N[:, 2]))
+        unit = unit.take(np.arange(max(0, k - 3000), min(len(unit), k + 3000)))
+    fb, _ = predict(unit, result.base_model)
+    fa, _ = predict(unit, result.final_model)
+    fig, ax = plt.subplots(figsize=(10, 4))
+    t = unit.t_s - unit.t_s[0]
+    ax.plot(t, unit.force_N[:, 2], lw=0.8, color="k", label="measured (S0-11)")
+    ax.plot(t, fb[:, 2], lw=1.0, label="model before")
+    ax.plot(t, fa[:, 2], lw=1.0, label="after (calibrated + " + (", ".join(result.selected) or "no effect") + ")")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("F_z [N]")
+    ax.set_title(f"test flight {unit.flight}, vehicle {unit.name} ({unit.type})")
+    ax.legend(fontsize=8)
+    p = out_dir / "measured_vs_predicted.png"
+    _save(fig, p)
+    plt.close(fig)
+    written.append(p)
+    # 2. residual vs features
+    res, feats = [], {}
+    from identify.data import subsample
+
+    for u in subsample(test, 50000):
+        f, _ = predict(u, result.final_model)
+        res.append(u.force_N[:, 2] - f[:, 2])
+        for k, v in sample_features(u.height_above_ground_m, u.velocity_mps, list(u.source_offsets_m)).items():
+            feats.setdefault(k, []).append(v)
+    r = np.concatenate(res)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), sharey=True)
+    for ax, key in zip(axes, ("dz_m", "r_m", "height_above_ground_m")):
+        x = np.concatenate(feats[key])
+        step = max(1, len(x) // 20000)
+        ax.scatter(x[::step], r[::step], s=2, alpha=0.3)
+        ax.set_xlabel(key.replace("_m", " [m]"))
+        ax.axhline(0.0, color="k", lw=0.5)
+    axes[0].set_ylabel("F_z residual after [N]")
+    fig.suptitle("test-flight residual of F_z vs features")
+    p = out_dir / "residual_vs_features.png"
+    _save(fig, p)
+    plt.close(fig)
+    written.append(p)
+    # 3. effects before/after
+    first = [tr for tr in result.trials if tr.round == 1]
+    labels = ["before", "calibrated"] + [tr.name for tr in first] + ["after"]
+    fz = [result.before.rmse_fz_N, result.calibrated.rmse_fz_N] + [tr.test.rmse_fz_N for tr in first] + [result.after.rmse_fz_N]
+    tz = [result.before.rmse_tz_Nm, result.calibrated.rmse_tz_Nm] + [tr.test.rmse_tz_Nm for tr in first] + [result.after.rmse_tz_Nm]
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4))
+    for ax, vals, name in zip(axes, (fz, tz), ("test RMSE F_z [N]", "test RMSE yaw torque [N m]")):
+        colors = ["tab:red", "tab:orange"] + ["tab:gray"] * len(first) + ["tab:green"]
+        ax.bar(range(len(vals)), vals, color=colors)
+        ax.set_xticks(range(len(vals)), labels, rotation=40, ha="right", fontsize=8)
+        ax.set_ylabel(name)
+    fig.suptitle("each candidate effect alone on the calibrated model (round 1), before and after")
+    p = out_dir / "effects.png"
+    _save(fig, p)
+    plt.close(fig)
+    written.append(p)
+    # 4. RLS history
+    hist = {t: d["_rls_history"] for t, d in result.thrust_coefficient.items() if "_rls_history" in d}
+    if hist:
+        from identify.thrust_rls import REGRESSOR_NAMES
+
+        fig, axes = plt.subplots(2, 3, figsize=(12, 5.5))
+        for t, h in hist.items():
+            for k, ax in enumerate(axes.ravel()):
+                ax.plot(h[:, k], lw=0.8, label=t)
+                ax.set_title(REGRESSOR_NAMES[k], fontsize=9)
+        axes[0, 0].legend(fontsize=7)
+        fig.suptitle("seed 001 RLS (S1-28..30, forgetting 0.99) on train logs, decimated samples")
+        p = out_dir / "thrust_coefficient.png"
+        _save(fig, p)
+        plt.close(fig)
+        written.append(p)
+    return written
+
+
+def _fmt(x: float | None, digits: int = 4) -> str:
+    return "n/a" if x is None else f"{x:.{digits}g}"
+
+
+def markdown(result: IdentifyResult, *, manifest: str = "", plots: list[Path] = ()) -> str:
+    b, c, a = result.before, result.calibrated, result.after
+    lines = [f"# proxplan identify — {manifest}", ""]
+    lines += ["## Test-flight error before and after", "",
+              "| model | RMSE F_z [N] | RMSE torque [N m] | RMSE yaw torque [N m] | samples |", "|---|---|---|---|---|"]  # fmt: skip
+    for name, e in (("before (model as given)", b), ("calibrated", c), ("after (calibrated + effects)", a)):
+        lines.append(f"| {name} | {_fmt(e.rmse_fz_N)} | {_fmt(e.rmse_torque_Nm)} | {_fmt(e.rmse_tz_Nm)} | {e.n_samples} |")
+    cut = 100.0 * (1.0 - a.rmse_fz_N / b.rmse_fz_N) if b.rmse_fz_N > 0 else 0.0
+    lines += ["", f"Selected effects: **{', '.join(result.selected) or 'none'}**. F_z error cut by {cut:.1f} %.", ""]
+    lines += ["## Candidate effects (fitted on train, scored on test)", "",
+              "| round | effect | params | RMSE F_z [N] | gain F_z | gain yaw | kept |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for tr in result.trials:
+        params = ", ".join(f"{k}={v:.4g}" for k, v in tr.params.items())
+        lines.append(f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {100 * tr.gain_fz:.1f} % | {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} |")
+    if result.calibration is not None:
+        lines += ["", "## Calibrated parameters (train flights; one-sigma from the Jacobian)", "", "| parameter | value | std |", "|---|---|---|"]
+        cal = result.calibration
+        for n, v, s, b in zip(cal.names, cal.values, cal.std, cal.at_bound or (False,) * len(cal.names)):
+            std = "at a fit bound" if b else (_fmt(float(s)) if np.isfinite(s) else "not identifiable")
+            lines.append(f"| {n} | {v:.5g} | {std} |")
+        lines += ["", "Thrust scales are nuisance parameters of the calibration (they keep a thrust-sensor "
+                  "error out of the aerodynamic parameters); only `thrust_bias`, if kept, carries one into the model."]
+    lines += ["", "## Residual analysis (final model, test flights, F_z)", "", "| feature | pearson | eta |", "|---|---|---|"]
+    for corr in result.correlations:
+        lines.append(f"| {corr.feature} | {corr.pearson:.3f} | {corr.eta:.3f} |")
+    if result.unexplained:
+        u = result.unexplained
+        lines += ["", f"**Unexplained residual**: it still correlates with `{u['feature']}` (pearson {u['pearson']:.2f}, eta {u['eta']:.2f}); no effect of the library removed it."]
+    v = result.validity
+    lines += ["", "## Validity", "", f"Samples below a source (r < 3 L): {v['samples_below_a_source']}; in the model's zone dz > 3 L: "
+              f"{v['samples_in_valid_zone']} ({_fmt(v['fraction_valid'], 3)}). {v['note']}.", "",
+              "| test samples below a source | RMSE F_z before [N] | after [N] |", "|---|---|---|",
+              f"| in the valid zone dz > 3 L | {_fmt(v['rmse_fz_N_valid_zone']['before'])} | {_fmt(v['rmse_fz_N_valid_zone']['after'])} |",
+              f"| inside 3 L (outside validity) | {_fmt(v['rmse_fz_N_inside_3L']['before'])} | {_fmt(v['rmse_fz_N_inside_3L']['after'])} |"]  # fmt: skip
+    if result.thrust_coefficient:
+        lines += ["", "## Thrust coefficient (seed 001, S1-25 LS fit on train logs)", ""]
+        for t, d in result.thrust_coefficient.items():
+            params = ", ".join(f"{k}={val:.3g}±{d['ls_std'][k]:.1g}" for k, val in d["ls"].items())
+            lines.append(f"- {t}: {params}; R² {d['r2']:.2f} over {d['n_samples']} samples")
+    lines += ["", "## Excluded samples (quality checks)", ""]
+    for flight, per in result.exclusions.items():
+        parts = "; ".join(f"{n}: " + ", ".join(f"{k} {val}" for k, val in e.items() if val) for n, e in per.items())
+        lines.append(f"- {flight}: {parts}")
+    lines += ["", "## Plots", ""] + [f"![{p.stem}]({p.name})" for p in plots]
+    return "\n".join(lines) + "\n"
+
+
+def write_report(result: IdentifyResult, out_dir: str | Path, *, manifest: str = "") -> Path:
+    """Write plots and ``report.md`` into ``out_dir``; returns the report path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plots = write_plots(result, out)
+    path = out / "report.md"
+    atomic_write_text(path, markdown(result, manifest=manifest, plots=plots))
+    return path

@@ -1,0 +1,70 @@
+"""Measurement-level synthetic flight logs with a known truth, for tests of ``proxplan identify``.
+
+No rigid-body simulation: every vehicle follows a scripted trajectory and its motors cancel the
+truth wrench exactly. Closed-loop synthetic flights come from :mod:`flightsim`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from identify.flightlog import VehicleLog
+
+
+def synthetic_logs(
+    vehicles: Mapping[str, Any],
+    positions_m: Mapping[str, np.ndarray],
+    t_s: np.ndarray,
+    *,
+    effects: tuple = (),
+    ground_z_m: float = 0.0,
+    accel_noise_mps2: float = 0.0,
+    seed: int = 0,
+) -> dict[str, VehicleLog]:
+    """Logs with a known truth: every vehicle follows ``positions_m[name]`` (N, 3), m, level, and
+    receives the wrench of :func:`physics.effects.total_wrench` (base model from all other vehicles
+    plus ``effects``). Its controller cancels the wrench exactly: motor thrusts from the (S0-14) mixer
+    give collective m (g + a_z) - F_z and body torque -tau, and the accelerometer (world, specific
+    force) reads (T z + F) / m plus white noise ``accel_noise_mps2``. So the S0-11/S0-13 measurement
+    returns the truth wrench (up to noise and smoothing). Gyro zero (level, no yaw rate).
+
+    This is a measurement-level generator (no rigid-body simulation): for closed-loop flights use
+    the simulator (flightsim).
+    """
+    from physics.authority import mixer_matrix
+    from physics.effects import EffectInputs, SourceSample, total_wrench
+    from physics.vehicles import GRAVITY_MPS2
+
+    rng = np.random.default_rng(seed)
+    n = len(t_s)
+    out = {}
+    for name, veh in vehicles.items():
+        pos = np.asarray(positions_m[name], dtype=float)
+        vel = np.gradient(pos, t_s, axis=0)
+        acc = np.gradient(vel, t_s, axis=0)
+        inputs = EffectInputs(
+            target=veh,
+            height_above_ground_m=pos[:, 2] - ground_z_m,
+            velocity_mps=vel,
+            sources=tuple(SourceSample(vehicles[o], pos - np.asarray(positions_m[o])) for o in vehicles if o != name),
+        )
+        force, torque = total_wrench(inputs, tuple(effects))
+        collective = veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]) - force[:, 2]
+        demand = np.column_stack([collective, -torque[:, 0], -torque[:, 1], -torque[:, 2]])
+        thrusts = np.linalg.solve(mixer_matrix(veh), demand.T).T
+        spec = force.copy()
+        spec[:, 2] += collective
+        spec = spec / veh.mass_kg + rng.normal(0.0, accel_noise_mps2, (n, 3))
+        out[name] = VehicleLog(
+            t_s=np.asarray(t_s, dtype=float),
+            position_m=pos,
+            velocity_mps=vel,
+            accel_mps2=spec,
+            quat_xyzw=np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)),
+            motor_thrust_N=thrusts,
+            gyro_radps=np.zeros((n, 3)),
+            source=f"synthetic:{name}",
+        )
+    return out

@@ -1,0 +1,148 @@
+"""The four built-in vehicle types, every number with its unit and its source.
+
+Sources
+-------
+[S0]  Seed 000: Table I (propeller diameter, arm length, mass, maximum thrust) and section IV-B
+      (c_ax, z0, c_rad of each vehicle's downwash), IV-C (b_v of the large quad's 8-inch propeller).
+[RP]  RotorPy 3.0 vehicle parameter files: ``crazyflie_params.py`` (mass 0.03 kg, inertia,
+      k_eta = 2.3e-8 N s^2/rad^2, 2500 rad/s max) and ``hummingbird_params.py`` (AscTec Hummingbird,
+      8-inch propellers: k_eta = 5.57e-6 N s^2/rad^2, k_m = 1.36e-7 N m s^2/rad^2, inertia).
+[NS]  ../shared/data/neural-swarm/README.md: masses of the Neural-Swarm vehicles (32 g, 67 g),
+      Crazyflie 2.1 geometry (92 mm motor-to-motor diagonal, 45-47 mm propellers).
+[F15] Foerster 2015, "System identification of the Crazyflie 2.0": torque/thrust ratio 0.005964 m.
+[A]   Assumption, stated here, to be corrected by calibration (``proxplan identify``).
+
+Derived values
+--------------
+* Static C_T (rev/s form) from a known k1: C_T = 4 pi^2 k1 / (rho D^4).
+* Inertia of the S0 vehicles (not given by S0): scaled from the Crazyflie [RP] by m l^2
+  (Jxx = 0.225 m l^2, Jzz = 0.455 m l^2); the same scaling reproduces the Hummingbird's inertia [RP]
+  within 10 %, so it is a fair estimate for the large quad.
+* b_v of propellers without a measurement: blade-element momentum theory, :mod:`physics.propeller`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from physics.vehicles import AIR_DENSITY_KGPM3, DownwashSpec, FrameSpec, PropellerSpec, Vehicle
+
+_JXX_PER_ML2 = 1.43e-5 / (0.030 * 0.046**2)  # Crazyflie [RP] inertia over m l^2, -
+_JZZ_PER_ML2 = 2.89e-5 / (0.030 * 0.046**2)
+
+
+def _static_ct_from_k1(k1_Ns2prad2: float, diameter_m: float) -> float:
+    """C_T (rev/s form) of a propeller whose k1 of f = k1 omega^2 is known, -."""
+    return 4.0 * math.pi**2 * k1_Ns2prad2 / (AIR_DENSITY_KGPM3 * diameter_m**4)
+
+
+def _scaled_inertia(mass_kg: float, arm_length_m: float) -> tuple[float, float, float]:
+    jxx = _JXX_PER_ML2 * mass_kg * arm_length_m**2
+    return (jxx, jxx, _JZZ_PER_ML2 * mass_kg * arm_length_m**2)
+
+
+SMALL_QUAD = Vehicle(
+    name="small-quad",
+    description="S0 Table I small quadcopter (2-inch propellers)",
+    mass_kg=0.145,  # [S0] Table I
+    arm_length_m=0.0585,  # [S0] Table I
+    max_thrust_N=4.6,  # [S0] Table I
+    inertia_diag_kgm2=_scaled_inertia(0.145, 0.0585),  # derived, see module docstring
+    torque_to_thrust_m=0.006,  # [A] close to the Crazyflie's [F15] for a propeller of similar size
+    propeller=PropellerSpec(
+        diameter_m=0.0508,  # [S0] Table I
+        chord_m=0.0065,  # [A] 2-inch, 2-blade propeller, chord at 75 % R
+        pitch_m=0.030,  # [A] 1.2-inch pitch
+        n_blades=2,  # [A]
+        thrust_coefficient=0.10,  # [A] static C_T of small hobby propellers, 0.08-0.12
+    ),
+    frame=FrameSpec(hub_side_m=0.045, arm_width_m=0.008, motor_pod_diameter_m=0.014),  # [A]
+    downwash=DownwashSpec(c_ax=4.672, z0_m=0.033, c_rad=60.808),  # [S0] IV-B
+    sources={
+        "mass/arm/propeller/max thrust": "S0 Table I",
+        "c_ax/z0/c_rad": "S0 section IV-B",
+        "inertia": "Crazyflie (RotorPy) scaled by m l^2",
+        "frame, blade geometry, C_T, k_t": "assumed; calibrate with proxplan identify",
+        "b_v": "blade-element theory (S1-4..S1-8)",
+    },
+)
+
+LARGE_QUAD = Vehicle(
+    name="large-quad",
+    description="S0 Table I large quadcopter (8-inch propellers)",
+    mass_kg=0.650,  # [S0] Table I
+    arm_length_m=0.165,  # [S0] Table I
+    max_thrust_N=27.0,  # [S0] Table I
+    inertia_diag_kgm2=_scaled_inertia(0.650, 0.165),  # derived, see module docstring
+    torque_to_thrust_m=1.36e-7 / 5.57e-6,  # [RP] Hummingbird k_m / k_eta (8-inch), m
+    propeller=PropellerSpec(
+        diameter_m=0.2032,  # [S0] Table I
+        chord_m=0.016,  # [A] 8x4.5 propeller; gives solidity 0.10, near S1 Table 1 (0.095)
+        pitch_m=0.1143,  # [A] 4.5-inch pitch of a common 8x4.5 propeller
+        n_blades=2,
+        thrust_coefficient=_static_ct_from_k1(5.57e-6, 0.2032),  # [RP] Hummingbird 8-inch k_eta
+        b_v_measured=3.710e-7,  # [S0] IV-C, thrust stand, N m^-1 rad^-2 s^3
+    ),
+    frame=FrameSpec(hub_side_m=0.10, arm_width_m=0.018, motor_pod_diameter_m=0.030),  # [A]
+    downwash=DownwashSpec(c_ax=4.886, z0_m=0.110, c_rad=24.936),  # [S0] IV-B
+    sources={
+        "mass/arm/propeller/max thrust": "S0 Table I",
+        "c_ax/z0/c_rad": "S0 section IV-B",
+        "b_v": "S0 section IV-C (measured)",
+        "k1, k_t": "RotorPy hummingbird_params (8-inch propellers)",
+        "inertia": "Crazyflie (RotorPy) scaled by m l^2; matches Hummingbird within 10 %",
+        "frame, blade geometry": "assumed; calibrate with proxplan identify",
+    },
+)
+
+CRAZYFLIE_21 = Vehicle(
+    name="crazyflie-2.1",
+    description="Bitcraze Crazyflie 2.1 with mocap markers (Neural-Swarm cf50-52)",
+    mass_kg=0.032,  # [NS] 32 g with markers
+    arm_length_m=0.046,  # [NS] 92 mm motor-to-motor diagonal / 2
+    max_thrust_N=4 * 2.3e-8 * 2500.0**2,  # [RP] k_eta omega_max^2 per motor, 0.575 N total
+    inertia_diag_kgm2=(1.43e-5, 1.43e-5, 2.89e-5),  # [RP]
+    torque_to_thrust_m=0.005964,  # [F15]
+    propeller=PropellerSpec(
+        diameter_m=0.046,  # [NS] 45-47 mm
+        chord_m=0.0055,  # [A] measured-by-eye Crazyflie blade chord at 75 % R
+        pitch_m=0.021,  # [A]
+        n_blades=2,
+        thrust_coefficient=_static_ct_from_k1(2.3e-8, 0.046),  # [RP] k_eta
+    ),
+    frame=FrameSpec(hub_side_m=0.030, arm_width_m=0.005, motor_pod_diameter_m=0.009),  # [A]
+    downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.092, c_rad=60.808),  # [A] S0 small quad, z0/L kept
+    sources={
+        "mass, geometry": "Neural-Swarm README",
+        "inertia, k1, max thrust": "RotorPy crazyflie_params",
+        "k_t": "Foerster 2015",
+        "c_ax/c_rad": "assumed equal to S0 small quad; z0 scaled by L",
+    },
+)
+
+CRAZYFLIE_PARROT = Vehicle(
+    name="crazyflie-parrot",
+    description="Crazyflie 2.1 electronics on a Parrot frame with larger propellers (Neural-Swarm cf101-102)",
+    mass_kg=0.067,  # [NS] 67 g
+    arm_length_m=0.060,  # [A] geometry undocumented [NS]; Parrot Mambo-class frame
+    max_thrust_N=1.40,  # [A] thrust-to-weight about 2.1
+    inertia_diag_kgm2=_scaled_inertia(0.067, 0.060),  # derived as for the S0 vehicles
+    torque_to_thrust_m=0.0075,  # [A]
+    propeller=PropellerSpec(
+        diameter_m=0.066,  # [A] about 2.6-inch propellers
+        chord_m=0.008,  # [A]
+        pitch_m=0.030,  # [A]
+        n_blades=2,
+        thrust_coefficient=0.12,  # [A]
+    ),
+    frame=FrameSpec(hub_side_m=0.035, arm_width_m=0.007, motor_pod_diameter_m=0.012),  # [A]
+    downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.120, c_rad=60.808),  # [A] as crazyflie-2.1
+    sources={
+        "mass": "Neural-Swarm README",
+        "geometry, propellers, thrust": "assumed (undocumented); calibrate with proxplan identify",
+    },
+)
+
+BUILTIN_VEHICLES: dict[str, Vehicle] = {
+    v.name: v for v in (SMALL_QUAD, LARGE_QUAD, CRAZYFLIE_21, CRAZYFLIE_PARROT)
+}

@@ -1,0 +1,324 @@
+"""Shared library of aerodynamic effects beyond the base downwash model (DESIGN.md section 6).
+
+One implementation serves two users: the closed-loop simulator adds chosen effects to the world as
+"truth" (so plans are stress-tested against a world that differs from the planner's model), and the
+identification stage tries them as candidate explanations of the residual in flight data.
+
+Frames and conventions: world frame, z up. The target hovers (approximately) level with its body
+axes aligned to the world axes, as in :mod:`physics.disturbance`; forces are in N, torques in N m
+about the target's centre of mass, both expressed in the world frame. ``offsets_m`` are
+``p_target - p_source`` (N, 3), m; dz = -offset_z is positive when the target is below the source.
+
+Every :func:`effect_wrench` returns the ADDITIONAL wrench of one effect beyond the base model
+(:func:`physics.disturbance.disturbance_wrench` summed over the sources); :func:`total_wrench`
+returns base + effects. Each effect's parameters, with units in their names, default values and
+fit bounds, are listed in :data:`PARAMETERS`; parameters left out of an :class:`Effect` take their
+defaults.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from physics.disturbance import (
+    DEFAULT_OPTIONS,
+    ModelOptions,
+    disturbance_wrench,
+    oncoming_speed_per_rotor_mps,
+    vertical_point_wrench,
+)
+from physics.vehicles import Vehicle
+
+EFFECT_NAMES = (
+    "thrust_bias",
+    "ground_effect",
+    "near_field",
+    "wake_swirl",
+    "wake_advection",
+    "own_velocity",
+    "thrust_quadratic",
+)
+
+PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
+    # param name -> (default, lower bound, upper bound)
+    "thrust_bias": {"force_z_N": (0.0, -5.0, 5.0)},
+    "ground_effect": {"gain_k": (1.0, 0.0, 4.0)},
+    "near_field": {"amplitude": (0.5, 0.0, 5.0), "decay_L": (3.0, 0.2, 30.0)},
+    "wake_swirl": {"yaw_per_force_m": (0.02, -0.2, 0.2)},
+    "wake_advection": {
+        "wind_x_mps": (0.0, -10.0, 10.0),
+        "wind_y_mps": (0.0, -10.0, 10.0),
+        "convection_speed_mps": (2.0, 0.2, 20.0),
+    },
+    "own_velocity": {
+        "c_w_spm": (0.05, -0.5, 0.5),
+        "c_mu_spm": (0.0, -0.5, 0.5),
+        "c_mu2_s2pm2": (0.01, -0.2, 0.2),
+    },
+    "thrust_quadratic": {"b_q_rel_spm": (0.1, -1.0, 1.0)},
+}
+
+TARGET_ONLY_EFFECTS = ("thrust_bias", "ground_effect", "own_velocity")
+"""Effects that depend on the target alone (counted once, whatever the sources); every other effect
+is a sum over the sources, and like the base model is zero for a source not above the target."""
+
+MAX_GROUND_EFFECT_RATIO = 2.0
+"""Cap on T_IGE / T_OGE: the Cheeseman-Bennett form diverges as the rotor nears the ground, -."""
+
+
+@dataclass(frozen=True)
+class SourceSample:
+    """One other vehicle acting as a downwash source, per sample."""
+
+    vehicle: Vehicle
+    offsets_m: np.ndarray  # (N, 3) p_target - p_source, world frame, m
+
+
+@dataclass(frozen=True)
+class EffectInputs:
+    """Situation of ONE target vehicle over N samples."""
+
+    target: Vehicle
+    height_above_ground_m: np.ndarray  # (N,) rotor plane above the ground, m
+    velocity_mps: np.ndarray  # (N, 3) the target's own velocity, world frame, m/s
+    sources: tuple[SourceSample, ...] = ()
+    options: ModelOptions = DEFAULT_OPTIONS
+
+    @property
+    def n_samples(self) -> int:
+        return int(np.shape(self.height_above_ground_m)[0])
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One named effect with its parameters (missing ones take :data:`PARAMETERS` defaults)."""
+
+    name: str  # one of EFFECT_NAMES
+    params: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.name not in PARAMETERS:
+            raise ValueError(
+                f"unknown effect {self.name!r}; expected one of {', '.join(EFFECT_NAMES)}"
+            )
+        unknown = sorted(set(self.params) - set(PARAMETERS[self.name]))
+        if unknown:
+            raise ValueError(
+                f"effect {self.name!r}: unknown parameter(s) {', '.join(unknown)}; "
+                f"expected {', '.join(PARAMETERS[self.name])}"
+            )
+        for key, value in self.params.items():
+            if not np.isfinite(float(value)):
+                raise ValueError(f"effect {self.name!r}: parameter {key} must be finite")
+
+    def full_params(self) -> dict[str, float]:
+        """All parameters of this effect, defaults filled in."""
+        out = {k: spec[0] for k, spec in PARAMETERS[self.name].items()}
+        out.update({k: float(v) for k, v in self.params.items()})
+        return out
+
+
+def default_effect(name: str) -> Effect:
+    """The effect ``name`` with its default parameters."""
+    return Effect(name, {k: spec[0] for k, spec in PARAMETERS[name].items()})
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _zeros(n: int) -> tuple[np.ndarray, np.ndarray]:
+    return np.zeros((n, 3)), np.zeros((n, 3))
+
+
+def _base_source_wrench(
+    source: SourceSample, target: Vehicle, options: ModelOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    batch = disturbance_wrench(source.vehicle, target, source.offsets_m, options)
+    return batch.force_N, batch.torque_Nm
+
+
+class _BaseCache:
+    """Base wrench of each source of one :class:`EffectInputs`, computed once when first needed."""
+
+    def __init__(self, inputs: EffectInputs):
+        self.inputs = inputs
+        self._per_source: list | None = None
+
+    def per_source(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        if self._per_source is None:
+            self._per_source = [
+                _base_source_wrench(src, self.inputs.target, self.inputs.options) for src in self.inputs.sources
+            ]
+        return self._per_source
+
+
+def _sum_base(inputs: EffectInputs, cache: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    force, torque = _zeros(inputs.n_samples)
+    for f, t in cache.per_source():
+        force += f
+        torque += t
+    return force, torque
+
+
+def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+    """Base model (S0-3..S0-8) summed over all sources: force (N, 3), N; torque (N, 3), N m."""
+    return _sum_base(inputs, _BaseCache(inputs))
+
+
+# --------------------------------------------------------------------------- effects
+
+
+def _thrust_bias(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """Constant vertical force ``force_z_N`` (N, world z): a thrust-calibration error (k1 or the
+    PWM-to-thrust map off by a constant), seen by the S0-11 measurement as a steady bias."""
+    force, torque = _zeros(inputs.n_samples)
+    force[:, 2] = p["force_z_N"]
+    return force, torque
+
+
+def _ground_effect(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cheeseman-Bennett ground effect: T_IGE / T_OGE = 1 / (1 - k (R / 4h)^2), R rotor radius (m),
+    h rotor plane height above ground (m), k = ``gain_k`` (1 in the original method-of-images
+    derivation). Applied to the target's hover thrust (its weight, N): Delta F_z = W (ratio - 1),
+    capped at ratio <= :data:`MAX_GROUND_EFFECT_RATIO`. No torque (level vehicle, equal heights)."""
+    force, torque = _zeros(inputs.n_samples)
+    h_m = np.maximum(np.asarray(inputs.height_above_ground_m, dtype=float), 1e-6)
+    r_m = inputs.target.propeller.radius_m
+    denom = 1.0 - p["gain_k"] * (r_m / (4.0 * h_m)) ** 2
+    ratio = np.where(denom > 1.0 / MAX_GROUND_EFFECT_RATIO, 1.0 / np.maximum(denom, 1e-9),
+                     MAX_GROUND_EFFECT_RATIO)
+    force[:, 2] = inputs.target.weight_N * (ratio - 1.0)
+    return force, torque
+
+
+def _near_field(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """Downwash stronger than the far-field model close to the source (the zone of flow
+    establishment, S0 II-A): extra wrench = base source wrench * ``amplitude`` *
+    exp(-dz / (``decay_L`` * L_source)) for dz > 0 (target below), zero otherwise; L = 2 x arm (m)."""
+    force, torque = _zeros(inputs.n_samples)
+    for src, (f, t) in zip(inputs.sources, base.per_source()):
+        dz_m = -np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)[:, 2]
+        scale = np.where(
+            dz_m > 0.0,
+            p["amplitude"] * np.exp(-np.maximum(dz_m, 0.0) / (p["decay_L"] * src.vehicle.size_m)),
+            0.0,
+        )
+        force += f * scale[:, None]
+        torque += t * scale[:, None]
+    return force, torque
+
+
+def _wake_swirl(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """Yaw torque from the swirl of the source's wake, proportional to the base vertical force it
+    causes: tau_z = ``yaw_per_force_m`` * F_z,base (N m; F_z,base < 0 in a downwash, so a positive
+    parameter gives a negative, clockwise-from-above torque). No force."""
+    force, torque = _zeros(inputs.n_samples)
+    for f, _ in base.per_source():
+        torque[:, 2] += p["yaw_per_force_m"] * f[:, 2]
+    return force, torque
+
+
+def _wake_advection(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """A steady horizontal wind (``wind_x_mps``, ``wind_y_mps``) carries the wake downstream while
+    it descends at ``convection_speed_mps``: at depth dz > 0 the wake axis is displaced by
+    wind_xy * dz / convection_speed, so the target sees the base field at the effective offset
+    offset_xy - wind_xy * dz / convection_speed. Effect = base(effective) - base(actual)."""
+    force, torque = _zeros(inputs.n_samples)
+    wind = np.array([p["wind_x_mps"], p["wind_y_mps"]])
+    if not np.any(wind):
+        return force, torque
+    for src, (f0, t0) in zip(inputs.sources, base.per_source()):
+        offsets = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
+        dz_m = np.maximum(-offsets[:, 2], 0.0)
+        shifted = offsets.copy()
+        shifted[:, :2] -= wind[None, :] * (dz_m / p["convection_speed_mps"])[:, None]
+        f1, t1 = _base_source_wrench(
+            SourceSample(src.vehicle, shifted), inputs.target, inputs.options
+        )
+        force += f1 - f0
+        torque += t1 - t0
+    return force, torque
+
+
+def _own_velocity(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """Thrust change of the target with its own motion, after seed 001 eq. 25
+    (C_T = C_T0 + C_Tlambda lambda + C_Tmu mu + C_Tw w + C_Tmu2 mu^2, S1-25), written per unit weight:
+
+        Delta F_z = W (-c_w_spm v_z + c_mu_spm |v_xy| + c_mu2_s2pm2 |v_xy|^2),
+
+    W the target's weight (N), v_z its vertical speed (m/s, up positive: climbing raises the inflow
+    ratio and lowers thrust for c_w_spm > 0), |v_xy| its horizontal speed (m/s, advance ratio:
+    translational lift for positive c_mu). No torque."""
+    force, torque = _zeros(inputs.n_samples)
+    vel = np.asarray(inputs.velocity_mps, dtype=float).reshape(-1, 3)
+    v_xy = np.hypot(vel[:, 0], vel[:, 1])
+    force[:, 2] = inputs.target.weight_N * (
+        -p["c_w_spm"] * vel[:, 2] + p["c_mu_spm"] * v_xy + p["c_mu2_s2pm2"] * v_xy**2
+    )
+    return force, torque
+
+
+def _thrust_quadratic(
+    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
+) -> tuple[np.ndarray, np.ndarray]:
+    """Nonlinear thrust loss in the oncoming downwash, beyond the linear (S0-6):
+    Delta f_i = -b_q v_on,i^2 omega_i^2 with b_q = ``b_q_rel_spm`` * b_v of the target
+    (b_q in N s^4 m^-2 rad^-2; the parameter, s/m, is the ratio b_q / b_v, so one value suits any
+    vehicle), v_on,i the disk-averaged oncoming speed of rotor i (m/s), omega_i^2 the hover value
+    (rad^2/s^2). Force and torque via the rotor positions (S0-7, S0-8)."""
+    force, torque = _zeros(inputs.n_samples)
+    target = inputs.target
+    b_q = p["b_q_rel_spm"] * target.b_v
+    for src in inputs.sources:
+        v_on = oncoming_speed_per_rotor_mps(src.vehicle, target, src.offsets_m, inputs.options)
+        delta_f = -b_q * v_on**2 * target.hover_omega_sq_rad2ps2
+        f, t = vertical_point_wrench(target.rotor_positions_m, delta_f)
+        force += f
+        torque += t
+    return force, torque
+
+
+_EFFECT_FUNCTIONS = {
+    "thrust_bias": _thrust_bias,
+    "ground_effect": _ground_effect,
+    "near_field": _near_field,
+    "wake_swirl": _wake_swirl,
+    "wake_advection": _wake_advection,
+    "own_velocity": _own_velocity,
+    "thrust_quadratic": _thrust_quadratic,
+}
+
+
+def effect_wrench(effect: Effect, inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+    """ADDITIONAL force (N, 3), N, and torque (N, 3), N m, of ``effect`` beyond the base model,
+    world frame, for the N samples of ``inputs``."""
+    return _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, _BaseCache(inputs))
+
+
+def total_wrench(
+    inputs: EffectInputs, effects: Sequence[Effect] = ()
+) -> tuple[np.ndarray, np.ndarray]:
+    """Base model summed over all sources plus every effect in ``effects``: force (N, 3), N, and
+    torque (N, 3), N m, world frame."""
+    cache = _BaseCache(inputs)
+    force, torque = _sum_base(inputs, cache)
+    for effect in effects:
+        f, t = _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, cache)
+        force += f
+        torque += t
+    return force, torque

@@ -1,0 +1,145 @@
+"""Typed vehicle definitions: mass properties, propellers, frame geometry, downwash parameters.
+
+Frames: body frame x forward, y left, z up, origin at the centre of mass. Vehicles are quadrotors in
+X configuration with the motor numbering of (S0-14), which is also the Crazyflie's:
+motor 1 at (+x, -y), 2 at (-x, -y), 3 at (-x, +y), 4 at (+x, +y).
+
+Every field carries its SI unit in its name. Parameters the seed papers do not give are documented
+in :mod:`physics.builtin_vehicles` with their source or derivation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
+
+GRAVITY_MPS2 = 9.81
+"""Standard gravity used throughout, m/s^2."""
+
+
+MOTOR_DIRECTIONS_XY = np.array([[1.0, -1.0], [-1.0, -1.0], [-1.0, 1.0], [1.0, 1.0]])
+"""Unit-diagonal signs (x, y) of motors 1..4 in the body frame, (S0-14) numbering, shape (4, 2)."""
+
+MOTOR_YAW_SIGNS = np.array([-1.0, 1.0, -1.0, 1.0])
+"""Yaw-torque sign per motor: tau_z = k_t [(f2 + f4) - (f1 + f3)] (S0-14c), shape (4,)."""
+
+
+@dataclass(frozen=True)
+class FrameSpec:
+    """Frame geometry projected on the body x-y plane, for the drag integral (S0-3, S0-4).
+
+    The frame is a square hub, four straight arms from the hub to the motors, and a round motor pod
+    under each propeller; all lie in the body x-y plane at the centre of mass height.
+    """
+
+    hub_side_m: float  # side of the square central hub, m
+    arm_width_m: float  # width of each arm, m
+    motor_pod_diameter_m: float  # diameter of the motor pod under each rotor, m
+
+
+@dataclass(frozen=True)
+class DownwashSpec:
+    """Velocity-field parameters of this vehicle as a downwash *source* (S0-1, S0-2)."""
+
+    c_ax: float  # axial decay constant, -
+    z0_m: float  # virtual origin below the rotor plane, m
+    c_rad: float  # radial (Gaussian) decay rate, -
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """A quadrotor in X configuration with (S0-14) motor numbering."""
+
+    name: str
+    mass_kg: float
+    arm_length_m: float  # centre of mass to each motor axis, m
+    max_thrust_N: float  # all motors together, N
+    inertia_diag_kgm2: tuple[float, float, float]  # principal inertia (Jxx, Jyy, Jzz), kg m^2
+    torque_to_thrust_m: float  # k_t of (S0-14c): yaw torque per unit thrust, m
+    propeller: PropellerSpec
+    frame: FrameSpec
+    downwash: DownwashSpec
+    min_motor_thrust_N: float = 0.0  # lowest thrust one motor can hold, N
+    description: str = ""
+    sources: dict[str, str] = field(default_factory=dict, compare=False, hash=False)
+
+    @property
+    def n_rotors(self) -> int:
+        return 4
+
+    @property
+    def size_m(self) -> float:
+        """Vehicle size L = 2 x arm length (S0 II-A), m."""
+        return 2.0 * self.arm_length_m
+
+    @property
+    def weight_N(self) -> float:
+        return self.mass_kg * GRAVITY_MPS2
+
+    @property
+    def hover_thrust_per_rotor_N(self) -> float:
+        return self.weight_N / self.n_rotors
+
+    @property
+    def max_thrust_per_rotor_N(self) -> float:
+        return self.max_thrust_N / self.n_rotors
+
+    @property
+    def hover_omega_sq_rad2ps2(self) -> float:
+        """omega^2 at hover, f_hover / k1 (S0-5), rad^2/s^2."""
+        return self.hover_thrust_per_rotor_N / self.propeller.k1_Ns2prad2
+
+    @cached_property
+    def rotor_positions_m(self) -> np.ndarray:
+        """Rotor hub positions in the body frame, (S0-14) order, shape (4, 3), m (read-only)."""
+        xy = MOTOR_DIRECTIONS_XY * (self.arm_length_m / math.sqrt(2.0))
+        positions = np.column_stack([xy, np.zeros(4)])
+        positions.setflags(write=False)
+        return positions
+
+    @cached_property
+    def b_v(self) -> float:
+        """Thrust decay coefficient b_v (S0-5), N m^-1 rad^-2 s^3: measured, else from S1 theory."""
+        if self.propeller.b_v_measured is not None:
+            return self.propeller.b_v_measured
+        return derived_b_v(self.propeller, hover_thrust_N=self.hover_thrust_per_rotor_N)
+
+    def to_dict(self) -> dict:
+        """Every parameter with its unit-suffixed name, for JSON output and map metadata."""
+        p, f, d = self.propeller, self.frame, self.downwash
+        return {
+            "name": self.name,
+            "description": self.description,
+            "mass_kg": self.mass_kg,
+            "arm_length_m": self.arm_length_m,
+            "size_L_m": self.size_m,
+            "max_thrust_N": self.max_thrust_N,
+            "min_motor_thrust_N": self.min_motor_thrust_N,
+            "inertia_diag_kgm2": list(self.inertia_diag_kgm2),
+            "torque_to_thrust_m": self.torque_to_thrust_m,
+            "propeller": {
+                "diameter_m": p.diameter_m,
+                "chord_m": p.chord_m,
+                "pitch_m": p.pitch_m,
+                "n_blades": p.n_blades,
+                "thrust_coefficient": p.thrust_coefficient,
+                "lift_slope_per_rad": p.lift_slope_per_rad,
+                "tip_loss_factor": p.tip_loss_factor,
+                "k1_Ns2prad2": p.k1_Ns2prad2,
+                "b_v_Nsm3prad2": self.b_v,
+                "b_v_source": "measured" if p.b_v_measured is not None else "blade-element (S1-4..8)",
+            },
+            "frame": {
+                "hub_side_m": f.hub_side_m,
+                "arm_width_m": f.arm_width_m,
+                "motor_pod_diameter_m": f.motor_pod_diameter_m,
+            },
+            "downwash": {"c_ax": d.c_ax, "z0_m": d.z0_m, "c_rad": d.c_rad},
+            "hover_thrust_per_rotor_N": self.hover_thrust_per_rotor_N,
+            "sources": dict(self.sources),
+        }

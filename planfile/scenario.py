@@ -1,0 +1,411 @@
+"""Scenario YAML loading and validation (DESIGN.md section 4) into frozen dataclasses.
+
+Frame: world, z up, metres. A scenario file::
+
+    # what this scenario tests
+    name: battery-swap
+    vehicle_file: my_vehicles.yaml              # optional, resolved relative to this file
+    model: {field_form: inverse-z}              # optional disturbance-model options
+    workspace: {min: [-3, -3, 0], max: [3, 3, 4]}
+    obstacles: [{min: [1, -0.5, 0], max: [1.5, 0.5, 2]}]          # optional axis-aligned boxes
+    limits: {authority_fraction: 0.4, min_separation_m: 0.3,       # optional
+             invalid_zone_rule: conservative, obstacle_margin_m: 0.05, time_horizon_s: 40}
+    vehicles:
+      carrier: {type: large-quad, start: [0, 0, 1.5], hover: true}
+      shuttle: {type: small-quad, start: [2, 1, 2.5], dock: {with: carrier, offset: [0, 0, 0.4]}}
+      other:   {type: small-quad, start: [-2, 0, 1], goal: [2, 0, 1], max_speed_mps: 1.0}
+
+Every mistake raises :class:`fileio.errors.UserError` with ``FILE: KEY: what was expected``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from fileio.errors import UserError
+from fileio.files import read_yaml
+from physics.vehicles import GRAVITY_MPS2, Vehicle
+
+TOP_KEYS = ("name", "description", "vehicle_file", "model", "workspace", "obstacles", "limits", "vehicles")
+LIMIT_KEYS = (
+    "authority_fraction",
+    "min_separation_m",
+    "invalid_zone_rule",
+    "obstacle_margin_m",
+    "time_horizon_s",
+)
+VEHICLE_KEYS = (
+    "type",
+    "start",
+    "goal",
+    "hover",
+    "dock",
+    "max_speed_mps",
+    "max_accel_mps2",
+    "max_jerk_mps3",
+)
+INVALID_ZONE_RULES = ("conservative", "model", "forbid")
+"""How the planner treats 0 < dz <= 3 L of a source where the field model is not valid (S0 II-A):
+``conservative`` (default) uses the cost map's conservative cutoff there; ``model`` uses the
+model's extrapolated numbers; ``forbid`` keeps targets out of the whole invalid cylinder."""
+
+KINEMATIC_DEFAULTS: dict[str, tuple[float, float, float]] = {
+    # type: (max speed m/s, max acceleration m/s^2, max jerk m/s^3); small craft accelerate faster
+    "small-quad": (1.5, 3.0, 15.0),
+    "large-quad": (1.0, 2.0, 8.0),
+    "crazyflie-2.1": (1.5, 3.0, 15.0),
+    "crazyflie-parrot": (1.5, 3.0, 15.0),
+}
+
+
+def default_kinematics(type_name: str, vehicle: Vehicle) -> tuple[float, float, float]:
+    """(max_speed_mps, max_accel_mps2, max_jerk_mps3) for a vehicle type.
+
+    Built-in types use :data:`KINEMATIC_DEFAULTS`; custom ones get a quarter of their spare
+    vertical acceleration (T_max/m - g), capped to [1, 3] m/s^2, speed 1 m/s and jerk 5 x accel.
+    """
+    if type_name in KINEMATIC_DEFAULTS:
+        return KINEMATIC_DEFAULTS[type_name]
+    spare_mps2 = vehicle.max_thrust_N / vehicle.mass_kg - GRAVITY_MPS2
+    accel = float(min(3.0, max(1.0, 0.25 * spare_mps2)))
+    return (1.0, accel, 5.0 * accel)
+
+
+@dataclass(frozen=True)
+class Box:
+    """Axis-aligned box obstacle, world frame: corners ``min_m`` (3,) and ``max_m`` (3,), m."""
+
+    min_m: np.ndarray
+    max_m: np.ndarray
+    name: str = ""
+
+    def contains(self, point_m: np.ndarray, *, margin_m: float = 0.0) -> bool:
+        """True when ``point_m`` (3,) lies inside the box grown by ``margin_m`` on every side."""
+        p = np.asarray(point_m, dtype=float)
+        return bool(np.all(p >= self.min_m - margin_m) and np.all(p <= self.max_m + margin_m))
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Scenario-wide limits.
+
+    ``authority_fraction``: cap on every vehicle's authority usage (DESIGN.md s. 3), -.
+    ``min_separation_m``: minimum centre-to-centre distance of any two vehicles, m (the planner also
+    keeps at least the sum of the two body radii, arm + propeller radius; dock pairs are exempt
+    at their dock).
+    ``invalid_zone_rule``: one of :data:`INVALID_ZONE_RULES`.
+    ``obstacle_margin_m``: extra inflation of obstacles beyond the vehicle's body radius, m.
+    ``time_horizon_s``: longest plan the sampler searches, s.
+    """
+
+    authority_fraction: float = 0.5
+    min_separation_m: float = 0.25
+    invalid_zone_rule: str = "conservative"
+    obstacle_margin_m: float = 0.05
+    time_horizon_s: float = 60.0
+
+
+@dataclass(frozen=True)
+class VehicleTask:
+    """One vehicle of a scenario: its type, start and what it must do (goal, hover or dock).
+
+    Positions are world-frame centres of mass, m. ``goal_m`` is None for hover and dock tasks (the
+    dock goal follows from the other vehicle's final position plus ``dock_offset_m``).
+    """
+
+    name: str
+    type_name: str
+    vehicle: Vehicle
+    start_m: np.ndarray
+    goal_m: np.ndarray | None
+    hover: bool
+    dock_with: str | None
+    dock_offset_m: np.ndarray | None
+    max_speed_mps: float
+    max_accel_mps2: float
+    max_jerk_mps3: float
+
+    @property
+    def body_radius_m(self) -> float:
+        """Radius of the disc that holds the frame and propellers: arm + propeller radius, m."""
+        return self.vehicle.arm_length_m + self.vehicle.propeller.radius_m
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. ``vehicles`` keeps the order of the file; ``spec`` is the parsed YAML."""
+
+    name: str
+    source_path: str | None
+    workspace_min_m: np.ndarray
+    workspace_max_m: np.ndarray
+    obstacles: tuple[Box, ...]
+    limits: Limits
+    vehicles: dict[str, VehicleTask]
+    spec: dict = field(default_factory=dict, compare=False)
+    field_form: str | None = None  # disturbance-model field form ("inverse-z" or "printed"), None = default
+    load_notes: tuple[str, ...] = ()  # things the user should know about how the file was read
+
+    def final_position_m(self, name: str) -> np.ndarray:
+        """Where vehicle ``name`` ends, world frame (3,), m (follows dock chains)."""
+        task = self.vehicles[name]
+        if task.goal_m is not None:
+            return task.goal_m
+        if task.hover:
+            return task.start_m
+        return self.final_position_m(task.dock_with) + task.dock_offset_m
+
+    def dock_order(self) -> list[str]:
+        """Vehicle names with every dock target before the vehicles docking to it (file order kept)."""
+        done: list[str] = []
+        for name in self.vehicles:
+            chain = []
+            while name is not None and name not in done and name not in chain:
+                chain.append(name)
+                name = self.vehicles[name].dock_with
+            done.extend(reversed(chain))
+        return done
+
+
+# --------------------------------------------------------------------------------------------
+# parsing helpers
+
+
+def _vec3(value: Any, where: str) -> np.ndarray:
+    if (
+        not isinstance(value, (list, tuple))
+        or len(value) != 3
+        or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        or not all(math.isfinite(float(v)) for v in value)
+    ):
+        raise UserError(f"{where}: expected a list of 3 finite numbers [x, y, z] in metres, got {value!r}")
+    return np.array([float(v) for v in value])
+
+
+def _positive(value: Any, where: str, *, upper: float | None = None) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise UserError(f"{where}: expected a positive number, got {value!r}")
+    if upper is not None and value > upper:
+        raise UserError(f"{where}: expected a number in (0, {upper:g}], got {value!r}")
+    return float(value)
+
+
+def _mapping(value: Any, where: str, what: str) -> Mapping:
+    if not isinstance(value, Mapping):
+        raise UserError(f"{where}: expected a mapping ({what}), got {type(value).__name__}")
+    return value
+
+
+def _unknown(data: Mapping, allowed: tuple[str, ...], where: str) -> None:
+    for key in data:
+        if key not in allowed:
+            raise UserError(f"{where}.{key}: unknown key; expected one of: {', '.join(allowed)}")
+
+
+def _box(data: Any, where: str) -> Box:
+    data = _mapping(data, where, "{min: [x, y, z], max: [x, y, z]}")
+    _unknown(data, ("min", "max", "name"), where)
+    for key in ("min", "max"):
+        if key not in data:
+            raise UserError(f"{where}.{key}: missing; expected {{min: [x, y, z], max: [x, y, z]}} in metres")
+    lo, hi = _vec3(data["min"], f"{where}.min"), _vec3(data["max"], f"{where}.max")
+    if np.any(hi <= lo):
+        raise UserError(f"{where}: expected max > min on every axis, got min {lo.tolist()} max {hi.tolist()}")
+    return Box(min_m=lo, max_m=hi, name=str(data.get("name", "")))
+
+
+def _vehicle_types(doc: Mapping, path: Path | None, label: str) -> dict[str, Vehicle]:
+    if "vehicle_file" not in doc:
+        return {}
+    value = doc["vehicle_file"]
+    if not isinstance(value, str):
+        raise UserError(f"{label}: vehicle_file: expected a path to a vehicles YAML file, got {value!r}")
+    from physics.vehicle_yaml import load_vehicle_file
+
+    base = path.parent if path is not None else Path.cwd()
+    vfile = (base / value).resolve()
+    if not vfile.exists():
+        raise UserError(f"{label}: vehicle_file: file {vfile} does not exist (paths are relative to the scenario file)")
+    return load_vehicle_file(vfile)
+
+
+def _vehicle_file_notes(doc: Mapping, path: Path | None) -> list[str]:
+    if "vehicle_file" not in doc:
+        return []
+    from physics.vehicle_yaml import unapplied_model_notes
+
+    base = path.parent if path is not None else Path.cwd()
+    return unapplied_model_notes((base / doc["vehicle_file"]).resolve())
+
+
+def _task(name: str, data: Any, where: str, custom: dict[str, Vehicle]) -> VehicleTask:
+    from physics.vehicle_yaml import resolve_vehicle
+
+    data = _mapping(data, where, "type, start and one of goal / hover / dock")
+    _unknown(data, VEHICLE_KEYS, where)
+    if "type" not in data:
+        raise UserError(f"{where}.type: missing; expected a vehicle type name (proxplan vehicles lists them)")
+    type_name = str(data["type"])
+    vehicle = resolve_vehicle(type_name, custom, where=f"{where}.type")
+    if "start" not in data:
+        raise UserError(f"{where}.start: missing; expected [x, y, z] in metres")
+    start = _vec3(data["start"], f"{where}.start")
+    modes = [k for k in ("goal", "hover", "dock") if k in data and data[k] not in (None, False)]
+    if len(modes) != 1:
+        raise UserError(
+            f"{where}: expected exactly one of 'goal: [x, y, z]', 'hover: true' or "
+            f"'dock: {{with: NAME, offset: [x, y, z]}}', got {modes or 'none'}"
+        )
+    goal = dock_with = dock_offset = None
+    hover = False
+    if modes[0] == "goal":
+        goal = _vec3(data["goal"], f"{where}.goal")
+    elif modes[0] == "hover":
+        if data["hover"] is not True:
+            raise UserError(f"{where}.hover: expected true, got {data['hover']!r}")
+        hover = True
+    else:
+        dock = _mapping(data["dock"], f"{where}.dock", "{with: NAME, offset: [x, y, z]}")
+        _unknown(dock, ("with", "offset"), f"{where}.dock")
+        if "with" not in dock or "offset" not in dock:
+            raise UserError(f"{where}.dock: expected {{with: NAME, offset: [x, y, z]}} (both keys)")
+        dock_with = str(dock["with"])
+        dock_offset = _vec3(dock["offset"], f"{where}.dock.offset")
+    speed, accel, jerk = default_kinematics(type_name, vehicle)
+    return VehicleTask(
+        name=name,
+        type_name=type_name,
+        vehicle=vehicle,
+        start_m=start,
+        goal_m=goal,
+        hover=hover,
+        dock_with=dock_with,
+        dock_offset_m=dock_offset,
+        max_speed_mps=_positive(data.get("max_speed_mps", speed), f"{where}.max_speed_mps", upper=20.0),
+        max_accel_mps2=_positive(data.get("max_accel_mps2", accel), f"{where}.max_accel_mps2", upper=30.0),
+        max_jerk_mps3=_positive(data.get("max_jerk_mps3", jerk), f"{where}.max_jerk_mps3", upper=500.0),
+    )
+
+
+def _limits(data: Any, where: str) -> Limits:
+    if data is None:
+        return Limits()
+    data = _mapping(data, where, ", ".join(LIMIT_KEYS))
+    _unknown(data, LIMIT_KEYS, where)
+    d = Limits()
+    rule = data.get("invalid_zone_rule", d.invalid_zone_rule)
+    if rule not in INVALID_ZONE_RULES:
+        raise UserError(f"{where}.invalid_zone_rule: expected one of {', '.join(INVALID_ZONE_RULES)}, got {rule!r}")
+    margin = data.get("obstacle_margin_m", d.obstacle_margin_m)
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not (0 <= margin < 10):
+        raise UserError(f"{where}.obstacle_margin_m: expected a number in [0, 10) m, got {margin!r}")
+    return Limits(
+        authority_fraction=_positive(data.get("authority_fraction", d.authority_fraction), f"{where}.authority_fraction", upper=1.0),
+        min_separation_m=_positive(data.get("min_separation_m", d.min_separation_m), f"{where}.min_separation_m", upper=10.0),
+        invalid_zone_rule=str(rule),
+        obstacle_margin_m=float(margin),
+        time_horizon_s=_positive(data.get("time_horizon_s", d.time_horizon_s), f"{where}.time_horizon_s", upper=600.0),
+    )
+
+
+def _check_geometry(sc: Scenario, label: str) -> None:
+    lo, hi = sc.workspace_min_m, sc.workspace_max_m
+    for name, task in sc.vehicles.items():
+        points = [("start", task.start_m)]
+        if task.goal_m is not None:
+            points.append(("goal", task.goal_m))
+        elif task.dock_with is not None:
+            points.append(("dock (target final position + offset)", sc.final_position_m(name)))
+        for key, p in points:
+            where = f"{label}: vehicles.{name}.{key.split()[0]}"
+            if np.any(p < lo) or np.any(p > hi):
+                raise UserError(
+                    f"{where}: {p.tolist()} is outside the workspace {lo.tolist()}..{hi.tolist()}; expected a point inside it"
+                )
+            for i, box in enumerate(sc.obstacles):
+                if box.contains(p):
+                    raise UserError(
+                        f"{where}: {p.tolist()} is inside obstacles[{i}] {box.min_m.tolist()}..{box.max_m.tolist()}; expected free space"
+                    )
+
+
+def _check_docks(vehicles: dict[str, VehicleTask], label: str) -> None:
+    for name, task in vehicles.items():
+        if task.dock_with is None:
+            continue
+        where = f"{label}: vehicles.{name}.dock.with"
+        if task.dock_with == name:
+            raise UserError(f"{where}: a vehicle cannot dock with itself; expected another vehicle's name")
+        if task.dock_with not in vehicles:
+            raise UserError(f"{where}: no vehicle named {task.dock_with!r}; expected one of {', '.join(vehicles)}")
+        seen = [name]
+        cur = task.dock_with
+        while cur is not None:
+            if cur in seen:
+                raise UserError(f"{where}: docks form a cycle ({' -> '.join(seen + [cur])}); expected a chain ending at a vehicle with goal or hover")
+            seen.append(cur)
+            cur = vehicles[cur].dock_with
+
+
+def scenario_from_dict(doc: Any, *, source_path: str | Path | None = None) -> Scenario:
+    """Validate a parsed scenario mapping; ``source_path`` resolves ``vehicle_file`` and labels errors."""
+    path = Path(source_path) if source_path is not None else None
+    label = str(path) if path is not None else "<scenario>"
+    if not isinstance(doc, Mapping):
+        raise UserError(f"{label}: expected a YAML mapping with keys {', '.join(TOP_KEYS)}")
+    _unknown(doc, TOP_KEYS, f"{label}: scenario")
+    for key in ("workspace", "vehicles"):
+        if key not in doc:
+            raise UserError(f"{label}: {key}: missing; required top-level key")
+    ws = _mapping(doc["workspace"], f"{label}: workspace", "{min: [x, y, z], max: [x, y, z]}")
+    ws_box = _box(ws, f"{label}: workspace")
+    obstacles_raw = doc.get("obstacles") or []
+    if not isinstance(obstacles_raw, list):
+        raise UserError(f"{label}: obstacles: expected a list of {{min: [x, y, z], max: [x, y, z]}} boxes")
+    obstacles = tuple(_box(o, f"{label}: obstacles[{i}]") for i, o in enumerate(obstacles_raw))
+    limits = _limits(doc.get("limits"), f"{label}: limits")
+    field_form = None
+    if "model" in doc and doc["model"] is not None:
+        model = _mapping(doc["model"], f"{label}: model", "{field_form: inverse-z|printed}")
+        _unknown(model, ("field_form",), f"{label}: model")
+        from physics.velocity_field import FIELD_FORMS
+
+        field_form = model.get("field_form")
+        if field_form is not None and field_form not in FIELD_FORMS:
+            raise UserError(f"{label}: model.field_form: expected one of {', '.join(FIELD_FORMS)}, got {field_form!r}")
+    custom = _vehicle_types(doc, path, label)
+    vraw = _mapping(doc["vehicles"], f"{label}: vehicles", "NAME: {type, start, goal|hover|dock}")
+    if not vraw:
+        raise UserError(f"{label}: vehicles: expected at least one vehicle")
+    vehicles = {str(n): _task(str(n), d, f"{label}: vehicles.{n}", custom) for n, d in vraw.items()}
+    _check_docks(vehicles, label)
+    name = doc.get("name", path.stem if path is not None else "scenario")
+    if not isinstance(name, str) or not name:
+        raise UserError(f"{label}: name: expected a non-empty string, got {name!r}")
+    sc = Scenario(
+        name=name,
+        source_path=str(path.resolve()) if path is not None else None,
+        workspace_min_m=ws_box.min_m,
+        workspace_max_m=ws_box.max_m,
+        obstacles=obstacles,
+        limits=limits,
+        vehicles=vehicles,
+        spec=copy.deepcopy(dict(doc)),
+        field_form=field_form,
+        load_notes=tuple(_vehicle_file_notes(doc, path)),
+    )
+    _check_geometry(sc, label)
+    return sc
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario YAML file; UserError naming the file, key and expected form."""
+    path = Path(path)
+    doc = read_yaml(path, what="scenario file")
+    return scenario_from_dict(doc, source_path=path)

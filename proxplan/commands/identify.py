@@ -1,0 +1,105 @@
+"""``proxplan identify MANIFEST.yaml --out DIR [--json] [--save-model FILE]`` (DESIGN.md section 6).
+
+Module level imports only the standard library (fast ``proxplan --help``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from fileio.files import atomic_write_text
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "identify",
+        help="measure disturbances in flight logs, calibrate the model, find missing effects, report",
+        description=(
+            "Closing the loop with flight data: measure the disturbance on every vehicle (S0-11, S0-13), "
+            "predict it with the model, calibrate c_ax, z0, c_rad, b_v and thrust scales on TRAIN flights, "
+            "try each effect of the library and keep what lowers the TEST-flight error. Writes DIR/report.md, "
+            "DIR/identify.json and PNG plots. See docs/identify.md."
+        ),
+    )
+    p.add_argument("manifest", help="manifest YAML (DESIGN.md section 6; root is relative to the manifest file)")
+    p.add_argument("--out", required=True, help="output directory (created)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--save-model", metavar="FILE", help="write the calibrated vehicles + kept effects as a vehicles YAML for costmap/plan")
+    p.add_argument("--no-calibrate", action="store_true", help="skip the calibration stage (effects only)")
+    p.add_argument("--derivative", choices=("savgol", "triangular", "difference"), default="savgol",
+                   help="gyro derivative / smoothing: Savitzky-Golay (default), S0's triangular moving average, raw S0-12")  # fmt: skip
+    p.add_argument("--window-s", type=float, default=0.15, help="smoothing window, s (default 0.15)")
+    p.add_argument("--motor-tau-s", type=float, default=None, help="compensate a first-order motor lag with this time constant, s")
+    p.add_argument("--min-gain", type=float, default=0.05, help="relative test-RMSE cut an effect must bring to be kept (default 0.05)")
+    p.set_defaults(func=run)
+
+
+
+
+def model_yaml_dict(result) -> dict:
+    """The vehicles-YAML mapping (physics.vehicle_yaml format) of the calibrated model."""
+    from physics.builtin_vehicles import BUILTIN_VEHICLES
+    from physics.vehicle_yaml import vehicle_to_yaml_dict
+
+    vehicles = {}
+    for name, veh in result.final_model.vehicles.items():
+        base = name if name in BUILTIN_VEHICLES else None
+        vehicles[name] = vehicle_to_yaml_dict(veh, base=base)
+    return {
+        "vehicles": vehicles,
+        "model": {
+            "field_form": result.final_model.options.field_form,
+            "effects": [{"name": e.name, "params": {k: float(v) for k, v in e.full_params().items()}} for e in result.final_model.effects],
+        },
+    }
+
+
+def save_model(result, path: str | Path) -> Path:
+    import yaml
+
+    path = Path(path)
+    header = (
+        "# written by proxplan identify: calibrated vehicles and kept effects.\n"
+        "# Use with: proxplan costmap --vehicle-file THIS_FILE ..., or 'vehicle_file: THIS_FILE' in a scenario.\n"
+    )
+    atomic_write_text(path, header + yaml.safe_dump(model_yaml_dict(result), sort_keys=False))
+    return path
+
+
+def run(args: argparse.Namespace) -> int:
+    from fileio.errors import UserError
+    from identify.flightlog import load_manifest
+    from identify.pipeline import IdentifyOptions, run_identify
+    from identify.report import write_report
+    from identify.measure import MeasureOptions
+
+    if args.window_s <= 0 or (args.motor_tau_s is not None and args.motor_tau_s <= 0):
+        raise UserError("--window-s and --motor-tau-s must be positive numbers of seconds")
+    manifest = load_manifest(args.manifest)
+    options = IdentifyOptions(
+        measure=MeasureOptions(derivative=args.derivative, window_s=args.window_s, motor_time_constant_s=args.motor_tau_s),
+        calibrate=not args.no_calibrate,
+        min_gain=args.min_gain,
+        progress=True,
+    )
+    result = run_identify(manifest, options=options)
+    out = Path(args.out)
+    report = write_report(result, out, manifest=str(args.manifest))
+    doc = result.to_json()
+    doc["report"] = str(report)
+    if args.save_model:
+        doc["saved_model"] = str(save_model(result, args.save_model))
+    atomic_write_text(out / "identify.json", json.dumps(doc, indent=2, default=float))
+    if args.json:
+        print(json.dumps(doc, default=float))
+    else:
+        b, a = result.before, result.after
+        print(f"test RMSE F_z: {b.rmse_fz_N:.4g} N before -> {a.rmse_fz_N:.4g} N after; "
+              f"torque {b.rmse_torque_Nm:.3g} -> {a.rmse_torque_Nm:.3g} N m")  # fmt: skip
+        print(f"selected effects: {', '.join(result.selected) or 'none'}")
+        if result.unexplained:
+            print(f"unexplained residual correlates with {result.unexplained['feature']}")
+        print(f"report: {report}", file=sys.stdout)
+    return 0

@@ -1,0 +1,156 @@
+"""``proxplan plan`` and ``proxplan verify`` (argparse only at module level; heavy imports inside).
+
+Exit codes: 0 success; 1 infeasible scenario (plan) or violations found (verify); 2 user mistake.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+METHOD_CHOICES = ("optimized", "sampling", "no-downwash", "ellipsoid")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "plan",
+        help="plan a scenario: OMPL space-time sampling, optional optimisation, Ruckig timing",
+        description=(
+            "Plan every vehicle of SCENARIO.yaml and write DIR/plan.json, DIR/plan.png (top and side "
+            "views, authority usage over time) and DIR/summary.txt. Exit 1 when the scenario is "
+            "infeasible (the message names the vehicle and the constraint), 2 on bad input."
+        ),
+    )
+    p.add_argument("scenario", metavar="SCENARIO.yaml", help="scenario file (DESIGN.md section 4)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the sampling planner (default 0)")
+    p.add_argument("--method", choices=METHOD_CHOICES, default="optimized",
+                   help="optimized (default; sampling + CasADi refinement), sampling, or the baselines "
+                        "no-downwash (separation only) and ellipsoid (Crazyswarm keep-out ellipsoid)")
+    p.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_plan)
+
+    v = subparsers.add_parser(
+        "verify",
+        help="independently re-check a plan with the disturbance model (non-zero exit on violations)",
+        description=(
+            "Re-sample DIR/plan.json finely and check workspace, obstacles, separation, goals/docks, "
+            "speed/acceleration/jerk limits and authority usage evaluated with the model directly. "
+            "Lists every violation with time and vehicle; exit 1 on any."
+        ),
+    )
+    v.add_argument("plan", metavar="PLAN.json", help="plan file (or the folder holding plan.json)")
+    v.add_argument("--scenario", metavar="SCENARIO.yaml", help="scenario to check against (default: the one in the plan)")
+    v.add_argument("--dt", type=float, default=0.01, metavar="S", help="re-sampling step in s (default 0.01)")
+    v.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    v.set_defaults(func=_verify)
+
+
+def _progress_bar(enabled: bool):
+    from tqdm import tqdm
+
+    bar = tqdm(total=100, desc="plan", unit="%", file=sys.stderr, disable=not enabled, leave=False)
+
+    def report(message: str, fraction: float | None = None) -> None:
+        bar.set_description(message[:40])
+        if fraction is not None:
+            bar.n = int(round(100 * fraction))
+        bar.refresh()
+
+    return bar, report
+
+
+def _plan(args: argparse.Namespace) -> int:
+    import time
+    from pathlib import Path
+
+    from planner.pipeline import InfeasibleError, plan_scenario
+    from fileio.files import atomic_write_text
+    from planfile.plan import write_plan
+    from planfile.scenario import load_scenario
+    from planner.summary import plan_summary
+    from verify.checks import verify_plan
+
+    scenario = load_scenario(args.scenario)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        from fileio.errors import UserError
+
+        raise UserError(f"--out {out}: exists and is not a folder; expected a folder path")
+    bar, report = _progress_bar(sys.stderr.isatty())
+    try:
+        plan = plan_scenario(scenario, method=args.method, seed=args.seed, progress=report)
+    except InfeasibleError as err:
+        bar.close()
+        print(f"proxplan plan: infeasible: vehicle '{err.vehicle}' cannot meet constraint '{err.constraint}': {err.message}", file=sys.stderr)
+        if args.json:
+            print(json.dumps({"feasible": False, "vehicle": err.vehicle, "constraint": err.constraint, "message": err.message}))
+        return 1
+    bar.close()
+    t_verify = time.perf_counter()
+    violations = verify_plan(plan, scenario)
+    t_verify = time.perf_counter() - t_verify
+    plan.metrics["verify_violations"] = len(violations)
+    out.mkdir(parents=True, exist_ok=True)
+    plan_path = write_plan(plan, out)
+    png = None
+    t_plot = time.perf_counter()
+    if not args.no_plot:
+        from planner.plot import plot_plan
+
+        png = plot_plan(plan, scenario, out / "plan.png")
+    t_plot = time.perf_counter() - t_plot
+    text = plan_summary(plan, violations=violations)
+    summary_path = atomic_write_text(out / "summary.txt", text)
+    if args.json:
+        print(json.dumps({
+            "feasible": True,
+            "plan": str(plan_path),
+            "png": str(png) if png else None,
+            "summary": str(summary_path),
+            "method": plan.method,
+            "metrics": _jsonable(plan.metrics),
+            "notes": plan.notes,
+            "verify": {"passed": not violations, "violations": [_violation_dict(v) for v in violations]},
+            "stage_times_s": {"plan": plan.metrics.get("planning_time_s"), "verify": round(t_verify, 3), "plot": round(t_plot, 3)},
+        }))
+    else:
+        sys.stdout.write(text)
+        print(f"wrote {plan_path}" + (f", {png}" if png else "") + f", {summary_path}")
+    return 0
+
+
+def _violation_dict(v) -> dict:
+    return {"t_s": v.t_s, "vehicle": v.vehicle, "kind": v.kind, "detail": v.detail, "value": v.value, "limit": v.limit}
+
+
+def _jsonable(obj):
+    from planfile.plan import _jsonable as conv
+
+    return conv(obj)
+
+
+def _verify(args: argparse.Namespace) -> int:
+    from fileio.errors import UserError
+    from planfile.plan import read_plan
+    from planfile.scenario import load_scenario
+    from verify.checks import scenario_of_plan, verify_plan
+
+    if not args.dt > 0:
+        raise UserError(f"--dt: expected a positive number of seconds, got {args.dt}")
+    plan = read_plan(args.plan)
+    scenario = load_scenario(args.scenario) if args.scenario else scenario_of_plan(plan, label=str(args.plan))
+    violations = verify_plan(plan, scenario, dt_fine_s=args.dt)
+    if args.json:
+        print(json.dumps({"passed": not violations, "plan": str(args.plan), "scenario": scenario.name,
+                          "violations": [_violation_dict(v) for v in violations]}))
+    else:
+        if violations:
+            print(f"{args.plan}: {len(violations)} violation(s):")
+            for v in violations:
+                print(f"  {v}")
+        else:
+            print(f"{args.plan}: PASS (scenario '{scenario.name}', {len(plan.vehicles)} vehicles, checked every {args.dt:g} s)")
+    return 1 if violations else 0
