@@ -60,7 +60,7 @@ FORMAT_VERSION = 1
 DATA_DIR = Path(__file__).resolve().parent / "data"
 """Shipped maps of every ordered pair of built-in vehicles."""
 
-_FREE_TEXT_KEYS = ("description", "sources")
+_NOT_MAP_INPUTS = ("description", "sources", "kinematic_limits", "motor_time_constant_s")  # not map inputs
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +74,7 @@ class PairMaps:
 
 def vehicle_parameters(vehicle: Vehicle) -> dict:
     """``vehicle.to_dict()`` without free-text keys: what the maps depend on."""
-    return {k: v for k, v in vehicle.to_dict().items() if k not in _FREE_TEXT_KEYS}
+    return {k: v for k, v in vehicle.to_dict().items() if k not in _NOT_MAP_INPUTS}
 
 
 def options_dict(options: ModelOptions) -> dict:
@@ -256,8 +256,8 @@ def load_pair_maps(
         if metadata.get("param_hash") != expected:
             diffs = _differences(
                 {
-                    "source": {k: v for k, v in metadata.get("source", {}).items() if k not in _FREE_TEXT_KEYS},
-                    "target": {k: v for k, v in metadata.get("target", {}).items() if k not in _FREE_TEXT_KEYS},
+                    "source": {k: v for k, v in metadata.get("source", {}).items() if k not in _NOT_MAP_INPUTS},
+                    "target": {k: v for k, v in metadata.get("target", {}).items() if k not in _NOT_MAP_INPUTS},
                     "options": metadata.get("model", {}).get("options", {}),
                 },
                 {

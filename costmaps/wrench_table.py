@@ -100,7 +100,7 @@ def default_dz_max_m(source: Vehicle) -> float:
 
 def target_half_extent_m(vehicle: Vehicle) -> float:
     """Radius of the disc holding a vehicle's frame and propellers (arm + propeller radius), m."""
-    return vehicle.arm_length_m + vehicle.propeller.radius_m
+    return vehicle.body_radius_m
 
 
 @dataclass(frozen=True)

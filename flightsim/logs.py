@@ -12,7 +12,7 @@ files (``../shared/data/neural-swarm/README.md``), in this order:
 * ``u1..u4 [N]`` — per-motor thrust k_eta omega^2 of the ACTUAL (lagged) rotor speeds, (S0-14) order
   (a perfect static calibration); with ``logged_thrust="commanded"`` the controller's command
   clipped to the motor range instead, as the real logs (PWM command through a static calibration):
-  then the motor lag (``flightsim.vehicle_params.motor_time_constant_s``) shows in S0-11;
+  then the motor lag (``Vehicle.motor_time_constant_s``) shows in S0-11;
 * ``u1..u4 [PWM]`` — normalised motor command, commanded thrust / max thrust per motor (0..1, the
   scale the real files hold);
 * ``Vbat [V]`` — constant 4.0 V; ``thrust_des [g]`` — commanded collective thrust in grams-force;

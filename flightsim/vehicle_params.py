@@ -10,9 +10,7 @@ Values our vehicle definition does not hold are set here, each documented:
 
 * ``k_eta`` = k1 (S0-5), N s^2 rad^-2; ``k_m`` = k_t k1, N m s^2 rad^-2 (yaw torque per omega^2);
 * rotor speed limits from the per-motor thrust range: omega = sqrt(f / k1), rad/s;
-* motor time constant ``tau_m``: RotorPy's Crazyflie value 0.072 s for the Crazyflie types (Eschmann
-  et al. 2024, cited in rotorpy/vehicles/crazyflie_params.py); 0.04 s for larger motors (a typical
-  value for 5-10 inch brushless propulsion, an assumption);
+* motor time constant ``tau_m``: ``Vehicle.motor_time_constant_s`` (sourced in physics.builtin_vehicles);
 * rotor drag ``k_d`` and induced inflow ``k_z`` (N per (rad/s m/s)): RotorPy's Crazyflie values,
   scaled so that the drag per m/s relative to the hover thrust per rotor equals the Crazyflie's
   (k_d ~ k_eta omega_hover); translational lift and flapping are 0 (RotorPy's Crazyflie default);
@@ -31,15 +29,8 @@ CRAZYFLIE_K_ETA = 2.3e-08  # N/(rad/s)^2, rotorpy crazyflie_params
 CRAZYFLIE_HOVER_OMEGA_RADPS = math.sqrt(0.03 * 9.81 / 4 / CRAZYFLIE_K_ETA)  # rotorpy CF at 30 g
 CRAZYFLIE_K_D = 10.2506e-07  # rotor drag, N/(rad m/s^2), rotorpy crazyflie_params
 CRAZYFLIE_K_Z = 7.553e-07  # induced inflow, N/(rad m/s^2), rotorpy crazyflie_params
-CRAZYFLIE_TAU_M_S = 0.072  # motor response time, s, rotorpy crazyflie_params
-LARGE_MOTOR_TAU_M_S = 0.04  # motor response time assumed for non-Crazyflie vehicles, s
 ATTITUDE_KP = 310.0  # attitude P gain, 1/s^2 (rotorpy crazyflie kp_att)
 ATTITUDE_KD = 57.0  # attitude D gain, 1/s (rotorpy crazyflie kd_att)
-
-
-def motor_time_constant_s(vehicle: Vehicle) -> float:
-    """First-order motor speed time constant, s (see module docstring)."""
-    return CRAZYFLIE_TAU_M_S if vehicle.name.startswith("crazyflie") else LARGE_MOTOR_TAU_M_S
 
 
 def quad_params(vehicle: Vehicle) -> dict:
@@ -70,7 +61,7 @@ def quad_params(vehicle: Vehicle) -> dict:
         "k_z": CRAZYFLIE_K_Z * drag_scale,
         "k_h": 0.0,
         "k_flap": 0.0,
-        "tau_m": motor_time_constant_s(vehicle),
+        "tau_m": vehicle.motor_time_constant_s,
         "rotor_speed_min": math.sqrt(max(vehicle.min_motor_thrust_N, 0.0) / k1),
         "rotor_speed_max": math.sqrt(vehicle.max_thrust_per_rotor_N / k1),
         "motor_noise_std": 0.0,

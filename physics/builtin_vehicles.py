@@ -10,6 +10,8 @@ Sources
 [NS]  ../shared/data/neural-swarm/README.md: masses of the Neural-Swarm vehicles (32 g, 67 g),
       Crazyflie 2.1 geometry (92 mm motor-to-motor diagonal, 45-47 mm propellers).
 [F15] Foerster 2015, "System identification of the Crazyflie 2.0": torque/thrust ratio 0.005964 m.
+[ET]  Eschmann et al. 2024 (cited in RotorPy's crazyflie_params.py): Crazyflie motor time constant
+      0.072 s.
 [A]   Assumption, stated here, to be corrected by calibration (``proxplan identify``).
 
 Derived values
@@ -25,7 +27,8 @@ from __future__ import annotations
 
 import math
 
-from physics.vehicles import AIR_DENSITY_KGPM3, DownwashSpec, FrameSpec, PropellerSpec, Vehicle
+from physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec
+from physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
 
 _JXX_PER_ML2 = 1.43e-5 / (0.030 * 0.046**2)  # Crazyflie [RP] inertia over m l^2, -
 _JZZ_PER_ML2 = 2.89e-5 / (0.030 * 0.046**2)
@@ -58,6 +61,8 @@ SMALL_QUAD = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.045, arm_width_m=0.008, motor_pod_diameter_m=0.014),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.033, c_rad=60.808),  # [S0] IV-B
+    kinematics=KinematicLimits(max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0),  # [A] tracked by the default controller
+    motor_time_constant_s=0.04,  # [A] 5-10 inch brushless value (DEFAULT_MOTOR_TIME_CONSTANT_S), s
     sources={
         "mass/arm/propeller/max thrust": "S0 Table I",
         "c_ax/z0/c_rad": "S0 section IV-B",
@@ -85,6 +90,8 @@ LARGE_QUAD = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.10, arm_width_m=0.018, motor_pod_diameter_m=0.030),  # [A]
     downwash=DownwashSpec(c_ax=4.886, z0_m=0.110, c_rad=24.936),  # [S0] IV-B
+    kinematics=KinematicLimits(max_speed_mps=1.0, max_accel_mps2=2.0, max_jerk_mps3=8.0),  # [A] tracked by the default controller
+    motor_time_constant_s=0.04,  # [A] 5-10 inch brushless value (DEFAULT_MOTOR_TIME_CONSTANT_S), s
     sources={
         "mass/arm/propeller/max thrust": "S0 Table I",
         "c_ax/z0/c_rad": "S0 section IV-B",
@@ -112,6 +119,8 @@ CRAZYFLIE_21 = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.030, arm_width_m=0.005, motor_pod_diameter_m=0.009),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.092, c_rad=60.808),  # [A] S0 small quad, z0/L kept
+    kinematics=KinematicLimits(max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0),  # [A] tracked by the default controller
+    motor_time_constant_s=0.072,  # [ET], s
     sources={
         "mass, geometry": "Neural-Swarm README",
         "inertia, k1, max thrust": "RotorPy crazyflie_params",
@@ -137,6 +146,8 @@ CRAZYFLIE_PARROT = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.035, arm_width_m=0.007, motor_pod_diameter_m=0.012),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.120, c_rad=60.808),  # [A] as crazyflie-2.1
+    kinematics=KinematicLimits(max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0),  # [A] tracked by the default controller
+    motor_time_constant_s=0.072,  # [ET] same motors and firmware as the Crazyflie, s
     sources={
         "mass": "Neural-Swarm README",
         "geometry, propellers, thrust": "assumed (undocumented); calibrate with proxplan identify",

@@ -15,6 +15,8 @@ File layout (every key is optional when ``base`` names a built-in type, required
                     thrust_coefficient: 0.11, b_v_measured: 4.0e-7}
         frame: {hub_side_m: 0.12, arm_width_m: 0.02, motor_pod_diameter_m: 0.03}
         downwash: {c_ax: 4.9, z0_m: 0.12, c_rad: 25.0}
+        kinematics: {max_speed_mps: 1.0, max_accel_mps2: 2.0, max_jerk_mps3: 8.0}  # optional
+        motor_time_constant_s: 0.04                                               # optional
     model:                          # optional: model options and extra effects (from identify)
       field_form: inverse-z
       effects: [{name: thrust_bias, params: {force_z_N: 0.01}}]
@@ -32,15 +34,17 @@ from typing import Any, Mapping
 from physics.builtin_vehicles import BUILTIN_VEHICLES
 from fileio.errors import UserError
 from fileio.files import read_yaml
-from physics.vehicles import DownwashSpec, FrameSpec, PropellerSpec, Vehicle
+from physics.propeller import PropellerSpec
+from physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
 
 _TOP_KEYS = {
     "base", "description", "mass_kg", "arm_length_m", "max_thrust_N", "min_motor_thrust_N",
-    "inertia_diag_kgm2", "torque_to_thrust_m", "propeller", "frame", "downwash",
+    "inertia_diag_kgm2", "torque_to_thrust_m", "propeller", "frame", "downwash", "kinematics",
+    "motor_time_constant_s",
 }  # fmt: skip
-_POSITIVE = {"mass_kg", "arm_length_m", "max_thrust_N", "torque_to_thrust_m"}
+_POSITIVE = {"mass_kg", "arm_length_m", "max_thrust_N", "torque_to_thrust_m", "motor_time_constant_s"}
 _SECTIONS: dict[str, type] = {"propeller": PropellerSpec, "frame": FrameSpec, "downwash": DownwashSpec}
-_OPTIONAL_FIELDS = {"min_motor_thrust_N", "description"}
+_OPTIONAL_FIELDS = {"min_motor_thrust_N", "description", "motor_time_constant_s"}
 
 
 def _number(
@@ -109,7 +113,8 @@ def vehicle_from_dict(name: str, data: Any, *, source: str = "<vehicle>") -> Veh
                 f"{', '.join(BUILTIN_VEHICLES)}"
             )
     values: dict[str, Any] = {"name": name}
-    for key in ("mass_kg", "arm_length_m", "max_thrust_N", "torque_to_thrust_m", "min_motor_thrust_N"):
+    for key in ("mass_kg", "arm_length_m", "max_thrust_N", "torque_to_thrust_m", "min_motor_thrust_N",
+                "motor_time_constant_s"):
         if key in data:
             values[key] = _number(data[key], f"{where}.{key}", positive=key in _POSITIVE)
         elif base is not None:
@@ -134,6 +139,11 @@ def vehicle_from_dict(name: str, data: Any, *, source: str = "<vehicle>") -> Veh
             values[key] = getattr(base, key)
         else:
             raise UserError(f"{where}: missing key {key!r}")
+    if "kinematics" in data:
+        values["kinematics"] = _section(KinematicLimits, data["kinematics"], getattr(base, "kinematics", None),
+                                        f"{where}.kinematics")
+    elif base is not None:
+        values["kinematics"] = base.kinematics
     values["description"] = str(data.get("description", f"custom vehicle from {source}"))
     vehicle = Vehicle(**values)
     if vehicle.max_thrust_per_rotor_N <= vehicle.hover_thrust_per_rotor_N:
@@ -199,8 +209,11 @@ def vehicle_to_yaml_dict(vehicle: Vehicle, *, base: str | None = None) -> dict[s
     if base is not None:
         out["base"] = base
     out["description"] = vehicle.description
-    for key in ("mass_kg", "arm_length_m", "max_thrust_N", "min_motor_thrust_N", "torque_to_thrust_m"):
+    for key in ("mass_kg", "arm_length_m", "max_thrust_N", "min_motor_thrust_N", "torque_to_thrust_m",
+                "motor_time_constant_s"):
         out[key] = float(getattr(vehicle, key))
+    if vehicle.kinematics is not None:
+        out["kinematics"] = dataclasses.asdict(vehicle.kinematics)
     out["inertia_diag_kgm2"] = [float(v) for v in vehicle.inertia_diag_kgm2]
     for key in _SECTIONS:
         out[key] = {k: v for k, v in dataclasses.asdict(getattr(vehicle, key)).items() if v is not None}

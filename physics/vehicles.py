@@ -30,6 +30,20 @@ MOTOR_YAW_SIGNS = np.array([-1.0, 1.0, -1.0, 1.0])
 
 
 @dataclass(frozen=True)
+class KinematicLimits:
+    """Norm limits a vehicle and its controller track: speed m/s, acceleration m/s^2, jerk m/s^3."""
+
+    max_speed_mps: float
+    max_accel_mps2: float
+    max_jerk_mps3: float
+
+
+DEFAULT_MOTOR_TIME_CONSTANT_S = 0.04
+"""First-order motor speed time constant of vehicles that do not state one, s ([A] a typical value
+for 5-10 inch brushless propulsion)."""
+
+
+@dataclass(frozen=True)
 class FrameSpec:
     """Frame geometry projected on the body x-y plane, for the drag integral (S0-3, S0-4).
 
@@ -65,6 +79,8 @@ class Vehicle:
     frame: FrameSpec
     downwash: DownwashSpec
     min_motor_thrust_N: float = 0.0  # lowest thrust one motor can hold, N
+    kinematics: KinematicLimits | None = None  # trackable limits; None: derived, see kinematic_limits
+    motor_time_constant_s: float = DEFAULT_MOTOR_TIME_CONSTANT_S  # first-order motor lag, s
     description: str = ""
     sources: dict[str, str] = field(default_factory=dict, compare=False, hash=False)
 
@@ -76,6 +92,22 @@ class Vehicle:
     def size_m(self) -> float:
         """Vehicle size L = 2 x arm length (S0 II-A), m."""
         return 2.0 * self.arm_length_m
+
+    @property
+    def body_radius_m(self) -> float:
+        """Radius of the disc that holds frame and propellers: arm length + propeller radius, m."""
+        return self.arm_length_m + self.propeller.radius_m
+
+    @cached_property
+    def kinematic_limits(self) -> KinematicLimits:
+        """Speed, acceleration and jerk limits: ``kinematics`` when given, else derived from the
+        spare vertical acceleration a = T_max/m - g: accel = a/4 clipped to [1, 3] m/s^2,
+        speed 1 m/s, jerk 5 x accel (conservative for an untested vehicle)."""
+        if self.kinematics is not None:
+            return self.kinematics
+        spare_mps2 = self.max_thrust_N / self.mass_kg - GRAVITY_MPS2
+        accel = float(min(3.0, max(1.0, 0.25 * spare_mps2)))
+        return KinematicLimits(max_speed_mps=1.0, max_accel_mps2=accel, max_jerk_mps3=5.0 * accel)
 
     @property
     def weight_N(self) -> float:
@@ -140,6 +172,13 @@ class Vehicle:
                 "motor_pod_diameter_m": f.motor_pod_diameter_m,
             },
             "downwash": {"c_ax": d.c_ax, "z0_m": d.z0_m, "c_rad": d.c_rad},
+            "kinematic_limits": {
+                "max_speed_mps": self.kinematic_limits.max_speed_mps,
+                "max_accel_mps2": self.kinematic_limits.max_accel_mps2,
+                "max_jerk_mps3": self.kinematic_limits.max_jerk_mps3,
+                "source": "given" if self.kinematics is not None else "derived from thrust-to-weight",
+            },
+            "motor_time_constant_s": self.motor_time_constant_s,
             "hover_thrust_per_rotor_N": self.hover_thrust_per_rotor_N,
             "sources": dict(self.sources),
         }

@@ -30,7 +30,8 @@ import numpy as np
 
 from fileio.errors import UserError
 from fileio.files import read_yaml
-from physics.vehicles import GRAVITY_MPS2, Vehicle
+from physics.disturbance import VALIDITY_FACTOR_L
+from physics.vehicles import KinematicLimits, Vehicle
 
 TOP_KEYS = ("name", "description", "vehicle_file", "model", "workspace", "obstacles", "limits", "vehicles")
 LIMIT_KEYS = (
@@ -50,32 +51,11 @@ VEHICLE_KEYS = (
     "max_accel_mps2",
     "max_jerk_mps3",
 )
+DOCK_APPROACH_MARGIN_M = 0.1  # a dock approach point lies this far beyond the invalid zone, m
 INVALID_ZONE_RULES = ("conservative", "model", "forbid")
 """How the planner treats 0 < dz <= 3 L of a source where the field model is not valid (S0 II-A):
 ``conservative`` (default) uses the cost map's conservative cutoff there; ``model`` uses the
 model's extrapolated numbers; ``forbid`` keeps targets out of the whole invalid cylinder."""
-
-KINEMATIC_DEFAULTS: dict[str, tuple[float, float, float]] = {
-    # type: (max speed m/s, max acceleration m/s^2, max jerk m/s^3); small craft accelerate faster
-    "small-quad": (1.5, 3.0, 15.0),
-    "large-quad": (1.0, 2.0, 8.0),
-    "crazyflie-2.1": (1.5, 3.0, 15.0),
-    "crazyflie-parrot": (1.5, 3.0, 15.0),
-}
-
-
-def default_kinematics(type_name: str, vehicle: Vehicle) -> tuple[float, float, float]:
-    """(max_speed_mps, max_accel_mps2, max_jerk_mps3) for a vehicle type.
-
-    Built-in types use :data:`KINEMATIC_DEFAULTS`; custom ones get a quarter of their spare
-    vertical acceleration (T_max/m - g), capped to [1, 3] m/s^2, speed 1 m/s and jerk 5 x accel.
-    """
-    if type_name in KINEMATIC_DEFAULTS:
-        return KINEMATIC_DEFAULTS[type_name]
-    spare_mps2 = vehicle.max_thrust_N / vehicle.mass_kg - GRAVITY_MPS2
-    accel = float(min(3.0, max(1.0, 0.25 * spare_mps2)))
-    return (1.0, accel, 5.0 * accel)
-
 
 @dataclass(frozen=True)
 class Box:
@@ -132,9 +112,14 @@ class VehicleTask:
     max_jerk_mps3: float
 
     @property
+    def kinematic_limits(self) -> KinematicLimits:
+        """This task's speed / acceleration / jerk limits (the vehicle's, or the scenario's override)."""
+        return KinematicLimits(self.max_speed_mps, self.max_accel_mps2, self.max_jerk_mps3)
+
+    @property
     def body_radius_m(self) -> float:
         """Radius of the disc that holds the frame and propellers: arm + propeller radius, m."""
-        return self.vehicle.arm_length_m + self.vehicle.propeller.radius_m
+        return self.vehicle.body_radius_m
 
 
 @dataclass(frozen=True)
@@ -160,6 +145,29 @@ class Scenario:
         if task.hover:
             return task.start_m
         return self.final_position_m(task.dock_with) + task.dock_offset_m
+
+    def dock_geometry(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(approach point A (3,), dock point D (3,)), world frame, m, of a docking vehicle.
+
+        A lies on the dock axis (the offset direction from the target) beyond the invalid zone of
+        whichever vehicle is above: 3 L of that vehicle plus ``DOCK_APPROACH_MARGIN_M``; for mostly
+        horizontal offsets it lies 0.5 m further out than the dock point.
+        """
+        task = self.vehicles[name]
+        target = self.vehicles[task.dock_with]
+        p_target = self.final_position_m(task.dock_with)
+        off = task.dock_offset_m
+        d = p_target + off
+        n = float(np.linalg.norm(off))
+        u = off / n if n > 0 else np.array([0.0, 0.0, 1.0])
+        if abs(u[2]) >= 0.5:
+            upper = task.vehicle if off[2] > 0 else target.vehicle
+            reach = max(n + 0.3, (VALIDITY_FACTOR_L * upper.size_m + DOCK_APPROACH_MARGIN_M) / abs(u[2]))
+        else:
+            reach = n + 0.5
+        a = p_target + u * reach
+        a = np.clip(a, self.workspace_min_m + task.vehicle.body_radius_m, self.workspace_max_m - task.vehicle.body_radius_m)
+        return a, d
 
     def dock_order(self) -> list[str]:
         """Vehicle names with every dock target before the vehicles docking to it (file order kept)."""
@@ -277,7 +285,8 @@ def _task(name: str, data: Any, where: str, custom: dict[str, Vehicle]) -> Vehic
             raise UserError(f"{where}.dock: expected {{with: NAME, offset: [x, y, z]}} (both keys)")
         dock_with = str(dock["with"])
         dock_offset = _vec3(dock["offset"], f"{where}.dock.offset")
-    speed, accel, jerk = default_kinematics(type_name, vehicle)
+    kin = vehicle.kinematic_limits
+    speed, accel, jerk = kin.max_speed_mps, kin.max_accel_mps2, kin.max_jerk_mps3
     return VehicleTask(
         name=name,
         type_name=type_name,

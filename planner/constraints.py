@@ -36,11 +36,6 @@ DZ_STEP_M = 0.02  # resolution of the per-pair cutoff lookup, m
 DZ_MAX_M = 6.0  # beyond this vertical separation the cutoff is taken as 0, m
 
 
-def body_radius_m(vehicle: Vehicle) -> float:
-    """Radius of the disc holding frame and propellers: arm length + propeller radius, m."""
-    return vehicle.arm_length_m + vehicle.propeller.radius_m
-
-
 @dataclass(frozen=True)
 class CutoffTable:
     """r_cut (m) of one ordered (source -> target) pair on a uniform dz grid ``k * dz_step_m``."""
@@ -82,7 +77,7 @@ def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, r
 def _apply_rule(source: Vehicle, target: Vehicle, dz: np.ndarray, r_cut: np.ndarray, rule: str) -> np.ndarray:
     invalid_dz = VALIDITY_FACTOR_L * source.size_m
     inside = (dz > 0) & (dz <= invalid_dz)
-    overlap = body_radius_m(source) + body_radius_m(target)
+    overlap = source.body_radius_m + target.body_radius_m
     if rule == "conservative":
         return np.where(inside, np.maximum(r_cut, max(overlap, float(np.interp(invalid_dz, dz, r_cut)))), r_cut)
     if rule == "forbid":
@@ -323,7 +318,7 @@ def build_checker(
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     task = scenario.vehicles[name]
     lim = scenario.limits
-    rb = body_radius_m(task.vehicle)
+    rb = task.vehicle.body_radius_m
     mz = lim.obstacle_margin_m
     lo = scenario.workspace_min_m + np.array([rb, rb, mz]) + margin_m
     hi = scenario.workspace_max_m - np.array([rb, rb, mz]) - margin_m
@@ -335,13 +330,13 @@ def build_checker(
     rules = []
     for tr in tracks:
         other = tr.vehicle
-        sep = max(lim.min_separation_m, rb + body_radius_m(other)) + margin_m
+        sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m
         cut_from = cut_on = ell = None
         usage_from = usage_table(other, task.vehicle, field_form=scenario.field_form)
         if mode == "downwash":
             cut_from = cutoff_table(other, task.vehicle, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
             cut_on = cutoff_table(task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
         elif mode == "ellipsoid":
-            ell = rb + body_radius_m(other) + margin_m
+            ell = rb + other.body_radius_m + margin_m
         rules.append(PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s))
     return ConflictChecker(name, tuple(lo.tolist()), tuple(hi.tolist()), boxes, rules)

@@ -147,10 +147,9 @@ def build_problem(
         radius = float(task.body_radius_m)
         reach = 0.0
         if task.dock_with is not None:
-            from planner.pipeline import dock_geometry
             from verify.checks import GOAL_TOLERANCE_M
 
-            approach, dock = dock_geometry(scenario, name)
+            approach, dock = scenario.dock_geometry(name)
             reach = float(np.linalg.norm(approach - dock)) + GOAL_TOLERANCE_M - 0.02
         agents.append(
             OcpAgent(

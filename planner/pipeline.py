@@ -25,7 +25,7 @@ from typing import Callable
 import numpy as np
 
 from physics.disturbance import VALIDITY_FACTOR_L
-from planner.constraints import Track, body_radius_m, build_checker
+from planner.constraints import Track, build_checker
 from planfile.plan import PlanResult, VehicleTrajectory
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
 from planfile.scenario import Scenario
@@ -36,7 +36,6 @@ MODE_OF_METHOD = {"optimized": "downwash", "sampling": "downwash", "no-downwash"
 DT_S = 0.05  # common time grid of plan.json, s
 LEAVE_START_S = 2.5  # vehicles not planned yet are assumed to have left their start by then, s
 ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
-DOCK_APPROACH_MARGIN_M = 0.1  # approach point this far beyond the invalid zone, m
 DOCK_SPEED_FACTOR = 0.5  # final dock approach at this fraction of the vehicle's limits
 PLAN_MARGIN_M = 0.02  # the search keeps this much more than the nominal limits, m (see build_checker)
 PLAN_MARGIN_S = 0.2  # and assumes not-yet-planned vehicles leave their start this much later, s
@@ -64,34 +63,6 @@ def priority_order(scenario: Scenario) -> list[str]:
     return hover + [n for n in scenario.dock_order() if n not in hover]
 
 
-def kinematic_limits(task) -> KinematicLimits:
-    return KinematicLimits(task.max_speed_mps, task.max_accel_mps2, task.max_jerk_mps3)
-
-
-def dock_geometry(scenario: Scenario, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """(approach point A (3,), dock point D (3,)), world frame, m, of a docking vehicle.
-
-    A lies on the dock axis (the offset direction from the target) beyond the invalid zone of
-    whichever vehicle is above: 3 L of that vehicle plus ``DOCK_APPROACH_MARGIN_M``; for mostly
-    horizontal offsets it lies 0.5 m further out than the dock point.
-    """
-    task = scenario.vehicles[name]
-    target = scenario.vehicles[task.dock_with]
-    p_target = scenario.final_position_m(task.dock_with)
-    off = task.dock_offset_m
-    d = p_target + off
-    n = float(np.linalg.norm(off))
-    u = off / n if n > 0 else np.array([0.0, 0.0, 1.0])
-    if abs(u[2]) >= 0.5:
-        upper = task.vehicle if off[2] > 0 else target.vehicle
-        reach = max(n + 0.3, (VALIDITY_FACTOR_L * upper.size_m + DOCK_APPROACH_MARGIN_M) / abs(u[2]))
-    else:
-        reach = n + 0.5
-    a = p_target + u * reach
-    a = np.clip(a, scenario.workspace_min_m + body_radius_m(task.vehicle), scenario.workspace_max_m - body_radius_m(task.vehicle))
-    return a, d
-
-
 def _plan_order(
     scenario: Scenario, order: list[str], *, mode: str, seed: int, options: SamplingOptions, progress
 ) -> tuple[dict[str, TimedPath], dict]:
@@ -115,7 +86,7 @@ def _plan_order(
         if bad is not None:
             why = ""
             if bad == "workspace" or bad.startswith("obstacle"):
-                why = (f" (the body, radius {body_radius_m(task.vehicle):.3f} m, must keep clear horizontally and "
+                why = (f" (the body, radius {task.vehicle.body_radius_m:.3f} m, must keep clear horizontally and "
                        f"{scenario.limits.obstacle_margin_m:g} m vertically)")
             raise InfeasibleError(name, bad, f"vehicle {name!r}: its start {task.start_m.tolist()} violates '{bad}' at t = 0{why}")
         if task.hover:
@@ -123,11 +94,11 @@ def _plan_order(
             timed[name] = path
             tracks[name] = Track.static(name, task.vehicle, task.start_m)
             continue
-        limits = kinematic_limits(task)
+        limits = task.kinematic_limits
         hold_until = max([tr.end_s for tr in others if math.isfinite(tr.until_s) is False] + [LEAVE_START_S, 0.0]) + 1.0
         hold_until = max(hold_until, max([tr.end_s for tr in others] + [0.0]) + 1.0)
         if task.dock_with is not None:
-            a, d = dock_geometry(scenario, name)
+            a, d = scenario.dock_geometry(name)
             slow = KinematicLimits(*(DOCK_SPEED_FACTOR * np.array([limits.max_speed_mps, limits.max_accel_mps2, limits.max_jerk_mps3])))
             goal = GoalSpec(position_m=a, hold_until_s=hold_until, tail=[d], tail_exempt=task.dock_with, tail_limits=slow)
         else:
@@ -313,7 +284,7 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
     notes = list(notes)
     for name, task in scenario.vehicles.items():
         if task.dock_with is not None:
-            a_pt, d_pt = dock_geometry(scenario, name)
+            a_pt, d_pt = scenario.dock_geometry(name)
             notes.append(
                 f"dock {name} -> {task.dock_with}: final approach from {np.round(a_pt, 3).tolist()} to "
                 f"{np.round(d_pt, 3).tolist()} at {DOCK_SPEED_FACTOR:g} x speed crosses the model's invalid zone "

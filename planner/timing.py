@@ -16,14 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class KinematicLimits:
-    """Norm limits of one vehicle: speed m/s, acceleration m/s^2, jerk m/s^3."""
-
-    max_speed_mps: float
-    max_accel_mps2: float
-    max_jerk_mps3: float
+from physics.vehicles import KinematicLimits
 
 
 class DurationTable:

@@ -22,7 +22,6 @@ import numpy as np
 
 from physics.disturbance import VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
 from physics.authority import authority_usage
-from planner.constraints import body_radius_m
 from planfile.plan import PlanResult
 from planfile.scenario import Scenario
 
@@ -115,7 +114,7 @@ def wrench_along_plan(plan: PlanResult, scenario: Scenario, *, t_s: np.ndarray) 
                 torque[below] += w.torque_Nm
                 u_src[below] = authority_usage(target, w.force_N, w.torque_Nm)
                 r = np.hypot(off[below, 0], off[below, 1])
-                inv = (-off[below, 2] <= VALIDITY_FACTOR_L * source.size_m) & (r < body_radius_m(source) + body_radius_m(target))
+                inv = (-off[below, 2] <= VALIDITY_FACTOR_L * source.size_m) & (r < source.body_radius_m + target.body_radius_m)
                 invalid[np.nonzero(below)[0][inv]] = True
             by_source[sname] = u_src
         usage = authority_usage(target, force, torque) if t_s.size else np.zeros(0)
@@ -127,12 +126,10 @@ def _dock_exempt(plan: PlanResult, scenario: Scenario, a: str, b: str, pos: dict
     """(M,) True where pair (a, b) is a dock pair and the docker is on its final approach: within
     ``DOCK_TUBE_M`` of the segment from the approach point A to the dock point D, both taken
     relative to the dock target's current position."""
-    from planner.pipeline import dock_geometry
-
     for docker, target in ((a, b), (b, a)):
         task = scenario.vehicles[docker]
         if task.dock_with == target:
-            ap, dp = dock_geometry(scenario, docker)
+            ap, dp = scenario.dock_geometry(docker)
             base = scenario.final_position_m(target)
             a_rel, d_rel = ap - base, dp - base  # relative to the target
             rel = pos[docker] - pos[target]
@@ -198,7 +195,7 @@ def verify_plan(plan: PlanResult, scenario: Scenario, *, dt_fine_s: float = 0.01
     for name in names:
         task = scenario.vehicles[name]
         p = pos[name]
-        rb = body_radius_m(task.vehicle)
+        rb = task.vehicle.body_radius_m
         # workspace: the body disc inside the box horizontally, the centre inside vertically
         below_lo = np.max(np.column_stack([lo[0] + rb - p[:, 0], lo[1] + rb - p[:, 1], lo[2] - p[:, 2]]), axis=1)
         above_hi = np.max(np.column_stack([p[:, 0] + rb - hi[0], p[:, 1] + rb - hi[1], p[:, 2] - hi[2]]), axis=1)
@@ -240,7 +237,7 @@ def verify_plan(plan: PlanResult, scenario: Scenario, *, dt_fine_s: float = 0.01
         for b in names[i + 1 :]:
             va, vb = scenario.vehicles[a].vehicle, scenario.vehicles[b].vehicle
             d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            sep = max(lim.min_separation_m, body_radius_m(va) + body_radius_m(vb))
+            sep = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
             ex = _dock_exempt(plan, scenario, a, b, pos, t)
             short = (d < sep - 1e-6) & ~ex
             _add(out, t, short, sep - d, sep, a, "separation", f"closer than {sep:.3f} m to {b} by (m)")
@@ -251,7 +248,7 @@ def verify_plan(plan: PlanResult, scenario: Scenario, *, dt_fine_s: float = 0.01
                 off = pos[tgt] - pos[src]
                 dz = -off[:, 2]
                 r = np.hypot(off[:, 0], off[:, 1])
-                inside = (dz > 1e-6) & (dz <= VALIDITY_FACTOR_L * vs.size_m) & (r < body_radius_m(vs) + body_radius_m(vt)) & ~ex
+                inside = (dz > 1e-6) & (dz <= VALIDITY_FACTOR_L * vs.size_m) & (r < vs.body_radius_m + vt.body_radius_m) & ~ex
                 _add(out, t, inside, VALIDITY_FACTOR_L * vs.size_m - dz, 0.0, tgt, "invalid-zone",
                      f"below {src} inside its invalid zone (dz <= 3 L, footprints overlap); depth (m)")
     # authority usage from the model directly

@@ -129,4 +129,4 @@ def test_pair_maps_uses_shipped_map_and_computes_custom_vehicles():
 
 
 def test_shipped_data_dir_is_inside_the_package():
-    assert DATA_DIR == Path(__file__).resolve().parents[1] / "costmaps" / "data"
+    assert DATA_DIR == Path(__file__).resolve().parents[2] / "costmaps" / "data"

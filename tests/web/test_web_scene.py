@@ -229,7 +229,7 @@ def test_play_advances_time(app):
                                _plan_positions(app.loaded.data.source_path, app.t_s)["shuttle"], atol=1e-6)
 
 
-SHIPPED_SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "battery_swap.yaml"
+SHIPPED_SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "battery_swap.yaml"
 
 
 @pytest.mark.skipif(not SHIPPED_SCENARIO.exists(), reason="scenarios/battery_swap.yaml not shipped")

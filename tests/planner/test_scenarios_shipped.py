@@ -12,7 +12,7 @@ from proxplan.cli import main
 from planfile.scenario import load_scenario
 from verify.checks import verify_plan
 
-SCENARIOS = sorted((Path(__file__).resolve().parents[1] / "scenarios").glob("*.yaml"))
+SCENARIOS = sorted((Path(__file__).resolve().parents[2] / "scenarios").glob("*.yaml"))
 REQUIRED = {"battery_swap", "package_handoff", "crossing_4", "swap_8", "corridor_stack"}
 
 

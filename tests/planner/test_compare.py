@@ -20,7 +20,7 @@ pytest.importorskip("ompl")
 from planner.compare import ComparisonRow, main, run_one, to_markdown, write_outputs  # noqa: E402
 from planfile.scenario import load_scenario  # noqa: E402
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 # cheapest first: the loops below stop at the first scenario that shows the claim
 BASELINE_ORDER = ("swap_8.yaml", "corridor_stack.yaml", "battery_swap.yaml", "package_handoff.yaml", "crossing_4.yaml")
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
-MANIFEST = Path(__file__).resolve().parents[1] / "manifests" / "neural-swarm.yaml"
+SHARED = Path(__file__).resolve().parents[2].parent / "shared"
+MANIFEST = Path(__file__).resolve().parents[2] / "manifests" / "neural-swarm.yaml"
 DATA = SHARED / "data" / "neural-swarm"
 
 

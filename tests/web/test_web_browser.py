@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 CHROMIUM = Path("/usr/bin/chromium")
-ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
+ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
 WIDTH, HEIGHT = 1280, 800
 CANVAS_BOX = (slice(160, 740), slice(0, 930))  # rows, cols of the 3-D view clear of GUI panel and toasts
 

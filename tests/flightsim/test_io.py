@@ -16,7 +16,7 @@ from flightsim.scenarios_synthetic import hover_stack_plan, swap_plan
 from flightsim.simulate import simulate_plan
 from flightsim.truth import load_truth_file, truth_from_dict
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SHARED = REPO.parent / "shared"
 
 

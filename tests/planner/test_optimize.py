@@ -22,7 +22,7 @@ from planner.pipeline import InfeasibleError, plan_scenario  # noqa: E402
 from planfile.scenario import load_scenario, scenario_from_dict  # noqa: E402
 from verify.checks import verify_plan  # noqa: E402
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
 
 @pytest.fixture(scope="module")

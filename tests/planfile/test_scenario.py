@@ -9,9 +9,10 @@ import pytest
 import yaml
 
 from fileio.errors import UserError
-from planfile.scenario import KINEMATIC_DEFAULTS, Limits, load_scenario
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from planfile.scenario import Limits, load_scenario
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
 GOOD = {
     "name": "t",
@@ -52,7 +53,7 @@ def test_design_example_loads_with_defaults_and_overrides(tmp_path):
     assert sc.limits.authority_fraction == 0.4 and sc.limits.invalid_zone_rule == Limits().invalid_zone_rule
     other = sc.vehicles["other"]
     assert other.max_speed_mps == 0.7  # override
-    assert other.max_accel_mps2 == KINEMATIC_DEFAULTS["small-quad"][1]  # default per type
+    assert other.max_accel_mps2 == BUILTIN_VEHICLES["small-quad"].kinematic_limits.max_accel_mps2  # default per type
     carrier = sc.vehicles["carrier"]
     assert carrier.max_accel_mps2 < other.max_accel_mps2  # small craft accelerate faster
     np.testing.assert_allclose(sc.final_position_m("shuttle"), [0, 0, 1.9])

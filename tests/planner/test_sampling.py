@@ -12,13 +12,13 @@ import numpy as np
 from physics.authority import authority_usage
 from physics.builtin_vehicles import BUILTIN_VEHICLES
 from physics.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
-from planner.constraints import Track, body_radius_m, build_checker
-from planner.pipeline import DT_S, dock_geometry, kinematic_limits
+from planner.constraints import Track, build_checker
+from planner.pipeline import DT_S
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time
 from planfile.scenario import scenario_from_dict
 from planner.timing import common_grid, time_parameterize
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LARGE, SMALL = BUILTIN_VEHICLES["large-quad"], BUILTIN_VEHICLES["small-quad"]
 
 
@@ -67,7 +67,7 @@ def test_invalid_zone_is_blocked_conservatively():
 def test_ellipsoid_mode_radii():
     sc = _scenario()
     checker = build_checker(sc, "small", [Track.static("big", LARGE, np.array([0, 0, 2.0]))], mode="ellipsoid")
-    r = body_radius_m(LARGE) + body_radius_m(SMALL)
+    r = LARGE.body_radius_m + SMALL.body_radius_m
     assert checker.conflict(0, 0, 2.0 - 2.9 * r, 0.0) is not None  # vertical radius 3 r
     assert checker.conflict(0, 0, 2.0 - 3.1 * r, 0.0) is None
     assert checker.conflict(1.05 * r, 0, 2.0, 0.0) is None  # horizontal radius r
@@ -85,7 +85,7 @@ def test_space_time_plan_avoids_the_hovering_source_and_is_timed_validly():
     checker = build_checker(sc, "small", others, margin_m=0.02)
     nominal = build_checker(sc, "small", others)
     task = sc.vehicles["small"]
-    limits = kinematic_limits(task)
+    limits = task.kinematic_limits
     # the straight line passes right under the source: it must be rejected
     straight = np.linspace(task.start_m, task.goal_m, 60)
     assert any(nominal.conflict(*p, 0.0) for p in straight)
@@ -115,7 +115,7 @@ def test_dock_approach_point_is_outside_the_invalid_zone():
             },
         }
     )
-    a, d = dock_geometry(sc, "shuttle")
+    a, d = sc.dock_geometry("shuttle")
     np.testing.assert_allclose(d, [0, 0, 1.8])
     assert a[2] - 1.5 > VALIDITY_FACTOR_L * SMALL.size_m  # the carrier is outside the shuttle's invalid zone at A
     np.testing.assert_allclose(a[:2], 0.0)

@@ -150,7 +150,7 @@ def _fly_planned_battery_swap(tmp_path, method: str) -> float:
     import subprocess
     import sys
 
-    scenario = Path(__file__).resolve().parents[1] / "scenarios" / "battery_swap.yaml"
+    scenario = Path(__file__).resolve().parents[2] / "scenarios" / "battery_swap.yaml"
     out = tmp_path / method
     proc = subprocess.run(
         [sys.executable, "-m", "proxplan.cli", "plan", str(scenario), "--out", str(out), "--method", method,

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DESIGN_VEHICLE_KEYS = {"type", "t_s", "position_m", "velocity_mps", "acceleration_mps2"}
 DESIGN_METRICS = {"planning_time_s", "max_authority_usage", "min_separation_m", "makespan_s"}
 
