@@ -94,15 +94,15 @@ def main() -> None:
 
 def eight_vehicle_plan(*, swap_s: float):
     """Four Neural-Swarm-like swapping pairs side by side, 1 m apart (8 vehicles)."""
-    from flightsim.plan_file import PlanArrays
+    from planfile.plan import Plan
 
     vehicles = {}
     for k in range(4):
         pair = swap_plan(vertical_gap_m=0.4, swap_s=swap_s, n_swaps=1, hold_s=0.5, centre_m=(1.0 * k, 0.0, 1.0))
         for name, tr in pair.vehicles.items():
-            vehicles[f"{name}{k}"] = type(tr)(f"{name}{k}", tr.type_name, tr.t_s, tr.position_m,
+            vehicles[f"{name}{k}"] = type(tr)(f"{name}{k}", tr.type_name, tr.vehicle, tr.t_s, tr.position_m,
                                               tr.velocity_mps, tr.acceleration_mps2)
-    return PlanArrays("eight", pair.dt_s, vehicles)
+    return Plan("eight", pair.dt_s, vehicles)
 
 
 def fly_planner_plans() -> None:

@@ -106,13 +106,31 @@ def _noisy_tables(result, *, seed: int | None, logged_thrust: str) -> dict[str, 
     }
 
 
+def _write_custom_vehicles(result, out: Path) -> str | None:
+    """Write the flown vehicles that are not built-in types to ``out/vehicles.yaml``; its name
+    relative to ``out`` (None when every vehicle is a built-in type)."""
+    import yaml
+
+    from physics.builtin_vehicles import BUILTIN_VEHICLES
+    from physics.vehicle_yaml import vehicle_to_yaml_dict
+
+    custom = {rec.type_name: rec.vehicle for rec in result.records.values()
+              if BUILTIN_VEHICLES.get(rec.type_name) != rec.vehicle}
+    if not custom:
+        return None
+    doc = {"vehicles": {name: vehicle_to_yaml_dict(v) for name, v in custom.items()}}
+    atomic_write_bytes(out / "vehicles.yaml", yaml.safe_dump(doc, sort_keys=False).encode())
+    return "vehicles.yaml"
+
+
 def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: str = "train",
                       seed: int | None = None, vehicles_file: str | None = None,
                       logged_thrust: str = "actual") -> Path:
     """Write every vehicle of ``result`` (a :class:`flightsim.simulate.SimulationResult`) as a
     Neural-Swarm log under ``out_dir/flight_name/`` and add the flight to ``out_dir/manifest.yaml``
     (created when missing). ``vehicles_file`` (relative to the manifest) names custom vehicle types;
-    ``logged_thrust`` is "actual" (k_eta omega^2) or "commanded" (see the module docstring).
+    when None and a flown vehicle is not a built-in type (or differs from it), its parameters are
+    written to ``out_dir/vehicles.yaml`` and the manifest names that file. ``logged_thrust`` is "actual" (k_eta omega^2) or "commanded" (see the module docstring).
     Returns the manifest path."""
     import yaml
 
@@ -129,6 +147,8 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
         atomic_write_bytes(out / rel, _csv_gz(NEURAL_SWARM_HEADER, table))
         atomic_write_bytes(out / f"{flight_name}/{name}_truth.csv.gz", _csv_gz(TRUTH_HEADER, _truth_table(rec)))
         entry_vehicles[name] = {"type": rec.type_name, "log": rel, "ground_z_m": float(opts.ground_z_m)}
+    if vehicles_file is None:
+        vehicles_file = _write_custom_vehicles(result, out)
     manifest = out / "manifest.yaml"
     if manifest.exists():
         doc = yaml.safe_load(manifest.read_text()) or {}

@@ -10,7 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from flightsim.plan_file import PlanArrays, TrajectoryArrays
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from planfile.plan import Plan, VehicleTrajectory
 
 
 def _min_jerk(p0: np.ndarray, p1: np.ndarray, t_s: np.ndarray, t0_s: float, t1_s: float):
@@ -26,7 +27,7 @@ def _min_jerk(p0: np.ndarray, p1: np.ndarray, t_s: np.ndarray, t0_s: float, t1_s
 
 
 def waypoint_trajectory(name: str, type_name: str, waypoints_m: Sequence[Sequence[float]],
-                        times_s: Sequence[float], *, dt_s: float = 0.02) -> TrajectoryArrays:
+                        times_s: Sequence[float], *, dt_s: float = 0.02) -> VehicleTrajectory:
     """Rest-to-rest minimum-jerk segments through ``waypoints_m`` (K, 3) reached at ``times_s`` (K,)."""
     wp = np.asarray(waypoints_m, dtype=float)
     ts = np.asarray(times_s, dtype=float)
@@ -40,17 +41,17 @@ def waypoint_trajectory(name: str, type_name: str, waypoints_m: Sequence[Sequenc
         pos[mask] = p[mask]
         vel[mask] = v[mask]
         acc[mask] = a[mask]
-    return TrajectoryArrays(name, type_name, t, pos, vel, acc)
+    return VehicleTrajectory(name, type_name, BUILTIN_VEHICLES[type_name], t, pos, vel, acc)
 
 
-def _plan(name: str, trajs: Sequence[TrajectoryArrays], dt_s: float) -> PlanArrays:
-    return PlanArrays(name, dt_s, {t.name: t for t in trajs})
+def _plan(name: str, trajs: Sequence[VehicleTrajectory], dt_s: float) -> Plan:
+    return Plan(name, dt_s, {t.name: t for t in trajs}, method="synthetic")
 
 
 def hover_stack_plan(*, top_type: str = "crazyflie-2.1", bottom_type: str = "crazyflie-parrot",
                      separation_m: float = 1.5, bottom_position_m: Sequence[float] = (0.0, 0.0, 1.0),
                      horizontal_offset_m: Sequence[float] = (0.0, 0.0), duration_s: float = 5.0,
-                     dt_s: float = 0.02) -> PlanArrays:
+                     dt_s: float = 0.02) -> Plan:
     """Two vehicles hovering still, ``top`` ``separation_m`` above ``bottom`` (plus a horizontal offset)."""
     b = np.asarray(bottom_position_m, dtype=float)
     top = b + np.array([-horizontal_offset_m[0], -horizontal_offset_m[1], separation_m])
@@ -61,7 +62,7 @@ def hover_stack_plan(*, top_type: str = "crazyflie-2.1", bottom_type: str = "cra
 
 
 def single_hover_plan(*, type_name: str = "crazyflie-2.1", position_m: Sequence[float] = (0.0, 0.0, 1.0),
-                      duration_s: float = 5.0, dt_s: float = 0.02) -> PlanArrays:
+                      duration_s: float = 5.0, dt_s: float = 0.02) -> Plan:
     """One vehicle hovering alone at ``position_m`` (use a low z for ground effect)."""
     p = np.asarray(position_m, dtype=float)
     return _plan("single-hover", [waypoint_trajectory("solo", type_name, [p, p], [0.0, duration_s], dt_s=dt_s)], dt_s)
@@ -69,7 +70,7 @@ def single_hover_plan(*, type_name: str = "crazyflie-2.1", position_m: Sequence[
 
 def takeoff_hover_plan(*, type_name: str = "crazyflie-2.1", xy_m: Sequence[float] = (0.0, 0.0),
                        low_z_m: float = 0.05, high_z_m: float = 1.0, climb_s: float = 3.0,
-                       hold_s: float = 2.0, dt_s: float = 0.02) -> PlanArrays:
+                       hold_s: float = 2.0, dt_s: float = 0.02) -> Plan:
     """Hover near the ground, climb to ``high_z_m``, hover, descend again (ground effect sweeps)."""
     lo = np.array([xy_m[0], xy_m[1], low_z_m])
     hi = np.array([xy_m[0], xy_m[1], high_z_m])
@@ -80,7 +81,7 @@ def takeoff_hover_plan(*, type_name: str = "crazyflie-2.1", xy_m: Sequence[float
 
 def swap_plan(*, top_type: str = "crazyflie-2.1", bottom_type: str = "crazyflie-parrot",
               vertical_gap_m: float = 0.3, radius_m: float = 0.25, swap_s: float = 3.0, n_swaps: int = 4,
-              centre_m: Sequence[float] = (0.0, 0.0, 0.8), hold_s: float = 1.0, dt_s: float = 0.02) -> PlanArrays:
+              centre_m: Sequence[float] = (0.0, 0.0, 0.8), hold_s: float = 1.0, dt_s: float = 0.02) -> Plan:
     """Neural-Swarm-like swaps: both vehicles on a circle of ``radius_m`` at opposite sides,
     ``vertical_gap_m`` apart, swap sides in ``swap_s`` along straight chords, crossing above each
     other at the centre; repeated ``n_swaps`` times with ``hold_s`` pauses."""
@@ -110,7 +111,7 @@ def battery_swap_plans(*, carrier_type: str = "large-quad", shuttle_type: str = 
                        carrier_m: Sequence[float] = (0.0, 0.0, 1.5), shuttle_start_m: Sequence[float] = (2.0, 1.0, 0.6),
                        dock_offset_m: Sequence[float] = (0.0, 0.0, 0.3), duration_s: float = 8.0,
                        approach_height_m: float = 1.2, final_descent_s: float = 3.0,
-                       dt_s: float = 0.02) -> dict[str, PlanArrays]:
+                       dt_s: float = 0.02) -> dict[str, Plan]:
     """The battery-swap scenario (scenarios/battery_swap.yaml) flown two ways, same duration:
     ``straight``: the shuttle flies a straight line from its start to the dock;
     ``staged``: it climbs beside the carrier to ``approach_height_m`` above the dock, moves over it,

@@ -31,7 +31,7 @@ from fileio.errors import UserError
 from physics.vehicles import Vehicle
 from flightsim.stepper import CompiledStepper
 from flightsim.imu import ImuOptions, imu_samples
-from flightsim.plan_file import PlanArrays, read_plan_file
+from planfile.plan import Plan, read_plan
 from flightsim.truth import TruthSpec
 from flightsim.vehicle_params import quad_params
 
@@ -104,36 +104,8 @@ class SimulationResult:
         return self.sim_time_s / max(self.wall_time_s, 1e-9)
 
 
-def _resolve(type_name: str, custom: Mapping[str, Vehicle] | None, where: str) -> Vehicle:
-    try:
-        from physics.vehicle_yaml import resolve_vehicle
-    except ModuleNotFoundError:  # pragma: no cover - lead's module missing
-        from physics.builtin_vehicles import BUILTIN_VEHICLES
-
-        if custom and type_name in custom:
-            return custom[type_name]
-        if type_name not in BUILTIN_VEHICLES:
-            raise UserError(f"{where}: unknown vehicle type {type_name!r}") from None
-        return BUILTIN_VEHICLES[type_name]
-    return resolve_vehicle(type_name, custom, where=where)
-
-
-def _reference_grid(traj, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Reference (n, 3) x3 on ``t_s``: linear interpolation, hover at the ends (zero v, a)."""
-    tt = np.asarray(traj.t_s, dtype=float)
-    inside = (t_s > tt[0]) & (t_s < tt[-1])
-    out = []
-    for k, arr in enumerate((traj.position_m, traj.velocity_mps, traj.acceleration_mps2)):
-        arr = np.asarray(arr, dtype=float)
-        col = np.column_stack([np.interp(t_s, tt, arr[:, j]) for j in range(3)])
-        if k > 0:
-            col[~inside] = 0.0
-        out.append(col)
-    return out[0], out[1], out[2]
-
-
 def simulate_plan(
-    plan: PlanArrays | str | Path,
+    plan: Plan | str | Path,
     *,
     truth_effects: Sequence[Effect] = (),
     truth: TruthSpec | None = None,
@@ -148,10 +120,11 @@ def simulate_plan(
     options: SimulationOptions | None = None,
     progress: bool = False,
 ) -> SimulationResult:
-    """Fly ``plan`` (a plan.json path, :class:`PlanArrays` or planner ``PlanResult``) closed loop.
+    """Fly ``plan`` (a :class:`planfile.plan.Plan` or a plan.json path) closed loop.
 
-    ``truth`` (or just ``truth_effects``) adds effects beyond the model; ``vehicles`` maps custom
-    type names to vehicles. ``options``, when given, overrides the keyword numbers.
+    ``truth`` (or just ``truth_effects``) adds effects beyond the model; ``vehicles`` maps type
+    names to the vehicles actually flown instead of the plan's own parameters (e.g. a heavier or
+    weaker airframe than planned). ``options``, when given, overrides the keyword numbers.
 
     Controller: RotorPy's SE3Control; ``position_integral_rate_ps`` > 0 adds integral action on the
     position error, as the seed's cascaded PID (S0 IV-D). With diagonal gains,
@@ -160,7 +133,7 @@ def simulate_plan(
     +-``position_integral_limit_ms`` (anti-windup).
     """
     if isinstance(plan, (str, Path)):
-        plan = read_plan_file(plan)
+        plan = read_plan(plan)
     if truth is None:
         truth = TruthSpec(effects=tuple(truth_effects))
     elif truth_effects:
@@ -179,7 +152,7 @@ def simulate_plan(
 
     names = list(plan.vehicles)
     trajs = [plan.vehicles[n] for n in names]
-    vehs = [_resolve(t.type_name, vehicles, f"plan: vehicles.{n}.type") for n, t in zip(names, trajs)]
+    vehs = [(vehicles or {}).get(t.type_name, t.vehicle) for t in trajs]
     n_veh = len(names)
     params = [quad_params(v) for v in vehs]
     model_options = ModelOptions(field_form=truth.field_form)
@@ -190,7 +163,7 @@ def simulate_plan(
     plan_duration = t_end - t0
     n_steps = int(round((plan_duration + options.settle_s) / dt / log_every)) * log_every + 1
     t_grid = t0 + dt * np.arange(n_steps)
-    refs = [_reference_grid(tr, t_grid) for tr in trajs]
+    refs = [tr.sample(t_grid) for tr in trajs]
     ref_x = np.stack([r[0] for r in refs], axis=1)  # (n_steps, V, 3)
     ref_v = np.stack([r[1] for r in refs], axis=1)
     ref_a = np.stack([r[2] for r in refs], axis=1)

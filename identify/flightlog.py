@@ -138,25 +138,15 @@ def _open_bytes(path: Path) -> bytes:
 
 
 def _parse_numeric(body: bytes, path: Path, n_cols: int) -> np.ndarray:
-    """Rows of comma-separated numbers -> (N, n_cols) float array (pandas' C parser when present)."""
-    try:
-        import pandas as pd
+    """Rows of comma-separated numbers -> (N, n_cols) float array (pandas' C parser)."""
+    import pandas as pd
 
+    try:
         data = pd.read_csv(io.BytesIO(body), header=None, dtype=float, engine="c").to_numpy()
-    except ImportError:
-        data = None
-    except (ValueError, TypeError) as err:
+    except pd.errors.EmptyDataError:
+        data = np.zeros((0, n_cols))
+    except (ValueError, TypeError, pd.errors.ParserError) as err:
         raise UserError(f"{path}: not a numeric CSV ({str(err).splitlines()[0]})") from None
-    except Exception as err:  # pandas.errors.EmptyDataError / ParserError
-        if type(err).__name__ == "EmptyDataError":
-            data = np.zeros((0, n_cols))
-        else:
-            raise UserError(f"{path}: not a numeric CSV ({str(err).splitlines()[0]})") from None
-    if data is None:
-        try:
-            data = np.loadtxt(io.BytesIO(body), delimiter=",", ndmin=2)
-        except ValueError as err:
-            raise UserError(f"{path}: not a numeric CSV ({str(err).splitlines()[0]})") from None
     if data.shape[0] == 0 or data.shape[1] != n_cols:
         raise UserError(f"{path}: expected {n_cols} columns per row and at least one row")
     return data

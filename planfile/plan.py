@@ -1,11 +1,26 @@
-"""Plan results and the plan.json file (DESIGN.md section 4), written atomically.
+"""The plan.json contract (DESIGN.md section 4): one reader, one writer, one trajectory sampler.
 
-plan.json keys (contract): ``scenario`` (name), ``dt_s``, ``vehicles: {NAME: {type, t_s, position_m,
-velocity_mps, acceleration_mps2}}`` on one common time grid, ``metrics: {planning_time_s,
-max_authority_usage, min_separation_m, makespan_s, ...}``. Extra keys: ``format_version``,
-``method``, ``notes``, ``scenario_file`` (absolute path of the scenario YAML, or null) and
-``scenario_spec`` (the parsed scenario mapping) so ``proxplan verify`` can re-check a plan alone.
-Positions are world frame (z up), m; velocities m/s; accelerations m/s^2; times s.
+Every user of a plan (planner, verifier, simulator, web app, exporters) reads, writes and samples
+plans through this module, so they agree on the rules:
+
+* ``format_version`` 2 (written) and 1 (read: vehicle types resolved by name from the built-in
+  types, a note says so). Any other version is a one-line :class:`~fileio.errors.UserError`.
+* Every vehicle on one common time grid ``t_s`` (N >= 2 samples, strictly increasing, step
+  ``dt_s``), with finite ``position_m``, ``velocity_mps``, ``acceleration_mps2`` (N, 3), world
+  frame (z up); m, m/s, m/s^2, s.
+* Sampling between grid points is quintic Hermite interpolation of position, velocity and
+  acceleration (exact for the piecewise cubic/quintic trajectories the planner produces, C2
+  everywhere); before the first and after the last sample the vehicle rests at its first / last
+  position (zero velocity and acceleration).
+* A plan stands alone: ``vehicle_types`` holds every used type's full parameters (the vehicle-YAML
+  form of :func:`physics.vehicle_yaml.vehicle_to_yaml_dict`), ``scenario_spec`` the normalised,
+  self-contained scenario (workspace, obstacles, limits, model options, tasks;
+  :meth:`planfile.scenario.Scenario.to_spec`).
+
+plan.json keys: ``format_version``, ``scenario`` (name), ``dt_s``, ``method``, ``vehicles: {NAME:
+{type, t_s, position_m, velocity_mps, acceleration_mps2}}``, ``vehicle_types: {TYPE: {...}}``,
+``metrics: {planning_time_s, max_authority_usage, min_separation_m, makespan_s, ...}``, ``notes``,
+``scenario_file`` (absolute path of the scenario YAML, or null), ``scenario_spec``.
 """
 
 from __future__ import annotations
@@ -20,35 +35,87 @@ import numpy as np
 
 from fileio.errors import UserError
 from fileio.files import atomic_write_text, read_json
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
+from physics.vehicles import Vehicle
 
-PLAN_FORMAT_VERSION = 1
+PLAN_FORMAT_VERSION = 2
+READABLE_FORMAT_VERSIONS = (1, 2)
 PLAN_FILENAME = "plan.json"
+GRID_TOLERANCE_S = 1e-6  # common-grid and time-step tolerance, s
+
+# quintic Hermite: p(s) = sum_k s^k (C @ [p0, h v0, h^2 a0, p1, h v1, h^2 a1])_k, s in [0, 1]
+_QUINTIC = np.array(
+    [
+        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+        [0.0, 0.0, 0.5, 0.0, 0.0, 0.0],
+        [-10.0, -6.0, -1.5, 10.0, -4.0, 0.5],
+        [15.0, 8.0, 1.5, -15.0, 7.0, -1.0],
+        [-6.0, -3.0, -0.5, 6.0, -3.0, 0.5],
+    ]
+)
 
 
-@dataclass
+@dataclass(frozen=True)
 class VehicleTrajectory:
-    """One vehicle's trajectory sampled at ``t_s`` (N,), s: ``position_m``, ``velocity_mps`` and
-    ``acceleration_mps2`` are (N, 3), world frame."""
+    """One vehicle's plan sampled at ``t_s`` (N,), s: ``position_m``, ``velocity_mps`` and
+    ``acceleration_mps2`` (N, 3), world frame. ``vehicle`` holds every parameter of its type."""
 
     name: str
     type_name: str
+    vehicle: Vehicle
     t_s: np.ndarray
     position_m: np.ndarray
     velocity_mps: np.ndarray
     acceleration_mps2: np.ndarray
 
-    def state_at(self, t_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Linearly interpolated (position_m, velocity_mps, acceleration_mps2), each (M, 3);
-        held at the last sample after the end (the vehicle hovers there)."""
+    def sample(self, t_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position_m, velocity_mps, acceleration_mps2), each (M, 3), at times ``t_s`` (M,), s.
+
+        Quintic Hermite between samples; at rest at the first / last position outside the plan.
+        """
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
-        out = []
-        for arr in (self.position_m, self.velocity_mps, self.acceleration_mps2):
-            out.append(np.column_stack([np.interp(t, self.t_s, arr[:, k]) for k in range(3)]))
-        return out[0], out[1], out[2]
+        grid = self.t_s
+        if grid.size < 2:
+            p = np.repeat(self.position_m[:1], t.size, axis=0)
+            return p, np.zeros_like(p), np.zeros_like(p)
+        k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, grid.size - 2)
+        h = grid[k + 1] - grid[k]
+        s = np.clip((t - grid[k]) / h, 0.0, 1.0)
+        hh = h[:, None]
+        data = np.stack(
+            [
+                self.position_m[k],
+                hh * self.velocity_mps[k],
+                hh**2 * self.acceleration_mps2[k],
+                self.position_m[k + 1],
+                hh * self.velocity_mps[k + 1],
+                hh**2 * self.acceleration_mps2[k + 1],
+            ],
+            axis=1,
+        )  # (M, 6, 3)
+        coef = np.einsum("ij,mjd->mid", _QUINTIC, data)  # (M, 6, 3): coefficients of s^0..s^5
+        powers = s[:, None] ** np.arange(6)[None, :]  # (M, 6)
+        d_powers = np.zeros_like(powers)
+        d_powers[:, 1:] = np.arange(1, 6) * powers[:, :5]
+        dd_powers = np.zeros_like(powers)
+        dd_powers[:, 2:] = np.arange(2, 6) * np.arange(1, 5) * powers[:, :4]
+        p = np.einsum("mi,mid->md", powers, coef)
+        v = np.einsum("mi,mid->md", d_powers, coef) / hh
+        a = np.einsum("mi,mid->md", dd_powers, coef) / hh**2
+        outside = (t < grid[0]) | (t > grid[-1])
+        v[outside] = 0.0
+        a[outside] = 0.0
+        return p, v, a
+
+    def position_at(self, t_s: np.ndarray | float) -> np.ndarray:
+        """Positions (M, 3), m, at ``t_s`` (M,), s (see :meth:`sample`)."""
+        return self.sample(t_s)[0]
 
 
 @dataclass
-class PlanResult:
+class Plan:
     """A multi-vehicle plan: every trajectory on one common time grid of step ``dt_s``, s."""
 
     scenario: str
@@ -59,6 +126,7 @@ class PlanResult:
     notes: list[str] = field(default_factory=list)
     scenario_file: str | None = None
     scenario_spec: dict | None = None
+    format_version: int = PLAN_FORMAT_VERSION
 
     @property
     def t_s(self) -> np.ndarray:
@@ -69,27 +137,42 @@ class PlanResult:
     def makespan_s(self) -> float:
         return float(self.t_s[-1]) if self.vehicles else 0.0
 
+    @property
+    def vehicle_types(self) -> dict[str, Vehicle]:
+        """Type name -> vehicle parameters of every type the plan uses."""
+        out: dict[str, Vehicle] = {}
+        for tr in self.vehicles.values():
+            known = out.setdefault(tr.type_name, tr.vehicle)
+            if known != tr.vehicle:
+                raise ValueError(f"vehicle type {tr.type_name!r} has two different parameter sets in one plan")
+        return out
 
-def _jsonable(value: Any) -> Any:
+    def positions_at(self, t_s: np.ndarray) -> dict[str, np.ndarray]:
+        """Every vehicle's positions (M, 3), m, at ``t_s`` (M,), s."""
+        return {name: tr.position_at(t_s) for name, tr in self.vehicles.items()}
+
+
+def jsonable(value: Any) -> Any:
+    """``value`` with numpy arrays and scalars turned into JSON types (non-finite floats -> None)."""
     if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
+        return jsonable(value.tolist())
     if isinstance(value, (np.floating, float)):
         v = float(value)
         return v if math.isfinite(v) else None
-    if isinstance(value, (np.integer,)):
+    if isinstance(value, np.integer):
         return int(value)
     if isinstance(value, np.bool_):
         return bool(value)
     return value
 
 
-def plan_to_dict(plan: PlanResult) -> dict:
-    """The plan.json mapping (DESIGN keys plus the extra keys listed in the module docstring)."""
-    return _jsonable(
+def plan_to_dict(plan: Plan) -> dict:
+    """The plan.json mapping of ``plan`` (format version :data:`PLAN_FORMAT_VERSION`)."""
+    return jsonable(
         {
             "format_version": PLAN_FORMAT_VERSION,
             "scenario": plan.scenario,
@@ -105,6 +188,7 @@ def plan_to_dict(plan: PlanResult) -> dict:
                 }
                 for name, tr in plan.vehicles.items()
             },
+            "vehicle_types": {name: vehicle_to_yaml_dict(v) for name, v in plan.vehicle_types.items()},
             "metrics": plan.metrics,
             "notes": list(plan.notes),
             "scenario_file": plan.scenario_file,
@@ -113,34 +197,58 @@ def plan_to_dict(plan: PlanResult) -> dict:
     )
 
 
-def write_plan(plan: PlanResult, out_dir: str | Path) -> Path:
+def write_plan(plan: Plan, out_dir: str | Path) -> Path:
     """Write ``out_dir/plan.json`` atomically; returns its path."""
     return atomic_write_text(Path(out_dir) / PLAN_FILENAME, json.dumps(plan_to_dict(plan), indent=1))
 
 
 def _array(value: Any, where: str, shape_tail: tuple[int, ...]) -> np.ndarray:
+    form = "[N] numbers" if not shape_tail else "[[x, y, z] x N] numbers"
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise UserError(f"{where}: expected numbers") from None
-    if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail or not np.all(np.isfinite(arr)):
-        form = "[N] numbers" if not shape_tail else "[[x, y, z] x N] numbers"
-        raise UserError(f"{where}: expected {form} (finite), got shape {arr.shape}")
+        raise UserError(f"{where}: expected {form}") from None
+    if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail:
+        raise UserError(f"{where}: expected {form}, got shape {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr.reshape(arr.shape[0], -1)).all(axis=1))
+    if bad.size:
+        raise UserError(f"{where}: sample {int(bad[0])} is not finite (NaN or infinity); expected finite {form}")
     return arr
 
 
-def plan_from_dict(doc: Any, *, label: str = "<plan>") -> PlanResult:
-    """Validate a plan.json mapping into a :class:`PlanResult`; UserError naming the key."""
+def _version(doc: dict, label: str) -> int:
+    version = doc.get("format_version", 1)
+    if isinstance(version, bool) or not isinstance(version, int) or version not in READABLE_FORMAT_VERSIONS:
+        raise UserError(
+            f"{label}: format_version: {version!r} is not a plan format this proxplan reads; expected one of "
+            f"{', '.join(map(str, READABLE_FORMAT_VERSIONS))} (re-plan with this version)"
+        )
+    return version
+
+
+def _vehicle_types(doc: dict, version: int, label: str) -> dict[str, Vehicle]:
+    if version == 1:
+        return dict(BUILTIN_VEHICLES)
+    raw = doc.get("vehicle_types")
+    if not isinstance(raw, dict) or not raw:
+        raise UserError(f"{label}: vehicle_types: expected an object TYPE: {{vehicle parameters}} (format 2)")
+    return {str(name): vehicle_from_dict(str(name), data, source=f"{label}: vehicle_types") for name, data in raw.items()}
+
+
+def plan_from_dict(doc: Any, *, label: str = "<plan>") -> Plan:
+    """Validate a plan.json mapping into a :class:`Plan`; UserError naming the key otherwise."""
     if not isinstance(doc, dict):
         raise UserError(f"{label}: expected a JSON object with keys scenario, dt_s, vehicles, metrics")
+    version = _version(doc, label)
     for key in ("scenario", "dt_s", "vehicles"):
         if key not in doc:
             raise UserError(f"{label}: {key}: missing; required plan.json key (DESIGN.md section 4)")
     dt = doc["dt_s"]
-    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not dt > 0:
-        raise UserError(f"{label}: dt_s: expected a positive number, got {dt!r}")
+    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (dt > 0 and math.isfinite(dt)):
+        raise UserError(f"{label}: dt_s: expected a positive number of seconds, got {dt!r}")
     if not isinstance(doc["vehicles"], dict) or not doc["vehicles"]:
         raise UserError(f"{label}: vehicles: expected a non-empty object NAME: {{type, t_s, position_m, ...}}")
+    types = _vehicle_types(doc, version, label)
     vehicles: dict[str, VehicleTrajectory] = {}
     grid = None
     for name, v in doc["vehicles"].items():
@@ -150,38 +258,61 @@ def plan_from_dict(doc: Any, *, label: str = "<plan>") -> PlanResult:
         for key in ("type", "t_s", "position_m", "velocity_mps", "acceleration_mps2"):
             if key not in v:
                 raise UserError(f"{where}.{key}: missing; required plan.json key")
+        type_name = v["type"]
+        if not isinstance(type_name, str) or type_name not in types:
+            known = ", ".join(types)
+            raise UserError(
+                f"{where}.type: unknown vehicle type {type_name!r}; expected one of the plan's vehicle types ({known})"
+            )
         t = _array(v["t_s"], f"{where}.t_s", ())
         arrays = [_array(v[k], f"{where}.{k}", (3,)) for k in ("position_m", "velocity_mps", "acceleration_mps2")]
         for key, arr in zip(("position_m", "velocity_mps", "acceleration_mps2"), arrays):
             if arr.shape[0] != t.shape[0]:
                 raise UserError(f"{where}.{key}: expected {t.shape[0]} rows (one per t_s), got {arr.shape[0]}")
-        if t.size < 1 or np.any(np.diff(t) <= 0):
-            raise UserError(f"{where}.t_s: expected strictly increasing times")
+        steps = np.diff(t)
+        if t.size < 2 or np.any(steps <= 0):
+            raise UserError(f"{where}.t_s: expected at least two strictly increasing times")
+        off = np.flatnonzero(np.abs(steps - dt) > GRID_TOLERANCE_S + 1e-9 * dt)
+        if off.size:
+            k = int(off[0])
+            raise UserError(
+                f"{where}.t_s: step {steps[k]:.6g} s between samples {k} and {k + 1} differs from dt_s = {dt:g} s; "
+                "expected a uniform grid"
+            )
         if grid is None:
             grid = t
-        elif t.shape != grid.shape or not np.allclose(t, grid, atol=1e-6):
+        elif t.shape != grid.shape or not np.allclose(t, grid, atol=GRID_TOLERANCE_S, rtol=0.0):
             raise UserError(f"{where}.t_s: expected the common time grid shared by every vehicle")
-        vehicles[str(name)] = VehicleTrajectory(str(name), str(v["type"]), t, *arrays)
+        vehicles[str(name)] = VehicleTrajectory(str(name), type_name, types[type_name], t, *arrays)
     metrics = doc.get("metrics") or {}
     if not isinstance(metrics, dict):
         raise UserError(f"{label}: metrics: expected an object")
     spec = doc.get("scenario_spec")
-    return PlanResult(
+    if spec is not None and not isinstance(spec, dict):
+        raise UserError(f"{label}: scenario_spec: expected an object (the scenario the plan was made for) or null")
+    notes = [str(n) for n in doc.get("notes") or []]
+    if version == 1:
+        notes.append(f"{label}: plan format 1: vehicle types resolved by name from the built-in types")
+    return Plan(
         scenario=str(doc["scenario"]),
         dt_s=float(dt),
         vehicles=vehicles,
         metrics=dict(metrics),
         method=str(doc.get("method", "unknown")),
-        notes=[str(n) for n in doc.get("notes") or []],
+        notes=notes,
         scenario_file=doc.get("scenario_file"),
-        scenario_spec=spec if isinstance(spec, dict) else None,
+        scenario_spec=spec,
+        format_version=version,
     )
 
 
-def read_plan(path: str | Path) -> PlanResult:
-    """Read a plan.json (or a folder holding one); UserError on a missing or malformed file."""
+def plan_path(path: str | Path) -> Path:
+    """``path`` itself, or ``path/plan.json`` when it is a folder."""
     path = Path(path)
-    if path.is_dir():
-        path = path / PLAN_FILENAME
-    doc = read_json(path, what="plan file")
-    return plan_from_dict(doc, label=str(path))
+    return path / PLAN_FILENAME if path.is_dir() else path
+
+
+def read_plan(path: str | Path) -> Plan:
+    """Read a plan.json (or a folder holding one); UserError on a missing or malformed file."""
+    path = plan_path(path)
+    return plan_from_dict(read_json(path, what="plan file"), label=str(path))

@@ -137,6 +137,43 @@ class Scenario:
     field_form: str | None = None  # disturbance-model field form ("inverse-z" or "printed"), None = default
     load_notes: tuple[str, ...] = ()  # things the user should know about how the file was read
 
+    def to_spec(self) -> dict:
+        """The normalised, self-contained scenario mapping (every default filled in, no file
+        references; vehicle types by name, their parameters travel with the plan): what plan.json
+        stores as ``scenario_spec`` and :func:`scenario_from_dict` reads back."""
+        from physics.velocity_field import FIELD_FORMS
+
+        vehicles: dict[str, dict] = {}
+        for name, task in self.vehicles.items():
+            entry: dict[str, Any] = {"type": task.type_name, "start": task.start_m.tolist()}
+            if task.goal_m is not None:
+                entry["goal"] = task.goal_m.tolist()
+            elif task.hover:
+                entry["hover"] = True
+            else:
+                entry["dock"] = {"with": task.dock_with, "offset": np.asarray(task.dock_offset_m).tolist()}
+            entry.update(max_speed_mps=task.max_speed_mps, max_accel_mps2=task.max_accel_mps2,
+                         max_jerk_mps3=task.max_jerk_mps3)
+            vehicles[name] = entry
+        lim = self.limits
+        return {
+            "name": self.name,
+            "model": {"field_form": self.field_form or FIELD_FORMS[0]},
+            "workspace": {"min": self.workspace_min_m.tolist(), "max": self.workspace_max_m.tolist()},
+            "obstacles": [
+                {"min": b.min_m.tolist(), "max": b.max_m.tolist(), **({"name": b.name} if b.name else {})}
+                for b in self.obstacles
+            ],
+            "limits": {
+                "authority_fraction": lim.authority_fraction,
+                "min_separation_m": lim.min_separation_m,
+                "invalid_zone_rule": lim.invalid_zone_rule,
+                "obstacle_margin_m": lim.obstacle_margin_m,
+                "time_horizon_s": lim.time_horizon_s,
+            },
+            "vehicles": vehicles,
+        }
+
     def final_position_m(self, name: str) -> np.ndarray:
         """Where vehicle ``name`` ends, world frame (3,), m (follows dock chains)."""
         task = self.vehicles[name]
@@ -362,8 +399,14 @@ def _check_docks(vehicles: dict[str, VehicleTask], label: str) -> None:
             cur = vehicles[cur].dock_with
 
 
-def scenario_from_dict(doc: Any, *, source_path: str | Path | None = None) -> Scenario:
-    """Validate a parsed scenario mapping; ``source_path`` resolves ``vehicle_file`` and labels errors."""
+def scenario_from_dict(
+    doc: Any, *, source_path: str | Path | None = None, vehicle_types: Mapping[str, Vehicle] | None = None
+) -> Scenario:
+    """Validate a parsed scenario mapping; ``source_path`` resolves ``vehicle_file`` and labels errors.
+
+    ``vehicle_types`` (e.g. a plan's embedded types) are looked up before the scenario's
+    ``vehicle_file`` and the built-in types.
+    """
     path = Path(source_path) if source_path is not None else None
     label = str(path) if path is not None else "<scenario>"
     if not isinstance(doc, Mapping):
@@ -388,7 +431,7 @@ def scenario_from_dict(doc: Any, *, source_path: str | Path | None = None) -> Sc
         field_form = model.get("field_form")
         if field_form is not None and field_form not in FIELD_FORMS:
             raise UserError(f"{label}: model.field_form: expected one of {', '.join(FIELD_FORMS)}, got {field_form!r}")
-    custom = _vehicle_types(doc, path, label)
+    custom = {**_vehicle_types(doc, path, label), **dict(vehicle_types or {})}
     vraw = _mapping(doc["vehicles"], f"{label}: vehicles", "NAME: {type, start, goal|hover|dock}")
     if not vraw:
         raise UserError(f"{label}: vehicles: expected at least one vehicle")

@@ -60,47 +60,13 @@ class CutoffTable:
 
 
 def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None) -> tuple[np.ndarray, str]:
-    """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store), or a
-    local stand-in (rule applied here) while they are missing."""
+    """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store)."""
     from physics.disturbance import ModelOptions
+    from costmaps.map_store import pair_maps
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
-    try:
-        from costmaps.map_store import pair_maps
-    except ImportError:
-        r = _standin_r_cut(source, target, dz, level, options)
-        return _apply_rule(source, target, dz, r, rule), "local stand-in (costmaps.map_store missing)"
     maps = pair_maps(source, target, options=options)
     return np.asarray(maps.cutoff.r_cut_m(dz, level=level, invalid_rule=rule), dtype=float), "costmaps.map_store"
-
-
-def _apply_rule(source: Vehicle, target: Vehicle, dz: np.ndarray, r_cut: np.ndarray, rule: str) -> np.ndarray:
-    invalid_dz = VALIDITY_FACTOR_L * source.size_m
-    inside = (dz > 0) & (dz <= invalid_dz)
-    overlap = source.body_radius_m + target.body_radius_m
-    if rule == "conservative":
-        return np.where(inside, np.maximum(r_cut, max(overlap, float(np.interp(invalid_dz, dz, r_cut)))), r_cut)
-    if rule == "forbid":
-        return np.where(inside, max(overlap, float(r_cut.max(initial=0.0))), r_cut)
-    return r_cut
-
-
-def _standin_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, options) -> np.ndarray:
-    """Stand-in used only while costmaps.map_store is absent: usage on an (r, azimuth) grid."""
-    from physics.authority import authority_usage
-    from physics.disturbance import disturbance_wrench
-
-    r = np.linspace(0.0, 2.0, 81)
-    az = np.array([0.0, math.pi / 4])
-    rr, aa, zz = np.meshgrid(r, az, dz[::5], indexing="ij")
-    off = np.column_stack([(rr * np.cos(aa)).ravel(), (rr * np.sin(aa)).ravel(), -zz.ravel()])
-    w = disturbance_wrench(source, target, off, options)
-    u = authority_usage(target, w.force_N, w.torque_Nm).reshape(rr.shape).max(axis=1)  # (R, Kc)
-    over = u >= level
-    idx = np.where(over.any(axis=0), over.shape[0] - 1 - np.argmax(over[::-1], axis=0), -1)
-    rc = np.where(idx >= 0, r[np.minimum(idx + 1, r.size - 1)], 0.0)
-    coarse = dz[::5]
-    return np.interp(dz, coarse, rc)
 
 
 @lru_cache(maxsize=256)
@@ -135,13 +101,10 @@ class UsageTable:
 
 @lru_cache(maxsize=256)
 def usage_table(source: Vehicle, target: Vehicle, *, field_form: str | None = None) -> UsageTable | None:
-    """The :class:`UsageTable` of an ordered pair from the cost maps; None when they are missing."""
+    """The :class:`UsageTable` of an ordered pair from the cost maps."""
     from physics.disturbance import ModelOptions
+    from costmaps.map_store import pair_maps
 
-    try:
-        from costmaps.map_store import pair_maps
-    except ImportError:
-        return None
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     cmap = pair_maps(source, target, options=options).cutoff
     dz = np.arange(0.0, float(cmap.dz_m[-1]) + 1e-9, 0.05)

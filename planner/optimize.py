@@ -33,7 +33,7 @@ WrenchProvider = Callable  # (source Vehicle, target Vehicle, scenario) -> casad
 class RefineResult:
     """Result of :func:`refine_plan`: the plan to use (refined, or the initial one on failure)."""
 
-    plan: object  # planfile.plan.PlanResult
+    plan: object  # planfile.plan.Plan
     success: bool
     message: str
     solve_time_s: float  # IPOPT wall time, s
@@ -93,12 +93,12 @@ def moving_end_s(plan) -> float:
 
 
 def check_final_configuration(scenario) -> None:
-    """Raise ``planner.pipeline.InfeasibleError`` when the final configuration itself (every vehicle
+    """Raise ``planner.errors.InfeasibleError`` when the final configuration itself (every vehicle
     at rest at its goal / hover point / dock) needs more than ``limits.authority_fraction`` of some
     vehicle's authority: then no trajectory can satisfy the limit (model evaluated directly)."""
     from physics.authority import authority_usage
     from physics.disturbance import ModelOptions, disturbance_wrench
-    from planner.pipeline import InfeasibleError
+    from planner.errors import InfeasibleError
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
@@ -143,7 +143,7 @@ def build_problem(
     agents = []
     for name, task in scenario.vehicles.items():
         moving = not task.hover
-        warm = initial_plan.vehicles[name].state_at(t_nodes) if moving else (None, None, None)
+        warm = initial_plan.vehicles[name].sample(t_nodes) if moving else (None, None, None)
         radius = float(task.body_radius_m)
         reach = 0.0
         if task.dock_with is not None:
@@ -207,8 +207,8 @@ def build_problem(
 
 def solution_to_plan(solution: OcpSolution, scenario, initial_plan, *, time_scale: float = 1.0):
     """Sample ``solution`` on the plan grid (step ``initial_plan.dt_s``), rounding the duration up to
-    a whole number of steps by a uniform slow-down. Returns a PlanResult (method "optimized")."""
-    from planfile.plan import PlanResult, VehicleTrajectory
+    a whole number of steps by a uniform slow-down. Returns a Plan (method "optimized")."""
+    from planfile.plan import Plan, VehicleTrajectory
 
     dt = float(initial_plan.dt_s)
     duration = solution.duration_s * time_scale
@@ -219,16 +219,16 @@ def solution_to_plan(solution: OcpSolution, scenario, initial_plan, *, time_scal
     vehicles = {}
     for name, task in scenario.vehicles.items():
         p, v, a = sampled[name]
-        vehicles[name] = VehicleTrajectory(name, task.type_name, t, p, v, a)
-    return PlanResult(
+        vehicles[name] = VehicleTrajectory(name, task.type_name, task.vehicle, t, p, v, a)
+    return Plan(
         scenario=initial_plan.scenario,
         dt_s=dt,
         vehicles=vehicles,
         metrics=dict(initial_plan.metrics),
         method="optimized",
         notes=list(initial_plan.notes),
-        scenario_file=getattr(initial_plan, "scenario_file", None),
-        scenario_spec=getattr(initial_plan, "scenario_spec", None),
+        scenario_file=initial_plan.scenario_file,
+        scenario_spec=initial_plan.scenario_spec,
     )
 
 
@@ -236,10 +236,8 @@ _KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
 
 
 def _verify(plan, scenario) -> list:
-    try:
-        from verify.checks import verify_plan
-    except ImportError:  # verifier not available: nothing to check against
-        return []
+    from verify.checks import verify_plan
+
     return list(verify_plan(plan, scenario))
 
 
@@ -287,7 +285,7 @@ def refine_plan(
     options: RefineOptions = RefineOptions(),
     wrench_provider: WrenchProvider | None = None,
 ) -> RefineResult:
-    """Optimise ``initial_plan`` (a PlanResult of ``scenario``) jointly for all moving vehicles.
+    """Optimise ``initial_plan`` (a Plan of ``scenario``) jointly for all moving vehicles.
 
     Returns a :class:`RefineResult`; on any failure its ``plan`` is ``initial_plan`` unchanged and
     ``success`` is False with the reason in ``message``.

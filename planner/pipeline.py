@@ -26,7 +26,8 @@ import numpy as np
 
 from physics.disturbance import VALIDITY_FACTOR_L
 from planner.constraints import Track, build_checker
-from planfile.plan import PlanResult, VehicleTrajectory
+from planner.errors import InfeasibleError
+from planfile.plan import Plan, VehicleTrajectory
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
 from planfile.scenario import Scenario
 from planner.timing import KinematicLimits, TimedPath, common_grid, min_segment_duration_s, time_parameterize
@@ -39,16 +40,6 @@ ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
 DOCK_SPEED_FACTOR = 0.5  # final dock approach at this fraction of the vehicle's limits
 PLAN_MARGIN_M = 0.02  # the search keeps this much more than the nominal limits, m (see build_checker)
 PLAN_MARGIN_S = 0.2  # and assumes not-yet-planned vehicles leave their start this much later, s
-
-
-class InfeasibleError(Exception):
-    """No plan: ``vehicle`` could not meet ``constraint`` (e.g. "downwash of carrier")."""
-
-    def __init__(self, vehicle: str, constraint: str, message: str):
-        super().__init__(message)
-        self.vehicle = vehicle
-        self.constraint = constraint
-        self.message = message
 
 
 class _VehicleFailed(Exception):
@@ -173,7 +164,7 @@ def plan_scenario(
     seed: int = 0,
     progress: Callable[[str, float], None] | None = None,
     options: SamplingOptions = SamplingOptions(),
-) -> PlanResult:
+) -> Plan:
     """Plan every vehicle of ``scenario``; raises :class:`InfeasibleError` when impossible.
 
     ``method``: "optimized" (sampling, then ``planner.optimize.refine_plan`` when available),
@@ -207,7 +198,7 @@ def plan_scenario(
     return plan
 
 
-def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: SamplingOptions, progress) -> PlanResult:
+def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: SamplingOptions, progress) -> Plan:
     """Prioritised sampling with one priority restart; the assembled plan (metrics not final)."""
     order = priority_order(scenario)
     notes: list[str] = list(scenario.load_notes)
@@ -244,13 +235,9 @@ def _respect_docks(scenario: Scenario, names: list[str]) -> list[str]:
     return out
 
 
-def _refine(scenario: Scenario, plan: PlanResult, *, seed: int, progress) -> PlanResult:
-    try:
-        from planner.optimize import refine_plan
-    except ImportError as err:
-        plan.notes.append(f"optimized: planner.optimize is not available ({err}); this is the sampling result")
-        plan.method = "sampling (optimizer unavailable)"
-        return plan
+def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress) -> Plan:
+    from planner.optimize import refine_plan
+
     try:
         result = refine_plan(scenario, plan, seed=seed, progress=progress)
     except Exception as err:  # noqa: BLE001 - the optimiser must never lose the sampling plan
@@ -273,14 +260,14 @@ def _refine(scenario: Scenario, plan: PlanResult, *, seed: int, progress) -> Pla
     return refined
 
 
-def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: str, notes: list[str]) -> PlanResult:
-    """Sample every timed path on one common grid (file order of vehicles) into a PlanResult."""
+def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: str, notes: list[str]) -> Plan:
+    """Sample every timed path on one common grid (file order of vehicles) into a Plan."""
     end = max([tp.duration_s for tp in timed.values()] + [DT_S])
     grid = common_grid(end, DT_S)
     vehicles = {}
     for name, task in scenario.vehicles.items():
         p, v, a = timed[name].sample(grid)
-        vehicles[name] = VehicleTrajectory(name, task.type_name, grid.copy(), p, v, a)
+        vehicles[name] = VehicleTrajectory(name, task.type_name, task.vehicle, grid.copy(), p, v, a)
     notes = list(notes)
     for name, task in scenario.vehicles.items():
         if task.dock_with is not None:
@@ -291,7 +278,7 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
                 f"(dz <= 3 L, S0 II-A); the cutoff rule is suspended for this pair there and verify checks the "
                 f"model's extrapolated usage"
             )
-    return PlanResult(
+    return Plan(
         scenario=scenario.name,
         dt_s=DT_S,
         vehicles=vehicles,
@@ -299,11 +286,11 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
         method=method,
         notes=notes,
         scenario_file=scenario.source_path,
-        scenario_spec=scenario.spec,
+        scenario_spec=scenario.to_spec(),
     )
 
 
-def finish_metrics(scenario: Scenario, plan: PlanResult, *, planning_time_s: float) -> None:
+def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) -> None:
     """Fill the DESIGN metrics (planning_time_s, max_authority_usage, min_separation_m, makespan_s)
     and extras (per-vehicle usage, path length, arrival time, invalid-zone time of docks)."""
     from verify.checks import separation_summary, wrench_along_plan

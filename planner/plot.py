@@ -5,11 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 
-from planfile.plan import PlanResult
+from planfile.plan import Plan
 from fileio.files import save_figure
 
 
-def plot_plan(plan: PlanResult, scenario, path: str | Path, *, usage: dict | None = None) -> Path:
+def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = None) -> Path:
     """Write the figure to ``path`` (written to a temporary name, then renamed); returns the path.
 
     ``usage``: {vehicle: WrenchAlongPlan} on ``plan.t_s`` (computed when None).

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from planfile.plan import PlanResult
+from planfile.plan import Plan
 
 
 def _fmt(value, unit: str = "") -> str:
@@ -13,7 +13,7 @@ def _fmt(value, unit: str = "") -> str:
     return f"{value}{unit}"
 
 
-def plan_summary(plan: PlanResult, *, violations: list | None = None) -> str:
+def plan_summary(plan: Plan, *, violations: list | None = None) -> str:
     """A few lines: method, makespan, worst authority usage, separation, per-vehicle figures, notes."""
     m = plan.metrics
     lines = [

@@ -34,12 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as err:
-            if err.name == name:  # package not written yet
-                continue
-            raise
+        module = importlib.import_module(name)
         module.register(subparsers)
     return parser
 

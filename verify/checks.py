@@ -3,7 +3,7 @@
 It does not use the cost maps or the planner's checker: the wrench on each vehicle is the sum over
 every other vehicle above it of ``physics.disturbance.disturbance_wrench`` (S0-3..S0-8), and its
 authority usage comes from ``physics.authority.authority_usage`` (DESIGN.md s. 3). Positions
-between plan samples are cubic Hermite interpolations of position and velocity (world frame, m).
+between plan samples come from the plan-file sampler (``planfile.plan.VehicleTrajectory.sample``).
 
 Checks: workspace (body disc inside), obstacles (body disc outside every box), separation
 (centre distance >= max(limits.min_separation_m, sum of body radii); dock pairs exempt on their
@@ -22,7 +22,7 @@ import numpy as np
 
 from physics.disturbance import VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
 from physics.authority import authority_usage
-from planfile.plan import PlanResult
+from planfile.plan import Plan
 from planfile.scenario import Scenario
 
 GOAL_TOLERANCE_M = 0.05
@@ -68,31 +68,11 @@ def _options(scenario: Scenario) -> ModelOptions:
     return ModelOptions(field_form=scenario.field_form) if scenario.field_form else ModelOptions()
 
 
-def positions_at(plan: PlanResult, t_s: np.ndarray) -> dict[str, np.ndarray]:
-    """Cubic Hermite positions (M, 3), m, of every vehicle at ``t_s`` from the plan's positions and
-    velocities (held at the first/last sample outside the plan)."""
-    out = {}
-    t_s = np.asarray(t_s, dtype=float)
-    for name, tr in plan.vehicles.items():
-        if tr.t_s.size < 2:
-            out[name] = np.repeat(tr.position_m[:1], t_s.size, axis=0)
-            continue
-        tc = np.clip(t_s, tr.t_s[0], tr.t_s[-1])
-        k = np.clip(np.searchsorted(tr.t_s, tc, side="right") - 1, 0, tr.t_s.size - 2)
-        h = (tr.t_s[k + 1] - tr.t_s[k])[:, None]
-        s = (tc - tr.t_s[k])[:, None] / h
-        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-        p0, p1 = tr.position_m[k], tr.position_m[k + 1]
-        v0, v1 = tr.velocity_mps[k], tr.velocity_mps[k + 1]
-        out[name] = h00 * p0 + h10 * h * v0 + h01 * p1 + h11 * h * v1
-    return out
-
-
-def wrench_along_plan(plan: PlanResult, scenario: Scenario, *, t_s: np.ndarray) -> dict[str, WrenchAlongPlan]:
+def wrench_along_plan(plan: Plan, scenario: Scenario, *, t_s: np.ndarray) -> dict[str, WrenchAlongPlan]:
     """Per-vehicle disturbance wrench and authority usage at times ``t_s`` (M,), s, summed over
     every other vehicle as a source (those above it), evaluated with the model directly."""
     t_s = np.asarray(t_s, dtype=float)
-    pos = positions_at(plan, t_s)
+    pos = plan.positions_at(t_s)
     opts = _options(scenario)
     out = {}
     for tname in plan.vehicles:
@@ -122,7 +102,7 @@ def wrench_along_plan(plan: PlanResult, scenario: Scenario, *, t_s: np.ndarray) 
     return out
 
 
-def _dock_exempt(plan: PlanResult, scenario: Scenario, a: str, b: str, pos: dict, t_s: np.ndarray) -> np.ndarray:
+def _dock_exempt(plan: Plan, scenario: Scenario, a: str, b: str, pos: dict, t_s: np.ndarray) -> np.ndarray:
     """(M,) True where pair (a, b) is a dock pair and the docker is on its final approach: within
     ``DOCK_TUBE_M`` of the segment from the approach point A to the dock point D, both taken
     relative to the dock target's current position."""
@@ -140,10 +120,10 @@ def _dock_exempt(plan: PlanResult, scenario: Scenario, a: str, b: str, pos: dict
     return np.zeros(t_s.size, dtype=bool)
 
 
-def separation_summary(plan: PlanResult, scenario: Scenario, *, t_s: np.ndarray | None = None) -> dict:
+def separation_summary(plan: Plan, scenario: Scenario, *, t_s: np.ndarray | None = None) -> dict:
     """Smallest centre distance over non-dock pairs (and over docking pairs), m; None if < 2 vehicles."""
     t_s = plan.t_s if t_s is None else t_s
-    pos = positions_at(plan, t_s)
+    pos = plan.positions_at(t_s)
     names = list(plan.vehicles)
     best, best_dock = None, None
     for i, a in enumerate(names):
@@ -175,7 +155,7 @@ def _add(out: list, t_s, mask, value, limit, vehicle, kind, detail) -> None:
         out.append(Violation(float(t_s[s]), vehicle, kind, f"{detail} (until t={t_s[e]:.2f}s)", worst, float(limit)))
 
 
-def verify_plan(plan: PlanResult, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:
+def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:
     """Every violation of ``plan`` against ``scenario`` (empty list = the plan passes)."""
     out: list[Violation] = []
     missing = [n for n in scenario.vehicles if n not in plan.vehicles]
@@ -188,7 +168,7 @@ def verify_plan(plan: PlanResult, scenario: Scenario, *, dt_fine_s: float = 0.01
         return out
     end = float(plan.t_s[-1])
     t = np.arange(0.0, end + dt_fine_s / 2, dt_fine_s)
-    pos = positions_at(plan, t)
+    pos = plan.positions_at(t)
     lim = scenario.limits
     lo, hi = scenario.workspace_min_m, scenario.workspace_max_m
     names = list(plan.vehicles)
@@ -262,11 +242,13 @@ def verify_plan(plan: PlanResult, scenario: Scenario, *, dt_fine_s: float = 0.01
     return out
 
 
-def scenario_of_plan(plan: PlanResult, *, label: str = "plan.json") -> Scenario:
+def scenario_of_plan(plan: Plan, *, label: str = "plan.json") -> Scenario:
     """The scenario a plan was made for: its embedded copy, else its scenario file."""
     from fileio.errors import UserError
     from planfile.scenario import load_scenario, scenario_from_dict
 
+    if plan.scenario_spec is not None and plan.format_version >= 2:
+        return scenario_from_dict(plan.scenario_spec, vehicle_types=plan.vehicle_types)
     if plan.scenario_spec is not None:
         return scenario_from_dict(plan.scenario_spec, source_path=plan.scenario_file or None)
     if plan.scenario_file:

@@ -42,20 +42,23 @@ def write_demo_plan(out_dir: str | Path, *, duration_s: float = 8.0, dt_s: float
     """Write ``out_dir/plan.json`` (with the scenario embedded) and ``out_dir/scenario.yaml``."""
     import yaml
 
-    from planfile.plan import PlanResult, VehicleTrajectory, write_plan
+    from planfile.plan import Plan, VehicleTrajectory, write_plan
+    from planfile.scenario import scenario_from_dict
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     scenario_path = out_dir / "scenario.yaml"
     scenario_path.write_text(yaml.safe_dump(DEMO_SPEC, sort_keys=False))
+    scenario = scenario_from_dict(DEMO_SPEC, source_path=scenario_path)
     t_s = np.arange(0.0, duration_s + 0.5 * dt_s, dt_s)
     vehicles = {}
     for name, pos in demo_positions_m(t_s).items():
         vel = np.gradient(pos, t_s, axis=0)
-        vehicles[name] = VehicleTrajectory(name, DEMO_SPEC["vehicles"][name]["type"], t_s, pos, vel,
+        task = scenario.vehicles[name]
+        vehicles[name] = VehicleTrajectory(name, task.type_name, task.vehicle, t_s, pos, vel,
                                            np.gradient(vel, t_s, axis=0))
-    plan = PlanResult(scenario=DEMO_SPEC["name"], dt_s=dt_s, vehicles=vehicles,
+    plan = Plan(scenario=DEMO_SPEC["name"], dt_s=dt_s, vehicles=vehicles,
                       metrics={"planning_time_s": 0.0, "makespan_s": float(t_s[-1])},
                       method="hand-made straight lines", scenario_file=str(scenario_path.resolve()),
-                      scenario_spec=DEMO_SPEC)
+                      scenario_spec=scenario.to_spec())
     return write_plan(plan, out_dir)

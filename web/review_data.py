@@ -15,26 +15,45 @@ import numpy as np
 
 from fileio.errors import UserError
 from physics.vehicles import Vehicle
+from planfile.plan import VehicleTrajectory
 
 Progress = Callable[[str, float], None]
 
 
 @dataclass(frozen=True)
 class ReviewVehicle:
-    """One vehicle's trajectory: ``t_s`` (N,), s; ``position_m`` (N, 3), world frame, m."""
+    """One vehicle's planned trajectory (``trajectory``, the plan file's) and its task."""
 
-    name: str
-    type_name: str
-    vehicle: Vehicle
-    t_s: np.ndarray
-    position_m: np.ndarray
+    trajectory: VehicleTrajectory
     goal_m: np.ndarray | None = None  # (3,) world goal, m, when the scenario gives one
     dock_with: str | None = None  # name of the vehicle this one docks with
     dock_offset_m: np.ndarray | None = None  # (3,) goal relative to dock_with, m
 
+    @property
+    def name(self) -> str:
+        return self.trajectory.name
+
+    @property
+    def type_name(self) -> str:
+        return self.trajectory.type_name
+
+    @property
+    def vehicle(self) -> Vehicle:
+        return self.trajectory.vehicle
+
+    @property
+    def t_s(self) -> np.ndarray:
+        """Plan time grid (N,), s."""
+        return self.trajectory.t_s
+
+    @property
+    def position_m(self) -> np.ndarray:
+        """Planned positions (N, 3), world frame, m."""
+        return self.trajectory.position_m
+
     def position_at(self, t_s: float) -> np.ndarray:
-        """Position (3,) at time ``t_s``, linear between samples, held at the ends, m."""
-        return np.array([np.interp(t_s, self.t_s, self.position_m[:, k]) for k in range(3)])
+        """Position (3,) at time ``t_s`` from the plan-file sampler, m."""
+        return self.trajectory.position_at(t_s)[0]
 
 
 @dataclass(frozen=True)
@@ -50,7 +69,7 @@ class ReviewData:
     metrics: dict[str, Any] = field(default_factory=dict)
     source_path: Path | None = None
     scenario: Any = None  # planfile.scenario.Scenario, None when the plan carries none
-    plan: Any = None  # planfile.plan.PlanResult
+    plan: Any = None  # planfile.plan.Plan
     note: str = ""  # what the user should know (e.g. why editing is disabled)
 
     @property
@@ -85,24 +104,19 @@ def _fallback_bounds(position_m: list[np.ndarray]) -> tuple[np.ndarray, np.ndarr
 
 
 def review_from_plan_result(plan: Any, scenario: Any, *, source_path: Path | None = None, note: str = "") -> ReviewData:
-    """Review data of a planner ``PlanResult`` and its ``Scenario`` (or None: types resolved by name)."""
-    from physics.vehicle_yaml import resolve_vehicle
-
+    """Review data of a ``Plan`` and its ``Scenario`` (or None: trajectories alone)."""
     vehicles: dict[str, ReviewVehicle] = {}
     for name, tr in plan.vehicles.items():
         task = scenario.vehicles.get(name) if scenario is not None else None
         if task is not None:
-            vehicle = task.vehicle
             extras = {
                 "goal_m": None if task.goal_m is None else np.asarray(task.goal_m, float),
                 "dock_with": task.dock_with,
                 "dock_offset_m": None if task.dock_offset_m is None else np.asarray(task.dock_offset_m, float),
             }
         else:
-            vehicle = resolve_vehicle(tr.type_name, where=f"{source_path}: vehicles.{name}.type")
             extras = {}
-        vehicles[name] = ReviewVehicle(name, tr.type_name, vehicle, np.asarray(tr.t_s, float),
-                                       np.asarray(tr.position_m, float), **extras)
+        vehicles[name] = ReviewVehicle(tr, **extras)
     if scenario is not None:
         lo = np.asarray(scenario.workspace_min_m, float)
         hi = np.asarray(scenario.workspace_max_m, float)
@@ -141,10 +155,8 @@ def load_plan_file(path: str | Path) -> ReviewData:
 
 def plan_scenario(scenario: Any, *, progress: Progress | None = None, method: str = "optimized") -> Any:
     """Plan with ``planner.pipeline.plan_scenario``; raises its InfeasibleError or UserError."""
-    try:
-        from planner.pipeline import plan_scenario as pipeline_plan
-    except ImportError as err:
-        raise UserError(f"planning needs planner.pipeline, which is not available ({err})") from err
+    from planner.pipeline import plan_scenario as pipeline_plan
+
     return pipeline_plan(scenario, method=method, progress=progress)
 
 

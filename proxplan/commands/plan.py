@@ -66,9 +66,10 @@ def _plan(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from planner.pipeline import InfeasibleError, plan_scenario
+    from planner.errors import InfeasibleError
+    from planner.pipeline import plan_scenario
     from fileio.files import atomic_write_text
-    from planfile.plan import write_plan
+    from planfile.plan import jsonable, write_plan
     from planfile.scenario import load_scenario
     from planner.summary import plan_summary
     from verify.checks import verify_plan
@@ -111,7 +112,7 @@ def _plan(args: argparse.Namespace) -> int:
             "png": str(png) if png else None,
             "summary": str(summary_path),
             "method": plan.method,
-            "metrics": _jsonable(plan.metrics),
+            "metrics": jsonable(plan.metrics),
             "notes": plan.notes,
             "verify": {"passed": not violations, "violations": [_violation_dict(v) for v in violations]},
             "stage_times_s": {"plan": plan.metrics.get("planning_time_s"), "verify": round(t_verify, 3), "plot": round(t_plot, 3)},
@@ -124,12 +125,6 @@ def _plan(args: argparse.Namespace) -> int:
 
 def _violation_dict(v) -> dict:
     return {"t_s": v.t_s, "vehicle": v.vehicle, "kind": v.kind, "detail": v.detail, "value": v.value, "limit": v.limit}
-
-
-def _jsonable(obj):
-    from planfile.plan import _jsonable as conv
-
-    return conv(obj)
 
 
 def _verify(args: argparse.Namespace) -> int:

@@ -26,7 +26,7 @@ def register(subparsers) -> None:
     p.add_argument("--log", action="store_true", help="write Neural-Swarm logs and a manifest into OUT")
     p.add_argument("--flight-name", default=None, help="flight name in the manifest (default: scenario name)")
     p.add_argument("--split", default="train", choices=("train", "test"), help="manifest split of this flight")
-    p.add_argument("--vehicles", metavar="FILE.yaml", help="custom vehicle types (costmaps vehicles YAML)")
+    p.add_argument("--vehicles", metavar="FILE.yaml", help="fly these vehicle parameters instead of the plan's (vehicles YAML; types matched by name)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the sensor noise (default 0)")
     p.add_argument("--physics-dt", type=float, default=0.002, metavar="S", help="physics step, s (default 0.002)")
     p.add_argument("--log-dt", type=float, default=0.01, metavar="S", help="log period, s (default 0.01)")
@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
 
     from fileio.errors import UserError
     from flightsim.logs import write_flight_logs
-    from flightsim.plan_file import read_plan_file
+    from planfile.plan import read_plan
     from flightsim.report import plot_errors, summary_dict
     from flightsim.simulate import SimulationOptions, simulate_plan
     from flightsim.truth import TruthSpec, load_truth_file
@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--integral-rate: expected a number >= 0 (1/s), got {args.integral_rate}")
     if args.settle < 0:
         raise UserError(f"--settle: expected a non-negative number of seconds, got {args.settle}")
-    plan = read_plan_file(plan_path)
+    plan = read_plan(plan_path)
     truth = load_truth_file(args.truth) if args.truth else TruthSpec()
     custom = None
     if args.vehicles:

@@ -11,7 +11,7 @@ import pytest
 
 from fileio.errors import UserError
 from flightsim.logs import NEURAL_SWARM_HEADER, write_flight_logs
-from flightsim.plan_file import read_plan_file
+from planfile.plan import read_plan, write_plan
 from flightsim.scenarios_synthetic import hover_stack_plan, swap_plan
 from flightsim.simulate import simulate_plan
 from flightsim.truth import load_truth_file, truth_from_dict
@@ -39,22 +39,22 @@ def _write_plan(tmp_path, plan) -> Path:
 def test_plan_reader_round_trip_and_errors(tmp_path):
     plan = hover_stack_plan(duration_s=1.0)
     path = _write_plan(tmp_path, plan)
-    back = read_plan_file(path)
+    back = read_plan(path)
     assert set(back.vehicles) == {"top", "bottom"}
     np.testing.assert_allclose(back.vehicles["top"].position_m, plan.vehicles["top"].position_m)
     bad = _plan_dict(plan)
     bad["vehicles"]["top"]["position_m"] = bad["vehicles"]["top"]["position_m"][:-1]
     (tmp_path / "bad.json").write_text(json.dumps(bad))
-    with pytest.raises(UserError, match=r"vehicles.top.position_m: expected a finite array of shape"):
-        read_plan_file(tmp_path / "bad.json")
+    with pytest.raises(UserError, match=r"vehicles.top.position_m: expected 51 rows"):
+        read_plan(tmp_path / "bad.json")
     (tmp_path / "broken.json").write_text("{")
     with pytest.raises(UserError, match="not valid JSON"):
-        read_plan_file(tmp_path / "broken.json")
+        read_plan(tmp_path / "broken.json")
     bad2 = _plan_dict(plan)
     del bad2["vehicles"]["bottom"]["acceleration_mps2"]
     (tmp_path / "bad2.json").write_text(json.dumps(bad2))
     with pytest.raises(UserError, match="acceleration_mps2: missing"):
-        read_plan_file(tmp_path / "bad2.json")
+        read_plan(tmp_path / "bad2.json")
 
 
 def test_truth_files_and_validation(tmp_path):
@@ -172,24 +172,37 @@ def test_truth_wind_pushes_a_hovering_vehicle_by_rotorpy_rotor_drag():
 def test_simulate_cli_with_custom_vehicle_types(tmp_path, capsys):
     from proxplan.cli import main
 
+    """A plan carries its custom types; ``--vehicles`` flies other parameters than planned; logs of
+    custom types come with the vehicles file identification needs."""
+    import dataclasses
+
+    import yaml
+
+    from physics.vehicle_yaml import load_vehicle_file
+
     vfile = tmp_path / "vehicles.yaml"
     vfile.write_text("vehicles:\n  heavy-cf: {base: crazyflie-2.1, mass_kg: 0.040}\n")
-    plan = hover_stack_plan(bottom_type="heavy-cf", separation_m=1.0, duration_s=1.0)
-    path = _write_plan(tmp_path, plan)
+    heavy = load_vehicle_file(vfile)["heavy-cf"]
+    plan = hover_stack_plan(separation_m=1.0, duration_s=1.0)
+    bottom = plan.vehicles["bottom"]
+    plan.vehicles["bottom"] = dataclasses.replace(bottom, type_name="heavy-cf", vehicle=heavy)
+    write_plan(plan, tmp_path / "plan")
+    path = tmp_path / "plan" / "plan.json"
     out = tmp_path / "sim"
-    assert main(["simulate", str(path), "--out", str(out)]) == 2
-    assert "unknown vehicle type 'heavy-cf'" in capsys.readouterr().err
-    assert main(["simulate", str(path), "--out", str(out), "--vehicles", str(vfile), "--json", "--log",
-                 "--settle", "0.2"]) == 0
+    assert main(["simulate", str(path), "--out", str(out), "--json", "--log", "--settle", "0.2"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["vehicles"]["bottom"]["type"] == "heavy-cf"
     man_path = out / "manifest.yaml"
-    text = man_path.read_text()
-    assert "vehicles_file" in text
-    import yaml
-
-    doc = yaml.safe_load(text)
-    assert (man_path.parent / doc["vehicles_file"]).resolve() == vfile.resolve()
+    doc = yaml.safe_load(man_path.read_text())
+    flown = load_vehicle_file(man_path.parent / doc["vehicles_file"])
+    assert flown["heavy-cf"] == heavy
+    lighter = tmp_path / "lighter.yaml"
+    lighter.write_text("vehicles:\n  heavy-cf: {base: crazyflie-2.1, mass_kg: 0.030}\n")
+    out2 = tmp_path / "sim2"
+    assert main(["simulate", str(path), "--out", str(out2), "--vehicles", str(lighter), "--log", "--settle", "0.2"]) == 0
+    capsys.readouterr()
+    doc2 = yaml.safe_load((out2 / "manifest.yaml").read_text())
+    assert (out2 / doc2["vehicles_file"]).resolve() == lighter.resolve()
 
 
 def test_commanded_thrust_logs_differ_from_actual_only_through_the_motor_lag(tmp_path):

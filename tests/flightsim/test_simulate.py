@@ -20,7 +20,7 @@ from flightsim.scenarios_synthetic import (
     swap_plan,
     waypoint_trajectory,
 )
-from flightsim.plan_file import PlanArrays
+from planfile.plan import Plan
 from flightsim.simulate import simulate_plan
 
 KP_Z = 15.0  # RotorPy SE3Control z position gain, 1/s^2 (no integral term: steady error = F / (m kp_z))
@@ -37,13 +37,9 @@ def test_vehicle_hovering_alone_holds_position_within_a_few_centimetres():
 
 
 def _measured_force_s011(vehicle, table: np.ndarray) -> np.ndarray:
-    """(S0-11) f_a = m R alpha - sum(f_i) z_B on a Neural-Swarm table; uses identify.measure when
-    present (the identification engineer's implementation), else this one-line form."""
-    try:
-        from identify.measure import MeasureOptions, measure_disturbance
-    except ImportError:  # pragma: no cover
-        z_b = Rotation.from_quat(table[:, 10:14]).apply([0.0, 0.0, 1.0])
-        return vehicle.mass_kg * table[:, 7:10] - table[:, 14:18].sum(axis=1)[:, None] * z_b
+    """(S0-11) f_a = m R alpha - sum(f_i) z_B on a Neural-Swarm table (identify.measure)."""
+    from identify.measure import MeasureOptions, measure_disturbance
+
     t = table[:, 0] * 1e-6
     return measure_disturbance(vehicle, t, table[:, 10:14], table[:, 7:10], table[:, 14:18], table[:, 27:30],
                                options=MeasureOptions()).force_N
@@ -114,7 +110,7 @@ def test_batched_wrench_horizon_matches_per_step_evaluation():
 
 def _battery_swap(shuttle_path, times, duration_s):
     carrier = np.array([0.0, 0.0, 1.5])
-    return PlanArrays("battery-swap-test", 0.02, {
+    return Plan("battery-swap-test", 0.02, {
         "carrier": waypoint_trajectory("carrier", "large-quad", [carrier, carrier], [0.0, duration_s]),
         "shuttle": waypoint_trajectory("shuttle", "small-quad", shuttle_path, times),
     })

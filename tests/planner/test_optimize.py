@@ -18,7 +18,8 @@ from planner.optimize import (  # noqa: E402
     moving_end_s,
     refine_plan,
 )
-from planner.pipeline import InfeasibleError, plan_scenario  # noqa: E402
+from planner.errors import InfeasibleError  # noqa: E402
+from planner.pipeline import plan_scenario  # noqa: E402
 from planfile.scenario import load_scenario, scenario_from_dict  # noqa: E402
 from verify.checks import verify_plan  # noqa: E402
 

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from physics.authority import authority_usage
 from physics.builtin_vehicles import BUILTIN_VEHICLES
 from physics.disturbance import disturbance_wrench
-from planfile.plan import PlanResult, VehicleTrajectory
+from planfile.plan import Plan, VehicleTrajectory
 from planfile.scenario import scenario_from_dict
 from verify.checks import verify_plan, wrench_along_plan
 
@@ -44,12 +46,12 @@ def _plan(scenario, low_path):
     t, p, v, a = low_path
     top = scenario.vehicles["top"].start_m
     z = np.zeros_like(p)
-    return PlanResult(
+    return Plan(
         scenario=scenario.name,
         dt_s=DT,
         vehicles={
-            "top": VehicleTrajectory("top", "large-quad", t, np.repeat(top[None], t.size, axis=0), z, z),
-            "low": VehicleTrajectory("low", "small-quad", t, p, v, a),
+            "top": VehicleTrajectory("top", "large-quad", BUILTIN_VEHICLES["large-quad"], t, np.repeat(top[None], t.size, axis=0), z, z),
+            "low": VehicleTrajectory("low", "small-quad", BUILTIN_VEHICLES["small-quad"], t, p, v, a),
         },
     )
 
@@ -94,7 +96,8 @@ def test_separation_goal_and_speed_violations():
 def test_hover_drift_and_missing_vehicle():
     sc = _scenario([-2, -1.5, 1.0], [2, -1.5, 1.0])
     plan = _plan(sc, _line([-2, -1.5, 1.0], [2, -1.5, 1.0], 8.0, total_s=9.0))
-    plan.vehicles["top"].position_m = plan.vehicles["top"].position_m + np.array([0.2, 0, 0])
+    top = plan.vehicles["top"]
+    plan.vehicles["top"] = dataclasses.replace(top, position_m=top.position_m + np.array([0.2, 0, 0]))
     assert "hover" in {v.kind for v in verify_plan(plan, sc)}
     del plan.vehicles["top"]
     assert [v.kind for v in verify_plan(plan, sc)] == ["missing"]
@@ -105,7 +108,7 @@ def test_wrench_along_plan_is_the_direct_model():
     plan = _plan(sc, _line([-2, 0, 0.8], [2, 0, 0.8], 8.0, total_s=9.0))
     t = np.array([1.0, 4.0, 6.5])
     along = wrench_along_plan(plan, sc, t_s=t)
-    low_p = plan.vehicles["low"].state_at(t)[0]  # grid times: interpolation is exact here
+    low_p = plan.vehicles["low"].sample(t)[0]  # grid times: interpolation is exact here
     offsets = low_p - sc.vehicles["top"].start_m
     w = disturbance_wrench(BUILTIN_VEHICLES["large-quad"], BUILTIN_VEHICLES["small-quad"], offsets)
     np.testing.assert_allclose(along["low"].force_N, w.force_N, rtol=1e-9, atol=1e-12)

@@ -171,8 +171,10 @@ def test_replan_failure_keeps_old_plan_and_success_shows_new(app, plan_path):
     def shifted(scenario, *, progress):  # a "planner" that moves every trajectory up by 0.25 m
         data = load_plan_file(plan_path)
         plan = data.plan
-        for tr in plan.vehicles.values():
-            tr.position_m = tr.position_m + [0.0, 0.0, 0.25]
+        import dataclasses
+
+        for name, tr in plan.vehicles.items():
+            plan.vehicles[name] = dataclasses.replace(tr, position_m=tr.position_m + [0.0, 0.0, 0.25])
         from web.review_data import review_from_plan_result
 
         return prepare(review_from_plan_result(plan, scenario, source_path=plan_path))

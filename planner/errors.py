@@ -1,0 +1,13 @@
+"""Planning failures that are results, not user mistakes (the CLI exits 1 naming vehicle and constraint)."""
+
+from __future__ import annotations
+
+
+class InfeasibleError(Exception):
+    """No plan: ``vehicle`` could not meet ``constraint`` (e.g. "downwash of carrier")."""
+
+    def __init__(self, vehicle: str, constraint: str, message: str):
+        super().__init__(message)
+        self.vehicle = vehicle
+        self.constraint = constraint
+        self.message = message

@@ -1,0 +1,164 @@
+"""The package layering of DESIGN.md section 1, checked on the source with ``ast``.
+
+Packages are ranked in data-flow order; a module may import its own package and packages of a
+lower rank only, no import cycle may exist between project modules (function-level imports count
+too), and no ``except ImportError`` fallback may hide a missing module.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO
+
+LAYERS = (
+    "fileio",  # user errors, reading user files, atomic writes
+    "physics",  # vehicles, velocity field, disturbance, authority, effects
+    "costmaps",  # cutoff maps and wrench tables
+    "identify",  # flight logs -> measured disturbance -> calibrated model
+    "planfile",  # scenario YAML and plan.json contracts
+    "verify",  # independent plan checks
+    "planner",  # sampling, optimisation, timing
+    "flightsim",  # closed-loop simulation
+    "web",  # review app
+    "proxplan",  # CLI
+)
+RANK = {name: i for i, name in enumerate(LAYERS)}
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for package in LAYERS:
+        for path in sorted((REPO / package).rglob("*.py")):
+            parts = path.relative_to(REPO).with_suffix("").parts
+            name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+            out[name] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _resolve(name: str) -> str | None:
+    """The project module an import of ``name`` loads (its longest known prefix), or None."""
+    parts = name.split(".")
+    while parts:
+        candidate = ".".join(parts)
+        if candidate in MODULES:
+            return candidate
+        parts.pop()
+    return None
+
+
+def _imports(module: str) -> set[str]:
+    tree = ast.parse(MODULES[module].read_text())
+    package = module if MODULES[module].name == "__init__.py" else module.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                anchor = anchor[: len(anchor) - (node.level - 1)]
+                base = ".".join(anchor + ([base] if base else []))
+            targets = [base] + [f"{base}.{a.name}" for a in node.names]
+        else:
+            continue
+        for target in targets:
+            resolved = _resolve(target)
+            if resolved is not None and resolved != module:
+                found.add(resolved)
+    return found
+
+
+GRAPH = {m: _imports(m) for m in MODULES}
+
+
+def test_every_package_is_found():
+    for package in LAYERS:
+        assert package in MODULES, f"{package}/__init__.py missing"
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_imports_only_downwards(module):
+    own = RANK[module.split(".")[0]]
+    upward = sorted(t for t in GRAPH[module] if RANK[t.split(".")[0]] > own)
+    assert not upward, f"{module} imports a higher layer: {upward}"
+
+
+def test_no_import_cycle():
+    # Tarjan's strongly connected components; any component of more than one module is a cycle
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles: list[list[str]] = []
+    counter = [0]
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on_stack.add(v)
+        for w in GRAPH[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in GRAPH:
+        if v not in index:
+            visit(v)
+    assert not cycles, f"import cycles: {cycles}"
+
+
+def test_cycle_detector_finds_a_planted_cycle():
+    saved = dict(GRAPH)
+    try:
+        GRAPH["physics.vehicles"] = GRAPH["physics.vehicles"] | {"physics.disturbance"}
+        with pytest.raises(AssertionError, match="import cycles"):
+            test_no_import_cycle()
+    finally:
+        GRAPH.clear()
+        GRAPH.update(saved)
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_no_import_error_fallback(module):
+    tree = ast.parse(MODULES[module].read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ExceptHandler) and node.type is not None:
+            names = [n.id for n in ast.walk(node.type) if isinstance(n, ast.Name)]
+            assert not {"ImportError", "ModuleNotFoundError"} & set(names), (
+                f"{module}:{node.lineno}: except ImportError hides a missing module"
+            )
+
+
+def test_packages_are_used_through_their_public_api():
+    """Across packages, code imports names from the package (its __init__), not deep modules."""
+    deep = []
+    for module in MODULES:
+        own = module.split(".")[0]
+        tree = ast.parse(MODULES[module].read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module and not node.level:
+                top = node.module.split(".")[0]
+                if top in RANK and top != own and node.module != top:
+                    deep.append(f"{module}:{node.lineno}: from {node.module}")
+    assert not deep, "deep cross-package imports:\n" + "\n".join(deep)
