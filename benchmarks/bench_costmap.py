@@ -27,11 +27,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from physics.authority import authority_usage  # noqa: E402
-from physics.builtin_vehicles import BUILTIN_VEHICLES  # noqa: E402
+from physics import authority_usage  # noqa: E402
+from physics import BUILTIN_VEHICLES  # noqa: E402
 from costmaps.cutoff import DEFAULT_CUTOFF_RESOLUTION, cutoff_dz_grid_m  # noqa: E402
-from physics.disturbance import disturbance_wrench  # noqa: E402
-from costmaps.map_store import build_pair_maps  # noqa: E402
+from physics import disturbance_wrench  # noqa: E402
+from costmaps import build_pair_maps  # noqa: E402
 from costmaps.wrench_table import DEFAULT_RESOLUTION, LateralScale, build_wrench_table, table_dz_grid_m  # noqa: E402
 
 

@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.effects import Effect, EffectInputs, SourceSample, base_wrench
-from identify.flightlog import read_log, write_canonical_csv
-from identify.synthetic_logs import synthetic_logs
-from identify.pipeline import run_identify
-from identify.report import write_report
+from physics import BUILTIN_VEHICLES
+from physics import Effect, EffectInputs, SourceSample, base_wrench
+from identify import read_log, write_canonical_csv
+from identify import synthetic_logs
+from identify import run_identify
+from identify import write_report
 
 
 def _paths(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:

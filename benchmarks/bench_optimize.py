@@ -39,9 +39,9 @@ def whole_process(scenario: Path, method: str) -> tuple[float, dict]:
 def in_process(scenario_path: Path, *, exact: bool) -> dict:
     from planner import ocp
     from planner.optimize import build_problem, moving_end_s, solution_to_plan
-    from planner.pipeline import plan_scenario
-    from planfile.scenario import load_scenario
-    from verify.checks import verify_plan
+    from planner import plan_scenario
+    from planfile import load_scenario
+    from verify import verify_plan
 
     scenario = load_scenario(scenario_path)
     initial = plan_scenario(scenario, method="sampling", seed=0)

@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.effects import EffectInputs, SourceSample, total_wrench
-from flightsim.scenarios_synthetic import swap_plan
-from flightsim.simulate import simulate_plan
-from flightsim.truth import load_truth_file
+from physics import BUILTIN_VEHICLES
+from physics import EffectInputs, SourceSample, total_wrench
+from flightsim import swap_plan
+from flightsim import simulate_plan
+from flightsim import load_truth_file
 from flightsim.vehicle_params import quad_params
 
 REPO = Path(__file__).resolve().parents[1]
@@ -94,7 +94,7 @@ def main() -> None:
 
 def eight_vehicle_plan(*, swap_s: float):
     """Four Neural-Swarm-like swapping pairs side by side, 1 m apart (8 vehicles)."""
-    from planfile.plan import Plan
+    from planfile import Plan
 
     vehicles = {}
     for k in range(4):

@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 
-from physics.authority import authority_usage
+from physics import authority_usage
 from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
-from physics.disturbance import disturbance_wrench
+from physics import disturbance_wrench
 
 
 def main() -> None:

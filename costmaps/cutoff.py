@@ -36,9 +36,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physics.authority import authority_usage
-from physics.disturbance import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
-from physics.vehicles import Vehicle
+from physics import authority_usage
+from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
+from physics import Vehicle
 from costmaps.wrench_table import USAGE_FLOOR, LateralScale, default_dz_max_m, target_half_extent_m
 
 INVALID_RULES = ("conservative", "model", "forbid")

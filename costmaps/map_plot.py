@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from costmaps.cutoff import CutoffMap
-from fileio.files import save_figure
+from fileio import save_figure
 
 
 def plot_cutoff(cutoff: CutoffMap, path: str | Path, *, title: str | None = None) -> Path:

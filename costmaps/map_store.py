@@ -41,10 +41,10 @@ from costmaps.cutoff import (
     CutoffResolution,
     build_cutoff_map,
 )
-from physics.disturbance import DEFAULT_OPTIONS, ModelOptions
-from fileio.errors import UserError
-from physics.vehicles import Vehicle
-from fileio.files import atomic_output
+from physics import DEFAULT_OPTIONS, ModelOptions
+from fileio import UserError
+from physics import Vehicle
+from fileio import atomic_output
 from costmaps.wrench_table import (
     DEFAULT_RESOLUTION,
     LateralScale,

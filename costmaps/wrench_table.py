@@ -42,9 +42,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from physics.authority import authority_usage
-from physics.disturbance import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
-from physics.vehicles import Vehicle
+from physics import authority_usage
+from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
+from physics import Vehicle
 
 if TYPE_CHECKING:  # pragma: no cover
     import casadi

@@ -27,15 +27,52 @@ def read_text(path: str | Path, *, what: str) -> str:
         raise UserError(f"{path}: cannot read {what} (not a text file)") from None
 
 
-def read_yaml(path: str | Path, *, what: str) -> Any:
-    """The parsed YAML document (None for an empty file); UserError on unreadable or bad YAML."""
+def _duplicate_key(node: Any, path: str = "") -> tuple[str, int, int] | None:
+    """(dotted key path, first line, second line) of the first key given twice in one mapping of a
+    composed YAML node tree, or None."""
     import yaml
 
-    text = read_text(path, what=what)
+    if isinstance(node, yaml.MappingNode):
+        seen: dict[Any, int] = {}
+        for key_node, value_node in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = key_node.value if isinstance(key_node, yaml.ScalarNode) else str(key_node.start_mark)
+            dotted = f"{path}.{key}" if path else str(key)
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                return dotted, seen[key], line
+            seen[key] = line
+            found = _duplicate_key(value_node, dotted)
+            if found:
+                return found
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            found = _duplicate_key(item, f"{path}[{i}]")
+            if found:
+                return found
+    return None
+
+
+def parse_yaml(text: str, *, label: str) -> Any:
+    """Parse YAML ``text`` (None for an empty document); UserError naming ``label`` on bad YAML
+    or on a key given twice in one mapping (PyYAML would silently keep the last)."""
+    import yaml
+
     try:
+        duplicate = _duplicate_key(yaml.compose(text, Loader=yaml.SafeLoader))
+        if duplicate:
+            key, first, again = duplicate
+            raise UserError(f"{label}: {key}: duplicate key (lines {first} and {again}); expected each key once")
         return yaml.safe_load(text)
     except yaml.YAMLError as err:
-        raise UserError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+        raise UserError(f"{label}: not valid YAML ({str(err).splitlines()[0]})") from None
+
+
+def read_yaml(path: str | Path, *, what: str) -> Any:
+    """The parsed YAML document (None for an empty file); UserError on unreadable or bad YAML,
+    and on a key given twice in one mapping."""
+    return parse_yaml(read_text(path, what=what), label=str(path))
 
 
 def read_json(path: str | Path, *, what: str) -> Any:

@@ -1,1 +1,39 @@
-"""Closed-loop multirotor simulation with downwash (RotorPy) and synthetic flight logs."""
+"""Closed-loop flight of a plan on RotorPy's multirotor dynamics and SE(3) controller, with the
+downwash of every other vehicle (and optional "truth" effects beyond the model) applied; tracking
+reports and Neural-Swarm-layout flight logs of the simulated flights.
+"""
+
+from flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_flight_logs
+from flightsim.report import plot_errors, simulation_metrics, summary_dict
+from flightsim.scenarios_synthetic import (
+    battery_swap_plans,
+    hover_stack_plan,
+    single_hover_plan,
+    swap_plan,
+    takeoff_hover_plan,
+    waypoint_trajectory,
+)
+from flightsim.simulate import SimulationOptions, SimulationResult, VehicleRecord, simulate_plan
+from flightsim.truth import TruthSpec, load_truth_file, truth_from_dict
+
+__all__ = [
+    "NEURAL_SWARM_HEADER",
+    "SimulationOptions",
+    "SimulationResult",
+    "TruthSpec",
+    "VehicleRecord",
+    "battery_swap_plans",
+    "hover_stack_plan",
+    "load_truth_file",
+    "plot_errors",
+    "simulate_plan",
+    "simulation_metrics",
+    "single_hover_plan",
+    "summary_dict",
+    "swap_plan",
+    "takeoff_hover_plan",
+    "truth_from_dict",
+    "vehicle_logs",
+    "waypoint_trajectory",
+    "write_flight_logs",
+]

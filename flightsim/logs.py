@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fileio.errors import UserError
-from fileio.files import atomic_write_bytes
+from fileio import UserError
+from fileio import atomic_write_bytes, read_yaml
 
 NEURAL_SWARM_HEADER = (
     "# time[ms],x[m],y[m],z[m],vx[m/s],vy[m/s],vz[m/s],ax[m/s^2],ay[m/s^2],az[m/s^2],qx,qy,qz,qw,"
@@ -111,8 +111,8 @@ def _write_custom_vehicles(result, out: Path) -> str | None:
     relative to ``out`` (None when every vehicle is a built-in type)."""
     import yaml
 
-    from physics.builtin_vehicles import BUILTIN_VEHICLES
-    from physics.vehicle_yaml import vehicle_to_yaml_dict
+    from physics import BUILTIN_VEHICLES
+    from physics import vehicle_to_yaml_dict
 
     custom = {rec.type_name: rec.vehicle for rec in result.records.values()
               if BUILTIN_VEHICLES.get(rec.type_name) != rec.vehicle}
@@ -151,7 +151,7 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
         vehicles_file = _write_custom_vehicles(result, out)
     manifest = out / "manifest.yaml"
     if manifest.exists():
-        doc = yaml.safe_load(manifest.read_text()) or {}
+        doc = read_yaml(manifest, what="manifest") or {}
         if not isinstance(doc, dict) or doc.get("format") != "neural-swarm":
             raise UserError(f"{manifest}: exists but is not a neural-swarm manifest; choose another --out")
     else:
@@ -170,7 +170,7 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
 def vehicle_logs(result, *, logged_thrust: str = "actual", seed: int | None = None) -> dict:
     """The logs :func:`write_flight_logs` would write, in memory: ``{name: identify.flightlog.VehicleLog}``
     (same noise for the same ``seed``; world-frame accelerometer, body gyro, (S0-14) thrusts)."""
-    from identify.flightlog import VehicleLog
+    from identify import VehicleLog
 
     out = {}
     for name, tab in _noisy_tables(result, seed=seed, logged_thrust=logged_thrust).items():

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from physics.authority import authority_usage
-from fileio.files import save_figure
+from physics import authority_usage
+from fileio import save_figure
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,7 @@ def invalid_zone_mask(result, name: str) -> np.ndarray:
     """(M,) True where ``name`` is below another vehicle inside its invalid zone: 0 < dz <= 3 L of
     that vehicle (S0 II-A), horizontally within half the two sizes plus dz (the wake's spread). The
     simulator still applies the model's (extrapolated) value there."""
-    from physics.disturbance import validity_mask
+    from physics import validity_mask
 
     rec = result.records[name]
     bad = np.zeros(rec.t_s.size, dtype=bool)

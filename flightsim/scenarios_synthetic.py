@@ -10,8 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from planfile.plan import Plan, VehicleTrajectory
+from physics import BUILTIN_VEHICLES
+from planfile import Plan, VehicleTrajectory
 
 
 def _min_jerk(p0: np.ndarray, p1: np.ndarray, t_s: np.ndarray, t0_s: float, t1_s: float):

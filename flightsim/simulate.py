@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from physics.disturbance import ModelOptions
-from physics.effects import TARGET_ONLY_EFFECTS, Effect, EffectInputs, SourceSample, total_wrench
-from fileio.errors import UserError
-from physics.vehicles import Vehicle
+from physics import ModelOptions
+from physics import TARGET_ONLY_EFFECTS, Effect, EffectInputs, SourceSample, total_wrench
+from fileio import UserError
+from physics import Vehicle
 from flightsim.stepper import CompiledStepper
 from flightsim.imu import ImuOptions, imu_samples
-from planfile.plan import Plan, read_plan
+from planfile import Plan, read_plan
 from flightsim.truth import TruthSpec
 from flightsim.vehicle_params import quad_params
 

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from fileio.errors import UserError
+from fileio import UserError
 
 TOP_KEYS = ("field_form", "wind_mps", "effects")
 
@@ -45,8 +45,8 @@ class TruthSpec:
 
 def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
     """Validate a truth mapping (see module docstring) into a :class:`TruthSpec`."""
-    from physics.effects import EFFECT_NAMES, PARAMETERS, Effect
-    from physics.velocity_field import FIELD_FORMS
+    from physics import EFFECT_NAMES, PARAMETERS, Effect
+    from physics import FIELD_FORMS
 
     if doc is None:
         doc = {}
@@ -97,7 +97,7 @@ def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
 
 def load_truth_file(path: str | Path) -> TruthSpec:
     """Read a truth YAML file; UserError on any problem."""
-    from fileio.files import read_yaml
+    from fileio import read_yaml
 
     path = Path(path)
     doc = read_yaml(path, what="truth file")

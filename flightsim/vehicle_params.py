@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from physics.vehicles import MOTOR_YAW_SIGNS, Vehicle
+from physics import MOTOR_YAW_SIGNS, Vehicle
 
 CRAZYFLIE_K_ETA = 2.3e-08  # N/(rad/s)^2, rotorpy crazyflie_params
 CRAZYFLIE_HOVER_OMEGA_RADPS = math.sqrt(0.03 * 9.81 / 4 / CRAZYFLIE_K_ETA)  # rotorpy CF at 30 g

@@ -1,1 +1,41 @@
-"""TODO"""
+"""Closing the loop with flight data (DESIGN.md section 6): read flight logs and manifests, measure
+the disturbance on every vehicle (S0-11, S0-13), calibrate the model's parameters on train flights,
+try candidate effects, and report the error before and after on test flights.
+"""
+
+from identify.flightlog import (
+    NEURAL_SWARM_COLUMNS,
+    FlightEntry,
+    Manifest,
+    VehicleEntry,
+    VehicleLog,
+    load_flight,
+    load_manifest,
+    read_log,
+    write_canonical_csv,
+)
+from identify.measure import MeasureOptions, MeasuredWrench, measure_disturbance, measure_log
+from identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
+from identify.report import write_report
+from identify.synthetic_logs import synthetic_logs
+
+__all__ = [
+    "NEURAL_SWARM_COLUMNS",
+    "FlightEntry",
+    "IdentifyOptions",
+    "IdentifyResult",
+    "Manifest",
+    "MeasureOptions",
+    "MeasuredWrench",
+    "VehicleEntry",
+    "VehicleLog",
+    "load_flight",
+    "load_manifest",
+    "measure_disturbance",
+    "measure_log",
+    "read_log",
+    "run_identify",
+    "synthetic_logs",
+    "write_canonical_csv",
+    "write_report",
+]

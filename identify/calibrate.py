@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-from physics.vehicles import DownwashSpec, Vehicle
+from physics import DownwashSpec, Vehicle
 
 VEHICLE_PARAMETERS = ("c_ax", "z0_m", "c_rad", "b_v")
 """Vehicle parameters that :func:`apply_vehicle_parameters` understands (units: -, m, -,

@@ -12,11 +12,11 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from physics.disturbance import ModelOptions
-from physics.effects import EFFECT_NAMES, Effect, EffectInputs, SourceSample, base_wrench, effect_wrench
+from physics import ModelOptions
+from physics import EFFECT_NAMES, Effect, EffectInputs, SourceSample, base_wrench, effect_wrench
 from identify.flightlog import Flight, Manifest, interpolate_position_m, load_flight
 from identify.measure import MeasureOptions, measure_log
-from physics.vehicles import Vehicle
+from physics import Vehicle
 
 @dataclass(frozen=True)
 class IdentifyOptions:
@@ -112,7 +112,7 @@ def load_units(manifest: Manifest, *, options: IdentifyOptions = IdentifyOptions
     from scipy.spatial.transform import Rotation
 
     from identify.thrust_rls import thrust_samples
-    from physics.vehicle_yaml import load_vehicle_file, resolve_vehicle
+    from physics import load_vehicle_file, resolve_vehicle
 
     custom = load_vehicle_file(manifest.vehicles_file) if manifest.vehicles_file else None
     types: dict[str, Vehicle] = {}

@@ -13,7 +13,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from identify.calibrate import ParamSpec, fit_parameters
-from physics.effects import PARAMETERS, Effect, base_wrench
+from physics import PARAMETERS, Effect, base_wrench
 from identify.data import Errors, IdentifyOptions, Model, Unit, progress_bar, errors, predict, subsample, unit_inputs
 
 # ------------------------------------------------------------------------------ effects

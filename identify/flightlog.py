@@ -30,8 +30,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from fileio.errors import UserError
-from fileio.files import atomic_write_bytes
+from fileio import UserError
+from fileio import atomic_write_bytes
 
 CANONICAL_COLUMNS = (
     "t_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "ax_mps2", "ay_mps2", "az_mps2",
@@ -314,7 +314,7 @@ def load_manifest(path: str | Path) -> Manifest:
     manifest), per-vehicle ``ground_z_m`` (default 0), ``quality: {max_gap_s, min_segment_s,
     ground_clearance_m, min_thrust_fraction, min_overlap_s}``.
     """
-    from fileio.files import read_yaml
+    from fileio import read_yaml
 
     path = Path(path)
     doc = read_yaml(path, what="manifest")

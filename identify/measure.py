@@ -26,7 +26,7 @@ from scipy.signal import lfilter, lfilter_zi, savgol_filter
 from scipy.signal.windows import triang
 from scipy.spatial.transform import Rotation
 
-from physics.vehicles import Vehicle
+from physics import Vehicle
 
 DERIVATIVES = ("savgol", "triangular", "difference")
 
@@ -115,7 +115,7 @@ def measure_disturbance(
     Returns:
         :class:`MeasuredWrench`, world frame.
     """
-    from physics.authority import mixer_matrix
+    from physics import mixer_matrix
 
     n = len(t_s)
     segment = np.zeros(n, dtype=int) if segment is None else np.asarray(segment)

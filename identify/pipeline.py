@@ -33,9 +33,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from identify.calibrate import CalibrationResult, ParamSpec, apply_vehicle_parameters, fit_parameters, vehicle_param_specs
-from physics.disturbance import ModelOptions, VALIDITY_FACTOR_L
-from physics.effects import base_wrench
-from fileio.errors import UserError
+from physics import ModelOptions, VALIDITY_FACTOR_L
+from physics import base_wrench
+from fileio import UserError
 from identify.flightlog import Manifest, load_manifest
 from identify.residuals import correlate, sample_features
 from identify.effect_selection import EffectTrial, select_effects

@@ -16,7 +16,7 @@ import numpy as np
 from identify.pipeline import IdentifyResult
 from identify.data import predict
 from identify.residuals import sample_features
-from fileio.files import atomic_write_text, save_figure
+from fileio import atomic_write_text, save_figure
 
 
 def _save(fig, path: Path) -> None:

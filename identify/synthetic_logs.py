@@ -33,9 +33,9 @@ def synthetic_logs(
     This is a measurement-level generator (no rigid-body simulation): for closed-loop flights use
     the simulator (flightsim).
     """
-    from physics.authority import mixer_matrix
-    from physics.effects import EffectInputs, SourceSample, total_wrench
-    from physics.vehicles import GRAVITY_MPS2
+    from physics import mixer_matrix
+    from physics import EffectInputs, SourceSample, total_wrench
+    from physics import GRAVITY_MPS2
 
     rng = np.random.default_rng(seed)
     n = len(t_s)

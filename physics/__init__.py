@@ -1,1 +1,92 @@
-"""TODO"""
+"""The disturbance model (seed 000 section II) and everything about a vehicle.
+
+Vehicles (:class:`Vehicle`: the one home of every vehicle fact), the built-in types and vehicle
+YAML files, the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
+below another (S0-3..S0-8), controller-authority usage (DESIGN.md section 3), and the library of
+effects beyond the base model. Cost maps, planner, verifier, simulator and identification all use
+this one implementation.
+"""
+
+from physics.authority import authority_usage, mixer_matrix, motor_thrusts_N
+from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics.disturbance import (
+    DEFAULT_OPTIONS,
+    VALIDITY_FACTOR_L,
+    ModelOptions,
+    disturbance_wrench,
+    oncoming_speed_per_rotor_mps,
+    validity_mask,
+)
+from physics.effects import (
+    EFFECT_NAMES,
+    PARAMETERS,
+    TARGET_ONLY_EFFECTS,
+    Effect,
+    EffectInputs,
+    SourceSample,
+    base_wrench,
+    default_effect,
+    effect_wrench,
+    total_wrench,
+)
+from physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
+from physics.vehicle_yaml import (
+    load_model_section,
+    load_vehicle_file,
+    resolve_vehicle,
+    unapplied_model_notes,
+    vehicle_from_dict,
+    vehicle_to_yaml_dict,
+)
+from physics.vehicles import (
+    GRAVITY_MPS2,
+    MOTOR_DIRECTIONS_XY,
+    MOTOR_YAW_SIGNS,
+    DownwashSpec,
+    FrameSpec,
+    KinematicLimits,
+    Vehicle,
+)
+from physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
+
+__all__ = [
+    "AIR_DENSITY_KGPM3",
+    "BUILTIN_VEHICLES",
+    "DEFAULT_OPTIONS",
+    "EFFECT_NAMES",
+    "FIELD_FORMS",
+    "GRAVITY_MPS2",
+    "MOTOR_DIRECTIONS_XY",
+    "MOTOR_YAW_SIGNS",
+    "PARAMETERS",
+    "TARGET_ONLY_EFFECTS",
+    "VALIDITY_FACTOR_L",
+    "DownwashSpec",
+    "Effect",
+    "EffectInputs",
+    "FrameSpec",
+    "KinematicLimits",
+    "ModelOptions",
+    "PropellerSpec",
+    "SourceSample",
+    "Vehicle",
+    "authority_usage",
+    "base_wrench",
+    "centreline_speed_mps",
+    "default_effect",
+    "derived_b_v",
+    "disturbance_wrench",
+    "downwash_speed_mps",
+    "effect_wrench",
+    "load_model_section",
+    "load_vehicle_file",
+    "mixer_matrix",
+    "motor_thrusts_N",
+    "oncoming_speed_per_rotor_mps",
+    "resolve_vehicle",
+    "total_wrench",
+    "unapplied_model_notes",
+    "validity_mask",
+    "vehicle_from_dict",
+    "vehicle_to_yaml_dict",
+]

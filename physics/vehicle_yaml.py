@@ -32,8 +32,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from physics.builtin_vehicles import BUILTIN_VEHICLES
-from fileio.errors import UserError
-from fileio.files import read_yaml
+from fileio import UserError
+from fileio import read_yaml
 from physics.propeller import PropellerSpec
 from physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
 

@@ -1,1 +1,38 @@
-"""TODO"""
+"""The two file contracts of planning: scenario YAML in (:class:`Scenario`) and plan.json out
+(:class:`Plan`), each read and validated in one place, plus the one trajectory sampler every user
+of a plan shares (:meth:`VehicleTrajectory.sample`).
+"""
+
+from planfile.plan import (
+    PLAN_FILENAME,
+    PLAN_FORMAT_VERSION,
+    Plan,
+    VehicleTrajectory,
+    jsonable,
+    plan_from_dict,
+    plan_path,
+    plan_to_dict,
+    read_plan,
+    write_plan,
+)
+from planfile.scenario import INVALID_ZONE_RULES, Box, Limits, Scenario, VehicleTask, load_scenario, scenario_from_dict
+
+__all__ = [
+    "INVALID_ZONE_RULES",
+    "PLAN_FILENAME",
+    "PLAN_FORMAT_VERSION",
+    "Box",
+    "Limits",
+    "Plan",
+    "Scenario",
+    "VehicleTask",
+    "VehicleTrajectory",
+    "jsonable",
+    "load_scenario",
+    "plan_from_dict",
+    "plan_path",
+    "plan_to_dict",
+    "read_plan",
+    "scenario_from_dict",
+    "write_plan",
+]

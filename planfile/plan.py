@@ -33,11 +33,11 @@ from typing import Any
 
 import numpy as np
 
-from fileio.errors import UserError
-from fileio.files import atomic_write_text, read_json
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
-from physics.vehicles import Vehicle
+from fileio import UserError
+from fileio import atomic_write_text, read_json
+from physics import BUILTIN_VEHICLES
+from physics import vehicle_from_dict, vehicle_to_yaml_dict
+from physics import Vehicle
 
 PLAN_FORMAT_VERSION = 2
 READABLE_FORMAT_VERSIONS = (1, 2)

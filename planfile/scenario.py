@@ -28,10 +28,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from fileio.errors import UserError
-from fileio.files import read_yaml
-from physics.disturbance import VALIDITY_FACTOR_L
-from physics.vehicles import KinematicLimits, Vehicle
+from fileio import UserError
+from fileio import read_yaml
+from physics import VALIDITY_FACTOR_L
+from physics import KinematicLimits, Vehicle
 
 TOP_KEYS = ("name", "description", "vehicle_file", "model", "workspace", "obstacles", "limits", "vehicles")
 LIMIT_KEYS = (
@@ -141,7 +141,7 @@ class Scenario:
         """The normalised, self-contained scenario mapping (every default filled in, no file
         references; vehicle types by name, their parameters travel with the plan): what plan.json
         stores as ``scenario_spec`` and :func:`scenario_from_dict` reads back."""
-        from physics.velocity_field import FIELD_FORMS
+        from physics import FIELD_FORMS
 
         vehicles: dict[str, dict] = {}
         for name, task in self.vehicles.items():
@@ -271,7 +271,7 @@ def _vehicle_types(doc: Mapping, path: Path | None, label: str) -> dict[str, Veh
     value = doc["vehicle_file"]
     if not isinstance(value, str):
         raise UserError(f"{label}: vehicle_file: expected a path to a vehicles YAML file, got {value!r}")
-    from physics.vehicle_yaml import load_vehicle_file
+    from physics import load_vehicle_file
 
     base = path.parent if path is not None else Path.cwd()
     vfile = (base / value).resolve()
@@ -283,14 +283,14 @@ def _vehicle_types(doc: Mapping, path: Path | None, label: str) -> dict[str, Veh
 def _vehicle_file_notes(doc: Mapping, path: Path | None) -> list[str]:
     if "vehicle_file" not in doc:
         return []
-    from physics.vehicle_yaml import unapplied_model_notes
+    from physics import unapplied_model_notes
 
     base = path.parent if path is not None else Path.cwd()
     return unapplied_model_notes((base / doc["vehicle_file"]).resolve())
 
 
 def _task(name: str, data: Any, where: str, custom: dict[str, Vehicle]) -> VehicleTask:
-    from physics.vehicle_yaml import resolve_vehicle
+    from physics import resolve_vehicle
 
     data = _mapping(data, where, "type, start and one of goal / hover / dock")
     _unknown(data, VEHICLE_KEYS, where)
@@ -400,15 +400,19 @@ def _check_docks(vehicles: dict[str, VehicleTask], label: str) -> None:
 
 
 def scenario_from_dict(
-    doc: Any, *, source_path: str | Path | None = None, vehicle_types: Mapping[str, Vehicle] | None = None
+    doc: Any,
+    *,
+    source_path: str | Path | None = None,
+    vehicle_types: Mapping[str, Vehicle] | None = None,
+    label: str | None = None,
 ) -> Scenario:
     """Validate a parsed scenario mapping; ``source_path`` resolves ``vehicle_file`` and labels errors.
 
     ``vehicle_types`` (e.g. a plan's embedded types) are looked up before the scenario's
-    ``vehicle_file`` and the built-in types.
+    ``vehicle_file`` and the built-in types; ``label`` names the source in errors (default: the path).
     """
     path = Path(source_path) if source_path is not None else None
-    label = str(path) if path is not None else "<scenario>"
+    label = label or (str(path) if path is not None else "<scenario>")
     if not isinstance(doc, Mapping):
         raise UserError(f"{label}: expected a YAML mapping with keys {', '.join(TOP_KEYS)}")
     _unknown(doc, TOP_KEYS, f"{label}: scenario")
@@ -426,7 +430,7 @@ def scenario_from_dict(
     if "model" in doc and doc["model"] is not None:
         model = _mapping(doc["model"], f"{label}: model", "{field_form: inverse-z|printed}")
         _unknown(model, ("field_form",), f"{label}: model")
-        from physics.velocity_field import FIELD_FORMS
+        from physics import FIELD_FORMS
 
         field_form = model.get("field_form")
         if field_form is not None and field_form not in FIELD_FORMS:

@@ -52,9 +52,9 @@ def run_one(scenario_path: Path, method: str, *, seed: int = 0) -> ComparisonRow
     import subprocess
     import tempfile
 
-    from planfile.plan import read_plan
-    from planfile.scenario import load_scenario
-    from verify.checks import verify_plan
+    from planfile import read_plan
+    from planfile import load_scenario
+    from verify import verify_plan
 
     scenario = load_scenario(scenario_path)
     fraction = float(scenario.limits.authority_fraction)
@@ -164,14 +164,14 @@ def to_png(rows: list[ComparisonRow], path: Path) -> Path:
         table[i, 6].set_facecolor(colour)
     ax.set_title("proxplan: every method on every shipped scenario", fontsize=10)
     fig.tight_layout()
-    from fileio.files import save_figure
+    from fileio import save_figure
 
     return save_figure(fig, path, dpi=130, bbox_inches="tight")
 
 
 def write_outputs(rows: list[ComparisonRow], out_dir: Path) -> dict[str, Path]:
     """Write comparison.md / .png / .json into ``out_dir`` (each atomically)."""
-    from fileio.files import atomic_write_text
+    from fileio import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
     md = atomic_write_text(out_dir / "comparison.md", "# Planner comparison\n\n" + to_markdown(rows))
@@ -190,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="*", choices=METHOD_ORDER, default=list(METHOD_ORDER), help="methods to run")
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
     args = parser.parse_args(argv)
-    from fileio.errors import UserError
+    from fileio import UserError
 
     paths = [Path(p) for p in args.scenarios] if args.scenarios else sorted(SCENARIO_DIR.glob("*.yaml"))
     if not paths:

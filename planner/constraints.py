@@ -28,8 +28,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from physics.disturbance import VALIDITY_FACTOR_L
-from physics.vehicles import Vehicle
+from physics import VALIDITY_FACTOR_L
+from physics import Vehicle
 
 MODES = ("downwash", "no-downwash", "ellipsoid")
 DZ_STEP_M = 0.02  # resolution of the per-pair cutoff lookup, m
@@ -61,8 +61,8 @@ class CutoffTable:
 
 def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None) -> tuple[np.ndarray, str]:
     """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store)."""
-    from physics.disturbance import ModelOptions
-    from costmaps.map_store import pair_maps
+    from physics import ModelOptions
+    from costmaps import pair_maps
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     maps = pair_maps(source, target, options=options)
@@ -102,8 +102,8 @@ class UsageTable:
 @lru_cache(maxsize=256)
 def usage_table(source: Vehicle, target: Vehicle, *, field_form: str | None = None) -> UsageTable | None:
     """The :class:`UsageTable` of an ordered pair from the cost maps."""
-    from physics.disturbance import ModelOptions
-    from costmaps.map_store import pair_maps
+    from physics import ModelOptions
+    from costmaps import pair_maps
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     cmap = pair_maps(source, target, options=options).cutoff

@@ -41,9 +41,9 @@ from typing import Callable
 
 import numpy as np
 
-from physics.authority import mixer_matrix
-from physics.disturbance import VALIDITY_FACTOR_L
-from physics.vehicles import Vehicle
+from physics import mixer_matrix
+from physics import VALIDITY_FACTOR_L
+from physics import Vehicle
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
 
 

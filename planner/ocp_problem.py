@@ -10,7 +10,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from physics.vehicles import Vehicle
+from physics import Vehicle
 
 
 @dataclass(frozen=True)

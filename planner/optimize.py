@@ -64,8 +64,8 @@ class RefineOptions:
 
 def default_wrench_provider(source, target, scenario):
     """The differentiable wrench table of the cost maps (same numbers as physics.disturbance)."""
-    from physics.disturbance import ModelOptions
-    from costmaps.map_store import pair_maps
+    from physics import ModelOptions
+    from costmaps import pair_maps
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
@@ -74,8 +74,8 @@ def default_wrench_provider(source, target, scenario):
 
 def _table_extent(source, target, scenario):
     """dz_m -> lateral half-width (m) of the pair's wrench table (zero beyond it)."""
-    from physics.disturbance import ModelOptions
-    from costmaps.map_store import pair_maps
+    from physics import ModelOptions
+    from costmaps import pair_maps
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
@@ -96,8 +96,8 @@ def check_final_configuration(scenario) -> None:
     """Raise ``planner.errors.InfeasibleError`` when the final configuration itself (every vehicle
     at rest at its goal / hover point / dock) needs more than ``limits.authority_fraction`` of some
     vehicle's authority: then no trajectory can satisfy the limit (model evaluated directly)."""
-    from physics.authority import authority_usage
-    from physics.disturbance import ModelOptions, disturbance_wrench
+    from physics import authority_usage
+    from physics import ModelOptions, disturbance_wrench
     from planner.errors import InfeasibleError
 
     form = getattr(scenario, "field_form", None)
@@ -147,7 +147,7 @@ def build_problem(
         radius = float(task.body_radius_m)
         reach = 0.0
         if task.dock_with is not None:
-            from verify.checks import GOAL_TOLERANCE_M
+            from verify import GOAL_TOLERANCE_M
 
             approach, dock = scenario.dock_geometry(name)
             reach = float(np.linalg.norm(approach - dock)) + GOAL_TOLERANCE_M - 0.02
@@ -208,7 +208,7 @@ def build_problem(
 def solution_to_plan(solution: OcpSolution, scenario, initial_plan, *, time_scale: float = 1.0):
     """Sample ``solution`` on the plan grid (step ``initial_plan.dt_s``), rounding the duration up to
     a whole number of steps by a uniform slow-down. Returns a Plan (method "optimized")."""
-    from planfile.plan import Plan, VehicleTrajectory
+    from planfile import Plan, VehicleTrajectory
 
     dt = float(initial_plan.dt_s)
     duration = solution.duration_s * time_scale
@@ -236,7 +236,7 @@ _KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
 
 
 def _verify(plan, scenario) -> list:
-    from verify.checks import verify_plan
+    from verify import verify_plan
 
     return list(verify_plan(plan, scenario))
 

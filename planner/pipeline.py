@@ -24,12 +24,12 @@ from typing import Callable
 
 import numpy as np
 
-from physics.disturbance import VALIDITY_FACTOR_L
+from physics import VALIDITY_FACTOR_L
 from planner.constraints import Track, build_checker
 from planner.errors import InfeasibleError
-from planfile.plan import Plan, VehicleTrajectory
+from planfile import Plan, VehicleTrajectory
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
-from planfile.scenario import Scenario
+from planfile import Scenario
 from planner.timing import KinematicLimits, TimedPath, common_grid, min_segment_duration_s, time_parameterize
 
 METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
@@ -173,7 +173,7 @@ def plan_scenario(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    from verify.checks import verify_plan
+    from verify import verify_plan
 
     t0 = time.perf_counter()
     mode = MODE_OF_METHOD[method]
@@ -293,7 +293,7 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
 def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) -> None:
     """Fill the DESIGN metrics (planning_time_s, max_authority_usage, min_separation_m, makespan_s)
     and extras (per-vehicle usage, path length, arrival time, invalid-zone time of docks)."""
-    from verify.checks import separation_summary, wrench_along_plan
+    from verify import separation_summary, wrench_along_plan
 
     t = plan.t_s
     along = wrench_along_plan(plan, scenario, t_s=t)

@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 
-from planfile.plan import Plan
-from fileio.files import save_figure
+from planfile import Plan
+from fileio import save_figure
 
 
 def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = None) -> Path:
@@ -20,7 +20,7 @@ def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = No
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    from verify.checks import wrench_along_plan
+    from verify import wrench_along_plan
 
     if usage is None:
         usage = wrench_along_plan(plan, scenario, t_s=plan.t_s)

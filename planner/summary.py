@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from planfile.plan import Plan
+from planfile import Plan
 
 
 def _fmt(value, unit: str = "") -> str:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physics.vehicles import KinematicLimits
+from physics import KinematicLimits
 
 
 class DurationTable:

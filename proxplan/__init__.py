@@ -1,1 +1,2 @@
-"""Command-line entry point of proxplan (the `proxplan` console script)."""
+"""The ``proxplan`` command line: a thin dispatcher (:mod:`proxplan.cli`) over one module per
+command group in :mod:`proxplan.commands`; the top layer, importing the packages below."""

@@ -15,7 +15,7 @@ import argparse
 import importlib
 import sys
 
-from fileio.errors import UserError
+from fileio import UserError
 
 COMMAND_MODULES = (
     "proxplan.commands.model",  # vehicles, wrench

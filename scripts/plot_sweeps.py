@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD  # noqa: E402
-from physics.disturbance import ModelOptions, disturbance_wrench  # noqa: E402
+from physics import ModelOptions, disturbance_wrench  # noqa: E402
 
 
 def main() -> None:

@@ -1,1 +1,18 @@
-"""TODO"""
+"""Independent verification of a plan against its scenario with the model evaluated directly
+(imports only the physics model and the plan-file contract), and the predictions along a plan
+(wrench, authority usage, invalid zone, separations) that planner metrics and the web app show.
+"""
+
+from verify.along import WrenchAlongPlan, separation_summary, wrench_along_plan
+from verify.checks import GOAL_TOLERANCE_M, scenario_of_plan, verify_plan
+from verify.violations import Violation
+
+__all__ = [
+    "GOAL_TOLERANCE_M",
+    "Violation",
+    "WrenchAlongPlan",
+    "scenario_of_plan",
+    "separation_summary",
+    "verify_plan",
+    "wrench_along_plan",
+]

@@ -1,178 +1,114 @@
-"""Independent plan verifier: re-samples a plan finely and evaluates the disturbance model directly.
+"""Independent plan verifier: trusts nothing in the plan, re-samples it finely and evaluates the
+disturbance model directly (not the cost maps, not the planner's checker).
 
-It does not use the cost maps or the planner's checker: the wrench on each vehicle is the sum over
-every other vehicle above it of ``physics.disturbance.disturbance_wrench`` (S0-3..S0-8), and its
-authority usage comes from ``physics.authority.authority_usage`` (DESIGN.md s. 3). Positions
-between plan samples come from the plan-file sampler (``planfile.plan.VehicleTrajectory.sample``).
+Checks, in this order (a plan that fails the first group is not checked further):
 
-Checks: workspace (body disc inside), obstacles (body disc outside every box), separation
-(centre distance >= max(limits.min_separation_m, sum of body radii); dock pairs exempt on their
-final approach), authority usage <= limits.authority_fraction (model numbers everywhere, also
-where the model is extrapolated), the invalid zone (0 < dz <= 3 L of a source with overlapping
-footprints, forbidden for non-dock pairs unless ``invalid_zone_rule: model``), goals / hover / docks
-reached, speed, acceleration and jerk limits. Consecutive violating samples of the same kind merge
-into one :class:`Violation` (its ``t_s`` is where it starts, ``value`` the worst value).
+1. *Vehicles*: every scenario vehicle has a trajectory and no other is present; each flies the type
+   and parameters its task names; the plan starts at t = 0 at the scenario's start positions.
+2. *What will fly is self-consistent* (on the plan grid, step h): positions, velocities and
+   accelerations agree with each other, p[k+1] - p[k] = h (v[k] + v[k+1]) / 2 + h^2 (a[k] - a[k+1]) / 12
+   (exact for cubics) within ``POSITION_CONSISTENCY_M`` + J h^3 / 4 and
+   v[k+1] - v[k] = h (a[k] + a[k+1]) / 2 within ``VELOCITY_CONSISTENCY_MPS`` + J h^2 / 2 (J: the
+   vehicle's jerk limit, bounding what a jerk switch inside a step may add); speed, acceleration and
+   jerk (finite differences of the acceleration) within the vehicle's limits, and the speed implied
+   by the positions alone (|dp| / h) too.
+3. *Task*: workspace (body disc inside), obstacles (body disc outside every box), goals / hover /
+   docks reached and at rest at the end.
+4. *Pairs*: separation (centre distance >= max(limits.min_separation_m, sum of body radii); dock
+   pairs exempt on their final approach), the invalid zone (0 < dz <= 3 L of a source with
+   overlapping footprints, forbidden for non-dock pairs unless ``invalid_zone_rule: model``).
+5. *Authority*: usage <= limits.authority_fraction with the model's numbers everywhere (also where
+   it is extrapolated).
+
+Consecutive violating samples of one kind merge into one :class:`Violation` that names the vehicle,
+the plan sample and time where it starts, the check, and its worst value against the limit.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from physics.disturbance import VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
-from physics.authority import authority_usage
-from planfile.plan import Plan
-from planfile.scenario import Scenario
+from fileio import UserError
+from physics import VALIDITY_FACTOR_L
+from planfile import Plan
+from planfile import Scenario, load_scenario, scenario_from_dict
+from verify.along import dock_exempt, wrench_along_plan
+from verify.violations import Violation, add_runs
 
-GOAL_TOLERANCE_M = 0.05
-DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
-USAGE_TOLERANCE = 1e-3
+GOAL_TOLERANCE_M = 0.05  # goal, hover, dock and start positions, m
+USAGE_TOLERANCE = 1e-3  # authority usage, -
 KINEMATIC_TOLERANCE = 1.02  # 2 % on speed / acceleration; jerk from finite differences gets 10 %
+JERK_TOLERANCE = 1.1
+POSITION_CONSISTENCY_M = 2e-3  # position vs integrated velocity/acceleration per step, m
+VELOCITY_CONSISTENCY_MPS = 5e-3  # velocity vs integrated acceleration per step, m/s
+REST_SPEED_MPS = 0.05  # "at rest" at the end of the plan, m/s
 
 
-@dataclass(frozen=True)
-class Violation:
-    """One violated check: from ``t_s`` (s) on, ``vehicle`` broke ``kind`` (worst ``value`` vs ``limit``)."""
-
-    t_s: float
-    vehicle: str
-    kind: str
-    detail: str
-    value: float
-    limit: float
-
-    def __str__(self) -> str:
-        return f"t={self.t_s:.2f}s {self.vehicle}: {self.kind}: {self.detail} ({self.value:.4g} > limit {self.limit:.4g})"
-
-
-@dataclass(frozen=True)
-class WrenchAlongPlan:
-    """Disturbance on one vehicle along the plan at times ``t_s`` (M,), s.
-
-    ``force_N`` (M, 3) N and ``torque_Nm`` (M, 3) N m, world frame, summed over all sources above;
-    ``usage`` (M,) authority usage; ``usage_by_source`` {source: (M,)} usage of each source alone;
-    ``invalid_zone`` (M,) True where the vehicle is in a source's invalid zone (0 < dz <= 3 L) with
-    overlapping footprints.
-    """
-
-    t_s: np.ndarray
-    force_N: np.ndarray
-    torque_Nm: np.ndarray
-    usage: np.ndarray
-    usage_by_source: dict
-    invalid_zone: np.ndarray
-
-
-def _options(scenario: Scenario) -> ModelOptions:
-    return ModelOptions(field_form=scenario.field_form) if scenario.field_form else ModelOptions()
-
-
-def wrench_along_plan(plan: Plan, scenario: Scenario, *, t_s: np.ndarray) -> dict[str, WrenchAlongPlan]:
-    """Per-vehicle disturbance wrench and authority usage at times ``t_s`` (M,), s, summed over
-    every other vehicle as a source (those above it), evaluated with the model directly."""
-    t_s = np.asarray(t_s, dtype=float)
-    pos = plan.positions_at(t_s)
-    opts = _options(scenario)
-    out = {}
-    for tname in plan.vehicles:
-        target = scenario.vehicles[tname].vehicle
-        force = np.zeros((t_s.size, 3))
-        torque = np.zeros((t_s.size, 3))
-        by_source = {}
-        invalid = np.zeros(t_s.size, dtype=bool)
-        for sname in plan.vehicles:
-            if sname == tname:
-                continue
-            source = scenario.vehicles[sname].vehicle
-            off = pos[tname] - pos[sname]
-            below = -off[:, 2] > 1e-6
-            u_src = np.zeros(t_s.size)
-            if below.any():
-                w = disturbance_wrench(source, target, off[below], opts)
-                force[below] += w.force_N
-                torque[below] += w.torque_Nm
-                u_src[below] = authority_usage(target, w.force_N, w.torque_Nm)
-                r = np.hypot(off[below, 0], off[below, 1])
-                inv = (-off[below, 2] <= VALIDITY_FACTOR_L * source.size_m) & (r < source.body_radius_m + target.body_radius_m)
-                invalid[np.nonzero(below)[0][inv]] = True
-            by_source[sname] = u_src
-        usage = authority_usage(target, force, torque) if t_s.size else np.zeros(0)
-        out[tname] = WrenchAlongPlan(t_s, force, torque, usage, by_source, invalid)
+def _check_vehicles(plan: Plan, scenario: Scenario) -> list[Violation]:
+    out: list[Violation] = []
+    for n in scenario.vehicles:
+        if n not in plan.vehicles:
+            out.append(Violation(0.0, n, "missing", "vehicle of the scenario has no trajectory in the plan", 1.0, 0.0, 0))
+    for n in plan.vehicles:
+        if n not in scenario.vehicles:
+            out.append(Violation(0.0, n, "unknown", "vehicle is not in the scenario", 1.0, 0.0, 0))
+    for n, tr in plan.vehicles.items():
+        task = scenario.vehicles.get(n)
+        if task is None:
+            continue
+        if tr.type_name != task.type_name or tr.vehicle != task.vehicle:
+            out.append(Violation(0.0, n, "vehicle-type",
+                                 f"flies type {tr.type_name!r}, the scenario's task names {task.type_name!r} "
+                                 "(or other parameters)", 1.0, 0.0, 0))
+    if abs(float(plan.t_s[0])) > 1e-6:
+        first = next(iter(plan.vehicles))
+        out.append(Violation(float(plan.t_s[0]), first, "time-grid", "plan does not start at t = 0 (s)",
+                             abs(float(plan.t_s[0])), 0.0, 0))
     return out
 
 
-def _dock_exempt(plan: Plan, scenario: Scenario, a: str, b: str, pos: dict, t_s: np.ndarray) -> np.ndarray:
-    """(M,) True where pair (a, b) is a dock pair and the docker is on its final approach: within
-    ``DOCK_TUBE_M`` of the segment from the approach point A to the dock point D, both taken
-    relative to the dock target's current position."""
-    for docker, target in ((a, b), (b, a)):
-        task = scenario.vehicles[docker]
-        if task.dock_with == target:
-            ap, dp = scenario.dock_geometry(docker)
-            base = scenario.final_position_m(target)
-            a_rel, d_rel = ap - base, dp - base  # relative to the target
-            rel = pos[docker] - pos[target]
-            seg = a_rel - d_rel
-            f = np.clip((rel - d_rel) @ seg / max(float(seg @ seg), 1e-12), 0.0, 1.0)
-            dist = np.linalg.norm(rel - (d_rel + f[:, None] * seg), axis=1)
-            return dist <= DOCK_TUBE_M
-    return np.zeros(t_s.size, dtype=bool)
-
-
-def separation_summary(plan: Plan, scenario: Scenario, *, t_s: np.ndarray | None = None) -> dict:
-    """Smallest centre distance over non-dock pairs (and over docking pairs), m; None if < 2 vehicles."""
-    t_s = plan.t_s if t_s is None else t_s
-    pos = plan.positions_at(t_s)
-    names = list(plan.vehicles)
-    best, best_dock = None, None
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            ex = _dock_exempt(plan, scenario, a, b, pos, t_s)
-            if (~ex).any():
-                m = float(d[~ex].min())
-                best = m if best is None else min(best, m)
-            if ex.any():
-                m = float(d[ex].min())
-                best_dock = m if best_dock is None else min(best_dock, m)
-    return {"min_separation_m": best, "min_dock_separation_m": best_dock}
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    idx = np.flatnonzero(mask)
-    if idx.size == 0:
-        return []
-    breaks = np.flatnonzero(np.diff(idx) > 1)
-    starts = np.concatenate([[idx[0]], idx[breaks + 1]])
-    ends = np.concatenate([idx[breaks], [idx[-1]]])
-    return list(zip(starts.tolist(), ends.tolist()))
-
-
-def _add(out: list, t_s, mask, value, limit, vehicle, kind, detail) -> None:
-    for s, e in _runs(mask):
-        worst = float(np.max(value[s : e + 1]))
-        out.append(Violation(float(t_s[s]), vehicle, kind, f"{detail} (until t={t_s[e]:.2f}s)", worst, float(limit)))
-
-
-def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:
-    """Every violation of ``plan`` against ``scenario`` (empty list = the plan passes)."""
+def _check_consistency(plan: Plan, scenario: Scenario) -> list[Violation]:
+    """Positions, velocities and accelerations agree with each other and with the limits."""
     out: list[Violation] = []
-    missing = [n for n in scenario.vehicles if n not in plan.vehicles]
-    for n in missing:
-        out.append(Violation(0.0, n, "missing", "vehicle of the scenario has no trajectory in the plan", 1.0, 0.0))
-    extra = [n for n in plan.vehicles if n not in scenario.vehicles]
-    for n in extra:
-        out.append(Violation(0.0, n, "unknown", "vehicle is not in the scenario", 1.0, 0.0))
-    if missing or extra:
-        return out
-    end = float(plan.t_s[-1])
-    t = np.arange(0.0, end + dt_fine_s / 2, dt_fine_s)
-    pos = plan.positions_at(t)
-    lim = scenario.limits
+    for name, tr in plan.vehicles.items():
+        task = scenario.vehicles[name]
+        t, p, v, a = tr.t_s, tr.position_m, tr.velocity_mps, tr.acceleration_mps2
+        h = np.diff(t)[:, None]
+        jerk_max = task.max_jerk_mps3 * JERK_TOLERANCE
+        p_pred = h * (v[:-1] + v[1:]) / 2 + h**2 * (a[:-1] - a[1:]) / 12
+        p_err = np.linalg.norm(p[1:] - p[:-1] - p_pred, axis=1)
+        p_tol = POSITION_CONSISTENCY_M + jerk_max * h[:, 0] ** 3 / 4
+        add_runs(out, t[:-1], p_err > p_tol, p_err, float(p_tol.max()), name, "consistency",
+                 "position step disagrees with the velocities and accelerations by (m)", plan_t_s=t)
+        v_err = np.linalg.norm(v[1:] - v[:-1] - h * (a[:-1] + a[1:]) / 2, axis=1)
+        v_tol = VELOCITY_CONSISTENCY_MPS + jerk_max * h[:, 0] ** 2 / 2
+        add_runs(out, t[:-1], v_err > v_tol, v_err, float(v_tol.max()), name, "consistency",
+                 "velocity step disagrees with the accelerations by (m/s)", plan_t_s=t)
+        step_speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / h[:, 0]
+        v_lim = task.max_speed_mps * KINEMATIC_TOLERANCE + 1e-3
+        add_runs(out, t[:-1], step_speed > v_lim, step_speed, task.max_speed_mps, name, "speed",
+                 "speed implied by consecutive positions (m/s)", plan_t_s=t)
+        speed = np.linalg.norm(v, axis=1)
+        add_runs(out, t, speed > v_lim, speed, task.max_speed_mps, name, "speed", "speed (m/s)", plan_t_s=t)
+        acc = np.linalg.norm(a, axis=1)
+        a_lim = task.max_accel_mps2 * KINEMATIC_TOLERANCE + 1e-3
+        add_runs(out, t, acc > a_lim, acc, task.max_accel_mps2, name, "acceleration", "acceleration (m/s^2)", plan_t_s=t)
+        jerk = np.linalg.norm(np.diff(a, axis=0), axis=1) / h[:, 0]
+        add_runs(out, t[1:], jerk > jerk_max + 1e-3, jerk, task.max_jerk_mps3, name, "jerk",
+                 "jerk from finite differences (m/s^3)", plan_t_s=t)
+        start_err = float(np.linalg.norm(p[0] - task.start_m))
+        if start_err > GOAL_TOLERANCE_M:
+            out.append(Violation(float(t[0]), name, "start", f"starts at {np.round(p[0], 3).tolist()}, the scenario "
+                                 f"says {task.start_m.tolist()} (m)", start_err, GOAL_TOLERANCE_M, 0))
+    return out
+
+
+def _check_tasks(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray]) -> list[Violation]:
+    out: list[Violation] = []
     lo, hi = scenario.workspace_min_m, scenario.workspace_max_m
-    names = list(plan.vehicles)
-    for name in names:
+    end = float(t[-1])
+    last = plan.t_s.size - 1
+    for name, tr in plan.vehicles.items():
         task = scenario.vehicles[name]
         p = pos[name]
         rb = task.vehicle.body_radius_m
@@ -180,47 +116,50 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
         below_lo = np.max(np.column_stack([lo[0] + rb - p[:, 0], lo[1] + rb - p[:, 1], lo[2] - p[:, 2]]), axis=1)
         above_hi = np.max(np.column_stack([p[:, 0] + rb - hi[0], p[:, 1] + rb - hi[1], p[:, 2] - hi[2]]), axis=1)
         excess = np.maximum(below_lo, above_hi)
-        _add(out, t, excess > 1e-6, excess, 0.0, name, "workspace", "body leaves the workspace by (m)")
+        add_runs(out, t, excess > 1e-6, excess, 0.0, name, "workspace", "body leaves the workspace by (m)", plan_t_s=plan.t_s)
         for i, box in enumerate(scenario.obstacles):
             gap_xy = np.hypot(np.maximum(0, np.maximum(box.min_m[0] - p[:, 0], p[:, 0] - box.max_m[0])),
                               np.maximum(0, np.maximum(box.min_m[1] - p[:, 1], p[:, 1] - box.max_m[1])))
             inside_z = (p[:, 2] >= box.min_m[2]) & (p[:, 2] <= box.max_m[2])
             pen = rb - gap_xy
-            _add(out, t, inside_z & (pen > 1e-6), pen, 0.0, name, "obstacle", f"body overlaps obstacles[{i}] by (m)")
-        # kinematics on the plan grid
-        tr = plan.vehicles[name]
-        speed = np.linalg.norm(tr.velocity_mps, axis=1)
-        _add(out, tr.t_s, speed > task.max_speed_mps * KINEMATIC_TOLERANCE + 1e-3, speed, task.max_speed_mps, name, "speed", "speed (m/s)")
-        acc = np.linalg.norm(tr.acceleration_mps2, axis=1)
-        _add(out, tr.t_s, acc > task.max_accel_mps2 * KINEMATIC_TOLERANCE + 1e-3, acc, task.max_accel_mps2, name, "acceleration", "acceleration (m/s^2)")
-        if tr.t_s.size > 1:
-            jerk = np.linalg.norm(np.diff(tr.acceleration_mps2, axis=0), axis=1) / np.diff(tr.t_s)
-            _add(out, tr.t_s[1:], jerk > task.max_jerk_mps3 * 1.1 + 1e-3, jerk, task.max_jerk_mps3, name, "jerk", "jerk from finite differences (m/s^3)")
-        # goal / hover / dock
+            add_runs(out, t, inside_z & (pen > 1e-6), pen, 0.0, name, "obstacle", f"body overlaps obstacles[{i}] by (m)",
+                     plan_t_s=plan.t_s)
         final = p[-1]
         if task.goal_m is not None:
-            err = np.linalg.norm(final - task.goal_m)
+            err = float(np.linalg.norm(final - task.goal_m))
             if err > GOAL_TOLERANCE_M:
-                out.append(Violation(end, name, "goal", f"ends at {np.round(final, 3).tolist()}, goal {task.goal_m.tolist()}", float(err), GOAL_TOLERANCE_M))
+                out.append(Violation(end, name, "goal", f"ends at {np.round(final, 3).tolist()}, goal {task.goal_m.tolist()}",
+                                     err, GOAL_TOLERANCE_M, last))
         elif task.hover:
-            err = np.linalg.norm(p - task.start_m, axis=1)
-            _add(out, t, err > GOAL_TOLERANCE_M, err, GOAL_TOLERANCE_M, name, "hover", "drifts from its hover point (m)")
+            err_t = np.linalg.norm(p - task.start_m, axis=1)
+            add_runs(out, t, err_t > GOAL_TOLERANCE_M, err_t, GOAL_TOLERANCE_M, name, "hover", "drifts from its hover point (m)",
+                     plan_t_s=plan.t_s)
         else:
+            assert task.dock_with is not None and task.dock_offset_m is not None
             want = pos[task.dock_with][-1] + task.dock_offset_m
-            err = np.linalg.norm(final - want)
+            err = float(np.linalg.norm(final - want))
             if err > GOAL_TOLERANCE_M:
-                out.append(Violation(end, name, "dock", f"ends {err:.3f} m from {task.dock_with} + offset {task.dock_offset_m.tolist()}", float(err), GOAL_TOLERANCE_M))
-        if speed.size and speed[-1] > 0.05:
-            out.append(Violation(end, name, "not-at-rest", "still moving at the end of the plan (m/s)", float(speed[-1]), 0.05))
-    # pairs: separation and invalid zone
+                out.append(Violation(end, name, "dock", f"ends {err:.3f} m from {task.dock_with} + offset "
+                                     f"{task.dock_offset_m.tolist()}", err, GOAL_TOLERANCE_M, last))
+        speed_end = float(np.linalg.norm(tr.velocity_mps[-1]))
+        if speed_end > REST_SPEED_MPS:
+            out.append(Violation(end, name, "not-at-rest", "still moving at the end of the plan (m/s)", speed_end,
+                                 REST_SPEED_MPS, last))
+    return out
+
+
+def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray]) -> list[Violation]:
+    out: list[Violation] = []
+    lim = scenario.limits
+    names = list(plan.vehicles)
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             va, vb = scenario.vehicles[a].vehicle, scenario.vehicles[b].vehicle
             d = np.linalg.norm(pos[a] - pos[b], axis=1)
             sep = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
-            ex = _dock_exempt(plan, scenario, a, b, pos, t)
+            ex = dock_exempt(plan, scenario, a, b, pos, t)
             short = (d < sep - 1e-6) & ~ex
-            _add(out, t, short, sep - d, sep, a, "separation", f"closer than {sep:.3f} m to {b} by (m)")
+            add_runs(out, t, short, sep - d, sep, a, "separation", f"closer than {sep:.3f} m to {b} by (m)", plan_t_s=plan.t_s)
             if lim.invalid_zone_rule == "model":
                 continue
             for tgt, src in ((a, b), (b, a)):
@@ -228,27 +167,47 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
                 off = pos[tgt] - pos[src]
                 dz = -off[:, 2]
                 r = np.hypot(off[:, 0], off[:, 1])
-                inside = (dz > 1e-6) & (dz <= VALIDITY_FACTOR_L * vs.size_m) & (r < vs.body_radius_m + vt.body_radius_m) & ~ex
-                _add(out, t, inside, VALIDITY_FACTOR_L * vs.size_m - dz, 0.0, tgt, "invalid-zone",
-                     f"below {src} inside its invalid zone (dz <= 3 L, footprints overlap); depth (m)")
-    # authority usage from the model directly
-    along = wrench_along_plan(plan, scenario, t_s=t)
-    for name, w in along.items():
-        over = w.usage > lim.authority_fraction + USAGE_TOLERANCE
+                inside = ((dz > 1e-6) & (dz <= VALIDITY_FACTOR_L * vs.size_m)
+                          & (r < vs.body_radius_m + vt.body_radius_m) & ~ex)
+                add_runs(out, t, inside, VALIDITY_FACTOR_L * vs.size_m - dz, 0.0, tgt, "invalid-zone",
+                         f"below {src} inside its invalid zone (dz <= 3 L, footprints overlap); depth (m)", plan_t_s=plan.t_s)
+    return out
+
+
+def _check_authority(plan: Plan, scenario: Scenario, t: np.ndarray) -> list[Violation]:
+    out: list[Violation] = []
+    limit = scenario.limits.authority_fraction
+    for name, w in wrench_along_plan(plan, scenario, t_s=t).items():
+        over = w.usage > limit + USAGE_TOLERANCE
         if over.any():
-            worst_src = max(w.usage_by_source.items(), key=lambda kv: float(np.max(np.where(over, kv[1], 0.0))), default=(None, None))[0]
-            _add(out, t, over, w.usage, lim.authority_fraction, name, "authority", f"authority usage in the downwash of {worst_src}")
+            worst_src = max(w.usage_by_source.items(), key=lambda kv: float(np.max(np.where(over, kv[1], 0.0))),
+                            default=(None, None))[0]
+            add_runs(out, t, over, w.usage, limit, name, "authority", f"authority usage in the downwash of {worst_src}",
+                     plan_t_s=plan.t_s)
+    return out
+
+
+def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:
+    """Every violation of ``plan`` against ``scenario`` (empty list = the plan passes), sorted by
+    time; the model checks run on a grid of step ``dt_fine_s``, s."""
+    out = _check_vehicles(plan, scenario)
+    if out:
+        return out
+    out = _check_consistency(plan, scenario)
+    t = np.arange(0.0, float(plan.t_s[-1]) + dt_fine_s / 2, dt_fine_s)
+    pos = plan.positions_at(t)
+    out += _check_tasks(plan, scenario, t, pos)
+    out += _check_pairs(plan, scenario, t, pos)
+    out += _check_authority(plan, scenario, t)
     out.sort(key=lambda v: (v.t_s, v.vehicle, v.kind))
     return out
 
 
 def scenario_of_plan(plan: Plan, *, label: str = "plan.json") -> Scenario:
-    """The scenario a plan was made for: its embedded copy, else its scenario file."""
-    from fileio.errors import UserError
-    from planfile.scenario import load_scenario, scenario_from_dict
-
+    """The scenario a plan was made for: its embedded copy (with the plan's own vehicle types),
+    else its scenario file."""
     if plan.scenario_spec is not None and plan.format_version >= 2:
-        return scenario_from_dict(plan.scenario_spec, vehicle_types=plan.vehicle_types)
+        return scenario_from_dict(plan.scenario_spec, vehicle_types=plan.vehicle_types, label=f"{label}: scenario_spec")
     if plan.scenario_spec is not None:
         return scenario_from_dict(plan.scenario_spec, source_path=plan.scenario_file or None)
     if plan.scenario_file:

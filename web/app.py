@@ -363,7 +363,7 @@ class ReviewApp(GoalEditing):
         from web.export import record_scene, write_export
 
         if self.loaded is None:
-            from fileio.errors import UserError
+            from fileio import UserError
 
             raise UserError("nothing to export: no plan is loaded")
         d = self.loaded.data

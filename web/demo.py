@@ -42,8 +42,8 @@ def write_demo_plan(out_dir: str | Path, *, duration_s: float = 8.0, dt_s: float
     """Write ``out_dir/plan.json`` (with the scenario embedded) and ``out_dir/scenario.yaml``."""
     import yaml
 
-    from planfile.plan import Plan, VehicleTrajectory, write_plan
-    from planfile.scenario import scenario_from_dict
+    from planfile import Plan, VehicleTrajectory, write_plan
+    from planfile import scenario_from_dict
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

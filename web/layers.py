@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physics.vehicles import Vehicle
+from physics import Vehicle
 from web import meshes
 
 
@@ -76,7 +76,7 @@ def iso_speed_profiles(
 ) -> list[Profile]:
     """Iso-speed profiles of the source's jet down to ``depth_m`` below it (default levels
     ``DEFAULT_ISO_LEVELS_MPS``, m/s)."""
-    from physics.velocity_field import downwash_speed_mps
+    from physics import downwash_speed_mps
 
     levels_mps = DEFAULT_ISO_LEVELS_MPS if levels_mps is None else levels_mps
     dz = np.linspace(0.0, depth_m, n_dz)
@@ -93,7 +93,7 @@ def cutoff_profile(
     """Cutoff surface of ``target`` under ``source`` at authority-usage ``level``, down to ``depth_m``,
     from the pair's cutoff map (``costmaps.map_store.pair_maps``; ``invalid_rule`` for dz <= 3 L,
     default the map's own)."""
-    from costmaps.map_store import pair_maps
+    from costmaps import pair_maps
 
     dz = np.linspace(0.0, depth_m, n_dz)
     dz[0] = 1e-3

@@ -13,9 +13,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from fileio.errors import UserError
-from physics.vehicles import Vehicle
-from planfile.plan import VehicleTrajectory
+from fileio import UserError
+from physics import Vehicle
+from planfile import VehicleTrajectory
 
 Progress = Callable[[str, float], None]
 
@@ -88,7 +88,7 @@ class ReviewData:
 def _scenario_of_plan(plan: Any, path: Path) -> tuple[Any, str]:
     """The planner Scenario a plan was made for (``verify.checks.scenario_of_plan``) and a note;
     (None, why) when it carries none or it does not load."""
-    from verify.checks import scenario_of_plan
+    from verify import scenario_of_plan
 
     try:
         return scenario_of_plan(plan, label=str(path)), ""
@@ -143,7 +143,7 @@ def review_from_plan_result(plan: Any, scenario: Any, *, source_path: Path | Non
 
 def load_plan_file(path: str | Path) -> ReviewData:
     """Read a plan.json (or a directory holding one) for review; UserError on a bad file."""
-    from planfile.plan import read_plan
+    from planfile import read_plan
 
     path = Path(path)
     if path.is_dir():
@@ -155,7 +155,7 @@ def load_plan_file(path: str | Path) -> ReviewData:
 
 def plan_scenario(scenario: Any, *, progress: Progress | None = None, method: str = "optimized") -> Any:
     """Plan with ``planner.pipeline.plan_scenario``; raises its InfeasibleError or UserError."""
-    from planner.pipeline import plan_scenario as pipeline_plan
+    from planner import plan_scenario as pipeline_plan
 
     return pipeline_plan(scenario, method=method, progress=progress)
 
@@ -166,7 +166,7 @@ def load_input(path: str | Path, *, progress: Progress | None = None) -> ReviewD
     if not path.exists():
         raise UserError(f"{path}: no such file; expected SCENARIO.yaml, DIR/plan.json or DIR")
     if path.suffix in (".yaml", ".yml"):
-        from planfile.scenario import load_scenario
+        from planfile import load_scenario
 
         scenario = load_scenario(path)
         plan = plan_scenario(scenario, progress=progress)

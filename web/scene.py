@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from physics.vehicles import Vehicle
+from physics import Vehicle
 from web import meshes
 from web.review_data import ReviewData
 

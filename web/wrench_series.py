@@ -35,7 +35,7 @@ def wrench_series(data: ReviewData, *, max_samples: int = 600) -> dict[str, Wren
     empty when the plan carries no scenario (vehicle models and limits unknown)."""
     if data.plan is None or data.scenario is None:
         return {}
-    from verify.checks import wrench_along_plan
+    from verify import wrench_along_plan
 
     n = int(min(max_samples, max(len(v.t_s) for v in data.vehicles.values())))
     t_s = np.linspace(data.t_start_s, data.t_end_s, max(n, 2))

@@ -56,7 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _level(text: str, flag: str) -> float:
-    from fileio.errors import UserError
+    from fileio import UserError
 
     try:
         value = float(text)
@@ -68,9 +68,9 @@ def _level(text: str, flag: str) -> float:
 
 
 def _pairs(args: argparse.Namespace, custom: dict) -> list[tuple]:
-    from physics.builtin_vehicles import BUILTIN_VEHICLES
-    from fileio.errors import UserError
-    from physics.vehicle_yaml import resolve_vehicle
+    from physics import BUILTIN_VEHICLES
+    from fileio import UserError
+    from physics import resolve_vehicle
 
     if args.all:
         if args.source or args.target or args.out:
@@ -94,17 +94,17 @@ def run_costmap(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from physics.disturbance import ModelOptions
-    from costmaps.map_store import build_pair_maps, save_pair_maps
+    from physics import ModelOptions
+    from costmaps import build_pair_maps, save_pair_maps
 
     start = time.perf_counter()
     custom, model = {}, {}
     if args.vehicle_file:
-        from physics.vehicle_yaml import load_model_section, load_vehicle_file
+        from physics import load_model_section, load_vehicle_file
 
         custom = load_vehicle_file(args.vehicle_file)
         model = load_model_section(args.vehicle_file)
-        from physics.vehicle_yaml import unapplied_model_notes
+        from physics import unapplied_model_notes
 
         for note in unapplied_model_notes(args.vehicle_file):
             print(f"proxplan costmap: note: {note}", file=sys.stderr)
@@ -112,7 +112,7 @@ def run_costmap(args: argparse.Namespace) -> int:
     default_level = _level(args.default_level, "--default-level")
     field_form = args.field_form or model.get("field_form") or "inverse-z"
     if field_form not in ("inverse-z", "printed"):
-        from fileio.errors import UserError
+        from fileio import UserError
 
         raise UserError(f"{args.vehicle_file}: model.field_form: expected inverse-z or printed, got {field_form!r}")
     options = ModelOptions(field_form=field_form)
@@ -128,7 +128,7 @@ def run_costmap(args: argparse.Namespace) -> int:
         save_pair_maps(maps, out)
         png = None
         if not args.no_plot:
-            from costmaps.map_plot import plot_cutoff
+            from costmaps import plot_cutoff
 
             png = plot_cutoff(maps.cutoff, out.with_suffix(".png"))
         results.append(_summary(maps, out, png))

@@ -9,7 +9,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from fileio.files import atomic_write_text
+from fileio import atomic_write_text
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -40,8 +40,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def model_yaml_dict(result) -> dict:
     """The vehicles-YAML mapping (physics.vehicle_yaml format) of the calibrated model."""
-    from physics.builtin_vehicles import BUILTIN_VEHICLES
-    from physics.vehicle_yaml import vehicle_to_yaml_dict
+    from physics import BUILTIN_VEHICLES
+    from physics import vehicle_to_yaml_dict
 
     vehicles = {}
     for name, veh in result.final_model.vehicles.items():
@@ -69,11 +69,11 @@ def save_model(result, path: str | Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fileio.errors import UserError
-    from identify.flightlog import load_manifest
-    from identify.pipeline import IdentifyOptions, run_identify
-    from identify.report import write_report
-    from identify.measure import MeasureOptions
+    from fileio import UserError
+    from identify import load_manifest
+    from identify import IdentifyOptions, run_identify
+    from identify import write_report
+    from identify import MeasureOptions
 
     if args.window_s <= 0 or (args.motor_tau_s is not None and args.motor_tau_s <= 0):
         raise UserError("--window-s and --motor-tau-s must be positive numbers of seconds")

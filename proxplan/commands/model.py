@@ -43,13 +43,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _custom_vehicles(path: str | None) -> dict:
     if not path:
         return {}
-    from physics.vehicle_yaml import load_vehicle_file
+    from physics import load_vehicle_file
 
     return load_vehicle_file(path)
 
 
 def run_vehicles(args: argparse.Namespace) -> int:
-    from physics.builtin_vehicles import BUILTIN_VEHICLES
+    from physics import BUILTIN_VEHICLES
 
     vehicles = {**BUILTIN_VEHICLES, **_custom_vehicles(args.vehicle_file)}
     table = {name: v.to_dict() for name, v in vehicles.items()}
@@ -70,7 +70,7 @@ def run_vehicles(args: argparse.Namespace) -> int:
 
 
 def _parse_offset(raw: list[str]) -> list[float]:
-    from fileio.errors import UserError
+    from fileio import UserError
 
     values = []
     for axis, text in zip("XYZ", raw):
@@ -87,9 +87,9 @@ def _parse_offset(raw: list[str]) -> list[float]:
 def run_wrench(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from physics.authority import authority_usage
-    from physics.disturbance import ModelOptions, disturbance_wrench
-    from physics.vehicle_yaml import resolve_vehicle
+    from physics import authority_usage
+    from physics import ModelOptions, disturbance_wrench
+    from physics import resolve_vehicle
 
     offset = _parse_offset(args.offset)
     custom = _custom_vehicles(args.vehicle_file)

@@ -66,18 +66,18 @@ def _plan(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from planner.errors import InfeasibleError
-    from planner.pipeline import plan_scenario
-    from fileio.files import atomic_write_text
-    from planfile.plan import jsonable, write_plan
-    from planfile.scenario import load_scenario
-    from planner.summary import plan_summary
-    from verify.checks import verify_plan
+    from planner import InfeasibleError
+    from planner import plan_scenario
+    from fileio import atomic_write_text
+    from planfile import jsonable, write_plan
+    from planfile import load_scenario
+    from planner import plan_summary
+    from verify import verify_plan
 
     scenario = load_scenario(args.scenario)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
-        from fileio.errors import UserError
+        from fileio import UserError
 
         raise UserError(f"--out {out}: exists and is not a folder; expected a folder path")
     bar, report = _progress_bar(sys.stderr.isatty())
@@ -99,7 +99,7 @@ def _plan(args: argparse.Namespace) -> int:
     png = None
     t_plot = time.perf_counter()
     if not args.no_plot:
-        from planner.plot import plot_plan
+        from planner import plot_plan
 
         png = plot_plan(plan, scenario, out / "plan.png")
     t_plot = time.perf_counter() - t_plot
@@ -114,7 +114,7 @@ def _plan(args: argparse.Namespace) -> int:
             "method": plan.method,
             "metrics": jsonable(plan.metrics),
             "notes": plan.notes,
-            "verify": {"passed": not violations, "violations": [_violation_dict(v) for v in violations]},
+            "verify": {"passed": not violations, "violations": [v.to_dict() for v in violations]},
             "stage_times_s": {"plan": plan.metrics.get("planning_time_s"), "verify": round(t_verify, 3), "plot": round(t_plot, 3)},
         }))
     else:
@@ -123,15 +123,11 @@ def _plan(args: argparse.Namespace) -> int:
     return 0
 
 
-def _violation_dict(v) -> dict:
-    return {"t_s": v.t_s, "vehicle": v.vehicle, "kind": v.kind, "detail": v.detail, "value": v.value, "limit": v.limit}
-
-
 def _verify(args: argparse.Namespace) -> int:
-    from fileio.errors import UserError
-    from planfile.plan import read_plan
-    from planfile.scenario import load_scenario
-    from verify.checks import scenario_of_plan, verify_plan
+    from fileio import UserError
+    from planfile import read_plan
+    from planfile import load_scenario
+    from verify import scenario_of_plan, verify_plan
 
     if not args.dt > 0:
         raise UserError(f"--dt: expected a positive number of seconds, got {args.dt}")
@@ -140,7 +136,7 @@ def _verify(args: argparse.Namespace) -> int:
     violations = verify_plan(plan, scenario, dt_fine_s=args.dt)
     if args.json:
         print(json.dumps({"passed": not violations, "plan": str(args.plan), "scenario": scenario.name,
-                          "violations": [_violation_dict(v) for v in violations]}))
+                          "violations": [v.to_dict() for v in violations]}))
     else:
         if violations:
             print(f"{args.plan}: {len(violations)} violation(s):")

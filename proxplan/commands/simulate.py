@@ -43,12 +43,12 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from fileio.errors import UserError
-    from flightsim.logs import write_flight_logs
-    from planfile.plan import read_plan
-    from flightsim.report import plot_errors, summary_dict
-    from flightsim.simulate import SimulationOptions, simulate_plan
-    from flightsim.truth import TruthSpec, load_truth_file
+    from fileio import UserError
+    from flightsim import write_flight_logs
+    from planfile import read_plan
+    from flightsim import plot_errors, summary_dict
+    from flightsim import SimulationOptions, simulate_plan
+    from flightsim import TruthSpec, load_truth_file
 
     plan_path = Path(args.plan)
     if plan_path.is_dir():
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     truth = load_truth_file(args.truth) if args.truth else TruthSpec()
     custom = None
     if args.vehicles:
-        from physics.vehicle_yaml import load_vehicle_file
+        from physics import load_vehicle_file
 
         custom = load_vehicle_file(args.vehicles)
     options = SimulationOptions(
@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
         manifest = write_flight_logs(result, out, flight_name=flight, split=args.split, vehicles_file=vfile)
     summary = summary_dict(result, plan_path=str(plan_path), plot_path=str(plot),
                            manifest_path=None if manifest is None else str(manifest))
-    from fileio.files import atomic_write_bytes
+    from fileio import atomic_write_bytes
 
     atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=1).encode())
     if args.json:

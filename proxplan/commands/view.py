@@ -50,7 +50,7 @@ def _check_listen_address(host: str, port: int) -> None:
     import errno
     import socket
 
-    from fileio.errors import UserError
+    from fileio import UserError
 
     try:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from fileio.errors import UserError
+    from fileio import UserError
 
     path = Path(args.input)
     if not path.exists():
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
 
     import viser
 
-    from web.app import ReviewApp
+    from web import ReviewApp
 
     logging.getLogger("websockets").setLevel(logging.CRITICAL)
     with contextlib.redirect_stdout(sys.stderr):  # viser's banner must not mix with --json output

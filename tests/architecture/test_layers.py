@@ -66,7 +66,9 @@ def _imports(module: str) -> set[str]:
                 anchor = package.split(".")
                 anchor = anchor[: len(anchor) - (node.level - 1)]
                 base = ".".join(anchor + ([base] if base else []))
-            targets = [base] + [f"{base}.{a.name}" for a in node.names]
+            # "from pkg import sub" loads pkg.sub; "from pkg import name" loads pkg itself
+            subs = [f"{base}.{a.name}" for a in node.names if f"{base}.{a.name}" in MODULES]
+            targets = subs + ([base] if len(subs) < len(node.names) else [])
         else:
             continue
         for target in targets:

@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from physics.authority import authority_usage
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from costmaps.cutoff import INVALID_RULES, build_cutoff_map, r_cut_from_usage
-from physics.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
+from physics import authority_usage
+from physics import BUILTIN_VEHICLES
+from costmaps import INVALID_RULES, build_cutoff_map, r_cut_from_usage
+from physics import VALIDITY_FACTOR_L, disturbance_wrench
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]
@@ -157,7 +157,7 @@ def test_build_rejects_bad_options():
 def test_every_shipped_pair_brackets_the_level(source_name):
     """Shipped maps of every pair: direct-model usage < level just outside r_cut, and >= level just
     inside wherever the usage contour is not closing between two dz nodes."""
-    from costmaps.map_store import pair_maps
+    from costmaps import pair_maps
 
     source = BUILTIN_VEHICLES[source_name]
     for target in BUILTIN_VEHICLES.values():

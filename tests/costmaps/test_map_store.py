@@ -9,20 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.disturbance import ModelOptions
-from fileio.errors import UserError
+from physics import BUILTIN_VEHICLES
+from physics import ModelOptions
+from fileio import UserError
 from physics.geometry import Discretisation
-from costmaps.map_store import (
-    DATA_DIR,
-    FORMAT_VERSION,
-    build_pair_maps,
-    load_pair_maps,
-    pair_maps,
-    param_hash,
-    save_pair_maps,
-    shipped_path,
-)
+from costmaps import DATA_DIR, FORMAT_VERSION, build_pair_maps, load_pair_maps, pair_maps, param_hash, save_pair_maps, shipped_path
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 

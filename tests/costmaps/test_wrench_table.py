@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from physics.authority import authority_usage
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
+from physics import authority_usage
+from physics import BUILTIN_VEHICLES
+from physics import VALIDITY_FACTOR_L, disturbance_wrench
 from costmaps.wrench_table import (
     USAGE_FLOOR,
     TableResolution,

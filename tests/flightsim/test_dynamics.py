@@ -8,8 +8,8 @@ from rotorpy.controllers.quadrotor_control import SE3Control
 from rotorpy.sensors.imu import Imu
 from rotorpy.vehicles.multirotor import Multirotor
 
-from physics.authority import mixer_matrix
-from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics import mixer_matrix
+from physics import BUILTIN_VEHICLES
 from flightsim.control import ControllerConstants, se3_control
 from flightsim.dynamics import ExternalWrenchMultirotor, VehicleConstants, state_derivative
 from flightsim.imu import ImuOptions, imu_samples

@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fileio.errors import UserError
-from flightsim.logs import NEURAL_SWARM_HEADER, write_flight_logs
-from planfile.plan import read_plan, write_plan
-from flightsim.scenarios_synthetic import hover_stack_plan, swap_plan
-from flightsim.simulate import simulate_plan
-from flightsim.truth import load_truth_file, truth_from_dict
+from fileio import UserError
+from flightsim import NEURAL_SWARM_HEADER, write_flight_logs
+from planfile import read_plan, write_plan
+from flightsim import hover_stack_plan, swap_plan
+from flightsim import simulate_plan
+from flightsim import load_truth_file, truth_from_dict
 
 REPO = Path(__file__).resolve().parents[2]
 SHARED = REPO.parent / "shared"
@@ -99,7 +99,7 @@ def test_logs_have_neural_swarm_layout_and_manifest_loads(tmp_path):
     hover = table[:, 0] < 0.4e6
     np.testing.assert_allclose(table[hover, 9].mean(), 9.81, atol=0.05)  # az ~ +g in hover
     # the identification side reads it
-    from identify.flightlog import load_manifest, read_log
+    from identify import load_manifest, read_log
 
     man = load_manifest(manifest)
     assert [f.name for f in man.flights] == ["swap_00", "swap_01"]
@@ -153,8 +153,8 @@ def test_planner_plan_result_is_accepted_like_a_path(tmp_path):
 
 
 def test_truth_wind_pushes_a_hovering_vehicle_by_rotorpy_rotor_drag():
-    from physics.builtin_vehicles import BUILTIN_VEHICLES
-    from flightsim.scenarios_synthetic import single_hover_plan
+    from physics import BUILTIN_VEHICLES
+    from flightsim import single_hover_plan
     from flightsim.vehicle_params import quad_params
 
     spec = truth_from_dict({"wind_mps": [2.0, 0.0, 0.0]})
@@ -178,7 +178,7 @@ def test_simulate_cli_with_custom_vehicle_types(tmp_path, capsys):
 
     import yaml
 
-    from physics.vehicle_yaml import load_vehicle_file
+    from physics import load_vehicle_file
 
     vfile = tmp_path / "vehicles.yaml"
     vfile.write_text("vehicles:\n  heavy-cf: {base: crazyflie-2.1, mass_kg: 0.040}\n")
@@ -219,8 +219,8 @@ def test_commanded_thrust_logs_differ_from_actual_only_through_the_motor_lag(tmp
 
 
 def test_in_memory_vehicle_logs_equal_the_written_ones(tmp_path):
-    from identify.flightlog import read_log
-    from flightsim.logs import vehicle_logs
+    from identify import read_log
+    from flightsim import vehicle_logs
 
     res = simulate_plan(hover_stack_plan(duration_s=1.0), settle_s=0.2)
     write_flight_logs(res, tmp_path, flight_name="f")

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from physics.authority import authority_usage
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.effects import Effect
+from physics import authority_usage
+from physics import BUILTIN_VEHICLES
+from physics import Effect
 from flightsim.report import motor_usage, plot_errors, simulation_metrics
-from flightsim.scenarios_synthetic import hover_stack_plan
-from flightsim.simulate import simulate_plan
+from flightsim import hover_stack_plan
+from flightsim import simulate_plan
 
 
 def test_metrics_of_a_stack_and_the_invalid_zone(tmp_path):
@@ -40,7 +40,7 @@ def test_motor_usage_is_one_at_either_limit():
 def test_wake_swirl_torque_shows_in_the_steady_motor_torques():
     """At steady hover (w = 0, w_dot = 0) S0-13 reduces to tau_a = -R tau_p: the motors cancel the
     applied yaw torque of the wake_swirl truth effect."""
-    from physics.authority import mixer_matrix
+    from physics import mixer_matrix
 
     res = simulate_plan(hover_stack_plan(top_type="crazyflie-2.1", bottom_type="crazyflie-parrot",
                                          separation_m=1.0, duration_s=4.0),
@@ -54,8 +54,8 @@ def test_wake_swirl_torque_shows_in_the_steady_motor_torques():
 
 
 def test_going_below_the_ground_is_noted_in_the_summary():
-    from flightsim.report import summary_dict
-    from flightsim.scenarios_synthetic import single_hover_plan
+    from flightsim import summary_dict
+    from flightsim import single_hover_plan
 
     res = simulate_plan(single_hover_plan(position_m=(0, 0, 0.02), duration_s=1.0),
                         truth_effects=[Effect("thrust_bias", {"force_z_N": -0.05})], imu_noise=False)

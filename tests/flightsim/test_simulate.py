@@ -10,18 +10,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.disturbance import disturbance_wrench
-from physics.effects import Effect
-from flightsim.logs import write_flight_logs
-from flightsim.scenarios_synthetic import (
-    hover_stack_plan,
-    single_hover_plan,
-    swap_plan,
-    waypoint_trajectory,
-)
-from planfile.plan import Plan
-from flightsim.simulate import simulate_plan
+from physics import BUILTIN_VEHICLES
+from physics import disturbance_wrench
+from physics import Effect
+from flightsim import write_flight_logs
+from flightsim import hover_stack_plan, single_hover_plan, swap_plan, waypoint_trajectory
+from planfile import Plan
+from flightsim import simulate_plan
 
 KP_Z = 15.0  # RotorPy SE3Control z position gain, 1/s^2 (no integral term: steady error = F / (m kp_z))
 
@@ -38,7 +33,7 @@ def test_vehicle_hovering_alone_holds_position_within_a_few_centimetres():
 
 def _measured_force_s011(vehicle, table: np.ndarray) -> np.ndarray:
     """(S0-11) f_a = m R alpha - sum(f_i) z_B on a Neural-Swarm table (identify.measure)."""
-    from identify.measure import MeasureOptions, measure_disturbance
+    from identify import MeasureOptions, measure_disturbance
 
     t = table[:, 0] * 1e-6
     return measure_disturbance(vehicle, t, table[:, 10:14], table[:, 7:10], table[:, 14:18], table[:, 27:30],
@@ -186,8 +181,8 @@ def test_integral_action_removes_the_steady_sag_below_another_vehicle():
 def test_grouped_wrench_equals_total_wrench_with_every_source():
     """The simulator's stacking of same-type sources, skipping of sources below the target and
     single evaluation of target-only effects give exactly physics.effects.total_wrench."""
-    from physics.effects import EFFECT_NAMES, EffectInputs, SourceSample, default_effect, total_wrench
-    from physics.disturbance import ModelOptions
+    from physics import EFFECT_NAMES, EffectInputs, SourceSample, default_effect, total_wrench
+    from physics import ModelOptions
     from flightsim.simulate import _wrench_for
 
     rng = np.random.default_rng(0)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics import BUILTIN_VEHICLES
 from identify.calibrate import ParamSpec, apply_vehicle_parameters, fit_parameters
-from physics.disturbance import disturbance_wrench
+from physics import disturbance_wrench
 
 SQ = BUILTIN_VEHICLES["small-quad"]
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from fileio.errors import UserError
+from physics import BUILTIN_VEHICLES
+from fileio import UserError
 from identify.flightlog import (
     NEURAL_SWARM_COLUMNS, FlightEntry, VehicleEntry, VehicleLog, check_log, load_flight, load_manifest,
     read_log, write_canonical_csv,

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 import yaml
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.effects import Effect
-from identify.flightlog import write_canonical_csv
-from identify.synthetic_logs import synthetic_logs
-from identify.pipeline import IdentifyOptions, run_identify
+from physics import BUILTIN_VEHICLES
+from physics import Effect
+from identify import write_canonical_csv
+from identify import synthetic_logs
+from identify import IdentifyOptions, run_identify
 
 VEHICLE_TYPE = "small-quad"
 HIDDEN = {
@@ -87,7 +87,7 @@ def test_no_hidden_effect_selects_nothing_beyond_thrust_bias(tmp_path: Path) -> 
 
 
 def test_cli_json_report_and_saved_model(tmp_path: Path, capsys) -> None:
-    from physics.vehicle_yaml import load_model_section, load_vehicle_file
+    from physics import load_model_section, load_vehicle_file
     from proxplan.cli import main
 
     manifest = make_manifest(tmp_path, (HIDDEN["thrust_bias"],), n_train=1, duration_s=8.0)
@@ -123,9 +123,9 @@ def simulator_manifest(tmp: Path, effects: list, *, ground: bool = False) -> Pat
     """Three closed-loop RotorPy flights (flightsim) with the hidden ``effects``, written as
     Neural-Swarm logs + manifest by flightsim.logs: two small quads swapping places stacked
     0.3 / 1.0 m (train) and 0.45 m (test) apart, or take-off/hover sweeps near the ground."""
-    from flightsim.logs import write_flight_logs
-    from flightsim.scenarios_synthetic import swap_plan, takeoff_hover_plan
-    from flightsim.simulate import simulate_plan
+    from flightsim import write_flight_logs
+    from flightsim import swap_plan, takeoff_hover_plan
+    from flightsim import simulate_plan
 
     manifest = None
     for k, split in enumerate(("train", "train", "test")):
@@ -174,7 +174,7 @@ def test_correlate_finds_the_feature_behind_a_residual() -> None:
 
 def test_unexplained_residual_is_reported(tmp_path: Path) -> None:
     """A force that follows v_z |v_z| (no effect of the library has that shape) is reported with v_z."""
-    from identify.flightlog import read_log
+    from identify import read_log
 
     manifest = make_manifest(tmp_path, (), n_train=1, duration_s=10.0)
     for path in tmp_path.glob("f*_b.csv.gz"):

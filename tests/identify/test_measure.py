@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from physics.authority import mixer_matrix
-from physics.builtin_vehicles import BUILTIN_VEHICLES
+from physics import mixer_matrix
+from physics import BUILTIN_VEHICLES
 from identify.measure import MeasureOptions, measure_disturbance, motor_lag_compensated_N
 
 VEH = BUILTIN_VEHICLES["small-quad"]

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from physics.authority import authority_usage, mixer_matrix, motor_thrusts_N
+from physics import authority_usage, mixer_matrix, motor_thrusts_N
 from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
 
 

@@ -4,9 +4,9 @@ along y from -1 to 1 m at dz in {0.5, 1.0, 1.5, 2.0, 2.5} m. Checks the observat
 import numpy as np
 import pytest
 
-from physics.authority import authority_usage
+from physics import authority_usage
 from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
-from physics.disturbance import ModelOptions, disturbance_wrench, oncoming_speed_per_rotor_mps
+from physics import ModelOptions, disturbance_wrench, oncoming_speed_per_rotor_mps
 
 DZ_M = (0.5, 1.0, 1.5, 2.0, 2.5)
 Y_M = np.linspace(-1.0, 1.0, 401)  # symmetric grid containing y = 0 at index 200
@@ -98,7 +98,7 @@ def test_disk_average_differs_from_hub_value_in_a_narrow_jet():
     rotor = LARGE_QUAD.rotor_positions_m[3]
     offset = np.array([[-rotor[0], -rotor[1], -0.5]])  # rotor 4 right under the source
     v_on = oncoming_speed_per_rotor_mps(SMALL_QUAD, LARGE_QUAD, offset)[0, 3]
-    from physics.velocity_field import centreline_speed_mps
+    from physics import centreline_speed_mps
 
     hub_speed = float(centreline_speed_mps(SMALL_QUAD, np.array(0.5)))
     assert v_on < 0.8 * hub_speed

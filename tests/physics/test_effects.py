@@ -5,18 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.disturbance import disturbance_wrench
-from physics.effects import (
-    EFFECT_NAMES,
-    PARAMETERS,
-    Effect,
-    EffectInputs,
-    SourceSample,
-    default_effect,
-    effect_wrench,
-    total_wrench,
-)
+from physics import BUILTIN_VEHICLES
+from physics import disturbance_wrench
+from physics import EFFECT_NAMES, PARAMETERS, Effect, EffectInputs, SourceSample, default_effect, effect_wrench, total_wrench
 
 LARGE = BUILTIN_VEHICLES["large-quad"]
 SMALL = BUILTIN_VEHICLES["small-quad"]

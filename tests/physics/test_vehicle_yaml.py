@@ -3,8 +3,8 @@
 import pytest
 
 from physics.builtin_vehicles import LARGE_QUAD
-from fileio.errors import UserError
-from physics.vehicle_yaml import load_vehicle_file, resolve_vehicle, vehicle_from_dict, vehicle_to_yaml_dict
+from fileio import UserError
+from physics import load_vehicle_file, resolve_vehicle, vehicle_from_dict, vehicle_to_yaml_dict
 
 
 def write(tmp_path, text):
@@ -60,7 +60,7 @@ def test_bad_files(tmp_path):
 
 
 def test_effects_in_a_vehicle_file_are_reported_as_not_used_by_planning(tmp_path):
-    from physics.vehicle_yaml import unapplied_model_notes
+    from physics import unapplied_model_notes
 
     plain = write(tmp_path, "vehicles:\n  v: {base: small-quad}\n")
     assert unapplied_model_notes(plain) == []

@@ -18,7 +18,7 @@ pytest.importorskip("casadi")
 pytest.importorskip("ompl")
 
 from planner.compare import ComparisonRow, main, run_one, to_markdown, write_outputs  # noqa: E402
-from planfile.scenario import load_scenario  # noqa: E402
+from planfile import load_scenario  # noqa: E402
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 # cheapest first: the loops below stop at the first scenario that shows the claim

@@ -11,9 +11,9 @@ import pytest
 
 casadi = pytest.importorskip("casadi")
 
-from physics.authority import authority_usage  # noqa: E402
-from physics.builtin_vehicles import BUILTIN_VEHICLES  # noqa: E402
-from physics.disturbance import disturbance_wrench  # noqa: E402
+from physics import authority_usage  # noqa: E402
+from physics import BUILTIN_VEHICLES  # noqa: E402
+from physics import disturbance_wrench  # noqa: E402
 from planner.ocp import build_and_solve, normalised_motor_map, sample_solution  # noqa: E402
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution  # noqa: E402
 

@@ -18,10 +18,10 @@ from planner.optimize import (  # noqa: E402
     moving_end_s,
     refine_plan,
 )
-from planner.errors import InfeasibleError  # noqa: E402
-from planner.pipeline import plan_scenario  # noqa: E402
-from planfile.scenario import load_scenario, scenario_from_dict  # noqa: E402
-from verify.checks import verify_plan  # noqa: E402
+from planner import InfeasibleError  # noqa: E402
+from planner import plan_scenario  # noqa: E402
+from planfile import load_scenario, scenario_from_dict  # noqa: E402
+from verify import verify_plan  # noqa: E402
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 

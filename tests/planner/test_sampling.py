@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from physics.authority import authority_usage
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.disturbance import VALIDITY_FACTOR_L, disturbance_wrench
+from physics import authority_usage
+from physics import BUILTIN_VEHICLES
+from physics import VALIDITY_FACTOR_L, disturbance_wrench
 from planner.constraints import Track, build_checker
-from planner.pipeline import DT_S
+from planner import DT_S
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time
-from planfile.scenario import scenario_from_dict
+from planfile import scenario_from_dict
 from planner.timing import common_grid, time_parameterize
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import pytest
 
-from planner.pipeline import plan_scenario
-from planfile.plan import write_plan
+from planner import plan_scenario
+from planfile import write_plan
 from proxplan.cli import main
-from planfile.scenario import load_scenario
-from verify.checks import verify_plan
+from planfile import load_scenario
+from verify import verify_plan
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[2] / "scenarios").glob("*.yaml"))
 REQUIRED = {"battery_swap", "package_handoff", "crossing_4", "swap_8", "corridor_stack"}

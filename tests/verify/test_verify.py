@@ -7,12 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from physics.authority import authority_usage
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.disturbance import disturbance_wrench
-from planfile.plan import Plan, VehicleTrajectory
-from planfile.scenario import scenario_from_dict
-from verify.checks import verify_plan, wrench_along_plan
+from physics import authority_usage
+from physics import BUILTIN_VEHICLES
+from physics import disturbance_wrench
+from planfile import Plan, VehicleTrajectory
+from planfile import scenario_from_dict
+from verify import verify_plan, wrench_along_plan
 
 DT = 0.05
 

@@ -12,14 +12,14 @@ import pytest
 
 viser = pytest.importorskip("viser")
 
-from physics.authority import authority_usage  # noqa: E402
-from physics.builtin_vehicles import BUILTIN_VEHICLES  # noqa: E402
-from physics.disturbance import VALIDITY_FACTOR_L, disturbance_wrench  # noqa: E402
-from physics.velocity_field import downwash_speed_mps  # noqa: E402
+from physics import authority_usage  # noqa: E402
+from physics import BUILTIN_VEHICLES  # noqa: E402
+from physics import VALIDITY_FACTOR_L, disturbance_wrench  # noqa: E402
+from physics import downwash_speed_mps  # noqa: E402
 from web import layers, plots  # noqa: E402
-from web.app import ReviewApp, prepare  # noqa: E402
+from web import ReviewApp, prepare  # noqa: E402
 from web.demo import DEMO_SPEC, write_demo_plan  # noqa: E402
-from web.review_data import load_plan_file  # noqa: E402
+from web import load_plan_file  # noqa: E402
 from web.wrench_series import WrenchSeries  # noqa: E402
 
 
@@ -175,7 +175,7 @@ def test_replan_failure_keeps_old_plan_and_success_shows_new(app, plan_path):
 
         for name, tr in plan.vehicles.items():
             plan.vehicles[name] = dataclasses.replace(tr, position_m=tr.position_m + [0.0, 0.0, 0.25])
-        from web.review_data import review_from_plan_result
+        from web import review_from_plan_result
 
         return prepare(review_from_plan_result(plan, scenario, source_path=plan_path))
 
