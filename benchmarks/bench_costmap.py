@@ -17,22 +17,22 @@ import argparse
 import math
 import statistics
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from costmaps import build_pair_maps
+from costmaps.cutoff import DEFAULT_CUTOFF_RESOLUTION, cutoff_dz_grid_m
+from costmaps.wrench_table import DEFAULT_RESOLUTION, LateralScale, build_wrench_table, table_dz_grid_m
+from physics import (
+    BUILTIN_VEHICLES,
+    authority_usage,
+    disturbance_wrench,
+)
 
-from physics import authority_usage  # noqa: E402
-from physics import BUILTIN_VEHICLES  # noqa: E402
-from costmaps.cutoff import DEFAULT_CUTOFF_RESOLUTION, cutoff_dz_grid_m  # noqa: E402
-from physics import disturbance_wrench  # noqa: E402
-from costmaps import build_pair_maps  # noqa: E402
-from costmaps.wrench_table import DEFAULT_RESOLUTION, LateralScale, build_wrench_table, table_dz_grid_m  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def map_offsets(source, target) -> np.ndarray:
@@ -67,8 +67,12 @@ def main() -> None:
     ap.add_argument("--source", default="small-quad")
     ap.add_argument("--target", default="large-quad")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--naive-fraction", type=float, default=1.0,
-                    help="run the naive loop on this fraction of the offsets and scale up (1 = all)")
+    ap.add_argument(
+        "--naive-fraction",
+        type=float,
+        default=1.0,
+        help="run the naive loop on this fraction of the offsets and scale up (1 = all)",
+    )
     args = ap.parse_args()
     source, target = BUILTIN_VEHICLES[args.source], BUILTIN_VEHICLES[args.target]
 
@@ -98,8 +102,11 @@ def main() -> None:
     assert np.allclose(loop_usage, vec_usage[pick], rtol=1e-9, atol=1e-12), "naive loop disagrees"
 
     print(f"pair {args.source} -> {args.target}: {len(offsets)} model offsets per map")
-    print(f"  proxplan costmap, whole process (median of {args.repeats}): {wall:6.2f} s  (runs: "
-          + ", ".join(f"{w:.2f}" for w in walls) + ")")
+    print(
+        f"  proxplan costmap, whole process (median of {args.repeats}): {wall:6.2f} s  (runs: "
+        + ", ".join(f"{w:.2f}" for w in walls)
+        + ")"
+    )
     print(f"  in-process build (cutoff + table + metadata):        {build_s:6.2f} s")
     print(f"  vectorised model over the map's offsets:              {vec_s:6.2f} s")
     scaled = "" if n_naive == len(offsets) else f" (measured on {n_naive} offsets, scaled)"
@@ -121,8 +128,10 @@ def main() -> None:
             ef = np.abs(f[:, 2] - direct.force_N[:, 2]).max() / table.peak_abs_force_N
             peak_t = max(np.abs(table.torque_x_Nm).max(), np.abs(table.torque_y_Nm).max())
             et = np.abs(tq[:, :2] - direct.torque_Nm[:, :2]).max() / peak_t
-            print(f"  {s_name:>16} -> {t_name:<16} F_z {100 * ef:5.2f} %   torque {100 * et:5.2f} %"
-                  f"   (peak |F_z| {table.peak_abs_force_N:.3f} N)")
+            print(
+                f"  {s_name:>16} -> {t_name:<16} F_z {100 * ef:5.2f} %   torque {100 * et:5.2f} %"
+                f"   (peak |F_z| {table.peak_abs_force_N:.3f} N)"
+            )
 
 
 if __name__ == "__main__":

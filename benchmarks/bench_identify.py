@@ -18,12 +18,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from physics import BUILTIN_VEHICLES
-from physics import Effect, EffectInputs, SourceSample, base_wrench
-from identify import read_log, write_canonical_csv
-from identify import synthetic_logs
-from identify import run_identify
-from identify import write_report
+from identify import read_log, run_identify, synthetic_logs, write_canonical_csv, write_report
+from physics import BUILTIN_VEHICLES, Effect, EffectInputs, SourceSample, base_wrench
 
 
 def _paths(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
@@ -48,7 +44,9 @@ def main() -> None:
         t0 = time.perf_counter()
         reuse = (root / "manifest.yaml").exists()
         for k in range(0 if reuse else args.flights):
-            logs = synthetic_logs({"a": veh, "b": veh}, _paths(t, 0.7 * k), t, effects=(hidden,), accel_noise_mps2=0.02, seed=k)
+            logs = synthetic_logs(
+                {"a": veh, "b": veh}, _paths(t, 0.7 * k), t, effects=(hidden,), accel_noise_mps2=0.02, seed=k
+            )
             entry = {"name": f"f{k}", "split": "test" if k >= args.flights - 2 else "train", "vehicles": {}}
             for name, log in logs.items():
                 write_canonical_csv(log, root / f"f{k}_{name}.csv.gz")
@@ -59,7 +57,9 @@ def main() -> None:
             manifest.write_text(yaml.safe_dump({"format": "canonical", "root": ".", "flights": flights}))
         n_rows = 2 * len(yaml.safe_load(manifest.read_text())["flights"]) * t.size
         hours = n_rows / 2 / 100.0 / 3600.0
-        print(f"generated {n_rows} rows ({hours:.2f} h of 100 Hz logs x 2 vehicles) in {time.perf_counter() - t0:.1f} s (untimed)")
+        print(
+            f"generated {n_rows} rows ({hours:.2f} h of 100 Hz logs x 2 vehicles) in {time.perf_counter() - t0:.1f} s (untimed)"
+        )
 
         t0 = time.perf_counter()
         import pandas  # noqa: F401  (import cost outside the timed read)
@@ -83,7 +83,9 @@ def main() -> None:
     print(f"baseline: base model on every row  {t_base:7.2f} s")
     print(f"identify pipeline                  {t_pipe:7.2f} s  ({t_pipe / hours:.1f} s per hour of 2-vehicle logs; "
           f"{t_pipe / t_read:.1f}x reading, {t_pipe / t_base:.1f}x one base-model pass)")  # fmt: skip
-    print(f"identify pipeline CPU time         {c_pipe:7.2f} s  (all threads of this process; the wall time above includes waiting for a shared CPU)")
+    print(
+        f"identify pipeline CPU time         {c_pipe:7.2f} s  (all threads of this process; the wall time above includes waiting for a shared CPU)"
+    )
     print(f"report (markdown + PNG)            {t_report:7.2f} s")
     print(f"selected {result.selected}; test RMSE F_z {result.before.rmse_fz_N:.4g} -> {result.after.rmse_fz_N:.4g} N")
     print(f"target < 30 s per hour: {'met' if t_pipe / hours < 30 else 'NOT met'}")

@@ -27,20 +27,35 @@ def whole_process(scenario: Path, method: str) -> tuple[float, dict]:
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
         proc = subprocess.run(
-            [sys.executable, "-m", "proxplan.cli", "plan", str(scenario), "--out", out, "--method", method, "--json", "--no-plot"],
-            capture_output=True, text=True, cwd=ROOT,
+            [
+                sys.executable,
+                "-m",
+                "proxplan.cli",
+                "plan",
+                str(scenario),
+                "--out",
+                out,
+                "--method",
+                method,
+                "--json",
+                "--no-plot",
+            ],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
         )
         wall = time.perf_counter() - t0
     if proc.returncode != 0:
-        return wall, {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else f"exit {proc.returncode}"}
+        return wall, {
+            "error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else f"exit {proc.returncode}"
+        }
     return wall, json.loads(proc.stdout)
 
 
 def in_process(scenario_path: Path, *, exact: bool) -> dict:
-    from planner import ocp
-    from planner.optimize import build_problem, moving_end_s, solution_to_plan
-    from planner import plan_scenario
     from planfile import load_scenario
+    from planner import ocp, plan_scenario
+    from planner.optimize import build_problem, moving_end_s, solution_to_plan
     from verify import verify_plan
 
     scenario = load_scenario(scenario_path)
@@ -73,8 +88,10 @@ def main() -> int:
     parser.add_argument("--scenarios", nargs="*", default=["battery_swap", "swap_8"])
     parser.add_argument("--exact", action="store_true", help="also time the exact MX table formulation")
     args = parser.parse_args()
-    print(f"{'scenario':16s} {'optimized s':>11s} {'sampling s':>10s} {'ratio':>6s}  {'IPOPT s':>8s} {'iter':>5s} "
-          f"{'makespan opt / samp (s)':>24s}")
+    print(
+        f"{'scenario':16s} {'optimized s':>11s} {'sampling s':>10s} {'ratio':>6s}  {'IPOPT s':>8s} {'iter':>5s} "
+        f"{'makespan opt / samp (s)':>24s}"
+    )
     for name in args.scenarios:
         path = ROOT / "scenarios" / f"{name}.yaml"
         t_opt, res_opt = whole_process(path, "optimized")

@@ -44,8 +44,20 @@ def main() -> int:
         for path in sorted((ROOT / "scenarios").glob("*.yaml")):
             walls, report = [], None
             for k in range(args.repeat):
-                cmd = [sys.executable, "-m", "proxplan.cli", "plan", str(path), "--out", f"{tmp}/{path.stem}{k}",
-                       "--method", args.method, "--seed", "0", "--json"] + (["--no-plot"] if args.no_plot else [])
+                cmd = [
+                    sys.executable,
+                    "-m",
+                    "proxplan.cli",
+                    "plan",
+                    str(path),
+                    "--out",
+                    f"{tmp}/{path.stem}{k}",
+                    "--method",
+                    args.method,
+                    "--seed",
+                    "0",
+                    "--json",
+                ] + (["--no-plot"] if args.no_plot else [])
                 wall, res = _wall(cmd)
                 walls.append(wall)
                 report = json.loads(res.stdout) if res.stdout.strip() else {"feasible": False}
@@ -54,8 +66,10 @@ def main() -> int:
                 continue
             m = report["metrics"]
             wall = statistics.median(walls)
-            print(f"{path.stem:18s} {wall:7.2f} {wall / baseline:7.1f} {m['planning_time_s']:7.2f} "
-                  f"{m['makespan_s']:10.2f} {m['max_authority_usage']:9.3f} {'PASS' if report['verify']['passed'] else 'FAIL'}")
+            print(
+                f"{path.stem:18s} {wall:7.2f} {wall / baseline:7.1f} {m['planning_time_s']:7.2f} "
+                f"{m['makespan_s']:10.2f} {m['max_authority_usage']:9.3f} {'PASS' if report['verify']['passed'] else 'FAIL'}"
+            )
     return 0
 
 

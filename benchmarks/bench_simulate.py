@@ -20,12 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from physics import BUILTIN_VEHICLES
-from physics import EffectInputs, SourceSample, total_wrench
-from flightsim import swap_plan
-from flightsim import simulate_plan
-from flightsim import load_truth_file
+from flightsim import load_truth_file, simulate_plan, swap_plan
 from flightsim.vehicle_params import quad_params
+from physics import BUILTIN_VEHICLES, EffectInputs, SourceSample, total_wrench
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -44,21 +41,40 @@ def baseline_rtf(sim_s: float) -> float:
         models.append(ExternalWrenchMultirotor(p, aero=True))
         ctrls.append(SE3Control(p))
         w = np.sqrt(v.hover_thrust_per_rotor_N / p["k_eta"])
-        states.append({"x": p0.copy(), "v": np.zeros(3), "q": np.array([0, 0, 0, 1.0]), "w": np.zeros(3),
-                       "wind": np.zeros(3), "rotor_speeds": np.full(4, w)})
+        states.append(
+            {
+                "x": p0.copy(),
+                "v": np.zeros(3),
+                "q": np.array([0, 0, 0, 1.0]),
+                "w": np.zeros(3),
+                "wind": np.zeros(3),
+                "rotor_speeds": np.full(4, w),
+            }
+        )
     dt = 0.002
     n = int(round(sim_s / dt))
     t0 = time.perf_counter()
     for _ in range(n):
         for i in range(2):
             j = 1 - i
-            inp = EffectInputs(vehs[i], np.array([states[i]["x"][2]]), states[i]["v"][None],
-                               (SourceSample(vehs[j], (states[i]["x"] - states[j]["x"])[None]),))
+            inp = EffectInputs(
+                vehs[i],
+                np.array([states[i]["x"][2]]),
+                states[i]["v"][None],
+                (SourceSample(vehs[j], (states[i]["x"] - states[j]["x"])[None]),),
+            )
             f, t = total_wrench(inp)
             models[i].ext_force_N = f[0]
             models[i].ext_torque_Nm = t[0]
-            flat = {"x": pos[i], "x_dot": np.zeros(3), "x_ddot": np.zeros(3), "x_dddot": np.zeros(3),
-                    "x_ddddot": np.zeros(3), "yaw": 0.0, "yaw_dot": 0.0}
+            flat = {
+                "x": pos[i],
+                "x_dot": np.zeros(3),
+                "x_ddot": np.zeros(3),
+                "x_dddot": np.zeros(3),
+                "x_ddddot": np.zeros(3),
+                "yaw": 0.0,
+                "yaw_dot": 0.0,
+            }
             cmd = ctrls[i].update(0.0, states[i], flat)
             states[i] = models[i].step(states[i], cmd, dt)
     return sim_s / (time.perf_counter() - t0)
@@ -100,8 +116,9 @@ def eight_vehicle_plan(*, swap_s: float):
     for k in range(4):
         pair = swap_plan(vertical_gap_m=0.4, swap_s=swap_s, n_swaps=1, hold_s=0.5, centre_m=(1.0 * k, 0.0, 1.0))
         for name, tr in pair.vehicles.items():
-            vehicles[f"{name}{k}"] = type(tr)(f"{name}{k}", tr.type_name, tr.vehicle, tr.t_s, tr.position_m,
-                                              tr.velocity_mps, tr.acceleration_mps2)
+            vehicles[f"{name}{k}"] = type(tr)(
+                f"{name}{k}", tr.type_name, tr.vehicle, tr.t_s, tr.position_m, tr.velocity_mps, tr.acceleration_mps2
+            )
     return Plan("eight", pair.dt_s, vehicles)
 
 
@@ -113,16 +130,22 @@ def fly_planner_plans() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for method in ("optimized", "sampling", "no-downwash"):
             out = Path(tmp) / method
-            proc = subprocess.run(["proxplan", "plan", str(scen), "--out", str(out), "--method", method, "--json"],
-                                  capture_output=True, text=True, timeout=600)
+            proc = subprocess.run(
+                ["proxplan", "plan", str(scen), "--out", str(out), "--method", method, "--json"],
+                capture_output=True,
+                text=True,
+                timeout=600,
+            )
             if proc.returncode != 0:
                 print(f"battery swap, {method}: planner failed ({proc.stderr.strip().splitlines()[-1:]})")
                 continue
             res = simulate_plan(out / "plan.json", imu_noise=False)
             for name, rec in res.records.items():
                 alt = np.abs(rec.position_m[:, 2] - rec.ref_position_m[:, 2])
-                print(f"battery swap, {method:<12} {name:<8}: max altitude error {100 * alt.max():5.2f} cm, "
-                      f"max |F| {np.linalg.norm(rec.applied_force_N, axis=1).max():.3f} N")
+                print(
+                    f"battery swap, {method:<12} {name:<8}: max altitude error {100 * alt.max():5.2f} cm, "
+                    f"max |F| {np.linalg.norm(rec.applied_force_N, axis=1).max():.3f} N"
+                )
 
 
 if __name__ == "__main__":

@@ -12,9 +12,8 @@ import time
 
 import numpy as np
 
-from physics import authority_usage
+from physics import authority_usage, disturbance_wrench
 from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
-from physics import disturbance_wrench
 
 
 def main() -> None:

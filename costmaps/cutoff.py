@@ -36,10 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physics import authority_usage
-from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
-from physics import Vehicle
 from costmaps.wrench_table import USAGE_FLOOR, LateralScale, default_dz_max_m, target_half_extent_m
+from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, Vehicle, authority_usage, disturbance_wrench
 
 INVALID_RULES = ("conservative", "model", "forbid")
 DEFAULT_INVALID_RULE = "conservative"
@@ -133,9 +131,7 @@ class CutoffMap:
         """Model r_cut at the grid's dz nodes (K,), no invalid-zone rule, m."""
         return r_cut_from_usage(self.r_grid_m, self.usage, level)
 
-    def r_cut_m(
-        self, dz_m: np.ndarray, *, level: float | None = None, invalid_rule: str | None = None
-    ) -> np.ndarray:
+    def r_cut_m(self, dz_m: np.ndarray, *, level: float | None = None, invalid_rule: str | None = None) -> np.ndarray:
         """Cutoff radius (same shape as ``dz_m``) at authority-usage ``level`` (any positive value;
         default ``default_level``), m. ``invalid_rule`` overrides the map's rule for
         0 < dz <= 3 L_source. 0 where dz <= 0 (target above the source: no downwash)."""

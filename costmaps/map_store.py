@@ -41,10 +41,6 @@ from costmaps.cutoff import (
     CutoffResolution,
     build_cutoff_map,
 )
-from physics import DEFAULT_OPTIONS, ModelOptions
-from fileio import UserError
-from physics import Vehicle
-from fileio import atomic_output
 from costmaps.wrench_table import (
     DEFAULT_RESOLUTION,
     LateralScale,
@@ -53,6 +49,8 @@ from costmaps.wrench_table import (
     build_wrench_table,
     mirror_quadrant,
 )
+from fileio import UserError, atomic_output
+from physics import DEFAULT_OPTIONS, ModelOptions, Vehicle
 
 FORMAT_VERSION = 1
 """Bump when the .npz layout or the meaning of a stored array changes."""

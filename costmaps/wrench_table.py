@@ -42,9 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from physics import authority_usage
-from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
-from physics import Vehicle
+from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, Vehicle, authority_usage, disturbance_wrench
 
 if TYPE_CHECKING:  # pragma: no cover
     import casadi
@@ -116,7 +114,7 @@ class LateralScale:
     c_m: float
 
     @classmethod
-    def for_pair(cls, source: Vehicle, target: Vehicle, widths: float) -> "LateralScale":
+    def for_pair(cls, source: Vehicle, target: Vehicle, widths: float) -> LateralScale:
         return cls(
             a_m=target_half_extent_m(target),
             b=widths / math.sqrt(source.downwash.c_rad),
@@ -246,7 +244,7 @@ class WrenchTable:
         torque[:, :2] = values[:, 1:]
         return force, torque
 
-    def casadi_function(self) -> "casadi.Function":
+    def casadi_function(self) -> casadi.Function:
         """Smooth differentiable f(offset_m 3x1) -> [F_z N, tau_x N m, tau_y N m] 3x1.
 
         The same cubic B-spline as :meth:`wrench_numpy` (offset = p_target - p_source, world
@@ -259,9 +257,7 @@ class WrenchTable:
 
         knots, coeffs = self._knots_coeffs()
         flat = np.transpose(coeffs, (2, 1, 0, 3)).ravel()  # value fastest, then xi, eta, dz
-        spline = ca.Function.bspline(
-            "wrench_spline", [list(k) for k in knots], list(flat), [SPLINE_DEGREE] * 3, 3, {}
-        )
+        spline = ca.Function.bspline("wrench_spline", [list(k) for k in knots], list(flat), [SPLINE_DEGREE] * 3, 3, {})
         offset = ca.MX.sym("offset_m", 3)
         dz = ca.if_else(-offset[2] > 0, ca.fmax(-offset[2], float(self.dz_m[0])), -offset[2])
         sc = self.scale

@@ -32,13 +32,17 @@ class ControllerConstants:
     k_eta: float  # N/(rad/s)^2
 
     @classmethod
-    def from_params(cls, p: dict) -> "ControllerConstants":
+    def from_params(cls, p: dict) -> ControllerConstants:
         ctrl = SE3Control(p)
         tup = lambda a: tuple(tuple(float(v) for v in row) for row in np.asarray(a))  # noqa: E731
         return cls(
-            mass_kg=float(ctrl.mass), inertia=tup(ctrl.inertia),
-            kp_pos=tuple(float(k) for k in ctrl.kp_pos), kd_pos=tuple(float(k) for k in ctrl.kd_pos),
-            kp_att=float(ctrl.kp_att), kd_att=float(ctrl.kd_att), tm_to_f=tup(ctrl.TM_to_f),
+            mass_kg=float(ctrl.mass),
+            inertia=tup(ctrl.inertia),
+            kp_pos=tuple(float(k) for k in ctrl.kp_pos),
+            kd_pos=tuple(float(k) for k in ctrl.kd_pos),
+            kp_att=float(ctrl.kp_att),
+            kd_att=float(ctrl.kd_att),
+            tm_to_f=tup(ctrl.TM_to_f),
             k_eta=float(ctrl.k_eta),
         )
 
@@ -55,8 +59,13 @@ def se3_control(c: ControllerConstants, s, ref_x, ref_v, ref_a):
     x, v, q, w = s[0:3], s[3:6], s[6:10], s[10:13]
     rot = rotation(q)
     f_des = [
-        c.mass_kg * (-c.kp_pos[k] * (x[k] - ref_x[k]) - c.kd_pos[k] * (v[k] - ref_v[k]) + ref_a[k]
-                     + (GRAVITY_ROTORPY_MPS2 if k == 2 else 0.0))
+        c.mass_kg
+        * (
+            -c.kp_pos[k] * (x[k] - ref_x[k])
+            - c.kd_pos[k] * (v[k] - ref_v[k])
+            + ref_a[k]
+            + (GRAVITY_ROTORPY_MPS2 if k == 2 else 0.0)
+        )
         for k in range(3)
     ]
     b3 = [rot[0][2], rot[1][2], rot[2][2]]

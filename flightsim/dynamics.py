@@ -65,19 +65,27 @@ class VehicleConstants:
     speed_max_radps: float
 
     @classmethod
-    def from_params(cls, p: dict) -> "VehicleConstants":
+    def from_params(cls, p: dict) -> VehicleConstants:
         if p.get("k_flap", 0.0) != 0.0:
             raise ValueError("rotor flapping (k_flap != 0) is not modelled by flightsim.dynamics")
-        inertia = np.array([[p["Ixx"], p["Ixy"], p["Ixz"]], [p["Ixy"], p["Iyy"], p["Iyz"]], [p["Ixz"], p["Iyz"], p["Izz"]]])
+        inertia = np.array(
+            [[p["Ixx"], p["Ixy"], p["Ixz"]], [p["Ixy"], p["Iyy"], p["Iyz"]], [p["Ixz"], p["Iyz"], p["Izz"]]]
+        )
         tup = lambda a: tuple(tuple(float(v) for v in row) for row in a)  # noqa: E731
         return cls(
-            mass_kg=float(p["mass"]), inertia=tup(inertia), inv_inertia=tup(np.linalg.inv(inertia)),
+            mass_kg=float(p["mass"]),
+            inertia=tup(inertia),
+            inv_inertia=tup(np.linalg.inv(inertia)),
             rotor_pos_m=tup(np.array(list(p["rotor_pos"].values()))),
             rotor_dir=tuple(float(d) for d in p["rotor_directions"]),
-            k_eta=float(p["k_eta"]), k_m=float(p["k_m"]), k_d=float(p.get("k_d", 0.0)),
-            k_z=float(p.get("k_z", 0.0)), k_h=float(p.get("k_h", 0.0)),
+            k_eta=float(p["k_eta"]),
+            k_m=float(p["k_m"]),
+            k_d=float(p.get("k_d", 0.0)),
+            k_z=float(p.get("k_z", 0.0)),
+            k_h=float(p.get("k_h", 0.0)),
             c_d=(float(p.get("c_Dx", 0.0)), float(p.get("c_Dy", 0.0)), float(p.get("c_Dz", 0.0))),
-            tau_m_s=float(p["tau_m"]), speed_min_radps=float(p["rotor_speed_min"]),
+            tau_m_s=float(p["tau_m"]),
+            speed_min_radps=float(p["rotor_speed_min"]),
             speed_max_radps=float(p["rotor_speed_max"]),
         )
 
@@ -108,8 +116,9 @@ def rotation(q):
     ]
 
 
-def state_derivative(c: VehicleConstants, s, cmd_rotor_speeds, ext_force_world_N, ext_torque_body_Nm,
-                     wind_mps=(0.0, 0.0, 0.0)):
+def state_derivative(
+    c: VehicleConstants, s, cmd_rotor_speeds, ext_force_world_N, ext_torque_body_Nm, wind_mps=(0.0, 0.0, 0.0)
+):
     """d/dt of the 17-entry state ``s`` (RotorPy's ``_s_dot_fn``) with rotor speed commands (4)
     rad/s (already clipped), external force (3) N, world frame, and torque (3) N m, body frame."""
     v, q, w, om = s[3:6], s[6:10], s[10:13], s[13:17]  # position s[0:3] does not enter

@@ -31,9 +31,15 @@ class ImuOptions:
     gyro_bias_radps: tuple[float, float, float] = (0.0, 0.0, 0.0)  # constant bias, body frame, rad/s
 
 
-def imu_samples(q_xyzw: np.ndarray, w_body_radps: np.ndarray, accel_world_mps2: np.ndarray, *,
-                options: ImuOptions = ImuOptions(), rng: np.random.Generator | None = None,
-                with_noise: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def imu_samples(
+    q_xyzw: np.ndarray,
+    w_body_radps: np.ndarray,
+    accel_world_mps2: np.ndarray,
+    *,
+    options: ImuOptions = ImuOptions(),
+    rng: np.random.Generator | None = None,
+    with_noise: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
     """Accelerometer (M, 3) m/s^2 and gyro (M, 3) rad/s, body frame, for attitudes (M, 4)
     [x, y, z, w], body rates (M, 3) rad/s and true accelerations (M, 3) m/s^2, world frame."""
     rot = Rotation.from_quat(q_xyzw)

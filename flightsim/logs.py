@@ -37,8 +37,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fileio import UserError
-from fileio import atomic_write_bytes, read_yaml
+from fileio import UserError, atomic_write_bytes, read_yaml
 
 NEURAL_SWARM_HEADER = (
     "# time[ms],x[m],y[m],z[m],vx[m/s],vy[m/s],vz[m/s],ax[m/s^2],ay[m/s^2],az[m/s^2],qx,qy,qz,qw,"
@@ -63,34 +62,55 @@ def _csv_gz(header: str, table: np.ndarray) -> bytes:
 LOGGED_THRUSTS = ("actual", "commanded")
 
 
-def neural_swarm_table(record, *, rng: np.random.Generator, mocap_noise_std_m: float = 0.0005,
-                       velocity_noise_std_mps: float = 0.005, logged_thrust: str = "actual") -> np.ndarray:
+def neural_swarm_table(
+    record,
+    *,
+    rng: np.random.Generator,
+    mocap_noise_std_m: float = 0.0005,
+    velocity_noise_std_mps: float = 0.005,
+    logged_thrust: str = "actual",
+) -> np.ndarray:
     """The (M, 30) Neural-Swarm table of one :class:`flightsim.simulate.VehicleRecord`."""
     if logged_thrust not in LOGGED_THRUSTS:
         raise UserError(f"logged_thrust: expected one of {', '.join(LOGGED_THRUSTS)}, got {logged_thrust!r}")
     m = record.t_s.size
     veh = record.vehicle
-    pos = record.position_m + rng.normal(scale=mocap_noise_std_m, size=(m, 3)) if mocap_noise_std_m > 0 else record.position_m
-    vel = record.velocity_mps + rng.normal(scale=velocity_noise_std_mps, size=(m, 3)) if velocity_noise_std_mps > 0 else record.velocity_mps
+    pos = (
+        record.position_m + rng.normal(scale=mocap_noise_std_m, size=(m, 3))
+        if mocap_noise_std_m > 0
+        else record.position_m
+    )
+    vel = (
+        record.velocity_mps + rng.normal(scale=velocity_noise_std_mps, size=(m, 3))
+        if velocity_noise_std_mps > 0
+        else record.velocity_mps
+    )
     acc_world = Rotation.from_quat(record.q_xyzw).apply(record.accel_meas_body_mps2)
     pwm = np.clip(record.cmd_motor_thrust_N / veh.max_thrust_per_rotor_N, 0.0, 1.0)
     thrust = record.motor_thrust_N
     if logged_thrust == "commanded":
         thrust = np.clip(record.cmd_motor_thrust_N, veh.min_motor_thrust_N, veh.max_thrust_per_rotor_N)
-    return np.column_stack([
-        np.round(record.t_s * 1e6),
-        pos, vel, acc_world, record.q_xyzw,
-        thrust, pwm,
-        np.full(m, BATTERY_VOLTAGE_V),
-        record.cmd_thrust_N / GRAVITY_MPS2 * 1000.0,
-        record.cmd_moment_Nm,
-        record.gyro_meas_radps,
-    ])
+    return np.column_stack(
+        [
+            np.round(record.t_s * 1e6),
+            pos,
+            vel,
+            acc_world,
+            record.q_xyzw,
+            thrust,
+            pwm,
+            np.full(m, BATTERY_VOLTAGE_V),
+            record.cmd_thrust_N / GRAVITY_MPS2 * 1000.0,
+            record.cmd_moment_Nm,
+            record.gyro_meas_radps,
+        ]
+    )
 
 
 def _truth_table(record) -> np.ndarray:
-    return np.column_stack([record.t_s, record.applied_force_N, record.applied_torque_Nm,
-                            record.model_force_N, record.model_torque_Nm])
+    return np.column_stack(
+        [record.t_s, record.applied_force_N, record.applied_torque_Nm, record.model_force_N, record.model_torque_Nm]
+    )
 
 
 def _noisy_tables(result, *, seed: int | None, logged_thrust: str) -> dict[str, np.ndarray]:
@@ -100,8 +120,9 @@ def _noisy_tables(result, *, seed: int | None, logged_thrust: str) -> dict[str, 
     mocap = opts.mocap_noise_std_m if opts.imu_noise else 0.0
     veln = opts.velocity_noise_std_mps if opts.imu_noise else 0.0
     return {
-        name: neural_swarm_table(rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln,
-                                 logged_thrust=logged_thrust)
+        name: neural_swarm_table(
+            rec, rng=rng, mocap_noise_std_m=mocap, velocity_noise_std_mps=veln, logged_thrust=logged_thrust
+        )
         for name, rec in result.records.items()
     }
 
@@ -111,11 +132,13 @@ def _write_custom_vehicles(result, out: Path) -> str | None:
     relative to ``out`` (None when every vehicle is a built-in type)."""
     import yaml
 
-    from physics import BUILTIN_VEHICLES
-    from physics import vehicle_to_yaml_dict
+    from physics import BUILTIN_VEHICLES, vehicle_to_yaml_dict
 
-    custom = {rec.type_name: rec.vehicle for rec in result.records.values()
-              if BUILTIN_VEHICLES.get(rec.type_name) != rec.vehicle}
+    custom = {
+        rec.type_name: rec.vehicle
+        for rec in result.records.values()
+        if BUILTIN_VEHICLES.get(rec.type_name) != rec.vehicle
+    }
     if not custom:
         return None
     doc = {"vehicles": {name: vehicle_to_yaml_dict(v) for name, v in custom.items()}}
@@ -123,9 +146,16 @@ def _write_custom_vehicles(result, out: Path) -> str | None:
     return "vehicles.yaml"
 
 
-def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: str = "train",
-                      seed: int | None = None, vehicles_file: str | None = None,
-                      logged_thrust: str = "actual") -> Path:
+def write_flight_logs(
+    result,
+    out_dir: str | Path,
+    *,
+    flight_name: str,
+    split: str = "train",
+    seed: int | None = None,
+    vehicles_file: str | None = None,
+    logged_thrust: str = "actual",
+) -> Path:
     """Write every vehicle of ``result`` (a :class:`flightsim.simulate.SimulationResult`) as a
     Neural-Swarm log under ``out_dir/flight_name/`` and add the flight to ``out_dir/manifest.yaml``
     (created when missing). ``vehicles_file`` (relative to the manifest) names custom vehicle types;
@@ -161,7 +191,9 @@ def write_flight_logs(result, out_dir: str | Path, *, flight_name: str, split: s
     flights = [f for f in doc.get("flights", []) if f.get("name") != flight_name]
     flights.append({"name": flight_name, "split": split, "vehicles": entry_vehicles})
     # the truth applied stays out of the manifest (effects are undeclared to identification)
-    atomic_write_bytes(out / flight_name / "truth.yaml", yaml.safe_dump(result.truth.to_dict(), sort_keys=False).encode())
+    atomic_write_bytes(
+        out / flight_name / "truth.yaml", yaml.safe_dump(result.truth.to_dict(), sort_keys=False).encode()
+    )
     doc["flights"] = flights
     atomic_write_bytes(manifest, yaml.safe_dump(doc, sort_keys=False).encode())
     return manifest
@@ -175,8 +207,13 @@ def vehicle_logs(result, *, logged_thrust: str = "actual", seed: int | None = No
     out = {}
     for name, tab in _noisy_tables(result, seed=seed, logged_thrust=logged_thrust).items():
         out[name] = VehicleLog(
-            t_s=tab[:, 0] * 1e-6, position_m=tab[:, 1:4], velocity_mps=tab[:, 4:7], accel_mps2=tab[:, 7:10],
-            quat_xyzw=tab[:, 10:14], motor_thrust_N=tab[:, 14:18], gyro_radps=tab[:, 27:30],
+            t_s=tab[:, 0] * 1e-6,
+            position_m=tab[:, 1:4],
+            velocity_mps=tab[:, 4:7],
+            accel_mps2=tab[:, 7:10],
+            quat_xyzw=tab[:, 10:14],
+            motor_thrust_N=tab[:, 14:18],
+            gyro_radps=tab[:, 27:30],
             source=f"flightsim:{result.scenario}:{name}",
         )
     return out

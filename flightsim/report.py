@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from physics import authority_usage
 from fileio import save_figure
+from physics import authority_usage
 
 
 @dataclass(frozen=True)
@@ -94,8 +94,9 @@ def simulation_metrics(result) -> dict[str, VehicleMetrics]:
     }
 
 
-def summary_dict(result, *, plan_path: str | None = None, plot_path: str | None = None,
-                 manifest_path: str | None = None) -> dict:
+def summary_dict(
+    result, *, plan_path: str | None = None, plot_path: str | None = None, manifest_path: str | None = None
+) -> dict:
     """The JSON summary of ``proxplan simulate``."""
     return {
         "scenario": result.scenario,
@@ -133,8 +134,17 @@ def plot_errors(result, path: str | Path) -> Path:
         ax2.plot(rec.t_s, usage, color=color, label=name)
         bad = invalid_zone_mask(result, name)
         if bad.any():
-            ax2.fill_between(rec.t_s, 0, 1, where=bad, color=color, alpha=0.12, lw=0,
-                             transform=ax2.get_xaxis_transform(), label=f"{name} in invalid zone (dz <= 3 L)")
+            ax2.fill_between(
+                rec.t_s,
+                0,
+                1,
+                where=bad,
+                color=color,
+                alpha=0.12,
+                lw=0,
+                transform=ax2.get_xaxis_transform(),
+                label=f"{name} in invalid zone (dz <= 3 L)",
+            )
     for ax in (ax1, ax2):
         ax.axvline(result.plan_duration_s, color="0.5", lw=0.8, ls=":")
         ax.grid(alpha=0.3)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from physics import BUILTIN_VEHICLES
 from planfile import Plan, VehicleTrajectory
@@ -26,8 +27,9 @@ def _min_jerk(p0: np.ndarray, p1: np.ndarray, t_s: np.ndarray, t0_s: float, t1_s
     return p0[None, :] + h[:, None] * d, hd[:, None] * d, hdd[:, None] * d
 
 
-def waypoint_trajectory(name: str, type_name: str, waypoints_m: Sequence[Sequence[float]],
-                        times_s: Sequence[float], *, dt_s: float = 0.02) -> VehicleTrajectory:
+def waypoint_trajectory(
+    name: str, type_name: str, waypoints_m: ArrayLike, times_s: ArrayLike, *, dt_s: float = 0.02
+) -> VehicleTrajectory:
     """Rest-to-rest minimum-jerk segments through ``waypoints_m`` (K, 3) reached at ``times_s`` (K,)."""
     wp = np.asarray(waypoints_m, dtype=float)
     ts = np.asarray(times_s, dtype=float)
@@ -48,29 +50,51 @@ def _plan(name: str, trajs: Sequence[VehicleTrajectory], dt_s: float) -> Plan:
     return Plan(name, dt_s, {t.name: t for t in trajs}, method="synthetic")
 
 
-def hover_stack_plan(*, top_type: str = "crazyflie-2.1", bottom_type: str = "crazyflie-parrot",
-                     separation_m: float = 1.5, bottom_position_m: Sequence[float] = (0.0, 0.0, 1.0),
-                     horizontal_offset_m: Sequence[float] = (0.0, 0.0), duration_s: float = 5.0,
-                     dt_s: float = 0.02) -> Plan:
+def hover_stack_plan(
+    *,
+    top_type: str = "crazyflie-2.1",
+    bottom_type: str = "crazyflie-parrot",
+    separation_m: float = 1.5,
+    bottom_position_m: Sequence[float] = (0.0, 0.0, 1.0),
+    horizontal_offset_m: Sequence[float] = (0.0, 0.0),
+    duration_s: float = 5.0,
+    dt_s: float = 0.02,
+) -> Plan:
     """Two vehicles hovering still, ``top`` ``separation_m`` above ``bottom`` (plus a horizontal offset)."""
     b = np.asarray(bottom_position_m, dtype=float)
     top = b + np.array([-horizontal_offset_m[0], -horizontal_offset_m[1], separation_m])
-    return _plan("hover-stack", [
-        waypoint_trajectory("top", top_type, [top, top], [0.0, duration_s], dt_s=dt_s),
-        waypoint_trajectory("bottom", bottom_type, [b, b], [0.0, duration_s], dt_s=dt_s),
-    ], dt_s)
+    return _plan(
+        "hover-stack",
+        [
+            waypoint_trajectory("top", top_type, [top, top], [0.0, duration_s], dt_s=dt_s),
+            waypoint_trajectory("bottom", bottom_type, [b, b], [0.0, duration_s], dt_s=dt_s),
+        ],
+        dt_s,
+    )
 
 
-def single_hover_plan(*, type_name: str = "crazyflie-2.1", position_m: Sequence[float] = (0.0, 0.0, 1.0),
-                      duration_s: float = 5.0, dt_s: float = 0.02) -> Plan:
+def single_hover_plan(
+    *,
+    type_name: str = "crazyflie-2.1",
+    position_m: Sequence[float] = (0.0, 0.0, 1.0),
+    duration_s: float = 5.0,
+    dt_s: float = 0.02,
+) -> Plan:
     """One vehicle hovering alone at ``position_m`` (use a low z for ground effect)."""
     p = np.asarray(position_m, dtype=float)
     return _plan("single-hover", [waypoint_trajectory("solo", type_name, [p, p], [0.0, duration_s], dt_s=dt_s)], dt_s)
 
 
-def takeoff_hover_plan(*, type_name: str = "crazyflie-2.1", xy_m: Sequence[float] = (0.0, 0.0),
-                       low_z_m: float = 0.05, high_z_m: float = 1.0, climb_s: float = 3.0,
-                       hold_s: float = 2.0, dt_s: float = 0.02) -> Plan:
+def takeoff_hover_plan(
+    *,
+    type_name: str = "crazyflie-2.1",
+    xy_m: Sequence[float] = (0.0, 0.0),
+    low_z_m: float = 0.05,
+    high_z_m: float = 1.0,
+    climb_s: float = 3.0,
+    hold_s: float = 2.0,
+    dt_s: float = 0.02,
+) -> Plan:
     """Hover near the ground, climb to ``high_z_m``, hover, descend again (ground effect sweeps)."""
     lo = np.array([xy_m[0], xy_m[1], low_z_m])
     hi = np.array([xy_m[0], xy_m[1], high_z_m])
@@ -79,9 +103,18 @@ def takeoff_hover_plan(*, type_name: str = "crazyflie-2.1", xy_m: Sequence[float
     return _plan("takeoff-hover", [traj], dt_s)
 
 
-def swap_plan(*, top_type: str = "crazyflie-2.1", bottom_type: str = "crazyflie-parrot",
-              vertical_gap_m: float = 0.3, radius_m: float = 0.25, swap_s: float = 3.0, n_swaps: int = 4,
-              centre_m: Sequence[float] = (0.0, 0.0, 0.8), hold_s: float = 1.0, dt_s: float = 0.02) -> Plan:
+def swap_plan(
+    *,
+    top_type: str = "crazyflie-2.1",
+    bottom_type: str = "crazyflie-parrot",
+    vertical_gap_m: float = 0.3,
+    radius_m: float = 0.25,
+    swap_s: float = 3.0,
+    n_swaps: int = 4,
+    centre_m: Sequence[float] = (0.0, 0.0, 0.8),
+    hold_s: float = 1.0,
+    dt_s: float = 0.02,
+) -> Plan:
     """Neural-Swarm-like swaps: both vehicles on a circle of ``radius_m`` at opposite sides,
     ``vertical_gap_m`` apart, swap sides in ``swap_s`` along straight chords, crossing above each
     other at the centre; repeated ``n_swaps`` times with ``hold_s`` pauses."""
@@ -101,17 +134,28 @@ def swap_plan(*, top_type: str = "crazyflie-2.1", bottom_type: str = "crazyflie-
         top_wp.append(top_to)
         bot_wp.append(bot_to)
         times.append(t)
-    return _plan("swap", [
-        waypoint_trajectory("top", top_type, top_wp, times, dt_s=dt_s),
-        waypoint_trajectory("bottom", bottom_type, bot_wp, times, dt_s=dt_s),
-    ], dt_s)
+    return _plan(
+        "swap",
+        [
+            waypoint_trajectory("top", top_type, top_wp, times, dt_s=dt_s),
+            waypoint_trajectory("bottom", bottom_type, bot_wp, times, dt_s=dt_s),
+        ],
+        dt_s,
+    )
 
 
-def battery_swap_plans(*, carrier_type: str = "large-quad", shuttle_type: str = "small-quad",
-                       carrier_m: Sequence[float] = (0.0, 0.0, 1.5), shuttle_start_m: Sequence[float] = (2.0, 1.0, 0.6),
-                       dock_offset_m: Sequence[float] = (0.0, 0.0, 0.3), duration_s: float = 8.0,
-                       approach_height_m: float = 1.2, final_descent_s: float = 3.0,
-                       dt_s: float = 0.02) -> dict[str, Plan]:
+def battery_swap_plans(
+    *,
+    carrier_type: str = "large-quad",
+    shuttle_type: str = "small-quad",
+    carrier_m: Sequence[float] = (0.0, 0.0, 1.5),
+    shuttle_start_m: Sequence[float] = (2.0, 1.0, 0.6),
+    dock_offset_m: Sequence[float] = (0.0, 0.0, 0.3),
+    duration_s: float = 8.0,
+    approach_height_m: float = 1.2,
+    final_descent_s: float = 3.0,
+    dt_s: float = 0.02,
+) -> dict[str, Plan]:
     """The battery-swap scenario (scenarios/battery_swap.yaml) flown two ways, same duration:
     ``straight``: the shuttle flies a straight line from its start to the dock;
     ``staged``: it climbs beside the carrier to ``approach_height_m`` above the dock, moves over it,
@@ -125,8 +169,13 @@ def battery_swap_plans(*, carrier_type: str = "large-quad", shuttle_type: str = 
     high_side = np.array([s0[0], s0[1], dock[2] + approach_height_m])
     above = dock + np.array([0.0, 0.0, approach_height_m])
     t1 = 0.4 * (duration_s - final_descent_s)
-    staged = waypoint_trajectory("shuttle", shuttle_type, [s0, high_side, above, dock],
-                                 [0.0, t1, duration_s - final_descent_s, duration_s], dt_s=dt_s)
+    staged = waypoint_trajectory(
+        "shuttle",
+        shuttle_type,
+        [s0, high_side, above, dock],
+        [0.0, t1, duration_s - final_descent_s, duration_s],
+        dt_s=dt_s,
+    )
     return {
         "straight": _plan("battery-swap-straight", [carrier, straight], dt_s),
         "staged": _plan("battery-swap-staged", [carrier, staged], dt_s),

@@ -25,15 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from physics import ModelOptions
-from physics import TARGET_ONLY_EFFECTS, Effect, EffectInputs, SourceSample, total_wrench
 from fileio import UserError
-from physics import Vehicle
-from flightsim.stepper import CompiledStepper
 from flightsim.imu import ImuOptions, imu_samples
-from planfile import Plan, read_plan
+from flightsim.stepper import CompiledStepper
 from flightsim.truth import TruthSpec
 from flightsim.vehicle_params import quad_params
+from physics import TARGET_ONLY_EFFECTS, Effect, EffectInputs, ModelOptions, SourceSample, Vehicle, total_wrench
+from planfile import Plan, read_plan
 
 
 @dataclass(frozen=True)
@@ -140,8 +138,12 @@ def simulate_plan(
         truth = TruthSpec(tuple(truth.effects) + tuple(truth_effects), truth.wind_mps, truth.field_form)
     if options is None:
         options = SimulationOptions(
-            physics_dt_s=physics_dt_s, log_dt_s=log_dt_s, settle_s=settle_s,
-            wrench_horizon_steps=wrench_horizon_steps, imu_noise=imu_noise, seed=seed,
+            physics_dt_s=physics_dt_s,
+            log_dt_s=log_dt_s,
+            settle_s=settle_s,
+            wrench_horizon_steps=wrench_horizon_steps,
+            imu_noise=imu_noise,
+            seed=seed,
             position_integral_rate_ps=position_integral_rate_ps,
         )
     dt = options.physics_dt_s
@@ -179,11 +181,28 @@ def simulate_plan(
     # the vehicles start at their reference with hover rotor speeds and reject from t0 whatever acts on them
 
     n_log = (n_steps - 1) // log_every + 1
-    rec = {key: np.zeros((n_log, n_veh) + shape) for key, shape in (
-        ("x", (3,)), ("v", (3,)), ("a", (3,)), ("q", (4,)), ("w", (3,)), ("rx", (3,)), ("rv", (3,)),
-        ("f", (4,)), ("fc", (4,)), ("T", ()), ("M", (3,)), ("acc", (3,)), ("gyr", (3,)),
-        ("Fa", (3,)), ("Ta", (3,)), ("Fm", (3,)), ("Tm", (3,)),
-    )}
+    rec = {
+        key: np.zeros((n_log, n_veh) + shape)
+        for key, shape in (
+            ("x", (3,)),
+            ("v", (3,)),
+            ("a", (3,)),
+            ("q", (4,)),
+            ("w", (3,)),
+            ("rx", (3,)),
+            ("rv", (3,)),
+            ("f", (4,)),
+            ("fc", (4,)),
+            ("T", ()),
+            ("M", (3,)),
+            ("acc", (3,)),
+            ("gyr", (3,)),
+            ("Fa", (3,)),
+            ("Ta", (3,)),
+            ("Fm", (3,)),
+            ("Tm", (3,)),
+        )
+    }
     rec_sat = np.zeros((n_log, n_veh), dtype=bool)
     sat_steps = np.zeros(n_veh)
     k_eta = np.array([p["k_eta"] for p in params])[:, None]
@@ -206,8 +225,9 @@ def simulate_plan(
         for k in range(n_steps):
             j = k % horizon
             if j == 0:
-                _fill_wrench(buf_f, buf_t, S[:, 0:3], S[:, 3:6], acc_est, tau, vehs, effects, model_options,
-                             options.ground_z_m)
+                _fill_wrench(
+                    buf_f, buf_t, S[:, 0:3], S[:, 3:6], acc_est, tau, vehs, effects, model_options, options.ground_z_m
+                )
             stepper.ref[:] = ref_all[k]
             if ki_rate > 0.0:
                 integral_ms += (S[:, 0:3] - ref_all[k][:, 0:3]) * dt
@@ -219,11 +239,21 @@ def simulate_plan(
             sat_steps += stepper.saturated
             if k % log_every == 0:
                 i = k // log_every
-                for key, val in (("x", S[:, 0:3]), ("v", S[:, 3:6]), ("a", stepper.accel_mps2), ("q", S[:, 6:10]),
-                                 ("w", S[:, 10:13]), ("rx", ref_x[k]), ("rv", ref_v[k]),
-                                 ("f", k_eta * S[:, 13:17] ** 2), ("fc", stepper.cmd_thrust_N),
-                                 ("T", stepper.ctbm[:, 0]), ("M", stepper.ctbm[:, 1:4]),
-                                 ("Fa", buf_f[:, j]), ("Ta", buf_t[:, j])):
+                for key, val in (
+                    ("x", S[:, 0:3]),
+                    ("v", S[:, 3:6]),
+                    ("a", stepper.accel_mps2),
+                    ("q", S[:, 6:10]),
+                    ("w", S[:, 10:13]),
+                    ("rx", ref_x[k]),
+                    ("rv", ref_v[k]),
+                    ("f", k_eta * S[:, 13:17] ** 2),
+                    ("fc", stepper.cmd_thrust_N),
+                    ("T", stepper.ctbm[:, 0]),
+                    ("M", stepper.ctbm[:, 1:4]),
+                    ("Fa", buf_f[:, j]),
+                    ("Ta", buf_t[:, j]),
+                ):
                     rec[key][i] = val
                 rec_sat[i] = stepper.saturated > 0.5
             acc_est = (stepper.next_state[:, 3:6] - S[:, 3:6]) / dt
@@ -238,7 +268,12 @@ def simulate_plan(
     rng = np.random.default_rng(options.seed)
     for vi in range(n_veh):
         rec["acc"][:, vi], rec["gyr"][:, vi] = imu_samples(
-            rec["q"][:, vi], rec["w"][:, vi], rec["a"][:, vi], options=options.imu, rng=rng, with_noise=options.imu_noise
+            rec["q"][:, vi],
+            rec["w"][:, vi],
+            rec["a"][:, vi],
+            options=options.imu,
+            rng=rng,
+            with_noise=options.imu_noise,
         )
     wall = time.perf_counter() - wall_start
 
@@ -253,29 +288,47 @@ def simulate_plan(
         rec["Tm"][:] = rec["Ta"]
 
     t_log = t_grid[::log_every] - t0
-    records = {}
+    records: dict[str, VehicleRecord] = {}
     for vi, name in enumerate(names):
         records[name] = VehicleRecord(
-            name=name, type_name=trajs[vi].type_name, vehicle=vehs[vi], t_s=t_log,
-            position_m=rec["x"][:, vi], velocity_mps=rec["v"][:, vi], acceleration_mps2=rec["a"][:, vi],
-            q_xyzw=rec["q"][:, vi], w_body_radps=rec["w"][:, vi],
-            ref_position_m=rec["rx"][:, vi], ref_velocity_mps=rec["rv"][:, vi],
-            motor_thrust_N=rec["f"][:, vi], cmd_motor_thrust_N=rec["fc"][:, vi],
-            cmd_thrust_N=rec["T"][:, vi], cmd_moment_Nm=rec["M"][:, vi], saturated=rec_sat[:, vi],
-            accel_meas_body_mps2=rec["acc"][:, vi], gyro_meas_radps=rec["gyr"][:, vi],
-            applied_force_N=rec["Fa"][:, vi], applied_torque_Nm=rec["Ta"][:, vi],
-            model_force_N=rec["Fm"][:, vi], model_torque_Nm=rec["Tm"][:, vi],
+            name=name,
+            type_name=trajs[vi].type_name,
+            vehicle=vehs[vi],
+            t_s=t_log,
+            position_m=rec["x"][:, vi],
+            velocity_mps=rec["v"][:, vi],
+            acceleration_mps2=rec["a"][:, vi],
+            q_xyzw=rec["q"][:, vi],
+            w_body_radps=rec["w"][:, vi],
+            ref_position_m=rec["rx"][:, vi],
+            ref_velocity_mps=rec["rv"][:, vi],
+            motor_thrust_N=rec["f"][:, vi],
+            cmd_motor_thrust_N=rec["fc"][:, vi],
+            cmd_thrust_N=rec["T"][:, vi],
+            cmd_moment_Nm=rec["M"][:, vi],
+            saturated=rec_sat[:, vi],
+            accel_meas_body_mps2=rec["acc"][:, vi],
+            gyro_meas_radps=rec["gyr"][:, vi],
+            applied_force_N=rec["Fa"][:, vi],
+            applied_torque_Nm=rec["Ta"][:, vi],
+            model_force_N=rec["Fm"][:, vi],
+            model_torque_Nm=rec["Tm"][:, vi],
         )
     notes = []
-    for name, rec in records.items():
-        low = float(rec.position_m[:, 2].min())
+    for name, record in records.items():
+        low = float(record.position_m[:, 2].min())
         if low < options.ground_z_m:
             notes.append(f"{name} went below the ground plane (min z = {low:.3f} m): ground contact is not modelled")
     return SimulationResult(
         notes=notes,
-        scenario=str(plan.scenario), options=options, truth=truth, plan_duration_s=plan_duration,
-        records=records, saturation_time_s={n: float(sat_steps[i] * dt) for i, n in enumerate(names)},
-        wall_time_s=wall, sim_time_s=(n_steps - 1) * dt,
+        scenario=str(plan.scenario),
+        options=options,
+        truth=truth,
+        plan_duration_s=plan_duration,
+        records=records,
+        saturation_time_s={n: float(sat_steps[i] * dt) for i, n in enumerate(names)},
+        wall_time_s=wall,
+        sim_time_s=(n_steps - 1) * dt,
     )
 
 
@@ -292,8 +345,15 @@ def _stepper(params: list[dict], dt_s: float, wind_mps) -> CompiledStepper:
     return _STEPPER_CACHE[key]
 
 
-def _wrench_for(target_index: int, positions_m: np.ndarray, velocity_mps: np.ndarray, vehs: list[Vehicle],
-                effects: tuple, model_options: ModelOptions, ground_z_m: float) -> tuple[np.ndarray, np.ndarray]:
+def _wrench_for(
+    target_index: int,
+    positions_m: np.ndarray,
+    velocity_mps: np.ndarray,
+    vehs: list[Vehicle],
+    effects: tuple,
+    model_options: ModelOptions,
+    ground_z_m: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """Wrench (K, 3) x2 on vehicle ``target_index`` for positions (K, V, 3) of all vehicles and the
     target's velocity (K, 3): :func:`physics.effects.total_wrench` with every other vehicle as a
     source. For speed, sources of the same vehicle type are stacked into one model call, and a
@@ -323,23 +383,37 @@ def _wrench_for(target_index: int, positions_m: np.ndarray, velocity_mps: np.nda
     for src, offs in groups:
         n = len(offs)
         inputs = EffectInputs(
-            target=target, height_above_ground_m=np.tile(height, n), velocity_mps=np.tile(velocity_mps, (n, 1)),
-            sources=(SourceSample(src, np.concatenate(offs)),), options=model_options,
+            target=target,
+            height_above_ground_m=np.tile(height, n),
+            velocity_mps=np.tile(velocity_mps, (n, 1)),
+            sources=(SourceSample(src, np.concatenate(offs)),),
+            options=model_options,
         )
         f, t = total_wrench(inputs, per_source)
         force += f.reshape(n, k, 3).sum(axis=0)
         torque += t.reshape(n, k, 3).sum(axis=0)
     if target_only:
-        inputs = EffectInputs(target=target, height_above_ground_m=height, velocity_mps=velocity_mps,
-                              sources=(), options=model_options)
+        inputs = EffectInputs(
+            target=target, height_above_ground_m=height, velocity_mps=velocity_mps, sources=(), options=model_options
+        )
         f, t = total_wrench(inputs, target_only)
         force += f
         torque += t
     return force, torque
 
 
-def _fill_wrench(buf_f, buf_t, x: np.ndarray, v: np.ndarray, acc: np.ndarray, tau: np.ndarray, vehs, effects,
-                 model_options, ground_z_m) -> None:
+def _fill_wrench(
+    buf_f,
+    buf_t,
+    x: np.ndarray,
+    v: np.ndarray,
+    acc: np.ndarray,
+    tau: np.ndarray,
+    vehs,
+    effects,
+    model_options,
+    ground_z_m,
+) -> None:
     """Wrench on every vehicle at the positions predicted over the next horizon from positions,
     velocities and accelerations (V, 3) (buffers (V, K, 3))."""
     pred_x = x[None] + tau[:, None, None] * v[None] + 0.5 * tau[:, None, None] ** 2 * acc[None]

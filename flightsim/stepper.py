@@ -46,7 +46,7 @@ class CompiledStepper:
         R = ca.SX.sym("R", n * 9)
         F = ca.SX.sym("F", n * 3)
         T = ca.SX.sym("T", n * 3)
-        outs = {"next": [], "cmd": [], "ctbm": [], "sat": [], "acc": []}
+        outs: dict[str, list] = {"next": [], "cmd": [], "ctbm": [], "sat": [], "acc": []}
         wind = [float(w) for w in wind_mps]
         for i, p in enumerate(params):
             vc = VehicleConstants.from_params(p)
@@ -82,9 +82,11 @@ class CompiledStepper:
             outs["sat"] += [ca.fmin(sat, 1)]
             outs["acc"] += k1[3:6]
         self.function = ca.Function(
-            "proxplan_step", [S, R, F, T],
+            "proxplan_step",
+            [S, R, F, T],
             [ca.vertcat(*outs[k]) for k in ("next", "cmd", "ctbm", "sat", "acc")],
-            ["state", "ref", "ext_force", "ext_torque"], ["next", "cmd", "ctbm", "sat", "acc"],
+            ["state", "ref", "ext_force", "ext_torque"],
+            ["next", "cmd", "ctbm", "sat", "acc"],
         )
         self.state = np.zeros((n, STATE_SIZE))
         self.ref = np.zeros((n, 9))
@@ -95,11 +97,11 @@ class CompiledStepper:
         self.ctbm = np.zeros((n, 4))
         self.saturated = np.zeros(n)
         self.accel_mps2 = np.zeros((n, 3))
-        self._buf, self._eval = self.function.buffer()
-        for k, arr in enumerate((self.state, self.ref, self.ext_force_N, self.ext_torque_Nm)):
-            self._buf.set_arg(k, memoryview(arr))
-        for k, arr in enumerate((self.next_state, self.cmd_thrust_N, self.ctbm, self.saturated, self.accel_mps2)):
-            self._buf.set_res(k, memoryview(arr))
+        self._buf, self._eval = self.function.buffer()  # CasADi's zero-copy evaluation buffers
+        for k, arg in enumerate((self.state, self.ref, self.ext_force_N, self.ext_torque_Nm)):
+            self._buf.set_arg(k, memoryview(arg))  # type: ignore[call-arg, arg-type]  # size from the buffer
+        for k, res in enumerate((self.next_state, self.cmd_thrust_N, self.ctbm, self.saturated, self.accel_mps2)):
+            self._buf.set_res(k, memoryview(res))  # type: ignore[call-arg, arg-type]
 
     def step(self) -> None:
         """Evaluate one step from the input arrays into the output arrays (in place)."""

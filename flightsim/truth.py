@@ -45,8 +45,7 @@ class TruthSpec:
 
 def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
     """Validate a truth mapping (see module docstring) into a :class:`TruthSpec`."""
-    from physics import EFFECT_NAMES, PARAMETERS, Effect
-    from physics import FIELD_FORMS
+    from physics import EFFECT_NAMES, FIELD_FORMS, PARAMETERS, Effect
 
     if doc is None:
         doc = {}
@@ -92,7 +91,7 @@ def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
             clean.setdefault("wind_x_mps", float(wind_arr[0]))
             clean.setdefault("wind_y_mps", float(wind_arr[1]))
         effects.append(Effect(name, clean))
-    return TruthSpec(tuple(effects), tuple(float(w) for w in wind_arr), form)
+    return TruthSpec(tuple(effects), (float(wind_arr[0]), float(wind_arr[1]), float(wind_arr[2])), form)
 
 
 def load_truth_file(path: str | Path) -> TruthSpec:

@@ -14,7 +14,7 @@ from identify.flightlog import (
     read_log,
     write_canonical_csv,
 )
-from identify.measure import MeasureOptions, MeasuredWrench, measure_disturbance, measure_log
+from identify.measure import MeasuredWrench, MeasureOptions, measure_disturbance, measure_log
 from identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
 from identify.report import write_report
 from identify.synthetic_logs import synthetic_logs

@@ -13,8 +13,8 @@ b_v (S0-5) — so every prediction still runs through :mod:`physics.disturbance`
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Callable, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -50,7 +50,7 @@ class CalibrationResult:
     def as_dict(self) -> dict[str, float]:
         return dict(zip(self.names, (float(v) for v in self.values)))
 
-    def to_json(self) -> dict[str, dict[str, float]]:
+    def to_json(self) -> dict[str, dict[str, float | bool | None]]:
         bounds = self.at_bound or (False,) * len(self.names)
         return {n: {"value": float(v), "std": float(s) if np.isfinite(s) else None, "at_bound": bool(b)}
                 for n, v, s, b in zip(self.names, self.values, self.std, bounds)}  # fmt: skip
@@ -70,7 +70,15 @@ def fit_parameters(
     names = tuple(s.name for s in specs)
     if not specs:
         r = np.asarray(residual_fn(np.zeros(0)))
-        return CalibrationResult(names, np.zeros(0), np.zeros(0), float(np.sqrt(np.mean(r**2))) if r.size else 0.0, r.size, True, "nothing to fit")
+        return CalibrationResult(
+            names,
+            np.zeros(0),
+            np.zeros(0),
+            float(np.sqrt(np.mean(r**2))) if r.size else 0.0,
+            r.size,
+            True,
+            "nothing to fit",
+        )
     lo = np.array([s.lower for s in specs], dtype=float)
     hi = np.array([s.upper for s in specs], dtype=float)
     x0 = np.clip(np.array([s.initial for s in specs], dtype=float), lo, hi)

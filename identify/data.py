@@ -7,16 +7,16 @@ and thrust scales that predict it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
-from physics import ModelOptions
-from physics import EFFECT_NAMES, Effect, EffectInputs, SourceSample, base_wrench, effect_wrench
 from identify.flightlog import Flight, Manifest, interpolate_position_m, load_flight
 from identify.measure import MeasureOptions, measure_log
-from physics import Vehicle
+from physics import EFFECT_NAMES, Effect, EffectInputs, ModelOptions, SourceSample, Vehicle, base_wrench, effect_wrench
+
 
 @dataclass(frozen=True)
 class IdentifyOptions:
@@ -52,7 +52,7 @@ class Unit:
     torque_Nm: np.ndarray  # (N, 3) measured, world
     thrust: Any = None  # identify.thrust_rls.ThrustSamples of the full unit (None after take)
 
-    def take(self, idx: np.ndarray) -> "Unit":
+    def take(self, idx: np.ndarray) -> Unit:
         return replace(
             self,
             t_s=self.t_s[idx],
@@ -89,7 +89,9 @@ def unit_inputs(unit: Unit, model: Model) -> EffectInputs:
     )
 
 
-def predict(unit: Unit, model: Model, *, base: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def predict(
+    unit: Unit, model: Model, *, base: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Predicted measured wrench (force (N, 3) N, torque (N, 3) N m, world) of ``unit``.
 
     ``base`` may pass a precomputed base wrench for the same vehicles (saves the model call).
@@ -107,7 +109,9 @@ def predict(unit: Unit, model: Model, *, base: tuple[np.ndarray, np.ndarray] | N
 # ------------------------------------------------------------------------------ loading + measuring
 
 
-def load_units(manifest: Manifest, *, options: IdentifyOptions = IdentifyOptions()) -> tuple[list[Unit], dict, dict[str, Vehicle]]:
+def load_units(
+    manifest: Manifest, *, options: IdentifyOptions = IdentifyOptions()
+) -> tuple[list[Unit], dict, dict[str, Vehicle]]:
     """Load, check and measure every flight; returns units, exclusions per flight/vehicle, vehicles by type."""
     from scipy.spatial.transform import Rotation
 
@@ -122,9 +126,13 @@ def load_units(manifest: Manifest, *, options: IdentifyOptions = IdentifyOptions
     for entry in bar:
         vehicles = {}
         for v in entry.vehicles:
-            vehicles[v.name] = types.setdefault(v.type, resolve_vehicle(v.type, custom, where=f"{manifest.path}: flight {entry.name}: {v.name}.type"))
+            vehicles[v.name] = types.setdefault(
+                v.type, resolve_vehicle(v.type, custom, where=f"{manifest.path}: flight {entry.name}: {v.name}.type")
+            )
         flight: Flight = load_flight(entry, vehicles, options=manifest.quality)
-        exclusions[entry.name] = {n: e.to_dict() | {"kept_samples": len(flight.logs[n])} for n, e in flight.exclusions.items()}
+        exclusions[entry.name] = {
+            n: e.to_dict() | {"kept_samples": len(flight.logs[n])} for n, e in flight.exclusions.items()
+        }
         types_of = {v.name: v.type for v in entry.vehicles}
         for v in entry.vehicles:
             log = flight.logs[v.name]
@@ -142,10 +150,14 @@ def load_units(manifest: Manifest, *, options: IdentifyOptions = IdentifyOptions
                     height_above_ground_m=log.position_m[:, 2] - v.ground_z_m,
                     thrust_z_N=log.motor_thrust_N.sum(axis=1) * z_b[:, 2],
                     source_types=tuple(types_of[o.name] for o in others),
-                    source_offsets_m=tuple(log.position_m - interpolate_position_m(flight.logs[o.name], log.t_s) for o in others),
+                    source_offsets_m=tuple(
+                        log.position_m - interpolate_position_m(flight.logs[o.name], log.t_s) for o in others
+                    ),
                     force_N=meas.force_N,
                     torque_Nm=meas.torque_Nm,
-                    thrust=thrust_samples(vehicles[v.name], log.quat_xyzw, log.accel_mps2, log.velocity_mps, log.motor_thrust_N),
+                    thrust=thrust_samples(
+                        vehicles[v.name], log.quat_xyzw, log.accel_mps2, log.velocity_mps, log.motor_thrust_N
+                    ),
                 )
             )
     return units, exclusions, types
@@ -172,7 +184,10 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
         if len(us) == 1:
             out.append(us[0])
             continue
-        cat = lambda key: np.concatenate([getattr(u, key) for u in us])  # noqa: E731
+
+        def cat(key: str, us: list = us) -> np.ndarray:
+            return np.concatenate([getattr(u, key) for u in us])
+
         out.append(Unit(
             flight="+".join(u.flight for u in us), split=split, name="+".join(u.name for u in us), type=vtype,
             t_s=cat("t_s"), velocity_mps=cat("velocity_mps"), height_above_ground_m=cat("height_above_ground_m"),
@@ -202,7 +217,12 @@ class Errors:
     n_samples: int
 
     def to_json(self) -> dict[str, float]:
-        return {"rmse_fz_N": self.rmse_fz_N, "rmse_torque_Nm": self.rmse_torque_Nm, "rmse_tz_Nm": self.rmse_tz_Nm, "n_samples": self.n_samples}
+        return {
+            "rmse_fz_N": self.rmse_fz_N,
+            "rmse_torque_Nm": self.rmse_torque_Nm,
+            "rmse_tz_Nm": self.rmse_tz_Nm,
+            "n_samples": self.n_samples,
+        }
 
 
 def errors(units: Sequence[Unit], model: Model, *, bases: Sequence | None = None) -> Errors:

@@ -7,14 +7,15 @@ selection keeps what lowers the test error.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from identify.calibrate import ParamSpec, fit_parameters
+from identify.data import Errors, IdentifyOptions, Model, Unit, errors, predict, progress_bar, subsample, unit_inputs
 from physics import PARAMETERS, Effect, base_wrench
-from identify.data import Errors, IdentifyOptions, Model, Unit, progress_bar, errors, predict, subsample, unit_inputs
 
 # ------------------------------------------------------------------------------ effects
 
@@ -56,7 +57,9 @@ def _initial_params(name: str, fit_units: Sequence[Unit], model: Model) -> dict[
 
 
 _START_GRID: dict[str, list[dict[str, float]]] = {
-    "wake_advection": [{"wind_x_mps": wx, "wind_y_mps": wy} for wx in (-2.0, -1.0, 0.0, 1.0, 2.0) for wy in (-2.0, -1.0, 0.0, 1.0, 2.0)],
+    "wake_advection": [
+        {"wind_x_mps": wx, "wind_y_mps": wy} for wx in (-2.0, -1.0, 0.0, 1.0, 2.0) for wy in (-2.0, -1.0, 0.0, 1.0, 2.0)
+    ],
     "near_field": [{"decay_L": d, "amplitude": a} for d in (1.0, 3.0, 10.0) for a in (0.3, 1.0, 3.0)],
     "ground_effect": [{"gain_k": k} for k in (0.5, 2.0, 3.5)],
 }
@@ -82,7 +85,7 @@ def fit_effect(name: str, units: Sequence[Unit], model: Model, *, options: Ident
 
     def model_of(theta: np.ndarray) -> Model:
         eff = Effect(name, {k: float(v) for k, v in zip(keys, theta[: len(keys)])})
-        scales = dict(model.thrust_scale) | {t: float(v) for t, v in zip(types, theta[len(keys):])}
+        scales = dict(model.thrust_scale) | {t: float(v) for t, v in zip(types, theta[len(keys) :])}
         return replace(model, effects=model.effects + (eff,), thrust_scale=scales)
 
     def residual(theta: np.ndarray) -> np.ndarray:
@@ -150,8 +153,13 @@ def select_effects(
                 gt = _gain(err.rmse_tz_Nm, current.rmse_tz_Nm, 1e-7)
                 if best_here is None or gf + gt > best_here[0].gain_fz + best_here[0].gain_tz:
                     best_here = (EffectTrial(name, eff.full_params(), rnd, err, gf, gt), cand)
+            assert best_here is not None  # at least one candidate per round
             round_trials.append(best_here)
-        ok = [(t, c) for t, c in round_trials if max(t.gain_fz, t.gain_tz) >= options.min_gain and min(t.gain_fz, t.gain_tz) > -0.01]
+        ok = [
+            (t, c)
+            for t, c in round_trials
+            if max(t.gain_fz, t.gain_tz) >= options.min_gain and min(t.gain_fz, t.gain_tz) > -0.01
+        ]
         best = max(ok, key=lambda tc: tc[0].gain_fz + tc[0].gain_tz, default=None)
         for t, _ in round_trials:
             trials.append(replace(t, selected=best is not None and t is best[0]))

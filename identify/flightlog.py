@@ -24,14 +24,14 @@ from __future__ import annotations
 
 import gzip
 import io
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-from fileio import UserError
-from fileio import atomic_write_bytes
+from fileio import UserError, atomic_write_bytes
 
 CANONICAL_COLUMNS = (
     "t_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "ax_mps2", "ay_mps2", "az_mps2",
@@ -76,7 +76,7 @@ class Exclusions:
     def total(self) -> int:
         return self.nan_rows + self.short_segment_samples + self.ground_samples + self.outside_overlap_samples
 
-    def __add__(self, other: "Exclusions") -> "Exclusions":
+    def __add__(self, other: Exclusions) -> Exclusions:
         return Exclusions(*(a + b for a, b in zip(_fields(self), _fields(other))))
 
     def to_dict(self) -> dict[str, int]:
@@ -99,17 +99,19 @@ class VehicleLog:
     quat_xyzw: np.ndarray  # (N, 4) body -> world, scalar last
     motor_thrust_N: np.ndarray  # (N, 4) per-motor thrust, (S0-14) order
     gyro_radps: np.ndarray  # (N, 3) body rates, rad/s
-    segment: np.ndarray = field(default=None)  # (N,) int: contiguous-segment id (gaps split)
+    segment: np.ndarray = field(
+        default_factory=lambda: np.zeros(0, dtype=int)
+    )  # (N,) int: segment id (gaps split); empty = one segment
     source: str = ""
 
     def __post_init__(self) -> None:
-        if self.segment is None:
+        if self.segment.size != len(self.t_s):
             object.__setattr__(self, "segment", np.zeros(len(self.t_s), dtype=int))
 
     def __len__(self) -> int:
         return len(self.t_s)
 
-    def take(self, mask: np.ndarray) -> "VehicleLog":
+    def take(self, mask: np.ndarray) -> VehicleLog:
         """The samples where ``mask`` (N,) is True (or index array)."""
         return replace(
             self,
@@ -379,7 +381,9 @@ class Flight:
     exclusions: Mapping[str, Exclusions]
 
 
-def load_flight(entry: FlightEntry, vehicles: Mapping[str, Any], *, options: QualityOptions = QualityOptions()) -> Flight:
+def load_flight(
+    entry: FlightEntry, vehicles: Mapping[str, Any], *, options: QualityOptions = QualityOptions()
+) -> Flight:
     """Read, check and time-align the logs of one flight (each vehicle keeps its own clock).
 
     ``vehicles`` maps each vehicle name of the entry to its :class:`Vehicle`. Samples outside the
@@ -387,7 +391,9 @@ def load_flight(entry: FlightEntry, vehicles: Mapping[str, Any], *, options: Qua
     """
     logs, excl = {}, {}
     for v in entry.vehicles:
-        log, ex = check_log(read_log(v.log), weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options)
+        log, ex = check_log(
+            read_log(v.log), weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options
+        )
         if len(log) == 0:
             raise UserError(f"{v.log}: no usable samples after quality checks (ground/idle/NaN); flight {entry.name}")
         logs[v.name], excl[v.name] = log, ex
@@ -395,7 +401,9 @@ def load_flight(entry: FlightEntry, vehicles: Mapping[str, Any], *, options: Qua
     t1 = min(log.t_s[-1] for log in logs.values())
     if len(logs) > 1 and t1 - t0 < options.min_overlap_s:
         spans = ", ".join(f"{n} {log.t_s[0]:.2f}-{log.t_s[-1]:.2f} s" for n, log in logs.items())
-        raise UserError(f"flight {entry.name}: vehicles do not overlap in time ({spans}); need {options.min_overlap_s} s")
+        raise UserError(
+            f"flight {entry.name}: vehicles do not overlap in time ({spans}); need {options.min_overlap_s} s"
+        )
     for name, log in list(logs.items()):
         inside = (log.t_s >= t0) & (log.t_s <= t1)
         logs[name] = log.take(inside)

@@ -26,20 +26,37 @@ Fits use at most ``max_fit_samples`` train samples and scoring ``max_eval_sample
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-from identify.calibrate import CalibrationResult, ParamSpec, apply_vehicle_parameters, fit_parameters, vehicle_param_specs
-from physics import ModelOptions, VALIDITY_FACTOR_L
-from physics import base_wrench
 from fileio import UserError
+from identify.calibrate import (
+    CalibrationResult,
+    ParamSpec,
+    apply_vehicle_parameters,
+    fit_parameters,
+    vehicle_param_specs,
+)
+from identify.data import (
+    Errors,
+    IdentifyOptions,
+    Model,
+    Unit,
+    errors,
+    load_units,
+    merge_units,
+    predict,
+    subsample,
+    unit_inputs,
+)
+from identify.effect_selection import EffectTrial, select_effects
 from identify.flightlog import Manifest, load_manifest
 from identify.residuals import correlate, sample_features
-from identify.effect_selection import EffectTrial, select_effects
-from identify.data import Errors, IdentifyOptions, Model, Unit, errors, load_units, merge_units, predict, subsample, unit_inputs
+from physics import VALIDITY_FACTOR_L, ModelOptions, base_wrench
 
 # ------------------------------------------------------------------------------ calibration
 
@@ -51,7 +68,9 @@ def _roles(units: Sequence[Unit]) -> tuple[set[str], set[str], list[str]]:
     return sources, targets, types
 
 
-def calibrate_model(units: Sequence[Unit], model: Model, *, options: IdentifyOptions) -> tuple[Model, CalibrationResult]:
+def calibrate_model(
+    units: Sequence[Unit], model: Model, *, options: IdentifyOptions
+) -> tuple[Model, CalibrationResult]:
     """Fit c_ax, z0_m, c_rad (source types), b_v (target types), thrust scale (all types) on F_z."""
     fit_units = subsample(units, options.max_fit_samples)
     sources, targets, types = _roles(fit_units)
@@ -108,7 +127,11 @@ class IdentifyResult:
     def to_json(self) -> dict[str, Any]:
         cal = {}
         if self.calibration is not None:
-            cal = {"parameters": self.calibration.to_json(), "rmse_fz_N_train": self.calibration.rmse, "success": self.calibration.success}
+            cal = {
+                "parameters": self.calibration.to_json(),
+                "rmse_fz_N_train": self.calibration.rmse,
+                "success": self.calibration.success,
+            }
         return {
             "before": self.before.to_json(),
             "after": self.after.to_json(),
@@ -118,10 +141,14 @@ class IdentifyResult:
             "calibration": cal,
             "thrust_scale": dict(self.final_model.thrust_scale),
             "exclusions": self.exclusions,
-            "residual_correlations": [{"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations],
+            "residual_correlations": [
+                {"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations
+            ],
             "unexplained": self.unexplained,
             "validity": self.validity,
-            "thrust_coefficient": {t: {k: v for k, v in d.items() if not k.startswith("_")} for t, d in self.thrust_coefficient.items()},
+            "thrust_coefficient": {
+                t: {k: v for k, v in d.items() if not k.startswith("_")} for t, d in self.thrust_coefficient.items()
+            },
         }
 
 
@@ -138,7 +165,9 @@ def _zone_masks(u: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:
     return below, valid
 
 
-def _validity(units: Sequence[Unit], before: Model, after: Model, bases_before: list, bases_after: list) -> dict[str, Any]:
+def _validity(
+    units: Sequence[Unit], before: Model, after: Model, bases_before: list, bases_after: list
+) -> dict[str, Any]:
     """Samples below a source (dz > 0, r < 3 L) inside / outside the zone dz > 3 L (S0 II-A), with
     the test RMSE of F_z before and after on each part."""
     below, valid, res_b, res_a = [], [], [], []
@@ -166,7 +195,8 @@ def _validity(units: Sequence[Unit], before: Model, after: Model, bases_before: 
 
 
 def _residual_analysis(units: Sequence[Unit], model: Model):
-    res, feats = [], {}
+    res: list[np.ndarray] = []
+    feats: dict[str, list[np.ndarray]] = {}
     for u in units:
         f, _ = predict(u, model)
         res.append(u.force_N[:, 2] - f[:, 2])
@@ -176,8 +206,11 @@ def _residual_analysis(units: Sequence[Unit], model: Model):
     return correlate(np.concatenate(res), {k: np.concatenate(v) for k, v in feats.items()})
 
 
-def run_identify(manifest: Manifest | str | Path, *, options: IdentifyOptions = IdentifyOptions(), thrust_summary: bool = True) -> IdentifyResult:
+def run_identify(
+    manifest: Manifest | str | Path, *, options: IdentifyOptions | None = None, thrust_summary: bool = True
+) -> IdentifyResult:
     """The whole pipeline on a manifest; errors are on TEST flights."""
+    options = options or IdentifyOptions()
     if not isinstance(manifest, Manifest):
         manifest = load_manifest(manifest)
     units, exclusions, types = load_units(manifest, options=options)
@@ -185,7 +218,9 @@ def run_identify(manifest: Manifest | str | Path, *, options: IdentifyOptions = 
     test = [u for u in units if u.split == "test" and len(u)]
     if not train or not test:
         raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
-    base = Model(vehicles=types, thrust_scale={t: 1.0 for t in types}, options=ModelOptions(field_form=options.field_form))
+    base = Model(
+        vehicles=types, thrust_scale={t: 1.0 for t in types}, options=ModelOptions(field_form=options.field_form)
+    )
     test_all = merge_units(test)  # every test sample, pooled
     cache: dict[int, tuple[Any, list]] = {}  # id(vehicles) -> (vehicles, base wrench per unit)
 

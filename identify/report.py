@@ -9,14 +9,15 @@ Files written into DIR (each atomically, temp file + rename):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from identify.pipeline import IdentifyResult
-from identify.data import predict
-from identify.residuals import sample_features
 from fileio import atomic_write_text, save_figure
+from identify.data import predict
+from identify.pipeline import IdentifyResult
+from identify.residuals import sample_features
 
 
 def _save(fig, path: Path) -> None:
@@ -54,14 +55,15 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
     plt.close(fig)
     written.append(p)
     # 2. residual vs features
-    res, feats = [], {}
+    res: list[np.ndarray] = []
+    feats: dict[str, list[np.ndarray]] = {}
     from identify.data import subsample
 
     for u in subsample(test, 50000):
         f, _ = predict(u, result.final_model)
         res.append(u.force_N[:, 2] - f[:, 2])
-        for k, v in sample_features(u.height_above_ground_m, u.velocity_mps, list(u.source_offsets_m)).items():
-            feats.setdefault(k, []).append(v)
+        for key, v in sample_features(u.height_above_ground_m, u.velocity_mps, list(u.source_offsets_m)).items():
+            feats.setdefault(key, []).append(v)
     r = np.concatenate(res)
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), sharey=True)
     for ax, key in zip(axes, ("dz_m", "r_m", "height_above_ground_m")):
@@ -79,8 +81,16 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
     # 3. effects before/after
     first = [tr for tr in result.trials if tr.round == 1]
     labels = ["before", "calibrated"] + [tr.name for tr in first] + ["after"]
-    fz = [result.before.rmse_fz_N, result.calibrated.rmse_fz_N] + [tr.test.rmse_fz_N for tr in first] + [result.after.rmse_fz_N]
-    tz = [result.before.rmse_tz_Nm, result.calibrated.rmse_tz_Nm] + [tr.test.rmse_tz_Nm for tr in first] + [result.after.rmse_tz_Nm]
+    fz = (
+        [result.before.rmse_fz_N, result.calibrated.rmse_fz_N]
+        + [tr.test.rmse_fz_N for tr in first]
+        + [result.after.rmse_fz_N]
+    )
+    tz = (
+        [result.before.rmse_tz_Nm, result.calibrated.rmse_tz_Nm]
+        + [tr.test.rmse_tz_Nm for tr in first]
+        + [result.after.rmse_tz_Nm]
+    )
     fig, axes = plt.subplots(1, 2, figsize=(13, 4))
     for ax, vals, name in zip(axes, (fz, tz), ("test RMSE F_z [N]", "test RMSE yaw torque [N m]")):
         colors = ["tab:red", "tab:orange"] + ["tab:gray"] * len(first) + ["tab:green"]
@@ -115,34 +125,56 @@ def _fmt(x: float | None, digits: int = 4) -> str:
     return "n/a" if x is None else f"{x:.{digits}g}"
 
 
-def markdown(result: IdentifyResult, *, manifest: str = "", plots: list[Path] = ()) -> str:
+def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path] = ()) -> str:
     b, c, a = result.before, result.calibrated, result.after
     lines = [f"# proxplan identify — {manifest}", ""]
     lines += ["## Test-flight error before and after", "",
               "| model | RMSE F_z [N] | RMSE torque [N m] | RMSE yaw torque [N m] | samples |", "|---|---|---|---|---|"]  # fmt: skip
     for name, e in (("before (model as given)", b), ("calibrated", c), ("after (calibrated + effects)", a)):
-        lines.append(f"| {name} | {_fmt(e.rmse_fz_N)} | {_fmt(e.rmse_torque_Nm)} | {_fmt(e.rmse_tz_Nm)} | {e.n_samples} |")
+        lines.append(
+            f"| {name} | {_fmt(e.rmse_fz_N)} | {_fmt(e.rmse_torque_Nm)} | {_fmt(e.rmse_tz_Nm)} | {e.n_samples} |"
+        )
     cut = 100.0 * (1.0 - a.rmse_fz_N / b.rmse_fz_N) if b.rmse_fz_N > 0 else 0.0
     lines += ["", f"Selected effects: **{', '.join(result.selected) or 'none'}**. F_z error cut by {cut:.1f} %.", ""]
     lines += ["## Candidate effects (fitted on train, scored on test)", "",
               "| round | effect | params | RMSE F_z [N] | gain F_z | gain yaw | kept |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     for tr in result.trials:
         params = ", ".join(f"{k}={v:.4g}" for k, v in tr.params.items())
-        lines.append(f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {100 * tr.gain_fz:.1f} % | {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} |")
+        lines.append(
+            f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {100 * tr.gain_fz:.1f} % | {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} |"
+        )
     if result.calibration is not None:
-        lines += ["", "## Calibrated parameters (train flights; one-sigma from the Jacobian)", "", "| parameter | value | std |", "|---|---|---|"]
+        lines += [
+            "",
+            "## Calibrated parameters (train flights; one-sigma from the Jacobian)",
+            "",
+            "| parameter | value | std |",
+            "|---|---|---|",
+        ]
         cal = result.calibration
-        for n, v, s, b in zip(cal.names, cal.values, cal.std, cal.at_bound or (False,) * len(cal.names)):
-            std = "at a fit bound" if b else (_fmt(float(s)) if np.isfinite(s) else "not identifiable")
+        for n, v, s, at_bound in zip(cal.names, cal.values, cal.std, cal.at_bound or (False,) * len(cal.names)):
+            std = "at a fit bound" if at_bound else (_fmt(float(s)) if np.isfinite(s) else "not identifiable")
             lines.append(f"| {n} | {v:.5g} | {std} |")
-        lines += ["", "Thrust scales are nuisance parameters of the calibration (they keep a thrust-sensor "
-                  "error out of the aerodynamic parameters); only `thrust_bias`, if kept, carries one into the model."]
-    lines += ["", "## Residual analysis (final model, test flights, F_z)", "", "| feature | pearson | eta |", "|---|---|---|"]
+        lines += [
+            "",
+            "Thrust scales are nuisance parameters of the calibration (they keep a thrust-sensor "
+            "error out of the aerodynamic parameters); only `thrust_bias`, if kept, carries one into the model.",
+        ]
+    lines += [
+        "",
+        "## Residual analysis (final model, test flights, F_z)",
+        "",
+        "| feature | pearson | eta |",
+        "|---|---|---|",
+    ]
     for corr in result.correlations:
         lines.append(f"| {corr.feature} | {corr.pearson:.3f} | {corr.eta:.3f} |")
     if result.unexplained:
         u = result.unexplained
-        lines += ["", f"**Unexplained residual**: it still correlates with `{u['feature']}` (pearson {u['pearson']:.2f}, eta {u['eta']:.2f}); no effect of the library removed it."]
+        lines += [
+            "",
+            f"**Unexplained residual**: it still correlates with `{u['feature']}` (pearson {u['pearson']:.2f}, eta {u['eta']:.2f}); no effect of the library removed it.",
+        ]
     v = result.validity
     lines += ["", "## Validity", "", f"Samples below a source (r < 3 L): {v['samples_below_a_source']}; in the model's zone dz > 3 L: "
               f"{v['samples_in_valid_zone']} ({_fmt(v['fraction_valid'], 3)}). {v['note']}.", "",

@@ -6,7 +6,8 @@ truth wrench exactly. Closed-loop synthetic flights come from :mod:`flightsim`.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -33,9 +34,7 @@ def synthetic_logs(
     This is a measurement-level generator (no rigid-body simulation): for closed-loop flights use
     the simulator (flightsim).
     """
-    from physics import mixer_matrix
-    from physics import EffectInputs, SourceSample, total_wrench
-    from physics import GRAVITY_MPS2
+    from physics import GRAVITY_MPS2, EffectInputs, SourceSample, mixer_matrix, total_wrench
 
     rng = np.random.default_rng(seed)
     n = len(t_s)

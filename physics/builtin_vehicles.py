@@ -61,7 +61,9 @@ SMALL_QUAD = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.045, arm_width_m=0.008, motor_pod_diameter_m=0.014),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.033, c_rad=60.808),  # [S0] IV-B
-    kinematics=KinematicLimits(max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0),  # [A] tracked by the default controller
+    kinematics=KinematicLimits(
+        max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0
+    ),  # [A] tracked by the default controller
     motor_time_constant_s=0.04,  # [A] 5-10 inch brushless value (DEFAULT_MOTOR_TIME_CONSTANT_S), s
     sources={
         "mass/arm/propeller/max thrust": "S0 Table I",
@@ -90,7 +92,9 @@ LARGE_QUAD = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.10, arm_width_m=0.018, motor_pod_diameter_m=0.030),  # [A]
     downwash=DownwashSpec(c_ax=4.886, z0_m=0.110, c_rad=24.936),  # [S0] IV-B
-    kinematics=KinematicLimits(max_speed_mps=1.0, max_accel_mps2=2.0, max_jerk_mps3=8.0),  # [A] tracked by the default controller
+    kinematics=KinematicLimits(
+        max_speed_mps=1.0, max_accel_mps2=2.0, max_jerk_mps3=8.0
+    ),  # [A] tracked by the default controller
     motor_time_constant_s=0.04,  # [A] 5-10 inch brushless value (DEFAULT_MOTOR_TIME_CONSTANT_S), s
     sources={
         "mass/arm/propeller/max thrust": "S0 Table I",
@@ -119,7 +123,9 @@ CRAZYFLIE_21 = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.030, arm_width_m=0.005, motor_pod_diameter_m=0.009),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.092, c_rad=60.808),  # [A] S0 small quad, z0/L kept
-    kinematics=KinematicLimits(max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0),  # [A] tracked by the default controller
+    kinematics=KinematicLimits(
+        max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0
+    ),  # [A] tracked by the default controller
     motor_time_constant_s=0.072,  # [ET], s
     sources={
         "mass, geometry": "Neural-Swarm README",
@@ -146,7 +152,9 @@ CRAZYFLIE_PARROT = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.035, arm_width_m=0.007, motor_pod_diameter_m=0.012),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.120, c_rad=60.808),  # [A] as crazyflie-2.1
-    kinematics=KinematicLimits(max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0),  # [A] tracked by the default controller
+    kinematics=KinematicLimits(
+        max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0
+    ),  # [A] tracked by the default controller
     motor_time_constant_s=0.072,  # [ET] same motors and firmware as the Crazyflie, s
     sources={
         "mass": "Neural-Swarm README",
@@ -154,6 +162,4 @@ CRAZYFLIE_PARROT = Vehicle(
     },
 )
 
-BUILTIN_VEHICLES: dict[str, Vehicle] = {
-    v.name: v for v in (SMALL_QUAD, LARGE_QUAD, CRAZYFLIE_21, CRAZYFLIE_PARROT)
-}
+BUILTIN_VEHICLES: dict[str, Vehicle] = {v.name: v for v in (SMALL_QUAD, LARGE_QUAD, CRAZYFLIE_21, CRAZYFLIE_PARROT)}

@@ -23,7 +23,8 @@ from functools import lru_cache
 import numpy as np
 
 from physics.geometry import Discretisation, disk_samples, frame_elements
-from physics.vehicles import AIR_DENSITY_KGPM3, Vehicle
+from physics.propeller import AIR_DENSITY_KGPM3
+from physics.vehicles import Vehicle
 from physics.velocity_field import (
     DEFAULT_FIELD_FORM,
     FIELD_FORMS,
@@ -85,9 +86,7 @@ def validity_mask(source: Vehicle, offsets_m: np.ndarray) -> np.ndarray:
     return -np.asarray(offsets_m)[:, 2] > VALIDITY_FACTOR_L * source.size_m
 
 
-def vertical_point_wrench(
-    points_m: np.ndarray, force_z_N: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def vertical_point_wrench(points_m: np.ndarray, force_z_N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Sum vertical point forces (N, K), N, at body points (K, 3), m, into force (N, 3), N, and
     torque about the centre of mass (N, 3), N m: tau = r x (0, 0, F_z) (S0-4, S0-8)."""
     n = force_z_N.shape[0]
@@ -112,9 +111,7 @@ def _planar_profile(
     one matrix product and one exponential.
     """
     dz_m = -(offsets_m[:, 2] + points_m[0, 2])  # all points share the rotor plane (geometry)
-    v_max = centreline_speed_mps(
-        source, dz_m, form=options.field_form, air_density_kgpm3=options.air_density_kgpm3
-    )
+    v_max = centreline_speed_mps(source, dz_m, form=options.field_form, air_density_kgpm3=options.air_density_kgpm3)
     inv_axial_sq = 1.0 / axial_distance_m(source, dz_m) ** 2
     off_xy, pts_xy = offsets_m[:, :2], points_m[:, :2]
     scaled = off_xy @ (2.0 * pts_xy.T)  # 2 o.p, (N, K)
@@ -125,9 +122,7 @@ def _planar_profile(
     return v_max, radial_profile(source, scaled)
 
 
-def _disk_average_speed(
-    source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
-) -> np.ndarray:
+def _disk_average_speed(source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions) -> np.ndarray:
     """(N, 4) disk-averaged oncoming speed, m/s (equal-weight quadrature of the geometry module)."""
     disks = disk_samples(target, options.discretisation)
     v_max, profile = _planar_profile(source, offsets_m, disks.flat_position_m, options)
@@ -218,8 +213,7 @@ def disturbance_wrench(
     """
     offsets = _checked_offsets(offsets_m)
     blocks = [
-        _wrench_block(source, target, offsets[i : i + _CHUNK], options)
-        for i in range(0, offsets.shape[0], _CHUNK)
+        _wrench_block(source, target, offsets[i : i + _CHUNK], options) for i in range(0, offsets.shape[0], _CHUNK)
     ]
     if blocks:
         drag_f, drag_t, thrust_f, thrust_t = (np.concatenate(parts) for parts in zip(*blocks))

@@ -101,9 +101,7 @@ class Effect:
 
     def __post_init__(self) -> None:
         if self.name not in PARAMETERS:
-            raise ValueError(
-                f"unknown effect {self.name!r}; expected one of {', '.join(EFFECT_NAMES)}"
-            )
+            raise ValueError(f"unknown effect {self.name!r}; expected one of {', '.join(EFFECT_NAMES)}")
         unknown = sorted(set(self.params) - set(PARAMETERS[self.name]))
         if unknown:
             raise ValueError(
@@ -133,9 +131,7 @@ def _zeros(n: int) -> tuple[np.ndarray, np.ndarray]:
     return np.zeros((n, 3)), np.zeros((n, 3))
 
 
-def _base_source_wrench(
-    source: SourceSample, target: Vehicle, options: ModelOptions
-) -> tuple[np.ndarray, np.ndarray]:
+def _base_source_wrench(source: SourceSample, target: Vehicle, options: ModelOptions) -> tuple[np.ndarray, np.ndarray]:
     batch = disturbance_wrench(source.vehicle, target, source.offsets_m, options)
     return batch.force_N, batch.torque_Nm
 
@@ -171,9 +167,7 @@ def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
 # --------------------------------------------------------------------------- effects
 
 
-def _thrust_bias(
-    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
-) -> tuple[np.ndarray, np.ndarray]:
+def _thrust_bias(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Constant vertical force ``force_z_N`` (N, world z): a thrust-calibration error (k1 or the
     PWM-to-thrust map off by a constant), seen by the S0-11 measurement as a steady bias."""
     force, torque = _zeros(inputs.n_samples)
@@ -181,9 +175,7 @@ def _thrust_bias(
     return force, torque
 
 
-def _ground_effect(
-    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
-) -> tuple[np.ndarray, np.ndarray]:
+def _ground_effect(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Cheeseman-Bennett ground effect: T_IGE / T_OGE = 1 / (1 - k (R / 4h)^2), R rotor radius (m),
     h rotor plane height above ground (m), k = ``gain_k`` (1 in the original method-of-images
     derivation). Applied to the target's hover thrust (its weight, N): Delta F_z = W (ratio - 1),
@@ -192,15 +184,12 @@ def _ground_effect(
     h_m = np.maximum(np.asarray(inputs.height_above_ground_m, dtype=float), 1e-6)
     r_m = inputs.target.propeller.radius_m
     denom = 1.0 - p["gain_k"] * (r_m / (4.0 * h_m)) ** 2
-    ratio = np.where(denom > 1.0 / MAX_GROUND_EFFECT_RATIO, 1.0 / np.maximum(denom, 1e-9),
-                     MAX_GROUND_EFFECT_RATIO)
+    ratio = np.where(denom > 1.0 / MAX_GROUND_EFFECT_RATIO, 1.0 / np.maximum(denom, 1e-9), MAX_GROUND_EFFECT_RATIO)
     force[:, 2] = inputs.target.weight_N * (ratio - 1.0)
     return force, torque
 
 
-def _near_field(
-    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
-) -> tuple[np.ndarray, np.ndarray]:
+def _near_field(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Downwash stronger than the far-field model close to the source (the zone of flow
     establishment, S0 II-A): extra wrench = base source wrench * ``amplitude`` *
     exp(-dz / (``decay_L`` * L_source)) for dz > 0 (target below), zero otherwise; L = 2 x arm (m)."""
@@ -217,9 +206,7 @@ def _near_field(
     return force, torque
 
 
-def _wake_swirl(
-    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
-) -> tuple[np.ndarray, np.ndarray]:
+def _wake_swirl(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Yaw torque from the swirl of the source's wake, proportional to the base vertical force it
     causes: tau_z = ``yaw_per_force_m`` * F_z,base (N m; F_z,base < 0 in a downwash, so a positive
     parameter gives a negative, clockwise-from-above torque). No force."""
@@ -229,9 +216,7 @@ def _wake_swirl(
     return force, torque
 
 
-def _wake_advection(
-    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
-) -> tuple[np.ndarray, np.ndarray]:
+def _wake_advection(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """A steady horizontal wind (``wind_x_mps``, ``wind_y_mps``) carries the wake downstream while
     it descends at ``convection_speed_mps``: at depth dz > 0 the wake axis is displaced by
     wind_xy * dz / convection_speed, so the target sees the base field at the effective offset
@@ -245,17 +230,13 @@ def _wake_advection(
         dz_m = np.maximum(-offsets[:, 2], 0.0)
         shifted = offsets.copy()
         shifted[:, :2] -= wind[None, :] * (dz_m / p["convection_speed_mps"])[:, None]
-        f1, t1 = _base_source_wrench(
-            SourceSample(src.vehicle, shifted), inputs.target, inputs.options
-        )
+        f1, t1 = _base_source_wrench(SourceSample(src.vehicle, shifted), inputs.target, inputs.options)
         force += f1 - f0
         torque += t1 - t0
     return force, torque
 
 
-def _own_velocity(
-    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
-) -> tuple[np.ndarray, np.ndarray]:
+def _own_velocity(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Thrust change of the target with its own motion, after seed 001 eq. 25
     (C_T = C_T0 + C_Tlambda lambda + C_Tmu mu + C_Tw w + C_Tmu2 mu^2, S1-25), written per unit weight:
 
@@ -273,9 +254,7 @@ def _own_velocity(
     return force, torque
 
 
-def _thrust_quadratic(
-    p: dict[str, float], inputs: EffectInputs, base: _BaseCache
-) -> tuple[np.ndarray, np.ndarray]:
+def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Nonlinear thrust loss in the oncoming downwash, beyond the linear (S0-6):
     Delta f_i = -b_q v_on,i^2 omega_i^2 with b_q = ``b_q_rel_spm`` * b_v of the target
     (b_q in N s^4 m^-2 rad^-2; the parameter, s/m, is the ratio b_q / b_v, so one value suits any
@@ -310,9 +289,7 @@ def effect_wrench(effect: Effect, inputs: EffectInputs) -> tuple[np.ndarray, np.
     return _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, _BaseCache(inputs))
 
 
-def total_wrench(
-    inputs: EffectInputs, effects: Sequence[Effect] = ()
-) -> tuple[np.ndarray, np.ndarray]:
+def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Base model summed over all sources plus every effect in ``effects``: force (N, 3), N, and
     torque (N, 3), N m, world frame."""
     cache = _BaseCache(inputs)

@@ -20,7 +20,6 @@ The relative sensitivity s comes from the theory; k1 is the propeller's own (mea
 from __future__ import annotations
 
 import math
-
 from dataclasses import dataclass
 
 AIR_DENSITY_KGPM3 = 1.225
@@ -68,8 +67,6 @@ class PropellerSpec:
     def pitch_angle_rad(self) -> float:
         """Blade pitch at 75 % radius, theta = atan(pitch / (2 pi 0.75 R)), rad."""
         return math.atan(self.pitch_m / (2.0 * math.pi * 0.75 * self.radius_m))
-
-
 
 
 def thrust_coefficient(prop: PropellerSpec, climb_inflow_ratio: float) -> float:

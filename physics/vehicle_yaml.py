@@ -28,12 +28,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
+from fileio import UserError, read_yaml
 from physics.builtin_vehicles import BUILTIN_VEHICLES
-from fileio import UserError
-from fileio import read_yaml
 from physics.propeller import PropellerSpec
 from physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
 
@@ -47,9 +47,7 @@ _SECTIONS: dict[str, type] = {"propeller": PropellerSpec, "frame": FrameSpec, "d
 _OPTIONAL_FIELDS = {"min_motor_thrust_N", "description", "motor_time_constant_s"}
 
 
-def _number(
-    value: Any, where: str, *, positive: bool, allow_none: bool = False, signed: bool = False
-) -> float | None:
+def _number(value: Any, where: str, *, positive: bool, allow_none: bool = False, signed: bool = False) -> float | None:
     """Validate a finite number: > 0 if ``positive``, any sign if ``signed``, else >= 0."""
     if value is None and allow_none:
         return None
@@ -109,12 +107,17 @@ def vehicle_from_dict(name: str, data: Any, *, source: str = "<vehicle>") -> Veh
         base = BUILTIN_VEHICLES.get(str(data["base"]))
         if base is None:
             raise UserError(
-                f"{where}.base: unknown vehicle type {data['base']!r}; built-in types are "
-                f"{', '.join(BUILTIN_VEHICLES)}"
+                f"{where}.base: unknown vehicle type {data['base']!r}; built-in types are {', '.join(BUILTIN_VEHICLES)}"
             )
     values: dict[str, Any] = {"name": name}
-    for key in ("mass_kg", "arm_length_m", "max_thrust_N", "torque_to_thrust_m", "min_motor_thrust_N",
-                "motor_time_constant_s"):
+    for key in (
+        "mass_kg",
+        "arm_length_m",
+        "max_thrust_N",
+        "torque_to_thrust_m",
+        "min_motor_thrust_N",
+        "motor_time_constant_s",
+    ):
         if key in data:
             values[key] = _number(data[key], f"{where}.{key}", positive=key in _POSITIVE)
         elif base is not None:
@@ -140,8 +143,9 @@ def vehicle_from_dict(name: str, data: Any, *, source: str = "<vehicle>") -> Veh
         else:
             raise UserError(f"{where}: missing key {key!r}")
     if "kinematics" in data:
-        values["kinematics"] = _section(KinematicLimits, data["kinematics"], getattr(base, "kinematics", None),
-                                        f"{where}.kinematics")
+        values["kinematics"] = _section(
+            KinematicLimits, data["kinematics"], getattr(base, "kinematics", None), f"{where}.kinematics"
+        )
     elif base is not None:
         values["kinematics"] = base.kinematics
     values["description"] = str(data.get("description", f"custom vehicle from {source}"))
@@ -162,7 +166,9 @@ def load_vehicle_file(path: str | Path) -> dict[str, Vehicle]:
         raise UserError(f"{path}: expected a top-level 'vehicles:' mapping of NAME: parameters")
     unknown = set(doc) - {"vehicles", "model"}
     if unknown:
-        raise UserError(f"{path}: unknown top-level key {sorted(unknown)[0]!r}; expected 'vehicles' and optional 'model'")
+        raise UserError(
+            f"{path}: unknown top-level key {sorted(unknown)[0]!r}; expected 'vehicles' and optional 'model'"
+        )
     return {str(n): vehicle_from_dict(str(n), d, source=str(path)) for n, d in doc["vehicles"].items()}
 
 
@@ -209,8 +215,14 @@ def vehicle_to_yaml_dict(vehicle: Vehicle, *, base: str | None = None) -> dict[s
     if base is not None:
         out["base"] = base
     out["description"] = vehicle.description
-    for key in ("mass_kg", "arm_length_m", "max_thrust_N", "min_motor_thrust_N", "torque_to_thrust_m",
-                "motor_time_constant_s"):
+    for key in (
+        "mass_kg",
+        "arm_length_m",
+        "max_thrust_N",
+        "min_motor_thrust_N",
+        "torque_to_thrust_m",
+        "motor_time_constant_s",
+    ):
         out[key] = float(getattr(vehicle, key))
     if vehicle.kinematics is not None:
         out["kinematics"] = dataclasses.asdict(vehicle.kinematics)

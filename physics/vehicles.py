@@ -16,7 +16,7 @@ from functools import cached_property
 
 import numpy as np
 
-from physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
+from physics.propeller import PropellerSpec, derived_b_v
 
 GRAVITY_MPS2 = 9.81
 """Standard gravity used throughout, m/s^2."""

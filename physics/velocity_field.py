@@ -26,7 +26,8 @@ import math
 
 import numpy as np
 
-from physics.vehicles import AIR_DENSITY_KGPM3, Vehicle
+from physics.propeller import AIR_DENSITY_KGPM3
+from physics.vehicles import Vehicle
 
 FIELD_FORMS = ("inverse-z", "printed")
 DEFAULT_FIELD_FORM = "inverse-z"
@@ -34,9 +35,7 @@ DEFAULT_FIELD_FORM = "inverse-z"
 
 def induced_velocity_mps(source: Vehicle, air_density_kgpm3: float = AIR_DENSITY_KGPM3) -> float:
     """Hover induced velocity V_i = sqrt(T / (2 rho A_p)) of one source rotor (S0-1), m/s."""
-    return math.sqrt(
-        source.hover_thrust_per_rotor_N / (2.0 * air_density_kgpm3 * source.propeller.disk_area_m2)
-    )
+    return math.sqrt(source.hover_thrust_per_rotor_N / (2.0 * air_density_kgpm3 * source.propeller.disk_area_m2))
 
 
 def axial_distance_m(source: Vehicle, dz_m: np.ndarray) -> np.ndarray:

@@ -33,11 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError
-from fileio import atomic_write_text, read_json
-from physics import BUILTIN_VEHICLES
-from physics import vehicle_from_dict, vehicle_to_yaml_dict
-from physics import Vehicle
+from fileio import UserError, atomic_write_text, read_json
+from physics import BUILTIN_VEHICLES, Vehicle, vehicle_from_dict, vehicle_to_yaml_dict
 
 PLAN_FORMAT_VERSION = 2
 READABLE_FORMAT_VERSIONS = (1, 2)
@@ -232,7 +229,9 @@ def _vehicle_types(doc: dict, version: int, label: str) -> dict[str, Vehicle]:
     raw = doc.get("vehicle_types")
     if not isinstance(raw, dict) or not raw:
         raise UserError(f"{label}: vehicle_types: expected an object TYPE: {{vehicle parameters}} (format 2)")
-    return {str(name): vehicle_from_dict(str(name), data, source=f"{label}: vehicle_types") for name, data in raw.items()}
+    return {
+        str(name): vehicle_from_dict(str(name), data, source=f"{label}: vehicle_types") for name, data in raw.items()
+    }
 
 
 def plan_from_dict(doc: Any, *, label: str = "<plan>") -> Plan:

@@ -22,16 +22,15 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-from fileio import UserError
-from fileio import read_yaml
-from physics import VALIDITY_FACTOR_L
-from physics import KinematicLimits, Vehicle
+from fileio import UserError, read_yaml
+from physics import VALIDITY_FACTOR_L, KinematicLimits, Vehicle
 
 TOP_KEYS = ("name", "description", "vehicle_file", "model", "workspace", "obstacles", "limits", "vehicles")
 LIMIT_KEYS = (
@@ -56,6 +55,7 @@ INVALID_ZONE_RULES = ("conservative", "model", "forbid")
 """How the planner treats 0 < dz <= 3 L of a source where the field model is not valid (S0 II-A):
 ``conservative`` (default) uses the cost map's conservative cutoff there; ``model`` uses the
 model's extrapolated numbers; ``forbid`` keeps targets out of the whole invalid cylinder."""
+
 
 @dataclass(frozen=True)
 class Box:
@@ -152,8 +152,9 @@ class Scenario:
                 entry["hover"] = True
             else:
                 entry["dock"] = {"with": task.dock_with, "offset": np.asarray(task.dock_offset_m).tolist()}
-            entry.update(max_speed_mps=task.max_speed_mps, max_accel_mps2=task.max_accel_mps2,
-                         max_jerk_mps3=task.max_jerk_mps3)
+            entry.update(
+                max_speed_mps=task.max_speed_mps, max_accel_mps2=task.max_accel_mps2, max_jerk_mps3=task.max_jerk_mps3
+            )
             vehicles[name] = entry
         lim = self.limits
         return {
@@ -181,6 +182,7 @@ class Scenario:
             return task.goal_m
         if task.hover:
             return task.start_m
+        assert task.dock_with is not None and task.dock_offset_m is not None  # goal, hover or dock
         return self.final_position_m(task.dock_with) + task.dock_offset_m
 
     def dock_geometry(self, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -191,26 +193,31 @@ class Scenario:
         horizontal offsets it lies 0.5 m further out than the dock point.
         """
         task = self.vehicles[name]
+        if task.dock_with is None or task.dock_offset_m is None:
+            raise ValueError(f"vehicle {name!r} does not dock")
         target = self.vehicles[task.dock_with]
         p_target = self.final_position_m(task.dock_with)
-        off = task.dock_offset_m
+        off = np.asarray(task.dock_offset_m, dtype=float)
         d = p_target + off
         n = float(np.linalg.norm(off))
-        u = off / n if n > 0 else np.array([0.0, 0.0, 1.0])
+        u: np.ndarray = off / n if n > 0 else np.array([0.0, 0.0, 1.0])
         if abs(u[2]) >= 0.5:
             upper = task.vehicle if off[2] > 0 else target.vehicle
             reach = max(n + 0.3, (VALIDITY_FACTOR_L * upper.size_m + DOCK_APPROACH_MARGIN_M) / abs(u[2]))
         else:
             reach = n + 0.5
         a = p_target + u * reach
-        a = np.clip(a, self.workspace_min_m + task.vehicle.body_radius_m, self.workspace_max_m - task.vehicle.body_radius_m)
+        a = np.clip(
+            a, self.workspace_min_m + task.vehicle.body_radius_m, self.workspace_max_m - task.vehicle.body_radius_m
+        )
         return a, d
 
     def dock_order(self) -> list[str]:
         """Vehicle names with every dock target before the vehicles docking to it (file order kept)."""
         done: list[str] = []
-        for name in self.vehicles:
-            chain = []
+        for first in self.vehicles:
+            chain: list[str] = []
+            name: str | None = first
             while name is not None and name not in done and name not in chain:
                 chain.append(name)
                 name = self.vehicles[name].dock_with
@@ -352,8 +359,12 @@ def _limits(data: Any, where: str) -> Limits:
     if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not (0 <= margin < 10):
         raise UserError(f"{where}.obstacle_margin_m: expected a number in [0, 10) m, got {margin!r}")
     return Limits(
-        authority_fraction=_positive(data.get("authority_fraction", d.authority_fraction), f"{where}.authority_fraction", upper=1.0),
-        min_separation_m=_positive(data.get("min_separation_m", d.min_separation_m), f"{where}.min_separation_m", upper=10.0),
+        authority_fraction=_positive(
+            data.get("authority_fraction", d.authority_fraction), f"{where}.authority_fraction", upper=1.0
+        ),
+        min_separation_m=_positive(
+            data.get("min_separation_m", d.min_separation_m), f"{where}.min_separation_m", upper=10.0
+        ),
         invalid_zone_rule=str(rule),
         obstacle_margin_m=float(margin),
         time_horizon_s=_positive(data.get("time_horizon_s", d.time_horizon_s), f"{where}.time_horizon_s", upper=600.0),
@@ -391,10 +402,12 @@ def _check_docks(vehicles: dict[str, VehicleTask], label: str) -> None:
         if task.dock_with not in vehicles:
             raise UserError(f"{where}: no vehicle named {task.dock_with!r}; expected one of {', '.join(vehicles)}")
         seen = [name]
-        cur = task.dock_with
+        cur: str | None = task.dock_with
         while cur is not None:
             if cur in seen:
-                raise UserError(f"{where}: docks form a cycle ({' -> '.join(seen + [cur])}); expected a chain ending at a vehicle with goal or hover")
+                raise UserError(
+                    f"{where}: docks form a cycle ({' -> '.join(seen + [cur])}); expected a chain ending at a vehicle with goal or hover"
+                )
             seen.append(cur)
             cur = vehicles[cur].dock_with
 

@@ -52,8 +52,7 @@ def run_one(scenario_path: Path, method: str, *, seed: int = 0) -> ComparisonRow
     import subprocess
     import tempfile
 
-    from planfile import read_plan
-    from planfile import load_scenario
+    from planfile import load_scenario, read_plan
     from verify import verify_plan
 
     scenario = load_scenario(scenario_path)
@@ -94,8 +93,9 @@ def run_one(scenario_path: Path, method: str, *, seed: int = 0) -> ComparisonRow
     )
 
 
-def compare(scenario_paths: list[Path], methods: tuple[str, ...] = METHOD_ORDER, *, seed: int = 0,
-            progress=None) -> list[ComparisonRow]:
+def compare(
+    scenario_paths: list[Path], methods: tuple[str, ...] = METHOD_ORDER, *, seed: int = 0, progress=None
+) -> list[ComparisonRow]:
     """Every method on every scenario; ``progress(message)`` is called before each run."""
     rows = []
     for path in scenario_paths:
@@ -118,12 +118,30 @@ def _cells(row: ComparisonRow) -> list[str]:
     else:
         verify = "FAIL: " + ", ".join(row.violations)
     usage = "-" if row.max_authority_usage is None else f"{row.max_authority_usage:.3f} / {row.authority_fraction:g}"
-    return [row.scenario, row.method, _f(row.makespan_s, ".2f"), _f(row.path_length_m, ".2f"), usage,
-            _f(row.min_separation_m, ".3f"), verify, f"{row.planning_time_s:.2f}", row.note]
+    return [
+        row.scenario,
+        row.method,
+        _f(row.makespan_s, ".2f"),
+        _f(row.path_length_m, ".2f"),
+        usage,
+        _f(row.min_separation_m, ".3f"),
+        verify,
+        f"{row.planning_time_s:.2f}",
+        row.note,
+    ]
 
 
-HEADER = ["scenario", "method", "makespan (s)", "path length (m)", "max authority usage / limit",
-          "min separation (m)", "verify", "planning time (s)", "note"]
+HEADER = [
+    "scenario",
+    "method",
+    "makespan (s)",
+    "path length (m)",
+    "max authority usage / limit",
+    "min separation (m)",
+    "verify",
+    "planning time (s)",
+    "note",
+]
 
 
 def to_markdown(rows: list[ComparisonRow]) -> str:
@@ -201,6 +219,7 @@ def main(argv: list[str] | None = None) -> int:
 
         jobs = len(paths) * len(args.methods)
         with tqdm(total=jobs, file=sys.stderr, desc="compare", unit="plan") as bar:
+
             def progress(msg: str) -> None:
                 bar.set_postfix_str(msg)
                 bar.update(0)

@@ -28,8 +28,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from physics import VALIDITY_FACTOR_L
-from physics import Vehicle
+from physics import VALIDITY_FACTOR_L, Vehicle
 
 MODES = ("downwash", "no-downwash", "ellipsoid")
 DZ_STEP_M = 0.02  # resolution of the per-pair cutoff lookup, m
@@ -59,10 +58,12 @@ class CutoffTable:
         return a if a > b else b
 
 
-def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None) -> tuple[np.ndarray, str]:
+def _map_r_cut(
+    source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None
+) -> tuple[np.ndarray, str]:
     """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store)."""
-    from physics import ModelOptions
     from costmaps import pair_maps
+    from physics import ModelOptions
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     maps = pair_maps(source, target, options=options)
@@ -70,13 +71,17 @@ def _map_r_cut(source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, r
 
 
 @lru_cache(maxsize=256)
-def cutoff_table(source: Vehicle, target: Vehicle, *, level: float, rule: str = "conservative", field_form: str | None = None) -> CutoffTable:
+def cutoff_table(
+    source: Vehicle, target: Vehicle, *, level: float, rule: str = "conservative", field_form: str | None = None
+) -> CutoffTable:
     """The per-pair cutoff lookup at authority ``level`` with the invalid-zone ``rule`` applied."""
     dz = np.arange(0.0, DZ_MAX_M + DZ_STEP_M, DZ_STEP_M)
     r_cut, provenance = _map_r_cut(source, target, dz, level, rule, field_form)
     r_cut = np.where(dz > 0, np.maximum(r_cut, 0.0), 0.0)
     invalid_dz = VALIDITY_FACTOR_L * source.size_m
-    return CutoffTable(source.name, target.name, float(level), DZ_STEP_M, tuple(float(v) for v in r_cut), float(invalid_dz), provenance)
+    return CutoffTable(
+        source.name, target.name, float(level), DZ_STEP_M, tuple(float(v) for v in r_cut), float(invalid_dz), provenance
+    )
 
 
 @dataclass(frozen=True)
@@ -102,14 +107,16 @@ class UsageTable:
 @lru_cache(maxsize=256)
 def usage_table(source: Vehicle, target: Vehicle, *, field_form: str | None = None) -> UsageTable | None:
     """The :class:`UsageTable` of an ordered pair from the cost maps."""
-    from physics import ModelOptions
     from costmaps import pair_maps
+    from physics import ModelOptions
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     cmap = pair_maps(source, target, options=options).cutoff
     dz = np.arange(0.0, float(cmap.dz_m[-1]) + 1e-9, 0.05)
     r = np.arange(0.0, float(cmap.r_grid_m.max()) + 1e-9, 0.02)
-    cols = np.stack([np.interp(r, cmap.r_grid_m[:, k], cmap.usage[:, k], right=0.0) for k in range(cmap.dz_m.size)], axis=1)
+    cols = np.stack(
+        [np.interp(r, cmap.r_grid_m[:, k], cmap.usage[:, k], right=0.0) for k in range(cmap.dz_m.size)], axis=1
+    )
     grid = np.stack([np.interp(dz, cmap.dz_m, cols[j]) for j in range(r.size)], axis=1)  # (n_dz, n_r)
     grid[0] = 0.0
     return UsageTable(0.05, 0.02, tuple(tuple(float(v) for v in row) for row in grid))
@@ -132,11 +139,11 @@ class Track:
     until_s: float = math.inf
 
     @classmethod
-    def static(cls, name: str, vehicle: Vehicle, p_m: np.ndarray, *, until_s: float = math.inf) -> "Track":
+    def static(cls, name: str, vehicle: Vehicle, p_m: np.ndarray, *, until_s: float = math.inf) -> Track:
         return cls(name, vehicle, 1.0, [float(p_m[0])], [float(p_m[1])], [float(p_m[2])], until_s)
 
     @classmethod
-    def from_arrays(cls, name: str, vehicle: Vehicle, dt_s: float, position_m: np.ndarray) -> "Track":
+    def from_arrays(cls, name: str, vehicle: Vehicle, dt_s: float, position_m: np.ndarray) -> Track:
         """From positions (N, 3), m, sampled at k * dt_s."""
         p = np.asarray(position_m, dtype=float)
         return cls(name, vehicle, float(dt_s), p[:, 0].tolist(), p[:, 1].tolist(), p[:, 2].tolist())
@@ -297,8 +304,12 @@ def build_checker(
         cut_from = cut_on = ell = None
         usage_from = usage_table(other, task.vehicle, field_form=scenario.field_form)
         if mode == "downwash":
-            cut_from = cutoff_table(other, task.vehicle, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
-            cut_on = cutoff_table(task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form)
+            cut_from = cutoff_table(
+                other, task.vehicle, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form
+            )
+            cut_on = cutoff_table(
+                task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form
+            )
         elif mode == "ellipsoid":
             ell = rb + other.body_radius_m + margin_m
         rules.append(PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s))

@@ -37,13 +37,12 @@ the model directly by :mod:`verify.checks`. Problem data and results: :mod:`plan
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
-from physics import mixer_matrix
-from physics import VALIDITY_FACTOR_L
-from physics import Vehicle
+from physics import VALIDITY_FACTOR_L, Vehicle, mixer_matrix
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
 
 
@@ -90,9 +89,9 @@ class _Builder:
         self.h = self.T / self.n
         self.agents = {a.name: a for a in problem.agents}
         self.names = [a.name for a in problem.agents]
-        self.X: dict[str, object] = {}
-        self.U: dict[str, object] = {}
-        self.Q: dict[str, object] = {}  # positions at check points (3, 2n+1)
+        self.X: dict[str, Any] = {}  # casadi MX states (9, n+1)
+        self.U: dict[str, Any] = {}  # casadi MX jerk inputs (3, n)
+        self.Q: dict[str, Any] = {}  # casadi MX positions at check points (3, 2n+1)
         self.Qw: dict[str, np.ndarray] = {}  # warm positions at check points (2n+1, 3)
         self.exempt: dict[tuple[str, str], np.ndarray] = {}  # dock pair -> (2n+1,) bool
         self.cost = problem.weights.time * self.T
@@ -105,7 +104,11 @@ class _Builder:
             opti.subject_to(opti.bounded(0.1 * pb.warm_duration_s, self.T, pb.max_duration_s))
             opti.set_initial(self.T, min(pb.warm_duration_s, pb.max_duration_s))
         for a in pb.agents:
-            wp = _warm(a.warm_position_m, a.start_m, n) if a.moving else np.tile(np.asarray(a.start_m, float), (n + 1, 1))
+            wp = (
+                _warm(a.warm_position_m, a.start_m, n)
+                if a.moving
+                else np.tile(np.asarray(a.start_m, float), (n + 1, 1))
+            )
             self.Qw[a.name] = _check_points_warm(wp)
             if not a.moving:
                 self.Q[a.name] = ca.DM(np.tile(np.asarray(a.start_m, float)[:, None], (1, 2 * n + 1)))
@@ -176,6 +179,7 @@ class _Builder:
         """On the final approach (warm start within ``dock_reach_m`` of the dock point) the docker
         stays on the dock axis, on the near side of the dock point, at reduced speed."""
         ca, opti = self.ca, self.opti
+        assert a.dock_with is not None
         off = np.asarray(a.dock_offset_m, float)
         u = off / max(np.linalg.norm(off), 1e-9)
         rel_w = self.Qw[a.name] - self.Qw[a.dock_with] - off
@@ -271,7 +275,7 @@ class _Builder:
                 g = groups.setdefault(id(fn), {"fn": fn, "offsets": [], "rows": []})
                 g["offsets"].append(self.Q[nt][:, ks.tolist()] - self.Q[ns][:, ks.tolist()])
                 g["rows"].append((nt, ks))
-        totals: dict[str, object] = {}
+        totals: dict[str, Any] = {}  # target -> casadi (4, nq) motor-thrust changes, N
         active: dict[str, np.ndarray] = {}
         self.linear_groups = []
         for g in groups.values():
@@ -308,9 +312,9 @@ class _Builder:
             for key, ex in self.exempt.items():
                 if nt in key:
                     frac[ex] = pb.authority_fraction - 2e-4
-            ks = np.flatnonzero(active[nt]).tolist()
-            df = total[:, ks]
-            opti.subject_to(opti.bounded(-ca.DM(np.outer(down, frac[ks])), df, ca.DM(np.outer(up, frac[ks]))))
+            cols = np.flatnonzero(active[nt]).tolist()
+            df = total[:, cols]
+            opti.subject_to(opti.bounded(-ca.DM(np.outer(down, frac[cols])), df, ca.DM(np.outer(up, frac[cols]))))
 
     # ---------------------------------------------------------------- solve
     def _linearize(self, evaluate) -> float:
@@ -326,9 +330,9 @@ class _Builder:
                 g["val_map"] = fn.map(m)
                 g["jac_map"] = fn.jacobian().map(m)
             w = np.asarray(g["val_map"](o)).reshape(3, m)
-            jac = np.asarray(g["jac_map"](o, ca.DM.zeros(3, m))).reshape(3, 3 * m, order="F")
+            jac_flat = np.asarray(g["jac_map"](o, ca.DM.zeros(3, m))).reshape(3, 3 * m, order="F")
             # jacobian().map gives (3, 3 m): block k is d wrench / d offset at column k
-            jac = jac.reshape(3, m, 3).transpose(0, 2, 1)  # (out i, in j, point k)
+            jac = jac_flat.reshape(3, m, 3).transpose(0, 2, 1)  # (out i, in j, point k)
             if "last" in g:
                 moved = max(moved, float(np.abs(o - g["last"]).max()))
             g["last"] = o

@@ -5,8 +5,9 @@ World frame, z up; positions in m, velocities in m/s, accelerations in m/s^2, ti
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -58,7 +59,7 @@ class OcpProblem:
     obstacles: tuple[tuple[np.ndarray, np.ndarray], ...] = ()  # ((3,) min_m, (3,) max_m) boxes
     min_separation_m: float = 0.3
     authority_fraction: float = 0.5
-    wrench_functions: Mapping[tuple[str, str], object] = field(default_factory=dict)
+    wrench_functions: Mapping[tuple[str, str], Any] = field(default_factory=dict)
     weights: OcpWeights = OcpWeights()
     invalid_zone_keep_out: bool = True  # False for invalid_zone_rule "model"
     kinematic_margin: float = 0.97  # node limits are this fraction of the true ones

@@ -18,22 +18,25 @@ slowed uniformly (factor s: v / s, a / s^2, j / s^3) until it holds.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Callable
 
 import numpy as np
 
+from planfile import Plan
 from planner.ocp import build_and_solve, sample_solution
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights
 
-WrenchProvider = Callable  # (source Vehicle, target Vehicle, scenario) -> casadi.Function offset_m -> (F_z, tau_x, tau_y)
+WrenchProvider = (
+    Callable  # (source Vehicle, target Vehicle, scenario) -> casadi.Function offset_m -> (F_z, tau_x, tau_y)
+)
 
 
 @dataclass(frozen=True)
 class RefineResult:
     """Result of :func:`refine_plan`: the plan to use (refined, or the initial one on failure)."""
 
-    plan: object  # planfile.plan.Plan
+    plan: Plan
     success: bool
     message: str
     solve_time_s: float  # IPOPT wall time, s
@@ -64,8 +67,8 @@ class RefineOptions:
 
 def default_wrench_provider(source, target, scenario):
     """The differentiable wrench table of the cost maps (same numbers as physics.disturbance)."""
-    from physics import ModelOptions
     from costmaps import pair_maps
+    from physics import ModelOptions
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
@@ -74,8 +77,8 @@ def default_wrench_provider(source, target, scenario):
 
 def _table_extent(source, target, scenario):
     """dz_m -> lateral half-width (m) of the pair's wrench table (zero beyond it)."""
-    from physics import ModelOptions
     from costmaps import pair_maps
+    from physics import ModelOptions
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
@@ -96,8 +99,7 @@ def check_final_configuration(scenario) -> None:
     """Raise ``planner.errors.InfeasibleError`` when the final configuration itself (every vehicle
     at rest at its goal / hover point / dock) needs more than ``limits.authority_fraction`` of some
     vehicle's authority: then no trajectory can satisfy the limit (model evaluated directly)."""
-    from physics import authority_usage
-    from physics import ModelOptions, disturbance_wrench
+    from physics import ModelOptions, authority_usage, disturbance_wrench
     from planner.errors import InfeasibleError
 
     form = getattr(scenario, "field_form", None)
@@ -171,7 +173,7 @@ def build_problem(
             )
         )
     cache: dict[tuple[int, int], object] = {}
-    extents: dict[tuple[str, str], object] = {}
+    extents: dict[tuple[str, str], Callable] = {}
     wrench = {}
     tasks = scenario.vehicles
     for ns, src in tasks.items():
@@ -295,6 +297,7 @@ def refine_plan(
     if not any(not t.hover for t in scenario.vehicles.values()):
         return RefineResult(initial_plan, True, "nothing moves; plan kept", 0.0, 0)
     problem = build_problem(scenario, initial_plan, options=options, wrench_provider=wrench_provider)
+
     def accept(candidate: OcpSolution) -> bool:
         return not _sample_and_verify(candidate, scenario, initial_plan, options)[1]
 
@@ -349,8 +352,11 @@ def refine_plan(
         )
     if moving_end_s(plan) > moving_end_s(initial_plan) + 1e-9:
         return RefineResult(
-            initial_plan, False, "optimised plan was not faster; kept the sampling plan",
-            solve_time, iterations,
+            initial_plan,
+            False,
+            "optimised plan was not faster; kept the sampling plan",
+            solve_time,
+            iterations,
         )
     note = (
         f"optimized: CasADi/IPOPT {solution.status} in {iterations} iterations, "

@@ -20,20 +20,23 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
-from physics import VALIDITY_FACTOR_L
+from planfile import Plan, Scenario, VehicleTrajectory
 from planner.constraints import Track, build_checker
 from planner.errors import InfeasibleError
-from planfile import Plan, VehicleTrajectory
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
-from planfile import Scenario
 from planner.timing import KinematicLimits, TimedPath, common_grid, min_segment_duration_s, time_parameterize
 
 METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
-MODE_OF_METHOD = {"optimized": "downwash", "sampling": "downwash", "no-downwash": "no-downwash", "ellipsoid": "ellipsoid"}
+MODE_OF_METHOD = {
+    "optimized": "downwash",
+    "sampling": "downwash",
+    "no-downwash": "no-downwash",
+    "ellipsoid": "ellipsoid",
+}
 DT_S = 0.05  # common time grid of plan.json, s
 LEAVE_START_S = 2.5  # vehicles not planned yet are assumed to have left their start by then, s
 ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
@@ -67,9 +70,14 @@ def _plan_order(
             progress(f"planning {name}", idx / max(1, len(order)))
         others = [tracks[n] for n in timed]
         others += [
-            Track.static(n, scenario.vehicles[n].vehicle, scenario.vehicles[n].start_m,
-                         until_s=math.inf if scenario.vehicles[n].hover else LEAVE_START_S)
-            for n in order if n not in timed and n != name
+            Track.static(
+                n,
+                scenario.vehicles[n].vehicle,
+                scenario.vehicles[n].start_m,
+                until_s=math.inf if scenario.vehicles[n].hover else LEAVE_START_S,
+            )
+            for n in order
+            if n not in timed and n != name
         ]
         checker = build_checker(scenario, name, others, mode=mode, margin_m=PLAN_MARGIN_M, until_margin_s=PLAN_MARGIN_S)
         nominal = build_checker(scenario, name, others, mode=mode)
@@ -77,9 +85,13 @@ def _plan_order(
         if bad is not None:
             why = ""
             if bad == "workspace" or bad.startswith("obstacle"):
-                why = (f" (the body, radius {task.vehicle.body_radius_m:.3f} m, must keep clear horizontally and "
-                       f"{scenario.limits.obstacle_margin_m:g} m vertically)")
-            raise InfeasibleError(name, bad, f"vehicle {name!r}: its start {task.start_m.tolist()} violates '{bad}' at t = 0{why}")
+                why = (
+                    f" (the body, radius {task.vehicle.body_radius_m:.3f} m, must keep clear horizontally and "
+                    f"{scenario.limits.obstacle_margin_m:g} m vertically)"
+                )
+            raise InfeasibleError(
+                name, bad, f"vehicle {name!r}: its start {task.start_m.tolist()} violates '{bad}' at t = 0{why}"
+            )
         if task.hover:
             path = TimedPath(np.array([0.0]), task.start_m[None, :].copy(), [])
             timed[name] = path
@@ -90,9 +102,14 @@ def _plan_order(
         hold_until = max(hold_until, max([tr.end_s for tr in others] + [0.0]) + 1.0)
         if task.dock_with is not None:
             a, d = scenario.dock_geometry(name)
-            slow = KinematicLimits(*(DOCK_SPEED_FACTOR * np.array([limits.max_speed_mps, limits.max_accel_mps2, limits.max_jerk_mps3])))
-            goal = GoalSpec(position_m=a, hold_until_s=hold_until, tail=[d], tail_exempt=task.dock_with, tail_limits=slow)
+            slow = KinematicLimits(
+                *(DOCK_SPEED_FACTOR * np.array([limits.max_speed_mps, limits.max_accel_mps2, limits.max_jerk_mps3]))
+            )
+            goal = GoalSpec(
+                position_m=a, hold_until_s=hold_until, tail=[d], tail_exempt=task.dock_with, tail_limits=slow
+            )
         else:
+            assert task.goal_m is not None  # a moving vehicle that does not dock has a goal
             goal = GoalSpec(position_m=task.goal_m, hold_until_s=hold_until)
         accepted = None
         last_problem = None
@@ -100,13 +117,24 @@ def _plan_order(
         t_busy = max([tr.end_s for tr in others] + [0.0])
         for attempt in range(ATTEMPTS):
             # search a short time window first (an RRT over a long one schedules slow paths)
-            window = (max(2.0 * t_direct, t_direct + 6.0, t_busy + 2.0), max(4.0 * t_direct, t_busy + 15.0), horizon)[attempt]
-            sp = plan_space_time(checker, task.start_m, goal, limits, horizon_s=min(horizon, window),
-                                 seed=seed * 1009 + idx * 31 + attempt, options=options)
+            window = (max(2.0 * t_direct, t_direct + 6.0, t_busy + 2.0), max(4.0 * t_direct, t_busy + 15.0), horizon)[
+                attempt
+            ]
+            sp = plan_space_time(
+                checker,
+                task.start_m,
+                goal,
+                limits,
+                horizon_s=min(horizon, window),
+                seed=seed * 1009 + idx * 31 + attempt,
+                options=options,
+            )
             if sp is None:
-                last_problem = _goal_problem(nominal, goal) or checker.most_rejected() or "no path within the time budget"
+                last_problem = (
+                    _goal_problem(nominal, goal) or checker.most_rejected() or "no path within the time budget"
+                )
                 continue
-            if goal.tail:  # the dock approach is timed at the slower limits
+            if goal.tail and goal.tail_limits is not None:  # the dock approach is timed at the slower limits
                 tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
             else:
                 tp = time_parameterize(sp.waypoints_m, sp.times_s, limits)
@@ -117,9 +145,15 @@ def _plan_order(
                 info["rrt_vertices"][name] = sp.info.get("rrt_vertices")
                 break
             last_problem = problem
-            info.setdefault("rejected", []).append(f"{name} attempt {attempt + 1}: timed trajectory violates '{problem}'")
+            info.setdefault("rejected", []).append(
+                f"{name} attempt {attempt + 1}: timed trajectory violates '{problem}'"
+            )
         if accepted is None:
-            raise _VehicleFailed(name, last_problem or "unknown", f"vehicle {name!r}: no path found; most limiting constraint: '{last_problem}'")
+            raise _VehicleFailed(
+                name,
+                last_problem or "unknown",
+                f"vehicle {name!r}: no path found; most limiting constraint: '{last_problem}'",
+            )
         timed[name] = accepted
         t_grid = common_grid(accepted.duration_s, DT_S)
         p, _, _ = accepted.sample(t_grid)
@@ -138,7 +172,9 @@ def _goal_problem(checker, goal: GoalSpec) -> str | None:
 
 
 def _retime_with_tail(sp, limits: KinematicLimits, tail_limits: KinematicLimits, n_tail: int) -> TimedPath:
-    main = time_parameterize(sp.waypoints_m[: len(sp.waypoints_m) - n_tail], sp.times_s[: len(sp.times_s) - n_tail], limits)
+    main = time_parameterize(
+        sp.waypoints_m[: len(sp.waypoints_m) - n_tail], sp.times_s[: len(sp.times_s) - n_tail], limits
+    )
     tail = time_parameterize(sp.waypoints_m[len(sp.waypoints_m) - n_tail - 1 :], None, tail_limits)
     knots = np.concatenate([main.knot_t_s, main.knot_t_s[-1] + tail.knot_t_s[1:]])
     return TimedPath(knots, sp.waypoints_m.copy(), main.segments + tail.segments)
@@ -163,7 +199,7 @@ def plan_scenario(
     method: str = "optimized",
     seed: int = 0,
     progress: Callable[[str, float], None] | None = None,
-    options: SamplingOptions = SamplingOptions(),
+    options: SamplingOptions | None = None,
 ) -> Plan:
     """Plan every vehicle of ``scenario``; raises :class:`InfeasibleError` when impossible.
 
@@ -175,6 +211,7 @@ def plan_scenario(
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     from verify import verify_plan
 
+    options = options or SamplingOptions()
     t0 = time.perf_counter()
     mode = MODE_OF_METHOD[method]
     plan = _sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
@@ -213,7 +250,9 @@ def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: Samplin
             order = [fail.vehicle] + [n for n in order if n != fail.vehicle]
             hovers = [n for n in order if scenario.vehicles[n].hover]
             # hovering vehicles stay first and a dock target stays before its dockers
-            order = [n for n in scenario.dock_order() if n in hovers] + _respect_docks(scenario, [n for n in order if n not in hovers])
+            order = [n for n in scenario.dock_order() if n in hovers] + _respect_docks(
+                scenario, [n for n in order if n not in hovers]
+            )
     plan = assemble_plan(scenario, timed, method="sampling", notes=notes)
     plan.metrics["priority_order"] = order
     plan.metrics["sampling_attempts"] = info["attempts"]
@@ -223,6 +262,7 @@ def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: Samplin
 
 def _respect_docks(scenario: Scenario, names: list[str]) -> list[str]:
     out: list[str] = []
+
     def add(n):
         if n in out:
             return
@@ -230,6 +270,7 @@ def _respect_docks(scenario: Scenario, names: list[str]) -> list[str]:
         if w is not None and w in names:
             add(w)
         out.append(n)
+
     for n in names:
         add(n)
     return out
@@ -241,20 +282,22 @@ def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress) -> Plan:
     try:
         result = refine_plan(scenario, plan, seed=seed, progress=progress)
     except Exception as err:  # noqa: BLE001 - the optimiser must never lose the sampling plan
-        plan.notes.append(f"optimized: refinement raised {type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}; this is the sampling result")
+        plan.notes.append(
+            f"optimized: refinement raised {type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}; this is the sampling result"
+        )
         plan.method = "sampling (optimizer failed)"
         return plan
     refined = result.plan
-    if not getattr(result, "success", False):
-        plan.notes.append(f"optimized: refinement failed ({getattr(result, 'message', '')}); this is the sampling result")
+    if not result.success:
+        plan.notes.append(f"optimized: refinement failed ({result.message}); this is the sampling result")
         plan.method = "sampling (optimizer fell back)"
         return plan
     refined.method = "optimized"
     refined.notes = list(dict.fromkeys(list(plan.notes) + list(refined.notes or [])))  # keep order, once each
     for key in ("priority_order", "sampling_attempts", "seed"):
         refined.metrics.setdefault(key, plan.metrics.get(key))
-    refined.metrics["optimizer_solve_time_s"] = getattr(result, "solve_time_s", None)
-    refined.metrics["optimizer_iterations"] = getattr(result, "iterations", None)
+    refined.metrics["optimizer_solve_time_s"] = result.solve_time_s
+    refined.metrics["optimizer_iterations"] = result.iterations
     refined.scenario_file = plan.scenario_file
     refined.scenario_spec = plan.scenario_spec
     return refined
@@ -303,7 +346,10 @@ def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) ->
     for tr in plan.vehicles.values():
         moving = np.linalg.norm(tr.velocity_mps, axis=1) > 1e-4
         if moving.any():
-            moving_end = max(moving_end, float(tr.t_s[np.nonzero(moving)[0][-1] + 1 if np.nonzero(moving)[0][-1] + 1 < tr.t_s.size else -1]))
+            moving_end = max(
+                moving_end,
+                float(tr.t_s[np.nonzero(moving)[0][-1] + 1 if np.nonzero(moving)[0][-1] + 1 < tr.t_s.size else -1]),
+            )
     plan.metrics.update(
         {
             "planning_time_s": round(float(planning_time_s), 4),
@@ -315,7 +361,8 @@ def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) ->
             "invalid_zone_s_by_vehicle": {n: float(a.invalid_zone.sum() * plan.dt_s) for n, a in along.items()},
             "min_dock_separation_m": sep["min_dock_separation_m"],
             "path_length_m": {
-                n: float(np.linalg.norm(np.diff(tr.position_m, axis=0), axis=1).sum()) for n, tr in plan.vehicles.items()
+                n: float(np.linalg.norm(np.diff(tr.position_m, axis=0), axis=1).sum())
+                for n, tr in plan.vehicles.items()
             },
         }
     )

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
-from planfile import Plan
 from fileio import save_figure
+from planfile import Plan
 
 
 def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = None) -> Path:
@@ -31,7 +30,15 @@ def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = No
     for ax, (i, j), title in ((top, (0, 1), "top view"), (side, (0, 2), "side view")):
         ax.add_patch(Rectangle((lo[i], lo[j]), hi[i] - lo[i], hi[j] - lo[j], fill=False, ls="--", color="grey"))
         for box in scenario.obstacles:
-            ax.add_patch(Rectangle((box.min_m[i], box.min_m[j]), box.max_m[i] - box.min_m[i], box.max_m[j] - box.min_m[j], color="0.6", alpha=0.6))
+            ax.add_patch(
+                Rectangle(
+                    (box.min_m[i], box.min_m[j]),
+                    box.max_m[i] - box.min_m[i],
+                    box.max_m[j] - box.min_m[j],
+                    color="0.6",
+                    alpha=0.6,
+                )
+            )
         for k, (name, tr) in enumerate(plan.vehicles.items()):
             c = colors[k % len(colors)]
             ax.plot(tr.position_m[:, i], tr.position_m[:, j], color=c, lw=1.6, label=name)

@@ -158,7 +158,9 @@ class _Planner:
                 return False
         return True
 
-    def timed_segment_ok(self, p1, t1: float, p2, t2: float, limits: KinematicLimits, *, exclude: str | None = None, count: bool = False) -> bool:
+    def timed_segment_ok(
+        self, p1, t1: float, p2, t2: float, limits: KinematicLimits, *, exclude: str | None = None, count: bool = False
+    ) -> bool:
         """Check the exact Ruckig segment (rest to rest, at least t2 - t1 long) that
         :func:`planner.timing.time_parameterize` will fly, state by state."""
         dt = t2 - t1
@@ -259,7 +261,11 @@ class _Planner:
         class DirectedMotion(ob.MotionValidator):
             def checkMotion(self, s1, s2, *args):  # noqa: N802 (OMPL name)
                 return planner_self.motion_ok(
-                    (s1[0], s1[1], s1[2]), s1[3] / v_ref, (s2[0], s2[1], s2[2]), s2[3] / v_ref, strict=planner_self.opts.strict_search
+                    (s1[0], s1[1], s1[2]),
+                    s1[3] / v_ref,
+                    (s2[0], s2[1], s2[2]),
+                    s2[3] / v_ref,
+                    strict=planner_self.opts.strict_search,
                 )
 
         validator = DirectedMotion(si)

@@ -21,7 +21,11 @@ def plan_summary(plan: Plan, *, violations: list | None = None) -> str:
         f"  makespan {_fmt(m.get('makespan_s'), ' s')}, planned in {_fmt(m.get('planning_time_s'), ' s')}",
         f"  max authority usage {_fmt(m.get('max_authority_usage'))} (limit {_fmt(m.get('authority_fraction'))}), "
         f"min separation {_fmt(m.get('min_separation_m'), ' m')}"
-        + (f", docked pairs down to {_fmt(m.get('min_dock_separation_m'), ' m')}" if m.get("min_dock_separation_m") is not None else ""),
+        + (
+            f", docked pairs down to {_fmt(m.get('min_dock_separation_m'), ' m')}"
+            if m.get("min_dock_separation_m") is not None
+            else ""
+        ),
     ]
     usage = m.get("authority_usage_by_vehicle", {})
     length = m.get("path_length_m", {})

@@ -33,7 +33,10 @@ class DurationTable:
         n = int(math.ceil(max_distance_m / step_m)) + 1
         otg, inp, traj = Ruckig(1), InputParameter(1), Trajectory(1)
         inp.max_velocity, inp.max_acceleration, inp.max_jerk = (
-            [limits.max_speed_mps], [limits.max_accel_mps2], [limits.max_jerk_mps3])
+            [limits.max_speed_mps],
+            [limits.max_accel_mps2],
+            [limits.max_jerk_mps3],
+        )
         table = [0.0]
         for k in range(1, n):
             inp.current_position, inp.target_position = [0.0], [k * step_m]
@@ -85,7 +88,11 @@ class TimedPath:
         p = np.empty((t_s.size, 3))
         v = np.zeros((t_s.size, 3))
         a = np.zeros((t_s.size, 3))
-        seg = np.clip(np.searchsorted(self.knot_t_s, t_s, side="right") - 1, 0, len(self.segments) - 1) if self.segments else None
+        seg = (
+            np.clip(np.searchsorted(self.knot_t_s, t_s, side="right") - 1, 0, len(self.segments) - 1)
+            if self.segments
+            else None
+        )
         for i, t in enumerate(t_s):
             if not self.segments or t <= self.knot_t_s[0]:
                 p[i] = self.knot_p_m[0]
@@ -93,6 +100,7 @@ class TimedPath:
             if t >= self.knot_t_s[-1]:
                 p[i] = self.knot_p_m[-1]
                 continue
+            assert seg is not None
             k = int(seg[i])
             traj = self.segments[k]
             if traj is None:
@@ -165,7 +173,7 @@ def time_parameterize(
     sched = None if times_s is None else np.asarray(times_s, dtype=float)
     t0 = 0.0 if sched is None else float(sched[0])
     knots = [t0]
-    segments = []
+    segments: list = []
     for k in range(len(pts) - 1):
         d = pts[k + 1] - pts[k]
         dist = float(np.linalg.norm(d))

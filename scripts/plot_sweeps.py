@@ -13,11 +13,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD  # noqa: E402
-from physics import ModelOptions, disturbance_wrench  # noqa: E402
+from physics import ModelOptions, disturbance_wrench
+from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
 
 
 def main() -> None:

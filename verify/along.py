@@ -13,10 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physics import authority_usage
-from physics import VALIDITY_FACTOR_L, ModelOptions, disturbance_wrench
-from planfile import Plan
-from planfile import Scenario
+from physics import VALIDITY_FACTOR_L, ModelOptions, authority_usage, disturbance_wrench
+from planfile import Plan, Scenario
 
 DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
 
@@ -70,7 +68,9 @@ def wrench_along_plan(plan: Plan, scenario: Scenario, *, t_s: np.ndarray) -> dic
                 torque[below] += w.torque_Nm
                 u_src[below] = authority_usage(target, w.force_N, w.torque_Nm)
                 r = np.hypot(off[below, 0], off[below, 1])
-                inv = (-off[below, 2] <= VALIDITY_FACTOR_L * source.size_m) & (r < source.body_radius_m + target.body_radius_m)
+                inv = (-off[below, 2] <= VALIDITY_FACTOR_L * source.size_m) & (
+                    r < source.body_radius_m + target.body_radius_m
+                )
                 invalid[np.nonzero(below)[0][inv]] = True
             by_source[sname] = u_src
         usage = authority_usage(target, force, torque) if t_s.size else np.zeros(0)

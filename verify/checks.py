@@ -30,8 +30,7 @@ import numpy as np
 
 from fileio import UserError
 from physics import VALIDITY_FACTOR_L
-from planfile import Plan
-from planfile import Scenario, load_scenario, scenario_from_dict
+from planfile import Plan, Scenario, load_scenario, scenario_from_dict
 from verify.along import dock_exempt, wrench_along_plan
 from verify.violations import Violation, add_runs
 
@@ -48,7 +47,9 @@ def _check_vehicles(plan: Plan, scenario: Scenario) -> list[Violation]:
     out: list[Violation] = []
     for n in scenario.vehicles:
         if n not in plan.vehicles:
-            out.append(Violation(0.0, n, "missing", "vehicle of the scenario has no trajectory in the plan", 1.0, 0.0, 0))
+            out.append(
+                Violation(0.0, n, "missing", "vehicle of the scenario has no trajectory in the plan", 1.0, 0.0, 0)
+            )
     for n in plan.vehicles:
         if n not in scenario.vehicles:
             out.append(Violation(0.0, n, "unknown", "vehicle is not in the scenario", 1.0, 0.0, 0))
@@ -57,13 +58,30 @@ def _check_vehicles(plan: Plan, scenario: Scenario) -> list[Violation]:
         if task is None:
             continue
         if tr.type_name != task.type_name or tr.vehicle != task.vehicle:
-            out.append(Violation(0.0, n, "vehicle-type",
-                                 f"flies type {tr.type_name!r}, the scenario's task names {task.type_name!r} "
-                                 "(or other parameters)", 1.0, 0.0, 0))
+            out.append(
+                Violation(
+                    0.0,
+                    n,
+                    "vehicle-type",
+                    f"flies type {tr.type_name!r}, the scenario's task names {task.type_name!r} (or other parameters)",
+                    1.0,
+                    0.0,
+                    0,
+                )
+            )
     if abs(float(plan.t_s[0])) > 1e-6:
         first = next(iter(plan.vehicles))
-        out.append(Violation(float(plan.t_s[0]), first, "time-grid", "plan does not start at t = 0 (s)",
-                             abs(float(plan.t_s[0])), 0.0, 0))
+        out.append(
+            Violation(
+                float(plan.t_s[0]),
+                first,
+                "time-grid",
+                "plan does not start at t = 0 (s)",
+                abs(float(plan.t_s[0])),
+                0.0,
+                0,
+            )
+        )
     return out
 
 
@@ -78,28 +96,75 @@ def _check_consistency(plan: Plan, scenario: Scenario) -> list[Violation]:
         p_pred = h * (v[:-1] + v[1:]) / 2 + h**2 * (a[:-1] - a[1:]) / 12
         p_err = np.linalg.norm(p[1:] - p[:-1] - p_pred, axis=1)
         p_tol = POSITION_CONSISTENCY_M + jerk_max * h[:, 0] ** 3 / 4
-        add_runs(out, t[:-1], p_err > p_tol, p_err, float(p_tol.max()), name, "consistency",
-                 "position step disagrees with the velocities and accelerations by (m)", plan_t_s=t)
+        add_runs(
+            out,
+            t[:-1],
+            p_err > p_tol,
+            p_err,
+            float(p_tol.max()),
+            name,
+            "consistency",
+            "position step disagrees with the velocities and accelerations by (m)",
+            plan_t_s=t,
+        )
         v_err = np.linalg.norm(v[1:] - v[:-1] - h * (a[:-1] + a[1:]) / 2, axis=1)
         v_tol = VELOCITY_CONSISTENCY_MPS + jerk_max * h[:, 0] ** 2 / 2
-        add_runs(out, t[:-1], v_err > v_tol, v_err, float(v_tol.max()), name, "consistency",
-                 "velocity step disagrees with the accelerations by (m/s)", plan_t_s=t)
+        add_runs(
+            out,
+            t[:-1],
+            v_err > v_tol,
+            v_err,
+            float(v_tol.max()),
+            name,
+            "consistency",
+            "velocity step disagrees with the accelerations by (m/s)",
+            plan_t_s=t,
+        )
         step_speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / h[:, 0]
         v_lim = task.max_speed_mps * KINEMATIC_TOLERANCE + 1e-3
-        add_runs(out, t[:-1], step_speed > v_lim, step_speed, task.max_speed_mps, name, "speed",
-                 "speed implied by consecutive positions (m/s)", plan_t_s=t)
+        add_runs(
+            out,
+            t[:-1],
+            step_speed > v_lim,
+            step_speed,
+            task.max_speed_mps,
+            name,
+            "speed",
+            "speed implied by consecutive positions (m/s)",
+            plan_t_s=t,
+        )
         speed = np.linalg.norm(v, axis=1)
         add_runs(out, t, speed > v_lim, speed, task.max_speed_mps, name, "speed", "speed (m/s)", plan_t_s=t)
         acc = np.linalg.norm(a, axis=1)
         a_lim = task.max_accel_mps2 * KINEMATIC_TOLERANCE + 1e-3
-        add_runs(out, t, acc > a_lim, acc, task.max_accel_mps2, name, "acceleration", "acceleration (m/s^2)", plan_t_s=t)
+        add_runs(
+            out, t, acc > a_lim, acc, task.max_accel_mps2, name, "acceleration", "acceleration (m/s^2)", plan_t_s=t
+        )
         jerk = np.linalg.norm(np.diff(a, axis=0), axis=1) / h[:, 0]
-        add_runs(out, t[1:], jerk > jerk_max + 1e-3, jerk, task.max_jerk_mps3, name, "jerk",
-                 "jerk from finite differences (m/s^3)", plan_t_s=t)
+        add_runs(
+            out,
+            t[1:],
+            jerk > jerk_max + 1e-3,
+            jerk,
+            task.max_jerk_mps3,
+            name,
+            "jerk",
+            "jerk from finite differences (m/s^3)",
+            plan_t_s=t,
+        )
         start_err = float(np.linalg.norm(p[0] - task.start_m))
         if start_err > GOAL_TOLERANCE_M:
-            out.append(Violation(float(t[0]), name, "start", f"starts at {np.round(p[0], 3).tolist()}, the scenario "
-                                 f"says {task.start_m.tolist()} (m)", start_err, GOAL_TOLERANCE_M, 0))
+            out.append(
+                Violation(
+                    float(t[0]),
+                    name,
+                    "start",
+                    f"starts at {np.round(p[0], 3).tolist()}, the scenario says {task.start_m.tolist()} (m)",
+                    start_err,
+                    GOAL_TOLERANCE_M,
+                    0,
+                )
+            )
     return out
 
 
@@ -116,35 +181,84 @@ def _check_tasks(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
         below_lo = np.max(np.column_stack([lo[0] + rb - p[:, 0], lo[1] + rb - p[:, 1], lo[2] - p[:, 2]]), axis=1)
         above_hi = np.max(np.column_stack([p[:, 0] + rb - hi[0], p[:, 1] + rb - hi[1], p[:, 2] - hi[2]]), axis=1)
         excess = np.maximum(below_lo, above_hi)
-        add_runs(out, t, excess > 1e-6, excess, 0.0, name, "workspace", "body leaves the workspace by (m)", plan_t_s=plan.t_s)
+        add_runs(
+            out, t, excess > 1e-6, excess, 0.0, name, "workspace", "body leaves the workspace by (m)", plan_t_s=plan.t_s
+        )
         for i, box in enumerate(scenario.obstacles):
-            gap_xy = np.hypot(np.maximum(0, np.maximum(box.min_m[0] - p[:, 0], p[:, 0] - box.max_m[0])),
-                              np.maximum(0, np.maximum(box.min_m[1] - p[:, 1], p[:, 1] - box.max_m[1])))
+            gap_xy = np.hypot(
+                np.maximum(0, np.maximum(box.min_m[0] - p[:, 0], p[:, 0] - box.max_m[0])),
+                np.maximum(0, np.maximum(box.min_m[1] - p[:, 1], p[:, 1] - box.max_m[1])),
+            )
             inside_z = (p[:, 2] >= box.min_m[2]) & (p[:, 2] <= box.max_m[2])
             pen = rb - gap_xy
-            add_runs(out, t, inside_z & (pen > 1e-6), pen, 0.0, name, "obstacle", f"body overlaps obstacles[{i}] by (m)",
-                     plan_t_s=plan.t_s)
+            add_runs(
+                out,
+                t,
+                inside_z & (pen > 1e-6),
+                pen,
+                0.0,
+                name,
+                "obstacle",
+                f"body overlaps obstacles[{i}] by (m)",
+                plan_t_s=plan.t_s,
+            )
         final = p[-1]
         if task.goal_m is not None:
             err = float(np.linalg.norm(final - task.goal_m))
             if err > GOAL_TOLERANCE_M:
-                out.append(Violation(end, name, "goal", f"ends at {np.round(final, 3).tolist()}, goal {task.goal_m.tolist()}",
-                                     err, GOAL_TOLERANCE_M, last))
+                out.append(
+                    Violation(
+                        end,
+                        name,
+                        "goal",
+                        f"ends at {np.round(final, 3).tolist()}, goal {task.goal_m.tolist()}",
+                        err,
+                        GOAL_TOLERANCE_M,
+                        last,
+                    )
+                )
         elif task.hover:
             err_t = np.linalg.norm(p - task.start_m, axis=1)
-            add_runs(out, t, err_t > GOAL_TOLERANCE_M, err_t, GOAL_TOLERANCE_M, name, "hover", "drifts from its hover point (m)",
-                     plan_t_s=plan.t_s)
+            add_runs(
+                out,
+                t,
+                err_t > GOAL_TOLERANCE_M,
+                err_t,
+                GOAL_TOLERANCE_M,
+                name,
+                "hover",
+                "drifts from its hover point (m)",
+                plan_t_s=plan.t_s,
+            )
         else:
             assert task.dock_with is not None and task.dock_offset_m is not None
             want = pos[task.dock_with][-1] + task.dock_offset_m
             err = float(np.linalg.norm(final - want))
             if err > GOAL_TOLERANCE_M:
-                out.append(Violation(end, name, "dock", f"ends {err:.3f} m from {task.dock_with} + offset "
-                                     f"{task.dock_offset_m.tolist()}", err, GOAL_TOLERANCE_M, last))
+                out.append(
+                    Violation(
+                        end,
+                        name,
+                        "dock",
+                        f"ends {err:.3f} m from {task.dock_with} + offset {task.dock_offset_m.tolist()}",
+                        err,
+                        GOAL_TOLERANCE_M,
+                        last,
+                    )
+                )
         speed_end = float(np.linalg.norm(tr.velocity_mps[-1]))
         if speed_end > REST_SPEED_MPS:
-            out.append(Violation(end, name, "not-at-rest", "still moving at the end of the plan (m/s)", speed_end,
-                                 REST_SPEED_MPS, last))
+            out.append(
+                Violation(
+                    end,
+                    name,
+                    "not-at-rest",
+                    "still moving at the end of the plan (m/s)",
+                    speed_end,
+                    REST_SPEED_MPS,
+                    last,
+                )
+            )
     return out
 
 
@@ -159,7 +273,17 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
             sep = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
             ex = dock_exempt(plan, scenario, a, b, pos, t)
             short = (d < sep - 1e-6) & ~ex
-            add_runs(out, t, short, sep - d, sep, a, "separation", f"closer than {sep:.3f} m to {b} by (m)", plan_t_s=plan.t_s)
+            add_runs(
+                out,
+                t,
+                short,
+                sep - d,
+                sep,
+                a,
+                "separation",
+                f"closer than {sep:.3f} m to {b} by (m)",
+                plan_t_s=plan.t_s,
+            )
             if lim.invalid_zone_rule == "model":
                 continue
             for tgt, src in ((a, b), (b, a)):
@@ -167,10 +291,23 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
                 off = pos[tgt] - pos[src]
                 dz = -off[:, 2]
                 r = np.hypot(off[:, 0], off[:, 1])
-                inside = ((dz > 1e-6) & (dz <= VALIDITY_FACTOR_L * vs.size_m)
-                          & (r < vs.body_radius_m + vt.body_radius_m) & ~ex)
-                add_runs(out, t, inside, VALIDITY_FACTOR_L * vs.size_m - dz, 0.0, tgt, "invalid-zone",
-                         f"below {src} inside its invalid zone (dz <= 3 L, footprints overlap); depth (m)", plan_t_s=plan.t_s)
+                inside = (
+                    (dz > 1e-6)
+                    & (dz <= VALIDITY_FACTOR_L * vs.size_m)
+                    & (r < vs.body_radius_m + vt.body_radius_m)
+                    & ~ex
+                )
+                add_runs(
+                    out,
+                    t,
+                    inside,
+                    VALIDITY_FACTOR_L * vs.size_m - dz,
+                    0.0,
+                    tgt,
+                    "invalid-zone",
+                    f"below {src} inside its invalid zone (dz <= 3 L, footprints overlap); depth (m)",
+                    plan_t_s=plan.t_s,
+                )
     return out
 
 
@@ -180,10 +317,22 @@ def _check_authority(plan: Plan, scenario: Scenario, t: np.ndarray) -> list[Viol
     for name, w in wrench_along_plan(plan, scenario, t_s=t).items():
         over = w.usage > limit + USAGE_TOLERANCE
         if over.any():
-            worst_src = max(w.usage_by_source.items(), key=lambda kv: float(np.max(np.where(over, kv[1], 0.0))),
-                            default=(None, None))[0]
-            add_runs(out, t, over, w.usage, limit, name, "authority", f"authority usage in the downwash of {worst_src}",
-                     plan_t_s=plan.t_s)
+            worst_src = max(
+                w.usage_by_source.items(),
+                key=lambda kv: float(np.max(np.where(over, kv[1], 0.0))),
+                default=(None, None),
+            )[0]
+            add_runs(
+                out,
+                t,
+                over,
+                w.usage,
+                limit,
+                name,
+                "authority",
+                f"authority usage in the downwash of {worst_src}",
+                plan_t_s=plan.t_s,
+            )
     return out
 
 

@@ -25,8 +25,15 @@ class Violation:
         return f"{at} {self.vehicle}: {self.kind}: {self.detail} ({self.value:.4g} > limit {self.limit:.4g})"
 
     def to_dict(self) -> dict:
-        return {"t_s": self.t_s, "sample": self.sample, "vehicle": self.vehicle, "kind": self.kind,
-                "detail": self.detail, "value": self.value, "limit": self.limit}
+        return {
+            "t_s": self.t_s,
+            "sample": self.sample,
+            "vehicle": self.vehicle,
+            "kind": self.kind,
+            "detail": self.detail,
+            "value": self.value,
+            "limit": self.limit,
+        }
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -40,12 +47,23 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(starts.tolist(), ends.tolist()))
 
 
-def add_runs(out: list[Violation], t_s: np.ndarray, mask: np.ndarray, value: np.ndarray, limit: float,
-             vehicle: str, kind: str, detail: str, *, plan_t_s: np.ndarray) -> None:
+def add_runs(
+    out: list[Violation],
+    t_s: np.ndarray,
+    mask: np.ndarray,
+    value: np.ndarray,
+    limit: float,
+    vehicle: str,
+    kind: str,
+    detail: str,
+    *,
+    plan_t_s: np.ndarray,
+) -> None:
     """Append one :class:`Violation` per run of ``mask`` on times ``t_s`` (worst ``value`` of the
     run); ``plan_t_s`` is the plan grid the reported sample index refers to."""
     for s, e in runs(mask):
         worst = float(np.max(value[s : e + 1]))
         sample = int(np.clip(np.searchsorted(plan_t_s, t_s[s] + 1e-9, side="right") - 1, 0, plan_t_s.size - 1))
-        out.append(Violation(float(t_s[s]), vehicle, kind, f"{detail} (until t={t_s[e]:.2f}s)", worst,
-                             float(limit), sample))
+        out.append(
+            Violation(float(t_s[s]), vehicle, kind, f"{detail} (until t={t_s[e]:.2f}s)", worst, float(limit), sample)
+        )

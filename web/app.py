@@ -11,9 +11,10 @@ import sys
 import threading
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -50,8 +51,13 @@ class ReviewApp(GoalEditing):
     Call :meth:`load` (background) or :meth:`show` (foreground) to put a plan on screen.
     """
 
-    def __init__(self, server: Any, input_path: Path | None = None, *,
-                 terminal_progress: Callable[[str, float], None] | None = None) -> None:
+    def __init__(
+        self,
+        server: Any,
+        input_path: Path | None = None,
+        *,
+        terminal_progress: Callable[[str, float], None] | None = None,
+    ) -> None:
         self.server = server
         self._terminal_progress = terminal_progress
         self.input_path = input_path
@@ -65,8 +71,9 @@ class ReviewApp(GoalEditing):
         self._last_plot_s = 0.0
         self._gizmo: Any = None
         self._running = True
-        self._jobs = Replanner(self._replan_job, on_progress=self._on_progress, on_done=self._on_done,
-                               on_error=self._on_error)
+        self._jobs = Replanner(
+            self._replan_job, on_progress=self._on_progress, on_done=self._on_done, on_error=self._on_error
+        )
         self._build_gui()
         self._player = threading.Thread(target=self._play_loop, name="proxplan-play", daemon=True)
         self._player.start()
@@ -138,8 +145,10 @@ class ReviewApp(GoalEditing):
         if self.loaded is not None:
             d = self.loaded.data
             m = d.metrics
-            lines.append(f"**{d.name}** — {len(d.vehicles)} vehicles, "
-                         f"{d.t_end_s - d.t_start_s:.1f} s, authority limit {d.authority_fraction:.2f}")
+            lines.append(
+                f"**{d.name}** — {len(d.vehicles)} vehicles, "
+                f"{d.t_end_s - d.t_start_s:.1f} s, authority limit {d.authority_fraction:.2f}"
+            )
             if m:
                 keys = ("max_authority_usage", "min_separation_m", "makespan_s", "planning_time_s")
                 lines.append(", ".join(f"{k} = {m[k]:.3g}" for k in keys if isinstance(m.get(k), (int, float))))
@@ -155,6 +164,7 @@ class ReviewApp(GoalEditing):
 
     def _camera_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """(position, look-at) of a camera that frames the workspace from the -x, -y side, m."""
+        assert self.loaded is not None
         d = self.loaded.data
         centre = 0.5 * (d.workspace_min_m + d.workspace_max_m)
         span = float(np.max(d.workspace_max_m - d.workspace_min_m))
@@ -178,7 +188,9 @@ class ReviewApp(GoalEditing):
         if path is None:
             return False
         if self._jobs.busy:
-            self.status.content = self._status_text(note="busy: a plan is being loaded or planned; try again when it is shown")
+            self.status.content = self._status_text(
+                note="busy: a plan is being loaded or planned; try again when it is shown"
+            )
             return False
         self.input_path = Path(path)
         self.progress.visible = True
@@ -219,11 +231,13 @@ class ReviewApp(GoalEditing):
                 self._layer_root.remove()
                 self._layer_root = None
             self._handles.remove()
-            usage = {name: np.interp(v.t_s, loaded.series[name].t_s, loaded.series[name].usage)
-                     for name, v in d.vehicles.items() if name in loaded.series}
+            usage = {
+                name: np.interp(v.t_s, loaded.series[name].t_s, loaded.series[name].usage)
+                for name, v in d.vehicles.items()
+                if name in loaded.series
+            }
             first = self.loaded is None
-            self._handles = scene.build_scene(self.server.scene, d, usage=usage,
-                                              model_scale=self.model_scale.value)
+            self._handles = scene.build_scene(self.server.scene, d, usage=usage, model_scale=self.model_scale.value)
             self.loaded = loaded
             if first:  # frame the workspace; make the models visible at its scale
                 self.model_scale.value = scene.readable_model_scale(d)
@@ -312,18 +326,27 @@ class ReviewApp(GoalEditing):
             depth = float(max(np.max(src.position_m[:, 2]) - d.workspace_min_m[2], 1.0))
             self._layer_root = self.server.scene.add_frame(f"/vehicles/{src.name}/downwash", show_axes=False)
             self._layer_handles, profiles = layers.add_layers(
-                self.server.scene, f"/vehicles/{src.name}/downwash", src.vehicle, d.vehicles[tgt_name].vehicle,
-                depth_m=depth, level=d.authority_fraction,
+                self.server.scene,
+                f"/vehicles/{src.name}/downwash",
+                src.vehicle,
+                d.vehicles[tgt_name].vehicle,
+                depth_m=depth,
+                level=d.authority_fraction,
                 invalid_rule=getattr(getattr(d.scenario, "limits", None), "invalid_zone_rule", None),
                 show_iso=self.show_iso.value,
-                show_cutoff=self.show_cut.value)
+                show_cutoff=self.show_cut.value,
+            )
             iso = ", ".join(p.label for p in profiles[:-1])
             r_cut = float(np.max(profiles[-1].r_m))
             self.layer_note.content = (
                 f"Jet of **{src.name}**: iso-speed surfaces at {iso} (red, orange, blue). "
                 f"Cutoff surface (purple) for target **{tgt_name}** at usage {d.authority_fraction:.2f}: "
-                + (f"widest r_cut = {r_cut:.2f} m." if r_cut > 0 else
-                   "r_cut = 0 everywhere (this source cannot push this target to the limit)."))
+                + (
+                    f"widest r_cut = {r_cut:.2f} m."
+                    if r_cut > 0
+                    else "r_cut = 0 everywhere (this source cannot push this target to the limit)."
+                )
+            )
 
     def _rebuild_plot(self) -> None:
         with self._lock:
@@ -331,8 +354,9 @@ class ReviewApp(GoalEditing):
                 self._plot = None
                 return
             name = self.plot_vehicle.value
-            self._plot = plots.render_series(self.loaded.series[name], name=name,
-                                             limit=self.loaded.data.authority_fraction)
+            self._plot = plots.render_series(
+                self.loaded.series[name], name=name, limit=self.loaded.data.authority_fraction
+            )
             self.plot_image.image = self._plot.with_marker(self.t_s)
 
     def _plot_vehicle_changed(self) -> None:
@@ -373,9 +397,13 @@ class ReviewApp(GoalEditing):
             self.play.value = False
             try:
                 payload, frames = record_scene(
-                    self.server, lambda t: scene.set_time(self._handles, d, t),
-                    t_start_s=d.t_start_s, t_end_s=d.t_end_s, frame_dt_s=frame_dt_s,
-                    prelude=self._record_initial_camera)
+                    self.server,
+                    lambda t: scene.set_time(self._handles, d, t),
+                    t_start_s=d.t_start_s,
+                    t_end_s=d.t_end_s,
+                    frame_dt_s=frame_dt_s,
+                    prelude=self._record_initial_camera,
+                )
             finally:
                 self.set_time(t_keep, force=True)
                 self.play.value = playing

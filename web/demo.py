@@ -8,18 +8,22 @@ It is not a planned (or safe) plan: it exists to exercise the viewer.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-DEMO_SPEC = {
+DEMO_SPEC: dict[str, Any] = {
     "name": "demo-battery-swap",
     "workspace": {"min": [-3.0, -3.0, 0.0], "max": [3.0, 3.0, 4.0]},
     "obstacles": [{"min": [1.0, -0.5, 0.0], "max": [1.5, 0.5, 2.0]}],
     "limits": {"authority_fraction": 0.4, "min_separation_m": 0.3},
     "vehicles": {
         "carrier": {"type": "large-quad", "start": [0.0, 0.0, 1.5], "hover": True},
-        "shuttle": {"type": "small-quad", "start": [2.0, 1.0, 3.5],
-                    "dock": {"with": "carrier", "offset": [0.0, 0.0, 1.8]}},
+        "shuttle": {
+            "type": "small-quad",
+            "start": [2.0, 1.0, 3.5],
+            "dock": {"with": "carrier", "offset": [0.0, 0.0, 1.8]},
+        },
         "other": {"type": "small-quad", "start": [-2.0, -1.5, 1.0], "goal": [2.0, -1.5, 1.0]},
     },
 }
@@ -42,8 +46,7 @@ def write_demo_plan(out_dir: str | Path, *, duration_s: float = 8.0, dt_s: float
     """Write ``out_dir/plan.json`` (with the scenario embedded) and ``out_dir/scenario.yaml``."""
     import yaml
 
-    from planfile import Plan, VehicleTrajectory, write_plan
-    from planfile import scenario_from_dict
+    from planfile import Plan, VehicleTrajectory, scenario_from_dict, write_plan
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -55,10 +58,16 @@ def write_demo_plan(out_dir: str | Path, *, duration_s: float = 8.0, dt_s: float
     for name, pos in demo_positions_m(t_s).items():
         vel = np.gradient(pos, t_s, axis=0)
         task = scenario.vehicles[name]
-        vehicles[name] = VehicleTrajectory(name, task.type_name, task.vehicle, t_s, pos, vel,
-                                           np.gradient(vel, t_s, axis=0))
-    plan = Plan(scenario=DEMO_SPEC["name"], dt_s=dt_s, vehicles=vehicles,
-                      metrics={"planning_time_s": 0.0, "makespan_s": float(t_s[-1])},
-                      method="hand-made straight lines", scenario_file=str(scenario_path.resolve()),
-                      scenario_spec=scenario.to_spec())
+        vehicles[name] = VehicleTrajectory(
+            name, task.type_name, task.vehicle, t_s, pos, vel, np.gradient(vel, t_s, axis=0)
+        )
+    plan = Plan(
+        scenario=DEMO_SPEC["name"],
+        dt_s=dt_s,
+        vehicles=vehicles,
+        metrics={"planning_time_s": 0.0, "makespan_s": float(t_s[-1])},
+        method="hand-made straight lines",
+        scenario_file=str(scenario_path.resolve()),
+        scenario_spec=scenario.to_spec(),
+    )
     return write_plan(plan, out_dir)

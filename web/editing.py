@@ -17,6 +17,18 @@ from web.replan import with_dock_offset, with_goal
 class GoalEditing:
     """Gizmo editing of goals / dock offsets and the background re-plan of the edited scenario."""
 
+    # provided by ReviewApp (declared for the type checker)
+    server: Any
+    loaded: Any
+    edit_vehicle: Any
+    edit_note: Any
+    progress: Any
+    _gizmo: Any
+    _lock: Any
+    _jobs: Any
+
+    def _guard(self, fn: Any) -> Any: ...  # ReviewApp._guard
+
     def _editable(self, name: str) -> bool:
         d = self.loaded.data if self.loaded else None
         if d is None or d.scenario is None:
@@ -43,12 +55,16 @@ class GoalEditing:
             self._remove_gizmo()
             name = self.edit_vehicle.value
             if self.loaded is None or name not in self.loaded.data.vehicles or not self._editable(name):
-                self.edit_note.content = ("" if self.loaded is None or self.loaded.data.scenario is not None
-                                          else "editing needs the scenario (plan.json without one, or no planner)")
+                self.edit_note.content = (
+                    ""
+                    if self.loaded is None or self.loaded.data.scenario is not None
+                    else "editing needs the scenario (plan.json without one, or no planner)"
+                )
                 return
             _, end = self._gizmo_anchor(name)
             self._gizmo = self.server.scene.add_transform_controls(
-                "/edit/target", scale=0.4, disable_rotations=True, position=tuple(end))
+                "/edit/target", scale=0.4, disable_rotations=True, position=tuple(end)
+            )
             what = "dock offset" if self.loaded.data.vehicles[name].dock_with else "goal"
             self.edit_note.content = f"drag the gizmo to move the {what} of **{name}**, then press re-plan"
             self._gizmo.on_update(self._guard(lambda _e: self._gizmo_moved(name, what)))
@@ -58,8 +74,9 @@ class GoalEditing:
             return
         origin, _ = self._gizmo_anchor(name)
         value = np.asarray(self._gizmo.position, float) - (origin if what == "dock offset" else 0.0)
-        self.edit_note.content = (f"new {what} of **{name}**: [{value[0]:.2f}, {value[1]:.2f}, {value[2]:.2f}] m "
-                                  "— press re-plan")
+        self.edit_note.content = (
+            f"new {what} of **{name}**: [{value[0]:.2f}, {value[1]:.2f}, {value[2]:.2f}] m — press re-plan"
+        )
 
     def edited_scenario(self) -> Any:
         """The scenario with the gizmo's goal or dock offset applied (None when nothing is edited)."""

@@ -13,8 +13,8 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -36,9 +36,16 @@ def viser_client_index() -> Path:
     return Path(viser.__file__).resolve().parent / "client" / "build" / "index.html"
 
 
-def record_scene(server, set_time: Callable[[float], None], *, t_start_s: float, t_end_s: float,
-                 frame_dt_s: float = 0.1, speed: float = 1.0,
-                 prelude: Callable[[], None] | None = None) -> tuple[bytes, int]:
+def record_scene(
+    server,
+    set_time: Callable[[float], object],
+    *,
+    t_start_s: float,
+    t_end_s: float,
+    frame_dt_s: float = 0.1,
+    speed: float = 1.0,
+    prelude: Callable[[], None] | None = None,
+) -> tuple[bytes, int]:
     """Serialize the current scene and one frame per ``frame_dt_s`` of plan time.
 
     ``set_time(t_s)`` must move the scene to plan time ``t_s`` (it is called for every frame).
@@ -68,8 +75,9 @@ def write_export(out_dir: str | Path, payload: bytes, *, name: str, frames: int,
     try:
         (tmp / "recording.viser").write_bytes(payload)
         shutil.copyfile(viser_client_index(), tmp / "index.html")
-        (tmp / "README.txt").write_text(README.format(
-            name=name, dirname=out_dir, frames=frames, duration=duration_s, version=viser.__version__))
+        (tmp / "README.txt").write_text(
+            README.format(name=name, dirname=out_dir, frames=frames, duration=duration_s, version=viser.__version__)
+        )
         if out_dir.exists():
             old = out_dir.with_name(f".{out_dir.name}.old")
             if old.exists():

@@ -87,7 +87,12 @@ def iso_speed_profiles(
 
 
 def cutoff_profile(
-    source: Vehicle, target: Vehicle, *, depth_m: float, level: float, invalid_rule: str | None = None,
+    source: Vehicle,
+    target: Vehicle,
+    *,
+    depth_m: float,
+    level: float,
+    invalid_rule: str | None = None,
     n_dz: int = 80,
 ) -> Profile:
     """Cutoff surface of ``target`` under ``source`` at authority-usage ``level``, down to ``depth_m``,
@@ -98,8 +103,9 @@ def cutoff_profile(
     dz = np.linspace(0.0, depth_m, n_dz)
     dz[0] = 1e-3
     r_cut = pair_maps(source, target).cutoff.r_cut_m(dz, level=level, invalid_rule=invalid_rule)
-    return Profile(dz, np.nan_to_num(np.asarray(r_cut, float), nan=0.0),
-                   f"r_cut, usage {level:.2f}, target {target.name}")
+    return Profile(
+        dz, np.nan_to_num(np.asarray(r_cut, float), nan=0.0), f"r_cut, usage {level:.2f}, target {target.name}"
+    )
 
 
 ISO_COLOURS = [(230, 60, 40), (250, 160, 40), (70, 150, 230)]
@@ -107,8 +113,16 @@ CUTOFF_RGB = (160, 60, 200)
 
 
 def add_layers(
-    scene, parent: str, source: Vehicle, target: Vehicle, *, depth_m: float, level: float,
-    invalid_rule: str | None = None, show_iso: bool = True, show_cutoff: bool = True,
+    scene,
+    parent: str,
+    source: Vehicle,
+    target: Vehicle,
+    *,
+    depth_m: float,
+    level: float,
+    invalid_rule: str | None = None,
+    show_iso: bool = True,
+    show_cutoff: bool = True,
 ) -> tuple[list, list[Profile]]:
     """Add the iso-speed surfaces and the cutoff surface under node ``parent`` (the source's frame).
 
@@ -117,14 +131,35 @@ def add_layers(
     handles, profiles = [], []
     for k, prof in enumerate(iso_speed_profiles(source, depth_m=depth_m)):
         v, f = prof.mesh()
-        handles.append(scene.add_mesh_simple(
-            f"{parent}/iso_{k}", v, f, color=ISO_COLOURS[k % len(ISO_COLOURS)], opacity=0.18 + 0.07 * k,
-            side="double", cast_shadow=False, receive_shadow=False, visible=show_iso))
+        handles.append(
+            scene.add_mesh_simple(
+                f"{parent}/iso_{k}",
+                v,
+                f,
+                color=ISO_COLOURS[k % len(ISO_COLOURS)],
+                opacity=0.18 + 0.07 * k,
+                side="double",
+                cast_shadow=False,
+                receive_shadow=False,
+                visible=show_iso,
+            )
+        )
         profiles.append(prof)
     prof = cutoff_profile(source, target, depth_m=depth_m, level=level, invalid_rule=invalid_rule)
     v, f = prof.mesh()
-    handles.append(scene.add_mesh_simple(
-        f"{parent}/cutoff", v, f, color=CUTOFF_RGB, opacity=0.25, wireframe=False, side="double",
-        cast_shadow=False, receive_shadow=False, visible=show_cutoff))
+    handles.append(
+        scene.add_mesh_simple(
+            f"{parent}/cutoff",
+            v,
+            f,
+            color=CUTOFF_RGB,
+            opacity=0.25,
+            wireframe=False,
+            side="double",
+            cast_shadow=False,
+            receive_shadow=False,
+            visible=show_cutoff,
+        )
+    )
     profiles.append(prof)
     return handles, profiles

@@ -12,16 +12,38 @@ import numpy as np
 Mesh = tuple[np.ndarray, np.ndarray]
 
 _BOX_FACES = np.array(
-    [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-     [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]]
+    [
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [1, 2, 6],
+        [1, 6, 5],
+        [2, 3, 7],
+        [2, 7, 6],
+        [3, 0, 4],
+        [3, 4, 7],
+    ]
 )
 
 
 def box(centre_m: np.ndarray, size_m: np.ndarray, *, yaw_rad: float = 0.0) -> Mesh:
     """Box of edge lengths ``size_m`` (3,) centred at ``centre_m`` (3,), turned by ``yaw_rad`` about z."""
     sx, sy, sz = 0.5 * np.asarray(size_m, float)
-    corners = np.array([[-sx, -sy, -sz], [sx, -sy, -sz], [sx, sy, -sz], [-sx, sy, -sz],
-                        [-sx, -sy, sz], [sx, -sy, sz], [sx, sy, sz], [-sx, sy, sz]])
+    corners = np.array(
+        [
+            [-sx, -sy, -sz],
+            [sx, -sy, -sz],
+            [sx, sy, -sz],
+            [-sx, sy, -sz],
+            [-sx, -sy, sz],
+            [sx, -sy, sz],
+            [sx, sy, sz],
+            [-sx, sy, sz],
+        ]
+    )
     c, s = math.cos(yaw_rad), math.sin(yaw_rad)
     rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return corners @ rot.T + np.asarray(centre_m, float), _BOX_FACES.copy()
@@ -37,11 +59,14 @@ def cylinder(centre_m: np.ndarray, radius_m: float, height_m: float, *, segments
     i = np.arange(segments)
     j = (i + 1) % segments
     nb, nt = 2 * segments, 2 * segments + 1
-    faces = np.vstack([
-        np.column_stack([i, j, j + segments]), np.column_stack([i, j + segments, i + segments]),
-        np.column_stack([np.full(segments, nb), j, i]),
-        np.column_stack([np.full(segments, nt), i + segments, j + segments]),
-    ])
+    faces = np.vstack(
+        [
+            np.column_stack([i, j, j + segments]),
+            np.column_stack([i, j + segments, i + segments]),
+            np.column_stack([np.full(segments, nb), j, i]),
+            np.column_stack([np.full(segments, nt), i + segments, j + segments]),
+        ]
+    )
     return verts + np.asarray(centre_m, float), faces
 
 
@@ -53,10 +78,14 @@ def surface_of_revolution(z_m: np.ndarray, r_m: np.ndarray, *, segments: int = 3
     z_m = np.asarray(z_m, float)
     r_m = np.asarray(r_m, float)
     ang = 2.0 * math.pi * np.arange(segments) / segments
-    verts = np.stack([
-        r_m[:, None] * np.cos(ang)[None, :], r_m[:, None] * np.sin(ang)[None, :],
-        np.broadcast_to(z_m[:, None], (z_m.size, segments)),
-    ], axis=-1).reshape(-1, 3)
+    verts = np.stack(
+        [
+            r_m[:, None] * np.cos(ang)[None, :],
+            r_m[:, None] * np.sin(ang)[None, :],
+            np.broadcast_to(z_m[:, None], (z_m.size, segments)),
+        ],
+        axis=-1,
+    ).reshape(-1, 3)
     k = np.arange(z_m.size - 1)[:, None]
     i = np.arange(segments)[None, :]
     j = (i + 1) % segments

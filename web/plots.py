@@ -36,12 +36,13 @@ class PlotImage:
         img = self.rgb.copy()
         col = self.column_of(t_s)
         y0, y1 = self.y_px_range
-        img[y0:y1, max(col - 1, 0):col + 1] = MARKER_RGB
+        img[y0:y1, max(col - 1, 0) : col + 1] = MARKER_RGB
         return img
 
 
-def render_series(series: WrenchSeries, *, name: str, limit: float, width_px: int = 420,
-                  height_px: int = 420) -> PlotImage:
+def render_series(
+    series: WrenchSeries, *, name: str, limit: float, width_px: int = 420, height_px: int = 420
+) -> PlotImage:
     """Three stacked axes: force (N), torque (N m) and authority usage (-) against time (s)."""
     import matplotlib
 
@@ -63,8 +64,9 @@ def render_series(series: WrenchSeries, *, name: str, limit: float, width_px: in
     axes[2].set_ylabel("authority usage [-]", fontsize=8)
     y_top = max(1.1 * limit, 1.1 * float(np.max(series.usage, initial=0.0)), 1e-3)
     if series.invalid_zone is not None and np.any(series.invalid_zone):
-        axes[2].fill_between(t, 0.0, y_top, where=series.invalid_zone, color="0.6", alpha=0.35, lw=0,
-                             label="dz <= 3 L (model not valid)")
+        axes[2].fill_between(
+            t, 0.0, y_top, where=series.invalid_zone, color="0.6", alpha=0.35, lw=0, label="dz <= 3 L (model not valid)"
+        )
     axes[2].set_ylim(0.0, y_top)
     axes[2].set_xlabel("time [s]", fontsize=8)
     axes[0].set_title(f"predicted disturbance on {name}", fontsize=9)
@@ -94,8 +96,8 @@ def render_usage_legend(limit: float, *, width_px: int = 420, height_px: int = 8
 
     matplotlib.use("Agg")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import Normalize
     from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
     from web.scene import OVER_LIMIT_RGB, USAGE_COLORMAP
@@ -106,7 +108,8 @@ def render_usage_legend(limit: float, *, width_px: int = 420, height_px: int = 8
     ax.tick_params(labelsize=7)
     fig.text(0.05, 0.8, "trajectory colour: authority usage [-] (limit at the right end)", fontsize=8)
     over = fig.add_axes((0.82, 0.4, 0.14, 0.25))
-    over.set_facecolor(np.array(OVER_LIMIT_RGB) / 255)
+    r, g, b = (float(c) / 255 for c in OVER_LIMIT_RGB)
+    over.set_facecolor((r, g, b))
     over.set_xticks([])
     over.set_yticks([])
     over.set_xlabel(f"> {limit:.2f}", fontsize=7)

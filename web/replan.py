@@ -12,7 +12,8 @@ import dataclasses
 import sys
 import threading
 import traceback
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -32,16 +33,20 @@ def with_goal(scenario: Any, name: str, goal_m: np.ndarray) -> Any:
     """Copy of ``scenario`` where vehicle ``name`` flies to ``goal_m`` (3,), world frame, m."""
     goal = np.asarray(goal_m, dtype=float).reshape(3)
     task = dataclasses.replace(scenario.vehicles[name], goal_m=goal)
-    return dataclasses.replace(scenario, vehicles={**scenario.vehicles, name: task},
-                               spec=_edited_spec(scenario, name, ("goal",), goal))
+    return dataclasses.replace(
+        scenario, vehicles={**scenario.vehicles, name: task}, spec=_edited_spec(scenario, name, ("goal",), goal)
+    )
 
 
 def with_dock_offset(scenario: Any, name: str, offset_m: np.ndarray) -> Any:
     """Copy of ``scenario`` where vehicle ``name`` docks at ``offset_m`` (3,) from its partner, m."""
     offset = np.asarray(offset_m, dtype=float).reshape(3)
     task = dataclasses.replace(scenario.vehicles[name], dock_offset_m=offset)
-    return dataclasses.replace(scenario, vehicles={**scenario.vehicles, name: task},
-                               spec=_edited_spec(scenario, name, ("dock", "offset"), offset))
+    return dataclasses.replace(
+        scenario,
+        vehicles={**scenario.vehicles, name: task},
+        spec=_edited_spec(scenario, name, ("dock", "offset"), offset),
+    )
 
 
 class Replanner:
@@ -78,8 +83,7 @@ class Replanner:
             if self._thread is not None and self._thread.is_alive():
                 return False
             fn = plan_fn or self._plan_fn
-            self._thread = threading.Thread(target=self._run, args=(scenario, fn), name="proxplan-replan",
-                                            daemon=True)
+            self._thread = threading.Thread(target=self._run, args=(scenario, fn), name="proxplan-replan", daemon=True)
             self._thread.start()
             return True
 

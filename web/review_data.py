@@ -7,9 +7,10 @@ Frames: world z up, positions in m, times in s. Every vehicle of a plan shares o
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -172,4 +173,3 @@ def load_input(path: str | Path, *, progress: Progress | None = None) -> ReviewD
         plan = plan_scenario(scenario, progress=progress)
         return review_from_plan_result(plan, scenario, source_path=path)
     return load_plan_file(path)
-

@@ -18,8 +18,16 @@ from physics import Vehicle
 from web import meshes
 from web.review_data import ReviewData
 
-VEHICLE_COLOURS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (148, 103, 189), (140, 86, 75),
-                   (227, 119, 194), (23, 190, 207), (188, 189, 34)]
+VEHICLE_COLOURS = [
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (23, 190, 207),
+    (188, 189, 34),
+]
 OVER_LIMIT_RGB = (200, 0, 200)  # trajectory colour where usage exceeds the limit
 USAGE_COLORMAP = "RdYlGn_r"
 
@@ -40,10 +48,12 @@ def vehicle_meshes(vehicle: Vehicle) -> tuple[meshes.Mesh, meshes.Mesh]:
         parts.append(meshes.cylinder(rotor, 0.5 * f.motor_pod_diameter_m, hub_h))
     body = meshes.merge(parts)
     disk_h = max(0.02 * vehicle.propeller.radius_m, 0.001)
-    disks = meshes.merge([
-        meshes.cylinder(rotor + [0.0, 0.0, 0.5 * hub_h + disk_h], vehicle.propeller.radius_m, disk_h)
-        for rotor in vehicle.rotor_positions_m
-    ])
+    disks = meshes.merge(
+        [
+            meshes.cylinder(rotor + [0.0, 0.0, 0.5 * hub_h + disk_h], vehicle.propeller.radius_m, disk_h)
+            for rotor in vehicle.rotor_positions_m
+        ]
+    )
     return body, disks
 
 
@@ -105,15 +115,32 @@ def build_scene(
     lo, hi = data.workspace_min_m, data.workspace_max_m
     size = hi - lo
     centre = 0.5 * (lo + hi)
-    handles.fixed.append(scene.add_grid(
-        "/ground", width=float(size[0]), height=float(size[1]), plane="xy",
-        cell_size=0.5, section_size=1.0, position=(float(centre[0]), float(centre[1]), 0.0)))
-    handles.fixed.append(scene.add_line_segments(
-        "/workspace", meshes.box_edges(lo, hi), (120, 120, 120), thickness=2.0, thickness_units="screen"))
+    handles.fixed.append(
+        scene.add_grid(
+            "/ground",
+            width=float(size[0]),
+            height=float(size[1]),
+            plane="xy",
+            cell_size=0.5,
+            section_size=1.0,
+            position=(float(centre[0]), float(centre[1]), 0.0),
+        )
+    )
+    handles.fixed.append(
+        scene.add_line_segments(
+            "/workspace", meshes.box_edges(lo, hi), (120, 120, 120), thickness=2.0, thickness_units="screen"
+        )
+    )
     for k, (bmin, bmax) in enumerate(data.obstacles_m):
-        handles.obstacles.append(scene.add_box(
-            f"/obstacles/{k}", color=(150, 150, 160), dimensions=tuple(bmax - bmin),
-            position=tuple(0.5 * (bmin + bmax)), opacity=0.7))
+        handles.obstacles.append(
+            scene.add_box(
+                f"/obstacles/{k}",
+                color=(150, 150, 160),
+                dimensions=tuple(bmax - bmin),
+                position=tuple(0.5 * (bmin + bmax)),
+                opacity=0.7,
+            )
+        )
     for i, (name, traj) in enumerate(data.vehicles.items()):
         colour = VEHICLE_COLOURS[i % len(VEHICLE_COLOURS)]
         u = usage.get(name) if usage else None
@@ -123,16 +150,25 @@ def build_scene(
         else:
             segs, cols = trajectory_segments(traj.position_m, u, data.authority_fraction)
         handles.trajectories[name] = scene.add_line_segments(
-            f"/trajectories/{name}", segs, cols, thickness=4.0, thickness_units="screen")
+            f"/trajectories/{name}", segs, cols, thickness=4.0, thickness_units="screen"
+        )
         frame = scene.add_frame(f"/vehicles/{name}", show_axes=False, position=tuple(traj.position_m[0]))
         body, disks = vehicle_meshes(traj.vehicle)
         handles.models[name] = [
-            scene.add_mesh_simple(f"/vehicles/{name}/body", body[0], body[1], color=(60, 60, 60),
-                                  scale=model_scale),
-            scene.add_mesh_simple(f"/vehicles/{name}/props", disks[0], disks[1], color=colour,
-                                  opacity=0.6, scale=model_scale, side="double"),
+            scene.add_mesh_simple(f"/vehicles/{name}/body", body[0], body[1], color=(60, 60, 60), scale=model_scale),
+            scene.add_mesh_simple(
+                f"/vehicles/{name}/props",
+                disks[0],
+                disks[1],
+                color=colour,
+                opacity=0.6,
+                scale=model_scale,
+                side="double",
+            ),
         ]
-        scene.add_label(f"/vehicles/{name}/label", name, position=(0.0, 0.0, 0.1 + model_scale * traj.vehicle.arm_length_m))
+        scene.add_label(
+            f"/vehicles/{name}/label", name, position=(0.0, 0.0, 0.1 + model_scale * traj.vehicle.arm_length_m)
+        )
         handles.vehicles[name] = frame
     return handles
 

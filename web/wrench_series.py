@@ -41,7 +41,12 @@ def wrench_series(data: ReviewData, *, max_samples: int = 600) -> dict[str, Wren
     t_s = np.linspace(data.t_start_s, data.t_end_s, max(n, 2))
     result = wrench_along_plan(data.plan, data.scenario, t_s=t_s)
     return {
-        name: WrenchSeries(t_s, np.asarray(w.force_N), np.asarray(w.torque_Nm), np.asarray(w.usage),
-                           np.asarray(w.invalid_zone, dtype=bool))
+        name: WrenchSeries(
+            t_s,
+            np.asarray(w.force_N),
+            np.asarray(w.torque_Nm),
+            np.asarray(w.usage),
+            np.asarray(w.invalid_zone, dtype=bool),
+        )
         for name, w in result.items()
     }

@@ -35,20 +35,33 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--source", metavar="TYPE", help="vehicle type producing the downwash (above)")
     p.add_argument("--target", metavar="TYPE", help="vehicle type receiving it (below)")
     p.add_argument("--out", metavar="PATH.npz", help="output map file (a PNG of the same stem is written beside it)")
-    p.add_argument("--all", action="store_true",
-                   help="every ordered pair of built-in vehicle types (and those of --vehicle-file)")
+    p.add_argument(
+        "--all", action="store_true", help="every ordered pair of built-in vehicle types (and those of --vehicle-file)"
+    )
     p.add_argument("--out-dir", metavar="DIR", help="with --all: directory for SOURCE__TARGET.npz files")
     p.add_argument(
         "--levels", nargs="+", default=list(_DEFAULT_LEVELS), metavar="U",
         help="authority-usage thresholds to store, each in [0.01, 10] (default: %(default)s)",
     )  # fmt: skip
-    p.add_argument("--default-level", default="0.5", metavar="U",
-                   help="level of the r_cut_m array (default 0.5 = DESIGN's authority_fraction)")
-    p.add_argument("--invalid-rule", default="conservative", choices=_RULES,
-                   help="cutoff where dz <= 3 L_source (model not valid): conservative (default), "
-                        "model (extrapolated numbers) or forbid (whole cylinder)")
-    p.add_argument("--field-form", choices=("inverse-z", "printed"), default=None,
-                   help="form of (S0-1); default: the vehicle file's model.field_form or inverse-z")
+    p.add_argument(
+        "--default-level",
+        default="0.5",
+        metavar="U",
+        help="level of the r_cut_m array (default 0.5 = DESIGN's authority_fraction)",
+    )
+    p.add_argument(
+        "--invalid-rule",
+        default="conservative",
+        choices=_RULES,
+        help="cutoff where dz <= 3 L_source (model not valid): conservative (default), "
+        "model (extrapolated numbers) or forbid (whole cylinder)",
+    )
+    p.add_argument(
+        "--field-form",
+        choices=("inverse-z", "printed"),
+        default=None,
+        help="form of (S0-1); default: the vehicle file's model.field_form or inverse-z",
+    )
     p.add_argument("--vehicle-file", metavar="FILE.yaml", help="custom vehicle types")
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -68,9 +81,8 @@ def _level(text: str, flag: str) -> float:
 
 
 def _pairs(args: argparse.Namespace, custom: dict) -> list[tuple]:
-    from physics import BUILTIN_VEHICLES
     from fileio import UserError
-    from physics import resolve_vehicle
+    from physics import BUILTIN_VEHICLES, resolve_vehicle
 
     if args.all:
         if args.source or args.target or args.out:
@@ -79,14 +91,18 @@ def _pairs(args: argparse.Namespace, custom: dict) -> list[tuple]:
             raise UserError("--all needs --out-dir DIR (e.g. --out-dir costmaps/data)")
         vehicles = {**BUILTIN_VEHICLES, **custom}  # custom types of --vehicle-file too
         return [(vehicles[s], vehicles[t]) for s in vehicles for t in vehicles]
-    missing = [flag for flag, value in (("--source", args.source), ("--target", args.target), ("--out", args.out)) if not value]
+    missing = [
+        flag for flag, value in (("--source", args.source), ("--target", args.target), ("--out", args.out)) if not value
+    ]
     if missing:
         raise UserError(f"missing {', '.join(missing)} (or use --all --out-dir DIR)")
     if args.out_dir:
         raise UserError("--out-dir goes with --all; for one pair use --out PATH.npz")
     if not args.out.endswith(".npz"):
         raise UserError(f"--out: expected a path ending in .npz, got {args.out!r}")
-    return [(resolve_vehicle(args.source, custom, where="--source"), resolve_vehicle(args.target, custom, where="--target"))]
+    return [
+        (resolve_vehicle(args.source, custom, where="--source"), resolve_vehicle(args.target, custom, where="--target"))
+    ]
 
 
 def run_costmap(args: argparse.Namespace) -> int:
@@ -94,8 +110,8 @@ def run_costmap(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from physics import ModelOptions
     from costmaps import build_pair_maps, save_pair_maps
+    from physics import ModelOptions
 
     start = time.perf_counter()
     custom, model = {}, {}
@@ -140,8 +156,10 @@ def run_costmap(args: argparse.Namespace) -> int:
         return 0
     for r in results:
         print(f"{r['source']} -> {r['target']}: {r['out']}" + (f" (+ {r['plot']})" if r["plot"] else ""))
-        print(f"  peak usage in the valid zone {r['peak_usage_valid_zone']:.3f}; max r_cut per level: "
-              + ", ".join(f"{lv:g}: {rc:.2f} m" for lv, rc in zip(r["levels"], r["max_r_cut_valid_m"])))
+        print(
+            f"  peak usage in the valid zone {r['peak_usage_valid_zone']:.3f}; max r_cut per level: "
+            + ", ".join(f"{lv:g}: {rc:.2f} m" for lv, rc in zip(r["levels"], r["max_r_cut_valid_m"]))
+        )
     print(f"{len(results)} map(s) in {elapsed:.1f} s", file=sys.stderr)
     return 0
 

@@ -9,6 +9,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+
 from fileio import atomic_write_text
 
 
@@ -26,22 +27,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("manifest", help="manifest YAML (DESIGN.md section 6; root is relative to the manifest file)")
     p.add_argument("--out", required=True, help="output directory (created)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--save-model", metavar="FILE", help="write the calibrated vehicles + kept effects as a vehicles YAML for costmap/plan")
+    p.add_argument(
+        "--save-model",
+        metavar="FILE",
+        help="write the calibrated vehicles + kept effects as a vehicles YAML for costmap/plan",
+    )
     p.add_argument("--no-calibrate", action="store_true", help="skip the calibration stage (effects only)")
     p.add_argument("--derivative", choices=("savgol", "triangular", "difference"), default="savgol",
                    help="gyro derivative / smoothing: Savitzky-Golay (default), S0's triangular moving average, raw S0-12")  # fmt: skip
     p.add_argument("--window-s", type=float, default=0.15, help="smoothing window, s (default 0.15)")
-    p.add_argument("--motor-tau-s", type=float, default=None, help="compensate a first-order motor lag with this time constant, s")
-    p.add_argument("--min-gain", type=float, default=0.05, help="relative test-RMSE cut an effect must bring to be kept (default 0.05)")
+    p.add_argument(
+        "--motor-tau-s", type=float, default=None, help="compensate a first-order motor lag with this time constant, s"
+    )
+    p.add_argument(
+        "--min-gain",
+        type=float,
+        default=0.05,
+        help="relative test-RMSE cut an effect must bring to be kept (default 0.05)",
+    )
     p.set_defaults(func=run)
-
-
 
 
 def model_yaml_dict(result) -> dict:
     """The vehicles-YAML mapping (physics.vehicle_yaml format) of the calibrated model."""
-    from physics import BUILTIN_VEHICLES
-    from physics import vehicle_to_yaml_dict
+    from physics import BUILTIN_VEHICLES, vehicle_to_yaml_dict
 
     vehicles = {}
     for name, veh in result.final_model.vehicles.items():
@@ -51,7 +60,10 @@ def model_yaml_dict(result) -> dict:
         "vehicles": vehicles,
         "model": {
             "field_form": result.final_model.options.field_form,
-            "effects": [{"name": e.name, "params": {k: float(v) for k, v in e.full_params().items()}} for e in result.final_model.effects],
+            "effects": [
+                {"name": e.name, "params": {k: float(v) for k, v in e.full_params().items()}}
+                for e in result.final_model.effects
+            ],
         },
     }
 
@@ -70,16 +82,15 @@ def save_model(result, path: str | Path) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from fileio import UserError
-    from identify import load_manifest
-    from identify import IdentifyOptions, run_identify
-    from identify import write_report
-    from identify import MeasureOptions
+    from identify import IdentifyOptions, MeasureOptions, load_manifest, run_identify, write_report
 
     if args.window_s <= 0 or (args.motor_tau_s is not None and args.motor_tau_s <= 0):
         raise UserError("--window-s and --motor-tau-s must be positive numbers of seconds")
     manifest = load_manifest(args.manifest)
     options = IdentifyOptions(
-        measure=MeasureOptions(derivative=args.derivative, window_s=args.window_s, motor_time_constant_s=args.motor_tau_s),
+        measure=MeasureOptions(
+            derivative=args.derivative, window_s=args.window_s, motor_time_constant_s=args.motor_tau_s
+        ),
         calibrate=not args.no_calibrate,
         min_gain=args.min_gain,
         progress=True,

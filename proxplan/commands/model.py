@@ -33,8 +33,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--offset", required=True, nargs=3, metavar=("DX", "DY", "DZ"),
         help="target position minus source position, m (DZ negative = target below)",
     )  # fmt: skip
-    wrench.add_argument("--field-form", default="inverse-z", choices=("inverse-z", "printed"),
-                        help="form of (S0-1): inverse-z (default, 1/z decay) or printed (1/sqrt(z))")
+    wrench.add_argument(
+        "--field-form",
+        default="inverse-z",
+        choices=("inverse-z", "printed"),
+        help="form of (S0-1): inverse-z (default, 1/z decay) or printed (1/sqrt(z))",
+    )
     wrench.add_argument("--vehicle-file", metavar="FILE.yaml", help="custom vehicle types")
     wrench.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     wrench.set_defaults(func=run_wrench)
@@ -59,8 +63,8 @@ def run_vehicles(args: argparse.Namespace) -> int:
     for name, d in table.items():
         p = d["propeller"]
         print(
-            f"{name:18s} {d['mass_kg']*1000:7.1f} g  L={d['size_L_m']*1000:5.1f} mm  "
-            f"prop {p['diameter_m']*1000:5.1f} mm  Tmax={d['max_thrust_N']:5.2f} N  "
+            f"{name:18s} {d['mass_kg'] * 1000:7.1f} g  L={d['size_L_m'] * 1000:5.1f} mm  "
+            f"prop {p['diameter_m'] * 1000:5.1f} mm  Tmax={d['max_thrust_N']:5.2f} N  "
             f"b_v={p['b_v_Nsm3prad2']:.3g} ({p['b_v_source']})  "
             f"c_ax={d['downwash']['c_ax']} z0={d['downwash']['z0_m']:.3f} m c_rad={d['downwash']['c_rad']}"
         )
@@ -87,9 +91,7 @@ def _parse_offset(raw: list[str]) -> list[float]:
 def run_wrench(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from physics import authority_usage
-    from physics import ModelOptions, disturbance_wrench
-    from physics import resolve_vehicle
+    from physics import ModelOptions, authority_usage, disturbance_wrench, resolve_vehicle
 
     offset = _parse_offset(args.offset)
     custom = _custom_vehicles(args.vehicle_file)
@@ -115,7 +117,9 @@ def run_wrench(args: argparse.Namespace) -> int:
         return 0
     f, t = result["force_N"], result["torque_Nm"]
     print(f"{target.name} at offset {offset} m from hovering {source.name}:")
-    print(f"  force   [N]   {f[0]:+.4f} {f[1]:+.4f} {f[2]:+.4f}  ({-f[2] / target.weight_N * 100:.1f} % of weight down)")
+    print(
+        f"  force   [N]   {f[0]:+.4f} {f[1]:+.4f} {f[2]:+.4f}  ({-f[2] / target.weight_N * 100:.1f} % of weight down)"
+    )
     print(f"  torque  [N m] {t[0]:+.5f} {t[1]:+.5f} {t[2]:+.5f}")
     print(f"  drag Fz {batch.drag_force_N[0, 2]:+.4f} N, thrust change Fz {batch.thrust_force_N[0, 2]:+.4f} N")
     print(f"  authority usage {usage:.3f}")

@@ -25,9 +25,13 @@ def register(subparsers) -> None:
     p.add_argument("scenario", metavar="SCENARIO.yaml", help="scenario file (DESIGN.md section 4)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the sampling planner (default 0)")
-    p.add_argument("--method", choices=METHOD_CHOICES, default="optimized",
-                   help="optimized (default; sampling + CasADi refinement), sampling, or the baselines "
-                        "no-downwash (separation only) and ellipsoid (Crazyswarm keep-out ellipsoid)")
+    p.add_argument(
+        "--method",
+        choices=METHOD_CHOICES,
+        default="optimized",
+        help="optimized (default; sampling + CasADi refinement), sampling, or the baselines "
+        "no-downwash (separation only) and ellipsoid (Crazyswarm keep-out ellipsoid)",
+    )
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_plan)
@@ -42,7 +46,9 @@ def register(subparsers) -> None:
         ),
     )
     v.add_argument("plan", metavar="PLAN.json", help="plan file (or the folder holding plan.json)")
-    v.add_argument("--scenario", metavar="SCENARIO.yaml", help="scenario to check against (default: the one in the plan)")
+    v.add_argument(
+        "--scenario", metavar="SCENARIO.yaml", help="scenario to check against (default: the one in the plan)"
+    )
     v.add_argument("--dt", type=float, default=0.01, metavar="S", help="re-sampling step in s (default 0.01)")
     v.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     v.set_defaults(func=_verify)
@@ -66,12 +72,9 @@ def _plan(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from planner import InfeasibleError
-    from planner import plan_scenario
     from fileio import atomic_write_text
-    from planfile import jsonable, write_plan
-    from planfile import load_scenario
-    from planner import plan_summary
+    from planfile import jsonable, load_scenario, write_plan
+    from planner import InfeasibleError, plan_scenario, plan_summary
     from verify import verify_plan
 
     scenario = load_scenario(args.scenario)
@@ -85,9 +88,16 @@ def _plan(args: argparse.Namespace) -> int:
         plan = plan_scenario(scenario, method=args.method, seed=args.seed, progress=report)
     except InfeasibleError as err:
         bar.close()
-        print(f"proxplan plan: infeasible: vehicle '{err.vehicle}' cannot meet constraint '{err.constraint}': {err.message}", file=sys.stderr)
+        print(
+            f"proxplan plan: infeasible: vehicle '{err.vehicle}' cannot meet constraint '{err.constraint}': {err.message}",
+            file=sys.stderr,
+        )
         if args.json:
-            print(json.dumps({"feasible": False, "vehicle": err.vehicle, "constraint": err.constraint, "message": err.message}))
+            print(
+                json.dumps(
+                    {"feasible": False, "vehicle": err.vehicle, "constraint": err.constraint, "message": err.message}
+                )
+            )
         return 1
     bar.close()
     t_verify = time.perf_counter()
@@ -106,17 +116,25 @@ def _plan(args: argparse.Namespace) -> int:
     text = plan_summary(plan, violations=violations)
     summary_path = atomic_write_text(out / "summary.txt", text)
     if args.json:
-        print(json.dumps({
-            "feasible": True,
-            "plan": str(plan_path),
-            "png": str(png) if png else None,
-            "summary": str(summary_path),
-            "method": plan.method,
-            "metrics": jsonable(plan.metrics),
-            "notes": plan.notes,
-            "verify": {"passed": not violations, "violations": [v.to_dict() for v in violations]},
-            "stage_times_s": {"plan": plan.metrics.get("planning_time_s"), "verify": round(t_verify, 3), "plot": round(t_plot, 3)},
-        }))
+        print(
+            json.dumps(
+                {
+                    "feasible": True,
+                    "plan": str(plan_path),
+                    "png": str(png) if png else None,
+                    "summary": str(summary_path),
+                    "method": plan.method,
+                    "metrics": jsonable(plan.metrics),
+                    "notes": plan.notes,
+                    "verify": {"passed": not violations, "violations": [v.to_dict() for v in violations]},
+                    "stage_times_s": {
+                        "plan": plan.metrics.get("planning_time_s"),
+                        "verify": round(t_verify, 3),
+                        "plot": round(t_plot, 3),
+                    },
+                }
+            )
+        )
     else:
         sys.stdout.write(text)
         print(f"wrote {plan_path}" + (f", {png}" if png else "") + f", {summary_path}")
@@ -125,8 +143,7 @@ def _plan(args: argparse.Namespace) -> int:
 
 def _verify(args: argparse.Namespace) -> int:
     from fileio import UserError
-    from planfile import read_plan
-    from planfile import load_scenario
+    from planfile import load_scenario, read_plan
     from verify import scenario_of_plan, verify_plan
 
     if not args.dt > 0:
@@ -135,13 +152,23 @@ def _verify(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario) if args.scenario else scenario_of_plan(plan, label=str(args.plan))
     violations = verify_plan(plan, scenario, dt_fine_s=args.dt)
     if args.json:
-        print(json.dumps({"passed": not violations, "plan": str(args.plan), "scenario": scenario.name,
-                          "violations": [v.to_dict() for v in violations]}))
+        print(
+            json.dumps(
+                {
+                    "passed": not violations,
+                    "plan": str(args.plan),
+                    "scenario": scenario.name,
+                    "violations": [v.to_dict() for v in violations],
+                }
+            )
+        )
     else:
         if violations:
             print(f"{args.plan}: {len(violations)} violation(s):")
             for v in violations:
                 print(f"  {v}")
         else:
-            print(f"{args.plan}: PASS (scenario '{scenario.name}', {len(plan.vehicles)} vehicles, checked every {args.dt:g} s)")
+            print(
+                f"{args.plan}: PASS (scenario '{scenario.name}', {len(plan.vehicles)} vehicles, checked every {args.dt:g} s)"
+            )
     return 1 if violations else 0

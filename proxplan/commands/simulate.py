@@ -26,7 +26,11 @@ def register(subparsers) -> None:
     p.add_argument("--log", action="store_true", help="write Neural-Swarm logs and a manifest into OUT")
     p.add_argument("--flight-name", default=None, help="flight name in the manifest (default: scenario name)")
     p.add_argument("--split", default="train", choices=("train", "test"), help="manifest split of this flight")
-    p.add_argument("--vehicles", metavar="FILE.yaml", help="fly these vehicle parameters instead of the plan's (vehicles YAML; types matched by name)")
+    p.add_argument(
+        "--vehicles",
+        metavar="FILE.yaml",
+        help="fly these vehicle parameters instead of the plan's (vehicles YAML; types matched by name)",
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed of the sensor noise (default 0)")
     p.add_argument("--physics-dt", type=float, default=0.002, metavar="S", help="physics step, s (default 0.002)")
     p.add_argument("--log-dt", type=float, default=0.01, metavar="S", help="log period, s (default 0.01)")
@@ -44,11 +48,16 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from fileio import UserError
-    from flightsim import write_flight_logs
+    from flightsim import (
+        SimulationOptions,
+        TruthSpec,
+        load_truth_file,
+        plot_errors,
+        simulate_plan,
+        summary_dict,
+        write_flight_logs,
+    )
     from planfile import read_plan
-    from flightsim import plot_errors, summary_dict
-    from flightsim import SimulationOptions, simulate_plan
-    from flightsim import TruthSpec, load_truth_file
 
     plan_path = Path(args.plan)
     if plan_path.is_dir():
@@ -70,10 +79,16 @@ def run(args: argparse.Namespace) -> int:
 
         custom = load_vehicle_file(args.vehicles)
     options = SimulationOptions(
-        physics_dt_s=args.physics_dt, log_dt_s=args.log_dt, settle_s=args.settle,
-        imu_noise=not args.no_noise, seed=args.seed, position_integral_rate_ps=args.integral_rate,
+        physics_dt_s=args.physics_dt,
+        log_dt_s=args.log_dt,
+        settle_s=args.settle,
+        imu_noise=not args.no_noise,
+        seed=args.seed,
+        position_integral_rate_ps=args.integral_rate,
     )
-    result = simulate_plan(plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty())
+    result = simulate_plan(
+        plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty()
+    )
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     plot = plot_errors(result, out / "tracking_error.png")
@@ -86,29 +101,38 @@ def run(args: argparse.Namespace) -> int:
             vfile = os.path.relpath(Path(args.vehicles).resolve(), out.resolve())
         flight = args.flight_name or "".join(c if c.isalnum() or c in "-_" else "_" for c in plan.scenario)
         manifest = write_flight_logs(result, out, flight_name=flight, split=args.split, vehicles_file=vfile)
-    summary = summary_dict(result, plan_path=str(plan_path), plot_path=str(plot),
-                           manifest_path=None if manifest is None else str(manifest))
+    summary = summary_dict(
+        result, plan_path=str(plan_path), plot_path=str(plot), manifest_path=None if manifest is None else str(manifest)
+    )
     from fileio import atomic_write_bytes
 
     atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=1).encode())
     if args.json:
         print(json.dumps(summary))
         return 0
-    print(f"{result.scenario}: {result.sim_time_s:.2f} s flown in {result.wall_time_s:.2f} s "
-          f"({result.real_time_factor:.1f}x real time)")
-    print(f"{'vehicle':<12}{'type':<18}{'pos max/rms [cm]':>18}{'alt max/rms [cm]':>18}{'sat [s]':>9}{'authority':>10}{'motor':>7}{'invalid [s]':>12}")
+    print(
+        f"{result.scenario}: {result.sim_time_s:.2f} s flown in {result.wall_time_s:.2f} s "
+        f"({result.real_time_factor:.1f}x real time)"
+    )
+    print(
+        f"{'vehicle':<12}{'type':<18}{'pos max/rms [cm]':>18}{'alt max/rms [cm]':>18}{'sat [s]':>9}{'authority':>10}{'motor':>7}{'invalid [s]':>12}"
+    )
     for name, m in summary["vehicles"].items():
-        print(f"{name:<12}{m['type']:<18}"
-              f"{100 * m['max_position_error_m']:>9.1f}/{100 * m['rms_position_error_m']:<8.1f}"
-              f"{100 * m['max_altitude_error_m']:>9.1f}/{100 * m['rms_altitude_error_m']:<8.1f}"
-              f"{m['motor_saturation_time_s']:>9.2f}{m['max_authority_usage']:>10.2f}{m['max_motor_usage']:>7.2f}"
-              f"{m['time_in_invalid_zone_s']:>12.2f}")
+        print(
+            f"{name:<12}{m['type']:<18}"
+            f"{100 * m['max_position_error_m']:>9.1f}/{100 * m['rms_position_error_m']:<8.1f}"
+            f"{100 * m['max_altitude_error_m']:>9.1f}/{100 * m['rms_altitude_error_m']:<8.1f}"
+            f"{m['motor_saturation_time_s']:>9.2f}{m['max_authority_usage']:>10.2f}{m['max_motor_usage']:>7.2f}"
+            f"{m['time_in_invalid_zone_s']:>12.2f}"
+        )
     print(f"plot: {plot}")
     if manifest:
         print(f"logs: {manifest}")
     for note in summary["notes"]:
         print(f"note: {note}")
     if any(m["time_in_invalid_zone_s"] > 0 for m in summary["vehicles"].values()):
-        print("note: 'invalid' is time spent within dz <= 3 L below another vehicle, where the downwash "
-              "model is extrapolated (S0 II-A)")
+        print(
+            "note: 'invalid' is time spent within dz <= 3 L below another vehicle, where the downwash "
+            "model is extrapolated (S0 II-A)"
+        )
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -14,13 +15,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "along their trajectories (coloured by authority usage), the downwash jet and cutoff "
             "surface of a selected source, per-vehicle force/torque/usage plots, goal editing with "
             "background re-planning, and an export of a self-contained recording. A scenario YAML is "
-            "planned first (progress on stderr and in the page)."),
+            "planned first (progress on stderr and in the page)."
+        ),
     )
-    p.add_argument("input", metavar="SCENARIO.yaml|DIR/plan.json", help="scenario to plan, or a plan.json (or its directory)")
+    p.add_argument(
+        "input", metavar="SCENARIO.yaml|DIR/plan.json", help="scenario to plan, or a plan.json (or its directory)"
+    )
     p.add_argument("--port", type=int, default=8080, help="TCP port (default 8080; 0 picks a free one)")
     p.add_argument("--host", default="127.0.0.1", help="interface to listen on (default 127.0.0.1; 0.0.0.0 for all)")
-    p.add_argument("--export", metavar="DIR", default=None,
-                   help="write a self-contained recording (recording.viser + index.html) to DIR and exit")
+    p.add_argument(
+        "--export",
+        metavar="DIR",
+        default=None,
+        help="write a self-contained recording (recording.viser + index.html) to DIR and exit",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object (url or export directory) on stdout")
     p.set_defaults(func=run)
 
@@ -28,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _terminal_progress():
     from tqdm import tqdm
 
-    bar = {"bar": None}
+    bar: dict[str, Any] = {"bar": None}
 
     def update(stage: str, fraction: float) -> None:
         if bar["bar"] is None:
@@ -55,8 +63,9 @@ def _check_listen_address(host: str, port: int) -> None:
     try:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
     except socket.gaierror as err:
-        raise UserError(f"--host {host}: cannot resolve this address ({err.strerror}); "
-                        "expected e.g. 127.0.0.1 or 0.0.0.0") from err
+        raise UserError(
+            f"--host {host}: cannot resolve this address ({err.strerror}); expected e.g. 127.0.0.1 or 0.0.0.0"
+        ) from err
     family, socktype, proto, _, addr = infos[0]
     with socket.socket(family, socktype, proto) as sock:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -94,8 +103,9 @@ def run(args: argparse.Namespace) -> int:
 
     logging.getLogger("websockets").setLevel(logging.CRITICAL)
     with contextlib.redirect_stdout(sys.stderr):  # viser's banner must not mix with --json output
-        server = viser.ViserServer(host="127.0.0.1" if args.export else args.host,
-                                   port=0 if args.export else args.port, verbose=False)
+        server = viser.ViserServer(
+            host="127.0.0.1" if args.export else args.host, port=0 if args.export else args.port, verbose=False
+        )
     app = ReviewApp(server, path, terminal_progress=_terminal_progress())
     try:
         if args.export:

@@ -21,7 +21,9 @@ def test_wrench_json_contract():
     assert set(data["components"]) == {"drag", "thrust_change"}
     for part in data["components"].values():
         assert set(part) == {"force_N", "torque_Nm"}
-    total = [a + b for a, b in zip(data["components"]["drag"]["force_N"], data["components"]["thrust_change"]["force_N"])]
+    total = [
+        a + b for a, b in zip(data["components"]["drag"]["force_N"], data["components"]["thrust_change"]["force_N"])
+    ]
     assert total == pytest.approx(data["force_N"])
     assert data["valid"] is True and data["force_N"][2] < 0 and 0 < data["authority_usage"] < 1
 
@@ -37,8 +39,14 @@ def test_vehicles_json_lists_builtins():
     "args, message",
     [
         (["--source", "nope", "--target", "large-quad", "--offset", "0", "0", "-1"], "unknown vehicle type 'nope'"),
-        (["--source", "small-quad", "--target", "large-quad", "--offset", "0", "inf", "-1"], "--offset DY: expected a finite number"),
-        (["--source", "small-quad", "--target", "large-quad", "--offset", "0", "x", "-1"], "--offset DY: expected a number"),
+        (
+            ["--source", "small-quad", "--target", "large-quad", "--offset", "0", "inf", "-1"],
+            "--offset DY: expected a finite number",
+        ),
+        (
+            ["--source", "small-quad", "--target", "large-quad", "--offset", "0", "x", "-1"],
+            "--offset DY: expected a number",
+        ),
     ],
 )
 def test_bad_input_is_one_line_exit_2(args, message):
@@ -51,6 +59,8 @@ def test_bad_input_is_one_line_exit_2(args, message):
 def test_bad_vehicle_file(tmp_path):
     bad = tmp_path / "v.yaml"
     bad.write_text("vehicles:\n  v: {base: small-quad, propeller: {diameter_m: 0}}\n")
-    out = run("wrench", "--vehicle-file", str(bad), "--source", "v", "--target", "large-quad", "--offset", "0", "0", "-1")
+    out = run(
+        "wrench", "--vehicle-file", str(bad), "--source", "v", "--target", "large-quad", "--offset", "0", "0", "-1"
+    )
     assert out.returncode == 2 and "propeller.diameter_m: expected a positive number" in out.stderr
     assert "Traceback" not in out.stderr

@@ -93,7 +93,16 @@ def test_all_pairs_with_custom_vehicles(tmp_path, capsys, monkeypatch):
     vehicles = tmp_path / "v.yaml"
     vehicles.write_text("vehicles:\n  cf-heavy:\n    base: crazyflie-2.1\n    mass_kg: 0.036\n")
     code, stdout, stderr = _run(
-        ["costmap", "--all", "--out-dir", str(tmp_path / "maps"), "--vehicle-file", str(vehicles), "--no-plot", "--json"],
+        [
+            "costmap",
+            "--all",
+            "--out-dir",
+            str(tmp_path / "maps"),
+            "--vehicle-file",
+            str(vehicles),
+            "--no-plot",
+            "--json",
+        ],
         capsys,
     )
     assert code == 0

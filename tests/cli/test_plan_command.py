@@ -16,8 +16,13 @@ DESIGN_METRICS = {"planning_time_s", "max_authority_usage", "min_separation_m", 
 
 
 def _run(*args, timeout=180):
-    return subprocess.run([sys.executable, "-m", "proxplan.cli", *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout, cwd=ROOT)
+    return subprocess.run(
+        [sys.executable, "-m", "proxplan.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=ROOT,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -68,15 +73,20 @@ def test_verify_passes_standalone_and_fails_on_a_tampered_plan(battery_plan, tmp
 
 def test_infeasible_scenario_names_vehicle_and_constraint(tmp_path):
     path = tmp_path / "infeasible.yaml"
-    path.write_text(yaml.safe_dump({
-        "name": "infeasible",
-        "workspace": {"min": [-3, -3, 0], "max": [3, 3, 4]},
-        "limits": {"authority_fraction": 0.1},
-        "vehicles": {
-            "big": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
-            "small": {"type": "small-quad", "start": [2, 0, 1.0], "goal": [0, 0, 1.2]},
-        },
-    }, sort_keys=False))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "infeasible",
+                "workspace": {"min": [-3, -3, 0], "max": [3, 3, 4]},
+                "limits": {"authority_fraction": 0.1},
+                "vehicles": {
+                    "big": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
+                    "small": {"type": "small-quad", "start": [2, 0, 1.0], "goal": [0, 0, 1.2]},
+                },
+            },
+            sort_keys=False,
+        )
+    )
     res = _run("plan", path, "--out", tmp_path / "o", "--method", "sampling", "--json")
     assert res.returncode == 1
     report = json.loads(res.stdout)
@@ -87,7 +97,9 @@ def test_infeasible_scenario_names_vehicle_and_constraint(tmp_path):
 
 def test_bad_scenario_exits_2_with_one_line(tmp_path):
     path = tmp_path / "bad.yaml"
-    path.write_text("workspace: {min: [0, 0, 0], max: [1, 1, 1]}\nvehicles:\n  a: {type: jumbo-jet, start: [0.5, 0.5, 0.5], hover: true}\n")
+    path.write_text(
+        "workspace: {min: [0, 0, 0], max: [1, 1, 1]}\nvehicles:\n  a: {type: jumbo-jet, start: [0.5, 0.5, 0.5], hover: true}\n"
+    )
     res = _run("plan", path, "--out", tmp_path / "o")
     assert res.returncode == 2
     lines = res.stderr.strip().splitlines()

@@ -8,10 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from physics import authority_usage
-from physics import BUILTIN_VEHICLES
 from costmaps import INVALID_RULES, build_cutoff_map, r_cut_from_usage
-from physics import VALIDITY_FACTOR_L, disturbance_wrench
+from physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]

@@ -9,11 +9,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from physics import BUILTIN_VEHICLES
-from physics import ModelOptions
+from costmaps import (
+    DATA_DIR,
+    FORMAT_VERSION,
+    build_pair_maps,
+    load_pair_maps,
+    pair_maps,
+    param_hash,
+    save_pair_maps,
+    shipped_path,
+)
 from fileio import UserError
+from physics import BUILTIN_VEHICLES, ModelOptions
 from physics.geometry import Discretisation
-from costmaps import DATA_DIR, FORMAT_VERSION, build_pair_maps, load_pair_maps, pair_maps, param_hash, save_pair_maps, shipped_path
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 
@@ -28,7 +36,9 @@ def test_hash_changes_with_any_parameter():
     changed = [
         param_hash(dataclasses.replace(SMALL, mass_kg=SMALL.mass_kg * 1.01), LARGE),
         param_hash(SMALL, dataclasses.replace(LARGE, downwash=dataclasses.replace(LARGE.downwash, c_rad=25.0))),
-        param_hash(SMALL, dataclasses.replace(LARGE, propeller=dataclasses.replace(LARGE.propeller, b_v_measured=3.8e-7))),
+        param_hash(
+            SMALL, dataclasses.replace(LARGE, propeller=dataclasses.replace(LARGE.propeller, b_v_measured=3.8e-7))
+        ),
         param_hash(SMALL, dataclasses.replace(LARGE, frame=dataclasses.replace(LARGE.frame, arm_width_m=0.02))),
         param_hash(SMALL, LARGE, ModelOptions(field_form="printed")),
         param_hash(SMALL, LARGE, ModelOptions(discretisation=Discretisation(disk_rings=5))),
@@ -100,7 +110,9 @@ def test_shipped_maps_match_the_model_parameters():
                 load_pair_maps(path, expect_source=source, expect_target=target)
             except UserError as err:
                 stale.append(str(err))
-    assert not stale, "stale shipped maps; regenerate with `proxplan costmap --all --out-dir costmaps/data`:\n" + "\n".join(stale)
+    assert not stale, (
+        "stale shipped maps; regenerate with `proxplan costmap --all --out-dir costmaps/data`:\n" + "\n".join(stale)
+    )
     total = sum(p.stat().st_size for p in DATA_DIR.glob("*.npz"))
     assert total < 6e6, f"shipped maps take {total / 1e6:.1f} MB"
 

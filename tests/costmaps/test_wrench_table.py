@@ -5,15 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from physics import authority_usage
-from physics import BUILTIN_VEHICLES
-from physics import VALIDITY_FACTOR_L, disturbance_wrench
 from costmaps.wrench_table import (
     USAGE_FLOOR,
     TableResolution,
     build_wrench_table,
     mirror_quadrant,
 )
+from physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]
@@ -123,7 +121,9 @@ def test_mirror_symmetry_matches_direct_model(tables):
     direct = disturbance_wrench(LARGE, CF, offsets)
     ii = [i, table.xi.size - 1 - i]
     jj = [j, table.eta.size - 1 - j]
-    stored = np.array([[table.force_z_N[a, b, k], table.torque_x_Nm[a, b, k], table.torque_y_Nm[a, b, k]] for a in ii for b in jj])
+    stored = np.array(
+        [[table.force_z_N[a, b, k], table.torque_x_Nm[a, b, k], table.torque_y_Nm[a, b, k]] for a in ii for b in jj]
+    )
     expect = np.column_stack([direct.force_N[:, 2], direct.torque_Nm[:, 0], direct.torque_Nm[:, 1]])
     assert np.allclose(stored, expect, rtol=1e-10, atol=1e-14)
     assert np.abs(expect[:, 1]).max() > 0  # the check is not vacuous

@@ -8,13 +8,12 @@ from rotorpy.controllers.quadrotor_control import SE3Control
 from rotorpy.sensors.imu import Imu
 from rotorpy.vehicles.multirotor import Multirotor
 
-from physics import mixer_matrix
-from physics import BUILTIN_VEHICLES
 from flightsim.control import ControllerConstants, se3_control
 from flightsim.dynamics import ExternalWrenchMultirotor, VehicleConstants, state_derivative
 from flightsim.imu import ImuOptions, imu_samples
 from flightsim.stepper import CompiledStepper
 from flightsim.vehicle_params import quad_params
+from physics import BUILTIN_VEHICLES, mixer_matrix
 
 NAMES = ["crazyflie-2.1", "large-quad"]
 
@@ -22,8 +21,9 @@ NAMES = ["crazyflie-2.1", "large-quad"]
 def _random_state(rng):
     q = rng.normal(size=4) * [0.1, 0.1, 0.3, 1.0]
     q /= np.linalg.norm(q)
-    return np.concatenate([rng.normal(size=3), rng.normal(size=3), q, rng.normal(size=3),
-                           rng.uniform(400, 1800, size=4)])
+    return np.concatenate(
+        [rng.normal(size=3), rng.normal(size=3), q, rng.normal(size=3), rng.uniform(400, 1800, size=4)]
+    )
 
 
 def _state_dict(s):
@@ -62,8 +62,15 @@ def test_controller_equals_rotorpy_se3control(name):
     s[0:6] *= 0.1
     ref_x, ref_v, ref_a = (rng.normal(size=3) * sc for sc in (0.1, 0.1, 0.5))
     speeds, thrusts, u1, u2 = se3_control(ControllerConstants.from_params(p), list(s), ref_x, ref_v, ref_a)
-    flat = {"x": ref_x, "x_dot": ref_v, "x_ddot": ref_a, "x_dddot": np.zeros(3), "x_ddddot": np.zeros(3),
-            "yaw": 0.0, "yaw_dot": 0.0}
+    flat = {
+        "x": ref_x,
+        "x_dot": ref_v,
+        "x_ddot": ref_a,
+        "x_dddot": np.zeros(3),
+        "x_ddddot": np.zeros(3),
+        "yaw": 0.0,
+        "yaw_dot": 0.0,
+    }
     ref = SE3Control(p).update(0.0, _state_dict(s), flat)
     np.testing.assert_allclose(u1, ref["cmd_thrust"], rtol=1e-10)
     np.testing.assert_allclose(u2, ref["cmd_moment"], rtol=1e-8, atol=1e-12)
@@ -76,7 +83,7 @@ def test_compiled_step_matches_rotorpy_controller_and_step():
     params = [quad_params(BUILTIN_VEHICLES[n]) for n in NAMES]
     dt = 0.002
     stepper = CompiledStepper(params, dt)
-    for i, p in enumerate(params):
+    for i in range(len(params)):
         s = _random_state(rng)
         s[0:6] *= 0.05
         s[10:13] *= 0.1
@@ -87,8 +94,15 @@ def test_compiled_step_matches_rotorpy_controller_and_step():
     stepper.step()
     for i, p in enumerate(params):
         s = stepper.state[i]
-        flat = {"x": stepper.ref[i, 0:3], "x_dot": stepper.ref[i, 3:6], "x_ddot": stepper.ref[i, 6:9],
-                "x_dddot": np.zeros(3), "x_ddddot": np.zeros(3), "yaw": 0.0, "yaw_dot": 0.0}
+        flat = {
+            "x": stepper.ref[i, 0:3],
+            "x_dot": stepper.ref[i, 3:6],
+            "x_ddot": stepper.ref[i, 6:9],
+            "x_dddot": np.zeros(3),
+            "x_ddddot": np.zeros(3),
+            "yaw": 0.0,
+            "yaw_dot": 0.0,
+        }
         ctrl = SE3Control(p).update(0.0, _state_dict(s), flat)
         ref = ExternalWrenchMultirotor(p, aero=True, integrator_kwargs={"method": "RK45", "rtol": 1e-10, "atol": 1e-12})
         ref.ext_force_N = stepper.ext_force_N[i]
@@ -142,12 +156,20 @@ def test_imu_equations_equal_rotorpy_imu_without_noise():
     acc, gyr = imu_samples(q, w, a, options=ImuOptions(), with_noise=False)
     imu = Imu(sampling_rate=100)
     for k in range(6):
-        out = imu.measurement({"x": np.zeros(3), "v": np.zeros(3), "q": q[k], "w": w[k]},
-                              {"vdot": a[k], "wdot": np.zeros(3)}, with_noise=False)
+        out = imu.measurement(
+            {"x": np.zeros(3), "v": np.zeros(3), "q": q[k], "w": w[k]},
+            {"vdot": a[k], "wdot": np.zeros(3)},
+            with_noise=False,
+        )
         np.testing.assert_allclose(acc[k], out["accel"], atol=1e-12)
         np.testing.assert_allclose(gyr[k], out["gyro"], atol=1e-12)
     # noise has the configured spread
-    acc_n, _ = imu_samples(np.tile([0, 0, 0, 1.0], (4000, 1)), np.zeros((4000, 3)), np.zeros((4000, 3)),
-                           options=ImuOptions(accel_noise_std_mps2=0.1), rng=np.random.default_rng(0))
+    acc_n, _ = imu_samples(
+        np.tile([0, 0, 0, 1.0], (4000, 1)),
+        np.zeros((4000, 3)),
+        np.zeros((4000, 3)),
+        options=ImuOptions(accel_noise_std_mps2=0.1),
+        rng=np.random.default_rng(0),
+    )
     np.testing.assert_allclose(acc_n.mean(axis=0), [0, 0, 9.81], atol=0.01)
     np.testing.assert_allclose(acc_n.std(axis=0), 0.1, rtol=0.1)

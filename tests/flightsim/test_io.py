@@ -10,11 +10,16 @@ import numpy as np
 import pytest
 
 from fileio import UserError
-from flightsim import NEURAL_SWARM_HEADER, write_flight_logs
+from flightsim import (
+    NEURAL_SWARM_HEADER,
+    hover_stack_plan,
+    load_truth_file,
+    simulate_plan,
+    swap_plan,
+    truth_from_dict,
+    write_flight_logs,
+)
 from planfile import read_plan, write_plan
-from flightsim import hover_stack_plan, swap_plan
-from flightsim import simulate_plan
-from flightsim import load_truth_file, truth_from_dict
 
 REPO = Path(__file__).resolve().parents[2]
 SHARED = REPO.parent / "shared"
@@ -22,10 +27,19 @@ SHARED = REPO.parent / "shared"
 
 def _plan_dict(plan):
     return {
-        "scenario": plan.scenario, "dt_s": plan.dt_s, "metrics": {},
-        "vehicles": {n: {"type": t.type_name, "t_s": t.t_s.tolist(), "position_m": t.position_m.tolist(),
-                         "velocity_mps": t.velocity_mps.tolist(), "acceleration_mps2": t.acceleration_mps2.tolist()}
-                     for n, t in plan.vehicles.items()},
+        "scenario": plan.scenario,
+        "dt_s": plan.dt_s,
+        "metrics": {},
+        "vehicles": {
+            n: {
+                "type": t.type_name,
+                "t_s": t.t_s.tolist(),
+                "position_m": t.position_m.tolist(),
+                "velocity_mps": t.velocity_mps.tolist(),
+                "acceleration_mps2": t.acceleration_mps2.tolist(),
+            }
+            for n, t in plan.vehicles.items()
+        },
     }
 
 
@@ -81,7 +95,9 @@ def test_logs_have_neural_swarm_layout_and_manifest_loads(tmp_path):
     plan = swap_plan(n_swaps=1, swap_s=2.0, hold_s=0.5)
     res = simulate_plan(plan, settle_s=0.2)
     write_flight_logs(res, tmp_path, flight_name="swap_00", split="train")
-    manifest = write_flight_logs(simulate_plan(plan, seed=1, settle_s=0.2), tmp_path, flight_name="swap_01", split="test")
+    manifest = write_flight_logs(
+        simulate_plan(plan, seed=1, settle_s=0.2), tmp_path, flight_name="swap_01", split="test"
+    )
     real = sorted((SHARED / "data" / "neural-swarm" / "swap_sl").glob("*.csv.gz"))
     with gzip.open(tmp_path / "swap_00" / "top.csv.gz", "rt") as fh:
         header = fh.readline().strip()
@@ -120,8 +136,20 @@ def test_simulate_cli_json_png_logs_and_user_errors(tmp_path, capsys):
 
     plan_path = _write_plan(tmp_path, hover_stack_plan(separation_m=1.0, duration_s=1.0))
     out = tmp_path / "sim"
-    rc = main(["simulate", str(plan_path.parent), "--out", str(out), "--json", "--log", "--settle", "0.5",
-               "--truth", str(REPO / "examples" / "truth" / "strong_wake.yaml")])
+    rc = main(
+        [
+            "simulate",
+            str(plan_path.parent),
+            "--out",
+            str(out),
+            "--json",
+            "--log",
+            "--settle",
+            "0.5",
+            "--truth",
+            str(REPO / "examples" / "truth" / "strong_wake.yaml"),
+        ]
+    )
     assert rc == 0
     summary = json.loads(capsys.readouterr().out)
     assert set(summary["vehicles"]) == {"top", "bottom"}
@@ -153,9 +181,9 @@ def test_planner_plan_result_is_accepted_like_a_path(tmp_path):
 
 
 def test_truth_wind_pushes_a_hovering_vehicle_by_rotorpy_rotor_drag():
-    from physics import BUILTIN_VEHICLES
     from flightsim import single_hover_plan
     from flightsim.vehicle_params import quad_params
+    from physics import BUILTIN_VEHICLES
 
     spec = truth_from_dict({"wind_mps": [2.0, 0.0, 0.0]})
     res = simulate_plan(single_hover_plan(type_name="crazyflie-2.1", duration_s=4.0), truth=spec, imu_noise=False)
@@ -199,7 +227,9 @@ def test_simulate_cli_with_custom_vehicle_types(tmp_path, capsys):
     lighter = tmp_path / "lighter.yaml"
     lighter.write_text("vehicles:\n  heavy-cf: {base: crazyflie-2.1, mass_kg: 0.030}\n")
     out2 = tmp_path / "sim2"
-    assert main(["simulate", str(path), "--out", str(out2), "--vehicles", str(lighter), "--log", "--settle", "0.2"]) == 0
+    assert (
+        main(["simulate", str(path), "--out", str(out2), "--vehicles", str(lighter), "--log", "--settle", "0.2"]) == 0
+    )
     capsys.readouterr()
     doc2 = yaml.safe_load((out2 / "manifest.yaml").read_text())
     assert (out2 / doc2["vehicles_file"]).resolve() == lighter.resolve()
@@ -219,8 +249,8 @@ def test_commanded_thrust_logs_differ_from_actual_only_through_the_motor_lag(tmp
 
 
 def test_in_memory_vehicle_logs_equal_the_written_ones(tmp_path):
-    from identify import read_log
     from flightsim import vehicle_logs
+    from identify import read_log
 
     res = simulate_plan(hover_stack_plan(duration_s=1.0), settle_s=0.2)
     write_flight_logs(res, tmp_path, flight_name="f")

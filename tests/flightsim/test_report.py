@@ -4,12 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from physics import authority_usage
-from physics import BUILTIN_VEHICLES
-from physics import Effect
+from flightsim import hover_stack_plan, simulate_plan
 from flightsim.report import motor_usage, plot_errors, simulation_metrics
-from flightsim import hover_stack_plan
-from flightsim import simulate_plan
+from physics import BUILTIN_VEHICLES, Effect, authority_usage
 
 
 def test_metrics_of_a_stack_and_the_invalid_zone(tmp_path):
@@ -20,8 +17,9 @@ def test_metrics_of_a_stack_and_the_invalid_zone(tmp_path):
     assert m["bottom"].max_altitude_error_m == err.max() > 0.01
     assert m["bottom"].rms_altitude_error_m < m["bottom"].max_altitude_error_m
     assert m["top"].max_position_error_m == 0.0 and m["top"].max_authority_usage == 0.0
-    np.testing.assert_allclose(m["bottom"].max_authority_usage,
-                               authority_usage(rec.vehicle, rec.applied_force_N, rec.applied_torque_Nm).max())
+    np.testing.assert_allclose(
+        m["bottom"].max_authority_usage, authority_usage(rec.vehicle, rec.applied_force_N, rec.applied_torque_Nm).max()
+    )
     assert 0.0 < m["bottom"].max_motor_usage < 1.0
     assert m["bottom"].time_in_invalid_zone_s == 0.0  # 1.5 m > 3 L of a Crazyflie
     close = simulate_plan(hover_stack_plan(separation_m=0.2, duration_s=1.0), imu_noise=False, settle_s=0.0)
@@ -32,8 +30,13 @@ def test_metrics_of_a_stack_and_the_invalid_zone(tmp_path):
 
 def test_motor_usage_is_one_at_either_limit():
     v = BUILTIN_VEHICLES["large-quad"]
-    thrusts = np.array([[v.hover_thrust_per_rotor_N] * 4, [v.max_thrust_per_rotor_N] + [v.hover_thrust_per_rotor_N] * 3,
-                        [v.min_motor_thrust_N] + [v.hover_thrust_per_rotor_N] * 3])
+    thrusts = np.array(
+        [
+            [v.hover_thrust_per_rotor_N] * 4,
+            [v.max_thrust_per_rotor_N] + [v.hover_thrust_per_rotor_N] * 3,
+            [v.min_motor_thrust_N] + [v.hover_thrust_per_rotor_N] * 3,
+        ]
+    )
     np.testing.assert_allclose(motor_usage(v, thrusts), [0.0, 1.0, 1.0])
 
 
@@ -42,9 +45,11 @@ def test_wake_swirl_torque_shows_in_the_steady_motor_torques():
     applied yaw torque of the wake_swirl truth effect."""
     from physics import mixer_matrix
 
-    res = simulate_plan(hover_stack_plan(top_type="crazyflie-2.1", bottom_type="crazyflie-parrot",
-                                         separation_m=1.0, duration_s=4.0),
-                        truth_effects=[Effect("wake_swirl", {"yaw_per_force_m": 0.05})], imu_noise=False)
+    res = simulate_plan(
+        hover_stack_plan(top_type="crazyflie-2.1", bottom_type="crazyflie-parrot", separation_m=1.0, duration_s=4.0),
+        truth_effects=[Effect("wake_swirl", {"yaw_per_force_m": 0.05})],
+        imu_noise=False,
+    )
     rec = res.records["bottom"]
     late = rec.t_s > 3.0
     applied = rec.applied_torque_Nm[late].mean(axis=0)
@@ -54,11 +59,13 @@ def test_wake_swirl_torque_shows_in_the_steady_motor_torques():
 
 
 def test_going_below_the_ground_is_noted_in_the_summary():
-    from flightsim import summary_dict
-    from flightsim import single_hover_plan
+    from flightsim import single_hover_plan, summary_dict
 
-    res = simulate_plan(single_hover_plan(position_m=(0, 0, 0.02), duration_s=1.0),
-                        truth_effects=[Effect("thrust_bias", {"force_z_N": -0.05})], imu_noise=False)
+    res = simulate_plan(
+        single_hover_plan(position_m=(0, 0, 0.02), duration_s=1.0),
+        truth_effects=[Effect("thrust_bias", {"force_z_N": -0.05})],
+        imu_noise=False,
+    )
     notes = summary_dict(res)["notes"]
     assert len(notes) == 1 and "below the ground plane" in notes[0]
     ok = simulate_plan(single_hover_plan(position_m=(0, 0, 1.0), duration_s=1.0), imu_noise=False)

@@ -10,11 +10,15 @@ from flightsim import battery_swap_plans, hover_stack_plan, swap_plan, takeoff_h
 def test_waypoint_trajectory_is_rest_to_rest_and_consistent():
     tr = waypoint_trajectory("a", "small-quad", [[0, 0, 1], [1, 2, 1.5], [1, 2, 1.5]], [0.0, 2.0, 3.0], dt_s=0.01)
     np.testing.assert_allclose(tr.position_m[0], [0, 0, 1])
-    np.testing.assert_allclose(tr.position_m[tr.t_s >= 2.0], np.tile([1, 2, 1.5], ((tr.t_s >= 2.0).sum(), 1)), atol=1e-12)
+    np.testing.assert_allclose(
+        tr.position_m[tr.t_s >= 2.0], np.tile([1, 2, 1.5], ((tr.t_s >= 2.0).sum(), 1)), atol=1e-12
+    )
     np.testing.assert_allclose(tr.velocity_mps[[0, -1]], 0.0)
     # velocity is the derivative of position, acceleration of velocity
     np.testing.assert_allclose(np.gradient(tr.position_m, tr.t_s, axis=0)[1:-1], tr.velocity_mps[1:-1], atol=2e-3)
-    np.testing.assert_allclose(np.gradient(tr.velocity_mps, tr.t_s, axis=0)[5:195], tr.acceleration_mps2[5:195], atol=1e-2)
+    np.testing.assert_allclose(
+        np.gradient(tr.velocity_mps, tr.t_s, axis=0)[5:195], tr.acceleration_mps2[5:195], atol=1e-2
+    )
     # minimum-jerk peak speed 1.875 x mean speed
     np.testing.assert_allclose(np.linalg.norm(tr.velocity_mps, axis=1).max(), 1.875 * np.sqrt(5.25) / 2.0, rtol=1e-3)
 

@@ -8,15 +8,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
-from physics import BUILTIN_VEHICLES
-from physics import disturbance_wrench
-from physics import Effect
-from flightsim import write_flight_logs
-from flightsim import hover_stack_plan, single_hover_plan, swap_plan, waypoint_trajectory
+from flightsim import (
+    hover_stack_plan,
+    simulate_plan,
+    single_hover_plan,
+    swap_plan,
+    waypoint_trajectory,
+    write_flight_logs,
+)
+from physics import BUILTIN_VEHICLES, Effect, disturbance_wrench
 from planfile import Plan
-from flightsim import simulate_plan
 
 KP_Z = 15.0  # RotorPy SE3Control z position gain, 1/s^2 (no integral term: steady error = F / (m kp_z))
 
@@ -36,8 +38,9 @@ def _measured_force_s011(vehicle, table: np.ndarray) -> np.ndarray:
     from identify import MeasureOptions, measure_disturbance
 
     t = table[:, 0] * 1e-6
-    return measure_disturbance(vehicle, t, table[:, 10:14], table[:, 7:10], table[:, 14:18], table[:, 27:30],
-                               options=MeasureOptions()).force_N
+    return measure_disturbance(
+        vehicle, t, table[:, 10:14], table[:, 7:10], table[:, 14:18], table[:, 27:30], options=MeasureOptions()
+    ).force_N
 
 
 def _read_gz(path: Path) -> tuple[str, np.ndarray]:
@@ -47,8 +50,7 @@ def _read_gz(path: Path) -> tuple[str, np.ndarray]:
 
 
 def test_vehicle_below_another_shows_predicted_steady_disturbance_in_its_log(tmp_path):
-    plan = hover_stack_plan(top_type="crazyflie-2.1", bottom_type="crazyflie-parrot", separation_m=1.5,
-                            duration_s=4.0)
+    plan = hover_stack_plan(top_type="crazyflie-2.1", bottom_type="crazyflie-parrot", separation_m=1.5, duration_s=4.0)
     res = simulate_plan(plan, seed=3)
     manifest = write_flight_logs(res, tmp_path, flight_name="stack", split="train")
     header, table = _read_gz(manifest.parent / "stack" / "bottom.csv.gz")
@@ -105,10 +107,14 @@ def test_batched_wrench_horizon_matches_per_step_evaluation():
 
 def _battery_swap(shuttle_path, times, duration_s):
     carrier = np.array([0.0, 0.0, 1.5])
-    return Plan("battery-swap-test", 0.02, {
-        "carrier": waypoint_trajectory("carrier", "large-quad", [carrier, carrier], [0.0, duration_s]),
-        "shuttle": waypoint_trajectory("shuttle", "small-quad", shuttle_path, times),
-    })
+    return Plan(
+        "battery-swap-test",
+        0.02,
+        {
+            "carrier": waypoint_trajectory("carrier", "large-quad", [carrier, carrier], [0.0, duration_s]),
+            "shuttle": waypoint_trajectory("shuttle", "small-quad", shuttle_path, times),
+        },
+    )
 
 
 def test_battery_swap_side_approach_disturbs_the_carrier_less_than_straight_line():
@@ -130,8 +136,9 @@ def test_battery_swap_side_approach_disturbs_the_carrier_less_than_straight_line
     assert peak["staged"] < peak["straight"], peak
     assert errs["staged"] < 0.85 * errs["straight"], errs
     # both end docked: the final, steady sag is the same
-    docked = disturbance_wrench(BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"],
-                                np.array([[0.0, 0.0, -0.35]])).force_N[0, 2]
+    docked = disturbance_wrench(
+        BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"], np.array([[0.0, 0.0, -0.35]])
+    ).force_N[0, 2]
     assert errs["staged"] >= 0.9 * abs(docked) / (BUILTIN_VEHICLES["large-quad"].mass_kg * KP_Z)
 
 
@@ -181,12 +188,14 @@ def test_integral_action_removes_the_steady_sag_below_another_vehicle():
 def test_grouped_wrench_equals_total_wrench_with_every_source():
     """The simulator's stacking of same-type sources, skipping of sources below the target and
     single evaluation of target-only effects give exactly physics.effects.total_wrench."""
-    from physics import EFFECT_NAMES, EffectInputs, SourceSample, default_effect, total_wrench
-    from physics import ModelOptions
     from flightsim.simulate import _wrench_for
+    from physics import EFFECT_NAMES, EffectInputs, ModelOptions, SourceSample, default_effect, total_wrench
 
     rng = np.random.default_rng(0)
-    vehs = [BUILTIN_VEHICLES[n] for n in ("crazyflie-2.1", "crazyflie-parrot", "crazyflie-2.1", "crazyflie-parrot", "crazyflie-2.1")]
+    vehs = [
+        BUILTIN_VEHICLES[n]
+        for n in ("crazyflie-2.1", "crazyflie-parrot", "crazyflie-2.1", "crazyflie-parrot", "crazyflie-2.1")
+    ]
     k = 6
     pos = np.zeros((k, 5, 3))
     pos[:, :, :2] = rng.normal(scale=0.15, size=(1, 5, 2)) + rng.normal(scale=0.01, size=(k, 5, 2))
@@ -196,8 +205,13 @@ def test_grouped_wrench_equals_total_wrench_with_every_source():
     opts = ModelOptions()
     for i in range(5):
         f, t = _wrench_for(i, pos, vel, vehs, effects, opts, 0.0)
-        inputs = EffectInputs(vehs[i], pos[:, i, 2], vel,
-                              tuple(SourceSample(vehs[j], pos[:, i] - pos[:, j]) for j in range(5) if j != i), opts)
+        inputs = EffectInputs(
+            vehs[i],
+            pos[:, i, 2],
+            vel,
+            tuple(SourceSample(vehs[j], pos[:, i] - pos[:, j]) for j in range(5) if j != i),
+            opts,
+        )
         f_ref, t_ref = total_wrench(inputs, effects)
         np.testing.assert_allclose(f, f_ref, rtol=1e-10, atol=1e-14)
         np.testing.assert_allclose(t, t_ref, rtol=1e-10, atol=1e-16)

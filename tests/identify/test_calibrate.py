@@ -5,9 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from physics import BUILTIN_VEHICLES
 from identify.calibrate import ParamSpec, apply_vehicle_parameters, fit_parameters
-from physics import disturbance_wrench
+from physics import BUILTIN_VEHICLES, disturbance_wrench
 
 SQ = BUILTIN_VEHICLES["small-quad"]
 
@@ -35,7 +34,9 @@ def test_uncertainty_matches_noise_level() -> None:
     x = np.linspace(0.0, 1.0, 500)
     sigma = 0.01
     y = 2.0 * np.exp(-3.0 * x) + rng.normal(0, sigma, x.size)
-    res = fit_parameters(lambda th: th[0] * np.exp(-th[1] * x) - y, [ParamSpec("a", 1.0, 0.1, 10.0), ParamSpec("k", 1.0, 0.1, 10.0)])
+    res = fit_parameters(
+        lambda th: th[0] * np.exp(-th[1] * x) - y, [ParamSpec("a", 1.0, 0.1, 10.0), ParamSpec("k", 1.0, 0.1, 10.0)]
+    )
     assert res.values[0] == pytest.approx(2.0, abs=4 * res.std[0])
     assert res.values[1] == pytest.approx(3.0, abs=4 * res.std[1])
     assert 0.0 < res.std[0] < 0.05 and res.rmse == pytest.approx(sigma, rel=0.15)

@@ -9,12 +9,19 @@ import numpy as np
 import pytest
 import yaml
 
-from physics import BUILTIN_VEHICLES
 from fileio import UserError
 from identify.flightlog import (
-    NEURAL_SWARM_COLUMNS, FlightEntry, VehicleEntry, VehicleLog, check_log, load_flight, load_manifest,
-    read_log, write_canonical_csv,
+    NEURAL_SWARM_COLUMNS,
+    FlightEntry,
+    VehicleEntry,
+    VehicleLog,
+    check_log,
+    load_flight,
+    load_manifest,
+    read_log,
+    write_canonical_csv,
 )  # fmt: skip
+from physics import BUILTIN_VEHICLES
 
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]
 
@@ -67,7 +74,16 @@ def test_time_backwards_is_error_with_row() -> None:
     t = log.t_s.copy()
     t[100] = t[98]
     with pytest.raises(UserError, match="row 101"):
-        check_log(VehicleLog(t, *[getattr(log, k) for k in ("position_m", "velocity_mps", "accel_mps2", "quat_xyzw", "motor_thrust_N", "gyro_radps")]), weight_N=CF.weight_N)
+        check_log(
+            VehicleLog(
+                t,
+                *[
+                    getattr(log, k)
+                    for k in ("position_m", "velocity_mps", "accel_mps2", "quat_xyzw", "motor_thrust_N", "gyro_radps")
+                ],
+            ),
+            weight_N=CF.weight_N,
+        )
 
 
 def test_nan_gap_and_ground_are_counted() -> None:
@@ -91,10 +107,24 @@ def test_non_overlapping_flight_is_error_and_overlap_trimmed(tmp_path: Path) -> 
     write_canonical_csv(_log(300, 10.0), tmp_path / "b.csv")
     write_canonical_csv(_log(300, 1.0), tmp_path / "c.csv")
     veh = {"a": CF, "b": CF, "c": CF}
-    entry = FlightEntry("f", "train", (VehicleEntry("a", "crazyflie-2.1", tmp_path / "a.csv"), VehicleEntry("b", "crazyflie-2.1", tmp_path / "b.csv")))
+    entry = FlightEntry(
+        "f",
+        "train",
+        (
+            VehicleEntry("a", "crazyflie-2.1", tmp_path / "a.csv"),
+            VehicleEntry("b", "crazyflie-2.1", tmp_path / "b.csv"),
+        ),
+    )
     with pytest.raises(UserError, match="do not overlap"):
         load_flight(entry, veh)
-    entry = FlightEntry("f", "train", (VehicleEntry("a", "crazyflie-2.1", tmp_path / "a.csv"), VehicleEntry("c", "crazyflie-2.1", tmp_path / "c.csv")))
+    entry = FlightEntry(
+        "f",
+        "train",
+        (
+            VehicleEntry("a", "crazyflie-2.1", tmp_path / "a.csv"),
+            VehicleEntry("c", "crazyflie-2.1", tmp_path / "c.csv"),
+        ),
+    )
     fl = load_flight(entry, veh)
     assert fl.exclusions["a"].outside_overlap_samples == 100 and fl.exclusions["c"].outside_overlap_samples == 100
     assert fl.logs["a"].t_s[0] >= 1.0 - 1e-9

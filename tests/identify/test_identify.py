@@ -16,11 +16,8 @@ import numpy as np
 import pytest
 import yaml
 
-from physics import BUILTIN_VEHICLES
-from physics import Effect
-from identify import write_canonical_csv
-from identify import synthetic_logs
-from identify import IdentifyOptions, run_identify
+from identify import IdentifyOptions, run_identify, synthetic_logs, write_canonical_csv
+from physics import BUILTIN_VEHICLES, Effect
 
 VEHICLE_TYPE = "small-quad"
 HIDDEN = {
@@ -56,7 +53,9 @@ def make_manifest(tmp: Path, effects: tuple, *, n_train: int = 2, duration_s: fl
     flights = []
     for k in range(n_train + 1):
         split = "test" if k == n_train else "train"
-        logs = synthetic_logs({"a": veh, "b": veh}, _trajectories(t, 0.9 * k), t, effects=effects, accel_noise_mps2=0.02, seed=k)
+        logs = synthetic_logs(
+            {"a": veh, "b": veh}, _trajectories(t, 0.9 * k), t, effects=effects, accel_noise_mps2=0.02, seed=k
+        )
         entry = {"name": f"f{k}", "split": split, "vehicles": {}}
         for name, log in logs.items():
             write_canonical_csv(log, tmp / f"f{k}_{name}.csv.gz")
@@ -97,7 +96,9 @@ def test_cli_json_report_and_saved_model(tmp_path: Path, capsys) -> None:
     doc = json.loads(capsys.readouterr().out)
     for key in ("before", "after", "effects", "selected"):
         assert key in doc
-    assert {"rmse_fz_N", "rmse_torque_Nm"} <= set(doc["before"]) and {"rmse_fz_N", "rmse_torque_Nm"} <= set(doc["after"])
+    assert {"rmse_fz_N", "rmse_torque_Nm"} <= set(doc["before"]) and {"rmse_fz_N", "rmse_torque_Nm"} <= set(
+        doc["after"]
+    )
     assert all({"name", "params", "rmse_fz_N"} <= set(e) for e in doc["effects"])
     assert (out / "report.md").exists() and (out / "effects.png").stat().st_size > 1000
     vehicles = load_vehicle_file(model)
@@ -123,17 +124,25 @@ def simulator_manifest(tmp: Path, effects: list, *, ground: bool = False) -> Pat
     """Three closed-loop RotorPy flights (flightsim) with the hidden ``effects``, written as
     Neural-Swarm logs + manifest by flightsim.logs: two small quads swapping places stacked
     0.3 / 1.0 m (train) and 0.45 m (test) apart, or take-off/hover sweeps near the ground."""
-    from flightsim import write_flight_logs
-    from flightsim import swap_plan, takeoff_hover_plan
-    from flightsim import simulate_plan
+    from flightsim import simulate_plan, swap_plan, takeoff_hover_plan, write_flight_logs
 
     manifest = None
     for k, split in enumerate(("train", "train", "test")):
         if ground:
-            plan = takeoff_hover_plan(type_name=VEHICLE_TYPE, low_z_m=0.06 + 0.01 * k, high_z_m=0.6, climb_s=2.0, hold_s=1.5)
+            plan = takeoff_hover_plan(
+                type_name=VEHICLE_TYPE, low_z_m=0.06 + 0.01 * k, high_z_m=0.6, climb_s=2.0, hold_s=1.5
+            )
         else:
-            plan = swap_plan(top_type=VEHICLE_TYPE, bottom_type=VEHICLE_TYPE, vertical_gap_m=(0.3, 1.0, 0.45)[k], n_swaps=2, swap_s=2.5)
-        manifest = write_flight_logs(simulate_plan(plan, truth_effects=effects, seed=k), tmp, flight_name=f"f{k}", split=split)
+            plan = swap_plan(
+                top_type=VEHICLE_TYPE,
+                bottom_type=VEHICLE_TYPE,
+                vertical_gap_m=(0.3, 1.0, 0.45)[k],
+                n_swaps=2,
+                swap_s=2.5,
+            )
+        manifest = write_flight_logs(
+            simulate_plan(plan, truth_effects=effects, seed=k), tmp, flight_name=f"f{k}", split=split
+        )
     return manifest
 
 

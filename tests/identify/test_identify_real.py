@@ -13,8 +13,7 @@ DATA = SHARED / "data" / "neural-swarm"
 
 @pytest.mark.skipif(not DATA.is_dir(), reason=f"Neural-Swarm logs not found at {DATA} (../shared absent)")
 def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
-    from identify import load_manifest
-    from identify import run_identify
+    from identify import load_manifest, run_identify
 
     manifest = load_manifest(MANIFEST)
     train_runs = {f.name for f in manifest.flights if f.split == "train"}

@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from physics import mixer_matrix
-from physics import BUILTIN_VEHICLES
 from identify.measure import MeasureOptions, measure_disturbance, motor_lag_compensated_N
+from physics import BUILTIN_VEHICLES, mixer_matrix
 
 VEH = BUILTIN_VEHICLES["small-quad"]
 
@@ -21,7 +20,9 @@ def _flight(n: int = 600, dt: float = 0.01):
     rot = Rotation.from_euler("xyz", ang)
     # body rates by a fine central difference of the attitude (exact to O(h^2))
     h = 1e-5
-    r_p = Rotation.from_euler("xyz", ang + h * np.column_stack([0.4 * np.cos(2.0 * t), 0.195 * np.cos(1.3 * t + 0.5), 1.5 + 0 * t]))
+    r_p = Rotation.from_euler(
+        "xyz", ang + h * np.column_stack([0.4 * np.cos(2.0 * t), 0.195 * np.cos(1.3 * t + 0.5), 1.5 + 0 * t])
+    )
     omega = (rot.inv() * r_p).as_rotvec() / h
     omega_dot = np.gradient(omega, dt, axis=0, edge_order=2)
     J = np.asarray(VEH.inertia_diag_kgm2)

@@ -4,9 +4,8 @@ along y from -1 to 1 m at dz in {0.5, 1.0, 1.5, 2.0, 2.5} m. Checks the observat
 import numpy as np
 import pytest
 
-from physics import authority_usage
+from physics import ModelOptions, authority_usage, disturbance_wrench, oncoming_speed_per_rotor_mps
 from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
-from physics import ModelOptions, disturbance_wrench, oncoming_speed_per_rotor_mps
 
 DZ_M = (0.5, 1.0, 1.5, 2.0, 2.5)
 Y_M = np.linspace(-1.0, 1.0, 401)  # symmetric grid containing y = 0 at index 200

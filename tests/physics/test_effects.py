@@ -5,9 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from physics import BUILTIN_VEHICLES
-from physics import disturbance_wrench
-from physics import EFFECT_NAMES, PARAMETERS, Effect, EffectInputs, SourceSample, default_effect, effect_wrench, total_wrench
+from physics import (
+    BUILTIN_VEHICLES,
+    EFFECT_NAMES,
+    PARAMETERS,
+    Effect,
+    EffectInputs,
+    SourceSample,
+    default_effect,
+    disturbance_wrench,
+    effect_wrench,
+    total_wrench,
+)
 
 LARGE = BUILTIN_VEHICLES["large-quad"]
 SMALL = BUILTIN_VEHICLES["small-quad"]

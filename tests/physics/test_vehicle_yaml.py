@@ -2,9 +2,9 @@
 
 import pytest
 
-from physics.builtin_vehicles import LARGE_QUAD
 from fileio import UserError
 from physics import load_vehicle_file, resolve_vehicle, vehicle_from_dict, vehicle_to_yaml_dict
+from physics.builtin_vehicles import LARGE_QUAD
 
 
 def write(tmp_path, text):
@@ -21,7 +21,9 @@ def test_round_trip_of_a_builtin_vehicle():
 
 
 def test_base_and_override(tmp_path):
-    path = write(tmp_path, "vehicles:\n  heavy:\n    base: large-quad\n    mass_kg: 0.9\n    propeller: {diameter_m: 0.254}\n")
+    path = write(
+        tmp_path, "vehicles:\n  heavy:\n    base: large-quad\n    mass_kg: 0.9\n    propeller: {diameter_m: 0.254}\n"
+    )
     heavy = load_vehicle_file(path)["heavy"]
     assert heavy.mass_kg == 0.9 and heavy.propeller.diameter_m == 0.254
     assert heavy.arm_length_m == LARGE_QUAD.arm_length_m
@@ -32,7 +34,10 @@ def test_base_and_override(tmp_path):
     "body, message",
     [
         ("    base: large-quad\n    mass_kg: -1\n", "vehicles.v.mass_kg: expected a positive number"),
-        ("    base: large-quad\n    propeller: {diameter_m: 0}\n", "vehicles.v.propeller.diameter_m: expected a positive number"),
+        (
+            "    base: large-quad\n    propeller: {diameter_m: 0}\n",
+            "vehicles.v.propeller.diameter_m: expected a positive number",
+        ),
         ("    mass_kg: 1.0\n", "vehicles.v: missing key"),
         ("    base: nope\n", "vehicles.v.base: unknown vehicle type 'nope'"),
         ("    base: large-quad\n    colour: red\n", "unknown key 'colour'"),

@@ -98,7 +98,11 @@ def test_dock_target_missing(tmp_path):
 
 def test_dock_cycle(tmp_path):
     def mutate(d):
-        d["vehicles"]["carrier"] = {"type": "large-quad", "start": [0, 0, 1.5], "dock": {"with": "shuttle", "offset": [0, 0, -0.4]}}
+        d["vehicles"]["carrier"] = {
+            "type": "large-quad",
+            "start": [0, 0, 1.5],
+            "dock": {"with": "shuttle", "offset": [0, 0, -0.4]},
+        }
 
     msg = _bad(tmp_path, mutate)
     assert "cycle" in msg and "dock.with" in msg
@@ -139,7 +143,9 @@ def test_not_yaml_and_missing_file(tmp_path):
 def test_vehicle_file_relative_to_scenario(tmp_path):
     sub = tmp_path / "cfg"
     sub.mkdir()
-    (sub / "fleet.yaml").write_text(yaml.safe_dump({"vehicles": {"heavy-small": {"base": "small-quad", "mass_kg": 0.2}}}))
+    (sub / "fleet.yaml").write_text(
+        yaml.safe_dump({"vehicles": {"heavy-small": {"base": "small-quad", "mass_kg": 0.2}}})
+    )
     import copy
 
     doc = copy.deepcopy(GOOD)

@@ -14,11 +14,8 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("casadi")
-pytest.importorskip("ompl")
-
-from planner.compare import ComparisonRow, main, run_one, to_markdown, write_outputs  # noqa: E402
-from planfile import load_scenario  # noqa: E402
+from planfile import load_scenario
+from planner.compare import ComparisonRow, main, run_one, to_markdown, write_outputs
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 # cheapest first: the loops below stop at the first scenario that shows the claim
@@ -84,7 +81,9 @@ def _rows() -> list[ComparisonRow]:
     return [
         ComparisonRow("s1", "optimized", True, 2.5, 3.0, 0.05, 0.15, 0.4, True, (), 1.2),
         ComparisonRow("s1", "no-downwash", True, 2.0, 2.8, 0.31, 0.15, 0.3, False, ("authority x2",), 0.1),
-        ComparisonRow("s1", "ellipsoid", False, None, None, None, 0.15, None, None, (), 0.5, "infeasible: a: ellipsoid of b"),
+        ComparisonRow(
+            "s1", "ellipsoid", False, None, None, None, 0.15, None, None, (), 0.5, "infeasible: a: ellipsoid of b"
+        ),
     ]
 
 
@@ -102,7 +101,9 @@ def test_write_outputs_and_main(tmp_path):
     assert out["png"].stat().st_size > 1000
     assert json.loads(out["json"].read_text())[1]["violations"] == ["authority x2"]
     assert not list((tmp_path / "a").glob(".*tmp*"))  # no temporary files left behind
-    rc = main(["--out", str(tmp_path / "b"), "--scenarios", str(SCENARIOS / "battery_swap.yaml"), "--methods", "sampling"])
+    rc = main(
+        ["--out", str(tmp_path / "b"), "--scenarios", str(SCENARIOS / "battery_swap.yaml"), "--methods", "sampling"]
+    )
     assert rc == 0
     rows = json.loads((tmp_path / "b" / "comparison.json").read_text())
     assert [(r["scenario"], r["method"]) for r in rows] == [("battery-swap", "sampling")]

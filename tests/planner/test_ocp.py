@@ -6,16 +6,17 @@ coarse grid (tests only); the product uses costmaps.map_store's table of the sam
 
 from __future__ import annotations
 
+import casadi
 import numpy as np
 import pytest
 
-casadi = pytest.importorskip("casadi")
-
-from physics import authority_usage  # noqa: E402
-from physics import BUILTIN_VEHICLES  # noqa: E402
-from physics import disturbance_wrench  # noqa: E402
-from planner.ocp import build_and_solve, normalised_motor_map, sample_solution  # noqa: E402
-from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution  # noqa: E402
+from physics import (
+    BUILTIN_VEHICLES,
+    authority_usage,
+    disturbance_wrench,
+)
+from planner.ocp import build_and_solve, normalised_motor_map, sample_solution
+from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
 
 LARGE = BUILTIN_VEHICLES["large-quad"]
 SMALL = BUILTIN_VEHICLES["small-quad"]
@@ -178,12 +179,22 @@ def test_dock_to_moving_partner_and_infeasible_authority_fails():
     shuttle_start = np.array([1.5, 1.0, 2.2])
     offset = np.array([0.0, 0.0, 0.5])
     carrier = OcpAgent(
-        name="carrier", vehicle=LARGE, moving=True, start_m=carrier_start, goal_m=carrier_goal,
-        body_radius_m=0.27, warm_position_m=_quintic(carrier_start, carrier_goal, n),
+        name="carrier",
+        vehicle=LARGE,
+        moving=True,
+        start_m=carrier_start,
+        goal_m=carrier_goal,
+        body_radius_m=0.27,
+        warm_position_m=_quintic(carrier_start, carrier_goal, n),
     )
     shuttle = OcpAgent(
-        name="shuttle", vehicle=SMALL, moving=True, start_m=shuttle_start, dock_with="carrier",
-        dock_offset_m=offset, body_radius_m=0.09,
+        name="shuttle",
+        vehicle=SMALL,
+        moving=True,
+        start_m=shuttle_start,
+        dock_with="carrier",
+        dock_offset_m=offset,
+        body_radius_m=0.09,
         warm_position_m=_quintic(shuttle_start, carrier_goal + offset, n),
     )
     table = model_interpolant(SMALL, LARGE, half_width_m=1.0, dz_min_m=0.2, dz_max_m=1.4, step_m=0.1)

@@ -8,20 +8,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("casadi")
-pytest.importorskip("ompl")
-
-from planner.optimize import (  # noqa: E402
+from planfile import load_scenario, scenario_from_dict
+from planner import (
+    InfeasibleError,
+    plan_scenario,
+)
+from planner.optimize import (
     RefineOptions,
     build_problem,
     check_final_configuration,
     moving_end_s,
     refine_plan,
 )
-from planner import InfeasibleError  # noqa: E402
-from planner import plan_scenario  # noqa: E402
-from planfile import load_scenario, scenario_from_dict  # noqa: E402
-from verify import verify_plan  # noqa: E402
+from verify import verify_plan
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 

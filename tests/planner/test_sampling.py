@@ -9,13 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from physics import authority_usage
-from physics import BUILTIN_VEHICLES
-from physics import VALIDITY_FACTOR_L, disturbance_wrench
-from planner.constraints import Track, build_checker
-from planner import DT_S
-from planner.sampling import GoalSpec, SamplingOptions, plan_space_time
+from physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
 from planfile import scenario_from_dict
+from planner import DT_S
+from planner.constraints import Track, build_checker
+from planner.sampling import GoalSpec, SamplingOptions, plan_space_time
 from planner.timing import common_grid, time_parameterize
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -91,8 +89,15 @@ def test_space_time_plan_avoids_the_hovering_source_and_is_timed_validly():
     assert any(nominal.conflict(*p, 0.0) for p in straight)
     path = None
     for seed in range(3):
-        path = plan_space_time(checker, task.start_m, GoalSpec(task.goal_m, hold_until_s=5.0), limits,
-                               horizon_s=30.0, seed=seed, options=SamplingOptions(time_budget_s=2.0))
+        path = plan_space_time(
+            checker,
+            task.start_m,
+            GoalSpec(task.goal_m, hold_until_s=5.0),
+            limits,
+            horizon_s=30.0,
+            seed=seed,
+            options=SamplingOptions(time_budget_s=2.0),
+        )
         if path is not None:
             break
     assert path is not None
@@ -111,7 +116,11 @@ def test_dock_approach_point_is_outside_the_invalid_zone():
             "workspace": {"min": [-3, -3, 0], "max": [3, 3, 4]},
             "vehicles": {
                 "carrier": {"type": "large-quad", "start": [0, 0, 1.5], "hover": True},
-                "shuttle": {"type": "small-quad", "start": [2, 1, 2.5], "dock": {"with": "carrier", "offset": [0, 0, 0.3]}},
+                "shuttle": {
+                    "type": "small-quad",
+                    "start": [2, 1, 2.5],
+                    "dock": {"with": "carrier", "offset": [0, 0, 0.3]},
+                },
             },
         }
     )
@@ -124,9 +133,25 @@ def test_dock_approach_point_is_outside_the_invalid_zone():
 def _plan_in_subprocess(tmp_path, seed, tag):
     out = tmp_path / tag
     res = subprocess.run(
-        [sys.executable, "-m", "proxplan.cli", "plan", str(ROOT / "scenarios" / "crossing_4.yaml"), "--out", str(out),
-         "--method", "sampling", "--seed", str(seed), "--no-plot", "--json"],
-        capture_output=True, text=True, timeout=120, cwd=ROOT,
+        [
+            sys.executable,
+            "-m",
+            "proxplan.cli",
+            "plan",
+            str(ROOT / "scenarios" / "crossing_4.yaml"),
+            "--out",
+            str(out),
+            "--method",
+            "sampling",
+            "--seed",
+            str(seed),
+            "--no-plot",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
     )
     assert res.returncode == 0, res.stderr
     return json.loads((out / "plan.json").read_text())["vehicles"]

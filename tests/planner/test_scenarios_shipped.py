@@ -6,10 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from planfile import load_scenario, write_plan
 from planner import plan_scenario
-from planfile import write_plan
 from proxplan.cli import main
-from planfile import load_scenario
 from verify import verify_plan
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[2] / "scenarios").glob("*.yaml"))

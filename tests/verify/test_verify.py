@@ -7,11 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from physics import authority_usage
-from physics import BUILTIN_VEHICLES
-from physics import disturbance_wrench
-from planfile import Plan, VehicleTrajectory
-from planfile import scenario_from_dict
+from physics import BUILTIN_VEHICLES, authority_usage, disturbance_wrench
+from planfile import Plan, VehicleTrajectory, scenario_from_dict
 from verify import verify_plan, wrench_along_plan
 
 DT = 0.05
@@ -50,7 +47,9 @@ def _plan(scenario, low_path):
         scenario=scenario.name,
         dt_s=DT,
         vehicles={
-            "top": VehicleTrajectory("top", "large-quad", BUILTIN_VEHICLES["large-quad"], t, np.repeat(top[None], t.size, axis=0), z, z),
+            "top": VehicleTrajectory(
+                "top", "large-quad", BUILTIN_VEHICLES["large-quad"], t, np.repeat(top[None], t.size, axis=0), z, z
+            ),
             "low": VehicleTrajectory("low", "small-quad", BUILTIN_VEHICLES["small-quad"], t, p, v, a),
         },
     )
@@ -112,7 +111,9 @@ def test_wrench_along_plan_is_the_direct_model():
     offsets = low_p - sc.vehicles["top"].start_m
     w = disturbance_wrench(BUILTIN_VEHICLES["large-quad"], BUILTIN_VEHICLES["small-quad"], offsets)
     np.testing.assert_allclose(along["low"].force_N, w.force_N, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(along["low"].usage, authority_usage(BUILTIN_VEHICLES["small-quad"], w.force_N, w.torque_Nm), rtol=1e-9)
+    np.testing.assert_allclose(
+        along["low"].usage, authority_usage(BUILTIN_VEHICLES["small-quad"], w.force_N, w.torque_Nm), rtol=1e-9
+    )
     assert along["low"].usage[1] > along["low"].usage[0]  # strongest right under the source
     np.testing.assert_allclose(along["top"].force_N, 0.0)  # nothing above the top vehicle
 
@@ -135,7 +136,11 @@ def test_dock_pair_is_exempt_only_on_the_approach_tube():
     # sideways through the target's level, then to the dock point: separation is flagged
     t1, p1, v1, a1 = _line([-1.5, 0, 1.5], [1.5, 0, 1.5], 6.0, total_s=6.0)
     t2, p2, v2, a2 = _line([1.5, 0, 1.5], [0, 0, 1.8], 4.0, total_s=5.0)
-    path = (np.concatenate([t1, t2[1:] + t1[-1]]), np.concatenate([p1, p2[1:]]),
-            np.concatenate([v1, v2[1:]]), np.concatenate([a1, a2[1:]]))
+    path = (
+        np.concatenate([t1, t2[1:] + t1[-1]]),
+        np.concatenate([p1, p2[1:]]),
+        np.concatenate([v1, v2[1:]]),
+        np.concatenate([a1, a2[1:]]),
+    )
     kinds = {v.kind for v in verify_plan(_plan(sc, path), sc)}
     assert "separation" in kinds

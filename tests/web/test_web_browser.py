@@ -33,7 +33,9 @@ CANVAS_BOX = (slice(160, 740), slice(0, 930))  # rows, cols of the 3-D view clea
 
 pytestmark = [
     pytest.mark.browser,
-    pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian chromium at /usr/bin/chromium (.ci/run installs it)"),
+    pytest.mark.skipif(
+        not CHROMIUM.exists(), reason="needs Debian chromium at /usr/bin/chromium (.ci/run installs it)"
+    ),
 ]
 
 
@@ -45,11 +47,24 @@ class Chromium:
 
         self.profile = tempfile.mkdtemp(prefix="proxplan-chromium-")
         self.proc = subprocess.Popen(
-            [str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-             "--disable-background-networking", "--disable-component-update", "--disable-sync",
-             "--no-first-run", f"--user-data-dir={self.profile}", f"--window-size={WIDTH},{HEIGHT}",
-             "--remote-debugging-port=0", "about:blank"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            [
+                str(CHROMIUM),
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-quic",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--no-first-run",
+                f"--user-data-dir={self.profile}",
+                f"--window-size={WIDTH},{HEIGHT}",
+                "--remote-debugging-port=0",
+                "about:blank",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         port_file = Path(self.profile) / "DevToolsActivePort"
         deadline = time.monotonic() + 30.0
         while not (port_file.exists() and port_file.read_text().strip()):
@@ -62,8 +77,7 @@ class Chromium:
         page = next(t for t in targets if t["type"] == "page")
         self.ws = connect(page["webSocketDebuggerUrl"], max_size=None, open_timeout=10)
         self._id = 0
-        self.call("Emulation.setDeviceMetricsOverride", width=WIDTH, height=HEIGHT, deviceScaleFactor=1,
-                  mobile=False)
+        self.call("Emulation.setDeviceMetricsOverride", width=WIDTH, height=HEIGHT, deviceScaleFactor=1, mobile=False)
 
     def call(self, method: str, **params):
         self._id += 1
@@ -76,8 +90,9 @@ class Chromium:
                 return msg["result"]
 
     def text(self) -> str:
-        res = self.call("Runtime.evaluate", expression="document.body ? document.body.innerText : ''",
-                        returnByValue=True)
+        res = self.call(
+            "Runtime.evaluate", expression="document.body ? document.body.innerText : ''", returnByValue=True
+        )
         return res["result"].get("value") or ""
 
     def wait_for_text(self, needle: str, timeout_s: float = 60.0) -> str:
@@ -131,8 +146,13 @@ def _settled_screenshot(browser: Chromium, timeout_s: float = 40.0) -> bytes:
 
 def _start_view(path: Path) -> tuple[subprocess.Popen, str]:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen([sys.executable, "-m", "proxplan.cli", "view", str(path), "--port", "0", "--json"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "proxplan.cli", "view", str(path), "--port", "0", "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     ready, _, _ = select.select([proc.stdout], [], [], 60.0)
     if not ready:
         proc.kill()
@@ -156,8 +176,6 @@ def _stop(proc: subprocess.Popen) -> int:
 
 
 def test_view_renders_plan_in_headless_chromium(tmp_path):
-    pytest.importorskip("websockets")
-    pytest.importorskip("PIL")
     from web.demo import DEMO_SPEC, write_demo_plan
 
     plan = write_demo_plan(tmp_path / "demo")
@@ -202,8 +220,6 @@ def test_view_renders_plan_in_headless_chromium(tmp_path):
 @pytest.mark.slow
 def test_exported_recording_replays_without_the_app(tmp_path):
     """`--export` output served by a plain static web server replays in Chromium (no proxplan)."""
-    pytest.importorskip("websockets")
-    pytest.importorskip("PIL")
     import functools
     import threading
     from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
@@ -212,9 +228,14 @@ def test_exported_recording_replays_without_the_app(tmp_path):
 
     plan = write_demo_plan(tmp_path / "demo")
     out = tmp_path / "rec"
-    proc = subprocess.run([sys.executable, "-m", "proxplan.cli", "view", str(plan), "--export", str(out)],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "proxplan.cli", "view", str(plan), "--export", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
+
     class Quiet(SimpleHTTPRequestHandler):
         def log_message(self, *args) -> None:  # keep the test output clean
             pass

@@ -9,18 +9,24 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import viser
 
-viser = pytest.importorskip("viser")
-
-from physics import authority_usage  # noqa: E402
-from physics import BUILTIN_VEHICLES  # noqa: E402
-from physics import VALIDITY_FACTOR_L, disturbance_wrench  # noqa: E402
-from physics import downwash_speed_mps  # noqa: E402
-from web import layers, plots  # noqa: E402
-from web import ReviewApp, prepare  # noqa: E402
-from web.demo import DEMO_SPEC, write_demo_plan  # noqa: E402
-from web import load_plan_file  # noqa: E402
-from web.wrench_series import WrenchSeries  # noqa: E402
+from physics import (
+    BUILTIN_VEHICLES,
+    VALIDITY_FACTOR_L,
+    authority_usage,
+    disturbance_wrench,
+    downwash_speed_mps,
+)
+from web import (
+    ReviewApp,
+    layers,
+    load_plan_file,
+    plots,
+    prepare,
+)
+from web.demo import DEMO_SPEC, write_demo_plan
+from web.wrench_series import WrenchSeries
 
 
 @pytest.fixture(scope="module")
@@ -198,19 +204,29 @@ def test_export_writes_self_contained_recording(app, tmp_path):
     assert "playbackPath=recording.viser" in (out / "README.txt").read_text()
     # the live scene is back at the time it showed before the export
     t = app.t_s
-    np.testing.assert_allclose(app._handles.vehicles["shuttle"].position, _plan_positions(app.loaded.data.source_path, t)["shuttle"], atol=1e-6)
+    np.testing.assert_allclose(
+        app._handles.vehicles["shuttle"].position, _plan_positions(app.loaded.data.source_path, t)["shuttle"], atol=1e-6
+    )
 
 
 def test_cli_missing_file_is_one_line_user_error(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "proxplan.cli", "view", str(tmp_path / "nope.yaml")],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "proxplan.cli", "view", str(tmp_path / "nope.yaml")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "no such file" in proc.stderr
 
 
 def test_cli_export_prints_one_json_object(plan_path, tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "proxplan.cli", "view", str(plan_path), "--export",
-                           str(tmp_path / "rec"), "--json"], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "proxplan.cli", "view", str(plan_path), "--export", str(tmp_path / "rec"), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     doc = json.loads(proc.stdout)
     assert Path(doc["export_dir"], "recording.viser").exists()
@@ -227,8 +243,11 @@ def test_play_advances_time(app):
     finally:
         app.play.value = False
     assert 0.4 < app.t_s < 3.0  # about 0.6 s x 2 of plan time (thread timing is loose)
-    np.testing.assert_allclose(app._handles.vehicles["shuttle"].position,
-                               _plan_positions(app.loaded.data.source_path, app.t_s)["shuttle"], atol=1e-6)
+    np.testing.assert_allclose(
+        app._handles.vehicles["shuttle"].position,
+        _plan_positions(app.loaded.data.source_path, app.t_s)["shuttle"],
+        atol=1e-6,
+    )
 
 
 SHIPPED_SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "battery_swap.yaml"
@@ -284,15 +303,20 @@ def test_plan_without_scenario_shows_trajectories_and_says_why_editing_is_off(pl
         assert review.edit_vehicle.options == ("(none)",)
         assert review.replan() is False
         review.time_slider.value = 6.0
-        np.testing.assert_allclose(review._handles.vehicles["other"].position,
-                                   _plan_positions(bare, 6.0)["other"], atol=1e-6)
+        np.testing.assert_allclose(
+            review._handles.vehicles["other"].position, _plan_positions(bare, 6.0)["other"], atol=1e-6
+        )
     finally:
         review.stop()
         server.stop()
 
 
 def test_cli_bad_host_is_one_line_user_error(plan_path):
-    proc = subprocess.run([sys.executable, "-m", "proxplan.cli", "view", str(plan_path), "--host", "999.1.1.1"],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "proxplan.cli", "view", str(plan_path), "--host", "999.1.1.1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "--host 999.1.1.1" in proc.stderr
