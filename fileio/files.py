@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -123,3 +124,53 @@ def save_figure(fig: Any, path: str | Path, **savefig_kwargs: Any) -> Path:
     finally:
         plt.close(fig)
     return Path(path)
+
+
+def _unwritable(path: Path, flag: str, err: OSError, *, what: str = "folder") -> UserError:
+    reason = err.strerror or str(err)
+    return UserError(f"{flag} {path}: cannot write there ({reason}); expected a writable {what} path")
+
+
+def check_output_file(path: str | Path, *, flag: str = "--out") -> Path:
+    """``path`` as an output file: its folder is created and must be writable, and ``path`` must
+    not be a folder; UserError naming ``flag`` otherwise (checked before any long computation)."""
+    path = Path(path)
+    if path.is_dir():
+        raise UserError(f"{flag} {path}: is a folder; expected a file path")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".probe", dir=path.parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        raise _unwritable(path, flag, err, what="file") from None
+    return path
+
+
+@contextmanager
+def output_folder(path: str | Path, *, flag: str = "--out") -> Iterator[Path]:
+    """Stage a command's outputs: yields an empty temporary folder beside ``path``; when the block
+    succeeds, every file in it moves into ``path`` (created when there is a file to move; files of the
+    same name are replaced, others kept); when it fails, the stage is removed and ``path`` is untouched. Enter it before the
+    long computation: an existing file at ``path`` or an unwritable location is a UserError naming
+    ``flag`` at once."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UserError(f"{flag} {path}: exists and is not a folder; expected a folder path")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent))
+    except OSError as err:
+        raise _unwritable(path, flag, err) from None
+    try:
+        yield stage
+        try:
+            for item in sorted(stage.rglob("*")):
+                if item.is_file():
+                    target = path / item.relative_to(stage)
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    os.replace(item, target)
+        except OSError as err:
+            raise _unwritable(path, flag, err) from None
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

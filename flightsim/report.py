@@ -100,6 +100,8 @@ def summary_dict(
     """The JSON summary of ``proxplan simulate``."""
     return {
         "scenario": result.scenario,
+        "status": result.status.value,
+        "status_detail": result.status_detail,
         "plan": plan_path,
         "truth": result.truth.to_dict(),
         "physics_dt_s": result.options.physics_dt_s,

@@ -18,6 +18,7 @@ evaluates it at the exact state of every step).
 
 from __future__ import annotations
 
+import enum
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -85,6 +86,13 @@ class VehicleRecord:
         return Rotation.from_quat(self.q_xyzw).apply(self.accel_meas_body_mps2)
 
 
+class SimulationStatus(enum.Enum):
+    """How a simulation ended (a result, like RotorPy's ExitStatus; not a user error)."""
+
+    COMPLETE = "complete"  # flown to the end of the plan plus settle_s
+    DIVERGED = "diverged"  # a vehicle's state became non-finite: it lost control; records stop before
+
+
 @dataclass(frozen=True)
 class SimulationResult:
     scenario: str
@@ -96,6 +104,8 @@ class SimulationResult:
     wall_time_s: float
     sim_time_s: float
     notes: list[str] = field(default_factory=list)
+    status: SimulationStatus = SimulationStatus.COMPLETE
+    status_detail: str = ""  # what ended the flight when it did not complete
 
     @property
     def real_time_factor(self) -> float:
@@ -221,6 +231,8 @@ def simulate_plan(
     integral_ms = np.zeros((n_veh, 3))  # integrated position error, m s
     ki_rate = float(options.position_integral_rate_ps)
     windup = float(options.position_integral_limit_ms)
+    status, status_detail = SimulationStatus.COMPLETE, ""
+    n_logged = n_log
     try:
         for k in range(n_steps):
             j = k % horizon
@@ -259,12 +271,19 @@ def simulate_plan(
             acc_est = (stepper.next_state[:, 3:6] - S[:, 3:6]) / dt
             stepper.advance()
             if not np.all(np.isfinite(S)):
-                raise UserError(f"simulation diverged at t = {t_grid[k] - t0:.3f} s (a vehicle lost control)")
+                lost = [names[v] for v in range(n_veh) if not np.all(np.isfinite(S[v]))]
+                status = SimulationStatus.DIVERGED
+                status_detail = f"{', '.join(lost)} lost control at t = {t_grid[k] - t0:.3f} s (state not finite)"
+                n_logged = k // log_every + 1  # rows logged up to step k hold finite states
+                break
             if bar is not None and k % 500 == 0:
                 bar.update(min(500, n_steps - k))
     finally:
         if bar is not None:
             bar.close()
+    if n_logged < n_log:  # keep the finite part of a diverged flight
+        rec = {key: arr[:n_logged] for key, arr in rec.items()}
+        rec_sat = rec_sat[:n_logged]
     rng = np.random.default_rng(options.seed)
     for vi in range(n_veh):
         rec["acc"][:, vi], rec["gyr"][:, vi] = imu_samples(
@@ -287,7 +306,7 @@ def simulate_plan(
         rec["Fm"][:] = rec["Fa"]
         rec["Tm"][:] = rec["Ta"]
 
-    t_log = t_grid[::log_every] - t0
+    t_log = (t_grid[::log_every] - t0)[:n_logged]
     records: dict[str, VehicleRecord] = {}
     for vi, name in enumerate(names):
         records[name] = VehicleRecord(
@@ -328,7 +347,9 @@ def simulate_plan(
         records=records,
         saturation_time_s={n: float(sat_steps[i] * dt) for i, n in enumerate(names)},
         wall_time_s=wall,
-        sim_time_s=(n_steps - 1) * dt,
+        sim_time_s=float(t_log[-1]) if n_logged else 0.0,
+        status=status,
+        status_detail=status_detail,
     )
 
 

@@ -116,7 +116,7 @@ def seed_ompl_once(seed: int) -> bool:
 
     if _SEEDED:
         return _SEEDED[0] == int(seed)
-    ou.RNG.setSeed(int(seed) + 1)
+    ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)  # OMPL takes a positive 32-bit seed
     _SEEDED.append(int(seed))
     return True
 

@@ -16,6 +16,7 @@ import importlib
 import sys
 
 from fileio import UserError
+from proxplan.cli_args import OneLineParser
 
 COMMAND_MODULES = (
     "proxplan.commands.model",  # vehicles, wrench
@@ -28,7 +29,7 @@ COMMAND_MODULES = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="proxplan",
         description="Plan multirotor flights in close proximity within each vehicle's controller authority.",
     )

@@ -10,13 +10,13 @@ the installed package) and ``README.txt``. Replay without the planner or Python 
 
 from __future__ import annotations
 
-import os
 import shutil
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+from fileio import output_folder
 
 README = """proxplan review recording: {name}
 
@@ -66,28 +66,14 @@ def record_scene(
 
 
 def write_export(out_dir: str | Path, payload: bytes, *, name: str, frames: int, duration_s: float) -> Path:
-    """Write recording.viser, index.html and README.txt to ``out_dir`` atomically (temp dir, rename)."""
+    """Write recording.viser, index.html and README.txt to ``out_dir`` (all three, or none)."""
     import viser
 
     out_dir = Path(out_dir).resolve()
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
-        (tmp / "recording.viser").write_bytes(payload)
-        shutil.copyfile(viser_client_index(), tmp / "index.html")
-        (tmp / "README.txt").write_text(
+    with output_folder(out_dir, flag="--export") as stage:
+        (stage / "recording.viser").write_bytes(payload)
+        shutil.copyfile(viser_client_index(), stage / "index.html")
+        (stage / "README.txt").write_text(
             README.format(name=name, dirname=out_dir, frames=frames, duration=duration_s, version=viser.__version__)
         )
-        if out_dir.exists():
-            old = out_dir.with_name(f".{out_dir.name}.old")
-            if old.exists():
-                shutil.rmtree(old)
-            os.replace(out_dir, old)
-            os.replace(tmp, out_dir)
-            shutil.rmtree(old)
-        else:
-            os.replace(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out_dir

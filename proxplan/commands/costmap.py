@@ -111,6 +111,7 @@ def run_costmap(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from costmaps import build_pair_maps, save_pair_maps
+    from fileio import check_output_file, output_folder
     from physics import ModelOptions
 
     start = time.perf_counter()
@@ -133,21 +134,28 @@ def run_costmap(args: argparse.Namespace) -> int:
         raise UserError(f"{args.vehicle_file}: model.field_form: expected inverse-z or printed, got {field_form!r}")
     options = ModelOptions(field_form=field_form)
     pairs = _pairs(args, custom)
+    if args.all:
+        folder, flag = Path(args.out_dir), "--out-dir"
+    else:
+        folder, flag = check_output_file(args.out).parent, "--out"
     results = []
-    bar = tqdm(pairs, desc="costmap", unit="pair", file=sys.stderr, disable=len(pairs) < 2)
-    for source, target in bar:
-        bar.set_postfix_str(f"{source.name} -> {target.name}")
-        maps = build_pair_maps(
-            source, target, options=options, levels=levels, default_level=default_level, invalid_rule=args.invalid_rule
-        )
-        out = Path(args.out) if not args.all else Path(args.out_dir) / f"{source.name}__{target.name}.npz"
-        save_pair_maps(maps, out)
-        png = None
-        if not args.no_plot:
-            from costmaps import plot_cutoff
+    with output_folder(folder, flag=flag) as stage:  # every map and plot lands together, or none
+        bar = tqdm(pairs, desc="costmap", unit="pair", file=sys.stderr, disable=len(pairs) < 2)
+        for source, target in bar:
+            bar.set_postfix_str(f"{source.name} -> {target.name}")
+            maps = build_pair_maps(
+                source, target, options=options, levels=levels, default_level=default_level,
+                invalid_rule=args.invalid_rule,
+            )  # fmt: skip
+            name = Path(args.out).name if not args.all else f"{source.name}__{target.name}.npz"
+            save_pair_maps(maps, stage / name)
+            png = None
+            if not args.no_plot:
+                from costmaps import plot_cutoff
 
-            png = plot_cutoff(maps.cutoff, out.with_suffix(".png"))
-        results.append(_summary(maps, out, png))
+                plot_cutoff(maps.cutoff, (stage / name).with_suffix(".png"))
+                png = (folder / name).with_suffix(".png")
+            results.append(_summary(maps, folder / name, png))
     elapsed = time.perf_counter() - start
     if args.json:
         doc = results[0] if len(results) == 1 else {"maps": results}

@@ -81,12 +81,15 @@ def save_model(result, path: str | Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fileio import UserError
+    from fileio import UserError, check_output_file, output_folder
     from identify import IdentifyOptions, MeasureOptions, load_manifest, run_identify, write_report
 
     if args.window_s <= 0 or (args.motor_tau_s is not None and args.motor_tau_s <= 0):
         raise UserError("--window-s and --motor-tau-s must be positive numbers of seconds")
     manifest = load_manifest(args.manifest)
+    out = Path(args.out)
+    if args.save_model:
+        check_output_file(args.save_model, flag="--save-model")
     options = IdentifyOptions(
         measure=MeasureOptions(
             derivative=args.derivative, window_s=args.window_s, motor_time_constant_s=args.motor_tau_s
@@ -95,14 +98,14 @@ def run(args: argparse.Namespace) -> int:
         min_gain=args.min_gain,
         progress=True,
     )
-    result = run_identify(manifest, options=options)
-    out = Path(args.out)
-    report = write_report(result, out, manifest=str(args.manifest))
-    doc = result.to_json()
-    doc["report"] = str(report)
+    with output_folder(out) as stage:  # the report lands whole, or not at all
+        result = run_identify(manifest, options=options)
+        report = out / write_report(result, stage, manifest=str(args.manifest)).relative_to(stage)
+        doc = result.to_json()
+        doc["report"] = str(report)
+        atomic_write_text(stage / "identify.json", json.dumps(doc, indent=2, default=float))
     if args.save_model:
         doc["saved_model"] = str(save_model(result, args.save_model))
-    atomic_write_text(out / "identify.json", json.dumps(doc, indent=2, default=float))
     if args.json:
         print(json.dumps(doc, default=float))
     else:

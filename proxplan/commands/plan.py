@@ -9,6 +9,8 @@ import argparse
 import json
 import sys
 
+from proxplan.cli_args import seed_argument
+
 METHOD_CHOICES = ("optimized", "sampling", "no-downwash", "ellipsoid")
 
 
@@ -24,7 +26,9 @@ def register(subparsers) -> None:
     )
     p.add_argument("scenario", metavar="SCENARIO.yaml", help="scenario file (DESIGN.md section 4)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the sampling planner (default 0)")
+    p.add_argument(
+        "--seed", type=seed_argument, default=0, help="random seed of the sampling planner, 0..2^31-1 (default 0)"
+    )
     p.add_argument(
         "--method",
         choices=METHOD_CHOICES,
@@ -72,49 +76,44 @@ def _plan(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from fileio import atomic_write_text
+    from fileio import atomic_write_text, output_folder
     from planfile import jsonable, load_scenario, write_plan
     from planner import InfeasibleError, plan_scenario, plan_summary
     from verify import verify_plan
 
     scenario = load_scenario(args.scenario)
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        from fileio import UserError
-
-        raise UserError(f"--out {out}: exists and is not a folder; expected a folder path")
-    bar, report = _progress_bar(sys.stderr.isatty())
-    try:
-        plan = plan_scenario(scenario, method=args.method, seed=args.seed, progress=report)
-    except InfeasibleError as err:
-        bar.close()
-        print(
-            f"proxplan plan: infeasible: vehicle '{err.vehicle}' cannot meet constraint '{err.constraint}': {err.message}",
-            file=sys.stderr,
-        )
-        if args.json:
+    with output_folder(out) as stage:  # nothing is written to --out unless every file is
+        bar, report = _progress_bar(sys.stderr.isatty())
+        try:
+            plan = plan_scenario(scenario, method=args.method, seed=args.seed, progress=report)
+        except InfeasibleError as err:
+            bar.close()
             print(
-                json.dumps(
-                    {"feasible": False, "vehicle": err.vehicle, "constraint": err.constraint, "message": err.message}
-                )
+                f"proxplan plan: infeasible: vehicle '{err.vehicle}' cannot meet constraint '{err.constraint}': "
+                f"{err.message}",
+                file=sys.stderr,
             )
-        return 1
-    bar.close()
-    t_verify = time.perf_counter()
-    violations = verify_plan(plan, scenario)
-    t_verify = time.perf_counter() - t_verify
-    plan.metrics["verify_violations"] = len(violations)
-    out.mkdir(parents=True, exist_ok=True)
-    plan_path = write_plan(plan, out)
-    png = None
-    t_plot = time.perf_counter()
-    if not args.no_plot:
-        from planner import plot_plan
+            if args.json:
+                doc = {"feasible": False, "vehicle": err.vehicle, "constraint": err.constraint, "message": err.message}
+                print(json.dumps(doc))
+            return 1
+        bar.close()
+        t_verify = time.perf_counter()
+        violations = verify_plan(plan, scenario)
+        t_verify = time.perf_counter() - t_verify
+        plan.metrics["verify_violations"] = len(violations)
+        write_plan(plan, stage)
+        t_plot = time.perf_counter()
+        if not args.no_plot:
+            from planner import plot_plan
 
-        png = plot_plan(plan, scenario, out / "plan.png")
-    t_plot = time.perf_counter() - t_plot
-    text = plan_summary(plan, violations=violations)
-    summary_path = atomic_write_text(out / "summary.txt", text)
+            plot_plan(plan, scenario, stage / "plan.png")
+        t_plot = time.perf_counter() - t_plot
+        text = plan_summary(plan, violations=violations)
+        atomic_write_text(stage / "summary.txt", text)
+    plan_path, summary_path = out / "plan.json", out / "summary.txt"
+    png = None if args.no_plot else out / "plan.png"
     if args.json:
         print(
             json.dumps(

@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from proxplan.cli_args import seed_argument
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -16,7 +18,8 @@ def register(subparsers) -> None:
             "with RotorPy's SE(3) controller, and receives the downwash wrench of all other vehicles "
             "(costmaps model, plus the extra effects of --truth) every physics step. Writes "
             "OUT/summary.json, OUT/tracking_error.png and, with --log, Neural-Swarm logs and "
-            "OUT/manifest.yaml (DESIGN.md section 6)."
+            "OUT/manifest.yaml (DESIGN.md section 6). Exit 1 when a vehicle loses control (the flight "
+            "diverged: status in the summary), 2 on bad input."
         ),
     )
     p.add_argument("plan", help="plan.json (DESIGN.md section 4), or a directory holding one")
@@ -31,7 +34,9 @@ def register(subparsers) -> None:
         metavar="FILE.yaml",
         help="fly these vehicle parameters instead of the plan's (vehicles YAML; types matched by name)",
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed of the sensor noise (default 0)")
+    p.add_argument(
+        "--seed", type=seed_argument, default=0, help="random seed of the sensor noise, 0..2^31-1 (default 0)"
+    )
     p.add_argument("--physics-dt", type=float, default=0.002, metavar="S", help="physics step, s (default 0.002)")
     p.add_argument("--log-dt", type=float, default=0.01, metavar="S", help="log period, s (default 0.01)")
     p.add_argument("--settle", type=float, default=1.0, metavar="S", help="hover after the plan ends, s (default 1)")
@@ -47,7 +52,7 @@ def register(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from fileio import UserError
+    from fileio import UserError, atomic_write_bytes, output_folder
     from flightsim import (
         SimulationOptions,
         TruthSpec,
@@ -86,30 +91,39 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         position_integral_rate_ps=args.integral_rate,
     )
-    result = simulate_plan(
-        plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty()
-    )
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    plot = plot_errors(result, out / "tracking_error.png")
-    manifest = None
-    if args.log:
-        vfile = None
-        if args.vehicles:
+    with output_folder(out) as stage:  # every output lands together, or none
+        result = simulate_plan(
+            plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty()
+        )
+        plot_errors(result, stage / "tracking_error.png")
+        plot = out / "tracking_error.png"
+        manifest = None
+        if args.log:
             import os
+            import shutil
 
-            vfile = os.path.relpath(Path(args.vehicles).resolve(), out.resolve())
-        flight = args.flight_name or "".join(c if c.isalnum() or c in "-_" else "_" for c in plan.scenario)
-        manifest = write_flight_logs(result, out, flight_name=flight, split=args.split, vehicles_file=vfile)
-    summary = summary_dict(
-        result, plan_path=str(plan_path), plot_path=str(plot), manifest_path=None if manifest is None else str(manifest)
-    )
-    from fileio import atomic_write_bytes
-
-    atomic_write_bytes(out / "summary.json", json.dumps(summary, indent=1).encode())
+            if (out / "manifest.yaml").exists():  # flights are added to an existing manifest
+                shutil.copy2(out / "manifest.yaml", stage / "manifest.yaml")
+            vfile = None
+            if args.vehicles:
+                vfile = os.path.relpath(Path(args.vehicles).resolve(), out.resolve())
+            flight = args.flight_name or "".join(c if c.isalnum() or c in "-_" else "_" for c in plan.scenario)
+            write_flight_logs(result, stage, flight_name=flight, split=args.split, vehicles_file=vfile)
+            manifest = out / "manifest.yaml"
+        summary = summary_dict(
+            result,
+            plan_path=str(plan_path),
+            plot_path=str(plot),
+            manifest_path=None if manifest is None else str(manifest),
+        )
+        atomic_write_bytes(stage / "summary.json", json.dumps(summary, indent=1).encode())
+    completed = summary["status"] == "complete"
+    if not completed:
+        print(f"proxplan simulate: flight did not complete: {summary['status_detail']}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
-        return 0
+        return 0 if completed else 1
     print(
         f"{result.scenario}: {result.sim_time_s:.2f} s flown in {result.wall_time_s:.2f} s "
         f"({result.real_time_factor:.1f}x real time)"
@@ -135,4 +149,4 @@ def run(args: argparse.Namespace) -> int:
             "note: 'invalid' is time spent within dz <= 3 L below another vehicle, where the downwash "
             "model is extrapolated (S0 II-A)"
         )
-    return 0
+    return 0 if completed else 1

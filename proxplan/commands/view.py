@@ -76,6 +76,19 @@ def _check_listen_address(host: str, port: int) -> None:
                 raise UserError(f"--host {host} --port {port}: cannot listen here ({err.strerror})") from err
 
 
+def _check_input(path) -> None:
+    """Read and validate the scenario or plan now; UserError naming file and key when it is bad."""
+    from planfile import load_scenario, read_plan
+    from verify import scenario_of_plan
+
+    if path.suffix in (".yaml", ".yml"):
+        load_scenario(path)
+    else:
+        plan = read_plan(path)
+        if plan.format_version >= 2 and plan.scenario_spec is not None:  # older plans may lack theirs
+            scenario_of_plan(plan, label=str(path))
+
+
 def run(args: argparse.Namespace) -> int:
     import contextlib
     import json
@@ -93,6 +106,12 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{path}: directory holds no plan.json")
     if not 0 <= args.port <= 65535:
         raise UserError(f"--port: expected 0..65535, got {args.port}")
+    _check_input(path)  # a bad file is a start-up error (exit 2), not a page that shows it forever
+    if args.export:
+        from fileio import output_folder
+
+        with output_folder(Path(args.export), flag="--export"):
+            pass  # only checks that the folder can be written before anything is planned
 
     if not args.export:
         _check_listen_address(args.host, args.port)

@@ -1,0 +1,81 @@
+"""User mistakes on every command: exit 2, one line on stderr naming what to fix, no traceback,
+nothing half-written."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.conftest import REPO, SCENARIOS
+
+
+def _one_line(res, *needles: str) -> None:
+    assert res.returncode == 2, (res.returncode, res.stderr)
+    assert "Traceback" not in res.stderr and res.stderr.count("\n") == 1, res.stderr
+    for needle in needles:
+        assert needle in res.stderr, res.stderr
+
+
+def _writing_commands(plan_dir, target):
+    """(name, argv) of every command that writes, with ``target`` as its output location."""
+    return [
+        ("plan", ["plan", SCENARIOS / "battery_swap.yaml", "--out", target, "--method", "sampling"]),
+        ("costmap", ["costmap", "--source", "small-quad", "--target", "large-quad", "--out", f"{target}/m.npz"]),
+        ("costmap --all", ["costmap", "--all", "--out-dir", target]),
+        ("simulate", ["simulate", plan_dir, "--out", target, "--settle", "0.1"]),
+        ("identify", ["identify", REPO / "manifests" / "neural-swarm.yaml", "--out", target]),
+        ("view --export", ["view", plan_dir, "--export", target]),
+    ]
+
+
+@pytest.mark.parametrize("case", ["existing-file", "under-a-file"])
+def test_unwritable_out_is_one_line_for_every_command_that_writes(battery_swap_plan, tmp_path, proxplan, case):
+    blocker = tmp_path / "blocker"
+    blocker.write_text("not a folder")
+    target = blocker if case == "existing-file" else blocker / "sub"
+    for name, argv in _writing_commands(battery_swap_plan, target):
+        if name == "costmap" and case == "existing-file":
+            argv = [*argv[:-1], str(blocker / "m.npz")]  # the folder of --out is a file
+        res = proxplan(*argv, timeout=120)
+        _one_line(res, str(blocker))
+        assert blocker.read_text() == "not a folder", name
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["blocker"]  # nothing else was written
+
+
+def test_duplicate_yaml_key_names_the_key(tmp_path, proxplan):
+    text = (SCENARIOS / "battery_swap.yaml").read_text()
+    text = text.replace("vehicles:\n", "vehicles:\n  carrier: {type: small-quad, start: [0, 0, 1], hover: true}\n", 1)
+    path = tmp_path / "dup.yaml"
+    path.write_text(text)
+    res = proxplan("plan", path, "--out", tmp_path / "o")
+    _one_line(res, str(path), "vehicles.carrier: duplicate key")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("seed", ["-1", "2147483648", "ten"])
+def test_bad_seed_is_one_line(tmp_path, proxplan, seed):
+    res = proxplan("plan", SCENARIOS / "battery_swap.yaml", "--out", tmp_path / "o", "--seed", seed)
+    _one_line(res, "--seed", "expected a whole number")
+
+
+def test_view_of_a_bad_scenario_exits_at_start_up(tmp_path, proxplan):
+    path = tmp_path / "bad.yaml"
+    path.write_text(
+        "workspace: {min: [0, 0, 0], max: [1, 1, 1]}\nvehicles: {a: {type: jumbo, start: [0.5, 0.5, 0.5], hover: true}}\n"
+    )
+    res = proxplan("view", path, "--port", "0", timeout=60)
+    _one_line(res, "vehicles.a.type", "jumbo")
+
+
+def test_a_diverging_simulation_is_a_result_not_a_user_error(battery_swap_plan, tmp_path, proxplan):
+    """A physics step far too long for the attitude loop makes the state blow up: the flight ends
+    with status "diverged" (exit 1), the finite part of it is reported, nothing is a traceback."""
+    out = tmp_path / "sim"
+    res = proxplan("simulate", battery_swap_plan, "--out", out, "--physics-dt", "0.3", "--log-dt", "0.3",
+                   "--json", timeout=120)  # fmt: skip
+    assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr
+    summary = json.loads(res.stdout)
+    assert summary["status"] == "diverged" and "lost control" in summary["status_detail"]
+    assert 0.0 < summary["sim_time_s"] < summary["plan_duration_s"]
+    assert (out / "summary.json").exists()
