@@ -7,7 +7,7 @@ effects beyond the base model. Cost maps, planner, verifier, simulator and ident
 this one implementation.
 """
 
-from physics.authority import authority_usage, mixer_matrix, motor_thrusts_N
+from physics.authority import authority_usage, mixer_matrix, motor_thrusts_N, normalised_motor_map
 from physics.builtin_vehicles import BUILTIN_VEHICLES
 from physics.disturbance import (
     DEFAULT_OPTIONS,
@@ -82,6 +82,7 @@ __all__ = [
     "load_vehicle_file",
     "mixer_matrix",
     "motor_thrusts_N",
+    "normalised_motor_map",
     "oncoming_speed_per_rotor_mps",
     "resolve_vehicle",
     "total_wrench",

@@ -57,3 +57,18 @@ def authority_usage(vehicle: Vehicle, force_N: np.ndarray, torque_Nm: np.ndarray
         raise ValueError(f"vehicle {vehicle.name!r} cannot hover within its motor thrust range")
     ratio = np.where(change > 0.0, change / up_N, -change / down_N)
     return ratio.max(axis=1)
+
+
+def normalised_motor_map(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A (4, 3), up_N (4,), down_N (4,)) with per-motor thrust change delta_f = A @ (F_z, tau_x, tau_y).
+
+    The target holds hover: the mixer (S0-14) must produce (m g - F_z, -tau_x, -tau_y, 0); the change
+    from hover is M^-1 (-F_z, -tau_x, -tau_y, 0). ``up_N``/``down_N`` are the headrooms of
+    DESIGN.md section 3 (to f_max and to f_min), N.
+    """
+    inv = np.linalg.inv(mixer_matrix(vehicle))
+    a = -inv[:, :3]
+    hover = vehicle.hover_thrust_per_rotor_N
+    up = np.full(4, vehicle.max_thrust_per_rotor_N - hover)
+    down = np.full(4, hover - vehicle.min_motor_thrust_N)
+    return a, up, down

@@ -42,23 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from physics import VALIDITY_FACTOR_L, Vehicle, mixer_matrix
+from physics import VALIDITY_FACTOR_L, normalised_motor_map
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
-
-
-def normalised_motor_map(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(A (4, 3), up_N (4,), down_N (4,)) with per-motor thrust change delta_f = A @ (F_z, tau_x, tau_y).
-
-    The target holds hover: the mixer (S0-14) must produce (m g - F_z, -tau_x, -tau_y, 0); the change
-    from hover is M^-1 (-F_z, -tau_x, -tau_y, 0). ``up_N``/``down_N`` are the headrooms of
-    DESIGN.md section 3 (to f_max and to f_min), N.
-    """
-    inv = np.linalg.inv(mixer_matrix(vehicle))
-    a = -inv[:, :3]
-    hover = vehicle.hover_thrust_per_rotor_N
-    up = np.full(4, vehicle.max_thrust_per_rotor_N - hover)
-    down = np.full(4, hover - vehicle.min_motor_thrust_N)
-    return a, up, down
+from planner.ocp_warm import repair_warm_start
 
 
 def _warm(values: np.ndarray | None, default: np.ndarray, n: int) -> np.ndarray:
@@ -432,6 +418,7 @@ def build_and_solve(
     With the linearised table, ``accept(solution)`` is asked after each converged round; True stops
     the re-linearisation early (e.g. when the verifier already passes)."""
     t0 = time.perf_counter()
+    problem, _ = repair_warm_start(problem)
     b = _Builder(problem)
     b.add_vehicles()
     b.add_pairs()

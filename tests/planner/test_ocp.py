@@ -14,8 +14,9 @@ from physics import (
     BUILTIN_VEHICLES,
     authority_usage,
     disturbance_wrench,
+    normalised_motor_map,
 )
-from planner.ocp import build_and_solve, normalised_motor_map, sample_solution
+from planner.ocp import build_and_solve, sample_solution
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
 
 LARGE = BUILTIN_VEHICLES["large-quad"]
@@ -217,3 +218,30 @@ def test_dock_to_moving_partner_and_infeasible_authority_fails():
     bad = build_and_solve(OcpProblem(authority_fraction=0.001, max_iterations=100, **base))
     assert not bad.success
     assert bad.status != "Solve_Succeeded"
+
+
+def test_warm_start_repair_moves_a_path_out_of_the_jet_and_keeps_its_ends():
+    """A warm path straight along the symmetric jet axis is a saddle for IPOPT; the repair displaces
+    it sideways until the predicted usage is under the limit, without touching start and goal."""
+    from planner.ocp_warm import repair_warm_start
+
+    n = 30
+    source_pos = np.array([0.0, 0.0, 2.4])
+    start, goal = np.array([-1.2, 0.0, 1.2]), np.array([1.2, 0.0, 1.2])
+    table = model_interpolant(LARGE, SMALL, dz_min_m=0.5, dz_max_m=1.9)
+    agents = (
+        OcpAgent(name="src", vehicle=LARGE, moving=False, start_m=source_pos, body_radius_m=0.27),
+        _single_agent(start, goal, n),
+    )
+    problem = OcpProblem(agents=agents, n_intervals=n, warm_duration_s=8.0, max_duration_s=8.0,
+                         workspace_min_m=np.array([-3.0, -3.0, 0.0]), workspace_max_m=np.array([3.0, 3.0, 3.0]),
+                         authority_fraction=0.07, wrench_functions={("src", "a"): table})  # fmt: skip
+    repaired, moved = repair_warm_start(problem)
+    assert moved > 0
+    warm = repaired.agents[1].warm_position_m
+    np.testing.assert_allclose(warm[[0, -1]], [start, goal])
+    w = disturbance_wrench(LARGE, SMALL, warm - source_pos)
+    assert authority_usage(SMALL, w.force_N, w.torque_Nm).max() <= 0.07
+    assert np.ptp(warm[:, 2]) < 1e-12  # moved horizontally only
+    again, moved_again = repair_warm_start(repaired)
+    assert moved_again == 0 and again is repaired  # nothing left to repair
