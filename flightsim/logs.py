@@ -38,18 +38,15 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from fileio import UserError, atomic_write_bytes, read_yaml
+from identify import NEURAL_SWARM_FILE_COLUMNS
+from physics import GRAVITY_MPS2
 
-NEURAL_SWARM_HEADER = (
-    "# time[ms],x[m],y[m],z[m],vx[m/s],vy[m/s],vz[m/s],ax[m/s^2],ay[m/s^2],az[m/s^2],qx,qy,qz,qw,"
-    "u1[N],u2[N],u3[N],u4[N],u1[PWM],u2[PWM],u3[PWM],u4[PWM],Vbat[V],thrust_des[g],"
-    "torquex[Nm],torquey[Nm],torquez[Nm],wx[rad/s],wy[rad/s],wz[rad/s]"
-)
+NEURAL_SWARM_HEADER = "# " + ",".join(NEURAL_SWARM_FILE_COLUMNS)  # the layout identify reads
 TRUTH_HEADER = (
     "t_s,fx_applied_N,fy_applied_N,fz_applied_N,tx_applied_Nm,ty_applied_Nm,tz_applied_Nm,"
     "fx_model_N,fy_model_N,fz_model_N,tx_model_Nm,ty_model_Nm,tz_model_Nm"
 )
 BATTERY_VOLTAGE_V = 4.0
-GRAVITY_MPS2 = 9.81
 SPLITS = ("train", "test")
 
 

@@ -5,6 +5,7 @@ try candidate effects, and report the error before and after on test flights.
 
 from identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
+    NEURAL_SWARM_FILE_COLUMNS,
     FlightEntry,
     Manifest,
     VehicleEntry,
@@ -21,6 +22,7 @@ from identify.synthetic_logs import synthetic_logs
 
 __all__ = [
     "NEURAL_SWARM_COLUMNS",
+    "NEURAL_SWARM_FILE_COLUMNS",
     "FlightEntry",
     "IdentifyOptions",
     "IdentifyResult",

@@ -39,6 +39,14 @@ CANONICAL_COLUMNS = (
 )  # fmt: skip
 """Header of the canonical CSV layout, in this order."""
 
+NEURAL_SWARM_FILE_COLUMNS = (
+    "time[ms]", "x[m]", "y[m]", "z[m]", "vx[m/s]", "vy[m/s]", "vz[m/s]", "ax[m/s^2]", "ay[m/s^2]", "az[m/s^2]",
+    "qx", "qy", "qz", "qw", "u1[N]", "u2[N]", "u3[N]", "u4[N]", "u1[PWM]", "u2[PWM]", "u3[PWM]", "u4[PWM]",
+    "Vbat[V]", "thrust_des[g]", "torquex[Nm]", "torquey[Nm]", "torquez[Nm]", "wx[rad/s]", "wy[rad/s]", "wz[rad/s]",
+)  # fmt: skip
+"""Every column of a Neural-Swarm log in file order (../shared/data/neural-swarm/README.md); the
+header line is ``# `` followed by these names joined by commas."""
+
 NEURAL_SWARM_COLUMNS = {
     "t_s": "time[ms]", "x_m": "x[m]", "y_m": "y[m]", "z_m": "z[m]",
     "vx_mps": "vx[m/s]", "vy_mps": "vy[m/s]", "vz_mps": "vz[m/s]",
