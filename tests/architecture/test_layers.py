@@ -16,6 +16,7 @@ from tests.conftest import REPO
 
 LAYERS = (
     "fileio",  # user errors, reading user files, atomic writes
+    "fanout",  # independent tasks on Dask (local cluster or an existing one)
     "physics",  # vehicles, velocity field, disturbance, authority, effects
     "costmaps",  # cutoff maps and wrench tables
     "identify",  # flight logs -> measured disturbance -> calibrated model
