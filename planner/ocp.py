@@ -97,7 +97,9 @@ class _Builder:
             )
             self.Qw[a.name] = _check_points_warm(wp)
             if not a.moving:
-                self.Q[a.name] = ca.DM(np.tile(np.asarray(a.start_m, float)[:, None], (1, 2 * n + 1)))
+                if a.fixed_path_m is not None:  # a known trajectory at the check points
+                    self.Qw[a.name] = np.asarray(a.fixed_path_m, float).reshape(2 * n + 1, 3)
+                self.Q[a.name] = ca.DM(self.Qw[a.name].T)
                 continue
             X, U = opti.variable(9, n + 1), opti.variable(3, n)
             self.X[a.name], self.U[a.name] = X, U
@@ -292,9 +294,17 @@ class _Builder:
                 active.setdefault(nt, np.zeros(nq, dtype=bool))[ks] = True
                 col += m
         for nt, total in totals.items():
-            _, up, down = normalised_motor_map(self.agents[nt].vehicle)
+            a_map, up, down = normalised_motor_map(self.agents[nt].vehicle)
             frac = np.full(nq, pb.authority_fraction * pb.authority_margin)
             frac[n] = pb.authority_fraction - 2e-4  # the final state is static: full fraction
+            bg = self.agents[nt].background_wrench
+            if bg is not None:  # sources outside the problem (fixed): a constant motor-thrust change, N
+                bg_motor = a_map @ np.asarray(bg, float).reshape(3, nq)
+                total = total + ca.DM(bg_motor)
+                # where the background alone already uses the margin, allow what it uses (+0.01):
+                # the optimised vehicle then may add little there; the verifier has the last word
+                bg_usage = np.maximum((bg_motor / up[:, None]).max(axis=0), (-bg_motor / down[:, None]).max(axis=0))
+                frac = np.maximum(frac, np.minimum(bg_usage + 0.01, pb.authority_fraction - 2e-4))
             for key, ex in self.exempt.items():
                 if nt in key:
                     frac[ex] = pb.authority_fraction - 2e-4

@@ -33,6 +33,12 @@ class OcpAgent:
     warm_position_m: np.ndarray | None = None  # (n+1, 3)
     warm_velocity_mps: np.ndarray | None = None  # (n+1, 3)
     warm_acceleration_mps2: np.ndarray | None = None  # (n+1, 3)
+    # a vehicle that is not optimised but flies a known trajectory (decomposition, planner.reoptimize):
+    # its positions at the check points, nodes (n+1) then interval midpoints (n), shape (2n+1, 3), m
+    fixed_path_m: np.ndarray | None = None
+    # constant disturbance on this (fixed) vehicle from sources outside the problem's pairs at the
+    # check points, rows (F_z N, tau_x N m, tau_y N m), shape (3, 2n+1); added to its authority sum
+    background_wrench: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

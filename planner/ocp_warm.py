@@ -72,6 +72,7 @@ def repair_warm_start(problem: OcpProblem) -> tuple[OcpProblem, int]:
     n1 = problem.n_intervals + 1
     warm = {
         a.name: (np.asarray(a.warm_position_m, float).copy() if a.moving and a.warm_position_m is not None
+                 else np.asarray(a.fixed_path_m, float)[:n1].copy() if a.fixed_path_m is not None
                  else np.tile(np.asarray(a.start_m, float), (n1, 1)))
         for a in problem.agents
     }  # fmt: skip

@@ -63,6 +63,12 @@ class RefineOptions:
     max_cpu_time_s: float = 30.0  # IPOPT time limit per solve and wall budget of the rounds, s
     max_iterations: int = 600  # IPOPT iterations per solve
     max_slowdown: float = 1.3  # largest uniform slow-down accepted to repair a kinematic breach, -
+    # wall-clock budget of the whole refinement, s (plan --time-budget); the best verified plan
+    # found by then is returned
+    time_budget_s: float = 60.0
+    # more moving vehicles than this (or any in the joint problem failing) -> decomposed optimisation
+    # (planner.reoptimize: one vehicle at a time, sparse pairs); scenarios with docks stay joint
+    max_joint_vehicles: int = 4
 
 
 def default_wrench_provider(source, target, scenario):
@@ -293,9 +299,18 @@ def refine_plan(
     ``success`` is False with the reason in ``message``.
     """
     del seed  # IPOPT is deterministic
+    if not options.time_budget_s > 0:
+        from fileio import UserError
+
+        raise UserError(f"--time-budget: expected a positive number of seconds, got {options.time_budget_s:g}")
     check_final_configuration(scenario)
     if not any(not t.hover for t in scenario.vehicles.values()):
         return RefineResult(initial_plan, True, "nothing moves; plan kept", 0.0, 0)
+    n_moving = sum(not t.hover for t in scenario.vehicles.values())
+    has_docks = any(t.dock_with is not None for t in scenario.vehicles.values())
+    if n_moving > options.max_joint_vehicles and not has_docks:
+        return _decomposed(scenario, initial_plan, options, wrench_provider, progress)
+    options = replace(options, max_cpu_time_s=min(options.max_cpu_time_s, options.time_budget_s))
     problem = build_problem(scenario, initial_plan, options=options, wrench_provider=wrench_provider)
 
     def accept(candidate: OcpSolution) -> bool:
@@ -369,3 +384,30 @@ def refine_plan(
     plan.metrics["optimizer_iterations"] = iterations
     plan.metrics["makespan_s"] = plan.makespan_s
     return RefineResult(plan, True, note, solution.solve_time_s, solution.iterations)
+
+
+def _decomposed(scenario, initial_plan, options: RefineOptions, wrench_provider, progress) -> RefineResult:
+    """Many vehicles: :func:`planner.reoptimize.reoptimize_plan` (one vehicle at a time against the
+    others' fixed trajectories, sparse pairs) within ``options.time_budget_s``."""
+    from planner.reoptimize import ReoptOptions, reoptimize_plan
+
+    result = reoptimize_plan(
+        scenario,
+        initial_plan,
+        wrench_provider=wrench_provider or default_wrench_provider,
+        extent_provider=None if wrench_provider is not None else _table_extent,
+        options=ReoptOptions(time_budget_s=options.time_budget_s, weights=options.weights),
+        progress=progress,
+    )
+    if not result.improved:
+        return RefineResult(
+            initial_plan, False, result.message + "; kept the sampling plan", result.solve_time_s, result.iterations
+        )
+    plan = result.plan
+    plan = replace(plan, method="optimized", notes=list(plan.notes) + [f"optimized: {result.message}"])
+    plan.metrics["optimizer_solve_time_s"] = result.solve_time_s
+    plan.metrics["optimizer_iterations"] = result.iterations
+    plan.metrics["optimizer_solves"] = result.solves
+    plan.metrics["sampling_makespan_s"] = moving_end_s(initial_plan)
+    plan.metrics["makespan_s"] = moving_end_s(plan)
+    return RefineResult(plan, True, result.message, result.solve_time_s, result.iterations)

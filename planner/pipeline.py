@@ -200,15 +200,22 @@ def plan_scenario(
     seed: int = 0,
     progress: Callable[[str, float], None] | None = None,
     options: SamplingOptions | None = None,
+    time_budget_s: float | None = None,
 ) -> Plan:
     """Plan every vehicle of ``scenario``; raises :class:`InfeasibleError` when impossible.
 
     ``method``: "optimized" (sampling, then ``planner.optimize.refine_plan`` when available),
     "sampling", "no-downwash" (separation only) or "ellipsoid" (keep-out ellipsoid baseline).
-    ``progress(message, fraction)`` is called as vehicles are planned.
+    ``progress(message, fraction)`` is called as vehicles are planned. ``time_budget_s``: wall-clock
+    budget of the optimiser (default ``RefineOptions.time_budget_s``), s; it returns the best
+    verified improvement found by then.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if time_budget_s is not None and not time_budget_s > 0:
+        from fileio import UserError
+
+        raise UserError(f"--time-budget: expected a positive number of seconds, got {time_budget_s:g}")
     from verify import verify_plan
 
     options = options or SamplingOptions()
@@ -228,7 +235,7 @@ def plan_scenario(
             plan.notes.append(retry_note)
     plan.method = method if method != "optimized" else "sampling"
     if method == "optimized":
-        plan = _refine(scenario, plan, seed=seed, progress=progress)
+        plan = _refine(scenario, plan, seed=seed, progress=progress, time_budget_s=time_budget_s)
     finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - t0)
     if progress:
         progress("done", 1.0)
@@ -276,11 +283,12 @@ def _respect_docks(scenario: Scenario, names: list[str]) -> list[str]:
     return out
 
 
-def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress) -> Plan:
-    from planner.optimize import refine_plan
+def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress, time_budget_s: float | None = None) -> Plan:
+    from planner.optimize import RefineOptions, refine_plan
 
+    options = RefineOptions() if time_budget_s is None else RefineOptions(time_budget_s=time_budget_s)
     try:
-        result = refine_plan(scenario, plan, seed=seed, progress=progress)
+        result = refine_plan(scenario, plan, seed=seed, progress=progress, options=options)
     except Exception as err:  # noqa: BLE001 - the optimiser must never lose the sampling plan
         plan.notes.append(
             f"optimized: refinement raised {type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}; this is the sampling result"

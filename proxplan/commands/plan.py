@@ -36,6 +36,14 @@ def register(subparsers) -> None:
         help="optimized (default; sampling + CasADi refinement), sampling, or the baselines "
         "no-downwash (separation only) and ellipsoid (Crazyswarm keep-out ellipsoid)",
     )
+    p.add_argument(
+        "--time-budget",
+        type=float,
+        default=None,
+        metavar="S",
+        help="wall-clock budget of the optimiser in s (default 60); it returns the best verified "
+        "improvement found by then, else the sampling plan with a note why",
+    )
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_plan)
@@ -76,17 +84,21 @@ def _plan(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from fileio import atomic_write_text, output_folder
+    from fileio import UserError, atomic_write_text, output_folder
     from planfile import jsonable, load_scenario, write_plan
     from planner import InfeasibleError, plan_scenario, plan_summary
     from verify import verify_plan
 
+    if args.time_budget is not None and not args.time_budget > 0:
+        raise UserError(f"--time-budget: expected a positive number of seconds, got {args.time_budget:g}")
     scenario = load_scenario(args.scenario)
     out = Path(args.out)
     with output_folder(out) as stage:  # nothing is written to --out unless every file is
         bar, report = _progress_bar(sys.stderr.isatty())
         try:
-            plan = plan_scenario(scenario, method=args.method, seed=args.seed, progress=report)
+            plan = plan_scenario(
+                scenario, method=args.method, seed=args.seed, progress=report, time_budget_s=args.time_budget
+            )
         except InfeasibleError as err:
             bar.close()
             print(
