@@ -18,6 +18,7 @@ slowed uniformly (factor s: v / s, a / s^2, j / s^3) until it holds.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -66,9 +67,11 @@ class RefineOptions:
     # wall-clock budget of the whole refinement, s (plan --time-budget); the best verified plan
     # found by then is returned
     time_budget_s: float = 60.0
-    # more moving vehicles than this (or any in the joint problem failing) -> decomposed optimisation
-    # (planner.reoptimize: one vehicle at a time, sparse pairs); scenarios with docks stay joint
-    max_joint_vehicles: int = 4
+    # up to small_joint_vehicles moving vehicles (or any dock): the joint problem only; up to
+    # max_joint_vehicles: the joint problem with a third of the budget, the decomposed optimisation
+    # (planner.reoptimize: one vehicle at a time, sparse pairs) if it fails; more: decomposed only
+    small_joint_vehicles: int = 4
+    max_joint_vehicles: int = 8
 
 
 def default_wrench_provider(source, target, scenario):
@@ -131,6 +134,31 @@ def check_final_configuration(scenario) -> None:
                 f"downwash of {worst!r}, more than limits.authority_fraction = {fraction:g}; no plan can "
                 f"meet that limit (raise authority_fraction or change the dock offset / goals)",
             )
+
+
+def peak_usage(plan, scenario) -> float:
+    """Largest authority usage of any vehicle along ``plan`` (model evaluated directly), -."""
+    from verify import wrench_along_plan
+
+    along = wrench_along_plan(plan, scenario, t_s=plan.t_s)
+    return max([float(a.usage.max()) for a in along.values() if a.usage.size] + [0.0])
+
+
+def is_better(plan, initial_plan, scenario) -> tuple[bool, str]:
+    """(whether ``plan`` beats ``initial_plan``: shorter makespan, or at equal makespan (within
+    1e-6 s) a lower peak authority usage; why not)."""
+    end, end0 = moving_end_s(plan), moving_end_s(initial_plan)
+    if end < end0 - 1e-6:
+        return True, ""
+    if end > end0 + 1e-6:
+        return False, f"optimised plan was slower ({end:.2f} s > {end0:.2f} s)"
+    u, u0 = peak_usage(plan, scenario), peak_usage(initial_plan, scenario)
+    if u < u0 - 1e-6:
+        return True, ""
+    return (
+        False,
+        f"optimised plan was not faster ({end:.2f} s) and its peak authority usage not lower ({u:.3f} >= {u0:.3f})",
+    )
 
 
 def _n_intervals(makespan_s: float, n_moving: int, options: RefineOptions) -> int:
@@ -293,10 +321,15 @@ def refine_plan(
     options: RefineOptions = RefineOptions(),
     wrench_provider: WrenchProvider | None = None,
 ) -> RefineResult:
-    """Optimise ``initial_plan`` (a Plan of ``scenario``) jointly for all moving vehicles.
+    """Optimise ``initial_plan`` (a Plan of ``scenario``) within ``options.time_budget_s``.
 
-    Returns a :class:`RefineResult`; on any failure its ``plan`` is ``initial_plan`` unchanged and
-    ``success`` is False with the reason in ``message``.
+    Up to ``options.small_joint_vehicles`` moving vehicles (or any dock): the joint problem of all
+    of them (:mod:`planner.ocp`). Up to ``max_joint_vehicles``: the joint problem with a third of the
+    budget, then, if it fails, the decomposed optimisation (:mod:`planner.reoptimize`) with the
+    rest. More: the decomposed optimisation only. Returns a :class:`RefineResult`; the plan it
+    returns with ``success`` passed the verifier and is better than ``initial_plan`` (shorter
+    makespan, or lower peak authority usage at equal makespan). On any failure its ``plan`` is
+    ``initial_plan`` unchanged and ``success`` is False with the reason in ``message``.
     """
     del seed  # IPOPT is deterministic
     if not options.time_budget_s > 0:
@@ -306,11 +339,28 @@ def refine_plan(
     check_final_configuration(scenario)
     if not any(not t.hover for t in scenario.vehicles.values()):
         return RefineResult(initial_plan, True, "nothing moves; plan kept", 0.0, 0)
+    t0 = time.perf_counter()
     n_moving = sum(not t.hover for t in scenario.vehicles.values())
     has_docks = any(t.dock_with is not None for t in scenario.vehicles.values())
-    if n_moving > options.max_joint_vehicles and not has_docks:
+    if has_docks or n_moving <= options.small_joint_vehicles:  # the joint problem alone, as ever
+        joint_options = replace(options, max_cpu_time_s=min(options.max_cpu_time_s, options.time_budget_s))
+        return _joint(scenario, initial_plan, joint_options, wrench_provider, progress)
+    if n_moving > options.max_joint_vehicles:
         return _decomposed(scenario, initial_plan, options, wrench_provider, progress)
-    options = replace(options, max_cpu_time_s=min(options.max_cpu_time_s, options.time_budget_s))
+    # a few vehicles: the joint problem with a third of the budget, then the decomposition
+    joint_options = replace(options, max_cpu_time_s=min(options.max_cpu_time_s, options.time_budget_s / 3))
+    joint = _joint(scenario, initial_plan, joint_options, wrench_provider, progress)
+    remaining = options.time_budget_s - (time.perf_counter() - t0)
+    if joint.success or remaining < 1.0:
+        return joint
+    dec = _decomposed(scenario, initial_plan, replace(options, time_budget_s=remaining), wrench_provider, progress)
+    if dec.success:
+        return replace(dec, plan=replace(dec.plan, notes=list(dec.plan.notes) + [f"joint problem: {joint.message}"]))
+    return replace(dec, message=f"{joint.message}; then {dec.message}")
+
+
+def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, progress) -> RefineResult:
+    """The joint problem of all moving vehicles (:mod:`planner.ocp`)."""
     problem = build_problem(scenario, initial_plan, options=options, wrench_provider=wrench_provider)
 
     def accept(candidate: OcpSolution) -> bool:
@@ -319,7 +369,12 @@ def refine_plan(
     solution = build_and_solve(problem, progress=progress, accept=accept if options.stop_when_verified else None)
     solve_time, iterations, passes = solution.solve_time_s, solution.iterations, 1
     small = problem.n_intervals * sum(a.moving for a in problem.agents) <= options.exact_retry_node_vehicles
-    if not solution.success and small:
+    t_start = time.perf_counter() - solution.solve_time_s - solution.build_time_s
+
+    def budget_left() -> bool:
+        return time.perf_counter() - t_start < options.time_budget_s
+
+    if not solution.success and small and budget_left():
         # small problem: retry with the exact (MX) wrench table instead of its linearisation
         if progress is not None:
             progress(f"optimiser: linearised solve failed ({solution.status}); retrying with the exact table")
@@ -336,7 +391,7 @@ def refine_plan(
             iterations,
         )
     plan, violations, scale = _sample_and_verify(solution, scenario, initial_plan, options)
-    if violations:
+    if violations and budget_left():
         if problem.interaction_extent:
             # the optimiser moved vehicles into interactions the warm start did not have (relative
             # timing changed): one more pass, pruned and warm-started about the first solution
@@ -365,18 +420,13 @@ def refine_plan(
             solve_time,
             iterations,
         )
-    if moving_end_s(plan) > moving_end_s(initial_plan) + 1e-9:
-        return RefineResult(
-            initial_plan,
-            False,
-            "optimised plan was not faster; kept the sampling plan",
-            solve_time,
-            iterations,
-        )
+    better, why = is_better(plan, initial_plan, scenario)
+    if not better:
+        return RefineResult(initial_plan, False, f"{why}; kept the sampling plan", solve_time, iterations)
     note = (
         f"optimized: CasADi/IPOPT {solution.status} in {iterations} iterations, "
         f"{solve_time:.2f} s solve ({passes} pass{'es' if passes > 1 else ''}, "
-        f"{problem.n_intervals} intervals); makespan {moving_end_s(initial_plan):.2f} s -> {moving_end_s(plan):.2f} s"
+        f"{problem.n_intervals} intervals); makespan {moving_end_s(initial_plan):.2f} s -> {moving_end_s(plan):.2f} s, verified"
         + (f"; slowed x{scale:.2f} to keep kinematic limits between nodes" if scale > 1.0 else "")
     )
     plan = replace(plan, notes=list(plan.notes) + [note])
