@@ -61,6 +61,16 @@ def _check_points_warm(nodes: np.ndarray) -> np.ndarray:
     return np.vstack([nodes, 0.5 * (nodes[:-1] + nodes[1:])])
 
 
+_JACOBIANS: dict[int, tuple[Any, Any]] = {}  # id(fn) -> (fn, its jacobian); fn kept alive with it
+
+
+def _jacobian(fn):
+    """``fn.jacobian()``, built once per wrench function (about 1 s for a B-spline table)."""
+    if id(fn) not in _JACOBIANS:
+        _JACOBIANS[id(fn)] = (fn, fn.jacobian())
+    return _JACOBIANS[id(fn)][1]
+
+
 class _Builder:
     """Holds the Opti problem while it is assembled (one call of :func:`build_and_solve`)."""
 
@@ -324,7 +334,7 @@ class _Builder:
             fn = g["fn"]
             if "jac_map" not in g:
                 g["val_map"] = fn.map(m)
-                g["jac_map"] = fn.jacobian().map(m)
+                g["jac_map"] = _jacobian(fn).map(m)
             w = np.asarray(g["val_map"](o)).reshape(3, m)
             jac_flat = np.asarray(g["jac_map"](o, ca.DM.zeros(3, m))).reshape(3, 3 * m, order="F")
             # jacobian().map gives (3, 3 m): block k is d wrench / d offset at column k
