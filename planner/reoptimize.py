@@ -47,12 +47,13 @@ class ReoptOptions:
     min_intervals: int = 12
     max_intervals: int = 24
     reach_m: float = 2.5  # others within this horizontal distance of the warm path enter the problem, m
-    max_rounds: int = 4
+    max_rounds: int = 8
     pair_radius_m: float = 1.0  # separation / invalid-zone terms only within this much of contact, m
     extent_margin_m: float = 0.3  # authority terms only within the wrench table's extent + this, m
     max_cpu_time_s: float = 10.0  # IPOPT limit of one vehicle's solve, s
     max_iterations: int = 80  # a solve that converges needs ~20-40; an infeasible T is dropped early
     max_linearizations: int = 2
+    first_step: float = 0.4  # first T tried: this far from the lower bound towards the current arrival
     lower_bound_factor: float = 1.1  # first duration tried: this x the vehicle's minimum time
     max_slowdown: float = 1.2  # uniform slow-down allowed to repair a kinematic breach between nodes
     weights: OcpWeights = OcpWeights()
@@ -391,10 +392,10 @@ class _Reoptimizer:
         return False, why
 
     def improve(self, name: str, deadline: float) -> tuple[bool, str]:
-        """Try to make ``name`` arrive earlier: first halfway between its current arrival and its
-        lower bound (minimum time over its current path length, the time its goal is free), then
-        closer to the bound after a success or closer to the current arrival after a failure. On
-        success the field and the trajectory are updated."""
+        """Try to make ``name`` arrive earlier: first at ``first_step`` of the way from a lower bound
+        (1.1 x the minimum time over its current path length; the time its goal is free) to its
+        current arrival, after a failure at 0.8 of the way. On success the field and the trajectory
+        are updated (later rounds step again from the new arrival)."""
         task = self.sc.vehicles[name]
         tr = self.traj[name]
         T_cur = arrival_s(tr)
@@ -403,9 +404,10 @@ class _Reoptimizer:
         lo = max(self.opt.lower_bound_factor * T_lb, self.goal_free_s(name) + 0.1)
         if lo > T_cur - 2 * self.plan.dt_s:
             return False, "already near its minimum time"
-        ok, why = self.attempt(name, lo + 0.5 * (T_cur - lo), deadline)
-        ok2, why2 = self.attempt(name, lo + (0.15 if ok else 0.8) * (T_cur - lo), deadline)
-        return ok or ok2, why2 if ok2 or not ok else why
+        ok, why = self.attempt(name, lo + self.opt.first_step * (T_cur - lo), deadline)
+        if ok:  # closer to the bound in the next round: the budget goes to the other vehicles first
+            return ok, why
+        return self.attempt(name, lo + 0.8 * (T_cur - lo), deadline)
 
     def plan_now(self) -> Plan:
         end = max([arrival_s(tr) for tr in self.traj.values()] + [self.plan.dt_s])
