@@ -290,10 +290,10 @@ def _vehicle_types(doc: Mapping, path: Path | None, label: str) -> dict[str, Veh
 def _vehicle_file_notes(doc: Mapping, path: Path | None) -> list[str]:
     if "vehicle_file" not in doc:
         return []
-    from physics import unapplied_model_notes
+    from physics import vehicle_file_notes
 
     base = path.parent if path is not None else Path.cwd()
-    return unapplied_model_notes((base / doc["vehicle_file"]).resolve())
+    return vehicle_file_notes((base / doc["vehicle_file"]).resolve())
 
 
 def _task(name: str, data: Any, where: str, custom: dict[str, Vehicle]) -> VehicleTask:

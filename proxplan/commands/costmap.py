@@ -121,9 +121,9 @@ def run_costmap(args: argparse.Namespace) -> int:
 
         custom = load_vehicle_file(args.vehicle_file)
         model = load_model_section(args.vehicle_file)
-        from physics import unapplied_model_notes
+        from physics import vehicle_file_notes
 
-        for note in unapplied_model_notes(args.vehicle_file):
+        for note in vehicle_file_notes(args.vehicle_file):
             print(f"proxplan costmap: note: {note}", file=sys.stderr)
     levels = tuple(_level(v, "--levels") for v in args.levels)
     default_level = _level(args.default_level, "--default-level")
