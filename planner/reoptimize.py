@@ -12,7 +12,7 @@ Per vehicle: T is tried from near its own minimum time (``timing.min_segment_dur
 time its goal is free of the others) up towards its current arrival; the warm start is its current
 path compressed in time. A candidate is accepted only when a direct model check on a 0.02 s grid
 (:class:`SwarmField`: separation, invalid zone, authority of the vehicle *and* of every vehicle in
-its jet, summed over all sources with ``physics.disturbance_wrench``; workspace, obstacles,
+its jet, summed over all sources with ``costmaps.pair_wrench``, as the verifier; workspace, obstacles,
 kinematic limits) passes; a solution that moved into pairs outside the problem is re-solved once
 with the pairs re-selected around it. After every round the whole plan goes through the independent
 verifier (``verify.verify_plan``); only verified plans are kept, so a time budget always returns
@@ -28,7 +28,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from physics import VALIDITY_FACTOR_L, ModelOptions, authority_usage, disturbance_wrench
+from costmaps import pair_wrench
+from physics import VALIDITY_FACTOR_L, ModelOptions, authority_usage
 from planfile import Plan, VehicleTrajectory
 from planner.ocp import build_and_solve, sample_solution
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights
@@ -82,11 +83,12 @@ def arrival_s(tr: VehicleTrajectory) -> float:
 
 class SwarmField:
     """Every vehicle's position on a check grid and the total disturbance wrench on each (sum over
-    all sources above it, ``physics.disturbance_wrench``, S0-3..S0-8), updated as vehicles change."""
+    all sources above it, ``costmaps.pair_wrench``: S0-3..S0-8 plus the scenario's effects, as the verifier), updated as vehicles change."""
 
     def __init__(self, scenario, plan: Plan, *, dt_s: float = CHECK_DT_S):
         self.scenario = scenario
         self.options = ModelOptions(field_form=scenario.field_form) if scenario.field_form else ModelOptions()
+        self.effects = tuple(getattr(scenario, "effects", ()))  # a calibrated model's, as the verifier
         self.t_s = np.arange(0.0, float(plan.t_s[-1]) + dt_s / 2, dt_s)
         self.pos = {n: tr.position_at(self.t_s) for n, tr in plan.vehicles.items()}
         self.vehicle = {n: scenario.vehicles[n].vehicle for n in plan.vehicles}
@@ -106,10 +108,12 @@ class SwarmField:
         off = p_target - p_source
         f, q = np.zeros_like(off), np.zeros_like(off)
         below = -off[:, 2] > 1e-6
-        below &= np.hypot(off[:, 0], off[:, 1]) < 6.0  # far jets: < 1e-6 of the authority here
+        if not self.effects:  # base model: a jet 6 m to the side is below 1e-6 of any authority
+            below &= np.hypot(off[:, 0], off[:, 1]) < 6.0
         if below.any():
-            w = disturbance_wrench(self.vehicle[source], self.vehicle[target], off[below], self.options)
-            f[below], q[below] = w.force_N, w.torque_Nm
+            f[below], q[below] = pair_wrench(
+                self.vehicle[source], self.vehicle[target], off[below], self.options, self.effects
+            )
         return f, q
 
     def usage(self, name: str) -> np.ndarray:
