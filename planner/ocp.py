@@ -358,7 +358,7 @@ class _Builder:
                 "sb": "yes",
                 "max_iter": pb.max_iterations,
                 "max_cpu_time": pb.max_cpu_time_s,
-                "max_wall_time": pb.max_cpu_time_s,
+                "max_wall_time": pb.max_wall_time_s or 2.0 * pb.max_cpu_time_s,
                 "tol": 1e-6,
                 "acceptable_tol": 1e-4,
                 "mu_strategy": "adaptive",

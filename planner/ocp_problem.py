@@ -80,6 +80,7 @@ class OcpProblem:
     extent_margin_m: float = 0.5
     max_iterations: int = 300
     max_cpu_time_s: float = 40.0  # IPOPT CPU limit per solve; also the wall budget of all rounds, s
+    max_wall_time_s: float | None = None  # IPOPT wall-clock limit per solve (None: 2 x max_cpu_time_s), s
     hessian: str = "exact"  # IPOPT hessian_approximation: "exact" or "limited-memory"
     expand: bool = False  # SX-expand the NLP (only when every wrench function has an SX form)
     linear_solver: str = "mumps"  # IPOPT linear solver ("mumps" or "spral" in the PyPI casadi)

@@ -378,7 +378,8 @@ class _Reoptimizer:
             if time.perf_counter() > deadline:
                 break
             pb = self.problem(name, T, warm)
-            pb = replace(pb, max_cpu_time_s=max(0.5, min(pb.max_cpu_time_s, deadline - time.perf_counter())))
+            left = max(0.5, deadline - time.perf_counter())
+            pb = replace(pb, max_cpu_time_s=min(pb.max_cpu_time_s, left), max_wall_time_s=left)
             sol = build_and_solve(pb)
             self.solves += 1
             self.iterations += sol.iterations
