@@ -106,3 +106,17 @@ class OcpSolution:
     solve_time_s: float  # wall time of IPOPT, s
     build_time_s: float  # wall time to build the problem, s
     objective: float
+
+
+def scenario_fields(scenario) -> dict[str, Any]:
+    """The :class:`OcpProblem` fields a scenario fixes: workspace, obstacles and limits."""
+    limits = scenario.limits
+    return {
+        "workspace_min_m": np.asarray(scenario.workspace_min_m, float),
+        "workspace_max_m": np.asarray(scenario.workspace_max_m, float),
+        "obstacles": tuple((np.asarray(b.min_m, float), np.asarray(b.max_m, float)) for b in scenario.obstacles),
+        "min_separation_m": float(limits.min_separation_m),
+        "authority_fraction": float(limits.authority_fraction),
+        "obstacle_margin_m": float(limits.obstacle_margin_m),
+        "invalid_zone_keep_out": limits.invalid_zone_rule != "model",
+    }

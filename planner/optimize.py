@@ -26,7 +26,7 @@ import numpy as np
 
 from planfile import Plan
 from planner.ocp import build_and_solve, sample_solution
-from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights
+from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
 
 WrenchProvider = (
     Callable  # (source Vehicle, target Vehicle, scenario) -> casadi.Function offset_m -> (F_z, tau_x, tau_y)
@@ -225,22 +225,15 @@ def build_problem(
             wrench[(ns, nt)] = cache[key]
             if wrench_provider is None and options.prune_by_table_extent:  # table is zero beyond it
                 extents[(ns, nt)] = _table_extent(src.vehicle, tgt.vehicle, scenario)
-    limits = scenario.limits
     return OcpProblem(
         agents=tuple(agents),
         n_intervals=n,
         warm_duration_s=T0,
         max_duration_s=T0,
-        workspace_min_m=np.asarray(scenario.workspace_min_m, float),
-        workspace_max_m=np.asarray(scenario.workspace_max_m, float),
-        obstacles=tuple((np.asarray(b.min_m, float), np.asarray(b.max_m, float)) for b in scenario.obstacles),
-        min_separation_m=float(limits.min_separation_m),
-        authority_fraction=float(limits.authority_fraction),
+        **scenario_fields(scenario),
         wrench_functions=wrench,
         interaction_extent=extents,
         weights=options.weights,
-        obstacle_margin_m=float(limits.obstacle_margin_m),
-        invalid_zone_keep_out=limits.invalid_zone_rule != "model",
         max_cpu_time_s=options.max_cpu_time_s,
         max_iterations=options.max_iterations,
     )

@@ -32,7 +32,7 @@ from costmaps import pair_wrench
 from physics import VALIDITY_FACTOR_L, ModelOptions, authority_usage
 from planfile import Plan, VehicleTrajectory
 from planner.ocp import build_and_solve, sample_solution
-from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights
+from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
 from planner.timing import min_segment_duration_s
 
 CHECK_DT_S = 0.02  # grid of the per-vehicle model check, s (the verifier re-checks at 0.01 s)
@@ -322,25 +322,18 @@ class _Reoptimizer:
             if self.extent_provider is not None:  # the table is zero beyond its extent: sparse terms
                 extents[(o, name)] = self.extent(o, name)
                 extents[(name, o)] = self.extent(name, o)
-        lim = sc.limits
         return OcpProblem(
             agents=tuple(agents),
             n_intervals=n,
             warm_duration_s=T,
             max_duration_s=T,
             fixed_duration_s=T,
-            workspace_min_m=np.asarray(sc.workspace_min_m, float),
-            workspace_max_m=np.asarray(sc.workspace_max_m, float),
-            obstacles=tuple((np.asarray(b.min_m, float), np.asarray(b.max_m, float)) for b in sc.obstacles),
-            min_separation_m=float(lim.min_separation_m),
-            authority_fraction=float(lim.authority_fraction),
+            **scenario_fields(sc),
             wrench_functions=wrench,
             interaction_extent=extents,
             interaction_radius_m=opt.pair_radius_m,
             extent_margin_m=opt.extent_margin_m,
             weights=opt.weights,
-            obstacle_margin_m=float(lim.obstacle_margin_m),
-            invalid_zone_keep_out=lim.invalid_zone_rule != "model",
             max_cpu_time_s=opt.max_cpu_time_s,
             max_iterations=opt.max_iterations,
             max_linearizations=opt.max_linearizations,
