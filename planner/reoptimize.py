@@ -475,7 +475,7 @@ def reoptimize_plan(
         candidate = ro.plan_now()
         violations = verify_plan(candidate, scenario)
         if violations:
-            # undo the vehicles the verifier names (else the whole round) and stop
+            # undo the changed vehicles the verifier names (else the whole round); stop if still failing
             named = {v.vehicle for v in violations} & set(changed)
             for n in named or changed:
                 ro.traj[n] = saved[n]
@@ -491,8 +491,6 @@ def reoptimize_plan(
         if not violations and ms < best_makespan - 1e-9:
             best, best_makespan = candidate, ms
         log.append(f"round {rounds}: {len(changed)} vehicle(s) faster, makespan {ms:.2f} s")
-        if ms >= current - 1e-9:
-            break
     improved = best_makespan < start_makespan - 1e-9
     message = (
         f"decomposed optimisation ({len(movers)} vehicles one at a time against the others' fixed "
