@@ -450,7 +450,7 @@ def reoptimize_plan(
     movers = [n for n, t in scenario.vehicles.items() if not t.hover and t.goal_m is not None and t.dock_with is None]
     best, best_makespan = plan, makespan_of(plan)
     start_makespan = best_makespan
-    rounds, log = 0, []
+    rounds, log, stale = 0, [], 0
     for rnd in range(options.max_rounds):
         if time.perf_counter() > deadline:
             log.append("time budget reached")
@@ -491,6 +491,9 @@ def reoptimize_plan(
         if not violations and ms < best_makespan - 1e-9:
             best, best_makespan = candidate, ms
         log.append(f"round {rounds}: {len(changed)} vehicle(s) faster, makespan {ms:.2f} s")
+        stale = stale + 1 if ms >= current - 1e-9 else 0
+        if stale >= 2:  # a round without a makespan gain can free the next vehicle; two rarely do
+            break
     improved = best_makespan < start_makespan - 1e-9
     message = (
         f"decomposed optimisation ({len(movers)} vehicles one at a time against the others' fixed "
