@@ -83,7 +83,8 @@ def arrival_s(tr: VehicleTrajectory) -> float:
 
 class SwarmField:
     """Every vehicle's position on a check grid and the total disturbance wrench on each (sum over
-    all sources above it, ``costmaps.pair_wrench``: S0-3..S0-8 plus the scenario's effects, as the verifier), updated as vehicles change."""
+    all sources above it, ``costmaps.pair_wrench``: S0-3..S0-8 plus the scenario's effects, as the
+    verifier), updated as vehicles change; the non-zero pair contributions are kept."""
 
     def __init__(self, scenario, plan: Plan, *, dt_s: float = CHECK_DT_S):
         self.scenario = scenario
@@ -96,12 +97,28 @@ class SwarmField:
         m = self.t_s.size
         self.force = {n: np.zeros((m, 3)) for n in self.names}
         self.torque = {n: np.zeros((m, 3)) for n in self.names}
+        # (source, target) -> its (force, torque) at the current positions; absent: zero
+        self._pairs: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+        # contributions of the last candidate checked: (name, id(p_new), {key: (force, torque)})
+        self._candidate: tuple[str, int, dict] | None = None
         for t in self.names:
             for s in self.names:
                 if s != t:
-                    f, q = self.contribution(s, t, self.pos[s], self.pos[t])
+                    self._store(s, t, self.contribution(s, t, self.pos[s], self.pos[t]))
+                    f, q = self.current(s, t)
                     self.force[t] += f
                     self.torque[t] += q
+
+    def _store(self, source: str, target: str, fq: tuple[np.ndarray, np.ndarray]) -> None:
+        if np.any(fq[0]) or np.any(fq[1]):
+            self._pairs[(source, target)] = fq
+        else:
+            self._pairs.pop((source, target), None)
+
+    def current(self, source: str, target: str) -> tuple[np.ndarray, np.ndarray]:
+        """(force_N, torque_Nm) (M, 3) of ``source`` on ``target`` at the current positions."""
+        zero = np.zeros((self.t_s.size, 3))
+        return self._pairs.get((source, target), (zero, zero))
 
     def contribution(self, source: str, target: str, p_source: np.ndarray, p_target: np.ndarray):
         """(force_N (M, 3), torque_Nm (M, 3)) of ``source`` on ``target`` at the given positions."""
@@ -136,6 +153,7 @@ class SwarmField:
                 first.append((int(np.argmax(mask)), what))
 
         force, torque = np.zeros_like(p_new), np.zeros_like(p_new)
+        new_pairs: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
         for o in self.names:
             if o == name:
                 continue
@@ -149,33 +167,38 @@ class SwarmField:
                 dz = -off[:, 2]
                 note(overlap & (dz > 0) & (dz <= VALIDITY_FACTOR_L * other.size_m), f"invalid zone of {o}")
                 note(overlap & (-dz > 0) & (-dz <= VALIDITY_FACTOR_L * me.size_m), f"invalid zone on {o}")
-            f, q = self.contribution(o, name, self.pos[o], p_new)
+            f, q = new_pairs[(o, name)] = self.contribution(o, name, self.pos[o], p_new)
             force += f
             torque += q
-            f_old, q_old = self.contribution(name, o, self.pos[name], self.pos[o])
-            f_new, q_new = self.contribution(name, o, p_new, self.pos[o])
+            f_old, q_old = self.current(name, o)
+            f_new, q_new = new_pairs[(name, o)] = self.contribution(name, o, p_new, self.pos[o])
             if np.any(f_new) or np.any(f_old):
                 before = authority_usage(other, self.force[o], self.torque[o])
                 after = authority_usage(other, self.force[o] - f_old + f_new, self.torque[o] - q_old + q_new)
                 note((after > frac) & (after > before + 1e-9), f"authority of {o} in its jet")
         note(authority_usage(me, force, torque) > frac, "authority")
+        self._candidate = (name, id(p_new), new_pairs)
         return bad, (min(first)[1] if first else None)
 
     def replace(self, name: str, p_new: np.ndarray) -> None:
         """Move ``name`` onto ``p_new`` (M, 3) and update every affected wrench total."""
+        known = self._candidate[2] if self._candidate and self._candidate[:2] == (name, id(p_new)) else {}
         force, torque = np.zeros_like(p_new), np.zeros_like(p_new)
         for o in self.names:
             if o == name:
                 continue
-            f, q = self.contribution(o, name, self.pos[o], p_new)
+            f, q = known.get((o, name)) or self.contribution(o, name, self.pos[o], p_new)
             force += f
             torque += q
-            f_old, q_old = self.contribution(name, o, self.pos[name], self.pos[o])
-            f_new, q_new = self.contribution(name, o, p_new, self.pos[o])
+            f_old, q_old = self.current(name, o)
+            f_new, q_new = known.get((name, o)) or self.contribution(name, o, p_new, self.pos[o])
             self.force[o] += f_new - f_old
             self.torque[o] += q_new - q_old
+            self._store(o, name, (f, q))
+            self._store(name, o, (f_new, q_new))
         self.force[name], self.torque[name] = force, torque
         self.pos[name] = p_new
+        self._candidate = None
 
     def at(self, name: str, t_s: np.ndarray) -> np.ndarray:
         """Positions (K, 3) of ``name`` at ``t_s`` (K,) by linear interpolation of the check grid."""
@@ -185,7 +208,7 @@ class SwarmField:
     def wrench_at(self, name: str, t_s: np.ndarray, *, without: str) -> np.ndarray:
         """Rows (F_z N, tau_x N m, tau_y N m) (3, K) on ``name`` at ``t_s`` from every source but
         ``without`` (the vehicle being optimised)."""
-        f_w, q_w = self.contribution(without, name, self.pos[without], self.pos[name])
+        f_w, q_w = self.current(without, name)
         f, q = self.force[name] - f_w, self.torque[name] - q_w
         cols = (f[:, 2], q[:, 0], q[:, 1])
         return np.vstack([np.interp(t_s, self.t_s, c) for c in cols])

@@ -94,3 +94,16 @@ def test_eight_vehicle_formation_gets_clearly_faster():
     assert result.success, result.message
     assert verify_plan(result.plan, scenario) == []
     assert moving_end_s(result.plan) <= 0.95 * moving_end_s(initial)
+
+
+def test_swarm_field_totals_stay_the_sum_over_sources_after_a_move(formation_5):
+    scenario, initial = formation_5
+    field = SwarmField(scenario, initial)
+    names = list(initial.vehicles)
+    moved = field.pos[names[1]] + np.array([0.1, 0.0, 0.6])  # lifted above its neighbours
+    field.conflicts(names[1], moved)
+    field.replace(names[1], moved)
+    for t in names:
+        force = sum(field.contribution(s, t, field.pos[s], field.pos[t])[0] for s in names if s != t)
+        np.testing.assert_allclose(field.force[t], force, atol=1e-9)
+    assert np.any(field.force[names[0]]) or np.any(field.force[names[2]])  # the move is felt somewhere
