@@ -27,7 +27,7 @@ Fits use at most ``max_fit_samples`` train samples and scoring ``max_eval_sample
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -123,6 +123,12 @@ class IdentifyResult:
     validity: dict
     thrust_coefficient: dict
     units: list[Unit]
+    thrust_maps: dict = field(default_factory=dict)  # vehicle type -> identify.thrust_map.ThrustMap
+    notes: list[str] = field(default_factory=list)
+
+    def measurement_json(self) -> dict[str, Any]:
+        """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
+        return measurement_summary(self.thrust_maps, self.exclusions, self.notes)
 
     def to_json(self) -> dict[str, Any]:
         cal = {}
@@ -141,6 +147,7 @@ class IdentifyResult:
             "calibration": cal,
             "thrust_scale": dict(self.final_model.thrust_scale),
             "exclusions": self.exclusions,
+            "measurement": self.measurement_json(),
             "residual_correlations": [
                 {"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations
             ],
@@ -213,9 +220,10 @@ def run_identify(
     options = options or IdentifyOptions()
     if not isinstance(manifest, Manifest):
         manifest = load_manifest(manifest)
-    units, exclusions, types = load_units(manifest, options=options)
-    train = [u for u in units if u.split == "train" and len(u)]
-    test = [u for u in units if u.split == "test" and len(u)]
+    data = load_units(manifest, options=options)
+    units, exclusions, types = data.units, data.exclusions, data.types
+    train = [u for u in units if u.split == "train" and u.scored and len(u)]
+    test = [u for u in units if u.split == "test" and u.scored and len(u)]
     if not train or not test:
         raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
     base = Model(
@@ -253,7 +261,21 @@ def run_identify(
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
         unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
+        thrust_maps=data.thrust_maps, notes=data.notes,
     )  # fmt: skip
+
+
+def measurement_summary(thrust_maps: dict, exclusions: dict, notes: list[str]) -> dict[str, Any]:
+    """JSON of the thrust measurement: maps per type, notes, saturated samples per vehicle NAME."""
+    per: dict[str, dict[str, Any]] = {}
+    for per_flight in exclusions.values():
+        for name, e in per_flight.items():
+            d = per.setdefault(name, {"saturated_samples": 0, "n_samples": 0, "thrust_source": e["thrust_source"]})
+            d["saturated_samples"] += e["saturated_samples"]
+            d["n_samples"] += e["kept_samples"]
+    for d in per.values():
+        d["saturated_fraction"] = d["saturated_samples"] / d["n_samples"] if d["n_samples"] else 0.0
+    return {"thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()}, "saturation": per, "notes": list(notes)}
 
 
 def thrust_coefficient_summary(units: Sequence[Unit]) -> dict:
