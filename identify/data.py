@@ -218,6 +218,19 @@ def load_units(
     return LoadedData(units=units, exclusions=exclusions, types=types, thrust_maps=dict(thrust_maps), notes=notes)
 
 
+def measurement_summary(thrust_maps: dict, exclusions: dict, notes: list[str]) -> dict[str, Any]:
+    """JSON of the thrust measurement: maps per type, notes, saturated samples per vehicle NAME."""
+    per: dict[str, dict[str, Any]] = {}
+    for per_flight in exclusions.values():
+        for name, e in per_flight.items():
+            d = per.setdefault(name, {"saturated_samples": 0, "n_samples": 0, "thrust_source": e["thrust_source"]})
+            d["saturated_samples"] += e["saturated_samples"]
+            d["n_samples"] += e["kept_samples"]
+    for d in per.values():
+        d["saturated_fraction"] = d["saturated_samples"] / d["n_samples"] if d["n_samples"] else 0.0
+    return {"thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()}, "saturation": per, "notes": list(notes)}
+
+
 def progress_bar(items: Sequence, desc: str, enabled: bool):
     if not enabled:
         return items
@@ -278,6 +291,17 @@ class Errors:
             "rmse_tz_Nm": self.rmse_tz_Nm,
             "n_samples": self.n_samples,
         }
+
+
+def rmse_fz_by_vehicle(units: Sequence[Unit], model: Model) -> dict[str, tuple[float, int]]:
+    """Pooled RMSE of F_z (N) and sample count per vehicle name (the manifest's key) over ``units``."""
+    sse: dict[str, list[float]] = {}
+    for u in units:
+        r = u.force_N[:, 2] - predict(u, model)[0][:, 2]
+        acc = sse.setdefault(u.name, [0.0, 0.0])
+        acc[0] += float(r @ r)
+        acc[1] += r.size
+    return {k: (float(np.sqrt(a / n)) if n else 0.0, int(n)) for k, (a, n) in sse.items()}
 
 
 def errors(units: Sequence[Unit], model: Model, *, bases: Sequence | None = None) -> Errors:

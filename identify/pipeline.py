@@ -48,13 +48,16 @@ from identify.data import (
     Unit,
     errors,
     load_units,
+    measurement_summary,
     merge_units,
     predict,
+    rmse_fz_by_vehicle,
     subsample,
     unit_inputs,
 )
 from identify.effect_selection import EffectTrial, select_effects
 from identify.flightlog import Manifest, load_manifest
+from identify.measure import MeasureOptions
 from identify.residuals import correlate, sample_features
 from physics import VALIDITY_FACTOR_L, ModelOptions, base_wrench
 
@@ -125,6 +128,9 @@ class IdentifyResult:
     units: list[Unit]
     thrust_maps: dict = field(default_factory=dict)  # vehicle type -> identify.thrust_map.ThrustMap
     notes: list[str] = field(default_factory=list)
+    measure_options: MeasureOptions = MeasureOptions()
+    per_vehicle: dict = field(default_factory=dict)  # NAME -> rmse_fz_N_before/calibrated/after, n_samples (test)
+    discovered: list = field(default_factory=list)  # data-driven terms (identify.discovery); [] when none
 
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
@@ -148,6 +154,8 @@ class IdentifyResult:
             "thrust_scale": dict(self.final_model.thrust_scale),
             "exclusions": self.exclusions,
             "measurement": self.measurement_json(),
+            "per_vehicle": self.per_vehicle,
+            "discovered": list(self.discovered),
             "residual_correlations": [
                 {"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations
             ],
@@ -213,6 +221,13 @@ def _residual_analysis(units: Sequence[Unit], model: Model):
     return correlate(np.concatenate(res), {k: np.concatenate(v) for k, v in feats.items()})
 
 
+def _per_vehicle(test: Sequence[Unit], before: Model, calibrated: Model, after: Model) -> dict[str, dict]:
+    """Test RMSE of F_z per vehicle name, before / calibrated / after (pooled over test flights)."""
+    b, c, a = (rmse_fz_by_vehicle(test, m) for m in (before, calibrated, after))
+    return {k: {"rmse_fz_N_before": b[k][0], "rmse_fz_N_calibrated": c[k][0], "rmse_fz_N_after": a[k][0],
+                "n_samples": b[k][1]} for k in b}  # fmt: skip
+
+
 def run_identify(
     manifest: Manifest | str | Path, *, options: IdentifyOptions | None = None, thrust_summary: bool = True
 ) -> IdentifyResult:
@@ -261,21 +276,9 @@ def run_identify(
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
         unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
-        thrust_maps=data.thrust_maps, notes=data.notes,
+        thrust_maps=data.thrust_maps, notes=data.notes, measure_options=options.measure,
+        per_vehicle=_per_vehicle(test, base, model, final),
     )  # fmt: skip
-
-
-def measurement_summary(thrust_maps: dict, exclusions: dict, notes: list[str]) -> dict[str, Any]:
-    """JSON of the thrust measurement: maps per type, notes, saturated samples per vehicle NAME."""
-    per: dict[str, dict[str, Any]] = {}
-    for per_flight in exclusions.values():
-        for name, e in per_flight.items():
-            d = per.setdefault(name, {"saturated_samples": 0, "n_samples": 0, "thrust_source": e["thrust_source"]})
-            d["saturated_samples"] += e["saturated_samples"]
-            d["n_samples"] += e["kept_samples"]
-    for d in per.values():
-        d["saturated_fraction"] = d["saturated_samples"] / d["n_samples"] if d["n_samples"] else 0.0
-    return {"thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()}, "saturation": per, "notes": list(notes)}
 
 
 def thrust_coefficient_summary(units: Sequence[Unit]) -> dict:
