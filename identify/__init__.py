@@ -4,6 +4,7 @@ try candidate effects, and report the error before and after on test flights.
 """
 
 from identify.evaluate import EvaluationResult, evaluate_model, saved_model
+from identify.evaluate_report import write_evaluation_report
 from identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
     NEURAL_SWARM_FILE_COLUMNS,
@@ -43,5 +44,6 @@ __all__ = [
     "saved_model",
     "synthetic_logs",
     "write_canonical_csv",
+    "write_evaluation_report",
     "write_report",
 ]

@@ -15,6 +15,7 @@ import numpy as np
 from fileio import atomic_write_text, save_figure
 from identify.data import predict
 from identify.evaluate import EvaluationResult
+from identify.report import exclusion_lines
 
 
 def _bars(ax, rows: Mapping[str, dict], title: str) -> None:
@@ -94,13 +95,7 @@ def markdown(result: EvaluationResult, *, manifest: str, model: str, plots: list
         lines.append(f"| {k} | {s['thrust_source']} | {s['saturated_samples']} | {s['saturated_fraction']:.3f} |")
     lines += [""] + [f"- note: {n}" for n in result.notes]
     lines += ["", "## Excluded samples (quality checks)", ""]
-    for flight, per in result.exclusions.items():
-        parts = "; ".join(
-            f"{n}: "
-            + ", ".join(f"{k} {v}" for k, v in e.items() if isinstance(v, int) and not isinstance(v, bool) and v)
-            for n, e in per.items()
-        )
-        lines.append(f"- {flight}: {parts}")
+    lines += exclusion_lines(result.exclusions)
     lines += ["", "## Plots", ""] + [f"![{p.stem}]({p.name})" for p in plots]
     return "\n".join(lines) + "\n"
 

@@ -34,8 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from fileio import UserError, atomic_write_text, output_folder
-    from identify import evaluate_model, load_manifest
-    from identify.evaluate_report import write_evaluation_report
+    from identify import evaluate_model, load_manifest, write_evaluation_report
     from physics import load_model_file
 
     model = load_model_file(args.model)

@@ -121,13 +121,14 @@ def test_cli_bad_manifest_is_one_line_error(tmp_path: Path, capsys) -> None:
 
 
 def simulator_manifest(tmp: Path, effects: list, *, ground: bool = False) -> Path:
-    """Three closed-loop RotorPy flights (flightsim) with the hidden ``effects``, written as
+    """Four closed-loop RotorPy flights (flightsim) with the hidden ``effects``, written as
     Neural-Swarm logs + manifest by flightsim.logs: two small quads swapping places stacked
-    0.3 / 1.0 m (train) and 0.45 m (test) apart, or take-off/hover sweeps near the ground."""
+    0.3 / 1.0 / 0.6 m (train; the last one validates the effects) and 0.45 m (test) apart, or
+    take-off/hover sweeps near the ground."""
     from flightsim import simulate_plan, swap_plan, takeoff_hover_plan, write_flight_logs
 
     manifest = None
-    for k, split in enumerate(("train", "train", "test")):
+    for k, split in enumerate(("train", "train", "train", "test")):
         if ground:
             plan = takeoff_hover_plan(
                 type_name=VEHICLE_TYPE, low_z_m=0.06 + 0.01 * k, high_z_m=0.6, climb_s=2.0, hold_s=1.5
@@ -136,7 +137,7 @@ def simulator_manifest(tmp: Path, effects: list, *, ground: bool = False) -> Pat
             plan = swap_plan(
                 top_type=VEHICLE_TYPE,
                 bottom_type=VEHICLE_TYPE,
-                vertical_gap_m=(0.3, 1.0, 0.45)[k],
+                vertical_gap_m=(0.3, 1.0, 0.6, 0.45)[k],
                 n_swaps=2,
                 swap_s=2.5,
             )
