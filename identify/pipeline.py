@@ -137,6 +137,7 @@ class IdentifyResult:
     measure_options: MeasureOptions = MeasureOptions()
     per_vehicle: dict = field(default_factory=dict)  # NAME -> rmse_fz_N_before/calibrated/after, n_samples (test)
     discovered: list = field(default_factory=list)  # data-driven terms (identify.discovery); [] when none
+    calibrated_model: Model | None = None  # calibrated, no effects (what "calibrated_only" scored)
     validation: str = ""  # which train flights chose the effects (identify.effect_selection.validation_split)
 
     def measurement_json(self) -> dict[str, Any]:
@@ -287,7 +288,7 @@ def run_identify(
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
         unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
         thrust_maps=data.thrust_maps, notes=data.notes, measure_options=options.measure,
-        per_vehicle=_per_vehicle(test, base, model, final), validation=validation_note,
+        per_vehicle=_per_vehicle(test, base, model, final), validation=validation_note, calibrated_model=model,
     )  # fmt: skip
 
 
