@@ -27,6 +27,7 @@ class IdentifyOptions:
     field_form: str = "inverse-z"  # form of (S0-1) used for prediction
     calibrate: bool = True
     effects: tuple[str, ...] = EFFECT_NAMES  # candidates to try
+    extra_candidates: tuple[Effect, ...] = ()  # already-fitted terms (e.g. discovered), scored on validation as given
     min_gain: float = 0.05  # relative cut of a test RMSE an effect must bring to be kept, -
     max_fit_samples: int = 2000  # train samples of the calibration fit
     max_effect_fit_samples: int = 1000  # train samples per candidate-effect fit

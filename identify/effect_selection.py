@@ -180,33 +180,38 @@ def select_effects(
     current, model = min(scored, key=lambda em: em[0].rmse_fz_N / max(scored[0][0].rmse_fz_N, 1e-12)
                          + em[0].rmse_tz_Nm / max(scored[0][0].rmse_tz_Nm, 1e-15))  # fmt: skip
     trials: list[EffectTrial] = []
-    remaining = [n for n in options.effects]
+    # library names are fitted here; Effects (options.extra_candidates, e.g. data-driven terms
+    # fitted elsewhere on the fitting flights) are scored with their parameters as given
+    remaining: list[str | Effect] = [*options.effects, *options.extra_candidates]
     rnd = 0
     while remaining and len(model.effects) < options.max_effects:
         rnd += 1
         bases = [m for _, m in scored] if rnd == 1 else [model]
         round_trials = []
-        for name in progress_bar(remaining, f"effects round {rnd}", options.progress):
+        for item in progress_bar(remaining, f"effects round {rnd}", options.progress):
             best_here = None
             for base in bases:
-                eff, cand = fit_effect(name, train, base, options=options)
+                if isinstance(item, Effect):
+                    eff, cand = item, replace(base, effects=base.effects + (item,))
+                else:
+                    eff, cand = fit_effect(item, train, base, options=options)
                 err = valid_errors(cand)
                 gf = _gain(err.rmse_fz_N, current.rmse_fz_N, 1e-6)
                 gt = _gain(err.rmse_tz_Nm, current.rmse_tz_Nm, 1e-7)
                 if best_here is None or gf + gt > best_here[0].gain_fz + best_here[0].gain_tz:
-                    best_here = (EffectTrial(name, eff.full_params(), rnd, err, gf, gt, valid=err), cand)
+                    best_here = (EffectTrial(eff.name, eff.full_params(), rnd, err, gf, gt, valid=err), cand, item)
             assert best_here is not None  # at least one candidate per round
             round_trials.append(best_here)
         ok = [
-            (t, c)
-            for t, c in round_trials
+            (t, c, i)
+            for t, c, i in round_trials
             if max(t.gain_fz, t.gain_tz) >= options.min_gain and min(t.gain_fz, t.gain_tz) > -0.01
         ]
-        best = max(ok, key=lambda tc: tc[0].gain_fz + tc[0].gain_tz, default=None)
-        for t, c in round_trials:
+        best = max(ok, key=lambda tci: tci[0].gain_fz + tci[0].gain_tz, default=None)
+        for t, c, _ in round_trials:
             trials.append(replace(t, selected=best is not None and t is best[0], test=set_errors(c, test_eval)))
         if best is None:
             break
         model, current = best[1], best[0].valid or best[0].test
-        remaining.remove(best[0].name)
+        remaining.remove(best[2])
     return model, trials

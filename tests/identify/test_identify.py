@@ -196,3 +196,18 @@ def test_unexplained_residual_is_reported(tmp_path: Path) -> None:
         write_canonical_csv(type(log)(**{**log.__dict__, "accel_mps2": acc}), path)
     result = run_identify(manifest, options=FAST, thrust_summary=False)
     assert result.unexplained is not None and result.unexplained["feature"] == "v_z_mps", result.correlations
+
+
+def test_extra_candidates_are_scored_on_validation_as_given(tmp_path: Path) -> None:
+    """The hook for data-driven terms: already-fitted effects compete on the validation flights; a
+    useless one is not kept, the true hidden one is; test flights only report."""
+    from dataclasses import replace
+
+    truth = HIDDEN["near_field"]
+    useless = Effect("thrust_bias", {"force_z_N": 0.0})
+    options = replace(FAST, effects=(), extra_candidates=(useless, truth), calibrate=False)
+    result = run_identify(make_manifest(tmp_path, (truth,), duration_s=8.0), options=options, thrust_summary=False)
+    assert result.selected == ["near_field"], [(t.name, t.gain_fz) for t in result.trials]
+    assert result.validation.startswith("validation flights: f1")
+    assert result.after.rmse_fz_N < 0.8 * result.before.rmse_fz_N  # 0.62 here; the rest is accelerometer noise
+    assert result.to_json()["discovered"] == []
