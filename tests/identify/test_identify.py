@@ -48,6 +48,7 @@ def _trajectories(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
 
 
 def make_manifest(tmp: Path, effects: tuple, *, n_train: int = 2, duration_s: float = 15.0) -> Path:
+    tmp.mkdir(parents=True, exist_ok=True)
     veh = BUILTIN_VEHICLES[VEHICLE_TYPE]
     t = np.arange(0.0, duration_s, 0.01)
     flights = []
@@ -211,3 +212,29 @@ def test_extra_candidates_are_scored_on_validation_as_given(tmp_path: Path) -> N
     assert result.validation.startswith("validation flights: f1")
     assert result.after.rmse_fz_N < 0.8 * result.before.rmse_fz_N  # 0.62 here; the rest is accelerometer noise
     assert result.to_json()["discovered"] == []
+
+
+def test_validation_split_is_by_flight_and_test_flights_never_choose(tmp_path: Path) -> None:
+    """Selection without leakage: validation flights are whole train flights, and replacing the test
+    flight's logs changes the reported errors but not what is chosen or fitted."""
+    from dataclasses import replace
+
+    from identify.data import load_units
+    from identify.effect_selection import validation_split
+    from identify.flightlog import load_manifest
+
+    options = replace(FAST, effects=("near_field", "thrust_bias"), calibrate=False)
+    path = make_manifest(tmp_path / "a", (HIDDEN["near_field"],), duration_s=8.0)
+    units = [u for u in load_units(load_manifest(path), options=options).units if u.split == "train"]
+    fit, valid, note = validation_split(units)
+    assert {u.flight for u in fit} == {"f0"} and {u.flight for u in valid} == {"f1"} and "f1" in note
+    first = run_identify(path, options=options, thrust_summary=False)
+    # same train flights, a test flight with another hidden effect
+    other = make_manifest(tmp_path / "b", (HIDDEN["wake_advection"],), duration_s=8.0)
+    for k in ("f0", "f1"):
+        for v in ("a", "b"):
+            (tmp_path / "b" / f"{k}_{v}.csv.gz").write_bytes((tmp_path / "a" / f"{k}_{v}.csv.gz").read_bytes())
+    second = run_identify(other, options=options, thrust_summary=False)
+    assert second.selected == first.selected
+    assert [t.params for t in second.trials] == [t.params for t in first.trials]
+    assert second.after.rmse_fz_N != first.after.rmse_fz_N  # the test flight did change
