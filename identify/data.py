@@ -133,13 +133,15 @@ def load_units(
     *,
     options: IdentifyOptions = IdentifyOptions(),
     thrust_maps: Mapping[str, ThrustMap] | None = None,
+    thrust_coefficient_samples: bool = True,
 ) -> LoadedData:
     """Load, check and measure every flight of ``manifest``.
 
     The motor thrust in S0-11/S0-13 is the DELIVERED one (:mod:`identify.thrust_map`): from PWM and
     Vbat through the per-type map (``thrust_maps``, or fitted here on the manifest's TRAIN flights),
     capped at the motor's maximum. Vehicles whose logs hold no PWM/Vbat (or whose type has no map)
-    use the logged u[N] as is; a note says so once per type.
+    use the logged u[N] as is; a note says so once per type. ``thrust_coefficient_samples=False``
+    skips the seed-001 per-sample regressors (only identify's thrust-coefficient summary uses them).
     """
     from scipy.spatial.transform import Rotation
 
@@ -212,7 +214,9 @@ def load_units(
                     torque_Nm=meas.torque_Nm,
                     thrust=thrust_samples(
                         flight.vehicles[v.name], log.quat_xyzw, log.accel_mps2, log.velocity_mps, log.motor_thrust_N
-                    ),
+                    )
+                    if thrust_coefficient_samples
+                    else None,
                     scored=v.score,
                 )
             )

@@ -195,7 +195,12 @@ def evaluate_model(
         raise UserError(f"{manifest.path}: flights: every {split} vehicle says 'score: false'; nothing to score")
     sub = Manifest(path=manifest.path, format=manifest.format, root=manifest.root, flights=tuple(chosen),
                    vehicles_file=manifest.vehicles_file, quality=manifest.quality)  # fmt: skip
-    data = load_units(sub, options=IdentifyOptions(measure=measure, progress=progress), thrust_maps=maps)
+    data = load_units(
+        sub,
+        options=IdentifyOptions(measure=measure, progress=progress),
+        thrust_maps=maps,
+        thrust_coefficient_samples=False,
+    )
     notes += data.notes
     missing = sorted(set(data.types) - set(model.vehicles))
     if missing:
