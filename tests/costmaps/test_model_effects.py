@@ -166,3 +166,19 @@ def test_bad_model_file_is_one_line_error_exit_2(tmp_path: Path, capsys, command
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and str(bad) in err and "vortex_ring" in err and "near_field" in err
     assert not (tmp_path / "o").exists() and not (tmp_path / "m.npz").exists()
+
+
+def test_costmap_command_applies_the_model(tmp_path: Path, capsys) -> None:
+    from proxplan.cli import main
+
+    model_path = write_model_file(CalibratedModel(effects=(STRONG, BIAS)), tmp_path / "model.yaml")
+    docs = {}
+    for tag, extra in (("base", []), ("model", ["--model", str(model_path)])):
+        argv = ["costmap", "--source", "large-quad", "--target", "small-quad", "--out", str(tmp_path / f"{tag}.npz")]
+        assert main([*argv, "--no-plot", "--json", *extra]) == 0
+        captured = capsys.readouterr()
+        docs[tag] = json.loads(captured.out)
+    assert "thrust_bias" in captured.err  # the target-only effect is named as not applied
+    assert docs["base"]["effects"] == [] and [e["name"] for e in docs["model"]["effects"]] == ["near_field"]
+    assert docs["model"]["param_hash"] != docs["base"]["param_hash"]
+    assert docs["model"]["peak_usage_valid_zone"] > 1.5 * docs["base"]["peak_usage_valid_zone"]
