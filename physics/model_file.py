@@ -115,7 +115,7 @@ def effects_from_list(raw: Any, where: str) -> tuple[Effect, ...]:
         for key, value in params.items():
             if key not in PARAMETERS[name]:
                 raise UserError(
-                    f"{w}.params: unknown parameter {key!r} of {name}; expected {', '.join(PARAMETERS[name])}"
+                    f"{w}.params.{key}: unknown parameter of {name}; expected {', '.join(PARAMETERS[name])}"
                 )
             values[str(key)] = _finite(value, f"{w}.params.{key}")
         out.append(Effect(str(name), values))
