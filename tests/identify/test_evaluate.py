@@ -107,6 +107,8 @@ def test_no_pwm_falls_back_with_one_note_and_score_false_is_source_only(tmp_path
     from proxplan.cli import main
 
     manifest = _manifest(tmp_path, n_train=1, pwm=False, score_b=False)
+    assert main(["identify", str(manifest), "--out", str(tmp_path / "id")]) == 0
+    assert capsys.readouterr().err.count("no PWM/Vbat") == 1  # identify says it once too
     ok = tmp_path / "ok.yaml"
     ok.write_text(yaml.safe_dump({"format_version": 2, "vehicles": {TYPE: {"base": TYPE}}, "model": {}}))
     assert main(["evaluate", str(manifest), "--model", str(ok), "--out", str(tmp_path / "o"), "--json"]) == 0
