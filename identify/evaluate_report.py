@@ -25,7 +25,7 @@ def _bars(ax, rows: Mapping[str, dict], title: str) -> None:
     none = [rows[n]["no_model_rmse_fz_N"] or 0.0 for n in names]
     ax.bar(x - 0.2, none, 0.4, color="tab:gray", label="no model")
     ax.bar(x + 0.2, model, 0.4, color="tab:green", label="saved model")
-    ax.set_xticks(x, names, rotation=40, ha="right", fontsize=8)
+    ax.set_xticks(x, [f"{n} (n={rows[n]['n_samples']})" for n in names], rotation=40, ha="right", fontsize=8)
     ax.set_ylabel("RMSE F_z [N]")
     ax.set_title(title)
     ax.legend(fontsize=8)
