@@ -153,12 +153,14 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     with output_folder(out) as stage:
         bar = None
-        if args.runs and (not args.json or sys.stderr.isatty()):
-            from tqdm import tqdm
+        show = not args.json or sys.stderr.isatty()
 
-            bar = tqdm(total=args.runs, desc="certify", unit="run", leave=False)
+        def progress(done: int, total: int) -> None:  # the bar starts with the first finished run
+            nonlocal bar
+            if bar is None and show:
+                from tqdm import tqdm
 
-        def progress(done: int, total: int) -> None:
+                bar = tqdm(total=total, desc="certify", unit="run", leave=False)
             if bar is not None:
                 bar.update(done - bar.n)
 
