@@ -45,9 +45,11 @@ DEFAULT_Z0_SPREAD_L = 0.25
 class NoiseSpec:
     """Everything but the model parameters that a run draws; SI units in the names.
 
-    Residual force: measured on Neural-Swarm hover segments (``python -m certify.residuals``,
-    docs/certify.md): z std 1.9-2.4 % of the weight, x/y std 0.5-0.7 %, 1/e correlation times
-    0.06-0.15 s. Estimate errors: motion-capture + onboard EKF class figures (2 mm, 2 cm/s).
+    Residual force: measured on the Neural-Swarm single-vehicle hover segments
+    (``python -m certify.residuals``, docs/certify.md): z std 2.2 % (Crazyflie, 3 flights) and
+    1.9 % (Parrot frame, 1 flight) of the weight, x/y std 0.66 % and 0.47 %, 1/e correlation times
+    0.13 s and 0.06 s; defaults: z 2.1 %, x/y 0.6 %, 0.10 s. Estimate errors: motion-capture +
+    onboard EKF class figures (2 mm, 2 cm/s), not measured here.
     """
 
     residual_std_z_weight: float = 0.021  # residual force std along z / weight, -
