@@ -21,7 +21,7 @@ from flightsim.simulate import (
     VehicleRecord,
     simulate_plan,
 )
-from flightsim.truth import TruthSpec, load_truth_file, truth_from_dict
+from flightsim.truth import TruthSpec, load_truth_file, merge_truth, model_truth, plan_truth, truth_from_dict
 
 __all__ = [
     "NEURAL_SWARM_HEADER",
@@ -34,6 +34,9 @@ __all__ = [
     "battery_swap_plans",
     "hover_stack_plan",
     "load_truth_file",
+    "merge_truth",
+    "model_truth",
+    "plan_truth",
     "plot_errors",
     "simulate_plan",
     "simulation_metrics",

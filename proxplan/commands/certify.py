@@ -7,7 +7,7 @@ import argparse
 import json
 import sys
 
-from proxplan.cli_args import seed_argument
+from proxplan.cli_args import add_model_argument, load_model_argument, seed_argument
 
 
 def register(subparsers) -> None:
@@ -40,7 +40,7 @@ def register(subparsers) -> None:
 
 def add_draw_arguments(p: argparse.ArgumentParser) -> None:
     """Flags that change the draws (shared with ``simulate --certify-run``)."""
-    p.add_argument("--model", metavar="MODEL.yaml", help="saved model: vehicles, effects and 'uncertainty' spreads")
+    add_model_argument(p, "the flown world (its vehicles and effects) and its 'uncertainty' parameter spreads")
     p.add_argument("--truth", metavar="FILE.yaml", help="extra effects of the simulated world (docs/simulation.md)")
     p.add_argument(
         "--vehicles", metavar="FILE.yaml", help="fly these vehicle parameters instead of the plan's (types by name)"
@@ -52,22 +52,34 @@ def add_draw_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def build_setup(args: argparse.Namespace, plan_path, notes: list[str]):
-    """The CertifySetup of the parsed flags (``notes`` collects what the user should know)."""
+    """The CertifySetup of the parsed flags (``notes`` collects what the user should know).
+
+    The flown world is the plan's own model (its effects included), or the ``--model`` file's
+    vehicles and effects; ``--truth`` adds effects, ``--vehicles`` replaces vehicle types (as
+    ``proxplan simulate``)."""
     from certify import DEFAULT_GOAL_TOLERANCE_M, CertifySetup, Spreads
     from fileio import UserError
-    from flightsim import TruthSpec, load_truth_file
+    from flightsim import load_truth_file, merge_truth, model_truth, plan_truth
     from planfile import read_plan
     from verify import scenario_of_plan
 
     plan = read_plan(plan_path)
     scenario = scenario_of_plan(plan, label=str(plan_path))
-    truth = load_truth_file(args.truth) if args.truth else TruthSpec()
+    extra = load_truth_file(args.truth) if args.truth else None
+    calibrated = load_model_argument(args, "certify")
     vehicles = {}
     spreads = Spreads()
     effect_spreads: dict[str, float] = {}
-    if args.model:
-        vehicles, truth, spreads, effect_spreads = _model_draws(args.model, truth, notes)
+    if calibrated is not None:
+        truth = merge_truth(model_truth(calibrated.effects, calibrated.options.field_form), extra)
+        vehicles = dict(calibrated.vehicles)
+        spreads, effect_spreads = _model_spreads(calibrated.uncertainty)
+        if not calibrated.uncertainty:
+            notes.append(
+                f"{args.model}: the model has no 'uncertainty': documented default parameter spreads (docs/certify.md)"
+            )
     else:
+        truth = merge_truth(plan_truth(plan), extra)
         notes.append("no --model: documented default parameter spreads (docs/certify.md)")
     if args.vehicles:
         from physics import load_vehicle_file
@@ -89,39 +101,19 @@ def build_setup(args: argparse.Namespace, plan_path, notes: list[str]):
     )
 
 
-def _model_draws(path: str, truth, notes: list[str]):
-    """Vehicles, truth (with the model's effects), parameter and effect spreads of a model file."""
+def _model_spreads(uncertainty) -> tuple:
+    """(Spreads of vehicle parameters, {effect.param: std}) of a model's ``uncertainty`` map."""
     from certify import Spreads
-    from fileio import UserError, read_yaml
-    from physics import load_vehicle_file
-
-    vehicles = load_vehicle_file(path)
-    doc = read_yaml(path, what="model file") or {}
-    model = doc.get("model", {}) or {}
-    if not isinstance(model, dict):
-        raise UserError(f"{path}: model: expected a mapping (field_form, effects, uncertainty)")
-    if model.get("effects"):  # the model's effects are part of the flown world
-        from flightsim import TruthSpec, truth_from_dict
-
-        extra = truth_from_dict({"effects": model["effects"]}, source=f"{path}: model")
-        truth = TruthSpec(tuple(truth.effects) + extra.effects, truth.wind_mps, truth.field_form)
-    raw = model.get("uncertainty")
-    raw = raw if raw is not None else doc.get("uncertainty")
-    if raw is None or raw == {}:
-        notes.append(f"{path}: no 'uncertainty' in the model: documented default parameter spreads (docs/certify.md)")
-        return vehicles, truth, Spreads(), {}
-    if not isinstance(raw, dict):
-        raise UserError(f"{path}: uncertainty: expected a mapping of TYPE.param or effect.param to a std")
-    model_params: dict[str, float] = {}
-    effect_params: dict[str, float] = {}
     from physics import EFFECT_NAMES
 
-    for key, value in raw.items():
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
-            raise UserError(f"{path}: uncertainty.{key}: expected a non-negative number (std), got {value!r}")
+    if not uncertainty:
+        return Spreads(), {}
+    model_params: dict[str, float] = {}
+    effect_params: dict[str, float] = {}
+    for key, value in uncertainty.items():
         head = str(key).split(".")[0]
-        (effect_params if head in EFFECT_NAMES else model_params)[str(key)] = float(value)
-    return vehicles, truth, Spreads(model_params, from_model=True), effect_params
+        (effect_params if head in EFFECT_NAMES else model_params)[str(key)] = abs(float(value))
+    return Spreads(model_params, from_model=True), effect_params
 
 
 def resolve_plan_path(text: str):
