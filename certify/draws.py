@@ -21,14 +21,16 @@ One run draws (all documented in docs/certify.md):
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from identify import VEHICLE_PARAMETERS
 from physics import Vehicle
 
-MODEL_PARAMETERS = ("c_ax", "z0_m", "c_rad", "b_v")
-"""Model parameters drawn per vehicle type (the ones ``proxplan identify`` calibrates)."""
+MODEL_PARAMETERS = VEHICLE_PARAMETERS
+"""Model parameters drawn per vehicle type: c_ax, z0_m, c_rad, b_v (the ones ``proxplan identify``
+calibrates; a drawn set is applied with ``identify.apply_vehicle_parameters``)."""
 
 DEFAULT_RELATIVE_SPREADS = {"c_ax": 0.10, "z0_m": 0.0, "c_rad": 0.15, "b_v": 0.20}
 """Default 1-sigma spreads as a fraction of the value, used when no saved uncertainty is given.
@@ -84,23 +86,6 @@ def _value(vehicle: Vehicle, param: str) -> float:
     if param == "b_v":
         return float(vehicle.b_v)
     return float(getattr(vehicle.downwash, param))
-
-
-def with_parameters(vehicle: Vehicle, values: Mapping[str, float]) -> Vehicle:
-    """``vehicle`` with the drawn c_ax, z0_m, c_rad (downwash) and b_v (propeller)."""
-    d = vehicle.downwash
-    out = replace(
-        vehicle,
-        downwash=replace(
-            d,
-            c_ax=float(values.get("c_ax", d.c_ax)),
-            z0_m=float(values.get("z0_m", d.z0_m)),
-            c_rad=float(values.get("c_rad", d.c_rad)),
-        ),
-    )
-    if "b_v" in values:
-        out = replace(out, propeller=replace(out.propeller, b_v_measured=float(values["b_v"])))
-    return out
 
 
 def run_rng(seed: int, index: int) -> np.random.Generator:

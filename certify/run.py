@@ -21,8 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from certify.draws import NoiseSpec, RunDraw, Spreads, draw_run, with_parameters
+from certify.draws import NoiseSpec, RunDraw, Spreads, draw_run
 from flightsim import Perturbation, SimulationOptions, SimulationStatus, TruthSpec, simulate_plan
+from identify import apply_vehicle_parameters
 from physics import Effect, Vehicle, authority_usage
 from planfile import Plan
 
@@ -83,7 +84,7 @@ def fly_run(setup: CertifySetup, index: int, *, keep_result: bool = False) -> di
     flown = setup.flown_types()
     duration = float(plan.makespan_s) + setup.options.settle_s + 1.0
     draw = draw_run(setup.seed, index, flown, duration, spreads=setup.spreads, noise=setup.noise)
-    vehicles = {tn: with_parameters(veh, draw.parameters[tn]) for tn, veh in (v for v in flown.values())}
+    vehicles = {tn: apply_vehicle_parameters(veh, **draw.parameters[tn]) for tn, veh in (v for v in flown.values())}
     truth = TruthSpec(_drawn_effects(setup, draw), setup.truth.wind_mps, setup.truth.field_form)
     pert = Perturbation(
         start_offset_m=draw.start_offset_m,

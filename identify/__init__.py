@@ -3,6 +3,7 @@ the disturbance on every vehicle (S0-11, S0-13), calibrate the model's parameter
 try candidate effects, and report the error before and after on test flights.
 """
 
+from identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
 from identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
     NEURAL_SWARM_FILE_COLUMNS,
@@ -21,6 +22,8 @@ from identify.report import write_report
 from identify.synthetic_logs import synthetic_logs
 
 __all__ = [
+    "VEHICLE_PARAMETERS",
+    "apply_vehicle_parameters",
     "NEURAL_SWARM_COLUMNS",
     "NEURAL_SWARM_FILE_COLUMNS",
     "FlightEntry",
