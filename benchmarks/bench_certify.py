@@ -5,7 +5,9 @@ Plans scenarios/battery_swap.yaml (sampling, seed 0) into a temporary folder, th
   * baseline: one ``flightsim.simulate_plan`` of the plan in this process (stepper compiled first,
     so the figure is the flight itself), i.e. flights per second of plain serial simulation;
   * ``certify_plan`` with N runs (cluster start, draws, flights, reduction; report excluded),
-and prints wall times, runs per second and the ratio to the baseline.
+and prints wall times, runs per second and the ratio to the baseline, and the CPU seconds spent
+in all processes per run against one plain simulate (independent of other load on the machine:
+the wall figure on idle cores follows from it).
 
 Run: python benchmarks/bench_certify.py [--runs 200] [--workers K]
 """
@@ -13,6 +15,8 @@ Run: python benchmarks/bench_certify.py [--runs 200] [--workers K]
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -20,6 +24,14 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+def _cpu_s() -> float:
+    """CPU seconds (user + system) of this process and of its finished, waited-for children
+    (the local cluster's nanny and worker processes once it is closed)."""
+    me = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def main() -> int:
@@ -54,13 +66,25 @@ def main() -> int:
     one = time.perf_counter() - t0
     print(f"baseline: one plain simulate of the battery swap: {one:.3f} s ({1.0 / one:.2f} flights/s serial)")
 
+    one_cpu = _cpu_s()
+    simulate_plan(plan, options=setup.options)
+    one_cpu = _cpu_s() - one_cpu
+
     t0 = time.perf_counter()
+    cpu0 = _cpu_s()
     result = certify_plan(setup, args.runs, n_workers=args.workers)
     wall = time.perf_counter() - t0
+    cpu = _cpu_s() - cpu0  # this process (scheduler, client) + the finished worker processes
     rate = args.runs / wall
+    workers = result.execution["workers"]
     print(
-        f"certify: {args.runs} runs on {result.execution['workers']} local worker(s) in {wall:.1f} s "
+        f"certify: {args.runs} runs on {workers} local worker(s) in {wall:.1f} s "
         f"({rate:.2f} runs/s, {rate * one:.2f}x the plain-simulate rate; target < 60 s for 200 runs)"
+    )
+    print(
+        f"  CPU: {cpu:.1f} s in all processes = {cpu / max(args.runs, 1):.3f} s per run vs {one_cpu:.3f} s for one "
+        f"plain simulate ({cpu / max(args.runs, 1) / one_cpu:.2f}x); on {os.cpu_count()} idle cores that is "
+        f"~{cpu / min(workers, os.cpu_count() or 1):.0f} s wall (load average now {os.getloadavg()[0]:.1f})"
     )
     s = result.summary
     print(

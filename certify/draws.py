@@ -98,12 +98,14 @@ def ou_series(rng: np.random.Generator, n: int, dt_s: float, tau_s: float, std: 
     exact discretisation x_{k+1} = a x_k + sqrt(1 - a^2) std e_k, a = exp(-dt / tau)."""
     std = np.asarray(std, dtype=float)
     a = float(np.exp(-dt_s / tau_s)) if tau_s > 0 else 0.0
+    from scipy.signal import lfilter
+
     e = rng.standard_normal((n, std.size))
     out = np.empty((n, std.size))
-    out[0] = e[0]
-    b = np.sqrt(1.0 - a * a)
-    for k in range(1, n):
-        out[k] = a * out[k - 1] + b * e[k]
+    out[0] = e[0]  # the stationary distribution (unit variance)
+    if n > 1:
+        b = np.sqrt(1.0 - a * a)
+        out[1:] = lfilter([b], [1.0, -a], e[1:], axis=0, zi=a * e[:1])[0]
     return out * std
 
 
