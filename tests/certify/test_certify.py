@@ -180,3 +180,21 @@ def test_negative_runs_and_unreachable_scheduler_are_one_line_errors(capsys, bat
     assert code == 2, err
     assert "cannot reach a Dask scheduler" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "b").exists()
+
+
+def test_effect_parameters_are_drawn_from_effect_spreads():
+    from certify.run import _drawn_effects
+    from flightsim import TruthSpec
+    from physics import Effect
+
+    setup = replace(
+        _setup(4.0),
+        truth=TruthSpec(effects=(Effect("near_field", {"amplitude": 0.5}),)),
+        effect_spreads={"near_field.amplitude": 0.2},
+    )
+    _, types = _stack_types()
+    draws = [draw_run(setup.seed, k, types, 2.0) for k in range(4)]
+    amps = [_drawn_effects(setup, d)[0].full_params()["amplitude"] for d in draws]
+    assert len(set(amps)) == 4 and all(abs(a - 0.5) < 5 * 0.2 for a in amps)
+    assert _drawn_effects(setup, draws[0])[0].full_params() == _drawn_effects(setup, draws[0])[0].full_params()
+    assert _drawn_effects(setup, draws[0])[0].full_params()["decay_L"] == 3.0  # no spread given: unchanged
