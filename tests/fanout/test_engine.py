@@ -61,3 +61,27 @@ def test_malformed_scheduler_address_is_a_user_error(address):
 def test_no_items_starts_no_cluster():
     result = fan_out(_square_plus, [], scheduler="tcp://127.0.0.1:9")
     assert result.results == [] and result.retried == 0
+
+
+@pytest.mark.slow
+def test_a_scheduler_without_workers_is_a_user_error_not_a_hang(tmp_path):
+    import socket
+    import subprocess
+    import sys
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp_path,
+    )  # fmt: skip
+    try:
+        time.sleep(3.0)
+        t0 = time.perf_counter()
+        with pytest.raises(UserError, match="no workers"):
+            fan_out(_square_plus, [1, 2], scheduler=f"tcp://127.0.0.1:{port}", connect_timeout_s=3.0)
+        assert time.perf_counter() - t0 < 10.0
+    finally:
+        proc.terminate()
+        proc.wait(timeout=15)
