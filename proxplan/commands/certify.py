@@ -141,6 +141,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--workers: expected a whole number >= 1, got {args.workers}")
     plan_path = resolve_plan_path(args.plan)
     notes: list[str] = []
+    if args.scheduler and args.workers is not None:
+        notes.append("--workers applies to the local cluster only; the --scheduler cluster has its own workers")
     setup = build_setup(args, plan_path, notes)
     out = Path(args.out)
     with output_folder(out) as stage:
