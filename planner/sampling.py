@@ -35,7 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.constraints import ConflictChecker
-from planner.timing import DurationTable, KinematicLimits, TimedPath, duration_table, ruckig_segment, time_parameterize
+from planner.roadmap import roadmap_search
+from planner.timing import DurationTable, KinematicLimits, duration_table, ruckig_segment
 from planner.validity import BatchChecker
 
 
@@ -59,8 +60,9 @@ class SamplingOptions:
     strict_search: bool = False  # RRT edges are exact Ruckig rest-to-rest segments (else linear, speed-bounded)
     direct_first: bool = True  # try straight / detour paths with a start delay before the RRT search
     direct_delay_step_s: float = 0.1  # start-delay resolution of the direct paths, s
-    direct_accept_slack_s: float = 1.0  # a direct path this close to the unobstructed time skips the RRT, s
-    direct_accept_ratio: float = 1.25  # (or within this factor of it), -
+    direct_accept_slack_s: float = 2.0  # a direct path this close to the unobstructed time skips the RRT, s
+    direct_accept_ratio: float = 2.0  # (or within this factor of it), -
+    dodge_m: float = 0.3  # dodge points of the waiting search beside / above / below start and goal, m
     detour_clearance_m: float = 0.15  # extra clearance of detour via points beyond an inflated obstacle, m
 
 
@@ -242,6 +244,13 @@ class _Planner:
         the straight line passes through, a rectangular bypass on either side of it (two via points
         ``detour_clearance_m`` outside the obstacle's horizontal half-diagonal) and a one-via bypass."""
         paths = [np.array([start, end])]
+        # lane changes at either end: fly level (start height, start lateral lane) and change lane
+        # at the goal, or change lane first and fly level in the goal's lane
+        if abs(end[2] - start[2]) > 0.05:
+            paths.append(np.array([start, [end[0], end[1], start[2]], end]))
+            paths.append(np.array([start, [start[0], start[1], end[2]], end]))
+            paths.append(np.array([start, [end[0], start[1], start[2]], end]))
+            paths.append(np.array([start, [start[0], end[1], end[2]], end]))
         d = end[:2] - start[:2]
         length = float(np.linalg.norm(d))
         if length < 1e-6 or not self.checker.boxes:
@@ -270,40 +279,50 @@ class _Planner:
                 paths.append(np.array([start, via(along, lateral + side * 2.0 * half), end]))
         return paths
 
-    def direct(self, start: np.ndarray, goal: GoalSpec) -> SpaceTimePath | None:
-        """The best (objective) of the :meth:`detours` paths flown at minimum time after the
-        shortest valid start delay (steps of ``direct_delay_step_s``); None when none is valid.
+    def roadmap_nodes(self, start: np.ndarray, end: np.ndarray) -> list[np.ndarray]:
+        """Nodes of the waiting search: start, the via points of :meth:`detours`, dodge points
+        ``dodge_m`` beside and above/below the start and the goal, goal (duplicates removed)."""
+        pts = [start]
+        for path in self.detours(start, end):
+            pts.extend(path[1:-1])
+        d = end[:2] - start[:2]
+        n = np.array([-d[1], d[0], 0.0]) / max(float(np.linalg.norm(d)), 1e-9)
+        zhat = np.array([0.0, 0.0, 1.0])
+        off = self.opts.dodge_m
+        for anchor in (start, end):
+            for v in (n, -n, zhat, -zhat):
+                pts.append(anchor + off * v)
+        pts.append(end)
+        out: list[np.ndarray] = []
+        for p in pts:
+            p = np.asarray(p, dtype=float)
+            if all(float(np.linalg.norm(p - q)) > 1e-6 for q in out) or p is pts[-1]:
+                out.append(p)
+        return [q for k, q in enumerate(out) if k == len(out) - 1 or float(np.linalg.norm(q - end)) > 1e-6]
 
-        The whole timed motion is checked in one vectorised call per delay; the arrival must be at
-        or after the earliest time from which holding the goal stays valid."""
+    def direct(self, start: np.ndarray, goal: GoalSpec) -> SpaceTimePath | None:
+        """Earliest arrival over a small roadmap with waits (:func:`planner.roadmap.roadmap_search`);
+        None when the goal cannot be reached that way (the RRT search follows)."""
         if goal.tail:
             return None
         end = np.asarray(goal.position_m, dtype=float)
         hold_from = self.earliest_hold_s(end, goal.hold_until_s)
         if not math.isfinite(hold_from):
             return None
-        dt_c = min(0.05, self.opts.check_step_m / self.limits.max_speed_mps)
-        hold = self.opts.hold_check_step_s
-        best: SpaceTimePath | None = None
-        for path in self.detours(start, end):
-            tp = time_parameterize(path, None, self.limits)
-            dur = tp.duration_s
-            tg = np.append(np.arange(0.0, dur, dt_c), dur)
-            p, _, _ = tp.sample(tg)
-            delay = max(0.0, hold_from - dur)
-            delay = math.ceil(delay / self.opts.direct_delay_step_s - 1e-9) * self.opts.direct_delay_step_s
-            while delay + dur <= self.horizon_s:
-                if best is not None and delay + dur >= best.info["objective_s"]:
-                    break
-                t_wait = np.arange(0.0, delay, hold)
-                xyz = np.vstack([np.repeat(start[None, :], t_wait.size, axis=0), p])
-                if self.batch.all_valid(xyz, np.concatenate([t_wait, tg + delay]), count=True):
-                    cost = delay + dur + self.opts.usage_weight_s * self._exposure_samples(p, tg + delay)
-                    if best is None or cost < best.info["objective_s"]:
-                        best = _direct_path(tp, delay, cost)
-                    break
-                delay += self.opts.direct_delay_step_s
-        return best
+        found = roadmap_search(
+            self.batch,
+            self.limits,
+            self.durations,
+            self.roadmap_nodes(np.asarray(start, dtype=float), end),
+            hold_from_s=hold_from,
+            horizon_s=self.horizon_s,
+            step_s=self.opts.direct_delay_step_s,
+            hold_step_s=self.opts.hold_check_step_s,
+        )
+        if found is None:
+            return None
+        pts, ts = found
+        return SpaceTimePath(pts, ts, {"rrt_vertices": 0, "direct": True, "objective_s": self.objective(pts, ts)})
 
     def _exposure_samples(self, p: np.ndarray, t: np.ndarray) -> float:
         """Predicted usage integral (usage x s) of a motion sampled at times ``t`` (M,), s."""
@@ -477,16 +496,6 @@ class _Planner:
         else:
             t_end = t
         return self.hold_ok_from(end_p, t_end, goal.hold_until_s, exclude=goal.tail_exempt)
-
-
-def _direct_path(tp: TimedPath, delay_s: float, cost_s: float) -> SpaceTimePath:
-    """A timed direct path as waypoints and times (a hold at the start for ``delay_s`` first)."""
-    pts = list(tp.knot_p_m)
-    ts = [float(t) + delay_s for t in tp.knot_t_s]
-    if delay_s > 0.0:
-        pts.insert(0, tp.knot_p_m[0])
-        ts.insert(0, 0.0)
-    return SpaceTimePath(np.array(pts), np.array(ts), {"rrt_vertices": 0, "direct": True, "objective_s": cost_s})
 
 
 def plan_space_time(
