@@ -28,6 +28,7 @@ from planfile import Plan, Scenario, VehicleTrajectory
 from planner.constraints import Track, build_checker
 from planner.errors import InfeasibleError
 from planner.ordering import priority_order, promote
+from planner.precheck import check_starts_and_goals, check_swarm_size
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
 from planner.timing import KinematicLimits, TimedPath, common_grid, min_segment_duration_s, time_parameterize
 from planner.validity import BatchChecker
@@ -230,6 +231,8 @@ def plan_scenario(
     options = options or SamplingOptions()
     t0 = time.perf_counter()
     mode = MODE_OF_METHOD[method]
+    check_swarm_size(scenario)
+    check_starts_and_goals(scenario, mode=mode)
     plan = _sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
     if mode == "downwash":
         # safety net: the timed plan is re-checked per vehicle, but the verifier is independent

@@ -279,16 +279,16 @@ class _Planner:
                 paths.append(np.array([start, via(along, lateral + side * 2.0 * half), end]))
         return paths
 
-    def roadmap_nodes(self, start: np.ndarray, end: np.ndarray) -> list[np.ndarray]:
+    def roadmap_nodes(self, start: np.ndarray, end: np.ndarray, *, scale: float = 1.0) -> list[np.ndarray]:
         """Nodes of the waiting search: start, the via points of :meth:`detours`, dodge points
-        ``dodge_m`` beside and above/below the start and the goal, goal (duplicates removed)."""
+        ``scale x dodge_m`` beside and above/below the start and the goal, goal (duplicates removed)."""
         pts = [start]
         for path in self.detours(start, end):
             pts.extend(path[1:-1])
         d = end[:2] - start[:2]
         n = np.array([-d[1], d[0], 0.0]) / max(float(np.linalg.norm(d)), 1e-9)
         zhat = np.array([0.0, 0.0, 1.0])
-        off = self.opts.dodge_m
+        off = self.opts.dodge_m * scale
         for anchor in (start, end):
             for v in (n, -n, zhat, -zhat):
                 pts.append(anchor + off * v)
@@ -309,16 +309,22 @@ class _Planner:
         hold_from = self.earliest_hold_s(end, goal.hold_until_s)
         if not math.isfinite(hold_from):
             return None
-        found = roadmap_search(
-            self.batch,
-            self.limits,
-            self.durations,
-            self.roadmap_nodes(np.asarray(start, dtype=float), end),
-            hold_from_s=hold_from,
-            horizon_s=self.horizon_s,
-            step_s=self.opts.direct_delay_step_s,
-            hold_step_s=self.opts.hold_check_step_s,
-        )
+        start = np.asarray(start, dtype=float)
+        found = None
+        for scale, wait_s in ((1.0, 8.0), (2.0, 20.0)):  # a wider, more patient second try
+            found = roadmap_search(
+                self.batch,
+                self.limits,
+                self.durations,
+                self.roadmap_nodes(start, end, scale=scale),
+                hold_from_s=hold_from,
+                horizon_s=self.horizon_s,
+                step_s=self.opts.direct_delay_step_s,
+                hold_step_s=self.opts.hold_check_step_s,
+                max_wait_s=wait_s,
+            )
+            if found is not None:
+                break
         if found is None:
             return None
         pts, ts = found
