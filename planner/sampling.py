@@ -285,6 +285,8 @@ class _Planner:
         pts = [start]
         for path in self.detours(start, end):
             pts.extend(path[1:-1])
+        for z in (start[2], end[2]):  # axis-aligned corners (corridors, junctions)
+            pts.extend([np.array([start[0], end[1], z]), np.array([end[0], start[1], z])])
         d = end[:2] - start[:2]
         n = np.array([-d[1], d[0], 0.0]) / max(float(np.linalg.norm(d)), 1e-9)
         zhat = np.array([0.0, 0.0, 1.0])
