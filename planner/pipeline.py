@@ -30,7 +30,14 @@ from planner.errors import InfeasibleError
 from planner.ordering import priority_order, promote
 from planner.precheck import check_starts_and_goals, check_swarm_size
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
-from planner.timing import KinematicLimits, TimedPath, common_grid, min_segment_duration_s, time_parameterize
+from planner.timing import (
+    KinematicLimits,
+    TimedPath,
+    common_grid,
+    min_segment_duration_s,
+    time_parameterize,
+    time_parameterize_through,
+)
 from planner.validity import BatchChecker
 
 METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
@@ -149,6 +156,10 @@ def _plan_order(
                 tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
             else:
                 tp = time_parameterize(sp.waypoints_m, sp.times_s, limits)
+            if sp.info.get("direct") and not goal.tail:  # pass through the roadmap's corners if still valid
+                smooth = time_parameterize_through(sp.waypoints_m, sp.times_s, limits)
+                if smooth.duration_s < tp.duration_s and _recheck(nominal, smooth, goal, hold_until) is None:
+                    tp = smooth
             problem = _recheck(nominal, tp, goal, hold_until)
             if problem is None:
                 accepted = tp
