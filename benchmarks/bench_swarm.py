@@ -30,8 +30,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _run(cmd: list[str], timeout_s: float) -> tuple[float, int, float, str]:
-    """Wall time (s), exit code, child peak RSS (MB) and stdout of one subprocess."""
+def _run(cmd: list[str], timeout_s: float) -> tuple[float, int, float, str, float]:
+    """Wall time (s), exit code, child peak RSS (MB), stdout and CPU time (user + system, s) of
+    one subprocess (CPU time shows the work when the shared machine is loaded)."""
     t0 = time.perf_counter()
     with tempfile.TemporaryFile() as out:
         proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.DEVNULL, cwd=ROOT)
@@ -49,14 +50,23 @@ def _run(cmd: list[str], timeout_s: float) -> tuple[float, int, float, str]:
         out.seek(0)
         text = out.read().decode(errors="replace")
     code = os.waitstatus_to_exitcode(status)
-    return wall, code, usage.ru_maxrss / 1024.0, text  # ru_maxrss is in KB on Linux
+    cpu = usage.ru_utime + usage.ru_stime
+    return wall, code, usage.ru_maxrss / 1024.0, text, cpu  # ru_maxrss is in KB on Linux
 
 
 def _plan(scenario: Path, out: Path, method: str, timeout_s: float, lower_bound_s: float) -> dict:
     cmd = [sys.executable, "-m", "proxplan.cli", "plan", str(scenario), "--out", str(out)]
     cmd += ["--method", method, "--seed", "0", "--no-plot", "--json"]
-    wall, code, rss_mb, text = _run(cmd, timeout_s)
-    row: dict = {"wall_s": wall, "exit": code, "peak_mb": rss_mb, "makespan_s": None, "ratio": None, "verify": "-"}
+    wall, code, rss_mb, text, cpu = _run(cmd, timeout_s)
+    row: dict = {
+        "wall_s": wall,
+        "cpu_s": cpu,
+        "exit": code,
+        "peak_mb": rss_mb,
+        "makespan_s": None,
+        "ratio": None,
+        "verify": "-",
+    }
     if code != 0:
         row["verify"] = "timeout" if wall >= timeout_s else f"exit {code}"
         return row
@@ -86,10 +96,12 @@ def main() -> int:
     from planner.formations import formation_change
     from planner.ordering import lower_bound_makespan_s
 
-    base_wall, _, base_mb, _ = _run([sys.executable, "-c", "import planner.pipeline, verify, ompl.geometric"], 120)
-    print(f"baseline (interpreter + planner imports): {base_wall:.2f} s, {base_mb:.0f} MB")
+    base_wall, _, base_mb, _, base_cpu = _run(
+        [sys.executable, "-c", "import planner.pipeline, verify, ompl.geometric"], 120
+    )
+    print(f"baseline (interpreter + planner imports): {base_wall:.2f} s wall, {base_cpu:.2f} s CPU, {base_mb:.0f} MB")
     methods = ["sampling"] + (["optimized"] if args.optimized else [])
-    head = f"{'N':>4s} {'method':9s} {'wall_s':>7s} {'x base':>7s} {'makespan':>8s} {'LB_s':>5s} {'ms/LB':>6s} {'peak_MB':>7s} verify"
+    head = f"{'N':>4s} {'method':9s} {'wall_s':>7s} {'x base':>7s} {'cpu_s':>6s} {'makespan':>8s} {'LB_s':>5s} {'ms/LB':>6s} {'peak_MB':>7s} verify"
     print(head)
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.n:
@@ -101,7 +113,7 @@ def main() -> int:
                 ms = "-" if r["makespan_s"] is None else f"{r['makespan_s']:.2f}"
                 ratio = "-" if r["ratio"] is None else f"{r['ratio']:.2f}"
                 print(
-                    f"{n:4d} {method:9s} {r['wall_s']:7.1f} {r['wall_s'] / base_wall:7.1f} {ms:>8s} {lb:5.2f} "
+                    f"{n:4d} {method:9s} {r['wall_s']:7.1f} {r['wall_s'] / base_wall:7.1f} {r['cpu_s']:6.1f} {ms:>8s} {lb:5.2f} "
                     f"{ratio:>6s} {r['peak_mb']:7.0f} {r['verify']}",
                     flush=True,
                 )

@@ -60,8 +60,8 @@ class SamplingOptions:
     strict_search: bool = False  # RRT edges are exact Ruckig rest-to-rest segments (else linear, speed-bounded)
     direct_first: bool = True  # try straight / detour paths with a start delay before the RRT search
     direct_delay_step_s: float = 0.1  # start-delay resolution of the direct paths, s
-    direct_accept_slack_s: float = 2.0  # a direct path this close to the unobstructed time skips the RRT, s
-    direct_accept_ratio: float = 2.0  # (or within this factor of it), -
+    direct_accept_slack_s: float = 3.0  # a direct path this close to the unobstructed time skips the RRT, s
+    direct_accept_ratio: float = 3.0  # (or within this factor of it), -
     dodge_m: float = 0.3  # dodge points of the waiting search beside / above / below start and goal, m
     detour_clearance_m: float = 0.15  # extra clearance of detour via points beyond an inflated obstacle, m
 

@@ -37,10 +37,9 @@ class BatchChecker:
     until_s: np.ndarray  # (V,) presence ends (incl. the rule's margin), s
     sep2: np.ndarray  # (V,) squared separation, m^2
     ell2: np.ndarray  # (V,) squared ellipsoid radius, m^2 (nan: no ellipsoid rule)
-    cut_from: np.ndarray  # (V, L) r_cut(dz) when the other is above (bracket maximum), m; 0 beyond
-    cut_on: np.ndarray  # (V, L) r_cut(dz) when the other is below, m
-    from_step: np.ndarray  # (V,) dz step of cut_from, m (inf: no table)
-    on_step: np.ndarray  # (V,) dz step of cut_on, m
+    cut_both: np.ndarray  # (2V, L): rows 0..V-1 r_cut(dz) (bracket maximum) of the other above us,
+    # rows V..2V-1 ours on the other below, m; 0 beyond a table (last column always 0)
+    step_both: np.ndarray  # (2V,) dz step of each row, m (inf: no table)
     margin: np.ndarray  # (V,) margin added to a positive cut-off radius, m
     reach: np.ndarray  # (V,) largest horizontal distance at which the vehicle can conflict, m
     box_lo: np.ndarray  # (V, B, 2) x/y minimum of the track per time bin, m
@@ -83,6 +82,7 @@ class BatchChecker:
         tabs_from = [table(r, "cut_from_other") for r in rules]
         tabs_on = [table(r, "cut_on_other") for r in rules]
         width = max([t[0].size for t in tabs_from + tabs_on] + [1])
+        width += 1  # a last column of zeros: lookups beyond a table give 0
         cut_from = np.zeros((v, width))
         cut_on = np.zeros((v, width))
         for i in range(v):
@@ -112,10 +112,8 @@ class BatchChecker:
             until_s=np.array([r.track.until_s + r.until_margin_s for r in rules], dtype=float),
             sep2=sep * sep,
             ell2=ell * ell,
-            cut_from=cut_from,
-            cut_on=cut_on,
-            from_step=np.array([t[1] for t in tabs_from], dtype=float),
-            on_step=np.array([t[1] for t in tabs_on], dtype=float),
+            cut_both=np.vstack([cut_from, cut_on]),
+            step_both=np.array([t[1] for t in tabs_from + tabs_on], dtype=float),
             margin=margin,
             reach=reach,
             box_lo=box_lo,
@@ -177,7 +175,6 @@ class BatchChecker:
         p = self.pos[idx]  # (v, K, 3)
         a = p[:, k0]
         other = a + f * (p[:, k1] - a)  # (v, M, 3), as Track.at
-        other = np.where((u >= kk - 1)[None, :, None], p[:, -1:, :], other)
         dx = x[None, :] - other[..., 0]
         dy = y[None, :] - other[..., 1]
         dz = z[None, :] - other[..., 2]
@@ -188,13 +185,16 @@ class BatchChecker:
         has_ell = ~np.isnan(ell2)
         with np.errstate(invalid="ignore"):
             ell = active & has_ell & (r2 / ell2 + dz * dz / (9.0 * ell2) < 1.0)
-        down = active & ~has_ell
-        rc_from = _lookup(self.cut_from[idx], self.from_step[idx], -dz)
-        rc_from = np.where(rc_from > 0.0, rc_from + self.margin[idx, None], 0.0)
-        below = down & (dz < 0.0) & (r2 < rc_from * rc_from)
-        rc_on = _lookup(self.cut_on[idx], self.on_step[idx], dz)
-        rc_on = np.where(rc_on > 0.0, rc_on + self.margin[idx, None], 0.0)
-        above = down & (dz > 0.0) & (r2 < rc_on * rc_on)
+        # one cut-off lookup: the other's table on us when it is above (dz < 0), ours on it when below
+        up = dz > 0.0
+        row = idx[:, None] + len(self.names) * up  # (v, M) rows of cut_both
+        width = self.cut_both.shape[1]
+        k = np.minimum(np.abs(dz) / self.step_both[row], width - 1).astype(int)
+        rc = self.cut_both.ravel()[row * width + k]
+        rc = np.where(rc > 0.0, rc + self.margin[idx, None], 0.0)
+        down = active & ~has_ell & (dz != 0.0) & (r2 < rc * rc)
+        below = down & ~up
+        above = down & up
         kind = np.where(sep, 0, np.where(ell | below, 1, np.where(above, 2, -1)))  # (v, M)
         hit = kind >= 0
         anyhit = hit.any(axis=0)
@@ -245,13 +245,3 @@ class BatchChecker:
 
     def all_valid(self, xyz: np.ndarray, t: np.ndarray, *, exclude: str | None = None, count: bool = False) -> bool:
         return self.first_conflict(xyz, t, exclude=exclude, count=count)[0] < 0
-
-
-def _lookup(pair: np.ndarray, step: np.ndarray, dz: np.ndarray) -> np.ndarray:
-    """``CutoffTable.lookup`` on (v, M) separations with per-row tables ``pair`` (v, L), m."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k = np.floor(np.where(dz > 0.0, dz, 0.0) / step[:, None])
-    k = np.where(np.isfinite(k), k, pair.shape[1] - 1)
-    k = np.clip(k, 0, pair.shape[1] - 1).astype(int)
-    out = np.take_along_axis(pair, k, axis=1)
-    return np.where(dz > 0.0, out, 0.0)
