@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "proxplan.commands.simulate",  # simulate
     "proxplan.commands.view",  # view
     "proxplan.commands.identify",  # identify
+    "proxplan.commands.export",  # export
 )
 
 
