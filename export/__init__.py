@@ -9,6 +9,7 @@ from export.crazyflie import (
     ExportedPart,
     export_crazyflie,
     export_vehicle,
+    vehicle_limits,
 )
 from export.polyfit import PieceFit, adaptive_fit, deviation, fit_pieces
 from export.setpoints import DEFAULT_RATE_HZ, SETPOINT_COLUMNS, export_setpoints, feedforward_wrench, setpoint_times
@@ -29,4 +30,5 @@ __all__ = [
     "feedforward_wrench",
     "fit_pieces",
     "setpoint_times",
+    "vehicle_limits",
 ]

@@ -16,7 +16,9 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from export.polyfit import PieceFit, adaptive_fit, fit_ok
+import numpy as np
+
+from export.polyfit import PieceFit, adaptive_fit, fit_ok, fit_uniform
 from fileio import atomic_write_text
 from planfile import (
     CRAZYFLIE_MAX_PIECES,
@@ -38,20 +40,21 @@ SPLIT_PIECE_OFFSET = 16  # piece offset of odd-numbered parts
 
 
 class DoesNotFitError(Exception):
-    """A vehicle's trajectory needs more than the firmware's pieces within the tolerance."""
+    """A vehicle's trajectory needs more than the firmware's pieces within the tolerance:
+    ``pieces`` the adaptive fit needed (or gave up at), ``deviation_m`` (m) and ``kinematic_ratio``
+    of the best :data:`planfile.CRAZYFLIE_MAX_PIECES`-piece fit."""
 
-    def __init__(self, vehicle: str, fit: PieceFit, tolerance_m: float) -> None:
-        self.vehicle, self.pieces = vehicle, fit.trajectory.n_pieces
-        self.deviation_m, self.tolerance_m = fit.max_deviation_m, tolerance_m
-        self.kinematic_ratio = fit.max_kinematic_ratio
-        kin = (
-            f" and exceed its speed/acceleration/jerk limits {self.kinematic_ratio:.2f}x"
-            if self.kinematic_ratio > 1.0
-            else ""
-        )
+    def __init__(self, vehicle: str, needed: PieceFit, at_most: PieceFit, tolerance_m: float) -> None:
+        self.vehicle, self.pieces = vehicle, needed.trajectory.n_pieces
+        self.deviation_m, self.tolerance_m = at_most.max_deviation_m, tolerance_m
+        self.kinematic_ratio = at_most.max_kinematic_ratio
+        found = "needs" if fit_ok(needed, tolerance_m) else "still misses with"
+        over = 100 * (self.kinematic_ratio - 1)
+        kin = f" and exceeds its speed/acceleration/jerk allowance by {over:.1f} %" if over > 0 else ""
         super().__init__(
-            f"vehicle '{vehicle}': {self.pieces} pieces (the Crazyflie holds at most {CRAZYFLIE_MAX_PIECES}) still "
-            f"deviate {1000 * self.deviation_m:.1f} mm from the plan (tolerance {1000 * tolerance_m:.1f} mm){kin}; "
+            f"vehicle '{vehicle}' {found} {self.pieces} pieces to stay within {1000 * tolerance_m:.1f} mm of the "
+            f"plan and its limits; with {at_most.trajectory.n_pieces} pieces (the Crazyflie holds at most "
+            f"{CRAZYFLIE_MAX_PIECES}) it deviates {1000 * self.deviation_m:.1f} mm{kin}; "
             "re-run with --split-time to cut it into several uploads in time"
         )
 
@@ -67,16 +70,20 @@ class ExportedPart:
     piece_offset: int = 0
 
 
-def _split(tr: VehicleTrajectory, fit: PieceFit, name: str, tolerance_m: float) -> list[ExportedPart]:
-    """Cut an unlimited fit into consecutive uploads of <= SPLIT_PART_PIECES pieces (same polynomials)."""
-    traj = fit.trajectory
-    parts = []
-    for k, first in enumerate(range(0, traj.n_pieces, SPLIT_PART_PIECES)):
-        sl = slice(first, first + SPLIT_PART_PIECES)
-        part = PolynomialTrajectory(traj.durations_s[sl], traj.coef[sl], float(traj.joints_s[first]))
-        dev = float(fit.piece_deviation_m[sl].max())
-        parts.append(ExportedPart(f"{name}_part{k + 1}.csv", part, dev, k % 2, (k % 2) * SPLIT_PIECE_OFFSET))
-    return parts
+def _split(
+    tr: VehicleTrajectory, limits: tuple[float, float, float] | None, tolerance_m: float, t0_s: float, t1_s: float
+) -> list[PieceFit]:
+    """Consecutive fits of <= SPLIT_PART_PIECES pieces covering [t0_s, t1_s], s: a span that does not
+    fit is halved at a plan sample time. Every part starts and ends in the plan's position,
+    velocity and acceleration there, so consecutive uploads join C2."""
+    fit = adaptive_fit(tr, tolerance_m=tolerance_m, max_pieces=SPLIT_PART_PIECES, t0_s=t0_s, t1_s=t1_s, limits=limits)
+    if fit_ok(fit, tolerance_m, SPLIT_PART_PIECES):
+        return [fit]
+    inner = tr.t_s[(tr.t_s > t0_s + 1e-9) & (tr.t_s < t1_s - 1e-9)]
+    if inner.size == 0:
+        raise DoesNotFitError(tr.name, fit, fit, tolerance_m)
+    middle = float(inner[np.argmin(np.abs(inner - 0.5 * (t0_s + t1_s)))])
+    return _split(tr, limits, tolerance_m, t0_s, middle) + _split(tr, limits, tolerance_m, middle, t1_s)
 
 
 def export_vehicle(
@@ -94,18 +101,29 @@ def export_vehicle(
     fit = adaptive_fit(tr, tolerance_m=tolerance_m, max_pieces=CRAZYFLIE_MAX_PIECES, t0_s=t0, t1_s=t1, limits=limits)
     if fit_ok(fit, tolerance_m, CRAZYFLIE_MAX_PIECES):
         return [ExportedPart(f"{tr.name}.csv", fit.trajectory, fit.max_deviation_m)]
+    uniform = fit_uniform(tr, CRAZYFLIE_MAX_PIECES, limits, tolerance_m)  # sometimes beats the greedy
+    if fit_ok(uniform, tolerance_m):
+        return [ExportedPart(f"{tr.name}.csv", uniform.trajectory, uniform.max_deviation_m)]
     if not split_time:
-        raise DoesNotFitError(tr.name, fit, tolerance_m)
-    fit = adaptive_fit(tr, tolerance_m=tolerance_m, max_pieces=None, t0_s=t0, t1_s=t1, limits=limits)
-    if not fit_ok(fit, tolerance_m):  # pieces hit the shortest allowed duration
-        raise DoesNotFitError(tr.name, fit, tolerance_m)
-    return _split(tr, fit, tr.name, tolerance_m)
+        raise DoesNotFitError(tr.name, fit, uniform, tolerance_m)
+    parts = []
+    for k, part in enumerate(_split(tr, limits, tolerance_m, t0, t1)):
+        parts.append(
+            ExportedPart(
+                f"{tr.name}_part{k + 1}.csv", part.trajectory, part.max_deviation_m, k % 2, (k % 2) * SPLIT_PIECE_OFFSET
+            )
+        )
+    return parts
 
 
-def vehicle_limits(scenario: Scenario, name: str) -> tuple[float, float, float]:
-    """(speed m/s, acceleration m/s^2, jerk m/s^3) limits the verifier checks vehicle ``name`` against."""
-    task = scenario.vehicles[name]
-    return (task.max_speed_mps, task.max_accel_mps2, task.max_jerk_mps3)
+def vehicle_limits(plan: Plan, scenario: Scenario | None, name: str) -> tuple[float, float, float]:
+    """(speed m/s, acceleration m/s^2, jerk m/s^3) limits the verifier checks vehicle ``name``
+    against: its scenario task's, else its vehicle type's."""
+    if scenario is not None and name in scenario.vehicles:
+        task = scenario.vehicles[name]
+        return (task.max_speed_mps, task.max_accel_mps2, task.max_jerk_mps3)
+    lim = plan.vehicles[name].vehicle.kinematic_limits
+    return (lim.max_speed_mps, lim.max_accel_mps2, lim.max_jerk_mps3)
 
 
 def export_crazyflie(
@@ -117,13 +135,14 @@ def export_crazyflie(
     split_time: bool = False,
     progress=None,
 ) -> dict:
-    """Write every vehicle's CSV file(s) (kinematic limits from ``scenario``, none without one) and :data:`planfile.EXPORT_MANIFEST` into ``folder``;
+    """Write every vehicle's CSV file(s) (kinematic limits from ``scenario``, else from the vehicle types) and :data:`planfile.EXPORT_MANIFEST` into ``folder``;
     returns ``{vehicle: {type, files: [{file, pieces, max_deviation_m, start_time_s, ...}]}}``."""
     folder = Path(folder)
     parts_of = {}
     for name, tr in plan.vehicles.items():
-        limits = vehicle_limits(scenario, name) if scenario is not None and name in scenario.vehicles else None
-        parts_of[name] = export_vehicle(tr, limits=limits, tolerance_m=tolerance_m, split_time=split_time)
+        parts_of[name] = export_vehicle(
+            tr, limits=vehicle_limits(plan, scenario, name), tolerance_m=tolerance_m, split_time=split_time
+        )
         if progress is not None:
             progress(name)
     summary = {}

@@ -31,7 +31,8 @@ FIT_SAMPLES = 48  # least-squares points per piece
 CHECK_STEP_S = 0.002  # dense check grid, s
 JERK_WEIGHTS = (1e-8, 1e-9, 3e-8)  # weights of the integrated squared jerk tried in turn, m^2 per (m/s^3)^2 s
 DERIVATIVE_WEIGHTS = (1.0, 1e-2, 1e-4)  # position, velocity, acceleration: m^2 per (m/s)^2, per (m/s^2)^2
-SEARCH_FACTOR = 3  # the split phase may use up to this many times the allowed pieces before merging
+MERGE_PASSES = 2  # passes over the joints trying to drop each
+SEARCH_FACTOR = 2  # the split phase may use up to this many times the allowed pieces before merging
 MIN_PIECE_S = 0.02  # pieces are never split below this duration, s
 KINEMATIC_MARGINS = (1.015, 1.015, 1.08)  # allowed excess of speed, acceleration, jerk limits (verify: 2, 2, 10 %)
 
@@ -170,8 +171,8 @@ class FitTarget:
             self.tj = np.arange(k0, k1 + 1) * self.jerk_step_s
             if self.tj.size == 0:
                 self.tj = np.array([t0_s])
-            a_j = tr.sample(np.concatenate([self.tj, self.tj + self.jerk_step_s]))[2]
-            self.allowed_j = np.maximum(self._jerk(a_j), margin[2])
+            self.a_j = tr.sample(np.concatenate([self.tj, self.tj + self.jerk_step_s]))[2]
+            self.allowed_j = np.maximum(self._jerk(self.a_j), margin[2])
 
     def _jerk(self, a_both: np.ndarray) -> np.ndarray:
         n = self.tj.size
@@ -191,7 +192,8 @@ class FitTarget:
             np.maximum.at(ratio, piece, (va / self.allowed_va).max(axis=0))
             both = np.concatenate([self.tj, self.tj + self.jerk_step_s])
             a_j = traj.evaluate(both, 2)[:, :3]
-            a_j[both > traj.end_time_s + 1e-9] = 0.0  # at rest after the end, as re-read
+            after = both > traj.end_time_s + 1e-9  # the plan's (rest, or the next upload, which starts in its state)
+            a_j[after] = self.a_j[after]
             piece_j = np.clip(np.searchsorted(traj.joints_s, self.tj, side="right") - 1, 0, traj.n_pieces - 1)
             np.maximum.at(ratio, piece_j, self._jerk(a_j) / self.allowed_j)
         return PieceFit(traj, float(per_piece.max()), per_piece, ratio)
@@ -261,10 +263,9 @@ def _refine(tr: VehicleTrajectory, target: FitTarget, tolerance_m: float, cap: i
         inside = (snapped > breaks[:-1][split] + MIN_PIECE_S) & (snapped < breaks[1:][split] - MIN_PIECE_S)
         breaks = np.sort(np.concatenate([breaks, np.where(inside, snapped, middles)]))
         best = target.measure(fit_pieces(tr, breaks, weight))
-    if not fit_ok(best, tolerance_m):
+    if not fit_ok(best, tolerance_m) or breaks.size - 1 > SEARCH_FACTOR * cap:
         return best
-    changed = True
-    while changed:  # merge: drop joints that are not needed, until a pass drops none
+    for _ in range(MERGE_PASSES):  # merge: drop joints that are not needed
         changed = False
         i = 1
         while i < breaks.size - 1:
@@ -274,6 +275,8 @@ def _refine(tr: VehicleTrajectory, target: FitTarget, tolerance_m: float, cap: i
                 breaks, best, changed = trial, fit, True
             else:
                 i += 1
+        if not changed:
+            break
     return best
 
 
@@ -288,3 +291,12 @@ def fit_ok(fit: PieceFit, tolerance_m: float, max_pieces: int | None = None) -> 
     """Within the position tolerance and the kinematic allowance everywhere (and ``max_pieces``)."""
     within = max_pieces is None or fit.trajectory.n_pieces <= max_pieces
     return within and bool(fit.score(tolerance_m).max() <= 1.0)
+
+
+def fit_uniform(
+    tr: VehicleTrajectory, pieces: int, limits: tuple[float, float, float] | None, tolerance_m: float
+) -> PieceFit:
+    """The fit on ``pieces`` equal pieces over the whole plan (what that many pieces reach)."""
+    t0, t1 = float(tr.t_s[0]), float(tr.t_s[-1])
+    target = FitTarget(tr, t0, t1, limits, tolerance_m)
+    return target.measure(fit_pieces(tr, np.linspace(t0, t1, pieces + 1)))

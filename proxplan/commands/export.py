@@ -68,7 +68,11 @@ def run(args: argparse.Namespace) -> int:
     if args.format == "crazyflie" and args.rate_hz is not None:
         raise UserError("--rate-hz: applies to --format csv only")
     plan = read_plan(args.plan)
-    scenario = scenario_of_plan(plan, label=str(args.plan))
+    has_scenario = plan.scenario_spec is not None or bool(plan.scenario_file)
+    if args.format == "csv" or has_scenario:  # the feed-forward needs it; crazyflie uses its limits
+        scenario = scenario_of_plan(plan, label=str(args.plan))
+    else:
+        scenario = None
     out = Path(args.out)
     notes: list[str] = []
     with output_folder(out) as stage:
@@ -111,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
             ]
             manifest: str | None = str(out / "export.json")
         else:
+            assert scenario is not None
             rows, notes = export_setpoints(plan, scenario, stage, rate_hz=rate)
             files = [
                 {
