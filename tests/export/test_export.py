@@ -217,3 +217,30 @@ def test_cli_bad_input(exported, tmp_path):
     res = run_proxplan("export", tmp_path / "nan", "--format", "crazyflie", "--out", tmp_path / "y")
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and "not finite" in res.stderr
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+def test_cli_json_names_files_pieces_and_deviation(exported, tmp_path):
+    plan, _ = exported["package_handoff"]
+    write_plan(plan, tmp_path / "plan")
+    out = tmp_path / "cf"
+    res = run_proxplan("export", tmp_path / "plan", "--format", "crazyflie", "--out", out, "--json")
+    assert res.returncode == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["fits"] and Path(doc["manifest"]).is_file()
+    assert {f["vehicle"] for f in doc["files"]} == set(plan.vehicles)
+    for f in doc["files"]:
+        assert f["vehicle"] in Path(f["file"]).name and Path(f["file"]).is_file()
+        assert 1 <= f["pieces"] <= CRAZYFLIE_MAX_PIECES and 0.0 <= f["max_deviation_m"] <= 0.005
+        assert read_uav_csv(f["file"]).n_pieces == f["pieces"]
+
+
+def test_malformed_uav_csv_is_a_user_error(tmp_path):
+    from fileio import UserError
+
+    bad = tmp_path / "bad.csv"
+    bad.write_text("Duration,x^0\n1.0,2.0\n")
+    with pytest.raises(UserError, match="line 2"):
+        read_uav_csv(bad)
+    bad.write_text("Duration," + ",".join(["0"] * 32) + "\n-1," + ",".join(["0"] * 32) + "\n")
+    with pytest.raises(UserError, match="Duration"):
+        read_uav_csv(bad)
