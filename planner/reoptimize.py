@@ -275,19 +275,21 @@ class _Reoptimizer:
         self.solves = self.iterations = 0
         self.solve_time = 0.0
 
-    def fn(self, source: str, target: str):
+    def _per_type_pair(self, what: str, source: str, target: str):
+        """The wrench function (``what`` = "fn") or table extent ("extent") of a pair, built once
+        per pair of vehicle types."""
         s, t = self.sc.vehicles[source].vehicle, self.sc.vehicles[target].vehicle
+        cache, provider = (self.cache, self.provider) if what == "fn" else (self.extent_cache, self.extent_provider)
         key = (id(s), id(t))
-        if key not in self.cache:
-            self.cache[key] = self.provider(s, t, self.sc)
-        return self.cache[key]
+        if key not in cache:
+            cache[key] = provider(s, t, self.sc)
+        return cache[key]
+
+    def fn(self, source: str, target: str):
+        return self._per_type_pair("fn", source, target)
 
     def extent(self, source: str, target: str):
-        s, t = self.sc.vehicles[source].vehicle, self.sc.vehicles[target].vehicle
-        key = (id(s), id(t))
-        if key not in self.extent_cache:
-            self.extent_cache[key] = self.extent_provider(s, t, self.sc)
-        return self.extent_cache[key]
+        return self._per_type_pair("extent", source, target)
 
     def goal_free_s(self, name: str) -> float:
         """Earliest time from which ``name`` resting at its goal breaks no pair rule, s."""
