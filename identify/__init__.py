@@ -3,6 +3,7 @@ the disturbance on every vehicle (S0-11, S0-13), calibrate the model's parameter
 try candidate effects, and report the error before and after on test flights.
 """
 
+from identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
 from identify.evaluate import EvaluationResult, evaluate_model, saved_model
 from identify.evaluate_report import write_evaluation_report
 from identify.flightlog import (
@@ -23,6 +24,8 @@ from identify.report import write_report
 from identify.synthetic_logs import synthetic_logs
 
 __all__ = [
+    "VEHICLE_PARAMETERS",
+    "apply_vehicle_parameters",
     "NEURAL_SWARM_COLUMNS",
     "NEURAL_SWARM_FILE_COLUMNS",
     "EvaluationResult",

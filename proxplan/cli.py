@@ -26,6 +26,8 @@ COMMAND_MODULES = (
     "proxplan.commands.view",  # view
     "proxplan.commands.identify",  # identify
     "proxplan.commands.evaluate",  # evaluate
+    "proxplan.commands.certify",  # certify
+    "proxplan.commands.export",  # export
 )
 
 
