@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from proxplan.cli_args import seed_argument
+from proxplan.cli_args import add_model_argument, load_model_argument, seed_argument
 
 
 def register(subparsers) -> None:
@@ -34,6 +34,11 @@ def register(subparsers) -> None:
         metavar="FILE.yaml",
         help="fly these vehicle parameters instead of the plan's (vehicles YAML; types matched by name)",
     )
+    add_model_argument(
+        p,
+        "the simulated world: its vehicles fly (types matched by name) and all its effects act, in place of "
+        "the plan's model (--truth adds to it)",
+    )
     p.add_argument(
         "--seed", type=seed_argument, default=0, help="random seed of the sensor noise, 0..2^31-1 (default 0)"
     )
@@ -46,6 +51,11 @@ def register(subparsers) -> None:
         help="add integral action on the position error, k_i / k_p in 1/s, as the seed's PID "
              "(default 0: RotorPy's PD law, which keeps a steady error under a steady disturbance)",
     )  # fmt: skip
+    p.add_argument(
+        "--certify-run", type=int, default=None, metavar="K",
+        help="re-fly run K of 'proxplan certify' with the same draws (same --seed, --truth, --vehicles; "
+             "certify's simulator settings)",
+    )  # fmt: skip
     p.set_defaults(func=run)
 
 
@@ -55,8 +65,10 @@ def run(args: argparse.Namespace) -> int:
     from fileio import UserError, atomic_write_bytes, output_folder
     from flightsim import (
         SimulationOptions,
-        TruthSpec,
         load_truth_file,
+        merge_truth,
+        model_truth,
+        plan_truth,
         plot_errors,
         simulate_plan,
         summary_dict,
@@ -77,12 +89,18 @@ def run(args: argparse.Namespace) -> int:
     if args.settle < 0:
         raise UserError(f"--settle: expected a non-negative number of seconds, got {args.settle}")
     plan = read_plan(plan_path)
-    truth = load_truth_file(args.truth) if args.truth else TruthSpec()
+    extra = load_truth_file(args.truth) if args.truth else None
+    calibrated = load_model_argument(args, "simulate")
     custom = None
+    if calibrated is not None:  # the world of the calibrated model, --truth adds to it
+        truth = merge_truth(model_truth(calibrated.effects, calibrated.options.field_form), extra)
+        custom = dict(calibrated.vehicles)
+    else:  # the world the plan was made for (its calibrated effects too), --truth adds to it
+        truth = merge_truth(plan_truth(plan), extra)
     if args.vehicles:
         from physics import load_vehicle_file
 
-        custom = load_vehicle_file(args.vehicles)
+        custom = {**(custom or {}), **load_vehicle_file(args.vehicles)}
     options = SimulationOptions(
         physics_dt_s=args.physics_dt,
         log_dt_s=args.log_dt,
@@ -93,9 +111,16 @@ def run(args: argparse.Namespace) -> int:
     )
     out = Path(args.out)
     with output_folder(out) as stage:  # every output lands together, or none
-        result = simulate_plan(
-            plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty()
-        )
+        certify_run = None
+        if args.certify_run is not None:
+            from proxplan.commands.certify import refly
+
+            certify_run = refly(args, plan_path)
+            result = certify_run.pop("_result")
+        else:
+            result = simulate_plan(
+                plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty()
+            )
         plot_errors(result, stage / "tracking_error.png")
         plot = out / "tracking_error.png"
         manifest = None
@@ -117,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
             plot_path=str(plot),
             manifest_path=None if manifest is None else str(manifest),
         )
+        if certify_run is not None:
+            summary["certify_run"] = certify_run
         atomic_write_bytes(stage / "summary.json", json.dumps(summary, indent=1).encode())
     completed = summary["status"] == "complete"
     if not completed:
