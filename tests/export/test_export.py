@@ -100,7 +100,7 @@ def test_verify_cli_on_export_and_on_corrupted_copy(exported, tmp_path):
     _, folder = exported["battery_swap"]
     ok = run_proxplan("verify", folder, "--json")
     assert ok.returncode == 0, ok.stderr
-    assert json.loads(ok.stdout)["passed"]
+    assert json.loads(ok.stdout)["passed"] and json.loads(ok.stdout)["exported"]
     bad = tmp_path / "bad"
     bad.mkdir()
     for f in folder.iterdir():
