@@ -3,6 +3,7 @@ the disturbance on every vehicle (S0-11, S0-13), calibrate the model's parameter
 try candidate effects, and report the error before and after on test flights.
 """
 
+from identify.discovery import DiscoveryOptions, discover_terms, split_validation
 from identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
     NEURAL_SWARM_FILE_COLUMNS,
@@ -22,6 +23,7 @@ from identify.synthetic_logs import synthetic_logs
 
 __all__ = [
     "NEURAL_SWARM_COLUMNS",
+    "DiscoveryOptions",
     "NEURAL_SWARM_FILE_COLUMNS",
     "FlightEntry",
     "IdentifyOptions",
@@ -31,12 +33,14 @@ __all__ = [
     "MeasuredWrench",
     "VehicleEntry",
     "VehicleLog",
+    "discover_terms",
     "load_flight",
     "load_manifest",
     "measure_disturbance",
     "measure_log",
     "read_log",
     "run_identify",
+    "split_validation",
     "synthetic_logs",
     "write_canonical_csv",
     "write_report",

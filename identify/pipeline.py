@@ -27,7 +27,7 @@ Fits use at most ``max_fit_samples`` train samples and scoring ``max_eval_sample
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +53,7 @@ from identify.data import (
     subsample,
     unit_inputs,
 )
+from identify.discovery import discover_terms, split_validation
 from identify.effect_selection import EffectTrial, select_effects
 from identify.flightlog import Manifest, load_manifest
 from identify.residuals import correlate, sample_features
@@ -123,6 +124,7 @@ class IdentifyResult:
     validity: dict
     thrust_coefficient: dict
     units: list[Unit]
+    discovered: list = field(default_factory=list)  # identify.discovery entries, one per channel searched
 
     def to_json(self) -> dict[str, Any]:
         cal = {}
@@ -149,6 +151,7 @@ class IdentifyResult:
             "thrust_coefficient": {
                 t: {k: v for k, v in d.items() if not k.startswith("_")} for t, d in self.thrust_coefficient.items()
             },
+            "discovered": self.discovered,
         }
 
 
@@ -241,6 +244,9 @@ def run_identify(
     calibrated = full_errors(model)
     corr_before = _residual_analysis(subsample(train, 20000), model)
     final, trials = select_effects(train, test, [model, base] if options.calibrate else [base], options=options)
+    discovered: list = []
+    if options.discover:  # terms no library effect names: fit on train, kept by validation (identify.discovery)
+        final, discovered = discover_terms(*split_validation(train), final, test=test)
     after = full_errors(final)
     corr = _residual_analysis(subsample(test, 50000), final)
     unexplained = None
@@ -253,6 +259,7 @@ def run_identify(
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
         unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
+        discovered=discovered,
     )  # fmt: skip
 
 

@@ -18,6 +18,7 @@ from physics.disturbance import (
     validity_mask,
 )
 from physics.effects import (
+    DISCOVERED_PREFIX,
     EFFECT_NAMES,
     PARAMETERS,
     TARGET_ONLY_EFFECTS,
@@ -29,6 +30,7 @@ from physics.effects import (
     effect_wrench,
     total_wrench,
 )
+from physics.features import CHANNELS, FEATURE_DOCS, FEATURE_NAMES, feature_matrix, term_formula
 from physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
 from physics.vehicle_yaml import (
     load_model_section,
@@ -52,8 +54,12 @@ from physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_s
 __all__ = [
     "AIR_DENSITY_KGPM3",
     "BUILTIN_VEHICLES",
+    "CHANNELS",
     "DEFAULT_OPTIONS",
+    "DISCOVERED_PREFIX",
     "EFFECT_NAMES",
+    "FEATURE_DOCS",
+    "FEATURE_NAMES",
     "FIELD_FORMS",
     "GRAVITY_MPS2",
     "MOTOR_DIRECTIONS_XY",
@@ -78,6 +84,7 @@ __all__ = [
     "disturbance_wrench",
     "downwash_speed_mps",
     "effect_wrench",
+    "feature_matrix",
     "load_model_section",
     "load_vehicle_file",
     "mixer_matrix",
@@ -85,6 +92,7 @@ __all__ = [
     "normalised_motor_map",
     "oncoming_speed_per_rotor_mps",
     "resolve_vehicle",
+    "term_formula",
     "total_wrench",
     "unapplied_model_notes",
     "validity_mask",

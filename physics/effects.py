@@ -30,6 +30,7 @@ from physics.disturbance import (
     oncoming_speed_per_rotor_mps,
     vertical_point_wrench,
 )
+from physics.features import CHANNELS, FEATURE_NAMES, feature_matrix, parse_term_key
 from physics.vehicles import Vehicle
 
 EFFECT_NAMES = (
@@ -61,6 +62,11 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
     "thrust_quadratic": {"b_q_rel_spm": (0.1, -1.0, 1.0)},
 }
 
+DISCOVERED_PREFIX = "discovered:"
+"""Name prefix of a term found by sparse regression (identify.discovery): its parameters are named
+``"<channel>*<feature>"`` (:mod:`physics.features`) and are the coefficients of a linear combination
+of features, in channel units per feature unit."""
+
 TARGET_ONLY_EFFECTS = ("thrust_bias", "ground_effect", "own_velocity")
 """Effects that depend on the target alone (counted once, whatever the sources); every other effect
 is a sum over the sources, and like the base model is zero for a source not above the target."""
@@ -75,6 +81,7 @@ class SourceSample:
 
     vehicle: Vehicle
     offsets_m: np.ndarray  # (N, 3) p_target - p_source, world frame, m
+    velocity_mps: np.ndarray | None = None  # (N, 3) the source's own velocity, world, m/s (None: unknown)
 
 
 @dataclass(frozen=True)
@@ -86,6 +93,8 @@ class EffectInputs:
     velocity_mps: np.ndarray  # (N, 3) the target's own velocity, world frame, m/s
     sources: tuple[SourceSample, ...] = ()
     options: ModelOptions = DEFAULT_OPTIONS
+    time_s: np.ndarray | None = None  # (N,) sample times, s (None: independent steady states)
+    thrust_z_N: np.ndarray | None = None  # (N,) own collective thrust along world z, N (None: unknown)
 
     @property
     def n_samples(self) -> int:
@@ -96,10 +105,16 @@ class EffectInputs:
 class Effect:
     """One named effect with its parameters (missing ones take :data:`PARAMETERS` defaults)."""
 
-    name: str  # one of EFFECT_NAMES
+    name: str  # one of EFFECT_NAMES, or DISCOVERED_PREFIX + a label (a term of physics.features)
     params: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if self.name.startswith(DISCOVERED_PREFIX):
+            for key, value in self.params.items():
+                parse_term_key(key)
+                if not np.isfinite(float(value)):
+                    raise ValueError(f"effect {self.name!r}: parameter {key} must be finite")
+            return
         if self.name not in PARAMETERS:
             raise ValueError(f"unknown effect {self.name!r}; expected one of {', '.join(EFFECT_NAMES)}")
         unknown = sorted(set(self.params) - set(PARAMETERS[self.name]))
@@ -112,8 +127,17 @@ class Effect:
             if not np.isfinite(float(value)):
                 raise ValueError(f"effect {self.name!r}: parameter {key} must be finite")
 
+    @property
+    def features(self) -> tuple[str, ...]:
+        """Features of :mod:`physics.features` a discovered term uses (empty for library effects)."""
+        if not self.name.startswith(DISCOVERED_PREFIX):
+            return ()
+        return tuple(dict.fromkeys(parse_term_key(k)[1] for k in self.params))
+
     def full_params(self) -> dict[str, float]:
         """All parameters of this effect, defaults filled in."""
+        if self.name.startswith(DISCOVERED_PREFIX):
+            return {k: float(v) for k, v in self.params.items()}
         out = {k: spec[0] for k, spec in PARAMETERS[self.name].items()}
         out.update({k: float(v) for k, v in self.params.items()})
         return out
@@ -283,10 +307,26 @@ _EFFECT_FUNCTIONS = {
 }
 
 
+def _discovered(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """A discovered term: wrench channel c = sum_j params["c*feature_j"] * feature_j, the features of
+    :func:`physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
+    wrench = np.zeros((inputs.n_samples, 6))
+    if p:
+        x = feature_matrix(inputs, base.per_source())
+        for key, coef in p.items():
+            channel, feature = parse_term_key(key)
+            wrench[:, CHANNELS.index(channel)] += coef * x[:, FEATURE_NAMES.index(feature)]
+    return wrench[:, :3], wrench[:, 3:]
+
+
+def _function(name: str):
+    return _discovered if name.startswith(DISCOVERED_PREFIX) else _EFFECT_FUNCTIONS[name]
+
+
 def effect_wrench(effect: Effect, inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
     """ADDITIONAL force (N, 3), N, and torque (N, 3), N m, of ``effect`` beyond the base model,
     world frame, for the N samples of ``inputs``."""
-    return _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, _BaseCache(inputs))
+    return _function(effect.name)(effect.full_params(), inputs, _BaseCache(inputs))
 
 
 def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[np.ndarray, np.ndarray]:
@@ -295,7 +335,7 @@ def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[
     cache = _BaseCache(inputs)
     force, torque = _sum_base(inputs, cache)
     for effect in effects:
-        f, t = _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, cache)
+        f, t = _function(effect.name)(effect.full_params(), inputs, cache)
         force += f
         torque += t
     return force, torque
