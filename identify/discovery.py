@@ -176,13 +176,14 @@ def discover_terms(
 
 
 def split_validation(train: Sequence[Unit], fraction: float = 0.25) -> tuple[list[Unit], list[Unit]]:
-    """Carve a validation part out of train units BY FLIGHT (about ``fraction`` of the flights, at
-    least one, the last ones in name order); with a single train flight, its last ``fraction`` of
-    samples per vehicle (a contiguous block) instead."""
+    """Carve a validation part out of train units BY FLIGHT: of the flights in name order, every
+    k-th (k = round(1 / ``fraction``), the k-th, 2k-th, ...), so each group of similarly named flights
+    (a swap set, the take-offs) gives some; with fewer than k flights, the last one. With a single
+    train flight, its last ``fraction`` of samples per vehicle (a contiguous block) instead."""
     flights = sorted({u.flight for u in train})
     if len(flights) >= 2:
-        n_val = max(1, int(round(fraction * len(flights))))
-        val_flights = set(flights[-n_val:])
+        k = max(2, int(round(1.0 / fraction)))
+        val_flights = set(flights[k - 1 :: k]) or {flights[-1]}
         return [u for u in train if u.flight not in val_flights], [u for u in train if u.flight in val_flights]
     fit, val = [], []
     for u in train:
