@@ -21,6 +21,7 @@ stores as name + params.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -123,7 +124,9 @@ def fit_channel(channel: str, train: _Rows, validation: _Rows, options: Discover
     xv = validation.features[:, usable] / scale[usable]
     path: list[tuple[float, np.ndarray]] = []
     for k in range(1, min(options.max_terms, len(usable)) + 1):
-        omp = OrthogonalMatchingPursuit(n_nonzero_coefs=k, fit_intercept=False).fit(xs, y)
+        with warnings.catch_warnings():  # collinear features (e.g. no clock: lagged == base) stop OMP early
+            warnings.filterwarnings("ignore", message="Orthogonal matching pursuit ended prematurely")
+            omp = OrthogonalMatchingPursuit(n_nonzero_coefs=k, fit_intercept=False).fit(xs, y)
         path.append((_rmse(yv - xv @ omp.coef_), omp.coef_.copy()))
     best = min(e for e, _ in path)
     err, coef = next((e, c) for e, c in path if e <= best * (1.0 + options.tolerance))

@@ -41,6 +41,7 @@ EFFECT_NAMES = (
     "wake_advection",
     "own_velocity",
     "thrust_quadratic",
+    "ground_jet",
 )
 
 PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
@@ -60,6 +61,7 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
         "c_mu2_s2pm2": (0.01, -0.2, 0.2),
     },
     "thrust_quadratic": {"b_q_rel_spm": (0.1, -1.0, 1.0)},
+    "ground_jet": {"amplitude_1": (0.5, 0.0, 1.0), "decay_L": (2.0, 0.2, 20.0)},
 }
 
 DISCOVERED_PREFIX = "discovered:"
@@ -296,6 +298,23 @@ def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs, base: _BaseCach
     return force, torque
 
 
+def _ground_jet(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """A source's jet meeting the ground: below the target the jet runs into the floor, stagnates
+    and spreads sideways, so at the target (height h above the floor) the axial velocity is below
+    the free jet's. Impinging-jet form: v / v_free = 1 - a exp(-h / (lambda L_s)), a =
+    ``amplitude_1`` (-), lambda = ``decay_L`` (the stagnation layer's thickness in units of the
+    source's size L_s, m); the wrench scales with v^2 (S0-3..S0-6), so the extra wrench is
+    base_s * ((1 - a exp(-h / (lambda L_s)))^2 - 1) per source above the target."""
+    force, torque = _zeros(inputs.n_samples)
+    h_m = np.maximum(np.asarray(inputs.height_above_ground_m, dtype=float), 0.0)
+    for src, (f, t) in zip(inputs.sources, base.per_source()):
+        ratio = 1.0 - p["amplitude_1"] * np.exp(-h_m / (p["decay_L"] * src.vehicle.size_m))
+        scale = ratio**2 - 1.0
+        force += f * scale[:, None]
+        torque += t * scale[:, None]
+    return force, torque
+
+
 _EFFECT_FUNCTIONS = {
     "thrust_bias": _thrust_bias,
     "ground_effect": _ground_effect,
@@ -304,6 +323,7 @@ _EFFECT_FUNCTIONS = {
     "wake_advection": _wake_advection,
     "own_velocity": _own_velocity,
     "thrust_quadratic": _thrust_quadratic,
+    "ground_jet": _ground_jet,
 }
 
 

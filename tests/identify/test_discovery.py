@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
-from identify import synthetic_logs, write_canonical_csv
+from identify import run_identify, synthetic_logs, write_canonical_csv
 from identify.data import IdentifyOptions, Model, errors, load_units
 from identify.discovery import discover_terms, split_validation
 from identify.flightlog import load_manifest
@@ -64,7 +64,7 @@ def _trajectories(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
     return {"a": a, "b": np.column_stack([x, y, (1 - blend) * z_high + blend * z_low])}
 
 
-def _units(tmp: Path, hidden, *, n_flights: int = 4, duration_s: float = 16.0):
+def _manifest(tmp: Path, hidden, *, n_flights: int = 4, duration_s: float = 16.0) -> Path:
     t = np.arange(0.0, duration_s, 0.01)
     flights = []
     for k in range(n_flights):
@@ -79,12 +79,12 @@ def _units(tmp: Path, hidden, *, n_flights: int = 4, duration_s: float = 16.0):
         flights.append(entry)
     path = tmp / "manifest.yaml"
     path.write_text(yaml.safe_dump({"format": "canonical", "root": ".", "flights": flights}))
-    units, _, types = load_units(load_manifest(path), options=IdentifyOptions())
-    return units, Model(vehicles=types)
+    return path
 
 
 def _run(tmp: Path, hidden):
-    units, model = _units(tmp, hidden)
+    units, _, types = load_units(load_manifest(_manifest(tmp, hidden)), options=IdentifyOptions())
+    model = Model(vehicles=types)
     train = [u for u in units if u.split == "train"]
     test = [u for u in units if u.split == "test"]
     fit, val = split_validation(train)
@@ -123,3 +123,15 @@ def test_hidden_effect_is_discovered(tmp_path: Path, clean, hidden, channel: str
     eff = next(e for e in final.effects if e.name == kept[0]["name"])
     again = Effect(eff.name, dict(eff.params))
     assert again.features and set(again.features) == set(kept[0]["features"])
+
+
+def test_pipeline_reports_and_keeps_the_discovered_term(tmp_path: Path) -> None:
+    # no calibration, no library candidates: the pipeline's wiring of the discovery stage alone
+    # (with them, calibration bends c_ax / b_v and near_field takes most of this hidden force first)
+    fast = IdentifyOptions(max_eval_samples=2500, calibrate=False, effects=())
+    result = run_identify(_manifest(tmp_path, swept_wake), options=fast, thrust_summary=False)
+    doc = result.to_json()
+    kept = [e for e in doc["discovered"] if e["selected"]]
+    assert [e["channel"] for e in kept] == ["force_z_N"], doc["discovered"]
+    assert kept[0]["name"] in doc["selected"] and kept[0]["formula"].startswith("force_z_N = ")
+    assert result.after.rmse_fz_N < 0.7 * result.calibrated.rmse_fz_N
