@@ -183,13 +183,13 @@ def main() -> None:
         ax.plot(mid, [p["measured_N"] / p["predicted_N"] for p in ground], "o-", label="measured / model")
         ax.axhline(1.0, color="grey", lw=0.8)
         ax.set_title(key, fontsize=9)
-        ax.set_xlabel("target height above ground / depth under the source, h / dz")
+        ax.set_xlabel("h / dz (height above ground / depth)")
         ax.set_ylabel("mean F_z measured / predicted")
         ax.legend(fontsize=8)
     for ax, (key, per, _) in zip(axes[0], fig_rows):
         mid = [0.5 * sum(p["dz_L"]) for p in per]
         ax.plot(mid, [p["measured_N"] for p in per], "o-", label="measured")
-        ax.plot(mid, [p["predicted_N"] for p in per], "s--", label="model (calibrated)")
+        ax.plot(mid, [p["predicted_N"] for p in per], "s--", label="model (identify)")
         ax.axvline(3.0, color="grey", lw=0.8, ls=":")
         ax.set_title(key, fontsize=9)
         ax.set_xlabel("dz / L of the source")
