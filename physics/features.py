@@ -88,6 +88,14 @@ FEATURE_DOCS: dict[str, str] = {
 }
 FEATURE_NAMES = tuple(FEATURE_DOCS)
 
+TARGET_ONLY_FEATURES = ("one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2")
+"""Features of the target alone; every other feature is a sum over sources (zero without one)."""
+
+
+def between_vehicle_part(params: dict[str, float]) -> dict[str, float]:
+    """The parameters of a discovered term whose features act between vehicles (sums over sources)."""
+    return {k: v for k, v in params.items() if parse_term_key(k)[1] not in TARGET_ONLY_FEATURES}
+
 
 def _runs(time_s: np.ndarray) -> list[slice]:
     """Contiguous time runs of ``time_s`` (see :data:`MAX_GAP_S`)."""

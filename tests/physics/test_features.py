@@ -100,3 +100,17 @@ def test_discovered_term_is_name_params_and_acts_between_vehicles() -> None:
 def test_unknown_term_parameter_is_rejected(key: str) -> None:
     with pytest.raises(ValueError, match="discovered-term parameter"):
         Effect("discovered:x", {key: 1.0})
+
+
+def test_discovered_term_round_trips_the_model_file_list_and_acts_between_vehicles_only_pairwise() -> None:
+    from fileio import UserError
+    from physics import between_vehicle_effects, effects_from_list, effects_to_list
+
+    eff = Effect("discovered:force_z_N", {"force_z_N*one_1": 0.01, "force_z_N*above_core_rel_speed_xy_mps": -0.6})
+    (back,) = effects_from_list(effects_to_list([eff]), "m.yaml: model.effects")
+    assert back == eff
+    (pair,) = between_vehicle_effects([eff])
+    assert pair.params == {"force_z_N*above_core_rel_speed_xy_mps": -0.6}
+    assert between_vehicle_effects([Effect("discovered:x", {"force_z_N*one_1": 0.01})]) == ()
+    with pytest.raises(UserError, match=r"m.yaml: model.effects\[0\].params: discovered-term parameter"):
+        effects_from_list([{"name": "discovered:x", "params": {"force_z_N*nope": 1.0}}], "m.yaml: model.effects")
