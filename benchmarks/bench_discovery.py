@@ -27,7 +27,7 @@ from identify import (
     run_identify,
     split_validation,
     synthetic_logs,
-    write_canonical_csv,
+    write_synthetic_manifest,
 )
 from physics import BUILTIN_VEHICLES
 
@@ -53,9 +53,9 @@ def _paths(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--minutes-per-flight", type=float, default=10.0)
-    ap.add_argument("--flights", type=int, default=6)
-    ap.add_argument("--data", type=Path, default=None, help="keep/reuse the generated logs in this directory")
+    ap.add_argument("--minutes-per-flight", type=float, default=10.0, help="length of each synthetic flight, min")
+    ap.add_argument("--flights", type=int, default=6, help="number of flights (the last two are test flights)")
+    ap.add_argument("--data", type=Path, default=None, help="directory to keep (or reuse) the generated logs")
     args = ap.parse_args()
     veh = BUILTIN_VEHICLES["small-quad"]
     with tempfile.TemporaryDirectory() as tmp:
@@ -64,17 +64,13 @@ def main() -> None:
         manifest = root / "manifest.yaml"
         t = np.arange(0.0, 60.0 * args.minutes_per_flight, 0.01)
         if not manifest.exists():
-            flights = []
-            for k in range(args.flights):
-                logs = synthetic_logs(
+            flights = [
+                (f"f{k}", "test" if k >= args.flights - 2 else "train", synthetic_logs(
                     {"a": veh, "b": veh}, _paths(t, 0.7 * k), t, hidden_wrench=swept_wake, accel_noise_mps2=0.02, seed=k
-                )
-                entry = {"name": f"f{k}", "split": "test" if k >= args.flights - 2 else "train", "vehicles": {}}
-                for name, log in logs.items():
-                    write_canonical_csv(log, root / f"f{k}_{name}.csv.gz")
-                    entry["vehicles"][name] = {"type": "small-quad", "log": f"f{k}_{name}.csv.gz"}
-                flights.append(entry)
-            manifest.write_text(yaml.safe_dump({"format": "canonical", "root": ".", "flights": flights}))
+                ))
+                for k in range(args.flights)
+            ]  # fmt: skip
+            write_synthetic_manifest(root, flights, "small-quad")
         n_flights = len(yaml.safe_load(manifest.read_text())["flights"])
         print(
             f"{n_flights} flights x {t.size} samples x 2 vehicles = {n_flights * t.size / 3.6e5:.2f} h of 100 Hz logs"

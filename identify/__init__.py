@@ -19,7 +19,7 @@ from identify.flightlog import (
 from identify.measure import MeasuredWrench, MeasureOptions, measure_disturbance, measure_log
 from identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
 from identify.report import write_report
-from identify.synthetic_logs import synthetic_logs
+from identify.synthetic_logs import synthetic_logs, write_synthetic_manifest
 
 __all__ = [
     "NEURAL_SWARM_COLUMNS",
@@ -43,5 +43,6 @@ __all__ = [
     "split_validation",
     "synthetic_logs",
     "write_canonical_csv",
+    "write_synthetic_manifest",
     "write_report",
 ]

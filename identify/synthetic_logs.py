@@ -6,7 +6,8 @@ truth wrench exactly. Closed-loop synthetic flights come from :mod:`flightsim`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -83,3 +84,25 @@ def synthetic_logs(
             source=f"synthetic:{name}",
         )
     return out
+
+
+def write_synthetic_manifest(
+    root: Path, flights: Sequence[tuple[str, str, Mapping[str, VehicleLog]]], vehicle_type: str
+) -> Path:
+    """Write every flight ``(name, split, {vehicle: log})`` as canonical gzip CSVs under ``root``
+    (``<flight>_<vehicle>.csv.gz``) and a canonical manifest ``root/manifest.yaml`` naming them,
+    every vehicle of type ``vehicle_type``; returns the manifest path."""
+    import yaml
+
+    from identify.flightlog import write_canonical_csv
+
+    entries = []
+    for name, split, logs in flights:
+        entry: dict[str, Any] = {"name": name, "split": split, "vehicles": {}}
+        for vehicle, log in logs.items():
+            write_canonical_csv(log, root / f"{name}_{vehicle}.csv.gz")
+            entry["vehicles"][vehicle] = {"type": vehicle_type, "log": f"{name}_{vehicle}.csv.gz"}
+        entries.append(entry)
+    path = root / "manifest.yaml"
+    path.write_text(yaml.safe_dump({"format": "canonical", "root": ".", "flights": entries}))
+    return path

@@ -15,9 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
-from identify import run_identify, synthetic_logs, write_canonical_csv
+from identify import run_identify, synthetic_logs, write_synthetic_manifest
 from identify.data import IdentifyOptions, Model, errors, load_units
 from identify.discovery import discover_terms, split_validation
 from identify.flightlog import load_manifest
@@ -66,20 +65,14 @@ def _trajectories(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
 
 def _manifest(tmp: Path, hidden, *, n_flights: int = 4, duration_s: float = 16.0) -> Path:
     t = np.arange(0.0, duration_s, 0.01)
-    flights = []
-    for k in range(n_flights):
-        logs = synthetic_logs(
+    flights = [
+        (f"f{k}", "test" if k == n_flights - 1 else "train", synthetic_logs(
             {"a": VEH, "b": VEH}, _trajectories(t, 0.7 * k), t, hidden_wrench=hidden,
             accel_noise_mps2=0.02, motor_noise_N=0.004, seed=k,
-        )  # fmt: skip
-        entry = {"name": f"f{k}", "split": "test" if k == n_flights - 1 else "train", "vehicles": {}}
-        for name, log in logs.items():
-            write_canonical_csv(log, tmp / f"f{k}_{name}.csv.gz")
-            entry["vehicles"][name] = {"type": VEHICLE_TYPE, "log": f"f{k}_{name}.csv.gz"}
-        flights.append(entry)
-    path = tmp / "manifest.yaml"
-    path.write_text(yaml.safe_dump({"format": "canonical", "root": ".", "flights": flights}))
-    return path
+        ))
+        for k in range(n_flights)
+    ]  # fmt: skip
+    return write_synthetic_manifest(tmp, flights, VEHICLE_TYPE)
 
 
 def _run(tmp: Path, hidden):
