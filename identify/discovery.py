@@ -12,11 +12,11 @@ A term is kept only if it lowers that channel's VALIDATION RMSE by at least ``mi
 default 10 %) AND by at least :data:`MIN_IMPROVEMENT` (absolute: 0.1 g of force, 2e-5 N m of torque):
 clean data (residual = noise) gives gains near zero and nothing is kept, and a real but tiny
 structure (e.g. 1e-5 N m of roll torque the closed-loop measurement does not resolve) is reported
-but not kept. Test units,
-when given, only report. A kept term becomes ``Effect("discovered:<channel>", {"<channel>*<feature>":
-coefficient})`` (coefficients in channel units per feature unit), which :mod:`physics.effects`
-applies like any effect (pairwise features make it act between vehicles), and which a saved model
-stores as name + params.
+but not kept. Test units, when given, only report. The kept terms of all channels form ONE effect
+``Effect("discovered:residual", {"<channel>*<feature>": coefficient})`` (coefficients in channel
+units per feature unit; one effect so the base wrench it needs is computed once), which
+:mod:`physics.effects` applies like any effect (pairwise features make it act between vehicles),
+and which a saved model stores as name + params.
 """
 
 from __future__ import annotations
@@ -39,6 +39,9 @@ from physics import (
     feature_matrix,
     term_formula,
 )
+
+DISCOVERED_NAME = f"{DISCOVERED_PREFIX}residual"
+"""Name of the one effect holding every kept term."""
 
 CHANNEL_COLUMNS = {"force_z_N": 2, "torque_x_Nm": 3, "torque_y_Nm": 4, "torque_z_Nm": 5}
 """Channels searched by default and their column in the stacked (force, torque) wrench (N, 6)."""
@@ -144,7 +147,8 @@ def discover_terms(
 ) -> tuple[Model, list[dict[str, Any]]]:
     """Search every channel of ``options.channels`` for a term the model lacks (module docstring).
 
-    Returns the model with the kept terms appended to its effects and one JSON entry per channel
+    Returns the model with the kept terms appended to its effects (one effect,
+    :data:`DISCOVERED_NAME`) and one JSON entry per channel
     searched: ``{"name", "formula", "features", "params", "rmse_fz_N", "selected", "channel",
     "gain_validation", "rmse_validation": {"before", "after"}, "rmse_test": {"before", "after"}}``;
     ``rmse_fz_N`` is the F_z RMSE with the term on test units (validation units when no test is given).
@@ -152,20 +156,20 @@ def discover_terms(
     tr = _rows(train, model, options.max_fit_samples)
     va = _rows(validation, model)
     te = _rows(test, model) if len(test) else va
-    kept: list[Effect] = []
+    kept: dict[str, float] = {}
     report = []
     for channel in options.channels:
         fit = fit_channel(channel, tr, va, options)
         least = (options.min_improvement or MIN_IMPROVEMENT).get(channel, 0.0)
         cut = fit.rmse_validation_before - fit.rmse_validation_after
         selected = bool(fit.params) and fit.gain >= options.min_gain and cut >= least
-        eff = Effect(f"{DISCOVERED_PREFIX}{channel}", fit.params)
+        eff = Effect(DISCOVERED_NAME, fit.params)
         col = CHANNELS.index(channel)
         x_te = te.features
         term_te = x_te[:, [FEATURE_NAMES.index(f) for f in eff.features]] @ np.array(list(fit.params.values()))
         fz_after = te.residual[:, 2] - (term_te if channel == "force_z_N" and fit.params else 0.0)
         if selected:
-            kept.append(eff)
+            kept.update(fit.params)
         report.append({
             "name": eff.name, "channel": channel, "formula": term_formula(fit.params) if fit.params else "",
             "features": list(eff.features), "params": dict(fit.params), "rmse_fz_N": _rmse(fz_after),
@@ -175,7 +179,8 @@ def discover_terms(
                           "after": _rmse(te.residual[:, col] - (term_te if fit.params else 0.0))},
             "selected": selected,
         })  # fmt: skip
-    return replace(model, effects=tuple(model.effects) + tuple(kept)), report
+    extra = (Effect(DISCOVERED_NAME, kept),) if kept else ()
+    return replace(model, effects=tuple(model.effects) + extra), report
 
 
 def split_validation(train: Sequence[Unit], fraction: float = 0.25) -> tuple[list[Unit], list[Unit]]:
