@@ -94,7 +94,9 @@ def main() -> None:
         print(f"discovery stage alone:                 {t_disc:.1f} s  ({t_disc / t_plain:.2f}x baseline)")
         print(f"test F_z RMSE: library only {plain.after.rmse_fz_N:.5f} N, with discovery {full.after.rmse_fz_N:.5f} N")
         for e in full.discovered:
-            print(f"  {e['name']}: selected={e['selected']} gain_validation={e['gain_validation']:.3f} {e['formula']}")
+            print(
+                f"  {e['name']} {e['channel']}: selected={e['selected']} gain_validation={e['gain_validation']:.3f} {e['formula']}"
+            )
 
 
 if __name__ == "__main__":

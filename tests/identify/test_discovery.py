@@ -11,6 +11,7 @@ nothing is kept.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -128,3 +129,12 @@ def test_pipeline_reports_and_keeps_the_discovered_term(tmp_path: Path) -> None:
     assert [e["channel"] for e in kept] == ["force_z_N"], doc["discovered"]
     assert kept[0]["name"] in doc["selected"] and kept[0]["formula"].startswith("force_z_N = ")
     assert result.after.rmse_fz_N < 0.7 * result.calibrated.rmse_fz_N
+    # saved with the model and read back: the same prediction
+    from physics import load_model_file
+    from proxplan.commands.identify import save_model
+
+    loaded = load_model_file(save_model(result, tmp_path / "model.yaml"))
+    assert kept[0]["name"] in [e.name for e in loaded.effects]
+    assert errors(result.units, replace(result.final_model, effects=loaded.effects)) == errors(
+        result.units, result.final_model
+    )
