@@ -114,3 +114,15 @@ def test_discovered_term_round_trips_the_model_file_list_and_acts_between_vehicl
     assert between_vehicle_effects([Effect("discovered:x", {"force_z_N*one_1": 0.01})]) == ()
     with pytest.raises(UserError, match=r"m.yaml: model.effects\[0\].params: discovered-term parameter"):
         effects_from_list([{"name": "discovered:x", "params": {"force_z_N*nope": 1.0}}], "m.yaml: model.effects")
+
+
+def test_cost_maps_apply_the_pairwise_part_of_a_discovered_term() -> None:
+    from costmaps import pair_wrench
+
+    eff = Effect("discovered:residual", {"force_z_N*one_1": 0.5, "force_z_N*above_core_1": -0.04})
+    offsets = np.array([[0.0, 0.0, -0.3], [3.0, 0.0, -0.3]])
+    f0, _ = pair_wrench(VEH, VEH, offsets)
+    f1, _ = pair_wrench(VEH, VEH, offsets, effects=(eff,))
+    core = np.exp(0.0) / (1.0 + 0.3 / (3.0 * VEH.size_m))
+    assert f1[0, 2] - f0[0, 2] == pytest.approx(-0.04 * core, rel=1e-9)  # the constant is not a pair effect
+    assert f1[1, 2] - f0[1, 2] == pytest.approx(0.0, abs=1e-12)
