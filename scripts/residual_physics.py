@@ -82,6 +82,12 @@ def fit_candidates(result, logs: dict) -> dict:
         models[f"+thrust_bias+{name}"] = m
         models[f"+thrust_bias+{name}"] = replace(m, effects=m.effects)
         models[f"{name}_params"] = eff.full_params()  # type: ignore[assignment]
+    from identify import discover_terms, split_validation
+
+    discovered_model, discovered = discover_terms(
+        *split_validation(train), models["+thrust_bias+ground_jet"], test=test
+    )
+    models["+thrust_bias+ground_jet+discovered"] = discovered_model
     out: dict = {"n_train": sum(len(u) for u in train), "n_test": sum(len(u) for u in test),
                  "n_test_under_a_source": sum(len(u) for u in under)}  # fmt: skip
     for key, m in models.items():
@@ -94,6 +100,7 @@ def fit_candidates(result, logs: dict) -> dict:
             }
         else:
             out[key] = {"rmse_fz_N": errors(test, m).rmse_fz_N, "rmse_fz_N_under": errors(under, m).rmse_fz_N}
+    out["discovered"] = discovered
     return out
 
 
