@@ -129,6 +129,9 @@ def test_pipeline_reports_and_keeps_the_discovered_term(tmp_path: Path) -> None:
     assert [e["channel"] for e in kept] == ["force_z_N"], doc["discovered"]
     assert kept[0]["name"] in doc["selected"] and kept[0]["formula"].startswith("force_z_N = ")
     assert result.after.rmse_fz_N < 0.7 * result.calibrated.rmse_fz_N
+    from identify.report import markdown
+
+    assert "## Discovered terms" in markdown(result) and kept[0]["formula"] in markdown(result)
     # saved with the model and read back: the same prediction
     from physics import load_model_file
     from proxplan.commands.identify import save_model
