@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import enum
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,6 +49,28 @@ class SimulationOptions:
     seed: int = 0
     position_integral_rate_ps: float = 0.0  # integral action k_i / k_p per axis, 1/s (0 = RotorPy's PD)
     position_integral_limit_ms: float = 0.2  # anti-windup bound of the integrated position error, m s
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """Per-flight departures of the flown world from the plan (``proxplan certify`` draws them),
+    keyed by vehicle name; vehicles not named fly unperturbed. Functions take times since the plan
+    start (K,), s, and return (K, 3) arrays, world frame.
+
+    * ``start_offset_m``: start position error, m (the vehicle starts off its reference);
+    * ``time_offset_s``: timing error, s: the vehicle follows its plan late by this (early if < 0);
+    * ``force_N``: residual disturbance force beyond the model, N (applied and counted in the
+      applied wrench, so authority usage includes it);
+    * ``estimate_error_m`` / ``estimate_error_mps``: error of the position / velocity estimate the
+      controller sees, m and m/s. The SE(3) law uses only x - x_ref and v - v_ref, so an estimate
+      x + n is flown exactly as the reference x_ref - n, which is how it is applied.
+    """
+
+    start_offset_m: Mapping[str, Sequence[float]] = field(default_factory=dict)
+    time_offset_s: Mapping[str, float] = field(default_factory=dict)
+    force_N: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
+    estimate_error_m: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
+    estimate_error_mps: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -127,6 +149,7 @@ def simulate_plan(
     position_integral_rate_ps: float = 0.0,
     options: SimulationOptions | None = None,
     progress: bool = False,
+    perturbation: Perturbation | None = None,
 ) -> SimulationResult:
     """Fly ``plan`` (a :class:`planfile.plan.Plan` or a plan.json path) closed loop.
 
@@ -135,6 +158,7 @@ def simulate_plan(
     (give ``truth=merge_truth(plan_truth(plan), extra)`` to add to the plan's effects); ``vehicles`` maps type
     names to the vehicles actually flown instead of the plan's own parameters (e.g. a heavier or
     weaker airframe than planned). ``options``, when given, overrides the keyword numbers.
+    ``perturbation`` (:class:`Perturbation`) adds start, timing, residual-force and estimate errors.
 
     Controller: RotorPy's SE3Control; ``position_integral_rate_ps`` > 0 adds integral action on the
     position error, as the seed's cascaded PID (S0 IV-D). With diagonal gains,
@@ -177,16 +201,26 @@ def simulate_plan(
     plan_duration = t_end - t0
     n_steps = int(round((plan_duration + options.settle_s) / dt / log_every)) * log_every + 1
     t_grid = t0 + dt * np.arange(n_steps)
-    refs = [tr.sample(t_grid) for tr in trajs]
+    pert = perturbation or Perturbation()
+    refs = [tr.sample(t_grid - float(pert.time_offset_s.get(n, 0.0))) for n, tr in zip(names, trajs)]
     ref_x = np.stack([r[0] for r in refs], axis=1)  # (n_steps, V, 3)
     ref_v = np.stack([r[1] for r in refs], axis=1)
     ref_a = np.stack([r[2] for r in refs], axis=1)
+    extra_f = np.zeros((n_steps, n_veh, 3))  # residual force beyond the model, N
+    ctrl_ref = np.concatenate([ref_x, ref_v, ref_a], axis=2)  # reference the controller sees
+    for vi, n in enumerate(names):
+        if n in pert.force_N:
+            extra_f[:, vi] = pert.force_N[n](t_grid - t0)
+        if n in pert.estimate_error_m:
+            ctrl_ref[:, vi, 0:3] -= pert.estimate_error_m[n](t_grid - t0)
+        if n in pert.estimate_error_mps:
+            ctrl_ref[:, vi, 3:6] -= pert.estimate_error_mps[n](t_grid - t0)
 
     hover_speed = np.array([np.sqrt(v.hover_thrust_per_rotor_N / p["k_eta"]) for v, p in zip(vehs, params)])
     stepper = _stepper(params, dt, truth.wind_mps)
     S = stepper.state
     S[:] = 0.0
-    S[:, 0:3] = ref_x[0]
+    S[:, 0:3] = ref_x[0] + np.array([pert.start_offset_m.get(n, (0.0, 0.0, 0.0)) for n in names], dtype=float)
     S[:, 3:6] = ref_v[0]
     S[:, 9] = 1.0  # identity attitude, [x, y, z, w]
     S[:, 13:17] = hover_speed[:, None]
@@ -229,7 +263,7 @@ def simulate_plan(
     buf_f = np.zeros((n_veh, horizon, 3))
     buf_t = np.zeros((n_veh, horizon, 3))
     tau = dt * np.arange(horizon)
-    ref_all = np.concatenate([ref_x, ref_v, ref_a], axis=2)  # (n_steps, V, 9)
+    ref_all = ctrl_ref  # (n_steps, V, 9)
     integral_ms = np.zeros((n_veh, 3))  # integrated position error, m s
     ki_rate = float(options.position_integral_rate_ps)
     windup = float(options.position_integral_limit_ms)
@@ -247,7 +281,7 @@ def simulate_plan(
                 integral_ms += (S[:, 0:3] - ref_all[k][:, 0:3]) * dt
                 np.clip(integral_ms, -windup, windup, out=integral_ms)
                 stepper.ref[:, 0:3] -= ki_rate * integral_ms
-            stepper.ext_force_N[:] = buf_f[:, j]
+            stepper.ext_force_N[:] = buf_f[:, j] + extra_f[k]
             stepper.ext_torque_Nm[:] = buf_t[:, j]
             stepper.step()
             sat_steps += stepper.saturated
@@ -265,7 +299,7 @@ def simulate_plan(
                     ("fc", stepper.cmd_thrust_N),
                     ("T", stepper.ctbm[:, 0]),
                     ("M", stepper.ctbm[:, 1:4]),
-                    ("Fa", buf_f[:, j]),
+                    ("Fa", buf_f[:, j] + extra_f[k]),
                     ("Ta", buf_t[:, j]),
                 ):
                     rec[key][i] = val
@@ -305,7 +339,7 @@ def simulate_plan(
             rec["Fm"][:, vi] = f
             rec["Tm"][:, vi] = t
     else:
-        rec["Fm"][:] = rec["Fa"]
+        rec["Fm"][:] = rec["Fa"] - extra_f[::log_every][:n_logged]
         rec["Tm"][:] = rec["Ta"]
 
     t_log = (t_grid[::log_every] - t0)[:n_logged]

@@ -3,7 +3,11 @@ the disturbance on every vehicle (S0-11, S0-13), calibrate the model's parameter
 try candidate effects, and report the error before and after on test flights.
 """
 
-from identify.discovery import DiscoveryOptions, discover_terms, split_validation
+from identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
+from identify.discovery import DiscoveryOptions, discover_terms
+from identify.effect_selection import validation_split
+from identify.evaluate import EvaluationResult, evaluate_model, saved_model
+from identify.evaluate_report import write_evaluation_report
 from identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
     NEURAL_SWARM_FILE_COLUMNS,
@@ -22,9 +26,12 @@ from identify.report import write_report
 from identify.synthetic_logs import synthetic_logs, write_synthetic_manifest
 
 __all__ = [
+    "VEHICLE_PARAMETERS",
+    "apply_vehicle_parameters",
     "NEURAL_SWARM_COLUMNS",
     "DiscoveryOptions",
     "NEURAL_SWARM_FILE_COLUMNS",
+    "EvaluationResult",
     "FlightEntry",
     "IdentifyOptions",
     "IdentifyResult",
@@ -34,15 +41,18 @@ __all__ = [
     "VehicleEntry",
     "VehicleLog",
     "discover_terms",
+    "evaluate_model",
     "load_flight",
     "load_manifest",
     "measure_disturbance",
     "measure_log",
     "read_log",
     "run_identify",
-    "split_validation",
+    "saved_model",
     "synthetic_logs",
+    "validation_split",
     "write_canonical_csv",
+    "write_evaluation_report",
     "write_synthetic_manifest",
     "write_report",
 ]

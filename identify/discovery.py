@@ -181,21 +181,3 @@ def discover_terms(
         })  # fmt: skip
     extra = (Effect(DISCOVERED_NAME, kept),) if kept else ()
     return replace(model, effects=tuple(model.effects) + extra), report
-
-
-def split_validation(train: Sequence[Unit], fraction: float = 0.25) -> tuple[list[Unit], list[Unit]]:
-    """Carve a validation part out of train units BY FLIGHT: of the flights in name order, every
-    k-th (k = round(1 / ``fraction``), the k-th, 2k-th, ...), so each group of similarly named flights
-    (a swap set, the take-offs) gives some; with fewer than k flights, the last one. With a single
-    train flight, its last ``fraction`` of samples per vehicle (a contiguous block) instead."""
-    flights = sorted({u.flight for u in train})
-    if len(flights) >= 2:
-        k = max(2, int(round(1.0 / fraction)))
-        val_flights = set(flights[k - 1 :: k]) or {flights[-1]}
-        return [u for u in train if u.flight not in val_flights], [u for u in train if u.flight in val_flights]
-    fit, val = [], []
-    for u in train:
-        cut = int(len(u) * (1.0 - fraction))
-        fit.append(u.take(np.arange(cut)))
-        val.append(u.take(np.arange(cut, len(u))))
-    return fit, val

@@ -25,6 +25,9 @@ COMMAND_MODULES = (
     "proxplan.commands.simulate",  # simulate
     "proxplan.commands.view",  # view
     "proxplan.commands.identify",  # identify
+    "proxplan.commands.evaluate",  # evaluate
+    "proxplan.commands.certify",  # certify
+    "proxplan.commands.export",  # export
 )
 
 

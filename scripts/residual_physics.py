@@ -82,10 +82,10 @@ def fit_candidates(result, logs: dict) -> dict:
         models[f"+thrust_bias+{name}"] = m
         models[f"+thrust_bias+{name}"] = replace(m, effects=m.effects)
         models[f"{name}_params"] = eff.full_params()  # type: ignore[assignment]
-    from identify import discover_terms, split_validation
+    from identify import discover_terms, validation_split
 
     discovered_model, discovered = discover_terms(
-        *split_validation(train), models["+thrust_bias+ground_jet"], test=test
+        *validation_split(train)[:2], models["+thrust_bias+ground_jet"], test=test
     )
     models["+thrust_bias+ground_jet+discovered"] = discovered_model
     out: dict = {"n_train": sum(len(u) for u in train), "n_test": sum(len(u) for u in test),

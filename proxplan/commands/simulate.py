@@ -51,6 +51,11 @@ def register(subparsers) -> None:
         help="add integral action on the position error, k_i / k_p in 1/s, as the seed's PID "
              "(default 0: RotorPy's PD law, which keeps a steady error under a steady disturbance)",
     )  # fmt: skip
+    p.add_argument(
+        "--certify-run", type=int, default=None, metavar="K",
+        help="re-fly run K of 'proxplan certify' with the same draws (same --seed, --truth, --vehicles; "
+             "certify's simulator settings)",
+    )  # fmt: skip
     p.set_defaults(func=run)
 
 
@@ -106,9 +111,16 @@ def run(args: argparse.Namespace) -> int:
     )
     out = Path(args.out)
     with output_folder(out) as stage:  # every output lands together, or none
-        result = simulate_plan(
-            plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty()
-        )
+        certify_run = None
+        if args.certify_run is not None:
+            from proxplan.commands.certify import refly
+
+            certify_run = refly(args, plan_path)
+            result = certify_run.pop("_result")
+        else:
+            result = simulate_plan(
+                plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty()
+            )
         plot_errors(result, stage / "tracking_error.png")
         plot = out / "tracking_error.png"
         manifest = None
@@ -130,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
             plot_path=str(plot),
             manifest_path=None if manifest is None else str(manifest),
         )
+        if certify_run is not None:
+            summary["certify_run"] = certify_run
         atomic_write_bytes(stage / "summary.json", json.dumps(summary, indent=1).encode())
     completed = summary["status"] == "complete"
     if not completed:

@@ -24,6 +24,8 @@ LAYERS = (
     "verify",  # independent plan checks
     "planner",  # sampling, optimisation, timing
     "flightsim",  # closed-loop simulation
+    "certify",  # Monte-Carlo closed-loop flights on Dask
+    "export",  # flyable files (Crazyflie polynomials, set-points)
     "web",  # review app
     "proxplan",  # CLI
 )

@@ -17,9 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from identify import run_identify, synthetic_logs, write_synthetic_manifest
+from identify import discover_terms, run_identify, synthetic_logs, validation_split, write_synthetic_manifest
 from identify.data import IdentifyOptions, Model, errors, load_units
-from identify.discovery import discover_terms, split_validation
 from identify.flightlog import load_manifest
 from physics import BUILTIN_VEHICLES, CHANNELS, DISCOVERED_PREFIX, Effect, EffectInputs
 
@@ -77,11 +76,11 @@ def _manifest(tmp: Path, hidden, *, n_flights: int = 4, duration_s: float = 16.0
 
 
 def _run(tmp: Path, hidden):
-    units, _, types = load_units(load_manifest(_manifest(tmp, hidden)), options=IdentifyOptions())
-    model = Model(vehicles=types)
+    data = load_units(load_manifest(_manifest(tmp, hidden)), options=IdentifyOptions())
+    units, model = data.units, Model(vehicles=data.types)
     train = [u for u in units if u.split == "train"]
     test = [u for u in units if u.split == "test"]
-    fit, val = split_validation(train)
+    fit, val, _ = validation_split(train)
     final, report = discover_terms(fit, val, model, test=test)
     return final, report, [u for u in test if u.name == "b"], model
 
