@@ -207,6 +207,14 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
             "",
             f"**Unexplained residual**: it still correlates with `{u['feature']}` (pearson {u['pearson']:.2f}, eta {u['eta']:.2f}); no effect of the library removed it.",
         ]
+    if result.discovered:
+        lines += ["", "## Discovered terms (sparse regression on train, kept by validation; identify.discovery)", "",
+                  "| channel | kept | validation gain | test RMSE before | after | formula |", "|---|---|---|---|---|---|"]  # fmt: skip
+        for e in result.discovered:
+            lines.append(
+                f"| {e['channel']} | {'yes' if e['selected'] else 'no'} | {e['gain_validation']:.3f} | "
+                f"{_fmt(e['rmse_test']['before'], 5)} | {_fmt(e['rmse_test']['after'], 5)} | {e['formula'] or '-'} |"
+            )
     v = result.validity
     lines += ["", "## Validity", "", f"Samples below a source (r < 3 L): {v['samples_below_a_source']}; in the model's zone dz > 3 L: "
               f"{v['samples_in_valid_zone']} ({_fmt(v['fraction_valid'], 3)}). {v['note']}.", "",
