@@ -160,8 +160,9 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         lines.append(
             f"| {name} | {sat['thrust_source']} | {sat['saturated_samples']} | {sat['saturated_fraction']:.3f} |"
         )
+    lines.append("")
     for t, m in result.thrust_maps.items():
-        lines.append(f"\n- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "
+        lines.append(f"- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "
                      f"ceiling {m.x_max_V:.3f} V, max {m.max_thrust_N:.4g} N per motor, RMS {m.rms_N:.2g} N, R2 {m.r2:.4f}")  # fmt: skip
     lines += [f"- note: {n}" for n in result.notes]
     lines += ["", "## Candidate effects (fitted on train, chosen on validation flights, scored on test)", "",
@@ -177,7 +178,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     if result.calibration is not None:
         lines += [
             "",
-            "## Calibrated parameters (train flights; one-sigma from the Jacobian)",
+            "## Calibrated parameters (fitting part of the train flights; one-sigma from the Jacobian)",
             "",
             "| parameter | value | std |",
             "|---|---|---|",
