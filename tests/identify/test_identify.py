@@ -198,7 +198,7 @@ def test_extra_candidates_are_scored_on_validation_as_given(tmp_path: Path) -> N
 
     truth = HIDDEN["near_field"]
     useless = Effect("thrust_bias", {"force_z_N": 0.0})
-    options = replace(FAST, effects=(), extra_candidates=(useless, truth), calibrate=False)
+    options = replace(FAST, effects=(), extra_candidates=(useless, truth), calibrate=False, discover=False)
     result = run_identify(make_manifest(tmp_path, (truth,), duration_s=8.0), options=options, thrust_summary=False)
     assert result.selected == ["near_field"], [(t.name, t.gain_fz) for t in result.trials]
     assert result.validation.startswith("validation flights: f1")
