@@ -14,6 +14,7 @@ from physics.disturbance import (
     VALIDITY_FACTOR_L,
     ModelOptions,
     disturbance_wrench,
+    invalid_zone_mask,
     oncoming_speed_per_rotor_mps,
     validity_mask,
 )
@@ -88,6 +89,7 @@ __all__ = [
     "total_wrench",
     "unapplied_model_notes",
     "validity_mask",
+    "invalid_zone_mask",
     "vehicle_from_dict",
     "vehicle_to_yaml_dict",
 ]

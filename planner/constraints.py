@@ -181,6 +181,20 @@ class PairRule:
     usage_from_other: UsageTable | None = None  # other is the source (objective only)
     margin_m: float = 0.0  # added to the cutoff radius, m
     until_margin_s: float = 0.0  # added to the track's presence, s
+    tube_m: float = 0.0  # tracking tube: cut-off radius over dz +- tube, plus tube, m
+
+    def cutoff_m(self, table: CutoffTable, dz_m: float) -> float:
+        """Cut-off radius at vertical separation ``dz_m`` (> 0), m: the table's largest value over
+        dz +- tube (the vehicle may fly that far off its plan), plus margin and tube; 0 where the
+        model allows any horizontal distance."""
+        rc = table.lookup(dz_m)
+        if self.tube_m > 0.0:
+            rc = max(rc, table.lookup(dz_m + self.tube_m))
+            if dz_m > self.tube_m:
+                rc = max(rc, table.lookup(dz_m - self.tube_m))
+            else:  # the tube reaches the other vehicle's level: at least the separation circle
+                rc = max(rc, table.lookup(min(dz_m, 1e-3)))
+        return rc + self.margin_m + self.tube_m if rc > 0.0 else 0.0
 
 
 @dataclass
@@ -224,13 +238,11 @@ class ConflictChecker:
                     return f"ellipsoid of {tr.name}"
                 continue
             if dz < 0.0 and rule.cut_from_other is not None:
-                rc = rule.cut_from_other.lookup(-dz)
-                rc = rc + rule.margin_m if rc > 0.0 else 0.0
+                rc = rule.cutoff_m(rule.cut_from_other, -dz)
                 if r2 < rc * rc:
                     return f"downwash of {tr.name}"
             elif dz > 0.0 and rule.cut_on_other is not None:
-                rc = rule.cut_on_other.lookup(dz)
-                rc = rc + rule.margin_m if rc > 0.0 else 0.0
+                rc = rule.cutoff_m(rule.cut_on_other, dz)
                 if r2 < rc * rc:
                     return f"downwash on {tr.name}"
         return None
@@ -274,6 +286,7 @@ def build_checker(
     level: float | None = None,
     margin_m: float = 0.0,
     until_margin_s: float = 0.0,
+    tube: bool = True,
 ) -> ConflictChecker:
     """The checker of vehicle ``name`` against ``tracks`` (other vehicles) for one ``mode``.
 
@@ -283,6 +296,10 @@ def build_checker(
     separation, cutoff and ellipsoid radii and to the obstacle inflation, ``until_margin_s`` (s)
     to the presence of vehicles not planned yet: the planner searches with small margins so that
     the timed trajectory passes the nominal re-check although both sample the motion differently.
+    With ``tube`` (default) the scenario's ``limits.tracking_margin_m`` (the closed-loop tracking
+    tube, m) is added to the separation and ellipsoid radii and to the cut-off radius, which is
+    also taken as its largest value over dz +- tube (so the invalid zone grows by the tube
+    vertically too); ``tube=False`` gives the checker of the user's given start positions.
     """
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
@@ -297,10 +314,11 @@ def build_checker(
         grow = np.array([rb + lim.obstacle_margin_m, rb + lim.obstacle_margin_m, mz]) + margin_m
         boxes.append(tuple((box.min_m - grow).tolist() + (box.max_m + grow).tolist()))
     level = lim.authority_fraction if level is None else level
+    tube_m = float(lim.tracking_margin_m) if tube else 0.0
     rules = []
     for tr in tracks:
         other = tr.vehicle
-        sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m
+        sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m + tube_m
         cut_from = cut_on = ell = None
         usage_from = usage_table(other, task.vehicle, field_form=scenario.field_form)
         if mode == "downwash":
@@ -311,6 +329,6 @@ def build_checker(
                 task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form
             )
         elif mode == "ellipsoid":
-            ell = rb + other.body_radius_m + margin_m
-        rules.append(PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s))
+            ell = rb + other.body_radius_m + margin_m + tube_m
+        rules.append(PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s, tube_m))
     return ConflictChecker(name, tuple(lo.tolist()), tuple(hi.tolist()), boxes, rules)

@@ -29,6 +29,7 @@ from planner.constraints import Track, build_checker
 from planner.errors import InfeasibleError
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
 from planner.timing import KinematicLimits, TimedPath, common_grid, min_segment_duration_s, time_parameterize
+from verify import REST_SPEED_MPS
 
 METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
 MODE_OF_METHOD = {
@@ -81,7 +82,8 @@ def _plan_order(
         ]
         checker = build_checker(scenario, name, others, mode=mode, margin_m=PLAN_MARGIN_M, until_margin_s=PLAN_MARGIN_S)
         nominal = build_checker(scenario, name, others, mode=mode)
-        bad = start_conflict(nominal, task.start_m)
+        given = build_checker(scenario, name, others, mode=mode, tube=False)  # at rest: no tracking tube
+        bad = start_conflict(given, task.start_m)
         if bad is not None:
             why = ""
             if bad == "workspace" or bad.startswith("obstacle"):
@@ -138,7 +140,7 @@ def _plan_order(
                 tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
             else:
                 tp = time_parameterize(sp.waypoints_m, sp.times_s, limits)
-            problem = _recheck(nominal, tp, goal, hold_until)
+            problem = _recheck(nominal, given, tp, goal, hold_until)
             if problem is None:
                 accepted = tp
                 info["attempts"][name] = attempt + 1
@@ -180,14 +182,17 @@ def _retime_with_tail(sp, limits: KinematicLimits, tail_limits: KinematicLimits,
     return TimedPath(knots, sp.waypoints_m.copy(), main.segments + tail.segments)
 
 
-def _recheck(checker, tp: TimedPath, goal: GoalSpec, hold_until: float) -> str | None:
-    """First conflict of the timed trajectory on a fine grid (dock target exempt on the tail)."""
+def _recheck(checker, at_rest_checker, tp: TimedPath, goal: GoalSpec, hold_until: float) -> str | None:
+    """First conflict of the timed trajectory on a fine grid (dock target exempt on the tail);
+    ``at_rest_checker`` (no tracking tube) where the vehicle rests (speed < REST_SPEED_MPS)."""
     t_tail = tp.knot_t_s[-1 - len(goal.tail)] if goal.tail else math.inf
     t = np.arange(0.0, max(tp.duration_s, hold_until) + 1e-9, DT_S / 2)
-    p, _, _ = tp.sample(t)
-    for ti, pi in zip(t, p):
+    p, v, _ = tp.sample(t)
+    resting = np.linalg.norm(v, axis=1) < REST_SPEED_MPS
+    for ti, pi, rest in zip(t, p, resting):
         exclude = goal.tail_exempt if ti >= t_tail - 1e-9 else None
-        c = checker.conflict(pi[0], pi[1], pi[2], float(ti), exclude=exclude)
+        chk = at_rest_checker if rest else checker
+        c = chk.conflict(pi[0], pi[1], pi[2], float(ti), exclude=exclude)
         if c is not None:
             return c
     return None
@@ -336,10 +341,11 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
 def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) -> None:
     """Fill the DESIGN metrics (planning_time_s, max_authority_usage, min_separation_m, makespan_s)
     and extras (per-vehicle usage, path length, arrival time, invalid-zone time of docks)."""
-    from verify import separation_summary, wrench_along_plan
+    from verify import attach_feedforward, separation_summary, wrench_along_plan
 
     t = plan.t_s
     along = wrench_along_plan(plan, scenario, t_s=t)
+    attach_feedforward(plan, along)  # the predicted wrench, for controllers that feed it forward
     usage = {n: max(0.0, float(a.usage.max())) for n, a in along.items()}
     sep = separation_summary(plan, scenario)
     moving_end = 0.0
@@ -357,6 +363,7 @@ def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) ->
             "min_separation_m": sep["min_separation_m"],
             "makespan_s": float(moving_end),
             "authority_fraction": scenario.limits.authority_fraction,
+            "tracking_margin_m": scenario.limits.tracking_margin_m,
             "authority_usage_by_vehicle": usage,
             "invalid_zone_s_by_vehicle": {n: float(a.invalid_zone.sum() * plan.dt_s) for n, a in along.items()},
             "min_dock_separation_m": sep["min_dock_separation_m"],

@@ -17,6 +17,9 @@ Checks, in this order (a plan that fails the first group is not checked further)
 4. *Pairs*: separation (centre distance >= max(limits.min_separation_m, sum of body radii); dock
    pairs exempt on their final approach), the invalid zone (0 < dz <= 3 L of a source with
    overlapping footprints, forbidden for non-dock pairs unless ``invalid_zone_rule: model``).
+   While either vehicle of a pair moves (plan speed >= ``REST_SPEED_MPS``) both checks add the
+   tracking tube ``limits.tracking_margin_m`` t: separation + t, dz <= 3 L + t, footprints + t
+   (a vehicle flown closed-loop may be that far off its plan; a resting one is not).
 5. *Authority*: usage <= limits.authority_fraction with the model's numbers everywhere (also where
    it is extrapolated).
 
@@ -29,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from fileio import UserError
-from physics import VALIDITY_FACTOR_L
+from physics import VALIDITY_FACTOR_L, invalid_zone_mask
 from planfile import Plan, Scenario, load_scenario, scenario_from_dict
 from verify.along import dock_exempt, wrench_along_plan
 from verify.violations import Violation, add_runs
@@ -40,7 +43,7 @@ KINEMATIC_TOLERANCE = 1.02  # 2 % on speed / acceleration; jerk from finite diff
 JERK_TOLERANCE = 1.1
 POSITION_CONSISTENCY_M = 2e-3  # position vs integrated velocity/acceleration per step, m
 VELOCITY_CONSISTENCY_MPS = 5e-3  # velocity vs integrated acceleration per step, m/s
-REST_SPEED_MPS = 0.05  # "at rest" at the end of the plan, m/s
+REST_SPEED_MPS = 0.05  # "at rest" (end of the plan; no tracking tube while both of a pair rest), m/s
 
 
 def _check_vehicles(plan: Plan, scenario: Scenario) -> list[Violation]:
@@ -266,11 +269,14 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
     out: list[Violation] = []
     lim = scenario.limits
     names = list(plan.vehicles)
+    moving = {n: np.linalg.norm(tr.sample(t)[1], axis=1) >= REST_SPEED_MPS for n, tr in plan.vehicles.items()}
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             va, vb = scenario.vehicles[a].vehicle, scenario.vehicles[b].vehicle
             d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            sep = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
+            tube = np.where(moving[a] | moving[b], lim.tracking_margin_m, 0.0)  # (M,) m
+            sep0 = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
+            sep = sep0 + tube
             ex = dock_exempt(plan, scenario, a, b, pos, t)
             short = (d < sep - 1e-6) & ~ex
             add_runs(
@@ -278,10 +284,10 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
                 t,
                 short,
                 sep - d,
-                sep,
+                sep0 + lim.tracking_margin_m,
                 a,
                 "separation",
-                f"closer than {sep:.3f} m to {b} by (m)",
+                f"closer than {sep0:.3f} m + tracking tube {lim.tracking_margin_m:g} m (while moving) to {b} by (m)",
                 plan_t_s=plan.t_s,
             )
             if lim.invalid_zone_rule == "model":
@@ -290,22 +296,17 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
                 vs, vt = scenario.vehicles[src].vehicle, scenario.vehicles[tgt].vehicle
                 off = pos[tgt] - pos[src]
                 dz = -off[:, 2]
-                r = np.hypot(off[:, 0], off[:, 1])
-                inside = (
-                    (dz > 1e-6)
-                    & (dz <= VALIDITY_FACTOR_L * vs.size_m)
-                    & (r < vs.body_radius_m + vt.body_radius_m)
-                    & ~ex
-                )
+                inside = invalid_zone_mask(vs, vt, off, tube) & ~ex
                 add_runs(
                     out,
                     t,
                     inside,
-                    VALIDITY_FACTOR_L * vs.size_m - dz,
+                    VALIDITY_FACTOR_L * vs.size_m + tube - dz,
                     0.0,
                     tgt,
                     "invalid-zone",
-                    f"below {src} inside its invalid zone (dz <= 3 L, footprints overlap); depth (m)",
+                    f"below {src} inside its invalid zone grown by the tracking tube (dz <= 3 L + tube, "
+                    "footprints + tube overlap); depth (m)",
                     plan_t_s=plan.t_s,
                 )
     return out

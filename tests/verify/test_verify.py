@@ -22,7 +22,8 @@ def _scenario(low_start, low_goal, *, fraction=0.15, rule="conservative"):
             "limits": {"authority_fraction": fraction, "min_separation_m": 0.3, "invalid_zone_rule": rule},
             "vehicles": {
                 "top": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
-                "low": {"type": "small-quad", "start": list(low_start), "goal": list(low_goal)},
+                # the cosine lines below end with an acceleration step: allow their jerk
+                "low": {"type": "small-quad", "start": list(low_start), "goal": list(low_goal), "max_jerk_mps3": 15},
             },
         }
     )
@@ -126,7 +127,12 @@ def test_dock_pair_is_exempt_only_on_the_approach_tube():
             "limits": {"authority_fraction": 0.5},
             "vehicles": {
                 "top": {"type": "large-quad", "start": [0, 0, 1.5], "hover": True},
-                "low": {"type": "small-quad", "start": [0, 0, 2.5], "dock": {"with": "top", "offset": [0, 0, 0.3]}},
+                "low": {
+                    "type": "small-quad",
+                    "start": [0, 0, 2.5],
+                    "dock": {"with": "top", "offset": [0, 0, 0.3]},
+                    "max_jerk_mps3": 15,  # the cosine line ends with an acceleration step
+                },
             },
         }
     )
