@@ -80,8 +80,10 @@ def vehicle_metrics(
     usage = authority_usage(record.vehicle, record.applied_force_N, record.applied_torque_Nm)
     predicted = 0.0
     if record.predicted_force_N is not None and record.predicted_torque_Nm is not None:
-        predicted = float(authority_usage(record.vehicle, record.predicted_force_N, record.predicted_torque_Nm).max())
-    flown = float(usage.max())
+        predicted = max(
+            0.0, float(authority_usage(record.vehicle, record.predicted_force_N, record.predicted_torque_Nm).max())
+        )
+    flown = max(0.0, float(usage.max()))  # (-0.0 of a vehicle nothing acts on)
     return VehicleMetrics(
         type=record.type_name,
         max_position_error_m=float(pos.max()),
