@@ -22,6 +22,8 @@ import numpy as np
 from fileio import save_figure
 from physics import authority_usage
 
+USAGE_RATIO_FLOOR = 1e-3  # predicted usage below which a flown/predicted ratio means nothing, -
+
 
 @dataclass(frozen=True)
 class VehicleMetrics:
@@ -37,7 +39,7 @@ class VehicleMetrics:
     time_in_invalid_zone_s: float  # time below another vehicle within dz <= 3 L of it (S0 II-A), s
     predicted_max_authority_usage: float  # of the plan's predicted disturbance (model at the plan), -
     predicted_time_in_invalid_zone_s: float  # the same invalid-zone test on the plan's positions, s
-    usage_ratio_flown_to_predicted: float | None  # max flown / max predicted usage (None: predicted 0)
+    usage_ratio_flown_to_predicted: float | None  # max flown / max predicted (None: predicted < 1e-3)
 
 
 def motor_usage(vehicle, cmd_motor_thrust_N: np.ndarray) -> np.ndarray:
@@ -97,7 +99,7 @@ def vehicle_metrics(
         time_in_invalid_zone_s=float(invalid_s),
         predicted_max_authority_usage=predicted,
         predicted_time_in_invalid_zone_s=float(predicted_invalid_s),
-        usage_ratio_flown_to_predicted=flown / predicted if predicted > 1e-9 else None,
+        usage_ratio_flown_to_predicted=flown / predicted if predicted > USAGE_RATIO_FLOOR else None,
     )
 
 
