@@ -194,6 +194,8 @@ def simulate_plan(
     stepper = _stepper(params, dt, truth.wind_mps)
     S = stepper.state
     S[:] = 0.0
+    stepper.ff_force_N[:] = 0.0  # the stepper is cached: no feed-forward left from an earlier flight
+    stepper.ff_torque_Nm[:] = 0.0
     S[:, 0:3] = ref_x[0]
     S[:, 3:6] = ref_v[0]
     S[:, 9] = 1.0  # identity attitude, [x, y, z, w]

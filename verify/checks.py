@@ -21,7 +21,9 @@ Checks, in this order (a plan that fails the first group is not checked further)
    tracking tube ``limits.tracking_margin_m`` t: separation + t, dz <= 3 L + t, footprints + t
    (a vehicle flown closed-loop may be that far off its plan; a resting one is not).
 5. *Authority*: usage <= limits.authority_fraction with the model's numbers everywhere (also where
-   it is extrapolated).
+   it is extrapolated); and, while a pair moves, also with the target at the worst point of the
+   tracking tube for each source (towards the source's axis by the tube, at dz and dz +- tube;
+   dock pairs exempt on their approach as from the planner's cut-off).
 
 Consecutive violating samples of one kind merge into one :class:`Violation` that names the vehicle,
 the plan sample and time where it starts, the check, and its worst value against the limit.
@@ -337,6 +339,79 @@ def _check_authority(plan: Plan, scenario: Scenario, t: np.ndarray) -> list[Viol
     return out
 
 
+def _tube_offsets(off: np.ndarray, tube_m: float) -> list[np.ndarray]:
+    """Offsets (N, 3) of a target within the tracking tube that the downwash hits hardest: moved
+    horizontally towards the source's axis by the tube, at dz and dz +- tube (dz kept > 1 mm)."""
+    r = np.hypot(off[:, 0], off[:, 1])
+    shrink = np.where(r > 1e-9, np.maximum(r - tube_m, 0.0) / np.maximum(r, 1e-9), 0.0)
+    base = off * np.column_stack([shrink, shrink, np.ones_like(shrink)])
+    out = []
+    for dz_shift in (-tube_m, 0.0, tube_m):
+        o = base.copy()
+        o[:, 2] = np.minimum(o[:, 2] - dz_shift, -1e-3)  # offset z = -dz; dz + shift, still below
+        out.append(o)
+    return out
+
+
+def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray]) -> list[Violation]:
+    """Authority usage with every moving pair's target placed, per source, at the worst point of
+    the tracking tube (``limits.tracking_margin_m``; dock pairs on their approach exempt, as for
+    the planner's cut-off): the verifier's form of the planner's grown cut-off radius."""
+    from physics import authority_usage, disturbance_wrench
+    from verify.along import model_options
+
+    out: list[Violation] = []
+    tube = scenario.limits.tracking_margin_m
+    if tube <= 0.0:
+        return out
+    limit = scenario.limits.authority_fraction
+    opts = model_options(scenario)
+    moving = {n: np.linalg.norm(tr.sample(t)[1], axis=1) >= REST_SPEED_MPS for n, tr in plan.vehicles.items()}
+    for tname in plan.vehicles:
+        target = scenario.vehicles[tname].vehicle
+        force = np.zeros((t.size, 3))
+        torque = np.zeros((t.size, 3))
+        tubed = np.zeros(t.size, dtype=bool)
+        for sname in plan.vehicles:
+            if sname == tname:
+                continue
+            source = scenario.vehicles[sname].vehicle
+            off = pos[tname] - pos[sname]
+            below = -off[:, 2] > 1e-6
+            use = below & (moving[tname] | moving[sname]) & ~dock_exempt(plan, scenario, tname, sname, pos, t)
+            plain = below & ~use
+            if plain.any():
+                w = disturbance_wrench(source, target, off[plain], opts)
+                force[plain] += w.force_N
+                torque[plain] += w.torque_Nm
+            if use.any():
+                best_u = np.full(int(use.sum()), -np.inf)
+                best_f = np.zeros((best_u.size, 3))
+                best_t = np.zeros((best_u.size, 3))
+                for o in _tube_offsets(off[use], tube):
+                    w = disturbance_wrench(source, target, o, opts)
+                    u = authority_usage(target, w.force_N, w.torque_Nm)
+                    better = u > best_u
+                    best_u[better], best_f[better], best_t[better] = u[better], w.force_N[better], w.torque_Nm[better]
+                force[use] += best_f
+                torque[use] += best_t
+                tubed |= use
+        usage = authority_usage(target, force, torque)
+        over = tubed & (usage > limit + USAGE_TOLERANCE)
+        add_runs(
+            out,
+            t,
+            over,
+            usage,
+            limit,
+            tname,
+            "authority-tube",
+            f"authority usage within the tracking tube ({tube:g} m) of the plan",
+            plan_t_s=plan.t_s,
+        )
+    return out
+
+
 def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:
     """Every violation of ``plan`` against ``scenario`` (empty list = the plan passes), sorted by
     time; the model checks run on a grid of step ``dt_fine_s``, s."""
@@ -349,6 +424,8 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
     out += _check_tasks(plan, scenario, t, pos)
     out += _check_pairs(plan, scenario, t, pos)
     out += _check_authority(plan, scenario, t)
+    if not any(v.kind == "authority" for v in out):  # the plain check names the cause first
+        out += _check_authority_tube(plan, scenario, t, pos)
     out.sort(key=lambda v: (v.t_s, v.vehicle, v.kind))
     return out
 

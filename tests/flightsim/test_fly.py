@@ -114,3 +114,12 @@ def test_shipped_scenario_holds_when_flown(path):
         assert m.max_authority_usage <= scenario.limits.authority_fraction, (name, m)
         if m.predicted_time_in_invalid_zone_s == 0.0:
             assert m.time_in_invalid_zone_s == 0.0, (name, m)
+
+
+def test_a_flight_without_feedforward_is_not_changed_by_an_earlier_one():
+    _, plan = _plan("battery_swap")
+    first = simulate_plan(plan, options=QUIET)
+    simulate_plan(plan, options=dataclasses.replace(QUIET, feedforward=True))  # same cached stepper
+    again = simulate_plan(plan, options=QUIET)
+    for name, rec in first.records.items():
+        np.testing.assert_allclose(again.records[name].position_m, rec.position_m, atol=1e-9)
