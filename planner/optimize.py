@@ -201,6 +201,7 @@ def build_problem(
         interaction_extent=extents,
         weights=options.weights,
         obstacle_margin_m=float(limits.obstacle_margin_m),
+        tube_m=float(limits.tracking_margin_m),
         invalid_zone_keep_out=limits.invalid_zone_rule != "model",
         max_cpu_time_s=options.max_cpu_time_s,
         max_iterations=options.max_iterations,
