@@ -4,6 +4,14 @@ authority levels and the 3-D wrench table with a smooth (numpy and CasADi) inter
 """
 
 from costmaps.cutoff import DEFAULT_LEVELS, INVALID_RULES, CutoffMap, build_cutoff_map, r_cut_from_usage
+from costmaps.effects import (
+    AXIS_BREAKING_EFFECTS,
+    effects_key,
+    effects_of_key,
+    map_effects,
+    pair_wrench,
+    unmapped_effect_names,
+)
 from costmaps.map_plot import plot_cutoff
 from costmaps.map_store import (
     DATA_DIR,
@@ -19,6 +27,7 @@ from costmaps.map_store import (
 from costmaps.wrench_table import WrenchTable, build_wrench_table
 
 __all__ = [
+    "AXIS_BREAKING_EFFECTS",
     "DATA_DIR",
     "DEFAULT_LEVELS",
     "FORMAT_VERSION",
@@ -29,11 +38,16 @@ __all__ = [
     "build_cutoff_map",
     "build_pair_maps",
     "build_wrench_table",
+    "effects_key",
+    "effects_of_key",
     "load_pair_maps",
+    "map_effects",
     "pair_maps",
+    "pair_wrench",
     "param_hash",
     "plot_cutoff",
     "r_cut_from_usage",
     "save_pair_maps",
     "shipped_path",
+    "unmapped_effect_names",
 ]

@@ -32,12 +32,14 @@ last value is held.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from costmaps.effects import map_effects, pair_wrench
 from costmaps.wrench_table import USAGE_FLOOR, LateralScale, default_dz_max_m, target_half_extent_m
-from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, Vehicle, authority_usage, disturbance_wrench
+from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, Effect, ModelOptions, Vehicle, authority_usage
 
 INVALID_RULES = ("conservative", "model", "forbid")
 DEFAULT_INVALID_RULE = "conservative"
@@ -185,8 +187,10 @@ def usage_grid(
     *,
     options: ModelOptions = DEFAULT_OPTIONS,
     resolution: CutoffResolution = DEFAULT_CUTOFF_RESOLUTION,
+    effects: Sequence[Effect] = (),
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Usage maximised over azimuth on the (r, dz) grid.
+    """Usage maximised over azimuth on the (r, dz) grid, with the between-vehicle ``effects``
+    that keep the jet axisymmetric (:func:`costmaps.effects.map_effects`).
 
     Returns dz_m (K,), r_grid_m (n_r, K) and usage (n_r, K); dz = 0 holds the limit from below.
     """
@@ -200,8 +204,8 @@ def usage_grid(
     offsets = np.stack(
         np.broadcast_arrays(rr * np.cos(phi), rr * np.sin(phi), -dz_eval[None, :, None]), axis=-1
     ).reshape(-1, 3)
-    batch = disturbance_wrench(source, target, offsets, options)
-    usage = authority_usage(target, batch.force_N, batch.torque_Nm)
+    force, torque = pair_wrench(source, target, offsets, options, map_effects(effects))
+    usage = authority_usage(target, force, torque)
     usage = usage.reshape(resolution.n_r, dz.size, resolution.n_azimuth).max(axis=2)
     return dz, r_grid, usage
 
@@ -215,6 +219,7 @@ def build_cutoff_map(
     default_level: float = DEFAULT_LEVEL,
     invalid_rule: str = DEFAULT_INVALID_RULE,
     resolution: CutoffResolution = DEFAULT_CUTOFF_RESOLUTION,
+    effects: Sequence[Effect] = (),
 ) -> CutoffMap:
     """Compute the usage grid and the cutoff radii at ``levels`` (sorted, each > 0)."""
     if invalid_rule not in INVALID_RULES:
@@ -225,7 +230,7 @@ def build_cutoff_map(
     default_level = _check_level(default_level)
     if min(levels_arr) < USAGE_FLOOR:
         raise ValueError(f"levels below {USAGE_FLOOR} are not resolved by the grid extent")
-    dz, r_grid, usage = usage_grid(source, target, options=options, resolution=resolution)
+    dz, r_grid, usage = usage_grid(source, target, options=options, resolution=resolution, effects=effects)
     partial = CutoffMap(
         source_name=source.name,
         target_name=target.name,

@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -41,6 +42,7 @@ from costmaps.cutoff import (
     CutoffResolution,
     build_cutoff_map,
 )
+from costmaps.effects import EffectsKey, effects_key, effects_of_key, map_effects
 from costmaps.wrench_table import (
     DEFAULT_RESOLUTION,
     LateralScale,
@@ -50,7 +52,7 @@ from costmaps.wrench_table import (
     mirror_quadrant,
 )
 from fileio import UserError, atomic_output
-from physics import DEFAULT_OPTIONS, ModelOptions, Vehicle
+from physics import DEFAULT_OPTIONS, Effect, ModelOptions, Vehicle, effects_to_list
 
 FORMAT_VERSION = 1
 """Bump when the .npz layout or the meaning of a stored array changes."""
@@ -80,14 +82,25 @@ def options_dict(options: ModelOptions) -> dict:
     return dataclasses.asdict(options)
 
 
-def param_hash(source: Vehicle, target: Vehicle, options: ModelOptions = DEFAULT_OPTIONS) -> str:
-    """SHA-256 (hex) of both vehicles' parameters, the model options and the format version."""
+def effects_list(effects: Sequence[Effect]) -> list[dict]:
+    """The effects a map applies (:func:`costmaps.effects.map_effects`), ``[{name, params}]``."""
+    return effects_to_list(map_effects(effects))
+
+
+def param_hash(
+    source: Vehicle, target: Vehicle, options: ModelOptions = DEFAULT_OPTIONS, effects: Sequence[Effect] = ()
+) -> str:
+    """SHA-256 (hex) of both vehicles' parameters, the model options, the applied effects with
+    their parameters (only when there are some: maps of the base model keep their hash) and the
+    format version."""
     payload = {
         "format_version": FORMAT_VERSION,
         "source": vehicle_parameters(source),
         "target": vehicle_parameters(target),
         "options": options_dict(options),
     }
+    if map_effects(effects):
+        payload["effects"] = effects_list(effects)
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -117,8 +130,10 @@ def build_pair_maps(
     invalid_rule: str = DEFAULT_INVALID_RULE,
     cutoff_resolution: CutoffResolution = DEFAULT_CUTOFF_RESOLUTION,
     table_resolution: TableResolution = DEFAULT_RESOLUTION,
+    effects: Sequence[Effect] = (),
 ) -> PairMaps:
-    """Compute both maps from the model (about 1-2 s per pair)."""
+    """Compute both maps from the model plus the between-vehicle ``effects`` of a calibrated
+    model (:func:`costmaps.effects.map_effects`; about 1-2 s per pair)."""
     cutoff = build_cutoff_map(
         source,
         target,
@@ -127,15 +142,20 @@ def build_pair_maps(
         default_level=default_level,
         invalid_rule=invalid_rule,
         resolution=cutoff_resolution,
+        effects=effects,
     )
-    table = build_wrench_table(source, target, options=options, resolution=table_resolution)
+    table = build_wrench_table(source, target, options=options, resolution=table_resolution, effects=effects)
     metadata = {
         "format_version": FORMAT_VERSION,
         "tool_version": tool_version(),
-        "param_hash": param_hash(source, target, options),
+        "param_hash": param_hash(source, target, options, effects),
         "source_name": source.name,
         "target_name": target.name,
-        "model": {"field_form": options.field_form, "options": options_dict(options)},
+        "model": {
+            "field_form": options.field_form,
+            "options": options_dict(options),
+            "effects": effects_list(effects),
+        },
         "source": source.to_dict(),
         "target": target.to_dict(),
         "levels": [float(v) for v in cutoff.levels],
@@ -222,11 +242,12 @@ def load_pair_maps(
     expect_source: Vehicle | None = None,
     expect_target: Vehicle | None = None,
     options: ModelOptions | None = None,
+    effects: Sequence[Effect] = (),
 ) -> PairMaps:
     """Read a map written by :func:`save_pair_maps`.
 
-    With ``expect_source``/``expect_target`` (and ``options``, default the standard model) the
-    stored ``param_hash`` must match them. Raises :class:`UserError` for a missing or unreadable
+    With ``expect_source``/``expect_target`` (and ``options``, default the standard model, and
+    ``effects``, default none) the stored ``param_hash`` must match them. Raises :class:`UserError` for a missing or unreadable
     file, another format version, or a parameter mismatch, naming the first differing parameter.
     """
     path = Path(path)
@@ -250,18 +271,20 @@ def load_pair_maps(
         if expect_source is None or expect_target is None:
             raise ValueError("give both expect_source and expect_target")
         opts = DEFAULT_OPTIONS if options is None else options
-        expected = param_hash(expect_source, expect_target, opts)
+        expected = param_hash(expect_source, expect_target, opts, effects)
         if metadata.get("param_hash") != expected:
             diffs = _differences(
                 {
                     "source": {k: v for k, v in metadata.get("source", {}).items() if k not in _NOT_MAP_INPUTS},
                     "target": {k: v for k, v in metadata.get("target", {}).items() if k not in _NOT_MAP_INPUTS},
                     "options": metadata.get("model", {}).get("options", {}),
+                    "effects": {"list": metadata.get("model", {}).get("effects", [])},
                 },
                 {
                     "source": vehicle_parameters(expect_source),
                     "target": vehicle_parameters(expect_target),
                     "options": json.loads(json.dumps(options_dict(opts))),
+                    "effects": {"list": json.loads(json.dumps(effects_list(effects)))},
                 },
             )
             raise UserError(
@@ -308,17 +331,21 @@ def _maps_from_arrays(data: dict, metadata: dict) -> PairMaps:
 
 
 @lru_cache(maxsize=64)
-def _cached_pair_maps(source: Vehicle, target: Vehicle, options: ModelOptions) -> PairMaps:
+def _cached_pair_maps(source: Vehicle, target: Vehicle, options: ModelOptions, key: EffectsKey) -> PairMaps:
+    effects = effects_of_key(key)
     shipped = shipped_path(source.name, target.name)
     if shipped.exists():
         try:
-            return load_pair_maps(shipped, expect_source=source, expect_target=target, options=options)
+            return load_pair_maps(shipped, expect_source=source, expect_target=target, options=options, effects=effects)
         except UserError:
-            pass  # stale or other parameters (custom/calibrated vehicle of the same name): compute
-    return build_pair_maps(source, target, options=options)
+            pass  # stale or other parameters (custom/calibrated vehicle or effects): compute
+    return build_pair_maps(source, target, options=options, effects=effects)
 
 
-def pair_maps(source: Vehicle, target: Vehicle, *, options: ModelOptions = DEFAULT_OPTIONS) -> PairMaps:
+def pair_maps(
+    source: Vehicle, target: Vehicle, *, options: ModelOptions = DEFAULT_OPTIONS, effects: Sequence[Effect] = ()
+) -> PairMaps:
     """Maps of a pair: the shipped map when its parameter hash matches, else computed (cached in
-    this process). Works for custom and calibrated vehicles (computed, about 1-2 s per pair)."""
-    return _cached_pair_maps(source, target, options)
+    this process). Works for custom and calibrated vehicles and a calibrated model's
+    between-vehicle ``effects`` (computed, about 1-2 s per pair)."""
+    return _cached_pair_maps(source, target, options, effects_key(map_effects(effects)))

@@ -37,12 +37,14 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, ModelOptions, Vehicle, authority_usage, disturbance_wrench
+from costmaps.effects import map_effects, pair_wrench
+from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, Effect, ModelOptions, Vehicle, authority_usage
 
 if TYPE_CHECKING:  # pragma: no cover
     import casadi
@@ -296,8 +298,12 @@ def build_wrench_table(
     *,
     options: ModelOptions = DEFAULT_OPTIONS,
     resolution: TableResolution = DEFAULT_RESOLUTION,
+    effects: Sequence[Effect] = (),
 ) -> WrenchTable:
-    """Evaluate the disturbance model on the table grid (one quadrant, mirrored) and check extents."""
+    """Evaluate the disturbance model (plus the between-vehicle ``effects`` that keep the jet
+    axisymmetric, :func:`costmaps.effects.map_effects`) on the table grid (one quadrant, mirrored)
+    and check extents. The yaw torque of an effect (wake swirl) is not a table channel; the cutoff
+    map's usage and the verifier include it."""
     scale = LateralScale.for_pair(source, target, resolution.lateral_widths)
     dz = table_dz_grid_m(source, resolution)
     # dz = 0 holds the limit from below the source (the model is zero at and above the rotor plane)
@@ -309,12 +315,12 @@ def build_wrench_table(
     qx, qy, qz = np.meshgrid(quad, quad, dz_eval, indexing="ij")
     width = scale.half_width_m(qz)
     offsets = np.column_stack([(qx * width).ravel(), (qy * width).ravel(), -qz.ravel()])
-    batch = disturbance_wrench(source, target, offsets, options)
+    force, torque = pair_wrench(source, target, offsets, options, map_effects(effects))
     shape = qx.shape
-    fz_q = batch.force_N[:, 2].reshape(shape)
-    tx_q = batch.torque_Nm[:, 0].reshape(shape)
-    ty_q = batch.torque_Nm[:, 1].reshape(shape)
-    usage_q = authority_usage(target, batch.force_N, batch.torque_Nm).reshape(shape)
+    fz_q = force[:, 2].reshape(shape)
+    tx_q = torque[:, 0].reshape(shape)
+    ty_q = torque[:, 1].reshape(shape)
+    usage_q = authority_usage(target, force, torque).reshape(shape)
 
     boundary = max(float(usage_q[-1, :, :].max()), float(usage_q[:, -1, :].max()))
     return WrenchTable(

@@ -14,7 +14,7 @@ from flightsim.scenarios_synthetic import (
     waypoint_trajectory,
 )
 from flightsim.simulate import SimulationOptions, SimulationResult, SimulationStatus, VehicleRecord, simulate_plan
-from flightsim.truth import TruthSpec, load_truth_file, truth_from_dict
+from flightsim.truth import TruthSpec, load_truth_file, merge_truth, model_truth, plan_truth, truth_from_dict
 
 __all__ = [
     "NEURAL_SWARM_HEADER",
@@ -27,6 +27,9 @@ __all__ = [
     "feedforward_comparison",
     "hover_stack_plan",
     "load_truth_file",
+    "merge_truth",
+    "model_truth",
+    "plan_truth",
     "plot_errors",
     "simulate_plan",
     "simulation_metrics",

@@ -29,7 +29,7 @@ import numpy as np
 from fileio import UserError
 from flightsim.imu import ImuOptions, imu_samples
 from flightsim.stepper import CompiledStepper
-from flightsim.truth import TruthSpec
+from flightsim.truth import TruthSpec, merge_truth, plan_truth
 from flightsim.vehicle_params import quad_params
 from physics import TARGET_ONLY_EFFECTS, Effect, EffectInputs, ModelOptions, SourceSample, Vehicle, total_wrench
 from planfile import Plan, read_plan
@@ -133,7 +133,9 @@ def simulate_plan(
 ) -> SimulationResult:
     """Fly ``plan`` (a :class:`planfile.plan.Plan` or a plan.json path) closed loop.
 
-    ``truth`` (or just ``truth_effects``) adds effects beyond the model; ``vehicles`` maps type
+    ``truth`` (or just ``truth_effects``) adds effects beyond the model; without ``truth`` the world
+    is :func:`flightsim.truth.plan_truth` (the plan's field form and effects) plus ``truth_effects``
+    (give ``truth=merge_truth(plan_truth(plan), extra)`` to add to the plan's effects); ``vehicles`` maps type
     names to the vehicles actually flown instead of the plan's own parameters (e.g. a heavier or
     weaker airframe than planned). ``options``, when given, overrides the keyword numbers.
 
@@ -145,8 +147,8 @@ def simulate_plan(
     """
     if isinstance(plan, (str, Path)):
         plan = read_plan(plan)
-    if truth is None:
-        truth = TruthSpec(effects=tuple(truth_effects))
+    if truth is None:  # the world the plan was made for (its calibrated effects too) + truth_effects
+        truth = merge_truth(plan_truth(plan), TruthSpec(effects=tuple(truth_effects)), extra_form=False)
     elif truth_effects:
         truth = TruthSpec(tuple(truth.effects) + tuple(truth_effects), truth.wind_mps, truth.field_form)
     if options is None:

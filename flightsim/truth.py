@@ -1,4 +1,6 @@
-"""The simulator's "truth": effects beyond the planner's model, from a YAML file.
+"""The simulator's "truth": effects beyond the planner's model, from a YAML file, and the default
+world of a plan (:func:`plan_truth`: the model it was planned with, incl. a calibrated model's effects
+between vehicles; a truth file adds to it, an effect of the same name replacing the plan's).
 
 Format (every key optional)::
 
@@ -101,3 +103,25 @@ def load_truth_file(path: str | Path) -> TruthSpec:
     path = Path(path)
     doc = read_yaml(path, what="truth file")
     return truth_from_dict(doc, source=str(path))
+
+
+def model_truth(effects: tuple = (), field_form: str | None = None) -> TruthSpec:
+    """The world of a model: its effects (``physics.Effect``) and field form (default inverse-z)."""
+    return TruthSpec(effects=tuple(effects), field_form=field_form or "inverse-z")
+
+
+def plan_truth(plan: Any) -> TruthSpec:
+    """The default world of a plan: the model it was planned with, i.e. its field form and the
+    calibrated model's effects between vehicles it carries (``scenario_spec.model``)."""
+    model = (plan.scenario_spec or {}).get("model") or {}
+    return model_truth(plan.effects, model.get("field_form"))
+
+
+def merge_truth(base: TruthSpec, extra: TruthSpec | None, *, extra_form: bool = True) -> TruthSpec:
+    """``base`` plus the effects of ``extra`` (an effect of ``extra`` replaces one of the same name
+    in ``base``); wind and (with ``extra_form``) field form from ``extra``."""
+    if extra is None:
+        return base
+    names = {e.name for e in extra.effects}
+    effects = tuple(e for e in base.effects if e.name not in names) + tuple(extra.effects)
+    return TruthSpec(effects, extra.wind_mps, extra.field_form if extra_form else base.field_form)

@@ -17,9 +17,8 @@ File layout (every key is optional when ``base`` names a built-in type, required
         downwash: {c_ax: 4.9, z0_m: 0.12, c_rad: 25.0}
         kinematics: {max_speed_mps: 1.0, max_accel_mps2: 2.0, max_jerk_mps3: 8.0}  # optional
         motor_time_constant_s: 0.04                                               # optional
-    model:                          # optional: model options and extra effects (from identify)
-      field_form: inverse-z
-      effects: [{name: thrust_bias, params: {force_z_N: 0.01}}]
+    model: {...}                    # optional: a model file's model section (physics.model_file),
+                                    # not read here: load_model_file applies it
 
 Every error is a :class:`~fileio.errors.UserError` naming the file and the key.
 """
@@ -164,38 +163,13 @@ def load_vehicle_file(path: str | Path) -> dict[str, Vehicle]:
     doc = read_yaml(path, what="vehicle file")
     if not isinstance(doc, Mapping) or not isinstance(doc.get("vehicles"), Mapping):
         raise UserError(f"{path}: expected a top-level 'vehicles:' mapping of NAME: parameters")
-    unknown = set(doc) - {"vehicles", "model"}
+    unknown = set(doc) - {"vehicles", "model", "format_version"}
     if unknown:
         raise UserError(
-            f"{path}: unknown top-level key {sorted(unknown)[0]!r}; expected 'vehicles' and optional 'model'"
+            f"{path}: unknown top-level key {sorted(unknown)[0]!r}; expected 'vehicles' and optional 'model' "
+            "(a model file, physics.model_file)"
         )
     return {str(n): vehicle_from_dict(str(n), d, source=str(path)) for n, d in doc["vehicles"].items()}
-
-
-def load_model_section(path: str | Path) -> dict[str, Any]:
-    """The optional top-level ``model:`` mapping of a vehicles file ({} when absent)."""
-    doc = read_yaml(path, what="vehicle file") or {}
-    model = doc.get("model", {}) if isinstance(doc, Mapping) else {}
-    if not isinstance(model, Mapping):
-        raise UserError(f"{path}: model: expected a mapping (field_form, effects)")
-    return dict(model)
-
-
-def unapplied_model_notes(path: str | Path) -> list[str]:
-    """Notes for the parts of a vehicle file's ``model:`` section that planning does not apply.
-
-    Cost maps, planner and verifier use the calibrated vehicle parameters and the field form; the
-    extra effects found by ``proxplan identify`` (``model.effects``) describe what the base model
-    missed in the logs and are used by the simulator and the identification report, not by planning.
-    """
-    effects = load_model_section(path).get("effects") or []
-    names = [str(e.get("name")) for e in effects if isinstance(e, Mapping)]
-    if not names:
-        return []
-    return [
-        f"{path}: model.effects ({', '.join(names)}) are not applied by cost maps and planning; "
-        "they use the calibrated vehicle parameters and field form only"
-    ]
 
 
 def resolve_vehicle(name: str, custom: Mapping[str, Vehicle] | None = None, *, where: str = "") -> Vehicle:

@@ -20,7 +20,10 @@ plans through this module, so they agree on the rules:
 plan.json keys: ``format_version``, ``scenario`` (name), ``dt_s``, ``method``, ``vehicles: {NAME:
 {type, t_s, position_m, velocity_mps, acceleration_mps2}}``, ``vehicle_types: {TYPE: {...}}``,
 ``metrics: {planning_time_s, max_authority_usage, min_separation_m, makespan_s, ...}``, ``notes``,
-``scenario_file`` (absolute path of the scenario YAML, or null), ``scenario_spec``.
+``scenario_file`` (absolute path of the scenario YAML, or null), ``scenario_spec``. The model the
+plan was made with travels in ``scenario_spec.model``: ``field_form`` and ``effects`` (the
+calibrated model's effects between vehicles with every parameter, ``[{name, params}]``;
+:attr:`Plan.effects`).
 
 Feed-forward (optional per vehicle, written by ``proxplan plan``): ``disturbance_force_N`` and
 ``disturbance_torque_Nm`` (N, 3), the disturbance wrench the model predicts on the vehicle at each
@@ -39,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from fileio import UserError, atomic_write_text, read_json
-from physics import BUILTIN_VEHICLES, Vehicle, vehicle_from_dict, vehicle_to_yaml_dict
+from physics import BUILTIN_VEHICLES, Effect, Vehicle, effects_from_list, vehicle_from_dict, vehicle_to_yaml_dict
 
 PLAN_FORMAT_VERSION = 2
 READABLE_FORMAT_VERSIONS = (1, 2)
@@ -154,6 +157,12 @@ class Plan:
             if known != tr.vehicle:
                 raise ValueError(f"vehicle type {tr.type_name!r} has two different parameter sets in one plan")
         return out
+
+    @property
+    def effects(self) -> tuple[Effect, ...]:
+        """The effects between vehicles the plan was made with (``scenario_spec.model.effects``)."""
+        model = (self.scenario_spec or {}).get("model") or {}
+        return effects_from_list(model.get("effects"), "plan.json: scenario_spec.model.effects")
 
     def positions_at(self, t_s: np.ndarray) -> dict[str, np.ndarray]:
         """Every vehicle's positions (M, 3), m, at ``t_s`` (M,), s."""
@@ -313,6 +322,8 @@ def plan_from_dict(doc: Any, *, label: str = "<plan>") -> Plan:
     spec = doc.get("scenario_spec")
     if spec is not None and not isinstance(spec, dict):
         raise UserError(f"{label}: scenario_spec: expected an object (the scenario the plan was made for) or null")
+    if spec is not None and isinstance(spec.get("model"), dict):
+        effects_from_list(spec["model"].get("effects"), f"{label}: scenario_spec.model.effects")  # validate
     notes = [str(n) for n in doc.get("notes") or []]
     if version == 1:
         notes.append(f"{label}: plan format 1: vehicle types resolved by name from the built-in types")

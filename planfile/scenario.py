@@ -5,7 +5,11 @@ Frame: world, z up, metres. A scenario file::
     # what this scenario tests
     name: battery-swap
     vehicle_file: my_vehicles.yaml              # optional, resolved relative to this file
-    model: {field_form: inverse-z}              # optional disturbance-model options
+    model_file: calibrated.yaml                 # optional calibrated model (proxplan identify --save-model):
+                                                # its vehicles override same-named types, its effects
+                                                # between vehicles are applied (physics.model_file)
+    model: {field_form: inverse-z,              # optional disturbance-model options (override model_file's)
+            effects: [{name: near_field, params: {amplitude: 0.5}}]}   # added to model_file's
     workspace: {min: [-3, -3, 0], max: [3, 3, 4]}
     obstacles: [{min: [1, -0.5, 0], max: [1.5, 0.5, 2]}]          # optional axis-aligned boxes
     limits: {authority_fraction: 0.4, min_separation_m: 0.3,       # optional
@@ -30,9 +34,19 @@ from typing import Any
 import numpy as np
 
 from fileio import UserError, read_yaml
-from physics import VALIDITY_FACTOR_L, KinematicLimits, Vehicle
+from physics import VALIDITY_FACTOR_L, CalibratedModel, Effect, KinematicLimits, Vehicle
 
-TOP_KEYS = ("name", "description", "vehicle_file", "model", "workspace", "obstacles", "limits", "vehicles")
+TOP_KEYS = (
+    "name",
+    "description",
+    "vehicle_file",
+    "model_file",
+    "model",
+    "workspace",
+    "obstacles",
+    "limits",
+    "vehicles",
+)
 LIMIT_KEYS = (
     "authority_fraction",
     "min_separation_m",
@@ -146,12 +160,13 @@ class Scenario:
     spec: dict = field(default_factory=dict, compare=False)
     field_form: str | None = None  # disturbance-model field form ("inverse-z" or "printed"), None = default
     load_notes: tuple[str, ...] = ()  # things the user should know about how the file was read
+    effects: tuple[Effect, ...] = ()  # effects between vehicles applied by maps, planner, verifier
 
     def to_spec(self) -> dict:
         """The normalised, self-contained scenario mapping (every default filled in, no file
         references; vehicle types by name, their parameters travel with the plan): what plan.json
         stores as ``scenario_spec`` and :func:`scenario_from_dict` reads back."""
-        from physics import FIELD_FORMS
+        from physics import FIELD_FORMS, effects_to_list
 
         vehicles: dict[str, dict] = {}
         for name, task in self.vehicles.items():
@@ -169,7 +184,10 @@ class Scenario:
         lim = self.limits
         return {
             "name": self.name,
-            "model": {"field_form": self.field_form or FIELD_FORMS[0]},
+            "model": {
+                "field_form": self.field_form or FIELD_FORMS[0],
+                **({"effects": effects_to_list(self.effects)} if self.effects else {}),
+            },
             "workspace": {"min": self.workspace_min_m.tolist(), "max": self.workspace_max_m.tolist()},
             "obstacles": [
                 {"min": b.min_m.tolist(), "max": b.max_m.tolist(), **({"name": b.name} if b.name else {})}
@@ -298,13 +316,48 @@ def _vehicle_types(doc: Mapping, path: Path | None, label: str) -> dict[str, Veh
     return load_vehicle_file(vfile)
 
 
+def _model_file(doc: Mapping, path: Path | None, label: str) -> CalibratedModel | None:
+    if "model_file" not in doc:
+        return None
+    value = doc["model_file"]
+    if not isinstance(value, str) or not value:
+        raise UserError(f"{label}: model_file: expected a path to a model file (identify --save-model), got {value!r}")
+    from physics import load_model_file
+
+    base = path.parent if path is not None else Path.cwd()
+    mfile = (base / value).resolve()
+    if not mfile.exists():
+        raise UserError(f"{label}: model_file: file {mfile} does not exist (paths are relative to the scenario file)")
+    return load_model_file(mfile)
+
+
+def _model_notes(model: CalibratedModel | None, label: str) -> list[str]:
+    if model is None:
+        return []
+    from physics import target_only_notes
+
+    return [*model.notes, *target_only_notes(model, label)]
+
+
+def _unmapped(effects: tuple[Effect, ...], label: str) -> list[str]:
+    from costmaps import unmapped_effect_names
+
+    names = unmapped_effect_names(effects)
+    if not names:
+        return []
+    return [
+        f"{label}: model effects {', '.join(names)} make the jet depend on azimuth: cost maps and the planner leave "
+        "them out, verify and simulate apply them"
+    ]
+
+
 def _vehicle_file_notes(doc: Mapping, path: Path | None) -> list[str]:
     if "vehicle_file" not in doc:
         return []
-    from physics import unapplied_model_notes
+    from physics import vehicle_file_notes
 
     base = path.parent if path is not None else Path.cwd()
-    return unapplied_model_notes((base / doc["vehicle_file"]).resolve())
+    return vehicle_file_notes((base / doc["vehicle_file"]).resolve())
 
 
 def _task(name: str, data: Any, where: str, custom: dict[str, Vehicle]) -> VehicleTask:
@@ -433,11 +486,14 @@ def scenario_from_dict(
     source_path: str | Path | None = None,
     vehicle_types: Mapping[str, Vehicle] | None = None,
     label: str | None = None,
+    model: CalibratedModel | None = None,
 ) -> Scenario:
-    """Validate a parsed scenario mapping; ``source_path`` resolves ``vehicle_file`` and labels errors.
+    """Validate a parsed scenario mapping; ``source_path`` resolves ``vehicle_file`` and
+    ``model_file`` and labels errors.
 
     ``vehicle_types`` (e.g. a plan's embedded types) are looked up before the scenario's
-    ``vehicle_file`` and the built-in types; ``label`` names the source in errors (default: the path).
+    ``model_file``, its ``vehicle_file`` and the built-in types; ``label`` names the source in
+    errors (default: the path). ``model`` (``--model FILE``) replaces the scenario's ``model_file``.
     """
     path = Path(source_path) if source_path is not None else None
     label = label or (str(path) if path is not None else "<scenario>")
@@ -454,16 +510,24 @@ def scenario_from_dict(
         raise UserError(f"{label}: obstacles: expected a list of {{min: [x, y, z], max: [x, y, z]}} boxes")
     obstacles = tuple(_box(o, f"{label}: obstacles[{i}]") for i, o in enumerate(obstacles_raw))
     limits = _limits(doc.get("limits"), f"{label}: limits")
-    field_form = None
-    if "model" in doc and doc["model"] is not None:
-        model = _mapping(doc["model"], f"{label}: model", "{field_form: inverse-z|printed}")
-        _unknown(model, ("field_form",), f"{label}: model")
-        from physics import FIELD_FORMS
+    calibrated = model if model is not None else _model_file(doc, path, label)
+    field_form = calibrated.options.field_form if calibrated is not None else None
+    effects: tuple[Effect, ...] = ()
+    if calibrated is not None:
+        from physics import between_vehicle_effects
 
-        field_form = model.get("field_form")
+        effects = between_vehicle_effects(calibrated.effects)
+    if "model" in doc and doc["model"] is not None:
+        section = _mapping(doc["model"], f"{label}: model", "{field_form: inverse-z|printed, effects: [...]}")
+        _unknown(section, ("field_form", "effects"), f"{label}: model")
+        from physics import FIELD_FORMS, between_vehicle_effects, effects_from_list
+
+        field_form = section.get("field_form", field_form)
         if field_form is not None and field_form not in FIELD_FORMS:
             raise UserError(f"{label}: model.field_form: expected one of {', '.join(FIELD_FORMS)}, got {field_form!r}")
-    custom = {**_vehicle_types(doc, path, label), **dict(vehicle_types or {})}
+        effects += between_vehicle_effects(effects_from_list(section.get("effects"), f"{label}: model.effects"))
+    model_types = dict(calibrated.vehicles) if calibrated is not None else {}
+    custom = {**_vehicle_types(doc, path, label), **model_types, **dict(vehicle_types or {})}
     vraw = _mapping(doc["vehicles"], f"{label}: vehicles", "NAME: {type, start, goal|hover|dock}")
     if not vraw:
         raise UserError(f"{label}: vehicles: expected at least one vehicle")
@@ -482,14 +546,16 @@ def scenario_from_dict(
         vehicles=vehicles,
         spec=copy.deepcopy(dict(doc)),
         field_form=field_form,
-        load_notes=tuple(_vehicle_file_notes(doc, path)),
+        load_notes=tuple(_vehicle_file_notes(doc, path) + _model_notes(calibrated, label) + _unmapped(effects, label)),
+        effects=effects,
     )
     _check_geometry(sc, label)
     return sc
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario YAML file; UserError naming the file, key and expected form."""
+def load_scenario(path: str | Path, *, model: CalibratedModel | None = None) -> Scenario:
+    """Read and validate a scenario YAML file; UserError naming the file, key and expected form.
+    ``model`` (a calibrated model, ``--model FILE``) replaces the scenario's ``model_file``."""
     path = Path(path)
     doc = read_yaml(path, what="scenario file")
-    return scenario_from_dict(doc, source_path=path)
+    return scenario_from_dict(doc, source_path=path, model=model)

@@ -59,24 +59,32 @@ class CutoffTable:
 
 
 def _map_r_cut(
-    source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None
+    source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None, effects: tuple
 ) -> tuple[np.ndarray, str]:
-    """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store)."""
-    from costmaps import pair_maps
+    """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store); ``effects``
+    a :func:`costmaps.effects_key` of a calibrated model's effects between vehicles."""
+    from costmaps import effects_of_key, pair_maps
     from physics import ModelOptions
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
-    maps = pair_maps(source, target, options=options)
+    maps = pair_maps(source, target, options=options, effects=effects_of_key(effects))
     return np.asarray(maps.cutoff.r_cut_m(dz, level=level, invalid_rule=rule), dtype=float), "costmaps.map_store"
 
 
 @lru_cache(maxsize=256)
 def cutoff_table(
-    source: Vehicle, target: Vehicle, *, level: float, rule: str = "conservative", field_form: str | None = None
+    source: Vehicle,
+    target: Vehicle,
+    *,
+    level: float,
+    rule: str = "conservative",
+    field_form: str | None = None,
+    effects: tuple = (),
 ) -> CutoffTable:
-    """The per-pair cutoff lookup at authority ``level`` with the invalid-zone ``rule`` applied."""
+    """The per-pair cutoff lookup at authority ``level`` with the invalid-zone ``rule`` applied
+    (``effects``: :func:`costmaps.effects_key` of the scenario's effects, hashable for the cache)."""
     dz = np.arange(0.0, DZ_MAX_M + DZ_STEP_M, DZ_STEP_M)
-    r_cut, provenance = _map_r_cut(source, target, dz, level, rule, field_form)
+    r_cut, provenance = _map_r_cut(source, target, dz, level, rule, field_form, effects)
     r_cut = np.where(dz > 0, np.maximum(r_cut, 0.0), 0.0)
     invalid_dz = VALIDITY_FACTOR_L * source.size_m
     return CutoffTable(
@@ -105,13 +113,16 @@ class UsageTable:
 
 
 @lru_cache(maxsize=256)
-def usage_table(source: Vehicle, target: Vehicle, *, field_form: str | None = None) -> UsageTable | None:
-    """The :class:`UsageTable` of an ordered pair from the cost maps."""
-    from costmaps import pair_maps
+def usage_table(
+    source: Vehicle, target: Vehicle, *, field_form: str | None = None, effects: tuple = ()
+) -> UsageTable | None:
+    """The :class:`UsageTable` of an ordered pair from the cost maps (``effects`` as in
+    :func:`cutoff_table`)."""
+    from costmaps import effects_of_key, pair_maps
     from physics import ModelOptions
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
-    cmap = pair_maps(source, target, options=options).cutoff
+    cmap = pair_maps(source, target, options=options, effects=effects_of_key(effects)).cutoff
     dz = np.arange(0.0, float(cmap.dz_m[-1]) + 1e-9, 0.05)
     r = np.arange(0.0, float(cmap.r_grid_m.max()) + 1e-9, 0.02)
     cols = np.stack(
@@ -301,6 +312,8 @@ def build_checker(
     also taken as its largest value over dz +- tube (so the invalid zone grows by the tube
     vertically too); ``tube=False`` gives the checker of the user's given start positions.
     """
+    from costmaps import effects_key
+
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     task = scenario.vehicles[name]
@@ -320,13 +333,14 @@ def build_checker(
         other = tr.vehicle
         sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m + tube_m
         cut_from = cut_on = ell = None
-        usage_from = usage_table(other, task.vehicle, field_form=scenario.field_form)
+        form, fx = scenario.field_form, effects_key(getattr(scenario, "effects", ()))
+        usage_from = usage_table(other, task.vehicle, field_form=form, effects=fx)
         if mode == "downwash":
             cut_from = cutoff_table(
-                other, task.vehicle, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form
+                other, task.vehicle, level=level, rule=lim.invalid_zone_rule, field_form=form, effects=fx
             )
             cut_on = cutoff_table(
-                task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=scenario.field_form
+                task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=form, effects=fx
             )
         elif mode == "ellipsoid":
             ell = rb + other.body_radius_m + margin_m + tube_m

@@ -72,7 +72,8 @@ def default_wrench_provider(source, target, scenario):
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
-    return pair_maps(source, target, options=options).table.casadi_function()
+    effects = getattr(scenario, "effects", ())
+    return pair_maps(source, target, options=options, effects=effects).table.casadi_function()
 
 
 def _table_extent(source, target, scenario):
@@ -82,7 +83,8 @@ def _table_extent(source, target, scenario):
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
-    return pair_maps(source, target, options=options).table.scale.half_width_m
+    effects = getattr(scenario, "effects", ())
+    return pair_maps(source, target, options=options, effects=effects).table.scale.half_width_m
 
 
 def moving_end_s(plan) -> float:
@@ -99,7 +101,8 @@ def check_final_configuration(scenario) -> None:
     """Raise ``planner.errors.InfeasibleError`` when the final configuration itself (every vehicle
     at rest at its goal / hover point / dock) needs more than ``limits.authority_fraction`` of some
     vehicle's authority: then no trajectory can satisfy the limit (model evaluated directly)."""
-    from physics import ModelOptions, authority_usage, disturbance_wrench
+    from costmaps import pair_wrench
+    from physics import ModelOptions, authority_usage
     from planner.errors import InfeasibleError
 
     form = getattr(scenario, "field_form", None)
@@ -113,8 +116,10 @@ def check_final_configuration(scenario) -> None:
             off = final[nt] - final[ns]
             if ns == nt or off[2] >= -1e-6:
                 continue
-            w = disturbance_wrench(src.vehicle, tgt.vehicle, off[None, :], options)
-            force, torque = force + w.force_N, torque + w.torque_Nm
+            f_src, t_src = pair_wrench(
+                src.vehicle, tgt.vehicle, off[None, :], options, getattr(scenario, "effects", ())
+            )
+            force, torque = force + f_src, torque + t_src
             worst = ns if worst is None else worst
         usage = float(authority_usage(tgt.vehicle, force, torque)[0])
         if usage > fraction:

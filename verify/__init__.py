@@ -1,5 +1,5 @@
 """Independent verification of a plan against its scenario with the model evaluated directly
-(imports only the physics model and the plan-file contract), and the predictions along a plan
+(the physics model, through costmaps.pair_wrench for a calibrated model's effects, and the plan-file contract), and the predictions along a plan
 (wrench, authority usage, invalid zone, separations) that planner metrics and the web app show.
 """
 

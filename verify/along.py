@@ -2,7 +2,9 @@
 separations (the dock pairs' final approach told apart), evaluated with the model directly.
 
 The wrench on each vehicle is the sum over every other vehicle above it of
-``physics.disturbance.disturbance_wrench`` (S0-3..S0-8); its authority usage comes from
+``physics.disturbance.disturbance_wrench`` (S0-3..S0-8) plus the scenario's effects between vehicles
+(a calibrated model's, ``Scenario.effects``), through ``costmaps.pair_wrench`` (the one
+implementation, ``physics.effects.total_wrench``); its authority usage comes from
 ``physics.authority.authority_usage`` (DESIGN.md s. 3). Positions between plan samples come from
 the plan-file sampler. World frame, z up; m, N, N m, s.
 """
@@ -13,7 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from physics import ModelOptions, authority_usage, disturbance_wrench, invalid_zone_mask
+from costmaps import pair_wrench
+from physics import ModelOptions, authority_usage, invalid_zone_mask
 from planfile import Plan, Scenario
 
 DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
@@ -51,6 +54,7 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
     t_s = np.asarray(t_s, dtype=float)
     pos = plan.positions_at(t_s)
     opts = model_options(scenario)
+    effects = scenario.effects if scenario is not None else plan.effects
     out = {}
     for tname in plan.vehicles:
         target = _vehicle(plan, scenario, tname)
@@ -66,10 +70,10 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
             below = -off[:, 2] > 1e-6
             u_src = np.zeros(t_s.size)
             if below.any():
-                w = disturbance_wrench(source, target, off[below], opts)
-                force[below] += w.force_N
-                torque[below] += w.torque_Nm
-                u_src[below] = authority_usage(target, w.force_N, w.torque_Nm)
+                f_src, t_src = pair_wrench(source, target, off[below], opts, effects)
+                force[below] += f_src
+                torque[below] += t_src
+                u_src[below] = authority_usage(target, f_src, t_src)
                 inv = invalid_zone_mask(source, target, off[below])
                 invalid[np.nonzero(below)[0][inv]] = True
             by_source[sname] = u_src

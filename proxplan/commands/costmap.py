@@ -15,6 +15,8 @@ import math
 import sys
 import time
 
+from proxplan.cli_args import add_model_argument, load_model_argument
+
 _RULES = ("conservative", "model", "forbid")
 _DEFAULT_LEVELS = ("0.02", "0.05", "0.1", "0.25", "0.5")
 
@@ -60,9 +62,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--field-form",
         choices=("inverse-z", "printed"),
         default=None,
-        help="form of (S0-1); default: the vehicle file's model.field_form or inverse-z",
+        help="form of (S0-1); default: the --model / vehicle file's model.field_form or inverse-z",
     )
     p.add_argument("--vehicle-file", metavar="FILE.yaml", help="custom vehicle types")
+    add_model_argument(
+        p, "its vehicles override same-named types, its field form and effects between vehicles enter the maps"
+    )
     p.add_argument("--no-plot", action="store_true", help="do not write the PNG")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run_costmap)
@@ -121,17 +126,29 @@ def run_costmap(args: argparse.Namespace) -> int:
 
         custom = load_vehicle_file(args.vehicle_file)
         model = load_model_section(args.vehicle_file)
-        from physics import unapplied_model_notes
+        from physics import vehicle_file_notes
 
-        for note in unapplied_model_notes(args.vehicle_file):
+        for note in vehicle_file_notes(args.vehicle_file):
             print(f"proxplan costmap: note: {note}", file=sys.stderr)
     levels = tuple(_level(v, "--levels") for v in args.levels)
     default_level = _level(args.default_level, "--default-level")
-    field_form = args.field_form or model.get("field_form") or "inverse-z"
-    if field_form not in ("inverse-z", "printed"):
-        from fileio import UserError
+    calibrated = load_model_argument(args, "costmap")
+    effects: tuple = ()
+    if calibrated is not None:
+        from costmaps import unmapped_effect_names
+        from physics import target_only_notes
 
-        raise UserError(f"{args.vehicle_file}: model.field_form: expected inverse-z or printed, got {field_form!r}")
+        custom = {**custom, **calibrated.vehicles}
+        model = {"field_form": calibrated.options.field_form}
+        effects = calibrated.between_vehicle_effects
+        for note in target_only_notes(calibrated, args.model):
+            print(f"proxplan costmap: note: {note}", file=sys.stderr)
+        for name in unmapped_effect_names(effects):
+            print(
+                f"proxplan costmap: note: {args.model}: {name} is not applied by cost maps (azimuth-dependent)",
+                file=sys.stderr,
+            )
+    field_form = args.field_form or model.get("field_form") or "inverse-z"
     options = ModelOptions(field_form=field_form)
     pairs = _pairs(args, custom)
     if args.all:
@@ -145,7 +162,7 @@ def run_costmap(args: argparse.Namespace) -> int:
             bar.set_postfix_str(f"{source.name} -> {target.name}")
             maps = build_pair_maps(
                 source, target, options=options, levels=levels, default_level=default_level,
-                invalid_rule=args.invalid_rule,
+                invalid_rule=args.invalid_rule, effects=effects,
             )  # fmt: skip
             name = Path(args.out).name if not args.all else f"{source.name}__{target.name}.npz"
             save_pair_maps(maps, stage / name)
@@ -182,6 +199,7 @@ def _summary(maps, out, png) -> dict:
         "plot": str(png) if png else None,
         "param_hash": maps.metadata["param_hash"],
         "field_form": maps.metadata["model"]["field_form"],
+        "effects": maps.metadata["model"]["effects"],
         "invalid_rule": c.invalid_rule,
         "validity_dz_m": c.validity_dz_m,
         "levels": [float(v) for v in c.levels],

@@ -30,7 +30,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--save-model",
         metavar="FILE",
-        help="write the calibrated vehicles + kept effects as a vehicles YAML for costmap/plan",
+        help="write the calibrated model (vehicles, thrust scales, kept effects) for costmap/plan/simulate --model",
     )
     p.add_argument("--no-calibrate", action="store_true", help="skip the calibration stage (effects only)")
     p.add_argument("--derivative", choices=("savgol", "triangular", "difference"), default="savgol",
@@ -48,36 +48,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def model_yaml_dict(result) -> dict:
-    """The vehicles-YAML mapping (physics.vehicle_yaml format) of the calibrated model."""
-    from physics import BUILTIN_VEHICLES, vehicle_to_yaml_dict
+def calibrated_model(result):
+    """The :class:`physics.CalibratedModel` of an identify result (everything its "after" used)."""
+    from physics import CalibratedModel
 
-    vehicles = {}
-    for name, veh in result.final_model.vehicles.items():
-        base = name if name in BUILTIN_VEHICLES else None
-        vehicles[name] = vehicle_to_yaml_dict(veh, base=base)
-    return {
-        "vehicles": vehicles,
-        "model": {
-            "field_form": result.final_model.options.field_form,
-            "effects": [
-                {"name": e.name, "params": {k: float(v) for k, v in e.full_params().items()}}
-                for e in result.final_model.effects
-            ],
-        },
-    }
+    final = result.final_model
+    return CalibratedModel(
+        vehicles=dict(final.vehicles),
+        options=final.options,
+        effects=tuple(final.effects),
+        thrust_scales={k: float(v) for k, v in final.thrust_scale.items()},
+    )
+
+
+def model_yaml_dict(result) -> dict:
+    """The model-file mapping (physics.model_file format) of the calibrated model."""
+    from physics import model_file_dict
+
+    return model_file_dict(calibrated_model(result))
 
 
 def save_model(result, path: str | Path) -> Path:
-    import yaml
+    from physics import write_model_file
 
-    path = Path(path)
-    header = (
-        "# written by proxplan identify: calibrated vehicles and kept effects.\n"
-        "# Use with: proxplan costmap --vehicle-file THIS_FILE ..., or 'vehicle_file: THIS_FILE' in a scenario.\n"
-    )
-    atomic_write_text(path, header + yaml.safe_dump(model_yaml_dict(result), sort_keys=False))
-    return path
+    return write_model_file(calibrated_model(result), path)
 
 
 def run(args: argparse.Namespace) -> int:

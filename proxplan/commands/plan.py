@@ -9,7 +9,7 @@ import argparse
 import json
 import sys
 
-from proxplan.cli_args import seed_argument
+from proxplan.cli_args import add_model_argument, load_model_argument, seed_argument
 
 METHOD_CHOICES = ("optimized", "sampling", "no-downwash", "ellipsoid")
 
@@ -37,6 +37,11 @@ def register(subparsers) -> None:
         "no-downwash (separation only) and ellipsoid (Crazyswarm keep-out ellipsoid)",
     )
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
+    add_model_argument(
+        p,
+        "its vehicles override same-named types and its effects between vehicles shape the plan (replaces "
+        "the scenario's model_file)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_plan)
 
@@ -54,6 +59,11 @@ def register(subparsers) -> None:
         "--scenario", metavar="SCENARIO.yaml", help="scenario to check against (default: the one in the plan)"
     )
     v.add_argument("--dt", type=float, default=0.01, metavar="S", help="re-sampling step in s (default 0.01)")
+    add_model_argument(
+        v,
+        "check the plan with this model's field form and effects between vehicles instead of the plan's own "
+        "(the plan's vehicle parameters are kept)",
+    )
     v.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     v.set_defaults(func=_verify)
 
@@ -81,7 +91,7 @@ def _plan(args: argparse.Namespace) -> int:
     from planner import InfeasibleError, plan_scenario, plan_summary
     from verify import verify_plan
 
-    scenario = load_scenario(args.scenario)
+    scenario = load_scenario(args.scenario, model=load_model_argument(args, "plan"))
     out = Path(args.out)
     with output_folder(out) as stage:  # nothing is written to --out unless every file is
         bar, report = _progress_bar(sys.stderr.isatty())
@@ -140,6 +150,27 @@ def _plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scenario_with_model(plan, model, args: argparse.Namespace):
+    """The plan's scenario (or --scenario) with ``model``'s field form and between-vehicle effects
+    in place of its own; the plan's vehicle parameters are kept (they are what was planned)."""
+    from dataclasses import replace
+
+    from fileio import UserError, read_yaml
+    from planfile import scenario_from_dict
+
+    if args.scenario:
+        doc = dict(read_yaml(args.scenario, what="scenario file") or {})
+        label, source = str(args.scenario), args.scenario
+    elif plan.scenario_spec is not None:
+        doc, label, source = dict(plan.scenario_spec), f"{args.plan}: scenario_spec", None
+    else:
+        raise UserError(f"{args.plan}: scenario_spec: missing; pass the scenario with --scenario FILE.yaml")
+    doc.pop("model", None)
+    doc.pop("model_file", None)
+    kept = replace(model, vehicles={})
+    return scenario_from_dict(doc, source_path=source, vehicle_types=plan.vehicle_types, label=label, model=kept)
+
+
 def _verify(args: argparse.Namespace) -> int:
     from fileio import UserError
     from planfile import load_scenario, read_plan
@@ -148,7 +179,11 @@ def _verify(args: argparse.Namespace) -> int:
     if not args.dt > 0:
         raise UserError(f"--dt: expected a positive number of seconds, got {args.dt}")
     plan = read_plan(args.plan)
-    scenario = load_scenario(args.scenario) if args.scenario else scenario_of_plan(plan, label=str(args.plan))
+    model = load_model_argument(args, "verify")
+    if model is not None:
+        scenario = _scenario_with_model(plan, model, args)
+    else:
+        scenario = load_scenario(args.scenario) if args.scenario else scenario_of_plan(plan, label=str(args.plan))
     violations = verify_plan(plan, scenario, dt_fine_s=args.dt)
     if args.json:
         print(

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from proxplan.cli_args import seed_argument
+from proxplan.cli_args import add_model_argument, load_model_argument, seed_argument
 
 
 def register(subparsers) -> None:
@@ -36,6 +36,11 @@ def register(subparsers) -> None:
         metavar="FILE.yaml",
         help="fly these vehicle parameters instead of the plan's (vehicles YAML; types matched by name)",
     )
+    add_model_argument(
+        p,
+        "the simulated world: its vehicles fly (types matched by name) and all its effects act, in place of "
+        "the plan's model (--truth adds to it)",
+    )
     p.add_argument(
         "--seed", type=seed_argument, default=0, help="random seed of the sensor noise, 0..2^31-1 (default 0)"
     )
@@ -64,9 +69,11 @@ def run(args: argparse.Namespace) -> int:
     from fileio import UserError, atomic_write_bytes, output_folder
     from flightsim import (
         SimulationOptions,
-        TruthSpec,
         feedforward_comparison,
         load_truth_file,
+        merge_truth,
+        model_truth,
+        plan_truth,
         plot_errors,
         simulate_plan,
         summary_dict,
@@ -87,12 +94,18 @@ def run(args: argparse.Namespace) -> int:
     if args.settle < 0:
         raise UserError(f"--settle: expected a non-negative number of seconds, got {args.settle}")
     plan = read_plan(plan_path)
-    truth = load_truth_file(args.truth) if args.truth else TruthSpec()
+    extra = load_truth_file(args.truth) if args.truth else None
+    calibrated = load_model_argument(args, "simulate")
     custom = None
+    if calibrated is not None:  # the world of the calibrated model, --truth adds to it
+        truth = merge_truth(model_truth(calibrated.effects, calibrated.options.field_form), extra)
+        custom = dict(calibrated.vehicles)
+    else:  # the world the plan was made for (its calibrated effects too), --truth adds to it
+        truth = merge_truth(plan_truth(plan), extra)
     if args.vehicles:
         from physics import load_vehicle_file
 
-        custom = load_vehicle_file(args.vehicles)
+        custom = {**(custom or {}), **load_vehicle_file(args.vehicles)}
     options = SimulationOptions(
         physics_dt_s=args.physics_dt,
         log_dt_s=args.log_dt,

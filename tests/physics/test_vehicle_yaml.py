@@ -64,14 +64,14 @@ def test_bad_files(tmp_path):
         resolve_vehicle("x")
 
 
-def test_effects_in_a_vehicle_file_are_reported_as_not_used_by_planning(tmp_path):
-    from physics import unapplied_model_notes
+def test_effects_in_a_vehicle_file_are_reported_as_not_applied_through_vehicle_file(tmp_path):
+    from physics import vehicle_file_notes
 
     plain = write(tmp_path, "vehicles:\n  v: {base: small-quad}\n")
-    assert unapplied_model_notes(plain) == []
+    assert vehicle_file_notes(plain) == []
     with_effects = tmp_path / "model.yaml"
     with_effects.write_text(
         "vehicles:\n  v: {base: small-quad}\nmodel:\n  effects: [{name: near_field, params: {amplitude: 1.0}}]\n"
     )
-    (note,) = unapplied_model_notes(with_effects)
-    assert "near_field" in note and str(with_effects) in note
+    (note,) = vehicle_file_notes(with_effects)
+    assert "model_file" in note and str(with_effects) in note
