@@ -23,7 +23,7 @@ Scalar Python math is used per state because OMPL calls the checker once per sta
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -163,6 +163,12 @@ class Track:
     def end_s(self) -> float:
         return (len(self.x) - 1) * self.dt_s
 
+    def moving_at(self, t_s: float, *, rest_speed_mps: float = 0.05) -> bool:
+        """Whether the track moves faster than ``rest_speed_mps`` around ``t_s`` (finite difference)."""
+        h = 0.5 * self.dt_s
+        a, b = self.at(t_s - h), self.at(t_s + h)
+        return math.dist(a, b) > rest_speed_mps * 2.0 * h
+
     def at(self, t_s: float) -> tuple[float, float, float]:
         """Linearly interpolated position at ``t_s``, m."""
         n = len(self.x)
@@ -193,6 +199,15 @@ class PairRule:
     margin_m: float = 0.0  # added to the cutoff radius, m
     until_margin_s: float = 0.0  # added to the track's presence, s
     tube_m: float = 0.0  # tracking tube: cut-off radius over dz +- tube, plus tube, m
+
+    def without_tube(self) -> PairRule:
+        """This rule with the tracking tube taken out of its radii (for a pair at rest)."""
+        return replace(
+            self,
+            separation_m=self.separation_m - self.tube_m,
+            ellipsoid_r_m=None if self.ellipsoid_r_m is None else self.ellipsoid_r_m - self.tube_m,
+            tube_m=0.0,
+        )
 
     def cutoff_m(self, table: CutoffTable, dz_m: float) -> float:
         """Cut-off radius at vertical separation ``dz_m`` (> 0), m: the table's largest value over
@@ -228,7 +243,9 @@ class ConflictChecker:
                 return f"obstacle[{i}]"
         return None
 
-    def conflict(self, x: float, y: float, z: float, t: float, *, exclude: str | None = None) -> str | None:
+    def conflict(
+        self, x: float, y: float, z: float, t: float, *, exclude: str | None = None, resting: bool = False
+    ) -> str | None:
         """The first violated constraint at a state ("workspace", "obstacle[i]", "separation from B",
         "downwash of B", "downwash on B", "ellipsoid of B") or None when valid."""
         c = self.static_conflict(x, y, z)
@@ -241,6 +258,8 @@ class ConflictChecker:
             ox, oy, oz = tr.at(t)
             dx, dy, dz = x - ox, y - oy, z - oz
             r2 = dx * dx + dy * dy
+            if resting and rule.tube_m > 0.0 and not tr.moving_at(t):
+                rule = rule.without_tube()  # both rest: no tracking tube (as the verifier)
             if r2 + dz * dz < rule.separation_m * rule.separation_m:
                 return f"separation from {tr.name}"
             if rule.ellipsoid_r_m is not None:
@@ -310,7 +329,8 @@ def build_checker(
     With ``tube`` (default) the scenario's ``limits.tracking_margin_m`` (the closed-loop tracking
     tube, m) is added to the separation and ellipsoid radii and to the cut-off radius, which is
     also taken as its largest value over dz +- tube (so the invalid zone grows by the tube
-    vertically too); ``tube=False`` gives the checker of the user's given start positions.
+    vertically too); ``tube=False`` leaves it out. ``conflict(..., resting=True)`` (the planned
+    vehicle holds) leaves it out for tracks that rest too, as the verifier does for pairs at rest.
     """
     from costmaps import effects_key
 

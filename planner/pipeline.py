@@ -82,8 +82,7 @@ def _plan_order(
         ]
         checker = build_checker(scenario, name, others, mode=mode, margin_m=PLAN_MARGIN_M, until_margin_s=PLAN_MARGIN_S)
         nominal = build_checker(scenario, name, others, mode=mode)
-        given = build_checker(scenario, name, others, mode=mode, tube=False)  # at rest: no tracking tube
-        bad = start_conflict(given, task.start_m)
+        bad = start_conflict(nominal, task.start_m)
         if bad is not None:
             why = ""
             if bad == "workspace" or bad.startswith("obstacle"):
@@ -140,7 +139,7 @@ def _plan_order(
                 tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
             else:
                 tp = time_parameterize(sp.waypoints_m, sp.times_s, limits)
-            problem = _recheck(nominal, given, tp, goal, hold_until)
+            problem = _recheck(nominal, tp, goal, hold_until)
             if problem is None:
                 accepted = tp
                 info["attempts"][name] = attempt + 1
@@ -167,7 +166,7 @@ def _goal_problem(checker, goal: GoalSpec) -> str | None:
     """The constraint that keeps the goal (or dock) occupied at the end of the horizon, if any."""
     end = goal.tail[-1] if goal.tail else goal.position_m
     for p, exclude in ((goal.position_m, None), (end, goal.tail_exempt)):
-        c = checker.conflict(float(p[0]), float(p[1]), float(p[2]), goal.hold_until_s, exclude=exclude)
+        c = checker.conflict(float(p[0]), float(p[1]), float(p[2]), goal.hold_until_s, exclude=exclude, resting=True)
         if c is not None:
             return f"{c} at the goal" if p is end else f"{c} at the dock approach point"
     return None
@@ -182,17 +181,16 @@ def _retime_with_tail(sp, limits: KinematicLimits, tail_limits: KinematicLimits,
     return TimedPath(knots, sp.waypoints_m.copy(), main.segments + tail.segments)
 
 
-def _recheck(checker, at_rest_checker, tp: TimedPath, goal: GoalSpec, hold_until: float) -> str | None:
-    """First conflict of the timed trajectory on a fine grid (dock target exempt on the tail);
-    ``at_rest_checker`` (no tracking tube) where the vehicle rests (speed < REST_SPEED_MPS)."""
+def _recheck(checker, tp: TimedPath, goal: GoalSpec, hold_until: float) -> str | None:
+    """First conflict of the timed trajectory on a fine grid (dock target exempt on the tail); no
+    tracking tube for a pair while both rest (speed < REST_SPEED_MPS), as in the verifier."""
     t_tail = tp.knot_t_s[-1 - len(goal.tail)] if goal.tail else math.inf
     t = np.arange(0.0, max(tp.duration_s, hold_until) + 1e-9, DT_S / 2)
     p, v, _ = tp.sample(t)
     resting = np.linalg.norm(v, axis=1) < REST_SPEED_MPS
     for ti, pi, rest in zip(t, p, resting):
         exclude = goal.tail_exempt if ti >= t_tail - 1e-9 else None
-        chk = at_rest_checker if rest else checker
-        c = chk.conflict(pi[0], pi[1], pi[2], float(ti), exclude=exclude)
+        c = checker.conflict(pi[0], pi[1], pi[2], float(ti), exclude=exclude, resting=bool(rest))
         if c is not None:
             return c
     return None

@@ -189,7 +189,7 @@ class _Planner:
         n = max(1, int(math.ceil((t_until - t_from) / step)))
         for k in range(n + 1):
             t = t_from + k * step
-            if self.checker.conflict(p[0], p[1], p[2], t, exclude=exclude) is not None:
+            if self.checker.conflict(p[0], p[1], p[2], t, exclude=exclude, resting=True) is not None:
                 return False
         return True
 
@@ -199,7 +199,7 @@ class _Planner:
         n = int(math.ceil(t_until / step))
         last_bad = -1
         for k in range(n + 1):
-            if self.checker.conflict(p[0], p[1], p[2], k * step, exclude=exclude) is not None:
+            if self.checker.conflict(p[0], p[1], p[2], k * step, exclude=exclude, resting=True) is not None:
                 last_bad = k
         if last_bad == n:
             return math.inf
@@ -425,4 +425,4 @@ def plan_space_time(
 
 def start_conflict(checker: ConflictChecker, start_m: np.ndarray) -> str | None:
     """The constraint the start state violates at t = 0, or None."""
-    return checker.conflict(float(start_m[0]), float(start_m[1]), float(start_m[2]), 0.0)
+    return checker.conflict(float(start_m[0]), float(start_m[1]), float(start_m[2]), 0.0, resting=True)
