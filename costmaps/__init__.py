@@ -10,6 +10,7 @@ from costmaps.effects import (
     effects_of_key,
     map_effects,
     pair_wrench,
+    sources_wrench,
     unmapped_effect_names,
 )
 from costmaps.map_plot import plot_cutoff
@@ -49,5 +50,6 @@ __all__ = [
     "r_cut_from_usage",
     "save_pair_maps",
     "shipped_path",
+    "sources_wrench",
     "unmapped_effect_names",
 ]

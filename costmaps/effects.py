@@ -8,6 +8,7 @@ N m on the target about its centre of mass, world frame. Without effects this is
 between vehicles (every effect not in :data:`physics.effects.TARGET_ONLY_EFFECTS`, each a sum over
 sources like the base model). The target is taken far above the ground and at rest: effects of the
 target alone (ground effect, own velocity, thrust bias) are its own thrust error, not the plan's.
+:func:`sources_wrench` evaluates several sources at once (the verifier, where two are above a target).
 
 Cost maps assume an axisymmetric jet (one quadrant, mirrored); :data:`AXIS_BREAKING_EFFECTS` (a wake
 carried sideways by wind) break that symmetry and are left out of the maps and the planner's tables
@@ -84,3 +85,25 @@ def pair_wrench(
         options=options,
     )
     return total_wrench(inputs, between)
+
+
+def sources_wrench(
+    target: Vehicle,
+    sources: Sequence[tuple[Vehicle, np.ndarray]],
+    options: ModelOptions = DEFAULT_OPTIONS,
+    effects: Sequence[Effect] = (),
+) -> tuple[np.ndarray, np.ndarray]:
+    """Force (N, 3), N, and torque (N, 3), N m, on ``target`` from every ``(source, offsets_m)``
+    at once (offsets (N, 3) = p_target - p_source, m): :func:`physics.effects.total_wrench` with
+    the between-vehicle ``effects``. Equal to the sum of :func:`pair_wrench` over the sources for
+    effects that add over sources (all of today's); an effect that does not (several sources
+    interacting) is only right here."""
+    n = int(np.shape(sources[0][1])[0]) if sources else 0
+    inputs = EffectInputs(
+        target=target,
+        height_above_ground_m=np.full(n, FAR_ABOVE_GROUND_M),
+        velocity_mps=np.zeros((n, 3)),
+        sources=tuple(SourceSample(v, np.asarray(o, dtype=float).reshape(-1, 3)) for v, o in sources),
+        options=options,
+    )
+    return total_wrench(inputs, between_vehicle_effects(effects))

@@ -8,18 +8,24 @@ item on a cluster and returns the results in item order.
   ``connect_timeout_s``.
 
 Determinism is the caller's: a task must depend on its item only (e.g. seed it from the item), so
-results do not depend on which worker ran it. A task whose worker dies is run again by Dask (up to
-``retries`` times); how many were resubmitted is reported.
+results do not depend on which worker ran it. A task whose worker dies is run again elsewhere by
+Dask's scheduler (up to its ``allowed-failures``); how many were resubmitted is reported
+(``FanoutResult.retried``), and a task that kills every worker it runs on is a one-line error. A
+task raising an exception is retried ``retries`` times. A remote scheduler without any worker is a
+one-line error after ``connect_timeout_s`` (not a hang).
 """
 
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from fileio import UserError
+
+_ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d+$")
 
 
 @dataclass(frozen=True)
@@ -42,12 +48,22 @@ def _connect(scheduler: str | None, n_workers: int | None, connect_timeout_s: fl
             dashboard_address=None, silence_logs=50,
         )  # fmt: skip
         return Client(cluster), cluster
+    if not _ADDRESS.match(scheduler):
+        raise UserError(f"--scheduler {scheduler}: expected tcp://HOST:PORT (or tls://HOST:PORT) of a 'dask scheduler'")
     try:
         client = Client(scheduler, timeout=f"{connect_timeout_s}s")
     except (OSError, TimeoutError) as err:
         raise UserError(
             f"--scheduler {scheduler}: cannot reach a Dask scheduler there within {connect_timeout_s:g} s "
             f"({type(err).__name__}); expected tcp://HOST:PORT of a running 'dask scheduler'"
+        ) from None
+    try:  # a scheduler without workers would leave every task pending forever
+        client.wait_for_workers(1, timeout=connect_timeout_s)
+    except TimeoutError:
+        client.close()
+        raise UserError(
+            f"--scheduler {scheduler}: the scheduler has no workers after {connect_timeout_s:g} s; "
+            "start some with 'dask worker " + scheduler + "'"
         ) from None
     return client, None
 
@@ -64,6 +80,7 @@ def fan_out(
 ) -> FanoutResult:
     """Run ``fn(item)`` for every item; ``progress(done, total)`` is called as tasks finish."""
     from distributed import as_completed
+    from distributed.scheduler import KilledWorker
 
     if not items:
         return FanoutResult([], 0, 0, scheduler or "")
@@ -75,7 +92,13 @@ def fan_out(
         results: list[Any] = [None] * len(futures)
         done = 0
         for future in as_completed(futures):
-            results[index[future.key]] = future.result()
+            try:
+                results[index[future.key]] = future.result()
+            except KilledWorker as err:  # the task took down every worker it was tried on
+                raise UserError(
+                    f"task {index[future.key]} was lost: each worker that ran it died (Dask's allowed-failures; "
+                    f"out of memory or a crash in the task): {err}"
+                ) from None
             done += 1
             if progress is not None:
                 progress(done, len(futures))

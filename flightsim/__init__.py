@@ -13,11 +13,19 @@ from flightsim.scenarios_synthetic import (
     takeoff_hover_plan,
     waypoint_trajectory,
 )
-from flightsim.simulate import SimulationOptions, SimulationResult, SimulationStatus, VehicleRecord, simulate_plan
+from flightsim.simulate import (
+    Perturbation,
+    SimulationOptions,
+    SimulationResult,
+    SimulationStatus,
+    VehicleRecord,
+    simulate_plan,
+)
 from flightsim.truth import TruthSpec, load_truth_file, merge_truth, model_truth, plan_truth, truth_from_dict
 
 __all__ = [
     "NEURAL_SWARM_HEADER",
+    "Perturbation",
     "SimulationOptions",
     "SimulationResult",
     "SimulationStatus",

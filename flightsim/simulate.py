@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import enum
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -50,6 +50,28 @@ class SimulationOptions:
     position_integral_rate_ps: float = 0.0  # integral action k_i / k_p per axis, 1/s (0 = RotorPy's PD)
     position_integral_limit_ms: float = 0.2  # anti-windup bound of the integrated position error, m s
     feedforward: bool = False  # compensate the plan's predicted disturbance wrench in the controller
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """Per-flight departures of the flown world from the plan (``proxplan certify`` draws them),
+    keyed by vehicle name; vehicles not named fly unperturbed. Functions take times since the plan
+    start (K,), s, and return (K, 3) arrays, world frame.
+
+    * ``start_offset_m``: start position error, m (the vehicle starts off its reference);
+    * ``time_offset_s``: timing error, s: the vehicle follows its plan late by this (early if < 0);
+    * ``force_N``: residual disturbance force beyond the model, N (applied and counted in the
+      applied wrench, so authority usage includes it);
+    * ``estimate_error_m`` / ``estimate_error_mps``: error of the position / velocity estimate the
+      controller sees, m and m/s. The SE(3) law uses only x - x_ref and v - v_ref, so an estimate
+      x + n is flown exactly as the reference x_ref - n, which is how it is applied.
+    """
+
+    start_offset_m: Mapping[str, Sequence[float]] = field(default_factory=dict)
+    time_offset_s: Mapping[str, float] = field(default_factory=dict)
+    force_N: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
+    estimate_error_m: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
+    estimate_error_mps: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -130,6 +152,7 @@ def simulate_plan(
     position_integral_rate_ps: float = 0.0,
     options: SimulationOptions | None = None,
     progress: bool = False,
+    perturbation: Perturbation | None = None,
 ) -> SimulationResult:
     """Fly ``plan`` (a :class:`planfile.plan.Plan` or a plan.json path) closed loop.
 
@@ -138,6 +161,7 @@ def simulate_plan(
     (give ``truth=merge_truth(plan_truth(plan), extra)`` to add to the plan's effects); ``vehicles`` maps type
     names to the vehicles actually flown instead of the plan's own parameters (e.g. a heavier or
     weaker airframe than planned). ``options``, when given, overrides the keyword numbers.
+    ``perturbation`` (:class:`Perturbation`) adds start, timing, residual-force and estimate errors.
 
     Controller: RotorPy's SE3Control; ``position_integral_rate_ps`` > 0 adds integral action on the
     position error, as the seed's cascaded PID (S0 IV-D). With diagonal gains,
@@ -180,17 +204,29 @@ def simulate_plan(
     plan_duration = t_end - t0
     n_steps = int(round((plan_duration + options.settle_s) / dt / log_every)) * log_every + 1
     t_grid = t0 + dt * np.arange(n_steps)
+    pert = perturbation or Perturbation()
+    shifts = np.array([float(pert.time_offset_s.get(n, 0.0)) for n in names])
+    refs = [tr.sample(t_grid - shift) for shift, tr in zip(shifts, trajs)]
     notes: list[str] = []
-    pred_f, pred_t, ff_note = predicted_wrench(plan, names, t_grid)  # what the plan predicted
+    # what the plan predicted, on each vehicle's (possibly late) plan time
+    pred_f, pred_t, ff_note = predicted_wrench(plan, names, t_grid[:, None] - shifts[None, :])
     ff_f = ff_t = None
     if options.feedforward:
         ff_f, ff_t = pred_f, pred_t
         if ff_note:
             notes.append(ff_note)
-    refs = [tr.sample(t_grid) for tr in trajs]
     ref_x = np.stack([r[0] for r in refs], axis=1)  # (n_steps, V, 3)
     ref_v = np.stack([r[1] for r in refs], axis=1)
     ref_a = np.stack([r[2] for r in refs], axis=1)
+    extra_f = np.zeros((n_steps, n_veh, 3))  # residual force beyond the model, N
+    ctrl_ref = np.concatenate([ref_x, ref_v, ref_a], axis=2)  # reference the controller sees
+    for vi, n in enumerate(names):
+        if n in pert.force_N:
+            extra_f[:, vi] = pert.force_N[n](t_grid - t0)
+        if n in pert.estimate_error_m:
+            ctrl_ref[:, vi, 0:3] -= pert.estimate_error_m[n](t_grid - t0)
+        if n in pert.estimate_error_mps:
+            ctrl_ref[:, vi, 3:6] -= pert.estimate_error_mps[n](t_grid - t0)
 
     hover_speed = np.array([np.sqrt(v.hover_thrust_per_rotor_N / p["k_eta"]) for v, p in zip(vehs, params)])
     stepper = _stepper(params, dt, truth.wind_mps)
@@ -198,7 +234,7 @@ def simulate_plan(
     S[:] = 0.0
     stepper.ff_force_N[:] = 0.0  # the stepper is cached: no feed-forward left from an earlier flight
     stepper.ff_torque_Nm[:] = 0.0
-    S[:, 0:3] = ref_x[0]
+    S[:, 0:3] = ref_x[0] + np.array([pert.start_offset_m.get(n, (0.0, 0.0, 0.0)) for n in names], dtype=float)
     S[:, 3:6] = ref_v[0]
     S[:, 9] = 1.0  # identity attitude, [x, y, z, w]
     S[:, 13:17] = hover_speed[:, None]
@@ -241,7 +277,7 @@ def simulate_plan(
     buf_f = np.zeros((n_veh, horizon, 3))
     buf_t = np.zeros((n_veh, horizon, 3))
     tau = dt * np.arange(horizon)
-    ref_all = np.concatenate([ref_x, ref_v, ref_a], axis=2)  # (n_steps, V, 9)
+    ref_all = ctrl_ref  # (n_steps, V, 9)
     integral_ms = np.zeros((n_veh, 3))  # integrated position error, m s
     ki_rate = float(options.position_integral_rate_ps)
     windup = float(options.position_integral_limit_ms)
@@ -259,7 +295,7 @@ def simulate_plan(
                 integral_ms += (S[:, 0:3] - ref_all[k][:, 0:3]) * dt
                 np.clip(integral_ms, -windup, windup, out=integral_ms)
                 stepper.ref[:, 0:3] -= ki_rate * integral_ms
-            stepper.ext_force_N[:] = buf_f[:, j]
+            stepper.ext_force_N[:] = buf_f[:, j] + extra_f[k]
             stepper.ext_torque_Nm[:] = buf_t[:, j]
             if ff_f is not None and ff_t is not None:
                 stepper.ff_force_N[:] = ff_f[k]
@@ -280,7 +316,7 @@ def simulate_plan(
                     ("fc", stepper.cmd_thrust_N),
                     ("T", stepper.ctbm[:, 0]),
                     ("M", stepper.ctbm[:, 1:4]),
-                    ("Fa", buf_f[:, j]),
+                    ("Fa", buf_f[:, j] + extra_f[k]),
                     ("Ta", buf_t[:, j]),
                 ):
                     rec[key][i] = val
@@ -320,7 +356,7 @@ def simulate_plan(
             rec["Fm"][:, vi] = f
             rec["Tm"][:, vi] = t
     else:
-        rec["Fm"][:] = rec["Fa"]
+        rec["Fm"][:] = rec["Fa"] - extra_f[::log_every][:n_logged]
         rec["Tm"][:] = rec["Ta"]
 
     t_log = (t_grid[::log_every] - t0)[:n_logged]
@@ -373,7 +409,8 @@ def simulate_plan(
 
 def predicted_wrench(plan, names: list[str], t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
     """The plan's predicted disturbance force (K, V, 3), N, and torque (K, V, 3), N m (world frame)
-    at times ``t_s`` (K,), linear between plan samples and held outside the plan, and a note: the
+    at plan times ``t_s`` ((K,) or per vehicle (K, V)), linear between plan samples and held outside
+    the plan, and a note: the
     plan's feed-forward fields, or, when a plan has none (older files), the wrench recomputed with
     the verifier's model (``verify.wrench_along_plan``, the scenario's model options)."""
     from verify import scenario_of_plan, wrench_along_plan
@@ -393,12 +430,15 @@ def predicted_wrench(plan, names: list[str], t_s: np.ndarray) -> tuple[np.ndarra
     else:
         forces = [tr.disturbance_force_N for tr in trajs]
         torques = [tr.disturbance_torque_Nm for tr in trajs]
-    f = np.zeros((t_s.size, len(names), 3))
+    t_kv = np.asarray(t_s, dtype=float)
+    if t_kv.ndim == 1:
+        t_kv = np.repeat(t_kv[:, None], len(names), axis=1)
+    f = np.zeros((t_kv.shape[0], len(names), 3))
     tq = np.zeros_like(f)
     for vi, tr in enumerate(trajs):
         for d in range(3):
-            f[:, vi, d] = np.interp(t_s, tr.t_s, forces[vi][:, d])
-            tq[:, vi, d] = np.interp(t_s, tr.t_s, torques[vi][:, d])
+            f[:, vi, d] = np.interp(t_kv[:, vi], tr.t_s, forces[vi][:, d])
+            tq[:, vi, d] = np.interp(t_kv[:, vi], tr.t_s, torques[vi][:, d])
     return f, tq, note
 
 

@@ -38,16 +38,18 @@ class TruthSpec:
     field_form: str = "inverse-z"
 
     def to_dict(self) -> dict:
+        from physics import effects_to_list
+
         return {
             "field_form": self.field_form,
             "wind_mps": list(self.wind_mps),
-            "effects": [{"name": e.name, "params": e.full_params()} for e in self.effects],
+            "effects": effects_to_list(self.effects),
         }
 
 
 def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
     """Validate a truth mapping (see module docstring) into a :class:`TruthSpec`."""
-    from physics import EFFECT_NAMES, FIELD_FORMS, PARAMETERS, Effect
+    from physics import FIELD_FORMS, Effect, effects_from_list
 
     if doc is None:
         doc = {}
@@ -66,33 +68,12 @@ def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
         wind_arr = np.zeros(0)
     if wind_arr.shape != (3,) or not np.all(np.isfinite(wind_arr)):
         raise UserError(f"{source}: wind_mps: expected [wx, wy, wz] in m/s, got {wind!r}")
-    items = doc.get("effects", []) or []
-    if not isinstance(items, list):
-        raise UserError(f"{source}: effects: expected a list of {{name: ..., params: {{...}}}}")
     effects = []
-    for i, item in enumerate(items):
-        where = f"{source}: effects[{i}]"
-        if not isinstance(item, dict) or "name" not in item or set(item) - {"name", "params"}:
-            raise UserError(f"{where}: expected {{name: <effect>, params: {{...}}}}")
-        name = item["name"]
-        if name not in EFFECT_NAMES:
-            raise UserError(f"{where}.name: unknown effect {name!r}; expected one of {', '.join(EFFECT_NAMES)}")
-        params = item.get("params", {}) or {}
-        if not isinstance(params, dict):
-            raise UserError(f"{where}.params: expected a mapping of parameter: number")
-        clean = {}
-        for key, value in params.items():
-            if key not in PARAMETERS[name]:
-                raise UserError(
-                    f"{where}.params.{key}: unknown parameter of {name}; expected {', '.join(PARAMETERS[name])}"
-                )
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-                raise UserError(f"{where}.params.{key}: expected a finite number, got {value!r}")
-            clean[key] = float(value)
-        if name == "wake_advection":
-            clean.setdefault("wind_x_mps", float(wind_arr[0]))
-            clean.setdefault("wind_y_mps", float(wind_arr[1]))
-        effects.append(Effect(name, clean))
+    for effect in effects_from_list(doc.get("effects"), f"{source}: effects"):
+        if effect.name == "wake_advection":  # the wind of the truth file is the wake's default wind
+            params = {"wind_x_mps": float(wind_arr[0]), "wind_y_mps": float(wind_arr[1]), **effect.params}
+            effect = Effect(effect.name, params)
+        effects.append(effect)
     return TruthSpec(tuple(effects), (float(wind_arr[0]), float(wind_arr[1]), float(wind_arr[2])), form)
 
 

@@ -3,6 +3,9 @@ the disturbance on every vehicle (S0-11, S0-13), calibrate the model's parameter
 try candidate effects, and report the error before and after on test flights.
 """
 
+from identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
+from identify.evaluate import EvaluationResult, evaluate_model, saved_model
+from identify.evaluate_report import write_evaluation_report
 from identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
     NEURAL_SWARM_FILE_COLUMNS,
@@ -21,8 +24,11 @@ from identify.report import write_report
 from identify.synthetic_logs import synthetic_logs
 
 __all__ = [
+    "VEHICLE_PARAMETERS",
+    "apply_vehicle_parameters",
     "NEURAL_SWARM_COLUMNS",
     "NEURAL_SWARM_FILE_COLUMNS",
+    "EvaluationResult",
     "FlightEntry",
     "IdentifyOptions",
     "IdentifyResult",
@@ -31,13 +37,16 @@ __all__ = [
     "MeasuredWrench",
     "VehicleEntry",
     "VehicleLog",
+    "evaluate_model",
     "load_flight",
     "load_manifest",
     "measure_disturbance",
     "measure_log",
     "read_log",
     "run_identify",
+    "saved_model",
     "synthetic_logs",
     "write_canonical_csv",
+    "write_evaluation_report",
     "write_report",
 ]

@@ -13,8 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from identify.flightlog import Flight, Manifest, interpolate_position_m, load_flight
+from identify.flightlog import Flight, FlightEntry, Manifest, VehicleLog, interpolate_position_m, load_flight
 from identify.measure import MeasureOptions, measure_log
+from identify.thrust_map import MotorSamples, ThrustMap, delivered_thrust_N, fit_thrust_maps, saturated_samples
 from physics import EFFECT_NAMES, Effect, EffectInputs, ModelOptions, SourceSample, Vehicle, base_wrench, effect_wrench
 
 
@@ -26,6 +27,7 @@ class IdentifyOptions:
     field_form: str = "inverse-z"  # form of (S0-1) used for prediction
     calibrate: bool = True
     effects: tuple[str, ...] = EFFECT_NAMES  # candidates to try
+    extra_candidates: tuple[Effect, ...] = ()  # already-fitted terms (e.g. discovered), scored on validation as given
     min_gain: float = 0.05  # relative cut of a test RMSE an effect must bring to be kept, -
     max_fit_samples: int = 2000  # train samples of the calibration fit
     max_effect_fit_samples: int = 1000  # train samples per candidate-effect fit
@@ -51,6 +53,7 @@ class Unit:
     force_N: np.ndarray  # (N, 3) measured, world
     torque_Nm: np.ndarray  # (N, 3) measured, world
     thrust: Any = None  # identify.thrust_rls.ThrustSamples of the full unit (None after take)
+    scored: bool = True  # False: manifest 'score: false' (a downwash source only, never scored or fitted)
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
@@ -109,10 +112,37 @@ def predict(
 # ------------------------------------------------------------------------------ loading + measuring
 
 
+@dataclass(frozen=True)
+class LoadedData:
+    """Every flight of a manifest, measured: units, exclusions, vehicle types, thrust maps, notes."""
+
+    units: list[Unit]
+    exclusions: dict  # flight -> vehicle -> counts (+ kept_samples, saturated_samples, thrust_source)
+    types: dict[str, Vehicle]  # vehicle type name -> Vehicle
+    thrust_maps: dict[str, ThrustMap]  # vehicle type -> PWM/Vbat thrust map used for the measurement
+    notes: list[str]  # said once each (e.g. a fallback to the commanded u[N])
+
+
+def _motor_samples(log: VehicleLog) -> MotorSamples:
+    assert log.motor_pwm is not None and log.vbat_V is not None
+    return MotorSamples(commanded_N=log.motor_thrust_N, pwm=log.motor_pwm, vbat_V=log.vbat_V)
+
+
 def load_units(
-    manifest: Manifest, *, options: IdentifyOptions = IdentifyOptions()
-) -> tuple[list[Unit], dict, dict[str, Vehicle]]:
-    """Load, check and measure every flight; returns units, exclusions per flight/vehicle, vehicles by type."""
+    manifest: Manifest,
+    *,
+    options: IdentifyOptions = IdentifyOptions(),
+    thrust_maps: Mapping[str, ThrustMap] | None = None,
+    thrust_coefficient_samples: bool = True,
+) -> LoadedData:
+    """Load, check and measure every flight of ``manifest``.
+
+    The motor thrust in S0-11/S0-13 is the DELIVERED one (:mod:`identify.thrust_map`): from PWM and
+    Vbat through the per-type map (``thrust_maps``, or fitted here on the manifest's TRAIN flights),
+    capped at the motor's maximum. Vehicles whose logs hold no PWM/Vbat (or whose type has no map)
+    use the logged u[N] as is; a note says so once per type. ``thrust_coefficient_samples=False``
+    skips the seed-001 per-sample regressors (only identify's thrust-coefficient summary uses them).
+    """
     from scipy.spatial.transform import Rotation
 
     from identify.thrust_rls import thrust_samples
@@ -120,23 +150,50 @@ def load_units(
 
     custom = load_vehicle_file(manifest.vehicles_file) if manifest.vehicles_file else None
     types: dict[str, Vehicle] = {}
-    units, exclusions = [], {}
-    flights = manifest.flights
-    bar = progress_bar(flights, "load+measure", options.progress)
-    for entry in bar:
+    exclusions: dict[str, dict] = {}
+    flights: list[tuple[FlightEntry, Flight]] = []
+    for entry in progress_bar(manifest.flights, "load", options.progress):
         vehicles = {}
         for v in entry.vehicles:
             vehicles[v.name] = types.setdefault(
                 v.type, resolve_vehicle(v.type, custom, where=f"{manifest.path}: flight {entry.name}: {v.name}.type")
             )
-        flight: Flight = load_flight(entry, vehicles, options=manifest.quality)
-        exclusions[entry.name] = {
-            n: e.to_dict() | {"kept_samples": len(flight.logs[n])} for n, e in flight.exclusions.items()
-        }
+        flights.append((entry, load_flight(entry, vehicles, options=manifest.quality)))
+    if thrust_maps is None:
+        per_type: dict[str, list[MotorSamples]] = {}
+        for entry, flight in flights:
+            if entry.split == "train":
+                for v in entry.vehicles:
+                    if flight.logs[v.name].has_pwm:
+                        per_type.setdefault(v.type, []).append(_motor_samples(flight.logs[v.name]))
+        thrust_maps = fit_thrust_maps(per_type)
+    notes: list[str] = []
+    units = []
+    for entry, flight in progress_bar(flights, "measure", options.progress):
+        exclusions[entry.name] = {}
         types_of = {v.name: v.type for v in entry.vehicles}
         for v in entry.vehicles:
             log = flight.logs[v.name]
-            meas = measure_log(vehicles[v.name], log, options=options.measure)
+            tmap = thrust_maps.get(v.type)
+            n_sat, source = 0, "logged_u"
+            if log.has_pwm and tmap is not None and tmap.usable:
+                motor = _motor_samples(log)
+                n_sat = int(saturated_samples(tmap, motor).sum())
+                log = replace(log, motor_thrust_N=delivered_thrust_N(tmap, motor))
+                source = "pwm"
+            else:
+                why = "its logs hold no PWM/Vbat columns" if not log.has_pwm else "no thrust map for its type"
+                if log.has_pwm and tmap is not None:
+                    why = (f"its u[N] follows no static map of PWM*Vbat (R2 {tmap.r2:.2f}, "
+                           f"{'rising' if tmap.monotonic else 'not rising'}): it is not the desired force")  # fmt: skip
+                note = (f"{v.type}: motor thrust = the logged u[N] ({why}); saturated motors are not "
+                        "detected, the measured disturbance is wrong where a motor saturates")  # fmt: skip
+                if note not in notes:
+                    notes.append(note)
+            exclusions[entry.name][v.name] = flight.exclusions[v.name].to_dict() | {
+                "kept_samples": len(log), "saturated_samples": n_sat, "thrust_source": source,
+                "scored": v.score}  # fmt: skip
+            meas = measure_log(flight.vehicles[v.name], log, options=options.measure)
             z_b = Rotation.from_quat(log.quat_xyzw).apply(np.array([0.0, 0.0, 1.0]))
             others = [o for o in entry.vehicles if o.name != v.name]
             units.append(
@@ -156,11 +213,27 @@ def load_units(
                     force_N=meas.force_N,
                     torque_Nm=meas.torque_Nm,
                     thrust=thrust_samples(
-                        vehicles[v.name], log.quat_xyzw, log.accel_mps2, log.velocity_mps, log.motor_thrust_N
-                    ),
+                        flight.vehicles[v.name], log.quat_xyzw, log.accel_mps2, log.velocity_mps, log.motor_thrust_N
+                    )
+                    if thrust_coefficient_samples
+                    else None,
+                    scored=v.score,
                 )
             )
-    return units, exclusions, types
+    return LoadedData(units=units, exclusions=exclusions, types=types, thrust_maps=dict(thrust_maps), notes=notes)
+
+
+def measurement_summary(thrust_maps: dict, exclusions: dict, notes: list[str]) -> dict[str, Any]:
+    """JSON of the thrust measurement: maps per type, notes, saturated samples per vehicle NAME."""
+    per: dict[str, dict[str, Any]] = {}
+    for per_flight in exclusions.values():
+        for name, e in per_flight.items():
+            d = per.setdefault(name, {"saturated_samples": 0, "n_samples": 0, "thrust_source": e["thrust_source"]})
+            d["saturated_samples"] += e["saturated_samples"]
+            d["n_samples"] += e["kept_samples"]
+    for d in per.values():
+        d["saturated_fraction"] = d["saturated_samples"] / d["n_samples"] if d["n_samples"] else 0.0
+    return {"thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()}, "saturation": per, "notes": list(notes)}
 
 
 def progress_bar(items: Sequence, desc: str, enabled: bool):
@@ -223,6 +296,17 @@ class Errors:
             "rmse_tz_Nm": self.rmse_tz_Nm,
             "n_samples": self.n_samples,
         }
+
+
+def rmse_fz_by_vehicle(units: Sequence[Unit], model: Model) -> dict[str, tuple[float, int]]:
+    """Pooled RMSE of F_z (N) and sample count per vehicle name (the manifest's key) over ``units``."""
+    sse: dict[str, list[float]] = {}
+    for u in units:
+        r = u.force_N[:, 2] - predict(u, model)[0][:, 2]
+        acc = sse.setdefault(u.name, [0.0, 0.0])
+        acc[0] += float(r @ r)
+        acc[1] += r.size
+    return {k: (float(np.sqrt(a / n)) if n else 0.0, int(n)) for k, (a, n) in sse.items()}
 
 
 def errors(units: Sequence[Unit], model: Model, *, bases: Sequence | None = None) -> Errors:

@@ -1,8 +1,10 @@
-"""Candidate effects of the identification pipeline: fit on train flights, select by TEST error.
+"""Candidate effects of the identification pipeline: fit on train flights, select on VALIDATION flights.
 
 Stage 5 of :mod:`identify.pipeline`: each candidate of :data:`physics.effects.EFFECT_NAMES` is
-fitted on train flights on top of the calibrated model and scored on test flights; the greedy
-selection keeps what lowers the test error.
+fitted on the fitting part of the train flights on top of the calibrated model and scored on the
+validation part (flights carved from the train flights, :func:`validation_split`); the greedy
+selection keeps what lowers the validation error. Test flights only report (each trial's test
+error is in the JSON), they never choose.
 """
 
 from __future__ import annotations
@@ -25,14 +27,16 @@ class EffectTrial:
     name: str
     params: dict[str, float]
     round: int
-    test: Errors
-    gain_fz: float  # relative cut of test F_z RMSE vs the model before this trial, -
+    test: Errors  # on the test flights (reported only)
+    gain_fz: float  # relative cut of VALIDATION F_z RMSE vs the model before this trial, -
     gain_tz: float  # same for yaw torque, -
     selected: bool = False
+    valid: Errors | None = None  # on the validation flights (what chose)
 
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "params": self.params, "rmse_fz_N": self.test.rmse_fz_N,
                 "rmse_torque_Nm": self.test.rmse_torque_Nm, "rmse_tz_Nm": self.test.rmse_tz_Nm,
+                "rmse_fz_N_validation": None if self.valid is None else self.valid.rmse_fz_N,
                 "gain_fz": self.gain_fz, "gain_tz": self.gain_tz, "round": self.round, "selected": self.selected}  # fmt: skip
 
 
@@ -115,56 +119,99 @@ def _gain(new: float, current: float, floor: float) -> float:
     return 0.0 if current < floor else 1.0 - new / current
 
 
+def validation_split(train: Sequence[Unit]) -> tuple[list[Unit], list[Unit], str]:
+    """Split train units into (fit, validation) BY FLIGHT, and say how.
+
+    Flights are grouped by name without a trailing ``_NN`` run number (e.g. ``swap_sl_03`` ->
+    ``swap_sl``); in every group of two or more flights the last (in name order) validates. With no
+    such group, the last train flight validates; with a single train flight, its last third (by
+    time, per vehicle) validates — the only by-sample split, said in the note.
+    """
+    import re
+
+    flights = sorted({u.flight for u in train})
+    groups: dict[str, list[str]] = {}
+    for f in flights:
+        groups.setdefault(re.sub(r"_?\d+$", "", f), []).append(f)
+    valid = {g[-1] for g in groups.values() if len(g) >= 2}
+    if not valid and len(flights) >= 2:
+        valid = {flights[-1]}
+    if valid:
+        fit = [u for u in train if u.flight not in valid]
+        return fit, [u for u in train if u.flight in valid], f"validation flights: {', '.join(sorted(valid))}"
+    fit, val = [], []
+    for u in train:
+        cut = int(len(u) * 2 / 3)
+        fit.append(u.take(np.arange(cut)))
+        val.append(u.take(np.arange(cut, len(u))))
+    return fit, val, f"one train flight ({flights[0]}): its last third (by time) validates"
+
+
 def select_effects(
-    train: Sequence[Unit], test: Sequence[Unit], starts: Sequence[Model], *, options: IdentifyOptions
+    train: Sequence[Unit],
+    valid: Sequence[Unit],
+    starts: Sequence[Model],
+    *,
+    options: IdentifyOptions,
+    test: Sequence[Unit] = (),
 ) -> tuple[Model, list[EffectTrial]]:
-    """Greedy effect selection by TEST error (see the module docstring).
+    """Greedy effect selection by VALIDATION error (see the module docstring).
 
     ``starts`` are the models the first round builds on (the calibrated one and the model as given:
     calibration alone may bend the vehicle parameters towards a missing effect, after which the
-    effect no longer fits); each candidate keeps the start that gives it the lower test error. The
-    baseline of the gains is the better start.
+    effect no longer fits); each candidate keeps the start that gives it the lower validation
+    error. The baseline of the gains is the better start. ``test`` units only get each trial's
+    error reported.
     """
-    test_eval = subsample(test, options.max_eval_samples)
-    cache: dict[int, tuple[Any, list]] = {}  # id(vehicles) -> (vehicles, base wrench per test unit)
+    valid_eval = subsample(valid, options.max_eval_samples)
+    test_eval = subsample(test, options.max_eval_samples) if test else valid_eval
+    cache: dict[tuple[int, int], tuple[Any, list]] = {}  # (id(vehicles), set) -> (vehicles, base wrenches)
 
-    def test_errors(m: Model) -> Errors:
-        key = id(m.vehicles)
+    def set_errors(m: Model, units: list[Unit]) -> Errors:
+        key = (id(m.vehicles), id(units))
         if key not in cache:  # effect fits keep the vehicles: one base evaluation per start model
-            cache[key] = (m.vehicles, [base_wrench(unit_inputs(u, m)) for u in test_eval])
-        return errors(test_eval, m, bases=cache[key][1])
+            cache[key] = (m.vehicles, [base_wrench(unit_inputs(u, m)) for u in units])
+        return errors(units, m, bases=cache[key][1])
 
-    scored = [(test_errors(m), m) for m in starts]
+    def valid_errors(m: Model) -> Errors:
+        return set_errors(m, valid_eval)
+
+    scored = [(valid_errors(m), m) for m in starts]
     current, model = min(scored, key=lambda em: em[0].rmse_fz_N / max(scored[0][0].rmse_fz_N, 1e-12)
                          + em[0].rmse_tz_Nm / max(scored[0][0].rmse_tz_Nm, 1e-15))  # fmt: skip
     trials: list[EffectTrial] = []
-    remaining = [n for n in options.effects]
+    # library names are fitted here; Effects (options.extra_candidates, e.g. data-driven terms
+    # fitted elsewhere on the fitting flights) are scored with their parameters as given
+    remaining: list[str | Effect] = [*options.effects, *options.extra_candidates]
     rnd = 0
     while remaining and len(model.effects) < options.max_effects:
         rnd += 1
         bases = [m for _, m in scored] if rnd == 1 else [model]
         round_trials = []
-        for name in progress_bar(remaining, f"effects round {rnd}", options.progress):
+        for item in progress_bar(remaining, f"effects round {rnd}", options.progress):
             best_here = None
             for base in bases:
-                eff, cand = fit_effect(name, train, base, options=options)
-                err = test_errors(cand)
+                if isinstance(item, Effect):
+                    eff, cand = item, replace(base, effects=base.effects + (item,))
+                else:
+                    eff, cand = fit_effect(item, train, base, options=options)
+                err = valid_errors(cand)
                 gf = _gain(err.rmse_fz_N, current.rmse_fz_N, 1e-6)
                 gt = _gain(err.rmse_tz_Nm, current.rmse_tz_Nm, 1e-7)
                 if best_here is None or gf + gt > best_here[0].gain_fz + best_here[0].gain_tz:
-                    best_here = (EffectTrial(name, eff.full_params(), rnd, err, gf, gt), cand)
+                    best_here = (EffectTrial(eff.name, eff.full_params(), rnd, err, gf, gt, valid=err), cand, item)
             assert best_here is not None  # at least one candidate per round
             round_trials.append(best_here)
         ok = [
-            (t, c)
-            for t, c in round_trials
+            (t, c, i)
+            for t, c, i in round_trials
             if max(t.gain_fz, t.gain_tz) >= options.min_gain and min(t.gain_fz, t.gain_tz) > -0.01
         ]
-        best = max(ok, key=lambda tc: tc[0].gain_fz + tc[0].gain_tz, default=None)
-        for t, _ in round_trials:
-            trials.append(replace(t, selected=best is not None and t is best[0]))
+        best = max(ok, key=lambda tci: tci[0].gain_fz + tci[0].gain_tz, default=None)
+        for t, c, _ in round_trials:
+            trials.append(replace(t, selected=best is not None and t is best[0], test=set_errors(c, test_eval)))
         if best is None:
             break
-        model, current = best[1], best[0].test
-        remaining.remove(best[0].name)
+        model, current = best[1], best[0].valid or best[0].test
+        remaining.remove(best[2])
     return model, trials

@@ -111,10 +111,17 @@ class VehicleLog:
         default_factory=lambda: np.zeros(0, dtype=int)
     )  # (N,) int: segment id (gaps split); empty = one segment
     source: str = ""
+    motor_pwm: np.ndarray | None = None  # (N, 4) motor PWM command normalised 0..1, (S0-14) order; None: not logged
+    vbat_V: np.ndarray | None = None  # (N,) battery voltage, V; None: not logged
 
     def __post_init__(self) -> None:
         if self.segment.size != len(self.t_s):
             object.__setattr__(self, "segment", np.zeros(len(self.t_s), dtype=int))
+
+    @property
+    def has_pwm(self) -> bool:
+        """True when motor PWM and battery voltage are logged (the delivered thrust can be measured)."""
+        return self.motor_pwm is not None and self.vbat_V is not None
 
     def __len__(self) -> int:
         return len(self.t_s)
@@ -124,6 +131,7 @@ class VehicleLog:
         return replace(
             self,
             **{k: getattr(self, k)[mask] for k in _ARRAYS},
+            **{k: getattr(self, k)[mask] for k in _OPTIONAL_ARRAYS if getattr(self, k) is not None},
         )
 
     def as_table(self) -> np.ndarray:
@@ -133,6 +141,12 @@ class VehicleLog:
 
 
 _ARRAYS = ("t_s", "position_m", "velocity_mps", "accel_mps2", "quat_xyzw", "motor_thrust_N", "gyro_radps", "segment")
+_OPTIONAL_ARRAYS = ("motor_pwm", "vbat_V")
+
+NEURAL_SWARM_PWM_COLUMNS = ("u1[PWM]", "u2[PWM]", "u3[PWM]", "u4[PWM]", "Vbat[V]")
+"""Optional Neural-Swarm columns: normalised motor PWM (0..1) and battery voltage (V)."""
+CANONICAL_PWM_COLUMNS = ("pwm1", "pwm2", "pwm3", "pwm4", "vbat_V")
+"""Optional canonical columns (appended after :data:`CANONICAL_COLUMNS` when logged)."""
 
 
 def _open_bytes(path: Path) -> bytes:
@@ -177,8 +191,10 @@ def read_log(path: str | Path) -> VehicleLog:
     names = [h.strip() for h in header.lstrip("#").strip().split(",")]
     if "time[ms]" in names:
         wanted, time_scale = NEURAL_SWARM_COLUMNS, 1e-6  # the column counts microseconds
+        optional = NEURAL_SWARM_PWM_COLUMNS
     elif "t_s" in names:
         wanted, time_scale = {c: c for c in CANONICAL_COLUMNS}, 1.0
+        optional = CANONICAL_PWM_COLUMNS
     else:
         raise UserError(
             f"{path}: unknown log layout; expected a header with 'time[ms]' (neural-swarm) "
@@ -193,6 +209,10 @@ def read_log(path: str | Path) -> VehicleLog:
     def stack(*keys: str) -> np.ndarray:
         return np.column_stack([col[k] for k in keys])
 
+    pwm = vbat = None
+    if all(c in names for c in optional):  # else: no PWM/Vbat logged (callers fall back and say so)
+        pwm = np.column_stack([data[:, names.index(c)] for c in optional[:4]])
+        vbat = data[:, names.index(optional[4])]
     return VehicleLog(
         t_s=col["t_s"] * time_scale,
         position_m=stack("x_m", "y_m", "z_m"),
@@ -202,6 +222,8 @@ def read_log(path: str | Path) -> VehicleLog:
         motor_thrust_N=stack("f1_N", "f2_N", "f3_N", "f4_N"),
         gyro_radps=stack("wx_radps", "wy_radps", "wz_radps"),
         source=str(path),
+        motor_pwm=pwm,
+        vbat_V=vbat,
     )
 
 
@@ -210,7 +232,10 @@ def write_canonical_csv(log: VehicleLog, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     buf = io.StringIO()
-    np.savetxt(buf, log.as_table(), delimiter=",", header=",".join(CANONICAL_COLUMNS), comments="", fmt="%.9g")
+    table, header = log.as_table(), list(CANONICAL_COLUMNS)
+    if log.motor_pwm is not None and log.vbat_V is not None:
+        table, header = np.column_stack([table, log.motor_pwm, log.vbat_V]), header + list(CANONICAL_PWM_COLUMNS)
+    np.savetxt(buf, table, delimiter=",", header=",".join(header), comments="", fmt="%.9g")
     payload = buf.getvalue().encode()
     if path.suffix == ".gz":
         payload = gzip.compress(payload, mtime=0)
@@ -242,6 +267,8 @@ def check_log(
             f"({t[i - 1]:.6f} s -> {t[i]:.6f} s); logs must have increasing time"
         )
     table = log.as_table()
+    if log.motor_pwm is not None and log.vbat_V is not None:
+        table = np.column_stack([table, log.motor_pwm, log.vbat_V])
     finite = finite_t & np.all(np.isfinite(table), axis=1)
     nan_rows = int((~finite).sum())
     log = log.take(finite)
@@ -285,6 +312,7 @@ class VehicleEntry:
     type: str  # vehicle type (built-in or from ``vehicles_file``)
     log: Path  # resolved log path
     ground_z_m: float = 0.0  # ground height in the log's world frame, m
+    score: bool = True  # False: the log is a downwash source for the others only, never scored
 
 
 @dataclass(frozen=True)
@@ -316,7 +344,7 @@ def _need(mapping: Any, key: str, where: str, kind: type | tuple[type, ...]) -> 
     return value
 
 
-def load_manifest(path: str | Path) -> Manifest:
+def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> Manifest:
     """Read and validate a manifest YAML (DESIGN.md section 6).
 
     ``root`` is resolved relative to the directory of the manifest file (absolute paths are kept);
@@ -367,12 +395,17 @@ def load_manifest(path: str | Path) -> Manifest:
             gz = v.get("ground_z_m", 0.0)
             if isinstance(gz, bool) or not isinstance(gz, (int, float)):
                 raise UserError(f"{vw}.ground_z_m: expected a number (m), got {gz!r}")
-            entries.append(VehicleEntry(name=str(vname), type=vtype, log=log, ground_z_m=float(gz)))
+            score = v.get("score", True)
+            if not isinstance(score, bool):
+                raise UserError(f"{vw}.score: expected true or false, got {score!r}")
+            entries.append(VehicleEntry(name=str(vname), type=vtype, log=log, ground_z_m=float(gz), score=score))
         if not entries:
             raise UserError(f"{fw}.vehicles: expected at least one vehicle")
         flights.append(FlightEntry(name=name, split=split, vehicles=tuple(entries)))
     splits = {f.split for f in flights}
-    if splits != {"train", "test"}:
+    if not any(v.score for f in flights for v in f.vehicles):
+        raise UserError(f"{where}: flights: every vehicle says 'score: false'; at least one must be scored")
+    if require_train_and_test and splits != {"train", "test"}:
         raise UserError(f"{where}: flights: need at least one train and one test flight, got {sorted(splits)}")
     return Manifest(path=path, format=fmt, root=root, flights=tuple(flights), vehicles_file=vfile, quality=quality)
 

@@ -3,31 +3,37 @@
 Stages (DESIGN.md section 6):
 
 1. Load every flight of the manifest (:mod:`identify.flightlog`), clean it and measure the disturbance
-   on every vehicle (:mod:`identify.measure`, S0-11, S0-13 + gyroscopic term).
+   on every vehicle (:mod:`identify.measure`, S0-11, S0-13 + gyroscopic term) with the motor thrust
+   each motor DELIVERS: from PWM and Vbat through a per-type thrust map fitted on train flights,
+   capped where a motor saturates (:mod:`identify.thrust_map`).
 2. Predict it with the model: :func:`physics.effects.total_wrench`, i.e. the base model
    (:func:`physics.disturbance.disturbance_wrench`) summed over all other vehicles of the flight at
    their logged relative positions (interpolated onto the target's own clock), plus effects.
-3. Calibrate on TRAIN flights only (:mod:`identify.calibrate`): per source type c_ax, z0_m, c_rad;
-   per target type b_v; jointly with a per-type thrust scale s as a nuisance parameter (logged motor
-   thrusts off by a factor put (s - 1) sum(f_i) z_B into the measured force), so that a
-   thrust-calibration error does not distort the aerodynamic parameters. Fitted on F_z (world z
-   force), the quantity the model predicts best. The scales are then dropped: a thrust correction is
-   kept only if the ``thrust_bias`` candidate (global bias + per-type scales) earns it on test data.
+3. Split the train flights BY FLIGHT into a fitting and a validation part
+   (:func:`identify.effect_selection.validation_split`). Calibrate on the fitting part
+   (:mod:`identify.calibrate`): per source type c_ax, z0_m, c_rad; per target type b_v; jointly with
+   a per-type thrust scale s as a nuisance parameter (logged motor thrusts off by a factor put
+   (s - 1) sum(f_i) z_B into the measured force), so that a thrust-calibration error does not
+   distort the aerodynamic parameters. Fitted on F_z (world z force). The scales are then dropped:
+   a thrust correction is kept only if the ``thrust_bias`` candidate (global bias + per-type
+   scales) earns it on the validation flights.
 4. Residual analysis (:mod:`identify.residuals`).
-5. Effects: each candidate of :data:`physics.effects.EFFECT_NAMES` is fitted on train flights on top
-   of the calibrated model (vehicle parameters frozen) and scored on TEST flights; the one that
-   cuts the test RMSE of F_z or of the yaw torque most (by at least ``min_gain``, without making the
-   other worse by more than 1 %) is kept, and the search repeats with the rest (greedy).
-6. Errors before (model as given) and after (calibrated + kept effects) on test flights.
+5. Effects: each candidate of :data:`physics.effects.EFFECT_NAMES` is fitted on the fitting part on
+   top of the calibrated model (vehicle parameters frozen) and scored on the VALIDATION flights; the
+   one that cuts the validation RMSE of F_z or of the yaw torque most (by at least ``min_gain``,
+   without making the other worse by more than 1 %) is kept, and the search repeats (greedy).
+6. Errors before (model as given), calibrated and after (calibrated + kept effects) on TEST flights,
+   which never choose anything; also per vehicle (the manifest's key).
 
-Fits use at most ``max_fit_samples`` train samples and scoring ``max_eval_samples`` test samples
-(uniform strides); the before/after figures use every test sample.
+Vehicles marked ``score: false`` in the manifest are downwash sources only (never fitted or scored).
+Fits use at most ``max_fit_samples`` samples and scoring ``max_eval_samples`` samples (uniform
+strides); the before/after figures use every test sample.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -48,13 +54,16 @@ from identify.data import (
     Unit,
     errors,
     load_units,
+    measurement_summary,
     merge_units,
     predict,
+    rmse_fz_by_vehicle,
     subsample,
     unit_inputs,
 )
-from identify.effect_selection import EffectTrial, select_effects
+from identify.effect_selection import EffectTrial, select_effects, validation_split
 from identify.flightlog import Manifest, load_manifest
+from identify.measure import MeasureOptions
 from identify.residuals import correlate, sample_features
 from physics import VALIDITY_FACTOR_L, ModelOptions, base_wrench
 
@@ -123,6 +132,17 @@ class IdentifyResult:
     validity: dict
     thrust_coefficient: dict
     units: list[Unit]
+    thrust_maps: dict = field(default_factory=dict)  # vehicle type -> identify.thrust_map.ThrustMap
+    notes: list[str] = field(default_factory=list)
+    measure_options: MeasureOptions = MeasureOptions()
+    per_vehicle: dict = field(default_factory=dict)  # NAME -> rmse_fz_N_before/calibrated/after, n_samples (test)
+    discovered: list = field(default_factory=list)  # data-driven terms (identify.discovery); [] when none
+    calibrated_model: Model | None = None  # calibrated, no effects (what "calibrated_only" scored)
+    validation: str = ""  # which train flights chose the effects (identify.effect_selection.validation_split)
+
+    def measurement_json(self) -> dict[str, Any]:
+        """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
+        return measurement_summary(self.thrust_maps, self.exclusions, self.notes)
 
     def to_json(self) -> dict[str, Any]:
         cal = {}
@@ -141,6 +161,10 @@ class IdentifyResult:
             "calibration": cal,
             "thrust_scale": dict(self.final_model.thrust_scale),
             "exclusions": self.exclusions,
+            "measurement": self.measurement_json(),
+            "per_vehicle": self.per_vehicle,
+            "discovered": list(self.discovered),
+            "validation": self.validation,
             "residual_correlations": [
                 {"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations
             ],
@@ -206,6 +230,13 @@ def _residual_analysis(units: Sequence[Unit], model: Model):
     return correlate(np.concatenate(res), {k: np.concatenate(v) for k, v in feats.items()})
 
 
+def _per_vehicle(test: Sequence[Unit], before: Model, calibrated: Model, after: Model) -> dict[str, dict]:
+    """Test RMSE of F_z per vehicle name, before / calibrated / after (pooled over test flights)."""
+    b, c, a = (rmse_fz_by_vehicle(test, m) for m in (before, calibrated, after))
+    return {k: {"rmse_fz_N_before": b[k][0], "rmse_fz_N_calibrated": c[k][0], "rmse_fz_N_after": a[k][0],
+                "n_samples": b[k][1]} for k in b}  # fmt: skip
+
+
 def run_identify(
     manifest: Manifest | str | Path, *, options: IdentifyOptions | None = None, thrust_summary: bool = True
 ) -> IdentifyResult:
@@ -213,9 +244,11 @@ def run_identify(
     options = options or IdentifyOptions()
     if not isinstance(manifest, Manifest):
         manifest = load_manifest(manifest)
-    units, exclusions, types = load_units(manifest, options=options)
-    train = [u for u in units if u.split == "train" and len(u)]
-    test = [u for u in units if u.split == "test" and len(u)]
+    data = load_units(manifest, options=options)
+    units, exclusions, types = data.units, data.exclusions, data.types
+    train = [u for u in units if u.split == "train" and u.scored and len(u)]
+    test = [u for u in units if u.split == "test" and u.scored and len(u)]
+    fit, valid, validation_note = validation_split(train)
     if not train or not test:
         raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
     base = Model(
@@ -237,10 +270,11 @@ def run_identify(
     calibration = None
     model = base
     if options.calibrate:
-        model, calibration = calibrate_model(train, base, options=options)
+        model, calibration = calibrate_model(fit, base, options=options)
     calibrated = full_errors(model)
-    corr_before = _residual_analysis(subsample(train, 20000), model)
-    final, trials = select_effects(train, test, [model, base] if options.calibrate else [base], options=options)
+    corr_before = _residual_analysis(subsample(fit, 20000), model)
+    starts = [model, base] if options.calibrate else [base]
+    final, trials = select_effects(fit, valid, starts, options=options, test=test)
     after = full_errors(final)
     corr = _residual_analysis(subsample(test, 50000), final)
     unexplained = None
@@ -253,6 +287,8 @@ def run_identify(
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
         unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
+        thrust_maps=data.thrust_maps, notes=data.notes, measure_options=options.measure,
+        per_vehicle=_per_vehicle(test, base, model, final), validation=validation_note, calibrated_model=model,
     )  # fmt: skip
 
 

@@ -32,7 +32,7 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
-    test = [u for u in result.units if u.split == "test" and len(u)]
+    test = [u for u in result.units if u.split == "test" and u.scored and len(u)]
     # 1. measured vs predicted F_z, the test vehicle with the strongest base disturbance
     strength = [float(np.std(u.force_N[:, 2])) if u.source_types else 0.0 for u in test]
     unit = test[int(np.argmax(strength))]  # the most disturbed test vehicle (measured F_z spread)
@@ -121,6 +121,19 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
     return written
 
 
+def exclusion_lines(exclusions: dict) -> list[str]:
+    """One markdown bullet per flight with the non-zero exclusion counts of each vehicle."""
+    lines = []
+    for flight, per in exclusions.items():
+        parts = "; ".join(
+            f"{n}: "
+            + ", ".join(f"{k} {v}" for k, v in e.items() if isinstance(v, int) and not isinstance(v, bool) and v)
+            for n, e in per.items()
+        )
+        lines.append(f"- {flight}: {parts}")
+    return lines
+
+
 def _fmt(x: float | None, digits: int = 4) -> str:
     return "n/a" if x is None else f"{x:.{digits}g}"
 
@@ -136,12 +149,30 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         )
     cut = 100.0 * (1.0 - a.rmse_fz_N / b.rmse_fz_N) if b.rmse_fz_N > 0 else 0.0
     lines += ["", f"Selected effects: **{', '.join(result.selected) or 'none'}**. F_z error cut by {cut:.1f} %.", ""]
-    lines += ["## Candidate effects (fitted on train, scored on test)", "",
-              "| round | effect | params | RMSE F_z [N] | gain F_z | gain yaw | kept |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+    lines += ["## Per vehicle (test flights, RMSE F_z [N])", "", "| vehicle | before | calibrated | after | samples |",
+              "|---|---|---|---|---|"]  # fmt: skip
+    for name, pv in result.per_vehicle.items():
+        lines.append(f"| {name} | {_fmt(pv['rmse_fz_N_before'])} | {_fmt(pv['rmse_fz_N_calibrated'])} | "
+                     f"{_fmt(pv['rmse_fz_N_after'])} | {pv['n_samples']} |")  # fmt: skip
+    lines += ["", "## Measurement (delivered motor thrust)", "", "| vehicle | thrust from | saturated samples | share |",
+              "|---|---|---|---|"]  # fmt: skip
+    for name, sat in result.measurement_json()["saturation"].items():
+        lines.append(
+            f"| {name} | {sat['thrust_source']} | {sat['saturated_samples']} | {sat['saturated_fraction']:.3f} |"
+        )
+    for t, m in result.thrust_maps.items():
+        lines.append(f"\n- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "
+                     f"ceiling {m.x_max_V:.3f} V, max {m.max_thrust_N:.4g} N per motor, RMS {m.rms_N:.2g} N, R2 {m.r2:.4f}")  # fmt: skip
+    lines += [f"- note: {n}" for n in result.notes]
+    lines += ["", "## Candidate effects (fitted on train, chosen on validation flights, scored on test)", "",
+              f"{result.validation}.", "",
+              "| round | effect | params | RMSE F_z test [N] | RMSE F_z validation [N] | gain F_z (val) | gain yaw (val) | kept |",
+              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for tr in result.trials:
         params = ", ".join(f"{k}={v:.4g}" for k, v in tr.params.items())
+        val = _fmt(tr.valid.rmse_fz_N) if tr.valid is not None else "n/a"
         lines.append(
-            f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {100 * tr.gain_fz:.1f} % | {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} |"
+            f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {val} | {100 * tr.gain_fz:.1f} % | {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} |"
         )
     if result.calibration is not None:
         lines += [
@@ -187,9 +218,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
             params = ", ".join(f"{k}={val:.3g}±{d['ls_std'][k]:.1g}" for k, val in d["ls"].items())
             lines.append(f"- {t}: {params}; R² {d['r2']:.2f} over {d['n_samples']} samples")
     lines += ["", "## Excluded samples (quality checks)", ""]
-    for flight, per in result.exclusions.items():
-        parts = "; ".join(f"{n}: " + ", ".join(f"{k} {val}" for k, val in e.items() if val) for n, e in per.items())
-        lines.append(f"- {flight}: {parts}")
+    lines += exclusion_lines(result.exclusions)
     lines += ["", "## Plots", ""] + [f"![{p.stem}]({p.name})" for p in plots]
     return "\n".join(lines) + "\n"
 

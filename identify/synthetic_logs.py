@@ -7,11 +7,34 @@ truth wrench exactly. Closed-loop synthetic flights come from :mod:`flightsim`.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from identify.flightlog import VehicleLog
+
+
+@dataclass(frozen=True)
+class SyntheticMotor:
+    """A firmware-like motor: delivered thrust P(x) = c1 x + c2 x^2 (N) of x = pwm * Vbat (V), capped
+    at ``max_thrust_N``; past the cap the desired u[N] grows by ``windup`` times the shortfall."""
+
+    c1_NpV: float = 0.01
+    c2_NpV2: float = 0.01
+    max_thrust_N: float = 0.144  # per motor, N (Crazyflie 2.1 class)
+    windup: float = 3.0  # -
+    vbat_start_V: float = 4.1
+    vbat_end_V: float = 3.6
+
+    def thrust_N(self, x_V: np.ndarray) -> np.ndarray:
+        return self.c1_NpV * x_V + self.c2_NpV2 * x_V**2
+
+    def pwm_of(self, thrust_N: np.ndarray, vbat_V: np.ndarray) -> np.ndarray:
+        """PWM (0..1) that makes ``thrust_N`` (N, 4) at battery voltages ``vbat_V`` (N,)."""
+        f = np.clip(thrust_N, 0.0, None)
+        x = (-self.c1_NpV + np.sqrt(self.c1_NpV**2 + 4.0 * self.c2_NpV2 * f)) / (2.0 * self.c2_NpV2)
+        return x / vbat_V[:, None]
 
 
 def synthetic_logs(
@@ -23,6 +46,7 @@ def synthetic_logs(
     ground_z_m: float = 0.0,
     accel_noise_mps2: float = 0.0,
     seed: int = 0,
+    motor: SyntheticMotor | None = None,
 ) -> dict[str, VehicleLog]:
     """Logs with a known truth: every vehicle follows ``positions_m[name]`` (N, 3), m, level, and
     receives the wrench of :func:`physics.effects.total_wrench` (base model from all other vehicles
@@ -30,6 +54,10 @@ def synthetic_logs(
     give collective m (g + a_z) - F_z and body torque -tau, and the accelerometer (world, specific
     force) reads (T z + F) / m plus white noise ``accel_noise_mps2``. So the S0-11/S0-13 measurement
     returns the truth wrench (up to noise and smoothing). Gyro zero (level, no yaw rate).
+
+    With ``motor`` the logs also hold PWM and Vbat (:class:`SyntheticMotor`) and the motors
+    saturate: each delivers min(demand, max), the accelerometer sees the DELIVERED thrust, and the
+    logged u[N] is the firmware-like desired force, which keeps growing past the maximum.
 
     This is a measurement-level generator (no rigid-body simulation): for closed-loop flights use
     the simulator (flightsim).
@@ -53,6 +81,16 @@ def synthetic_logs(
         collective = veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]) - force[:, 2]
         demand = np.column_stack([collective, -torque[:, 0], -torque[:, 1], -torque[:, 2]])
         thrusts = np.linalg.solve(mixer_matrix(veh), demand.T).T
+        pwm = vbat = None
+        logged = thrusts
+        if motor is not None:
+            delivered = np.minimum(thrusts, motor.max_thrust_N)
+            logged = np.where(
+                thrusts > motor.max_thrust_N, thrusts + motor.windup * (thrusts - motor.max_thrust_N), thrusts
+            )
+            vbat = np.linspace(motor.vbat_start_V, motor.vbat_end_V, n)
+            pwm = motor.pwm_of(delivered, vbat)
+            collective = delivered.sum(axis=1)  # what the motors give (level flight: along world z)
         spec = force.copy()
         spec[:, 2] += collective
         spec = spec / veh.mass_kg + rng.normal(0.0, accel_noise_mps2, (n, 3))
@@ -62,8 +100,10 @@ def synthetic_logs(
             velocity_mps=vel,
             accel_mps2=spec,
             quat_xyzw=np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)),
-            motor_thrust_N=thrusts,
+            motor_thrust_N=logged,
             gyro_radps=np.zeros((n, 3)),
             source=f"synthetic:{name}",
+            motor_pwm=pwm,
+            vbat_V=vbat,
         )
     return out

@@ -14,6 +14,10 @@ File layout (YAML)::
         - {name: near_field, params: {amplitude: 0.4, decay_L: 3.0}}
       thrust_scales: {small-quad: 1.02}   # per vehicle type, multiplies the logged thrust, -
       uncertainty: {small-quad.c_ax: 0.3} # optional one-sigma of fitted parameters (same units)
+      measurement:                  # optional: how identify measured the disturbance (identify.evaluate
+        derivative: savgol          # reads and checks it): derivative, window_s, polyorder,
+        window_s: 0.15              # motor_time_constant_s, and per type the PWM*Vbat thrust map
+        thrust_maps: {small-quad: {coef: [c0, c1, c2, c3], x_max_V: 3.3}}
 
 Format 1 (no ``format_version``; what identify wrote before) is read with a note: it has no
 thrust scales or uncertainties. A newer ``format_version`` is a one-line error. Every error is a
@@ -40,7 +44,9 @@ MODEL_FORMAT_VERSION = 2
 """Version written; 1 = the older identify output without ``format_version`` (read with a note)."""
 
 TOP_KEYS = ("format_version", "vehicles", "model")
-MODEL_KEYS = ("field_form", "drag_coefficient", "air_density_kgpm3", "effects", "thrust_scales", "uncertainty")
+MODEL_KEYS = (
+    "field_form", "drag_coefficient", "air_density_kgpm3", "effects", "thrust_scales", "uncertainty", "measurement",
+)  # fmt: skip
 HEADER = (
     "# written by proxplan identify: calibrated vehicles, model options and kept effects.\n"
     "# Use with: proxplan costmap|plan|simulate --model THIS_FILE ..., or 'model_file: THIS_FILE' in a scenario.\n"
@@ -64,6 +70,7 @@ class CalibratedModel:
     effects: tuple[Effect, ...] = ()
     thrust_scales: Mapping[str, float] = field(default_factory=dict)
     uncertainty: Mapping[str, float] = field(default_factory=dict)
+    measurement: Mapping[str, Any] = field(default_factory=dict)  # identify's measurement settings (plain data)
     format_version: int = MODEL_FORMAT_VERSION
     notes: tuple[str, ...] = field(default=(), compare=False)
 
@@ -108,7 +115,7 @@ def effects_from_list(raw: Any, where: str) -> tuple[Effect, ...]:
         for key, value in params.items():
             if key not in PARAMETERS[name]:
                 raise UserError(
-                    f"{w}.params: unknown parameter {key!r} of {name}; expected {', '.join(PARAMETERS[name])}"
+                    f"{w}.params.{key}: unknown parameter of {name}; expected {', '.join(PARAMETERS[name])}"
                 )
             values[str(key)] = _finite(value, f"{w}.params.{key}")
         out.append(Effect(str(name), values))
@@ -133,6 +140,14 @@ def _number_map(raw: Any, where: str, *, positive: bool) -> dict[str, float]:
             raise UserError(f"{where}.{key}: expected a positive number, got {value!r}")
         out[str(key)] = v
     return out
+
+
+def _mapping(raw: Any, where: str) -> dict[str, Any]:
+    if raw is None:
+        return {}
+    if not isinstance(raw, Mapping):
+        raise UserError(f"{where}: expected a mapping")
+    return dict(raw)
 
 
 def options_from_mapping(model: Mapping, where: str) -> ModelOptions:
@@ -183,6 +198,7 @@ def model_from_dict(doc: Any, *, label: str = "<model>") -> CalibratedModel:
         effects=effects_from_list(model.get("effects"), f"{label}: model.effects"),
         thrust_scales=_number_map(model.get("thrust_scales"), f"{label}: model.thrust_scales", positive=True),
         uncertainty=_number_map(model.get("uncertainty"), f"{label}: model.uncertainty", positive=False),
+        measurement=_mapping(model.get("measurement"), f"{label}: model.measurement"),
         format_version=int(version),
         notes=tuple(notes),
     )
@@ -206,6 +222,8 @@ def model_file_dict(model: CalibratedModel) -> dict[str, Any]:
     }
     if model.uncertainty:
         body["uncertainty"] = {k: float(v) for k, v in model.uncertainty.items()}
+    if model.measurement:
+        body["measurement"] = dict(model.measurement)
     return {
         "format_version": MODEL_FORMAT_VERSION,
         "vehicles": {

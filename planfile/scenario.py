@@ -301,33 +301,35 @@ def _box(data: Any, where: str) -> Box:
     return Box(min_m=lo, max_m=hi, name=str(data.get("name", "")))
 
 
+def _relative_file(doc: Mapping, key: str, path: Path | None, label: str, what: str) -> Path | None:
+    """The file named by ``doc[key]`` (relative to the scenario file), checked to exist; None if absent."""
+    if key not in doc:
+        return None
+    value = doc[key]
+    if not isinstance(value, str) or not value:
+        raise UserError(f"{label}: {key}: expected a path to {what}, got {value!r}")
+    base = path.parent if path is not None else Path.cwd()
+    file = (base / value).resolve()
+    if not file.exists():
+        raise UserError(f"{label}: {key}: file {file} does not exist (paths are relative to the scenario file)")
+    return file
+
+
 def _vehicle_types(doc: Mapping, path: Path | None, label: str) -> dict[str, Vehicle]:
-    if "vehicle_file" not in doc:
+    vfile = _relative_file(doc, "vehicle_file", path, label, "a vehicles YAML file")
+    if vfile is None:
         return {}
-    value = doc["vehicle_file"]
-    if not isinstance(value, str):
-        raise UserError(f"{label}: vehicle_file: expected a path to a vehicles YAML file, got {value!r}")
     from physics import load_vehicle_file
 
-    base = path.parent if path is not None else Path.cwd()
-    vfile = (base / value).resolve()
-    if not vfile.exists():
-        raise UserError(f"{label}: vehicle_file: file {vfile} does not exist (paths are relative to the scenario file)")
     return load_vehicle_file(vfile)
 
 
 def _model_file(doc: Mapping, path: Path | None, label: str) -> CalibratedModel | None:
-    if "model_file" not in doc:
+    mfile = _relative_file(doc, "model_file", path, label, "a model file (identify --save-model)")
+    if mfile is None:
         return None
-    value = doc["model_file"]
-    if not isinstance(value, str) or not value:
-        raise UserError(f"{label}: model_file: expected a path to a model file (identify --save-model), got {value!r}")
     from physics import load_model_file
 
-    base = path.parent if path is not None else Path.cwd()
-    mfile = (base / value).resolve()
-    if not mfile.exists():
-        raise UserError(f"{label}: model_file: file {mfile} does not exist (paths are relative to the scenario file)")
     return load_model_file(mfile)
 
 

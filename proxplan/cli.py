@@ -25,6 +25,8 @@ COMMAND_MODULES = (
     "proxplan.commands.simulate",  # simulate
     "proxplan.commands.view",  # view
     "proxplan.commands.identify",  # identify
+    "proxplan.commands.evaluate",  # evaluate
+    "proxplan.commands.certify",  # certify
 )
 
 

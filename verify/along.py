@@ -4,7 +4,9 @@ separations (the dock pairs' final approach told apart), evaluated with the mode
 The wrench on each vehicle is the sum over every other vehicle above it of
 ``physics.disturbance.disturbance_wrench`` (S0-3..S0-8) plus the scenario's effects between vehicles
 (a calibrated model's, ``Scenario.effects``), through ``costmaps.pair_wrench`` (the one
-implementation, ``physics.effects.total_wrench``); its authority usage comes from
+implementation, ``physics.effects.total_wrench``; where two or more sources are above at once and
+there are effects, ``costmaps.sources_wrench`` evaluates them together, so an effect of several
+sources need not add up); its authority usage comes from
 ``physics.authority.authority_usage`` (DESIGN.md s. 3). Positions between plan samples come from
 the plan-file sampler. World frame, z up; m, N, N m, s.
 """
@@ -15,7 +17,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from costmaps import pair_wrench
+from costmaps import pair_wrench, sources_wrench
 from physics import ModelOptions, authority_usage, invalid_zone_mask
 from planfile import Plan, Scenario
 
@@ -62,6 +64,7 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
         torque = np.zeros((t_s.size, 3))
         by_source = {}
         invalid = np.zeros(t_s.size, dtype=bool)
+        n_below = np.zeros(t_s.size, dtype=int)
         for sname in plan.vehicles:
             if sname == tname:
                 continue
@@ -77,6 +80,12 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
                 inv = invalid_zone_mask(source, target, off[below])
                 invalid[np.nonzero(below)[0][inv]] = True
             by_source[sname] = u_src
+            n_below += below
+        stack = n_below >= 2
+        if effects and stack.any():  # several sources at once: effects need not add up
+            others = [n for n in plan.vehicles if n != tname]
+            offsets = [(_vehicle(plan, scenario, n), (pos[tname] - pos[n])[stack]) for n in others]
+            force[stack], torque[stack] = sources_wrench(target, offsets, opts, effects)
         usage = authority_usage(target, force, torque) if t_s.size else np.zeros(0)
         out[tname] = WrenchAlongPlan(t_s, force, torque, usage, by_source, invalid)
     return out

@@ -49,16 +49,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def calibrated_model(result):
-    """The :class:`physics.CalibratedModel` of an identify result (everything its "after" used)."""
-    from physics import CalibratedModel
+    """The :class:`physics.CalibratedModel` of an identify result (everything its "after" used:
+    vehicles, options, effects, thrust scales, and how the disturbance was measured)."""
+    from identify import saved_model
 
-    final = result.final_model
-    return CalibratedModel(
-        vehicles=dict(final.vehicles),
-        options=final.options,
-        effects=tuple(final.effects),
-        thrust_scales={k: float(v) for k, v in final.thrust_scale.items()},
-    )
+    return saved_model(result.final_model, result.measure_options, result.thrust_maps)
 
 
 def model_yaml_dict(result) -> dict:
@@ -100,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_text(stage / "identify.json", json.dumps(doc, indent=2, default=float))
     if args.save_model:
         doc["saved_model"] = str(save_model(result, args.save_model))
+    for note in result.notes:  # e.g. logs without PWM/Vbat: the desired u[N] is used (said once)
+        print(f"proxplan identify: note: {note}", file=sys.stderr)
     if args.json:
         print(json.dumps(doc, default=float))
     else:

@@ -150,14 +150,21 @@ def _plan(args: argparse.Namespace) -> int:
     return 0
 
 
-def _scenario_with_model(plan, model, args: argparse.Namespace):
-    """The plan's scenario (or --scenario) with ``model``'s field form and between-vehicle effects
-    in place of its own; the plan's vehicle parameters are kept (they are what was planned)."""
+def _with_model(plan, model, args: argparse.Namespace):
+    """(plan, scenario) re-seen through ``model``: the vehicle types it calibrated fly the plan's
+    trajectories, and its field form and effects between vehicles replace the plan's own (or
+    those of --scenario)."""
     from dataclasses import replace
 
     from fileio import UserError, read_yaml
     from planfile import scenario_from_dict
 
+    plan = replace(
+        plan,
+        vehicles={
+            n: replace(tr, vehicle=model.vehicles.get(tr.type_name, tr.vehicle)) for n, tr in plan.vehicles.items()
+        },
+    )
     if args.scenario:
         doc = dict(read_yaml(args.scenario, what="scenario file") or {})
         label, source = str(args.scenario), args.scenario
@@ -167,8 +174,8 @@ def _scenario_with_model(plan, model, args: argparse.Namespace):
         raise UserError(f"{args.plan}: scenario_spec: missing; pass the scenario with --scenario FILE.yaml")
     doc.pop("model", None)
     doc.pop("model_file", None)
-    kept = replace(model, vehicles={})
-    return scenario_from_dict(doc, source_path=source, vehicle_types=plan.vehicle_types, label=label, model=kept)
+    scenario = scenario_from_dict(doc, source_path=source, vehicle_types=plan.vehicle_types, label=label, model=model)
+    return plan, scenario
 
 
 def _verify(args: argparse.Namespace) -> int:
@@ -181,7 +188,7 @@ def _verify(args: argparse.Namespace) -> int:
     plan = read_plan(args.plan)
     model = load_model_argument(args, "verify")
     if model is not None:
-        scenario = _scenario_with_model(plan, model, args)
+        plan, scenario = _with_model(plan, model, args)
     else:
         scenario = load_scenario(args.scenario) if args.scenario else scenario_of_plan(plan, label=str(args.plan))
     violations = verify_plan(plan, scenario, dt_fine_s=args.dt)

@@ -59,6 +59,11 @@ def register(subparsers) -> None:
         help="add the plan's predicted disturbance force and torque to the controller's thrust and moment "
         "command (compensation); flies the plan twice, without and with, and reports both",
     )
+    p.add_argument(
+        "--certify-run", type=int, default=None, metavar="K",
+        help="re-fly run K of 'proxplan certify' with the same draws (same --seed, --truth, --vehicles; "
+             "certify's simulator settings)",
+    )  # fmt: skip
     p.set_defaults(func=run)
 
 
@@ -119,11 +124,18 @@ def run(args: argparse.Namespace) -> int:
     show = not args.json or sys.stderr.isatty()
     with output_folder(out) as stage:  # every output lands together, or none
         baseline = None
-        if args.feedforward:  # the same flight without feed-forward, for the comparison
-            baseline = simulate_plan(
-                plan, truth=truth, vehicles=custom, options=replace(options, feedforward=False), progress=show
-            )
-        result = simulate_plan(plan, truth=truth, vehicles=custom, options=options, progress=show)
+        certify_run = None
+        if args.certify_run is not None:
+            from proxplan.commands.certify import refly
+
+            certify_run = refly(args, plan_path)
+            result = certify_run.pop("_result")
+        else:
+            if args.feedforward:  # the same flight without feed-forward, for the comparison
+                baseline = simulate_plan(
+                    plan, truth=truth, vehicles=custom, options=replace(options, feedforward=False), progress=show
+                )
+            result = simulate_plan(plan, truth=truth, vehicles=custom, options=options, progress=show)
         plot_errors(result, stage / "tracking_error.png")
         plot = out / "tracking_error.png"
         manifest = None
@@ -146,6 +158,8 @@ def run(args: argparse.Namespace) -> int:
             manifest_path=None if manifest is None else str(manifest),
         )
         summary["feedforward"] = None if baseline is None else feedforward_comparison(baseline, result)
+        if certify_run is not None:
+            summary["certify_run"] = certify_run
         atomic_write_bytes(stage / "summary.json", json.dumps(summary, indent=1).encode())
     completed = summary["status"] == "complete"
     if not completed:

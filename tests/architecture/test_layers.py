@@ -24,6 +24,7 @@ LAYERS = (
     "verify",  # independent plan checks
     "planner",  # sampling, optimisation, timing
     "flightsim",  # closed-loop simulation
+    "certify",  # Monte-Carlo closed-loop flights on Dask
     "web",  # review app
     "proxplan",  # CLI
 )

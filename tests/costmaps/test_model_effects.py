@@ -49,6 +49,21 @@ def test_pair_wrench_is_total_wrench_of_one_source_without_target_only_effects()
     assert np.abs(f[:, 2]).sum() > 1.5 * np.abs(f0[:, 2]).sum()
 
 
+def test_sources_wrench_of_a_stack_is_the_sum_of_pairs_for_effects_that_add() -> None:
+    from costmaps import sources_wrench
+
+    rng = np.random.default_rng(5)
+    upper = np.column_stack([rng.uniform(-0.2, 0.2, (15, 2)), -rng.uniform(0.6, 1.5, 15)])
+    middle = np.column_stack([rng.uniform(-0.2, 0.2, (15, 2)), -rng.uniform(0.3, 0.6, 15)])
+    effects = (STRONG, Effect("thrust_quadratic", {}), BIAS)
+    f, t = sources_wrench(SMALL, [(LARGE, upper), (SMALL, middle)], effects=effects)
+    f1, t1 = pair_wrench(LARGE, SMALL, upper, effects=effects)
+    f2, t2 = pair_wrench(SMALL, SMALL, middle, effects=effects)
+    np.testing.assert_allclose(f, f1 + f2, rtol=1e-10, atol=1e-15)
+    np.testing.assert_allclose(t, t1 + t2, rtol=1e-10, atol=1e-15)
+    assert np.all(np.abs(f1[:, 2]) > 0) and np.all(np.abs(f2[:, 2]) > 0)
+
+
 def test_cost_maps_change_with_effects_and_their_hash_tells_them_apart(tmp_path: Path) -> None:
     base = build_pair_maps(LARGE, SMALL, **COARSE)
     strong = build_pair_maps(LARGE, SMALL, effects=(STRONG, BIAS), **COARSE)
@@ -145,3 +160,40 @@ def test_simulator_default_world_is_the_plans_model(tmp_path: Path) -> None:
         ("near_field", 0.1),
         ("thrust_bias", None),
     ]
+
+
+@pytest.mark.parametrize("command", ["plan", "costmap", "verify"])
+def test_bad_model_file_is_one_line_error_exit_2(tmp_path: Path, capsys, command: str) -> None:
+    from proxplan.cli import main
+
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("format_version: 2\nvehicles: {}\nmodel: {effects: [{name: vortex_ring}]}\n")
+    argv = {
+        "plan": ["plan", str(SCENARIO), "--out", str(tmp_path / "o")],
+        "costmap": ["costmap", "--source", "small-quad", "--target", "large-quad", "--out", str(tmp_path / "m.npz")],
+        "verify": ["verify", str(tmp_path / "nothing.json")],
+    }[command]
+    if command == "verify":  # a plan to verify, so that the model file is what fails
+        assert main(["plan", str(SCENARIO), "--out", str(tmp_path / "p"), "--method", "sampling", "--no-plot"]) == 0
+        argv = ["verify", str(tmp_path / "p")]
+        capsys.readouterr()
+    assert main([*argv, "--model", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and str(bad) in err and "vortex_ring" in err and "near_field" in err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "m.npz").exists()
+
+
+def test_costmap_command_applies_the_model(tmp_path: Path, capsys) -> None:
+    from proxplan.cli import main
+
+    model_path = write_model_file(CalibratedModel(effects=(STRONG, BIAS)), tmp_path / "model.yaml")
+    docs = {}
+    for tag, extra in (("base", []), ("model", ["--model", str(model_path)])):
+        argv = ["costmap", "--source", "large-quad", "--target", "small-quad", "--out", str(tmp_path / f"{tag}.npz")]
+        assert main([*argv, "--no-plot", "--json", *extra]) == 0
+        captured = capsys.readouterr()
+        docs[tag] = json.loads(captured.out)
+    assert "thrust_bias" in captured.err  # the target-only effect is named as not applied
+    assert docs["base"]["effects"] == [] and [e["name"] for e in docs["model"]["effects"]] == ["near_field"]
+    assert docs["model"]["param_hash"] != docs["base"]["param_hash"]
+    assert docs["model"]["peak_usage_valid_zone"] > 1.5 * docs["base"]["peak_usage_valid_zone"]

@@ -149,3 +149,54 @@ def test_manifest_root_relative_to_file_and_errors(tmp_path: Path) -> None:
     (sub / "m.yaml").write_text(yaml.safe_dump(doc))
     with pytest.raises(UserError, match="test"):
         load_manifest(sub / "m.yaml")
+
+
+def test_pwm_and_vbat_columns_read_and_optional(tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    log = _log()
+    n = len(log)
+    pwm = np.linspace(0.5, 0.9, 4 * n).reshape(n, 4)
+    vbat = np.linspace(4.1, 3.6, n)
+    cols = list(NEURAL_SWARM_COLUMNS.values()) + ["u1[PWM]", "u2[PWM]", "u3[PWM]", "u4[PWM]", "Vbat[V]"]
+    table = np.column_stack([log.as_table(), pwm, vbat])
+    table[:, 0] *= 1e6
+    body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
+    (tmp_path / "p.csv.gz").write_bytes(gzip.compress(("# " + ",".join(cols) + "\n" + body + "\n").encode()))
+    back = read_log(tmp_path / "p.csv.gz")
+    assert back.has_pwm
+    np.testing.assert_allclose(back.motor_pwm, pwm, rtol=1e-8)
+    np.testing.assert_allclose(back.vbat_V, vbat, rtol=1e-8)
+    assert back.take(np.arange(5)).motor_pwm.shape == (5, 4)
+    # canonical layout: optional columns round-trip; without them the log has no PWM
+    canon = read_log(write_canonical_csv(replace(log, motor_pwm=pwm, vbat_V=vbat), tmp_path / "c.csv.gz"))
+    np.testing.assert_allclose(canon.motor_pwm, pwm, rtol=1e-8)
+    assert not read_log(write_canonical_csv(log, tmp_path / "d.csv.gz")).has_pwm
+    _write_ns(tmp_path / "nopwm.csv.gz", log)  # Vbat only: no PWM
+    assert not read_log(tmp_path / "nopwm.csv.gz").has_pwm
+
+
+def test_manifest_score_false_and_all_false(tmp_path: Path) -> None:
+    doc = {"format": "canonical", "root": ".", "flights": [
+        {"name": "a", "split": "train", "vehicles": {"x": {"type": "crazyflie-2.1", "log": "x.csv", "score": False},
+                                                     "y": {"type": "crazyflie-2.1", "log": "y.csv"}}},
+        {"name": "b", "split": "test", "vehicles": {"x": {"type": "crazyflie-2.1", "log": "x.csv"}}}]}  # fmt: skip
+    path = tmp_path / "m.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    m = load_manifest(path)
+    assert [v.score for v in m.flights[0].vehicles] == [False, True]
+    doc["flights"][0]["vehicles"]["y"]["score"] = "no"
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(UserError, match=r"vehicles\.y\.score"):
+        load_manifest(path)
+    for f in doc["flights"]:
+        for v in f["vehicles"].values():
+            v["score"] = False
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(UserError, match="score: false"):
+        load_manifest(path)
+    only_test = {**doc, "flights": [doc["flights"][1] | {"vehicles": {"x": {"type": "crazyflie-2.1", "log": "x"}}}]}
+    path.write_text(yaml.safe_dump(only_test))
+    with pytest.raises(UserError, match="train and one test"):
+        load_manifest(path)
+    assert len(load_manifest(path, require_train_and_test=False).flights) == 1

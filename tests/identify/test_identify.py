@@ -48,6 +48,7 @@ def _trajectories(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
 
 
 def make_manifest(tmp: Path, effects: tuple, *, n_train: int = 2, duration_s: float = 15.0) -> Path:
+    tmp.mkdir(parents=True, exist_ok=True)
     veh = BUILTIN_VEHICLES[VEHICLE_TYPE]
     t = np.arange(0.0, duration_s, 0.01)
     flights = []
@@ -121,13 +122,14 @@ def test_cli_bad_manifest_is_one_line_error(tmp_path: Path, capsys) -> None:
 
 
 def simulator_manifest(tmp: Path, effects: list, *, ground: bool = False) -> Path:
-    """Three closed-loop RotorPy flights (flightsim) with the hidden ``effects``, written as
+    """Four closed-loop RotorPy flights (flightsim) with the hidden ``effects``, written as
     Neural-Swarm logs + manifest by flightsim.logs: two small quads swapping places stacked
-    0.3 / 1.0 m (train) and 0.45 m (test) apart, or take-off/hover sweeps near the ground."""
+    0.3 / 1.0 / 0.6 m (train; the last one validates the effects) and 0.45 m (test) apart, or
+    take-off/hover sweeps near the ground."""
     from flightsim import simulate_plan, swap_plan, takeoff_hover_plan, write_flight_logs
 
     manifest = None
-    for k, split in enumerate(("train", "train", "test")):
+    for k, split in enumerate(("train", "train", "train", "test")):
         if ground:
             plan = takeoff_hover_plan(
                 type_name=VEHICLE_TYPE, low_z_m=0.06 + 0.01 * k, high_z_m=0.6, climb_s=2.0, hold_s=1.5
@@ -136,7 +138,7 @@ def simulator_manifest(tmp: Path, effects: list, *, ground: bool = False) -> Pat
             plan = swap_plan(
                 top_type=VEHICLE_TYPE,
                 bottom_type=VEHICLE_TYPE,
-                vertical_gap_m=(0.3, 1.0, 0.45)[k],
+                vertical_gap_m=(0.3, 1.0, 0.6, 0.45)[k],
                 n_swaps=2,
                 swap_s=2.5,
             )
@@ -195,3 +197,44 @@ def test_unexplained_residual_is_reported(tmp_path: Path) -> None:
         write_canonical_csv(type(log)(**{**log.__dict__, "accel_mps2": acc}), path)
     result = run_identify(manifest, options=FAST, thrust_summary=False)
     assert result.unexplained is not None and result.unexplained["feature"] == "v_z_mps", result.correlations
+
+
+def test_extra_candidates_are_scored_on_validation_as_given(tmp_path: Path) -> None:
+    """The hook for data-driven terms: already-fitted effects compete on the validation flights; a
+    useless one is not kept, the true hidden one is; test flights only report."""
+    from dataclasses import replace
+
+    truth = HIDDEN["near_field"]
+    useless = Effect("thrust_bias", {"force_z_N": 0.0})
+    options = replace(FAST, effects=(), extra_candidates=(useless, truth), calibrate=False)
+    result = run_identify(make_manifest(tmp_path, (truth,), duration_s=8.0), options=options, thrust_summary=False)
+    assert result.selected == ["near_field"], [(t.name, t.gain_fz) for t in result.trials]
+    assert result.validation.startswith("validation flights: f1")
+    assert result.after.rmse_fz_N < 0.8 * result.before.rmse_fz_N  # 0.62 here; the rest is accelerometer noise
+    assert result.to_json()["discovered"] == []
+
+
+def test_validation_split_is_by_flight_and_test_flights_never_choose(tmp_path: Path) -> None:
+    """Selection without leakage: validation flights are whole train flights, and replacing the test
+    flight's logs changes the reported errors but not what is chosen or fitted."""
+    from dataclasses import replace
+
+    from identify.data import load_units
+    from identify.effect_selection import validation_split
+    from identify.flightlog import load_manifest
+
+    options = replace(FAST, effects=("near_field", "thrust_bias"), calibrate=False)
+    path = make_manifest(tmp_path / "a", (HIDDEN["near_field"],), duration_s=8.0)
+    units = [u for u in load_units(load_manifest(path), options=options).units if u.split == "train"]
+    fit, valid, note = validation_split(units)
+    assert {u.flight for u in fit} == {"f0"} and {u.flight for u in valid} == {"f1"} and "f1" in note
+    first = run_identify(path, options=options, thrust_summary=False)
+    # same train flights, a test flight with another hidden effect
+    other = make_manifest(tmp_path / "b", (HIDDEN["wake_advection"],), duration_s=8.0)
+    for k in ("f0", "f1"):
+        for v in ("a", "b"):
+            (tmp_path / "b" / f"{k}_{v}.csv.gz").write_bytes((tmp_path / "a" / f"{k}_{v}.csv.gz").read_bytes())
+    second = run_identify(other, options=options, thrust_summary=False)
+    assert second.selected == first.selected
+    assert [t.params for t in second.trials] == [t.params for t in first.trials]
+    assert second.after.rmse_fz_N != first.after.rmse_fz_N  # the test flight did change

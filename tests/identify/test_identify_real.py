@@ -26,3 +26,16 @@ def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     assert result.after.n_samples == result.before.n_samples > 1000
     # the swaps are partly inside 3 L of the source: reported, not hidden
     assert result.validity["samples_below_a_source"] > 0
+    # issue 13: the delivered thrust finds saturated motors on the real logs, and the saved model
+    # reproduces identify's "after" on the same test flights without refitting
+    from identify import evaluate_model, saved_model
+
+    sat = result.measurement_json()["saturation"]
+    assert all(s["thrust_source"] == "pwm" for s in sat.values())
+    assert sat["cf101"]["saturated_samples"] > 100
+    ev = evaluate_model(manifest, saved_model(result.final_model, result.measure_options, result.thrust_maps))
+    doc = ev.to_json()
+    assert doc["rmse_fz_N"] == pytest.approx(result.after.rmse_fz_N, rel=0.01)
+    assert doc["n_samples"] == result.after.n_samples
+    assert doc["scored_fraction"] > 0.9
+    assert set(result.per_vehicle) == set(doc["per_vehicle"])

@@ -64,7 +64,10 @@ def test_older_format_without_version_is_read_with_a_note(tmp_path: Path) -> Non
     [
         ("format_version: 99\nvehicles: {}\n", "format_version: 99"),
         ("vehicles: {}\nmodel: {effects: [{name: vortex_ring}]}\n", "model.effects\\[0\\].name: unknown effect"),
-        ("vehicles: {}\nmodel: {effects: [{name: near_field, params: {x: 1}}]}\n", "unknown parameter 'x'"),
+        (
+            "vehicles: {}\nmodel: {effects: [{name: near_field, params: {x: 1}}]}\n",
+            "params.x: unknown parameter of near_field",
+        ),
         ("vehicles: {}\nmodel: {thrust_scales: {a: -1}}\n", "model.thrust_scales.a"),
         ("vehicles: {}\nmodel: {field_form: wide}\n", "model.field_form"),
         ("vehicles: {}\nmodel: {colour: red}\n", "unknown key 'colour'"),

@@ -1,0 +1,229 @@
+"""Score a saved model on flight logs without refitting (``proxplan evaluate``).
+
+The saved model (:mod:`physics.model_file`) holds everything identify used for its "after" figure:
+calibrated vehicles, model options, kept effects with their parameters, per-type thrust scales, and
+under ``model.measurement`` how the disturbance was measured (derivative, window, motor lag and the
+per-type PWM*Vbat thrust maps of :mod:`identify.thrust_map`). :func:`evaluate_model` measures the
+manifest's flights the same way, predicts with the saved model, and reports the RMSE of F_z (world
+z force, N) and of the torque vector (N m) against ``no_model`` (the same samples predicted as zero
+disturbance), per flight, per vehicle (the manifest's vehicle key) and per region:
+
+* ``below_source`` — some source within r < 3 L horizontally and above (dz > 0); ``free`` — not;
+* ``below_within_3L`` — below a source with dz < 3 L (outside the field model's zone, S0 II-A);
+* ``stack`` — two or more sources above within r < 3 L.
+
+Vehicles with ``score: false`` are sources only; a manifest whose flights are all ``test`` is valid.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fileio import UserError
+from identify.data import IdentifyOptions, Model, Unit, load_units, measurement_summary, predict
+from identify.flightlog import Manifest, load_manifest
+from identify.measure import DERIVATIVES, MeasureOptions
+from identify.thrust_map import ThrustMap
+from physics import VALIDITY_FACTOR_L, CalibratedModel
+
+SPLITS = ("test", "train", "all")
+REGIONS = ("free", "below_source", "below_within_3L", "stack")
+
+
+# ------------------------------------------------------------------------------ model <-> identify
+
+
+def measurement_dict(options: MeasureOptions, thrust_maps: Mapping[str, ThrustMap]) -> dict[str, Any]:
+    """The ``model.measurement`` mapping saved with a model (plain data)."""
+    return {
+        "derivative": options.derivative,
+        "window_s": float(options.window_s),
+        "polyorder": int(options.polyorder),
+        "motor_time_constant_s": options.motor_time_constant_s,
+        "thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()},
+    }
+
+
+def measurement_from_model(
+    model: CalibratedModel, label: str
+) -> tuple[MeasureOptions, dict[str, ThrustMap], list[str]]:
+    """Measurement options and thrust maps of a saved model; notes when it holds none."""
+    where = f"{label}: model.measurement"
+    raw = dict(model.measurement)
+    if not raw:
+        note = (f"{where}: missing (a model not written by identify --save-model of this version): measured "
+                "with the default derivative and the logged u[N] (saturated motors not corrected)")  # fmt: skip
+        return MeasureOptions(), {}, [note]
+    unknown = sorted(set(raw) - {"derivative", "window_s", "polyorder", "motor_time_constant_s", "thrust_maps"})
+    if unknown:
+        raise UserError(f"{where}: unknown key {unknown[0]!r}")
+    derivative = raw.get("derivative", "savgol")
+    if derivative not in DERIVATIVES:
+        raise UserError(f"{where}.derivative: expected one of {', '.join(DERIVATIVES)}, got {derivative!r}")
+    try:
+        tau = raw.get("motor_time_constant_s")
+        options = MeasureOptions(
+            derivative=derivative,
+            window_s=float(raw.get("window_s", 0.15)),
+            polyorder=int(raw.get("polyorder", 2)),
+            motor_time_constant_s=None if tau is None else float(tau),
+        )
+    except (TypeError, ValueError):
+        raise UserError(f"{where}: window_s, polyorder, motor_time_constant_s: expected numbers") from None
+    maps_raw = raw.get("thrust_maps") or {}
+    if not isinstance(maps_raw, Mapping):
+        raise UserError(f"{where}.thrust_maps: expected a mapping TYPE: {{coef, x_max_V}}")
+    maps = {str(t): ThrustMap.from_dict(d, f"{where}.thrust_maps.{t}") for t, d in maps_raw.items()}
+    return options, maps, []
+
+
+def saved_model(model: Model, measure: MeasureOptions, thrust_maps: Mapping[str, ThrustMap]) -> CalibratedModel:
+    """The :class:`physics.CalibratedModel` of an identify model plus how it was measured."""
+    return CalibratedModel(
+        vehicles=dict(model.vehicles),
+        options=model.options,
+        effects=tuple(model.effects),
+        thrust_scales={k: float(v) for k, v in model.thrust_scale.items()},
+        measurement=measurement_dict(measure, thrust_maps),
+    )
+
+
+# ------------------------------------------------------------------------------ scoring
+
+
+def region_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """Per sample of ``u``, the :data:`REGIONS` masks (see the module docstring)."""
+    n = len(u)
+    above = np.zeros(n, dtype=int)
+    near = np.zeros(n, dtype=bool)
+    for t, off in zip(u.source_types, u.source_offsets_m):
+        L = vehicles[t].size_m
+        dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
+        here = (dz > 0.0) & (r < 3.0 * L)
+        above += here
+        near |= here & (dz < VALIDITY_FACTOR_L * L)
+    below = above > 0
+    return {"free": ~below, "below_source": below, "below_within_3L": near, "stack": above >= 2}
+
+
+@dataclass
+class _Acc:
+    """Running sums of squared errors (model and no model) over samples."""
+
+    n: int = 0
+    sse_fz: float = 0.0
+    sse_tq: float = 0.0
+    sse_fz0: float = 0.0
+    sse_tq0: float = 0.0
+
+    def add(self, dfz: np.ndarray, dtq: np.ndarray, fz0: np.ndarray, tq0: np.ndarray) -> None:
+        self.n += int(dfz.size)
+        self.sse_fz += float(np.sum(dfz**2))
+        self.sse_tq += float(np.sum(dtq**2))
+        self.sse_fz0 += float(np.sum(fz0**2))
+        self.sse_tq0 += float(np.sum(tq0**2))
+
+    def rmse(self, sse: float) -> float | None:
+        return float(np.sqrt(sse / self.n)) if self.n else None
+
+
+@dataclass(frozen=True)
+class EvaluationResult:
+    split: str
+    overall: _Acc
+    flights: dict[str, _Acc]
+    per_vehicle: dict[str, _Acc]
+    regions: dict[str, _Acc]
+    n_rows: int
+    exclusions: dict
+    notes: list[str]
+    measurement: dict
+    units: list[Unit] = field(default_factory=list)
+    model: Model | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        o = self.overall
+        return {
+            "rmse_fz_N": o.rmse(o.sse_fz),
+            "rmse_torque_Nm": o.rmse(o.sse_tq),
+            "n_samples": o.n,
+            "n_rows": self.n_rows,
+            "scored_fraction": o.n / self.n_rows if self.n_rows else None,
+            "no_model": {"rmse_fz_N": o.rmse(o.sse_fz0), "rmse_torque_Nm": o.rmse(o.sse_tq0)},
+            "flights": {k: _short(a) for k, a in self.flights.items()},
+            "per_vehicle": {k: _short(a) for k, a in self.per_vehicle.items()},
+            "regions": {k: _short(a) for k, a in self.regions.items()},
+            "split": self.split,
+            "exclusions": self.exclusions,
+            "measurement": self.measurement,
+            "notes": list(self.notes),
+        }
+
+
+def _short(a: _Acc) -> dict[str, Any]:
+    return {"rmse_fz_N": a.rmse(a.sse_fz), "no_model_rmse_fz_N": a.rmse(a.sse_fz0), "n_samples": a.n}
+
+
+def _rows(e: Mapping[str, Any]) -> int:
+    keys = ("kept_samples", "nan_rows", "short_segment_samples", "ground_samples", "outside_overlap_samples")
+    return int(sum(e[k] for k in keys))
+
+
+def evaluate_model(
+    manifest: Manifest | str | Path,
+    model: CalibratedModel,
+    *,
+    split: str = "test",
+    label: str = "<model>",
+    progress: bool = False,
+) -> EvaluationResult:
+    """Score ``model`` on the ``split`` flights of ``manifest`` (no fitting; see the module docstring)."""
+    if split not in SPLITS:
+        raise UserError(f"--split: expected one of {', '.join(SPLITS)}, got {split!r}")
+    if not isinstance(manifest, Manifest):
+        manifest = load_manifest(manifest, require_train_and_test=False)
+    measure, maps, notes = measurement_from_model(model, label)
+    chosen = [f for f in manifest.flights if split == "all" or f.split == split]
+    if not chosen:
+        raise UserError(f"{manifest.path}: flights: no {split} flight to evaluate (use --split train|test|all)")
+    if not any(v.score for f in chosen for v in f.vehicles):
+        raise UserError(f"{manifest.path}: flights: every {split} vehicle says 'score: false'; nothing to score")
+    sub = Manifest(path=manifest.path, format=manifest.format, root=manifest.root, flights=tuple(chosen),
+                   vehicles_file=manifest.vehicles_file, quality=manifest.quality)  # fmt: skip
+    data = load_units(
+        sub,
+        options=IdentifyOptions(measure=measure, progress=progress),
+        thrust_maps=maps,
+        thrust_coefficient_samples=False,
+    )
+    notes += data.notes
+    missing = sorted(set(data.types) - set(model.vehicles))
+    if missing:
+        notes.append(f"{label}: vehicles: no calibrated {', '.join(missing)}; the manifest's type used as given")
+    vehicles = {t: model.vehicles.get(t, v) for t, v in data.types.items()}
+    m = Model(vehicles=vehicles, thrust_scale=dict(model.thrust_scales), effects=tuple(model.effects),
+              options=model.options)  # fmt: skip
+    units = [u for u in data.units if u.scored and len(u)]
+    overall = _Acc()
+    flights: dict[str, _Acc] = {}
+    per_vehicle: dict[str, _Acc] = {}
+    regions = {r: _Acc() for r in REGIONS}
+    for u in units:
+        f, t = predict(u, m)
+        dfz, dtq = u.force_N[:, 2] - f[:, 2], np.linalg.norm(u.torque_Nm - t, axis=1)
+        fz0, tq0 = u.force_N[:, 2], np.linalg.norm(u.torque_Nm, axis=1)
+        for acc in (overall, flights.setdefault(u.flight, _Acc()), per_vehicle.setdefault(u.name, _Acc())):
+            acc.add(dfz, dtq, fz0, tq0)
+        for r, mask in region_masks(u, vehicles).items():
+            regions[r].add(dfz[mask], dtq[mask], fz0[mask], tq0[mask])
+    n_rows = sum(_rows(e) for per in data.exclusions.values() for e in per.values() if e["scored"])
+    return EvaluationResult(
+        split=split, overall=overall, flights=flights, per_vehicle=per_vehicle, regions=regions, n_rows=n_rows,
+        exclusions=data.exclusions, notes=notes, measurement=measurement_summary(data.thrust_maps, data.exclusions, []),
+        units=units, model=m,
+    )  # fmt: skip

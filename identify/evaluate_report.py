@@ -1,0 +1,109 @@
+"""Markdown report and PNG plots of ``proxplan evaluate`` (written into the output folder).
+
+``report.md``, ``flights.png`` (RMSE of F_z per flight, saved model vs no model),
+``regions.png`` (the same per region), ``measured_vs_predicted.png`` (F_z over time on the most
+disturbed scored vehicle).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from fileio import atomic_write_text, save_figure
+from identify.data import predict
+from identify.evaluate import EvaluationResult
+from identify.report import exclusion_lines
+
+
+def _bars(ax, rows: Mapping[str, dict], title: str) -> None:
+    names = list(rows)
+    x = np.arange(len(names))
+    model = [rows[n]["rmse_fz_N"] or 0.0 for n in names]
+    none = [rows[n]["no_model_rmse_fz_N"] or 0.0 for n in names]
+    ax.bar(x - 0.2, none, 0.4, color="tab:gray", label="no model")
+    ax.bar(x + 0.2, model, 0.4, color="tab:green", label="saved model")
+    ax.set_xticks(x, [f"{n} (n={rows[n]['n_samples']})" for n in names], rotation=40, ha="right", fontsize=8)
+    ax.set_ylabel("RMSE F_z [N]")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+
+
+def write_plots(result: EvaluationResult, out: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    doc = result.to_json()
+    written = []
+    for name, rows, title in (("flights.png", doc["flights"], f"{result.split} flights"),
+                              ("regions.png", doc["regions"], "regions (see report)")):  # fmt: skip
+        fig, ax = plt.subplots(figsize=(max(6.0, 0.6 * len(rows) + 2.0), 4))
+        _bars(ax, rows, title)
+        save_figure(fig, out / name, dpi=110, bbox_inches="tight")
+        written.append(out / name)
+    if result.units and result.model is not None:
+        unit = max(result.units, key=lambda u: float(np.std(u.force_N[:, 2])) if u.source_types else 0.0)
+        if len(unit) > 6000:
+            k = int(np.argmin(unit.force_N[:, 2]))
+            unit = unit.take(np.arange(max(0, k - 3000), min(len(unit), k + 3000)))
+        f, _ = predict(unit, result.model)
+        fig, ax = plt.subplots(figsize=(10, 4))
+        t = unit.t_s - unit.t_s[0]
+        ax.plot(t, unit.force_N[:, 2], lw=0.8, color="k", label="measured (S0-11, delivered thrust)")
+        ax.plot(t, f[:, 2], lw=1.0, color="tab:green", label="saved model")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("F_z [N]")
+        ax.set_title(f"flight {unit.flight}, vehicle {unit.name} ({unit.type})")
+        ax.legend(fontsize=8)
+        save_figure(fig, out / "measured_vs_predicted.png", dpi=110, bbox_inches="tight")
+        written.append(out / "measured_vs_predicted.png")
+    return written
+
+
+def _f(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.4g}"
+
+
+def _ratio(a: float | None, b: float | None) -> str:
+    return "n/a" if a is None or not b else f"{a / b:.2f}"
+
+
+def markdown(result: EvaluationResult, *, manifest: str, model: str, plots: list[Path]) -> str:
+    doc = result.to_json()
+    lines = [f"# proxplan evaluate — {model} on {manifest} ({result.split} flights)", "",
+             "| | RMSE F_z [N] | RMSE torque [N m] |", "|---|---|---|",
+             f"| saved model | {_f(doc['rmse_fz_N'])} | {_f(doc['rmse_torque_Nm'])} |",
+             f"| no model (zero disturbance) | {_f(doc['no_model']['rmse_fz_N'])} | {_f(doc['no_model']['rmse_torque_Nm'])} |",
+             "", f"Samples scored: {doc['n_samples']} of {doc['n_rows']} log rows "
+             f"({_ratio(doc['n_samples'], doc['n_rows'])}); the rest failed the quality checks (see below).", ""]  # fmt: skip
+    for title, rows in (("Per flight", doc["flights"]), ("Per vehicle", doc["per_vehicle"]),
+                        ("Per region", doc["regions"])):  # fmt: skip
+        lines += [f"## {title}", "", "| | RMSE F_z [N] | no model [N] | ratio | samples |", "|---|---|---|---|---|"]
+        for k, r in rows.items():
+            ratio = _ratio(r["rmse_fz_N"], r["no_model_rmse_fz_N"])
+            lines.append(f"| {k} | {_f(r['rmse_fz_N'])} | {_f(r['no_model_rmse_fz_N'])} | {ratio} | {r['n_samples']} |")
+        lines.append("")
+    lines += ["Regions: `below_source` = some source above within r < 3 L; `below_within_3L` = of those, dz < 3 L "
+              "(outside the field model's zone, S0 II-A); `stack` = two or more sources above; `free` = none.", ""]  # fmt: skip
+    sat = doc["measurement"]["saturation"]
+    lines += ["## Measurement", "", "| vehicle | thrust from | saturated samples | share |", "|---|---|---|---|"]
+    for k, s in sat.items():
+        lines.append(f"| {k} | {s['thrust_source']} | {s['saturated_samples']} | {s['saturated_fraction']:.3f} |")
+    lines += [""] + [f"- note: {n}" for n in result.notes]
+    lines += ["", "## Excluded samples (quality checks)", ""]
+    lines += exclusion_lines(result.exclusions)
+    lines += ["", "## Plots", ""] + [f"![{p.stem}]({p.name})" for p in plots]
+    return "\n".join(lines) + "\n"
+
+
+def write_evaluation_report(result: EvaluationResult, out_dir: str | Path, *, manifest: str, model: str) -> Path:
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plots = write_plots(result, out)
+    path = out / "report.md"
+    atomic_write_text(path, markdown(result, manifest=manifest, model=model, plots=plots))
+    return path

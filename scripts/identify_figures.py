@@ -1,0 +1,140 @@
+"""Figures of the measurement fix and the saved-model evaluation on a manifest (issue 13 note, docs).
+
+    python scripts/identify_figures.py manifests/neural-swarm.yaml [--out docs/figures]
+
+Runs identify, then ``evaluate`` (no refitting) of the model as given, the calibrated model and the
+final one on the test flights; prints markdown tables per flight set (the flight name without its run
+number) and per region, each RMSE of F_z also as a ratio to no model (zero disturbance, same
+samples); the same with the commanded u[N] instead of the delivered thrust; and writes
+``identify_thrust_measurement.png`` (commanded vs delivered motor thrust and the F_z they measure,
+on the most saturated test vehicle).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+import numpy as np
+
+from identify import evaluate_model, load_manifest, run_identify, saved_model
+from identify.evaluate import EvaluationResult
+
+
+def _pool(rows: list[dict]) -> tuple[float, float, int]:
+    n = sum(r["n_samples"] for r in rows)
+    if not n:
+        return float("nan"), float("nan"), 0
+    m = np.sqrt(sum(r["rmse_fz_N"] ** 2 * r["n_samples"] for r in rows) / n)
+    z = np.sqrt(sum(r["no_model_rmse_fz_N"] ** 2 * r["n_samples"] for r in rows) / n)
+    return float(m), float(z), n
+
+
+def table(results: dict[str, EvaluationResult]) -> str:
+    docs = {k: r.to_json() for k, r in results.items()}
+    first = next(iter(docs.values()))
+    sets: dict[str, list[str]] = {}
+    for f in first["flights"]:
+        sets.setdefault(re.sub(r"_(\d+|cf\d+)$", "", f), []).append(f)
+    rows = [(s, [[d["flights"][f] for f in fl] for d in docs.values()]) for s, fl in sets.items()]
+    rows += [("all test flights", [[{"rmse_fz_N": d["rmse_fz_N"], "no_model_rmse_fz_N": d["no_model"]["rmse_fz_N"],
+                                     "n_samples": d["n_samples"]}] for d in docs.values()])]  # fmt: skip
+    rows += [(f"region: {k}", [[d["regions"][k]] for d in docs.values()]) for k in first["regions"]]
+    head = "| part | samples | no model [N] | " + " | ".join(f"{k} [N] (ratio)" for k in docs) + " |"
+    out = [head, "|" + "---|" * (3 + len(docs))]
+    for name, per_model in rows:
+        cells = []
+        m0, z0, n0 = _pool(per_model[0])
+        for parts in per_model:
+            m, z, _ = _pool(parts)
+            cells.append(f"{m:.4f} ({m / z:.2f})" if n0 else "n/a")
+        out.append(f"| {name} | {n0} | {z0:.4f} | " + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def thrust_figure(manifest, result, out: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fileio import save_figure
+    from identify import read_log
+    from identify.measure import measure_log
+    from identify.thrust_map import MotorSamples, delivered_thrust_N, saturated_samples
+
+    best = None
+    for f in manifest.flights:
+        if f.split != "test":
+            continue
+        for v in f.vehicles:
+            tmap = result.thrust_maps.get(v.type)
+            log = read_log(v.log)
+            if tmap is None or not log.has_pwm:
+                continue
+            s = MotorSamples(log.motor_thrust_N, log.motor_pwm, log.vbat_V)
+            n = int(saturated_samples(tmap, s).sum())
+            if best is None or n > best[0]:
+                best = (n, f, v, log, s, tmap)
+    assert best is not None, "no test log with PWM"
+    _, f, v, log, s, tmap = best
+    sat = saturated_samples(tmap, s)
+    k = int(np.argmax(np.convolve(sat, np.ones(300), mode="same")))
+    win = np.arange(max(0, k - 300), min(len(log), k + 300))
+    from dataclasses import replace
+
+    veh = result.base_model.vehicles[v.type]
+    cmd = log.take(win)
+    dlv = replace(
+        cmd, motor_thrust_N=delivered_thrust_N(tmap, MotorSamples(cmd.motor_thrust_N, cmd.motor_pwm, cmd.vbat_V))
+    )
+    f_cmd = measure_log(veh, cmd).force_N[:, 2]
+    f_dlv = measure_log(veh, dlv).force_N[:, 2]
+    t = cmd.t_s - cmd.t_s[0]
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    for m in range(4):
+        axes[0].plot(t, cmd.motor_thrust_N[:, m], lw=0.8, color=f"C{m}", alpha=0.5, ls="--")
+        axes[0].plot(t, dlv.motor_thrust_N[:, m], lw=1.0, color=f"C{m}", label=f"motor {m + 1}")
+    axes[0].axhline(tmap.max_thrust_N, color="k", lw=0.6, ls=":", label="motor maximum P(x_max)")
+    axes[0].set_ylabel("motor thrust [N]")
+    axes[0].set_title(f"{f.name}, {v.name}: desired u[N] (dashed) vs delivered from PWM and Vbat (solid)")
+    axes[0].legend(fontsize=7, ncol=5)
+    axes[1].plot(t, f_cmd, color="tab:red", lw=0.9, label="F_z measured with the desired u[N]")
+    axes[1].plot(t, f_dlv, color="k", lw=0.9, label="F_z measured with the delivered thrust")
+    axes[1].fill_between(t, min(f_cmd.min(), f_dlv.min()), max(f_cmd.max(), f_dlv.max()), where=sat[win],
+                         color="tab:orange", alpha=0.15, label="a motor saturated")  # fmt: skip
+    axes[1].set_xlabel("t [s]")
+    axes[1].set_ylabel("F_z [N] (S0-11)")
+    axes[1].legend(fontsize=7)
+    out.mkdir(parents=True, exist_ok=True)
+    return save_figure(fig, out / "identify_thrust_measurement.png", dpi=110, bbox_inches="tight")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("manifest", type=Path)
+    ap.add_argument("--out", type=Path, default=Path("docs/figures"))
+    args = ap.parse_args()
+    manifest = load_manifest(args.manifest)
+    result = run_identify(manifest, thrust_summary=False)
+    assert result.calibrated_model is not None
+    models = {"before": result.base_model, "calibrated": result.calibrated_model, "after": result.final_model}
+    delivered = {k: evaluate_model(manifest, saved_model(m, result.measure_options, result.thrust_maps))
+                 for k, m in models.items()}  # fmt: skip
+    print(
+        f"identify after {result.after.rmse_fz_N:.6f} N, evaluate after {delivered['after'].to_json()['rmse_fz_N']:.6f} N"
+    )
+    doc = delivered["after"].to_json()
+    print(f"rows scored: {doc['n_samples']} of {doc['n_rows']} ({doc['scored_fraction']:.3f})\n")
+    print("### Delivered thrust (PWM and Vbat)\n")
+    print(table(delivered))
+    commanded = {k: evaluate_model(manifest, saved_model(m, result.measure_options, {})) for k, m in models.items()}
+    print("\n### Same models, disturbance measured with the commanded u[N]\n")
+    print(table(commanded))
+    print("\nsaturation:", result.measurement_json()["saturation"])
+    print("figure:", thrust_figure(manifest, result, args.out))
+
+
+if __name__ == "__main__":
+    main()

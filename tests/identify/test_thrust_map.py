@@ -1,0 +1,78 @@
+"""Delivered motor thrust from PWM and Vbat (identify.thrust_map) on synthetic saturating logs."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from identify.measure import MeasureOptions, measure_log
+from identify.synthetic_logs import SyntheticMotor, synthetic_logs
+from identify.thrust_map import (
+    MotorSamples,
+    ThrustMap,
+    delivered_thrust_N,
+    fit_thrust_map,
+    saturated_samples,
+)
+from physics import BUILTIN_VEHICLES, EffectInputs, SourceSample, total_wrench
+
+CF = BUILTIN_VEHICLES["crazyflie-2.1"]
+MOTOR = SyntheticMotor()
+
+
+def _flight(amplitude_m: float, omega_radps: float, seed: int = 0):
+    """A Crazyflie 0.3 m below another, bobbing vertically hard enough (A w^2 > spare thrust) that
+    its motors saturate on every up-stroke; returns the logs and the true force on the lower one."""
+    t = 0.01 * np.arange(1500)
+    low = np.column_stack([0.02 * np.sin(0.5 * t), 0 * t, 0.6 + amplitude_m * np.sin(omega_radps * t)])
+    high = np.column_stack([0 * t, 0 * t, 0.9 + 0 * t])
+    vehicles = {"low": CF, "high": CF}
+    logs = synthetic_logs(vehicles, {"low": low, "high": high}, t, motor=MOTOR, seed=seed)
+    vel = np.gradient(low, t, axis=0)
+    inputs = EffectInputs(target=CF, height_above_ground_m=low[:, 2], velocity_mps=vel,
+                          sources=(SourceSample(CF, low - high),))  # fmt: skip
+    return logs, total_wrench(inputs, ())[0]
+
+
+def _samples(log) -> MotorSamples:
+    return MotorSamples(commanded_N=log.motor_thrust_N, pwm=log.motor_pwm, vbat_V=log.vbat_V)
+
+
+def test_fit_recovers_the_motor_map() -> None:
+    train, _ = _flight(0.07, 13.0)
+    tmap = fit_thrust_map([_samples(train["low"]), _samples(train["high"])])
+    x = np.linspace(2.0, 3.2, 20)
+    np.testing.assert_allclose(tmap.thrust_N(x[:, None] / 4.0 * np.ones((1, 4)), np.full(20, 4.0))[:, 0],
+                               MOTOR.thrust_N(x), rtol=0.02)  # fmt: skip
+    assert tmap.usable
+    assert tmap.max_thrust_N == pytest.approx(MOTOR.max_thrust_N, rel=0.05)
+    assert ThrustMap.from_dict(tmap.to_dict(), "m").coef == pytest.approx(tmap.coef)
+
+
+def test_delivered_thrust_recovers_the_disturbance_where_commanded_fails() -> None:
+    train, _ = _flight(0.07, 13.0, seed=1)  # the map is fitted on another (train) flight
+    tmap = fit_thrust_map([_samples(train["low"])])
+    logs, truth = _flight(0.06, 14.0)
+    low = logs["low"]
+    sat = saturated_samples(tmap, _samples(low))
+    assert 0.1 < sat.mean() < 0.6  # the test really saturates, and not always
+    opts = MeasureOptions(window_s=0.03)
+    commanded = measure_log(CF, low, options=opts).force_N[:, 2]
+    delivered = measure_log(CF, replace(low, motor_thrust_N=delivered_thrust_N(tmap, _samples(low))), options=opts)
+    inner = slice(10, -10)
+    err_cmd = np.sqrt(np.mean((commanded - truth[:, 2])[inner] ** 2))
+    err_del = np.sqrt(np.mean((delivered.force_N[:, 2] - truth[:, 2])[inner] ** 2))
+    print(f"RMSE F_z delivered {err_del:.4g} N, commanded {err_cmd:.4g} N, saturated {sat.mean():.2f}")
+    assert err_del < 0.2 * err_cmd, (err_del, err_cmd)
+    assert err_del < 0.1 * np.sqrt(np.mean(truth[:, 2] ** 2))
+
+
+def test_lagged_actual_thrust_is_not_taken_for_saturation() -> None:
+    """Logs whose u[N] never exceeds the motor maximum (an actual thrust) flag nothing."""
+    train, _ = _flight(0.05, 9.0)
+    tmap = fit_thrust_map([_samples(train["low"])])
+    s = _samples(train["low"])
+    capped = replace(s, commanded_N=np.minimum(s.commanded_N, tmap.max_thrust_N))
+    assert not saturated_samples(tmap, capped).any()
