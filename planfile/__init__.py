@@ -3,6 +3,19 @@
 of a plan shares (:meth:`VehicleTrajectory.sample`).
 """
 
+from planfile.crazyflie import (
+    CRAZYFLIE_MAX_PIECES,
+    EXPORT_FORMAT,
+    EXPORT_FORMAT_VERSION,
+    EXPORT_MANIFEST,
+    N_COEF,
+    PolynomialTrajectory,
+    is_export_folder,
+    read_export,
+    read_uav_csv,
+    resample_step,
+    trajectory_to_csv,
+)
 from planfile.plan import (
     PLAN_FILENAME,
     PLAN_FORMAT_VERSION,
@@ -18,6 +31,17 @@ from planfile.plan import (
 from planfile.scenario import INVALID_ZONE_RULES, Box, Limits, Scenario, VehicleTask, load_scenario, scenario_from_dict
 
 __all__ = [
+    "CRAZYFLIE_MAX_PIECES",
+    "EXPORT_FORMAT",
+    "EXPORT_FORMAT_VERSION",
+    "EXPORT_MANIFEST",
+    "N_COEF",
+    "PolynomialTrajectory",
+    "is_export_folder",
+    "read_export",
+    "read_uav_csv",
+    "resample_step",
+    "trajectory_to_csv",
     "INVALID_ZONE_RULES",
     "PLAN_FILENAME",
     "PLAN_FORMAT_VERSION",

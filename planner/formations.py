@@ -73,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     import yaml
 
     from fileio import UserError, atomic_write_text, check_output_file
+    from planner.precheck import MAX_VEHICLES
 
     parser = argparse.ArgumentParser(
         prog="python -m planner.formations",
@@ -84,8 +85,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--authority-fraction", type=float, default=0.1, help="limits.authority_fraction (default 0.1)")
     args = parser.parse_args(argv)
     try:
-        if args.n < 1:
-            raise UserError(f"N: expected a whole number >= 1, got {args.n}")
+        if not 1 <= args.n <= MAX_VEHICLES:
+            raise UserError(
+                f"N: expected a whole number from 1 to {MAX_VEHICLES} (the planner's swarm limit), got {args.n}"
+            )
         if not args.spacing > 0:
             raise UserError(f"--spacing: expected a positive number of metres, got {args.spacing}")
         path = check_output_file(args.out)

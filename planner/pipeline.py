@@ -27,9 +27,18 @@ import numpy as np
 from planfile import Plan, Scenario, VehicleTrajectory
 from planner.constraints import Track, build_checker
 from planner.errors import InfeasibleError
+from planner.ordering import priority_order, promote
+from planner.precheck import check_starts_and_goals, check_swarm_size
 from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
-from planner.timing import KinematicLimits, TimedPath, common_grid, min_segment_duration_s, time_parameterize
-from verify import REST_SPEED_MPS
+from planner.timing import (
+    KinematicLimits,
+    TimedPath,
+    common_grid,
+    min_segment_duration_s,
+    time_parameterize,
+    time_parameterize_through,
+)
+from planner.validity import BatchChecker
 
 METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
 MODE_OF_METHOD = {
@@ -44,29 +53,37 @@ ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
 DOCK_SPEED_FACTOR = 0.5  # final dock approach at this fraction of the vehicle's limits
 PLAN_MARGIN_M = 0.02  # the search keeps this much more than the nominal limits, m (see build_checker)
 PLAN_MARGIN_S = 0.2  # and assumes not-yet-planned vehicles leave their start this much later, s
+MAX_REORDERS = 8  # conflict-driven re-orderings before a vehicle counts as infeasible
 
 
 class _VehicleFailed(Exception):
-    def __init__(self, vehicle: str, constraint: str, message: str):
+    def __init__(self, vehicle: str, constraint: str, message: str, timed: dict[str, TimedPath]):
         super().__init__(message)
         self.vehicle, self.constraint, self.message = vehicle, constraint, message
-
-
-def priority_order(scenario: Scenario) -> list[str]:
-    """Hovering vehicles first, then the rest in file order with dock targets before dockers."""
-    hover = [n for n, t in scenario.vehicles.items() if t.hover]
-    return hover + [n for n in scenario.dock_order() if n not in hover]
+        self.timed = timed  # the vehicles planned before the failure (reusable as a prefix)
 
 
 def _plan_order(
-    scenario: Scenario, order: list[str], *, mode: str, seed: int, options: SamplingOptions, progress
+    scenario: Scenario,
+    order: list[str],
+    *,
+    mode: str,
+    seed: int,
+    options: SamplingOptions,
+    progress,
+    keep: dict[str, TimedPath] | None = None,
 ) -> tuple[dict[str, TimedPath], dict]:
+    """Plan the vehicles in ``order``; ``keep`` holds already planned leading vehicles to reuse."""
     timed: dict[str, TimedPath] = {}
     tracks: dict[str, Track] = {}
     info: dict = {"attempts": {}, "rrt_vertices": {}}
     horizon = scenario.limits.time_horizon_s
     for idx, name in enumerate(order):
         task = scenario.vehicles[name]
+        if keep and name in keep and len(timed) == idx:
+            timed[name] = keep[name]
+            tracks[name] = _track_of(name, task, keep[name])
+            continue
         if progress:
             progress(f"planning {name}", idx / max(1, len(order)))
         others = [tracks[n] for n in timed]
@@ -139,6 +156,10 @@ def _plan_order(
                 tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
             else:
                 tp = time_parameterize(sp.waypoints_m, sp.times_s, limits)
+            if sp.info.get("direct") and not goal.tail:  # pass through the roadmap's corners if still valid
+                smooth = time_parameterize_through(sp.waypoints_m, sp.times_s, limits)
+                if smooth.duration_s < tp.duration_s and _recheck(nominal, smooth, goal, hold_until) is None:
+                    tp = smooth
             problem = _recheck(nominal, tp, goal, hold_until)
             if problem is None:
                 accepted = tp
@@ -154,12 +175,18 @@ def _plan_order(
                 name,
                 last_problem or "unknown",
                 f"vehicle {name!r}: no path found; most limiting constraint: '{last_problem}'",
+                dict(timed),
             )
         timed[name] = accepted
-        t_grid = common_grid(accepted.duration_s, DT_S)
-        p, _, _ = accepted.sample(t_grid)
-        tracks[name] = Track.from_arrays(name, task.vehicle, DT_S, p)
+        tracks[name] = _track_of(name, task, accepted)
     return timed, info
+
+
+def _track_of(name: str, task, tp: TimedPath) -> Track:
+    if not tp.segments:
+        return Track.static(name, task.vehicle, tp.knot_p_m[0])
+    p, _, _ = tp.sample(common_grid(tp.duration_s, DT_S))
+    return Track.from_arrays(name, task.vehicle, DT_S, p)
 
 
 def _goal_problem(checker, goal: GoalSpec) -> str | None:
@@ -186,14 +213,13 @@ def _recheck(checker, tp: TimedPath, goal: GoalSpec, hold_until: float) -> str |
     tracking tube for a pair while both rest (speed < REST_SPEED_MPS), as in the verifier."""
     t_tail = tp.knot_t_s[-1 - len(goal.tail)] if goal.tail else math.inf
     t = np.arange(0.0, max(tp.duration_s, hold_until) + 1e-9, DT_S / 2)
-    p, v, _ = tp.sample(t)
-    resting = np.linalg.norm(v, axis=1) < REST_SPEED_MPS
-    for ti, pi, rest in zip(t, p, resting):
-        exclude = goal.tail_exempt if ti >= t_tail - 1e-9 else None
-        c = checker.conflict(pi[0], pi[1], pi[2], float(ti), exclude=exclude, resting=bool(rest))
-        if c is not None:
-            return c
-    return None
+    p, _, _ = tp.sample(t)
+    batch = BatchChecker.from_checker(checker)
+    head = t < t_tail - 1e-9
+    _, c = batch.first_conflict(p[head], t[head])
+    if c is None and not head.all():
+        _, c = batch.first_conflict(p[~head], t[~head], exclude=goal.tail_exempt)
+    return c
 
 
 def plan_scenario(
@@ -217,6 +243,8 @@ def plan_scenario(
     options = options or SamplingOptions()
     t0 = time.perf_counter()
     mode = MODE_OF_METHOD[method]
+    check_swarm_size(scenario)
+    check_starts_and_goals(scenario, mode=mode)
     plan = _sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
     if mode == "downwash":
         # safety net: the timed plan is re-checked per vehicle, but the verifier is independent
@@ -239,44 +267,34 @@ def plan_scenario(
 
 
 def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: SamplingOptions, progress) -> Plan:
-    """Prioritised sampling with one priority restart; the assembled plan (metrics not final)."""
+    """Prioritised sampling with conflict-driven re-ordering (:func:`planner.ordering.promote`:
+    a failed vehicle moves before the vehicle that blocked it; the vehicles in front keep their
+    plans); the assembled plan (metrics not final)."""
     order = priority_order(scenario)
     notes: list[str] = list(scenario.load_notes)
-    for restart in range(2):
+    keep: dict[str, TimedPath] = {}
+    seen = {tuple(order)}
+    for restart in range(MAX_REORDERS + 1):
         try:
-            timed, info = _plan_order(scenario, order, mode=mode, seed=seed, options=options, progress=progress)
+            timed, info = _plan_order(
+                scenario, order, mode=mode, seed=seed, options=options, progress=progress, keep=keep
+            )
             break
         except _VehicleFailed as fail:
-            if restart == 1 or order[0] == fail.vehicle:
+            new, n_keep = promote(scenario, order, fail.vehicle, fail.constraint)
+            if restart == MAX_REORDERS or tuple(new) in seen:
                 raise InfeasibleError(fail.vehicle, fail.constraint, fail.message) from None
-            notes.append(f"priority restart: {fail.vehicle} failed ({fail.constraint}); planned first instead")
-            order = [fail.vehicle] + [n for n in order if n != fail.vehicle]
-            hovers = [n for n in order if scenario.vehicles[n].hover]
-            # hovering vehicles stay first and a dock target stays before its dockers
-            order = [n for n in scenario.dock_order() if n in hovers] + _respect_docks(
-                scenario, [n for n in order if n not in hovers]
+            seen.add(tuple(new))
+            notes.append(
+                f"re-ordering: {fail.vehicle} failed ({fail.constraint}); planned as number {new.index(fail.vehicle) + 1}"
             )
+            keep = {n: fail.timed[n] for n in new[:n_keep] if n in fail.timed}
+            order = new
     plan = assemble_plan(scenario, timed, method="sampling", notes=notes)
     plan.metrics["priority_order"] = order
     plan.metrics["sampling_attempts"] = info["attempts"]
     plan.metrics["seed"] = seed
     return plan
-
-
-def _respect_docks(scenario: Scenario, names: list[str]) -> list[str]:
-    out: list[str] = []
-
-    def add(n):
-        if n in out:
-            return
-        w = scenario.vehicles[n].dock_with
-        if w is not None and w in names:
-            add(w)
-        out.append(n)
-
-    for n in names:
-        add(n)
-    return out
 
 
 def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress) -> Plan:

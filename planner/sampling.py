@@ -35,7 +35,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.constraints import ConflictChecker
+from planner.roadmap import roadmap_search
 from planner.timing import DurationTable, KinematicLimits, duration_table, ruckig_segment
+from planner.validity import BatchChecker
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,12 @@ class SamplingOptions:
     usage_weight_s: float = 20.0  # objective: seconds of flight time one usage-second is worth, s
     candidates: int = 2  # RRT solutions compared by the objective per attempt
     strict_search: bool = False  # RRT edges are exact Ruckig rest-to-rest segments (else linear, speed-bounded)
+    direct_first: bool = True  # try straight / detour paths with a start delay before the RRT search
+    direct_delay_step_s: float = 0.1  # start-delay resolution of the direct paths, s
+    direct_accept_slack_s: float = 3.0  # a direct path this close to the unobstructed time skips the RRT, s
+    direct_accept_ratio: float = 3.0  # (or within this factor of it), -
+    dodge_m: float = 0.3  # dodge points of the waiting search beside / above / below start and goal, m
+    detour_clearance_m: float = 0.15  # extra clearance of detour via points beyond an inflated obstacle, m
 
 
 @dataclass
@@ -131,6 +139,7 @@ class _Planner:
         self.v_plan = opts.planning_speed_factor * limits.max_speed_mps
         self.durations = duration_table(limits)
         self.iterations: list[int] = []
+        self.batch = BatchChecker.from_checker(checker)
 
     # -- motion checks ---------------------------------------------------------------------
     def motion_ok(self, p1, t1: float, p2, t2: float, *, exclude: str | None = None, strict: bool = True) -> bool:
@@ -151,12 +160,11 @@ class _Planner:
         if dist > self.v_plan * dt:
             return False
         n = max(1, int(math.ceil(max(dist / self.opts.check_step_m, dt / self.opts.check_step_s))))
-        chk = self.checker
-        for k in range(1, n + 1):
-            f = k / n
-            if not chk.valid(p1[0] + f * dx, p1[1] + f * dy, p1[2] + f * dz, t1 + f * dt):
-                return False
-        return True
+        if n == 1:
+            return self.checker.valid(p2[0], p2[1], p2[2], t2)
+        f = np.arange(1, n + 1) / n
+        xyz = np.column_stack([p1[0] + f * dx, p1[1] + f * dy, p1[2] + f * dz])
+        return self.batch.all_valid(xyz, t1 + f * dt, count=True)
 
     def timed_segment_ok(
         self, p1, t1: float, p2, t2: float, limits: KinematicLimits, *, exclude: str | None = None, count: bool = False
@@ -167,40 +175,33 @@ class _Planner:
         p1 = np.asarray(p1, dtype=float)
         p2 = np.asarray(p2, dtype=float)
         dist = float(np.linalg.norm(p2 - p1))
-        chk = self.checker
         n = max(1, int(math.ceil(max(dist / self.opts.check_step_m, dt / self.opts.check_step_s))))
-        traj = None
+        taus = dt * np.arange(1, n + 1) / n
         if dist > 1e-9:
             traj = ruckig_segment(p1, p2, limits, minimum_duration_s=dt)
             if traj.duration > dt + 1e-6:
                 return False
-        for k in range(1, n + 1):
-            tau = dt * k / n
-            q = p1 if traj is None else traj.at_time(tau)[0]
-            if count:
-                if not chk.valid(q[0], q[1], q[2], t1 + tau):
-                    return False
-            elif chk.conflict(q[0], q[1], q[2], t1 + tau, exclude=exclude) is not None:
-                return False
-        return True
+            xyz = np.array([traj.at_time(float(tau))[0] for tau in taus])
+        else:
+            xyz = np.repeat(p1[None, :], n, axis=0)
+        return self.batch.all_valid(xyz, t1 + taus, exclude=exclude, count=count)
 
     def hold_ok_from(self, p, t_from: float, t_until: float, *, exclude: str | None = None) -> bool:
         step = self.opts.hold_check_step_s
         n = max(1, int(math.ceil((t_until - t_from) / step)))
-        for k in range(n + 1):
-            t = t_from + k * step
-            if self.checker.conflict(p[0], p[1], p[2], t, exclude=exclude, resting=True) is not None:
-                return False
-        return True
+        t = t_from + step * np.arange(n + 1)
+        return self.batch.all_valid(np.repeat(np.asarray(p, dtype=float)[None, :3], n + 1, axis=0), t, exclude=exclude)
 
     def earliest_hold_s(self, p, t_until: float, *, exclude: str | None = None) -> float:
         """Earliest time from which position ``p`` stays valid until ``t_until``; inf if never."""
         step = self.opts.hold_check_step_s
         n = int(math.ceil(t_until / step))
-        last_bad = -1
-        for k in range(n + 1):
-            if self.checker.conflict(p[0], p[1], p[2], k * step, exclude=exclude, resting=True) is not None:
-                last_bad = k
+        t = step * np.arange(n + 1)
+        static, code = self.batch.conflict_codes(
+            np.repeat(np.asarray(p, dtype=float)[None, :3], n + 1, axis=0), t, exclude=exclude
+        )
+        bad = np.nonzero((static >= 0) | (code >= 0))[0]
+        last_bad = int(bad[-1]) if bad.size else -1
         if last_bad == n:
             return math.inf
         return (last_bad + 1) * step
@@ -236,6 +237,107 @@ class _Planner:
                 times.append(t)
             t += step
         return times
+
+    # -- direct paths (before the search) ---------------------------------------------------------
+    def detours(self, start: np.ndarray, end: np.ndarray) -> list[np.ndarray]:
+        """Candidate geometric paths (K, 3), m: the straight line and, for every inflated obstacle
+        the straight line passes through, a rectangular bypass on either side of it (two via points
+        ``detour_clearance_m`` outside the obstacle's horizontal half-diagonal) and a one-via bypass."""
+        paths = [np.array([start, end])]
+        # lane changes at either end: fly level (start height, start lateral lane) and change lane
+        # at the goal, or change lane first and fly level in the goal's lane
+        if abs(end[2] - start[2]) > 0.05:
+            paths.append(np.array([start, [end[0], end[1], start[2]], end]))
+            paths.append(np.array([start, [start[0], start[1], end[2]], end]))
+            paths.append(np.array([start, [end[0], start[1], start[2]], end]))
+            paths.append(np.array([start, [start[0], end[1], end[2]], end]))
+        d = end[:2] - start[:2]
+        length = float(np.linalg.norm(d))
+        if length < 1e-6 or not self.checker.boxes:
+            return paths
+        u = d / length
+        n = np.array([-u[1], u[0]])
+        f = np.linspace(0.0, 1.0, max(2, int(math.ceil(float(np.linalg.norm(end - start)) / 0.02))))
+        pts = start + f[:, None] * (end - start)
+        for b in self.checker.boxes:
+            lo, hi = np.array(b[:3]), np.array(b[3:])
+            if not np.all((pts >= lo) & (pts <= hi), axis=1).any():
+                continue
+            c = 0.5 * (lo[:2] + hi[:2])
+            half = 0.5 * float(np.linalg.norm(hi[:2] - lo[:2])) + self.opts.detour_clearance_m
+            along = float(np.dot(c - start[:2], u))
+            lateral = float(np.dot(c - start[:2], n))
+
+            def via(s_m: float, lat_m: float) -> np.ndarray:
+                s_m = min(max(s_m, 0.0), length)
+                xy = start[:2] + u * s_m + n * lat_m
+                return np.array([xy[0], xy[1], start[2] + (end[2] - start[2]) * s_m / length])
+
+            for side in (1.0, -1.0):
+                lat = lateral + side * half
+                paths.append(np.array([start, via(along - half, lat), via(along + half, lat), end]))
+                paths.append(np.array([start, via(along, lateral + side * 2.0 * half), end]))
+        return paths
+
+    def roadmap_nodes(self, start: np.ndarray, end: np.ndarray, *, scale: float = 1.0) -> list[np.ndarray]:
+        """Nodes of the waiting search: start, the via points of :meth:`detours`, dodge points
+        ``scale x dodge_m`` beside and above/below the start and the goal, goal (duplicates removed)."""
+        pts = [start]
+        for path in self.detours(start, end):
+            pts.extend(path[1:-1])
+        for z in (start[2], end[2]):  # axis-aligned corners (corridors, junctions)
+            pts.extend([np.array([start[0], end[1], z]), np.array([end[0], start[1], z])])
+        d = end[:2] - start[:2]
+        n = np.array([-d[1], d[0], 0.0]) / max(float(np.linalg.norm(d)), 1e-9)
+        zhat = np.array([0.0, 0.0, 1.0])
+        off = self.opts.dodge_m * scale
+        for anchor in (start, end):
+            for v in (n, -n, zhat, -zhat):
+                pts.append(anchor + off * v)
+        pts.append(end)
+        out: list[np.ndarray] = []
+        for p in pts:
+            p = np.asarray(p, dtype=float)
+            if all(float(np.linalg.norm(p - q)) > 1e-6 for q in out) or p is pts[-1]:
+                out.append(p)
+        return [q for k, q in enumerate(out) if k == len(out) - 1 or float(np.linalg.norm(q - end)) > 1e-6]
+
+    def direct(self, start: np.ndarray, goal: GoalSpec) -> SpaceTimePath | None:
+        """Earliest arrival over a small roadmap with waits (:func:`planner.roadmap.roadmap_search`);
+        None when the goal cannot be reached that way (the RRT search follows)."""
+        if goal.tail:
+            return None
+        end = np.asarray(goal.position_m, dtype=float)
+        hold_from = self.earliest_hold_s(end, goal.hold_until_s)
+        if not math.isfinite(hold_from):
+            return None
+        start = np.asarray(start, dtype=float)
+        found = None
+        for scale, wait_s in ((1.0, 8.0), (2.0, 20.0)):  # a wider, more patient second try
+            found = roadmap_search(
+                self.batch,
+                self.limits,
+                self.durations,
+                self.roadmap_nodes(start, end, scale=scale),
+                hold_from_s=hold_from,
+                horizon_s=self.horizon_s,
+                step_s=self.opts.direct_delay_step_s,
+                hold_step_s=self.opts.hold_check_step_s,
+                max_wait_s=wait_s,
+            )
+            if found is not None:
+                break
+        if found is None:
+            return None
+        pts, ts = found
+        return SpaceTimePath(pts, ts, {"rrt_vertices": 0, "direct": True, "objective_s": self.objective(pts, ts)})
+
+    def _exposure_samples(self, p: np.ndarray, t: np.ndarray) -> float:
+        """Predicted usage integral (usage x s) of a motion sampled at times ``t`` (M,), s."""
+        if t.size < 2:
+            return 0.0
+        u = [self.checker.predicted_usage(q[0], q[1], q[2], float(tt)) for q, tt in zip(p, t)]
+        return float(np.trapezoid(u, t))
 
     # -- OMPL search ----------------------------------------------------------------------------
     def solve(self, start: np.ndarray, goal: GoalSpec, seed: int) -> SpaceTimePath | None:
@@ -278,9 +380,15 @@ class _Planner:
             s[0], s[1], s[2], s[3] = float(p[0]), float(p[1]), float(p[2]), float(t * v_ref)
             return s
 
+        direct = self.direct(start, goal) if self.opts.direct_first else None
+        if direct is not None:
+            t_free = self.durations.duration_s(float(np.linalg.norm(goal.position_m - start)))
+            arrival = float(direct.times_s[-1])
+            if arrival <= t_free + self.opts.direct_accept_slack_s or arrival <= self.opts.direct_accept_ratio * t_free:
+                return direct
         times = self.goal_times(start, goal)
         if not times:
-            return None
+            return direct
         pdef = ob.ProblemDefinition(si)
         pdef.addStartState(state(start, 0.0))
         goals = ob.GoalStates(si)
@@ -310,6 +418,8 @@ class _Planner:
             cost = self.objective(pts, ts)
             if best is None or cost < best.info["objective_s"]:
                 best = SpaceTimePath(pts, ts, {"rrt_vertices": int(path.getStateCount()), "objective_s": cost})
+        if direct is not None and (best is None or direct.info["objective_s"] <= best.info["objective_s"]):
+            return direct
         return best
 
     def compress(self, pts: np.ndarray, ts: np.ndarray, goal: GoalSpec) -> tuple[np.ndarray, np.ndarray]:

@@ -189,6 +189,94 @@ def time_parameterize(
     return TimedPath(np.array(knots), pts.copy(), segments)
 
 
+def through_segment(p0_m, p1_m, v0_mps, v1_mps, limits: KinematicLimits):
+    """One Ruckig segment from ``p0_m`` moving at ``v0_mps`` to ``p1_m`` moving at ``v1_mps`` (3,),
+    time-synchronised, time-optimal; a ``ruckig.Trajectory``.
+
+    Per-axis limits ``L w_i`` with a unit weight vector w (the largest direction cosine of the
+    displacement and of both velocities on each axis, normalised), so the norms of velocity,
+    acceleration and jerk stay within the vehicle's limits L."""
+    from ruckig import InputParameter, Result, Synchronization, Trajectory
+
+    p0, p1 = np.asarray(p0_m, dtype=float), np.asarray(p1_m, dtype=float)
+    v0, v1 = np.asarray(v0_mps, dtype=float), np.asarray(v1_mps, dtype=float)
+    w = np.zeros(3)
+    for vec in (p1 - p0, v0, v1):
+        n = float(np.linalg.norm(vec))
+        if n > 1e-12:
+            w = np.maximum(w, np.abs(vec) / n)
+    w = w / float(np.linalg.norm(w))
+    eps = 1e-9
+    inp = InputParameter(3)
+    inp.current_position, inp.target_position = p0.tolist(), p1.tolist()
+    inp.current_velocity, inp.target_velocity = v0.tolist(), v1.tolist()
+    inp.max_velocity = (limits.max_speed_mps * w + eps).tolist()
+    inp.max_acceleration = (limits.max_accel_mps2 * w + eps).tolist()
+    inp.max_jerk = (limits.max_jerk_mps3 * w + eps).tolist()
+    inp.synchronization = Synchronization.Time
+    traj = Trajectory(3)
+    result = _OTG.calculate(inp, traj)
+    if result not in (Result.Working, Result.Finished):
+        raise RuntimeError(f"Ruckig failed on a pass-through segment ({result})")
+    return traj
+
+
+def pass_through_velocities(pts: np.ndarray, limits: KinematicLimits, *, speed_fraction: float = 0.5) -> np.ndarray:
+    """Velocity (K, 3), m/s, at each waypoint of a moving run: zero at both ends and at turns of
+    more than 90 degrees, else along the bisector of the two directions at
+    ``speed_fraction x max speed x cos(turn / 2)``, capped by what the shorter adjacent segment
+    allows from rest (sqrt(a d)). ``speed_fraction`` <= 1/sqrt(3) keeps every component within the
+    per-axis limits of :func:`through_segment`."""
+    v = np.zeros_like(pts)
+    for m in range(1, len(pts) - 1):
+        d_in, d_out = pts[m] - pts[m - 1], pts[m + 1] - pts[m]
+        l_in, l_out = float(np.linalg.norm(d_in)), float(np.linalg.norm(d_out))
+        if l_in < 1e-9 or l_out < 1e-9:
+            continue
+        u_in, u_out = d_in / l_in, d_out / l_out
+        cos_turn = float(np.dot(u_in, u_out))
+        if cos_turn <= 0.0:
+            continue
+        b = u_in + u_out
+        b /= float(np.linalg.norm(b))
+        half_cos = math.sqrt((1.0 + cos_turn) / 2.0)
+        s = min(
+            speed_fraction * limits.max_speed_mps * half_cos, math.sqrt(limits.max_accel_mps2 * min(l_in, l_out)) * 0.5
+        )
+        v[m] = s * b
+    return v
+
+
+def time_parameterize_through(waypoints_m: np.ndarray, times_s: np.ndarray, limits: KinematicLimits) -> TimedPath:
+    """Like :func:`time_parameterize`, but each moving run (consecutive distinct waypoints) passes
+    its interior waypoints at :func:`pass_through_velocities` instead of stopping there, at minimum
+    time; waits (repeated waypoints) end at their scheduled times. State-to-state Ruckig segments
+    with target velocities, never Ruckig's intermediate-waypoint feature. Segments are not straight
+    lines near the waypoints: the caller re-checks the timed trajectory."""
+    pts = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
+    sched = np.asarray(times_s, dtype=float)
+    knots = [float(sched[0])]
+    segments: list = []
+    k = 0
+    n = len(pts)
+    while k < n - 1:
+        if float(np.linalg.norm(pts[k + 1] - pts[k])) < 1e-9:
+            segments.append(None)
+            knots.append(max(knots[-1], float(sched[k + 1])))
+            k += 1
+            continue
+        j = k + 1
+        while j < n - 1 and float(np.linalg.norm(pts[j + 1] - pts[j])) > 1e-9:
+            j += 1
+        vel = pass_through_velocities(pts[k : j + 1], limits)
+        for m in range(j - k):
+            traj = through_segment(pts[k + m], pts[k + m + 1], vel[m], vel[m + 1], limits)
+            segments.append(traj)
+            knots.append(knots[-1] + float(traj.duration))
+        k = j
+    return TimedPath(np.array(knots), pts.copy(), segments)
+
+
 def common_grid(end_s: float, dt_s: float) -> np.ndarray:
     """The common time grid 0, dt, ..., >= end_s (M,), s."""
     n = int(math.ceil(end_s / dt_s - 1e-9)) + 1

@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "proxplan.commands.identify",  # identify
     "proxplan.commands.evaluate",  # evaluate
     "proxplan.commands.certify",  # certify
+    "proxplan.commands.export",  # export
 )
 
 

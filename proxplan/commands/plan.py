@@ -54,7 +54,12 @@ def register(subparsers) -> None:
             "Lists every violation with time and vehicle; exit 1 on any."
         ),
     )
-    v.add_argument("plan", metavar="PLAN.json", help="plan file (or the folder holding plan.json)")
+    v.add_argument(
+        "plan",
+        metavar="PLAN.json",
+        help="plan file, the folder holding plan.json, or a folder written by `proxplan export --format crazyflie` "
+        "(its polynomials are re-sampled and checked: what will fly)",
+    )
     v.add_argument(
         "--scenario", metavar="SCENARIO.yaml", help="scenario to check against (default: the one in the plan)"
     )
@@ -180,12 +185,12 @@ def _with_model(plan, model, args: argparse.Namespace):
 
 def _verify(args: argparse.Namespace) -> int:
     from fileio import UserError
-    from planfile import load_scenario, read_plan
+    from planfile import is_export_folder, load_scenario, read_export, read_plan
     from verify import scenario_of_plan, verify_plan
 
     if not args.dt > 0:
         raise UserError(f"--dt: expected a positive number of seconds, got {args.dt}")
-    plan = read_plan(args.plan)
+    plan = read_export(args.plan) if is_export_folder(args.plan) else read_plan(args.plan)
     model = load_model_argument(args, "verify")
     if model is not None:
         plan, scenario = _with_model(plan, model, args)

@@ -25,6 +25,7 @@ LAYERS = (
     "planner",  # sampling, optimisation, timing
     "flightsim",  # closed-loop simulation
     "certify",  # Monte-Carlo closed-loop flights on Dask
+    "export",  # flyable files (Crazyflie polynomials, set-points)
     "web",  # review app
     "proxplan",  # CLI
 )

@@ -28,4 +28,7 @@ def test_generator_cli(tmp_path, capsys):
 
     assert len(load_scenario(tmp_path / "f.yaml").vehicles) == 4
     assert main(["0", "--out", str(tmp_path / "g.yaml")]) == 2
-    assert "N: expected a whole number >= 1" in capsys.readouterr().err
+    assert "N: expected a whole number from 1 to" in capsys.readouterr().err
+    assert main(["10000", "--out", str(tmp_path / "h.yaml")]) == 2  # beyond the planner's swarm limit
+    assert "got 10000" in capsys.readouterr().err
+    assert not (tmp_path / "h.yaml").exists()

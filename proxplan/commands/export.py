@@ -1,0 +1,152 @@
+"""``proxplan export``: flyable files from a plan (argparse only at module level; heavy imports inside).
+
+Exit codes: 0 written; 1 a vehicle does not fit the Crazyflie's 31 pieces within the tolerance
+(nothing written; ``--split-time`` cuts it into several uploads); 2 user mistake.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+FORMATS = ("crazyflie", "csv")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "export",
+        help="write flyable files: Crazyflie polynomial CSVs or set-point CSVs with feed-forward",
+        description=(
+            "Export DIR/plan.json for flight. --format crazyflie: one uav_trajectories CSV per vehicle "
+            "(Duration,x^0..x^7,y^0..y^7,z^0..z^7,yaw^0..yaw^7; C2 piecewise 7th-order polynomials, at most "
+            "31 pieces, within --tolerance-m of the plan everywhere) and export.json, which `proxplan verify "
+            "OUT` re-checks. --format csv: NAME_setpoints.csv per vehicle (time, position, velocity, "
+            "acceleration, predicted downwash force/torque) at --rate-hz for PX4 offboard / ROS 2 streaming. "
+            "Exit 1 when a vehicle needs more than 31 pieces (nothing written), 2 on bad input."
+        ),
+    )
+    p.add_argument("plan", metavar="PLAN.json", help="plan file (or the folder holding plan.json)")
+    p.add_argument("--format", required=True, choices=FORMATS, help="crazyflie (polynomials) or csv (set-points)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
+    p.add_argument(
+        "--tolerance-m",
+        type=float,
+        default=None,
+        metavar="M",
+        help="crazyflie: largest allowed position deviation from the plan, m (default 0.005, half of the 1 cm promised)",
+    )
+    p.add_argument(
+        "--split-time",
+        action="store_true",
+        help="crazyflie: cut a vehicle that needs more than 31 pieces into consecutive uploads of <= 15 pieces",
+    )
+    p.add_argument("--rate-hz", type=float, default=None, metavar="HZ", help="csv: set-point rate, Hz (default 50)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import math
+    from pathlib import Path
+
+    from tqdm import tqdm
+
+    from export import DEFAULT_RATE_HZ, DEFAULT_TOLERANCE_M, DoesNotFitError, export_crazyflie, export_setpoints
+    from fileio import UserError, output_folder
+    from planfile import read_plan
+    from verify import scenario_of_plan
+
+    tolerance = DEFAULT_TOLERANCE_M if args.tolerance_m is None else args.tolerance_m
+    rate = DEFAULT_RATE_HZ if args.rate_hz is None else args.rate_hz
+    if not (math.isfinite(tolerance) and tolerance > 0):
+        raise UserError(f"--tolerance-m: expected a positive distance in m, got {args.tolerance_m}")
+    if not (math.isfinite(rate) and rate >= 2):
+        raise UserError(f"--rate-hz: expected a rate of at least 2 Hz (PX4 offboard needs >= 2 Hz), got {args.rate_hz}")
+    if args.format == "csv" and (args.tolerance_m is not None or args.split_time):
+        raise UserError("--tolerance-m / --split-time: apply to --format crazyflie only")
+    if args.format == "crazyflie" and args.rate_hz is not None:
+        raise UserError("--rate-hz: applies to --format csv only")
+    plan = read_plan(args.plan)
+    has_scenario = plan.scenario_spec is not None or bool(plan.scenario_file)
+    if args.format == "csv" or has_scenario:  # the feed-forward needs it; crazyflie uses its limits
+        scenario = scenario_of_plan(plan, label=str(args.plan))
+    else:
+        scenario = None
+    out = Path(args.out)
+    notes: list[str] = []
+    with output_folder(out) as stage:
+        if args.format == "crazyflie":
+            bar = tqdm(total=len(plan.vehicles), desc="export", unit="vehicle", file=sys.stderr, leave=False,
+                       disable=not sys.stderr.isatty())  # fmt: skip
+            try:
+                vehicles = export_crazyflie(
+                    plan,
+                    scenario,
+                    stage,
+                    tolerance_m=tolerance,
+                    split_time=args.split_time,
+                    progress=lambda _: bar.update(),
+                )
+            except DoesNotFitError as err:
+                bar.close()
+                print(f"proxplan export: does not fit: {err}", file=sys.stderr)
+                if args.json:
+                    doc = {
+                        "fits": False,
+                        "vehicle": err.vehicle,
+                        "pieces": err.pieces,
+                        "max_deviation_m": err.deviation_m,
+                        "tolerance_m": err.tolerance_m,
+                        "kinematic_ratio": err.kinematic_ratio,
+                        "message": str(err),
+                    }
+                    print(json.dumps(doc))
+                return 1
+            bar.close()
+            files = [
+                {
+                    "vehicle": name,
+                    **{k: f[k] for k in ("pieces", "max_deviation_m", "start_time_s")},
+                    "file": str(out / f["file"]),
+                }
+                for name, v in vehicles.items()
+                for f in v["files"]
+            ]
+            manifest: str | None = str(out / "export.json")
+        else:
+            assert scenario is not None
+            rows, notes = export_setpoints(plan, scenario, stage, rate_hz=rate)
+            files = [
+                {
+                    "vehicle": name,
+                    "file": str(out / r["file"]),
+                    "pieces": None,
+                    "rows": r["rows"],
+                    "max_deviation_m": 0.0,
+                }
+                for name, r in rows.items()
+            ]
+            manifest = None
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "fits": True,
+                    "format": args.format,
+                    "out": str(out),
+                    "manifest": manifest,
+                    "files": files,
+                    "notes": notes,
+                }
+            )
+        )
+    else:
+        for note in notes:
+            print(f"note: {note}")
+        for f in files:
+            size = f"{f['pieces']} pieces" if f["pieces"] is not None else f"{f['rows']} rows"
+            print(f"{f['file']}: {f['vehicle']}, {size}, max deviation {1000 * f['max_deviation_m']:.2f} mm")
+        if manifest:
+            print(f"wrote {manifest} (check the export with: proxplan verify {out})")
+    return 0

@@ -1,0 +1,246 @@
+"""Export: the Crazyflie polynomials reproduce every shipped plan within 1 cm, are C2 at every
+joint, use <= 31 pieces, and pass the verifier (a corrupted export does not); a plan too wiggly for
+31 pieces gives the clear error (or several uploads with --split-time); the set-point CSVs carry
+the predicted downwash."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from export import (
+    SPLIT_PART_PIECES,
+    DoesNotFitError,
+    export_crazyflie,
+    export_setpoints,
+    export_vehicle,
+    vehicle_limits,
+)
+from physics import BUILTIN_VEHICLES
+from planfile import (
+    CRAZYFLIE_MAX_PIECES,
+    EXPORT_MANIFEST,
+    Plan,
+    PolynomialTrajectory,
+    VehicleTrajectory,
+    read_export,
+    read_plan,
+    read_uav_csv,
+    write_plan,
+)
+from tests.conftest import SCENARIOS, run_proxplan
+from verify import scenario_of_plan, verify_plan
+
+SHIPPED = sorted(p.stem for p in SCENARIOS.glob("*.yaml"))
+PROMISE_M = 0.01  # the export's promise; the default fit tolerance is half of it
+TIGHT_M = 0.001  # tolerance of the wiggly plan tests, m
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory) -> dict[str, tuple[Plan, Path]]:
+    """Every shipped scenario planned (sampling, seed 0, fresh process) and exported."""
+    out = {}
+    for name in SHIPPED:
+        folder = tmp_path_factory.mktemp(name)
+        res = run_proxplan("plan", SCENARIOS / f"{name}.yaml", "--out", folder / "plan", "--method", "sampling",
+                           "--no-plot", "--json")  # fmt: skip
+        assert res.returncode == 0, res.stderr
+        plan = read_plan(folder / "plan")
+        export_crazyflie(plan, scenario_of_plan(plan), folder / "cf")
+        out[name] = (plan, folder / "cf")
+    return out
+
+
+def _uploads(folder: Path, vehicle: str) -> list[PolynomialTrajectory]:
+    manifest = json.loads((folder / EXPORT_MANIFEST).read_text())
+    files = manifest["vehicles"][vehicle]["files"]
+    assert all(vehicle in f["file"] for f in files)
+    return [read_uav_csv(folder / f["file"], start_time_s=f["start_time_s"]) for f in files]
+
+
+@pytest.mark.parametrize("scenario", SHIPPED)
+def test_export_reproduces_plan_c2_and_fits(exported, scenario):
+    plan, folder = exported[scenario]
+    for name, tr in plan.vehicles.items():
+        (traj,) = _uploads(folder, name)
+        assert traj.n_pieces <= CRAZYFLIE_MAX_PIECES
+        assert traj.start_time_s == pytest.approx(tr.t_s[0]) and traj.end_time_s == pytest.approx(tr.t_s[-1])
+        t = np.linspace(tr.t_s[0], tr.t_s[-1], 20 * tr.t_s.size + 7)  # dense, off the plan grid
+        dev = np.linalg.norm(traj.evaluate(t)[:, :3] - tr.position_at(t), axis=1)
+        assert dev.max() <= PROMISE_M, (name, dev.max())
+        assert np.all(traj.coef[:, 3, :] == 0.0)  # yaw 0: plans carry no yaw
+        for j in range(traj.n_pieces - 1):  # C2: left piece at its end == right piece at its start
+            end = traj.joints_s[j + 1]
+            for d, tol in ((0, 1e-6), (1, 1e-5), (2, 1e-4)):
+                left = np.polynomial.polynomial.polyval(
+                    traj.durations_s[j], np.polynomial.polynomial.polyder(traj.coef[j, :3].T, d)
+                )
+                right = np.polynomial.polynomial.polyval(
+                    0.0, np.polynomial.polynomial.polyder(traj.coef[j + 1, :3].T, d)
+                )
+                assert np.abs(left - right).max() <= tol, (name, j, d, end)
+        start = tr.sample(tr.t_s[0])
+        for d in range(3):  # starts in the plan's state (at rest)
+            assert np.allclose(traj.evaluate(tr.t_s[0], d)[0, :3], start[d][0], atol=1e-6)
+
+
+@pytest.mark.parametrize("scenario", SHIPPED)
+def test_verify_passes_on_exported_folder(exported, scenario):
+    plan, folder = exported[scenario]
+    flown = read_export(folder)
+    assert set(flown.vehicles) == set(plan.vehicles)
+    assert verify_plan(flown, scenario_of_plan(flown)) == []
+
+
+def test_verify_cli_on_export_and_on_corrupted_copy(exported, tmp_path):
+    _, folder = exported["battery_swap"]
+    ok = run_proxplan("verify", folder, "--json")
+    assert ok.returncode == 0, ok.stderr
+    assert json.loads(ok.stdout)["passed"]
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for f in folder.iterdir():
+        (bad / f.name).write_text(f.read_text())
+    csv = bad / "shuttle.csv"
+    rows = csv.read_text().splitlines()
+    cells = rows[2].split(",")
+    cells[17] = repr(float(cells[17]) + 0.3)  # z^0 of the second piece: a 30 cm jump at a joint
+    rows[2] = ",".join(cells)
+    csv.write_text("\n".join(rows) + "\n")
+    res = run_proxplan("verify", bad, "--json")
+    assert res.returncode == 1, res.stderr
+    assert json.loads(res.stdout)["violations"]
+
+
+def _wiggly_plan(duration_s: float = 60.0) -> Plan:
+    """One crazyflie swinging +-0.1 m in x at 5 rad/s for ``duration_s`` (within its speed,
+    acceleration and jerk limits): more than 31 pieces at :data:`TIGHT_M`."""
+    dt = 0.02
+    t = np.arange(int(round(duration_s / dt)) + 1) * dt
+    w = 5.0
+    p = np.zeros((t.size, 3))
+    v, a = np.zeros_like(p), np.zeros_like(p)
+    p[:, 0], v[:, 0], a[:, 0] = 0.1 * np.sin(w * t), 0.1 * w * np.cos(w * t), -0.1 * w**2 * np.sin(w * t)
+    p[:, 2] = 1.0
+    vehicle = BUILTIN_VEHICLES["crazyflie-2.1"]
+    tr = VehicleTrajectory("wiggler", "crazyflie-2.1", vehicle, t, p, v, a)
+    return Plan("wiggly", dt, {"wiggler": tr}, method="test")
+
+
+def test_too_wiggly_plan_gives_clear_error_and_splits_on_request():
+    plan = _wiggly_plan()
+    tr, limits = plan.vehicles["wiggler"], vehicle_limits(plan, None, "wiggler")
+    with pytest.raises(DoesNotFitError) as err:
+        export_vehicle(tr, limits=limits, tolerance_m=TIGHT_M)
+    message = str(err.value)
+    assert "wiggler" in message and "31" in message and "mm" in message and "--split-time" in message
+    assert err.value.pieces > CRAZYFLIE_MAX_PIECES
+    assert err.value.deviation_m > TIGHT_M or err.value.kinematic_ratio > 1.0
+    parts = export_vehicle(tr, limits=limits, tolerance_m=TIGHT_M, split_time=True)
+    assert len(parts) >= 3
+    t = np.linspace(0.0, tr.t_s[-1], 30001)
+    for i, part in enumerate(parts):
+        traj = part.trajectory
+        assert traj.n_pieces <= SPLIT_PART_PIECES
+        inside = (t >= traj.start_time_s) & (t <= traj.end_time_s)
+        dev = np.linalg.norm(traj.evaluate(t[inside])[:, :3] - tr.position_at(t[inside]), axis=1)
+        assert dev.max() <= 2 * TIGHT_M
+        if i:  # consecutive uploads join C2
+            prev = parts[i - 1].trajectory
+            assert prev.end_time_s == pytest.approx(traj.start_time_s)
+            for d in range(3):
+                assert np.allclose(prev.evaluate(prev.end_time_s, d), traj.evaluate(traj.start_time_s, d), atol=1e-4)
+
+
+def test_cli_does_not_fit(tmp_path):
+    write_plan(_wiggly_plan(), tmp_path / "plan")
+    out = tmp_path / "cf"
+    tight = ("--tolerance-m", TIGHT_M)
+    res = run_proxplan("export", tmp_path / "plan", "--format", "crazyflie", "--out", out, *tight, "--json")
+    assert res.returncode == 1
+    assert len(res.stderr.strip().splitlines()) == 1 and "wiggler" in res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["fits"] is False and doc["vehicle"] == "wiggler"
+    assert not out.exists()  # nothing written
+
+
+@pytest.mark.slow
+def test_cli_split_time_uploads_reread(tmp_path):
+    write_plan(_wiggly_plan(), tmp_path / "plan")
+    out = tmp_path / "cf"
+    tight = ("--tolerance-m", TIGHT_M)
+    res = run_proxplan(
+        "export", tmp_path / "plan", "--format", "crazyflie", "--out", out, *tight, "--split-time", "--json"
+    )
+    assert res.returncode == 0, res.stderr
+    files = json.loads(res.stdout)["files"]
+    assert len(files) >= 3 and all(f["pieces"] <= SPLIT_PART_PIECES and f["max_deviation_m"] <= TIGHT_M for f in files)
+    flown = read_export(out)
+    t = flown.t_s
+    dev = np.linalg.norm(
+        flown.vehicles["wiggler"].position_m - _wiggly_plan().vehicles["wiggler"].position_at(t), axis=1
+    )
+    assert dev.max() <= PROMISE_M
+
+
+def test_setpoints_carry_the_downwash(exported, tmp_path):
+    plan, _ = exported["battery_swap"]
+    rows, notes = export_setpoints(plan, scenario_of_plan(plan), tmp_path, rate_hz=50.0)
+    assert notes and "verify" in notes[0]
+    carrier = np.loadtxt(tmp_path / rows["carrier"]["file"], delimiter=",", skiprows=1)
+    shuttle = np.loadtxt(tmp_path / rows["shuttle"]["file"], delimiter=",", skiprows=1)
+    header = (tmp_path / rows["carrier"]["file"]).read_text().splitlines()[0].split(",")
+    assert header[:4] == ["t_s", "x_m", "y_m", "z_m"] and header[12] == "ff_fz_N"
+    assert np.allclose(np.diff(carrier[:, 0]), 0.02, atol=1e-6)
+    assert carrier[-1, 0] == pytest.approx(plan.makespan_s)
+    assert carrier[-1, 12] < 0.0  # docked shuttle on top: its downwash pushes the carrier down
+    assert np.all(shuttle[:, 10:] == 0.0) or shuttle[-1, 3] > carrier[-1, 3]  # nothing above the shuttle at the end
+    assert np.allclose(shuttle[:, 1:4], plan.vehicles["shuttle"].position_at(shuttle[:, 0]), atol=1e-6)
+
+
+def test_cli_bad_input(exported, tmp_path):
+    plan, _ = exported["battery_swap"]
+    write_plan(plan, tmp_path / "plan")
+    res = run_proxplan("export", tmp_path / "plan", "--format", "px4", "--out", tmp_path / "x")
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    res = run_proxplan("export", tmp_path / "plan", "--format", "csv", "--out", blocker)
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and "--out" in res.stderr
+    doc = json.loads((tmp_path / "plan" / "plan.json").read_text())
+    doc["vehicles"]["shuttle"]["position_m"][3][0] = float("nan")
+    (tmp_path / "nan").mkdir()
+    (tmp_path / "nan" / "plan.json").write_text(json.dumps(doc))
+    res = run_proxplan("export", tmp_path / "nan", "--format", "crazyflie", "--out", tmp_path / "y")
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and "not finite" in res.stderr
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+def test_cli_json_names_files_pieces_and_deviation(exported, tmp_path):
+    plan, _ = exported["package_handoff"]
+    write_plan(plan, tmp_path / "plan")
+    out = tmp_path / "cf"
+    res = run_proxplan("export", tmp_path / "plan", "--format", "crazyflie", "--out", out, "--json")
+    assert res.returncode == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["fits"] and Path(doc["manifest"]).is_file()
+    assert {f["vehicle"] for f in doc["files"]} == set(plan.vehicles)
+    for f in doc["files"]:
+        assert f["vehicle"] in Path(f["file"]).name and Path(f["file"]).is_file()
+        assert 1 <= f["pieces"] <= CRAZYFLIE_MAX_PIECES and 0.0 <= f["max_deviation_m"] <= 0.005
+        assert read_uav_csv(f["file"]).n_pieces == f["pieces"]
+
+
+def test_malformed_uav_csv_is_a_user_error(tmp_path):
+    from fileio import UserError
+
+    bad = tmp_path / "bad.csv"
+    bad.write_text("Duration,x^0\n1.0,2.0\n")
+    with pytest.raises(UserError, match="line 2"):
+        read_uav_csv(bad)
+    bad.write_text("Duration," + ",".join(["0"] * 32) + "\n-1," + ",".join(["0"] * 32) + "\n")
+    with pytest.raises(UserError, match="Duration"):
+        read_uav_csv(bad)
