@@ -35,6 +35,7 @@ MERGE_PASSES = 2  # passes over the joints trying to drop each
 SEARCH_FACTOR = 2  # the split phase may use up to this many times the allowed pieces before merging
 MIN_PIECE_S = 0.02  # pieces are never split below this duration, s
 KINEMATIC_MARGINS = (1.015, 1.015, 1.08)  # allowed excess of speed, acceleration, jerk limits (verify: 2, 2, 10 %)
+OWN_MARGIN = 1.001  # where the plan itself exceeds a limit, the fit may exceed the plan's value by 0.1 %
 
 
 @dataclass(frozen=True)
@@ -141,9 +142,9 @@ class FitTarget:
     """One vehicle's plan on [t0_s, t1_s] sampled once: on the dense check grid (step <=
     :data:`CHECK_STEP_S`, s) for position, speed and acceleration, and on the grid the export is
     re-read and verified on (:func:`planfile.resample_step`) for jerk, measured as the verifier
-    does (acceleration difference over one step). ``allowed`` holds, per check point, the larger of
-    the limit times :data:`KINEMATIC_MARGINS` and the plan's own value (``limits``: speed m/s,
-    acceleration m/s^2, jerk m/s^3, or None)."""
+    does (acceleration difference over one step). ``allowed_*`` hold, per check point, the larger of
+    the limit times :data:`KINEMATIC_MARGINS` and the plan's own value times :data:`OWN_MARGIN`
+    (``limits``: speed m/s, acceleration m/s^2, jerk m/s^3, or None)."""
 
     def __init__(
         self,
@@ -161,10 +162,9 @@ class FitTarget:
         self.p, self.v, self.a = tr.sample(self.t)
         self.limits = limits
         if limits is not None:
-            margin = np.array(KINEMATIC_MARGINS) * np.array(limits)
-            self.allowed_va = np.maximum(
-                np.stack([np.linalg.norm(self.v, axis=1), np.linalg.norm(self.a, axis=1)]), margin[:2, None]
-            )
+            margin = np.array(KINEMATIC_MARGINS)
+            own_va = np.stack([np.linalg.norm(self.v, axis=1), np.linalg.norm(self.a, axis=1)])
+            self.allowed_va = np.maximum(OWN_MARGIN * own_va, (margin * np.array(limits))[:2, None])
             self.jerk_step_s = resample_step(float(tr.t_s[1] - tr.t_s[0]))
             k0 = int(np.ceil(t0_s / self.jerk_step_s - 1e-9))
             k1 = int(np.floor(t1_s / self.jerk_step_s + 1e-9))
@@ -172,7 +172,7 @@ class FitTarget:
             if self.tj.size == 0:
                 self.tj = np.array([t0_s])
             self.a_j = tr.sample(np.concatenate([self.tj, self.tj + self.jerk_step_s]))[2]
-            self.allowed_j = np.maximum(self._jerk(self.a_j), margin[2])
+            self.allowed_j = np.maximum(OWN_MARGIN * self._jerk(self.a_j), margin[2] * limits[2])
 
     def _jerk(self, a_both: np.ndarray) -> np.ndarray:
         n = self.tj.size
@@ -205,9 +205,9 @@ def deviation(
     """How well ``traj`` reproduces ``tr``: per piece a bound on the position distance, m (the
     distance on a grid of step <= :data:`CHECK_STEP_S` plus half a step times the velocity
     difference), and the largest ratio of the polynomials' speed, acceleration and jerk norms to
-    what is allowed (<= 1: fine): ``limits`` (speed m/s, acceleration m/s^2, jerk m/s^3) times
-    :data:`KINEMATIC_MARGINS`, or the plan's own value there when that is larger (the export adds no
-    excess the plan does not have). Ratios are 0 without ``limits``."""
+    what is allowed (<= 1: fine): the larger of ``limits`` (speed m/s, acceleration m/s^2, jerk
+    m/s^3) times :data:`KINEMATIC_MARGINS` and the plan's own value there times :data:`OWN_MARGIN`
+    (the export adds no excess the plan does not have, beyond rounding). Ratios are 0 without ``limits``."""
     return FitTarget(tr, traj.start_time_s, traj.end_time_s, limits).measure(traj)
 
 

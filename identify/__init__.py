@@ -4,6 +4,8 @@ try candidate effects, and report the error before and after on test flights.
 """
 
 from identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
+from identify.discovery import DiscoveryOptions, discover_terms
+from identify.effect_selection import validation_split
 from identify.evaluate import EvaluationResult, evaluate_model, saved_model
 from identify.evaluate_report import write_evaluation_report
 from identify.flightlog import (
@@ -21,12 +23,13 @@ from identify.flightlog import (
 from identify.measure import MeasuredWrench, MeasureOptions, measure_disturbance, measure_log
 from identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
 from identify.report import write_report
-from identify.synthetic_logs import synthetic_logs
+from identify.synthetic_logs import synthetic_logs, write_synthetic_manifest
 
 __all__ = [
     "VEHICLE_PARAMETERS",
     "apply_vehicle_parameters",
     "NEURAL_SWARM_COLUMNS",
+    "DiscoveryOptions",
     "NEURAL_SWARM_FILE_COLUMNS",
     "EvaluationResult",
     "FlightEntry",
@@ -37,6 +40,7 @@ __all__ = [
     "MeasuredWrench",
     "VehicleEntry",
     "VehicleLog",
+    "discover_terms",
     "evaluate_model",
     "load_flight",
     "load_manifest",
@@ -46,7 +50,9 @@ __all__ = [
     "run_identify",
     "saved_model",
     "synthetic_logs",
+    "validation_split",
     "write_canonical_csv",
     "write_evaluation_report",
+    "write_synthetic_manifest",
     "write_report",
 ]

@@ -34,6 +34,7 @@ class IdentifyOptions:
     max_eval_samples: int = 10000  # test samples per candidate score
     max_effects: int = 3  # at most this many effects are kept
     progress: bool = False  # tqdm bars on stderr
+    discover: bool = True  # search terms no library effect names (identify.discovery)
 
 
 @dataclass(frozen=True)
@@ -89,6 +90,8 @@ def unit_inputs(unit: Unit, model: Model) -> EffectInputs:
         velocity_mps=unit.velocity_mps,
         sources=tuple(SourceSample(model.vehicles[t], o) for t, o in zip(unit.source_types, unit.source_offsets_m)),
         options=model.options,
+        time_s=unit.t_s,
+        thrust_z_N=unit.thrust_z_N,
     )
 
 

@@ -66,6 +66,7 @@ _START_GRID: dict[str, list[dict[str, float]]] = {
     ],
     "near_field": [{"decay_L": d, "amplitude": a} for d in (1.0, 3.0, 10.0) for a in (0.3, 1.0, 3.0)],
     "ground_effect": [{"gain_k": k} for k in (0.5, 2.0, 3.5)],
+    "ground_jet": [{"decay_L": d, "amplitude_1": a} for d in (1.0, 4.0, 10.0) for a in (0.2, 0.6)],
 }
 """Extra start points per effect (parameters not named keep their defaults)."""
 

@@ -10,6 +10,7 @@ disturbance), per flight, per vehicle (the manifest's vehicle key) and per regio
 
 * ``below_source`` — some source within r < 3 L horizontally and above (dz > 0); ``free`` — not;
 * ``below_within_3L`` — below a source with dz < 3 L (outside the field model's zone, S0 II-A);
+  ``below_beyond_3L`` — below sources, all with dz >= 3 L (inside the zone);
 * ``stack`` — two or more sources above within r < 3 L.
 
 Vehicles with ``score: false`` are sources only; a manifest whose flights are all ``test`` is valid.
@@ -32,7 +33,7 @@ from identify.thrust_map import ThrustMap
 from physics import VALIDITY_FACTOR_L, CalibratedModel
 
 SPLITS = ("test", "train", "all")
-REGIONS = ("free", "below_source", "below_within_3L", "stack")
+REGIONS = ("free", "below_source", "below_within_3L", "below_beyond_3L", "stack")
 
 
 # ------------------------------------------------------------------------------ model <-> identify
@@ -108,7 +109,8 @@ def region_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
         above += here
         near |= here & (dz < VALIDITY_FACTOR_L * L)
     below = above > 0
-    return {"free": ~below, "below_source": below, "below_within_3L": near, "stack": above >= 2}
+    return {"free": ~below, "below_source": below, "below_within_3L": near, "below_beyond_3L": below & ~near,
+            "stack": above >= 2}  # fmt: skip
 
 
 @dataclass

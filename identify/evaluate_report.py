@@ -88,7 +88,8 @@ def markdown(result: EvaluationResult, *, manifest: str, model: str, plots: list
             lines.append(f"| {k} | {_f(r['rmse_fz_N'])} | {_f(r['no_model_rmse_fz_N'])} | {ratio} | {r['n_samples']} |")
         lines.append("")
     lines += ["Regions: `below_source` = some source above within r < 3 L; `below_within_3L` = of those, dz < 3 L "
-              "(outside the field model's zone, S0 II-A); `stack` = two or more sources above; `free` = none.", ""]  # fmt: skip
+              "(outside the field model's zone, S0 II-A), `below_beyond_3L` = the rest; `stack` = two or more "
+              "sources above; `free` = none.", ""]  # fmt: skip
     sat = doc["measurement"]["saturation"]
     lines += ["## Measurement", "", "| vehicle | thrust from | saturated samples | share |", "|---|---|---|---|"]
     for k, s in sat.items():

@@ -61,6 +61,7 @@ from identify.data import (
     subsample,
     unit_inputs,
 )
+from identify.discovery import discover_terms
 from identify.effect_selection import EffectTrial, select_effects, validation_split
 from identify.flightlog import Manifest, load_manifest
 from identify.measure import MeasureOptions
@@ -275,6 +276,9 @@ def run_identify(
     corr_before = _residual_analysis(subsample(fit, 20000), model)
     starts = [model, base] if options.calibrate else [base]
     final, trials = select_effects(fit, valid, starts, options=options, test=test)
+    discovered: list = []
+    if options.discover:  # terms no library effect names: fit on train, kept by validation (identify.discovery)
+        final, discovered = discover_terms(fit, valid, final, test=test)
     after = full_errors(final)
     corr = _residual_analysis(subsample(test, 50000), final)
     unexplained = None
@@ -289,6 +293,7 @@ def run_identify(
         unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
         thrust_maps=data.thrust_maps, notes=data.notes, measure_options=options.measure,
         per_vehicle=_per_vehicle(test, base, model, final), validation=validation_note, calibrated_model=model,
+        discovered=discovered,
     )  # fmt: skip
 
 

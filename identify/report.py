@@ -160,8 +160,9 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         lines.append(
             f"| {name} | {sat['thrust_source']} | {sat['saturated_samples']} | {sat['saturated_fraction']:.3f} |"
         )
+    lines.append("")
     for t, m in result.thrust_maps.items():
-        lines.append(f"\n- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "
+        lines.append(f"- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "
                      f"ceiling {m.x_max_V:.3f} V, max {m.max_thrust_N:.4g} N per motor, RMS {m.rms_N:.2g} N, R2 {m.r2:.4f}")  # fmt: skip
     lines += [f"- note: {n}" for n in result.notes]
     lines += ["", "## Candidate effects (fitted on train, chosen on validation flights, scored on test)", "",
@@ -177,7 +178,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     if result.calibration is not None:
         lines += [
             "",
-            "## Calibrated parameters (train flights; one-sigma from the Jacobian)",
+            "## Calibrated parameters (fitting part of the train flights; one-sigma from the Jacobian)",
             "",
             "| parameter | value | std |",
             "|---|---|---|",
@@ -206,6 +207,14 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
             "",
             f"**Unexplained residual**: it still correlates with `{u['feature']}` (pearson {u['pearson']:.2f}, eta {u['eta']:.2f}); no effect of the library removed it.",
         ]
+    if result.discovered:
+        lines += ["", "## Discovered terms (sparse regression on train, kept by validation; identify.discovery)", "",
+                  "| channel | kept | validation gain | test RMSE before | after | formula |", "|---|---|---|---|---|---|"]  # fmt: skip
+        for e in result.discovered:
+            lines.append(
+                f"| {e['channel']} | {'yes' if e['selected'] else 'no'} | {e['gain_validation']:.3f} | "
+                f"{_fmt(e['rmse_test']['before'], 5)} | {_fmt(e['rmse_test']['after'], 5)} | {e['formula'] or '-'} |"
+            )
     v = result.validity
     lines += ["", "## Validity", "", f"Samples below a source (r < 3 L): {v['samples_below_a_source']}; in the model's zone dz > 3 L: "
               f"{v['samples_in_valid_zone']} ({_fmt(v['fraction_valid'], 3)}). {v['note']}.", "",

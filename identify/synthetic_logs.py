@@ -6,8 +6,9 @@ truth wrench exactly. Closed-loop synthetic flights come from :mod:`flightsim`.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -46,6 +47,8 @@ def synthetic_logs(
     ground_z_m: float = 0.0,
     accel_noise_mps2: float = 0.0,
     seed: int = 0,
+    hidden_wrench: Callable[[Any], tuple[np.ndarray, np.ndarray]] | None = None,
+    motor_noise_N: float = 0.0,
     motor: SyntheticMotor | None = None,
 ) -> dict[str, VehicleLog]:
     """Logs with a known truth: every vehicle follows ``positions_m[name]`` (N, 3), m, level, and
@@ -61,23 +64,37 @@ def synthetic_logs(
 
     This is a measurement-level generator (no rigid-body simulation): for closed-loop flights use
     the simulator (flightsim).
+
+    ``hidden_wrench(inputs)`` (optional) adds a wrench no library effect names (force (N, 3) N,
+    torque (N, 3) N m, world) from the :class:`physics.effects.EffectInputs` of each vehicle (with
+    ``time_s``, the sources' velocities and the target's thrust filled in): a truth for the tests
+    of :mod:`identify.discovery`. ``motor_noise_N`` adds white noise to each logged motor thrust
+    (N), which reaches the measured force and torque.
     """
     from physics import GRAVITY_MPS2, EffectInputs, SourceSample, mixer_matrix, total_wrench
 
     rng = np.random.default_rng(seed)
     n = len(t_s)
     out = {}
+    vels = {k: np.gradient(np.asarray(p, dtype=float), t_s, axis=0) for k, p in positions_m.items()}
     for name, veh in vehicles.items():
         pos = np.asarray(positions_m[name], dtype=float)
-        vel = np.gradient(pos, t_s, axis=0)
+        vel = vels[name]
         acc = np.gradient(vel, t_s, axis=0)
         inputs = EffectInputs(
             target=veh,
             height_above_ground_m=pos[:, 2] - ground_z_m,
             velocity_mps=vel,
-            sources=tuple(SourceSample(vehicles[o], pos - np.asarray(positions_m[o])) for o in vehicles if o != name),
+            sources=tuple(
+                SourceSample(vehicles[o], pos - np.asarray(positions_m[o]), vels[o]) for o in vehicles if o != name
+            ),
+            time_s=np.asarray(t_s, dtype=float),
+            thrust_z_N=veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]),
         )
         force, torque = total_wrench(inputs, tuple(effects))
+        if hidden_wrench is not None:
+            hf, ht = hidden_wrench(inputs)
+            force, torque = force + hf, torque + ht
         collective = veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]) - force[:, 2]
         demand = np.column_stack([collective, -torque[:, 0], -torque[:, 1], -torque[:, 2]])
         thrusts = np.linalg.solve(mixer_matrix(veh), demand.T).T
@@ -100,10 +117,32 @@ def synthetic_logs(
             velocity_mps=vel,
             accel_mps2=spec,
             quat_xyzw=np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)),
-            motor_thrust_N=logged,
+            motor_thrust_N=logged + (rng.normal(0.0, motor_noise_N, (n, 4)) if motor_noise_N > 0.0 else 0.0),
             gyro_radps=np.zeros((n, 3)),
             source=f"synthetic:{name}",
             motor_pwm=pwm,
             vbat_V=vbat,
         )
     return out
+
+
+def write_synthetic_manifest(
+    root: Path, flights: Sequence[tuple[str, str, Mapping[str, VehicleLog]]], vehicle_type: str
+) -> Path:
+    """Write every flight ``(name, split, {vehicle: log})`` as canonical gzip CSVs under ``root``
+    (``<flight>_<vehicle>.csv.gz``) and a canonical manifest ``root/manifest.yaml`` naming them,
+    every vehicle of type ``vehicle_type``; returns the manifest path."""
+    import yaml
+
+    from identify.flightlog import write_canonical_csv
+
+    entries = []
+    for name, split, logs in flights:
+        entry: dict[str, Any] = {"name": name, "split": split, "vehicles": {}}
+        for vehicle, log in logs.items():
+            write_canonical_csv(log, root / f"{name}_{vehicle}.csv.gz")
+            entry["vehicles"][vehicle] = {"type": vehicle_type, "log": f"{name}_{vehicle}.csv.gz"}
+        entries.append(entry)
+    path = root / "manifest.yaml"
+    path.write_text(yaml.safe_dump({"format": "canonical", "root": ".", "flights": entries}))
+    return path

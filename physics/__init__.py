@@ -19,6 +19,7 @@ from physics.disturbance import (
     validity_mask,
 )
 from physics.effects import (
+    DISCOVERED_PREFIX,
     EFFECT_NAMES,
     PARAMETERS,
     TARGET_ONLY_EFFECTS,
@@ -30,6 +31,7 @@ from physics.effects import (
     effect_wrench,
     total_wrench,
 )
+from physics.features import CHANNELS, FEATURE_DOCS, FEATURE_NAMES, feature_matrix, term_formula
 from physics.model_file import (
     MODEL_FORMAT_VERSION,
     CalibratedModel,
@@ -66,8 +68,12 @@ from physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_s
 __all__ = [
     "AIR_DENSITY_KGPM3",
     "BUILTIN_VEHICLES",
+    "CHANNELS",
     "DEFAULT_OPTIONS",
+    "DISCOVERED_PREFIX",
     "EFFECT_NAMES",
+    "FEATURE_DOCS",
+    "FEATURE_NAMES",
     "FIELD_FORMS",
     "GRAVITY_MPS2",
     "MODEL_FORMAT_VERSION",
@@ -95,6 +101,7 @@ __all__ = [
     "disturbance_wrench",
     "downwash_speed_mps",
     "effect_wrench",
+    "feature_matrix",
     "effects_from_list",
     "effects_to_list",
     "load_model_file",
@@ -108,6 +115,7 @@ __all__ = [
     "oncoming_speed_per_rotor_mps",
     "options_from_mapping",
     "resolve_vehicle",
+    "term_formula",
     "target_only_notes",
     "total_wrench",
     "validity_mask",

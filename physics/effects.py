@@ -30,6 +30,7 @@ from physics.disturbance import (
     oncoming_speed_per_rotor_mps,
     vertical_point_wrench,
 )
+from physics.features import CHANNELS, FEATURE_NAMES, feature_matrix, parse_term_key
 from physics.vehicles import Vehicle
 
 EFFECT_NAMES = (
@@ -40,6 +41,7 @@ EFFECT_NAMES = (
     "wake_advection",
     "own_velocity",
     "thrust_quadratic",
+    "ground_jet",
 )
 
 PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
@@ -59,7 +61,13 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
         "c_mu2_s2pm2": (0.01, -0.2, 0.2),
     },
     "thrust_quadratic": {"b_q_rel_spm": (0.1, -1.0, 1.0)},
+    "ground_jet": {"amplitude_1": (0.5, 0.0, 1.0), "decay_L": (2.0, 0.2, 20.0)},
 }
+
+DISCOVERED_PREFIX = "discovered:"
+"""Name prefix of a term found by sparse regression (identify.discovery): its parameters are named
+``"<channel>*<feature>"`` (:mod:`physics.features`) and are the coefficients of a linear combination
+of features, in channel units per feature unit."""
 
 TARGET_ONLY_EFFECTS = ("thrust_bias", "ground_effect", "own_velocity")
 """Effects that depend on the target alone (counted once, whatever the sources); every other effect
@@ -75,6 +83,7 @@ class SourceSample:
 
     vehicle: Vehicle
     offsets_m: np.ndarray  # (N, 3) p_target - p_source, world frame, m
+    velocity_mps: np.ndarray | None = None  # (N, 3) the source's own velocity, world, m/s (None: unknown)
 
 
 @dataclass(frozen=True)
@@ -86,6 +95,8 @@ class EffectInputs:
     velocity_mps: np.ndarray  # (N, 3) the target's own velocity, world frame, m/s
     sources: tuple[SourceSample, ...] = ()
     options: ModelOptions = DEFAULT_OPTIONS
+    time_s: np.ndarray | None = None  # (N,) sample times, s (None: independent steady states)
+    thrust_z_N: np.ndarray | None = None  # (N,) own collective thrust along world z, N (None: unknown)
 
     @property
     def n_samples(self) -> int:
@@ -96,10 +107,16 @@ class EffectInputs:
 class Effect:
     """One named effect with its parameters (missing ones take :data:`PARAMETERS` defaults)."""
 
-    name: str  # one of EFFECT_NAMES
+    name: str  # one of EFFECT_NAMES, or DISCOVERED_PREFIX + a label (a term of physics.features)
     params: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if self.name.startswith(DISCOVERED_PREFIX):
+            for key, value in self.params.items():
+                parse_term_key(key)
+                if not np.isfinite(float(value)):
+                    raise ValueError(f"effect {self.name!r}: parameter {key} must be finite")
+            return
         if self.name not in PARAMETERS:
             raise ValueError(f"unknown effect {self.name!r}; expected one of {', '.join(EFFECT_NAMES)}")
         unknown = sorted(set(self.params) - set(PARAMETERS[self.name]))
@@ -112,8 +129,17 @@ class Effect:
             if not np.isfinite(float(value)):
                 raise ValueError(f"effect {self.name!r}: parameter {key} must be finite")
 
+    @property
+    def features(self) -> tuple[str, ...]:
+        """Features of :mod:`physics.features` a discovered term uses (empty for library effects)."""
+        if not self.name.startswith(DISCOVERED_PREFIX):
+            return ()
+        return tuple(dict.fromkeys(parse_term_key(k)[1] for k in self.params))
+
     def full_params(self) -> dict[str, float]:
         """All parameters of this effect, defaults filled in."""
+        if self.name.startswith(DISCOVERED_PREFIX):
+            return {k: float(v) for k, v in self.params.items()}
         out = {k: spec[0] for k, spec in PARAMETERS[self.name].items()}
         out.update({k: float(v) for k, v in self.params.items()})
         return out
@@ -272,6 +298,23 @@ def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs, base: _BaseCach
     return force, torque
 
 
+def _ground_jet(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """A source's jet meeting the ground: below the target the jet runs into the floor, stagnates
+    and spreads sideways, so at the target (height h above the floor) the axial velocity is below
+    the free jet's. Impinging-jet form: v / v_free = 1 - a exp(-h / (lambda L_s)), a =
+    ``amplitude_1`` (-), lambda = ``decay_L`` (the stagnation layer's thickness in units of the
+    source's size L_s, m); the wrench scales with v^2 (S0-3..S0-6), so the extra wrench is
+    base_s * ((1 - a exp(-h / (lambda L_s)))^2 - 1) per source above the target."""
+    force, torque = _zeros(inputs.n_samples)
+    h_m = np.maximum(np.asarray(inputs.height_above_ground_m, dtype=float), 0.0)
+    for src, (f, t) in zip(inputs.sources, base.per_source()):
+        ratio = 1.0 - p["amplitude_1"] * np.exp(-h_m / (p["decay_L"] * src.vehicle.size_m))
+        scale = ratio**2 - 1.0
+        force += f * scale[:, None]
+        torque += t * scale[:, None]
+    return force, torque
+
+
 _EFFECT_FUNCTIONS = {
     "thrust_bias": _thrust_bias,
     "ground_effect": _ground_effect,
@@ -280,13 +323,30 @@ _EFFECT_FUNCTIONS = {
     "wake_advection": _wake_advection,
     "own_velocity": _own_velocity,
     "thrust_quadratic": _thrust_quadratic,
+    "ground_jet": _ground_jet,
 }
+
+
+def _discovered(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """A discovered term: wrench channel c = sum_j params["c*feature_j"] * feature_j, the features of
+    :func:`physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
+    wrench = np.zeros((inputs.n_samples, 6))
+    if p:
+        x = feature_matrix(inputs, base.per_source())
+        for key, coef in p.items():
+            channel, feature = parse_term_key(key)
+            wrench[:, CHANNELS.index(channel)] += coef * x[:, FEATURE_NAMES.index(feature)]
+    return wrench[:, :3], wrench[:, 3:]
+
+
+def _function(name: str):
+    return _discovered if name.startswith(DISCOVERED_PREFIX) else _EFFECT_FUNCTIONS[name]
 
 
 def effect_wrench(effect: Effect, inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
     """ADDITIONAL force (N, 3), N, and torque (N, 3), N m, of ``effect`` beyond the base model,
     world frame, for the N samples of ``inputs``."""
-    return _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, _BaseCache(inputs))
+    return _function(effect.name)(effect.full_params(), inputs, _BaseCache(inputs))
 
 
 def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[np.ndarray, np.ndarray]:
@@ -295,7 +355,7 @@ def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[
     cache = _BaseCache(inputs)
     force, torque = _sum_base(inputs, cache)
     for effect in effects:
-        f, t = _EFFECT_FUNCTIONS[effect.name](effect.full_params(), inputs, cache)
+        f, t = _function(effect.name)(effect.full_params(), inputs, cache)
         force += f
         torque += t
     return force, torque

@@ -35,7 +35,8 @@ from typing import Any
 from fileio import UserError, atomic_write_text, read_yaml
 from physics.builtin_vehicles import BUILTIN_VEHICLES
 from physics.disturbance import DEFAULT_OPTIONS, ModelOptions
-from physics.effects import EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
+from physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
+from physics.features import between_vehicle_part, parse_term_key
 from physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
 from physics.vehicles import Vehicle
 from physics.velocity_field import FIELD_FORMS
@@ -82,8 +83,17 @@ class CalibratedModel:
 
 def between_vehicle_effects(effects: Iterable[Effect]) -> tuple[Effect, ...]:
     """``effects`` without the target-only ones (:data:`physics.effects.TARGET_ONLY_EFFECTS`):
-    the effects that, like the base model, are a sum over sources."""
-    return tuple(e for e in effects if e.name not in TARGET_ONLY_EFFECTS)
+    the effects that, like the base model, are a sum over sources. A discovered term keeps only its
+    pairwise features (:data:`physics.features.TARGET_ONLY_FEATURES` dropped)."""
+    out = []
+    for e in effects:
+        if e.name.startswith(DISCOVERED_PREFIX):
+            part = between_vehicle_part(dict(e.params))
+            if part:
+                out.append(Effect(e.name, part))
+        elif e.name not in TARGET_ONLY_EFFECTS:
+            out.append(e)
+    return tuple(out)
 
 
 def effects_to_list(effects: Sequence[Effect]) -> list[dict[str, Any]]:
@@ -106,6 +116,9 @@ def effects_from_list(raw: Any, where: str) -> tuple[Effect, ...]:
         if unknown:
             raise UserError(f"{w}: unknown key {unknown[0]!r}; expected name and params")
         name = item["name"]
+        if isinstance(name, str) and name.startswith(DISCOVERED_PREFIX):  # identify.discovery term
+            out.append(Effect(name, _discovered_params(item.get("params"), w)))
+            continue
         if name not in PARAMETERS:
             raise UserError(f"{w}.name: unknown effect {name!r}; known effects: {', '.join(EFFECT_NAMES)}")
         params = item.get("params") or {}
@@ -120,6 +133,17 @@ def effects_from_list(raw: Any, where: str) -> tuple[Effect, ...]:
             values[str(key)] = _finite(value, f"{w}.params.{key}")
         out.append(Effect(str(name), values))
     return tuple(out)
+
+
+def _discovered_params(raw: Any, where: str) -> dict[str, float]:
+    if not isinstance(raw, Mapping):
+        raise UserError(f"{where}.params: expected a mapping '<channel>*<feature>': number")
+    for key in raw:
+        try:
+            parse_term_key(str(key))
+        except ValueError as exc:
+            raise UserError(f"{where}.params: {exc}") from None
+    return {str(k): _finite(v, f"{where}.params.{k}") for k, v in raw.items()}
 
 
 def _finite(value: Any, where: str) -> float:

@@ -35,7 +35,8 @@ def check_swarm_size(scenario: Scenario) -> None:
 
 
 def check_starts_and_goals(scenario: Scenario, *, mode: str) -> None:
-    """InfeasibleError for the first start (at t = 0) or goal (held forever) that is invalid."""
+    """InfeasibleError for the first start (at t = 0) or goal (held forever) that is invalid; a goal
+    is checked for the moving vehicle that ends there (against the others' final positions)."""
     names = list(scenario.vehicles)
     for kind in ("start", "goal"):
         points = {}
@@ -46,8 +47,9 @@ def check_starts_and_goals(scenario: Scenario, *, mode: str) -> None:
             elif task.goal_m is not None:
                 points[n] = task.goal_m
         for name in names:
-            if name not in points or (kind == "goal" and scenario.vehicles[name].dock_with is not None):
-                continue
+            task = scenario.vehicles[name]
+            if name not in points or (kind == "goal" and (task.dock_with is not None or task.hover)):
+                continue  # a goal conflict is the moving vehicle's, named as such
             others = [Track.static(o, scenario.vehicles[o].vehicle, p) for o, p in points.items() if o != name]
             # a dock pair meets on purpose: the dock target is exempt for the docking vehicle
             dock = scenario.vehicles[name].dock_with

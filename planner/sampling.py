@@ -19,8 +19,8 @@ pass moves every waypoint to its earliest valid time, which minimises flight tim
 Runs are reproducible: ``ompl.util.RNG.setSeed(seed + 1)`` is set once per process before the
 first solve (OMPL allows no re-seeding after sampling started), and every solve ends after a fixed
 number of RRT iterations (a Python ``PlannerTerminationCondition``), not after a wall time, so the
-random sequence does not depend on the machine's load (a generous wall-time cap remains as a safety
-net only).
+random sequence does not depend on the machine's load (a generous CPU-time cap of the process remains
+as a safety net only: a wall-time cap made results depend on how loaded the shared machine was).
 
 Objective: among ``candidates`` RRT solutions (and in every shortcut choice) the planner keeps the
 one with the lowest arrival time + ``usage_weight_s`` x predicted authority-usage integral, the
@@ -44,7 +44,7 @@ from planner.validity import BatchChecker
 class SamplingOptions:
     """Knobs of the space-time search (defaults suit the shipped scenarios)."""
 
-    time_budget_s: float = 1.5  # wall-time safety net per solve (x 4), s; the budget is max_iterations
+    time_budget_s: float = 1.5  # CPU-time safety net per solve (x 4), s; the budget is max_iterations
     max_iterations: int = 100000  # RRT iterations per solve (deterministic termination)
     range_m: float = 0.8  # RRT extension range in (x, y, z, tau), m
     goal_bias: float = 0.15  # probability of sampling a goal state, -
@@ -94,15 +94,16 @@ class GoalSpec:
 
 class _IterationBudget:
     """Planner termination after ``max_calls`` iterations (deterministic, keeps ``--seed``
-    reproducible) or, as a safety net only, ``max_wall_s`` seconds of wall time."""
+    reproducible) or, as a safety net only, ``max_wall_s`` seconds of this process's CPU time (not
+    wall time, which depends on the machine's load)."""
 
     def __init__(self, max_calls: int, max_wall_s: float):
         import time
 
         self.max_calls = max_calls
-        self.deadline = time.perf_counter() + max_wall_s
+        self.deadline = time.process_time() + max_wall_s
         self.calls = 0
-        self._clock = time.perf_counter
+        self._clock = time.process_time
 
     def __call__(self) -> bool:
         self.calls += 1

@@ -190,7 +190,8 @@ def _verify(args: argparse.Namespace) -> int:
 
     if not args.dt > 0:
         raise UserError(f"--dt: expected a positive number of seconds, got {args.dt}")
-    plan = read_export(args.plan) if is_export_folder(args.plan) else read_plan(args.plan)
+    exported = is_export_folder(args.plan)
+    plan = read_export(args.plan) if exported else read_plan(args.plan)
     model = load_model_argument(args, "verify")
     if model is not None:
         plan, scenario = _with_model(plan, model, args)
@@ -203,6 +204,7 @@ def _verify(args: argparse.Namespace) -> int:
                 {
                     "passed": not violations,
                     "plan": str(args.plan),
+                    "exported": exported,
                     "scenario": scenario.name,
                     "violations": [v.to_dict() for v in violations],
                 }
@@ -215,6 +217,7 @@ def _verify(args: argparse.Namespace) -> int:
                 print(f"  {v}")
         else:
             print(
-                f"{args.plan}: PASS (scenario '{scenario.name}', {len(plan.vehicles)} vehicles, checked every {args.dt:g} s)"
+                f"{args.plan}: PASS (scenario '{scenario.name}', {len(plan.vehicles)} vehicles, checked every {args.dt:g} s"
+                + (", Crazyflie polynomials re-sampled)" if exported else ")")
             )
     return 1 if violations else 0

@@ -6,6 +6,7 @@ the predicted downwash."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,7 @@ from export import (
     export_vehicle,
     vehicle_limits,
 )
-from physics import BUILTIN_VEHICLES
+from physics import BUILTIN_VEHICLES, KinematicLimits
 from planfile import (
     CRAZYFLIE_MAX_PIECES,
     EXPORT_MANIFEST,
@@ -99,7 +100,7 @@ def test_verify_cli_on_export_and_on_corrupted_copy(exported, tmp_path):
     _, folder = exported["battery_swap"]
     ok = run_proxplan("verify", folder, "--json")
     assert ok.returncode == 0, ok.stderr
-    assert json.loads(ok.stdout)["passed"]
+    assert json.loads(ok.stdout)["passed"] and json.loads(ok.stdout)["exported"]
     bad = tmp_path / "bad"
     bad.mkdir()
     for f in folder.iterdir():
@@ -116,8 +117,8 @@ def test_verify_cli_on_export_and_on_corrupted_copy(exported, tmp_path):
 
 
 def _wiggly_plan(duration_s: float = 60.0) -> Plan:
-    """One crazyflie swinging +-0.1 m in x at 5 rad/s for ``duration_s`` (within its speed,
-    acceleration and jerk limits): more than 31 pieces at :data:`TIGHT_M`."""
+    """One crazyflie (limits 1.5 m/s, 3 m/s^2, 15 m/s^3 stated here) swinging +-0.1 m in x at
+    5 rad/s for ``duration_s`` (within those limits): more than 31 pieces at :data:`TIGHT_M`."""
     dt = 0.02
     t = np.arange(int(round(duration_s / dt)) + 1) * dt
     w = 5.0
@@ -125,7 +126,7 @@ def _wiggly_plan(duration_s: float = 60.0) -> Plan:
     v, a = np.zeros_like(p), np.zeros_like(p)
     p[:, 0], v[:, 0], a[:, 0] = 0.1 * np.sin(w * t), 0.1 * w * np.cos(w * t), -0.1 * w**2 * np.sin(w * t)
     p[:, 2] = 1.0
-    vehicle = BUILTIN_VEHICLES["crazyflie-2.1"]
+    vehicle = replace(BUILTIN_VEHICLES["crazyflie-2.1"], kinematics=KinematicLimits(1.5, 3.0, 15.0))
     tr = VehicleTrajectory("wiggler", "crazyflie-2.1", vehicle, t, p, v, a)
     return Plan("wiggly", dt, {"wiggler": tr}, method="test")
 

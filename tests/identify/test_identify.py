@@ -14,9 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
-from identify import IdentifyOptions, run_identify, synthetic_logs, write_canonical_csv
+from identify import IdentifyOptions, run_identify, synthetic_logs, write_canonical_csv, write_synthetic_manifest
 from physics import BUILTIN_VEHICLES, Effect
 
 VEHICLE_TYPE = "small-quad"
@@ -51,20 +50,13 @@ def make_manifest(tmp: Path, effects: tuple, *, n_train: int = 2, duration_s: fl
     tmp.mkdir(parents=True, exist_ok=True)
     veh = BUILTIN_VEHICLES[VEHICLE_TYPE]
     t = np.arange(0.0, duration_s, 0.01)
-    flights = []
-    for k in range(n_train + 1):
-        split = "test" if k == n_train else "train"
-        logs = synthetic_logs(
+    flights = [
+        (f"f{k}", "test" if k == n_train else "train", synthetic_logs(
             {"a": veh, "b": veh}, _trajectories(t, 0.9 * k), t, effects=effects, accel_noise_mps2=0.02, seed=k
-        )
-        entry = {"name": f"f{k}", "split": split, "vehicles": {}}
-        for name, log in logs.items():
-            write_canonical_csv(log, tmp / f"f{k}_{name}.csv.gz")
-            entry["vehicles"][name] = {"type": VEHICLE_TYPE, "log": f"f{k}_{name}.csv.gz"}
-        flights.append(entry)
-    path = tmp / "manifest.yaml"
-    path.write_text(yaml.safe_dump({"format": "canonical", "root": ".", "flights": flights}))
-    return path
+        ))
+        for k in range(n_train + 1)
+    ]  # fmt: skip
+    return write_synthetic_manifest(tmp, flights, VEHICLE_TYPE)
 
 
 @pytest.mark.slow

@@ -1,0 +1,228 @@
+"""Physically motivated feature dictionary for terms the effect library does not name.
+
+A discovered term (``Effect("discovered:<label>", params)``, see :mod:`physics.effects`) is a sparse
+linear combination of the features below: every parameter is named ``"<channel>*<feature>"`` and is
+the coefficient, in channel units per feature unit, of one feature in one wrench channel
+(:data:`CHANNELS`: world-frame force in N, torque in N m about the target's centre of mass). So a
+term is stored as name + params and the feature list is in the parameter names.
+
+Frames and conventions as in :mod:`physics.effects`: world frame, z up; ``offsets_m`` are
+``p_target - p_source``; dz = -offset_z > 0 when the target is below a source; r the horizontal
+distance; L the source's size (2 x arm, m); R the target's rotor radius (m); h the target's rotor
+plane above the ground (m); W the target's weight (N).
+
+Every feature is an (N,) array with its unit in its name (``_1`` for dimensionless). Pairwise
+features are sums over the sources, each weighted by a kernel that vanishes far from the source,
+so a term built on them acts between vehicles like any effect:
+
+* jet kernel (source ABOVE): k = [dz > 0] exp(-r^2 / (2 s^2)) / (1 + dz / L), s = L/2 + 0.1 dz —
+  a round jet widening linearly and decaying with depth (the shape of S0-1, S0-2 without its
+  parameters);
+* core kernel (source above): [dz > 0] exp(-(r / L)^2 / 0.5) / (1 + dz / 3 L) — the rotor-scale core of
+  the wake, not spreading, decaying slowly with depth (a second scale beside the jet kernel);
+* near kernel (source above, close): [dz > 0] exp(-r / L) exp(-dz / (3 L)) (zone of flow
+  establishment, S0 II-A);
+* below kernel (source BELOW the target): [dz < 0] exp(-r / L) exp(dz / L) (the target meets the
+  upwash / ceiling of a vehicle under it);
+* side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
+
+Time features (lagged and low-pass copies of the base prediction) need ``EffectInputs.time_s``;
+without it (cost maps, static checks) every sample is a steady state and they equal the
+instantaneous value. Time runs are split where the clock does not advance or jumps by more than
+:data:`MAX_GAP_S` (pooled or sub-sampled series). Relative velocities come from
+``SourceSample.velocity_mps`` (the source's own velocity) when given; otherwise from the time
+derivative of the offsets when ``time_s`` is given; otherwise the source is taken to be at rest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.signal import lfilter
+
+from physics.vehicles import Vehicle
+
+CHANNELS = ("force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
+"""Wrench channels a discovered term may act on (world frame), in the order of (force, torque)."""
+
+LAG_S = 0.1
+"""Delay of the lagged base prediction, s (order of the motor + wake transport time)."""
+
+LOWPASS_TAU_S = 0.3
+"""Time constant of the first-order low-pass copy of the base prediction, s."""
+
+MAX_GAP_S = 1.0
+"""A clock step larger than this (or not positive) starts a new time run, s."""
+
+MIN_HEIGHT_FACTOR = 0.5
+"""Heights are clipped to at least this many rotor radii in the ground kernels, -."""
+
+FEATURE_DOCS: dict[str, str] = {
+    "one_1": "constant 1 (a bias)",
+    "ground_cb_1": "Cheeseman-Bennett ground kernel (R / 4h)^2",
+    "ground_exp_1": "exp(-h / L_target): ground proximity on the vehicle's own size",
+    "v_z_mps": "own vertical speed, world z",
+    "speed_xy_mps": "own horizontal speed",
+    "speed_xy_sq_m2ps2": "own horizontal speed squared",
+    "base_fz_N": "base model F_z summed over sources (S0-7)",
+    "base_fz_lag_N": f"base F_z delayed by {LAG_S} s",
+    "base_fz_lowpass_N": f"base F_z through a first-order low-pass, tau {LOWPASS_TAU_S} s",
+    "base_tx_Nm": "base model torque about world x",
+    "base_ty_Nm": "base model torque about world y",
+    "base_fz_rel_speed_xy_Nmps": "sum over sources of base F_z times the relative horizontal speed",
+    "base_fz_ground_N": "sum over sources of base F_z times exp(-h / L_source) (jet meeting the ground)",
+    "above_jet_1": "sum of jet kernels of the sources above",
+    "above_jet_rel_speed_xy_mps": "jet kernel times relative horizontal speed, summed",
+    "above_jet_rel_v_z_mps": "jet kernel times relative vertical speed (target minus source), summed",
+    "above_jet_ground_1": "jet kernel times exp(-h / L_source), summed",
+    "above_jet_x_1": "jet kernel times offset_x / L, summed (side of the jet, for torques)",
+    "above_jet_y_1": "jet kernel times offset_y / L, summed",
+    "above_stack_1": "sum over source pairs of the product of their jet kernels (stacks)",
+    "above_core_1": "core kernel of the sources above, summed",
+    "above_core_rel_speed_xy_mps": "core kernel times relative horizontal speed, summed",
+    "above_near_1": "near kernel of the sources above, summed",
+    "above_near_rel_speed_xy_mps": "near kernel times relative horizontal speed, summed",
+    "below_near_1": "below kernel of the sources under the target, summed",
+    "side_near_1": "side kernel of level neighbours, summed",
+}
+FEATURE_NAMES = tuple(FEATURE_DOCS)
+
+TARGET_ONLY_FEATURES = ("one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2")
+"""Features of the target alone; every other feature is a sum over sources (zero without one)."""
+
+
+def between_vehicle_part(params: dict[str, float]) -> dict[str, float]:
+    """The parameters of a discovered term whose features act between vehicles (sums over sources)."""
+    return {k: v for k, v in params.items() if parse_term_key(k)[1] not in TARGET_ONLY_FEATURES}
+
+
+def _runs(time_s: np.ndarray) -> list[slice]:
+    """Contiguous time runs of ``time_s`` (see :data:`MAX_GAP_S`)."""
+    dt = np.diff(time_s)
+    cuts = np.flatnonzero((dt <= 0.0) | (dt > MAX_GAP_S)) + 1
+    edges = np.concatenate([[0], cuts, [len(time_s)]])
+    return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def lagged(x: np.ndarray, time_s: np.ndarray | None, lag_s: float = LAG_S) -> np.ndarray:
+    """``x`` (N,) delayed by ``lag_s`` within each time run (held at the run's first value)."""
+    if time_s is None:
+        return np.asarray(x, dtype=float).copy()
+    out = np.empty(len(x))
+    for s in _runs(time_s):
+        t = time_s[s]
+        out[s] = np.interp(t - lag_s, t, x[s])
+    return out
+
+
+def lowpass(x: np.ndarray, time_s: np.ndarray | None, tau_s: float = LOWPASS_TAU_S) -> np.ndarray:
+    """First-order low-pass y' = (x - y) / tau of ``x`` (N,) within each time run, started at x[0]
+    (exact discretisation for a step-wise constant input at the run's median clock step)."""
+    x = np.asarray(x, dtype=float)
+    if time_s is None:
+        return x.copy()
+    out = np.empty(len(x))
+    for s in _runs(time_s):
+        xs = x[s]
+        dt_s = float(np.median(np.diff(time_s[s]))) if len(xs) > 1 else 0.0
+        a = 1.0 - np.exp(-dt_s / tau_s)
+        y, _ = lfilter([a], [1.0, a - 1.0], xs, zi=np.array([(1.0 - a) * xs[0]]))
+        out[s] = y
+    return out
+
+
+def offset_rate_mps(offsets_m: np.ndarray, time_s: np.ndarray) -> np.ndarray:
+    """Time derivative of ``offsets_m`` (N, 3) within each time run (zero on single-sample runs), m/s."""
+    out = np.zeros_like(offsets_m, dtype=float)
+    for s in _runs(time_s):
+        if s.stop - s.start > 1:
+            out[s] = np.gradient(offsets_m[s], time_s[s], axis=0)
+    return out
+
+
+def jet_kernel(dz_m: np.ndarray, r_m: np.ndarray, size_m: float) -> np.ndarray:
+    """Jet kernel of one source above (see the module docstring), -."""
+    dzp = np.maximum(dz_m, 0.0)
+    sigma = 0.5 * size_m + 0.1 * dzp
+    return np.where(dz_m > 0.0, np.exp(-0.5 * (r_m / sigma) ** 2) / (1.0 + dzp / size_m), 0.0)
+
+
+def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """All features of :data:`FEATURE_NAMES` for ``inputs`` (a :class:`physics.effects.EffectInputs`):
+    (N, F) array. ``base_per_source`` holds each source's base wrench (force (N, 3) N, torque (N, 3) N m)."""
+    target: Vehicle = inputs.target
+    n = inputs.n_samples
+    t = None if inputs.time_s is None else np.asarray(inputs.time_s, dtype=float)
+    h = np.asarray(inputs.height_above_ground_m, dtype=float)
+    r_rot = target.propeller.radius_m
+    hc = np.maximum(h, MIN_HEIGHT_FACTOR * r_rot)
+    vel = np.asarray(inputs.velocity_mps, dtype=float).reshape(-1, 3)
+    f: dict[str, np.ndarray] = {k: np.zeros(n) for k in FEATURE_NAMES}
+    f["one_1"] = np.ones(n)
+    f["ground_cb_1"] = (r_rot / (4.0 * hc)) ** 2
+    f["ground_exp_1"] = np.exp(-hc / target.size_m)
+    f["v_z_mps"] = vel[:, 2].copy()
+    f["speed_xy_mps"] = np.hypot(vel[:, 0], vel[:, 1])
+    f["speed_xy_sq_m2ps2"] = f["speed_xy_mps"] ** 2
+    kernels = []
+    for src, (bf, bt) in zip(inputs.sources, base_per_source):
+        off = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
+        size = src.vehicle.size_m
+        dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
+        if src.velocity_mps is not None:
+            v_rel = vel - np.asarray(src.velocity_mps, dtype=float).reshape(-1, 3)
+        elif t is not None:
+            v_rel = offset_rate_mps(off, t)
+        else:
+            v_rel = vel
+        rel_xy = np.hypot(v_rel[:, 0], v_rel[:, 1])
+        k = jet_kernel(dz, r, size)
+        kernels.append(k)
+        ground = np.exp(-hc / size)
+        f["base_fz_N"] += bf[:, 2]
+        f["base_tx_Nm"] += bt[:, 0]
+        f["base_ty_Nm"] += bt[:, 1]
+        f["base_fz_rel_speed_xy_Nmps"] += bf[:, 2] * rel_xy
+        f["base_fz_ground_N"] += bf[:, 2] * ground
+        f["above_jet_1"] += k
+        f["above_jet_rel_speed_xy_mps"] += k * rel_xy
+        f["above_jet_rel_v_z_mps"] += k * v_rel[:, 2]
+        f["above_jet_ground_1"] += k * ground
+        f["above_jet_x_1"] += k * off[:, 0] / size
+        f["above_jet_y_1"] += k * off[:, 1] / size
+        above = dz > 0.0
+        core = np.where(above, np.exp(-2.0 * (r / size) ** 2) / (1.0 + np.maximum(dz, 0.0) / (3.0 * size)), 0.0)
+        f["above_core_1"] += core
+        f["above_core_rel_speed_xy_mps"] += core * rel_xy
+        near = np.where(above, np.exp(-r / size - np.maximum(dz, 0.0) / (3.0 * size)), 0.0)
+        f["above_near_1"] += near
+        f["above_near_rel_speed_xy_mps"] += near * rel_xy
+        f["below_near_1"] += np.where(~above, np.exp(-r / size + np.minimum(dz, 0.0) / size), 0.0)
+        f["side_near_1"] += np.exp(-r / size - (dz / size) ** 2)
+    for i in range(len(kernels)):
+        for j in range(i + 1, len(kernels)):
+            f["above_stack_1"] += kernels[i] * kernels[j]
+    f["base_fz_lag_N"] = lagged(f["base_fz_N"], t)
+    f["base_fz_lowpass_N"] = lowpass(f["base_fz_N"], t)
+    return np.column_stack([f[k] for k in FEATURE_NAMES])
+
+
+def parse_term_key(key: str) -> tuple[str, str]:
+    """Split a discovered-term parameter name ``"<channel>*<feature>"``; ValueError if unknown."""
+    channel, sep, feature = key.partition("*")
+    if not sep or channel not in CHANNELS or feature not in FEATURE_DOCS:
+        raise ValueError(
+            f"discovered-term parameter {key!r}: expected '<channel>*<feature>' with channel one of "
+            f"{', '.join(CHANNELS)} and a feature of physics.features.FEATURE_NAMES"
+        )
+    return channel, feature
+
+
+def term_formula(params: dict[str, float]) -> str:
+    """Human-readable formula of a discovered term, one line per channel."""
+    by_channel: dict[str, list[str]] = {}
+    for key, coef in params.items():
+        channel, feature = parse_term_key(key)
+        by_channel.setdefault(channel, []).append(f"{coef:+.4g} * {feature}")
+    return "; ".join(f"{c} = {' '.join(terms)}" for c, terms in by_channel.items())
