@@ -203,7 +203,8 @@ def test_extra_candidates_are_scored_on_validation_as_given(tmp_path: Path) -> N
     assert result.selected == ["near_field"], [(t.name, t.gain_fz) for t in result.trials]
     assert result.validation.startswith("validation flights: f1")
     assert result.after.rmse_fz_N < 0.8 * result.before.rmse_fz_N  # 0.62 here; the rest is accelerometer noise
-    assert result.to_json()["discovered"] == []
+    # the library explained the residual: discovery may report candidates, it keeps none
+    assert not [d["name"] for d in result.to_json()["discovered"] if d["selected"]]
 
 
 def test_validation_split_is_by_flight_and_test_flights_never_choose(tmp_path: Path) -> None:
