@@ -4,7 +4,7 @@ reports and Neural-Swarm-layout flight logs of the simulated flights.
 """
 
 from flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_flight_logs
-from flightsim.report import plot_errors, simulation_metrics, summary_dict
+from flightsim.report import feedforward_comparison, plot_errors, simulation_metrics, summary_dict
 from flightsim.scenarios_synthetic import (
     battery_swap_plans,
     hover_stack_plan,
@@ -32,6 +32,7 @@ __all__ = [
     "TruthSpec",
     "VehicleRecord",
     "battery_swap_plans",
+    "feedforward_comparison",
     "hover_stack_plan",
     "load_truth_file",
     "merge_truth",

@@ -5,6 +5,10 @@ Same law and same gains as RotorPy's ``SE3Control.update`` (tests compare the tw
 F_des = m (-K_p e_x - K_d e_v + a_ref + g e_z); thrust u1 = F_des . b3; R_des with b3_des along
 F_des and yaw 0; moment u2 = J (-k_R e_R - k_w w) + w x J w; motor thrusts from RotorPy's inverse
 mixer TM_to_f; motor speeds omega = sign(f) sqrt(|f| / k_eta). Frames: world z up, [x, y, z, w].
+
+Feed-forward (``proxplan simulate --feedforward``, not part of RotorPy's law): a predicted external
+force F_ff (world frame, N) and torque tau_ff (body frame, N m) are compensated,
+F_des -> F_des - F_ff and u2 -> u2 - tau_ff. With zero feed-forward the law is RotorPy's exactly.
 """
 
 from __future__ import annotations
@@ -52,10 +56,11 @@ def _normalize(a):
     return [a[0] / n, a[1] / n, a[2] / n]
 
 
-def se3_control(c: ControllerConstants, s, ref_x, ref_v, ref_a):
+def se3_control(c: ControllerConstants, s, ref_x, ref_v, ref_a, ff_force_N=None, ff_torque_body_Nm=None):
     """Commands for state ``s`` (17, see flightsim.dynamics) and reference position, velocity,
-    acceleration (3 each), world frame. Returns (motor speeds (4) rad/s unclipped, motor thrusts
-    (4) N, collective thrust u1 N, body moments u2 (3) N m)."""
+    acceleration (3 each), world frame, compensating the predicted disturbance force (3, world
+    frame, N) and torque (3, body frame, N m) when given. Returns (motor speeds (4) rad/s
+    unclipped, motor thrusts (4) N, collective thrust u1 N, body moments u2 (3) N m)."""
     x, v, q, w = s[0:3], s[3:6], s[6:10], s[10:13]
     rot = rotation(q)
     f_des = [
@@ -68,6 +73,8 @@ def se3_control(c: ControllerConstants, s, ref_x, ref_v, ref_a):
         )
         for k in range(3)
     ]
+    if ff_force_N is not None:
+        f_des = [f_des[k] - ff_force_N[k] for k in range(3)]
     b3 = [rot[0][2], rot[1][2], rot[2][2]]
     u1 = f_des[0] * b3[0] + f_des[1] * b3[1] + f_des[2] * b3[2]
     b3_des = _normalize(f_des)
@@ -86,6 +93,8 @@ def se3_control(c: ControllerConstants, s, ref_x, ref_v, ref_a):
     u2_core = matvec(c.inertia, [-c.kp_att * att_err[k] - c.kd_att * w[k] for k in range(3)])
     wxiw = cross(w, iw)
     u2 = [u2_core[k] + wxiw[k] for k in range(3)]
+    if ff_torque_body_Nm is not None:
+        u2 = [u2[k] - ff_torque_body_Nm[k] for k in range(3)]
     tm = [u1, u2[0], u2[1], u2[2]]
     thrusts = [sum(c.tm_to_f[i][j] * tm[j] for j in range(4)) for i in range(4)]
     speeds = [ca.sign(f) * ca.sqrt(ca.fabs(f) / c.k_eta) for f in thrusts]

@@ -6,7 +6,10 @@ motor command clipped (physics-step resolution), s; the largest authority usage 
 section 3, physics.authority) of the disturbance wrench actually applied; the largest motor usage
 actually commanded (thrust change from hover over the headroom in that direction, tracking
 included: 1 = a motor at its limit); the time spent below another vehicle inside its invalid zone
-(dz <= 3 L, S0 II-A), where the applied model value is an extrapolation.
+(dz <= 3 L with overlapping footprints, S0 II-A: the verifier's test), where the applied model
+value is an extrapolation. Next to the flown authority usage and invalid-zone time stand what the
+plan predicted: the usage of the plan's predicted disturbance (its feed-forward fields, or the
+verifier's model) and the same invalid-zone test on the plan's positions.
 """
 
 from __future__ import annotations
@@ -18,6 +21,8 @@ import numpy as np
 
 from fileio import save_figure
 from physics import authority_usage
+
+USAGE_RATIO_FLOOR = 1e-3  # predicted usage below which a flown/predicted ratio means nothing, -
 
 
 @dataclass(frozen=True)
@@ -32,6 +37,9 @@ class VehicleMetrics:
     max_motor_usage: float  # commanded, tracking included, -
     max_disturbance_force_N: float  # largest |applied external force|, N
     time_in_invalid_zone_s: float  # time below another vehicle within dz <= 3 L of it (S0 II-A), s
+    predicted_max_authority_usage: float  # of the plan's predicted disturbance (model at the plan), -
+    predicted_time_in_invalid_zone_s: float  # the same invalid-zone test on the plan's positions, s
+    usage_ratio_flown_to_predicted: float | None  # max flown / max predicted (None: predicted < 1e-3)
 
 
 def motor_usage(vehicle, cmd_motor_thrust_N: np.ndarray) -> np.ndarray:
@@ -44,34 +52,40 @@ def motor_usage(vehicle, cmd_motor_thrust_N: np.ndarray) -> np.ndarray:
     return np.where(change > 0, change / up, -change / down).max(axis=1)
 
 
-def invalid_zone_mask(result, name: str) -> np.ndarray:
-    """(M,) True where ``name`` is below another vehicle inside its invalid zone: 0 < dz <= 3 L of
-    that vehicle (S0 II-A), horizontally within half the two sizes plus dz (the wake's spread). The
-    simulator still applies the model's (extrapolated) value there."""
-    from physics import validity_mask
+def invalid_zone_mask(result, name: str, *, planned: bool = False) -> np.ndarray:
+    """(M,) True where ``name`` flies in another vehicle's invalid zone (dz <= 3 L with
+    overlapping footprints, physics.invalid_zone_mask: the verifier's test), flown or, with
+    ``planned``, on the plan's reference positions. The simulator applies the model's
+    (extrapolated) value there."""
+    from physics import invalid_zone_mask as zone
 
+    key = "ref_position_m" if planned else "position_m"
     rec = result.records[name]
     bad = np.zeros(rec.t_s.size, dtype=bool)
     for other, orec in result.records.items():
-        if other == name:
-            continue
-        offsets = rec.position_m - orec.position_m
-        dz = -offsets[:, 2]
-        near = np.hypot(offsets[:, 0], offsets[:, 1]) < 0.5 * (rec.vehicle.size_m + orec.vehicle.size_m) + dz
-        bad |= (dz > 0) & near & ~validity_mask(orec.vehicle, offsets)
+        if other != name:
+            bad |= zone(orec.vehicle, rec.vehicle, getattr(rec, key) - getattr(orec, key))
     return bad
 
 
-def invalid_zone_time_s(result, name: str) -> float:
-    """Time (log resolution) ``name`` spends in another vehicle's invalid zone, s."""
-    return float(invalid_zone_mask(result, name).sum() * result.options.log_dt_s)
+def invalid_zone_time_s(result, name: str, *, planned: bool = False) -> float:
+    """Time (log resolution) ``name`` spends in another vehicle's invalid zone (flown or planned), s."""
+    return float(invalid_zone_mask(result, name, planned=planned).sum() * result.options.log_dt_s)
 
 
-def vehicle_metrics(record, saturation_time_s: float, invalid_s: float = 0.0) -> VehicleMetrics:
+def vehicle_metrics(
+    record, saturation_time_s: float, invalid_s: float = 0.0, predicted_invalid_s: float = 0.0
+) -> VehicleMetrics:
     err = record.position_m - record.ref_position_m
     pos = np.linalg.norm(err, axis=1)
     alt = np.abs(err[:, 2])
     usage = authority_usage(record.vehicle, record.applied_force_N, record.applied_torque_Nm)
+    predicted = 0.0
+    if record.predicted_force_N is not None and record.predicted_torque_Nm is not None:
+        predicted = max(
+            0.0, float(authority_usage(record.vehicle, record.predicted_force_N, record.predicted_torque_Nm).max())
+        )
+    flown = max(0.0, float(usage.max()))  # (-0.0 of a vehicle nothing acts on)
     return VehicleMetrics(
         type=record.type_name,
         max_position_error_m=float(pos.max()),
@@ -79,17 +93,25 @@ def vehicle_metrics(record, saturation_time_s: float, invalid_s: float = 0.0) ->
         max_altitude_error_m=float(alt.max()),
         rms_altitude_error_m=float(np.sqrt(np.mean(alt**2))),
         motor_saturation_time_s=float(saturation_time_s),
-        max_authority_usage=float(usage.max()),
+        max_authority_usage=flown,
         max_motor_usage=float(motor_usage(record.vehicle, record.cmd_motor_thrust_N).max()),
         max_disturbance_force_N=float(np.linalg.norm(record.applied_force_N, axis=1).max()),
         time_in_invalid_zone_s=float(invalid_s),
+        predicted_max_authority_usage=predicted,
+        predicted_time_in_invalid_zone_s=float(predicted_invalid_s),
+        usage_ratio_flown_to_predicted=flown / predicted if predicted > USAGE_RATIO_FLOOR else None,
     )
 
 
 def simulation_metrics(result) -> dict[str, VehicleMetrics]:
     """:class:`VehicleMetrics` of every vehicle of a :class:`flightsim.simulate.SimulationResult`."""
     return {
-        n: vehicle_metrics(r, result.saturation_time_s[n], invalid_zone_time_s(result, n))
+        n: vehicle_metrics(
+            r,
+            result.saturation_time_s[n],
+            invalid_zone_time_s(result, n),
+            invalid_zone_time_s(result, n, planned=True),
+        )
         for n, r in result.records.items()
     }
 
@@ -115,6 +137,31 @@ def summary_dict(
         "logs_manifest": manifest_path,
         "notes": list(result.notes),
     }
+
+
+def feedforward_comparison(without, with_ff) -> dict:
+    """Tracking errors of the same flight without and with feed-forward of the predicted
+    disturbance: per vehicle ``{"without": {...}, "with": {...}, "altitude_error_factor",
+    "position_error_factor"}`` (factor = without / with, None when "with" is 0), the most disturbed
+    vehicle (largest max altitude error without) and the notes of the feed-forward flight."""
+    keys = ("max_position_error_m", "rms_position_error_m", "max_altitude_error_m", "rms_altitude_error_m")
+    a, b = simulation_metrics(without), simulation_metrics(with_ff)
+    vehicles = {}
+    for name in a:
+        wo = {k: getattr(a[name], k) for k in keys}
+        wi = {k: getattr(b[name], k) for k in keys}
+        vehicles[name] = {
+            "without": wo,
+            "with": wi,
+            "altitude_error_factor": _ratio(wo["max_altitude_error_m"], wi["max_altitude_error_m"]),
+            "position_error_factor": _ratio(wo["max_position_error_m"], wi["max_position_error_m"]),
+        }
+    worst = max(a, key=lambda n: a[n].max_altitude_error_m) if a else None
+    return {"vehicles": vehicles, "most_disturbed": worst}
+
+
+def _ratio(num: float, den: float) -> float | None:
+    return num / den if den > 1e-12 else None
 
 
 def plot_errors(result, path: str | Path) -> Path:

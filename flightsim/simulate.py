@@ -49,6 +49,7 @@ class SimulationOptions:
     seed: int = 0
     position_integral_rate_ps: float = 0.0  # integral action k_i / k_p per axis, 1/s (0 = RotorPy's PD)
     position_integral_limit_ms: float = 0.2  # anti-windup bound of the integrated position error, m s
+    feedforward: bool = False  # compensate the plan's predicted disturbance wrench in the controller
 
 
 @dataclass(frozen=True)
@@ -99,6 +100,8 @@ class VehicleRecord:
     applied_torque_Nm: np.ndarray  # (M, 3) external torque applied, world axes
     model_force_N: np.ndarray  # (M, 3) base model part only (no truth effects)
     model_torque_Nm: np.ndarray  # (M, 3)
+    predicted_force_N: np.ndarray | None = None  # (M, 3) the plan's predicted disturbance, world frame, N
+    predicted_torque_Nm: np.ndarray | None = None  # (M, 3) world axes, N m
 
     @property
     def accel_meas_world_mps2(self) -> np.ndarray:
@@ -202,7 +205,16 @@ def simulate_plan(
     n_steps = int(round((plan_duration + options.settle_s) / dt / log_every)) * log_every + 1
     t_grid = t0 + dt * np.arange(n_steps)
     pert = perturbation or Perturbation()
-    refs = [tr.sample(t_grid - float(pert.time_offset_s.get(n, 0.0))) for n, tr in zip(names, trajs)]
+    shifts = np.array([float(pert.time_offset_s.get(n, 0.0)) for n in names])
+    refs = [tr.sample(t_grid - shift) for shift, tr in zip(shifts, trajs)]
+    notes: list[str] = []
+    # what the plan predicted, on each vehicle's (possibly late) plan time
+    pred_f, pred_t, ff_note = predicted_wrench(plan, names, t_grid[:, None] - shifts[None, :])
+    ff_f = ff_t = None
+    if options.feedforward:
+        ff_f, ff_t = pred_f, pred_t
+        if ff_note:
+            notes.append(ff_note)
     ref_x = np.stack([r[0] for r in refs], axis=1)  # (n_steps, V, 3)
     ref_v = np.stack([r[1] for r in refs], axis=1)
     ref_a = np.stack([r[2] for r in refs], axis=1)
@@ -220,6 +232,8 @@ def simulate_plan(
     stepper = _stepper(params, dt, truth.wind_mps)
     S = stepper.state
     S[:] = 0.0
+    stepper.ff_force_N[:] = 0.0  # the stepper is cached: no feed-forward left from an earlier flight
+    stepper.ff_torque_Nm[:] = 0.0
     S[:, 0:3] = ref_x[0] + np.array([pert.start_offset_m.get(n, (0.0, 0.0, 0.0)) for n in names], dtype=float)
     S[:, 3:6] = ref_v[0]
     S[:, 9] = 1.0  # identity attitude, [x, y, z, w]
@@ -283,6 +297,9 @@ def simulate_plan(
                 stepper.ref[:, 0:3] -= ki_rate * integral_ms
             stepper.ext_force_N[:] = buf_f[:, j] + extra_f[k]
             stepper.ext_torque_Nm[:] = buf_t[:, j]
+            if ff_f is not None and ff_t is not None:
+                stepper.ff_force_N[:] = ff_f[k]
+                stepper.ff_torque_Nm[:] = ff_t[k]
             stepper.step()
             sat_steps += stepper.saturated
             if k % log_every == 0:
@@ -368,8 +385,9 @@ def simulate_plan(
             applied_torque_Nm=rec["Ta"][:, vi],
             model_force_N=rec["Fm"][:, vi],
             model_torque_Nm=rec["Tm"][:, vi],
+            predicted_force_N=pred_f[::log_every][:n_logged, vi],
+            predicted_torque_Nm=pred_t[::log_every][:n_logged, vi],
         )
-    notes = []
     for name, record in records.items():
         low = float(record.position_m[:, 2].min())
         if low < options.ground_z_m:
@@ -387,6 +405,41 @@ def simulate_plan(
         status=status,
         status_detail=status_detail,
     )
+
+
+def predicted_wrench(plan, names: list[str], t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
+    """The plan's predicted disturbance force (K, V, 3), N, and torque (K, V, 3), N m (world frame)
+    at plan times ``t_s`` ((K,) or per vehicle (K, V)), linear between plan samples and held outside
+    the plan, and a note: the
+    plan's feed-forward fields, or, when a plan has none (older files), the wrench recomputed with
+    the verifier's model (``verify.wrench_along_plan``, the scenario's model options)."""
+    from verify import scenario_of_plan, wrench_along_plan
+
+    trajs = [plan.vehicles[n] for n in names]
+    note = ""
+    if not all(getattr(tr, "disturbance_force_N", None) is not None for tr in trajs):
+        has_scenario = getattr(plan, "scenario_spec", None) is not None or getattr(plan, "scenario_file", None)
+        scenario = scenario_of_plan(plan) if has_scenario else None
+        along = wrench_along_plan(plan, scenario, t_s=trajs[0].t_s)
+        forces = [along[n].force_N for n in names]
+        torques = [along[n].torque_Nm for n in names]
+        note = (
+            "the plan has no feed-forward fields (disturbance_force_N / disturbance_torque_Nm; an older plan.json): "
+            "recomputed with the verifier's model"
+        )
+    else:
+        forces = [tr.disturbance_force_N for tr in trajs]
+        torques = [tr.disturbance_torque_Nm for tr in trajs]
+    t_kv = np.asarray(t_s, dtype=float)
+    if t_kv.ndim == 1:
+        t_kv = np.repeat(t_kv[:, None], len(names), axis=1)
+    f = np.zeros((t_kv.shape[0], len(names), 3))
+    tq = np.zeros_like(f)
+    for vi, tr in enumerate(trajs):
+        for d in range(3):
+            f[:, vi, d] = np.interp(t_kv[:, vi], tr.t_s, forces[vi][:, d])
+            tq[:, vi, d] = np.interp(t_kv[:, vi], tr.t_s, torques[vi][:, d])
+    return f, tq, note
 
 
 _STEPPER_CACHE: dict = {}

@@ -32,7 +32,9 @@ class CompiledStepper:
 
     Arrays (filled by the caller before :meth:`step`, read after it):
     ``state`` (V, 17); ``ref`` (V, 9) position m, velocity m/s, acceleration m/s^2, world frame;
-    ``ext_force_N`` (V, 3) world frame; ``ext_torque_Nm`` (V, 3) world axes.
+    ``ext_force_N`` (V, 3) world frame; ``ext_torque_Nm`` (V, 3) world axes; ``ff_force_N`` (V, 3)
+    world frame and ``ff_torque_Nm`` (V, 3) world axes: the predicted disturbance the controller
+    compensates (zero: RotorPy's law; the torque is rotated into the body frame like the applied one).
     Outputs: ``next_state`` (V, 17); ``cmd_thrust_N`` (V, 4) commanded motor thrusts (unclipped);
     ``ctbm`` (V, 4) collective thrust N and body moments N m; ``saturated`` (V,) 1 where a motor
     command was clipped; ``accel_mps2`` (V, 3) true acceleration at the step start (gravity excluded).
@@ -46,6 +48,8 @@ class CompiledStepper:
         R = ca.SX.sym("R", n * 9)
         F = ca.SX.sym("F", n * 3)
         T = ca.SX.sym("T", n * 3)
+        FF = ca.SX.sym("FF", n * 3)
+        TF = ca.SX.sym("TF", n * 3)
         outs: dict[str, list] = {"next": [], "cmd": [], "ctbm": [], "sat": [], "acc": []}
         wind = [float(w) for w in wind_mps]
         for i, p in enumerate(params):
@@ -55,7 +59,9 @@ class CompiledStepper:
             ref = [R[i * 9 + k] for k in range(9)]
             f_ext = [F[i * 3 + k] for k in range(3)]
             t_ext_w = [T[i * 3 + k] for k in range(3)]
-            speeds, thrusts, u1, u2 = se3_control(cc, s, ref[0:3], ref[3:6], ref[6:9])
+            ff_f = [FF[i * 3 + k] for k in range(3)]
+            ff_t_b = mat_t_vec(rotation(s[6:10]), [TF[i * 3 + k] for k in range(3)])
+            speeds, thrusts, u1, u2 = se3_control(cc, s, ref[0:3], ref[3:6], ref[6:9], ff_f, ff_t_b)
             cmd = [_clip(sp, vc.speed_min_radps, vc.speed_max_radps) for sp in speeds]
             sat = 0
             for sp in speeds:
@@ -83,22 +89,25 @@ class CompiledStepper:
             outs["acc"] += k1[3:6]
         self.function = ca.Function(
             "proxplan_step",
-            [S, R, F, T],
+            [S, R, F, T, FF, TF],
             [ca.vertcat(*outs[k]) for k in ("next", "cmd", "ctbm", "sat", "acc")],
-            ["state", "ref", "ext_force", "ext_torque"],
+            ["state", "ref", "ext_force", "ext_torque", "ff_force", "ff_torque"],
             ["next", "cmd", "ctbm", "sat", "acc"],
         )
         self.state = np.zeros((n, STATE_SIZE))
         self.ref = np.zeros((n, 9))
         self.ext_force_N = np.zeros((n, 3))
         self.ext_torque_Nm = np.zeros((n, 3))
+        self.ff_force_N = np.zeros((n, 3))
+        self.ff_torque_Nm = np.zeros((n, 3))
         self.next_state = np.zeros((n, STATE_SIZE))
         self.cmd_thrust_N = np.zeros((n, 4))
         self.ctbm = np.zeros((n, 4))
         self.saturated = np.zeros(n)
         self.accel_mps2 = np.zeros((n, 3))
         self._buf, self._eval = self.function.buffer()  # CasADi's zero-copy evaluation buffers
-        for k, arg in enumerate((self.state, self.ref, self.ext_force_N, self.ext_torque_Nm)):
+        inputs = (self.state, self.ref, self.ext_force_N, self.ext_torque_Nm, self.ff_force_N, self.ff_torque_Nm)
+        for k, arg in enumerate(inputs):
             self._buf.set_arg(k, memoryview(arg))  # type: ignore[call-arg, arg-type]  # size from the buffer
         for k, res in enumerate((self.next_state, self.cmd_thrust_N, self.ctbm, self.saturated, self.accel_mps2)):
             self._buf.set_res(k, memoryview(res))  # type: ignore[call-arg, arg-type]

@@ -14,6 +14,7 @@ from physics.disturbance import (
     VALIDITY_FACTOR_L,
     ModelOptions,
     disturbance_wrench,
+    invalid_zone_mask,
     oncoming_speed_per_rotor_mps,
     validity_mask,
 )
@@ -118,6 +119,7 @@ __all__ = [
     "target_only_notes",
     "total_wrench",
     "validity_mask",
+    "invalid_zone_mask",
     "vehicle_file_notes",
     "vehicle_from_dict",
     "vehicle_to_yaml_dict",

@@ -13,6 +13,11 @@ Sources
 [ET]  Eschmann et al. 2024 (cited in RotorPy's crazyflie_params.py): Crazyflie motor time constant
       0.072 s.
 [A]   Assumption, stated here, to be corrected by calibration (``proxplan identify``).
+[M]   Measured in closed-loop simulation: :mod:`flightsim.tracking` flies each type alone with the
+      default controller (RotorPy's SE(3) law and Crazyflie gains) along a course of rest-to-rest
+      segments; at 1 m/s, 1 m/s^2, 2 m/s^3 its largest position error is 4.4 cm for every built-in
+      type (the gains are normalised by mass and inertia), at the earlier 1.5 m/s, 3 m/s^2, 15 m/s^3
+      it was 13 cm (docs/flying.md; ``python benchmarks/bench_fly.py --limits``).
 
 Derived values
 --------------
@@ -29,6 +34,9 @@ import math
 
 from physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec
 from physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
+
+TRACKABLE_LIMITS = KinematicLimits(max_speed_mps=1.0, max_accel_mps2=1.0, max_jerk_mps3=2.0)
+"""Speed m/s, acceleration m/s^2 and jerk m/s^3 the default controller tracks within 4.4 cm [M]."""
 
 _JXX_PER_ML2 = 1.43e-5 / (0.030 * 0.046**2)  # Crazyflie [RP] inertia over m l^2, -
 _JZZ_PER_ML2 = 2.89e-5 / (0.030 * 0.046**2)
@@ -61,9 +69,7 @@ SMALL_QUAD = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.045, arm_width_m=0.008, motor_pod_diameter_m=0.014),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.033, c_rad=60.808),  # [S0] IV-B
-    kinematics=KinematicLimits(
-        max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0
-    ),  # [A] tracked by the default controller
+    kinematics=TRACKABLE_LIMITS,  # [M] tracked by the default controller within 4.4 cm
     motor_time_constant_s=0.04,  # [A] 5-10 inch brushless value (DEFAULT_MOTOR_TIME_CONSTANT_S), s
     sources={
         "mass/arm/propeller/max thrust": "S0 Table I",
@@ -92,9 +98,7 @@ LARGE_QUAD = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.10, arm_width_m=0.018, motor_pod_diameter_m=0.030),  # [A]
     downwash=DownwashSpec(c_ax=4.886, z0_m=0.110, c_rad=24.936),  # [S0] IV-B
-    kinematics=KinematicLimits(
-        max_speed_mps=1.0, max_accel_mps2=2.0, max_jerk_mps3=8.0
-    ),  # [A] tracked by the default controller
+    kinematics=TRACKABLE_LIMITS,  # [M] tracked by the default controller within 4.4 cm
     motor_time_constant_s=0.04,  # [A] 5-10 inch brushless value (DEFAULT_MOTOR_TIME_CONSTANT_S), s
     sources={
         "mass/arm/propeller/max thrust": "S0 Table I",
@@ -123,9 +127,7 @@ CRAZYFLIE_21 = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.030, arm_width_m=0.005, motor_pod_diameter_m=0.009),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.092, c_rad=60.808),  # [A] S0 small quad, z0/L kept
-    kinematics=KinematicLimits(
-        max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0
-    ),  # [A] tracked by the default controller
+    kinematics=TRACKABLE_LIMITS,  # [M] tracked by the default controller within 4.4 cm
     motor_time_constant_s=0.072,  # [ET], s
     sources={
         "mass, geometry": "Neural-Swarm README",
@@ -152,9 +154,7 @@ CRAZYFLIE_PARROT = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.035, arm_width_m=0.007, motor_pod_diameter_m=0.012),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.120, c_rad=60.808),  # [A] as crazyflie-2.1
-    kinematics=KinematicLimits(
-        max_speed_mps=1.5, max_accel_mps2=3.0, max_jerk_mps3=15.0
-    ),  # [A] tracked by the default controller
+    kinematics=TRACKABLE_LIMITS,  # [M] tracked by the default controller within 4.4 cm
     motor_time_constant_s=0.072,  # [ET] same motors and firmware as the Crazyflie, s
     sources={
         "mass": "Neural-Swarm README",

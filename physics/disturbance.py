@@ -86,6 +86,21 @@ def validity_mask(source: Vehicle, offsets_m: np.ndarray) -> np.ndarray:
     return -np.asarray(offsets_m)[:, 2] > VALIDITY_FACTOR_L * source.size_m
 
 
+def invalid_zone_mask(source: Vehicle, target: Vehicle, offsets_m: np.ndarray, tube_m=0.0) -> np.ndarray:
+    """True where the target is in the source's invalid zone, shape (N,): below it within
+    dz <= 3 L (S0 II-A) with overlapping footprints (horizontal distance < the sum of the body
+    radii), both grown by the tracking tube ``tube_m`` (m, scalar or (N,)). The one definition
+    the verifier, the planner's metrics and the simulator's reports share."""
+    off = np.asarray(offsets_m, dtype=float)
+    dz = -off[:, 2]
+    r = np.hypot(off[:, 0], off[:, 1])
+    return (
+        (dz > 1e-6)
+        & (dz <= VALIDITY_FACTOR_L * source.size_m + tube_m)
+        & (r < source.body_radius_m + target.body_radius_m + tube_m)
+    )
+
+
 def vertical_point_wrench(points_m: np.ndarray, force_z_N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Sum vertical point forces (N, K), N, at body points (K, 3), m, into force (N, 3), N, and
     torque about the centre of mass (N, 3), N m: tau = r x (0, 0, F_z) (S0-4, S0-8)."""

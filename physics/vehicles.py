@@ -101,13 +101,14 @@ class Vehicle:
     @cached_property
     def kinematic_limits(self) -> KinematicLimits:
         """Speed, acceleration and jerk limits: ``kinematics`` when given, else derived from the
-        spare vertical acceleration a = T_max/m - g: accel = a/4 clipped to [1, 3] m/s^2,
-        speed 1 m/s, jerk 5 x accel (conservative for an untested vehicle)."""
+        spare vertical acceleration a = T_max/m - g: accel = a/4 clipped to [0.25, 1] m/s^2,
+        speed 1 m/s, jerk 2 x accel. The caps are what the default controller tracks within
+        ~4.4 cm (1 m/s, 1 m/s^2, 2 m/s^3, measured by flightsim.tracking; docs/flying.md)."""
         if self.kinematics is not None:
             return self.kinematics
         spare_mps2 = self.max_thrust_N / self.mass_kg - GRAVITY_MPS2
-        accel = float(min(3.0, max(1.0, 0.25 * spare_mps2)))
-        return KinematicLimits(max_speed_mps=1.0, max_accel_mps2=accel, max_jerk_mps3=5.0 * accel)
+        accel = float(min(1.0, max(0.25, 0.25 * spare_mps2)))
+        return KinematicLimits(max_speed_mps=1.0, max_accel_mps2=accel, max_jerk_mps3=2.0 * accel)
 
     @property
     def weight_N(self) -> float:

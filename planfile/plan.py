@@ -24,6 +24,11 @@ plan.json keys: ``format_version``, ``scenario`` (name), ``dt_s``, ``method``, `
 plan was made with travels in ``scenario_spec.model``: ``field_form`` and ``effects`` (the
 calibrated model's effects between vehicles with every parameter, ``[{name, params}]``;
 :attr:`Plan.effects`).
+
+Feed-forward (optional per vehicle, written by ``proxplan plan``): ``disturbance_force_N`` and
+``disturbance_torque_Nm`` (N, 3), the disturbance wrench the model predicts on the vehicle at each
+``t_s`` (world frame, level vehicle; ``verify.wrench_along_plan``). Plans without them (older
+files) read with ``None``; users recompute them and say so (``proxplan simulate --feedforward``).
 """
 
 from __future__ import annotations
@@ -69,6 +74,12 @@ class VehicleTrajectory:
     position_m: np.ndarray
     velocity_mps: np.ndarray
     acceleration_mps2: np.ndarray
+    disturbance_force_N: np.ndarray | None = None  # (N, 3) predicted, world frame, N (feed-forward)
+    disturbance_torque_Nm: np.ndarray | None = None  # (N, 3) predicted, world axes, N m
+
+    @property
+    def has_feedforward(self) -> bool:
+        return self.disturbance_force_N is not None and self.disturbance_torque_Nm is not None
 
     def sample(self, t_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position_m, velocity_mps, acceleration_mps2), each (M, 3), at times ``t_s`` (M,), s.
@@ -191,6 +202,14 @@ def plan_to_dict(plan: Plan) -> dict:
                     "position_m": np.round(tr.position_m, 6),
                     "velocity_mps": np.round(tr.velocity_mps, 6),
                     "acceleration_mps2": np.round(tr.acceleration_mps2, 6),
+                    **(
+                        {
+                            "disturbance_force_N": np.round(tr.disturbance_force_N, 7),
+                            "disturbance_torque_Nm": np.round(tr.disturbance_torque_Nm, 8),
+                        }
+                        if tr.disturbance_force_N is not None and tr.disturbance_torque_Nm is not None
+                        else {}
+                    ),
                 }
                 for name, tr in plan.vehicles.items()
             },
@@ -291,7 +310,12 @@ def plan_from_dict(doc: Any, *, label: str = "<plan>") -> Plan:
             grid = t
         elif t.shape != grid.shape or not np.allclose(t, grid, atol=GRID_TOLERANCE_S, rtol=0.0):
             raise UserError(f"{where}.t_s: expected the common time grid shared by every vehicle")
-        vehicles[str(name)] = VehicleTrajectory(str(name), type_name, types[type_name], t, *arrays)
+        ff: list[np.ndarray | None] = []
+        for key in ("disturbance_force_N", "disturbance_torque_Nm"):  # feed-forward, optional
+            ff.append(None if v.get(key) is None else _array(v[key], f"{where}.{key}", (3,)))
+            if ff[-1] is not None and len(ff[-1]) != t.shape[0]:
+                raise UserError(f"{where}.{key}: expected {t.shape[0]} rows (one per t_s), got {len(ff[-1])}")
+        vehicles[str(name)] = VehicleTrajectory(str(name), type_name, types[type_name], t, *arrays, *ff)
     metrics = doc.get("metrics") or {}
     if not isinstance(metrics, dict):
         raise UserError(f"{label}: metrics: expected an object")

@@ -53,6 +53,7 @@ LIMIT_KEYS = (
     "invalid_zone_rule",
     "obstacle_margin_m",
     "time_horizon_s",
+    "tracking_margin_m",
 )
 VEHICLE_KEYS = (
     "type",
@@ -64,6 +65,10 @@ VEHICLE_KEYS = (
     "max_accel_mps2",
     "max_jerk_mps3",
 )
+TRACKING_MARGIN_M = 0.06
+"""Default tube radius, m: the largest closed-loop position error measured with the built-in
+vehicles' trackable limits and the default controller was 4.4 cm alone (flightsim.tracking course)
+and 5.5 cm in an 8-vehicle formation change (benchmarks/bench_fly.py); docs/flying.md."""
 DOCK_APPROACH_MARGIN_M = 0.1  # a dock approach point lies this far beyond the invalid zone, m
 INVALID_ZONE_RULES = ("conservative", "model", "forbid")
 """How the planner treats 0 < dz <= 3 L of a source where the field model is not valid (S0 II-A):
@@ -96,6 +101,10 @@ class Limits:
     ``invalid_zone_rule``: one of :data:`INVALID_ZONE_RULES`.
     ``obstacle_margin_m``: extra inflation of obstacles beyond the vehicle's body radius, m.
     ``time_horizon_s``: longest plan the sampler searches, s.
+    ``tracking_margin_m``: the tube, m: how far a vehicle may be off its plan when flown closed-loop.
+    Planner and verifier add it to the separation, to the cut-off radius and to the horizontal and
+    vertical extent of the invalid zone. Default :data:`TRACKING_MARGIN_M`, sized from measured
+    closed-loop errors (docs/flying.md).
     """
 
     authority_fraction: float = 0.5
@@ -103,6 +112,7 @@ class Limits:
     invalid_zone_rule: str = "conservative"
     obstacle_margin_m: float = 0.05
     time_horizon_s: float = 60.0
+    tracking_margin_m: float = TRACKING_MARGIN_M
 
 
 @dataclass(frozen=True)
@@ -189,6 +199,7 @@ class Scenario:
                 "invalid_zone_rule": lim.invalid_zone_rule,
                 "obstacle_margin_m": lim.obstacle_margin_m,
                 "time_horizon_s": lim.time_horizon_s,
+                "tracking_margin_m": lim.tracking_margin_m,
             },
             "vehicles": vehicles,
         }
@@ -413,6 +424,9 @@ def _limits(data: Any, where: str) -> Limits:
     margin = data.get("obstacle_margin_m", d.obstacle_margin_m)
     if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not (0 <= margin < 10):
         raise UserError(f"{where}.obstacle_margin_m: expected a number in [0, 10) m, got {margin!r}")
+    tube = data.get("tracking_margin_m", d.tracking_margin_m)
+    if isinstance(tube, bool) or not isinstance(tube, (int, float)) or not (0 <= tube < 1):
+        raise UserError(f"{where}.tracking_margin_m: expected a number in [0, 1) m, got {tube!r}")
     return Limits(
         authority_fraction=_positive(
             data.get("authority_fraction", d.authority_fraction), f"{where}.authority_fraction", upper=1.0
@@ -423,6 +437,7 @@ def _limits(data: Any, where: str) -> Limits:
         invalid_zone_rule=str(rule),
         obstacle_margin_m=float(margin),
         time_horizon_s=_positive(data.get("time_horizon_s", d.time_horizon_s), f"{where}.time_horizon_s", upper=600.0),
+        tracking_margin_m=float(tube),
     )
 
 

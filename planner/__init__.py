@@ -8,6 +8,7 @@ from planner.optimize import RefineOptions, RefineResult, refine_plan
 from planner.pipeline import DT_S, METHODS, plan_scenario
 from planner.plot import plot_plan
 from planner.summary import plan_summary
+from planner.timing import common_grid, time_parameterize
 
 __all__ = [
     "DT_S",
@@ -19,4 +20,6 @@ __all__ = [
     "plan_summary",
     "plot_plan",
     "refine_plan",
+    "common_grid",
+    "time_parameterize",
 ]

@@ -23,7 +23,7 @@ Scalar Python math is used per state because OMPL calls the checker once per sta
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -163,6 +163,12 @@ class Track:
     def end_s(self) -> float:
         return (len(self.x) - 1) * self.dt_s
 
+    def moving_at(self, t_s: float, *, rest_speed_mps: float = 0.05) -> bool:
+        """Whether the track moves faster than ``rest_speed_mps`` around ``t_s`` (finite difference)."""
+        h = 0.5 * self.dt_s
+        a, b = self.at(t_s - h), self.at(t_s + h)
+        return math.dist(a, b) > rest_speed_mps * 2.0 * h
+
     def at(self, t_s: float) -> tuple[float, float, float]:
         """Linearly interpolated position at ``t_s``, m."""
         n = len(self.x)
@@ -192,6 +198,29 @@ class PairRule:
     usage_from_other: UsageTable | None = None  # other is the source (objective only)
     margin_m: float = 0.0  # added to the cutoff radius, m
     until_margin_s: float = 0.0  # added to the track's presence, s
+    tube_m: float = 0.0  # tracking tube: cut-off radius over dz +- tube, plus tube, m
+
+    def without_tube(self) -> PairRule:
+        """This rule with the tracking tube taken out of its radii (for a pair at rest)."""
+        return replace(
+            self,
+            separation_m=self.separation_m - self.tube_m,
+            ellipsoid_r_m=None if self.ellipsoid_r_m is None else self.ellipsoid_r_m - self.tube_m,
+            tube_m=0.0,
+        )
+
+    def cutoff_m(self, table: CutoffTable, dz_m: float) -> float:
+        """Cut-off radius at vertical separation ``dz_m`` (> 0), m: the table's largest value over
+        dz +- tube (the vehicle may fly that far off its plan), plus margin and tube; 0 where the
+        model allows any horizontal distance."""
+        rc = table.lookup(dz_m)
+        if self.tube_m > 0.0:
+            rc = max(rc, table.lookup(dz_m + self.tube_m))
+            if dz_m > self.tube_m:
+                rc = max(rc, table.lookup(dz_m - self.tube_m))
+            else:  # the tube reaches the other vehicle's level: at least the separation circle
+                rc = max(rc, table.lookup(min(dz_m, 1e-3)))
+        return rc + self.margin_m + self.tube_m if rc > 0.0 else 0.0
 
 
 @dataclass
@@ -214,7 +243,9 @@ class ConflictChecker:
                 return f"obstacle[{i}]"
         return None
 
-    def conflict(self, x: float, y: float, z: float, t: float, *, exclude: str | None = None) -> str | None:
+    def conflict(
+        self, x: float, y: float, z: float, t: float, *, exclude: str | None = None, resting: bool = False
+    ) -> str | None:
         """The first violated constraint at a state ("workspace", "obstacle[i]", "separation from B",
         "downwash of B", "downwash on B", "ellipsoid of B") or None when valid."""
         c = self.static_conflict(x, y, z)
@@ -227,6 +258,8 @@ class ConflictChecker:
             ox, oy, oz = tr.at(t)
             dx, dy, dz = x - ox, y - oy, z - oz
             r2 = dx * dx + dy * dy
+            if resting and rule.tube_m > 0.0 and not tr.moving_at(t):
+                rule = rule.without_tube()  # both rest: no tracking tube (as the verifier)
             if r2 + dz * dz < rule.separation_m * rule.separation_m:
                 return f"separation from {tr.name}"
             if rule.ellipsoid_r_m is not None:
@@ -235,13 +268,11 @@ class ConflictChecker:
                     return f"ellipsoid of {tr.name}"
                 continue
             if dz < 0.0 and rule.cut_from_other is not None:
-                rc = rule.cut_from_other.lookup(-dz)
-                rc = rc + rule.margin_m if rc > 0.0 else 0.0
+                rc = rule.cutoff_m(rule.cut_from_other, -dz)
                 if r2 < rc * rc:
                     return f"downwash of {tr.name}"
             elif dz > 0.0 and rule.cut_on_other is not None:
-                rc = rule.cut_on_other.lookup(dz)
-                rc = rc + rule.margin_m if rc > 0.0 else 0.0
+                rc = rule.cutoff_m(rule.cut_on_other, dz)
                 if r2 < rc * rc:
                     return f"downwash on {tr.name}"
         return None
@@ -285,6 +316,7 @@ def build_checker(
     level: float | None = None,
     margin_m: float = 0.0,
     until_margin_s: float = 0.0,
+    tube: bool = True,
 ) -> ConflictChecker:
     """The checker of vehicle ``name`` against ``tracks`` (other vehicles) for one ``mode``.
 
@@ -294,6 +326,11 @@ def build_checker(
     separation, cutoff and ellipsoid radii and to the obstacle inflation, ``until_margin_s`` (s)
     to the presence of vehicles not planned yet: the planner searches with small margins so that
     the timed trajectory passes the nominal re-check although both sample the motion differently.
+    With ``tube`` (default) the scenario's ``limits.tracking_margin_m`` (the closed-loop tracking
+    tube, m) is added to the separation and ellipsoid radii and to the cut-off radius, which is
+    also taken as its largest value over dz +- tube (so the invalid zone grows by the tube
+    vertically too); ``tube=False`` leaves it out. ``conflict(..., resting=True)`` (the planned
+    vehicle holds) leaves it out for tracks that rest too, as the verifier does for pairs at rest.
     """
     from costmaps import effects_key
 
@@ -310,10 +347,11 @@ def build_checker(
         grow = np.array([rb + lim.obstacle_margin_m, rb + lim.obstacle_margin_m, mz]) + margin_m
         boxes.append(tuple((box.min_m - grow).tolist() + (box.max_m + grow).tolist()))
     level = lim.authority_fraction if level is None else level
+    tube_m = float(lim.tracking_margin_m) if tube else 0.0
     rules = []
     for tr in tracks:
         other = tr.vehicle
-        sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m
+        sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m + tube_m
         cut_from = cut_on = ell = None
         form, fx = scenario.field_form, effects_key(getattr(scenario, "effects", ()))
         usage_from = usage_table(other, task.vehicle, field_form=form, effects=fx)
@@ -325,6 +363,6 @@ def build_checker(
                 task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=form, effects=fx
             )
         elif mode == "ellipsoid":
-            ell = rb + other.body_radius_m + margin_m
-        rules.append(PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s))
+            ell = rb + other.body_radius_m + margin_m + tube_m
+        rules.append(PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s, tube_m))
     return ConflictChecker(name, tuple(lo.tolist()), tuple(hi.tolist()), boxes, rules)

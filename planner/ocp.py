@@ -271,7 +271,12 @@ class _Builder:
                 if ks.size == 0:
                     continue
                 g = groups.setdefault(id(fn), {"fn": fn, "offsets": [], "rows": []})
-                g["offsets"].append(self.Q[nt][:, ks.tolist()] - self.Q[ns][:, ks.tolist()])
+                rel = self.Q[nt][:, ks.tolist()] - self.Q[ns][:, ks.tolist()]
+                if pb.tube_m > 0.0:  # worst point of the tracking tube: towards the axis (smooth)
+                    r2 = rel[0, :] ** 2 + rel[1, :] ** 2
+                    shrink = 1.0 - pb.tube_m / ca.sqrt(r2 + pb.tube_m**2)
+                    rel = ca.vertcat(rel[0, :] * shrink, rel[1, :] * shrink, rel[2, :])
+                g["offsets"].append(rel)
                 g["rows"].append((nt, ks))
         totals: dict[str, Any] = {}  # target -> casadi (4, nq) motor-thrust changes, N
         active: dict[str, np.ndarray] = {}

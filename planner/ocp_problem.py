@@ -73,6 +73,7 @@ class OcpProblem:
     authority_margin: float = 0.9  # check-point bound is this fraction of authority_fraction
     obstacle_margin_m: float = 0.05  # clearance to boxes beyond the body radius, m
     chord_margin_m: float = 0.03  # extra clearance for the path between check points, m
+    tube_m: float = 0.0  # tracking tube: authority checked with the target this much closer to the source's axis, m
     interaction_radius_m: float = 2.0  # horizontal range beyond which a pair is ignored, m
     # optional per ordered pair: dz_m (K,) -> lateral half-width (K,) m beyond which the pair's
     # wrench table is zero; authority terms are then kept only within it + extent_margin_m
@@ -119,4 +120,5 @@ def scenario_fields(scenario) -> dict[str, Any]:
         "authority_fraction": float(limits.authority_fraction),
         "obstacle_margin_m": float(limits.obstacle_margin_m),
         "invalid_zone_keep_out": limits.invalid_zone_rule != "model",
+        "tube_m": float(limits.tracking_margin_m),
     }

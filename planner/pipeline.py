@@ -193,7 +193,7 @@ def _goal_problem(checker, goal: GoalSpec) -> str | None:
     """The constraint that keeps the goal (or dock) occupied at the end of the horizon, if any."""
     end = goal.tail[-1] if goal.tail else goal.position_m
     for p, exclude in ((goal.position_m, None), (end, goal.tail_exempt)):
-        c = checker.conflict(float(p[0]), float(p[1]), float(p[2]), goal.hold_until_s, exclude=exclude)
+        c = checker.conflict(float(p[0]), float(p[1]), float(p[2]), goal.hold_until_s, exclude=exclude, resting=True)
         if c is not None:
             return f"{c} at the goal" if p is end else f"{c} at the dock approach point"
     return None
@@ -209,7 +209,8 @@ def _retime_with_tail(sp, limits: KinematicLimits, tail_limits: KinematicLimits,
 
 
 def _recheck(checker, tp: TimedPath, goal: GoalSpec, hold_until: float) -> str | None:
-    """First conflict of the timed trajectory on a fine grid (dock target exempt on the tail)."""
+    """First conflict of the timed trajectory on a fine grid (dock target exempt on the tail); no
+    tracking tube for a pair while both rest (speed < REST_SPEED_MPS), as in the verifier."""
     t_tail = tp.knot_t_s[-1 - len(goal.tail)] if goal.tail else math.inf
     t = np.arange(0.0, max(tp.duration_s, hold_until) + 1e-9, DT_S / 2)
     p, _, _ = tp.sample(t)
@@ -364,10 +365,11 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
 def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) -> None:
     """Fill the DESIGN metrics (planning_time_s, max_authority_usage, min_separation_m, makespan_s)
     and extras (per-vehicle usage, path length, arrival time, invalid-zone time of docks)."""
-    from verify import separation_summary, wrench_along_plan
+    from verify import attach_feedforward, separation_summary, wrench_along_plan
 
     t = plan.t_s
     along = wrench_along_plan(plan, scenario, t_s=t)
+    attach_feedforward(plan, along)  # the predicted wrench, for controllers that feed it forward
     usage = {n: max(0.0, float(a.usage.max())) for n, a in along.items()}
     sep = separation_summary(plan, scenario)
     moving_end = 0.0
@@ -385,6 +387,7 @@ def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) ->
             "min_separation_m": sep["min_separation_m"],
             "makespan_s": float(moving_end),
             "authority_fraction": scenario.limits.authority_fraction,
+            "tracking_margin_m": scenario.limits.tracking_margin_m,
             "authority_usage_by_vehicle": usage,
             "invalid_zone_s_by_vehicle": {n: float(a.invalid_zone.sum() * plan.dt_s) for n, a in along.items()},
             "min_dock_separation_m": sep["min_dock_separation_m"],

@@ -536,4 +536,4 @@ def plan_space_time(
 
 def start_conflict(checker: ConflictChecker, start_m: np.ndarray) -> str | None:
     """The constraint the start state violates at t = 0, or None."""
-    return checker.conflict(float(start_m[0]), float(start_m[1]), float(start_m[2]), 0.0)
+    return checker.conflict(float(start_m[0]), float(start_m[1]), float(start_m[2]), 0.0, resting=True)

@@ -77,6 +77,13 @@ class BatchChecker:
             arr = np.asarray(tab.r_cut_m, dtype=float)
             pair = np.zeros(arr.size)  # lookup(dz) = max(arr[k], arr[k + 1]) while k + 1 < size
             pair[:-1] = np.maximum(arr[:-1], arr[1:])
+            if r.tube_m > 0.0:  # tracking tube: the largest radius over dz +- tube (PairRule.cutoff_m)
+                reach = int(math.ceil(r.tube_m / float(tab.dz_step_m) - 1e-9))
+                grown = pair.copy()
+                for j in range(1, min(reach, pair.size - 1) + 1):
+                    grown[:-j] = np.maximum(grown[:-j], pair[j:])
+                    grown[j:] = np.maximum(grown[j:], pair[:-j])
+                pair = grown
             return pair, float(tab.dz_step_m)
 
         tabs_from = [table(r, "cut_from_other") for r in rules]
@@ -90,7 +97,7 @@ class BatchChecker:
             cut_on[i, : tabs_on[i][0].size] = tabs_on[i][0]
         sep = np.array([r.separation_m for r in rules], dtype=float)
         ell = np.array([np.nan if r.ellipsoid_r_m is None else r.ellipsoid_r_m for r in rules], dtype=float)
-        margin = np.array([r.margin_m for r in rules], dtype=float)
+        margin = np.array([r.margin_m + r.tube_m for r in rules], dtype=float)  # tube as in PairRule.cutoff_m
         reach = np.maximum.reduce(
             [sep, np.nan_to_num(ell, nan=0.0), cut_from.max(axis=1, initial=0.0), cut_on.max(axis=1, initial=0.0)]
         )

@@ -3,14 +3,16 @@
 (wrench, authority usage, invalid zone, separations) that planner metrics and the web app show.
 """
 
-from verify.along import WrenchAlongPlan, separation_summary, wrench_along_plan
-from verify.checks import GOAL_TOLERANCE_M, scenario_of_plan, verify_plan
+from verify.along import WrenchAlongPlan, attach_feedforward, separation_summary, wrench_along_plan
+from verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, verify_plan
 from verify.violations import Violation
 
 __all__ = [
     "GOAL_TOLERANCE_M",
+    "REST_SPEED_MPS",
     "Violation",
     "WrenchAlongPlan",
+    "attach_feedforward",
     "scenario_of_plan",
     "separation_summary",
     "verify_plan",

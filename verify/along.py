@@ -13,20 +13,22 @@ the plan-file sampler. World frame, z up; m, N, N m, s.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from costmaps import pair_wrench, sources_wrench
-from physics import VALIDITY_FACTOR_L, ModelOptions, authority_usage
+from physics import ModelOptions, authority_usage, invalid_zone_mask
 from planfile import Plan, Scenario
 
 DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
 
 
-def model_options(scenario: Scenario) -> ModelOptions:
-    """The disturbance-model options a scenario asks for."""
-    return ModelOptions(field_form=scenario.field_form) if scenario.field_form else ModelOptions()
+def model_options(scenario: Scenario | None) -> ModelOptions:
+    """The disturbance-model options a scenario asks for (defaults without a scenario)."""
+    return (
+        ModelOptions(field_form=scenario.field_form) if scenario is not None and scenario.field_form else ModelOptions()
+    )
 
 
 @dataclass(frozen=True)
@@ -47,15 +49,17 @@ class WrenchAlongPlan:
     invalid_zone: np.ndarray
 
 
-def wrench_along_plan(plan: Plan, scenario: Scenario, *, t_s: np.ndarray) -> dict[str, WrenchAlongPlan]:
+def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray) -> dict[str, WrenchAlongPlan]:
     """Per-vehicle disturbance wrench and authority usage at times ``t_s`` (M,), s, summed over
-    every other vehicle as a source (those above it), evaluated with the model directly."""
+    every other vehicle as a source (those above it), evaluated with the model directly. Without
+    a scenario the plan's own vehicle parameters and the default model options are used."""
     t_s = np.asarray(t_s, dtype=float)
     pos = plan.positions_at(t_s)
     opts = model_options(scenario)
+    effects = scenario.effects if scenario is not None else plan.effects
     out = {}
     for tname in plan.vehicles:
-        target = scenario.vehicles[tname].vehicle
+        target = _vehicle(plan, scenario, tname)
         force = np.zeros((t_s.size, 3))
         torque = np.zeros((t_s.size, 3))
         by_source = {}
@@ -64,30 +68,43 @@ def wrench_along_plan(plan: Plan, scenario: Scenario, *, t_s: np.ndarray) -> dic
         for sname in plan.vehicles:
             if sname == tname:
                 continue
-            source = scenario.vehicles[sname].vehicle
+            source = _vehicle(plan, scenario, sname)
             off = pos[tname] - pos[sname]
             below = -off[:, 2] > 1e-6
             u_src = np.zeros(t_s.size)
             if below.any():
-                f_src, t_src = pair_wrench(source, target, off[below], opts, scenario.effects)
+                f_src, t_src = pair_wrench(source, target, off[below], opts, effects)
                 force[below] += f_src
                 torque[below] += t_src
                 u_src[below] = authority_usage(target, f_src, t_src)
-                r = np.hypot(off[below, 0], off[below, 1])
-                inv = (-off[below, 2] <= VALIDITY_FACTOR_L * source.size_m) & (
-                    r < source.body_radius_m + target.body_radius_m
-                )
+                inv = invalid_zone_mask(source, target, off[below])
                 invalid[np.nonzero(below)[0][inv]] = True
             by_source[sname] = u_src
             n_below += below
         stack = n_below >= 2
-        if scenario.effects and stack.any():  # several sources at once: effects need not add up
+        if effects and stack.any():  # several sources at once: effects need not add up
             others = [n for n in plan.vehicles if n != tname]
-            offsets = [(scenario.vehicles[n].vehicle, (pos[tname] - pos[n])[stack]) for n in others]
-            force[stack], torque[stack] = sources_wrench(target, offsets, opts, scenario.effects)
+            offsets = [(_vehicle(plan, scenario, n), (pos[tname] - pos[n])[stack]) for n in others]
+            force[stack], torque[stack] = sources_wrench(target, offsets, opts, effects)
         usage = authority_usage(target, force, torque) if t_s.size else np.zeros(0)
         out[tname] = WrenchAlongPlan(t_s, force, torque, usage, by_source, invalid)
     return out
+
+
+def _vehicle(plan: Plan, scenario: Scenario | None, name: str):
+    return scenario.vehicles[name].vehicle if scenario is not None else plan.vehicles[name].vehicle
+
+
+def attach_feedforward(plan: Plan, along: dict[str, WrenchAlongPlan]) -> None:
+    """Store the predicted wrench ``along`` (evaluated at ``plan.t_s``) in the plan as every
+    vehicle's feed-forward (``disturbance_force_N``, ``disturbance_torque_Nm``), in place."""
+    for name, tr in list(plan.vehicles.items()):
+        w = along[name]
+        if w.t_s.shape != tr.t_s.shape or not np.allclose(w.t_s, tr.t_s):
+            raise ValueError("attach_feedforward: the wrench must be evaluated on the plan's time grid")
+        plan.vehicles[name] = replace(
+            tr, disturbance_force_N=w.force_N.copy(), disturbance_torque_Nm=w.torque_Nm.copy()
+        )
 
 
 def dock_exempt(plan: Plan, scenario: Scenario, a: str, b: str, pos: dict, t_s: np.ndarray) -> np.ndarray:

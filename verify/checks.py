@@ -17,8 +17,13 @@ Checks, in this order (a plan that fails the first group is not checked further)
 4. *Pairs*: separation (centre distance >= max(limits.min_separation_m, sum of body radii); dock
    pairs exempt on their final approach), the invalid zone (0 < dz <= 3 L of a source with
    overlapping footprints, forbidden for non-dock pairs unless ``invalid_zone_rule: model``).
+   While either vehicle of a pair moves (plan speed >= ``REST_SPEED_MPS``) both checks add the
+   tracking tube ``limits.tracking_margin_m`` t: separation + t, dz <= 3 L + t, footprints + t
+   (a vehicle flown closed-loop may be that far off its plan; a resting one is not).
 5. *Authority*: usage <= limits.authority_fraction with the model's numbers everywhere (also where
-   it is extrapolated).
+   it is extrapolated); and, while a pair moves, also with the target at the worst point of the
+   tracking tube for each source (towards the source's axis by the tube, at dz and dz +- tube;
+   dock pairs exempt on their approach as from the planner's cut-off).
 
 Consecutive violating samples of one kind merge into one :class:`Violation` that names the vehicle,
 the plan sample and time where it starts, the check, and its worst value against the limit.
@@ -29,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from fileio import UserError
-from physics import VALIDITY_FACTOR_L
+from physics import VALIDITY_FACTOR_L, invalid_zone_mask
 from planfile import Plan, Scenario, load_scenario, scenario_from_dict
 from verify.along import dock_exempt, wrench_along_plan
 from verify.violations import Violation, add_runs
@@ -40,7 +45,7 @@ KINEMATIC_TOLERANCE = 1.02  # 2 % on speed / acceleration; jerk from finite diff
 JERK_TOLERANCE = 1.1
 POSITION_CONSISTENCY_M = 2e-3  # position vs integrated velocity/acceleration per step, m
 VELOCITY_CONSISTENCY_MPS = 5e-3  # velocity vs integrated acceleration per step, m/s
-REST_SPEED_MPS = 0.05  # "at rest" at the end of the plan, m/s
+REST_SPEED_MPS = 0.05  # "at rest" (end of the plan; no tracking tube while both of a pair rest), m/s
 
 
 def _check_vehicles(plan: Plan, scenario: Scenario) -> list[Violation]:
@@ -266,11 +271,14 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
     out: list[Violation] = []
     lim = scenario.limits
     names = list(plan.vehicles)
+    moving = {n: np.linalg.norm(tr.sample(t)[1], axis=1) >= REST_SPEED_MPS for n, tr in plan.vehicles.items()}
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             va, vb = scenario.vehicles[a].vehicle, scenario.vehicles[b].vehicle
             d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            sep = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
+            tube = np.where(moving[a] | moving[b], lim.tracking_margin_m, 0.0)  # (M,) m
+            sep0 = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
+            sep = sep0 + tube
             ex = dock_exempt(plan, scenario, a, b, pos, t)
             short = (d < sep - 1e-6) & ~ex
             add_runs(
@@ -278,10 +286,10 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
                 t,
                 short,
                 sep - d,
-                sep,
+                sep0 + lim.tracking_margin_m,
                 a,
                 "separation",
-                f"closer than {sep:.3f} m to {b} by (m)",
+                f"closer than {sep0:.3f} m + tracking tube {lim.tracking_margin_m:g} m (while moving) to {b} by (m)",
                 plan_t_s=plan.t_s,
             )
             if lim.invalid_zone_rule == "model":
@@ -290,22 +298,17 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
                 vs, vt = scenario.vehicles[src].vehicle, scenario.vehicles[tgt].vehicle
                 off = pos[tgt] - pos[src]
                 dz = -off[:, 2]
-                r = np.hypot(off[:, 0], off[:, 1])
-                inside = (
-                    (dz > 1e-6)
-                    & (dz <= VALIDITY_FACTOR_L * vs.size_m)
-                    & (r < vs.body_radius_m + vt.body_radius_m)
-                    & ~ex
-                )
+                inside = invalid_zone_mask(vs, vt, off, tube) & ~ex
                 add_runs(
                     out,
                     t,
                     inside,
-                    VALIDITY_FACTOR_L * vs.size_m - dz,
+                    VALIDITY_FACTOR_L * vs.size_m + tube - dz,
                     0.0,
                     tgt,
                     "invalid-zone",
-                    f"below {src} inside its invalid zone (dz <= 3 L, footprints overlap); depth (m)",
+                    f"below {src} inside its invalid zone grown by the tracking tube (dz <= 3 L + tube, "
+                    "footprints + tube overlap); depth (m)",
                     plan_t_s=plan.t_s,
                 )
     return out
@@ -336,6 +339,79 @@ def _check_authority(plan: Plan, scenario: Scenario, t: np.ndarray) -> list[Viol
     return out
 
 
+def _tube_offsets(off: np.ndarray, tube_m: float) -> list[np.ndarray]:
+    """Offsets (N, 3) of a target within the tracking tube that the downwash hits hardest: moved
+    horizontally towards the source's axis by the tube, at dz and dz +- tube (dz kept > 1 mm)."""
+    r = np.hypot(off[:, 0], off[:, 1])
+    shrink = np.where(r > 1e-9, np.maximum(r - tube_m, 0.0) / np.maximum(r, 1e-9), 0.0)
+    base = off * np.column_stack([shrink, shrink, np.ones_like(shrink)])
+    out = []
+    for dz_shift in (-tube_m, 0.0, tube_m):
+        o = base.copy()
+        o[:, 2] = np.minimum(o[:, 2] - dz_shift, -1e-3)  # offset z = -dz; dz + shift, still below
+        out.append(o)
+    return out
+
+
+def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray]) -> list[Violation]:
+    """Authority usage with every moving pair's target placed, per source, at the worst point of
+    the tracking tube (``limits.tracking_margin_m``; dock pairs on their approach exempt, as for
+    the planner's cut-off): the verifier's form of the planner's grown cut-off radius."""
+    from physics import authority_usage, disturbance_wrench
+    from verify.along import model_options
+
+    out: list[Violation] = []
+    tube = scenario.limits.tracking_margin_m
+    if tube <= 0.0:
+        return out
+    limit = scenario.limits.authority_fraction
+    opts = model_options(scenario)
+    moving = {n: np.linalg.norm(tr.sample(t)[1], axis=1) >= REST_SPEED_MPS for n, tr in plan.vehicles.items()}
+    for tname in plan.vehicles:
+        target = scenario.vehicles[tname].vehicle
+        force = np.zeros((t.size, 3))
+        torque = np.zeros((t.size, 3))
+        tubed = np.zeros(t.size, dtype=bool)
+        for sname in plan.vehicles:
+            if sname == tname:
+                continue
+            source = scenario.vehicles[sname].vehicle
+            off = pos[tname] - pos[sname]
+            below = -off[:, 2] > 1e-6
+            use = below & (moving[tname] | moving[sname]) & ~dock_exempt(plan, scenario, tname, sname, pos, t)
+            plain = below & ~use
+            if plain.any():
+                w = disturbance_wrench(source, target, off[plain], opts)
+                force[plain] += w.force_N
+                torque[plain] += w.torque_Nm
+            if use.any():
+                best_u = np.full(int(use.sum()), -np.inf)
+                best_f = np.zeros((best_u.size, 3))
+                best_t = np.zeros((best_u.size, 3))
+                for o in _tube_offsets(off[use], tube):
+                    w = disturbance_wrench(source, target, o, opts)
+                    u = authority_usage(target, w.force_N, w.torque_Nm)
+                    better = u > best_u
+                    best_u[better], best_f[better], best_t[better] = u[better], w.force_N[better], w.torque_Nm[better]
+                force[use] += best_f
+                torque[use] += best_t
+                tubed |= use
+        usage = authority_usage(target, force, torque)
+        over = tubed & (usage > limit + USAGE_TOLERANCE)
+        add_runs(
+            out,
+            t,
+            over,
+            usage,
+            limit,
+            tname,
+            "authority-tube",
+            f"authority usage within the tracking tube ({tube:g} m) of the plan",
+            plan_t_s=plan.t_s,
+        )
+    return out
+
+
 def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:
     """Every violation of ``plan`` against ``scenario`` (empty list = the plan passes), sorted by
     time; the model checks run on a grid of step ``dt_fine_s``, s."""
@@ -348,6 +424,8 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
     out += _check_tasks(plan, scenario, t, pos)
     out += _check_pairs(plan, scenario, t, pos)
     out += _check_authority(plan, scenario, t)
+    if not any(v.kind == "authority" for v in out):  # the plain check names the cause first
+        out += _check_authority_tube(plan, scenario, t, pos)
     out.sort(key=lambda v: (v.t_s, v.vehicle, v.kind))
     return out
 

@@ -18,7 +18,9 @@ def register(subparsers) -> None:
             "with RotorPy's SE(3) controller, and receives the downwash wrench of all other vehicles "
             "(costmaps model, plus the extra effects of --truth) every physics step. Writes "
             "OUT/summary.json, OUT/tracking_error.png and, with --log, Neural-Swarm logs and "
-            "OUT/manifest.yaml (DESIGN.md section 6). Exit 1 when a vehicle loses control (the flight "
+            "OUT/manifest.yaml (DESIGN.md section 6). Per vehicle the flown authority usage and "
+            "invalid-zone time stand next to what the plan predicted; --feedforward compensates the "
+            "predicted disturbance and reports the tracking errors without and with it. Exit 1 when a vehicle loses control (the flight "
             "diverged: status in the summary), 2 on bad input."
         ),
     )
@@ -52,6 +54,12 @@ def register(subparsers) -> None:
              "(default 0: RotorPy's PD law, which keeps a steady error under a steady disturbance)",
     )  # fmt: skip
     p.add_argument(
+        "--feedforward",
+        action="store_true",
+        help="add the plan's predicted disturbance force and torque to the controller's thrust and moment "
+        "command (compensation); flies the plan twice, without and with, and reports both",
+    )
+    p.add_argument(
         "--certify-run", type=int, default=None, metavar="K",
         help="re-fly run K of 'proxplan certify' with the same draws (same --seed, --truth, --vehicles; "
              "certify's simulator settings)",
@@ -60,11 +68,13 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
     from pathlib import Path
 
     from fileio import UserError, atomic_write_bytes, output_folder
     from flightsim import (
         SimulationOptions,
+        feedforward_comparison,
         load_truth_file,
         merge_truth,
         model_truth,
@@ -108,9 +118,12 @@ def run(args: argparse.Namespace) -> int:
         imu_noise=not args.no_noise,
         seed=args.seed,
         position_integral_rate_ps=args.integral_rate,
+        feedforward=args.feedforward,
     )
     out = Path(args.out)
+    show = not args.json or sys.stderr.isatty()
     with output_folder(out) as stage:  # every output lands together, or none
+        baseline = None
         certify_run = None
         if args.certify_run is not None:
             from proxplan.commands.certify import refly
@@ -118,9 +131,11 @@ def run(args: argparse.Namespace) -> int:
             certify_run = refly(args, plan_path)
             result = certify_run.pop("_result")
         else:
-            result = simulate_plan(
-                plan, truth=truth, vehicles=custom, options=options, progress=not args.json or sys.stderr.isatty()
-            )
+            if args.feedforward:  # the same flight without feed-forward, for the comparison
+                baseline = simulate_plan(
+                    plan, truth=truth, vehicles=custom, options=replace(options, feedforward=False), progress=show
+                )
+            result = simulate_plan(plan, truth=truth, vehicles=custom, options=options, progress=show)
         plot_errors(result, stage / "tracking_error.png")
         plot = out / "tracking_error.png"
         manifest = None
@@ -142,6 +157,7 @@ def run(args: argparse.Namespace) -> int:
             plot_path=str(plot),
             manifest_path=None if manifest is None else str(manifest),
         )
+        summary["feedforward"] = None if baseline is None else feedforward_comparison(baseline, result)
         if certify_run is not None:
             summary["certify_run"] = certify_run
         atomic_write_bytes(stage / "summary.json", json.dumps(summary, indent=1).encode())
@@ -156,16 +172,29 @@ def run(args: argparse.Namespace) -> int:
         f"({result.real_time_factor:.1f}x real time)"
     )
     print(
-        f"{'vehicle':<12}{'type':<18}{'pos max/rms [cm]':>18}{'alt max/rms [cm]':>18}{'sat [s]':>9}{'authority':>10}{'motor':>7}{'invalid [s]':>12}"
+        f"{'vehicle':<12}{'type':<18}{'pos max/rms [cm]':>18}{'alt max/rms [cm]':>18}{'sat [s]':>9}"
+        f"{'authority flown/plan':>22}{'motor':>7}{'invalid flown/plan [s]':>24}"
     )
     for name, m in summary["vehicles"].items():
         print(
             f"{name:<12}{m['type']:<18}"
             f"{100 * m['max_position_error_m']:>9.1f}/{100 * m['rms_position_error_m']:<8.1f}"
             f"{100 * m['max_altitude_error_m']:>9.1f}/{100 * m['rms_altitude_error_m']:<8.1f}"
-            f"{m['motor_saturation_time_s']:>9.2f}{m['max_authority_usage']:>10.2f}{m['max_motor_usage']:>7.2f}"
-            f"{m['time_in_invalid_zone_s']:>12.2f}"
+            f"{m['motor_saturation_time_s']:>9.2f}"
+            f"{m['max_authority_usage']:>14.3f}/{m['predicted_max_authority_usage']:<7.3f}{m['max_motor_usage']:>7.2f}"
+            f"{m['time_in_invalid_zone_s']:>16.2f}/{m['predicted_time_in_invalid_zone_s']:<7.2f}"
         )
+    if summary["feedforward"]:
+        print("feed-forward of the predicted disturbance (same flight without / with):")
+        print(f"{'vehicle':<12}{'pos max [cm]':>22}{'alt max [cm]':>22}{'alt factor':>12}")
+        for name, c in summary["feedforward"]["vehicles"].items():
+            factor = c["altitude_error_factor"]
+            print(
+                f"{name:<12}{100 * c['without']['max_position_error_m']:>12.2f} / "
+                f"{100 * c['with']['max_position_error_m']:<7.2f}"
+                f"{100 * c['without']['max_altitude_error_m']:>12.2f} / {100 * c['with']['max_altitude_error_m']:<7.2f}"
+                f"{'-' if factor is None else f'{factor:.1f}x':>12}"
+            )
     print(f"plot: {plot}")
     if manifest:
         print(f"logs: {manifest}")

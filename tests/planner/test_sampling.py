@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
 from planfile import scenario_from_dict
@@ -64,11 +65,31 @@ def test_invalid_zone_is_blocked_conservatively():
 
 def test_ellipsoid_mode_radii():
     sc = _scenario()
-    checker = build_checker(sc, "small", [Track.static("big", LARGE, np.array([0, 0, 2.0]))], mode="ellipsoid")
+    track = [Track.static("big", LARGE, np.array([0, 0, 2.0]))]
+    checker = build_checker(sc, "small", track, mode="ellipsoid", tube=False)
     r = LARGE.body_radius_m + SMALL.body_radius_m
     assert checker.conflict(0, 0, 2.0 - 2.9 * r, 0.0) is not None  # vertical radius 3 r
     assert checker.conflict(0, 0, 2.0 - 3.1 * r, 0.0) is None
     assert checker.conflict(1.05 * r, 0, 2.0, 0.0) is None  # horizontal radius r
+    # the tracking tube (limits.tracking_margin_m) grows the radius by the tube
+    tube = sc.limits.tracking_margin_m
+    assert tube > 0.0
+    with_tube = build_checker(sc, "small", track, mode="ellipsoid")
+    assert with_tube.conflict(r + 0.5 * tube, 0, 2.0, 0.0) is not None
+    assert with_tube.conflict(r + 1.5 * tube, 0, 2.0, 0.0) is None
+
+
+def test_tube_grows_cutoff_and_separation():
+    sc = _scenario()
+    track = [Track.static("big", LARGE, np.array([0, 0, 2.0]))]
+    plain = build_checker(sc, "small", track, tube=False)
+    tubed = build_checker(sc, "small", track)
+    tube = sc.limits.tracking_margin_m
+    for dz in (0.4, 0.9, 1.5):
+        rc = plain.rules[0].cutoff_m(plain.rules[0].cut_from_other, dz)
+        if rc > 0.0:
+            assert tubed.rules[0].cutoff_m(tubed.rules[0].cut_from_other, dz) >= rc + tube - 1e-12
+    assert tubed.rules[0].separation_m == pytest.approx(plain.rules[0].separation_m + tube)
 
 
 def test_moving_track_is_interpolated_in_time():

@@ -22,7 +22,8 @@ def _scenario(low_start, low_goal, *, fraction=0.15, rule="conservative"):
             "limits": {"authority_fraction": fraction, "min_separation_m": 0.3, "invalid_zone_rule": rule},
             "vehicles": {
                 "top": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
-                "low": {"type": "small-quad", "start": list(low_start), "goal": list(low_goal)},
+                # the cosine lines below end with an acceleration step: allow their jerk
+                "low": {"type": "small-quad", "start": list(low_start), "goal": list(low_goal), "max_jerk_mps3": 15},
             },
         }
     )
@@ -126,7 +127,12 @@ def test_dock_pair_is_exempt_only_on_the_approach_tube():
             "limits": {"authority_fraction": 0.5},
             "vehicles": {
                 "top": {"type": "large-quad", "start": [0, 0, 1.5], "hover": True},
-                "low": {"type": "small-quad", "start": [0, 0, 2.5], "dock": {"with": "top", "offset": [0, 0, 0.3]}},
+                "low": {
+                    "type": "small-quad",
+                    "start": [0, 0, 2.5],
+                    "dock": {"with": "top", "offset": [0, 0, 0.3]},
+                    "max_jerk_mps3": 15,  # the cosine line ends with an acceleration step
+                },
             },
         }
     )
@@ -144,3 +150,38 @@ def test_dock_pair_is_exempt_only_on_the_approach_tube():
     )
     kinds = {v.kind for v in verify_plan(_plan(sc, path), sc)}
     assert "separation" in kinds
+
+
+def _beside_scenario(fraction, tube):
+    return scenario_from_dict(
+        {
+            "name": "beside",
+            "workspace": {"min": [-3, -3, 0], "max": [3, 3, 3]},
+            "limits": {"authority_fraction": fraction, "min_separation_m": 0.3, "tracking_margin_m": tube},
+            "vehicles": {
+                "top": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
+                "low": {"type": "small-quad", "start": [-2, 0.5, 0.8], "goal": [2, 0.5, 0.8], "max_jerk_mps3": 15},
+            },
+        }
+    )
+
+
+def test_authority_is_checked_within_the_tracking_tube():
+    # passing 0.5 m beside the large-quad's axis, 1.2 m below it: set the limit between the usage on
+    # the plan and the usage 0.06 m closer to the axis
+    path = _line([-2, 0.5, 0.8], [2, 0.5, 0.8], 8.0, total_s=9.0)
+    large, small = BUILTIN_VEHICLES["large-quad"], BUILTIN_VEHICLES["small-quad"]
+    on_plan = authority_usage(small, *_wrench(large, small, [0.0, 0.5, -1.2]))
+    closer = authority_usage(small, *_wrench(large, small, [0.0, 0.44, -1.2]))
+    assert closer > 1.2 * on_plan > 0.0
+    limit = float(0.5 * (on_plan + closer)[0])
+    plain = _beside_scenario(limit, 0.0)
+    assert verify_plan(_plan(plain, path), plain) == []
+    tubed = _beside_scenario(limit, 0.06)
+    kinds = {v.kind for v in verify_plan(_plan(tubed, path), tubed)}
+    assert kinds == {"authority-tube"}
+
+
+def _wrench(source, target, offset):
+    w = disturbance_wrench(source, target, np.array([offset], dtype=float))
+    return w.force_N, w.torque_Nm

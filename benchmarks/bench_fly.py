@@ -1,0 +1,121 @@
+"""Do plans hold when flown? Plans the shipped scenarios and formation changes of 8 and 16 vehicles
+(planner.formations), flies them closed-loop (truth = the planner's model, RotorPy's SE(3)
+controller, no sensor noise) and prints per scenario: the largest flown and predicted authority
+usage and their ratio, the scenario's limit, flown and predicted invalid-zone time, the largest
+tracking error without / with feed-forward against the tube ``limits.tracking_margin_m``; then, for the battery swap and the
+hand-off, the most disturbed vehicle's max altitude error without / with feed-forward of the
+predicted disturbance (and with ``--truth``, in a world with extra effects).
+
+``--limits`` also prints the tracking-course error (flightsim.tracking) of the built-in limits
+against the earlier ones (1.5 m/s, 3 m/s^2, 15 m/s^3), measured in the same run.
+
+Run: python benchmarks/bench_fly.py [--method sampling] [--formations 8 16] [--limits]
+     [--truth examples/truth/all_effects.yaml]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+from flightsim import SimulationOptions, load_truth_file, simulate_plan, simulation_metrics
+from flightsim.report import USAGE_RATIO_FLOOR, feedforward_comparison
+from planfile import load_scenario, scenario_from_dict
+from planner import plan_scenario
+from planner.formations import formation_change
+
+REPO = Path(__file__).resolve().parents[1]
+QUIET = SimulationOptions(imu_noise=False)
+
+
+def fly(scenario, method: str) -> dict:
+    t0 = time.perf_counter()
+    plan = plan_scenario(scenario, method=method, seed=0)
+    t_plan = time.perf_counter() - t0
+    metrics = simulation_metrics(simulate_plan(plan, options=QUIET))
+    with_ff = simulation_metrics(simulate_plan(plan, options=dataclasses.replace(QUIET, feedforward=True)))
+    flown = max(m.max_authority_usage for m in metrics.values())
+    predicted = max(m.predicted_max_authority_usage for m in metrics.values())
+    avoided = [
+        n for n, m in metrics.items() if m.predicted_time_in_invalid_zone_s == 0 and m.time_in_invalid_zone_s > 0
+    ]
+    return {
+        "flown": flown,
+        "predicted": predicted,
+        "ratio": flown / predicted if predicted > USAGE_RATIO_FLOOR else float("nan"),
+        "ratios": [m.usage_ratio_flown_to_predicted for m in metrics.values() if m.usage_ratio_flown_to_predicted],
+        "limit": scenario.limits.authority_fraction,
+        "invalid_flown": sum(m.time_in_invalid_zone_s for m in metrics.values()),
+        "invalid_plan": sum(m.predicted_time_in_invalid_zone_s for m in metrics.values()),
+        "entered_avoided": avoided,
+        "max_err": max(m.max_position_error_m for m in metrics.values()),
+        "max_err_ff": max(m.max_position_error_m for m in with_ff.values()),
+        "usage_ff": max(m.max_authority_usage for m in with_ff.values()),
+        "tube": scenario.limits.tracking_margin_m,
+        "makespan": plan.metrics["makespan_s"],
+        "t_plan": t_plan,
+        "plan": plan,
+    }
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--method", default="sampling", help="planner method (default sampling)")
+    ap.add_argument("--formations", type=int, nargs="*", default=[8, 16], help="formation sizes (default 8 16)")
+    ap.add_argument("--limits", action="store_true", help="also measure the tracking course at old and new limits")
+    ap.add_argument("--truth", default=str(REPO / "examples/truth/all_effects.yaml"), help="truth file for the FF row")
+    args = ap.parse_args()
+
+    if args.limits:
+        from flightsim.tracking import course_tracking_error_m
+        from physics import BUILTIN_VEHICLES, KinematicLimits
+
+        old = KinematicLimits(1.5, 3.0, 15.0)
+        for name, veh in BUILTIN_VEHICLES.items():
+            e_old = course_tracking_error_m(veh, old)
+            e_new = course_tracking_error_m(veh)
+            print(f"course {name:<17} error at old limits {100 * e_old:5.1f} cm, at {veh.kinematic_limits}: "
+                  f"{100 * e_new:5.1f} cm (ratio {e_new / e_old:.2f})")  # fmt: skip
+
+    scenarios = [(p.stem, load_scenario(p)) for p in sorted((REPO / "scenarios").glob("*.yaml"))]
+    for n in args.formations:
+        scenarios.append((f"formation_{n}", scenario_from_dict(formation_change(n))))
+    print(f"\nmethod {args.method}; truth = the planner's model; default controller; no sensor noise")
+    print(f"{'scenario':<18}{'usage flown':>12}{'predicted':>10}{'ratio':>7}{'limit':>7}{'invalid flown/plan [s]':>24}"
+          f"{'max err / FF [cm]':>18}{'tube [cm]':>10}{'makespan':>9}{'plan [s]':>9}  entered avoided zone")  # fmt: skip
+    rows = {}
+    for name, sc in scenarios:
+        r = fly(sc, args.method)
+        rows[name] = r
+        print(f"{name:<18}{r['flown']:>12.3f}{r['predicted']:>10.3f}{r['ratio']:>7.2f}{r['limit']:>7.2f}"
+              f"{r['invalid_flown']:>14.2f} / {r['invalid_plan']:<7.2f}{100 * r['max_err']:>11.1f} / {100 * r['max_err_ff']:<4.1f}"
+              f"{100 * r['tube']:>10.1f}{r['makespan']:>9.1f}{r['t_plan']:>9.1f}  "
+              f"{', '.join(r['entered_avoided']) or '-'}", flush=True)  # fmt: skip
+    ok = all(
+        r["flown"] <= r["limit"] and r["usage_ff"] <= r["limit"] and not r["entered_avoided"] for r in rows.values()
+    )
+    print(f"every vehicle within its limit and outside zones its plan avoided: {ok}")
+
+    truth = load_truth_file(args.truth)
+    print("\nfeed-forward: most disturbed vehicle's max altitude error without / with [cm] (factor)")
+    for name in ("battery_swap", "handoff"):
+        if name not in rows:
+            continue
+        plan = rows[name]["plan"]
+        for label, tr in (("planner's model", None), (Path(args.truth).name, truth)):
+            kw = {} if tr is None else {"truth": tr}
+            a = simulate_plan(plan, options=QUIET, **kw)
+            b = simulate_plan(plan, options=dataclasses.replace(QUIET, feedforward=True), **kw)
+            cmp = feedforward_comparison(a, b)
+            w = cmp["most_disturbed"]
+            c = cmp["vehicles"][w]
+            print(f"{name:<14}{label:<18}{w:<10}{100 * c['without']['max_altitude_error_m']:7.2f} / "
+                  f"{100 * c['with']['max_altitude_error_m']:<6.2f} ({c['altitude_error_factor']:.1f}x)")  # fmt: skip
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
