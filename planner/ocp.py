@@ -204,6 +204,24 @@ class _Builder:
                 m |= self.exempt[key]
         return m
 
+    def _may_move(self, a: OcpAgent) -> np.ndarray:
+        """(2n+1,) bool per check point (nodes, then midpoints): True where vehicle ``a`` may move.
+        An optimised vehicle may move anywhere but at its fixed start and end nodes; a held one where
+        its known path moves faster than the verifier's rest speed (0.05 m/s)."""
+        n = self.n
+        if a.moving:
+            mask = np.ones(2 * n + 1, dtype=bool)
+            mask[[0, n]] = False
+            return mask
+        q = self.Qw[a.name]
+        order = np.empty((2 * n + 1, 3))  # time order: node 0, mid 0, node 1, ...
+        order[0::2], order[1::2] = q[: n + 1], q[n + 1 :]
+        speed = np.linalg.norm(np.diff(order, axis=0), axis=1) / (0.5 * self.pb.warm_duration_s / n)
+        moving_t = np.zeros(2 * n + 1, dtype=bool)
+        moving_t[:-1] |= speed >= 0.05
+        moving_t[1:] |= speed >= 0.05
+        return np.concatenate([moving_t[0::2], moving_t[1::2]])
+
     # ---------------------------------------------------------------- pairs
     def add_pairs(self) -> None:
         ca, opti, pb = self.ca, self.opti, self.pb
@@ -215,11 +233,13 @@ class _Builder:
                 exempt = self._is_exempt(ni, nj)
                 rel_w = self.Qw[ni] - self.Qw[nj]
                 dist_w = np.linalg.norm(rel_w, axis=1)
-                sep = max(pb.min_separation_m, ai.body_radius_m + aj.body_radius_m) + pb.chord_margin_m
+                sep0 = max(pb.min_separation_m, ai.body_radius_m + aj.body_radius_m) + pb.chord_margin_m
+                # the tracking tube widens the separation wherever either vehicle may move (as verify does)
+                sep = sep0 + pb.tube_m * (self._may_move(ai) | self._may_move(aj))  # (2n+1,) m
                 ks = np.flatnonzero(~exempt & (dist_w < sep + pb.interaction_radius_m)).tolist()
                 if ks:
                     diff = self.Q[ni][:, ks] - self.Q[nj][:, ks]
-                    opti.subject_to(ca.sum1(diff**2) >= sep**2)
+                    opti.subject_to(ca.sum1(diff**2) >= ca.DM(sep[ks] ** 2).T)
                 if pb.invalid_zone_keep_out:
                     for s, t in ((ni, nj), (nj, ni)):
                         self._invalid_zone(s, t, exempt)
@@ -231,10 +251,12 @@ class _Builder:
         ca, opti, pb = self.ca, self.opti, self.pb
         src, tgt = self.agents[s], self.agents[t]
         eps = pb.chord_margin_m
-        half_h = 0.5 * VALIDITY_FACTOR_L * src.vehicle.size_m + eps
-        centre = 0.5 * VALIDITY_FACTOR_L * src.vehicle.size_m
+        # the tracking tube grows the zone (dz <= 3 L + tube, radii + tube) wherever either may move, as verify does
+        tube = pb.tube_m * (self._may_move(src) | self._may_move(tgt))  # (2n+1,) m
+        depth = VALIDITY_FACTOR_L * src.vehicle.size_m + tube
+        half_h, centre = 0.5 * depth + eps, 0.5 * depth
         k = 2.0**0.25
-        a_m, b_m = k * (src.body_radius_m + tgt.body_radius_m + eps), k * half_h
+        a_m, b_m = k * (src.body_radius_m + tgt.body_radius_m + eps + tube), k * half_h
         rel_w = self.Qw[t] - self.Qw[s]
         dz_w, r_w = -rel_w[:, 2], np.hypot(rel_w[:, 0], rel_w[:, 1])
         near = ~exempt & (r_w < a_m + 0.6) & (np.abs(dz_w - centre) < b_m + 0.6)
@@ -242,8 +264,8 @@ class _Builder:
         if not ks:
             return
         rel = self.Q[t][:, ks] - self.Q[s][:, ks]
-        r_sq = ca.sum1(rel[0:2, :] ** 2) / a_m**2
-        dz = (-rel[2, :] - centre) / b_m
+        r_sq = ca.sum1(rel[0:2, :] ** 2) / ca.DM(a_m[ks] ** 2).T
+        dz = (-rel[2, :] - ca.DM(centre[ks]).T) / ca.DM(b_m[ks]).T
         opti.subject_to((r_sq**2 + dz**4) ** 0.25 >= 1.0)  # degree-1 form: well scaled far away
 
     # ---------------------------------------------------------------- authority
