@@ -37,10 +37,21 @@ def setpoint_times(plan: Plan, rate_hz: float) -> np.ndarray:
 
 def feedforward_wrench(plan: Plan, scenario: Scenario, t_s: np.ndarray) -> tuple[dict[str, np.ndarray], str]:
     """Per vehicle the predicted disturbance (force_N (M, 3) | torque_Nm (M, 3)) as (M, 6) at ``t_s``,
-    and where it came from (a note)."""
+    and where it came from (a note): plan.json's stored feed-forward fields (linear between plan
+    samples) when every vehicle has them, else recomputed with the verifier's model."""
+    if all(tr.has_feedforward for tr in plan.vehicles.values()):
+        wrench = {}
+        for name, tr in plan.vehicles.items():
+            assert tr.disturbance_force_N is not None and tr.disturbance_torque_Nm is not None
+            stored = np.hstack([tr.disturbance_force_N, tr.disturbance_torque_Nm])
+            wrench[name] = np.column_stack([np.interp(t_s, tr.t_s, stored[:, k]) for k in range(6)])
+        return wrench, "feed-forward wrench from plan.json's disturbance_force_N / disturbance_torque_Nm"
     along = wrench_along_plan(plan, scenario, t_s=t_s)
     wrench = {name: np.hstack([w.force_N, w.torque_Nm]) for name, w in along.items()}
-    note = "feed-forward wrench computed with the verifier's model (verify.wrench_along_plan) along the plan"
+    note = (
+        "plan.json has no feed-forward fields (older version): feed-forward wrench recomputed with the "
+        "verifier's model (verify.wrench_along_plan) along the plan"
+    )
     return wrench, note
 
 

@@ -190,7 +190,7 @@ def test_cli_split_time_uploads_reread(tmp_path):
 def test_setpoints_carry_the_downwash(exported, tmp_path):
     plan, _ = exported["battery_swap"]
     rows, notes = export_setpoints(plan, scenario_of_plan(plan), tmp_path, rate_hz=50.0)
-    assert notes and "verify" in notes[0]
+    assert notes and "plan.json" in notes[0]  # proxplan plan stores the feed-forward wrench
     carrier = np.loadtxt(tmp_path / rows["carrier"]["file"], delimiter=",", skiprows=1)
     shuttle = np.loadtxt(tmp_path / rows["shuttle"]["file"], delimiter=",", skiprows=1)
     header = (tmp_path / rows["carrier"]["file"]).read_text().splitlines()[0].split(",")
@@ -245,3 +245,25 @@ def test_malformed_uav_csv_is_a_user_error(tmp_path):
     bad.write_text("Duration," + ",".join(["0"] * 32) + "\n-1," + ",".join(["0"] * 32) + "\n")
     with pytest.raises(UserError, match="Duration"):
         read_uav_csv(bad)
+
+
+def test_setpoints_use_stored_feedforward_or_recompute(exported, tmp_path):
+    plan, _ = exported["battery_swap"]
+    assert all(tr.has_feedforward for tr in plan.vehicles.values())  # proxplan plan stores them
+    rows, notes = export_setpoints(plan, scenario_of_plan(plan), tmp_path / "stored", rate_hz=20.0)
+    assert "disturbance_force_N" in notes[0]
+    carrier = plan.vehicles["carrier"]
+    table = np.loadtxt(tmp_path / "stored" / rows["carrier"]["file"], delimiter=",", skiprows=1)
+    assert np.allclose(table[:, 0], carrier.t_s)  # 20 Hz = the plan's 0.05 s grid
+    assert np.allclose(table[:, 10:13], carrier.disturbance_force_N, atol=1e-6)
+    old = replace(
+        plan,
+        vehicles={
+            n: replace(tr, disturbance_force_N=None, disturbance_torque_Nm=None) for n, tr in plan.vehicles.items()
+        },
+    )
+    rows, notes = export_setpoints(old, scenario_of_plan(old), tmp_path / "old", rate_hz=20.0)
+    assert "recomputed" in notes[0]
+    recomputed = np.loadtxt(tmp_path / "old" / rows["carrier"]["file"], delimiter=",", skiprows=1)
+    scale = max(1e-9, float(np.abs(carrier.disturbance_force_N).max()))
+    assert np.abs(recomputed[:, 10:13] - carrier.disturbance_force_N).max() <= 1e-3 * scale + 1e-6
