@@ -18,7 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from web import layers, plots, scene
+import web.layers as layers
+import web.plots as plots
+import web.scene as scene
 from web.editing import GoalEditing
 from web.replan import Replanner
 from web.review_data import ReviewData, load_input, plan_scenario, review_from_plan_result

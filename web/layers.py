@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+import web.meshes as meshes
 from physics import Vehicle
-from web import meshes
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
+import web.meshes as meshes
 from physics import Vehicle
-from web import meshes
 from web.review_data import ReviewData
 
 VEHICLE_COLOURS = [

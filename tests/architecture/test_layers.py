@@ -69,9 +69,12 @@ def _imports(module: str) -> set[str]:
                 anchor = package.split(".")
                 anchor = anchor[: len(anchor) - (node.level - 1)]
                 base = ".".join(anchor + ([base] if base else []))
-            # "from pkg import sub" loads pkg.sub; "from pkg import name" loads pkg itself
+            # "from pkg import sub" loads pkg.sub; "from pkg import name" loads pkg itself. Inside pkg,
+            # "from pkg import sub" also counts as importing pkg: it reads like a use of pkg's public
+            # API, which re-exports its modules; siblings import each other as "pkg.sub" instead
             subs = [f"{base}.{a.name}" for a in node.names if f"{base}.{a.name}" in MODULES]
-            targets = subs + ([base] if len(subs) < len(node.names) else [])
+            own_package = module.startswith(base + ".")
+            targets = subs + ([base] if len(subs) < len(node.names) or own_package else [])
         else:
             continue
         for target in targets:
