@@ -29,11 +29,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from costmaps import pair_wrench
-from physics import VALIDITY_FACTOR_L, ModelOptions, authority_usage
+from physics import ModelOptions, authority_usage, invalid_zone_mask
 from planfile import Plan, VehicleTrajectory
 from planner.ocp import build_and_solve, sample_solution
 from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
 from planner.timing import min_segment_duration_s
+from verify import REST_SPEED_MPS
 
 CHECK_DT_S = 0.02  # grid of the per-vehicle model check, s (the verifier re-checks at 0.01 s)
 REST_MPS = 1e-4  # speed below which a vehicle counts as arrived, m/s
@@ -154,19 +155,19 @@ class SwarmField:
 
         force, torque = np.zeros_like(p_new), np.zeros_like(p_new)
         new_pairs: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
+        me_moving = self._moving(p_new)
         for o in self.names:
             if o == name:
                 continue
             other = self.vehicle[o]
             off = p_new - self.pos[o]
-            sep = max(lim.min_separation_m, me.body_radius_m + other.body_radius_m)
+            # the tracking tube while either vehicle of the pair moves, as the verifier checks
+            tube = np.where(me_moving | self._moving(self.pos[o]), lim.tracking_margin_m, 0.0)  # (M,) m
+            sep = max(lim.min_separation_m, me.body_radius_m + other.body_radius_m) + tube
             note(np.linalg.norm(off, axis=1) < sep, f"separation from {o}")
-            r = np.hypot(off[:, 0], off[:, 1])
             if lim.invalid_zone_rule != "model":
-                overlap = r < me.body_radius_m + other.body_radius_m
-                dz = -off[:, 2]
-                note(overlap & (dz > 0) & (dz <= VALIDITY_FACTOR_L * other.size_m), f"invalid zone of {o}")
-                note(overlap & (-dz > 0) & (-dz <= VALIDITY_FACTOR_L * me.size_m), f"invalid zone on {o}")
+                note(invalid_zone_mask(other, me, off, tube), f"invalid zone of {o}")
+                note(invalid_zone_mask(me, other, -off, tube), f"invalid zone on {o}")
             f, q = new_pairs[(o, name)] = self.contribution(o, name, self.pos[o], p_new)
             force += f
             torque += q
@@ -179,6 +180,12 @@ class SwarmField:
         note(authority_usage(me, force, torque) > frac, "authority")
         self._candidate = (name, id(p_new), new_pairs)
         return bad, (min(first)[1] if first else None)
+
+    def _moving(self, p: np.ndarray) -> np.ndarray:
+        """(M,) bool: the vehicle at positions ``p`` (M, 3) on the check grid moves at least at the
+        verifier's rest speed (verify.REST_SPEED_MPS, m/s)."""
+        speed = np.linalg.norm(np.gradient(p, self.t_s, axis=0), axis=1) if p.shape[0] > 1 else np.zeros(1)
+        return speed >= REST_SPEED_MPS
 
     def replace(self, name: str, p_new: np.ndarray) -> None:
         """Move ``name`` onto ``p_new`` (M, 3) and update every affected wrench total."""
