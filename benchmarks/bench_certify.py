@@ -2,7 +2,7 @@
 (a Dask LocalCluster, one worker per core), against one plain ``simulate`` in the same run.
 
 Plans scenarios/battery_swap.yaml (sampling, seed 0) into a temporary folder, then times
-  * baseline: one ``flightsim.simulate_plan`` of the plan in this process (stepper compiled first,
+  * baseline: one ``proxplan.flightsim.simulate_plan`` of the plan in this process (stepper compiled first,
     so the figure is the flight itself), i.e. flights per second of plain serial simulation;
   * ``certify_plan`` with N runs (cluster start, draws, flights, reduction; report excluded),
 and prints wall times, runs per second and the ratio to the baseline, and the CPU seconds spent
@@ -40,10 +40,10 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=None, help="local workers (default: one per core)")
     args = parser.parse_args()
 
-    from certify import CertifySetup, certify_plan
-    from flightsim import plan_truth, simulate_plan
-    from planfile import read_plan
-    from verify import scenario_of_plan
+    from proxplan.certify import CertifySetup, certify_plan
+    from proxplan.flightsim import plan_truth, simulate_plan
+    from proxplan.planfile import read_plan
+    from proxplan.verify import scenario_of_plan
 
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run(

@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from costmaps import build_pair_maps
-from costmaps.cutoff import DEFAULT_CUTOFF_RESOLUTION, cutoff_dz_grid_m
-from costmaps.wrench_table import DEFAULT_RESOLUTION, LateralScale, build_wrench_table, table_dz_grid_m
-from physics import (
+from proxplan.costmaps import build_pair_maps
+from proxplan.costmaps.cutoff import DEFAULT_CUTOFF_RESOLUTION, cutoff_dz_grid_m
+from proxplan.costmaps.wrench_table import DEFAULT_RESOLUTION, LateralScale, build_wrench_table, table_dz_grid_m
+from proxplan.physics import (
     BUILTIN_VEHICLES,
     authority_usage,
     disturbance_wrench,

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from identify import (
+from proxplan.identify import (
     IdentifyOptions,
     discover_terms,
     run_identify,
@@ -29,7 +29,7 @@ from identify import (
     validation_split,
     write_synthetic_manifest,
 )
-from physics import BUILTIN_VEHICLES
+from proxplan.physics import BUILTIN_VEHICLES
 
 
 def swept_wake(inputs):

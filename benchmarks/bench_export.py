@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from export import DEFAULT_TOLERANCE_M, export_crazyflie, vehicle_limits
-from export.polyfit import fit_ok, fit_uniform
-from planfile import CRAZYFLIE_MAX_PIECES, read_export, read_plan
-from verify import scenario_of_plan, verify_plan
+from proxplan.export import DEFAULT_TOLERANCE_M, export_crazyflie, vehicle_limits
+from proxplan.export.polyfit import fit_ok, fit_uniform
+from proxplan.planfile import CRAZYFLIE_MAX_PIECES, read_export, read_plan
+from proxplan.verify import scenario_of_plan, verify_plan
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -76,7 +76,7 @@ def main() -> None:
                 bench(path.stem, path, work)
         if args.formation:
             yaml_path = work / f"formation_{args.formation}.yaml"
-            _run("-m", "planner.formations", args.formation, "--out", yaml_path)
+            _run("-m", "proxplan.planner.formations", args.formation, "--out", yaml_path)
             bench(f"formation_{args.formation}", yaml_path, work)
 
 

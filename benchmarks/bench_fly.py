@@ -1,12 +1,12 @@
 """Do plans hold when flown? Plans the shipped scenarios and formation changes of 8 and 16 vehicles
-(planner.formations), flies them closed-loop (truth = the planner's model, RotorPy's SE(3)
+(proxplan.planner.formations), flies them closed-loop (truth = the planner's model, RotorPy's SE(3)
 controller, no sensor noise) and prints per scenario: the largest flown and predicted authority
 usage and their ratio, the scenario's limit, flown and predicted invalid-zone time, the largest
 tracking error without / with feed-forward against the tube ``limits.tracking_margin_m``; then, for the battery swap and the
 hand-off, the most disturbed vehicle's max altitude error without / with feed-forward of the
 predicted disturbance (and with ``--truth``, in a world with extra effects).
 
-``--limits`` also prints the tracking-course error (flightsim.tracking) of the built-in limits
+``--limits`` also prints the tracking-course error (proxplan.flightsim.tracking) of the built-in limits
 against the earlier ones (1.5 m/s, 3 m/s^2, 15 m/s^3), measured in the same run.
 
 Run: python benchmarks/bench_fly.py [--method sampling] [--formations 8 16] [--limits]
@@ -21,11 +21,11 @@ import sys
 import time
 from pathlib import Path
 
-from flightsim import SimulationOptions, load_truth_file, simulate_plan, simulation_metrics
-from flightsim.report import USAGE_RATIO_FLOOR, feedforward_comparison
-from planfile import load_scenario, scenario_from_dict
-from planner import plan_scenario
-from planner.formations import formation_change
+from proxplan.flightsim import SimulationOptions, load_truth_file, simulate_plan, simulation_metrics
+from proxplan.flightsim.report import USAGE_RATIO_FLOOR, feedforward_comparison
+from proxplan.planfile import load_scenario, scenario_from_dict
+from proxplan.planner import plan_scenario
+from proxplan.planner.formations import formation_change
 
 REPO = Path(__file__).resolve().parents[1]
 QUIET = SimulationOptions(imu_noise=False)
@@ -70,8 +70,8 @@ def main() -> int:
     args = ap.parse_args()
 
     if args.limits:
-        from flightsim.tracking import course_tracking_error_m
-        from physics import BUILTIN_VEHICLES, KinematicLimits
+        from proxplan.flightsim.tracking import course_tracking_error_m
+        from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits
 
         old = KinematicLimits(1.5, 3.0, 15.0)
         for name, veh in BUILTIN_VEHICLES.items():

@@ -5,7 +5,7 @@ Generates (untimed) 6 flights x 10 min x 2 vehicles of synthetic logs with a hid
 effect (canonical CSV, gzip), then times the whole pipeline (load, checks, measurement, prediction,
 calibration, effect search, before/after errors) and, separately, the report, then ``evaluate`` of
 the saved model on every flight (split ``all``: the whole hour). The logs hold PWM and Vbat of a
-firmware-like motor (:class:`identify.synthetic_logs.SyntheticMotor`), so the thrust-map
+firmware-like motor (:class:`proxplan.identify.synthetic_logs.SyntheticMotor`), so the thrust-map
 measurement runs. Baselines measured in the same run: reading the logs alone, and one evaluation of
 the base model over every sample.
 
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from identify import (
+from proxplan.identify import (
     evaluate_model,
     read_log,
     run_identify,
@@ -31,8 +31,8 @@ from identify import (
     write_canonical_csv,
     write_report,
 )
-from identify.synthetic_logs import SyntheticMotor
-from physics import BUILTIN_VEHICLES, Effect, EffectInputs, SourceSample, base_wrench
+from proxplan.identify.synthetic_logs import SyntheticMotor
+from proxplan.physics import BUILTIN_VEHICLES, Effect, EffectInputs, SourceSample, base_wrench
 
 
 def _paths(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:

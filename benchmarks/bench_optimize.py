@@ -1,4 +1,4 @@
-"""Benchmark of the CasADi refinement (planner.optimize) on shipped scenarios.
+"""Benchmark of the CasADi refinement (proxplan.planner.optimize) on shipped scenarios.
 
     python benchmarks/bench_optimize.py [--scenarios battery_swap swap_8] [--exact]
     python benchmarks/bench_optimize.py --formations 8 16 32 [--time-budget 60]
@@ -8,7 +8,7 @@ Prints, per scenario: the whole-process wall time of ``proxplan plan --method op
 iterations and variables; the makespans of both. With ``--exact`` it also times the refinement
 with the exact (MX, non-expanded) wrench table instead of its sequential linearisation, as a
 ratio against the default. With ``--formations N ...`` it plans formation changes of N vehicles
-(``planner.formations``) instead and prints the whole-process time and peak memory (RSS of the
+(``proxplan.planner.formations``) instead and prints the whole-process time and peak memory (RSS of the
 child) of both methods, the optimised makespan as a ratio of sampling's, and what the optimiser
 said. Numbers are printed, never asserted.
 """
@@ -57,7 +57,7 @@ def whole_process(scenario: Path, method: str, extra: tuple[str, ...] = ()) -> t
 def formations(sizes: list[int], budget: float | None) -> None:
     import yaml
 
-    from planner.formations import formation_change
+    from proxplan.planner.formations import formation_change
 
     extra = () if budget is None else ("--time-budget", str(budget))
     print(
@@ -82,10 +82,10 @@ def formations(sizes: list[int], budget: float | None) -> None:
 
 
 def in_process(scenario_path: Path, *, exact: bool) -> dict:
-    from planfile import load_scenario
-    from planner import ocp, plan_scenario
-    from planner.optimize import build_problem, moving_end_s, solution_to_plan
-    from verify import verify_plan
+    from proxplan.planfile import load_scenario
+    from proxplan.planner import ocp, plan_scenario
+    from proxplan.planner.optimize import build_problem, moving_end_s, solution_to_plan
+    from proxplan.verify import verify_plan
 
     scenario = load_scenario(scenario_path)
     initial = plan_scenario(scenario, method="sampling", seed=0)

@@ -35,7 +35,9 @@ def main() -> int:
     ap.add_argument("--no-plot", action="store_true")
     args = ap.parse_args()
     baseline = statistics.median(
-        _wall([sys.executable, "-c", "import planner.pipeline, verify.checks, ompl.geometric, ruckig"])[0]
+        _wall(
+            [sys.executable, "-c", "import proxplan.planner.pipeline, proxplan.verify.checks, ompl.geometric, ruckig"]
+        )[0]
         for _ in range(args.repeat)
     )
     print(f"baseline (interpreter + planner imports): {baseline:.2f} s")

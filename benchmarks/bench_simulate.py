@@ -2,8 +2,8 @@
 
 Prints real-time factors (simulated s per wall-clock s) of
   * baseline: RotorPy's own classes stepped per vehicle (SE3Control.update + Multirotor.step via
-    scipy solve_ivp, the external wrench from physics.effects.total_wrench at every step),
-  * flightsim.simulate_plan with the wrench evaluated every step (horizon 1) and batched over
+    scipy solve_ivp, the external wrench from proxplan.physics.effects.total_wrench at every step),
+  * proxplan.flightsim.simulate_plan with the wrench evaluated every step (horizon 1) and batched over
     10 steps at predicted positions (the default), with no truth effects and with all of them,
 and their ratios to the baseline measured in the same run; then 8 vehicles (4 swapping pairs). Optionally (``--plans``) flies the
 battery-swap plans of the planner (sampling, no-downwash, optimized) and prints the carrier's max
@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from flightsim import load_truth_file, simulate_plan, swap_plan
-from flightsim.vehicle_params import quad_params
-from physics import BUILTIN_VEHICLES, EffectInputs, SourceSample, total_wrench
+from proxplan.flightsim import load_truth_file, simulate_plan, swap_plan
+from proxplan.flightsim.vehicle_params import quad_params
+from proxplan.physics import BUILTIN_VEHICLES, EffectInputs, SourceSample, total_wrench
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -31,7 +31,7 @@ def baseline_rtf(sim_s: float) -> float:
     """RotorPy's classes, one vehicle at a time, 500 Hz, wrench every step (hover stack)."""
     from rotorpy.controllers.quadrotor_control import SE3Control
 
-    from flightsim.dynamics import ExternalWrenchMultirotor
+    from proxplan.flightsim.dynamics import ExternalWrenchMultirotor
 
     vehs = [BUILTIN_VEHICLES["crazyflie-2.1"], BUILTIN_VEHICLES["crazyflie-parrot"]]
     pos = [np.array([0.0, 0.0, 2.0]), np.array([0.0, 0.0, 1.0])]
@@ -110,7 +110,7 @@ def main() -> None:
 
 def eight_vehicle_plan(*, swap_s: float):
     """Four Neural-Swarm-like swapping pairs side by side, 1 m apart (8 vehicles)."""
-    from planfile import Plan
+    from proxplan.planfile import Plan
 
     vehicles = {}
     for k in range(4):

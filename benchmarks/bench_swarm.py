@@ -2,13 +2,13 @@
 
 Usage:  python benchmarks/bench_swarm.py [--n 8 16 32 64 128] [--optimized] [--timeout 600]
 
-For every N a formation-change scenario is generated (``planner.formations``: two staggered layers
+For every N a formation-change scenario is generated (``proxplan.planner.formations``: two staggered layers
 0.5 m apart west of a pillar, every vehicle flies to the other layer on the east side, mixed
 Crazyflie / Crazyflie-Parrot / small-quad). Each plan runs in its own subprocess and the script
 prints: whole-process wall time (s, and as a ratio to the interpreter + planner-import baseline
 measured in the same run), makespan / lower bound (lower bound = the largest single-vehicle
 straight-line rest-to-rest minimum time under its own speed / acceleration / jerk limits,
-``planner.ordering.lower_bound_makespan_s``), peak memory of the child (``resource`` rusage of the
+``proxplan.planner.ordering.lower_bound_makespan_s``), peak memory of the child (``resource`` rusage of the
 waited child, MB), the verdict of ``proxplan verify`` on the written plan.json, and with
 ``--optimized`` the same for ``--method optimized``.
 
@@ -92,12 +92,12 @@ def main() -> int:
 
     import yaml
 
-    from planfile import load_scenario
-    from planner.formations import formation_change
-    from planner.ordering import lower_bound_makespan_s
+    from proxplan.planfile import load_scenario
+    from proxplan.planner.formations import formation_change
+    from proxplan.planner.ordering import lower_bound_makespan_s
 
     base_wall, _, base_mb, _, base_cpu = _run(
-        [sys.executable, "-c", "import planner.pipeline, verify, ompl.geometric"], 120
+        [sys.executable, "-c", "import proxplan.planner.pipeline, proxplan.verify, ompl.geometric"], 120
     )
     print(f"baseline (interpreter + planner imports): {base_wall:.2f} s wall, {base_cpu:.2f} s CPU, {base_mb:.0f} MB")
     methods = ["sampling"] + (["optimized"] if args.optimized else [])

@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 
-from physics import authority_usage, disturbance_wrench
-from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
+from proxplan.physics import authority_usage, disturbance_wrench
+from proxplan.physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
 
 
 def main() -> None:

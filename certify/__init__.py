@@ -4,11 +4,11 @@ probabilities of exceeding authority, violating separation and missing the goal 
 intervals, and a report.
 """
 
-from certify.draws import DEFAULT_RELATIVE_SPREADS, MODEL_PARAMETERS, NoiseSpec, RunDraw, Spreads, draw_run
-from certify.engine import CertifyResult, certify_plan, summarise_runs
-from certify.report import write_report
-from certify.run import DEFAULT_GOAL_TOLERANCE_M, CertifySetup, fly_run
-from certify.stats import percentiles, probability, wilson_interval
+from proxplan.certify.draws import DEFAULT_RELATIVE_SPREADS, MODEL_PARAMETERS, NoiseSpec, RunDraw, Spreads, draw_run
+from proxplan.certify.engine import CertifyResult, certify_plan, summarise_runs
+from proxplan.certify.report import write_report
+from proxplan.certify.run import DEFAULT_GOAL_TOLERANCE_M, CertifySetup, fly_run
+from proxplan.certify.stats import percentiles, probability, wilson_interval
 
 __all__ = [
     "DEFAULT_GOAL_TOLERANCE_M",

@@ -13,7 +13,7 @@ One run draws (all documented in docs/certify.md):
   absolute, in the parameter's unit) and otherwise from :data:`DEFAULT_RELATIVE_SPREADS`;
 * a **residual disturbance force** per vehicle beyond the model: an Ornstein-Uhlenbeck process
   (exact AR(1) on a ``residual_dt_s`` grid) per world axis with the std (fraction of the vehicle's
-  weight) and correlation time measured on Neural-Swarm logs (:mod:`certify.residuals`);
+  weight) and correlation time measured on Neural-Swarm logs (:mod:`proxplan.certify.residuals`);
 * **sensor noise**: errors of the position / velocity estimate the controller uses (OU processes);
 * **start-position** (Gaussian per axis) and **timing** errors (Gaussian start delay per vehicle).
 """
@@ -25,12 +25,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identify import VEHICLE_PARAMETERS
-from physics import Vehicle
+from proxplan.identify import VEHICLE_PARAMETERS
+from proxplan.physics import Vehicle
 
 MODEL_PARAMETERS = VEHICLE_PARAMETERS
 """Model parameters drawn per vehicle type: c_ax, z0_m, c_rad, b_v (the ones ``proxplan identify``
-calibrates; a drawn set is applied with ``identify.apply_vehicle_parameters``)."""
+calibrates; a drawn set is applied with ``proxplan.identify.apply_vehicle_parameters``)."""
 
 DEFAULT_RELATIVE_SPREADS = {"c_ax": 0.10, "z0_m": 0.0, "c_rad": 0.15, "b_v": 0.20}
 """Default 1-sigma spreads as a fraction of the value, used when no saved uncertainty is given.
@@ -48,7 +48,7 @@ class NoiseSpec:
     """Everything but the model parameters that a run draws; SI units in the names.
 
     Residual force: measured on the Neural-Swarm single-vehicle hover segments
-    (``python -m certify.residuals``, docs/certify.md): z std 2.2 % (Crazyflie, 3 flights) and
+    (``python -m proxplan.certify.residuals``, docs/certify.md): z std 2.2 % (Crazyflie, 3 flights) and
     1.9 % (Parrot frame, 1 flight) of the weight, x/y std 0.66 % and 0.47 %, 1/e correlation times
     0.13 s and 0.06 s; defaults: z 2.1 %, x/y 0.6 %, 0.10 s. Estimate errors: motion-capture +
     onboard EKF class figures (2 mm, 2 cm/s), not measured here.

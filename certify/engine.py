@@ -13,10 +13,10 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from certify.run import CertifySetup, fly_run
-from certify.stats import percentiles, probability
-from fanout import fan_out
-from fileio import UserError
+from proxplan.certify.run import CertifySetup, fly_run
+from proxplan.certify.stats import percentiles, probability
+from proxplan.fanout import fan_out
+from proxplan.fileio import UserError
 
 OUTCOMES = ("authority_exceeded", "separation_violated", "goal_missed")
 N_WORST = 5

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from certify.engine import CertifyResult
-from certify.run import CertifySetup, fly_run
-from fileio import atomic_write_bytes, save_figure
-from flightsim import plot_errors
+from proxplan.certify.engine import CertifyResult
+from proxplan.certify.run import CertifySetup, fly_run
+from proxplan.fileio import atomic_write_bytes, save_figure
+from proxplan.flightsim import plot_errors
 
 
 def plot_usage_histogram(setup: CertifySetup, result: CertifyResult, path: Path) -> Path:

@@ -1,8 +1,8 @@
 """Statistics of the residual disturbance the model does not explain, measured on real logs; they
-set :class:`certify.draws.NoiseSpec`'s residual process (``python -m certify.residuals``).
+set :class:`proxplan.certify.draws.NoiseSpec`'s residual process (``python -m proxplan.certify.residuals``).
 
 Method: the Neural-Swarm single-vehicle flights (``takeoff_s``, ``takeoff_l``: no other vehicle, so
-the base model predicts zero) are measured with :func:`identify.measure_log` (S0-11 with the logged
+the base model predicts zero) are measured with :func:`proxplan.identify.measure_log` (S0-11 with the logged
 motor forces). Samples count when the vehicle is at least ``min_height_m`` above the ground plane
 (out of ground effect: > 8 rotor diameters for both vehicles) and slower than ``max_speed_mps`` (a
 hover). Per flight, the mean force is removed (a thrust-calibration bias, which ``identify``
@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from identify import measure_log, read_log
-from physics import BUILTIN_VEHICLES
+from proxplan.identify import measure_log, read_log
+from proxplan.physics import BUILTIN_VEHICLES
 
 DEFAULT_ROOT = Path(__file__).resolve().parents[2] / "shared" / "data" / "neural-swarm"
 FLIGHTS = {"takeoff_s": "crazyflie-2.1", "takeoff_l": "crazyflie-parrot"}

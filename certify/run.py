@@ -21,15 +21,15 @@ from typing import Any
 
 import numpy as np
 
-from certify.draws import NoiseSpec, RunDraw, Spreads, draw_run
-from flightsim import Perturbation, SimulationOptions, SimulationStatus, TruthSpec, simulate_plan
-from identify import apply_vehicle_parameters
-from physics import Effect, Vehicle, authority_usage
-from planfile import Plan
+from proxplan.certify.draws import NoiseSpec, RunDraw, Spreads, draw_run
+from proxplan.flightsim import Perturbation, SimulationOptions, SimulationStatus, TruthSpec, simulate_plan
+from proxplan.identify import apply_vehicle_parameters
+from proxplan.physics import Effect, Vehicle, authority_usage
+from proxplan.planfile import Plan
 
 DEFAULT_GOAL_TOLERANCE_M = 0.10
 """Largest final position error (after the settle time) that still counts as reaching the goal, m:
-twice the verifier's planning tolerance (verify.GOAL_TOLERANCE_M = 0.05 m), since a flown vehicle
+twice the verifier's planning tolerance (proxplan.verify.GOAL_TOLERANCE_M = 0.05 m), since a flown vehicle
 under a steady residual keeps a steady error with RotorPy's PD law."""
 
 DOCK_APPROACH_BAND_M = 0.10
@@ -63,7 +63,7 @@ def _drawn_effects(setup: CertifySetup, rng_draw: RunDraw) -> tuple[Effect, ...]
     """Truth effects with parameters drawn from ``effect_spreads`` (``effect.param`` keys)."""
     if not setup.effect_spreads:
         return tuple(setup.truth.effects)
-    from certify.draws import run_rng
+    from proxplan.certify.draws import run_rng
 
     rng = run_rng(rng_draw.sim_seed, 1)  # a separate stream: the other draws stay as they are
     out = []

@@ -3,8 +3,8 @@ authority levels and the 3-D wrench table with a smooth (numpy and CasADi) inter
 .npz with a parameter hash; shipped maps for the built-in types in ``costmaps/data``.
 """
 
-from costmaps.cutoff import DEFAULT_LEVELS, INVALID_RULES, CutoffMap, build_cutoff_map, r_cut_from_usage
-from costmaps.effects import (
+from proxplan.costmaps.cutoff import DEFAULT_LEVELS, INVALID_RULES, CutoffMap, build_cutoff_map, r_cut_from_usage
+from proxplan.costmaps.effects import (
     AXIS_BREAKING_EFFECTS,
     effects_key,
     effects_of_key,
@@ -13,8 +13,8 @@ from costmaps.effects import (
     sources_wrench,
     unmapped_effect_names,
 )
-from costmaps.map_plot import plot_cutoff
-from costmaps.map_store import (
+from proxplan.costmaps.map_plot import plot_cutoff
+from proxplan.costmaps.map_store import (
     DATA_DIR,
     FORMAT_VERSION,
     PairMaps,
@@ -25,7 +25,7 @@ from costmaps.map_store import (
     save_pair_maps,
     shipped_path,
 )
-from costmaps.wrench_table import WrenchTable, build_wrench_table
+from proxplan.costmaps.wrench_table import WrenchTable, build_wrench_table
 
 __all__ = [
     "AXIS_BREAKING_EFFECTS",

@@ -4,7 +4,7 @@ Frames and signs: world z up; the target sits at p_target - p_source = (r cos ph
 dz > 0 when the target is below the source. Both vehicles hover level with aligned axes.
 
 For every vertical separation dz on a grid the target's authority usage (DESIGN.md section 3, from
-:func:`physics.disturbance.disturbance_wrench` and :func:`physics.authority.authority_usage`) is
+:func:`proxplan.physics.disturbance.disturbance_wrench` and :func:`proxplan.physics.authority.authority_usage`) is
 evaluated on a radial grid and maximised over the azimuth phi in [0, pi/4] (the X-frame target and
 the axisymmetric jet make every other azimuth a mirror image of one in that sector). The map keeps
 this usage grid U(r, dz), so ``r_cut_m`` answers any threshold ``level``: r_cut is the *outermost*
@@ -37,9 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from costmaps.effects import map_effects, pair_wrench
-from costmaps.wrench_table import USAGE_FLOOR, LateralScale, default_dz_max_m, target_half_extent_m
-from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, Effect, ModelOptions, Vehicle, authority_usage
+from proxplan.costmaps.effects import map_effects, pair_wrench
+from proxplan.costmaps.wrench_table import USAGE_FLOOR, LateralScale, default_dz_max_m, target_half_extent_m
+from proxplan.physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, Effect, ModelOptions, Vehicle, authority_usage
 
 INVALID_RULES = ("conservative", "model", "forbid")
 DEFAULT_INVALID_RULE = "conservative"
@@ -56,7 +56,7 @@ class CutoffResolution:
 
     ``n_dz`` nodes dz = dz_max u^``dz_power`` (u uniform in [0, 1], dense near the source; dz_max
     None = max(6 m, 15 L_source)); ``n_r`` radial nodes r = rho S(dz), rho uniform in [0, 1], with
-    the jet-following half-width S(dz) of :class:`costmaps.wrench_table.LateralScale` widened by
+    the jet-following half-width S(dz) of :class:`proxplan.costmaps.wrench_table.LateralScale` widened by
     ``lateral_widths``; ``n_azimuth`` azimuths in [0, pi/4].
     """
 
@@ -190,7 +190,7 @@ def usage_grid(
     effects: Sequence[Effect] = (),
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Usage maximised over azimuth on the (r, dz) grid, with the between-vehicle ``effects``
-    that keep the jet axisymmetric (:func:`costmaps.effects.map_effects`).
+    that keep the jet axisymmetric (:func:`proxplan.costmaps.effects.map_effects`).
 
     Returns dz_m (K,), r_grid_m (n_r, K) and usage (n_r, K); dz = 0 holds the limit from below.
     """

@@ -3,9 +3,9 @@ one function cost maps, planner checks and verifier evaluate (one implementation
 
 Frames: world z up; ``offsets_m`` (N, 3) = p_target - p_source, m; force (N, 3) N and torque (N, 3)
 N m on the target about its centre of mass, world frame. Without effects this is
-:func:`physics.disturbance.disturbance_wrench` (S0-3..S0-8); with effects it is
-:func:`physics.effects.total_wrench` for this one source, keeping only the effects that act
-between vehicles (every effect not in :data:`physics.effects.TARGET_ONLY_EFFECTS`, each a sum over
+:func:`proxplan.physics.disturbance.disturbance_wrench` (S0-3..S0-8); with effects it is
+:func:`proxplan.physics.effects.total_wrench` for this one source, keeping only the effects that act
+between vehicles (every effect not in :data:`proxplan.physics.effects.TARGET_ONLY_EFFECTS`, each a sum over
 sources like the base model). The target is taken far above the ground and at rest: effects of the
 target alone (ground effect, own velocity, thrust bias) are its own thrust error, not the plan's.
 :func:`sources_wrench` evaluates several sources at once (the verifier, where two are above a target).
@@ -21,7 +21,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from physics import (
+from proxplan.physics import (
     DEFAULT_OPTIONS,
     Effect,
     EffectInputs,
@@ -94,7 +94,7 @@ def sources_wrench(
     effects: Sequence[Effect] = (),
 ) -> tuple[np.ndarray, np.ndarray]:
     """Force (N, 3), N, and torque (N, 3), N m, on ``target`` from every ``(source, offsets_m)``
-    at once (offsets (N, 3) = p_target - p_source, m): :func:`physics.effects.total_wrench` with
+    at once (offsets (N, 3) = p_target - p_source, m): :func:`proxplan.physics.effects.total_wrench` with
     the between-vehicle ``effects``. Equal to the sum of :func:`pair_wrench` over the sources for
     effects that add over sources (all of today's); an effect that does not (several sources
     interacting) is only right here."""

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from costmaps.cutoff import CutoffMap
-from fileio import save_figure
+from proxplan.costmaps.cutoff import CutoffMap
+from proxplan.fileio import save_figure
 
 
 def plot_cutoff(cutoff: CutoffMap, path: str | Path, *, title: str | None = None) -> Path:

@@ -11,7 +11,7 @@ File format (.npz, version :data:`FORMAT_VERSION`, float32 arrays):
 * wrench table: ``table_xi`` (nx,), ``table_eta`` (ny,), ``table_dz_m`` (nz,), ``table_scale``
   (a_m, b, c_m), ``table_valid`` (nz,), ``table_boundary_usage``, ``table_beyond_dz_usage`` and the
   quadrant xi >= 0, eta >= 0 of ``table_force_z_N``, ``table_torque_x_Nm``, ``table_torque_y_Nm``
-  (the rest follows by the model's mirror symmetry, see :mod:`costmaps.wrench_table`).
+  (the rest follows by the model's mirror symmetry, see :mod:`proxplan.costmaps.wrench_table`).
 
 ``param_hash`` = SHA-256 of the canonical JSON of both vehicles' parameters (``to_dict()`` without
 the free-text ``description``/``sources``), :class:`ModelOptions` and the format version. A map is
@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from costmaps.cutoff import (
+from proxplan.costmaps.cutoff import (
     DEFAULT_CUTOFF_RESOLUTION,
     DEFAULT_INVALID_RULE,
     DEFAULT_LEVEL,
@@ -42,8 +42,8 @@ from costmaps.cutoff import (
     CutoffResolution,
     build_cutoff_map,
 )
-from costmaps.effects import EffectsKey, effects_key, effects_of_key, map_effects
-from costmaps.wrench_table import (
+from proxplan.costmaps.effects import EffectsKey, effects_key, effects_of_key, map_effects
+from proxplan.costmaps.wrench_table import (
     DEFAULT_RESOLUTION,
     LateralScale,
     TableResolution,
@@ -51,8 +51,8 @@ from costmaps.wrench_table import (
     build_wrench_table,
     mirror_quadrant,
 )
-from fileio import UserError, atomic_output
-from physics import DEFAULT_OPTIONS, Effect, ModelOptions, Vehicle, effects_to_list
+from proxplan.fileio import UserError, atomic_output
+from proxplan.physics import DEFAULT_OPTIONS, Effect, ModelOptions, Vehicle, effects_to_list
 
 FORMAT_VERSION = 1
 """Bump when the .npz layout or the meaning of a stored array changes."""
@@ -83,7 +83,7 @@ def options_dict(options: ModelOptions) -> dict:
 
 
 def effects_list(effects: Sequence[Effect]) -> list[dict]:
-    """The effects a map applies (:func:`costmaps.effects.map_effects`), ``[{name, params}]``."""
+    """The effects a map applies (:func:`proxplan.costmaps.effects.map_effects`), ``[{name, params}]``."""
     return effects_to_list(map_effects(effects))
 
 
@@ -133,7 +133,7 @@ def build_pair_maps(
     effects: Sequence[Effect] = (),
 ) -> PairMaps:
     """Compute both maps from the model plus the between-vehicle ``effects`` of a calibrated
-    model (:func:`costmaps.effects.map_effects`; about 1-2 s per pair)."""
+    model (:func:`proxplan.costmaps.effects.map_effects`; about 1-2 s per pair)."""
     cutoff = build_cutoff_map(
         source,
         target,

@@ -1,12 +1,12 @@
 """3-D wrench table: the disturbance model sampled on an (x, y, dz) grid, with a smooth interpolant.
 
-Frames: world z up; both vehicles hover level with aligned axes (as in :mod:`physics.disturbance`).
+Frames: world z up; both vehicles hover level with aligned axes (as in :mod:`proxplan.physics.disturbance`).
 The table holds the wrench on ``target`` in the downwash of a hovering ``source`` at offsets
 ``p_target - p_source = (x, y, -dz)``; dz > 0 means the target is below. In the axial-flow model of
 (S0-3..S0-8) the force is vertical and the yaw torque is zero, so three channels are stored:
 F_z (N), tau_x (N m), tau_y (N m).
 
-Numbers come from :func:`physics.disturbance.disturbance_wrench` (one physics implementation). The
+Numbers come from :func:`proxplan.physics.disturbance.disturbance_wrench` (one physics implementation). The
 model is evaluated on one quadrant (x >= 0, y >= 0) and mirrored: the source field is axisymmetric
 and the X-frame target is symmetric under x -> -x and y -> -y, under which
 F_z(-x, y) = F_z(x, y), tau_x(-x, y) = tau_x(x, y), tau_y(-x, y) = -tau_y(x, y) and
@@ -29,7 +29,7 @@ to the source (0 < dz < dz_min) the first layer is *held* (same lateral offset, 
 zero there, but not the model's extrapolated near field either, whose floored jet (1/e radius
 L_s / (2 sqrt(c_rad)), 7.5 mm for small-quad) is narrower than any affordable lateral grid (the
 spline error there reaches tens of % of the peak force). Planners keep targets out of that zone with
-the cutoff map's invalid-zone rule (:mod:`costmaps.cutoff`). ``TableResolution(dz_min_m=0)``
+the cutoff map's invalid-zone rule (:mod:`proxplan.costmaps.cutoff`). ``TableResolution(dz_min_m=0)``
 tabulates the extrapolated near field anyway (``valid`` flags those layers).
 """
 
@@ -43,8 +43,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from costmaps.effects import map_effects, pair_wrench
-from physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, Effect, ModelOptions, Vehicle, authority_usage
+from proxplan.costmaps.effects import map_effects, pair_wrench
+from proxplan.physics import DEFAULT_OPTIONS, VALIDITY_FACTOR_L, Effect, ModelOptions, Vehicle, authority_usage
 
 if TYPE_CHECKING:  # pragma: no cover
     import casadi
@@ -301,7 +301,7 @@ def build_wrench_table(
     effects: Sequence[Effect] = (),
 ) -> WrenchTable:
     """Evaluate the disturbance model (plus the between-vehicle ``effects`` that keep the jet
-    axisymmetric, :func:`costmaps.effects.map_effects`) on the table grid (one quadrant, mirrored)
+    axisymmetric, :func:`proxplan.costmaps.effects.map_effects`) on the table grid (one quadrant, mirrored)
     and check extents. The yaw torque of an effect (wake swirl) is not a table channel; the cutoff
     map's usage and the verifier include it."""
     scale = LateralScale.for_pair(source, target, resolution.lateral_widths)

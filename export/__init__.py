@@ -2,7 +2,7 @@
 within a position tolerance) and time-stamped set-points with the predicted downwash as
 feed-forward, for streaming controllers. Plans are read only through ``planfile``."""
 
-from export.crazyflie import (
+from proxplan.export.crazyflie import (
     DEFAULT_TOLERANCE_M,
     SPLIT_PART_PIECES,
     DoesNotFitError,
@@ -11,8 +11,14 @@ from export.crazyflie import (
     export_vehicle,
     vehicle_limits,
 )
-from export.polyfit import PieceFit, adaptive_fit, deviation, fit_pieces
-from export.setpoints import DEFAULT_RATE_HZ, SETPOINT_COLUMNS, export_setpoints, feedforward_wrench, setpoint_times
+from proxplan.export.polyfit import PieceFit, adaptive_fit, deviation, fit_pieces
+from proxplan.export.setpoints import (
+    DEFAULT_RATE_HZ,
+    SETPOINT_COLUMNS,
+    export_setpoints,
+    feedforward_wrench,
+    setpoint_times,
+)
 
 __all__ = [
     "DEFAULT_RATE_HZ",

@@ -1,9 +1,9 @@
 """Crazyflie export: every vehicle of a plan as ``uav_trajectories`` CSV files (piecewise 7th-order
 polynomials, C2 at every joint, <= 31 pieces an upload) and the manifest that lets ``proxplan
-verify`` re-check the exported folder (:func:`planfile.read_export`).
+verify`` re-check the exported folder (:func:`proxplan.planfile.read_export`).
 
 By default each vehicle is one upload; when its plan needs more than
-:data:`planfile.CRAZYFLIE_MAX_PIECES` pieces within the tolerance the export fails with
+:data:`proxplan.planfile.CRAZYFLIE_MAX_PIECES` pieces within the tolerance the export fails with
 :class:`DoesNotFitError` naming the vehicle, the pieces and the deviation. With ``split_time`` the
 trajectory is instead cut in time into consecutive uploads of at most :data:`SPLIT_PART_PIECES`
 pieces, so that the next part fits into the other half of the trajectory memory while one flies
@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from export.polyfit import PieceFit, adaptive_fit, fit_ok, fit_uniform
-from fileio import atomic_write_text
-from planfile import (
+from proxplan.export.polyfit import PieceFit, adaptive_fit, fit_ok, fit_uniform
+from proxplan.fileio import atomic_write_text
+from proxplan.planfile import (
     CRAZYFLIE_MAX_PIECES,
     EXPORT_FORMAT,
     EXPORT_FORMAT_VERSION,
@@ -42,7 +42,7 @@ SPLIT_PIECE_OFFSET = 16  # piece offset of odd-numbered parts
 class DoesNotFitError(Exception):
     """A vehicle's trajectory needs more than the firmware's pieces within the tolerance:
     ``pieces`` the adaptive fit needed (or gave up at), ``deviation_m`` (m) and ``kinematic_ratio``
-    of the best :data:`planfile.CRAZYFLIE_MAX_PIECES`-piece fit."""
+    of the best :data:`proxplan.planfile.CRAZYFLIE_MAX_PIECES`-piece fit."""
 
     def __init__(self, vehicle: str, needed: PieceFit, at_most: PieceFit, tolerance_m: float) -> None:
         self.vehicle, self.pieces = vehicle, needed.trajectory.n_pieces
@@ -135,7 +135,7 @@ def export_crazyflie(
     split_time: bool = False,
     progress=None,
 ) -> dict:
-    """Write every vehicle's CSV file(s) (kinematic limits from ``scenario``, else from the vehicle types) and :data:`planfile.EXPORT_MANIFEST` into ``folder``;
+    """Write every vehicle's CSV file(s) (kinematic limits from ``scenario``, else from the vehicle types) and :data:`proxplan.planfile.EXPORT_MANIFEST` into ``folder``;
     returns ``{vehicle: {type, files: [{file, pieces, max_deviation_m, start_time_s, ...}]}}``."""
     folder = Path(folder)
     parts_of = {}

@@ -25,7 +25,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse import linalg as sparse_linalg
 
-from planfile import N_COEF, PolynomialTrajectory, VehicleTrajectory, resample_step
+from proxplan.planfile import N_COEF, PolynomialTrajectory, VehicleTrajectory, resample_step
 
 FIT_SAMPLES = 48  # least-squares points per piece
 CHECK_STEP_S = 0.002  # dense check grid, s
@@ -141,7 +141,7 @@ def fit_pieces(
 class FitTarget:
     """One vehicle's plan on [t0_s, t1_s] sampled once: on the dense check grid (step <=
     :data:`CHECK_STEP_S`, s) for position, speed and acceleration, and on the grid the export is
-    re-read and verified on (:func:`planfile.resample_step`) for jerk, measured as the verifier
+    re-read and verified on (:func:`proxplan.planfile.resample_step`) for jerk, measured as the verifier
     does (acceleration difference over one step). ``allowed_*`` hold, per check point, the larger of
     the limit times :data:`KINEMATIC_MARGINS` and the plan's own value times :data:`OWN_MARGIN`
     (``limits``: speed m/s, acceleration m/s^2, jerk m/s^3, or None)."""

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import atomic_write_text
-from planfile import Plan, Scenario
-from verify import wrench_along_plan
+from proxplan.fileio import atomic_write_text
+from proxplan.planfile import Plan, Scenario
+from proxplan.verify import wrench_along_plan
 
 SETPOINT_COLUMNS = (
     "t_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "ax_mps2", "ay_mps2", "az_mps2",
@@ -50,7 +50,7 @@ def feedforward_wrench(plan: Plan, scenario: Scenario, t_s: np.ndarray) -> tuple
     wrench = {name: np.hstack([w.force_N, w.torque_Nm]) for name, w in along.items()}
     note = (
         "plan.json has no feed-forward fields (older version): feed-forward wrench recomputed with the "
-        "verifier's model (verify.wrench_along_plan) along the plan"
+        "verifier's model (proxplan.verify.wrench_along_plan) along the plan"
     )
     return wrench, note
 

@@ -3,6 +3,6 @@ cores by default, or an existing cluster given by its scheduler address. The one
 leaves the calling process; certification, swarm planning and cost maps for many pairs use it.
 """
 
-from fanout.engine import FanoutResult, fan_out
+from proxplan.fanout.engine import FanoutResult, fan_out
 
 __all__ = ["FanoutResult", "fan_out"]

@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from fileio import UserError
+from proxplan.fileio import UserError
 
 _ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d+$")
 

@@ -4,8 +4,8 @@ The bottom layer: every other package reports user mistakes as :class:`UserError
 writes files through these helpers.
 """
 
-from fileio.errors import UserError, where
-from fileio.files import (
+from proxplan.fileio.errors import UserError, where
+from proxplan.fileio.files import (
     atomic_output,
     atomic_write_bytes,
     atomic_write_text,

@@ -16,7 +16,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from fileio.errors import UserError
+from proxplan.fileio.errors import UserError
 
 
 def read_text(path: str | Path, *, what: str) -> str:

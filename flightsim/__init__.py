@@ -3,9 +3,9 @@ downwash of every other vehicle (and optional "truth" effects beyond the model) 
 reports and Neural-Swarm-layout flight logs of the simulated flights.
 """
 
-from flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_flight_logs
-from flightsim.report import feedforward_comparison, plot_errors, simulation_metrics, summary_dict
-from flightsim.scenarios_synthetic import (
+from proxplan.flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_flight_logs
+from proxplan.flightsim.report import feedforward_comparison, plot_errors, simulation_metrics, summary_dict
+from proxplan.flightsim.scenarios_synthetic import (
     battery_swap_plans,
     hover_stack_plan,
     single_hover_plan,
@@ -13,7 +13,7 @@ from flightsim.scenarios_synthetic import (
     takeoff_hover_plan,
     waypoint_trajectory,
 )
-from flightsim.simulate import (
+from proxplan.flightsim.simulate import (
     Perturbation,
     SimulationOptions,
     SimulationResult,
@@ -21,7 +21,7 @@ from flightsim.simulate import (
     VehicleRecord,
     simulate_plan,
 )
-from flightsim.truth import TruthSpec, load_truth_file, merge_truth, model_truth, plan_truth, truth_from_dict
+from proxplan.flightsim.truth import TruthSpec, load_truth_file, merge_truth, model_truth, plan_truth, truth_from_dict
 
 __all__ = [
     "NEURAL_SWARM_HEADER",

@@ -1,5 +1,5 @@
 """RotorPy's geometric SE(3) tracking controller (``rotorpy.controllers.quadrotor_control.SE3Control``,
-Lee et al. 2010), written with scalar arithmetic (floats or CasADi SX) for :mod:`flightsim.stepper`.
+Lee et al. 2010), written with scalar arithmetic (floats or CasADi SX) for :mod:`proxplan.flightsim.stepper`.
 
 Same law and same gains as RotorPy's ``SE3Control.update`` (tests compare the two):
 F_des = m (-K_p e_x - K_d e_v + a_ref + g e_z); thrust u1 = F_des . b3; R_des with b3_des along
@@ -19,7 +19,7 @@ import casadi as ca
 import numpy as np
 from rotorpy.controllers.quadrotor_control import SE3Control
 
-from flightsim.dynamics import GRAVITY_ROTORPY_MPS2, cross, matvec, rotation
+from proxplan.flightsim.dynamics import GRAVITY_ROTORPY_MPS2, cross, matvec, rotation
 
 
 @dataclass(frozen=True)
@@ -57,7 +57,7 @@ def _normalize(a):
 
 
 def se3_control(c: ControllerConstants, s, ref_x, ref_v, ref_a, ff_force_N=None, ff_torque_body_Nm=None):
-    """Commands for state ``s`` (17, see flightsim.dynamics) and reference position, velocity,
+    """Commands for state ``s`` (17, see proxplan.flightsim.dynamics) and reference position, velocity,
     acceleration (3 each), world frame, compensating the predicted disturbance force (3, world
     frame, N) and torque (3, body frame, N m) when given. Returns (motor speeds (4) rad/s
     unclipped, motor thrusts (4) N, collective thrust u1 N, body moments u2 (3) N m)."""

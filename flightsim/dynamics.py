@@ -9,7 +9,7 @@ translational lift, parasitic drag, yaw moments: RotorPy's ``_s_dot_fn`` and
   (world frame, N) and torque (body frame, N m) to its state derivative; one vehicle, RotorPy's own
   ``step`` (scipy ``solve_ivp``, about 1 ms per step). The reference in tests.
 * :func:`state_derivative` writes the same derivative with scalar arithmetic that works both on
-  floats and on CasADi SX symbols, so :mod:`flightsim.stepper` compiles it (with the controller
+  floats and on CasADi SX symbols, so :mod:`proxplan.flightsim.stepper` compiles it (with the controller
   and an RK4 step) into one fast function for all vehicles. Tests check it against RotorPy.
 
 State vector of one vehicle, 17 entries: position x (3) m and velocity v (3) m/s, world frame, z up;
@@ -67,7 +67,7 @@ class VehicleConstants:
     @classmethod
     def from_params(cls, p: dict) -> VehicleConstants:
         if p.get("k_flap", 0.0) != 0.0:
-            raise ValueError("rotor flapping (k_flap != 0) is not modelled by flightsim.dynamics")
+            raise ValueError("rotor flapping (k_flap != 0) is not modelled by proxplan.flightsim.dynamics")
         inertia = np.array(
             [[p["Ixx"], p["Ixy"], p["Ixz"]], [p["Ixy"], p["Iyy"], p["Iyz"]], [p["Ixz"], p["Iyz"], p["Izz"]]]
         )

@@ -37,9 +37,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fileio import UserError, atomic_write_bytes, read_yaml
-from identify import NEURAL_SWARM_FILE_COLUMNS
-from physics import GRAVITY_MPS2
+from proxplan.fileio import UserError, atomic_write_bytes, read_yaml
+from proxplan.identify import NEURAL_SWARM_FILE_COLUMNS
+from proxplan.physics import GRAVITY_MPS2
 
 NEURAL_SWARM_HEADER = "# " + ",".join(NEURAL_SWARM_FILE_COLUMNS)  # the layout identify reads
 TRUTH_HEADER = (
@@ -67,7 +67,7 @@ def neural_swarm_table(
     velocity_noise_std_mps: float = 0.005,
     logged_thrust: str = "actual",
 ) -> np.ndarray:
-    """The (M, 30) Neural-Swarm table of one :class:`flightsim.simulate.VehicleRecord`."""
+    """The (M, 30) Neural-Swarm table of one :class:`proxplan.flightsim.simulate.VehicleRecord`."""
     if logged_thrust not in LOGGED_THRUSTS:
         raise UserError(f"logged_thrust: expected one of {', '.join(LOGGED_THRUSTS)}, got {logged_thrust!r}")
     m = record.t_s.size
@@ -129,7 +129,7 @@ def _write_custom_vehicles(result, out: Path) -> str | None:
     relative to ``out`` (None when every vehicle is a built-in type)."""
     import yaml
 
-    from physics import BUILTIN_VEHICLES, vehicle_to_yaml_dict
+    from proxplan.physics import BUILTIN_VEHICLES, vehicle_to_yaml_dict
 
     custom = {
         rec.type_name: rec.vehicle
@@ -153,7 +153,7 @@ def write_flight_logs(
     vehicles_file: str | None = None,
     logged_thrust: str = "actual",
 ) -> Path:
-    """Write every vehicle of ``result`` (a :class:`flightsim.simulate.SimulationResult`) as a
+    """Write every vehicle of ``result`` (a :class:`proxplan.flightsim.simulate.SimulationResult`) as a
     Neural-Swarm log under ``out_dir/flight_name/`` and add the flight to ``out_dir/manifest.yaml``
     (created when missing). ``vehicles_file`` (relative to the manifest) names custom vehicle types;
     when None and a flown vehicle is not a built-in type (or differs from it), its parameters are
@@ -197,9 +197,9 @@ def write_flight_logs(
 
 
 def vehicle_logs(result, *, logged_thrust: str = "actual", seed: int | None = None) -> dict:
-    """The logs :func:`write_flight_logs` would write, in memory: ``{name: identify.flightlog.VehicleLog}``
+    """The logs :func:`write_flight_logs` would write, in memory: ``{name: proxplan.identify.flightlog.VehicleLog}``
     (same noise for the same ``seed``; world-frame accelerometer, body gyro, (S0-14) thrusts)."""
-    from identify import VehicleLog
+    from proxplan.identify import VehicleLog
 
     out = {}
     for name, tab in _noisy_tables(result, seed=seed, logged_thrust=logged_thrust).items():

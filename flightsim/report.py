@@ -3,7 +3,7 @@
 Per vehicle, over the whole record (the plan plus the settle time after it):
 position error |p - p_ref| (max, RMS), altitude error |z - z_ref| (max, RMS), m; time with any
 motor command clipped (physics-step resolution), s; the largest authority usage (DESIGN.md
-section 3, physics.authority) of the disturbance wrench actually applied; the largest motor usage
+section 3, proxplan.physics.authority) of the disturbance wrench actually applied; the largest motor usage
 actually commanded (thrust change from hover over the headroom in that direction, tracking
 included: 1 = a motor at its limit); the time spent below another vehicle inside its invalid zone
 (dz <= 3 L with overlapping footprints, S0 II-A: the verifier's test), where the applied model
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import save_figure
-from physics import authority_usage
+from proxplan.fileio import save_figure
+from proxplan.physics import authority_usage
 
 USAGE_RATIO_FLOOR = 1e-3  # predicted usage below which a flown/predicted ratio means nothing, -
 
@@ -54,10 +54,10 @@ def motor_usage(vehicle, cmd_motor_thrust_N: np.ndarray) -> np.ndarray:
 
 def invalid_zone_mask(result, name: str, *, planned: bool = False) -> np.ndarray:
     """(M,) True where ``name`` flies in another vehicle's invalid zone (dz <= 3 L with
-    overlapping footprints, physics.invalid_zone_mask: the verifier's test), flown or, with
+    overlapping footprints, proxplan.physics.invalid_zone_mask: the verifier's test), flown or, with
     ``planned``, on the plan's reference positions. The simulator applies the model's
     (extrapolated) value there."""
-    from physics import invalid_zone_mask as zone
+    from proxplan.physics import invalid_zone_mask as zone
 
     key = "ref_position_m" if planned else "position_m"
     rec = result.records[name]
@@ -104,7 +104,7 @@ def vehicle_metrics(
 
 
 def simulation_metrics(result) -> dict[str, VehicleMetrics]:
-    """:class:`VehicleMetrics` of every vehicle of a :class:`flightsim.simulate.SimulationResult`."""
+    """:class:`VehicleMetrics` of every vehicle of a :class:`proxplan.flightsim.simulate.SimulationResult`."""
     return {
         n: vehicle_metrics(
             r,

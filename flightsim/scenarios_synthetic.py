@@ -11,8 +11,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from physics import BUILTIN_VEHICLES
-from planfile import Plan, VehicleTrajectory
+from proxplan.physics import BUILTIN_VEHICLES
+from proxplan.planfile import Plan, VehicleTrajectory
 
 
 def _min_jerk(p0: np.ndarray, p1: np.ndarray, t_s: np.ndarray, t0_s: float, t1_s: float):

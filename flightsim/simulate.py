@@ -1,13 +1,13 @@
 """Closed-loop flight of a multi-vehicle plan with downwash, on RotorPy's dynamics.
 
-Each vehicle is RotorPy's multirotor model (:mod:`flightsim.dynamics`, parameters from
-:mod:`flightsim.vehicle_params`) flown by RotorPy's SE(3) controller (:mod:`flightsim.control`)
+Each vehicle is RotorPy's multirotor model (:mod:`proxplan.flightsim.dynamics`, parameters from
+:mod:`proxplan.flightsim.vehicle_params`) flown by RotorPy's SE(3) controller (:mod:`proxplan.flightsim.control`)
 tracking the plan's position, velocity and acceleration (yaw 0). Every physics step (default
-500 Hz) each vehicle receives the external wrench of :func:`physics.effects.total_wrench`: the
+500 Hz) each vehicle receives the external wrench of :func:`proxplan.physics.effects.total_wrench`: the
 base downwash model (S0-3..S0-8) of every other vehicle plus the "truth" effects.
 
 Frames: world z up, ground plane at z = ``ground_z_m``; the model wrench is computed for level
-vehicles (world = body axes, as in physics.disturbance): its force is applied in the world frame,
+vehicles (world = body axes, as in proxplan.physics.disturbance): its force is applied in the world frame,
 its torque rotated into the body frame.
 
 Speed: the wrench is evaluated for ``wrench_horizon_steps`` physics steps at once, at the positions
@@ -26,13 +26,21 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import UserError
-from flightsim.imu import ImuOptions, imu_samples
-from flightsim.stepper import CompiledStepper
-from flightsim.truth import TruthSpec, merge_truth, plan_truth
-from flightsim.vehicle_params import quad_params
-from physics import TARGET_ONLY_EFFECTS, Effect, EffectInputs, ModelOptions, SourceSample, Vehicle, total_wrench
-from planfile import Plan, read_plan
+from proxplan.fileio import UserError
+from proxplan.flightsim.imu import ImuOptions, imu_samples
+from proxplan.flightsim.stepper import CompiledStepper
+from proxplan.flightsim.truth import TruthSpec, merge_truth, plan_truth
+from proxplan.flightsim.vehicle_params import quad_params
+from proxplan.physics import (
+    TARGET_ONLY_EFFECTS,
+    Effect,
+    EffectInputs,
+    ModelOptions,
+    SourceSample,
+    Vehicle,
+    total_wrench,
+)
+from proxplan.planfile import Plan, read_plan
 
 
 @dataclass(frozen=True)
@@ -154,10 +162,10 @@ def simulate_plan(
     progress: bool = False,
     perturbation: Perturbation | None = None,
 ) -> SimulationResult:
-    """Fly ``plan`` (a :class:`planfile.plan.Plan` or a plan.json path) closed loop.
+    """Fly ``plan`` (a :class:`proxplan.planfile.plan.Plan` or a plan.json path) closed loop.
 
     ``truth`` (or just ``truth_effects``) adds effects beyond the model; without ``truth`` the world
-    is :func:`flightsim.truth.plan_truth` (the plan's field form and effects) plus ``truth_effects``
+    is :func:`proxplan.flightsim.truth.plan_truth` (the plan's field form and effects) plus ``truth_effects``
     (give ``truth=merge_truth(plan_truth(plan), extra)`` to add to the plan's effects); ``vehicles`` maps type
     names to the vehicles actually flown instead of the plan's own parameters (e.g. a heavier or
     weaker airframe than planned). ``options``, when given, overrides the keyword numbers.
@@ -412,8 +420,8 @@ def predicted_wrench(plan, names: list[str], t_s: np.ndarray) -> tuple[np.ndarra
     at plan times ``t_s`` ((K,) or per vehicle (K, V)), linear between plan samples and held outside
     the plan, and a note: the
     plan's feed-forward fields, or, when a plan has none (older files), the wrench recomputed with
-    the verifier's model (``verify.wrench_along_plan``, the scenario's model options)."""
-    from verify import scenario_of_plan, wrench_along_plan
+    the verifier's model (``proxplan.verify.wrench_along_plan``, the scenario's model options)."""
+    from proxplan.verify import scenario_of_plan, wrench_along_plan
 
     trajs = [plan.vehicles[n] for n in names]
     note = ""
@@ -465,7 +473,7 @@ def _wrench_for(
     ground_z_m: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Wrench (K, 3) x2 on vehicle ``target_index`` for positions (K, V, 3) of all vehicles and the
-    target's velocity (K, 3): :func:`physics.effects.total_wrench` with every other vehicle as a
+    target's velocity (K, 3): :func:`proxplan.physics.effects.total_wrench` with every other vehicle as a
     source. For speed, sources of the same vehicle type are stacked into one model call, and a
     source never above the target over the K samples is skipped (its downwash, and every
     per-source effect, is exactly zero there); target-only effects are evaluated once."""

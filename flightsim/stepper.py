@@ -3,8 +3,8 @@ compiled once into a CasADi SX function and evaluated through CasADi's zero-copy
 
 Why: RotorPy's own ``Multirotor.step`` (scipy ``solve_ivp``) costs about 1 ms per vehicle and
 step, i.e. 1x real time for two vehicles at 500 Hz; numpy on (V, 3) arrays is dominated by per-call
-overhead. The same scalar equations (:func:`flightsim.dynamics.state_derivative`,
-:func:`flightsim.control.se3_control`) compiled into one CasADi function take a few tens of
+overhead. The same scalar equations (:func:`proxplan.flightsim.dynamics.state_derivative`,
+:func:`proxplan.flightsim.control.se3_control`) compiled into one CasADi function take a few tens of
 microseconds per step for all vehicles.
 
 Per step: the controller runs on the state at the step start (zero-order hold, as RotorPy's
@@ -19,8 +19,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from flightsim.control import ControllerConstants, se3_control
-from flightsim.dynamics import STATE_SIZE, VehicleConstants, mat_t_vec, rotation, state_derivative
+from proxplan.flightsim.control import ControllerConstants, se3_control
+from proxplan.flightsim.dynamics import STATE_SIZE, VehicleConstants, mat_t_vec, rotation, state_derivative
 
 
 def _clip(val, lo, hi):

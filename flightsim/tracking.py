@@ -1,5 +1,5 @@
 """How closely the default controller tracks a vehicle's kinematic limits: the measurement behind
-the limits on :class:`physics.Vehicle` and the tube margin ``limits.tracking_margin_m``.
+the limits on :class:`proxplan.physics.Vehicle` and the tube margin ``limits.tracking_margin_m``.
 
 Why plans were flown with 12-24 cm errors (docs/flying.md): RotorPy's SE(3) controller has no
 angular-rate feed-forward from the reference jerk, and its attitude loop (k_R = 310 s^-2,
@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from flightsim.simulate import SimulationOptions, simulate_plan
-from physics import KinematicLimits, Vehicle
-from planfile import Plan, VehicleTrajectory
+from proxplan.flightsim.simulate import SimulationOptions, simulate_plan
+from proxplan.physics import KinematicLimits, Vehicle
+from proxplan.planfile import Plan, VehicleTrajectory
 
 COURSE_M = np.array(
     [[0.0, 0.0, 1.0], [2.0, 0.6, 1.0], [2.0, 0.6, 1.6], [0.5, 0.0, 1.2], [0.5, 0.0, 1.0], [0.0, 0.0, 1.0]]
@@ -33,7 +33,7 @@ COURSE_M = np.array(
 
 def course_plan(vehicle: Vehicle, limits: KinematicLimits, *, dt_s: float = 0.05) -> Plan:
     """A one-vehicle plan along :data:`COURSE_M`, timed with Ruckig at ``limits``."""
-    from planner import common_grid, time_parameterize
+    from proxplan.planner import common_grid, time_parameterize
 
     timed = time_parameterize(COURSE_M, None, limits)
     t = common_grid(timed.duration_s, dt_s)

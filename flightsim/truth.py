@@ -7,7 +7,7 @@ Format (every key optional)::
     field_form: inverse-z          # form of (S0-1) used by the simulated world: inverse-z | printed
     wind_mps: [1.0, 0.0, 0.0]      # steady wind, world frame, m/s: rotor drag in RotorPy's model,
                                    # and the default wind of a wake_advection effect
-    effects:                       # names and parameters: physics.effects.PARAMETERS
+    effects:                       # names and parameters: proxplan.physics.effects.PARAMETERS
       - name: ground_effect
         params: {gain_k: 1.0}
       - name: near_field
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError
+from proxplan.fileio import UserError
 
 TOP_KEYS = ("field_form", "wind_mps", "effects")
 
@@ -33,12 +33,12 @@ TOP_KEYS = ("field_form", "wind_mps", "effects")
 class TruthSpec:
     """Truth for one simulation: extra effects, steady wind (3,) m/s world frame, field form."""
 
-    effects: tuple = ()  # tuple[physics.effects.Effect, ...]
+    effects: tuple = ()  # tuple[proxplan.physics.effects.Effect, ...]
     wind_mps: tuple[float, float, float] = (0.0, 0.0, 0.0)
     field_form: str = "inverse-z"
 
     def to_dict(self) -> dict:
-        from physics import effects_to_list
+        from proxplan.physics import effects_to_list
 
         return {
             "field_form": self.field_form,
@@ -49,7 +49,7 @@ class TruthSpec:
 
 def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
     """Validate a truth mapping (see module docstring) into a :class:`TruthSpec`."""
-    from physics import FIELD_FORMS, Effect, effects_from_list
+    from proxplan.physics import FIELD_FORMS, Effect, effects_from_list
 
     if doc is None:
         doc = {}
@@ -79,7 +79,7 @@ def truth_from_dict(doc: Any, *, source: str = "<truth>") -> TruthSpec:
 
 def load_truth_file(path: str | Path) -> TruthSpec:
     """Read a truth YAML file; UserError on any problem."""
-    from fileio import read_yaml
+    from proxplan.fileio import read_yaml
 
     path = Path(path)
     doc = read_yaml(path, what="truth file")
@@ -87,7 +87,7 @@ def load_truth_file(path: str | Path) -> TruthSpec:
 
 
 def model_truth(effects: tuple = (), field_form: str | None = None) -> TruthSpec:
-    """The world of a model: its effects (``physics.Effect``) and field form (default inverse-z)."""
+    """The world of a model: its effects (``proxplan.physics.Effect``) and field form (default inverse-z)."""
     return TruthSpec(effects=tuple(effects), field_form=field_form or "inverse-z")
 
 

@@ -1,4 +1,4 @@
-"""Our :class:`physics.vehicles.Vehicle` -> RotorPy ``quad_params`` dict.
+"""Our :class:`proxplan.physics.vehicles.Vehicle` -> RotorPy ``quad_params`` dict.
 
 Motor numbering: RotorPy takes rotor positions as an ordered dict ``r1..r4`` and a yaw-direction
 sign per rotor, with no fixed convention of its own. We pass our rotors in (S0-14) order
@@ -10,7 +10,7 @@ Values our vehicle definition does not hold are set here, each documented:
 
 * ``k_eta`` = k1 (S0-5), N s^2 rad^-2; ``k_m`` = k_t k1, N m s^2 rad^-2 (yaw torque per omega^2);
 * rotor speed limits from the per-motor thrust range: omega = sqrt(f / k1), rad/s;
-* motor time constant ``tau_m``: ``Vehicle.motor_time_constant_s`` (sourced in physics.builtin_vehicles);
+* motor time constant ``tau_m``: ``Vehicle.motor_time_constant_s`` (sourced in proxplan.physics.builtin_vehicles);
 * rotor drag ``k_d`` and induced inflow ``k_z`` (N per (rad/s m/s)): RotorPy's Crazyflie values,
   scaled so that the drag per m/s relative to the hover thrust per rotor equals the Crazyflie's
   (k_d ~ k_eta omega_hover); translational lift and flapping are 0 (RotorPy's Crazyflie default);
@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from physics import MOTOR_YAW_SIGNS, Vehicle
+from proxplan.physics import MOTOR_YAW_SIGNS, Vehicle
 
 CRAZYFLIE_K_ETA = 2.3e-08  # N/(rad/s)^2, rotorpy crazyflie_params
 CRAZYFLIE_HOVER_OMEGA_RADPS = math.sqrt(0.03 * 9.81 / 4 / CRAZYFLIE_K_ETA)  # rotorpy CF at 30 g

@@ -3,12 +3,12 @@ the disturbance on every vehicle (S0-11, S0-13), calibrate the model's parameter
 try candidate effects, and report the error before and after on test flights.
 """
 
-from identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
-from identify.discovery import DiscoveryOptions, discover_terms
-from identify.effect_selection import validation_split
-from identify.evaluate import EvaluationResult, evaluate_model, saved_model
-from identify.evaluate_report import write_evaluation_report
-from identify.flightlog import (
+from proxplan.identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
+from proxplan.identify.discovery import DiscoveryOptions, discover_terms
+from proxplan.identify.effect_selection import validation_split
+from proxplan.identify.evaluate import EvaluationResult, evaluate_model, saved_model
+from proxplan.identify.evaluate_report import write_evaluation_report
+from proxplan.identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
     NEURAL_SWARM_FILE_COLUMNS,
     FlightEntry,
@@ -20,10 +20,10 @@ from identify.flightlog import (
     read_log,
     write_canonical_csv,
 )
-from identify.measure import MeasuredWrench, MeasureOptions, measure_disturbance, measure_log
-from identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
-from identify.report import write_report
-from identify.synthetic_logs import synthetic_logs, write_synthetic_manifest
+from proxplan.identify.measure import MeasuredWrench, MeasureOptions, measure_disturbance, measure_log
+from proxplan.identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
+from proxplan.identify.report import write_report
+from proxplan.identify.synthetic_logs import synthetic_logs, write_synthetic_manifest
 
 __all__ = [
     "VEHICLE_PARAMETERS",

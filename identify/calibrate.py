@@ -8,7 +8,7 @@ bound are flagged (``at_bound``) and held fixed in the covariance.
 
 :func:`apply_vehicle_parameters` puts calibrated values into a :class:`Vehicle` with
 ``dataclasses.replace`` — downwash (c_ax, z0_m, c_rad of S0-1, S0-2) and the propeller's measured
-b_v (S0-5) — so every prediction still runs through :mod:`physics.disturbance`.
+b_v (S0-5) — so every prediction still runs through :mod:`proxplan.physics.disturbance`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from physics import DownwashSpec, Vehicle
+from proxplan.physics import DownwashSpec, Vehicle
 
 VEHICLE_PARAMETERS = ("c_ax", "z0_m", "c_rad", "b_v")
 """Vehicle parameters that :func:`apply_vehicle_parameters` understands (units: -, m, -,
@@ -135,7 +135,7 @@ def vehicle_param_specs(vehicle: Vehicle, prefix: str, *, as_source: bool, as_ta
 
     Source parameters (c_ax, z0_m, c_rad) when it produces downwash in the data, b_v when it
     receives it. Bounds are wide (factors of 3-5 around the prior) so calibration can absorb the
-    assumed geometry of :mod:`physics.builtin_vehicles`.
+    assumed geometry of :mod:`proxplan.physics.builtin_vehicles`.
     """
     d, L = vehicle.downwash, vehicle.size_m
     out = []

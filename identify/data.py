@@ -1,4 +1,4 @@
-"""Samples, models and errors of the identification pipeline (:mod:`identify.pipeline`).
+"""Samples, models and errors of the identification pipeline (:mod:`proxplan.identify.pipeline`).
 
 A :class:`Unit` is one vehicle of one flight: its measured disturbance (S0-11, S0-13) and the
 logged relative positions of the other vehicles; a :class:`Model` is the vehicles plus effects
@@ -13,10 +13,19 @@ from typing import Any
 
 import numpy as np
 
-from identify.flightlog import Flight, FlightEntry, Manifest, VehicleLog, interpolate_position_m, load_flight
-from identify.measure import MeasureOptions, measure_log
-from identify.thrust_map import MotorSamples, ThrustMap, delivered_thrust_N, fit_thrust_maps, saturated_samples
-from physics import EFFECT_NAMES, Effect, EffectInputs, ModelOptions, SourceSample, Vehicle, base_wrench, effect_wrench
+from proxplan.identify.flightlog import Flight, FlightEntry, Manifest, VehicleLog, interpolate_position_m, load_flight
+from proxplan.identify.measure import MeasureOptions, measure_log
+from proxplan.identify.thrust_map import MotorSamples, ThrustMap, delivered_thrust_N, fit_thrust_maps, saturated_samples
+from proxplan.physics import (
+    EFFECT_NAMES,
+    Effect,
+    EffectInputs,
+    ModelOptions,
+    SourceSample,
+    Vehicle,
+    base_wrench,
+    effect_wrench,
+)
 
 
 @dataclass(frozen=True)
@@ -34,7 +43,7 @@ class IdentifyOptions:
     max_eval_samples: int = 10000  # test samples per candidate score
     max_effects: int = 3  # at most this many effects are kept
     progress: bool = False  # tqdm bars on stderr
-    discover: bool = True  # search terms no library effect names (identify.discovery)
+    discover: bool = True  # search terms no library effect names (proxplan.identify.discovery)
 
 
 @dataclass(frozen=True)
@@ -53,7 +62,7 @@ class Unit:
     source_offsets_m: tuple[np.ndarray, ...]  # each (N, 3) p_target - p_source, world
     force_N: np.ndarray  # (N, 3) measured, world
     torque_Nm: np.ndarray  # (N, 3) measured, world
-    thrust: Any = None  # identify.thrust_rls.ThrustSamples of the full unit (None after take)
+    thrust: Any = None  # proxplan.identify.thrust_rls.ThrustSamples of the full unit (None after take)
     scored: bool = True  # False: manifest 'score: false' (a downwash source only, never scored or fitted)
 
     def take(self, idx: np.ndarray) -> Unit:
@@ -140,7 +149,7 @@ def load_units(
 ) -> LoadedData:
     """Load, check and measure every flight of ``manifest``.
 
-    The motor thrust in S0-11/S0-13 is the DELIVERED one (:mod:`identify.thrust_map`): from PWM and
+    The motor thrust in S0-11/S0-13 is the DELIVERED one (:mod:`proxplan.identify.thrust_map`): from PWM and
     Vbat through the per-type map (``thrust_maps``, or fitted here on the manifest's TRAIN flights),
     capped at the motor's maximum. Vehicles whose logs hold no PWM/Vbat (or whose type has no map)
     use the logged u[N] as is; a note says so once per type. ``thrust_coefficient_samples=False``
@@ -148,8 +157,8 @@ def load_units(
     """
     from scipy.spatial.transform import Rotation
 
-    from identify.thrust_rls import thrust_samples
-    from physics import load_vehicle_file, resolve_vehicle
+    from proxplan.identify.thrust_rls import thrust_samples
+    from proxplan.physics import load_vehicle_file, resolve_vehicle
 
     custom = load_vehicle_file(manifest.vehicles_file) if manifest.vehicles_file else None
     types: dict[str, Vehicle] = {}

@@ -1,8 +1,8 @@
 """Terms no library effect names: sparse regression of the residual on a physical feature dictionary.
 
-After the library effects are selected (:mod:`identify.effect_selection`), the residual of the
+After the library effects are selected (:mod:`proxplan.identify.effect_selection`), the residual of the
 current model (measured minus predicted wrench) is regressed, channel by channel (world F_z and the
-three torques), on the features of :mod:`physics.features` (neighbours above and below, relative
+three torques), on the features of :mod:`proxplan.physics.features` (neighbours above and below, relative
 velocities, the base prediction and its lagged / low-pass copies, height above ground, own speed and
 thrust). The regression is scikit-learn's Orthogonal Matching Pursuit on RMS-scaled columns, fitted
 on TRAIN units only, for 1..``max_terms`` terms; the VALIDATION units choose the number of terms
@@ -15,7 +15,7 @@ structure (e.g. 1e-5 N m of roll torque the closed-loop measurement does not res
 but not kept. Test units, when given, only report. The kept terms of all channels form ONE effect
 ``Effect("discovered:residual", {"<channel>*<feature>": coefficient})`` (coefficients in channel
 units per feature unit; one effect so the base wrench it needs is computed once), which
-:mod:`physics.effects` applies like any effect (pairwise features make it act between vehicles),
+:mod:`proxplan.physics.effects` applies like any effect (pairwise features make it act between vehicles),
 and which a saved model stores as name + params.
 """
 
@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 from sklearn.linear_model import OrthogonalMatchingPursuit
 
-from identify.data import Model, Unit, predict, unit_inputs
-from physics import (
+from proxplan.identify.data import Model, Unit, predict, unit_inputs
+from proxplan.physics import (
     CHANNELS,
     DISCOVERED_PREFIX,
     FEATURE_NAMES,

@@ -1,6 +1,6 @@
 """Candidate effects of the identification pipeline: fit on train flights, select on VALIDATION flights.
 
-Stage 5 of :mod:`identify.pipeline`: each candidate of :data:`physics.effects.EFFECT_NAMES` is
+Stage 5 of :mod:`proxplan.identify.pipeline`: each candidate of :data:`proxplan.physics.effects.EFFECT_NAMES` is
 fitted on the fitting part of the train flights on top of the calibrated model and scored on the
 validation part (flights carved from the train flights, :func:`validation_split`); the greedy
 selection keeps what lowers the validation error. Test flights only report (each trial's test
@@ -15,9 +15,19 @@ from typing import Any
 
 import numpy as np
 
-from identify.calibrate import ParamSpec, fit_parameters
-from identify.data import Errors, IdentifyOptions, Model, Unit, errors, predict, progress_bar, subsample, unit_inputs
-from physics import PARAMETERS, Effect, base_wrench
+from proxplan.identify.calibrate import ParamSpec, fit_parameters
+from proxplan.identify.data import (
+    Errors,
+    IdentifyOptions,
+    Model,
+    Unit,
+    errors,
+    predict,
+    progress_bar,
+    subsample,
+    unit_inputs,
+)
+from proxplan.physics import PARAMETERS, Effect, base_wrench
 
 # ------------------------------------------------------------------------------ effects
 
@@ -44,7 +54,7 @@ def _initial_params(name: str, fit_units: Sequence[Unit], model: Model) -> dict[
     """Start values: PARAMETERS defaults; own_velocity from the LS fit of the F_z residual (S1-25 form)."""
     p0 = {k: spec[0] for k, spec in PARAMETERS[name].items()}
     if name == "own_velocity":
-        from identify.thrust_rls import fit_ls
+        from proxplan.identify.thrust_rls import fit_ls
 
         rows, ys = [], []
         for u in fit_units:

@@ -1,9 +1,9 @@
 """Score a saved model on flight logs without refitting (``proxplan evaluate``).
 
-The saved model (:mod:`physics.model_file`) holds everything identify used for its "after" figure:
+The saved model (:mod:`proxplan.physics.model_file`) holds everything identify used for its "after" figure:
 calibrated vehicles, model options, kept effects with their parameters, per-type thrust scales, and
 under ``model.measurement`` how the disturbance was measured (derivative, window, motor lag and the
-per-type PWM*Vbat thrust maps of :mod:`identify.thrust_map`). :func:`evaluate_model` measures the
+per-type PWM*Vbat thrust maps of :mod:`proxplan.identify.thrust_map`). :func:`evaluate_model` measures the
 manifest's flights the same way, predicts with the saved model, and reports the RMSE of F_z (world
 z force, N) and of the torque vector (N m) against ``no_model`` (the same samples predicted as zero
 disturbance), per flight, per vehicle (the manifest's vehicle key) and per region:
@@ -25,12 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError
-from identify.data import IdentifyOptions, Model, Unit, load_units, measurement_summary, predict
-from identify.flightlog import Manifest, load_manifest
-from identify.measure import DERIVATIVES, MeasureOptions
-from identify.thrust_map import ThrustMap
-from physics import VALIDITY_FACTOR_L, CalibratedModel
+from proxplan.fileio import UserError
+from proxplan.identify.data import IdentifyOptions, Model, Unit, load_units, measurement_summary, predict
+from proxplan.identify.flightlog import Manifest, load_manifest
+from proxplan.identify.measure import DERIVATIVES, MeasureOptions
+from proxplan.identify.thrust_map import ThrustMap
+from proxplan.physics import VALIDITY_FACTOR_L, CalibratedModel
 
 SPLITS = ("test", "train", "all")
 REGIONS = ("free", "below_source", "below_within_3L", "below_beyond_3L", "stack")
@@ -84,7 +84,7 @@ def measurement_from_model(
 
 
 def saved_model(model: Model, measure: MeasureOptions, thrust_maps: Mapping[str, ThrustMap]) -> CalibratedModel:
-    """The :class:`physics.CalibratedModel` of an identify model plus how it was measured."""
+    """The :class:`proxplan.physics.CalibratedModel` of an identify model plus how it was measured."""
     return CalibratedModel(
         vehicles=dict(model.vehicles),
         options=model.options,

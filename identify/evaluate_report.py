@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import atomic_write_text, save_figure
-from identify.data import predict
-from identify.evaluate import EvaluationResult
-from identify.report import exclusion_lines
+from proxplan.fileio import atomic_write_text, save_figure
+from proxplan.identify.data import predict
+from proxplan.identify.evaluate import EvaluationResult
+from proxplan.identify.report import exclusion_lines
 
 
 def _bars(ax, rows: Mapping[str, dict], title: str) -> None:

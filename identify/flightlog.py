@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError, atomic_write_bytes
+from proxplan.fileio import UserError, atomic_write_bytes
 
 CANONICAL_COLUMNS = (
     "t_s", "x_m", "y_m", "z_m", "vx_mps", "vy_mps", "vz_mps", "ax_mps2", "ay_mps2", "az_mps2",
@@ -330,7 +330,7 @@ class Manifest:
     format: str
     root: Path
     flights: tuple[FlightEntry, ...]
-    vehicles_file: Path | None = None  # optional custom vehicle types (physics.vehicle_yaml)
+    vehicles_file: Path | None = None  # optional custom vehicle types (proxplan.physics.vehicle_yaml)
     quality: QualityOptions = QualityOptions()
 
 
@@ -352,7 +352,7 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
     manifest), per-vehicle ``ground_z_m`` (default 0), ``quality: {max_gap_s, min_segment_s,
     ground_clearance_m, min_thrust_fraction, min_overlap_s}``.
     """
-    from fileio import read_yaml
+    from proxplan.fileio import read_yaml
 
     path = Path(path)
     doc = read_yaml(path, what="manifest")
@@ -416,7 +416,7 @@ class Flight:
 
     name: str
     split: str
-    vehicles: Mapping[str, Any]  # vehicle name -> physics.vehicles.Vehicle
+    vehicles: Mapping[str, Any]  # vehicle name -> proxplan.physics.vehicles.Vehicle
     logs: Mapping[str, VehicleLog]
     ground_z_m: Mapping[str, float]
     exclusions: Mapping[str, Exclusions]

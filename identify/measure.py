@@ -5,7 +5,7 @@ Force (S0-11), world frame:   f_a = m R alpha - (sum_i f_i) R z_B
 Torque (S0-13) plus the gyroscopic term S0-13 omits, world frame:
     tau_a = R (J omega_dot + omega x J omega) - R tau_p
     with tau_p the body torque of the motors from the (S0-14) mixer (arms l/sqrt2, k_t), taken from
-    :func:`physics.authority.mixer_matrix` so the mixer exists once.
+    :func:`proxplan.physics.authority.mixer_matrix` so the mixer exists once.
 
 omega_dot comes from a Savitzky-Golay derivative of the gyro (default; ``scipy.signal.savgol_filter``
 over ``window_s``), or from the paper's smoothing — a triangular moving average followed by the
@@ -26,7 +26,7 @@ from scipy.signal import lfilter, lfilter_zi, savgol_filter
 from scipy.signal.windows import triang
 from scipy.spatial.transform import Rotation
 
-from physics import Vehicle
+from proxplan.physics import Vehicle
 
 DERIVATIVES = ("savgol", "triangular", "difference")
 
@@ -115,7 +115,7 @@ def measure_disturbance(
     Returns:
         :class:`MeasuredWrench`, world frame.
     """
-    from physics import mixer_matrix
+    from proxplan.physics import mixer_matrix
 
     n = len(t_s)
     segment = np.zeros(n, dtype=int) if segment is None else np.asarray(segment)
@@ -145,7 +145,7 @@ def measure_disturbance(
 
 
 def measure_log(vehicle: Vehicle, log, *, options: MeasureOptions = MeasureOptions()) -> MeasuredWrench:
-    """:func:`measure_disturbance` on a :class:`identify.flightlog.VehicleLog`."""
+    """:func:`measure_disturbance` on a :class:`proxplan.identify.flightlog.VehicleLog`."""
     return measure_disturbance(
         vehicle,
         log.t_s,

@@ -2,23 +2,23 @@
 
 Stages (DESIGN.md section 6):
 
-1. Load every flight of the manifest (:mod:`identify.flightlog`), clean it and measure the disturbance
-   on every vehicle (:mod:`identify.measure`, S0-11, S0-13 + gyroscopic term) with the motor thrust
+1. Load every flight of the manifest (:mod:`proxplan.identify.flightlog`), clean it and measure the disturbance
+   on every vehicle (:mod:`proxplan.identify.measure`, S0-11, S0-13 + gyroscopic term) with the motor thrust
    each motor DELIVERS: from PWM and Vbat through a per-type thrust map fitted on train flights,
-   capped where a motor saturates (:mod:`identify.thrust_map`).
-2. Predict it with the model: :func:`physics.effects.total_wrench`, i.e. the base model
-   (:func:`physics.disturbance.disturbance_wrench`) summed over all other vehicles of the flight at
+   capped where a motor saturates (:mod:`proxplan.identify.thrust_map`).
+2. Predict it with the model: :func:`proxplan.physics.effects.total_wrench`, i.e. the base model
+   (:func:`proxplan.physics.disturbance.disturbance_wrench`) summed over all other vehicles of the flight at
    their logged relative positions (interpolated onto the target's own clock), plus effects.
 3. Split the train flights BY FLIGHT into a fitting and a validation part
-   (:func:`identify.effect_selection.validation_split`). Calibrate on the fitting part
-   (:mod:`identify.calibrate`): per source type c_ax, z0_m, c_rad; per target type b_v; jointly with
+   (:func:`proxplan.identify.effect_selection.validation_split`). Calibrate on the fitting part
+   (:mod:`proxplan.identify.calibrate`): per source type c_ax, z0_m, c_rad; per target type b_v; jointly with
    a per-type thrust scale s as a nuisance parameter (logged motor thrusts off by a factor put
    (s - 1) sum(f_i) z_B into the measured force), so that a thrust-calibration error does not
    distort the aerodynamic parameters. Fitted on F_z (world z force). The scales are then dropped:
    a thrust correction is kept only if the ``thrust_bias`` candidate (global bias + per-type
    scales) earns it on the validation flights.
-4. Residual analysis (:mod:`identify.residuals`).
-5. Effects: each candidate of :data:`physics.effects.EFFECT_NAMES` is fitted on the fitting part on
+4. Residual analysis (:mod:`proxplan.identify.residuals`).
+5. Effects: each candidate of :data:`proxplan.physics.effects.EFFECT_NAMES` is fitted on the fitting part on
    top of the calibrated model (vehicle parameters frozen) and scored on the VALIDATION flights; the
    one that cuts the validation RMSE of F_z or of the yaw torque most (by at least ``min_gain``,
    without making the other worse by more than 1 %) is kept, and the search repeats (greedy).
@@ -39,15 +39,15 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError
-from identify.calibrate import (
+from proxplan.fileio import UserError
+from proxplan.identify.calibrate import (
     CalibrationResult,
     ParamSpec,
     apply_vehicle_parameters,
     fit_parameters,
     vehicle_param_specs,
 )
-from identify.data import (
+from proxplan.identify.data import (
     Errors,
     IdentifyOptions,
     Model,
@@ -61,12 +61,12 @@ from identify.data import (
     subsample,
     unit_inputs,
 )
-from identify.discovery import discover_terms
-from identify.effect_selection import EffectTrial, select_effects, validation_split
-from identify.flightlog import Manifest, load_manifest
-from identify.measure import MeasureOptions
-from identify.residuals import correlate, sample_features
-from physics import VALIDITY_FACTOR_L, ModelOptions, base_wrench
+from proxplan.identify.discovery import discover_terms
+from proxplan.identify.effect_selection import EffectTrial, select_effects, validation_split
+from proxplan.identify.flightlog import Manifest, load_manifest
+from proxplan.identify.measure import MeasureOptions
+from proxplan.identify.residuals import correlate, sample_features
+from proxplan.physics import VALIDITY_FACTOR_L, ModelOptions, base_wrench
 
 # ------------------------------------------------------------------------------ calibration
 
@@ -133,13 +133,13 @@ class IdentifyResult:
     validity: dict
     thrust_coefficient: dict
     units: list[Unit]
-    thrust_maps: dict = field(default_factory=dict)  # vehicle type -> identify.thrust_map.ThrustMap
+    thrust_maps: dict = field(default_factory=dict)  # vehicle type -> proxplan.identify.thrust_map.ThrustMap
     notes: list[str] = field(default_factory=list)
     measure_options: MeasureOptions = MeasureOptions()
     per_vehicle: dict = field(default_factory=dict)  # NAME -> rmse_fz_N_before/calibrated/after, n_samples (test)
-    discovered: list = field(default_factory=list)  # data-driven terms (identify.discovery); [] when none
+    discovered: list = field(default_factory=list)  # data-driven terms (proxplan.identify.discovery); [] when none
     calibrated_model: Model | None = None  # calibrated, no effects (what "calibrated_only" scored)
-    validation: str = ""  # which train flights chose the effects (identify.effect_selection.validation_split)
+    validation: str = ""  # which train flights chose the effects (proxplan.identify.effect_selection.validation_split)
 
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
@@ -277,7 +277,9 @@ def run_identify(
     starts = [model, base] if options.calibrate else [base]
     final, trials = select_effects(fit, valid, starts, options=options, test=test)
     discovered: list = []
-    if options.discover:  # terms no library effect names: fit on train, kept by validation (identify.discovery)
+    if (
+        options.discover
+    ):  # terms no library effect names: fit on train, kept by validation (proxplan.identify.discovery)
         final, discovered = discover_terms(fit, valid, final, test=test)
     after = full_errors(final)
     corr = _residual_analysis(subsample(test, 50000), final)
@@ -300,7 +302,7 @@ def run_identify(
 def thrust_coefficient_summary(units: Sequence[Unit]) -> dict:
     """Seed 001 on the given (train) units: LS fit of (S1-25) per vehicle type and a decimated RLS
     history (S1-28..S1-30, forgetting factor 0.99, started from the LS solution as the paper does)."""
-    from identify.thrust_rls import REGRESSOR_NAMES, fit_ls, rls
+    from proxplan.identify.thrust_rls import REGRESSOR_NAMES, fit_ls, rls
 
     out: dict[str, Any] = {}
     for t in sorted({u.type for u in units if u.thrust is not None}):

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import atomic_write_text, save_figure
-from identify.data import predict
-from identify.pipeline import IdentifyResult
-from identify.residuals import sample_features
+from proxplan.fileio import atomic_write_text, save_figure
+from proxplan.identify.data import predict
+from proxplan.identify.pipeline import IdentifyResult
+from proxplan.identify.residuals import sample_features
 
 
 def _save(fig, path: Path) -> None:
@@ -57,7 +57,7 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
     # 2. residual vs features
     res: list[np.ndarray] = []
     feats: dict[str, list[np.ndarray]] = {}
-    from identify.data import subsample
+    from proxplan.identify.data import subsample
 
     for u in subsample(test, 50000):
         f, _ = predict(u, result.final_model)
@@ -105,7 +105,7 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
     # 4. RLS history
     hist = {t: d["_rls_history"] for t, d in result.thrust_coefficient.items() if "_rls_history" in d}
     if hist:
-        from identify.thrust_rls import REGRESSOR_NAMES
+        from proxplan.identify.thrust_rls import REGRESSOR_NAMES
 
         fig, axes = plt.subplots(2, 3, figsize=(12, 5.5))
         for t, h in hist.items():
@@ -208,7 +208,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
             f"**Unexplained residual**: it still correlates with `{u['feature']}` (pearson {u['pearson']:.2f}, eta {u['eta']:.2f}); no effect of the library removed it.",
         ]
     if result.discovered:
-        lines += ["", "## Discovered terms (sparse regression on train, kept by validation; identify.discovery)", "",
+        lines += ["", "## Discovered terms (sparse regression on train, kept by validation; proxplan.identify.discovery)", "",
                   "| channel | kept | validation gain | test RMSE before | after | formula |", "|---|---|---|---|---|---|"]  # fmt: skip
         for e in result.discovered:
             lines.append(

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from identify.flightlog import VehicleLog
+from proxplan.identify.flightlog import VehicleLog
 
 
 @dataclass(frozen=True)
@@ -52,7 +52,7 @@ def synthetic_logs(
     motor: SyntheticMotor | None = None,
 ) -> dict[str, VehicleLog]:
     """Logs with a known truth: every vehicle follows ``positions_m[name]`` (N, 3), m, level, and
-    receives the wrench of :func:`physics.effects.total_wrench` (base model from all other vehicles
+    receives the wrench of :func:`proxplan.physics.effects.total_wrench` (base model from all other vehicles
     plus ``effects``). Its controller cancels the wrench exactly: motor thrusts from the (S0-14) mixer
     give collective m (g + a_z) - F_z and body torque -tau, and the accelerometer (world, specific
     force) reads (T z + F) / m plus white noise ``accel_noise_mps2``. So the S0-11/S0-13 measurement
@@ -66,12 +66,12 @@ def synthetic_logs(
     the simulator (flightsim).
 
     ``hidden_wrench(inputs)`` (optional) adds a wrench no library effect names (force (N, 3) N,
-    torque (N, 3) N m, world) from the :class:`physics.effects.EffectInputs` of each vehicle (with
+    torque (N, 3) N m, world) from the :class:`proxplan.physics.effects.EffectInputs` of each vehicle (with
     ``time_s``, the sources' velocities and the target's thrust filled in): a truth for the tests
-    of :mod:`identify.discovery`. ``motor_noise_N`` adds white noise to each logged motor thrust
+    of :mod:`proxplan.identify.discovery`. ``motor_noise_N`` adds white noise to each logged motor thrust
     (N), which reaches the measured force and torque.
     """
-    from physics import GRAVITY_MPS2, EffectInputs, SourceSample, mixer_matrix, total_wrench
+    from proxplan.physics import GRAVITY_MPS2, EffectInputs, SourceSample, mixer_matrix, total_wrench
 
     rng = np.random.default_rng(seed)
     n = len(t_s)
@@ -134,7 +134,7 @@ def write_synthetic_manifest(
     every vehicle of type ``vehicle_type``; returns the manifest path."""
     import yaml
 
-    from identify.flightlog import write_canonical_csv
+    from proxplan.identify.flightlog import write_canonical_csv
 
     entries = []
     for name, split, logs in flights:

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.polynomial import Polynomial
 
-from fileio import UserError
+from proxplan.fileio import UserError
 
 MIN_R2 = 0.9
 """A thrust map must explain at least this share of the variance of u[N] to be used, -."""

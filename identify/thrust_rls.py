@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from physics import AIR_DENSITY_KGPM3, Vehicle
+from proxplan.physics import AIR_DENSITY_KGPM3, Vehicle
 
 REGRESSOR_NAMES = ("C_T0", "C_Tlambda", "C_Tmu", "C_Tv_spm", "C_Tw_spm", "C_Tmu2")
 """Parameter names of (S1-25) in regressor order (units: -, -, -, s/m, s/m, -)."""

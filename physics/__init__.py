@@ -7,9 +7,9 @@ effects beyond the base model. Cost maps, planner, verifier, simulator and ident
 this one implementation.
 """
 
-from physics.authority import authority_usage, mixer_matrix, motor_thrusts_N, normalised_motor_map
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.disturbance import (
+from proxplan.physics.authority import authority_usage, mixer_matrix, motor_thrusts_N, normalised_motor_map
+from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
+from proxplan.physics.disturbance import (
     DEFAULT_OPTIONS,
     VALIDITY_FACTOR_L,
     ModelOptions,
@@ -18,7 +18,7 @@ from physics.disturbance import (
     oncoming_speed_per_rotor_mps,
     validity_mask,
 )
-from physics.effects import (
+from proxplan.physics.effects import (
     DISCOVERED_PREFIX,
     EFFECT_NAMES,
     PARAMETERS,
@@ -31,8 +31,8 @@ from physics.effects import (
     effect_wrench,
     total_wrench,
 )
-from physics.features import CHANNELS, FEATURE_DOCS, FEATURE_NAMES, feature_matrix, term_formula
-from physics.model_file import (
+from proxplan.physics.features import CHANNELS, FEATURE_DOCS, FEATURE_NAMES, feature_matrix, term_formula
+from proxplan.physics.model_file import (
     MODEL_FORMAT_VERSION,
     CalibratedModel,
     between_vehicle_effects,
@@ -47,14 +47,14 @@ from physics.model_file import (
     vehicle_file_notes,
     write_model_file,
 )
-from physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
-from physics.vehicle_yaml import (
+from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
+from proxplan.physics.vehicle_yaml import (
     load_vehicle_file,
     resolve_vehicle,
     vehicle_from_dict,
     vehicle_to_yaml_dict,
 )
-from physics.vehicles import (
+from proxplan.physics.vehicles import (
     GRAVITY_MPS2,
     MOTOR_DIRECTIONS_XY,
     MOTOR_YAW_SIGNS,
@@ -63,7 +63,7 @@ from physics.vehicles import (
     KinematicLimits,
     Vehicle,
 )
-from physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
+from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
     "AIR_DENSITY_KGPM3",

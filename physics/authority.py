@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from physics.vehicles import MOTOR_YAW_SIGNS, Vehicle
+from proxplan.physics.vehicles import MOTOR_YAW_SIGNS, Vehicle
 
 
 def mixer_matrix(vehicle: Vehicle) -> np.ndarray:

@@ -13,7 +13,7 @@ Sources
 [ET]  Eschmann et al. 2024 (cited in RotorPy's crazyflie_params.py): Crazyflie motor time constant
       0.072 s.
 [A]   Assumption, stated here, to be corrected by calibration (``proxplan identify``).
-[M]   Measured in closed-loop simulation: :mod:`flightsim.tracking` flies each type alone with the
+[M]   Measured in closed-loop simulation: :mod:`proxplan.flightsim.tracking` flies each type alone with the
       default controller (RotorPy's SE(3) law and Crazyflie gains) along a course of rest-to-rest
       segments; at 1 m/s, 1 m/s^2, 2 m/s^3 its largest position error is 4.4 cm for every built-in
       type (the gains are normalised by mass and inertia), at the earlier 1.5 m/s, 3 m/s^2, 15 m/s^3
@@ -25,15 +25,15 @@ Derived values
 * Inertia of the S0 vehicles (not given by S0): scaled from the Crazyflie [RP] by m l^2
   (Jxx = 0.225 m l^2, Jzz = 0.455 m l^2); the same scaling reproduces the Hummingbird's inertia [RP]
   within 10 %, so it is a fair estimate for the large quad.
-* b_v of propellers without a measurement: blade-element momentum theory, :mod:`physics.propeller`.
+* b_v of propellers without a measurement: blade-element momentum theory, :mod:`proxplan.physics.propeller`.
 """
 
 from __future__ import annotations
 
 import math
 
-from physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec
-from physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
+from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec
+from proxplan.physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
 
 TRACKABLE_LIMITS = KinematicLimits(max_speed_mps=1.0, max_accel_mps2=1.0, max_jerk_mps3=2.0)
 """Speed m/s, acceleration m/s^2 and jerk m/s^3 the default controller tracks within 4.4 cm [M]."""

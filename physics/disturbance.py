@@ -22,10 +22,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from physics.geometry import Discretisation, disk_samples, frame_elements
-from physics.propeller import AIR_DENSITY_KGPM3
-from physics.vehicles import Vehicle
-from physics.velocity_field import (
+from proxplan.physics.geometry import Discretisation, disk_samples, frame_elements
+from proxplan.physics.propeller import AIR_DENSITY_KGPM3
+from proxplan.physics.vehicles import Vehicle
+from proxplan.physics.velocity_field import (
     DEFAULT_FIELD_FORM,
     FIELD_FORMS,
     axial_distance_m,

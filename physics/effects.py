@@ -5,12 +5,12 @@ One implementation serves two users: the closed-loop simulator adds chosen effec
 identification stage tries them as candidate explanations of the residual in flight data.
 
 Frames and conventions: world frame, z up. The target hovers (approximately) level with its body
-axes aligned to the world axes, as in :mod:`physics.disturbance`; forces are in N, torques in N m
+axes aligned to the world axes, as in :mod:`proxplan.physics.disturbance`; forces are in N, torques in N m
 about the target's centre of mass, both expressed in the world frame. ``offsets_m`` are
 ``p_target - p_source`` (N, 3), m; dz = -offset_z is positive when the target is below the source.
 
 Every :func:`effect_wrench` returns the ADDITIONAL wrench of one effect beyond the base model
-(:func:`physics.disturbance.disturbance_wrench` summed over the sources); :func:`total_wrench`
+(:func:`proxplan.physics.disturbance.disturbance_wrench` summed over the sources); :func:`total_wrench`
 returns base + effects. Each effect's parameters, with units in their names, default values and
 fit bounds, are listed in :data:`PARAMETERS`; parameters left out of an :class:`Effect` take their
 defaults.
@@ -23,15 +23,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from physics.disturbance import (
+from proxplan.physics.disturbance import (
     DEFAULT_OPTIONS,
     ModelOptions,
     disturbance_wrench,
     oncoming_speed_per_rotor_mps,
     vertical_point_wrench,
 )
-from physics.features import CHANNELS, FEATURE_NAMES, feature_matrix, parse_term_key
-from physics.vehicles import Vehicle
+from proxplan.physics.features import CHANNELS, FEATURE_NAMES, feature_matrix, parse_term_key
+from proxplan.physics.vehicles import Vehicle
 
 EFFECT_NAMES = (
     "thrust_bias",
@@ -65,8 +65,8 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
 }
 
 DISCOVERED_PREFIX = "discovered:"
-"""Name prefix of a term found by sparse regression (identify.discovery): its parameters are named
-``"<channel>*<feature>"`` (:mod:`physics.features`) and are the coefficients of a linear combination
+"""Name prefix of a term found by sparse regression (proxplan.identify.discovery): its parameters are named
+``"<channel>*<feature>"`` (:mod:`proxplan.physics.features`) and are the coefficients of a linear combination
 of features, in channel units per feature unit."""
 
 TARGET_ONLY_EFFECTS = ("thrust_bias", "ground_effect", "own_velocity")
@@ -107,7 +107,7 @@ class EffectInputs:
 class Effect:
     """One named effect with its parameters (missing ones take :data:`PARAMETERS` defaults)."""
 
-    name: str  # one of EFFECT_NAMES, or DISCOVERED_PREFIX + a label (a term of physics.features)
+    name: str  # one of EFFECT_NAMES, or DISCOVERED_PREFIX + a label (a term of proxplan.physics.features)
     params: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -131,7 +131,7 @@ class Effect:
 
     @property
     def features(self) -> tuple[str, ...]:
-        """Features of :mod:`physics.features` a discovered term uses (empty for library effects)."""
+        """Features of :mod:`proxplan.physics.features` a discovered term uses (empty for library effects)."""
         if not self.name.startswith(DISCOVERED_PREFIX):
             return ()
         return tuple(dict.fromkeys(parse_term_key(k)[1] for k in self.params))
@@ -329,7 +329,7 @@ _EFFECT_FUNCTIONS = {
 
 def _discovered(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """A discovered term: wrench channel c = sum_j params["c*feature_j"] * feature_j, the features of
-    :func:`physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
+    :func:`proxplan.physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
     wrench = np.zeros((inputs.n_samples, 6))
     if p:
         x = feature_matrix(inputs, base.per_source())

@@ -1,12 +1,12 @@
 """Physically motivated feature dictionary for terms the effect library does not name.
 
-A discovered term (``Effect("discovered:<label>", params)``, see :mod:`physics.effects`) is a sparse
+A discovered term (``Effect("discovered:<label>", params)``, see :mod:`proxplan.physics.effects`) is a sparse
 linear combination of the features below: every parameter is named ``"<channel>*<feature>"`` and is
 the coefficient, in channel units per feature unit, of one feature in one wrench channel
 (:data:`CHANNELS`: world-frame force in N, torque in N m about the target's centre of mass). So a
 term is stored as name + params and the feature list is in the parameter names.
 
-Frames and conventions as in :mod:`physics.effects`: world frame, z up; ``offsets_m`` are
+Frames and conventions as in :mod:`proxplan.physics.effects`: world frame, z up; ``offsets_m`` are
 ``p_target - p_source``; dz = -offset_z > 0 when the target is below a source; r the horizontal
 distance; L the source's size (2 x arm, m); R the target's rotor radius (m); h the target's rotor
 plane above the ground (m); W the target's weight (N).
@@ -41,7 +41,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.signal import lfilter
 
-from physics.vehicles import Vehicle
+from proxplan.physics.vehicles import Vehicle
 
 CHANNELS = ("force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
 """Wrench channels a discovered term may act on (world frame), in the order of (force, torque)."""
@@ -149,7 +149,7 @@ def jet_kernel(dz_m: np.ndarray, r_m: np.ndarray, size_m: float) -> np.ndarray:
 
 
 def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
-    """All features of :data:`FEATURE_NAMES` for ``inputs`` (a :class:`physics.effects.EffectInputs`):
+    """All features of :data:`FEATURE_NAMES` for ``inputs`` (a :class:`proxplan.physics.effects.EffectInputs`):
     (N, F) array. ``base_per_source`` holds each source's base wrench (force (N, 3) N, torque (N, 3) N m)."""
     target: Vehicle = inputs.target
     n = inputs.n_samples
@@ -214,7 +214,7 @@ def parse_term_key(key: str) -> tuple[str, str]:
     if not sep or channel not in CHANNELS or feature not in FEATURE_DOCS:
         raise ValueError(
             f"discovered-term parameter {key!r}: expected '<channel>*<feature>' with channel one of "
-            f"{', '.join(CHANNELS)} and a feature of physics.features.FEATURE_NAMES"
+            f"{', '.join(CHANNELS)} and a feature of proxplan.physics.features.FEATURE_NAMES"
         )
     return channel, feature
 

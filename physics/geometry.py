@@ -13,7 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from physics.vehicles import MOTOR_DIRECTIONS_XY, Vehicle
+from proxplan.physics.vehicles import MOTOR_DIRECTIONS_XY, Vehicle
 
 
 @dataclass(frozen=True)

@@ -4,24 +4,24 @@ saves and ``costmap``/``plan``/``verify``/``simulate`` apply (``--model FILE`` o
 File layout (YAML)::
 
     format_version: 2
-    vehicles:                       # the vehicle-YAML form (physics.vehicle_yaml), calibrated
+    vehicles:                       # the vehicle-YAML form (proxplan.physics.vehicle_yaml), calibrated
       small-quad: {base: small-quad, mass_kg: 0.034, ...}
     model:
       field_form: inverse-z         # ModelOptions (drag_coefficient, air_density_kgpm3 optional)
       drag_coefficient: 1.18
       air_density_kgpm3: 1.225
-      effects:                      # physics.effects names with their parameters (units in names)
+      effects:                      # proxplan.physics.effects names with their parameters (units in names)
         - {name: near_field, params: {amplitude: 0.4, decay_L: 3.0}}
       thrust_scales: {small-quad: 1.02}   # per vehicle type, multiplies the logged thrust, -
       uncertainty: {small-quad.c_ax: 0.3} # optional one-sigma of fitted parameters (same units)
-      measurement:                  # optional: how identify measured the disturbance (identify.evaluate
+      measurement:                  # optional: how identify measured the disturbance (proxplan.identify.evaluate
         derivative: savgol          # reads and checks it): derivative, window_s, polyorder,
         window_s: 0.15              # motor_time_constant_s, and per type the PWM*Vbat thrust map
         thrust_maps: {small-quad: {coef: [c0, c1, c2, c3], x_max_V: 3.3}}
 
 Format 1 (no ``format_version``; what identify wrote before) is read with a note: it has no
 thrust scales or uncertainties. A newer ``format_version`` is a one-line error. Every error is a
-:class:`~fileio.errors.UserError` naming the file and the key.
+:class:`~proxplan.fileio.errors.UserError` naming the file and the key.
 """
 
 from __future__ import annotations
@@ -32,14 +32,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fileio import UserError, atomic_write_text, read_yaml
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.disturbance import DEFAULT_OPTIONS, ModelOptions
-from physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
-from physics.features import between_vehicle_part, parse_term_key
-from physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
-from physics.vehicles import Vehicle
-from physics.velocity_field import FIELD_FORMS
+from proxplan.fileio import UserError, atomic_write_text, read_yaml
+from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
+from proxplan.physics.disturbance import DEFAULT_OPTIONS, ModelOptions
+from proxplan.physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
+from proxplan.physics.features import between_vehicle_part, parse_term_key
+from proxplan.physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
+from proxplan.physics.vehicles import Vehicle
+from proxplan.physics.velocity_field import FIELD_FORMS
 
 MODEL_FORMAT_VERSION = 2
 """Version written; 1 = the older identify output without ``format_version`` (read with a note)."""
@@ -60,7 +60,7 @@ class CalibratedModel:
 
     ``vehicles``: calibrated vehicle types by name (they override built-in types of the same name);
     ``options``: disturbance-model options; ``effects``: effects beyond the base model with their
-    parameters (:mod:`physics.effects`); ``thrust_scales``: per vehicle type, dimensionless factor
+    parameters (:mod:`proxplan.physics.effects`); ``thrust_scales``: per vehicle type, dimensionless factor
     on the logged motor thrust (identification only); ``uncertainty``: optional one-sigma of fitted
     parameters, ``{"TYPE.param" or "effect.param": std}`` in the parameter's units;
     ``notes``: what the reader should know about how the file was read (not saved).
@@ -82,9 +82,9 @@ class CalibratedModel:
 
 
 def between_vehicle_effects(effects: Iterable[Effect]) -> tuple[Effect, ...]:
-    """``effects`` without the target-only ones (:data:`physics.effects.TARGET_ONLY_EFFECTS`):
+    """``effects`` without the target-only ones (:data:`proxplan.physics.effects.TARGET_ONLY_EFFECTS`):
     the effects that, like the base model, are a sum over sources. A discovered term keeps only its
-    pairwise features (:data:`physics.features.TARGET_ONLY_FEATURES` dropped)."""
+    pairwise features (:data:`proxplan.physics.features.TARGET_ONLY_FEATURES` dropped)."""
     out = []
     for e in effects:
         if e.name.startswith(DISCOVERED_PREFIX):
@@ -116,7 +116,7 @@ def effects_from_list(raw: Any, where: str) -> tuple[Effect, ...]:
         if unknown:
             raise UserError(f"{w}: unknown key {unknown[0]!r}; expected name and params")
         name = item["name"]
-        if isinstance(name, str) and name.startswith(DISCOVERED_PREFIX):  # identify.discovery term
+        if isinstance(name, str) and name.startswith(DISCOVERED_PREFIX):  # proxplan.identify.discovery term
             out.append(Effect(name, _discovered_params(item.get("params"), w)))
             continue
         if name not in PARAMETERS:

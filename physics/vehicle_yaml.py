@@ -17,10 +17,10 @@ File layout (every key is optional when ``base`` names a built-in type, required
         downwash: {c_ax: 4.9, z0_m: 0.12, c_rad: 25.0}
         kinematics: {max_speed_mps: 1.0, max_accel_mps2: 2.0, max_jerk_mps3: 8.0}  # optional
         motor_time_constant_s: 0.04                                               # optional
-    model: {...}                    # optional: a model file's model section (physics.model_file),
+    model: {...}                    # optional: a model file's model section (proxplan.physics.model_file),
                                     # not read here: load_model_file applies it
 
-Every error is a :class:`~fileio.errors.UserError` naming the file and the key.
+Every error is a :class:`~proxplan.fileio.errors.UserError` naming the file and the key.
 """
 
 from __future__ import annotations
@@ -31,10 +31,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from fileio import UserError, read_yaml
-from physics.builtin_vehicles import BUILTIN_VEHICLES
-from physics.propeller import PropellerSpec
-from physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
+from proxplan.fileio import UserError, read_yaml
+from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
+from proxplan.physics.propeller import PropellerSpec
+from proxplan.physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
 
 _TOP_KEYS = {
     "base", "description", "mass_kg", "arm_length_m", "max_thrust_N", "min_motor_thrust_N",
@@ -167,7 +167,7 @@ def load_vehicle_file(path: str | Path) -> dict[str, Vehicle]:
     if unknown:
         raise UserError(
             f"{path}: unknown top-level key {sorted(unknown)[0]!r}; expected 'vehicles' and optional 'model' "
-            "(a model file, physics.model_file)"
+            "(a model file, proxplan.physics.model_file)"
         )
     return {str(n): vehicle_from_dict(str(n), d, source=str(path)) for n, d in doc["vehicles"].items()}
 

@@ -5,7 +5,7 @@ X configuration with the motor numbering of (S0-14), which is also the Crazyflie
 motor 1 at (+x, -y), 2 at (-x, -y), 3 at (-x, +y), 4 at (+x, +y).
 
 Every field carries its SI unit in its name. Parameters the seed papers do not give are documented
-in :mod:`physics.builtin_vehicles` with their source or derivation.
+in :mod:`proxplan.physics.builtin_vehicles` with their source or derivation.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from functools import cached_property
 
 import numpy as np
 
-from physics.propeller import PropellerSpec, derived_b_v
+from proxplan.physics.propeller import PropellerSpec, derived_b_v
 
 GRAVITY_MPS2 = 9.81
 """Standard gravity used throughout, m/s^2."""
@@ -103,7 +103,7 @@ class Vehicle:
         """Speed, acceleration and jerk limits: ``kinematics`` when given, else derived from the
         spare vertical acceleration a = T_max/m - g: accel = a/4 clipped to [0.25, 1] m/s^2,
         speed 1 m/s, jerk 2 x accel. The caps are what the default controller tracks within
-        ~4.4 cm (1 m/s, 1 m/s^2, 2 m/s^3, measured by flightsim.tracking; docs/flying.md)."""
+        ~4.4 cm (1 m/s, 1 m/s^2, 2 m/s^3, measured by proxplan.flightsim.tracking; docs/flying.md)."""
         if self.kinematics is not None:
             return self.kinematics
         spare_mps2 = self.max_thrust_N / self.mass_kg - GRAVITY_MPS2

@@ -26,8 +26,8 @@ import math
 
 import numpy as np
 
-from physics.propeller import AIR_DENSITY_KGPM3
-from physics.vehicles import Vehicle
+from proxplan.physics.propeller import AIR_DENSITY_KGPM3
+from proxplan.physics.vehicles import Vehicle
 
 FIELD_FORMS = ("inverse-z", "printed")
 DEFAULT_FIELD_FORM = "inverse-z"

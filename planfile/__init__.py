@@ -3,7 +3,7 @@
 of a plan shares (:meth:`VehicleTrajectory.sample`).
 """
 
-from planfile.crazyflie import (
+from proxplan.planfile.crazyflie import (
     CRAZYFLIE_MAX_PIECES,
     EXPORT_FORMAT,
     EXPORT_FORMAT_VERSION,
@@ -16,7 +16,7 @@ from planfile.crazyflie import (
     resample_step,
     trajectory_to_csv,
 )
-from planfile.plan import (
+from proxplan.planfile.plan import (
     PLAN_FILENAME,
     PLAN_FORMAT_VERSION,
     Plan,
@@ -28,7 +28,15 @@ from planfile.plan import (
     read_plan,
     write_plan,
 )
-from planfile.scenario import INVALID_ZONE_RULES, Box, Limits, Scenario, VehicleTask, load_scenario, scenario_from_dict
+from proxplan.planfile.scenario import (
+    INVALID_ZONE_RULES,
+    Box,
+    Limits,
+    Scenario,
+    VehicleTask,
+    load_scenario,
+    scenario_from_dict,
+)
 
 __all__ = [
     "CRAZYFLIE_MAX_PIECES",

@@ -1,5 +1,5 @@
 """Crazyflie trajectories: the ``uav_trajectories`` CSV layout of piecewise 7th-order polynomials,
-and an exported folder read back as a :class:`~planfile.plan.Plan` so the verifier checks what
+and an exported folder read back as a :class:`~proxplan.planfile.plan.Plan` so the verifier checks what
 will fly.
 
 CSV layout (one header line, one row per piece)::
@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError, read_json, read_text
-from planfile.plan import Plan, plan_from_dict
+from proxplan.fileio import UserError, read_json, read_text
+from proxplan.planfile.plan import Plan, plan_from_dict
 
 CRAZYFLIE_MAX_PIECES = 31
 POLY_ORDER = 7

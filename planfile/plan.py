@@ -4,7 +4,7 @@ Every user of a plan (planner, verifier, simulator, web app, exporters) reads, w
 plans through this module, so they agree on the rules:
 
 * ``format_version`` 2 (written) and 1 (read: vehicle types resolved by name from the built-in
-  types, a note says so). Any other version is a one-line :class:`~fileio.errors.UserError`.
+  types, a note says so). Any other version is a one-line :class:`~proxplan.fileio.errors.UserError`.
 * Every vehicle on one common time grid ``t_s`` (N >= 2 samples, strictly increasing, step
   ``dt_s``), with finite ``position_m``, ``velocity_mps``, ``acceleration_mps2`` (N, 3), world
   frame (z up); m, m/s, m/s^2, s.
@@ -13,9 +13,9 @@ plans through this module, so they agree on the rules:
   everywhere); before the first and after the last sample the vehicle rests at its first / last
   position (zero velocity and acceleration).
 * A plan stands alone: ``vehicle_types`` holds every used type's full parameters (the vehicle-YAML
-  form of :func:`physics.vehicle_yaml.vehicle_to_yaml_dict`), ``scenario_spec`` the normalised,
+  form of :func:`proxplan.physics.vehicle_yaml.vehicle_to_yaml_dict`), ``scenario_spec`` the normalised,
   self-contained scenario (workspace, obstacles, limits, model options, tasks;
-  :meth:`planfile.scenario.Scenario.to_spec`).
+  :meth:`proxplan.planfile.scenario.Scenario.to_spec`).
 
 plan.json keys: ``format_version``, ``scenario`` (name), ``dt_s``, ``method``, ``vehicles: {NAME:
 {type, t_s, position_m, velocity_mps, acceleration_mps2}}``, ``vehicle_types: {TYPE: {...}}``,
@@ -27,7 +27,7 @@ calibrated model's effects between vehicles with every parameter, ``[{name, para
 
 Feed-forward (optional per vehicle, written by ``proxplan plan``): ``disturbance_force_N`` and
 ``disturbance_torque_Nm`` (N, 3), the disturbance wrench the model predicts on the vehicle at each
-``t_s`` (world frame, level vehicle; ``verify.wrench_along_plan``). Plans without them (older
+``t_s`` (world frame, level vehicle; ``proxplan.verify.wrench_along_plan``). Plans without them (older
 files) read with ``None``; users recompute them and say so (``proxplan simulate --feedforward``).
 """
 
@@ -41,8 +41,15 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError, atomic_write_text, read_json
-from physics import BUILTIN_VEHICLES, Effect, Vehicle, effects_from_list, vehicle_from_dict, vehicle_to_yaml_dict
+from proxplan.fileio import UserError, atomic_write_text, read_json
+from proxplan.physics import (
+    BUILTIN_VEHICLES,
+    Effect,
+    Vehicle,
+    effects_from_list,
+    vehicle_from_dict,
+    vehicle_to_yaml_dict,
+)
 
 PLAN_FORMAT_VERSION = 2
 READABLE_FORMAT_VERSIONS = (1, 2)

@@ -7,7 +7,7 @@ Frame: world, z up, metres. A scenario file::
     vehicle_file: my_vehicles.yaml              # optional, resolved relative to this file
     model_file: calibrated.yaml                 # optional calibrated model (proxplan identify --save-model):
                                                 # its vehicles override same-named types, its effects
-                                                # between vehicles are applied (physics.model_file)
+                                                # between vehicles are applied (proxplan.physics.model_file)
     model: {field_form: inverse-z,              # optional disturbance-model options (override model_file's)
             effects: [{name: near_field, params: {amplitude: 0.5}}]}   # added to model_file's
     workspace: {min: [-3, -3, 0], max: [3, 3, 4]}
@@ -19,7 +19,7 @@ Frame: world, z up, metres. A scenario file::
       shuttle: {type: small-quad, start: [2, 1, 2.5], dock: {with: carrier, offset: [0, 0, 0.4]}}
       other:   {type: small-quad, start: [-2, 0, 1], goal: [2, 0, 1], max_speed_mps: 1.0}
 
-Every mistake raises :class:`fileio.errors.UserError` with ``FILE: KEY: what was expected``.
+Every mistake raises :class:`proxplan.fileio.errors.UserError` with ``FILE: KEY: what was expected``.
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError, read_yaml
-from physics import VALIDITY_FACTOR_L, CalibratedModel, Effect, KinematicLimits, Vehicle
+from proxplan.fileio import UserError, read_yaml
+from proxplan.physics import VALIDITY_FACTOR_L, CalibratedModel, Effect, KinematicLimits, Vehicle
 
 TOP_KEYS = (
     "name",
@@ -67,7 +67,7 @@ VEHICLE_KEYS = (
 )
 TRACKING_MARGIN_M = 0.06
 """Default tube radius, m: the largest closed-loop position error measured with the built-in
-vehicles' trackable limits and the default controller was 4.4 cm alone (flightsim.tracking course)
+vehicles' trackable limits and the default controller was 4.4 cm alone (proxplan.flightsim.tracking course)
 and 5.5 cm in an 8-vehicle formation change (benchmarks/bench_fly.py); docs/flying.md."""
 DOCK_APPROACH_MARGIN_M = 0.1  # a dock approach point lies this far beyond the invalid zone, m
 INVALID_ZONE_RULES = ("conservative", "model", "forbid")
@@ -166,7 +166,7 @@ class Scenario:
         """The normalised, self-contained scenario mapping (every default filled in, no file
         references; vehicle types by name, their parameters travel with the plan): what plan.json
         stores as ``scenario_spec`` and :func:`scenario_from_dict` reads back."""
-        from physics import FIELD_FORMS, effects_to_list
+        from proxplan.physics import FIELD_FORMS, effects_to_list
 
         vehicles: dict[str, dict] = {}
         for name, task in self.vehicles.items():
@@ -319,7 +319,7 @@ def _vehicle_types(doc: Mapping, path: Path | None, label: str) -> dict[str, Veh
     vfile = _relative_file(doc, "vehicle_file", path, label, "a vehicles YAML file")
     if vfile is None:
         return {}
-    from physics import load_vehicle_file
+    from proxplan.physics import load_vehicle_file
 
     return load_vehicle_file(vfile)
 
@@ -328,7 +328,7 @@ def _model_file(doc: Mapping, path: Path | None, label: str) -> CalibratedModel 
     mfile = _relative_file(doc, "model_file", path, label, "a model file (identify --save-model)")
     if mfile is None:
         return None
-    from physics import load_model_file
+    from proxplan.physics import load_model_file
 
     return load_model_file(mfile)
 
@@ -336,13 +336,13 @@ def _model_file(doc: Mapping, path: Path | None, label: str) -> CalibratedModel 
 def _model_notes(model: CalibratedModel | None, label: str) -> list[str]:
     if model is None:
         return []
-    from physics import target_only_notes
+    from proxplan.physics import target_only_notes
 
     return [*model.notes, *target_only_notes(model, label)]
 
 
 def _unmapped(effects: tuple[Effect, ...], label: str) -> list[str]:
-    from costmaps import unmapped_effect_names
+    from proxplan.costmaps import unmapped_effect_names
 
     names = unmapped_effect_names(effects)
     if not names:
@@ -356,14 +356,14 @@ def _unmapped(effects: tuple[Effect, ...], label: str) -> list[str]:
 def _vehicle_file_notes(doc: Mapping, path: Path | None) -> list[str]:
     if "vehicle_file" not in doc:
         return []
-    from physics import vehicle_file_notes
+    from proxplan.physics import vehicle_file_notes
 
     base = path.parent if path is not None else Path.cwd()
     return vehicle_file_notes((base / doc["vehicle_file"]).resolve())
 
 
 def _task(name: str, data: Any, where: str, custom: dict[str, Vehicle]) -> VehicleTask:
-    from physics import resolve_vehicle
+    from proxplan.physics import resolve_vehicle
 
     data = _mapping(data, where, "type, start and one of goal / hover / dock")
     _unknown(data, VEHICLE_KEYS, where)
@@ -516,13 +516,13 @@ def scenario_from_dict(
     field_form = calibrated.options.field_form if calibrated is not None else None
     effects: tuple[Effect, ...] = ()
     if calibrated is not None:
-        from physics import between_vehicle_effects
+        from proxplan.physics import between_vehicle_effects
 
         effects = between_vehicle_effects(calibrated.effects)
     if "model" in doc and doc["model"] is not None:
         section = _mapping(doc["model"], f"{label}: model", "{field_form: inverse-z|printed, effects: [...]}")
         _unknown(section, ("field_form", "effects"), f"{label}: model")
-        from physics import FIELD_FORMS, between_vehicle_effects, effects_from_list
+        from proxplan.physics import FIELD_FORMS, between_vehicle_effects, effects_from_list
 
         field_form = section.get("field_form", field_form)
         if field_form is not None and field_form not in FIELD_FORMS:

@@ -3,12 +3,12 @@ sources (cut-off maps), CasADi refinement keeping predicted wrenches within auth
 timing; the independent verifier (package ``verify``) checks every plan it returns.
 """
 
-from planner.errors import InfeasibleError
-from planner.optimize import RefineOptions, RefineResult, refine_plan
-from planner.pipeline import DT_S, METHODS, plan_scenario
-from planner.plot import plot_plan
-from planner.summary import plan_summary
-from planner.timing import common_grid, time_parameterize
+from proxplan.planner.errors import InfeasibleError
+from proxplan.planner.optimize import RefineOptions, RefineResult, refine_plan
+from proxplan.planner.pipeline import DT_S, METHODS, plan_scenario
+from proxplan.planner.plot import plot_plan
+from proxplan.planner.summary import plan_summary
+from proxplan.planner.timing import common_grid, time_parameterize
 
 __all__ = [
     "DT_S",

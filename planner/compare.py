@@ -1,10 +1,10 @@
 """Run every planning method on every shipped scenario and tabulate the results (markdown + PNG).
 
-    python -m planner.compare --out DIR [--scenarios a.yaml b.yaml] [--methods optimized sampling]
+    python -m proxplan.planner.compare --out DIR [--scenarios a.yaml b.yaml] [--methods optimized sampling]
 
 Writes ``DIR/comparison.md``, ``DIR/comparison.png`` and ``DIR/comparison.json``. Columns: makespan
 (s, last time any vehicle moves), total path length (m, all vehicles), max authority usage (-, with
-the scenario's limit), min separation (m, non-dock pairs), verify result (``verify.checks``: the
+the scenario's limit), min separation (m, non-dock pairs), verify result (``proxplan.verify.checks``: the
 disturbance model evaluated directly, so the baselines' violations show) and planning time (s,
 whole ``proxplan plan`` process, which runs in a fresh process per plan so that every method starts
 from the same seeded sampling stage).
@@ -52,8 +52,8 @@ def run_one(scenario_path: Path, method: str, *, seed: int = 0) -> ComparisonRow
     import subprocess
     import tempfile
 
-    from planfile import load_scenario, read_plan
-    from verify import verify_plan
+    from proxplan.planfile import load_scenario, read_plan
+    from proxplan.verify import verify_plan
 
     scenario = load_scenario(scenario_path)
     fraction = float(scenario.limits.authority_fraction)
@@ -157,7 +157,7 @@ def to_markdown(rows: list[ComparisonRow]) -> str:
         "the scenario's `limits.authority_fraction`. Min separation: centre distance over non-dock pairs. "
         "Verify: `proxplan verify` checks (model numbers, separation, invalid zone, limits, goals). "
         "Planning time: whole `proxplan plan` process (one fresh process per plan, same seed). "
-        "Regenerate with `python -m planner.compare --out docs`.\n"
+        "Regenerate with `python -m proxplan.planner.compare --out docs`.\n"
     )
     return "\n".join(lines) + "\n" + legend
 
@@ -182,14 +182,14 @@ def to_png(rows: list[ComparisonRow], path: Path) -> Path:
         table[i, 6].set_facecolor(colour)
     ax.set_title("proxplan: every method on every shipped scenario", fontsize=10)
     fig.tight_layout()
-    from fileio import save_figure
+    from proxplan.fileio import save_figure
 
     return save_figure(fig, path, dpi=130, bbox_inches="tight")
 
 
 def write_outputs(rows: list[ComparisonRow], out_dir: Path) -> dict[str, Path]:
     """Write comparison.md / .png / .json into ``out_dir`` (each atomically)."""
-    from fileio import atomic_write_text
+    from proxplan.fileio import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
     md = atomic_write_text(out_dir / "comparison.md", "# Planner comparison\n\n" + to_markdown(rows))
@@ -200,7 +200,7 @@ def write_outputs(rows: list[ComparisonRow], out_dir: Path) -> dict[str, Path]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m planner.compare",
+        prog="python -m proxplan.planner.compare",
         description="Run every planning method on every shipped scenario; write a markdown + PNG table.",
     )
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder (comparison.md/.png/.json)")
@@ -208,11 +208,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="*", choices=METHOD_ORDER, default=list(METHOD_ORDER), help="methods to run")
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (default 0)")
     args = parser.parse_args(argv)
-    from fileio import UserError
+    from proxplan.fileio import UserError
 
     paths = [Path(p) for p in args.scenarios] if args.scenarios else sorted(SCENARIO_DIR.glob("*.yaml"))
     if not paths:
-        print(f"planner.compare: error: no scenario files found in {SCENARIO_DIR}", file=sys.stderr)
+        print(f"proxplan.planner.compare: error: no scenario files found in {SCENARIO_DIR}", file=sys.stderr)
         return 2
     try:
         from tqdm import tqdm
@@ -230,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
                 rows.extend(part)
                 bar.update(len(part))
     except UserError as err:
-        print(f"planner.compare: error: {err}", file=sys.stderr)
+        print(f"proxplan.planner.compare: error: {err}", file=sys.stderr)
         return 2
     out = write_outputs(rows, Path(args.out))
     print(to_markdown(rows))

@@ -9,14 +9,14 @@ Modes (``--method``):
 ``downwash``    separation + the disturbance-cutoff maps of the cost-map issue: target T at
                 horizontal distance r and vertical separation dz below source S is invalid when
                 r < r_cut_{S->T}(dz) at level ``limits.authority_fraction``
-                (``costmaps.map_store.pair_maps(S, T).cutoff.r_cut_m``); checked both ways.
+                (``proxplan.costmaps.map_store.pair_maps(S, T).cutoff.r_cut_m``); checked both ways.
 ``no-downwash`` separation only (baseline).
 ``ellipsoid``   Crazyswarm-style keep-out ellipsoid: horizontal radius r, vertical radius 3 r, with
                 r = sum of the two body radii (arm + propeller radius), scaled to the vehicles' size.
 
 Invalid zone of the model (0 < dz <= 3 L of the source, S0 II-A): ``limits.invalid_zone_rule`` is
 passed to the cost map (``CutoffMap.r_cut_m(..., invalid_rule=...)``, documented in
-:mod:`costmaps.cutoff`): ``conservative`` (default), ``model`` or ``forbid``.
+:mod:`proxplan.costmaps.cutoff`): ``conservative`` (default), ``model`` or ``forbid``.
 Scalar Python math is used per state because OMPL calls the checker once per state.
 """
 
@@ -28,7 +28,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from physics import VALIDITY_FACTOR_L, Vehicle
+from proxplan.physics import VALIDITY_FACTOR_L, Vehicle
 
 MODES = ("downwash", "no-downwash", "ellipsoid")
 DZ_STEP_M = 0.02  # resolution of the per-pair cutoff lookup, m
@@ -45,7 +45,7 @@ class CutoffTable:
     dz_step_m: float
     r_cut_m: tuple[float, ...]  # (K,) m; conservative lookup takes the larger bracketing sample
     invalid_dz_m: float  # 3 L of the source, m
-    provenance: str  # "costmaps.map_store" or "local stand-in"
+    provenance: str  # "proxplan.costmaps.map_store" or "local stand-in"
 
     def lookup(self, dz_m: float) -> float:
         """Cutoff radius at vertical separation ``dz_m`` (target below > 0), m; 0 when dz <= 0."""
@@ -61,14 +61,16 @@ class CutoffTable:
 def _map_r_cut(
     source: Vehicle, target: Vehicle, dz: np.ndarray, level: float, rule: str, field_form: str | None, effects: tuple
 ) -> tuple[np.ndarray, str]:
-    """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (costmaps.map_store); ``effects``
-    a :func:`costmaps.effects_key` of a calibrated model's effects between vehicles."""
-    from costmaps import effects_of_key, pair_maps
-    from physics import ModelOptions
+    """r_cut(dz) with the invalid-zone ``rule`` from the cost maps (proxplan.costmaps.map_store); ``effects``
+    a :func:`proxplan.costmaps.effects_key` of a calibrated model's effects between vehicles."""
+    from proxplan.costmaps import effects_of_key, pair_maps
+    from proxplan.physics import ModelOptions
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     maps = pair_maps(source, target, options=options, effects=effects_of_key(effects))
-    return np.asarray(maps.cutoff.r_cut_m(dz, level=level, invalid_rule=rule), dtype=float), "costmaps.map_store"
+    return np.asarray(
+        maps.cutoff.r_cut_m(dz, level=level, invalid_rule=rule), dtype=float
+    ), "proxplan.costmaps.map_store"
 
 
 @lru_cache(maxsize=256)
@@ -82,7 +84,7 @@ def cutoff_table(
     effects: tuple = (),
 ) -> CutoffTable:
     """The per-pair cutoff lookup at authority ``level`` with the invalid-zone ``rule`` applied
-    (``effects``: :func:`costmaps.effects_key` of the scenario's effects, hashable for the cache)."""
+    (``effects``: :func:`proxplan.costmaps.effects_key` of the scenario's effects, hashable for the cache)."""
     dz = np.arange(0.0, DZ_MAX_M + DZ_STEP_M, DZ_STEP_M)
     r_cut, provenance = _map_r_cut(source, target, dz, level, rule, field_form, effects)
     r_cut = np.where(dz > 0, np.maximum(r_cut, 0.0), 0.0)
@@ -118,8 +120,8 @@ def usage_table(
 ) -> UsageTable | None:
     """The :class:`UsageTable` of an ordered pair from the cost maps (``effects`` as in
     :func:`cutoff_table`)."""
-    from costmaps import effects_of_key, pair_maps
-    from physics import ModelOptions
+    from proxplan.costmaps import effects_of_key, pair_maps
+    from proxplan.physics import ModelOptions
 
     options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
     cmap = pair_maps(source, target, options=options, effects=effects_of_key(effects)).cutoff
@@ -332,7 +334,7 @@ def build_checker(
     vertically too); ``tube=False`` leaves it out. ``conflict(..., resting=True)`` (the planned
     vehicle holds) leaves it out for tracks that rest too, as the verifier does for pairs at rest.
     """
-    from costmaps import effects_key
+    from proxplan.costmaps import effects_key
 
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")

@@ -18,9 +18,9 @@ point is furthest outside of); pairwise separation; the model's invalid zone (0 
 source with overlapping footprints, S0 II-A) enclosed by a smooth super-ellipsoid; a dock pair
 on its final approach stays on the dock axis instead; and **authority usage <= authority_fraction**
 for every vehicle: the disturbance wrench (F_z, tau_x, tau_y) on a target from each other vehicle
-comes from the differentiable wrench table of ``costmaps.map_store`` (the same numbers as
-``physics.disturbance``), is summed over sources and mapped through the inverse mixer of (S0-14)
-(``physics.authority.mixer_matrix``) to per-motor thrust changes, each bounded by
+comes from the differentiable wrench table of ``proxplan.costmaps.map_store`` (the same numbers as
+``proxplan.physics.disturbance``), is summed over sources and mapped through the inverse mixer of (S0-14)
+(``proxplan.physics.authority.mixer_matrix``) to per-motor thrust changes, each bounded by
 ``fraction x headroom`` in its direction (DESIGN.md section 3) -- exactly ``usage <= fraction``
 without a non-smooth max.
 
@@ -31,7 +31,7 @@ The table's ``casadi.Function.bspline`` has no SX form. By default the table is 
 linearised at the current offsets (value and Jacobian from its own CasADi function), the NLP is
 SX-expanded and solved, and the linearisation is repeated a few times (sequential linearisation);
 the exact table (MX, ``expand=False``) remains available. The final plan is always checked against
-the model directly by :mod:`verify.checks`. Problem data and results: :mod:`planner.ocp_problem`.
+the model directly by :mod:`proxplan.verify.checks`. Problem data and results: :mod:`proxplan.planner.ocp_problem`.
 """
 
 from __future__ import annotations
@@ -42,9 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from physics import VALIDITY_FACTOR_L, normalised_motor_map
-from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
-from planner.ocp_warm import repair_warm_start
+from proxplan.physics import VALIDITY_FACTOR_L, normalised_motor_map
+from proxplan.planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
+from proxplan.planner.ocp_warm import repair_warm_start
 
 
 def _warm(values: np.ndarray | None, default: np.ndarray, n: int) -> np.ndarray:

@@ -1,10 +1,10 @@
-"""Refine a sampling plan with the CasADi optimiser (:mod:`planner.ocp`) into a tighter plan.
+"""Refine a sampling plan with the CasADi optimiser (:mod:`proxplan.planner.ocp`) into a tighter plan.
 
 ``refine_plan(scenario, initial_plan)`` warm-starts the joint optimal-control problem from the
 sampling planner's result, solves it with IPOPT, samples the piecewise-constant-jerk solution
 exactly on the plan's time grid (``dt_s``; the optimised duration is rounded up to a whole number of
 steps by a uniform slow-down, which keeps every limit), and re-checks the result with
-``verify.checks.verify_plan`` (the model evaluated directly, not the table). A failed solve or a
+``proxplan.verify.checks.verify_plan`` (the model evaluated directly, not the table). A failed solve or a
 refined plan that fails the check returns the initial plan with ``success=False`` and a message
 saying why; the caller never gets a silently worse plan.
 
@@ -24,9 +24,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from planfile import Plan
-from planner.ocp import build_and_solve, sample_solution
-from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
+from proxplan.planfile import Plan
+from proxplan.planner.ocp import build_and_solve, sample_solution
+from proxplan.planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
 
 WrenchProvider = (
     Callable  # (source Vehicle, target Vehicle, scenario) -> casadi.Function offset_m -> (F_z, tau_x, tau_y)
@@ -68,16 +68,16 @@ class RefineOptions:
     # found by then is returned
     time_budget_s: float = 60.0
     # up to max_joint_vehicles moving vehicles (or any dock): the joint problem, and if it fails (no
-    # docks) the decomposed optimisation (planner.reoptimize: one vehicle at a time, sparse pairs)
+    # docks) the decomposed optimisation (proxplan.planner.reoptimize: one vehicle at a time, sparse pairs)
     # with the rest of the budget; more: decomposed only (on the swap of 8 it found 4.10 s where
     # the joint problem found 5.95 s, and the joint problem of 8 formation vehicles did not converge)
     max_joint_vehicles: int = 4
 
 
 def default_wrench_provider(source, target, scenario):
-    """The differentiable wrench table of the cost maps (same numbers as physics.disturbance)."""
-    from costmaps import pair_maps
-    from physics import ModelOptions
+    """The differentiable wrench table of the cost maps (same numbers as proxplan.physics.disturbance)."""
+    from proxplan.costmaps import pair_maps
+    from proxplan.physics import ModelOptions
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
@@ -87,8 +87,8 @@ def default_wrench_provider(source, target, scenario):
 
 def _table_extent(source, target, scenario):
     """dz_m -> lateral half-width (m) of the pair's wrench table (zero beyond it)."""
-    from costmaps import pair_maps
-    from physics import ModelOptions
+    from proxplan.costmaps import pair_maps
+    from proxplan.physics import ModelOptions
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
@@ -107,12 +107,12 @@ def moving_end_s(plan) -> float:
 
 
 def check_final_configuration(scenario) -> None:
-    """Raise ``planner.errors.InfeasibleError`` when the final configuration itself (every vehicle
+    """Raise ``proxplan.planner.errors.InfeasibleError`` when the final configuration itself (every vehicle
     at rest at its goal / hover point / dock) needs more than ``limits.authority_fraction`` of some
     vehicle's authority: then no trajectory can satisfy the limit (model evaluated directly)."""
-    from costmaps import pair_wrench
-    from physics import ModelOptions, authority_usage
-    from planner.errors import InfeasibleError
+    from proxplan.costmaps import pair_wrench
+    from proxplan.physics import ModelOptions, authority_usage
+    from proxplan.planner.errors import InfeasibleError
 
     form = getattr(scenario, "field_form", None)
     options = ModelOptions(field_form=form) if form else ModelOptions()
@@ -143,7 +143,7 @@ def check_final_configuration(scenario) -> None:
 
 def peak_usage(plan, scenario) -> float:
     """Largest authority usage of any vehicle along ``plan`` (model evaluated directly), -."""
-    from verify import wrench_along_plan
+    from proxplan.verify import wrench_along_plan
 
     along = wrench_along_plan(plan, scenario, t_s=plan.t_s)
     return max([float(a.usage.max()) for a in along.values() if a.usage.size] + [0.0])
@@ -176,7 +176,7 @@ def _n_intervals(makespan_s: float, n_moving: int, options: RefineOptions) -> in
 def build_problem(
     scenario, initial_plan, *, options: RefineOptions = RefineOptions(), wrench_provider: WrenchProvider | None = None
 ) -> OcpProblem:
-    """The :class:`planner.ocp.OcpProblem` of ``scenario`` warm-started from ``initial_plan``."""
+    """The :class:`proxplan.planner.ocp.OcpProblem` of ``scenario`` warm-started from ``initial_plan``."""
     provider = wrench_provider or default_wrench_provider
     T0 = moving_end_s(initial_plan) or float(initial_plan.makespan_s)
     n = _n_intervals(T0, sum(not t.hover for t in scenario.vehicles.values()), options)
@@ -188,7 +188,7 @@ def build_problem(
         radius = float(task.body_radius_m)
         reach = 0.0
         if task.dock_with is not None:
-            from verify import GOAL_TOLERANCE_M
+            from proxplan.verify import GOAL_TOLERANCE_M
 
             approach, dock = scenario.dock_geometry(name)
             reach = float(np.linalg.norm(approach - dock)) + GOAL_TOLERANCE_M - 0.02
@@ -242,7 +242,7 @@ def build_problem(
 def solution_to_plan(solution: OcpSolution, scenario, initial_plan, *, time_scale: float = 1.0):
     """Sample ``solution`` on the plan grid (step ``initial_plan.dt_s``), rounding the duration up to
     a whole number of steps by a uniform slow-down. Returns a Plan (method "optimized")."""
-    from planfile import Plan, VehicleTrajectory
+    from proxplan.planfile import Plan, VehicleTrajectory
 
     dt = float(initial_plan.dt_s)
     duration = solution.duration_s * time_scale
@@ -270,7 +270,7 @@ _KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
 
 
 def _verify(plan, scenario) -> list:
-    from verify import verify_plan
+    from proxplan.verify import verify_plan
 
     return list(verify_plan(plan, scenario))
 
@@ -322,15 +322,15 @@ def refine_plan(
     """Optimise ``initial_plan`` (a Plan of ``scenario``) within ``options.time_budget_s``.
 
     Up to ``options.max_joint_vehicles`` moving vehicles (or any dock): the joint problem of all of
-    them (:mod:`planner.ocp`), then, if it fails and there is no dock, the decomposed optimisation
-    (:mod:`planner.reoptimize`) with the rest of the budget. More: the decomposed optimisation. Returns a :class:`RefineResult`; the plan it
+    them (:mod:`proxplan.planner.ocp`), then, if it fails and there is no dock, the decomposed optimisation
+    (:mod:`proxplan.planner.reoptimize`) with the rest of the budget. More: the decomposed optimisation. Returns a :class:`RefineResult`; the plan it
     returns with ``success`` passed the verifier and is better than ``initial_plan`` (shorter
     makespan, or lower peak authority usage at equal makespan). On any failure its ``plan`` is
     ``initial_plan`` unchanged and ``success`` is False with the reason in ``message``.
     """
     del seed  # IPOPT is deterministic
     if not options.time_budget_s > 0:
-        from fileio import UserError
+        from proxplan.fileio import UserError
 
         raise UserError(f"--time-budget: expected a positive number of seconds, got {options.time_budget_s:g}")
     check_final_configuration(scenario)
@@ -356,7 +356,7 @@ def refine_plan(
 
 
 def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, progress) -> RefineResult:
-    """The joint problem of all moving vehicles (:mod:`planner.ocp`)."""
+    """The joint problem of all moving vehicles (:mod:`proxplan.planner.ocp`)."""
     problem = build_problem(scenario, initial_plan, options=options, wrench_provider=wrench_provider)
 
     def accept(candidate: OcpSolution) -> bool:
@@ -433,9 +433,9 @@ def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, prog
 
 
 def _decomposed(scenario, initial_plan, options: RefineOptions, wrench_provider, progress) -> RefineResult:
-    """Many vehicles: :func:`planner.reoptimize.reoptimize_plan` (one vehicle at a time against the
+    """Many vehicles: :func:`proxplan.planner.reoptimize.reoptimize_plan` (one vehicle at a time against the
     others' fixed trajectories, sparse pairs) within ``options.time_budget_s``."""
-    from planner.reoptimize import ReoptOptions, reoptimize_plan
+    from proxplan.planner.reoptimize import ReoptOptions, reoptimize_plan
 
     result = reoptimize_plan(
         scenario,

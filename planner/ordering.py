@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from planfile import Scenario
-from planner.timing import min_segment_duration_s
+from proxplan.planfile import Scenario
+from proxplan.planner.timing import min_segment_duration_s
 
 
 def unobstructed_time_s(scenario: Scenario, name: str) -> float:

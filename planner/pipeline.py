@@ -1,11 +1,11 @@
 """Multi-vehicle planning pipeline: prioritised space-time sampling, Ruckig timing, optional
-refinement (``planner.optimize.refine_plan``), metrics.
+refinement (``proxplan.planner.optimize.refine_plan``), metrics.
 
 Vehicles are planned one after another (hovering vehicles first, then the others in file order with
 every dock target before the vehicles docking to it). Each one is searched in space-time
-(:mod:`planner.sampling`) against the trajectories already planned (moving disturbance sources) and
+(:mod:`proxplan.planner.sampling`) against the trajectories already planned (moving disturbance sources) and
 the start positions of vehicles not planned yet (assumed to leave within ``LEAVE_START_S``). Its
-path is timed with Ruckig (:mod:`planner.timing`) and the timed trajectory is re-checked on the time
+path is timed with Ruckig (:mod:`proxplan.planner.timing`) and the timed trajectory is re-checked on the time
 grid; a failed check retries with another seed. When a vehicle cannot be planned, planning restarts
 once with that vehicle first; after that :class:`InfeasibleError` names the vehicle and constraint.
 
@@ -24,13 +24,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from planfile import Plan, Scenario, VehicleTrajectory
-from planner.constraints import Track, build_checker
-from planner.errors import InfeasibleError
-from planner.ordering import priority_order, promote
-from planner.precheck import check_starts_and_goals, check_swarm_size
-from planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
-from planner.timing import (
+from proxplan.planfile import Plan, Scenario, VehicleTrajectory
+from proxplan.planner.constraints import Track, build_checker
+from proxplan.planner.errors import InfeasibleError
+from proxplan.planner.ordering import priority_order, promote
+from proxplan.planner.precheck import check_starts_and_goals, check_swarm_size
+from proxplan.planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
+from proxplan.planner.timing import (
     KinematicLimits,
     TimedPath,
     common_grid,
@@ -38,7 +38,7 @@ from planner.timing import (
     time_parameterize,
     time_parameterize_through,
 )
-from planner.validity import BatchChecker
+from proxplan.planner.validity import BatchChecker
 
 METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
 MODE_OF_METHOD = {
@@ -233,7 +233,7 @@ def plan_scenario(
 ) -> Plan:
     """Plan every vehicle of ``scenario``; raises :class:`InfeasibleError` when impossible.
 
-    ``method``: "optimized" (sampling, then ``planner.optimize.refine_plan`` when available),
+    ``method``: "optimized" (sampling, then ``proxplan.planner.optimize.refine_plan`` when available),
     "sampling", "no-downwash" (separation only) or "ellipsoid" (keep-out ellipsoid baseline).
     ``progress(message, fraction)`` is called as vehicles are planned. ``time_budget_s``: wall-clock
     budget of the optimiser (default ``RefineOptions.time_budget_s``), s; it returns the best
@@ -242,10 +242,10 @@ def plan_scenario(
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if time_budget_s is not None and not time_budget_s > 0:
-        from fileio import UserError
+        from proxplan.fileio import UserError
 
         raise UserError(f"--time-budget: expected a positive number of seconds, got {time_budget_s:g}")
-    from verify import verify_plan
+    from proxplan.verify import verify_plan
 
     options = options or SamplingOptions()
     t0 = time.perf_counter()
@@ -274,7 +274,7 @@ def plan_scenario(
 
 
 def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: SamplingOptions, progress) -> Plan:
-    """Prioritised sampling with conflict-driven re-ordering (:func:`planner.ordering.promote`:
+    """Prioritised sampling with conflict-driven re-ordering (:func:`proxplan.planner.ordering.promote`:
     a failed vehicle moves before the vehicle that blocked it; the vehicles in front keep their
     plans); the assembled plan (metrics not final)."""
     order = priority_order(scenario)
@@ -305,7 +305,7 @@ def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: Samplin
 
 
 def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress, time_budget_s: float | None = None) -> Plan:
-    from planner.optimize import RefineOptions, refine_plan
+    from proxplan.planner.optimize import RefineOptions, refine_plan
 
     options = RefineOptions() if time_budget_s is None else RefineOptions(time_budget_s=time_budget_s)
     try:
@@ -365,7 +365,7 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
 def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) -> None:
     """Fill the DESIGN metrics (planning_time_s, max_authority_usage, min_separation_m, makespan_s)
     and extras (per-vehicle usage, path length, arrival time, invalid-zone time of docks)."""
-    from verify import attach_feedforward, separation_summary, wrench_along_plan
+    from proxplan.verify import attach_feedforward, separation_summary, wrench_along_plan
 
     t = plan.t_s
     along = wrench_along_plan(plan, scenario, t_s=t)

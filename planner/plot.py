@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fileio import save_figure
-from planfile import Plan
+from proxplan.fileio import save_figure
+from proxplan.planfile import Plan
 
 
 def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = None) -> Path:
@@ -19,7 +19,7 @@ def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = No
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    from verify import wrench_along_plan
+    from proxplan.verify import wrench_along_plan
 
     if usage is None:
         usage = wrench_along_plan(plan, scenario, t_s=plan.t_s)

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from fileio import UserError
-from planfile import Scenario
-from planner.constraints import Track, build_checker
-from planner.errors import InfeasibleError
-from planner.validity import BatchChecker
+from proxplan.fileio import UserError
+from proxplan.planfile import Scenario
+from proxplan.planner.constraints import Track, build_checker
+from proxplan.planner.errors import InfeasibleError
+from proxplan.planner.validity import BatchChecker
 
 MAX_VEHICLES = 1000  # largest swarm the prioritised planner accepts
 

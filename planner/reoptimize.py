@@ -1,9 +1,9 @@
 """Decomposed optimisation for swarms: one vehicle at a time against the others' fixed trajectories.
 
-The joint problem of :mod:`planner.ocp` grows with the square of the number of vehicles (every
+The joint problem of :mod:`proxplan.planner.ocp` grows with the square of the number of vehicles (every
 pair's separation, invalid-zone and authority terms at every check point); on this machine it stops
 converging from about 8 formation vehicles on. Here each vehicle is re-optimised in turn
-(prioritised re-optimisation, Gauss-Seidel rounds): a small :class:`planner.ocp_problem.OcpProblem`
+(prioritised re-optimisation, Gauss-Seidel rounds): a small :class:`proxplan.planner.ocp_problem.OcpProblem`
 with that one vehicle moving over a fixed duration T (s) and only the vehicles that come within
 ``reach_m`` of its warm path as fixed trajectories (sparse pairs), the disturbance the fixed vehicles
 already receive from everyone else as a constant background (``OcpAgent.background_wrench``).
@@ -12,10 +12,10 @@ Per vehicle: T is tried from near its own minimum time (``timing.min_segment_dur
 time its goal is free of the others) up towards its current arrival; the warm start is its current
 path compressed in time. A candidate is accepted only when a direct model check on a 0.02 s grid
 (:class:`SwarmField`: separation, invalid zone, authority of the vehicle *and* of every vehicle in
-its jet, summed over all sources with ``costmaps.pair_wrench``, as the verifier; workspace, obstacles,
+its jet, summed over all sources with ``proxplan.costmaps.pair_wrench``, as the verifier; workspace, obstacles,
 kinematic limits) passes; a solution that moved into pairs outside the problem is re-solved once
 with the pairs re-selected around it. After every round the whole plan goes through the independent
-verifier (``verify.verify_plan``); only verified plans are kept, so a time budget always returns
+verifier (``proxplan.verify.verify_plan``); only verified plans are kept, so a time budget always returns
 the best verified plan found so far. World frame, z up; m, s, N, N m.
 """
 
@@ -28,13 +28,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from costmaps import pair_wrench
-from physics import ModelOptions, authority_usage, invalid_zone_mask
-from planfile import Plan, VehicleTrajectory
-from planner.ocp import build_and_solve, sample_solution
-from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
-from planner.timing import min_segment_duration_s
-from verify import REST_SPEED_MPS
+from proxplan.costmaps import pair_wrench
+from proxplan.physics import ModelOptions, authority_usage, invalid_zone_mask
+from proxplan.planfile import Plan, VehicleTrajectory
+from proxplan.planner.ocp import build_and_solve, sample_solution
+from proxplan.planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
+from proxplan.planner.timing import min_segment_duration_s
+from proxplan.verify import REST_SPEED_MPS
 
 CHECK_DT_S = 0.02  # grid of the per-vehicle model check, s (the verifier re-checks at 0.01 s)
 REST_MPS = 1e-4  # speed below which a vehicle counts as arrived, m/s
@@ -84,7 +84,7 @@ def arrival_s(tr: VehicleTrajectory) -> float:
 
 class SwarmField:
     """Every vehicle's position on a check grid and the total disturbance wrench on each (sum over
-    all sources above it, ``costmaps.pair_wrench``: S0-3..S0-8 plus the scenario's effects, as the
+    all sources above it, ``proxplan.costmaps.pair_wrench``: S0-3..S0-8 plus the scenario's effects, as the
     verifier), updated as vehicles change; the non-zero pair contributions are kept."""
 
     def __init__(self, scenario, plan: Plan, *, dt_s: float = CHECK_DT_S):
@@ -183,7 +183,7 @@ class SwarmField:
 
     def _moving(self, p: np.ndarray) -> np.ndarray:
         """(M,) bool: the vehicle at positions ``p`` (M, 3) on the check grid moves at least at the
-        verifier's rest speed (verify.REST_SPEED_MPS, m/s)."""
+        verifier's rest speed (proxplan.verify.REST_SPEED_MPS, m/s)."""
         speed = np.linalg.norm(np.gradient(p, self.t_s, axis=0), axis=1) if p.shape[0] > 1 else np.zeros(1)
         return speed >= REST_SPEED_MPS
 
@@ -472,9 +472,9 @@ def reoptimize_plan(
 ) -> ReoptResult:
     """Re-optimise the moving vehicles of ``plan`` one at a time (latest arrival first) in rounds
     until no vehicle improves, ``max_rounds`` or the time budget; returns the best plan that passed
-    ``verify.verify_plan`` (the input plan when none did better). Scenarios with docks are not
+    ``proxplan.verify.verify_plan`` (the input plan when none did better). Scenarios with docks are not
     decomposed (the dock pair must be optimised together)."""
-    from verify import verify_plan
+    from proxplan.verify import verify_plan
 
     t0 = time.perf_counter()
     deadline = t0 + options.time_budget_s

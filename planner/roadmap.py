@@ -2,12 +2,12 @@
 
 Nodes are a handful of points (start, goal, lane-change corners, obstacle detours, dodge points
 beside the straight line), m; every pair of nodes is an edge flown as one jerk-limited rest-to-rest
-Ruckig segment (a straight line, :func:`planner.timing.ruckig_segment`), so the timed trajectory is
-exactly what :func:`planner.timing.time_parameterize` flies later. A vehicle may wait at a node
+Ruckig segment (a straight line, :func:`proxplan.planner.timing.ruckig_segment`), so the timed trajectory is
+exactly what :func:`proxplan.planner.timing.time_parameterize` flies later. A vehicle may wait at a node
 (while holding there stays valid) before it departs. The search is A* on arrival time (heuristic:
 unobstructed minimum time to the goal) where an edge departs at the first time, on a grid of
 ``step_s``, at which the whole motion is valid against all planned vehicles (one vectorised
-:class:`planner.validity.BatchChecker` call per candidate departure). This is a small
+:class:`proxplan.planner.validity.BatchChecker` call per candidate departure). This is a small
 safe-interval-style planner: waiting replaces the RRT's random search for most vehicles of a
 formation change; the RRT remains the fallback.
 """
@@ -19,8 +19,8 @@ import math
 
 import numpy as np
 
-from planner.timing import DurationTable, KinematicLimits, ruckig_segment
-from planner.validity import BatchChecker
+from proxplan.planner.timing import DurationTable, KinematicLimits, ruckig_segment
+from proxplan.planner.validity import BatchChecker
 
 
 class _Edge:

@@ -4,9 +4,9 @@ State space: R^3 x time, as an OMPL ``RealVectorStateSpace(4)`` with coordinates
 m, where tau = v_ref t (m) so that the Euclidean metric used for nearest neighbours weighs a second
 like ``v_ref`` metres. A Python ``MotionValidator`` makes the space directed: a motion is valid only
 forward in time, no faster than the vehicle's jerk-limited rest-to-rest time over its length
-(:class:`planner.timing.DurationTable`), and with every intermediate state (at most
+(:class:`proxplan.planner.timing.DurationTable`), and with every intermediate state (at most
 ``check_step_m`` / ``check_step_s`` apart, linear interpolation) valid for the
-:class:`planner.constraints.ConflictChecker` (workspace, inflated obstacles, separation, downwash
+:class:`proxplan.planner.constraints.ConflictChecker` (workspace, inflated obstacles, separation, downwash
 cutoffs of the other vehicles at that time).
 
 Planner: OMPL ``RRT`` with goal bias. The goal is a set of goal states at the goal position, one
@@ -34,10 +34,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner.constraints import ConflictChecker
-from planner.roadmap import roadmap_search
-from planner.timing import DurationTable, KinematicLimits, duration_table, ruckig_segment
-from planner.validity import BatchChecker
+from proxplan.planner.constraints import ConflictChecker
+from proxplan.planner.roadmap import roadmap_search
+from proxplan.planner.timing import DurationTable, KinematicLimits, duration_table, ruckig_segment
+from proxplan.planner.validity import BatchChecker
 
 
 @dataclass(frozen=True)
@@ -171,7 +171,7 @@ class _Planner:
         self, p1, t1: float, p2, t2: float, limits: KinematicLimits, *, exclude: str | None = None, count: bool = False
     ) -> bool:
         """Check the exact Ruckig segment (rest to rest, at least t2 - t1 long) that
-        :func:`planner.timing.time_parameterize` will fly, state by state."""
+        :func:`proxplan.planner.timing.time_parameterize` will fly, state by state."""
         dt = t2 - t1
         p1 = np.asarray(p1, dtype=float)
         p2 = np.asarray(p2, dtype=float)
@@ -304,7 +304,7 @@ class _Planner:
         return [q for k, q in enumerate(out) if k == len(out) - 1 or float(np.linalg.norm(q - end)) > 1e-6]
 
     def direct(self, start: np.ndarray, goal: GoalSpec) -> SpaceTimePath | None:
-        """Earliest arrival over a small roadmap with waits (:func:`planner.roadmap.roadmap_search`);
+        """Earliest arrival over a small roadmap with waits (:func:`proxplan.planner.roadmap.roadmap_search`);
         None when the goal cannot be reached that way (the RRT search follows)."""
         if goal.tail:
             return None

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from planfile import Plan
+from proxplan.planfile import Plan
 
 
 def _fmt(value, unit: str = "") -> str:

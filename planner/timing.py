@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from physics import KinematicLimits
+from proxplan.physics import KinematicLimits
 
 
 class DurationTable:

@@ -15,8 +15,8 @@ import argparse
 import importlib
 import sys
 
-from fileio import UserError
 from proxplan.cli_args import OneLineParser
+from proxplan.fileio import UserError
 
 COMMAND_MODULES = (
     "proxplan.commands.model",  # vehicles, wrench

@@ -29,17 +29,17 @@ def add_model_argument(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument(
         "--model",
         metavar="MODEL.yaml",
-        help=f"calibrated model file (identify --save-model; physics.model_file): {what}",
+        help=f"calibrated model file (identify --save-model; proxplan.physics.model_file): {what}",
     )
 
 
 def load_model_argument(args: argparse.Namespace, command: str):
-    """The :class:`physics.CalibratedModel` of ``--model`` (None without it); its notes go to stderr."""
+    """The :class:`proxplan.physics.CalibratedModel` of ``--model`` (None without it); its notes go to stderr."""
     if not getattr(args, "model", None):
         return None
     import sys
 
-    from physics import load_model_file
+    from proxplan.physics import load_model_file
 
     model = load_model_file(args.model)
     for note in model.notes:

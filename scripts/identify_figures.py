@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from identify import evaluate_model, load_manifest, run_identify, saved_model
-from identify.evaluate import EvaluationResult
+from proxplan.identify import evaluate_model, load_manifest, run_identify, saved_model
+from proxplan.identify.evaluate import EvaluationResult
 
 
 def _pool(rows: list[dict]) -> tuple[float, float, int]:
@@ -59,10 +59,10 @@ def thrust_figure(manifest, result, out: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fileio import save_figure
-    from identify import read_log
-    from identify.measure import measure_log
-    from identify.thrust_map import MotorSamples, delivered_thrust_N, saturated_samples
+    from proxplan.fileio import save_figure
+    from proxplan.identify import read_log
+    from proxplan.identify.measure import measure_log
+    from proxplan.identify.thrust_map import MotorSamples, delivered_thrust_N, saturated_samples
 
     best = None
     for f in manifest.flights:

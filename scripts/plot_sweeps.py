@@ -16,8 +16,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from physics import ModelOptions, disturbance_wrench
-from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
+from proxplan.physics import ModelOptions, disturbance_wrench
+from proxplan.physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
 
 
 def main() -> None:

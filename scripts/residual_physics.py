@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from identify import IdentifyOptions, load_manifest, run_identify
-from identify.data import predict
+from proxplan.identify import IdentifyOptions, load_manifest, run_identify
+from proxplan.identify.data import predict
 
 MANIFEST = Path(__file__).resolve().parents[1] / "manifests" / "neural-swarm.yaml"
 
@@ -59,10 +59,10 @@ def _under_mask(u, model) -> np.ndarray:
 def fit_candidates(result, logs: dict) -> dict:
     """Recalibrate on the UNSATURATED train samples, then fit thrust_bias and, on top of it, each
     candidate (near_field, ground_jet) on them; F_z RMSE on unsaturated TEST samples, all and under a source."""
-    from identify import IdentifyOptions as Opt
-    from identify.data import errors
-    from identify.effect_selection import fit_effect
-    from identify.pipeline import calibrate_model
+    from proxplan.identify import IdentifyOptions as Opt
+    from proxplan.identify.data import errors
+    from proxplan.identify.effect_selection import fit_effect
+    from proxplan.identify.pipeline import calibrate_model
 
     opts = Opt(discover=False)
     keep = []
@@ -82,7 +82,7 @@ def fit_candidates(result, logs: dict) -> dict:
         models[f"+thrust_bias+{name}"] = m
         models[f"+thrust_bias+{name}"] = replace(m, effects=m.effects)
         models[f"{name}_params"] = eff.full_params()  # type: ignore[assignment]
-    from identify import discover_terms, validation_split
+    from proxplan.identify import discover_terms, validation_split
 
     discovered_model, discovered = discover_terms(
         *validation_split(train)[:2], models["+thrust_bias+ground_jet"], test=test

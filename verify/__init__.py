@@ -1,11 +1,11 @@
 """Independent verification of a plan against its scenario with the model evaluated directly
-(the physics model, through costmaps.pair_wrench for a calibrated model's effects, and the plan-file contract), and the predictions along a plan
+(the physics model, through proxplan.costmaps.pair_wrench for a calibrated model's effects, and the plan-file contract), and the predictions along a plan
 (wrench, authority usage, invalid zone, separations) that planner metrics and the web app show.
 """
 
-from verify.along import WrenchAlongPlan, attach_feedforward, separation_summary, wrench_along_plan
-from verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, verify_plan
-from verify.violations import Violation
+from proxplan.verify.along import WrenchAlongPlan, attach_feedforward, separation_summary, wrench_along_plan
+from proxplan.verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, verify_plan
+from proxplan.verify.violations import Violation
 
 __all__ = [
     "GOAL_TOLERANCE_M",

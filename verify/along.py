@@ -2,12 +2,12 @@
 separations (the dock pairs' final approach told apart), evaluated with the model directly.
 
 The wrench on each vehicle is the sum over every other vehicle above it of
-``physics.disturbance.disturbance_wrench`` (S0-3..S0-8) plus the scenario's effects between vehicles
-(a calibrated model's, ``Scenario.effects``), through ``costmaps.pair_wrench`` (the one
-implementation, ``physics.effects.total_wrench``; where two or more sources are above at once and
-there are effects, ``costmaps.sources_wrench`` evaluates them together, so an effect of several
+``proxplan.physics.disturbance.disturbance_wrench`` (S0-3..S0-8) plus the scenario's effects between vehicles
+(a calibrated model's, ``Scenario.effects``), through ``proxplan.costmaps.pair_wrench`` (the one
+implementation, ``proxplan.physics.effects.total_wrench``; where two or more sources are above at once and
+there are effects, ``proxplan.costmaps.sources_wrench`` evaluates them together, so an effect of several
 sources need not add up); its authority usage comes from
-``physics.authority.authority_usage`` (DESIGN.md s. 3). Positions between plan samples come from
+``proxplan.physics.authority.authority_usage`` (DESIGN.md s. 3). Positions between plan samples come from
 the plan-file sampler. World frame, z up; m, N, N m, s.
 """
 
@@ -17,9 +17,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from costmaps import pair_wrench, sources_wrench
-from physics import ModelOptions, authority_usage, invalid_zone_mask
-from planfile import Plan, Scenario
+from proxplan.costmaps import pair_wrench, sources_wrench
+from proxplan.physics import ModelOptions, authority_usage, invalid_zone_mask
+from proxplan.planfile import Plan, Scenario
 
 DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
 

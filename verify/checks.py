@@ -33,11 +33,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from fileio import UserError
-from physics import VALIDITY_FACTOR_L, invalid_zone_mask
-from planfile import Plan, Scenario, load_scenario, scenario_from_dict
-from verify.along import dock_exempt, wrench_along_plan
-from verify.violations import Violation, add_runs
+from proxplan.fileio import UserError
+from proxplan.physics import VALIDITY_FACTOR_L, invalid_zone_mask
+from proxplan.planfile import Plan, Scenario, load_scenario, scenario_from_dict
+from proxplan.verify.along import dock_exempt, wrench_along_plan
+from proxplan.verify.violations import Violation, add_runs
 
 GOAL_TOLERANCE_M = 0.05  # goal, hover, dock and start positions, m
 USAGE_TOLERANCE = 1e-3  # authority usage, -
@@ -357,8 +357,8 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
     """Authority usage with every moving pair's target placed, per source, at the worst point of
     the tracking tube (``limits.tracking_margin_m``; dock pairs on their approach exempt, as for
     the planner's cut-off): the verifier's form of the planner's grown cut-off radius."""
-    from physics import authority_usage, disturbance_wrench
-    from verify.along import model_options
+    from proxplan.physics import authority_usage, disturbance_wrench
+    from proxplan.verify.along import model_options
 
     out: list[Violation] = []
     tube = scenario.limits.tracking_margin_m

@@ -18,13 +18,13 @@ from typing import Any
 
 import numpy as np
 
-import web.layers as layers
-import web.plots as plots
-import web.scene as scene
-from web.editing import GoalEditing
-from web.replan import Replanner
-from web.review_data import ReviewData, load_input, plan_scenario, review_from_plan_result
-from web.wrench_series import WrenchSeries, wrench_series
+import proxplan.web.layers as layers
+import proxplan.web.plots as plots
+import proxplan.web.scene as scene
+from proxplan.web.editing import GoalEditing
+from proxplan.web.replan import Replanner
+from proxplan.web.review_data import ReviewData, load_input, plan_scenario, review_from_plan_result
+from proxplan.web.wrench_series import WrenchSeries, wrench_series
 
 PLAY_RATE_HZ = 20.0
 PLOT_RATE_HZ = 5.0
@@ -385,11 +385,11 @@ class ReviewApp(GoalEditing):
                 time.sleep(1.0)
 
     def export(self, out_dir: Path, *, frame_dt_s: float = 0.1) -> Path:
-        """Write a self-contained recording of the current plan to ``out_dir`` (see web.export)."""
-        from web.export import record_scene, write_export
+        """Write a self-contained recording of the current plan to ``out_dir`` (see proxplan.web.export)."""
+        from proxplan.web.export import record_scene, write_export
 
         if self.loaded is None:
-            from fileio import UserError
+            from proxplan.fileio import UserError
 
             raise UserError("nothing to export: no plan is loaded")
         d = self.loaded.data

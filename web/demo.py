@@ -46,7 +46,7 @@ def write_demo_plan(out_dir: str | Path, *, duration_s: float = 8.0, dt_s: float
     """Write ``out_dir/plan.json`` (with the scenario embedded) and ``out_dir/scenario.yaml``."""
     import yaml
 
-    from planfile import Plan, VehicleTrajectory, scenario_from_dict, write_plan
+    from proxplan.planfile import Plan, VehicleTrajectory, scenario_from_dict, write_plan
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

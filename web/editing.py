@@ -1,6 +1,6 @@
 """Editing a goal or dock offset with a transform gizmo, and re-planning in the background.
 
-A mixin of :class:`web.app.ReviewApp`: it uses the app's ``server``, ``loaded``, ``edit_vehicle``,
+A mixin of :class:`proxplan.web.app.ReviewApp`: it uses the app's ``server``, ``loaded``, ``edit_vehicle``,
 ``edit_note``, ``progress``, ``_gizmo``, ``_lock``, ``_jobs`` and ``_guard``. Positions are world
 frame, m; a dock offset is relative to the partner's final position.
 """
@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from web.replan import with_dock_offset, with_goal
+from proxplan.web.replan import with_dock_offset, with_goal
 
 
 class GoalEditing:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fileio import output_folder
+from proxplan.fileio import output_folder
 
 README = """proxplan review recording: {name}
 

@@ -4,9 +4,9 @@ Both are surfaces of revolution about the source's vertical axis, in the source'
 origin at the source's centre of mass, z up; the jet points down, so z = -dz).
 
 * Iso-speed surfaces: where the downwash speed V(dz, r) of (S0-1, S0-2) equals a level, found on a
-  grid from ``physics.velocity_field.downwash_speed_mps`` (the model's own code; no inversion by hand).
+  grid from ``proxplan.physics.velocity_field.downwash_speed_mps`` (the model's own code; no inversion by hand).
 * Cutoff surface r_cut(dz): beyond it a target's authority usage stays below the limit, from the
-  pair's cutoff map (``costmaps.map_store.pair_maps``, with its invalid-zone rule for dz <= 3 L).
+  pair's cutoff map (``proxplan.costmaps.map_store.pair_maps``, with its invalid-zone rule for dz <= 3 L).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-import web.meshes as meshes
-from physics import Vehicle
+import proxplan.web.meshes as meshes
+from proxplan.physics import Vehicle
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,7 @@ def iso_speed_profiles(
 ) -> list[Profile]:
     """Iso-speed profiles of the source's jet down to ``depth_m`` below it (default levels
     ``DEFAULT_ISO_LEVELS_MPS``, m/s)."""
-    from physics import downwash_speed_mps
+    from proxplan.physics import downwash_speed_mps
 
     levels_mps = DEFAULT_ISO_LEVELS_MPS if levels_mps is None else levels_mps
     dz = np.linspace(0.0, depth_m, n_dz)
@@ -96,9 +96,9 @@ def cutoff_profile(
     n_dz: int = 80,
 ) -> Profile:
     """Cutoff surface of ``target`` under ``source`` at authority-usage ``level``, down to ``depth_m``,
-    from the pair's cutoff map (``costmaps.map_store.pair_maps``; ``invalid_rule`` for dz <= 3 L,
+    from the pair's cutoff map (``proxplan.costmaps.map_store.pair_maps``; ``invalid_rule`` for dz <= 3 L,
     default the map's own)."""
-    from costmaps import pair_maps
+    from proxplan.costmaps import pair_maps
 
     dz = np.linspace(0.0, depth_m, n_dz)
     dz[0] = 1e-3

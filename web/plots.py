@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from web.wrench_series import WrenchSeries
+from proxplan.web.wrench_series import WrenchSeries
 
 MARKER_RGB = (220, 0, 0)
 
@@ -100,7 +100,7 @@ def render_usage_legend(limit: float, *, width_px: int = 420, height_px: int = 8
     from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
-    from web.scene import OVER_LIMIT_RGB, USAGE_COLORMAP
+    from proxplan.web.scene import OVER_LIMIT_RGB, USAGE_COLORMAP
 
     fig = Figure(figsize=(width_px / 100, height_px / 100), dpi=100)
     ax = fig.add_axes((0.05, 0.4, 0.72, 0.25))

@@ -97,7 +97,7 @@ class Replanner:
         try:
             plan = plan_fn(scenario, progress=self._on_progress)
         except Exception as err:  # noqa: BLE001 - any failure must leave the old plan in place
-            from fileio import UserError
+            from proxplan.fileio import UserError
 
             kind = type(err).__name__
             if isinstance(err, UserError) or kind == "InfeasibleError":

@@ -1,8 +1,8 @@
 """What the review app shows, loaded from a plan.json or planned from a scenario YAML.
 
 Frames: world z up, positions in m, times in s. Every vehicle of a plan shares one time grid
-(DESIGN.md section 4). Reading, validation and planning are the planner's (``planfile.plan.read_plan``,
-``planfile.scenario``, ``planner.pipeline.plan_scenario``); this module only reshapes the result.
+(DESIGN.md section 4). Reading, validation and planning are the planner's (``proxplan.planfile.plan.read_plan``,
+``proxplan.planfile.scenario``, ``proxplan.planner.pipeline.plan_scenario``); this module only reshapes the result.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from fileio import UserError
-from physics import Vehicle
-from planfile import VehicleTrajectory
+from proxplan.fileio import UserError
+from proxplan.physics import Vehicle
+from proxplan.planfile import VehicleTrajectory
 
 Progress = Callable[[str, float], None]
 
@@ -69,8 +69,8 @@ class ReviewData:
     authority_fraction: float = 0.5  # limits.authority_fraction, -
     metrics: dict[str, Any] = field(default_factory=dict)
     source_path: Path | None = None
-    scenario: Any = None  # planfile.scenario.Scenario, None when the plan carries none
-    plan: Any = None  # planfile.plan.Plan
+    scenario: Any = None  # proxplan.planfile.scenario.Scenario, None when the plan carries none
+    plan: Any = None  # proxplan.planfile.plan.Plan
     note: str = ""  # what the user should know (e.g. why editing is disabled)
 
     @property
@@ -87,9 +87,9 @@ class ReviewData:
 
 
 def _scenario_of_plan(plan: Any, path: Path) -> tuple[Any, str]:
-    """The planner Scenario a plan was made for (``verify.checks.scenario_of_plan``) and a note;
+    """The planner Scenario a plan was made for (``proxplan.verify.checks.scenario_of_plan``) and a note;
     (None, why) when it carries none or it does not load."""
-    from verify import scenario_of_plan
+    from proxplan.verify import scenario_of_plan
 
     try:
         return scenario_of_plan(plan, label=str(path)), ""
@@ -144,7 +144,7 @@ def review_from_plan_result(plan: Any, scenario: Any, *, source_path: Path | Non
 
 def load_plan_file(path: str | Path) -> ReviewData:
     """Read a plan.json (or a directory holding one) for review; UserError on a bad file."""
-    from planfile import read_plan
+    from proxplan.planfile import read_plan
 
     path = Path(path)
     if path.is_dir():
@@ -155,8 +155,8 @@ def load_plan_file(path: str | Path) -> ReviewData:
 
 
 def plan_scenario(scenario: Any, *, progress: Progress | None = None, method: str = "optimized") -> Any:
-    """Plan with ``planner.pipeline.plan_scenario``; raises its InfeasibleError or UserError."""
-    from planner import plan_scenario as pipeline_plan
+    """Plan with ``proxplan.planner.pipeline.plan_scenario``; raises its InfeasibleError or UserError."""
+    from proxplan.planner import plan_scenario as pipeline_plan
 
     return pipeline_plan(scenario, method=method, progress=progress)
 
@@ -167,7 +167,7 @@ def load_input(path: str | Path, *, progress: Progress | None = None) -> ReviewD
     if not path.exists():
         raise UserError(f"{path}: no such file; expected SCENARIO.yaml, DIR/plan.json or DIR")
     if path.suffix in (".yaml", ".yml"):
-        from planfile import load_scenario
+        from proxplan.planfile import load_scenario
 
         scenario = load_scenario(path)
         plan = plan_scenario(scenario, progress=progress)

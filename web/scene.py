@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-import web.meshes as meshes
-from physics import Vehicle
-from web.review_data import ReviewData
+import proxplan.web.meshes as meshes
+from proxplan.physics import Vehicle
+from proxplan.web.review_data import ReviewData
 
 VEHICLE_COLOURS = [
     (31, 119, 180),

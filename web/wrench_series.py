@@ -1,6 +1,6 @@
 """Predicted disturbance on each vehicle along a plan: force, torque and authority usage over time.
 
-Thin adapter over ``verify.checks.wrench_along_plan`` (every other vehicle above a target is a
+Thin adapter over ``proxplan.verify.checks.wrench_along_plan`` (every other vehicle above a target is a
 hovering downwash source, S0 section II; wrenches summed in the world frame; authority usage of
 DESIGN.md section 3 on the sum), resampled on a common grid for plotting and colouring.
 """
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from web.review_data import ReviewData
+from proxplan.web.review_data import ReviewData
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ def wrench_series(data: ReviewData, *, max_samples: int = 600) -> dict[str, Wren
     empty when the plan carries no scenario (vehicle models and limits unknown)."""
     if data.plan is None or data.scenario is None:
         return {}
-    from verify import wrench_along_plan
+    from proxplan.verify import wrench_along_plan
 
     n = int(min(max_samples, max(len(v.t_s) for v in data.vehicles.values())))
     t_s = np.linspace(data.t_start_s, data.t_end_s, max(n, 2))

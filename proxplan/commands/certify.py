@@ -57,11 +57,11 @@ def build_setup(args: argparse.Namespace, plan_path, notes: list[str]):
     The flown world is the plan's own model (its effects included), or the ``--model`` file's
     vehicles and effects; ``--truth`` adds effects, ``--vehicles`` replaces vehicle types (as
     ``proxplan simulate``)."""
-    from certify import DEFAULT_GOAL_TOLERANCE_M, CertifySetup, Spreads
-    from fileio import UserError
-    from flightsim import load_truth_file, merge_truth, model_truth, plan_truth
-    from planfile import read_plan
-    from verify import scenario_of_plan
+    from proxplan.certify import DEFAULT_GOAL_TOLERANCE_M, CertifySetup, Spreads
+    from proxplan.fileio import UserError
+    from proxplan.flightsim import load_truth_file, merge_truth, model_truth, plan_truth
+    from proxplan.planfile import read_plan
+    from proxplan.verify import scenario_of_plan
 
     plan = read_plan(plan_path)
     scenario = scenario_of_plan(plan, label=str(plan_path))
@@ -82,7 +82,7 @@ def build_setup(args: argparse.Namespace, plan_path, notes: list[str]):
         truth = merge_truth(plan_truth(plan), extra)
         notes.append("no --model: documented default parameter spreads (docs/certify.md)")
     if args.vehicles:
-        from physics import load_vehicle_file
+        from proxplan.physics import load_vehicle_file
 
         vehicles = {**vehicles, **load_vehicle_file(args.vehicles)}
     tol = DEFAULT_GOAL_TOLERANCE_M if args.goal_tolerance is None else float(args.goal_tolerance)
@@ -103,8 +103,8 @@ def build_setup(args: argparse.Namespace, plan_path, notes: list[str]):
 
 def _model_spreads(uncertainty) -> tuple:
     """(Spreads of vehicle parameters, {effect.param: std}) of a model's ``uncertainty`` map."""
-    from certify import Spreads
-    from physics import EFFECT_NAMES
+    from proxplan.certify import Spreads
+    from proxplan.physics import EFFECT_NAMES
 
     if not uncertainty:
         return Spreads(), {}
@@ -119,7 +119,7 @@ def _model_spreads(uncertainty) -> tuple:
 def resolve_plan_path(text: str):
     from pathlib import Path
 
-    from fileio import UserError
+    from proxplan.fileio import UserError
 
     path = Path(text)
     if path.is_dir():
@@ -132,8 +132,8 @@ def resolve_plan_path(text: str):
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from certify import certify_plan, write_report
-    from fileio import UserError, output_folder
+    from proxplan.certify import certify_plan, write_report
+    from proxplan.fileio import UserError, output_folder
 
     if args.runs < 0:
         raise UserError(f"--runs: expected a whole number >= 0, got {args.runs}")
@@ -194,8 +194,8 @@ def run(args: argparse.Namespace) -> int:
 def refly(args: argparse.Namespace, plan_path) -> dict:
     """Run ``args.certify_run`` of a certification with ``args.seed`` (``simulate --certify-run``):
     the run dict with the SimulationResult under "_result"."""
-    from certify import fly_run
-    from fileio import UserError
+    from proxplan.certify import fly_run
+    from proxplan.fileio import UserError
 
     if args.certify_run < 0:
         raise UserError(f"--certify-run: expected a run index >= 0, got {args.certify_run}")

@@ -3,7 +3,7 @@
     proxplan costmap --source small-quad --target large-quad --out maps/sl.npz [--json]
     proxplan costmap --all --out-dir costmaps/data        # every ordered pair of built-in types
 
-Writes PATH (.npz, see :mod:`costmaps.map_store`) and a PNG beside it (same stem); ``--json`` prints
+Writes PATH (.npz, see :mod:`proxplan.costmaps.map_store`) and a PNG beside it (same stem); ``--json`` prints
 one JSON object on stdout; progress goes to stderr.
 """
 
@@ -74,7 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _level(text: str, flag: str) -> float:
-    from fileio import UserError
+    from proxplan.fileio import UserError
 
     try:
         value = float(text)
@@ -86,8 +86,8 @@ def _level(text: str, flag: str) -> float:
 
 
 def _pairs(args: argparse.Namespace, custom: dict) -> list[tuple]:
-    from fileio import UserError
-    from physics import BUILTIN_VEHICLES, resolve_vehicle
+    from proxplan.fileio import UserError
+    from proxplan.physics import BUILTIN_VEHICLES, resolve_vehicle
 
     if args.all:
         if args.source or args.target or args.out:
@@ -115,18 +115,18 @@ def run_costmap(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from costmaps import build_pair_maps, save_pair_maps
-    from fileio import check_output_file, output_folder
-    from physics import ModelOptions
+    from proxplan.costmaps import build_pair_maps, save_pair_maps
+    from proxplan.fileio import check_output_file, output_folder
+    from proxplan.physics import ModelOptions
 
     start = time.perf_counter()
     custom, model = {}, {}
     if args.vehicle_file:
-        from physics import load_model_section, load_vehicle_file
+        from proxplan.physics import load_model_section, load_vehicle_file
 
         custom = load_vehicle_file(args.vehicle_file)
         model = load_model_section(args.vehicle_file)
-        from physics import vehicle_file_notes
+        from proxplan.physics import vehicle_file_notes
 
         for note in vehicle_file_notes(args.vehicle_file):
             print(f"proxplan costmap: note: {note}", file=sys.stderr)
@@ -135,8 +135,8 @@ def run_costmap(args: argparse.Namespace) -> int:
     calibrated = load_model_argument(args, "costmap")
     effects: tuple = ()
     if calibrated is not None:
-        from costmaps import unmapped_effect_names
-        from physics import target_only_notes
+        from proxplan.costmaps import unmapped_effect_names
+        from proxplan.physics import target_only_notes
 
         custom = {**custom, **calibrated.vehicles}
         model = {"field_form": calibrated.options.field_form}
@@ -168,7 +168,7 @@ def run_costmap(args: argparse.Namespace) -> int:
             save_pair_maps(maps, stage / name)
             png = None
             if not args.no_plot:
-                from costmaps import plot_cutoff
+                from proxplan.costmaps import plot_cutoff
 
                 plot_cutoff(maps.cutoff, (stage / name).with_suffix(".png"))
                 png = (folder / name).with_suffix(".png")

@@ -33,9 +33,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fileio import UserError, atomic_write_text, output_folder
-    from identify import evaluate_model, load_manifest, write_evaluation_report
-    from physics import load_model_file
+    from proxplan.fileio import UserError, atomic_write_text, output_folder
+    from proxplan.identify import evaluate_model, load_manifest, write_evaluation_report
+    from proxplan.physics import load_model_file
 
     model = load_model_file(args.model)
     if model.format_version < 2:

@@ -52,10 +52,16 @@ def run(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from export import DEFAULT_RATE_HZ, DEFAULT_TOLERANCE_M, DoesNotFitError, export_crazyflie, export_setpoints
-    from fileio import UserError, output_folder
-    from planfile import read_plan
-    from verify import scenario_of_plan
+    from proxplan.export import (
+        DEFAULT_RATE_HZ,
+        DEFAULT_TOLERANCE_M,
+        DoesNotFitError,
+        export_crazyflie,
+        export_setpoints,
+    )
+    from proxplan.fileio import UserError, output_folder
+    from proxplan.planfile import read_plan
+    from proxplan.verify import scenario_of_plan
 
     tolerance = DEFAULT_TOLERANCE_M if args.tolerance_m is None else args.tolerance_m
     rate = DEFAULT_RATE_HZ if args.rate_hz is None else args.rate_hz

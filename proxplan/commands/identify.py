@@ -10,7 +10,7 @@ import json
 import sys
 from pathlib import Path
 
-from fileio import atomic_write_text
+from proxplan.fileio import atomic_write_text
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -49,29 +49,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def calibrated_model(result):
-    """The :class:`physics.CalibratedModel` of an identify result (everything its "after" used:
+    """The :class:`proxplan.physics.CalibratedModel` of an identify result (everything its "after" used:
     vehicles, options, effects, thrust scales, and how the disturbance was measured)."""
-    from identify import saved_model
+    from proxplan.identify import saved_model
 
     return saved_model(result.final_model, result.measure_options, result.thrust_maps)
 
 
 def model_yaml_dict(result) -> dict:
-    """The model-file mapping (physics.model_file format) of the calibrated model."""
-    from physics import model_file_dict
+    """The model-file mapping (proxplan.physics.model_file format) of the calibrated model."""
+    from proxplan.physics import model_file_dict
 
     return model_file_dict(calibrated_model(result))
 
 
 def save_model(result, path: str | Path) -> Path:
-    from physics import write_model_file
+    from proxplan.physics import write_model_file
 
     return write_model_file(calibrated_model(result), path)
 
 
 def run(args: argparse.Namespace) -> int:
-    from fileio import UserError, check_output_file, output_folder
-    from identify import IdentifyOptions, MeasureOptions, load_manifest, run_identify, write_report
+    from proxplan.fileio import UserError, check_output_file, output_folder
+    from proxplan.identify import IdentifyOptions, MeasureOptions, load_manifest, run_identify, write_report
 
     if args.window_s <= 0 or (args.motor_tau_s is not None and args.motor_tau_s <= 0):
         raise UserError("--window-s and --motor-tau-s must be positive numbers of seconds")

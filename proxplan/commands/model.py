@@ -47,13 +47,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _custom_vehicles(path: str | None) -> dict:
     if not path:
         return {}
-    from physics import load_vehicle_file
+    from proxplan.physics import load_vehicle_file
 
     return load_vehicle_file(path)
 
 
 def run_vehicles(args: argparse.Namespace) -> int:
-    from physics import BUILTIN_VEHICLES
+    from proxplan.physics import BUILTIN_VEHICLES
 
     vehicles = {**BUILTIN_VEHICLES, **_custom_vehicles(args.vehicle_file)}
     table = {name: v.to_dict() for name, v in vehicles.items()}
@@ -74,7 +74,7 @@ def run_vehicles(args: argparse.Namespace) -> int:
 
 
 def _parse_offset(raw: list[str]) -> list[float]:
-    from fileio import UserError
+    from proxplan.fileio import UserError
 
     values = []
     for axis, text in zip("XYZ", raw):
@@ -91,7 +91,7 @@ def _parse_offset(raw: list[str]) -> list[float]:
 def run_wrench(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from physics import ModelOptions, authority_usage, disturbance_wrench, resolve_vehicle
+    from proxplan.physics import ModelOptions, authority_usage, disturbance_wrench, resolve_vehicle
 
     offset = _parse_offset(args.offset)
     custom = _custom_vehicles(args.vehicle_file)

@@ -99,10 +99,10 @@ def _plan(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from fileio import UserError, atomic_write_text, output_folder
-    from planfile import jsonable, load_scenario, write_plan
-    from planner import InfeasibleError, plan_scenario, plan_summary
-    from verify import verify_plan
+    from proxplan.fileio import UserError, atomic_write_text, output_folder
+    from proxplan.planfile import jsonable, load_scenario, write_plan
+    from proxplan.planner import InfeasibleError, plan_scenario, plan_summary
+    from proxplan.verify import verify_plan
 
     if args.time_budget is not None and not args.time_budget > 0:
         raise UserError(f"--time-budget: expected a positive number of seconds, got {args.time_budget:g}")
@@ -133,7 +133,7 @@ def _plan(args: argparse.Namespace) -> int:
         write_plan(plan, stage)
         t_plot = time.perf_counter()
         if not args.no_plot:
-            from planner import plot_plan
+            from proxplan.planner import plot_plan
 
             plot_plan(plan, scenario, stage / "plan.png")
         t_plot = time.perf_counter() - t_plot
@@ -173,8 +173,8 @@ def _with_model(plan, model, args: argparse.Namespace):
     those of --scenario)."""
     from dataclasses import replace
 
-    from fileio import UserError, read_yaml
-    from planfile import scenario_from_dict
+    from proxplan.fileio import UserError, read_yaml
+    from proxplan.planfile import scenario_from_dict
 
     plan = replace(
         plan,
@@ -196,9 +196,9 @@ def _with_model(plan, model, args: argparse.Namespace):
 
 
 def _verify(args: argparse.Namespace) -> int:
-    from fileio import UserError
-    from planfile import is_export_folder, load_scenario, read_export, read_plan
-    from verify import scenario_of_plan, verify_plan
+    from proxplan.fileio import UserError
+    from proxplan.planfile import is_export_folder, load_scenario, read_export, read_plan
+    from proxplan.verify import scenario_of_plan, verify_plan
 
     if not args.dt > 0:
         raise UserError(f"--dt: expected a positive number of seconds, got {args.dt}")

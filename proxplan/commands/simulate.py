@@ -71,8 +71,8 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
     from pathlib import Path
 
-    from fileio import UserError, atomic_write_bytes, output_folder
-    from flightsim import (
+    from proxplan.fileio import UserError, atomic_write_bytes, output_folder
+    from proxplan.flightsim import (
         SimulationOptions,
         feedforward_comparison,
         load_truth_file,
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         summary_dict,
         write_flight_logs,
     )
-    from planfile import read_plan
+    from proxplan.planfile import read_plan
 
     plan_path = Path(args.plan)
     if plan_path.is_dir():
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     else:  # the world the plan was made for (its calibrated effects too), --truth adds to it
         truth = merge_truth(plan_truth(plan), extra)
     if args.vehicles:
-        from physics import load_vehicle_file
+        from proxplan.physics import load_vehicle_file
 
         custom = {**(custom or {}), **load_vehicle_file(args.vehicles)}
     options = SimulationOptions(

@@ -58,7 +58,7 @@ def _check_listen_address(host: str, port: int) -> None:
     import errno
     import socket
 
-    from fileio import UserError
+    from proxplan.fileio import UserError
 
     try:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
@@ -78,8 +78,8 @@ def _check_listen_address(host: str, port: int) -> None:
 
 def _check_input(path) -> None:
     """Read and validate the scenario or plan now; UserError naming file and key when it is bad."""
-    from planfile import load_scenario, read_plan
-    from verify import scenario_of_plan
+    from proxplan.planfile import load_scenario, read_plan
+    from proxplan.verify import scenario_of_plan
 
     if path.suffix in (".yaml", ".yml"):
         load_scenario(path)
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     import time
     from pathlib import Path
 
-    from fileio import UserError
+    from proxplan.fileio import UserError
 
     path = Path(args.input)
     if not path.exists():
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--port: expected 0..65535, got {args.port}")
     _check_input(path)  # a bad file is a start-up error (exit 2), not a page that shows it forever
     if args.export:
-        from fileio import output_folder
+        from proxplan.fileio import output_folder
 
         with output_folder(Path(args.export), flag="--export"):
             pass  # only checks that the folder can be written before anything is planned
@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
 
     import viser
 
-    from web import ReviewApp
+    from proxplan.web import ReviewApp
 
     logging.getLogger("websockets").setLevel(logging.CRITICAL)
     with contextlib.redirect_stdout(sys.stderr):  # viser's banner must not mix with --json output

@@ -11,34 +11,46 @@ import ast
 from pathlib import Path
 
 import pytest
+import tomllib
 
 from tests.conftest import REPO
 
 LAYERS = (
-    "fileio",  # user errors, reading user files, atomic writes
-    "fanout",  # independent tasks on Dask (local cluster or an existing one)
-    "physics",  # vehicles, velocity field, disturbance, authority, effects
-    "costmaps",  # cutoff maps and wrench tables
-    "identify",  # flight logs -> measured disturbance -> calibrated model
-    "planfile",  # scenario YAML and plan.json contracts
-    "verify",  # independent plan checks
-    "planner",  # sampling, optimisation, timing
-    "flightsim",  # closed-loop simulation
-    "certify",  # Monte-Carlo closed-loop flights on Dask
-    "export",  # flyable files (Crazyflie polynomials, set-points)
-    "web",  # review app
-    "proxplan",  # CLI
+    "proxplan.fileio",  # user errors, reading user files, atomic writes
+    "proxplan.fanout",  # independent tasks on Dask (local cluster or an existing one)
+    "proxplan.physics",  # vehicles, velocity field, disturbance, authority, effects
+    "proxplan.costmaps",  # cutoff maps and wrench tables
+    "proxplan.identify",  # flight logs -> measured disturbance -> calibrated model
+    "proxplan.planfile",  # scenario YAML and plan.json contracts
+    "proxplan.verify",  # independent plan checks
+    "proxplan.planner",  # sampling, optimisation, timing
+    "proxplan.flightsim",  # closed-loop simulation
+    "proxplan.certify",  # Monte-Carlo closed-loop flights on Dask
+    "proxplan.export",  # flyable files (Crazyflie polynomials, set-points)
+    "proxplan.web",  # review app
+    "proxplan",  # CLI (proxplan.cli, proxplan.commands)
 )
 RANK = {name: i for i, name in enumerate(LAYERS)}
 
 
+def layer(module: str) -> str:
+    """The layer (package of LAYERS) a dotted project module belongs to."""
+    head = ".".join(module.split(".")[:2])
+    return head if head in RANK else "proxplan"
+
+
 def _modules() -> dict[str, Path]:
+    """Every project module by its installed dotted name (pyproject.toml's package-dir mapping)."""
+    with open(REPO / "pyproject.toml", "rb") as fh:
+        package_dir = tomllib.load(fh)["tool"]["setuptools"]["package-dir"]
     out = {}
-    for package in LAYERS:
-        for path in sorted((REPO / package).rglob("*.py")):
-            parts = path.relative_to(REPO).with_suffix("").parts
-            name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-            out[name] = path
+    for package, folder in package_dir.items():
+        for path in sorted((REPO / folder).rglob("*.py")):
+            rel = path.relative_to(REPO / folder).with_suffix("").parts
+            parts = tuple(package.split(".")) + rel
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = path
     return out
 
 
@@ -89,13 +101,13 @@ GRAPH = {m: _imports(m) for m in MODULES}
 
 def test_every_package_is_found():
     for package in LAYERS:
-        assert package in MODULES, f"{package}/__init__.py missing"
+        assert package in MODULES, f"{package}: __init__.py missing"
 
 
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_imports_only_downwards(module):
-    own = RANK[module.split(".")[0]]
-    upward = sorted(t for t in GRAPH[module] if RANK[t.split(".")[0]] > own)
+    own = RANK[layer(module)]
+    upward = sorted(t for t in GRAPH[module] if RANK[layer(t)] > own)
     assert not upward, f"{module} imports a higher layer: {upward}"
 
 
@@ -139,7 +151,7 @@ def test_no_import_cycle():
 def test_cycle_detector_finds_a_planted_cycle():
     saved = dict(GRAPH)
     try:
-        GRAPH["physics.vehicles"] = GRAPH["physics.vehicles"] | {"physics.disturbance"}
+        GRAPH["proxplan.physics.vehicles"] = GRAPH["proxplan.physics.vehicles"] | {"proxplan.physics.disturbance"}
         with pytest.raises(AssertionError, match="import cycles"):
             test_no_import_cycle()
     finally:
@@ -162,11 +174,11 @@ def test_packages_are_used_through_their_public_api():
     """Across packages, code imports names from the package (its __init__), not deep modules."""
     deep = []
     for module in MODULES:
-        own = module.split(".")[0]
+        own = layer(module)
         tree = ast.parse(MODULES[module].read_text())
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom) and node.module and not node.level:
-                top = node.module.split(".")[0]
-                if top in RANK and top != own and node.module != top:
+                top = layer(node.module)
+                if node.module.startswith("proxplan") and top != own and node.module != top:
                     deep.append(f"{module}:{node.lineno}: from {node.module}")
     assert not deep, "deep cross-package imports:\n" + "\n".join(deep)

@@ -11,11 +11,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from certify import CertifySetup, NoiseSpec, Spreads, draw_run, fly_run, summarise_runs, wilson_interval
-from certify.draws import ou_series, run_rng
-from flightsim import SimulationOptions, hover_stack_plan, simulate_plan, simulation_metrics
-from physics import BUILTIN_VEHICLES
+from proxplan.certify import CertifySetup, NoiseSpec, Spreads, draw_run, fly_run, summarise_runs, wilson_interval
+from proxplan.certify.draws import ou_series, run_rng
 from proxplan.cli import main
+from proxplan.flightsim import SimulationOptions, hover_stack_plan, simulate_plan, simulation_metrics
+from proxplan.physics import BUILTIN_VEHICLES
 
 Z95 = 1.959963984540054
 
@@ -183,9 +183,9 @@ def test_negative_runs_and_unreachable_scheduler_are_one_line_errors(capsys, bat
 
 
 def test_effect_parameters_are_drawn_from_effect_spreads():
-    from certify.run import _drawn_effects
-    from flightsim import TruthSpec
-    from physics import Effect
+    from proxplan.certify.run import _drawn_effects
+    from proxplan.flightsim import TruthSpec
+    from proxplan.physics import Effect
 
     setup = replace(
         _setup(4.0),

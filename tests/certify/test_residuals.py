@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from certify import NoiseSpec
-from certify.residuals import residual_statistics
+from proxplan.certify import NoiseSpec
+from proxplan.certify.residuals import residual_statistics
 from tests.conftest import SHARED
 
 ROOT = SHARED / "data" / "neural-swarm"

@@ -48,7 +48,7 @@ def test_costmap_custom_vehicle_file_and_rule(tmp_path, capsys):
     doc = json.loads(stdout)
     assert doc["invalid_rule"] == "forbid" and doc["plot"] is None
     assert not out.with_suffix(".png").exists()
-    from costmaps import load_pair_maps
+    from proxplan.costmaps import load_pair_maps
 
     maps = load_pair_maps(out)
     assert maps.metadata["source"]["mass_kg"] == 0.2
@@ -86,7 +86,7 @@ def test_help(capsys):
 
 
 def test_all_pairs_with_custom_vehicles(tmp_path, capsys, monkeypatch):
-    import physics
+    from proxplan import physics
 
     # keep it fast: one built-in type plus one custom type -> 4 ordered pairs
     monkeypatch.setattr(physics, "BUILTIN_VEHICLES", {"crazyflie-2.1": physics.BUILTIN_VEHICLES["crazyflie-2.1"]})

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from costmaps import INVALID_RULES, build_cutoff_map, r_cut_from_usage
-from physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
+from proxplan.costmaps import INVALID_RULES, build_cutoff_map, r_cut_from_usage
+from proxplan.physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]
@@ -155,7 +155,7 @@ def test_build_rejects_bad_options():
 def test_every_shipped_pair_brackets_the_level(source_name):
     """Shipped maps of every pair: direct-model usage < level just outside r_cut, and >= level just
     inside wherever the usage contour is not closing between two dz nodes."""
-    from costmaps import pair_maps
+    from proxplan.costmaps import pair_maps
 
     source = BUILTIN_VEHICLES[source_name]
     for target in BUILTIN_VEHICLES.values():
@@ -168,7 +168,7 @@ def test_every_shipped_pair_brackets_the_level(source_name):
                 delta = max(0.01, 0.03 * r_cut)
                 assert _max_usage_over_azimuth(source, target, r_cut + delta, dz) < level, (target.name, level, dz)
                 # inside: only where the contour is not closing within this dz cell (there the
-                # lookup takes the larger bracketing node on purpose, see costmaps.cutoff)
+                # lookup takes the larger bracketing node on purpose, see proxplan.costmaps.cutoff)
                 k = np.searchsorted(cmap.dz_m, dz) - 1
                 spread = abs(np.subtract(*cmap.r_cut_m(cmap.dz_m[k : k + 2], level=level)))
                 if spread < 0.5 * delta:

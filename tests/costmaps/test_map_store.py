@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from costmaps import (
+from proxplan.costmaps import (
     DATA_DIR,
     FORMAT_VERSION,
     build_pair_maps,
@@ -19,9 +19,9 @@ from costmaps import (
     save_pair_maps,
     shipped_path,
 )
-from fileio import UserError
-from physics import BUILTIN_VEHICLES, ModelOptions
-from physics.geometry import Discretisation
+from proxplan.fileio import UserError
+from proxplan.physics import BUILTIN_VEHICLES, ModelOptions
+from proxplan.physics.geometry import Discretisation
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 

@@ -1,5 +1,5 @@
 """A calibrated model's effects between vehicles reach cost maps, planner, plan.json, verify and the
-simulator's default world, through one implementation (costmaps.pair_wrench over physics.total_wrench)."""
+simulator's default world, through one implementation (proxplan.costmaps.pair_wrench over proxplan.physics.total_wrench)."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from costmaps import build_pair_maps, load_pair_maps, pair_wrench, param_hash, save_pair_maps
-from costmaps.cutoff import CutoffResolution
-from costmaps.wrench_table import TableResolution
-from fileio import UserError
-from physics import (
+from proxplan.costmaps import build_pair_maps, load_pair_maps, pair_wrench, param_hash, save_pair_maps
+from proxplan.costmaps.cutoff import CutoffResolution
+from proxplan.costmaps.wrench_table import TableResolution
+from proxplan.fileio import UserError
+from proxplan.physics import (
     BUILTIN_VEHICLES,
     CalibratedModel,
     Effect,
@@ -50,7 +50,7 @@ def test_pair_wrench_is_total_wrench_of_one_source_without_target_only_effects()
 
 
 def test_sources_wrench_of_a_stack_is_the_sum_of_pairs_for_effects_that_add() -> None:
-    from costmaps import sources_wrench
+    from proxplan.costmaps import sources_wrench
 
     rng = np.random.default_rng(5)
     upper = np.column_stack([rng.uniform(-0.2, 0.2, (15, 2)), -rng.uniform(0.6, 1.5, 15)])
@@ -87,7 +87,7 @@ def test_cost_maps_change_with_effects_and_their_hash_tells_them_apart(tmp_path:
 
 
 def test_scenario_takes_a_model_file_and_plan_json_carries_its_effects(tmp_path: Path) -> None:
-    from planfile import load_scenario, scenario_from_dict
+    from proxplan.planfile import load_scenario, scenario_from_dict
 
     model_path = write_model_file(CalibratedModel(effects=(STRONG, BIAS)), tmp_path / "model.yaml")
     text = SCENARIO.read_text() + f"model_file: {model_path}\n"
@@ -103,9 +103,9 @@ def test_scenario_takes_a_model_file_and_plan_json_carries_its_effects(tmp_path:
 
 
 def test_plan_with_a_strong_effect_changes_and_verify_agrees_with_the_planner(tmp_path: Path, capsys) -> None:
-    from planfile import read_plan
     from proxplan.cli import main
-    from verify import scenario_of_plan, verify_plan, wrench_along_plan
+    from proxplan.planfile import read_plan
+    from proxplan.verify import scenario_of_plan, verify_plan, wrench_along_plan
 
     model_path = write_model_file(CalibratedModel(effects=(STRONG,)), tmp_path / "model.yaml")
     docs = {}
@@ -147,8 +147,8 @@ def test_plan_with_a_strong_effect_changes_and_verify_agrees_with_the_planner(tm
 
 
 def test_simulator_default_world_is_the_plans_model(tmp_path: Path) -> None:
-    from flightsim import TruthSpec, merge_truth, plan_truth
-    from planfile import Plan
+    from proxplan.flightsim import TruthSpec, merge_truth, plan_truth
+    from proxplan.planfile import Plan
 
     spec = {"model": {"field_form": "printed", "effects": [{"name": "near_field", "params": {"amplitude": 2.0}}]}}
     plan = Plan(scenario="x", dt_s=0.1, vehicles={}, scenario_spec=spec)

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from costmaps.wrench_table import (
+from proxplan.costmaps.wrench_table import (
     USAGE_FLOOR,
     TableResolution,
     build_wrench_table,
     mirror_quadrant,
 )
-from physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
+from proxplan.physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
 
 SMALL, LARGE = BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]

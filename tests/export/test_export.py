@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from export import (
+from proxplan.export import (
     SPLIT_PART_PIECES,
     DoesNotFitError,
     export_crazyflie,
@@ -20,8 +20,8 @@ from export import (
     export_vehicle,
     vehicle_limits,
 )
-from physics import BUILTIN_VEHICLES, KinematicLimits
-from planfile import (
+from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits
+from proxplan.planfile import (
     CRAZYFLIE_MAX_PIECES,
     EXPORT_MANIFEST,
     Plan,
@@ -32,8 +32,8 @@ from planfile import (
     read_uav_csv,
     write_plan,
 )
+from proxplan.verify import scenario_of_plan, verify_plan
 from tests.conftest import SCENARIOS, run_proxplan
-from verify import scenario_of_plan, verify_plan
 
 SHIPPED = sorted(p.stem for p in SCENARIOS.glob("*.yaml"))
 PROMISE_M = 0.01  # the export's promise; the default fit tolerance is half of it
@@ -236,7 +236,7 @@ def test_cli_json_names_files_pieces_and_deviation(exported, tmp_path):
 
 
 def test_malformed_uav_csv_is_a_user_error(tmp_path):
-    from fileio import UserError
+    from proxplan.fileio import UserError
 
     bad = tmp_path / "bad.csv"
     bad.write_text("Duration,x^0\n1.0,2.0\n")

@@ -7,8 +7,8 @@ import time
 
 import pytest
 
-from fanout import fan_out
-from fileio import UserError
+from proxplan.fanout import fan_out
+from proxplan.fileio import UserError
 
 
 def _square_plus(x: int) -> int:

@@ -8,12 +8,12 @@ from rotorpy.controllers.quadrotor_control import SE3Control
 from rotorpy.sensors.imu import Imu
 from rotorpy.vehicles.multirotor import Multirotor
 
-from flightsim.control import ControllerConstants, se3_control
-from flightsim.dynamics import ExternalWrenchMultirotor, VehicleConstants, state_derivative
-from flightsim.imu import ImuOptions, imu_samples
-from flightsim.stepper import CompiledStepper
-from flightsim.vehicle_params import quad_params
-from physics import BUILTIN_VEHICLES, mixer_matrix
+from proxplan.flightsim.control import ControllerConstants, se3_control
+from proxplan.flightsim.dynamics import ExternalWrenchMultirotor, VehicleConstants, state_derivative
+from proxplan.flightsim.imu import ImuOptions, imu_samples
+from proxplan.flightsim.stepper import CompiledStepper
+from proxplan.flightsim.vehicle_params import quad_params
+from proxplan.physics import BUILTIN_VEHICLES, mixer_matrix
 
 NAMES = ["crazyflie-2.1", "large-quad"]
 

@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flightsim import SimulationOptions, simulate_plan, simulation_metrics
-from flightsim.report import feedforward_comparison
-from flightsim.tracking import course_tracking_error_m
-from physics import BUILTIN_VEHICLES, KinematicLimits
-from planfile import load_scenario, plan_from_dict, plan_to_dict, read_plan, write_plan
-from planner import plan_scenario
 from proxplan.cli import main
-from verify import wrench_along_plan
+from proxplan.flightsim import SimulationOptions, simulate_plan, simulation_metrics
+from proxplan.flightsim.report import feedforward_comparison
+from proxplan.flightsim.tracking import course_tracking_error_m
+from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits
+from proxplan.planfile import load_scenario, plan_from_dict, plan_to_dict, read_plan, write_plan
+from proxplan.planner import plan_scenario
+from proxplan.verify import wrench_along_plan
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 QUIET = SimulationOptions(imu_noise=False)
@@ -29,7 +29,7 @@ def _plan(name: str):
 
 
 def test_builtin_limits_are_tracked_within_the_default_tube():
-    from planfile.scenario import TRACKING_MARGIN_M
+    from proxplan.planfile.scenario import TRACKING_MARGIN_M
 
     vehicle = BUILTIN_VEHICLES["crazyflie-2.1"]
     err = course_tracking_error_m(vehicle)

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fileio import UserError
-from flightsim import (
+from proxplan.fileio import UserError
+from proxplan.flightsim import (
     NEURAL_SWARM_HEADER,
     hover_stack_plan,
     load_truth_file,
@@ -19,7 +19,7 @@ from flightsim import (
     truth_from_dict,
     write_flight_logs,
 )
-from planfile import read_plan, write_plan
+from proxplan.planfile import read_plan, write_plan
 
 REPO = Path(__file__).resolve().parents[2]
 SHARED = REPO.parent / "shared"
@@ -115,7 +115,7 @@ def test_logs_have_neural_swarm_layout_and_manifest_loads(tmp_path):
     hover = table[:, 0] < 0.4e6
     np.testing.assert_allclose(table[hover, 9].mean(), 9.81, atol=0.05)  # az ~ +g in hover
     # the identification side reads it
-    from identify import load_manifest, read_log
+    from proxplan.identify import load_manifest, read_log
 
     man = load_manifest(manifest)
     assert [f.name for f in man.flights] == ["swap_00", "swap_01"]
@@ -168,12 +168,12 @@ def test_simulate_cli_json_png_logs_and_user_errors(tmp_path, capsys):
 
 
 def test_planner_plan_result_is_accepted_like_a_path(tmp_path):
-    plan_io = pytest.importorskip("planfile.plan", reason="planner not available")
+    plan_io = pytest.importorskip("proxplan.planfile.plan", reason="planner not available")
     path = _write_plan(tmp_path, hover_stack_plan(separation_m=1.0, duration_s=1.0))
     try:
         result = plan_io.read_plan(path)
     except Exception as err:  # pragma: no cover - the planner's reader wants extra keys
-        pytest.skip(f"planfile.plan.read_plan rejects a minimal plan.json: {err}")
+        pytest.skip(f"proxplan.planfile.plan.read_plan rejects a minimal plan.json: {err}")
     a = simulate_plan(result, imu_noise=False, settle_s=0.2)
     b = simulate_plan(path, imu_noise=False, settle_s=0.2)
     for name in a.records:
@@ -181,9 +181,9 @@ def test_planner_plan_result_is_accepted_like_a_path(tmp_path):
 
 
 def test_truth_wind_pushes_a_hovering_vehicle_by_rotorpy_rotor_drag():
-    from flightsim import single_hover_plan
-    from flightsim.vehicle_params import quad_params
-    from physics import BUILTIN_VEHICLES
+    from proxplan.flightsim import single_hover_plan
+    from proxplan.flightsim.vehicle_params import quad_params
+    from proxplan.physics import BUILTIN_VEHICLES
 
     spec = truth_from_dict({"wind_mps": [2.0, 0.0, 0.0]})
     res = simulate_plan(single_hover_plan(type_name="crazyflie-2.1", duration_s=4.0), truth=spec, imu_noise=False)
@@ -206,7 +206,7 @@ def test_simulate_cli_with_custom_vehicle_types(tmp_path, capsys):
 
     import yaml
 
-    from physics import load_vehicle_file
+    from proxplan.physics import load_vehicle_file
 
     vfile = tmp_path / "vehicles.yaml"
     vfile.write_text("vehicles:\n  heavy-cf: {base: crazyflie-2.1, mass_kg: 0.040}\n")
@@ -249,8 +249,8 @@ def test_commanded_thrust_logs_differ_from_actual_only_through_the_motor_lag(tmp
 
 
 def test_in_memory_vehicle_logs_equal_the_written_ones(tmp_path):
-    from flightsim import vehicle_logs
-    from identify import read_log
+    from proxplan.flightsim import vehicle_logs
+    from proxplan.identify import read_log
 
     res = simulate_plan(hover_stack_plan(duration_s=1.0), settle_s=0.2)
     write_flight_logs(res, tmp_path, flight_name="f")

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from flightsim import hover_stack_plan, simulate_plan
-from flightsim.report import motor_usage, plot_errors, simulation_metrics
-from physics import BUILTIN_VEHICLES, Effect, authority_usage
+from proxplan.flightsim import hover_stack_plan, simulate_plan
+from proxplan.flightsim.report import motor_usage, plot_errors, simulation_metrics
+from proxplan.physics import BUILTIN_VEHICLES, Effect, authority_usage
 
 
 def test_metrics_of_a_stack_and_the_invalid_zone(tmp_path):
@@ -43,7 +43,7 @@ def test_motor_usage_is_one_at_either_limit():
 def test_wake_swirl_torque_shows_in_the_steady_motor_torques():
     """At steady hover (w = 0, w_dot = 0) S0-13 reduces to tau_a = -R tau_p: the motors cancel the
     applied yaw torque of the wake_swirl truth effect."""
-    from physics import mixer_matrix
+    from proxplan.physics import mixer_matrix
 
     res = simulate_plan(
         hover_stack_plan(top_type="crazyflie-2.1", bottom_type="crazyflie-parrot", separation_m=1.0, duration_s=4.0),
@@ -59,7 +59,7 @@ def test_wake_swirl_torque_shows_in_the_steady_motor_torques():
 
 
 def test_going_below_the_ground_is_noted_in_the_summary():
-    from flightsim import single_hover_plan, summary_dict
+    from proxplan.flightsim import single_hover_plan, summary_dict
 
     res = simulate_plan(
         single_hover_plan(position_m=(0, 0, 0.02), duration_s=1.0),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from flightsim import battery_swap_plans, hover_stack_plan, swap_plan, takeoff_hover_plan, waypoint_trajectory
+from proxplan.flightsim import battery_swap_plans, hover_stack_plan, swap_plan, takeoff_hover_plan, waypoint_trajectory
 
 
 def test_waypoint_trajectory_is_rest_to_rest_and_consistent():

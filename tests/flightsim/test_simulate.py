@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flightsim import (
+from proxplan.flightsim import (
     hover_stack_plan,
     simulate_plan,
     single_hover_plan,
@@ -17,8 +17,8 @@ from flightsim import (
     waypoint_trajectory,
     write_flight_logs,
 )
-from physics import BUILTIN_VEHICLES, Effect, disturbance_wrench
-from planfile import Plan
+from proxplan.physics import BUILTIN_VEHICLES, Effect, disturbance_wrench
+from proxplan.planfile import Plan
 
 KP_Z = 15.0  # RotorPy SE3Control z position gain, 1/s^2 (no integral term: steady error = F / (m kp_z))
 
@@ -34,8 +34,8 @@ def test_vehicle_hovering_alone_holds_position_within_a_few_centimetres():
 
 
 def _measured_force_s011(vehicle, table: np.ndarray) -> np.ndarray:
-    """(S0-11) f_a = m R alpha - sum(f_i) z_B on a Neural-Swarm table (identify.measure)."""
-    from identify import MeasureOptions, measure_disturbance
+    """(S0-11) f_a = m R alpha - sum(f_i) z_B on a Neural-Swarm table (proxplan.identify.measure)."""
+    from proxplan.identify import MeasureOptions, measure_disturbance
 
     t = table[:, 0] * 1e-6
     return measure_disturbance(
@@ -187,9 +187,9 @@ def test_integral_action_removes_the_steady_sag_below_another_vehicle():
 
 def test_grouped_wrench_equals_total_wrench_with_every_source():
     """The simulator's stacking of same-type sources, skipping of sources below the target and
-    single evaluation of target-only effects give exactly physics.effects.total_wrench."""
-    from flightsim.simulate import _wrench_for
-    from physics import EFFECT_NAMES, EffectInputs, ModelOptions, SourceSample, default_effect, total_wrench
+    single evaluation of target-only effects give exactly proxplan.physics.effects.total_wrench."""
+    from proxplan.flightsim.simulate import _wrench_for
+    from proxplan.physics import EFFECT_NAMES, EffectInputs, ModelOptions, SourceSample, default_effect, total_wrench
 
     rng = np.random.default_rng(0)
     vehs = [

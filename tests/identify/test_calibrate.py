@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identify.calibrate import ParamSpec, apply_vehicle_parameters, fit_parameters
-from physics import BUILTIN_VEHICLES, disturbance_wrench
+from proxplan.identify.calibrate import ParamSpec, apply_vehicle_parameters, fit_parameters
+from proxplan.physics import BUILTIN_VEHICLES, disturbance_wrench
 
 SQ = BUILTIN_VEHICLES["small-quad"]
 

@@ -1,6 +1,6 @@
-"""Sparse discovery of terms no library effect names (identify.discovery), on measurement-level logs.
+"""Sparse discovery of terms no library effect names (proxplan.identify.discovery), on measurement-level logs.
 
-Two truths that are NOT in physics.effects, of different shapes, hidden in the logs:
+Two truths that are NOT in proxplan.physics.effects, of different shapes, hidden in the logs:
 * a downward force on the lower vehicle growing with the horizontal speed of the source relative to
   it, inside a Gaussian footprint under the source (a swept wake);
 * a roll torque that depends on the height above the ground (a ground vortex), Lorentzian in h.
@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from identify import discover_terms, run_identify, synthetic_logs, validation_split, write_synthetic_manifest
-from identify.data import IdentifyOptions, Model, errors, load_units
-from identify.flightlog import load_manifest
-from physics import BUILTIN_VEHICLES, CHANNELS, DISCOVERED_PREFIX, Effect, EffectInputs
+from proxplan.identify import discover_terms, run_identify, synthetic_logs, validation_split, write_synthetic_manifest
+from proxplan.identify.data import IdentifyOptions, Model, errors, load_units
+from proxplan.identify.flightlog import load_manifest
+from proxplan.physics import BUILTIN_VEHICLES, CHANNELS, DISCOVERED_PREFIX, Effect, EffectInputs
 
 VEHICLE_TYPE = "small-quad"
 VEH = BUILTIN_VEHICLES[VEHICLE_TYPE]
@@ -128,12 +128,12 @@ def test_pipeline_reports_and_keeps_the_discovered_term(tmp_path: Path) -> None:
     assert [e["channel"] for e in kept] == ["force_z_N"], doc["discovered"]
     assert kept[0]["name"] in doc["selected"] and kept[0]["formula"].startswith("force_z_N = ")
     assert result.after.rmse_fz_N < 0.7 * result.calibrated.rmse_fz_N
-    from identify.report import markdown
+    from proxplan.identify.report import markdown
 
     assert "## Discovered terms" in markdown(result) and kept[0]["formula"] in markdown(result)
     # saved with the model and read back: the same prediction
-    from physics import load_model_file
     from proxplan.commands.identify import save_model
+    from proxplan.physics import load_model_file
 
     loaded = load_model_file(save_model(result, tmp_path / "model.yaml"))
     assert kept[0]["name"] in [e.name for e in loaded.effects]

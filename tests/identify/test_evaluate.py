@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import yaml
 
-from identify import synthetic_logs, write_canonical_csv
-from identify.synthetic_logs import SyntheticMotor
-from physics import BUILTIN_VEHICLES, Effect
+from proxplan.identify import synthetic_logs, write_canonical_csv
+from proxplan.identify.synthetic_logs import SyntheticMotor
+from proxplan.physics import BUILTIN_VEHICLES, Effect
 
 TYPE = "crazyflie-2.1"
 MOTOR = SyntheticMotor(max_thrust_N=0.11)  # weak motors (T/W 1.4): the bobbing saturates them

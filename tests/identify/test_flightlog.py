@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
-from fileio import UserError
-from identify.flightlog import (
+from proxplan.fileio import UserError
+from proxplan.identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
     FlightEntry,
     VehicleEntry,
@@ -21,7 +21,7 @@ from identify.flightlog import (
     read_log,
     write_canonical_csv,
 )  # fmt: skip
-from physics import BUILTIN_VEHICLES
+from proxplan.physics import BUILTIN_VEHICLES
 
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]
 

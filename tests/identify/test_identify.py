@@ -1,9 +1,9 @@
 """Identification pipeline on synthetic logs with a known hidden effect (must-show of issue 8).
 
-Default run: closed-loop RotorPy flights from the simulator (flightsim.simulate.simulate_plan with
-``truth_effects``, logs and manifest by flightsim.logs.write_flight_logs), one test per effect of
+Default run: closed-loop RotorPy flights from the simulator (proxplan.flightsim.simulate.simulate_plan with
+``truth_effects``, logs and manifest by proxplan.flightsim.logs.write_flight_logs), one test per effect of
 the library plus one without any. Marked slow: the same checks on measurement-level logs from
-:func:`identify.synthetic_logs.synthetic_logs` (the effect library evaluated along scripted trajectories,
+:func:`proxplan.identify.synthetic_logs.synthetic_logs` (the effect library evaluated along scripted trajectories,
 written in the canonical layout), which were the stand-in before the simulator landed.
 """
 
@@ -15,8 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from identify import IdentifyOptions, run_identify, synthetic_logs, write_canonical_csv, write_synthetic_manifest
-from physics import BUILTIN_VEHICLES, Effect
+from proxplan.identify import (
+    IdentifyOptions,
+    run_identify,
+    synthetic_logs,
+    write_canonical_csv,
+    write_synthetic_manifest,
+)
+from proxplan.physics import BUILTIN_VEHICLES, Effect
 
 VEHICLE_TYPE = "small-quad"
 HIDDEN = {
@@ -79,8 +85,8 @@ def test_no_hidden_effect_selects_nothing_beyond_thrust_bias(tmp_path: Path) -> 
 
 
 def test_cli_json_report_and_saved_model(tmp_path: Path, capsys) -> None:
-    from physics import load_model_section, load_vehicle_file
     from proxplan.cli import main
+    from proxplan.physics import load_model_section, load_vehicle_file
 
     manifest = make_manifest(tmp_path, (HIDDEN["thrust_bias"],), n_train=1, duration_s=8.0)
     out = tmp_path / "out"
@@ -115,10 +121,10 @@ def test_cli_bad_manifest_is_one_line_error(tmp_path: Path, capsys) -> None:
 
 def simulator_manifest(tmp: Path, effects: list, *, ground: bool = False) -> Path:
     """Four closed-loop RotorPy flights (flightsim) with the hidden ``effects``, written as
-    Neural-Swarm logs + manifest by flightsim.logs: two small quads swapping places stacked
+    Neural-Swarm logs + manifest by proxplan.flightsim.logs: two small quads swapping places stacked
     0.3 / 1.0 / 0.6 m (train; the last one validates the effects) and 0.45 m (test) apart, or
     take-off/hover sweeps near the ground."""
-    from flightsim import simulate_plan, swap_plan, takeoff_hover_plan, write_flight_logs
+    from proxplan.flightsim import simulate_plan, swap_plan, takeoff_hover_plan, write_flight_logs
 
     manifest = None
     for k, split in enumerate(("train", "train", "train", "test")):
@@ -160,7 +166,7 @@ def test_simulator_logs_no_hidden_effect(tmp_path: Path) -> None:
 
 
 def test_correlate_finds_the_feature_behind_a_residual() -> None:
-    from identify.residuals import correlate, sample_features
+    from proxplan.identify.residuals import correlate, sample_features
 
     rng = np.random.default_rng(0)
     n = 3000
@@ -177,7 +183,7 @@ def test_correlate_finds_the_feature_behind_a_residual() -> None:
 
 def test_unexplained_residual_is_reported(tmp_path: Path) -> None:
     """A force that follows v_z |v_z| (no effect of the library has that shape) is reported with v_z."""
-    from identify import read_log
+    from proxplan.identify import read_log
 
     manifest = make_manifest(tmp_path, (), n_train=1, duration_s=10.0)
     for path in tmp_path.glob("f*_b.csv.gz"):
@@ -212,9 +218,9 @@ def test_validation_split_is_by_flight_and_test_flights_never_choose(tmp_path: P
     flight's logs changes the reported errors but not what is chosen or fitted."""
     from dataclasses import replace
 
-    from identify.data import load_units
-    from identify.effect_selection import validation_split
-    from identify.flightlog import load_manifest
+    from proxplan.identify.data import load_units
+    from proxplan.identify.effect_selection import validation_split
+    from proxplan.identify.flightlog import load_manifest
 
     options = replace(FAST, effects=("near_field", "thrust_bias"), calibrate=False)
     path = make_manifest(tmp_path / "a", (HIDDEN["near_field"],), duration_s=8.0)

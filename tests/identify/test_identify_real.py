@@ -13,7 +13,7 @@ DATA = SHARED / "data" / "neural-swarm"
 
 @pytest.mark.skipif(not DATA.is_dir(), reason=f"Neural-Swarm logs not found at {DATA} (../shared absent)")
 def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
-    from identify import load_manifest, run_identify
+    from proxplan.identify import load_manifest, run_identify
 
     manifest = load_manifest(MANIFEST)
     train_runs = {f.name for f in manifest.flights if f.split == "train"}
@@ -28,7 +28,7 @@ def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     assert result.validity["samples_below_a_source"] > 0
     # issue 13: the delivered thrust finds saturated motors on the real logs, and the saved model
     # reproduces identify's "after" on the same test flights without refitting
-    from identify import evaluate_model, saved_model
+    from proxplan.identify import evaluate_model, saved_model
 
     sat = result.measurement_json()["saturation"]
     assert all(s["thrust_source"] == "pwm" for s in sat.values())

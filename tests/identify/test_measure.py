@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from identify.measure import MeasureOptions, measure_disturbance, motor_lag_compensated_N
-from physics import BUILTIN_VEHICLES, mixer_matrix
+from proxplan.identify.measure import MeasureOptions, measure_disturbance, motor_lag_compensated_N
+from proxplan.physics import BUILTIN_VEHICLES, mixer_matrix
 
 VEH = BUILTIN_VEHICLES["small-quad"]
 

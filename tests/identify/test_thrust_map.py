@@ -1,4 +1,4 @@
-"""Delivered motor thrust from PWM and Vbat (identify.thrust_map) on synthetic saturating logs."""
+"""Delivered motor thrust from PWM and Vbat (proxplan.identify.thrust_map) on synthetic saturating logs."""
 
 from __future__ import annotations
 
@@ -7,16 +7,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from identify.measure import MeasureOptions, measure_log
-from identify.synthetic_logs import SyntheticMotor, synthetic_logs
-from identify.thrust_map import (
+from proxplan.identify.measure import MeasureOptions, measure_log
+from proxplan.identify.synthetic_logs import SyntheticMotor, synthetic_logs
+from proxplan.identify.thrust_map import (
     MotorSamples,
     ThrustMap,
     delivered_thrust_N,
     fit_thrust_map,
     saturated_samples,
 )
-from physics import BUILTIN_VEHICLES, EffectInputs, SourceSample, total_wrench
+from proxplan.physics import BUILTIN_VEHICLES, EffectInputs, SourceSample, total_wrench
 
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]
 MOTOR = SyntheticMotor()

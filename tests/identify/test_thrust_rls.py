@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identify.thrust_rls import fit_ls, rls, thrust_samples
-from physics import AIR_DENSITY_KGPM3, BUILTIN_VEHICLES, GRAVITY_MPS2
+from proxplan.identify.thrust_rls import fit_ls, rls, thrust_samples
+from proxplan.physics import AIR_DENSITY_KGPM3, BUILTIN_VEHICLES, GRAVITY_MPS2
 
 
 def test_hover_thrust_coefficient_matches_k1() -> None:

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from physics import authority_usage, mixer_matrix, motor_thrusts_N
-from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
+from proxplan.physics import authority_usage, mixer_matrix, motor_thrusts_N
+from proxplan.physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
 
 
 def test_no_disturbance_means_hover_thrust_and_zero_usage():

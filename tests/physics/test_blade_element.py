@@ -4,8 +4,8 @@ import dataclasses
 
 import pytest
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES, LARGE_QUAD
-from physics.propeller import derived_b_v, relative_thrust_sensitivity_spm, thrust_coefficient
+from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES, LARGE_QUAD
+from proxplan.physics.propeller import derived_b_v, relative_thrust_sensitivity_spm, thrust_coefficient
 
 PAPER_B_V = 3.710e-7  # S0 IV-C, 8-inch propeller, N m^-1 rad^-2 s^3
 

@@ -4,8 +4,8 @@ along y from -1 to 1 m at dz in {0.5, 1.0, 1.5, 2.0, 2.5} m. Checks the observat
 import numpy as np
 import pytest
 
-from physics import ModelOptions, authority_usage, disturbance_wrench, oncoming_speed_per_rotor_mps
-from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
+from proxplan.physics import ModelOptions, authority_usage, disturbance_wrench, oncoming_speed_per_rotor_mps
+from proxplan.physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
 
 DZ_M = (0.5, 1.0, 1.5, 2.0, 2.5)
 Y_M = np.linspace(-1.0, 1.0, 401)  # symmetric grid containing y = 0 at index 200
@@ -97,7 +97,7 @@ def test_disk_average_differs_from_hub_value_in_a_narrow_jet():
     rotor = LARGE_QUAD.rotor_positions_m[3]
     offset = np.array([[-rotor[0], -rotor[1], -0.5]])  # rotor 4 right under the source
     v_on = oncoming_speed_per_rotor_mps(SMALL_QUAD, LARGE_QUAD, offset)[0, 3]
-    from physics import centreline_speed_mps
+    from proxplan.physics import centreline_speed_mps
 
     hub_speed = float(centreline_speed_mps(SMALL_QUAD, np.array(0.5)))
     assert v_on < 0.8 * hub_speed
@@ -118,7 +118,7 @@ def test_batch_equals_single_offsets_and_input_validation():
 
 
 def test_finer_discretisation_converges():
-    from physics.geometry import Discretisation
+    from proxplan.physics.geometry import Discretisation
 
     offsets = np.array([[0.0, y, -1.5] for y in (0.0, 0.1, 0.25)])
     coarse = disturbance_wrench(SMALL_QUAD, LARGE_QUAD, offsets)

@@ -1,11 +1,11 @@
-"""Tests of the shared effect library physics.effects."""
+"""Tests of the shared effect library proxplan.physics.effects."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from physics import (
+from proxplan.physics import (
     BUILTIN_VEHICLES,
     EFFECT_NAMES,
     PARAMETERS,

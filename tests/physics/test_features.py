@@ -1,11 +1,11 @@
-"""Feature dictionary (physics.features) and discovered terms as effects (physics.effects)."""
+"""Feature dictionary (proxplan.physics.features) and discovered terms as effects (proxplan.physics.effects)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from physics import (
+from proxplan.physics import (
     BUILTIN_VEHICLES,
     FEATURE_NAMES,
     Effect,
@@ -17,7 +17,7 @@ from physics import (
     feature_matrix,
     total_wrench,
 )
-from physics.features import lagged, lowpass
+from proxplan.physics.features import lagged, lowpass
 
 VEH = BUILTIN_VEHICLES["small-quad"]
 
@@ -103,8 +103,8 @@ def test_unknown_term_parameter_is_rejected(key: str) -> None:
 
 
 def test_discovered_term_round_trips_the_model_file_list_and_acts_between_vehicles_only_pairwise() -> None:
-    from fileio import UserError
-    from physics import between_vehicle_effects, effects_from_list, effects_to_list
+    from proxplan.fileio import UserError
+    from proxplan.physics import between_vehicle_effects, effects_from_list, effects_to_list
 
     eff = Effect("discovered:force_z_N", {"force_z_N*one_1": 0.01, "force_z_N*above_core_rel_speed_xy_mps": -0.6})
     (back,) = effects_from_list(effects_to_list([eff]), "m.yaml: model.effects")
@@ -117,7 +117,7 @@ def test_discovered_term_round_trips_the_model_file_list_and_acts_between_vehicl
 
 
 def test_cost_maps_apply_the_pairwise_part_of_a_discovered_term() -> None:
-    from costmaps import pair_wrench
+    from proxplan.costmaps import pair_wrench
 
     eff = Effect("discovered:residual", {"force_z_N*one_1": 0.5, "force_z_N*above_core_1": -0.04})
     offsets = np.array([[0.0, 0.0, -0.3], [3.0, 0.0, -0.3]])

@@ -1,10 +1,10 @@
-"""ground_jet: a source's jet meeting the floor pushes a low target less (physics.effects)."""
+"""ground_jet: a source's jet meeting the floor pushes a low target less (proxplan.physics.effects)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from physics import BUILTIN_VEHICLES, Effect, EffectInputs, SourceSample, base_wrench, effect_wrench
+from proxplan.physics import BUILTIN_VEHICLES, Effect, EffectInputs, SourceSample, base_wrench, effect_wrench
 
 VEH = BUILTIN_VEHICLES["small-quad"]
 

@@ -1,4 +1,4 @@
-"""The calibrated model file (physics.model_file): round trip, older format, bad input."""
+"""The calibrated model file (proxplan.physics.model_file): round trip, older format, bad input."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from fileio import UserError
-from physics import (
+from proxplan.fileio import UserError
+from proxplan.physics import (
     BUILTIN_VEHICLES,
     EFFECT_NAMES,
     CalibratedModel,

@@ -2,9 +2,9 @@
 
 import pytest
 
-from fileio import UserError
-from physics import load_vehicle_file, resolve_vehicle, vehicle_from_dict, vehicle_to_yaml_dict
-from physics.builtin_vehicles import LARGE_QUAD
+from proxplan.fileio import UserError
+from proxplan.physics import load_vehicle_file, resolve_vehicle, vehicle_from_dict, vehicle_to_yaml_dict
+from proxplan.physics.builtin_vehicles import LARGE_QUAD
 
 
 def write(tmp_path, text):
@@ -65,7 +65,7 @@ def test_bad_files(tmp_path):
 
 
 def test_effects_in_a_vehicle_file_are_reported_as_not_applied_through_vehicle_file(tmp_path):
-    from physics import vehicle_file_notes
+    from proxplan.physics import vehicle_file_notes
 
     plain = write(tmp_path, "vehicles:\n  v: {base: small-quad}\n")
     assert vehicle_file_notes(plain) == []

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from physics.builtin_vehicles import BUILTIN_VEHICLES, LARGE_QUAD, SMALL_QUAD
+from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES, LARGE_QUAD, SMALL_QUAD
 
 
 def test_builtin_names_are_the_contract():

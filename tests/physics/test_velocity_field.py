@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
-from physics.velocity_field import centreline_speed_mps, downwash_speed_mps, induced_velocity_mps
+from proxplan.physics.builtin_vehicles import LARGE_QUAD, SMALL_QUAD
+from proxplan.physics.velocity_field import centreline_speed_mps, downwash_speed_mps, induced_velocity_mps
 
 
 def test_inverse_z_form_decays_as_one_over_z_and_printed_as_one_over_sqrt_z():

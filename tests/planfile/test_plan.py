@@ -9,10 +9,10 @@ import json
 import numpy as np
 import pytest
 
-from fileio import UserError
-from physics import BUILTIN_VEHICLES, vehicle_from_dict
-from planfile import PLAN_FORMAT_VERSION, Plan, VehicleTrajectory, read_plan, write_plan
-from verify import scenario_of_plan
+from proxplan.fileio import UserError
+from proxplan.physics import BUILTIN_VEHICLES, vehicle_from_dict
+from proxplan.planfile import PLAN_FORMAT_VERSION, Plan, VehicleTrajectory, read_plan, write_plan
+from proxplan.verify import scenario_of_plan
 
 
 def _cubic_plan(dt_s: float = 0.05, n: int = 41) -> Plan:
@@ -62,7 +62,7 @@ def test_round_trip_carries_vehicle_parameters_and_the_scenario(battery_swap_pla
 
 
 def test_vehicle_yaml_form_round_trips_every_builtin():
-    from physics import vehicle_to_yaml_dict
+    from proxplan.physics import vehicle_to_yaml_dict
 
     for name, vehicle in BUILTIN_VEHICLES.items():
         back = vehicle_from_dict(name, json.loads(json.dumps(vehicle_to_yaml_dict(vehicle))))

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import yaml
 
-from fileio import UserError
-from physics import BUILTIN_VEHICLES
-from planfile import Limits, load_scenario
+from proxplan.fileio import UserError
+from proxplan.physics import BUILTIN_VEHICLES
+from proxplan.planfile import Limits, load_scenario
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 

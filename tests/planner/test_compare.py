@@ -1,6 +1,6 @@
-"""Tests of planner.compare and the method comparison claims of issue 5.
+"""Tests of proxplan.planner.compare and the method comparison claims of issue 5.
 
-Claims (each asserted on the shipped scenarios, planned for real and checked by verify.checks):
+Claims (each asserted on the shipped scenarios, planned for real and checked by proxplan.verify.checks):
 * ``optimized`` passes verify and is no slower than ``sampling`` on the battery swap and on the
   8-vehicle swap (about 15 s, marked slow);
 * ``no-downwash`` breaks the authority limit on at least one shipped scenario;
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from planfile import load_scenario
-from planner.compare import ComparisonRow, main, run_one, to_markdown, write_outputs
+from proxplan.planfile import load_scenario
+from proxplan.planner.compare import ComparisonRow, main, run_one, to_markdown, write_outputs
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 # cheapest first: the loops below stop at the first scenario that shows the claim

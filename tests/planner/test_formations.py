@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planfile import scenario_from_dict
-from planner.formations import formation_change, main
+from proxplan.planfile import scenario_from_dict
+from proxplan.planner.formations import formation_change, main
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, 32, 128])
@@ -24,7 +24,7 @@ def test_formations_are_valid_scenarios_with_distinct_slots(n):
 
 def test_generator_cli(tmp_path, capsys):
     assert main(["4", "--out", str(tmp_path / "f.yaml")]) == 0
-    from planfile import load_scenario
+    from proxplan.planfile import load_scenario
 
     assert len(load_scenario(tmp_path / "f.yaml").vehicles) == 4
     assert main(["0", "--out", str(tmp_path / "g.yaml")]) == 2

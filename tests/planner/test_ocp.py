@@ -1,7 +1,7 @@
-"""Tests of planner.ocp: the CasADi trajectory problem.
+"""Tests of proxplan.planner.ocp: the CasADi trajectory problem.
 
-The wrench table here is a small casadi bspline interpolant built from physics.disturbance on a
-coarse grid (tests only); the product uses costmaps.map_store's table of the same numbers.
+The wrench table here is a small casadi bspline interpolant built from proxplan.physics.disturbance on a
+coarse grid (tests only); the product uses proxplan.costmaps.map_store's table of the same numbers.
 """
 
 from __future__ import annotations
@@ -10,14 +10,14 @@ import casadi
 import numpy as np
 import pytest
 
-from physics import (
+from proxplan.physics import (
     BUILTIN_VEHICLES,
     authority_usage,
     disturbance_wrench,
     normalised_motor_map,
 )
-from planner.ocp import build_and_solve, sample_solution
-from planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
+from proxplan.planner.ocp import build_and_solve, sample_solution
+from proxplan.planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
 
 LARGE = BUILTIN_VEHICLES["large-quad"]
 SMALL = BUILTIN_VEHICLES["small-quad"]
@@ -25,7 +25,7 @@ SMALL = BUILTIN_VEHICLES["small-quad"]
 
 def model_interpolant(source, target, *, half_width_m=1.5, dz_min_m=-0.4, dz_max_m=2.5, step_m=0.1):
     """casadi bspline of (F_z N, tau_x N m, tau_y N m) over offsets p_target - p_source (3,), m,
-    on a grid x, y in [-w, w] and offset_z in [-dz_max, -dz_min], from physics.disturbance."""
+    on a grid x, y in [-w, w] and offset_z in [-dz_max, -dz_min], from proxplan.physics.disturbance."""
     gxy = np.arange(-half_width_m, half_width_m + 1e-9, step_m)
     gz = np.arange(-dz_max_m, -dz_min_m + 1e-9, step_m)
     X, Y, Z = np.meshgrid(gxy, gxy, gz, indexing="ij")
@@ -223,7 +223,7 @@ def test_dock_to_moving_partner_and_infeasible_authority_fails():
 def test_warm_start_repair_moves_a_path_out_of_the_jet_and_keeps_its_ends():
     """A warm path straight along the symmetric jet axis is a saddle for IPOPT; the repair displaces
     it sideways until the predicted usage is under the limit, without touching start and goal."""
-    from planner.ocp_warm import repair_warm_start
+    from proxplan.planner.ocp_warm import repair_warm_start
 
     n = 30
     source_pos = np.array([0.0, 0.0, 2.4])

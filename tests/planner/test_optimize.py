@@ -1,4 +1,4 @@
-"""Tests of planner.optimize: refine_plan on the pipeline's sampling plan, fall-back, infeasibility."""
+"""Tests of proxplan.planner.optimize: refine_plan on the pipeline's sampling plan, fall-back, infeasibility."""
 
 from __future__ import annotations
 
@@ -8,19 +8,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planfile import load_scenario, scenario_from_dict
-from planner import (
+from proxplan.planfile import load_scenario, scenario_from_dict
+from proxplan.planner import (
     InfeasibleError,
     plan_scenario,
 )
-from planner.optimize import (
+from proxplan.planner.optimize import (
     RefineOptions,
     build_problem,
     check_final_configuration,
     moving_end_s,
     refine_plan,
 )
-from verify import verify_plan
+from proxplan.verify import verify_plan
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
@@ -98,8 +98,8 @@ def test_infeasible_authority_at_the_dock_is_reported_clearly():
 
 
 def test_rewarm_and_extent_pruning(battery_swap):
-    from planner.ocp import build_and_solve
-    from planner.optimize import rewarm
+    from proxplan.planner.ocp import build_and_solve
+    from proxplan.planner.optimize import rewarm
 
     scenario, initial = battery_swap
     full = build_problem(scenario, initial)

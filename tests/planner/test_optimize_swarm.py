@@ -1,16 +1,16 @@
-"""Tests of the decomposed optimiser (planner.reoptimize) and the time budget of refine_plan."""
+"""Tests of the decomposed optimiser (proxplan.planner.reoptimize) and the time budget of refine_plan."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from planfile import scenario_from_dict
-from planner import plan_scenario
-from planner.formations import formation_change
-from planner.optimize import RefineOptions, default_wrench_provider, moving_end_s, refine_plan
-from planner.reoptimize import ReoptOptions, SwarmField, arrival_s, reoptimize_plan, retimed_path
-from verify import verify_plan
+from proxplan.planfile import scenario_from_dict
+from proxplan.planner import plan_scenario
+from proxplan.planner.formations import formation_change
+from proxplan.planner.optimize import RefineOptions, default_wrench_provider, moving_end_s, refine_plan
+from proxplan.planner.reoptimize import ReoptOptions, SwarmField, arrival_s, reoptimize_plan, retimed_path
+from proxplan.verify import verify_plan
 
 
 @pytest.fixture(scope="module")

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
-from planfile import scenario_from_dict
-from planner import DT_S
-from planner.constraints import Track, build_checker
-from planner.sampling import GoalSpec, SamplingOptions, plan_space_time
-from planner.timing import common_grid, time_parameterize
+from proxplan.physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
+from proxplan.planfile import scenario_from_dict
+from proxplan.planner import DT_S
+from proxplan.planner.constraints import Track, build_checker
+from proxplan.planner.sampling import GoalSpec, SamplingOptions, plan_space_time
+from proxplan.planner.timing import common_grid, time_parameterize
 
 ROOT = Path(__file__).resolve().parents[2]
 LARGE, SMALL = BUILTIN_VEHICLES["large-quad"], BUILTIN_VEHICLES["small-quad"]

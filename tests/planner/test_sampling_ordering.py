@@ -1,16 +1,16 @@
-"""Conflict-driven re-ordering (planner.ordering.promote) and the pre-checks of planner.precheck."""
+"""Conflict-driven re-ordering (proxplan.planner.ordering.promote) and the pre-checks of proxplan.planner.precheck."""
 
 from __future__ import annotations
 
 import pytest
 
-import planner.pipeline as pipeline
-from fileio import UserError
-from planfile import scenario_from_dict
-from planner import InfeasibleError, plan_scenario
-from planner.ordering import lower_bound_makespan_s, priority_order, promote
-from planner.sampling import SamplingOptions
-from verify import verify_plan
+import proxplan.planner.pipeline as pipeline
+from proxplan.fileio import UserError
+from proxplan.planfile import scenario_from_dict
+from proxplan.planner import InfeasibleError, plan_scenario
+from proxplan.planner.ordering import lower_bound_makespan_s, priority_order, promote
+from proxplan.planner.sampling import SamplingOptions
+from proxplan.verify import verify_plan
 
 FAST = SamplingOptions(max_iterations=1500, candidates=1)
 
@@ -85,7 +85,7 @@ def test_starts_inside_each_others_cutoff_are_infeasible_before_any_search():
 
 
 def test_swarm_size_limit_is_a_user_error(monkeypatch):
-    import planner.precheck as precheck
+    import proxplan.planner.precheck as precheck
 
     monkeypatch.setattr(precheck, "MAX_VEHICLES", 1)
     with pytest.raises(UserError, match="expected at most 1 vehicles"):

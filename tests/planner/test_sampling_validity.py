@@ -1,14 +1,14 @@
-"""The vectorised validity check (planner.validity) against the scalar per-pair check."""
+"""The vectorised validity check (proxplan.planner.validity) against the scalar per-pair check."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from physics import BUILTIN_VEHICLES
-from planfile import scenario_from_dict
-from planner.constraints import Track, build_checker
-from planner.validity import BatchChecker
+from proxplan.physics import BUILTIN_VEHICLES
+from proxplan.planfile import scenario_from_dict
+from proxplan.planner.constraints import Track, build_checker
+from proxplan.planner.validity import BatchChecker
 
 TYPES = ("crazyflie-2.1", "crazyflie-parrot", "small-quad", "large-quad")
 

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from planfile import load_scenario, write_plan
-from planner import plan_scenario
 from proxplan.cli import main
-from verify import verify_plan
+from proxplan.planfile import load_scenario, write_plan
+from proxplan.planner import plan_scenario
+from proxplan.verify import verify_plan
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[2] / "scenarios").glob("*.yaml"))
 REQUIRED = {"battery_swap", "package_handoff", "crossing_4", "swap_8", "corridor_stack"}

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planner.timing import KinematicLimits, common_grid, min_segment_duration_s, ruckig_segment, time_parameterize
+from proxplan.planner.timing import (
+    KinematicLimits,
+    common_grid,
+    min_segment_duration_s,
+    ruckig_segment,
+    time_parameterize,
+)
 
 LIMITS = KinematicLimits(max_speed_mps=1.2, max_accel_mps2=2.5, max_jerk_mps3=12.0)
 

@@ -1,12 +1,12 @@
-"""Pass-through timing (planner.timing.time_parameterize_through): chained state-to-state Ruckig
+"""Pass-through timing (proxplan.planner.timing.time_parameterize_through): chained state-to-state Ruckig
 segments with non-zero velocities at interior waypoints, within the vehicle's norm limits."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from physics import KinematicLimits
-from planner.timing import time_parameterize, time_parameterize_through
+from proxplan.physics import KinematicLimits
+from proxplan.planner.timing import time_parameterize, time_parameterize_through
 
 LIM = KinematicLimits(1.5, 3.0, 15.0)
 

@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from physics import BUILTIN_VEHICLES, authority_usage, disturbance_wrench
-from planfile import Plan, VehicleTrajectory, scenario_from_dict
-from verify import verify_plan, wrench_along_plan
+from proxplan.physics import BUILTIN_VEHICLES, authority_usage, disturbance_wrench
+from proxplan.planfile import Plan, VehicleTrajectory, scenario_from_dict
+from proxplan.verify import verify_plan, wrench_along_plan
 
 DT = 0.05
 

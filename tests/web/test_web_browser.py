@@ -185,7 +185,7 @@ def _stop(proc: subprocess.Popen) -> int:
 
 
 def test_view_renders_plan_in_headless_chromium(tmp_path):
-    from web.demo import DEMO_SPEC, write_demo_plan
+    from proxplan.web.demo import DEMO_SPEC, write_demo_plan
 
     plan = write_demo_plan(tmp_path / "demo")
     bad = tmp_path / "bad" / "plan.json"
@@ -238,7 +238,7 @@ def test_exported_recording_replays_without_the_app(tmp_path):
     import threading
     from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 
-    from web.demo import write_demo_plan
+    from proxplan.web.demo import write_demo_plan
 
     plan = write_demo_plan(tmp_path / "demo")
     out = tmp_path / "rec"

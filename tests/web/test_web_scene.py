@@ -11,22 +11,22 @@ import numpy as np
 import pytest
 import viser
 
-from physics import (
+from proxplan.physics import (
     BUILTIN_VEHICLES,
     VALIDITY_FACTOR_L,
     authority_usage,
     disturbance_wrench,
     downwash_speed_mps,
 )
-from web import (
+from proxplan.web import (
     ReviewApp,
     layers,
     load_plan_file,
     plots,
     prepare,
 )
-from web.demo import DEMO_SPEC, write_demo_plan
-from web.wrench_series import WrenchSeries
+from proxplan.web.demo import DEMO_SPEC, write_demo_plan
+from proxplan.web.wrench_series import WrenchSeries
 
 
 @pytest.fixture(scope="module")
@@ -181,7 +181,7 @@ def test_replan_failure_keeps_old_plan_and_success_shows_new(app, plan_path):
 
         for name, tr in plan.vehicles.items():
             plan.vehicles[name] = dataclasses.replace(tr, position_m=tr.position_m + [0.0, 0.0, 0.25])
-        from web import review_from_plan_result
+        from proxplan.web import review_from_plan_result
 
         return prepare(review_from_plan_result(plan, scenario, source_path=plan_path))
 
