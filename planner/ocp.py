@@ -81,8 +81,25 @@ class _Builder:
         self.pb = problem
         self.n = problem.n_intervals
         self.opti = ca.Opti()
-        self.T = self.opti.variable() if problem.fixed_duration_s is None else problem.fixed_duration_s
-        self.h = self.T / self.n
+        n = self.n
+        self.n_approach = problem.approach_intervals if problem.fixed_duration_s is None else 0
+        self.n_free = n - self.n_approach  # intervals of the first (free-flight) phase
+        if problem.fixed_duration_s is not None:
+            self.T = problem.fixed_duration_s
+            self.phase_T: list = []
+            self.h_row = ca.DM.ones(1, n) * (self.T / n)
+        elif self.n_approach > 0:  # two phases, each with its own free duration, s
+            self.phase_T = [self.opti.variable(), self.opti.variable()]
+            self.T = self.phase_T[0] + self.phase_T[1]
+            self.h_row = ca.horzcat(
+                ca.repmat(self.phase_T[0] / self.n_free, 1, self.n_free),
+                ca.repmat(self.phase_T[1] / self.n_approach, 1, self.n_approach),
+            )
+        else:
+            self.phase_T = [self.opti.variable()]
+            self.T = self.phase_T[0]
+            self.h_row = ca.repmat(self.T / n, 1, n)
+        self.warm_t = problem.warm_times_s()  # (n+1,) s
         self.agents = {a.name: a for a in problem.agents}
         self.names = [a.name for a in problem.agents]
         self.X: dict[str, Any] = {}  # casadi MX states (9, n+1)
@@ -95,10 +112,16 @@ class _Builder:
 
     # ---------------------------------------------------------------- vehicles
     def add_vehicles(self) -> None:
-        ca, opti, n, h, pb = self.ca, self.opti, self.n, self.h, self.pb
-        if pb.fixed_duration_s is None:
+        ca, opti, n, pb = self.ca, self.opti, self.n, self.pb
+        h = ca.repmat(self.h_row, 3, 1)  # (3, n) interval lengths, s
+        if self.phase_T:
             opti.subject_to(opti.bounded(0.1 * pb.warm_duration_s, self.T, pb.max_duration_s))
-            opti.set_initial(self.T, min(pb.warm_duration_s, pb.max_duration_s))
+            bounds = [0, self.n_free, n] if len(self.phase_T) == 2 else [0, n]
+            shrink = min(1.0, pb.max_duration_s / pb.warm_duration_s)
+            for T_k, lo, hi in zip(self.phase_T, bounds[:-1], bounds[1:]):
+                warm_k = float(self.warm_t[hi] - self.warm_t[lo])
+                opti.subject_to(T_k >= 0.05 * warm_k)
+                opti.set_initial(T_k, shrink * warm_k)
         for a in pb.agents:
             wp = (
                 _warm(a.warm_position_m, a.start_m, n)
@@ -140,12 +163,12 @@ class _Builder:
             hi = np.asarray(pb.workspace_max_m, float) - grow
             Q = self.Q[a.name]
             opti.subject_to(opti.bounded(ca.repmat(ca.DM(lo), 1, 2 * n + 1), Q, ca.repmat(ca.DM(hi), 1, 2 * n + 1)))
-            self.cost += pb.weights.smoothness * h * ca.sumsqr(U / a.max_jerk_mps3)
+            self.cost += pb.weights.smoothness * ca.sum2(self.h_row * ca.sum1((U / a.max_jerk_mps3) ** 2))
             # warm start
             wv = _warm(a.warm_velocity_mps, np.zeros(3), n)
             wa = _warm(a.warm_acceleration_mps2, np.zeros(3), n)
             opti.set_initial(X, np.vstack([wp.T, wv.T, wa.T]))
-            wj = np.diff(wa, axis=0) / (pb.warm_duration_s / n)
+            wj = np.diff(wa, axis=0) / np.maximum(np.diff(self.warm_t), 1e-6)[:, None]
             opti.set_initial(U, wj.T)
             self._obstacles(a, Q, self.Qw[a.name])
         for a in pb.agents:  # dock boundary conditions (the partner may itself be moving)
@@ -182,6 +205,9 @@ class _Builder:
         u = off / max(np.linalg.norm(off), 1e-9)
         rel_w = self.Qw[a.name] - self.Qw[a.dock_with] - off
         exempt = np.linalg.norm(rel_w, axis=1) <= a.dock_reach_m
+        if self.n_approach > 0:  # the approach phase: nodes from n_free on and its midpoints
+            exempt[self.n_free : self.n + 1] = True
+            exempt[self.n + 1 + self.n_free :] = True
         self.exempt[(a.name, a.dock_with)] = exempt
         ks = np.flatnonzero(exempt).tolist()
         if not ks:
@@ -190,7 +216,13 @@ class _Builder:
         along = ca.mtimes(ca.DM(u).T, rel)
         perp = rel - ca.mtimes(ca.DM(u), along)
         opti.subject_to(ca.sum1(perp**2) <= 0.03**2)
-        opti.subject_to(along >= 0)
+        # not at the final node: there the dock equality already fixes along = 0 (a second, active
+        # constraint with the same gradient breaks LICQ and IPOPT's multipliers diverge)
+        not_final = [i for i, k in enumerate(ks) if k != self.n]
+        if not_final:
+            opti.subject_to(along[:, not_final] >= 0)
+            if a.dock_approach_m > 0.0:  # on the segment from the approach point A to the dock point D
+                opti.subject_to(along[:, not_final] <= a.dock_approach_m)
         nodes = [k for k in ks if k <= self.n]
         if nodes:
             v = self.X[a.name][3:6, nodes]
@@ -216,7 +248,8 @@ class _Builder:
         q = self.Qw[a.name]
         order = np.empty((2 * n + 1, 3))  # time order: node 0, mid 0, node 1, ...
         order[0::2], order[1::2] = q[: n + 1], q[n + 1 :]
-        speed = np.linalg.norm(np.diff(order, axis=0), axis=1) / (0.5 * self.pb.warm_duration_s / n)
+        half = np.repeat(0.5 * np.maximum(np.diff(self.warm_t), 1e-6), 2)  # (2n,) s between check points
+        speed = np.linalg.norm(np.diff(order, axis=0), axis=1) / half
         moving_t = np.zeros(2 * n + 1, dtype=bool)
         moving_t[:-1] |= speed >= 0.05
         moving_t[1:] |= speed >= 0.05
@@ -275,7 +308,14 @@ class _Builder:
         selection matrices scatter the per-motor changes to (target, check point)."""
         ca, opti, pb, n = self.ca, self.opti, self.pb, self.n
         nq = 2 * n + 1
-        weights = np.r_[0.5, np.ones(n - 1), 0.5, np.ones(n)] * 0.5  # quadrature over check points
+        # quadrature weights of the check points (nodes, then midpoints), s: node k gets a quarter of
+        # each adjacent interval, a midpoint half of its own, so the exposure is a time integral
+        # (a longer stay in a jet costs more; with one weight per check point instead, the two-phase
+        # docking problem preferred to stretch its approach phase)
+        h_row = self.h_row
+        zero = ca.DM.zeros(1, 1)
+        node_w = 0.25 * (ca.horzcat(zero, h_row) + ca.horzcat(h_row, zero))
+        quad_w = ca.horzcat(node_w, 0.5 * h_row)  # (1, nq) s
         groups: dict[int, dict] = {}  # id(fn) -> {"fn", "offsets": [MX], "rows": [(target, ks)]}
         for nt in self.names:
             for ns in self.names:
@@ -323,8 +363,8 @@ class _Builder:
                 per_source = ca.mtimes(ca.DM(a_map), w[:, col : col + m])  # (4, m) motor changes, N
                 # exposure per (source, target) pair: sum_k w_k |delta_f / headroom|^2 (pairwise
                 # terms keep the Hessian sparse; the constraint below uses the sum over sources)
-                w_sqrt = np.outer(1.0 / np.minimum(up, down), np.sqrt(weights[ks]))
-                self.cost += pb.weights.exposure * (pb.warm_duration_s / n) * ca.sumsqr(per_source * ca.DM(w_sqrt))
+                scaled = per_source * ca.DM(np.outer(1.0 / np.minimum(up, down), np.ones(m)))
+                self.cost += pb.weights.exposure * ca.dot(ca.sum1(scaled**2), quad_w[:, ks.tolist()])
                 select = ca.DM.triplet(list(range(m)), ks.tolist(), ca.DM.ones(m), m, nq)
                 contrib = ca.mtimes(per_source, select)  # (4, nq) N
                 totals[nt] = contrib if nt not in totals else totals[nt] + contrib
@@ -401,7 +441,9 @@ class _Builder:
         if self.linear_groups:
             self._linearize(lambda e: opti.debug.value(e, opti.initial()))
         best = None
+        solves = 0
         for r in range(rounds):
+            solves += 1
             try:
                 sol = opti.solve()
                 value, stats, ok = sol.value, sol.stats(), True
@@ -416,7 +458,9 @@ class _Builder:
             best = (value, stats, ok)
             if not self.linear_groups or r == rounds - 1 or time.perf_counter() - t0 > pb.max_cpu_time_s:
                 break
-            if accept is not None and accept(self._collect(value, stats, ok, iterations, time.perf_counter() - t0)):
+            if accept is not None and accept(
+                self._collect(value, stats, ok, iterations, time.perf_counter() - t0, r + 1)
+            ):
                 break  # the caller's check (the verifier) already passes: no further linearisation
             moved = self._linearize(value)
             if progress is not None:
@@ -425,9 +469,9 @@ class _Builder:
                 break
             opti.set_initial(sol.value_variables())
             opti.set_initial(opti.lam_g, sol.value(opti.lam_g))
-        return self._collect(value, stats, ok, iterations, time.perf_counter() - t0)
+        return self._collect(value, stats, ok, iterations, time.perf_counter() - t0, solves)
 
-    def _collect(self, value, stats, ok: bool, iterations: int, solve_time: float) -> OcpSolution:
+    def _collect(self, value, stats, ok: bool, iterations: int, solve_time: float, rounds: int = 1) -> OcpSolution:
         pb, n = self.pb, self.n
         out_p, out_v, out_a, out_j = {}, {}, {}, {}
         for a in pb.agents:
@@ -440,10 +484,23 @@ class _Builder:
                 out_v[a.name] = np.zeros((n + 1, 3))
                 out_a[a.name] = np.zeros((n + 1, 3))
                 out_j[a.name] = np.zeros((n, 3))
+        h_row = (
+            np.asarray(value(self.h_row), float).reshape(-1) if self.phase_T else np.full(n, pb.fixed_duration_s / n)
+        )
+        try:  # largest violation of the (linearised) NLP's constraints at the returned point
+            g = np.asarray(value(self.opti.g), float).reshape(-1)
+            lbg = np.asarray(value(self.opti.lbg), float).reshape(-1)
+            ubg = np.asarray(value(self.opti.ubg), float).reshape(-1)
+            violation = float(np.max(np.concatenate([[0.0], lbg - g, g - ubg])))
+        except (RuntimeError, ValueError):
+            violation = float("nan")
         return OcpSolution(
             success=ok,
             status=str(stats.get("return_status", "unknown")),
-            duration_s=float(value(self.T)) if pb.fixed_duration_s is None else float(pb.fixed_duration_s),
+            duration_s=float(np.sum(h_row)),
+            node_times_s=np.concatenate([[0.0], np.cumsum(h_row)]),
+            constraint_violation=violation,
+            rounds=rounds,
             position_m=out_p,
             velocity_mps=out_v,
             acceleration_mps2=out_a,
@@ -484,11 +541,11 @@ def sample_solution(
     ``time_scale`` >= 1 slows the whole solution uniformly (duration x s; v / s, a / s^2).
     Returns {name: (position_m (M, 3), velocity_mps (M, 3), acceleration_mps2 (M, 3))}.
     """
-    n = next(iter(solution.jerk_mps3.values())).shape[0]
-    h = solution.duration_s / n
+    nodes = solution.times_s()  # (n+1,) s
+    n = nodes.size - 1
     tau = np.clip(np.asarray(times_s, float) / time_scale, 0.0, solution.duration_s)
-    k = np.minimum((tau / h).astype(int), n - 1)
-    dt = (tau - k * h)[:, None]
+    k = np.clip(np.searchsorted(nodes, tau, side="right") - 1, 0, n - 1)
+    dt = (tau - nodes[k])[:, None]
     out = {}
     for name in solution.position_m:
         p0, v0 = solution.position_m[name][k], solution.velocity_mps[name][k]

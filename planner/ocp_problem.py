@@ -26,6 +26,7 @@ class OcpAgent:
     dock_with: str | None = None  # partner whose final position + dock_offset_m is the goal
     dock_offset_m: np.ndarray | None = None  # (3,), m
     dock_reach_m: float = 0.0  # radius around the dock point of the axis-bound final approach, m
+    dock_approach_m: float = 0.0  # length of the straight final approach, approach point A to dock point D, m
     max_speed_mps: float = 1.0
     max_accel_mps2: float = 2.0
     max_jerk_mps3: float = 5.0
@@ -90,6 +91,22 @@ class OcpProblem:
     max_linearizations: int = 4  # solves of the sequential linearisation
     linearization_tol: float = 0.01  # stop when the usage error of the linear model is below this
     proximal_weight: float = 0.05  # weight on |O - O0|^2 (m^-2) keeping steps near the linearisation
+    # docking in two phases: the last ``approach_intervals`` intervals form the final-approach phase
+    # with its own free duration (every docker on its dock axis, the dock pair exempt from separation
+    # and invalid zone, as in the verifier); 0: one phase (the approach where the warm start is on it)
+    approach_intervals: int = 0
+    # times of the warm-start nodes (n+1,), s; None: uniform over warm_duration_s
+    warm_node_times_s: np.ndarray | None = None
+    # per dock pair (source, target): casadi Function dz_m -> the model's largest authority usage of
+    # the target within the approach's lateral band (the extrapolated near field inside the invalid
+    # zone, S0 II-A, as the verifier evaluates it); bounds the dock pair on the approach phase
+    dock_usage_functions: Mapping[tuple[str, str], Any] = field(default_factory=dict)
+
+    def warm_times_s(self) -> np.ndarray:
+        """Times of the warm-start nodes (n+1,), s."""
+        if self.warm_node_times_s is not None:
+            return np.asarray(self.warm_node_times_s, float)
+        return np.linspace(0.0, self.warm_duration_s, self.n_intervals + 1)
 
 
 @dataclass(frozen=True)
@@ -107,6 +124,16 @@ class OcpSolution:
     solve_time_s: float  # wall time of IPOPT, s
     build_time_s: float  # wall time to build the problem, s
     objective: float
+    node_times_s: np.ndarray | None = None  # (n+1,) times of the nodes, s; None: uniform over duration_s
+    constraint_violation: float = float("nan")  # IPOPT's final constraint violation (unscaled, inf-norm)
+    rounds: int = 1  # IPOPT solves (sequential linearisation rounds)
+
+    def times_s(self) -> np.ndarray:
+        """Times of the nodes (n+1,), s."""
+        if self.node_times_s is not None:
+            return np.asarray(self.node_times_s, float)
+        n = next(iter(self.jerk_mps3.values())).shape[0]
+        return np.linspace(0.0, self.duration_s, n + 1)
 
 
 def scenario_fields(scenario) -> dict[str, Any]:

@@ -166,6 +166,31 @@ def is_better(plan, initial_plan, scenario) -> tuple[bool, str]:
     )
 
 
+APPROACH_TOLERANCE_M = 0.01  # the warm start is "on its final approach" this close to the A-D segment, m
+
+
+def approach_start_s(scenario, plan) -> float | None:
+    """Time (s) from which every docking vehicle of ``plan`` stays on its final approach (within
+    ``APPROACH_TOLERANCE_M`` of the segment from its approach point A to its dock point D, both
+    relative to the dock partner's current position, as the verifier's dock exemption); None
+    without docks."""
+    starts = []
+    t = np.asarray(plan.t_s, float)
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is None:
+            continue
+        a_pt, d_pt = scenario.dock_geometry(name)
+        base = scenario.final_position_m(task.dock_with)
+        a_rel, d_rel = a_pt - base, d_pt - base
+        rel = plan.vehicles[name].position_m - plan.vehicles[task.dock_with].position_m
+        seg = a_rel - d_rel
+        f = np.clip((rel - d_rel) @ seg / max(float(seg @ seg), 1e-12), 0.0, 1.0)
+        off_segment = np.linalg.norm(rel - (d_rel + f[:, None] * seg), axis=1) > APPROACH_TOLERANCE_M
+        last_off = np.flatnonzero(off_segment)
+        starts.append(float(t[last_off[-1] + 1]) if last_off.size and last_off[-1] + 1 < t.size else float(t[0]))
+    return max(starts) if starts else None
+
+
 def _n_intervals(makespan_s: float, n_moving: int, options: RefineOptions) -> int:
     """Grid size: one interval per ``interval_s`` of the warm start, capped so that the joint
     problem keeps about ``max_node_vehicles`` vehicle-nodes (IPOPT time grows fast beyond)."""
@@ -181,6 +206,18 @@ def build_problem(
     T0 = moving_end_s(initial_plan) or float(initial_plan.makespan_s)
     n = _n_intervals(T0, sum(not t.hover for t in scenario.vehicles.values()), options)
     t_nodes = np.linspace(0.0, T0, n + 1)
+    n_approach = 0
+    t_approach = approach_start_s(scenario, initial_plan)
+    if t_approach is not None and 0.0 < t_approach < T0:
+        # docking: the last intervals are the final-approach phase (its own free duration)
+        n_approach = int(np.clip(math.ceil((T0 - t_approach) / options.interval_s), 3, max(3, n // 3)))
+        t_nodes = np.concatenate(
+            [np.linspace(0.0, t_approach, n - n_approach + 1), np.linspace(t_approach, T0, n_approach + 1)[1:]]
+        )
+    # the sampling plan flies at 100 % of the kinematic limits (Ruckig), the OCP keeps a margin
+    # (OcpProblem.kinematic_margin): the warm start is the same paths slowed uniformly by
+    # 1 / margin (speed x m, acceleration x m^2, jerk x m^3), which is feasible for every limit
+    stretch = 1.0 / OcpProblem.kinematic_margin
     agents = []
     for name, task in scenario.vehicles.items():
         moving = not task.hover
@@ -191,7 +228,8 @@ def build_problem(
             from proxplan.verify import GOAL_TOLERANCE_M
 
             approach, dock = scenario.dock_geometry(name)
-            reach = float(np.linalg.norm(approach - dock)) + GOAL_TOLERANCE_M - 0.02
+            approach_m = float(np.linalg.norm(approach - dock))
+            reach = approach_m + GOAL_TOLERANCE_M - 0.02
         agents.append(
             OcpAgent(
                 name=name,
@@ -202,13 +240,14 @@ def build_problem(
                 dock_with=task.dock_with,
                 dock_offset_m=None if task.dock_offset_m is None else np.asarray(task.dock_offset_m, float),
                 dock_reach_m=reach,
+                dock_approach_m=approach_m if task.dock_with is not None else 0.0,
                 max_speed_mps=task.max_speed_mps,
                 max_accel_mps2=task.max_accel_mps2,
                 max_jerk_mps3=task.max_jerk_mps3,
                 body_radius_m=radius,
                 warm_position_m=warm[0],
-                warm_velocity_mps=warm[1],
-                warm_acceleration_mps2=warm[2],
+                warm_velocity_mps=None if warm[1] is None else warm[1] / stretch,
+                warm_acceleration_mps2=None if warm[2] is None else warm[2] / stretch**2,
             )
         )
     cache: dict[tuple[int, int], object] = {}
@@ -228,8 +267,10 @@ def build_problem(
     return OcpProblem(
         agents=tuple(agents),
         n_intervals=n,
-        warm_duration_s=T0,
-        max_duration_s=T0,
+        warm_duration_s=T0 * stretch,
+        max_duration_s=T0 * stretch,
+        warm_node_times_s=t_nodes * stretch,
+        approach_intervals=n_approach,
         **scenario_fields(scenario),
         wrench_functions=wrench,
         interaction_extent=extents,

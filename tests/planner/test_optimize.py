@@ -15,6 +15,7 @@ from proxplan.planner import (
 )
 from proxplan.planner.optimize import (
     RefineOptions,
+    approach_start_s,
     build_problem,
     check_final_configuration,
     moving_end_s,
@@ -55,8 +56,19 @@ def test_refined_battery_swap_is_faster_verified_and_docked(battery_swap):
 def test_problem_warm_start_and_bounds_come_from_the_initial_plan(battery_swap):
     scenario, initial = battery_swap
     problem = build_problem(scenario, initial, options=RefineOptions(interval_s=0.25, min_intervals=10))
-    assert problem.max_duration_s == pytest.approx(moving_end_s(initial))
+    # the warm start is the sampling plan slowed by 1 / kinematic_margin (Ruckig flies at 100 % of
+    # the limits, the OCP at 97 %), and T may not exceed that; is_better keeps the result faster
+    slowed = moving_end_s(initial) / problem.kinematic_margin
+    assert problem.max_duration_s == pytest.approx(slowed)
+    assert problem.warm_times_s()[-1] == pytest.approx(slowed)
     assert problem.n_intervals == max(10, int(np.ceil(moving_end_s(initial) / 0.25)))
+    # docking: the last intervals are the approach phase, which starts where the warm start enters
+    # its final approach (on the A-D segment from then on)
+    assert problem.approach_intervals >= 3
+    t_a = approach_start_s(scenario, initial)
+    assert problem.warm_times_s()[problem.n_intervals - problem.approach_intervals] == pytest.approx(
+        t_a / problem.kinematic_margin
+    )
     shuttle = next(a for a in problem.agents if a.name == "shuttle")
     carrier = next(a for a in problem.agents if a.name == "carrier")
     assert shuttle.moving and not carrier.moving
