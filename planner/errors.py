@@ -6,8 +6,11 @@ from __future__ import annotations
 class InfeasibleError(Exception):
     """No plan: ``vehicle`` could not meet ``constraint`` (e.g. "downwash of carrier")."""
 
-    def __init__(self, vehicle: str, constraint: str, message: str):
+    def __init__(self, vehicle: str, constraint: str, message: str, details: dict | None = None):
         super().__init__(message)
         self.vehicle = vehicle
         self.constraint = constraint
         self.message = message
+        # machine-readable diagnosis for ``--json`` (e.g. the source vehicle, by how much, a
+        # suggested goal); plain JSON types only
+        self.details = dict(details or {})

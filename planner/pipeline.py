@@ -28,7 +28,7 @@ from proxplan.planfile import Plan, Scenario, VehicleTrajectory
 from proxplan.planner.constraints import Track, build_checker
 from proxplan.planner.errors import InfeasibleError
 from proxplan.planner.ordering import priority_order, promote
-from proxplan.planner.precheck import check_starts_and_goals, check_swarm_size
+from proxplan.planner.precheck import check_goal_tubes, check_starts_and_goals, check_swarm_size
 from proxplan.planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
 from proxplan.planner.timing import (
     KinematicLimits,
@@ -252,6 +252,7 @@ def plan_scenario(
     mode = MODE_OF_METHOD[method]
     check_swarm_size(scenario)
     check_starts_and_goals(scenario, mode=mode)
+    check_goal_tubes(scenario, mode=mode, margin_m=PLAN_MARGIN_M)
     plan = _sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
     if mode == "downwash":
         # safety net: the timed plan is re-checked per vehicle, but the verifier is independent

@@ -123,6 +123,8 @@ def _plan(args: argparse.Namespace) -> int:
             )
             if args.json:
                 doc = {"feasible": False, "vehicle": err.vehicle, "constraint": err.constraint, "message": err.message}
+                if err.details:
+                    doc["diagnosis"] = err.details
                 print(json.dumps(doc))
             return 1
         bar.close()
