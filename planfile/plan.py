@@ -25,6 +25,11 @@ plan was made with travels in ``scenario_spec.model``: ``field_form`` and ``effe
 calibrated model's effects between vehicles with every parameter, ``[{name, params}]``;
 :attr:`Plan.effects`).
 
+Optimiser statistics (optional, ``solver``; written by ``proxplan plan --method optimized``, null
+otherwise): ``{method, converged, return_status, iterations, solves, solve_time_s,
+constraint_violation, objective}`` (:class:`SolverStats`), IPOPT's own numbers for the solve the
+plan came from (or, after a fall-back to the sampling plan, for the attempt that failed).
+
 Feed-forward (optional per vehicle, written by ``proxplan plan``): ``disturbance_force_N`` and
 ``disturbance_torque_Nm`` (N, 3), the disturbance wrench the model predicts on the vehicle at each
 ``t_s`` (world frame, level vehicle; ``proxplan.verify.wrench_along_plan``). Plans without them (older
@@ -132,6 +137,55 @@ class VehicleTrajectory:
         return self.sample(t_s)[0]
 
 
+@dataclass(frozen=True)
+class SolverStats:
+    """What the trajectory optimiser (CasADi / IPOPT) reported for the solve a plan came from."""
+
+    method: str  # "joint" (one problem of all moving vehicles) or "decomposed" (one vehicle at a time)
+    converged: bool  # IPOPT converged and the result passed the verifier
+    return_status: str  # IPOPT's return status of the last solve (e.g. "Solve_Succeeded")
+    iterations: int  # IPOPT iterations over all solves
+    solves: int  # IPOPT solves (linearisation rounds, passes, decomposed solves)
+    solve_time_s: float  # wall time in IPOPT, s
+    constraint_violation: float  # largest constraint violation of the last solve's NLP (its units: m, -, ...)
+    objective: float  # objective value of the last solve (makespan s + weighted smoothness and exposure)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "method": self.method,
+            "converged": self.converged,
+            "return_status": self.return_status,
+            "iterations": int(self.iterations),
+            "solves": int(self.solves),
+            "solve_time_s": round(float(self.solve_time_s), 4),
+            "constraint_violation": float(self.constraint_violation),
+            "objective": float(self.objective),
+        }
+
+    @staticmethod
+    def from_dict(doc: Any, label: str) -> SolverStats:
+        if not isinstance(doc, dict):
+            raise UserError(f"{label}: solver: expected an object or null")
+        try:
+            return SolverStats(
+                method=str(doc["method"]),
+                converged=bool(doc["converged"]),
+                return_status=str(doc["return_status"]),
+                iterations=int(doc["iterations"]),
+                solves=int(doc["solves"]),
+                solve_time_s=float(doc["solve_time_s"]),
+                constraint_violation=float("nan")
+                if doc["constraint_violation"] is None
+                else float(doc["constraint_violation"]),
+                objective=float("nan") if doc["objective"] is None else float(doc["objective"]),
+            )
+        except (KeyError, TypeError, ValueError) as err:
+            raise UserError(
+                f"{label}: solver: expected {{method, converged, return_status, iterations, solves, solve_time_s, "
+                f"constraint_violation, objective}}, got {err}"
+            ) from None
+
+
 @dataclass
 class Plan:
     """A multi-vehicle plan: every trajectory on one common time grid of step ``dt_s``, s."""
@@ -145,6 +199,7 @@ class Plan:
     scenario_file: str | None = None
     scenario_spec: dict | None = None
     format_version: int = PLAN_FORMAT_VERSION
+    solver: SolverStats | None = None  # the optimiser's statistics (method "optimized"), else None
 
     @property
     def t_s(self) -> np.ndarray:
@@ -225,6 +280,7 @@ def plan_to_dict(plan: Plan) -> dict:
             "notes": list(plan.notes),
             "scenario_file": plan.scenario_file,
             "scenario_spec": plan.scenario_spec,
+            "solver": None if plan.solver is None else plan.solver.to_dict(),
         }
     )
 
@@ -344,6 +400,7 @@ def plan_from_dict(doc: Any, *, label: str = "<plan>") -> Plan:
         scenario_file=doc.get("scenario_file"),
         scenario_spec=spec,
         format_version=version,
+        solver=None if doc.get("solver") is None else SolverStats.from_dict(doc["solver"], label),
     )
 
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from proxplan.planfile import Plan
+from proxplan.planfile import Plan, SolverStats
 from proxplan.planner.ocp import build_and_solve, sample_solution
 from proxplan.planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
 
@@ -42,6 +42,7 @@ class RefineResult:
     message: str
     solve_time_s: float  # IPOPT wall time, s
     iterations: int  # IPOPT iterations
+    stats: SolverStats | None = None  # IPOPT statistics of the solve (stored in plan.json as ``solver``)
 
 
 @dataclass(frozen=True)
@@ -404,7 +405,20 @@ def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, prog
         return not _sample_and_verify(candidate, scenario, initial_plan, options)[1]
 
     solution = build_and_solve(problem, progress=progress, accept=accept if options.stop_when_verified else None)
-    solve_time, iterations, passes = solution.solve_time_s, solution.iterations, 1
+    solve_time, iterations, passes, solves = solution.solve_time_s, solution.iterations, 1, solution.rounds
+
+    def stats(converged: bool) -> SolverStats:
+        return SolverStats(
+            method="joint",
+            converged=converged,
+            return_status=solution.status,
+            iterations=iterations,
+            solves=solves,
+            solve_time_s=solve_time,
+            constraint_violation=solution.constraint_violation,
+            objective=solution.objective,
+        )
+
     small = problem.n_intervals * sum(a.moving for a in problem.agents) <= options.exact_retry_node_vehicles
     t_start = time.perf_counter() - solution.solve_time_s - solution.build_time_s
 
@@ -418,6 +432,7 @@ def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, prog
         solution = build_and_solve(replace(problem, linearize=False), progress=progress)
         solve_time += solution.solve_time_s
         iterations += solution.iterations
+        solves += solution.rounds
     if not solution.success:
         return RefineResult(
             initial_plan,
@@ -426,6 +441,7 @@ def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, prog
             f"{solution.solve_time_s:.2f} s); kept the sampling plan",
             solve_time,
             iterations,
+            stats(False),
         )
     plan, violations, scale = _sample_and_verify(solution, scenario, initial_plan, options)
     if violations and budget_left():
@@ -446,6 +462,7 @@ def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, prog
         second = build_and_solve(retry, progress=progress)
         solve_time += second.solve_time_s
         iterations += second.iterations
+        solves += second.rounds
         if second.success:
             solution, passes = second, 2
             plan, violations, scale = _sample_and_verify(solution, scenario, initial_plan, options)
@@ -456,10 +473,11 @@ def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, prog
             f"optimised plan failed verification ({_describe(violations)}); kept the sampling plan",
             solve_time,
             iterations,
+            stats(False),
         )
     better, why = is_better(plan, initial_plan, scenario)
     if not better:
-        return RefineResult(initial_plan, False, f"{why}; kept the sampling plan", solve_time, iterations)
+        return RefineResult(initial_plan, False, f"{why}; kept the sampling plan", solve_time, iterations, stats(False))
     note = (
         f"optimized: CasADi/IPOPT {solution.status} in {iterations} iterations, "
         f"{solve_time:.2f} s solve ({passes} pass{'es' if passes > 1 else ''}, "
@@ -470,7 +488,8 @@ def _joint(scenario, initial_plan, options: RefineOptions, wrench_provider, prog
     plan.metrics["optimizer_solve_time_s"] = solve_time
     plan.metrics["optimizer_iterations"] = iterations
     plan.metrics["makespan_s"] = plan.makespan_s
-    return RefineResult(plan, True, note, solution.solve_time_s, solution.iterations)
+    plan.solver = stats(True)
+    return RefineResult(plan, True, note, solve_time, iterations, plan.solver)
 
 
 def _decomposed(scenario, initial_plan, options: RefineOptions, wrench_provider, progress) -> RefineResult:
@@ -486,9 +505,24 @@ def _decomposed(scenario, initial_plan, options: RefineOptions, wrench_provider,
         options=ReoptOptions(time_budget_s=options.time_budget_s, weights=options.weights),
         progress=progress,
     )
+    stats = SolverStats(
+        method="decomposed",
+        converged=result.improved,
+        return_status=result.last_status,
+        iterations=result.iterations,
+        solves=result.solves,
+        solve_time_s=result.solve_time_s,
+        constraint_violation=result.max_violation,
+        objective=float("nan"),  # one objective per vehicle solve; no single value
+    )
     if not result.improved:
         return RefineResult(
-            initial_plan, False, result.message + "; kept the sampling plan", result.solve_time_s, result.iterations
+            initial_plan,
+            False,
+            result.message + "; kept the sampling plan",
+            result.solve_time_s,
+            result.iterations,
+            stats,
         )
     plan = result.plan
     plan = replace(plan, method="optimized", notes=list(plan.notes) + [f"optimized: {result.message}"])
@@ -497,4 +531,5 @@ def _decomposed(scenario, initial_plan, options: RefineOptions, wrench_provider,
     plan.metrics["optimizer_solves"] = result.solves
     plan.metrics["sampling_makespan_s"] = moving_end_s(initial_plan)
     plan.metrics["makespan_s"] = moving_end_s(plan)
-    return RefineResult(plan, True, result.message, result.solve_time_s, result.iterations)
+    plan.solver = stats
+    return RefineResult(plan, True, result.message, result.solve_time_s, result.iterations, stats)

@@ -321,6 +321,7 @@ def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress, time_budget_
     if not result.success:
         plan.notes.append(f"optimized: refinement failed ({result.message}); this is the sampling result")
         plan.method = "sampling (optimizer fell back)"
+        plan.solver = result.stats  # what IPOPT reported for the attempt that failed
         return plan
     refined.method = "optimized"
     refined.notes = list(dict.fromkeys(list(plan.notes) + list(refined.notes or [])))  # keep order, once each
@@ -328,6 +329,7 @@ def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress, time_budget_
         refined.metrics.setdefault(key, plan.metrics.get(key))
     refined.metrics["optimizer_solve_time_s"] = result.solve_time_s
     refined.metrics["optimizer_iterations"] = result.iterations
+    refined.solver = result.stats
     refined.scenario_file = plan.scenario_file
     refined.scenario_spec = plan.scenario_spec
     return refined

@@ -72,6 +72,8 @@ class ReoptResult:
     iterations: int
     rounds: int
     solve_time_s: float  # IPOPT wall time summed over vehicles, s
+    last_status: str = "none"  # IPOPT return status of the last solve
+    max_violation: float = float("nan")  # largest final constraint violation over the converged solves
 
 
 def arrival_s(tr: VehicleTrajectory) -> float:
@@ -281,6 +283,8 @@ class _Reoptimizer:
         self.cache: dict[tuple[int, int], object] = {}
         self.solves = self.iterations = 0
         self.solve_time = 0.0
+        self.last_status = "none"
+        self.max_violation = 0.0
 
     def _per_type_pair(self, what: str, source: str, target: str):
         """The wrench function (``what`` = "fn") or table extent ("extent") of a pair, built once
@@ -409,6 +413,9 @@ class _Reoptimizer:
             self.solves += 1
             self.iterations += sol.iterations
             self.solve_time += sol.solve_time_s
+            self.last_status = sol.status
+            if sol.success:
+                self.max_violation = max(self.max_violation, sol.constraint_violation)
             if not sol.success:
                 return False, f"IPOPT {sol.status} at T = {T:.2f} s"
             tr, pf, why = self.candidate(name, sol)
@@ -537,4 +544,6 @@ def reoptimize_plan(
         )
         + (f" [{'; '.join(log)}]" if log else "")
     )
-    return ReoptResult(best, improved, message, ro.solves, ro.iterations, rounds, ro.solve_time)
+    return ReoptResult(
+        best, improved, message, ro.solves, ro.iterations, rounds, ro.solve_time, ro.last_status, ro.max_violation
+    )

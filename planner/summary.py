@@ -27,6 +27,13 @@ def plan_summary(plan: Plan, *, violations: list | None = None) -> str:
             else ""
         ),
     ]
+    if plan.solver is not None:
+        st = plan.solver
+        lines.append(
+            f"  optimiser ({st.method}): IPOPT {st.return_status}, {st.iterations} iterations in {st.solves} solve(s), "
+            f"{st.solve_time_s:.2f} s, constraint violation {st.constraint_violation:.1e}, objective {st.objective:.3f}"
+            + ("" if st.converged else " (not used: fell back to the sampling plan)")
+        )
     usage = m.get("authority_usage_by_vehicle", {})
     length = m.get("path_length_m", {})
     invalid = m.get("invalid_zone_s_by_vehicle", {})

@@ -154,6 +154,7 @@ def _plan(args: argparse.Namespace) -> int:
                     "method": plan.method,
                     "metrics": jsonable(plan.metrics),
                     "notes": plan.notes,
+                    "solver": None if plan.solver is None else plan.solver.to_dict(),
                     "verify": {"passed": not violations, "violations": [v.to_dict() for v in violations]},
                     "stage_times_s": {
                         "plan": plan.metrics.get("planning_time_s"),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import json
 from pathlib import Path
 
 import numpy as np
@@ -140,3 +141,21 @@ def test_stop_when_verified_ends_after_a_verified_round(battery_swap):
     assert verify_plan(quick.plan, scenario) == []
     assert quick.iterations <= full.iterations
     assert moving_end_s(quick.plan) <= moving_end_s(initial)
+
+
+def test_ipopt_statistics_travel_in_plan_json_and_json_output(battery_swap, tmp_path, capsys):
+    from proxplan.cli import main
+    from proxplan.planfile import read_plan
+
+    assert (
+        main(["plan", str(SCENARIOS / "battery_swap.yaml"), "--out", str(tmp_path / "p"), "--json", "--no-plot"]) == 0
+    )
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["method"] == "optimized"
+    stats = doc["solver"]
+    assert stats["converged"] is True and stats["return_status"] in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+    assert stats["iterations"] > 0 and stats["solves"] >= 1 and stats["solve_time_s"] > 0.0
+    assert 0.0 <= stats["constraint_violation"] < 1e-4
+    plan = read_plan(tmp_path / "p")
+    assert plan.solver is not None and plan.solver.to_dict() == stats
+    assert "IPOPT" in (tmp_path / "p" / "summary.txt").read_text()
