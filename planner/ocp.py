@@ -336,6 +336,8 @@ class _Builder:
                 if extent is not None:
                     dz_w = np.maximum(-rel_w[:, 2], 0.0)
                     near &= (r_w <= np.asarray(extent(dz_w)) + pb.extent_margin_m) & (rel_w[:, 2] < pb.extent_margin_m)
+                if (ns, nt) in pb.dock_usage_functions:  # the approach: the model's envelope instead
+                    near &= ~self._is_exempt(ns, nt)
                 ks = np.flatnonzero(near)
                 if ks.size == 0:
                     continue
@@ -380,6 +382,11 @@ class _Builder:
                 totals[nt] = contrib if nt not in totals else totals[nt] + contrib
                 active.setdefault(nt, np.zeros(nq, dtype=bool))[ks] = True
                 col += m
+        approach = self._approach_usage(quad_w)  # target -> (columns, usage envelope (1, m))
+        for nt in approach:
+            if nt not in totals:  # the dock partner is the only source: bound its envelope alone
+                cols, env = approach[nt]
+                opti.subject_to(env <= pb.authority_fraction - 2e-4)
         for nt, total in totals.items():
             a_map, up, down = normalised_motor_map(self.agents[nt].vehicle)
             frac = np.full(nq, pb.authority_fraction * pb.authority_margin)
@@ -395,9 +402,47 @@ class _Builder:
             for key, ex in self.exempt.items():
                 if nt in key:
                     frac[ex] = pb.authority_fraction - 2e-4
+            if nt in approach:  # the dock partner's envelope takes its share of the bound there
+                env_cols, env = approach[nt]
+                env_full = ca.mtimes(
+                    env,
+                    ca.DM.triplet(list(range(len(env_cols))), env_cols, ca.DM.ones(len(env_cols)), len(env_cols), nq),
+                )
+                alone = [k for k in env_cols if not active[nt][k]]
+                if alone:
+                    sel = [env_cols.index(k) for k in alone]
+                    opti.subject_to(env[:, sel] <= pb.authority_fraction - 2e-4)
+                cols = np.flatnonzero(active[nt]).tolist()
+                room = ca.DM(frac[cols]).T - env_full[:, cols]  # (1, m) usage left for the other sources
+                df = total[:, cols]
+                # as vectors: an inequality between two matrices is a matrix (LMI) inequality in Opti
+                opti.subject_to(ca.vec(df) <= ca.vec(ca.mtimes(ca.DM(up), room)))
+                opti.subject_to(ca.vec(-df) <= ca.vec(ca.mtimes(ca.DM(down), room)))
+                continue
             cols = np.flatnonzero(active[nt]).tolist()
             df = total[:, cols]
             opti.subject_to(opti.bounded(-ca.DM(np.outer(down, frac[cols])), df, ca.DM(np.outer(up, frac[cols]))))
+
+    def _approach_usage(self, quad_w) -> dict[str, tuple[list[int], Any]]:
+        """Dock pairs on their final approach (exempt check points): the target's authority usage
+        from its dock partner is the model's envelope ``dock_usage_functions[(source, target)](dz)``
+        (the extrapolated near field inside the invalid zone, as the verifier checks it) instead of
+        the wrench table, which holds its first layer there. Adds the exposure of those points
+        (4 motors x usage^2, the table's measure for a vertical force) and returns, per target,
+        the check-point columns and the envelope values (1, m)."""
+        ca, pb = self.ca, self.pb
+        out: dict[str, tuple[list[int], Any]] = {}
+        for (ns, nt), fn in pb.dock_usage_functions.items():
+            if ns not in self.agents or nt not in self.agents:
+                continue
+            ks = np.flatnonzero(self._is_exempt(ns, nt)).tolist()
+            if not ks:
+                continue
+            dz = self.Q[ns][2, ks] - self.Q[nt][2, ks]  # (1, m) m, target below the source
+            env = fn.map(len(ks))(dz)
+            self.cost += pb.weights.exposure * ca.dot(4.0 * env**2, quad_w[:, ks])
+            out[nt] = (ks, env)
+        return out
 
     # ---------------------------------------------------------------- solve
     def _linearize(self, evaluate) -> float:

@@ -167,6 +167,34 @@ def is_better(plan, initial_plan, scenario) -> tuple[bool, str]:
     )
 
 
+APPROACH_BAND_M = 0.04  # lateral band around the dock axis over which the approach usage is maximised, m
+APPROACH_DZ_SAMPLES = 80  # dz samples of the approach usage envelope
+
+
+def approach_usage_function(source, target, scenario, dz_max_m: float):
+    """casadi Function dz_m -> the largest authority usage of ``target`` (-) at vertical distance
+    dz below ``source`` (0 < dz <= dz_max_m) within ``APPROACH_BAND_M`` of the source's axis: the
+    model evaluated directly (``proxplan.costmaps.pair_wrench``, base model and the scenario's
+    effects; inside the invalid zone, dz < 3 L, its extrapolated near field), as the verifier
+    evaluates a dock pair on its final approach. Piecewise linear in dz (``casadi.pw_lin``, SX)."""
+    import casadi as ca
+
+    from proxplan.costmaps import pair_wrench
+    from proxplan.physics import ModelOptions, authority_usage
+
+    form = getattr(scenario, "field_form", None)
+    options = ModelOptions(field_form=form) if form else ModelOptions()
+    dz = np.linspace(1e-3, dz_max_m, APPROACH_DZ_SAMPLES)
+    radii = np.linspace(0.0, APPROACH_BAND_M, 9)
+    angles = np.linspace(0.0, np.pi / 2, 7)  # X-frame target: symmetric under x -> -x, y -> -y
+    rr, aa, zz = np.meshgrid(radii, angles, dz, indexing="ij")
+    offsets = np.column_stack([(rr * np.cos(aa)).ravel(), (rr * np.sin(aa)).ravel(), -zz.ravel()])
+    force, torque = pair_wrench(source, target, offsets, options, getattr(scenario, "effects", ()))
+    usage = authority_usage(target, force, torque).reshape(rr.shape).max(axis=(0, 1))  # (K,)
+    x = ca.SX.sym("dz_m")
+    return ca.Function("approach_usage", [x], [ca.pw_lin(x, ca.DM(dz), ca.DM(usage))])
+
+
 APPROACH_TOLERANCE_M = 0.01  # the warm start is "on its final approach" this close to the A-D segment, m
 
 
@@ -265,6 +293,20 @@ def build_problem(
             wrench[(ns, nt)] = cache[key]
             if wrench_provider is None and options.prune_by_table_extent:  # table is zero beyond it
                 extents[(ns, nt)] = _table_extent(src.vehicle, tgt.vehicle, scenario)
+    dock_usage = {}
+    for name, task in tasks.items():
+        if task.dock_with is None or task.dock_offset_m is None:
+            continue
+        approach, dock = scenario.dock_geometry(name)
+        partner_end = scenario.final_position_m(task.dock_with)
+        dz_end, dz_start = float(dock[2] - partner_end[2]), float(approach[2] - partner_end[2])
+        if abs(dz_end) < 1e-6 and abs(dz_start) < 1e-6:
+            continue  # a level dock: no downwash between the pair on its approach
+        upper, lower = (name, task.dock_with) if dz_end > 0 else (task.dock_with, name)
+        dz_max = max(abs(dz_end), abs(dz_start)) + APPROACH_BAND_M + 0.1
+        dock_usage[(upper, lower)] = approach_usage_function(
+            tasks[upper].vehicle, tasks[lower].vehicle, scenario, dz_max
+        )
     return OcpProblem(
         agents=tuple(agents),
         n_intervals=n,
@@ -272,6 +314,7 @@ def build_problem(
         max_duration_s=T0 * stretch,
         warm_node_times_s=t_nodes * stretch,
         approach_intervals=n_approach,
+        dock_usage_functions=dock_usage if wrench_provider is None else {},
         **scenario_fields(scenario),
         wrench_functions=wrench,
         interaction_extent=extents,
