@@ -279,34 +279,27 @@ class _Builder:
 
     def _invalid_zone(self, s: str, t: str, exempt: np.ndarray) -> None:
         """Keep target t out of source s's invalid zone, the cylinder 0 < dz <= 3 L_s, r < r_s + r_t
-        (S0 II-A), grown by the chord margin and, wherever either may move, by the tracking tube
-        (as the verifier). Side selection from the warm start, as for box obstacles: at each check
-        point near the zone, the side the warm start is furthest outside of becomes the constraint:
-        below it (dz >= depth), beside it (r^2 >= radius^2) or above the source (dz <= -margin).
-        Exact at the cylinder's rim, where a smooth enclosure (a super-ellipsoid, used before)
-        reaches 2^(1/4) x further and made goals just below the zone's rim unreachable."""
+        (S0 II-A), with one smooth super-ellipsoid constraint (r / A)^4 + ((dz - c) / B)^4 >= 1 that
+        encloses the cylinder grown by the chord margin (A, B = 2^(1/4) x its half sizes)."""
         ca, opti, pb = self.ca, self.opti, self.pb
         src, tgt = self.agents[s], self.agents[t]
         eps = pb.chord_margin_m
+        # the tracking tube grows the zone (dz <= 3 L + tube, radii + tube) wherever either may move, as verify does
         tube = pb.tube_m * (self._may_move(src) | self._may_move(tgt))  # (2n+1,) m
-        depth = VALIDITY_FACTOR_L * src.vehicle.size_m + tube + eps  # (2n+1,) m
-        radius = src.body_radius_m + tgt.body_radius_m + tube + eps  # (2n+1,) m
+        depth = VALIDITY_FACTOR_L * src.vehicle.size_m + tube
+        half_h, centre = 0.5 * depth + eps, 0.5 * depth
+        k = 2.0**0.25
+        a_m, b_m = k * (src.body_radius_m + tgt.body_radius_m + eps + tube), k * half_h
         rel_w = self.Qw[t] - self.Qw[s]
         dz_w, r_w = -rel_w[:, 2], np.hypot(rel_w[:, 0], rel_w[:, 1])
-        near = ~exempt & (r_w < radius + 0.6) & (dz_w > -eps - 0.6) & (dz_w < depth + 0.6)
-        side = np.argmax(np.column_stack([dz_w - depth, r_w - radius, -dz_w - eps]), axis=1)
-        rel = None
-        for f in range(3):
-            ks = np.flatnonzero(near & (side == f)).tolist()
-            if not ks:
-                continue
-            rel = self.Q[t][:, ks] - self.Q[s][:, ks]
-            if f == 0:  # below the zone
-                opti.subject_to(-rel[2, :] >= ca.DM(depth[ks]).T)
-            elif f == 1:  # beside it
-                opti.subject_to(ca.sum1(rel[0:2, :] ** 2) >= ca.DM(radius[ks] ** 2).T)
-            else:  # above the source (no downwash on t)
-                opti.subject_to(rel[2, :] >= eps)
+        near = ~exempt & (r_w < a_m + 0.6) & (np.abs(dz_w - centre) < b_m + 0.6)
+        ks = np.flatnonzero(near).tolist()
+        if not ks:
+            return
+        rel = self.Q[t][:, ks] - self.Q[s][:, ks]
+        r_sq = ca.sum1(rel[0:2, :] ** 2) / ca.DM(a_m[ks] ** 2).T
+        dz = (-rel[2, :] - ca.DM(centre[ks]).T) / ca.DM(b_m[ks]).T
+        opti.subject_to((r_sq**2 + dz**4) ** 0.25 >= 1.0)  # degree-1 form: well scaled far away
 
     # ---------------------------------------------------------------- authority
     def add_authority(self) -> None:
