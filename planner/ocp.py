@@ -120,8 +120,8 @@ class _Builder:
             opti.subject_to(opti.bounded(0.1 * pb.warm_duration_s, self.T, pb.max_duration_s))
             bounds = [0, self.n_free, n] if len(self.phase_T) == 2 else [0, n]
             shrink = min(1.0, pb.max_duration_s / pb.warm_duration_s)
-            for T_k, lo, hi in zip(self.phase_T, bounds[:-1], bounds[1:]):
-                warm_k = float(self.warm_t[hi] - self.warm_t[lo])
+            for T_k, k_lo, k_hi in zip(self.phase_T, bounds[:-1], bounds[1:]):
+                warm_k = float(self.warm_t[k_hi] - self.warm_t[k_lo])
                 opti.subject_to(T_k >= 0.05 * warm_k)
                 opti.set_initial(T_k, shrink * warm_k)
         for a in pb.agents:
@@ -543,9 +543,11 @@ class _Builder:
                 out_v[a.name] = np.zeros((n + 1, 3))
                 out_a[a.name] = np.zeros((n + 1, 3))
                 out_j[a.name] = np.zeros((n, 3))
-        h_row = (
-            np.asarray(value(self.h_row), float).reshape(-1) if self.phase_T else np.full(n, pb.fixed_duration_s / n)
-        )
+        if self.phase_T:
+            h_row = np.asarray(value(self.h_row), float).reshape(-1)
+        else:
+            assert pb.fixed_duration_s is not None
+            h_row = np.full(n, pb.fixed_duration_s / n)
         try:  # largest violation of the (linearised) NLP's constraints at the returned point
             g = np.asarray(value(self.opti.g), float).reshape(-1)
             lbg = np.asarray(value(self.opti.lbg), float).reshape(-1)
