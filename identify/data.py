@@ -196,8 +196,9 @@ def load_units(
             else:
                 why = "its logs hold no PWM/Vbat columns" if not log.has_pwm else "no thrust map for its type"
                 if log.has_pwm and tmap is not None:
-                    why = (f"its u[N] follows no static map of PWM*Vbat (R2 {tmap.r2:.2f}, "
-                           f"{'rising' if tmap.monotonic else 'not rising'}): it is not the desired force")  # fmt: skip
+                    why = (f"its u[N] follows no static map of PWM*Vbat (R2 {tmap.r2:.2f} on "
+                           f"{tmap.inlier_fraction:.0%} inliers, {'rising' if tmap.monotonic else 'not rising'}): "
+                           "it is not the desired force")  # fmt: skip
                 note = (f"{v.type}: motor thrust = the logged u[N] ({why}); saturated motors are not "
                         "detected, the measured disturbance is wrong where a motor saturates")  # fmt: skip
                 if note not in notes:
