@@ -135,6 +135,17 @@ class LoadedData:
     notes: list[str]  # said once each (e.g. a fallback to the commanded u[N])
 
 
+def measure_options_for(options: MeasureOptions, vehicle: Vehicle, motor_thrust: str) -> MeasureOptions:
+    """The measurement options of one vehicle: a log of COMMANDED motor thrust (``motor_thrust``, the
+    manifest's key) reaches the air through the motors' first-order lag, so (S0-11, S0-14) use the lagged
+    command (:func:`proxplan.identify.measure.motor_lag_compensated_N`) with the vehicle's own
+    ``motor_time_constant_s`` (or the explicit ``options.motor_time_constant_s``); a log of DELIVERED
+    thrust, or ``options.motor_lag`` False, is used as it is."""
+    if motor_thrust != "commanded" or not options.motor_lag:
+        return replace(options, motor_time_constant_s=None)
+    return replace(options, motor_time_constant_s=options.motor_time_constant_s or vehicle.motor_time_constant_s)
+
+
 def _motor_samples(log: VehicleLog) -> MotorSamples:
     assert log.motor_pwm is not None and log.vbat_V is not None
     return MotorSamples(commanded_N=log.motor_thrust_N, pwm=log.motor_pwm, vbat_V=log.vbat_V)
@@ -206,7 +217,8 @@ def load_units(
             exclusions[entry.name][v.name] = flight.exclusions[v.name].to_dict() | {
                 "kept_samples": len(log), "saturated_samples": n_sat, "thrust_source": source,
                 "scored": v.score}  # fmt: skip
-            meas = measure_log(flight.vehicles[v.name], log, options=options.measure)
+            veh = flight.vehicles[v.name]
+            meas = measure_log(veh, log, options=measure_options_for(options.measure, veh, manifest.motor_thrust))
             z_b = Rotation.from_quat(log.quat_xyzw).apply(np.array([0.0, 0.0, 1.0]))
             others = [o for o in entry.vehicles if o.name != v.name]
             units.append(
