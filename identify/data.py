@@ -44,6 +44,9 @@ class IdentifyOptions:
     max_effects: int = 3  # at most this many effects are kept
     progress: bool = False  # tqdm bars on stderr
     discover: bool = True  # search terms no library effect names (proxplan.identify.discovery)
+    stack_shielding: float = (
+        1.0  # eta the calibration starts from (proxplan.physics.stack), -; then chosen on validation
+    )
 
 
 @dataclass(frozen=True)

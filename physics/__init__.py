@@ -48,6 +48,7 @@ from proxplan.physics.model_file import (
     write_model_file,
 )
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
+from proxplan.physics.stack import intercepted_flux_fraction, shielding_factors
 from proxplan.physics.vehicle_yaml import (
     load_vehicle_file,
     resolve_vehicle,
@@ -66,6 +67,8 @@ from proxplan.physics.vehicles import (
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
+    "intercepted_flux_fraction",
+    "shielding_factors",
     "AIR_DENSITY_KGPM3",
     "BUILTIN_VEHICLES",
     "CHANNELS",
