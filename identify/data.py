@@ -67,10 +67,13 @@ class Unit:
     torque_Nm: np.ndarray  # (N, 3) measured, world
     thrust: Any = None  # proxplan.identify.thrust_rls.ThrustSamples of the full unit (None after take)
     scored: bool = True  # False: manifest 'score: false' (a downwash source only, never scored or fitted)
+    position_m: np.ndarray | None = None  # (N, 3) own position, world frame (the log's), m
+    planes: tuple = ()  # proxplan.physics.room.Plane of the manifest (place-in-room features)
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
             self,
+            position_m=None if self.position_m is None else self.position_m[idx],
             t_s=self.t_s[idx],
             velocity_mps=self.velocity_mps[idx],
             height_above_ground_m=self.height_above_ground_m[idx],
@@ -104,6 +107,8 @@ def unit_inputs(unit: Unit, model: Model) -> EffectInputs:
         options=model.options,
         time_s=unit.t_s,
         thrust_z_N=unit.thrust_z_N,
+        position_m=unit.position_m,
+        planes=unit.planes,
     )
 
 
@@ -246,6 +251,8 @@ def load_units(
                     if thrust_coefficient_samples
                     else None,
                     scored=v.score,
+                    position_m=log.position_m,
+                    planes=manifest.planes,
                 )
             )
     return LoadedData(units=units, exclusions=exclusions, types=types, thrust_maps=dict(thrust_maps), notes=notes)
@@ -295,6 +302,8 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             thrust_z_N=cat("thrust_z_N"), source_types=stypes,
             source_offsets_m=tuple(np.concatenate([u.source_offsets_m[k] for u in us]) for k in range(len(stypes))),
             force_N=cat("force_N"), torque_Nm=cat("torque_Nm"),
+            position_m=None if any(u.position_m is None for u in us) else cat("position_m"),
+            planes=us[0].planes if all(u.planes == us[0].planes for u in us) else (),
         ))  # fmt: skip
     return out
 

@@ -335,6 +335,7 @@ class Manifest:
     vehicles_file: Path | None = None  # optional custom vehicle types (proxplan.physics.vehicle_yaml)
     quality: QualityOptions = QualityOptions()
     motor_thrust: str = "commanded"  # what the logs' per-motor thrust is: one of MOTOR_THRUSTS
+    planes: tuple = ()  # proxplan.physics.room.Plane: walls / ceiling of the room (key ``planes``)
 
 
 MOTOR_THRUSTS = ("commanded", "delivered")
@@ -365,7 +366,8 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
 
     ``root`` is resolved relative to the directory of the manifest file (absolute paths are kept);
     each ``log`` is resolved relative to ``root``. Optional keys: ``motor_thrust`` (commanded or
-    delivered, :data:`MOTOR_THRUSTS`; default by format), per-flight ``set`` (default
+    delivered, :data:`MOTOR_THRUSTS`; default by format), ``planes`` (walls / ceiling,
+    ``[{name, point_m, normal}]``, :func:`proxplan.physics.room.planes_from_list`), per-flight ``set`` (default
     :func:`set_of_flight`), ``vehicles_file`` (relative to the
     manifest), per-vehicle ``ground_z_m`` (default 0), ``quality: {max_gap_s, min_segment_s,
     ground_clearance_m, min_thrust_fraction, min_overlap_s}``.
@@ -431,8 +433,11 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
     motor_thrust = doc.get("motor_thrust", DEFAULT_MOTOR_THRUST.get(fmt, "commanded"))
     if motor_thrust not in MOTOR_THRUSTS:
         raise UserError(f"{where}: motor_thrust: expected one of {', '.join(MOTOR_THRUSTS)}, got {motor_thrust!r}")
+    from proxplan.physics import planes_from_list
+
+    planes = planes_from_list(doc.get("planes"), f"{where}: planes")
     return Manifest(path=path, format=fmt, root=root, flights=tuple(flights), vehicles_file=vfile, quality=quality,
-                    motor_thrust=motor_thrust)  # fmt: skip
+                    motor_thrust=motor_thrust, planes=planes)  # fmt: skip
 
 
 @dataclass(frozen=True)

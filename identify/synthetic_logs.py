@@ -51,6 +51,7 @@ def synthetic_logs(
     motor_noise_N: float = 0.0,
     motor: SyntheticMotor | None = None,
     motor_time_constant_s: float | None = None,
+    planes: tuple = (),
 ) -> dict[str, VehicleLog]:
     """Logs with a known truth: every vehicle follows ``positions_m[name]`` (N, 3), m, level, and
     receives the wrench of :func:`proxplan.physics.effects.total_wrench` (base model from all other vehicles
@@ -68,7 +69,8 @@ def synthetic_logs(
 
     ``hidden_wrench(inputs)`` (optional) adds a wrench no library effect names (force (N, 3) N,
     torque (N, 3) N m, world) from the :class:`proxplan.physics.effects.EffectInputs` of each vehicle (with
-    ``time_s``, the sources' velocities and the target's thrust filled in): a truth for the tests
+    ``time_s``, the sources' velocities, the target's thrust and position and the room's ``planes``
+    filled in): a truth for the tests
     of :mod:`proxplan.identify.discovery`. ``motor_noise_N`` adds white noise to each logged motor thrust
     (N), which reaches the measured force and torque.
 
@@ -95,6 +97,8 @@ def synthetic_logs(
             ),
             time_s=np.asarray(t_s, dtype=float),
             thrust_z_N=veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]),
+            position_m=pos,
+            planes=tuple(planes),
         )
         force, torque = total_wrench(inputs, tuple(effects))
         if hidden_wrench is not None:
@@ -141,11 +145,13 @@ def write_synthetic_manifest(
     vehicle_type: str,
     *,
     motor_thrust: str = "delivered",
+    planes: Sequence[Mapping[str, Any]] = (),
 ) -> Path:
     """Write every flight ``(name, split, {vehicle: log})`` as canonical gzip CSVs under ``root``
     (``<flight>_<vehicle>.csv.gz``) and a canonical manifest ``root/manifest.yaml`` naming them,
     every vehicle of type ``vehicle_type``, whose motor thrust columns hold ``motor_thrust``
-    (commanded or delivered); returns the manifest path."""
+    (commanded or delivered), declaring the room's ``planes`` ({name, point_m, normal}); returns the
+    manifest path."""
     import yaml
 
     from proxplan.identify.flightlog import write_canonical_csv
@@ -158,6 +164,8 @@ def write_synthetic_manifest(
             entry["vehicles"][vehicle] = {"type": vehicle_type, "log": f"{name}_{vehicle}.csv.gz"}
         entries.append(entry)
     path = root / "manifest.yaml"
-    doc = {"format": "canonical", "root": ".", "motor_thrust": motor_thrust, "flights": entries}
+    doc: dict[str, Any] = {"format": "canonical", "root": ".", "motor_thrust": motor_thrust, "flights": entries}
+    if planes:
+        doc["planes"] = [dict(p) for p in planes]
     path.write_text(yaml.safe_dump(doc))
     return path

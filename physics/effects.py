@@ -31,6 +31,7 @@ from proxplan.physics.disturbance import (
     vertical_point_wrench,
 )
 from proxplan.physics.features import CHANNELS, FEATURE_NAMES, feature_matrix, parse_term_key
+from proxplan.physics.room import Plane
 from proxplan.physics.stack import shielding_factors
 from proxplan.physics.vehicles import Vehicle
 
@@ -98,6 +99,8 @@ class EffectInputs:
     options: ModelOptions = DEFAULT_OPTIONS
     time_s: np.ndarray | None = None  # (N,) sample times, s (None: independent steady states)
     thrust_z_N: np.ndarray | None = None  # (N,) own collective thrust along world z, N (None: unknown)
+    position_m: np.ndarray | None = None  # (N, 3) the target's position, world frame, m (None: unknown)
+    planes: tuple[Plane, ...] = ()  # planes of the room (proxplan.physics.room), for place features
 
     @property
     def n_samples(self) -> int:
@@ -201,6 +204,12 @@ def _sum_base(inputs: EffectInputs, cache: _BaseCache) -> tuple[np.ndarray, np.n
         force += f
         torque += t
     return force, torque
+
+
+def base_wrench_per_source(inputs: EffectInputs) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per source, the base wrench (force (N, 3) N, torque (N, 3) N m) as :func:`base_wrench` sums it
+    (S0-3..S0-8 with the stack shielding of :mod:`proxplan.physics.stack`)."""
+    return _BaseCache(inputs).per_source()
 
 
 def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
