@@ -268,9 +268,9 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
     pos = getattr(inputs, "position_m", None)
     if pos is not None:
         pos = np.asarray(pos, dtype=float).reshape(-1, 3)
-        for k, axis in enumerate("xyz"):
-            f[f"pos_{axis}_m"] = pos[:, k].copy()
-            f[f"pos_{axis}_sq_m2"] = pos[:, k] ** 2
+        for col, axis in enumerate("xyz"):
+            f[f"pos_{axis}_m"] = pos[:, col].copy()
+            f[f"pos_{axis}_sq_m2"] = pos[:, col] ** 2
         d = np.maximum(plane_distances_m(getattr(inputs, "planes", ()), pos), MIN_HEIGHT_FACTOR * r_rot)
         f["plane_exp_1"] = np.exp(-d / target.size_m).sum(axis=1)
         f["plane_cb_1"] = ((r_rot / (4.0 * d)) ** 2).sum(axis=1)

@@ -51,7 +51,9 @@ def planes_from_list(raw: Any, where: str) -> tuple[Plane, ...]:
         norm = float(np.linalg.norm(normal))
         if not np.all(np.isfinite(point)) or not np.isfinite(norm) or norm < 1e-9:
             raise UserError(f"{w}: point_m must be finite and normal a non-zero vector")
-        out.append(Plane(name, tuple(point.tolist()), tuple((normal / norm).tolist())))  # type: ignore[arg-type]
+        px, py, pz = (float(v) for v in point)
+        nx, ny, nz = (float(v) / norm for v in normal)
+        out.append(Plane(name, (px, py, pz), (nx, ny, nz)))
     return tuple(out)
 
 
