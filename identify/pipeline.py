@@ -278,8 +278,13 @@ def run_identify(
     stack_choice = None
     if options.calibrate:
         model, calibration = calibrate_model(fit, base, options=options)
-        # then the stack's eta (proxplan.physics.stack) on the validation flights' stacks
+        # then the stack's eta (proxplan.physics.stack) on the validation flights' stacks; with a
+        # shielding stack the one-source parameters are refitted under it (the per-pair sum had bent
+        # them to absorb the stacks), and eta is chosen again
         model, stack_choice = choose_stack_shielding(model, valid)
+        if model.options.stack_shielding > 0.0:
+            model, calibration = calibrate_model(fit, model, options=options)
+            model, stack_choice = choose_stack_shielding(model, valid)
     calibrated = full_errors(model)
     corr_before = _residual_analysis(subsample(fit, 20000), model)
     starts = [model, base] if options.calibrate else [base]

@@ -17,8 +17,8 @@ import numpy as np
 from proxplan.identify.data import Model, Unit, predict
 from proxplan.physics import VALIDITY_FACTOR_L
 
-ETA_GRID = (0.0, 0.25, 0.5, 0.75, 1.0)
-"""Candidate values of eta, -."""
+ETA_GRID = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
+"""Candidate values of eta (up to proxplan.physics.stack.MAX_STACK_SHIELDING), -."""
 MIN_STACK_SAMPLES = 200
 """Fewer validation samples with a stack than this: eta stays at the model's value."""
 

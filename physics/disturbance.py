@@ -56,8 +56,10 @@ class ModelOptions:
     def __post_init__(self) -> None:
         if self.field_form not in FIELD_FORMS:
             raise ValueError(f"field_form must be one of {FIELD_FORMS}, got {self.field_form!r}")
-        if not 0.0 <= self.stack_shielding <= 1.0:
-            raise ValueError(f"stack_shielding must lie in [0, 1], got {self.stack_shielding!r}")
+        from proxplan.physics.stack import MAX_STACK_SHIELDING
+
+        if not 0.0 <= self.stack_shielding <= MAX_STACK_SHIELDING:
+            raise ValueError(f"stack_shielding must lie in [0, {MAX_STACK_SHIELDING:g}], got {self.stack_shielding!r}")
 
 
 DEFAULT_OPTIONS = ModelOptions()

@@ -36,6 +36,7 @@ from typing import Any
 from proxplan.fileio import UserError, atomic_write_text, read_yaml
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.disturbance import DEFAULT_OPTIONS, ModelOptions
+from proxplan.physics.stack import MAX_STACK_SHIELDING
 from proxplan.physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
 from proxplan.physics.features import between_vehicle_part, parse_term_key
 from proxplan.physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
@@ -189,9 +190,9 @@ def options_from_mapping(model: Mapping, where: str) -> ModelOptions:
                 raise UserError(f"{where}.{key}: expected a positive number, got {model[key]!r}")
     if "stack_shielding" in model:
         values["stack_shielding"] = _finite(model["stack_shielding"], f"{where}.stack_shielding")
-        if not 0.0 <= values["stack_shielding"] <= 1.0:
+        if not 0.0 <= values["stack_shielding"] <= MAX_STACK_SHIELDING:
             raise UserError(
-                f"{where}.stack_shielding: expected a number in [0, 1] (-), got {model['stack_shielding']!r}"
+                f"{where}.stack_shielding: expected a number in [0, {MAX_STACK_SHIELDING:g}] (-), got {model['stack_shielding']!r}"
             )
     return ModelOptions(**values)
 

@@ -22,9 +22,11 @@ multiplied by the share of its flux that is not ingested by any source between U
 
     s_U = prod_{M between U and B} (1 - eta * phi_UM),
 
-with ``eta`` (``ModelOptions.stack_shielding``, -) the fraction of the intercepted flux that does
-not reach the target: 1 = every intercepted stream tube is replaced by M's own jet (the default, by
-the argument above), 0 = no shielding (the per-pair sum, S0's superposition of wrenches). ``eta`` is
+clipped at 0, with ``eta`` (``ModelOptions.stack_shielding``, -, in [0, :data:`MAX_STACK_SHIELDING`])
+the flux taken out of U's jet per unit of flux M intercepts: 1 = every intercepted stream tube is
+replaced by M's own jet (the default, by the argument above), 0 = no shielding (the per-pair sum,
+S0's superposition of wrenches), above 1 = M's wake also deflects or entrains the part of U's jet
+around its footprint (the footprint acts larger than the vehicle). ``eta`` is
 calibrated on flight logs by ``proxplan identify``. With one source above the target every factor is
 1 and the model is S0's exactly; factors never exceed 1, so the per-pair sum is an upper bound of the
 stack's disturbance (the planner's per-pair bounds stay conservative).
@@ -45,6 +47,8 @@ from proxplan.physics.vehicles import Vehicle
 from proxplan.physics.velocity_field import axial_distance_m
 
 _MIN_DZ_M = 1e-6
+MAX_STACK_SHIELDING = 3.0
+"""Largest eta accepted, -: M's footprint acting at most three times its area."""
 DEFAULT_DISCRETISATION = Discretisation()
 
 
@@ -93,7 +97,7 @@ def shielding_factors(
     Args:
         target_offsets_m: per source, (N, 3) p_target - p_source, world frame, m.
         sources: the source vehicles, same order.
-        eta: shielding efficiency in [0, 1], -.
+        eta: shielding efficiency in [0, MAX_STACK_SHIELDING], -.
     Returns:
         One (N,) array per source, each in [0, 1]; all ones when ``eta`` is 0 or fewer than two
         sources are above the target.
@@ -114,5 +118,5 @@ def shielding_factors(
             rows = above[j] & above[k] & (-mid[:, 2] > _MIN_DZ_M)
             if rows.any():
                 phi = intercepted_flux_fraction(sources[j], sources[k], mid[rows], disc)
-                factors[j][rows] *= 1.0 - eta * phi
+                factors[j][rows] *= np.maximum(1.0 - eta * phi, 0.0)
     return factors

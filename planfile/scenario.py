@@ -9,7 +9,7 @@ Frame: world, z up, metres. A scenario file::
                                                 # its vehicles override same-named types, its effects
                                                 # between vehicles are applied (proxplan.physics.model_file)
     model: {field_form: inverse-z,              # optional disturbance-model options (override model_file's;
-            stack_shielding: 1.0,               #   stack_shielding: eta of proxplan.physics.stack, 0..1)
+            stack_shielding: 1.0,               #   stack_shielding: eta of proxplan.physics.stack, 0..3)
             effects: [{name: near_field, params: {amplitude: 0.5}}]}   # added to model_file's
     workspace: {min: [-3, -3, 0], max: [3, 3, 4]}
     obstacles: [{min: [1, -0.5, 0], max: [1.5, 0.5, 2]}]          # optional axis-aligned boxes
@@ -543,8 +543,12 @@ def scenario_from_dict(
         _unknown(section, ("field_form", "stack_shielding", "effects"), f"{label}: model")
         if "stack_shielding" in section:
             eta = section["stack_shielding"]
-            if isinstance(eta, bool) or not isinstance(eta, (int, float)) or not 0.0 <= float(eta) <= 1.0:
-                raise UserError(f"{label}: model.stack_shielding: expected a number in [0, 1] (-), got {eta!r}")
+            from proxplan.physics import MAX_STACK_SHIELDING
+
+            if isinstance(eta, bool) or not isinstance(eta, (int, float)) or not 0.0 <= eta <= MAX_STACK_SHIELDING:
+                raise UserError(
+                    f"{label}: model.stack_shielding: expected a number in [0, {MAX_STACK_SHIELDING:g}] (-), got {eta!r}"
+                )
             stack_shielding = float(eta)
         from proxplan.physics import FIELD_FORMS, between_vehicle_effects, effects_from_list
 

@@ -97,4 +97,4 @@ def test_one_source_overhead_is_s0_exactly() -> None:
 
 def test_shielding_parameter_is_checked() -> None:
     with pytest.raises(ValueError, match="stack_shielding"):
-        ModelOptions(stack_shielding=1.5)
+        ModelOptions(stack_shielding=3.5)
