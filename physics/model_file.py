@@ -36,9 +36,9 @@ from typing import Any
 from proxplan.fileio import UserError, atomic_write_text, read_yaml
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.disturbance import DEFAULT_OPTIONS, ModelOptions
-from proxplan.physics.stack import MAX_STACK_SHIELDING
 from proxplan.physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
 from proxplan.physics.features import between_vehicle_part, parse_term_key
+from proxplan.physics.stack import MAX_STACK_SHIELDING
 from proxplan.physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
 from proxplan.physics.vehicles import Vehicle
 from proxplan.physics.velocity_field import FIELD_FORMS

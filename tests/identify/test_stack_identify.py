@@ -7,7 +7,6 @@ itself leaves (measurement noise)."""
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
