@@ -18,6 +18,7 @@ from proxplan.identify.measure import MeasureOptions, measure_log
 from proxplan.identify.thrust_map import MotorSamples, ThrustMap, delivered_thrust_N, fit_thrust_maps, saturated_samples
 from proxplan.physics import (
     EFFECT_NAMES,
+    VALIDITY_FACTOR_L,
     Effect,
     EffectInputs,
     ModelOptions,
@@ -306,6 +307,21 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             planes=us[0].planes if all(u.planes == us[0].planes for u in us) else (),
         ))  # fmt: skip
     return out
+
+
+def sources_overhead(u: Unit, vehicles: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample of ``u``: the number of sources above within r < 3 L (N,) int, and whether one of
+    them is closer than dz < 3 L (N,) bool."""
+    n = len(u)
+    above = np.zeros(n, dtype=int)
+    near = np.zeros(n, dtype=bool)
+    for t, off in zip(u.source_types, u.source_offsets_m):
+        L = vehicles[t].size_m
+        dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
+        here = (dz > 0.0) & (r < 3.0 * L)
+        above += here
+        near |= here & (dz < VALIDITY_FACTOR_L * L)
+    return above, near
 
 
 def subsample(units: Sequence[Unit], max_samples: int) -> list[Unit]:

@@ -29,11 +29,19 @@ from typing import Any
 import numpy as np
 
 from proxplan.fileio import UserError
-from proxplan.identify.data import IdentifyOptions, Model, Unit, load_units, measurement_summary, predict
+from proxplan.identify.data import (
+    IdentifyOptions,
+    Model,
+    Unit,
+    load_units,
+    measurement_summary,
+    predict,
+    sources_overhead,
+)
 from proxplan.identify.flightlog import Manifest, load_manifest
 from proxplan.identify.measure import DERIVATIVES, MeasureOptions
 from proxplan.identify.thrust_map import ThrustMap
-from proxplan.physics import VALIDITY_FACTOR_L, CalibratedModel
+from proxplan.physics import CalibratedModel
 
 SPLITS = ("test", "train", "all")
 REGIONS = ("free", "below_source", "below_within_3L", "below_beyond_3L", "stack")
@@ -106,21 +114,6 @@ def saved_model(model: Model, measure: MeasureOptions, thrust_maps: Mapping[str,
 
 OVERHEAD_COUNTS = ("0", "1", "2+")
 """Labels of the per-sources-overhead report."""
-
-
-def sources_overhead(u: Unit, vehicles: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample of ``u``: the number of sources above within r < 3 L (N,) int, and whether one of
-    them is closer than dz < 3 L (N,) bool."""
-    n = len(u)
-    above = np.zeros(n, dtype=int)
-    near = np.zeros(n, dtype=bool)
-    for t, off in zip(u.source_types, u.source_offsets_m):
-        L = vehicles[t].size_m
-        dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
-        here = (dz > 0.0) & (r < 3.0 * L)
-        above += here
-        near |= here & (dz < VALIDITY_FACTOR_L * L)
-    return above, near
 
 
 def overhead_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:

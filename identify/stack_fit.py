@@ -14,8 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from proxplan.identify.data import Model, Unit, predict
-from proxplan.physics import VALIDITY_FACTOR_L
+from proxplan.identify.data import Model, Unit, predict, sources_overhead
 
 ETA_GRID = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
 """Candidate values of eta (up to proxplan.physics.stack.MAX_STACK_SHIELDING), -."""
@@ -37,12 +36,9 @@ class StackChoice:
 
 
 def stacked_samples(unit: Unit, model: Model) -> np.ndarray:
-    """(N,) bool: two or more sources above ``unit``'s vehicle within r < 3 L of their size."""
-    above = np.zeros(len(unit), dtype=int)
-    for t, off in zip(unit.source_types, unit.source_offsets_m):
-        size = model.vehicles[t].size_m
-        above += (-off[:, 2] > 0.0) & (np.hypot(off[:, 0], off[:, 1]) < VALIDITY_FACTOR_L * size)
-    return above >= 2
+    """(N,) bool: two or more sources above ``unit``'s vehicle within r < 3 L of their size
+    (:func:`proxplan.identify.data.sources_overhead`)."""
+    return sources_overhead(unit, model.vehicles)[0] >= 2
 
 
 def choose_stack_shielding(
