@@ -78,8 +78,12 @@ def vehicle_parameters(vehicle: Vehicle) -> dict:
 
 
 def options_dict(options: ModelOptions) -> dict:
-    """Model options (field form, C_D, air density, discretisation) as a plain dict."""
-    return dataclasses.asdict(options)
+    """Model options a pair map depends on (field form, C_D, air density, discretisation) as a plain
+    dict. ``stack_shielding`` is left out: it acts only with two or more sources above a target
+    (:mod:`proxplan.physics.stack`), never on one source-target pair."""
+    out = dataclasses.asdict(options)
+    out.pop("stack_shielding", None)
+    return out
 
 
 def effects_list(effects: Sequence[Effect]) -> list[dict]:

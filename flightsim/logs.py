@@ -185,6 +185,7 @@ def write_flight_logs(
         doc = {"format": "neural-swarm", "root": ".", "flights": []}
     if vehicles_file is not None:
         doc["vehicles_file"] = vehicles_file
+    doc["motor_thrust"] = "commanded" if logged_thrust == "commanded" else "delivered"  # the u[N] column
     flights = [f for f in doc.get("flights", []) if f.get("name") != flight_name]
     flights.append({"name": flight_name, "split": split, "vehicles": entry_vehicles})
     # the truth applied stays out of the manifest (effects are undeclared to identification)

@@ -476,7 +476,9 @@ def _wrench_for(
     target's velocity (K, 3): :func:`proxplan.physics.effects.total_wrench` with every other vehicle as a
     source. For speed, sources of the same vehicle type are stacked into one model call, and a
     source never above the target over the K samples is skipped (its downwash, and every
-    per-source effect, is exactly zero there); target-only effects are evaluated once."""
+    per-source effect, is exactly zero there); target-only effects are evaluated once. Where two or
+    more sources are above the target at once (a stack shields, :mod:`proxplan.physics.stack`), those
+    sources are evaluated together in one call, never stacked."""
     i = target_index
     k = positions_m.shape[0]
     target = vehs[i]
@@ -484,20 +486,32 @@ def _wrench_for(
     per_source = tuple(e for e in effects if e.name not in TARGET_ONLY_EFFECTS)
     target_only = tuple(e for e in effects if e.name in TARGET_ONLY_EFFECTS)
     groups: list[tuple[Vehicle, list[np.ndarray]]] = []
+    above: list[tuple[Vehicle, np.ndarray]] = []
     for j, src in enumerate(vehs):
         if j == i:
             continue
         offsets = positions_m[:, i] - positions_m[:, j]
         if np.all(offsets[:, 2] >= 0.0):
             continue
+        above.append((src, offsets))
+    n_above = sum((off[:, 2] < 0.0).astype(int) for _, off in above)
+    if np.any(n_above >= 2):  # a stack at some sample: every source above in one call
+        inputs = EffectInputs(
+            target=target, height_above_ground_m=height, velocity_mps=velocity_mps,
+            sources=tuple(SourceSample(v, o) for v, o in above), options=model_options,
+        )  # fmt: skip
+        force, torque = total_wrench(inputs, per_source)
+        above = []
+    else:
+        force = np.zeros((k, 3))
+        torque = np.zeros((k, 3))
+    for src, offsets in above:
         for veh, offs in groups:
             if veh == src:
                 offs.append(offsets)
                 break
         else:
             groups.append((src, [offsets]))
-    force = np.zeros((k, 3))
-    torque = np.zeros((k, 3))
     for src, offs in groups:
         n = len(offs)
         inputs = EffectInputs(

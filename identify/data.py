@@ -18,6 +18,7 @@ from proxplan.identify.measure import MeasureOptions, measure_log
 from proxplan.identify.thrust_map import MotorSamples, ThrustMap, delivered_thrust_N, fit_thrust_maps, saturated_samples
 from proxplan.physics import (
     EFFECT_NAMES,
+    VALIDITY_FACTOR_L,
     Effect,
     EffectInputs,
     ModelOptions,
@@ -44,6 +45,9 @@ class IdentifyOptions:
     max_effects: int = 3  # at most this many effects are kept
     progress: bool = False  # tqdm bars on stderr
     discover: bool = True  # search terms no library effect names (proxplan.identify.discovery)
+    stack_shielding: float = (
+        1.0  # eta the calibration starts from (proxplan.physics.stack), -; then chosen on validation
+    )
 
 
 @dataclass(frozen=True)
@@ -64,10 +68,13 @@ class Unit:
     torque_Nm: np.ndarray  # (N, 3) measured, world
     thrust: Any = None  # proxplan.identify.thrust_rls.ThrustSamples of the full unit (None after take)
     scored: bool = True  # False: manifest 'score: false' (a downwash source only, never scored or fitted)
+    position_m: np.ndarray | None = None  # (N, 3) own position, world frame (the log's), m
+    planes: tuple = ()  # proxplan.physics.room.Plane of the manifest (place-in-room features)
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
             self,
+            position_m=None if self.position_m is None else self.position_m[idx],
             t_s=self.t_s[idx],
             velocity_mps=self.velocity_mps[idx],
             height_above_ground_m=self.height_above_ground_m[idx],
@@ -101,6 +108,8 @@ def unit_inputs(unit: Unit, model: Model) -> EffectInputs:
         options=model.options,
         time_s=unit.t_s,
         thrust_z_N=unit.thrust_z_N,
+        position_m=unit.position_m,
+        planes=unit.planes,
     )
 
 
@@ -133,6 +142,17 @@ class LoadedData:
     types: dict[str, Vehicle]  # vehicle type name -> Vehicle
     thrust_maps: dict[str, ThrustMap]  # vehicle type -> PWM/Vbat thrust map used for the measurement
     notes: list[str]  # said once each (e.g. a fallback to the commanded u[N])
+
+
+def measure_options_for(options: MeasureOptions, vehicle: Vehicle, motor_thrust: str) -> MeasureOptions:
+    """The measurement options of one vehicle: a log of COMMANDED motor thrust (``motor_thrust``, the
+    manifest's key) reaches the air through the motors' first-order lag, so (S0-11, S0-14) use the lagged
+    command (:func:`proxplan.identify.measure.motor_lag_compensated_N`) with the vehicle's own
+    ``motor_time_constant_s`` (or the explicit ``options.motor_time_constant_s``); a log of DELIVERED
+    thrust, or ``options.motor_lag`` False, is used as it is."""
+    if motor_thrust != "commanded" or not options.motor_lag:
+        return replace(options, motor_time_constant_s=None)
+    return replace(options, motor_time_constant_s=options.motor_time_constant_s or vehicle.motor_time_constant_s)
 
 
 def _motor_samples(log: VehicleLog) -> MotorSamples:
@@ -196,8 +216,9 @@ def load_units(
             else:
                 why = "its logs hold no PWM/Vbat columns" if not log.has_pwm else "no thrust map for its type"
                 if log.has_pwm and tmap is not None:
-                    why = (f"its u[N] follows no static map of PWM*Vbat (R2 {tmap.r2:.2f}, "
-                           f"{'rising' if tmap.monotonic else 'not rising'}): it is not the desired force")  # fmt: skip
+                    why = (f"its u[N] follows no static map of PWM*Vbat (R2 {tmap.r2:.2f} on "
+                           f"{tmap.inlier_fraction:.0%} inliers, {'rising' if tmap.monotonic else 'not rising'}): "
+                           "it is not the desired force")  # fmt: skip
                 note = (f"{v.type}: motor thrust = the logged u[N] ({why}); saturated motors are not "
                         "detected, the measured disturbance is wrong where a motor saturates")  # fmt: skip
                 if note not in notes:
@@ -205,7 +226,8 @@ def load_units(
             exclusions[entry.name][v.name] = flight.exclusions[v.name].to_dict() | {
                 "kept_samples": len(log), "saturated_samples": n_sat, "thrust_source": source,
                 "scored": v.score}  # fmt: skip
-            meas = measure_log(flight.vehicles[v.name], log, options=options.measure)
+            veh = flight.vehicles[v.name]
+            meas = measure_log(veh, log, options=measure_options_for(options.measure, veh, manifest.motor_thrust))
             z_b = Rotation.from_quat(log.quat_xyzw).apply(np.array([0.0, 0.0, 1.0]))
             others = [o for o in entry.vehicles if o.name != v.name]
             units.append(
@@ -230,6 +252,8 @@ def load_units(
                     if thrust_coefficient_samples
                     else None,
                     scored=v.score,
+                    position_m=log.position_m,
+                    planes=manifest.planes,
                 )
             )
     return LoadedData(units=units, exclusions=exclusions, types=types, thrust_maps=dict(thrust_maps), notes=notes)
@@ -279,8 +303,25 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             thrust_z_N=cat("thrust_z_N"), source_types=stypes,
             source_offsets_m=tuple(np.concatenate([u.source_offsets_m[k] for u in us]) for k in range(len(stypes))),
             force_N=cat("force_N"), torque_Nm=cat("torque_Nm"),
+            position_m=None if any(u.position_m is None for u in us) else cat("position_m"),
+            planes=us[0].planes if all(u.planes == us[0].planes for u in us) else (),
         ))  # fmt: skip
     return out
+
+
+def sources_overhead(u: Unit, vehicles: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample of ``u``: the number of sources above within r < 3 L (N,) int, and whether one of
+    them is closer than dz < 3 L (N,) bool."""
+    n = len(u)
+    above = np.zeros(n, dtype=int)
+    near = np.zeros(n, dtype=bool)
+    for t, off in zip(u.source_types, u.source_offsets_m):
+        L = vehicles[t].size_m
+        dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
+        here = (dz > 0.0) & (r < 3.0 * L)
+        above += here
+        near |= here & (dz < VALIDITY_FACTOR_L * L)
+    return above, near
 
 
 def subsample(units: Sequence[Unit], max_samples: int) -> list[Unit]:

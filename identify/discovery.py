@@ -35,7 +35,7 @@ from proxplan.physics import (
     DISCOVERED_PREFIX,
     FEATURE_NAMES,
     Effect,
-    disturbance_wrench,
+    base_wrench_per_source,
     feature_matrix,
     term_formula,
 )
@@ -78,10 +78,7 @@ def _rows(units: Sequence[Unit], model: Model, max_rows: int | None = None) -> _
         if not len(u):
             continue
         inputs = unit_inputs(u, model)
-        per_source = []
-        for src in inputs.sources:
-            b = disturbance_wrench(src.vehicle, inputs.target, src.offsets_m, inputs.options)
-            per_source.append((b.force_N, b.torque_Nm))
+        per_source = base_wrench_per_source(inputs)  # shielded in stacks, as predict's base
         base_f = sum((p[0] for p in per_source), np.zeros((len(u), 3)))
         base_t = sum((p[1] for p in per_source), np.zeros((len(u), 3)))
         pf, pt = predict(u, model, base=(base_f, base_t))

@@ -13,24 +13,35 @@ disturbance), per flight, per vehicle (the manifest's vehicle key) and per regio
   ``below_beyond_3L`` — below sources, all with dz >= 3 L (inside the zone);
 * ``stack`` — two or more sources above within r < 3 L.
 
+and per experiment set (the manifest's per-flight ``set``) and per number of sources overhead
+(``overhead``: "0", "1", "2+" sources above within r < 3 L).
+
 Vehicles with ``score: false`` are sources only; a manifest whose flights are all ``test`` is valid.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from proxplan.fileio import UserError
-from proxplan.identify.data import IdentifyOptions, Model, Unit, load_units, measurement_summary, predict
+from proxplan.identify.data import (
+    IdentifyOptions,
+    Model,
+    Unit,
+    load_units,
+    measurement_summary,
+    predict,
+    sources_overhead,
+)
 from proxplan.identify.flightlog import Manifest, load_manifest
 from proxplan.identify.measure import DERIVATIVES, MeasureOptions
 from proxplan.identify.thrust_map import ThrustMap
-from proxplan.physics import VALIDITY_FACTOR_L, CalibratedModel
+from proxplan.physics import CalibratedModel
 
 SPLITS = ("test", "train", "all")
 REGIONS = ("free", "below_source", "below_within_3L", "below_beyond_3L", "stack")
@@ -46,6 +57,7 @@ def measurement_dict(options: MeasureOptions, thrust_maps: Mapping[str, ThrustMa
         "window_s": float(options.window_s),
         "polyorder": int(options.polyorder),
         "motor_time_constant_s": options.motor_time_constant_s,
+        "motor_lag": bool(options.motor_lag),
         "thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()},
     }
 
@@ -60,7 +72,9 @@ def measurement_from_model(
         note = (f"{where}: missing (a model not written by identify --save-model of this version): measured "
                 "with the default derivative and the logged u[N] (saturated motors not corrected)")  # fmt: skip
         return MeasureOptions(), {}, [note]
-    unknown = sorted(set(raw) - {"derivative", "window_s", "polyorder", "motor_time_constant_s", "thrust_maps"})
+    unknown = sorted(
+        set(raw) - {"derivative", "window_s", "polyorder", "motor_time_constant_s", "motor_lag", "thrust_maps"}
+    )
     if unknown:
         raise UserError(f"{where}: unknown key {unknown[0]!r}")
     derivative = raw.get("derivative", "savgol")
@@ -73,6 +87,7 @@ def measurement_from_model(
             window_s=float(raw.get("window_s", 0.15)),
             polyorder=int(raw.get("polyorder", 2)),
             motor_time_constant_s=None if tau is None else float(tau),
+            motor_lag=bool(raw.get("motor_lag", False)),  # models saved before the key: no lag compensation
         )
     except (TypeError, ValueError):
         raise UserError(f"{where}: window_s, polyorder, motor_time_constant_s: expected numbers") from None
@@ -97,17 +112,19 @@ def saved_model(model: Model, measure: MeasureOptions, thrust_maps: Mapping[str,
 # ------------------------------------------------------------------------------ scoring
 
 
+OVERHEAD_COUNTS = ("0", "1", "2+")
+"""Labels of the per-sources-overhead report."""
+
+
+def overhead_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """Per sample of ``u``, one mask per :data:`OVERHEAD_COUNTS` label."""
+    above, _ = sources_overhead(u, vehicles)
+    return {"0": above == 0, "1": above == 1, "2+": above >= 2}
+
+
 def region_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
     """Per sample of ``u``, the :data:`REGIONS` masks (see the module docstring)."""
-    n = len(u)
-    above = np.zeros(n, dtype=int)
-    near = np.zeros(n, dtype=bool)
-    for t, off in zip(u.source_types, u.source_offsets_m):
-        L = vehicles[t].size_m
-        dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
-        here = (dz > 0.0) & (r < 3.0 * L)
-        above += here
-        near |= here & (dz < VALIDITY_FACTOR_L * L)
+    above, near = sources_overhead(u, vehicles)
     below = above > 0
     return {"free": ~below, "below_source": below, "below_within_3L": near, "below_beyond_3L": below & ~near,
             "stack": above >= 2}  # fmt: skip
@@ -141,6 +158,9 @@ class EvaluationResult:
     flights: dict[str, _Acc]
     per_vehicle: dict[str, _Acc]
     regions: dict[str, _Acc]
+    sets: dict[str, _Acc]  # per experiment set (manifest flight key ``set``)
+    overhead: dict[str, _Acc]  # per OVERHEAD_COUNTS label
+    set_overhead: dict[str, dict[str, _Acc]]  # set -> overhead label -> errors
     n_rows: int
     exclusions: dict
     notes: list[str]
@@ -160,6 +180,9 @@ class EvaluationResult:
             "flights": {k: _short(a) for k, a in self.flights.items()},
             "per_vehicle": {k: _short(a) for k, a in self.per_vehicle.items()},
             "regions": {k: _short(a) for k, a in self.regions.items()},
+            "sets": {k: _short(a) for k, a in self.sets.items()},
+            "overhead": {k: _short(a) for k, a in self.overhead.items()},
+            "set_overhead": {k: {c: _short(a) for c, a in d.items()} for k, d in self.set_overhead.items()},
             "split": self.split,
             "exclusions": self.exclusions,
             "measurement": self.measurement,
@@ -168,7 +191,9 @@ class EvaluationResult:
 
 
 def _short(a: _Acc) -> dict[str, Any]:
-    return {"rmse_fz_N": a.rmse(a.sse_fz), "no_model_rmse_fz_N": a.rmse(a.sse_fz0), "n_samples": a.n}
+    fz, fz0 = a.rmse(a.sse_fz), a.rmse(a.sse_fz0)
+    ratio = fz / fz0 if fz is not None and fz0 else None
+    return {"rmse_fz_N": fz, "no_model_rmse_fz_N": fz0, "ratio_fz": ratio, "n_samples": a.n}
 
 
 def _rows(e: Mapping[str, Any]) -> int:
@@ -195,8 +220,7 @@ def evaluate_model(
         raise UserError(f"{manifest.path}: flights: no {split} flight to evaluate (use --split train|test|all)")
     if not any(v.score for f in chosen for v in f.vehicles):
         raise UserError(f"{manifest.path}: flights: every {split} vehicle says 'score: false'; nothing to score")
-    sub = Manifest(path=manifest.path, format=manifest.format, root=manifest.root, flights=tuple(chosen),
-                   vehicles_file=manifest.vehicles_file, quality=manifest.quality)  # fmt: skip
+    sub = replace(manifest, flights=tuple(chosen))
     data = load_units(
         sub,
         options=IdentifyOptions(measure=measure, progress=progress),
@@ -215,17 +239,27 @@ def evaluate_model(
     flights: dict[str, _Acc] = {}
     per_vehicle: dict[str, _Acc] = {}
     regions = {r: _Acc() for r in REGIONS}
+    set_of = {f.name: f.set for f in chosen}
+    sets: dict[str, _Acc] = {}
+    overhead = {c: _Acc() for c in OVERHEAD_COUNTS}
+    set_overhead: dict[str, dict[str, _Acc]] = {}
     for u in units:
         f, t = predict(u, m)
         dfz, dtq = u.force_N[:, 2] - f[:, 2], np.linalg.norm(u.torque_Nm - t, axis=1)
         fz0, tq0 = u.force_N[:, 2], np.linalg.norm(u.torque_Nm, axis=1)
         for acc in (overall, flights.setdefault(u.flight, _Acc()), per_vehicle.setdefault(u.name, _Acc())):
             acc.add(dfz, dtq, fz0, tq0)
+        sets.setdefault(set_of[u.flight], _Acc()).add(dfz, dtq, fz0, tq0)
         for r, mask in region_masks(u, vehicles).items():
             regions[r].add(dfz[mask], dtq[mask], fz0[mask], tq0[mask])
+        per_set = set_overhead.setdefault(set_of[u.flight], {c: _Acc() for c in OVERHEAD_COUNTS})
+        for c, mask in overhead_masks(u, vehicles).items():
+            for acc in (overhead[c], per_set[c]):
+                acc.add(dfz[mask], dtq[mask], fz0[mask], tq0[mask])
     n_rows = sum(_rows(e) for per in data.exclusions.values() for e in per.values() if e["scored"])
     return EvaluationResult(
-        split=split, overall=overall, flights=flights, per_vehicle=per_vehicle, regions=regions, n_rows=n_rows,
+        split=split, overall=overall, flights=flights, per_vehicle=per_vehicle, regions=regions, sets=sets,
+        overhead=overhead, set_overhead=set_overhead, n_rows=n_rows,
         exclusions=data.exclusions, notes=notes, measurement=measurement_summary(data.thrust_maps, data.exclusions, []),
         units=units, model=m,
     )  # fmt: skip

@@ -31,6 +31,21 @@ def _bars(ax, rows: Mapping[str, dict], title: str) -> None:
     ax.legend(fontsize=8)
 
 
+def _set_overhead_bars(ax, table: dict) -> None:
+    """Grouped bars: per set, RMSE F_z as a ratio to no model, one bar per number of sources overhead."""
+    sets = list(table)
+    labels = ("0", "1", "2+")
+    width = 0.8 / len(labels)
+    for j, c in enumerate(labels):
+        vals = [table[s][c]["ratio_fz"] if table[s][c]["ratio_fz"] is not None else np.nan for s in sets]
+        ax.bar(np.arange(len(sets)) + (j - 1) * width, vals, width, label=f"{c} overhead")
+    ax.axhline(1.0, color="k", lw=0.6, ls=":")
+    ax.set_xticks(np.arange(len(sets)), sets, rotation=30, ha="right")
+    ax.set_ylabel("RMSE F_z / no model [-]")
+    ax.set_title("per set and number of sources overhead (r < 3 L)")
+    ax.legend(fontsize=8)
+
+
 def write_plots(result: EvaluationResult, out: Path) -> list[Path]:
     import matplotlib
 
@@ -45,6 +60,11 @@ def write_plots(result: EvaluationResult, out: Path) -> list[Path]:
         _bars(ax, rows, title)
         save_figure(fig, out / name, dpi=110, bbox_inches="tight")
         written.append(out / name)
+    if result.set_overhead:
+        fig, ax = plt.subplots(figsize=(max(6.0, 0.9 * len(result.set_overhead) + 2.0), 4))
+        _set_overhead_bars(ax, doc["set_overhead"])
+        save_figure(fig, out / "sets_overhead.png", dpi=110, bbox_inches="tight")
+        written.append(out / "sets_overhead.png")
     if result.units and result.model is not None:
         unit = max(result.units, key=lambda u: float(np.std(u.force_N[:, 2])) if u.source_types else 0.0)
         if len(unit) > 6000:
@@ -87,6 +107,20 @@ def markdown(result: EvaluationResult, *, manifest: str, model: str, plots: list
             ratio = _ratio(r["rmse_fz_N"], r["no_model_rmse_fz_N"])
             lines.append(f"| {k} | {_f(r['rmse_fz_N'])} | {_f(r['no_model_rmse_fz_N'])} | {ratio} | {r['n_samples']} |")
         lines.append("")
+    lines += ["## Per set and number of sources overhead", "",
+              "RMSE F_z as a ratio to no model (samples); overhead = sources above within r < 3 L.", "",
+              "| set | all | 0 overhead | 1 overhead | 2+ overhead |", "|---|---|---|---|---|"]  # fmt: skip
+    for k, per in doc["set_overhead"].items():
+        cells = [
+            f"{_ratio(doc['sets'][k]['rmse_fz_N'], doc['sets'][k]['no_model_rmse_fz_N'])} ({doc['sets'][k]['n_samples']})"
+        ]
+        cells += [f"{_ratio(per[c]['rmse_fz_N'], per[c]['no_model_rmse_fz_N'])} ({per[c]['n_samples']})" for c in per]
+        lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    o = doc["overhead"]
+    lines.append("| **all sets** | " + " | ".join(
+        [_ratio(doc["rmse_fz_N"], doc["no_model"]["rmse_fz_N"])]
+        + [f"{_ratio(o[c]['rmse_fz_N'], o[c]['no_model_rmse_fz_N'])} ({o[c]['n_samples']})" for c in o]) + " |")  # fmt: skip
+    lines.append("")
     lines += ["Regions: `below_source` = some source above within r < 3 L; `below_within_3L` = of those, dz < 3 L "
               "(outside the field model's zone, S0 II-A), `below_beyond_3L` = the rest; `stack` = two or more "
               "sources above; `free` = none.", ""]  # fmt: skip

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import gzip
 import io
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -320,6 +321,7 @@ class FlightEntry:
     name: str
     split: str  # "train" or "test"
     vehicles: tuple[VehicleEntry, ...]
+    set: str = ""  # experiment set the flight belongs to (reports per set); default: name without a trailing _<run>
 
 
 @dataclass(frozen=True)
@@ -332,6 +334,21 @@ class Manifest:
     flights: tuple[FlightEntry, ...]
     vehicles_file: Path | None = None  # optional custom vehicle types (proxplan.physics.vehicle_yaml)
     quality: QualityOptions = QualityOptions()
+    motor_thrust: str = "commanded"  # what the logs' per-motor thrust is: one of MOTOR_THRUSTS
+    planes: tuple = ()  # proxplan.physics.room.Plane: walls / ceiling of the room (key ``planes``)
+
+
+MOTOR_THRUSTS = ("commanded", "delivered")
+"""What a log's per-motor thrust column holds: the firmware's *commanded* (desired) force, which the
+motors deliver through their lag (Neural-Swarm's u[N]; real flight controllers log this), or the
+force the rotors *deliver* (simulators logging k_eta omega^2)."""
+DEFAULT_MOTOR_THRUST = {"neural-swarm": "commanded", "canonical": "delivered"}
+"""Per log format, what its thrust column holds when the manifest does not say (key ``motor_thrust``)."""
+
+
+def set_of_flight(name: str) -> str:
+    """Default experiment set of a flight: its name without a trailing ``_<run number>``."""
+    return re.sub(r"_\d+$", "", name)
 
 
 def _need(mapping: Any, key: str, where: str, kind: type | tuple[type, ...]) -> Any:
@@ -348,7 +365,10 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
     """Read and validate a manifest YAML (DESIGN.md section 6).
 
     ``root`` is resolved relative to the directory of the manifest file (absolute paths are kept);
-    each ``log`` is resolved relative to ``root``. Optional keys: ``vehicles_file`` (relative to the
+    each ``log`` is resolved relative to ``root``. Optional keys: ``motor_thrust`` (commanded or
+    delivered, :data:`MOTOR_THRUSTS`; default by format), ``planes`` (walls / ceiling,
+    ``[{name, point_m, normal}]``, :func:`proxplan.physics.room.planes_from_list`), per-flight ``set`` (default
+    :func:`set_of_flight`), ``vehicles_file`` (relative to the
     manifest), per-vehicle ``ground_z_m`` (default 0), ``quality: {max_gap_s, min_segment_s,
     ground_clearance_m, min_thrust_fraction, min_overlap_s}``.
     """
@@ -401,13 +421,23 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
             entries.append(VehicleEntry(name=str(vname), type=vtype, log=log, ground_z_m=float(gz), score=score))
         if not entries:
             raise UserError(f"{fw}.vehicles: expected at least one vehicle")
-        flights.append(FlightEntry(name=name, split=split, vehicles=tuple(entries)))
+        fset = fl.get("set", set_of_flight(name))
+        if not isinstance(fset, str) or not fset:
+            raise UserError(f"{fw}.set: expected a set name (text), got {fset!r}")
+        flights.append(FlightEntry(name=name, split=split, vehicles=tuple(entries), set=fset))
     splits = {f.split for f in flights}
     if not any(v.score for f in flights for v in f.vehicles):
         raise UserError(f"{where}: flights: every vehicle says 'score: false'; at least one must be scored")
     if require_train_and_test and splits != {"train", "test"}:
         raise UserError(f"{where}: flights: need at least one train and one test flight, got {sorted(splits)}")
-    return Manifest(path=path, format=fmt, root=root, flights=tuple(flights), vehicles_file=vfile, quality=quality)
+    motor_thrust = doc.get("motor_thrust", DEFAULT_MOTOR_THRUST.get(fmt, "commanded"))
+    if motor_thrust not in MOTOR_THRUSTS:
+        raise UserError(f"{where}: motor_thrust: expected one of {', '.join(MOTOR_THRUSTS)}, got {motor_thrust!r}")
+    from proxplan.physics import planes_from_list
+
+    planes = planes_from_list(doc.get("planes"), f"{where}: planes")
+    return Manifest(path=path, format=fmt, root=root, flights=tuple(flights), vehicles_file=vfile, quality=quality,
+                    motor_thrust=motor_thrust, planes=planes)  # fmt: skip
 
 
 @dataclass(frozen=True)

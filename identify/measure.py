@@ -38,7 +38,10 @@ class MeasureOptions:
     derivative: str = "savgol"  # one of DERIVATIVES
     window_s: float = 0.15  # smoothing / derivative window, s
     polyorder: int = 2  # Savitzky-Golay polynomial order, -
-    motor_time_constant_s: float | None = None  # first-order motor lag tau to compensate, s
+    motor_time_constant_s: float | None = None  # first-order motor lag tau to compensate, s (None: see motor_lag)
+    motor_lag: bool = True  # where logs hold COMMANDED thrust, compensate each vehicle's own
+    # Vehicle.motor_time_constant_s (proxplan.identify.data.measure_options_for); an explicit
+    # motor_time_constant_s overrides the vehicle's value
     thrust_scale: float = 1.0  # multiplies the logged motor thrusts (calibrated), -
 
     def __post_init__(self) -> None:
@@ -90,6 +93,14 @@ def motor_lag_compensated_N(commanded_N: np.ndarray, dt_s: float, time_constant_
     zi = lfilter_zi(b_coef, a_coef)[:, None] * commanded_N[0][None, :]
     out, _ = lfilter(b_coef, a_coef, commanded_N, axis=0, zi=zi)
     return out
+
+
+def motor_command_for_N(delivered_N: np.ndarray, dt_s: float, time_constant_s: float) -> np.ndarray:
+    """Commands (N, 4) N that make first-order motors deliver ``delivered_N`` (N, 4) N: the exact
+    inverse of :func:`motor_lag_compensated_N`'s discretisation (last command repeated)."""
+    a = float(np.exp(-dt_s / time_constant_s))
+    cmd = (delivered_N[1:] - a * delivered_N[:-1]) / (1.0 - a)
+    return np.concatenate([cmd, cmd[-1:]], axis=0) if len(cmd) else delivered_N.copy()
 
 
 def measure_disturbance(

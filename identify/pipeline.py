@@ -66,6 +66,7 @@ from proxplan.identify.effect_selection import EffectTrial, select_effects, vali
 from proxplan.identify.flightlog import Manifest, load_manifest
 from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.residuals import correlate, sample_features
+from proxplan.identify.stack_fit import choose_stack_shielding
 from proxplan.physics import VALIDITY_FACTOR_L, ModelOptions, base_wrench
 
 # ------------------------------------------------------------------------------ calibration
@@ -140,6 +141,7 @@ class IdentifyResult:
     discovered: list = field(default_factory=list)  # data-driven terms (proxplan.identify.discovery); [] when none
     calibrated_model: Model | None = None  # calibrated, no effects (what "calibrated_only" scored)
     validation: str = ""  # which train flights chose the effects (proxplan.identify.effect_selection.validation_split)
+    stack_shielding: dict | None = None  # eta chosen on validation stacks (proxplan.identify.stack_fit)
 
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
@@ -166,6 +168,7 @@ class IdentifyResult:
             "per_vehicle": self.per_vehicle,
             "discovered": list(self.discovered),
             "validation": self.validation,
+            "stack_shielding": self.stack_shielding,
             "residual_correlations": [
                 {"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations
             ],
@@ -252,8 +255,10 @@ def run_identify(
     fit, valid, validation_note = validation_split(train)
     if not train or not test:
         raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
-    base = Model(
-        vehicles=types, thrust_scale={t: 1.0 for t in types}, options=ModelOptions(field_form=options.field_form)
+    base = Model(  # "before": S0 as published, sources' wrenches summed pair by pair (no stack shielding)
+        vehicles=types,
+        thrust_scale={t: 1.0 for t in types},
+        options=ModelOptions(field_form=options.field_form, stack_shielding=0.0),
     )
     test_all = merge_units(test)  # every test sample, pooled
     cache: dict[int, tuple[Any, list]] = {}  # id(vehicles) -> (vehicles, base wrench per unit)
@@ -270,8 +275,16 @@ def run_identify(
     before = full_errors(base)
     calibration = None
     model = base
+    stack_choice = None
     if options.calibrate:
         model, calibration = calibrate_model(fit, base, options=options)
+        # then the stack's eta (proxplan.physics.stack) on the validation flights' stacks; with a
+        # shielding stack the one-source parameters are refitted under it (the per-pair sum had bent
+        # them to absorb the stacks), and eta is chosen again
+        model, stack_choice = choose_stack_shielding(model, valid)
+        if model.options.stack_shielding > 0.0:
+            model, calibration = calibrate_model(fit, model, options=options)
+            model, stack_choice = choose_stack_shielding(model, valid)
     calibrated = full_errors(model)
     corr_before = _residual_analysis(subsample(fit, 20000), model)
     starts = [model, base] if options.calibrate else [base]
@@ -295,7 +308,7 @@ def run_identify(
         unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
         thrust_maps=data.thrust_maps, notes=data.notes, measure_options=options.measure,
         per_vehicle=_per_vehicle(test, base, model, final), validation=validation_note, calibrated_model=model,
-        discovered=discovered,
+        discovered=discovered, stack_shielding=None if stack_choice is None else stack_choice.to_json(),
     )  # fmt: skip
 
 

@@ -50,6 +50,8 @@ def synthetic_logs(
     hidden_wrench: Callable[[Any], tuple[np.ndarray, np.ndarray]] | None = None,
     motor_noise_N: float = 0.0,
     motor: SyntheticMotor | None = None,
+    motor_time_constant_s: float | None = None,
+    planes: tuple = (),
 ) -> dict[str, VehicleLog]:
     """Logs with a known truth: every vehicle follows ``positions_m[name]`` (N, 3), m, level, and
     receives the wrench of :func:`proxplan.physics.effects.total_wrench` (base model from all other vehicles
@@ -67,9 +69,14 @@ def synthetic_logs(
 
     ``hidden_wrench(inputs)`` (optional) adds a wrench no library effect names (force (N, 3) N,
     torque (N, 3) N m, world) from the :class:`proxplan.physics.effects.EffectInputs` of each vehicle (with
-    ``time_s``, the sources' velocities and the target's thrust filled in): a truth for the tests
+    ``time_s``, the sources' velocities, the target's thrust and position and the room's ``planes``
+    filled in): a truth for the tests
     of :mod:`proxplan.identify.discovery`. ``motor_noise_N`` adds white noise to each logged motor thrust
     (N), which reaches the measured force and torque.
+
+    With ``motor_time_constant_s`` (s) the logged motor thrusts are the COMMANDS that first-order
+    motors with that lag turn into the needed thrusts (:func:`proxplan.identify.measure.motor_command_for_N`),
+    as a real flight controller logs them (manifest ``motor_thrust: commanded``).
     """
     from proxplan.physics import GRAVITY_MPS2, EffectInputs, SourceSample, mixer_matrix, total_wrench
 
@@ -90,6 +97,8 @@ def synthetic_logs(
             ),
             time_s=np.asarray(t_s, dtype=float),
             thrust_z_N=veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]),
+            position_m=pos,
+            planes=tuple(planes),
         )
         force, torque = total_wrench(inputs, tuple(effects))
         if hidden_wrench is not None:
@@ -99,6 +108,10 @@ def synthetic_logs(
         demand = np.column_stack([collective, -torque[:, 0], -torque[:, 1], -torque[:, 2]])
         thrusts = np.linalg.solve(mixer_matrix(veh), demand.T).T
         pwm = vbat = None
+        if motor_time_constant_s is not None:
+            from proxplan.identify.measure import motor_command_for_N
+
+            thrusts = motor_command_for_N(thrusts, float(np.median(np.diff(t_s))), motor_time_constant_s)
         logged = thrusts
         if motor is not None:
             delivered = np.minimum(thrusts, motor.max_thrust_N)
@@ -127,11 +140,18 @@ def synthetic_logs(
 
 
 def write_synthetic_manifest(
-    root: Path, flights: Sequence[tuple[str, str, Mapping[str, VehicleLog]]], vehicle_type: str
+    root: Path,
+    flights: Sequence[tuple[str, str, Mapping[str, VehicleLog]]],
+    vehicle_type: str,
+    *,
+    motor_thrust: str = "delivered",
+    planes: Sequence[Mapping[str, Any]] = (),
 ) -> Path:
     """Write every flight ``(name, split, {vehicle: log})`` as canonical gzip CSVs under ``root``
     (``<flight>_<vehicle>.csv.gz``) and a canonical manifest ``root/manifest.yaml`` naming them,
-    every vehicle of type ``vehicle_type``; returns the manifest path."""
+    every vehicle of type ``vehicle_type``, whose motor thrust columns hold ``motor_thrust``
+    (commanded or delivered), declaring the room's ``planes`` ({name, point_m, normal}); returns the
+    manifest path."""
     import yaml
 
     from proxplan.identify.flightlog import write_canonical_csv
@@ -144,5 +164,8 @@ def write_synthetic_manifest(
             entry["vehicles"][vehicle] = {"type": vehicle_type, "log": f"{name}_{vehicle}.csv.gz"}
         entries.append(entry)
     path = root / "manifest.yaml"
-    path.write_text(yaml.safe_dump({"format": "canonical", "root": ".", "flights": entries}))
+    doc: dict[str, Any] = {"format": "canonical", "root": ".", "motor_thrust": motor_thrust, "flights": entries}
+    if planes:
+        doc["planes"] = [dict(p) for p in planes]
+    path.write_text(yaml.safe_dump(doc))
     return path

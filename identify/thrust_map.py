@@ -31,7 +31,9 @@ from numpy.polynomial import Polynomial
 from proxplan.fileio import UserError
 
 MIN_R2 = 0.9
-"""A thrust map must explain at least this share of the variance of u[N] to be used, -."""
+"""A thrust map must explain at least this share of the variance of u[N] (on its inliers) to be used, -."""
+MIN_INLIER_FRACTION = 0.8
+"""At least this share of the unsaturated samples must agree with the map (robust fit) for it to be used, -."""
 CEILING_MARGIN_V = 0.05
 """Samples with pwm*Vbat within this of their log's ceiling are left out of the fit, V."""
 SATURATION_BAND_V = 0.2
@@ -52,14 +54,18 @@ class ThrustMap:
     x_max_V: float  # saturation ceiling of pwm * Vbat (largest value seen in the fit logs), V
     rms_N: float  # RMS of u[N] - P(x) on the fitted (unsaturated) samples, N
     n_fit: int  # motor samples used in the fit
-    r2: float = 1.0  # share of the variance of u[N] that P explains on every sample below the ceiling, -
+    r2: float = 1.0  # share of the variance of u[N] that P explains on the robust fit's inliers, -
     monotonic: bool = True  # P rises over the fitted range up to x_max
+    inlier_fraction: float = 1.0  # share of samples below the ceiling kept by the robust refit, -
 
     @property
     def usable(self) -> bool:
         """A static map exists: P rises and explains >= :data:`MIN_R2` of u[N] (false e.g. for logs
-        whose u[N] is the lagged actual thrust and PWM the command)."""
-        return self.monotonic and self.r2 >= MIN_R2
+        whose u[N] is the lagged actual thrust and PWM the command), on at least
+        :data:`MIN_INLIER_FRACTION` of the samples below the ceiling. The share is taken on the robust
+        fit's inliers: the few saturated-but-below-ceiling samples (u[N] up to 10x the motor's maximum)
+        must not decide whether the map of all the others holds."""
+        return self.monotonic and self.r2 >= MIN_R2 and self.inlier_fraction >= MIN_INLIER_FRACTION
 
     @property
     def max_thrust_N(self) -> float:
@@ -74,7 +80,7 @@ class ThrustMap:
     def to_dict(self) -> dict[str, Any]:
         return {"coef": [float(c) for c in self.coef], "x_max_V": self.x_max_V, "rms_N": self.rms_N,
                 "n_fit": self.n_fit, "r2": self.r2, "monotonic": self.monotonic,
-                "max_thrust_N": self.max_thrust_N}  # fmt: skip
+                "inlier_fraction": self.inlier_fraction, "max_thrust_N": self.max_thrust_N}  # fmt: skip
 
     @staticmethod
     def from_dict(data: Any, where: str) -> ThrustMap:
@@ -83,7 +89,8 @@ class ThrustMap:
             coef = tuple(float(c) for c in data["coef"])
             out = ThrustMap(coef=coef, x_max_V=float(data["x_max_V"]), rms_N=float(data.get("rms_N", 0.0)),
                             n_fit=int(data.get("n_fit", 0)), r2=float(data.get("r2", 1.0)),
-                            monotonic=bool(data.get("monotonic", True)))  # fmt: skip
+                            monotonic=bool(data.get("monotonic", True)),
+                             inlier_fraction=float(data.get("inlier_fraction", 1.0)))  # fmt: skip
         except (KeyError, TypeError, ValueError):
             raise UserError(f"{where}: expected a mapping with coef (4 numbers) and x_max_V (V)") from None
         if len(coef) != 4 or not out.x_max_V > 0:
@@ -120,17 +127,19 @@ def fit_thrust_map(logs: Sequence[MotorSamples], *, max_samples: int = 200_000) 
     step = max(1, x.size // max_samples)
     x, u = x[::step], u[::step]
     poly = Polynomial.fit(x, u, 3)
-    ss = float(np.sum((u - u.mean()) ** 2))
-    r2 = 1.0 - float(np.sum((u - poly(x)) ** 2)) / ss if ss > 0 else 0.0
     r = u - poly(x)
     sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
     keep = np.abs(r) <= 5.0 * max(sigma, 1e-6)
     poly = Polynomial.fit(x[keep], u[keep], 3)
     rms = float(np.sqrt(np.mean((u[keep] - poly(x[keep])) ** 2)))
+    uk = u[keep]
+    ss = float(np.sum((uk - uk.mean()) ** 2))
+    r2 = 1.0 - float(np.sum((uk - poly(x[keep])) ** 2)) / ss if ss > 0 else 0.0
     coef = tuple(float(c) for c in np.pad(poly.convert().coef, (0, 4))[:4])
     grid = np.linspace(float(np.quantile(x, 0.01)), max(ceilings), 50)
     monotonic = bool(np.all(np.diff(Polynomial(coef)(grid)) > 0.0))
-    return ThrustMap(coef=coef, x_max_V=max(ceilings), rms_N=rms, n_fit=int(keep.sum()), r2=r2, monotonic=monotonic)
+    return ThrustMap(coef=coef, x_max_V=max(ceilings), rms_N=rms, n_fit=int(keep.sum()), r2=r2, monotonic=monotonic,
+                     inlier_fraction=float(keep.mean()))  # fmt: skip
 
 
 def saturated_motors(thrust_map: ThrustMap, s: MotorSamples) -> np.ndarray:

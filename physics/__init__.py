@@ -27,6 +27,7 @@ from proxplan.physics.effects import (
     EffectInputs,
     SourceSample,
     base_wrench,
+    base_wrench_per_source,
     default_effect,
     effect_wrench,
     total_wrench,
@@ -48,6 +49,8 @@ from proxplan.physics.model_file import (
     write_model_file,
 )
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
+from proxplan.physics.room import Plane, plane_distances_m, planes_from_list
+from proxplan.physics.stack import MAX_STACK_SHIELDING, intercepted_flux_fraction, shielding_factors
 from proxplan.physics.vehicle_yaml import (
     load_vehicle_file,
     resolve_vehicle,
@@ -66,6 +69,13 @@ from proxplan.physics.vehicles import (
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
+    "MAX_STACK_SHIELDING",
+    "Plane",
+    "plane_distances_m",
+    "planes_from_list",
+    "base_wrench_per_source",
+    "intercepted_flux_fraction",
+    "shielding_factors",
     "AIR_DENSITY_KGPM3",
     "BUILTIN_VEHICLES",
     "CHANNELS",

@@ -50,10 +50,16 @@ class ModelOptions:
     drag_coefficient: float = FLAT_PLATE_DRAG_COEFFICIENT  # C_D, -
     air_density_kgpm3: float = AIR_DENSITY_KGPM3  # rho, kg/m^3
     discretisation: Discretisation = Discretisation()
+    stack_shielding: float = 1.0  # eta of proxplan.physics.stack: share of an upper jet's flux a lower source's
+    # disks take out of it before it reaches the target (0: S0's per-pair sum), -
 
     def __post_init__(self) -> None:
         if self.field_form not in FIELD_FORMS:
             raise ValueError(f"field_form must be one of {FIELD_FORMS}, got {self.field_form!r}")
+        from proxplan.physics.stack import MAX_STACK_SHIELDING
+
+        if not 0.0 <= self.stack_shielding <= MAX_STACK_SHIELDING:
+            raise ValueError(f"stack_shielding must lie in [0, {MAX_STACK_SHIELDING:g}], got {self.stack_shielding!r}")
 
 
 DEFAULT_OPTIONS = ModelOptions()

@@ -31,6 +31,8 @@ from proxplan.physics.disturbance import (
     vertical_point_wrench,
 )
 from proxplan.physics.features import CHANNELS, FEATURE_NAMES, feature_matrix, parse_term_key
+from proxplan.physics.room import Plane
+from proxplan.physics.stack import shielding_factors
 from proxplan.physics.vehicles import Vehicle
 
 EFFECT_NAMES = (
@@ -97,6 +99,8 @@ class EffectInputs:
     options: ModelOptions = DEFAULT_OPTIONS
     time_s: np.ndarray | None = None  # (N,) sample times, s (None: independent steady states)
     thrust_z_N: np.ndarray | None = None  # (N,) own collective thrust along world z, N (None: unknown)
+    position_m: np.ndarray | None = None  # (N, 3) the target's position, world frame, m (None: unknown)
+    planes: tuple[Plane, ...] = ()  # planes of the room (proxplan.physics.room), for place features
 
     @property
     def n_samples(self) -> int:
@@ -163,16 +167,33 @@ def _base_source_wrench(source: SourceSample, target: Vehicle, options: ModelOpt
 
 
 class _BaseCache:
-    """Base wrench of each source of one :class:`EffectInputs`, computed once when first needed."""
+    """Base wrench of each source of one :class:`EffectInputs`, computed once when first needed:
+    (S0-3..S0-8) per source times the share of its jet that reaches the target past the other
+    sources' rotors (:func:`proxplan.physics.stack.shielding_factors`; 1 with a single source above)."""
 
     def __init__(self, inputs: EffectInputs):
         self.inputs = inputs
         self._per_source: list | None = None
+        self._factors: list[np.ndarray] | None = None
+
+    def factors(self) -> list[np.ndarray]:
+        """Per source, the shielding factor (N,), -."""
+        if self._factors is None:
+            srcs = self.inputs.sources
+            self._factors = shielding_factors(
+                [s.offsets_m for s in srcs], [s.vehicle for s in srcs], self.inputs.options.stack_shielding,
+                self.inputs.options.discretisation,
+            )  # fmt: skip
+        return self._factors
 
     def per_source(self) -> list[tuple[np.ndarray, np.ndarray]]:
         if self._per_source is None:
             self._per_source = [
-                _base_source_wrench(src, self.inputs.target, self.inputs.options) for src in self.inputs.sources
+                (f * s[:, None], t * s[:, None])
+                for (f, t), s in zip(
+                    (_base_source_wrench(src, self.inputs.target, self.inputs.options) for src in self.inputs.sources),
+                    self.factors(),
+                )
             ]
         return self._per_source
 
@@ -183,6 +204,12 @@ def _sum_base(inputs: EffectInputs, cache: _BaseCache) -> tuple[np.ndarray, np.n
         force += f
         torque += t
     return force, torque
+
+
+def base_wrench_per_source(inputs: EffectInputs) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per source, the base wrench (force (N, 3) N, torque (N, 3) N m) as :func:`base_wrench` sums it
+    (S0-3..S0-8 with the stack shielding of :mod:`proxplan.physics.stack`)."""
+    return _BaseCache(inputs).per_source()
 
 
 def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
@@ -251,14 +278,14 @@ def _wake_advection(p: dict[str, float], inputs: EffectInputs, base: _BaseCache)
     wind = np.array([p["wind_x_mps"], p["wind_y_mps"]])
     if not np.any(wind):
         return force, torque
-    for src, (f0, t0) in zip(inputs.sources, base.per_source()):
+    for src, (f0, t0), s in zip(inputs.sources, base.per_source(), base.factors()):
         offsets = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
         dz_m = np.maximum(-offsets[:, 2], 0.0)
         shifted = offsets.copy()
         shifted[:, :2] -= wind[None, :] * (dz_m / p["convection_speed_mps"])[:, None]
         f1, t1 = _base_source_wrench(SourceSample(src.vehicle, shifted), inputs.target, inputs.options)
-        force += f1 - f0
-        torque += t1 - t0
+        force += f1 * s[:, None] - f0
+        torque += t1 * s[:, None] - t0
     return force, torque
 
 
@@ -289,9 +316,9 @@ def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs, base: _BaseCach
     force, torque = _zeros(inputs.n_samples)
     target = inputs.target
     b_q = p["b_q_rel_spm"] * target.b_v
-    for src in inputs.sources:
+    for src, s in zip(inputs.sources, base.factors()):
         v_on = oncoming_speed_per_rotor_mps(src.vehicle, target, src.offsets_m, inputs.options)
-        delta_f = -b_q * v_on**2 * target.hover_omega_sq_rad2ps2
+        delta_f = -b_q * v_on**2 * target.hover_omega_sq_rad2ps2 * s[:, None]  # shielded like the base
         f, t = vertical_point_wrench(target.rotor_positions_m, delta_f)
         force += f
         torque += t

@@ -19,14 +19,27 @@ so a term built on them acts between vehicles like any effect:
   a round jet widening linearly and decaying with depth (the shape of S0-1, S0-2 without its
   parameters);
 * core kernel (source above): [dz > 0] exp(-(r / L)^2 / 0.5) / (1 + dz / 3 L) — the rotor-scale core of
-  the wake, not spreading, decaying slowly with depth (a second scale beside the jet kernel);
+  the wake, not spreading, decaying slowly with depth (a second scale beside the jet kernel); and
+  the same without the decay (``above_core_flat_1``);
 * near kernel (source above, close): [dz > 0] exp(-r / L) exp(-dz / (3 L)) (zone of flow
   establishment, S0 II-A);
 * below kernel (source BELOW the target): [dz < 0] exp(-r / L) exp(dz / L) (the target meets the
   upwash / ceiling of a vehicle under it);
 * side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
 
-Time features (lagged and low-pass copies of the base prediction) need ``EffectInputs.time_s``;
+Lagged and low-pass copies of EVERY relative-motion feature (:data:`TIME_FEATURE_SOURCES`: the base
+prediction and each kernel, with and without relative speeds) at the delays :data:`LAGS_S` and the time
+constants :data:`LOWPASS_TAUS_S`: a wake takes time to travel down and a rotor to spin up, so an
+effect of another vehicle may follow its cause late or smoothed. Named ``<stem>_lag<ms>ms_<unit>`` and
+``<stem>_lp<ms>ms_<unit>``.
+
+Place in the room (:data:`ROOM_FEATURES`): the target's absolute position (x, y, z and their squares,
+world frame, m; zero when ``EffectInputs.position_m`` is unknown) and, for the planes the manifest
+declares (``EffectInputs.planes``, :mod:`proxplan.physics.room`), the kernels exp(-d / L_target) and
+(R / 4 d)^2 of the distance d to each plane, summed over planes (the ground-effect shape of a wall or
+ceiling). These are features of the target alone.
+
+Time features (lagged and low-pass copies) need ``EffectInputs.time_s``;
 without it (cost maps, static checks) every sample is a steady state and they equal the
 instantaneous value. Time runs are split where the clock does not advance or jumps by more than
 :data:`MAX_GAP_S` (pooled or sub-sampled series). Relative velocities come from
@@ -41,6 +54,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.signal import lfilter
 
+from proxplan.physics.room import plane_distances_m
 from proxplan.physics.vehicles import Vehicle
 
 CHANNELS = ("force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
@@ -51,6 +65,13 @@ LAG_S = 0.1
 
 LOWPASS_TAU_S = 0.3
 """Time constant of the first-order low-pass copy of the base prediction, s."""
+
+LAGS_S = tuple(round(0.05 * 1.5**k, 3) for k in range(8))
+"""Delays of the lagged copies of every relative-motion feature: a geometric grid 0.05..0.85 s
+(ratio 1.5, so any delay in range is within 25 % of one), s."""
+
+LOWPASS_TAUS_S = tuple(round(0.05 * 2.0**k, 3) for k in range(5))
+"""Time constants of the low-pass copies of every relative-motion feature: 0.05..0.8 s (ratio 2), s."""
 
 MAX_GAP_S = 1.0
 """A clock step larger than this (or not positive) starts a new time run, s."""
@@ -81,14 +102,46 @@ FEATURE_DOCS: dict[str, str] = {
     "above_stack_1": "sum over source pairs of the product of their jet kernels (stacks)",
     "above_core_1": "core kernel of the sources above, summed",
     "above_core_rel_speed_xy_mps": "core kernel times relative horizontal speed, summed",
+    "above_core_flat_1": "core kernel without its decay with depth, summed (a wake that keeps its strength)",
     "above_near_1": "near kernel of the sources above, summed",
     "above_near_rel_speed_xy_mps": "near kernel times relative horizontal speed, summed",
     "below_near_1": "below kernel of the sources under the target, summed",
     "side_near_1": "side kernel of level neighbours, summed",
 }
+TIME_FEATURE_SOURCES = (
+    "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
+    "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
+    "above_core_1", "above_core_flat_1", "above_near_1", "below_near_1", "side_near_1",
+)  # fmt: skip
+"""Relative-motion features that get lagged and low-pass copies."""
+
+
+def _time_name(feature: str, kind: str, seconds: float) -> str:
+    stem, unit = feature.rsplit("_", 1)
+    return f"{stem}_{kind}{int(round(1000 * seconds))}ms_{unit}"
+
+
+for _f in TIME_FEATURE_SOURCES:
+    for _lag in LAGS_S:
+        FEATURE_DOCS[_time_name(_f, "lag", _lag)] = f"{_f} delayed by {_lag:g} s"
+    for _tau in LOWPASS_TAUS_S:
+        FEATURE_DOCS[_time_name(_f, "lp", _tau)] = f"{_f} through a first-order low-pass, tau {_tau:g} s"
+ROOM_FEATURES = {
+    "pos_x_m": "target's x position, world frame",
+    "pos_y_m": "target's y position, world frame",
+    "pos_z_m": "target's z position, world frame",
+    "pos_x_sq_m2": "target's x position squared",
+    "pos_y_sq_m2": "target's y position squared",
+    "pos_z_sq_m2": "target's z position squared",
+    "plane_exp_1": "sum over the declared planes of exp(-d / L_target), d the distance to the plane",
+    "plane_cb_1": "sum over the declared planes of (R / 4 d)^2 (ground-effect shape of a wall or ceiling)",
+}
+FEATURE_DOCS.update(ROOM_FEATURES)
 FEATURE_NAMES = tuple(FEATURE_DOCS)
 
-TARGET_ONLY_FEATURES = ("one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2")
+TARGET_ONLY_FEATURES = (
+    "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", *ROOM_FEATURES,
+)  # fmt: skip
 """Features of the target alone; every other feature is a sum over sources (zero without one)."""
 
 
@@ -194,6 +247,7 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
         above = dz > 0.0
         core = np.where(above, np.exp(-2.0 * (r / size) ** 2) / (1.0 + np.maximum(dz, 0.0) / (3.0 * size)), 0.0)
         f["above_core_1"] += core
+        f["above_core_flat_1"] += np.where(above, np.exp(-2.0 * (r / size) ** 2), 0.0)
         f["above_core_rel_speed_xy_mps"] += core * rel_xy
         near = np.where(above, np.exp(-r / size - np.maximum(dz, 0.0) / (3.0 * size)), 0.0)
         f["above_near_1"] += near
@@ -205,6 +259,21 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
             f["above_stack_1"] += kernels[i] * kernels[j]
     f["base_fz_lag_N"] = lagged(f["base_fz_N"], t)
     f["base_fz_lowpass_N"] = lowpass(f["base_fz_N"], t)
+    for name in TIME_FEATURE_SOURCES:
+        if inputs.sources:
+            for lag in LAGS_S:
+                f[_time_name(name, "lag", lag)] = lagged(f[name], t, lag)
+            for tau in LOWPASS_TAUS_S:
+                f[_time_name(name, "lp", tau)] = lowpass(f[name], t, tau)
+    pos = getattr(inputs, "position_m", None)
+    if pos is not None:
+        pos = np.asarray(pos, dtype=float).reshape(-1, 3)
+        for col, axis in enumerate("xyz"):
+            f[f"pos_{axis}_m"] = pos[:, col].copy()
+            f[f"pos_{axis}_sq_m2"] = pos[:, col] ** 2
+        d = np.maximum(plane_distances_m(getattr(inputs, "planes", ()), pos), MIN_HEIGHT_FACTOR * r_rot)
+        f["plane_exp_1"] = np.exp(-d / target.size_m).sum(axis=1)
+        f["plane_cb_1"] = ((r_rot / (4.0 * d)) ** 2).sum(axis=1)
     return np.column_stack([f[k] for k in FEATURE_NAMES])
 
 

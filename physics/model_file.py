@@ -9,6 +9,7 @@ File layout (YAML)::
     model:
       field_form: inverse-z         # ModelOptions (drag_coefficient, air_density_kgpm3 optional)
       drag_coefficient: 1.18
+      stack_shielding: 1.0          # optional, proxplan.physics.stack (eta, -)
       air_density_kgpm3: 1.225
       effects:                      # proxplan.physics.effects names with their parameters (units in names)
         - {name: near_field, params: {amplitude: 0.4, decay_L: 3.0}}
@@ -37,6 +38,7 @@ from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.disturbance import DEFAULT_OPTIONS, ModelOptions
 from proxplan.physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
 from proxplan.physics.features import between_vehicle_part, parse_term_key
+from proxplan.physics.stack import MAX_STACK_SHIELDING
 from proxplan.physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
 from proxplan.physics.vehicles import Vehicle
 from proxplan.physics.velocity_field import FIELD_FORMS
@@ -46,7 +48,7 @@ MODEL_FORMAT_VERSION = 2
 
 TOP_KEYS = ("format_version", "vehicles", "model")
 MODEL_KEYS = (
-    "field_form", "drag_coefficient", "air_density_kgpm3", "effects", "thrust_scales", "uncertainty", "measurement",
+    "field_form", "drag_coefficient", "air_density_kgpm3", "stack_shielding", "effects", "thrust_scales", "uncertainty", "measurement",
 )  # fmt: skip
 HEADER = (
     "# written by proxplan identify: calibrated vehicles, model options and kept effects.\n"
@@ -175,7 +177,8 @@ def _mapping(raw: Any, where: str) -> dict[str, Any]:
 
 
 def options_from_mapping(model: Mapping, where: str) -> ModelOptions:
-    """ModelOptions from a ``model:`` mapping (field_form, drag_coefficient, air_density_kgpm3)."""
+    """ModelOptions from a ``model:`` mapping (field_form, drag_coefficient, air_density_kgpm3,
+    stack_shielding)."""
     form = model.get("field_form", DEFAULT_OPTIONS.field_form)
     if form not in FIELD_FORMS:
         raise UserError(f"{where}.field_form: expected one of {', '.join(FIELD_FORMS)}, got {form!r}")
@@ -185,6 +188,12 @@ def options_from_mapping(model: Mapping, where: str) -> ModelOptions:
             values[key] = _finite(model[key], f"{where}.{key}")
             if values[key] <= 0.0:
                 raise UserError(f"{where}.{key}: expected a positive number, got {model[key]!r}")
+    if "stack_shielding" in model:
+        values["stack_shielding"] = _finite(model["stack_shielding"], f"{where}.stack_shielding")
+        if not 0.0 <= values["stack_shielding"] <= MAX_STACK_SHIELDING:
+            raise UserError(
+                f"{where}.stack_shielding: expected a number in [0, {MAX_STACK_SHIELDING:g}] (-), got {model['stack_shielding']!r}"
+            )
     return ModelOptions(**values)
 
 
@@ -241,6 +250,7 @@ def model_file_dict(model: CalibratedModel) -> dict[str, Any]:
         "field_form": opts.field_form,
         "drag_coefficient": float(opts.drag_coefficient),
         "air_density_kgpm3": float(opts.air_density_kgpm3),
+        "stack_shielding": float(opts.stack_shielding),
         "effects": effects_to_list(model.effects),
         "thrust_scales": {k: float(v) for k, v in model.thrust_scales.items()},
     }

@@ -8,7 +8,8 @@ Frame: world, z up, metres. A scenario file::
     model_file: calibrated.yaml                 # optional calibrated model (proxplan identify --save-model):
                                                 # its vehicles override same-named types, its effects
                                                 # between vehicles are applied (proxplan.physics.model_file)
-    model: {field_form: inverse-z,              # optional disturbance-model options (override model_file's)
+    model: {field_form: inverse-z,              # optional disturbance-model options (override model_file's;
+            stack_shielding: 1.0,               #   stack_shielding: eta of proxplan.physics.stack, 0..3)
             effects: [{name: near_field, params: {amplitude: 0.5}}]}   # added to model_file's
     workspace: {min: [-3, -3, 0], max: [3, 3, 4]}
     obstacles: [{min: [1, -0.5, 0], max: [1.5, 0.5, 2]}]          # optional axis-aligned boxes
@@ -161,6 +162,20 @@ class Scenario:
     field_form: str | None = None  # disturbance-model field form ("inverse-z" or "printed"), None = default
     load_notes: tuple[str, ...] = ()  # things the user should know about how the file was read
     effects: tuple[Effect, ...] = ()  # effects between vehicles applied by maps, planner, verifier
+    stack_shielding: float | None = None  # eta of proxplan.physics.stack (-), None = the model default
+
+    @property
+    def model_options(self):
+        """The disturbance-model options (:class:`proxplan.physics.ModelOptions`) this scenario asks for:
+        field form and stack shielding (its own ``model:`` section, else its model file's)."""
+        from proxplan.physics import ModelOptions
+
+        values: dict[str, Any] = {}
+        if self.field_form:
+            values["field_form"] = self.field_form
+        if self.stack_shielding is not None:
+            values["stack_shielding"] = self.stack_shielding
+        return ModelOptions(**values)
 
     def to_spec(self) -> dict:
         """The normalised, self-contained scenario mapping (every default filled in, no file
@@ -186,6 +201,7 @@ class Scenario:
             "name": self.name,
             "model": {
                 "field_form": self.field_form or FIELD_FORMS[0],
+                **({"stack_shielding": self.stack_shielding} if self.stack_shielding is not None else {}),
                 **({"effects": effects_to_list(self.effects)} if self.effects else {}),
             },
             "workspace": {"min": self.workspace_min_m.tolist(), "max": self.workspace_max_m.tolist()},
@@ -514,14 +530,26 @@ def scenario_from_dict(
     limits = _limits(doc.get("limits"), f"{label}: limits")
     calibrated = model if model is not None else _model_file(doc, path, label)
     field_form = calibrated.options.field_form if calibrated is not None else None
+    stack_shielding = calibrated.options.stack_shielding if calibrated is not None else None
     effects: tuple[Effect, ...] = ()
     if calibrated is not None:
         from proxplan.physics import between_vehicle_effects
 
         effects = between_vehicle_effects(calibrated.effects)
     if "model" in doc and doc["model"] is not None:
-        section = _mapping(doc["model"], f"{label}: model", "{field_form: inverse-z|printed, effects: [...]}")
-        _unknown(section, ("field_form", "effects"), f"{label}: model")
+        section = _mapping(
+            doc["model"], f"{label}: model", "{field_form: inverse-z|printed, stack_shielding: 0..1, effects: [...]}"
+        )
+        _unknown(section, ("field_form", "stack_shielding", "effects"), f"{label}: model")
+        if "stack_shielding" in section:
+            eta = section["stack_shielding"]
+            from proxplan.physics import MAX_STACK_SHIELDING
+
+            if isinstance(eta, bool) or not isinstance(eta, (int, float)) or not 0.0 <= eta <= MAX_STACK_SHIELDING:
+                raise UserError(
+                    f"{label}: model.stack_shielding: expected a number in [0, {MAX_STACK_SHIELDING:g}] (-), got {eta!r}"
+                )
+            stack_shielding = float(eta)
         from proxplan.physics import FIELD_FORMS, between_vehicle_effects, effects_from_list
 
         field_form = section.get("field_form", field_form)
@@ -548,6 +576,7 @@ def scenario_from_dict(
         vehicles=vehicles,
         spec=copy.deepcopy(dict(doc)),
         field_form=field_form,
+        stack_shielding=stack_shielding,
         load_notes=tuple(_vehicle_file_notes(doc, path) + _model_notes(calibrated, label) + _unmapped(effects, label)),
         effects=effects,
     )

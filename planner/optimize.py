@@ -111,26 +111,21 @@ def check_final_configuration(scenario) -> None:
     """Raise ``proxplan.planner.errors.InfeasibleError`` when the final configuration itself (every vehicle
     at rest at its goal / hover point / dock) needs more than ``limits.authority_fraction`` of some
     vehicle's authority: then no trajectory can satisfy the limit (model evaluated directly)."""
-    from proxplan.costmaps import pair_wrench
-    from proxplan.physics import ModelOptions, authority_usage
+    from proxplan.costmaps import sources_wrench
+    from proxplan.physics import authority_usage
     from proxplan.planner.errors import InfeasibleError
 
-    form = getattr(scenario, "field_form", None)
-    options = ModelOptions(field_form=form) if form else ModelOptions()
+    options = scenario.model_options
     final = {n: scenario.final_position_m(n) for n in scenario.vehicles}
     fraction = scenario.limits.authority_fraction
     for nt, tgt in scenario.vehicles.items():
-        force, torque = np.zeros((1, 3)), np.zeros((1, 3))
-        worst = None
-        for ns, src in scenario.vehicles.items():
-            off = final[nt] - final[ns]
-            if ns == nt or off[2] >= -1e-6:
-                continue
-            f_src, t_src = pair_wrench(
-                src.vehicle, tgt.vehicle, off[None, :], options, getattr(scenario, "effects", ())
-            )
-            force, torque = force + f_src, torque + t_src
-            worst = ns if worst is None else worst
+        above = [ns for ns in scenario.vehicles if ns != nt and (final[nt] - final[ns])[2] < -1e-6]
+        if not above:
+            continue
+        worst = above[0]
+        sources = [(scenario.vehicles[ns].vehicle, (final[nt] - final[ns])[None, :]) for ns in above]
+        # every source above at once (a stack shields, proxplan.physics.stack), as the verifier
+        force, torque = sources_wrench(tgt.vehicle, sources, options, getattr(scenario, "effects", ()))
         usage = float(authority_usage(tgt.vehicle, force, torque)[0])
         if usage > fraction:
             raise InfeasibleError(

@@ -3,17 +3,17 @@
     python scripts/identify_figures.py manifests/neural-swarm.yaml [--out docs/figures]
 
 Runs identify, then ``evaluate`` (no refitting) of the model as given, the calibrated model and the
-final one on the test flights; prints markdown tables per flight set (the flight name without its run
-number) and per region, each RMSE of F_z also as a ratio to no model (zero disturbance, same
+final one on the test flights; prints markdown tables per flight set (the manifest's ``set``), per
+number of sources overhead and per region, each RMSE of F_z also as a ratio to no model (zero disturbance, same
 samples); the same with the commanded u[N] instead of the delivered thrust; and writes
 ``identify_thrust_measurement.png`` (commanded vs delivered motor thrust and the F_z they measure,
-on the most saturated test vehicle).
+on the most saturated test vehicle) and ``identify_sets_overhead.png`` (ratios per set and per number
+of sources overhead, before / calibrated / after).
 """
 
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
 import numpy as np
@@ -32,14 +32,18 @@ def _pool(rows: list[dict]) -> tuple[float, float, int]:
 
 
 def table(results: dict[str, EvaluationResult]) -> str:
+    """Markdown: per set, per number of sources overhead, per set and overhead count (where a set has
+    two or more overhead), per region; RMSE F_z with its ratio to no model, one column per model."""
     docs = {k: r.to_json() for k, r in results.items()}
     first = next(iter(docs.values()))
-    sets: dict[str, list[str]] = {}
-    for f in first["flights"]:
-        sets.setdefault(re.sub(r"_(\d+|cf\d+)$", "", f), []).append(f)
-    rows = [(s, [[d["flights"][f] for f in fl] for d in docs.values()]) for s, fl in sets.items()]
-    rows += [("all test flights", [[{"rmse_fz_N": d["rmse_fz_N"], "no_model_rmse_fz_N": d["no_model"]["rmse_fz_N"],
-                                     "n_samples": d["n_samples"]}] for d in docs.values()])]  # fmt: skip
+    pooled = [{"rmse_fz_N": d["rmse_fz_N"], "no_model_rmse_fz_N": d["no_model"]["rmse_fz_N"], "n_samples": d["n_samples"]}
+              for d in docs.values()]  # fmt: skip
+    rows = [(s, [[d["sets"][s]] for d in docs.values()]) for s in first["sets"]]
+    rows += [("**all test flights**", [[p] for p in pooled])]
+    rows += [(f"{c} sources overhead", [[d["overhead"][c]] for d in docs.values()]) for c in first["overhead"]]
+    rows += [(f"{s}, {c} overhead", [[d["set_overhead"][s][c]] for d in docs.values()])
+             for s in first["set_overhead"] for c in first["overhead"]
+             if first["set_overhead"][s]["2+"]["n_samples"]]  # fmt: skip
     rows += [(f"region: {k}", [[d["regions"][k]] for d in docs.values()]) for k in first["regions"]]
     head = "| part | samples | no model [N] | " + " | ".join(f"{k} [N] (ratio)" for k in docs) + " |"
     out = [head, "|" + "---|" * (3 + len(docs))]
@@ -51,6 +55,37 @@ def table(results: dict[str, EvaluationResult]) -> str:
             cells.append(f"{m:.4f} ({m / z:.2f})" if n0 else "n/a")
         out.append(f"| {name} | {n0} | {z0:.4f} | " + " | ".join(cells) + " |")
     return "\n".join(out)
+
+
+def sets_figure(results: dict[str, EvaluationResult], out: Path) -> Path:
+    """``identify_sets_overhead.png``: RMSE F_z / no model per set (left) and per number of sources
+    overhead (right), one bar per model (before / calibrated / after)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from proxplan.fileio import save_figure
+
+    docs = {k: r.to_json() for k, r in results.items()}
+    first = next(iter(docs.values()))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 4), gridspec_kw={"width_ratios": [3, 1]})
+    for ax, key in zip(axes, ("sets", "overhead")):
+        labels = list(first[key])
+        width = 0.8 / len(docs)
+        for j, (name, d) in enumerate(docs.items()):
+            vals = [d[key][k]["ratio_fz"] if d[key][k]["ratio_fz"] is not None else np.nan for k in labels]
+            ax.bar(np.arange(len(labels)) + (j - (len(docs) - 1) / 2) * width, vals, width, label=name)
+        ax.set_xticks(np.arange(len(labels)), labels if key == "sets" else [f"{k} overhead" for k in labels],
+                      rotation=30, ha="right")  # fmt: skip
+        ax.axhline(1.0, color="k", lw=0.6, ls=":")
+        ax.set_ylabel("test RMSE F_z / no model [-]")
+    axes[0].set_title("per set (test flights)")
+    axes[1].set_title("per number of sources overhead")
+    axes[0].legend(fontsize=8)
+    path = out / "identify_sets_overhead.png"
+    save_figure(fig, path, dpi=110, bbox_inches="tight")
+    return path
 
 
 def thrust_figure(manifest, result, out: Path) -> Path:
@@ -129,6 +164,8 @@ def main() -> None:
     print(f"rows scored: {doc['n_samples']} of {doc['n_rows']} ({doc['scored_fraction']:.3f})\n")
     print("### Delivered thrust (PWM and Vbat)\n")
     print(table(delivered))
+    print("figure:", sets_figure(delivered, args.out))
+    print("stack shielding:", result.stack_shielding)
     commanded = {k: evaluate_model(manifest, saved_model(m, result.measure_options, {})) for k, m in models.items()}
     print("\n### Same models, disturbance measured with the commanded u[N]\n")
     print(table(commanded))

@@ -4,9 +4,9 @@ separations (the dock pairs' final approach told apart), evaluated with the mode
 The wrench on each vehicle is the sum over every other vehicle above it of
 ``proxplan.physics.disturbance.disturbance_wrench`` (S0-3..S0-8) plus the scenario's effects between vehicles
 (a calibrated model's, ``Scenario.effects``), through ``proxplan.costmaps.pair_wrench`` (the one
-implementation, ``proxplan.physics.effects.total_wrench``; where two or more sources are above at once and
-there are effects, ``proxplan.costmaps.sources_wrench`` evaluates them together, so an effect of several
-sources need not add up); its authority usage comes from
+implementation, ``proxplan.physics.effects.total_wrench``; where two or more sources are above at once,
+``proxplan.costmaps.sources_wrench`` evaluates them together: an upper jet is shielded by the sources
+between (``proxplan.physics.stack``) and an effect of several sources need not add up); its authority usage comes from
 ``proxplan.physics.authority.authority_usage`` (DESIGN.md s. 3). Positions between plan samples come from
 the plan-file sampler. World frame, z up; m, N, N m, s.
 """
@@ -26,9 +26,7 @@ DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exemp
 
 def model_options(scenario: Scenario | None) -> ModelOptions:
     """The disturbance-model options a scenario asks for (defaults without a scenario)."""
-    return (
-        ModelOptions(field_form=scenario.field_form) if scenario is not None and scenario.field_form else ModelOptions()
-    )
+    return scenario.model_options if scenario is not None else ModelOptions()
 
 
 @dataclass(frozen=True)
@@ -82,7 +80,7 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
             by_source[sname] = u_src
             n_below += below
         stack = n_below >= 2
-        if effects and stack.any():  # several sources at once: effects need not add up
+        if stack.any():  # several sources at once: shielding (proxplan.physics.stack), effects need not add up
             others = [n for n in plan.vehicles if n != tname]
             offsets = [(_vehicle(plan, scenario, n), (pos[tname] - pos[n])[stack]) for n in others]
             force[stack], torque[stack] = sources_wrench(target, offsets, opts, effects)

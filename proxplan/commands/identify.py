@@ -37,7 +37,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="gyro derivative / smoothing: Savitzky-Golay (default), S0's triangular moving average, raw S0-12")  # fmt: skip
     p.add_argument("--window-s", type=float, default=0.15, help="smoothing window, s (default 0.15)")
     p.add_argument(
-        "--motor-tau-s", type=float, default=None, help="compensate a first-order motor lag with this time constant, s"
+        "--motor-tau-s",
+        type=float,
+        default=None,
+        help="motor time constant to compensate where logs hold commanded thrust, s "
+        "(default: each vehicle type's motor_time_constant_s)",
+    )
+    p.add_argument(
+        "--no-motor-lag",
+        action="store_true",
+        help="use the logged motor thrusts as delivered even where the manifest says they are commands",
     )
     p.add_argument(
         "--min-gain",
@@ -81,7 +90,10 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.save_model, flag="--save-model")
     options = IdentifyOptions(
         measure=MeasureOptions(
-            derivative=args.derivative, window_s=args.window_s, motor_time_constant_s=args.motor_tau_s
+            derivative=args.derivative,
+            window_s=args.window_s,
+            motor_time_constant_s=args.motor_tau_s,
+            motor_lag=not args.no_motor_lag,
         ),
         calibrate=not args.no_calibrate,
         min_gain=args.min_gain,

@@ -50,18 +50,28 @@ def test_pair_wrench_is_total_wrench_of_one_source_without_target_only_effects()
 
 
 def test_sources_wrench_of_a_stack_is_the_sum_of_pairs_for_effects_that_add() -> None:
+    """Without stack shielding (eta = 0) effects that add over sources give the per-pair sum; with the
+    default shielding the stack's wrench is smaller than that sum (proxplan.physics.stack)."""
     from proxplan.costmaps import sources_wrench
+    from proxplan.physics import ModelOptions
 
     rng = np.random.default_rng(5)
     upper = np.column_stack([rng.uniform(-0.2, 0.2, (15, 2)), -rng.uniform(0.6, 1.5, 15)])
     middle = np.column_stack([rng.uniform(-0.2, 0.2, (15, 2)), -rng.uniform(0.3, 0.6, 15)])
     effects = (STRONG, Effect("thrust_quadratic", {}), BIAS)
-    f, t = sources_wrench(SMALL, [(LARGE, upper), (SMALL, middle)], effects=effects)
-    f1, t1 = pair_wrench(LARGE, SMALL, upper, effects=effects)
-    f2, t2 = pair_wrench(SMALL, SMALL, middle, effects=effects)
+    additive = ModelOptions(stack_shielding=0.0)
+    f, t = sources_wrench(SMALL, [(LARGE, upper), (SMALL, middle)], additive, effects=effects)
+    f1, t1 = pair_wrench(LARGE, SMALL, upper, additive, effects=effects)
+    f2, t2 = pair_wrench(SMALL, SMALL, middle, additive, effects=effects)
     np.testing.assert_allclose(f, f1 + f2, rtol=1e-10, atol=1e-15)
     np.testing.assert_allclose(t, t1 + t2, rtol=1e-10, atol=1e-15)
     assert np.all(np.abs(f1[:, 2]) > 0) and np.all(np.abs(f2[:, 2]) > 0)
+    no_effect = (Effect("thrust_quadratic", {}),)  # adds over sources, scales with the base as shielded
+    fs, _ = sources_wrench(SMALL, [(LARGE, upper), (SMALL, middle)], effects=no_effect)
+    fa = (
+        pair_wrench(LARGE, SMALL, upper, effects=no_effect)[0] + pair_wrench(SMALL, SMALL, middle, effects=no_effect)[0]
+    )
+    assert np.all(np.abs(fs[:, 2]) <= np.abs(fa[:, 2])) and np.any(np.abs(fs[:, 2]) < 0.95 * np.abs(fa[:, 2]))
 
 
 def test_cost_maps_change_with_effects_and_their_hash_tells_them_apart(tmp_path: Path) -> None:

@@ -158,8 +158,17 @@ def test_simulator_logs_hidden_effect(tmp_path: Path, hidden: str) -> None:
 
 
 def test_simulator_logs_no_hidden_effect(tmp_path: Path) -> None:
+    """No library effect but a thrust bias is kept on simulator logs with no effect injected. The
+    widened dictionary (lagged copies of the base torque) does find the closed loop's delayed torque
+    response there (the measured roll/pitch disturbance follows the base torque by 50-250 ms): a real
+    structure of those logs, kept only where it also cuts the TEST error, never the F_z error's
+    worse."""
     result = run_identify(simulator_manifest(tmp_path, []), options=FAST, thrust_summary=False)
-    assert set(result.selected) <= {"thrust_bias"}, result.selected
+    library = {n for n in result.selected if not n.startswith("discovered:")}
+    assert library <= {"thrust_bias"}, result.selected
+    assert result.after.rmse_fz_N <= 1.01 * result.before.rmse_fz_N
+    if len(library) < len(result.selected):
+        assert result.after.rmse_torque_Nm < 0.8 * result.before.rmse_torque_Nm
 
 
 # ----------------------------------------------------------------- residual analysis

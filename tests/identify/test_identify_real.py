@@ -39,3 +39,10 @@ def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     assert doc["n_samples"] == result.after.n_samples
     assert doc["scored_fraction"] > 0.9
     assert set(result.per_vehicle) == set(doc["per_vehicle"])
+    # issue 24: three-vehicle swaps are scored per set and per number of sources overhead; the
+    # stack-shielding parameter is chosen on validation stacks, and the stacks' error is below no model
+    assert {"swap_sss", "swap_ssl", "swap_sll", "swap_lll"} <= set(doc["sets"])
+    assert doc["overhead"]["2+"]["n_samples"] > 1000
+    assert doc["overhead"]["2+"]["ratio_fz"] < 1.0
+    assert result.stack_shielding is not None and result.stack_shielding["n_samples"] > 500
+    assert "cf100" not in doc["per_vehicle"]  # swap_lll's cf100 is a source only (its IMU is unusable)

@@ -76,3 +76,18 @@ def test_lagged_actual_thrust_is_not_taken_for_saturation() -> None:
     s = _samples(train["low"])
     capped = replace(s, commanded_N=np.minimum(s.commanded_N, tmap.max_thrust_N))
     assert not saturated_samples(tmap, capped).any()
+
+
+def test_saturated_outliers_below_the_ceiling_do_not_reject_the_map() -> None:
+    """A few samples whose u[N] is far above what their PWM gives (a motor saturated just below the
+    ceiling band) must not make an otherwise exact map 'unusable'; a map most samples disagree with is."""
+    rng = np.random.default_rng(3)
+    pwm = rng.uniform(0.3, 0.8, (4000, 4))
+    vbat = np.full(4000, 4.0)
+    good = MOTOR.thrust_N(pwm * 4.0)
+    outliers = good.copy()
+    outliers[:100] *= 8.0  # 2.5 % of samples: desired force ~8x the delivered one
+    tmap = fit_thrust_map([MotorSamples(commanded_N=outliers, pwm=pwm, vbat_V=vbat)])
+    assert tmap.usable, (tmap.r2, tmap.inlier_fraction)
+    scrambled = rng.permutation(good.ravel()).reshape(good.shape)  # u[N] unrelated to PWM
+    assert not fit_thrust_map([MotorSamples(commanded_N=scrambled, pwm=pwm, vbat_V=vbat)]).usable

@@ -11,6 +11,7 @@ from proxplan.physics import (
     PARAMETERS,
     Effect,
     EffectInputs,
+    ModelOptions,
     SourceSample,
     default_effect,
     disturbance_wrench,
@@ -156,6 +157,7 @@ def test_total_wrench_is_base_plus_effects_summed_over_sources():
         height_above_ground_m=np.array([0.3, 1.0]),
         velocity_mps=np.zeros((2, 3)),
         sources=(SourceSample(LARGE, offs_a), SourceSample(SMALL, offs_b)),
+        options=ModelOptions(stack_shielding=0.0),  # S0's superposition; shielding: tests/physics/test_stack.py
     )
     effects = [Effect("thrust_bias", {"force_z_N": 0.1}), default_effect("ground_effect")]
     f, t = total_wrench(inputs, effects)

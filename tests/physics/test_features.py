@@ -44,7 +44,9 @@ def _features(inputs: EffectInputs) -> dict[str, np.ndarray]:
 
 
 def test_every_feature_names_its_unit() -> None:
-    assert all(n.rsplit("_", 1)[-1] in {"1", "m", "mps", "m2ps2", "N", "Nm", "Nmps", "1pm"} for n in FEATURE_NAMES)
+    assert all(
+        n.rsplit("_", 1)[-1] in {"1", "m", "mps", "m2ps2", "N", "Nm", "Nmps", "1pm", "m2"} for n in FEATURE_NAMES
+    )
 
 
 def test_pairwise_features_vanish_far_from_sources_and_separate_above_below() -> None:
