@@ -126,6 +126,7 @@ def summary_dict(
         "status_detail": result.status_detail,
         "plan": plan_path,
         "truth": result.truth.to_dict(),
+        "controller": result.options.controller,
         "physics_dt_s": result.options.physics_dt_s,
         "log_dt_s": result.options.log_dt_s,
         "plan_duration_s": result.plan_duration_s,
