@@ -254,7 +254,6 @@ def simulate_plan(
             notes.append(ff_note)
     ref_x = np.stack([r[0] for r in refs], axis=1)  # (n_steps, V, 3)
     ref_v = np.stack([r[1] for r in refs], axis=1)
-    ref_a = np.stack([r[2] for r in refs], axis=1)
     extra_f = np.zeros((n_steps, n_veh, 3))  # residual force beyond the model, N
     ctrl_ref = np.concatenate(
         [np.stack([r[d] for r in sp], axis=1) for d in range(3)] + [ref_w], axis=2

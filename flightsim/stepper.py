@@ -23,8 +23,8 @@ import casadi as ca
 import numpy as np
 
 from proxplan.flightsim.control import ControllerConstants, se3_control
-from proxplan.flightsim.mellinger import CONTROLLER_STATE_SIZE, MellingerGains, mellinger_control
 from proxplan.flightsim.dynamics import STATE_SIZE, VehicleConstants, mat_t_vec, rotation, state_derivative
+from proxplan.flightsim.mellinger import CONTROLLER_STATE_SIZE, MellingerGains, mellinger_control
 
 
 def _clip(val, lo, hi):

@@ -14,7 +14,7 @@ from proxplan.cli import main
 from proxplan.flightsim import SimulationOptions, simulate_plan, simulation_metrics
 from proxplan.flightsim.report import feedforward_comparison
 from proxplan.flightsim.tracking import course_tracking_error_m
-from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits
+from proxplan.physics import BUILTIN_VEHICLES
 from proxplan.planfile import load_scenario, plan_from_dict, plan_to_dict, read_plan, write_plan
 from proxplan.planner import plan_scenario
 from proxplan.verify import wrench_along_plan
