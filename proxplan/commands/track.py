@@ -47,8 +47,15 @@ def _check(value: float | None, flag: str, lo: float, hi: float) -> None:
 
 def run_track_limits(args: argparse.Namespace) -> int:
     from proxplan.fileio import UserError, atomic_write_text
-    from proxplan.flightsim.tracking import ERROR_QUANTILE, TUBE_BUDGET_M, TUBE_MARGIN_M, measure_tracking
-    from proxplan.physics import BUILTIN_VEHICLES, load_vehicle_file, resolve_vehicle, vehicle_to_yaml_dict
+    from proxplan.flightsim import ERROR_QUANTILE, measure_tracking
+    from proxplan.physics import (
+        BUILTIN_VEHICLES,
+        TUBE_BUDGET_M,
+        TUBE_MARGIN_M,
+        load_vehicle_file,
+        resolve_vehicle,
+        vehicle_to_yaml_dict,
+    )
 
     _check(args.budget, "--budget", 0.0, 1.0)
     _check(args.margin, "--margin", -1e-12, 0.5)
