@@ -1,15 +1,18 @@
 """Do plans hold when flown? Plans the shipped scenarios and formation changes of 8 and 16 vehicles
-(proxplan.planner.formations), flies them closed-loop (truth = the planner's model, RotorPy's SE(3)
-controller, no sensor noise) and prints per scenario: the largest flown and predicted authority
-usage and their ratio, the scenario's limit, flown and predicted invalid-zone time, the largest
-tracking error without / with feed-forward against the tube ``limits.tracking_margin_m``; then, for the battery swap and the
-hand-off, the most disturbed vehicle's max altitude error without / with feed-forward of the
-predicted disturbance (and with ``--truth``, in a world with extra effects).
+(proxplan.planner.formations), flies them closed-loop (truth = the planner's model, the default
+controller: the Crazyflie firmware's Mellinger law with rate feed-forward, no sensor noise) and prints
+per scenario: the largest flown and predicted authority usage and their ratio, the scenario's limit,
+flown and predicted invalid-zone time, the largest tracking error without / with feed-forward against
+the tube ``limits.tracking_margin_m``; then, for the battery swap and the hand-off, the most disturbed
+vehicle's max altitude error without / with feed-forward of the predicted disturbance (and with
+``--truth``, in a world with extra effects).
 
-``--limits`` also prints the tracking-course error (proxplan.flightsim.tracking) of the built-in limits
-against the earlier ones (1.5 m/s, 3 m/s^2, 15 m/s^3), measured in the same run.
+``--limits`` also prints, per built-in type, the tracking-course error at its measured limits with the
+default controller, without its rate feed-forward and with RotorPy's SE(3) law (same run).
+``--exports`` also exports every plan for the Crazyflie (7th-order polynomials), reads the export back
+and flies it: largest error against the tube, and whether the export keeps the vehicles' limits.
 
-Run: python benchmarks/bench_fly.py [--method sampling] [--formations 8 16] [--limits]
+Run: python benchmarks/bench_fly.py [--method sampling] [--formations 8 16] [--limits] [--exports]
      [--truth examples/truth/all_effects.yaml]
 """
 
@@ -20,6 +23,8 @@ import dataclasses
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 from proxplan.flightsim import SimulationOptions, load_truth_file, simulate_plan, simulation_metrics
 from proxplan.flightsim.report import USAGE_RATIO_FLOOR, feedforward_comparison
@@ -61,24 +66,64 @@ def fly(scenario, method: str) -> dict:
     }
 
 
+def fly_exports(scenarios, rows) -> bool:
+    """Export every plan for the Crazyflie, read the polynomials back and fly them; True when every
+    export keeps its vehicles within the tube and within the scenario's limits."""
+    import tempfile
+
+    from proxplan.export import export_crazyflie
+    from proxplan.planfile import read_export
+    from proxplan.verify import verify_plan
+
+    print("\nCrazyflie exports flown (polynomials read back): max error vs tube [cm], verify of the export")
+    good = True
+    for name, sc in scenarios:
+        plan = rows[name]["plan"]
+        with tempfile.TemporaryDirectory() as tmp:
+            try:
+                export_crazyflie(plan, sc, tmp, split_time=True)
+            except Exception as err:  # noqa: BLE001 - report and go on
+                print(f"{name:<18} export failed: {err}")
+                good = False
+                continue
+            back = read_export(tmp)
+            violations = verify_plan(back, sc)
+            metrics = simulation_metrics(simulate_plan(back, options=QUIET))
+        err = max(m.max_position_error_m for m in metrics.values())
+        usage = max(m.max_authority_usage for m in metrics.values())
+        within = err <= sc.limits.tracking_margin_m and usage <= sc.limits.authority_fraction
+        good = good and within and not violations
+        print(f"{name:<18}{100 * err:6.1f} / {100 * sc.limits.tracking_margin_m:.1f}  usage {usage:.3f} / "
+              f"{sc.limits.authority_fraction:.2f}  verify {'pass' if not violations else f'FAIL x{len(violations)}: ' + str(violations[0])}")  # fmt: skip
+    return good
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--method", default="sampling", help="planner method (default sampling)")
     ap.add_argument("--formations", type=int, nargs="*", default=[8, 16], help="formation sizes (default 8 16)")
     ap.add_argument("--limits", action="store_true", help="also measure the tracking course at old and new limits")
+    ap.add_argument("--exports", action="store_true", help="also export, read back and fly every plan")
     ap.add_argument("--truth", default=str(REPO / "examples/truth/all_effects.yaml"), help="truth file for the FF row")
     args = ap.parse_args()
 
     if args.limits:
-        from proxplan.flightsim.tracking import course_tracking_error_m
-        from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits
+        from proxplan.flightsim.tracking import course_plan
+        from proxplan.physics import BUILTIN_VEHICLES
 
-        old = KinematicLimits(1.5, 3.0, 15.0)
+        def course_err(veh, **kw) -> float:
+            rec = simulate_plan(
+                course_plan(veh, veh.kinematic_limits), options=dataclasses.replace(QUIET, settle_s=0.5, **kw)
+            ).records["v"]
+            return float(np.linalg.norm(rec.position_m - rec.ref_position_m, axis=1).max())
+
+        print("course max error at the measured limits [cm]: mellinger / without rate FF / rotorpy SE(3)")
         for name, veh in BUILTIN_VEHICLES.items():
-            e_old = course_tracking_error_m(veh, old)
-            e_new = course_tracking_error_m(veh)
-            print(f"course {name:<17} error at old limits {100 * e_old:5.1f} cm, at {veh.kinematic_limits}: "
-                  f"{100 * e_new:5.1f} cm (ratio {e_new / e_old:.2f})")  # fmt: skip
+            e = course_err(veh)
+            e_noff = course_err(veh, rate_feedforward=False)
+            e_rp = course_err(veh, controller="rotorpy")
+            print(f"{name:<17} {veh.kinematic_limits}: {100 * e:5.1f} / {100 * e_noff:5.1f} ({e_noff / e:.1f}x) / "
+                  f"{100 * e_rp:5.1f} ({e_rp / e:.1f}x); tube {100 * veh.tracking_tube_m:.1f}")  # fmt: skip
 
     scenarios = [(p.stem, load_scenario(p)) for p in sorted((REPO / "scenarios").glob("*.yaml"))]
     for n in args.formations:
@@ -98,6 +143,8 @@ def main() -> int:
         r["flown"] <= r["limit"] and r["usage_ff"] <= r["limit"] and not r["entered_avoided"] for r in rows.values()
     )
     print(f"every vehicle within its limit and outside zones its plan avoided: {ok}")
+    if args.exports:
+        ok = fly_exports(scenarios, rows) and ok
 
     truth = load_truth_file(args.truth)
     print("\nfeed-forward: most disturbed vehicle's max altitude error without / with [cm] (factor)")

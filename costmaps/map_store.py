@@ -60,7 +60,14 @@ FORMAT_VERSION = 1
 DATA_DIR = Path(__file__).resolve().parent / "data"
 """Shipped maps of every ordered pair of built-in vehicles."""
 
-_NOT_MAP_INPUTS = ("description", "sources", "kinematic_limits", "motor_time_constant_s")  # not map inputs
+_NOT_MAP_INPUTS = (
+    "description",
+    "sources",
+    "kinematic_limits",
+    "motor_time_constant_s",
+    "tracking",
+    "tracking_tube_m",
+)  # not map inputs
 
 
 @dataclass(frozen=True, eq=False)

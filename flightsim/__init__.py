@@ -1,9 +1,12 @@
-"""Closed-loop flight of a plan on RotorPy's multirotor dynamics and SE(3) controller, with the
-downwash of every other vehicle (and optional "truth" effects beyond the model) applied; tracking
-reports and Neural-Swarm-layout flight logs of the simulated flights.
+"""Closed-loop flight of a plan on RotorPy's multirotor dynamics, flown by the Crazyflie firmware's
+Mellinger controller (default; rate feed-forward from the reference jerk) or RotorPy's SE(3) law,
+with the downwash of every other vehicle (and optional "truth" effects beyond the model) applied;
+tracking reports, Neural-Swarm-layout flight logs of the simulated flights, and the measurement of
+a vehicle type's trackable limits and tracking tube (``measure_tracking``).
 """
 
 from proxplan.flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_flight_logs
+from proxplan.flightsim.mellinger import controller_gains, reference_body_rates
 from proxplan.flightsim.report import feedforward_comparison, plot_errors, simulation_metrics, summary_dict
 from proxplan.flightsim.scenarios_synthetic import (
     battery_swap_plans,
@@ -21,9 +24,16 @@ from proxplan.flightsim.simulate import (
     VehicleRecord,
     simulate_plan,
 )
+from proxplan.flightsim.tracking import ERROR_QUANTILE, CourseFlight, TrackingResult, measure_tracking
 from proxplan.flightsim.truth import TruthSpec, load_truth_file, merge_truth, model_truth, plan_truth, truth_from_dict
 
 __all__ = [
+    "ERROR_QUANTILE",
+    "CourseFlight",
+    "TrackingResult",
+    "controller_gains",
+    "measure_tracking",
+    "reference_body_rates",
     "NEURAL_SWARM_HEADER",
     "Perturbation",
     "SimulationOptions",

@@ -126,6 +126,7 @@ def summary_dict(
         "status_detail": result.status_detail,
         "plan": plan_path,
         "truth": result.truth.to_dict(),
+        "controller": result.options.controller,
         "physics_dt_s": result.options.physics_dt_s,
         "log_dt_s": result.options.log_dt_s,
         "plan_duration_s": result.plan_duration_s,
@@ -142,8 +143,11 @@ def summary_dict(
 def feedforward_comparison(without, with_ff) -> dict:
     """Tracking errors of the same flight without and with feed-forward of the predicted
     disturbance: per vehicle ``{"without": {...}, "with": {...}, "altitude_error_factor",
-    "position_error_factor"}`` (factor = without / with, None when "with" is 0), the most disturbed
-    vehicle (largest max altitude error without) and the notes of the feed-forward flight."""
+    "position_error_factor"}`` (factor = without / with, None when "with" is 0) and the most disturbed
+    vehicle: the one receiving the largest disturbance (max authority usage of the applied wrench
+    without feed-forward; ties and undisturbed flights: the largest max altitude error). Not the
+    largest altitude error alone: with the rate feed-forward a vehicle's own climbs and descents
+    (rotor drag, induced inflow) can out-weigh the downwash another one receives."""
     keys = ("max_position_error_m", "rms_position_error_m", "max_altitude_error_m", "rms_altitude_error_m")
     a, b = simulation_metrics(without), simulation_metrics(with_ff)
     vehicles = {}
@@ -156,7 +160,7 @@ def feedforward_comparison(without, with_ff) -> dict:
             "altitude_error_factor": _ratio(wo["max_altitude_error_m"], wi["max_altitude_error_m"]),
             "position_error_factor": _ratio(wo["max_position_error_m"], wi["max_position_error_m"]),
         }
-    worst = max(a, key=lambda n: a[n].max_altitude_error_m) if a else None
+    worst = max(a, key=lambda n: (a[n].max_authority_usage, a[n].max_altitude_error_m)) if a else None
     return {"vehicles": vehicles, "most_disturbed": worst}
 
 

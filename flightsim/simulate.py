@@ -1,8 +1,16 @@
 """Closed-loop flight of a multi-vehicle plan with downwash, on RotorPy's dynamics.
 
 Each vehicle is RotorPy's multirotor model (:mod:`proxplan.flightsim.dynamics`, parameters from
-:mod:`proxplan.flightsim.vehicle_params`) flown by RotorPy's SE(3) controller (:mod:`proxplan.flightsim.control`)
-tracking the plan's position, velocity and acceleration (yaw 0). Every physics step (default
+:mod:`proxplan.flightsim.vehicle_params`) flown by a tracking controller (``SimulationOptions.controller``):
+
+* ``"mellinger"`` (default): the Crazyflie firmware's Mellinger law (:mod:`proxplan.flightsim.mellinger`)
+  at 500 Hz with the firmware's gains (scaled by mass and inertia for other types), set-points
+  (position, velocity, acceleration and the body-rate feed-forward from the reference jerk) sampled
+  from the plan at 100 Hz and held, motor commands capped as the firmware's power distribution does;
+* ``"rotorpy"``: RotorPy's SE(3) controller (:mod:`proxplan.flightsim.control`) tracking position,
+  velocity and acceleration every physics step, no rate feed-forward.
+
+Both fly yaw 0. Every physics step (default
 500 Hz) each vehicle receives the external wrench of :func:`proxplan.physics.effects.total_wrench`: the
 base downwash model (S0-3..S0-8) of every other vehicle plus the "truth" effects.
 
@@ -28,6 +36,7 @@ import numpy as np
 
 from proxplan.fileio import UserError
 from proxplan.flightsim.imu import ImuOptions, imu_samples
+from proxplan.flightsim.mellinger import controller_gains, reference_body_rates
 from proxplan.flightsim.stepper import CompiledStepper
 from proxplan.flightsim.truth import TruthSpec, merge_truth, plan_truth
 from proxplan.flightsim.vehicle_params import quad_params
@@ -58,6 +67,9 @@ class SimulationOptions:
     position_integral_rate_ps: float = 0.0  # integral action k_i / k_p per axis, 1/s (0 = RotorPy's PD)
     position_integral_limit_ms: float = 0.2  # anti-windup bound of the integrated position error, m s
     feedforward: bool = False  # compensate the plan's predicted disturbance wrench in the controller
+    controller: str = "mellinger"  # "mellinger" (Crazyflie firmware law) or "rotorpy" (RotorPy's SE(3))
+    rate_feedforward: bool = True  # Mellinger: body-rate feed-forward from the reference jerk
+    setpoint_rate_hz: float = 100.0  # Mellinger: set-point evaluation rate (held in between), Hz
 
 
 @dataclass(frozen=True)
@@ -158,6 +170,7 @@ def simulate_plan(
     settle_s: float = 1.0,
     wrench_horizon_steps: int = 10,
     position_integral_rate_ps: float = 0.0,
+    controller: str = "mellinger",
     options: SimulationOptions | None = None,
     progress: bool = False,
     perturbation: Perturbation | None = None,
@@ -171,10 +184,11 @@ def simulate_plan(
     weaker airframe than planned). ``options``, when given, overrides the keyword numbers.
     ``perturbation`` (:class:`Perturbation`) adds start, timing, residual-force and estimate errors.
 
-    Controller: RotorPy's SE3Control; ``position_integral_rate_ps`` > 0 adds integral action on the
+    Controller: ``options.controller`` (module docstring; the Mellinger law has its own integrators).
+    ``position_integral_rate_ps`` > 0 adds integral action on the
     position error, as the seed's cascaded PID (S0 IV-D). With diagonal gains,
     k_p e + k_i int(e) dt = k_p (e + (k_i / k_p) int(e) dt), so the integral enters as a shift of the
-    position reference fed to SE3Control; the integrated error is clipped to
+    position reference fed to the controller; the integrated error is clipped to
     +-``position_integral_limit_ms`` (anti-windup).
     """
     if isinstance(plan, (str, Path)):
@@ -192,6 +206,7 @@ def simulate_plan(
             imu_noise=imu_noise,
             seed=seed,
             position_integral_rate_ps=position_integral_rate_ps,
+            controller=controller,
         )
     dt = options.physics_dt_s
     log_every = int(round(options.log_dt_s / dt))
@@ -215,6 +230,20 @@ def simulate_plan(
     pert = perturbation or Perturbation()
     shifts = np.array([float(pert.time_offset_s.get(n, 0.0)) for n in names])
     refs = [tr.sample(t_grid - shift) for shift, tr in zip(shifts, trajs)]
+    if options.controller not in CONTROLLERS:
+        raise UserError(f"controller: expected one of {', '.join(CONTROLLERS)}, got {options.controller!r}")
+    mellinger = options.controller == "mellinger"
+    if mellinger:  # the firmware evaluates the trajectory at its set-point rate and holds it
+        if options.setpoint_rate_hz <= 0:
+            raise UserError(f"setpoint_rate_hz: expected a positive rate, Hz, got {options.setpoint_rate_hz}")
+        t_sp = t0 + np.floor((t_grid - t0) * options.setpoint_rate_hz + 1e-9) / options.setpoint_rate_hz
+    else:
+        t_sp = t_grid
+    sp = [tr.sample(t_sp - shift) for shift, tr in zip(shifts, trajs)]
+    ref_w = np.zeros((n_steps, n_veh, 3))  # body-rate feed-forward, body frame, rad/s
+    if mellinger and options.rate_feedforward:
+        for vi, (shift, tr) in enumerate(zip(shifts, trajs)):
+            ref_w[:, vi] = reference_body_rates(sp[vi][2], tr.jerk_at(t_sp - shift))
     notes: list[str] = []
     # what the plan predicted, on each vehicle's (possibly late) plan time
     pred_f, pred_t, ff_note = predicted_wrench(plan, names, t_grid[:, None] - shifts[None, :])
@@ -225,9 +254,10 @@ def simulate_plan(
             notes.append(ff_note)
     ref_x = np.stack([r[0] for r in refs], axis=1)  # (n_steps, V, 3)
     ref_v = np.stack([r[1] for r in refs], axis=1)
-    ref_a = np.stack([r[2] for r in refs], axis=1)
     extra_f = np.zeros((n_steps, n_veh, 3))  # residual force beyond the model, N
-    ctrl_ref = np.concatenate([ref_x, ref_v, ref_a], axis=2)  # reference the controller sees
+    ctrl_ref = np.concatenate(
+        [np.stack([r[d] for r in sp], axis=1) for d in range(3)] + [ref_w], axis=2
+    )  # (n_steps, V, 12): the set-points the controller sees
     for vi, n in enumerate(names):
         if n in pert.force_N:
             extra_f[:, vi] = pert.force_N[n](t_grid - t0)
@@ -237,7 +267,9 @@ def simulate_plan(
             ctrl_ref[:, vi, 3:6] -= pert.estimate_error_mps[n](t_grid - t0)
 
     hover_speed = np.array([np.sqrt(v.hover_thrust_per_rotor_N / p["k_eta"]) for v, p in zip(vehs, params)])
-    stepper = _stepper(params, dt, truth.wind_mps)
+    gains = [controller_gains(v) if mellinger else None for v in vehs]
+    stepper = _stepper(params, dt, truth.wind_mps, gains)
+    stepper.ctrl_mem[:] = 0.0  # fresh controller memory (integrators) for this flight
     S = stepper.state
     S[:] = 0.0
     stepper.ff_force_N[:] = 0.0  # the stepper is cached: no feed-forward left from an earlier flight
@@ -285,7 +317,7 @@ def simulate_plan(
     buf_f = np.zeros((n_veh, horizon, 3))
     buf_t = np.zeros((n_veh, horizon, 3))
     tau = dt * np.arange(horizon)
-    ref_all = ctrl_ref  # (n_steps, V, 9)
+    ref_all = ctrl_ref  # (n_steps, V, 12)
     integral_ms = np.zeros((n_veh, 3))  # integrated position error, m s
     ki_rate = float(options.position_integral_rate_ps)
     windup = float(options.position_integral_limit_ms)
@@ -451,15 +483,17 @@ def predicted_wrench(plan, names: list[str], t_s: np.ndarray) -> tuple[np.ndarra
 
 
 _STEPPER_CACHE: dict = {}
+CONTROLLERS = ("mellinger", "rotorpy")
+"""Names of the simulated tracking controllers (``SimulationOptions.controller``)."""
 
 
-def _stepper(params: list[dict], dt_s: float, wind_mps) -> CompiledStepper:
+def _stepper(params: list[dict], dt_s: float, wind_mps, gains: list) -> CompiledStepper:
     """A compiled stepper for these vehicles (cached: building one takes ~0.1 s per vehicle)."""
-    key = (repr(params), float(dt_s), tuple(float(w) for w in wind_mps))
+    key = (repr(params), float(dt_s), tuple(float(w) for w in wind_mps), repr(gains))
     if key not in _STEPPER_CACHE:
         if len(_STEPPER_CACHE) > 16:
             _STEPPER_CACHE.clear()
-        _STEPPER_CACHE[key] = CompiledStepper(params, dt_s, wind_mps=wind_mps)
+        _STEPPER_CACHE[key] = CompiledStepper(params, dt_s, wind_mps=wind_mps, controllers=gains)
     return _STEPPER_CACHE[key]
 
 

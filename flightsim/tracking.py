@@ -1,34 +1,92 @@
-"""How closely the default controller tracks a vehicle's kinematic limits: the measurement behind
-the limits on :class:`proxplan.physics.Vehicle` and the tube margin ``limits.tracking_margin_m``.
+"""Trackable kinematic limits and the tracking tube of a vehicle type, measured with the default
+simulated controller (the Crazyflie firmware's Mellinger law, :mod:`proxplan.flightsim.mellinger`).
 
-Why plans were flown with 12-24 cm errors (docs/flying.md): RotorPy's SE(3) controller has no
-angular-rate feed-forward from the reference jerk, and its attitude loop (k_R = 310 s^-2,
-k_w = 57 s^-1, the Crazyflie gains) has a slow pole at s = -6.1 s^-1, so the realised acceleration
-lags the reference by ~0.15 s. Every acceleration phase therefore leaves a velocity deficit of about
-a x 0.15 s, and the position error grows with the velocity change of a segment: ~13 cm for
-rest-to-rest segments at 1.5 m/s, 3 m/s^2, 15 m/s^3 (the earlier built-in limits), 4.4 cm at
-1 m/s, 1 m/s^2, 2 m/s^3. The position and attitude gains are normalised by mass and inertia, so
-the error is the same for every built-in type; motor lag (0.04-0.072 s) and rotor drag change it
-by < 1 cm.
+Procedure (:func:`measure_tracking`, ``proxplan track-limits``): the vehicle flies alone (no
+downwash, no sensor noise, RotorPy's rotor drag on) along :data:`COURSE_M`, rest-to-rest straight
+segments (horizontal 2.1 m, vertical 0.6 m, diagonal, short 0.2 m hops) timed by Ruckig at each
+level of a ladder of limits: speed :data:`SPEED_LADDER_MPS` x acceleration :data:`ACCEL_LADDER_MPS2`
+x jerk = :data:`JERK_PER_ACCEL_PS` x acceleration. A level is physically allowed when its
+acceleration keeps the thrust within (1 - :data:`ATTITUDE_HEADROOM`) of the maximum when pointing
+straight up (m (g + a) <= 0.8 T_max) and the tilt within :data:`MAX_TILT_DEG` (a <= g tan 35 deg).
+It is accepted when, flown, the :data:`ERROR_QUANTILE` quantile of the position error plus the
+margin :data:`TUBE_MARGIN_M` stays within the tube budget, and the motors saturate for at most
+:data:`MAX_SATURATED_FRACTION` of the flight. Of the accepted levels the one flying the course
+fastest is kept: its limits go to ``Vehicle.kinematics``, its error quantile + margin is the type's
+tracking tube, ``Vehicle.tracking`` records the measurement.
 
-:func:`course_tracking_error_m` flies one vehicle alone (no downwash, no noise) along a fixed
-course of rest-to-rest, Ruckig-timed straight segments (horizontal, vertical and diagonal) at the
-given limits and returns its largest position error; :func:`trackable_scale` finds the largest
-scaling of a set of limits that keeps it under a budget.
+What limits it (docs/flying.md): RotorPy's rotor drag (k_d, ~0.24 m/s^2 per m/s for every
+built-in type) against the firmware's soft position gain (0.4 N/m on 32 g, 12.5 s^-2) leaves a
+cruise lag of ~1.9 cm per m/s; the rate feed-forward removes the attitude lag that dominated with
+RotorPy's SE(3) law.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import datetime
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 from proxplan.flightsim.simulate import SimulationOptions, simulate_plan
-from proxplan.physics import KinematicLimits, Vehicle
+from proxplan.physics import (
+    GRAVITY_MPS2,
+    TRACKING_COURSE,
+    TUBE_BUDGET_M,
+    TUBE_MARGIN_M,
+    KinematicLimits,
+    TrackingMeasurement,
+    Vehicle,
+)
 from proxplan.planfile import Plan, VehicleTrajectory
 
 COURSE_M = np.array(
     [[0.0, 0.0, 1.0], [2.0, 0.6, 1.0], [2.0, 0.6, 1.6], [0.5, 0.0, 1.2], [0.5, 0.0, 1.0], [0.0, 0.0, 1.0]]
 )
 """Waypoints of the calibration course, world frame, m (rest at each)."""
+SPEED_LADDER_MPS = (0.75, 1.0, 1.25, 1.5, 1.75, 2.0)
+ACCEL_LADDER_MPS2 = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0)
+JERK_PER_ACCEL_PS = (4.0, 10.0)
+"""Jerk limits of the ladder as multiples of its acceleration, 1/s."""
+ERROR_QUANTILE = 0.99
+ATTITUDE_HEADROOM = 0.2  # share of the maximum thrust kept for attitude control, -
+MAX_TILT_DEG = 35.0  # largest tilt a level may ask for, deg
+MAX_SATURATED_FRACTION = 0.02  # motor-saturated share of the flight accepted, -
+
+
+@dataclass(frozen=True)
+class CourseFlight:
+    """One flight of the course at ``limits``: errors m, saturated time s, course duration s."""
+
+    limits: KinematicLimits
+    quantile_error_m: float
+    max_error_m: float
+    saturation_s: float
+    duration_s: float
+    allowed: bool  # within thrust-to-weight and tilt
+    accepted: bool
+    reason: str  # why not accepted ("" when accepted)
+
+
+@dataclass(frozen=True)
+class TrackingResult:
+    """A measurement: the vehicle with its measured limits and tube, and every flight of the ladder."""
+
+    vehicle: Vehicle
+    flights: tuple[CourseFlight, ...]
+
+    def to_dict(self) -> dict:
+        assert self.vehicle.tracking is not None and self.vehicle.kinematics is not None
+        return {
+            "vehicle": self.vehicle.name,
+            "kinematic_limits": dataclasses.asdict(self.vehicle.kinematics),
+            "tracking_tube_m": self.vehicle.tracking.tube_m,
+            "tracking": dataclasses.asdict(self.vehicle.tracking),
+            "flights": [
+                {**dataclasses.asdict(f), "limits": dataclasses.asdict(f.limits)} for f in self.flights if f.allowed
+            ],
+        }
 
 
 def course_plan(vehicle: Vehicle, limits: KinematicLimits, *, dt_s: float = 0.05) -> Plan:
@@ -41,25 +99,103 @@ def course_plan(vehicle: Vehicle, limits: KinematicLimits, *, dt_s: float = 0.05
     return Plan("tracking-course", dt_s, {"v": VehicleTrajectory("v", vehicle.name, vehicle, t, p, v, a)})
 
 
+def thrust_accel_limit_mps2(vehicle: Vehicle) -> float:
+    """Largest acceleration norm a level may use, m/s^2: m (g + a) <= (1 - headroom) T_max and
+    a <= g tan(MAX_TILT_DEG)."""
+    climb = ((1.0 - ATTITUDE_HEADROOM) * vehicle.max_thrust_N / vehicle.mass_kg) - GRAVITY_MPS2
+    return float(max(0.0, min(climb, GRAVITY_MPS2 * math.tan(math.radians(MAX_TILT_DEG)))))
+
+
+def fly_course(
+    vehicle: Vehicle, limits: KinematicLimits, *, controller: str = "mellinger", quantile: float = ERROR_QUANTILE
+) -> tuple[float, float, float, float]:
+    """Fly the course at ``limits``: (error quantile m, max error m, saturated time s, duration s)."""
+    plan = course_plan(vehicle, limits)
+    res = simulate_plan(plan, options=SimulationOptions(imu_noise=False, settle_s=0.5, controller=controller))
+    rec = res.records["v"]
+    err = np.linalg.norm(rec.position_m - rec.ref_position_m, axis=1)
+    return float(np.quantile(err, quantile)), float(err.max()), float(res.saturation_time_s["v"]), plan.makespan_s
+
+
 def course_tracking_error_m(vehicle: Vehicle, limits: KinematicLimits | None = None) -> float:
     """Largest position error, m, of ``vehicle`` flown alone by the default controller along the
     calibration course at ``limits`` (default: the vehicle's own)."""
-    plan = course_plan(vehicle, limits or vehicle.kinematic_limits)
-    rec = simulate_plan(plan, options=SimulationOptions(imu_noise=False, settle_s=0.5)).records["v"]
-    return float(np.linalg.norm(rec.position_m - rec.ref_position_m, axis=1).max())
+    return fly_course(vehicle, limits or vehicle.kinematic_limits)[1]
 
 
-def trackable_scale(vehicle: Vehicle, limits: KinematicLimits, budget_m: float, *, iterations: int = 8) -> float:
-    """Largest factor s in (0, 1] (bisection) such that the limits (s v, s a, s j) keep the course
-    tracking error within ``budget_m``, m."""
-    lo, hi = 0.0, 1.0
-    if course_tracking_error_m(vehicle, limits) <= budget_m:
-        return 1.0
-    for _ in range(iterations):
-        mid = 0.5 * (lo + hi)
-        scaled = KinematicLimits(limits.max_speed_mps * mid, limits.max_accel_mps2 * mid, limits.max_jerk_mps3 * mid)
-        if course_tracking_error_m(vehicle, scaled) <= budget_m:
-            lo = mid
+def ladder() -> list[KinematicLimits]:
+    """Every level of the measurement ladder (speed m/s, acceleration m/s^2, jerk m/s^3)."""
+    return [
+        KinematicLimits(v, a, a * j) for v in SPEED_LADDER_MPS for a in ACCEL_LADDER_MPS2 for j in JERK_PER_ACCEL_PS
+    ]
+
+
+def measure_tracking(
+    vehicle: Vehicle,
+    *,
+    budget_m: float = TUBE_BUDGET_M,
+    margin_m: float = TUBE_MARGIN_M,
+    quantile: float = ERROR_QUANTILE,
+    controller: str = "mellinger",
+    levels: list[KinematicLimits] | None = None,
+    command: str = "",
+    progress: bool = False,
+) -> TrackingResult:
+    """Measure ``vehicle``'s trackable limits and tube (module docstring); ``levels`` replaces the
+    ladder (tests). Raises ValueError when no level is accepted."""
+    cap = thrust_accel_limit_mps2(vehicle)
+    levels = levels if levels is not None else ladder()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(levels), desc=f"track-limits {vehicle.name}", unit="flight", leave=False)
+    flights = []
+    for lim in levels:
+        if lim.max_accel_mps2 > cap + 1e-9:
+            reason = f"acceleration {lim.max_accel_mps2:g} m/s^2 > {cap:.2f} m/s^2 (thrust-to-weight / tilt)"
+            flights.append(CourseFlight(lim, math.nan, math.nan, math.nan, math.nan, False, False, reason))
         else:
-            hi = mid
-    return lo
+            q, mx, sat, dur = fly_course(vehicle, lim, controller=controller, quantile=quantile)
+            reason = ""
+            if q + margin_m > budget_m:
+                reason = (
+                    f"error quantile {q * 100:.1f} cm + margin {margin_m * 100:.1f} cm > budget {budget_m * 100:.1f} cm"
+                )
+            elif sat > MAX_SATURATED_FRACTION * dur:
+                reason = f"motors saturated {sat:.3f} s of {dur:.2f} s"
+            flights.append(CourseFlight(lim, q, mx, sat, dur, True, not reason, reason))
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    accepted = [f for f in flights if f.accepted]
+    if not accepted:
+        raise ValueError(f"{vehicle.name}: no level of the ladder is tracked within {budget_m * 100:.1f} cm")
+    best = min(accepted, key=lambda f: (round(f.duration_s, 6), f.quantile_error_m))
+    faster = [f for f in flights if f.allowed and not f.accepted and f.duration_s < best.duration_s]
+    if faster:
+        nxt = max(faster, key=lambda f: f.duration_s)  # the closest faster level
+        lm = nxt.limits
+        limited_by = (
+            f"next faster level ({lm.max_speed_mps:g} m/s, {lm.max_accel_mps2:g} m/s^2, "
+            f"{lm.max_jerk_mps3:g} m/s^3): {nxt.reason}"
+        )
+    else:
+        limited_by = "the ladder's fastest level"
+    measurement = TrackingMeasurement(
+        controller=controller,
+        tube_m=round(best.quantile_error_m + margin_m, 4),
+        error_quantile=quantile,
+        quantile_error_m=best.quantile_error_m,
+        max_error_m=best.max_error_m,
+        margin_m=margin_m,
+        budget_m=budget_m,
+        saturation_s=best.saturation_s,
+        limited_by=limited_by,
+        course=TRACKING_COURSE,
+        command=command or f"proxplan track-limits --vehicle {vehicle.name} --budget {budget_m:g}",
+        date=datetime.date.today().isoformat(),
+    )
+    measured = dataclasses.replace(vehicle, kinematics=best.limits, tracking=measurement)
+    return TrackingResult(measured, tuple(flights))

@@ -58,12 +58,17 @@ from proxplan.physics.vehicle_yaml import (
     vehicle_to_yaml_dict,
 )
 from proxplan.physics.vehicles import (
+    DEFAULT_TRACKING_TUBE_M,
     GRAVITY_MPS2,
     MOTOR_DIRECTIONS_XY,
     MOTOR_YAW_SIGNS,
+    TRACKING_COURSE,
+    TUBE_BUDGET_M,
+    TUBE_MARGIN_M,
     DownwashSpec,
     FrameSpec,
     KinematicLimits,
+    TrackingMeasurement,
     Vehicle,
 )
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
@@ -98,6 +103,11 @@ __all__ = [
     "EffectInputs",
     "FrameSpec",
     "KinematicLimits",
+    "TrackingMeasurement",
+    "DEFAULT_TRACKING_TUBE_M",
+    "TRACKING_COURSE",
+    "TUBE_BUDGET_M",
+    "TUBE_MARGIN_M",
     "ModelOptions",
     "PropellerSpec",
     "SourceSample",

@@ -13,11 +13,13 @@ Sources
 [ET]  Eschmann et al. 2024 (cited in RotorPy's crazyflie_params.py): Crazyflie motor time constant
       0.072 s.
 [A]   Assumption, stated here, to be corrected by calibration (``proxplan identify``).
-[M]   Measured in closed-loop simulation: :mod:`proxplan.flightsim.tracking` flies each type alone with the
-      default controller (RotorPy's SE(3) law and Crazyflie gains) along a course of rest-to-rest
-      segments; at 1 m/s, 1 m/s^2, 2 m/s^3 its largest position error is 4.4 cm for every built-in
-      type (the gains are normalised by mass and inertia), at the earlier 1.5 m/s, 3 m/s^2, 15 m/s^3
-      it was 13 cm (docs/flying.md; ``python benchmarks/bench_fly.py --limits``).
+[M]   Measured in closed-loop simulation (``proxplan track-limits --vehicle NAME``,
+      :mod:`proxplan.flightsim.tracking`): each type flies alone, with the default controller (the
+      Crazyflie firmware's Mellinger law with rate feed-forward, :mod:`proxplan.flightsim.mellinger`),
+      a course of rest-to-rest jerk-limited segments at a ladder of limits; the fastest level whose
+      99 % error quantile + 5 mm stays within 5 cm (and within thrust-to-weight and tilt) gives the
+      limits, and that quantile + 5 mm the type's tracking tube. What limits it: RotorPy's rotor drag
+      against the firmware's soft position gain, a cruise lag of ~1.9 cm per m/s (docs/flying.md).
 
 Derived values
 --------------
@@ -33,10 +35,73 @@ from __future__ import annotations
 import math
 
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec
-from proxplan.physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
+from proxplan.physics.vehicles import (
+    TRACKING_COURSE,
+    TUBE_BUDGET_M,
+    TUBE_MARGIN_M,
+    DownwashSpec,
+    FrameSpec,
+    KinematicLimits,
+    TrackingMeasurement,
+    Vehicle,
+)
 
-TRACKABLE_LIMITS = KinematicLimits(max_speed_mps=1.0, max_accel_mps2=1.0, max_jerk_mps3=2.0)
-"""Speed m/s, acceleration m/s^2 and jerk m/s^3 the default controller tracks within 4.4 cm [M]."""
+MEASURED_ON = "2026-11-25"
+
+
+def _measured(name: str, limits: tuple[float, float, float], q_m: float, max_m: float, sat_s: float, limited_by: str):
+    """Kinematic limits and tracking measurement of built-in type ``name`` [M]."""
+    return KinematicLimits(*limits), TrackingMeasurement(
+        controller="mellinger",
+        tube_m=round(q_m + TUBE_MARGIN_M, 4),
+        error_quantile=0.99,
+        quantile_error_m=q_m,
+        max_error_m=max_m,
+        margin_m=TUBE_MARGIN_M,
+        budget_m=TUBE_BUDGET_M,
+        saturation_s=sat_s,
+        limited_by=limited_by,
+        course=TRACKING_COURSE,
+        command=f"proxplan track-limits --vehicle {name} --budget {TUBE_BUDGET_M:g}",
+        date=MEASURED_ON,
+    )
+
+
+_SMALL_QUAD_KIN, _SMALL_QUAD_TRACK = _measured(
+    "small-quad",
+    (1.25, 4.0, 16.0),
+    0.04462,
+    0.04483,
+    0.082,
+    "next faster level (1 m/s, 4 m/s^2, 40 m/s^3): error quantile 5.3 cm + margin 0.5 cm > budget 5.0 cm",
+)
+
+_LARGE_QUAD_KIN, _LARGE_QUAD_TRACK = _measured(
+    "large-quad",
+    (1.75, 2.5, 10.0),
+    0.04427,
+    0.04451,
+    0.106,
+    "next faster level (2 m/s, 2.5 m/s^2, 10 m/s^3): error quantile 4.6 cm + margin 0.5 cm > budget 5.0 cm",
+)
+
+_CRAZYFLIE_21_KIN, _CRAZYFLIE_21_TRACK = _measured(
+    "crazyflie-2.1",
+    (1.5, 3.0, 12.0),
+    0.04377,
+    0.04409,
+    0.048,
+    "next faster level (1.25 m/s, 2.5 m/s^2, 25 m/s^3): error quantile 4.7 cm + margin 0.5 cm > budget 5.0 cm",
+)
+
+_CRAZYFLIE_PARROT_KIN, _CRAZYFLIE_PARROT_TRACK = _measured(
+    "crazyflie-parrot",
+    (1.5, 3.0, 12.0),
+    0.04497,
+    0.04531,
+    0.062,
+    "next faster level (1.25 m/s, 2.5 m/s^2, 25 m/s^3): error quantile 4.9 cm + margin 0.5 cm > budget 5.0 cm",
+)
 
 _JXX_PER_ML2 = 1.43e-5 / (0.030 * 0.046**2)  # Crazyflie [RP] inertia over m l^2, -
 _JZZ_PER_ML2 = 2.89e-5 / (0.030 * 0.046**2)
@@ -69,7 +134,8 @@ SMALL_QUAD = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.045, arm_width_m=0.008, motor_pod_diameter_m=0.014),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.033, c_rad=60.808),  # [S0] IV-B
-    kinematics=TRACKABLE_LIMITS,  # [M] tracked by the default controller within 4.4 cm
+    kinematics=_SMALL_QUAD_KIN,  # [M] proxplan track-limits
+    tracking=_SMALL_QUAD_TRACK,  # [M] the measurement behind the limits and the tube
     motor_time_constant_s=0.04,  # [A] 5-10 inch brushless value (DEFAULT_MOTOR_TIME_CONSTANT_S), s
     sources={
         "mass/arm/propeller/max thrust": "S0 Table I",
@@ -98,7 +164,8 @@ LARGE_QUAD = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.10, arm_width_m=0.018, motor_pod_diameter_m=0.030),  # [A]
     downwash=DownwashSpec(c_ax=4.886, z0_m=0.110, c_rad=24.936),  # [S0] IV-B
-    kinematics=TRACKABLE_LIMITS,  # [M] tracked by the default controller within 4.4 cm
+    kinematics=_LARGE_QUAD_KIN,  # [M] proxplan track-limits
+    tracking=_LARGE_QUAD_TRACK,  # [M] the measurement behind the limits and the tube
     motor_time_constant_s=0.04,  # [A] 5-10 inch brushless value (DEFAULT_MOTOR_TIME_CONSTANT_S), s
     sources={
         "mass/arm/propeller/max thrust": "S0 Table I",
@@ -127,7 +194,8 @@ CRAZYFLIE_21 = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.030, arm_width_m=0.005, motor_pod_diameter_m=0.009),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.092, c_rad=60.808),  # [A] S0 small quad, z0/L kept
-    kinematics=TRACKABLE_LIMITS,  # [M] tracked by the default controller within 4.4 cm
+    kinematics=_CRAZYFLIE_21_KIN,  # [M] proxplan track-limits
+    tracking=_CRAZYFLIE_21_TRACK,  # [M] the measurement behind the limits and the tube
     motor_time_constant_s=0.072,  # [ET], s
     sources={
         "mass, geometry": "Neural-Swarm README",
@@ -154,7 +222,8 @@ CRAZYFLIE_PARROT = Vehicle(
     ),
     frame=FrameSpec(hub_side_m=0.035, arm_width_m=0.007, motor_pod_diameter_m=0.012),  # [A]
     downwash=DownwashSpec(c_ax=4.672, z0_m=0.28 * 0.120, c_rad=60.808),  # [A] as crazyflie-2.1
-    kinematics=TRACKABLE_LIMITS,  # [M] tracked by the default controller within 4.4 cm
+    kinematics=_CRAZYFLIE_PARROT_KIN,  # [M] proxplan track-limits
+    tracking=_CRAZYFLIE_PARROT_TRACK,  # [M] the measurement behind the limits and the tube
     motor_time_constant_s=0.072,  # [ET] same motors and firmware as the Crazyflie, s
     sources={
         "mass": "Neural-Swarm README",

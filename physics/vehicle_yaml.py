@@ -16,6 +16,7 @@ File layout (every key is optional when ``base`` names a built-in type, required
         frame: {hub_side_m: 0.12, arm_width_m: 0.02, motor_pod_diameter_m: 0.03}
         downwash: {c_ax: 4.9, z0_m: 0.12, c_rad: 25.0}
         kinematics: {max_speed_mps: 1.0, max_accel_mps2: 2.0, max_jerk_mps3: 8.0}  # optional
+        tracking: {controller: mellinger, tube_m: 0.045, ...}  # optional: proxplan track-limits output
         motor_time_constant_s: 0.04                                               # optional
     model: {...}                    # optional: a model file's model section (proxplan.physics.model_file),
                                     # not read here: load_model_file applies it
@@ -34,12 +35,12 @@ from typing import Any
 from proxplan.fileio import UserError, read_yaml
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.propeller import PropellerSpec
-from proxplan.physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, Vehicle
+from proxplan.physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, TrackingMeasurement, Vehicle
 
 _TOP_KEYS = {
     "base", "description", "mass_kg", "arm_length_m", "max_thrust_N", "min_motor_thrust_N",
     "inertia_diag_kgm2", "torque_to_thrust_m", "propeller", "frame", "downwash", "kinematics",
-    "motor_time_constant_s",
+    "motor_time_constant_s", "tracking",
 }  # fmt: skip
 _POSITIVE = {"mass_kg", "arm_length_m", "max_thrust_N", "torque_to_thrust_m", "motor_time_constant_s"}
 _SECTIONS: dict[str, type] = {"propeller": PropellerSpec, "frame": FrameSpec, "downwash": DownwashSpec}
@@ -147,6 +148,10 @@ def vehicle_from_dict(name: str, data: Any, *, source: str = "<vehicle>") -> Veh
         )
     elif base is not None:
         values["kinematics"] = base.kinematics
+    if "tracking" in data:
+        values["tracking"] = _tracking(data["tracking"], f"{where}.tracking")
+    elif base is not None and "kinematics" not in data:  # the base's limits come with their measurement
+        values["tracking"] = base.tracking
     values["description"] = str(data.get("description", f"custom vehicle from {source}"))
     vehicle = Vehicle(**values)
     if vehicle.max_thrust_per_rotor_N <= vehicle.hover_thrust_per_rotor_N:
@@ -155,6 +160,27 @@ def vehicle_from_dict(name: str, data: Any, *, source: str = "<vehicle>") -> Veh
             f"(needs more than {vehicle.weight_N:.3f} N)"
         )
     return vehicle
+
+
+def _tracking(data: Any, where: str) -> TrackingMeasurement:
+    """A :class:`TrackingMeasurement` from its mapping (every field required)."""
+    fields = {f.name: f.type for f in dataclasses.fields(TrackingMeasurement)}
+    if not isinstance(data, Mapping):
+        raise UserError(f"{where}: expected a mapping with keys {', '.join(fields)}")
+    unknown = set(data) - set(fields)
+    if unknown:
+        raise UserError(f"{where}: unknown key {sorted(unknown)[0]!r}; expected {', '.join(fields)}")
+    values: dict[str, Any] = {}
+    for key, kind in fields.items():
+        if key not in data:
+            raise UserError(f"{where}: missing key {key!r}")
+        if kind == "str":
+            values[key] = str(data[key])
+        else:
+            values[key] = _number(data[key], f"{where}.{key}", positive=False)
+    if not 0.0 < values["error_quantile"] <= 1.0:
+        raise UserError(f"{where}.error_quantile: expected a number in (0, 1], got {values['error_quantile']!r}")
+    return TrackingMeasurement(**values)
 
 
 def load_vehicle_file(path: str | Path) -> dict[str, Vehicle]:
@@ -200,6 +226,8 @@ def vehicle_to_yaml_dict(vehicle: Vehicle, *, base: str | None = None) -> dict[s
         out[key] = float(getattr(vehicle, key))
     if vehicle.kinematics is not None:
         out["kinematics"] = dataclasses.asdict(vehicle.kinematics)
+    if vehicle.tracking is not None:
+        out["tracking"] = dataclasses.asdict(vehicle.tracking)
     out["inertia_diag_kgm2"] = [float(v) for v in vehicle.inertia_diag_kgm2]
     for key in _SECTIONS:
         out[key] = {k: v for k, v in dataclasses.asdict(getattr(vehicle, key)).items() if v is not None}

@@ -10,6 +10,7 @@ in :mod:`proxplan.physics.builtin_vehicles` with their source or derivation.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -36,6 +37,47 @@ class KinematicLimits:
     max_speed_mps: float
     max_accel_mps2: float
     max_jerk_mps3: float
+
+
+DEFAULT_TRACKING_TUBE_M = 0.06
+"""Tracking tube of a vehicle without a tracking measurement, m: the single figure every plan used
+before the per-type measurement (RotorPy's SE(3) law at 1 m/s, 1 m/s^2, 2 m/s^3, docs/flying.md)."""
+
+
+TUBE_MARGIN_M = 0.005
+"""Margin added to a measured error quantile to make a tracking tube, m: covers the calibration
+course not exercising every combination of moves a plan makes, position noise (0.5 mm mocap) and
+timing jitter (``proxplan track-limits --margin``)."""
+TUBE_BUDGET_M = 0.05
+"""Largest tube the built-in measurement accepted, m (``proxplan track-limits --budget``)."""
+TRACKING_COURSE = "rest-to-rest course: 2.1 m horizontal, 0.6 m vertical, 1.6 m diagonal, 0.2 m hops (COURSE_M)"
+"""Name of the calibration course of :mod:`proxplan.flightsim.tracking` (``COURSE_M``)."""
+
+
+@dataclass(frozen=True)
+class TrackingMeasurement:
+    """How a vehicle's kinematic limits and tracking tube were measured in closed-loop simulation
+    (``proxplan track-limits``, :mod:`proxplan.flightsim.tracking`).
+
+    The vehicle flew a course of rest-to-rest jerk-limited segments at increasing limits with
+    ``controller``; at the limits kept, the ``error_quantile`` quantile of its position error over
+    the flight was ``quantile_error_m`` (largest ``max_error_m``), m; the tube is that quantile plus
+    ``margin_m``: ``tube_m``, m, kept within ``budget_m``, m. ``limited_by`` says what stopped the
+    next faster level; ``saturation_s`` is the motor-saturated time at the kept level, s.
+    """
+
+    controller: str
+    tube_m: float
+    error_quantile: float
+    quantile_error_m: float
+    max_error_m: float
+    margin_m: float
+    budget_m: float
+    saturation_s: float
+    limited_by: str
+    course: str
+    command: str
+    date: str
 
 
 DEFAULT_MOTOR_TIME_CONSTANT_S = 0.04
@@ -81,6 +123,7 @@ class Vehicle:
     min_motor_thrust_N: float = 0.0  # lowest thrust one motor can hold, N
     kinematics: KinematicLimits | None = None  # trackable limits; None: derived, see kinematic_limits
     motor_time_constant_s: float = DEFAULT_MOTOR_TIME_CONSTANT_S  # first-order motor lag, s
+    tracking: TrackingMeasurement | None = None  # how ``kinematics`` and the tube were measured
     description: str = ""
     sources: dict[str, str] = field(default_factory=dict, compare=False, hash=False)
 
@@ -102,13 +145,19 @@ class Vehicle:
     def kinematic_limits(self) -> KinematicLimits:
         """Speed, acceleration and jerk limits: ``kinematics`` when given, else derived from the
         spare vertical acceleration a = T_max/m - g: accel = a/4 clipped to [0.25, 1] m/s^2,
-        speed 1 m/s, jerk 2 x accel. The caps are what the default controller tracks within
-        ~4.4 cm (1 m/s, 1 m/s^2, 2 m/s^3, measured by proxplan.flightsim.tracking; docs/flying.md)."""
+        speed 1 m/s, jerk 2 x accel (conservative caps for an unmeasured vehicle; measure yours
+        with ``proxplan track-limits``, docs/flying.md)."""
         if self.kinematics is not None:
             return self.kinematics
         spare_mps2 = self.max_thrust_N / self.mass_kg - GRAVITY_MPS2
         accel = float(min(1.0, max(0.25, 0.25 * spare_mps2)))
         return KinematicLimits(max_speed_mps=1.0, max_accel_mps2=accel, max_jerk_mps3=2.0 * accel)
+
+    @property
+    def tracking_tube_m(self) -> float:
+        """Tracking tube of this type, m: how far it may fly off its plan (measured quantile of the
+        closed-loop error + margin, :class:`TrackingMeasurement`), else :data:`DEFAULT_TRACKING_TUBE_M`."""
+        return self.tracking.tube_m if self.tracking is not None else DEFAULT_TRACKING_TUBE_M
 
     @property
     def weight_N(self) -> float:
@@ -179,6 +228,8 @@ class Vehicle:
                 "max_jerk_mps3": self.kinematic_limits.max_jerk_mps3,
                 "source": "given" if self.kinematics is not None else "derived from thrust-to-weight",
             },
+            "tracking_tube_m": self.tracking_tube_m,
+            "tracking": dataclasses.asdict(self.tracking) if self.tracking is not None else None,
             "motor_time_constant_s": self.motor_time_constant_s,
             "hover_thrust_per_rotor_N": self.hover_thrust_per_rotor_N,
             "sources": dict(self.sources),

@@ -93,16 +93,12 @@ class VehicleTrajectory:
     def has_feedforward(self) -> bool:
         return self.disturbance_force_N is not None and self.disturbance_torque_Nm is not None
 
-    def sample(self, t_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(position_m, velocity_mps, acceleration_mps2), each (M, 3), at times ``t_s`` (M,), s.
-
-        Quintic Hermite between samples; at rest at the first / last position outside the plan.
-        """
+    def _pieces(self, t_s) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """For times ``t_s`` (M,): quintic coefficients (M, 6, 3) of s^0..s^5 of the grid interval
+        holding each time, s in [0, 1] (M,), interval lengths (M, 1), s, and the mask of times
+        outside the plan (M,)."""
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
         grid = self.t_s
-        if grid.size < 2:
-            p = np.repeat(self.position_m[:1], t.size, axis=0)
-            return p, np.zeros_like(p), np.zeros_like(p)
         k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, grid.size - 2)
         h = grid[k + 1] - grid[k]
         s = np.clip((t - grid[k]) / h, 0.0, 1.0)
@@ -119,6 +115,18 @@ class VehicleTrajectory:
             axis=1,
         )  # (M, 6, 3)
         coef = np.einsum("ij,mjd->mid", _QUINTIC, data)  # (M, 6, 3): coefficients of s^0..s^5
+        return coef, s, hh, (t < grid[0]) | (t > grid[-1])
+
+    def sample(self, t_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position_m, velocity_mps, acceleration_mps2), each (M, 3), at times ``t_s`` (M,), s.
+
+        Quintic Hermite between samples; at rest at the first / last position outside the plan.
+        """
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        if self.t_s.size < 2:
+            p = np.repeat(self.position_m[:1], t.size, axis=0)
+            return p, np.zeros_like(p), np.zeros_like(p)
+        coef, s, hh, outside = self._pieces(t)
         powers = s[:, None] ** np.arange(6)[None, :]  # (M, 6)
         d_powers = np.zeros_like(powers)
         d_powers[:, 1:] = np.arange(1, 6) * powers[:, :5]
@@ -127,10 +135,26 @@ class VehicleTrajectory:
         p = np.einsum("mi,mid->md", powers, coef)
         v = np.einsum("mi,mid->md", d_powers, coef) / hh
         a = np.einsum("mi,mid->md", dd_powers, coef) / hh**2
-        outside = (t < grid[0]) | (t > grid[-1])
         v[outside] = 0.0
         a[outside] = 0.0
         return p, v, a
+
+    def jerk_at(self, t_s: np.ndarray | float) -> np.ndarray:
+        """Jerk (M, 3), m/s^3, at ``t_s`` (M,), s: the third derivative of the same quintic Hermite
+        interpolant as :meth:`sample` (exact for the cubic pieces of Ruckig's jerk-limited profiles
+        inside a grid interval; zero outside the plan). The reference's angular-rate feed-forward
+        (differential flatness, :mod:`proxplan.flightsim.mellinger`) is computed from it."""
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        if self.t_s.size < 2:
+            return np.zeros((t.size, 3))
+        coef, s, hh, outside = self._pieces(t)
+        ddd = np.zeros((t.size, 6))  # d^3/ds^3 of s^0..s^5
+        ddd[:, 3] = 6.0
+        ddd[:, 4] = 24.0 * s
+        ddd[:, 5] = 60.0 * s**2
+        j = np.einsum("mi,mid->md", ddd, coef) / hh**3
+        j[outside] = 0.0
+        return j
 
     def position_at(self, t_s: np.ndarray | float) -> np.ndarray:
         """Positions (M, 3), m, at ``t_s`` (M,), s (see :meth:`sample`)."""

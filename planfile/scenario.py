@@ -26,6 +26,7 @@ Every mistake raises :class:`proxplan.fileio.errors.UserError` with ``FILE: KEY:
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -35,7 +36,14 @@ from typing import Any
 import numpy as np
 
 from proxplan.fileio import UserError, read_yaml
-from proxplan.physics import VALIDITY_FACTOR_L, CalibratedModel, Effect, KinematicLimits, Vehicle
+from proxplan.physics import (
+    DEFAULT_TRACKING_TUBE_M,
+    VALIDITY_FACTOR_L,
+    CalibratedModel,
+    Effect,
+    KinematicLimits,
+    Vehicle,
+)
 
 TOP_KEYS = (
     "name",
@@ -66,10 +74,18 @@ VEHICLE_KEYS = (
     "max_accel_mps2",
     "max_jerk_mps3",
 )
-TRACKING_MARGIN_M = 0.06
-"""Default tube radius, m: the largest closed-loop position error measured with the built-in
-vehicles' trackable limits and the default controller was 4.4 cm alone (proxplan.flightsim.tracking course)
-and 5.5 cm in an 8-vehicle formation change (benchmarks/bench_fly.py); docs/flying.md."""
+TRACKING_MARGIN_M = DEFAULT_TRACKING_TUBE_M
+"""Tube radius, m, of :class:`Limits` built without vehicles (a scenario file without
+``limits.tracking_margin_m`` takes :func:`scenario_tube_m` of its vehicles instead)."""
+
+
+def scenario_tube_m(tasks: Mapping[str, VehicleTask]) -> float:
+    """The tube of a scenario whose limits do not set one, m: the largest tracking tube of its
+    vehicles' types (``Vehicle.tracking_tube_m``, measured per type by ``proxplan track-limits``).
+    Planner and verifier apply one tube per scenario; the largest covers every vehicle."""
+    return max(float(t.vehicle.tracking_tube_m) for t in tasks.values())
+
+
 DOCK_APPROACH_MARGIN_M = 0.1  # a dock approach point lies this far beyond the invalid zone, m
 INVALID_ZONE_RULES = ("conservative", "model", "forbid")
 """How the planner treats 0 < dz <= 3 L of a source where the field model is not valid (S0 II-A):
@@ -104,8 +120,8 @@ class Limits:
     ``time_horizon_s``: longest plan the sampler searches, s.
     ``tracking_margin_m``: the tube, m: how far a vehicle may be off its plan when flown closed-loop.
     Planner and verifier add it to the separation, to the cut-off radius and to the horizontal and
-    vertical extent of the invalid zone. Default :data:`TRACKING_MARGIN_M`, sized from measured
-    closed-loop errors (docs/flying.md).
+    vertical extent of the invalid zone. A scenario file without it takes the largest measured tube
+    of its vehicle types (:func:`scenario_tube_m`, docs/flying.md).
     """
 
     authority_fraction: float = 0.5
@@ -563,6 +579,9 @@ def scenario_from_dict(
         raise UserError(f"{label}: vehicles: expected at least one vehicle")
     vehicles = {str(n): _task(str(n), d, f"{label}: vehicles.{n}", custom) for n, d in vraw.items()}
     _check_docks(vehicles, label)
+    limits_raw = doc.get("limits")
+    if not (isinstance(limits_raw, Mapping) and "tracking_margin_m" in limits_raw):
+        limits = dataclasses.replace(limits, tracking_margin_m=scenario_tube_m(vehicles))
     name = doc.get("name", path.stem if path is not None else "scenario")
     if not isinstance(name, str) or not name:
         raise UserError(f"{label}: name: expected a non-empty string, got {name!r}")

@@ -214,14 +214,20 @@ class PairRule:
     def cutoff_m(self, table: CutoffTable, dz_m: float) -> float:
         """Cut-off radius at vertical separation ``dz_m`` (> 0), m: the table's largest value over
         dz +- tube (the vehicle may fly that far off its plan), plus margin and tube; 0 where the
-        model allows any horizontal distance."""
+        model allows any horizontal distance. The tube is taken at the table's resolution: every
+        table step within ceil(tube / dz_step) steps of dz's step counts (conservative for a tube
+        that is not a whole number of steps; the same rule as proxplan.planner.validity's
+        vectorised tables). Where the tube reaches the other vehicle's level (dz <= tube) the first
+        step counts too: at least the separation circle."""
+        if dz_m <= 0.0:
+            return 0.0
         rc = table.lookup(dz_m)
         if self.tube_m > 0.0:
-            rc = max(rc, table.lookup(dz_m + self.tube_m))
-            if dz_m > self.tube_m:
-                rc = max(rc, table.lookup(dz_m - self.tube_m))
-            else:  # the tube reaches the other vehicle's level: at least the separation circle
-                rc = max(rc, table.lookup(min(dz_m, 1e-3)))
+            step = table.dz_step_m
+            k = int(dz_m / step)
+            reach = int(math.ceil(self.tube_m / step - 1e-9))
+            for j in range(max(k - reach, 0), k + reach + 1):
+                rc = max(rc, table.lookup((j + 0.5) * step))
         return rc + self.margin_m + self.tube_m if rc > 0.0 else 0.0
 
 

@@ -34,7 +34,7 @@ from proxplan.planfile import Plan, VehicleTrajectory
 from proxplan.planner.ocp import build_and_solve, sample_solution
 from proxplan.planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
 from proxplan.planner.timing import min_segment_duration_s
-from proxplan.verify import REST_SPEED_MPS
+from proxplan.verify import REST_SPEED_MPS, tube_offsets
 
 CHECK_DT_S = 0.02  # grid of the per-vehicle model check, s (the verifier re-checks at 0.01 s)
 REST_MPS = 1e-4  # speed below which a vehicle counts as arrived, m/s
@@ -142,6 +142,26 @@ class SwarmField:
             )
         return f, q
 
+    def tube_contribution(self, source: str, target: str, p_source: np.ndarray, p_target: np.ndarray, use):
+        """As :meth:`contribution`, but where ``use`` (M,) holds with the target at the worst point of
+        the tracking tube (``proxplan.verify.tube_offsets``, the verifier's authority-tube rule)."""
+        f, q = self.contribution(source, target, p_source, p_target)
+        tube = self.scenario.limits.tracking_margin_m
+        off = p_target - p_source
+        use = use & (-off[:, 2] > 1e-6)
+        if tube <= 0.0 or not use.any():
+            return f, q
+        veh = self.vehicle[target]
+        best_u = np.full(int(use.sum()), -np.inf)
+        for o in tube_offsets(off[use], tube):
+            fo, qo = pair_wrench(self.vehicle[source], veh, o, self.options, self.effects)
+            u = authority_usage(veh, fo, qo)
+            better = u > best_u
+            best_u[better] = u[better]
+            rows = np.flatnonzero(use)[better]
+            f[rows], q[rows] = fo[better], qo[better]
+        return f, q
+
     def usage(self, name: str) -> np.ndarray:
         return authority_usage(self.vehicle[name], self.force[name], self.torque[name])
 
@@ -162,6 +182,7 @@ class SwarmField:
                 first.append((int(np.argmax(mask)), what))
 
         force, torque = np.zeros_like(p_new), np.zeros_like(p_new)
+        tube_force, tube_torque = np.zeros_like(p_new), np.zeros_like(p_new)  # the verifier's authority-tube rule
         new_pairs: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
         me_moving = self._moving(p_new)
         for o in self.names:
@@ -179,13 +200,21 @@ class SwarmField:
             f, q = new_pairs[(o, name)] = self.contribution(o, name, self.pos[o], p_new)
             force += f
             torque += q
+            pair_moving = tube > 0.0
+            ft, qt = self.tube_contribution(o, name, self.pos[o], p_new, pair_moving)
+            tube_force += ft
+            tube_torque += qt
             f_old, q_old = self.current(name, o)
             f_new, q_new = new_pairs[(name, o)] = self.contribution(name, o, p_new, self.pos[o])
             if np.any(f_new) or np.any(f_old):
                 before = authority_usage(other, self.force[o], self.torque[o])
                 after = authority_usage(other, self.force[o] - f_old + f_new, self.torque[o] - q_old + q_new)
                 note((after > frac) & (after > before + 1e-9), f"authority of {o} in its jet")
+                f_tb, q_tb = self.tube_contribution(name, o, p_new, self.pos[o], pair_moving)
+                after_t = authority_usage(other, self.force[o] - f_old + f_tb, self.torque[o] - q_old + q_tb)
+                note((after_t > frac) & (after_t > before + 1e-9), f"authority of {o} within the tube")
         note(authority_usage(me, force, torque) > frac, "authority")
+        note(authority_usage(me, tube_force, tube_torque) > frac, "authority within the tube")
         self._candidate = (name, id(p_new), new_pairs)
         return bad, (min(first)[1] if first else None)
 

@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "proxplan.commands.costmap",  # costmap
     "proxplan.commands.plan",  # plan, verify
     "proxplan.commands.simulate",  # simulate
+    "proxplan.commands.track",  # track-limits
     "proxplan.commands.view",  # view
     "proxplan.commands.identify",  # identify
     "proxplan.commands.evaluate",  # evaluate

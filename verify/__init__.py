@@ -4,7 +4,7 @@
 """
 
 from proxplan.verify.along import WrenchAlongPlan, attach_feedforward, separation_summary, wrench_along_plan
-from proxplan.verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, verify_plan
+from proxplan.verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, tube_offsets, verify_plan
 from proxplan.verify.violations import Violation
 
 __all__ = [
@@ -15,6 +15,7 @@ __all__ = [
     "attach_feedforward",
     "scenario_of_plan",
     "separation_summary",
+    "tube_offsets",
     "verify_plan",
     "wrench_along_plan",
 ]

@@ -339,7 +339,7 @@ def _check_authority(plan: Plan, scenario: Scenario, t: np.ndarray) -> list[Viol
     return out
 
 
-def _tube_offsets(off: np.ndarray, tube_m: float) -> list[np.ndarray]:
+def tube_offsets(off: np.ndarray, tube_m: float) -> list[np.ndarray]:
     """Offsets (N, 3) of a target within the tracking tube that the downwash hits hardest: moved
     horizontally towards the source's axis by the tube, at dz and dz +- tube (dz kept > 1 mm)."""
     r = np.hypot(off[:, 0], off[:, 1])
@@ -388,7 +388,7 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
                 best_u = np.full(int(use.sum()), -np.inf)
                 best_f = np.zeros((best_u.size, 3))
                 best_t = np.zeros((best_u.size, 3))
-                for o in _tube_offsets(off[use], tube):
+                for o in tube_offsets(off[use], tube):
                     w = disturbance_wrench(source, target, o, opts)
                     u = authority_usage(target, w.force_N, w.torque_Nm)
                     better = u > best_u

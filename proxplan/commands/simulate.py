@@ -44,6 +44,13 @@ def register(subparsers) -> None:
     p.add_argument(
         "--seed", type=seed_argument, default=0, help="random seed of the sensor noise, 0..2^31-1 (default 0)"
     )
+    p.add_argument(
+        "--controller",
+        choices=("mellinger", "rotorpy"),
+        default="mellinger",
+        help="simulated tracking controller: the Crazyflie firmware's Mellinger law with rate feed-forward "
+        "from the reference jerk, 500 Hz, set-points at 100 Hz (default), or RotorPy's SE(3) law",
+    )
     p.add_argument("--physics-dt", type=float, default=0.002, metavar="S", help="physics step, s (default 0.002)")
     p.add_argument("--log-dt", type=float, default=0.01, metavar="S", help="log period, s (default 0.01)")
     p.add_argument("--settle", type=float, default=1.0, metavar="S", help="hover after the plan ends, s (default 1)")
@@ -119,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         position_integral_rate_ps=args.integral_rate,
         feedforward=args.feedforward,
+        controller=args.controller,
     )
     out = Path(args.out)
     show = not args.json or sys.stderr.isatty()

@@ -88,7 +88,7 @@ def test_compiled_step_matches_rotorpy_controller_and_step():
         s[0:6] *= 0.05
         s[10:13] *= 0.1
         stepper.state[i] = s
-        stepper.ref[i] = np.concatenate([rng.normal(size=3) * 0.05, np.zeros(3), np.zeros(3)])
+        stepper.ref[i] = np.concatenate([rng.normal(size=3) * 0.05, np.zeros(9)])
         stepper.ext_force_N[i] = rng.normal(size=3) * 0.01
         stepper.ext_torque_Nm[i] = rng.normal(size=3) * 1e-4
     stepper.step()

@@ -14,7 +14,7 @@ from proxplan.cli import main
 from proxplan.flightsim import SimulationOptions, simulate_plan, simulation_metrics
 from proxplan.flightsim.report import feedforward_comparison
 from proxplan.flightsim.tracking import course_tracking_error_m
-from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits
+from proxplan.physics import BUILTIN_VEHICLES
 from proxplan.planfile import load_scenario, plan_from_dict, plan_to_dict, read_plan, write_plan
 from proxplan.planner import plan_scenario
 from proxplan.verify import wrench_along_plan
@@ -28,14 +28,11 @@ def _plan(name: str):
     return scenario, plan_scenario(scenario, method="sampling", seed=0)
 
 
-def test_builtin_limits_are_tracked_within_the_default_tube():
-    from proxplan.planfile.scenario import TRACKING_MARGIN_M
-
+def test_builtin_limits_are_tracked_within_the_type_tube():
     vehicle = BUILTIN_VEHICLES["crazyflie-2.1"]
     err = course_tracking_error_m(vehicle)
-    assert err < TRACKING_MARGIN_M  # the tube covers what the default controller does at the limits
-    # the earlier, aggressive limits are not tracked within it (the 12-24 cm errors of issue 16)
-    assert course_tracking_error_m(vehicle, KinematicLimits(1.5, 3.0, 15.0)) > 2.0 * err
+    assert err < vehicle.tracking_tube_m  # the tube covers what the default controller does at the limits
+    assert vehicle.tracking_tube_m < 0.06  # smaller than the single figure every plan used before
 
 
 def test_plan_carries_feedforward_and_old_files_recompute_it(tmp_path):
@@ -72,7 +69,10 @@ def test_feedforward_cuts_the_most_disturbed_altitude_error(name):
     cmp = feedforward_comparison(without, with_ff)
     worst = cmp["most_disturbed"]
     factor = cmp["vehicles"][worst]["altitude_error_factor"]
-    assert factor is not None and factor >= 6.0, cmp  # issue: >= 3x; measured 15-22x, kept a 2x margin
+    # issue: >= 3x. Measured 12.9x (battery swap) and 5.3x (hand-off): at the measured limits (1.5 m/s)
+    # the receiver's own climbs leave a tracking error the disturbance feed-forward cannot remove
+    # (it was 15-22x at 1 m/s, 1 m/s^2 with RotorPy's law); 4x keeps a margin over the issue's 3x.
+    assert factor is not None and factor >= 4.0, cmp
     # flown usage stays within the scenario's limit and next to the prediction
     metrics = simulation_metrics(with_ff)
     for m in metrics.values():

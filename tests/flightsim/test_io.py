@@ -186,7 +186,9 @@ def test_truth_wind_pushes_a_hovering_vehicle_by_rotorpy_rotor_drag():
     from proxplan.physics import BUILTIN_VEHICLES
 
     spec = truth_from_dict({"wind_mps": [2.0, 0.0, 0.0]})
-    res = simulate_plan(single_hover_plan(type_name="crazyflie-2.1", duration_s=4.0), truth=spec, imu_noise=False)
+    res = simulate_plan(
+        single_hover_plan(type_name="crazyflie-2.1", duration_s=4.0), truth=spec, imu_noise=False, controller="rotorpy"
+    )  # RotorPy's PD law: a steady drift F / (m kp)
     rec = res.records["solo"]
     veh = BUILTIN_VEHICLES["crazyflie-2.1"]
     p = quad_params(veh)

@@ -21,6 +21,7 @@ from proxplan.physics import BUILTIN_VEHICLES, Effect, disturbance_wrench
 from proxplan.planfile import Plan
 
 KP_Z = 15.0  # RotorPy SE3Control z position gain, 1/s^2 (no integral term: steady error = F / (m kp_z))
+ROTORPY = "rotorpy"  # tests of a steady sag F / (m kp_z) fly RotorPy's PD law (the Mellinger law integrates it away)
 
 
 def test_vehicle_hovering_alone_holds_position_within_a_few_centimetres():
@@ -51,7 +52,7 @@ def _read_gz(path: Path) -> tuple[str, np.ndarray]:
 
 def test_vehicle_below_another_shows_predicted_steady_disturbance_in_its_log(tmp_path):
     plan = hover_stack_plan(top_type="crazyflie-2.1", bottom_type="crazyflie-parrot", separation_m=1.5, duration_s=4.0)
-    res = simulate_plan(plan, seed=3)
+    res = simulate_plan(plan, seed=3, controller=ROTORPY)
     manifest = write_flight_logs(res, tmp_path, flight_name="stack", split="train")
     header, table = _read_gz(manifest.parent / "stack" / "bottom.csv.gz")
     assert header.startswith("# time[ms],x[m]")
@@ -81,7 +82,7 @@ def test_vehicle_below_another_shows_predicted_steady_disturbance_in_its_log(tmp
 
 def test_ground_effect_truth_lifts_a_low_hovering_vehicle():
     plan = single_hover_plan(type_name="crazyflie-2.1", position_m=(0.0, 0.0, 0.03), duration_s=3.0)
-    res = simulate_plan(plan, truth_effects=[Effect("ground_effect", {"gain_k": 1.0})])
+    res = simulate_plan(plan, truth_effects=[Effect("ground_effect", {"gain_k": 1.0})], controller=ROTORPY)
     rec = res.records["solo"]
     late = rec.t_s > 2.0
     lift = rec.applied_force_N[late, 2].mean()
@@ -130,7 +131,7 @@ def test_battery_swap_side_approach_disturbs_the_carrier_less_than_straight_line
     staged = _battery_swap([start, [1.2, 0.6, 3.3], [1.2, 0.6, 1.85], dock], [0.0, 2.0, 5.0, T], T)
     errs, peak = {}, {}
     for name, plan in (("straight", straight), ("staged", staged)):
-        rec = simulate_plan(plan, imu_noise=False).records["carrier"]
+        rec = simulate_plan(plan, imu_noise=False, controller=ROTORPY).records["carrier"]
         errs[name] = np.abs(rec.position_m[:, 2] - rec.ref_position_m[:, 2]).max()
         peak[name] = np.abs(rec.applied_force_N[:, 2]).max()
     assert peak["staged"] < peak["straight"], peak
@@ -156,7 +157,7 @@ def _fly_planned_battery_swap(tmp_path, method: str) -> float:
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    res = simulate_plan(out / "plan.json", imu_noise=False)
+    res = simulate_plan(out / "plan.json", imu_noise=False, controller=ROTORPY)
     docking = [n for n in res.records if n != "carrier"]
     assert "carrier" in res.records and docking
     rec = res.records["carrier"]
@@ -179,7 +180,7 @@ def test_integral_action_removes_the_steady_sag_below_another_vehicle():
     plan = hover_stack_plan(top_type="small-quad", bottom_type="large-quad", separation_m=1.5, duration_s=6.0)
     errors = {}
     for rate in (0.0, 1.0):
-        res = simulate_plan(plan, imu_noise=False, position_integral_rate_ps=rate)
+        res = simulate_plan(plan, imu_noise=False, position_integral_rate_ps=rate, controller=ROTORPY)
         rec = res.records["bottom"]
         errors[rate] = abs(float(rec.position_m[-1, 2] - rec.ref_position_m[-1, 2]))
     assert errors[1.0] < 0.2 * errors[0.0], errors
