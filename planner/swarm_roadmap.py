@@ -1,0 +1,338 @@
+"""A roadmap shared by every vehicle of a swarm: a 3-D lattice aligned with starts and goals, plus
+access edges from each start / goal to nearby lattice vertices, and its conflict sets.
+
+World frame, z up, m. The lattice has spacing ``spacing_m = (l_xy, l_xy, l_z)``; ``l_xy`` is the
+largest horizontal reach of any pair's keep-out (separation and cut-off radius r_cut(dz), each
+plus the tracking tube and the sampling inflation), so horizontally neighbouring vertices never
+conflict and the conflict sets stay sparse; ``l_z`` is the smallest vertical gap between start /
+goal levels (>= the separation keep-out). Among candidate spacings / origins the one that puts most
+starts and goals exactly on vertices wins (the others reach the lattice over access edges).
+
+**Atoms.** What a vehicle occupies during one time window of the search is a set of *atoms*:
+lattice vertices (kind 0), unit lattice edges along x, y, z (kinds 1..3, indexed by their lower
+vertex), start / goal points ("endpoints") and access edges. Atom ids: ``kind * V + flat vertex
+index`` for the lattice (V = nx ny nz), then endpoints, then access edges.
+
+**Conflict sets.** Two atoms conflict for vehicle types (a, b) when some point of one and some
+point of the other are closer than the pair's keep-out (:mod:`proxplan.planner.swarm_keepout`),
+whatever the timing within the window (swept volumes): this holds for any motion that stays on its
+atoms during the window, which is how the runs of :mod:`proxplan.planner.swarm_search` are flown.
+The lattice is translation invariant, so lattice-lattice conflicts are a *stencil* of index offsets
+per (type pair, atom kind pair), computed once with a vectorised point test and expanded to a
+``scipy.sparse`` CSR matrix per ordered type pair; endpoint / access atoms are tested against
+candidates found with a ``scipy.spatial.cKDTree``. Endpoint-endpoint pairs (both vehicles at rest)
+leave the tracking tube out, as the verifier does for pairs at rest.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from proxplan.planner.swarm_keepout import KeepOut
+
+SAMPLE_M = 0.05  # point spacing on edges for the conflict test, m (keep-outs are grown by it)
+ACCESS_NEIGHBOURS = 6  # lattice vertices each start / goal connects to
+ACCESS_RADIUS_FACTOR = 1.8  # ... within this many horizontal spacings
+
+
+@dataclass
+class Roadmap:
+    """Lattice, endpoints, access edges, static validity and conflict sets (see module)."""
+
+    origin_m: np.ndarray  # (3,) position of vertex (0, 0, 0), m
+    spacing_m: np.ndarray  # (3,) m
+    shape: tuple[int, int, int]
+    vertex_ok: np.ndarray  # (nx, ny, nz) bool: vertex free of workspace bounds / obstacles
+    edge_ok: np.ndarray  # (3, nx, ny, nz) bool: unit edge from the vertex along +axis is free
+    endpoints_m: np.ndarray  # (E, 3) start / goal points, m
+    endpoint_vertex: np.ndarray  # (E,) flat lattice vertex the endpoint coincides with, or -1
+    access: list[tuple[int, int]]  # (endpoint, flat lattice vertex) per access edge
+    type_names: tuple[str, ...]
+    conflicts: dict[tuple[int, int], sp.csr_matrix] = field(default_factory=dict)  # (type a, type b)
+
+    @property
+    def n_vertices(self) -> int:
+        return int(np.prod(self.shape))
+
+    @property
+    def n_lattice_atoms(self) -> int:
+        return 4 * self.n_vertices
+
+    def endpoint_atom(self, e: int) -> int:
+        """The atom of endpoint ``e`` held at rest (its own atom even on a lattice vertex, so that
+        two resting vehicles are checked without the tracking tube)."""
+        return self.n_lattice_atoms + e
+
+    def access_atom(self, k: int) -> int:
+        return self.n_lattice_atoms + len(self.endpoints_m) + k
+
+    @property
+    def n_atoms(self) -> int:
+        return self.n_lattice_atoms + len(self.endpoints_m) + len(self.access)
+
+    def position(self, flat: int) -> np.ndarray:
+        idx = np.array(np.unravel_index(flat, self.shape))
+        return self.origin_m + idx * self.spacing_m
+
+    def atom_points(self, atom: int) -> np.ndarray:
+        """Sample points (P, 3) of one atom, m (every SAMPLE_M along edges, both ends included)."""
+        n_lat = self.n_lattice_atoms
+        if atom < n_lat:
+            kind, flat = divmod(atom, self.n_vertices)
+            p0 = self.position(flat)
+            if kind == 0:
+                return p0[None]
+            step = np.zeros(3)
+            step[kind - 1] = self.spacing_m[kind - 1]
+            return _segment_points(p0, p0 + step)
+        e = atom - n_lat
+        if e < len(self.endpoints_m):
+            return self.endpoints_m[e][None]
+        k = e - len(self.endpoints_m)
+        end, v = self.access[k]
+        return _segment_points(self.endpoints_m[end], self.position(v))
+
+    def blocked_by(self, type_a: int, type_b: int, atoms: np.ndarray) -> np.ndarray:
+        """Atoms a vehicle of ``type_b`` may not occupy while one of ``type_a`` occupies ``atoms``
+        in the same window (with repeats)."""
+        c = self.conflicts[(type_a, type_b)]
+        atoms = np.asarray(atoms, dtype=np.int64)
+        start, stop = c.indptr[atoms], c.indptr[atoms + 1]
+        lens = stop - start
+        if lens.sum() == 0:
+            return np.zeros(0, dtype=np.int64)
+        idx = np.repeat(start - np.cumsum(np.r_[0, lens[:-1]]), lens) + np.arange(lens.sum())
+        return c.indices[idx].astype(np.int64)
+
+
+def _segment_points(p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
+    n = max(2, int(math.ceil(float(np.linalg.norm(p1 - p0)) / SAMPLE_M)) + 1)
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    return p0[None] * (1.0 - s) + p1[None] * s
+
+
+def _static_free(points: np.ndarray, lo: np.ndarray, hi: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """(P,) bool: point inside the (body-shrunk) workspace and outside every inflated obstacle."""
+    ok = np.all((points >= lo) & (points <= hi), axis=-1)
+    for b in boxes:
+        inside = np.all((points >= b[:3]) & (points <= b[3:]), axis=-1)
+        ok &= ~inside
+    return ok
+
+
+def choose_lattice(
+    points_m: np.ndarray, lo_m: np.ndarray, hi_m: np.ndarray, min_xy_m: float, min_z_m: float
+) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int]]:
+    """(origin, spacing, shape) of the lattice: spacing >= the minimum keep-out spacings (m), among
+    a few candidates the one (and its origin) putting most of ``points_m`` (starts / goals) on
+    vertices; ties go to the smaller spacing."""
+    pts = np.asarray(points_m, dtype=float)
+    z_levels = np.unique(np.round(pts[:, 2], 3))
+    gaps = np.diff(z_levels)
+    gaps = gaps[gaps >= min_z_m - 1e-9]
+    l_z = float(gaps.min()) if gaps.size else max(min_z_m, 0.5)
+    l_z = min(max(l_z, min_z_m), 1.0)
+    best = None
+    for l_xy in np.round(np.arange(min_xy_m, 2.0 * min_xy_m + 1e-9, 0.05), 4):
+        l_xy = float(max(l_xy, min_xy_m))
+        spacing = np.array([l_xy, l_xy, l_z])
+        # candidate origins: the residues of the points themselves; score = points on vertices
+        res = np.mod(pts, spacing)
+        cand = np.unique(np.round(res, 3), axis=0)[:64]
+        d = np.abs(res[None, :, :] - cand[:, None, :])
+        d = np.minimum(d, spacing - d)
+        hits = np.all(d < 1e-3, axis=2).sum(axis=1)
+        k = int(np.argmax(hits))
+        score = (int(hits[k]), -l_xy)
+        if best is None or score > best[0]:
+            best = (score, cand[k], spacing)
+    assert best is not None
+    _, residue, spacing = best
+    first = lo_m + np.mod(residue - lo_m, spacing)  # first lattice coordinate >= lo on each axis
+    shape = tuple(int(math.floor((hi_m[a] - first[a]) / spacing[a] + 1e-9)) + 1 for a in range(3))
+    return first, spacing, (max(shape[0], 1), max(shape[1], 1), max(shape[2], 1))  # type: ignore[return-value]
+
+
+def build_roadmap(
+    endpoints_m: np.ndarray,
+    lo_m: np.ndarray,
+    hi_m: np.ndarray,
+    boxes: np.ndarray,
+    keepouts: dict[tuple[int, int], KeepOut],
+    type_names: tuple[str, ...],
+) -> Roadmap:
+    """The roadmap for ``endpoints_m`` (E, 3) (starts and goals, m) inside [lo, hi] (workspace
+    already shrunk by the body and tube margins) avoiding ``boxes`` (O, 6) (inflated obstacles),
+    with conflict sets for every ordered pair of the types in ``keepouts``."""
+    min_xy = max(k.reach_xy_m for k in keepouts.values()) + 1e-3
+    min_z = max(k.separation_m for k in keepouts.values()) + 1e-3
+    origin, spacing, shape = choose_lattice(endpoints_m, lo_m, hi_m, min_xy, min_z)
+    grid = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing="ij"), axis=-1)
+    pos = origin + grid * spacing  # (nx, ny, nz, 3)
+    vertex_ok = _static_free(pos, lo_m, hi_m, boxes)
+    edge_ok = np.zeros((3,) + shape, dtype=bool)
+    for a in range(3):
+        n_s = max(2, int(math.ceil(spacing[a] / SAMPLE_M)) + 1)
+        ok = np.ones(shape, dtype=bool)
+        for s in np.linspace(0.0, 1.0, n_s):
+            step = np.zeros(3)
+            step[a] = s * spacing[a]
+            ok &= _static_free(pos + step, lo_m, hi_m, boxes)
+        ok[(slice(None),) * a + (-1,)] = False  # the last vertex along the axis has no + edge
+        edge_ok[a] = ok
+    flat_pos = pos.reshape(-1, 3)
+    tree = cKDTree(flat_pos[vertex_ok.reshape(-1)])
+    ok_index = np.flatnonzero(vertex_ok.reshape(-1))
+    ep = np.asarray(endpoints_m, dtype=float)
+    endpoint_vertex = np.full(len(ep), -1, dtype=np.int64)
+    access: list[tuple[int, int]] = []
+    if ok_index.size:
+        dist, nn = tree.query(ep, k=min(ACCESS_NEIGHBOURS, ok_index.size))
+        dist, nn = np.atleast_2d(dist), np.atleast_2d(nn)
+        for e in range(len(ep)):
+            if dist[e, 0] < 1e-6:
+                endpoint_vertex[e] = ok_index[nn[e, 0]]
+                continue
+            for d, j in zip(dist[e], nn[e], strict=True):
+                if d > ACCESS_RADIUS_FACTOR * spacing[0]:
+                    continue
+                v = int(ok_index[j])
+                if _static_free(_segment_points(ep[e], flat_pos[v]), lo_m, hi_m, boxes).all():
+                    access.append((e, v))
+    rm = Roadmap(origin, spacing, shape, vertex_ok, edge_ok, ep, endpoint_vertex, access, type_names)
+    _conflict_sets(rm, keepouts)
+    return rm
+
+
+def _lattice_kind_points(spacing: np.ndarray) -> list[np.ndarray]:
+    """Sample points of the four lattice atom kinds at vertex (0, 0, 0), relative, m."""
+    out = [np.zeros((1, 3))]
+    for a in range(3):
+        step = np.zeros(3)
+        step[a] = spacing[a]
+        out.append(_segment_points(np.zeros(3), step))
+    return out
+
+
+def _stencil(keep: KeepOut, spacing: np.ndarray) -> dict[tuple[int, int], np.ndarray]:
+    """For atom kinds (ka, kb): the index offsets (n, 3) at which an atom of kind kb (vehicle type
+    b) conflicts with one of kind ka at the origin (type a)."""
+    pts = _lattice_kind_points(spacing)
+    reach = np.array([keep.reach_xy_m, keep.reach_xy_m, keep.reach_z_m])
+    span = np.ceil(reach / spacing).astype(int) + 1
+    off = np.stack(
+        np.meshgrid(*[np.arange(-s, s + 1) for s in span], indexing="ij"), axis=-1
+    ).reshape(-1, 3)
+    out = {}
+    for ka in range(4):
+        for kb in range(4):
+            pa, pb = pts[ka], pts[kb]
+            # relative vectors: (offset, point of b, point of a)
+            d = (off * spacing)[:, None, None, :] + pb[None, :, None, :] - pa[None, None, :, :]
+            hit = keep.conflict(d.reshape(-1, 3)).reshape(d.shape[:3]).any(axis=(1, 2))
+            out[(ka, kb)] = off[hit]
+    return out
+
+
+def _conflict_sets(rm: Roadmap, keepouts: dict[tuple[int, int], KeepOut]) -> None:
+    """Fill ``rm.conflicts`` (see module): stencils for lattice pairs, point tests for the rest."""
+    shape = np.array(rm.shape)
+    nv = rm.n_vertices
+    n_atoms = rm.n_atoms
+    idx = np.stack(np.unravel_index(np.arange(nv), rm.shape), axis=-1)  # (V, 3)
+    atom_ok = np.concatenate([rm.vertex_ok.reshape(-1)] + [rm.edge_ok[a].reshape(-1) for a in range(3)])
+    # irregular atoms (endpoints not on the lattice, access edges) and their points
+    extra = [a for a in range(rm.n_lattice_atoms, n_atoms)]
+    extra_pts = [rm.atom_points(a) for a in extra]
+    lat_pts = _lattice_kind_points(rm.spacing_m)
+    lat_atoms = np.flatnonzero(atom_ok)
+    lat_kind, lat_flat = np.divmod(lat_atoms, nv)
+    lat_base = rm.origin_m + idx[lat_flat] * rm.spacing_m
+    lat_mid = lat_base.copy()
+    for k in (1, 2, 3):
+        lat_mid[lat_kind == k, k - 1] += 0.5 * rm.spacing_m[k - 1]
+    for (ta, tb), keep in keepouts.items():
+        rows, cols = [], []
+        for (ka, kb), offs in _stencil(keep, rm.spacing_m).items():
+            src = np.flatnonzero(atom_ok[ka * nv : (ka + 1) * nv])
+            if src.size == 0 or offs.size == 0:
+                continue
+            tgt = idx[src][:, None, :] + offs[None, :, :]  # (S, O, 3)
+            inside = np.all((tgt >= 0) & (tgt < shape), axis=-1)
+            s_i, o_i = np.nonzero(inside)
+            flat_t = np.ravel_multi_index(tuple(tgt[s_i, o_i].T), rm.shape)
+            t_atom = kb * nv + flat_t
+            keep_mask = atom_ok[t_atom]
+            rows.append(ka * nv + src[s_i[keep_mask]])
+            cols.append(t_atom[keep_mask])
+        # irregular atoms against everything (both directions: a irregular x b anything and reverse)
+        if extra:
+            r2, c2 = _irregular_pairs(rm, keep, keepouts, ta, tb, extra, extra_pts, lat_atoms, lat_kind, lat_mid, lat_pts)
+            rows += r2
+            cols += c2
+        r = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
+        c = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
+        mat = sp.csr_matrix((np.ones(r.size, dtype=bool), (r, c)), shape=(n_atoms, n_atoms))
+        mat.sum_duplicates()
+        rm.conflicts[(ta, tb)] = mat
+
+
+def _irregular_pairs(rm, keep, keepouts, ta, tb, extra, extra_pts, lat_atoms, lat_kind, lat_mid, lat_pts):
+    """Rows / cols of conflicts that involve an endpoint or access atom, for types (ta, tb)."""
+    rows: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    half = 0.5 * float(np.max(rm.spacing_m))
+    reach_h = keep.reach_xy_m + 2.0 * ACCESS_RADIUS_FACTOR * rm.spacing_m[0] + half
+    lat_tree = cKDTree(lat_mid[:, :2])
+    extra_mid = np.array([p.mean(axis=0) for p in extra_pts])
+    extra_tree = cKDTree(extra_mid[:, :2])
+    n_end = len(rm.endpoints_m)
+    base = rm.n_lattice_atoms
+    for i, a in enumerate(extra):
+        pa = extra_pts[i]
+        # lattice candidates
+        cand = np.array(lat_tree.query_ball_point(extra_mid[i, :2], reach_h), dtype=np.int64)
+        if cand.size:
+            dz = np.abs(lat_mid[cand, 2] - extra_mid[i, 2])
+            cand = cand[dz <= keep.reach_z_m + 2.0 * half + rm.spacing_m[2]]
+        hits_ab, hits_ba = [], []
+        for kind in range(4):
+            ck = cand[lat_kind[cand] == kind] if cand.size else cand
+            if ck.size == 0:
+                continue
+            pb = lat_mid[ck][:, None, :] + lat_pts[kind][None, :, :]
+            if kind:
+                pb = pb - 0.5 * lat_pts[kind][-1][None, None, :]
+            # a (type ta) at pa, b (type tb) at pb: relative b - a
+            d = pb[:, :, None, :] - pa[None, None, :, :]
+            hit = keep.conflict(d.reshape(-1, 3)).reshape(d.shape[:3]).any(axis=(1, 2))
+            hits_ab.append(lat_atoms[ck[hit]])
+            # a irregular of type tb vs lattice of type ta: relative (irregular - lattice)
+            rev = keepouts[(tb, ta)] if (tb, ta) in keepouts else keep
+            d2 = -d
+            hit2 = rev.conflict(d2.reshape(-1, 3)).reshape(d2.shape[:3]).any(axis=(1, 2))
+            hits_ba.append(lat_atoms[ck[hit2]])
+        for h in hits_ab:
+            rows.append(np.full(h.size, a, dtype=np.int64))
+            cols.append(h)
+        for h in hits_ba:
+            rows.append(h)
+            cols.append(np.full(h.size, a, dtype=np.int64))
+        # irregular-irregular
+        cand_e = np.array(extra_tree.query_ball_point(extra_mid[i, :2], reach_h), dtype=np.int64)
+        hit_e = []
+        for j in cand_e:
+            pb = extra_pts[j]
+            d = pb[:, None, :] - pa[None, :, :]
+            both_rest = (a - base) < n_end and (extra[j] - base) < n_end
+            if keep.conflict(d.reshape(-1, 3), rest=both_rest).any():
+                hit_e.append(extra[j])
+        if hit_e:
+            rows.append(np.full(len(hit_e), a, dtype=np.int64))
+            cols.append(np.array(hit_e, dtype=np.int64))
+    return rows, cols
