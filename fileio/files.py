@@ -61,12 +61,13 @@ def parse_yaml(text: str, *, label: str) -> Any:
     or on a key given twice in one mapping (PyYAML would silently keep the last)."""
     import yaml
 
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml: ~10x faster on swarm files
     try:
-        duplicate = _duplicate_key(yaml.compose(text, Loader=yaml.SafeLoader))
+        duplicate = _duplicate_key(yaml.compose(text, Loader=loader))
         if duplicate:
             key, first, again = duplicate
             raise UserError(f"{label}: {key}: duplicate key (lines {first} and {again}); expected each key once")
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=loader)  # noqa: S506 - a safe loader
     except yaml.YAMLError as err:
         raise UserError(f"{label}: not valid YAML ({str(err).splitlines()[0]})") from None
 

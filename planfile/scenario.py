@@ -66,6 +66,7 @@ VEHICLE_KEYS = (
     "max_jerk_mps3",
 )
 TRACKING_MARGIN_M = 0.06
+MAX_VEHICLES = 1000  # largest swarm a scenario may hold (the planners' limit)
 """Default tube radius, m: the largest closed-loop position error measured with the built-in
 vehicles' trackable limits and the default controller was 4.4 cm alone (proxplan.flightsim.tracking course)
 and 5.5 cm in an 8-vehicle formation change (benchmarks/bench_fly.py); docs/flying.md."""
@@ -533,6 +534,10 @@ def scenario_from_dict(
     vraw = _mapping(doc["vehicles"], f"{label}: vehicles", "NAME: {type, start, goal|hover|dock}")
     if not vraw:
         raise UserError(f"{label}: vehicles: expected at least one vehicle")
+    if len(vraw) > MAX_VEHICLES:
+        raise UserError(
+            f"{label}: vehicles: expected at most {MAX_VEHICLES} vehicles, got {len(vraw)} (split the swarm into groups)"
+        )
     vehicles = {str(n): _task(str(n), d, f"{label}: vehicles.{n}", custom) for n, d in vraw.items()}
     _check_docks(vehicles, label)
     name = doc.get("name", path.stem if path is not None else "scenario")

@@ -138,7 +138,14 @@ def choose_lattice(
     l_z = float(gaps.min()) if gaps.size else max(min_z_m, 0.5)
     l_z = min(max(l_z, min_z_m), 1.0)
     best = None
-    for l_xy in np.round(np.arange(min_xy_m, 2.0 * min_xy_m + 1e-9, 0.05), 4):
+    cands = set(np.round(np.arange(min_xy_m, 2.0 * min_xy_m + 1e-9, 0.05), 4).tolist())
+    for axis in (0, 1):  # multiples of the gaps between the points' coordinates
+        gaps = np.unique(np.round(np.diff(np.unique(np.round(pts[:, axis], 3))), 3))
+        for g in gaps[gaps > 0][:8]:
+            for k in range(1, 9):
+                if min_xy_m <= g * k <= 2.0 * min_xy_m:
+                    cands.add(round(float(g * k), 4))
+    for l_xy in sorted(cands):
         l_xy = float(max(l_xy, min_xy_m))
         spacing = np.array([l_xy, l_xy, l_z])
         # candidate origins: the residues of the points themselves; score = points on vertices
@@ -239,6 +246,32 @@ def _stencil(keep: KeepOut, spacing: np.ndarray) -> dict[tuple[int, int], np.nda
     return out
 
 
+def _points_of(rm: Roadmap, atoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sample points (P, 3), m, of ``atoms`` and the atom of each point (P,)."""
+    pts, own = [], []
+    for a in atoms.tolist():
+        p = rm.atom_points(int(a))
+        pts.append(p)
+        own.append(np.full(len(p), a, dtype=np.int64))
+    if not pts:
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+    return np.concatenate(pts), np.concatenate(own)
+
+
+def _lattice_points(rm: Roadmap, atom_ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sample points and owning atoms of every valid lattice atom (vectorised)."""
+    nv = rm.n_vertices
+    idx = np.stack(np.unravel_index(np.arange(nv), rm.shape), axis=-1)
+    base = rm.origin_m + idx * rm.spacing_m
+    pts, own = [], []
+    for kind, rel in enumerate(_lattice_kind_points(rm.spacing_m)):
+        ok = np.flatnonzero(atom_ok[kind * nv : (kind + 1) * nv])
+        p = base[ok][:, None, :] + rel[None, :, :]
+        pts.append(p.reshape(-1, 3))
+        own.append(np.repeat(kind * nv + ok, len(rel)))
+    return np.concatenate(pts), np.concatenate(own)
+
+
 def _conflict_sets(rm: Roadmap, keepouts: dict[tuple[int, int], KeepOut]) -> None:
     """Fill ``rm.conflicts`` (see module): stencils for lattice pairs, point tests for the rest."""
     shape = np.array(rm.shape)
@@ -246,16 +279,15 @@ def _conflict_sets(rm: Roadmap, keepouts: dict[tuple[int, int], KeepOut]) -> Non
     n_atoms = rm.n_atoms
     idx = np.stack(np.unravel_index(np.arange(nv), rm.shape), axis=-1)  # (V, 3)
     atom_ok = np.concatenate([rm.vertex_ok.reshape(-1)] + [rm.edge_ok[a].reshape(-1) for a in range(3)])
-    # irregular atoms (endpoints not on the lattice, access edges) and their points
-    extra = [a for a in range(rm.n_lattice_atoms, n_atoms)]
-    extra_pts = [rm.atom_points(a) for a in extra]
-    lat_pts = _lattice_kind_points(rm.spacing_m)
-    lat_atoms = np.flatnonzero(atom_ok)
-    lat_kind, lat_flat = np.divmod(lat_atoms, nv)
-    lat_base = rm.origin_m + idx[lat_flat] * rm.spacing_m
-    lat_mid = lat_base.copy()
-    for k in (1, 2, 3):
-        lat_mid[lat_kind == k, k - 1] += 0.5 * rm.spacing_m[k - 1]
+    extra = np.arange(rm.n_lattice_atoms, n_atoms)
+    ex_pts, ex_own = _points_of(rm, extra)
+    lat_pts, lat_own = _lattice_points(rm, atom_ok)
+    reach = max(k.reach_xy_m for k in keepouts.values()) + 1e-6
+    n_end = len(rm.endpoints_m)
+    # candidate point pairs by horizontal distance (the vertical reach spans the whole lattice)
+    ex_tree = cKDTree(ex_pts[:, :2]) if len(ex_pts) else None
+    el = ex_tree.sparse_distance_matrix(cKDTree(lat_pts[:, :2]), reach, output_type="ndarray") if ex_tree else None
+    ee = ex_tree.sparse_distance_matrix(ex_tree, reach, output_type="ndarray") if ex_tree else None
     for (ta, tb), keep in keepouts.items():
         rows, cols = [], []
         for (ka, kb), offs in _stencil(keep, rm.spacing_m).items():
@@ -270,69 +302,26 @@ def _conflict_sets(rm: Roadmap, keepouts: dict[tuple[int, int], KeepOut]) -> Non
             keep_mask = atom_ok[t_atom]
             rows.append(ka * nv + src[s_i[keep_mask]])
             cols.append(t_atom[keep_mask])
-        # irregular atoms against everything (both directions: a irregular x b anything and reverse)
-        if extra:
-            r2, c2 = _irregular_pairs(rm, keep, keepouts, ta, tb, extra, extra_pts, lat_atoms, lat_kind, lat_mid, lat_pts)
-            rows += r2
-            cols += c2
+        if el is not None and el.size:
+            i, j = el["i"], el["j"]
+            d = lat_pts[j] - ex_pts[i]  # lattice (type tb) relative to irregular (type ta)
+            hit = keep.conflict(d)
+            rows.append(ex_own[i[hit]])
+            cols.append(lat_own[j[hit]])
+            hit2 = keep.conflict(-d)  # irregular (type tb) relative to lattice (type ta)
+            rows.append(lat_own[j[hit2]])
+            cols.append(ex_own[i[hit2]])
+        if ee is not None and ee.size:
+            i, j = ee["i"], ee["j"]
+            d = ex_pts[j] - ex_pts[i]
+            a_i, a_j = ex_own[i], ex_own[j]
+            rest = ((a_i - rm.n_lattice_atoms) < n_end) & ((a_j - rm.n_lattice_atoms) < n_end)
+            hit = np.where(rest, keep.conflict(d, rest=True), keep.conflict(d))
+            rows.append(a_i[hit])
+            cols.append(a_j[hit])
         r = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
         c = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
         mat = sp.csr_matrix((np.ones(r.size, dtype=bool), (r, c)), shape=(n_atoms, n_atoms))
         mat.sum_duplicates()
+        mat.sort_indices()
         rm.conflicts[(ta, tb)] = mat
-
-
-def _irregular_pairs(rm, keep, keepouts, ta, tb, extra, extra_pts, lat_atoms, lat_kind, lat_mid, lat_pts):
-    """Rows / cols of conflicts that involve an endpoint or access atom, for types (ta, tb)."""
-    rows: list[np.ndarray] = []
-    cols: list[np.ndarray] = []
-    half = 0.5 * float(np.max(rm.spacing_m))
-    reach_h = keep.reach_xy_m + 2.0 * ACCESS_RADIUS_FACTOR * rm.spacing_m[0] + half
-    lat_tree = cKDTree(lat_mid[:, :2])
-    extra_mid = np.array([p.mean(axis=0) for p in extra_pts])
-    extra_tree = cKDTree(extra_mid[:, :2])
-    n_end = len(rm.endpoints_m)
-    base = rm.n_lattice_atoms
-    for i, a in enumerate(extra):
-        pa = extra_pts[i]
-        # lattice candidates
-        cand = np.array(lat_tree.query_ball_point(extra_mid[i, :2], reach_h), dtype=np.int64)
-        if cand.size:
-            dz = np.abs(lat_mid[cand, 2] - extra_mid[i, 2])
-            cand = cand[dz <= keep.reach_z_m + 2.0 * half + rm.spacing_m[2]]
-        hits_ab, hits_ba = [], []
-        for kind in range(4):
-            ck = cand[lat_kind[cand] == kind] if cand.size else cand
-            if ck.size == 0:
-                continue
-            pb = lat_mid[ck][:, None, :] + lat_pts[kind][None, :, :]
-            if kind:
-                pb = pb - 0.5 * lat_pts[kind][-1][None, None, :]
-            # a (type ta) at pa, b (type tb) at pb: relative b - a
-            d = pb[:, :, None, :] - pa[None, None, :, :]
-            hit = keep.conflict(d.reshape(-1, 3)).reshape(d.shape[:3]).any(axis=(1, 2))
-            hits_ab.append(lat_atoms[ck[hit]])
-            # a irregular of type tb vs lattice of type ta: relative (irregular - lattice)
-            rev = keepouts[(tb, ta)] if (tb, ta) in keepouts else keep
-            d2 = -d
-            hit2 = rev.conflict(d2.reshape(-1, 3)).reshape(d2.shape[:3]).any(axis=(1, 2))
-            hits_ba.append(lat_atoms[ck[hit2]])
-        for h in hits_ab:
-            rows.append(np.full(h.size, a, dtype=np.int64))
-            cols.append(h)
-        for h in hits_ba:
-            rows.append(h)
-            cols.append(np.full(h.size, a, dtype=np.int64))
-        # irregular-irregular
-        cand_e = np.array(extra_tree.query_ball_point(extra_mid[i, :2], reach_h), dtype=np.int64)
-        hit_e = []
-        for j in cand_e:
-            pb = extra_pts[j]
-            d = pb[:, None, :] - pa[None, :, :]
-            both_rest = (a - base) < n_end and (extra[j] - base) < n_end
-            if keep.conflict(d.reshape(-1, 3), rest=both_rest).any():
-                hit_e.append(extra[j])
-        if hit_e:
-            rows.append(np.full(len(hit_e), a, dtype=np.int64))
-            cols.append(np.array(hit_e, dtype=np.int64))
-    return rows, cols

@@ -203,13 +203,29 @@ class Search:
             best = min(best, self.profiles.run(ag.limits, d)[0] / self.window_s + h[v])
         return best
 
+    def leave_windows(self, ag: Agent) -> int:
+        """Windows a vehicle needs at least to leave its start (its shortest first run), or
+        INF_WINDOW when it holds its start (start = goal)."""
+        if self.start_node(ag) == self.goal_node(ag):
+            return INF_WINDOW
+        ell = float(self.rm.spacing_m.min())
+        return len(self.profiles.run(ag.limits, ell)[1])
+
     # -- reservations ----------------------------------------------------------------------------
-    def reservation(self, ag: Agent, higher: list[Path], horizon: int):
-        """(blocked flags as a bytearray over window * n_atoms + atom, perm list per atom) for
-        ``ag`` against the paths ``higher``."""
+    def reservation(self, ag: Agent, higher: list[Path], horizon: int, parked: tuple = ()):
+        """(blocked flags over window * n_atoms + atom, perm list per atom) for ``ag`` against the
+        paths ``higher`` and the agents ``parked`` at their starts for ever."""
         blocked = np.zeros(horizon * self.n_atoms, dtype=np.uint8)
         perm = np.full(self.n_atoms, INF_WINDOW, dtype=np.int64)
         t = ag.type_index
+        for item in parked:  # an Agent (parked for ever) or (Agent, until window)
+            other, until = (item, INF_WINDOW) if isinstance(item, Agent) else item
+            g = self.rm.blocked_by(other.type_index, t, np.array([self.rm.endpoint_atom(other.start)]))
+            if until >= INF_WINDOW:
+                perm[g] = 0
+            else:
+                for k in range(min(until, horizon)):
+                    blocked[k * self.n_atoms + g] = 1
         for p in higher:
             w, a = self.blocked_of(p, t)
             keep = w < horizon
@@ -234,10 +250,10 @@ class Search:
         return p.blocked[t]
 
     # -- low level -------------------------------------------------------------------------------
-    def plan(self, ag: Agent, higher: list[Path], horizon: int) -> Path | None:
+    def plan(self, ag: Agent, higher: list[Path], horizon: int, parked: tuple = ()) -> Path | None:
         """Space-time A* for ``ag`` against ``higher`` (see module); None when no path is found
         within ``horizon`` windows or ``max_expansions``."""
-        blocked_np, perm = self.reservation(ag, higher, horizon)
+        blocked_np, perm = self.reservation(ag, higher, horizon, parked)
         blocked = bytearray(blocked_np.tobytes())
         n_atoms = self.n_atoms
         h = self.heuristic(ag)
@@ -450,22 +466,40 @@ class SearchResult:
     message: str = ""
 
 
-def prioritized(search: Search, horizon: int) -> SearchResult:
-    """PP: every agent in ``order_longest_first`` against all before it."""
+def prioritized(search: Search, horizon: int, *, park: bool = True, restarts: int = 20, shortest_first: bool = False) -> SearchResult:
+    """PP: every agent against all before it, in ``order_longest_first`` (or reversed), the ones
+    not planned yet parked at their starts (``park``); a failed agent moves to the front and
+    planning restarts, at most ``restarts`` times (deterministic)."""
     order = order_longest_first(search)
-    paths: list[Path | None] = [None] * len(search.agents)
-    done: list[Path] = []
+    if shortest_first:
+        order = order[::-1]
     res = SearchResult(None, "pp")
-    for i in order:
-        p = search.plan(search.agents[i], done, horizon)
-        res.low_level_calls += 1
-        if p is None:
-            res.message = f"vehicle {search.agents[i].name!r}: no roadmap path against the ones before it"
+    tried = {tuple(order)}
+    for _attempt in range(restarts + 1):
+        paths: list[Path | None] = [None] * len(search.agents)
+        done: list[Path] = []
+        failed = None
+        for pos, i in enumerate(order):
+            parked = tuple(search.agents[j] for j in order[pos + 1 :]) if park else ()
+            p = search.plan(search.agents[i], done, horizon, parked)
+            res.low_level_calls += 1
+            if p is None:
+                failed = pos
+                break
+            res.expansions += p.expansions
+            paths[i] = p
+            done.append(p)
+        if failed is None:
+            res.paths = [p for p in paths if p is not None]
             return res
-        res.expansions += p.expansions
-        paths[i] = p
-        done.append(p)
-    res.paths = [p for p in paths if p is not None]
+        res.high_level_nodes += 1
+        bad = order[failed]
+        res.message = f"vehicle {search.agents[bad].name!r}: no roadmap path against the ones before it"
+        new = [bad] + [x for x in order if x != bad]
+        if tuple(new) in tried:
+            break
+        tried.add(tuple(new))
+        order = new
     return res
 
 
@@ -477,8 +511,12 @@ def pbs(search: Search, horizon: int, *, max_nodes: int = 300) -> SearchResult:
     order = order_longest_first(search)
     # root: a prioritized pass gives the root paths (a valid PBS root: any paths will do); its
     # priorities are not kept, conflicts are resolved by branching
+    leave = [search.leave_windows(a) for a in search.agents]
     for i in range(n):
-        p = search.plan(search.agents[i], [], horizon)
+        parked = tuple(
+            (search.agents[y], _departure(root_paths[y]) if y < i else leave[y]) for y in range(n) if y != i
+        )
+        p = search.plan(search.agents[i], [], horizon, parked)
         res.low_level_calls += 1
         if p is None:
             res.message = f"vehicle {search.agents[i].name!r}: no roadmap path even alone"
@@ -528,7 +566,12 @@ def pbs(search: Search, horizon: int, *, max_nodes: int = 300) -> SearchResult:
                     (min(x, y), max(x, y)) in new_table for y in above
                 ):
                     continue
-                p = search.plan(search.agents[x], [new_paths[y] for y in sorted(above)], horizon)
+                parked = tuple(
+                    (search.agents[y], _departure(new_paths[y]))
+                    for y in range(n)
+                    if y != x and y not in above and _departure(new_paths[y]) > 0
+                )
+                p = search.plan(search.agents[x], [new_paths[y] for y in sorted(above)], horizon, parked)
                 res.low_level_calls += 1
                 if p is None:
                     ok = False
@@ -544,6 +587,15 @@ def pbs(search: Search, horizon: int, *, max_nodes: int = 300) -> SearchResult:
             stack.append((c[2], c[3], c[4]))
     res.message = res.message or "priority-based search: every priority order failed"
     return res
+
+
+def _departure(p: Path) -> int:
+    """Window at which the vehicle's first run ends, i.e. it has left its start (INF_WINDOW: never
+    leaves)."""
+    for mv in p.moves:
+        if mv.a != mv.b:
+            return mv.k0 + mv.n
+    return INF_WINDOW
 
 
 def _reaches(prio: frozenset, a: int, b: int) -> bool:
