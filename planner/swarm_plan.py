@@ -39,6 +39,7 @@ class RoadmapOptions:
     search: str = "pbs"  # "pbs" or "pp"
     max_expansions: int = 40000  # per low-level search (a count, not a time)
     max_nodes: int = 300  # PBS high-level nodes
+    weight: float = 1.5  # weighted A*: every single-vehicle search within this factor of its optimum
 
 
 def roadmap_applicable(scenario: Scenario) -> str | None:
@@ -99,7 +100,7 @@ def search_plan(scenario: Scenario, options: RoadmapOptions | None = None) -> tu
     t0 = time.perf_counter()
     rm, agents, window = build(scenario)
     t1 = time.perf_counter()
-    search = Search(rm, agents, window, max_expansions=options.max_expansions)
+    search = Search(rm, agents, window, max_expansions=options.max_expansions, weight=options.weight)
     lb = max(search.lower_bound_windows(a) for a in agents)
     horizon = int(max(4.0 * lb, lb + 150)) + 10
     if options.search == "pbs":

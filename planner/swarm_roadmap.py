@@ -9,9 +9,10 @@ goal levels (>= the separation keep-out). Among candidate spacings / origins the
 starts and goals exactly on vertices wins (the others reach the lattice over access edges).
 
 **Atoms.** What a vehicle occupies during one time window of the search is a set of *atoms*:
-lattice vertices (kind 0), unit lattice edges along x, y, z (kinds 1..3, indexed by their lower
-vertex), start / goal points ("endpoints") and access edges. Atom ids: ``kind * V + flat vertex
-index`` for the lattice (V = nx ny nz), then endpoints, then access edges.
+lattice vertices (kind 0), unit lattice edges along ``DIRECTIONS`` (x, y, z and the two horizontal
+diagonals; kinds 1..5, indexed by the vertex they leave in the + direction), start / goal points
+("endpoints") and access edges. Atom ids: ``kind * V + flat vertex index`` for the lattice
+(V = nx ny nz), then endpoints, then access edges.
 
 **Conflict sets.** Two atoms conflict for vehicle types (a, b) when some point of one and some
 point of the other are closer than the pair's keep-out (:mod:`proxplan.planner.swarm_keepout`),
@@ -35,6 +36,7 @@ from scipy.spatial import cKDTree
 
 from proxplan.planner.swarm_keepout import KeepOut
 
+DIRECTIONS = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, -1, 0]])  # edge kinds 1.., index steps
 SAMPLE_M = 0.05  # point spacing on edges for the conflict test, m (keep-outs are grown by it)
 ACCESS_NEIGHBOURS = 6  # lattice vertices each start / goal connects to
 ACCESS_RADIUS_FACTOR = 1.8  # ... within this many horizontal spacings
@@ -48,7 +50,7 @@ class Roadmap:
     spacing_m: np.ndarray  # (3,) m
     shape: tuple[int, int, int]
     vertex_ok: np.ndarray  # (nx, ny, nz) bool: vertex free of workspace bounds / obstacles
-    edge_ok: np.ndarray  # (3, nx, ny, nz) bool: unit edge from the vertex along +axis is free
+    edge_ok: np.ndarray  # (K, nx, ny, nz) bool: unit edge from the vertex along +DIRECTIONS[k] is free
     endpoints_m: np.ndarray  # (E, 3) start / goal points, m
     endpoint_vertex: np.ndarray  # (E,) flat lattice vertex the endpoint coincides with, or -1
     access: list[tuple[int, int]]  # (endpoint, flat lattice vertex) per access edge
@@ -61,7 +63,7 @@ class Roadmap:
 
     @property
     def n_lattice_atoms(self) -> int:
-        return 4 * self.n_vertices
+        return (1 + len(DIRECTIONS)) * self.n_vertices
 
     def endpoint_atom(self, e: int) -> int:
         """The atom of endpoint ``e`` held at rest (its own atom even on a lattice vertex, so that
@@ -87,9 +89,7 @@ class Roadmap:
             p0 = self.position(flat)
             if kind == 0:
                 return p0[None]
-            step = np.zeros(3)
-            step[kind - 1] = self.spacing_m[kind - 1]
-            return _segment_points(p0, p0 + step)
+            return _segment_points(p0, p0 + DIRECTIONS[kind - 1] * self.spacing_m)
         e = atom - n_lat
         if e < len(self.endpoints_m):
             return self.endpoints_m[e][None]
@@ -182,16 +182,19 @@ def build_roadmap(
     grid = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing="ij"), axis=-1)
     pos = origin + grid * spacing  # (nx, ny, nz, 3)
     vertex_ok = _static_free(pos, lo_m, hi_m, boxes)
-    edge_ok = np.zeros((3,) + shape, dtype=bool)
-    for a in range(3):
-        n_s = max(2, int(math.ceil(spacing[a] / SAMPLE_M)) + 1)
-        ok = np.ones(shape, dtype=bool)
+    edge_ok = np.zeros((len(DIRECTIONS),) + shape, dtype=bool)
+    for kind, step_idx in enumerate(DIRECTIONS):
+        step = step_idx * spacing
+        n_s = max(2, int(math.ceil(float(np.linalg.norm(step)) / SAMPLE_M)) + 1)
+        ok = vertex_ok.copy()
         for s in np.linspace(0.0, 1.0, n_s):
-            step = np.zeros(3)
-            step[a] = s * spacing[a]
-            ok &= _static_free(pos + step, lo_m, hi_m, boxes)
-        ok[(slice(None),) * a + (-1,)] = False  # the last vertex along the axis has no + edge
-        edge_ok[a] = ok
+            ok &= _static_free(pos + s * step, lo_m, hi_m, boxes)
+        end = grid + step_idx
+        inside = np.all((end >= 0) & (end < np.array(shape)), axis=-1)
+        ok &= inside
+        end_ok = np.zeros(shape, dtype=bool)
+        end_ok[inside] = vertex_ok[tuple(end[inside].T)]
+        edge_ok[kind] = ok & end_ok
     flat_pos = pos.reshape(-1, 3)
     tree = cKDTree(flat_pos[vertex_ok.reshape(-1)])
     ok_index = np.flatnonzero(vertex_ok.reshape(-1))
@@ -217,12 +220,10 @@ def build_roadmap(
 
 
 def _lattice_kind_points(spacing: np.ndarray) -> list[np.ndarray]:
-    """Sample points of the four lattice atom kinds at vertex (0, 0, 0), relative, m."""
+    """Sample points of the lattice atom kinds at vertex (0, 0, 0), relative, m."""
     out = [np.zeros((1, 3))]
-    for a in range(3):
-        step = np.zeros(3)
-        step[a] = spacing[a]
-        out.append(_segment_points(np.zeros(3), step))
+    for step in DIRECTIONS:
+        out.append(_segment_points(np.zeros(3), step * spacing))
     return out
 
 
@@ -231,18 +232,25 @@ def _stencil(keep: KeepOut, spacing: np.ndarray) -> dict[tuple[int, int], np.nda
     b) conflicts with one of kind ka at the origin (type a)."""
     pts = _lattice_kind_points(spacing)
     reach = np.array([keep.reach_xy_m, keep.reach_xy_m, keep.reach_z_m])
-    span = np.ceil(reach / spacing).astype(int) + 1
+    span = np.ceil(reach / spacing).astype(int) + 2
     off = np.stack(
         np.meshgrid(*[np.arange(-s, s + 1) for s in span], indexing="ij"), axis=-1
     ).reshape(-1, 3)
     out = {}
-    for ka in range(4):
-        for kb in range(4):
+    n_kinds = 1 + len(DIRECTIONS)
+    for ka in range(n_kinds):
+        for kb in range(n_kinds):
             pa, pb = pts[ka], pts[kb]
+            # horizontal gap between the two atoms' boxes: beyond the reach no test is needed
+            lo_b = off[:, :2] * spacing[:2] + pb[:, :2].min(axis=0)
+            hi_b = off[:, :2] * spacing[:2] + pb[:, :2].max(axis=0)
+            gap = np.maximum(0.0, np.maximum(lo_b - pa[:, :2].max(axis=0), pa[:, :2].min(axis=0) - hi_b))
+            near = np.hypot(gap[:, 0], gap[:, 1]) < keep.reach_xy_m
+            o = off[near]
             # relative vectors: (offset, point of b, point of a)
-            d = (off * spacing)[:, None, None, :] + pb[None, :, None, :] - pa[None, None, :, :]
+            d = (o * spacing)[:, None, None, :] + pb[None, :, None, :] - pa[None, None, :, :]
             hit = keep.conflict(d.reshape(-1, 3)).reshape(d.shape[:3]).any(axis=(1, 2))
-            out[(ka, kb)] = off[hit]
+            out[(ka, kb)] = o[hit]
     return out
 
 
@@ -278,7 +286,7 @@ def _conflict_sets(rm: Roadmap, keepouts: dict[tuple[int, int], KeepOut]) -> Non
     nv = rm.n_vertices
     n_atoms = rm.n_atoms
     idx = np.stack(np.unravel_index(np.arange(nv), rm.shape), axis=-1)  # (V, 3)
-    atom_ok = np.concatenate([rm.vertex_ok.reshape(-1)] + [rm.edge_ok[a].reshape(-1) for a in range(3)])
+    atom_ok = np.concatenate([rm.vertex_ok.reshape(-1)] + [e.reshape(-1) for e in rm.edge_ok])
     extra = np.arange(rm.n_lattice_atoms, n_atoms)
     ex_pts, ex_own = _points_of(rm, extra)
     lat_pts, lat_own = _lattice_points(rm, atom_ok)

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxplan.physics import KinematicLimits
-from proxplan.planner.swarm_roadmap import Roadmap
+from proxplan.planner.swarm_roadmap import DIRECTIONS, Roadmap
 from proxplan.planner.timing import duration_table, ruckig_segment
 
 INF_WINDOW = 1 << 30
@@ -101,8 +101,11 @@ class Profiles:
 class Search:
     """Shared data of one multi-agent search (roadmap, agents, profiles, heuristics)."""
 
-    def __init__(self, rm: Roadmap, agents: list[Agent], window_s: float, *, max_expansions: int = 40000):
+    def __init__(
+        self, rm: Roadmap, agents: list[Agent], window_s: float, *, max_expansions: int = 40000, weight: float = 1.0
+    ):
         self.rm = rm
+        self.weight = weight  # heuristic inflation: each single-vehicle path <= weight x its optimum
         self.agents = agents
         self.window_s = window_s
         self.max_expansions = max_expansions
@@ -110,26 +113,24 @@ class Search:
         self.nv = rm.n_vertices
         self.n_atoms = rm.n_atoms
         self.strides = [int(np.prod(rm.shape[a + 1 :])) for a in range(3)]
-        # longest free run from each vertex along +axis / -axis (edges)
-        self.run_plus = []
-        self.run_minus = []
-        for a in range(3):
-            ok = rm.edge_ok[a] & rm.vertex_ok
-            nxt = np.roll(rm.vertex_ok, -1, axis=a)
-            ok = ok & nxt
+        # per edge kind: index step, flat stride, edge length (m), longest free run from each vertex
+        # in the + and - direction (edges)
+        self.kinds = []
+        for kind, step in enumerate(DIRECTIONS):
+            ok = rm.edge_ok[kind]
             plus = np.zeros(rm.shape, dtype=np.int64)
-            n = rm.shape[a]
-            for i in range(n - 2, -1, -1):
-                sl = (slice(None),) * a + (i,)
-                sl1 = (slice(None),) * a + (i + 1,)
-                plus[sl] = np.where(ok[sl], plus[sl1] + 1, 0)
             minus = np.zeros(rm.shape, dtype=np.int64)
-            for i in range(1, n):
-                sl = (slice(None),) * a + (i,)
-                sl0 = (slice(None),) * a + (i - 1,)
-                minus[sl] = np.where(ok[sl0], minus[sl0] + 1, 0)
-            self.run_plus.append(plus.reshape(-1).tolist())
-            self.run_minus.append(minus.reshape(-1).tolist())
+            n_max = max(rm.shape)
+            for _ in range(n_max):  # fixed point of run(u) = ok(u) * (1 + run(u + step))
+                nxt = _shifted(plus, -step)
+                plus = np.where(ok, nxt + 1, 0)
+            ok_back = _shifted(ok, step)  # edge arriving at u from u - step
+            for _ in range(n_max):
+                prv = _shifted(minus, step)
+                minus = np.where(ok_back, prv + 1, 0)
+            stride = int(np.dot(step, self.strides))
+            length = float(np.linalg.norm(step * rm.spacing_m))
+            self.kinds.append((kind + 1, step, stride, length, plus.reshape(-1).tolist(), minus.reshape(-1).tolist()))
         self.vertex_ok = rm.vertex_ok.reshape(-1).tolist()
         self.idx = np.stack(np.unravel_index(np.arange(self.nv), rm.shape), axis=-1)
         # access edges by endpoint
@@ -185,7 +186,8 @@ class Search:
         best = np.full(self.nv, np.inf)
         for v, extra in self.goal_targets(ag):
             dv = np.abs(self.idx - self.idx[v]) * self.rm.spacing_m  # (V, 3) m
-            t = np.interp(dv, dist, dur).sum(axis=1) + extra
+            d_xy = np.hypot(dv[:, 0], dv[:, 1])
+            t = np.interp(d_xy, dist, dur) + np.interp(dv[:, 2], dist, dur) + extra
             best = np.minimum(best, t)
         h = (best / self.window_s).tolist()
         self._h[key] = h
@@ -291,7 +293,7 @@ class Search:
         heap: list = []
         seen: set[int] = set()
         nodes.append((s_node, 0, -1, None))
-        heapq.heappush(heap, (h_of(s_node), 0, 0))
+        heapq.heappush(heap, (self.weight * h_of(s_node), 0, 0))
         expansions = 0
         found = -1
         while heap:
@@ -313,7 +315,7 @@ class Search:
                 if k2 >= horizon or nb * horizon + k2 in seen:
                     return
                 nodes.append((nb, k2, i, mv))
-                heapq.heappush(heap, (k2 + h_of(nb), -k2, len(nodes) - 1))
+                heapq.heappush(heap, (k2 + self.weight * h_of(nb), -k2, len(nodes) - 1))
 
             # wait
             if free(k, rest):
@@ -334,12 +336,11 @@ class Search:
                 atom = self.rm.access_atom(goal_access[node])
                 if all(free(k + j, atom) for j in range(len(sw))):
                     push(g_node, k + len(sw), Move(k, len(sw), node, g_node, dur))
-            # axis runs
+            # straight runs along every edge kind, both ways
             here = self.idx[node]
-            for a in range(3):
-                stride = self.strides[a]
-                base_kind = (a + 1) * nv
-                for sgn, runs in ((1, self.run_plus[a]), (-1, self.run_minus[a])):
+            for kind, step, stride, ell, plus_runs, minus_runs in self.kinds:
+                base_kind = kind * nv
+                for sgn, runs in ((1, plus_runs), (-1, minus_runs)):
                     m_max = runs[node]
                     if m_max == 0:
                         continue
@@ -348,13 +349,14 @@ class Search:
                         continue
                     lengths = {1, 2, 3, m_max}
                     for t_idx in target_idx:
-                        m = (int(t_idx[a]) - int(here[a])) * sgn
-                        if 0 < m <= m_max:
-                            lengths.add(m)
+                        for a in range(3):
+                            if step[a]:
+                                m = (int(t_idx[a]) - int(here[a])) * sgn * int(step[a])
+                                if 0 < m <= m_max:
+                                    lengths.add(m)
                     for m in sorted(x for x in lengths if x <= m_max):
-                        dur, sw = self.profiles.run(ag.limits, m * float(spacing[a]))
+                        dur, sw = self.profiles.run(ag.limits, m * ell)
                         ok = True
-                        ell = float(spacing[a])
                         for j in range(len(sw)):
                             e_lo = min(int(sw[j, 0] / ell + 1e-9), m - 1)
                             e_hi = min(max(int(math.ceil(sw[j, 1] / ell - 1e-9)) - 1, e_lo), m - 1)
@@ -366,7 +368,8 @@ class Search:
                             if not ok:
                                 break
                         if ok:
-                            push(node + sgn * m * stride, k + len(sw), Move(k, len(sw), node, node + sgn * m * stride, dur))
+                            nb = node + sgn * m * stride
+                            push(nb, k + len(sw), Move(k, len(sw), node, nb, dur))
         if found < 0:
             return None
         moves: list[Move] = []
@@ -400,11 +403,12 @@ class Search:
                     ats.append(self.rm.access_atom(acc))
                 continue
             diff = self.idx[mv.b] - self.idx[mv.a]
-            a = int(np.flatnonzero(diff)[0])
-            m = int(abs(diff[a]))
-            sgn = 1 if diff[a] > 0 else -1
-            stride = self.strides[a]
-            ell = float(self.rm.spacing_m[a])
+            m = int(np.abs(diff).max())
+            unit = diff // m
+            for kind, step, stride, ell, _p, _m in self.kinds:
+                if np.array_equal(unit, step) or np.array_equal(unit, -step):
+                    break
+            sgn = 1 if np.array_equal(unit, step) else -1
             _dur, sw = self.profiles.run(ag.limits, m * ell)
             for j in range(len(sw)):
                 e_lo = min(int(sw[j, 0] / ell + 1e-9), m - 1)
@@ -412,7 +416,7 @@ class Search:
                 for e in range(e_lo, e_hi + 1):
                     edge = mv.a + e * stride if sgn > 0 else mv.a - (e + 1) * stride
                     ws.append(mv.k0 + j)
-                    ats.append((a + 1) * nv + edge)
+                    ats.append(kind * nv + edge)
         p = Path(
             moves,
             arrival,
@@ -448,6 +452,15 @@ class Search:
                 k = max(p.arrival, q.arrival)
                 best = k if best is None else min(best, k)
         return best
+
+
+def _shifted(arr: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """out[u] = arr[u - step] where that index exists, else 0 / False."""
+    out = np.zeros_like(arr)
+    src = tuple(slice(max(0, -int(s)), arr.shape[a] - max(0, int(s))) for a, s in enumerate(step))
+    dst = tuple(slice(max(0, int(s)), arr.shape[a] - max(0, -int(s))) for a, s in enumerate(step))
+    out[dst] = arr[src]
+    return out
 
 
 def order_longest_first(search: Search) -> list[int]:
