@@ -77,7 +77,9 @@ def child(scenario: str, out: str, search: str) -> int:
 
 
 def _verify(plan_json: Path) -> str:
-    res = subprocess.run([sys.executable, "-m", "proxplan.cli", "verify", str(plan_json)], capture_output=True, cwd=ROOT)
+    res = subprocess.run(
+        [sys.executable, "-m", "proxplan.cli", "verify", str(plan_json)], capture_output=True, cwd=ROOT
+    )
     return "PASS" if res.returncode == 0 else "FAIL"
 
 

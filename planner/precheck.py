@@ -34,8 +34,7 @@ def check_swarm_size(scenario: Scenario) -> None:
         raise UserError(f"{where}vehicles: expected at least one vehicle, got none")
     if n > MAX_VEHICLES:
         raise UserError(
-            f"{where}vehicles: expected at most {MAX_VEHICLES} vehicles, got {n} "
-            "(split the swarm into groups)"
+            f"{where}vehicles: expected at most {MAX_VEHICLES} vehicles, got {n} (split the swarm into groups)"
         )
 
 
@@ -73,11 +72,11 @@ def check_starts_and_goals(scenario: Scenario, *, mode: str) -> None:
 
 def _final_points(scenario: Scenario) -> dict[str, np.ndarray]:
     """Where each non-docking vehicle ends (goal, or start for hovering ones), m."""
-    out = {}
+    out: dict[str, np.ndarray] = {}
     for n, task in scenario.vehicles.items():
-        if task.dock_with is not None:
-            continue
-        out[n] = task.start_m if task.hover else task.goal_m
+        end = task.start_m if task.hover else task.goal_m
+        if task.dock_with is None and end is not None:
+            out[n] = end
     return out
 
 
@@ -100,7 +99,10 @@ def check_close_pairs(scenario: Scenario) -> None:
     def exempt(a: str, b: str) -> bool:
         return (a, b) in dock or (b, a) in dock
 
-    for kind, points in (("start", {n: t.start_m for n, t in scenario.vehicles.items()}), ("goal", _final_points(scenario))):
+    for kind, points in (
+        ("start", {n: t.start_m for n, t in scenario.vehicles.items()}),
+        ("goal", _final_points(scenario)),
+    ):
         names = list(points)
         if len(names) < 2:
             continue
@@ -110,9 +112,7 @@ def check_close_pairs(scenario: Scenario) -> None:
         if pairs.size:
             i, j = pairs[:, 0], pairs[:, 1]
             d = np.linalg.norm(xyz[i] - xyz[j], axis=1)
-            need = np.maximum(
-                lim.min_separation_m, np.array([radius[names[a]] + radius[names[b]] for a, b in pairs])
-            )
+            need = np.maximum(lim.min_separation_m, np.array([radius[names[a]] + radius[names[b]] for a, b in pairs]))
             bad = np.flatnonzero((d < need) & ~np.array([exempt(names[a], names[b]) for a, b in pairs]))
             if bad.size:
                 k = bad[np.lexsort((j[bad], i[bad]))][0]
@@ -130,7 +130,9 @@ def check_close_pairs(scenario: Scenario) -> None:
     tables = {}
     for a in {scenario.vehicles[n].vehicle for n in names}:
         for b in {scenario.vehicles[n].vehicle for n in names}:
-            tables[(a, b)] = cutoff_table(a, b, level=lim.authority_fraction, rule=lim.invalid_zone_rule, field_form=form, effects=fx)
+            tables[(a, b)] = cutoff_table(
+                a, b, level=lim.authority_fraction, rule=lim.invalid_zone_rule, field_form=form, effects=fx
+            )
     reach = max(max(t.r_cut_m) for t in tables.values())
     if reach <= 0:
         return

@@ -83,9 +83,7 @@ class KeepOut:
         return hit | (r2 < rc * rc)
 
 
-def keepout_for(
-    vehicle_a, vehicle_b, *, limits, field_form: str | None, effects: tuple, sample_m: float
-) -> KeepOut:
+def keepout_for(vehicle_a, vehicle_b, *, limits, field_form: str | None, effects: tuple, sample_m: float) -> KeepOut:
     """The :class:`KeepOut` of physics vehicles (a, b) under scenario ``limits``."""
     from proxplan.planner.constraints import cutoff_table
 

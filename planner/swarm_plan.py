@@ -59,7 +59,7 @@ def build(scenario: Scenario) -> tuple[Roadmap, list[Agent], float]:
 
     names = list(scenario.vehicles)
     type_of: dict = {}
-    vehicles = []
+    vehicles: list = []
     for n in names:
         v = scenario.vehicles[n].vehicle
         if v not in type_of:
@@ -83,9 +83,7 @@ def build(scenario: Scenario) -> tuple[Roadmap, list[Agent], float]:
         goal = task.start_m if task.hover else task.goal_m
         assert goal is not None
         endpoints += [task.start_m, goal]
-        agents.append(
-            Agent(n, type_of[task.vehicle], task.kinematic_limits, len(endpoints) - 2, len(endpoints) - 1)
-        )
+        agents.append(Agent(n, type_of[task.vehicle], task.kinematic_limits, len(endpoints) - 2, len(endpoints) - 1))
     rm = build_roadmap(np.array(endpoints), lo, hi, boxes, keep, tuple(v.name for v in vehicles))
     v_max = max(a.limits.max_speed_mps for a in agents)
     window = WINDOW_FRACTION * float(rm.spacing_m[0]) / v_max

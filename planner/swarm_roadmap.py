@@ -162,7 +162,7 @@ def choose_lattice(
     _, residue, spacing = best
     first = lo_m + np.mod(residue - lo_m, spacing)  # first lattice coordinate >= lo on each axis
     shape = tuple(int(math.floor((hi_m[a] - first[a]) / spacing[a] + 1e-9)) + 1 for a in range(3))
-    return first, spacing, (max(shape[0], 1), max(shape[1], 1), max(shape[2], 1))  # type: ignore[return-value]
+    return first, spacing, (max(shape[0], 1), max(shape[1], 1), max(shape[2], 1))
 
 
 def build_roadmap(
@@ -233,9 +233,7 @@ def _stencil(keep: KeepOut, spacing: np.ndarray) -> dict[tuple[int, int], np.nda
     pts = _lattice_kind_points(spacing)
     reach = np.array([keep.reach_xy_m, keep.reach_xy_m, keep.reach_z_m])
     span = np.ceil(reach / spacing).astype(int) + 2
-    off = np.stack(
-        np.meshgrid(*[np.arange(-s, s + 1) for s in span], indexing="ij"), axis=-1
-    ).reshape(-1, 3)
+    off = np.stack(np.meshgrid(*[np.arange(-s, s + 1) for s in span], indexing="ij"), axis=-1).reshape(-1, 3)
     out = {}
     n_kinds = 1 + len(DIRECTIONS)
     for ka in range(n_kinds):

@@ -12,12 +12,14 @@ last run a vehicle holds its goal for ever.
 Two vehicles conflict when, in one window, an atom of one is in the conflict set of an atom of the
 other (a goal held from window A conflicts with anything in its set from A on).
 
-* **Low level**: space-time A* for one vehicle against the reservations of a set of vehicles
-  (cost = arrival window; heuristic = sum over axes of the rest-to-rest time of the displacement
-  along that axis to the goal's access vertex plus the access time, admissible because runs are
-  axis-aligned and rest-to-rest and the rest-to-rest time is subadditive). Candidate run lengths:
-  1..3 edges, the longest free run, and lengths ending level with the goal on that axis.
-  Deterministic: ties broken by larger g, then insertion order; a cap on expansions (a count).
+* **Low level**: space-time weighted A* (``weight``; 1 is plain A*) for one vehicle against the
+  reservations of a set of vehicles (cost = arrival window; heuristic = rest-to-rest time of the
+  horizontal plus that of the vertical distance to the goal's access vertex, plus the access time,
+  admissible because runs are straight and rest-to-rest and the rest-to-rest time is subadditive).
+  Run kinds: the lattice's ``DIRECTIONS`` both ways; lengths 1..3 edges, the longest free run, and
+  lengths ending level with the goal. Vehicles neither above nor planned are treated as parked at
+  their starts until their current first run has taken them away. Deterministic: ties broken by
+  larger g, then insertion order; a cap on expansions (a count).
 * **PBS** (priority-based search, Ma et al. AAAI 2019): depth-first search over partial priority
   orders; at a node, the earliest conflict (a, b) branches into "a before b" and "b before a"; the
   lower vehicle and every vehicle below it that now conflicts with a higher one are re-planned
@@ -288,7 +290,6 @@ class Search:
 
         goal_idx = self.idx[g_node] if g_node < nv else None
         target_idx = [self.idx[v] for v in goal_targets] if goal_idx is None else [goal_idx]
-        spacing = self.rm.spacing_m
         nodes: list[tuple[int, int, int, Move | None]] = []  # node, k, parent, move
         heap: list = []
         seen: set[int] = set()
@@ -311,10 +312,10 @@ class Search:
                 break
             rest = self.rest_atom(ag, node)
 
-            def push(nb: int, k2: int, mv: Move) -> None:
+            def push(nb: int, k2: int, mv: Move, parent: int = i) -> None:
                 if k2 >= horizon or nb * horizon + k2 in seen:
                     return
-                nodes.append((nb, k2, i, mv))
+                nodes.append((nb, k2, parent, mv))
                 heapq.heappush(heap, (k2 + self.weight * h_of(nb), -k2, len(nodes) - 1))
 
             # wait
@@ -405,9 +406,9 @@ class Search:
             diff = self.idx[mv.b] - self.idx[mv.a]
             m = int(np.abs(diff).max())
             unit = diff // m
-            for kind, step, stride, ell, _p, _m in self.kinds:
-                if np.array_equal(unit, step) or np.array_equal(unit, -step):
-                    break
+            kind, step, stride, ell, _p, _m = next(
+                kd for kd in self.kinds if np.array_equal(unit, kd[1]) or np.array_equal(unit, -kd[1])
+            )
             sgn = 1 if np.array_equal(unit, step) else -1
             _dur, sw = self.profiles.run(ag.limits, m * ell)
             for j in range(len(sw)):
@@ -479,7 +480,9 @@ class SearchResult:
     message: str = ""
 
 
-def prioritized(search: Search, horizon: int, *, park: bool = True, restarts: int = 20, shortest_first: bool = False) -> SearchResult:
+def prioritized(
+    search: Search, horizon: int, *, park: bool = True, restarts: int = 20, shortest_first: bool = False
+) -> SearchResult:
     """PP: every agent against all before it, in ``order_longest_first`` (or reversed), the ones
     not planned yet parked at their starts (``park``); a failed agent moves to the front and
     planning restarts, at most ``restarts`` times (deterministic)."""
@@ -526,9 +529,7 @@ def pbs(search: Search, horizon: int, *, max_nodes: int = 300) -> SearchResult:
     # priorities are not kept, conflicts are resolved by branching
     leave = [search.leave_windows(a) for a in search.agents]
     for i in range(n):
-        parked = tuple(
-            (search.agents[y], _departure(root_paths[y]) if y < i else leave[y]) for y in range(n) if y != i
-        )
+        parked = tuple((search.agents[y], _departure(root_paths[y]) if y < i else leave[y]) for y in range(n) if y != i)
         p = search.plan(search.agents[i], [], horizon, parked)
         res.low_level_calls += 1
         if p is None:
@@ -554,7 +555,7 @@ def pbs(search: Search, horizon: int, *, max_nodes: int = 300) -> SearchResult:
 
     table: dict = {}
     conflicts_of(root_paths, list(range(n)), table)
-    stack = [(root_paths, frozenset(), table)]  # paths, priority edges (hi, lo), conflicts
+    stack: list[tuple[list[Path], frozenset, dict]] = [(root_paths, frozenset(), table)]  # paths, priority edges (hi, lo), conflicts
     while stack:
         paths, prio, table = stack.pop()
         res.high_level_nodes += 1
@@ -575,9 +576,7 @@ def pbs(search: Search, horizon: int, *, max_nodes: int = 300) -> SearchResult:
             ok = True
             for x in _topological_below(new_prio, lo, n):
                 above = _ancestors(new_prio, x)
-                if x != lo and not any(
-                    (min(x, y), max(x, y)) in new_table for y in above
-                ):
+                if x != lo and not any((min(x, y), max(x, y)) in new_table for y in above):
                     continue
                 parked = tuple(
                     (search.agents[y], _departure(new_paths[y]))

@@ -69,7 +69,9 @@ def test_conflict_sets_agree_with_a_scalar_brute_force_on_a_tiny_roadmap():
             rest = (rm.n_lattice_atoms <= a < rm.n_lattice_atoms + n_end) and (
                 rm.n_lattice_atoms <= b < rm.n_lattice_atoms + n_end
             )
-            want = _scalar_conflict(rm.atom_points(a), rm.atom_points(b), types[ta], types[tb], sc.limits, 0.0 if rest else w)
+            want = _scalar_conflict(
+                rm.atom_points(a), rm.atom_points(b), types[ta], types[tb], sc.limits, 0.0 if rest else w
+            )
             assert bool(dense[a, b]) == want, (ta, tb, a, b)
             checked += 1
             hits += want
