@@ -140,6 +140,7 @@ class Search:
         for k, (e, v) in enumerate(rm.access):
             self.access_of.setdefault(e, []).append((v, k))
         self._h: dict[int, list[float]] = {}
+        self._offsets: dict = {}
 
     # -- geometry helpers ------------------------------------------------------------------------
     def node_pos(self, node: int) -> np.ndarray:
@@ -206,6 +207,28 @@ class Search:
             d = float(np.linalg.norm(self.rm.endpoints_m[ag.start] - self.rm.position(v)))
             best = min(best, self.profiles.run(ag.limits, d)[0] / self.window_s + h[v])
         return best
+
+    def run_offsets(self, limits: KinematicLimits, kind: int, sgn: int, m: int) -> tuple[float, list[tuple[int, ...]]]:
+        """(duration s, per window the atom ids relative to the start vertex) of a run of ``m``
+        unit edges of edge ``kind`` (1..) in direction ``sgn``: the unit edges it sweeps in each
+        window (cached)."""
+        key = (limits, kind, sgn, m)
+        hit = self._offsets.get(key)
+        if hit is None:
+            _k, _step, stride, ell, _p, _m = self.kinds[kind - 1]
+            dur, sw = self.profiles.run(limits, m * ell)
+            rows = []
+            for j in range(len(sw)):
+                e_lo = min(int(sw[j, 0] / ell + 1e-9), m - 1)
+                e_hi = min(max(int(math.ceil(sw[j, 1] / ell - 1e-9)) - 1, e_lo), m - 1)
+                rows.append(
+                    tuple(
+                        kind * self.nv + (e * stride if sgn > 0 else -(e + 1) * stride) for e in range(e_lo, e_hi + 1)
+                    )
+                )
+            hit = (dur, rows)
+            self._offsets[key] = hit
+        return hit
 
     def leave_windows(self, ag: Agent) -> int:
         """Windows a vehicle needs at least to leave its start (its shortest first run), or
@@ -339,7 +362,7 @@ class Search:
                     push(g_node, k + len(sw), Move(k, len(sw), node, g_node, dur))
             # straight runs along every edge kind, both ways
             here = self.idx[node]
-            for kind, step, stride, ell, plus_runs, minus_runs in self.kinds:
+            for kind, step, stride, _ell, plus_runs, minus_runs in self.kinds:
                 base_kind = kind * nv
                 for sgn, runs in ((1, plus_runs), (-1, minus_runs)):
                     m_max = runs[node]
@@ -356,21 +379,23 @@ class Search:
                                 if 0 < m <= m_max:
                                     lengths.add(m)
                     for m in sorted(x for x in lengths if x <= m_max):
-                        dur, sw = self.profiles.run(ag.limits, m * ell)
+                        dur, offsets = self.run_offsets(ag.limits, kind, sgn, m)
                         ok = True
-                        for j in range(len(sw)):
-                            e_lo = min(int(sw[j, 0] / ell + 1e-9), m - 1)
-                            e_hi = min(max(int(math.ceil(sw[j, 1] / ell - 1e-9)) - 1, e_lo), m - 1)
-                            for e in range(e_lo, e_hi + 1):
-                                edge = node + e * stride if sgn > 0 else node - (e + 1) * stride
-                                if not free(k + j, base_kind + edge):
+                        for j, offs in enumerate(offsets):
+                            kj = k + j
+                            if kj >= horizon:
+                                ok = False
+                                break
+                            row = kj * n_atoms + node
+                            for off in offs:
+                                if blocked[row + off] or kj >= perm[node + off]:
                                     ok = False
                                     break
                             if not ok:
                                 break
                         if ok:
                             nb = node + sgn * m * stride
-                            push(nb, k + len(sw), Move(k, len(sw), node, nb, dur))
+                            push(nb, k + len(offsets), Move(k, len(offsets), node, nb, dur))
         if found < 0:
             return None
         moves: list[Move] = []
@@ -406,18 +431,13 @@ class Search:
             diff = self.idx[mv.b] - self.idx[mv.a]
             m = int(np.abs(diff).max())
             unit = diff // m
-            kind, step, stride, ell, _p, _m = next(
-                kd for kd in self.kinds if np.array_equal(unit, kd[1]) or np.array_equal(unit, -kd[1])
-            )
-            sgn = 1 if np.array_equal(unit, step) else -1
-            _dur, sw = self.profiles.run(ag.limits, m * ell)
-            for j in range(len(sw)):
-                e_lo = min(int(sw[j, 0] / ell + 1e-9), m - 1)
-                e_hi = min(max(int(math.ceil(sw[j, 1] / ell - 1e-9)) - 1, e_lo), m - 1)
-                for e in range(e_lo, e_hi + 1):
-                    edge = mv.a + e * stride if sgn > 0 else mv.a - (e + 1) * stride
+            kd = next(kd for kd in self.kinds if np.array_equal(unit, kd[1]) or np.array_equal(unit, -kd[1]))
+            sgn = 1 if np.array_equal(unit, kd[1]) else -1
+            _dur, offsets = self.run_offsets(ag.limits, kd[0], sgn, m)
+            for j, offs in enumerate(offsets):
+                for off in offs:
                     ws.append(mv.k0 + j)
-                    ats.append(kind * nv + edge)
+                    ats.append(mv.a + off)
         p = Path(
             moves,
             arrival,
@@ -555,7 +575,9 @@ def pbs(search: Search, horizon: int, *, max_nodes: int = 300) -> SearchResult:
 
     table: dict = {}
     conflicts_of(root_paths, list(range(n)), table)
-    stack: list[tuple[list[Path], frozenset, dict]] = [(root_paths, frozenset(), table)]  # paths, priority edges (hi, lo), conflicts
+    stack: list[tuple[list[Path], frozenset, dict]] = [
+        (root_paths, frozenset(), table)
+    ]  # paths, priority edges (hi, lo), conflicts
     while stack:
         paths, prio, table = stack.pop()
         res.high_level_nodes += 1
