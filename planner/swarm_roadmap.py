@@ -139,12 +139,13 @@ def choose_lattice(
     l_z = min(max(l_z, min_z_m), 1.0)
     best = None
     cands = set(np.round(np.arange(min_xy_m, 2.0 * min_xy_m + 1e-9, 0.05), 4).tolist())
-    for axis in (0, 1):  # multiples of the gaps between the points' coordinates
+    for axis in (0, 1):  # multiples and fractions of the gaps between the points' coordinates
         gaps = np.unique(np.round(np.diff(np.unique(np.round(pts[:, axis], 3))), 3))
         for g in gaps[gaps > 0][:8]:
             for k in range(1, 9):
-                if min_xy_m <= g * k <= 2.0 * min_xy_m:
-                    cands.add(round(float(g * k), 4))
+                for f in (g * k, g / k):
+                    if min_xy_m <= f <= 2.0 * min_xy_m:
+                        cands.add(round(float(f), 4))
     for l_xy in sorted(cands):
         l_xy = float(max(l_xy, min_xy_m))
         spacing = np.array([l_xy, l_xy, l_z])
