@@ -58,8 +58,8 @@ def child(scenario: str, out: str, search: str) -> int:
     """Plan on the roadmap, write plan.json, print one JSON line of metrics (no fall-back)."""
     from proxplan.planfile import load_scenario, write_plan
     from proxplan.planner import InfeasibleError
-    from proxplan.planner.pipeline import finish_metrics
-    from proxplan.planner.swarm_plan import RoadmapOptions, plan_roadmap
+    from proxplan.planner.pipeline import finish_metrics, plan_roadmap
+    from proxplan.planner.swarm_plan import RoadmapOptions
 
     t0 = time.perf_counter()
     sc = load_scenario(scenario)

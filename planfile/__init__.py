@@ -30,6 +30,7 @@ from proxplan.planfile.plan import (
 )
 from proxplan.planfile.scenario import (
     INVALID_ZONE_RULES,
+    MAX_VEHICLES,
     Box,
     Limits,
     Scenario,
@@ -56,6 +57,7 @@ __all__ = [
     "Box",
     "Limits",
     "Plan",
+    "MAX_VEHICLES",
     "Scenario",
     "VehicleTask",
     "VehicleTrajectory",

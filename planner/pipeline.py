@@ -286,7 +286,7 @@ def _roadmap_plan(scenario: Scenario, *, progress) -> tuple[Plan | None, str | N
     """(the roadmap plan (:mod:`proxplan.planner.swarm_plan`), None) when the roadmap can express
     the scenario, the search succeeds and the verifier passes it; else (None, why not: a note for
     the sampling plan that replaces it)."""
-    from proxplan.planner.swarm_plan import plan_roadmap, roadmap_applicable
+    from proxplan.planner.swarm_plan import roadmap_applicable
     from proxplan.verify import verify_plan
 
     why = roadmap_applicable(scenario)
@@ -302,6 +302,19 @@ def _roadmap_plan(scenario: Scenario, *, progress) -> tuple[Plan | None, str | N
     if bad:
         return None, f"roadmap: plan failed verification ({bad[0]}); this is the sampling planner's plan"
     return plan, None
+
+
+def plan_roadmap(scenario: Scenario, options=None) -> Plan:
+    """The roadmap plan of ``scenario`` (:func:`proxplan.planner.swarm_plan.roadmap_timed`,
+    ``options`` a ``RoadmapOptions``) as a Plan with ``metrics["roadmap"]`` (metrics not final);
+    InfeasibleError when the roadmap cannot express the scenario or its search fails."""
+    from proxplan.planner.swarm_plan import roadmap_timed
+
+    timed, info = roadmap_timed(scenario, options)
+    plan = assemble_plan(scenario, timed, method="roadmap", notes=list(scenario.load_notes))
+    plan.notes.append(info.pop("note"))
+    plan.metrics["roadmap"] = info
+    return plan
 
 
 def _sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: SamplingOptions, progress) -> Plan:

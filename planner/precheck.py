@@ -17,8 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from proxplan.fileio import UserError
-from proxplan.planfile import Scenario
-from proxplan.planfile.scenario import MAX_VEHICLES
+from proxplan.planfile import MAX_VEHICLES, Scenario
 from proxplan.planner.constraints import Track, build_checker
 from proxplan.planner.errors import InfeasibleError
 from proxplan.planner.validity import BatchChecker

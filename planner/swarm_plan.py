@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from proxplan.planfile import Plan, Scenario
+from proxplan.planfile import Scenario
 from proxplan.planner.errors import InfeasibleError
 from proxplan.planner.swarm_keepout import keepout_for
 from proxplan.planner.swarm_roadmap import SAMPLE_M, Roadmap, build_roadmap
@@ -151,10 +151,11 @@ def timed_paths(search: Search, paths) -> dict[str, TimedPath]:
     return out
 
 
-def plan_roadmap(scenario: Scenario, options: RoadmapOptions | None = None) -> Plan:
-    """The roadmap plan of ``scenario`` (metrics not final); InfeasibleError when the search fails."""
+def roadmap_timed(scenario: Scenario, options: RoadmapOptions | None = None) -> tuple[dict[str, TimedPath], dict]:
+    """(timed path per vehicle, info with timings and bounds) of the roadmap plan of ``scenario``;
+    InfeasibleError when the roadmap cannot express it or the search fails.
+    :func:`proxplan.planner.pipeline.plan_roadmap` assembles them into a Plan."""
     from proxplan.planner.ordering import lower_bound_makespan_s
-    from proxplan.planner.pipeline import assemble_plan
 
     why = roadmap_applicable(scenario)
     if why is not None:
@@ -164,7 +165,6 @@ def plan_roadmap(scenario: Scenario, options: RoadmapOptions | None = None) -> P
         name = res.message.split("'")[1] if "'" in res.message else "-"
         raise InfeasibleError(name, "roadmap search", res.message)
     timed = timed_paths(search, res.paths)
-    plan = assemble_plan(scenario, timed, method="roadmap", notes=list(scenario.load_notes))
     lb = lower_bound_makespan_s(scenario)
     end = max(tp.duration_s for tp in timed.values())
     info.update(
@@ -172,12 +172,11 @@ def plan_roadmap(scenario: Scenario, options: RoadmapOptions | None = None) -> P
             "lower_bound_s": lb,
             "makespan_over_lower_bound": (end / lb) if lb > 0 else math.nan,
             "sum_of_costs_s": float(sum(tp.duration_s for tp in timed.values())),
+            "note": (
+                f"roadmap: {info['roadmap_vertices']} lattice vertices, spacing {info['roadmap_spacing_m']} m, "
+                f"{res.method.upper()} ({res.high_level_nodes} nodes, {res.low_level_calls} single-vehicle "
+                f"searches); makespan {end:.2f} s <= {(end / lb) if lb > 0 else math.nan:.2f} x lower bound {lb:.2f} s"
+            ),
         }
     )
-    plan.metrics["roadmap"] = info
-    plan.notes.append(
-        f"roadmap: {info['roadmap_vertices']} lattice vertices, spacing {info['roadmap_spacing_m']} m, "
-        f"{res.method.upper()} ({res.high_level_nodes} nodes, {res.low_level_calls} single-vehicle searches); "
-        f"makespan {end:.2f} s <= {info['makespan_over_lower_bound']:.2f} x lower bound {lb:.2f} s"
-    )
-    return plan
+    return timed, info

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 
-from proxplan.planfile.scenario import MAX_VEHICLES
+from proxplan.planfile import MAX_VEHICLES
 from proxplan.planner.formations import grid_reshuffle
 
 

@@ -11,7 +11,8 @@ import pytest
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.constraints import CutoffTable, cutoff_table
 from proxplan.planner.formations import circle_swap, grid_reshuffle
-from proxplan.planner.swarm_plan import build, plan_roadmap, search_plan
+from proxplan.planner.pipeline import plan_roadmap
+from proxplan.planner.swarm_plan import build, search_plan
 from proxplan.planner.swarm_roadmap import SAMPLE_M
 from proxplan.planner.swarm_search import Search, pbs, prioritized
 from proxplan.verify import verify_plan
