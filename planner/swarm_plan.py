@@ -82,8 +82,11 @@ def build(scenario: Scenario) -> tuple[Roadmap, list[Agent], float]:
         task = scenario.vehicles[n]
         goal = task.start_m if task.hover else task.goal_m
         assert goal is not None
-        endpoints += [task.start_m, goal]
-        agents.append(Agent(n, type_of[task.vehicle], task.kinematic_limits, len(endpoints) - 2, len(endpoints) - 1))
+        endpoints.append(task.start_m)
+        start = len(endpoints) - 1
+        if not np.allclose(goal, task.start_m, atol=1e-9):  # a vehicle that stays has one endpoint
+            endpoints.append(goal)
+        agents.append(Agent(n, type_of[task.vehicle], task.kinematic_limits, start, len(endpoints) - 1))
     rm = build_roadmap(np.array(endpoints), lo, hi, boxes, keep, tuple(v.name for v in vehicles))
     v_max = max(a.limits.max_speed_mps for a in agents)
     window = WINDOW_FRACTION * float(rm.spacing_m[0]) / v_max

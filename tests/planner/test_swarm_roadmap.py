@@ -129,3 +129,13 @@ def test_docking_scenarios_fall_back_to_the_sampling_planner():
     plan = plan_scenario(sc, method="roadmap")
     assert plan.method == "sampling"
     assert any(n.startswith("roadmap: not used") for n in plan.notes)
+
+
+def test_a_hovering_vehicle_off_the_lattice_stays_put():
+    doc = circle_swap(6, types=CF)
+    doc["vehicles"]["keeper"] = {"type": "crazyflie-2.1", "start": [0.13, 2.07, 2.4], "hover": True}
+    sc = scenario_from_dict(doc)
+    plan = plan_roadmap(sc)
+    keeper = plan.vehicles["keeper"].position_m
+    assert np.abs(keeper - np.array([0.13, 2.07, 2.4])).max() < 1e-9
+    assert verify_plan(plan, sc) == []
