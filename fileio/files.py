@@ -61,14 +61,18 @@ def parse_yaml(text: str, *, label: str) -> Any:
     or on a key given twice in one mapping (PyYAML would silently keep the last)."""
     import yaml
 
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)(text)  # libyaml parses swarm files fast
     try:
-        duplicate = _duplicate_key(yaml.compose(text, Loader=yaml.SafeLoader))
+        node = loader.get_single_node()  # parsed once: checked for duplicates, then constructed
+        duplicate = _duplicate_key(node)
         if duplicate:
             key, first, again = duplicate
             raise UserError(f"{label}: {key}: duplicate key (lines {first} and {again}); expected each key once")
-        return yaml.safe_load(text)
+        return None if node is None else loader.construct_document(node)
     except yaml.YAMLError as err:
         raise UserError(f"{label}: not valid YAML ({str(err).splitlines()[0]})") from None
+    finally:
+        loader.dispose()
 
 
 def read_yaml(path: str | Path, *, what: str) -> Any:

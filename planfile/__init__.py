@@ -31,6 +31,7 @@ from proxplan.planfile.plan import (
 )
 from proxplan.planfile.scenario import (
     INVALID_ZONE_RULES,
+    MAX_VEHICLES,
     Box,
     Limits,
     Scenario,
@@ -58,6 +59,7 @@ __all__ = [
     "Limits",
     "Plan",
     "SolverStats",
+    "MAX_VEHICLES",
     "Scenario",
     "VehicleTask",
     "VehicleTrajectory",

@@ -75,6 +75,7 @@ VEHICLE_KEYS = (
     "max_jerk_mps3",
 )
 TRACKING_MARGIN_M = DEFAULT_TRACKING_TUBE_M
+MAX_VEHICLES = 1000  # largest swarm a scenario may hold (the planners' limit)
 """Tube radius, m, of :class:`Limits` built without vehicles (a scenario file without
 ``limits.tracking_margin_m`` takes :func:`scenario_tube_m` of its vehicles instead)."""
 
@@ -577,6 +578,10 @@ def scenario_from_dict(
     vraw = _mapping(doc["vehicles"], f"{label}: vehicles", "NAME: {type, start, goal|hover|dock}")
     if not vraw:
         raise UserError(f"{label}: vehicles: expected at least one vehicle")
+    if len(vraw) > MAX_VEHICLES:
+        raise UserError(
+            f"{label}: vehicles: expected at most {MAX_VEHICLES} vehicles, got {len(vraw)} (split the swarm into groups)"
+        )
     vehicles = {str(n): _task(str(n), d, f"{label}: vehicles.{n}", custom) for n, d in vraw.items()}
     _check_docks(vehicles, label)
     limits_raw = doc.get("limits")

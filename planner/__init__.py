@@ -1,6 +1,8 @@
 """Multi-vehicle planning: prioritised space-time sampling with OMPL against moving downwash
 sources (cut-off maps), CasADi refinement keeping predicted wrenches within authority, Ruckig
-timing; the independent verifier (package ``verify``) checks every plan it returns.
+timing; for swarms a shared lattice roadmap with precomputed conflict sets and priority-based search
+(``method="roadmap"``, :mod:`proxplan.planner.swarm_plan`); the independent verifier (package
+``verify``) checks every plan it returns.
 """
 
 from proxplan.planner.errors import InfeasibleError

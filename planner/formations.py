@@ -1,4 +1,9 @@
-"""Formation-change scenarios of N vehicles (the swarm benchmark of issue 14).
+"""Formation-change scenarios of N vehicles (the swarm benchmarks of issues 14 and 21).
+
+``formation_change`` (two layers around a pillar, below), ``grid_reshuffle`` (a grid whose
+vehicles swap slots by a seeded permutation), ``circle_swap`` (a circle where every vehicle flies to
+the antipode, so every path crosses the centre) and ``corridor`` (two groups trading sides through
+a gap in a wall); ``LAYOUTS`` maps their names to the functions.
 
 Two staggered layers ``layer_gap_m`` apart on the west side of a pillar; every vehicle flies to the
 *other* layer on the east side (the slot mirrored across the pillar), so each crosses the others'
@@ -67,6 +72,129 @@ def formation_change(
         "limits": {"authority_fraction": authority_fraction, "min_separation_m": min_separation_m},
         "vehicles": vehicles,
     }
+
+
+def _types(i: int, types: Sequence[str]) -> str:
+    return types[i % len(types)]
+
+
+def _limits_block(authority_fraction: float, min_separation_m: float) -> dict[str, float]:
+    return {"authority_fraction": authority_fraction, "min_separation_m": min_separation_m}
+
+
+def grid_reshuffle(
+    n_vehicles: int,
+    *,
+    spacing_m: float = 0.6,
+    seed: int = 0,
+    types: Sequence[str] = DEFAULT_TYPES,
+    authority_fraction: float = 0.1,
+    min_separation_m: float = 0.25,
+) -> dict[str, Any]:
+    """N vehicles on a square grid at 1.5 m height (``spacing_m`` apart, m) each fly to another
+    slot of the same grid (a permutation from ``seed``)."""
+    import numpy as np
+
+    if n_vehicles < 1:
+        raise ValueError(f"a layout needs at least one vehicle, got {n_vehicles}")
+    cols = math.ceil(math.sqrt(n_vehicles))
+    slots = [
+        [round((c - 0.5 * (cols - 1)) * spacing_m, 4), round((r - 0.5 * (cols - 1)) * spacing_m, 4), 1.5]
+        for r in range(cols)
+        for c in range(cols)
+    ][:n_vehicles]
+    perm = np.random.default_rng(seed).permutation(n_vehicles)
+    vehicles = {
+        f"v{i:03d}": {"type": _types(i, types), "start": slots[i], "goal": slots[int(perm[i])]}
+        for i in range(n_vehicles)
+    }
+    half = 0.5 * cols * spacing_m + 1.0
+    return {
+        "name": f"grid-reshuffle-{n_vehicles}",
+        "workspace": {"min": [-half, -half, 0.0], "max": [half, half, 3.0]},
+        "limits": _limits_block(authority_fraction, min_separation_m),
+        "vehicles": vehicles,
+    }
+
+
+def circle_swap(
+    n_vehicles: int,
+    *,
+    arc_spacing_m: float = 0.6,
+    types: Sequence[str] = DEFAULT_TYPES,
+    authority_fraction: float = 0.1,
+    min_separation_m: float = 0.25,
+) -> dict[str, Any]:
+    """N vehicles on a circle (radius so that neighbours are ``arc_spacing_m`` apart, at least
+    1.5 m), alternately at 1.0 m and 1.5 m height, each flying to the antipodal slot."""
+    if n_vehicles < 1:
+        raise ValueError(f"a layout needs at least one vehicle, got {n_vehicles}")
+    radius = max(1.5, n_vehicles * arc_spacing_m / (2.0 * math.pi))
+    vehicles = {}
+    for i in range(n_vehicles):
+        a = 2.0 * math.pi * i / n_vehicles
+        z = 1.0 if i % 2 == 0 else 1.5
+        start = [round(radius * math.cos(a), 4), round(radius * math.sin(a), 4), z]
+        goal = [round(-radius * math.cos(a), 4), round(-radius * math.sin(a), 4), z]
+        vehicles[f"v{i:03d}"] = {"type": _types(i, types), "start": start, "goal": goal}
+    half = radius + 1.0
+    return {
+        "name": f"circle-swap-{n_vehicles}",
+        "workspace": {"min": [-half, -half, 0.0], "max": [half, half, 3.0]},
+        "limits": _limits_block(authority_fraction, min_separation_m),
+        "vehicles": vehicles,
+    }
+
+
+def corridor(
+    n_vehicles: int,
+    *,
+    spacing_m: float = 0.6,
+    gap_m: float = 1.6,
+    types: Sequence[str] = DEFAULT_TYPES,
+    authority_fraction: float = 0.1,
+    min_separation_m: float = 0.25,
+) -> dict[str, Any]:
+    """Two groups on either side of a wall (x = 0) with a ``gap_m`` wide corridor at y = 0 trade
+    sides: the west group (a grid at 1.0 m height) flies to the east grid and back the other way
+    (east group at 1.5 m height)."""
+    if n_vehicles < 1:
+        raise ValueError(f"a layout needs at least one vehicle, got {n_vehicles}")
+    per_side = math.ceil(n_vehicles / 2)
+    cols = math.ceil(math.sqrt(per_side))
+    vehicles = {}
+    for i in range(n_vehicles):
+        side, k = (-1.0 if i % 2 == 0 else 1.0), i // 2
+        row, col = divmod(k, cols)
+        x = side * (1.0 + row * spacing_m)
+        y = (col - 0.5 * (cols - 1)) * spacing_m
+        z = 1.0 if side < 0 else 1.5
+        vehicles[f"v{i:03d}"] = {
+            "type": _types(i, types),
+            "start": [round(x, 4), round(y, 4), z],
+            "goal": [round(-x, 4), round(y, 4), z],
+        }
+    half_x = 1.0 + cols * spacing_m + 1.0
+    half_y = max(0.5 * cols * spacing_m + 1.0, 0.5 * gap_m + 1.0)
+    wall = 0.2
+    return {
+        "name": f"corridor-{n_vehicles}",
+        "workspace": {"min": [-half_x, -half_y, 0.0], "max": [half_x, half_y, 3.0]},
+        "obstacles": [
+            {"name": "wall-south", "min": [-wall, -half_y, 0.0], "max": [wall, -0.5 * gap_m, 3.0]},
+            {"name": "wall-north", "min": [-wall, 0.5 * gap_m, 0.0], "max": [wall, half_y, 3.0]},
+        ],
+        "limits": _limits_block(authority_fraction, min_separation_m),
+        "vehicles": vehicles,
+    }
+
+
+LAYOUTS = {
+    "pillar": formation_change,
+    "grid": grid_reshuffle,
+    "circle": circle_swap,
+    "corridor": corridor,
+}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -28,7 +28,12 @@ from proxplan.planfile import Plan, Scenario, VehicleTrajectory
 from proxplan.planner.constraints import Track, build_checker
 from proxplan.planner.errors import InfeasibleError
 from proxplan.planner.ordering import priority_order, promote
-from proxplan.planner.precheck import check_goal_tubes, check_starts_and_goals, check_swarm_size
+from proxplan.planner.precheck import (
+    check_close_pairs,
+    check_goal_tubes,
+    check_starts_and_goals,
+    check_swarm_size,
+)
 from proxplan.planner.sampling import GoalSpec, SamplingOptions, plan_space_time, start_conflict
 from proxplan.planner.timing import (
     KinematicLimits,
@@ -40,9 +45,10 @@ from proxplan.planner.timing import (
 )
 from proxplan.planner.validity import BatchChecker
 
-METHODS = ("optimized", "sampling", "no-downwash", "ellipsoid")
+METHODS = ("optimized", "sampling", "roadmap", "no-downwash", "ellipsoid")
 MODE_OF_METHOD = {
     "optimized": "downwash",
+    "roadmap": "downwash",
     "sampling": "downwash",
     "no-downwash": "no-downwash",
     "ellipsoid": "ellipsoid",
@@ -234,6 +240,8 @@ def plan_scenario(
     """Plan every vehicle of ``scenario``; raises :class:`InfeasibleError` when impossible.
 
     ``method``: "optimized" (sampling, then ``proxplan.planner.optimize.refine_plan`` when available),
+    "roadmap" (shared lattice roadmap + priority-based search, :mod:`proxplan.planner.swarm_plan`;
+    the sampling planner when the roadmap cannot express the scenario or its search fails, with a note),
     "sampling", "no-downwash" (separation only) or "ellipsoid" (keep-out ellipsoid baseline).
     ``progress(message, fraction)`` is called as vehicles are planned. ``time_budget_s``: wall-clock
     budget of the optimiser (default ``RefineOptions.time_budget_s``), s; it returns the best
@@ -251,10 +259,16 @@ def plan_scenario(
     t0 = time.perf_counter()
     mode = MODE_OF_METHOD[method]
     check_swarm_size(scenario)
+    check_close_pairs(scenario)
     check_starts_and_goals(scenario, mode=mode)
     check_goal_tubes(scenario, mode=mode, margin_m=PLAN_MARGIN_M)
-    plan = _sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
-    if mode == "downwash":
+    plan, why_not = _roadmap_plan(scenario, progress=progress) if method == "roadmap" else (None, None)
+    if plan is None:
+        plan = _sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
+        if why_not:
+            plan.notes.append(why_not)
+            method = "sampling"
+    if mode == "downwash" and plan.method != "roadmap":
         # safety net: the timed plan is re-checked per vehicle, but the verifier is independent
         bad = verify_plan(plan, scenario)
         if bad:
@@ -265,12 +279,47 @@ def plan_scenario(
                 plan = retry
             retry_note = note + ("" if not bad_retry else f"; still {len(bad_retry)} violation(s)")
             plan.notes.append(retry_note)
-    plan.method = method if method != "optimized" else "sampling"
+    plan.method = plan.method if plan.method == "roadmap" else (method if method != "optimized" else "sampling")
     if method == "optimized":
         plan = _refine(scenario, plan, seed=seed, progress=progress, time_budget_s=time_budget_s)
     finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - t0)
     if progress:
         progress("done", 1.0)
+    return plan
+
+
+def _roadmap_plan(scenario: Scenario, *, progress) -> tuple[Plan | None, str | None]:
+    """(the roadmap plan (:mod:`proxplan.planner.swarm_plan`), None) when the roadmap can express
+    the scenario, the search succeeds and the verifier passes it; else (None, why not: a note for
+    the sampling plan that replaces it)."""
+    from proxplan.planner.swarm_plan import roadmap_applicable
+    from proxplan.verify import verify_plan
+
+    why = roadmap_applicable(scenario)
+    if why is not None:
+        return None, f"roadmap: not used, {why}; this is the sampling planner's plan"
+    if progress:
+        progress("roadmap search", 0.1)
+    try:
+        plan = plan_roadmap(scenario)
+    except InfeasibleError as err:
+        return None, f"roadmap: search failed ({err.message}); this is the sampling planner's plan"
+    bad = verify_plan(plan, scenario)
+    if bad:
+        return None, f"roadmap: plan failed verification ({bad[0]}); this is the sampling planner's plan"
+    return plan, None
+
+
+def plan_roadmap(scenario: Scenario, options=None) -> Plan:
+    """The roadmap plan of ``scenario`` (:func:`proxplan.planner.swarm_plan.roadmap_timed`,
+    ``options`` a ``RoadmapOptions``) as a Plan with ``metrics["roadmap"]`` (metrics not final);
+    InfeasibleError when the roadmap cannot express the scenario or its search fails."""
+    from proxplan.planner.swarm_plan import roadmap_timed
+
+    timed, info = roadmap_timed(scenario, options)
+    plan = assemble_plan(scenario, timed, method="roadmap", notes=list(scenario.load_notes))
+    plan.notes.append(info.pop("note"))
+    plan.metrics["roadmap"] = info
     return plan
 
 

@@ -11,7 +11,7 @@ import sys
 
 from proxplan.cli_args import add_model_argument, load_model_argument, seed_argument
 
-METHOD_CHOICES = ("optimized", "sampling", "no-downwash", "ellipsoid")
+METHOD_CHOICES = ("optimized", "sampling", "roadmap", "no-downwash", "ellipsoid")
 
 
 def register(subparsers) -> None:
@@ -33,7 +33,8 @@ def register(subparsers) -> None:
         "--method",
         choices=METHOD_CHOICES,
         default="optimized",
-        help="optimized (default; sampling + CasADi refinement), sampling, or the baselines "
+        help="optimized (default; sampling + CasADi refinement), sampling, roadmap (shared lattice roadmap + "
+        "priority-based search for swarms; falls back to sampling with a note), or the baselines "
         "no-downwash (separation only) and ellipsoid (Crazyswarm keep-out ellipsoid)",
     )
     p.add_argument(

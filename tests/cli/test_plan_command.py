@@ -80,8 +80,8 @@ def test_infeasible_scenario_names_vehicle_and_constraint(tmp_path):
                 "workspace": {"min": [-3, -3, 0], "max": [3, 3, 4]},
                 "limits": {"authority_fraction": 0.1},
                 "vehicles": {
+                    "small": {"type": "small-quad", "start": [0, 0, 1.2], "goal": [2, 0, 1.0]},
                     "big": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
-                    "small": {"type": "small-quad", "start": [2, 0, 1.0], "goal": [0, 0, 1.2]},
                 },
             },
             sort_keys=False,
@@ -93,6 +93,29 @@ def test_infeasible_scenario_names_vehicle_and_constraint(tmp_path):
     assert report["vehicle"] == "small" and "downwash of big" in report["constraint"]
     assert "infeasible" in res.stderr and "'small'" in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "o" / "plan.json").exists()
+
+
+def test_goal_inside_a_hovering_vehicles_cutoff_is_a_user_error(tmp_path):
+    """Issue 21: a goal inside another's cut-off zone is bad input (exit 2, one line, both named)."""
+    path = tmp_path / "goal.yaml"
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "goal-under-hover",
+                "workspace": {"min": [-3, -3, 0], "max": [3, 3, 4]},
+                "limits": {"authority_fraction": 0.1},
+                "vehicles": {
+                    "big": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
+                    "small": {"type": "small-quad", "start": [2, 0, 1.0], "goal": [0, 0, 1.2]},
+                },
+            },
+            sort_keys=False,
+        )
+    )
+    res = _run("plan", path, "--out", tmp_path / "o", "--method", "sampling")
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and "Traceback" not in res.stderr
+    assert "vehicles.small.goal" in res.stderr and "vehicles.big.goal" in res.stderr
+    assert not (tmp_path / "o").exists()
 
 
 def test_bad_scenario_exits_2_with_one_line(tmp_path):

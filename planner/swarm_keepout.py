@@ -1,0 +1,110 @@
+"""Keep-out region of an ordered pair of vehicle types, vectorised, for the swarm roadmap.
+
+Relative vector d = p_b - p_a (world frame, m). The pair conflicts when
+
+* |d| < separation (max(limits.min_separation_m, r_a + r_b)) + w, or
+* b is below a (d_z < 0) and r = |d_xy| < r_cut_{a->b}(-d_z) grown by w, or
+* b is above a (d_z > 0) and r < r_cut_{b->a}(d_z) grown by w,
+
+where r_cut is the cost map's cut-off radius at ``limits.authority_fraction`` with the scenario's
+invalid-zone rule (:func:`proxplan.planner.constraints.cutoff_table`, the planner's own tables) and
+"grown by w" means the largest value over dz +- w plus w (as
+:meth:`proxplan.planner.constraints.PairRule.cutoff_m` does for the tracking tube); within
+|d_z| <= w both directions apply. w = tracking tube ``limits.tracking_margin_m`` + the sampling
+inflation of the roadmap's conflict test (points every ``sample_m`` on an edge: any point is within
+sample_m / 2 of a sample, so two points within sample_m of a sample pair); at rest (both vehicles
+hold a start or goal, exact points) w = 0, as the verifier leaves the tube out for resting pairs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+
+def _grown(r_cut: np.ndarray, step_m: float, w_m: float) -> np.ndarray:
+    """Table g[k] such that g[floor(x / step)] >= max of the bracket lookup over [x - w, x + w]
+    (plus w where positive), m; index k over the table plus padding."""
+    r = np.asarray(r_cut, dtype=float)
+    pair = np.zeros(r.size + 1)
+    pair[: r.size - 1] = np.maximum(r[:-1], r[1:])  # lookup(x) = max(r[k], r[k+1]), 0 beyond
+    reach = int(math.ceil(w_m / step_m)) + 1
+    padded = np.concatenate([np.full(reach, pair[0] if w_m <= 0 else max(pair[0], pair[1])), pair, np.zeros(reach + 1)])
+    win = sliding_window_view(padded, 2 * reach + 1).max(axis=1)  # centred window over +- reach
+    out = win[: pair.size + reach]
+    return np.where(out > 0.0, out + w_m, 0.0)
+
+
+@dataclass(frozen=True)
+class KeepOut:
+    """Keep-out of types (a, b) (see module): ``conflict(d)`` for relative vectors d = p_b - p_a."""
+
+    separation_m: float  # without w, m
+    w_move_m: float  # tube + sampling inflation, m
+    w_rest_m: float  # at rest, m
+    step_m: float  # dz step of the tables, m
+    a_on_b: np.ndarray  # grown r_cut of a (above) on b (below), moving, m
+    b_on_a: np.ndarray  # grown r_cut of b (above) on a (below), moving, m
+    a_on_b_rest: np.ndarray
+    b_on_a_rest: np.ndarray
+
+    @property
+    def reach_xy_m(self) -> float:
+        """Largest horizontal distance at which the pair can conflict while moving, m."""
+        return float(max(self.separation_m + self.w_move_m, self.a_on_b.max(initial=0.0), self.b_on_a.max(initial=0.0)))
+
+    @property
+    def reach_z_m(self) -> float:
+        """Largest vertical distance at which the pair can conflict while moving, m."""
+        nz = [np.flatnonzero(t > 0) for t in (self.a_on_b, self.b_on_a)]
+        top = max([(int(n[-1]) + 2) * self.step_m for n in nz if n.size] + [0.0])
+        return float(max(self.separation_m + self.w_move_m, top + self.w_move_m))
+
+    def conflict(self, d: np.ndarray, *, rest: bool = False) -> np.ndarray:
+        """(P,) bool for relative vectors ``d`` (P, 3), m."""
+        d = np.asarray(d, dtype=float).reshape(-1, 3)
+        w = self.w_rest_m if rest else self.w_move_m
+        below, above = (self.a_on_b_rest, self.b_on_a_rest) if rest else (self.a_on_b, self.b_on_a)
+        r2 = d[:, 0] ** 2 + d[:, 1] ** 2
+        dz = d[:, 2]
+        sep = self.separation_m + w
+        hit = r2 + dz * dz < sep * sep
+        k = np.floor(np.abs(dz) / self.step_m).astype(np.int64)
+        k_b = np.clip(k, 0, below.size - 1)
+        k_a = np.clip(k, 0, above.size - 1)
+        rb = np.where(k < below.size, below[k_b], 0.0)
+        ra = np.where(k < above.size, above[k_a], 0.0)
+        near = np.abs(dz) <= w + 1e-12
+        rc = np.where(dz < 0, rb, np.where(dz > 0, ra, 0.0))
+        rc = np.where(near, np.maximum(rb, ra), rc)
+        return hit | (r2 < rc * rc)
+
+
+def keepout_for(vehicle_a, vehicle_b, *, limits, field_form: str | None, effects: tuple, sample_m: float) -> KeepOut:
+    """The :class:`KeepOut` of physics vehicles (a, b) under scenario ``limits``."""
+    from proxplan.planner.constraints import cutoff_table
+
+    level = limits.authority_fraction
+    ab = cutoff_table(
+        vehicle_a, vehicle_b, level=level, rule=limits.invalid_zone_rule, field_form=field_form, effects=effects
+    )
+    ba = cutoff_table(
+        vehicle_b, vehicle_a, level=level, rule=limits.invalid_zone_rule, field_form=field_form, effects=effects
+    )
+    sep = max(limits.min_separation_m, vehicle_a.body_radius_m + vehicle_b.body_radius_m)
+    w_move = float(limits.tracking_margin_m) + sample_m
+    w_rest = 0.0
+    r_ab, r_ba = np.asarray(ab.r_cut_m), np.asarray(ba.r_cut_m)
+    return KeepOut(
+        separation_m=float(sep),
+        w_move_m=w_move,
+        w_rest_m=w_rest,
+        step_m=float(ab.dz_step_m),
+        a_on_b=_grown(r_ab, ab.dz_step_m, w_move),
+        b_on_a=_grown(r_ba, ba.dz_step_m, w_move),
+        a_on_b_rest=_grown(r_ab, ab.dz_step_m, w_rest),
+        b_on_a_rest=_grown(r_ba, ba.dz_step_m, w_rest),
+    )
