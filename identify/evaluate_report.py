@@ -14,7 +14,7 @@ import numpy as np
 
 from proxplan.fileio import atomic_write_text, save_figure
 from proxplan.identify.data import predict
-from proxplan.identify.evaluate import EvaluationResult
+from proxplan.identify.evaluate import OVERHEAD_COUNTS, EvaluationResult
 from proxplan.identify.report import exclusion_lines
 
 
@@ -34,7 +34,7 @@ def _bars(ax, rows: Mapping[str, dict], title: str) -> None:
 def _set_overhead_bars(ax, table: dict) -> None:
     """Grouped bars: per set, RMSE F_z as a ratio to no model, one bar per number of sources overhead."""
     sets = list(table)
-    labels = ("0", "1", "2+")
+    labels = OVERHEAD_COUNTS
     width = 0.8 / len(labels)
     for j, c in enumerate(labels):
         vals = [table[s][c]["ratio_fz"] if table[s][c]["ratio_fz"] is not None else np.nan for s in sets]

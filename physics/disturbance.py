@@ -24,6 +24,7 @@ import numpy as np
 
 from proxplan.physics.geometry import Discretisation, disk_samples, frame_elements
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3
+from proxplan.physics.stack import MAX_STACK_SHIELDING
 from proxplan.physics.vehicles import Vehicle
 from proxplan.physics.velocity_field import (
     DEFAULT_FIELD_FORM,
@@ -56,8 +57,6 @@ class ModelOptions:
     def __post_init__(self) -> None:
         if self.field_form not in FIELD_FORMS:
             raise ValueError(f"field_form must be one of {FIELD_FORMS}, got {self.field_form!r}")
-        from proxplan.physics.stack import MAX_STACK_SHIELDING
-
         if not 0.0 <= self.stack_shielding <= MAX_STACK_SHIELDING:
             raise ValueError(f"stack_shielding must lie in [0, {MAX_STACK_SHIELDING:g}], got {self.stack_shielding!r}")
 

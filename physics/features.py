@@ -265,13 +265,13 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
                 f[_time_name(name, "lag", lag)] = lagged(f[name], t, lag)
             for tau in LOWPASS_TAUS_S:
                 f[_time_name(name, "lp", tau)] = lowpass(f[name], t, tau)
-    pos = getattr(inputs, "position_m", None)
+    pos = inputs.position_m
     if pos is not None:
         pos = np.asarray(pos, dtype=float).reshape(-1, 3)
         for col, axis in enumerate("xyz"):
             f[f"pos_{axis}_m"] = pos[:, col].copy()
             f[f"pos_{axis}_sq_m2"] = pos[:, col] ** 2
-        d = np.maximum(plane_distances_m(getattr(inputs, "planes", ()), pos), MIN_HEIGHT_FACTOR * r_rot)
+        d = np.maximum(plane_distances_m(inputs.planes, pos), MIN_HEIGHT_FACTOR * r_rot)
         f["plane_exp_1"] = np.exp(-d / target.size_m).sum(axis=1)
         f["plane_cb_1"] = ((r_rot / (4.0 * d)) ** 2).sum(axis=1)
     return np.column_stack([f[k] for k in FEATURE_NAMES])
