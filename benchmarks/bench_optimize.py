@@ -1,4 +1,4 @@
-"""Benchmark of the CasADi refinement (proxplan.planner.optimize) on shipped scenarios.
+"""Benchmark of the CasADi refinement (proxplan.planner.optimizer) on shipped scenarios.
 
     python benchmarks/bench_optimize.py [--scenarios battery_swap swap_8] [--exact]
     python benchmarks/bench_optimize.py --formations 8 16 32 [--time-budget 60]
@@ -83,8 +83,8 @@ def formations(sizes: list[int], budget: float | None) -> None:
 
 def in_process(scenario_path: Path, *, exact: bool) -> dict:
     from proxplan.planfile import load_scenario
-    from proxplan.planner import ocp, plan_scenario
-    from proxplan.planner.optimize import build_problem, moving_end_s, solution_to_plan
+    from proxplan.planner import plan_scenario
+    from proxplan.planner.optimizer import build_and_solve, build_problem, moving_end_s, solution_to_plan
     from proxplan.verify import verify_plan
 
     scenario = load_scenario(scenario_path)
@@ -96,7 +96,7 @@ def in_process(scenario_path: Path, *, exact: bool) -> dict:
         variants.append(("exact-MX", dataclasses.replace(problem, linearize=False)))
     for label, pb in variants:
         t0 = time.perf_counter()
-        sol = ocp.build_and_solve(pb)
+        sol = build_and_solve(pb)
         wall = time.perf_counter() - t0
         plan = solution_to_plan(sol, scenario, initial)
         out[label] = {

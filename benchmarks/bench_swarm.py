@@ -13,7 +13,7 @@ small quad (``--types`` to change).
 
 Per run it prints whole-process wall and CPU time (s; the interpreter + import baseline of the
 same run is printed first), makespan / lower bound (largest straight-line rest-to-rest time of any
-vehicle, ``proxplan.planner.ordering.lower_bound_makespan_s``), sum of costs (sum of arrival
+vehicle, ``proxplan.planner.sampling.ordering.lower_bound_makespan_s``), sum of costs (sum of arrival
 times, s), peak memory (``resource`` rusage of the child, MB) and the verdict of ``proxplan
 verify`` on the written plan.json. A roadmap run that finds no plan prints its message; the
 roadmap child does not fall back to sampling (``proxplan plan --method roadmap`` would).
@@ -59,7 +59,7 @@ def child(scenario: str, out: str, search: str) -> int:
     from proxplan.planfile import load_scenario, write_plan
     from proxplan.planner import InfeasibleError
     from proxplan.planner.pipeline import finish_metrics, plan_roadmap
-    from proxplan.planner.swarm_plan import RoadmapOptions
+    from proxplan.planner.swarm.plan import RoadmapOptions
 
     t0 = time.perf_counter()
     sc = load_scenario(scenario)
@@ -100,10 +100,10 @@ def main() -> int:
 
     from proxplan.planfile import load_scenario
     from proxplan.planner.formations import LAYOUTS
-    from proxplan.planner.ordering import lower_bound_makespan_s
+    from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 
     base_wall, _, base_mb, _, base_cpu = _run(
-        [sys.executable, "-c", "import proxplan.planner.pipeline, proxplan.planner.swarm_plan, proxplan.verify"], 120
+        [sys.executable, "-c", "import proxplan.planner.pipeline, proxplan.planner.swarm.plan, proxplan.verify"], 120
     )
     print(f"baseline (interpreter + planner imports): {base_wall:.2f} s wall, {base_cpu:.2f} s CPU, {base_mb:.0f} MB")
     print(

@@ -1,12 +1,23 @@
-"""Multi-vehicle planning: prioritised space-time sampling with OMPL against moving downwash
-sources (cut-off maps), CasADi refinement keeping predicted wrenches within authority, Ruckig
-timing; for swarms a shared lattice roadmap with precomputed conflict sets and priority-based search
-(``method="roadmap"``, :mod:`proxplan.planner.swarm_plan`); the independent verifier (package
-``verify``) checks every plan it returns.
+"""Multi-vehicle planning, by role (sub-packages in data-flow order, each importing only the ones
+before it):
+
+- :mod:`proxplan.planner.timing`: Ruckig segments, timed paths, the common time grid of plan.json;
+- :mod:`proxplan.planner.checks`: constraint rules (separation, downwash cut-offs, ellipsoid,
+  tracking tube), their vectorised form and the checks of a scenario before any search;
+- :mod:`proxplan.planner.sampling`: the single-vehicle OMPL space-time planner and prioritised
+  planning with it;
+- :mod:`proxplan.planner.swarm`: a shared lattice roadmap with precomputed conflict sets and
+  priority-based search (``method="roadmap"``);
+- :mod:`proxplan.planner.optimizer`: CasADi refinement keeping predicted wrenches within authority.
+
+At the top level, :mod:`proxplan.planner.pipeline` runs them (pre-checks, planner, verifier safety
+net, refinement, metrics); the independent verifier (package ``verify``) checks every plan it
+returns. :mod:`~proxplan.planner.compare` runs every method on the shipped scenarios and
+:mod:`~proxplan.planner.formations` generates swarm scenarios (both ``python -m``).
 """
 
 from proxplan.planner.errors import InfeasibleError
-from proxplan.planner.optimize import RefineOptions, RefineResult, refine_plan
+from proxplan.planner.optimizer import RefineOptions, RefineResult, refine_plan
 from proxplan.planner.pipeline import DT_S, METHODS, plan_scenario
 from proxplan.planner.plot import plot_plan
 from proxplan.planner.summary import plan_summary

@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     import yaml
 
     from proxplan.fileio import UserError, atomic_write_text, check_output_file
-    from proxplan.planner.precheck import MAX_VEHICLES
+    from proxplan.planfile import MAX_VEHICLES
 
     parser = argparse.ArgumentParser(
         prog="python -m proxplan.planner.formations",

@@ -28,24 +28,27 @@ PACKAGE_DIR: dict[str, str] = SETUPTOOLS["package-dir"]
 STAGES = sorted(folder for package, folder in PACKAGE_DIR.items() if package != "proxplan")
 
 
+def _folder(package: str) -> Path:
+    """The repository folder of a dotted package: mapped directly or inside its nearest mapped parent."""
+    parent = package
+    while parent not in PACKAGE_DIR:
+        parent = parent.rpartition(".")[0]
+        assert parent, f"{package} has no package-dir entry"
+    return REPO / PACKAGE_DIR[parent] / Path(*package[len(parent) :].split(".")[1:])
+
+
 def test_every_package_is_under_the_namespace_and_mapped():
     packages = SETUPTOOLS["packages"]
     assert all(p == "proxplan" or p.startswith("proxplan.") for p in packages)
-    for package in packages:  # mapped directly or inside a mapped parent
-        parent = package
-        while parent not in PACKAGE_DIR:
-            parent = parent.rpartition(".")[0]
-            assert parent, f"{package} has no package-dir entry"
-        folder = REPO / PACKAGE_DIR[parent] / Path(*package[len(parent) :].split(".")[1:])
+    for package in packages:
+        folder = _folder(package)
         assert (folder / "__init__.py").is_file(), f"{package} -> {folder}: no __init__.py"
 
 
 def test_every_python_package_folder_is_installed():
-    """A new package folder with an __init__.py must be listed, or the wheel silently lacks it."""
-    installed = {
-        REPO / PACKAGE_DIR[p] if p in PACKAGE_DIR else REPO / PACKAGE_DIR["proxplan"] / p.split(".", 1)[1]
-        for p in SETUPTOOLS["packages"]
-    }
+    """A new package folder with an __init__.py must be listed, or the wheel silently lacks it
+    (sub-packages of a stage, e.g. planner/swarm/, included)."""
+    installed = {_folder(p) for p in SETUPTOOLS["packages"]}
     for folder in [*STAGES, PACKAGE_DIR["proxplan"]]:
         for init in (REPO / folder).rglob("__init__.py"):
             assert init.parent in installed, f"{init.parent.relative_to(REPO)} is not in pyproject's packages"

@@ -13,7 +13,8 @@ import pytest
 
 from proxplan.planfile import load_scenario
 from proxplan.planner import plan_scenario
-from proxplan.planner.optimize import approach_usage_function, moving_end_s
+from proxplan.planner.optimizer import moving_end_s
+from proxplan.planner.optimizer.warm_problem import approach_usage_function
 from proxplan.verify import verify_plan
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"

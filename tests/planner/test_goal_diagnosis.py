@@ -1,4 +1,4 @@
-"""The tube-aware goal check (proxplan.planner.precheck.check_goal_tubes): a goal clear at rest but
+"""The tube-aware goal check (proxplan.planner.checks.precheck.check_goal_tubes): a goal clear at rest but
 inside another vehicle's keep-out grown by the tracking tube is reported before any search, with
 the other vehicle, by how much, and the nearest goal clear of it (which then passes the check)."""
 
@@ -13,8 +13,8 @@ import yaml
 
 from proxplan.planfile import load_scenario, scenario_from_dict
 from proxplan.planner import InfeasibleError
-from proxplan.planner.pipeline import PLAN_MARGIN_M
-from proxplan.planner.precheck import check_goal_tubes, check_starts_and_goals
+from proxplan.planner.checks.precheck import check_goal_tubes, check_starts_and_goals
+from proxplan.planner.sampling import PLAN_MARGIN_M
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -1,4 +1,4 @@
-"""Tests of proxplan.planner.ocp: the CasADi trajectory problem.
+"""Tests of proxplan.planner.optimizer.ocp: the CasADi trajectory problem.
 
 The wrench table here is a small casadi bspline interpolant built from proxplan.physics.disturbance on a
 coarse grid (tests only); the product uses proxplan.costmaps.map_store's table of the same numbers.
@@ -16,8 +16,8 @@ from proxplan.physics import (
     disturbance_wrench,
     normalised_motor_map,
 )
-from proxplan.planner.ocp import build_and_solve, sample_solution
-from proxplan.planner.ocp_problem import OcpAgent, OcpProblem, OcpSolution
+from proxplan.planner.optimizer.ocp import build_and_solve, sample_solution
+from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem, OcpSolution
 
 LARGE = BUILTIN_VEHICLES["large-quad"]
 SMALL = BUILTIN_VEHICLES["small-quad"]
@@ -223,7 +223,7 @@ def test_dock_to_moving_partner_and_infeasible_authority_fails():
 def test_warm_start_repair_moves_a_path_out_of_the_jet_and_keeps_its_ends():
     """A warm path straight along the symmetric jet axis is a saddle for IPOPT; the repair displaces
     it sideways until the predicted usage is under the limit, without touching start and goal."""
-    from proxplan.planner.ocp_warm import repair_warm_start
+    from proxplan.planner.optimizer.ocp_warm import repair_warm_start
 
     n = 30
     source_pos = np.array([0.0, 0.0, 2.4])

@@ -1,4 +1,4 @@
-"""Tests of proxplan.planner.optimize: refine_plan on the pipeline's sampling plan, fall-back, infeasibility."""
+"""Tests of proxplan.planner.optimizer: refine_plan on the pipeline's sampling plan, fall-back, infeasibility."""
 
 from __future__ import annotations
 
@@ -14,14 +14,14 @@ from proxplan.planner import (
     InfeasibleError,
     plan_scenario,
 )
-from proxplan.planner.optimize import (
+from proxplan.planner.optimizer import (
     RefineOptions,
-    approach_start_s,
     build_problem,
     check_final_configuration,
     moving_end_s,
     refine_plan,
 )
+from proxplan.planner.optimizer.warm_problem import approach_start_s
 from proxplan.verify import verify_plan
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
@@ -111,8 +111,8 @@ def test_infeasible_authority_at_the_dock_is_reported_clearly():
 
 
 def test_rewarm_and_extent_pruning(battery_swap):
-    from proxplan.planner.ocp import build_and_solve
-    from proxplan.planner.optimize import rewarm
+    from proxplan.planner.optimizer.acceptance import rewarm
+    from proxplan.planner.optimizer.ocp import build_and_solve
 
     scenario, initial = battery_swap
     full = build_problem(scenario, initial)

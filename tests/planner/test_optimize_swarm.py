@@ -1,4 +1,4 @@
-"""Tests of the decomposed optimiser (proxplan.planner.reoptimize) and the time budget of refine_plan."""
+"""Tests of the decomposed optimiser (proxplan.planner.optimizer.reoptimize) and the time budget of refine_plan."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import pytest
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner import plan_scenario
 from proxplan.planner.formations import formation_change
-from proxplan.planner.optimize import RefineOptions, default_wrench_provider, moving_end_s, refine_plan
-from proxplan.planner.reoptimize import ReoptOptions, SwarmField, arrival_s, reoptimize_plan, retimed_path
+from proxplan.planner.optimizer import RefineOptions, default_wrench_provider, moving_end_s, refine_plan
+from proxplan.planner.optimizer.reoptimize import ReoptOptions, SwarmField, arrival_s, reoptimize_plan, retimed_path
 from proxplan.verify import verify_plan
 
 

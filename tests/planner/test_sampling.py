@@ -13,7 +13,7 @@ import pytest
 from proxplan.physics import BUILTIN_VEHICLES, VALIDITY_FACTOR_L, authority_usage, disturbance_wrench
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner import DT_S
-from proxplan.planner.constraints import Track, build_checker
+from proxplan.planner.checks.constraints import Track, build_checker
 from proxplan.planner.sampling import GoalSpec, SamplingOptions, plan_space_time
 from proxplan.planner.timing import common_grid, time_parameterize
 

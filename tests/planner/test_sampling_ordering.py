@@ -1,15 +1,15 @@
-"""Conflict-driven re-ordering (proxplan.planner.ordering.promote) and the pre-checks of proxplan.planner.precheck."""
+"""Conflict-driven re-ordering (proxplan.planner.sampling.ordering.promote) and the pre-checks of proxplan.planner.checks.precheck."""
 
 from __future__ import annotations
 
 import pytest
 
-import proxplan.planner.pipeline as pipeline
+import proxplan.planner.sampling.prioritized as prioritized
 from proxplan.fileio import UserError
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner import InfeasibleError, plan_scenario
-from proxplan.planner.ordering import lower_bound_makespan_s, priority_order, promote
 from proxplan.planner.sampling import SamplingOptions
+from proxplan.planner.sampling.ordering import lower_bound_makespan_s, priority_order, promote
 from proxplan.verify import verify_plan
 
 FAST = SamplingOptions(max_iterations=1500, candidates=1)
@@ -53,7 +53,7 @@ def test_longest_flight_first_and_promotion_before_the_blocker():
 def test_reordering_solves_what_the_fixed_order_cannot(monkeypatch):
     sc = _junction()
     with monkeypatch.context() as m:
-        m.setattr(pipeline, "MAX_REORDERS", 0)  # the fixed longest-first order
+        m.setattr(prioritized, "MAX_REORDERS", 0)  # the fixed longest-first order
         with pytest.raises(InfeasibleError) as err:
             plan_scenario(sc, method="sampling", options=FAST)
         assert err.value.vehicle == "branch"
@@ -85,7 +85,7 @@ def test_starts_inside_each_others_cutoff_are_infeasible_before_any_search():
 
 
 def test_swarm_size_limit_is_a_user_error(monkeypatch):
-    import proxplan.planner.precheck as precheck
+    import proxplan.planner.checks.precheck as precheck
 
     monkeypatch.setattr(precheck, "MAX_VEHICLES", 1)
     with pytest.raises(UserError, match="expected at most 1 vehicles"):

@@ -1,4 +1,4 @@
-"""The vectorised validity check (proxplan.planner.validity) against the scalar per-pair check."""
+"""The vectorised validity check (proxplan.planner.checks.validity) against the scalar per-pair check."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 
 from proxplan.physics import BUILTIN_VEHICLES
 from proxplan.planfile import scenario_from_dict
-from proxplan.planner.constraints import Track, build_checker
-from proxplan.planner.validity import BatchChecker
+from proxplan.planner.checks.constraints import Track, build_checker
+from proxplan.planner.checks.validity import BatchChecker
 
 TYPES = ("crazyflie-2.1", "crazyflie-parrot", "small-quad", "large-quad")
 

@@ -1,4 +1,4 @@
-"""Shared swarm roadmap (proxplan.planner.swarm_roadmap / swarm_search / swarm_plan): conflict sets
+"""Shared swarm roadmap (proxplan.planner.swarm: roadmap, search, pbs, plan): conflict sets
 against a scalar brute force, PBS solving what prioritised planning cannot, determinism, verify."""
 
 from __future__ import annotations
@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from proxplan.planfile import scenario_from_dict
-from proxplan.planner.constraints import CutoffTable, cutoff_table
+from proxplan.planner.checks.constraints import CutoffTable, cutoff_table
 from proxplan.planner.formations import circle_swap, grid_reshuffle
 from proxplan.planner.pipeline import plan_roadmap
-from proxplan.planner.swarm_plan import build, search_plan
-from proxplan.planner.swarm_roadmap import SAMPLE_M
-from proxplan.planner.swarm_search import Search, pbs, prioritized
+from proxplan.planner.swarm import Search, pbs, prioritized
+from proxplan.planner.swarm.plan import build, search_plan
+from proxplan.planner.swarm.roadmap import SAMPLE_M
 from proxplan.verify import verify_plan
 
 CF = ["crazyflie-2.1"]

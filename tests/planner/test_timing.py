@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from proxplan.physics import KinematicLimits
 from proxplan.planner.timing import (
-    KinematicLimits,
     common_grid,
     min_segment_duration_s,
     ruckig_segment,

@@ -9,7 +9,7 @@ reserved for each window, so the per-window conflict-freedom of the search carri
 continuous time. The verifier checks the assembled plan as any other.
 
 Bounds reported in ``plan.metrics``: ``lower_bound_s`` (largest straight-line rest-to-rest time of
-any vehicle, :func:`proxplan.planner.ordering.lower_bound_makespan_s`), ``roadmap_lower_bound_s``
+any vehicle, :func:`proxplan.planner.sampling.ordering.lower_bound_makespan_s`), ``roadmap_lower_bound_s``
 (largest admissible roadmap time, the search's heuristic at the start) and ``makespan_over_lower_bound``:
 the plan is within that factor of the optimum (an a-posteriori bound; PBS has no a-priori factor).
 """
@@ -24,10 +24,13 @@ import numpy as np
 
 from proxplan.planfile import Scenario
 from proxplan.planner.errors import InfeasibleError
-from proxplan.planner.swarm_keepout import keepout_for
-from proxplan.planner.swarm_roadmap import SAMPLE_M, Roadmap, build_roadmap
-from proxplan.planner.swarm_search import Agent, Search, SearchResult, pbs, prioritized
-from proxplan.planner.timing import TimedPath, ruckig_segment
+from proxplan.planner.swarm.keepout import keepout_for
+from proxplan.planner.swarm.pbs import SearchResult, pbs, prioritized
+from proxplan.planner.swarm.roadmap import SAMPLE_M, Roadmap, build_roadmap
+from proxplan.planner.swarm.runs import Agent
+from proxplan.planner.swarm.search import Search
+from proxplan.planner.timing.paths import TimedPath
+from proxplan.planner.timing.segments import ruckig_segment
 
 SEARCHES = ("pbs", "pp")
 ROADMAP_MIN_VEHICLES = 24  # formation changes with at least this many vehicles use the roadmap
@@ -55,7 +58,7 @@ def roadmap_applicable(scenario: Scenario) -> str | None:
 def build(scenario: Scenario) -> tuple[Roadmap, list[Agent], float]:
     """Roadmap, agents and window length (s) of ``scenario``."""
     from proxplan.costmaps import effects_key
-    from proxplan.planner.constraints import build_checker
+    from proxplan.planner.checks.constraints import build_checker
 
     names = list(scenario.vehicles)
     type_of: dict = {}
@@ -158,7 +161,7 @@ def roadmap_timed(scenario: Scenario, options: RoadmapOptions | None = None) -> 
     """(timed path per vehicle, info with timings and bounds) of the roadmap plan of ``scenario``;
     InfeasibleError when the roadmap cannot express it or the search fails.
     :func:`proxplan.planner.pipeline.plan_roadmap` assembles them into a Plan."""
-    from proxplan.planner.ordering import lower_bound_makespan_s
+    from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 
     why = roadmap_applicable(scenario)
     if why is not None:

@@ -15,9 +15,9 @@ diagonals; kinds 1..5, indexed by the vertex they leave in the + direction), sta
 (V = nx ny nz), then endpoints, then access edges.
 
 **Conflict sets.** Two atoms conflict for vehicle types (a, b) when some point of one and some
-point of the other are closer than the pair's keep-out (:mod:`proxplan.planner.swarm_keepout`),
+point of the other are closer than the pair's keep-out (:mod:`proxplan.planner.swarm.keepout`),
 whatever the timing within the window (swept volumes): this holds for any motion that stays on its
-atoms during the window, which is how the runs of :mod:`proxplan.planner.swarm_search` are flown.
+atoms during the window, which is how the runs of :mod:`proxplan.planner.swarm.search` are flown.
 The lattice is translation invariant, so lattice-lattice conflicts are a *stencil* of index offsets
 per (type pair, atom kind pair), computed once with a vectorised point test and expanded to a
 ``scipy.sparse`` CSR matrix per ordered type pair; endpoint / access atoms are tested against
@@ -34,7 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from proxplan.planner.swarm_keepout import KeepOut
+from proxplan.planner.swarm.keepout import KeepOut
 
 DIRECTIONS = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, -1, 0]])  # edge kinds 1.., index steps
 SAMPLE_M = 0.05  # point spacing on edges for the conflict test, m (keep-outs are grown by it)

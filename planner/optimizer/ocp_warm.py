@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 
 from proxplan.physics import normalised_motor_map
-from proxplan.planner.ocp_problem import OcpAgent, OcpProblem
+from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem
 
 STEP_M = 0.05  # lateral displacement per repair round, m
 MAX_SHIFT_M = 1.5  # largest displacement of any node, m

@@ -17,55 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from proxplan.physics import KinematicLimits
-
-
-class DurationTable:
-    """Time-optimal rest-to-rest duration over a straight distance, tabulated with Ruckig.
-
-    ``duration_s(d)`` returns the tabulated duration at the next grid distance above ``d`` (m),
-    so it is never shorter than the optimum and Ruckig can always meet it as a minimum duration.
-    """
-
-    def __init__(self, limits: KinematicLimits, *, max_distance_m: float = 20.0, step_m: float = 0.01):
-        from ruckig import InputParameter, Ruckig, Trajectory
-
-        self.step_m = step_m
-        n = int(math.ceil(max_distance_m / step_m)) + 1
-        otg, inp, traj = Ruckig(1), InputParameter(1), Trajectory(1)
-        inp.max_velocity, inp.max_acceleration, inp.max_jerk = (
-            [limits.max_speed_mps],
-            [limits.max_accel_mps2],
-            [limits.max_jerk_mps3],
-        )
-        table = [0.0]
-        for k in range(1, n):
-            inp.current_position, inp.target_position = [0.0], [k * step_m]
-            otg.calculate(inp, traj)
-            table.append(float(traj.duration) * 1.0005 + 1e-6)
-        self.table = table
-
-    def duration_s(self, distance_m: float) -> float:
-        if distance_m <= 0.0:
-            return 0.0
-        k = int(math.ceil(distance_m / self.step_m))
-        if k >= len(self.table):
-            return self.table[-1] * distance_m / ((len(self.table) - 1) * self.step_m)
-        return self.table[k]
-
-
-def min_segment_duration_s(distance_m: float, limits: KinematicLimits) -> float:
-    """Time-optimal rest-to-rest duration over ``distance_m`` (m) for the norm limits, s."""
-    return duration_table(limits).duration_s(distance_m)
-
-
-_TABLES: dict[KinematicLimits, DurationTable] = {}
-
-
-def duration_table(limits: KinematicLimits) -> DurationTable:
-    """The (cached) :class:`DurationTable` of ``limits``."""
-    if limits not in _TABLES:
-        _TABLES[limits] = DurationTable(limits)
-    return _TABLES[limits]
+from proxplan.planner.timing.segments import ruckig_segment, through_segment
 
 
 @dataclass
@@ -111,47 +63,6 @@ class TimedPath:
         return p, v, a
 
 
-def ruckig_segment(p0_m, p1_m, limits: KinematicLimits, *, minimum_duration_s: float | None = None):
-    """One rest-to-rest, phase-synchronised (straight-line) Ruckig segment from ``p0_m`` to
-    ``p1_m`` (3,), m, taking at least ``minimum_duration_s``; a ``ruckig.Trajectory``."""
-    from ruckig import InputParameter, Result, Synchronization, Trajectory
-
-    p0 = np.asarray(p0_m, dtype=float)
-    p1 = np.asarray(p1_m, dtype=float)
-    d = p1 - p0
-    dist = float(np.linalg.norm(d))
-    u = np.abs(d) / dist
-    eps = 1e-9
-    inp = InputParameter(3)
-    inp.current_position = p0.tolist()
-    inp.target_position = p1.tolist()
-    inp.current_velocity = [0.0, 0.0, 0.0]
-    inp.target_velocity = [0.0, 0.0, 0.0]
-    inp.max_velocity = (limits.max_speed_mps * u + eps).tolist()
-    inp.max_acceleration = (limits.max_accel_mps2 * u + eps).tolist()
-    inp.max_jerk = (limits.max_jerk_mps3 * u + eps).tolist()
-    inp.synchronization = Synchronization.Phase
-    if minimum_duration_s is not None:
-        inp.minimum_duration = float(minimum_duration_s)
-    traj = Trajectory(3)
-    result = _OTG.calculate(inp, traj)
-    if result not in (Result.Working, Result.Finished):
-        raise RuntimeError(f"Ruckig failed on a segment ({result})")
-    return traj
-
-
-class _LazyOTG:
-    def calculate(self, inp, traj):
-        from ruckig import Ruckig
-
-        global _OTG
-        _OTG = Ruckig(3)
-        return _OTG.calculate(inp, traj)
-
-
-_OTG = _LazyOTG()
-
-
 def time_parameterize(
     waypoints_m: np.ndarray,
     times_s: np.ndarray | None,
@@ -187,38 +98,6 @@ def time_parameterize(
         dur = float(traj.duration)
         knots.append(knots[-1] + dur)
     return TimedPath(np.array(knots), pts.copy(), segments)
-
-
-def through_segment(p0_m, p1_m, v0_mps, v1_mps, limits: KinematicLimits):
-    """One Ruckig segment from ``p0_m`` moving at ``v0_mps`` to ``p1_m`` moving at ``v1_mps`` (3,),
-    time-synchronised, time-optimal; a ``ruckig.Trajectory``.
-
-    Per-axis limits ``L w_i`` with a unit weight vector w (the largest direction cosine of the
-    displacement and of both velocities on each axis, normalised), so the norms of velocity,
-    acceleration and jerk stay within the vehicle's limits L."""
-    from ruckig import InputParameter, Result, Synchronization, Trajectory
-
-    p0, p1 = np.asarray(p0_m, dtype=float), np.asarray(p1_m, dtype=float)
-    v0, v1 = np.asarray(v0_mps, dtype=float), np.asarray(v1_mps, dtype=float)
-    w = np.zeros(3)
-    for vec in (p1 - p0, v0, v1):
-        n = float(np.linalg.norm(vec))
-        if n > 1e-12:
-            w = np.maximum(w, np.abs(vec) / n)
-    w = w / float(np.linalg.norm(w))
-    eps = 1e-9
-    inp = InputParameter(3)
-    inp.current_position, inp.target_position = p0.tolist(), p1.tolist()
-    inp.current_velocity, inp.target_velocity = v0.tolist(), v1.tolist()
-    inp.max_velocity = (limits.max_speed_mps * w + eps).tolist()
-    inp.max_acceleration = (limits.max_accel_mps2 * w + eps).tolist()
-    inp.max_jerk = (limits.max_jerk_mps3 * w + eps).tolist()
-    inp.synchronization = Synchronization.Time
-    traj = Trajectory(3)
-    result = _OTG.calculate(inp, traj)
-    if result not in (Result.Working, Result.Finished):
-        raise RuntimeError(f"Ruckig failed on a pass-through segment ({result})")
-    return traj
 
 
 def pass_through_velocities(pts: np.ndarray, limits: KinematicLimits, *, speed_fraction: float = 0.5) -> np.ndarray:

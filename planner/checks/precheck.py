@@ -25,9 +25,9 @@ import numpy as np
 
 from proxplan.fileio import UserError
 from proxplan.planfile import MAX_VEHICLES, Scenario
-from proxplan.planner.constraints import Track, build_checker
+from proxplan.planner.checks.constraints import Track, build_checker
+from proxplan.planner.checks.validity import BatchChecker
 from proxplan.planner.errors import InfeasibleError
-from proxplan.planner.validity import BatchChecker
 
 GOAL_SEARCH_STEP_M = 0.005  # radius step of the nearest-clear-goal search, m
 GOAL_SEARCH_MAX_M = 1.0  # largest goal displacement the search proposes, m
@@ -178,7 +178,7 @@ def check_close_pairs(scenario: Scenario) -> None:
     from scipy.spatial import cKDTree
 
     from proxplan.costmaps import effects_key
-    from proxplan.planner.constraints import cutoff_table
+    from proxplan.planner.checks.constraints import cutoff_table
 
     where = f"{scenario.source_path}: " if scenario.source_path else ""
     lim = scenario.limits

@@ -216,7 +216,7 @@ class PairRule:
         dz +- tube (the vehicle may fly that far off its plan), plus margin and tube; 0 where the
         model allows any horizontal distance. The tube is taken at the table's resolution: every
         table step within ceil(tube / dz_step) steps of dz's step counts (conservative for a tube
-        that is not a whole number of steps; the same rule as proxplan.planner.validity's
+        that is not a whole number of steps; the same rule as proxplan.planner.checks.validity's
         vectorised tables). Where the tube reaches the other vehicle's level (dz <= tube) the first
         step counts too: at least the separation circle."""
         if dz_m <= 0.0:

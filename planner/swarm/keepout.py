@@ -7,9 +7,9 @@ Relative vector d = p_b - p_a (world frame, m). The pair conflicts when
 * b is above a (d_z > 0) and r < r_cut_{b->a}(d_z) grown by w,
 
 where r_cut is the cost map's cut-off radius at ``limits.authority_fraction`` with the scenario's
-invalid-zone rule (:func:`proxplan.planner.constraints.cutoff_table`, the planner's own tables) and
+invalid-zone rule (:func:`proxplan.planner.checks.constraints.cutoff_table`, the planner's own tables) and
 "grown by w" means the largest value over dz +- w plus w (as
-:meth:`proxplan.planner.constraints.PairRule.cutoff_m` does for the tracking tube); within
+:meth:`proxplan.planner.checks.constraints.PairRule.cutoff_m` does for the tracking tube); within
 |d_z| <= w both directions apply. w = tracking tube ``limits.tracking_margin_m`` + the sampling
 inflation of the roadmap's conflict test (points every ``sample_m`` on an edge: any point is within
 sample_m / 2 of a sample, so two points within sample_m of a sample pair); at rest (both vehicles
@@ -85,7 +85,7 @@ class KeepOut:
 
 def keepout_for(vehicle_a, vehicle_b, *, limits, field_form: str | None, effects: tuple, sample_m: float) -> KeepOut:
     """The :class:`KeepOut` of physics vehicles (a, b) under scenario ``limits``."""
-    from proxplan.planner.constraints import cutoff_table
+    from proxplan.planner.checks.constraints import cutoff_table
 
     level = limits.authority_fraction
     ab = cutoff_table(

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from proxplan.planfile import Scenario
-from proxplan.planner.timing import min_segment_duration_s
+from proxplan.planner.timing.durations import min_segment_duration_s
 
 
 def unobstructed_time_s(scenario: Scenario, name: str) -> float:

@@ -6,7 +6,7 @@ like ``v_ref`` metres. A Python ``MotionValidator`` makes the space directed: a 
 forward in time, no faster than the vehicle's jerk-limited rest-to-rest time over its length
 (:class:`proxplan.planner.timing.DurationTable`), and with every intermediate state (at most
 ``check_step_m`` / ``check_step_s`` apart, linear interpolation) valid for the
-:class:`proxplan.planner.constraints.ConflictChecker` (workspace, inflated obstacles, separation, downwash
+:class:`proxplan.planner.checks.constraints.ConflictChecker` (workspace, inflated obstacles, separation, downwash
 cutoffs of the other vehicles at that time).
 
 Planner: OMPL ``RRT`` with goal bias. The goal is a set of goal states at the goal position, one
@@ -30,104 +30,17 @@ prediction being the cost map's usage grid of the sources above (``ConflictCheck
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from proxplan.planner.constraints import ConflictChecker
-from proxplan.planner.roadmap import roadmap_search
-from proxplan.planner.timing import DurationTable, KinematicLimits, duration_table, ruckig_segment
-from proxplan.planner.validity import BatchChecker
-
-
-@dataclass(frozen=True)
-class SamplingOptions:
-    """Knobs of the space-time search (defaults suit the shipped scenarios)."""
-
-    time_budget_s: float = 1.5  # CPU-time safety net per solve (x 4), s; the budget is max_iterations
-    max_iterations: int = 100000  # RRT iterations per solve (deterministic termination)
-    range_m: float = 0.8  # RRT extension range in (x, y, z, tau), m
-    goal_bias: float = 0.15  # probability of sampling a goal state, -
-    check_step_m: float = 0.04  # spatial resolution of motion checks, m
-    check_step_s: float = 0.1  # temporal resolution of motion checks, s
-    goal_time_step_s: float = 0.2  # spacing of candidate arrival times, s
-    hold_check_step_s: float = 0.05  # resolution of goal-hold checks, s
-    compress_step_s: float = 0.05  # resolution of the time-compression pass, s
-    planning_speed_factor: float = 0.7  # speed bound inside the RRT search, fraction of max speed
-    time_scale_factor: float = 0.5  # v_ref = this x max speed; the search's 4th axis is tau = v_ref t, -
-    usage_weight_s: float = 20.0  # objective: seconds of flight time one usage-second is worth, s
-    candidates: int = 2  # RRT solutions compared by the objective per attempt
-    strict_search: bool = False  # RRT edges are exact Ruckig rest-to-rest segments (else linear, speed-bounded)
-    direct_first: bool = True  # try straight / detour paths with a start delay before the RRT search
-    direct_delay_step_s: float = 0.1  # start-delay resolution of the direct paths, s
-    direct_accept_slack_s: float = 3.0  # a direct path this close to the unobstructed time skips the RRT, s
-    direct_accept_ratio: float = 3.0  # (or within this factor of it), -
-    dodge_m: float = 0.3  # dodge points of the waiting search beside / above / below start and goal, m
-    detour_clearance_m: float = 0.15  # extra clearance of detour via points beyond an inflated obstacle, m
-
-
-@dataclass
-class SpaceTimePath:
-    """Waypoints (K, 3), m, and the times (K,), s, at which the vehicle is there (at rest)."""
-
-    waypoints_m: np.ndarray
-    times_s: np.ndarray
-    info: dict = field(default_factory=dict)
-
-
-@dataclass
-class GoalSpec:
-    """Where the search ends and what must stay valid afterwards.
-
-    ``position_m`` (3,) is the search goal; ``tail`` is a list of further waypoints (3,) flown after
-    arrival at rest-to-rest minimum time (the dock approach), during which the vehicle named
-    ``tail_exempt`` (the dock target) is not checked; ``hold_until_s`` is how long the final
-    position must stay valid, s.
-    """
-
-    position_m: np.ndarray
-    hold_until_s: float
-    tail: list[np.ndarray] = field(default_factory=list)
-    tail_exempt: str | None = None
-    tail_limits: KinematicLimits | None = None
-
-
-class _IterationBudget:
-    """Planner termination after ``max_calls`` iterations (deterministic, keeps ``--seed``
-    reproducible) or, as a safety net only, ``max_wall_s`` seconds of this process's CPU time (not
-    wall time, which depends on the machine's load)."""
-
-    def __init__(self, max_calls: int, max_wall_s: float):
-        import time
-
-        self.max_calls = max_calls
-        self.deadline = time.process_time() + max_wall_s
-        self.calls = 0
-        self._clock = time.process_time
-
-    def __call__(self) -> bool:
-        self.calls += 1
-        if self.calls > self.max_calls:
-            return True
-        return (self.calls & 255) == 0 and self._clock() > self.deadline
-
-
-_SEEDED: list[int] = []
-
-
-def seed_ompl_once(seed: int) -> bool:
-    """Seed OMPL's global RNG (possible once per process, before any sampling); True if applied.
-
-    Later planners in the same process draw from the continuing seeded sequence, so a whole
-    ``proxplan plan`` run is reproducible for a given ``--seed``.
-    """
-    from ompl import util as ou
-
-    if _SEEDED:
-        return _SEEDED[0] == int(seed)
-    ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)  # OMPL takes a positive 32-bit seed
-    _SEEDED.append(int(seed))
-    return True
+from proxplan.physics import KinematicLimits
+from proxplan.planner.checks.constraints import ConflictChecker
+from proxplan.planner.checks.validity import BatchChecker
+from proxplan.planner.sampling.roadmap import roadmap_search
+from proxplan.planner.sampling.spec import GoalSpec, SamplingOptions, SpaceTimePath
+from proxplan.planner.sampling.termination import IterationBudget, seed_ompl_once
+from proxplan.planner.timing.durations import DurationTable, duration_table
+from proxplan.planner.timing.segments import ruckig_segment
 
 
 class _Planner:
@@ -304,7 +217,7 @@ class _Planner:
         return [q for k, q in enumerate(out) if k == len(out) - 1 or float(np.linalg.norm(q - end)) > 1e-6]
 
     def direct(self, start: np.ndarray, goal: GoalSpec) -> SpaceTimePath | None:
-        """Earliest arrival over a small roadmap with waits (:func:`proxplan.planner.roadmap.roadmap_search`);
+        """Earliest arrival over a small roadmap with waits (:func:`proxplan.planner.sampling.roadmap.roadmap_search`);
         None when the goal cannot be reached that way (the RRT search follows)."""
         if goal.tail:
             return None
@@ -405,7 +318,7 @@ class _Planner:
             planner.setGoalBias(self.opts.goal_bias)
             planner.setProblemDefinition(pdef)
             planner.setup()
-            counter = _IterationBudget(self.opts.max_iterations, 4.0 * self.opts.time_budget_s)
+            counter = IterationBudget(self.opts.max_iterations, 4.0 * self.opts.time_budget_s)
             planner.solve(ob.PlannerTerminationCondition(counter))
             self.iterations.append(counter.calls)
             if not pdef.hasExactSolution():

@@ -1,6 +1,6 @@
 """Vectorised validity of many states of one vehicle against all other (moving) vehicles.
 
-:class:`BatchChecker` holds the same constraints as a :class:`proxplan.planner.constraints.ConflictChecker`
+:class:`BatchChecker` holds the same constraints as a :class:`proxplan.planner.checks.constraints.ConflictChecker`
 (workspace, inflated obstacles, separation, downwash cut-offs both ways, keep-out ellipsoid) as numpy
 arrays: every other vehicle's track resampled on one time grid (V, K, 3), m, and its cut-off tables
 padded into (V, L) arrays, m. ``first_conflict`` checks M states (x, y, z, t) against all V vehicles
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from proxplan.planner.constraints import ConflictChecker
+from proxplan.planner.checks.constraints import ConflictChecker
 
 BIN_S = 0.5  # time bin of the spatial index, s
 

@@ -1,4 +1,4 @@
-"""Inputs and result of the CasADi trajectory problem (:mod:`proxplan.planner.ocp`), as typed dataclasses.
+"""Inputs and result of the CasADi trajectory problem (:mod:`proxplan.planner.optimizer.ocp`), as typed dataclasses.
 
 World frame, z up; positions in m, velocities in m/s, accelerations in m/s^2, times in s.
 """
@@ -34,7 +34,7 @@ class OcpAgent:
     warm_position_m: np.ndarray | None = None  # (n+1, 3)
     warm_velocity_mps: np.ndarray | None = None  # (n+1, 3)
     warm_acceleration_mps2: np.ndarray | None = None  # (n+1, 3)
-    # a vehicle that is not optimised but flies a known trajectory (decomposition, proxplan.planner.reoptimize):
+    # a vehicle that is not optimised but flies a known trajectory (decomposition, proxplan.planner.optimizer.reoptimize):
     # its positions at the check points, nodes (n+1) then interval midpoints (n), shape (2n+1, 3), m
     fixed_path_m: np.ndarray | None = None
     # constant disturbance on this (fixed) vehicle from sources outside the problem's pairs at the

@@ -7,7 +7,7 @@ exactly what :func:`proxplan.planner.timing.time_parameterize` flies later. A ve
 (while holding there stays valid) before it departs. The search is A* on arrival time (heuristic:
 unobstructed minimum time to the goal) where an edge departs at the first time, on a grid of
 ``step_s``, at which the whole motion is valid against all planned vehicles (one vectorised
-:class:`proxplan.planner.validity.BatchChecker` call per candidate departure). This is a small
+:class:`proxplan.planner.checks.validity.BatchChecker` call per candidate departure). This is a small
 safe-interval-style planner: waiting replaces the RRT's random search for most vehicles of a
 formation change; the RRT remains the fallback.
 """
@@ -19,8 +19,10 @@ import math
 
 import numpy as np
 
-from proxplan.planner.timing import DurationTable, KinematicLimits, ruckig_segment
-from proxplan.planner.validity import BatchChecker
+from proxplan.physics import KinematicLimits
+from proxplan.planner.checks.validity import BatchChecker
+from proxplan.planner.timing.durations import DurationTable
+from proxplan.planner.timing.segments import ruckig_segment
 
 
 class _Edge:

@@ -1,0 +1,240 @@
+"""Prioritised planning with the space-time sampler: one vehicle after another, with conflict-driven
+re-ordering.
+
+Vehicles are planned one after another (:func:`proxplan.planner.sampling.ordering.priority_order`:
+hovering vehicles first, then the others by decreasing unobstructed flight time, every dock target
+before the vehicles docking to it). Each one is searched in space-time
+(:mod:`proxplan.planner.sampling.space_time`) against the trajectories already planned (moving
+disturbance sources) and the start positions of vehicles not planned yet (assumed to leave within
+``LEAVE_START_S``). Its path is timed with Ruckig (:mod:`proxplan.planner.timing`) and the timed
+trajectory is re-checked on the time grid; a failed check retries with another seed. When a vehicle
+cannot be planned, :func:`proxplan.planner.sampling.ordering.promote` moves it before the vehicle
+that blocked it and planning restarts (the vehicles in front keep their plans); after
+``MAX_REORDERS`` re-orderings :class:`InfeasibleError` names the vehicle and constraint.
+
+Docking: the search ends at an approach point on the dock axis, outside the source's invalid zone
+(dz > 3 L, S0 II-A); the final straight approach to the dock at ``DOCK_SPEED_FACTOR`` of the limits
+crosses the invalid zone, where the cutoff rule is suspended for the dock pair only (the two must
+meet there).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from proxplan.physics import KinematicLimits
+from proxplan.planfile import Plan, Scenario
+from proxplan.planner.checks.constraints import Track, build_checker
+from proxplan.planner.checks.validity import BatchChecker
+from proxplan.planner.errors import InfeasibleError
+from proxplan.planner.sampling.ordering import priority_order, promote
+from proxplan.planner.sampling.space_time import plan_space_time, start_conflict
+from proxplan.planner.sampling.spec import GoalSpec, SamplingOptions
+from proxplan.planner.timing.durations import min_segment_duration_s
+from proxplan.planner.timing.paths import TimedPath, common_grid, time_parameterize, time_parameterize_through
+from proxplan.planner.timing.plan_grid import DOCK_SPEED_FACTOR, DT_S, assemble_plan
+
+LEAVE_START_S = 2.5  # vehicles not planned yet are assumed to have left their start by then, s
+ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
+PLAN_MARGIN_M = 0.02  # the search keeps this much more than the nominal limits, m (see build_checker)
+PLAN_MARGIN_S = 0.2  # and assumes not-yet-planned vehicles leave their start this much later, s
+MAX_REORDERS = 8  # conflict-driven re-orderings before a vehicle counts as infeasible
+
+
+class _VehicleFailed(Exception):
+    def __init__(self, vehicle: str, constraint: str, message: str, timed: dict[str, TimedPath]):
+        super().__init__(message)
+        self.vehicle, self.constraint, self.message = vehicle, constraint, message
+        self.timed = timed  # the vehicles planned before the failure (reusable as a prefix)
+
+
+def plan_order(
+    scenario: Scenario,
+    order: list[str],
+    *,
+    mode: str,
+    seed: int,
+    options: SamplingOptions,
+    progress,
+    keep: dict[str, TimedPath] | None = None,
+) -> tuple[dict[str, TimedPath], dict]:
+    """Plan the vehicles in ``order``; ``keep`` holds already planned leading vehicles to reuse."""
+    timed: dict[str, TimedPath] = {}
+    tracks: dict[str, Track] = {}
+    info: dict = {"attempts": {}, "rrt_vertices": {}}
+    horizon = scenario.limits.time_horizon_s
+    for idx, name in enumerate(order):
+        task = scenario.vehicles[name]
+        if keep and name in keep and len(timed) == idx:
+            timed[name] = keep[name]
+            tracks[name] = _track_of(name, task, keep[name])
+            continue
+        if progress:
+            progress(f"planning {name}", idx / max(1, len(order)))
+        others = [tracks[n] for n in timed]
+        others += [
+            Track.static(
+                n,
+                scenario.vehicles[n].vehicle,
+                scenario.vehicles[n].start_m,
+                until_s=math.inf if scenario.vehicles[n].hover else LEAVE_START_S,
+            )
+            for n in order
+            if n not in timed and n != name
+        ]
+        checker = build_checker(scenario, name, others, mode=mode, margin_m=PLAN_MARGIN_M, until_margin_s=PLAN_MARGIN_S)
+        nominal = build_checker(scenario, name, others, mode=mode)
+        bad = start_conflict(nominal, task.start_m)
+        if bad is not None:
+            why = ""
+            if bad == "workspace" or bad.startswith("obstacle"):
+                why = (
+                    f" (the body, radius {task.vehicle.body_radius_m:.3f} m, must keep clear horizontally and "
+                    f"{scenario.limits.obstacle_margin_m:g} m vertically)"
+                )
+            raise InfeasibleError(
+                name, bad, f"vehicle {name!r}: its start {task.start_m.tolist()} violates '{bad}' at t = 0{why}"
+            )
+        if task.hover:
+            path = TimedPath(np.array([0.0]), task.start_m[None, :].copy(), [])
+            timed[name] = path
+            tracks[name] = Track.static(name, task.vehicle, task.start_m)
+            continue
+        limits = task.kinematic_limits
+        hold_until = max([tr.end_s for tr in others if math.isfinite(tr.until_s) is False] + [LEAVE_START_S, 0.0]) + 1.0
+        hold_until = max(hold_until, max([tr.end_s for tr in others] + [0.0]) + 1.0)
+        if task.dock_with is not None:
+            a, d = scenario.dock_geometry(name)
+            slow = KinematicLimits(
+                *(DOCK_SPEED_FACTOR * np.array([limits.max_speed_mps, limits.max_accel_mps2, limits.max_jerk_mps3]))
+            )
+            goal = GoalSpec(
+                position_m=a, hold_until_s=hold_until, tail=[d], tail_exempt=task.dock_with, tail_limits=slow
+            )
+        else:
+            assert task.goal_m is not None  # a moving vehicle that does not dock has a goal
+            goal = GoalSpec(position_m=task.goal_m, hold_until_s=hold_until)
+        accepted = None
+        last_problem = None
+        t_direct = min_segment_duration_s(float(np.linalg.norm(goal.position_m - task.start_m)), limits)
+        t_busy = max([tr.end_s for tr in others] + [0.0])
+        for attempt in range(ATTEMPTS):
+            # search a short time window first (an RRT over a long one schedules slow paths)
+            window = (max(2.0 * t_direct, t_direct + 6.0, t_busy + 2.0), max(4.0 * t_direct, t_busy + 15.0), horizon)[
+                attempt
+            ]
+            sp = plan_space_time(
+                checker,
+                task.start_m,
+                goal,
+                limits,
+                horizon_s=min(horizon, window),
+                seed=seed * 1009 + idx * 31 + attempt,
+                options=options,
+            )
+            if sp is None:
+                last_problem = (
+                    _goal_problem(nominal, goal) or checker.most_rejected() or "no path within the time budget"
+                )
+                continue
+            if goal.tail and goal.tail_limits is not None:  # the dock approach is timed at the slower limits
+                tp = _retime_with_tail(sp, limits, goal.tail_limits, len(goal.tail))
+            else:
+                tp = time_parameterize(sp.waypoints_m, sp.times_s, limits)
+            if sp.info.get("direct") and not goal.tail:  # pass through the roadmap's corners if still valid
+                smooth = time_parameterize_through(sp.waypoints_m, sp.times_s, limits)
+                if smooth.duration_s < tp.duration_s and _recheck(nominal, smooth, goal, hold_until) is None:
+                    tp = smooth
+            problem = _recheck(nominal, tp, goal, hold_until)
+            if problem is None:
+                accepted = tp
+                info["attempts"][name] = attempt + 1
+                info["rrt_vertices"][name] = sp.info.get("rrt_vertices")
+                break
+            last_problem = problem
+            info.setdefault("rejected", []).append(
+                f"{name} attempt {attempt + 1}: timed trajectory violates '{problem}'"
+            )
+        if accepted is None:
+            raise _VehicleFailed(
+                name,
+                last_problem or "unknown",
+                f"vehicle {name!r}: no path found; most limiting constraint: '{last_problem}'",
+                dict(timed),
+            )
+        timed[name] = accepted
+        tracks[name] = _track_of(name, task, accepted)
+    return timed, info
+
+
+def _track_of(name: str, task, tp: TimedPath) -> Track:
+    if not tp.segments:
+        return Track.static(name, task.vehicle, tp.knot_p_m[0])
+    p, _, _ = tp.sample(common_grid(tp.duration_s, DT_S))
+    return Track.from_arrays(name, task.vehicle, DT_S, p)
+
+
+def _goal_problem(checker, goal: GoalSpec) -> str | None:
+    """The constraint that keeps the goal (or dock) occupied at the end of the horizon, if any."""
+    end = goal.tail[-1] if goal.tail else goal.position_m
+    for p, exclude in ((goal.position_m, None), (end, goal.tail_exempt)):
+        c = checker.conflict(float(p[0]), float(p[1]), float(p[2]), goal.hold_until_s, exclude=exclude, resting=True)
+        if c is not None:
+            return f"{c} at the goal" if p is end else f"{c} at the dock approach point"
+    return None
+
+
+def _retime_with_tail(sp, limits: KinematicLimits, tail_limits: KinematicLimits, n_tail: int) -> TimedPath:
+    main = time_parameterize(
+        sp.waypoints_m[: len(sp.waypoints_m) - n_tail], sp.times_s[: len(sp.times_s) - n_tail], limits
+    )
+    tail = time_parameterize(sp.waypoints_m[len(sp.waypoints_m) - n_tail - 1 :], None, tail_limits)
+    knots = np.concatenate([main.knot_t_s, main.knot_t_s[-1] + tail.knot_t_s[1:]])
+    return TimedPath(knots, sp.waypoints_m.copy(), main.segments + tail.segments)
+
+
+def _recheck(checker, tp: TimedPath, goal: GoalSpec, hold_until: float) -> str | None:
+    """First conflict of the timed trajectory on a fine grid (dock target exempt on the tail); no
+    tracking tube for a pair while both rest (speed < REST_SPEED_MPS), as in the verifier."""
+    t_tail = tp.knot_t_s[-1 - len(goal.tail)] if goal.tail else math.inf
+    t = np.arange(0.0, max(tp.duration_s, hold_until) + 1e-9, DT_S / 2)
+    p, _, _ = tp.sample(t)
+    batch = BatchChecker.from_checker(checker)
+    head = t < t_tail - 1e-9
+    _, c = batch.first_conflict(p[head], t[head])
+    if c is None and not head.all():
+        _, c = batch.first_conflict(p[~head], t[~head], exclude=goal.tail_exempt)
+    return c
+
+
+def sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: SamplingOptions, progress) -> Plan:
+    """Prioritised sampling with conflict-driven re-ordering (:func:`proxplan.planner.sampling.ordering.promote`:
+    a failed vehicle moves before the vehicle that blocked it; the vehicles in front keep their
+    plans); the assembled plan (metrics not final)."""
+    order = priority_order(scenario)
+    notes: list[str] = list(scenario.load_notes)
+    keep: dict[str, TimedPath] = {}
+    seen = {tuple(order)}
+    for restart in range(MAX_REORDERS + 1):
+        try:
+            timed, info = plan_order(
+                scenario, order, mode=mode, seed=seed, options=options, progress=progress, keep=keep
+            )
+            break
+        except _VehicleFailed as fail:
+            new, n_keep = promote(scenario, order, fail.vehicle, fail.constraint)
+            if restart == MAX_REORDERS or tuple(new) in seen:
+                raise InfeasibleError(fail.vehicle, fail.constraint, fail.message) from None
+            seen.add(tuple(new))
+            notes.append(
+                f"re-ordering: {fail.vehicle} failed ({fail.constraint}); planned as number {new.index(fail.vehicle) + 1}"
+            )
+            keep = {n: fail.timed[n] for n in new[:n_keep] if n in fail.timed}
+            order = new
+    plan = assemble_plan(scenario, timed, method="sampling", notes=notes)
+    plan.metrics["priority_order"] = order
+    plan.metrics["sampling_attempts"] = info["attempts"]
+    plan.metrics["seed"] = seed
+    return plan
