@@ -17,7 +17,6 @@ import numpy as np
 
 from proxplan.planfile import Plan, Scenario
 from proxplan.planner.checks.precheck import (
-    check_close_pairs,
     check_goal_tubes,
     check_starts_and_goals,
     check_swarm_size,
@@ -70,7 +69,6 @@ def plan_scenario(
     t0 = time.perf_counter()
     mode = MODE_OF_METHOD[method]
     check_swarm_size(scenario)
-    check_close_pairs(scenario)
     check_starts_and_goals(scenario, mode=mode)
     check_goal_tubes(scenario, mode=mode, margin_m=PLAN_MARGIN_M)
     plan, why_not = _roadmap_plan(scenario, progress=progress) if method == "roadmap" else (None, None)

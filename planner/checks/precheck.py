@@ -2,14 +2,14 @@
 
 ``MAX_VEHICLES`` bounds the scenarios the planners accept (a user mistake beyond it, exit 2,
 instead of hours of planning; the scenario loader rejects such a file before building its vehicles).
-:func:`check_close_pairs` rejects (``UserError``, exit 2, naming both vehicles) starts or goals
-closer than the pair's separation and a goal inside another goal's downwash cut-off, in one
-``scipy.spatial.cKDTree`` pair query and vectorised table look-ups (10,000 vehicles in well under a
-second). Every start must be valid at t = 0 against the other
-vehicles' starts, and every goal (a vehicle holds it forever) against the other goals, with the
-same constraints the planner uses (separation, downwash cut-offs both ways, keep-out ellipsoid,
-workspace, obstacles); the first violation becomes an :class:`InfeasibleError` naming the vehicle
-and the constraint, found in one vectorised check per vehicle.
+:func:`check_starts_and_goals` checks every start at t = 0 against the other vehicles' starts and
+every goal (a vehicle holds it forever) against the other vehicles' final positions, in one
+vectorised pass over the pairs a ``scipy.spatial.cKDTree`` query finds (1000 vehicles in a fraction
+of a second): starts or goals closer than the pair's separation and a goal inside another goal's
+downwash cut-off are user mistakes (``UserError``, exit 2, naming both vehicles); any other
+violation of the planner's pair rules (downwash cut-offs both ways, keep-out ellipsoid, by
+``--method``) is an :class:`InfeasibleError` naming the vehicle and the constraint, with the same
+verdicts as the per-state checker (:func:`proxplan.planner.checks.validity.rule_kind`).
 
 A goal is reached *moving*: while a vehicle flies, the planner and the verifier grow every keep-out
 (separation, downwash cut-off, invalid zone) by the tracking tube ``limits.tracking_margin_m``.
@@ -21,12 +21,15 @@ points on spheres around the goal).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from proxplan.fileio import UserError
+from proxplan.physics import Vehicle
 from proxplan.planfile import MAX_VEHICLES, Scenario
-from proxplan.planner.checks.constraints import Track, build_checker
-from proxplan.planner.checks.validity import BatchChecker
+from proxplan.planner.checks.constraints import MODES, Track, build_checker, cutoff_table
+from proxplan.planner.checks.validity import BatchChecker, bracket_table, cutoff_lookup, rule_kind, stack_tables
 from proxplan.planner.errors import InfeasibleError
 
 GOAL_SEARCH_STEP_M = 0.005  # radius step of the nearest-clear-goal search, m
@@ -34,7 +37,6 @@ GOAL_SEARCH_MAX_M = 1.0  # largest goal displacement the search proposes, m
 GOAL_SEARCH_DIRECTIONS = 256  # directions per sphere (Fibonacci lattice)
 __all__ = [
     "MAX_VEHICLES",
-    "check_close_pairs",
     "check_goal_tubes",
     "check_starts_and_goals",
     "check_swarm_size",
@@ -52,38 +54,6 @@ def check_swarm_size(scenario: Scenario) -> None:
         raise UserError(
             f"{where}vehicles: expected at most {MAX_VEHICLES} vehicles, got {n} (split the swarm into groups)"
         )
-
-
-def check_starts_and_goals(scenario: Scenario, *, mode: str) -> None:
-    """InfeasibleError for the first start (at t = 0) or goal (held forever) that is invalid; a goal
-    is checked for the moving vehicle that ends there (against the others' final positions)."""
-    names = list(scenario.vehicles)
-    for kind in ("start", "goal"):
-        points = {}
-        for n in names:
-            task = scenario.vehicles[n]
-            if kind == "start" or task.hover:
-                points[n] = task.start_m
-            elif task.goal_m is not None:
-                points[n] = task.goal_m
-        for name in names:
-            task = scenario.vehicles[name]
-            if name not in points or (kind == "goal" and (task.dock_with is not None or task.hover)):
-                continue  # a goal conflict is the moving vehicle's, named as such
-            others = [Track.static(o, scenario.vehicles[o].vehicle, p) for o, p in points.items() if o != name]
-            # a dock pair meets on purpose: the dock target is exempt for the docking vehicle
-            dock = scenario.vehicles[name].dock_with
-            others = [tr for tr in others if tr.name != dock and scenario.vehicles[tr.name].dock_with != name]
-            # starts and goals are held at rest: no tracking tube (as the verifier for resting pairs)
-            batch = BatchChecker.from_checker(build_checker(scenario, name, others, mode=mode, tube=False))
-            _, bad = batch.first_conflict(np.asarray(points[name], dtype=float)[None, :], np.zeros(1))
-            if bad is not None and bad != "workspace" and not bad.startswith("obstacle"):  # those: pipeline
-                where = "at t = 0" if kind == "start" else "while holding it"
-                raise InfeasibleError(
-                    name,
-                    bad,
-                    f"vehicle {name!r}: its {kind} {np.round(points[name], 4).tolist()} violates '{bad}' {where}",
-                )
 
 
 def _sphere_directions(k: int) -> np.ndarray:
@@ -161,92 +131,196 @@ def check_goal_tubes(scenario: Scenario, *, mode: str, margin_m: float = 0.0) ->
         )
 
 
-def _final_points(scenario: Scenario) -> dict[str, np.ndarray]:
-    """Where each non-docking vehicle ends (goal, or start for hovering ones), m."""
-    out: dict[str, np.ndarray] = {}
-    for n, task in scenario.vehicles.items():
-        end = task.start_m if task.hover else task.goal_m
-        if task.dock_with is None and end is not None:
-            out[n] = end
-    return out
+def check_starts_and_goals(scenario: Scenario, *, mode: str) -> None:
+    """Every start (at t = 0, against the other starts) and every goal (held for ever, against the
+    other vehicles' final positions) in one vectorised pass over the pairs that can conflict (a
+    ``scipy.spatial.cKDTree`` query, then :func:`rule_kind` on arrays of pairs). Both at rest: no
+    tracking tube. Dock pairs are exempt (they meet on purpose).
 
-
-def check_close_pairs(scenario: Scenario) -> None:
-    """UserError (see module) for the first pair of starts / goals closer than their separation
-    (max(limits.min_separation_m, sum of body radii), m) and the first goal inside the cut-off
-    r_cut(dz) of a goal above it (both at rest: no tracking tube). Dock pairs are exempt."""
-    from scipy.spatial import cKDTree
-
-    from proxplan.costmaps import effects_key
-    from proxplan.planner.checks.constraints import cutoff_table
-
+    User mistakes first, ``UserError`` (exit 2) naming both vehicles: starts or goals closer than
+    the pair's separation (max(limits.min_separation_m, sum of body radii), m), then a goal inside the
+    cut-off r_cut(dz) of a goal above it. Then, for ``mode``'s rules (separation, downwash cut-offs
+    both ways or keep-out ellipsoid), ``InfeasibleError`` for the first vehicle (file order; starts
+    before goals) whose start or goal breaks one, naming the vehicle and the constraint as
+    ``ConflictChecker.conflict`` does (the first other vehicle in file order). A goal conflict is the
+    moving vehicle's (a hovering or docking vehicle's is named from the other side); a start or goal
+    outside the workspace or in an obstacle is left to the planner, which names it."""
     where = f"{scenario.source_path}: " if scenario.source_path else ""
-    lim = scenario.limits
-    names_all = list(scenario.vehicles)
-    radius = {n: scenario.vehicles[n].vehicle.body_radius_m for n in names_all}
-    r_max = max(radius.values())
-    dock = {(n, t.dock_with) for n, t in scenario.vehicles.items() if t.dock_with is not None}
+    sets = [_Points.of(scenario, "start"), _Points.of(scenario, "goal")]
+    for pts in sets:
+        _too_close(pts, scenario.limits.min_separation_m, where)
+    tables = _CutTables(scenario, sets if mode == "downwash" else sets[1:])  # the goals' always (user mistakes)
+    _goal_in_cutoff(sets[1], tables, scenario.limits.authority_fraction, where)
+    for pts in sets:
+        _first_conflict(scenario, pts, tables, mode)
 
-    def exempt(a: str, b: str) -> bool:
-        return (a, b) in dock or (b, a) in dock
 
-    for kind, points in (
-        ("start", {n: t.start_m for n, t in scenario.vehicles.items()}),
-        ("goal", _final_points(scenario)),
-    ):
-        names = list(points)
-        if len(names) < 2:
-            continue
-        xyz = np.array([points[n] for n in names], dtype=float)
-        tree = cKDTree(xyz)
-        pairs = tree.query_pairs(max(lim.min_separation_m, 2.0 * r_max), output_type="ndarray")
-        if pairs.size:
-            i, j = pairs[:, 0], pairs[:, 1]
-            d = np.linalg.norm(xyz[i] - xyz[j], axis=1)
-            need = np.maximum(lim.min_separation_m, np.array([radius[names[a]] + radius[names[b]] for a, b in pairs]))
-            bad = np.flatnonzero((d < need) & ~np.array([exempt(names[a], names[b]) for a, b in pairs]))
-            if bad.size:
-                k = bad[np.lexsort((j[bad], i[bad]))][0]
-                a, b = names[i[k]], names[j[k]]
-                raise UserError(
-                    f"{where}vehicles.{a}.{kind} and vehicles.{b}.{kind}: {d[k]:.3f} m apart; expected at least "
-                    f"{need[k]:.3f} m (limits.min_separation_m or the two body radii)"
+@dataclass(frozen=True)
+class _Points:
+    """The starts or the final positions of a scenario's vehicles as arrays (file order)."""
+
+    kind: str  # "start" or "goal"
+    names: list[str]
+    xyz: np.ndarray  # (N, 3) m
+    vehicles: list[Vehicle]  # (N,)
+    radius: np.ndarray  # (N,) body radii, m
+    checked: np.ndarray  # (N,) bool: a conflict here is this vehicle's (see check_starts_and_goals)
+    dock: set[tuple[int, int]]  # dock pairs (docker, target) as indices, both present
+
+    @classmethod
+    def of(cls, scenario: Scenario, kind: str) -> _Points:
+        """Starts of every vehicle, or where each non-docking vehicle ends (goal, or start for a
+        hovering one)."""
+        tasks = scenario.vehicles
+        if kind == "start":
+            names = list(tasks)
+            xyz = [tasks[n].start_m for n in names]
+        else:
+            names = [n for n, t in tasks.items() if t.dock_with is None and (t.hover or t.goal_m is not None)]
+            xyz = [scenario.final_position_m(n) for n in names]  # goal, or start when hovering
+        index = {n: i for i, n in enumerate(names)}
+        dock = {(index[n], index[t.dock_with]) for n, t in tasks.items() if n in index and t.dock_with in index}
+        checked = np.array([kind == "start" or not tasks[n].hover for n in names], dtype=bool)
+        return cls(
+            kind,
+            names,
+            np.asarray(xyz, dtype=float).reshape(-1, 3),
+            [tasks[n].vehicle for n in names],
+            np.array([tasks[n].vehicle.body_radius_m for n in names], dtype=float),
+            checked,
+            dock,
+        )
+
+    def pairs(self, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """Index pairs (i < j) within ``radius_m`` horizontally, dock pairs left out, m."""
+        from scipy.spatial import cKDTree
+
+        if len(self.names) < 2 or radius_m <= 0.0:
+            return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+        pairs = cKDTree(self.xyz[:, :2]).query_pairs(radius_m, output_type="ndarray")
+        i, j = pairs[:, 0], pairs[:, 1]
+        if self.dock:
+            keep = np.array([(a, b) not in self.dock and (b, a) not in self.dock for a, b in pairs], dtype=bool)
+            i, j = i[keep], j[keep]
+        return i, j
+
+
+class _CutTables:
+    """The scenario's cut-off tables (``cutoff_table`` at ``limits.authority_fraction``) of every
+    ordered pair of vehicle types, as rows of one array (:func:`stack_tables`)."""
+
+    def __init__(self, scenario: Scenario, sets: list[_Points]):
+        from proxplan.costmaps import effects_key
+
+        lim = scenario.limits
+        self.types = list(dict.fromkeys(v for pts in sets for v in pts.vehicles))
+        self.type_of = {v: k for k, v in enumerate(self.types)}
+        fx = effects_key(getattr(scenario, "effects", ()))
+        tabs = [
+            bracket_table(
+                cutoff_table(
+                    s,
+                    t,
+                    level=lim.authority_fraction,
+                    rule=lim.invalid_zone_rule,
+                    field_form=scenario.field_form,
+                    effects=fx,
                 )
-    goals = _final_points(scenario)
-    names = list(goals)
-    if len(names) < 2:
-        return
-    xyz = np.array([goals[n] for n in names], dtype=float)
-    form, fx = scenario.field_form, effects_key(getattr(scenario, "effects", ()))
-    tables = {}
-    for a in {scenario.vehicles[n].vehicle for n in names}:
-        for b in {scenario.vehicles[n].vehicle for n in names}:
-            tables[(a, b)] = cutoff_table(
-                a, b, level=lim.authority_fraction, rule=lim.invalid_zone_rule, field_form=form, effects=fx
             )
-    reach = max(max(t.r_cut_m) for t in tables.values())
-    if reach <= 0:
-        return
-    pairs = cKDTree(xyz[:, :2]).query_pairs(reach, output_type="ndarray")
-    if pairs.size == 0:
-        return
-    # order each pair as (source above, target below)
-    hi = np.where(xyz[pairs[:, 0], 2] >= xyz[pairs[:, 1], 2], pairs[:, 0], pairs[:, 1])
-    lo = np.where(hi == pairs[:, 0], pairs[:, 1], pairs[:, 0])
+            for s in self.types
+            for t in self.types
+        ]
+        self.cut = stack_tables([t[0] for t in tabs])
+        self.step = np.array([t[1] for t in tabs], dtype=float)
+        self.reach_m = float(self.cut.max(initial=0.0))
+
+    def radius(self, pts: _Points, source: np.ndarray, target: np.ndarray, dz_m: np.ndarray) -> np.ndarray:
+        """r_cut (m) of ``source`` (indices into ``pts``) on ``target`` at ``dz_m`` below it."""
+        t = np.array([self.type_of[v] for v in pts.vehicles], dtype=int)
+        return cutoff_lookup(self.cut, self.step, t[source] * len(self.types) + t[target], dz_m)
+
+
+def _too_close(pts: _Points, min_separation_m: float, where: str) -> None:
+    i, j = pts.pairs(max(min_separation_m, 2.0 * float(pts.radius.max(initial=0.0))))
+    d = np.linalg.norm(pts.xyz[i] - pts.xyz[j], axis=1)
+    need = np.maximum(min_separation_m, pts.radius[i] + pts.radius[j])
+    bad = np.flatnonzero(d < need)
+    if bad.size:
+        k = bad[np.lexsort((j[bad], i[bad]))][0]
+        a, b = pts.names[i[k]], pts.names[j[k]]
+        raise UserError(
+            f"{where}vehicles.{a}.{pts.kind} and vehicles.{b}.{pts.kind}: {d[k]:.3f} m apart; expected at least "
+            f"{need[k]:.3f} m (limits.min_separation_m or the two body radii)"
+        )
+
+
+def _goal_in_cutoff(goals: _Points, tables: _CutTables, level: float, where: str) -> None:
+    i, j = goals.pairs(tables.reach_m)
+    xyz = goals.xyz
+    hi = np.where(xyz[i, 2] >= xyz[j, 2], i, j)  # source above, target below
+    lo = np.where(hi == i, j, i)
     dz = xyz[hi, 2] - xyz[lo, 2]
     r = np.linalg.norm(xyz[hi, :2] - xyz[lo, :2], axis=1)
-    rc = np.array(
-        [
-            tables[(scenario.vehicles[names[s]].vehicle, scenario.vehicles[names[t]].vehicle)].lookup(float(z))
-            for s, t, z in zip(hi, lo, dz, strict=True)
-        ]
-    )
-    bad = np.flatnonzero((r < rc) & ~np.array([exempt(names[s], names[t]) for s, t in zip(hi, lo, strict=True)]))
+    rc = tables.radius(goals, hi, lo, dz)
+    bad = np.flatnonzero((dz > 0.0) & (r < rc))
     if bad.size:
         k = bad[np.lexsort((hi[bad], lo[bad]))][0]
-        t_name, s_name = names[lo[k]], names[hi[k]]
+        t_name, s_name = goals.names[lo[k]], goals.names[hi[k]]
         raise UserError(
             f"{where}vehicles.{t_name}.goal is inside the downwash cut-off of vehicles.{s_name}.goal "
             f"({r[k]:.3f} m to the side, {dz[k]:.3f} m below; expected at least {rc[k]:.3f} m to the side at "
-            f"authority level {lim.authority_fraction:g})"
+            f"authority level {level:g})"
         )
+
+
+def _first_conflict(scenario: Scenario, pts: _Points, tables: _CutTables, mode: str) -> None:
+    """InfeasibleError for the first checked vehicle of ``pts`` breaking one of ``mode``'s pair rules."""
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    r_max = float(pts.radius.max(initial=0.0))
+    reach = max(scenario.limits.min_separation_m, 2.0 * r_max)  # separation and ellipsoid radius, m
+    if mode == "downwash":
+        reach = max(reach, tables.reach_m)
+    a, b = pts.pairs(reach + 1e-6)
+    me, other = np.concatenate([a, b]), np.concatenate([b, a])  # every pair both ways
+    keep = pts.checked[me]
+    me, other = me[keep], other[keep]
+    rel = pts.xyz[me] - pts.xyz[other]
+    r2 = rel[:, 0] * rel[:, 0] + rel[:, 1] * rel[:, 1]
+    dz = rel[:, 2]
+    sep = np.maximum(scenario.limits.min_separation_m, pts.radius[me] + pts.radius[other])
+    ell2 = np.full(me.size, np.nan)
+    rc = np.zeros(me.size)
+    if mode == "ellipsoid":
+        ell2 = (pts.radius[me] + pts.radius[other]) ** 2
+    elif mode == "downwash":  # the other's table on me when it is above, mine on it when it is below
+        up = dz > 0.0
+        rc = tables.radius(pts, np.where(up, me, other), np.where(up, other, me), dz)
+    kind = rule_kind(r2, dz, np.ones(me.size, dtype=bool), sep * sep, ell2, rc)
+    hit = np.flatnonzero(kind >= 0)
+    if hit.size == 0:
+        return
+    bad_static = _static_conflicts(scenario, pts, np.unique(me[hit]))
+    hit = hit[~np.isin(me[hit], bad_static)]  # those the planner names ("workspace", "obstacle[i]")
+    if hit.size == 0:
+        return
+    k = hit[np.lexsort((other[hit], me[hit]))][0]  # first vehicle, then its first other in file order
+    name, o = pts.names[me[k]], pts.names[other[k]]
+    what = ("separation from", "ellipsoid of" if mode == "ellipsoid" else "downwash of", "downwash on")[kind[k]]
+    bad = f"{what} {o}"
+    when = "at t = 0" if pts.kind == "start" else "while holding it"
+    raise InfeasibleError(
+        name, bad, f"vehicle {name!r}: its {pts.kind} {np.round(pts.xyz[me[k]], 4).tolist()} violates '{bad}' {when}"
+    )
+
+
+def _static_conflicts(scenario: Scenario, pts: _Points, idx: np.ndarray) -> np.ndarray:
+    """The vehicles among ``idx`` whose point is outside the workspace or in an obstacle (the
+    checker's static rules, per vehicle type)."""
+    out = []
+    for v in dict.fromkeys(pts.vehicles[i] for i in idx):
+        mine = np.array([i for i in idx if pts.vehicles[i] == v], dtype=int)
+        batch = BatchChecker.from_checker(build_checker(scenario, pts.names[mine[0]], [], tube=False))
+        static, _ = batch.conflict_codes(pts.xyz[mine], np.zeros(mine.size))
+        out.append(mine[static >= 0])
+    return np.concatenate(out) if out else np.zeros(0, dtype=int)

@@ -21,9 +21,67 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from proxplan.planner.checks.constraints import ConflictChecker
+from proxplan.planner.checks.constraints import ConflictChecker, CutoffTable
 
 BIN_S = 0.5  # time bin of the spatial index, s
+
+
+def bracket_table(table: CutoffTable | None, tube_m: float = 0.0) -> tuple[np.ndarray, float]:
+    """A cut-off table as an array (K,) of the radius ``table.lookup`` gives in each dz step (the
+    larger bracketing sample; 0 in the last step), m, grown by the tracking tube ``tube_m`` (m) to
+    the largest radius over dz +- tube as :meth:`PairRule.cutoff_m`; and its dz step, m (an empty
+    array and inf without a table)."""
+    if table is None:
+        return np.zeros(0), math.inf
+    arr = np.asarray(table.r_cut_m, dtype=float)
+    pair = np.zeros(arr.size)  # lookup(dz) = max(arr[k], arr[k + 1]) while k + 1 < size
+    pair[:-1] = np.maximum(arr[:-1], arr[1:])
+    if tube_m > 0.0:  # tracking tube: the largest radius over dz +- tube (PairRule.cutoff_m)
+        reach = int(math.ceil(tube_m / float(table.dz_step_m) - 1e-9))
+        grown = pair.copy()
+        for j in range(1, min(reach, pair.size - 1) + 1):
+            grown[:-j] = np.maximum(grown[:-j], pair[j:])
+            grown[j:] = np.maximum(grown[j:], pair[:-j])
+        pair = grown
+    return pair, float(table.dz_step_m)
+
+
+def stack_tables(tables: list[np.ndarray]) -> np.ndarray:
+    """Bracket tables (:func:`bracket_table`) as rows of one (R, W) array, m, zero-padded with at
+    least one last column of zeros, so that a lookup beyond a table gives 0."""
+    width = max([t.size for t in tables] + [1]) + 1
+    out = np.zeros((len(tables), width))
+    for i, t in enumerate(tables):
+        out[i, : t.size] = t
+    return out
+
+
+def cutoff_lookup(cut: np.ndarray, step: np.ndarray, row: np.ndarray, dz_m: np.ndarray) -> np.ndarray:
+    """Cut-off radius (m) of table row ``row`` of ``cut`` (R, W) (:func:`stack_tables`, dz steps
+    ``step`` (R,), m) at vertical distance ``|dz_m|``; ``row`` and ``dz_m`` broadcast."""
+    width = cut.shape[1]
+    k = np.minimum(np.abs(dz_m) / step[row], width - 1).astype(int)
+    return cut.ravel()[row * width + k]
+
+
+def rule_kind(
+    r2: np.ndarray, dz: np.ndarray, active: np.ndarray, sep2: np.ndarray, ell2: np.ndarray, rc: np.ndarray
+) -> np.ndarray:
+    """The first pair rule a state breaks against another vehicle, as ``ConflictChecker.conflict``
+    orders them: 0 separation, 1 ellipsoid of the other or downwash of the other (it is above), 2
+    downwash on the other (it is below), -1 none. Arrays broadcast: squared horizontal distance
+    ``r2`` (m^2), vertical offset ``dz`` = own z - other's z (m), ``active`` (the other is present),
+    squared separation ``sep2`` and ellipsoid radius ``ell2`` (m^2, nan: no ellipsoid rule, then
+    the cut-off rule applies), cut-off radius ``rc`` looked up for ``dz``'s direction (m, 0: none)."""
+    sep = active & (r2 + dz * dz < sep2)
+    has_ell = ~np.isnan(ell2)
+    with np.errstate(invalid="ignore"):
+        ell = active & has_ell & (r2 / ell2 + dz * dz / (9.0 * ell2) < 1.0)
+    up = dz > 0.0
+    down = active & ~has_ell & (dz != 0.0) & (r2 < rc * rc)
+    below = down & ~up
+    above = down & up
+    return np.where(sep, 0, np.where(ell | below, 1, np.where(above, 2, -1)))
 
 
 @dataclass(frozen=True)
@@ -70,31 +128,10 @@ class BatchChecker:
             else:
                 pos[i] = [tr.at(float(t)) for t in tk]
 
-        def table(r, attr):
-            tab = getattr(r, attr)
-            if tab is None:
-                return np.zeros(0), math.inf
-            arr = np.asarray(tab.r_cut_m, dtype=float)
-            pair = np.zeros(arr.size)  # lookup(dz) = max(arr[k], arr[k + 1]) while k + 1 < size
-            pair[:-1] = np.maximum(arr[:-1], arr[1:])
-            if r.tube_m > 0.0:  # tracking tube: the largest radius over dz +- tube (PairRule.cutoff_m)
-                reach = int(math.ceil(r.tube_m / float(tab.dz_step_m) - 1e-9))
-                grown = pair.copy()
-                for j in range(1, min(reach, pair.size - 1) + 1):
-                    grown[:-j] = np.maximum(grown[:-j], pair[j:])
-                    grown[j:] = np.maximum(grown[j:], pair[:-j])
-                pair = grown
-            return pair, float(tab.dz_step_m)
-
-        tabs_from = [table(r, "cut_from_other") for r in rules]
-        tabs_on = [table(r, "cut_on_other") for r in rules]
-        width = max([t[0].size for t in tabs_from + tabs_on] + [1])
-        width += 1  # a last column of zeros: lookups beyond a table give 0
-        cut_from = np.zeros((v, width))
-        cut_on = np.zeros((v, width))
-        for i in range(v):
-            cut_from[i, : tabs_from[i][0].size] = tabs_from[i][0]
-            cut_on[i, : tabs_on[i][0].size] = tabs_on[i][0]
+        tabs_from = [bracket_table(r.cut_from_other, r.tube_m) for r in rules]
+        tabs_on = [bracket_table(r.cut_on_other, r.tube_m) for r in rules]
+        cut_both = stack_tables([t[0] for t in tabs_from + tabs_on])
+        cut_from, cut_on = cut_both[:v], cut_both[v:]
         sep = np.array([r.separation_m for r in rules], dtype=float)
         ell = np.array([np.nan if r.ellipsoid_r_m is None else r.ellipsoid_r_m for r in rules], dtype=float)
         margin = np.array([r.margin_m + r.tube_m for r in rules], dtype=float)  # tube as in PairRule.cutoff_m
@@ -119,7 +156,7 @@ class BatchChecker:
             until_s=np.array([r.track.until_s + r.until_margin_s for r in rules], dtype=float),
             sep2=sep * sep,
             ell2=ell * ell,
-            cut_both=np.vstack([cut_from, cut_on]),
+            cut_both=cut_both,
             step_both=np.array([t[1] for t in tabs_from + tabs_on], dtype=float),
             margin=margin,
             reach=reach,
@@ -187,22 +224,11 @@ class BatchChecker:
         dz = z[None, :] - other[..., 2]
         r2 = dx * dx + dy * dy
         active = t[None, :] < self.until_s[idx, None]
-        sep = active & (r2 + dz * dz < self.sep2[idx, None])
-        ell2 = self.ell2[idx, None]
-        has_ell = ~np.isnan(ell2)
-        with np.errstate(invalid="ignore"):
-            ell = active & has_ell & (r2 / ell2 + dz * dz / (9.0 * ell2) < 1.0)
         # one cut-off lookup: the other's table on us when it is above (dz < 0), ours on it when below
-        up = dz > 0.0
-        row = idx[:, None] + len(self.names) * up  # (v, M) rows of cut_both
-        width = self.cut_both.shape[1]
-        k = np.minimum(np.abs(dz) / self.step_both[row], width - 1).astype(int)
-        rc = self.cut_both.ravel()[row * width + k]
+        row = idx[:, None] + len(self.names) * (dz > 0.0)  # (v, M) rows of cut_both
+        rc = cutoff_lookup(self.cut_both, self.step_both, row, dz)
         rc = np.where(rc > 0.0, rc + self.margin[idx, None], 0.0)
-        down = active & ~has_ell & (dz != 0.0) & (r2 < rc * rc)
-        below = down & ~up
-        above = down & up
-        kind = np.where(sep, 0, np.where(ell | below, 1, np.where(above, 2, -1)))  # (v, M)
+        kind = rule_kind(r2, dz, active, self.sep2[idx, None], self.ell2[idx, None], rc)  # (v, M)
         hit = kind >= 0
         anyhit = hit.any(axis=0)
         first = np.argmax(hit, axis=0)  # first vehicle in rule order (idx is sorted)
