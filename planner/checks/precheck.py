@@ -240,13 +240,18 @@ class _CutTables:
         return cutoff_lookup(self.cut, self.step, t[source] * len(self.types) + t[target], dz_m)
 
 
+def _first(idx: np.ndarray, key: np.ndarray, then: np.ndarray) -> int:
+    """The entry of ``idx`` (indices into ``key`` and ``then``) with the smallest ``key``, then ``then``."""
+    return int(idx[np.lexsort((then[idx], key[idx]))][0])
+
+
 def _too_close(pts: _Points, min_separation_m: float, where: str) -> None:
     i, j = pts.pairs(max(min_separation_m, 2.0 * float(pts.radius.max(initial=0.0))))
     d = np.linalg.norm(pts.xyz[i] - pts.xyz[j], axis=1)
     need = np.maximum(min_separation_m, pts.radius[i] + pts.radius[j])
     bad = np.flatnonzero(d < need)
     if bad.size:
-        k = bad[np.lexsort((j[bad], i[bad]))][0]
+        k = _first(bad, i, j)
         a, b = pts.names[i[k]], pts.names[j[k]]
         raise UserError(
             f"{where}vehicles.{a}.{pts.kind} and vehicles.{b}.{pts.kind}: {d[k]:.3f} m apart; expected at least "
@@ -264,7 +269,7 @@ def _goal_in_cutoff(goals: _Points, tables: _CutTables, level: float, where: str
     rc = tables.radius(goals, hi, lo, dz)
     bad = np.flatnonzero((dz > 0.0) & (r < rc))
     if bad.size:
-        k = bad[np.lexsort((hi[bad], lo[bad]))][0]
+        k = _first(bad, lo, hi)  # the first target below, then the first source above it
         t_name, s_name = goals.names[lo[k]], goals.names[hi[k]]
         raise UserError(
             f"{where}vehicles.{t_name}.goal is inside the downwash cut-off of vehicles.{s_name}.goal "
@@ -304,7 +309,7 @@ def _first_conflict(scenario: Scenario, pts: _Points, tables: _CutTables, mode: 
     hit = hit[~np.isin(me[hit], bad_static)]  # those the planner names ("workspace", "obstacle[i]")
     if hit.size == 0:
         return
-    k = hit[np.lexsort((other[hit], me[hit]))][0]  # first vehicle, then its first other in file order
+    k = _first(hit, me, other)  # first vehicle, then its first other in file order
     name, o = pts.names[me[k]], pts.names[other[k]]
     what = ("separation from", "ellipsoid of" if mode == "ellipsoid" else "downwash of", "downwash on")[kind[k]]
     bad = f"{what} {o}"
