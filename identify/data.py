@@ -15,7 +15,15 @@ import numpy as np
 
 from proxplan.identify.flightlog import Flight, FlightEntry, Manifest, VehicleLog, interpolate_position_m, load_flight
 from proxplan.identify.measure import MeasureOptions, measure_log
-from proxplan.identify.thrust_map import MotorSamples, ThrustMap, delivered_thrust_N, fit_thrust_maps, saturated_samples
+from proxplan.identify.thrust_map import (
+    CEILING,
+    FLOOR,
+    MotorSamples,
+    ThrustMap,
+    delivered_thrust_N,
+    fit_thrust_maps,
+    motor_limits,
+)
 from proxplan.physics import (
     EFFECT_NAMES,
     VALIDITY_FACTOR_L,
@@ -50,6 +58,11 @@ class IdentifyOptions:
     )
 
 
+CEILING_BIT, FLOOR_BIT = 1, 2
+"""Bits of :attr:`Unit.motor_limit`: some motor of the vehicle at its ceiling / at its floor
+(:func:`proxplan.identify.thrust_map.motor_limits`)."""
+
+
 @dataclass(frozen=True)
 class Unit:
     """One vehicle of one flight, N cleaned samples, ready for prediction."""
@@ -70,11 +83,15 @@ class Unit:
     scored: bool = True  # False: manifest 'score: false' (a downwash source only, never scored or fitted)
     position_m: np.ndarray | None = None  # (N, 3) own position, world frame (the log's), m
     planes: tuple = ()  # proxplan.physics.room.Plane of the manifest (place-in-room features)
+    motor_limit: np.ndarray | None = (
+        None  # (N,) uint8 bits: CEILING_BIT some motor at its ceiling, FLOOR_BIT at its floor
+    )
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
             self,
             position_m=None if self.position_m is None else self.position_m[idx],
+            motor_limit=None if self.motor_limit is None else self.motor_limit[idx],
             t_s=self.t_s[idx],
             velocity_mps=self.velocity_mps[idx],
             height_above_ground_m=self.height_above_ground_m[idx],
@@ -207,11 +224,15 @@ def load_units(
         for v in entry.vehicles:
             log = flight.logs[v.name]
             tmap = thrust_maps.get(v.type)
-            n_sat, source = 0, "logged_u"
+            n_sat = n_floor = 0
+            source, limit_bits = "logged_u", None
             if log.has_pwm and tmap is not None and tmap.usable:
                 motor = _motor_samples(log)
-                n_sat = int(saturated_samples(tmap, motor).sum())
-                log = replace(log, motor_thrust_N=delivered_thrust_N(tmap, motor))
+                lim = motor_limits(tmap, motor, dt_s=float(np.median(np.diff(log.t_s))) if len(log) > 1 else 0.01)
+                limit_bits = (np.any(lim == CEILING, axis=1) * CEILING_BIT
+                              + np.any(lim == FLOOR, axis=1) * FLOOR_BIT).astype(np.uint8)  # fmt: skip
+                n_sat, n_floor = int(np.sum(limit_bits & CEILING_BIT > 0)), int(np.sum(limit_bits & FLOOR_BIT > 0))
+                log = replace(log, motor_thrust_N=delivered_thrust_N(tmap, motor, lim))
                 source = "pwm"
             else:
                 why = "its logs hold no PWM/Vbat columns" if not log.has_pwm else "no thrust map for its type"
@@ -224,8 +245,8 @@ def load_units(
                 if note not in notes:
                     notes.append(note)
             exclusions[entry.name][v.name] = flight.exclusions[v.name].to_dict() | {
-                "kept_samples": len(log), "saturated_samples": n_sat, "thrust_source": source,
-                "scored": v.score}  # fmt: skip
+                "kept_samples": len(log), "saturated_samples": n_sat, "floored_samples": n_floor,
+                "thrust_source": source, "scored": v.score}  # fmt: skip
             veh = flight.vehicles[v.name]
             meas = measure_log(veh, log, options=measure_options_for(options.measure, veh, manifest.motor_thrust))
             z_b = Rotation.from_quat(log.quat_xyzw).apply(np.array([0.0, 0.0, 1.0]))
@@ -254,6 +275,7 @@ def load_units(
                     scored=v.score,
                     position_m=log.position_m,
                     planes=manifest.planes,
+                    motor_limit=limit_bits,
                 )
             )
     return LoadedData(units=units, exclusions=exclusions, types=types, thrust_maps=dict(thrust_maps), notes=notes)
@@ -264,11 +286,14 @@ def measurement_summary(thrust_maps: dict, exclusions: dict, notes: list[str]) -
     per: dict[str, dict[str, Any]] = {}
     for per_flight in exclusions.values():
         for name, e in per_flight.items():
-            d = per.setdefault(name, {"saturated_samples": 0, "n_samples": 0, "thrust_source": e["thrust_source"]})
+            d = per.setdefault(name, {"saturated_samples": 0, "floored_samples": 0, "n_samples": 0,
+                                      "thrust_source": e["thrust_source"]})  # fmt: skip
             d["saturated_samples"] += e["saturated_samples"]
+            d["floored_samples"] += e.get("floored_samples", 0)
             d["n_samples"] += e["kept_samples"]
     for d in per.values():
         d["saturated_fraction"] = d["saturated_samples"] / d["n_samples"] if d["n_samples"] else 0.0
+        d["floored_fraction"] = d["floored_samples"] / d["n_samples"] if d["n_samples"] else 0.0
     return {"thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()}, "saturation": per, "notes": list(notes)}
 
 
@@ -305,6 +330,7 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             force_N=cat("force_N"), torque_Nm=cat("torque_Nm"),
             position_m=None if any(u.position_m is None for u in us) else cat("position_m"),
             planes=us[0].planes if all(u.planes == us[0].planes for u in us) else (),
+            motor_limit=None if any(u.motor_limit is None for u in us) else cat("motor_limit"),
         ))  # fmt: skip
     return out
 

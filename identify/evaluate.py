@@ -43,7 +43,7 @@ from proxplan.identify.measure import DERIVATIVES, MeasureOptions
 from proxplan.identify.thrust_map import ThrustMap
 from proxplan.physics import CalibratedModel
 
-SPLITS = ("test", "train", "all")
+SPLITS = ("test", "validation", "train", "all")
 REGIONS = ("free", "below_source", "below_within_3L", "below_beyond_3L", "stack")
 
 
@@ -114,12 +114,50 @@ def saved_model(model: Model, measure: MeasureOptions, thrust_maps: Mapping[str,
 
 OVERHEAD_COUNTS = ("0", "1", "2+")
 """Labels of the per-sources-overhead report."""
+AUTHORITY_STATES = ("in_range", "at_limit", "knocked_down")
+"""Labels of the per-authority-state report (:func:`authority_masks`), one per sample."""
+LIMIT_NEIGHBOURHOOD_S = 0.2
+"""A sample is ``at_limit`` when some motor of the vehicle is at its floor or ceiling within this time, s."""
+KNOCKED_DOWN_HEIGHT_M = 0.25
+"""``knocked_down``: rotor plane below this height above the ground with a source overhead, m (the
+swaps' lowest vehicle flies at 0.35-0.45 m; below 0.25 m it has been pushed down)."""
+GRAMS_PER_N = 1000.0 / 9.80665
+"""Grams-force per newton (the paper's unit of the disturbance), g/N."""
 
 
 def overhead_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
     """Per sample of ``u``, one mask per :data:`OVERHEAD_COUNTS` label."""
     above, _ = sources_overhead(u, vehicles)
     return {"0": above == 0, "1": above == 1, "2+": above >= 2}
+
+
+def near_in_time(t_s: np.ndarray, flag: np.ndarray, within_s: float) -> np.ndarray:
+    """(N,) bool: some sample with ``flag`` (N,) lies within ``within_s`` (s) of each sample of the
+    increasing clock ``t_s`` (N,)."""
+    t_flag = t_s[flag]
+    if t_flag.size == 0:
+        return np.zeros(len(t_s), dtype=bool)
+    i = np.clip(np.searchsorted(t_flag, t_s), 1, t_flag.size)  # neighbours t_flag[i-1] <= t < t_flag[i]
+    before = np.abs(t_s - t_flag[i - 1])
+    after = np.abs(t_flag[np.minimum(i, t_flag.size - 1)] - t_s)
+    return np.minimum(before, after) <= within_s
+
+
+def authority_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """Per sample of ``u``, one mask per :data:`AUTHORITY_STATES` label (a partition):
+
+    * ``knocked_down`` — rotor plane below :data:`KNOCKED_DOWN_HEIGHT_M` with a source overhead (r < 3 L);
+    * ``at_limit`` — else, some motor at its floor or ceiling within +-:data:`LIMIT_NEIGHBOURHOOD_S`
+      (:attr:`Unit.motor_limit`; logs without PWM have none);
+    * ``in_range`` — the rest: every motor inside its range, the vehicle not pushed down.
+    """
+    above, _ = sources_overhead(u, vehicles)
+    knocked = (above > 0) & (u.height_above_ground_m < KNOCKED_DOWN_HEIGHT_M)
+    if u.motor_limit is None:
+        limit = np.zeros(len(u), dtype=bool)
+    else:
+        limit = near_in_time(u.t_s, u.motor_limit > 0, LIMIT_NEIGHBOURHOOD_S) & ~knocked
+    return {"in_range": ~knocked & ~limit, "at_limit": limit, "knocked_down": knocked}
 
 
 def region_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
@@ -161,6 +199,8 @@ class EvaluationResult:
     sets: dict[str, _Acc]  # per experiment set (manifest flight key ``set``)
     overhead: dict[str, _Acc]  # per OVERHEAD_COUNTS label
     set_overhead: dict[str, dict[str, _Acc]]  # set -> overhead label -> errors
+    authority: dict[str, _Acc]  # per AUTHORITY_STATES label
+    set_authority: dict[str, dict[str, _Acc]]  # set -> authority state -> errors
     n_rows: int
     exclusions: dict
     notes: list[str]
@@ -172,17 +212,25 @@ class EvaluationResult:
         o = self.overall
         return {
             "rmse_fz_N": o.rmse(o.sse_fz),
+            "rmse_fz_g": _short(o)["rmse_fz_g"],
+            "ratio_fz": _short(o)["ratio_fz"],
             "rmse_torque_Nm": o.rmse(o.sse_tq),
             "n_samples": o.n,
             "n_rows": self.n_rows,
             "scored_fraction": o.n / self.n_rows if self.n_rows else None,
-            "no_model": {"rmse_fz_N": o.rmse(o.sse_fz0), "rmse_torque_Nm": o.rmse(o.sse_tq0)},
+            "no_model": {
+                "rmse_fz_N": o.rmse(o.sse_fz0),
+                "rmse_fz_g": _short(o)["no_model_rmse_fz_g"],
+                "rmse_torque_Nm": o.rmse(o.sse_tq0),
+            },
             "flights": {k: _short(a) for k, a in self.flights.items()},
             "per_vehicle": {k: _short(a) for k, a in self.per_vehicle.items()},
             "regions": {k: _short(a) for k, a in self.regions.items()},
             "sets": {k: _short(a) for k, a in self.sets.items()},
             "overhead": {k: _short(a) for k, a in self.overhead.items()},
             "set_overhead": {k: {c: _short(a) for c, a in d.items()} for k, d in self.set_overhead.items()},
+            "authority": _shares(self.authority, o),
+            "set_authority": {k: _shares(d, _total(d)) for k, d in self.set_authority.items()},
             "split": self.split,
             "exclusions": self.exclusions,
             "measurement": self.measurement,
@@ -193,7 +241,25 @@ class EvaluationResult:
 def _short(a: _Acc) -> dict[str, Any]:
     fz, fz0 = a.rmse(a.sse_fz), a.rmse(a.sse_fz0)
     ratio = fz / fz0 if fz is not None and fz0 else None
-    return {"rmse_fz_N": fz, "no_model_rmse_fz_N": fz0, "ratio_fz": ratio, "n_samples": a.n}
+    return {"rmse_fz_N": fz, "no_model_rmse_fz_N": fz0, "ratio_fz": ratio, "n_samples": a.n,
+            "rmse_fz_g": None if fz is None else fz * GRAMS_PER_N,
+            "no_model_rmse_fz_g": None if fz0 is None else fz0 * GRAMS_PER_N}  # fmt: skip
+
+
+def _shares(groups: Mapping[str, _Acc], total: _Acc) -> dict[str, dict[str, Any]]:
+    """:func:`_short` of each group plus its share of the samples and of the squared F_z error."""
+    return {k: _short(a) | {"share_of_samples": a.n / total.n if total.n else None,
+                            "share_of_sq_error": a.sse_fz / total.sse_fz if total.sse_fz else None}
+            for k, a in groups.items()}  # fmt: skip
+
+
+def _total(groups: Mapping[str, _Acc]) -> _Acc:
+    out = _Acc()
+    for a in groups.values():
+        out.n += a.n
+        out.sse_fz += a.sse_fz
+        out.sse_fz0 += a.sse_fz0
+    return out
 
 
 def _rows(e: Mapping[str, Any]) -> int:
@@ -243,6 +309,8 @@ def evaluate_model(
     sets: dict[str, _Acc] = {}
     overhead = {c: _Acc() for c in OVERHEAD_COUNTS}
     set_overhead: dict[str, dict[str, _Acc]] = {}
+    authority = {c: _Acc() for c in AUTHORITY_STATES}
+    set_authority: dict[str, dict[str, _Acc]] = {}
     for u in units:
         f, t = predict(u, m)
         dfz, dtq = u.force_N[:, 2] - f[:, 2], np.linalg.norm(u.torque_Nm - t, axis=1)
@@ -256,10 +324,14 @@ def evaluate_model(
         for c, mask in overhead_masks(u, vehicles).items():
             for acc in (overhead[c], per_set[c]):
                 acc.add(dfz[mask], dtq[mask], fz0[mask], tq0[mask])
+        per_set_auth = set_authority.setdefault(set_of[u.flight], {c: _Acc() for c in AUTHORITY_STATES})
+        for c, mask in authority_masks(u, vehicles).items():
+            for acc in (authority[c], per_set_auth[c]):
+                acc.add(dfz[mask], dtq[mask], fz0[mask], tq0[mask])
     n_rows = sum(_rows(e) for per in data.exclusions.values() for e in per.values() if e["scored"])
     return EvaluationResult(
         split=split, overall=overall, flights=flights, per_vehicle=per_vehicle, regions=regions, sets=sets,
-        overhead=overhead, set_overhead=set_overhead, n_rows=n_rows,
+        overhead=overhead, set_overhead=set_overhead, authority=authority, set_authority=set_authority, n_rows=n_rows,
         exclusions=data.exclusions, notes=notes, measurement=measurement_summary(data.thrust_maps, data.exclusions, []),
         units=units, model=m,
     )  # fmt: skip

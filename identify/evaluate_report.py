@@ -14,8 +14,8 @@ import numpy as np
 
 from proxplan.fileio import atomic_write_text, save_figure
 from proxplan.identify.data import predict
-from proxplan.identify.evaluate import OVERHEAD_COUNTS, EvaluationResult
-from proxplan.identify.report import exclusion_lines
+from proxplan.identify.evaluate import AUTHORITY_STATES, OVERHEAD_COUNTS, EvaluationResult
+from proxplan.identify.report import exclusion_lines, limit_lines
 
 
 def _bars(ax, rows: Mapping[str, dict], title: str) -> None:
@@ -92,20 +92,46 @@ def _ratio(a: float | None, b: float | None) -> str:
     return "n/a" if a is None or not b else f"{a / b:.2f}"
 
 
+def _g(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.2f}"
+
+
+def authority_lines(doc: Mapping) -> list[str]:
+    """The per-authority-state table (``authority`` and ``set_authority`` of the evaluate JSON):
+    absolute RMSE in grams beside every ratio (a ratio alone hides a no-model error that moves)."""
+    lines = ["## Per authority state", "",
+             "`in_range`: every motor inside its range and the vehicle not pushed down; `at_limit`: some motor "
+             "at its floor or ceiling within +-0.2 s; `knocked_down`: below 0.25 m with a source overhead. "
+             "Cells: RMSE F_z in g, ratio to no model, samples (share of the squared error).", "",
+             "| set | " + " | ".join(AUTHORITY_STATES) + " |", "|---|" + "---|" * len(AUTHORITY_STATES)]  # fmt: skip
+
+    def cell(r: Mapping) -> str:
+        share = r.get("share_of_sq_error")
+        return (f"{_g(r['rmse_fz_g'])} g, {_ratio(r['rmse_fz_N'], r['no_model_rmse_fz_N'])} ({r['n_samples']}"
+                + ("" if share is None else f", {share:.0%}") + ")")  # fmt: skip
+
+    for k, per in doc["set_authority"].items():
+        lines.append(f"| {k} | " + " | ".join(cell(per[c]) for c in AUTHORITY_STATES) + " |")
+    lines.append("| **all** | " + " | ".join(cell(doc["authority"][c]) for c in AUTHORITY_STATES) + " |")
+    return lines + [""]
+
+
 def markdown(result: EvaluationResult, *, manifest: str, model: str, plots: list[Path]) -> str:
     doc = result.to_json()
     lines = [f"# proxplan evaluate — {model} on {manifest} ({result.split} flights)", "",
-             "| | RMSE F_z [N] | RMSE torque [N m] |", "|---|---|---|",
-             f"| saved model | {_f(doc['rmse_fz_N'])} | {_f(doc['rmse_torque_Nm'])} |",
-             f"| no model (zero disturbance) | {_f(doc['no_model']['rmse_fz_N'])} | {_f(doc['no_model']['rmse_torque_Nm'])} |",
+             "| | RMSE F_z [N] | RMSE F_z [g] | RMSE torque [N m] |", "|---|---|---|---|",
+             f"| saved model | {_f(doc['rmse_fz_N'])} | {_g(doc['rmse_fz_g'])} | {_f(doc['rmse_torque_Nm'])} |",
+             f"| no model (zero disturbance) | {_f(doc['no_model']['rmse_fz_N'])} | {_g(doc['no_model']['rmse_fz_g'])} "
+             f"| {_f(doc['no_model']['rmse_torque_Nm'])} |",
              "", f"Samples scored: {doc['n_samples']} of {doc['n_rows']} log rows "
              f"({_ratio(doc['n_samples'], doc['n_rows'])}); the rest failed the quality checks (see below).", ""]  # fmt: skip
-    for title, rows in (("Per flight", doc["flights"]), ("Per vehicle", doc["per_vehicle"]),
+    lines += authority_lines(doc)
+    for title, rows in (("Per set", doc["sets"]), ("Per flight", doc["flights"]), ("Per vehicle", doc["per_vehicle"]),
                         ("Per region", doc["regions"])):  # fmt: skip
-        lines += [f"## {title}", "", "| | RMSE F_z [N] | no model [N] | ratio | samples |", "|---|---|---|---|---|"]
+        lines += [f"## {title}", "", "| | RMSE F_z [g] | no model [g] | ratio | samples |", "|---|---|---|---|---|"]
         for k, r in rows.items():
             ratio = _ratio(r["rmse_fz_N"], r["no_model_rmse_fz_N"])
-            lines.append(f"| {k} | {_f(r['rmse_fz_N'])} | {_f(r['no_model_rmse_fz_N'])} | {ratio} | {r['n_samples']} |")
+            lines.append(f"| {k} | {_g(r['rmse_fz_g'])} | {_g(r['no_model_rmse_fz_g'])} | {ratio} | {r['n_samples']} |")
         lines.append("")
     lines += ["## Per set and number of sources overhead", "",
               "RMSE F_z as a ratio to no model (samples); overhead = sources above within r < 3 L.", "",
@@ -125,9 +151,7 @@ def markdown(result: EvaluationResult, *, manifest: str, model: str, plots: list
               "(outside the field model's zone, S0 II-A), `below_beyond_3L` = the rest; `stack` = two or more "
               "sources above; `free` = none.", ""]  # fmt: skip
     sat = doc["measurement"]["saturation"]
-    lines += ["## Measurement", "", "| vehicle | thrust from | saturated samples | share |", "|---|---|---|---|"]
-    for k, s in sat.items():
-        lines.append(f"| {k} | {s['thrust_source']} | {s['saturated_samples']} | {s['saturated_fraction']:.3f} |")
+    lines += ["## Measurement", ""] + limit_lines(sat)
     lines += [""] + [f"- note: {n}" for n in result.notes]
     lines += ["", "## Excluded samples (quality checks)", ""]
     lines += exclusion_lines(result.exclusions)

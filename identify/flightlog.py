@@ -70,6 +70,8 @@ class QualityOptions:
     ground_clearance_m: float = 0.03  # samples closer to the ground are ground contact, m
     min_thrust_fraction: float = 0.3  # total motor thrust below this x weight: motors idle/ground, -
     min_overlap_s: float = 1.0  # vehicles of a flight must share at least this much time, s
+    impact_speed_mps: float = 0.3  # a ground contact entered descending faster than this is an impact, m/s
+    impact_guard_s: float = 0.1  # samples this close (in time) to an impact are excluded too, s
 
 
 @dataclass(frozen=True)
@@ -81,20 +83,26 @@ class Exclusions:
     short_segment_samples: int = 0
     ground_samples: int = 0
     outside_overlap_samples: int = 0
+    impact_samples: int = 0  # airborne samples within impact_guard_s of a ground impact
+    impacts: int = 0  # ground contacts entered faster than impact_speed_mps (counted, not samples)
 
     def total(self) -> int:
-        return self.nan_rows + self.short_segment_samples + self.ground_samples + self.outside_overlap_samples
+        return (self.nan_rows + self.short_segment_samples + self.ground_samples + self.outside_overlap_samples
+                + self.impact_samples)  # fmt: skip
 
     def __add__(self, other: Exclusions) -> Exclusions:
         return Exclusions(*(a + b for a, b in zip(_fields(self), _fields(other))))
 
     def to_dict(self) -> dict[str, int]:
-        return dict(zip(("nan_rows", "gap_segments", "short_segment_samples", "ground_samples",
-                         "outside_overlap_samples"), _fields(self)))  # fmt: skip
+        return dict(zip(_FIELD_NAMES, _fields(self)))
+
+
+_FIELD_NAMES = ("nan_rows", "gap_segments", "short_segment_samples", "ground_samples", "outside_overlap_samples",
+                "impact_samples", "impacts")  # fmt: skip
 
 
 def _fields(e: Exclusions) -> tuple[int, ...]:
-    return (e.nan_rows, e.gap_segments, e.short_segment_samples, e.ground_samples, e.outside_overlap_samples)
+    return tuple(getattr(e, k) for k in _FIELD_NAMES)
 
 
 @dataclass(frozen=True)
@@ -243,6 +251,37 @@ def write_canonical_csv(log: VehicleLog, path: str | Path) -> Path:
     return atomic_write_bytes(path, payload)
 
 
+def impact_guard(
+    t_s: np.ndarray, v_z_mps: np.ndarray, on_ground: np.ndarray, options: QualityOptions
+) -> tuple[np.ndarray, int]:
+    """Samples near a ground IMPACT (N,) bool, and the number of impacts.
+
+    An impact is a ground contact (``on_ground`` (N,) bool, a run of it) entered descending faster than
+    ``options.impact_speed_mps`` (m/s, world z up: ``v_z_mps`` (N,)) at some time within
+    ``options.impact_guard_s`` before it. The samples within ``impact_guard_s`` before its first and
+    after its last contact sample are guarded: the contact's force reaches them through the
+    motion-capture latency and the measurement's smoothing window, and a bounce must not be smoothed
+    into the flight around it. Slow touch-downs and take-offs are no impacts (nothing guarded).
+    """
+    n = len(t_s)
+    guard = np.zeros(n, dtype=bool)
+    if n == 0 or not on_ground.any():
+        return guard, 0
+    edges = np.diff(np.concatenate([[0], on_ground.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # runs [start, stop)
+    impacts = 0
+    for a, b in zip(starts, stops):
+        if a == 0:
+            continue  # the log starts on the ground: a take-off
+        before = (t_s >= t_s[a] - options.impact_guard_s) & (np.arange(n) < a)
+        if not np.any(v_z_mps[before] < -options.impact_speed_mps):
+            continue
+        impacts += 1
+        guard |= before
+        guard |= (np.arange(n) >= b) & (t_s <= t_s[b - 1] + options.impact_guard_s)
+    return guard, impacts
+
+
 def check_log(
     log: VehicleLog, *, weight_N: float, ground_z_m: float = 0.0, options: QualityOptions = QualityOptions()
 ) -> tuple[VehicleLog, Exclusions]:
@@ -275,11 +314,16 @@ def check_log(
     log = log.take(finite)
     if len(log) < 2:
         raise UserError(f"{log.source}: fewer than 2 usable rows (NaN rows: {nan_rows})")
-    # ground contact / idle motors (before segmenting, so they split segments too)
-    airborne = (log.position_m[:, 2] - ground_z_m > options.ground_clearance_m) & (
-        log.motor_thrust_N.sum(axis=1) > options.min_thrust_fraction * weight_N
+    # ground contact / idle motors (before segmenting, so they split segments too); a motor asked for a
+    # negative force is off (its floor), so the idle test sums the desired forces clipped at zero
+    on_ground = log.position_m[:, 2] - ground_z_m <= options.ground_clearance_m
+    airborne = ~on_ground & (
+        np.clip(log.motor_thrust_N, 0.0, None).sum(axis=1) > options.min_thrust_fraction * weight_N
     )
     ground = int((~airborne).sum())
+    guard, n_impacts = impact_guard(log.t_s, log.velocity_mps[:, 2], on_ground, options)
+    guard &= airborne
+    airborne &= ~guard
     # segments: a new one starts after every gap and every excluded stretch
     step = np.diff(log.t_s)
     breaks = np.concatenate([[True], (step > options.max_gap_s)])
@@ -299,7 +343,8 @@ def check_log(
         log = log.take(keep)
         _, seg = np.unique(log.segment, return_inverse=True)
         log = replace(log, segment=seg)
-    return log, Exclusions(nan_rows=nan_rows, gap_segments=gaps, short_segment_samples=short, ground_samples=ground)
+    return log, Exclusions(nan_rows=nan_rows, gap_segments=gaps, short_segment_samples=short, ground_samples=ground,
+                           impact_samples=int(guard.sum()), impacts=n_impacts)  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------- manifest
@@ -316,10 +361,16 @@ class VehicleEntry:
     score: bool = True  # False: the log is a downwash source for the others only, never scored
 
 
+FLIGHT_SPLITS = ("train", "validation", "test")
+"""What a flight is for (manifest key ``split``): TRAIN flights fit every parameter; VALIDATION flights
+(optional; best another day's) choose what to keep — effects, the stack's eta, discovered terms —
+and fit nothing; TEST flights only report."""
+
+
 @dataclass(frozen=True)
 class FlightEntry:
     name: str
-    split: str  # "train" or "test"
+    split: str  # one of FLIGHT_SPLITS
     vehicles: tuple[VehicleEntry, ...]
     set: str = ""  # experiment set the flight belongs to (reports per set); default: name without a trailing _<run>
 
@@ -404,8 +455,8 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
             raise UserError(f"{fw}.name: duplicate flight name {name!r}")
         seen.add(name)
         split = _need(fl, "split", fw, str)
-        if split not in ("train", "test"):
-            raise UserError(f"{fw}.split: expected train or test, got {split!r}")
+        if split not in FLIGHT_SPLITS:
+            raise UserError(f"{fw}.split: expected {', '.join(FLIGHT_SPLITS)}, got {split!r}")
         vraw = _need(fl, "vehicles", fw, Mapping)
         entries = []
         for vname, v in vraw.items():
@@ -428,7 +479,7 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
     splits = {f.split for f in flights}
     if not any(v.score for f in flights for v in f.vehicles):
         raise UserError(f"{where}: flights: every vehicle says 'score: false'; at least one must be scored")
-    if require_train_and_test and splits != {"train", "test"}:
+    if require_train_and_test and not {"train", "test"} <= splits:
         raise UserError(f"{where}: flights: need at least one train and one test flight, got {sorted(splits)}")
     motor_thrust = doc.get("motor_thrust", DEFAULT_MOTOR_THRUST.get(fmt, "commanded"))
     if motor_thrust not in MOTOR_THRUSTS:

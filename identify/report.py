@@ -134,6 +134,17 @@ def exclusion_lines(exclusions: dict) -> list[str]:
     return lines
 
 
+def limit_lines(saturation: dict) -> list[str]:
+    """Markdown table of the samples with a motor at its ceiling / floor per vehicle (the
+    ``measurement.saturation`` JSON of :func:`proxplan.identify.data.measurement_summary`)."""
+    lines = ["| vehicle | thrust from | at the ceiling (samples, share) | at the floor (samples, share) |",
+             "|---|---|---|---|"]  # fmt: skip
+    for name, s in saturation.items():
+        lines.append(f"| {name} | {s['thrust_source']} | {s['saturated_samples']} ({s['saturated_fraction']:.3f}) | "
+                     f"{s['floored_samples']} ({s['floored_fraction']:.3f}) |")  # fmt: skip
+    return lines
+
+
 def _fmt(x: float | None, digits: int = 4) -> str:
     return "n/a" if x is None else f"{x:.{digits}g}"
 
@@ -154,12 +165,8 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     for name, pv in result.per_vehicle.items():
         lines.append(f"| {name} | {_fmt(pv['rmse_fz_N_before'])} | {_fmt(pv['rmse_fz_N_calibrated'])} | "
                      f"{_fmt(pv['rmse_fz_N_after'])} | {pv['n_samples']} |")  # fmt: skip
-    lines += ["", "## Measurement (delivered motor thrust)", "", "| vehicle | thrust from | saturated samples | share |",
-              "|---|---|---|---|"]  # fmt: skip
-    for name, sat in result.measurement_json()["saturation"].items():
-        lines.append(
-            f"| {name} | {sat['thrust_source']} | {sat['saturated_samples']} | {sat['saturated_fraction']:.3f} |"
-        )
+    lines += ["", "## Measurement (delivered motor thrust)", ""]
+    lines += limit_lines(result.measurement_json()["saturation"])
     lines.append("")
     for t, m in result.thrust_maps.items():
         lines.append(f"- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "

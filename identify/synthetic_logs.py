@@ -18,8 +18,11 @@ from proxplan.identify.flightlog import VehicleLog
 
 @dataclass(frozen=True)
 class SyntheticMotor:
-    """A firmware-like motor: delivered thrust P(x) = c1 x + c2 x^2 (N) of x = pwm * Vbat (V), capped
-    at ``max_thrust_N``; past the cap the desired u[N] grows by ``windup`` times the shortfall."""
+    """A firmware-like motor: delivered thrust P(x) = c1 x + c2 x^2 (N) of x = pwm * Vbat (V), within
+    0..``ceiling_N`` (the lower of ``max_thrust_N`` and what the top PWM ``pwm_max`` gives at the
+    battery's voltage: a low battery lowers the ceiling). Past either limit the desired u[N] runs on by
+    ``windup`` times the shortfall: above the ceiling, and below zero (PWM 0, the motor off) when the
+    controller asks for a negative force."""
 
     c1_NpV: float = 0.01
     c2_NpV2: float = 0.01
@@ -27,9 +30,14 @@ class SyntheticMotor:
     windup: float = 3.0  # -
     vbat_start_V: float = 4.1
     vbat_end_V: float = 3.6
+    pwm_max: float = 1.0  # top PWM (normalised), -
 
     def thrust_N(self, x_V: np.ndarray) -> np.ndarray:
         return self.c1_NpV * x_V + self.c2_NpV2 * x_V**2
+
+    def ceiling_N(self, vbat_V: np.ndarray) -> np.ndarray:
+        """Most a motor delivers at battery voltages ``vbat_V`` (N,), N."""
+        return np.minimum(self.max_thrust_N, self.thrust_N(self.pwm_max * np.asarray(vbat_V)))
 
     def pwm_of(self, thrust_N: np.ndarray, vbat_V: np.ndarray) -> np.ndarray:
         """PWM (0..1) that makes ``thrust_N`` (N, 4) at battery voltages ``vbat_V`` (N,)."""
@@ -60,9 +68,10 @@ def synthetic_logs(
     force) reads (T z + F) / m plus white noise ``accel_noise_mps2``. So the S0-11/S0-13 measurement
     returns the truth wrench (up to noise and smoothing). Gyro zero (level, no yaw rate).
 
-    With ``motor`` the logs also hold PWM and Vbat (:class:`SyntheticMotor`) and the motors
-    saturate: each delivers min(demand, max), the accelerometer sees the DELIVERED thrust, and the
-    logged u[N] is the firmware-like desired force, which keeps growing past the maximum.
+    With ``motor`` the logs also hold PWM and Vbat (:class:`SyntheticMotor`) and the motors meet
+    their limits: each delivers the demand clipped to 0..ceiling (the ceiling falls with the battery),
+    the accelerometer sees the DELIVERED thrust, and the logged u[N] is the firmware-like desired force,
+    which runs on past the ceiling and below zero (PWM 0).
 
     This is a measurement-level generator (no rigid-body simulation): for closed-loop flights use
     the simulator (flightsim).
@@ -114,11 +123,10 @@ def synthetic_logs(
             thrusts = motor_command_for_N(thrusts, float(np.median(np.diff(t_s))), motor_time_constant_s)
         logged = thrusts
         if motor is not None:
-            delivered = np.minimum(thrusts, motor.max_thrust_N)
-            logged = np.where(
-                thrusts > motor.max_thrust_N, thrusts + motor.windup * (thrusts - motor.max_thrust_N), thrusts
-            )
             vbat = np.linspace(motor.vbat_start_V, motor.vbat_end_V, n)
+            cap = motor.ceiling_N(vbat)[:, None]
+            delivered = np.clip(thrusts, 0.0, cap)
+            logged = thrusts + motor.windup * (thrusts - delivered)  # runs on past the ceiling and below zero
             pwm = motor.pwm_of(delivered, vbat)
             collective = delivered.sum(axis=1)  # what the motors give (level flight: along world z)
         spec = force.copy()

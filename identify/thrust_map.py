@@ -1,22 +1,28 @@
-"""Delivered motor thrust from PWM and battery voltage (saturation-aware), per vehicle type.
+"""Delivered motor thrust from PWM and battery voltage at both motor limits, per vehicle type.
 
 The Neural-Swarm logs hold, per motor, the firmware's *desired* force ``u[N]`` and the PWM command it
 sent (normalised 0..1), plus the battery voltage. The firmware turns a desired force into PWM with a
-voltage-compensated static map, so while a motor is not saturated
+voltage-compensated static map, so while a motor is inside its range
 
     u_N = P(x),    x = pwm * Vbat  (V, the mean voltage across the motor)
 
 with P a cubic (the firmware's own thrust map is a polynomial in PWM and Vbat; the Crazyflie 2.0
-map of Förster 2015, eq. 3.3, is a quadratic in PWM at fixed voltage). When a motor saturates, PWM
-stops at its ceiling (on these logs x ~ 3.3 V) while ``u[N]`` keeps growing (up to ~10x what the
-motor can give): the S0-11 measurement with ``u[N]`` then reports a large downward "disturbance"
-that is not there. The force the motor *delivers* is P(min(x, x_max)): the same map, evaluated at
-the logged PWM and capped at the motor's maximum P(x_max).
+map of Foerster 2015, eq. 3.3, is a quadratic in PWM at fixed voltage). At both ends of the range the
+PWM stops and ``u[N]`` does not:
+
+* **ceiling** — PWM stops at its top (x ~ 3.3 V on a full battery, lower on a low one) while ``u[N]``
+  keeps growing (up to ~10x what the motor can give): read as thrust, it makes a false DOWNWARD force;
+* **floor** — PWM stops at 0 (the motor is off) while ``u[N]`` goes negative (down to -7 N on the
+  Neural-Swarm logs): read as thrust, it makes a false UPWARD force.
+
+The force a motor *delivers* is D(x) = clip(P(clip(x, 0, x_max)), 0, P(x_max)): the same map at the
+logged PWM, never below zero nor above the motor's maximum. :func:`motor_limits` flags where a motor
+is at a limit (``u[N]`` disagrees with its PWM there), :func:`delivered_thrust_N` puts D(x) there and
+keeps ``u[N]`` elsewhere.
 
 :func:`fit_thrust_map` fits P per vehicle type on TRAIN logs with ``numpy.polynomial`` least squares
-on samples where the motors are not saturated (x below the log's ceiling, then a robust refit
-without samples whose ``u[N]`` disagrees with their PWM); :func:`saturated_samples` flags samples
-where any motor's desired force exceeds what its PWM gives.
+on samples inside the range (PWM above the floor, x below the log's ceiling), then a robust refit
+without samples whose ``u[N]`` disagrees with their PWM.
 """
 
 from __future__ import annotations
@@ -36,19 +42,20 @@ MIN_INLIER_FRACTION = 0.8
 """At least this share of the unsaturated samples must agree with the map (robust fit) for it to be used, -."""
 CEILING_MARGIN_V = 0.05
 """Samples with pwm*Vbat within this of their log's ceiling are left out of the fit, V."""
-SATURATION_BAND_V = 0.2
-"""A motor can only be saturated with pwm*Vbat within this of the ceiling x_max (the per-log ceilings
-of the Neural-Swarm logs spread over ~0.15 V), V."""
-OVERSHOOT_REL = 0.1
-"""A saturated stretch must hold a desired force this fraction above the motor's maximum, -."""
+PWM_FLOOR = 1e-3
+"""A PWM at or below this (normalised, ~65 of 65536 counts) is the motor switched off: the floor, -."""
 SATURATION_REL = 0.02
-"""A motor is saturated when its desired force exceeds what its PWM delivers by this fraction (or by
-5 fit-RMS, whichever is larger), -."""
+"""A motor's desired force disagrees with its PWM when they differ by this fraction of the PWM's force
+(or by 5 fit-RMS, whichever is larger), -."""
+LIMIT_WINDOW_S = 1.0
+"""Half-width of the window in which a limit stretch must ask for a force the motor gives nowhere, s."""
+FLOOR, IN_RANGE, CEILING = -1, 0, 1
+"""Per-motor limit states of :func:`motor_limits`."""
 
 
 @dataclass(frozen=True)
 class ThrustMap:
-    """Per-motor delivered thrust f_N = P(min(x, x_max_V)), x = pwm * Vbat, P a cubic."""
+    """Per-motor delivered thrust f_N = P(clip(x, 0, x_max_V)) within 0..P(x_max_V), x = pwm * Vbat, P a cubic."""
 
     coef: tuple[float, ...]  # power-basis coefficients c0..c3 of P: N, N/V, N/V^2, N/V^3
     x_max_V: float  # saturation ceiling of pwm * Vbat (largest value seen in the fit logs), V
@@ -73,9 +80,12 @@ class ThrustMap:
         return float(Polynomial(self.coef)(self.x_max_V))
 
     def thrust_N(self, pwm: np.ndarray, vbat_V: np.ndarray) -> np.ndarray:
-        """Delivered per-motor thrust (N, 4), N, from PWM (N, 4) 0..1 and Vbat (N,) V, capped."""
-        x = np.minimum(np.asarray(pwm) * np.asarray(vbat_V)[:, None], self.x_max_V)
-        return np.clip(Polynomial(self.coef)(x), 0.0, None)
+        """Delivered per-motor thrust (N, 4), N, from PWM (N, 4) 0..1 and Vbat (N,) V, within 0..max."""
+        return self.thrust_at_N(np.asarray(pwm) * np.asarray(vbat_V)[:, None])
+
+    def thrust_at_N(self, x_V: np.ndarray) -> np.ndarray:
+        """Delivered thrust D(x) = P(clip(x, 0, x_max)) within 0..max, N, of x = pwm * Vbat (any shape), V."""
+        return np.clip(Polynomial(self.coef)(np.clip(x_V, 0.0, self.x_max_V)), 0.0, self.max_thrust_N)
 
     def to_dict(self) -> dict[str, Any]:
         return {"coef": [float(c) for c in self.coef], "x_max_V": self.x_max_V, "rms_N": self.rms_N,
@@ -110,15 +120,16 @@ class MotorSamples:
 def fit_thrust_map(logs: Sequence[MotorSamples], *, max_samples: int = 200_000) -> ThrustMap:
     """Fit P (cubic) on unsaturated samples of ``logs`` (one vehicle type, train flights).
 
-    Unsaturated: pwm*Vbat more than :data:`CEILING_MARGIN_V` below the log's own ceiling; then one
-    robust refit drops samples whose residual exceeds 5 robust sigma (a saturated motor's u[N]).
+    Inside the range: PWM above :data:`PWM_FLOOR` and pwm*Vbat more than :data:`CEILING_MARGIN_V` below
+    the log's own ceiling; then one robust refit drops samples whose residual exceeds 5 robust sigma
+    (a saturated motor's u[N]).
     """
     xs, us, ceilings = [], [], []
     for s in logs:
         x = s.pwm * s.vbat_V[:, None]
         ceiling = float(np.max(x))
         ceilings.append(ceiling)
-        ok = x < ceiling - CEILING_MARGIN_V
+        ok = (x < ceiling - CEILING_MARGIN_V) & (s.pwm > PWM_FLOOR)
         xs.append(x[ok])
         us.append(s.commanded_N[ok])
     x, u = np.concatenate(xs), np.concatenate(us)
@@ -142,44 +153,69 @@ def fit_thrust_map(logs: Sequence[MotorSamples], *, max_samples: int = 200_000) 
                      inlier_fraction=float(keep.mean()))  # fmt: skip
 
 
-def saturated_motors(thrust_map: ThrustMap, s: MotorSamples) -> np.ndarray:
-    """(N, 4) bool: the motor is saturated.
+def _runs_holding(mask: np.ndarray, hit: np.ndarray) -> np.ndarray:
+    """(N,) bool: the samples of every contiguous run of ``mask`` (N,) that holds a ``hit`` (N,)."""
+    if not mask.any():
+        return mask.copy()
+    run = np.cumsum(np.concatenate([[mask[0]], mask[1:] & ~mask[:-1]]))  # run id (valid where mask)
+    held = np.bincount(run[mask], weights=hit[mask], minlength=run.max() + 1) > 0
+    return mask & held[run]
 
-    A saturated stretch of one motor is a contiguous run of samples with PWM near its ceiling and the
-    desired force above what that PWM delivers (by :data:`SATURATION_REL` or 5 fit-RMS), in which the
-    desired force somewhere exceeds the motor's maximum by :data:`OVERSHOOT_REL` — something a force
-    the motor really produced never does (so a lagged *actual* thrust, as simulator logs hold, is
-    never taken for saturation).
+
+def motor_limits(thrust_map: ThrustMap, s: MotorSamples, *, dt_s: float = 0.01) -> np.ndarray:
+    """(N, 4) int8 per motor: :data:`FLOOR`, :data:`IN_RANGE` or :data:`CEILING`.
+
+    The desired force u disagrees with its PWM where |u - D(x)| exceeds :data:`SATURATION_REL` of D(x)
+    (or 5 fit-RMS). A contiguous stretch of one motor's samples with u above D(x) is at the CEILING
+    when it holds a u above what the motor delivers at ANY of its PWMs within +-:data:`LIMIT_WINDOW_S`
+    (D of the window's highest x, by the same tolerance); a stretch with u below D(x) is at the FLOOR
+    when it holds a u below D of the window's lowest x (PWM 0: any negative u). The top of the window
+    moves with the battery, so a motor stuck at a low battery's ceiling is found as one at a full
+    battery's, without a voltage band. A force the motor gives within the window is never a limit:
+    the PWM and u[N] logged a sample apart, or a lagged *actual* thrust (simulator logs, whose u follows
+    its PWM late and never leaves the range the PWM spans), are kept as they are. ``dt_s`` is the
+    sample time (s) the window is counted in.
     """
-    from_pwm = thrust_map.thrust_N(s.pwm, s.vbat_V)
-    tol = np.maximum(SATURATION_REL * from_pwm, 5.0 * thrust_map.rms_N)
-    at_ceiling = s.pwm * s.vbat_V[:, None] >= thrust_map.x_max_V - SATURATION_BAND_V
-    inconsistent = at_ceiling & (s.commanded_N - from_pwm > tol)
-    beyond = s.commanded_N > (1.0 + OVERSHOOT_REL) * thrust_map.max_thrust_N
-    out = np.zeros_like(inconsistent)
-    for k in range(inconsistent.shape[1]):
-        m = inconsistent[:, k]
-        if not m.any():
-            continue
-        run = np.cumsum(np.concatenate([[m[0]], m[1:] & ~m[:-1]]))  # run id (valid where m)
-        hit = np.bincount(run[m], weights=beyond[m, k], minlength=run.max() + 1) > 0
-        out[:, k] = m & hit[run]
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    u = s.commanded_N
+    x = s.pwm * s.vbat_V[:, None]
+    from_pwm = thrust_map.thrust_at_N(x)
+    size = 2 * max(1, int(round(LIMIT_WINDOW_S / dt_s))) + 1
+    top = thrust_map.thrust_at_N(maximum_filter1d(x, size=size, axis=0, mode="nearest"))
+    bottom = thrust_map.thrust_at_N(minimum_filter1d(x, size=size, axis=0, mode="nearest"))
+
+    def tol(f: np.ndarray) -> np.ndarray:
+        return np.maximum(SATURATION_REL * f, 5.0 * thrust_map.rms_N)
+
+    above, below = u - from_pwm > tol(from_pwm), from_pwm - u > tol(from_pwm)
+    ceiling_hit, floor_hit = u - top > tol(top), bottom - u > tol(bottom)
+    out = np.zeros(u.shape, dtype=np.int8)
+    for k in range(u.shape[1]):
+        out[_runs_holding(above[:, k], ceiling_hit[:, k]), k] = CEILING
+        out[_runs_holding(below[:, k], floor_hit[:, k]), k] = FLOOR
     return out
 
 
+def saturated_motors(thrust_map: ThrustMap, s: MotorSamples) -> np.ndarray:
+    """(N, 4) bool: the motor is at a limit, its ceiling or its floor (:func:`motor_limits`)."""
+    return motor_limits(thrust_map, s) != IN_RANGE
+
+
 def saturated_samples(thrust_map: ThrustMap, s: MotorSamples) -> np.ndarray:
-    """(N,) bool: some motor is saturated (:func:`saturated_motors`)."""
+    """(N,) bool: some motor is at a limit (:func:`motor_limits`)."""
     return np.any(saturated_motors(thrust_map, s), axis=1)
 
 
-def delivered_thrust_N(thrust_map: ThrustMap, s: MotorSamples) -> np.ndarray:
+def delivered_thrust_N(thrust_map: ThrustMap, s: MotorSamples, limits: np.ndarray | None = None) -> np.ndarray:
     """Per-motor delivered thrust (N, 4), N: the logged u[N] where it agrees with the PWM, and
-    P(min(x, x_max)) (the PWM's force, capped at the motor's maximum) where the motor saturates.
+    D(x) = P(clip(x, 0, x_max)) clipped to 0..max (the PWM's force) where the motor is at a limit
+    (``limits``: :func:`motor_limits`, computed when not given).
 
     Where u[N] and PWM agree they differ by the map's noise only (RMS ~1 % on the Neural-Swarm logs),
     and u[N] keeps the finer resolution (and, in simulator logs, the motor lag)."""
-    sat = saturated_motors(thrust_map, s)
-    return np.where(sat, thrust_map.thrust_N(s.pwm, s.vbat_V), s.commanded_N)
+    lim = motor_limits(thrust_map, s) if limits is None else limits
+    return np.where(lim != IN_RANGE, thrust_map.thrust_N(s.pwm, s.vbat_V), s.commanded_N)
 
 
 def fit_thrust_maps(samples: Mapping[str, Sequence[MotorSamples]]) -> dict[str, ThrustMap]:

@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("manifest", help="manifest YAML (DESIGN.md section 6); all-test manifests are valid")
     p.add_argument("--model", required=True, metavar="MODEL.yaml", help="saved model (identify --save-model)")
-    p.add_argument("--split", choices=("test", "train", "all"), default="test", help="flights to score (default test)")
+    p.add_argument("--split", choices=("test", "validation", "train", "all"), default="test", help="flights to score (default test)")
     p.add_argument("--out", required=True, help="output directory (created)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)

@@ -58,6 +58,13 @@ def test_round_trip_reproduces_identify_after(tmp_path: Path, capsys) -> None:
     assert ev["rmse_fz_N"] < 0.8 * ev["no_model"]["rmse_fz_N"]
     assert set(ev["per_vehicle"]) == {"a", "b"} and set(ev["flights"]) == {"f2"}
     assert ev["n_samples"] <= ev["n_rows"] and (tmp_path / "ev" / "flights.png").stat().st_size > 1000
+    # issue 29: samples split by authority state (a partition), each with grams beside the ratio
+    auth = ev["authority"]
+    assert set(auth) == {"in_range", "at_limit", "knocked_down"}
+    assert sum(a["n_samples"] for a in auth.values()) == ev["n_samples"] and auth["at_limit"]["n_samples"] > 50
+    assert auth["at_limit"]["rmse_fz_g"] == pytest.approx(auth["at_limit"]["rmse_fz_N"] * 1000 / 9.80665)
+    assert sum(a["share_of_sq_error"] for a in auth.values() if a["n_samples"]) == pytest.approx(1.0)
+    assert "## Per authority state" in (tmp_path / "ev" / "report.md").read_text()
     per = ident["per_vehicle"]
     assert set(per) == {"a", "b"} and all(
         {"rmse_fz_N_before", "rmse_fz_N_calibrated", "rmse_fz_N_after", "n_samples"} <= set(v) for v in per.values()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gzip
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,7 @@ from proxplan.fileio import UserError
 from proxplan.identify.flightlog import (
     NEURAL_SWARM_COLUMNS,
     FlightEntry,
+    QualityOptions,
     VehicleEntry,
     VehicleLog,
     check_log,
@@ -97,9 +99,33 @@ def test_nan_gap_and_ground_are_counted() -> None:
     bad = VehicleLog(t, pos, log.velocity_mps, acc, log.quat_xyzw, log.motor_thrust_N, log.gyro_radps)
     clean, ex = check_log(bad, weight_N=CF.weight_N, ground_z_m=0.0)
     assert ex.nan_rows == 3 and ex.ground_samples == 100 and ex.gap_segments >= 1
-    assert len(clean) == 400 - 3 - 100 - ex.short_segment_samples
+    assert len(clean) == 400 - 3 - 100 - ex.short_segment_samples - ex.impact_samples
     assert len(np.unique(clean.segment)) >= 2  # the gap splits the log
     assert np.all(np.isfinite(clean.as_table()))
+
+
+def _bounce(v_impact_mps: float, n: int = 300) -> VehicleLog:
+    """Falls at ``v_impact_mps`` onto the ground (z = 0) at sample 150, stays 5 samples, rises again."""
+    t = 0.01 * np.arange(n)
+    z = np.abs(t - 1.5) * v_impact_mps + 0.005
+    vz = np.where(t < 1.5, -v_impact_mps, v_impact_mps)
+    log = _log(n)
+    return replace(log, position_m=np.column_stack([0 * t, 0 * t, z]),
+                   velocity_mps=np.column_stack([0 * t, 0 * t, vz]))  # fmt: skip
+
+
+def test_ground_impact_is_guarded_and_splits_the_log() -> None:
+    """A fall onto the floor at 1 m/s: the samples within impact_guard_s of the contact are dropped
+    (the bounce's force spreads through the smoothing and the mocap latency), the log is split there;
+    a touch at 0.1 m/s (a landing) guards nothing."""
+    clean, ex = check_log(_bounce(1.0), weight_N=CF.weight_N)
+    guard_samples = 2 * int(round(QualityOptions().impact_guard_s / 0.01))
+    assert ex.impacts == 1 and abs(ex.impact_samples - guard_samples) <= 2, ex
+    assert len(np.unique(clean.segment)) == 2  # before and after the bounce
+    assert np.min(np.abs(clean.t_s - 1.5)) > QualityOptions().impact_guard_s - 0.005
+    slow, ex_slow = check_log(_bounce(0.1), weight_N=CF.weight_N)
+    assert ex_slow.impacts == 0 and ex_slow.impact_samples == 0
+    assert len(slow) == 300 - ex_slow.ground_samples - ex_slow.short_segment_samples
 
 
 def test_non_overlapping_flight_is_error_and_overlap_trimmed(tmp_path: Path) -> None:
@@ -141,10 +167,16 @@ def test_manifest_root_relative_to_file_and_errors(tmp_path: Path) -> None:
     man = load_manifest(sub / "m.yaml")
     assert man.flights[0].vehicles[0].log.resolve() == (tmp_path / "data" / "x.csv").resolve()
     assert man.flights[1].vehicles[0].ground_z_m == 0.05
-    doc["flights"][1]["split"] = "validation"
+    doc["flights"][1]["split"] = "valid"
     (sub / "m.yaml").write_text(yaml.safe_dump(doc))
     with pytest.raises(UserError, match=r"flights\[1\]\.split"):
         load_manifest(sub / "m.yaml")
+    doc["flights"].append(
+        {"name": "v", "split": "validation", "vehicles": {"x": {"type": "crazyflie-2.1", "log": "z.csv"}}}
+    )
+    doc["flights"][1]["split"] = "test"
+    (sub / "m.yaml").write_text(yaml.safe_dump(doc))
+    assert [f.split for f in load_manifest(sub / "m.yaml").flights] == ["train", "test", "validation"]
     doc["flights"][1]["split"] = "train"
     (sub / "m.yaml").write_text(yaml.safe_dump(doc))
     with pytest.raises(UserError, match="test"):
