@@ -2,8 +2,10 @@
 
 :func:`fit_parameters` is the generic bounded nonlinear least-squares fit with a one-sigma
 uncertainty from the Jacobian at the solution, cov = s^2 (J^T J)^+ with s^2 = 2 cost / (m - p)
-(the usual Gauss-Newton estimate; it assumes independent residuals of equal variance, so for
-autocorrelated flight data it is optimistic — read it as a lower bound). Parameters that end on a
+(the usual Gauss-Newton estimate). That estimate assumes independent residuals; flight samples a
+fraction of a second apart are not, so the standard deviations are widened by the AR(1) variance
+factor sqrt((1 + rho) / (1 - rho)) of the residual's lag-1 autocorrelation rho in sample order (rows
+of one flight are in time order; rho = 0 leaves them as they are). Parameters that end on a
 bound are flagged (``at_bound``) and held fixed in the covariance.
 
 :func:`apply_vehicle_parameters` puts calibrated values into a :class:`Vehicle` with
@@ -46,6 +48,16 @@ class CalibrationResult:
     success: bool
     message: str
     at_bound: tuple[bool, ...] = ()  # per parameter: ended on a bound (its std is then not meaningful)
+    std_inflation: float = 1.0  # AR(1) factor the Jacobian's std were widened by (residual autocorrelation), -
+
+    def interval_excludes(self, name: str, value: float = 0.0, *, z: float = 2.0) -> bool:
+        """Whether the parameter ``name``'s z-sigma interval excludes ``value`` (a parameter pinned on a
+        bound other than ``value`` does: the data push it out of its range, away from ``value``)."""
+        k = self.names.index(name)
+        v = float(self.values[k])
+        if self.at_bound and self.at_bound[k]:
+            return not np.isclose(v, value)
+        return bool(np.isfinite(self.std[k]) and abs(v - value) > z * float(self.std[k]))
 
     def as_dict(self) -> dict[str, float]:
         return dict(zip(self.names, (float(v) for v in self.values)))
@@ -93,10 +105,11 @@ def fit_parameters(
     col = np.linalg.norm(jac, axis=0)
     free = (~at_bound) & (col > 0.0)
     std = np.full(p, np.inf)
+    inflation = _ar1_inflation(sol.fun)
     if free.any():
         js = jac[:, free] / col[free]
         cov_s = s2 * np.linalg.pinv(js.T @ js)
-        std[free] = np.sqrt(np.clip(np.diag(cov_s), 0.0, None)) / col[free]
+        std[free] = inflation * np.sqrt(np.clip(np.diag(cov_s), 0.0, None)) / col[free]
     return CalibrationResult(
         names=names,
         values=sol.x,
@@ -106,7 +119,18 @@ def fit_parameters(
         success=bool(sol.success),
         message=str(sol.message),
         at_bound=tuple(bool(b) for b in at_bound),
+        std_inflation=inflation,
     )
+
+
+def _ar1_inflation(r: np.ndarray) -> float:
+    """sqrt((1 + rho) / (1 - rho)) of the lag-1 autocorrelation rho of ``r`` (1 when rho <= 0), -."""
+    r = np.asarray(r, dtype=float)
+    if r.size < 3 or not np.any(r):
+        return 1.0
+    rho = float(np.dot(r[1:], r[:-1]) / np.dot(r, r))
+    rho = min(rho, 0.99)
+    return float(np.sqrt((1.0 + rho) / (1.0 - rho))) if rho > 0.0 else 1.0
 
 
 def apply_vehicle_parameters(vehicle: Vehicle, **values: float) -> Vehicle:

@@ -47,8 +47,8 @@ class IdentifyOptions:
     effects: tuple[str, ...] = EFFECT_NAMES  # candidates to try
     extra_candidates: tuple[Effect, ...] = ()  # already-fitted terms (e.g. discovered), scored on validation as given
     min_gain: float = 0.05  # relative cut of a test RMSE an effect must bring to be kept, -
-    max_fit_samples: int = 2000  # train samples of the calibration fit
-    max_effect_fit_samples: int = 1000  # train samples per candidate-effect fit
+    max_fit_samples: int = 10000  # train samples of the calibration fit (stratified sample, identify.strata)
+    max_effect_fit_samples: int = 5000  # train samples per candidate-effect fit (stratified sample)
     max_eval_samples: int = 10000  # test samples per candidate score
     max_effects: int = 3  # at most this many effects are kept
     progress: bool = False  # tqdm bars on stderr
@@ -83,15 +83,15 @@ class Unit:
     scored: bool = True  # False: manifest 'score: false' (a downwash source only, never scored or fitted)
     position_m: np.ndarray | None = None  # (N, 3) own position, world frame (the log's), m
     planes: tuple = ()  # proxplan.physics.room.Plane of the manifest (place-in-room features)
-    motor_limit: np.ndarray | None = (
-        None  # (N,) uint8 bits: CEILING_BIT some motor at its ceiling, FLOOR_BIT at its floor
-    )
+    motor_limit: np.ndarray | None = None  # (N,) uint8 bits: CEILING_BIT / FLOOR_BIT, some motor at that limit
+    weight: np.ndarray | None = None  # (N,) sampling weight of a stratified sample (identify.strata), -
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
             self,
             position_m=None if self.position_m is None else self.position_m[idx],
             motor_limit=None if self.motor_limit is None else self.motor_limit[idx],
+            weight=None if self.weight is None else self.weight[idx],
             t_s=self.t_s[idx],
             velocity_mps=self.velocity_mps[idx],
             height_above_ground_m=self.height_above_ground_m[idx],
@@ -159,6 +159,8 @@ class LoadedData:
     types: dict[str, Vehicle]  # vehicle type name -> Vehicle
     thrust_maps: dict[str, ThrustMap]  # vehicle type -> PWM/Vbat thrust map used for the measurement
     notes: list[str]  # said once each (e.g. a fallback to the commanded u[N])
+    logs: dict = field(default_factory=dict)  # (flight, vehicle name) -> (Vehicle, cleaned log with the
+    # thrust the measurement takes before any motor lag): for proxplan.identify.motor_check
 
 
 def measure_options_for(options: MeasureOptions, vehicle: Vehicle, motor_thrust: str) -> MeasureOptions:
@@ -218,6 +220,7 @@ def load_units(
         thrust_maps = fit_thrust_maps(per_type)
     notes: list[str] = []
     units = []
+    logs: dict[tuple[str, str], tuple[Vehicle, VehicleLog]] = {}
     for entry, flight in progress_bar(flights, "measure", options.progress):
         exclusions[entry.name] = {}
         types_of = {v.name: v.type for v in entry.vehicles}
@@ -248,6 +251,7 @@ def load_units(
                 "kept_samples": len(log), "saturated_samples": n_sat, "floored_samples": n_floor,
                 "thrust_source": source, "scored": v.score}  # fmt: skip
             veh = flight.vehicles[v.name]
+            logs[(entry.name, v.name)] = (veh, log)
             meas = measure_log(veh, log, options=measure_options_for(options.measure, veh, manifest.motor_thrust))
             z_b = Rotation.from_quat(log.quat_xyzw).apply(np.array([0.0, 0.0, 1.0]))
             others = [o for o in entry.vehicles if o.name != v.name]
@@ -278,7 +282,8 @@ def load_units(
                     motor_limit=limit_bits,
                 )
             )
-    return LoadedData(units=units, exclusions=exclusions, types=types, thrust_maps=dict(thrust_maps), notes=notes)
+    return LoadedData(units=units, exclusions=exclusions, types=types, thrust_maps=dict(thrust_maps), notes=notes,
+                      logs=logs)  # fmt: skip
 
 
 def measurement_summary(thrust_maps: dict, exclusions: dict, notes: list[str]) -> dict[str, Any]:
@@ -331,6 +336,7 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             position_m=None if any(u.position_m is None for u in us) else cat("position_m"),
             planes=us[0].planes if all(u.planes == us[0].planes for u in us) else (),
             motor_limit=None if any(u.motor_limit is None for u in us) else cat("motor_limit"),
+            weight=None if any(u.weight is None for u in us) else cat("weight"),
         ))  # fmt: skip
     return out
 

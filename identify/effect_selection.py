@@ -1,21 +1,31 @@
 """Candidate effects of the identification pipeline: fit on train flights, select on VALIDATION flights.
 
 Stage 5 of :mod:`proxplan.identify.pipeline`: each candidate of :data:`proxplan.physics.effects.EFFECT_NAMES` is
-fitted on the fitting part of the train flights on top of the calibrated model and scored on the
-validation part (flights carved from the train flights, :func:`validation_split`); the greedy
-selection keeps what lowers the validation error. Test flights only report (each trial's test
-error is in the JSON), they never choose.
+fitted on the train flights (a stratified, weighted sample: :mod:`proxplan.identify.strata`) on top of
+the calibrated model and scored on the validation flights (the manifest's ``split: validation``
+flights, best another day's; else flights carved from the train flights, :func:`validation_split`).
+A candidate is kept only when
+
+* its gain holds on the validation flights: it cuts their F_z (or yaw) RMSE by ``min_gain`` without
+  making the other channel worse by more than 1 %, and
+* its parameters are identified: the 2-sigma interval of at least one of its strength parameters
+  (:data:`proxplan.physics.effects.EFFECT_STRENGTHS`, whose zero switches it off) excludes zero.
+
+The greedy search keeps the best such candidate per round; afterwards every kept effect must still
+bring ``min_gain`` on validation given all the others (else it is dropped as redundant). Every trial
+says why it was kept or rejected (``reason``). Test flights only report (each trial's test error is in
+the JSON), they never choose.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
-from proxplan.identify.calibrate import ParamSpec, fit_parameters
+from proxplan.identify.calibrate import CalibrationResult, ParamSpec, fit_parameters
 from proxplan.identify.data import (
     Errors,
     IdentifyOptions,
@@ -27,7 +37,8 @@ from proxplan.identify.data import (
     subsample,
     unit_inputs,
 )
-from proxplan.physics import PARAMETERS, Effect, base_wrench
+from proxplan.identify.strata import stratified_sample
+from proxplan.physics import EFFECT_STRENGTHS, PARAMETERS, Effect, base_wrench
 
 # ------------------------------------------------------------------------------ effects
 
@@ -42,12 +53,16 @@ class EffectTrial:
     gain_tz: float  # same for yaw torque, -
     selected: bool = False
     valid: Errors | None = None  # on the validation flights (what chose)
+    identified: bool = True  # some strength parameter's 2-sigma interval excludes zero
+    strengths: dict[str, Any] = field(default_factory=dict)  # param -> value, std, at_bound; amplitude_sigmas, pinned
+    reason: str = ""  # why it was kept or rejected
 
     def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "params": self.params, "rmse_fz_N": self.test.rmse_fz_N,
                 "rmse_torque_Nm": self.test.rmse_torque_Nm, "rmse_tz_Nm": self.test.rmse_tz_Nm,
                 "rmse_fz_N_validation": None if self.valid is None else self.valid.rmse_fz_N,
-                "gain_fz": self.gain_fz, "gain_tz": self.gain_tz, "round": self.round, "selected": self.selected}  # fmt: skip
+                "gain_fz": self.gain_fz, "gain_tz": self.gain_tz, "round": self.round, "selected": self.selected,
+                "identified": self.identified, "strengths": self.strengths, "reason": self.reason}  # fmt: skip
 
 
 def _initial_params(name: str, fit_units: Sequence[Unit], model: Model) -> dict[str, float]:
@@ -77,13 +92,20 @@ _START_GRID: dict[str, list[dict[str, float]]] = {
     "near_field": [{"decay_L": d, "amplitude": a} for d in (1.0, 3.0, 10.0) for a in (0.3, 1.0, 3.0)],
     "ground_effect": [{"gain_k": k} for k in (0.5, 2.0, 3.5)],
     "ground_jet": [{"decay_L": d, "amplitude_1": a} for d in (1.0, 4.0, 10.0) for a in (0.2, 0.6)],
+    "floor_stagnation": [{"decay_widths": d, "amplitude_1": a} for d in (0.3, 1.0, 3.0) for a in (0.3, 1.0)],
+    "climb_inflow": [{"gain_1": g} for g in (0.3, 2.0)],
 }
 """Extra start points per effect (parameters not named keep their defaults)."""
 
 
-def fit_effect(name: str, units: Sequence[Unit], model: Model, *, options: IdentifyOptions) -> tuple[Effect, Model]:
-    """Fit one candidate effect (and the thrust scales) on train ``units``; returns it and the model with it."""
-    fit_units = subsample(units, options.max_effect_fit_samples)
+def fit_effect(
+    name: str, units: Sequence[Unit], model: Model, *, options: IdentifyOptions
+) -> tuple[Effect, Model, CalibrationResult, float]:
+    """Fit one candidate effect (and the thrust scales) on train ``units`` (a stratified, weighted
+    sample of them); returns it, the model with it, the fit (values, widened standard deviations) and
+    the amplitude of its whole contribution in sigmas (see :func:`identification`)."""
+    fit_units = stratified_sample(units, options.max_effect_fit_samples, model.vehicles)
+    sw = np.sqrt(np.concatenate([u.weight for u in fit_units]))  # weights of the stratified sample
     bases = [base_wrench(unit_inputs(u, model)) for u in fit_units]  # vehicles frozen: reuse base
     p0 = _initial_params(name, fit_units, model)
     keys = list(PARAMETERS[name])
@@ -108,7 +130,7 @@ def fit_effect(name: str, units: Sequence[Unit], model: Model, *, options: Ident
         preds = [predict(u, m, base=b) for u, b in zip(fit_units, bases)]
         pf = np.concatenate([p[0][:, 2] for p in preds])
         pt = np.concatenate([p[1][:, 2] for p in preds])
-        return np.concatenate([(pf - fz) / s_f, (pt - tz) / s_t])
+        return np.concatenate([sw * (pf - fz) / s_f, sw * (pt - tz) / s_t])
 
     # nonlinear effects can start far from their optimum: begin from the best point of a small grid
     starts = [np.array([s.initial for s in specs])]
@@ -122,7 +144,58 @@ def fit_effect(name: str, units: Sequence[Unit], model: Model, *, options: Ident
         specs = [replace(s, initial=float(v)) for s, v in zip(specs, best)]
     result = fit_parameters(residual, specs, max_nfev=40 + 10 * len(specs))
     m = model_of(result.values)
-    return m.effects[-1], m
+    # the whole contribution's amplitude in sigmas: the fitted effect g (weighted, normalised as the
+    # residual) scaled by alpha; alpha = 1 +- s / ||g|| (widened for autocorrelation like the parameters)
+    r_fit = residual(result.values)
+    g = r_fit - np.concatenate([sw * (f0 - fz) / s_f, sw * (t0 - tz) / s_t])
+    s2 = float(r_fit @ r_fit) / max(r_fit.size - len(specs), 1)
+    sigmas = float(np.linalg.norm(g) / (np.sqrt(s2) * result.std_inflation)) if s2 > 0 else float("inf")
+    return m.effects[-1], m, result, sigmas
+
+
+DEGENERATE_REL = 100.0
+"""A strength parameter whose std exceeds this many times its value is degenerate with another (only
+a combination acts, e.g. wind over convection speed): the effect's whole amplitude is judged instead."""
+
+
+def identification(name: str, fit: CalibrationResult, amplitude_sigmas: float) -> tuple[bool, dict[str, Any]]:
+    """Whether a fitted effect is identified, and the record (module docstring of the pipeline, docs):
+
+    * a strength parameter (:data:`proxplan.physics.effects.EFFECT_STRENGTHS`) has a 2-sigma interval
+      that excludes zero (pinned on a bound away from zero counts: the data push it out); a strength
+      parameter degenerate with another (:data:`DEGENERATE_REL`) counts when the effect's whole fitted
+      contribution stands ``amplitude_sigmas`` > 2 sigma clear of zero;
+    * no other fitted parameter (a shape parameter, a thrust scale) is pinned on its bound: the fit then
+      wants something outside the effect's physical range, i.e. it is bending the effect to another.
+    """
+    strengths = [k for k in EFFECT_STRENGTHS.get(name, ()) if k in fit.names]
+    info: dict[str, Any] = {}
+    for i, k in enumerate(fit.names):
+        std = float(fit.std[i])
+        info[k] = {"value": float(fit.values[i]), "std": std if np.isfinite(std) else None,
+                   "at_bound": bool(fit.at_bound[i]) if fit.at_bound else False}  # fmt: skip
+
+    def degenerate(k: str) -> bool:
+        d = info[k]
+        return not d["at_bound"] and (d["std"] is None or d["std"] > DEGENERATE_REL * abs(d["value"]))
+
+    strong = any(fit.interval_excludes(k) for k in strengths if not degenerate(k))
+    strong |= any(degenerate(k) for k in strengths) and amplitude_sigmas > 2.0
+    pinned = [k for k in fit.names if k not in strengths and info[k]["at_bound"]]
+    info["amplitude_sigmas"] = amplitude_sigmas
+    info["pinned"] = pinned
+    return strong and not pinned, info
+
+
+def _interval_text(info: dict[str, Any]) -> str:
+    parts = [f"{k} = {d['value']:.3g}" + (" (on its bound)" if d["at_bound"] else
+                                          f" +- {2 * d['std']:.2g}" if d["std"] is not None else " (std n/a)")
+             for k, d in info.items() if isinstance(d, dict)]  # fmt: skip
+    if "amplitude_sigmas" in info:
+        parts.append(f"contribution {info['amplitude_sigmas']:.1f} sigma")
+    if info.get("pinned"):
+        parts.append(f"pinned on a bound: {', '.join(info['pinned'])}")
+    return ", ".join(parts)
 
 
 def _gain(new: float, current: float, floor: float) -> float:
@@ -166,7 +239,7 @@ def select_effects(
     options: IdentifyOptions,
     test: Sequence[Unit] = (),
 ) -> tuple[Model, list[EffectTrial]]:
-    """Greedy effect selection by VALIDATION error (see the module docstring).
+    """Greedy effect selection by VALIDATION error and identification, then pruning (module docstring).
 
     ``starts`` are the models the first round builds on (the calibrated one and the model as given:
     calibration alone may bend the vehicle parameters towards a missing effect, after which the
@@ -187,9 +260,18 @@ def select_effects(
     def valid_errors(m: Model) -> Errors:
         return set_errors(m, valid_eval)
 
+    def gains(new: Errors, current: Errors) -> tuple[float, float]:
+        return _gain(new.rmse_fz_N, current.rmse_fz_N, 1e-6), _gain(new.rmse_tz_Nm, current.rmse_tz_Nm, 1e-7)
+
+    def holds(gf: float, gt: float, own: tuple[float, float] | None = None) -> bool:
+        """The gains (vs the current model) reach min_gain, and the effect itself (vs the model it was
+        fitted on, ``own``; default the same gains) makes no channel worse by more than 1 %."""
+        return max(gf, gt) >= options.min_gain and min(own or (gf, gt)) > -0.01
+
     scored = [(valid_errors(m), m) for m in starts]
     current, model = min(scored, key=lambda em: em[0].rmse_fz_N / max(scored[0][0].rmse_fz_N, 1e-12)
                          + em[0].rmse_tz_Nm / max(scored[0][0].rmse_tz_Nm, 1e-15))  # fmt: skip
+    start_scales = dict(model.thrust_scale)
     trials: list[EffectTrial] = []
     # library names are fitted here; Effects (options.extra_candidates, e.g. data-driven terms
     # fitted elsewhere on the fitting flights) are scored with their parameters as given
@@ -199,30 +281,73 @@ def select_effects(
         rnd += 1
         bases = [m for _, m in scored] if rnd == 1 else [model]
         round_trials = []
+        base_errors = {id(b): valid_errors(b) for b in bases}
         for item in progress_bar(remaining, f"effects round {rnd}", options.progress):
             best_here = None
             for base in bases:
                 if isinstance(item, Effect):
                     eff, cand = item, replace(base, effects=base.effects + (item,))
+                    ident, info = True, {}
                 else:
-                    eff, cand = fit_effect(item, train, base, options=options)
+                    eff, cand, fit, sigmas = fit_effect(item, train, base, options=options)
+                    ident, info = identification(item, fit, sigmas)
                 err = valid_errors(cand)
-                gf = _gain(err.rmse_fz_N, current.rmse_fz_N, 1e-6)
-                gt = _gain(err.rmse_tz_Nm, current.rmse_tz_Nm, 1e-7)
+                gf, gt = gains(err, current)
                 if best_here is None or gf + gt > best_here[0].gain_fz + best_here[0].gain_tz:
-                    best_here = (EffectTrial(eff.name, eff.full_params(), rnd, err, gf, gt, valid=err), cand, item)
+                    trial = EffectTrial(eff.name, eff.full_params(), rnd, err, gf, gt, valid=err, identified=ident,
+                                        strengths=info)  # fmt: skip
+                    best_here = (trial, cand, item, gains(err, base_errors[id(base)]))
             assert best_here is not None  # at least one candidate per round
             round_trials.append(best_here)
-        ok = [
-            (t, c, i)
-            for t, c, i in round_trials
-            if max(t.gain_fz, t.gain_tz) >= options.min_gain and min(t.gain_fz, t.gain_tz) > -0.01
-        ]
+        ok = [(t, c, i) for t, c, i, own in round_trials if holds(t.gain_fz, t.gain_tz, own) and t.identified]
         best = max(ok, key=lambda tci: tci[0].gain_fz + tci[0].gain_tz, default=None)
-        for t, c, _ in round_trials:
-            trials.append(replace(t, selected=best is not None and t is best[0], test=set_errors(c, test_eval)))
+        for t, c, _, own in round_trials:
+            chosen = best is not None and t is best[0]
+            ok_gain = holds(t.gain_fz, t.gain_tz, own)
+            reason = _reason(t, options.min_gain, ok_gain, chosen, best[0].name if best else "")
+            trials.append(replace(t, selected=chosen, test=set_errors(c, test_eval), reason=reason))
         if best is None:
             break
         model, current = best[1], best[0].valid or best[0].test
         remaining.remove(best[2])
+    model, trials = _prune(model, trials, start_scales, valid_errors, gains, holds)
     return model, trials
+
+
+def _reason(t: EffectTrial, min_gain: float, gain_holds: bool, chosen: bool, winner: str) -> str:
+    """Why a trial of one round was kept or rejected (before pruning)."""
+    gain = f"validation gain F_z {t.gain_fz:+.1%}, yaw {t.gain_tz:+.1%}"
+    if chosen:
+        return f"kept: {gain}; identified ({_interval_text(t.strengths) or 'fitted elsewhere'})"
+    if not gain_holds:
+        if max(t.gain_fz, t.gain_tz) < min_gain:
+            return f"rejected: {gain} (< {min_gain:.0%}): the gain does not hold on the validation flights"
+        return f"rejected: {gain}: makes the other channel worse by more than 1 %"
+    if not t.identified:
+        why = (
+            "a parameter is pinned on its bound" if t.strengths.get("pinned") else "the 2-sigma interval includes zero"
+        )
+        return f"rejected: not identified, {why} ({_interval_text(t.strengths)})"
+    return f"not kept this round: {gain}, but {winner} gained more"
+
+
+def _prune(model: Model, trials: list[EffectTrial], start_scales: dict, valid_errors, gains, holds):
+    """Drop kept effects that no longer bring ``min_gain`` on validation given all the others (the
+    one bringing the least first, then check again); their trial says so."""
+    while True:
+        current = valid_errors(model)
+        weakest = None
+        for eff in model.effects:
+            without = replace(model, effects=tuple(e for e in model.effects if e is not eff))
+            if eff.name == "thrust_bias":  # its per-type thrust scales go with it
+                without = replace(without, thrust_scale=dict(start_scales))
+            gf, gt = gains(current, valid_errors(without))  # what eff cuts, given the others
+            if not holds(gf, gt) and (weakest is None or gf + gt < weakest[1] + weakest[2]):
+                weakest = (eff, gf, gt, without)
+        if weakest is None:
+            return model, trials
+        eff, gf, gt, model = weakest
+        others = ", ".join(e.name for e in model.effects) or "none"
+        trials = [replace(t, selected=False, reason=f"dropped: redundant given {others} (validation gain F_z "
+                                                        f"{gf:+.1%}, yaw {gt:+.1%} with them)")
+                  if t.selected and t.name == eff.name else t for t in trials]  # fmt: skip

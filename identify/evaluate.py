@@ -40,6 +40,8 @@ from proxplan.identify.data import (
 )
 from proxplan.identify.flightlog import Manifest, load_manifest
 from proxplan.identify.measure import DERIVATIVES, MeasureOptions
+from proxplan.identify.motor_check import check_loaded
+from proxplan.identify.strata import AUTHORITY_STATES, authority_masks
 from proxplan.identify.thrust_map import ThrustMap
 from proxplan.physics import CalibratedModel
 
@@ -114,13 +116,6 @@ def saved_model(model: Model, measure: MeasureOptions, thrust_maps: Mapping[str,
 
 OVERHEAD_COUNTS = ("0", "1", "2+")
 """Labels of the per-sources-overhead report."""
-AUTHORITY_STATES = ("in_range", "at_limit", "knocked_down")
-"""Labels of the per-authority-state report (:func:`authority_masks`), one per sample."""
-LIMIT_NEIGHBOURHOOD_S = 0.2
-"""A sample is ``at_limit`` when some motor of the vehicle is at its floor or ceiling within this time, s."""
-KNOCKED_DOWN_HEIGHT_M = 0.25
-"""``knocked_down``: rotor plane below this height above the ground with a source overhead, m (the
-swaps' lowest vehicle flies at 0.35-0.45 m; below 0.25 m it has been pushed down)."""
 GRAMS_PER_N = 1000.0 / 9.80665
 """Grams-force per newton (the paper's unit of the disturbance), g/N."""
 
@@ -129,35 +124,6 @@ def overhead_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray
     """Per sample of ``u``, one mask per :data:`OVERHEAD_COUNTS` label."""
     above, _ = sources_overhead(u, vehicles)
     return {"0": above == 0, "1": above == 1, "2+": above >= 2}
-
-
-def near_in_time(t_s: np.ndarray, flag: np.ndarray, within_s: float) -> np.ndarray:
-    """(N,) bool: some sample with ``flag`` (N,) lies within ``within_s`` (s) of each sample of the
-    increasing clock ``t_s`` (N,)."""
-    t_flag = t_s[flag]
-    if t_flag.size == 0:
-        return np.zeros(len(t_s), dtype=bool)
-    i = np.clip(np.searchsorted(t_flag, t_s), 1, t_flag.size)  # neighbours t_flag[i-1] <= t < t_flag[i]
-    before = np.abs(t_s - t_flag[i - 1])
-    after = np.abs(t_flag[np.minimum(i, t_flag.size - 1)] - t_s)
-    return np.minimum(before, after) <= within_s
-
-
-def authority_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
-    """Per sample of ``u``, one mask per :data:`AUTHORITY_STATES` label (a partition):
-
-    * ``knocked_down`` — rotor plane below :data:`KNOCKED_DOWN_HEIGHT_M` with a source overhead (r < 3 L);
-    * ``at_limit`` — else, some motor at its floor or ceiling within +-:data:`LIMIT_NEIGHBOURHOOD_S`
-      (:attr:`Unit.motor_limit`; logs without PWM have none);
-    * ``in_range`` — the rest: every motor inside its range, the vehicle not pushed down.
-    """
-    above, _ = sources_overhead(u, vehicles)
-    knocked = (above > 0) & (u.height_above_ground_m < KNOCKED_DOWN_HEIGHT_M)
-    if u.motor_limit is None:
-        limit = np.zeros(len(u), dtype=bool)
-    else:
-        limit = near_in_time(u.t_s, u.motor_limit > 0, LIMIT_NEIGHBOURHOOD_S) & ~knocked
-    return {"in_range": ~knocked & ~limit, "at_limit": limit, "knocked_down": knocked}
 
 
 def region_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarray]:
@@ -207,6 +173,7 @@ class EvaluationResult:
     measurement: dict
     units: list[Unit] = field(default_factory=list)
     model: Model | None = None
+    motor_lag_check: dict = field(default_factory=dict)  # proxplan.identify.motor_check (warnings inside)
 
     def to_json(self) -> dict[str, Any]:
         o = self.overall
@@ -235,6 +202,8 @@ class EvaluationResult:
             "exclusions": self.exclusions,
             "measurement": self.measurement,
             "notes": list(self.notes),
+            "motor_lag_check": self.motor_lag_check,
+            "warnings": list(self.motor_lag_check.get("warnings", [])),
         }
 
 
@@ -333,5 +302,5 @@ def evaluate_model(
         split=split, overall=overall, flights=flights, per_vehicle=per_vehicle, regions=regions, sets=sets,
         overhead=overhead, set_overhead=set_overhead, authority=authority, set_authority=set_authority, n_rows=n_rows,
         exclusions=data.exclusions, notes=notes, measurement=measurement_summary(data.thrust_maps, data.exclusions, []),
-        units=units, model=m,
+        units=units, model=m, motor_lag_check=check_loaded(data, motor_thrust=manifest.motor_thrust, options=measure),
     )  # fmt: skip

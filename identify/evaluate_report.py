@@ -14,8 +14,9 @@ import numpy as np
 
 from proxplan.fileio import atomic_write_text, save_figure
 from proxplan.identify.data import predict
-from proxplan.identify.evaluate import AUTHORITY_STATES, OVERHEAD_COUNTS, EvaluationResult
-from proxplan.identify.report import exclusion_lines, limit_lines
+from proxplan.identify.evaluate import OVERHEAD_COUNTS, EvaluationResult
+from proxplan.identify.report import exclusion_lines, limit_lines, motor_check_lines
+from proxplan.identify.strata import AUTHORITY_STATES
 
 
 def _bars(ax, rows: Mapping[str, dict], title: str) -> None:
@@ -151,7 +152,7 @@ def markdown(result: EvaluationResult, *, manifest: str, model: str, plots: list
               "(outside the field model's zone, S0 II-A), `below_beyond_3L` = the rest; `stack` = two or more "
               "sources above; `free` = none.", ""]  # fmt: skip
     sat = doc["measurement"]["saturation"]
-    lines += ["## Measurement", ""] + limit_lines(sat)
+    lines += ["## Measurement", ""] + limit_lines(sat) + [""] + motor_check_lines(result.motor_lag_check)
     lines += [""] + [f"- note: {n}" for n in result.notes]
     lines += ["", "## Excluded samples (quality checks)", ""]
     lines += exclusion_lines(result.exclusions)

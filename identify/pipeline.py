@@ -65,8 +65,10 @@ from proxplan.identify.discovery import discover_terms
 from proxplan.identify.effect_selection import EffectTrial, select_effects, validation_split
 from proxplan.identify.flightlog import Manifest, load_manifest
 from proxplan.identify.measure import MeasureOptions
+from proxplan.identify.motor_check import check_loaded
 from proxplan.identify.residuals import correlate, sample_features
 from proxplan.identify.stack_fit import choose_stack_shielding
+from proxplan.identify.strata import stratified_sample
 from proxplan.physics import VALIDITY_FACTOR_L, ModelOptions, base_wrench
 
 # ------------------------------------------------------------------------------ calibration
@@ -82,8 +84,10 @@ def _roles(units: Sequence[Unit]) -> tuple[set[str], set[str], list[str]]:
 def calibrate_model(
     units: Sequence[Unit], model: Model, *, options: IdentifyOptions
 ) -> tuple[Model, CalibrationResult]:
-    """Fit c_ax, z0_m, c_rad (source types), b_v (target types), thrust scale (all types) on F_z."""
-    fit_units = subsample(units, options.max_fit_samples)
+    """Fit c_ax, z0_m, c_rad (source types), b_v (target types), thrust scale (all types) on F_z, on a
+    stratified, weighted sample of ``units`` (:func:`proxplan.identify.strata.stratified_sample`)."""
+    fit_units = stratified_sample(units, options.max_fit_samples, model.vehicles)
+    sw = np.sqrt(np.concatenate([u.weight for u in fit_units]))
     sources, targets, types = _roles(fit_units)
     specs: list[ParamSpec] = []
     for t in types:
@@ -105,7 +109,7 @@ def calibrate_model(
 
     def residual(theta: np.ndarray) -> np.ndarray:
         m = model_of(theta)
-        return np.concatenate([predict(u, m)[0][:, 2] for u in fit_units]) - y
+        return sw * (np.concatenate([predict(u, m)[0][:, 2] for u in fit_units]) - y)
 
     result = fit_parameters(residual, specs, max_nfev=60 + 10 * len(specs))
     # the thrust scales were nuisance parameters (so a thrust-calibration error does not distort the
@@ -142,6 +146,7 @@ class IdentifyResult:
     calibrated_model: Model | None = None  # calibrated, no effects (what "calibrated_only" scored)
     validation: str = ""  # which train flights chose the effects (proxplan.identify.effect_selection.validation_split)
     stack_shielding: dict | None = None  # eta chosen on validation stacks (proxplan.identify.stack_fit)
+    motor_lag_check: dict = field(default_factory=dict)  # proxplan.identify.motor_check (warnings inside)
 
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
@@ -169,6 +174,8 @@ class IdentifyResult:
             "discovered": list(self.discovered),
             "validation": self.validation,
             "stack_shielding": self.stack_shielding,
+            "motor_lag_check": self.motor_lag_check,
+            "warnings": list(self.motor_lag_check.get("warnings", [])),
             "residual_correlations": [
                 {"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations
             ],
@@ -250,9 +257,15 @@ def run_identify(
         manifest = load_manifest(manifest)
     data = load_units(manifest, options=options)
     units, exclusions, types = data.units, data.exclusions, data.types
+    lag_check = check_loaded(data, motor_thrust=manifest.motor_thrust, options=options.measure)
     train = [u for u in units if u.split == "train" and u.scored and len(u)]
     test = [u for u in units if u.split == "test" and u.scored and len(u)]
-    fit, valid, validation_note = validation_split(train)
+    declared = [u for u in units if u.split == "validation" and u.scored and len(u)]
+    if declared:  # the manifest's validation flights (best another day's) choose; every train flight fits
+        fit, valid = train, declared
+        validation_note = "validation flights (the manifest's): " + ", ".join(sorted({u.flight for u in declared}))
+    else:
+        fit, valid, validation_note = validation_split(train)
     if not train or not test:
         raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
     base = Model(  # "before": S0 as published, sources' wrenches summed pair by pair (no stack shielding)
@@ -309,6 +322,7 @@ def run_identify(
         thrust_maps=data.thrust_maps, notes=data.notes, measure_options=options.measure,
         per_vehicle=_per_vehicle(test, base, model, final), validation=validation_note, calibrated_model=model,
         discovered=discovered, stack_shielding=None if stack_choice is None else stack_choice.to_json(),
+        motor_lag_check=lag_check,
     )  # fmt: skip
 
 

@@ -134,6 +134,22 @@ def exclusion_lines(exclusions: dict) -> list[str]:
     return lines
 
 
+def motor_check_lines(check: dict) -> list[str]:
+    """Markdown of the motor-lag self-check (:func:`proxplan.identify.motor_check.motor_lag_check`)."""
+    if not check or not check.get("types"):
+        return []
+    lines = ["## Motor lag check (free-flight F_z spread by motor time constant)", "",
+             f"Declared `motor_thrust: {check['motor_thrust']}`. Spread = RMS of F_z about each log's mean on "
+             "free-flight samples (no source overhead, above 0.3 m, motors in range).", "",
+             "| type | free samples | declared tau [s] | spread [mN] | best tau [s] | spread [mN] | verdict |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for t, e in check["types"].items():
+        lines.append(f"| {t} | {e['n_free_samples']} | {e['declared_tau_s']:g} | {1000 * e['spread_declared_N']:.2f} | "
+                     f"{e['best_tau_s']:g} | {1000 * e['spread_best_N']:.2f} | "
+                     f"{'**warning**' if e['warning'] else 'agrees'} |")  # fmt: skip
+    return lines + [""] + [f"- **warning**: {w}" for w in check.get("warnings", [])] + [""]
+
+
 def limit_lines(saturation: dict) -> list[str]:
     """Markdown table of the samples with a motor at its ceiling / floor per vehicle (the
     ``measurement.saturation`` JSON of :func:`proxplan.identify.data.measurement_summary`)."""
@@ -167,6 +183,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
                      f"{_fmt(pv['rmse_fz_N_after'])} | {pv['n_samples']} |")  # fmt: skip
     lines += ["", "## Measurement (delivered motor thrust)", ""]
     lines += limit_lines(result.measurement_json()["saturation"])
+    lines += [""] + motor_check_lines(result.motor_lag_check)
     lines.append("")
     for t, m in result.thrust_maps.items():
         lines.append(f"- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "
@@ -174,18 +191,22 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     lines += [f"- note: {n}" for n in result.notes]
     lines += ["", "## Candidate effects (fitted on train, chosen on validation flights, scored on test)", "",
               f"{result.validation}.", "",
-              "| round | effect | params | RMSE F_z test [N] | RMSE F_z validation [N] | gain F_z (val) | gain yaw (val) | kept |",
-              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+              "A candidate is kept when its gain holds on the validation flights AND its parameters are identified "
+              "(a strength parameter's 2-sigma interval, widened for autocorrelation, excludes zero; nothing else "
+              "pinned on a bound); a kept one must still bring the gain given the others. Test flights only report.", "",
+              "| round | effect | params | RMSE F_z test [N] | RMSE F_z validation [N] | gain F_z (val) | gain yaw (val) "
+              "| kept | why |",
+              "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for tr in result.trials:
         params = ", ".join(f"{k}={v:.4g}" for k, v in tr.params.items())
         val = _fmt(tr.valid.rmse_fz_N) if tr.valid is not None else "n/a"
-        lines.append(
-            f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {val} | {100 * tr.gain_fz:.1f} % | {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} |"
-        )
+        lines.append(f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {val} | {100 * tr.gain_fz:.1f} % "
+                     f"| {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} | {tr.reason} |")  # fmt: skip
     if result.calibration is not None:
         lines += [
             "",
-            "## Calibrated parameters (fitting part of the train flights; one-sigma from the Jacobian)",
+            "## Calibrated parameters (train flights, stratified sample; one-sigma from the Jacobian, widened for "
+            "autocorrelation)",
             "",
             "| parameter | value | std |",
             "|---|---|---|",

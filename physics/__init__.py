@@ -21,6 +21,7 @@ from proxplan.physics.disturbance import (
 from proxplan.physics.effects import (
     DISCOVERED_PREFIX,
     EFFECT_NAMES,
+    EFFECT_STRENGTHS,
     PARAMETERS,
     TARGET_ONLY_EFFECTS,
     Effect,
@@ -87,6 +88,7 @@ __all__ = [
     "DEFAULT_OPTIONS",
     "DISCOVERED_PREFIX",
     "EFFECT_NAMES",
+    "EFFECT_STRENGTHS",
     "FEATURE_DOCS",
     "FEATURE_NAMES",
     "FIELD_FORMS",

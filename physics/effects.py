@@ -34,6 +34,7 @@ from proxplan.physics.features import CHANNELS, FEATURE_NAMES, feature_matrix, p
 from proxplan.physics.room import Plane
 from proxplan.physics.stack import shielding_factors
 from proxplan.physics.vehicles import Vehicle
+from proxplan.physics.velocity_field import axial_distance_m
 
 EFFECT_NAMES = (
     "thrust_bias",
@@ -44,6 +45,8 @@ EFFECT_NAMES = (
     "own_velocity",
     "thrust_quadratic",
     "ground_jet",
+    "climb_inflow",
+    "floor_stagnation",
 )
 
 PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
@@ -64,14 +67,31 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
     },
     "thrust_quadratic": {"b_q_rel_spm": (0.1, -1.0, 1.0)},
     "ground_jet": {"amplitude_1": (0.5, 0.0, 1.0), "decay_L": (2.0, 0.2, 20.0)},
+    "climb_inflow": {"gain_1": (1.0, 0.0, 3.0)},
+    "floor_stagnation": {"amplitude_1": (1.0, 0.0, 1.0), "decay_widths": (1.0, 0.1, 10.0)},
 }
+
+EFFECT_STRENGTHS: dict[str, tuple[str, ...]] = {
+    "thrust_bias": ("force_z_N",),
+    "ground_effect": ("gain_k",),
+    "near_field": ("amplitude",),
+    "wake_swirl": ("yaw_per_force_m",),
+    "wake_advection": ("wind_x_mps", "wind_y_mps"),
+    "own_velocity": ("c_w_spm", "c_mu_spm", "c_mu2_s2pm2"),
+    "thrust_quadratic": ("b_q_rel_spm",),
+    "ground_jet": ("amplitude_1",),
+    "climb_inflow": ("gain_1",),
+    "floor_stagnation": ("amplitude_1",),
+}
+"""Per effect, the parameters whose value 0 switches it off (every other parameter then does nothing):
+an effect is identified by data when the interval of at least one of them excludes zero."""
 
 DISCOVERED_PREFIX = "discovered:"
 """Name prefix of a term found by sparse regression (proxplan.identify.discovery): its parameters are named
 ``"<channel>*<feature>"`` (:mod:`proxplan.physics.features`) and are the coefficients of a linear combination
 of features, in channel units per feature unit."""
 
-TARGET_ONLY_EFFECTS = ("thrust_bias", "ground_effect", "own_velocity")
+TARGET_ONLY_EFFECTS = ("thrust_bias", "ground_effect", "own_velocity", "climb_inflow")
 """Effects that depend on the target alone (counted once, whatever the sources); every other effect
 is a sum over the sources, and like the base model is zero for a source not above the target."""
 
@@ -342,6 +362,48 @@ def _ground_jet(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> 
     return force, torque
 
 
+def _floor_stagnation(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """A source's jet stopped by the floor near a target pushed down close to it. An impinging jet
+    slows down over a layer above the wall whose thickness scales with the jet's own width there, not
+    with the source's size: at the target's height h above the floor the axial speed is
+    v / v_free = 1 - a exp(-h / (lambda w)), w = (dz - z0) / sqrt(c_rad) the e-folding radius of the
+    S0-2 Gaussian profile at the target's depth (m), a = ``amplitude_1`` (1: the jet stops at the
+    floor), lambda = ``decay_widths`` (the layer's thickness in jet widths, -). The wrench scales with
+    v^2 (S0-3..S0-6): extra wrench base_s ((1 - a exp(-h / (lambda w)))^2 - 1) per source above the
+    target. (The earlier ``ground_jet`` scales the layer with the source's size instead.)"""
+    force, torque = _zeros(inputs.n_samples)
+    h_m = np.maximum(np.asarray(inputs.height_above_ground_m, dtype=float), 0.0)
+    for src, (f, t) in zip(inputs.sources, base.per_source()):
+        dz_m = -np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)[:, 2]
+        width_m = axial_distance_m(src.vehicle, dz_m) / np.sqrt(src.vehicle.downwash.c_rad)
+        ratio = 1.0 - p["amplitude_1"] * np.exp(-h_m / (p["decay_widths"] * width_m))
+        scale = ratio**2 - 1.0
+        force += f * scale[:, None]
+        torque += t * scale[:, None]
+    return force, torque
+
+
+def _climb_inflow(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """The target's own climb in its rotors' oncoming flow. (S0-5, S0-6) take the thrust loss of a rotor
+    in an oncoming stream as Delta f_i = -b_v v_on omega_i^2, with v_on the jet's speed; the stream the
+    rotor meets is the air RELATIVE to it, so a rotor climbing at v_z meets v_z more (the inflow ratio
+    lambda = (w + v_i) / (omega R) of S1-2 / S1-32, its thrust change C_Tw w of S1-25): per rotor
+    Delta f_i = -g b_v v_z omega_i^2 with omega_i^2 = f_i / k1, so summed over the rotors
+
+        Delta F_z = -g (b_v / k1) v_z T,
+
+    T the target's collective thrust along world z (N; its weight when unknown), v_z its vertical
+    speed (m/s, up positive), g = ``gain_1`` (1: the S0-6 coefficient as calibrated, nothing new fitted).
+    A vehicle falling at 1 m/s with its motors near their ceiling (the loss-of-authority regime) gains
+    b_v / k1 ~ 7 % of its thrust, one hovering in a climb loses as much. No torque."""
+    force, torque = _zeros(inputs.n_samples)
+    target = inputs.target
+    vel = np.asarray(inputs.velocity_mps, dtype=float).reshape(-1, 3)
+    thrust = target.weight_N if inputs.thrust_z_N is None else np.asarray(inputs.thrust_z_N, dtype=float)
+    force[:, 2] = -p["gain_1"] * (target.b_v / target.propeller.k1_Ns2prad2) * vel[:, 2] * thrust
+    return force, torque
+
+
 _EFFECT_FUNCTIONS = {
     "thrust_bias": _thrust_bias,
     "ground_effect": _ground_effect,
@@ -351,6 +413,8 @@ _EFFECT_FUNCTIONS = {
     "own_velocity": _own_velocity,
     "thrust_quadratic": _thrust_quadratic,
     "ground_jet": _ground_jet,
+    "climb_inflow": _climb_inflow,
+    "floor_stagnation": _floor_stagnation,
 }
 
 

@@ -27,6 +27,13 @@ so a term built on them acts between vehicles like any effect:
   upwash / ceiling of a vehicle under it);
 * side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
 
+Every neighbour is seen, not only the sources above (issue 29): for a neighbour BELOW the target
+(d = -dz > 0 its depth under it) the jet and core kernels are mirrored (``below_jet_1``: the jet
+kernel of d, ``below_core_1``), times the relative speeds, and ``below_cushion_1`` is the
+ground-effect shape of a partial floor, [dz < 0] (R / 4 d)^2 exp(-(r / L)^2) (method of images, the
+vehicle below as the image plane); a LEVEL neighbour's side kernel also comes times the relative
+horizontal and vertical speeds.
+
 Lagged and low-pass copies of EVERY relative-motion feature (:data:`TIME_FEATURE_SOURCES`: the base
 prediction and each kernel, with and without relative speeds) at the delays :data:`LAGS_S` and the time
 constants :data:`LOWPASS_TAUS_S`: a wake takes time to travel down and a rotor to spin up, so an
@@ -107,11 +114,23 @@ FEATURE_DOCS: dict[str, str] = {
     "above_near_rel_speed_xy_mps": "near kernel times relative horizontal speed, summed",
     "below_near_1": "below kernel of the sources under the target, summed",
     "side_near_1": "side kernel of level neighbours, summed",
+    "below_jet_1": "jet kernel of the depth of the neighbours BELOW (mirrored jet kernel), summed",
+    "below_jet_rel_speed_xy_mps": "below jet kernel times relative horizontal speed, summed",
+    "below_jet_rel_v_z_mps": "below jet kernel times relative vertical speed (target minus neighbour), summed",
+    "below_core_1": "core kernel of the depth of the neighbours below, summed",
+    "below_core_rel_speed_xy_mps": "below core kernel times relative horizontal speed, summed",
+    "below_core_flat_1": "below core kernel without its decay with depth, summed",
+    "below_near_rel_speed_xy_mps": "below kernel times relative horizontal speed, summed",
+    "below_cushion_1": "(R / 4 d)^2 exp(-(r / L)^2) of the neighbours below at depth d (a partial floor), summed",
+    "side_near_rel_speed_xy_mps": "side kernel times relative horizontal speed, summed",
+    "side_near_rel_v_z_mps": "side kernel times relative vertical speed, summed",
 }
 TIME_FEATURE_SOURCES = (
     "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
     "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
     "above_core_1", "above_core_flat_1", "above_near_1", "below_near_1", "side_near_1",
+    "below_jet_1", "below_jet_rel_v_z_mps", "below_core_1", "below_core_flat_1", "below_cushion_1",
+    "side_near_rel_v_z_mps",
 )  # fmt: skip
 """Relative-motion features that get lagged and low-pass copies."""
 
@@ -252,8 +271,25 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
         near = np.where(above, np.exp(-r / size - np.maximum(dz, 0.0) / (3.0 * size)), 0.0)
         f["above_near_1"] += near
         f["above_near_rel_speed_xy_mps"] += near * rel_xy
-        f["below_near_1"] += np.where(~above, np.exp(-r / size + np.minimum(dz, 0.0) / size), 0.0)
-        f["side_near_1"] += np.exp(-r / size - (dz / size) ** 2)
+        below_near = np.where(~above, np.exp(-r / size + np.minimum(dz, 0.0) / size), 0.0)
+        f["below_near_1"] += below_near
+        f["below_near_rel_speed_xy_mps"] += below_near * rel_xy
+        side = np.exp(-r / size - (dz / size) ** 2)
+        f["side_near_1"] += side
+        f["side_near_rel_speed_xy_mps"] += side * rel_xy
+        f["side_near_rel_v_z_mps"] += side * v_rel[:, 2]
+        below = dz < 0.0  # the neighbour is under the target, depth d = -dz
+        kb = jet_kernel(-dz, r, size)  # zero where not below
+        f["below_jet_1"] += kb
+        f["below_jet_rel_speed_xy_mps"] += kb * rel_xy
+        f["below_jet_rel_v_z_mps"] += kb * v_rel[:, 2]
+        core_flat_b = np.where(below, np.exp(-2.0 * (r / size) ** 2), 0.0)
+        core_b = core_flat_b / (1.0 + np.maximum(-dz, 0.0) / (3.0 * size))
+        f["below_core_1"] += core_b
+        f["below_core_rel_speed_xy_mps"] += core_b * rel_xy
+        f["below_core_flat_1"] += core_flat_b
+        depth = np.maximum(-dz, MIN_HEIGHT_FACTOR * r_rot)
+        f["below_cushion_1"] += np.where(below, (r_rot / (4.0 * depth)) ** 2 * np.exp(-((r / size) ** 2)), 0.0)
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):
             f["above_stack_1"] += kernels[i] * kernels[j]

@@ -75,10 +75,10 @@ def fit_candidates(result, logs: dict) -> dict:
     under = [u.take(np.flatnonzero(_under_mask(u, result.base_model))) for u in test if u.source_types]
     under = [u for u in under if len(u)]
     calibrated, _ = calibrate_model(train, result.base_model, options=opts)
-    _, with_bias = fit_effect("thrust_bias", train, calibrated, options=opts)
+    _, with_bias, _, _ = fit_effect("thrust_bias", train, calibrated, options=opts)
     models = {"no_model": None, "as_given": result.base_model, "calibrated": calibrated, "+thrust_bias": with_bias}
     for name in ("near_field", "ground_jet"):
-        eff, m = fit_effect(name, train, with_bias, options=opts)
+        eff, m, _, _ = fit_effect(name, train, with_bias, options=opts)
         models[f"+thrust_bias+{name}"] = m
         models[f"+thrust_bias+{name}"] = replace(m, effects=m.effects)
         models[f"{name}_params"] = eff.full_params()  # type: ignore[assignment]

@@ -26,7 +26,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("manifest", help="manifest YAML (DESIGN.md section 6); all-test manifests are valid")
     p.add_argument("--model", required=True, metavar="MODEL.yaml", help="saved model (identify --save-model)")
-    p.add_argument("--split", choices=("test", "validation", "train", "all"), default="test", help="flights to score (default test)")
+    p.add_argument(
+        "--split",
+        choices=("test", "validation", "train", "all"),
+        default="test",
+        help="flights to score (default test)",
+    )
     p.add_argument("--out", required=True, help="output directory (created)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -51,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
         doc = result.to_json()
         doc["report"] = str(out / report.relative_to(stage))
         atomic_write_text(stage / "evaluate.json", json.dumps(doc, indent=2, default=float))
+    for warning in result.motor_lag_check.get("warnings", []):  # the measurement's self-check (motor lag)
+        print(f"proxplan evaluate: warning: {warning}", file=sys.stderr)
     for note in result.notes:
         print(f"proxplan evaluate: note: {note}", file=sys.stderr)
     if args.json:

@@ -107,6 +107,8 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_text(stage / "identify.json", json.dumps(doc, indent=2, default=float))
     if args.save_model:
         doc["saved_model"] = str(save_model(result, args.save_model))
+    for warning in result.motor_lag_check.get("warnings", []):  # the measurement's self-check (motor lag)
+        print(f"proxplan identify: warning: {warning}", file=sys.stderr)
     for note in result.notes:  # e.g. logs without PWM/Vbat: the desired u[N] is used (said once)
         print(f"proxplan identify: note: {note}", file=sys.stderr)
     if args.json:
