@@ -53,6 +53,8 @@ class EffectTrial:
     gain_tz: float  # same for yaw torque, -
     selected: bool = False
     valid: Errors | None = None  # on the validation flights (what chose)
+    local_gain_fz: float = 0.0  # same as gain_fz on the validation samples where the effect acts, -
+    local_gain_tz: float = 0.0  # same for yaw, -
     identified: bool = True  # some strength parameter's 2-sigma interval excludes zero
     strengths: dict[str, Any] = field(default_factory=dict)  # param -> value, std, at_bound; amplitude_sigmas, pinned
     reason: str = ""  # why it was kept or rejected
@@ -62,6 +64,7 @@ class EffectTrial:
                 "rmse_torque_Nm": self.test.rmse_torque_Nm, "rmse_tz_Nm": self.test.rmse_tz_Nm,
                 "rmse_fz_N_validation": None if self.valid is None else self.valid.rmse_fz_N,
                 "gain_fz": self.gain_fz, "gain_tz": self.gain_tz, "round": self.round, "selected": self.selected,
+                "local_gain_fz": self.local_gain_fz, "local_gain_tz": self.local_gain_tz,
                 "identified": self.identified, "strengths": self.strengths, "reason": self.reason}  # fmt: skip
 
 
@@ -84,6 +87,13 @@ def _initial_params(name: str, fit_units: Sequence[Unit], model: Model) -> dict[
             p0[key] = float(np.clip(val, lo, hi))
     return p0
 
+
+LOCAL_THRESHOLD = (1e-3, 2e-5)
+"""An effect acts on a validation sample where it moves the prediction by more than this: 1e-3 N (0.1 g)
+of F_z, 2e-5 N m of yaw torque (the smallest structure worth a term, as in discovery)."""
+LOCAL_POOLED_SHARE = 0.2
+"""An effect that reaches min_gain only where it acts must still cut the pooled validation RMSE by this
+share of min_gain (1 % at the default 5 %), -."""
 
 _START_GRID: dict[str, list[dict[str, float]]] = {
     "wake_advection": [
@@ -161,12 +171,12 @@ a combination acts, e.g. wind over convection speed): the effect's whole amplitu
 def identification(name: str, fit: CalibrationResult, amplitude_sigmas: float) -> tuple[bool, dict[str, Any]]:
     """Whether a fitted effect is identified, and the record (module docstring of the pipeline, docs):
 
-    * a strength parameter (:data:`proxplan.physics.effects.EFFECT_STRENGTHS`) has a 2-sigma interval
-      that excludes zero (pinned on a bound away from zero counts: the data push it out); a strength
-      parameter degenerate with another (:data:`DEGENERATE_REL`) counts when the effect's whole fitted
-      contribution stands ``amplitude_sigmas`` > 2 sigma clear of zero;
-    * no other fitted parameter (a shape parameter, a thrust scale) is pinned on its bound: the fit then
-      wants something outside the effect's physical range, i.e. it is bending the effect to another.
+    * a strength parameter (:data:`proxplan.physics.effects.EFFECT_STRENGTHS`) off its bounds has a
+      2-sigma interval that excludes zero; when every strength parameter is pinned on a bound (no
+      interval) or degenerate with another (:data:`DEGENERATE_REL`: only a combination acts), the
+      effect's whole fitted contribution must stand ``amplitude_sigmas`` > 2 sigma clear of zero;
+    * no other fitted parameter (a thrust scale) is pinned on its bound: the fit then wants something
+      outside the effect's physical range, i.e. it is bending the effect to stand for another.
     """
     strengths = [k for k in EFFECT_STRENGTHS.get(name, ()) if k in fit.names]
     info: dict[str, Any] = {}
@@ -175,12 +185,12 @@ def identification(name: str, fit: CalibrationResult, amplitude_sigmas: float) -
         info[k] = {"value": float(fit.values[i]), "std": std if np.isfinite(std) else None,
                    "at_bound": bool(fit.at_bound[i]) if fit.at_bound else False}  # fmt: skip
 
-    def degenerate(k: str) -> bool:
+    def free(k: str) -> bool:  # off its bounds with a meaningful interval
         d = info[k]
-        return not d["at_bound"] and (d["std"] is None or d["std"] > DEGENERATE_REL * abs(d["value"]))
+        return not d["at_bound"] and d["std"] is not None and d["std"] <= DEGENERATE_REL * abs(d["value"])
 
-    strong = any(fit.interval_excludes(k) for k in strengths if not degenerate(k))
-    strong |= any(degenerate(k) for k in strengths) and amplitude_sigmas > 2.0
+    usable = [k for k in strengths if free(k)]
+    strong = any(fit.interval_excludes(k) for k in usable) if usable else amplitude_sigmas > 2.0
     pinned = [k for k in fit.names if k not in strengths and info[k]["at_bound"]]
     info["amplitude_sigmas"] = amplitude_sigmas
     info["pinned"] = pinned
@@ -260,13 +270,48 @@ def select_effects(
     def valid_errors(m: Model) -> Errors:
         return set_errors(m, valid_eval)
 
+    def valid_predictions(m: Model) -> np.ndarray:
+        """(M, 2) predicted F_z (N) and yaw torque (N m) on the validation sample."""
+        set_errors(m, valid_eval)  # fills the base cache
+        bases = cache[(id(m.vehicles), id(valid_eval))][1]
+        preds = [predict(u, m, base=b) for u, b in zip(valid_eval, bases)]
+        return np.column_stack(
+            [np.concatenate([p[0][:, 2] for p in preds]), np.concatenate([p[1][:, 2] for p in preds])]
+        )
+
+    measured = np.column_stack([np.concatenate([u.force_N[:, 2] for u in valid_eval]),
+                                np.concatenate([u.torque_Nm[:, 2] for u in valid_eval])])  # fmt: skip
+
+    def local_gains(cand: Model, base: Model) -> tuple[float, float]:
+        """Gains of ``cand`` over ``base`` on the validation samples where they differ (the effect acts:
+        by more than LOCAL_THRESHOLD per channel); 0 where it acts nowhere."""
+        pc, pb = valid_predictions(cand), valid_predictions(base)
+        out = []
+        for k, floor in enumerate((1e-6, 1e-7)):
+            acts = np.abs(pc[:, k] - pb[:, k]) > LOCAL_THRESHOLD[k]
+            if not acts.any():
+                out.append(0.0)
+                continue
+            rc = float(np.sqrt(np.mean((measured[acts, k] - pc[acts, k]) ** 2)))
+            rb = float(np.sqrt(np.mean((measured[acts, k] - pb[acts, k]) ** 2)))
+            out.append(_gain(rc, rb, floor))
+        return out[0], out[1]
+
     def gains(new: Errors, current: Errors) -> tuple[float, float]:
         return _gain(new.rmse_fz_N, current.rmse_fz_N, 1e-6), _gain(new.rmse_tz_Nm, current.rmse_tz_Nm, 1e-7)
 
-    def holds(gf: float, gt: float, own: tuple[float, float] | None = None) -> bool:
-        """The gains (vs the current model) reach min_gain, and the effect itself (vs the model it was
-        fitted on, ``own``; default the same gains) makes no channel worse by more than 1 %."""
-        return max(gf, gt) >= options.min_gain and min(own or (gf, gt)) > -0.01
+    def holds(
+        gf: float, gt: float, own: tuple[float, float] | None = None, local: tuple[float, float] | None = None
+    ) -> bool:
+        """The gains (vs the current model) reach min_gain — or, for an effect acting on a small part of
+        the flights (whose pooled gain it dilutes), reach min_gain where it acts (``local``) and
+        LOCAL_POOLED_SHARE of min_gain pooled — and the effect itself (vs the model it was fitted on,
+        ``own``; default the same gains) makes no channel worse by more than 1 %."""
+        pooled = max(gf, gt)
+        enough = pooled >= options.min_gain or (
+            local is not None and max(local) >= options.min_gain and pooled >= LOCAL_POOLED_SHARE * options.min_gain
+        )
+        return enough and min(own or (gf, gt)) > -0.01
 
     scored = [(valid_errors(m), m) for m in starts]
     current, model = min(scored, key=lambda em: em[0].rmse_fz_N / max(scored[0][0].rmse_fz_N, 1e-12)
@@ -296,44 +341,48 @@ def select_effects(
                 if best_here is None or gf + gt > best_here[0].gain_fz + best_here[0].gain_tz:
                     trial = EffectTrial(eff.name, eff.full_params(), rnd, err, gf, gt, valid=err, identified=ident,
                                         strengths=info)  # fmt: skip
-                    best_here = (trial, cand, item, gains(err, base_errors[id(base)]))
+                    best_here = (trial, cand, item, gains(err, base_errors[id(base)]), base)
             assert best_here is not None  # at least one candidate per round
-            round_trials.append(best_here)
-        ok = [(t, c, i) for t, c, i, own in round_trials if holds(t.gain_fz, t.gain_tz, own) and t.identified]
+            t, cand, item, own, base = best_here
+            local = local_gains(cand, base)
+            round_trials.append((replace(t, local_gain_fz=local[0], local_gain_tz=local[1]), cand, item, own))
+        ok = [(t, c, i) for t, c, i, own in round_trials
+              if holds(t.gain_fz, t.gain_tz, own, (t.local_gain_fz, t.local_gain_tz)) and t.identified]  # fmt: skip
         best = max(ok, key=lambda tci: tci[0].gain_fz + tci[0].gain_tz, default=None)
         for t, c, _, own in round_trials:
             chosen = best is not None and t is best[0]
-            ok_gain = holds(t.gain_fz, t.gain_tz, own)
-            reason = _reason(t, options.min_gain, ok_gain, chosen, best[0].name if best else "")
+            ok_gain = holds(t.gain_fz, t.gain_tz, own, (t.local_gain_fz, t.local_gain_tz))
+            reason = _reason(t, ok_gain, min(own) <= -0.01, chosen, best[0].name if best else "")
             trials.append(replace(t, selected=chosen, test=set_errors(c, test_eval), reason=reason))
         if best is None:
             break
         model, current = best[1], best[0].valid or best[0].test
         remaining.remove(best[2])
-    model, trials = _prune(model, trials, start_scales, valid_errors, gains, holds)
+    model, trials = _prune(model, trials, start_scales, valid_errors, gains, holds, local_gains)
     return model, trials
 
 
-def _reason(t: EffectTrial, min_gain: float, gain_holds: bool, chosen: bool, winner: str) -> str:
-    """Why a trial of one round was kept or rejected (before pruning)."""
-    gain = f"validation gain F_z {t.gain_fz:+.1%}, yaw {t.gain_tz:+.1%}"
+def _reason(t: EffectTrial, gain_holds: bool, harms: bool, chosen: bool, winner: str) -> str:
+    """Why a trial of one round was kept or rejected (before pruning); ``harms``: the effect makes a
+    channel worse by more than 1 %."""
+    gain = (f"validation gain F_z {t.gain_fz:+.1%}, yaw {t.gain_tz:+.1%} "
+            f"(where it acts: {t.local_gain_fz:+.1%}, {t.local_gain_tz:+.1%})")  # fmt: skip
     if chosen:
         return f"kept: {gain}; identified ({_interval_text(t.strengths) or 'fitted elsewhere'})"
     if not gain_holds:
-        if max(t.gain_fz, t.gain_tz) < min_gain:
-            return f"rejected: {gain} (< {min_gain:.0%}): the gain does not hold on the validation flights"
-        return f"rejected: {gain}: makes the other channel worse by more than 1 %"
+        if harms:
+            return f"rejected: {gain}: makes a channel worse by more than 1 %"
+        return f"rejected: {gain}: the gain does not hold on the validation flights"
     if not t.identified:
-        why = (
-            "a parameter is pinned on its bound" if t.strengths.get("pinned") else "the 2-sigma interval includes zero"
-        )
+        why = "a parameter is pinned on its bound" if t.strengths.get("pinned") else "the 2-sigma interval includes 0"
         return f"rejected: not identified, {why} ({_interval_text(t.strengths)})"
     return f"not kept this round: {gain}, but {winner} gained more"
 
 
-def _prune(model: Model, trials: list[EffectTrial], start_scales: dict, valid_errors, gains, holds):
-    """Drop kept effects that no longer bring ``min_gain`` on validation given all the others (the
-    one bringing the least first, then check again); their trial says so."""
+def _prune(model: Model, trials: list[EffectTrial], start_scales: dict, valid_errors, gains, holds, local_gains):
+    """Drop kept effects that no longer bring ``min_gain`` on validation given all the others (the same
+    test as when they were kept, pooled or where they act; the one bringing the least first, then
+    check again); their trial says so."""
     while True:
         current = valid_errors(model)
         weakest = None
@@ -342,7 +391,9 @@ def _prune(model: Model, trials: list[EffectTrial], start_scales: dict, valid_er
             if eff.name == "thrust_bias":  # its per-type thrust scales go with it
                 without = replace(without, thrust_scale=dict(start_scales))
             gf, gt = gains(current, valid_errors(without))  # what eff cuts, given the others
-            if not holds(gf, gt) and (weakest is None or gf + gt < weakest[1] + weakest[2]):
+            if not holds(gf, gt, None, local_gains(model, without)) and (
+                weakest is None or gf + gt < weakest[1] + weakest[2]
+            ):
                 weakest = (eff, gf, gt, without)
         if weakest is None:
             return model, trials

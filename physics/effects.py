@@ -74,17 +74,18 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
 EFFECT_STRENGTHS: dict[str, tuple[str, ...]] = {
     "thrust_bias": ("force_z_N",),
     "ground_effect": ("gain_k",),
-    "near_field": ("amplitude",),
+    "near_field": ("amplitude", "decay_L"),
     "wake_swirl": ("yaw_per_force_m",),
     "wake_advection": ("wind_x_mps", "wind_y_mps"),
     "own_velocity": ("c_w_spm", "c_mu_spm", "c_mu2_s2pm2"),
     "thrust_quadratic": ("b_q_rel_spm",),
-    "ground_jet": ("amplitude_1",),
+    "ground_jet": ("amplitude_1", "decay_L"),
     "climb_inflow": ("gain_1",),
-    "floor_stagnation": ("amplitude_1",),
+    "floor_stagnation": ("amplitude_1", "decay_widths"),
 }
-"""Per effect, the parameters whose value 0 switches it off (every other parameter then does nothing):
-an effect is identified by data when the interval of at least one of them excludes zero."""
+"""Per effect, the parameters whose value 0 switches it off (a decay length of 0 too: the effect then
+vanishes at any distance; every other parameter then does nothing): an effect is identified by data
+when the interval of at least one of them excludes zero (proxplan.identify.effect_selection)."""
 
 DISCOVERED_PREFIX = "discovered:"
 """Name prefix of a term found by sparse regression (proxplan.identify.discovery): its parameters are named

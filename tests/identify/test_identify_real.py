@@ -11,6 +11,7 @@ MANIFEST = Path(__file__).resolve().parents[2] / "manifests" / "neural-swarm.yam
 DATA = SHARED / "data" / "neural-swarm"
 
 
+@pytest.mark.slow  # the whole pipeline on every shipped set (minutes on a shared machine)
 @pytest.mark.skipif(not DATA.is_dir(), reason=f"Neural-Swarm logs not found at {DATA} (../shared absent)")
 def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     from proxplan.identify import load_manifest, run_identify
@@ -46,6 +47,12 @@ def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     assert doc["overhead"]["2+"]["ratio_fz"] < 1.0
     assert result.stack_shielding is not None and result.stack_shielding["n_samples"] > 500
     assert "cf100" not in doc["per_vehicle"]  # swap_lll's cf100 is a source only (its IMU is unusable)
+    # issue 29: another day's flights validate (they fit nothing), the measurement agrees with its
+    # declared motor lag, and every effect trial says why it was kept or rejected
+    assert result.validation.startswith("validation flights (the manifest's): day23_swap_lll")
+    assert result.motor_lag_check["warnings"] == []
+    assert all(t.reason for t in result.trials)
+    assert sat["cf102"]["floored_samples"] > 100
 
 
 @pytest.mark.skipif(not DATA.is_dir(), reason=f"Neural-Swarm logs not found at {DATA} (../shared absent)")

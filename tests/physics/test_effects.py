@@ -171,3 +171,43 @@ def test_total_wrench_is_base_plus_effects_summed_over_sources():
     f0, t0 = total_wrench(lone)
     np.testing.assert_allclose(f0, 0.0)
     np.testing.assert_allclose(t0, 0.0)
+
+
+@pytest.mark.parametrize("name", EFFECT_NAMES)
+def test_strength_parameters_at_zero_switch_the_effect_off(name):
+    """Issue 29's identification test reads EFFECT_STRENGTHS: their zero must leave nothing."""
+    from proxplan.physics import EFFECT_STRENGTHS
+
+    assert set(EFFECT_STRENGTHS) == set(EFFECT_NAMES)
+    offs = np.array([[0.0, 0.0, -1.5], [0.3, -0.2, -2.0], [0.1, 0.0, -0.8]])
+    inputs = _inputs(offs, height=[0.1, 0.5, 3.0], velocity=[[0, 0, 1.0], [1, 0, 0], [0, 0, -0.5]])
+    zeroable = [k for k in EFFECT_STRENGTHS[name] if PARAMETERS[name][k][1] <= 0.0]  # decays switch off at 0-
+    assert zeroable, name
+    params = default_effect(name).full_params() | {k: 0.0 for k in zeroable}
+    f, t = effect_wrench(Effect(name, params), inputs)
+    np.testing.assert_allclose(f, 0.0, atol=1e-15)
+    np.testing.assert_allclose(t, 0.0, atol=1e-15)
+
+
+def test_climb_inflow_is_s0_6_with_the_target_climb_speed():
+    """Delta F_z = -g (b_v / k1) v_z T: a falling vehicle gains thrust, a climbing one loses it, in
+    proportion to its own thrust (the weight when the thrust is unknown)."""
+    inputs = _inputs(np.tile([0.0, 0.0, -2.0], (3, 1)), velocity=[[0, 0, -1.0], [0, 0, 0.0], [0, 0, 0.5]])
+    f, t = effect_wrench(Effect("climb_inflow", {"gain_1": 1.0}), inputs)
+    per_mps = SMALL.b_v / SMALL.propeller.k1_Ns2prad2 * SMALL.weight_N
+    np.testing.assert_allclose(f[:, 2], [per_mps, 0.0, -0.5 * per_mps], rtol=1e-12)
+    np.testing.assert_allclose(t, 0.0)
+    from dataclasses import replace
+
+    doubled = replace(inputs, thrust_z_N=np.full(3, 2.0 * SMALL.weight_N))
+    np.testing.assert_allclose(effect_wrench(Effect("climb_inflow", {"gain_1": 1.0}), doubled)[0], 2.0 * f)
+
+
+def test_floor_stagnation_stops_the_jet_at_the_floor_and_not_far_above():
+    offs = np.tile([0.0, 0.0, -0.6], (3, 1))
+    inputs = _inputs(offs, height=[0.0, 0.15, 20.0])
+    base = total_wrench(inputs, ())[0][:, 2]
+    f, _ = effect_wrench(Effect("floor_stagnation", {"amplitude_1": 1.0, "decay_widths": 1.0}), inputs)
+    np.testing.assert_allclose(f[0, 2], -base[0], rtol=1e-9)  # the whole push cancelled at the floor
+    assert 0.0 < f[1, 2] / -base[1] < 1.0  # partly in between
+    assert abs(f[2, 2]) < 1e-9 * abs(base[2])  # nothing far above the floor
