@@ -91,9 +91,11 @@ def _initial_params(name: str, fit_units: Sequence[Unit], model: Model) -> dict[
 LOCAL_THRESHOLD = (1e-3, 2e-5)
 """An effect acts on a validation sample where it moves the prediction by more than this: 1e-3 N (0.1 g)
 of F_z, 2e-5 N m of yaw torque (the smallest structure worth a term, as in discovery)."""
+LOCAL_FACTOR = 2.0
+"""An effect whose pooled validation gain is diluted (it acts on a small part of the flights) is kept when
+it cuts the error by this many times min_gain where it acts (10 % at the default 5 %) ... -"""
 LOCAL_POOLED_SHARE = 0.2
-"""An effect that reaches min_gain only where it acts must still cut the pooled validation RMSE by this
-share of min_gain (1 % at the default 5 %), -."""
+"""... and the pooled validation RMSE by this share of min_gain (1 % at the default 5 %), -."""
 
 _START_GRID: dict[str, list[dict[str, float]]] = {
     "wake_advection": [
@@ -163,6 +165,10 @@ def fit_effect(
     return m.effects[-1], m, result, sigmas
 
 
+WHOLE_SIGMAS = 5.0
+"""An effect whose whole fitted contribution stands this many sigma clear of zero is identified even when
+its parameters trade off against each other (each interval wide, e.g. thrust_bias's force against its
+thrust scales in hover), -."""
 DEGENERATE_REL = 100.0
 """A strength parameter whose std exceeds this many times its value is degenerate with another (only
 a combination acts, e.g. wind over convection speed): the effect's whole amplitude is judged instead."""
@@ -191,6 +197,7 @@ def identification(name: str, fit: CalibrationResult, amplitude_sigmas: float) -
 
     usable = [k for k in strengths if free(k)]
     strong = any(fit.interval_excludes(k) for k in usable) if usable else amplitude_sigmas > 2.0
+    strong |= amplitude_sigmas > WHOLE_SIGMAS  # parameters that trade off (a bias against a thrust scale)
     pinned = [k for k in fit.names if k not in strengths and info[k]["at_bound"]]
     info["amplitude_sigmas"] = amplitude_sigmas
     info["pinned"] = pinned
@@ -304,12 +311,14 @@ def select_effects(
         gf: float, gt: float, own: tuple[float, float] | None = None, local: tuple[float, float] | None = None
     ) -> bool:
         """The gains (vs the current model) reach min_gain — or, for an effect acting on a small part of
-        the flights (whose pooled gain it dilutes), reach min_gain where it acts (``local``) and
+        the flights (whose pooled gain it dilutes), LOCAL_FACTOR x min_gain where it acts (``local``) and
         LOCAL_POOLED_SHARE of min_gain pooled — and the effect itself (vs the model it was fitted on,
         ``own``; default the same gains) makes no channel worse by more than 1 %."""
         pooled = max(gf, gt)
         enough = pooled >= options.min_gain or (
-            local is not None and max(local) >= options.min_gain and pooled >= LOCAL_POOLED_SHARE * options.min_gain
+            local is not None
+            and max(local) >= LOCAL_FACTOR * options.min_gain
+            and pooled >= LOCAL_POOLED_SHARE * options.min_gain
         )
         return enough and min(own or (gf, gt)) > -0.01
 

@@ -190,20 +190,21 @@ def limits_figure(manifest, result, out: Path) -> Path:
 def loss_of_authority_figure(result, out: Path) -> tuple[Path, dict]:
     """``identify_loss_of_authority.png``: on the day-23 flights (validation + test) the mean residual
     (measured - predicted F_z, g) of the bottom vehicles by vertical speed (all samples) and by height
-    (samples with a source overhead), for the final model and with the loss-of-authority candidates
-    as identify fitted them on the train flights (their last trial) added. Returns the path and the
-    RMSE per state of both models."""
+    (samples at a limit or knocked down), for the final model without the loss-of-authority effects and
+    with them (kept ones as kept, the others as identify fitted them on the train flights in their last
+    trial). Returns the path and the RMSE per state of both models."""
     from proxplan.fileio import save_figure
 
     plt = _plt()
-    fitted = {}
-    for t in result.trials:  # the last fit of each candidate (on the model it would have joined)
-        if t.name in LOSS_OF_AUTHORITY_EFFECTS:
-            fitted[t.name] = Effect(t.name, t.params)
     after = result.final_model
+    fitted = {e.name: e for e in after.effects if e.name in LOSS_OF_AUTHORITY_EFFECTS}  # kept ones as kept
+    for t in result.trials:  # the others: their last fit (on the model they would have joined)
+        if t.name in LOSS_OF_AUTHORITY_EFFECTS and t.name not in {e.name for e in after.effects}:
+            fitted[t.name] = Effect(t.name, t.params)
+    without = replace(after, effects=tuple(e for e in after.effects if e.name not in LOSS_OF_AUTHORITY_EFFECTS))
     models = {
-        "after": after,
-        "after + " + " + ".join(fitted): replace(after, effects=after.effects + tuple(fitted.values())),
+        "after without them": without,
+        "after + " + " + ".join(fitted): replace(without, effects=without.effects + tuple(fitted.values())),
     }
     units = [u for u in result.units if u.flight.startswith("day23") and u.scored and len(u) and u.split != "train"]
     rows: dict[str, dict] = {}
@@ -245,10 +246,15 @@ def main() -> None:
     ap.add_argument("manifest", type=Path)
     ap.add_argument("--out", type=Path, default=Path("docs/figures"))
     ap.add_argument("--json", type=Path, default=None, help="write the tables' numbers here")
+    ap.add_argument("--save-model", type=Path, default=None, help="save identify's model here (as identify does)")
     args = ap.parse_args()
     manifest = load_manifest(args.manifest)
     result = run_identify(manifest, thrust_summary=False)
     assert result.calibrated_model is not None
+    if args.save_model:
+        from proxplan.commands.identify import save_model
+
+        print("saved model:", save_model(result, args.save_model))
     models = {"before": result.base_model, "calibrated": result.calibrated_model, "after": result.final_model}
     evals: dict[str, dict[str, EvaluationResult]] = {}
     for split in ("test", "validation"):
