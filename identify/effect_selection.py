@@ -339,6 +339,7 @@ def select_effects(
         for item in progress_bar(remaining, f"effects round {rnd}", options.progress):
             best_here = None
             for base in bases:
+                info: dict[str, Any]
                 if isinstance(item, Effect):
                     eff, cand = item, replace(base, effects=base.effects + (item,))
                     ident, info = True, {}
