@@ -36,22 +36,28 @@ from proxplan.physics.features import CHANNELS, FEATURE_DOCS, FEATURE_NAMES, fea
 from proxplan.physics.model_file import (
     MODEL_FORMAT_VERSION,
     CalibratedModel,
+    ModelFile,
+    ModelOptionsPart,
+    TruthFile,
     between_vehicle_effects,
+    effects_from_entries,
     effects_from_list,
     effects_to_list,
     load_model_file,
     load_model_section,
     model_file_dict,
     model_from_dict,
-    options_from_mapping,
     target_only_notes,
     vehicle_file_notes,
     write_model_file,
 )
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
-from proxplan.physics.room import Plane, plane_distances_m, planes_from_list
+from proxplan.physics.room import Plane, PlaneList, plane_distances_m, planes_from_list, planes_from_parts
 from proxplan.physics.stack import MAX_STACK_SHIELDING, intercepted_flux_fraction, shielding_factors
 from proxplan.physics.vehicle_yaml import (
+    VehicleEntry,
+    VehicleFile,
+    build_vehicles,
     load_vehicle_file,
     resolve_vehicle,
     vehicle_from_dict,
@@ -74,6 +80,14 @@ from proxplan.physics.vehicles import (
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
+    "ModelOptionsPart",
+    "PlaneList",
+    "planes_from_parts",
+    "VehicleEntry",
+    "ModelFile",
+    "TruthFile",
+    "VehicleFile",
+    "build_vehicles",
     "MAX_STACK_SHIELDING",
     "Plane",
     "plane_distances_m",
@@ -122,6 +136,7 @@ __all__ = [
     "downwash_speed_mps",
     "effect_wrench",
     "feature_matrix",
+    "effects_from_entries",
     "effects_from_list",
     "effects_to_list",
     "load_model_file",
@@ -133,7 +148,6 @@ __all__ = [
     "motor_thrusts_N",
     "normalised_motor_map",
     "oncoming_speed_per_rotor_mps",
-    "options_from_mapping",
     "resolve_vehicle",
     "term_formula",
     "target_only_notes",

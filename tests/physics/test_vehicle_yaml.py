@@ -38,9 +38,9 @@ def test_base_and_override(tmp_path):
             "    base: large-quad\n    propeller: {diameter_m: 0}\n",
             "vehicles.v.propeller.diameter_m: expected a positive number",
         ),
-        ("    mass_kg: 1.0\n", "vehicles.v: missing key"),
+        ("    mass_kg: 1.0\n", "vehicles.v.arm_length_m: missing; expected a positive number"),
         ("    base: nope\n", "vehicles.v.base: unknown vehicle type 'nope'"),
-        ("    base: large-quad\n    colour: red\n", "unknown key 'colour'"),
+        ("    base: large-quad\n    colour: red\n", "vehicles.v.colour: unknown key"),
         ("    base: large-quad\n    inertia_diag_kgm2: [1, 2]\n", "inertia_diag_kgm2: expected a list of 3"),
         ("    base: large-quad\n    max_thrust_N: 5\n", "max_thrust_N: 5.0 N cannot lift"),
         ("    base: large-quad\n    mass_kg: .nan\n", "expected a finite number"),
@@ -58,7 +58,7 @@ def test_bad_files(tmp_path):
         load_vehicle_file(tmp_path / "missing.yaml")
     with pytest.raises(UserError, match="not valid YAML"):
         load_vehicle_file(write(tmp_path, "vehicles: [\n"))
-    with pytest.raises(UserError, match="top-level 'vehicles:'"):
+    with pytest.raises(UserError, match="expected a mapping with keys vehicles"):
         load_vehicle_file(write(tmp_path, "- 1\n"))
     with pytest.raises(UserError, match="unknown vehicle type 'x'"):
         resolve_vehicle("x")
@@ -75,3 +75,30 @@ def test_effects_in_a_vehicle_file_are_reported_as_not_applied_through_vehicle_f
     )
     (note,) = vehicle_file_notes(with_effects)
     assert "model_file" in note and str(with_effects) in note
+
+
+def test_each_declared_section_mirrors_its_vehicle_dataclass():
+    """A parameter added to a vehicle dataclass must be declared in the file format too (and back)."""
+    import dataclasses
+
+    from proxplan.physics.vehicle_yaml import SECTIONS, VehicleEntry
+    from proxplan.physics.vehicles import Vehicle
+
+    for key, (cls, part) in SECTIONS.items():
+        assert list(part.model_fields) == [f.name for f in dataclasses.fields(cls)], key
+    top = {f.name for f in dataclasses.fields(Vehicle)} - {"name", "sources"}
+    assert set(VehicleEntry.model_fields) - {"base"} == top
+
+
+def test_partial_sections_take_the_rest_from_the_base(tmp_path):
+    path = write(tmp_path, "vehicles:\n  fast:\n    base: small-quad\n    kinematics: {max_speed_mps: 2.5}\n")
+    fast = load_vehicle_file(path)["fast"]
+    from proxplan.physics.builtin_vehicles import SMALL_QUAD
+
+    assert fast.kinematics.max_speed_mps == 2.5
+    assert fast.kinematics.max_accel_mps2 == SMALL_QUAD.kinematics.max_accel_mps2
+    assert fast.tracking is None  # new limits: the base's measurement no longer describes them
+    assert (
+        load_vehicle_file(write(tmp_path, "vehicles:\n  same: {base: small-quad}\n"))["same"].tracking
+        == SMALL_QUAD.tracking
+    )
