@@ -18,6 +18,7 @@ A model's own checks raise :func:`problem` (a message, optionally at a key below
 
 from __future__ import annotations
 
+import copy
 import difflib
 from collections.abc import Mapping
 from functools import cache
@@ -104,13 +105,9 @@ def validate(model: type[M] | TypeAdapter, doc: Any, *, label: str, at: tuple = 
 
 
 def json_schema(model: type[BaseModel] | TypeAdapter, *, title: str, description: str) -> dict:
-    """The JSON Schema (draft 2020-12) of ``model`` for editors: field descriptions (with units),
+    """The JSON Schema (draft 7) of ``model`` for editors: field descriptions (with units),
     defaults, bounds and allowed values; no generated titles."""
-    body = (
-        model.json_schema(schema_generator=_Generator)
-        if isinstance(model, TypeAdapter)
-        else model.model_json_schema(schema_generator=_Generator)
-    )
+    body = copy.deepcopy(_schema_of(model))
     head = {"$schema": JSON_SCHEMA_DIALECT, "title": title, "description": description}
     _for_editors(head)
     body.pop("title", None)

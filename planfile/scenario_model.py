@@ -46,6 +46,8 @@ AssignGoals = Literal["by_type"]
 """Accepted values of ``assign_goals``: ``by_type`` lets vehicles of one type take each other's goals."""
 
 Text1 = Annotated[Text, Field(min_length=1)]
+Name1 = Annotated[Name, Field(min_length=1)]
+"""A vehicle or type name (written as a number in YAML it is taken as its text, like a mapping key)."""
 
 
 class BoxPart(FileModel):
@@ -90,14 +92,14 @@ class LimitsPart(FileModel):
 class DockPart(FileModel):
     """A dock: the goal is another vehicle's final position plus an offset."""
 
-    with_: Text1 = Field(alias="with", description="the vehicle to dock with")
+    with_: Name1 = Field(alias="with", description="the vehicle to dock with")
     offset: Vec3 = Field(description="dock point minus that vehicle's final position [x, y, z], world frame, m")
 
 
 class TaskPart(FileModel):
     """One vehicle: its type, start and exactly one task (goal, hover or dock)."""
 
-    type: Text1 = Field(
+    type: Name1 = Field(
         description="vehicle type: built-in (proxplan vehicles) or from vehicle_file / model_file",
         json_schema_extra={"examples": list(BUILTIN_VEHICLES)},
     )

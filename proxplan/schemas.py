@@ -45,7 +45,7 @@ def _model(name: str) -> Any:
 
 
 def schema(name: str) -> dict[str, Any]:
-    """The JSON Schema (draft 2020-12) of format ``name`` (a key of :data:`FORMATS`)."""
+    """The JSON Schema (draft 7) of format ``name`` (a key of :data:`FORMATS`)."""
     from proxplan.fileio import json_schema
 
     title, used = FORMATS[name]

@@ -17,7 +17,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "schema",
         help="JSON Schema of a file format (for editor completion and checks)",
         description=(
-            "The JSON Schema (draft 2020-12) of a user file format: every key with its form, unit, default and "
+            "The JSON Schema (draft 7) of a user file format: every key with its form, unit, default and "
             "description. Without --json, a table of the keys; --json prints the schema itself; --out writes it to "
             "a file. Editors with yaml-language-server (VS Code's YAML extension, ...) use it through a first line "
             "'# yaml-language-server: $schema=PATH' in the YAML file (docs/file_formats.md). Formats: "
