@@ -175,7 +175,7 @@ class EffectEntry(FileModel, json_schema_extra=_effect_variants):
 
 
 EffectList = list[EffectEntry]
-_EFFECT_LIST = TypeAdapter(EffectList | None)
+_EFFECT_LIST: TypeAdapter[list[EffectEntry] | None] = TypeAdapter(EffectList | None)
 
 
 def effects_to_list(effects: Sequence[Effect]) -> list[dict[str, Any]]:

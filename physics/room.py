@@ -48,7 +48,7 @@ class PlanePart(FileModel):
 
 
 PlaneList = Annotated[list[PlanePart], Field(max_length=MAX_PLANES)]
-_PLANES = TypeAdapter(PlaneList | None)
+_PLANES: TypeAdapter[list[PlanePart] | None] = TypeAdapter(PlaneList | None)
 
 
 def planes_from_parts(parts: Sequence[PlanePart] | None) -> tuple[Plane, ...]:
