@@ -1,17 +1,21 @@
 """Swarm planning (``--method roadmap``; ``optimized`` for swarms of ``SWARM_MIN_VEHICLES`` or
 more): coordinate jointly on a lattice, fly in continuous time.
 
-1. *Straight first*: if every vehicle can fly its straight line at once, synchronised (one step,
-   checked exactly pair by pair, :mod:`proxplan.planner.swarm.sync`), that is the coordination plan
-   (the CAPT case of interchangeable goals).
-2. *Coordination*: otherwise LaCAM with PIBT on the lattice of the levels in use, long straight
-   moves, synchronous conflicts checked exactly (:mod:`proxplan.planner.swarm.lacam`); the count of
-   configurations bounds it.
-3. *Conversion*: the plan flown in lock-step (:mod:`proxplan.planner.swarm.lockstep`), conflict-free
-   by construction.
-4. *Continuous time*: Gauss-Seidel re-timing passes (:mod:`proxplan.planner.swarm.retime`), every
-   vehicle along its straight line or its pulled coordination route, against the others' tracks
-   in a space-time neighbourhood; never worse, always conflict-free.
+1. *Straight first* (:mod:`proxplan.planner.swarm.straight`): if every vehicle can fly its straight
+   line at once, synchronised (one step, checked exactly pair by pair), that is the plan (the CAPT
+   case of interchangeable goals). Otherwise the largest set found greedily that can keeps its
+   straight lines.
+2. *Continuous time, prioritised* (:mod:`proxplan.planner.swarm.prioritized`): one vehicle after
+   another, each along the best of its straight line and a wavefront route through the others'
+   space-time, timed exactly; a vehicle that cannot be planned moves to the front. Two orders are
+   tried (vehicles whose start another's goal needs first; longest line first) and the shorter
+   plan kept.
+3. *Joint coordination*, when prioritised planning gives up: LaCAM with PIBT on the lattice of the
+   levels in use, long straight moves, synchronous conflicts checked exactly
+   (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in lock-step
+   (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the guaranteed answer.
+4. *Re-timing*: Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`), every vehicle against
+   the others' tracks in a space-time neighbourhood; never worse, always conflict-free.
 
 The caller (the pipeline) runs the independent verifier on the result as on every plan. Bounds in
 the info: ``lower_bound_s`` (largest straight-line rest-to-rest time of any vehicle) and the
@@ -25,7 +29,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from proxplan.planfile import Scenario
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
@@ -33,13 +36,13 @@ from proxplan.planner.swarm.lacam import Lacam, SearchGaveUp
 from proxplan.planner.swarm.lattice import build_lattice
 from proxplan.planner.swarm.lockstep import lockstep_tracks
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.prioritized import PrioritizedFailed, prioritized_tracks
-from proxplan.planner.swarm.problem import GROWTH_M, SwarmProblem, swarm_applicable, swarm_problem
+from proxplan.planner.swarm.prioritized import PrioritizedFailed, dependency_order, prioritized_tracks
+from proxplan.planner.swarm.problem import swarm_applicable, swarm_problem
 from proxplan.planner.swarm.retime import improve, route_chain
-from proxplan.planner.swarm.sync import SyncTable, segment_conflict
-from proxplan.planner.swarm.tracks import GRID_DT_S, Track
+from proxplan.planner.swarm.straight import straight_step_conflicts, straight_tracks
+from proxplan.planner.swarm.sync import SyncTable
+from proxplan.planner.swarm.tracks import GRID_DT_S
 from proxplan.planner.timing.paths import TimedPath
-from proxplan.planner.timing.profile import LineMove, rest_to_rest
 
 SWARM_MIN_VEHICLES = 16  # formation changes with at least this many vehicles use the swarm layer by default
 HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the lock-step makespan, s
@@ -55,36 +58,8 @@ class SwarmOptions:
     max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
     passes: int = 3  # continuous re-timing passes
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
-    max_restarts: int = 6  # re-orderings of the prioritised planning
+    max_restarts: int = 2  # re-orderings of the prioritised planning, per order and waiting time
     seed: int = 0
-
-
-def straight_step_conflicts(problem: SwarmProblem) -> list[tuple[int, int]]:
-    """Pairs (i, j) whose synchronised straight lines from start to goal conflict (exact test),
-    and (i, i) for a line that leaves the static free space."""
-    p0, p1 = problem.starts_m, problem.goals_m
-    bad = [(i, i) for i in range(problem.n_agents) if not problem.segment_free(p0[i], p1[i])]
-    mid = 0.5 * (p0 + p1)[:, :2]
-    half = 0.5 * np.linalg.norm((p1 - p0)[:, :2], axis=1)
-    radius = 2.0 * float(half.max(initial=0.0)) + problem.reach_xy_m
-    for i, j in cKDTree(mid).query_pairs(radius, output_type="ndarray").tolist():
-        rest = bool(np.allclose(p0[i], p1[i]) and np.allclose(p0[j], p1[j]))
-        ko = problem.keepouts[(int(problem.type_index[i]), int(problem.type_index[j]))]
-        if segment_conflict(ko, p0[j] - p0[i], p1[j] - p1[i], rest=rest, growth_m=GROWTH_M if rest else 0.0):
-            bad.append((i, j))
-    return bad
-
-
-def _straight_tracks(problem: SwarmProblem) -> list[Track]:
-    """Every vehicle straight to its goal in one synchronised step (common profile)."""
-    lengths = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-    movers = [a for a in range(problem.n_agents) if lengths[a] > 0.0]
-    out = []
-    profile = rest_to_rest(float(lengths.max(initial=0.0)), problem.common_limits(movers or [0]), GRID_DT_S)
-    for a in range(problem.n_agents):
-        mv = [(0, LineMove(problem.starts_m[a], problem.goals_m[a], profile))] if a in movers else []
-        out.append(Track(a, int(problem.type_index[a]), problem.starts_m[a].copy(), mv))
-    return out
 
 
 def swarm_timed(
@@ -108,27 +83,40 @@ def swarm_timed(
     lattice = None
     tracks = None
     if not conflicts:
-        tracks = _straight_tracks(problem)
+        straight = straight_tracks(problem, list(range(problem.n_agents)))
+        tracks = [straight[a] for a in range(problem.n_agents)]
         info["coordination"] = "one synchronised straight step"
     elif opts.prioritized:
-        order = sorted(
-            range(problem.n_agents), key=lambda a: (-float(np.linalg.norm(problem.goals_m[a] - problem.starts_m[a])), a)
-        )
         horizon = int(round(max(4.0 * info["lower_bound_s"], info["lower_bound_s"] + 20.0) / GRID_DT_S))
         t1 = time.perf_counter()
-        try:
-            planned, counts = prioritized_tracks(
-                problem,
-                order,
-                horizon_steps=horizon,
-                max_restarts=opts.max_restarts,
-                progress=progress,
-                deadline=deadline,
-            )
-            tracks = [planned[a] for a in range(problem.n_agents)]
-            info["coordination"] = f"prioritised continuous planning ({counts['orders_tried']} order(s))"
-        except PrioritizedFailed as err:
-            info["prioritized"] = f"gave up after {err.restarts} re-orderings: " + ", ".join(err.history)
+        length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+        orders = {
+            "dependencies first": dependency_order(problem),
+            "longest first": sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a)),
+        }
+        tried = []
+        for label, order in orders.items():
+            try:
+                planned, counts = prioritized_tracks(
+                    problem,
+                    order,
+                    horizon_steps=horizon,
+                    max_restarts=opts.max_restarts,
+                    progress=progress,
+                    deadline=deadline,
+                )
+            except PrioritizedFailed as err:
+                tried.append(f"{label}: gave up after {err.restarts} attempts (" + ", ".join(err.history[-2:]) + ")")
+                continue
+            makespan = max(tr.arrival_s for tr in planned.values())
+            tried.append(f"{label}: {makespan:.2f} s")
+            if tracks is None or makespan < max(tr.arrival_s for tr in tracks):
+                tracks = [planned[a] for a in range(problem.n_agents)]
+                info["coordination"] = (
+                    f"prioritised continuous planning, {label} ({counts['orders_tried']} attempt(s), "
+                    f"vehicles wait at their starts at most {counts['leave_start_s']:g} s)"
+                )
+        info["prioritized"] = "; ".join(tried)
         info["prioritized_time_s"] = round(time.perf_counter() - t1, 3)
     if tracks is None:
         if progress:
