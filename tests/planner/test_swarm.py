@@ -161,40 +161,49 @@ def test_lockstep_conversion_of_the_coordination_plan_is_conflict_free():
 
 
 def test_verify_rejects_a_plan_whose_timing_breaks_the_order():
-    """Two vehicles swap places along one line: the plan has one wait for the other. Flying that
-    vehicle's path without its wait (the same path, its moves earlier) breaks the order the plan
-    relies on, and the verifier rejects it."""
+    """Two vehicles trade sides through a gap in a wall that only one can pass at a time: the plan
+    makes one wait for the other. Flying the waiting vehicle's path without its wait (the same
+    path, started together with the other) breaks the order the plan relies on, and the verifier
+    rejects it."""
     doc = {
-        "name": "swap",
-        "workspace": {"min": [-2.0, -2.0, 0.0], "max": [2.0, 2.0, 3.0]},
+        "name": "gap",
+        "workspace": {"min": [-2.0, -1.5, 0.0], "max": [2.0, 1.5, 3.0]},
+        "obstacles": [
+            {"min": [-0.1, -1.5, 0.0], "max": [0.1, -0.3, 3.0]},
+            {"min": [-0.1, 0.3, 0.0], "max": [0.1, 1.5, 3.0]},
+        ],
         "limits": {"authority_fraction": 0.1, "min_separation_m": 0.25},
         "vehicles": {
-            "a": {"type": "crazyflie-2.1", "start": [-0.6, 0.0, 1.0], "goal": [0.6, 0.0, 1.0]},
-            "b": {"type": "crazyflie-2.1", "start": [0.6, 0.0, 1.0], "goal": [-0.6, 0.0, 1.0]},
+            "a": {"type": "crazyflie-2.1", "start": [-1.2, 0.0, 1.0], "goal": [1.2, 0.0, 1.0]},
+            "b": {"type": "crazyflie-2.1", "start": [1.2, 0.0, 1.0], "goal": [-1.2, 0.0, 1.0]},
         },
     }
     sc, plan, info = _plan(doc)
     assert verify_plan(plan, sc) == []
-    waits = {}
+    in_gap = {n: int(np.flatnonzero(np.abs(tr.position_m[:, 0]) < 0.1)[0]) for n, tr in plan.vehicles.items()}
+    first, second = sorted(in_gap, key=lambda n: in_gap[n])
+    k = in_gap[second] - in_gap[first]
+    assert k > 0, "the two vehicles pass the gap one after the other"
+
+    def delayed(x, by):  # hold the first sample for ``by`` steps, the last one after the end
+        return np.concatenate([np.repeat(x[:1], by, axis=0), x, np.repeat(x[-1:], k - by, axis=0)])
+
+    def zero_start(x, by):
+        y = delayed(x, by)
+        y[:by] = 0.0
+        return y
+
+    t = np.arange(plan.t_s.size + k) * plan.dt_s
+    vehicles = {}
     for n, tr in plan.vehicles.items():
-        moving = np.flatnonzero(np.linalg.norm(tr.velocity_mps, axis=1) > 1e-6)
-        waits[n] = int(moving[0]) if moving.size else 0
-    later = max(waits, key=lambda n: waits[n])
-    k = waits[later]
-    assert k > 0, "one vehicle must wait for the other"
-    tr = plan.vehicles[later]
-    shift = lambda x: np.concatenate([x[k:], np.repeat(x[-1:], k, axis=0)])  # noqa: E731
-    broken = replace(
-        plan,
-        vehicles={
-            **plan.vehicles,
-            later: replace(
-                tr,
-                position_m=shift(tr.position_m),
-                velocity_mps=shift(tr.velocity_mps),
-                acceleration_mps2=shift(tr.acceleration_mps2),
-            ),
-        },
-    )
+        by = k if n == first else 0  # the first one now enters the gap with the second
+        vehicles[n] = replace(
+            tr,
+            t_s=t,
+            position_m=delayed(tr.position_m, by),
+            velocity_mps=zero_start(tr.velocity_mps, by),
+            acceleration_mps2=zero_start(tr.acceleration_mps2, by),
+        )
+    broken = replace(plan, vehicles=vehicles)
     kinds = {v.kind for v in verify_plan(broken, sc)}
     assert kinds & {"separation", "authority", "authority-tube", "invalid-zone"}
