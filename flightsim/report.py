@@ -127,6 +127,8 @@ def summary_dict(
         "plan": plan_path,
         "truth": result.truth.to_dict(),
         "controller": result.options.controller,
+        "drag_compensation": result.options.drag_compensation,
+        "max_setpoint_lead_m": dict(result.max_lead_m),
         "physics_dt_s": result.options.physics_dt_s,
         "log_dt_s": result.options.log_dt_s,
         "plan_duration_s": result.plan_duration_s,

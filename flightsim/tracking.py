@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from proxplan.flightsim.simulate import SimulationOptions, simulate_plan
+from proxplan.flightsim.options import SimulationOptions
+from proxplan.flightsim.simulate import simulate_plan
 from proxplan.physics import (
     GRAVITY_MPS2,
     TRACKING_COURSE,

@@ -189,7 +189,7 @@ def test_integral_action_removes_the_steady_sag_below_another_vehicle():
 def test_grouped_wrench_equals_total_wrench_with_every_source():
     """The simulator's stacking of same-type sources, skipping of sources below the target and
     single evaluation of target-only effects give exactly proxplan.physics.effects.total_wrench."""
-    from proxplan.flightsim.simulate import _wrench_for
+    from proxplan.flightsim.wrench import wrench_on as _wrench_for
     from proxplan.physics import EFFECT_NAMES, EffectInputs, ModelOptions, SourceSample, default_effect, total_wrench
 
     rng = np.random.default_rng(0)
