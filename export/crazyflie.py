@@ -43,7 +43,7 @@ from proxplan.planfile import (
     trajectory_to_csv,
 )
 
-DEFAULT_TOLERANCE_M = 0.005  # fit target: half the 1 cm the export promises, m
+DEFAULT_TOLERANCE_M = 0.002  # fit target, m: a fifth of the 1 cm promised, so an export flies within its tube
 SPLIT_PART_PIECES = 15  # pieces per upload with split_time (two uploads fit the 31-piece memory)
 SPLIT_PIECE_OFFSET = 16  # piece offset of odd-numbered parts
 

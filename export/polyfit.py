@@ -26,7 +26,14 @@ from scipy import sparse
 from scipy.sparse import linalg as sparse_linalg
 
 from proxplan.physics import reference_error
-from proxplan.planfile import N_COEF, PolynomialTrajectory, VehicleTrajectory, predicted_path, resample_step
+from proxplan.planfile import (
+    LEAD_SUBSTEPS,
+    N_COEF,
+    PolynomialTrajectory,
+    VehicleTrajectory,
+    predicted_path,
+    resample_step,
+)
 
 FIT_SAMPLES = 48  # least-squares points per piece
 CHECK_STEP_S = 0.002  # dense check grid, s
@@ -147,7 +154,9 @@ class FitTarget:
     the limit times :data:`KINEMATIC_MARGINS` and the own value times :data:`OWN_MARGIN`
     (``limits``: speed m/s, acceleration m/s^2, jerk m/s^3, or None).
 
-    With ``flown`` the reference is an upload with a drag lead (it exceeds the limits by design):
+    With ``flown`` the reference is an upload with a drag lead (it exceeds the limits by design;
+    sampled :data:`proxplan.planfile.LEAD_SUBSTEPS` times finer than the plan, whose grid the jerk is
+    checked on):
     speed, acceleration and jerk are then those of the vehicle's predicted flight
     (:func:`proxplan.planfile.predicted_path`, what ``proxplan verify`` checks on an export): the
     target's own flight plus the flight of the fit's difference from the target, from rest at t0_s
@@ -172,27 +181,28 @@ class FitTarget:
         self.flown = flown
         if limits is None:
             return
+        self.kt = self.t  # where speed and acceleration are checked
         kin_v, kin_a = self.v, self.a
-        if flown:
-            self.j = tr.jerk_at(self.t)
-            start = float(tr.t_s[0])  # the target's flight from the upload's start
-            grid = start + self.step_s * np.arange(int(np.ceil((t1_s - start) / self.step_s)) + 2)
-            p, v, a = tr.sample(grid)
-            flight = predicted_path(grid, p, v, a, tr.jerk_at(grid), tr.vehicle)
-            self.flight_v = _interp_rows(self.t, grid, flight[1])
-            self.flight_a = _interp_rows(self.t, grid, flight[2])
+        if flown:  # on the reference's own grid, where proxplan.planfile.read_export predicts the flight
+            inside = (tr.t_s >= t0_s - 1e-9) & (tr.t_s <= t1_s + 1e-9)
+            jerk = tr.jerk_at(tr.t_s)
+            flight = predicted_path(tr.t_s, tr.position_m, tr.velocity_mps, tr.acceleration_mps2, jerk, tr.vehicle)
+            self.kt = tr.t_s[inside]
+            self.ref = (tr.velocity_mps[inside], tr.acceleration_mps2[inside], jerk[inside])
+            self.flight_v, self.flight_a = flight[1][inside], flight[2][inside]
             kin_v, kin_a = self.flight_v, self.flight_a
         margin = np.array(KINEMATIC_MARGINS)
         own_va = np.stack([np.linalg.norm(kin_v, axis=1), np.linalg.norm(kin_a, axis=1)])
         self.allowed_va = np.maximum(OWN_MARGIN * own_va, (margin * np.array(limits))[:2, None])
-        self.jerk_step_s = resample_step(float(tr.t_s[1] - tr.t_s[0]))
+        step = float(tr.t_s[1] - tr.t_s[0]) * (LEAD_SUBSTEPS if flown else 1)  # a reference is finer than its plan
+        self.jerk_step_s = resample_step(step)
         k0 = int(np.ceil(t0_s / self.jerk_step_s - 1e-9))
         k1 = int(np.floor(t1_s / self.jerk_step_s + 1e-9))
         self.tj = np.arange(k0, k1 + 1) * self.jerk_step_s
         if self.tj.size == 0:
             self.tj = np.array([t0_s])
         both = np.concatenate([self.tj, self.tj + self.jerk_step_s])
-        self.a_j = _interp_rows(both, self.t, kin_a) if flown else tr.sample(both)[2]
+        self.a_j = _interp_rows(both, self.kt, kin_a) if flown else tr.sample(both)[2]
         self.allowed_j = np.maximum(OWN_MARGIN * self._jerk(self.a_j), margin[2] * limits[2])
 
     def _jerk(self, a_both: np.ndarray) -> np.ndarray:
@@ -200,13 +210,13 @@ class FitTarget:
         return np.linalg.norm(a_both[n:] - a_both[:n], axis=1) / self.jerk_step_s
 
     def _kinematics(self, traj: PolynomialTrajectory, fit_v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Velocity and acceleration (M, 3) whose limits are checked: the fit's own, or with
-        ``flown`` its predicted flight (class docstring)."""
-        fit_a = traj.evaluate(self.t, 2)[:, :3]
+        """Velocity and acceleration (M, 3) at ``kt`` whose limits are checked: the fit's own, or
+        with ``flown`` its predicted flight (class docstring)."""
         if not self.flown:
-            return fit_v, fit_a
-        dv, da = fit_v - self.v, fit_a - self.a
-        err = reference_error(self.t, dv, da, traj.evaluate(self.t, 3)[:, :3] - self.j, self.tr.vehicle)
+            return fit_v, traj.evaluate(self.t, 2)[:, :3]
+        rv, ra, rj = self.ref
+        dv, da, dj = (traj.evaluate(self.kt, d)[:, :3] - r for d, r in ((1, rv), (2, ra), (3, rj)))
+        err = reference_error(self.kt, dv, da, dj, self.tr.vehicle)
         return self.flight_v + dv - err.rate, self.flight_a + da - err.accel
 
     def measure(self, traj: PolynomialTrajectory) -> PieceFit:
@@ -221,9 +231,10 @@ class FitTarget:
         if self.limits is not None:
             kin_v, kin_a = self._kinematics(traj, fit_v)
             va = np.stack([np.linalg.norm(kin_v, axis=1), np.linalg.norm(kin_a, axis=1)])
-            np.maximum.at(ratio, piece, (va / self.allowed_va).max(axis=0))
+            piece_k = np.clip(np.searchsorted(traj.joints_s, self.kt, side="right") - 1, 0, traj.n_pieces - 1)
+            np.maximum.at(ratio, piece_k, (va / self.allowed_va).max(axis=0))
             both = np.concatenate([self.tj, self.tj + self.jerk_step_s])
-            a_j = _interp_rows(both, self.t, kin_a) if self.flown else traj.evaluate(both, 2)[:, :3]
+            a_j = _interp_rows(both, self.kt, kin_a) if self.flown else traj.evaluate(both, 2)[:, :3]
             after = both > traj.end_time_s + 1e-9  # the plan's (rest, or the next upload, which starts in its state)
             a_j[after] = self.a_j[after]
             piece_j = np.clip(np.searchsorted(traj.joints_s, self.tj, side="right") - 1, 0, traj.n_pieces - 1)

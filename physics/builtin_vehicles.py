@@ -21,11 +21,13 @@ Sources
 [A]   Assumption, stated here, to be corrected by calibration (``proxplan identify``).
 [M]   Measured in closed-loop simulation (``proxplan track-limits --vehicle NAME``,
       :mod:`proxplan.flightsim.tracking`): each type flies alone, with the default controller (the
-      Crazyflie firmware's Mellinger law with rate feed-forward, :mod:`proxplan.flightsim.mellinger`),
+      Crazyflie firmware's Mellinger law with rate feed-forward, :mod:`proxplan.flightsim.mellinger`)
+      flying the drag-compensated reference the export uploads (:mod:`proxplan.planfile.reference`),
       a course of rest-to-rest jerk-limited segments at a ladder of limits; the fastest level whose
-      99 % error quantile + 5 mm stays within 5 cm (and within thrust-to-weight and tilt) gives the
-      limits, and that quantile + 5 mm the type's tracking tube. What limits it: RotorPy's rotor drag
-      against the firmware's soft position gain, a cruise lag of ~1.9 cm per m/s (docs/flying.md).
+      99 % error quantile (against the plan) + 5 mm stays within 2 cm (and within thrust-to-weight
+      and tilt) gives the limits, and that quantile + 5 mm the type's tracking tube. Without the
+      compensation RotorPy's rotor drag against the firmware's soft position gain left a cruise lag
+      of ~1.9 cm per m/s and tubes of ~5 cm at 1.25-1.75 m/s (docs/flying.md).
 
 Derived values
 --------------
@@ -55,7 +57,7 @@ from proxplan.physics.vehicles import (
     Vehicle,
 )
 
-MEASURED_ON = "2026-11-25"
+MEASURED_ON = "2026-11-26"
 
 
 def _measured(name: str, limits: tuple[float, float, float], q_m: float, max_m: float, sat_s: float, limited_by: str):
@@ -78,38 +80,38 @@ def _measured(name: str, limits: tuple[float, float, float], q_m: float, max_m: 
 
 _SMALL_QUAD_KIN, _SMALL_QUAD_TRACK = _measured(
     "small-quad",
-    (1.25, 4.0, 16.0),
-    0.04462,
-    0.04483,
-    0.082,
-    "next faster level (1 m/s, 4 m/s^2, 40 m/s^3): error quantile 5.3 cm + margin 0.5 cm > budget 5.0 cm",
+    (2.0, 4.0, 16.0),
+    0.01279,
+    0.01282,
+    0.088,
+    "next faster level (1.25 m/s, 4 m/s^2, 40 m/s^3): error quantile 2.2 cm + margin 0.5 cm > budget 2.0 cm",
 )
 
 _LARGE_QUAD_KIN, _LARGE_QUAD_TRACK = _measured(
     "large-quad",
-    (1.75, 2.5, 10.0),
-    0.04427,
-    0.04451,
-    0.106,
-    "next faster level (2 m/s, 2.5 m/s^2, 10 m/s^3): error quantile 4.6 cm + margin 0.5 cm > budget 5.0 cm",
+    (2.0, 2.5, 10.0),
+    0.00894,
+    0.00908,
+    0.108,
+    "next faster level (1 m/s, 3 m/s^2, 30 m/s^3): error quantile 1.9 cm + margin 0.5 cm > budget 2.0 cm",
 )
 
 _CRAZYFLIE_21_KIN, _CRAZYFLIE_21_TRACK = _measured(
     "crazyflie-2.1",
-    (1.5, 3.0, 12.0),
-    0.04377,
-    0.04409,
-    0.048,
-    "next faster level (1.25 m/s, 2.5 m/s^2, 25 m/s^3): error quantile 4.7 cm + margin 0.5 cm > budget 5.0 cm",
+    (2.0, 4.0, 16.0),
+    0.01423,
+    0.01434,
+    0.084,
+    "next faster level (1.25 m/s, 4 m/s^2, 40 m/s^3): error quantile 3.4 cm + margin 0.5 cm > budget 2.0 cm",
 )
 
 _CRAZYFLIE_PARROT_KIN, _CRAZYFLIE_PARROT_TRACK = _measured(
     "crazyflie-parrot",
-    (1.5, 3.0, 12.0),
-    0.04497,
-    0.04531,
-    0.062,
-    "next faster level (1.25 m/s, 2.5 m/s^2, 25 m/s^3): error quantile 4.9 cm + margin 0.5 cm > budget 5.0 cm",
+    (2.0, 4.0, 16.0),
+    0.01441,
+    0.01455,
+    0.1,
+    "next faster level (1.25 m/s, 4 m/s^2, 40 m/s^3): error quantile 3.7 cm + margin 0.5 cm > budget 2.0 cm",
 )
 
 _JXX_PER_ML2 = 1.43e-5 / (0.030 * 0.046**2)  # Crazyflie [RP] inertia over m l^2, -

@@ -188,7 +188,7 @@ def drag_lead(
         return out
     over = (np.abs(out.value) > tail_residual_m) | (np.abs(out.rate) > tail_residual_m)
     late = np.flatnonzero(over.any(axis=1)[n_plan:])
-    n_tail = int(late[-1]) + 1 if late.size else 0  # up to the last sample outside the residual
+    n_tail = int(late[-1]) + 2 if late.size else 0  # to the first sample within the residual after the last outside
     n_tail = min(-(-n_tail // end_multiple) * end_multiple, t.size - n_plan)
     end = n_plan + n_tail
     return LoopResponse(t[:end], out.value[:end], out.rate[:end], out.accel[:end])

@@ -195,7 +195,9 @@ def read_export(folder: str | Path) -> Plan:
     parts = {name: _parts(entry, f"{label}: vehicles.{name}", folder) for name, entry in entries.items()}
     end = max(p[-1].end_time_s for p in parts.values())
     t = np.arange(int(round(end / step)) + 1) * step
-    fine = np.arange(int(round(end / step)) * LEAD_SUBSTEPS + 1) * (step / LEAD_SUBSTEPS)
+    first = min(0, int(np.floor(min(p[0].start_time_s for p in parts.values()) / step + 1e-9)))  # steps before 0
+    fine = np.arange(first * LEAD_SUBSTEPS, int(round(end / step)) * LEAD_SUBSTEPS + 1) * (step / LEAD_SUBSTEPS)
+    on_plan_grid = slice(-first * LEAD_SUBSTEPS, None, LEAD_SUBSTEPS)  # the vehicles fly from the first upload's start
     types = plan_vehicle_types(plan_doc, label)
     vehicles = {}
     for name, entry in entries.items():
@@ -208,7 +210,7 @@ def read_export(folder: str | Path) -> Plan:
         flown = predicted_path(fine, *sampled, types[type_name])
         vehicles[name] = {"type": type_name, "t_s": t}
         for key, arr in zip(("position_m", "velocity_mps", "acceleration_mps2"), flown):
-            vehicles[name][key] = arr[::LEAD_SUBSTEPS]
+            vehicles[name][key] = arr[on_plan_grid]
     full = dict(plan_doc, dt_s=step, vehicles=vehicles)
     full["notes"] = list(plan_doc.get("notes") or []) + [
         f"the predicted flight of the Crazyflie polynomials in {folder} (each vehicle lagging its uploads by its "

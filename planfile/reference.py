@@ -3,10 +3,10 @@ predicted to fly: :mod:`proxplan.physics.closed_loop` on a :class:`VehicleTrajec
 
 * :func:`compensated_reference`: the plan (averaged over the motor time constant) + its lead delta
   (with the settle tail after the plan's end), what ``proxplan export`` uploads and ``simulate`` /
-  ``track-limits`` / ``certify`` fly by default. Sampled on the plan's own grid (``dt_s``), from
-  one step before the plan to the end of the tail, position, velocity and acceleration exact at the
-  samples (the lead solved on a grid :data:`LEAD_SUBSTEPS` times finer), quintic Hermite in between
-  as every plan.
+  ``track-limits`` / ``certify`` fly by default. Sampled on a grid :data:`LEAD_SUBSTEPS` times
+  finer than the plan's (the lead has a fast mode, the firmware's rate-error derivative), from one
+  plan step before the plan to the end of the tail, position, velocity and acceleration exact at
+  the samples, quintic Hermite in between as every plan.
 * :func:`predicted_path`: where a vehicle flying a reference (an upload's polynomials) will be:
   reference - its predicted lag. For the compensated reference this is the plan again (exactly,
   in the linear model); for an uncompensated upload it is the plan lagging by the rotor drag.
@@ -25,7 +25,7 @@ from proxplan.physics import Vehicle, drag_lead, reference_error
 from proxplan.planfile.plan import VehicleTrajectory
 
 LEAD_SUBSTEPS = 5
-"""The lead is solved on a grid this many times finer than the plan's, -."""
+"""The compensated reference is sampled this many times finer than its plan, -."""
 
 
 @dataclass(frozen=True)
@@ -72,24 +72,23 @@ def compensated_reference(tr: VehicleTrajectory, *, tail: bool = True) -> Compen
     (:func:`smoothed_plan`), + its drag lead (module docstring), from one plan step before the plan (where the averaged plan
     starts to move) to its end, and without ``tail`` ends there."""
     step = float(tr.t_s[1] - tr.t_s[0]) if tr.t_s.size >= 2 else 0.05
-    window = tr.vehicle.motor_time_constant_s
-    pad = step * int(np.ceil(0.5 * window / step))  # whole plan steps covering half the window
-    t0, t1 = float(tr.t_s[0]) - pad, float(tr.t_s[-1]) + pad
+    window = min(tr.vehicle.motor_time_constant_s, 2.0 * step)  # the averaged plan moves one step early at most
+    t0, t1 = float(tr.t_s[0]) - step, float(tr.t_s[-1]) + step
     fine_step = step / LEAD_SUBSTEPS
     fine = t0 + fine_step * np.arange(int(round((t1 - t0) / fine_step)) + 1)
     p, v, a, j = smoothed_plan(tr, fine, window)
     lead = drag_lead(fine, v, a, j, tr.vehicle, tail=tail, end_multiple=LEAD_SUBSTEPS)
-    idx = np.arange(0, lead.t_s.size, LEAD_SUBSTEPS)
     n = fine.size
-    rest = np.clip(idx, 0, n - 1)  # the averaged plan is at rest at its end over the tail
+    rest = np.clip(np.arange(lead.t_s.size), 0, n - 1)  # the averaged plan is at rest at its end over the tail
+    moving = (np.arange(lead.t_s.size) < n)[:, None]
     traj = VehicleTrajectory(
         tr.name,
         tr.type_name,
         tr.vehicle,
-        lead.t_s[idx],
-        p[rest] + lead.value[idx],
-        np.where((idx < n)[:, None], v[rest], 0.0) + lead.rate[idx],
-        np.where((idx < n)[:, None], a[rest], 0.0) + lead.accel[idx],
+        lead.t_s,
+        p[rest] + lead.value,
+        np.where(moving, v[rest], 0.0) + lead.rate,
+        np.where(moving, a[rest], 0.0) + lead.accel,
     )
     norm = np.linalg.norm(traj.position_m - tr.sample(traj.t_s)[0], axis=1)
     return CompensatedReference(traj, float(tr.t_s[-1]), float(norm.max()), float(norm[-1]))

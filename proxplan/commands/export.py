@@ -37,7 +37,7 @@ def register(subparsers) -> None:
         type=float,
         default=None,
         metavar="M",
-        help="crazyflie: largest allowed position deviation from the plan, m (default 0.005, half of the 1 cm promised)",
+        help="crazyflie: largest allowed position deviation from the plan, m (default 0.002, a fifth of the 1 cm promised)",
     )
     p.add_argument(
         "--split-time",
