@@ -117,7 +117,8 @@ def _sections(coef: tuple[float, ...], step_s: float) -> tuple[np.ndarray, np.nd
         out_c[2] = -np.array(c[:-1]) / c[-1]
         out_d[2, 0] = 1.0 / c[-1]
     ad, bd, cd, dd, _ = signal.cont2discrete((a, b, out_c, out_d), step_s, method="foh")
-    return tuple(signal.zpk2sos(*signal.ss2zpk(ad, bd, cd[r : r + 1], dd[r : r + 1])) for r in range(3))  # type: ignore[return-value]
+    y, rate, accel = (signal.zpk2sos(*signal.ss2zpk(ad, bd, cd[r : r + 1], dd[r : r + 1])) for r in range(3))
+    return y, rate, accel
 
 
 @dataclass(frozen=True)

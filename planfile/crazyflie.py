@@ -206,8 +206,8 @@ def read_export(folder: str | Path) -> Plan:
             raise UserError(
                 f"{label}: vehicles.{name}.type: expected one of the plan's vehicle types ({', '.join(types)})"
             )
-        sampled = sample_parts(parts[name], fine, derivatives=4)
-        flown = predicted_path(fine, *sampled, types[type_name])
+        p, v, a, j = sample_parts(parts[name], fine, derivatives=4)
+        flown = predicted_path(fine, p, v, a, j, types[type_name])
         vehicles[name] = {"type": type_name, "t_s": t}
         for key, arr in zip(("position_m", "velocity_mps", "acceleration_mps2"), flown):
             vehicles[name][key] = arr[on_plan_grid]
