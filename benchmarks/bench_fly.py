@@ -111,14 +111,14 @@ def _against_plan(plan, result) -> tuple[float, float, float]:
     """An export's flight measured against the *plan* (the read-back plan is the uploads' predicted
     flight): (largest error where no disturbance is predicted, largest predicted deflection, largest
     error beyond the predicted deflection), m, over every vehicle."""
-    from proxplan.flightsim.report import UNDISTURBED_M, predicted_deflection_m
+    from proxplan.flightsim.report import predicted_deflection_m, undisturbed
 
     calm = beyond = defl_max = 0.0
     for name, rec in result.records.items():
         ref = plan.vehicles[name].sample(rec.t_s + float(plan.t_s[0]))[0]
         err = np.linalg.norm(rec.position_m - ref, axis=1)
         d = predicted_deflection_m(rec)
-        quiet = d <= UNDISTURBED_M
+        quiet = undisturbed(rec, d)
         calm = max(calm, float(err[quiet].max()) if quiet.any() else 0.0)
         beyond = max(beyond, float((err - d).max()))
         defl_max = max(defl_max, float(d.max()))

@@ -12,8 +12,9 @@ plan predicted: the usage of the plan's predicted disturbance (its feed-forward 
 verifier's model) and the same invalid-zone test on the plan's positions. The tracking error is
 also split by what the plan predicts: the deflection d the predicted disturbance pushes the vehicle
 off its plan by (``proxplan.physics.disturbance_deflection``: sag F / k_p and its transient, part of
-the vehicle's tube where it applies), the largest error where |d| <= :data:`UNDISTURBED_M` (the
-plan predicts no disturbance there), and the largest error beyond |d| (to hold within the tube).
+the vehicle's tube where it applies), the largest error where the plan predicts no disturbance (its
+predicted force below :data:`UNDISTURBED_FORCE_SHARE` of the vehicle's weight and |d| <=
+:data:`UNDISTURBED_M`), and the largest error beyond |d| (to hold within the tube).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from proxplan.physics import authority_usage, disturbance_deflection
 
 USAGE_RATIO_FLOOR = 1e-3  # predicted usage below which a flown/predicted ratio means nothing, -
 UNDISTURBED_M = 0.001  # predicted deflection up to which the plan predicts "no disturbance", m
+UNDISTURBED_FORCE_SHARE = 0.005  # predicted force (share of the weight) up to which it does, -
 
 
 @dataclass(frozen=True)
@@ -97,7 +99,7 @@ def vehicle_metrics(
         )
     flown = max(0.0, float(usage.max()))  # (-0.0 of a vehicle nothing acts on)
     defl = predicted_deflection_m(record)
-    calm = defl <= UNDISTURBED_M
+    calm = undisturbed(record, defl)
     return VehicleMetrics(
         type=record.type_name,
         max_position_error_m=float(pos.max()),
@@ -118,6 +120,16 @@ def vehicle_metrics(
         tube_m=float(record.vehicle.tracking_tube_m),
         left_tube_by_m=max(0.0, float((pos - defl).max()) - float(record.vehicle.tracking_tube_m)),
     )
+
+
+def undisturbed(record, deflection_m: np.ndarray) -> np.ndarray:
+    """(M,) True where the plan predicts no disturbance on ``record``'s vehicle: its predicted force
+    within :data:`UNDISTURBED_FORCE_SHARE` of the weight and its deflection within :data:`UNDISTURBED_M`."""
+    calm = deflection_m <= UNDISTURBED_M
+    if record.predicted_force_N is not None:
+        force = np.linalg.norm(record.predicted_force_N, axis=1)
+        calm &= force <= UNDISTURBED_FORCE_SHARE * record.vehicle.weight_N
+    return calm
 
 
 def predicted_deflection_m(record) -> np.ndarray:
