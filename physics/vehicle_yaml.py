@@ -190,7 +190,9 @@ def _required_fields(cls: type) -> list[str]:
 def _if_no_base(schema: dict[str, Any]) -> None:
     """JSON Schema: without ``base`` the required keys and section fields are required."""
     sections = {
-        k: {"required": _required_fields(cls)} for k, (cls, _) in SECTIONS.items() if k != "tracking" and k not in DERIVED
+        k: {"required": _required_fields(cls)}
+        for k, (cls, _) in SECTIONS.items()
+        if k != "tracking" and k not in DERIVED
     }
     schema["if"] = {"not": {"required": ["base"]}}
     schema["then"] = {"required": list(REQUIRED_WITHOUT_BASE), "properties": sections}

@@ -58,7 +58,10 @@ def test_base_and_override(tmp_path):
             "    base: crazyflie-2.1\n    controller: {ki_xy_Npms: -1}\n",
             "controller.ki_xy_Npms: expected a number >= 0",
         ),
-        ("    base: crazyflie-2.1\n    controller: {kp_xy: 1.2}\n", "controller: unknown key 'kp_xy'"),
+        (
+            "    base: crazyflie-2.1\n    controller: {kp_xy: 1.2}\n",
+            "controller.kp_xy: unknown key (did you mean 'kp_xy_Npm'?)",
+        ),
         (
             "    base: crazyflie-2.1\n    rotor_drag: {k_d_Ns2pradm: -1.0e-6}\n",
             "vehicles.v.rotor_drag.k_d_Ns2pradm: expected a number >= 0",
