@@ -123,15 +123,24 @@ def test_verify_cli_on_export_and_on_corrupted_copy(exported, tmp_path):
     assert json.loads(res.stdout)["violations"]
 
 
-def _wiggly_plan(duration_s: float = 60.0) -> Plan:
+def _wiggly_plan(duration_s: float = 60.0, ramp_s: float = 1.0) -> Plan:
     """One crazyflie (limits 1.5 m/s, 3 m/s^2, 15 m/s^3 stated here) swinging +-0.1 m in x at
-    5 rad/s for ``duration_s`` (within those limits): more than 31 pieces at :data:`TIGHT_M`."""
+    5 rad/s for ``duration_s`` (within those limits; the swing fades in and out over ``ramp_s``, so
+    it starts and ends at rest as plans do): more than 31 pieces at :data:`TIGHT_M`."""
     dt = 0.02
     t = np.arange(int(round(duration_s / dt)) + 1) * dt
     w = 5.0
+    s = np.clip(np.minimum(t, duration_s - t) / ramp_s, 0.0, 1.0)
+    sign = np.where(t < duration_s / 2, 1.0, -1.0) * (s < 1.0) / ramp_s  # ds/dt on the ramps
+    env = 10 * s**3 - 15 * s**4 + 6 * s**5
+    d_env = (30 * s**2 - 60 * s**3 + 30 * s**4) * sign
+    dd_env = (60 * s - 180 * s**2 + 120 * s**3) * sign**2
+    sin, cos = np.sin(w * t), np.cos(w * t)
     p = np.zeros((t.size, 3))
     v, a = np.zeros_like(p), np.zeros_like(p)
-    p[:, 0], v[:, 0], a[:, 0] = 0.1 * np.sin(w * t), 0.1 * w * np.cos(w * t), -0.1 * w**2 * np.sin(w * t)
+    p[:, 0] = 0.1 * env * sin
+    v[:, 0] = 0.1 * (d_env * sin + env * w * cos)
+    a[:, 0] = 0.1 * (dd_env * sin + 2 * d_env * w * cos - env * w**2 * sin)
     p[:, 2] = 1.0
     vehicle = replace(BUILTIN_VEHICLES["crazyflie-2.1"], kinematics=KinematicLimits(1.5, 3.0, 15.0))
     tr = VehicleTrajectory("wiggler", "crazyflie-2.1", vehicle, t, p, v, a)
@@ -164,14 +173,17 @@ def test_too_wiggly_plan_gives_clear_error_and_splits_on_request():
 
 
 def test_cli_does_not_fit(tmp_path):
+    """The wiggly plan's upload (plan + drag lead, with its settle tail) needs more than 31 pieces:
+    exit 1, one line naming the vehicle and what it fits, nothing written."""
     write_plan(_wiggly_plan(), tmp_path / "plan")
     out = tmp_path / "cf"
     tight = ("--tolerance-m", TIGHT_M)
     res = run_proxplan("export", tmp_path / "plan", "--format", "crazyflie", "--out", out, *tight, "--json")
     assert res.returncode == 1
-    assert len(res.stderr.strip().splitlines()) == 1 and "wiggler" in res.stderr
+    (line,) = res.stderr.strip().splitlines()
+    assert "'wiggler'" in line and "drag lead" in line and "31" in line
     doc = json.loads(res.stdout)
-    assert doc["fits"] is False and doc["vehicle"] == "wiggler"
+    assert doc["fits"] is False and doc["vehicle"] == "wiggler" and doc["pieces"] > CRAZYFLIE_MAX_PIECES
     assert not out.exists()  # nothing written
 
 
@@ -322,15 +334,3 @@ def test_without_compensation_the_upload_is_the_plan_and_the_vehicle_lags_it(exp
     manifest = json.loads((folder / EXPORT_MANIFEST).read_text())
     lead = manifest["vehicles"]["east"]["drag_compensation"]
     assert manifest["drag_compensation"] is True and lead["max_lead_m"] > 0.02 and lead["tail_s"] > 0.0
-
-
-def test_an_upload_that_no_longer_fits_with_its_lead_names_the_vehicle(tmp_path):
-    """The wiggly plan with its lead and settle tail needs more than 31 pieces: exit 1, one line
-    naming the vehicle and the compensated reference, nothing written."""
-    write_plan(_wiggly_plan(), tmp_path / "plan")
-    out = tmp_path / "cf"
-    res = run_proxplan("export", tmp_path / "plan", "--format", "crazyflie", "--out", out, "--tolerance-m", TIGHT_M)
-    assert res.returncode == 1
-    (line,) = res.stderr.strip().splitlines()
-    assert "'wiggler'" in line and "drag lead" in line and "31" in line
-    assert not out.exists()

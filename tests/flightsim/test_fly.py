@@ -141,7 +141,11 @@ def test_shipped_scenario_exported_and_flown_stays_within_2_cm_where_undisturbed
     export_crazyflie(plan, scenario, tmp_path)
     back = read_export(tmp_path)
     assert verify_plan(back, scenario) == []
+    checked = 0
     for name, rec in simulate_plan(back, options=QUIET).records.items():
         err = np.linalg.norm(rec.position_m - plan.vehicles[name].position_at(rec.t_s), axis=1)
         calm = undisturbed(rec, predicted_deflection_m(rec))
-        assert calm.any() and err[calm].max() <= 0.02, (name, float(err[calm].max()))
+        if calm.any():  # (a vehicle under another one from start to end has no such stretch)
+            assert err[calm].max() <= 0.02, (name, float(err[calm].max()))
+            checked += 1
+    assert checked >= 1
