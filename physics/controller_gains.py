@@ -126,23 +126,11 @@ def scaled_gains(
     """``reference`` scaled to another vehicle so that every loop keeps its closed-loop poles:
     position gains x m / m_ref (N/m per kg kept), roll / pitch gains x J_xx / J_ref,xx, yaw gains
     x J_zz / J_ref,zz; integral ranges unchanged."""
-    sm = mass_kg / reference_mass_kg
-    sxy = inertia_kgm2[0] / reference_inertia_kgm2[0]
-    sz = inertia_kgm2[2] / reference_inertia_kgm2[2]
-    r = reference
-    return dataclasses.replace(
-        r,
-        kp_xy_Npm=r.kp_xy_Npm * sm,
-        kd_xy_Nspm=r.kd_xy_Nspm * sm,
-        ki_xy_Npms=r.ki_xy_Npms * sm,
-        kp_z_Npm=r.kp_z_Npm * sm,
-        kd_z_Nspm=r.kd_z_Nspm * sm,
-        ki_z_Npms=r.ki_z_Npms * sm,
-        kR_xy_Nmprad=r.kR_xy_Nmprad * sxy,
-        kw_xy_Nmsprad=r.kw_xy_Nmsprad * sxy,
-        ki_m_xy_Nmprads=r.ki_m_xy_Nmprads * sxy,
-        kR_z_Nmprad=r.kR_z_Nmprad * sz,
-        kw_z_Nmsprad=r.kw_z_Nmsprad * sz,
-        ki_m_z_Nmprads=r.ki_m_z_Nmprads * sz,
-        kd_omega_rp_Nms2prad=r.kd_omega_rp_Nms2prad * sxy,
+    scale = dict.fromkeys(("kp_xy_Npm", "kd_xy_Nspm", "ki_xy_Npms", "kp_z_Npm", "kd_z_Nspm", "ki_z_Npms"),
+                          mass_kg / reference_mass_kg)  # fmt: skip
+    scale |= dict.fromkeys(("kR_xy_Nmprad", "kw_xy_Nmsprad", "ki_m_xy_Nmprads", "kd_omega_rp_Nms2prad"),
+                           inertia_kgm2[0] / reference_inertia_kgm2[0])  # fmt: skip
+    scale |= dict.fromkeys(
+        ("kR_z_Nmprad", "kw_z_Nmsprad", "ki_m_z_Nmprads"), inertia_kgm2[2] / reference_inertia_kgm2[2]
     )
+    return dataclasses.replace(reference, **{name: getattr(reference, name) * f for name, f in scale.items()})
