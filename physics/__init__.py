@@ -1,7 +1,9 @@
 """The disturbance model (seed 000 section II) and everything about a vehicle.
 
-Vehicles (:class:`Vehicle`: the one home of every vehicle fact), the built-in types and vehicle
-YAML files, the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
+Vehicles (:class:`Vehicle`: the one home of every vehicle fact, rotor drag and controller gains
+included), the built-in types and vehicle YAML files, the linearised closed loop of a vehicle under
+its position controller (drag lead of the reference, prediction of the flown path, deflection under
+a predicted disturbance), the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
 below another (S0-3..S0-8), controller-authority usage (DESIGN.md section 3), and the library of
 effects beyond the base model. Cost maps, planner, verifier, simulator and identification all use
 this one implementation.
@@ -9,6 +11,24 @@ this one implementation.
 
 from proxplan.physics.authority import authority_usage, mixer_matrix, motor_thrusts_N, normalised_motor_map
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
+from proxplan.physics.closed_loop import (
+    TAIL_MAX_S,
+    TAIL_RESIDUAL_M,
+    LoopResponse,
+    disturbance_deflection,
+    drag_lead,
+    reference_error,
+    torque_equivalent_force_N,
+)
+from proxplan.physics.controller_gains import (
+    FIRMWARE_ATTITUDE_PWM,
+    FIRMWARE_MASS_THRUST_PWM_PER_N,
+    GAIN_NAMES,
+    POSITIVE_GAINS,
+    ControllerGains,
+    firmware_gains,
+    scaled_gains,
+)
 from proxplan.physics.disturbance import (
     DEFAULT_OPTIONS,
     VALIDITY_FACTOR_L,
@@ -53,6 +73,7 @@ from proxplan.physics.model_file import (
 )
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
 from proxplan.physics.room import Plane, PlaneList, plane_distances_m, planes_from_list, planes_from_parts
+from proxplan.physics.rotor_drag import RotorDrag, drag_rate_ps, rotorpy_rotor_drag
 from proxplan.physics.stack import MAX_STACK_SHIELDING, intercepted_flux_fraction, shielding_factors
 from proxplan.physics.vehicle_yaml import (
     VehicleEntry,
@@ -80,6 +101,23 @@ from proxplan.physics.vehicles import (
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
+    "TAIL_MAX_S",
+    "TAIL_RESIDUAL_M",
+    "LoopResponse",
+    "disturbance_deflection",
+    "drag_lead",
+    "reference_error",
+    "torque_equivalent_force_N",
+    "FIRMWARE_ATTITUDE_PWM",
+    "FIRMWARE_MASS_THRUST_PWM_PER_N",
+    "GAIN_NAMES",
+    "POSITIVE_GAINS",
+    "ControllerGains",
+    "RotorDrag",
+    "drag_rate_ps",
+    "firmware_gains",
+    "rotorpy_rotor_drag",
+    "scaled_gains",
     "ModelOptionsPart",
     "PlaneList",
     "planes_from_parts",

@@ -19,12 +19,19 @@ File layout (every key is optional when ``base`` names a built-in type, required
         kinematics: {max_speed_mps: 1.0, max_accel_mps2: 2.0, max_jerk_mps3: 8.0}  # optional
         tracking: {controller: mellinger, tube_m: 0.045, ...}  # optional: proxplan track-limits output
         motor_time_constant_s: 0.04                                               # optional
+        rotor_drag: {k_d_Ns2pradm: 1.06e-6, k_z_Ns2pradm: 7.8e-7}   # optional, >= 0 (proxplan.physics.rotor_drag)
+        controller: {kp_xy_Npm: 1.2, kd_xy_Nspm: 0.35}  # optional: the gains it flies with, SI
+                                    # (proxplan.physics.controller_gains; kp/kd/kR/kw > 0, the rest >= 0)
     model: {...}                    # optional: a model file's model section (proxplan.physics.model_file),
                                     # not read here: load_model_file applies it
 
 Each section model mirrors one dataclass of :mod:`proxplan.physics.vehicles` field for field (a test
 checks it): a new vehicle parameter is a field in the dataclass and one declared field here, with its
 unit in the name and a description; :func:`build_vehicle` copies every declared field by name.
+Without ``rotor_drag`` / ``controller`` a vehicle takes its base's (a Crazyflie with extra mass still
+flies the firmware's defaults), or, without a base, RotorPy's Crazyflie rotor drag scaled to its
+rotors and the Crazyflie 2.1's firmware gains scaled to its mass and inertia (:data:`DERIVED`); a
+partial section overrides only the keys it names.
 Every error is a :class:`~proxplan.fileio.errors.UserError` naming the file and the key.
 """
 
@@ -52,9 +59,18 @@ from proxplan.fileio import (
     read_yaml,
     validate,
 )
-from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
+from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES, CRAZYFLIE_21
+from proxplan.physics.controller_gains import ControllerGains, scaled_gains
 from proxplan.physics.propeller import PropellerSpec
-from proxplan.physics.vehicles import DownwashSpec, FrameSpec, KinematicLimits, TrackingMeasurement, Vehicle
+from proxplan.physics.rotor_drag import RotorDrag, rotorpy_rotor_drag
+from proxplan.physics.vehicles import (
+    GRAVITY_MPS2,
+    DownwashSpec,
+    FrameSpec,
+    KinematicLimits,
+    TrackingMeasurement,
+    Vehicle,
+)
 
 # ------------------------------------------------------------------------------------ declared model
 
@@ -117,17 +133,54 @@ class TrackingPart(FileModel):
     date: Text = Field(description="date of the measurement")
 
 
+class RotorDragPart(FileModel):
+    """Rotor drag per rotor in RotorPy's form (proxplan.physics.rotor_drag): a rotor spinning at omega
+    through air at v (body frame) meets -omega (k_d v_x, k_d v_y, k_z v_z)."""
+
+    k_d_Ns2pradm: NonNegative = optional("in-plane rotor drag k_d, N per (rad/s x m/s)")
+    k_z_Ns2pradm: NonNegative = optional("axial (induced-inflow) drag k_z, N per (rad/s x m/s)")
+
+
+class ControllerPart(FileModel):
+    """The gains of the Mellinger law the vehicle flies, SI (proxplan.physics.controller_gains; the
+    Crazyflie firmware's ctrlMel position gains are SI already, its attitude gains convert from PWM
+    through massThrust): xy = horizontal position and roll / pitch, z = vertical position and yaw."""
+
+    kp_xy_Npm: Positive = optional("horizontal position gain, N/m (firmware kp_xy)")
+    kd_xy_Nspm: Positive = optional("horizontal velocity gain, N s/m (firmware kd_xy)")
+    ki_xy_Npms: NonNegative = optional("horizontal position integral gain, N/(m s) (firmware ki_xy)")
+    i_range_xy_ms: NonNegative = optional("bound of the horizontal position integral, m s")
+    kp_z_Npm: Positive = optional("vertical position gain, N/m (firmware kp_z)")
+    kd_z_Nspm: Positive = optional("vertical velocity gain, N s/m (firmware kd_z)")
+    ki_z_Npms: NonNegative = optional("vertical position integral gain, N/(m s) (firmware ki_z)")
+    i_range_z_ms: NonNegative = optional("bound of the vertical position integral, m s")
+    kR_xy_Nmprad: Positive = optional("roll / pitch attitude gain, N m/rad")
+    kw_xy_Nmsprad: Positive = optional("roll / pitch rate gain, N m s/rad")
+    ki_m_xy_Nmprads: NonNegative = optional("roll / pitch attitude integral gain, N m/(rad s)")
+    i_range_m_xy_rads: NonNegative = optional("bound of the roll / pitch attitude integral, rad s")
+    kR_z_Nmprad: Positive = optional("yaw attitude gain, N m/rad")
+    kw_z_Nmsprad: Positive = optional("yaw rate gain, N m s/rad")
+    ki_m_z_Nmprads: NonNegative = optional("yaw attitude integral gain, N m/(rad s)")
+    i_range_m_z_rads: NonNegative = optional("bound of the yaw attitude integral, rad s")
+    kd_omega_rp_Nms2prad: NonNegative = optional("roll / pitch rate-error derivative gain, N m s^2/rad")
+
+
 SECTIONS: dict[str, tuple[type, type[FileModel]]] = {
     "propeller": (PropellerSpec, PropellerPart),
     "frame": (FrameSpec, FramePart),
     "downwash": (DownwashSpec, DownwashPart),
     "kinematics": (KinematicLimits, KinematicsPart),
     "tracking": (TrackingMeasurement, TrackingPart),
+    "rotor_drag": (RotorDrag, RotorDragPart),
+    "controller": (ControllerGains, ControllerPart),
 }
 """Vehicle sections: key -> (dataclass of :mod:`proxplan.physics.vehicles`, declared part)."""
 REQUIRED_WITHOUT_BASE = ("mass_kg", "arm_length_m", "max_thrust_N", "inertia_diag_kgm2", "torque_to_thrust_m",
                          "propeller", "frame", "downwash")  # fmt: skip
 """Keys a vehicle without ``base`` must give (the others have defaults or are optional)."""
+DERIVED = ("rotor_drag", "controller")
+"""Sections a vehicle without ``base`` may leave out, or give in part: the rest is derived from its
+other parameters (:func:`_derived`)."""
 
 
 def _required_fields(cls: type) -> list[str]:
@@ -136,7 +189,11 @@ def _required_fields(cls: type) -> list[str]:
 
 def _if_no_base(schema: dict[str, Any]) -> None:
     """JSON Schema: without ``base`` the required keys and section fields are required."""
-    sections = {k: {"required": _required_fields(cls)} for k, (cls, _) in SECTIONS.items() if k != "tracking"}
+    sections = {
+        k: {"required": _required_fields(cls)}
+        for k, (cls, _) in SECTIONS.items()
+        if k != "tracking" and k not in DERIVED
+    }
     schema["if"] = {"not": {"required": ["base"]}}
     schema["then"] = {"required": list(REQUIRED_WITHOUT_BASE), "properties": sections}
 
@@ -165,6 +222,10 @@ class VehicleEntry(FileModel, json_schema_extra=_if_no_base):
         "trackable speed / acceleration / jerk limits (default: derived from thrust-to-weight)"
     )
     tracking: TrackingPart = optional("how kinematics and the tube were measured (proxplan track-limits)")
+    rotor_drag: RotorDragPart = optional("rotor drag coefficients (default: the base's, or RotorPy's scaled)")
+    controller: ControllerPart = optional(
+        "the controller gains it flies with (default: the base's, or the Crazyflie firmware's scaled)"
+    )
 
     @field_validator("base")
     @classmethod
@@ -181,7 +242,7 @@ class VehicleEntry(FileModel, json_schema_extra=_if_no_base):
                 raise missing(key)
         for key, (cls, _) in SECTIONS.items():
             part = getattr(self, key)
-            if key == "tracking" or part is None or (base is not None and getattr(base, key) is not None):
+            if key in ("tracking", *DERIVED) or part is None or (base is not None and getattr(base, key) is not None):
                 continue
             for name in _required_fields(cls):
                 if name not in part.model_fields_set:
@@ -226,6 +287,8 @@ def build_vehicle(name: str, entry: VehicleEntry, *, source: str, where: str) ->
         key = f.name
         if key in ("name", "sources", "description"):
             continue
+        if key in DERIVED:
+            continue  # after the parameters they derive from
         if key in SECTIONS:
             cls = SECTIONS[key][0]
             if key in given:
@@ -236,6 +299,9 @@ def build_vehicle(name: str, entry: VehicleEntry, *, source: str, where: str) ->
             values[key] = getattr(entry, key)
         elif base is not None:
             values[key] = getattr(base, key)
+    for key in DERIVED:
+        default = getattr(base, key) if base is not None else _derived(key, values)
+        values[key] = _section(SECTIONS[key][0], getattr(entry, key), default) if key in given else default
     values["description"] = entry.description if "description" in given else f"custom vehicle from {source}"
     vehicle = Vehicle(**values)
     if vehicle.max_thrust_per_rotor_N <= vehicle.hover_thrust_per_rotor_N:
@@ -244,6 +310,15 @@ def build_vehicle(name: str, entry: VehicleEntry, *, source: str, where: str) ->
             f"(needs more than {vehicle.weight_N:.3f} N)"
         )
     return vehicle
+
+
+def _derived(key: str, values: dict[str, Any]) -> Any:
+    """Rotor drag or controller gains of a vehicle without a base (:data:`DERIVED`)."""
+    if key == "rotor_drag":
+        k1 = values["propeller"].k1_Ns2prad2
+        return rotorpy_rotor_drag(k1, (values["mass_kg"] * GRAVITY_MPS2 / 4.0 / k1) ** 0.5)
+    cf = CRAZYFLIE_21
+    return scaled_gains(cf.controller, cf.mass_kg, cf.inertia_diag_kgm2, values["mass_kg"], values["inertia_diag_kgm2"])
 
 
 def build_vehicles(entries: Mapping[str, VehicleEntry], *, source: str, key: str = "vehicles") -> dict[str, Vehicle]:
@@ -295,6 +370,6 @@ def vehicle_to_yaml_dict(vehicle: Vehicle, *, base: str | None = None) -> dict[s
     if vehicle.tracking is not None:
         out["tracking"] = dataclasses.asdict(vehicle.tracking)
     out["inertia_diag_kgm2"] = [float(v) for v in vehicle.inertia_diag_kgm2]
-    for key in ("propeller", "frame", "downwash"):
+    for key in ("propeller", "frame", "downwash", "rotor_drag", "controller"):
         out[key] = {k: v for k, v in dataclasses.asdict(getattr(vehicle, key)).items() if v is not None}
     return out

@@ -1,7 +1,9 @@
 """The two file contracts of planning: scenario YAML in (:class:`Scenario`) and plan.json out
 (:class:`Plan`), each declared once (:class:`ScenarioFile`, :class:`PlanFile`: their JSON Schemas
 are ``proxplan schema scenario|plan``) and read and validated in one place, plus the one trajectory
-sampler every user of a plan shares (:meth:`VehicleTrajectory.sample`).
+sampler every user of a plan shares (:meth:`VehicleTrajectory.sample`), and the reference a vehicle is
+given to fly its plan (:func:`compensated_reference`: plan + rotor-drag lead) with its inverse
+(:func:`predicted_path`).
 """
 
 from proxplan.planfile.crazyflie import (
@@ -31,11 +33,23 @@ from proxplan.planfile.plan import (
     write_plan,
 )
 from proxplan.planfile.plan_model import PlanFile
+from proxplan.planfile.reference import (
+    LEAD_SUBSTEPS,
+    CompensatedReference,
+    compensated_reference,
+    drag_feedforward_mps2,
+    predicted_path,
+)
 from proxplan.planfile.scenario import INVALID_ZONE_RULES, Box, Limits, Scenario, VehicleTask
 from proxplan.planfile.scenario_load import load_scenario, scenario_from_dict
 from proxplan.planfile.scenario_model import MAX_VEHICLES, ScenarioFile
 
 __all__ = [
+    "LEAD_SUBSTEPS",
+    "CompensatedReference",
+    "compensated_reference",
+    "drag_feedforward_mps2",
+    "predicted_path",
     "CRAZYFLIE_MAX_PIECES",
     "EXPORT_FORMAT",
     "EXPORT_FORMAT_VERSION",

@@ -47,7 +47,15 @@ from typing import Any
 import numpy as np
 
 from proxplan.fileio import UserError, atomic_write_text, read_json, validate
-from proxplan.physics import BUILTIN_VEHICLES, Effect, Vehicle, build_vehicles, effects_from_list, vehicle_to_yaml_dict
+from proxplan.physics import (
+    BUILTIN_VEHICLES,
+    Effect,
+    Vehicle,
+    build_vehicles,
+    effects_from_list,
+    vehicle_from_dict,
+    vehicle_to_yaml_dict,
+)
 from proxplan.planfile.plan_model import PLAN_FORMAT_VERSION, PlanFile, SolverPart
 
 PLAN_FILENAME = "plan.json"
@@ -295,6 +303,19 @@ def plan_to_dict(plan: Plan) -> dict:
 def write_plan(plan: Plan, out_dir: str | Path) -> Path:
     """Write ``out_dir/plan.json`` atomically; returns its path."""
     return atomic_write_text(Path(out_dir) / PLAN_FILENAME, json.dumps(plan_to_dict(plan), indent=1))
+
+
+def plan_vehicle_types(doc: Any, label: str = "<plan>") -> dict[str, Vehicle]:
+    """The vehicle types a plan.json mapping carries (format 1: the built-in types), validated; for
+    a plan without its samples (an export manifest's ``plan``)."""
+    if not isinstance(doc, dict):
+        raise UserError(f"{label}: expected a JSON object with keys scenario, dt_s, vehicles, metrics")
+    if doc.get("format_version", 1) == 1:
+        return dict(BUILTIN_VEHICLES)
+    raw = doc.get("vehicle_types")
+    if not isinstance(raw, dict) or not raw:
+        raise UserError(f"{label}: vehicle_types: expected an object TYPE: {{vehicle parameters}} (format 2)")
+    return {str(n): vehicle_from_dict(str(n), d, source=f"{label}: vehicle_types") for n, d in raw.items()}
 
 
 def plan_from_dict(doc: Any, *, label: str = "<plan>") -> Plan:

@@ -26,7 +26,7 @@ from proxplan.planner.sampling.prioritized import PLAN_MARGIN_M, sampling_plan
 from proxplan.planner.sampling.spec import SamplingOptions
 from proxplan.planner.timing.plan_grid import DT_S, assemble_plan
 
-__all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "finish_metrics", "plan_scenario"]
+__all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "deflection_allowance", "finish_metrics", "plan_scenario"]
 
 METHODS = ("optimized", "sampling", "roadmap", "no-downwash", "ellipsoid")
 MODE_OF_METHOD = {
@@ -100,6 +100,8 @@ def plan_scenario(
     if mode == "downwash" and not from_swarm:
         # safety net: the timed plan is re-checked per vehicle, but the verifier is independent
         bad = verify_plan(plan, scenario)
+        if bad and not options.deflection_m:
+            plan, bad = _with_deflections(scenario, plan, bad, mode=mode, seed=seed, options=options, progress=progress)
         if bad:
             retry = sampling_plan(scenario, mode=mode, seed=seed + 7919, options=options, progress=progress)
             bad_retry = verify_plan(retry, scenario)
@@ -122,6 +124,46 @@ def plan_scenario(
     if progress:
         progress("done", 1.0)
     return plan
+
+
+def deflection_allowance(plan: Plan, scenario: Scenario) -> dict[str, float]:
+    """Per vehicle the largest distance, m, its controller is predicted to be pushed off the plan by
+    the plan's own predicted disturbance (``proxplan.verify.deflection_along_plan``), for vehicles
+    pushed at all: the tube growth the planner's second pass keeps others clear of."""
+    from proxplan.verify import deflection_along_plan, wrench_along_plan
+
+    t = np.arange(0.0, float(plan.t_s[-1]) + 0.005, 0.01)
+    along = wrench_along_plan(plan, scenario, t_s=t)
+    return {n: float(d.max()) for n, d in deflection_along_plan(plan, scenario, along).items() if d.max() > 0.0}
+
+
+def _with_deflections(
+    scenario: Scenario, plan: Plan, bad: list, *, mode: str, seed: int, options: SamplingOptions, progress
+) -> tuple[Plan, list]:
+    """A plan that fails the verifier is planned again with each disturbed vehicle's tube grown by
+    its largest predicted deflection in the first plan (:func:`deflection_allowance`): the
+    verifier grows the tube by the deflection where it applies, the planner's checker by its
+    largest value throughout. The plan with fewer violations is kept, with a note."""
+    from dataclasses import replace
+
+    from proxplan.verify import verify_plan
+
+    extra = deflection_allowance(plan, scenario)
+    if not extra:
+        return plan, bad
+    again = sampling_plan(
+        scenario, mode=mode, seed=seed, options=replace(options, deflection_m=extra), progress=progress
+    )
+    bad_again = verify_plan(again, scenario)
+    grown = ", ".join(f"{n} {100 * d:.1f} cm" for n, d in sorted(extra.items()))
+    if len(bad_again) < len(bad):
+        again.notes.append(
+            f"planned again with the tubes of disturbed vehicles grown by their predicted deflection ({grown}): "
+            f"the first plan failed verification ({bad[0]})"
+        )
+        return again, bad_again
+    plan.notes.append(f"planning again with tubes grown by the predicted deflections ({grown}) did not help")
+    return plan, bad
 
 
 def _is_swarm(scenario: Scenario) -> bool:

@@ -77,7 +77,8 @@ def register(subparsers) -> None:
         "plan",
         metavar="PLAN.json",
         help="plan file, the folder holding plan.json, or a folder written by `proxplan export --format crazyflie` "
-        "(its polynomials are re-sampled and checked: what will fly)",
+        "(the vehicles' predicted flight under its uploads is checked: where they will fly, never the raw "
+        "upload as the path)",
     )
     v.add_argument(
         "--scenario", metavar="SCENARIO.yaml", help="scenario to check against (default: the one in the plan)"
@@ -261,6 +262,6 @@ def _verify(args: argparse.Namespace) -> int:
         else:
             print(
                 f"{args.plan}: PASS (scenario '{scenario.name}', {len(plan.vehicles)} vehicles, checked every {args.dt:g} s"
-                + (", Crazyflie polynomials re-sampled)" if exported else ")")
+                + (", the predicted flight of the Crazyflie polynomials)" if exported else ")")
             )
     return 1 if violations else 0

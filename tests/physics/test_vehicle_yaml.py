@@ -1,5 +1,7 @@
 """Custom vehicles from YAML: validation errors name the file and key."""
 
+import dataclasses
+
 import pytest
 
 from proxplan.fileio import UserError
@@ -44,6 +46,26 @@ def test_base_and_override(tmp_path):
         ("    base: large-quad\n    inertia_diag_kgm2: [1, 2]\n", "inertia_diag_kgm2: expected a list of 3"),
         ("    base: large-quad\n    max_thrust_N: 5\n", "max_thrust_N: 5.0 N cannot lift"),
         ("    base: large-quad\n    mass_kg: .nan\n", "expected a finite number"),
+        (
+            "    base: crazyflie-2.1\n    controller: {kp_xy_Npm: 0}\n",
+            "vehicles.v.controller.kp_xy_Npm: expected a positive number",
+        ),
+        (
+            "    base: crazyflie-2.1\n    controller: {kd_z_Nspm: -0.4}\n",
+            "vehicles.v.controller.kd_z_Nspm: expected a positive number",
+        ),
+        (
+            "    base: crazyflie-2.1\n    controller: {ki_xy_Npms: -1}\n",
+            "controller.ki_xy_Npms: expected a number >= 0",
+        ),
+        (
+            "    base: crazyflie-2.1\n    controller: {kp_xy: 1.2}\n",
+            "controller.kp_xy: unknown key (did you mean 'kp_xy_Npm'?)",
+        ),
+        (
+            "    base: crazyflie-2.1\n    rotor_drag: {k_d_Ns2pradm: -1.0e-6}\n",
+            "vehicles.v.rotor_drag.k_d_Ns2pradm: expected a number >= 0",
+        ),
     ],
 )
 def test_bad_vehicles_name_file_and_key(tmp_path, body, message):
@@ -102,3 +124,27 @@ def test_partial_sections_take_the_rest_from_the_base(tmp_path):
         load_vehicle_file(write(tmp_path, "vehicles:\n  same: {base: small-quad}\n"))["same"].tracking
         == SMALL_QUAD.tracking
     )
+
+
+def test_controller_gains_and_rotor_drag_override_only_what_they_name(tmp_path):
+    """A user's retune (kp_xy 1.2, kd_xy 0.35) keeps every other firmware default; without a base a
+    vehicle gets the Crazyflie 2.1's gains scaled to its mass and RotorPy's drag scaled to its rotors;
+    both round-trip through the vehicle-YAML form (plan.json, track-limits --out)."""
+    from proxplan.physics import BUILTIN_VEHICLES
+
+    cf = BUILTIN_VEHICLES["crazyflie-2.1"]
+    path = write(
+        tmp_path,
+        "vehicles:\n  retuned:\n    base: crazyflie-2.1\n    controller: {kp_xy_Npm: 1.2, kd_xy_Nspm: 0.35}\n"
+        "    rotor_drag: {k_z_Ns2pradm: 0.0}\n",
+    )
+    retuned = load_vehicle_file(path)["retuned"]
+    assert retuned.controller.kp_xy_Npm == 1.2 and retuned.controller.kd_xy_Nspm == 0.35
+    assert retuned.controller.kp_z_Npm == cf.controller.kp_z_Npm == 1.25
+    assert retuned.rotor_drag.k_d_Ns2pradm == cf.rotor_drag.k_d_Ns2pradm and retuned.drag_rate_ps[2] == 0.0
+    again = vehicle_from_dict("retuned", vehicle_to_yaml_dict(retuned))
+    assert again.controller == retuned.controller and again.rotor_drag == retuned.rotor_drag
+    bare = {k: v for k, v in vehicle_to_yaml_dict(LARGE_QUAD).items() if k not in ("rotor_drag", "controller")}
+    derived = vehicle_from_dict("bare", bare)  # an older file: no rotor_drag / controller keys
+    assert dataclasses.astuple(derived.controller) == pytest.approx(dataclasses.astuple(LARGE_QUAD.controller))
+    assert derived.drag_rate_ps == pytest.approx(LARGE_QUAD.drag_rate_ps)
