@@ -1,22 +1,21 @@
-"""Swarm benchmark (issues 14, 21): layouts of N vehicles planned on the shared roadmap (PBS or PP)
-and, optionally, by the sampling planner, each in its own process.
+"""Swarm benchmark (issue 30): formation layouts of N vehicles planned by ``proxplan plan`` in fresh
+processes, fixed goals and interchangeable goals (``assign_goals: by_type``).
 
 Usage:
     python benchmarks/bench_swarm.py [--layout pillar grid circle corridor] [--n 32 64 128 256]
-        [--search pbs pp] [--sampling] [--timeout 600]
+        [--method optimized roadmap sampling] [--assign fixed by_type] [--timeout 600]
 
-Layouts (``proxplan.planner.formations.LAYOUTS``, generated in code): ``pillar`` two staggered
-layers west of a pillar swap layers to the east side; ``grid`` a grid reshuffled by a seeded
-permutation; ``circle`` every vehicle to the antipode (all paths cross the centre); ``corridor`` two
-groups trade sides through a gap in a wall. Vehicle types cycle Crazyflie 2.1, Crazyflie-Parrot,
-small quad (``--types`` to change).
+Layouts (``proxplan.planner.formations.LAYOUTS``): ``pillar`` two staggered layers west of a pillar
+swap layers to the east side; ``grid`` a grid reshuffled by a seeded permutation; ``circle`` every
+vehicle to the antipode (all paths cross the centre); ``corridor`` two groups trade sides through a
+gap in a wall. Vehicle types cycle Crazyflie 2.1, Crazyflie-Parrot, small quad (``--types`` to change).
 
-Per run it prints whole-process wall and CPU time (s; the interpreter + import baseline of the
-same run is printed first), makespan / lower bound (largest straight-line rest-to-rest time of any
-vehicle, ``proxplan.planner.sampling.ordering.lower_bound_makespan_s``), sum of costs (sum of arrival
-times, s), peak memory (``resource`` rusage of the child, MB) and the verdict of ``proxplan
-verify`` on the written plan.json. A roadmap run that finds no plan prints its message; the
-roadmap child does not fall back to sampling (``proxplan plan --method roadmap`` would).
+Per run it prints the whole ``proxplan plan`` process's wall and CPU time (s; the interpreter +
+import baseline of the same run is printed first, so compare ratios on a loaded machine), the
+makespan against the lower bound (fixed goals: the largest straight-line rest-to-rest time of any
+vehicle; ``by_type``: the same under the assignment, ``assignment_lower_bound_s``), the plan's
+method and how the swarm layer coordinated, the child's peak memory (``resource`` rusage, MB), and
+the verdict and whole-process time of ``proxplan verify`` on the written plan.json.
 """
 
 from __future__ import annotations
@@ -54,47 +53,16 @@ def _run(cmd: list[str], timeout_s: float) -> tuple[float, int, float, str, floa
     return wall, os.waitstatus_to_exitcode(status), usage.ru_maxrss / 1024.0, text, usage.ru_utime + usage.ru_stime
 
 
-def child(scenario: str, out: str, search: str) -> int:
-    """Plan on the roadmap, write plan.json, print one JSON line of metrics (no fall-back)."""
-    from proxplan.planfile import load_scenario, write_plan
-    from proxplan.planner import InfeasibleError
-    from proxplan.planner.pipeline import finish_metrics, plan_roadmap
-    from proxplan.planner.swarm.plan import RoadmapOptions
-
-    t0 = time.perf_counter()
-    sc = load_scenario(scenario)
-    try:
-        plan = plan_roadmap(sc, RoadmapOptions(search=search))
-    except InfeasibleError as err:
-        print(json.dumps({"feasible": False, "message": err.message}))
-        return 1
-    finish_metrics(sc, plan, planning_time_s=time.perf_counter() - t0)
-    Path(out).mkdir(parents=True, exist_ok=True)
-    write_plan(plan, out)
-    info = plan.metrics["roadmap"]
-    print(json.dumps({"feasible": True, "makespan_s": plan.metrics["makespan_s"], "roadmap": info}))
-    return 0
-
-
-def _verify(plan_json: Path) -> str:
-    res = subprocess.run(
-        [sys.executable, "-m", "proxplan.cli", "verify", str(plan_json)], capture_output=True, cwd=ROOT
-    )
-    return "PASS" if res.returncode == 0 else "FAIL"
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--layout", nargs="+", default=["pillar", "grid", "circle", "corridor"])
     ap.add_argument("--n", type=int, nargs="+", default=[32, 64, 128, 256], help="swarm sizes")
-    ap.add_argument("--search", nargs="+", default=["pbs"], choices=["pbs", "pp"])
-    ap.add_argument("--sampling", action="store_true", help="also run proxplan plan --method sampling")
+    ap.add_argument("--method", nargs="+", default=["optimized"], choices=["optimized", "roadmap", "sampling"])
+    ap.add_argument("--assign", nargs="+", default=["fixed"], choices=["fixed", "by_type"])
     ap.add_argument("--types", default=None, help="comma-separated vehicle types (default: the layout's mix)")
     ap.add_argument("--timeout", type=float, default=600.0, help="per-run wall-time cap, s")
-    ap.add_argument("--child", nargs=3, metavar=("SCENARIO", "OUT", "SEARCH"), help=argparse.SUPPRESS)
+    ap.add_argument("--keep", default=None, metavar="DIR", help="keep scenarios and plans in DIR")
     args = ap.parse_args()
-    if args.child:
-        return child(*args.child)
 
     import yaml
 
@@ -102,47 +70,60 @@ def main() -> int:
     from proxplan.planner.formations import LAYOUTS
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 
-    base_wall, _, base_mb, _, base_cpu = _run(
-        [sys.executable, "-c", "import proxplan.planner.pipeline, proxplan.planner.swarm.plan, proxplan.verify"], 120
-    )
-    print(f"baseline (interpreter + planner imports): {base_wall:.2f} s wall, {base_cpu:.2f} s CPU, {base_mb:.0f} MB")
+    base_wall, _, base_mb, _, base_cpu = _run([sys.executable, "-m", "proxplan.cli", "--help"], 120)
+    print(f"baseline (interpreter + CLI start): {base_wall:.2f} s wall, {base_cpu:.2f} s CPU, {base_mb:.0f} MB")
     print(
-        f"{'layout':9s} {'N':>4s} {'method':12s} {'wall_s':>7s} {'cpu_s':>6s} {'makespan':>8s} {'LB_s':>6s} "
-        f"{'ms/LB':>6s} {'SoC_s':>8s} {'peak_MB':>7s} verify"
+        f"{'layout':9s} {'N':>4s} {'goals':8s} {'method':10s} {'wall_s':>7s} {'cpu_s':>6s} {'makespan':>8s} "
+        f"{'LB_s':>6s} {'ms/LB':>6s} {'peak_MB':>7s} {'verify':>6s} {'verify_s':>8s}  how"
     )
-    with tempfile.TemporaryDirectory() as tmp:
-        for layout in args.layout:
-            for n in args.n:
+    tmp_ctx = tempfile.TemporaryDirectory() if args.keep is None else None
+    tmp = Path(args.keep) if args.keep else Path(tmp_ctx.name)  # type: ignore[union-attr]
+    tmp.mkdir(parents=True, exist_ok=True)
+    for layout in args.layout:
+        for n in args.n:
+            for goals in args.assign:
                 kw = {"types": args.types.split(",")} if args.types else {}
-                path = Path(tmp) / f"{layout}-{n}.yaml"
-                path.write_text(yaml.safe_dump(LAYOUTS[layout](n, **kw), sort_keys=False))
+                doc = LAYOUTS[layout](n, **kw)
+                if goals == "by_type":
+                    doc["assign_goals"] = "by_type"
+                path = tmp / f"{layout}-{n}-{goals}.yaml"
+                path.write_text(yaml.safe_dump(doc, sort_keys=False))
                 lb = lower_bound_makespan_s(load_scenario(path))
-                runs = [(f"roadmap-{s}", s) for s in args.search] + ([("sampling", None)] if args.sampling else [])
-                for label, search in runs:
-                    out = Path(tmp) / f"out-{layout}-{n}-{label}"
-                    if search:
-                        cmd = [sys.executable, str(Path(__file__).resolve()), "--child", str(path), str(out), search]
-                    else:
-                        cmd = [sys.executable, "-m", "proxplan.cli", "plan", str(path), "--out", str(out)]
-                        cmd += ["--method", "sampling", "--seed", "0", "--no-plot", "--json"]
+                for method in args.method:
+                    out = tmp / f"out-{layout}-{n}-{goals}-{method}"
+                    cmd = [sys.executable, "-m", "proxplan.cli", "plan", str(path), "--out", str(out)]
+                    cmd += ["--method", method, "--seed", "0", "--no-plot", "--json"]
                     wall, code, mb, text, cpu = _run(cmd, args.timeout)
-                    ms = soc = "-"
-                    ratio = "-"
-                    verdict = "timeout" if wall >= args.timeout else f"exit {code}"
+                    ms = ratio = "-"
+                    verdict, v_wall, how = ("timeout" if wall >= args.timeout else f"exit {code}"), "-", ""
+                    lb_used = lb
                     if code == 0:
-                        doc = json.loads(text.strip().splitlines()[-1])
-                        makespan = float(doc.get("makespan_s") or doc["metrics"]["makespan_s"])
-                        ms, ratio = f"{makespan:.2f}", f"{makespan / lb:.2f}"
-                        if "roadmap" in doc:
-                            soc = f"{doc['roadmap']['sum_of_costs_s']:.1f}"
-                        verdict = _verify(out / "plan.json")
-                    elif search and text.strip():
-                        verdict += ": " + json.loads(text.strip().splitlines()[-1]).get("message", "")[:70]
+                        doc_out = json.loads(text.strip().splitlines()[-1])
+                        m = doc_out["metrics"]
+                        lb_used = float(m.get("assignment_lower_bound_s") or lb)
+                        makespan = float(m["makespan_s"])
+                        ms, ratio = f"{makespan:.2f}", f"{makespan / lb_used:.2f}"
+                        how = f"{doc_out['method']}: " + str((m.get("swarm") or {}).get("coordination", ""))[:60]
+                        t_v = time.perf_counter()
+                        res = subprocess.run(
+                            [sys.executable, "-m", "proxplan.cli", "verify", str(out / "plan.json")],
+                            capture_output=True,
+                            cwd=ROOT,
+                        )
+                        v_wall = f"{time.perf_counter() - t_v:.1f}"
+                        verdict = "PASS" if res.returncode == 0 else "FAIL"
+                    elif text.strip():
+                        try:
+                            how = json.loads(text.strip().splitlines()[-1]).get("message", "")[:80]
+                        except json.JSONDecodeError:
+                            how = text.strip()[-80:]
                     print(
-                        f"{layout:9s} {n:4d} {label:12s} {wall:7.1f} {cpu:6.1f} {ms:>8s} {lb:6.2f} {ratio:>6s} "
-                        f"{soc:>8s} {mb:7.0f} {verdict}",
+                        f"{layout:9s} {n:4d} {goals:8s} {method:10s} {wall:7.1f} {cpu:6.1f} {ms:>8s} {lb_used:6.2f} "
+                        f"{ratio:>6s} {mb:7.0f} {verdict:>6s} {v_wall:>8s}  {how}",
                         flush=True,
                     )
+    if tmp_ctx is not None:
+        tmp_ctx.cleanup()
     return 0
 
 

@@ -67,7 +67,9 @@ _NOT_MAP_INPUTS = (
     "motor_time_constant_s",
     "tracking",
     "tracking_tube_m",
-)  # not map inputs
+    "rotor_drag",
+    "controller",
+)  # not map inputs (how the vehicle flies, not the downwash it makes or meets)
 
 
 @dataclass(frozen=True, eq=False)

@@ -25,7 +25,15 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse import linalg as sparse_linalg
 
-from proxplan.planfile import N_COEF, PolynomialTrajectory, VehicleTrajectory, resample_step
+from proxplan.physics import reference_error
+from proxplan.planfile import (
+    LEAD_SUBSTEPS,
+    N_COEF,
+    PolynomialTrajectory,
+    VehicleTrajectory,
+    predicted_path,
+    resample_step,
+)
 
 FIT_SAMPLES = 48  # least-squares points per piece
 CHECK_STEP_S = 0.002  # dense check grid, s
@@ -139,12 +147,20 @@ def fit_pieces(
 
 
 class FitTarget:
-    """One vehicle's plan on [t0_s, t1_s] sampled once: on the dense check grid (step <=
+    """One vehicle's reference on [t0_s, t1_s] sampled once: on the dense check grid (step <=
     :data:`CHECK_STEP_S`, s) for position, speed and acceleration, and on the grid the export is
     re-read and verified on (:func:`proxplan.planfile.resample_step`) for jerk, measured as the verifier
     does (acceleration difference over one step). ``allowed_*`` hold, per check point, the larger of
-    the limit times :data:`KINEMATIC_MARGINS` and the plan's own value times :data:`OWN_MARGIN`
-    (``limits``: speed m/s, acceleration m/s^2, jerk m/s^3, or None)."""
+    the limit times :data:`KINEMATIC_MARGINS` and the own value times :data:`OWN_MARGIN`
+    (``limits``: speed m/s, acceleration m/s^2, jerk m/s^3, or None).
+
+    With ``flown`` the reference is an upload with a drag lead (it exceeds the limits by design;
+    sampled :data:`proxplan.planfile.LEAD_SUBSTEPS` times finer than the plan, whose grid the jerk is
+    checked on):
+    speed, acceleration and jerk are then those of the vehicle's predicted flight
+    (:func:`proxplan.planfile.predicted_path`, what ``proxplan verify`` checks on an export): the
+    target's own flight plus the flight of the fit's difference from the target, from rest at t0_s
+    (where a fit matches the target's position, velocity and acceleration)."""
 
     def __init__(
         self,
@@ -153,6 +169,7 @@ class FitTarget:
         t1_s: float,
         limits: tuple[float, float, float] | None,
         tolerance_m: float = 1.0,
+        flown: bool = False,
     ):
         self.tr = tr
         self.tolerance_m = tolerance_m
@@ -161,22 +178,46 @@ class FitTarget:
         self.step_s = float(self.t[1] - self.t[0])
         self.p, self.v, self.a = tr.sample(self.t)
         self.limits = limits
-        if limits is not None:
-            margin = np.array(KINEMATIC_MARGINS)
-            own_va = np.stack([np.linalg.norm(self.v, axis=1), np.linalg.norm(self.a, axis=1)])
-            self.allowed_va = np.maximum(OWN_MARGIN * own_va, (margin * np.array(limits))[:2, None])
-            self.jerk_step_s = resample_step(float(tr.t_s[1] - tr.t_s[0]))
-            k0 = int(np.ceil(t0_s / self.jerk_step_s - 1e-9))
-            k1 = int(np.floor(t1_s / self.jerk_step_s + 1e-9))
-            self.tj = np.arange(k0, k1 + 1) * self.jerk_step_s
-            if self.tj.size == 0:
-                self.tj = np.array([t0_s])
-            self.a_j = tr.sample(np.concatenate([self.tj, self.tj + self.jerk_step_s]))[2]
-            self.allowed_j = np.maximum(OWN_MARGIN * self._jerk(self.a_j), margin[2] * limits[2])
+        self.flown = flown
+        if limits is None:
+            return
+        self.kt = self.t  # where speed and acceleration are checked
+        kin_v, kin_a = self.v, self.a
+        if flown:  # on the reference's own grid, where proxplan.planfile.read_export predicts the flight
+            inside = (tr.t_s >= t0_s - 1e-9) & (tr.t_s <= t1_s + 1e-9)
+            jerk = tr.jerk_at(tr.t_s)
+            flight = predicted_path(tr.t_s, tr.position_m, tr.velocity_mps, tr.acceleration_mps2, jerk, tr.vehicle)
+            self.kt = tr.t_s[inside]
+            self.ref = (tr.velocity_mps[inside], tr.acceleration_mps2[inside], jerk[inside])
+            self.flight_v, self.flight_a = flight[1][inside], flight[2][inside]
+            kin_v, kin_a = self.flight_v, self.flight_a
+        margin = np.array(KINEMATIC_MARGINS)
+        own_va = np.stack([np.linalg.norm(kin_v, axis=1), np.linalg.norm(kin_a, axis=1)])
+        self.allowed_va = np.maximum(OWN_MARGIN * own_va, (margin * np.array(limits))[:2, None])
+        step = float(tr.t_s[1] - tr.t_s[0]) * (LEAD_SUBSTEPS if flown else 1)  # a reference is finer than its plan
+        self.jerk_step_s = resample_step(step)
+        k0 = int(np.ceil(t0_s / self.jerk_step_s - 1e-9))
+        k1 = int(np.floor(t1_s / self.jerk_step_s + 1e-9))
+        self.tj = np.arange(k0, k1 + 1) * self.jerk_step_s
+        if self.tj.size == 0:
+            self.tj = np.array([t0_s])
+        both = np.concatenate([self.tj, self.tj + self.jerk_step_s])
+        self.a_j = _interp_rows(both, self.kt, kin_a) if flown else tr.sample(both)[2]
+        self.allowed_j = np.maximum(OWN_MARGIN * self._jerk(self.a_j), margin[2] * limits[2])
 
     def _jerk(self, a_both: np.ndarray) -> np.ndarray:
         n = self.tj.size
         return np.linalg.norm(a_both[n:] - a_both[:n], axis=1) / self.jerk_step_s
+
+    def _kinematics(self, traj: PolynomialTrajectory, fit_v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity and acceleration (M, 3) at ``kt`` whose limits are checked: the fit's own, or
+        with ``flown`` its predicted flight (class docstring)."""
+        if not self.flown:
+            return fit_v, traj.evaluate(self.t, 2)[:, :3]
+        rv, ra, rj = self.ref
+        dv, da, dj = (traj.evaluate(self.kt, d)[:, :3] - r for d, r in ((1, rv), (2, ra), (3, rj)))
+        err = reference_error(self.kt, dv, da, dj, self.tr.vehicle)
+        return self.flight_v + dv - err.rate, self.flight_a + da - err.accel
 
     def measure(self, traj: PolynomialTrajectory) -> PieceFit:
         """Deviation and kinematic ratio of ``traj`` per piece (see :func:`deviation`)."""
@@ -188,15 +229,22 @@ class FitTarget:
         np.maximum.at(per_piece, piece, bound)
         ratio = np.zeros(traj.n_pieces)
         if self.limits is not None:
-            va = np.stack([np.linalg.norm(fit_v, axis=1), np.linalg.norm(traj.evaluate(self.t, 2)[:, :3], axis=1)])
-            np.maximum.at(ratio, piece, (va / self.allowed_va).max(axis=0))
+            kin_v, kin_a = self._kinematics(traj, fit_v)
+            va = np.stack([np.linalg.norm(kin_v, axis=1), np.linalg.norm(kin_a, axis=1)])
+            piece_k = np.clip(np.searchsorted(traj.joints_s, self.kt, side="right") - 1, 0, traj.n_pieces - 1)
+            np.maximum.at(ratio, piece_k, (va / self.allowed_va).max(axis=0))
             both = np.concatenate([self.tj, self.tj + self.jerk_step_s])
-            a_j = traj.evaluate(both, 2)[:, :3]
+            a_j = _interp_rows(both, self.kt, kin_a) if self.flown else traj.evaluate(both, 2)[:, :3]
             after = both > traj.end_time_s + 1e-9  # the plan's (rest, or the next upload, which starts in its state)
             a_j[after] = self.a_j[after]
             piece_j = np.clip(np.searchsorted(traj.joints_s, self.tj, side="right") - 1, 0, traj.n_pieces - 1)
             np.maximum.at(ratio, piece_j, self._jerk(a_j) / self.allowed_j)
         return PieceFit(traj, float(per_piece.max()), per_piece, ratio)
+
+
+def _interp_rows(t_s: np.ndarray, grid_s: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` (K, 3) on ``grid_s`` (K,) linearly interpolated at ``t_s`` (M,), held outside."""
+    return np.column_stack([np.interp(t_s, grid_s, values[:, d]) for d in range(values.shape[1])])
 
 
 def deviation(
@@ -219,6 +267,7 @@ def adaptive_fit(
     t0_s: float,
     t1_s: float,
     limits: tuple[float, float, float] | None = None,
+    flown: bool = False,
 ) -> PieceFit:
     """Fewest-pieces fit of ``tr`` on [t0_s, t1_s], s, within ``tolerance_m``, m, and (with
     ``limits``) within the kinematic allowance (see :func:`deviation`).
@@ -229,7 +278,7 @@ def adaptive_fit(
     the tolerance. Tries the jerk penalties :data:`JERK_WEIGHTS` in turn until one fits in
     ``max_pieces``. The result may be out of tolerance or have too many pieces: callers check
     :func:`fit_ok`."""
-    target = FitTarget(tr, t0_s, t1_s, limits, tolerance_m)
+    target = FitTarget(tr, t0_s, t1_s, limits, tolerance_m, flown)
     cap = max_pieces if max_pieces is not None else 10**6
     best = None
     for weight in JERK_WEIGHTS:  # the jerk penalty changes which joints suffice: keep the fewest pieces
@@ -294,9 +343,13 @@ def fit_ok(fit: PieceFit, tolerance_m: float, max_pieces: int | None = None) -> 
 
 
 def fit_uniform(
-    tr: VehicleTrajectory, pieces: int, limits: tuple[float, float, float] | None, tolerance_m: float
+    tr: VehicleTrajectory,
+    pieces: int,
+    limits: tuple[float, float, float] | None,
+    tolerance_m: float,
+    flown: bool = False,
 ) -> PieceFit:
     """The fit on ``pieces`` equal pieces over the whole plan (what that many pieces reach)."""
     t0, t1 = float(tr.t_s[0]), float(tr.t_s[-1])
-    target = FitTarget(tr, t0, t1, limits, tolerance_m)
+    target = FitTarget(tr, t0, t1, limits, tolerance_m, flown)
     return target.measure(fit_pieces(tr, np.linspace(t0, t1, pieces + 1)))

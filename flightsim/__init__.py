@@ -7,6 +7,8 @@ a vehicle type's trackable limits and tracking tube (``measure_tracking``).
 
 from proxplan.flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_flight_logs
 from proxplan.flightsim.mellinger import controller_gains, reference_body_rates
+from proxplan.flightsim.options import CONTROLLERS, Perturbation, SimulationOptions
+from proxplan.flightsim.records import SimulationResult, SimulationStatus, VehicleRecord
 from proxplan.flightsim.report import feedforward_comparison, plot_errors, simulation_metrics, summary_dict
 from proxplan.flightsim.scenarios_synthetic import (
     battery_swap_plans,
@@ -16,18 +18,12 @@ from proxplan.flightsim.scenarios_synthetic import (
     takeoff_hover_plan,
     waypoint_trajectory,
 )
-from proxplan.flightsim.simulate import (
-    Perturbation,
-    SimulationOptions,
-    SimulationResult,
-    SimulationStatus,
-    VehicleRecord,
-    simulate_plan,
-)
+from proxplan.flightsim.simulate import simulate_plan
 from proxplan.flightsim.tracking import ERROR_QUANTILE, CourseFlight, TrackingResult, measure_tracking
 from proxplan.flightsim.truth import TruthSpec, load_truth_file, merge_truth, model_truth, plan_truth, truth_from_dict
 
 __all__ = [
+    "CONTROLLERS",
     "ERROR_QUANTILE",
     "CourseFlight",
     "TrackingResult",

@@ -4,11 +4,10 @@ differential flatness, the firmware's rates and the firmware's motor-saturation 
 
 Source read (not copied): bitcraze/crazyflie-firmware
 
-* ``src/modules/src/controller/controller_mellinger.c`` (gains in ``g_self``): position
-  kp_xy = 0.4 N/m, kd_xy = 0.2 N s/m, ki_xy = 0.05 N/(m s) with |int e| <= 2 m s; kp_z = 1.25 N/m,
-  kd_z = 0.4 N s/m, ki_z = 1.5 N/(m s) with |int e| <= 0.4 m s; attitude kR_xy = 70000,
-  kw_xy = 20000, ki_m_xy = 0, kR_z = 60000, kw_z = 12000, ki_m_z = 500 (|int| <= 1500),
-  kd_omega_rp = 200, all in motor-PWM units; massThrust = 132000 PWM per N of collective thrust.
+* ``src/modules/src/controller/controller_mellinger.c``: the gains are a vehicle fact
+  (``Vehicle.controller``, :mod:`proxplan.physics.controller_gains`: the firmware's defaults in SI
+  for the crazyflie-2.1, scaled to the same closed-loop poles for other types, a vehicle file's
+  ``controller:`` overrides them).
   Structure: F_des = m a_ref + Kp e_p + Kd e_v + Ki int(e_p) (+ m g e_z); thrust = F_des . z_B;
   z_B,des = F_des/|F_des|, x_B,des from yaw; e_R = 1/2 (R_des^T R - R^T R_des)^vee;
   M = -kR e_R + kw (w_ref - w) + ki_m int(-e_R) + kd_omega d/dt(w_ref - w) (the last on roll and
@@ -24,47 +23,26 @@ Source read (not copied): bitcraze/crazyflie-firmware
   maximum, every motor is lowered by the excess (attitude kept, thrust given up), then each is
   raised to the idle floor. :func:`cap_motor_thrusts` applies that rule in newtons.
 
-Units: the firmware's PWM gains become SI through massThrust (a motor PWM unit is
-1/(4 massThrust) N of that motor's thrust; the legacy mix gives roll/2 per motor at the +-y arm
-offset d = l/sqrt2, so tau_x = M_x 2 d / (4 massThrust), likewise tau_y; yaw: tau_z = M_z 4 k_t /
-(4 massThrust)). The mixer is then the (S0-14) one (``proxplan.physics.authority.mixer_matrix``),
-which is the legacy mix in newtons. The controller's mass parameter is the vehicle's mass (the
-user sets ``ctrlMel.mass``); frames: world z up, body x forward; the firmware's pitch sign flips
-cancel in SI form.
-
-Other vehicle types (crazyflie-parrot included, see :data:`CRAZYFLIE_TYPES`): the same law with the Crazyflie-2.1 gains scaled so that
-every loop has the Crazyflie's closed-loop poles: position gains x m / m_cf, attitude gains
-x J / J_cf (per axis), integrator ranges unchanged (:func:`controller_gains`).
+The mixer is the (S0-14) one (``proxplan.physics.authority.mixer_matrix``), which is the legacy
+mix in newtons. The controller's mass parameter is the vehicle's mass (the user sets
+``ctrlMel.mass``); frames: world z up, body x forward; the firmware's pitch sign flips cancel in SI
+form.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
 from proxplan.flightsim.dynamics import GRAVITY_ROTORPY_MPS2, cross, rotation
-from proxplan.physics import BUILTIN_VEHICLES, Vehicle, mixer_matrix
+from proxplan.physics import Vehicle, mixer_matrix
 
-FIRMWARE_MASS_THRUST_PWM_PER_N = 132000.0
-"""``massThrust`` of controller_mellinger.c: PWM of the collective thrust command per N."""
-FIRMWARE_ATTITUDE_PWM = {"kR_xy": 70000.0, "kw_xy": 20000.0, "ki_m_xy": 0.0, "kR_z": 60000.0, "kw_z": 12000.0}
-"""Attitude gains of controller_mellinger.c, PWM per rad (kR), per rad/s (kw), per rad s (ki_m)."""
-FIRMWARE_KI_M_Z_PWM = 500.0  # yaw attitude integral gain, PWM per rad s
-FIRMWARE_I_RANGE_M_Z = 1500.0  # bound of the yaw attitude integral, rad s (firmware value)
-FIRMWARE_I_RANGE_M_XY = 1.0  # bound of the roll/pitch attitude integral, rad s
-FIRMWARE_KD_OMEGA_RP_PWM = 200.0  # roll/pitch rate-error derivative gain, PWM per rad/s^2
 CONTROLLER_RATE_HZ = 500.0
 """ATTITUDE_RATE of the firmware (stabilizer_types.h): the controller period is 1/500 s."""
 SETPOINT_RATE_HZ = 100.0
 """RATE_HL_COMMANDER (stabilizer_types.h): the trajectory is evaluated at 100 Hz and held."""
-CRAZYFLIE_TYPES = ("crazyflie-2.1",)
-"""Types flown with the firmware's default gains as they are. The crazyflie-parrot (same board on a
-larger frame, 3.8x the inertia but only 1.3x the torque per PWM unit) tracks 2x worse with them
-(5.6 cm vs 2.7 cm on the course at 1 m/s, 1 m/s^2): like every other type it gets the scaled gains
-(its users retune ``ctrlMel``)."""
 CONTROLLER_STATE_SIZE = 10
 """Controller memory per vehicle: int e_p (3) m s, int(-e_R) (3) rad s, previous roll/pitch rate
 errors (2) rad/s, a flag 'previous rate error valid' (1), spare (1)."""
@@ -87,32 +65,6 @@ class MellingerGains:
     mix_inv: tuple  # 4x4: (T N, tau_x, tau_y, tau_z N m) -> motor thrusts N, (S0-14)
     max_motor_thrust_N: float
     min_motor_thrust_N: float
-    source: str = ""
-
-
-def _firmware_gains(vehicle: Vehicle) -> MellingerGains:
-    """The firmware's gains for ``vehicle`` (a Crazyflie type) in SI units (module docstring)."""
-    pwm_N = 1.0 / (4.0 * FIRMWARE_MASS_THRUST_PWM_PER_N)  # N of one motor per PWM unit
-    d = vehicle.arm_length_m / math.sqrt(2.0)
-    rp = 2.0 * d * pwm_N  # N m per PWM of the roll / pitch command
-    yw = 4.0 * vehicle.torque_to_thrust_m * pwm_N  # N m per PWM of the yaw command
-    att = FIRMWARE_ATTITUDE_PWM
-    return MellingerGains(
-        mass_kg=vehicle.mass_kg,
-        kp_Npm=(0.4, 0.4, 1.25),
-        kd_Nspm=(0.2, 0.2, 0.4),
-        ki_Npms=(0.05, 0.05, 1.5),
-        i_range_ms=(2.0, 2.0, 0.4),
-        kR_Nmprad=(att["kR_xy"] * rp, att["kR_xy"] * rp, att["kR_z"] * yw),
-        kw_Nmsprad=(att["kw_xy"] * rp, att["kw_xy"] * rp, att["kw_z"] * yw),
-        ki_m_Nmpras=(att["ki_m_xy"] * rp, att["ki_m_xy"] * rp, FIRMWARE_KI_M_Z_PWM * yw),
-        i_range_m_rads=(FIRMWARE_I_RANGE_M_XY, FIRMWARE_I_RANGE_M_XY, FIRMWARE_I_RANGE_M_Z),
-        kd_omega_Nms2prad=FIRMWARE_KD_OMEGA_RP_PWM * rp,
-        mix_inv=_mix_inv(vehicle),
-        max_motor_thrust_N=vehicle.max_thrust_per_rotor_N,
-        min_motor_thrust_N=vehicle.min_motor_thrust_N,
-        source="crazyflie-firmware controller_mellinger.c defaults (PWM gains converted with massThrust)",
-    )
 
 
 def _mix_inv(vehicle: Vehicle) -> tuple:
@@ -121,31 +73,22 @@ def _mix_inv(vehicle: Vehicle) -> tuple:
 
 
 def controller_gains(vehicle: Vehicle) -> MellingerGains:
-    """Gains for ``vehicle``: the firmware's defaults for :data:`CRAZYFLIE_TYPES`;
-    for every other type the Crazyflie-2.1 gains scaled to the same closed-loop poles: position
-    gains x m / m_cf (N/m per kg kept), attitude gains x J_axis / J_cf,axis (N m/rad per kg m^2
-    kept), the rate-error derivative x J_xx / J_cf,xx."""
-    if vehicle.name in CRAZYFLIE_TYPES:
-        return _firmware_gains(vehicle)
-    cf = BUILTIN_VEHICLES["crazyflie-2.1"]
-    ref = _firmware_gains(cf)
-    sm = vehicle.mass_kg / cf.mass_kg
-    sj = [vehicle.inertia_diag_kgm2[k] / cf.inertia_diag_kgm2[k] for k in range(3)]
+    """The law's numbers for ``vehicle``: its gains (``Vehicle.controller``, SI), its mass and mixer."""
+    g = vehicle.controller
     return MellingerGains(
         mass_kg=vehicle.mass_kg,
-        kp_Npm=tuple(k * sm for k in ref.kp_Npm),  # type: ignore[arg-type]
-        kd_Nspm=tuple(k * sm for k in ref.kd_Nspm),  # type: ignore[arg-type]
-        ki_Npms=tuple(k * sm for k in ref.ki_Npms),  # type: ignore[arg-type]
-        i_range_ms=ref.i_range_ms,
-        kR_Nmprad=tuple(ref.kR_Nmprad[k] * sj[k] for k in range(3)),  # type: ignore[arg-type]
-        kw_Nmsprad=tuple(ref.kw_Nmsprad[k] * sj[k] for k in range(3)),  # type: ignore[arg-type]
-        ki_m_Nmpras=tuple(ref.ki_m_Nmpras[k] * sj[k] for k in range(3)),  # type: ignore[arg-type]
-        i_range_m_rads=ref.i_range_m_rads,
-        kd_omega_Nms2prad=ref.kd_omega_Nms2prad * sj[0],
+        kp_Npm=(g.kp_xy_Npm, g.kp_xy_Npm, g.kp_z_Npm),
+        kd_Nspm=(g.kd_xy_Nspm, g.kd_xy_Nspm, g.kd_z_Nspm),
+        ki_Npms=(g.ki_xy_Npms, g.ki_xy_Npms, g.ki_z_Npms),
+        i_range_ms=(g.i_range_xy_ms, g.i_range_xy_ms, g.i_range_z_ms),
+        kR_Nmprad=(g.kR_xy_Nmprad, g.kR_xy_Nmprad, g.kR_z_Nmprad),
+        kw_Nmsprad=(g.kw_xy_Nmsprad, g.kw_xy_Nmsprad, g.kw_z_Nmsprad),
+        ki_m_Nmpras=(g.ki_m_xy_Nmprads, g.ki_m_xy_Nmprads, g.ki_m_z_Nmprads),
+        i_range_m_rads=(g.i_range_m_xy_rads, g.i_range_m_xy_rads, g.i_range_m_z_rads),
+        kd_omega_Nms2prad=g.kd_omega_rp_Nms2prad,
         mix_inv=_mix_inv(vehicle),
         max_motor_thrust_N=vehicle.max_thrust_per_rotor_N,
         min_motor_thrust_N=vehicle.min_motor_thrust_N,
-        source="crazyflie-2.1 firmware gains scaled by mass (position) and inertia (attitude)",
     )
 
 

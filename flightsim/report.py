@@ -9,7 +9,12 @@ included: 1 = a motor at its limit); the time spent below another vehicle inside
 (dz <= 3 L with overlapping footprints, S0 II-A: the verifier's test), where the applied model
 value is an extrapolation. Next to the flown authority usage and invalid-zone time stand what the
 plan predicted: the usage of the plan's predicted disturbance (its feed-forward fields, or the
-verifier's model) and the same invalid-zone test on the plan's positions.
+verifier's model) and the same invalid-zone test on the plan's positions. The tracking error is
+also split by what the plan predicts: the deflection d the predicted disturbance pushes the vehicle
+off its plan by (``proxplan.physics.disturbance_deflection``: sag F / k_p and its transient, part of
+the vehicle's tube where it applies), the largest error where the plan predicts no disturbance (its
+predicted force below :data:`UNDISTURBED_FORCE_SHARE` of the vehicle's weight and |d| <=
+:data:`UNDISTURBED_M`), and the largest error beyond |d| (to hold within the tube).
 """
 
 from __future__ import annotations
@@ -20,9 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from proxplan.fileio import save_figure
-from proxplan.physics import authority_usage
+from proxplan.physics import authority_usage, disturbance_deflection
 
 USAGE_RATIO_FLOOR = 1e-3  # predicted usage below which a flown/predicted ratio means nothing, -
+UNDISTURBED_M = 0.001  # predicted deflection up to which the plan predicts "no disturbance", m
+UNDISTURBED_FORCE_SHARE = 0.005  # predicted force (share of the weight) up to which it does, -
 
 
 @dataclass(frozen=True)
@@ -40,6 +47,11 @@ class VehicleMetrics:
     predicted_max_authority_usage: float  # of the plan's predicted disturbance (model at the plan), -
     predicted_time_in_invalid_zone_s: float  # the same invalid-zone test on the plan's positions, s
     usage_ratio_flown_to_predicted: float | None  # max flown / max predicted (None: predicted < 1e-3)
+    predicted_max_deflection_m: float = 0.0  # largest |d| under the plan's predicted disturbance, m
+    max_error_undisturbed_m: float = 0.0  # largest position error where |d| <= UNDISTURBED_M, m
+    max_error_beyond_deflection_m: float = 0.0  # largest (position error - |d|), m
+    tube_m: float = 0.0  # the vehicle type's tracking tube (Vehicle.tracking_tube_m), m
+    left_tube_by_m: float = 0.0  # largest (position error - |d| - tube), >= 0: the tube failed, m
 
 
 def motor_usage(vehicle, cmd_motor_thrust_N: np.ndarray) -> np.ndarray:
@@ -86,6 +98,8 @@ def vehicle_metrics(
             0.0, float(authority_usage(record.vehicle, record.predicted_force_N, record.predicted_torque_Nm).max())
         )
     flown = max(0.0, float(usage.max()))  # (-0.0 of a vehicle nothing acts on)
+    defl = predicted_deflection_m(record)
+    calm = undisturbed(record, defl)
     return VehicleMetrics(
         type=record.type_name,
         max_position_error_m=float(pos.max()),
@@ -100,7 +114,32 @@ def vehicle_metrics(
         predicted_max_authority_usage=predicted,
         predicted_time_in_invalid_zone_s=float(predicted_invalid_s),
         usage_ratio_flown_to_predicted=flown / predicted if predicted > USAGE_RATIO_FLOOR else None,
+        predicted_max_deflection_m=float(defl.max()),
+        max_error_undisturbed_m=float(pos[calm].max()) if calm.any() else 0.0,
+        max_error_beyond_deflection_m=float((pos - defl).max()),
+        tube_m=float(record.vehicle.tracking_tube_m),
+        left_tube_by_m=max(0.0, float((pos - defl).max()) - float(record.vehicle.tracking_tube_m)),
     )
+
+
+def undisturbed(record, deflection_m: np.ndarray) -> np.ndarray:
+    """(M,) True where the plan predicts no disturbance on ``record``'s vehicle: its predicted force
+    within :data:`UNDISTURBED_FORCE_SHARE` of the weight and its deflection within :data:`UNDISTURBED_M`."""
+    calm = deflection_m <= UNDISTURBED_M
+    if record.predicted_force_N is not None:
+        force = np.linalg.norm(record.predicted_force_N, axis=1)
+        calm &= force <= UNDISTURBED_FORCE_SHARE * record.vehicle.weight_N
+    return calm
+
+
+def predicted_deflection_m(record) -> np.ndarray:
+    """|d| (M,), m: how far the plan's predicted disturbance on ``record``'s vehicle pushes it off
+    its plan (``proxplan.physics.disturbance_deflection``, from rest at the record's start; zeros
+    without a prediction)."""
+    if record.predicted_force_N is None or record.predicted_torque_Nm is None or record.t_s.size < 2:
+        return np.zeros(record.t_s.size)
+    d = disturbance_deflection(record.t_s, record.predicted_force_N, record.predicted_torque_Nm, record.vehicle)
+    return np.linalg.norm(d, axis=1)
 
 
 def simulation_metrics(result) -> dict[str, VehicleMetrics]:
@@ -119,7 +158,15 @@ def simulation_metrics(result) -> dict[str, VehicleMetrics]:
 def summary_dict(
     result, *, plan_path: str | None = None, plot_path: str | None = None, manifest_path: str | None = None
 ) -> dict:
-    """The JSON summary of ``proxplan simulate``."""
+    """The JSON summary of ``proxplan simulate`` (a vehicle that left its tube + predicted
+    deflection is named in the notes: the tube is a planning allowance that failed)."""
+    metrics = simulation_metrics(result)
+    left = [
+        f"{n} left its tube ({100 * m.tube_m:.1f} cm + its predicted deflection, up to {100 * m.predicted_max_deflection_m:.1f} cm) "
+        f"by up to {100 * m.left_tube_by_m:.1f} cm"
+        for n, m in metrics.items()
+        if m.left_tube_by_m > 0.0
+    ]
     return {
         "scenario": result.scenario,
         "status": result.status.value,
@@ -127,16 +174,18 @@ def summary_dict(
         "plan": plan_path,
         "truth": result.truth.to_dict(),
         "controller": result.options.controller,
+        "drag_compensation": result.options.drag_compensation,
+        "max_setpoint_lead_m": dict(result.max_lead_m),
         "physics_dt_s": result.options.physics_dt_s,
         "log_dt_s": result.options.log_dt_s,
         "plan_duration_s": result.plan_duration_s,
         "sim_time_s": result.sim_time_s,
         "wall_time_s": result.wall_time_s,
         "real_time_factor": result.real_time_factor,
-        "vehicles": {n: asdict(m) for n, m in simulation_metrics(result).items()},
+        "vehicles": {n: asdict(m) for n, m in metrics.items()},
         "plot": plot_path,
         "logs_manifest": manifest_path,
-        "notes": list(result.notes),
+        "notes": list(result.notes) + left,
     }
 
 

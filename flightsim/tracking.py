@@ -2,7 +2,8 @@
 simulated controller (the Crazyflie firmware's Mellinger law, :mod:`proxplan.flightsim.mellinger`).
 
 Procedure (:func:`measure_tracking`, ``proxplan track-limits``): the vehicle flies alone (no
-downwash, no sensor noise, RotorPy's rotor drag on) along :data:`COURSE_M`, rest-to-rest straight
+downwash, no sensor noise, RotorPy's rotor drag on) the drag-compensated reference the export uploads
+(:mod:`proxplan.planfile.reference`; the error is measured against the plan) along :data:`COURSE_M`, rest-to-rest straight
 segments (horizontal 2.1 m, vertical 0.6 m, diagonal, short 0.2 m hops) timed by Ruckig at each
 level of a ladder of limits: speed :data:`SPEED_LADDER_MPS` x acceleration :data:`ACCEL_LADDER_MPS2`
 x jerk = :data:`JERK_PER_ACCEL_PS` x acceleration. A level is physically allowed when its
@@ -14,10 +15,10 @@ margin :data:`TUBE_MARGIN_M` stays within the tube budget, and the motors satura
 fastest is kept: its limits go to ``Vehicle.kinematics``, its error quantile + margin is the type's
 tracking tube, ``Vehicle.tracking`` records the measurement.
 
-What limits it (docs/flying.md): RotorPy's rotor drag (k_d, ~0.24 m/s^2 per m/s for every
-built-in type) against the firmware's soft position gain (0.4 N/m on 32 g, 12.5 s^-2) leaves a
-cruise lag of ~1.9 cm per m/s; the rate feed-forward removes the attitude lag that dominated with
-RotorPy's SE(3) law.
+What limits it (docs/flying.md): with the drag compensated, the attitude and motor dynamics the
+firmware's feed-forward does not cover and the 100 Hz set-point hold (~1-1.5 cm at 2 m/s, 4 m/s^2);
+without it, RotorPy's rotor drag (~0.24 m/s^2 per m/s) against the firmware's soft position gain
+(0.4 N/m on 32 g) left a cruise lag of ~1.9 cm per m/s.
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from proxplan.flightsim.simulate import SimulationOptions, simulate_plan
+from proxplan.flightsim.options import SimulationOptions
+from proxplan.flightsim.simulate import simulate_plan
 from proxplan.physics import (
     GRAVITY_MPS2,
     TRACKING_COURSE,
@@ -107,20 +109,30 @@ def thrust_accel_limit_mps2(vehicle: Vehicle) -> float:
 
 
 def fly_course(
-    vehicle: Vehicle, limits: KinematicLimits, *, controller: str = "mellinger", quantile: float = ERROR_QUANTILE
+    vehicle: Vehicle,
+    limits: KinematicLimits,
+    *,
+    controller: str = "mellinger",
+    quantile: float = ERROR_QUANTILE,
+    drag_compensation: bool = True,
 ) -> tuple[float, float, float, float]:
     """Fly the course at ``limits``: (error quantile m, max error m, saturated time s, duration s)."""
     plan = course_plan(vehicle, limits)
-    res = simulate_plan(plan, options=SimulationOptions(imu_noise=False, settle_s=0.5, controller=controller))
+    options = SimulationOptions(
+        imu_noise=False, settle_s=0.5, controller=controller, drag_compensation=drag_compensation
+    )
+    res = simulate_plan(plan, options=options)
     rec = res.records["v"]
     err = np.linalg.norm(rec.position_m - rec.ref_position_m, axis=1)
     return float(np.quantile(err, quantile)), float(err.max()), float(res.saturation_time_s["v"]), plan.makespan_s
 
 
-def course_tracking_error_m(vehicle: Vehicle, limits: KinematicLimits | None = None) -> float:
+def course_tracking_error_m(
+    vehicle: Vehicle, limits: KinematicLimits | None = None, *, drag_compensation: bool = True
+) -> float:
     """Largest position error, m, of ``vehicle`` flown alone by the default controller along the
     calibration course at ``limits`` (default: the vehicle's own)."""
-    return fly_course(vehicle, limits or vehicle.kinematic_limits)[1]
+    return fly_course(vehicle, limits or vehicle.kinematic_limits, drag_compensation=drag_compensation)[1]
 
 
 def ladder() -> list[KinematicLimits]:
@@ -140,6 +152,7 @@ def measure_tracking(
     levels: list[KinematicLimits] | None = None,
     command: str = "",
     progress: bool = False,
+    drag_compensation: bool = True,
 ) -> TrackingResult:
     """Measure ``vehicle``'s trackable limits and tube (module docstring); ``levels`` replaces the
     ladder (tests). Raises ValueError when no level is accepted."""
@@ -156,7 +169,9 @@ def measure_tracking(
             reason = f"acceleration {lim.max_accel_mps2:g} m/s^2 > {cap:.2f} m/s^2 (thrust-to-weight / tilt)"
             flights.append(CourseFlight(lim, math.nan, math.nan, math.nan, math.nan, False, False, reason))
         else:
-            q, mx, sat, dur = fly_course(vehicle, lim, controller=controller, quantile=quantile)
+            q, mx, sat, dur = fly_course(
+                vehicle, lim, controller=controller, quantile=quantile, drag_compensation=drag_compensation
+            )
             reason = ""
             if q + margin_m > budget_m:
                 reason = (
@@ -194,7 +209,9 @@ def measure_tracking(
         saturation_s=best.saturation_s,
         limited_by=limited_by,
         course=TRACKING_COURSE,
-        command=command or f"proxplan track-limits --vehicle {vehicle.name} --budget {budget_m:g}",
+        command=command
+        or f"proxplan track-limits --vehicle {vehicle.name} --budget {budget_m:g}"
+        + ("" if drag_compensation else " --no-drag-compensation"),
         date=datetime.date.today().isoformat(),
     )
     measured = dataclasses.replace(vehicle, kinematics=best.limits, tracking=measurement)

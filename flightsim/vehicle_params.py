@@ -11,9 +11,8 @@ Values our vehicle definition does not hold are set here, each documented:
 * ``k_eta`` = k1 (S0-5), N s^2 rad^-2; ``k_m`` = k_t k1, N m s^2 rad^-2 (yaw torque per omega^2);
 * rotor speed limits from the per-motor thrust range: omega = sqrt(f / k1), rad/s;
 * motor time constant ``tau_m``: ``Vehicle.motor_time_constant_s`` (sourced in proxplan.physics.builtin_vehicles);
-* rotor drag ``k_d`` and induced inflow ``k_z`` (N per (rad/s m/s)): RotorPy's Crazyflie values,
-  scaled so that the drag per m/s relative to the hover thrust per rotor equals the Crazyflie's
-  (k_d ~ k_eta omega_hover); translational lift and flapping are 0 (RotorPy's Crazyflie default);
+* rotor drag ``k_d`` and induced inflow ``k_z`` (N per (rad/s m/s)): ``Vehicle.rotor_drag``
+  (:mod:`proxplan.physics.rotor_drag`); translational lift and flapping are 0 (RotorPy's Crazyflie default);
 * parasitic frame drag c_D = 0 (RotorPy's Crazyflie default: our downwash drag covers the frame).
 """
 
@@ -25,10 +24,6 @@ import numpy as np
 
 from proxplan.physics import MOTOR_YAW_SIGNS, Vehicle
 
-CRAZYFLIE_K_ETA = 2.3e-08  # N/(rad/s)^2, rotorpy crazyflie_params
-CRAZYFLIE_HOVER_OMEGA_RADPS = math.sqrt(0.03 * 9.81 / 4 / CRAZYFLIE_K_ETA)  # rotorpy CF at 30 g
-CRAZYFLIE_K_D = 10.2506e-07  # rotor drag, N/(rad m/s^2), rotorpy crazyflie_params
-CRAZYFLIE_K_Z = 7.553e-07  # induced inflow, N/(rad m/s^2), rotorpy crazyflie_params
 ATTITUDE_KP = 310.0  # attitude P gain, 1/s^2 (rotorpy crazyflie kp_att)
 ATTITUDE_KD = 57.0  # attitude D gain, 1/s (rotorpy crazyflie kd_att)
 
@@ -37,8 +32,6 @@ def quad_params(vehicle: Vehicle) -> dict:
     """RotorPy ``quad_params`` dict for ``vehicle`` (keys and units as rotorpy/vehicles/*_params.py)."""
     k1 = vehicle.propeller.k1_Ns2prad2
     pos = vehicle.rotor_positions_m
-    omega_hover = math.sqrt(vehicle.hover_omega_sq_rad2ps2)
-    drag_scale = (k1 * omega_hover) / (CRAZYFLIE_K_ETA * CRAZYFLIE_HOVER_OMEGA_RADPS)
     jxx, jyy, jzz = vehicle.inertia_diag_kgm2
     return {
         "mass": vehicle.mass_kg,
@@ -57,8 +50,8 @@ def quad_params(vehicle: Vehicle) -> dict:
         "c_Dz": 0.0,
         "k_eta": k1,
         "k_m": vehicle.torque_to_thrust_m * k1,
-        "k_d": CRAZYFLIE_K_D * drag_scale,
-        "k_z": CRAZYFLIE_K_Z * drag_scale,
+        "k_d": vehicle.rotor_drag.k_d_Ns2pradm,
+        "k_z": vehicle.rotor_drag.k_z_Ns2pradm,
         "k_h": 0.0,
         "k_flap": 0.0,
         "tau_m": vehicle.motor_time_constant_s,

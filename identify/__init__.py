@@ -16,10 +16,10 @@ from proxplan.identify.flightlog import (
     VehicleEntry,
     VehicleLog,
     load_flight,
-    load_manifest,
     read_log,
     write_canonical_csv,
 )
+from proxplan.identify.manifest import ManifestFile, load_manifest
 from proxplan.identify.measure import MeasuredWrench, MeasureOptions, measure_disturbance, measure_log
 from proxplan.identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
 from proxplan.identify.report import write_report
@@ -36,6 +36,7 @@ __all__ = [
     "IdentifyOptions",
     "IdentifyResult",
     "Manifest",
+    "ManifestFile",
     "MeasureOptions",
     "MeasuredWrench",
     "VehicleEntry",

@@ -38,7 +38,8 @@ from proxplan.identify.data import (
     predict,
     sources_overhead,
 )
-from proxplan.identify.flightlog import Manifest, load_manifest
+from proxplan.identify.flightlog import Manifest
+from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import DERIVATIVES, MeasureOptions
 from proxplan.identify.motor_check import check_loaded
 from proxplan.identify.strata import AUTHORITY_STATES, authority_masks

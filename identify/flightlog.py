@@ -1,4 +1,5 @@
-"""Flight logs for ``proxplan identify``: readers, the canonical writer, the manifest, quality checks.
+"""Flight logs for ``proxplan identify``: readers, the canonical writer, quality checks, and the
+manifest's flights and vehicles (the manifest file itself is read by :mod:`proxplan.identify.manifest`).
 
 Two CSV layouts (plain or gzip, ``*.gz``) are read, told apart by their header line:
 
@@ -24,11 +25,10 @@ from __future__ import annotations
 
 import gzip
 import io
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -58,7 +58,9 @@ NEURAL_SWARM_COLUMNS = {
 }  # fmt: skip
 """Canonical name -> Neural-Swarm column name (the time column holds microseconds)."""
 
-FORMATS = ("neural-swarm", "canonical")
+LogFormat = Literal["neural-swarm", "canonical"]
+"""The log layouts read here (a manifest's ``format``)."""
+FORMATS: tuple[str, ...] = get_args(LogFormat)
 
 
 @dataclass(frozen=True)
@@ -385,110 +387,10 @@ class Manifest:
     flights: tuple[FlightEntry, ...]
     vehicles_file: Path | None = None  # optional custom vehicle types (proxplan.physics.vehicle_yaml)
     quality: QualityOptions = QualityOptions()
-    motor_thrust: str = "commanded"  # what the logs' per-motor thrust is: one of MOTOR_THRUSTS
+    motor_thrust: str = (
+        "commanded"  # what the logs' per-motor thrust is: one of proxplan.identify.manifest.MOTOR_THRUSTS
+    )
     planes: tuple = ()  # proxplan.physics.room.Plane: walls / ceiling of the room (key ``planes``)
-
-
-MOTOR_THRUSTS = ("commanded", "delivered")
-"""What a log's per-motor thrust column holds: the firmware's *commanded* (desired) force, which the
-motors deliver through their lag (Neural-Swarm's u[N]; real flight controllers log this), or the
-force the rotors *deliver* (simulators logging k_eta omega^2)."""
-DEFAULT_MOTOR_THRUST = {"neural-swarm": "commanded", "canonical": "delivered"}
-"""Per log format, what its thrust column holds when the manifest does not say (key ``motor_thrust``)."""
-
-
-def set_of_flight(name: str) -> str:
-    """Default experiment set of a flight: its name without a trailing ``_<run number>``."""
-    return re.sub(r"_\d+$", "", name)
-
-
-def _need(mapping: Any, key: str, where: str, kind: type | tuple[type, ...]) -> Any:
-    if not isinstance(mapping, Mapping) or key not in mapping:
-        raise UserError(f"{where}: missing key '{key}'")
-    value = mapping[key]
-    if not isinstance(value, kind):
-        names = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
-        raise UserError(f"{where}.{key}: expected {names}, got {value!r}")
-    return value
-
-
-def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> Manifest:
-    """Read and validate a manifest YAML (DESIGN.md section 6).
-
-    ``root`` is resolved relative to the directory of the manifest file (absolute paths are kept);
-    each ``log`` is resolved relative to ``root``. Optional keys: ``motor_thrust`` (commanded or
-    delivered, :data:`MOTOR_THRUSTS`; default by format), ``planes`` (walls / ceiling,
-    ``[{name, point_m, normal}]``, :func:`proxplan.physics.room.planes_from_list`), per-flight ``set`` (default
-    :func:`set_of_flight`), ``vehicles_file`` (relative to the
-    manifest), per-vehicle ``ground_z_m`` (default 0), ``quality: {max_gap_s, min_segment_s,
-    ground_clearance_m, min_thrust_fraction, min_overlap_s}``.
-    """
-    from proxplan.fileio import read_yaml
-
-    path = Path(path)
-    doc = read_yaml(path, what="manifest")
-    where = str(path)
-    if not isinstance(doc, Mapping):
-        raise UserError(f"{where}: expected a mapping with format, root, flights")
-    fmt = doc.get("format", "neural-swarm")
-    if fmt not in FORMATS:
-        raise UserError(f"{where}: format: expected one of {', '.join(FORMATS)}, got {fmt!r}")
-    root = Path(_need(doc, "root", where, str))
-    root = root if root.is_absolute() else (path.parent / root)
-    if not root.is_dir():
-        raise UserError(f"{where}: root: directory {root} not found (resolved relative to the manifest)")
-    vfile = doc.get("vehicles_file", doc.get("vehicle_file"))  # both spellings accepted
-    vfile = None if vfile is None else (path.parent / str(vfile))
-    qual = doc.get("quality", {}) or {}
-    if not isinstance(qual, Mapping):
-        raise UserError(f"{where}: quality: expected a mapping")
-    try:
-        quality = QualityOptions(**{k: float(v) for k, v in qual.items()})
-    except (TypeError, ValueError) as err:
-        raise UserError(f"{where}: quality: {err}") from None
-    flights_raw = _need(doc, "flights", where, list)
-    flights, seen = [], set()
-    for i, fl in enumerate(flights_raw):
-        fw = f"{where}: flights[{i}]"
-        name = str(_need(fl, "name", fw, (str, int)))
-        if name in seen:
-            raise UserError(f"{fw}.name: duplicate flight name {name!r}")
-        seen.add(name)
-        split = _need(fl, "split", fw, str)
-        if split not in FLIGHT_SPLITS:
-            raise UserError(f"{fw}.split: expected {', '.join(FLIGHT_SPLITS)}, got {split!r}")
-        vraw = _need(fl, "vehicles", fw, Mapping)
-        entries = []
-        for vname, v in vraw.items():
-            vw = f"{fw}.vehicles.{vname}"
-            vtype = _need(v, "type", vw, str)
-            log = root / _need(v, "log", vw, str)
-            gz = v.get("ground_z_m", 0.0)
-            if isinstance(gz, bool) or not isinstance(gz, (int, float)):
-                raise UserError(f"{vw}.ground_z_m: expected a number (m), got {gz!r}")
-            score = v.get("score", True)
-            if not isinstance(score, bool):
-                raise UserError(f"{vw}.score: expected true or false, got {score!r}")
-            entries.append(VehicleEntry(name=str(vname), type=vtype, log=log, ground_z_m=float(gz), score=score))
-        if not entries:
-            raise UserError(f"{fw}.vehicles: expected at least one vehicle")
-        fset = fl.get("set", set_of_flight(name))
-        if not isinstance(fset, str) or not fset:
-            raise UserError(f"{fw}.set: expected a set name (text), got {fset!r}")
-        flights.append(FlightEntry(name=name, split=split, vehicles=tuple(entries), set=fset))
-    splits = {f.split for f in flights}
-    if not any(v.score for f in flights for v in f.vehicles):
-        raise UserError(f"{where}: flights: every vehicle says 'score: false'; at least one must be scored")
-    if require_train_and_test and not {"train", "test"} <= splits:
-        raise UserError(f"{where}: flights: need at least one train and one test flight, got {sorted(splits)}")
-    motor_thrust = doc.get("motor_thrust", DEFAULT_MOTOR_THRUST.get(fmt, "commanded"))
-    if motor_thrust not in MOTOR_THRUSTS:
-        raise UserError(f"{where}: motor_thrust: expected one of {', '.join(MOTOR_THRUSTS)}, got {motor_thrust!r}")
-    from proxplan.physics import planes_from_list
-
-    planes = planes_from_list(doc.get("planes"), f"{where}: planes")
-    return Manifest(path=path, format=fmt, root=root, flights=tuple(flights), vehicles_file=vfile, quality=quality,
-                    motor_thrust=motor_thrust, planes=planes)  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -63,7 +63,8 @@ from proxplan.identify.data import (
 )
 from proxplan.identify.discovery import discover_terms
 from proxplan.identify.effect_selection import EffectTrial, select_effects, validation_split
-from proxplan.identify.flightlog import Manifest, load_manifest
+from proxplan.identify.flightlog import Manifest
+from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.motor_check import check_loaded
 from proxplan.identify.residuals import correlate, sample_features

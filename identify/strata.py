@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from proxplan.identify.data import Unit, merge_units, sources_overhead
-from proxplan.identify.flightlog import set_of_flight
+from proxplan.identify.manifest import set_of_flight
 
 AUTHORITY_STATES = ("in_range", "at_limit", "knocked_down")
 """Labels of the per-authority-state report (:func:`authority_masks`), one per sample."""

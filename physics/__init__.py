@@ -1,7 +1,9 @@
 """The disturbance model (seed 000 section II) and everything about a vehicle.
 
-Vehicles (:class:`Vehicle`: the one home of every vehicle fact), the built-in types and vehicle
-YAML files, the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
+Vehicles (:class:`Vehicle`: the one home of every vehicle fact, rotor drag and controller gains
+included), the built-in types and vehicle YAML files, the linearised closed loop of a vehicle under
+its position controller (drag lead of the reference, prediction of the flown path, deflection under
+a predicted disturbance), the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
 below another (S0-3..S0-8), controller-authority usage (DESIGN.md section 3), and the library of
 effects beyond the base model. Cost maps, planner, verifier, simulator and identification all use
 this one implementation.
@@ -9,6 +11,24 @@ this one implementation.
 
 from proxplan.physics.authority import authority_usage, mixer_matrix, motor_thrusts_N, normalised_motor_map
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
+from proxplan.physics.closed_loop import (
+    TAIL_MAX_S,
+    TAIL_RESIDUAL_M,
+    LoopResponse,
+    disturbance_deflection,
+    drag_lead,
+    reference_error,
+    torque_equivalent_force_N,
+)
+from proxplan.physics.controller_gains import (
+    FIRMWARE_ATTITUDE_PWM,
+    FIRMWARE_MASS_THRUST_PWM_PER_N,
+    GAIN_NAMES,
+    POSITIVE_GAINS,
+    ControllerGains,
+    firmware_gains,
+    scaled_gains,
+)
 from proxplan.physics.disturbance import (
     DEFAULT_OPTIONS,
     VALIDITY_FACTOR_L,
@@ -37,22 +57,29 @@ from proxplan.physics.features import CHANNELS, FEATURE_DOCS, FEATURE_NAMES, fea
 from proxplan.physics.model_file import (
     MODEL_FORMAT_VERSION,
     CalibratedModel,
+    ModelFile,
+    ModelOptionsPart,
+    TruthFile,
     between_vehicle_effects,
+    effects_from_entries,
     effects_from_list,
     effects_to_list,
     load_model_file,
     load_model_section,
     model_file_dict,
     model_from_dict,
-    options_from_mapping,
     target_only_notes,
     vehicle_file_notes,
     write_model_file,
 )
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
-from proxplan.physics.room import Plane, plane_distances_m, planes_from_list
+from proxplan.physics.room import Plane, PlaneList, plane_distances_m, planes_from_list, planes_from_parts
+from proxplan.physics.rotor_drag import RotorDrag, drag_rate_ps, rotorpy_rotor_drag
 from proxplan.physics.stack import MAX_STACK_SHIELDING, intercepted_flux_fraction, shielding_factors
 from proxplan.physics.vehicle_yaml import (
+    VehicleEntry,
+    VehicleFile,
+    build_vehicles,
     load_vehicle_file,
     resolve_vehicle,
     vehicle_from_dict,
@@ -75,6 +102,31 @@ from proxplan.physics.vehicles import (
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
+    "TAIL_MAX_S",
+    "TAIL_RESIDUAL_M",
+    "LoopResponse",
+    "disturbance_deflection",
+    "drag_lead",
+    "reference_error",
+    "torque_equivalent_force_N",
+    "FIRMWARE_ATTITUDE_PWM",
+    "FIRMWARE_MASS_THRUST_PWM_PER_N",
+    "GAIN_NAMES",
+    "POSITIVE_GAINS",
+    "ControllerGains",
+    "RotorDrag",
+    "drag_rate_ps",
+    "firmware_gains",
+    "rotorpy_rotor_drag",
+    "scaled_gains",
+    "ModelOptionsPart",
+    "PlaneList",
+    "planes_from_parts",
+    "VehicleEntry",
+    "ModelFile",
+    "TruthFile",
+    "VehicleFile",
+    "build_vehicles",
     "MAX_STACK_SHIELDING",
     "Plane",
     "plane_distances_m",
@@ -124,6 +176,7 @@ __all__ = [
     "downwash_speed_mps",
     "effect_wrench",
     "feature_matrix",
+    "effects_from_entries",
     "effects_from_list",
     "effects_to_list",
     "load_model_file",
@@ -135,7 +188,6 @@ __all__ = [
     "motor_thrusts_N",
     "normalised_motor_map",
     "oncoming_speed_per_rotor_mps",
-    "options_from_mapping",
     "resolve_vehicle",
     "term_formula",
     "target_only_notes",

@@ -27,29 +27,40 @@ thrust scales or uncertainties. A newer ``format_version`` is a one-line error. 
 
 from __future__ import annotations
 
-import math
+import dataclasses
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from proxplan.fileio import UserError, atomic_write_text, read_yaml
+from pydantic import Field, TypeAdapter, field_validator, model_validator
+
+from proxplan.fileio import (
+    FileModel,
+    Name,
+    Number,
+    Positive,
+    Text,
+    Vec3,
+    Whole,
+    atomic_write_text,
+    optional,
+    problem,
+    read_yaml,
+    validate,
+)
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.disturbance import DEFAULT_OPTIONS, ModelOptions
 from proxplan.physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
 from proxplan.physics.features import between_vehicle_part, parse_term_key
 from proxplan.physics.stack import MAX_STACK_SHIELDING
-from proxplan.physics.vehicle_yaml import vehicle_from_dict, vehicle_to_yaml_dict
+from proxplan.physics.vehicle_yaml import VehicleEntry, build_vehicles, vehicle_to_yaml_dict
 from proxplan.physics.vehicles import Vehicle
-from proxplan.physics.velocity_field import FIELD_FORMS
+from proxplan.physics.velocity_field import FieldForm
 
 MODEL_FORMAT_VERSION = 2
 """Version written; 1 = the older identify output without ``format_version`` (read with a note)."""
 
-TOP_KEYS = ("format_version", "vehicles", "model")
-MODEL_KEYS = (
-    "field_form", "drag_coefficient", "air_density_kgpm3", "stack_shielding", "effects", "thrust_scales", "uncertainty", "measurement",
-)  # fmt: skip
 HEADER = (
     "# written by proxplan identify: calibrated vehicles, model options and kept effects.\n"
     "# Use with: proxplan costmap|plan|simulate --model THIS_FILE ..., or 'model_file: THIS_FILE' in a scenario.\n"
@@ -98,140 +109,173 @@ def between_vehicle_effects(effects: Iterable[Effect]) -> tuple[Effect, ...]:
     return tuple(out)
 
 
+# ---------------------------------------------------------------------------- declared effect lists
+
+
+def _effect_variants(schema: dict[str, Any]) -> None:
+    """JSON Schema: one variant per library effect (its parameters, with default and fit bounds), and
+    the discovered terms (``discovered:...``, parameters ``<channel>*<feature>``)."""
+    variants: list[dict[str, Any]] = []
+    for name in EFFECT_NAMES:
+        params = {
+            key: {"type": "number", "description": f"default {d:g}; fit bounds [{lo:g}, {hi:g}]; unit in the name"}
+            for key, (d, lo, hi) in PARAMETERS[name].items()
+        }
+        variants.append({
+            "properties": {"name": {"const": name},
+                           "params": {"type": "object", "properties": params, "additionalProperties": False}},
+            "required": ["name"],
+        })  # fmt: skip
+    variants.append({
+        "properties": {"name": {"type": "string", "pattern": f"^{DISCOVERED_PREFIX}"},
+                       "params": {"type": "object", "additionalProperties": {"type": "number"},
+                                  "description": "coefficients named '<channel>*<feature>' (proxplan.physics.features)"}},
+        "required": ["name", "params"],
+    })  # fmt: skip
+    schema["oneOf"] = variants
+
+
+class EffectEntry(FileModel, json_schema_extra=_effect_variants):
+    """One effect beyond the base model: a library effect (``proxplan.physics.effects``) or a term found
+    by ``proxplan identify`` (``discovered:...``), with its parameters."""
+
+    name: Text = Field(description=f"effect name: one of {', '.join(EFFECT_NAMES)}, or discovered:LABEL")
+    params: dict[Text, Number] = optional(
+        "parameter values (units in the names); parameters left out take their defaults"
+    )
+
+    @field_validator("name")
+    @classmethod
+    def _known(cls, name: str) -> str:
+        if not name.startswith(DISCOVERED_PREFIX) and name not in PARAMETERS:
+            raise problem(f"unknown effect {name!r}; known effects: {', '.join(EFFECT_NAMES)}")
+        return name
+
+    @model_validator(mode="after")
+    def _parameters_of_the_effect(self) -> EffectEntry:
+        params = self.params or {}
+        if self.name.startswith(DISCOVERED_PREFIX):
+            if self.params is None:
+                raise problem("expected a mapping '<channel>*<feature>': number", at="params")
+            for key in params:
+                try:
+                    parse_term_key(key)
+                except ValueError as exc:
+                    raise problem(str(exc), at="params") from None
+            return self
+        for key in params:
+            if key not in PARAMETERS[self.name]:
+                raise problem(
+                    f"unknown parameter of {self.name}; expected {', '.join(PARAMETERS[self.name])}", at=f"params.{key}"
+                )
+        return self
+
+    def effect(self) -> Effect:
+        return Effect(self.name, {k: float(v) for k, v in (self.params or {}).items()})
+
+
+EffectList = list[EffectEntry]
+_EFFECT_LIST: TypeAdapter[list[EffectEntry] | None] = TypeAdapter(EffectList | None)
+
+
 def effects_to_list(effects: Sequence[Effect]) -> list[dict[str, Any]]:
     """The YAML/JSON list form ``[{name, params: {...}}]`` of ``effects`` (every parameter written)."""
     return [{"name": e.name, "params": {k: float(v) for k, v in e.full_params().items()}} for e in effects]
 
 
+def effects_from_entries(entries: Sequence[EffectEntry] | None) -> tuple[Effect, ...]:
+    """The effects of a validated effect list."""
+    return tuple(e.effect() for e in entries or ())
+
+
 def effects_from_list(raw: Any, where: str) -> tuple[Effect, ...]:
     """Parse ``[{name, params}]`` into effects; UserError naming ``where`` (``FILE: KEY``) otherwise."""
-    if raw is None:
-        return ()
-    if not isinstance(raw, list):
-        raise UserError(f"{where}: expected a list of {{name: EFFECT, params: {{...}}}}")
-    out = []
-    for i, item in enumerate(raw):
-        w = f"{where}[{i}]"
-        if not isinstance(item, Mapping) or "name" not in item:
-            raise UserError(f"{w}: expected a mapping {{name: EFFECT, params: {{...}}}}")
-        unknown = sorted(set(item) - {"name", "params"})
-        if unknown:
-            raise UserError(f"{w}: unknown key {unknown[0]!r}; expected name and params")
-        name = item["name"]
-        if isinstance(name, str) and name.startswith(DISCOVERED_PREFIX):  # proxplan.identify.discovery term
-            out.append(Effect(name, _discovered_params(item.get("params"), w)))
-            continue
-        if name not in PARAMETERS:
-            raise UserError(f"{w}.name: unknown effect {name!r}; known effects: {', '.join(EFFECT_NAMES)}")
-        params = item.get("params") or {}
-        if not isinstance(params, Mapping):
-            raise UserError(f"{w}.params: expected a mapping PARAM: number")
-        values = {}
-        for key, value in params.items():
-            if key not in PARAMETERS[name]:
-                raise UserError(
-                    f"{w}.params.{key}: unknown parameter of {name}; expected {', '.join(PARAMETERS[name])}"
-                )
-            values[str(key)] = _finite(value, f"{w}.params.{key}")
-        out.append(Effect(str(name), values))
-    return tuple(out)
+    return effects_from_entries(validate(_EFFECT_LIST, raw, label=where))
 
 
-def _discovered_params(raw: Any, where: str) -> dict[str, float]:
-    if not isinstance(raw, Mapping):
-        raise UserError(f"{where}.params: expected a mapping '<channel>*<feature>': number")
-    for key in raw:
-        try:
-            parse_term_key(str(key))
-        except ValueError as exc:
-            raise UserError(f"{where}.params: {exc}") from None
-    return {str(k): _finite(v, f"{where}.params.{k}") for k, v in raw.items()}
+# ------------------------------------------------------------------------------- declared model file
 
 
-def _finite(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
-        raise UserError(f"{where}: expected a finite number, got {value!r}")
-    return float(value)
+class ModelOptionsPart(FileModel):
+    """Disturbance-model options and effects (a scenario's ``model:`` section; a model file's adds more)."""
+
+    field_form: FieldForm = optional("form of (S0-1): inverse-z (1/z decay, default) or printed (1/sqrt(z))")
+    stack_shielding: Annotated[Number, Field(ge=0, le=MAX_STACK_SHIELDING)] = optional(
+        "eta of proxplan.physics.stack: how much an upper source shields the jet of one below, -"
+    )
+    effects: EffectList = optional("effects beyond the base model, [{name, params}]")
 
 
-def _number_map(raw: Any, where: str, *, positive: bool) -> dict[str, float]:
-    if raw is None:
-        return {}
-    if not isinstance(raw, Mapping):
-        raise UserError(f"{where}: expected a mapping NAME: number")
-    out = {}
-    for key, value in raw.items():
-        v = _finite(value, f"{where}.{key}")
-        if positive and v <= 0.0:
-            raise UserError(f"{where}.{key}: expected a positive number, got {value!r}")
-        out[str(key)] = v
-    return out
+class ModelSection(ModelOptionsPart):
+    """The ``model:`` section of a model file."""
+
+    drag_coefficient: Positive = optional("flat-plate drag coefficient C_D of (S0-3), - (default 1.18)")
+    air_density_kgpm3: Positive = optional("air density, kg/m^3 (default 1.225)")
+    thrust_scales: dict[Name, Positive] = optional(
+        "per vehicle type, factor on the logged motor thrust, - (identification only)"
+    )
+    uncertainty: dict[Name, Number] = optional(
+        "one-sigma of fitted parameters, 'TYPE.param' or 'effect.param': std in the parameter's unit"
+    )
+    measurement: dict[Text, Any] = optional("how identify measured the disturbance (checked by proxplan evaluate)")
 
 
-def _mapping(raw: Any, where: str) -> dict[str, Any]:
-    if raw is None:
-        return {}
-    if not isinstance(raw, Mapping):
-        raise UserError(f"{where}: expected a mapping")
-    return dict(raw)
+class ModelFile(FileModel):
+    """A calibrated model file (``proxplan identify --save-model``; ``--model FILE`` or ``model_file:``)."""
 
+    format_version: Whole = optional(
+        f"model-file format, 1..{MODEL_FORMAT_VERSION} (absent: 1, the older identify output)",
+        json_schema_extra={"minimum": 1, "maximum": MODEL_FORMAT_VERSION},
+    )
+    vehicles: dict[Name, VehicleEntry] = Field(description="calibrated vehicle types (the vehicle-file form)")
+    model: ModelSection = optional("model options, effects, thrust scales and uncertainties")
 
-def options_from_mapping(model: Mapping, where: str) -> ModelOptions:
-    """ModelOptions from a ``model:`` mapping (field_form, drag_coefficient, air_density_kgpm3,
-    stack_shielding)."""
-    form = model.get("field_form", DEFAULT_OPTIONS.field_form)
-    if form not in FIELD_FORMS:
-        raise UserError(f"{where}.field_form: expected one of {', '.join(FIELD_FORMS)}, got {form!r}")
-    values: dict[str, Any] = {"field_form": form}
-    for key in ("drag_coefficient", "air_density_kgpm3"):
-        if key in model:
-            values[key] = _finite(model[key], f"{where}.{key}")
-            if values[key] <= 0.0:
-                raise UserError(f"{where}.{key}: expected a positive number, got {model[key]!r}")
-    if "stack_shielding" in model:
-        values["stack_shielding"] = _finite(model["stack_shielding"], f"{where}.stack_shielding")
-        if not 0.0 <= values["stack_shielding"] <= MAX_STACK_SHIELDING:
-            raise UserError(
-                f"{where}.stack_shielding: expected a number in [0, {MAX_STACK_SHIELDING:g}] (-), got {model['stack_shielding']!r}"
+    @field_validator("format_version")
+    @classmethod
+    def _readable(cls, version: int) -> int:
+        if not 1 <= version <= MODEL_FORMAT_VERSION:
+            raise problem(
+                f"{version!r} is not a model format this proxplan reads; expected 1..{MODEL_FORMAT_VERSION} "
+                "(update proxplan or re-run identify --save-model)"
             )
-    return ModelOptions(**values)
+        return version
+
+
+class TruthFile(FileModel):
+    """A truth file of ``proxplan simulate --truth``: the simulated world beyond the planner's model
+    (read by ``proxplan.flightsim.truth``)."""
+
+    field_form: FieldForm = optional("form of (S0-1) in the simulated world (default inverse-z)")
+    wind_mps: Vec3 = optional("steady wind [wx, wy, wz], world frame, m/s")
+    effects: EffectList = optional("effects of the simulated world, [{name, params}]")
+
+
+def options_from_section(section: ModelOptionsPart | None) -> ModelOptions:
+    """ModelOptions of a validated ``model:`` section (defaults for what it leaves out)."""
+    keys = {f.name for f in dataclasses.fields(ModelOptions)}
+    given = section.model_dump(exclude_unset=True) if section is not None else {}
+    return ModelOptions(**{k: v for k, v in given.items() if k in keys})
 
 
 def model_from_dict(doc: Any, *, label: str = "<model>") -> CalibratedModel:
     """Validate a parsed model-file mapping (``label`` names the file in errors)."""
-    if not isinstance(doc, Mapping) or not isinstance(doc.get("vehicles"), Mapping):
-        raise UserError(f"{label}: expected a top-level 'vehicles:' mapping of NAME: parameters (a model file)")
-    unknown = sorted(set(doc) - set(TOP_KEYS))
-    if unknown:
-        raise UserError(f"{label}: unknown top-level key {unknown[0]!r}; expected {', '.join(TOP_KEYS)}")
+    model_file = validate(ModelFile, doc, label=label)
     notes: list[str] = []
-    if "format_version" not in doc:
+    version = model_file.format_version
+    if version is None:
         version = 1
         notes.append(
             f"{label}: format_version: missing, read as model format 1 (an older identify output: no thrust "
             "scales or uncertainties); re-run identify --save-model for the current format"
         )
-    else:
-        version = doc["format_version"]
-        if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= MODEL_FORMAT_VERSION:
-            raise UserError(
-                f"{label}: format_version: {version!r} is not a model format this proxplan reads; expected 1.."
-                f"{MODEL_FORMAT_VERSION} (update proxplan or re-run identify --save-model)"
-            )
-    vehicles = {str(n): vehicle_from_dict(str(n), d, source=label) for n, d in doc["vehicles"].items()}
-    model = doc.get("model") or {}
-    if not isinstance(model, Mapping):
-        raise UserError(f"{label}: model: expected a mapping ({', '.join(MODEL_KEYS)})")
-    bad = sorted(set(model) - set(MODEL_KEYS))
-    if bad:
-        raise UserError(f"{label}: model: unknown key {bad[0]!r}; expected one of {', '.join(MODEL_KEYS)}")
+    section = model_file.model or ModelSection()
     return CalibratedModel(
-        vehicles=vehicles,
-        options=options_from_mapping(model, f"{label}: model"),
-        effects=effects_from_list(model.get("effects"), f"{label}: model.effects"),
-        thrust_scales=_number_map(model.get("thrust_scales"), f"{label}: model.thrust_scales", positive=True),
-        uncertainty=_number_map(model.get("uncertainty"), f"{label}: model.uncertainty", positive=False),
-        measurement=_mapping(model.get("measurement"), f"{label}: model.measurement"),
+        vehicles=build_vehicles(model_file.vehicles, source=label),
+        options=options_from_section(section),
+        effects=effects_from_entries(section.effects),
+        thrust_scales=dict(section.thrust_scales or {}),
+        uncertainty=dict(section.uncertainty or {}),
+        measurement=dict(section.measurement or {}),
         format_version=int(version),
         notes=tuple(notes),
     )

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import Field, TypeAdapter, model_validator
 
-from proxplan.fileio import UserError
+from proxplan.fileio import FileModel, Text, Vec3, optional, problem, validate
 
 MAX_PLANES = 8
 """At most this many planes per manifest, -."""
@@ -32,29 +33,38 @@ class Plane:
         return (np.asarray(position_m, dtype=float) - np.asarray(self.point_m)) @ np.asarray(self.normal)
 
 
+class PlanePart(FileModel):
+    """A plane of the room, as a manifest's ``planes:`` entry declares it."""
+
+    name: Text = optional("name of the plane (default plane<i>)")
+    point_m: Vec3 = Field(description="a point of the plane [x, y, z], world frame, m")
+    normal: Vec3 = Field(description="normal [nx, ny, nz] pointing into the room (any non-zero length), -")
+
+    @model_validator(mode="after")
+    def _non_zero_normal(self) -> PlanePart:
+        if float(np.linalg.norm(self.normal)) < 1e-9:
+            raise problem(f"expected a non-zero vector, got {list(self.normal)}", at="normal")
+        return self
+
+
+PlaneList = Annotated[list[PlanePart], Field(max_length=MAX_PLANES)]
+_PLANES: TypeAdapter[list[PlanePart] | None] = TypeAdapter(PlaneList | None)
+
+
+def planes_from_parts(parts: Sequence[PlanePart] | None) -> tuple[Plane, ...]:
+    """The planes of validated entries (normals normalised)."""
+    out = []
+    for i, p in enumerate(parts or ()):
+        norm = float(np.linalg.norm(p.normal))
+        nx, ny, nz = (float(v) / norm for v in p.normal)
+        out.append(Plane(p.name if p.name is not None else f"plane{i}", p.point_m, (nx, ny, nz)))
+    return tuple(out)
+
+
 def planes_from_list(raw: Any, where: str) -> tuple[Plane, ...]:
     """Planes from a YAML list ``[{name, point_m: [x, y, z], normal: [nx, ny, nz]}]``; UserError
-    naming ``where`` on a malformed entry. The normal is normalised."""
-    if raw is None:
-        return ()
-    if not isinstance(raw, list) or len(raw) > MAX_PLANES:
-        raise UserError(f"{where}: expected a list of at most {MAX_PLANES} {{name, point_m, normal}} planes")
-    out = []
-    for i, p in enumerate(raw):
-        w = f"{where}[{i}]"
-        try:
-            point = np.asarray(p["point_m"], dtype=float).reshape(3)
-            normal = np.asarray(p["normal"], dtype=float).reshape(3)
-            name = str(p.get("name", f"plane{i}"))
-        except (KeyError, TypeError, ValueError, AttributeError):
-            raise UserError(f"{w}: expected {{name, point_m: [x, y, z] (m), normal: [nx, ny, nz]}}") from None
-        norm = float(np.linalg.norm(normal))
-        if not np.all(np.isfinite(point)) or not np.isfinite(norm) or norm < 1e-9:
-            raise UserError(f"{w}: point_m must be finite and normal a non-zero vector")
-        px, py, pz = (float(v) for v in point)
-        nx, ny, nz = (float(v) / norm for v in normal)
-        out.append(Plane(name, (px, py, pz), (nx, ny, nz)))
-    return tuple(out)
+    naming ``where`` (``FILE: KEY``) on a malformed entry. The normal is normalised."""
+    return planes_from_parts(validate(_PLANES, raw, label=where))
 
 
 def plane_distances_m(planes: Sequence[Plane], position_m: np.ndarray) -> np.ndarray:

@@ -23,13 +23,16 @@ above the source's rotor plane (dz <= 0) see no flow.
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import numpy as np
 
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3
 from proxplan.physics.vehicles import Vehicle
 
-FIELD_FORMS = ("inverse-z", "printed")
+FieldForm = Literal["inverse-z", "printed"]
+"""The forms of (S0-1): the 1/z decay (default, DESIGN.md section 2) and the printed 1/sqrt(z)."""
+FIELD_FORMS: tuple[str, ...] = get_args(FieldForm)
 DEFAULT_FIELD_FORM = "inverse-z"
 
 

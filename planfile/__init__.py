@@ -1,6 +1,9 @@
 """The two file contracts of planning: scenario YAML in (:class:`Scenario`) and plan.json out
-(:class:`Plan`), each read and validated in one place, plus the one trajectory sampler every user
-of a plan shares (:meth:`VehicleTrajectory.sample`).
+(:class:`Plan`), each declared once (:class:`ScenarioFile`, :class:`PlanFile`: their JSON Schemas
+are ``proxplan schema scenario|plan``) and read and validated in one place, plus the one trajectory
+sampler every user of a plan shares (:meth:`VehicleTrajectory.sample`), and the reference a vehicle is
+given to fly its plan (:func:`compensated_reference`: plan + rotor-drag lead) with its inverse
+(:func:`predicted_path`).
 """
 
 from proxplan.planfile.crazyflie import (
@@ -29,18 +32,24 @@ from proxplan.planfile.plan import (
     read_plan,
     write_plan,
 )
-from proxplan.planfile.scenario import (
-    INVALID_ZONE_RULES,
-    MAX_VEHICLES,
-    Box,
-    Limits,
-    Scenario,
-    VehicleTask,
-    load_scenario,
-    scenario_from_dict,
+from proxplan.planfile.plan_model import PlanFile
+from proxplan.planfile.reference import (
+    LEAD_SUBSTEPS,
+    CompensatedReference,
+    compensated_reference,
+    drag_feedforward_mps2,
+    predicted_path,
 )
+from proxplan.planfile.scenario import INVALID_ZONE_RULES, Box, Limits, Scenario, VehicleTask
+from proxplan.planfile.scenario_load import load_scenario, scenario_from_dict
+from proxplan.planfile.scenario_model import MAX_VEHICLES, ScenarioFile
 
 __all__ = [
+    "LEAD_SUBSTEPS",
+    "CompensatedReference",
+    "compensated_reference",
+    "drag_feedforward_mps2",
+    "predicted_path",
     "CRAZYFLIE_MAX_PIECES",
     "EXPORT_FORMAT",
     "EXPORT_FORMAT_VERSION",
@@ -58,9 +67,11 @@ __all__ = [
     "Box",
     "Limits",
     "Plan",
+    "PlanFile",
     "SolverStats",
     "MAX_VEHICLES",
     "Scenario",
+    "ScenarioFile",
     "VehicleTask",
     "VehicleTrajectory",
     "jsonable",

@@ -11,10 +11,15 @@ giving position in m (world frame, z up) and yaw in rad. The Crazyflie firmware 
 :data:`CRAZYFLIE_MAX_PIECES` such pieces per trajectory (4 KiB trajectory memory, 132 B a piece).
 
 An exported folder holds one CSV per vehicle (or per vehicle and time part) and a manifest
-:data:`EXPORT_MANIFEST` naming, per vehicle, its type, its files and their start times, plus the
-plan's vehicle types, scenario and model settings (plan.json without the samples). Reading it
-re-samples the polynomials onto the plan's time grid (:func:`resample_step`) and validates the
-result with the plan.json rules.
+:data:`EXPORT_MANIFEST` naming, per vehicle, its type, its files and their start times (and, format 2,
+what the drag compensation did), plus the plan's vehicle types, scenario and model settings
+(plan.json without the samples). Reading it gives where the vehicles will fly: each upload is a
+*reference* the vehicle lags (rotor drag against its position loop), so the polynomials are
+sampled finely and the vehicle's predicted path (:func:`proxplan.planfile.reference.predicted_path`,
+the vehicle's gains and drag from the manifest's vehicle types) is put on the plan's time grid
+(:func:`resample_step`) and validated with the plan.json rules. For a drag-compensated upload that
+path is the plan (within the fit tolerance); for an uncompensated one it is the plan lagging by the
+drag; never the raw upload.
 """
 
 from __future__ import annotations
@@ -27,7 +32,8 @@ from typing import Any
 import numpy as np
 
 from proxplan.fileio import UserError, read_json, read_text
-from proxplan.planfile.plan import Plan, plan_from_dict
+from proxplan.planfile.plan import Plan, plan_from_dict, plan_vehicle_types
+from proxplan.planfile.reference import LEAD_SUBSTEPS, predicted_path
 
 CRAZYFLIE_MAX_PIECES = 31
 POLY_ORDER = 7
@@ -36,7 +42,9 @@ AXES = ("x", "y", "z", "yaw")
 CSV_HEADER = "Duration," + ",".join(f"{a}^{k}" for a in AXES for k in range(N_COEF))
 EXPORT_MANIFEST = "export.json"
 EXPORT_FORMAT = "proxplan-crazyflie-export"
-EXPORT_FORMAT_VERSION = 1
+EXPORT_FORMAT_VERSION = 2
+READABLE_EXPORT_VERSIONS = (1, 2)
+"""Export manifests read: 2 (written; ``drag_compensation``) and 1 (uncompensated uploads)."""
 
 
 @dataclass(frozen=True)
@@ -141,37 +149,41 @@ def _parts(entry: Any, where: str, folder: Path) -> list[PolynomialTrajectory]:
     return parts
 
 
-def sample_parts(parts: list[PolynomialTrajectory], t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(position_m, velocity_mps, acceleration_mps2), each (M, 3), of consecutive uploads ``parts``
-    at plan times ``t_s`` (M,), s: each time is flown by the last part started by then; before the
-    first and after the last part the vehicle rests at the end point."""
+def sample_parts(parts: list[PolynomialTrajectory], t_s: np.ndarray, derivatives: int = 3) -> list[np.ndarray]:
+    """[position_m, velocity_mps, acceleration_mps2 (, jerk_mps3 ...)]: the first ``derivatives``
+    time derivatives, each (M, 3), of consecutive uploads ``parts`` at plan times ``t_s`` (M,), s:
+    each time is flown by the last part started by then; before the first and after the last part
+    the vehicle rests at the end point."""
     t = np.asarray(t_s, dtype=float)
     starts = np.array([p.start_time_s for p in parts])
     which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(parts) - 1)
-    out = [np.zeros((t.size, 3)) for _ in range(3)]
+    out = [np.zeros((t.size, 3)) for _ in range(derivatives)]
     for i, part in enumerate(parts):
         sel = which == i
         if not sel.any():
             continue
-        for d in range(3):
+        for d in range(derivatives):
             value = part.evaluate(t[sel], d)[:, :3]
             if d:
                 value[(t[sel] < part.start_time_s) | (t[sel] > part.end_time_s)] = 0.0
             out[d][sel] = value
-    return out[0], out[1], out[2]
+    return out
 
 
 def read_export(folder: str | Path) -> Plan:
-    """The plan an exported Crazyflie folder will fly: every vehicle's polynomials re-sampled onto
-    the plan's uniform time grid, with the vehicle
-    types, scenario and model settings of the manifest."""
+    """Where an exported Crazyflie folder will fly (module docstring): every vehicle's predicted
+    path under its uploads on the plan's uniform time grid, with the vehicle types, scenario and
+    model settings of the manifest."""
     folder = Path(folder)
     label = str(folder / EXPORT_MANIFEST)
     doc = read_json(folder / EXPORT_MANIFEST, what="export manifest")
     if not isinstance(doc, dict) or doc.get("format") != EXPORT_FORMAT:
         raise UserError(f"{label}: format: expected {EXPORT_FORMAT!r} (a folder written by proxplan export)")
-    if doc.get("format_version") != EXPORT_FORMAT_VERSION:
-        raise UserError(f"{label}: format_version: expected {EXPORT_FORMAT_VERSION}, got {doc.get('format_version')!r}")
+    if doc.get("format_version") not in READABLE_EXPORT_VERSIONS:
+        raise UserError(
+            f"{label}: format_version: expected one of {', '.join(map(str, READABLE_EXPORT_VERSIONS))}, "
+            f"got {doc.get('format_version')!r}"
+        )
     plan_doc = doc.get("plan")
     entries = doc.get("vehicles")
     if not isinstance(plan_doc, dict) or not isinstance(entries, dict) or not entries:
@@ -183,18 +195,25 @@ def read_export(folder: str | Path) -> Plan:
     parts = {name: _parts(entry, f"{label}: vehicles.{name}", folder) for name, entry in entries.items()}
     end = max(p[-1].end_time_s for p in parts.values())
     t = np.arange(int(round(end / step)) + 1) * step
+    first = min(0, int(np.floor(min(p[0].start_time_s for p in parts.values()) / step + 1e-9)))  # steps before 0
+    fine = np.arange(first * LEAD_SUBSTEPS, int(round(end / step)) * LEAD_SUBSTEPS + 1) * (step / LEAD_SUBSTEPS)
+    on_plan_grid = slice(-first * LEAD_SUBSTEPS, None, LEAD_SUBSTEPS)  # the vehicles fly from the first upload's start
+    types = plan_vehicle_types(plan_doc, label)
     vehicles = {}
     for name, entry in entries.items():
-        p, v, a = sample_parts(parts[name], t)
-        vehicles[name] = {
-            "type": entry.get("type"),
-            "t_s": t,
-            "position_m": p,
-            "velocity_mps": v,
-            "acceleration_mps2": a,
-        }
+        type_name = entry.get("type") if isinstance(entry, dict) else None
+        if type_name not in types:
+            raise UserError(
+                f"{label}: vehicles.{name}.type: expected one of the plan's vehicle types ({', '.join(types)})"
+            )
+        p, v, a, j = sample_parts(parts[name], fine, derivatives=4)
+        flown = predicted_path(fine, p, v, a, j, types[type_name])
+        vehicles[name] = {"type": type_name, "t_s": t}
+        for key, arr in zip(("position_m", "velocity_mps", "acceleration_mps2"), flown):
+            vehicles[name][key] = arr[on_plan_grid]
     full = dict(plan_doc, dt_s=step, vehicles=vehicles)
     full["notes"] = list(plan_doc.get("notes") or []) + [
-        f"re-sampled every {step:g} s from the Crazyflie polynomials in {folder}"
+        f"the predicted flight of the Crazyflie polynomials in {folder} (each vehicle lagging its uploads by its "
+        f"rotor drag and loop, proxplan.planfile.reference.predicted_path), every {step:g} s"
     ]
     return plan_from_dict(full, label=label)

@@ -46,20 +46,19 @@ from typing import Any
 
 import numpy as np
 
-from proxplan.fileio import UserError, atomic_write_text, read_json
+from proxplan.fileio import UserError, atomic_write_text, read_json, validate
 from proxplan.physics import (
     BUILTIN_VEHICLES,
     Effect,
     Vehicle,
+    build_vehicles,
     effects_from_list,
     vehicle_from_dict,
     vehicle_to_yaml_dict,
 )
+from proxplan.planfile.plan_model import PLAN_FORMAT_VERSION, PlanFile, SolverPart
 
-PLAN_FORMAT_VERSION = 2
-READABLE_FORMAT_VERSIONS = (1, 2)
 PLAN_FILENAME = "plan.json"
-GRID_TOLERANCE_S = 1e-6  # common-grid and time-step tolerance, s
 
 # quintic Hermite: p(s) = sum_k s^k (C @ [p0, h v0, h^2 a0, p1, h v1, h^2 a1])_k, s in [0, 1]
 _QUINTIC = np.array(
@@ -187,27 +186,19 @@ class SolverStats:
         }
 
     @staticmethod
-    def from_dict(doc: Any, label: str) -> SolverStats:
-        if not isinstance(doc, dict):
-            raise UserError(f"{label}: solver: expected an object or null")
-        try:
-            return SolverStats(
-                method=str(doc["method"]),
-                converged=bool(doc["converged"]),
-                return_status=str(doc["return_status"]),
-                iterations=int(doc["iterations"]),
-                solves=int(doc["solves"]),
-                solve_time_s=float(doc["solve_time_s"]),
-                constraint_violation=float("nan")
-                if doc["constraint_violation"] is None
-                else float(doc["constraint_violation"]),
-                objective=float("nan") if doc["objective"] is None else float(doc["objective"]),
-            )
-        except (KeyError, TypeError, ValueError) as err:
-            raise UserError(
-                f"{label}: solver: expected {{method, converged, return_status, iterations, solves, solve_time_s, "
-                f"constraint_violation, objective}}, got {err}"
-            ) from None
+    def from_part(part: SolverPart) -> SolverStats:
+        """The statistics of a validated ``solver`` entry (null numbers read as NaN)."""
+        nan = float("nan")
+        return SolverStats(
+            method=part.method,
+            converged=part.converged,
+            return_status=part.return_status,
+            iterations=part.iterations,
+            solves=part.solves,
+            solve_time_s=part.solve_time_s,
+            constraint_violation=nan if part.constraint_violation is None else part.constraint_violation,
+            objective=nan if part.objective is None else part.objective,
+        )
 
 
 @dataclass
@@ -314,117 +305,51 @@ def write_plan(plan: Plan, out_dir: str | Path) -> Path:
     return atomic_write_text(Path(out_dir) / PLAN_FILENAME, json.dumps(plan_to_dict(plan), indent=1))
 
 
-def _array(value: Any, where: str, shape_tail: tuple[int, ...]) -> np.ndarray:
-    form = "[N] numbers" if not shape_tail else "[[x, y, z] x N] numbers"
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise UserError(f"{where}: expected {form}") from None
-    if arr.ndim != 1 + len(shape_tail) or arr.shape[1:] != shape_tail:
-        raise UserError(f"{where}: expected {form}, got shape {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr.reshape(arr.shape[0], -1)).all(axis=1))
-    if bad.size:
-        raise UserError(f"{where}: sample {int(bad[0])} is not finite (NaN or infinity); expected finite {form}")
-    return arr
-
-
-def _version(doc: dict, label: str) -> int:
-    version = doc.get("format_version", 1)
-    if isinstance(version, bool) or not isinstance(version, int) or version not in READABLE_FORMAT_VERSIONS:
-        raise UserError(
-            f"{label}: format_version: {version!r} is not a plan format this proxplan reads; expected one of "
-            f"{', '.join(map(str, READABLE_FORMAT_VERSIONS))} (re-plan with this version)"
-        )
-    return version
-
-
-def _vehicle_types(doc: dict, version: int, label: str) -> dict[str, Vehicle]:
-    if version == 1:
+def plan_vehicle_types(doc: Any, label: str = "<plan>") -> dict[str, Vehicle]:
+    """The vehicle types a plan.json mapping carries (format 1: the built-in types), validated; for
+    a plan without its samples (an export manifest's ``plan``)."""
+    if not isinstance(doc, dict):
+        raise UserError(f"{label}: expected a JSON object with keys scenario, dt_s, vehicles, metrics")
+    if doc.get("format_version", 1) == 1:
         return dict(BUILTIN_VEHICLES)
     raw = doc.get("vehicle_types")
     if not isinstance(raw, dict) or not raw:
         raise UserError(f"{label}: vehicle_types: expected an object TYPE: {{vehicle parameters}} (format 2)")
-    return {
-        str(name): vehicle_from_dict(str(name), data, source=f"{label}: vehicle_types") for name, data in raw.items()
-    }
+    return {str(n): vehicle_from_dict(str(n), d, source=f"{label}: vehicle_types") for n, d in raw.items()}
 
 
 def plan_from_dict(doc: Any, *, label: str = "<plan>") -> Plan:
     """Validate a plan.json mapping into a :class:`Plan`; UserError naming the key otherwise."""
-    if not isinstance(doc, dict):
-        raise UserError(f"{label}: expected a JSON object with keys scenario, dt_s, vehicles, metrics")
-    version = _version(doc, label)
-    for key in ("scenario", "dt_s", "vehicles"):
-        if key not in doc:
-            raise UserError(f"{label}: {key}: missing; required plan.json key (DESIGN.md section 4)")
-    dt = doc["dt_s"]
-    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not (dt > 0 and math.isfinite(dt)):
-        raise UserError(f"{label}: dt_s: expected a positive number of seconds, got {dt!r}")
-    if not isinstance(doc["vehicles"], dict) or not doc["vehicles"]:
-        raise UserError(f"{label}: vehicles: expected a non-empty object NAME: {{type, t_s, position_m, ...}}")
-    types = _vehicle_types(doc, version, label)
+    pf = validate(PlanFile, doc, label=label)
+    if pf.version == 1:
+        types = dict(BUILTIN_VEHICLES)
+    else:
+        types = build_vehicles(pf.vehicle_types or {}, source=f"{label}: vehicle_types")
     vehicles: dict[str, VehicleTrajectory] = {}
-    grid = None
-    for name, v in doc["vehicles"].items():
-        where = f"{label}: vehicles.{name}"
-        if not isinstance(v, dict):
-            raise UserError(f"{where}: expected an object with type, t_s, position_m, velocity_mps, acceleration_mps2")
-        for key in ("type", "t_s", "position_m", "velocity_mps", "acceleration_mps2"):
-            if key not in v:
-                raise UserError(f"{where}.{key}: missing; required plan.json key")
-        type_name = v["type"]
-        if not isinstance(type_name, str) or type_name not in types:
-            known = ", ".join(types)
+    for name, v in pf.vehicles.items():
+        if v.type not in types:
             raise UserError(
-                f"{where}.type: unknown vehicle type {type_name!r}; expected one of the plan's vehicle types ({known})"
+                f"{label}: vehicles.{name}.type: unknown vehicle type {v.type!r}; expected one of the plan's "
+                f"vehicle types ({', '.join(types)})"
             )
-        t = _array(v["t_s"], f"{where}.t_s", ())
-        arrays = [_array(v[k], f"{where}.{k}", (3,)) for k in ("position_m", "velocity_mps", "acceleration_mps2")]
-        for key, arr in zip(("position_m", "velocity_mps", "acceleration_mps2"), arrays):
-            if arr.shape[0] != t.shape[0]:
-                raise UserError(f"{where}.{key}: expected {t.shape[0]} rows (one per t_s), got {arr.shape[0]}")
-        steps = np.diff(t)
-        if t.size < 2 or np.any(steps <= 0):
-            raise UserError(f"{where}.t_s: expected at least two strictly increasing times")
-        off = np.flatnonzero(np.abs(steps - dt) > GRID_TOLERANCE_S + 1e-9 * dt)
-        if off.size:
-            k = int(off[0])
-            raise UserError(
-                f"{where}.t_s: step {steps[k]:.6g} s between samples {k} and {k + 1} differs from dt_s = {dt:g} s; "
-                "expected a uniform grid"
-            )
-        if grid is None:
-            grid = t
-        elif t.shape != grid.shape or not np.allclose(t, grid, atol=GRID_TOLERANCE_S, rtol=0.0):
-            raise UserError(f"{where}.t_s: expected the common time grid shared by every vehicle")
-        ff: list[np.ndarray | None] = []
-        for key in ("disturbance_force_N", "disturbance_torque_Nm"):  # feed-forward, optional
-            ff.append(None if v.get(key) is None else _array(v[key], f"{where}.{key}", (3,)))
-            if ff[-1] is not None and len(ff[-1]) != t.shape[0]:
-                raise UserError(f"{where}.{key}: expected {t.shape[0]} rows (one per t_s), got {len(ff[-1])}")
-        vehicles[str(name)] = VehicleTrajectory(str(name), type_name, types[type_name], t, *arrays, *ff)
-    metrics = doc.get("metrics") or {}
-    if not isinstance(metrics, dict):
-        raise UserError(f"{label}: metrics: expected an object")
-    spec = doc.get("scenario_spec")
-    if spec is not None and not isinstance(spec, dict):
-        raise UserError(f"{label}: scenario_spec: expected an object (the scenario the plan was made for) or null")
-    if spec is not None and isinstance(spec.get("model"), dict):
-        effects_from_list(spec["model"].get("effects"), f"{label}: scenario_spec.model.effects")  # validate
-    notes = [str(n) for n in doc.get("notes") or []]
-    if version == 1:
+        vehicles[name] = VehicleTrajectory(
+            name, v.type, types[v.type], v.t_s, v.position_m, v.velocity_mps, v.acceleration_mps2,
+            v.disturbance_force_N, v.disturbance_torque_Nm,
+        )  # fmt: skip
+    notes = list(pf.notes or [])
+    if pf.version == 1:
         notes.append(f"{label}: plan format 1: vehicle types resolved by name from the built-in types")
     return Plan(
-        scenario=str(doc["scenario"]),
-        dt_s=float(dt),
+        scenario=pf.scenario,
+        dt_s=float(pf.dt_s),
         vehicles=vehicles,
-        metrics=dict(metrics),
-        method=str(doc.get("method", "unknown")),
+        metrics=dict(pf.metrics or {}),
+        method=pf.method or "unknown",
         notes=notes,
-        scenario_file=doc.get("scenario_file"),
-        scenario_spec=spec,
-        format_version=version,
-        solver=None if doc.get("solver") is None else SolverStats.from_dict(doc["solver"], label),
+        scenario_file=pf.scenario_file,
+        scenario_spec=doc.get("scenario_spec"),
+        format_version=pf.version,
+        solver=None if pf.solver is None else SolverStats.from_part(pf.solver),
     )
 
 

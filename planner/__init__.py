@@ -6,8 +6,9 @@ before it):
   tracking tube), their vectorised form and the checks of a scenario before any search;
 - :mod:`proxplan.planner.sampling`: the single-vehicle OMPL space-time planner and prioritised
   planning with it;
-- :mod:`proxplan.planner.swarm`: a shared lattice roadmap with precomputed conflict sets and
-  priority-based search (``method="roadmap"``);
+- :mod:`proxplan.planner.swarm`: swarms - goal assignment, joint coordination on a lattice with
+  exact synchronous conflicts (LaCAM), continuous-time planning and re-timing (``method="roadmap"``,
+  and ``"optimized"`` for swarms);
 - :mod:`proxplan.planner.optimizer`: CasADi refinement keeping predicted wrenches within authority.
 
 At the top level, :mod:`proxplan.planner.pipeline` runs them (pre-checks, planner, verifier safety
@@ -16,7 +17,7 @@ returns. :mod:`~proxplan.planner.compare` runs every method on the shipped scena
 :mod:`~proxplan.planner.formations` generates swarm scenarios (both ``python -m``).
 """
 
-from proxplan.planner.errors import InfeasibleError
+from proxplan.planner.errors import InfeasibleError, PlanNotFound
 from proxplan.planner.optimizer import RefineOptions, RefineResult, refine_plan
 from proxplan.planner.pipeline import DT_S, METHODS, plan_scenario
 from proxplan.planner.plot import plot_plan
@@ -27,6 +28,7 @@ __all__ = [
     "DT_S",
     "METHODS",
     "InfeasibleError",
+    "PlanNotFound",
     "RefineOptions",
     "RefineResult",
     "plan_scenario",

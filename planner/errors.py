@@ -14,3 +14,15 @@ class InfeasibleError(Exception):
         # machine-readable diagnosis for ``--json`` (e.g. the source vehicle, by how much, a
         # suggested goal); plain JSON types only
         self.details = dict(details or {})
+
+
+class PlanNotFound(Exception):
+    """A search gave up (its count budget or the wall-clock budget ran out) without a plan. This
+    proves nothing about feasibility; the CLI says "not found within ..." and exits 3, never
+    "infeasible"."""
+
+    def __init__(self, message: str, *, vehicles: list[str] | None = None, details: dict | None = None):
+        super().__init__(message)
+        self.message = message
+        self.vehicles = list(vehicles or [])
+        self.details = dict(details or {})

@@ -1,5 +1,5 @@
 """Multi-vehicle planning pipeline: pre-checks, the chosen planner (prioritised space-time sampling,
-:mod:`proxplan.planner.sampling`, or the swarm roadmap, :mod:`proxplan.planner.swarm`), the
+:mod:`proxplan.planner.sampling`, or the swarm layer, :mod:`proxplan.planner.swarm`), the
 independent verifier as a safety net, optional refinement (:func:`proxplan.planner.optimizer.refine_plan`)
 and the plan's metrics.
 
@@ -21,12 +21,12 @@ from proxplan.planner.checks.precheck import (
     check_starts_and_goals,
     check_swarm_size,
 )
-from proxplan.planner.errors import InfeasibleError
+from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.prioritized import PLAN_MARGIN_M, sampling_plan
 from proxplan.planner.sampling.spec import SamplingOptions
 from proxplan.planner.timing.plan_grid import DT_S, assemble_plan
 
-__all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "finish_metrics", "plan_roadmap", "plan_scenario"]
+__all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "deflection_allowance", "finish_metrics", "plan_scenario"]
 
 METHODS = ("optimized", "sampling", "roadmap", "no-downwash", "ellipsoid")
 MODE_OF_METHOD = {
@@ -46,16 +46,24 @@ def plan_scenario(
     progress: Callable[[str, float], None] | None = None,
     options: SamplingOptions | None = None,
     time_budget_s: float | None = None,
+    max_time_s: float | None = None,
 ) -> Plan:
     """Plan every vehicle of ``scenario``; raises :class:`InfeasibleError` when impossible.
 
     ``method``: "optimized" (sampling, then ``proxplan.planner.optimizer.refine_plan`` when available),
-    "roadmap" (shared lattice roadmap + priority-based search, :mod:`proxplan.planner.swarm.plan`;
-    the sampling planner when the roadmap cannot express the scenario or its search fails, with a note),
+    "roadmap" (the swarm layer, :mod:`proxplan.planner.swarm.plan`; the sampling planner when it
+    cannot plan the scenario or its search gives up, with a note),
     "sampling", "no-downwash" (separation only) or "ellipsoid" (keep-out ellipsoid baseline).
     ``progress(message, fraction)`` is called as vehicles are planned. ``time_budget_s``: wall-clock
     budget of the optimiser (default ``RefineOptions.time_budget_s``), s; it returns the best
-    verified improvement found by then.
+    verified improvement found by then. ``max_time_s``: wall-clock budget of the whole plan, s;
+    a search still running then stops with :class:`PlanNotFound` ("not found within ..."), never
+    with a different plan.
+
+    Swarms (``method="roadmap"``, and ``"optimized"`` for scenarios of
+    ``proxplan.planner.swarm.SWARM_MIN_VEHICLES`` vehicles or more without docks) go through
+    :mod:`proxplan.planner.swarm`; ``assign_goals: by_type`` is applied first
+    (:func:`proxplan.planner.swarm.goals.apply_assignment`) and recorded in ``plan.metrics``.
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -63,23 +71,37 @@ def plan_scenario(
         from proxplan.fileio import UserError
 
         raise UserError(f"--time-budget: expected a positive number of seconds, got {time_budget_s:g}")
+    from proxplan.planner.swarm.goals import apply_assignment
     from proxplan.verify import verify_plan
 
     options = options or SamplingOptions()
     t0 = time.perf_counter()
+    deadline = None if max_time_s is None else t0 + float(max_time_s)
     mode = MODE_OF_METHOD[method]
     check_swarm_size(scenario)
+    scenario, assignment = apply_assignment(scenario)
     check_starts_and_goals(scenario, mode=mode)
     check_goal_tubes(scenario, mode=mode, margin_m=PLAN_MARGIN_M)
-    plan, why_not = _roadmap_plan(scenario, progress=progress) if method == "roadmap" else (None, None)
+    swarm = method == "roadmap" or (method == "optimized" and _is_swarm(scenario))
+    plan, why_not = (
+        _swarm_plan(scenario, seed=seed, progress=progress, deadline=deadline, optimize=method == "optimized")
+        if swarm
+        else (None, None)
+    )
+    from_swarm = plan is not None
     if plan is None:
+        if deadline is not None and time.perf_counter() > deadline:
+            raise PlanNotFound(f"no plan found within the time budget of {max_time_s:g} s ({why_not})")
         plan = sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
         if why_not:
             plan.notes.append(why_not)
             method = "sampling"
-    if mode == "downwash" and plan.method != "roadmap":
+    bad = []
+    if mode == "downwash" and not from_swarm:
         # safety net: the timed plan is re-checked per vehicle, but the verifier is independent
         bad = verify_plan(plan, scenario)
+        if bad and not options.deflection_m:
+            plan, bad = _with_deflections(scenario, plan, bad, mode=mode, seed=seed, options=options, progress=progress)
         if bad:
             retry = sampling_plan(scenario, mode=mode, seed=seed + 7919, options=options, progress=progress)
             bad_retry = verify_plan(retry, scenario)
@@ -88,48 +110,99 @@ def plan_scenario(
                 plan = retry
             retry_note = note + ("" if not bad_retry else f"; still {len(bad_retry)} violation(s)")
             plan.notes.append(retry_note)
-    plan.method = plan.method if plan.method == "roadmap" else (method if method != "optimized" else "sampling")
-    if method == "optimized":
+            bad = bad_retry if plan is retry else bad
+    if not from_swarm:
+        plan.method = method if method != "optimized" else "sampling"
+    if method == "optimized" and not swarm:
         plan = _refine(scenario, plan, seed=seed, progress=progress, time_budget_s=time_budget_s)
+    elif mode == "downwash" and not bad:
+        plan.metrics["verified"] = True  # the verifier passed this very plan (the CLI need not re-run it)
+    if assignment is not None:
+        plan.metrics["assignment"] = assignment
+        plan.metrics["assignment_lower_bound_s"] = assignment["lower_bound_s"]
     finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - t0)
     if progress:
         progress("done", 1.0)
     return plan
 
 
-def _roadmap_plan(scenario: Scenario, *, progress) -> tuple[Plan | None, str | None]:
-    """(the roadmap plan (:mod:`proxplan.planner.swarm.plan`), None) when the roadmap can express
-    the scenario, the search succeeds and the verifier passes it; else (None, why not: a note for
-    the sampling plan that replaces it)."""
-    from proxplan.planner.swarm.plan import roadmap_applicable
+def deflection_allowance(plan: Plan, scenario: Scenario) -> dict[str, float]:
+    """Per vehicle the largest distance, m, its controller is predicted to be pushed off the plan by
+    the plan's own predicted disturbance (``proxplan.verify.deflection_along_plan``), for vehicles
+    pushed at all: the tube growth the planner's second pass keeps others clear of."""
+    from proxplan.verify import deflection_along_plan, wrench_along_plan
+
+    t = np.arange(0.0, float(plan.t_s[-1]) + 0.005, 0.01)
+    along = wrench_along_plan(plan, scenario, t_s=t)
+    return {n: float(d.max()) for n, d in deflection_along_plan(plan, scenario, along).items() if d.max() > 0.0}
+
+
+def _with_deflections(
+    scenario: Scenario, plan: Plan, bad: list, *, mode: str, seed: int, options: SamplingOptions, progress
+) -> tuple[Plan, list]:
+    """A plan that fails the verifier is planned again with each disturbed vehicle's tube grown by
+    its largest predicted deflection in the first plan (:func:`deflection_allowance`): the
+    verifier grows the tube by the deflection where it applies, the planner's checker by its
+    largest value throughout. The plan with fewer violations is kept, with a note."""
+    from dataclasses import replace
+
     from proxplan.verify import verify_plan
 
-    why = roadmap_applicable(scenario)
+    extra = deflection_allowance(plan, scenario)
+    if not extra:
+        return plan, bad
+    again = sampling_plan(
+        scenario, mode=mode, seed=seed, options=replace(options, deflection_m=extra), progress=progress
+    )
+    bad_again = verify_plan(again, scenario)
+    grown = ", ".join(f"{n} {100 * d:.1f} cm" for n, d in sorted(extra.items()))
+    if len(bad_again) < len(bad):
+        again.notes.append(
+            f"planned again with the tubes of disturbed vehicles grown by their predicted deflection ({grown}): "
+            f"the first plan failed verification ({bad[0]})"
+        )
+        return again, bad_again
+    plan.notes.append(f"planning again with tubes grown by the predicted deflections ({grown}) did not help")
+    return plan, bad
+
+
+def _is_swarm(scenario: Scenario) -> bool:
+    """A formation change for the swarm layer: enough vehicles and no docks."""
+    from proxplan.planner.swarm import SWARM_MIN_VEHICLES, swarm_applicable
+
+    return len(scenario.vehicles) >= SWARM_MIN_VEHICLES and swarm_applicable(scenario) is None
+
+
+def _swarm_plan(scenario: Scenario, *, seed: int, progress, deadline, optimize: bool) -> tuple[Plan | None, str | None]:
+    """(the swarm layer's plan (:func:`proxplan.planner.swarm.swarm_timed`), None) when it can plan
+    the scenario and the verifier passes the plan; else (None, why not: a note for the sampling
+    plan that replaces it)."""
+    from proxplan.planner.swarm import SearchGaveUp, SwarmOptions, swarm_applicable, swarm_timed
+    from proxplan.verify import verify_plan
+
+    why = swarm_applicable(scenario)
     if why is not None:
-        return None, f"roadmap: not used, {why}; this is the sampling planner's plan"
-    if progress:
-        progress("roadmap search", 0.1)
+        return None, f"swarm layer: not used, {why}; this is the sampling planner's plan"
+    options = SwarmOptions(seed=seed, passes=SwarmOptions.passes + (OPTIMIZE_EXTRA_PASSES if optimize else 0))
     try:
-        plan = plan_roadmap(scenario)
-    except InfeasibleError as err:
-        return None, f"roadmap: search failed ({err.message}); this is the sampling planner's plan"
+        timed, info = swarm_timed(scenario, options, progress=progress, deadline=deadline)
+    except SearchGaveUp as err:
+        return None, f"swarm layer: {err.message}; this is the sampling planner's plan"
+    plan = assemble_plan(
+        scenario, timed, method="optimized" if optimize else "roadmap", notes=list(scenario.load_notes)
+    )
+    plan.notes.append(f"swarm layer: {info['coordination']}")
+    plan.metrics["swarm"] = info
+    plan.metrics["lower_bound_s"] = info["lower_bound_s"]
+    plan.metrics["seed"] = seed
     bad = verify_plan(plan, scenario)
     if bad:
-        return None, f"roadmap: plan failed verification ({bad[0]}); this is the sampling planner's plan"
+        return None, f"swarm layer: plan failed verification ({bad[0]}); this is the sampling planner's plan"
+    plan.metrics["verify_violations"] = 0
     return plan, None
 
 
-def plan_roadmap(scenario: Scenario, options=None) -> Plan:
-    """The roadmap plan of ``scenario`` (:func:`proxplan.planner.swarm.plan.roadmap_timed`,
-    ``options`` a ``RoadmapOptions``) as a Plan with ``metrics["roadmap"]`` (metrics not final);
-    InfeasibleError when the roadmap cannot express the scenario or its search fails."""
-    from proxplan.planner.swarm.plan import roadmap_timed
-
-    timed, info = roadmap_timed(scenario, options)
-    plan = assemble_plan(scenario, timed, method="roadmap", notes=list(scenario.load_notes))
-    plan.notes.append(info.pop("note"))
-    plan.metrics["roadmap"] = info
-    return plan
+OPTIMIZE_EXTRA_PASSES = 5  # continuous re-timing passes that ``optimized`` adds for swarms
 
 
 def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress, time_budget_s: float | None = None) -> Plan:

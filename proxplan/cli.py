@@ -29,6 +29,7 @@ COMMAND_MODULES = (
     "proxplan.commands.evaluate",  # evaluate
     "proxplan.commands.certify",  # certify
     "proxplan.commands.export",  # export
+    "proxplan.commands.schema",  # schema
 )
 
 

@@ -3,7 +3,13 @@
 (wrench, authority usage, invalid zone, separations) that planner metrics and the web app show.
 """
 
-from proxplan.verify.along import WrenchAlongPlan, attach_feedforward, separation_summary, wrench_along_plan
+from proxplan.verify.along import (
+    WrenchAlongPlan,
+    attach_feedforward,
+    deflection_along_plan,
+    separation_summary,
+    wrench_along_plan,
+)
 from proxplan.verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, tube_offsets, verify_plan
 from proxplan.verify.violations import Violation
 
@@ -13,6 +19,7 @@ __all__ = [
     "Violation",
     "WrenchAlongPlan",
     "attach_feedforward",
+    "deflection_along_plan",
     "scenario_of_plan",
     "separation_summary",
     "tube_offsets",

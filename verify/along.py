@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from proxplan.costmaps import pair_wrench, sources_wrench
-from proxplan.physics import ModelOptions, authority_usage, invalid_zone_mask
+from proxplan.physics import ModelOptions, authority_usage, disturbance_deflection, invalid_zone_mask
 from proxplan.planfile import Plan, Scenario
 
 DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
@@ -86,6 +86,20 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
             force[stack], torque[stack] = sources_wrench(target, offsets, opts, effects)
         usage = authority_usage(target, force, torque) if t_s.size else np.zeros(0)
         out[tname] = WrenchAlongPlan(t_s, force, torque, usage, by_source, invalid)
+    return out
+
+
+def deflection_along_plan(
+    plan: Plan, scenario: Scenario | None, along: dict[str, WrenchAlongPlan]
+) -> dict[str, np.ndarray]:
+    """Per vehicle the distance (M,), m, its controller is predicted to be pushed off its plan by
+    the disturbance the model predicts on it along the plan (``along``, on a uniform grid from the
+    plan's start): :func:`proxplan.physics.disturbance_deflection` (steady sag F / k_p, its
+    transient, the tilt a torque holds), from rest. Part of that vehicle's tube where it applies."""
+    out = {}
+    for name, w in along.items():
+        d = disturbance_deflection(w.t_s, w.force_N, w.torque_Nm, _vehicle(plan, scenario, name))
+        out[name] = np.linalg.norm(d, axis=1)
     return out
 
 

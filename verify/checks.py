@@ -19,11 +19,15 @@ Checks, in this order (a plan that fails the first group is not checked further)
    overlapping footprints, forbidden for non-dock pairs unless ``invalid_zone_rule: model``).
    While either vehicle of a pair moves (plan speed >= ``REST_SPEED_MPS``) both checks add the
    tracking tube ``limits.tracking_margin_m`` t: separation + t, dz <= 3 L + t, footprints + t
-   (a vehicle flown closed-loop may be that far off its plan; a resting one is not).
+   (a vehicle flown closed-loop may be that far off its plan; a resting one is not). Where the
+   model predicts a disturbance on a vehicle, its predicted deflection d (``deflection_along_plan``:
+   the sag F / k_p and its transient under the plan's own predicted wrench) is part of its tube,
+   moving or not: the pair's tube is t + d_a + d_b.
 5. *Authority*: usage <= limits.authority_fraction with the model's numbers everywhere (also where
    it is extrapolated); and, while a pair moves, also with the target at the worst point of the
-   tracking tube for each source (towards the source's axis by the tube, at dz and dz +- tube;
-   dock pairs exempt on their approach as from the planner's cut-off).
+   tracking tube (plus the target's predicted deflection) for each source (towards the source's
+   axis by the tube, at dz and dz +- tube; dock pairs exempt on their approach as from the
+   planner's cut-off).
 
 Consecutive violating samples of one kind merge into one :class:`Violation` that names the vehicle,
 the plan sample and time where it starts, the check, and its worst value against the limit.
@@ -36,7 +40,7 @@ import numpy as np
 from proxplan.fileio import UserError
 from proxplan.physics import VALIDITY_FACTOR_L, invalid_zone_mask
 from proxplan.planfile import Plan, Scenario, load_scenario, scenario_from_dict
-from proxplan.verify.along import dock_exempt, wrench_along_plan
+from proxplan.verify.along import WrenchAlongPlan, deflection_along_plan, dock_exempt, wrench_along_plan
 from proxplan.verify.violations import Violation, add_runs
 
 GOAL_TOLERANCE_M = 0.05  # goal, hover, dock and start positions, m
@@ -267,7 +271,9 @@ def _check_tasks(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
     return out
 
 
-def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray]) -> list[Violation]:
+def _check_pairs(
+    plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray], deflection: dict[str, np.ndarray]
+) -> list[Violation]:
     out: list[Violation] = []
     lim = scenario.limits
     names = list(plan.vehicles)
@@ -276,7 +282,7 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
         for b in names[i + 1 :]:
             va, vb = scenario.vehicles[a].vehicle, scenario.vehicles[b].vehicle
             d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            tube = np.where(moving[a] | moving[b], lim.tracking_margin_m, 0.0)  # (M,) m
+            tube = np.where(moving[a] | moving[b], lim.tracking_margin_m, 0.0) + deflection[a] + deflection[b]  # (M,) m
             sep0 = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
             sep = sep0 + tube
             ex = dock_exempt(plan, scenario, a, b, pos, t)
@@ -289,7 +295,8 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
                 sep0 + lim.tracking_margin_m,
                 a,
                 "separation",
-                f"closer than {sep0:.3f} m + tracking tube {lim.tracking_margin_m:g} m (while moving) to {b} by (m)",
+                f"closer than {sep0:.3f} m + tracking tube {lim.tracking_margin_m:g} m (while moving) + predicted "
+                f"deflections to {b} by (m)",
                 plan_t_s=plan.t_s,
             )
             if lim.invalid_zone_rule == "model":
@@ -314,10 +321,10 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
     return out
 
 
-def _check_authority(plan: Plan, scenario: Scenario, t: np.ndarray) -> list[Violation]:
+def _check_authority(scenario: Scenario, t: np.ndarray, along: dict[str, WrenchAlongPlan], plan_t_s) -> list[Violation]:
     out: list[Violation] = []
     limit = scenario.limits.authority_fraction
-    for name, w in wrench_along_plan(plan, scenario, t_s=t).items():
+    for name, w in along.items():
         over = w.usage > limit + USAGE_TOLERANCE
         if over.any():
             worst_src = max(
@@ -334,14 +341,15 @@ def _check_authority(plan: Plan, scenario: Scenario, t: np.ndarray) -> list[Viol
                 name,
                 "authority",
                 f"authority usage in the downwash of {worst_src}",
-                plan_t_s=plan.t_s,
+                plan_t_s=plan_t_s,
             )
     return out
 
 
-def tube_offsets(off: np.ndarray, tube_m: float) -> list[np.ndarray]:
-    """Offsets (N, 3) of a target within the tracking tube that the downwash hits hardest: moved
-    horizontally towards the source's axis by the tube, at dz and dz +- tube (dz kept > 1 mm)."""
+def tube_offsets(off: np.ndarray, tube_m: float | np.ndarray) -> list[np.ndarray]:
+    """Offsets (N, 3) of a target within the tracking tube (m, one or (N,)) that the downwash hits
+    hardest: moved horizontally towards the source's axis by the tube, at dz and dz +- tube (dz
+    kept > 1 mm)."""
     r = np.hypot(off[:, 0], off[:, 1])
     shrink = np.where(r > 1e-9, np.maximum(r - tube_m, 0.0) / np.maximum(r, 1e-9), 0.0)
     base = off * np.column_stack([shrink, shrink, np.ones_like(shrink)])
@@ -353,16 +361,19 @@ def tube_offsets(off: np.ndarray, tube_m: float) -> list[np.ndarray]:
     return out
 
 
-def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray]) -> list[Violation]:
-    """Authority usage with every moving pair's target placed, per source, at the worst point of
-    the tracking tube (``limits.tracking_margin_m``; dock pairs on their approach exempt, as for
-    the planner's cut-off): the verifier's form of the planner's grown cut-off radius."""
+def _check_authority_tube(
+    plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray], deflection: dict[str, np.ndarray]
+) -> list[Violation]:
+    """Authority usage with every moving (or deflected) pair's target placed, per source, at the
+    worst point of its tube (``limits.tracking_margin_m`` while the pair moves, plus the target's
+    predicted deflection; dock pairs on their approach exempt, as for the planner's cut-off): the
+    verifier's form of the planner's grown cut-off radius."""
     from proxplan.physics import authority_usage, disturbance_wrench
     from proxplan.verify.along import model_options
 
     out: list[Violation] = []
-    tube = scenario.limits.tracking_margin_m
-    if tube <= 0.0:
+    tube0 = scenario.limits.tracking_margin_m
+    if tube0 <= 0.0 and not any(d.max(initial=0.0) > 0.0 for d in deflection.values()):
         return out
     limit = scenario.limits.authority_fraction
     opts = model_options(scenario)
@@ -378,7 +389,9 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
             source = scenario.vehicles[sname].vehicle
             off = pos[tname] - pos[sname]
             below = -off[:, 2] > 1e-6
-            use = below & (moving[tname] | moving[sname]) & ~dock_exempt(plan, scenario, tname, sname, pos, t)
+            pair_moving = moving[tname] | moving[sname]
+            tube = np.where(pair_moving, tube0, 0.0) + deflection[tname]  # (M,) m
+            use = below & (tube > 0.0) & ~dock_exempt(plan, scenario, tname, sname, pos, t)
             plain = below & ~use
             if plain.any():
                 w = disturbance_wrench(source, target, off[plain], opts)
@@ -388,7 +401,7 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
                 best_u = np.full(int(use.sum()), -np.inf)
                 best_f = np.zeros((best_u.size, 3))
                 best_t = np.zeros((best_u.size, 3))
-                for o in tube_offsets(off[use], tube):
+                for o in tube_offsets(off[use], tube[use]):
                     w = disturbance_wrench(source, target, o, opts)
                     u = authority_usage(target, w.force_N, w.torque_Nm)
                     better = u > best_u
@@ -406,7 +419,7 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
             limit,
             tname,
             "authority-tube",
-            f"authority usage within the tracking tube ({tube:g} m) of the plan",
+            f"authority usage within the tracking tube ({tube0:g} m, + predicted deflection) of the plan",
             plan_t_s=plan.t_s,
         )
     return out
@@ -422,10 +435,12 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
     t = np.arange(0.0, float(plan.t_s[-1]) + dt_fine_s / 2, dt_fine_s)
     pos = plan.positions_at(t)
     out += _check_tasks(plan, scenario, t, pos)
-    out += _check_pairs(plan, scenario, t, pos)
-    out += _check_authority(plan, scenario, t)
+    along = wrench_along_plan(plan, scenario, t_s=t)
+    deflection = deflection_along_plan(plan, scenario, along)
+    out += _check_pairs(plan, scenario, t, pos, deflection)
+    out += _check_authority(scenario, t, along, plan.t_s)
     if not any(v.kind == "authority" for v in out):  # the plain check names the cause first
-        out += _check_authority_tube(plan, scenario, t, pos)
+        out += _check_authority_tube(plan, scenario, t, pos, deflection)
     out.sort(key=lambda v: (v.t_s, v.vehicle, v.kind))
     return out
 

@@ -2,7 +2,7 @@
 (workspace, obstacles, separation, downwash cut-offs, keep-out ellipsoid, tracking tube), their
 vectorised form for many states at once, and the checks of a scenario before any search.
 
-Used by the sampling planner, the swarm roadmap and the pipeline alike, so they live in their own
+Used by the sampling planner, the swarm layer and the pipeline alike, so they live in their own
 sub-package below all three. Modules: :mod:`~proxplan.planner.checks.constraints` (the rules and
 the scalar per-state checker), :mod:`~proxplan.planner.checks.validity` (:class:`BatchChecker`,
 the same verdicts over arrays), :mod:`~proxplan.planner.checks.precheck` (swarm size, starts and

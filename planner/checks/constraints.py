@@ -23,6 +23,7 @@ Scalar Python math is used per state because OMPL calls the checker once per sta
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
@@ -201,14 +202,17 @@ class PairRule:
     margin_m: float = 0.0  # added to the cutoff radius, m
     until_margin_s: float = 0.0  # added to the track's presence, s
     tube_m: float = 0.0  # tracking tube: cut-off radius over dz +- tube, plus tube, m
+    deflection_m: float = 0.0  # the part of tube_m that stays at rest (predicted deflections), m
 
     def without_tube(self) -> PairRule:
-        """This rule with the tracking tube taken out of its radii (for a pair at rest)."""
+        """This rule with the tracking tube taken out of its radii (for a pair at rest); the
+        predicted deflections stay (a disturbed vehicle is off its plan at rest too)."""
+        drop = self.tube_m - self.deflection_m
         return replace(
             self,
-            separation_m=self.separation_m - self.tube_m,
-            ellipsoid_r_m=None if self.ellipsoid_r_m is None else self.ellipsoid_r_m - self.tube_m,
-            tube_m=0.0,
+            separation_m=self.separation_m - drop,
+            ellipsoid_r_m=None if self.ellipsoid_r_m is None else self.ellipsoid_r_m - drop,
+            tube_m=self.deflection_m,
         )
 
     def cutoff_m(self, table: CutoffTable, dz_m: float) -> float:
@@ -266,7 +270,7 @@ class ConflictChecker:
             ox, oy, oz = tr.at(t)
             dx, dy, dz = x - ox, y - oy, z - oz
             r2 = dx * dx + dy * dy
-            if resting and rule.tube_m > 0.0 and not tr.moving_at(t):
+            if resting and rule.tube_m > rule.deflection_m and not tr.moving_at(t):
                 rule = rule.without_tube()  # both rest: no tracking tube (as the verifier)
             if r2 + dz * dz < rule.separation_m * rule.separation_m:
                 return f"separation from {tr.name}"
@@ -325,6 +329,7 @@ def build_checker(
     margin_m: float = 0.0,
     until_margin_s: float = 0.0,
     tube: bool = True,
+    extra_tube_m: Mapping[str, float] | None = None,
 ) -> ConflictChecker:
     """The checker of vehicle ``name`` against ``tracks`` (other vehicles) for one ``mode``.
 
@@ -339,6 +344,8 @@ def build_checker(
     also taken as its largest value over dz +- tube (so the invalid zone grows by the tube
     vertically too); ``tube=False`` leaves it out. ``conflict(..., resting=True)`` (the planned
     vehicle holds) leaves it out for tracks that rest too, as the verifier does for pairs at rest.
+    ``extra_tube_m`` (m per vehicle name) grows a pair's tube by both vehicles' entries: their
+    predicted deflections under the plan's own disturbance (the verifier adds them too).
     """
     from proxplan.costmaps import effects_key
 
@@ -357,9 +364,12 @@ def build_checker(
     level = lim.authority_fraction if level is None else level
     tube_m = float(lim.tracking_margin_m) if tube else 0.0
     rules = []
+    extra = extra_tube_m or {}
     for tr in tracks:
         other = tr.vehicle
-        sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m + tube_m
+        deflection_m = extra.get(name, 0.0) + extra.get(tr.name, 0.0) if tube else 0.0
+        pair_tube_m = tube_m + deflection_m
+        sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m + pair_tube_m
         cut_from = cut_on = ell = None
         form, fx = scenario.field_form, effects_key(getattr(scenario, "effects", ()))
         usage_from = usage_table(other, task.vehicle, field_form=form, effects=fx)
@@ -371,6 +381,8 @@ def build_checker(
                 task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=form, effects=fx
             )
         elif mode == "ellipsoid":
-            ell = rb + other.body_radius_m + margin_m + tube_m
-        rules.append(PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s, tube_m))
+            ell = rb + other.body_radius_m + margin_m + pair_tube_m
+        rules.append(
+            PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s, pair_tube_m, deflection_m)
+        )
     return ConflictChecker(name, tuple(lo.tolist()), tuple(hi.tolist()), boxes, rules)

@@ -84,8 +84,11 @@ def plan_order(
             for n in order
             if n not in timed and n != name
         ]
-        checker = build_checker(scenario, name, others, mode=mode, margin_m=PLAN_MARGIN_M, until_margin_s=PLAN_MARGIN_S)
-        nominal = build_checker(scenario, name, others, mode=mode)
+        extra = options.deflection_m
+        checker = build_checker(
+            scenario, name, others, mode=mode, margin_m=PLAN_MARGIN_M, until_margin_s=PLAN_MARGIN_S, extra_tube_m=extra
+        )
+        nominal = build_checker(scenario, name, others, mode=mode, extra_tube_m=extra)
         bad = start_conflict(nominal, task.start_m)
         if bad is not None:
             why = ""

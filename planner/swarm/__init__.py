@@ -1,42 +1,38 @@
-"""Swarm planning on a shared roadmap (``--method roadmap``, and formation changes of
-``ROADMAP_MIN_VEHICLES`` or more): a lattice roadmap with precomputed conflict sets between its
-atoms, a single-vehicle space-time A* on it and a multi-agent layer (priority-based search or
-prioritised planning), timed with Ruckig into the same timed paths as the sampling planner.
+"""Swarm planning: coordinate jointly on a lattice, fly in continuous time (``--method roadmap``,
+and ``optimized`` for formation changes of ``SWARM_MIN_VEHICLES`` or more).
 
-Modules: :mod:`~proxplan.planner.swarm.keepout` (per-pair keep-outs from the cut-off tables),
-:mod:`~proxplan.planner.swarm.roadmap` (lattice, atoms, conflict sets),
-:mod:`~proxplan.planner.swarm.runs` (agents, moves, paths, run occupancy),
-:mod:`~proxplan.planner.swarm.search` (single-vehicle space-time A*),
-:mod:`~proxplan.planner.swarm.pbs` (PBS and PP), :mod:`~proxplan.planner.swarm.plan` (scenario ->
-roadmap -> search -> timed paths).
+Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, keep-outs, free
+space) -> :mod:`~proxplan.planner.swarm.assign` (goals of interchangeable vehicles) ->
+:mod:`~proxplan.planner.swarm.lattice` (levels in use, long straight moves) ->
+:mod:`~proxplan.planner.swarm.sync` (exact synchronous conflicts, tabulated) ->
+:mod:`~proxplan.planner.swarm.lacam` (LaCAM + PIBT) -> :mod:`~proxplan.planner.swarm.lockstep`
+(conflict-free trajectories) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing along
+:mod:`~proxplan.planner.swarm.chain`, against :mod:`~proxplan.planner.swarm.occupancy`) ->
+:mod:`~proxplan.planner.swarm.plan` (the whole pipeline).
 """
 
-from proxplan.planner.swarm.pbs import SearchResult, pbs, prioritized
-from proxplan.planner.swarm.plan import (
-    ROADMAP_MIN_VEHICLES,
-    SEARCHES,
-    RoadmapOptions,
-    roadmap_applicable,
-    roadmap_timed,
-    search_plan,
-)
-from proxplan.planner.swarm.roadmap import Roadmap, build_roadmap
-from proxplan.planner.swarm.runs import Agent, Path
-from proxplan.planner.swarm.search import Search
+from proxplan.planner.swarm.assign import Assignment, assign_by_type, assign_group
+from proxplan.planner.swarm.lacam import Lacam, LacamResult, SearchGaveUp
+from proxplan.planner.swarm.lattice import Lattice, build_lattice
+from proxplan.planner.swarm.plan import SWARM_MIN_VEHICLES, SwarmOptions, swarm_timed
+from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
+from proxplan.planner.swarm.sync import SyncTable, segment_conflict
 
 __all__ = [
-    "ROADMAP_MIN_VEHICLES",
-    "SEARCHES",
-    "Agent",
-    "Path",
-    "Roadmap",
-    "RoadmapOptions",
-    "Search",
-    "SearchResult",
-    "build_roadmap",
-    "pbs",
-    "prioritized",
-    "roadmap_applicable",
-    "roadmap_timed",
-    "search_plan",
+    "SWARM_MIN_VEHICLES",
+    "Assignment",
+    "Lacam",
+    "LacamResult",
+    "Lattice",
+    "SearchGaveUp",
+    "SwarmOptions",
+    "SwarmProblem",
+    "SyncTable",
+    "assign_by_type",
+    "assign_group",
+    "build_lattice",
+    "segment_conflict",
+    "swarm_applicable",
+    "swarm_problem",
+    "swarm_timed",
 ]

@@ -1,4 +1,4 @@
-"""Keep-out region of an ordered pair of vehicle types, vectorised, for the swarm roadmap.
+"""Keep-out region of an ordered pair of vehicle types, vectorised, for the swarm layer.
 
 Relative vector d = p_b - p_a (world frame, m). The pair conflicts when
 
@@ -10,10 +10,10 @@ where r_cut is the cost map's cut-off radius at ``limits.authority_fraction`` wi
 invalid-zone rule (:func:`proxplan.planner.checks.constraints.cutoff_table`, the planner's own tables) and
 "grown by w" means the largest value over dz +- w plus w (as
 :meth:`proxplan.planner.checks.constraints.PairRule.cutoff_m` does for the tracking tube); within
-|d_z| <= w both directions apply. w = tracking tube ``limits.tracking_margin_m`` + the sampling
-inflation of the roadmap's conflict test (points every ``sample_m`` on an edge: any point is within
-sample_m / 2 of a sample, so two points within sample_m of a sample pair); at rest (both vehicles
-hold a start or goal, exact points) w = 0, as the verifier leaves the tube out for resting pairs.
+|d_z| <= w both directions apply. w = tracking tube ``limits.tracking_margin_m`` + ``sample_m`` (a
+growth that covers how positions are compared: whole millimetres in the synchronous table,
+:data:`proxplan.planner.swarm.problem.GROWTH_M`); at rest (both vehicles hold still) w = 0, as
+the verifier leaves the tube out for resting pairs.
 """
 
 from __future__ import annotations

@@ -1,188 +1,161 @@
-"""Roadmap planning of a swarm (``--method roadmap``, and ``sampling``/``optimized`` for formation
-changes of ``ROADMAP_MIN_VEHICLES`` or more): scenario -> shared roadmap -> multi-agent search ->
-Ruckig timing -> :class:`proxplan.planfile.Plan`.
+"""Swarm planning (``--method roadmap``; ``optimized`` for swarms of ``SWARM_MIN_VEHICLES`` or
+more): coordinate jointly on a lattice, fly in continuous time.
 
-The timed trajectory of each vehicle is exactly what the search reserved: its runs are the
-rest-to-rest, phase-synchronised Ruckig segments (:func:`proxplan.planner.timing.ruckig_segment`,
-straight lines) starting at their window, holds in between; the continuous motion stays on the atoms
-reserved for each window, so the per-window conflict-freedom of the search carries over to
-continuous time. The verifier checks the assembled plan as any other.
+1. *Straight first* (:mod:`proxplan.planner.swarm.straight`): if every vehicle can fly its straight
+   line at once, synchronised (one step, checked exactly pair by pair), that is the plan (the CAPT
+   case of interchangeable goals). Otherwise the largest set found greedily that can keeps its
+   straight lines.
+2. *Continuous time, prioritised* (:mod:`proxplan.planner.swarm.prioritized`): one vehicle after
+   another, each along the best of its straight line and a wavefront route through the others'
+   space-time, timed exactly; a vehicle that cannot be planned moves to the front. Two orders are
+   tried (vehicles whose start another's goal needs first; longest line first) and the shorter
+   plan kept.
+3. *Joint coordination*, when prioritised planning gives up: LaCAM with PIBT on the lattice of the
+   levels in use, long straight moves, synchronous conflicts checked exactly
+   (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in lock-step
+   (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the guaranteed answer.
+4. *Re-timing*: Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`), every vehicle against
+   the others' tracks in a space-time neighbourhood; never worse, always conflict-free.
 
-Bounds reported in ``plan.metrics``: ``lower_bound_s`` (largest straight-line rest-to-rest time of
-any vehicle, :func:`proxplan.planner.sampling.ordering.lower_bound_makespan_s`), ``roadmap_lower_bound_s``
-(largest admissible roadmap time, the search's heuristic at the start) and ``makespan_over_lower_bound``:
-the plan is within that factor of the optimum (an a-posteriori bound; PBS has no a-priori factor).
+The caller (the pipeline) runs the independent verifier on the result as on every plan. Bounds in
+the info: ``lower_bound_s`` (largest straight-line rest-to-rest time of any vehicle) and the
+makespans after each stage.
 """
 
 from __future__ import annotations
 
-import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from proxplan.planfile import Scenario
-from proxplan.planner.errors import InfeasibleError
-from proxplan.planner.swarm.keepout import keepout_for
-from proxplan.planner.swarm.pbs import SearchResult, pbs, prioritized
-from proxplan.planner.swarm.roadmap import SAMPLE_M, Roadmap, build_roadmap
-from proxplan.planner.swarm.runs import Agent
-from proxplan.planner.swarm.search import Search
+from proxplan.planner.sampling.ordering import lower_bound_makespan_s
+from proxplan.planner.swarm.lacam import Lacam, SearchGaveUp
+from proxplan.planner.swarm.lattice import build_lattice
+from proxplan.planner.swarm.lockstep import lockstep_tracks
+from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.prioritized import PrioritizedFailed, dependency_order, prioritized_tracks
+from proxplan.planner.swarm.problem import swarm_applicable, swarm_problem
+from proxplan.planner.swarm.retime import improve, route_chain
+from proxplan.planner.swarm.straight import straight_step_conflicts, straight_tracks
+from proxplan.planner.swarm.sync import SyncTable
+from proxplan.planner.swarm.tracks import GRID_DT_S
 from proxplan.planner.timing.paths import TimedPath
-from proxplan.planner.timing.segments import ruckig_segment
 
-SEARCHES = ("pbs", "pp")
-ROADMAP_MIN_VEHICLES = 24  # formation changes with at least this many vehicles use the roadmap
-WINDOW_FRACTION = 0.5  # window = this x lattice spacing / fastest vehicle's speed
+SWARM_MIN_VEHICLES = 16  # formation changes with at least this many vehicles use the swarm layer by default
+HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the lock-step makespan, s
 
-
-@dataclass
-class RoadmapOptions:
-    search: str = "pbs"  # "pbs" or "pp"
-    max_expansions: int = 40000  # per low-level search (a count, not a time)
-    max_nodes: int = 300  # PBS high-level nodes
-    weight: float = 1.5  # weighted A*: every single-vehicle search within this factor of its optimum
+__all__ = ["SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
 
 
-def roadmap_applicable(scenario: Scenario) -> str | None:
-    """None when the roadmap can express the scenario, else why not (docks, hovering vehicles)."""
-    for name, task in scenario.vehicles.items():
-        if task.dock_with is not None:
-            return f"vehicle {name!r} docks (the roadmap has no dock approach)"
-        if task.goal_m is None and not task.hover:
-            return f"vehicle {name!r} has no goal"
-    return None
+@dataclass(frozen=True)
+class SwarmOptions:
+    """Knobs of the swarm layer; every budget is a count (same plan on every machine)."""
+
+    max_run: int = 4  # longest straight move of one coordination step, in lattice edges
+    max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
+    passes: int = 3  # continuous re-timing passes
+    prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
+    max_restarts: int = 2  # re-orderings of the prioritised planning, per order and waiting time
+    seed: int = 0
 
 
-def build(scenario: Scenario) -> tuple[Roadmap, list[Agent], float]:
-    """Roadmap, agents and window length (s) of ``scenario``."""
-    from proxplan.costmaps import effects_key
-    from proxplan.planner.checks.constraints import build_checker
-
-    names = list(scenario.vehicles)
-    type_of: dict = {}
-    vehicles: list = []
-    for n in names:
-        v = scenario.vehicles[n].vehicle
-        if v not in type_of:
-            type_of[v] = len(vehicles)
-            vehicles.append(v)
-    fx = effects_key(getattr(scenario, "effects", ()))
-    keep = {}
-    for ia, va in enumerate(vehicles):
-        for ib, vb in enumerate(vehicles):
-            keep[(ia, ib)] = keepout_for(
-                va, vb, limits=scenario.limits, field_form=scenario.field_form, effects=fx, sample_m=SAMPLE_M
-            )
-    widest = max(names, key=lambda n: (scenario.vehicles[n].vehicle.body_radius_m, n))
-    chk = build_checker(scenario, widest, [], margin_m=float(scenario.limits.tracking_margin_m))
-    lo, hi = np.asarray(chk.lo), np.asarray(chk.hi)
-    boxes = np.asarray(chk.boxes, dtype=float).reshape(-1, 6)
-    endpoints = []
-    agents = []
-    for n in names:
-        task = scenario.vehicles[n]
-        goal = task.start_m if task.hover else task.goal_m
-        assert goal is not None
-        endpoints.append(task.start_m)
-        start = len(endpoints) - 1
-        if not np.allclose(goal, task.start_m, atol=1e-9):  # a vehicle that stays has one endpoint
-            endpoints.append(goal)
-        agents.append(Agent(n, type_of[task.vehicle], task.kinematic_limits, start, len(endpoints) - 1))
-    rm = build_roadmap(np.array(endpoints), lo, hi, boxes, keep, tuple(v.name for v in vehicles))
-    v_max = max(a.limits.max_speed_mps for a in agents)
-    window = WINDOW_FRACTION * float(rm.spacing_m[0]) / v_max
-    return rm, agents, window
-
-
-def search_plan(scenario: Scenario, options: RoadmapOptions | None = None) -> tuple[Search, SearchResult, dict]:
-    """Run the multi-agent search; (search, result, info with timings and bounds)."""
-    options = options or RoadmapOptions()
-    if options.search not in SEARCHES:
-        raise ValueError(f"search must be one of {SEARCHES}, got {options.search!r}")
-    t0 = time.perf_counter()
-    rm, agents, window = build(scenario)
-    t1 = time.perf_counter()
-    search = Search(rm, agents, window, max_expansions=options.max_expansions, weight=options.weight)
-    lb = max(search.lower_bound_windows(a) for a in agents)
-    horizon = int(max(4.0 * lb, lb + 150)) + 10
-    if options.search == "pbs":
-        res = pbs(search, horizon, max_nodes=options.max_nodes)
-    else:
-        res = prioritized(search, horizon)
-    t2 = time.perf_counter()
-    info = {
-        "roadmap_vertices": int(rm.vertex_ok.sum()),
-        "roadmap_atoms": rm.n_atoms,
-        "roadmap_spacing_m": [round(float(x), 4) for x in rm.spacing_m],
-        "conflict_pairs": int(sum(c.nnz for c in rm.conflicts.values())),
-        "window_s": window,
-        "roadmap_build_s": round(t1 - t0, 3),
-        "search_s": round(t2 - t1, 3),
-        "search": res.method,
-        "high_level_nodes": res.high_level_nodes,
-        "low_level_calls": res.low_level_calls,
-        "expansions": res.expansions,
-        "roadmap_lower_bound_s": lb * window,
-    }
-    return search, res, info
-
-
-def timed_paths(search: Search, paths) -> dict[str, TimedPath]:
-    """Ruckig-timed trajectory of each vehicle: its runs at their windows, holds in between."""
-    out = {}
-    for ag, p in zip(search.agents, paths, strict=True):
-        knots = [0.0]
-        pts = [search.node_pos(search.start_node(ag)) if not p.moves else search.node_pos(p.moves[0].a)]
-        pts[0] = search.rm.endpoints_m[ag.start]
-        segs: list = []
-        for mv in p.moves:
-            if mv.a == mv.b:
-                continue
-            t0 = mv.k0 * search.window_s
-            if t0 > knots[-1] + 1e-12:
-                segs.append(None)
-                knots.append(t0)
-                pts.append(pts[-1])
-            a = search.rm.endpoints_m[mv.a - search.nv] if mv.a >= search.nv else search.rm.position(mv.a)
-            b = search.rm.endpoints_m[mv.b - search.nv] if mv.b >= search.nv else search.rm.position(mv.b)
-            if mv.b == search.goal_node(ag):
-                b = search.rm.endpoints_m[ag.goal]
-            traj = ruckig_segment(a, b, ag.limits)
-            segs.append(traj)
-            knots.append(t0 + float(traj.duration))
-            pts.append(b)
-        out[ag.name] = TimedPath(np.array(knots), np.array(pts), segs)
-    return out
-
-
-def roadmap_timed(scenario: Scenario, options: RoadmapOptions | None = None) -> tuple[dict[str, TimedPath], dict]:
-    """(timed path per vehicle, info with timings and bounds) of the roadmap plan of ``scenario``;
-    InfeasibleError when the roadmap cannot express it or the search fails.
-    :func:`proxplan.planner.pipeline.plan_roadmap` assembles them into a Plan."""
-    from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-
-    why = roadmap_applicable(scenario)
+def swarm_timed(
+    scenario: Scenario,
+    options: SwarmOptions | None = None,
+    *,
+    progress: Callable[[str, float], None] | None = None,
+    deadline: float | None = None,
+) -> tuple[dict[str, TimedPath], dict]:
+    """Timed paths of every vehicle and an info dict (see module); :class:`SearchGaveUp` when the
+    coordination search stops on its budget or the ``deadline`` (time.perf_counter() value)."""
+    opts = options or SwarmOptions()
+    why = swarm_applicable(scenario)
     if why is not None:
-        raise InfeasibleError("-", "roadmap", f"the roadmap cannot express this scenario: {why}")
-    search, res, info = search_plan(scenario, options)
-    if res.paths is None:
-        name = res.message.split("'")[1] if "'" in res.message else "-"
-        raise InfeasibleError(name, "roadmap search", res.message)
-    timed = timed_paths(search, res.paths)
-    lb = lower_bound_makespan_s(scenario)
-    end = max(tp.duration_s for tp in timed.values())
-    info.update(
-        {
-            "lower_bound_s": lb,
-            "makespan_over_lower_bound": (end / lb) if lb > 0 else math.nan,
-            "sum_of_costs_s": float(sum(tp.duration_s for tp in timed.values())),
-            "note": (
-                f"roadmap: {info['roadmap_vertices']} lattice vertices, spacing {info['roadmap_spacing_m']} m, "
-                f"{res.method.upper()} ({res.high_level_nodes} nodes, {res.low_level_calls} single-vehicle "
-                f"searches); makespan {end:.2f} s <= {(end / lb) if lb > 0 else math.nan:.2f} x lower bound {lb:.2f} s"
-            ),
+        raise ValueError(f"the swarm layer cannot plan this scenario: {why}")
+    t0 = time.perf_counter()
+    problem = swarm_problem(scenario)
+    info: dict = {"lower_bound_s": lower_bound_makespan_s(scenario), "vehicles": problem.n_agents}
+    conflicts = straight_step_conflicts(problem)
+    configurations = None
+    lattice = None
+    tracks = None
+    if not conflicts:
+        straight = straight_tracks(problem, list(range(problem.n_agents)))
+        tracks = [straight[a] for a in range(problem.n_agents)]
+        info["coordination"] = "one synchronised straight step"
+    elif opts.prioritized:
+        horizon = int(round(max(4.0 * info["lower_bound_s"], info["lower_bound_s"] + 20.0) / GRID_DT_S))
+        t1 = time.perf_counter()
+        length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+        orders = {
+            "dependencies first": dependency_order(problem),
+            "longest first": sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a)),
         }
-    )
+        tried = []
+        for label, order in orders.items():
+            try:
+                planned, counts = prioritized_tracks(
+                    problem,
+                    order,
+                    horizon_steps=horizon,
+                    max_restarts=opts.max_restarts,
+                    progress=progress,
+                    deadline=deadline,
+                )
+            except PrioritizedFailed as err:
+                tried.append(f"{label}: gave up after {err.restarts} attempts (" + ", ".join(err.history[-2:]) + ")")
+                continue
+            makespan = max(tr.arrival_s for tr in planned.values())
+            tried.append(f"{label}: {makespan:.2f} s")
+            if tracks is None or makespan < max(tr.arrival_s for tr in tracks):
+                tracks = [planned[a] for a in range(problem.n_agents)]
+                info["coordination"] = (
+                    f"prioritised continuous planning, {label} ({counts['orders_tried']} attempt(s), "
+                    f"vehicles wait at their starts at most {counts['leave_start_s']:g} s)"
+                )
+        info["prioritized"] = "; ".join(tried)
+        info["prioritized_time_s"] = round(time.perf_counter() - t1, 3)
+    if tracks is None:
+        if progress:
+            progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
+        lattice = build_lattice(problem, max_run=opts.max_run)
+        sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
+        info["lattice"] = {
+            "spacing_m": lattice.spacing_m,
+            "levels_m": lattice.levels_m.tolist(),
+            "vertices": int(lattice.pos_m.shape[0]),
+        }
+        t1 = time.perf_counter()
+        result = Lacam(lattice, sync, seed=opts.seed).solve(
+            max_nodes=opts.max_nodes, deadline=deadline, progress=progress
+        )
+        configurations = result.configurations
+        info["coordination"] = (
+            f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
+        )
+        info["coordination_time_s"] = round(time.perf_counter() - t1, 3)
+        tracks = lockstep_tracks(lattice, configurations)
+    by_agent = {tr.agent: tr for tr in tracks}
+    info["initial_makespan_s"] = max(tr.arrival_s for tr in tracks)
+    horizon = int(round((info["initial_makespan_s"] + HORIZON_MARGIN_S) / GRID_DT_S))
+    occ = Occupancy(problem, tracks, horizon)
+
+    def chains(a: int) -> list[np.ndarray]:
+        out = [np.array([problem.starts_m[a], problem.goals_m[a]])]
+        if lattice is not None and configurations is not None:
+            out.append(route_chain(lattice, configurations, a))
+        return out
+
+    t2 = time.perf_counter()
+    counts = improve(occ, by_agent, chains, passes=opts.passes, progress=progress, deadline=deadline)
+    info["retiming"] = {**counts, "time_s": round(time.perf_counter() - t2, 3)}
+    info["makespan_s"] = max(tr.arrival_s for tr in by_agent.values())
+    info["time_s"] = round(time.perf_counter() - t0, 3)
+    timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
     return timed, info
+
+
+__all__ += ["SearchGaveUp"]

@@ -20,10 +20,13 @@ def register(subparsers) -> None:
         description=(
             "Export DIR/plan.json for flight. --format crazyflie: one uav_trajectories CSV per vehicle "
             "(Duration,x^0..x^7,y^0..y^7,z^0..z^7,yaw^0..yaw^7; C2 piecewise 7th-order polynomials, at most "
-            "31 pieces, within --tolerance-m of the plan everywhere) and export.json, which `proxplan verify "
-            "OUT` re-checks. --format csv: NAME_setpoints.csv per vehicle (time, position, velocity, "
-            "acceleration, predicted downwash force/torque) at --rate-hz for PX4 offboard / ROS 2 streaming. "
-            "Exit 1 when a vehicle needs more than 31 pieces (nothing written), 2 on bad input."
+            "31 pieces, within --tolerance-m of the uploaded reference everywhere) and export.json, which "
+            "`proxplan verify OUT` re-checks (the vehicles' predicted flight). By default the upload "
+            "compensates rotor drag: it is the plan plus the lead the vehicle's gains and drag call for, "
+            "with a settle tail after the plan's end, so the vehicle flies the plan (docs/flying.md). "
+            "--format csv: NAME_setpoints.csv per vehicle (time, position, velocity, acceleration with the "
+            "drag feed-forward, predicted downwash force/torque) at --rate-hz for PX4 offboard / ROS 2 "
+            "streaming. Exit 1 when a vehicle needs more than 31 pieces (nothing written), 2 on bad input."
         ),
     )
     p.add_argument("plan", metavar="PLAN.json", help="plan file (or the folder holding plan.json)")
@@ -34,7 +37,7 @@ def register(subparsers) -> None:
         type=float,
         default=None,
         metavar="M",
-        help="crazyflie: largest allowed position deviation from the plan, m (default 0.005, half of the 1 cm promised)",
+        help="crazyflie: largest allowed position deviation from the plan, m (default 0.002, a fifth of the 1 cm promised)",
     )
     p.add_argument(
         "--split-time",
@@ -42,6 +45,11 @@ def register(subparsers) -> None:
         help="crazyflie: cut a vehicle that needs more than 31 pieces into consecutive uploads of <= 15 pieces",
     )
     p.add_argument("--rate-hz", type=float, default=None, metavar="HZ", help="csv: set-point rate, Hz (default 50)")
+    p.add_argument(
+        "--no-drag-compensation",
+        action="store_true",
+        help="upload / stream the plan itself: no rotor-drag lead (crazyflie) or drag feed-forward (csv)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
 
@@ -92,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
                     stage,
                     tolerance_m=tolerance,
                     split_time=args.split_time,
+                    drag_compensation=not args.no_drag_compensation,
                     progress=lambda _: bar.update(),
                 )
             except DoesNotFitError as err:
@@ -113,16 +122,28 @@ def run(args: argparse.Namespace) -> int:
             files = [
                 {
                     "vehicle": name,
-                    **{k: f[k] for k in ("pieces", "max_deviation_m", "start_time_s")},
+                    **{k: f[k] for k in ("pieces", "max_deviation_m", "start_time_s", "duration_s")},
                     "file": str(out / f["file"]),
+                    "drag_compensation": v["drag_compensation"],
                 }
                 for name, v in vehicles.items()
                 for f in v["files"]
             ]
+            if args.no_drag_compensation:
+                notes.append(
+                    "no drag compensation: the uploads are the plan; the vehicles will lag it by their rotor drag"
+                )
+            else:
+                notes.append(
+                    "rotor drag compensated: each upload is the plan + the lead its vehicle's gains and drag call for, "
+                    "with a settle tail after the plan's end (proxplan verify checks the predicted flight)"
+                )
             manifest: str | None = str(out / "export.json")
         else:
             assert scenario is not None
-            rows, notes = export_setpoints(plan, scenario, stage, rate_hz=rate)
+            rows, notes = export_setpoints(
+                plan, scenario, stage, rate_hz=rate, drag_compensation=not args.no_drag_compensation
+            )
             files = [
                 {
                     "vehicle": name,
@@ -130,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
                     "pieces": None,
                     "rows": r["rows"],
                     "max_deviation_m": 0.0,
+                    "max_drag_accel_mps2": r["max_drag_accel_mps2"],
                 }
                 for name, r in rows.items()
             ]
@@ -142,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
                     "format": args.format,
                     "out": str(out),
                     "manifest": manifest,
+                    "drag_compensation": not args.no_drag_compensation,
                     "files": files,
                     "notes": notes,
                 }
@@ -152,7 +175,16 @@ def run(args: argparse.Namespace) -> int:
             print(f"note: {note}")
         for f in files:
             size = f"{f['pieces']} pieces" if f["pieces"] is not None else f"{f['rows']} rows"
-            print(f"{f['file']}: {f['vehicle']}, {size}, max deviation {1000 * f['max_deviation_m']:.2f} mm")
+            lead = f.get("drag_compensation")
+            extra = ""
+            if lead:
+                extra = (
+                    f"; leads the plan by up to {100 * lead['max_lead_m']:.1f} cm, "
+                    f"settle tail {lead['tail_s']:.1f} s (lead left {1000 * lead['residual_m']:.1f} mm)"
+                )
+            elif "max_drag_accel_mps2" in f and not args.no_drag_compensation:
+                extra = f"; drag feed-forward up to {f['max_drag_accel_mps2']:.2f} m/s^2"
+            print(f"{f['file']}: {f['vehicle']}, {size}, max deviation {1000 * f['max_deviation_m']:.2f} mm{extra}")
         if manifest:
             print(f"wrote {manifest} (check the export with: proxplan verify {out})")
     return 0

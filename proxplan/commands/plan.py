@@ -21,7 +21,8 @@ def register(subparsers) -> None:
         description=(
             "Plan every vehicle of SCENARIO.yaml and write DIR/plan.json, DIR/plan.png (top and side "
             "views, authority usage over time) and DIR/summary.txt. Exit 1 when the scenario is "
-            "infeasible (the message names the vehicle and the constraint), 2 on bad input."
+            "infeasible (proven: the message names the vehicle and the constraint), 3 when a search gave "
+            "up without a plan ('not found within ...', which proves nothing), 2 on bad input."
         ),
     )
     p.add_argument("scenario", metavar="SCENARIO.yaml", help="scenario file (DESIGN.md section 4)")
@@ -33,8 +34,9 @@ def register(subparsers) -> None:
         "--method",
         choices=METHOD_CHOICES,
         default="optimized",
-        help="optimized (default; sampling + CasADi refinement), sampling, roadmap (shared lattice roadmap + "
-        "priority-based search for swarms; falls back to sampling with a note), or the baselines "
+        help="optimized (default; sampling + CasADi refinement, or for swarms of 16+ vehicles the swarm layer "
+        "with extra continuous re-timing), sampling, roadmap (the swarm layer: joint coordination on a lattice, "
+        "continuous-time planning; falls back to sampling with a note), or the baselines "
         "no-downwash (separation only) and ellipsoid (Crazyswarm keep-out ellipsoid)",
     )
     p.add_argument(
@@ -44,6 +46,14 @@ def register(subparsers) -> None:
         metavar="S",
         help="wall-clock budget of the optimiser in s (default 60); it returns the best verified "
         "improvement found by then, else the sampling plan with a note why",
+    )
+    p.add_argument(
+        "--max-time",
+        type=float,
+        default=None,
+        metavar="S",
+        help="wall-clock budget of the whole plan in s (default: none); a search still running then "
+        "stops and the plan is 'not found' (exit 3), never a different plan",
     )
     p.add_argument("--no-plot", action="store_true", help="skip the PNG")
     add_model_argument(
@@ -67,7 +77,8 @@ def register(subparsers) -> None:
         "plan",
         metavar="PLAN.json",
         help="plan file, the folder holding plan.json, or a folder written by `proxplan export --format crazyflie` "
-        "(its polynomials are re-sampled and checked: what will fly)",
+        "(the vehicles' predicted flight under its uploads is checked: where they will fly, never the raw "
+        "upload as the path)",
     )
     v.add_argument(
         "--scenario", metavar="SCENARIO.yaml", help="scenario to check against (default: the one in the plan)"
@@ -102,19 +113,32 @@ def _plan(args: argparse.Namespace) -> int:
 
     from proxplan.fileio import UserError, atomic_write_text, output_folder
     from proxplan.planfile import jsonable, load_scenario, write_plan
-    from proxplan.planner import InfeasibleError, plan_scenario, plan_summary
-    from proxplan.verify import verify_plan
+    from proxplan.planner import InfeasibleError, PlanNotFound, plan_scenario, plan_summary
+    from proxplan.verify import scenario_of_plan, verify_plan
 
     if args.time_budget is not None and not args.time_budget > 0:
         raise UserError(f"--time-budget: expected a positive number of seconds, got {args.time_budget:g}")
+    if args.max_time is not None and not args.max_time > 0:
+        raise UserError(f"--max-time: expected a positive number of seconds, got {args.max_time:g}")
     scenario = load_scenario(args.scenario, model=load_model_argument(args, "plan"))
     out = Path(args.out)
     with output_folder(out) as stage:  # nothing is written to --out unless every file is
         bar, report = _progress_bar(sys.stderr.isatty())
         try:
             plan = plan_scenario(
-                scenario, method=args.method, seed=args.seed, progress=report, time_budget_s=args.time_budget
+                scenario,
+                method=args.method,
+                seed=args.seed,
+                progress=report,
+                time_budget_s=args.time_budget,
+                max_time_s=args.max_time,
             )
+        except PlanNotFound as err:
+            bar.close()
+            print(f"proxplan plan: not found: {err.message}", file=sys.stderr)
+            if args.json:
+                print(json.dumps({"feasible": None, "found": False, "message": err.message, "vehicles": err.vehicles}))
+            return 3
         except InfeasibleError as err:
             bar.close()
             print(
@@ -130,7 +154,11 @@ def _plan(args: argparse.Namespace) -> int:
             return 1
         bar.close()
         t_verify = time.perf_counter()
-        violations = verify_plan(plan, scenario)
+        if plan.metrics.get("verified"):  # the pipeline ran this same verifier on this same plan
+            violations = []
+        else:
+            planned = scenario_of_plan(plan) if "assignment" in plan.metrics else scenario
+            violations = verify_plan(plan, planned)
         t_verify = time.perf_counter() - t_verify
         plan.metrics["verify_violations"] = len(violations)
         write_plan(plan, stage)
@@ -234,6 +262,6 @@ def _verify(args: argparse.Namespace) -> int:
         else:
             print(
                 f"{args.plan}: PASS (scenario '{scenario.name}', {len(plan.vehicles)} vehicles, checked every {args.dt:g} s"
-                + (", Crazyflie polynomials re-sampled)" if exported else ")")
+                + (", the predicted flight of the Crazyflie polynomials)" if exported else ")")
             )
     return 1 if violations else 0

@@ -14,8 +14,9 @@ def register(subparsers) -> None:
         "simulate",
         help="fly a plan closed-loop in simulation (RotorPy + downwash model)",
         description=(
-            "Fly DIR/plan.json closed-loop: every vehicle is RotorPy's multirotor model tracking its plan "
-            "with RotorPy's SE(3) controller, and receives the downwash wrench of all other vehicles "
+            "Fly DIR/plan.json closed-loop: every vehicle is RotorPy's multirotor model flown by the Crazyflie "
+            "firmware's Mellinger law (or RotorPy's SE(3) controller) along the drag-compensated reference the "
+            "export uploads (errors measured against the plan), and receives the downwash wrench of all other vehicles "
             "(costmaps model, plus the extra effects of --truth) every physics step. Writes "
             "OUT/summary.json, OUT/tracking_error.png and, with --log, Neural-Swarm logs and "
             "OUT/manifest.yaml (DESIGN.md section 6). Per vehicle the flown authority usage and "
@@ -60,6 +61,12 @@ def register(subparsers) -> None:
         help="add integral action on the position error, k_i / k_p in 1/s, as the seed's PID "
              "(default 0: RotorPy's PD law, which keeps a steady error under a steady disturbance)",
     )  # fmt: skip
+    p.add_argument(
+        "--no-drag-compensation",
+        action="store_true",
+        help="fly the plan itself: no rotor-drag lead in the set-points (by default the vehicles fly the "
+        "compensated reference the export uploads, and errors are measured against the plan)",
+    )
     p.add_argument(
         "--feedforward",
         action="store_true",
@@ -127,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         position_integral_rate_ps=args.integral_rate,
         feedforward=args.feedforward,
         controller=args.controller,
+        drag_compensation=not args.no_drag_compensation,
     )
     out = Path(args.out)
     show = not args.json or sys.stderr.isatty()

@@ -22,17 +22,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="measure a vehicle type's trackable limits and tracking tube in closed-loop simulation",
         description=(
             "Fly the vehicle alone along a course of rest-to-rest jerk-limited segments at a ladder of "
-            "speed / acceleration / jerk limits with the simulated controller; keep the fastest level whose "
+            "speed / acceleration / jerk limits with the simulated controller, flying the drag-compensated "
+            "reference the export uploads and measuring the error against the plan; keep the fastest level whose "
             "error quantile + margin stays within the budget (and within thrust-to-weight and tilt). Prints "
             "the limits, the tube and every flight; --out writes a vehicle file with them (docs/flying.md)."
         ),
     )
     p.add_argument("--vehicle", required=True, metavar="TYPE", help="vehicle type (built-in or from --vehicles)")
     p.add_argument("--vehicles", metavar="FILE.yaml", help="custom vehicle types (proxplan.physics.vehicle_yaml)")
-    p.add_argument("--budget", type=float, default=None, metavar="M", help="largest tube accepted, m (default 0.05)")
+    p.add_argument("--budget", type=float, default=None, metavar="M", help="largest tube accepted, m (default 0.02)")
     p.add_argument("--margin", type=float, default=None, metavar="M", help="margin over the error quantile, m (0.005)")
     p.add_argument("--quantile", type=float, default=None, metavar="Q", help="error quantile in (0, 1] (0.99)")
     p.add_argument("--controller", choices=("mellinger", "rotorpy"), default="mellinger", help="simulated controller")
+    p.add_argument(
+        "--no-drag-compensation",
+        action="store_true",
+        help="fly the plan itself instead of the drag-compensated reference the export uploads (docs/flying.md)",
+    )
     p.add_argument("--out", metavar="FILE.yaml", help="write a vehicle file with the measured limits and tube")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run_track_limits)
@@ -68,7 +74,7 @@ def run_track_limits(args: argparse.Namespace) -> int:
     words = ["proxplan", "track-limits", "--vehicle", args.vehicle]
     words += ["--vehicles", args.vehicles] if args.vehicles else []
     words += ["--budget", f"{budget:g}", "--margin", f"{margin:g}", "--quantile", f"{quantile:g}"]
-    words += ["--controller", args.controller]
+    words += ["--controller", args.controller] + (["--no-drag-compensation"] if args.no_drag_compensation else [])
     command = " ".join(shlex.quote(w) for w in words)
     try:
         result = measure_tracking(
@@ -79,6 +85,7 @@ def run_track_limits(args: argparse.Namespace) -> int:
             controller=args.controller,
             command=command,
             progress=sys.stderr.isatty(),
+            drag_compensation=not args.no_drag_compensation,
         )
     except ValueError as err:
         raise UserError(str(err)) from None

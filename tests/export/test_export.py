@@ -1,7 +1,8 @@
-"""Export: the Crazyflie polynomials reproduce every shipped plan within 1 cm, are C2 at every
-joint, use <= 31 pieces, and pass the verifier (a corrupted export does not); a plan too wiggly for
-31 pieces gives the clear error (or several uploads with --split-time); the set-point CSVs carry
-the predicted downwash."""
+"""Export: the Crazyflie polynomials reproduce every shipped plan's drag-compensated reference within
+1 cm, are C2 at every joint, use <= 31 pieces, are predicted to fly the plan and pass the verifier (a
+corrupted export does not); without the compensation the vehicles are predicted to lag the plan;
+a plan too wiggly for 31 pieces gives the clear error (or several uploads with --split-time); the
+set-point CSVs carry the predicted downwash and the drag feed-forward."""
 
 from __future__ import annotations
 
@@ -32,6 +33,7 @@ from proxplan.planfile import (
     read_uav_csv,
     write_plan,
 )
+from proxplan.planfile.reference import compensated_reference
 from proxplan.verify import scenario_of_plan, verify_plan
 from tests.conftest import SCENARIOS, run_proxplan
 
@@ -63,14 +65,16 @@ def _uploads(folder: Path, vehicle: str) -> list[PolynomialTrajectory]:
 
 
 @pytest.mark.parametrize("scenario", SHIPPED)
-def test_export_reproduces_plan_c2_and_fits(exported, scenario):
+def test_export_reproduces_the_compensated_reference_c2_and_fits(exported, scenario):
     plan, folder = exported[scenario]
     for name, tr in plan.vehicles.items():
         (traj,) = _uploads(folder, name)
+        ref = compensated_reference(tr).trajectory  # plan + drag lead, one step early, with its settle tail
         assert traj.n_pieces <= CRAZYFLIE_MAX_PIECES
-        assert traj.start_time_s == pytest.approx(tr.t_s[0]) and traj.end_time_s == pytest.approx(tr.t_s[-1])
-        t = np.linspace(tr.t_s[0], tr.t_s[-1], 20 * tr.t_s.size + 7)  # dense, off the plan grid
-        dev = np.linalg.norm(traj.evaluate(t)[:, :3] - tr.position_at(t), axis=1)
+        assert traj.start_time_s == pytest.approx(ref.t_s[0]) and traj.end_time_s == pytest.approx(ref.t_s[-1])
+        assert traj.start_time_s == pytest.approx(tr.t_s[0] - plan.dt_s) and traj.end_time_s >= tr.t_s[-1]
+        t = np.linspace(ref.t_s[0], ref.t_s[-1], 20 * ref.t_s.size + 7)  # dense, off the plan grid
+        dev = np.linalg.norm(traj.evaluate(t)[:, :3] - ref.position_at(t), axis=1)
         assert dev.max() <= PROMISE_M, (name, dev.max())
         assert np.all(traj.coef[:, 3, :] == 0.0)  # yaw 0: plans carry no yaw
         for j in range(traj.n_pieces - 1):  # C2: left piece at its end == right piece at its start
@@ -84,8 +88,11 @@ def test_export_reproduces_plan_c2_and_fits(exported, scenario):
                 )
                 assert np.abs(left - right).max() <= tol, (name, j, d, end)
         start = tr.sample(tr.t_s[0])
-        for d in range(3):  # starts in the plan's state (at rest)
-            assert np.allclose(traj.evaluate(tr.t_s[0], d)[0, :3], start[d][0], atol=1e-6)
+        for d in range(3):  # starts at rest where the plan starts (its lead is zero before it moves)
+            assert np.allclose(traj.evaluate(traj.start_time_s, d)[0, :3], start[d][0], atol=1e-6)
+        # the vehicle, lagging its upload, is predicted to fly the plan
+        flown = read_export(folder).vehicles[name]
+        assert np.linalg.norm(flown.position_m - tr.position_at(flown.t_s), axis=1).max() <= PROMISE_M
 
 
 @pytest.mark.parametrize("scenario", SHIPPED)
@@ -116,15 +123,24 @@ def test_verify_cli_on_export_and_on_corrupted_copy(exported, tmp_path):
     assert json.loads(res.stdout)["violations"]
 
 
-def _wiggly_plan(duration_s: float = 60.0) -> Plan:
+def _wiggly_plan(duration_s: float = 60.0, ramp_s: float = 1.0) -> Plan:
     """One crazyflie (limits 1.5 m/s, 3 m/s^2, 15 m/s^3 stated here) swinging +-0.1 m in x at
-    5 rad/s for ``duration_s`` (within those limits): more than 31 pieces at :data:`TIGHT_M`."""
+    5 rad/s for ``duration_s`` (within those limits; the swing fades in and out over ``ramp_s``, so
+    it starts and ends at rest as plans do): more than 31 pieces at :data:`TIGHT_M`."""
     dt = 0.02
     t = np.arange(int(round(duration_s / dt)) + 1) * dt
     w = 5.0
+    s = np.clip(np.minimum(t, duration_s - t) / ramp_s, 0.0, 1.0)
+    sign = np.where(t < duration_s / 2, 1.0, -1.0) * (s < 1.0) / ramp_s  # ds/dt on the ramps
+    env = 10 * s**3 - 15 * s**4 + 6 * s**5
+    d_env = (30 * s**2 - 60 * s**3 + 30 * s**4) * sign
+    dd_env = (60 * s - 180 * s**2 + 120 * s**3) * sign**2
+    sin, cos = np.sin(w * t), np.cos(w * t)
     p = np.zeros((t.size, 3))
     v, a = np.zeros_like(p), np.zeros_like(p)
-    p[:, 0], v[:, 0], a[:, 0] = 0.1 * np.sin(w * t), 0.1 * w * np.cos(w * t), -0.1 * w**2 * np.sin(w * t)
+    p[:, 0] = 0.1 * env * sin
+    v[:, 0] = 0.1 * (d_env * sin + env * w * cos)
+    a[:, 0] = 0.1 * (dd_env * sin + 2 * d_env * w * cos - env * w**2 * sin)
     p[:, 2] = 1.0
     vehicle = replace(BUILTIN_VEHICLES["crazyflie-2.1"], kinematics=KinematicLimits(1.5, 3.0, 15.0))
     tr = VehicleTrajectory("wiggler", "crazyflie-2.1", vehicle, t, p, v, a)
@@ -157,14 +173,17 @@ def test_too_wiggly_plan_gives_clear_error_and_splits_on_request():
 
 
 def test_cli_does_not_fit(tmp_path):
+    """The wiggly plan's upload (plan + drag lead, with its settle tail) needs more than 31 pieces:
+    exit 1, one line naming the vehicle and what it fits, nothing written."""
     write_plan(_wiggly_plan(), tmp_path / "plan")
     out = tmp_path / "cf"
     tight = ("--tolerance-m", TIGHT_M)
     res = run_proxplan("export", tmp_path / "plan", "--format", "crazyflie", "--out", out, *tight, "--json")
     assert res.returncode == 1
-    assert len(res.stderr.strip().splitlines()) == 1 and "wiggler" in res.stderr
+    (line,) = res.stderr.strip().splitlines()
+    assert "'wiggler'" in line and "drag lead" in line and "31" in line
     doc = json.loads(res.stdout)
-    assert doc["fits"] is False and doc["vehicle"] == "wiggler"
+    assert doc["fits"] is False and doc["vehicle"] == "wiggler" and doc["pieces"] > CRAZYFLIE_MAX_PIECES
     assert not out.exists()  # nothing written
 
 
@@ -194,12 +213,12 @@ def test_setpoints_carry_the_downwash(exported, tmp_path):
     carrier = np.loadtxt(tmp_path / rows["carrier"]["file"], delimiter=",", skiprows=1)
     shuttle = np.loadtxt(tmp_path / rows["shuttle"]["file"], delimiter=",", skiprows=1)
     header = (tmp_path / rows["carrier"]["file"]).read_text().splitlines()[0].split(",")
-    assert header[:4] == ["t_s", "x_m", "y_m", "z_m"] and header[12] == "ff_fz_N"
+    assert header[:4] == ["t_s", "x_m", "y_m", "z_m"] and header[15] == "ff_fz_N"
     steps = np.diff(carrier[:, 0])  # 50 Hz from the start; the plan's end is included (a shorter last step)
     assert np.allclose(steps[:-1], 0.02, atol=1e-6) and 0.0 < steps[-1] <= 0.02 + 1e-6
     assert carrier[-1, 0] == pytest.approx(plan.makespan_s)
-    assert carrier[-1, 12] < 0.0  # docked shuttle on top: its downwash pushes the carrier down
-    assert np.all(shuttle[:, 10:] == 0.0) or shuttle[-1, 3] > carrier[-1, 3]  # nothing above the shuttle at the end
+    assert carrier[-1, 15] < 0.0  # docked shuttle on top: its downwash pushes the carrier down
+    assert np.all(shuttle[:, 13:] == 0.0) or shuttle[-1, 3] > carrier[-1, 3]  # nothing above the shuttle at the end
     assert np.allclose(shuttle[:, 1:4], plan.vehicles["shuttle"].position_at(shuttle[:, 0]), atol=1e-6)
 
 
@@ -256,7 +275,7 @@ def test_setpoints_use_stored_feedforward_or_recompute(exported, tmp_path):
     carrier = plan.vehicles["carrier"]
     table = np.loadtxt(tmp_path / "stored" / rows["carrier"]["file"], delimiter=",", skiprows=1)
     assert np.allclose(table[:, 0], carrier.t_s)  # 20 Hz = the plan's 0.05 s grid
-    assert np.allclose(table[:, 10:13], carrier.disturbance_force_N, atol=1e-6)
+    assert np.allclose(table[:, 13:16], carrier.disturbance_force_N, atol=1e-6)
     old = replace(
         plan,
         vehicles={
@@ -267,4 +286,51 @@ def test_setpoints_use_stored_feedforward_or_recompute(exported, tmp_path):
     assert "recomputed" in notes[0]
     recomputed = np.loadtxt(tmp_path / "old" / rows["carrier"]["file"], delimiter=",", skiprows=1)
     scale = max(1e-9, float(np.abs(carrier.disturbance_force_N).max()))
-    assert np.abs(recomputed[:, 10:13] - carrier.disturbance_force_N).max() <= 1e-3 * scale + 1e-6
+    assert np.abs(recomputed[:, 13:16] - carrier.disturbance_force_N).max() <= 1e-3 * scale + 1e-6
+
+
+def test_setpoints_acceleration_carries_the_drag_term(exported, tmp_path):
+    """a = the plan's acceleration + c v (documented column drag_a*), and nothing without compensation."""
+    plan, _ = exported["battery_swap"]
+    shuttle = plan.vehicles["shuttle"]
+    rows, notes = export_setpoints(plan, scenario_of_plan(plan), tmp_path / "on", rate_hz=20.0)
+    on = np.loadtxt(tmp_path / "on" / rows["shuttle"]["file"], delimiter=",", skiprows=1)
+    header = (tmp_path / "on" / rows["shuttle"]["file"]).read_text().splitlines()[0].split(",")
+    assert header[7:13] == ["ax_mps2", "ay_mps2", "az_mps2", "drag_ax_mps2", "drag_ay_mps2", "drag_az_mps2"]
+    _, v, a = shuttle.sample(on[:, 0])
+    np.testing.assert_allclose(on[:, 10:13], shuttle.vehicle.drag_rate_ps * v, atol=1e-9)
+    np.testing.assert_allclose(on[:, 7:10], a + shuttle.vehicle.drag_rate_ps * v, atol=1e-9)
+    assert np.linalg.norm(on[:, 10:13], axis=1).max() > 0.05  # ~0.24 1/s x the shuttle's speed
+    assert any("drag" in n for n in notes)
+    rows, _ = export_setpoints(plan, scenario_of_plan(plan), tmp_path / "off", rate_hz=20.0, drag_compensation=False)
+    off = np.loadtxt(tmp_path / "off" / rows["shuttle"]["file"], delimiter=",", skiprows=1)
+    assert np.all(off[:, 10:13] == 0.0)
+    np.testing.assert_allclose(off[:, 7:10], a, atol=1e-9)
+
+
+def test_without_compensation_the_upload_is_the_plan_and_the_vehicle_lags_it(exported, tmp_path):
+    """--no-drag-compensation uploads the plan; its predicted flight lags the plan by the rotor drag,
+    by more than the type's tube (crossing 4: ~4.5 cm), where the compensated export is predicted to
+    fly the plan within a few mm."""
+    plan, folder = exported["crossing_4"]
+    write_plan(plan, tmp_path / "plan")
+    out = tmp_path / "raw"
+    res = run_proxplan(
+        "export", tmp_path / "plan", "--format", "crazyflie", "--out", out, "--no-drag-compensation", "--json"
+    )
+    assert res.returncode == 0, res.stderr
+    doc = json.loads(res.stdout)
+    assert doc["drag_compensation"] is False and all(f["drag_compensation"] is None for f in doc["files"])
+    lagged = read_export(out)
+    flown = read_export(folder)
+    for name, tr in plan.vehicles.items():
+        (raw,) = _uploads(out, name)
+        assert raw.start_time_s == pytest.approx(0.0) and raw.end_time_s == pytest.approx(tr.t_s[-1])
+        t = np.linspace(0.0, tr.t_s[-1], 2001)
+        assert np.linalg.norm(raw.evaluate(t)[:, :3] - tr.position_at(t), axis=1).max() <= PROMISE_M
+        lagging = np.linalg.norm(lagged.vehicles[name].position_m - tr.position_at(lagged.t_s), axis=1).max()
+        on_plan = np.linalg.norm(flown.vehicles[name].position_m - tr.position_at(flown.t_s), axis=1).max()
+        assert lagging > 2 * tr.vehicle.tracking_tube_m and on_plan < 0.25 * tr.vehicle.tracking_tube_m, (name, lagging)
+    manifest = json.loads((folder / EXPORT_MANIFEST).read_text())
+    lead = manifest["vehicles"]["east"]["drag_compensation"]
+    assert manifest["drag_compensation"] is True and lead["max_lead_m"] > 0.02 and lead["tail_s"] > 0.0

@@ -8,7 +8,6 @@ import pytest
 
 from proxplan.flightsim import SimulationOptions, simulate_plan
 from proxplan.flightsim.mellinger import (
-    CRAZYFLIE_TYPES,
     cap_motor_thrusts,
     controller_gains,
     reference_body_rates,
@@ -109,10 +108,9 @@ def test_gains_firmware_for_crazyflies_scaled_for_other_types():
     assert cf.kp_Npm == (0.4, 0.4, 1.25)  # controller_mellinger.c kp_xy, kp_z in N/m
     # kR_xy = 70000 PWM/rad -> N m/rad through massThrust = 132000 and the arm offset l/sqrt2
     np.testing.assert_allclose(cf.kR_Nmprad[0], 70000 * 2 * 0.046 / np.sqrt(2) / (4 * 132000))
-    for name in BUILTIN_VEHICLES:
-        g = controller_gains(BUILTIN_VEHICLES[name])
-        v = BUILTIN_VEHICLES[name]
-        if name in CRAZYFLIE_TYPES:
+    for name, v in BUILTIN_VEHICLES.items():
+        g = controller_gains(v)
+        if name == "crazyflie-2.1":
             assert g.kp_Npm == cf.kp_Npm
         else:  # same closed-loop poles: gain per kg and per kg m^2 as the Crazyflie's
             np.testing.assert_allclose(np.array(g.kp_Npm) / v.mass_kg, np.array(cf.kp_Npm) / 0.032)

@@ -50,8 +50,8 @@ def test_builtin_types_carry_their_measurement_and_tube():
         assert m is not None and m.controller == "mellinger"
         assert m.tube_m == pytest.approx(m.quantile_error_m + m.margin_m, abs=1e-4)
         assert m.tube_m <= m.budget_m
-    k = CF.kinematic_limits  # the issue's floor for the Crazyflie types
-    assert k.max_speed_mps >= 1.5 and k.max_accel_mps2 >= 2.5
+    k = CF.kinematic_limits  # issue 31: a tube <= 2 cm at >= 1.5 m/s and >= 3 m/s^2
+    assert k.max_speed_mps >= 1.5 and k.max_accel_mps2 >= 3.0 and CF.tracking_tube_m <= 0.02
 
 
 def test_track_limits_cli_writes_a_vehicle_file(tmp_path, capsys, monkeypatch):
@@ -77,3 +77,24 @@ def test_builtin_measurement_reproduces(name):
     res = measure_tracking(v, budget_m=v.tracking.budget_m, margin_m=v.tracking.margin_m)
     assert res.vehicle.kinematics == v.kinematics
     assert res.vehicle.tracking.tube_m == pytest.approx(v.tracking.tube_m, abs=1e-3)
+
+
+def test_drag_compensation_keeps_the_course_within_the_tube_and_switched_off_it_does_not():
+    """At the crazyflie-2.1's measured limits the compensated reference is tracked within the tube;
+    flying the plan itself (the lag c m v / k_p, ~1.9 cm per m/s) is not, by a wide margin."""
+    q, mx, _, _ = fly_course(CF, CF.kinematic_limits)
+    assert q + CF.tracking.margin_m <= CF.tracking_tube_m + 1e-4 and mx < CF.tracking_tube_m
+    _, plain, _, _ = fly_course(CF, CF.kinematic_limits, drag_compensation=False)
+    assert plain > 2.0 * CF.tracking_tube_m, (mx, plain)
+
+
+def test_track_limits_rejects_a_vehicle_file_with_a_bad_gain_or_drag(tmp_path, capsys):
+    for section, message in (
+        ("controller: {kp_xy_Npm: 0}", "controller.kp_xy_Npm: expected a positive number"),
+        ("rotor_drag: {k_d_Ns2pradm: -1.0e-6}", "rotor_drag.k_d_Ns2pradm: expected a number >= 0"),
+    ):
+        path = tmp_path / "v.yaml"
+        path.write_text(f"vehicles:\n  mine:\n    base: crazyflie-2.1\n    {section}\n")
+        assert main(["track-limits", "--vehicle", "mine", "--vehicles", str(path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and message in err and str(path) in err

@@ -19,7 +19,7 @@ import pytest
 
 from proxplan.identify import discover_terms, run_identify, synthetic_logs, validation_split, write_synthetic_manifest
 from proxplan.identify.data import IdentifyOptions, Model, errors, load_units
-from proxplan.identify.flightlog import load_manifest
+from proxplan.identify.manifest import load_manifest
 from proxplan.physics import BUILTIN_VEHICLES, CHANNELS, DISCOVERED_PREFIX, Effect, EffectInputs
 
 VEHICLE_TYPE = "small-quad"

@@ -14,7 +14,7 @@ import pytest
 
 from proxplan.identify import discover_terms, synthetic_logs, validation_split, write_synthetic_manifest
 from proxplan.identify.data import IdentifyOptions, Model, errors, load_units
-from proxplan.identify.flightlog import load_manifest
+from proxplan.identify.manifest import load_manifest
 from proxplan.physics import BUILTIN_VEHICLES, EffectInputs, planes_from_list
 
 from .test_discovery import _trajectories

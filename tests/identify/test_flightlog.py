@@ -19,10 +19,10 @@ from proxplan.identify.flightlog import (
     VehicleLog,
     check_log,
     load_flight,
-    load_manifest,
     read_log,
     write_canonical_csv,
 )  # fmt: skip
+from proxplan.identify.manifest import load_manifest
 from proxplan.physics import BUILTIN_VEHICLES
 
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]

@@ -265,7 +265,7 @@ def test_validation_split_is_by_flight_and_test_flights_never_choose(tmp_path: P
 
     from proxplan.identify.data import load_units
     from proxplan.identify.effect_selection import validation_split
-    from proxplan.identify.flightlog import load_manifest
+    from proxplan.identify.manifest import load_manifest
 
     options = replace(FAST, effects=("near_field", "thrust_bias"), calibrate=False)
     path = make_manifest(tmp_path / "a", (HIDDEN["near_field"],), duration_s=8.0)

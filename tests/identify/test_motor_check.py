@@ -12,7 +12,7 @@ import pytest
 
 from proxplan.identify import synthetic_logs, write_synthetic_manifest
 from proxplan.identify.data import IdentifyOptions, load_units
-from proxplan.identify.flightlog import load_manifest
+from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.motor_check import check_loaded
 from proxplan.physics import BUILTIN_VEHICLES

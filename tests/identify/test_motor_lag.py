@@ -10,7 +10,7 @@ import numpy as np
 
 from proxplan.identify import synthetic_logs, write_synthetic_manifest
 from proxplan.identify.data import IdentifyOptions, load_units
-from proxplan.identify.flightlog import load_manifest
+from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions, motor_command_for_N, motor_lag_compensated_N
 from proxplan.physics import BUILTIN_VEHICLES, EffectInputs, SourceSample, total_wrench
 

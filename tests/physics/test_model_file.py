@@ -70,8 +70,9 @@ def test_older_format_without_version_is_read_with_a_note(tmp_path: Path) -> Non
         ),
         ("vehicles: {}\nmodel: {thrust_scales: {a: -1}}\n", "model.thrust_scales.a"),
         ("vehicles: {}\nmodel: {field_form: wide}\n", "model.field_form"),
-        ("vehicles: {}\nmodel: {colour: red}\n", "unknown key 'colour'"),
-        ("effects: []\n", "top-level 'vehicles:'"),
+        ("vehicles: {}\nmodel: {colour: red}\n", "model.colour: unknown key"),
+        ("effects: []\n", "effects: unknown key"),
+        ("format_version: 2\n", "vehicles: missing"),
     ],
 )
 def test_bad_input_is_one_line_error_naming_file_and_key(tmp_path: Path, text: str, match: str) -> None:

@@ -163,3 +163,39 @@ def test_shipped_scenarios_load_and_start_with_a_comment(path):
     assert path.read_text().startswith("#"), f"{path.name} must start with a comment saying what it tests"
     sc = load_scenario(path)
     assert sc.vehicles and sc.source_path == str(path.resolve())
+
+
+def test_assign_goals_is_parsed_checked_and_carried_in_the_spec(tmp_path):
+    import copy
+
+    from proxplan.planfile import scenario_from_dict
+
+    assert load_scenario(_write(tmp_path, GOOD)).assign_goals is None  # absent: fixed goals
+    doc = copy.deepcopy(GOOD)
+    doc["assign_goals"] = "by_type"
+    sc = load_scenario(_write(tmp_path, doc))
+    assert sc.assign_goals == "by_type" and sc.to_spec()["assign_goals"] == "by_type"
+    assert scenario_from_dict(sc.to_spec(), label="spec").assign_goals == "by_type"  # plan.json round trip
+    assert "assign_goals" not in load_scenario(_write(tmp_path, GOOD)).to_spec()
+    msg = _bad(tmp_path, lambda d: d.update(assign_goals="by_name"))
+    assert "assign_goals: expected by_type, got 'by_name'" in msg
+
+
+def test_misspelt_keys_name_the_key_path_and_suggest_the_known_key(tmp_path):
+    msg = _bad(tmp_path, lambda d: d["vehicles"]["shuttle"]["dock"].update(ofset=[0, 0, 1]))
+    assert "vehicles.shuttle.dock.ofset: unknown key (did you mean 'offset'?)" in msg
+    msg = _bad(tmp_path, lambda d: d["obstacles"][0].update(mx=[1, 1, 1]))
+    assert "obstacles[0].mx: unknown key (did you mean 'max'?)" in msg
+    msg = _bad(tmp_path, lambda d: d.update(limit={}))
+    assert "limit: unknown key (did you mean 'limits'?)" in msg
+
+
+def test_numbers_are_not_converted_and_names_may_be_numbers(tmp_path):
+    msg = _bad(tmp_path, lambda d: d["limits"].update(min_separation_m="0.3"))
+    assert "limits.min_separation_m: expected a number in (0, 10], got '0.3'" in msg
+    msg = _bad(tmp_path, lambda d: d["vehicles"]["other"].update(max_speed_mps=True))
+    assert "vehicles.other.max_speed_mps: expected a number in (0, 20], got True" in msg
+    msg = _bad(
+        tmp_path, lambda d: d["vehicles"].update({7: {"type": "small-quad", "start": [0, 2, 1], "hover": "yes"}})
+    )
+    assert "vehicles.7.hover: expected true or false, got 'yes'" in msg

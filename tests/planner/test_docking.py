@@ -52,9 +52,12 @@ def test_optimized_docking_converges_verifies_and_is_faster(plans, name):
     assert optimized.solver is not None and optimized.solver.converged
     assert optimized.solver.return_status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
     assert not verify_plan(optimized, scenario)
-    # same seed: the optimiser started from this sampling plan
+    # same seed: the optimiser started from this sampling plan and is faster by >= 10 %, except where
+    # the sampling plan leaves less room: dock-both-moving's, 3.2 s since issue 31's faster measured
+    # limits (3.8 s before), is within 8 % of the optimum found (2.95 s; 3.15 s before)
     assert optimized.metrics.get("makespan_s") is not None
-    assert moving_end_s(optimized) <= 0.9 * moving_end_s(sampling)
+    gain = 0.95 if name == "dock_both_moving" else 0.9
+    assert moving_end_s(optimized) <= gain * moving_end_s(sampling)
 
 
 def test_approach_envelope_is_the_models_usage_inside_the_invalid_zone():

@@ -67,7 +67,8 @@ def test_cli_reports_the_diagnosis_in_one_line_and_json(tmp_path, capsys):
     from proxplan.cli import main
 
     doc = yaml.safe_load((ROOT / "scenarios" / "neural_swarm_stack.yaml").read_text())
-    doc["vehicles"]["cf51"]["goal"] = [0.14, 0.0, 0.6]
+    doc["vehicles"]["cf51"]["goal"] = [0.14, 0.0, 0.6]  # the old goal: on the cut-off edge ...
+    doc["limits"]["tracking_margin_m"] = 0.05  # ... within the 5 cm tube it was moved for (1.9 cm since issue 31)
     path = tmp_path / "edge.yaml"
     path.write_text(yaml.safe_dump(doc))
     assert main(["plan", str(path), "--out", str(tmp_path / "out"), "--json", "--no-plot"]) == 1

@@ -1,0 +1,89 @@
+"""Goal assignment for interchangeable vehicles (scenario key ``assign_goals: by_type``).
+
+Within each vehicle type, the goals listed for vehicles of that type are shared out anew. As in
+CAPT (Turpin, Michael and Kumar, IJRR 2014) the assignment first minimises the bottleneck - the
+largest single-vehicle minimum flight time (jerk-limited rest-to-rest over the straight line,
+:func:`proxplan.planner.timing.durations.min_segment_duration_s`) - and among the assignments that
+achieve it, the sum of squared straight-line distances, which makes synchronised straight lines
+collision-free when starts and goals are far enough apart. The bottleneck is found by bisection
+over the sorted costs with a perfect-matching test
+(``scipy.sparse.csgraph.maximum_bipartite_matching``), the sum by ``scipy.optimize.linear_sum_assignment``
+on the costs with every pair above the bottleneck excluded. The assignment's lower bound (no plan
+can finish earlier) is the largest single-vehicle minimum time under it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+
+from proxplan.physics import KinematicLimits
+from proxplan.planner.timing.durations import duration_table
+
+
+@dataclass(frozen=True)
+class Assignment:
+    goal_of: np.ndarray  # (A,) index of the goal (in the input order) each vehicle takes
+    lower_bound_s: float  # largest single-vehicle minimum flight time under the assignment, s
+
+
+def _min_times(starts: np.ndarray, goals: np.ndarray, limits: KinematicLimits) -> np.ndarray:
+    """(n, n) straight-line rest-to-rest minimum time from each start to each goal, s."""
+    d = np.linalg.norm(starts[:, None, :] - goals[None, :, :], axis=2)
+    table = duration_table(limits)
+    return np.vectorize(table.duration_s, otypes=[float])(d)
+
+
+def _bottleneck(cost: np.ndarray) -> float:
+    """Smallest threshold c such that a perfect matching uses only pairs of cost <= c."""
+    values = np.unique(cost)
+    lo, hi = 0, values.size - 1
+    n = cost.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        graph = csr_matrix(cost <= values[mid])
+        match = maximum_bipartite_matching(graph, perm_type="column")
+        if int(np.count_nonzero(match >= 0)) == n:
+            hi = mid
+        else:
+            lo = mid + 1
+    return float(values[lo])
+
+
+def assign_group(starts_m: np.ndarray, goals_m: np.ndarray, limits: KinematicLimits) -> tuple[np.ndarray, float]:
+    """Bottleneck-then-sum-of-squares assignment of one type's vehicles (starts (n, 3), m) to its
+    goals (n, 3): (goal index per vehicle, bottleneck time s)."""
+    starts = np.asarray(starts_m, dtype=float)
+    goals = np.asarray(goals_m, dtype=float)
+    if len(starts) == 0:
+        return np.zeros(0, dtype=np.int64), 0.0
+    times = _min_times(starts, goals, limits)
+    bottleneck = _bottleneck(times)
+    sq = np.sum((starts[:, None, :] - goals[None, :, :]) ** 2, axis=2)
+    big = float(sq.max()) * len(starts) * 10.0 + 1.0
+    cost = np.where(times <= bottleneck, sq, big)
+    rows, cols = linear_sum_assignment(cost)
+    goal_of = np.empty(len(starts), dtype=np.int64)
+    goal_of[rows] = cols
+    return goal_of, bottleneck
+
+
+def assign_by_type(
+    starts_m: np.ndarray, goals_m: np.ndarray, type_names: list[str], limits: list[KinematicLimits]
+) -> Assignment:
+    """The assignment of every vehicle (starts (A, 3), m; the goals listed for them (A, 3), m;
+    their type names and limits) to a goal of its own type (see module)."""
+    starts = np.asarray(starts_m, dtype=float)
+    goals = np.asarray(goals_m, dtype=float)
+    goal_of = np.arange(len(starts))
+    lb = 0.0
+    for t in sorted(set(type_names)):
+        members = np.array([i for i, n in enumerate(type_names) if n == t], dtype=np.int64)
+        g, b = assign_group(starts[members], goals[members], limits[int(members[0])])
+        goal_of[members] = members[g]
+        lb = max(lb, b)
+    return Assignment(goal_of, lb)

@@ -1,0 +1,219 @@
+"""Joint coordination: LaCAM (Okumura, AAAI 2023) with PIBT (Okumura et al., AIJ 2022) as its
+configuration generator, for large agents with synchronous conflicts.
+
+A *configuration* is one vertex per agent; a *step* moves every agent at once from one
+configuration to the next along a straight move of the lattice (:meth:`Lattice.moves`) or keeps it
+in place. A step is valid when every pair of agents passes :class:`~proxplan.planner.swarm.sync.SyncTable`
+(the exact synchronous test). LaCAM searches configurations depth-first; each search node expands
+lazily through a tree of low-level constraints ("agent i goes to v"), and PIBT proposes the next
+configuration under those constraints. The search is complete on finite graphs: it returns a plan
+or proves that none exists within the graph, unless its count budget (``max_nodes``) or the caller's
+deadline stops it first; then it says so (:class:`SearchGaveUp`), it never reports "infeasible".
+
+PIBT with large agents: an agent tries its candidate vertices in order of the distance to its goal
+(ties broken by a seeded random order); a candidate must be compatible with every agent already
+decided in this step; agents not decided yet whose staying put would conflict with it are asked to
+move first (priority inheritance, recursively); if none works the agent stays, and a stay that
+conflicts with a decided agent makes the proposal fail.
+"""
+
+from __future__ import annotations
+
+import random
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from proxplan.planner.swarm.lattice import Lattice
+from proxplan.planner.swarm.sync import SyncTable
+
+
+class SearchGaveUp(Exception):
+    """The coordination search stopped on its budget (a count, or the caller's deadline)."""
+
+    def __init__(self, message: str, *, nodes: int):
+        super().__init__(message)
+        self.message, self.nodes = message, nodes
+
+
+@dataclass(frozen=True)
+class LacamResult:
+    configurations: list[tuple[int, ...]]  # Q_0 (starts) .. Q_K (goals), vertex per agent
+    nodes: int  # configurations generated
+    tests: int  # exact synchronous tests computed (cache misses)
+
+
+class _Constraint:
+    __slots__ = ("parent", "who", "where", "depth")
+
+    def __init__(self, parent=None, who: int = -1, where: int = -1):
+        self.parent, self.who, self.where = parent, who, where
+        self.depth = 0 if parent is None else parent.depth + 1
+
+    def fixed(self) -> dict[int, int]:
+        out = {}
+        c = self
+        while c is not None and c.who >= 0:
+            out[c.who] = c.where
+            c = c.parent
+        return out
+
+
+class _Node:
+    __slots__ = ("config", "parent", "tree", "order", "priority")
+
+    def __init__(self, config, parent, order, priority):
+        self.config, self.parent, self.order, self.priority = config, parent, order, priority
+        self.tree = deque([_Constraint()])
+
+
+class Lacam:
+    """LaCAM on ``lattice`` with the conflict table ``sync`` (see module)."""
+
+    def __init__(self, lattice: Lattice, sync: SyncTable, *, seed: int = 0):
+        self.lat = lattice
+        self.sync = sync
+        p = lattice.problem
+        self.A = p.n_agents
+        self.pinned = [bool(x) for x in p.pinned]
+        self.r_xy = p.reach_xy_m + 2.0 * lattice.longest_move_m() + 1e-6
+        span = float(lattice.levels_m[-1] - lattice.levels_m[0]) if len(lattice.levels_m) > 1 else 0.0
+        self.r_z = p.reach_z_m + 2.0 * span + 1e-6
+        self.rng = random.Random(seed)
+        self.goal = tuple(int(v) for v in lattice.goal_v)
+        assert lattice.dist_to_goal is not None
+        self.dist = lattice.dist_to_goal
+
+    def _near(self, config) -> list[list[int]]:
+        p = self.lat.pos_m[list(config)]
+        pairs = cKDTree(p[:, :2]).query_pairs(self.r_xy, output_type="ndarray")
+        nb: list[list[int]] = [[] for _ in range(self.A)]
+        if len(pairs):
+            pairs = pairs[np.abs(p[pairs[:, 0], 2] - p[pairs[:, 1], 2]) < self.r_z]
+            for a, b in pairs.tolist():
+                nb[a].append(b)
+                nb[b].append(a)
+        return nb
+
+    def _candidates(self, i: int, u: int) -> list[int]:
+        if self.pinned[i]:
+            return [u]
+        cands = self.lat.moves(i, u) + [u]
+        self.rng.shuffle(cands)
+        di = self.dist[i]
+        cands.sort(key=lambda v: float(di[v]))
+        return cands
+
+    def _generate(self, node: _Node, constraint: _Constraint) -> tuple[int, ...] | None:
+        """PIBT proposal of the next configuration under ``constraint``, or None."""
+        Q = node.config
+        to = [-1] * self.A
+        fixed = constraint.fixed()
+        nb = self._near(Q)
+        sync = self.sync
+        on_stack: set[int] = set()
+        failed = [False]
+
+        def compatible(i: int, v: int, skip_stack: bool) -> bool:
+            ui = Q[i]
+            for j in nb[i]:
+                vj = to[j]
+                if vj >= 0 and not (skip_stack and j in on_stack) and sync.conflict(i, ui, v, j, Q[j], vj):
+                    return False
+            return True
+
+        def pibt(i: int) -> bool:
+            ui = Q[i]
+            cands = [fixed[i]] if i in fixed else self._candidates(i, ui)
+            on_stack.add(i)
+            for v in cands:
+                if not compatible(i, v, False):
+                    continue
+                to[i] = v
+                good = True
+                for k in nb[i]:
+                    if to[k] >= 0 or not sync.conflict(i, ui, v, k, Q[k], Q[k]):
+                        continue
+                    if (k in fixed and fixed[k] == Q[k]) or self.pinned[k] or not pibt(k):
+                        good = False
+                        break
+                    if sync.conflict(i, ui, v, k, Q[k], to[k]):
+                        good = False
+                        break
+                if good:
+                    on_stack.discard(i)
+                    return True
+                to[i] = -1
+            on_stack.discard(i)
+            to[i] = ui
+            if (i in fixed and fixed[i] != ui) or not compatible(i, ui, True):
+                failed[0] = True
+            return False
+
+        for i in list(fixed) + list(node.order):
+            if to[i] < 0:
+                pibt(i)
+                if failed[0]:
+                    return None
+        if any(to[i] != v for i, v in fixed.items()):
+            return None
+        for i in range(self.A):  # the whole step once more, exactly
+            for j in nb[i]:
+                if j > i and sync.conflict(i, Q[i], to[i], j, Q[j], to[j]):
+                    return None
+        return tuple(to)
+
+    def _order(self, priority: list[float]) -> list[int]:
+        return sorted(range(self.A), key=lambda i: -priority[i])
+
+    def solve(self, *, max_nodes: int, deadline: float | None = None, progress=None) -> LacamResult:
+        """A plan from the starts to the goals; :class:`SearchGaveUp` when the budget ends first or
+        the lattice holds none (that proves nothing about continuous space)."""
+        start = tuple(int(v) for v in self.lat.start_v)
+        priority = [float(self.dist[i][start[i]]) * 1e-3 for i in range(self.A)]
+        root = _Node(start, None, self._order(priority), priority)
+        explored = {start: root}
+        stack = [root]
+        n = 1
+        while stack:
+            node = stack[-1]
+            if node.config == self.goal:
+                out = []
+                cur: _Node | None = node
+                while cur is not None:
+                    out.append(cur.config)
+                    cur = cur.parent
+                return LacamResult(out[::-1], n, self.sync.computed)
+            if not node.tree:
+                stack.pop()
+                continue
+            c = node.tree.popleft()
+            if c.depth < self.A:
+                i = node.order[c.depth]
+                vs = self._candidates(i, node.config[i])
+                for v in vs:
+                    node.tree.append(_Constraint(c, i, v))
+            nxt = self._generate(node, c)
+            if nxt is None:
+                continue
+            if nxt in explored:
+                stack.append(explored[nxt])
+                continue
+            n += 1
+            if n > max_nodes:
+                raise SearchGaveUp(f"no plan found within {max_nodes} configurations", nodes=n)
+            if deadline is not None and time.perf_counter() > deadline:
+                raise SearchGaveUp("no plan found within the time budget", nodes=n)
+            if progress is not None and n % 25 == 0:
+                progress(f"coordination: {n} configurations", min(0.5, 0.1 + n / max_nodes))
+            pr = [
+                node.priority[i] + 1.0 if nxt[i] != self.goal[i] else node.priority[i] - int(node.priority[i])
+                for i in range(self.A)
+            ]
+            child = _Node(nxt, node, self._order(pr), pr)
+            explored[nxt] = child
+            stack.append(child)
+        raise SearchGaveUp(f"the coordination lattice holds no plan (all {n} configurations searched)", nodes=n)

@@ -1,0 +1,135 @@
+"""A swarm scenario as the coordination layer sees it: agents (vehicles), their types, starts and
+goals, kinematic limits, pairwise keep-outs and the static free space.
+
+World frame, z up, m. Agents are indexed in the scenario's file order; ``type_index`` maps each
+agent to its vehicle type (one :class:`~proxplan.planner.swarm.keepout.KeepOut` per ordered type
+pair). Keep-outs are grown by the tracking tube (while either vehicle moves) and by
+``GROWTH_M`` (rounding of positions to whole millimetres in the conflict tables); the static free
+space is the workspace shrunk, and the obstacles inflated, by the widest body, the tube and the
+obstacle margin (:func:`proxplan.planner.checks.constraints.build_checker`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from proxplan.physics import KinematicLimits, Vehicle
+from proxplan.planfile import Scenario
+from proxplan.planner.swarm.keepout import KeepOut, keepout_for
+
+GROWTH_M = 0.002  # keep-outs grown by this much: positions are compared in whole millimetres, m
+
+
+@dataclass(frozen=True)
+class SwarmProblem:
+    """Agents of a swarm scenario (see module). Arrays are indexed by agent."""
+
+    names: tuple[str, ...]
+    type_index: np.ndarray  # (A,) int: index into ``vehicles``
+    vehicles: tuple[Vehicle, ...]  # one per type
+    limits: tuple[KinematicLimits, ...]  # per agent
+    starts_m: np.ndarray  # (A, 3) m
+    goals_m: np.ndarray  # (A, 3) m
+    pinned: np.ndarray  # (A,) bool: hovering vehicles, never moved
+    keepouts: dict[tuple[int, int], KeepOut]  # (type a, type b) -> keep-out of d = p_b - p_a
+    lo_m: np.ndarray  # (3,) static free box (workspace shrunk by body, tube, margin), m
+    hi_m: np.ndarray  # (3,) m
+    boxes_m: np.ndarray  # (O, 6) inflated obstacles (min xyz, max xyz), m
+
+    @property
+    def n_agents(self) -> int:
+        return len(self.names)
+
+    @property
+    def reach_xy_m(self) -> float:
+        """Largest horizontal distance at which any pair can conflict while moving, m."""
+        return max(k.reach_xy_m for k in self.keepouts.values())
+
+    @property
+    def reach_z_m(self) -> float:
+        """Largest vertical distance at which any pair can conflict while moving, m."""
+        return max(k.reach_z_m for k in self.keepouts.values())
+
+    def common_limits(self, agents) -> KinematicLimits:
+        """The element-wise smallest limits of ``agents`` (a synchronous group flies at these)."""
+        lims = [self.limits[a] for a in agents]
+        return KinematicLimits(
+            min(x.max_speed_mps for x in lims), min(x.max_accel_mps2 for x in lims), min(x.max_jerk_mps3 for x in lims)
+        )
+
+    def static_free(self, points_m: np.ndarray) -> np.ndarray:
+        """(...,) bool: points (..., 3) inside the free box and outside every inflated obstacle."""
+        p = np.asarray(points_m, dtype=float)
+        ok = np.all((p >= self.lo_m) & (p <= self.hi_m), axis=-1)
+        for b in self.boxes_m:
+            ok &= ~np.all((p >= b[:3]) & (p <= b[3:]), axis=-1)
+        return ok
+
+    def segment_free(self, p0_m: np.ndarray, p1_m: np.ndarray, step_m: float = 0.02) -> bool:
+        """True when the straight segment p0 -> p1 stays in the static free space (every ``step_m``)."""
+        n = max(2, int(math.ceil(float(np.linalg.norm(np.asarray(p1_m) - p0_m)) / step_m)) + 1)
+        s = np.linspace(0.0, 1.0, n)[:, None]
+        return bool(self.static_free(np.asarray(p0_m) * (1.0 - s) + np.asarray(p1_m) * s).all())
+
+
+def swarm_applicable(scenario: Scenario) -> str | None:
+    """None when the swarm layer can plan ``scenario``, else why not (it has no dock approach)."""
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is not None:
+            return f"vehicle {name!r} docks (the swarm layer has no dock approach)"
+    return None
+
+
+def swarm_problem(scenario: Scenario, goals_m: np.ndarray | None = None) -> SwarmProblem:
+    """The :class:`SwarmProblem` of ``scenario`` (``goals_m`` (A, 3) overrides the goals, e.g. an
+    assignment); hovering vehicles keep their start as goal and are pinned."""
+    from proxplan.costmaps import effects_key
+    from proxplan.planner.checks.constraints import build_checker
+
+    names = tuple(scenario.vehicles)
+    vehicles: list[Vehicle] = []
+    index: dict[Vehicle, int] = {}
+    types = []
+    for n in names:
+        v = scenario.vehicles[n].vehicle
+        if v not in index:
+            index[v] = len(vehicles)
+            vehicles.append(v)
+        types.append(index[v])
+    fx = effects_key(getattr(scenario, "effects", ()))
+    keep = {
+        (ia, ib): keepout_for(
+            va, vb, limits=scenario.limits, field_form=scenario.field_form, effects=fx, sample_m=GROWTH_M
+        )
+        for ia, va in enumerate(vehicles)
+        for ib, vb in enumerate(vehicles)
+    }
+    widest = max(names, key=lambda n: (scenario.vehicles[n].vehicle.body_radius_m, n))
+    chk = build_checker(scenario, widest, [], margin_m=float(scenario.limits.tracking_margin_m))
+    starts = np.array([scenario.vehicles[n].start_m for n in names], dtype=float)
+    if goals_m is None:
+        goals = np.array(
+            [
+                scenario.vehicles[n].goal_m if scenario.vehicles[n].goal_m is not None else scenario.vehicles[n].start_m
+                for n in names
+            ],
+            dtype=float,
+        )
+    else:
+        goals = np.asarray(goals_m, dtype=float)
+    return SwarmProblem(
+        names=names,
+        type_index=np.array(types, dtype=np.int64),
+        vehicles=tuple(vehicles),
+        limits=tuple(scenario.vehicles[n].kinematic_limits for n in names),
+        starts_m=starts,
+        goals_m=goals,
+        pinned=np.array([bool(scenario.vehicles[n].hover) for n in names]),
+        keepouts=keep,
+        lo_m=np.asarray(chk.lo, dtype=float),
+        hi_m=np.asarray(chk.hi, dtype=float),
+        boxes_m=np.asarray(chk.boxes, dtype=float).reshape(-1, 6),
+    )

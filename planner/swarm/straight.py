@@ -1,0 +1,54 @@
+"""Straight lines first: every vehicle straight to its goal, all at once.
+
+Every vehicle flying its straight line in one synchronised step (one common rest-to-rest profile,
+the longest line's at the movers' common limits) moves each pair's relative position along a
+straight segment, checked exactly (:func:`proxplan.planner.swarm.sync.segment_conflict`). When all
+pairs pass, that is the plan (the CAPT case of interchangeable goals).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from proxplan.planner.swarm.problem import GROWTH_M, SwarmProblem
+from proxplan.planner.swarm.sync import segment_conflict
+from proxplan.planner.swarm.tracks import GRID_DT_S, Track
+from proxplan.planner.timing.profile import LineMove, rest_to_rest
+
+
+def _pairs(problem: SwarmProblem) -> np.ndarray:
+    p0, p1 = problem.starts_m, problem.goals_m
+    mid = 0.5 * (p0 + p1)[:, :2]
+    half = 0.5 * np.linalg.norm((p1 - p0)[:, :2], axis=1)
+    radius = 2.0 * float(half.max(initial=0.0)) + problem.reach_xy_m
+    return cKDTree(mid).query_pairs(radius, output_type="ndarray")
+
+
+def straight_step_conflicts(problem: SwarmProblem) -> list[tuple[int, int]]:
+    """Pairs (i, j) whose synchronised straight lines from start to goal conflict (exact test),
+    and (i, i) for a line that leaves the static free space."""
+    p0, p1 = problem.starts_m, problem.goals_m
+    bad = [(i, i) for i in range(problem.n_agents) if not problem.segment_free(p0[i], p1[i])]
+    for i, j in _pairs(problem).tolist():
+        rest = bool(np.allclose(p0[i], p1[i]) and np.allclose(p0[j], p1[j]))
+        ko = problem.keepouts[(int(problem.type_index[i]), int(problem.type_index[j]))]
+        if segment_conflict(ko, p0[j] - p0[i], p1[j] - p1[i], rest=rest, growth_m=GROWTH_M if rest else 0.0):
+            bad.append((i, j))
+    return bad
+
+
+def straight_tracks(problem: SwarmProblem, agents: list[int]) -> dict[int, Track]:
+    """``agents`` straight to their goals in one synchronised step (a common profile)."""
+    lengths = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+    movers = [a for a in agents if lengths[a] > 0.0]
+    out: dict[int, Track] = {}
+    if not agents:
+        return out
+    profile = rest_to_rest(
+        float(max((lengths[a] for a in movers), default=0.0)), problem.common_limits(movers or agents), GRID_DT_S
+    )
+    for a in agents:
+        mv = [(0, LineMove(problem.starts_m[a], problem.goals_m[a], profile))] if a in movers else []
+        out[a] = Track(a, int(problem.type_index[a]), problem.starts_m[a].copy(), mv)
+    return out

@@ -1,0 +1,176 @@
+"""A route for one vehicle through the others' space-time: a wavefront on a fine horizontal grid.
+
+The vehicle is treated as moving one grid cell (8-connected, ``CELL_M``) or waiting per layer of
+``layer_s`` = cell diagonal / (``SPEED_FRACTION`` x its speed limit). Each layer of the grid marks
+the cells within the pair's horizontal keep-out reach of any other vehicle during that layer's
+time span (their track samples, swept; waiting vehicles until they leave; parked vehicles for
+good), so column-exclusive downwash is 2-D here. The set of cells reachable at layer t+1 is the
+8-neighbourhood dilation of the set at layer t, restricted to cells free in both layers (numpy
+boolean shifts: the whole search is a few array operations per layer). The first layer at which the
+goal cell is reached and stays free to the horizon gives the route; backtracking prefers waiting.
+
+This is a guide, not a trajectory: the route's corners and waiting places become the waypoints of
+:func:`proxplan.planner.swarm.chain.time_chain`, which times them exactly against the same tracks
+(the grid is coarse where the keep-outs are sharp).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.tracks import GRID_DT_S
+
+CELL_M = 0.075  # grid cell, m
+SPEED_FRACTION = 0.8  # the route's pace, as a fraction of the vehicle's speed limit
+MARGIN_M = 2.0  # the grid covers the start-goal box grown by this much (clipped to the free box), m
+_NEIGHBOURS = ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1))
+
+
+def _disc(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
+    n = int(math.ceil(radius_cells))
+    ix, iy = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
+    m = ix * ix + iy * iy < radius_cells * radius_cells
+    return ix[m], iy[m]
+
+
+def wave_route(
+    occ: Occupancy,
+    agent: int,
+    start_m: np.ndarray,
+    goal_m: np.ndarray,
+    *,
+    pace: float = SPEED_FRACTION,
+    grow_m: float = 0.0,
+) -> np.ndarray | None:
+    """Waypoints (m+1, 3) of a route from start to goal through the others' space-time (see
+    module; the height runs linearly with the distance flown), or None when the wavefront dies or
+    never reaches a goal that stays free. ``pace``: fraction of the speed limit; ``grow_m``: extra
+    keep-out radius, m (a slower, wider route leaves the exact timing more room)."""
+    p = occ.problem
+    lim = p.limits[agent]
+    h = CELL_M
+    layer_s = h * math.sqrt(2.0) / (pace * lim.max_speed_mps)
+    n_layers = max(2, int(occ.horizon * GRID_DT_S / layer_s))
+    lo = np.maximum(np.minimum(start_m, goal_m)[:2] - MARGIN_M, p.lo_m[:2])
+    hi = np.minimum(np.maximum(start_m, goal_m)[:2] + MARGIN_M, p.hi_m[:2])
+    nx = int(math.ceil((hi[0] - lo[0]) / h)) + 1
+    ny = int(math.ceil((hi[1] - lo[1]) / h)) + 1
+    gx = lo[0] + np.arange(nx) * h
+    gy = lo[1] + np.arange(ny) * h
+    X, Y = np.meshgrid(gx, gy, indexing="ij")
+    z_mid = 0.5 * (start_m[2] + goal_m[2])
+    free_static = np.ones(X.shape, dtype=bool)
+    for fx, fy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)):
+        for f in (0.25, 0.5):  # the cell and the first half of every move out of it stay free
+            free_static &= p.static_free(np.stack([X + f * fx * h, Y + f * fy * h, np.full_like(X, z_mid)], axis=-1))
+    occupied = np.zeros((n_layers, nx, ny), dtype=bool)
+    ta = int(p.type_index[agent])
+    per_layer = layer_s / GRID_DT_S
+
+    def mark(layers: np.ndarray, cx: np.ndarray, cy: np.ndarray, disc) -> None:
+        ox, oy = disc
+        X_ = cx[:, None] + ox[None]
+        Y_ = cy[:, None] + oy[None]
+        L_ = np.broadcast_to(layers[:, None], X_.shape)
+        ok = (L_ >= 0) & (L_ < n_layers) & (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
+        occupied[L_[ok], X_[ok], Y_[ok]] = True
+
+    box_lo = np.r_[lo, -np.inf]
+    box_hi = np.r_[hi, np.inf]
+    for tr in occ.near(box_lo, box_hi, agent):
+        disc = _disc((p.keepouts[(ta, tr.type)].reach_xy_m + grow_m) / h)
+        P = tr.positions_m
+        k = np.arange(P.shape[0])
+        lay = np.floor(k / per_layer + 0.5).astype(np.int64)
+        cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
+        cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
+        key = np.unique(np.stack([lay, cx, cy], axis=1), axis=0)
+        mark(key[:, 0], key[:, 1], key[:, 2], disc)
+        last = int(lay[-1])
+        if last < n_layers:  # parked for good
+            ox, oy = disc
+            X_, Y_ = cx[-1] + ox, cy[-1] + oy
+            ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
+            occupied[last:, X_[ok], Y_[ok]] = True
+    for b, pos, until in occ.waiting_near(box_lo, box_hi, agent):
+        ox, oy = _disc((p.keepouts[(ta, int(p.type_index[b]))].reach_xy_m + grow_m) / h)
+        c = np.round((pos[:2] - lo) / h).astype(np.int64)
+        X_, Y_ = c[0] + ox, c[1] + oy
+        ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
+        occupied[: min(n_layers, int(math.ceil(until * GRID_DT_S / layer_s)) + 1), X_[ok], Y_[ok]] = True
+    free = ~occupied & free_static[None]
+    sx, sy = (int(v) for v in np.round((start_m[:2] - lo) / h))
+    gx_, gy_ = (int(v) for v in np.round((goal_m[:2] - lo) / h))
+    if not free[0, sx, sy]:
+        return None
+    goal_free = free[:, gx_, gy_]
+    blocked = np.flatnonzero(~goal_free)
+    hold_from = int(blocked[-1]) + 1 if blocked.size else 0
+    if hold_from >= n_layers:
+        return None
+    reach = np.zeros((n_layers, nx, ny), dtype=bool)
+    reach[0, sx, sy] = True
+    t_goal = None
+    for t in range(n_layers - 1):
+        cur = reach[t]
+        if t >= hold_from and cur[gx_, gy_]:
+            t_goal = t
+            break
+        nxt = cur.copy()
+        nxt[1:, :] |= cur[:-1, :]
+        nxt[:-1, :] |= cur[1:, :]
+        nxt[:, 1:] |= cur[:, :-1]
+        nxt[:, :-1] |= cur[:, 1:]
+        nxt[1:, 1:] |= cur[:-1, :-1]
+        nxt[:-1, :-1] |= cur[1:, 1:]
+        nxt[1:, :-1] |= cur[:-1, 1:]
+        nxt[:-1, 1:] |= cur[1:, :-1]
+        nxt &= free[t + 1] & free[t]
+        reach[t + 1] = nxt
+        if not nxt.any():
+            return None
+    if t_goal is None:
+        return None
+    cells = [(gx_, gy_)]
+    x, y = gx_, gy_
+    for t in range(t_goal, 0, -1):
+        prev = reach[t - 1]
+        for dx, dy in _NEIGHBOURS:
+            px, py = x + dx, y + dy
+            if 0 <= px < nx and 0 <= py < ny and prev[px, py]:
+                x, y = px, py
+                break
+        cells.append((x, y))
+    cells.reverse()
+    return _waypoints(cells, lo, h, start_m, goal_m)
+
+
+def _waypoints(cells: list[tuple[int, int]], lo: np.ndarray, h: float, start_m: np.ndarray, goal_m: np.ndarray):
+    """Corners and waiting places of a cell route as 3-D waypoints, exact start and goal."""
+    keep = [0]
+    for k in range(1, len(cells) - 1):
+        a, b, c = cells[k - 1], cells[k], cells[k + 1]
+        if (b[0] - a[0], b[1] - a[1]) != (c[0] - b[0], c[1] - b[1]):
+            keep.append(k)
+    keep.append(len(cells) - 1)
+    xy: list[np.ndarray] = []
+    for k in keep:
+        q = lo + np.array(cells[k], dtype=float) * h
+        if not xy or float(np.linalg.norm(xy[-1] - q)) > 1e-9:
+            xy.append(q)
+    xy[0] = start_m[:2].copy()
+    if len(xy) == 1:
+        xy.append(goal_m[:2].copy())
+    xy[-1] = goal_m[:2].copy()
+    pts = np.array(xy)
+    s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))]
+    z = start_m[2] + (goal_m[2] - start_m[2]) * (s / s[-1] if s[-1] > 0 else s)
+    out = np.column_stack([pts, z])
+    keep_pts = [out[0]]
+    for q in out[1:]:
+        if float(np.linalg.norm(q - keep_pts[-1])) > 1e-9:
+            keep_pts.append(q)
+    return np.array(keep_pts if len(keep_pts) > 1 else [out[0], out[-1]])

@@ -1,0 +1,97 @@
+"""Straight rest-to-rest moves on a time grid: one jerk-limited 1-D profile, scaled along a line.
+
+:func:`rest_to_rest` gives the time-optimal Ruckig profile (1 DOF, norm limits) over a distance,
+stretched in time to a whole number of grid steps ``dt_s`` (stretching by c <= 1 scales velocity,
+acceleration and jerk by c, c^2, c^3, so the limits still hold); so every move starts and ends on the
+grid and a trajectory sampled on the grid is exactly the trajectory that is flown.
+:class:`LineMove` flies a straight segment p0 -> p1 along a profile whose distance is at least
+|p1 - p0|: the position is p0 + (sigma(t) / D) (p1 - p0). Vehicles of one synchronous step share one
+profile (the step's longest move, at the group's common limits), so their relative positions move
+on straight lines (:mod:`proxplan.planner.swarm.sync`). ``LineMove`` offers ``duration`` and
+``at_time`` like a ``ruckig.Trajectory``, so it is a segment of :class:`~proxplan.planner.timing.paths.TimedPath`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from proxplan.physics import KinematicLimits
+
+
+@dataclass(frozen=True)
+class Profile:
+    """Rest-to-rest motion over ``distance_m`` (m) in ``steps`` grid steps of ``dt_s`` (s)."""
+
+    distance_m: float
+    dt_s: float
+    steps: int
+    stretch: float  # time-stretch factor c (Ruckig's time = c x grid time), <= 1
+    arc_m: np.ndarray  # (steps + 1,) distance covered at k dt_s, m
+    _traj: object  # ruckig.Trajectory (1 DOF)
+
+    @property
+    def duration_s(self) -> float:
+        return self.steps * self.dt_s
+
+    def at(self, t_s: float) -> tuple[float, float, float]:
+        """Distance m, speed m/s and acceleration m/s^2 along the move at time ``t_s``."""
+        if t_s <= 0.0:
+            return 0.0, 0.0, 0.0
+        if t_s >= self.duration_s:
+            return self.distance_m, 0.0, 0.0
+        c = self.stretch
+        p, v, a = self._traj.at_time(c * t_s)  # type: ignore[attr-defined]
+        return float(p[0]), c * float(v[0]), c * c * float(a[0])
+
+
+@lru_cache(maxsize=4096)
+def rest_to_rest(distance_m: float, limits: KinematicLimits, dt_s: float) -> Profile:
+    """The time-optimal rest-to-rest :class:`Profile` over ``distance_m`` (m), on the ``dt_s`` grid."""
+    from ruckig import InputParameter, Result, Ruckig, Trajectory
+
+    if distance_m <= 0.0:
+        return Profile(0.0, dt_s, 0, 1.0, np.zeros(1), None)
+    inp = InputParameter(1)
+    inp.current_position, inp.target_position = [0.0], [float(distance_m)]
+    inp.current_velocity, inp.target_velocity = [0.0], [0.0]
+    inp.max_velocity = [limits.max_speed_mps]
+    inp.max_acceleration = [limits.max_accel_mps2]
+    inp.max_jerk = [limits.max_jerk_mps3]
+    traj = Trajectory(1)
+    result = Ruckig(1).calculate(inp, traj)
+    if result not in (Result.Working, Result.Finished):
+        raise RuntimeError(f"Ruckig failed on a rest-to-rest profile ({result})")
+    duration = float(traj.duration)
+    steps = max(1, int(math.ceil(duration / dt_s - 1e-9)))
+    stretch = duration / (steps * dt_s)
+    arc = np.array([traj.at_time(min(stretch * k * dt_s, duration))[0][0] for k in range(steps + 1)])
+    arc[-1] = distance_m
+    return Profile(float(distance_m), dt_s, steps, stretch, arc, traj)
+
+
+class LineMove:
+    """A straight move p0 -> p1 (m) along ``profile`` (whose distance is >= |p1 - p0|), see module."""
+
+    def __init__(self, p0_m: np.ndarray, p1_m: np.ndarray, profile: Profile):
+        self.p0 = np.asarray(p0_m, dtype=float)
+        self.delta = np.asarray(p1_m, dtype=float) - self.p0
+        self.profile = profile
+        self.scale = 0.0 if profile.distance_m <= 0.0 else 1.0 / profile.distance_m
+        self.duration = profile.duration_s
+
+    def at_time(self, t_s: float) -> tuple[list[float], list[float], list[float]]:
+        s, v, a = self.profile.at(t_s)
+        k = self.scale
+        return (
+            (self.p0 + s * k * self.delta).tolist(),
+            (v * k * self.delta).tolist(),
+            (a * k * self.delta).tolist(),
+        )
+
+    def positions(self) -> np.ndarray:
+        """Positions at every grid time 0, dt, ..., duration (steps + 1, 3), m."""
+        return self.p0[None] + (self.profile.arc_m * self.scale)[:, None] * self.delta[None]
