@@ -168,11 +168,13 @@ def _write(path: Path, doc) -> None:
 def main() -> int:
     from collections import Counter
 
-    from proxplan.planfile import plan_to_dict
+    from proxplan.planfile import plan_from_dict, plan_to_dict
 
-    for name, plan in cases().items():
+    for name, made in cases().items():
+        doc = plan_to_dict(made)
+        plan = plan_from_dict(json.loads(json.dumps(doc)), label=name)  # as the test reads it back
         exp = expected(plan)
-        _write(HERE / f"{name}.plan.json.gz", plan_to_dict(plan))
+        _write(HERE / f"{name}.plan.json.gz", doc)
         _write(HERE / f"{name}.expected.json.gz", exp)
         kinds = Counter(v["kind"] for v in exp["violations"])
         print(f"{name}: {len(plan.vehicles)} vehicles, {plan.t_s.size} samples, violations {dict(kinds)}")
