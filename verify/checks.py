@@ -37,6 +37,7 @@ from proxplan.fileio import UserError
 from proxplan.physics import VALIDITY_FACTOR_L, invalid_zone_mask
 from proxplan.planfile import Plan, Scenario, load_scenario, scenario_from_dict
 from proxplan.verify.along import dock_exempt, wrench_along_plan
+from proxplan.verify.reach import counts_above, every_pair, pair_reach_m, pairs_within
 from proxplan.verify.violations import Violation, add_runs
 
 GOAL_TOLERANCE_M = 0.05  # goal, hover, dock and start positions, m
@@ -268,49 +269,92 @@ def _check_tasks(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
 
 
 def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray]) -> list[Violation]:
+    """Separation and invalid zone of every pair, evaluated on the (pair, sample) rows horizontally
+    within the largest distance either check can fire at (the separation with the tube, the
+    footprints with the tube; :func:`proxplan.verify.reach.pairs_within`); violations in the order
+    of a loop over pairs."""
     out: list[Violation] = []
     lim = scenario.limits
     names = list(plan.vehicles)
-    moving = {n: np.linalg.norm(tr.sample(t)[1], axis=1) >= REST_SPEED_MPS for n, tr in plan.vehicles.items()}
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            va, vb = scenario.vehicles[a].vehicle, scenario.vehicles[b].vehicle
-            d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            tube = np.where(moving[a] | moving[b], lim.tracking_margin_m, 0.0)  # (M,) m
-            sep0 = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
-            sep = sep0 + tube
-            ex = dock_exempt(plan, scenario, a, b, pos, t)
-            short = (d < sep - 1e-6) & ~ex
+    if len(names) < 2:
+        return out
+    vehicles = [scenario.vehicles[n].vehicle for n in names]
+    moving = np.stack([np.linalg.norm(plan.vehicles[n].sample(t)[1], axis=1) >= REST_SPEED_MPS for n in names])
+    p = np.stack([pos[n] for n in names])  # (N, M, 3)
+    rb = np.array([v.body_radius_m for v in vehicles])
+    sep0 = np.maximum(lim.min_separation_m, rb[:, None] + rb[None, :])  # (N, N), m
+    ii, jj, mm = pairs_within(p[:, :, :2], sep0 + lim.tracking_margin_m + 1e-9)
+    tube = np.where(moving[ii, mm] | moving[jj, mm], lim.tracking_margin_m, 0.0)  # per row, m
+    exempt = _dock_rows(plan, scenario, names, pos, t, ii, jj, mm)
+    d = np.linalg.norm(p[ii, mm] - p[jj, mm], axis=1)
+    short = (d < sep0[ii, jj] + tube - 1e-6) & ~exempt
+    kinds = list(dict.fromkeys(vehicles))
+    kind = np.array([kinds.index(v) for v in vehicles])
+    zone = []  # per direction (ii below jj, then jj below ii): (inside per row, depth per row (m))
+    if lim.invalid_zone_rule != "model":
+        for tg, sr in ((ii, jj), (jj, ii)):
+            off = p[tg, mm] - p[sr, mm]
+            hit = np.zeros(ii.size, dtype=bool)
+            depth = np.zeros(ii.size)
+            group = kind[sr] * len(kinds) + kind[tg]
+            for g in np.unique(group):
+                sel = group == g
+                vs, vt = kinds[g // len(kinds)], kinds[g % len(kinds)]
+                hit[sel] = invalid_zone_mask(vs, vt, off[sel], tube[sel])
+                depth[sel] = VALIDITY_FACTOR_L * vs.size_m + tube[sel] + off[sel, 2]  # 3 L + tube - dz
+            zone.append((hit & ~exempt, depth))
+    bad = short.copy()
+    for hit, _ in zone:
+        bad |= hit
+    pair_of_row = ii * len(names) + jj
+    for key in np.unique(pair_of_row[bad]):
+        a, b = int(key) // len(names), int(key) % len(names)
+        rows = pair_of_row == key
+        mask = np.zeros(t.size, dtype=bool)
+        value = np.zeros(t.size)
+        mask[mm[rows]], value[mm[rows]] = short[rows], (sep0[a, b] + tube - d)[rows]
+        add_runs(
+            out,
+            t,
+            mask,
+            value,
+            sep0[a, b] + lim.tracking_margin_m,
+            names[a],
+            "separation",
+            f"closer than {sep0[a, b]:.3f} m + tracking tube {lim.tracking_margin_m:g} m (while moving) to {names[b]} by (m)",
+            plan_t_s=plan.t_s,
+        )
+        for (tgt, src), (hit, depth) in zip(((a, b), (b, a)), zone):
+            mask = np.zeros(t.size, dtype=bool)
+            value = np.zeros(t.size)
+            mask[mm[rows]], value[mm[rows]] = hit[rows], depth[rows]
             add_runs(
                 out,
                 t,
-                short,
-                sep - d,
-                sep0 + lim.tracking_margin_m,
-                a,
-                "separation",
-                f"closer than {sep0:.3f} m + tracking tube {lim.tracking_margin_m:g} m (while moving) to {b} by (m)",
+                mask,
+                value,
+                0.0,
+                names[tgt],
+                "invalid-zone",
+                f"below {names[src]} inside its invalid zone grown by the tracking tube (dz <= 3 L + tube, "
+                "footprints + tube overlap); depth (m)",
                 plan_t_s=plan.t_s,
             )
-            if lim.invalid_zone_rule == "model":
-                continue
-            for tgt, src in ((a, b), (b, a)):
-                vs, vt = scenario.vehicles[src].vehicle, scenario.vehicles[tgt].vehicle
-                off = pos[tgt] - pos[src]
-                dz = -off[:, 2]
-                inside = invalid_zone_mask(vs, vt, off, tube) & ~ex
-                add_runs(
-                    out,
-                    t,
-                    inside,
-                    VALIDITY_FACTOR_L * vs.size_m + tube - dz,
-                    0.0,
-                    tgt,
-                    "invalid-zone",
-                    f"below {src} inside its invalid zone grown by the tracking tube (dz <= 3 L + tube, "
-                    "footprints + tube overlap); depth (m)",
-                    plan_t_s=plan.t_s,
-                )
+    return out
+
+
+def _dock_rows(plan, scenario, names, pos, t, ii, jj, mm) -> np.ndarray:
+    """(R,) True on the rows (vehicles ii and jj, either order, at sample mm) where a dock pair is on
+    its approach."""
+    out = np.zeros(ii.size, dtype=bool)
+    index = {n: k for k, n in enumerate(names)}
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is None or name not in index or task.dock_with not in index:
+            continue
+        a, b = index[name], index[task.dock_with]
+        rows = ((ii == a) & (jj == b)) | ((ii == b) & (jj == a))
+        if rows.any():
+            out[rows] = dock_exempt(plan, scenario, names[a], names[b], pos, t)[mm[rows]]
     return out
 
 
@@ -356,48 +400,66 @@ def tube_offsets(off: np.ndarray, tube_m: float) -> list[np.ndarray]:
 def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray]) -> list[Violation]:
     """Authority usage with every moving pair's target placed, per source, at the worst point of
     the tracking tube (``limits.tracking_margin_m``; dock pairs on their approach exempt, as for
-    the planner's cut-off): the verifier's form of the planner's grown cut-off radius."""
+    the planner's cut-off): the verifier's form of the planner's grown cut-off radius.
+
+    Evaluated on the (target, source, sample) rows within the pair's reach grown by the tube
+    (:mod:`proxplan.verify.reach`), in batches per pair of vehicle types; whether a target has a
+    moving pair at all (where the check applies) is counted exactly over every source above it."""
     from proxplan.physics import authority_usage, disturbance_wrench
-    from proxplan.verify.along import model_options
+    from proxplan.verify.along import model_options, plan_extent_m
 
     out: list[Violation] = []
     tube = scenario.limits.tracking_margin_m
-    if tube <= 0.0:
+    names = list(plan.vehicles)
+    if tube <= 0.0 or len(names) < 2:
         return out
     limit = scenario.limits.authority_fraction
     opts = model_options(scenario)
-    moving = {n: np.linalg.norm(tr.sample(t)[1], axis=1) >= REST_SPEED_MPS for n, tr in plan.vehicles.items()}
-    for tname in plan.vehicles:
-        target = scenario.vehicles[tname].vehicle
-        force = np.zeros((t.size, 3))
-        torque = np.zeros((t.size, 3))
-        tubed = np.zeros(t.size, dtype=bool)
-        for sname in plan.vehicles:
-            if sname == tname:
-                continue
-            source = scenario.vehicles[sname].vehicle
-            off = pos[tname] - pos[sname]
-            below = -off[:, 2] > 1e-6
-            use = below & (moving[tname] | moving[sname]) & ~dock_exempt(plan, scenario, tname, sname, pos, t)
-            plain = below & ~use
-            if plain.any():
-                w = disturbance_wrench(source, target, off[plain], opts)
-                force[plain] += w.force_N
-                torque[plain] += w.torque_Nm
-            if use.any():
-                best_u = np.full(int(use.sum()), -np.inf)
-                best_f = np.zeros((best_u.size, 3))
-                best_t = np.zeros((best_u.size, 3))
-                for o in tube_offsets(off[use], tube):
-                    w = disturbance_wrench(source, target, o, opts)
-                    u = authority_usage(target, w.force_N, w.torque_Nm)
-                    better = u > best_u
-                    best_u[better], best_f[better], best_t[better] = u[better], w.force_N[better], w.torque_Nm[better]
-                force[use] += best_f
-                torque[use] += best_t
-                tubed |= use
-        usage = authority_usage(target, force, torque)
-        over = tubed & (usage > limit + USAGE_TOLERANCE)
+    n, m = len(names), t.size
+    vehicles = [scenario.vehicles[k].vehicle for k in names]
+    kinds = list(dict.fromkeys(vehicles))
+    kind = np.array([kinds.index(v) for v in vehicles])
+    moving = np.stack([np.linalg.norm(plan.vehicles[k].sample(t)[1], axis=1) >= REST_SPEED_MPS for k in names])
+    p = np.stack([pos[k] for k in names])  # (N, M, 3)
+    radius = np.full((n, n), np.inf)
+    if not every_pair(n, m):
+        dz_max, r_max = plan_extent_m(p)
+        reach = np.array(  # [source kind, target kind], m: the plain model at dz up to the tube deeper
+            [[pair_reach_m(s, g, opts, (), dz_lo_m=0.0, dz_hi_m=dz_max + tube, r_max_m=r_max) for g in kinds] for s in kinds]
+        )  # fmt: skip
+        radius = np.maximum(reach[kind][:, kind], reach[kind][:, kind].T) + tube
+    ii, jj, mm = pairs_within(p[:, :, :2], radius + 1e-9)
+    tgt, src, smp = np.concatenate([ii, jj]), np.concatenate([jj, ii]), np.concatenate([mm, mm])
+    off = p[tgt, smp] - p[src, smp]
+    below = -off[:, 2] > 1e-6
+    tgt, src, smp, off = tgt[below], src[below], smp[below], off[below]
+    use = (moving[tgt, smp] | moving[src, smp]) & ~_dock_rows(plan, scenario, names, pos, t, tgt, src, smp)
+    force = np.zeros((n, m, 3))
+    torque = np.zeros((n, m, 3))
+    group = kind[src] * len(kinds) + kind[tgt]
+    for g in np.unique(group):
+        source, target = kinds[g // len(kinds)], kinds[g % len(kinds)]
+        plain = np.flatnonzero((group == g) & ~use)
+        if plain.size:
+            w = disturbance_wrench(source, target, off[plain], opts)
+            np.add.at(force, (tgt[plain], smp[plain]), w.force_N)
+            np.add.at(torque, (tgt[plain], smp[plain]), w.torque_Nm)
+        tubed_rows = np.flatnonzero((group == g) & use)
+        if tubed_rows.size:
+            best_u = np.full(tubed_rows.size, -np.inf)
+            best_f = np.zeros((tubed_rows.size, 3))
+            best_t = np.zeros((tubed_rows.size, 3))
+            for o in tube_offsets(off[tubed_rows], tube):
+                w = disturbance_wrench(source, target, o, opts)
+                u = authority_usage(target, w.force_N, w.torque_Nm)
+                better = u > best_u
+                best_u[better], best_f[better], best_t[better] = u[better], w.force_N[better], w.torque_Nm[better]
+            np.add.at(force, (tgt[tubed_rows], smp[tubed_rows]), best_f)
+            np.add.at(torque, (tgt[tubed_rows], smp[tubed_rows]), best_t)
+    tubed = _has_moving_pair(plan, scenario, names, pos, t, p[:, :, 2], moving)
+    for k, tname in enumerate(names):
+        usage = authority_usage(vehicles[k], force[k], torque[k])
+        over = tubed[k] & (usage > limit + USAGE_TOLERANCE)
         add_runs(
             out,
             t,
@@ -410,6 +472,23 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
             plan_t_s=plan.t_s,
         )
     return out
+
+
+def _has_moving_pair(plan, scenario, names, pos, t, z_m: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """(N, M) True where a vehicle has a source above it (by more than 1e-6 m) with either of the
+    two moving, the pair not a dock pair on its approach: counted over every vehicle."""
+    n_above = counts_above(z_m)
+    n_moving_above = counts_above(z_m, moving)
+    index = {k: i for i, k in enumerate(names)}
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is None or name not in index or task.dock_with not in index:
+            continue
+        ex = dock_exempt(plan, scenario, name, task.dock_with, pos, t)
+        for a, b in ((index[name], index[task.dock_with]), (index[task.dock_with], index[name])):
+            gone = ex & (z_m[b] - z_m[a] > 1e-6)  # b above a, exempt: not a pair for the tube
+            n_above[a] -= gone
+            n_moving_above[a] -= gone & moving[b]
+    return (moving & (n_above > 0)) | (n_moving_above > 0)
 
 
 def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:

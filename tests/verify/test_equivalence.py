@@ -4,9 +4,11 @@ by make_reference.py with that verifier): the same violations (kind, vehicle, st
 sample, detail with its end time and named source, limit; worst value to 1e-7 relative), the same
 wrench, usage and invalid zone along the plan, separation summary and plan metrics.
 
-Pairs farther apart than a pair's reach are left out by the new code; the reach is where the pair's
-authority usage is provably below ``proxplan.verify.reach.NEGLIGIBLE_USAGE``, so numbers may differ
-by that much per left-out source (tolerances below), never in a verdict.
+Both ways the new code runs: every pair evaluated (what it does on plans this small,
+``ALL_PAIRS_ROWS``) and only the rows within each pair's reach (forced here; what it does at swarm
+scale). A source beyond a pair's reach changes the usage by less than
+``proxplan.verify.reach.NEGLIGIBLE_USAGE``, so numbers may differ by that much per left-out source
+(tolerances below), never in a verdict.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import pytest
 
 from proxplan.planfile import plan_from_dict
 from proxplan.planner.pipeline import finish_metrics
-from proxplan.verify import scenario_of_plan, separation_summary, verify_plan, wrench_along_plan
+from proxplan.verify import reach, scenario_of_plan, separation_summary, verify_plan, wrench_along_plan
 
 REFERENCE = Path(__file__).resolve().parent / "reference"
 CASES = sorted(p.name.removesuffix(".plan.json.gz") for p in REFERENCE.glob("*.plan.json.gz"))
@@ -40,6 +42,13 @@ def case(request):
     name = request.param
     plan = plan_from_dict(_load(REFERENCE / f"{name}.plan.json.gz"), label=name)
     return name, plan, scenario_of_plan(plan, label=name), _load(REFERENCE / f"{name}.expected.json.gz")
+
+
+@pytest.fixture(params=["every pair", "within reach"], autouse=True)
+def mode(request, monkeypatch):
+    if request.param == "within reach":
+        monkeypatch.setattr(reach, "ALL_PAIRS_ROWS", 0)
+    return request.param
 
 
 def test_reference_covers_the_checks():
