@@ -53,7 +53,13 @@ from proxplan.physics.model_file import (
 )
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
 from proxplan.physics.room import Plane, PlaneList, plane_distances_m, planes_from_list, planes_from_parts
-from proxplan.physics.stack import MAX_STACK_SHIELDING, intercepted_flux_fraction, shielding_factors, shielding_reach_m
+from proxplan.physics.stack import (
+    MAX_STACK_SHIELDING,
+    intercepted_flux_fraction,
+    pass_through_share,
+    shielding_factors,
+    shielding_reach_m,
+)
 from proxplan.physics.vehicle_yaml import (
     VehicleEntry,
     VehicleFile,
@@ -94,6 +100,7 @@ __all__ = [
     "planes_from_list",
     "base_wrench_per_source",
     "intercepted_flux_fraction",
+    "pass_through_share",
     "shielding_factors",
     "shielding_reach_m",
     "AIR_DENSITY_KGPM3",

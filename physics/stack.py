@@ -138,6 +138,26 @@ def shielding_reach_m(
     return hi
 
 
+def pass_through_share(
+    upper: Vehicle, middle: Vehicle, offsets_m: np.ndarray, eta: float, disc: Discretisation = DEFAULT_DISCRETISATION
+) -> np.ndarray:
+    """max(1 - eta phi, 0) (N,), -: the share of ``upper``'s jet that ``middle`` lets pass, for
+    offsets (N, 3) = p_middle - p_upper, world frame, m (one factor of s_U, module docstring). 1
+    where ``middle`` is not below ``upper``; exactly 1.0, without evaluating phi, where the bound
+    of :func:`_flux_bound` says eta phi < :data:`EXACT_ONE_SHARE` (1 - eta phi would round to 1.0)."""
+    off = np.atleast_2d(np.asarray(offsets_m, dtype=float))
+    out = np.ones(off.shape[0])
+    if eta <= 0.0:
+        return out
+    rho, area = _footprint_extent(middle, disc)
+    dz = -off[:, 2]
+    bound = _flux_bound(upper.downwash.c_rad, rho, area, np.hypot(off[:, 0], off[:, 1]), axial_distance_m(upper, dz))
+    rows = np.flatnonzero((dz > _MIN_DZ_M) & (eta * bound >= EXACT_ONE_SHARE))
+    if rows.size:
+        out[rows] = np.maximum(1.0 - eta * intercepted_flux_fraction(upper, middle, off[rows], disc), 0.0)
+    return out
+
+
 def shielding_factors(
     target_offsets_m: Sequence[np.ndarray],
     sources: Sequence[Vehicle],
@@ -155,48 +175,36 @@ def shielding_factors(
         sources are above the target.
 
     Vectorised over the (source j, source k between, sample) triples: each pair of vehicles is one
-    call of :func:`intercepted_flux_fraction` over all its triples; a triple whose eta phi is
-    provably below :data:`EXACT_ONE_SHARE` (:func:`_flux_bound`) would multiply by exactly 1.0
-    and is skipped; the factors of each s_j multiply in the order of k, as one loop over k would.
+    call of :func:`pass_through_share` over all its triples, and the factors of each s_j multiply
+    in the order of k, as one loop over k would.
     """
     n_src = len(sources)
     offs = [np.atleast_2d(np.asarray(o, dtype=float)) for o in target_offsets_m]
     n = offs[0].shape[0] if offs else 0
+    factors = np.ones((n_src, n))
     if eta <= 0.0 or n_src < 2:
-        return [np.ones(n) for _ in range(n_src)]
+        return list(factors)
     stacked = np.stack(offs)  # (S, N, 3)
     above = -stacked[:, :, 2] > _MIN_DZ_M  # (S, N) source above the target
     live = np.flatnonzero(above.any(axis=1))
-    factors = np.ones((n_src, n))
-    if live.size < 2:
-        return list(factors)
-    kinds = list(dict.fromkeys(sources))  # the distinct vehicles
-    kind = np.array([kinds.index(v) for v in sources])
-    extent = np.array([_footprint_extent(v, disc) for v in kinds])  # (V, 2): rho m, area m^2
     parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     for j in live:
         # triples (j, k, row): k between j and the target (p_k - p_j = o_j - o_k below j), both above
         ks = live[live != j]
         mid = stacked[j][None, :, :] - stacked[ks]  # (K, N, 3) p_k - p_j
-        kk, nn = np.nonzero(above[j][None, :] & above[ks] & (-mid[:, :, 2] > _MIN_DZ_M))
-        if kk.size == 0:
-            continue
-        m = mid[kk, nn]  # (T, 3)
-        ext = extent[kind[ks[kk]]]
-        a = axial_distance_m(sources[j], -m[:, 2])
-        bound = _flux_bound(sources[j].downwash.c_rad, ext[:, 0], ext[:, 1], np.hypot(m[:, 0], m[:, 1]), a)
-        keep = eta * bound >= EXACT_ONE_SHARE
-        if keep.any():
-            parts.append((np.full(int(keep.sum()), j), ks[kk[keep]], nn[keep], m[keep]))
+        kk, rows = np.nonzero(above[j][None, :] & above[ks] & (-mid[:, :, 2] > _MIN_DZ_M))
+        if kk.size:
+            parts.append((np.full(kk.size, j), ks[kk], rows, mid[kk, rows]))
     if not parts:
         return list(factors)
     js, ks_all, rows, mids = (np.concatenate(x) for x in zip(*parts))
-    values = np.empty(js.size)
+    kinds = list(dict.fromkeys(sources))  # the distinct vehicles
+    kind = np.array([kinds.index(v) for v in sources])
     pair = kind[js] * len(kinds) + kind[ks_all]
+    values = np.empty(js.size)
     for p in np.unique(pair):  # one call per (upper, middle) vehicle pair
         sel = pair == p
-        phi = intercepted_flux_fraction(kinds[p // len(kinds)], kinds[p % len(kinds)], mids[sel], disc)
-        values[sel] = np.maximum(1.0 - eta * phi, 0.0)
+        values[sel] = pass_through_share(kinds[p // len(kinds)], kinds[p % len(kinds)], mids[sel], eta, disc)
     flat = js * n + rows
     order = np.lexsort((ks_all, flat))  # per (j, row), in the order of k
     np.multiply.at(factors.reshape(-1), flat[order], values[order])

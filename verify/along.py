@@ -17,10 +17,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from proxplan.costmaps import pair_wrench, sources_wrench
-from proxplan.physics import ModelOptions, authority_usage, invalid_zone_mask, shielding_reach_m
+from proxplan.physics import ModelOptions, authority_usage
 from proxplan.planfile import Plan, Scenario
-from proxplan.verify.reach import MIN_DZ_M, counts_above, every_pair, pair_reach_m, pairs_within
+from proxplan.verify.plan_wrench import PlanWrench
 
 DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
 
@@ -64,143 +63,13 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
     pos = plan.positions_at(t_s)
     vehicles = [_vehicle(plan, scenario, n) for n in names]
     effects = tuple(scenario.effects if scenario is not None else plan.effects)
-    field = _PlanWrench(np.stack([pos[n] for n in names]), vehicles, model_options(scenario), effects)
+    field = PlanWrench(np.stack([pos[n] for n in names]), vehicles, model_options(scenario), effects)
     out = {}
     for k, tname in enumerate(names):
         usage = authority_usage(vehicles[k], field.force[k], field.torque[k]) if t_s.size else np.zeros(0)
         by_source = {names[s]: field.by_source[(k, s)] for s in range(len(names)) if (k, s) in field.by_source}
         out[tname] = WrenchAlongPlan(t_s, field.force[k], field.torque[k], usage, by_source, field.invalid[k])
     return out
-
-
-_PAD_OFFSET_M = np.array([1.0e3, 1.0e3, 1.0e3])  # a padding source far below the target: no wrench, m
-
-
-class _PlanWrench:
-    """The summed wrench ``force`` / ``torque`` (N, M, 3), the invalid zone ``invalid`` (N, M) and
-    the usage of each source alone ``by_source`` {(target, source): (M,)} of vehicles at positions
-    (N, M, 3), m (see :func:`wrench_along_plan`)."""
-
-    def __init__(self, pos_m: np.ndarray, vehicles: list, options: ModelOptions, effects: tuple):
-        n, m = pos_m.shape[:2]
-        self.pos, self.options, self.effects = pos_m, options, effects
-        self.kinds = list(dict.fromkeys(vehicles))
-        self.kind = np.array([self.kinds.index(v) for v in vehicles], dtype=np.intp)
-        self.force = np.zeros((n, m, 3))
-        self.torque = np.zeros((n, m, 3))
-        self.invalid = np.zeros((n, m), dtype=bool)
-        self.by_source: dict[tuple[int, int], np.ndarray] = {}
-        if n >= 2 and m:
-            self._evaluate()
-
-    def _evaluate(self) -> None:
-        pos, kind, kinds = self.pos, self.kind, self.kinds
-        n, m = pos.shape[:2]
-        dz_max, r_max = plan_extent_m(pos)
-        nk = len(kinds)
-        reach = np.array(  # [source kind, target kind], m
-            [[pair_reach_m(s, t, self.options, self.effects, dz_lo_m=0.0, dz_hi_m=dz_max, r_max_m=r_max) for t in kinds] for s in kinds]
-        )  # fmt: skip
-        below = (  # sources level with or below the target: only effects may act there
-            np.array(
-                [[pair_reach_m(s, t, self.options, self.effects, dz_lo_m=-dz_max, dz_hi_m=0.0, r_max_m=r_max) for t in kinds] for s in kinds]
-            )  # fmt: skip
-            if self.effects
-            else np.zeros((nk, nk))
-        )
-        if every_pair(n, m):
-            reach[:] = np.inf
-            below[:] = np.inf if self.effects else 0.0
-        stack = counts_above(pos[:, :, 2]) >= 2  # (N, M) the checks' "two or more sources above"
-        eta = self.options.stack_shielding
-        shield = (
-            max(shielding_reach_m(a, b, eta, dz_max, self.options.discretisation) for a in kinds for b in kinds)
-            if stack.any()
-            else 0.0
-        )
-        rb = np.array([v.body_radius_m for v in kinds])[kind]
-        pair_r = np.maximum(np.maximum(reach[kind][:, kind], reach[kind][:, kind].T), rb[:, None] + rb[None, :])
-        slot_r = float(reach.max()) + shield if stack.any() else 0.0
-        radius = np.maximum(np.maximum(pair_r, slot_r), np.maximum(below[kind][:, kind], below[kind][:, kind].T))
-        ii, jj, mm = pairs_within(pos[:, :, :2], radius + 1e-9)
-        tgt, src, smp = np.concatenate([ii, jj]), np.concatenate([jj, ii]), np.concatenate([mm, mm])
-        off = pos[tgt, smp] - pos[src, smp]  # (R, 3) p_target - p_source
-        dz = -off[:, 2]
-        hor = np.hypot(off[:, 0], off[:, 1])
-        ks, kt = kind[src], kind[tgt]
-        pair = (dz > MIN_DZ_M) & (hor <= np.maximum(reach[ks, kt], rb[src] + rb[tgt]))
-        self._pairs(tgt[pair], src[pair], smp[pair], off[pair], stack)
-        need = np.zeros((n, m), dtype=bool)
-        need[tgt[(dz > 0.0) & (hor <= reach[ks, kt])], smp[(dz > 0.0) & (hor <= reach[ks, kt])]] = True
-        need &= stack
-        if need.any():
-            slot = need[tgt, smp] & (((dz > 0.0) & (hor <= slot_r)) | ((dz <= 0.0) & (hor <= below[ks, kt])))
-            self._stacks(need, tgt[slot], src[slot], smp[slot], off[slot])
-
-    def _pairs(self, tgt, src, smp, off, stack) -> None:
-        """One source above the target: the pair wrench of every row, summed where no stack."""
-        m = self.pos.shape[1]
-        key = tgt * len(self.kind) + src
-        for kk in np.unique(self.kind[src] * len(self.kinds) + self.kind[tgt]):
-            sel = np.flatnonzero(self.kind[src] * len(self.kinds) + self.kind[tgt] == kk)
-            source, target = self.kinds[kk // len(self.kinds)], self.kinds[kk % len(self.kinds)]
-            f, tq = pair_wrench(source, target, off[sel], self.options, self.effects)
-            u = authority_usage(target, f, tq)
-            self.invalid[tgt[sel][invalid_zone_mask(source, target, off[sel])], smp[sel][invalid_zone_mask(source, target, off[sel])]] = True
-            lone = ~stack[tgt[sel], smp[sel]]
-            np.add.at(self.force, (tgt[sel][lone], smp[sel][lone]), f[lone])
-            np.add.at(self.torque, (tgt[sel][lone], smp[sel][lone]), tq[lone])
-            for k in np.unique(key[sel]):
-                rows = key[sel] == k
-                arr = self.by_source.setdefault((int(k) // len(self.kind), int(k) % len(self.kind)), np.zeros(m))
-                arr[smp[sel][rows]] = u[rows]
-
-    def _stacks(self, need, tgt, src, smp, off) -> None:
-        """Two or more sources above: ``sources_wrench`` on batches of stack rows of one target type,
-        each source type's slots padded to the batch's most (a padding source sits far below)."""
-        nk = len(self.kinds)
-        rows_t, rows_m = np.nonzero(need)
-        row_id = np.full(need.shape, -1, dtype=np.intp)
-        row_id[rows_t, rows_m] = np.arange(rows_t.size)
-        rid = row_id[tgt, smp]
-        sk = self.kind[src]
-        order = np.lexsort((src, sk, rid))  # slots by row, source type, source
-        rid, sk, off = rid[order], sk[order], off[order]
-        group = rid * nk + sk
-        start = np.r_[0, np.flatnonzero(np.diff(group)) + 1]
-        rank = np.arange(group.size) - np.repeat(start, np.diff(np.r_[start, group.size]))
-        count = np.zeros((rows_t.size, nk), dtype=np.intp)
-        np.add.at(count, (rid, sk), 1)
-        slot_of_row = np.r_[0, np.cumsum(count.sum(axis=1))]  # slots of row r: [slot_of_row[r], slot_of_row[r+1])
-        for kt in np.unique(self.kind[rows_t]):
-            mine = np.flatnonzero(self.kind[rows_t] == kt)
-            mine = mine[np.argsort(count[mine].sum(axis=1), kind="stable")]  # similar rows together
-            for b0 in range(0, mine.size, _STACK_BATCH):
-                batch = mine[b0 : b0 + _STACK_BATCH]
-                slots = np.concatenate([np.arange(slot_of_row[r], slot_of_row[r + 1]) for r in batch])
-                local = np.repeat(np.arange(batch.size), count[batch].sum(axis=1))
-                sources = []
-                for k in range(nk):
-                    width = int(count[batch, k].max())
-                    if width == 0:
-                        continue
-                    padded = np.broadcast_to(_PAD_OFFSET_M, (width, batch.size, 3)).copy()
-                    of_k = sk[slots] == k
-                    padded[rank[slots][of_k], local[of_k]] = off[slots][of_k]
-                    sources += [(self.kinds[k], padded[c]) for c in range(width)]
-                f, tq = sources_wrench(self.kinds[kt], sources, self.options, self.effects)
-                self.force[rows_t[batch], rows_m[batch]] = f
-                self.torque[rows_t[batch], rows_m[batch]] = tq
-
-
-_STACK_BATCH = 2048  # stack rows per sources_wrench call
-
-
-def plan_extent_m(pos_m: np.ndarray) -> tuple[float, float]:
-    """(largest height difference, horizontal diagonal of the bounding box), m, of positions
-    (N, M, 3), m: the vertical and horizontal ranges a pair's reach must cover."""
-    lo, hi = pos_m.reshape(-1, 3).min(axis=0), pos_m.reshape(-1, 3).max(axis=0)
-    return float(hi[2] - lo[2]), float(np.hypot(hi[0] - lo[0], hi[1] - lo[1]))
 
 
 def _vehicle(plan: Plan, scenario: Scenario | None, name: str):

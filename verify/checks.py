@@ -37,7 +37,7 @@ from proxplan.fileio import UserError
 from proxplan.physics import VALIDITY_FACTOR_L, invalid_zone_mask
 from proxplan.planfile import Plan, Scenario, load_scenario, scenario_from_dict
 from proxplan.verify.along import dock_exempt, wrench_along_plan
-from proxplan.verify.reach import counts_above, every_pair, pair_reach_m, pairs_within
+from proxplan.verify.reach import NEGLIGIBLE_USAGE, counts_above, every_pair, pairs_within, usage_grid
 from proxplan.verify.violations import Violation, add_runs
 
 GOAL_TOLERANCE_M = 0.05  # goal, hover, dock and start positions, m
@@ -306,13 +306,14 @@ def _check_pairs(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
     bad = short.copy()
     for hit, _ in zone:
         bad |= hit
-    pair_of_row = ii * len(names) + jj
-    for key in np.unique(pair_of_row[bad]):
-        a, b = int(key) // len(names), int(key) % len(names)
-        rows = pair_of_row == key
+    order = np.lexsort((mm, ii * len(names) + jj))  # rows by pair, then sample
+    key = (ii * len(names) + jj)[order]
+    for k in np.unique(key[bad[order]]):
+        a, b = int(k) // len(names), int(k) % len(names)
+        rows = order[np.searchsorted(key, k, side="left") : np.searchsorted(key, k, side="right")]
         mask = np.zeros(t.size, dtype=bool)
         value = np.zeros(t.size)
-        mask[mm[rows]], value[mm[rows]] = short[rows], (sep0[a, b] + tube - d)[rows]
+        mask[mm[rows]], value[mm[rows]] = short[rows], sep0[a, b] + tube[rows] - d[rows]
         add_runs(
             out,
             t,
@@ -403,10 +404,13 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
     the planner's cut-off): the verifier's form of the planner's grown cut-off radius.
 
     Evaluated on the (target, source, sample) rows within the pair's reach grown by the tube
-    (:mod:`proxplan.verify.reach`), in batches per pair of vehicle types; whether a target has a
-    moving pair at all (where the check applies) is counted exactly over every source above it."""
+    (:mod:`proxplan.verify.reach`), in batches per pair of vehicle types, and only where a bound
+    of the usage (:meth:`proxplan.verify.reach.UsageGrid.bound` summed over the sources) exceeds
+    the limit; whether a target has a moving pair at all (where the check applies) is counted
+    exactly over every source above it."""
     from proxplan.physics import authority_usage, disturbance_wrench
-    from proxplan.verify.along import model_options, plan_extent_m
+    from proxplan.verify.along import model_options
+    from proxplan.verify.plan_wrench import plan_extent_m
 
     out: list[Violation] = []
     tube = scenario.limits.tracking_margin_m
@@ -421,22 +425,39 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
     kind = np.array([kinds.index(v) for v in vehicles])
     moving = np.stack([np.linalg.norm(plan.vehicles[k].sample(t)[1], axis=1) >= REST_SPEED_MPS for k in names])
     p = np.stack([pos[k] for k in names])  # (N, M, 3)
-    radius = np.full((n, n), np.inf)
-    if not every_pair(n, m):
-        dz_max, r_max = plan_extent_m(p)
-        reach = np.array(  # [source kind, target kind], m: the plain model at dz up to the tube deeper
-            [[pair_reach_m(s, g, opts, (), dz_lo_m=0.0, dz_hi_m=dz_max + tube, r_max_m=r_max) for g in kinds] for s in kinds]
-        )  # fmt: skip
-        radius = np.maximum(reach[kind][:, kind], reach[kind][:, kind].T) + tube
+    dz_max, r_max = plan_extent_m(p)
+    grids = [  # [source kind][target kind]: the plain model's usage bound down to the tube deeper
+        [usage_grid(s, g, opts, (), dz_lo_m=0.0, dz_hi_m=dz_max + tube, r_max_m=r_max) for g in kinds] for s in kinds
+    ]
+    reach = np.array([[grid.reach_m for grid in row] for row in grids])
+    radius = np.full((n, n), np.inf) if every_pair(n, m) else np.maximum(reach[kind][:, kind], reach[kind][:, kind].T) + tube
     ii, jj, mm = pairs_within(p[:, :, :2], radius + 1e-9)
     tgt, src, smp = np.concatenate([ii, jj]), np.concatenate([jj, ii]), np.concatenate([mm, mm])
     off = p[tgt, smp] - p[src, smp]
     below = -off[:, 2] > 1e-6
     tgt, src, smp, off = tgt[below], src[below], smp[below], off[below]
+    tubed = _has_moving_pair(plan, scenario, names, pos, t, p[:, :, 2], moving)
+    # screen: a bound of each row's usage (the plain offset and every tube offset), summed per
+    # (target, sample); where the sum stays within the limit the check cannot fire (usage is
+    # subadditive), so only the other (target, sample) rows are evaluated
+    dz, hor = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
+    bound = np.zeros(tgt.size)
+    group = kind[src] * len(kinds) + kind[tgt]
+    for g in np.unique(group):
+        sel = group == g
+        bound[sel] = grids[g // len(kinds)][g % len(kinds)].bound(
+            np.maximum(hor[sel] - tube, 0.0),
+            np.minimum(dz[sel], np.maximum(dz[sel] - tube, 1e-3)),
+            np.maximum(dz[sel] + tube, 1e-3),
+        )
+    worst = np.full((n, m), (n - 1) * NEGLIGIBLE_USAGE)  # sources beyond the reach
+    np.add.at(worst, (tgt, smp), bound)
+    maybe = tubed & (worst > limit + USAGE_TOLERANCE)
+    keep = maybe[tgt, smp] & (every_pair(n, m) | (bound >= NEGLIGIBLE_USAGE))  # rows that can count
+    tgt, src, smp, off, group = tgt[keep], src[keep], smp[keep], off[keep], group[keep]
     use = (moving[tgt, smp] | moving[src, smp]) & ~_dock_rows(plan, scenario, names, pos, t, tgt, src, smp)
     force = np.zeros((n, m, 3))
     torque = np.zeros((n, m, 3))
-    group = kind[src] * len(kinds) + kind[tgt]
     for g in np.unique(group):
         source, target = kinds[g // len(kinds)], kinds[g % len(kinds)]
         plain = np.flatnonzero((group == g) & ~use)
@@ -456,10 +477,9 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
                 best_u[better], best_f[better], best_t[better] = u[better], w.force_N[better], w.torque_Nm[better]
             np.add.at(force, (tgt[tubed_rows], smp[tubed_rows]), best_f)
             np.add.at(torque, (tgt[tubed_rows], smp[tubed_rows]), best_t)
-    tubed = _has_moving_pair(plan, scenario, names, pos, t, p[:, :, 2], moving)
     for k, tname in enumerate(names):
         usage = authority_usage(vehicles[k], force[k], torque[k])
-        over = tubed[k] & (usage > limit + USAGE_TOLERANCE)
+        over = maybe[k] & (usage > limit + USAGE_TOLERANCE)
         add_runs(
             out,
             t,

@@ -28,6 +28,7 @@ horizontal distance.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -45,13 +46,70 @@ MIN_DZ_M = 1e-6  # a source is above a target when higher by more than this, m (
 _R_LINEAR_M = 0.2  # the reach grid's horizontal nodes are 2 cm apart up to here, m
 _R_GROWTH = 1.04  # then grow by this ratio per node, -
 _R_BLOCK = 12  # horizontal nodes per evaluation block
-_N_DZ = 17
+_N_DZ = 17  # vertical nodes at least (with effects: exactly), -
+_DZ_STEP_M = 0.02  # vertical node spacing without effects, m
+BOUND_FACTOR = 2.0
+"""Margin of :meth:`UsageGrid.bound` over its node values, for the variation between nodes, -."""
 _REACH_MARGIN = 1.05
 _WINDOW = 16  # samples per spatial-index window
 
 
 def _round_up(x: float, step: float) -> float:
     return step * math.ceil(max(x, 0.0) / step - 1e-12)
+
+
+@dataclass(frozen=True, eq=False)
+class UsageGrid:
+    """The usage bound q of a (source, target) pair (module docstring) on a grid: horizontal nodes
+    ``r_m`` (R,), m, vertical separations ``dz_m`` (D,), m (target below), ``q`` (R, D) the worst
+    over azimuth, -; ``reach_m`` the pair's reach, m (``math.inf``: still above the threshold at
+    the grid's last node, 0: never above it)."""
+
+    r_m: np.ndarray
+    dz_m: np.ndarray
+    q: np.ndarray
+    reach_m: float
+
+    def bound(self, r_m: np.ndarray, dz_lo_m: np.ndarray, dz_hi_m: np.ndarray) -> np.ndarray:
+        """(T,) -: at least q anywhere at horizontal distance >= ``r_m`` and dz in [``dz_lo_m``,
+        ``dz_hi_m``] (each (T,), m, inside the grid's range), times :data:`BOUND_FACTOR`: q made
+        non-increasing in r (the largest value from each node outwards), interpolated in r
+        log-linearly between the two nodes around r, maximised over the vertical nodes from the
+        one at or below the interval to the one at or above it. The jet's Gaussian makes log q
+        concave in r, so the chord lies below it between nodes, by a factor exp(c_rad h^2 /
+        (4 a^2)) at node spacing h (about 1.02 at the grid's spacing); the factor 2 covers that."""
+        log_hull = np.log(np.maximum(np.maximum.accumulate(self.q[::-1], axis=0)[::-1], 1e-300))
+        i = np.clip(np.searchsorted(self.r_m, r_m, side="right") - 1, 0, self.r_m.size - 1)
+        nxt = np.minimum(i + 1, self.r_m.size - 1)
+        span = self.r_m[nxt] - self.r_m[i]
+        f = np.clip(np.where(span > 0.0, (r_m - self.r_m[i]) / np.where(span > 0.0, span, 1.0), 0.0), 0.0, 1.0)
+        lo = np.clip(np.searchsorted(self.dz_m, dz_lo_m, side="right") - 1, 0, self.dz_m.size - 1)
+        hi = np.clip(np.searchsorted(self.dz_m, dz_hi_m, side="left"), 0, self.dz_m.size - 1)
+        out = np.full(np.shape(r_m), -np.inf)
+        for w in range(int(np.max(hi - lo, initial=0)) + 1):
+            j = np.minimum(lo + w, hi)
+            out = np.maximum(out, (1.0 - f) * log_hull[i, j] + f * log_hull[nxt, j])
+        return BOUND_FACTOR * np.exp(out)
+
+
+def usage_grid(
+    source: Vehicle,
+    target: Vehicle,
+    options: ModelOptions,
+    effects: tuple[Effect, ...],
+    *,
+    dz_lo_m: float,
+    dz_hi_m: float,
+    r_max_m: float,
+) -> UsageGrid:
+    """The :class:`UsageGrid` of ``source`` over ``target`` for vertical separations dz (target
+    below the source, m) in [``dz_lo_m``, ``dz_hi_m``] and horizontal distances up to ``r_max_m``,
+    m. The range is widened to multiples of 0.25 m (dz) and powers of two (r) so plans share the
+    cache."""
+    lo = -_round_up(-dz_lo_m, 0.25) if dz_lo_m < 0 else 0.0
+    hi = _round_up(dz_hi_m, 0.25)
+    r_max = 2.0 ** math.ceil(math.log2(max(r_max_m, 0.25)))
+    return _grid(source, target, options, effects_key(effects), lo, hi, r_max)
 
 
 def pair_reach_m(
@@ -64,14 +122,8 @@ def pair_reach_m(
     dz_hi_m: float,
     r_max_m: float,
 ) -> float:
-    """Reach (module docstring) of ``source`` over ``target`` for vertical separations dz (target
-    below the source, m) in [``dz_lo_m``, ``dz_hi_m``] and horizontal distances up to ``r_max_m``,
-    m; ``math.inf`` when the source still matters at ``r_max_m``, 0 when it never does. The
-    range is widened to multiples of 0.25 m (dz) and powers of two (r) so plans share the cache."""
-    lo = -_round_up(-dz_lo_m, 0.25) if dz_lo_m < 0 else 0.0
-    hi = _round_up(dz_hi_m, 0.25)
-    r_max = 2.0 ** math.ceil(math.log2(max(r_max_m, 0.25)))
-    return _reach(source, target, options, effects_key(effects), lo, hi, r_max)
+    """Reach (module docstring) of ``source`` over ``target`` (:func:`usage_grid`), m."""
+    return usage_grid(source, target, options, effects, dz_lo_m=dz_lo_m, dz_hi_m=dz_hi_m, r_max_m=r_max_m).reach_m
 
 
 def every_pair(n_vehicles: int, n_samples: int) -> bool:
@@ -86,10 +138,11 @@ def _r_nodes(r_max: float) -> np.ndarray:
 
 
 @lru_cache(maxsize=256)
-def _reach(source: Vehicle, target: Vehicle, options: ModelOptions, key, dz_lo: float, dz_hi: float, r_max: float):
+def _grid(source: Vehicle, target: Vehicle, options: ModelOptions, key, dz_lo: float, dz_hi: float, r_max: float):
     effects = effects_of_key(key)
     r = _r_nodes(r_max)
-    dz = np.linspace(dz_lo, dz_hi, _N_DZ)
+    n_dz = _N_DZ if effects else max(_N_DZ, int(math.ceil((dz_hi - dz_lo) / _DZ_STEP_M)) + 1)
+    dz = np.linspace(dz_lo, dz_hi, n_dz)
     if dz_lo >= 0.0:  # above only (dz > 0, from just above zero), unless the range reaches below
         dz = np.unique(np.concatenate([dz[dz > 0.0], [1e-9]]))
     # axisymmetric jet on an X-frame: azimuths in [0, pi/4] stand for all; effects may break that
@@ -98,6 +151,7 @@ def _reach(source: Vehicle, target: Vehicle, options: ModelOptions, key, dz_lo: 
         target.max_thrust_per_rotor_N - target.hover_thrust_per_rotor_N,
         target.hover_thrust_per_rotor_N - target.min_motor_thrust_N,
     )
+    blocks = []
     last = -1  # outermost node at or above the threshold
     for b0 in range(0, r.size, _R_BLOCK):
         rb = r[b0 : b0 + _R_BLOCK]
@@ -105,17 +159,21 @@ def _reach(source: Vehicle, target: Vehicle, options: ModelOptions, key, dz_lo: 
         off = np.column_stack([(rr * np.cos(aa)).ravel(), (rr * np.sin(aa)).ravel(), -zz.ravel()])
         force, torque = pair_wrench(source, target, off, options, effects)
         change = np.abs(motor_thrust_changes_N(target, force, torque)).max(axis=1)
-        q = (change / headroom).reshape(rr.shape).max(axis=(1, 2))  # worst over azimuth and dz
-        hit = np.flatnonzero(q >= NEGLIGIBLE_USAGE)
+        q = (change / headroom).reshape(rr.shape).max(axis=1)  # (block, D) worst over azimuth
+        blocks.append(q)
+        hit = np.flatnonzero(q.max(axis=1) >= NEGLIGIBLE_USAGE)
         if hit.size:
             last = b0 + int(hit[-1])
         elif rb[0] >= 2.0 * r[max(last, 0)] and float(q.max()) < 1e-3 * NEGLIGIBLE_USAGE:
             break  # a whole block beyond twice the last hit, three orders below: the jet has faded
+    q_all = np.concatenate(blocks)
     if last < 0:
-        return 0.0
-    if last >= r.size - 1:
-        return math.inf
-    return float(r[last + 1]) * _REACH_MARGIN
+        reach = 0.0
+    elif last >= r.size - 1:
+        reach = math.inf
+    else:
+        reach = float(r[last + 1]) * _REACH_MARGIN
+    return UsageGrid(r[: q_all.shape[0]], dz, q_all, reach)
 
 
 def pairs_within(xy_m: np.ndarray, radius_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
