@@ -107,19 +107,45 @@ def dock_exempt(plan: Plan, scenario: Scenario, a: str, b: str, pos: dict, t_s: 
 
 
 def separation_summary(plan: Plan, scenario: Scenario, *, t_s: np.ndarray | None = None) -> dict:
-    """Smallest centre distance over non-dock pairs (and over docking pairs), m; None if < 2 vehicles."""
+    """Smallest centre distance over non-dock pairs (and over docking pairs), m; None if < 2 vehicles.
+
+    Per sample, each vehicle's nearest neighbours (``scipy.spatial.cKDTree``, as many as it has dock
+    partners plus one) hold its nearest pair that counts; the distances are then those of the pairs."""
+    from scipy.spatial import cKDTree
+
     t_s = plan.t_s if t_s is None else t_s
     pos = plan.positions_at(t_s)
     names = list(plan.vehicles)
-    best, best_dock = None, None
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            ex = dock_exempt(plan, scenario, a, b, pos, t_s)
-            if (~ex).any():
-                m = float(d[~ex].min())
-                best = m if best is None else min(best, m)
-            if ex.any():
-                m = float(d[ex].min())
-                best_dock = m if best_dock is None else min(best_dock, m)
+    n = len(names)
+    if n < 2 or np.size(t_s) == 0:
+        return {"min_separation_m": None, "min_dock_separation_m": None}
+    p = np.stack([pos[k] for k in names])  # (N, M, 3)
+    index = {k: i for i, k in enumerate(names)}
+    exempt: dict[tuple[int, int], np.ndarray] = {}  # dock pair (i < j) -> (M,) on its approach
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is not None and name in index and task.dock_with in index:
+            a, b = sorted((index[name], index[task.dock_with]))
+            exempt[(a, b)] = dock_exempt(plan, scenario, names[a], names[b], pos, t_s)
+    partners = np.zeros(n, dtype=int)
+    for a, b in exempt:
+        partners[a] += 1
+        partners[b] += 1
+    k = min(n, int(partners.max()) + 2)
+    ii, jj, mm = [], [], []
+    for m in range(p.shape[1]):
+        _, idx = cKDTree(p[:, m]).query(p[:, m], k=k)
+        ii.append(np.repeat(np.arange(n), k))
+        jj.append(idx.ravel())
+        mm.append(np.full(n * k, m))
+    i, j, m_all = np.concatenate(ii), np.concatenate(jj), np.concatenate(mm)
+    a, b = np.minimum(i, j)[i != j], np.maximum(i, j)[i != j]
+    m_all = m_all[i != j]
+    counted = np.ones(a.size, dtype=bool)
+    for (da, db), ex in exempt.items():
+        rows = (a == da) & (b == db)
+        counted[rows] = ~ex[m_all[rows]]
+    d = np.linalg.norm(p[a, m_all] - p[b, m_all], axis=1)
+    best = float(d[counted].min()) if counted.any() else None
+    docked = [np.linalg.norm(p[da] - p[db], axis=1)[ex] for (da, db), ex in exempt.items() if ex.any()]
+    best_dock = float(min(x.min() for x in docked)) if docked else None
     return {"min_separation_m": best, "min_dock_separation_m": best_dock}
