@@ -28,12 +28,14 @@ def _usage_series(plan: Plan, scenario, usage: dict | None) -> dict[str, np.ndar
 
     if usage is not None:
         return {n: np.asarray(usage[n].usage) for n in plan.vehicles}
-    trs = plan.vehicles.values()
-    if all(tr.disturbance_force_N is not None and tr.disturbance_torque_Nm is not None for tr in trs):
-        return {
-            n: authority_usage(scenario.vehicles[n].vehicle, tr.disturbance_force_N, tr.disturbance_torque_Nm)
-            for n, tr in plan.vehicles.items()
-        }
+    out = {}
+    for n, tr in plan.vehicles.items():
+        force, torque = tr.disturbance_force_N, tr.disturbance_torque_Nm
+        if force is None or torque is None:
+            break
+        out[n] = authority_usage(scenario.vehicles[n].vehicle, force, torque)
+    else:
+        return out
     from proxplan.verify import wrench_along_plan
 
     return {n: w.usage for n, w in wrench_along_plan(plan, scenario, t_s=plan.t_s).items()}
@@ -59,7 +61,9 @@ def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = No
     fig, axes = plt.subplots(1, 3, figsize=(16, 5.2))
     top, side, ax_u = axes
     cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    colors = [cycle[k % len(cycle)] for k in range(len(names))] if few else plt.cm.viridis(np.linspace(0, 1, len(names)))
+    colors = (
+        [cycle[k % len(cycle)] for k in range(len(names))] if few else plt.cm.viridis(np.linspace(0, 1, len(names)))
+    )
     lw = 1.6 if few else max(0.3, 1.2 / np.sqrt(len(names) / NAMED_VEHICLES))
     pos = [plan.vehicles[n].position_m for n in names]
     lo, hi = scenario.workspace_min_m, scenario.workspace_max_m
@@ -79,7 +83,9 @@ def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = No
         starts = np.array([p[0, [i, j]] for p in pos])
         ends = np.array([p[-1, [i, j]] for p in pos])
         ax.scatter(starts[:, 0], starts[:, 1], marker="o", s=25 if few else 6, color=colors, zorder=3)
-        ax.scatter(ends[:, 0], ends[:, 1], marker="s", s=36 if few else 8, facecolors="none", edgecolors=colors, zorder=3)
+        ax.scatter(
+            ends[:, 0], ends[:, 1], marker="s", s=36 if few else 8, facecolors="none", edgecolors=colors, zorder=3
+        )
         ax.autoscale_view()
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]" if j == 1 else "z [m]")
@@ -95,8 +101,12 @@ def plot_plan(plan: Plan, scenario, path: str | Path, *, usage: dict | None = No
     if not few:
         grey = [np.column_stack([plan.t_s, series[n]]) for n in names if n not in worst]
         ax_u.add_collection(LineCollection(grey, colors="0.7", linewidths=0.4))
-    named_colors = [colors[names.index(n)] for n in named] if few else [cycle[k % len(cycle)] for k in range(len(named))]
-    ax_u.add_collection(LineCollection([np.column_stack([plan.t_s, series[n]]) for n in named], colors=named_colors, linewidths=1.4))
+    named_colors = (
+        [colors[names.index(n)] for n in named] if few else [cycle[k % len(cycle)] for k in range(len(named))]
+    )
+    ax_u.add_collection(
+        LineCollection([np.column_stack([plan.t_s, series[n]]) for n in named], colors=named_colors, linewidths=1.4)
+    )
     ax_u.autoscale_view()
     handles = [Line2D([], [], color=c, lw=1.4) for c in named_colors]
     labels = list(named) if few else [f"{n} (max {float(np.max(series[n], initial=0.0)):.3f})" for n in named]

@@ -5,8 +5,9 @@ The wrench on each vehicle is the sum over every other vehicle above it of
 ``proxplan.physics.disturbance.disturbance_wrench`` (S0-3..S0-8) plus the scenario's effects between vehicles
 (a calibrated model's, ``Scenario.effects``), through ``proxplan.costmaps.pair_wrench`` (the one
 implementation, ``proxplan.physics.effects.total_wrench``; where two or more sources are above at once,
-``proxplan.costmaps.sources_wrench`` evaluates them together: an upper jet is shielded by the sources
-between (``proxplan.physics.stack``) and an effect of several sources need not add up); its authority usage comes from
+they are evaluated together as ``proxplan.costmaps.sources_wrench`` does: an upper jet is shielded by the sources
+between (``proxplan.physics.stack``) and an effect of several sources need not add up), on the pairs within
+reach (:mod:`proxplan.verify.plan_wrench`); its authority usage comes from
 ``proxplan.physics.authority.authority_usage`` (DESIGN.md s. 3). Positions between plan samples come from
 the plan-file sampler. World frame, z up; m, N, N m, s.
 """
@@ -52,12 +53,10 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
     every other vehicle as a source (those above it), evaluated with the model directly. Without
     a scenario the plan's own vehicle parameters and the default model options are used.
 
-    Evaluated on the (target, source, sample) rows within the pair's reach
-    (:mod:`proxplan.verify.reach`; a source beyond it changes the usage by less than
-    ``NEGLIGIBLE_USAGE``) in batches per pair of vehicle types; where two or more sources are above
-    a target (any distance), the stack's rows are evaluated together by ``sources_wrench`` with
-    every source within reach plus the shielding reach of one in reach (the sources that can shield
-    it). ``usage_by_source`` holds the sources ever within reach of the vehicle."""
+    Evaluated on the (target, source, sample) rows within the pair's reach, in batches per pair of
+    vehicle types, stacks of sources together (:mod:`proxplan.verify.plan_wrench`); a source left
+    out changes a usage by less than ``proxplan.verify.reach.NEGLIGIBLE_USAGE``. ``usage_by_source``
+    holds the sources that are ever within reach of the vehicle (the others' usage is below that)."""
     t_s = np.asarray(t_s, dtype=float)
     names = list(plan.vehicles)
     pos = plan.positions_at(t_s)

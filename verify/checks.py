@@ -430,7 +430,9 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
         [usage_grid(s, g, opts, (), dz_lo_m=0.0, dz_hi_m=dz_max + tube, r_max_m=r_max) for g in kinds] for s in kinds
     ]
     reach = np.array([[grid.reach_m for grid in row] for row in grids])
-    radius = np.full((n, n), np.inf) if every_pair(n, m) else np.maximum(reach[kind][:, kind], reach[kind][:, kind].T) + tube
+    radius = (
+        np.full((n, n), np.inf) if every_pair(n, m) else np.maximum(reach[kind][:, kind], reach[kind][:, kind].T) + tube
+    )
     ii, jj, mm = pairs_within(p[:, :, :2], radius + 1e-9)
     tgt, src, smp = np.concatenate([ii, jj]), np.concatenate([jj, ii]), np.concatenate([mm, mm])
     off = p[tgt, smp] - p[src, smp]

@@ -1,19 +1,22 @@
 """Which vehicle pairs can matter, and when: the verifier's pair and stack checks evaluate the model
 only on (pair, sample) rows within reach, found with a spatial index, instead of every pair.
 
-*Reach* of a (source, target) pair of vehicle types over a plan (:func:`pair_reach_m`): the
-horizontal centre distance beyond which the source's wrench on the target changes the target's
-authority usage by less than :data:`NEGLIGIBLE_USAGE` at every vertical separation the plan has.
-It bounds |delta usage| by max_i |delta f_i| / min(up headroom, down headroom) (the per-motor thrust
-changes of :func:`proxplan.physics.authority.motor_thrust_changes_N`; usage is the largest of
-them over its headroom, so it moves by at most that when a source is left out of a sum), evaluated
-with the model itself (:func:`proxplan.costmaps.pair_wrench`, the scenario's effects included) on
-a grid: horizontal distances growing by 4 % per node out to the plan's horizontal extent, eight
-azimuths, vertical separations across the plan's range. The reach is one node beyond the outermost
-node above the threshold, plus 5 %; where the threshold is still exceeded at the plan's extent
-the reach is infinite (every pair counts). The jet is Gaussian in r / (dz - z0) (S0-2), so the
-usage falls by orders of magnitude per node near the reach: a pair left out contributes well below
-the threshold, and a 256-vehicle plan's sum of them stays below 1e-9.
+*Usage bound* q of a (source, target) pair at an offset: max_i |delta f_i| / min(up headroom, down
+headroom), the per-motor thrust changes (:func:`proxplan.physics.authority.motor_thrust_changes_N`)
+of the source's wrench (:func:`proxplan.costmaps.pair_wrench`, the scenario's effects included)
+over the smaller headroom. Usage is the largest thrust change over its headroom, so leaving a source
+out of a sum moves the usage by at most q (and q of a sum is at most the sum of the q).
+
+*Usage grid* (:func:`usage_grid`): q evaluated with the model on horizontal nodes (every 2 cm to
+0.2 m, then 4 % apart), azimuths (three in [0, pi/4] for the axisymmetric jet on an X-frame, eight
+around with effects) and vertical separations across the plan's range (2 cm apart without
+effects), worst over azimuth; outwards until a whole block of nodes beyond twice the last node
+above :data:`NEGLIGIBLE_USAGE` stays three orders below it (the Gaussian jet, S0-2, has faded), or
+until the plan's horizontal extent. *Reach*: one node beyond the outermost node above the
+threshold, plus 5 % (``inf`` when it is still above at the plan's extent: every pair counts). A
+source beyond its reach changes a usage by less than 1e-12, and 255 of them by less than 3e-10.
+:meth:`UsageGrid.bound` bounds q in a box of offsets (between nodes by log-linear interpolation and
+a factor 2), for rows that may be skipped or screened.
 
 *Candidate rows* (:func:`pairs_within`): for windows of consecutive samples, a
 ``scipy.spatial.cKDTree`` of the vehicles' horizontal positions in the middle of the window, queried
@@ -23,6 +26,9 @@ is then tested at every sample of the window against its own radius.
 *Counts above* (:func:`counts_above`): per (vehicle, sample), how many others are above it by more
 than 1e-6 m (the verifier's "below a source"), counted exactly by sorting heights, whatever the
 horizontal distance.
+
+Plans of at most :data:`ALL_PAIRS_ROWS` (target, source, sample) rows evaluate every pair
+(:func:`every_pair`): cheap there, and the numbers are the per-pair model's up to rounding.
 """
 
 from __future__ import annotations
@@ -41,7 +47,7 @@ NEGLIGIBLE_USAGE = 1e-12
 """Authority usage, -, below which a source's contribution is left out (per source and sample)."""
 ALL_PAIRS_ROWS = 200_000
 """Up to this many (target, source, sample) rows a plan's pairs are all evaluated (every reach
-infinite): it costs little, and the numbers are the per-pair model's to the last digit."""
+infinite): it costs little, and the numbers are the per-pair model's up to rounding."""
 MIN_DZ_M = 1e-6  # a source is above a target when higher by more than this, m (as verify and physics.stack)
 _R_LINEAR_M = 0.2  # the reach grid's horizontal nodes are 2 cm apart up to here, m
 _R_GROWTH = 1.04  # then grow by this ratio per node, -
@@ -216,7 +222,11 @@ def counts_above(z_m: np.ndarray, weight: np.ndarray | None = None) -> np.ndarra
     n, m = z_m.shape
     order = np.argsort(z_m, axis=0, kind="stable")
     zs = np.take_along_axis(z_m, order, axis=0)  # (N, M) ascending per sample
-    w = np.ones((n, m), dtype=np.int64) if weight is None else np.take_along_axis(weight.astype(np.int64), order, axis=0)
+    w = (
+        np.ones((n, m), dtype=np.int64)
+        if weight is None
+        else np.take_along_axis(weight.astype(np.int64), order, axis=0)
+    )
     tail = np.concatenate([np.cumsum(w[::-1], axis=0)[::-1], np.zeros((1, m), dtype=np.int64)])  # (N+1, M)
     pos = np.empty((n, m), dtype=np.intp)
     for k in range(m):

@@ -133,3 +133,17 @@ def test_beyond_the_shielding_reach_the_factor_is_exactly_one() -> None:
         assert shielding_factors([off_up, off_mid], [BIG, CF], 1.0)[0][0] == 1.0
         assert intercepted_flux_fraction(BIG, CF, off_mid - off_up)[0] * 2.0**60 < 1.0
     assert shielding_reach_m(BIG, CF, 1.0, 2.0) > reach > shielding_reach_m(BIG, CF, 1.0, 0.3)
+
+
+def test_pass_through_share_is_one_minus_eta_phi_to_the_last_bit() -> None:
+    """Where the bound skips phi, 1 - eta phi would have rounded to exactly 1.0 anyway."""
+    from proxplan.physics import pass_through_share
+
+    rng = np.random.default_rng(5)
+    off = np.column_stack([rng.uniform(-1.5, 1.5, (4000, 2)), rng.uniform(-2.0, 0.2, 4000)])
+    for upper, middle in ((BIG, CF), (CF, BUILTIN_VEHICLES["large-quad"])):
+        for eta in (0.5, 1.0, 3.0):
+            want = np.maximum(1.0 - eta * intercepted_flux_fraction(upper, middle, off), 0.0)
+            got = pass_through_share(upper, middle, off, eta)
+            np.testing.assert_array_equal(got, want)
+            assert 0.05 < float(np.mean(got < 1.0)) < 0.95  # both kinds of rows occur
