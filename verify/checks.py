@@ -410,7 +410,7 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
     exactly over every source above it."""
     from proxplan.physics import authority_usage, disturbance_wrench
     from proxplan.verify.along import model_options
-    from proxplan.verify.plan_wrench import plan_extent_m
+    from proxplan.verify.plan_wrench import oriented_rows, plan_extent_m
 
     out: list[Violation] = []
     tube = scenario.limits.tracking_margin_m
@@ -434,8 +434,7 @@ def _check_authority_tube(plan: Plan, scenario: Scenario, t: np.ndarray, pos: di
         np.full((n, n), np.inf) if every_pair(n, m) else np.maximum(reach[kind][:, kind], reach[kind][:, kind].T) + tube
     )
     ii, jj, mm = pairs_within(p[:, :, :2], radius + 1e-9)
-    tgt, src, smp = np.concatenate([ii, jj]), np.concatenate([jj, ii]), np.concatenate([mm, mm])
-    off = p[tgt, smp] - p[src, smp]
+    tgt, src, smp, off = oriented_rows(p, ii, jj, mm, both=False)
     below = -off[:, 2] > 1e-6
     tgt, src, smp, off = tgt[below], src[below], smp[below], off[below]
     tubed = _has_moving_pair(plan, scenario, names, pos, t, p[:, :, 2], moving)

@@ -49,6 +49,17 @@ def plan_extent_m(pos_m: np.ndarray) -> tuple[float, float]:
     return float(hi[2] - lo[2]), float(np.hypot(hi[0] - lo[0], hi[1] - lo[1]))
 
 
+def oriented_rows(pos_m: np.ndarray, ii, jj, mm, *, both: bool) -> tuple[np.ndarray, ...]:
+    """(target, source, sample, offset p_target - p_source (R, 3), m) of the pair rows (ii, jj, mm):
+    each pair as (lower, upper), the source strictly above (dz > 0) where one is (``both``: each
+    pair both ways). The offset of a flipped row is the negated one (exactly p_jj - p_ii)."""
+    off = pos_m[ii, mm] - pos_m[jj, mm]  # ii as the target
+    if both:
+        return np.concatenate([ii, jj]), np.concatenate([jj, ii]), np.concatenate([mm, mm]), np.concatenate([off, -off])
+    flip = -off[:, 2] <= 0.0  # jj not above ii: jj is the target (if either is)
+    return np.where(flip, jj, ii), np.where(flip, ii, jj), mm, np.where(flip[:, None], -off, off)
+
+
 def _kinds(vehicles: list) -> tuple[list, np.ndarray]:
     """The distinct vehicles (in order of first use) and each vehicle's index among them."""
     kinds = list(dict.fromkeys(vehicles))
@@ -93,13 +104,10 @@ class PlanWrench:
         self.shield = self._shield_reach(dz_max) if stack.any() else np.zeros((nk, nk))
         rb = np.array([v.body_radius_m for v in self.kinds])[kind]
         radius = np.maximum(np.maximum(reach[kind][:, kind], reach[kind][:, kind].T), rb[:, None] + rb[None, :])
-        slot_r = 0.0
-        if self.effects and stack.any():  # sources_wrench slots: in reach or shielding one in reach
-            slot_r = float(reach.max() + self.shield.max())
-            radius = np.maximum(np.maximum(radius, slot_r), np.maximum(below[kind][:, kind], below[kind][:, kind].T))
+        if self.effects and stack.any():  # sources_wrench slots below the target, within the effects' reach
+            radius = np.maximum(radius, np.maximum(below[kind][:, kind], below[kind][:, kind].T))
         ii, jj, mm = pairs_within(pos[:, :, :2], radius + 1e-9)
-        tgt, src, smp = np.concatenate([ii, jj]), np.concatenate([jj, ii]), np.concatenate([mm, mm])
-        off = pos[tgt, smp] - pos[src, smp]  # (R, 3) p_target - p_source
+        tgt, src, smp, off = oriented_rows(pos, ii, jj, mm, both=bool(self.effects))
         dz = -off[:, 2]
         hor = np.hypot(off[:, 0], off[:, 1])
         ks, kt = kind[src], kind[tgt]
@@ -119,11 +127,24 @@ class PlanWrench:
             self._stacks_shielded(tgt[near][at_stack], src[near][at_stack], smp[near][at_stack],
                                   force[at_stack], torque[at_stack])  # fmt: skip
             return
+        # effects: sources_wrench on each stack row with its sources in reach, those that may
+        # shield one of them and those below within the effects' reach
         need = np.zeros((n, m), dtype=bool)
+        low = np.flatnonzero((dz <= 0.0) & (hor <= below[ks, kt]))
         need[tgt[near], smp[near]] = True
+        need[tgt[low], smp[low]] = True
         need &= stack
-        slot = need[tgt, smp] & (((dz > 0.0) & (hor <= slot_r)) | ((dz <= 0.0) & (hor <= below[ks, kt])))
-        self._stacks_together(need, tgt[slot], src[slot], off[slot], smp[slot])
+        lead = near[need[tgt[near], smp[near]]]
+        slot_t, slot_s, slot_m = [tgt[lead]], [src[lead]], [smp[lead]]
+        if self.options.stack_shielding > 0.0:
+            u, k, mm, _ = self._shield_pairs(tgt[lead], src[lead], smp[lead])
+            row, pair = self._between(tgt[lead], src[lead], smp[lead], u, k, mm)
+            slot_t, slot_s, slot_m = slot_t + [tgt[lead][row]], slot_s + [k[pair]], slot_m + [smp[lead][row]]
+        low = low[need[tgt[low], smp[low]]]
+        slot_t, slot_s, slot_m = slot_t + [tgt[low]], slot_s + [src[low]], slot_m + [smp[low]]
+        key = np.unique((np.concatenate(slot_t) * n + np.concatenate(slot_s)) * m + np.concatenate(slot_m))
+        st, ss, sm = key // m // n, key // m % n, key % m
+        self._stacks_together(need, st, ss, pos[st, sm] - pos[ss, sm], sm)
 
     @staticmethod
     def _reach_of(grids: list[list[UsageGrid]]) -> np.ndarray:
@@ -166,23 +187,43 @@ class PlanWrench:
         self.torque[tgt[lone], smp[lone]] = torque[lone]
         return force, torque
 
+    def _shield_pairs(self, tgt, src, smp) -> tuple[np.ndarray, ...]:
+        """(u, k, sample, p_k - p_u (T, 3), m): every upper u and middle k within the shielding
+        reach, k lower than u (by more than 1e-6 m) and higher than the lowest target of the rows
+        (target, source u, sample) then (else k is between u and none of them), by (u, sample, k)."""
+        pos, kind = self.pos, self.kind
+        m = pos.shape[1]
+        ii, jj, mm = pairs_within(pos[:, :, :2], np.maximum(self.shield, self.shield.T)[kind][:, kind] + 1e-9)
+        up = pos[ii, mm, 2] - pos[jj, mm, 2] > 0.0
+        u, k = np.where(up, ii, jj), np.where(up, jj, ii)
+        mid = pos[k, mm] - pos[u, mm]
+        lowest = np.full((len(kind), m), np.inf)  # per (source, sample) of the rows, m
+        np.minimum.at(lowest, (src, smp), pos[tgt, smp, 2])
+        keep = (-mid[:, 2] > MIN_DZ_M) & (pos[k, mm, 2] - lowest[u, mm] > MIN_DZ_M)
+        order = np.flatnonzero(keep)[np.lexsort((k[keep], mm[keep], u[keep]))]
+        return u[order], k[order], mm[order], mid[order]
+
+    def _between(self, tgt, src, smp, u, k, mm) -> tuple[np.ndarray, np.ndarray]:
+        """(row, pair): for the rows (target, source j, sample), each shield pair (j, k, sample) of
+        :meth:`_shield_pairs` (sorted) whose k is between j and the target (both above the target
+        by more than 1e-6 m), rows ascending and, within a row, k ascending."""
+        pos, m = self.pos, self.pos.shape[1]
+        key = u * m + mm
+        lo = np.searchsorted(key, src * m + smp, side="left")
+        count = np.searchsorted(key, src * m + smp, side="right") - lo
+        row = np.repeat(np.arange(tgt.size), count)
+        pair = np.repeat(lo, count) + np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)
+        z_t = pos[tgt[row], smp[row], 2]
+        between = (pos[k[pair], mm[pair], 2] - z_t > MIN_DZ_M) & (pos[src[row], smp[row], 2] - z_t > MIN_DZ_M)
+        return row[between], pair[between]
+
     def _stacks_shielded(self, tgt, src, smp, force, torque) -> None:
         """Stack rows without effects: sum over the sources j of s_j times the pair wrench."""
-        pos, kind, nk = self.pos, self.kind, len(self.kinds)
-        m = pos.shape[1]
+        kind, nk = self.kind, len(self.kinds)
         eta = self.options.stack_shielding
         share = np.ones(tgt.size)
         if eta > 0.0:
-            # (upper u, middle k, sample) with k lower than u, within the shielding reach
-            ii, jj, mm = pairs_within(pos[:, :, :2], np.maximum(self.shield, self.shield.T)[kind][:, kind] + 1e-9)
-            up = pos[ii, mm, 2] - pos[jj, mm, 2] > 0.0
-            u, k = np.where(up, ii, jj), np.where(up, jj, ii)
-            mid = pos[k, mm] - pos[u, mm]  # p_k - p_u
-            # k can be between u and a target only if it is above the lowest target u reaches then
-            lowest = np.full((len(kind), m), np.inf)  # per (source, sample) of the stack rows, m
-            np.minimum.at(lowest, (src, smp), pos[tgt, smp, 2])
-            lower = (-mid[:, 2] > MIN_DZ_M) & (pos[k, mm, 2] - lowest[u, mm] > MIN_DZ_M)
-            u, k, mm, mid = u[lower], k[lower], mm[lower], mid[lower]
+            u, k, mm, mid = self._shield_pairs(tgt, src, smp)
             value = np.ones(u.size)
             group = kind[u] * nk + kind[k]
             for g in np.unique(group):
@@ -191,16 +232,8 @@ class PlanWrench:
                                                 self.options.discretisation)  # fmt: skip
             keep = value != 1.0  # a factor of exactly 1.0 changes nothing
             u, k, mm, value = u[keep], k[keep], mm[keep], value[keep]
-            order = np.lexsort((k, mm, u))  # by (upper, sample), then k
-            key = (u * m + mm)[order]
-            lo = np.searchsorted(key, src * m + smp, side="left")
-            count = np.searchsorted(key, src * m + smp, side="right") - lo
-            row = np.repeat(np.arange(tgt.size), count)
-            pick = order[np.repeat(lo, count) + np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)]
-            # k between source j and the target: above the target, as is j (both by more than 1e-6 m)
-            z_t = pos[tgt[row], smp[row], 2]
-            between = (pos[k[pick], mm[pick], 2] - z_t > MIN_DZ_M) & (pos[src[row], smp[row], 2] - z_t > MIN_DZ_M)
-            np.multiply.at(share, row[between], value[pick[between]])  # per row in the order of k
+            row, pair = self._between(tgt, src, smp, u, k, mm)
+            np.multiply.at(share, row, value[pair])  # per row in the order of k
         order = np.lexsort((src, smp, tgt))  # per (target, sample) in the order of the sources
         np.add.at(self.force, (tgt[order], smp[order]), force[order] * share[order, None])
         np.add.at(self.torque, (tgt[order], smp[order]), torque[order] * share[order, None])
