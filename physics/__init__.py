@@ -7,7 +7,13 @@ effects beyond the base model. Cost maps, planner, verifier, simulator and ident
 this one implementation.
 """
 
-from proxplan.physics.authority import authority_usage, mixer_matrix, motor_thrusts_N, normalised_motor_map
+from proxplan.physics.authority import (
+    authority_usage,
+    mixer_matrix,
+    motor_thrust_changes_N,
+    motor_thrusts_N,
+    normalised_motor_map,
+)
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.disturbance import (
     DEFAULT_OPTIONS,
@@ -153,6 +159,7 @@ __all__ = [
     "mixer_matrix",
     "model_file_dict",
     "model_from_dict",
+    "motor_thrust_changes_N",
     "motor_thrusts_N",
     "normalised_motor_map",
     "oncoming_speed_per_rotor_mps",

@@ -40,8 +40,7 @@ from functools import lru_cache
 import numpy as np
 
 from proxplan.costmaps import effects_key, effects_of_key, pair_wrench
-from proxplan.physics import Effect, ModelOptions, Vehicle
-from proxplan.physics.authority import motor_thrust_changes_N
+from proxplan.physics import Effect, ModelOptions, Vehicle, motor_thrust_changes_N
 
 NEGLIGIBLE_USAGE = 1e-12
 """Authority usage, -, below which a source's contribution is left out (per source and sample)."""

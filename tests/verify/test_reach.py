@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from proxplan.costmaps import pair_wrench
-from proxplan.physics import BUILTIN_VEHICLES, ModelOptions, load_model_file
-from proxplan.physics.authority import motor_thrust_changes_N
+from proxplan.physics import BUILTIN_VEHICLES, ModelOptions, load_model_file, motor_thrust_changes_N
 from proxplan.verify.reach import NEGLIGIBLE_USAGE, counts_above, pairs_within, usage_grid
 from tests.conftest import REPO
 
