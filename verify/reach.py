@@ -117,20 +117,6 @@ def usage_grid(
     return _grid(source, target, options, effects_key(effects), lo, hi, r_max)
 
 
-def pair_reach_m(
-    source: Vehicle,
-    target: Vehicle,
-    options: ModelOptions,
-    effects: tuple[Effect, ...],
-    *,
-    dz_lo_m: float,
-    dz_hi_m: float,
-    r_max_m: float,
-) -> float:
-    """Reach (module docstring) of ``source`` over ``target`` (:func:`usage_grid`), m."""
-    return usage_grid(source, target, options, effects, dz_lo_m=dz_lo_m, dz_hi_m=dz_hi_m, r_max_m=r_max_m).reach_m
-
-
 def every_pair(n_vehicles: int, n_samples: int) -> bool:
     """True when a plan is small enough to evaluate every pair (:data:`ALL_PAIRS_ROWS`)."""
     return n_vehicles * (n_vehicles - 1) * n_samples <= ALL_PAIRS_ROWS
