@@ -4,12 +4,13 @@ Test plans of N vehicles without any planner: a formation flown on straight, syn
 rest-to-rest lines (every vehicle leaves at t = 0 and all arrive together, one Ruckig segment each,
 :func:`straight_line_plan`). Layouts: ``pillar`` (``proxplan.planner.formations.formation_change``:
 two staggered layers swap layers across a pillar, so every path crosses others, the pillar and their
-jets: thousands of violations, the stress case) and ``expand`` (the same two layers spread to 1.5
-times their spacing: nobody crosses, the layers stay stacked; the clean case, where every check
-runs, the tracking-tube one included).
+jets: thousands of violations, the stress case), ``expand`` (the same two layers spread to 1.5
+times their spacing: nobody crosses, the layers stay stacked; the clean case) and ``shear`` (the
+upper layer, 1 m up, slides over the hovering lower one: moving stacks, the plain authority check
+passes, so verify runs the tracking-tube check too).
 
 Usage:
-    python benchmarks/bench_verify.py [--layout pillar expand] [--n 32 64 128 256]
+    python benchmarks/bench_verify.py [--layout pillar expand shear] [--n 32 64 128 256]
         [--baseline-python PATH] [--baseline-timeout 900] [--checks] [--metrics] [--keep DIR]
 
 Per plan it prints the whole-process wall time and peak memory (``resource`` rusage of the child,
@@ -81,10 +82,26 @@ def expand(n_vehicles: int) -> dict:
     return doc
 
 
+def shear(n_vehicles: int) -> dict:
+    """The pillar formation's two staggered layers 1 m apart (no pillar, authority limit 0.3): the
+    upper layer slides 4.8 m along x over the hovering lower one, every upper vehicle passing over
+    several lower ones (stacks that move: the tracking-tube check has work)."""
+    from proxplan.planner.formations import formation_change
+
+    doc = formation_change(n_vehicles, layer_gap_m=1.0, authority_fraction=0.3)
+    doc["name"] = f"shear-{n_vehicles}"
+    doc["obstacles"] = []
+    for v in doc["vehicles"].values():
+        x, y, z = v["start"]
+        v["goal"] = [round(x + 4.8, 4), y, z] if z > 1.5 else [x, y, z]
+    doc["workspace"]["max"][0] += 4.8
+    return doc
+
+
 def _layout(name: str, n: int) -> dict:
     from proxplan.planner.formations import LAYOUTS
 
-    return expand(n) if name == "expand" else LAYOUTS[name](n)
+    return {"expand": expand, "shear": shear}[name](n) if name in ("expand", "shear") else LAYOUTS[name](n)
 
 
 def _run(cmd: list[str], timeout_s: float) -> tuple[float, int | None, float, str]:
@@ -173,7 +190,7 @@ def _child(python: str, args: list[str], timeout_s: float) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--layout", nargs="+", default=["pillar", "expand"])
+    parser.add_argument("--layout", nargs="+", default=["pillar", "expand", "shear"])
     parser.add_argument("--n", nargs="+", type=int, default=[32, 64, 128, 256])
     parser.add_argument("--baseline-python", help="interpreter whose proxplan is the code to compare with")
     parser.add_argument("--baseline-timeout", type=float, default=900.0, help="seconds per baseline run (default 900)")
