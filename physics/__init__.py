@@ -9,7 +9,13 @@ effects beyond the base model. Cost maps, planner, verifier, simulator and ident
 this one implementation.
 """
 
-from proxplan.physics.authority import authority_usage, mixer_matrix, motor_thrusts_N, normalised_motor_map
+from proxplan.physics.authority import (
+    authority_usage,
+    mixer_matrix,
+    motor_thrust_changes_N,
+    motor_thrusts_N,
+    normalised_motor_map,
+)
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.closed_loop import (
     TAIL_MAX_S,
@@ -75,7 +81,13 @@ from proxplan.physics.model_file import (
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
 from proxplan.physics.room import Plane, PlaneList, plane_distances_m, planes_from_list, planes_from_parts
 from proxplan.physics.rotor_drag import RotorDrag, drag_rate_ps, rotorpy_rotor_drag
-from proxplan.physics.stack import MAX_STACK_SHIELDING, intercepted_flux_fraction, shielding_factors
+from proxplan.physics.stack import (
+    MAX_STACK_SHIELDING,
+    intercepted_flux_fraction,
+    pass_through_share,
+    shielding_factors,
+    shielding_reach_m,
+)
 from proxplan.physics.vehicle_yaml import (
     VehicleEntry,
     VehicleFile,
@@ -133,7 +145,9 @@ __all__ = [
     "planes_from_list",
     "base_wrench_per_source",
     "intercepted_flux_fraction",
+    "pass_through_share",
     "shielding_factors",
+    "shielding_reach_m",
     "AIR_DENSITY_KGPM3",
     "BUILTIN_VEHICLES",
     "CHANNELS",
@@ -185,6 +199,7 @@ __all__ = [
     "mixer_matrix",
     "model_file_dict",
     "model_from_dict",
+    "motor_thrust_changes_N",
     "motor_thrusts_N",
     "normalised_motor_map",
     "oncoming_speed_per_rotor_mps",

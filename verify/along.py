@@ -5,8 +5,9 @@ The wrench on each vehicle is the sum over every other vehicle above it of
 ``proxplan.physics.disturbance.disturbance_wrench`` (S0-3..S0-8) plus the scenario's effects between vehicles
 (a calibrated model's, ``Scenario.effects``), through ``proxplan.costmaps.pair_wrench`` (the one
 implementation, ``proxplan.physics.effects.total_wrench``; where two or more sources are above at once,
-``proxplan.costmaps.sources_wrench`` evaluates them together: an upper jet is shielded by the sources
-between (``proxplan.physics.stack``) and an effect of several sources need not add up); its authority usage comes from
+they are evaluated together as ``proxplan.costmaps.sources_wrench`` does: an upper jet is shielded by the sources
+between (``proxplan.physics.stack``) and an effect of several sources need not add up), on the pairs within
+reach (:mod:`proxplan.verify.plan_wrench`); its authority usage comes from
 ``proxplan.physics.authority.authority_usage`` (DESIGN.md s. 3). Positions between plan samples come from
 the plan-file sampler. World frame, z up; m, N, N m, s.
 """
@@ -17,9 +18,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from proxplan.costmaps import pair_wrench, sources_wrench
-from proxplan.physics import ModelOptions, authority_usage, disturbance_deflection, invalid_zone_mask
+from proxplan.physics import ModelOptions, authority_usage, disturbance_deflection
 from proxplan.planfile import Plan, Scenario
+from proxplan.verify.plan_wrench import PlanWrench
 
 DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
 
@@ -50,42 +51,23 @@ class WrenchAlongPlan:
 def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray) -> dict[str, WrenchAlongPlan]:
     """Per-vehicle disturbance wrench and authority usage at times ``t_s`` (M,), s, summed over
     every other vehicle as a source (those above it), evaluated with the model directly. Without
-    a scenario the plan's own vehicle parameters and the default model options are used."""
+    a scenario the plan's own vehicle parameters and the default model options are used.
+
+    Evaluated on the (target, source, sample) rows within the pair's reach, in batches per pair of
+    vehicle types, stacks of sources together (:mod:`proxplan.verify.plan_wrench`); a source left
+    out changes a usage by less than ``proxplan.verify.reach.NEGLIGIBLE_USAGE``. ``usage_by_source``
+    holds the sources that are ever within reach of the vehicle (the others' usage is below that)."""
     t_s = np.asarray(t_s, dtype=float)
+    names = list(plan.vehicles)
     pos = plan.positions_at(t_s)
-    opts = model_options(scenario)
-    effects = scenario.effects if scenario is not None else plan.effects
+    vehicles = [_vehicle(plan, scenario, n) for n in names]
+    effects = tuple(scenario.effects if scenario is not None else plan.effects)
+    field = PlanWrench(np.stack([pos[n] for n in names]), vehicles, model_options(scenario), effects)
     out = {}
-    for tname in plan.vehicles:
-        target = _vehicle(plan, scenario, tname)
-        force = np.zeros((t_s.size, 3))
-        torque = np.zeros((t_s.size, 3))
-        by_source = {}
-        invalid = np.zeros(t_s.size, dtype=bool)
-        n_below = np.zeros(t_s.size, dtype=int)
-        for sname in plan.vehicles:
-            if sname == tname:
-                continue
-            source = _vehicle(plan, scenario, sname)
-            off = pos[tname] - pos[sname]
-            below = -off[:, 2] > 1e-6
-            u_src = np.zeros(t_s.size)
-            if below.any():
-                f_src, t_src = pair_wrench(source, target, off[below], opts, effects)
-                force[below] += f_src
-                torque[below] += t_src
-                u_src[below] = authority_usage(target, f_src, t_src)
-                inv = invalid_zone_mask(source, target, off[below])
-                invalid[np.nonzero(below)[0][inv]] = True
-            by_source[sname] = u_src
-            n_below += below
-        stack = n_below >= 2
-        if stack.any():  # several sources at once: shielding (proxplan.physics.stack), effects need not add up
-            others = [n for n in plan.vehicles if n != tname]
-            offsets = [(_vehicle(plan, scenario, n), (pos[tname] - pos[n])[stack]) for n in others]
-            force[stack], torque[stack] = sources_wrench(target, offsets, opts, effects)
-        usage = authority_usage(target, force, torque) if t_s.size else np.zeros(0)
-        out[tname] = WrenchAlongPlan(t_s, force, torque, usage, by_source, invalid)
+    for k, tname in enumerate(names):
+        usage = authority_usage(vehicles[k], field.force[k], field.torque[k]) if t_s.size else np.zeros(0)
+        by_source = {names[s]: field.by_source[(k, s)] for s in range(len(names)) if (k, s) in field.by_source}
+        out[tname] = WrenchAlongPlan(t_s, field.force[k], field.torque[k], usage, by_source, field.invalid[k])
     return out
 
 
@@ -138,19 +120,45 @@ def dock_exempt(plan: Plan, scenario: Scenario, a: str, b: str, pos: dict, t_s: 
 
 
 def separation_summary(plan: Plan, scenario: Scenario, *, t_s: np.ndarray | None = None) -> dict:
-    """Smallest centre distance over non-dock pairs (and over docking pairs), m; None if < 2 vehicles."""
+    """Smallest centre distance over non-dock pairs (and over docking pairs), m; None if < 2 vehicles.
+
+    Per sample, each vehicle's nearest neighbours (``scipy.spatial.cKDTree``, as many as it has dock
+    partners plus one) hold its nearest pair that counts; the distances are then those of the pairs."""
+    from scipy.spatial import cKDTree
+
     t_s = plan.t_s if t_s is None else t_s
     pos = plan.positions_at(t_s)
     names = list(plan.vehicles)
-    best, best_dock = None, None
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            ex = dock_exempt(plan, scenario, a, b, pos, t_s)
-            if (~ex).any():
-                m = float(d[~ex].min())
-                best = m if best is None else min(best, m)
-            if ex.any():
-                m = float(d[ex].min())
-                best_dock = m if best_dock is None else min(best_dock, m)
+    n = len(names)
+    if n < 2 or np.size(t_s) == 0:
+        return {"min_separation_m": None, "min_dock_separation_m": None}
+    p = np.stack([pos[k] for k in names])  # (N, M, 3)
+    index = {k: i for i, k in enumerate(names)}
+    exempt: dict[tuple[int, int], np.ndarray] = {}  # dock pair (i < j) -> (M,) on its approach
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is not None and name in index and task.dock_with in index:
+            a, b = sorted((index[name], index[task.dock_with]))
+            exempt[(a, b)] = dock_exempt(plan, scenario, names[a], names[b], pos, t_s)
+    partners = np.zeros(n, dtype=int)
+    for a, b in exempt:
+        partners[a] += 1
+        partners[b] += 1
+    k = min(n, int(partners.max()) + 2)
+    ii, jj, mm = [], [], []
+    for m in range(p.shape[1]):
+        _, idx = cKDTree(p[:, m]).query(p[:, m], k=k)
+        ii.append(np.repeat(np.arange(n), k))
+        jj.append(idx.ravel())
+        mm.append(np.full(n * k, m))
+    i, j, m_all = np.concatenate(ii), np.concatenate(jj), np.concatenate(mm)
+    a, b = np.minimum(i, j)[i != j], np.maximum(i, j)[i != j]
+    m_all = m_all[i != j]
+    counted = np.ones(a.size, dtype=bool)
+    for (da, db), ex in exempt.items():
+        rows = (a == da) & (b == db)
+        counted[rows] = ~ex[m_all[rows]]
+    d = np.linalg.norm(p[a, m_all] - p[b, m_all], axis=1)
+    best = float(d[counted].min()) if counted.any() else None
+    docked = [np.linalg.norm(p[da] - p[db], axis=1)[ex] for (da, db), ex in exempt.items() if ex.any()]
+    best_dock = float(min(x.min() for x in docked)) if docked else None
     return {"min_separation_m": best, "min_dock_separation_m": best_dock}

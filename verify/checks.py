@@ -41,6 +41,7 @@ from proxplan.fileio import UserError
 from proxplan.physics import VALIDITY_FACTOR_L, invalid_zone_mask
 from proxplan.planfile import Plan, Scenario, load_scenario, scenario_from_dict
 from proxplan.verify.along import WrenchAlongPlan, deflection_along_plan, dock_exempt, wrench_along_plan
+from proxplan.verify.reach import NEGLIGIBLE_USAGE, counts_above, every_pair, pairs_within, usage_grid
 from proxplan.verify.violations import Violation, add_runs
 
 GOAL_TOLERANCE_M = 0.05  # goal, hover, dock and start positions, m
@@ -274,50 +275,96 @@ def _check_tasks(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
 def _check_pairs(
     plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray], deflection: dict[str, np.ndarray]
 ) -> list[Violation]:
+    """Separation and invalid zone of every pair, evaluated on the (pair, sample) rows horizontally
+    within the largest distance either check can fire at (the separation with the tube, the
+    footprints with the tube; :func:`proxplan.verify.reach.pairs_within`); violations in the order
+    of a loop over pairs. The tube of a row is ``limits.tracking_margin_m`` while either vehicle
+    moves plus both vehicles' predicted deflections (``deflection``: per vehicle (M,), m)."""
     out: list[Violation] = []
     lim = scenario.limits
     names = list(plan.vehicles)
-    moving = {n: np.linalg.norm(tr.sample(t)[1], axis=1) >= REST_SPEED_MPS for n, tr in plan.vehicles.items()}
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            va, vb = scenario.vehicles[a].vehicle, scenario.vehicles[b].vehicle
-            d = np.linalg.norm(pos[a] - pos[b], axis=1)
-            tube = np.where(moving[a] | moving[b], lim.tracking_margin_m, 0.0) + deflection[a] + deflection[b]  # (M,) m
-            sep0 = max(lim.min_separation_m, va.body_radius_m + vb.body_radius_m)
-            sep = sep0 + tube
-            ex = dock_exempt(plan, scenario, a, b, pos, t)
-            short = (d < sep - 1e-6) & ~ex
+    if len(names) < 2:
+        return out
+    vehicles = [scenario.vehicles[n].vehicle for n in names]
+    moving = np.stack([np.linalg.norm(plan.vehicles[n].sample(t)[1], axis=1) >= REST_SPEED_MPS for n in names])
+    p = np.stack([pos[n] for n in names])  # (N, M, 3)
+    rb = np.array([v.body_radius_m for v in vehicles])
+    sep0 = np.maximum(lim.min_separation_m, rb[:, None] + rb[None, :])  # (N, N), m
+    defl = np.stack([deflection[n] for n in names])  # (N, M), m
+    ii, jj, mm = pairs_within(p[:, :, :2], sep0 + lim.tracking_margin_m + 2.0 * float(defl.max(initial=0.0)) + 1e-9)
+    tube = np.where(moving[ii, mm] | moving[jj, mm], lim.tracking_margin_m, 0.0) + defl[ii, mm] + defl[jj, mm]  # m
+    exempt = _dock_rows(plan, scenario, names, pos, t, ii, jj, mm)
+    d = np.linalg.norm(p[ii, mm] - p[jj, mm], axis=1)
+    short = (d < sep0[ii, jj] + tube - 1e-6) & ~exempt
+    kinds = list(dict.fromkeys(vehicles))
+    kind = np.array([kinds.index(v) for v in vehicles])
+    zone = []  # per direction (ii below jj, then jj below ii): (inside per row, depth per row (m))
+    if lim.invalid_zone_rule != "model":
+        for tg, sr in ((ii, jj), (jj, ii)):
+            off = p[tg, mm] - p[sr, mm]
+            hit = np.zeros(ii.size, dtype=bool)
+            depth = np.zeros(ii.size)
+            group = kind[sr] * len(kinds) + kind[tg]
+            for g in np.unique(group):
+                sel = group == g
+                vs, vt = kinds[g // len(kinds)], kinds[g % len(kinds)]
+                hit[sel] = invalid_zone_mask(vs, vt, off[sel], tube[sel])
+                depth[sel] = VALIDITY_FACTOR_L * vs.size_m + tube[sel] + off[sel, 2]  # 3 L + tube - dz
+            zone.append((hit & ~exempt, depth))
+    bad = short.copy()
+    for hit, _ in zone:
+        bad |= hit
+    order = np.lexsort((mm, ii * len(names) + jj))  # rows by pair, then sample
+    key = (ii * len(names) + jj)[order]
+    for k in np.unique(key[bad[order]]):
+        a, b = int(k) // len(names), int(k) % len(names)
+        rows = order[np.searchsorted(key, k, side="left") : np.searchsorted(key, k, side="right")]
+        mask = np.zeros(t.size, dtype=bool)
+        value = np.zeros(t.size)
+        mask[mm[rows]], value[mm[rows]] = short[rows], sep0[a, b] + tube[rows] - d[rows]
+        add_runs(
+            out,
+            t,
+            mask,
+            value,
+            sep0[a, b] + lim.tracking_margin_m,
+            names[a],
+            "separation",
+            f"closer than {sep0[a, b]:.3f} m + tracking tube {lim.tracking_margin_m:g} m (while moving) + predicted "
+            f"deflections to {names[b]} by (m)",
+            plan_t_s=plan.t_s,
+        )
+        for (tgt, src), (hit, depth) in zip(((a, b), (b, a)), zone):
+            mask = np.zeros(t.size, dtype=bool)
+            value = np.zeros(t.size)
+            mask[mm[rows]], value[mm[rows]] = hit[rows], depth[rows]
             add_runs(
                 out,
                 t,
-                short,
-                sep - d,
-                sep0 + lim.tracking_margin_m,
-                a,
-                "separation",
-                f"closer than {sep0:.3f} m + tracking tube {lim.tracking_margin_m:g} m (while moving) + predicted "
-                f"deflections to {b} by (m)",
+                mask,
+                value,
+                0.0,
+                names[tgt],
+                "invalid-zone",
+                f"below {names[src]} inside its invalid zone grown by the tracking tube (dz <= 3 L + tube, "
+                "footprints + tube overlap); depth (m)",
                 plan_t_s=plan.t_s,
             )
-            if lim.invalid_zone_rule == "model":
-                continue
-            for tgt, src in ((a, b), (b, a)):
-                vs, vt = scenario.vehicles[src].vehicle, scenario.vehicles[tgt].vehicle
-                off = pos[tgt] - pos[src]
-                dz = -off[:, 2]
-                inside = invalid_zone_mask(vs, vt, off, tube) & ~ex
-                add_runs(
-                    out,
-                    t,
-                    inside,
-                    VALIDITY_FACTOR_L * vs.size_m + tube - dz,
-                    0.0,
-                    tgt,
-                    "invalid-zone",
-                    f"below {src} inside its invalid zone grown by the tracking tube (dz <= 3 L + tube, "
-                    "footprints + tube overlap); depth (m)",
-                    plan_t_s=plan.t_s,
-                )
+    return out
+
+
+def _dock_rows(plan, scenario, names, pos, t, ii, jj, mm) -> np.ndarray:
+    """(R,) True on the rows (vehicles ii and jj, either order, at sample mm) where a dock pair is on
+    its approach."""
+    out = np.zeros(ii.size, dtype=bool)
+    index = {n: k for k, n in enumerate(names)}
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is None or name not in index or task.dock_with not in index:
+            continue
+        a, b = index[name], index[task.dock_with]
+        rows = ((ii == a) & (jj == b)) | ((ii == b) & (jj == a))
+        if rows.any():
+            out[rows] = dock_exempt(plan, scenario, names[a], names[b], pos, t)[mm[rows]]
     return out
 
 
@@ -366,51 +413,95 @@ def _check_authority_tube(
 ) -> list[Violation]:
     """Authority usage with every moving (or deflected) pair's target placed, per source, at the
     worst point of its tube (``limits.tracking_margin_m`` while the pair moves, plus the target's
-    predicted deflection; dock pairs on their approach exempt, as for the planner's cut-off): the
-    verifier's form of the planner's grown cut-off radius."""
+    predicted deflection, ``deflection``: per vehicle (M,), m; dock pairs on their approach exempt,
+    as for the planner's cut-off): the verifier's form of the planner's grown cut-off radius.
+
+    Evaluated on the (target, source, sample) rows within the pair's reach grown by the tube
+    (:mod:`proxplan.verify.reach`), in batches per pair of vehicle types, and only where a bound
+    of the usage (:meth:`proxplan.verify.reach.UsageGrid.bound` summed over the sources) exceeds
+    the limit; whether a target has a moving pair at all (where the check applies) is counted
+    exactly over every source above it."""
     from proxplan.physics import authority_usage, disturbance_wrench
     from proxplan.verify.along import model_options
+    from proxplan.verify.plan_wrench import oriented_rows, plan_extent_m
 
     out: list[Violation] = []
     tube0 = scenario.limits.tracking_margin_m
-    if tube0 <= 0.0 and not any(d.max(initial=0.0) > 0.0 for d in deflection.values()):
+    names = list(plan.vehicles)
+    defl = np.stack([deflection[k] for k in names]) if names else np.zeros((0, t.size))  # (N, M), m
+    if len(names) < 2 or (tube0 <= 0.0 and not (defl > 0.0).any()):
         return out
     limit = scenario.limits.authority_fraction
     opts = model_options(scenario)
-    moving = {n: np.linalg.norm(tr.sample(t)[1], axis=1) >= REST_SPEED_MPS for n, tr in plan.vehicles.items()}
-    for tname in plan.vehicles:
-        target = scenario.vehicles[tname].vehicle
-        force = np.zeros((t.size, 3))
-        torque = np.zeros((t.size, 3))
-        tubed = np.zeros(t.size, dtype=bool)
-        for sname in plan.vehicles:
-            if sname == tname:
-                continue
-            source = scenario.vehicles[sname].vehicle
-            off = pos[tname] - pos[sname]
-            below = -off[:, 2] > 1e-6
-            pair_moving = moving[tname] | moving[sname]
-            tube = np.where(pair_moving, tube0, 0.0) + deflection[tname]  # (M,) m
-            use = below & (tube > 0.0) & ~dock_exempt(plan, scenario, tname, sname, pos, t)
-            plain = below & ~use
-            if plain.any():
-                w = disturbance_wrench(source, target, off[plain], opts)
-                force[plain] += w.force_N
-                torque[plain] += w.torque_Nm
-            if use.any():
-                best_u = np.full(int(use.sum()), -np.inf)
-                best_f = np.zeros((best_u.size, 3))
-                best_t = np.zeros((best_u.size, 3))
-                for o in tube_offsets(off[use], tube[use]):
-                    w = disturbance_wrench(source, target, o, opts)
-                    u = authority_usage(target, w.force_N, w.torque_Nm)
-                    better = u > best_u
-                    best_u[better], best_f[better], best_t[better] = u[better], w.force_N[better], w.torque_Nm[better]
-                force[use] += best_f
-                torque[use] += best_t
-                tubed |= use
-        usage = authority_usage(target, force, torque)
-        over = tubed & (usage > limit + USAGE_TOLERANCE)
+    n, m = len(names), t.size
+    vehicles = [scenario.vehicles[k].vehicle for k in names]
+    kinds = list(dict.fromkeys(vehicles))
+    kind = np.array([kinds.index(v) for v in vehicles])
+    moving = np.stack([np.linalg.norm(plan.vehicles[k].sample(t)[1], axis=1) >= REST_SPEED_MPS for k in names])
+    if tube0 <= 0.0:
+        moving = np.zeros_like(moving)  # no tracking tube: only the deflections widen a target's tube
+    tube_max = max(tube0, 0.0) + float(defl.max(initial=0.0))  # the widest tube of any row, m
+    p = np.stack([pos[k] for k in names])  # (N, M, 3)
+    dz_max, r_max = plan_extent_m(p)
+    grids = [  # [source kind][target kind]: the plain model's usage bound down to the widest tube deeper
+        [usage_grid(s, g, opts, (), dz_lo_m=0.0, dz_hi_m=dz_max + tube_max, r_max_m=r_max) for g in kinds]
+        for s in kinds
+    ]
+    reach = np.array([[grid.reach_m for grid in row] for row in grids])
+    radius = (
+        np.full((n, n), np.inf)
+        if every_pair(n, m)
+        else np.maximum(reach[kind][:, kind], reach[kind][:, kind].T) + tube_max
+    )
+    ii, jj, mm = pairs_within(p[:, :, :2], radius + 1e-9)
+    tgt, src, smp, off = oriented_rows(p, ii, jj, mm, both=False)
+    below = -off[:, 2] > 1e-6
+    tgt, src, smp, off = tgt[below], src[below], smp[below], off[below]
+    tube = np.where(moving[tgt, smp] | moving[src, smp], max(tube0, 0.0), 0.0) + defl[tgt, smp]  # per row, m
+    tubed = _has_tubed_pair(plan, scenario, names, pos, t, p[:, :, 2], moving, defl > 0.0)
+    # screen: a bound of each row's usage (the plain offset and every tube offset), summed per
+    # (target, sample); where the sum stays within the limit the check cannot fire (usage is
+    # subadditive), so only the other (target, sample) rows are evaluated
+    dz, hor = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
+    bound = np.zeros(tgt.size)
+    group = kind[src] * len(kinds) + kind[tgt]
+    for g in np.unique(group):
+        sel = group == g
+        bound[sel] = grids[g // len(kinds)][g % len(kinds)].bound(
+            np.maximum(hor[sel] - tube[sel], 0.0),
+            np.minimum(dz[sel], np.maximum(dz[sel] - tube[sel], 1e-3)),
+            np.maximum(dz[sel] + tube[sel], 1e-3),
+        )
+    worst = np.full((n, m), (n - 1) * NEGLIGIBLE_USAGE)  # sources beyond the reach
+    np.add.at(worst, (tgt, smp), bound)
+    maybe = tubed & (worst > limit + USAGE_TOLERANCE)
+    keep = maybe[tgt, smp] & (every_pair(n, m) | (bound >= NEGLIGIBLE_USAGE))  # rows that can count
+    tgt, src, smp, off, group, tube = tgt[keep], src[keep], smp[keep], off[keep], group[keep], tube[keep]
+    use = (tube > 0.0) & ~_dock_rows(plan, scenario, names, pos, t, tgt, src, smp)
+    force = np.zeros((n, m, 3))
+    torque = np.zeros((n, m, 3))
+    for g in np.unique(group):
+        source, target = kinds[g // len(kinds)], kinds[g % len(kinds)]
+        plain = np.flatnonzero((group == g) & ~use)
+        if plain.size:
+            w = disturbance_wrench(source, target, off[plain], opts)
+            np.add.at(force, (tgt[plain], smp[plain]), w.force_N)
+            np.add.at(torque, (tgt[plain], smp[plain]), w.torque_Nm)
+        tubed_rows = np.flatnonzero((group == g) & use)
+        if tubed_rows.size:
+            best_u = np.full(tubed_rows.size, -np.inf)
+            best_f = np.zeros((tubed_rows.size, 3))
+            best_t = np.zeros((tubed_rows.size, 3))
+            for o in tube_offsets(off[tubed_rows], tube[tubed_rows]):
+                w = disturbance_wrench(source, target, o, opts)
+                u = authority_usage(target, w.force_N, w.torque_Nm)
+                better = u > best_u
+                best_u[better], best_f[better], best_t[better] = u[better], w.force_N[better], w.torque_Nm[better]
+            np.add.at(force, (tgt[tubed_rows], smp[tubed_rows]), best_f)
+            np.add.at(torque, (tgt[tubed_rows], smp[tubed_rows]), best_t)
+    for k, tname in enumerate(names):
+        usage = authority_usage(vehicles[k], force[k], torque[k])
+        over = maybe[k] & (usage > limit + USAGE_TOLERANCE)
         add_runs(
             out,
             t,
@@ -423,6 +514,26 @@ def _check_authority_tube(
             plan_t_s=plan.t_s,
         )
     return out
+
+
+def _has_tubed_pair(
+    plan, scenario, names, pos, t, z_m: np.ndarray, moving: np.ndarray, deflected: np.ndarray
+) -> np.ndarray:
+    """(N, M) True where a vehicle has a source above it (by more than 1e-6 m) with either of the
+    two moving, or the vehicle itself ``deflected`` (its tube is wider than zero), the pair not a
+    dock pair on its approach: counted over every vehicle."""
+    n_above = counts_above(z_m)
+    n_moving_above = counts_above(z_m, moving)
+    index = {k: i for i, k in enumerate(names)}
+    for name, task in scenario.vehicles.items():
+        if task.dock_with is None or name not in index or task.dock_with not in index:
+            continue
+        ex = dock_exempt(plan, scenario, name, task.dock_with, pos, t)
+        for a, b in ((index[name], index[task.dock_with]), (index[task.dock_with], index[name])):
+            gone = ex & (z_m[b] - z_m[a] > 1e-6)  # b above a, exempt: not a pair for the tube
+            n_above[a] -= gone
+            n_moving_above[a] -= gone & moving[b]
+    return ((moving | deflected) & (n_above > 0)) | (n_moving_above > 0)
 
 
 def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:

@@ -98,3 +98,52 @@ def test_one_source_overhead_is_s0_exactly() -> None:
 def test_shielding_parameter_is_checked() -> None:
     with pytest.raises(ValueError, match="stack_shielding"):
         ModelOptions(stack_shielding=3.5)
+
+
+def test_vectorised_factors_are_the_product_over_every_source_between() -> None:
+    """shielding_factors (vectorised, skipping triples that provably multiply by 1.0) equals the
+    definition s_j = prod_k max(1 - eta phi_jk, 0) over k between j and the target, evaluated one
+    (j, k) pair at a time, on random stacks of mixed vehicles."""
+    rng = np.random.default_rng(4)
+    kinds = [CF, BIG, BUILTIN_VEHICLES["small-quad"], BUILTIN_VEHICLES["large-quad"]]
+    sources = [kinds[i % 4] for i in range(7)]
+    offs = [np.column_stack([rng.uniform(-0.6, 0.6, (300, 2)), rng.uniform(-1.5, 0.3, 300)]) for _ in sources]
+    for eta in (0.7, 1.0, 2.5):
+        got = shielding_factors(offs, sources, eta)
+        for j, (oj, vj) in enumerate(zip(offs, sources)):
+            want = np.ones(300)
+            for k, (ok, vk) in enumerate(zip(offs, sources)):
+                if k == j:
+                    continue
+                between = (-oj[:, 2] > 1e-6) & (-ok[:, 2] > 1e-6)
+                phi = np.where(between, intercepted_flux_fraction(vj, vk, oj - ok), 0.0)
+                want *= np.maximum(1.0 - eta * phi, 0.0)
+            np.testing.assert_allclose(got[j], want, rtol=1e-14, atol=0.0)
+        assert min(float(f.min()) for f in got) < 0.9  # some sources are shielded
+
+
+def test_beyond_the_shielding_reach_the_factor_is_exactly_one() -> None:
+    from proxplan.physics.stack import shielding_reach_m
+
+    reach = shielding_reach_m(BIG, CF, 1.0, 1.2)
+    assert 0.1 < reach < 2.0
+    for dz in (0.05, 0.3, 0.8, 1.2):
+        off_up = np.array([[0.0, 0.0, -dz - 0.3]])
+        off_mid = np.array([[-reach * 1.001, 0.0, -0.3]])  # middle at the reach from the upper axis
+        assert shielding_factors([off_up, off_mid], [BIG, CF], 1.0)[0][0] == 1.0
+        assert intercepted_flux_fraction(BIG, CF, off_mid - off_up)[0] * 2.0**60 < 1.0
+    assert shielding_reach_m(BIG, CF, 1.0, 2.0) > reach > shielding_reach_m(BIG, CF, 1.0, 0.3)
+
+
+def test_pass_through_share_is_one_minus_eta_phi_to_the_last_bit() -> None:
+    """Where the bound skips phi, 1 - eta phi would have rounded to exactly 1.0 anyway."""
+    from proxplan.physics import pass_through_share
+
+    rng = np.random.default_rng(5)
+    off = np.column_stack([rng.uniform(-1.5, 1.5, (4000, 2)), rng.uniform(-2.0, 0.2, 4000)])
+    for upper, middle in ((BIG, CF), (CF, BUILTIN_VEHICLES["large-quad"])):
+        for eta in (0.5, 1.0, 3.0):
+            want = np.maximum(1.0 - eta * intercepted_flux_fraction(upper, middle, off), 0.0)
+            got = pass_through_share(upper, middle, off, eta)
+            np.testing.assert_array_equal(got, want)
+            assert 0.05 < float(np.mean(got < 1.0)) < 0.95  # both kinds of rows occur
