@@ -118,23 +118,23 @@ class PlanWrench:
             for g in np.unique(ks * nk + kt):
                 sel = np.flatnonzero(near & (ks * nk + kt == g))
                 near[sel] = grids[g // nk][g % nk].bound(hor[sel], dz[sel], dz[sel]) >= NEGLIGIBLE_USAGE
-        near = np.flatnonzero(near)
-        force, torque = self._pairs(tgt[near], src[near], smp[near], off[near], stack)
+        rows = np.flatnonzero(near)
+        force, torque = self._pairs(tgt[rows], src[rows], smp[rows], off[rows], stack)
         if not stack.any():
             return
         if not self.effects:
-            at_stack = stack[tgt[near], smp[near]]
-            self._stacks_shielded(tgt[near][at_stack], src[near][at_stack], smp[near][at_stack],
+            at_stack = stack[tgt[rows], smp[rows]]
+            self._stacks_shielded(tgt[rows][at_stack], src[rows][at_stack], smp[rows][at_stack],
                                   force[at_stack], torque[at_stack])  # fmt: skip
             return
         # effects: sources_wrench on each stack row with its sources in reach, those that may
         # shield one of them and those below within the effects' reach
         need = np.zeros((n, m), dtype=bool)
         low = np.flatnonzero((dz <= 0.0) & (hor <= below[ks, kt]))
-        need[tgt[near], smp[near]] = True
+        need[tgt[rows], smp[rows]] = True
         need[tgt[low], smp[low]] = True
         need &= stack
-        lead = near[need[tgt[near], smp[near]]]
+        lead = rows[need[tgt[rows], smp[rows]]]
         slot_t, slot_s, slot_m = [tgt[lead]], [src[lead]], [smp[lead]]
         if self.options.stack_shielding > 0.0:
             u, k, mm, _ = self._shield_pairs(tgt[lead], src[lead], smp[lead])
