@@ -177,25 +177,40 @@ def _swarm_plan(scenario: Scenario, *, seed: int, progress, deadline, optimize: 
     """(the swarm layer's plan (:func:`proxplan.planner.swarm.swarm_timed`), None) when it can plan
     the scenario and the verifier passes the plan; else (None, why not: a note for the sampling
     plan that replaces it)."""
-    from proxplan.planner.swarm import SearchGaveUp, SwarmOptions, swarm_applicable, swarm_timed
-    from proxplan.verify import verify_plan
+    from dataclasses import replace
+
+    from proxplan.planner.swarm import SearchGaveUp, SwarmOptions, swarm_applicable
 
     why = swarm_applicable(scenario)
     if why is not None:
         return None, f"swarm layer: not used, {why}; this is the sampling planner's plan"
     options = SwarmOptions(seed=seed, passes=SwarmOptions.passes + (OPTIMIZE_EXTRA_PASSES if optimize else 0))
+    method = "optimized" if optimize else "roadmap"
     try:
-        timed, info = swarm_timed(scenario, options, progress=progress, deadline=deadline)
+        plan, bad = _swarm_attempt(scenario, options, method, seed=seed, progress=progress, deadline=deadline)
+        if bad:
+            # the verifier grows a disturbed vehicle's tube by its predicted deflection; plan again
+            # with every keep-out grown by twice the largest one of the first plan (a pair's growth
+            # is the sum of its two vehicles' deflections)
+            extra = deflection_allowance(plan, scenario)
+            if extra:
+                grow_m = 2.0 * max(extra.values())
+                again, bad_again = _swarm_attempt(
+                    scenario,
+                    replace(options, deflection_m=grow_m),
+                    method,
+                    seed=seed,
+                    progress=progress,
+                    deadline=deadline,
+                )
+                if not bad_again:
+                    again.notes.append(
+                        f"swarm layer: keep-outs grown by {100 * grow_m:.1f} cm for the predicted deflections "
+                        f"(the first plan failed verification: {bad[0]})"
+                    )
+                    plan, bad = again, bad_again
     except SearchGaveUp as err:
         return None, f"swarm layer: {err.message}; this is the sampling planner's plan"
-    plan = assemble_plan(
-        scenario, timed, method="optimized" if optimize else "roadmap", notes=list(scenario.load_notes)
-    )
-    plan.notes.append(f"swarm layer: {info['coordination']}")
-    plan.metrics["swarm"] = info
-    plan.metrics["lower_bound_s"] = info["lower_bound_s"]
-    plan.metrics["seed"] = seed
-    bad = verify_plan(plan, scenario)
     if bad:
         return None, f"swarm layer: plan failed verification ({bad[0]}); this is the sampling planner's plan"
     plan.metrics["verify_violations"] = 0
@@ -203,6 +218,20 @@ def _swarm_plan(scenario: Scenario, *, seed: int, progress, deadline, optimize: 
 
 
 OPTIMIZE_EXTRA_PASSES = 5  # continuous re-timing passes that ``optimized`` adds for swarms
+
+
+def _swarm_attempt(scenario: Scenario, options, method: str, *, seed: int, progress, deadline) -> tuple[Plan, list]:
+    """The swarm layer's plan with ``options`` and what the verifier says of it (SearchGaveUp passes)."""
+    from proxplan.planner.swarm import swarm_timed
+    from proxplan.verify import verify_plan
+
+    timed, info = swarm_timed(scenario, options, progress=progress, deadline=deadline)
+    plan = assemble_plan(scenario, timed, method=method, notes=list(scenario.load_notes))
+    plan.notes.append(f"swarm layer: {info['coordination']}")
+    plan.metrics["swarm"] = info
+    plan.metrics["lower_bound_s"] = info["lower_bound_s"]
+    plan.metrics["seed"] = seed
+    return plan, verify_plan(plan, scenario)
 
 
 def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress, time_budget_s: float | None = None) -> Plan:

@@ -13,7 +13,8 @@ invalid-zone rule (:func:`proxplan.planner.checks.constraints.cutoff_table`, the
 |d_z| <= w both directions apply. w = tracking tube ``limits.tracking_margin_m`` + ``sample_m`` (a
 growth that covers how positions are compared: whole millimetres in the synchronous table,
 :data:`proxplan.planner.swarm.problem.GROWTH_M`); at rest (both vehicles hold still) w = 0, as
-the verifier leaves the tube out for resting pairs.
+the verifier leaves the tube out for resting pairs. A pair's predicted deflections (a vehicle
+pushed off its plan by the downwash it flies in) grow both, as in the verifier.
 """
 
 from __future__ import annotations
@@ -83,8 +84,12 @@ class KeepOut:
         return hit | (r2 < rc * rc)
 
 
-def keepout_for(vehicle_a, vehicle_b, *, limits, field_form: str | None, effects: tuple, sample_m: float) -> KeepOut:
-    """The :class:`KeepOut` of physics vehicles (a, b) under scenario ``limits``."""
+def keepout_for(
+    vehicle_a, vehicle_b, *, limits, field_form: str | None, effects: tuple, sample_m: float, deflection_m: float = 0.0
+) -> KeepOut:
+    """The :class:`KeepOut` of physics vehicles (a, b) under scenario ``limits``; ``deflection_m``
+    (m) grows it moving and at rest alike (the two vehicles' predicted deflections: a disturbed
+    vehicle is off its plan at rest too, as the verifier counts it)."""
     from proxplan.planner.checks.constraints import cutoff_table
 
     level = limits.authority_fraction
@@ -95,8 +100,8 @@ def keepout_for(vehicle_a, vehicle_b, *, limits, field_form: str | None, effects
         vehicle_b, vehicle_a, level=level, rule=limits.invalid_zone_rule, field_form=field_form, effects=effects
     )
     sep = max(limits.min_separation_m, vehicle_a.body_radius_m + vehicle_b.body_radius_m)
-    w_move = float(limits.tracking_margin_m) + sample_m
-    w_rest = 0.0
+    w_move = float(limits.tracking_margin_m) + sample_m + deflection_m
+    w_rest = deflection_m
     r_ab, r_ba = np.asarray(ab.r_cut_m), np.asarray(ba.r_cut_m)
     return KeepOut(
         separation_m=float(sep),

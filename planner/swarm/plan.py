@@ -60,6 +60,7 @@ class SwarmOptions:
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
     max_restarts: int = 2  # re-orderings of the prioritised planning, per order and waiting time
     seed: int = 0
+    deflection_m: float = 0.0  # every keep-out grown by this (the vehicles' predicted deflections), m
 
 
 def swarm_timed(
@@ -76,7 +77,7 @@ def swarm_timed(
     if why is not None:
         raise ValueError(f"the swarm layer cannot plan this scenario: {why}")
     t0 = time.perf_counter()
-    problem = swarm_problem(scenario)
+    problem = swarm_problem(scenario, deflection_m=opts.deflection_m)
     info: dict = {"lower_bound_s": lower_bound_makespan_s(scenario), "vehicles": problem.n_agents}
     conflicts = straight_step_conflicts(problem)
     configurations = None

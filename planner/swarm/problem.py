@@ -83,9 +83,11 @@ def swarm_applicable(scenario: Scenario) -> str | None:
     return None
 
 
-def swarm_problem(scenario: Scenario, goals_m: np.ndarray | None = None) -> SwarmProblem:
+def swarm_problem(scenario: Scenario, goals_m: np.ndarray | None = None, *, deflection_m: float = 0.0) -> SwarmProblem:
     """The :class:`SwarmProblem` of ``scenario`` (``goals_m`` (A, 3) overrides the goals, e.g. an
-    assignment); hovering vehicles keep their start as goal and are pinned."""
+    assignment); hovering vehicles keep their start as goal and are pinned. ``deflection_m`` (m)
+    grows every keep-out, moving and at rest (predicted deflections of the vehicles, see
+    :func:`~proxplan.planner.swarm.keepout.keepout_for`)."""
     from proxplan.costmaps import effects_key
     from proxplan.planner.checks.constraints import build_checker
 
@@ -102,7 +104,13 @@ def swarm_problem(scenario: Scenario, goals_m: np.ndarray | None = None) -> Swar
     fx = effects_key(getattr(scenario, "effects", ()))
     keep = {
         (ia, ib): keepout_for(
-            va, vb, limits=scenario.limits, field_form=scenario.field_form, effects=fx, sample_m=GROWTH_M
+            va,
+            vb,
+            limits=scenario.limits,
+            field_form=scenario.field_form,
+            effects=fx,
+            sample_m=GROWTH_M,
+            deflection_m=deflection_m,
         )
         for ia, va in enumerate(vehicles)
         for ib, vb in enumerate(vehicles)

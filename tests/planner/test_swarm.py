@@ -207,3 +207,18 @@ def test_verify_rejects_a_plan_whose_timing_breaks_the_order():
     broken = replace(plan, vehicles=vehicles)
     kinds = {v.kind for v in verify_plan(broken, sc)}
     assert kinds & {"separation", "authority", "authority-tube", "invalid-zone"}
+
+
+def test_predicted_deflections_grow_the_keepout_moving_and_at_rest():
+    doc = grid_reshuffle(4, types=["crazyflie-2.1"])
+    plain = swarm_problem(_scenario(doc))
+    grown = swarm_problem(_scenario(doc), deflection_m=0.03)
+    ko, kg = plain.keepouts[(0, 0)], grown.keepouts[(0, 0)]
+    for rest in (True, False):
+        w = ko.w_rest_m if rest else ko.w_move_m
+        edge = ko.separation_m + w + 0.015  # outside the plain keep-out, inside the one grown by 3 cm
+        d = np.array([[edge, 0.0, 0.0]])
+        assert not ko.conflict(d, rest=rest)[0] and kg.conflict(d, rest=rest)[0]
+        far = np.array([[edge + 0.03, 0.0, 0.0]])
+        assert not kg.conflict(far, rest=rest)[0]
+    assert grown.reach_xy_m == pytest.approx(plain.reach_xy_m + 0.03)
