@@ -108,7 +108,9 @@ def _run(cmd: list[str], timeout_s: float) -> tuple[float, int | None, float, st
     """Wall time (s), exit code (None: timed out), child peak RSS (MB) and stdout."""
     t0 = time.perf_counter()
     with tempfile.TemporaryFile() as out:
-        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.DEVNULL, cwd=ROOT)
+        # run outside the repository: from its root, ``import proxplan`` would find the checkout's
+        # own folder first and a baseline interpreter would run this checkout's code
+        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.DEVNULL, cwd=tempfile.gettempdir())
         timed_out = False
         while True:
             pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
