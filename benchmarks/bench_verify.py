@@ -35,7 +35,6 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
 FINE_DT_S = 0.01  # verify's default grid, s
 
 
