@@ -3,8 +3,9 @@ more): coordinate jointly on a lattice, fly in continuous time.
 
 1. *Straight first* (:mod:`proxplan.planner.swarm.straight`): if every vehicle can fly its straight
    line at once, synchronised (one step, checked exactly pair by pair), that is the plan (the CAPT
-   case of interchangeable goals). Otherwise the largest set found greedily that can keeps its
-   straight lines.
+   case of interchangeable goals). (Keeping the straight lines of the vehicles in no conflicting
+   pair and planning the rest around them was tried: it fails where a kept line passes a waiting
+   vehicle's start, and gained nothing on the benchmark layouts.)
 2. *Continuous time, prioritised* (:mod:`proxplan.planner.swarm.prioritized`): one vehicle after
    another, each along the best of its straight line and a wavefront route through the others'
    space-time, timed exactly; a vehicle that cannot be planned moves to the front. Two orders are
