@@ -29,11 +29,15 @@ class _Edge:
     """Samples of one rest-to-rest straight motion: relative times (M,), s, and positions (M, 3), m."""
 
     def __init__(self, p0: np.ndarray, p1: np.ndarray, limits: KinematicLimits, dt_s: float):
-        dist = float(np.linalg.norm(p1 - p0))
+        if float(np.linalg.norm(p1 - p0)) <= 0.0:  # start at the goal: no motion, arrival at departure
+            self.duration_s = 0.0
+            self.t = np.zeros(1)
+            self.p = np.asarray(p0, dtype=float)[None].copy()
+            return
         traj = ruckig_segment(p0, p1, limits)
         self.duration_s = float(traj.duration)
         self.t = np.append(np.arange(dt_s, self.duration_s, dt_s), self.duration_s)
-        self.p = np.array([traj.at_time(float(t))[0] for t in self.t]) if dist > 0 else np.repeat(p0[None], 1, 0)
+        self.p = np.array([traj.at_time(float(t))[0] for t in self.t])
 
 
 def roadmap_search(

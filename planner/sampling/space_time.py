@@ -214,7 +214,9 @@ class _Planner:
             p = np.asarray(p, dtype=float)
             if all(float(np.linalg.norm(p - q)) > 1e-6 for q in out) or p is pts[-1]:
                 out.append(p)
-        return [q for k, q in enumerate(out) if k == len(out) - 1 or float(np.linalg.norm(q - end)) > 1e-6]
+        # the start stays node 0 even where it is the goal (a vehicle that stays put); other copies
+        # of the goal go, the goal stays last
+        return [q for k, q in enumerate(out) if k in (0, len(out) - 1) or float(np.linalg.norm(q - end)) > 1e-6]
 
     def direct(self, start: np.ndarray, goal: GoalSpec) -> SpaceTimePath | None:
         """Earliest arrival over a small roadmap with waits (:func:`proxplan.planner.sampling.roadmap.roadmap_search`);

@@ -182,3 +182,26 @@ def test_same_seed_same_plan(tmp_path):
     a = _plan_in_subprocess(tmp_path, 3, "a")
     b = _plan_in_subprocess(tmp_path, 3, "b")
     assert a == b
+
+
+def test_a_vehicle_whose_goal_is_its_start_starts_there_when_it_must_dodge():
+    """The waiting search's roadmap keeps the start as node 0 even where it is the goal (it once
+    dropped it with the goal's duplicates, and the plan began at a dodge point 0.3 m away)."""
+    from proxplan.planner import plan_scenario
+    from proxplan.verify import verify_plan
+
+    doc = {
+        "name": "stay-and-pass",
+        "workspace": {"min": [-2.0, -2.0, 0.0], "max": [2.0, 2.0, 3.0]},
+        "limits": {"authority_fraction": 0.3, "min_separation_m": 0.25},
+        "vehicles": {
+            "runner": {"type": "crazyflie-2.1", "start": [-1.2, 0.0, 1.5], "goal": [1.2, 0.0, 1.5]},
+            "stayer": {"type": "crazyflie-2.1", "start": [0.0, 0.0, 1.5], "goal": [0.0, 0.0, 1.5]},
+        },
+    }
+    scenario = scenario_from_dict(doc, label="stay-and-pass")
+    plan = plan_scenario(scenario, method="sampling", seed=0)
+    stayer = plan.vehicles["stayer"]
+    assert np.allclose(stayer.position_m[0], [0.0, 0.0, 1.5], atol=1e-6)
+    assert np.allclose(stayer.position_m[-1], [0.0, 0.0, 1.5], atol=0.05)
+    assert verify_plan(plan, scenario) == []
