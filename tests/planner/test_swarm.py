@@ -222,3 +222,26 @@ def test_predicted_deflections_grow_the_keepout_moving_and_at_rest():
         far = np.array([[edge + 0.03, 0.0, 0.0]])
         assert not kg.conflict(far, rest=rest)[0]
     assert grown.reach_xy_m == pytest.approx(plain.reach_xy_m + 0.03)
+
+
+def test_a_lattice_plan_in_lockstep_gives_way_to_a_shorter_verified_sampling_plan(monkeypatch):
+    """Where prioritised planning gives up, the swarm layer's answer is the lattice plan flown in
+    lock-step; the pipeline also runs the sampling planner and keeps the shorter verified plan."""
+    from dataclasses import dataclass
+
+    import proxplan.planner.swarm as swarm
+    from proxplan.planner import plan_scenario
+    from proxplan.planner.optimizer.acceptance import moving_end_s
+
+    @dataclass(frozen=True)
+    class LatticeOnly(swarm.SwarmOptions):
+        prioritized: bool = False  # straight to the lattice coordination, as when PP gives up
+
+    monkeypatch.setattr(swarm, "SwarmOptions", LatticeOnly)
+    scenario = _scenario(grid_reshuffle(16))
+    plan = plan_scenario(scenario, method="roadmap", seed=0)
+    assert plan.metrics["swarm"]["coordination"].startswith("LaCAM")
+    lattice_s = plan.metrics["swarm"]["makespan_s"]
+    assert verify_plan(plan, scenario) == []
+    assert moving_end_s(plan) <= lattice_s + plan.dt_s + 1e-9  # the plan grid rounds up by < one step
+    assert any("sampling planner" in n for n in plan.notes)  # tried, whichever was kept
