@@ -40,6 +40,72 @@ class _Edge:
         self.p = np.array([traj.at_time(float(t))[0] for t in self.t])
 
 
+def detour_paths(start: np.ndarray, end: np.ndarray, boxes, *, clearance_m: float) -> list[np.ndarray]:
+    """Candidate geometric paths (K, 3), m, from ``start`` to ``end``: the straight line, lane
+    changes at either end (fly level at the start's height, change height at the goal, or the
+    other way round), and for every inflated obstacle box of ``boxes`` ((min xyz, max xyz), m) the
+    straight line passes through, a rectangular bypass on either side of it (two via points
+    ``clearance_m`` outside the box's horizontal half-diagonal) and a one-via bypass."""
+    paths = [np.array([start, end])]
+    if abs(end[2] - start[2]) > 0.05:
+        paths.append(np.array([start, [end[0], end[1], start[2]], end]))
+        paths.append(np.array([start, [start[0], start[1], end[2]], end]))
+        paths.append(np.array([start, [end[0], start[1], start[2]], end]))
+        paths.append(np.array([start, [start[0], end[1], end[2]], end]))
+    d = end[:2] - start[:2]
+    length = float(np.linalg.norm(d))
+    if length < 1e-6 or not boxes:
+        return paths
+    u = d / length
+    n = np.array([-u[1], u[0]])
+    f = np.linspace(0.0, 1.0, max(2, int(math.ceil(float(np.linalg.norm(end - start)) / 0.02))))
+    pts = start + f[:, None] * (end - start)
+    for b in boxes:
+        lo, hi = np.array(b[:3]), np.array(b[3:])
+        if not np.all((pts >= lo) & (pts <= hi), axis=1).any():
+            continue
+        c = 0.5 * (lo[:2] + hi[:2])
+        half = 0.5 * float(np.linalg.norm(hi[:2] - lo[:2])) + clearance_m
+        along = float(np.dot(c - start[:2], u))
+        lateral = float(np.dot(c - start[:2], n))
+
+        def via(s_m: float, lat_m: float) -> np.ndarray:
+            s_m = min(max(s_m, 0.0), length)
+            xy = start[:2] + u * s_m + n * lat_m
+            return np.array([xy[0], xy[1], start[2] + (end[2] - start[2]) * s_m / length])
+
+        for side in (1.0, -1.0):
+            lat = lateral + side * half
+            paths.append(np.array([start, via(along - half, lat), via(along + half, lat), end]))
+            paths.append(np.array([start, via(along, lateral + side * 2.0 * half), end]))
+    return paths
+
+
+def roadmap_nodes(start: np.ndarray, end: np.ndarray, boxes, *, dodge_m: float, clearance_m: float) -> list[np.ndarray]:
+    """Nodes of the waiting search, m: the start (node 0, even where it is the goal: a vehicle that
+    stays put), the via points of :func:`detour_paths`, axis-aligned corners, dodge points
+    ``dodge_m`` beside and above/below the start and the goal, and the goal (last); duplicates
+    removed."""
+    pts = [start]
+    for path in detour_paths(start, end, boxes, clearance_m=clearance_m):
+        pts.extend(path[1:-1])
+    for z in (start[2], end[2]):  # axis-aligned corners (corridors, junctions)
+        pts.extend([np.array([start[0], end[1], z]), np.array([end[0], start[1], z])])
+    d = end[:2] - start[:2]
+    n = np.array([-d[1], d[0], 0.0]) / max(float(np.linalg.norm(d)), 1e-9)
+    zhat = np.array([0.0, 0.0, 1.0])
+    for anchor in (start, end):
+        for v in (n, -n, zhat, -zhat):
+            pts.append(anchor + dodge_m * v)
+    pts.append(end)
+    out: list[np.ndarray] = []
+    for p in pts:
+        p = np.asarray(p, dtype=float)
+        if all(float(np.linalg.norm(p - q)) > 1e-6 for q in out) or p is pts[-1]:
+            out.append(p)
+    return [q for k, q in enumerate(out) if k in (0, len(out) - 1) or float(np.linalg.norm(q - end)) > 1e-6]
+
+
 def roadmap_search(
     batch: BatchChecker,
     limits: KinematicLimits,

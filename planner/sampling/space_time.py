@@ -36,7 +36,7 @@ import numpy as np
 from proxplan.physics import KinematicLimits
 from proxplan.planner.checks.constraints import ConflictChecker
 from proxplan.planner.checks.validity import BatchChecker
-from proxplan.planner.sampling.roadmap import roadmap_search
+from proxplan.planner.sampling.roadmap import roadmap_nodes, roadmap_search
 from proxplan.planner.sampling.spec import GoalSpec, SamplingOptions, SpaceTimePath
 from proxplan.planner.sampling.termination import IterationBudget, seed_ompl_once
 from proxplan.planner.timing.durations import DurationTable, duration_table
@@ -153,71 +153,6 @@ class _Planner:
         return times
 
     # -- direct paths (before the search) ---------------------------------------------------------
-    def detours(self, start: np.ndarray, end: np.ndarray) -> list[np.ndarray]:
-        """Candidate geometric paths (K, 3), m: the straight line and, for every inflated obstacle
-        the straight line passes through, a rectangular bypass on either side of it (two via points
-        ``detour_clearance_m`` outside the obstacle's horizontal half-diagonal) and a one-via bypass."""
-        paths = [np.array([start, end])]
-        # lane changes at either end: fly level (start height, start lateral lane) and change lane
-        # at the goal, or change lane first and fly level in the goal's lane
-        if abs(end[2] - start[2]) > 0.05:
-            paths.append(np.array([start, [end[0], end[1], start[2]], end]))
-            paths.append(np.array([start, [start[0], start[1], end[2]], end]))
-            paths.append(np.array([start, [end[0], start[1], start[2]], end]))
-            paths.append(np.array([start, [start[0], end[1], end[2]], end]))
-        d = end[:2] - start[:2]
-        length = float(np.linalg.norm(d))
-        if length < 1e-6 or not self.checker.boxes:
-            return paths
-        u = d / length
-        n = np.array([-u[1], u[0]])
-        f = np.linspace(0.0, 1.0, max(2, int(math.ceil(float(np.linalg.norm(end - start)) / 0.02))))
-        pts = start + f[:, None] * (end - start)
-        for b in self.checker.boxes:
-            lo, hi = np.array(b[:3]), np.array(b[3:])
-            if not np.all((pts >= lo) & (pts <= hi), axis=1).any():
-                continue
-            c = 0.5 * (lo[:2] + hi[:2])
-            half = 0.5 * float(np.linalg.norm(hi[:2] - lo[:2])) + self.opts.detour_clearance_m
-            along = float(np.dot(c - start[:2], u))
-            lateral = float(np.dot(c - start[:2], n))
-
-            def via(s_m: float, lat_m: float) -> np.ndarray:
-                s_m = min(max(s_m, 0.0), length)
-                xy = start[:2] + u * s_m + n * lat_m
-                return np.array([xy[0], xy[1], start[2] + (end[2] - start[2]) * s_m / length])
-
-            for side in (1.0, -1.0):
-                lat = lateral + side * half
-                paths.append(np.array([start, via(along - half, lat), via(along + half, lat), end]))
-                paths.append(np.array([start, via(along, lateral + side * 2.0 * half), end]))
-        return paths
-
-    def roadmap_nodes(self, start: np.ndarray, end: np.ndarray, *, scale: float = 1.0) -> list[np.ndarray]:
-        """Nodes of the waiting search: start, the via points of :meth:`detours`, dodge points
-        ``scale x dodge_m`` beside and above/below the start and the goal, goal (duplicates removed)."""
-        pts = [start]
-        for path in self.detours(start, end):
-            pts.extend(path[1:-1])
-        for z in (start[2], end[2]):  # axis-aligned corners (corridors, junctions)
-            pts.extend([np.array([start[0], end[1], z]), np.array([end[0], start[1], z])])
-        d = end[:2] - start[:2]
-        n = np.array([-d[1], d[0], 0.0]) / max(float(np.linalg.norm(d)), 1e-9)
-        zhat = np.array([0.0, 0.0, 1.0])
-        off = self.opts.dodge_m * scale
-        for anchor in (start, end):
-            for v in (n, -n, zhat, -zhat):
-                pts.append(anchor + off * v)
-        pts.append(end)
-        out: list[np.ndarray] = []
-        for p in pts:
-            p = np.asarray(p, dtype=float)
-            if all(float(np.linalg.norm(p - q)) > 1e-6 for q in out) or p is pts[-1]:
-                out.append(p)
-        # the start stays node 0 even where it is the goal (a vehicle that stays put); other copies
-        # of the goal go, the goal stays last
-        return [q for k, q in enumerate(out) if k in (0, len(out) - 1) or float(np.linalg.norm(q - end)) > 1e-6]
-
     def direct(self, start: np.ndarray, goal: GoalSpec) -> SpaceTimePath | None:
         """Earliest arrival over a small roadmap with waits (:func:`proxplan.planner.sampling.roadmap.roadmap_search`);
         None when the goal cannot be reached that way (the RRT search follows)."""
@@ -234,7 +169,13 @@ class _Planner:
                 self.batch,
                 self.limits,
                 self.durations,
-                self.roadmap_nodes(start, end, scale=scale),
+                roadmap_nodes(
+                    start,
+                    end,
+                    self.checker.boxes,
+                    dodge_m=self.opts.dodge_m * scale,
+                    clearance_m=self.opts.detour_clearance_m,
+                ),
                 hold_from_s=hold_from,
                 horizon_s=self.horizon_s,
                 step_s=self.opts.direct_delay_step_s,

@@ -205,3 +205,13 @@ def test_a_vehicle_whose_goal_is_its_start_starts_there_when_it_must_dodge():
     assert np.allclose(stayer.position_m[0], [0.0, 0.0, 1.5], atol=1e-6)
     assert np.allclose(stayer.position_m[-1], [0.0, 0.0, 1.5], atol=0.05)
     assert verify_plan(plan, scenario) == []
+
+
+def test_roadmap_nodes_start_first_goal_last_even_when_they_coincide():
+    from proxplan.planner.sampling.roadmap import roadmap_nodes
+
+    p = np.array([0.0, 0.0, 1.5])
+    for end in (p, np.array([1.0, 0.5, 1.5])):
+        nodes = roadmap_nodes(p, end, [], dodge_m=0.3, clearance_m=0.15)
+        assert np.allclose(nodes[0], p) and np.allclose(nodes[-1], end)
+        assert not any(np.allclose(q, end) for q in nodes[1:-1])  # no other copy of the goal
