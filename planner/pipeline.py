@@ -90,7 +90,7 @@ def plan_scenario(
     )
     if (
         plan is not None
-        and str(plan.metrics["swarm"].get("coordination", "")).startswith("LaCAM")
+        and plan.metrics["swarm"]["stage"] == "lattice"
         and len(scenario.vehicles) <= SAMPLING_ALTERNATIVE_MAX_VEHICLES
     ):
         plan = _shorter_with_sampling(

@@ -18,7 +18,8 @@ more): coordinate jointly on a lattice, fly in continuous time.
 4. *Re-timing*: Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`), every vehicle against
    the others' tracks in a space-time neighbourhood; never worse, always conflict-free.
 
-The caller (the pipeline) runs the independent verifier on the result as on every plan. Bounds in
+The caller (the pipeline) runs the independent verifier on the result as on every plan. The info
+names the ``stage`` that produced the tracks ("straight", "prioritised" or "lattice"); bounds in
 the info: ``lower_bound_s`` (largest straight-line rest-to-rest time of any vehicle) and the
 makespans after each stage.
 """
@@ -88,6 +89,7 @@ def swarm_timed(
         straight = straight_tracks(problem, list(range(problem.n_agents)))
         tracks = [straight[a] for a in range(problem.n_agents)]
         info["coordination"] = "one synchronised straight step"
+        info["stage"] = "straight"
     elif opts.prioritized:
         horizon = int(round(max(4.0 * info["lower_bound_s"], info["lower_bound_s"] + 20.0) / GRID_DT_S))
         t1 = time.perf_counter()
@@ -114,6 +116,7 @@ def swarm_timed(
             tried.append(f"{label}: {makespan:.2f} s")
             if tracks is None or makespan < max(tr.arrival_s for tr in tracks):
                 tracks = [planned[a] for a in range(problem.n_agents)]
+                info["stage"] = "prioritised"
                 info["coordination"] = (
                     f"prioritised continuous planning, {label} ({counts['orders_tried']} attempt(s), "
                     f"vehicles wait at their starts at most {counts['leave_start_s']:g} s)"
@@ -135,6 +138,7 @@ def swarm_timed(
             max_nodes=opts.max_nodes, deadline=deadline, progress=progress
         )
         configurations = result.configurations
+        info["stage"] = "lattice"  # flown in lock-step
         info["coordination"] = (
             f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
         )
