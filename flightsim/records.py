@@ -80,26 +80,27 @@ class SimulationResult:
 
 
 LOGGED = {
-    "x": (3,),  # position, m
-    "v": (3,),  # velocity, m/s
-    "a": (3,),  # acceleration, m/s^2
-    "q": (4,),  # attitude [x, y, z, w]
-    "w": (3,),  # body rates, rad/s
-    "rx": (3,),  # the plan's position, m
-    "rv": (3,),  # the plan's velocity, m/s
-    "sx": (3,),  # the position set-point, m
-    "f": (4,),  # motor thrusts, N
-    "fc": (4,),  # commanded motor thrusts, N
-    "T": (),  # collective thrust command, N
-    "M": (3,),  # moment command, N m
-    "acc": (3,),  # IMU specific force, m/s^2
-    "gyr": (3,),  # IMU gyro, rad/s
-    "Fa": (3,),  # applied force, N
-    "Ta": (3,),  # applied torque, N m
-    "Fm": (3,),  # base-model force, N
-    "Tm": (3,),  # base-model torque, N m
+    "position_m": (3,),  # position, m
+    "velocity_mps": (3,),  # velocity, m/s
+    "acceleration_mps2": (3,),  # acceleration, m/s^2
+    "q_xyzw": (4,),  # attitude [x, y, z, w]
+    "w_body_radps": (3,),  # body rates, rad/s
+    "ref_position_m": (3,),  # the plan's position, m
+    "ref_velocity_mps": (3,),  # the plan's velocity, m/s
+    "setpoint_position_m": (3,),  # the position set-point, m
+    "motor_thrust_N": (4,),  # motor thrusts, N
+    "cmd_motor_thrust_N": (4,),  # commanded motor thrusts, N
+    "cmd_thrust_N": (),  # collective thrust command, N
+    "cmd_moment_Nm": (3,),  # moment command, N m
+    "accel_meas_body_mps2": (3,),  # IMU specific force, m/s^2
+    "gyro_meas_radps": (3,),  # IMU gyro, rad/s
+    "applied_force_N": (3,),  # applied force, N
+    "applied_torque_Nm": (3,),  # applied torque, N m
+    "model_force_N": (3,),  # base-model force, N
+    "model_torque_Nm": (3,),  # base-model torque, N m
 }
-"""Arrays of :class:`FlightLog`, key -> shape per vehicle and sample (units in the comments)."""
+"""Arrays of :class:`FlightLog`, named as the :class:`VehicleRecord` fields they fill -> shape per
+vehicle and sample."""
 
 
 class FlightLog:
@@ -122,30 +123,12 @@ class FlightLog:
 
     def record(self, vi: int, name: str, type_name: str, vehicle: Vehicle, t_s: np.ndarray, **extra) -> VehicleRecord:
         """Vehicle ``vi``'s :class:`VehicleRecord` (``extra``: the optional fields)."""
-        r = {key: arr[:, vi] for key, arr in self.arrays.items()}
         return VehicleRecord(
             name=name,
             type_name=type_name,
             vehicle=vehicle,
             t_s=t_s,
-            position_m=r["x"],
-            velocity_mps=r["v"],
-            acceleration_mps2=r["a"],
-            q_xyzw=r["q"],
-            w_body_radps=r["w"],
-            ref_position_m=r["rx"],
-            ref_velocity_mps=r["rv"],
-            motor_thrust_N=r["f"],
-            cmd_motor_thrust_N=r["fc"],
-            cmd_thrust_N=r["T"],
-            cmd_moment_Nm=r["M"],
             saturated=self.saturated[:, vi],
-            accel_meas_body_mps2=r["acc"],
-            gyro_meas_radps=r["gyr"],
-            applied_force_N=r["Fa"],
-            applied_torque_Nm=r["Ta"],
-            model_force_N=r["Fm"],
-            model_torque_Nm=r["Tm"],
-            setpoint_position_m=r["sx"],
+            **{key: arr[:, vi] for key, arr in self.arrays.items()},
             **extra,
         )

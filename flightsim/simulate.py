@@ -220,10 +220,13 @@ def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
             if k % flight.log_every == 0:
                 i = k // flight.log_every
                 log.put(
-                    i, x=s[:, 0:3], v=s[:, 3:6], a=stepper.accel_mps2, q=s[:, 6:10], w=s[:, 10:13],
-                    rx=refs.plan_position_m[k], rv=refs.plan_velocity_mps[k], sx=setpoints[k][:, 0:3],
-                    f=k_eta * s[:, 13:17] ** 2, fc=stepper.cmd_thrust_N, T=stepper.ctbm[:, 0], M=stepper.ctbm[:, 1:4],
-                    Fa=buf_f[:, j] + flight.extra_force_N[k], Ta=buf_t[:, j],
+                    i, position_m=s[:, 0:3], velocity_mps=s[:, 3:6], acceleration_mps2=stepper.accel_mps2,
+                    q_xyzw=s[:, 6:10], w_body_radps=s[:, 10:13],
+                    ref_position_m=refs.plan_position_m[k], ref_velocity_mps=refs.plan_velocity_mps[k],
+                    setpoint_position_m=setpoints[k][:, 0:3],
+                    motor_thrust_N=k_eta * s[:, 13:17] ** 2, cmd_motor_thrust_N=stepper.cmd_thrust_N,
+                    cmd_thrust_N=stepper.ctbm[:, 0], cmd_moment_Nm=stepper.ctbm[:, 1:4],
+                    applied_force_N=buf_f[:, j] + flight.extra_force_N[k], applied_torque_Nm=buf_t[:, j],
                 )  # fmt: skip
                 log.saturated[i] = stepper.saturated > 0.5
             acc_est = (stepper.next_state[:, 3:6] - s[:, 3:6]) / dt
@@ -253,26 +256,32 @@ def _result(
 ) -> SimulationResult:
     """IMU samples and the base-model wrench added to the log, records and notes assembled."""
     arr = log.arrays
-    n_logged = arr["x"].shape[0]
+    n_logged = arr["position_m"].shape[0]
     every = flight.log_every
     rng = np.random.default_rng(options.seed)
     for vi in range(len(flight.names)):
-        arr["acc"][:, vi], arr["gyr"][:, vi] = imu_samples(
-            arr["q"][:, vi],
-            arr["w"][:, vi],
-            arr["a"][:, vi],
+        arr["accel_meas_body_mps2"][:, vi], arr["gyro_meas_radps"][:, vi] = imu_samples(
+            arr["q_xyzw"][:, vi],
+            arr["w_body_radps"][:, vi],
+            arr["acceleration_mps2"][:, vi],
             options=options.imu,
             rng=rng,
             with_noise=options.imu_noise,
         )
     if flight.effects:  # base-model part of the applied wrench at the logged states
         for vi in range(len(flight.names)):
-            arr["Fm"][:, vi], arr["Tm"][:, vi] = wrench_on(
-                vi, arr["x"], arr["v"][:, vi], flight.vehicles, (), flight.model_options, options.ground_z_m
+            arr["model_force_N"][:, vi], arr["model_torque_Nm"][:, vi] = wrench_on(
+                vi,
+                arr["position_m"],
+                arr["velocity_mps"][:, vi],
+                flight.vehicles,
+                (),
+                flight.model_options,
+                options.ground_z_m,
             )
     else:
-        arr["Fm"][:] = arr["Fa"] - flight.extra_force_N[::every][:n_logged]
-        arr["Tm"][:] = arr["Ta"]
+        arr["model_force_N"][:] = arr["applied_force_N"] - flight.extra_force_N[::every][:n_logged]
+        arr["model_torque_Nm"][:] = arr["applied_torque_Nm"]
     t_log = (flight.t_grid_s[::every] - flight.t0_s)[:n_logged]
     records = {
         name: log.record(
