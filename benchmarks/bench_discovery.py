@@ -1,102 +1,421 @@
-"""Speed of ``proxplan identify`` WITH the discovery of unnamed terms on one hour of 100 Hz logs of
-two vehicles (issue 13: < 60 s).
+"""Discovery benchmark (issue 35): does ``proxplan identify`` find what is in the data, and only that?
 
-Generates (untimed) ``--flights`` x ``--minutes-per-flight`` of measurement-level synthetic logs of
-two small quads, the lower one sweeping under the upper one, with a hidden force no library effect
-names (F_z = -0.6 N s/m |v_rel,xy| exp(-(r / 0.8 L)^2 - dz / 6 L) under a source: a swept wake).
-Times, in the same run: the pipeline without discovery (baseline), the pipeline with it, and the
-discovery stage alone; prints the ratios and what was discovered.
+Generated logs (measurement-level, :func:`proxplan.identify.synthetic_logs`) of 2-3 vehicles of mixed
+types (small-quad 145 g, large-quad 650 g, the two Crazyflie types) flying random smooth motions that
+stack, cross and swap them (and sometimes dip near the ground), with the imperfections of real logs in
+EVERY set, clean or not: accelerometer and motor noise, a thrust-map error per vehicle type (the logged
+thrust off by up to +-5 %), and in half the sets commanded motor thrust through the motors' lag.
 
-    python benchmarks/bench_discovery.py [--minutes-per-flight 10] [--flights 6] [--data DIR]
+Each DRAW hides an undeclared effect drawn at random from families broader than the unit tests':
+
+* ``lag``: a library effect or the base downwash, evaluated on the state of 0.05-1 s earlier, times 0.3-1;
+* ``kernel``: a force (sometimes a roll/pitch torque) from a random neighbour ABOVE, BESIDE or BELOW,
+  of a random radial shape (Gaussian, Lorentzian, exponential), width (0.5-2 L) and decay with
+  distance (exponential, 1/(1+x), 1/(1+x^2); 1-6 L);
+* ``velocity``: a force growing with the vehicle's own velocity (v_z, v_z|v_z|, |v_xy|, |v_xy|^2,
+  v_z |v_xy|) or with the speed relative to a neighbour inside a kernel;
+* ``thrust``: a multiplicative thrust loss, a share of the vehicle's thrust times 1, a jet kernel, a
+  ground proximity or its speed;
+* ``mix``: two of the above.
+
+Its amplitude is set so that the effect's RMS on the affected vehicles' test samples is 1.5-4x the
+clean set's test error. Every draw has a CLEAN twin (same seed, motions, noise and imperfections, no
+effect); the twins are the clean sets.
+
+Reported (fixed seeds; nothing here was tuned while watching these figures):
+
+* power: the share of draws in which every affected vehicle's test RMSE of F_z is within 1.3x of its
+  clean twin's (an affected vehicle: the effect's RMS there is at least the twin's test RMSE);
+* false positives: clean sets on which anything beyond ``thrust_bias`` is kept;
+* library effects kept that the generator did not put in (over all sets);
+* per draw: family, what was kept, grams and ratios.
+
+    python benchmarks/bench_discovery.py [--draws 20] [--seed 0] [--workers 2] [--json] [--keep DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import sys
 import tempfile
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import yaml
 
-from proxplan.identify import (
-    IdentifyOptions,
-    discover_terms,
-    run_identify,
-    synthetic_logs,
-    validation_split,
-    write_synthetic_manifest,
-)
-from proxplan.physics import BUILTIN_VEHICLES
+FAMILIES = ("lag", "kernel", "velocity", "thrust", "mix")
+TYPES = ("small-quad", "large-quad", "crazyflie-2.1", "crazyflie-parrot")
+LAG_EFFECTS = ("base", "near_field", "thrust_quadratic", "wake_swirl", "ground_jet")
+GRAMS_PER_N = 1000.0 / 9.80665
+RATIO_OK = 1.3
+DT_S = 0.01
 
 
-def swept_wake(inputs):
-    force, torque = np.zeros((inputs.n_samples, 3)), np.zeros((inputs.n_samples, 3))
-    for src in inputs.sources:
-        dz, r = -src.offsets_m[:, 2], np.hypot(src.offsets_m[:, 0], src.offsets_m[:, 1])
-        v_rel = inputs.velocity_mps - src.velocity_mps
-        size = src.vehicle.size_m
-        k = np.where(dz > 0, np.exp(-((r / (0.8 * size)) ** 2) - dz / (6 * size)), 0.0)
-        force[:, 2] -= 0.6 * np.hypot(v_rel[:, 0], v_rel[:, 1]) * k
-    return force, torque
+# ------------------------------------------------------------------------------ the world of a set
 
 
-def _paths(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
-    a = np.column_stack([0.3 * np.sin(t * 1.5 + phase), 0.15 * np.cos(t + phase), 1.5 + 0 * t])
-    b = np.column_stack(
-        [0.3 * a[:, 0] + 0.12 * np.sin(0.7 * t), 0.3 * a[:, 1] + 0.06 * np.sin(0.9 * t), 1.0 - 0.25 * np.sin(t)]
-    )
-    return {"a": a, "b": b}
+@dataclass(frozen=True)
+class SetSpec:
+    """Everything that makes one generated set (clean and with its effect)."""
+
+    seed: int
+    types: dict[str, str]  # vehicle -> type
+    n_train: int
+    duration_s: float
+    commanded: bool  # logs hold commanded thrust through the motor lag
+    thrust_error: dict[str, float]  # type -> relative error of the logged thrust
+    accel_noise_mps2: float
+    family: str
+    effect: dict[str, Any]  # the hidden effect's description (family-specific)
+
+
+def _motions(rng: np.random.Generator, names: list[str], t: np.ndarray, low: bool) -> dict[str, np.ndarray]:
+    """Smooth random motions: each vehicle on a sum of sinusoids; the heights oscillate by more than the
+    layers' spacing with other phases, so the vehicles stack, cross and swap in every flight, and the
+    horizontal excursions pass them under each other."""
+    out = {}
+    for k, name in enumerate(names):
+        pos = np.zeros((len(t), 3))
+        for ax, amp in enumerate((0.3, 0.3)):
+            for _ in range(3):
+                f = rng.uniform(0.05, 0.3)
+                pos[:, ax] += amp / 3 * rng.uniform(0.5, 1.0) * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+        f_z = rng.uniform(0.06, 0.15)
+        pos[:, 2] = 1.1 + rng.uniform(0.3, 0.5) * np.sin(2 * np.pi * f_z * t + 2 * np.pi * k / len(names)
+                                                         + rng.uniform(-0.5, 0.5))  # fmt: skip
+        if low and k == 0:  # one vehicle dips near the ground in the second half
+            blend = 0.5 * (1 + np.tanh((t - 0.6 * t[-1]) / 1.0))
+            pos[:, 2] = (1 - blend) * pos[:, 2] + blend * (0.12 + 0.08 * np.sin(2 * np.pi * 0.3 * t))
+        out[name] = pos
+    return out
+
+
+def draw_spec(seed: int, family: str) -> SetSpec:
+    rng = np.random.default_rng(seed)
+    n_veh = int(rng.integers(2, 4))
+    names = [f"v{k}" for k in range(n_veh)]
+    types = {n: str(rng.choice(TYPES)) for n in names}
+    effect = draw_effect(rng, family)
+    return SetSpec(
+        seed=seed, types=types, n_train=int(rng.choice([3, 4, 6])), duration_s=20.0,
+        commanded=bool(rng.random() < 0.5),
+        thrust_error={t: float(rng.uniform(-0.05, 0.05)) for t in set(types.values())},
+        accel_noise_mps2=float(rng.uniform(0.02, 0.05)), family=family, effect=effect,
+    )  # fmt: skip
+
+
+def draw_effect(rng: np.random.Generator, family: str) -> dict[str, Any]:
+    if family == "mix":
+        a, b = rng.choice(FAMILIES[:4], size=2, replace=False)
+        return {"parts": [draw_effect(rng, str(a)), draw_effect(rng, str(b))], "family": "mix"}
+    if family == "lag":
+        return {"family": family, "inner": str(rng.choice(LAG_EFFECTS)), "lag_s": float(rng.uniform(0.05, 1.0))}
+    if family == "kernel":
+        return {"family": family, "where": str(rng.choice(["above", "beside", "below"])),
+                "radial": str(rng.choice(["gauss", "lorentz", "exp"])), "width_L": float(rng.uniform(0.5, 2.0)),
+                "decay": str(rng.choice(["exp", "inv", "inv2"])), "decay_L": float(rng.uniform(1.0, 6.0)),
+                "sign": float(rng.choice([-1.0, 1.0])), "torque": bool(rng.random() < 0.25)}  # fmt: skip
+    if family == "velocity":
+        return {"family": family, "form": str(rng.choice(["v_z", "v_z_abs", "v_xy", "v_xy2", "v_z_v_xy", "rel"])),
+                "sign": float(rng.choice([-1.0, 1.0]))}  # fmt: skip
+    if family == "thrust":
+        return {"family": family, "where": str(rng.choice(["all", "jet", "ground", "speed"]))}
+    raise ValueError(family)
+
+
+# ------------------------------------------------------------------------------ hidden effects
+
+
+def _radial(kind: str, x: np.ndarray) -> np.ndarray:
+    return {"gauss": np.exp(-(x**2)), "lorentz": 1.0 / (1.0 + x**2), "exp": np.exp(-np.abs(x))}[kind]
+
+
+def _decay(kind: str, x: np.ndarray) -> np.ndarray:
+    x = np.maximum(x, 0.0)
+    return {"exp": np.exp(-x), "inv": 1.0 / (1.0 + x), "inv2": 1.0 / (1.0 + x**2)}[kind]
+
+
+def _shifted(inputs, lag_s: float):
+    """``inputs`` with every time series taken ``lag_s`` earlier (held at the start)."""
+    from proxplan.physics import SourceSample
+
+    t = np.asarray(inputs.time_s)
+
+    def back(x):
+        x = np.asarray(x, dtype=float)
+        if x.ndim == 1:
+            return np.interp(t - lag_s, t, x)
+        return np.column_stack([np.interp(t - lag_s, t, x[:, k]) for k in range(x.shape[1])])
+
+    srcs = tuple(SourceSample(s.vehicle, back(s.offsets_m), None if s.velocity_mps is None else back(s.velocity_mps))
+                 for s in inputs.sources)  # fmt: skip
+    return replace(inputs, height_above_ground_m=back(inputs.height_above_ground_m),
+                   velocity_mps=back(inputs.velocity_mps), sources=srcs,
+                   position_m=None if inputs.position_m is None else back(inputs.position_m),
+                   thrust_z_N=None if inputs.thrust_z_N is None else back(inputs.thrust_z_N))  # fmt: skip
+
+
+def hidden_wrench(desc: dict[str, Any], inputs) -> tuple[np.ndarray, np.ndarray]:
+    """The wrench (force (N, 3) N, torque (N, 3) N m, world) of effect ``desc`` at UNIT amplitude (scaled
+    later), on one vehicle's inputs."""
+    from proxplan.physics import Effect, base_wrench, default_effect, effect_wrench
+
+    n = inputs.n_samples
+    force, torque = np.zeros((n, 3)), np.zeros((n, 3))
+    fam = desc["family"]
+    W = inputs.target.weight_N
+    if fam == "mix":
+        for part in desc["parts"]:
+            f, tq = hidden_wrench(part, inputs)
+            scale = part.get("mix_scale", 1.0)
+            force, torque = force + scale * f, torque + scale * tq
+        return force, torque
+    if fam == "lag":
+        shifted = _shifted(inputs, desc["lag_s"])
+        if desc["inner"] == "base":
+            return base_wrench(shifted)
+        eff = default_effect(desc["inner"])
+        if desc["inner"] == "near_field":
+            eff = Effect("near_field", {"amplitude": 1.0, "decay_L": 3.0})
+        if desc["inner"] == "thrust_quadratic":
+            eff = Effect("thrust_quadratic", {"b_q_rel_spm": 0.5})
+        return effect_wrench(eff, shifted)
+    if fam == "kernel":
+        for src in inputs.sources:
+            off = np.asarray(src.offsets_m)
+            L = src.vehicle.size_m
+            dz = -off[:, 2]  # > 0: the source is above the target
+            r = np.hypot(off[:, 0], off[:, 1])
+            where = desc["where"]
+            if where == "above":
+                depth, gate, radial = dz, dz > 0, r
+            elif where == "below":
+                depth, gate, radial = -dz, dz < 0, r
+            else:  # beside: horizontal distance is the depth, height difference the radial coordinate
+                depth, gate, radial = r, np.ones(len(r), dtype=bool), np.abs(dz)
+            k = np.where(gate, _radial(desc["radial"], radial / (desc["width_L"] * L))
+                         * _decay(desc["decay"], depth / (desc["decay_L"] * L)), 0.0)  # fmt: skip
+            if desc["torque"]:
+                torque[:, 0] += desc["sign"] * 0.02 * W * L * k * np.tanh(off[:, 1] / L)
+            else:
+                force[:, 2] += desc["sign"] * W * k
+        return force, torque
+    if fam == "velocity":
+        v = np.asarray(inputs.velocity_mps)
+        vxy = np.hypot(v[:, 0], v[:, 1])
+        form = desc["form"]
+        if form == "rel":
+            for src in inputs.sources:
+                off = np.asarray(src.offsets_m)
+                L = src.vehicle.size_m
+                vr = v - np.asarray(src.velocity_mps)
+                k = np.exp(-((np.hypot(off[:, 0], off[:, 1]) / L) ** 2)) * np.exp(-np.abs(off[:, 2]) / (3 * L))
+                force[:, 2] += desc["sign"] * W * k * np.hypot(vr[:, 0], vr[:, 1])
+            return force, torque
+        g = {"v_z": v[:, 2], "v_z_abs": v[:, 2] * np.abs(v[:, 2]), "v_xy": vxy, "v_xy2": vxy**2,
+             "v_z_v_xy": v[:, 2] * vxy}[form]  # fmt: skip
+        force[:, 2] = desc["sign"] * W * g
+        return force, torque
+    if fam == "thrust":
+        thrust = np.asarray(inputs.thrust_z_N)
+        where = desc["where"]
+        if where == "all":
+            h = np.ones(n)
+        elif where == "ground":
+            h = np.exp(-np.maximum(np.asarray(inputs.height_above_ground_m), 0.0) / inputs.target.size_m)
+        elif where == "speed":
+            h = np.hypot(np.asarray(inputs.velocity_mps)[:, 0], np.asarray(inputs.velocity_mps)[:, 1])
+        else:
+            h = np.zeros(n)
+            for src in inputs.sources:
+                off = np.asarray(src.offsets_m)
+                L = src.vehicle.size_m
+                dz = -off[:, 2]
+                h += np.where(dz > 0, np.exp(-0.5 * (np.hypot(off[:, 0], off[:, 1]) / (0.6 * L + 0.15 * dz)) ** 2), 0.0)
+        force[:, 2] = -thrust * h
+        return force, torque
+    raise ValueError(fam)
+
+
+# ------------------------------------------------------------------------------ one set
+
+
+def make_set(spec: SetSpec, root: Path, amplitude: float | None) -> Path:
+    """Write the set (clean when ``amplitude`` is None) under ``root``; returns its manifest."""
+    from proxplan.identify import synthetic_logs, write_synthetic_manifest
+    from proxplan.physics import BUILTIN_VEHICLES
+
+    vehicles = {n: BUILTIN_VEHICLES[t] for n, t in spec.types.items()}
+    t = np.arange(0.0, spec.duration_s, DT_S)
+    hidden = None if amplitude is None else (lambda inputs: _scaled(hidden_wrench(spec.effect, inputs), amplitude))
+    flights = []
+    for k in range(spec.n_train + 1):
+        rng = np.random.default_rng([spec.seed, k])
+        motions = _motions(rng, list(vehicles), t, low=bool(k % 2))
+        noise_seed = int(rng.integers(1 << 30))
+        taus = {n: (v.motor_time_constant_s if spec.commanded else None) for n, v in vehicles.items()}
+        logs = {}
+        for tau in set(taus.values()):  # each vehicle's commands through ITS motors' lag (what identify declares)
+            made = synthetic_logs(vehicles, motions, t, hidden_wrench=hidden, accel_noise_mps2=spec.accel_noise_mps2,
+                                  motor_noise_N=0.002, seed=noise_seed, motor_time_constant_s=tau)  # fmt: skip
+            logs |= {n: made[n] for n in vehicles if taus[n] == tau}
+        for name, log in logs.items():  # the thrust map's error, per vehicle type
+            logs[name] = replace(log, motor_thrust_N=log.motor_thrust_N * (1.0 + spec.thrust_error[spec.types[name]]))
+        flights.append((f"f{k}", "test" if k == spec.n_train else "train", logs))
+    root.mkdir(parents=True, exist_ok=True)
+    return write_synthetic_manifest(root, flights, spec.types,
+                                    motor_thrust="commanded" if spec.commanded else "delivered")  # fmt: skip
+
+
+def _scaled(w: tuple[np.ndarray, np.ndarray], a: float) -> tuple[np.ndarray, np.ndarray]:
+    return w[0] * a, w[1] * a
+
+
+def effect_rms_on_test(spec: SetSpec) -> dict[str, float]:
+    """RMS of the unit-amplitude hidden F_z (or torque as N-equivalent at the source size) per vehicle on
+    the test flight."""
+    from proxplan.identify import synthetic_logs  # noqa: F401  (same trajectories as make_set)
+    from proxplan.physics import GRAVITY_MPS2, BUILTIN_VEHICLES, EffectInputs, SourceSample
+
+    vehicles = {n: BUILTIN_VEHICLES[t] for n, t in spec.types.items()}
+    t = np.arange(0.0, spec.duration_s, DT_S)
+    rng = np.random.default_rng([spec.seed, spec.n_train])
+    motions = _motions(rng, list(vehicles), t, low=bool(spec.n_train % 2))
+    vels = {k: np.gradient(p, t, axis=0) for k, p in motions.items()}
+    out = {}
+    for name, veh in vehicles.items():
+        acc = np.gradient(vels[name], t, axis=0)
+        inputs = EffectInputs(target=veh, height_above_ground_m=motions[name][:, 2], velocity_mps=vels[name],
+                              sources=tuple(SourceSample(vehicles[o], motions[name] - motions[o], vels[o])
+                                            for o in vehicles if o != name),
+                              time_s=t, thrust_z_N=veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]), position_m=motions[name])  # fmt: skip
+        f, tq = hidden_wrench(spec.effect, inputs)
+        out[name] = float(np.sqrt(np.mean(f[:, 2] ** 2 + (np.linalg.norm(tq, axis=1) / veh.size_m) ** 2)))
+    return out
+
+
+def _identify(manifest: Path) -> dict[str, Any]:
+    from proxplan.identify import IdentifyOptions, run_identify
+
+    r = run_identify(manifest, options=IdentifyOptions(), thrust_summary=False)
+    per = {k: v["rmse_fz_N_after"] for k, v in r.per_vehicle.items()}
+    tq = {}
+    for u in (u for u in r.units if u.split == "test"):
+        from proxplan.identify.data import predict
+
+        _, t_pred = predict(u, r.final_model)
+        tq[u.name] = float(np.sqrt(np.mean(np.sum((u.torque_Nm - t_pred) ** 2, axis=1))))
+    return {"selected": list(r.selected), "per_vehicle_fz_N": per, "per_vehicle_torque_Nm": tq,
+            "after_fz_N": r.after.rmse_fz_N, "before_fz_N": r.before.rmse_fz_N,
+            "discovered": [d["channel"] + "*" + d["feature"] for d in r.discovered if d["selected"]],
+            "fallback": r.fallback}  # fmt: skip
+
+
+def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
+    """One draw: its clean twin and the set with the effect, identified; the comparison."""
+    seed, family, keep = job
+    spec = draw_spec(seed, family)
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(keep) / f"draw{seed}" if keep else Path(tmp)
+        clean = _identify(make_set(spec, base / "clean", None))
+        rms = effect_rms_on_test(spec)
+        target = float(np.random.default_rng([spec.seed, 99]).uniform(1.5, 4.0))
+        strongest = max(rms, key=rms.get)
+        clean_err = clean["per_vehicle_fz_N"][strongest]
+        amplitude = target * clean_err / max(rms[strongest], 1e-12)
+        hidden = _identify(make_set(spec, base / "effect", amplitude))
+    affected = [v for v in rms if amplitude * rms[v] >= clean["per_vehicle_fz_N"][v]]
+    ratios = {v: hidden["per_vehicle_fz_N"][v] / clean["per_vehicle_fz_N"][v] for v in clean["per_vehicle_fz_N"]}
+    tq_ratios = {v: hidden["per_vehicle_torque_Nm"][v] / max(clean["per_vehicle_torque_Nm"][v], 1e-12)
+                 for v in clean["per_vehicle_torque_Nm"]}  # fmt: skip
+    torque_effect = _has_torque(spec.effect)
+    worst = max((max(ratios[v], tq_ratios[v]) if torque_effect else ratios[v]) for v in affected) if affected else None
+    put_in = _library_put_in(spec.effect)
+    return {
+        "seed": seed, "family": family, "effect": spec.effect, "types": spec.types, "n_train": spec.n_train,
+        "commanded": spec.commanded, "amplitude": amplitude, "affected": affected, "ratios": ratios,
+        "torque_ratios": tq_ratios, "worst_ratio": worst, "found": worst is not None and worst <= RATIO_OK,
+        "clean": clean, "hidden": hidden, "clean_false_positive": _beyond_thrust_bias(clean["selected"]),
+        "spurious_library": sorted(_library(hidden["selected"]) - put_in) + sorted(_library(clean["selected"])),
+    }  # fmt: skip
+
+
+def _has_torque(desc: dict[str, Any]) -> bool:
+    if desc["family"] == "mix":
+        return any(_has_torque(p) for p in desc["parts"])
+    return bool(desc.get("torque")) or (desc["family"] == "lag" and desc["inner"] == "wake_swirl")
+
+
+def _library(selected: list[str]) -> set[str]:
+    return {n for n in selected if not n.startswith("discovered:") and n != "thrust_bias"}
+
+
+def _beyond_thrust_bias(selected: list[str]) -> list[str]:
+    return [n for n in selected if n != "thrust_bias"]
+
+
+def _library_put_in(desc: dict[str, Any]) -> set[str]:
+    if desc["family"] == "mix":
+        return set().union(*(_library_put_in(p) for p in desc["parts"]))
+    if desc["family"] == "lag" and desc["inner"] != "base":
+        return {desc["inner"]}
+    return set()
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--minutes-per-flight", type=float, default=10.0, help="length of each synthetic flight, min")
-    ap.add_argument("--flights", type=int, default=6, help="number of flights (the last two are test flights)")
-    ap.add_argument("--data", type=Path, default=None, help="directory to keep (or reuse) the generated logs")
+    ap.add_argument("--draws", type=int, default=20, help="draws with an undeclared effect (each with a clean twin)")
+    ap.add_argument("--seed", type=int, default=0, help="first seed (draw k uses seed + k)")
+    ap.add_argument("--workers", type=int, default=2, help="Dask workers (0: run in this process)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--keep", default="", help="keep the generated logs under this directory")
     args = ap.parse_args()
-    veh = BUILTIN_VEHICLES["small-quad"]
-    with tempfile.TemporaryDirectory() as tmp:
-        root = args.data or Path(tmp)
-        root.mkdir(parents=True, exist_ok=True)
-        manifest = root / "manifest.yaml"
-        t = np.arange(0.0, 60.0 * args.minutes_per_flight, 0.01)
-        if not manifest.exists():
-            flights = [
-                (f"f{k}", "test" if k >= args.flights - 2 else "train", synthetic_logs(
-                    {"a": veh, "b": veh}, _paths(t, 0.7 * k), t, hidden_wrench=swept_wake, accel_noise_mps2=0.02, seed=k
-                ))
-                for k in range(args.flights)
-            ]  # fmt: skip
-            write_synthetic_manifest(root, flights, "small-quad")
-        n_flights = len(yaml.safe_load(manifest.read_text())["flights"])
-        print(
-            f"{n_flights} flights x {t.size} samples x 2 vehicles = {n_flights * t.size / 3.6e5:.2f} h of 100 Hz logs"
-        )
+    jobs = [(args.seed + k, FAMILIES[k % len(FAMILIES)], args.keep) for k in range(args.draws)]
+    t0 = time.perf_counter()
+    if args.workers > 0:
+        from proxplan.fanout import fan_out
 
-        t0 = time.perf_counter()
-        plain = run_identify(manifest, options=IdentifyOptions(discover=False), thrust_summary=False)
-        t_plain = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        full = run_identify(manifest, options=IdentifyOptions(discover=True), thrust_summary=False)
-        t_full = time.perf_counter() - t0
-        train = [u for u in full.units if u.split == "train" and len(u)]
-        test = [u for u in full.units if u.split == "test" and len(u)]
-        t0 = time.perf_counter()
-        discover_terms(*validation_split(train)[:2], replace(plain.final_model), test=test)
-        t_disc = time.perf_counter() - t0
-        print(f"identify without discovery (baseline): {t_plain:.1f} s")
-        print(
-            f"identify with discovery:               {t_full:.1f} s  ({t_full / t_plain:.2f}x baseline; target < 60 s)"
-        )
-        print(f"discovery stage alone:                 {t_disc:.1f} s  ({t_disc / t_plain:.2f}x baseline)")
-        print(f"test F_z RMSE: library only {plain.after.rmse_fz_N:.5f} N, with discovery {full.after.rmse_fz_N:.5f} N")
-        for e in full.discovered:
-            print(
-                f"  {e['name']} {e['channel']}: selected={e['selected']} gain_validation={e['gain_validation']:.3f} {e['formula']}"
-            )
+        results = fan_out(run_draw, jobs, n_workers=args.workers,
+                          progress=lambda d, n: print(f"\r{d}/{n} draws", end="", file=sys.stderr)).results  # fmt: skip
+        print(file=sys.stderr)
+    else:
+        results = [run_draw(j) for j in jobs]
+    wall = time.perf_counter() - t0
+    visible = [r for r in results if r["affected"]]
+    power = sum(r["found"] for r in visible) / len(visible) if visible else float("nan")
+    fp = [r for r in results if r["clean_false_positive"]]
+    spurious = [r for r in results if r["spurious_library"]]
+    summary = {"draws": len(results), "visible_draws": len(visible), "power": power,
+               "clean_sets": len(results), "false_positive_sets": len(fp),
+               "sets_with_spurious_library_effects": len(spurious), "wall_s": wall,
+               "by_family": {f: {"draws": sum(r["family"] == f for r in visible),
+                                 "found": sum(r["found"] for r in visible if r["family"] == f)} for f in FAMILIES}}  # fmt: skip
+    if args.json:
+        print(json.dumps({"summary": summary, "draws": results}, indent=1, default=float))
+        return
+    print(f"{'seed':>4} {'family':8} {'effect':46} {'worst':>6} {'clean g':>8} {'hidden g':>9} kept (clean | effect)")
+    for r in results:
+        eff = _describe(r["effect"])
+        v = max(r["ratios"], key=lambda k: r["ratios"][k])
+        worst = "-" if r["worst_ratio"] is None else f"{r['worst_ratio']:.2f}"
+        clean_g = r["clean"]["per_vehicle_fz_N"][v] * GRAMS_PER_N
+        hidden_g = r["hidden"]["per_vehicle_fz_N"][v] * GRAMS_PER_N
+        kept = f"{','.join(r['clean']['selected']) or '-'} | {','.join(r['hidden']['selected']) or '-'}"
+        print(f"{r['seed']:>4} {r['family']:8} {eff[:46]:46} {worst:>6} {clean_g:8.2f} {hidden_g:9.2f} {kept}")
+    print(f"power: {power:.0%} of {len(visible)} visible draws within {RATIO_OK}x of the clean twin (target >= 80 %)")
+    print(f"false positives: {len(fp)} of {len(results)} clean sets keep more than thrust_bias (target 0)")
+    print(f"library effects kept that the generator did not put in: {len(spurious)} sets (target 0)")
+    print(f"wall {wall:.0f} s")
+
+
+def _describe(desc: dict[str, Any]) -> str:
+    if desc["family"] == "mix":
+        return " + ".join(_describe(p) for p in desc["parts"])
+    return desc["family"] + ":" + ",".join(f"{k}={v:.2g}" if isinstance(v, float) else f"{k}={v}"
+                                           for k, v in desc.items() if k != "family")  # fmt: skip
 
 
 if __name__ == "__main__":

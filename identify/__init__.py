@@ -5,7 +5,7 @@ try candidate effects, and report the error before and after on test flights.
 
 from proxplan.identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
 from proxplan.identify.discovery import DiscoveryOptions, discover_terms
-from proxplan.identify.effect_selection import validation_split
+from proxplan.identify.effect_selection import EffectSelector
 from proxplan.identify.evaluate import EvaluationResult, evaluate_model, saved_model
 from proxplan.identify.evaluate_report import write_evaluation_report
 from proxplan.identify.flightlog import (
@@ -30,6 +30,7 @@ __all__ = [
     "apply_vehicle_parameters",
     "NEURAL_SWARM_COLUMNS",
     "DiscoveryOptions",
+    "EffectSelector",
     "NEURAL_SWARM_FILE_COLUMNS",
     "EvaluationResult",
     "FlightEntry",
@@ -51,7 +52,6 @@ __all__ = [
     "run_identify",
     "saved_model",
     "synthetic_logs",
-    "validation_split",
     "write_canonical_csv",
     "write_evaluation_report",
     "write_synthetic_manifest",

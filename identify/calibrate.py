@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from proxplan.identify.priors import INFORMED_RATIO, MOVE_SIGMAS, Prior, vehicle_priors
 from proxplan.physics import DownwashSpec, Vehicle
 
 VEHICLE_PARAMETERS = ("c_ax", "z0_m", "c_rad", "b_v")
@@ -30,12 +31,14 @@ N m^-1 rad^-2 s^3)."""
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One parameter to fit: start value and bounds, in the parameter's own unit."""
+    """One parameter to fit: start value and bounds, in the parameter's own unit, and its prior (MAP
+    fit; None: plain least squares, :func:`fit_parameters`)."""
 
     name: str
     initial: float
     lower: float
     upper: float
+    prior: Prior | None = None
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,29 @@ class CalibrationResult:
     message: str
     at_bound: tuple[bool, ...] = ()  # per parameter: ended on a bound (its std is then not meaningful)
     std_inflation: float = 1.0  # AR(1) factor the Jacobian's std were widened by (residual autocorrelation), -
+    priors: tuple[Prior | None, ...] = ()  # per parameter, its prior (MAP fit), or None
+
+    def prior_report(self) -> dict[str, dict[str, float | bool | None]]:
+        """Per parameter with a prior: its prior center and sigma, how far it moved (prior sigmas,
+        signed), its posterior over prior sigma, and whether the data informed it
+        (:data:`proxplan.identify.priors.INFORMED_RATIO`) or moved it suspiciously far
+        (:data:`proxplan.identify.priors.MOVE_SIGMAS`: a sign of a missing effect)."""
+        out: dict[str, dict[str, float | bool | None]] = {}
+        for k, (name, prior) in enumerate(zip(self.names, self.priors)):
+            if prior is None or prior.sigma <= 0.0:
+                continue
+            value, std = float(self.values[k]), float(self.std[k])
+            ratio = prior.relative_std(value, std) if np.isfinite(std) else None
+            move = prior.z(value)
+            out[name] = {"prior_center": prior.center, "prior_sigma": prior.sigma, "prior_log": prior.log,
+                         "move_sigmas": move, "posterior_over_prior": ratio,
+                         "informed": ratio is not None and ratio <= INFORMED_RATIO,
+                         "large_move": abs(move) >= MOVE_SIGMAS}  # fmt: skip
+        return out
+
+    def large_moves(self) -> list[str]:
+        """Names of the parameters the data moved by at least MOVE_SIGMAS prior sigmas."""
+        return [k for k, d in self.prior_report().items() if d["large_move"]]
 
     def interval_excludes(self, name: str, value: float = 0.0, *, z: float = 2.0) -> bool:
         """Whether the parameter ``name``'s z-sigma interval excludes ``value`` (a parameter pinned on a
@@ -74,11 +100,22 @@ def fit_parameters(
     *,
     max_nfev: int | None = 200,
     loss: str = "linear",
+    noise_sigma: float | None = None,
 ) -> CalibrationResult:
     """Minimise ||residual_fn(theta)||^2 over bounded ``theta`` (p,), with uncertainty.
 
     ``residual_fn`` maps a (p,) vector (``specs`` order) to an (m,) residual vector.
+
+    MAP fit (``noise_sigma`` given, in the residual's unit): the objective is
+    ||residual / noise_sigma||^2 + sum_k z_k^2, z_k the standardised distance of parameter k from
+    its :attr:`ParamSpec.prior` (:class:`proxplan.identify.priors.Prior`; none: no term). ``noise_sigma``
+    is the noise of ONE independent sample of the residual vector (the caller folds in the residual's
+    autocorrelation: :func:`integrated_autocorrelation_time`), so the posterior covariance is
+    (J^T J)^-1 of the augmented, standardised residual, not widened again. A prior of sigma 0 holds
+    its parameter at the prior's center.
     """
+    if noise_sigma is not None:
+        return _fit_map(residual_fn, specs, max_nfev=max_nfev, noise_sigma=noise_sigma)
     names = tuple(s.name for s in specs)
     if not specs:
         r = np.asarray(residual_fn(np.zeros(0)))
@@ -123,6 +160,98 @@ def fit_parameters(
     )
 
 
+def _fit_map(
+    residual_fn: Callable[[np.ndarray], np.ndarray],
+    specs: Sequence[ParamSpec],
+    *,
+    max_nfev: int | None,
+    noise_sigma: float,
+) -> CalibrationResult:
+    """The MAP fit of :func:`fit_parameters` (parameters held by a zero-sigma prior are not fitted)."""
+    names = tuple(s.name for s in specs)
+    held = [s.prior is not None and s.prior.sigma <= 0.0 for s in specs]
+    free_idx = [k for k, h in enumerate(held) if not h]
+    full0 = np.array([s.prior.center if h and s.prior is not None else s.initial for s, h in zip(specs, held)])
+    lo = np.array([specs[k].lower for k in free_idx], dtype=float)
+    hi = np.array([specs[k].upper for k in free_idx], dtype=float)
+    priors = [specs[k].prior for k in free_idx]
+
+    def full(x: np.ndarray) -> np.ndarray:
+        theta = full0.copy()
+        theta[free_idx] = x
+        return theta
+
+    def augmented(x: np.ndarray) -> np.ndarray:
+        data = np.asarray(residual_fn(full(x)), dtype=float) / noise_sigma
+        prior = np.array([0.0 if p is None else p.z(float(v)) for p, v in zip(priors, x)])
+        return np.concatenate([data, prior])
+
+    if not free_idx:
+        r = np.asarray(residual_fn(full0), dtype=float)
+        return CalibrationResult(names, full0, np.zeros(len(specs)), float(np.sqrt(np.mean(r**2))) if r.size else 0.0,
+                                 r.size, True, "every parameter held", tuple(False for _ in specs), 1.0,
+                                 tuple(s.prior for s in specs))  # fmt: skip
+    x0 = np.clip(full0[free_idx], lo, hi)
+    sol = least_squares(augmented, x0, bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev)
+    jac = np.atleast_2d(sol.jac)
+    at_b = np.isclose(sol.x, lo, rtol=1e-6, atol=1e-12) | np.isclose(sol.x, hi, rtol=1e-6, atol=1e-12)
+    col = np.linalg.norm(jac, axis=0)
+    ok = (~at_b) & (col > 0.0)
+    std_free = np.full(len(free_idx), np.inf)
+    if ok.any():
+        js = jac[:, ok] / col[ok]
+        std_free[ok] = np.sqrt(np.clip(np.diag(np.linalg.pinv(js.T @ js)), 0.0, None)) / col[ok]
+    std = np.zeros(len(specs))
+    std[free_idx] = std_free
+    at_bound = np.zeros(len(specs), dtype=bool)
+    at_bound[free_idx] = at_b
+    data = np.asarray(residual_fn(full(sol.x)), dtype=float)
+    return CalibrationResult(
+        names=names,
+        values=full(sol.x),
+        std=std,
+        rmse=float(np.sqrt(np.mean(data**2))) if data.size else 0.0,
+        n_residuals=data.size,
+        success=bool(sol.success),
+        message=str(sol.message),
+        at_bound=tuple(bool(b) for b in at_bound),
+        std_inflation=1.0,
+        priors=tuple(s.prior for s in specs),
+    )
+
+
+def integrated_autocorrelation_time(segments: Sequence[np.ndarray]) -> float:
+    """Integrated autocorrelation time of a residual, in samples (1 for white noise), pooled over
+    contiguous ``segments`` (each (n,), in time order).
+
+    tau_int = 1 + 2 sum_{k=1}^{K} rho_k with the pooled autocorrelation rho_k (FFT, each segment about
+    its own mean) and Sokal's automatic window: the smallest K with K >= 5 tau_int(K) (Sokal 1989; the
+    usual choice in MCMC error analysis). N samples of such a residual carry the information of
+    N / tau_int independent ones: a sum of squares over them is worth N / tau_int samples.
+    """
+    segs = [np.asarray(s, dtype=float) - np.mean(s) for s in segments if len(s) >= 8]
+    if not segs:
+        return 1.0
+    max_lag = min(max(len(s) for s in segs) // 2, 2000)
+    acov = np.zeros(max_lag + 1)
+    count = np.zeros(max_lag + 1)
+    for s in segs:
+        n = len(s)
+        f = np.fft.rfft(s, 2 * n)
+        ac = np.fft.irfft(f * np.conj(f))[: min(n, max_lag + 1)]
+        acov[: ac.size] += ac
+        count[: ac.size] += n - np.arange(ac.size)
+    ok = count > 0
+    rho = np.zeros(max_lag + 1)
+    rho[ok] = (acov[ok] / count[ok]) / (acov[0] / count[0]) if acov[0] > 0 else 0.0
+    tau = 1.0
+    for k in range(1, max_lag + 1):
+        tau = 1.0 + 2.0 * float(np.sum(rho[1 : k + 1]))
+        if k >= 5.0 * tau:
+            break
+    return float(max(tau, 1.0))
+
+
 def _ar1_inflation(r: np.ndarray) -> float:
     """sqrt((1 + rho) / (1 - rho)) of the lag-1 autocorrelation rho of ``r`` (1 when rho <= 0), -."""
     r = np.asarray(r, dtype=float)
@@ -155,20 +284,22 @@ def apply_vehicle_parameters(vehicle: Vehicle, **values: float) -> Vehicle:
 
 
 def vehicle_param_specs(vehicle: Vehicle, prefix: str, *, as_source: bool, as_target: bool) -> list[ParamSpec]:
-    """Default fit ranges of the declared parameters of ``vehicle`` (names ``prefix + param``).
+    """The declared parameters of ``vehicle`` (names ``prefix + param``) with their priors
+    (:func:`proxplan.identify.priors.vehicle_priors`) and physical bounds.
 
     Source parameters (c_ax, z0_m, c_rad) when it produces downwash in the data, b_v when it
-    receives it. Bounds are wide (factors of 3-5 around the prior) so calibration can absorb the
-    assumed geometry of :mod:`proxplan.physics.builtin_vehicles`.
+    receives it. The bounds only keep the model physical (factors of 5, +-2 L); the priors say how far
+    the data must push a parameter to move it.
     """
     d, L = vehicle.downwash, vehicle.size_m
+    pri = vehicle_priors(vehicle, as_source=as_source, as_target=as_target)
     out = []
     if as_source:
         out += [
-            ParamSpec(prefix + "c_ax", d.c_ax, d.c_ax / 5.0, d.c_ax * 5.0),
-            ParamSpec(prefix + "z0_m", d.z0_m, -2.0 * L, 2.0 * L),
-            ParamSpec(prefix + "c_rad", d.c_rad, d.c_rad / 5.0, d.c_rad * 5.0),
+            ParamSpec(prefix + "c_ax", d.c_ax, d.c_ax / 5.0, d.c_ax * 5.0, pri["c_ax"]),
+            ParamSpec(prefix + "z0_m", d.z0_m, -2.0 * L, 2.0 * L, pri["z0_m"]),
+            ParamSpec(prefix + "c_rad", d.c_rad, d.c_rad / 5.0, d.c_rad * 5.0, pri["c_rad"]),
         ]
     if as_target:
-        out.append(ParamSpec(prefix + "b_v", vehicle.b_v, vehicle.b_v / 5.0, vehicle.b_v * 5.0))
+        out.append(ParamSpec(prefix + "b_v", vehicle.b_v, vehicle.b_v / 5.0, vehicle.b_v * 5.0, pri["b_v"]))
     return out

@@ -27,6 +27,7 @@ from proxplan.identify.thrust_map import (
 from proxplan.physics import (
     EFFECT_NAMES,
     VALIDITY_FACTOR_L,
+    BaseCache,
     Effect,
     EffectInputs,
     ModelOptions,
@@ -45,12 +46,8 @@ class IdentifyOptions:
     field_form: str = "inverse-z"  # form of (S0-1) used for prediction
     calibrate: bool = True
     effects: tuple[str, ...] = EFFECT_NAMES  # candidates to try
-    extra_candidates: tuple[Effect, ...] = ()  # already-fitted terms (e.g. discovered), scored on validation as given
-    min_gain: float = 0.05  # relative cut of a test RMSE an effect must bring to be kept, -
-    max_fit_samples: int = 10000  # train samples of the calibration fit (stratified sample, identify.strata)
-    max_effect_fit_samples: int = 5000  # train samples per candidate-effect fit (stratified sample)
-    max_eval_samples: int = 10000  # test samples per candidate score
-    max_effects: int = 3  # at most this many effects are kept
+    max_fit_samples: int = 10000  # train samples of the calibration and the selection (stratified sample)
+    max_eval_samples: int = 10000  # validation samples of the selection; test samples per candidate report
     progress: bool = False  # tqdm bars on stderr
     discover: bool = True  # search terms no library effect names (proxplan.identify.discovery)
     stack_shielding: float = (
@@ -85,6 +82,8 @@ class Unit:
     planes: tuple = ()  # proxplan.physics.room.Plane of the manifest (place-in-room features)
     motor_limit: np.ndarray | None = None  # (N,) uint8 bits: CEILING_BIT / FLOOR_BIT, some motor at that limit
     weight: np.ndarray | None = None  # (N,) sampling weight of a stratified sample (identify.strata), -
+    group: np.ndarray | None = None  # (N,) int: held-out group of each sample (proxplan.identify.crossval)
+    row: np.ndarray | None = None  # (N,) int: each sample's row in the full-resolution units it was sampled from
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
@@ -92,6 +91,8 @@ class Unit:
             position_m=None if self.position_m is None else self.position_m[idx],
             motor_limit=None if self.motor_limit is None else self.motor_limit[idx],
             weight=None if self.weight is None else self.weight[idx],
+            group=None if self.group is None else self.group[idx],
+            row=None if self.row is None else self.row[idx],
             t_s=self.t_s[idx],
             velocity_mps=self.velocity_mps[idx],
             height_above_ground_m=self.height_above_ground_m[idx],
@@ -131,16 +132,30 @@ def unit_inputs(unit: Unit, model: Model) -> EffectInputs:
 
 
 def predict(
-    unit: Unit, model: Model, *, base: tuple[np.ndarray, np.ndarray] | None = None
+    unit: Unit,
+    model: Model,
+    *,
+    base: tuple[np.ndarray, np.ndarray] | None = None,
+    cache: BaseCache | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Predicted measured wrench (force (N, 3) N, torque (N, 3) N m, world) of ``unit``.
 
-    ``base`` may pass a precomputed base wrench for the same vehicles (saves the model call).
+    ``base`` may pass a precomputed base wrench for the same vehicles (saves the model call), and
+    ``cache`` the :class:`proxplan.physics.BaseCache` of ``unit_inputs(unit, model)`` (the sources' base
+    wrenches the effects reuse).
     """
-    inputs = unit_inputs(unit, model)
-    force, torque = (base[0].copy(), base[1].copy()) if base is not None else base_wrench(inputs)
+    inputs = cache.inputs if cache is not None else unit_inputs(unit, model)
+    if base is not None:
+        force, torque = base[0].copy(), base[1].copy()
+    elif cache is not None:
+        force, torque = np.zeros((len(unit), 3)), np.zeros((len(unit), 3))
+        for f, t in cache.per_source():
+            force += f
+            torque += t
+    else:
+        force, torque = base_wrench(inputs)
     for eff in model.effects:
-        f, t = effect_wrench(eff, inputs)
+        f, t = effect_wrench(eff, inputs, cache=cache)
         force += f
         torque += t
     force[:, 2] += (model.thrust_scale.get(unit.type, 1.0) - 1.0) * unit.thrust_z_N
@@ -337,6 +352,8 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             planes=us[0].planes if all(u.planes == us[0].planes for u in us) else (),
             motor_limit=None if any(u.motor_limit is None for u in us) else cat("motor_limit"),
             weight=None if any(u.weight is None for u in us) else cat("weight"),
+            group=None if any(u.group is None for u in us) else cat("group"),
+            row=None if any(u.row is None for u in us) else cat("row"),
         ))  # fmt: skip
     return out
 

@@ -1,180 +1,301 @@
-"""Terms no library effect names: sparse regression of the residual on a physical feature dictionary.
+"""Terms no library effect names: an ensemble sparse regression over declared feature families (issue 35).
 
-After the library effects are selected (:mod:`proxplan.identify.effect_selection`), the residual of the
-current model (measured minus predicted wrench) is regressed, channel by channel (world F_z and the
-three torques), on the features of :mod:`proxplan.physics.features` (neighbours above and below, relative
-velocities, the base prediction and its lagged / low-pass copies, height above ground, own speed and
-thrust). The regression is scikit-learn's Orthogonal Matching Pursuit on RMS-scaled columns, fitted
-on TRAIN units only, for 1..``max_terms`` terms; the VALIDATION units choose the number of terms
-(the smallest within ``tolerance`` of the best validation RMSE).
+After the library effects (:mod:`proxplan.identify.effect_selection`), the residual of the reference
+model is searched for a term nobody listed. Candidates are the features of
+:mod:`proxplan.physics.features`, from declared families (:data:`proxplan.physics.features.FAMILIES`:
+temporal filter banks of every neighbour's predicted disturbance and relative state; spatial kernels
+of every neighbour above, beside and below; the vehicle's own velocity; a multiplicative thrust loss;
+place in the room), each on one wrench channel (F_z and the three torques): a term is
+``coefficient x feature`` on that channel.
 
-A term is kept only if it lowers that channel's VALIDATION RMSE by at least ``min_gain`` (relative,
-default 10 %) AND by at least :data:`MIN_IMPROVEMENT` (absolute: 0.1 g of force, 2e-5 N m of torque):
-clean data (residual = noise) gives gains near zero and nothing is kept, and a real but tiny
-structure (e.g. 1e-5 N m of roll torque the closed-loop measurement does not resolve) is reported
-but not kept. Test units, when given, only report. The kept terms of all channels form ONE effect
-``Effect("discovered:residual", {"<channel>*<feature>": coefficient})`` (coefficients in channel
-units per feature unit; one effect so the base wrench it needs is computed once), which
-:mod:`proxplan.physics.effects` applies like any effect (pairwise features make it act between vehicles),
-and which a saved model stores as name + params.
+1. **Ensemble** (stability selection). On each half-sample of the flights of
+   :func:`proxplan.identify.crossval.half_samples`, per channel, the always-fitted columns (the vehicle
+   parameters' tangents and the kept library effects) are projected out and scikit-learn's
+   ``orthogonal_mp_gram`` (Orthogonal Matching Pursuit on the Gram matrix) runs its path up to
+   :attr:`DiscoveryOptions.max_terms_per_channel` terms; the Bayesian information criterion on the
+   half's effective samples (weight / tau) picks how many. Stability is judged per GROUP of
+   near-duplicate features (:func:`proxplan.physics.features.feature_group`: a neighbour's kernels at
+   several widths, a kernel and its lagged copies) on each channel: a group's **inclusion probability**
+   is the share of halves that pick any of its members, and it must reach the Meinshausen-Buehlmann
+   threshold (:func:`proxplan.identify.crossval.stability_threshold`, p = the channel-groups). Among
+   near-duplicates the halves split their picks, so a per-feature count would under-rate a real effect;
+   which member describes it best is the held-out test's to say.
+2. **Held out.** Every member of a stable group that some half picked enters the joint design beside the
+   tangents and the kept effects; the greedy held-out gain test (:func:`proxplan.identify.crossval.heldout_forward`: every flight predicted
+   by a fit without it; Bonferroni over the round) keeps them, and a backward pass drops any that no
+   longer pass given the others.
+
+No threshold here is set on data: the test level (:data:`proxplan.identify.crossval.ALPHA`), the
+stability bound and the BIC are derived (docs/identify.md). The kept terms of all channels form ONE
+effect ``Effect("discovered:residual", {key: coefficient})``, the key ``"<channel>*<feature>"`` for a feature that
+is already a force or torque (coefficient per feature unit) and ``"<channel>*W*<feature>"`` for a shape
+(a kernel, a speed), scaled to the target: times its weight W for a force, W L for a torque
+(:func:`proxplan.physics.features.term_scale`; one coefficient serves a 32 g and a 650 g vehicle), applied by :mod:`proxplan.physics.effects` like any effect and saved with the model.
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from sklearn.linear_model import OrthogonalMatchingPursuit
+from sklearn.linear_model import orthogonal_mp_gram
 
-from proxplan.identify.data import Model, Unit, predict, unit_inputs
-from proxplan.physics import (
-    CHANNELS,
-    DISCOVERED_PREFIX,
-    FEATURE_NAMES,
-    Effect,
-    base_wrench_per_source,
-    feature_matrix,
-    term_formula,
+from proxplan.identify.crossval import (
+    Candidate,
+    ForwardResult,
+    GroupSums,
+    Stability,
+    half_samples,
+    heldout_forward,
+    solve,
+    stability_threshold,
+    trainable_groups,
+)
+from proxplan.identify.data import unit_inputs
+from proxplan.identify.design import CHANNELS, SelectionSet
+from proxplan.physics import DISCOVERED_PREFIX, FEATURE_NAMES, base_wrench_per_source, feature_matrix, term_formula
+from proxplan.physics.features import (
+    FAMILIES,
+    feature_family,
+    feature_group,
+    is_wrench_feature,
+    parse_term_key,
+    term_key,
+    weight_scaled,
 )
 
 DISCOVERED_NAME = f"{DISCOVERED_PREFIX}residual"
 """Name of the one effect holding every kept term."""
 
-CHANNEL_COLUMNS = {"force_z_N": 2, "torque_x_Nm": 3, "torque_y_Nm": 4, "torque_z_Nm": 5}
-"""Channels searched by default and their column in the stacked (force, torque) wrench (N, 6)."""
-
 
 @dataclass(frozen=True)
 class DiscoveryOptions:
-    """How terms are searched and when one is kept."""
+    """What is searched and how many terms a half-sample's path may take."""
 
-    channels: tuple[str, ...] = tuple(CHANNEL_COLUMNS)
-    max_terms: int = 4  # at most this many features per channel, -
-    min_gain: float = 0.10  # relative cut of the channel's VALIDATION RMSE a term must bring, -
-    tolerance: float = 0.02  # fewest terms within this relative margin of the best validation RMSE, -
-    max_fit_samples: int = 20000  # train rows of the regression (uniform stride after features), -
-    min_improvement: dict[str, float] | None = None  # per channel, absolute validation RMSE cut; None: default
-
-
-MIN_IMPROVEMENT = {"force_z_N": 1e-3, "torque_x_Nm": 2e-5, "torque_y_Nm": 2e-5, "torque_z_Nm": 2e-5}
-"""Smallest absolute cut of a channel's validation RMSE worth a term: 1e-3 N (0.1 g) of force and
-2e-5 N m (0.1 g at a 2 cm arm) of torque. Below that a structure is real but irrelevant to a plan."""
+    channels: tuple[str, ...] = CHANNELS
+    families: tuple[str, ...] = FAMILIES  # declared families searched (proxplan.physics.features.FAMILIES)
+    max_terms_per_channel: int = 4  # OMP path length per channel and half-sample
+    max_terms: int = 8  # at most this many terms kept in all
 
 
 @dataclass(frozen=True)
-class _Rows:
-    features: np.ndarray  # (N, F)
-    residual: np.ndarray  # (N, 6) measured minus predicted (force, torque)
+class Term:
+    """One candidate term: a feature on a channel."""
 
-
-def _rows(units: Sequence[Unit], model: Model, max_rows: int | None = None) -> _Rows:
-    """Features and residual of every unit at full resolution (time features need the clock), then
-    an optional uniform stride down to ``max_rows``."""
-    xs, rs = [], []
-    for u in units:
-        if not len(u):
-            continue
-        inputs = unit_inputs(u, model)
-        per_source = base_wrench_per_source(inputs)  # shielded in stacks, as predict's base
-        base_f = sum((p[0] for p in per_source), np.zeros((len(u), 3)))
-        base_t = sum((p[1] for p in per_source), np.zeros((len(u), 3)))
-        pf, pt = predict(u, model, base=(base_f, base_t))
-        xs.append(feature_matrix(inputs, per_source))
-        rs.append(np.column_stack([u.force_N - pf, u.torque_Nm - pt]))
-    x = np.concatenate(xs) if xs else np.zeros((0, len(FEATURE_NAMES)))
-    r = np.concatenate(rs) if rs else np.zeros((0, 6))
-    if max_rows is not None and len(x) > max_rows:
-        idx = np.arange(0, len(x), int(np.ceil(len(x) / max_rows)))
-        x, r = x[idx], r[idx]
-    return _Rows(x, r)
-
-
-def _rmse(r: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(r**2))) if len(r) else float("nan")
-
-
-@dataclass(frozen=True)
-class ChannelFit:
     channel: str
-    params: dict[str, float]  # "<channel>*<feature>" -> coefficient (channel unit per feature unit)
-    rmse_validation_before: float
-    rmse_validation_after: float
-    n_terms_tried: int
+    feature: str
 
     @property
-    def gain(self) -> float:
-        if not np.isfinite(self.rmse_validation_before) or self.rmse_validation_before <= 0.0:
-            return 0.0
-        return 1.0 - self.rmse_validation_after / self.rmse_validation_before
+    def key(self) -> str:
+        return f"{self.channel}*{self.feature}"
 
 
-def fit_channel(channel: str, train: _Rows, validation: _Rows, options: DiscoveryOptions) -> ChannelFit:
-    """OMP path on train for 1..max_terms; the validation RMSE picks the number of terms."""
-    col = CHANNELS.index(channel)
-    y, yv = train.residual[:, col], validation.residual[:, col]
-    before = _rmse(yv)
-    scale = np.sqrt(np.mean(train.features**2, axis=0))
-    usable = np.flatnonzero((scale > 1e-12) & np.all(np.isfinite(train.features), axis=0))
-    if len(usable) == 0 or len(y) < 10 or len(yv) < 10 or _rmse(y) <= 0.0:
-        return ChannelFit(channel, {}, before, before, 0)
-    xs = train.features[:, usable] / scale[usable]
-    xv = validation.features[:, usable] / scale[usable]
-    path: list[tuple[float, np.ndarray]] = []
-    for k in range(1, min(options.max_terms, len(usable)) + 1):
-        with warnings.catch_warnings():  # collinear features (e.g. no clock: lagged == base) stop OMP early
-            warnings.filterwarnings("ignore", message="Orthogonal matching pursuit ended prematurely")
-            omp = OrthogonalMatchingPursuit(n_nonzero_coefs=k, fit_intercept=False).fit(xs, y)
-        path.append((_rmse(yv - xv @ omp.coef_), omp.coef_.copy()))
-    best = min(e for e, _ in path)
-    err, coef = next((e, c) for e, c in path if e <= best * (1.0 + options.tolerance))
-    params = {f"{channel}*{FEATURE_NAMES[usable[j]]}": float(coef[j] / scale[usable[j]]) for j in np.flatnonzero(coef)}
-    return ChannelFit(channel, params, before, err, len(path))
+@dataclass
+class DiscoveryResult:
+    """Every term that was stable enough to be tested, with its inclusion probability and held-out
+    gain, the kept ones' coefficients (channel unit per feature unit), and the stability record."""
+
+    kept: dict[str, float]  # "<channel>*<feature>" -> coefficient
+    coefficients: dict[str, float]  # every column of the final joint fit (always-fitted ones + kept terms)
+    stability: Stability
+    forward: ForwardResult
+    columns: dict[str, np.ndarray] = field(default_factory=dict)  # term key -> (N, 4) column, noise units
+    top: list[tuple[str, float]] = field(default_factory=list)  # the most often picked terms (key, probability)
+    member_probability: dict[str, float] = field(default_factory=dict)  # term key -> share of halves picking it
+
+    def report(self) -> list[dict[str, Any]]:
+        """One JSON entry per term that was picked in any half-sample (strongest first, at most 12)."""
+        out = []
+        last: dict[str, Any] = {}
+        for tests in self.forward.tests:
+            last.update(tests)
+        last.update(self.forward.final_tests)
+        keys = list(self.kept) + [k for k, _ in self.top if k not in self.kept]
+        for key in keys[:12]:
+            channel, feature = parse_term_key(key)
+            t = last.get(key)
+            selected = key in self.kept
+            group = _group_of(key)
+            prob = self.member_probability.get(key, 0.0)
+            out.append({
+                "name": DISCOVERED_NAME, "channel": channel, "feature": feature, "family": feature_family(feature),
+                "formula": term_formula({key: self.kept[key]}) if selected else "", "features": [feature],
+                "params": {key: self.kept[key]} if selected else {}, "inclusion_probability": prob,
+                "group": group, "group_inclusion_probability": self.stability.probability.get(group, 0.0),
+                "stable": self.stability.stable(group), "heldout_gain": None if t is None else t.to_json(),
+                "selected": selected, "rmse_fz_N": None,
+            })  # fmt: skip
+        return out
+
+
+BASE_RATE_HZ = 20.0
+"""Rate the sources' base wrench is evaluated at for the features, Hz, then interpolated to every sample:
+it follows the vehicles' relative positions, whose motion has no content near 10 Hz (the Nyquist rate of
+20 Hz), while the model call is the costliest part of the features."""
+
+
+def _interpolated_base(inputs) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each source's base wrench (:func:`proxplan.physics.base_wrench_per_source`) evaluated every k-th sample
+    (:data:`BASE_RATE_HZ`) and interpolated linearly in the sample index to every sample."""
+    n = inputs.n_samples
+    t = inputs.time_s
+    dt = float(np.median(np.diff(t))) if t is not None and n > 1 else 0.0
+    k = max(1, int(1.0 / (BASE_RATE_HZ * dt))) if dt > 0 else 1
+    if k == 1 or n < 4 * k:
+        return base_wrench_per_source(inputs)
+    idx = np.unique(np.concatenate([np.arange(0, n, k), [n - 1]]))
+    sub = replace(inputs, height_above_ground_m=np.asarray(inputs.height_above_ground_m)[idx],
+                  velocity_mps=np.asarray(inputs.velocity_mps)[idx],
+                  sources=tuple(replace(s, offsets_m=np.asarray(s.offsets_m)[idx],
+                                        velocity_mps=None if s.velocity_mps is None else np.asarray(s.velocity_mps)[idx])
+                                for s in inputs.sources),
+                  time_s=None if t is None else np.asarray(t)[idx],
+                  thrust_z_N=None if inputs.thrust_z_N is None else np.asarray(inputs.thrust_z_N)[idx],
+                  position_m=None if inputs.position_m is None else np.asarray(inputs.position_m)[idx])  # fmt: skip
+    full = np.arange(n)
+
+    def up(a: np.ndarray) -> np.ndarray:
+        return np.column_stack([np.interp(full, idx, a[:, j]) for j in range(a.shape[1])])
+
+    return [(up(f), up(tq)) for f, tq in base_wrench_per_source(sub)]
+
+
+def sampled_features(sel: SelectionSet, feature_idx: np.ndarray) -> np.ndarray:
+    """(N, F) features ``feature_idx`` of :data:`FEATURE_NAMES` at the selection's samples: computed on the
+    full-resolution source units (lags and low-passes need the clock) at the reference model, the sources'
+    base wrench at :data:`BASE_RATE_HZ`, then taken at the sampled rows."""
+    order = np.argsort(sel.rows, kind="stable")
+    rows_sorted = sel.rows[order]
+    out = np.zeros((len(sel.rows), len(feature_idx)))
+    start = 0
+    for u in sel.sources:
+        lo, hi = np.searchsorted(rows_sorted, [start, start + len(u)])
+        if hi > lo:
+            inputs = unit_inputs(u, sel.model)
+            x = feature_matrix(inputs, _interpolated_base(inputs))[:, feature_idx]
+            out[order[lo:hi]] = x[rows_sorted[lo:hi] - start]
+        start += len(u)
+    return out
+
+
+def _residualized(a: np.ndarray, y: np.ndarray, x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``y`` (N,) and ``x`` (N, F) with the always-fitted columns ``a`` (N, A) projected out by a weighted
+    fit on the rows of weight ``w`` (N,) (Frisch-Waugh-Lovell, once for all half-samples: what a term adds
+    beyond the recalibration and the kept effects)."""
+    if a.shape[1] == 0:
+        return y, x
+    aw = a * w[:, None]
+    gram = aw.T @ a
+    gram += 1e-12 * max(float(np.trace(gram)) / a.shape[1], 1e-300) * np.eye(a.shape[1])
+    coef = np.linalg.lstsq(gram, aw.T @ np.column_stack([y, x]), rcond=None)[0]
+    r = np.column_stack([y, x]) - a @ coef
+    return r[:, 0], r[:, 1:]
+
+
+def omp_bic(sums: GroupSums, w: np.ndarray, n_eff: float, max_terms: int) -> list[int]:
+    """Indices of the columns an OMP path picks on the groups weighted by ``w``, the path's length chosen
+    by BIC (module docstring)."""
+    Gp = np.tensordot(w, sums.G, axes=1)
+    bp = np.tensordot(w, sums.b, axes=1)
+    cp = float(w @ sums.c)
+    d = np.sqrt(np.clip(np.diag(Gp), 0.0, None))
+    ok = np.flatnonzero(d > 1e-9 * max(float(d.max()) if d.size else 0.0, 1e-300))
+    if ok.size == 0 or cp <= 0.0:
+        return []
+    Gn = Gp[np.ix_(ok, ok)] / np.outer(d[ok], d[ok])
+    bn = bp[ok] / d[ok]
+    k_max = min(max_terms, ok.size)
+    with warnings.catch_warnings():  # collinear features end the path early
+        warnings.simplefilter("ignore")
+        path = orthogonal_mp_gram(Gn, bn, n_nonzero_coefs=k_max, return_path=True)
+    path = path.reshape(ok.size, -1)
+    weight = max(float(w @ sums.w), 1e-300)
+    best_score, best_sel = n_eff * np.log(max(cp, 1e-300) / weight), []
+    for k in range(path.shape[1]):
+        beta = path[:, k]
+        nz = np.flatnonzero(beta)
+        sse = max(cp - 2.0 * beta @ bn + beta @ Gn @ beta, 1e-300)
+        score = n_eff * np.log(sse / weight) + len(nz) * np.log(n_eff)
+        if score < best_score:
+            best_score, best_sel = score, [int(ok[j]) for j in nz]
+    return best_sel
 
 
 def discover_terms(
-    train: Sequence[Unit],
-    validation: Sequence[Unit],
-    model: Model,
+    sel: SelectionSet,
+    always: dict[str, np.ndarray],
+    ridge_of,
     *,
-    test: Sequence[Unit] = (),
     options: DiscoveryOptions = DiscoveryOptions(),
-) -> tuple[Model, list[dict[str, Any]]]:
-    """Search every channel of ``options.channels`` for a term the model lacks (module docstring).
+    seed: int = 0,
+) -> DiscoveryResult:
+    """Search every channel of ``options.channels`` for terms the model lacks (module docstring).
 
-    Returns the model with the kept terms appended to its effects (one effect,
-    :data:`DISCOVERED_NAME`) and one JSON entry per channel
-    searched: ``{"name", "formula", "features", "params", "rmse_fz_N", "selected", "channel",
-    "gain_validation", "rmse_validation": {"before", "after"}, "rmse_test": {"before", "after"}}``;
-    ``rmse_fz_N`` is the F_z RMSE with the term on test units (validation units when no test is given).
-    """
-    tr = _rows(train, model, options.max_fit_samples)
-    va = _rows(validation, model)
-    te = _rows(test, model) if len(test) else va
-    kept: dict[str, float] = {}
-    report = []
+    ``always`` are the always-fitted columns (name -> (N, 4), noise units: tangents and kept effects);
+    ``ridge_of(names)`` gives their priors over a column list (:func:`proxplan.identify.design.tangent_ridge`)."""
+    feat_idx = np.array([k for k, f in enumerate(FEATURE_NAMES) if feature_family(f) in options.families])
+    x = sampled_features(sel, feat_idx)
+    names = [FEATURE_NAMES[k] for k in feat_idx]
+    y = sel.residual
+    halves = half_samples(sel.plan, seed)
+    always_names = list(always)
+    member_counts: dict[str, int] = {}
+    group_counts: dict[str, int] = {}
+    n_chosen = np.zeros(len(halves))
+    groups_seen: set[str] = set()
+    wrench_feature = np.array([is_wrench_feature(n) for n in names])
+    train_rows = ~sel.plan.held_out_only[sel.group]
     for channel in options.channels:
-        fit = fit_channel(channel, tr, va, options)
-        least = (options.min_improvement or MIN_IMPROVEMENT).get(channel, 0.0)
-        cut = fit.rmse_validation_before - fit.rmse_validation_after
-        selected = bool(fit.params) and fit.gain >= options.min_gain and cut >= least
-        eff = Effect(DISCOVERED_NAME, fit.params)
-        col = CHANNELS.index(channel)
-        x_te = te.features
-        term_te = x_te[:, [FEATURE_NAMES.index(f) for f in eff.features]] @ np.array(list(fit.params.values()))
-        fz_after = te.residual[:, 2] - (term_te if channel == "force_z_N" and fit.params else 0.0)
-        if selected:
-            kept.update(fit.params)
-        report.append({
-            "name": eff.name, "channel": channel, "formula": term_formula(fit.params) if fit.params else "",
-            "features": list(eff.features), "params": dict(fit.params), "rmse_fz_N": _rmse(fz_after),
-            "gain_validation": fit.gain,
-            "rmse_validation": {"before": fit.rmse_validation_before, "after": fit.rmse_validation_after},
-            "rmse_test": {"before": _rmse(te.residual[:, col]),
-                          "after": _rmse(te.residual[:, col] - (term_te if fit.params else 0.0))},
-            "selected": selected,
-        })  # fmt: skip
-    extra = (Effect(DISCOVERED_NAME, kept),) if kept else ()
-    return replace(model, effects=tuple(model.effects) + extra), report
+        c = CHANNELS.index(channel)
+        xc = np.where(wrench_feature, x, x * sel.target_scale(channel)[:, None]) / sel.row_scale[:, c : c + 1]
+        usable = np.flatnonzero(np.any(xc != 0.0, axis=0) & np.all(np.isfinite(xc), axis=0))
+        groups_seen |= {f"{channel}|{feature_group(names[j])}" for j in usable}
+        a = np.column_stack([always[k][:, c] for k in always_names]) if always_names else np.zeros((len(y), 0))
+        yr, xr = _residualized(a, y[:, c], xc[:, usable], sel.weight * train_rows)
+        sums = GroupSums.build(xr, yr, sel.weight, sel.group, sel.plan.n_groups, [names[j] for j in usable])
+        for h, w in enumerate(halves):
+            n_eff = max(float(w @ sums.w) / sel.tau, 2.0)
+            picked = [names[usable[j]] for j in omp_bic(sums, w, n_eff, options.max_terms_per_channel)]
+            groups = {f"{channel}|{feature_group(f)}" for f in picked}
+            n_chosen[h] += len(groups)
+            for g in groups:
+                group_counts[g] = group_counts.get(g, 0) + 1
+            for f in picked:
+                member_counts[term_key(channel, f)] = member_counts.get(term_key(channel, f), 0) + 1
+    n_halves = max(len(halves), 1)
+    group_prob = {g: v / n_halves for g, v in group_counts.items()}
+    q = float(n_chosen.mean()) if len(halves) else 0.0
+    stab = Stability(group_prob, stability_threshold(q, len(groups_seen)), q, len(halves))
+    member_prob = {k: v / n_halves for k, v in member_counts.items()}
+    stable = [k for k, p in sorted(member_prob.items(), key=lambda kv: -kv[1])
+              if stab.stable(_group_of(k))]  # fmt: skip
+    columns: dict[str, np.ndarray] = {}
+    for key in stable:
+        channel, feature = parse_term_key(key)
+        col = np.zeros_like(y)
+        c = CHANNELS.index(channel)
+        scale = sel.target_scale(channel) if weight_scaled(key) else 1.0
+        col[:, c] = x[:, names.index(feature)] * scale / sel.row_scale[:, c]
+        columns[key] = col
+    fwd = ForwardResult()
+    sums = sel.sums({**always, **columns})
+    ridge = ridge_of(sums.columns)
+    if stable:
+        fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable], sel.plan, ridge, sel.tau,
+                              max_terms=options.max_terms)  # fmt: skip
+    names_fit = always_names + fwd.chosen
+    trainable = trainable_groups(sums, sel.plan)
+    beta = solve(sums, sums.index(names_fit), trainable, ridge, sel.tau) if names_fit else np.zeros(0)
+    coef = dict(zip(names_fit, (float(v) for v in beta)))
+    top = sorted(member_prob.items(), key=lambda kv: -kv[1])[:12]
+    return DiscoveryResult(kept={k: coef[k] for k in fwd.chosen}, coefficients=coef, stability=stab, forward=fwd,
+                           columns=columns, top=top, member_probability=member_prob)  # fmt: skip
+
+
+def _group_of(key: str) -> str:
+    """``"<channel>|<group>"`` of a term key (:func:`proxplan.physics.features.term_key`)."""
+    channel, feature = parse_term_key(key)
+    return f"{channel}|{feature_group(feature)}"

@@ -15,6 +15,13 @@ there mostly through measurement error, and a wrong lag adds the thrust's rate o
 mean: a constant thrust error is not a lag). It WARNS when the declaration disagrees: the declared
 tau (0 for delivered, the vehicle's for commanded) leaves a spread more than :data:`WARN_EXCESS`
 above the best one and lies outside a factor :data:`TAU_FACTOR` of it (or one of them is 0).
+
+**Only the delay is evidence.** A first-order lag both delays the thrust and smooths it; smoothing alone
+lowers the spread wherever the logged thrust carries noise the accelerometer did not see (a hovering
+vehicle with command noise), which is no evidence of a lag (issue 35: a rightly declared log drew a
+warning). So each candidate lag is applied as an ALL-PASS with the lag's phase, -atan(omega tau), and
+magnitude 1 (:func:`phase_of_lag`): every candidate keeps the noise's power, and only a thrust that
+reaches the air late makes one tau steadier than another.
 """
 
 from __future__ import annotations
@@ -105,12 +112,40 @@ def _disagrees(declared: float, best: float, s_decl: float, s_best: float) -> bo
     return declared > 0.0 and not (best / TAU_FACTOR <= declared <= best * TAU_FACTOR)
 
 
+def phase_of_lag(x: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
+    """``x`` (N, k), one contiguous segment sampled every ``dt_s`` (s), through an all-pass with the phase of a
+    first-order lag of time constant ``tau_s`` (s): H(omega) = exp(-i atan(omega tau)), |H| = 1 (zero-padded
+    FFT, about the segment's mean)."""
+    if tau_s <= 0.0 or len(x) < 4:
+        return x
+    n = len(x)
+    mean = x.mean(axis=0)
+    spec = np.fft.rfft(x - mean, 2 * n, axis=0)
+    omega = 2.0 * np.pi * np.fft.rfftfreq(2 * n, dt_s)
+    out = np.fft.irfft(spec * np.exp(-1j * np.arctan(omega * tau_s))[:, None], 2 * n, axis=0)[:n]
+    return out + mean
+
+
+def _delayed(log: VehicleLog, tau_s: float) -> VehicleLog:
+    """``log`` with every contiguous segment's motor thrust through :func:`phase_of_lag`."""
+    if tau_s <= 0.0:
+        return log
+    thrust = log.motor_thrust_N.copy()
+    seg = np.zeros(len(log), dtype=int) if log.segment is None else np.asarray(log.segment)
+    for sid in np.unique(seg):
+        idx = np.flatnonzero(seg == sid)
+        dt = float(np.median(np.diff(log.t_s[idx]))) if len(idx) > 1 else 0.01
+        thrust[idx] = phase_of_lag(thrust[idx], dt, tau_s)
+    return replace(log, motor_thrust_N=thrust)
+
+
 def _spread(group: Sequence[LagSample], tau_s: float, options: MeasureOptions) -> float:
-    """RMS of free-flight F_z about each log's free-flight mean, pooled over ``group``, N."""
-    opts = replace(options, motor_time_constant_s=tau_s if tau_s > 0.0 else None, thrust_scale=1.0)
+    """RMS of free-flight F_z about each log's free-flight mean, pooled over ``group``, N, the thrust taken
+    with the phase of a lag ``tau_s`` (module docstring)."""
+    opts = replace(options, motor_time_constant_s=None, thrust_scale=1.0)
     sse, n = 0.0, 0
     for s in group:
-        fz = measure_log(s.vehicle, s.log, options=opts).force_N[s.free, 2]
+        fz = measure_log(s.vehicle, _delayed(s.log, tau_s), options=opts).force_N[s.free, 2]
         sse += float(np.sum((fz - fz.mean()) ** 2))
         n += fz.size
     return float(np.sqrt(sse / n)) if n else float("nan")

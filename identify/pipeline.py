@@ -1,6 +1,6 @@
-"""``proxplan identify`` pipeline: measure -> predict -> calibrate -> residuals -> effects -> report.
+"""``proxplan identify`` pipeline: measure -> predict -> calibrate -> select -> discover -> report.
 
-Stages (DESIGN.md section 6):
+Stages (DESIGN.md section 6; issue 35):
 
 1. Load every flight of the manifest (:mod:`proxplan.identify.flightlog`), clean it and measure the disturbance
    on every vehicle (:mod:`proxplan.identify.measure`, S0-11, S0-13 + gyroscopic term) with the motor thrust
@@ -9,25 +9,27 @@ Stages (DESIGN.md section 6):
 2. Predict it with the model: :func:`proxplan.physics.effects.total_wrench`, i.e. the base model
    (:func:`proxplan.physics.disturbance.disturbance_wrench`) summed over all other vehicles of the flight at
    their logged relative positions (interpolated onto the target's own clock), plus effects.
-3. Split the train flights BY FLIGHT into a fitting and a validation part
-   (:func:`proxplan.identify.effect_selection.validation_split`). Calibrate on the fitting part
-   (:mod:`proxplan.identify.calibrate`): per source type c_ax, z0_m, c_rad; per target type b_v; jointly with
-   a per-type thrust scale s as a nuisance parameter (logged motor thrusts off by a factor put
-   (s - 1) sum(f_i) z_B into the measured force), so that a thrust-calibration error does not
-   distort the aerodynamic parameters. Fitted on F_z (world z force). The scales are then dropped:
-   a thrust correction is kept only if the ``thrust_bias`` candidate (global bias + per-type
-   scales) earns it on the validation flights.
+3. Calibrate on the train flights (:mod:`proxplan.identify.calibrate`), MAP: per source type c_ax, z0_m,
+   c_rad; per target type b_v; each with its prior (:mod:`proxplan.identify.priors`), the data term in
+   units of the F_z noise per independent sample (the residual's integrated autocorrelation time); a
+   per-type thrust scale is fitted jointly as a nuisance parameter and then dropped (``thrust_bias``
+   may earn it back). The report says how far each parameter moved in prior sigmas and whether the data
+   informed it.
 4. Residual analysis (:mod:`proxplan.identify.residuals`).
-5. Effects: each candidate of :data:`proxplan.physics.effects.EFFECT_NAMES` is fitted on the fitting part on
-   top of the calibrated model (vehicle parameters frozen) and scored on the VALIDATION flights; the
-   one that cuts the validation RMSE of F_z or of the yaw torque most (by at least ``min_gain``,
-   without making the other worse by more than 1 %) is kept, and the search repeats (greedy).
-6. Errors before (model as given), calibrated and after (calibrated + kept effects) on TEST flights,
+5. Effects (:mod:`proxplan.identify.effect_selection`) and 6. discovered terms
+   (:mod:`proxplan.identify.discovery`), both judged by flights held out
+   (:mod:`proxplan.identify.crossval`): the vehicle parameters are refitted jointly with every candidate
+   (their tangent columns, with their priors), a candidate is kept only when its held-out gain exceeds
+   the Bonferroni multiple of the flight-to-flight standard error AND it is chosen in most half-samples
+   of the flights. When the calibration moved a parameter by :data:`proxplan.identify.priors.MOVE_SIGMAS`
+   or more (a sign that it absorbed a missing effect), selection also runs around the PRIOR model, and
+   the start whose kept set predicts the held-out flights better wins.
+7. Errors before (model as given), calibrated and after (calibrated + kept effects) on TEST flights,
    which never choose anything; also per vehicle (the manifest's key).
 
 Vehicles marked ``score: false`` in the manifest are downwash sources only (never fitted or scored).
-Fits use at most ``max_fit_samples`` samples and scoring ``max_eval_samples`` samples (uniform
-strides); the before/after figures use every test sample.
+Fits use stratified samples (``max_fit_samples``; :mod:`proxplan.identify.strata`); the before/after
+figures use every test sample.
 """
 
 from __future__ import annotations
@@ -61,16 +63,19 @@ from proxplan.identify.data import (
     subsample,
     unit_inputs,
 )
-from proxplan.identify.discovery import discover_terms
-from proxplan.identify.effect_selection import EffectTrial, select_effects, validation_split
+from proxplan.identify.crossval import Candidate, ForwardResult, heldout_backward, heldout_mse, solve, trainable_groups
+from proxplan.identify.design import NoiseLevel, noise_level, selection_set
+from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
+from proxplan.identify.effect_selection import EffectSelection, EffectSelector, EffectTrial
 from proxplan.identify.flightlog import Manifest
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.motor_check import check_loaded
+from proxplan.identify.priors import vehicle_priors
 from proxplan.identify.residuals import correlate, sample_features
 from proxplan.identify.stack_fit import choose_stack_shielding
 from proxplan.identify.strata import stratified_sample
-from proxplan.physics import VALIDITY_FACTOR_L, ModelOptions, base_wrench
+from proxplan.physics import VALIDITY_FACTOR_L, Effect, ModelOptions, base_wrench
 
 # ------------------------------------------------------------------------------ calibration
 
@@ -82,18 +87,30 @@ def _roles(units: Sequence[Unit]) -> tuple[set[str], set[str], list[str]]:
     return sources, targets, types
 
 
-def calibrate_model(
-    units: Sequence[Unit], model: Model, *, options: IdentifyOptions
-) -> tuple[Model, CalibrationResult]:
-    """Fit c_ax, z0_m, c_rad (source types), b_v (target types), thrust scale (all types) on F_z, on a
-    stratified, weighted sample of ``units`` (:func:`proxplan.identify.strata.stratified_sample`)."""
-    fit_units = stratified_sample(units, options.max_fit_samples, model.vehicles)
-    sw = np.sqrt(np.concatenate([u.weight for u in fit_units]))
-    sources, targets, types = _roles(fit_units)
+def model_specs(units: Sequence[Unit], model: Model) -> list[ParamSpec]:
+    """The declared parameters the data can inform, with their priors: c_ax, z0_m, c_rad of every type
+    that is a source in ``units``, b_v of every type that receives a downwash, and every type's thrust
+    scale (names ``TYPE.param``; :func:`proxplan.identify.calibrate.vehicle_param_specs`)."""
+    sources, targets, types = _roles(units)
     specs: list[ParamSpec] = []
     for t in types:
         specs += vehicle_param_specs(model.vehicles[t], f"{t}.", as_source=t in sources, as_target=t in targets)
-        specs.append(ParamSpec(f"{t}.thrust_scale", model.thrust_scale.get(t, 1.0), 0.7, 1.3))
+        specs.append(ParamSpec(f"{t}.thrust_scale", model.thrust_scale.get(t, 1.0), 0.7, 1.3,
+                               vehicle_priors(model.vehicles[t], as_source=False, as_target=False)["thrust_scale"]))  # fmt: skip
+    return specs
+
+
+def calibrate_model(
+    units: Sequence[Unit], model: Model, *, options: IdentifyOptions, noise: NoiseLevel
+) -> tuple[Model, CalibrationResult]:
+    """MAP fit of c_ax, z0_m, c_rad (source types), b_v (target types) and thrust scales (all types) on F_z,
+    on a stratified, weighted sample of ``units`` (:func:`proxplan.identify.strata.stratified_sample`),
+    with the priors of :mod:`proxplan.identify.priors`. The data term is in units of the F_z noise of one
+    independent sample: each type's F_z noise unit times sqrt(tau) (:func:`proxplan.identify.design.noise_level`).
+    The thrust scales are nuisance parameters: returned at 1."""
+    fit_units = stratified_sample(units, options.max_fit_samples, model.vehicles)
+    sw = np.sqrt(np.concatenate([u.weight for u in fit_units])) / noise.rows(fit_units)[:, 0]
+    specs = model_specs(fit_units, model)
     y = np.concatenate([u.force_N[:, 2] for u in fit_units])
 
     def model_of(theta: np.ndarray) -> Model:
@@ -112,14 +129,46 @@ def calibrate_model(
         m = model_of(theta)
         return sw * (np.concatenate([predict(u, m)[0][:, 2] for u in fit_units]) - y)
 
-    result = fit_parameters(residual, specs, max_nfev=60 + 10 * len(specs))
+    result = fit_parameters(residual, specs, max_nfev=60 + 10 * len(specs), noise_sigma=float(np.sqrt(noise.tau)))
     # the thrust scales were nuisance parameters (so a thrust-calibration error does not distort the
-    # aerodynamic ones); whether to keep a thrust correction is decided by test error (thrust_bias)
+    # aerodynamic ones); whether to keep a thrust correction is decided by held-out flights (thrust_bias)
     calibrated = model_of(result.values)
     return replace(calibrated, thrust_scale=dict(model.thrust_scale)), result
 
 
 # ------------------------------------------------------------------------------ pipeline
+
+
+@dataclass
+class Selection:
+    """Effects and discovered terms chosen around one reference model (:func:`select_and_discover`): the
+    final model, the library selection and the discovery, which reference they started from, the
+    held-out MSE of the final set per group (noise units) and the groups' note."""
+
+    model: Model
+    effects: EffectSelection
+    discovery: DiscoveryResult | None
+    start: str  # "calibrated" | "prior"
+    heldout_mse: np.ndarray  # (groups, channels), noise units
+    note: str
+
+    @property
+    def heldout_total(self) -> float:
+        """Mean over the held-out groups of the sum over channels of ln(held-out MSE): the score two starts
+        are compared by (the gain test's log-ratio, summed over groups), lower is better."""
+        m = np.where(np.isfinite(self.heldout_mse) & (self.heldout_mse > 0), np.log(np.abs(self.heldout_mse)), np.nan)
+        per_group = np.nansum(m, axis=1)[np.any(np.isfinite(m), axis=1)]
+        return float(np.mean(per_group)) if per_group.size else float("inf")
+
+    def to_json(self) -> dict[str, Any]:
+        stab = self.effects.stability
+        out: dict[str, Any] = {"start": self.start, "groups": self.note, "heldout_log_mse": self.heldout_total,
+               "effects_stability_threshold": stab.threshold, "effects_mean_chosen_per_half": stab.mean_chosen,
+               "half_samples": stab.n_halves, "recalibration_step_u": self.effects.steps}  # fmt: skip
+        if self.discovery is not None:
+            d = self.discovery.stability
+            out |= {"terms_stability_threshold": d.threshold, "terms_mean_chosen_per_half": d.mean_chosen}
+        return out
 
 
 @dataclass(frozen=True)
@@ -145,9 +194,11 @@ class IdentifyResult:
     per_vehicle: dict = field(default_factory=dict)  # NAME -> rmse_fz_N_before/calibrated/after, n_samples (test)
     discovered: list = field(default_factory=list)  # data-driven terms (proxplan.identify.discovery); [] when none
     calibrated_model: Model | None = None  # calibrated, no effects (what "calibrated_only" scored)
-    validation: str = ""  # which train flights chose the effects (proxplan.identify.effect_selection.validation_split)
+    validation: str = ""  # how the flights were held out (proxplan.identify.crossval.plan_groups), fallback said
     stack_shielding: dict | None = None  # eta chosen on validation stacks (proxplan.identify.stack_fit)
     motor_lag_check: dict = field(default_factory=dict)  # proxplan.identify.motor_check (warnings inside)
+    selection: dict = field(default_factory=dict)  # Selection.to_json of the start that won (+ the other's total)
+    fallback: bool = False  # selection fell back to blocks in time (too few flights)
 
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
@@ -158,6 +209,8 @@ class IdentifyResult:
         if self.calibration is not None:
             cal = {
                 "parameters": self.calibration.to_json(),
+                "priors": self.calibration.prior_report(),
+                "large_moves": self.calibration.large_moves(),
                 "rmse_fz_N_train": self.calibration.rmse,
                 "success": self.calibration.success,
             }
@@ -174,6 +227,8 @@ class IdentifyResult:
             "per_vehicle": self.per_vehicle,
             "discovered": list(self.discovered),
             "validation": self.validation,
+            "selection_fallback": self.validation if self.fallback else None,
+            "selection": self.selection,
             "stack_shielding": self.stack_shielding,
             "motor_lag_check": self.motor_lag_check,
             "warnings": list(self.motor_lag_check.get("warnings", [])),
@@ -249,6 +304,76 @@ def _per_vehicle(test: Sequence[Unit], before: Model, calibrated: Model, after: 
                 "n_samples": b[k][1]} for k in b}  # fmt: skip
 
 
+def select_and_discover(
+    fit: Sequence[Unit],
+    valid: Sequence[Unit],
+    reference: Model,
+    specs: Sequence[ParamSpec],
+    *,
+    options: IdentifyOptions,
+    noise: NoiseLevel,
+    test: Sequence[Unit] = (),
+    start: str = "calibrated",
+) -> Selection:
+    """Stages 5 and 6 around ``reference`` (module docstring): the library effects, then the discovered
+    terms with the kept effects and the vehicle parameters' tangents refitted jointly, in the noise units
+    of ``noise``."""
+    sel = selection_set(fit, valid, reference, noise, max_fit_samples=options.max_fit_samples,
+                        max_valid_samples=options.max_eval_samples)  # fmt: skip
+    selector = EffectSelector(sel, specs, options=options)
+    selector.fit_candidates(options.effects)
+    effects = selector.run(test=test)
+    discovery = None
+    if options.discover:
+        discovery = discover_terms(sel, selector.always_columns(effects.selected), selector.ridge_for)
+    model, heldout, joint = joint_model(selector, effects, discovery)
+    if discovery is not None:
+        discovery.kept = {k: v for k, v in discovery.kept.items() if k in joint.chosen}
+        discovery.forward.dropped.update({k: t for k, t in joint.dropped.items() if k in discovery.columns})
+    for trial in effects.trials:
+        if trial.name in joint.dropped:
+            t = joint.dropped[trial.name]
+            trial.selected = False
+            trial.reason = (f"dropped: redundant given the discovered terms (held-out gain {t.mean:+.3g} +- {t.se:.2g}, "
+                            f"needs > {t.z:.2f} SE)")  # fmt: skip
+    effects.selected = [n for n in effects.selected if n in joint.chosen]
+    return Selection(model, effects, discovery, start, heldout, sel.plan.note)
+
+
+def joint_model(
+    selector: EffectSelector, effects: EffectSelection, discovery: DiscoveryResult | None
+) -> tuple[Model, np.ndarray, ForwardResult]:
+    """The kept library effects and discovered terms judged together: each must still pass the held-out
+    gain test given all the others (a library effect that stood in for an undeclared one is dropped once
+    the discovered term explains it better); then the survivors and the vehicle parameters' steps are
+    fitted jointly on every train group. Returns the model, the held-out MSE per group and channel, and
+    the backward pass's record."""
+    sel = selector.sel
+    kept = [Candidate(c.name, tuple(c.columns)) for c in selector.candidates if c.name in effects.selected]
+    terms = dict(discovery.kept) if discovery is not None else {}
+    columns = {k: selector.tangents[k] for k in selector.always}
+    for cand in selector.candidates:
+        if cand.name in effects.selected:
+            columns.update(cand.columns)
+    if discovery is not None:
+        columns.update({k: discovery.columns[k] for k in terms})
+    kept += [Candidate(k, (k,)) for k in terms]
+    sums = sel.sums(columns)
+    ridge = selector.ridge_for(sums.columns)
+    back = heldout_backward(sums, selector.always, kept, sel.plan, ridge, sel.tau)
+    names = list(selector.always) + [col for c in kept if c.name in back.chosen for col in c.columns]
+    idx = sums.index(names)
+    beta = solve(sums, idx, trainable_groups(sums, sel.plan), ridge, sel.tau)
+    coef = dict(zip(names, (float(b) for b in beta)))
+    model = selector.model_with(coef, [n for n in effects.selected if n in back.chosen])
+    survivors = {k: coef[k] for k in terms if k in back.chosen}
+    if survivors:
+        model = replace(model, effects=model.effects + (Effect(DISCOVERED_NAME, survivors),))
+        if discovery is not None:
+            discovery.kept = survivors
+    return model, heldout_mse(sums, idx, sel.plan, ridge, sel.tau), back
+
+
 def run_identify(
     manifest: Manifest | str | Path, *, options: IdentifyOptions | None = None, thrust_summary: bool = True
 ) -> IdentifyResult:
@@ -259,15 +384,10 @@ def run_identify(
     data = load_units(manifest, options=options)
     units, exclusions, types = data.units, data.exclusions, data.types
     lag_check = check_loaded(data, motor_thrust=manifest.motor_thrust, options=options.measure)
-    train = [u for u in units if u.split == "train" and u.scored and len(u)]
+    fit = [u for u in units if u.split == "train" and u.scored and len(u)]
     test = [u for u in units if u.split == "test" and u.scored and len(u)]
-    declared = [u for u in units if u.split == "validation" and u.scored and len(u)]
-    if declared:  # the manifest's validation flights (best another day's) choose; every train flight fits
-        fit, valid = train, declared
-        validation_note = "validation flights (the manifest's): " + ", ".join(sorted({u.flight for u in declared}))
-    else:
-        fit, valid, validation_note = validation_split(train)
-    if not train or not test:
+    valid = [u for u in units if u.split == "validation" and u.scored and len(u)]
+    if not fit or not test:
         raise UserError(f"{manifest.path}: after quality checks there must be samples on train and test flights")
     base = Model(  # "before": S0 as published, sources' wrenches summed pair by pair (no stack shielding)
         vehicles=types,
@@ -287,43 +407,59 @@ def run_identify(
         return errors(test_all, m, bases=full_bases(m))
 
     before = full_errors(base)
+    noise = noise_level(fit, base)
     calibration = None
     model = base
     stack_choice = None
+    choose_on = valid or fit  # eta: one discrete parameter, chosen on the validation flights (else train)
     if options.calibrate:
-        model, calibration = calibrate_model(fit, base, options=options)
-        # then the stack's eta (proxplan.physics.stack) on the validation flights' stacks; with a
-        # shielding stack the one-source parameters are refitted under it (the per-pair sum had bent
-        # them to absorb the stacks), and eta is chosen again
-        model, stack_choice = choose_stack_shielding(model, valid)
+        model, calibration = calibrate_model(fit, base, options=options, noise=noise)
+        # then the stack's eta (proxplan.physics.stack) on the stacks; with a shielding stack the
+        # one-source parameters are refitted under it (the per-pair sum had bent them to absorb the
+        # stacks), and eta is chosen again
+        model, stack_choice = choose_stack_shielding(model, choose_on)
         if model.options.stack_shielding > 0.0:
-            model, calibration = calibrate_model(fit, model, options=options)
-            model, stack_choice = choose_stack_shielding(model, valid)
+            model, calibration = calibrate_model(fit, model, options=options, noise=noise)
+            model, stack_choice = choose_stack_shielding(model, choose_on)
     calibrated = full_errors(model)
     corr_before = _residual_analysis(subsample(fit, 20000), model)
-    starts = [model, base] if options.calibrate else [base]
-    final, trials = select_effects(fit, valid, starts, options=options, test=test)
-    discovered: list = []
-    if (
-        options.discover
-    ):  # terms no library effect names: fit on train, kept by validation (proxplan.identify.discovery)
-        final, discovered = discover_terms(fit, valid, final, test=test)
+    specs = model_specs(fit, model)
+    test_eval = subsample(test, options.max_eval_samples)
+    chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval)
+    other_total = None
+    if calibration is not None:
+        # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
+        # undo it only to first order), so selection also starts from the PRIOR model (with the chosen
+        # eta); the start whose kept set predicts the held-out flights better wins (same samples, same units)
+        prior = replace(base, options=model.options)
+        alt = select_and_discover(fit, valid, prior, model_specs(fit, prior), options=options, noise=noise,
+                                  test=test_eval, start="prior")  # fmt: skip
+        other_total = alt.heldout_total
+        if alt.heldout_total < chosen.heldout_total:
+            chosen, other_total = alt, chosen.heldout_total
+    final = chosen.model
     after = full_errors(final)
     corr = _residual_analysis(subsample(test, 50000), final)
     unexplained = None
     if corr and corr[0].strength >= 0.3:
         unexplained = {"feature": corr[0].feature, "pearson": corr[0].pearson, "eta": corr[0].eta,
                        "note": "the residual after the kept effects still follows this feature; no effect in the library explained it"}  # fmt: skip
-    thrust = thrust_coefficient_summary(train) if thrust_summary else {}
+    discovered = chosen.discovery.report() if chosen.discovery is not None else []
+    for entry in discovered:
+        if entry["selected"]:
+            entry["rmse_fz_N"] = after.rmse_fz_N
+    thrust = thrust_coefficient_summary(fit) if thrust_summary else {}
+    selection = chosen.to_json() | {"other_start_heldout_mse": other_total}
     return IdentifyResult(
-        before=before, after=after, calibrated=calibrated, trials=trials,
+        before=before, after=after, calibrated=calibrated, trials=chosen.effects.trials,
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
-        unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)), thrust_coefficient=thrust, units=units,
-        thrust_maps=data.thrust_maps, notes=data.notes, measure_options=options.measure,
-        per_vehicle=_per_vehicle(test, base, model, final), validation=validation_note, calibrated_model=model,
-        discovered=discovered, stack_shielding=None if stack_choice is None else stack_choice.to_json(),
-        motor_lag_check=lag_check,
+        unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)),
+        thrust_coefficient=thrust, units=units, thrust_maps=data.thrust_maps, notes=data.notes,
+        measure_options=options.measure, per_vehicle=_per_vehicle(test, base, model, final),
+        validation=chosen.note, calibrated_model=model, discovered=discovered,
+        stack_shielding=None if stack_choice is None else stack_choice.to_json(), motor_lag_check=lag_check,
+        selection=selection, fallback="fell back" in chosen.note,
     )  # fmt: skip
 
 

@@ -79,16 +79,16 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
     plt.close(fig)
     written.append(p)
     # 3. effects before/after
-    first = [tr for tr in result.trials if tr.round == 1]
+    first = [tr for tr in result.trials if tr.test is not None]  # each candidate with the recalibration, alone
     labels = ["before", "calibrated"] + [tr.name for tr in first] + ["after"]
     fz = (
         [result.before.rmse_fz_N, result.calibrated.rmse_fz_N]
-        + [tr.test.rmse_fz_N for tr in first]
+        + [tr.test.rmse_fz_N for tr in first if tr.test is not None]
         + [result.after.rmse_fz_N]
     )
     tz = (
         [result.before.rmse_tz_Nm, result.calibrated.rmse_tz_Nm]
-        + [tr.test.rmse_tz_Nm for tr in first]
+        + [tr.test.rmse_tz_Nm for tr in first if tr.test is not None]
         + [result.after.rmse_tz_Nm]
     )
     fig, axes = plt.subplots(1, 2, figsize=(13, 4))
@@ -97,7 +97,7 @@ def write_plots(result: IdentifyResult, out_dir: Path) -> list[Path]:
         ax.bar(range(len(vals)), vals, color=colors)
         ax.set_xticks(range(len(vals)), labels, rotation=40, ha="right", fontsize=8)
         ax.set_ylabel(name)
-    fig.suptitle("each candidate effect alone on the calibrated model (round 1), before and after")
+    fig.suptitle("each candidate effect alone on the reference model (jointly recalibrated), before and after")
     p = out_dir / "effects.png"
     _save(fig, p)
     plt.close(fig)
@@ -161,6 +161,55 @@ def limit_lines(saturation: dict) -> list[str]:
     return lines
 
 
+def selection_lines(result: IdentifyResult) -> list[str]:
+    """Markdown of the library effects' selection: how flights were held out (a fallback said), which start
+    won, and every candidate's held-out gain, inclusion probability and verdict."""
+    sel = result.selection
+    lines = ["", "## Library effects (fitted on train flights, judged by flights held out, scored on test)", "",
+             f"{result.validation}.", ""]  # fmt: skip
+    if result.fallback:
+        lines += [f"**Selection fell back**: {result.validation}.", ""]
+    if sel:
+        other = sel.get("other_start_heldout_mse")
+        lines += [f"Selection around the **{sel['start']}** model (held-out score {sel['heldout_log_mse']:.4g}"
+                  + (f"; the other start {other:.4g}" if other is not None else "") + "; lower is better). "
+                  "A candidate is kept when its held-out gain (sum over channels of ln(MSE without / MSE with), every "
+                  "flight predicted by a fit without it) exceeds z flight-to-flight standard errors (one-sided "
+                  "Bonferroni at 5 %) AND it is chosen in at least the stated share of half-samples of the flights "
+                  "(stability selection). Test flights only report.", ""]  # fmt: skip
+    lines += ["| round | effect | params | RMSE F_z test [N] | held-out gain alone | inclusion | kept | why |",
+              "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for tr in result.trials:
+        params = ", ".join(f"{k}={v:.4g}" for k, v in tr.params.items())
+        g = tr.gain_alone
+        gain = "n/a" if g is None else f"{g.mean:+.3g} +- {g.se:.2g}"
+        test = _fmt(tr.test.rmse_fz_N) if tr.test is not None else "n/a"
+        lines.append(f"| {tr.round} | {tr.name} | {params} | {test} | {gain} | {tr.inclusion:.0%} | "
+                     f"{'yes' if tr.selected else ''} | {tr.reason} |")  # fmt: skip
+    return lines
+
+
+def calibration_lines(cal) -> list[str]:
+    """Markdown of the MAP calibration: every parameter with its posterior sigma, prior, move in prior sigmas,
+    and whether the data informed it or moved it suspiciously far (:mod:`proxplan.identify.priors`)."""
+    lines = ["", "## Calibrated parameters (MAP with priors, train flights; proxplan.identify.priors)", "",
+             "| parameter | value | posterior std | prior (center, sigma) | moved [prior sigmas] | data informed it |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    report = cal.prior_report()
+    for n, v, s in zip(cal.names, cal.values, cal.std):
+        r = report.get(n)
+        std = _fmt(float(s)) if np.isfinite(s) else "not identifiable"
+        if r is None:
+            lines.append(f"| {n} | {v:.5g} | {std} | held | - | - |")
+            continue
+        prior = f"{r['prior_center']:.4g}, {r['prior_sigma']:.3g}" + (" (of ln)" if r["prior_log"] else "")
+        move = f"{r['move_sigmas']:+.2f}" + (" **large: a missing effect?**" if r["large_move"] else "")
+        lines.append(f"| {n} | {v:.5g} | {std} | {prior} | {move} | {'yes' if r['informed'] else 'no (stays at its prior)'} |")
+    lines += ["", "Thrust scales are nuisance parameters of the calibration (they keep a thrust-sensor error out of "
+              "the aerodynamic parameters); only `thrust_bias`, if kept, carries them into the model."]  # fmt: skip
+    return lines
+
+
 def _fmt(x: float | None, digits: int = 4) -> str:
     return "n/a" if x is None else f"{x:.{digits}g}"
 
@@ -189,37 +238,9 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         lines.append(f"- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "
                      f"ceiling {m.x_max_V:.3f} V, max {m.max_thrust_N:.4g} N per motor, RMS {m.rms_N:.2g} N, R2 {m.r2:.4f}")  # fmt: skip
     lines += [f"- note: {n}" for n in result.notes]
-    lines += ["", "## Candidate effects (fitted on train, chosen on validation flights, scored on test)", "",
-              f"{result.validation}.", "",
-              "A candidate is kept when its gain holds on the validation flights AND its parameters are identified "
-              "(a strength parameter's 2-sigma interval, widened for autocorrelation, excludes zero; nothing else "
-              "pinned on a bound); a kept one must still bring the gain given the others. Test flights only report.", "",
-              "| round | effect | params | RMSE F_z test [N] | RMSE F_z validation [N] | gain F_z (val) | gain yaw (val) "
-              "| kept | why |",
-              "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
-    for tr in result.trials:
-        params = ", ".join(f"{k}={v:.4g}" for k, v in tr.params.items())
-        val = _fmt(tr.valid.rmse_fz_N) if tr.valid is not None else "n/a"
-        lines.append(f"| {tr.round} | {tr.name} | {params} | {_fmt(tr.test.rmse_fz_N)} | {val} | {100 * tr.gain_fz:.1f} % "
-                     f"| {100 * tr.gain_tz:.1f} % | {'yes' if tr.selected else ''} | {tr.reason} |")  # fmt: skip
+    lines += selection_lines(result)
     if result.calibration is not None:
-        lines += [
-            "",
-            "## Calibrated parameters (train flights, stratified sample; one-sigma from the Jacobian, widened for "
-            "autocorrelation)",
-            "",
-            "| parameter | value | std |",
-            "|---|---|---|",
-        ]
-        cal = result.calibration
-        for n, v, s, at_bound in zip(cal.names, cal.values, cal.std, cal.at_bound or (False,) * len(cal.names)):
-            std = "at a fit bound" if at_bound else (_fmt(float(s)) if np.isfinite(s) else "not identifiable")
-            lines.append(f"| {n} | {v:.5g} | {std} |")
-        lines += [
-            "",
-            "Thrust scales are nuisance parameters of the calibration (they keep a thrust-sensor "
-            "error out of the aerodynamic parameters); only `thrust_bias`, if kept, carries one into the model.",
-        ]
+        lines += calibration_lines(result.calibration)
     lines += [
         "",
         "## Residual analysis (final model, test flights, F_z)",
@@ -236,13 +257,16 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
             f"**Unexplained residual**: it still correlates with `{u['feature']}` (pearson {u['pearson']:.2f}, eta {u['eta']:.2f}); no effect of the library removed it.",
         ]
     if result.discovered:
-        lines += ["", "## Discovered terms (sparse regression on train, kept by validation; proxplan.identify.discovery)", "",
-                  "| channel | kept | validation gain | test RMSE before | after | formula |", "|---|---|---|---|---|---|"]  # fmt: skip
+        lines += ["", "## Discovered terms (ensemble sparse regression over half-samples of the flights, kept by "
+                  "flights held out; proxplan.identify.discovery)", "",
+                  "| channel | feature | family | inclusion (term / its group) | held-out gain (t, needs) | kept | formula |",
+                  "|---|---|---|---|---|---|---|"]  # fmt: skip
         for e in result.discovered:
-            lines.append(
-                f"| {e['channel']} | {'yes' if e['selected'] else 'no'} | {e['gain_validation']:.3f} | "
-                f"{_fmt(e['rmse_test']['before'], 5)} | {_fmt(e['rmse_test']['after'], 5)} | {e['formula'] or '-'} |"
-            )
+            g = e["heldout_gain"]
+            gain = "not tested" if g is None else f"{g['mean_gain']:+.3g} ({_fmt(g['t'], 3)}, > {g['z_required']:.2f})"
+            lines.append(f"| {e['channel']} | {e['feature']} | {e['family']} | {e['inclusion_probability']:.0%} / "
+                         f"{e['group_inclusion_probability']:.0%} | {gain} | {'yes' if e['selected'] else 'no'} | "
+                         f"{e['formula'] or '-'} |")  # fmt: skip
     v = result.validity
     lines += ["", "## Validity", "", f"Samples below a source (r < 3 L): {v['samples_below_a_source']}; in the model's zone dz > 3 L: "
               f"{v['samples_in_valid_zone']} ({_fmt(v['fraction_valid'], 3)}). {v['note']}.", "",

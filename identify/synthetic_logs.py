@@ -150,16 +150,16 @@ def synthetic_logs(
 def write_synthetic_manifest(
     root: Path,
     flights: Sequence[tuple[str, str, Mapping[str, VehicleLog]]],
-    vehicle_type: str,
+    vehicle_type: str | Mapping[str, str],
     *,
     motor_thrust: str = "delivered",
     planes: Sequence[Mapping[str, Any]] = (),
 ) -> Path:
     """Write every flight ``(name, split, {vehicle: log})`` as canonical gzip CSVs under ``root``
     (``<flight>_<vehicle>.csv.gz``) and a canonical manifest ``root/manifest.yaml`` naming them,
-    every vehicle of type ``vehicle_type``, whose motor thrust columns hold ``motor_thrust``
-    (commanded or delivered), declaring the room's ``planes`` ({name, point_m, normal}); returns the
-    manifest path."""
+    every vehicle of type ``vehicle_type`` (or ``vehicle_type[vehicle]``), whose motor thrust columns
+    hold ``motor_thrust`` (commanded or delivered), declaring the room's ``planes`` ({name, point_m,
+    normal}); returns the manifest path."""
     import yaml
 
     from proxplan.identify.flightlog import write_canonical_csv
@@ -169,7 +169,8 @@ def write_synthetic_manifest(
         entry: dict[str, Any] = {"name": name, "split": split, "vehicles": {}}
         for vehicle, log in logs.items():
             write_canonical_csv(log, root / f"{name}_{vehicle}.csv.gz")
-            entry["vehicles"][vehicle] = {"type": vehicle_type, "log": f"{name}_{vehicle}.csv.gz"}
+            vtype = vehicle_type if isinstance(vehicle_type, str) else vehicle_type[vehicle]
+            entry["vehicles"][vehicle] = {"type": vtype, "log": f"{name}_{vehicle}.csv.gz"}
         entries.append(entry)
     path = root / "manifest.yaml"
     doc: dict[str, Any] = {"format": "canonical", "root": ".", "motor_thrust": motor_thrust, "flights": entries}

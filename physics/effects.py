@@ -30,7 +30,14 @@ from proxplan.physics.disturbance import (
     oncoming_speed_per_rotor_mps,
     vertical_point_wrench,
 )
-from proxplan.physics.features import CHANNELS, FEATURE_NAMES, feature_matrix, parse_term_key
+from proxplan.physics.features import (
+    CHANNELS,
+    FEATURE_NAMES,
+    feature_matrix,
+    parse_term_key,
+    term_scale,
+    weight_scaled,
+)
 from proxplan.physics.room import Plane
 from proxplan.physics.stack import shielding_factors
 from proxplan.physics.vehicles import Vehicle
@@ -187,7 +194,7 @@ def _base_source_wrench(source: SourceSample, target: Vehicle, options: ModelOpt
     return batch.force_N, batch.torque_Nm
 
 
-class _BaseCache:
+class BaseCache:
     """Base wrench of each source of one :class:`EffectInputs`, computed once when first needed:
     (S0-3..S0-8) per source times the share of its jet that reaches the target past the other
     sources' rotors (:func:`proxplan.physics.stack.shielding_factors`; 1 with a single source above)."""
@@ -219,7 +226,7 @@ class _BaseCache:
         return self._per_source
 
 
-def _sum_base(inputs: EffectInputs, cache: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _sum_base(inputs: EffectInputs, cache: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     force, torque = _zeros(inputs.n_samples)
     for f, t in cache.per_source():
         force += f
@@ -227,21 +234,27 @@ def _sum_base(inputs: EffectInputs, cache: _BaseCache) -> tuple[np.ndarray, np.n
     return force, torque
 
 
+def base_cache(inputs: EffectInputs) -> BaseCache:
+    """A :class:`BaseCache` of ``inputs`` (pass it to :func:`effect_wrench` to evaluate many effects, or
+    one effect many times, on the same samples with one base-model evaluation)."""
+    return BaseCache(inputs)
+
+
 def base_wrench_per_source(inputs: EffectInputs) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per source, the base wrench (force (N, 3) N, torque (N, 3) N m) as :func:`base_wrench` sums it
     (S0-3..S0-8 with the stack shielding of :mod:`proxplan.physics.stack`)."""
-    return _BaseCache(inputs).per_source()
+    return BaseCache(inputs).per_source()
 
 
 def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
     """Base model (S0-3..S0-8) summed over all sources: force (N, 3), N; torque (N, 3), N m."""
-    return _sum_base(inputs, _BaseCache(inputs))
+    return _sum_base(inputs, BaseCache(inputs))
 
 
 # --------------------------------------------------------------------------- effects
 
 
-def _thrust_bias(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _thrust_bias(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Constant vertical force ``force_z_N`` (N, world z): a thrust-calibration error (k1 or the
     PWM-to-thrust map off by a constant), seen by the S0-11 measurement as a steady bias."""
     force, torque = _zeros(inputs.n_samples)
@@ -249,7 +262,7 @@ def _thrust_bias(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) ->
     return force, torque
 
 
-def _ground_effect(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _ground_effect(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Cheeseman-Bennett ground effect: T_IGE / T_OGE = 1 / (1 - k (R / 4h)^2), R rotor radius (m),
     h rotor plane height above ground (m), k = ``gain_k`` (1 in the original method-of-images
     derivation). Applied to the target's hover thrust (its weight, N): Delta F_z = W (ratio - 1),
@@ -263,7 +276,7 @@ def _ground_effect(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) 
     return force, torque
 
 
-def _near_field(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _near_field(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Downwash stronger than the far-field model close to the source (the zone of flow
     establishment, S0 II-A): extra wrench = base source wrench * ``amplitude`` *
     exp(-dz / (``decay_L`` * L_source)) for dz > 0 (target below), zero otherwise; L = 2 x arm (m)."""
@@ -280,7 +293,7 @@ def _near_field(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> 
     return force, torque
 
 
-def _wake_swirl(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _wake_swirl(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Yaw torque from the swirl of the source's wake, proportional to the base vertical force it
     causes: tau_z = ``yaw_per_force_m`` * F_z,base (N m; F_z,base < 0 in a downwash, so a positive
     parameter gives a negative, clockwise-from-above torque). No force."""
@@ -290,7 +303,7 @@ def _wake_swirl(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> 
     return force, torque
 
 
-def _wake_advection(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _wake_advection(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """A steady horizontal wind (``wind_x_mps``, ``wind_y_mps``) carries the wake downstream while
     it descends at ``convection_speed_mps``: at depth dz > 0 the wake axis is displaced by
     wind_xy * dz / convection_speed, so the target sees the base field at the effective offset
@@ -310,7 +323,7 @@ def _wake_advection(p: dict[str, float], inputs: EffectInputs, base: _BaseCache)
     return force, torque
 
 
-def _own_velocity(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _own_velocity(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Thrust change of the target with its own motion, after seed 001 eq. 25
     (C_T = C_T0 + C_Tlambda lambda + C_Tmu mu + C_Tw w + C_Tmu2 mu^2, S1-25), written per unit weight:
 
@@ -328,7 +341,7 @@ def _own_velocity(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -
     return force, torque
 
 
-def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """Nonlinear thrust loss in the oncoming downwash, beyond the linear (S0-6):
     Delta f_i = -b_q v_on,i^2 omega_i^2 with b_q = ``b_q_rel_spm`` * b_v of the target
     (b_q in N s^4 m^-2 rad^-2; the parameter, s/m, is the ratio b_q / b_v, so one value suits any
@@ -346,7 +359,7 @@ def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs, base: _BaseCach
     return force, torque
 
 
-def _ground_jet(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _ground_jet(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """A source's jet meeting the ground: below the target the jet runs into the floor, stagnates
     and spreads sideways, so at the target (height h above the floor) the axial velocity is below
     the free jet's. Impinging-jet form: v / v_free = 1 - a exp(-h / (lambda L_s)), a =
@@ -363,7 +376,7 @@ def _ground_jet(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> 
     return force, torque
 
 
-def _floor_stagnation(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _floor_stagnation(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """A source's jet stopped by the floor near a target pushed down close to it. An impinging jet
     slows down over a layer above the wall whose thickness scales with the jet's own width there, not
     with the source's size: at the target's height h above the floor the axial speed is
@@ -384,7 +397,7 @@ def _floor_stagnation(p: dict[str, float], inputs: EffectInputs, base: _BaseCach
     return force, torque
 
 
-def _climb_inflow(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
+def _climb_inflow(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """The target's own climb in its rotors' oncoming flow. (S0-5, S0-6) take the thrust loss of a rotor
     in an oncoming stream as Delta f_i = -b_v v_on omega_i^2, with v_on the jet's speed; the stream the
     rotor meets is the air RELATIVE to it, so a rotor climbing at v_z meets v_z more (the inflow ratio
@@ -419,15 +432,17 @@ _EFFECT_FUNCTIONS = {
 }
 
 
-def _discovered(p: dict[str, float], inputs: EffectInputs, base: _BaseCache) -> tuple[np.ndarray, np.ndarray]:
-    """A discovered term: wrench channel c = sum_j params["c*feature_j"] * feature_j, the features of
-    :func:`proxplan.physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
+def _discovered(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """A discovered term: wrench channel c = sum_j params["c*feature_j"] * feature_j (a weight-scaled key
+    ``"c*W*feature_j"`` also times :func:`proxplan.physics.features.term_scale` of the target), the
+    features of :func:`proxplan.physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
     wrench = np.zeros((inputs.n_samples, 6))
     if p:
         x = feature_matrix(inputs, base.per_source())
         for key, coef in p.items():
             channel, feature = parse_term_key(key)
-            wrench[:, CHANNELS.index(channel)] += coef * x[:, FEATURE_NAMES.index(feature)]
+            scale = term_scale(channel, inputs.target) if weight_scaled(key) else 1.0
+            wrench[:, CHANNELS.index(channel)] += coef * scale * x[:, FEATURE_NAMES.index(feature)]
     return wrench[:, :3], wrench[:, 3:]
 
 
@@ -435,16 +450,19 @@ def _function(name: str):
     return _discovered if name.startswith(DISCOVERED_PREFIX) else _EFFECT_FUNCTIONS[name]
 
 
-def effect_wrench(effect: Effect, inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
+def effect_wrench(
+    effect: Effect, inputs: EffectInputs, *, cache: BaseCache | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """ADDITIONAL force (N, 3), N, and torque (N, 3), N m, of ``effect`` beyond the base model,
-    world frame, for the N samples of ``inputs``."""
-    return _function(effect.name)(effect.full_params(), inputs, _BaseCache(inputs))
+    world frame, for the N samples of ``inputs``. ``cache`` (a :class:`BaseCache` of the same
+    ``inputs``) reuses the sources' base wrenches across calls (a fit evaluating one effect many times)."""
+    return _function(effect.name)(effect.full_params(), inputs, cache if cache is not None else BaseCache(inputs))
 
 
 def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Base model summed over all sources plus every effect in ``effects``: force (N, 3), N, and
     torque (N, 3), N m, world frame."""
-    cache = _BaseCache(inputs)
+    cache = BaseCache(inputs)
     force, torque = _sum_base(inputs, cache)
     for effect in effects:
         f, t = _function(effect.name)(effect.full_params(), inputs, cache)

@@ -62,7 +62,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from proxplan.physics.room import plane_distances_m
-from proxplan.physics.vehicles import Vehicle
+from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
 CHANNELS = ("force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
 """Wrench channels a discovered term may act on (world frame), in the order of (force, torque)."""
@@ -124,7 +124,31 @@ FEATURE_DOCS: dict[str, str] = {
     "below_cushion_1": "(R / 4 d)^2 exp(-(r / L)^2) of the neighbours below at depth d (a partial floor), summed",
     "side_near_rel_speed_xy_mps": "side kernel times relative horizontal speed, summed",
     "side_near_rel_v_z_mps": "side kernel times relative vertical speed, summed",
+    "v_z_abs_m2ps2": "own vertical speed times its magnitude, v_z |v_z| (a quadratic drag in climb and descent)",
+    "v_z_speed_xy_m2ps2": "own vertical speed times its horizontal speed",
+    "thrust_kin_N": "own thrust from the motion, m (g + dv_z/dt), v from motion capture (W without a clock)",
+    "thrust_kin_jet_N": "own thrust from the motion times the jet kernels of the sources above, summed",
+    "thrust_kin_ground_N": "own thrust from the motion times exp(-h / L_target)",
+    "thrust_kin_speed_xy_Nspm": "own thrust from the motion times its horizontal speed",
 }
+BASIS_WIDTHS_L = (1.0, 2.5)
+"""Radial widths of the multi-scale kernels, in the neighbour's size L (a Gaussian of 1 L and of 2.5 L), -."""
+BASIS_DECAYS_L = (1.0, 4.0)
+"""Decay lengths of the multi-scale kernels along the distance from the neighbour, in L, -."""
+
+
+def _basis_name(where: str, width: float, decay: float) -> str:
+    return f"{where}_g{width:g}L_e{decay:g}L_1".replace(".", "p")
+
+
+for _where, _what in (("above", "a neighbour above (r radial, depth below it along the axis)"),
+                      ("below", "a neighbour below (r radial, its depth under the target)"),
+                      ("side", "a neighbour beside (height difference radial, horizontal distance along)")):
+    for _w in BASIS_WIDTHS_L:
+        for _d in BASIS_DECAYS_L:
+            FEATURE_DOCS[_basis_name(_where, _w, _d)] = (
+                f"multi-scale kernel of {_what}: exp(-(rho / {_w:g} L)^2) exp(-delta / {_d:g} L), summed"
+            )
 TIME_FEATURE_SOURCES = (
     "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
     "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
@@ -159,9 +183,54 @@ FEATURE_DOCS.update(ROOM_FEATURES)
 FEATURE_NAMES = tuple(FEATURE_DOCS)
 
 TARGET_ONLY_FEATURES = (
-    "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", *ROOM_FEATURES,
+    "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2",
+    "v_z_speed_xy_m2ps2", *ROOM_FEATURES,
+    "thrust_kin_N", "thrust_kin_ground_N", "thrust_kin_speed_xy_Nspm",
 )  # fmt: skip
 """Features of the target alone; every other feature is a sum over sources (zero without one)."""
+
+FAMILIES = ("temporal", "above", "below", "side", "velocity", "thrust", "place", "bias")
+"""Declared families of the dictionary (issue 35): ``temporal`` — lagged and low-pass copies (a filter
+bank) of each neighbour's predicted disturbance and relative state; ``above``, ``below``, ``side`` —
+spatial kernels of every neighbour by where it is (with their relative speeds); ``velocity`` — the
+vehicle's own speed; ``thrust`` — a multiplicative thrust loss (own thrust from the motion, times a
+kernel); ``place`` — ground, walls and position in the room; ``bias`` — a constant."""
+
+
+def feature_group(name: str) -> str:
+    """The kind of hypothesis a feature stands for: its family, and for a temporal copy the family of the
+    feature it delays (``temporal:above``). Features of one group are near-duplicates for a sparse
+    regression (a kernel and its 50 ms lag; two widths of one neighbour's kernel): stability is judged per
+    group, the member by held-out gain (proxplan.identify.discovery)."""
+    family = feature_family(name)
+    if family != "temporal":
+        return family
+    stem, unit = name.rsplit("_", 1)
+    for marker in ("_lag", "_lowpass", "_lp"):
+        if marker in stem:
+            stem = stem[: stem.index(marker)]
+    source = f"{stem}_{unit}"
+    return "temporal:" + (feature_family(source) if source in FEATURE_DOCS else "above")
+
+
+def feature_family(name: str) -> str:
+    """The family of :data:`FAMILIES` a feature of :data:`FEATURE_NAMES` belongs to."""
+    stem = name.rsplit("_", 1)[0]
+    if "_lag" in stem or "_lp" in stem or name in ("base_fz_lag_N", "base_fz_lowpass_N"):
+        return "temporal"
+    if name.startswith("thrust_kin"):
+        return "thrust"
+    if name.startswith(("above_", "base_")):
+        return "above"
+    if name.startswith("below_"):
+        return "below"
+    if name.startswith("side_"):
+        return "side"
+    if name in ("v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2", "v_z_speed_xy_m2ps2"):
+        return "velocity"
+    if name == "one_1":
+        return "bias"
+    return "place"
 
 
 def between_vehicle_part(params: dict[str, float]) -> dict[str, float]:
@@ -237,6 +306,12 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
     f["v_z_mps"] = vel[:, 2].copy()
     f["speed_xy_mps"] = np.hypot(vel[:, 0], vel[:, 1])
     f["speed_xy_sq_m2ps2"] = f["speed_xy_mps"] ** 2
+    f["v_z_abs_m2ps2"] = vel[:, 2] * np.abs(vel[:, 2])
+    f["v_z_speed_xy_m2ps2"] = vel[:, 2] * f["speed_xy_mps"]
+    accel_z = np.zeros(n) if t is None else offset_rate_mps(vel, t)[:, 2]
+    f["thrust_kin_N"] = target.mass_kg * (GRAVITY_MPS2 + accel_z)
+    f["thrust_kin_ground_N"] = f["thrust_kin_N"] * f["ground_exp_1"]
+    f["thrust_kin_speed_xy_Nspm"] = f["thrust_kin_N"] * f["speed_xy_mps"]
     kernels = []
     for src, (bf, bt) in zip(inputs.sources, base_per_source):
         off = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
@@ -290,6 +365,14 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
         f["below_core_flat_1"] += core_flat_b
         depth = np.maximum(-dz, MIN_HEIGHT_FACTOR * r_rot)
         f["below_cushion_1"] += np.where(below, (r_rot / (4.0 * depth)) ** 2 * np.exp(-((r / size) ** 2)), 0.0)
+        for where, rho, delta, gate in (("above", r, dz, above), ("below", r, -dz, below),
+                                        ("side", np.abs(dz), r, np.ones(len(r), dtype=bool))):  # fmt: skip
+            for w in BASIS_WIDTHS_L:
+                for d in BASIS_DECAYS_L:
+                    f[_basis_name(where, w, d)] += np.where(
+                        gate, np.exp(-((rho / (w * size)) ** 2) - np.maximum(delta, 0.0) / (d * size)), 0.0
+                    )
+    f["thrust_kin_jet_N"] = f["thrust_kin_N"] * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):
             f["above_stack_1"] += kernels[i] * kernels[j]
@@ -313,15 +396,50 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
     return np.column_stack([f[k] for k in FEATURE_NAMES])
 
 
+WRENCH_UNITS = ("N", "Nm", "Nmps", "Nspm")
+"""Unit suffixes of features that are already a force or torque (the base prediction and its copies, the
+thrust from the motion): a term on them is ``coefficient x feature``. Every other feature (a kernel, a
+speed) is a shape; a term on it is scaled to the target vehicle (:func:`term_scale`)."""
+WEIGHT_MARK = "W"
+"""A term key ``"<channel>*W*<feature>"`` is ``coefficient x feature x`` :func:`term_scale`."""
+
+
+def is_wrench_feature(name: str) -> bool:
+    """Whether feature ``name`` is already a force or torque (:data:`WRENCH_UNITS`)."""
+    return name.rsplit("_", 1)[-1] in WRENCH_UNITS
+
+
+def term_scale(channel: str, target: Vehicle) -> float:
+    """What a shape feature is multiplied by in a weight-scaled term on ``channel``: the target's weight W (N)
+    for a force, W times its size L (N m) for a torque. A disturbance the controller must reject is
+    measured against its authority, which scales with W: one coefficient then describes a 32 g and a 650 g
+    vehicle alike."""
+    return target.weight_N * (target.size_m if channel.startswith("torque") else 1.0)
+
+
+def term_key(channel: str, feature: str) -> str:
+    """The parameter name of a term: ``"<channel>*<feature>"`` for a wrench feature, else the weight-scaled
+    ``"<channel>*W*<feature>"``."""
+    return f"{channel}*{feature}" if is_wrench_feature(feature) else f"{channel}*{WEIGHT_MARK}*{feature}"
+
+
 def parse_term_key(key: str) -> tuple[str, str]:
-    """Split a discovered-term parameter name ``"<channel>*<feature>"``; ValueError if unknown."""
+    """Split a discovered-term parameter name ``"<channel>*<feature>"`` (or the weight-scaled
+    ``"<channel>*W*<feature>"``, :func:`weight_scaled`) into channel and feature; ValueError if unknown."""
     channel, sep, feature = key.partition("*")
+    if feature.startswith(WEIGHT_MARK + "*"):
+        feature = feature[len(WEIGHT_MARK) + 1 :]
     if not sep or channel not in CHANNELS or feature not in FEATURE_DOCS:
         raise ValueError(
-            f"discovered-term parameter {key!r}: expected '<channel>*<feature>' with channel one of "
-            f"{', '.join(CHANNELS)} and a feature of proxplan.physics.features.FEATURE_NAMES"
+            f"discovered-term parameter {key!r}: expected '<channel>*<feature>' or '<channel>*W*<feature>' with "
+            f"channel one of {', '.join(CHANNELS)} and a feature of proxplan.physics.features.FEATURE_NAMES"
         )
     return channel, feature
+
+
+def weight_scaled(key: str) -> bool:
+    """Whether the term ``key`` is scaled to the target vehicle (:func:`term_scale`)."""
+    return key.partition("*")[2].startswith(WEIGHT_MARK + "*")
 
 
 def term_formula(params: dict[str, float]) -> str:
@@ -329,5 +447,6 @@ def term_formula(params: dict[str, float]) -> str:
     by_channel: dict[str, list[str]] = {}
     for key, coef in params.items():
         channel, feature = parse_term_key(key)
-        by_channel.setdefault(channel, []).append(f"{coef:+.4g} * {feature}")
+        scale = (" * W * L" if channel.startswith("torque") else " * W") if weight_scaled(key) else ""
+        by_channel.setdefault(channel, []).append(f"{coef:+.4g}{scale} * {feature}")
     return "; ".join(f"{c} = {' '.join(terms)}" for c, terms in by_channel.items())

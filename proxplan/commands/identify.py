@@ -20,7 +20,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=(
             "Closing the loop with flight data: measure the disturbance on every vehicle (S0-11, S0-13), "
             "predict it with the model, calibrate c_ax, z0, c_rad, b_v and thrust scales on TRAIN flights, "
-            "try each effect of the library and keep what lowers the TEST-flight error. Writes DIR/report.md, "
+            "try each effect of the library and search for terms no library effect names; keep what flights held "
+            "out confirm (grouped cross-validation by flight and stability selection); report on TEST flights. Writes DIR/report.md, "
             "DIR/identify.json and PNG plots. See docs/identify.md."
         ),
     )
@@ -47,12 +48,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--no-motor-lag",
         action="store_true",
         help="use the logged motor thrusts as delivered even where the manifest says they are commands",
-    )
-    p.add_argument(
-        "--min-gain",
-        type=float,
-        default=0.05,
-        help="relative test-RMSE cut an effect must bring to be kept (default 0.05)",
     )
     p.set_defaults(func=run)
 
@@ -96,7 +91,6 @@ def run(args: argparse.Namespace) -> int:
             motor_lag=not args.no_motor_lag,
         ),
         calibrate=not args.no_calibrate,
-        min_gain=args.min_gain,
         progress=True,
     )
     with output_folder(out) as stage:  # the report lands whole, or not at all

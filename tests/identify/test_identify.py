@@ -34,7 +34,7 @@ HIDDEN = {
     "own_velocity": Effect("own_velocity", {"c_w_spm": 0.12, "c_mu_spm": 0.05, "c_mu2_s2pm2": 0.08}),
     "thrust_quadratic": Effect("thrust_quadratic", {"b_q_rel_spm": 0.4}),
 }
-FAST = IdentifyOptions(max_fit_samples=1000, max_effect_fit_samples=500, max_eval_samples=2500)
+FAST = IdentifyOptions(max_fit_samples=3000, max_eval_samples=2500)
 
 
 def _trajectories(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:

@@ -1,0 +1,504 @@
+"""Selection by flights held out: grouped cross-validation and stability selection (issue 35).
+
+Every candidate (a library effect, a discovered term) enters a LINEAR model of the residual of a
+reference model, beside the parameters that are always fitted (the calibrated vehicle parameters'
+tangent columns, with their priors as a ridge): y ~ X_A beta_A + X_k beta_k. Rows are samples of the
+scored vehicles, every wrench channel stacked, in units of each channel's noise (so F_z and the
+torques count alike), weighted by the stratified sample's weights; the data term is divided by the
+residual's integrated autocorrelation time tau (:func:`proxplan.identify.calibrate.integrated_autocorrelation_time`):
+N correlated samples count as N / tau independent ones, which is what sets the priors' weight.
+
+Since the model is linear in the coefficients, everything runs on per-GROUP sums (Gram matrices
+X_g^T W X_g, X_g^T W y_g, y_g^T W y_g): leaving a flight out is a subtraction, a resample of the
+flights a weighted sum. A group is a flight (the unit that is held out: samples of one flight are not
+independent); flights declared ``split: validation`` are only ever held out (never fitted).
+
+**Gain test** (:func:`gain_test`). Each held-out group g gets, per wrench channel c, the log-ratio of its
+mean squared error without and with the candidate, and its gain is their sum over the channels,
+gain_g = sum_c ln(MSE_gc(without k) / MSE_gc(with k)), both from fits that did not see g (leave one
+train flight out; validation flights from the fit on every train flight). The log-ratio is
+scale-free: flights that hold more disturbance do not dominate, a candidate that explains half of every
+flight's residual has about the same gain in each however large that residual, and a term on one
+channel is not diluted by the others' noise.
+A candidate is kept only when the mean gain exceeds ``z`` flight-to-flight standard errors,
+SE = sd(gain) / sqrt(G), with z = Phi^-1(1 - ALPHA / m), m the number of candidates tested together: a
+one-sided test at family-wise level :data:`ALPHA` (Bonferroni).
+
+**Stability** (:func:`stability`). Complementary pairs of half-samples of the groups (Shah & Samworth
+2013), :data:`N_PAIRS` pairs; on each half the candidates are chosen by forward selection with the
+Bayesian information criterion on that half's effective samples (:func:`bic_forward`). A candidate's
+inclusion probability is the share of halves that choose it; it must reach
+pi = max(:data:`PI_MIN`, 1/2 + q^2 / (2 p E_V)) with q the mean number chosen per half, p the number
+of candidates and E_V = :data:`EXPECTED_FALSE`: Meinshausen & Buehlmann's bound
+E[false selections] <= q^2 / ((2 pi - 1) p).
+
+**Too few flights** (:func:`plan_groups`): with fewer than :data:`MIN_GROUPS` flights that can be held
+out, each train flight is cut into :data:`FALLBACK_BLOCKS` contiguous blocks in time, and the blocks are
+the groups; the note says so (stderr, JSON, report).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.stats import norm
+
+ALPHA = 0.05
+"""Family-wise level of the gain test: on data without any of the m candidates of a round, the
+chance that one of them passes, -."""
+MIN_GROUPS = 3
+"""Fewest held-out groups a standard error is taken over (2 degrees of freedom); with fewer flights the
+selection falls back to blocks in time."""
+FALLBACK_BLOCKS = 5
+"""Blocks per train flight when there are too few flights to hold one out."""
+N_PAIRS = 25
+"""Complementary pairs of half-samples of the groups in the stability selection (50 halves)."""
+PI_MIN = 0.6
+"""Least inclusion probability of a kept candidate: the lower end of the range Meinshausen & Buehlmann
+(2010) recommend (0.6-0.9; their error bound holds for any pi > 1/2), -."""
+EXPECTED_FALSE = 1.0
+"""Expected number of falsely selected candidates the stability bound allows (per selection), -."""
+RIDGE_EPS = 1e-9
+"""Ridge on unpenalised coefficients, relative to their Gram diagonal (numerical safety only), -."""
+
+
+@dataclass(frozen=True)
+class GroupPlan:
+    """How the selection's samples are grouped: one name per group, which groups are only ever held
+    out (validation flights), and the note saying what the groups are (a fallback included)."""
+
+    names: tuple[str, ...]
+    held_out_only: np.ndarray  # (G,) bool
+    note: str
+    fallback: bool = False
+
+    @property
+    def n_groups(self) -> int:
+        return len(self.names)
+
+
+def plan_groups(
+    fit_flights: Sequence[str], valid_flights: Sequence[str], *, what: str = "selection"
+) -> tuple[GroupPlan, dict[str, int] | None]:
+    """Groups = flights when at least :data:`MIN_GROUPS` can be held out (every validation flight, and
+    the train flights when two or more); else the fallback to :data:`FALLBACK_BLOCKS` blocks per train
+    flight (returned mapping None: the caller assigns blocks, :func:`block_ids`). Returns the plan and
+    the flight -> group index mapping."""
+    fit_flights, valid_flights = sorted(set(fit_flights)), sorted(set(valid_flights))
+    holdable = len(valid_flights) + (len(fit_flights) if len(fit_flights) >= 2 else 0)
+    if holdable >= MIN_GROUPS:
+        names = tuple(fit_flights) + tuple(valid_flights)
+        held = np.array([False] * len(fit_flights) + [True] * len(valid_flights))
+        kinds = f"{len(fit_flights)} train" + (f" + {len(valid_flights)} validation" if valid_flights else "")
+        note = f"{what}: each of {kinds} flights held out in turn (grouped cross-validation by flight)"
+        return GroupPlan(names, held, note), {f: k for k, f in enumerate(names)}
+    names = tuple(f"{f}#{b}" for f in fit_flights for b in range(FALLBACK_BLOCKS)) + tuple(valid_flights)
+    held = np.array([False] * (len(fit_flights) * FALLBACK_BLOCKS) + [True] * len(valid_flights))
+    note = (
+        f"{what}: too few flights to hold one out ({len(fit_flights)} train, {len(valid_flights)} validation; "
+        f"at least {MIN_GROUPS} needed): fell back to {FALLBACK_BLOCKS} contiguous blocks in time per train flight "
+        "as the held-out groups (blocks of one flight share its conditions: the gains are less certain than "
+        "a flight's)"
+    )
+    return GroupPlan(names, held, note, fallback=True), None
+
+
+def block_ids(t_s: np.ndarray, t_min_s: float, t_max_s: float, first: int) -> np.ndarray:
+    """Group index per sample of clock ``t_s`` (N,) when a flight spanning ``t_min_s``..``t_max_s`` (s) is
+    cut into :data:`FALLBACK_BLOCKS` equal blocks numbered from ``first``."""
+    span = max(t_max_s - t_min_s, 1e-9)
+    k = np.floor((np.asarray(t_s) - t_min_s) / span * FALLBACK_BLOCKS).astype(int)
+    return first + np.clip(k, 0, FALLBACK_BLOCKS - 1)
+
+
+# ------------------------------------------------------------------------------ per-group sums
+
+
+@dataclass(frozen=True)
+class GroupSums:
+    """Per-cell sums of a linear design: G (K, p, p) = X^T W X, b (K, p) = X^T W y, c (K,) = y^T W y,
+    w (K,) = sum of weights of each cell; ``columns`` names the p columns. A cell is a group (flight) and
+    a channel: cell k = group * n_channels + channel, so a held-out flight's error is known per channel."""
+
+    columns: tuple[str, ...]
+    G: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    w: np.ndarray
+    n_channels: int = 1
+
+    @staticmethod
+    def build(
+        x: np.ndarray,
+        y: np.ndarray,
+        weight: np.ndarray,
+        group: np.ndarray,
+        n_groups: int,
+        columns: Sequence[str],
+        *,
+        n_channels: int = 1,
+    ) -> GroupSums:
+        """From rows: ``x`` (M, p), ``y`` (M,), ``weight`` (M,), ``group`` (M,) int cell index in
+        0..n_groups * n_channels - 1 (``n_groups`` counts the groups, each split into ``n_channels``)."""
+        n_groups = n_groups * n_channels
+        p = x.shape[1]
+        G = np.zeros((n_groups, p, p))
+        b = np.zeros((n_groups, p))
+        c = np.zeros(n_groups)
+        w = np.zeros(n_groups)
+        order = np.argsort(group, kind="stable")
+        bounds = np.searchsorted(group[order], np.arange(n_groups + 1))
+        for g in range(n_groups):
+            idx = order[bounds[g] : bounds[g + 1]]
+            if idx.size == 0:
+                continue
+            sw = np.sqrt(weight[idx])
+            xs, ys = x[idx] * sw[:, None], y[idx] * sw
+            G[g] = xs.T @ xs
+            b[g] = xs.T @ ys
+            c[g] = float(ys @ ys)
+            w[g] = float(weight[idx].sum())
+        return GroupSums(tuple(columns), G, b, c, w, n_channels)
+
+    def cells(self, per_group: np.ndarray) -> np.ndarray:
+        """A per-group weight (G,) repeated over each group's channel cells (G * C,)."""
+        return np.repeat(np.asarray(per_group, dtype=float), self.n_channels)
+
+    def index(self, names: Sequence[str]) -> np.ndarray:
+        pos = {n: k for k, n in enumerate(self.columns)}
+        return np.array([pos[n] for n in names], dtype=int)
+
+
+@dataclass(frozen=True)
+class Ridge:
+    """Gaussian prior of some coefficients, in data units: ``precision`` (p,) and ``center`` (p,) over
+    :attr:`GroupSums.columns` (precision 0: no prior)."""
+
+    precision: np.ndarray
+    center: np.ndarray
+
+
+def solve(sums: GroupSums, cols: np.ndarray, train: np.ndarray, ridge: Ridge, tau: float) -> np.ndarray:
+    """Coefficients (len(cols),) of the columns ``cols`` fitted on the groups where ``train`` (groups,) is
+    True (weights, or 0/1): argmin sum_g train_g (SSE_g / tau) + ridge terms."""
+    train = sums.cells(train)
+    G = np.tensordot(train, sums.G[:, cols][:, :, cols], axes=1) / tau
+    b = np.tensordot(train, sums.b[:, cols], axes=1) / tau
+    prec = ridge.precision[cols]
+    A = G + np.diag(prec + RIDGE_EPS * np.maximum(np.diag(G), 1e-300))
+    rhs = b + prec * ridge.center[cols]
+    try:
+        return np.linalg.solve(A, rhs)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(A, rhs, rcond=None)[0]
+
+
+def group_sse(sums: GroupSums, cols: np.ndarray, beta: np.ndarray, g: int) -> float:
+    """Weighted SSE of group ``g`` with coefficients ``beta`` on ``cols``, noise units."""
+    Gg = sums.G[g][np.ix_(cols, cols)]
+    return float(sums.c[g] - 2.0 * beta @ sums.b[g, cols] + beta @ Gg @ beta)
+
+
+def group_weights(sums: GroupSums) -> np.ndarray:
+    """(G,) total weight of each group over its channels."""
+    return sums.w.reshape(-1, sums.n_channels).sum(axis=1)
+
+
+def trainable_groups(sums: GroupSums, plan: GroupPlan) -> np.ndarray:
+    """(G,) 0/1: the groups a fit may use (train groups with samples)."""
+    return ((~plan.held_out_only) & (group_weights(sums) > 0)).astype(float)
+
+
+def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
+    """(G, C): per group and channel, the mean squared error (noise units) predicted by a fit that did not
+    see the group: each train group left out in turn; validation groups from the fit on every train
+    group. NaN where a group has no samples."""
+    k, nc = plan.n_groups, sums.n_channels
+    trainable = trainable_groups(sums, plan)
+    out = np.full((k, nc), np.nan)
+    beta_all = solve(sums, cols, trainable, ridge, tau)
+    for g in range(k):
+        if group_weights(sums)[g] <= 0:
+            continue
+        if plan.held_out_only[g]:
+            beta = beta_all
+        else:
+            mask = trainable.copy()
+            mask[g] = 0.0
+            if not mask.any():
+                continue
+            beta = solve(sums, cols, mask, ridge, tau)
+        for c in range(nc):
+            cell = g * nc + c
+            if sums.w[cell] > 0:
+                out[g, c] = group_sse(sums, cols, beta, cell) / sums.w[cell]
+    return out
+
+
+@dataclass(frozen=True)
+class GainTest:
+    """The held-out gain of one candidate: per-group gains (log-ratio of held-out MSEs, -), their mean and
+    flight-to-flight standard error, the critical multiple z and whether it passed."""
+
+    gains: np.ndarray
+    mean: float
+    se: float
+    z: float
+    passed: bool
+    n_groups: int
+
+    @property
+    def t(self) -> float:
+        return self.mean / self.se if self.se > 0 else (np.inf if self.mean > 0 else 0.0)
+
+    def to_json(self) -> dict[str, float | int | bool]:
+        return {"mean_gain": self.mean, "se": self.se, "t": float(self.t) if np.isfinite(self.t) else None,
+                "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups}  # fmt: skip
+
+
+def critical_z(m: int) -> float:
+    """Phi^-1(1 - ALPHA / m): the one-sided Bonferroni multiple for m candidates tested together, -."""
+    return float(norm.ppf(1.0 - ALPHA / max(int(m), 1)))
+
+
+def log_ratios(mse_without: np.ndarray, mse_with: np.ndarray) -> np.ndarray:
+    """(G,) per group, the sum over its channels of ln(MSE without / MSE with) of (G, C) held-out MSEs
+    (a channel without error on either side adds nothing); NaN for a group with no channel."""
+    a, b = np.atleast_2d(mse_without), np.atleast_2d(mse_with)
+    ok = np.isfinite(a) & np.isfinite(b) & (a > 0) & (b > 0)
+    lr = np.where(ok, np.log(np.where(ok, a, 1.0) / np.where(ok, b, 1.0)), 0.0)
+    return np.where(ok.any(axis=1), lr.sum(axis=1), np.nan)
+
+
+def gain_test(mse_without: np.ndarray, mse_with: np.ndarray, m: int) -> GainTest:
+    """The gain test of the module docstring on (G, C) held-out MSEs: each group's gain is the sum over
+    its channels of the log-ratios (a candidate on one channel is not diluted by the others)."""
+    lr = log_ratios(mse_without, mse_with)
+    d = lr[np.isfinite(lr)]
+    n = int(d.size)
+    z = critical_z(m)
+    if n < 2:
+        return GainTest(d, float(d.mean()) if n else 0.0, float("inf"), z, False, n)
+    mean = float(d.mean())
+    se = float(d.std(ddof=1) / np.sqrt(n))
+    passed = mean > 0.0 and (mean > z * se)
+    return GainTest(d, mean, se, z, bool(passed), n)
+
+
+# ------------------------------------------------------------------------------ forward selection
+
+
+@dataclass
+class Candidate:
+    """A named group of columns entering together (a library effect with several linear parameters, or
+    one discovered feature on one channel)."""
+
+    name: str
+    columns: tuple[str, ...]
+
+
+def _in_sample_sse(sums: GroupSums, cols: np.ndarray, train: np.ndarray, ridge: Ridge, tau: float) -> float:
+    beta = solve(sums, cols, train, ridge, tau)
+    train = sums.cells(train)
+    G = np.tensordot(train, sums.G[:, cols][:, :, cols], axes=1)
+    b = np.tensordot(train, sums.b[:, cols], axes=1)
+    c = float(train @ sums.c)
+    return max(c - 2.0 * beta @ b + beta @ G @ beta, 1e-300)
+
+
+def bic_forward(
+    sums: GroupSums,
+    always: Sequence[str],
+    candidates: Sequence[Candidate],
+    train: np.ndarray,
+    ridge: Ridge,
+    tau: float,
+    *,
+    max_terms: int,
+) -> list[str]:
+    """Forward selection by BIC on the groups weighted by ``train`` (K,): add the candidate that lowers
+    n ln(SSE) + k ln(n) most (n = effective samples, weight / tau; k = coefficients), while it does.
+    Returns the chosen candidates' names in order."""
+    n_eff = max(float(train @ group_weights(sums)) / tau, 2.0)
+    chosen: list[Candidate] = []
+    cols_of = {c.name: sums.index(c.columns) for c in candidates}
+    base = sums.index(always) if always else np.zeros(0, dtype=int)
+    current = n_eff * np.log(_in_sample_sse(sums, base, train, ridge, tau) / n_eff)
+    while len(chosen) < max_terms:
+        active = np.concatenate([base] + [cols_of[c.name] for c in chosen]) if chosen else base
+        best, best_score, best_fit = None, current, current
+        for cand in candidates:
+            if cand in chosen:
+                continue
+            sse = _in_sample_sse(sums, np.concatenate([active, cols_of[cand.name]]), train, ridge, tau)
+            fit = n_eff * np.log(sse / n_eff)
+            score = fit + len(cand.columns) * np.log(n_eff)
+            if score < best_score:
+                best, best_score, best_fit = cand, score, fit
+        if best is None:
+            break
+        chosen.append(best)
+        current = best_fit
+    return [c.name for c in chosen]
+
+
+@dataclass(frozen=True)
+class Stability:
+    """Inclusion probability of each candidate over the halves, and the threshold it must reach."""
+
+    probability: dict[str, float]
+    threshold: float
+    mean_chosen: float
+    n_halves: int
+
+    def stable(self, name: str) -> bool:
+        return self.probability.get(name, 0.0) >= self.threshold
+
+
+def stability_threshold(mean_chosen: float, n_candidates: int) -> float:
+    """pi = max(PI_MIN, 1/2 + q^2 / (2 p E_V)) (Meinshausen & Buehlmann 2010), capped at 1."""
+    if n_candidates <= 0:
+        return PI_MIN
+    return float(min(1.0, max(PI_MIN, 0.5 + mean_chosen**2 / (2.0 * n_candidates * EXPECTED_FALSE))))
+
+
+def half_samples(plan: GroupPlan, seed: int) -> list[np.ndarray]:
+    """Complementary pairs of half-samples of the trainable groups (0/1 weights per group, (K,) each):
+    :data:`N_PAIRS` random splits of the train groups into two halves, from ``seed``."""
+    rng = np.random.default_rng(seed)
+    train_idx = np.flatnonzero(~plan.held_out_only)
+    halves = []
+    for _ in range(N_PAIRS):
+        perm = rng.permutation(train_idx)
+        cut = len(perm) // 2
+        for part in (perm[:cut], perm[cut:]):
+            w = np.zeros(plan.n_groups)
+            w[part] = 1.0
+            halves.append(w)
+    return halves
+
+
+def stability(
+    sums: GroupSums,
+    always: Sequence[str],
+    candidates: Sequence[Candidate],
+    plan: GroupPlan,
+    ridge: Ridge,
+    tau: float,
+    *,
+    max_terms: int,
+    seed: int = 0,
+    halves: Sequence[np.ndarray] | None = None,
+) -> Stability:
+    """Inclusion probabilities of ``candidates`` over complementary half-samples of the train groups
+    (module docstring), each half choosing by :func:`bic_forward`."""
+    halves = list(halves) if halves is not None else half_samples(plan, seed)
+    counts = dict.fromkeys((c.name for c in candidates), 0)
+    n_chosen = 0
+    used = 0
+    for w in halves:
+        if not np.any(w * group_weights(sums) > 0):
+            continue
+        used += 1
+        picked = bic_forward(sums, always, candidates, w, ridge, tau, max_terms=max_terms)
+        n_chosen += len(picked)
+        for name in picked:
+            counts[name] += 1
+    prob = {k: v / used if used else 0.0 for k, v in counts.items()}
+    q = n_chosen / used if used else 0.0
+    return Stability(prob, stability_threshold(q, len(candidates)), q, used)
+
+
+@dataclass
+class ForwardResult:
+    """What the held-out forward selection chose, every test it ran (round, candidate -> GainTest), and
+    what the backward pass dropped."""
+
+    chosen: list[str] = field(default_factory=list)
+    tests: list[dict[str, GainTest]] = field(default_factory=list)
+    dropped: dict[str, GainTest] = field(default_factory=dict)
+    final_tests: dict[str, GainTest] = field(default_factory=dict)  # each kept one given all the others
+
+
+def heldout_forward(
+    sums: GroupSums,
+    always: Sequence[str],
+    candidates: Sequence[Candidate],
+    plan: GroupPlan,
+    ridge: Ridge,
+    tau: float,
+    *,
+    max_terms: int,
+    eligible: set[str] | None = None,
+) -> ForwardResult:
+    """Greedy forward selection by the held-out :func:`gain_test` (Bonferroni over the round's
+    candidates), then backward: a kept candidate that no longer passes given the others (Bonferroni over
+    the kept ones) is dropped, the weakest first. ``eligible`` restricts who may be kept (e.g. the stable
+    ones); every candidate is still tested and reported."""
+    cols_of = {c.name: sums.index(c.columns) for c in candidates}
+    base = sums.index(always) if always else np.zeros(0, dtype=int)
+    out = ForwardResult()
+
+    def cols(names: Sequence[str]) -> np.ndarray:
+        return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
+
+    current = heldout_mse(sums, cols([]), plan, ridge, tau)
+    remaining = [c.name for c in candidates]
+    while remaining and len(out.chosen) < max_terms:
+        tests = {}
+        for name in remaining:
+            trial = heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau)
+            tests[name] = gain_test(current, trial, len(remaining))
+        out.tests.append(tests)
+        ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
+        if not ok:
+            break
+        best = max(ok, key=lambda n: tests[n].mean)
+        out.chosen.append(best)
+        remaining.remove(best)
+        current = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
+    _backward(out, cols, sums, plan, ridge, tau)
+    return out
+
+
+def _backward(
+    out: ForwardResult, cols, sums: GroupSums, plan: GroupPlan, ridge: Ridge, tau: float
+) -> None:
+    """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
+    (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
+    while out.chosen:
+        full = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
+        finals = {}
+        for name in out.chosen:
+            without = heldout_mse(sums, cols([n for n in out.chosen if n != name]), plan, ridge, tau)
+            finals[name] = gain_test(without, full, len(out.chosen))
+        failing = [n for n, t in finals.items() if not t.passed]
+        if not failing:
+            out.final_tests = finals
+            return
+        weakest = min(failing, key=lambda n: finals[n].mean)
+        out.dropped[weakest] = finals[weakest]
+        out.chosen.remove(weakest)
+
+
+def heldout_backward(
+    sums: GroupSums,
+    always: Sequence[str],
+    kept: Sequence[Candidate],
+    plan: GroupPlan,
+    ridge: Ridge,
+    tau: float,
+) -> ForwardResult:
+    """The backward pass of :func:`heldout_forward` alone, over candidates kept by different stages (the
+    library effects and the discovered terms): each must still pass given all the others."""
+    cols_of = {c.name: sums.index(c.columns) for c in kept}
+    base = sums.index(always) if always else np.zeros(0, dtype=int)
+
+    def cols(names: Sequence[str]) -> np.ndarray:
+        return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
+
+    out = ForwardResult(chosen=[c.name for c in kept])
+    _backward(out, cols, sums, plan, ridge, tau)
+    return out

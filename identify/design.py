@@ -1,0 +1,292 @@
+"""The linear design that effect selection and discovery run on (issue 35).
+
+A :class:`SelectionSet` holds the samples selection sees — a stratified sample of the train flights
+(:mod:`proxplan.identify.strata`) and a sample of the validation flights, each sample tagged with its
+held-out group (:mod:`proxplan.identify.crossval`) — the REFERENCE model (the MAP-calibrated one, no
+effects) with each unit's cached base wrench, and the residual of the reference model in noise units
+per channel (:data:`CHANNELS`: world F_z and the three torques).
+
+Columns (each (N, 4): one value per sample and channel, in the channels' noise units):
+
+* tangent columns of the vehicle parameters (:func:`tangent_columns`): d prediction / d u, u = ln(theta)
+  for a log-normal prior, theta otherwise, by a forward difference; with their priors as a ridge
+  (:func:`tangent_ridge`), so every held-out fit recalibrates too, jointly with the candidate: an
+  effect the data hold is no longer absorbed into c_ax before it is tried;
+* a library effect's columns (:func:`effect_columns`): its contribution per unit of its strength at its
+  fitted shape;
+* discovered features (:mod:`proxplan.identify.discovery`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from proxplan.identify.calibrate import ParamSpec, apply_vehicle_parameters, integrated_autocorrelation_time
+from proxplan.identify.crossval import GroupPlan, GroupSums, Ridge, block_ids, plan_groups
+from proxplan.identify.data import Model, Unit, predict, subsample, unit_inputs
+from proxplan.identify.strata import stratified_sample
+from proxplan.physics import BaseCache, Effect, base_cache, effect_wrench
+from proxplan.physics.features import term_scale
+
+CHANNELS = ("force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
+"""Wrench channels selection fits, and their columns in the stacked (force, torque) wrench (N, 6)."""
+CHANNEL_COLUMNS = (2, 3, 4, 5)
+TANGENT_STEP = 1e-3
+"""Forward-difference step of a tangent column: in ln(theta) for a log prior, in prior sigmas otherwise, -."""
+SCALE_FLOOR = 1e-3
+"""A channel's noise unit is at least this share of its measured signal's RMS (the measurement's relative
+resolution, 0.1 %): a channel the model predicts to rounding error (a yaw torque no effect touches) must
+not turn rounding error into signal; a channel with no measured signal at all is left out (weight 0), -."""
+TAU_SAMPLES = 40000
+"""Samples (whole contiguous units) the residual's integrated autocorrelation time is estimated on."""
+
+
+def stacked(force_N: np.ndarray, torque_Nm: np.ndarray) -> np.ndarray:
+    """(N, 4) F_z, tau_x, tau_y, tau_z of a world-frame force (N, 3) N and torque (N, 3) N m."""
+    return np.column_stack([force_N[:, 2], torque_Nm])
+
+
+@dataclass(frozen=True)
+class NoiseLevel:
+    """The measurement noise the fits are weighted by: the integrated autocorrelation time ``tau`` of the F_z
+    residual (samples) and, per vehicle type, the noise unit of each channel (4,) (N, N m; inf for a channel
+    without measured signal, which then carries no weight)."""
+
+    tau: float
+    scale: dict[str, np.ndarray]
+
+    def rows(self, units: Sequence[Unit]) -> np.ndarray:
+        """(N, 4) the noise unit of every sample of ``units`` (stacked) and channel."""
+        return np.concatenate([np.tile(self.scale[u.type], (len(u), 1)) for u in units])
+
+
+def noise_level(units: Sequence[Unit], model: Model) -> NoiseLevel:
+    """:class:`NoiseLevel` of ``model``'s residual on whole ``units`` at full resolution (up to
+    :data:`TAU_SAMPLES` samples, every k-th unit so that all flights contribute).
+
+    tau: :func:`proxplan.identify.calibrate.integrated_autocorrelation_time` of the F_z residual. Noise unit
+    of a type's channel: the residual's change over one correlation time, sqrt(var(r(t + tau) - r(t)) / 2):
+    samples one correlation time apart are nearly independent, so this is the noise's spread, while a
+    structure slower than tau (a thrust-map error, an effect the model lacks) cancels in the difference and
+    does not inflate it. Floored at :data:`SCALE_FLOOR` of the measured signal's RMS."""
+    units = [u for u in units if len(u) > 50]
+    if not units:
+        return NoiseLevel(1.0, {})
+    total = sum(len(u) for u in units)
+    step = max(1, int(np.ceil(total / TAU_SAMPLES)))
+    picked = units[::step]
+    seen = {u.type for u in picked}
+    picked += [next(u for u in units if u.type == t) for t in sorted({u.type for u in units} - seen)]
+    residuals = [(u, stacked(u.force_N, u.torque_Nm) - stacked(*predict(u, model))) for u in picked]
+    tau = integrated_autocorrelation_time([r[:, 0] for _, r in residuals])
+    lag = max(1, int(round(tau)))
+    scale: dict[str, np.ndarray] = {}
+    for vtype in sorted({u.type for u, _ in residuals}):
+        diffs = [r[lag:] - r[:-lag] for u, r in residuals if u.type == vtype and len(r) > lag]
+        signal = [stacked(u.force_N, u.torque_Nm) for u, _ in residuals if u.type == vtype]
+        d = np.concatenate(diffs) if diffs else np.zeros((0, 4))
+        sig = np.sqrt(np.mean(np.concatenate(signal) ** 2, axis=0))
+        noise = np.sqrt(np.mean(d**2, axis=0) / 2.0) if len(d) else sig
+        unit = np.maximum(noise, SCALE_FLOOR * sig)
+        scale[vtype] = np.where(unit > 0.0, unit, np.inf)
+    return NoiseLevel(float(tau), scale)
+
+
+@dataclass
+class SelectionSet:
+    """Samples, groups, reference model and residual of a selection (module docstring)."""
+
+    units: list[Unit]
+    plan: GroupPlan
+    model: Model
+    caches: list[BaseCache]
+    measured: np.ndarray  # (N, 4) measured F_z (N) and torques (N m)
+    predicted: np.ndarray  # (N, 4) the reference model's prediction
+    weight: np.ndarray  # (N,) stratified weights
+    group: np.ndarray  # (N,) group index
+    noise: NoiseLevel  # tau and each type's noise units
+    row_scale: np.ndarray  # (N, 4) each sample's noise unit per channel (N, N m)
+    sources: list[Unit]  # the full-resolution units the samples come from (fit, then validation)
+    rows: np.ndarray  # (N,) each sample's row in the concatenation of ``sources``
+
+    @property
+    def tau(self) -> float:
+        """Integrated autocorrelation time of the residual, samples."""
+        return self.noise.tau
+
+    @property
+    def residual(self) -> np.ndarray:
+        """(N, 4) measured minus reference prediction, noise units."""
+        return (self.measured - self.predicted) / self.row_scale
+
+    def target_scale(self, channel: str) -> np.ndarray:
+        """(N,) :func:`proxplan.physics.features.term_scale` of each sample's vehicle on ``channel`` (N or N m)."""
+        return np.concatenate([np.full(len(u), term_scale(channel, self.model.vehicles[u.type])) for u in self.units])
+
+    def offsets(self) -> list[int]:
+        """Start row of each unit in the stacked arrays (and the total at the end)."""
+        return list(np.cumsum([0] + [len(u) for u in self.units]))
+
+    def sums(self, columns: Mapping[str, np.ndarray], target: np.ndarray | None = None) -> GroupSums:
+        """Per-cell sums of ``columns`` (each (N, 4), noise units) against ``target`` ((N, 4), default the
+        residual): every channel of every sample a row, cell = group x channel."""
+        names = list(columns)
+        y = self.residual if target is None else target
+        x = np.stack([np.asarray(columns[k]).reshape(-1) for k in names], axis=1) if names else np.zeros((y.size, 0))
+        nc = len(CHANNELS)
+        cell = (self.group[:, None] * nc + np.arange(nc)[None, :]).reshape(-1)
+        return GroupSums.build(x, y.reshape(-1), np.repeat(self.weight, nc), cell, self.plan.n_groups, names,
+                               n_channels=nc)  # fmt: skip
+
+    def columns_of(self, per_unit: Sequence[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+        """(N, 4) in noise units from one (force (n, 3), torque (n, 3)) wrench per unit."""
+        return np.concatenate([stacked(f, t) for f, t in per_unit]) / self.row_scale
+
+
+def _assign_groups(units: Sequence[Unit], plan: GroupPlan, index: Mapping[str, int] | None) -> list[Unit]:
+    """``units`` with :attr:`Unit.group` set: the flight's group, or (fallback) its block in time."""
+    out = []
+    spans: dict[str, tuple[float, float]] = {}
+    for u in units:
+        lo, hi = spans.get(u.flight, (np.inf, -np.inf))
+        spans[u.flight] = (min(lo, float(u.t_s[0])), max(hi, float(u.t_s[-1])))
+    first = {f: plan.names.index(f"{f}#0") for f in spans if f"{f}#0" in plan.names}
+    for u in units:
+        if index is not None or u.flight not in first:
+            g = plan.names.index(u.flight) if index is None else index[u.flight]
+            out.append(replace(u, group=np.full(len(u), g, dtype=int)))
+        else:
+            out.append(replace(u, group=block_ids(u.t_s, *spans[u.flight], first[u.flight])))
+    return out
+
+
+def selection_set(
+    fit: Sequence[Unit],
+    valid: Sequence[Unit],
+    model: Model,
+    noise: NoiseLevel,
+    *,
+    max_fit_samples: int,
+    max_valid_samples: int,
+    what: str = "selection",
+) -> SelectionSet:
+    """The selection's samples (module docstring) around the reference ``model``: a stratified sample of
+    ``fit`` and a uniform sample of ``valid``, grouped by :func:`proxplan.identify.crossval.plan_groups`,
+    in the noise units of ``noise`` (two selections around two reference models with the same ``noise``
+    compare in the same units on the same samples)."""
+    plan, index = plan_groups([u.flight for u in fit if len(u)], [u.flight for u in valid if len(u)], what=what)
+    sources = [u for u in fit if len(u)] + [u for u in valid if len(u)]
+    starts = np.cumsum([0] + [len(u) for u in sources])
+    tagged = _assign_groups([replace(u, row=starts[k] + np.arange(len(u))) for k, u in enumerate(sources)], plan, index)
+    n_fit = sum(1 for u in fit if len(u))
+    fit_g, valid_g = tagged[:n_fit], tagged[n_fit:]
+    units = stratified_sample(fit_g, max_fit_samples, model.vehicles)
+    if valid_g:
+        units += [replace(u, weight=np.ones(len(u))) for u in subsample(valid_g, max_valid_samples)]
+    units = [u for u in units if len(u)]
+    caches = [base_cache(unit_inputs(u, model)) for u in units]
+    predicted = np.concatenate([stacked(*predict(u, model, cache=c)) for u, c in zip(units, caches)])
+    measured = np.concatenate([stacked(u.force_N, u.torque_Nm) for u in units])
+    weight = np.concatenate([u.weight if u.weight is not None else np.ones(len(u)) for u in units])
+    group = np.concatenate([u.group for u in units if u.group is not None]).astype(int)
+    rows = np.concatenate([u.row for u in units if u.row is not None]).astype(int)
+    return SelectionSet(units, plan, model, caches, measured, predicted, weight, group, noise, noise.rows(units),
+                        sources, rows)  # fmt: skip
+
+
+# ------------------------------------------------------------------------------ tangent columns
+
+
+def _perturbed(model: Model, name: str, value: float) -> Model:
+    vtype, key = name.rsplit(".", 1)
+    if key == "thrust_scale":
+        return replace(model, thrust_scale=dict(model.thrust_scale) | {vtype: value})
+    vehicles = dict(model.vehicles)
+    vehicles[vtype] = apply_vehicle_parameters(vehicles[vtype], **{key: value})
+    return replace(model, vehicles=vehicles)
+
+
+def _value(model: Model, name: str) -> float:
+    vtype, key = name.rsplit(".", 1)
+    if key == "thrust_scale":
+        return float(model.thrust_scale.get(vtype, 1.0))
+    veh = model.vehicles[vtype]
+    return float({"c_ax": veh.downwash.c_ax, "z0_m": veh.downwash.z0_m, "c_rad": veh.downwash.c_rad,
+                  "b_v": veh.b_v}[key])  # fmt: skip
+
+
+def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, np.ndarray]:
+    """d prediction / d u of every parameter of ``specs`` at the reference model (module docstring), (N, 4)
+    noise units each; a thrust scale's column is analytic (the logged thrust along z of its type)."""
+    out: dict[str, np.ndarray] = {}
+    for spec in specs:
+        prior = spec.prior
+        vtype, key = spec.name.rsplit(".", 1)
+        if key == "thrust_scale":
+            col = np.zeros((len(sel.weight), 4))
+            start = 0
+            for u in sel.units:
+                if u.type == vtype:
+                    col[start : start + len(u), 0] = u.thrust_z_N
+                start += len(u)
+            out[spec.name] = col / sel.row_scale
+            continue
+        theta = _value(sel.model, spec.name)
+        if prior is not None and prior.log:
+            step = TANGENT_STEP
+            moved = theta * np.exp(step)
+        else:
+            step = TANGENT_STEP * (prior.sigma if prior is not None and prior.sigma > 0 else max(abs(theta), 1e-6))
+            moved = theta + step
+        m = _perturbed(sel.model, spec.name, moved)
+        pred = np.concatenate([stacked(*predict(u, m)) for u in sel.units])
+        out[spec.name] = (pred - sel.predicted) / step / sel.row_scale
+    return out
+
+
+def tangent_u(model: Model, spec: ParamSpec) -> float:
+    """The coordinate u of a parameter at ``model``: ln(theta) for a log prior, theta otherwise."""
+    theta = _value(model, spec.name)
+    return float(np.log(theta)) if spec.prior is not None and spec.prior.log else theta
+
+
+def tangent_ridge(sel: SelectionSet, specs: Sequence[ParamSpec], names: Sequence[str]) -> Ridge:
+    """Ridge over ``names`` (the design's columns): the priors of the tangent columns of ``specs``
+    (precision 1 / sigma_u^2, center u_prior - u_ref: the coefficient is the step from the reference);
+    no prior on the other columns."""
+    prec = np.zeros(len(names))
+    center = np.zeros(len(names))
+    pos = {n: k for k, n in enumerate(names)}
+    for spec in specs:
+        if spec.name not in pos or spec.prior is None or spec.prior.sigma <= 0.0:
+            continue
+        k = pos[spec.name]
+        u_prior = float(np.log(spec.prior.center)) if spec.prior.log else spec.prior.center
+        prec[k] = 1.0 / spec.prior.sigma**2
+        center[k] = u_prior - tangent_u(sel.model, spec)
+    return Ridge(prec, center)
+
+
+def apply_tangent_step(model: Model, specs: Sequence[ParamSpec], steps: Mapping[str, float]) -> Model:
+    """``model`` with each parameter moved by its fitted step in u (:func:`tangent_columns`), clipped to
+    its spec's bounds."""
+    out = model
+    for spec in specs:
+        if spec.name not in steps:
+            continue
+        theta = _value(model, spec.name)
+        du = float(steps[spec.name])
+        value = theta * np.exp(du) if spec.prior is not None and spec.prior.log else theta + du
+        out = _perturbed(out, spec.name, float(np.clip(value, spec.lower, spec.upper)))
+    return out
+
+
+# ------------------------------------------------------------------------------ effect columns
+
+
+def effect_columns(sel: SelectionSet, effect: Effect) -> np.ndarray:
+    """(N, 4) contribution of ``effect`` on the selection's samples (noise units), with the cached base."""
+    return sel.columns_of([effect_wrench(effect, c.inputs, cache=c) for c in sel.caches])
