@@ -72,21 +72,32 @@ class SetSpec:
     effect: dict[str, Any]  # the hidden effect's description (family-specific)
 
 
-def _motions(rng: np.random.Generator, names: list[str], t: np.ndarray, low: bool) -> dict[str, np.ndarray]:
-    """Smooth random motions: each vehicle on a sum of sinusoids; the heights oscillate by more than the
-    layers' spacing with other phases, so the vehicles stack, cross and swap in every flight, and the
-    horizontal excursions pass them under each other."""
+MIN_GAP_L = 1.5
+"""Vertical gap between two layers: at least this many times the larger vehicle's size (real flights keep
+apart: the Neural-Swarm swaps keep 0.1-0.6 m of vertical gap; the model has no meaning inside a frame)."""
+
+
+def _motions(
+    rng: np.random.Generator, names: list[str], t: np.ndarray, low: bool, sizes: dict[str, float]
+) -> dict[str, np.ndarray]:
+    """Smooth random motions in layers: a random order of the vehicles from the bottom up, each gap
+    1.5-4 times the larger size, a slow vertical wobble, and random horizontal paths (sums of sinusoids of
+    0.1-0.4 Hz, up to +-0.45 m: speeds up to about 0.8 m/s, like the Neural-Swarm swaps) that pass the
+    vehicles under and over each other; with ``low`` the bottom vehicle dips near the ground in the second
+    half."""
+    order = list(rng.permutation(names))
+    z = {order[0]: rng.uniform(0.5, 0.8)}
+    for below, above in zip(order[:-1], order[1:]):
+        z[above] = z[below] + rng.uniform(MIN_GAP_L, 4.0) * max(sizes[below], sizes[above])
     out = {}
-    for k, name in enumerate(names):
+    for name in names:
         pos = np.zeros((len(t), 3))
-        for ax, amp in enumerate((0.3, 0.3)):
+        for ax in range(2):
             for _ in range(3):
-                f = rng.uniform(0.05, 0.3)
-                pos[:, ax] += amp / 3 * rng.uniform(0.5, 1.0) * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
-        f_z = rng.uniform(0.06, 0.15)
-        pos[:, 2] = 1.1 + rng.uniform(0.3, 0.5) * np.sin(2 * np.pi * f_z * t + 2 * np.pi * k / len(names)
-                                                         + rng.uniform(-0.5, 0.5))  # fmt: skip
-        if low and k == 0:  # one vehicle dips near the ground in the second half
+                f = rng.uniform(0.1, 0.4)
+                pos[:, ax] += 0.15 * rng.uniform(0.5, 1.0) * np.sin(2 * np.pi * f * t + rng.uniform(0, 2 * np.pi))
+        pos[:, 2] = z[name] + 0.05 * np.sin(2 * np.pi * rng.uniform(0.05, 0.2) * t + rng.uniform(0, 2 * np.pi))
+        if low and name == order[0]:
             blend = 0.5 * (1 + np.tanh((t - 0.6 * t[-1]) / 1.0))
             pos[:, 2] = (1 - blend) * pos[:, 2] + blend * (0.12 + 0.08 * np.sin(2 * np.pi * 0.3 * t))
         out[name] = pos
@@ -102,7 +113,7 @@ def draw_spec(seed: int, family: str) -> SetSpec:
     return SetSpec(
         seed=seed, types=types, n_train=int(rng.choice([3, 4, 6])), duration_s=20.0,
         commanded=bool(rng.random() < 0.5),
-        thrust_error={t: float(rng.uniform(-0.05, 0.05)) for t in set(types.values())},
+        thrust_error={t: float(rng.uniform(-0.05, 0.05)) for t in sorted(set(types.values()))},
         accel_noise_mps2=float(rng.uniform(0.02, 0.05)), family=family, effect=effect,
     )  # fmt: skip
 
@@ -254,7 +265,7 @@ def make_set(spec: SetSpec, root: Path, amplitude: float | None) -> Path:
     flights = []
     for k in range(spec.n_train + 1):
         rng = np.random.default_rng([spec.seed, k])
-        motions = _motions(rng, list(vehicles), t, low=bool(k % 2))
+        motions = _motions(rng, list(vehicles), t, bool(k % 2), {n: v.size_m for n, v in vehicles.items()})
         noise_seed = int(rng.integers(1 << 30))
         taus = {n: (v.motor_time_constant_s if spec.commanded else None) for n, v in vehicles.items()}
         logs = {}
@@ -278,12 +289,12 @@ def effect_rms_on_test(spec: SetSpec) -> dict[str, float]:
     """RMS of the unit-amplitude hidden F_z (or torque as N-equivalent at the source size) per vehicle on
     the test flight."""
     from proxplan.identify import synthetic_logs  # noqa: F401  (same trajectories as make_set)
-    from proxplan.physics import GRAVITY_MPS2, BUILTIN_VEHICLES, EffectInputs, SourceSample
+    from proxplan.physics import BUILTIN_VEHICLES, GRAVITY_MPS2, EffectInputs, SourceSample
 
     vehicles = {n: BUILTIN_VEHICLES[t] for n, t in spec.types.items()}
     t = np.arange(0.0, spec.duration_s, DT_S)
     rng = np.random.default_rng([spec.seed, spec.n_train])
-    motions = _motions(rng, list(vehicles), t, low=bool(spec.n_train % 2))
+    motions = _motions(rng, list(vehicles), t, bool(spec.n_train % 2), {n: v.size_m for n, v in vehicles.items()})
     vels = {k: np.gradient(p, t, axis=0) for k, p in motions.items()}
     out = {}
     for name, veh in vehicles.items():
@@ -357,12 +368,19 @@ def _beyond_thrust_bias(selected: list[str]) -> list[str]:
     return [n for n in selected if n != "thrust_bias"]
 
 
+LIBRARY_FORMS = {("velocity", "v_z"): "own_velocity", ("velocity", "v_xy"): "own_velocity",
+                 ("velocity", "v_xy2"): "own_velocity"}  # fmt: skip
+"""Generated forms that ARE a library effect (own_velocity is W (-c_w v_z + c_mu |v_xy| + c_mu2 |v_xy|^2)):
+keeping that effect is finding what was put in."""
+
+
 def _library_put_in(desc: dict[str, Any]) -> set[str]:
     if desc["family"] == "mix":
         return set().union(*(_library_put_in(p) for p in desc["parts"]))
     if desc["family"] == "lag" and desc["inner"] != "base":
         return {desc["inner"]}
-    return set()
+    form = LIBRARY_FORMS.get((desc["family"], desc.get("form", "")))
+    return {form} if form else set()
 
 
 def main() -> None:

@@ -26,7 +26,6 @@ from proxplan.identify import (
     evaluate_model,
     read_log,
     run_identify,
-    saved_model,
     synthetic_logs,
     write_canonical_csv,
     write_report,
@@ -100,7 +99,7 @@ def main() -> None:
         t0 = time.perf_counter()
         write_report(result, root / "out")
         t_report = time.perf_counter() - t0
-        model = saved_model(result.final_model, result.measure_options, result.thrust_maps)
+        model = result.saved()
         t0, c0 = time.perf_counter(), time.process_time()
         evaluation = evaluate_model(manifest, model, split="all")
         t_eval, c_eval = time.perf_counter() - t0, time.process_time() - c0

@@ -18,7 +18,7 @@ import resource
 import time
 from pathlib import Path
 
-from proxplan.identify import IdentifyOptions, evaluate_model, load_manifest, run_identify, saved_model
+from proxplan.identify import IdentifyOptions, evaluate_model, load_manifest, run_identify
 from proxplan.identify.data import load_units
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,7 +39,7 @@ def main() -> None:
     manifest = load_manifest(args.manifest)
     _, base_wall, base_cpu = _timed(lambda: load_units(manifest, options=IdentifyOptions()))
     result, wall, cpu = _timed(lambda: run_identify(manifest, options=IdentifyOptions()))
-    model = saved_model(result.final_model, result.measure_options, result.thrust_maps)
+    model = result.saved()
     ev, ev_wall, ev_cpu = _timed(lambda: evaluate_model(manifest, model))
     doc = ev.to_json()
     out = {

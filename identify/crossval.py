@@ -463,9 +463,7 @@ def heldout_forward(
     return out
 
 
-def _backward(
-    out: ForwardResult, cols, sums: GroupSums, plan: GroupPlan, ridge: Ridge, tau: float
-) -> None:
+def _backward(out: ForwardResult, cols, sums: GroupSums, plan: GroupPlan, ridge: Ridge, tau: float) -> None:
     """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
     (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
     while out.chosen:

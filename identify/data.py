@@ -84,6 +84,7 @@ class Unit:
     weight: np.ndarray | None = None  # (N,) sampling weight of a stratified sample (identify.strata), -
     group: np.ndarray | None = None  # (N,) int: held-out group of each sample (proxplan.identify.crossval)
     row: np.ndarray | None = None  # (N,) int: each sample's row in the full-resolution units it was sampled from
+    motor_torque_Nm: np.ndarray | None = None  # (N, 3) body torque of the logged motor thrusts (S0-14), world, N m
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
@@ -93,6 +94,7 @@ class Unit:
             weight=None if self.weight is None else self.weight[idx],
             group=None if self.group is None else self.group[idx],
             row=None if self.row is None else self.row[idx],
+            motor_torque_Nm=None if self.motor_torque_Nm is None else self.motor_torque_Nm[idx],
             t_s=self.t_s[idx],
             velocity_mps=self.velocity_mps[idx],
             height_above_ground_m=self.height_above_ground_m[idx],
@@ -158,7 +160,12 @@ def predict(
         f, t = effect_wrench(eff, inputs, cache=cache)
         force += f
         torque += t
-    force[:, 2] += (model.thrust_scale.get(unit.type, 1.0) - 1.0) * unit.thrust_z_N
+    # a thrust-map error (true = s x logged motor thrust) shows in BOTH measured channels (S0-11, S0-13):
+    # the force by (s - 1) T z_B, the torque by (s - 1) R tau_p of the logged thrusts
+    scale = model.thrust_scale.get(unit.type, 1.0) - 1.0
+    force[:, 2] += scale * unit.thrust_z_N
+    if unit.motor_torque_Nm is not None:
+        torque += scale * unit.motor_torque_Nm
     return force, torque
 
 
@@ -212,7 +219,7 @@ def load_units(
     from scipy.spatial.transform import Rotation
 
     from proxplan.identify.thrust_rls import thrust_samples
-    from proxplan.physics import load_vehicle_file, resolve_vehicle
+    from proxplan.physics import load_vehicle_file, mixer_matrix, resolve_vehicle
 
     custom = load_vehicle_file(manifest.vehicles_file) if manifest.vehicles_file else None
     types: dict[str, Vehicle] = {}
@@ -280,6 +287,9 @@ def load_units(
                     velocity_mps=log.velocity_mps,
                     height_above_ground_m=log.position_m[:, 2] - v.ground_z_m,
                     thrust_z_N=log.motor_thrust_N.sum(axis=1) * z_b[:, 2],
+                    motor_torque_Nm=Rotation.from_quat(log.quat_xyzw).apply(
+                        log.motor_thrust_N @ mixer_matrix(veh)[1:].T
+                    ),
                     source_types=tuple(types_of[o.name] for o in others),
                     source_offsets_m=tuple(
                         log.position_m - interpolate_position_m(flight.logs[o.name], log.t_s) for o in others
@@ -354,6 +364,7 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             weight=None if any(u.weight is None for u in us) else cat("weight"),
             group=None if any(u.group is None for u in us) else cat("group"),
             row=None if any(u.row is None for u in us) else cat("row"),
+            motor_torque_Nm=None if any(u.motor_torque_Nm is None for u in us) else cat("motor_torque_Nm"),
         ))  # fmt: skip
     return out
 

@@ -68,10 +68,11 @@ def noise_level(units: Sequence[Unit], model: Model) -> NoiseLevel:
     :data:`TAU_SAMPLES` samples, every k-th unit so that all flights contribute).
 
     tau: :func:`proxplan.identify.calibrate.integrated_autocorrelation_time` of the F_z residual. Noise unit
-    of a type's channel: the residual's change over one correlation time, sqrt(var(r(t + tau) - r(t)) / 2):
-    samples one correlation time apart are nearly independent, so this is the noise's spread, while a
-    structure slower than tau (a thrust-map error, an effect the model lacks) cancels in the difference and
-    does not inflate it. Floored at :data:`SCALE_FLOOR` of the measured signal's RMS."""
+    of a type's channel: the residual's second difference over one correlation time,
+    sqrt(var(r(t + tau) - 2 r(t) + r(t - tau)) / 6): samples one correlation time apart are nearly
+    independent, so this is the noise's spread, while a structure slower than tau (a thrust-map error, an
+    effect the model lacks) cancels in the difference (a trend exactly) and does not inflate it. Floored
+    at :data:`SCALE_FLOOR` of the measured signal's RMS."""
     units = [u for u in units if len(u) > 50]
     if not units:
         return NoiseLevel(1.0, {})
@@ -85,11 +86,12 @@ def noise_level(units: Sequence[Unit], model: Model) -> NoiseLevel:
     lag = max(1, int(round(tau)))
     scale: dict[str, np.ndarray] = {}
     for vtype in sorted({u.type for u, _ in residuals}):
-        diffs = [r[lag:] - r[:-lag] for u, r in residuals if u.type == vtype and len(r) > lag]
+        diffs = [r[2 * lag :] - 2.0 * r[lag:-lag] + r[: -2 * lag] for u, r in residuals
+                 if u.type == vtype and len(r) > 2 * lag]  # fmt: skip
         signal = [stacked(u.force_N, u.torque_Nm) for u, _ in residuals if u.type == vtype]
         d = np.concatenate(diffs) if diffs else np.zeros((0, 4))
         sig = np.sqrt(np.mean(np.concatenate(signal) ** 2, axis=0))
-        noise = np.sqrt(np.mean(d**2, axis=0) / 2.0) if len(d) else sig
+        noise = np.sqrt(np.mean(d**2, axis=0) / 6.0) if len(d) else sig
         unit = np.maximum(noise, SCALE_FLOOR * sig)
         scale[vtype] = np.where(unit > 0.0, unit, np.inf)
     return NoiseLevel(float(tau), scale)
@@ -202,6 +204,8 @@ def selection_set(
 
 def _perturbed(model: Model, name: str, value: float) -> Model:
     vtype, key = name.rsplit(".", 1)
+    if key == "stack_shielding":  # model.stack_shielding: eta of proxplan.physics.stack
+        return replace(model, options=replace(model.options, stack_shielding=float(value)))
     if key == "thrust_scale":
         return replace(model, thrust_scale=dict(model.thrust_scale) | {vtype: value})
     vehicles = dict(model.vehicles)
@@ -211,6 +215,8 @@ def _perturbed(model: Model, name: str, value: float) -> Model:
 
 def _value(model: Model, name: str) -> float:
     vtype, key = name.rsplit(".", 1)
+    if key == "stack_shielding":
+        return float(model.options.stack_shielding)
     if key == "thrust_scale":
         return float(model.thrust_scale.get(vtype, 1.0))
     veh = model.vehicles[vtype]
@@ -220,7 +226,8 @@ def _value(model: Model, name: str) -> float:
 
 def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, np.ndarray]:
     """d prediction / d u of every parameter of ``specs`` at the reference model (module docstring), (N, 4)
-    noise units each; a thrust scale's column is analytic (the logged thrust along z of its type)."""
+    noise units each; a thrust scale's column is analytic (its type's logged thrust along z, and the body
+    torque of its logged motor thrusts: :func:`proxplan.identify.data.predict`)."""
     out: dict[str, np.ndarray] = {}
     for spec in specs:
         prior = spec.prior
@@ -231,6 +238,8 @@ def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, 
             for u in sel.units:
                 if u.type == vtype:
                     col[start : start + len(u), 0] = u.thrust_z_N
+                    if u.motor_torque_Nm is not None:
+                        col[start : start + len(u), 1:] = u.motor_torque_Nm
                 start += len(u)
             out[spec.name] = col / sel.row_scale
             continue

@@ -36,7 +36,6 @@ is already a force or torque (coefficient per feature unit) and ``"<channel>*W*<
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 

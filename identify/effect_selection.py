@@ -220,7 +220,9 @@ def effect_candidate(
     size = np.sqrt(sum(v * v for v in ref.values()))
     lo, hi = PARAMETERS[name][strength[0]][1:]
     if size <= 1e-6 * (hi - lo):
-        return EffectCandidate(name, eff, {}, "scale", ref, fit, note="its fitted strength is zero (the prior's center)")
+        return EffectCandidate(
+            name, eff, {}, "scale", ref, fit, note="its fitted strength is zero (the prior's center)"
+        )
     col = effect_columns(sel, eff)
     return EffectCandidate(name, eff, {f"{name}.scale": col}, "scale", ref, fit)
 

@@ -42,9 +42,10 @@ from proxplan.identify.flightlog import Manifest
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import DERIVATIVES, MeasureOptions
 from proxplan.identify.motor_check import check_loaded
+from proxplan.identify.spread import BandAccumulator, interval_half_width_N, slow_part
 from proxplan.identify.strata import AUTHORITY_STATES, authority_masks
 from proxplan.identify.thrust_map import ThrustMap
-from proxplan.physics import CalibratedModel
+from proxplan.physics import CalibratedModel, ResidualSpread
 
 SPLITS = ("test", "validation", "train", "all")
 REGIONS = ("free", "below_source", "below_within_3L", "below_beyond_3L", "stack")
@@ -101,14 +102,21 @@ def measurement_from_model(
     return options, maps, []
 
 
-def saved_model(model: Model, measure: MeasureOptions, thrust_maps: Mapping[str, ThrustMap]) -> CalibratedModel:
-    """The :class:`proxplan.physics.CalibratedModel` of an identify model plus how it was measured."""
+def saved_model(
+    model: Model,
+    measure: MeasureOptions,
+    thrust_maps: Mapping[str, ThrustMap],
+    spread: ResidualSpread | None = None,
+) -> CalibratedModel:
+    """The :class:`proxplan.physics.CalibratedModel` of an identify model plus how it was measured and the
+    residual spread it cannot predict."""
     return CalibratedModel(
         vehicles=dict(model.vehicles),
         options=model.options,
         effects=tuple(model.effects),
         thrust_scales={k: float(v) for k, v in model.thrust_scale.items()},
         measurement=measurement_dict(measure, thrust_maps),
+        residual_spread=spread,
     )
 
 
@@ -175,6 +183,7 @@ class EvaluationResult:
     units: list[Unit] = field(default_factory=list)
     model: Model | None = None
     motor_lag_check: dict = field(default_factory=dict)  # proxplan.identify.motor_check (warnings inside)
+    bands: dict[str, BandAccumulator] = field(default_factory=dict)  # "all" and per set: below / above 1 Hz, coverage
 
     def to_json(self) -> dict[str, Any]:
         o = self.overall
@@ -205,6 +214,7 @@ class EvaluationResult:
             "notes": list(self.notes),
             "motor_lag_check": self.motor_lag_check,
             "warnings": list(self.motor_lag_check.get("warnings", [])),
+            "bands": {k: b.to_json(GRAMS_PER_N) for k, b in self.bands.items()},
         }
 
 
@@ -281,9 +291,19 @@ def evaluate_model(
     set_overhead: dict[str, dict[str, _Acc]] = {}
     authority = {c: _Acc() for c in AUTHORITY_STATES}
     set_authority: dict[str, dict[str, _Acc]] = {}
+    bands = {"all": BandAccumulator()}
+    spread = model.residual_spread
+    if spread is None:
+        notes.append(
+            f"{label}: model.residual_spread: missing (a model saved before it): no 90 % interval, no coverage"
+        )
     for u in units:
         f, t = predict(u, m)
         dfz, dtq = u.force_N[:, 2] - f[:, 2], np.linalg.norm(u.torque_Nm - t, axis=1)
+        slow = slow_part(dfz, u.t_s)
+        half = interval_half_width_N(u, m, spread) if spread is not None else None
+        for acc_b in (bands["all"], bands.setdefault(set_of[u.flight], BandAccumulator())):
+            acc_b.add(dfz, slow, half)
         fz0, tq0 = u.force_N[:, 2], np.linalg.norm(u.torque_Nm, axis=1)
         for acc in (overall, flights.setdefault(u.flight, _Acc()), per_vehicle.setdefault(u.name, _Acc())):
             acc.add(dfz, dtq, fz0, tq0)
@@ -304,4 +324,5 @@ def evaluate_model(
         overhead=overhead, set_overhead=set_overhead, authority=authority, set_authority=set_authority, n_rows=n_rows,
         exclusions=data.exclusions, notes=notes, measurement=measurement_summary(data.thrust_maps, data.exclusions, []),
         units=units, model=m, motor_lag_check=check_loaded(data, motor_thrust=manifest.motor_thrust, options=measure),
+        bands=bands,
     )  # fmt: skip

@@ -15,7 +15,7 @@ import numpy as np
 from proxplan.fileio import atomic_write_text, save_figure
 from proxplan.identify.data import predict
 from proxplan.identify.evaluate import OVERHEAD_COUNTS, EvaluationResult
-from proxplan.identify.report import exclusion_lines, limit_lines, motor_check_lines
+from proxplan.identify.report import band_lines, exclusion_lines, limit_lines, motor_check_lines
 from proxplan.identify.strata import AUTHORITY_STATES
 
 
@@ -127,6 +127,7 @@ def markdown(result: EvaluationResult, *, manifest: str, model: str, plots: list
              "", f"Samples scored: {doc['n_samples']} of {doc['n_rows']} log rows "
              f"({_ratio(doc['n_samples'], doc['n_rows'])}); the rest failed the quality checks (see below).", ""]  # fmt: skip
     lines += authority_lines(doc)
+    lines += band_lines(doc["bands"])
     for title, rows in (("Per set", doc["sets"]), ("Per flight", doc["flights"]), ("Per vehicle", doc["per_vehicle"]),
                         ("Per region", doc["regions"])):  # fmt: skip
         lines += [f"## {title}", "", "| | RMSE F_z [g] | no model [g] | ratio | samples |", "|---|---|---|---|---|"]

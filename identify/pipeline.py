@@ -49,6 +49,7 @@ from proxplan.identify.calibrate import (
     fit_parameters,
     vehicle_param_specs,
 )
+from proxplan.identify.crossval import Candidate, ForwardResult, heldout_backward, heldout_mse, solve, trainable_groups
 from proxplan.identify.data import (
     Errors,
     IdentifyOptions,
@@ -63,19 +64,27 @@ from proxplan.identify.data import (
     subsample,
     unit_inputs,
 )
-from proxplan.identify.crossval import Candidate, ForwardResult, heldout_backward, heldout_mse, solve, trainable_groups
 from proxplan.identify.design import NoiseLevel, noise_level, selection_set
 from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
 from proxplan.identify.effect_selection import EffectSelection, EffectSelector, EffectTrial
+from proxplan.identify.evaluate import GRAMS_PER_N, saved_model
 from proxplan.identify.flightlog import Manifest
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.motor_check import check_loaded
-from proxplan.identify.priors import vehicle_priors
+from proxplan.identify.priors import STACK_SHIELDING_PRIOR, vehicle_priors
 from proxplan.identify.residuals import correlate, sample_features
-from proxplan.identify.stack_fit import choose_stack_shielding
-from proxplan.identify.strata import stratified_sample
-from proxplan.physics import VALIDITY_FACTOR_L, Effect, ModelOptions, base_wrench
+from proxplan.identify.spread import band_errors, fit_spread
+from proxplan.identify.strata import MIN_STACK_SAMPLES, stacked_samples, stratified_sample
+from proxplan.physics import (
+    MAX_STACK_SHIELDING,
+    VALIDITY_FACTOR_L,
+    CalibratedModel,
+    Effect,
+    ModelOptions,
+    ResidualSpread,
+    base_wrench,
+)
 
 # ------------------------------------------------------------------------------ calibration
 
@@ -87,12 +96,21 @@ def _roles(units: Sequence[Unit]) -> tuple[set[str], set[str], list[str]]:
     return sources, targets, types
 
 
+STACK_PARAMETER = "model.stack_shielding"
+"""Name of the stack shielding eta among the calibrated parameters."""
+
+
 def model_specs(units: Sequence[Unit], model: Model) -> list[ParamSpec]:
     """The declared parameters the data can inform, with their priors: c_ax, z0_m, c_rad of every type
-    that is a source in ``units``, b_v of every type that receives a downwash, and every type's thrust
-    scale (names ``TYPE.param``; :func:`proxplan.identify.calibrate.vehicle_param_specs`)."""
+    that is a source in ``units``, b_v of every type that receives a downwash, every type's thrust scale
+    (names ``TYPE.param``; :func:`proxplan.identify.calibrate.vehicle_param_specs`), and the stack shielding
+    eta where the units hold at least :data:`MIN_STACK_SAMPLES` samples with two or more sources overhead."""
     sources, targets, types = _roles(units)
     specs: list[ParamSpec] = []
+    n_stacked = sum(int(np.sum(stacked_samples(u, model))) for u in units)
+    if n_stacked >= MIN_STACK_SAMPLES:
+        specs.append(ParamSpec(STACK_PARAMETER, model.options.stack_shielding, 0.0, MAX_STACK_SHIELDING,
+                               STACK_SHIELDING_PRIOR))  # fmt: skip
     for t in types:
         specs += vehicle_param_specs(model.vehicles[t], f"{t}.", as_source=t in sources, as_target=t in targets)
         specs.append(ParamSpec(f"{t}.thrust_scale", model.thrust_scale.get(t, 1.0), 0.7, 1.3,
@@ -102,12 +120,13 @@ def model_specs(units: Sequence[Unit], model: Model) -> list[ParamSpec]:
 
 def calibrate_model(
     units: Sequence[Unit], model: Model, *, options: IdentifyOptions, noise: NoiseLevel
-) -> tuple[Model, CalibrationResult]:
+) -> tuple[Model, CalibrationResult, Model]:
     """MAP fit of c_ax, z0_m, c_rad (source types), b_v (target types) and thrust scales (all types) on F_z,
     on a stratified, weighted sample of ``units`` (:func:`proxplan.identify.strata.stratified_sample`),
     with the priors of :mod:`proxplan.identify.priors`. The data term is in units of the F_z noise of one
     independent sample: each type's F_z noise unit times sqrt(tau) (:func:`proxplan.identify.design.noise_level`).
-    The thrust scales are nuisance parameters: returned at 1."""
+    The thrust scales are nuisance parameters: the model is returned with them at 1 (and ``fitted``, the
+    model with them, is what the measurement noise is judged on)."""
     fit_units = stratified_sample(units, options.max_fit_samples, model.vehicles)
     sw = np.sqrt(np.concatenate([u.weight for u in fit_units])) / noise.rows(fit_units)[:, 0]
     specs = model_specs(fit_units, model)
@@ -115,7 +134,11 @@ def calibrate_model(
 
     def model_of(theta: np.ndarray) -> Model:
         per_type: dict[str, dict[str, float]] = {}
+        options = model.options
         for spec, val in zip(specs, theta):
+            if spec.name == STACK_PARAMETER:
+                options = replace(options, stack_shielding=float(val))
+                continue
             t, key = spec.name.rsplit(".", 1)
             per_type.setdefault(t, {})[key] = float(val)
         vehicles = dict(model.vehicles)
@@ -123,7 +146,7 @@ def calibrate_model(
         for t, vals in per_type.items():
             scales[t] = vals.pop("thrust_scale", 1.0)
             vehicles[t] = apply_vehicle_parameters(model.vehicles[t], **vals)
-        return replace(model, vehicles=vehicles, thrust_scale=scales)
+        return replace(model, vehicles=vehicles, thrust_scale=scales, options=options)
 
     def residual(theta: np.ndarray) -> np.ndarray:
         m = model_of(theta)
@@ -133,7 +156,7 @@ def calibrate_model(
     # the thrust scales were nuisance parameters (so a thrust-calibration error does not distort the
     # aerodynamic ones); whether to keep a thrust correction is decided by held-out flights (thrust_bias)
     calibrated = model_of(result.values)
-    return replace(calibrated, thrust_scale=dict(model.thrust_scale)), result
+    return replace(calibrated, thrust_scale=dict(model.thrust_scale)), result, calibrated
 
 
 # ------------------------------------------------------------------------------ pipeline
@@ -195,10 +218,16 @@ class IdentifyResult:
     discovered: list = field(default_factory=list)  # data-driven terms (proxplan.identify.discovery); [] when none
     calibrated_model: Model | None = None  # calibrated, no effects (what "calibrated_only" scored)
     validation: str = ""  # how the flights were held out (proxplan.identify.crossval.plan_groups), fallback said
-    stack_shielding: dict | None = None  # eta chosen on validation stacks (proxplan.identify.stack_fit)
+    stack_shielding: dict | None = None  # eta of the stacks (proxplan.physics.stack): calibrated with its prior
     motor_lag_check: dict = field(default_factory=dict)  # proxplan.identify.motor_check (warnings inside)
     selection: dict = field(default_factory=dict)  # Selection.to_json of the start that won (+ the other's total)
     fallback: bool = False  # selection fell back to blocks in time (too few flights)
+    spread: ResidualSpread | None = None  # what the final model cannot predict (proxplan.identify.spread)
+    bands: dict = field(default_factory=dict)  # test set -> F_z RMSE below / above 1 Hz, 90 % coverage
+
+    def saved(self) -> CalibratedModel:
+        """The model file's content: everything the "after" figure used, and the residual spread."""
+        return saved_model(self.final_model, self.measure_options, self.thrust_maps, self.spread)
 
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
@@ -229,6 +258,8 @@ class IdentifyResult:
             "validation": self.validation,
             "selection_fallback": self.validation if self.fallback else None,
             "selection": self.selection,
+            "residual_spread": None if self.spread is None else self.spread.to_dict(),
+            "test_bands": self.bands,
             "stack_shielding": self.stack_shielding,
             "motor_lag_check": self.motor_lag_check,
             "warnings": list(self.motor_lag_check.get("warnings", [])),
@@ -410,17 +441,10 @@ def run_identify(
     noise = noise_level(fit, base)
     calibration = None
     model = base
-    stack_choice = None
-    choose_on = valid or fit  # eta: one discrete parameter, chosen on the validation flights (else train)
-    if options.calibrate:
-        model, calibration = calibrate_model(fit, base, options=options, noise=noise)
-        # then the stack's eta (proxplan.physics.stack) on the stacks; with a shielding stack the
-        # one-source parameters are refitted under it (the per-pair sum had bent them to absorb the
-        # stacks), and eta is chosen again
-        model, stack_choice = choose_stack_shielding(model, choose_on)
-        if model.options.stack_shielding > 0.0:
-            model, calibration = calibrate_model(fit, model, options=options, noise=noise)
-            model, stack_choice = choose_stack_shielding(model, choose_on)
+    if options.calibrate:  # eta (proxplan.physics.stack) is calibrated with the rest where the data hold stacks
+        start = replace(base, options=replace(base.options, stack_shielding=options.stack_shielding))
+        model, calibration, fitted = calibrate_model(fit, start, options=options, noise=noise)
+        noise = noise_level(fit, fitted)  # the selection weighs by the noise left around the calibrated model
     calibrated = full_errors(model)
     corr_before = _residual_analysis(subsample(fit, 20000), model)
     specs = model_specs(fit, model)
@@ -429,9 +453,9 @@ def run_identify(
     other_total = None
     if calibration is not None:
         # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
-        # undo it only to first order), so selection also starts from the PRIOR model (with the chosen
-        # eta); the start whose kept set predicts the held-out flights better wins (same samples, same units)
-        prior = replace(base, options=model.options)
+        # undo it only to first order), so selection also starts from the PRIOR model (eta at its prior);
+        # the start whose kept set predicts the held-out flights better wins (same samples, same units)
+        prior = replace(base, options=replace(base.options, stack_shielding=STACK_SHIELDING_PRIOR.center))
         alt = select_and_discover(fit, valid, prior, model_specs(fit, prior), options=options, noise=noise,
                                   test=test_eval, start="prior")  # fmt: skip
         other_total = alt.heldout_total
@@ -439,6 +463,8 @@ def run_identify(
             chosen, other_total = alt, chosen.heldout_total
     final = chosen.model
     after = full_errors(final)
+    spread = fit_spread(stratified_sample(fit, options.max_fit_samples, final.vehicles), final)
+    bands = {k: b.to_json(GRAMS_PER_N) for k, b in band_errors(test, final, spread, test_sets(manifest, test)).items()}
     corr = _residual_analysis(subsample(test, 50000), final)
     unexplained = None
     if corr and corr[0].strength >= 0.3:
@@ -458,9 +484,29 @@ def run_identify(
         thrust_coefficient=thrust, units=units, thrust_maps=data.thrust_maps, notes=data.notes,
         measure_options=options.measure, per_vehicle=_per_vehicle(test, base, model, final),
         validation=chosen.note, calibrated_model=model, discovered=discovered,
-        stack_shielding=None if stack_choice is None else stack_choice.to_json(), motor_lag_check=lag_check,
-        selection=selection, fallback="fell back" in chosen.note,
+        stack_shielding=_stack_record(calibration, final), motor_lag_check=lag_check,
+        selection=selection, fallback="fell back" in chosen.note, spread=spread, bands=bands,
     )  # fmt: skip
+
+
+def _stack_record(calibration: CalibrationResult | None, final: Model) -> dict | None:
+    """The stack shielding eta: as calibrated (value, posterior std, prior report) and in the final model."""
+    if calibration is None or STACK_PARAMETER not in calibration.names:
+        return {"eta": final.options.stack_shielding, "note": "not calibrated: no stacks in the train flights"}
+    k = calibration.names.index(STACK_PARAMETER)
+    return {"eta": final.options.stack_shielding, "calibrated": float(calibration.values[k]),
+            "std": float(calibration.std[k]) if np.isfinite(calibration.std[k]) else None,
+            "prior": calibration.prior_report().get(STACK_PARAMETER)}  # fmt: skip
+
+
+def test_sets(manifest: Manifest, units: Sequence[Unit]) -> dict[str, list[str]]:
+    """The test flights by experiment set (the manifest's ``set``), plus ``all``."""
+    flights = sorted({u.flight for u in units})
+    set_of = {f.name: f.set for f in manifest.flights}
+    out: dict[str, list[str]] = {"all": flights}
+    for f in flights:
+        out.setdefault(set_of.get(f, f), []).append(f)
+    return out
 
 
 def thrust_coefficient_summary(units: Sequence[Unit]) -> dict:

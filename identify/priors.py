@@ -18,6 +18,9 @@ Spreads (one sigma) and where they come from:
 * ``thrust_scale`` (logged motor thrust over delivered): normal, center 1, sigma 0.1: a static
   PWM-to-thrust map (Foerster 2015's for the Crazyflie) moves by up to 10 % with propellers and
   battery.
+* ``stack_shielding`` (eta of :mod:`proxplan.physics.stack`): normal, center 1 (every stream tube a lower
+  source intercepts replaced by its own jet, the model's default), sigma 1 (0, S0's per-pair sum, and 2 both
+  within one sigma); fitted only where the data hold stacks.
 * effects: a strength parameter (:data:`proxplan.physics.effects.EFFECT_STRENGTHS`) is centred on 0
   (the effect off) with sigma = a quarter of its fit range (the range then spans +-2 sigma); a shape
   parameter (a decay length, a convection speed) on its library default, log-normal with sigma of ln
@@ -78,6 +81,10 @@ class Prior:
         if self.sigma <= 0.0:
             return 0.0
         return (std / max(abs(value), 1e-300) if self.log else std) / self.sigma
+
+
+STACK_SHIELDING_PRIOR = Prior(1.0, 1.0, basis="the model's default eta 1; 0 and 2 within one sigma")
+"""Prior of the stack shielding eta (module docstring)."""
 
 
 def vehicle_priors(vehicle: Vehicle, *, as_source: bool, as_target: bool) -> dict[str, Prior]:

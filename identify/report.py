@@ -9,7 +9,7 @@ Files written into DIR (each atomically, temp file + rename):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -204,10 +204,31 @@ def calibration_lines(cal) -> list[str]:
             continue
         prior = f"{r['prior_center']:.4g}, {r['prior_sigma']:.3g}" + (" (of ln)" if r["prior_log"] else "")
         move = f"{r['move_sigmas']:+.2f}" + (" **large: a missing effect?**" if r["large_move"] else "")
-        lines.append(f"| {n} | {v:.5g} | {std} | {prior} | {move} | {'yes' if r['informed'] else 'no (stays at its prior)'} |")
+        lines.append(
+            f"| {n} | {v:.5g} | {std} | {prior} | {move} | {'yes' if r['informed'] else 'no (stays at its prior)'} |"
+        )
     lines += ["", "Thrust scales are nuisance parameters of the calibration (they keep a thrust-sensor error out of "
               "the aerodynamic parameters); only `thrust_bias`, if kept, carries them into the model."]  # fmt: skip
     return lines
+
+
+def band_lines(bands: Mapping[str, Mapping], title: str = "What the model cannot predict") -> list[str]:
+    """Markdown table: per set, the F_z residual's RMSE below and above 1 Hz (grams) and how often the measured
+    force falls inside the model's 90 % interval (proxplan.identify.spread)."""
+    lines = [f"## {title}", "",
+             "The residual split at 1 Hz (zero-phase low-pass): a quasi-steady model of the mean jet cannot follow "
+             "the fast part. Coverage: the share of samples inside the saved 90 % interval (target 85-95 %).", "",
+             "| set | below 1 Hz [g] | above 1 Hz [g] | 90 % interval coverage | samples |", "|---|---|---|---|---|"]  # fmt: skip
+    for k, b in bands.items():
+        cov = "n/a" if b["coverage_90"] is None else f"{100 * b['coverage_90']:.1f} %"
+        lines.append(
+            f"| {k} | {_grams(b['rmse_fz_below_1Hz_g'])} | {_grams(b['rmse_fz_above_1Hz_g'])} | {cov} | {b['n_samples']} |"
+        )
+    return lines + [""]
+
+
+def _grams(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.2f}"
 
 
 def _fmt(x: float | None, digits: int = 4) -> str:
@@ -238,6 +259,8 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         lines.append(f"- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "
                      f"ceiling {m.x_max_V:.3f} V, max {m.max_thrust_N:.4g} N per motor, RMS {m.rms_N:.2g} N, R2 {m.r2:.4f}")  # fmt: skip
     lines += [f"- note: {n}" for n in result.notes]
+    if result.bands:
+        lines += [""] + band_lines(result.bands, "What the model cannot predict (test flights)")
     lines += selection_lines(result)
     if result.calibration is not None:
         lines += calibration_lines(result.calibration)

@@ -36,6 +36,8 @@ LIMIT_NEIGHBOURHOOD_S = 0.2
 KNOCKED_DOWN_HEIGHT_M = 0.25
 """``knocked_down``: rotor plane below this height above the ground with a source overhead, m (the
 swaps' lowest vehicle flies at 0.35-0.45 m; below 0.25 m it has been pushed down)."""
+MIN_STACK_SAMPLES = 200
+"""Fewer samples with two or more sources overhead than this: the stack shielding eta is not calibrated."""
 MIN_PER_STRATUM = 200
 """Each stratum of the stratified sample keeps at least this many samples (or all it has)."""
 
@@ -62,6 +64,12 @@ def authority_masks(u: Unit, vehicles: Mapping[str, Any]) -> dict[str, np.ndarra
     else:
         limit = near_in_time(u.t_s, u.motor_limit > 0, LIMIT_NEIGHBOURHOOD_S) & ~knocked
     return {"in_range": ~knocked & ~limit, "at_limit": limit, "knocked_down": knocked}
+
+
+def stacked_samples(unit: Unit, vehicles: Mapping[str, Any] | Any) -> np.ndarray:
+    """(N,) bool: two or more sources above ``unit``'s vehicle within r < 3 L of their size
+    (:func:`proxplan.identify.data.sources_overhead`); ``vehicles`` a type mapping or a model with one."""
+    return sources_overhead(unit, getattr(vehicles, "vehicles", vehicles))[0] >= 2
 
 
 def stratum_labels(u: Unit, vehicles: Mapping[str, Any]) -> np.ndarray:

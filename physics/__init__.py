@@ -81,6 +81,7 @@ from proxplan.physics.model_file import (
     write_model_file,
 )
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
+from proxplan.physics.residual_spread import ResidualSpread, TypeSpread, spread_N
 from proxplan.physics.room import Plane, PlaneList, plane_distances_m, planes_from_list, planes_from_parts
 from proxplan.physics.rotor_drag import RotorDrag, drag_rate_ps, rotorpy_rotor_drag
 from proxplan.physics.stack import (
@@ -209,6 +210,9 @@ __all__ = [
     "oncoming_speed_per_rotor_mps",
     "resolve_vehicle",
     "term_formula",
+    "ResidualSpread",
+    "TypeSpread",
+    "spread_N",
     "target_only_notes",
     "total_wrench",
     "validity_mask",

@@ -126,8 +126,8 @@ FEATURE_DOCS: dict[str, str] = {
     "side_near_rel_v_z_mps": "side kernel times relative vertical speed, summed",
     "v_z_abs_m2ps2": "own vertical speed times its magnitude, v_z |v_z| (a quadratic drag in climb and descent)",
     "v_z_speed_xy_m2ps2": "own vertical speed times its horizontal speed",
-    "thrust_kin_N": "own thrust from the motion, m (g + dv_z/dt), v from motion capture (W without a clock)",
-    "thrust_kin_jet_N": "own thrust from the motion times the jet kernels of the sources above, summed",
+    "thrust_kin_jet_N": "own thrust from the motion, m (g + dv_z/dt) (v from motion capture; W without a clock), "
+    "times the jet kernels of the sources above, summed",
     "thrust_kin_ground_N": "own thrust from the motion times exp(-h / L_target)",
     "thrust_kin_speed_xy_Nspm": "own thrust from the motion times its horizontal speed",
 }
@@ -141,9 +141,11 @@ def _basis_name(where: str, width: float, decay: float) -> str:
     return f"{where}_g{width:g}L_e{decay:g}L_1".replace(".", "p")
 
 
-for _where, _what in (("above", "a neighbour above (r radial, depth below it along the axis)"),
-                      ("below", "a neighbour below (r radial, its depth under the target)"),
-                      ("side", "a neighbour beside (height difference radial, horizontal distance along)")):
+for _where, _what in (
+    ("above", "a neighbour above (r radial, depth below it along the axis)"),
+    ("below", "a neighbour below (r radial, its depth under the target)"),
+    ("side", "a neighbour beside (height difference radial, horizontal distance along)"),
+):
     for _w in BASIS_WIDTHS_L:
         for _d in BASIS_DECAYS_L:
             FEATURE_DOCS[_basis_name(_where, _w, _d)] = (
@@ -184,8 +186,7 @@ FEATURE_NAMES = tuple(FEATURE_DOCS)
 
 TARGET_ONLY_FEATURES = (
     "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2",
-    "v_z_speed_xy_m2ps2", *ROOM_FEATURES,
-    "thrust_kin_N", "thrust_kin_ground_N", "thrust_kin_speed_xy_Nspm",
+    "v_z_speed_xy_m2ps2", *ROOM_FEATURES, "thrust_kin_ground_N", "thrust_kin_speed_xy_Nspm",
 )  # fmt: skip
 """Features of the target alone; every other feature is a sum over sources (zero without one)."""
 
@@ -194,7 +195,10 @@ FAMILIES = ("temporal", "above", "below", "side", "velocity", "thrust", "place",
 bank) of each neighbour's predicted disturbance and relative state; ``above``, ``below``, ``side`` —
 spatial kernels of every neighbour by where it is (with their relative speeds); ``velocity`` — the
 vehicle's own speed; ``thrust`` — a multiplicative thrust loss (own thrust from the motion, times a
-kernel); ``place`` — ground, walls and position in the room; ``bias`` — a constant."""
+kernel; the loss of a constant share of the thrust is ``thrust_bias``'s per-type scale, and the own thrust
+alone is no feature: beside the logged thrust of that scale it spans the measured force itself, a circular
+term that "explains" the motors' logging noise); ``place`` — ground, walls and position in the room;
+``bias`` — a constant."""
 
 
 def feature_group(name: str) -> str:
@@ -309,9 +313,9 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
     f["v_z_abs_m2ps2"] = vel[:, 2] * np.abs(vel[:, 2])
     f["v_z_speed_xy_m2ps2"] = vel[:, 2] * f["speed_xy_mps"]
     accel_z = np.zeros(n) if t is None else offset_rate_mps(vel, t)[:, 2]
-    f["thrust_kin_N"] = target.mass_kg * (GRAVITY_MPS2 + accel_z)
-    f["thrust_kin_ground_N"] = f["thrust_kin_N"] * f["ground_exp_1"]
-    f["thrust_kin_speed_xy_Nspm"] = f["thrust_kin_N"] * f["speed_xy_mps"]
+    thrust_kin = target.mass_kg * (GRAVITY_MPS2 + accel_z)  # not a feature alone: see FAMILIES
+    f["thrust_kin_ground_N"] = thrust_kin * f["ground_exp_1"]
+    f["thrust_kin_speed_xy_Nspm"] = thrust_kin * f["speed_xy_mps"]
     kernels = []
     for src, (bf, bt) in zip(inputs.sources, base_per_source):
         off = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
@@ -372,7 +376,7 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
                     f[_basis_name(where, w, d)] += np.where(
                         gate, np.exp(-((rho / (w * size)) ** 2) - np.maximum(delta, 0.0) / (d * size)), 0.0
                     )
-    f["thrust_kin_jet_N"] = f["thrust_kin_N"] * f["above_jet_1"]
+    f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):
             f["above_stack_1"] += kernels[i] * kernels[j]

@@ -19,6 +19,10 @@ File layout (YAML)::
         derivative: savgol          # reads and checks it): derivative, window_s, polyorder,
         window_s: 0.15              # motor_time_constant_s, and per type the PWM*Vbat thrust map
         thrust_maps: {small-quad: {coef: [c0, c1, c2, c3], x_max_V: 3.3}}
+      residual_spread:              # optional: the F_z spread the model cannot predict
+        form: jet-shear-1           # (proxplan.physics.residual_spread), and its 90 % interval
+        quantile_90: 1.7
+        by_type: {small-quad: {floor_N: 0.01, force_share: 0.3, shear: 0.02}}
 
 Format 1 (no ``format_version``; what identify wrote before) is read with a note: it has no
 thrust scales or uncertainties. A newer ``format_version`` is a one-line error. Every error is a
@@ -53,6 +57,7 @@ from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.disturbance import DEFAULT_OPTIONS, ModelOptions
 from proxplan.physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
 from proxplan.physics.features import between_vehicle_part, parse_term_key
+from proxplan.physics.residual_spread import SPREAD_FORM, ResidualSpread, TypeSpread
 from proxplan.physics.stack import MAX_STACK_SHIELDING
 from proxplan.physics.vehicle_yaml import VehicleEntry, build_vehicles, vehicle_to_yaml_dict
 from proxplan.physics.vehicles import Vehicle
@@ -85,6 +90,7 @@ class CalibratedModel:
     thrust_scales: Mapping[str, float] = field(default_factory=dict)
     uncertainty: Mapping[str, float] = field(default_factory=dict)
     measurement: Mapping[str, Any] = field(default_factory=dict)  # identify's measurement settings (plain data)
+    residual_spread: ResidualSpread | None = None  # what the model cannot predict (proxplan.physics.residual_spread)
     format_version: int = MODEL_FORMAT_VERSION
     notes: tuple[str, ...] = field(default=(), compare=False)
 
@@ -206,6 +212,36 @@ class ModelOptionsPart(FileModel):
     effects: EffectList = optional("effects beyond the base model, [{name, params}]")
 
 
+class TypeSpreadEntry(FileModel):
+    """The residual spread of one vehicle type (proxplan.physics.residual_spread)."""
+
+    floor_N: Annotated[Number, Field(ge=0)] = Field(description="spread of F_z away from every jet, N")
+    force_share: Annotated[Number, Field(ge=0)] = optional("spread per unit of each source's mean push, -")
+    shear: Annotated[Number, Field(ge=0)] = optional("spread in a jet's shear layer per unit of weight, -")
+
+
+class ResidualSpreadPart(FileModel):
+    """What the model cannot predict: the spread of F_z by place in the jet (``proxplan identify``)."""
+
+    form: Text = optional(f"the form of the spread model: {SPREAD_FORM}")
+    quantile_90: Positive = optional("the 90 % interval is |residual| <= quantile_90 sigma, -")
+    by_type: dict[Name, TypeSpreadEntry] = Field(description="per vehicle type, its spread parameters")
+
+    @field_validator("form")
+    @classmethod
+    def _known_form(cls, form: str) -> str:
+        if form != SPREAD_FORM:
+            raise problem(f"unknown spread form {form!r}; expected {SPREAD_FORM}")
+        return form
+
+    def spread(self) -> ResidualSpread:
+        return ResidualSpread(
+            by_type={t: TypeSpread(float(e.floor_N), float(e.force_share or 0.0), float(e.shear or 0.0))
+                     for t, e in self.by_type.items()},
+            quantile_90=float(self.quantile_90) if self.quantile_90 is not None else ResidualSpread().quantile_90,
+        )  # fmt: skip
+
+
 class ModelSection(ModelOptionsPart):
     """The ``model:`` section of a model file."""
 
@@ -218,6 +254,7 @@ class ModelSection(ModelOptionsPart):
         "one-sigma of fitted parameters, 'TYPE.param' or 'effect.param': std in the parameter's unit"
     )
     measurement: dict[Text, Any] = optional("how identify measured the disturbance (checked by proxplan evaluate)")
+    residual_spread: ResidualSpreadPart = optional("the spread of F_z the model cannot predict, by place in the jet")
 
 
 class ModelFile(FileModel):
@@ -276,6 +313,7 @@ def model_from_dict(doc: Any, *, label: str = "<model>") -> CalibratedModel:
         thrust_scales=dict(section.thrust_scales or {}),
         uncertainty=dict(section.uncertainty or {}),
         measurement=dict(section.measurement or {}),
+        residual_spread=section.residual_spread.spread() if section.residual_spread is not None else None,
         format_version=int(version),
         notes=tuple(notes),
     )
@@ -302,6 +340,8 @@ def model_file_dict(model: CalibratedModel) -> dict[str, Any]:
         body["uncertainty"] = {k: float(v) for k, v in model.uncertainty.items()}
     if model.measurement:
         body["measurement"] = dict(model.measurement)
+    if model.residual_spread is not None:
+        body["residual_spread"] = model.residual_spread.to_dict()
     return {
         "format_version": MODEL_FORMAT_VERSION,
         "vehicles": {

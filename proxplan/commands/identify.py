@@ -55,9 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def calibrated_model(result):
     """The :class:`proxplan.physics.CalibratedModel` of an identify result (everything its "after" used:
     vehicles, options, effects, thrust scales, and how the disturbance was measured)."""
-    from proxplan.identify import saved_model
-
-    return saved_model(result.final_model, result.measure_options, result.thrust_maps)
+    return result.saved()
 
 
 def model_yaml_dict(result) -> dict:

@@ -29,12 +29,12 @@ def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     assert result.validity["samples_below_a_source"] > 0
     # issue 13: the delivered thrust finds saturated motors on the real logs, and the saved model
     # reproduces identify's "after" on the same test flights without refitting
-    from proxplan.identify import evaluate_model, saved_model
+    from proxplan.identify import evaluate_model
 
     sat = result.measurement_json()["saturation"]
     assert all(s["thrust_source"] == "pwm" for s in sat.values())
     assert sat["cf101"]["saturated_samples"] > 100
-    ev = evaluate_model(manifest, saved_model(result.final_model, result.measure_options, result.thrust_maps))
+    ev = evaluate_model(manifest, result.saved())
     doc = ev.to_json()
     assert doc["rmse_fz_N"] == pytest.approx(result.after.rmse_fz_N, rel=0.01)
     assert doc["n_samples"] == result.after.n_samples

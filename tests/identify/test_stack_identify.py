@@ -13,7 +13,7 @@ import pytest
 
 from proxplan.identify import run_identify, synthetic_logs, write_synthetic_manifest
 from proxplan.identify.data import IdentifyOptions, Model
-from proxplan.identify.stack_fit import stacked_samples
+from proxplan.identify.strata import stacked_samples
 from proxplan.physics import BUILTIN_VEHICLES, ModelOptions
 
 VEHICLE_TYPE = "small-quad"

@@ -1,0 +1,170 @@
+"""What the model cannot predict (issue 35): the residual's spread by place in the jet, its 90 % interval,
+and the residual split into slow and fast parts.
+
+* :func:`fit_spread` fits :class:`proxplan.physics.ResidualSpread` on the TRAIN flights: per vehicle type,
+  non-negative least squares of the squared F_z residual of the final model on the regressors of
+  :func:`proxplan.physics.residual_spread.spread_features` (weighted like the fits), then the 90 % quantile
+  of the standardised residual |r| / sigma on the same samples (so the interval holds 90 % there by
+  construction; held-out flights say whether it carries over).
+* :func:`band_errors` splits a residual at :data:`BAND_HZ` with a zero-phase Butterworth low-pass
+  (``scipy.signal.sosfiltfilt``, order :data:`BAND_ORDER`) on each contiguous stretch: the RMSE below and
+  above 1 Hz beside the whole (a quasi-steady model of the mean jet cannot follow the fast part).
+* :func:`coverage` counts the samples whose |residual| lies inside the 90 % interval.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import nnls
+from scipy.signal import butter, sosfiltfilt
+
+from proxplan.identify.data import Model, Unit, predict, unit_inputs
+from proxplan.physics import ResidualSpread, TypeSpread, base_wrench_per_source, spread_N
+from proxplan.physics.residual_spread import spread_features
+
+BAND_HZ = 1.0
+"""Frequency the residual is split at, Hz (issue 35: the part above is the bobbing in a turbulent jet)."""
+BAND_ORDER = 2
+"""Order of the Butterworth low-pass that splits it (applied forward and backward: zero phase)."""
+MAX_GAP_FACTOR = 2.0
+"""A clock step larger than this many median steps starts a new stretch (the filter never crosses a gap)."""
+
+
+def unit_spread_features(unit: Unit, model: Model) -> np.ndarray:
+    """(N, 3) :func:`proxplan.physics.residual_spread.spread_features` of one unit under ``model``."""
+    inputs = unit_inputs(unit, model)
+    per_source = base_wrench_per_source(inputs)
+    sizes = [model.vehicles[t].size_m for t in unit.source_types]
+    return spread_features([f[:, 2] for f, _ in per_source], list(unit.source_offsets_m), sizes,
+                           model.vehicles[unit.type].weight_N)  # fmt: skip
+
+
+def fit_spread(units: Sequence[Unit], model: Model) -> ResidualSpread:
+    """The residual spread of ``model`` on ``units`` (train flights; stratified weights used when present)."""
+    rows: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+    for u in units:
+        if not len(u):
+            continue
+        r = u.force_N[:, 2] - predict(u, model)[0][:, 2]
+        w = u.weight if u.weight is not None else np.ones(len(u))
+        rows.setdefault(u.type, []).append((unit_spread_features(u, model), r, w))
+    by_type: dict[str, TypeSpread] = {}
+    z_all, w_all = [], []
+    for vtype, parts in rows.items():
+        x = np.concatenate([p[0] for p in parts])
+        r = np.concatenate([p[1] for p in parts])
+        w = np.concatenate([p[2] for p in parts])
+        sw = np.sqrt(w)
+        scale = np.maximum(np.sqrt(np.mean(x**2, axis=0)), 1e-300)
+        coef, _ = nnls((x / scale) * sw[:, None], r**2 * sw)
+        coef = coef / scale
+        if coef[0] <= 0.0:  # the floor must stay positive: at least the smallest spread seen away from jets
+            coef[0] = max(float(np.average(r**2, weights=w)) * 1e-6, 1e-18)
+        spread = TypeSpread(floor_N=float(np.sqrt(coef[0])), force_share=float(np.sqrt(coef[1])),
+                            shear=float(np.sqrt(coef[2])))  # fmt: skip
+        by_type[vtype] = spread
+        z_all.append(np.abs(r) / np.maximum(spread_N(spread, x), 1e-300))
+        w_all.append(w)
+    if not z_all:
+        return ResidualSpread()
+    return ResidualSpread(by_type=by_type, quantile_90=_weighted_quantile(np.concatenate(z_all),
+                                                                          np.concatenate(w_all), 0.9))  # fmt: skip
+
+
+def _weighted_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
+    order = np.argsort(x)
+    cw = np.cumsum(w[order])
+    return float(x[order][min(int(np.searchsorted(cw, q * cw[-1])), len(x) - 1)])
+
+
+def interval_half_width_N(unit: Unit, model: Model, spread: ResidualSpread) -> np.ndarray:
+    """(N,) half-width of the 90 % interval of F_z for each sample of ``unit``, N (inf for a type the spread
+    does not know)."""
+    t = spread.by_type.get(unit.type)
+    if t is None:
+        return np.full(len(unit), np.inf)
+    return spread.quantile_90 * spread_N(t, unit_spread_features(unit, model))
+
+
+def stretches(t_s: np.ndarray) -> list[slice]:
+    """Contiguous stretches of a clock (N,) (:data:`MAX_GAP_FACTOR`)."""
+    if len(t_s) < 2:
+        return [slice(0, len(t_s))]
+    dt = np.diff(t_s)
+    med = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
+    cuts = np.flatnonzero((dt <= 0) | (dt > MAX_GAP_FACTOR * med)) + 1
+    edges = np.concatenate([[0], cuts, [len(t_s)]])
+    return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def slow_part(residual: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """(N,) the part of ``residual`` below :data:`BAND_HZ` (zero-phase Butterworth per stretch; a stretch too
+    short to filter is kept whole as slow)."""
+    out = np.asarray(residual, dtype=float).copy()
+    for s in stretches(np.asarray(t_s)):
+        seg = out[s]
+        t = t_s[s]
+        if len(seg) < 16:
+            continue
+        fs = 1.0 / float(np.median(np.diff(t)))
+        if BAND_HZ >= 0.5 * fs:
+            continue
+        sos = butter(BAND_ORDER, BAND_HZ, btype="low", fs=fs, output="sos")
+        pad = min(len(seg) - 1, 3 * (2 * BAND_ORDER + 1) * 3)
+        out[s] = sosfiltfilt(sos, seg, padlen=pad)
+    return out
+
+
+@dataclass
+class BandAccumulator:
+    """Running sums for the residual's RMSE below / above :data:`BAND_HZ` and the interval's coverage."""
+
+    n: int = 0
+    sse_low: float = 0.0
+    sse_high: float = 0.0
+    inside: int = 0
+    n_interval: int = 0
+
+    def add(self, residual: np.ndarray, slow: np.ndarray, half_width: np.ndarray | None) -> None:
+        self.n += int(residual.size)
+        self.sse_low += float(np.sum(slow**2))
+        self.sse_high += float(np.sum((residual - slow) ** 2))
+        if half_width is not None:
+            ok = np.isfinite(half_width)
+            self.inside += int(np.sum(np.abs(residual[ok]) <= half_width[ok]))
+            self.n_interval += int(ok.sum())
+
+    def to_json(self, grams_per_N: float) -> dict[str, float | int | None]:
+        low = float(np.sqrt(self.sse_low / self.n)) if self.n else None
+        high = float(np.sqrt(self.sse_high / self.n)) if self.n else None
+        return {"rmse_fz_below_1Hz_N": low, "rmse_fz_above_1Hz_N": high,
+                "rmse_fz_below_1Hz_g": None if low is None else low * grams_per_N,
+                "rmse_fz_above_1Hz_g": None if high is None else high * grams_per_N,
+                "coverage_90": self.inside / self.n_interval if self.n_interval else None,
+                "n_samples": self.n}  # fmt: skip
+
+
+def band_errors(
+    units: Sequence[Unit],
+    model: Model,
+    spread: ResidualSpread | None,
+    groups: Mapping[str, Sequence[str]] | None = None,
+) -> dict[str, BandAccumulator]:
+    """Per group of flights (``groups``: label -> flight names; default one group ``all``), the F_z residual
+    of ``model`` below and above 1 Hz and the 90 % interval's coverage (units need a monotonic clock: not
+    merged ones)."""
+    groups = groups or {"all": sorted({u.flight for u in units})}
+    acc = {g: BandAccumulator() for g in groups}
+    for u in units:
+        if not len(u):
+            continue
+        r = u.force_N[:, 2] - predict(u, model)[0][:, 2]
+        slow = slow_part(r, u.t_s)
+        half = interval_half_width_N(u, model, spread) if spread is not None else None
+        for g, flights in groups.items():
+            if u.flight in flights:
+                acc[g].add(r, slow, half)
+    return acc
