@@ -14,27 +14,34 @@ flights a weighted sum. A group is a flight (the unit that is held out: samples 
 independent); flights declared ``split: validation`` are only ever held out (never fitted).
 
 **Gain test** (:func:`gain_test`). Each held-out group g gets, per wrench channel c, the log-ratio of its
-mean squared error without and with the candidate, and its gain is their sum over the channels,
-gain_g = sum_c ln(MSE_gc(without k) / MSE_gc(with k)), both from fits that did not see g (leave one
-train flight out; validation flights from the fit on every train flight). The log-ratio is
-scale-free: flights that hold more disturbance do not dominate, a candidate that explains half of every
-flight's residual has about the same gain in each however large that residual, and a term on one
-channel is not diluted by the others' noise.
-A candidate is kept only when the mean gain exceeds ``z`` flight-to-flight standard errors,
-SE = sd(gain) / sqrt(G), with z = Phi^-1(1 - ALPHA / m), m the number of candidates tested together: a
-one-sided test at family-wise level :data:`ALPHA` (Bonferroni).
+mean squared error without and with the candidate, bounded by tanh, and its gain is their sum over the
+channels, gain_g = sum_c tanh(ln(MSE_gc(without k) / MSE_gc(with k)) / 2) = sum_c (MSE_without -
+MSE_with) / (MSE_without + MSE_with), both from fits that did not see g's flight (leave one train flight
+out; validation flights from the fit on every train flight). It is scale-free (flights that hold more
+disturbance do not dominate; a term on one channel is not diluted by the others' noise) and bounded by 1
+per channel either way, so the spread between logs that hold much or little of an effect, or a channel
+whose error is near zero, cannot swamp the mean.
+A candidate is judged on the held-out logs where it acts (its columns are not identically zero there: a
+jet's effect says nothing on a vehicle with no source above), and kept only when the mean gain exceeds
+``z`` standard errors over those logs, SE = sd(gain) / sqrt(G), with z = Phi^-1(1 - ALPHA / m), m the
+number of candidates tested together: a one-sided test at family-wise level :data:`ALPHA` (Bonferroni).
 
-**Stability** (:func:`stability`). Complementary pairs of half-samples of the groups (Shah & Samworth
-2013), :data:`N_PAIRS` pairs; on each half the candidates are chosen by forward selection with the
-Bayesian information criterion on that half's effective samples (:func:`bic_forward`). A candidate's
-inclusion probability is the share of halves that choose it; it must reach
-pi = max(:data:`PI_MIN`, 1/2 + q^2 / (2 p E_V)) with q the mean number chosen per half, p the number
-of candidates and E_V = :data:`EXPECTED_FALSE`: Meinshausen & Buehlmann's bound
-E[false selections] <= q^2 / ((2 pi - 1) p).
+**Stability** (:func:`stability`). Complementary pairs of half-samples of the flights (Shah & Samworth
+2013); on each half the candidates are chosen by forward selection with the Bayesian information criterion
+on that half's effective samples (:func:`bic_forward`). A candidate's inclusion probability is the share of
+halves that choose it; it must be chosen in MOST of them (more than :data:`PI_MIN`). The report gives
+Meinshausen & Buehlmann's bound on the expected number of false selections at that threshold,
+E[V] <= q^2 / ((2 pi - 1) p) (q the mean number chosen per half, p the candidates), for the record.
 
-**Too few flights** (:func:`plan_groups`): with fewer than :data:`MIN_GROUPS` flights that can be held
-out, each train flight is cut into :data:`FALLBACK_BLOCKS` contiguous blocks in time, and the blocks are
-the groups; the note says so (stderr, JSON, report).
+**Both.** Only a stable candidate can be kept, so the Bonferroni count m of the gain test is the number of
+stable candidates tested together: a candidate no half chose cannot be a false selection.
+
+**Held-out units** (:func:`plan_groups`): a fit leaves a whole flight out (its CLUSTER), and each
+vehicle's log of that flight is one held-out GROUP the gain is measured on (vehicles of one flight meet
+different situations: with three flights, three vehicles give nine gains, not three). **Too few flights**:
+with one train flight (nothing to hold out) or fewer than :data:`MIN_GROUPS` vehicle logs, each train flight
+is cut into :data:`FALLBACK_BLOCKS` contiguous blocks in time, and the blocks are the clusters; the note
+says so (stderr, JSON, report).
 """
 
 from __future__ import annotations
@@ -49,27 +56,28 @@ ALPHA = 0.05
 """Family-wise level of the gain test: on data without any of the m candidates of a round, the
 chance that one of them passes, -."""
 MIN_GROUPS = 3
-"""Fewest held-out groups a standard error is taken over (2 degrees of freedom); with fewer flights the
-selection falls back to blocks in time."""
+"""Fewest held-out groups (vehicle logs) a standard error is taken over (2 degrees of freedom); with fewer,
+or a single train flight, the selection falls back to blocks in time."""
 FALLBACK_BLOCKS = 5
 """Blocks per train flight when there are too few flights to hold one out."""
 N_PAIRS = 25
 """Complementary pairs of half-samples of the groups in the stability selection (50 halves)."""
-PI_MIN = 0.6
-"""Least inclusion probability of a kept candidate: the lower end of the range Meinshausen & Buehlmann
-(2010) recommend (0.6-0.9; their error bound holds for any pi > 1/2), -."""
-EXPECTED_FALSE = 1.0
-"""Expected number of falsely selected candidates the stability bound allows (per selection), -."""
+PI_MIN = 0.5
+"""A kept candidate is chosen in more than this share of the half-samples ("most resamples"), -."""
 RIDGE_EPS = 1e-9
 """Ridge on unpenalised coefficients, relative to their Gram diagonal (numerical safety only), -."""
 
 
 @dataclass(frozen=True)
 class GroupPlan:
-    """How the selection's samples are grouped: one name per group, which groups are only ever held
-    out (validation flights), and the note saying what the groups are (a fallback included)."""
+    """How the selection's samples are grouped. A GROUP is one vehicle's log of one flight (the unit a held-out
+    gain is measured on); a CLUSTER is what a fit leaves out together: the flight (or, in the fallback, a
+    block of it in time), so a held-out vehicle is always predicted by a fit that saw none of its flight.
+    ``held_out_only`` marks the groups of validation flights (never fitted); ``note`` says what the
+    clusters are (a fallback included)."""
 
     names: tuple[str, ...]
+    cluster: np.ndarray  # (G,) int
     held_out_only: np.ndarray  # (G,) bool
     note: str
     fallback: bool = False
@@ -78,39 +86,54 @@ class GroupPlan:
     def n_groups(self) -> int:
         return len(self.names)
 
+    @property
+    def n_clusters(self) -> int:
+        return int(self.cluster.max()) + 1 if len(self.cluster) else 0
+
 
 def plan_groups(
-    fit_flights: Sequence[str], valid_flights: Sequence[str], *, what: str = "selection"
-) -> tuple[GroupPlan, dict[str, int] | None]:
-    """Groups = flights when at least :data:`MIN_GROUPS` can be held out (every validation flight, and
-    the train flights when two or more); else the fallback to :data:`FALLBACK_BLOCKS` blocks per train
-    flight (returned mapping None: the caller assigns blocks, :func:`block_ids`). Returns the plan and
-    the flight -> group index mapping."""
-    fit_flights, valid_flights = sorted(set(fit_flights)), sorted(set(valid_flights))
+    fit: Sequence[tuple[str, str]], valid: Sequence[tuple[str, str]], *, what: str = "selection"
+) -> GroupPlan:
+    """Groups of the (flight, vehicle) pairs of the train (``fit``) and validation (``valid``) logs: one group
+    per pair, clustered by flight, when a fit can leave a flight out (two train flights, or a validation
+    flight) and there are at least :data:`MIN_GROUPS` groups to take a standard error over; else the fallback:
+    each train flight cut into :data:`FALLBACK_BLOCKS` blocks in time (clusters), a group per block and
+    vehicle (:func:`block_ids`)."""
+    fit, valid = sorted(set(fit)), sorted(set(valid))
+    fit_flights = sorted({f for f, _ in fit})
+    valid_flights = sorted({f for f, _ in valid})
     holdable = len(valid_flights) + (len(fit_flights) if len(fit_flights) >= 2 else 0)
-    if holdable >= MIN_GROUPS:
-        names = tuple(fit_flights) + tuple(valid_flights)
-        held = np.array([False] * len(fit_flights) + [True] * len(valid_flights))
+    if holdable >= 1 and len(fit_flights) + len(valid_flights) >= 2 and len(fit) + len(valid) >= MIN_GROUPS:
+        flights = fit_flights + valid_flights
+        pairs = fit + valid
+        names = tuple(f"{f}/{v}" for f, v in pairs)
+        cluster = np.array([flights.index(f) for f, _ in pairs])
+        held = np.array([False] * len(fit) + [True] * len(valid))
         kinds = f"{len(fit_flights)} train" + (f" + {len(valid_flights)} validation" if valid_flights else "")
-        note = f"{what}: each of {kinds} flights held out in turn (grouped cross-validation by flight)"
-        return GroupPlan(names, held, note), {f: k for k, f in enumerate(names)}
-    names = tuple(f"{f}#{b}" for f in fit_flights for b in range(FALLBACK_BLOCKS)) + tuple(valid_flights)
-    held = np.array([False] * (len(fit_flights) * FALLBACK_BLOCKS) + [True] * len(valid_flights))
+        note = (f"{what}: each of {kinds} flights held out in turn (grouped cross-validation by flight); the "
+                f"standard error over its {len(pairs)} vehicle logs")  # fmt: skip
+        return GroupPlan(names, cluster, held, note)
+    blocks = [(f, b) for f in fit_flights for b in range(FALLBACK_BLOCKS)]
+    pairs_fb = [(f"{f}#{b}", v) for f, b in blocks for ff, v in fit if ff == f]
+    names = tuple(f"{f}/{v}" for f, v in pairs_fb) + tuple(f"{f}/{v}" for f, v in valid)
+    cluster = np.array([blocks.index((f.rsplit("#", 1)[0], int(f.rsplit("#", 1)[1]))) for f, _ in pairs_fb]
+                       + [len(blocks) + valid_flights.index(f) for f, _ in valid], dtype=int)  # fmt: skip
+    held = np.array([False] * len(pairs_fb) + [True] * len(valid))
     note = (
-        f"{what}: too few flights to hold one out ({len(fit_flights)} train, {len(valid_flights)} validation; "
-        f"at least {MIN_GROUPS} needed): fell back to {FALLBACK_BLOCKS} contiguous blocks in time per train flight "
-        "as the held-out groups (blocks of one flight share its conditions: the gains are less certain than "
-        "a flight's)"
+        f"{what}: too few flights to hold one out ({len(fit_flights)} train, {len(valid_flights)} validation; a fit "
+        f"must leave a flight out and the gains need {MIN_GROUPS} vehicle logs): fell back to {FALLBACK_BLOCKS} "
+        "contiguous blocks in time per train flight as what is held out (blocks of one flight share its "
+        "conditions: the gains are less certain than a flight's)"
     )
-    return GroupPlan(names, held, note, fallback=True), None
+    return GroupPlan(names, cluster, held, note, fallback=True)
 
 
-def block_ids(t_s: np.ndarray, t_min_s: float, t_max_s: float, first: int) -> np.ndarray:
-    """Group index per sample of clock ``t_s`` (N,) when a flight spanning ``t_min_s``..``t_max_s`` (s) is
-    cut into :data:`FALLBACK_BLOCKS` equal blocks numbered from ``first``."""
+def block_ids(t_s: np.ndarray, t_min_s: float, t_max_s: float) -> np.ndarray:
+    """Block of :data:`FALLBACK_BLOCKS` (0..) of each sample of clock ``t_s`` (N,) when a flight spanning
+    ``t_min_s``..``t_max_s`` (s) is cut into equal blocks."""
     span = max(t_max_s - t_min_s, 1e-9)
     k = np.floor((np.asarray(t_s) - t_min_s) / span * FALLBACK_BLOCKS).astype(int)
-    return first + np.clip(k, 0, FALLBACK_BLOCKS - 1)
+    return np.clip(k, 0, FALLBACK_BLOCKS - 1)
 
 
 # ------------------------------------------------------------------------------ per-group sums
@@ -213,34 +236,37 @@ def trainable_groups(sums: GroupSums, plan: GroupPlan) -> np.ndarray:
 
 def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
     """(G, C): per group and channel, the mean squared error (noise units) predicted by a fit that did not
-    see the group: each train group left out in turn; validation groups from the fit on every train
-    group. NaN where a group has no samples."""
-    k, nc = plan.n_groups, sums.n_channels
+    see the group's cluster (its flight): each train cluster left out in turn; validation groups from the fit
+    on every train group. NaN where a group has no samples."""
+    nc = sums.n_channels
     trainable = trainable_groups(sums, plan)
-    out = np.full((k, nc), np.nan)
+    weights = group_weights(sums)
+    out = np.full((plan.n_groups, nc), np.nan)
     beta_all = solve(sums, cols, trainable, ridge, tau)
-    for g in range(k):
-        if group_weights(sums)[g] <= 0:
+    for c in range(plan.n_clusters):
+        members = np.flatnonzero((plan.cluster == c) & (weights > 0))
+        if members.size == 0:
             continue
-        if plan.held_out_only[g]:
+        if plan.held_out_only[members].all():
             beta = beta_all
         else:
-            mask = trainable.copy()
-            mask[g] = 0.0
+            mask = trainable * (plan.cluster != c)
             if not mask.any():
                 continue
             beta = solve(sums, cols, mask, ridge, tau)
-        for c in range(nc):
-            cell = g * nc + c
-            if sums.w[cell] > 0:
-                out[g, c] = group_sse(sums, cols, beta, cell) / sums.w[cell]
+        for g in members:
+            for ch in range(nc):
+                cell = g * nc + ch
+                if sums.w[cell] > 0:
+                    out[g, ch] = group_sse(sums, cols, beta, cell) / sums.w[cell]
     return out
 
 
 @dataclass(frozen=True)
 class GainTest:
-    """The held-out gain of one candidate: per-group gains (log-ratio of held-out MSEs, -), their mean and
-    flight-to-flight standard error, the critical multiple z and whether it passed."""
+    """The held-out gain of one candidate: per-group gains (bounded log-ratio of held-out MSEs, summed over
+    the channels, -), their mean and standard error over the groups, the critical multiple z and whether it
+    passed."""
 
     gains: np.ndarray
     mean: float
@@ -263,19 +289,32 @@ def critical_z(m: int) -> float:
     return float(norm.ppf(1.0 - ALPHA / max(int(m), 1)))
 
 
-def log_ratios(mse_without: np.ndarray, mse_with: np.ndarray) -> np.ndarray:
-    """(G,) per group, the sum over its channels of ln(MSE without / MSE with) of (G, C) held-out MSEs
-    (a channel without error on either side adds nothing); NaN for a group with no channel."""
+def relative_gains(mse_without: np.ndarray, mse_with: np.ndarray) -> np.ndarray:
+    """(G,) per group, the sum over its channels of (MSE without - MSE with) / (MSE without + MSE with) of
+    (G, C) held-out MSEs, i.e. tanh(ln(MSE without / MSE with) / 2): the log-ratio of the errors, bounded to
+    +-1 per channel (a channel without error on both sides adds nothing); NaN for a group with no channel."""
     a, b = np.atleast_2d(mse_without), np.atleast_2d(mse_with)
-    ok = np.isfinite(a) & np.isfinite(b) & (a > 0) & (b > 0)
-    lr = np.where(ok, np.log(np.where(ok, a, 1.0) / np.where(ok, b, 1.0)), 0.0)
-    return np.where(ok.any(axis=1), lr.sum(axis=1), np.nan)
+    ok = np.isfinite(a) & np.isfinite(b) & (a + b > 0)
+    share = np.where(ok, (np.where(ok, a, 0.0) - np.where(ok, b, 0.0)) / np.where(ok, a + b, 1.0), 0.0)
+    return np.where(ok.any(axis=1), share.sum(axis=1), np.nan)
 
 
-def gain_test(mse_without: np.ndarray, mse_with: np.ndarray, m: int) -> GainTest:
-    """The gain test of the module docstring on (G, C) held-out MSEs: each group's gain is the sum over
-    its channels of the log-ratios (a candidate on one channel is not diluted by the others)."""
-    lr = log_ratios(mse_without, mse_with)
+def exposure(sums: GroupSums, cols: np.ndarray) -> np.ndarray:
+    """(G,) bool: the groups where some column of ``cols`` is not identically zero (the candidate acts there)."""
+    if cols.size == 0:
+        return np.zeros(len(sums.w) // sums.n_channels, dtype=bool)
+    diag = sums.G[:, cols, cols].sum(axis=1).reshape(-1, sums.n_channels).sum(axis=1)
+    scale = float(diag.max()) if diag.size else 0.0
+    return diag > 1e-20 * max(scale, 1e-300)
+
+
+def gain_test(mse_without: np.ndarray, mse_with: np.ndarray, m: int, acts: np.ndarray | None = None) -> GainTest:
+    """The gain test of the module docstring on (G, C) held-out MSEs (:func:`relative_gains`), over the
+    groups where the candidate acts (``acts``, (G,) bool; default all): a log the candidate cannot touch
+    (a vehicle with no source above for a jet's effect) says nothing about it."""
+    lr = relative_gains(mse_without, mse_with)
+    if acts is not None:
+        lr = np.where(acts, lr, np.nan)
     d = lr[np.isfinite(lr)]
     n = int(d.size)
     z = critical_z(m)
@@ -346,37 +385,50 @@ def bic_forward(
 
 @dataclass(frozen=True)
 class Stability:
-    """Inclusion probability of each candidate over the halves, and the threshold it must reach."""
+    """Inclusion probability of each candidate over the halves, the threshold it must exceed, the mean
+    number chosen per half, the halves, and the candidates (for Meinshausen & Buehlmann's bound)."""
 
     probability: dict[str, float]
     threshold: float
     mean_chosen: float
     n_halves: int
+    n_candidates: int = 0
 
     def stable(self, name: str) -> bool:
-        return self.probability.get(name, 0.0) >= self.threshold
+        return self.probability.get(name, 0.0) > self.threshold
 
-
-def stability_threshold(mean_chosen: float, n_candidates: int) -> float:
-    """pi = max(PI_MIN, 1/2 + q^2 / (2 p E_V)) (Meinshausen & Buehlmann 2010), capped at 1."""
-    if n_candidates <= 0:
-        return PI_MIN
-    return float(min(1.0, max(PI_MIN, 0.5 + mean_chosen**2 / (2.0 * n_candidates * EXPECTED_FALSE))))
+    @property
+    def expected_false_bound(self) -> float | None:
+        """Meinshausen & Buehlmann's bound on the expected false selections, q^2 / ((2 pi - 1) p), at the
+        smallest inclusion probability that passes (a share of the halves just above the threshold)."""
+        if self.n_candidates <= 0 or self.n_halves <= 0:
+            return None
+        pi = (np.floor(self.threshold * self.n_halves) + 1) / self.n_halves
+        return float(self.mean_chosen**2 / ((2.0 * pi - 1.0) * self.n_candidates)) if pi > 0.5 else None
 
 
 def half_samples(plan: GroupPlan, seed: int) -> list[np.ndarray]:
-    """Complementary pairs of half-samples of the trainable groups (0/1 weights per group, (K,) each):
-    :data:`N_PAIRS` random splits of the train groups into two halves, from ``seed``."""
-    rng = np.random.default_rng(seed)
-    train_idx = np.flatnonzero(~plan.held_out_only)
+    """Complementary pairs of half-samples of the train clusters (flights), as 0/1 weights per group ((G,)
+    each): every distinct split of the train clusters into two halves when there are at most
+    :data:`N_PAIRS` of them (few flights: the exact distribution, each split once), else :data:`N_PAIRS`
+    random splits from ``seed``."""
+    from itertools import combinations
+    from math import comb
+
+    train_clusters = np.unique(plan.cluster[~plan.held_out_only])
+    cut = len(train_clusters) // 2
+    if cut == 0:
+        return []
+    n_splits = comb(len(train_clusters), cut) // (2 if 2 * cut == len(train_clusters) else 1)
+    if n_splits <= N_PAIRS:
+        firsts = [np.array(c) for c in combinations(train_clusters, cut)][:n_splits]
+    else:
+        rng = np.random.default_rng(seed)
+        firsts = [rng.permutation(train_clusters)[:cut] for _ in range(N_PAIRS)]
     halves = []
-    for _ in range(N_PAIRS):
-        perm = rng.permutation(train_idx)
-        cut = len(perm) // 2
-        for part in (perm[:cut], perm[cut:]):
-            w = np.zeros(plan.n_groups)
-            w[part] = 1.0
-            halves.append(w)
+    for first in firsts:
+        for part in (first, np.setdiff1d(train_clusters, first)):
+            halves.append((np.isin(plan.cluster, part) & ~plan.held_out_only).astype(float))
     return halves
 
 
@@ -408,7 +460,7 @@ def stability(
             counts[name] += 1
     prob = {k: v / used if used else 0.0 for k, v in counts.items()}
     q = n_chosen / used if used else 0.0
-    return Stability(prob, stability_threshold(q, len(candidates)), q, used)
+    return Stability(prob, PI_MIN, q, used, len(candidates))
 
 
 @dataclass
@@ -448,9 +500,10 @@ def heldout_forward(
     remaining = [c.name for c in candidates]
     while remaining and len(out.chosen) < max_terms:
         tests = {}
+        m = max(1, sum(1 for n in remaining if eligible is None or n in eligible))  # who could be kept
         for name in remaining:
             trial = heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau)
-            tests[name] = gain_test(current, trial, len(remaining))
+            tests[name] = gain_test(current, trial, m, exposure(sums, cols_of[name]))
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
         if not ok:
@@ -459,11 +512,11 @@ def heldout_forward(
         out.chosen.append(best)
         remaining.remove(best)
         current = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
-    _backward(out, cols, sums, plan, ridge, tau)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau)
     return out
 
 
-def _backward(out: ForwardResult, cols, sums: GroupSums, plan: GroupPlan, ridge: Ridge, tau: float) -> None:
+def _backward(out: ForwardResult, cols, cols_of, sums: GroupSums, plan: GroupPlan, ridge: Ridge, tau: float) -> None:
     """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
     (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
     while out.chosen:
@@ -471,7 +524,7 @@ def _backward(out: ForwardResult, cols, sums: GroupSums, plan: GroupPlan, ridge:
         finals = {}
         for name in out.chosen:
             without = heldout_mse(sums, cols([n for n in out.chosen if n != name]), plan, ridge, tau)
-            finals[name] = gain_test(without, full, len(out.chosen))
+            finals[name] = gain_test(without, full, len(out.chosen), exposure(sums, cols_of[name]))
         failing = [n for n, t in finals.items() if not t.passed]
         if not failing:
             out.final_tests = finals
@@ -498,5 +551,5 @@ def heldout_backward(
         return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
 
     out = ForwardResult(chosen=[c.name for c in kept])
-    _backward(out, cols, sums, plan, ridge, tau)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau)
     return out

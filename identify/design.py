@@ -148,20 +148,22 @@ class SelectionSet:
         return np.concatenate([stacked(f, t) for f, t in per_unit]) / self.row_scale
 
 
-def _assign_groups(units: Sequence[Unit], plan: GroupPlan, index: Mapping[str, int] | None) -> list[Unit]:
-    """``units`` with :attr:`Unit.group` set: the flight's group, or (fallback) its block in time."""
-    out = []
+def _assign_groups(units: Sequence[Unit], plan: GroupPlan) -> list[Unit]:
+    """``units`` with :attr:`Unit.group` set: the group of their (flight, vehicle), or (fallback) of their
+    (block in time, vehicle)."""
+    index = {n: k for k, n in enumerate(plan.names)}
     spans: dict[str, tuple[float, float]] = {}
     for u in units:
         lo, hi = spans.get(u.flight, (np.inf, -np.inf))
         spans[u.flight] = (min(lo, float(u.t_s[0])), max(hi, float(u.t_s[-1])))
-    first = {f: plan.names.index(f"{f}#0") for f in spans if f"{f}#0" in plan.names}
+    out = []
     for u in units:
-        if index is not None or u.flight not in first:
-            g = plan.names.index(u.flight) if index is None else index[u.flight]
-            out.append(replace(u, group=np.full(len(u), g, dtype=int)))
+        if f"{u.flight}/{u.name}" in index:
+            out.append(replace(u, group=np.full(len(u), index[f"{u.flight}/{u.name}"], dtype=int)))
         else:
-            out.append(replace(u, group=block_ids(u.t_s, *spans[u.flight], first[u.flight])))
+            blocks = block_ids(u.t_s, *spans[u.flight])
+            lookup = np.array([index[f"{u.flight}#{b}/{u.name}"] for b in range(blocks.max() + 1)])
+            out.append(replace(u, group=lookup[blocks]))
     return out
 
 
@@ -179,10 +181,11 @@ def selection_set(
     ``fit`` and a uniform sample of ``valid``, grouped by :func:`proxplan.identify.crossval.plan_groups`,
     in the noise units of ``noise`` (two selections around two reference models with the same ``noise``
     compare in the same units on the same samples)."""
-    plan, index = plan_groups([u.flight for u in fit if len(u)], [u.flight for u in valid if len(u)], what=what)
+    plan = plan_groups([(u.flight, u.name) for u in fit if len(u)], [(u.flight, u.name) for u in valid if len(u)],
+                       what=what)  # fmt: skip
     sources = [u for u in fit if len(u)] + [u for u in valid if len(u)]
     starts = np.cumsum([0] + [len(u) for u in sources])
-    tagged = _assign_groups([replace(u, row=starts[k] + np.arange(len(u))) for k, u in enumerate(sources)], plan, index)
+    tagged = _assign_groups([replace(u, row=starts[k] + np.arange(len(u))) for k, u in enumerate(sources)], plan)
     n_fit = sum(1 for u in fit if len(u))
     fit_g, valid_g = tagged[:n_fit], tagged[n_fit:]
     units = stratified_sample(fit_g, max_fit_samples, model.vehicles)

@@ -16,8 +16,8 @@ place in the room), each on one wrench channel (F_z and the three torques): a te
    half's effective samples (weight / tau) picks how many. Stability is judged per GROUP of
    near-duplicate features (:func:`proxplan.physics.features.feature_group`: a neighbour's kernels at
    several widths, a kernel and its lagged copies) on each channel: a group's **inclusion probability**
-   is the share of halves that pick any of its members, and it must reach the Meinshausen-Buehlmann
-   threshold (:func:`proxplan.identify.crossval.stability_threshold`, p = the channel-groups). Among
+   is the share of halves that pick any of its members, and it must be picked in most of them
+   (:data:`proxplan.identify.crossval.PI_MIN`). Among
    near-duplicates the halves split their picks, so a per-feature count would under-rate a real effect;
    which member describes it best is the held-out test's to say.
 2. **Held out.** Every member of a stable group that some half picked enters the joint design beside the
@@ -40,9 +40,11 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from sklearn import config_context
 from sklearn.linear_model import orthogonal_mp_gram
 
 from proxplan.identify.crossval import (
+    PI_MIN,
     Candidate,
     ForwardResult,
     GroupSums,
@@ -50,7 +52,6 @@ from proxplan.identify.crossval import (
     half_samples,
     heldout_forward,
     solve,
-    stability_threshold,
     trainable_groups,
 )
 from proxplan.identify.data import unit_inputs
@@ -174,7 +175,7 @@ def sampled_features(sel: SelectionSet, feature_idx: np.ndarray) -> np.ndarray:
         lo, hi = np.searchsorted(rows_sorted, [start, start + len(u)])
         if hi > lo:
             inputs = unit_inputs(u, sel.model)
-            x = feature_matrix(inputs, _interpolated_base(inputs))[:, feature_idx]
+            x = feature_matrix(inputs, _interpolated_base(inputs), [FEATURE_NAMES[k] for k in feature_idx])
             out[order[lo:hi]] = x[rows_sorted[lo:hi] - start]
         start += len(u)
     return out
@@ -207,8 +208,8 @@ def omp_bic(sums: GroupSums, w: np.ndarray, n_eff: float, max_terms: int) -> lis
     Gn = Gp[np.ix_(ok, ok)] / np.outer(d[ok], d[ok])
     bn = bp[ok] / d[ok]
     k_max = min(max_terms, ok.size)
-    with warnings.catch_warnings():  # collinear features end the path early
-        warnings.simplefilter("ignore")
+    with warnings.catch_warnings(), config_context(skip_parameter_validation=True):  # collinear features end
+        warnings.simplefilter("ignore")  # the path early; the arguments are ours (validation costs ~10 ms a call)
         path = orthogonal_mp_gram(Gn, bn, n_nonzero_coefs=k_max, return_path=True)
     path = path.reshape(ok.size, -1)
     weight = max(float(w @ sums.w), 1e-300)
@@ -267,7 +268,7 @@ def discover_terms(
     n_halves = max(len(halves), 1)
     group_prob = {g: v / n_halves for g, v in group_counts.items()}
     q = float(n_chosen.mean()) if len(halves) else 0.0
-    stab = Stability(group_prob, stability_threshold(q, len(groups_seen)), q, len(halves))
+    stab = Stability(group_prob, PI_MIN, q, len(halves), len(groups_seen))
     member_prob = {k: v / n_halves for k, v in member_counts.items()}
     stable = [k for k, p in sorted(member_prob.items(), key=lambda kv: -kv[1])
               if stab.stable(_group_of(k))]  # fmt: skip

@@ -354,10 +354,10 @@ def _reason(
 ) -> str:
     if not cand.columns:
         return f"rejected: {cand.note}"
-    stab = f"chosen in {prob:.0%} of half-samples of the flights (needs {threshold:.0%})"
+    stab = f"chosen in {prob:.0%} of half-samples of the flights (needs more than {threshold:.0%})"
     if t is None:
         return f"not tested (the forward pass stopped at {MAX_EFFECTS} effects); {stab}"
-    gain = (f"held-out gain {t.mean:+.3g} +- {t.se:.2g} (log MSE ratio over {t.n_groups} held-out groups; "
+    gain = (f"held-out gain {t.mean:+.3g} +- {t.se:.2g} (bounded log-ratio of held-out errors, summed over channels, {t.n_groups} held-out logs; "
             f"needs > {t.z:.2f} SE)")  # fmt: skip
     if selected:
         return f"kept: {gain}; {stab}"

@@ -178,7 +178,7 @@ class Selection:
     @property
     def heldout_total(self) -> float:
         """Mean over the held-out groups of the sum over channels of ln(held-out MSE): the score two starts
-        are compared by (the gain test's log-ratio, summed over groups), lower is better."""
+        are compared by (scale-free, every log and channel alike), lower is better."""
         m = np.where(np.isfinite(self.heldout_mse) & (self.heldout_mse > 0), np.log(np.abs(self.heldout_mse)), np.nan)
         per_group = np.nansum(m, axis=1)[np.any(np.isfinite(m), axis=1)]
         return float(np.mean(per_group)) if per_group.size else float("inf")
@@ -187,10 +187,15 @@ class Selection:
         stab = self.effects.stability
         out: dict[str, Any] = {"start": self.start, "groups": self.note, "heldout_log_mse": self.heldout_total,
                "effects_stability_threshold": stab.threshold, "effects_mean_chosen_per_half": stab.mean_chosen,
+               "effects_expected_false_bound": stab.expected_false_bound,
                "half_samples": stab.n_halves, "recalibration_step_u": self.effects.steps}  # fmt: skip
         if self.discovery is not None:
             d = self.discovery.stability
-            out |= {"terms_stability_threshold": d.threshold, "terms_mean_chosen_per_half": d.mean_chosen}
+            out |= {
+                "terms_stability_threshold": d.threshold,
+                "terms_mean_chosen_per_half": d.mean_chosen,
+                "terms_expected_false_bound": d.expected_false_bound,
+            }
         return out
 
 

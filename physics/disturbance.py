@@ -41,6 +41,10 @@ VALIDITY_FACTOR_L = 3.0
 """The field is valid for dz > VALIDITY_FACTOR_L * L of the source (S0 II-A), -."""
 
 _CHUNK = 8192  # offsets per vectorised block (bounds temporary memory to a few tens of MB)
+PROFILE_CUTOFF = 50.0
+"""Rows where the Gaussian exponent c_rad (r / (dz - z0))^2 of (S0-2) exceeds this at EVERY sample point of
+the target (or the target is not below the source: V_max = 0) are not evaluated: their wrench is below
+exp(-50) = 2e-22 of the jet's (zero to double precision), and most rows of a flight log or a map lie there, -."""
 
 
 @dataclass(frozen=True)
@@ -142,11 +146,24 @@ def _planar_profile(
     return v_max, radial_profile(source, scaled)
 
 
+def _in_reach(source: Vehicle, offsets_m: np.ndarray, points_m: np.ndarray) -> np.ndarray:
+    """(N,) bool: the rows where some of the target's ``points_m`` (K, 3) can see the jet (module constant
+    :data:`PROFILE_CUTOFF`): below the source, and the nearest point's Gaussian exponent under the cut-off."""
+    dz_m = -(offsets_m[:, 2] + points_m[0, 2])
+    reach = float(np.max(np.hypot(points_m[:, 0], points_m[:, 1]))) if len(points_m) else 0.0
+    gap = np.maximum(np.hypot(offsets_m[:, 0], offsets_m[:, 1]) - reach, 0.0)
+    return (dz_m > 0.0) & (source.downwash.c_rad * gap**2 / axial_distance_m(source, dz_m) ** 2 < PROFILE_CUTOFF)
+
+
 def _disk_average_speed(source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions) -> np.ndarray:
     """(N, 4) disk-averaged oncoming speed, m/s (equal-weight quadrature of the geometry module)."""
     disks = disk_samples(target, options.discretisation)
-    v_max, profile = _planar_profile(source, offsets_m, disks.flat_position_m, options)
-    return v_max[:, None] * (profile @ disks.averaging)
+    out = np.zeros((offsets_m.shape[0], 4))
+    rows = _in_reach(source, offsets_m, disks.flat_position_m)
+    if rows.any():
+        v_max, profile = _planar_profile(source, offsets_m[rows], disks.flat_position_m, options)
+        out[rows] = v_max[:, None] * (profile @ disks.averaging)
+    return out
 
 
 def oncoming_speed_per_rotor_mps(
@@ -198,7 +215,22 @@ def _target_samples(target: Vehicle, disc: Discretisation) -> _TargetSamples:
 def _wrench_block(
     source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Drag force, drag torque, thrust-change force and torque, each (N, 3), of one block of offsets; the rows
+    out of the jet's reach (:func:`_in_reach`) are zero without being evaluated."""
     samples = _target_samples(target, options.discretisation)
+    rows = _in_reach(source, offsets_m, samples.points_m)
+    if rows.all():
+        return _wrench_rows(source, target, offsets_m, options, samples)
+    out = tuple(np.zeros((offsets_m.shape[0], 3)) for _ in range(4))
+    if rows.any():
+        for full, part in zip(out, _wrench_rows(source, target, offsets_m[rows], options, samples)):
+            full[rows] = part
+    return out  # type: ignore[return-value]
+
+
+def _wrench_rows(
+    source: Vehicle, target: Vehicle, offsets_m: np.ndarray, options: ModelOptions, samples: _TargetSamples
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     v_max, profile = _planar_profile(source, offsets_m, samples.points_m, options)
     # (S0-3): dF_z = -1/2 C_D rho V^2 dA with V^2 = V_max^2 profile^2; (S0-4) torque about the CoM
     drag_z = profile[:, : samples.n_frame] ** 2

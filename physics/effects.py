@@ -32,7 +32,6 @@ from proxplan.physics.disturbance import (
 )
 from proxplan.physics.features import (
     CHANNELS,
-    FEATURE_NAMES,
     feature_matrix,
     parse_term_key,
     term_scale,
@@ -438,11 +437,12 @@ def _discovered(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> t
     features of :func:`proxplan.physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
     wrench = np.zeros((inputs.n_samples, 6))
     if p:
-        x = feature_matrix(inputs, base.per_source())
+        names = list(dict.fromkeys(parse_term_key(k)[1] for k in p))
+        x = feature_matrix(inputs, base.per_source(), names)
         for key, coef in p.items():
             channel, feature = parse_term_key(key)
             scale = term_scale(channel, inputs.target) if weight_scaled(key) else 1.0
-            wrench[:, CHANNELS.index(channel)] += coef * scale * x[:, FEATURE_NAMES.index(feature)]
+            wrench[:, CHANNELS.index(channel)] += coef * scale * x[:, names.index(feature)]
     return wrench[:, :3], wrench[:, 3:]
 
 

@@ -129,7 +129,7 @@ FEATURE_DOCS: dict[str, str] = {
     "thrust_kin_jet_N": "own thrust from the motion, m (g + dv_z/dt) (v from motion capture; W without a clock), "
     "times the jet kernels of the sources above, summed",
     "thrust_kin_ground_N": "own thrust from the motion times exp(-h / L_target)",
-    "thrust_kin_speed_xy_Nspm": "own thrust from the motion times its horizontal speed",
+    "thrust_kin_speed_xy_Nmps": "own thrust from the motion times its horizontal speed",
 }
 BASIS_WIDTHS_L = (1.0, 2.5)
 """Radial widths of the multi-scale kernels, in the neighbour's size L (a Gaussian of 1 L and of 2.5 L), -."""
@@ -186,7 +186,7 @@ FEATURE_NAMES = tuple(FEATURE_DOCS)
 
 TARGET_ONLY_FEATURES = (
     "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2",
-    "v_z_speed_xy_m2ps2", *ROOM_FEATURES, "thrust_kin_ground_N", "thrust_kin_speed_xy_Nspm",
+    "v_z_speed_xy_m2ps2", *ROOM_FEATURES, "thrust_kin_ground_N", "thrust_kin_speed_xy_Nmps",
 )  # fmt: skip
 """Features of the target alone; every other feature is a sum over sources (zero without one)."""
 
@@ -293,9 +293,14 @@ def jet_kernel(dz_m: np.ndarray, r_m: np.ndarray, size_m: float) -> np.ndarray:
     return np.where(dz_m > 0.0, np.exp(-0.5 * (r_m / sigma) ** 2) / (1.0 + dzp / size_m), 0.0)
 
 
-def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
-    """All features of :data:`FEATURE_NAMES` for ``inputs`` (a :class:`proxplan.physics.effects.EffectInputs`):
-    (N, F) array. ``base_per_source`` holds each source's base wrench (force (N, 3) N, torque (N, 3) N m)."""
+def feature_matrix(
+    inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarray]], names: Sequence[str] | None = None
+) -> np.ndarray:
+    """The features ``names`` (default all of :data:`FEATURE_NAMES`, in that order) for ``inputs`` (a
+    :class:`proxplan.physics.effects.EffectInputs`): (N, F) array. ``base_per_source`` holds each source's
+    base wrench (force (N, 3) N, torque (N, 3) N m). The lagged and low-pass copies (most of the
+    dictionary's cost) are computed only where asked for."""
+    wanted = FEATURE_NAMES if names is None else tuple(names)
     target: Vehicle = inputs.target
     n = inputs.n_samples
     t = None if inputs.time_s is None else np.asarray(inputs.time_s, dtype=float)
@@ -315,7 +320,7 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
     accel_z = np.zeros(n) if t is None else offset_rate_mps(vel, t)[:, 2]
     thrust_kin = target.mass_kg * (GRAVITY_MPS2 + accel_z)  # not a feature alone: see FAMILIES
     f["thrust_kin_ground_N"] = thrust_kin * f["ground_exp_1"]
-    f["thrust_kin_speed_xy_Nspm"] = thrust_kin * f["speed_xy_mps"]
+    f["thrust_kin_speed_xy_Nmps"] = thrust_kin * f["speed_xy_mps"]
     kernels = []
     for src, (bf, bt) in zip(inputs.sources, base_per_source):
         off = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
@@ -373,8 +378,9 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
                                         ("side", np.abs(dz), r, np.ones(len(r), dtype=bool))):  # fmt: skip
             for w in BASIS_WIDTHS_L:
                 for d in BASIS_DECAYS_L:
+                    along = np.maximum(delta, 0.0) / (d * size)  # beside: Gaussian in the horizontal distance too
                     f[_basis_name(where, w, d)] += np.where(
-                        gate, np.exp(-((rho / (w * size)) ** 2) - np.maximum(delta, 0.0) / (d * size)), 0.0
+                        gate, np.exp(-((rho / (w * size)) ** 2) - (along**2 if where == "side" else along)), 0.0
                     )
     f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
@@ -382,12 +388,15 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
             f["above_stack_1"] += kernels[i] * kernels[j]
     f["base_fz_lag_N"] = lagged(f["base_fz_N"], t)
     f["base_fz_lowpass_N"] = lowpass(f["base_fz_N"], t)
+    asked = set(wanted)
     for name in TIME_FEATURE_SOURCES:
         if inputs.sources:
             for lag in LAGS_S:
-                f[_time_name(name, "lag", lag)] = lagged(f[name], t, lag)
+                if _time_name(name, "lag", lag) in asked:
+                    f[_time_name(name, "lag", lag)] = lagged(f[name], t, lag)
             for tau in LOWPASS_TAUS_S:
-                f[_time_name(name, "lp", tau)] = lowpass(f[name], t, tau)
+                if _time_name(name, "lp", tau) in asked:
+                    f[_time_name(name, "lp", tau)] = lowpass(f[name], t, tau)
     pos = inputs.position_m
     if pos is not None:
         pos = np.asarray(pos, dtype=float).reshape(-1, 3)
@@ -397,10 +406,10 @@ def feature_matrix(inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarra
         d = np.maximum(plane_distances_m(inputs.planes, pos), MIN_HEIGHT_FACTOR * r_rot)
         f["plane_exp_1"] = np.exp(-d / target.size_m).sum(axis=1)
         f["plane_cb_1"] = ((r_rot / (4.0 * d)) ** 2).sum(axis=1)
-    return np.column_stack([f[k] for k in FEATURE_NAMES])
+    return np.column_stack([f[k] for k in wanted])
 
 
-WRENCH_UNITS = ("N", "Nm", "Nmps", "Nspm")
+WRENCH_UNITS = ("N", "Nm", "Nmps")
 """Unit suffixes of features that are already a force or torque (the base prediction and its copies, the
 thrust from the motion): a term on them is ``coefficient x feature``. Every other feature (a kernel, a
 speed) is a shape; a term on it is scaled to the target vehicle (:func:`term_scale`)."""
