@@ -33,6 +33,7 @@ from proxplan.physics import (
     ModelOptions,
     SourceSample,
     Vehicle,
+    base_cache,
     base_wrench,
     effect_wrench,
 )
@@ -411,22 +412,48 @@ class Errors:
         }
 
 
-def rmse_fz_by_vehicle(units: Sequence[Unit], model: Model) -> dict[str, tuple[float, int]]:
+class Predictions:
+    """Predictions of models on units where each (unit, vehicles, options) pair evaluates the base model once:
+    its sources' base wrench (:class:`proxplan.physics.BaseCache`) is kept and reused by every effect and
+    every later call (the report scores the same test samples many ways)."""
+
+    def __init__(self) -> None:
+        self._caches: dict[tuple[int, int, ModelOptions], tuple[Unit, Any, BaseCache]] = {}
+
+    def cache(self, unit: Unit, model: Model) -> BaseCache:
+        key = (id(unit), id(model.vehicles), model.options)
+        if key not in self._caches:  # the unit and the vehicles are kept alive with their cache
+            self._caches[key] = (unit, model.vehicles, base_cache(unit_inputs(unit, model)))
+        return self._caches[key][2]
+
+    def __call__(self, unit: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:
+        return predict(unit, model, cache=self.cache(unit, model))
+
+
+def rmse_fz_by_vehicle(
+    units: Sequence[Unit], model: Model, predictions: Predictions | None = None
+) -> dict[str, tuple[float, int]]:
     """Pooled RMSE of F_z (N) and sample count per vehicle name (the manifest's key) over ``units``."""
     sse: dict[str, list[float]] = {}
     for u in units:
-        r = u.force_N[:, 2] - predict(u, model)[0][:, 2]
+        r = u.force_N[:, 2] - (predictions(u, model) if predictions is not None else predict(u, model))[0][:, 2]
         acc = sse.setdefault(u.name, [0.0, 0.0])
         acc[0] += float(r @ r)
         acc[1] += r.size
     return {k: (float(np.sqrt(a / n)) if n else 0.0, int(n)) for k, (a, n) in sse.items()}
 
 
-def errors(units: Sequence[Unit], model: Model, *, bases: Sequence | None = None) -> Errors:
-    """RMSEs of ``model`` on ``units``; ``bases`` optionally holds each unit's precomputed base wrench."""
+def errors(
+    units: Sequence[Unit], model: Model, *, bases: Sequence | None = None, predictions: Predictions | None = None
+) -> Errors:
+    """RMSEs of ``model`` on ``units``; ``bases`` optionally holds each unit's precomputed base wrench, or
+    ``predictions`` caches them across calls."""
     df, dt = [], []
     for k, u in enumerate(units):
-        f, t = predict(u, model, base=None if bases is None else bases[k])
+        if predictions is not None:
+            f, t = predictions(u, model)
+        else:
+            f, t = predict(u, model, base=None if bases is None else bases[k])
         df.append(u.force_N[:, 2] - f[:, 2])
         dt.append(u.torque_Nm - t)
     df_a, dt_a = np.concatenate(df), np.concatenate(dt)

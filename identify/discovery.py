@@ -76,7 +76,8 @@ class DiscoveryOptions:
     """What is searched and how many terms a half-sample's path may take."""
 
     channels: tuple[str, ...] = CHANNELS
-    families: tuple[str, ...] = FAMILIES  # declared families searched (proxplan.physics.features.FAMILIES)
+    # declared families searched (proxplan.physics.features.FAMILIES); the constant ("bias") is thrust_bias's
+    families: tuple[str, ...] = tuple(f for f in FAMILIES if f != "bias")
     max_terms_per_channel: int = 4  # OMP path length per channel and half-sample
     max_terms: int = 8  # at most this many terms kept in all
 

@@ -32,10 +32,10 @@ from proxplan.fileio import UserError
 from proxplan.identify.data import (
     IdentifyOptions,
     Model,
+    Predictions,
     Unit,
     load_units,
     measurement_summary,
-    predict,
     sources_overhead,
 )
 from proxplan.identify.flightlog import Manifest
@@ -297,11 +297,12 @@ def evaluate_model(
         notes.append(
             f"{label}: model.residual_spread: missing (a model saved before it): no 90 % interval, no coverage"
         )
+    pred = Predictions()
     for u in units:
-        f, t = predict(u, m)
+        f, t = pred(u, m)
         dfz, dtq = u.force_N[:, 2] - f[:, 2], np.linalg.norm(u.torque_Nm - t, axis=1)
         slow = slow_part(dfz, u.t_s)
-        half = interval_half_width_N(u, m, spread) if spread is not None else None
+        half = interval_half_width_N(u, m, spread, pred) if spread is not None else None
         for acc_b in (bands["all"], bands.setdefault(set_of[u.flight], BandAccumulator())):
             acc_b.add(dfz, slow, half)
         fz0, tq0 = u.force_N[:, 2], np.linalg.norm(u.torque_Nm, axis=1)

@@ -54,15 +54,14 @@ from proxplan.identify.data import (
     Errors,
     IdentifyOptions,
     Model,
+    Predictions,
     Unit,
     errors,
     load_units,
     measurement_summary,
-    merge_units,
     predict,
     rmse_fz_by_vehicle,
     subsample,
-    unit_inputs,
 )
 from proxplan.identify.design import NoiseLevel, noise_level, selection_set
 from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
@@ -83,7 +82,6 @@ from proxplan.physics import (
     Effect,
     ModelOptions,
     ResidualSpread,
-    base_wrench,
 )
 
 # ------------------------------------------------------------------------------ calibration
@@ -292,18 +290,16 @@ def _zone_masks(u: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:
     return below, valid
 
 
-def _validity(
-    units: Sequence[Unit], before: Model, after: Model, bases_before: list, bases_after: list
-) -> dict[str, Any]:
+def _validity(units: Sequence[Unit], before: Model, after: Model, pred: Predictions) -> dict[str, Any]:
     """Samples below a source (dz > 0, r < 3 L) inside / outside the zone dz > 3 L (S0 II-A), with
     the test RMSE of F_z before and after on each part."""
     below, valid, res_b, res_a = [], [], [], []
-    for u, bb, ba in zip(units, bases_before, bases_after):
+    for u in units:
         b, v = _zone_masks(u, before)
         below.append(b)
         valid.append(v)
-        res_b.append(u.force_N[:, 2] - predict(u, before, base=bb)[0][:, 2])
-        res_a.append(u.force_N[:, 2] - predict(u, after, base=ba)[0][:, 2])
+        res_b.append(u.force_N[:, 2] - pred(u, before)[0][:, 2])
+        res_a.append(u.force_N[:, 2] - pred(u, after)[0][:, 2])
     below_a, valid_a = np.concatenate(below), np.concatenate(valid)
     rb, ra = np.concatenate(res_b), np.concatenate(res_a)
 
@@ -321,11 +317,11 @@ def _validity(
     }
 
 
-def _residual_analysis(units: Sequence[Unit], model: Model):
+def _residual_analysis(units: Sequence[Unit], model: Model, pred: Predictions | None = None):
     res: list[np.ndarray] = []
     feats: dict[str, list[np.ndarray]] = {}
     for u in units:
-        f, _ = predict(u, model)
+        f, _ = pred(u, model) if pred is not None else predict(u, model)
         res.append(u.force_N[:, 2] - f[:, 2])
         fe = sample_features(u.height_above_ground_m, u.velocity_mps, list(u.source_offsets_m))
         for k, v in fe.items():
@@ -333,9 +329,11 @@ def _residual_analysis(units: Sequence[Unit], model: Model):
     return correlate(np.concatenate(res), {k: np.concatenate(v) for k, v in feats.items()})
 
 
-def _per_vehicle(test: Sequence[Unit], before: Model, calibrated: Model, after: Model) -> dict[str, dict]:
+def _per_vehicle(
+    test: Sequence[Unit], before: Model, calibrated: Model, after: Model, pred: Predictions
+) -> dict[str, dict]:
     """Test RMSE of F_z per vehicle name, before / calibrated / after (pooled over test flights)."""
-    b, c, a = (rmse_fz_by_vehicle(test, m) for m in (before, calibrated, after))
+    b, c, a = (rmse_fz_by_vehicle(test, m, pred) for m in (before, calibrated, after))
     return {k: {"rmse_fz_N_before": b[k][0], "rmse_fz_N_calibrated": c[k][0], "rmse_fz_N_after": a[k][0],
                 "n_samples": b[k][1]} for k in b}  # fmt: skip
 
@@ -430,17 +428,10 @@ def run_identify(
         thrust_scale={t: 1.0 for t in types},
         options=ModelOptions(field_form=options.field_form, stack_shielding=0.0),
     )
-    test_all = merge_units(test)  # every test sample, pooled
-    cache: dict[int, tuple[Any, list]] = {}  # id(vehicles) -> (vehicles, base wrench per unit)
-
-    def full_bases(m: Model) -> list:
-        key = id(m.vehicles)
-        if key not in cache:
-            cache[key] = (m.vehicles, [base_wrench(unit_inputs(u, m)) for u in test_all])
-        return cache[key][1]
+    pred = Predictions()  # every test sample scored many ways: each model's base wrench once per test log
 
     def full_errors(m: Model) -> Errors:
-        return errors(test_all, m, bases=full_bases(m))
+        return errors(test, m, predictions=pred)
 
     before = full_errors(base)
     noise = noise_level(fit, base)
@@ -469,8 +460,9 @@ def run_identify(
     final = chosen.model
     after = full_errors(final)
     spread = fit_spread(stratified_sample(fit, options.max_fit_samples, final.vehicles), final)
-    bands = {k: b.to_json(GRAMS_PER_N) for k, b in band_errors(test, final, spread, test_sets(manifest, test)).items()}
-    corr = _residual_analysis(subsample(test, 50000), final)
+    bands = {k: b.to_json(GRAMS_PER_N)
+             for k, b in band_errors(test, final, spread, test_sets(manifest, test), pred).items()}  # fmt: skip
+    corr = _residual_analysis(test, final, pred)
     unexplained = None
     if corr and corr[0].strength >= 0.3:
         unexplained = {"feature": corr[0].feature, "pearson": corr[0].pearson, "eta": corr[0].eta,
@@ -485,9 +477,9 @@ def run_identify(
         before=before, after=after, calibrated=calibrated, trials=chosen.effects.trials,
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
         calibration=calibration, exclusions=exclusions, correlations=corr, correlations_before=corr_before,
-        unexplained=unexplained, validity=_validity(test_all, base, final, full_bases(base), full_bases(final)),
+        unexplained=unexplained, validity=_validity(test, base, final, pred),
         thrust_coefficient=thrust, units=units, thrust_maps=data.thrust_maps, notes=data.notes,
-        measure_options=options.measure, per_vehicle=_per_vehicle(test, base, model, final),
+        measure_options=options.measure, per_vehicle=_per_vehicle(test, base, model, final, pred),
         validation=chosen.note, calibrated_model=model, discovered=discovered,
         stack_shielding=_stack_record(calibration, final), motor_lag_check=lag_check,
         selection=selection, fallback="fell back" in chosen.note, spread=spread, bands=bands,

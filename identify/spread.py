@@ -21,7 +21,7 @@ import numpy as np
 from scipy.optimize import nnls
 from scipy.signal import butter, sosfiltfilt
 
-from proxplan.identify.data import Model, Unit, predict, unit_inputs
+from proxplan.identify.data import Model, Predictions, Unit, unit_inputs
 from proxplan.physics import ResidualSpread, TypeSpread, base_wrench_per_source, spread_N
 from proxplan.physics.residual_spread import spread_features
 
@@ -33,10 +33,12 @@ MAX_GAP_FACTOR = 2.0
 """A clock step larger than this many median steps starts a new stretch (the filter never crosses a gap)."""
 
 
-def unit_spread_features(unit: Unit, model: Model) -> np.ndarray:
+def unit_spread_features(unit: Unit, model: Model, predictions: Predictions | None = None) -> np.ndarray:
     """(N, 3) :func:`proxplan.physics.residual_spread.spread_features` of one unit under ``model``."""
-    inputs = unit_inputs(unit, model)
-    per_source = base_wrench_per_source(inputs)
+    if predictions is not None:
+        per_source = predictions.cache(unit, model).per_source()
+    else:
+        per_source = base_wrench_per_source(unit_inputs(unit, model))
     sizes = [model.vehicles[t].size_m for t in unit.source_types]
     return spread_features([f[:, 2] for f, _ in per_source], list(unit.source_offsets_m), sizes,
                            model.vehicles[unit.type].weight_N)  # fmt: skip
@@ -45,12 +47,13 @@ def unit_spread_features(unit: Unit, model: Model) -> np.ndarray:
 def fit_spread(units: Sequence[Unit], model: Model) -> ResidualSpread:
     """The residual spread of ``model`` on ``units`` (train flights; stratified weights used when present)."""
     rows: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+    pred = Predictions()
     for u in units:
         if not len(u):
             continue
-        r = u.force_N[:, 2] - predict(u, model)[0][:, 2]
+        r = u.force_N[:, 2] - pred(u, model)[0][:, 2]
         w = u.weight if u.weight is not None else np.ones(len(u))
-        rows.setdefault(u.type, []).append((unit_spread_features(u, model), r, w))
+        rows.setdefault(u.type, []).append((unit_spread_features(u, model, pred), r, w))
     by_type: dict[str, TypeSpread] = {}
     z_all, w_all = [], []
     for vtype, parts in rows.items():
@@ -80,13 +83,15 @@ def _weighted_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
     return float(x[order][min(int(np.searchsorted(cw, q * cw[-1])), len(x) - 1)])
 
 
-def interval_half_width_N(unit: Unit, model: Model, spread: ResidualSpread) -> np.ndarray:
+def interval_half_width_N(
+    unit: Unit, model: Model, spread: ResidualSpread, predictions: Predictions | None = None
+) -> np.ndarray:
     """(N,) half-width of the 90 % interval of F_z for each sample of ``unit``, N (inf for a type the spread
     does not know)."""
     t = spread.by_type.get(unit.type)
     if t is None:
         return np.full(len(unit), np.inf)
-    return spread.quantile_90 * spread_N(t, unit_spread_features(unit, model))
+    return spread.quantile_90 * spread_N(t, unit_spread_features(unit, model, predictions))
 
 
 def stretches(t_s: np.ndarray) -> list[slice]:
@@ -152,18 +157,20 @@ def band_errors(
     model: Model,
     spread: ResidualSpread | None,
     groups: Mapping[str, Sequence[str]] | None = None,
+    predictions: Predictions | None = None,
 ) -> dict[str, BandAccumulator]:
     """Per group of flights (``groups``: label -> flight names; default one group ``all``), the F_z residual
     of ``model`` below and above 1 Hz and the 90 % interval's coverage (units need a monotonic clock: not
     merged ones)."""
     groups = groups or {"all": sorted({u.flight for u in units})}
     acc = {g: BandAccumulator() for g in groups}
+    pred = predictions if predictions is not None else Predictions()
     for u in units:
         if not len(u):
             continue
-        r = u.force_N[:, 2] - predict(u, model)[0][:, 2]
+        r = u.force_N[:, 2] - pred(u, model)[0][:, 2]
         slow = slow_part(r, u.t_s)
-        half = interval_half_width_N(u, model, spread) if spread is not None else None
+        half = interval_half_width_N(u, model, spread, pred) if spread is not None else None
         for g, flights in groups.items():
             if u.flight in flights:
                 acc[g].add(r, slow, half)

@@ -103,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"proxplan identify: warning: {warning}", file=sys.stderr)
     for note in result.notes:  # e.g. logs without PWM/Vbat: the desired u[N] is used (said once)
         print(f"proxplan identify: note: {note}", file=sys.stderr)
+    if result.fallback:  # too few flights to hold one out: what selection fell back to, in one line
+        print(f"proxplan identify: note: {result.validation}", file=sys.stderr)
     if args.json:
         print(json.dumps(doc, default=float))
     else:

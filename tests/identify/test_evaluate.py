@@ -65,6 +65,13 @@ def test_round_trip_reproduces_identify_after(tmp_path: Path, capsys) -> None:
     assert auth["at_limit"]["rmse_fz_g"] == pytest.approx(auth["at_limit"]["rmse_fz_N"] * 1000 / 9.80665)
     assert sum(a["share_of_sq_error"] for a in auth.values() if a["n_samples"]) == pytest.approx(1.0)
     assert "## Per authority state" in (tmp_path / "ev" / "report.md").read_text()
+    # issue 35: the residual below and above 1 Hz (their squares add up to the whole, nearly: the two parts
+    # of a zero-phase split are close to orthogonal) and the 90 % interval's coverage, per set and pooled
+    bands = ev["bands"]["all"]
+    whole = ev["rmse_fz_N"]
+    assert (bands["rmse_fz_below_1Hz_N"] ** 2 + bands["rmse_fz_above_1Hz_N"] ** 2) == pytest.approx(whole**2, rel=0.2)
+    assert 0.0 < bands["coverage_90"] <= 1.0 and bands["rmse_fz_above_1Hz_g"] > 0.0
+    assert "What the model cannot predict" in (tmp_path / "ev" / "report.md").read_text()
     per = ident["per_vehicle"]
     assert set(per) == {"a", "b"} and all(
         {"rmse_fz_N_before", "rmse_fz_N_calibrated", "rmse_fz_N_after", "n_samples"} <= set(v) for v in per.values()
@@ -123,3 +130,27 @@ def test_no_pwm_falls_back_with_one_note_and_score_false_is_source_only(tmp_path
     doc = json.loads(cap.out)
     assert set(doc["per_vehicle"]) == {"a"}  # b is a source only
     assert cap.err.count("no PWM/Vbat") == 1  # the fallback is said once
+
+
+def test_ninety_percent_interval_holds_on_held_out_flights(tmp_path: Path, capsys) -> None:
+    """Issue 35: identify fits the residual's spread (by place in the jet) on the train flights and saves it;
+    on a long held-out flight of the same world the measured force falls inside the 90 % interval in
+    85-95 % of the samples (about 2 000 independent samples there: a 3-sigma band is +-2 %)."""
+    from proxplan.cli import main
+    from proxplan.identify import write_synthetic_manifest
+
+    veh = BUILTIN_VEHICLES[TYPE]
+    flights = []
+    for k in range(4):
+        t = np.arange(0.0, 60.0 if k == 3 else 20.0, 0.01)
+        a = np.column_stack([0.05 * np.sin(0.6 * t + k), 0.04 * np.cos(0.5 * t), 1.3 + 0 * t])
+        b = np.column_stack([0.08 * np.sin(0.9 * t + 2 * k), 0.06 * np.sin(0.7 * t), 0.9 + 0.1 * np.sin(0.4 * t + k)])
+        logs = synthetic_logs({"a": veh, "b": veh}, {"a": a, "b": b}, t, accel_noise_mps2=0.03, motor_noise_N=0.002,
+                              seed=k)  # fmt: skip
+        flights.append((f"f{k}", "test" if k == 3 else "train", logs))
+    manifest = write_synthetic_manifest(tmp_path, flights, TYPE)
+    model = tmp_path / "model.yaml"
+    assert main(["identify", str(manifest), "--out", str(tmp_path / "id"), "--save-model", str(model)]) == 0
+    assert main(["evaluate", str(manifest), "--model", str(model), "--out", str(tmp_path / "ev"), "--json"]) == 0
+    ev = json.loads(capsys.readouterr().out)
+    assert 0.85 <= ev["bands"]["all"]["coverage_90"] <= 0.95, ev["bands"]

@@ -70,3 +70,23 @@ def test_delivered_logs_read_as_commanded_warn_in_identify_json_and_report(tmp_p
     assert len(doc["warnings"]) == 1 and doc["motor_lag_check"]["types"]["crazyflie-2.1"]["best_tau_s"] == 0.0
     assert "warning:" in captured.err and "motor_thrust" in captured.err
     assert "Motor lag check" in (out / "report.md").read_text()
+
+
+def test_hover_with_command_noise_is_no_evidence_of_a_lag(tmp_path: Path) -> None:
+    """Issue 35: a hovering vehicle whose logged (delivered) thrust carries noise the accelerometer never
+    saw: a lag would smooth that noise and steady F_z, but smoothing is no delay. The check compares the
+    lags by their phase only, so the rightly declared logs draw no warning."""
+    t = 0.01 * np.arange(3000)
+    flights = []
+    for k in range(2):
+        pos = np.column_stack([0 * t, 0 * t, 1.0 + 0.002 * np.sin(0.5 * t + k)])  # a hover, out of ground effect
+        logs = synthetic_logs({"a": CF}, {"a": pos}, t, accel_noise_mps2=0.005, motor_noise_N=0.004, seed=k)
+        flights.append((f"h_{k:02d}", "train" if k == 0 else "test", logs))
+    manifest = load_manifest(write_synthetic_manifest(tmp_path, flights, "crazyflie-2.1", motor_thrust="delivered"))
+    data = load_units(manifest, options=IdentifyOptions(measure=OPTIONS), thrust_coefficient_samples=False)
+    check = check_loaded(data, motor_thrust="delivered", options=OPTIONS)
+    entry = check["types"]["crazyflie-2.1"]
+    assert check["warnings"] == [] and entry["warning"] is None, entry
+    # every candidate lag keeps the noise's power: their spreads agree to a few percent
+    spreads = np.array(list(entry["spread_N"].values()))
+    assert spreads.max() < 1.05 * spreads.min(), entry["spread_N"]
