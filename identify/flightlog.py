@@ -58,8 +58,8 @@ NEURAL_SWARM_COLUMNS = {
 }  # fmt: skip
 """Canonical name -> Neural-Swarm column name (the time column holds microseconds)."""
 
-LogFormat = Literal["neural-swarm", "canonical"]
-"""The log layouts read here (a manifest's ``format``)."""
+LogFormat = Literal["neural-swarm", "canonical", "usdlog", "rosbag", "ulog"]
+"""The log formats a manifest may name: the CSV layouts read here, the binary ones by proxplan.identify.formats."""
 FORMATS: tuple[str, ...] = get_args(LogFormat)
 
 
@@ -124,6 +124,9 @@ class VehicleLog:
     source: str = ""
     motor_pwm: np.ndarray | None = None  # (N, 4) motor PWM command normalised 0..1, (S0-14) order; None: not logged
     vbat_V: np.ndarray | None = None  # (N,) battery voltage, V; None: not logged
+    thrust_logged: bool = True  # False: the log holds no force; motor_thrust_N is the base map's force of
+    # the PWM (scale 1, for the quality checks) until proxplan.identify.pwm_thrust puts the type's map in
+    thrust_shape: str = ""  # base PWM map of a log without forces (proxplan.identify.pwm_thrust.SHAPES)
 
     def __post_init__(self) -> None:
         if self.segment.size != len(self.t_s):
@@ -361,6 +364,9 @@ class VehicleEntry:
     log: Path  # resolved log path
     ground_z_m: float = 0.0  # ground height in the log's world frame, m
     score: bool = True  # False: the log is a downwash source for the others only, never scored
+    time_offset_s: float = 0.0  # added to the log's clock to put it on the flight's common clock, s
+    variables: Mapping[str, str] | None = None  # contract name -> log variable overrides (identify.formats)
+    topics: Mapping[str, Any] | None = None  # ROS 2 bag topics of this vehicle (identify.formats.rosbag)
 
 
 FLIGHT_SPLITS = ("train", "validation", "test")
@@ -406,17 +412,23 @@ class Flight:
 
 
 def load_flight(
-    entry: FlightEntry, vehicles: Mapping[str, Any], *, options: QualityOptions = QualityOptions()
+    entry: FlightEntry,
+    vehicles: Mapping[str, Any],
+    *,
+    options: QualityOptions = QualityOptions(),
+    log_format: str = "",
 ) -> Flight:
     """Read, check and time-align the logs of one flight (each vehicle keeps its own clock).
 
     ``vehicles`` maps each vehicle name of the entry to its :class:`Vehicle`. Samples outside the
     time overlap of all the flight's vehicles are excluded (counted); no overlap is a UserError.
     """
+    from proxplan.identify.formats import read_vehicle_log
+
     logs, excl = {}, {}
     for v in entry.vehicles:
         log, ex = check_log(
-            read_log(v.log), weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options
+            read_vehicle_log(v, log_format), weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options
         )
         if len(log) == 0:
             raise UserError(f"{v.log}: no usable samples after quality checks (ground/idle/NaN); flight {entry.name}")
