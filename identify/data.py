@@ -266,7 +266,7 @@ def load_units(
                     notes.append(note)
             exclusions[entry.name][v.name] = flight.exclusions[v.name].to_dict() | {
                 "kept_samples": len(log), "saturated_samples": n_sat, "floored_samples": n_floor,
-                "thrust_source": source, "scored": v.score}  # fmt: skip
+                "thrust_source": source, "scored": v.score} | dict(flight.alignment.get(v.name, {}))  # fmt: skip
             veh = flight.vehicles[v.name]
             logs[(entry.name, v.name)] = (veh, log)
             meas = measure_log(veh, log, options=measure_options_for(options.measure, veh, manifest.motor_thrust))

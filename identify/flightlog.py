@@ -367,6 +367,7 @@ class VehicleEntry:
     time_offset_s: float = 0.0  # added to the log's clock to put it on the flight's common clock, s
     variables: Mapping[str, str] | None = None  # contract name -> log variable overrides (identify.formats)
     topics: Mapping[str, Any] | None = None  # ROS 2 bag topics of this vehicle (identify.formats.rosbag)
+    mocap_log: Path | None = None  # motion-capture track: the clock is aligned on it (identify.formats.align)
 
 
 FLIGHT_SPLITS = ("train", "validation", "test")
@@ -409,6 +410,7 @@ class Flight:
     logs: Mapping[str, VehicleLog]
     ground_z_m: Mapping[str, float]
     exclusions: Mapping[str, Exclusions]
+    alignment: Mapping[str, dict] = field(default_factory=dict)  # vehicle -> how its clock was set (reported)
 
 
 def load_flight(
@@ -423,12 +425,13 @@ def load_flight(
     ``vehicles`` maps each vehicle name of the entry to its :class:`Vehicle`. Samples outside the
     time overlap of all the flight's vehicles are excluded (counted); no overlap is a UserError.
     """
-    from proxplan.identify.formats import read_vehicle_log
+    from proxplan.identify.formats import align_log, read_vehicle_log
 
-    logs, excl = {}, {}
+    logs, excl, alignment = {}, {}, {}
     for v in entry.vehicles:
+        raw, alignment[v.name] = align_log(read_vehicle_log(v, log_format), v)
         log, ex = check_log(
-            read_vehicle_log(v, log_format), weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options
+            raw, weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options
         )
         if len(log) == 0:
             raise UserError(f"{v.log}: no usable samples after quality checks (ground/idle/NaN); flight {entry.name}")
@@ -451,6 +454,7 @@ def load_flight(
         logs=logs,
         ground_z_m={v.name: v.ground_z_m for v in entry.vehicles},
         exclusions=excl,
+        alignment=alignment,
     )
 
 

@@ -70,6 +70,10 @@ class ManifestVehicle(FileModel):
     score: Flag = optional("false: the log is a downwash source for the others only (default true)")
     time_offset_s: Number = optional("added to the log's clock to put it on the flight's clock, s (default 0)")
     topics: BagTopics | None = optional("ROS 2 bag topics of this vehicle (format rosbag)")
+    mocap_log: Text1 = optional(
+        "motion-capture track of this vehicle, relative to root (CSV t_s,x_m,y_m,z_m or any log): the log's clock "
+        "is put on the track's by cross-correlating positions (offset and its error reported)"
+    )
 
 
 class LogDataTopic(FileModel):
@@ -176,6 +180,7 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
                 ground_z_m=float(v.ground_z_m or 0.0),
                 score=v.score is not False,
                 time_offset_s=float(v.time_offset_s or 0.0),
+                mocap_log=None if v.mocap_log is None else root / v.mocap_log,
                 variables=dict(doc.variables or {}),
                 topics=None if v.topics is None else v.topics.model_dump(exclude_unset=True),
             )

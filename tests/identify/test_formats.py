@@ -280,3 +280,25 @@ def test_logs_writes_a_manifest_evaluate_accepts(tmp_path: Path, flights, capsys
     manifest = load_manifest(out)
     assert [f.split for f in manifest.flights] == ["train", "test"] and manifest.format == "usdlog"
     assert {v.name for f in manifest.flights for v in f.vehicles} == {"a", "b"}
+
+
+def test_clock_offset_found_by_cross_correlation_with_mocap(tmp_path: Path, flights) -> None:
+    """A uSD log on a boot clock 37.123 s ahead: the mocap track puts it back within the reported error."""
+    from proxplan.identify import load_manifest
+    from proxplan.identify.data import load_units
+
+    name, split, logs = flights[0]
+    paths = {}
+    for v, log in logs.items():
+        late = log.take(np.arange(150, len(log)))  # the log starts 1.5 s into the track
+        shifted = replace(late, t_s=late.t_s + 37.123)  # on the vehicle's own clock
+        paths[v] = write_usdlog(tmp_path / f"{v}.usd", {"fixedFrequency": (shifted.t_s, firmware_columns(shifted))}).name
+        track = np.column_stack([log.t_s, log.position_m])  # the motion-capture system's clock
+        np.savetxt(tmp_path / f"{v}_mocap.csv", track, delimiter=",", header="t_s,x_m,y_m,z_m", comments="")
+    extra = {v: {"mocap_log": f"{v}_mocap.csv"} for v in logs}
+    m = _manifest(tmp_path, "usdlog", [("f0", "train", paths), ("f1", "test", paths)], extra)
+    data = load_units(load_manifest(m), options=FAST, thrust_coefficient_samples=False)
+    for v in logs:
+        e = data.exclusions["f0"][v]
+        assert e["alignment"] == "mocap" and 0.0 < e["alignment_error_s"] < 0.01
+        assert abs(e["time_offset_s"] + 37.123) <= e["alignment_error_s"]
