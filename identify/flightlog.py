@@ -430,9 +430,7 @@ def load_flight(
     logs, excl, alignment = {}, {}, {}
     for v in entry.vehicles:
         raw, alignment[v.name] = align_log(read_vehicle_log(v, log_format), v)
-        log, ex = check_log(
-            raw, weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options
-        )
+        log, ex = check_log(raw, weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options)
         if len(log) == 0:
             raise UserError(f"{v.log}: no usable samples after quality checks (ground/idle/NaN); flight {entry.name}")
         logs[v.name], excl[v.name] = log, ex

@@ -28,11 +28,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from proxplan.fileio import UserError
 from proxplan.identify.thrust_map import CEILING, FLOOR, PWM_FLOOR, ThrustMap
+
+if TYPE_CHECKING:
+    from proxplan.identify.flightlog import VehicleLog
+    from proxplan.identify.measure import MeasureOptions
+    from proxplan.physics import Vehicle
 
 PWM_FULL_SCALE = 65536
 """Raw PWM counts per unit of the normalised PWM (the Neural-Swarm logs' normalisation, pwm / 65536)."""
@@ -99,9 +105,9 @@ class FreeFlight:
     """One train log for the scale fit: its vehicle, log (thrust at scale 1), measurement options and
     free-flight samples (N,) bool."""
 
-    vehicle: object  # proxplan.physics.Vehicle
-    log: object  # proxplan.identify.flightlog.VehicleLog
-    options: object  # proxplan.identify.measure.MeasureOptions of this vehicle (motor lag)
+    vehicle: Vehicle
+    log: VehicleLog  # thrust at scale 1 of the base map
+    options: MeasureOptions  # this vehicle's (motor lag)
     free: np.ndarray
 
 
@@ -133,7 +139,7 @@ def calibrate_scale(samples: Sequence[FreeFlight]) -> tuple[float, int]:
     return 1.0 + num / den, n
 
 
-def free_flight_mask(log, ground_z_m: float, others: Sequence[tuple[float, object]]) -> np.ndarray:
+def free_flight_mask(log: VehicleLog, ground_z_m: float, others: Sequence[tuple[float, VehicleLog]]) -> np.ndarray:
     """(N,) bool: samples of ``log`` in free flight: rotor plane above
     :data:`proxplan.identify.motor_check.FREE_HEIGHT_M`, no other vehicle above within r < 3 L of it
     (``others``: (its size L in m, its log), positions interpolated onto this clock), every motor in range
@@ -147,6 +153,7 @@ def free_flight_mask(log, ground_z_m: float, others: Sequence[tuple[float, objec
     for size_m, other in others:
         off = log.position_m - interpolate_position_m(other, log.t_s)
         free &= ~((-off[:, 2] > 0.0) & (np.hypot(off[:, 0], off[:, 1]) < 3.0 * size_m))
+    assert log.motor_pwm is not None  # a log without forces holds its PWM (identify.formats.contract)
     limit = np.any(pwm_limits(log.motor_pwm) != 0, axis=1).astype(np.uint8)
     dt = float(np.median(np.diff(log.t_s))) if len(log) > 1 else 0.01
     near = maximum_filter1d(limit, size=2 * max(1, int(round(0.2 / dt))) + 1, mode="nearest") > 0

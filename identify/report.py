@@ -127,8 +127,11 @@ def exclusion_lines(exclusions: dict) -> list[str]:
     for flight, per in exclusions.items():
         parts = "; ".join(
             f"{n}: "
-            + ", ".join([f"{k} {v}" for k, v in e.items() if isinstance(v, int) and not isinstance(v, bool) and v]
-                        + [f"thrust {e['thrust_source']}"] * ("thrust_source" in e) + _clock(e))  # fmt: skip
+            + ", ".join(
+                [f"{k} {v}" for k, v in e.items() if isinstance(v, int) and not isinstance(v, bool) and v]
+                + [f"thrust {e['thrust_source']}"] * ("thrust_source" in e)
+                + _clock(e)
+            )  # fmt: skip
             for n, e in per.items()
         )
         lines.append(f"- {flight}: {parts}")

@@ -92,10 +92,16 @@ def identify_and_evaluate(manifest_path: Path, flights: str) -> dict:
         "two_vehicle_swaps": _pooled([sets[k] for k in TWO_VEHICLE_SETS if k in sets]),
         "day21": _pooled(day21),
         "day23": _pooled(day23),
-        "all_test": {"rmse_fz_g": ev["rmse_fz_g"], "no_model_rmse_fz_g": ev["no_model"]["rmse_fz_g"],
-                     "ratio_fz": ev["ratio_fz"], "n_samples": ev["n_samples"]},  # fmt: skip
-        "sets": {k: {"rmse_fz_g": v["rmse_fz_g"], "ratio_fz": v["ratio_fz"], "n_samples": v["n_samples"]}
-                 for k, v in sets.items()},  # fmt: skip
+        "all_test": {
+            "rmse_fz_g": ev["rmse_fz_g"],
+            "no_model_rmse_fz_g": ev["no_model"]["rmse_fz_g"],
+            "ratio_fz": ev["ratio_fz"],
+            "n_samples": ev["n_samples"],
+        },  # fmt: skip
+        "sets": {
+            k: {"rmse_fz_g": v["rmse_fz_g"], "ratio_fz": v["ratio_fz"], "n_samples": v["n_samples"]}
+            for k, v in sets.items()
+        },  # fmt: skip
         "identify_after_rmse_fz_N": result.after.rmse_fz_N,
         "selected": list(result.selected),
         "thrust_source": {name: d["thrust_source"] for name, d in ev["measurement"]["saturation"].items()},
@@ -129,8 +135,12 @@ def main() -> int:
         for day in ("day21", "day23"):
             d = fig[day]
             if d["n_samples"]:
-                print(f"{path}: {day} test: {d['rmse_fz_g']:.2f} g, {d['ratio_fz']:.3f} of no model ({d['n_samples']} samples)")
-        print(f"{path}: thrust sources {fig['thrust_source']}; maps {[(t, m['source']) for t, m in fig['thrust_maps'].items()]}")
+                print(
+                    f"{path}: {day} test: {d['rmse_fz_g']:.2f} g, {d['ratio_fz']:.3f} of no model ({d['n_samples']} samples)"
+                )
+        print(
+            f"{path}: thrust sources {fig['thrust_source']}; maps {[(t, m['source']) for t, m in fig['thrust_maps'].items()]}"
+        )
     text = json.dumps(figures, indent=2, default=float)
     if args.json:
         args.json.write_text(text)

@@ -53,7 +53,9 @@ def _peak(corr: np.ndarray) -> float:
     return float(k)
 
 
-def estimate_offset(t_log: np.ndarray, p_log: np.ndarray, t_ref: np.ndarray, p_ref: np.ndarray, *, where: str) -> Alignment:
+def estimate_offset(
+    t_log: np.ndarray, p_log: np.ndarray, t_ref: np.ndarray, p_ref: np.ndarray, *, where: str
+) -> Alignment:
     """Offset (s) that puts the log's positions ``p_log`` (N, 3) at ``t_log`` (N,) onto the track
     ``p_ref`` (M, 3) at ``t_ref`` (M,); UserError naming ``where`` when nothing moves."""
     from scipy.signal import correlate
@@ -104,7 +106,7 @@ def read_track(path) -> tuple[np.ndarray, np.ndarray]:
     if detect_format(path) == "csv":
         opener = gzip.open if path.suffix == ".gz" else open
         try:
-            with opener(path, "rt") as fh:  # type: ignore[operator]
+            with opener(path, "rt") as fh:
                 head = [h.strip() for h in fh.readline().lstrip("#").split(",")]
         except (OSError, UnicodeDecodeError) as err:
             raise UserError(f"{path}: cannot read the motion-capture track ({err})") from None

@@ -66,7 +66,7 @@ def _header(path: Path) -> list[str]:
     import gzip
 
     opener = gzip.open if path.suffix == ".gz" else open
-    with opener(path, "rt") as fh:  # type: ignore[operator]
+    with opener(path, "rt") as fh:
         return [h.strip() for h in fh.readline().lstrip("#").split(",")]
 
 

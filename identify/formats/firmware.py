@@ -39,6 +39,8 @@ def log_from_streams(
         for t, values in streams:
             if table[key] in values:
                 v = np.asarray(values[table[key]], dtype=float)
-                columns[key] = v if t is streams[int(np.argmax(held))][0] else np.interp(t_main, t, v, left=np.nan, right=np.nan)
+                columns[key] = (
+                    v if t is streams[int(np.argmax(held))][0] else np.interp(t_main, t, v, left=np.nan, right=np.nan)
+                )
                 break
     return vehicle_log(t_main, columns, source=source)

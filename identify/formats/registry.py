@@ -48,8 +48,8 @@ def read_vehicle_log(entry: VehicleEntry, manifest_format: str = "") -> VehicleL
         what = "a CSV or unknown file" if found == "csv" else f"a {found} log"
         raise UserError(f"{entry.log}: the manifest says format: {manifest_format}, but the file is {what}")
     if found == "usdlog":
-        from proxplan.identify.formats.usdlog import read_usdlog
         from proxplan.identify.formats.firmware import log_from_streams
+        from proxplan.identify.formats.usdlog import read_usdlog
 
         usd = read_usdlog(entry.log)
         streams = [(e.t_s, e.values) for e in usd.events.values() if len(e.t_s)]

@@ -55,7 +55,9 @@ def _reader(path: Path):
     except FileNotFoundError:
         raise UserError(f"{path}: log file not found") from None
     except Exception as err:  # rosbags raises its own errors (and sqlite3's) on a file that is no bag
-        raise UserError(f"{path}: not a readable ROS 2 bag ({str(err).splitlines()[0] if str(err) else type(err).__name__})") from None
+        raise UserError(
+            f"{path}: not a readable ROS 2 bag ({str(err).splitlines()[0] if str(err) else type(err).__name__})"
+        ) from None
     return reader
 
 
@@ -85,7 +87,9 @@ def read_topics(path: str | Path, topics: Mapping[str, Any]) -> list[tuple[np.nd
         present = {c.topic: c for c in reader.connections}
         for topic in wanted:
             if topic not in present:
-                raise UserError(f"{path}: topic {topic} not in the bag (topics: {', '.join(sorted(present)) or 'none'})")
+                raise UserError(
+                    f"{path}: topic {topic} not in the bag (topics: {', '.join(sorted(present)) or 'none'})"
+                )
         conns = [present[t] for t in wanted]
         for conn, receive_ns, raw in reader.messages(connections=conns):
             kind, names = wanted[conn.topic]
@@ -119,7 +123,9 @@ def read_topics(path: str | Path, topics: Mapping[str, Any]) -> list[tuple[np.nd
     return streams
 
 
-def read_bag_vehicle(path: str | Path, topics: Mapping[str, Any], *, overrides: Mapping[str, str] | None = None) -> VehicleLog:
+def read_bag_vehicle(
+    path: str | Path, topics: Mapping[str, Any], *, overrides: Mapping[str, str] | None = None
+) -> VehicleLog:
     """One vehicle of a bag as a :class:`VehicleLog` (its ``topics``; module docstring)."""
     from proxplan.identify.formats.firmware import log_from_streams
 

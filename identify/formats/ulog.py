@@ -54,7 +54,9 @@ def _open(path: Path):
     except FileNotFoundError:
         raise UserError(f"{path}: log file not found") from None
     except Exception as err:  # pyulog raises plain exceptions on a malformed file
-        raise UserError(f"{path}: not a readable PX4 ULog ({str(err).splitlines()[0] if str(err) else type(err).__name__})") from None
+        raise UserError(
+            f"{path}: not a readable PX4 ULog ({str(err).splitlines()[0] if str(err) else type(err).__name__})"
+        ) from None
 
 
 def _topics(ulog) -> dict[str, Any]:
@@ -116,5 +118,11 @@ def describe_ulog(path: str | Path) -> dict[str, Any]:
     fac = ulog.initial_parameters.get("THR_MDL_FAC")
     mapping = {t: ", ".join(TOPICS[t]) for t in topics if t in TOPICS}
     thrust = f"from actuator_motors through PX4's thrust model (THR_MDL_FAC {fac if fac is not None else 'absent: 0'})"
-    vehicle = {"name": path.name.split(".")[0], "streams": streams, "mapping": mapping, "missing": missing, "thrust": thrust}
+    vehicle = {
+        "name": path.name.split(".")[0],
+        "streams": streams,
+        "mapping": mapping,
+        "missing": missing,
+        "thrust": thrust,
+    }
     return {"path": str(path), "format": "ulog", "truncated": False, "note": "", "vehicles": [vehicle]}

@@ -102,11 +102,14 @@ def read_usdlog(path: str | Path) -> UsdLog:
             raise UserError(f"{path}: uSD log header cut in event {name!r}")
         (n_vars,) = struct.unpack_from("<H", data, idx)
         idx += 2
-        names, types = [], ""
+        names: list[str] = []
+        types = ""
         for _ in range(n_vars):
             spec, idx = _name(data, idx, where)
             if len(spec) < 4 or spec[-3] != "(" or spec[-1] != ")" or spec[-2] not in TYPE_CHARS:
-                raise UserError(f"{path}: event {name!r}: variable {spec!r} is not 'name(t)' with t one of {TYPE_CHARS}")
+                raise UserError(
+                    f"{path}: event {name!r}: variable {spec!r} is not 'name(t)' with t one of {TYPE_CHARS}"
+                )
             names.append(spec[:-3])
             types += spec[-2]
         defs[event_id] = (name, tuple(names), types, struct.Struct("<" + types))
@@ -133,11 +136,11 @@ def read_usdlog(path: str | Path) -> UsdLog:
         idx += head.size + body.size
     unit = _STAMP[version][1]
     events = {}
-    for event_id, (name, names, types, _) in defs.items():
-        table = np.array(rows[event_id], dtype=float).reshape(-1, len(names))
-        events[name] = UsdEvent(name=name, event_id=event_id, variables=names, types=types,
+    for event_id, (name, var_names, var_types, _) in defs.items():
+        table = np.array(rows[event_id], dtype=float).reshape(-1, len(var_names))
+        events[name] = UsdEvent(name=name, event_id=event_id, variables=var_names, types=var_types,
                                 t_s=np.asarray(stamps[event_id], dtype=float) * unit,
-                                values={v: table[:, k] for k, v in enumerate(names)})  # fmt: skip
+                                values={v: table[:, k] for k, v in enumerate(var_names)})  # fmt: skip
     return UsdLog(path=where, version=version, events=events, truncated=bool(note), note=note)
 
 

@@ -26,7 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("logs", nargs="+", metavar="LOG", help="log files (or ROS 2 bag folders)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--manifest", metavar="OUT.yaml", help="write a manifest for these logs")
-    p.add_argument("--type", default="crazyflie-2.1", help="vehicle type written into the manifest (default crazyflie-2.1)")
+    p.add_argument(
+        "--type", default="crazyflie-2.1", help="vehicle type written into the manifest (default crazyflie-2.1)"
+    )
     p.set_defaults(func=run)
 
 
@@ -37,13 +39,15 @@ def run(args: argparse.Namespace) -> int:
     from proxplan.identify.formats.describe import describe_log, manifest_skeleton
 
     described = [describe_log(p) for p in args.logs]
-    doc = {"logs": described}
+    doc: dict = {"logs": described}
     if args.manifest:
         out = check_output_file(args.manifest, flag="--manifest")
         root = Path(os.path.commonpath([str(Path(d["path"]).resolve().parent) for d in described]))
         manifest = manifest_skeleton(described, vehicle_type=args.type, root=root)
         manifest["root"] = os.path.relpath(root, Path(out).resolve().parent)
-        schema = os.path.relpath(Path(__file__).resolve().parents[2] / "schemas" / "manifest.json", Path(out).resolve().parent)
+        schema = os.path.relpath(
+            Path(__file__).resolve().parents[2] / "schemas" / "manifest.json", Path(out).resolve().parent
+        )
         text = (f"# yaml-language-server: $schema={schema}\n"
                 f"# written by proxplan logs; check each vehicle's type and the flights' splits\n"
                 + yaml.safe_dump(manifest, sort_keys=False))  # fmt: skip
@@ -58,7 +62,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"  vehicle {v['name']}: thrust {v['thrust']}")
             for s in v["streams"]:
                 rate = f"{s['rate_hz']:.1f} Hz" if s["rate_hz"] else "-"
-                print(f"    {s['name']}: {s['samples']} samples, {rate}, {s['duration_s']:.2f} s: {', '.join(s['variables'])}")
+                print(
+                    f"    {s['name']}: {s['samples']} samples, {rate}, {s['duration_s']:.2f} s: {', '.join(s['variables'])}"
+                )
             mapped = [f"{k}<-{n}" for k, n in v["mapping"].items() if n]
             if mapped:
                 print(f"    contract: {', '.join(mapped)}")

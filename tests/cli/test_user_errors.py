@@ -28,8 +28,13 @@ def generated_manifest(tmp_path_factory):
     root = tmp_path_factory.mktemp("generated_logs")
     veh = BUILTIN_VEHICLES["crazyflie-2.1"]
     t = np.arange(0.0, 3.0, 0.01)
-    pos = {"a": np.column_stack([0 * t, 0 * t, 1.2 + 0 * t]), "b": np.column_stack([0 * t, 0 * t, 0.8 + 0.05 * np.sin(t)])}
-    flights = [(f"f{k}", split, synthetic_logs({"a": veh, "b": veh}, pos, t)) for k, split in enumerate(("train", "test"))]
+    pos = {
+        "a": np.column_stack([0 * t, 0 * t, 1.2 + 0 * t]),
+        "b": np.column_stack([0 * t, 0 * t, 0.8 + 0.05 * np.sin(t)]),
+    }
+    flights = [
+        (f"f{k}", split, synthetic_logs({"a": veh, "b": veh}, pos, t)) for k, split in enumerate(("train", "test"))
+    ]
     return write_synthetic_manifest(root, flights, "crazyflie-2.1")
 
 
@@ -46,8 +51,9 @@ def _writing_commands(plan_dir, target, manifest):
 
 
 @pytest.mark.parametrize("case", ["existing-file", "under-a-file"])
-def test_unwritable_out_is_one_line_for_every_command_that_writes(battery_swap_plan, generated_manifest, tmp_path,
-                                                                  proxplan, case):
+def test_unwritable_out_is_one_line_for_every_command_that_writes(
+    battery_swap_plan, generated_manifest, tmp_path, proxplan, case
+):
     blocker = tmp_path / "blocker"
     blocker.write_text("not a folder")
     target = blocker if case == "existing-file" else blocker / "sub"

@@ -16,7 +16,9 @@ def _msg(kind: str, payload: bytes) -> bytes:
     return struct.pack("<HB", len(payload), ord(kind)) + payload
 
 
-def write_ulog(path: Path, topics: Mapping[str, tuple[np.ndarray, Mapping[str, np.ndarray]]], params: Mapping[str, float]) -> Path:
+def write_ulog(
+    path: Path, topics: Mapping[str, tuple[np.ndarray, Mapping[str, np.ndarray]]], params: Mapping[str, float]
+) -> Path:
     """A ULog (version 1) holding ``topics``: name -> (timestamps (N,) us, {field: (N,) or (N, k) floats}),
     every field a float32 (array fields float[k]), plus float parameters ``params``.
 
@@ -47,8 +49,13 @@ def write_ulog(path: Path, topics: Mapping[str, tuple[np.ndarray, Mapping[str, n
     return path
 
 
-def write_pose_log_bag(path: Path, vehicles: Mapping[str, tuple[np.ndarray, Mapping[str, np.ndarray]]], *,
-                       storage: str = "mcap", vars_: list[str]) -> Path:
+def write_pose_log_bag(
+    path: Path,
+    vehicles: Mapping[str, tuple[np.ndarray, Mapping[str, np.ndarray]]],
+    *,
+    storage: str = "mcap",
+    vars_: list[str],
+) -> Path:
     """A ROS 2 bag (rosbags' own writer) with, per vehicle NAME, ``/NAME/pose`` (PoseStamped from the
     stateEstimate.x/y/z/qx..qw columns) and ``/NAME/log1`` (LogDataGeneric holding ``vars_`` in order)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -75,7 +82,9 @@ def write_pose_log_bag(path: Path, vehicles: Mapping[str, tuple[np.ndarray, Mapp
                     position=point(x=c["stateEstimate.x"], y=c["stateEstimate.y"], z=c["stateEstimate.z"]),
                     orientation=quat(x=c["stateEstimate.qx"], y=c["stateEstimate.qy"], z=c["stateEstimate.qz"],
                                      w=c["stateEstimate.qw"])))  # fmt: skip
-                lg = ldg(header=h, timestamp=np.uint32(ns // 10**6), values=np.array([c[v] for v in vars_], dtype=float))
+                lg = ldg(
+                    header=h, timestamp=np.uint32(ns // 10**6), values=np.array([c[v] for v in vars_], dtype=float)
+                )
                 records.append((ns, conns[n][0], store.serialize_cdr(p, pose_t.__msgtype__)))
                 records.append((ns, conns[n][1], store.serialize_cdr(lg, ldg.__msgtype__)))
         for ns, conn, raw in sorted(records, key=lambda r: r[0]):

@@ -20,7 +20,7 @@ from proxplan.identify import IdentifyOptions, run_identify, synthetic_logs, wri
 from proxplan.identify.flightlog import VehicleEntry
 from proxplan.identify.formats import read_usdlog, read_vehicle_log, write_usdlog
 from proxplan.identify.formats.contract import firmware_columns
-from proxplan.identify.pwm_thrust import FOERSTER_COEF, foerster_map
+from proxplan.identify.pwm_thrust import foerster_map
 from proxplan.physics import BUILTIN_VEHICLES, Effect
 from tests.identify.log_writers import write_pose_log_bag, write_ulog
 
@@ -244,9 +244,11 @@ def test_bad_logs_are_one_line_errors_and_write_nothing(tmp_path: Path, flights,
     m = _manifest(tmp_path, "usdlog", [("f0", "train", {"a": "junk.usd"}), ("f1", "test", {"a": "junk.usd"})])
     _one_line(capsys, main(["identify", str(m), "--out", str(tmp_path / "o1")]), str(junk), "usdlog")
     log = flights[0][2]["a"]
-    bag = write_pose_log_bag(tmp_path / "bag", {"cf1": (log.t_s, {k: c for k, (_, c) in firmware_columns(log).items()})},
+    write_pose_log_bag(tmp_path / "bag", {"cf1": (log.t_s, {k: c for k, (_, c) in firmware_columns(log).items()})},
                              vars_=LOG_VARS)  # fmt: skip
-    m = _manifest(tmp_path, "rosbag", [("f0", "train", {"cf9": "bag"}), ("f1", "test", {"cf9": "bag"})], {"cf9": _topics("cf9")})
+    m = _manifest(
+        tmp_path, "rosbag", [("f0", "train", {"cf9": "bag"}), ("f1", "test", {"cf9": "bag"})], {"cf9": _topics("cf9")}
+    )
     _one_line(capsys, main(["identify", str(m), "--out", str(tmp_path / "o2")]), "topic /cf9/pose not in the bag")
     no_motors = tmp_path / "no_motors.ulg"  # a ULog of every topic but actuator_motors
     write_ulog(no_motors, {k: v for k, v in _ulog_topics(log).items() if k != "actuator_motors"}, {"THR_MDL_FAC": FAC})
@@ -275,7 +277,9 @@ def test_logs_writes_a_manifest_evaluate_accepts(tmp_path: Path, flights, capsys
     doc = json.loads(capsys.readouterr().out)
     assert len(doc["logs"]) == 4 and all(d["format"] == "usdlog v2" for d in doc["logs"])
     v = doc["logs"][0]["vehicles"][0]
-    assert v["missing"] == [] and v["mapping"]["acc_x"] == "acc.x" and v["streams"][0]["rate_hz"] == pytest.approx(100.0)
+    assert (
+        v["missing"] == [] and v["mapping"]["acc_x"] == "acc.x" and v["streams"][0]["rate_hz"] == pytest.approx(100.0)
+    )
     assert out.read_text().startswith("# yaml-language-server: $schema=")
     manifest = load_manifest(out)
     assert [f.split for f in manifest.flights] == ["train", "test"] and manifest.format == "usdlog"
@@ -292,7 +296,9 @@ def test_clock_offset_found_by_cross_correlation_with_mocap(tmp_path: Path, flig
     for v, log in logs.items():
         late = log.take(np.arange(150, len(log)))  # the log starts 1.5 s into the track
         shifted = replace(late, t_s=late.t_s + 37.123)  # on the vehicle's own clock
-        paths[v] = write_usdlog(tmp_path / f"{v}.usd", {"fixedFrequency": (shifted.t_s, firmware_columns(shifted))}).name
+        paths[v] = write_usdlog(
+            tmp_path / f"{v}.usd", {"fixedFrequency": (shifted.t_s, firmware_columns(shifted))}
+        ).name
         track = np.column_stack([log.t_s, log.position_m])  # the motion-capture system's clock
         np.savetxt(tmp_path / f"{v}_mocap.csv", track, delimiter=",", header="t_s,x_m,y_m,z_m", comments="")
     extra = {v: {"mocap_log": f"{v}_mocap.csv"} for v in logs}
