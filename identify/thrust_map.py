@@ -65,6 +65,7 @@ class ThrustMap:
     monotonic: bool = True  # P rises over the fitted range up to x_max
     inlier_fraction: float = 1.0  # share of samples below the ceiling kept by the robust refit, -
     source: str = "fitted"  # fitted on logged u[N]; "published:..." / "free-flight-scale:..." (identify.pwm_thrust)
+    scale: float = 1.0  # free-flight scale applied to a base / published map (identify.pwm_thrust), -
 
     @property
     def usable(self) -> bool:
@@ -92,7 +93,7 @@ class ThrustMap:
         return {"coef": [float(c) for c in self.coef], "x_max_V": self.x_max_V, "rms_N": self.rms_N,
                 "n_fit": self.n_fit, "r2": self.r2, "monotonic": self.monotonic,
                 "inlier_fraction": self.inlier_fraction, "max_thrust_N": self.max_thrust_N,
-                "source": self.source}  # fmt: skip
+                "source": self.source, "scale": self.scale}  # fmt: skip
 
     @staticmethod
     def from_dict(data: Any, where: str) -> ThrustMap:
@@ -103,7 +104,7 @@ class ThrustMap:
                             n_fit=int(data.get("n_fit", 0)), r2=float(data.get("r2", 1.0)),
                             monotonic=bool(data.get("monotonic", True)),
                              inlier_fraction=float(data.get("inlier_fraction", 1.0)),
-                             source=str(data.get("source", "fitted")))  # fmt: skip
+                             source=str(data.get("source", "fitted")), scale=float(data.get("scale", 1.0)))  # fmt: skip
         except (KeyError, TypeError, ValueError):
             raise UserError(f"{where}: expected a mapping with coef (4 numbers) and x_max_V (V)") from None
         if len(coef) != 4 or not out.x_max_V > 0:

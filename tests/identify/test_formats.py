@@ -75,6 +75,12 @@ def _canonical_copy(root: Path, flight_logs: list) -> Path:
     return _manifest(root, "canonical", entries)
 
 
+def _with_map(flight_logs: list, tmap) -> list:
+    """The read-back flights with the forces the pipeline's thrust map ``tmap`` gives their PWM."""
+    return [(n, s, {v: replace(log, motor_thrust_N=tmap.thrust_N(log.motor_pwm, log.vbat_V)) for v, log in r.items()})
+            for n, s, r in flight_logs]  # fmt: skip
+
+
 def _figures(manifest: Path) -> dict:
     r = run_identify(manifest, options=FAST, thrust_summary=False)
     return {"before": r.before.to_json(), "calibrated": r.calibrated.to_json(), "after": r.after.to_json(),
@@ -85,7 +91,7 @@ def _figures(manifest: Path) -> dict:
 def _same_figures(a: dict, b: dict) -> None:
     for key in ("before", "calibrated", "after"):
         for metric, value in a[key].items():
-            assert b[key][metric] == pytest.approx(value, rel=1e-6), (key, metric)
+            assert b[key][metric] == pytest.approx(value, rel=1e-6, abs=1e-9), (key, metric)  # N, N m
     assert a["selected"] == b["selected"]
 
 
@@ -137,9 +143,12 @@ def test_usdlog_identify_gives_the_canonical_figures(tmp_path: Path, flights) ->
         entries.append((name, split, paths))
         back.append((name, split, read))
     usd = _figures(_manifest(tmp_path, "usdlog", entries))
-    canonical = _figures(_canonical_copy(tmp_path, back))
+    tmap = usd["maps"][TYPE]  # the published map, its scale checked in free flight ('a': nobody above it)
+    assert set(usd["sources"].values()) == {"pwm_published_map_free_flight_scale"}
+    weight = VEH.mass_kg * 9.81  # the logs follow the published map exactly, plus a hidden 0.01 N bias
+    assert tmap.scale == pytest.approx(weight / (weight - 0.01), rel=0.003)
+    canonical = _figures(_canonical_copy(tmp_path, _with_map(back, tmap)))
     _same_figures(canonical, usd)
-    assert set(usd["sources"].values()) == {"pwm_published_map"}
     assert set(canonical["sources"].values()) == {"logged_u"}
     assert usd["after"]["rmse_fz_N"] < 0.8 * usd["before"]["rmse_fz_N"]  # the hidden thrust bias is found
 
@@ -172,7 +181,7 @@ def test_rosbag_reads_back_and_identifies_like_canonical(tmp_path: Path, flights
     if storage == "sqlite3":
         return  # the read-back holds for both storages; identify once (mcap)
     bag_fig = _figures(_manifest(tmp_path, "rosbag", entries, {v: _topics(v) for v in ("a", "b")}))
-    _same_figures(_figures(_canonical_copy(tmp_path, back)), bag_fig)
+    _same_figures(_figures(_canonical_copy(tmp_path, _with_map(back, bag_fig["maps"][TYPE]))), bag_fig)
 
 
 FAC, THRUST_MAX_N = 0.3, 0.16  # PX4 thrust model factor and full-command thrust of the ULog vehicle
@@ -223,9 +232,7 @@ def test_ulog_reads_back_and_identifies_like_canonical(tmp_path: Path, flights) 
     # indistinguishable from a thrust scale there, and goes into it
     weight = VEH.mass_kg * 9.81
     assert tmap.thrust_at_N(np.array(1.0)) == pytest.approx(THRUST_MAX_N * weight / (weight - 0.01), rel=0.003)
-    back = [(n, s, {v: replace(log, motor_thrust_N=tmap.thrust_N(log.motor_pwm, log.vbat_V)) for v, log in r.items()})
-            for n, s, r in back]  # fmt: skip
-    _same_figures(_figures(_canonical_copy(tmp_path, back)), ulog)
+    _same_figures(_figures(_canonical_copy(tmp_path, _with_map(back, tmap))), ulog)
 
 
 def _one_line(capsys, code: int, *needles: str) -> None:
