@@ -197,8 +197,12 @@ def load_units(
     """
     from scipy.spatial.transform import Rotation
 
+    from proxplan.identify.formats import read_aligned
     from proxplan.identify.thrust_rls import thrust_samples
     from proxplan.physics import load_vehicle_file, resolve_vehicle
+
+    def reader(v):  # any format (CSV, uSD, bag, ULog), its clock on the flight's (identify.formats.align)
+        return read_aligned(v, manifest.format)
 
     custom = load_vehicle_file(manifest.vehicles_file) if manifest.vehicles_file else None
     types: dict[str, Vehicle] = {}
@@ -210,7 +214,7 @@ def load_units(
             vehicles[v.name] = types.setdefault(
                 v.type, resolve_vehicle(v.type, custom, where=f"{manifest.path}: flight {entry.name}: {v.name}.type")
             )
-        flights.append((entry, load_flight(entry, vehicles, options=manifest.quality, log_format=manifest.format)))
+        flights.append((entry, load_flight(entry, vehicles, options=manifest.quality, reader=reader)))
     if thrust_maps is None:
         per_type: dict[str, list[MotorSamples]] = {}
         for entry, flight in flights:
@@ -222,7 +226,9 @@ def load_units(
         if any(not log.thrust_logged for _, fl in flights for log in fl.logs.values()):  # PWM-only logs (uSD, ...)
             from proxplan.identify.pwm_thrust import forceless_maps
 
-            thrust_maps |= forceless_maps(flights, types, manifest.motor_thrust, options.measure)[0]
+            thrust_maps |= forceless_maps(
+                flights, types, lambda veh: measure_options_for(options.measure, veh, manifest.motor_thrust)
+            )[0]
     notes: list[str] = []
     units = []
     logs: dict[tuple[str, str], tuple[Vehicle, VehicleLog]] = {}

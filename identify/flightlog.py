@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import gzip
 import io
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -418,18 +418,16 @@ def load_flight(
     vehicles: Mapping[str, Any],
     *,
     options: QualityOptions = QualityOptions(),
-    log_format: str = "",
+    reader: Callable[[VehicleEntry], tuple[VehicleLog, dict]] | None = None,
 ) -> Flight:
     """Read, check and time-align the logs of one flight (each vehicle keeps its own clock).
 
     ``vehicles`` maps each vehicle name of the entry to its :class:`Vehicle`. Samples outside the
     time overlap of all the flight's vehicles are excluded (counted); no overlap is a UserError.
     """
-    from proxplan.identify.formats import align_log, read_vehicle_log
-
     logs, excl, alignment = {}, {}, {}
     for v in entry.vehicles:
-        raw, alignment[v.name] = align_log(read_vehicle_log(v, log_format), v)
+        raw, alignment[v.name] = reader(v) if reader is not None else (read_log(v.log), {})
         log, ex = check_log(raw, weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options)
         if len(log) == 0:
             raise UserError(f"{v.log}: no usable samples after quality checks (ground/idle/NaN); flight {entry.name}")

@@ -32,7 +32,7 @@ is right either way (it is the PWM's force), only the ``at_limit`` strata and th
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -150,13 +150,13 @@ def calibrate_scale(samples: Sequence[FreeFlight]) -> tuple[float, int]:
 
 def free_flight_mask(log: VehicleLog, ground_z_m: float, others: Sequence[tuple[float, VehicleLog]]) -> np.ndarray:
     """(N,) bool: samples of ``log`` in free flight: rotor plane above
-    :data:`proxplan.identify.motor_check.FREE_HEIGHT_M`, no other vehicle above within r < 3 L of it
+    :data:`proxplan.identify.measure.FREE_HEIGHT_M`, no other vehicle above within r < 3 L of it
     (``others``: (its size L in m, its log), positions interpolated onto this clock), every motor in range
     within +-0.2 s (no PWM at its floor or full scale)."""
     from scipy.ndimage import maximum_filter1d
 
     from proxplan.identify.flightlog import interpolate_position_m
-    from proxplan.identify.motor_check import FREE_HEIGHT_M
+    from proxplan.identify.measure import FREE_HEIGHT_M
 
     free = log.position_m[:, 2] - ground_z_m > FREE_HEIGHT_M
     for size_m, other in others:
@@ -200,12 +200,11 @@ def thrust_source_of(tmap: ThrustMap) -> str:
 
 
 def forceless_maps(
-    flights: Sequence[tuple], types: Mapping[str, object], motor_thrust: str, measure_options
+    flights: Sequence[tuple], types: Mapping[str, Vehicle], options_for: Callable[[Vehicle], MeasureOptions]
 ) -> tuple[dict[str, ThrustMap], dict[str, str]]:
     """:func:`pwm_thrust_maps` for the vehicle types of ``flights`` ((FlightEntry, Flight) pairs) whose
-    logs hold no force, calibrated on their TRAIN flights (validation and test flights fit nothing)."""
-    from proxplan.identify.data import measure_options_for
-
+    logs hold no force, calibrated on their TRAIN flights (validation and test flights fit nothing);
+    ``options_for(vehicle)``: its measurement options (motor lag)."""
     shapes: dict[str, str] = {}
     free: dict[str, list[FreeFlight]] = {}
     for entry, flight in flights:
@@ -218,8 +217,8 @@ def forceless_maps(
                                 f"{v.type} follow {shapes[v.type]}; one base map per vehicle type")  # fmt: skip
             if entry.split != "train":
                 continue
-            others = [(types[o.type].size_m, flight.logs[o.name]) for o in entry.vehicles if o.name != v.name]  # type: ignore[attr-defined]
+            others = [(types[o.type].size_m, flight.logs[o.name]) for o in entry.vehicles if o.name != v.name]
             veh = flight.vehicles[v.name]
-            free.setdefault(v.type, []).append(FreeFlight(veh, log, measure_options_for(measure_options, veh, motor_thrust),
+            free.setdefault(v.type, []).append(FreeFlight(veh, log, options_for(veh),
                                                           free_flight_mask(log, v.ground_z_m, others)))  # fmt: skip
     return pwm_thrust_maps(shapes, free)

@@ -37,9 +37,7 @@ TWO_VEHICLE_SETS = ("swap_sl", "swap_ss", "swap_ll")
 def rewrite_as_usd(manifest_path: Path, out: Path, flights: str) -> Path:
     """Write every log of ``manifest_path`` (flights matching ``flights``) as a uSD log under ``out``
     and a ``format: usdlog`` manifest beside them; returns the manifest path."""
-    from proxplan.identify import load_manifest, read_log
-    from proxplan.identify.formats import write_usdlog
-    from proxplan.identify.formats.contract import firmware_columns
+    from proxplan.identify import firmware_columns, load_manifest, read_log, write_usdlog
 
     manifest = load_manifest(manifest_path)
     entries = []

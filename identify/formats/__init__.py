@@ -8,8 +8,10 @@ decoder and writer :func:`read_usdlog`, :func:`write_usdlog` (:mod:`.usdlog`); :
 the manifest's offset, or cross-correlated with a motion-capture track, :mod:`.align`).
 """
 
-from proxplan.identify.formats.contract import CONTRACT, CRAZYFLIE_VARIABLES
-from proxplan.identify.formats.registry import LOG_FORMATS, align_log, detect_format, read_vehicle_log
+from proxplan.identify.formats.align import align_log, read_aligned
+from proxplan.identify.formats.contract import CONTRACT, CRAZYFLIE_VARIABLES, firmware_columns
+from proxplan.identify.formats.describe import describe_log, manifest_skeleton
+from proxplan.identify.formats.registry import LOG_FORMATS, detect_format, read_vehicle_log
 from proxplan.identify.formats.usdlog import UsdLog, read_usdlog, usdlog_bytes, write_usdlog
 
 __all__ = [
@@ -18,6 +20,10 @@ __all__ = [
     "LOG_FORMATS",
     "UsdLog",
     "align_log",
+    "describe_log",
+    "firmware_columns",
+    "manifest_skeleton",
+    "read_aligned",
     "detect_format",
     "read_usdlog",
     "read_vehicle_log",

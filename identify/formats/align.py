@@ -14,11 +14,13 @@ deviation), never below half a step (the resolution of the grid); both reported.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from proxplan.fileio import UserError
+from proxplan.identify.flightlog import VehicleEntry, VehicleLog
+from proxplan.identify.formats.registry import detect_format, read_vehicle_log
 
 MAX_LAG_S = 30.0
 """The search covers logs that start within this of the track's start (on their own clocks), s."""
@@ -99,9 +101,6 @@ def read_track(path) -> tuple[np.ndarray, np.ndarray]:
 
     import pandas as pd
 
-    from proxplan.identify.flightlog import VehicleEntry
-    from proxplan.identify.formats.registry import detect_format, read_vehicle_log
-
     path = Path(path)
     if detect_format(path) == "csv":
         opener = gzip.open if path.suffix == ".gz" else open
@@ -115,3 +114,21 @@ def read_track(path) -> tuple[np.ndarray, np.ndarray]:
             return data[:, 0], data[:, 1:4]
     log = read_vehicle_log(VehicleEntry(name="mocap", type="", log=path))
     return log.t_s, log.position_m
+
+
+def align_log(log: VehicleLog, entry: VehicleEntry) -> tuple[VehicleLog, dict]:
+    """``log`` on the flight's clock, and how (reported per vehicle): its own / the bag's clock plus the
+    manifest's ``time_offset_s`` (already added by the reader), or shifted onto its ``mocap_log`` track
+    by cross-correlation (offset and estimated error)."""
+    if entry.mocap_log is None:
+        how = "manifest offset" if entry.time_offset_s else "log clock"
+        return log, {"alignment": how, "time_offset_s": entry.time_offset_s, "alignment_error_s": None}
+    t_ref, p_ref = read_track(entry.mocap_log)
+    ok = np.all(np.isfinite(log.position_m), axis=1) & np.isfinite(log.t_s)
+    found = estimate_offset(log.t_s[ok], log.position_m[ok], t_ref, p_ref, where=str(entry.mocap_log))
+    return replace(log, t_s=log.t_s + found.offset_s), found.to_json()
+
+
+def read_aligned(entry: VehicleEntry, manifest_format: str = "") -> tuple[VehicleLog, dict]:
+    """:func:`proxplan.identify.formats.registry.read_vehicle_log` then :func:`align_log`."""
+    return align_log(read_vehicle_log(entry, manifest_format), entry)

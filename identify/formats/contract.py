@@ -28,7 +28,8 @@ map's force at scale 1 (for the quality checks' idle-motor test).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -56,6 +57,15 @@ CRAZYFLIE_VARIABLES = {
     "vbat": "pm.vbat",
 }  # fmt: skip
 """Contract name -> Crazyflie firmware log variable (uSD deck, cflib, Crazyswarm2 LogDataGeneric)."""
+
+
+def stream_summary(name: str, t_s: np.ndarray, variables: Sequence[str]) -> dict[str, Any]:
+    """One event / topic / CSV: its variables, samples, median rate (Hz), time span (s)."""
+    t = np.asarray(t_s, dtype=float)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else float("nan")
+    return {"name": name, "variables": list(variables), "samples": int(t.size),
+            "rate_hz": (1.0 / dt) if dt > 0 else None,
+            "start_s": float(t[0]) if t.size else None, "duration_s": float(t[-1] - t[0]) if t.size else 0.0}  # fmt: skip
 
 
 def variable_table(overrides: Mapping[str, str] | None, where: str) -> dict[str, str]:

@@ -8,19 +8,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from proxplan.identify.formats.contract import CONTRACT, variable_table
+from proxplan.identify.formats.contract import CONTRACT, stream_summary, variable_table
 from proxplan.identify.formats.registry import detect_format
-
-
-def stream_summary(name: str, t_s: np.ndarray, variables: Sequence[str]) -> dict[str, Any]:
-    """One event / topic / CSV: its variables, samples, median rate (Hz), time span (s)."""
-    t = np.asarray(t_s, dtype=float)
-    dt = float(np.median(np.diff(t))) if t.size > 1 else float("nan")
-    return {"name": name, "variables": list(variables), "samples": int(t.size),
-            "rate_hz": (1.0 / dt) if dt > 0 else None,
-            "start_s": float(t[0]) if t.size else None, "duration_s": float(t[-1] - t[0]) if t.size else 0.0}  # fmt: skip
 
 
 def contract_mapping(available: set[str], overrides: Mapping[str, str] | None = None) -> tuple[dict, list[str]]:

@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 from proxplan.fileio import UserError
 from proxplan.identify.flightlog import VehicleEntry, VehicleLog, read_log
 
@@ -69,18 +67,3 @@ def read_vehicle_log(entry: VehicleEntry, manifest_format: str = "") -> VehicleL
     if entry.time_offset_s:
         log = replace(log, t_s=log.t_s + entry.time_offset_s)
     return log
-
-
-def align_log(log: VehicleLog, entry: VehicleEntry) -> tuple[VehicleLog, dict]:
-    """``log`` on the flight's clock, and how (reported per vehicle): its own / the bag's clock plus the
-    manifest's ``time_offset_s``, or shifted onto its ``mocap_log`` track by cross-correlation
-    (:mod:`proxplan.identify.formats.align`, offset and estimated error)."""
-    if entry.mocap_log is None:
-        how = "manifest offset" if entry.time_offset_s else "log clock"
-        return log, {"alignment": how, "time_offset_s": entry.time_offset_s, "alignment_error_s": None}
-    from proxplan.identify.formats.align import estimate_offset, read_track
-
-    t_ref, p_ref = read_track(entry.mocap_log)
-    ok = np.all(np.isfinite(log.position_m), axis=1) & np.isfinite(log.t_s)
-    found = estimate_offset(log.t_s[ok], log.position_m[ok], t_ref, p_ref, where=str(entry.mocap_log))
-    return replace(log, t_s=log.t_s + found.offset_s), found.to_json()

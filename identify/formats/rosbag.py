@@ -137,7 +137,7 @@ def read_bag_vehicle(
 
 def describe_bag(path: str | Path, topics: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Topics of a bag grouped by vehicle namespace (``/cfN/...``) with type, count, rate and span."""
-    from proxplan.identify.formats.describe import stream_summary
+    from proxplan.identify.formats.contract import stream_summary
 
     path = Path(path)
     reader = _reader(path)

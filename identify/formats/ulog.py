@@ -105,7 +105,7 @@ def read_ulog(path: str | Path) -> VehicleLog:
 
 def describe_ulog(path: str | Path) -> dict[str, Any]:
     """Topics of a ULog with their rate and span, THR_MDL_FAC, and what is missing."""
-    from proxplan.identify.formats.describe import stream_summary
+    from proxplan.identify.formats.contract import stream_summary
 
     path = Path(path)
     ulog = _open(path)

@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     import yaml
 
     from proxplan.fileio import atomic_write_text, check_output_file
-    from proxplan.identify.formats.describe import describe_log, manifest_skeleton
+    from proxplan.identify import describe_log, manifest_skeleton
 
     described = [describe_log(p) for p in args.logs]
     doc: dict = {"logs": described}
