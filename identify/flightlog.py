@@ -211,8 +211,8 @@ def read_log(path: str | Path) -> VehicleLog:
         optional = CANONICAL_PWM_COLUMNS
     else:
         raise UserError(
-            f"{path}: unknown log layout; expected a header with 'time[ms]' (neural-swarm) "
-            f"or 't_s' (canonical, see docs/identify.md)"
+            f"{path}: not a flight log: expected a CSV whose header has 'time[ms]' (neural-swarm) or 't_s' "
+            "(canonical), a Crazyflie uSD log (magic byte 0xBC), a PX4 ULog or a ROS 2 bag (see docs/identify.md)"
         )
     missing = [col for col in wanted.values() if col not in names]
     if missing:
