@@ -1,6 +1,7 @@
 """Closing the loop with flight data (DESIGN.md section 6): read flight logs and manifests, measure
 the disturbance on every vehicle (S0-11, S0-13), calibrate the model's parameters on train flights,
-try candidate effects, and report the error before and after on test flights.
+try candidate effects, and report the error before and after on test flights. Logs: Neural-Swarm and
+canonical CSV, Crazyflie uSD, ROS 2 bags, PX4 ULog (:mod:`proxplan.identify.formats`).
 """
 
 from proxplan.identify.calibrate import VEHICLE_PARAMETERS, apply_vehicle_parameters
@@ -19,6 +20,7 @@ from proxplan.identify.flightlog import (
     read_log,
     write_canonical_csv,
 )
+from proxplan.identify.formats import describe_log, firmware_columns, manifest_skeleton, read_usdlog, write_usdlog
 from proxplan.identify.manifest import ManifestFile, load_manifest
 from proxplan.identify.measure import MeasuredWrench, MeasureOptions, measure_disturbance, measure_log
 from proxplan.identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
@@ -42,7 +44,12 @@ __all__ = [
     "MeasuredWrench",
     "VehicleEntry",
     "VehicleLog",
+    "describe_log",
     "discover_terms",
+    "firmware_columns",
+    "manifest_skeleton",
+    "read_usdlog",
+    "write_usdlog",
     "evaluate_model",
     "load_flight",
     "load_manifest",

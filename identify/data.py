@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from proxplan.fileio import UserError
 from proxplan.identify.flightlog import Flight, FlightEntry, Manifest, VehicleLog, interpolate_position_m, load_flight
 from proxplan.identify.measure import MeasureOptions, measure_log
 from proxplan.identify.thrust_map import (
@@ -219,8 +220,12 @@ def load_units(
     """
     from scipy.spatial.transform import Rotation
 
+    from proxplan.identify.formats import read_aligned
     from proxplan.identify.thrust_rls import thrust_samples
     from proxplan.physics import load_vehicle_file, mixer_matrix, resolve_vehicle
+
+    def reader(v):  # any format (CSV, uSD, bag, ULog), its clock on the flight's (identify.formats.align)
+        return read_aligned(v, manifest.format)
 
     custom = load_vehicle_file(manifest.vehicles_file) if manifest.vehicles_file else None
     types: dict[str, Vehicle] = {}
@@ -232,7 +237,7 @@ def load_units(
             vehicles[v.name] = types.setdefault(
                 v.type, resolve_vehicle(v.type, custom, where=f"{manifest.path}: flight {entry.name}: {v.name}.type")
             )
-        flights.append((entry, load_flight(entry, vehicles, options=manifest.quality)))
+        flights.append((entry, load_flight(entry, vehicles, options=manifest.quality, reader=reader)))
     if thrust_maps is None:
         per_type: dict[str, list[MotorSamples]] = {}
         for entry, flight in flights:
@@ -241,6 +246,12 @@ def load_units(
                     if flight.logs[v.name].has_pwm:
                         per_type.setdefault(v.type, []).append(_motor_samples(flight.logs[v.name]))
         thrust_maps = fit_thrust_maps(per_type)
+        if any(not log.thrust_logged for _, fl in flights for log in fl.logs.values()):  # PWM-only logs (uSD, ...)
+            from proxplan.identify.pwm_thrust import forceless_maps
+
+            thrust_maps |= forceless_maps(
+                flights, types, lambda veh: measure_options_for(options.measure, veh, manifest.motor_thrust)
+            )[0]
     notes: list[str] = []
     units = []
     logs: dict[tuple[str, str], tuple[Vehicle, VehicleLog]] = {}
@@ -252,7 +263,19 @@ def load_units(
             tmap = thrust_maps.get(v.type)
             n_sat = n_floor = 0
             source, limit_bits = "logged_u", None
-            if log.has_pwm and tmap is not None and tmap.usable:
+            if not log.thrust_logged:  # no force logged: the type's PWM*Vbat map gives it (identify.pwm_thrust)
+                from proxplan.identify.pwm_thrust import pwm_limits, thrust_source_of
+
+                if tmap is None:
+                    raise UserError(f"{log.source}: the log holds no motor force and the model has no PWM thrust "
+                                    f"map for type {v.type}; identify it on such logs first")  # fmt: skip
+                lim = pwm_limits(log.motor_pwm)
+                limit_bits = (np.any(lim == CEILING, axis=1) * CEILING_BIT
+                              + np.any(lim == FLOOR, axis=1) * FLOOR_BIT).astype(np.uint8)  # fmt: skip
+                n_sat, n_floor = int(np.sum(limit_bits & CEILING_BIT > 0)), int(np.sum(limit_bits & FLOOR_BIT > 0))
+                log = replace(log, motor_thrust_N=tmap.thrust_N(log.motor_pwm, log.vbat_V))
+                source = thrust_source_of(tmap)
+            elif log.has_pwm and tmap is not None and tmap.usable:
                 motor = _motor_samples(log)
                 lim = motor_limits(tmap, motor, dt_s=float(np.median(np.diff(log.t_s))) if len(log) > 1 else 0.01)
                 limit_bits = (np.any(lim == CEILING, axis=1) * CEILING_BIT
@@ -272,7 +295,7 @@ def load_units(
                     notes.append(note)
             exclusions[entry.name][v.name] = flight.exclusions[v.name].to_dict() | {
                 "kept_samples": len(log), "saturated_samples": n_sat, "floored_samples": n_floor,
-                "thrust_source": source, "scored": v.score}  # fmt: skip
+                "thrust_source": source, "scored": v.score} | dict(flight.alignment.get(v.name, {}))  # fmt: skip
             veh = flight.vehicles[v.name]
             logs[(entry.name, v.name)] = (veh, log)
             meas = measure_log(veh, log, options=measure_options_for(options.measure, veh, manifest.motor_thrust))

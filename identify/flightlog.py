@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import gzip
 import io
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -58,8 +58,8 @@ NEURAL_SWARM_COLUMNS = {
 }  # fmt: skip
 """Canonical name -> Neural-Swarm column name (the time column holds microseconds)."""
 
-LogFormat = Literal["neural-swarm", "canonical"]
-"""The log layouts read here (a manifest's ``format``)."""
+LogFormat = Literal["neural-swarm", "canonical", "usdlog", "rosbag", "ulog"]
+"""The log formats a manifest may name: the CSV layouts read here, the binary ones by proxplan.identify.formats."""
 FORMATS: tuple[str, ...] = get_args(LogFormat)
 
 
@@ -124,6 +124,9 @@ class VehicleLog:
     source: str = ""
     motor_pwm: np.ndarray | None = None  # (N, 4) motor PWM command normalised 0..1, (S0-14) order; None: not logged
     vbat_V: np.ndarray | None = None  # (N,) battery voltage, V; None: not logged
+    thrust_logged: bool = True  # False: the log holds no force; motor_thrust_N is the base map's force of
+    # the PWM (scale 1, for the quality checks) until proxplan.identify.pwm_thrust puts the type's map in
+    thrust_shape: str = ""  # base PWM map of a log without forces (proxplan.identify.pwm_thrust.SHAPES)
 
     def __post_init__(self) -> None:
         if self.segment.size != len(self.t_s):
@@ -208,8 +211,8 @@ def read_log(path: str | Path) -> VehicleLog:
         optional = CANONICAL_PWM_COLUMNS
     else:
         raise UserError(
-            f"{path}: unknown log layout; expected a header with 'time[ms]' (neural-swarm) "
-            f"or 't_s' (canonical, see docs/identify.md)"
+            f"{path}: not a flight log: expected a CSV whose header has 'time[ms]' (neural-swarm) or 't_s' "
+            "(canonical), a Crazyflie uSD log (magic byte 0xBC), a PX4 ULog or a ROS 2 bag (see docs/identify.md)"
         )
     missing = [col for col in wanted.values() if col not in names]
     if missing:
@@ -361,6 +364,10 @@ class VehicleEntry:
     log: Path  # resolved log path
     ground_z_m: float = 0.0  # ground height in the log's world frame, m
     score: bool = True  # False: the log is a downwash source for the others only, never scored
+    time_offset_s: float = 0.0  # added to the log's clock to put it on the flight's common clock, s
+    variables: Mapping[str, str] | None = None  # contract name -> log variable overrides (identify.formats)
+    topics: Mapping[str, Any] | None = None  # ROS 2 bag topics of this vehicle (identify.formats.rosbag)
+    mocap_log: Path | None = None  # motion-capture track: the clock is aligned on it (identify.formats.align)
 
 
 FLIGHT_SPLITS = ("train", "validation", "test")
@@ -403,21 +410,25 @@ class Flight:
     logs: Mapping[str, VehicleLog]
     ground_z_m: Mapping[str, float]
     exclusions: Mapping[str, Exclusions]
+    alignment: Mapping[str, dict] = field(default_factory=dict)  # vehicle -> how its clock was set (reported)
 
 
 def load_flight(
-    entry: FlightEntry, vehicles: Mapping[str, Any], *, options: QualityOptions = QualityOptions()
+    entry: FlightEntry,
+    vehicles: Mapping[str, Any],
+    *,
+    options: QualityOptions = QualityOptions(),
+    reader: Callable[[VehicleEntry], tuple[VehicleLog, dict]] | None = None,
 ) -> Flight:
     """Read, check and time-align the logs of one flight (each vehicle keeps its own clock).
 
     ``vehicles`` maps each vehicle name of the entry to its :class:`Vehicle`. Samples outside the
     time overlap of all the flight's vehicles are excluded (counted); no overlap is a UserError.
     """
-    logs, excl = {}, {}
+    logs, excl, alignment = {}, {}, {}
     for v in entry.vehicles:
-        log, ex = check_log(
-            read_log(v.log), weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options
-        )
+        raw, alignment[v.name] = reader(v) if reader is not None else (read_log(v.log), {})
+        log, ex = check_log(raw, weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options)
         if len(log) == 0:
             raise UserError(f"{v.log}: no usable samples after quality checks (ground/idle/NaN); flight {entry.name}")
         logs[v.name], excl[v.name] = log, ex
@@ -439,6 +450,7 @@ def load_flight(
         logs=logs,
         ground_z_m={v.name: v.ground_z_m for v in entry.vehicles},
         exclusions=excl,
+        alignment=alignment,
     )
 
 

@@ -46,7 +46,8 @@ MOTOR_THRUSTS: tuple[str, ...] = get_args(MotorThrust)
 """What a log's per-motor thrust column holds: the firmware's *commanded* (desired) force, which the
 motors deliver through their lag (Neural-Swarm's u[N]; real flight controllers log this), or the
 force the rotors *deliver* (simulators logging k_eta omega^2)."""
-DEFAULT_MOTOR_THRUST = {"neural-swarm": "commanded", "canonical": "delivered"}
+DEFAULT_MOTOR_THRUST = {"neural-swarm": "commanded", "canonical": "delivered", "usdlog": "commanded",
+                        "rosbag": "commanded", "ulog": "commanded"}  # fmt: skip
 """Per log format, what its thrust column holds when the manifest does not say (key ``motor_thrust``)."""
 
 Text1 = Annotated[Text, Field(min_length=1)]
@@ -67,6 +68,29 @@ class ManifestVehicle(FileModel):
     log: Text1 = Field(description="the vehicle's log file, relative to root")
     ground_z_m: Number = optional("ground height in the log's world frame, m (default 0)")
     score: Flag = optional("false: the log is a downwash source for the others only (default true)")
+    time_offset_s: Number = optional("added to the log's clock to put it on the flight's clock, s (default 0)")
+    topics: BagTopics | None = optional("ROS 2 bag topics of this vehicle (format rosbag)")
+    mocap_log: Text1 = optional(
+        "motion-capture track of this vehicle, relative to root (CSV t_s,x_m,y_m,z_m or any log): the log's clock "
+        "is put on the track's by cross-correlating positions (offset and its error reported)"
+    )
+
+
+class LogDataTopic(FileModel):
+    """A Crazyswarm2 LogDataGeneric topic: its name and the variables its ``values`` hold, in order."""
+
+    topic: Text1 = Field(description="topic name, e.g. /cf1/log1")
+    vars: Annotated[list[Text1], Field(min_length=1)] = Field(
+        description="the logging config's vars of this topic, in order (e.g. [acc.x, acc.y, acc.z])"
+    )
+
+
+class BagTopics(FileModel):
+    """The topics of one vehicle in a ROS 2 bag (each optional; what they lack comes from the log topics)."""
+
+    pose: Text1 = optional("geometry_msgs/PoseStamped topic (Crazyswarm2's /cfN/pose): position and attitude")
+    imu: Text1 = optional("sensor_msgs/Imu topic: body-frame specific force (m/s^2) and rates (rad/s)")
+    log: list[LogDataTopic] = optional("crazyflie_interfaces/LogDataGeneric topics with their vars")
 
 
 class ManifestFlight(FileModel):
@@ -100,7 +124,10 @@ class QualityPart(FileModel):
 class ManifestFile(FileModel):
     """A flight-log manifest for proxplan identify / evaluate."""
 
-    format: LogFormat = optional("column layout of the logs (default neural-swarm)")
+    format: LogFormat = optional(
+        "format of the logs: neural-swarm or canonical CSV (told apart by the header), usdlog (Crazyflie uSD deck), "
+        "rosbag (ROS 2 .mcap / sqlite3), ulog (PX4); binary ones are also detected (default neural-swarm)"
+    )
     root: Text1 = Field(description="folder of the logs, relative to this file (or absolute)")
     vehicles_file: Text1 = optional("a vehicle file of custom types, relative to this file")
     vehicle_file: Text1 = optional("the same as vehicles_file (either spelling)")
@@ -109,6 +136,9 @@ class ManifestFile(FileModel):
         "delivered (default: commanded for neural-swarm, delivered for canonical)",
     )
     quality: QualityPart | None = optional("thresholds of the log quality checks")
+    variables: dict[Text1, Text1] | None = optional(
+        "log contract name -> the log's variable name, overriding the Crazyflie table (e.g. {vbat: pm.vbatMV})"
+    )
     planes: PlaneList | None = optional("walls / ceiling of the room, for place-in-room features")
     flights: list[ManifestFlight] = Field(description="the flights, each train or test")
 
@@ -149,6 +179,10 @@ def load_manifest(path: str | Path, *, require_train_and_test: bool = True) -> M
                 log=root / v.log,
                 ground_z_m=float(v.ground_z_m or 0.0),
                 score=v.score is not False,
+                time_offset_s=float(v.time_offset_s or 0.0),
+                mocap_log=None if v.mocap_log is None else root / v.mocap_log,
+                variables=dict(doc.variables or {}),
+                topics=None if v.topics is None else v.topics.model_dump(exclude_unset=True),
             )
             for name, v in fl.vehicles.items()
         )

@@ -29,6 +29,9 @@ from scipy.spatial.transform import Rotation
 from proxplan.physics import Vehicle
 
 DERIVATIVES = ("savgol", "triangular", "difference")
+FREE_HEIGHT_M = 0.3
+"""Free flight: rotor plane at least this high above the ground (out of ground effect), m (used by the
+motor-lag self-check and the free-flight thrust scale)."""
 
 
 @dataclass(frozen=True)

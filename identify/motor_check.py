@@ -33,13 +33,11 @@ from typing import Any
 import numpy as np
 
 from proxplan.identify.flightlog import VehicleLog
-from proxplan.identify.measure import MeasureOptions, measure_log
+from proxplan.identify.measure import FREE_HEIGHT_M, MeasureOptions, measure_log
 from proxplan.physics import Vehicle
 
 TAU_GRID_S = (0.0, 0.02, 0.035, 0.05, 0.072, 0.09, 0.11, 0.14, 0.18, 0.25)
 """Motor time constants tried, s (0: the logged thrust is what the rotors deliver)."""
-FREE_HEIGHT_M = 0.3
-"""Free flight: rotor plane at least this high above the ground (out of ground effect), m."""
 WARN_EXCESS = 0.05
 """Warn when the declared tau's spread exceeds the best one's by more than this fraction, -."""
 TAU_FACTOR = 2.0

@@ -127,11 +127,25 @@ def exclusion_lines(exclusions: dict) -> list[str]:
     for flight, per in exclusions.items():
         parts = "; ".join(
             f"{n}: "
-            + ", ".join(f"{k} {v}" for k, v in e.items() if isinstance(v, int) and not isinstance(v, bool) and v)
+            + ", ".join(
+                [f"{k} {v}" for k, v in e.items() if isinstance(v, int) and not isinstance(v, bool) and v]
+                + [f"thrust {e['thrust_source']}"] * ("thrust_source" in e)
+                + _clock(e)
+            )  # fmt: skip
             for n, e in per.items()
         )
         lines.append(f"- {flight}: {parts}")
     return lines
+
+
+def _clock(e: dict) -> list[str]:
+    """How a vehicle's clock was set (identify.formats.registry.align_log), when not its own log clock."""
+    how = e.get("alignment")
+    if how == "mocap":
+        return [f"clock {e['time_offset_s']:+.3f} s +- {e['alignment_error_s']:.3f} s (cross-correlated with mocap)"]
+    if how == "manifest offset":
+        return [f"clock {e['time_offset_s']:+.3f} s (manifest)"]
+    return []
 
 
 def motor_check_lines(check: dict) -> list[str]:

@@ -64,6 +64,8 @@ class ThrustMap:
     r2: float = 1.0  # share of the variance of u[N] that P explains on the robust fit's inliers, -
     monotonic: bool = True  # P rises over the fitted range up to x_max
     inlier_fraction: float = 1.0  # share of samples below the ceiling kept by the robust refit, -
+    source: str = "fitted"  # fitted on logged u[N]; "published:..." / "free-flight-scale:..." (identify.pwm_thrust)
+    scale: float = 1.0  # free-flight scale applied to a base / published map (identify.pwm_thrust), -
 
     @property
     def usable(self) -> bool:
@@ -90,7 +92,8 @@ class ThrustMap:
     def to_dict(self) -> dict[str, Any]:
         return {"coef": [float(c) for c in self.coef], "x_max_V": self.x_max_V, "rms_N": self.rms_N,
                 "n_fit": self.n_fit, "r2": self.r2, "monotonic": self.monotonic,
-                "inlier_fraction": self.inlier_fraction, "max_thrust_N": self.max_thrust_N}  # fmt: skip
+                "inlier_fraction": self.inlier_fraction, "max_thrust_N": self.max_thrust_N,
+                "source": self.source, "scale": self.scale}  # fmt: skip
 
     @staticmethod
     def from_dict(data: Any, where: str) -> ThrustMap:
@@ -100,7 +103,8 @@ class ThrustMap:
             out = ThrustMap(coef=coef, x_max_V=float(data["x_max_V"]), rms_N=float(data.get("rms_N", 0.0)),
                             n_fit=int(data.get("n_fit", 0)), r2=float(data.get("r2", 1.0)),
                             monotonic=bool(data.get("monotonic", True)),
-                             inlier_fraction=float(data.get("inlier_fraction", 1.0)))  # fmt: skip
+                             inlier_fraction=float(data.get("inlier_fraction", 1.0)),
+                             source=str(data.get("source", "fitted")), scale=float(data.get("scale", 1.0)))  # fmt: skip
         except (KeyError, TypeError, ValueError):
             raise UserError(f"{where}: expected a mapping with coef (4 numbers) and x_max_V (V)") from None
         if len(coef) != 4 or not out.x_max_V > 0:

@@ -27,6 +27,7 @@ COMMAND_MODULES = (
     "proxplan.commands.view",  # view
     "proxplan.commands.identify",  # identify
     "proxplan.commands.evaluate",  # evaluate
+    "proxplan.commands.logs",  # logs
     "proxplan.commands.certify",  # certify
     "proxplan.commands.export",  # export
     "proxplan.commands.schema",  # schema

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from tests.conftest import REPO, SCENARIOS
+from tests.conftest import SCENARIOS
 
 
 def _one_line(res, *needles: str) -> None:
@@ -17,24 +17,47 @@ def _one_line(res, *needles: str) -> None:
         assert needle in res.stderr, res.stderr
 
 
-def _writing_commands(plan_dir, target):
+@pytest.fixture(scope="module")
+def generated_manifest(tmp_path_factory):
+    """A manifest of generated logs (a clone without ../shared has no Neural-Swarm flights)."""
+    import numpy as np
+
+    from proxplan.identify import synthetic_logs, write_synthetic_manifest
+    from proxplan.physics import BUILTIN_VEHICLES
+
+    root = tmp_path_factory.mktemp("generated_logs")
+    veh = BUILTIN_VEHICLES["crazyflie-2.1"]
+    t = np.arange(0.0, 3.0, 0.01)
+    pos = {
+        "a": np.column_stack([0 * t, 0 * t, 1.2 + 0 * t]),
+        "b": np.column_stack([0 * t, 0 * t, 0.8 + 0.05 * np.sin(t)]),
+    }
+    flights = [
+        (f"f{k}", split, synthetic_logs({"a": veh, "b": veh}, pos, t)) for k, split in enumerate(("train", "test"))
+    ]
+    return write_synthetic_manifest(root, flights, "crazyflie-2.1")
+
+
+def _writing_commands(plan_dir, target, manifest):
     """(name, argv) of every command that writes, with ``target`` as its output location."""
     return [
         ("plan", ["plan", SCENARIOS / "battery_swap.yaml", "--out", target, "--method", "sampling"]),
         ("costmap", ["costmap", "--source", "small-quad", "--target", "large-quad", "--out", f"{target}/m.npz"]),
         ("costmap --all", ["costmap", "--all", "--out-dir", target]),
         ("simulate", ["simulate", plan_dir, "--out", target, "--settle", "0.1"]),
-        ("identify", ["identify", REPO / "manifests" / "neural-swarm.yaml", "--out", target]),
+        ("identify", ["identify", manifest, "--out", target]),
         ("view --export", ["view", plan_dir, "--export", target]),
     ]
 
 
 @pytest.mark.parametrize("case", ["existing-file", "under-a-file"])
-def test_unwritable_out_is_one_line_for_every_command_that_writes(battery_swap_plan, tmp_path, proxplan, case):
+def test_unwritable_out_is_one_line_for_every_command_that_writes(
+    battery_swap_plan, generated_manifest, tmp_path, proxplan, case
+):
     blocker = tmp_path / "blocker"
     blocker.write_text("not a folder")
     target = blocker if case == "existing-file" else blocker / "sub"
-    for name, argv in _writing_commands(battery_swap_plan, target):
+    for name, argv in _writing_commands(battery_swap_plan, target, generated_manifest):
         if name == "costmap" and case == "existing-file":
             argv = [*argv[:-1], str(blocker / "m.npz")]  # the folder of --out is a file
         res = proxplan(*argv, timeout=120)

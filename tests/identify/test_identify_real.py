@@ -9,10 +9,13 @@ import pytest
 SHARED = Path(__file__).resolve().parents[2].parent / "shared"
 MANIFEST = Path(__file__).resolve().parents[2] / "manifests" / "neural-swarm.yaml"
 DATA = SHARED / "data" / "neural-swarm"
+ABSENT = (f"Neural-Swarm flight logs not found at {DATA}: they come from the public aerorobotics/neural-swarm "
+          "repository and are read from ../shared/data/neural-swarm beside the repository (its README), never "
+          "copied into it")  # fmt: skip
 
 
 @pytest.mark.slow  # the whole pipeline on every shipped set (minutes on a shared machine)
-@pytest.mark.skipif(not DATA.is_dir(), reason=f"Neural-Swarm logs not found at {DATA} (../shared absent)")
+@pytest.mark.skipif(not DATA.is_dir(), reason=ABSENT)
 def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     from proxplan.identify import load_manifest, run_identify
 
@@ -55,7 +58,7 @@ def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     assert sat["cf102"]["floored_samples"] > 100
 
 
-@pytest.mark.skipif(not DATA.is_dir(), reason=f"Neural-Swarm logs not found at {DATA} (../shared absent)")
+@pytest.mark.skipif(not DATA.is_dir(), reason=ABSENT)
 def test_real_floor_spike_is_gone() -> None:
     """Issue 29: on the day-21 train flight swap_lll_01 the bottom vehicle cf102 is knocked down and its
     motors hit both limits; with u[N] read as thrust at PWM 0 the measured F_z showed a false +0.60 N
