@@ -1,4 +1,5 @@
-"""Calibration of declared model parameters with ``scipy.optimize.least_squares``.
+"""Calibration of declared model parameters with ``scipy.optimize.least_squares``, and the pipeline's
+calibration stage (:func:`calibrate_model`: the MAP fit of the vehicles' parameters on train flights).
 
 :func:`fit_parameters` is the generic bounded nonlinear least-squares fit with a one-sigma
 uncertainty from the Jacobian at the solution, cov = s^2 (J^T J)^+ with s^2 = 2 cost / (m - p)
@@ -21,8 +22,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from proxplan.identify.priors import INFORMED_RATIO, MOVE_SIGMAS, Prior, vehicle_priors
-from proxplan.physics import DownwashSpec, Vehicle
+from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
+from proxplan.identify.noise import NoiseLevel
+from proxplan.identify.priors import INFORMED_RATIO, MOVE_SIGMAS, STACK_SHIELDING_PRIOR, Prior, vehicle_priors
+from proxplan.identify.strata import MIN_STACK_SAMPLES, stacked_samples, stratified_sample
+from proxplan.physics import MAX_STACK_SHIELDING, DownwashSpec, Vehicle
 
 VEHICLE_PARAMETERS = ("c_ax", "z0_m", "c_rad", "b_v")
 """Vehicle parameters that :func:`apply_vehicle_parameters` understands (units: -, m, -,
@@ -220,38 +224,6 @@ def _fit_map(
     )
 
 
-def integrated_autocorrelation_time(segments: Sequence[np.ndarray]) -> float:
-    """Integrated autocorrelation time of a residual, in samples (1 for white noise), pooled over
-    contiguous ``segments`` (each (n,), in time order).
-
-    tau_int = 1 + 2 sum_{k=1}^{K} rho_k with the pooled autocorrelation rho_k (FFT, each segment about
-    its own mean) and Sokal's automatic window: the smallest K with K >= 5 tau_int(K) (Sokal 1989; the
-    usual choice in MCMC error analysis). N samples of such a residual carry the information of
-    N / tau_int independent ones: a sum of squares over them is worth N / tau_int samples.
-    """
-    segs = [np.asarray(s, dtype=float) - np.mean(s) for s in segments if len(s) >= 8]
-    if not segs:
-        return 1.0
-    max_lag = min(max(len(s) for s in segs) // 2, 2000)
-    acov = np.zeros(max_lag + 1)
-    count = np.zeros(max_lag + 1)
-    for s in segs:
-        n = len(s)
-        f = np.fft.rfft(s, 2 * n)
-        ac = np.fft.irfft(f * np.conj(f))[: min(n, max_lag + 1)]
-        acov[: ac.size] += ac
-        count[: ac.size] += n - np.arange(ac.size)
-    ok = count > 0
-    rho = np.zeros(max_lag + 1)
-    rho[ok] = (acov[ok] / count[ok]) / (acov[0] / count[0]) if acov[0] > 0 else 0.0
-    tau = 1.0
-    for k in range(1, max_lag + 1):
-        tau = 1.0 + 2.0 * float(np.sum(rho[1 : k + 1]))
-        if k >= 5.0 * tau:
-            break
-    return float(max(tau, 1.0))
-
-
 def _ar1_inflation(r: np.ndarray) -> float:
     """sqrt((1 + rho) / (1 - rho)) of the lag-1 autocorrelation rho of ``r`` (1 when rho <= 0), -."""
     r = np.asarray(r, dtype=float)
@@ -303,3 +275,76 @@ def vehicle_param_specs(vehicle: Vehicle, prefix: str, *, as_source: bool, as_ta
     if as_target:
         out.append(ParamSpec(prefix + "b_v", vehicle.b_v, vehicle.b_v / 5.0, vehicle.b_v * 5.0, pri["b_v"]))
     return out
+
+
+# ------------------------------------------------------------------------------ the calibration stage
+
+
+def _roles(units: Sequence[Unit]) -> tuple[set[str], set[str], list[str]]:
+    sources = {t for u in units for t in u.source_types}
+    targets = {u.type for u in units if u.source_types}
+    types = sorted({u.type for u in units})
+    return sources, targets, types
+
+
+STACK_PARAMETER = "model.stack_shielding"
+"""Name of the stack shielding eta among the calibrated parameters."""
+
+
+def model_specs(units: Sequence[Unit], model: Model) -> list[ParamSpec]:
+    """The declared parameters the data can inform, with their priors: c_ax, z0_m, c_rad of every type
+    that is a source in ``units``, b_v of every type that receives a downwash, every type's thrust scale
+    (names ``TYPE.param``; :func:`proxplan.identify.calibrate.vehicle_param_specs`), and the stack shielding
+    eta where the units hold at least :data:`MIN_STACK_SAMPLES` samples with two or more sources overhead."""
+    sources, targets, types = _roles(units)
+    specs: list[ParamSpec] = []
+    n_stacked = sum(int(np.sum(stacked_samples(u, model))) for u in units)
+    if n_stacked >= MIN_STACK_SAMPLES:
+        specs.append(ParamSpec(STACK_PARAMETER, model.options.stack_shielding, 0.0, MAX_STACK_SHIELDING,
+                               STACK_SHIELDING_PRIOR))  # fmt: skip
+    for t in types:
+        specs += vehicle_param_specs(model.vehicles[t], f"{t}.", as_source=t in sources, as_target=t in targets)
+        specs.append(ParamSpec(f"{t}.thrust_scale", model.thrust_scale.get(t, 1.0), 0.7, 1.3,
+                               vehicle_priors(model.vehicles[t], as_source=False, as_target=False)["thrust_scale"]))  # fmt: skip
+    return specs
+
+
+def calibrate_model(
+    units: Sequence[Unit], model: Model, *, options: IdentifyOptions, noise: NoiseLevel
+) -> tuple[Model, CalibrationResult, Model]:
+    """MAP fit of c_ax, z0_m, c_rad (source types), b_v (target types) and thrust scales (all types) on F_z,
+    on a stratified, weighted sample of ``units`` (:func:`proxplan.identify.strata.stratified_sample`),
+    with the priors of :mod:`proxplan.identify.priors`. The data term is in units of the F_z noise of one
+    independent sample: each type's F_z noise unit times sqrt(tau) (:func:`proxplan.identify.noise.noise_level`).
+    The thrust scales are nuisance parameters: the model is returned with them at 1 (and ``fitted``, the
+    model with them, is what the measurement noise is judged on)."""
+    fit_units = stratified_sample(units, options.max_fit_samples, model.vehicles)
+    sw = np.sqrt(np.concatenate([u.weight for u in fit_units])) / noise.rows(fit_units)[:, 0]
+    specs = model_specs(fit_units, model)
+    y = np.concatenate([u.force_N[:, 2] for u in fit_units])
+
+    def model_of(theta: np.ndarray) -> Model:
+        per_type: dict[str, dict[str, float]] = {}
+        options = model.options
+        for spec, val in zip(specs, theta):
+            if spec.name == STACK_PARAMETER:
+                options = replace(options, stack_shielding=float(val))
+                continue
+            t, key = spec.name.rsplit(".", 1)
+            per_type.setdefault(t, {})[key] = float(val)
+        vehicles = dict(model.vehicles)
+        scales = dict(model.thrust_scale)
+        for t, vals in per_type.items():
+            scales[t] = vals.pop("thrust_scale", 1.0)
+            vehicles[t] = apply_vehicle_parameters(model.vehicles[t], **vals)
+        return replace(model, vehicles=vehicles, thrust_scale=scales, options=options)
+
+    def residual(theta: np.ndarray) -> np.ndarray:
+        m = model_of(theta)
+        return sw * (np.concatenate([predict(u, m)[0][:, 2] for u in fit_units]) - y)
+
+    result = fit_parameters(residual, specs, max_nfev=60 + 10 * len(specs), noise_sigma=float(np.sqrt(noise.tau)))
+    # the thrust scales were nuisance parameters (so a thrust-calibration error does not distort the
+    # aerodynamic ones); whether to keep a thrust correction is decided by held-out flights (thrust_bias)
+    calibrated = model_of(result.values)
+    return replace(calibrated, thrust_scale=dict(model.thrust_scale)), result, calibrated

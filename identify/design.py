@@ -24,77 +24,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from proxplan.identify.calibrate import ParamSpec, apply_vehicle_parameters, integrated_autocorrelation_time
+from proxplan.identify.calibrate import ParamSpec, apply_vehicle_parameters
 from proxplan.identify.crossval import GroupPlan, GroupSums, Ridge, block_ids, plan_groups
 from proxplan.identify.data import Model, Unit, predict, subsample, unit_inputs
+from proxplan.identify.noise import CHANNELS, NoiseLevel, stacked
 from proxplan.identify.strata import stratified_sample
 from proxplan.physics import BaseCache, Effect, base_cache, effect_wrench
 from proxplan.physics.features import term_scale
 
-CHANNELS = ("force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
-"""Wrench channels selection fits, and their columns in the stacked (force, torque) wrench (N, 6)."""
-CHANNEL_COLUMNS = (2, 3, 4, 5)
 TANGENT_STEP = 1e-3
 """Forward-difference step of a tangent column: in ln(theta) for a log prior, in prior sigmas otherwise, -."""
-SCALE_FLOOR = 1e-3
-"""A channel's noise unit is at least this share of its measured signal's RMS (the measurement's relative
-resolution, 0.1 %): a channel the model predicts to rounding error (a yaw torque no effect touches) must
-not turn rounding error into signal; a channel with no measured signal at all is left out (weight 0), -."""
-TAU_SAMPLES = 40000
-"""Samples (whole contiguous units) the residual's integrated autocorrelation time is estimated on."""
-
-
-def stacked(force_N: np.ndarray, torque_Nm: np.ndarray) -> np.ndarray:
-    """(N, 4) F_z, tau_x, tau_y, tau_z of a world-frame force (N, 3) N and torque (N, 3) N m."""
-    return np.column_stack([force_N[:, 2], torque_Nm])
-
-
-@dataclass(frozen=True)
-class NoiseLevel:
-    """The measurement noise the fits are weighted by: the integrated autocorrelation time ``tau`` of the F_z
-    residual (samples) and, per vehicle type, the noise unit of each channel (4,) (N, N m; inf for a channel
-    without measured signal, which then carries no weight)."""
-
-    tau: float
-    scale: dict[str, np.ndarray]
-
-    def rows(self, units: Sequence[Unit]) -> np.ndarray:
-        """(N, 4) the noise unit of every sample of ``units`` (stacked) and channel."""
-        return np.concatenate([np.tile(self.scale[u.type], (len(u), 1)) for u in units])
-
-
-def noise_level(units: Sequence[Unit], model: Model) -> NoiseLevel:
-    """:class:`NoiseLevel` of ``model``'s residual on whole ``units`` at full resolution (up to
-    :data:`TAU_SAMPLES` samples, every k-th unit so that all flights contribute).
-
-    tau: :func:`proxplan.identify.calibrate.integrated_autocorrelation_time` of the F_z residual. Noise unit
-    of a type's channel: the residual's second difference over one correlation time,
-    sqrt(var(r(t + tau) - 2 r(t) + r(t - tau)) / 6): samples one correlation time apart are nearly
-    independent, so this is the noise's spread, while a structure slower than tau (a thrust-map error, an
-    effect the model lacks) cancels in the difference (a trend exactly) and does not inflate it. Floored
-    at :data:`SCALE_FLOOR` of the measured signal's RMS."""
-    units = [u for u in units if len(u) > 50]
-    if not units:
-        return NoiseLevel(1.0, {})
-    total = sum(len(u) for u in units)
-    step = max(1, int(np.ceil(total / TAU_SAMPLES)))
-    picked = units[::step]
-    seen = {u.type for u in picked}
-    picked += [next(u for u in units if u.type == t) for t in sorted({u.type for u in units} - seen)]
-    residuals = [(u, stacked(u.force_N, u.torque_Nm) - stacked(*predict(u, model))) for u in picked]
-    tau = integrated_autocorrelation_time([r[:, 0] for _, r in residuals])
-    lag = max(1, int(round(tau)))
-    scale: dict[str, np.ndarray] = {}
-    for vtype in sorted({u.type for u, _ in residuals}):
-        diffs = [r[2 * lag :] - 2.0 * r[lag:-lag] + r[: -2 * lag] for u, r in residuals
-                 if u.type == vtype and len(r) > 2 * lag]  # fmt: skip
-        signal = [stacked(u.force_N, u.torque_Nm) for u, _ in residuals if u.type == vtype]
-        d = np.concatenate(diffs) if diffs else np.zeros((0, 4))
-        sig = np.sqrt(np.mean(np.concatenate(signal) ** 2, axis=0))
-        noise = np.sqrt(np.mean(d**2, axis=0) / 6.0) if len(d) else sig
-        unit = np.maximum(noise, SCALE_FLOOR * sig)
-        scale[vtype] = np.where(unit > 0.0, unit, np.inf)
-    return NoiseLevel(float(tau), scale)
 
 
 @dataclass

@@ -9,7 +9,7 @@ place in the room), each on one wrench channel (F_z and the three torques): a te
 ``coefficient x feature`` on that channel.
 
 1. **Ensemble** (stability selection). On each half-sample of the flights of
-   :func:`proxplan.identify.crossval.half_samples`, per channel, the always-fitted columns (the vehicle
+   :func:`proxplan.identify.stability.half_samples`, per channel, the always-fitted columns (the vehicle
    parameters' tangents and the kept library effects) are projected out and scikit-learn's
    ``orthogonal_mp_gram`` (Orthogonal Matching Pursuit on the Gram matrix) runs its path up to
    :attr:`DiscoveryOptions.max_terms_per_channel` terms; the Bayesian information criterion on the
@@ -17,7 +17,7 @@ place in the room), each on one wrench channel (F_z and the three torques): a te
    near-duplicate features (:func:`proxplan.physics.features.feature_group`: a neighbour's kernels at
    several widths, a kernel and its lagged copies) on each channel: a group's **inclusion probability**
    is the share of halves that pick any of its members, and it must be picked in most of them
-   (:data:`proxplan.identify.crossval.PI_MIN`). Among
+   (:data:`proxplan.identify.stability.PI_MIN`). Among
    near-duplicates the halves split their picks, so a per-feature count would under-rate a real effect;
    which member describes it best is the held-out test's to say.
 2. **Held out.** Every member of a stable group that some half picked enters the joint design beside the
@@ -44,18 +44,16 @@ from sklearn import config_context
 from sklearn.linear_model import orthogonal_mp_gram
 
 from proxplan.identify.crossval import (
-    PI_MIN,
     Candidate,
     ForwardResult,
     GroupSums,
-    Stability,
-    half_samples,
     heldout_forward,
     solve,
     trainable_groups,
 )
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
+from proxplan.identify.stability import PI_MIN, Stability, half_samples
 from proxplan.physics import DISCOVERED_PREFIX, FEATURE_NAMES, base_wrench_per_source, feature_matrix, term_formula
 from proxplan.physics.features import (
     FAMILIES,

@@ -33,16 +33,15 @@ from proxplan.identify.crossval import (
     GainTest,
     GroupSums,
     Ridge,
-    Stability,
     heldout_forward,
     heldout_mse,
     solve,
-    stability,
     trainable_groups,
 )
 from proxplan.identify.data import Errors, IdentifyOptions, Model, Unit, errors, progress_bar
 from proxplan.identify.design import SelectionSet, apply_tangent_step, effect_columns, tangent_columns, tangent_ridge
 from proxplan.identify.priors import effect_prior
+from proxplan.identify.stability import Stability, stability
 from proxplan.physics import PARAMETERS, Effect, effect_wrench
 
 LINEAR_PARAMS: dict[str, tuple[str, ...]] = {

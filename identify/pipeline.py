@@ -43,13 +43,11 @@ import numpy as np
 
 from proxplan.fileio import UserError
 from proxplan.identify.calibrate import (
+    STACK_PARAMETER,
     CalibrationResult,
-    ParamSpec,
-    apply_vehicle_parameters,
-    fit_parameters,
-    vehicle_param_specs,
+    calibrate_model,
+    model_specs,
 )
-from proxplan.identify.crossval import Candidate, ForwardResult, heldout_backward, heldout_mse, solve, trainable_groups
 from proxplan.identify.data import (
     Errors,
     IdentifyOptions,
@@ -63,138 +61,26 @@ from proxplan.identify.data import (
     rmse_fz_by_vehicle,
     subsample,
 )
-from proxplan.identify.design import NoiseLevel, noise_level, selection_set
-from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
-from proxplan.identify.effect_selection import EffectSelection, EffectSelector, EffectTrial
+from proxplan.identify.effect_selection import EffectTrial
 from proxplan.identify.evaluate import GRAMS_PER_N, saved_model
 from proxplan.identify.flightlog import Manifest
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.motor_check import check_loaded
-from proxplan.identify.priors import STACK_SHIELDING_PRIOR, vehicle_priors
+from proxplan.identify.noise import noise_level
+from proxplan.identify.priors import STACK_SHIELDING_PRIOR
 from proxplan.identify.residuals import correlate, sample_features
+from proxplan.identify.selection import select_and_discover
 from proxplan.identify.spread import band_errors, fit_spread
-from proxplan.identify.strata import MIN_STACK_SAMPLES, stacked_samples, stratified_sample
+from proxplan.identify.strata import stratified_sample
 from proxplan.physics import (
-    MAX_STACK_SHIELDING,
     VALIDITY_FACTOR_L,
     CalibratedModel,
-    Effect,
     ModelOptions,
     ResidualSpread,
 )
 
-# ------------------------------------------------------------------------------ calibration
-
-
-def _roles(units: Sequence[Unit]) -> tuple[set[str], set[str], list[str]]:
-    sources = {t for u in units for t in u.source_types}
-    targets = {u.type for u in units if u.source_types}
-    types = sorted({u.type for u in units})
-    return sources, targets, types
-
-
-STACK_PARAMETER = "model.stack_shielding"
-"""Name of the stack shielding eta among the calibrated parameters."""
-
-
-def model_specs(units: Sequence[Unit], model: Model) -> list[ParamSpec]:
-    """The declared parameters the data can inform, with their priors: c_ax, z0_m, c_rad of every type
-    that is a source in ``units``, b_v of every type that receives a downwash, every type's thrust scale
-    (names ``TYPE.param``; :func:`proxplan.identify.calibrate.vehicle_param_specs`), and the stack shielding
-    eta where the units hold at least :data:`MIN_STACK_SAMPLES` samples with two or more sources overhead."""
-    sources, targets, types = _roles(units)
-    specs: list[ParamSpec] = []
-    n_stacked = sum(int(np.sum(stacked_samples(u, model))) for u in units)
-    if n_stacked >= MIN_STACK_SAMPLES:
-        specs.append(ParamSpec(STACK_PARAMETER, model.options.stack_shielding, 0.0, MAX_STACK_SHIELDING,
-                               STACK_SHIELDING_PRIOR))  # fmt: skip
-    for t in types:
-        specs += vehicle_param_specs(model.vehicles[t], f"{t}.", as_source=t in sources, as_target=t in targets)
-        specs.append(ParamSpec(f"{t}.thrust_scale", model.thrust_scale.get(t, 1.0), 0.7, 1.3,
-                               vehicle_priors(model.vehicles[t], as_source=False, as_target=False)["thrust_scale"]))  # fmt: skip
-    return specs
-
-
-def calibrate_model(
-    units: Sequence[Unit], model: Model, *, options: IdentifyOptions, noise: NoiseLevel
-) -> tuple[Model, CalibrationResult, Model]:
-    """MAP fit of c_ax, z0_m, c_rad (source types), b_v (target types) and thrust scales (all types) on F_z,
-    on a stratified, weighted sample of ``units`` (:func:`proxplan.identify.strata.stratified_sample`),
-    with the priors of :mod:`proxplan.identify.priors`. The data term is in units of the F_z noise of one
-    independent sample: each type's F_z noise unit times sqrt(tau) (:func:`proxplan.identify.design.noise_level`).
-    The thrust scales are nuisance parameters: the model is returned with them at 1 (and ``fitted``, the
-    model with them, is what the measurement noise is judged on)."""
-    fit_units = stratified_sample(units, options.max_fit_samples, model.vehicles)
-    sw = np.sqrt(np.concatenate([u.weight for u in fit_units])) / noise.rows(fit_units)[:, 0]
-    specs = model_specs(fit_units, model)
-    y = np.concatenate([u.force_N[:, 2] for u in fit_units])
-
-    def model_of(theta: np.ndarray) -> Model:
-        per_type: dict[str, dict[str, float]] = {}
-        options = model.options
-        for spec, val in zip(specs, theta):
-            if spec.name == STACK_PARAMETER:
-                options = replace(options, stack_shielding=float(val))
-                continue
-            t, key = spec.name.rsplit(".", 1)
-            per_type.setdefault(t, {})[key] = float(val)
-        vehicles = dict(model.vehicles)
-        scales = dict(model.thrust_scale)
-        for t, vals in per_type.items():
-            scales[t] = vals.pop("thrust_scale", 1.0)
-            vehicles[t] = apply_vehicle_parameters(model.vehicles[t], **vals)
-        return replace(model, vehicles=vehicles, thrust_scale=scales, options=options)
-
-    def residual(theta: np.ndarray) -> np.ndarray:
-        m = model_of(theta)
-        return sw * (np.concatenate([predict(u, m)[0][:, 2] for u in fit_units]) - y)
-
-    result = fit_parameters(residual, specs, max_nfev=60 + 10 * len(specs), noise_sigma=float(np.sqrt(noise.tau)))
-    # the thrust scales were nuisance parameters (so a thrust-calibration error does not distort the
-    # aerodynamic ones); whether to keep a thrust correction is decided by held-out flights (thrust_bias)
-    calibrated = model_of(result.values)
-    return replace(calibrated, thrust_scale=dict(model.thrust_scale)), result, calibrated
-
-
 # ------------------------------------------------------------------------------ pipeline
-
-
-@dataclass
-class Selection:
-    """Effects and discovered terms chosen around one reference model (:func:`select_and_discover`): the
-    final model, the library selection and the discovery, which reference they started from, the
-    held-out MSE of the final set per group (noise units) and the groups' note."""
-
-    model: Model
-    effects: EffectSelection
-    discovery: DiscoveryResult | None
-    start: str  # "calibrated" | "prior"
-    heldout_mse: np.ndarray  # (groups, channels), noise units
-    note: str
-
-    @property
-    def heldout_total(self) -> float:
-        """Mean over the held-out groups of the sum over channels of ln(held-out MSE): the score two starts
-        are compared by (scale-free, every log and channel alike), lower is better."""
-        m = np.where(np.isfinite(self.heldout_mse) & (self.heldout_mse > 0), np.log(np.abs(self.heldout_mse)), np.nan)
-        per_group = np.nansum(m, axis=1)[np.any(np.isfinite(m), axis=1)]
-        return float(np.mean(per_group)) if per_group.size else float("inf")
-
-    def to_json(self) -> dict[str, Any]:
-        stab = self.effects.stability
-        out: dict[str, Any] = {"start": self.start, "groups": self.note, "heldout_log_mse": self.heldout_total,
-               "effects_stability_threshold": stab.threshold, "effects_mean_chosen_per_half": stab.mean_chosen,
-               "effects_expected_false_bound": stab.expected_false_bound,
-               "half_samples": stab.n_halves, "recalibration_step_u": self.effects.steps}  # fmt: skip
-        if self.discovery is not None:
-            d = self.discovery.stability
-            out |= {
-                "terms_stability_threshold": d.threshold,
-                "terms_mean_chosen_per_half": d.mean_chosen,
-                "terms_expected_false_bound": d.expected_false_bound,
-            }
-        return out
 
 
 @dataclass(frozen=True)
@@ -336,76 +222,6 @@ def _per_vehicle(
     b, c, a = (rmse_fz_by_vehicle(test, m, pred) for m in (before, calibrated, after))
     return {k: {"rmse_fz_N_before": b[k][0], "rmse_fz_N_calibrated": c[k][0], "rmse_fz_N_after": a[k][0],
                 "n_samples": b[k][1]} for k in b}  # fmt: skip
-
-
-def select_and_discover(
-    fit: Sequence[Unit],
-    valid: Sequence[Unit],
-    reference: Model,
-    specs: Sequence[ParamSpec],
-    *,
-    options: IdentifyOptions,
-    noise: NoiseLevel,
-    test: Sequence[Unit] = (),
-    start: str = "calibrated",
-) -> Selection:
-    """Stages 5 and 6 around ``reference`` (module docstring): the library effects, then the discovered
-    terms with the kept effects and the vehicle parameters' tangents refitted jointly, in the noise units
-    of ``noise``."""
-    sel = selection_set(fit, valid, reference, noise, max_fit_samples=options.max_fit_samples,
-                        max_valid_samples=options.max_eval_samples)  # fmt: skip
-    selector = EffectSelector(sel, specs, options=options)
-    selector.fit_candidates(options.effects)
-    effects = selector.run(test=test)
-    discovery = None
-    if options.discover:
-        discovery = discover_terms(sel, selector.always_columns(effects.selected), selector.ridge_for)
-    model, heldout, joint = joint_model(selector, effects, discovery)
-    if discovery is not None:
-        discovery.kept = {k: v for k, v in discovery.kept.items() if k in joint.chosen}
-        discovery.forward.dropped.update({k: t for k, t in joint.dropped.items() if k in discovery.columns})
-    for trial in effects.trials:
-        if trial.name in joint.dropped:
-            t = joint.dropped[trial.name]
-            trial.selected = False
-            trial.reason = (f"dropped: redundant given the discovered terms (held-out gain {t.mean:+.3g} +- {t.se:.2g}, "
-                            f"needs > {t.z:.2f} SE)")  # fmt: skip
-    effects.selected = [n for n in effects.selected if n in joint.chosen]
-    return Selection(model, effects, discovery, start, heldout, sel.plan.note)
-
-
-def joint_model(
-    selector: EffectSelector, effects: EffectSelection, discovery: DiscoveryResult | None
-) -> tuple[Model, np.ndarray, ForwardResult]:
-    """The kept library effects and discovered terms judged together: each must still pass the held-out
-    gain test given all the others (a library effect that stood in for an undeclared one is dropped once
-    the discovered term explains it better); then the survivors and the vehicle parameters' steps are
-    fitted jointly on every train group. Returns the model, the held-out MSE per group and channel, and
-    the backward pass's record."""
-    sel = selector.sel
-    kept = [Candidate(c.name, tuple(c.columns)) for c in selector.candidates if c.name in effects.selected]
-    terms = dict(discovery.kept) if discovery is not None else {}
-    columns = {k: selector.tangents[k] for k in selector.always}
-    for cand in selector.candidates:
-        if cand.name in effects.selected:
-            columns.update(cand.columns)
-    if discovery is not None:
-        columns.update({k: discovery.columns[k] for k in terms})
-    kept += [Candidate(k, (k,)) for k in terms]
-    sums = sel.sums(columns)
-    ridge = selector.ridge_for(sums.columns)
-    back = heldout_backward(sums, selector.always, kept, sel.plan, ridge, sel.tau)
-    names = list(selector.always) + [col for c in kept if c.name in back.chosen for col in c.columns]
-    idx = sums.index(names)
-    beta = solve(sums, idx, trainable_groups(sums, sel.plan), ridge, sel.tau)
-    coef = dict(zip(names, (float(b) for b in beta)))
-    model = selector.model_with(coef, [n for n in effects.selected if n in back.chosen])
-    survivors = {k: coef[k] for k in terms if k in back.chosen}
-    if survivors:
-        model = replace(model, effects=model.effects + (Effect(DISCOVERED_NAME, survivors),))
-        if discovery is not None:
-            discovery.kept = survivors
-    return model, heldout_mse(sums, idx, sel.plan, ridge, sel.tau), back
 
 
 def run_identify(

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from proxplan.identify import run_identify, synthetic_logs, write_synthetic_manifest
-from proxplan.identify.data import IdentifyOptions, errors
+from proxplan.identify.data import errors
 from proxplan.physics import BUILTIN_VEHICLES, EffectInputs, planes_from_list
 
 from .test_discovery import OPTIONS, _trajectories
