@@ -15,7 +15,7 @@ import numpy as np
 
 from proxplan.fileio import UserError
 from proxplan.identify.flightlog import Flight, FlightEntry, Manifest, VehicleLog, interpolate_position_m, load_flight
-from proxplan.identify.measure import MeasureOptions, measure_log
+from proxplan.identify.measure import MeasureOptions, kinematic_thrust_z_N, measure_log
 from proxplan.identify.thrust_map import (
     CEILING,
     FLOOR,
@@ -86,7 +86,7 @@ class Unit:
     weight: np.ndarray | None = None  # (N,) sampling weight of a stratified sample (identify.strata), -
     group: np.ndarray | None = None  # (N,) int: held-out group of each sample (proxplan.identify.crossval)
     row: np.ndarray | None = None  # (N,) int: each sample's row in the full-resolution units it was sampled from
-    motor_torque_Nm: np.ndarray | None = None  # (N, 3) body torque of the logged motor thrusts (S0-14), world, N m
+    thrust_kin_z_N: np.ndarray | None = None  # (N,) m (g + dv_z/dt) from the motion (measure.kinematic_thrust_z_N), N
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
@@ -96,7 +96,7 @@ class Unit:
             weight=None if self.weight is None else self.weight[idx],
             group=None if self.group is None else self.group[idx],
             row=None if self.row is None else self.row[idx],
-            motor_torque_Nm=None if self.motor_torque_Nm is None else self.motor_torque_Nm[idx],
+            thrust_kin_z_N=None if self.thrust_kin_z_N is None else self.thrust_kin_z_N[idx],
             t_s=self.t_s[idx],
             velocity_mps=self.velocity_mps[idx],
             height_above_ground_m=self.height_above_ground_m[idx],
@@ -162,13 +162,31 @@ def predict(
         f, t = effect_wrench(eff, inputs, cache=cache)
         force += f
         torque += t
-    # a thrust-map error (true = s x logged motor thrust) shows in BOTH measured channels (S0-11, S0-13):
-    # the force by (s - 1) T z_B, the torque by (s - 1) R tau_p of the logged thrusts
-    scale = model.thrust_scale.get(unit.type, 1.0) - 1.0
-    force[:, 2] += scale * unit.thrust_z_N
-    if unit.motor_torque_Nm is not None:
-        torque += scale * unit.motor_torque_Nm
-    return force, torque
+    return thrust_scaled(force, torque, model.thrust_scale.get(unit.type, 1.0), unit, model)
+
+
+def thrust_scaled(
+    force: np.ndarray, torque: np.ndarray, s: float, unit: Unit, model: Model
+) -> tuple[np.ndarray, np.ndarray]:
+    """What the measurement reads of a disturbance ``force`` (N, 3) N, ``torque`` (N, 3) N m when the motors
+    deliver s times the logged thrust (a thrust-map error of their type).
+
+    With the logged thrust T_log = T / s in (S0-11) and the motion's m (g + a_z) = T + F_z (the thrust the
+    motion calls for, :attr:`Unit.thrust_kin_z_N`), the measured force is F_z + (s - 1) T_log =
+    F_z / s + ((s - 1) / s) m (g + a_z); in (S0-13) the motors' torque cancels the disturbance's in steady
+    flight, so the measured torque is tau / s. Written with the kinematic thrust, not the logged one: the
+    logged thrust's noise also sits in the measured force, and a scale fitted on it comes out biased (by
+    about 0.2 var(noise) / var(thrust): 0.6 % for a Crazyflie, a 2 mN offset that other terms then absorb)."""
+    if s == 1.0:
+        return force, torque
+    kin = (
+        unit.thrust_kin_z_N
+        if unit.thrust_kin_z_N is not None
+        else np.full(len(unit), model.vehicles[unit.type].weight_N)
+    )
+    force = force / s
+    force[:, 2] += (s - 1.0) / s * kin
+    return force, torque / s
 
 
 # ------------------------------------------------------------------------------ loading + measuring
@@ -222,7 +240,7 @@ def load_units(
 
     from proxplan.identify.formats import read_aligned
     from proxplan.identify.thrust_rls import thrust_samples
-    from proxplan.physics import load_vehicle_file, mixer_matrix, resolve_vehicle
+    from proxplan.physics import load_vehicle_file, resolve_vehicle
 
     def reader(v):  # any format (CSV, uSD, bag, ULog), its clock on the flight's (identify.formats.align)
         return read_aligned(v, manifest.format)
@@ -311,9 +329,7 @@ def load_units(
                     velocity_mps=log.velocity_mps,
                     height_above_ground_m=log.position_m[:, 2] - v.ground_z_m,
                     thrust_z_N=log.motor_thrust_N.sum(axis=1) * z_b[:, 2],
-                    motor_torque_Nm=Rotation.from_quat(log.quat_xyzw).apply(
-                        log.motor_thrust_N @ mixer_matrix(veh)[1:].T
-                    ),
+                    thrust_kin_z_N=kinematic_thrust_z_N(veh, log, options=options.measure),
                     source_types=tuple(types_of[o.name] for o in others),
                     source_offsets_m=tuple(
                         log.position_m - interpolate_position_m(flight.logs[o.name], log.t_s) for o in others
@@ -388,7 +404,7 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             weight=None if any(u.weight is None for u in us) else cat("weight"),
             group=None if any(u.group is None for u in us) else cat("group"),
             row=None if any(u.row is None for u in us) else cat("row"),
-            motor_torque_Nm=None if any(u.motor_torque_Nm is None for u in us) else cat("motor_torque_Nm"),
+            thrust_kin_z_N=None if any(u.thrust_kin_z_N is None for u in us) else cat("thrust_kin_z_N"),
         ))  # fmt: skip
     return out
 

@@ -168,8 +168,8 @@ def _value(model: Model, name: str) -> float:
 
 def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, np.ndarray]:
     """d prediction / d u of every parameter of ``specs`` at the reference model (module docstring), (N, 4)
-    noise units each; a thrust scale's column is analytic (its type's logged thrust along z, and the body
-    torque of its logged motor thrusts: :func:`proxplan.identify.data.predict`)."""
+    noise units each; a thrust scale's column is analytic (:func:`proxplan.identify.data.thrust_scaled` at
+    s = 1: the kinematic thrust minus the predicted F_z, minus the predicted torques, for its type)."""
     out: dict[str, np.ndarray] = {}
     for spec in specs:
         prior = spec.prior
@@ -179,9 +179,10 @@ def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, 
             start = 0
             for u in sel.units:
                 if u.type == vtype:
-                    col[start : start + len(u), 0] = u.thrust_z_N
-                    if u.motor_torque_Nm is not None:
-                        col[start : start + len(u), 1:] = u.motor_torque_Nm
+                    rows = slice(start, start + len(u))
+                    kin = u.thrust_kin_z_N if u.thrust_kin_z_N is not None else sel.model.vehicles[vtype].weight_N
+                    col[rows] = -sel.predicted[rows]
+                    col[rows, 0] += kin
                 start += len(u)
             out[spec.name] = col / sel.row_scale
             continue

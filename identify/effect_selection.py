@@ -6,9 +6,8 @@ becomes columns of the linear design (:mod:`proxplan.identify.design`) around th
 * its shape (a decay length, a wind direction, ...) is fitted first, MAP with its priors
   (:func:`proxplan.identify.priors.effect_prior`), on the train rows of the selection set;
 * then its strength enters linearly — one column per unit of strength at that shape (``scale``), one
-  column per parameter for an effect linear in several (``own_velocity``), and for ``thrust_bias`` (a
-  thrust-calibration error: a linear map off in scale and offset) per-type thrust scales and one offset
-  relative to the vehicle's weight.
+  column per parameter for an effect linear in several (``own_velocity``), and per-type thrust scales
+  for ``thrust_bias`` (a thrust-calibration error is per vehicle type, relative to its thrust).
 
 The vehicle parameters' tangent columns are always in, with their priors: every fit recalibrates
 jointly with the candidate. :class:`EffectSelector` then runs the two tests of
@@ -206,10 +205,8 @@ def effect_candidate(
 ) -> EffectCandidate:
     """The design columns of library effect ``name`` (module docstring); ``tangents`` (N, 4, P) and
     ``ridge`` are the always-fitted columns and their priors (:func:`fit_shape`)."""
-    if name == THRUST_BIAS:  # per-type scales of the logged thrust, and an offset relative to the weight
-        offset = effect_columns(sel, Effect(name, {"force_z_N": 0.0, "weight_fraction_1": 1.0}))
-        return EffectCandidate(name, Effect(name, {}), dict(thrust_columns) | {f"{name}.weight_fraction_1": offset},
-                               "thrust")  # fmt: skip
+    if name == THRUST_BIAS:  # per-type scales of the motors' thrust
+        return EffectCandidate(name, Effect(name, {}), dict(thrust_columns), "thrust")
     if name in LINEAR_PARAMS:
         cols = {}
         for k in LINEAR_PARAMS[name]:
@@ -297,9 +294,7 @@ class EffectSelector:
                 for s in self.thrust_specs:
                     t = s.name.rsplit(".", 1)[0]
                     scales[t] = float(np.clip(scales.get(t, 1.0) + coef.get(s.name, 0.0), s.lower, s.upper))
-                lo, hi = PARAMETERS[THRUST_BIAS]["weight_fraction_1"][1:]
-                share = float(np.clip(coef.get(f"{THRUST_BIAS}.weight_fraction_1", 0.0), lo, hi))
-                effects.append(Effect(THRUST_BIAS, {"force_z_N": 0.0, "weight_fraction_1": share}))
+                effects.append(Effect(THRUST_BIAS, {"force_z_N": 0.0}))
             else:
                 effects.append(cand.effect_with(coef))
         return replace(model, effects=tuple(effects), thrust_scale=scales)

@@ -158,6 +158,24 @@ def measure_disturbance(
     return MeasuredWrench(force_N=force, torque_Nm=torque)
 
 
+def kinematic_thrust_z_N(vehicle: Vehicle, log, *, options: MeasureOptions = MeasureOptions()) -> np.ndarray:
+    """(N,) the vertical thrust the vehicle's motion calls for, m (g + dv_z/dt), N, from the log's velocity
+    (motion capture, world frame) with the measurement's smoothed derivative, per contiguous segment. It
+    shares no noise with the logged motor thrust or the accelerometer, so a thrust scale fitted on it is
+    free of the errors-in-variables bias a regressor built on the logged thrust carries
+    (:func:`proxplan.identify.data.predict`)."""
+    from proxplan.physics import GRAVITY_MPS2
+
+    n = len(log.t_s)
+    segment = np.zeros(n, dtype=int) if log.segment is None else np.asarray(log.segment)
+    accel_z = np.zeros(n)
+    for sid in np.unique(segment):
+        idx = np.flatnonzero(segment == sid)
+        dt = float(np.median(np.diff(log.t_s[idx]))) if len(idx) > 1 else 0.01
+        accel_z[idx] = _smooth(log.velocity_mps[idx, 2:3], dt, options, deriv=1)[:, 0]
+    return vehicle.mass_kg * (GRAVITY_MPS2 + accel_z)
+
+
 def measure_log(vehicle: Vehicle, log, *, options: MeasureOptions = MeasureOptions()) -> MeasuredWrench:
     """:func:`measure_disturbance` on a :class:`proxplan.identify.flightlog.VehicleLog`."""
     return measure_disturbance(

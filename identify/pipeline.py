@@ -34,6 +34,7 @@ figures use every test sample.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -113,6 +114,7 @@ class IdentifyResult:
     fallback: bool = False  # selection fell back to blocks in time (too few flights)
     spread: ResidualSpread | None = None  # what the final model cannot predict (proxplan.identify.spread)
     bands: dict = field(default_factory=dict)  # test set -> F_z RMSE below / above 1 Hz, 90 % coverage
+    timings: dict = field(default_factory=dict)  # stage -> wall time, s
 
     def saved(self) -> CalibratedModel:
         """The model file's content: everything the "after" figure used, and the residual spread."""
@@ -149,6 +151,7 @@ class IdentifyResult:
             "selection": self.selection,
             "residual_spread": None if self.spread is None else self.spread.to_dict(),
             "test_bands": self.bands,
+            "timings_s": self.timings,
             "stack_shielding": self.stack_shielding,
             "motor_lag_check": self.motor_lag_check,
             "warnings": list(self.motor_lag_check.get("warnings", [])),
@@ -231,9 +234,12 @@ def run_identify(
     options = options or IdentifyOptions()
     if not isinstance(manifest, Manifest):
         manifest = load_manifest(manifest)
+    laps = _Laps()
     data = load_units(manifest, options=options)
     units, exclusions, types = data.units, data.exclusions, data.types
+    laps("load and measure")
     lag_check = check_loaded(data, motor_thrust=manifest.motor_thrust, options=options.measure)
+    laps("motor lag check")
     fit = [u for u in units if u.split == "train" and u.scored and len(u)]
     test = [u for u in units if u.split == "test" and u.scored and len(u)]
     valid = [u for u in units if u.split == "validation" and u.scored and len(u)]
@@ -258,10 +264,12 @@ def run_identify(
         model, calibration, fitted = calibrate_model(fit, start, options=options, noise=noise)
         noise = noise_level(fit, fitted)  # the selection weighs by the noise left around the calibrated model
     calibrated = full_errors(model)
+    laps("calibration")
     corr_before = _residual_analysis(subsample(fit, 20000), model)
     specs = model_specs(fit, model)
     test_eval = subsample(test, options.max_eval_samples)
     chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval)
+    laps("selection around the calibrated model")
     other_total = None
     if calibration is not None:
         # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
@@ -273,6 +281,7 @@ def run_identify(
         other_total = alt.heldout_total
         if alt.heldout_total < chosen.heldout_total:
             chosen, other_total = alt, chosen.heldout_total
+        laps("selection around the prior model")
     final = chosen.model
     after = full_errors(final)
     spread = fit_spread(stratified_sample(fit, options.max_fit_samples, final.vehicles), final)
@@ -289,6 +298,7 @@ def run_identify(
             entry["rmse_fz_N"] = after.rmse_fz_N
     thrust = thrust_coefficient_summary(fit) if thrust_summary else {}
     selection = chosen.to_json() | {"other_start_heldout_mse": other_total}
+    laps("spread, errors and analysis")
     return IdentifyResult(
         before=before, after=after, calibrated=calibrated, trials=chosen.effects.trials,
         selected=[e.name for e in final.effects], base_model=base, final_model=final,
@@ -298,8 +308,21 @@ def run_identify(
         measure_options=options.measure, per_vehicle=_per_vehicle(test, base, model, final, pred),
         validation=chosen.note, calibrated_model=model, discovered=discovered,
         stack_shielding=_stack_record(calibration, final), motor_lag_check=lag_check,
-        selection=selection, fallback="fell back" in chosen.note, spread=spread, bands=bands,
+        selection=selection, fallback="fell back" in chosen.note, spread=spread, bands=bands, timings=laps.seconds,
     )  # fmt: skip
+
+
+class _Laps:
+    """Wall time of each stage, s (``identify.json["timings_s"]``)."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._t = time.perf_counter()
+
+    def __call__(self, stage: str) -> None:
+        now = time.perf_counter()
+        self.seconds[stage] = now - self._t
+        self._t = now
 
 
 def _stack_record(calibration: CalibrationResult | None, final: Model) -> dict | None:

@@ -57,7 +57,7 @@ EFFECT_NAMES = (
 
 PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
     # param name -> (default, lower bound, upper bound)
-    "thrust_bias": {"force_z_N": (0.0, -5.0, 5.0), "weight_fraction_1": (0.0, -0.3, 0.3)},
+    "thrust_bias": {"force_z_N": (0.0, -5.0, 5.0)},
     "ground_effect": {"gain_k": (1.0, 0.0, 4.0)},
     "near_field": {"amplitude": (0.5, 0.0, 5.0), "decay_L": (3.0, 0.2, 30.0)},
     "wake_swirl": {"yaw_per_force_m": (0.02, -0.2, 0.2)},
@@ -78,7 +78,7 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
 }
 
 EFFECT_STRENGTHS: dict[str, tuple[str, ...]] = {
-    "thrust_bias": ("force_z_N", "weight_fraction_1"),
+    "thrust_bias": ("force_z_N",),
     "ground_effect": ("gain_k",),
     "near_field": ("amplitude", "decay_L"),
     "wake_swirl": ("yaw_per_force_m",),
@@ -254,13 +254,12 @@ def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _thrust_bias(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
-    """A thrust-calibration error's offset (k1 or the PWM-to-thrust map off by a constant), seen by the S0-11
-    measurement as a steady vertical force: ``force_z_N`` (N, world z; one force for every vehicle, kept for
-    models saved before) plus ``weight_fraction_1`` times the target's weight (-: the same relative offset
-    for a 32 g and a 650 g vehicle). Its scale part is the per-type thrust scale of identification's model
-    (proxplan.identify.data.Model.thrust_scale)."""
+    """Constant vertical force ``force_z_N`` (N, world z): a thrust-calibration error off by a constant, seen
+    by the S0-11 measurement as a steady bias (one force for every vehicle type: what models saved before
+    issue 35 hold; identification now fits the error as a per-type scale,
+    proxplan.identify.data.Model.thrust_scale, and holds this at 0)."""
     force, torque = _zeros(inputs.n_samples)
-    force[:, 2] = p["force_z_N"] + p["weight_fraction_1"] * inputs.target.weight_N
+    force[:, 2] = p["force_z_N"]
     return force, torque
 
 
