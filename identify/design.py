@@ -29,8 +29,7 @@ from proxplan.identify.crossval import GroupPlan, GroupSums, Ridge, block_ids, p
 from proxplan.identify.data import Model, Unit, predict, subsample, unit_inputs
 from proxplan.identify.noise import CHANNELS, NoiseLevel, stacked
 from proxplan.identify.strata import stratified_sample
-from proxplan.physics import BaseCache, Effect, base_cache, effect_wrench
-from proxplan.physics.features import term_scale
+from proxplan.physics import BaseCache, Effect, base_cache, effect_wrench, term_scale
 
 TANGENT_STEP = 1e-3
 """Forward-difference step of a tangent column: in ln(theta) for a log prior, in prior sigmas otherwise, -."""

@@ -2,7 +2,7 @@
 
 After the library effects (:mod:`proxplan.identify.effect_selection`), the residual of the reference
 model is searched for a term nobody listed. Candidates are the features of
-:mod:`proxplan.physics.features`, from declared families (:data:`proxplan.physics.features.FAMILIES`:
+:mod:`proxplan.physics.features`, from declared families (:data:`proxplan.physics.FEATURE_FAMILIES`:
 temporal filter banks of every neighbour's predicted disturbance and relative state; spatial kernels
 of every neighbour above, beside and below; the vehicle's own velocity; a multiplicative thrust loss;
 place in the room), each on one wrench channel (F_z and the three torques): a term is
@@ -54,13 +54,17 @@ from proxplan.identify.crossval import (
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.stability import PI_MIN, Stability, half_samples
-from proxplan.physics import DISCOVERED_PREFIX, FEATURE_NAMES, base_wrench_per_source, feature_matrix, term_formula
-from proxplan.physics.features import (
-    FAMILIES,
+from proxplan.physics import (
+    DISCOVERED_PREFIX,
+    FEATURE_FAMILIES,
+    FEATURE_NAMES,
+    base_wrench_per_source,
     feature_family,
     feature_group,
+    feature_matrix,
     is_wrench_feature,
     parse_term_key,
+    term_formula,
     term_key,
     weight_scaled,
 )
@@ -74,8 +78,8 @@ class DiscoveryOptions:
     """What is searched and how many terms a half-sample's path may take."""
 
     channels: tuple[str, ...] = CHANNELS
-    # declared families searched (proxplan.physics.features.FAMILIES); the constant ("bias") is thrust_bias's
-    families: tuple[str, ...] = tuple(f for f in FAMILIES if f != "bias")
+    # declared families searched (proxplan.physics.FEATURE_FAMILIES); the constant ("bias") is thrust_bias's
+    families: tuple[str, ...] = tuple(f for f in FEATURE_FAMILIES if f != "bias")
     max_terms_per_channel: int = 4  # OMP path length per channel and half-sample
     max_terms: int = 8  # at most this many terms kept in all
 

@@ -22,8 +22,7 @@ from scipy.optimize import nnls
 from scipy.signal import butter, sosfiltfilt
 
 from proxplan.identify.data import Model, Predictions, Unit, unit_inputs
-from proxplan.physics import ResidualSpread, TypeSpread, base_wrench_per_source, spread_N
-from proxplan.physics.residual_spread import spread_features
+from proxplan.physics import ResidualSpread, TypeSpread, base_wrench_per_source, spread_features, spread_N
 
 BAND_HZ = 1.0
 """Frequency the residual is split at, Hz (issue 35: the part above is the bobbing in a turbulent jet)."""

@@ -61,7 +61,21 @@ from proxplan.physics.effects import (
     effect_wrench,
     total_wrench,
 )
-from proxplan.physics.features import CHANNELS, FEATURE_DOCS, FEATURE_NAMES, feature_matrix, term_formula
+from proxplan.physics.features import (
+    CHANNELS,
+    FEATURE_DOCS,
+    FEATURE_FAMILIES,
+    FEATURE_NAMES,
+    feature_family,
+    feature_group,
+    feature_matrix,
+    is_wrench_feature,
+    parse_term_key,
+    term_formula,
+    term_key,
+    term_scale,
+    weight_scaled,
+)
 from proxplan.physics.model_file import (
     MODEL_FORMAT_VERSION,
     CalibratedModel,
@@ -81,7 +95,7 @@ from proxplan.physics.model_file import (
     write_model_file,
 )
 from proxplan.physics.propeller import AIR_DENSITY_KGPM3, PropellerSpec, derived_b_v
-from proxplan.physics.residual_spread import ResidualSpread, TypeSpread, spread_N
+from proxplan.physics.residual_spread import ResidualSpread, TypeSpread, spread_features, spread_N
 from proxplan.physics.room import Plane, PlaneList, plane_distances_m, planes_from_list, planes_from_parts
 from proxplan.physics.rotor_drag import RotorDrag, drag_rate_ps, rotorpy_rotor_drag
 from proxplan.physics.stack import (
@@ -210,8 +224,17 @@ __all__ = [
     "oncoming_speed_per_rotor_mps",
     "resolve_vehicle",
     "term_formula",
+    "FEATURE_FAMILIES",
+    "feature_family",
+    "feature_group",
+    "is_wrench_feature",
+    "parse_term_key",
+    "term_key",
+    "term_scale",
+    "weight_scaled",
     "ResidualSpread",
     "TypeSpread",
+    "spread_features",
     "spread_N",
     "target_only_notes",
     "total_wrench",

@@ -190,7 +190,7 @@ TARGET_ONLY_FEATURES = (
 )  # fmt: skip
 """Features of the target alone; every other feature is a sum over sources (zero without one)."""
 
-FAMILIES = ("temporal", "above", "below", "side", "velocity", "thrust", "place", "bias")
+FEATURE_FAMILIES = ("temporal", "above", "below", "side", "velocity", "thrust", "place", "bias")
 """Declared families of the dictionary (issue 35): ``temporal`` — lagged and low-pass copies (a filter
 bank) of each neighbour's predicted disturbance and relative state; ``above``, ``below``, ``side`` —
 spatial kernels of every neighbour by where it is (with their relative speeds); ``velocity`` — the
@@ -218,7 +218,7 @@ def feature_group(name: str) -> str:
 
 
 def feature_family(name: str) -> str:
-    """The family of :data:`FAMILIES` a feature of :data:`FEATURE_NAMES` belongs to."""
+    """The family of :data:`FEATURE_FAMILIES` a feature of :data:`FEATURE_NAMES` belongs to."""
     stem = name.rsplit("_", 1)[0]
     if "_lag" in stem or "_lp" in stem or name in ("base_fz_lag_N", "base_fz_lowpass_N"):
         return "temporal"
@@ -318,7 +318,7 @@ def feature_matrix(
     f["v_z_abs_m2ps2"] = vel[:, 2] * np.abs(vel[:, 2])
     f["v_z_speed_xy_m2ps2"] = vel[:, 2] * f["speed_xy_mps"]
     accel_z = np.zeros(n) if t is None else offset_rate_mps(vel, t)[:, 2]
-    thrust_kin = target.mass_kg * (GRAVITY_MPS2 + accel_z)  # not a feature alone: see FAMILIES
+    thrust_kin = target.mass_kg * (GRAVITY_MPS2 + accel_z)  # not a feature alone: see FEATURE_FAMILIES
     f["thrust_kin_ground_N"] = thrust_kin * f["ground_exp_1"]
     f["thrust_kin_speed_xy_Nmps"] = thrust_kin * f["speed_xy_mps"]
     kernels = []
