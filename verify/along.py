@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from proxplan.physics import ModelOptions, authority_usage, disturbance_deflection
+from proxplan.physics import ModelOptions, authority_usage
 from proxplan.planfile import Plan, Scenario
 from proxplan.verify.plan_wrench import PlanWrench
 
@@ -74,15 +74,15 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
 def deflection_along_plan(
     plan: Plan, scenario: Scenario | None, along: dict[str, WrenchAlongPlan]
 ) -> dict[str, np.ndarray]:
-    """Per vehicle the distance (M,), m, its controller is predicted to be pushed off its plan by
-    the disturbance the model predicts on it along the plan (``along``, on a uniform grid from the
-    plan's start): :func:`proxplan.physics.disturbance_deflection` (steady sag F / k_p, its
-    transient, the tilt a torque holds), from rest. Part of that vehicle's tube where it applies."""
-    out = {}
-    for name, w in along.items():
-        d = disturbance_deflection(w.t_s, w.force_N, w.torque_Nm, _vehicle(plan, scenario, name))
-        out[name] = np.linalg.norm(d, axis=1)
-    return out
+    """Per vehicle how far (M,), m, it is predicted to leave its plan in the jets the model predicts
+    on it along the plan (``along``, on a uniform grid from the plan's start): its closed loop in
+    the jet (:mod:`proxplan.verify.jet_loop`: the deviation the wrench drives plus how far the jet
+    makes a deviation within the tracking tube grow; the hold after the plan's end in the last
+    sample). Part of that vehicle's tube where it applies; zeros for a vehicle nothing acts on."""
+    from proxplan.verify.jet_loop import loop_along_plan
+
+    loops = loop_along_plan(plan, scenario, along)
+    return {name: loops[name].deflection_m if name in loops else np.zeros(w.t_s.size) for name, w in along.items()}
 
 
 def _vehicle(plan: Plan, scenario: Scenario | None, name: str):

@@ -1,0 +1,135 @@
+"""A vehicle in another's jet, in closed loop, along a plan: the predicted deflection that is part
+of its tube, and whether its loop stays damped where it holds.
+
+For every vehicle the model predicts a disturbance on (:func:`proxplan.verify.wrench_along_plan`),
+the jet's force and torque gradients with respect to its position are finite differences of the
+one model (``proxplan.costmaps.sources_wrench``: the sources above it, their stack and the
+scenario's between-vehicle effects; :func:`proxplan.physics.hover_loop.wrench_gradient`), and the
+linearised loop of its controller in that jet (:mod:`proxplan.physics.hover_loop`) is driven along
+the plan by the wrench (:func:`proxplan.physics.hover_loop.jet_response`). Its tube grows by
+
+    |d(t)| + t gamma(t)                                   (t = limits.tracking_margin_m, m)
+
+d the deviation the jet's wrench drives, gamma the bound on how far the jet makes a deviation
+within the tube grow. After the plan's end every vehicle holds its final position: the hold's
+bounds are part of the last sample. A vehicle whose loop is not damped where it holds at the end
+(rightmost pole with real part >= 0) oscillates there however it is planned:
+:func:`check_jet_loop` names it, the source and the margin. World frame, z up; m, N, s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from proxplan.costmaps import sources_wrench
+from proxplan.physics import ModelOptions, Vehicle
+from proxplan.physics.hover_loop import JetResponse, jet_response, loop_matrices, loop_poles, wrench_gradient
+from proxplan.planfile import Plan, Scenario
+from proxplan.verify.tolerances import REST_SPEED_MPS
+from proxplan.verify.violations import Violation
+
+
+@dataclass(frozen=True)
+class LoopAlongPlan:
+    """One vehicle's loop along the plan: its ``response`` (:class:`proxplan.physics.hover_loop.
+    JetResponse`), its tube growth ``deflection_m`` (M,), m (|d| + t gamma, the hold in the last
+    sample; the plan alone where the final loop is not damped), and ``source``: the vehicle whose
+    jet acts on it most at the end (None: none)."""
+
+    response: JetResponse
+    deflection_m: np.ndarray
+    source: str | None
+
+
+def target_gradients(
+    target: Vehicle,
+    positions_m: np.ndarray,
+    sources: list[tuple[Vehicle, np.ndarray]],
+    options: ModelOptions,
+    effects: tuple,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Gradients (M, 3, 3) of the wrench on ``target`` at ``positions_m`` (M, 3), m, with respect to
+    its position, N/m and N m/m, from ``sources`` (vehicle, positions (M, 3) m) together."""
+
+    def wrench(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        reps = p.shape[0] // positions_m.shape[0]
+        return sources_wrench(target, [(v, p - np.tile(q, (reps, 1))) for v, q in sources], options, effects)
+
+    return wrench_gradient(wrench, positions_m)
+
+
+def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[str, LoopAlongPlan]:
+    """Per vehicle with a predicted disturbance, its loop along the plan (:class:`LoopAlongPlan`);
+    ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start."""
+    from proxplan.verify.along import model_options
+
+    out: dict[str, LoopAlongPlan] = {}
+    if not along:
+        return out
+    t = next(iter(along.values())).t_s
+    pos = plan.positions_at(t)
+    opts = model_options(scenario)
+    effects = tuple(scenario.effects if scenario is not None else plan.effects)
+    tube = float(scenario.limits.tracking_margin_m) if scenario is not None else 0.0
+    for name, w in along.items():
+        hit = (np.abs(w.force_N).max(axis=1) > 0.0) | (np.abs(w.torque_Nm).max(axis=1) > 0.0)
+        if not hit.any():
+            continue
+        vehicle = _vehicle(plan, scenario, name)
+        names = [s for s in w.usage_by_source] or [n for n in plan.vehicles if n != name]
+        gf = np.zeros((t.size, 3, 3))
+        gt = np.zeros((t.size, 3, 3))
+        rows = np.flatnonzero(hit)
+        sources = [(_vehicle(plan, scenario, s), pos[s][rows]) for s in names]
+        gf[rows], gt[rows] = target_gradients(vehicle, pos[name][rows], sources, opts, effects)
+        moving = np.linalg.norm(plan.vehicles[name].sample(t)[1], axis=1) >= REST_SPEED_MPS
+        resp = jet_response(t, vehicle, w.force_N, w.torque_Nm, gf, gt, moving)
+        size = np.linalg.norm(resp.deflection_m, axis=1) + tube * resp.tube_gain
+        if np.isfinite(resp.hold_deflection_m):
+            size[-1] = max(size[-1], resp.hold_deflection_m + tube * resp.hold_tube_gain)
+        last = {s: float(u[-1]) for s, u in w.usage_by_source.items()}
+        source = max(last, key=lambda s: last[s]) if last and max(last.values()) > 0.0 else None
+        out[name] = LoopAlongPlan(resp, size, source)
+    return out
+
+
+def check_jet_loop(loops: dict[str, LoopAlongPlan], t_s: np.ndarray, plan_t_s: np.ndarray) -> list[Violation]:
+    """A violation for every vehicle whose loop is not damped where it holds at the end of the plan."""
+    out = []
+    for name, lp in loops.items():
+        growth = float(lp.response.poles.growth_ps[-1])
+        if growth < 0.0:
+            continue
+        freq = float(lp.response.poles.frequency_hz[-1])
+        out.append(
+            Violation(
+                float(t_s[-1]),
+                name,
+                "jet-loop",
+                f"closed loop not damped in the jet of {lp.source} where it holds at the end: rightmost pole "
+                f"{growth:+.3f} 1/s at {freq:.2f} Hz (margin {-growth:+.3f} 1/s; it oscillates however it is "
+                "planned; move it out of that jet or retune its attitude loop)",
+                growth,
+                0.0,
+                int(plan_t_s.size - 1),
+            )
+        )
+    return out
+
+
+def hold_poles(target: Vehicle, position_m: np.ndarray, sources: list[tuple[Vehicle, np.ndarray]],
+               options: ModelOptions, effects: tuple) -> tuple[float, float]:  # fmt: skip
+    """(growth 1/s, frequency Hz) of the rightmost pole of ``target``'s loop held at ``position_m``
+    (3,), m, in the jets of ``sources`` (vehicle, position (3,) m), all at rest."""
+    p = np.asarray(position_m, dtype=float).reshape(1, 3)
+    srcs = [(v, np.asarray(q, dtype=float).reshape(1, 3)) for v, q in sources]
+    force, torque = sources_wrench(target, [(v, p - q) for v, q in srcs], options, effects)
+    gf, gt = target_gradients(target, p, srcs, options, effects)
+    poles = loop_poles(loop_matrices(target, force, torque, gf, gt))
+    return float(poles.growth_ps[0]), float(poles.frequency_hz[0])
+
+
+def _vehicle(plan: Plan, scenario: Scenario | None, name: str) -> Vehicle:
+    return scenario.vehicles[name].vehicle if scenario is not None else plan.vehicles[name].vehicle
