@@ -43,6 +43,9 @@ class VehicleRecord:
     predicted_force_N: np.ndarray | None = None  # (M, 3) the plan's predicted disturbance, world frame, N
     predicted_torque_Nm: np.ndarray | None = None  # (M, 3) world axes, N m
     setpoint_position_m: np.ndarray | None = None  # (M, 3) the position set-point the controller was given, m
+    predicted_deflection_m: np.ndarray | None = None  # (M,) how far the plan predicts it beyond its tube, m
+    # (proxplan.verify.predicted_tube_growth: its closed loop in the jets along the plan, the hold after the end)
+    tube_m: float | None = None  # the tube the verifier grants it (limits.tracking_margin_m; None: its type's), m
 
     @property
     def accel_meas_world_mps2(self) -> np.ndarray:

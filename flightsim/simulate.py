@@ -146,6 +146,22 @@ def _prepare(
 
 
 _STEPPER_CACHE: dict = {}
+_GROWTH_CACHE: dict = {}
+
+
+def _tube_growth(plan: Plan):
+    """The plan's predicted tube growth (:func:`proxplan.verify.predicted_tube_growth`), cached per
+    plan object (certify flies one plan many times)."""
+    from proxplan.verify import predicted_tube_growth
+
+    key = id(plan)
+    hit = _GROWTH_CACHE.get(key)
+    if hit is None or hit[0] is not plan:
+        if len(_GROWTH_CACHE) > 8:
+            _GROWTH_CACHE.clear()
+        hit = _GROWTH_CACHE[key] = (plan, predicted_tube_growth(plan))
+    return hit[1]
+
 
 
 def _stepper(params: list[dict], dt_s: float, wind_mps, gains: list) -> CompiledStepper:
@@ -283,11 +299,13 @@ def _result(
         arr["model_force_N"][:] = arr["applied_force_N"] - flight.extra_force_N[::every][:n_logged]
         arr["model_torque_Nm"][:] = arr["applied_torque_Nm"]
     t_log = (flight.t_grid_s[::every] - flight.t0_s)[:n_logged]
+    growth = _tube_growth(flight.plan)
     records = {
         name: log.record(
             vi, name, flight.trajs[vi].type_name, flight.vehicles[vi], t_log,
             predicted_force_N=flight.predicted_force_N[::every][:n_logged, vi],
             predicted_torque_Nm=flight.predicted_torque_Nm[::every][:n_logged, vi],
+            predicted_deflection_m=growth.at(name, t_log), tube_m=growth.tube_m,
         )
         for vi, name in enumerate(flight.names)
     }  # fmt: skip

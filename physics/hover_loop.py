@@ -233,11 +233,12 @@ def wrench_gradient(
 
 
 HOLD_STEP_S = 0.02
-"""Step of the hold after a plan's end in :func:`jet_response`, s."""
-HOLD_MAX_S = 60.0
-"""Longest hold flown in :func:`jet_response` before the rest is bounded by the loop's modes, s."""
+"""Step on which the hold after a plan's end is evaluated in :func:`jet_response`, s (the loop's
+fastest poles that matter, the ~1 Hz lateral mode, change by < 2 % of a period over it)."""
+HOLD_MAX_S = 120.0
+"""Longest hold evaluated in :func:`jet_response` before what is left is bounded by the loop's modes, s."""
 HOLD_RESIDUAL_M = 1e-4
-"""The hold is flown until the modal bound of what is left stays below this, m."""
+"""The hold is evaluated until the modal bound of what is left stays below this, m."""
 TUBE_BLOCK_SAMPLES = 5
 """Samples whose tube input is propagated as one block in :func:`jet_response` (the bound's
 integral is taken over blocks of this many steps: exact within a block for inputs of one
@@ -296,9 +297,8 @@ def jet_response(
     deflection = np.zeros((kk, 3))
     gain = np.zeros(kk)
     if kk < 2:
-        return _with_hold(
-            JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, np.zeros(N_STATES), np.zeros((N_STATES, 0)), f, tq
-        )
+        empty = _TubeBlocks(mats.c)
+        return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, np.zeros(N_STATES), empty, f, tq)
     h = float(t[1] - t[0])
     u = np.concatenate([f, tq], axis=1)  # (K, 6)
     g_in = np.concatenate([gf, gt], axis=1)  # (K, 6, 3): the input per unit deviation
@@ -312,24 +312,48 @@ def jet_response(
     first[inverse[::-1]] = np.arange(kk - 1)[::-1]
     phi_u, gam_u = _step_maps(mats.a[first], mats.b[first], h)
     x = np.zeros(N_STATES)
-    blocks = np.zeros((N_STATES, 0))  # tube blocks propagated to now, columns of 3
-    pending = np.zeros((N_STATES, 3))
-    c = mats.c
+    tube = _TubeBlocks(mats.c)
     for k in range(kk - 1):
         i = inverse[k]
         phi, gam = phi_u[i], gam_u[i]
         x = phi @ x + gam @ u[k]
-        if blocks.shape[1]:
-            blocks = phi @ blocks
-        pending = phi @ pending + gam @ g_in[k]
-        if (k + 1) % TUBE_BLOCK_SAMPLES == 0 or k == kk - 2:
-            if np.any(pending):
-                blocks = np.concatenate([blocks, pending], axis=1)
-            pending = np.zeros((N_STATES, 3))
-        deflection[k + 1] = c @ x
-        if blocks.shape[1]:
-            gain[k + 1] = _block_norms(c, blocks)
-    return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, x, blocks, f, tq)
+        tube.step(phi, gam @ g_in[k])
+        deflection[k + 1] = mats.c @ x
+        gain[k + 1] = tube.gain()
+    return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, x, tube, f, tq)
+
+
+class _TubeBlocks:
+    """The tube's responses Phi(t, s) Gamma G(s) of :func:`jet_response` (n x 3 each), summed over
+    blocks of :data:`TUBE_BLOCK_SAMPLES` steps, propagated to now."""
+
+    def __init__(self, c: np.ndarray):
+        self.c = c
+        n = c.shape[1]
+        self.pending = np.zeros((n, 3))
+        self.n_pending = 0
+        self.blocks = np.zeros((n, 0))
+
+    def step(self, phi: np.ndarray, new: np.ndarray) -> None:
+        """Propagate every block by ``phi`` (n, n) and add this step's input response ``new`` (n, 3)."""
+        if self.blocks.shape[1]:
+            self.blocks = phi @ self.blocks
+        self.pending = phi @ self.pending + new
+        self.n_pending += 1
+        if self.n_pending == TUBE_BLOCK_SAMPLES:
+            self.flush()
+
+    def flush(self) -> None:
+        """Close the pending block."""
+        if np.any(self.pending):
+            self.blocks = np.concatenate([self.blocks, self.pending], axis=1)
+        self.pending = np.zeros_like(self.pending)
+        self.n_pending = 0
+
+    def gain(self) -> float:
+        """gamma now: the sum over the blocks (the pending one included) of ||C block||_F."""
+        out = float(np.linalg.norm(self.c @ self.pending))
+        return out + (_block_norms(self.c, self.blocks) if self.blocks.shape[1] else 0.0)
 
 
 def _block_norms(c: np.ndarray, blocks: np.ndarray) -> float:
@@ -338,37 +362,43 @@ def _block_norms(c: np.ndarray, blocks: np.ndarray) -> float:
     return float(np.sqrt((out**2).sum(axis=(0, 2))).sum())
 
 
-def _with_hold(resp, mats, x_end, blocks, f, tq) -> JetResponse:
+def _with_hold(resp, mats, x_end, tube: _TubeBlocks, f, tq) -> JetResponse:
     """``resp`` with the bounds over the hold after its last sample (module docstring): the final
-    configuration held (loop A, input u, constant), flown on until the deviation from the steady
-    state and the tube's responses have died out (:data:`HOLD_RESIDUAL_M`) or for
-    :data:`HOLD_MAX_S`, the rest bounded by the loop's modes."""
+    configuration held (loop A = V diag(lambda) V^-1, input u, constant), so from the end
+    C x(t) = C x_ss + C V diag(e^{lambda t}) V^-1 (x_end - x_ss), and each tube block likewise
+    without the steady part; evaluated every :data:`HOLD_STEP_S` until what the modes can still
+    add, sum_i |C v_i| |(V^-1 y)_i| e^{Re lambda_i t}, stays below :data:`HOLD_RESIDUAL_M` (or
+    for :data:`HOLD_MAX_S`), which is then added."""
     if resp.poles.growth_ps[-1] >= 0.0:
         return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, np.inf, np.inf, resp.poles)
     live = _live_states(mats.a[-1:])
     a, b, c = mats.a[-1][np.ix_(live, live)], mats.b[-1][live], mats.c[:, live]
     u = np.concatenate([f[-1], tq[-1]])
     x_ss = -np.linalg.solve(a, b @ u)
-    h = HOLD_STEP_S
-    phi = linalg.expm(a * h)
     lam, vec = np.linalg.eig(a)
-    w = np.linalg.inv(vec)
-    cv = np.linalg.norm(c @ vec, axis=0)  # |C v_i|
+    cv = c @ vec  # (3, n)
+    cv_norm = np.linalg.norm(cv, axis=0)
+    tube.flush()
+    start = np.linalg.solve(vec, np.column_stack([x_end[live] - x_ss, tube.blocks[live]]))  # (n, 1 + 3 N)
+    weight = cv_norm[:, None] * np.abs(start)  # (n, 1 + 3N): what each mode can add, at t = 0
 
-    def modal(y: np.ndarray) -> float:  # bound of sup_t |C e^{A t} y| (columns summed)
-        return float(np.sum(cv[:, None] * np.abs(w @ y.reshape(y.shape[0], -1))))
+    def residual(t: float) -> np.ndarray:  # per column (forced, then the blocks' columns), m
+        return (weight * np.exp(lam.real * t)[:, None]).sum(axis=0)
 
-    dev = x_end[live] - x_ss
-    old = blocks[live] if blocks.shape[1] else np.zeros((live.size, 3))
-    y_ss = float(np.linalg.norm(c @ x_ss))
-    worst_d = y_ss + float(np.linalg.norm(c @ dev))
-    worst_g = _block_norms(c, old)
-    for _ in range(int(round(HOLD_MAX_S / h))):
-        dev, old = phi @ dev, phi @ old
-        worst_d = max(worst_d, y_ss + float(np.linalg.norm(c @ dev)))
-        worst_g = max(worst_g, _block_norms(c, old))
-        if max(modal(dev), modal(old)) < HOLD_RESIDUAL_M:
-            break
-    worst_d += modal(dev)
-    worst_g += modal(old)
+    horizon = 0.0
+    while horizon < HOLD_MAX_S and residual(horizon).max() >= HOLD_RESIDUAL_M:
+        horizon = min(2.0 * horizon + HOLD_STEP_S, HOLD_MAX_S)
+    times = np.arange(0.0, horizon + HOLD_STEP_S / 2, HOLD_STEP_S)
+    y_ss = c @ x_ss
+    worst_d, worst_g = 0.0, 0.0
+    for chunk in np.array_split(times, max(1, times.size // 500)):
+        e = np.exp(np.outer(chunk, lam))  # (T, n)
+        traj = ((e[:, None, :] * cv[None]) @ start).real  # (T, 3, 1 + 3N)
+        worst_d = max(worst_d, float(np.linalg.norm(y_ss[None] + traj[:, :, 0], axis=1).max()))
+        if start.shape[1] > 1:
+            blocks = traj[:, :, 1:].reshape(chunk.size, 3, -1, 3)
+            worst_g = max(worst_g, float(np.sqrt((blocks**2).sum(axis=(1, 3))).sum(axis=1).max()))
+    rest = residual(times[-1])
+    worst_d += float(rest[0])
+    worst_g += float(rest[1:].sum())
     return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, worst_d, worst_g, resp.poles)
