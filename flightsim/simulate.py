@@ -163,7 +163,6 @@ def _tube_growth(plan: Plan):
     return hit[1]
 
 
-
 def _stepper(params: list[dict], dt_s: float, wind_mps, gains: list) -> CompiledStepper:
     """A compiled stepper for these vehicles (cached: building one takes ~0.1 s per vehicle)."""
     key = (repr(params), float(dt_s), tuple(float(w) for w in wind_mps), repr(gains))

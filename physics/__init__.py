@@ -24,16 +24,6 @@ from proxplan.physics.closed_loop import (
     drag_lead,
     reference_error,
 )
-from proxplan.physics.hover_loop import (
-    STATE_NAMES,
-    JetResponse,
-    LoopMatrices,
-    LoopPoles,
-    jet_response,
-    loop_matrices,
-    loop_poles,
-    wrench_gradient,
-)
 from proxplan.physics.controller_gains import (
     FIRMWARE_ATTITUDE_PWM,
     FIRMWARE_MASS_THRUST_PWM_PER_N,
@@ -68,6 +58,16 @@ from proxplan.physics.effects import (
     total_wrench,
 )
 from proxplan.physics.features import CHANNELS, FEATURE_DOCS, FEATURE_NAMES, feature_matrix, term_formula
+from proxplan.physics.hover_loop import (
+    STATE_NAMES,
+    JetResponse,
+    LoopMatrices,
+    LoopPoles,
+    jet_response,
+    loop_matrices,
+    loop_poles,
+    wrench_gradient,
+)
 from proxplan.physics.model_file import (
     MODEL_FORMAT_VERSION,
     CalibratedModel,

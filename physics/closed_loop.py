@@ -55,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
-from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
+from proxplan.physics.vehicles import Vehicle
 
 TAIL_RESIDUAL_M = 0.0005
 """The settle tail ends once the lead stays within this, m (and its rate within it per second)."""

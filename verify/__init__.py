@@ -12,8 +12,8 @@ from proxplan.verify.along import (
     separation_summary,
     wrench_along_plan,
 )
-from proxplan.verify.jet_loop import LoopAlongPlan, TubeGrowth, check_jet_loop, loop_along_plan, predicted_tube_growth
 from proxplan.verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, tube_offsets, verify_plan
+from proxplan.verify.jet_loop import LoopAlongPlan, TubeGrowth, check_jet_loop, loop_along_plan, predicted_tube_growth
 from proxplan.verify.violations import Violation
 
 __all__ = [
