@@ -365,7 +365,7 @@ def main() -> int:
     if args.makespan_baseline:
         print("\nmakespan of every shipped scenario, before / after the closed-loop margins (fresh processes):")
         rows = makespan_table(args.makespan_baseline)
-        print(f"\n| scenario | before (s) | after (s) |\n|---|---|---|")
+        print("\n| scenario | before (s) | after (s) |\n|---|---|---|")
         for name, before, after in rows:
             b = "no plan" if before is None else f"{before:.2f}"
             a = "no plan" if after is None else f"{after:.2f}"
