@@ -81,6 +81,7 @@ def simulate_plan(
     vehicles: Mapping[str, Vehicle] | None = None,
     perturbation: Perturbation | None = None,
     progress: bool = False,
+    tube_growth=None,
     **option_values,
 ) -> SimulationResult:
     """Fly ``plan`` (a :class:`proxplan.planfile.plan.Plan` or a plan.json path) closed loop.
@@ -93,7 +94,8 @@ def simulate_plan(
     effects); ``vehicles`` maps type names to the vehicles actually flown instead of the plan's own
     parameters (a heavier or weaker airframe than planned: the set-points stay those of the plan's
     vehicle, as an export computed them). ``perturbation`` adds start, timing, residual-force and
-    estimate errors.
+    estimate errors. ``tube_growth``: the plan's :class:`proxplan.verify.TubeGrowth` when known (else
+    computed, and cached per plan object), which the records carry as the prediction.
 
     Controller: ``options.controller`` (module docstring; the Mellinger law has its own integrators).
     ``position_integral_rate_ps`` > 0 adds integral action on the position error, as the seed's
@@ -111,7 +113,7 @@ def simulate_plan(
     flight = _prepare(plan, truth, vehicles or {}, options, perturbation or Perturbation())
     wall_start = time.perf_counter()
     log, sat_steps, status, detail = _fly(flight, options, progress)
-    return _result(flight, options, log, sat_steps, status, detail, time.perf_counter() - wall_start)
+    return _result(flight, options, log, sat_steps, status, detail, time.perf_counter() - wall_start, tube_growth)
 
 
 def _prepare(
@@ -268,6 +270,7 @@ def _result(
     status: SimulationStatus,
     detail: str,
     wall_s: float,
+    tube_growth=None,
 ) -> SimulationResult:
     """IMU samples and the base-model wrench added to the log, records and notes assembled."""
     arr = log.arrays
@@ -298,7 +301,7 @@ def _result(
         arr["model_force_N"][:] = arr["applied_force_N"] - flight.extra_force_N[::every][:n_logged]
         arr["model_torque_Nm"][:] = arr["applied_torque_Nm"]
     t_log = (flight.t_grid_s[::every] - flight.t0_s)[:n_logged]
-    growth = _tube_growth(flight.plan)
+    growth = tube_growth if tube_growth is not None else _tube_growth(flight.plan)
     records = {
         name: log.record(
             vi, name, flight.trajs[vi].type_name, flight.vehicles[vi], t_log,
