@@ -88,31 +88,43 @@ def _handoff(rng: np.random.Generator, k: int) -> dict:
     }
 
 
+def _aside_m(source: str, target: str, dz_m: float, usage: float) -> float:
+    """Smallest horizontal offset, m (1 cm steps), at which ``target`` dz_m below ``source`` meets
+    at most ``usage`` of its authority (the model), at least 0."""
+    from proxplan.physics import BUILTIN_VEHICLES, authority_usage, disturbance_wrench
+
+    src, tgt = BUILTIN_VEHICLES[source], BUILTIN_VEHICLES[target]
+    r = np.arange(0.0, 1.5, 0.01)
+    off = np.column_stack([r, np.zeros_like(r), np.full_like(r, -dz_m)])
+    w = disturbance_wrench(src, tgt, off)
+    ok = np.flatnonzero(authority_usage(tgt, w.force_N, w.torque_Nm) <= usage)
+    return float(r[ok[0]]) if ok.size else 1.5
+
+
 def _stack(rng: np.random.Generator, k: int) -> dict:
+    """Two or three vehicles whose goals stand one above the other: each below the one above by
+    3 L of it and more, and aside only as far as keeps it within 70 % of the authority limit."""
     n = 2 + k % 2
+    limit = 0.45
     types = [TYPES[(k + i) % 4] for i in range(n)]
     x, y = rng.uniform(-0.5, 0.5, 2)
     z = 3.2
     vehicles = {}
     for i, t in enumerate(types):
         if i:
-            z -= 3.0 * BUILTIN_L_M[types[i - 1]] + float(rng.uniform(0.25, 0.7))
-        goal = [
-            round(float(x + rng.uniform(-0.04, 0.04)), 3),
-            round(float(y + rng.uniform(-0.04, 0.04)), 3),
-            round(z, 3),
-        ]
+            dz = 3.0 * BUILTIN_L_M[types[i - 1]] + float(rng.uniform(0.25, 0.7))
+            z -= dz
+            ang = float(rng.uniform(0.0, 2.0 * np.pi))
+            r = _aside_m(types[i - 1], t, dz, 0.7 * limit) + float(rng.uniform(0.0, 0.03))
+            x, y = x + r * np.cos(ang), y + r * np.sin(ang)
+        goal = [round(float(x), 3), round(float(y), 3), round(z, 3)]
         ang = 2.0 * np.pi * i / n + float(rng.uniform(0, 1))
-        start = [
-            round(2.0 * float(np.cos(ang)), 3),
-            round(2.0 * float(np.sin(ang)), 3),
-            round(float(rng.uniform(0.6, 1.6)), 3),
-        ]
+        start = [round(2.0 * float(np.cos(ang)), 3), round(2.0 * float(np.sin(ang)), 3), round(float(rng.uniform(0.6, 1.6)), 3)]
         vehicles[f"s{i}"] = {"type": t, "start": start, "goal": goal}
     return {
         "name": f"gen-stack-{k}",
         "workspace": _workspace(),
-        "limits": {"authority_fraction": 0.45, "min_separation_m": 0.3},
+        "limits": {"authority_fraction": limit, "min_separation_m": 0.3},
         "vehicles": vehicles,
     }
 
@@ -233,6 +245,8 @@ def run_case(args: tuple[Case, str, float]) -> dict:
             pipeline.check_goal_loops = saved
     except PlanNotFound as err:
         return {**out, "status": "not-found", "message": err.message}
+    except UserError as err:
+        return {**out, "status": "user-error", "message": str(err)}
     violations = verify_plan(plan, scenario)
     verified = not violations and refused is None
     result = simulate_plan(plan, options=SimulationOptions(imu_noise=False, settle_s=settle_s))
