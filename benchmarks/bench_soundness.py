@@ -119,7 +119,11 @@ def _stack(rng: np.random.Generator, k: int) -> dict:
             x, y = x + r * np.cos(ang), y + r * np.sin(ang)
         goal = [round(float(x), 3), round(float(y), 3), round(z, 3)]
         ang = 2.0 * np.pi * i / n + float(rng.uniform(0, 1))
-        start = [round(2.0 * float(np.cos(ang)), 3), round(2.0 * float(np.sin(ang)), 3), round(float(rng.uniform(0.6, 1.6)), 3)]
+        start = [
+            round(2.0 * float(np.cos(ang)), 3),
+            round(2.0 * float(np.sin(ang)), 3),
+            round(float(rng.uniform(0.6, 1.6)), 3),
+        ]
         vehicles[f"s{i}"] = {"type": t, "start": start, "goal": goal}
     return {
         "name": f"gen-stack-{k}",

@@ -51,7 +51,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg
 
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
@@ -235,10 +234,14 @@ def wrench_gradient(
 HOLD_STEP_S = 0.02
 """Step on which the hold after a plan's end is evaluated in :func:`jet_response`, s (the loop's
 fastest poles that matter, the ~1 Hz lateral mode, change by < 2 % of a period over it)."""
-HOLD_MAX_S = 120.0
-"""Longest hold evaluated in :func:`jet_response` before what is left is bounded by the loop's modes, s."""
+HOLD_MAX_S = 20.0
+"""Longest hold evaluated in :func:`jet_response` before what is left is bounded by the loop's modes,
+s (the lightly damped lateral modes of a vehicle in a jet that the verifier accepts, >= 0.1 1/s, have
+lost 90 % by then; the integrators' slow modes are weakly excited)."""
 HOLD_RESIDUAL_M = 1e-4
-"""The hold is evaluated until the modal bound of what is left stays below this, m."""
+"""The hold is evaluated until the modal bound of what is left of the deviation stays below this, m,"""
+HOLD_GAIN_RESIDUAL = 1e-3
+"""... and of what is left of the tube gain below this, - (times a tube of 1-2 cm: 10-20 um)."""
 TUBE_BLOCK_SAMPLES = 5
 """Samples whose tube input is propagated as one block in :func:`jet_response` (the bound's
 integral is taken over blocks of this many steps: exact within a block for inputs of one
@@ -252,7 +255,7 @@ class JetResponse:
     ``tube_gain`` (K,), -, gamma: a deviation within the tube t (without the jet) grows by at most
     t gamma in it; ``hold_deflection_m`` (m) and ``hold_tube_gain`` (-) the same bounds over the hold
     after the last sample (the final configuration held for ever; inf where the final loop is not
-    damped); ``poles`` at every sample and ``final_poles`` of the held configuration."""
+    damped); ``poles`` (one sample) of the configuration held at the end."""
 
     t_s: np.ndarray
     deflection_m: np.ndarray
@@ -262,13 +265,29 @@ class JetResponse:
     poles: LoopPoles
 
 
+def _expm(m: np.ndarray) -> np.ndarray:
+    """exp of a stack of square matrices (K, n, n): scaling and squaring with a degree-12 Taylor
+    polynomial (the scaled 1-norm <= 1/2, so the truncated terms are below 1e-13 of the sum), all
+    samples at once."""
+    norm = float(np.abs(m).sum(axis=-2).max(initial=0.0))
+    squarings = max(0, int(np.ceil(np.log2(max(norm, 1e-300) / 0.5))))
+    x = m / 2.0**squarings
+    eye = np.broadcast_to(np.eye(m.shape[-1]), m.shape)
+    out = eye.copy()
+    for k in range(12, 0, -1):  # Horner: I + x/12 (I + x/11 (...))
+        out = eye + (x @ out) / k
+    for _ in range(squarings):
+        out = out @ out
+    return out
+
+
 def _step_maps(a: np.ndarray, b: np.ndarray, step_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order-hold maps (Phi (K, n, n), Gamma (K, n, m)) of x' = a x + b u over ``step_s``."""
     k, n, m = b.shape
     aug = np.zeros((k, n + m, n + m))
     aug[:, :n, :n] = a
     aug[:, :n, n:] = b
-    e = linalg.expm(aug * step_s)
+    e = _expm(aug * step_s)
     return e[:, :n, :n], e[:, :n, n:]
 
 
@@ -293,7 +312,7 @@ def jet_response(
     gf = np.asarray(force_gradient_Npm, dtype=float).reshape(kk, 3, 3)
     gt = np.asarray(torque_gradient_Nmpm, dtype=float).reshape(kk, 3, 3)
     mats = loop_matrices(vehicle, f, tq, gf, gt)
-    poles = loop_poles(mats)
+    poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c))  # of the configuration held at the end
     deflection = np.zeros((kk, 3))
     gain = np.zeros(kk)
     if kk < 2:
@@ -367,9 +386,9 @@ def _with_hold(resp, mats, x_end, tube: _TubeBlocks, f, tq) -> JetResponse:
     configuration held (loop A = V diag(lambda) V^-1, input u, constant), so from the end
     C x(t) = C x_ss + C V diag(e^{lambda t}) V^-1 (x_end - x_ss), and each tube block likewise
     without the steady part; evaluated every :data:`HOLD_STEP_S` until what the modes can still
-    add, sum_i |C v_i| |(V^-1 y)_i| e^{Re lambda_i t}, stays below :data:`HOLD_RESIDUAL_M` (or
-    for :data:`HOLD_MAX_S`), which is then added."""
-    if resp.poles.growth_ps[-1] >= 0.0:
+    add, sum_i |C v_i| |(V^-1 y)_i| e^{Re lambda_i t}, stays below :data:`HOLD_RESIDUAL_M` and
+    :data:`HOLD_GAIN_RESIDUAL` (or for :data:`HOLD_MAX_S`), which is then added."""
+    if resp.poles.growth_ps[0] >= 0.0:
         return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, np.inf, np.inf, resp.poles)
     live = _live_states(mats.a[-1:])
     a, b, c = mats.a[-1][np.ix_(live, live)], mats.b[-1][live], mats.c[:, live]
@@ -385,8 +404,12 @@ def _with_hold(resp, mats, x_end, tube: _TubeBlocks, f, tq) -> JetResponse:
     def residual(t: float) -> np.ndarray:  # per column (forced, then the blocks' columns), m
         return (weight * np.exp(lam.real * t)[:, None]).sum(axis=0)
 
+    def done(t: float) -> bool:
+        rest = residual(t)
+        return rest[0] < HOLD_RESIDUAL_M and float(rest[1:].sum()) < HOLD_GAIN_RESIDUAL
+
     horizon = 0.0
-    while horizon < HOLD_MAX_S and residual(horizon).max() >= HOLD_RESIDUAL_M:
+    while horizon < HOLD_MAX_S and not done(horizon):
         horizon = min(2.0 * horizon + HOLD_STEP_S, HOLD_MAX_S)
     times = np.arange(0.0, horizon + HOLD_STEP_S / 2, HOLD_STEP_S)
     y_ss = c @ x_ss
@@ -402,3 +425,19 @@ def _with_hold(resp, mats, x_end, tube: _TubeBlocks, f, tq) -> JetResponse:
     worst_d += float(rest[0])
     worst_g += float(rest[1:].sum())
     return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, worst_d, worst_g, resp.poles)
+
+
+def weak_jet_bound_m(vehicle: Vehicle, force_max_N: float, torque_max_Nm: float) -> float:
+    """Largest deviation, m, that any force of norm <= ``force_max_N`` (N) and torque of norm <=
+    ``torque_max_Nm`` (N m) can drive in the vehicle's loop without a jet (the jet's gradients left
+    out: for a jet too weak to matter): the L1 norm of the loop's impulse response bounded by its
+    modes, sum_i |C v_i| (|w_i B_F| F + |w_i B_T| T) / -Re lambda_i."""
+    mats = loop_matrices(vehicle)
+    live = _live_states(mats.a)
+    a, b, c = mats.a[0][np.ix_(live, live)], mats.b[0][live], mats.c[:, live]
+    lam, vec = np.linalg.eig(a)
+    w = np.linalg.inv(vec)
+    cv = np.linalg.norm(c @ vec, axis=0)
+    wb = w @ b
+    per = np.linalg.norm(wb[:, :3], axis=1) * force_max_N + np.linalg.norm(wb[:, 3:], axis=1) * torque_max_Nm
+    return float(np.sum(cv * per / -lam.real))

@@ -297,8 +297,10 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
     out += _check_tasks(plan, scenario, t, pos)
     along = wrench_along_plan(plan, scenario, t_s=t)
     loops = loop_along_plan(plan, scenario, along)
-    deflection = {n: loops[n].deflection_m if n in loops else np.zeros(t.size) for n in along}
-    out += check_jet_loop(loops, t, plan.t_s)
+    out += check_jet_loop(loops, t, plan.t_s, scenario.limits.min_separation_m)
+    # the pair checks with each tube grown by at most the separation (a growth beyond it is a violation)
+    far = scenario.limits.min_separation_m
+    deflection = {n: np.minimum(loops[n].deflection_m, far) if n in loops else np.zeros(t.size) for n in along}
     out += check_pairs(plan, scenario, t, pos, deflection)
     out += check_authority(scenario, t, along, plan.t_s)
     if not any(v.kind == "authority" for v in out):  # the plain check names the cause first

@@ -25,20 +25,34 @@ import numpy as np
 
 from proxplan.costmaps import sources_wrench
 from proxplan.physics import ModelOptions, Vehicle
-from proxplan.physics.hover_loop import JetResponse, jet_response, loop_matrices, loop_poles, wrench_gradient
+from proxplan.physics.hover_loop import (
+    JetResponse,
+    jet_response,
+    loop_matrices,
+    loop_poles,
+    weak_jet_bound_m,
+    wrench_gradient,
+)
 from proxplan.planfile import Plan, Scenario
 from proxplan.verify.tolerances import REST_SPEED_MPS
 from proxplan.verify.violations import Violation
+
+WEAK_USAGE = 1e-6
+"""A source whose jet uses less than this share of a vehicle's authority at a sample (a millionth)
+is left out of the jet's gradients there; a vehicle no source ever reaches this on is not run
+through the loop in the jet: its tube grows by the bound of what such a force and torque can do in
+its loop without the jet (:func:`proxplan.physics.hover_loop.weak_jet_bound_m`, micrometres)."""
 
 
 @dataclass(frozen=True)
 class LoopAlongPlan:
     """One vehicle's loop along the plan: its ``response`` (:class:`proxplan.physics.hover_loop.
-    JetResponse`), its tube growth ``deflection_m`` (M,), m (|d| + t gamma, the hold in the last
-    sample; the plan alone where the final loop is not damped), and ``source``: the vehicle whose
-    jet acts on it most at the end (None: none)."""
+    JetResponse`; None for a jet too weak to matter, :data:`WEAK_USAGE`), its tube growth
+    ``deflection_m`` (M,), m (|d| + t gamma, the hold in the last sample; the plan alone where the
+    final loop is not damped), and ``source``: the vehicle whose jet acts on it most at the end
+    (None: none)."""
 
-    response: JetResponse
+    response: JetResponse | None
     deflection_m: np.ndarray
     source: str | None
 
@@ -73,36 +87,83 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
     opts = model_options(scenario)
     effects = tuple(scenario.effects if scenario is not None else plan.effects)
     tube = float(scenario.limits.tracking_margin_m) if scenario is not None else 0.0
+    cap = _largest_growth_m(scenario, pos)
     for name, w in along.items():
         hit = (np.abs(w.force_N).max(axis=1) > 0.0) | (np.abs(w.torque_Nm).max(axis=1) > 0.0)
         if not hit.any():
             continue
         vehicle = _vehicle(plan, scenario, name)
-        names = [s for s in w.usage_by_source] or [n for n in plan.vehicles if n != name]
+        last = {s: float(u[-1]) for s, u in w.usage_by_source.items()}
+        source = max(last, key=lambda s: last[s]) if last and max(last.values()) > 0.0 else None
+        strong = {s: u >= WEAK_USAGE for s, u in w.usage_by_source.items()}
+        if not any(m.any() for m in strong.values()):  # too weak a jet to matter: its bound
+            bound = weak_jet_bound_m(
+                vehicle,
+                float(np.linalg.norm(w.force_N, axis=1).max()),
+                float(np.linalg.norm(w.torque_Nm, axis=1).max()),
+            )
+            first = int(np.argmax(hit))  # from the first sample the jet reaches it on
+            out[name] = LoopAlongPlan(None, np.where(np.arange(t.size) >= first, bound, 0.0), source)
+            continue
         gf = np.zeros((t.size, 3, 3))
         gt = np.zeros((t.size, 3, 3))
-        rows = np.flatnonzero(hit)
-        sources = [(_vehicle(plan, scenario, s), pos[s][rows]) for s in names]
-        gf[rows], gt[rows] = target_gradients(vehicle, pos[name][rows], sources, opts, effects)
+        names = sorted(strong)
+        which = np.stack([strong[s] for s in names])  # (S, M): the sources that matter at each sample
+        groups: dict[tuple[str, ...], list[int]] = {}
+        for k in np.flatnonzero(which.any(axis=0)):
+            groups.setdefault(tuple(n for n, on in zip(names, which[:, k]) if on), []).append(int(k))
+        for key, rows_list in groups.items():  # the jets of those sources together (stacks), per set
+            rows = np.asarray(rows_list)
+            sources = [(_vehicle(plan, scenario, s), pos[s][rows]) for s in key]
+            gf[rows], gt[rows] = target_gradients(vehicle, pos[name][rows], sources, opts, effects)
         moving = np.linalg.norm(plan.vehicles[name].sample(t)[1], axis=1) >= REST_SPEED_MPS
         resp = jet_response(t, vehicle, w.force_N, w.torque_Nm, gf, gt, moving)
         size = np.linalg.norm(resp.deflection_m, axis=1) + tube * resp.tube_gain
         if np.isfinite(resp.hold_deflection_m):
             size[-1] = max(size[-1], resp.hold_deflection_m + tube * resp.hold_tube_gain)
-        last = {s: float(u[-1]) for s, u in w.usage_by_source.items()}
-        source = max(last, key=lambda s: last[s]) if last and max(last.values()) > 0.0 else None
-        out[name] = LoopAlongPlan(resp, size, source)
+        out[name] = LoopAlongPlan(resp, np.minimum(size, cap), source)
     return out
 
 
-def check_jet_loop(loops: dict[str, LoopAlongPlan], t_s: np.ndarray, plan_t_s: np.ndarray) -> list[Violation]:
-    """A violation for every vehicle whose loop is not damped where it holds at the end of the plan."""
+def _largest_growth_m(scenario: Scenario | None, pos: dict[str, np.ndarray]) -> float:
+    """The largest tube growth worth stating, m: the workspace's diagonal (the plan's extent without
+    a scenario). A linearised loop that grows beyond it has left its validity long before, and a
+    tube that wide fails every check it enters anyway."""
+    if scenario is not None:
+        return float(np.linalg.norm(np.asarray(scenario.workspace_max_m) - np.asarray(scenario.workspace_min_m)))
+    flat = np.concatenate([p.reshape(-1, 3) for p in pos.values()])
+    return float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) + 1.0
+
+
+def check_jet_loop(
+    loops: dict[str, LoopAlongPlan], t_s: np.ndarray, plan_t_s: np.ndarray, far_m: float
+) -> list[Violation]:
+    """A violation for every vehicle whose loop is not damped where it holds at the end of the plan,
+    and for every vehicle the loop is predicted to move off its plan by more than ``far_m`` (m, the
+    scenario's ``min_separation_m``: as far as vehicles keep apart; a plan that holds or flies a
+    vehicle where its jet undamps it long enough for that)."""
     out = []
     for name, lp in loops.items():
-        growth = float(lp.response.poles.growth_ps[-1])
+        if lp.deflection_m.size and float(lp.deflection_m.max()) > far_m:
+            k = int(np.argmax(lp.deflection_m > far_m))
+            out.append(
+                Violation(
+                    float(t_s[k]),
+                    name,
+                    "jet-loop",
+                    f"its closed loop in the jet of {lp.source} moves it farther off its plan than the scenario's "
+                    f"separation (up to {float(lp.deflection_m.max()):.3f} m beyond its tracking tube; m)",
+                    float(lp.deflection_m.max()),
+                    far_m,
+                    int(np.clip(np.searchsorted(plan_t_s, t_s[k] + 1e-9, side="right") - 1, 0, plan_t_s.size - 1)),
+                )
+            )
+        if lp.response is None:  # a jet too weak to matter: the loop without it, damped
+            continue
+        growth = float(lp.response.poles.growth_ps[0])
         if growth < 0.0:
             continue
-        freq = float(lp.response.poles.frequency_hz[-1])
+        freq = float(lp.response.poles.frequency_hz[0])
         out.append(
             Violation(
                 float(t_s[-1]),
@@ -172,5 +233,5 @@ def predicted_tube_growth(plan: Plan, *, dt_s: float = 0.01) -> TubeGrowth:
     t = np.arange(0.0, float(plan.t_s[-1]) + dt_s / 2, dt_s)
     loops = loop_along_plan(plan, scenario, wrench_along_plan(plan, scenario, t_s=t))
     tube = float(scenario.limits.tracking_margin_m) if scenario is not None else None
-    undamped = tuple(n for n, lp in loops.items() if lp.response.poles.growth_ps[-1] >= 0.0)
+    undamped = tuple(n for n, lp in loops.items() if lp.response is not None and lp.response.poles.growth_ps[0] >= 0.0)
     return TubeGrowth(t, {n: lp.deflection_m for n, lp in loops.items()}, tube, undamped)

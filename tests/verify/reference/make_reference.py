@@ -186,7 +186,9 @@ def violations_only() -> int:
         exp_path = HERE / f"{name}.expected.json.gz"
         with gzip.open(exp_path, "rt", encoding="utf-8") as f:
             exp = json.load(f)
-        exp["violations"] = [v.to_dict() for v in verify_plan(plan, scenario_of_plan(plan, label=name), dt_fine_s=FINE_DT_S)]
+        exp["violations"] = [
+            v.to_dict() for v in verify_plan(plan, scenario_of_plan(plan, label=name), dt_fine_s=FINE_DT_S)
+        ]
         _write(exp_path, exp)
         print(f"{name}: {len(exp['violations'])} violations")
     return 0
