@@ -213,9 +213,10 @@ def shipped_cases() -> list[Case]:
 # ---------------------------------------------------------------------------------------- one case
 
 
-def run_case(args: tuple[Case, str, float]) -> dict:
-    """Plan, verify and fly one case; a JSON-able dict (module docstring)."""
-    case, method, settle_s = args
+def run_case(args: tuple[Case, str, float, str | None]) -> dict:
+    """Plan, verify and fly one case; a JSON-able dict (module docstring); the plan is written to
+    KEEP/NAME/plan.json when a folder is given."""
+    case, method, settle_s, keep = args
     from proxplan.fileio import UserError
     from proxplan.flightsim import SimulationOptions, simulate_plan
     from proxplan.planfile import load_scenario, scenario_from_dict
@@ -253,6 +254,10 @@ def run_case(args: tuple[Case, str, float]) -> dict:
         return {**out, "status": "user-error", "message": str(err)}
     violations = verify_plan(plan, scenario)
     verified = not violations and refused is None
+    if keep:
+        from proxplan.planfile import write_plan
+
+        write_plan(plan, Path(keep) / case.name / "plan.json")
     result = simulate_plan(plan, options=SimulationOptions(imu_noise=False, settle_s=settle_s))
     per = {}
     worst = -np.inf
@@ -336,6 +341,7 @@ def main() -> int:
     ap.add_argument("--no-shipped", action="store_true", help="generated cases only")
     ap.add_argument("--makespan-baseline", default=None, help="interpreter of the code before (makespan table)")
     ap.add_argument("--json", default=None, help="write every case's result to this JSON file")
+    ap.add_argument("--keep", default=None, help="write each case's plan to KEEP/NAME/plan.json")
     args = ap.parse_args()
 
     from proxplan.fanout import fan_out
@@ -345,7 +351,8 @@ def main() -> int:
         cases = [c for c in cases if c.name in set(args.only)]
     t0 = time.perf_counter()
     done = fan_out(
-        run_case, [(c, args.method, args.settle) for c in cases], scheduler=args.scheduler, n_workers=args.workers,
+        run_case, [(c, args.method, args.settle, args.keep) for c in cases], scheduler=args.scheduler,
+        n_workers=args.workers,
         progress=lambda k, n: print(f"  {k}/{n} cases flown", file=sys.stderr, flush=True),
     )  # fmt: skip
     results = done.results
