@@ -34,14 +34,15 @@ from proxplan.physics.hover_loop import (
     wrench_gradient,
 )
 from proxplan.planfile import Plan, Scenario
+from proxplan.verify.reach import MIN_DZ_M
 from proxplan.verify.tolerances import REST_SPEED_MPS
 from proxplan.verify.violations import Violation
 
 WEAK_USAGE = 1e-6
 """A source whose jet uses less than this share of a vehicle's authority at a sample (a millionth)
-is left out of the jet's gradients there; a vehicle no source ever reaches this on is not run
-through the loop in the jet: its tube grows by the bound of what such a force and torque can do in
-its loop without the jet (:func:`proxplan.physics.hover_loop.weak_jet_bound_m`, micrometres)."""
+is left out of the jet's gradients there; a vehicle whose jets never reach it is not run through
+the loop in the jet: its tube grows by the bound of what such a force and torque can do in its loop
+without the jet (:func:`proxplan.physics.hover_loop.weak_jet_bound_m`, micrometres)."""
 
 
 @dataclass(frozen=True)
@@ -95,8 +96,7 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
         vehicle = _vehicle(plan, scenario, name)
         last = {s: float(u[-1]) for s, u in w.usage_by_source.items()}
         source = max(last, key=lambda s: last[s]) if last and max(last.values()) > 0.0 else None
-        strong = {s: u >= WEAK_USAGE for s, u in w.usage_by_source.items()}
-        if not any(m.any() for m in strong.values()):  # too weak a jet to matter: its bound
+        if not (w.usage >= WEAK_USAGE).any():  # too weak a jet to matter: its bound
             bound = weak_jet_bound_m(
                 vehicle,
                 float(np.linalg.norm(w.force_N, axis=1).max()),
@@ -107,13 +107,7 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
             continue
         gf = np.zeros((t.size, 3, 3))
         gt = np.zeros((t.size, 3, 3))
-        names = sorted(strong)
-        which = np.stack([strong[s] for s in names])  # (S, M): the sources that matter at each sample
-        groups: dict[tuple[str, ...], list[int]] = {}
-        for k in np.flatnonzero(which.any(axis=0)):
-            groups.setdefault(tuple(n for n, on in zip(names, which[:, k]) if on), []).append(int(k))
-        for key, rows_list in groups.items():  # the jets of those sources together (stacks), per set
-            rows = np.asarray(rows_list)
+        for key, rows in _source_sets(name, w, pos, t.size).items():  # those jets together (stacks), per set
             sources = [(_vehicle(plan, scenario, s), pos[s][rows]) for s in key]
             gf[rows], gt[rows] = target_gradients(vehicle, pos[name][rows], sources, opts, effects)
         moving = np.linalg.norm(plan.vehicles[name].sample(t)[1], axis=1) >= REST_SPEED_MPS
@@ -123,6 +117,25 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
             size[-1] = max(size[-1], resp.hold_deflection_m + tube * resp.hold_tube_gain)
         out[name] = LoopAlongPlan(resp, np.minimum(size, cap), source)
     return out
+
+
+def _source_sets(name: str, w, pos: dict[str, np.ndarray], m: int) -> dict[tuple[str, ...], np.ndarray]:
+    """The samples (rows) where the jets on ``name`` matter (its authority usage >= :data:`WEAK_USAGE`),
+    grouped by the set of sources that matter there: those whose own usage reaches it, else every
+    vehicle above it (by more than 1e-6 m, as the checks count "above"; a usage no such source
+    explains is the model's value at dz -> 0 of a source level with it, left without gradient)."""
+    names = sorted(w.usage_by_source)
+    which = np.stack([w.usage_by_source[s] >= WEAK_USAGE for s in names]) if names else np.zeros((0, m), bool)
+    others = [o for o in pos if o != name]
+    above = np.stack([pos[o][:, 2] - pos[name][:, 2] > MIN_DZ_M for o in others]) if others else np.zeros((0, m), bool)
+    groups: dict[tuple[str, ...], list[int]] = {}
+    for k in np.flatnonzero(w.usage >= WEAK_USAGE):
+        key = tuple(s for s, on in zip(names, which[:, k]) if on) or tuple(
+            o for o, on in zip(others, above[:, k]) if on
+        )
+        if key:
+            groups.setdefault(key, []).append(int(k))
+    return {key: np.asarray(rows) for key, rows in groups.items()}
 
 
 def _largest_growth_m(scenario: Scenario | None, pos: dict[str, np.ndarray]) -> float:
