@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -126,12 +127,13 @@ class FlightLog:
 
     def record(self, vi: int, name: str, type_name: str, vehicle: Vehicle, t_s: np.ndarray, **extra) -> VehicleRecord:
         """Vehicle ``vi``'s :class:`VehicleRecord` (``extra``: the optional fields)."""
+        logged: dict[str, Any] = {key: arr[:, vi] for key, arr in self.arrays.items()}
         return VehicleRecord(
             name=name,
             type_name=type_name,
             vehicle=vehicle,
             t_s=t_s,
             saturated=self.saturated[:, vi],
-            **{key: arr[:, vi] for key, arr in self.arrays.items()},
+            **logged,
             **extra,
         )

@@ -309,7 +309,7 @@ def build_vehicle(name: str, entry: VehicleEntry, *, source: str, where: str) ->
             f"{where}.max_thrust_N: {vehicle.max_thrust_N} N cannot lift {vehicle.mass_kg} kg "
             f"(needs more than {vehicle.weight_N:.3f} N)"
         )
-    default_gains = getattr(base, "controller", None) if base is not None else _derived("controller", values)
+    default_gains = base.controller if base is not None else _derived("controller", values)
     _check_hover_loop(vehicle, entry, default_gains, where)
     return vehicle
 
