@@ -24,8 +24,15 @@ from typing import Any
 import numpy as np
 
 from proxplan.certify.draws import NoiseSpec, RunDraw, Spreads, draw_run
-from proxplan.flightsim import Perturbation, SimulationOptions, SimulationStatus, TruthSpec, simulate_plan
-from proxplan.flightsim.report import predicted_deflection_m, record_tube_m
+from proxplan.flightsim import (
+    Perturbation,
+    SimulationOptions,
+    SimulationStatus,
+    TruthSpec,
+    predicted_deflection_m,
+    record_tube_m,
+    simulate_plan,
+)
 from proxplan.identify import apply_vehicle_parameters
 from proxplan.physics import Effect, Vehicle, authority_usage
 from proxplan.planfile import Plan

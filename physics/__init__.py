@@ -66,6 +66,7 @@ from proxplan.physics.hover_loop import (
     jet_response,
     loop_matrices,
     loop_poles,
+    weak_jet_bound_m,
     wrench_gradient,
 )
 from proxplan.physics.model_file import (
@@ -133,6 +134,7 @@ __all__ = [
     "jet_response",
     "loop_matrices",
     "loop_poles",
+    "weak_jet_bound_m",
     "wrench_gradient",
     "reference_error",
     "FIRMWARE_ATTITUDE_PWM",

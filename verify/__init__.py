@@ -8,12 +8,18 @@ damped where it holds).
 from proxplan.verify.along import (
     WrenchAlongPlan,
     attach_feedforward,
-    deflection_along_plan,
     separation_summary,
     wrench_along_plan,
 )
 from proxplan.verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, tube_offsets, verify_plan
-from proxplan.verify.jet_loop import LoopAlongPlan, TubeGrowth, check_jet_loop, loop_along_plan, predicted_tube_growth
+from proxplan.verify.jet_loop import (
+    LoopAlongPlan,
+    check_jet_loop,
+    deflection_along_plan,
+    hold_poles,
+    loop_along_plan,
+)
+from proxplan.verify.tube_growth import TubeGrowth, predicted_tube_growth
 from proxplan.verify.violations import Violation
 
 __all__ = [
@@ -21,6 +27,7 @@ __all__ = [
     "LoopAlongPlan",
     "TubeGrowth",
     "check_jet_loop",
+    "hold_poles",
     "loop_along_plan",
     "predicted_tube_growth",
     "REST_SPEED_MPS",

@@ -71,20 +71,6 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
     return out
 
 
-def deflection_along_plan(
-    plan: Plan, scenario: Scenario | None, along: dict[str, WrenchAlongPlan]
-) -> dict[str, np.ndarray]:
-    """Per vehicle how far (M,), m, it is predicted to leave its plan in the jets the model predicts
-    on it along the plan (``along``, on a uniform grid from the plan's start): its closed loop in
-    the jet (:mod:`proxplan.verify.jet_loop`: the deviation the wrench drives plus how far the jet
-    makes a deviation within the tracking tube grow; the hold after the plan's end in the last
-    sample). Part of that vehicle's tube where it applies; zeros for a vehicle nothing acts on."""
-    from proxplan.verify.jet_loop import loop_along_plan
-
-    loops = loop_along_plan(plan, scenario, along)
-    return {name: loops[name].deflection_m if name in loops else np.zeros(w.t_s.size) for name, w in along.items()}
-
-
 def _vehicle(plan: Plan, scenario: Scenario | None, name: str):
     return scenario.vehicles[name].vehicle if scenario is not None else plan.vehicles[name].vehicle
 

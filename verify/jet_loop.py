@@ -24,9 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from proxplan.costmaps import sources_wrench
-from proxplan.physics import ModelOptions, Vehicle
-from proxplan.physics.hover_loop import (
+from proxplan.physics import (
     JetResponse,
+    ModelOptions,
+    Vehicle,
     jet_response,
     loop_matrices,
     loop_poles,
@@ -34,6 +35,7 @@ from proxplan.physics.hover_loop import (
     wrench_gradient,
 )
 from proxplan.planfile import Plan, Scenario
+from proxplan.verify.along import WrenchAlongPlan, model_options
 from proxplan.verify.reach import MIN_DZ_M
 from proxplan.verify.tolerances import REST_SPEED_MPS
 from proxplan.verify.violations import Violation
@@ -78,8 +80,6 @@ def target_gradients(
 def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[str, LoopAlongPlan]:
     """Per vehicle with a predicted disturbance, its loop along the plan (:class:`LoopAlongPlan`);
     ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start."""
-    from proxplan.verify.along import model_options
-
     out: dict[str, LoopAlongPlan] = {}
     if not along:
         return out
@@ -209,42 +209,12 @@ def _vehicle(plan: Plan, scenario: Scenario | None, name: str) -> Vehicle:
     return scenario.vehicles[name].vehicle if scenario is not None else plan.vehicles[name].vehicle
 
 
-@dataclass(frozen=True)
-class TubeGrowth:
-    """How far each vehicle of a plan is predicted to leave its plan beyond its tracking tube: on
-    the uniform grid ``t_s`` (M,), s, from the plan's start, ``growth_m`` {vehicle: (M,)} m
-    (:func:`loop_along_plan`; the hold after the end in the last sample), ``tube_m`` the tube the
-    verifier grants (``limits.tracking_margin_m``; None: no scenario, each type's own tube),
-    ``undamped`` the vehicles whose loop is not damped where they hold at the end (no bound after it)."""
-
-    t_s: np.ndarray
-    growth_m: dict[str, np.ndarray]
-    tube_m: float | None
-    undamped: tuple[str, ...] = ()
-
-    def at(self, name: str, t_s: np.ndarray) -> np.ndarray:
-        """``name``'s growth (K,), m, at plan times ``t_s`` (K,), s (the last value after the end;
-        inf there for an undamped vehicle)."""
-        g = self.growth_m.get(name)
-        t = np.asarray(t_s, dtype=float)
-        if g is None or self.t_s.size == 0:
-            return np.zeros(t.size)
-        out = np.interp(t, self.t_s, g)
-        if name in self.undamped:
-            out[t > self.t_s[-1] + 1e-9] = np.inf
-        return out
-
-
-def predicted_tube_growth(plan: Plan, *, dt_s: float = 0.01) -> TubeGrowth:
-    """:class:`TubeGrowth` of ``plan`` with the scenario embedded in it (the verifier's numbers,
-    evaluated on the verifier's grid of step ``dt_s``, s)."""
-    from proxplan.verify.along import wrench_along_plan
-    from proxplan.verify.checks import scenario_of_plan
-
-    has = getattr(plan, "scenario_spec", None) is not None or getattr(plan, "scenario_file", None)
-    scenario = scenario_of_plan(plan) if has else None
-    t = np.arange(0.0, float(plan.t_s[-1]) + dt_s / 2, dt_s)
-    loops = loop_along_plan(plan, scenario, wrench_along_plan(plan, scenario, t_s=t))
-    tube = float(scenario.limits.tracking_margin_m) if scenario is not None else None
-    undamped = tuple(n for n, lp in loops.items() if lp.response is not None and lp.response.poles.growth_ps[0] >= 0.0)
-    return TubeGrowth(t, {n: lp.deflection_m for n, lp in loops.items()}, tube, undamped)
+def deflection_along_plan(
+    plan: Plan, scenario: Scenario | None, along: dict[str, WrenchAlongPlan]
+) -> dict[str, np.ndarray]:
+    """Per vehicle how far (M,), m, it is predicted to leave its plan beyond its tracking tube in the
+    jets the model predicts on it along the plan (``along``, on a uniform grid from the plan's
+    start): :func:`loop_along_plan`'s growth (the hold after the plan's end in the last sample).
+    Part of that vehicle's tube where it applies; zeros for a vehicle nothing acts on."""
+    loops = loop_along_plan(plan, scenario, along)
+    return {name: loops[name].deflection_m if name in loops else np.zeros(w.t_s.size) for name, w in along.items()}

@@ -339,11 +339,10 @@ def check_goal_loops(scenario: Scenario) -> None:
     linearised there has a real part >= 0, so it oscillates there however it is planned; the
     margin is minus that real part). Sources: every other vehicle above it whose jet can reach it
     (:func:`proxplan.verify.reach.usage_grid`'s reach of the pair)."""
-    from proxplan.verify.along import model_options
-    from proxplan.verify.jet_loop import hold_poles
+    from proxplan.verify import hold_poles
 
     final = {n: np.asarray(scenario.final_position_m(n), dtype=float) for n in scenario.vehicles}
-    opts = model_options(scenario)
+    opts = scenario.model_options
     effects = tuple(scenario.effects)
     where = f"{scenario.source_path}: " if scenario.source_path else ""
     for name, task in scenario.vehicles.items():
