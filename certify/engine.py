@@ -18,7 +18,7 @@ from proxplan.certify.stats import percentiles, probability
 from proxplan.fanout import fan_out
 from proxplan.fileio import UserError
 
-OUTCOMES = ("authority_exceeded", "separation_violated", "goal_missed")
+OUTCOMES = ("authority_exceeded", "separation_violated", "goal_missed", "left_tube")
 N_WORST = 5
 
 
@@ -74,6 +74,13 @@ def summarise_runs(setup: CertifySetup, runs: list[dict[str, Any]], notes: list[
             for r, v in zip(runs, vals)
         ]
         prob = probability(exceeded)
+        left = probability(
+            [
+                r["status"] != "complete" or v["tube_excess_m"] is None or v["tube_excess_m"] > 0.0
+                for r, v in zip(runs, vals)
+            ]
+        )
+        excess = [v["tube_excess_m"] for v in vals if v["tube_excess_m"] is not None]
         seps = [v["min_separation_m"] for v in vals if v["min_separation_m"] is not None]
         per_vehicle[name] = {
             "type": setup.plan.vehicles[name].type_name,
@@ -83,6 +90,9 @@ def summarise_runs(setup: CertifySetup, runs: list[dict[str, Any]], notes: list[
             "tracking_error_m": percentiles([v["max_tracking_error_m"] for v in vals]),
             "final_error_m": percentiles([v["final_error_m"] for v in vals]),
             "min_separation_m": min(seps) if seps else None,
+            "p_left_tube": left["p"],
+            "ci95_left_tube": left["ci95"],
+            "tube_excess_m": percentiles(excess) if excess else None,
         }
     out["per_vehicle"] = per_vehicle
     out["limits"] = {
@@ -114,6 +124,12 @@ def certify_plan(
     if runs < 0:
         raise UserError(f"--runs: expected a whole number >= 0, got {runs}")
     notes = list(notes or [])
+    if setup.tube_growth is None:  # once here, not in every run
+        from dataclasses import replace
+
+        from proxplan.verify import predicted_tube_growth
+
+        setup = replace(setup, tube_growth=predicted_tube_growth(setup.plan))
     if runs == 0:
         notes.append("--runs 0: no flights; probabilities are undefined (null) and their intervals [0, 1]")
     task = functools.partial(fly_run, setup)

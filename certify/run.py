@@ -10,7 +10,9 @@ Run outcomes: ``authority_exceeded`` (some vehicle's peak usage > the scenario's
 ``authority_fraction``, or the flight diverged), ``separation_violated`` (two vehicles closer than
 max(min_separation_m, sum of body radii) where the plan keeps that distance, or diverged),
 ``goal_missed`` (a vehicle ends farther than ``goal_tolerance_m`` from its planned final position,
-or diverged).
+or diverged), ``left_tube`` (a vehicle flew farther from the plan than the tube the verifier granted
+plus its predicted growth in the jets, ``proxplan.verify.predicted_tube_growth``, the hold after the
+end included; or diverged: the promise ``verify`` makes).
 """
 
 from __future__ import annotations
@@ -22,7 +24,15 @@ from typing import Any
 import numpy as np
 
 from proxplan.certify.draws import NoiseSpec, RunDraw, Spreads, draw_run
-from proxplan.flightsim import Perturbation, SimulationOptions, SimulationStatus, TruthSpec, simulate_plan
+from proxplan.flightsim import (
+    Perturbation,
+    SimulationOptions,
+    SimulationStatus,
+    TruthSpec,
+    predicted_deflection_m,
+    record_tube_m,
+    simulate_plan,
+)
 from proxplan.identify import apply_vehicle_parameters
 from proxplan.physics import Effect, Vehicle, authority_usage
 from proxplan.planfile import Plan
@@ -53,6 +63,7 @@ class CertifySetup:
     spreads: Spreads = Spreads()
     noise: NoiseSpec = NoiseSpec()
     options: SimulationOptions = SimulationOptions(imu_noise=False)
+    tube_growth: Any = None  # the plan's proxplan.verify.TubeGrowth (certify_plan fills it once)
 
     def flown_types(self) -> dict[str, tuple[str, Vehicle]]:
         """Vehicle name -> (type name, the vehicle flown before drawing), in plan order."""
@@ -94,7 +105,9 @@ def fly_run(setup: CertifySetup, index: int, *, keep_result: bool = False) -> di
         estimate_error_mps=draw.estimate_error_mps,
     )
     options = replace(setup.options, seed=draw.sim_seed)
-    result = simulate_plan(plan, truth=truth, vehicles=vehicles, options=options, perturbation=pert)
+    result = simulate_plan(
+        plan, truth=truth, vehicles=vehicles, options=options, perturbation=pert, tube_growth=setup.tube_growth
+    )
     out = summarise(setup, result, draw)
     if keep_result:
         out["_result"] = result
@@ -115,8 +128,10 @@ def summarise(setup: CertifySetup, result, draw: RunDraw) -> dict[str, Any]:
         plan_pos[name] = ref
         err = np.linalg.norm(rec.position_m - ref, axis=1)
         usage = authority_usage(rec.vehicle, rec.applied_force_N, rec.applied_torque_Nm)
+        beyond = err - record_tube_m(rec) - predicted_deflection_m(rec)  # -inf where nothing bounds it
         per_vehicle[name] = {
             "peak_authority_usage": float(np.max(usage)) if usage.size else float("inf"),
+            "tube_excess_m": float(np.max(beyond)) if beyond.size else float("inf"),
             "max_tracking_error_m": float(err.max()) if err.size else float("inf"),
             "final_error_m": float(err[-1]) if err.size else float("inf"),
             "min_separation_m": float("inf"),
@@ -143,6 +158,7 @@ def summarise(setup: CertifySetup, result, draw: RunDraw) -> dict[str, Any]:
         (v["peak_authority_usage"] or 0.0) > setup.authority_limit for v in per_vehicle.values()
     )
     goal = diverged or any((v["final_error_m"] or 0.0) > setup.goal_tolerance_m for v in per_vehicle.values())
+    left = diverged or any(v["tube_excess_m"] is None or v["tube_excess_m"] > 0.0 for v in per_vehicle.values())
     return {
         "index": draw.index,
         "seed": [draw.seed, draw.index],
@@ -150,6 +166,7 @@ def summarise(setup: CertifySetup, result, draw: RunDraw) -> dict[str, Any]:
         "authority_exceeded": bool(authority),
         "separation_violated": bool(diverged or not sep_ok),
         "goal_missed": bool(goal),
+        "left_tube": bool(left),
         "max_tracking_error_m": max((v["max_tracking_error_m"] or 0.0) for v in per_vehicle.values()),
         "peak_authority_usage": max((v["peak_authority_usage"] or 0.0) for v in per_vehicle.values()),
         "per_vehicle": per_vehicle,

@@ -9,7 +9,14 @@ from proxplan.flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_fli
 from proxplan.flightsim.mellinger import controller_gains, reference_body_rates
 from proxplan.flightsim.options import CONTROLLERS, Perturbation, SimulationOptions
 from proxplan.flightsim.records import SimulationResult, SimulationStatus, VehicleRecord
-from proxplan.flightsim.report import feedforward_comparison, plot_errors, simulation_metrics, summary_dict
+from proxplan.flightsim.report import (
+    feedforward_comparison,
+    plot_errors,
+    predicted_deflection_m,
+    record_tube_m,
+    simulation_metrics,
+    summary_dict,
+)
 from proxplan.flightsim.scenarios_synthetic import (
     battery_swap_plans,
     hover_stack_plan,
@@ -45,6 +52,8 @@ __all__ = [
     "model_truth",
     "plan_truth",
     "plot_errors",
+    "predicted_deflection_m",
+    "record_tube_m",
     "simulate_plan",
     "simulation_metrics",
     "single_hover_plan",

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +44,9 @@ class VehicleRecord:
     predicted_force_N: np.ndarray | None = None  # (M, 3) the plan's predicted disturbance, world frame, N
     predicted_torque_Nm: np.ndarray | None = None  # (M, 3) world axes, N m
     setpoint_position_m: np.ndarray | None = None  # (M, 3) the position set-point the controller was given, m
+    predicted_deflection_m: np.ndarray | None = None  # (M,) how far the plan predicts it beyond its tube, m
+    # (proxplan.verify.predicted_tube_growth: its closed loop in the jets along the plan, the hold after the end)
+    tube_m: float | None = None  # the tube the verifier grants it (limits.tracking_margin_m; None: its type's), m
 
     @property
     def accel_meas_world_mps2(self) -> np.ndarray:
@@ -123,12 +127,13 @@ class FlightLog:
 
     def record(self, vi: int, name: str, type_name: str, vehicle: Vehicle, t_s: np.ndarray, **extra) -> VehicleRecord:
         """Vehicle ``vi``'s :class:`VehicleRecord` (``extra``: the optional fields)."""
+        logged: dict[str, Any] = {key: arr[:, vi] for key, arr in self.arrays.items()}
         return VehicleRecord(
             name=name,
             type_name=type_name,
             vehicle=vehicle,
             t_s=t_s,
             saturated=self.saturated[:, vi],
-            **{key: arr[:, vi] for key, arr in self.arrays.items()},
+            **logged,
             **extra,
         )

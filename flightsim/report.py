@@ -10,9 +10,10 @@ included: 1 = a motor at its limit); the time spent below another vehicle inside
 value is an extrapolation. Next to the flown authority usage and invalid-zone time stand what the
 plan predicted: the usage of the plan's predicted disturbance (its feed-forward fields, or the
 verifier's model) and the same invalid-zone test on the plan's positions. The tracking error is
-also split by what the plan predicts: the deflection d the predicted disturbance pushes the vehicle
-off its plan by (``proxplan.physics.disturbance_deflection``: sag F / k_p and its transient, part of
-the vehicle's tube where it applies), the largest error where the plan predicts no disturbance (its
+also split by what the plan predicts: how far the vehicle's closed loop in the jets along the plan
+takes it off its plan beyond the tube (``proxplan.verify.predicted_tube_growth``: the deviation the
+jets drive and the growth of a deviation within the tube, the hold after the plan's end; part of the
+vehicle's tube where it applies, as the verifier counts it), the largest error where the plan predicts no disturbance (its
 predicted force below :data:`UNDISTURBED_FORCE_SHARE` of the vehicle's weight and |d| <=
 :data:`UNDISTURBED_M`), and the largest error beyond |d| (to hold within the tube).
 """
@@ -25,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from proxplan.fileio import save_figure
-from proxplan.physics import authority_usage, disturbance_deflection
+from proxplan.physics import authority_usage
 
 USAGE_RATIO_FLOOR = 1e-3  # predicted usage below which a flown/predicted ratio means nothing, -
 UNDISTURBED_M = 0.001  # predicted deflection up to which the plan predicts "no disturbance", m
@@ -47,10 +48,10 @@ class VehicleMetrics:
     predicted_max_authority_usage: float  # of the plan's predicted disturbance (model at the plan), -
     predicted_time_in_invalid_zone_s: float  # the same invalid-zone test on the plan's positions, s
     usage_ratio_flown_to_predicted: float | None  # max flown / max predicted (None: predicted < 1e-3)
-    predicted_max_deflection_m: float = 0.0  # largest |d| under the plan's predicted disturbance, m
+    predicted_max_deflection_m: float = 0.0  # largest predicted tube growth in the jets (verify's), m
     max_error_undisturbed_m: float = 0.0  # largest position error where |d| <= UNDISTURBED_M, m
     max_error_beyond_deflection_m: float = 0.0  # largest (position error - |d|), m
-    tube_m: float = 0.0  # the vehicle type's tracking tube (Vehicle.tracking_tube_m), m
+    tube_m: float = 0.0  # the tube the verifier granted (limits.tracking_margin_m; else the type's), m
     left_tube_by_m: float = 0.0  # largest (position error - |d| - tube), >= 0: the tube failed, m
 
 
@@ -114,11 +115,11 @@ def vehicle_metrics(
         predicted_max_authority_usage=predicted,
         predicted_time_in_invalid_zone_s=float(predicted_invalid_s),
         usage_ratio_flown_to_predicted=flown / predicted if predicted > USAGE_RATIO_FLOOR else None,
-        predicted_max_deflection_m=float(defl.max()),
+        predicted_max_deflection_m=float(defl[np.isfinite(defl)].max(initial=0.0)),
         max_error_undisturbed_m=float(pos[calm].max()) if calm.any() else 0.0,
         max_error_beyond_deflection_m=float((pos - defl).max()),
-        tube_m=float(record.vehicle.tracking_tube_m),
-        left_tube_by_m=max(0.0, float((pos - defl).max()) - float(record.vehicle.tracking_tube_m)),
+        tube_m=record_tube_m(record),
+        left_tube_by_m=max(0.0, float((pos - defl).max()) - record_tube_m(record)),
     )
 
 
@@ -133,13 +134,17 @@ def undisturbed(record, deflection_m: np.ndarray) -> np.ndarray:
 
 
 def predicted_deflection_m(record) -> np.ndarray:
-    """|d| (M,), m: how far the plan's predicted disturbance on ``record``'s vehicle pushes it off
-    its plan (``proxplan.physics.disturbance_deflection``, from rest at the record's start; zeros
-    without a prediction)."""
-    if record.predicted_force_N is None or record.predicted_torque_Nm is None or record.t_s.size < 2:
+    """(M,), m: how far the plan predicts ``record``'s vehicle beyond its tube (its closed loop in
+    the jets along the plan, ``proxplan.verify.predicted_tube_growth``; zeros without a prediction)."""
+    if record.predicted_deflection_m is None:
         return np.zeros(record.t_s.size)
-    d = disturbance_deflection(record.t_s, record.predicted_force_N, record.predicted_torque_Nm, record.vehicle)
-    return np.linalg.norm(d, axis=1)
+    return np.asarray(record.predicted_deflection_m, dtype=float)
+
+
+def record_tube_m(record) -> float:
+    """The tube ``record``'s vehicle was granted, m: the verifier's (``limits.tracking_margin_m``),
+    else its type's measured tube."""
+    return float(record.tube_m) if record.tube_m is not None else float(record.vehicle.tracking_tube_m)
 
 
 def simulation_metrics(result) -> dict[str, VehicleMetrics]:
@@ -162,6 +167,12 @@ def summary_dict(
     deflection is named in the notes: the tube is a planning allowance that failed)."""
     metrics = simulation_metrics(result)
     left = [
+        f"{n}: its closed loop is not damped in the jet where it holds at the end (verify: jet-loop), nothing "
+        "bounds its flight after the plan's end"
+        for n, r in result.records.items()
+        if r.predicted_deflection_m is not None and np.isinf(r.predicted_deflection_m).any()
+    ]
+    left += [
         f"{n} left its tube ({100 * m.tube_m:.1f} cm + its predicted deflection, up to {100 * m.predicted_max_deflection_m:.1f} cm) "
         f"by up to {100 * m.left_tube_by_m:.1f} cm"
         for n, m in metrics.items()

@@ -81,6 +81,7 @@ def simulate_plan(
     vehicles: Mapping[str, Vehicle] | None = None,
     perturbation: Perturbation | None = None,
     progress: bool = False,
+    tube_growth=None,
     **option_values,
 ) -> SimulationResult:
     """Fly ``plan`` (a :class:`proxplan.planfile.plan.Plan` or a plan.json path) closed loop.
@@ -93,7 +94,8 @@ def simulate_plan(
     effects); ``vehicles`` maps type names to the vehicles actually flown instead of the plan's own
     parameters (a heavier or weaker airframe than planned: the set-points stay those of the plan's
     vehicle, as an export computed them). ``perturbation`` adds start, timing, residual-force and
-    estimate errors.
+    estimate errors. ``tube_growth``: the plan's :class:`proxplan.verify.TubeGrowth` when known (else
+    computed, and cached per plan object), which the records carry as the prediction.
 
     Controller: ``options.controller`` (module docstring; the Mellinger law has its own integrators).
     ``position_integral_rate_ps`` > 0 adds integral action on the position error, as the seed's
@@ -111,7 +113,7 @@ def simulate_plan(
     flight = _prepare(plan, truth, vehicles or {}, options, perturbation or Perturbation())
     wall_start = time.perf_counter()
     log, sat_steps, status, detail = _fly(flight, options, progress)
-    return _result(flight, options, log, sat_steps, status, detail, time.perf_counter() - wall_start)
+    return _result(flight, options, log, sat_steps, status, detail, time.perf_counter() - wall_start, tube_growth)
 
 
 def _prepare(
@@ -146,6 +148,21 @@ def _prepare(
 
 
 _STEPPER_CACHE: dict = {}
+_GROWTH_CACHE: dict = {}
+
+
+def _tube_growth(plan: Plan):
+    """The plan's predicted tube growth (:func:`proxplan.verify.predicted_tube_growth`), cached per
+    plan object (certify flies one plan many times)."""
+    from proxplan.verify import predicted_tube_growth
+
+    key = id(plan)
+    hit = _GROWTH_CACHE.get(key)
+    if hit is None or hit[0] is not plan:
+        if len(_GROWTH_CACHE) > 8:
+            _GROWTH_CACHE.clear()
+        hit = _GROWTH_CACHE[key] = (plan, predicted_tube_growth(plan))
+    return hit[1]
 
 
 def _stepper(params: list[dict], dt_s: float, wind_mps, gains: list) -> CompiledStepper:
@@ -253,6 +270,7 @@ def _result(
     status: SimulationStatus,
     detail: str,
     wall_s: float,
+    tube_growth=None,
 ) -> SimulationResult:
     """IMU samples and the base-model wrench added to the log, records and notes assembled."""
     arr = log.arrays
@@ -283,11 +301,13 @@ def _result(
         arr["model_force_N"][:] = arr["applied_force_N"] - flight.extra_force_N[::every][:n_logged]
         arr["model_torque_Nm"][:] = arr["applied_torque_Nm"]
     t_log = (flight.t_grid_s[::every] - flight.t0_s)[:n_logged]
+    growth = tube_growth if tube_growth is not None else _tube_growth(flight.plan)
     records = {
         name: log.record(
             vi, name, flight.trajs[vi].type_name, flight.vehicles[vi], t_log,
             predicted_force_N=flight.predicted_force_N[::every][:n_logged, vi],
             predicted_torque_Nm=flight.predicted_torque_Nm[::every][:n_logged, vi],
+            predicted_deflection_m=growth.at(name, t_log), tube_m=growth.tube_m,
         )
         for vi, name in enumerate(flight.names)
     }  # fmt: skip

@@ -2,8 +2,8 @@
 
 Vehicles (:class:`Vehicle`: the one home of every vehicle fact, rotor drag and controller gains
 included), the built-in types and vehicle YAML files, the linearised closed loop of a vehicle under
-its position controller (drag lead of the reference, prediction of the flown path, deflection under
-a predicted disturbance), the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
+its position controller (drag lead of the reference, prediction of the flown path) and of a vehicle
+in another's jet (its poles, its response along a plan), the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
 below another (S0-3..S0-8), controller-authority usage (DESIGN.md section 3), and the library of
 effects beyond the base model. Cost maps, planner, verifier, simulator and identification all use
 this one implementation.
@@ -21,10 +21,8 @@ from proxplan.physics.closed_loop import (
     TAIL_MAX_S,
     TAIL_RESIDUAL_M,
     LoopResponse,
-    disturbance_deflection,
     drag_lead,
     reference_error,
-    torque_equivalent_force_N,
 )
 from proxplan.physics.controller_gains import (
     FIRMWARE_ATTITUDE_PWM,
@@ -75,6 +73,17 @@ from proxplan.physics.features import (
     term_key,
     term_scale,
     weight_scaled,
+)
+from proxplan.physics.hover_loop import (
+    STATE_NAMES,
+    JetResponse,
+    LoopMatrices,
+    LoopPoles,
+    jet_response,
+    loop_matrices,
+    loop_poles,
+    weak_jet_bound_m,
+    wrench_gradient,
 )
 from proxplan.physics.model_file import (
     MODEL_FORMAT_VERSION,
@@ -134,10 +143,17 @@ __all__ = [
     "TAIL_MAX_S",
     "TAIL_RESIDUAL_M",
     "LoopResponse",
-    "disturbance_deflection",
     "drag_lead",
+    "STATE_NAMES",
+    "JetResponse",
+    "LoopMatrices",
+    "LoopPoles",
+    "jet_response",
+    "loop_matrices",
+    "loop_poles",
+    "weak_jet_bound_m",
+    "wrench_gradient",
     "reference_error",
-    "torque_equivalent_force_N",
     "FIRMWARE_ATTITUDE_PWM",
     "FIRMWARE_MASS_THRUST_PWM_PER_N",
     "GAIN_NAMES",

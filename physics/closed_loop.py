@@ -1,6 +1,7 @@
-"""The closed loop of a vehicle under its position / attitude controller, linearised near hover: the
-lead a reference needs so that the vehicle flies its plan, the path a given reference is predicted
-to fly, and the deflection a predicted disturbance causes.
+"""The closed loop of a vehicle under its position / attitude controller, reduced per axis near
+hover: the lead a reference needs so that the vehicle flies its plan, and the path a given
+reference is predicted to fly. (The deflection a disturbance causes, in a jet whose wrench changes
+with the vehicle's position, is the full loop's: :mod:`proxplan.physics.hover_loop`.)
 
 The model, per world axis, from the Mellinger law the vehicle flies (gains: ``Vehicle.controller``,
 :mod:`proxplan.physics.controller_gains`) and the rotor drag it meets (``Vehicle.drag_rate_ps``, c,
@@ -36,13 +37,6 @@ The model, per world axis, from the Mellinger law the vehicle flies (gains: ``Ve
   + k_i int(e) = c m r' + (m k_w/k_R) c r'' + (m k_dw/k_R) c r''';
   z: tau m e''' + m (1 + tau c) e'' + (k_d + c m) e' + k_p e + k_i int(e) = c m r' + tau c m r'' + tau m r'''.
   For r = p + delta it gives e = delta exactly: the compensated reference is predicted to fly the plan.
-* **Deflection** (:func:`disturbance_deflection`): a force F(t) the controller does not compensate
-  (the plan's own predicted downwash wrench) moves the vehicle by d = x - p with
-  m d'' + (k_d + c m) d' + k_p d + k_i int(d) = F: the steady sag F / k_p and its transient, taken
-  away by k_i over time. A torque tau_ext tilts the vehicle by tau_ext / k_R (the roll / pitch loop
-  has no integrator by default), which the thrust turns into the horizontal force
-  m g (tau_y / k_R, -tau_x / k_R) (quasi-static).
-
 After a plan ends (v = 0) the lead keeps solving its equation: the integrator wound up by the
 flight unwinds over the *settle tail* (:data:`TAIL_RESIDUAL_M`, :data:`TAIL_MAX_S`).
 
@@ -61,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal
 
-from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
+from proxplan.physics.vehicles import Vehicle
 
 TAIL_RESIDUAL_M = 0.0005
 """The settle tail ends once the lead stays within this, m (and its rate within it per second)."""
@@ -216,21 +210,3 @@ def reference_error(
     ]
     coefficients.append([lp.ki[2], lp.kp[2], lp.kd[2] + lp.cm[2], lp.m * (1.0 + lp.tau * c[2]), lp.tau * lp.m])
     return _solve(np.asarray(t_s, dtype=float), coefficients, drive)
-
-
-def torque_equivalent_force_N(torque_Nm: np.ndarray, vehicle: Vehicle) -> np.ndarray:
-    """Horizontal force (K, 3), N, of the steady tilt tau / k_R a torque (K, 3), N m (world axes,
-    level vehicle at yaw 0), holds against the roll / pitch loop: m g (tau_y / k_R, -tau_x / k_R, 0)."""
-    tq = np.atleast_2d(np.asarray(torque_Nm, dtype=float))
-    per = vehicle.mass_kg * GRAVITY_MPS2 / vehicle.controller.kR_xy_Nmprad
-    return np.column_stack([per * tq[:, 1], -per * tq[:, 0], np.zeros(len(tq))])
-
-
-def disturbance_deflection(t_s: np.ndarray, force_N: np.ndarray, torque_Nm: np.ndarray, vehicle: Vehicle) -> np.ndarray:
-    """Deflection d = x - p (K, 3), m, of a vehicle under the uncompensated disturbance force
-    (K, 3), N, and torque (K, 3), N m (world frame), on the uniform grid ``t_s`` (K,), s, from rest
-    (module docstring)."""
-    drive = np.asarray(force_N, dtype=float) + torque_equivalent_force_N(torque_Nm, vehicle)
-    lp = _loop(vehicle)
-    coefficients = [[lp.ki[k], lp.kp[k], lp.kd[k] + lp.cm[k], lp.m] for k in range(3)]
-    return _solve(np.asarray(t_s, dtype=float), coefficients, drive).value

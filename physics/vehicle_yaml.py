@@ -309,7 +309,45 @@ def build_vehicle(name: str, entry: VehicleEntry, *, source: str, where: str) ->
             f"{where}.max_thrust_N: {vehicle.max_thrust_N} N cannot lift {vehicle.mass_kg} kg "
             f"(needs more than {vehicle.weight_N:.3f} N)"
         )
+    default_gains = base.controller if base is not None else _derived("controller", values)
+    _check_hover_loop(vehicle, entry, default_gains, where)
     return vehicle
+
+
+def _check_hover_loop(vehicle: Vehicle, entry: VehicleEntry, default: ControllerGains, where: str) -> None:
+    """UserError when the vehicle's own hover loop (its controller linearised about hover, no jet:
+    :mod:`proxplan.physics.hover_loop`) is not damped, naming the gain of the file that does it:
+    the given gain whose default value (the base's, else the scaled firmware gains) alone makes it
+    damped again (else every gain the file gives)."""
+    from proxplan.physics.hover_loop import loop_matrices, loop_poles
+
+    def growth(v: Vehicle) -> tuple[float, float]:
+        poles = loop_poles(loop_matrices(v))
+        return float(poles.growth_ps[0]), float(poles.frequency_hz[0])
+
+    rate, freq = growth(vehicle)
+    if rate < 0.0:
+        return
+    given = sorted(entry.controller.model_fields_set) if entry.controller is not None else []
+    culprits = [
+        k for k in given
+        if growth(dataclasses.replace(vehicle, controller=dataclasses.replace(vehicle.controller, **{k: getattr(default, k)})))[0] < 0.0
+    ]  # fmt: skip
+    named = culprits or given
+    if named:
+        keys = ", ".join(f"controller.{k} = {getattr(vehicle.controller, k):g}" for k in named)
+        fix = (
+            f"with the default {getattr(default, named[0]):g} it is damped"
+            if culprits and len(named) == 1
+            else "expected gains that keep every pole of the loop in the left half-plane"
+        )
+        where_key = f"{where}.controller.{named[0]}" if len(named) == 1 else f"{where}.controller"
+    else:
+        keys, fix, where_key = "its parameters", "give it gains for its mass and inertia (controller:)", where
+    raise UserError(
+        f"{where_key}: {keys} makes the vehicle's own hover loop unstable (rightmost pole {rate:+.3f} 1/s at "
+        f"{freq:.2f} Hz, linearised Mellinger law, proxplan.physics.hover_loop); {fix}"
+    )
 
 
 def _derived(key: str, values: dict[str, Any]) -> Any:

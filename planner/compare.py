@@ -45,9 +45,9 @@ class ComparisonRow:
 def run_one(scenario_path: Path, method: str, *, seed: int = 0) -> ComparisonRow:
     """Plan the scenario with ``method`` in a fresh ``proxplan plan`` process, verify, summarise.
 
-    A fresh process per run makes every method start from the same seeded OMPL sequence (OMPL's
-    RNG can be seeded once per process only), so ``optimized`` refines exactly the plan that
-    ``sampling`` reports, and the planning time is the whole-process time a user sees.
+    Every search seeds its own OMPL generators, so ``optimized`` refines exactly the plan that
+    ``sampling`` reports in any process; a fresh process per run makes the planning time the
+    whole-process time a user sees.
     """
     import subprocess
     import tempfile

@@ -17,6 +17,7 @@ import numpy as np
 
 from proxplan.planfile import Plan, Scenario
 from proxplan.planner.checks.precheck import (
+    check_goal_loops,
     check_goal_tubes,
     check_starts_and_goals,
     check_swarm_size,
@@ -82,6 +83,8 @@ def plan_scenario(
     scenario, assignment = apply_assignment(scenario)
     check_starts_and_goals(scenario, mode=mode)
     check_goal_tubes(scenario, mode=mode, margin_m=PLAN_MARGIN_M)
+    if mode == "downwash":
+        check_goal_loops(scenario)
     swarm = method == "roadmap" or (method == "optimized" and _is_swarm(scenario))
     plan, why_not = (
         _swarm_plan(scenario, seed=seed, progress=progress, deadline=deadline, optimize=method == "optimized")

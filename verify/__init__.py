@@ -1,20 +1,35 @@
 """Independent verification of a plan against its scenario with the model evaluated directly
 (the physics model, through proxplan.costmaps.pair_wrench for a calibrated model's effects, and the plan-file contract), and the predictions along a plan
-(wrench, authority usage, invalid zone, separations) that planner metrics and the web app show.
+(wrench, authority usage, invalid zone, separations) that planner metrics and the web app show, and
+each disturbed vehicle's closed loop in the jets along the plan (its tube's growth, whether it stays
+damped where it holds).
 """
 
 from proxplan.verify.along import (
     WrenchAlongPlan,
     attach_feedforward,
-    deflection_along_plan,
     separation_summary,
     wrench_along_plan,
 )
 from proxplan.verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, tube_offsets, verify_plan
+from proxplan.verify.jet_loop import (
+    LoopAlongPlan,
+    check_jet_loop,
+    deflection_along_plan,
+    hold_poles,
+    loop_along_plan,
+)
+from proxplan.verify.tube_growth import TubeGrowth, predicted_tube_growth
 from proxplan.verify.violations import Violation
 
 __all__ = [
     "GOAL_TOLERANCE_M",
+    "LoopAlongPlan",
+    "TubeGrowth",
+    "check_jet_loop",
+    "hold_poles",
+    "loop_along_plan",
+    "predicted_tube_growth",
     "REST_SPEED_MPS",
     "Violation",
     "WrenchAlongPlan",

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from proxplan.physics import ModelOptions, authority_usage, disturbance_deflection
+from proxplan.physics import ModelOptions, authority_usage
 from proxplan.planfile import Plan, Scenario
 from proxplan.verify.plan_wrench import PlanWrench
 
@@ -68,20 +68,6 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
         usage = authority_usage(vehicles[k], field.force[k], field.torque[k]) if t_s.size else np.zeros(0)
         by_source = {names[s]: field.by_source[(k, s)] for s in range(len(names)) if (k, s) in field.by_source}
         out[tname] = WrenchAlongPlan(t_s, field.force[k], field.torque[k], usage, by_source, field.invalid[k])
-    return out
-
-
-def deflection_along_plan(
-    plan: Plan, scenario: Scenario | None, along: dict[str, WrenchAlongPlan]
-) -> dict[str, np.ndarray]:
-    """Per vehicle the distance (M,), m, its controller is predicted to be pushed off its plan by
-    the disturbance the model predicts on it along the plan (``along``, on a uniform grid from the
-    plan's start): :func:`proxplan.physics.disturbance_deflection` (steady sag F / k_p, its
-    transient, the tilt a torque holds), from rest. Part of that vehicle's tube where it applies."""
-    out = {}
-    for name, w in along.items():
-        d = disturbance_deflection(w.t_s, w.force_N, w.torque_Nm, _vehicle(plan, scenario, name))
-        out[name] = np.linalg.norm(d, axis=1)
     return out
 
 

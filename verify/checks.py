@@ -39,7 +39,8 @@ import numpy as np
 
 from proxplan.fileio import UserError
 from proxplan.planfile import Plan, Scenario, load_scenario, scenario_from_dict
-from proxplan.verify.along import deflection_along_plan, wrench_along_plan
+from proxplan.verify.along import wrench_along_plan
+from proxplan.verify.jet_loop import check_jet_loop, loop_along_plan
 from proxplan.verify.pair_checks import check_authority, check_authority_tube, check_pairs, tube_offsets
 from proxplan.verify.tolerances import (
     GOAL_TOLERANCE_M,
@@ -295,7 +296,11 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
     pos = plan.positions_at(t)
     out += _check_tasks(plan, scenario, t, pos)
     along = wrench_along_plan(plan, scenario, t_s=t)
-    deflection = deflection_along_plan(plan, scenario, along)
+    loops = loop_along_plan(plan, scenario, along)
+    out += check_jet_loop(loops, t, plan.t_s, scenario.limits.min_separation_m)
+    # the pair checks with each tube grown by at most the separation (a growth beyond it is a violation)
+    far = scenario.limits.min_separation_m
+    deflection = {n: np.minimum(loops[n].deflection_m, far) if n in loops else np.zeros(t.size) for n in along}
     out += check_pairs(plan, scenario, t, pos, deflection)
     out += check_authority(scenario, t, along, plan.t_s)
     if not any(v.kind == "authority" for v in out):  # the plain check names the cause first

@@ -39,7 +39,8 @@ def check_pairs(
     rb = np.array([v.body_radius_m for v in vehicles])
     sep0 = np.maximum(lim.min_separation_m, rb[:, None] + rb[None, :])  # (N, N), m
     defl = np.stack([deflection[n] for n in names])  # (N, M), m
-    ii, jj, mm = pairs_within(p[:, :, :2], sep0 + lim.tracking_margin_m + 2.0 * float(defl.max(initial=0.0)) + 1e-9)
+    dm = defl.max(axis=1, initial=0.0)  # each vehicle's largest deflection, m
+    ii, jj, mm = pairs_within(p[:, :, :2], sep0 + lim.tracking_margin_m + dm[:, None] + dm[None, :] + 1e-9)
     tube = np.where(moving[ii, mm] | moving[jj, mm], lim.tracking_margin_m, 0.0) + defl[ii, mm] + defl[jj, mm]  # m
     exempt = dock_rows(plan, scenario, names, pos, t, ii, jj, mm)
     d = np.linalg.norm(p[ii, mm] - p[jj, mm], axis=1)
@@ -199,7 +200,9 @@ def check_authority_tube(
     radius = (
         np.full((n, n), np.inf)
         if every_pair(n, m)
-        else np.maximum(reach[kind][:, kind], reach[kind][:, kind].T) + tube_max
+        else np.maximum(reach[kind][:, kind], reach[kind][:, kind].T)
+        + max(tube0, 0.0)
+        + np.maximum.outer(defl.max(axis=1, initial=0.0), defl.max(axis=1, initial=0.0))
     )
     ii, jj, mm = pairs_within(p[:, :, :2], radius + 1e-9)
     tgt, src, smp, off = oriented_rows(p, ii, jj, mm, both=False)

@@ -22,6 +22,7 @@ from proxplan.planner.checks.constraints import (
 )
 from proxplan.planner.checks.precheck import (
     MAX_VEHICLES,
+    check_goal_loops,
     check_goal_tubes,
     check_starts_and_goals,
     check_swarm_size,
@@ -39,6 +40,7 @@ __all__ = [
     "Track",
     "UsageTable",
     "build_checker",
+    "check_goal_loops",
     "check_goal_tubes",
     "check_starts_and_goals",
     "check_swarm_size",

@@ -37,6 +37,7 @@ GOAL_SEARCH_MAX_M = 1.0  # largest goal displacement the search proposes, m
 GOAL_SEARCH_DIRECTIONS = 256  # directions per sphere (Fibonacci lattice)
 __all__ = [
     "MAX_VEHICLES",
+    "check_goal_loops",
     "check_goal_tubes",
     "check_starts_and_goals",
     "check_swarm_size",
@@ -329,3 +330,60 @@ def _static_conflicts(scenario: Scenario, pts: _Points, idx: np.ndarray) -> np.n
         static, _ = batch.conflict_codes(pts.xyz[mine], np.zeros(mine.size))
         out.append(mine[static >= 0])
     return np.concatenate(out) if out else np.zeros(0, dtype=int)
+
+
+def check_goal_loops(scenario: Scenario) -> None:
+    """InfeasibleError for the first vehicle (file order) whose closed loop is not damped where it
+    holds for ever, its final position in the jets of the others at theirs
+    (:func:`proxplan.verify.jet_loop.hold_poles`: the rightmost pole of its controller's loop
+    linearised there has a real part >= 0, so it oscillates there however it is planned; the
+    margin is minus that real part). Sources: every other vehicle above it whose jet can reach it
+    (:func:`proxplan.verify.reach.usage_grid`'s reach of the pair)."""
+    from proxplan.verify import hold_poles
+
+    final = {n: np.asarray(scenario.final_position_m(n), dtype=float) for n in scenario.vehicles}
+    opts = scenario.model_options
+    effects = tuple(scenario.effects)
+    where = f"{scenario.source_path}: " if scenario.source_path else ""
+    for name, task in scenario.vehicles.items():
+        p = final[name]
+        above = [
+            o for o, q in final.items()
+            if o != name and q[2] - p[2] > 1e-6 and _in_jet(scenario.vehicles[o].vehicle, q, p)
+        ]  # fmt: skip
+        if not above:
+            continue
+        sources = [(scenario.vehicles[o].vehicle, final[o]) for o in above]
+        growth, freq = hold_poles(task.vehicle, p, sources, opts, effects)
+        if growth < 0.0:
+            continue
+        source = min(above, key=lambda o: float(np.hypot(*(final[o] - p)[:2])) + abs(float(final[o][2] - p[2])))
+        what = "dock" if task.dock_with is not None else "hover point" if task.hover else "goal"
+        raise InfeasibleError(
+            name,
+            f"jet loop of {source}",
+            f"{where}vehicle {name!r}: its closed loop is not damped where it holds at its {what} "
+            f"{np.round(p, 3).tolist()} in the jet of {source!r}: rightmost pole {growth:+.3f} 1/s at {freq:.2f} Hz "
+            f"(margin {-growth:+.3f} 1/s; the jet's restoring torque reaches the vehicle's tilt through its "
+            "attitude loop's lag and undamps the position loop): it would oscillate there however it is planned; "
+            "hold it farther below or aside of that vehicle, or retune its attitude loop",
+            details={
+                "kind": "jet-loop",
+                "vehicle": name,
+                "other_vehicle": source,
+                "position_m": np.round(p, 4).tolist(),
+                "growth_ps": growth,
+                "frequency_hz": freq,
+                "margin_ps": -growth,
+            },
+        )
+
+
+def _in_jet(source: Vehicle, p_source: np.ndarray, p_target: np.ndarray) -> bool:
+    """Whether ``p_target`` (3,) is within the horizontal reach of ``source``'s jet from
+    ``p_source`` (3,), m: the Gaussian profile (S0-2) at the offset's distance below the virtual
+    origin down to exp(-36) of the centreline, plus the source's body twice (the target's disks)."""
+    dz = float(p_source[2] - p_target[2])
+    width = max(dz - source.downwash.z0_m, 0.0) + source.size_m
+    reach = 6.0 * width / np.sqrt(source.downwash.c_rad) + 2.0 * source.body_radius_m
+    return float(np.hypot(*(p_target - p_source)[:2])) <= reach

@@ -16,8 +16,9 @@ states (forward in time), which a directed space needs; RRTConnect grows a secon
 from a goal whose arrival time is unknown. After the first solution, OMPL's ``PathSimplifier``
 shortcuts the path (shortcuts are checked with the same directed validator) and a time-compression
 pass moves every waypoint to its earliest valid time, which minimises flight time along the path.
-Runs are reproducible: ``ompl.util.RNG.setSeed(seed + 1)`` is set once per process before the
-first solve (OMPL allows no re-seeding after sampling started), and every solve ends after a fixed
+Runs are reproducible: every solve seeds the generators of the OMPL objects it creates from its
+own seed (:func:`proxplan.planner.sampling.termination.seed_search`: the same search gives the same
+path in any process, whatever was planned before in it), and every solve ends after a fixed
 number of RRT iterations (a Python ``PlannerTerminationCondition``), not after a wall time, so the
 random sequence does not depend on the machine's load (a generous CPU-time cap of the process remains
 as a safety net only: a wall-time cap made results depend on how loaded the shared machine was).
@@ -38,7 +39,7 @@ from proxplan.planner.checks.constraints import ConflictChecker
 from proxplan.planner.checks.validity import BatchChecker
 from proxplan.planner.sampling.roadmap import roadmap_nodes, roadmap_search
 from proxplan.planner.sampling.spec import GoalSpec, SamplingOptions, SpaceTimePath
-from proxplan.planner.sampling.termination import IterationBudget, seed_ompl_once
+from proxplan.planner.sampling.termination import IterationBudget, seed_search
 from proxplan.planner.timing.durations import DurationTable, duration_table
 from proxplan.planner.timing.segments import ruckig_segment
 
@@ -203,7 +204,7 @@ class _Planner:
         from ompl import util as ou
 
         ou.setLogLevel(ou.LogLevel.LOG_ERROR)
-        seed_ompl_once(seed)
+        seed_search(seed)  # before any OMPL object of this search: its draws depend on seed alone
         chk = self.checker
         v_ref = self.v_ref
         space = ob.RealVectorStateSpace(4)

@@ -1,6 +1,7 @@
 """Deterministic termination and seeding of OMPL: a solve ends after a fixed number of RRT
-iterations (CPU time only as a safety net) and OMPL's global RNG is seeded once per process, so a
-``proxplan plan`` run is reproducible for a given ``--seed`` whatever the machine's load."""
+iterations (CPU time only as a safety net), and every search seeds the random generators it creates
+from its own seed (:func:`seed_search`), so a plan depends on the scenario and ``--seed`` only:
+not on the machine's load, nor on what the same process planned before."""
 
 from __future__ import annotations
 
@@ -25,19 +26,19 @@ class IterationBudget:
         return (self.calls & 255) == 0 and self._clock() > self.deadline
 
 
-_SEEDED: list[int] = []
+def seed_search(seed: int) -> None:
+    """Seed the random generators of the OMPL objects a search creates from now on with ``seed``.
 
-
-def seed_ompl_once(seed: int) -> bool:
-    """Seed OMPL's global RNG (possible once per process, before any sampling); True if applied.
-
-    Later planners in the same process draw from the continuing seeded sequence, so a whole
-    ``proxplan plan`` run is reproducible for a given ``--seed``.
-    """
+    OMPL gives every generator it creates (a planner's, its state sampler's, a path simplifier's)
+    a seed drawn from one process-wide seed sequence; ``ompl.util.RNG.setSeed`` restarts that
+    sequence. Called at the start of every search, before it creates any OMPL object, it makes
+    the search's draws a function of ``seed`` alone (OMPL logs an error when the sequence is
+    restarted after a first use: silenced here, the restart is the point)."""
     from ompl import util as ou
 
-    if _SEEDED:
-        return _SEEDED[0] == int(seed)
-    ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)  # OMPL takes a positive 32-bit seed
-    _SEEDED.append(int(seed))
-    return True
+    level = ou.getLogLevel()
+    ou.setLogLevel(ou.LogLevel.LOG_NONE)
+    try:
+        ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)  # OMPL takes a positive 32-bit seed
+    finally:
+        ou.setLogLevel(level)

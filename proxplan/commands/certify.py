@@ -171,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({**s, "files": {k: str(out / v) for k, v in files.items()}, "execution": result.execution}))
         return 0
     print(f"{setup.plan.scenario}: {s['runs']} runs (seed {setup.seed}) on {result.execution['workers']} worker(s)")
-    for outcome in ("authority_exceeded", "separation_violated", "goal_missed"):
+    for outcome in ("authority_exceeded", "separation_violated", "goal_missed", "left_tube"):
         p = s[f"p_{outcome}"]
         lo, hi = s["ci95"][outcome]
         shown = "n/a" if p is None else f"{p:.3f}"

@@ -141,6 +141,11 @@ def run(args: argparse.Namespace) -> int:
             raise KeyboardInterrupt
 
         signal.signal(signal.SIGTERM, _terminate)
+        # Ctrl-C (SIGINT) stops the server however it was started: a process started in the
+        # background of a non-interactive shell (``proxplan view ... &`` in a script, a test suite run
+        # that way) inherits SIGINT *ignored*, and Python then leaves it ignored, so the server would
+        # not stop on SIGINT at all.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         host = "localhost" if args.host in ("0.0.0.0", "127.0.0.1", "::") else args.host
         url = f"http://{host}:{server.get_port()}"
         print(json.dumps({"url": url}) if args.json else f"proxplan view: open {url}", flush=True)

@@ -111,6 +111,21 @@ def test_draws_without_spread_fly_the_plain_simulation():
     assert noisy["peak_authority_usage"] != pytest.approx(usage, rel=1e-3)
 
 
+def test_leaving_the_tube_is_an_outcome():
+    """Flown as planned (no draws) the vehicles stay within tube + predicted growth; a residual
+    force of 20 % of the weight pushes them out of it."""
+    quiet = NoiseSpec(
+        residual_std_z_weight=0.0, residual_std_xy_weight=0.0, estimate_std_m=0.0,
+        estimate_std_mps=0.0, start_std_m=0.0, timing_std_s=0.0,
+    )  # fmt: skip
+    none = Spreads({"c_ax": 0.0, "z0_m": 0.0, "c_rad": 0.0, "b_v": 0.0})
+    calm = fly_run(replace(_setup(4.0), noise=quiet, spreads=none), 0)
+    assert calm["left_tube"] is False
+    assert all(v["tube_excess_m"] <= 0.0 for v in calm["per_vehicle"].values())
+    shoved = fly_run(replace(_setup(4.0), noise=replace(quiet, residual_std_z_weight=0.2), spreads=none), 0)
+    assert shoved["left_tube"] is True
+
+
 def _cli(capsys, *args) -> tuple[int, str, str]:
     """``proxplan ARGS`` in this process: (exit code, stdout, stderr)."""
     capsys.readouterr()
@@ -134,7 +149,7 @@ def test_certify_command_same_seed_same_json_with_one_and_two_workers(capsys, ba
     assert docs[0] == docs[1]
     summary = json.loads(docs[0])
     assert summary["runs"] == 3 and len(summary["worst_runs"]) == 3
-    for key in ("p_authority_exceeded", "p_separation_violated", "p_goal_missed"):
+    for key in ("p_authority_exceeded", "p_separation_violated", "p_goal_missed", "p_left_tube"):
         assert 0.0 <= summary[key] <= 1.0
     assert summary["tracking_error_m"]["p50"] <= summary["tracking_error_m"]["max"]
     # re-fly the worst run with simulate: the same flight

@@ -102,3 +102,22 @@ def test_a_diverging_simulation_is_a_result_not_a_user_error(battery_swap_plan, 
     assert summary["status"] == "diverged" and "lost control" in summary["status_detail"]
     assert 0.0 < summary["sim_time_s"] < summary["plan_duration_s"]
     assert (out / "summary.json").exists()
+
+
+def test_gains_that_make_the_hover_loop_unstable_are_refused_naming_file_and_gain(tmp_path, proxplan):
+    """kp_xy 1.2 N/m on the Crazyflie with kd_xy 0.35 (the retune docs/flying.md used to show):
+    its linearised hover loop has a pole at +0.095 1/s (the simulator, flying it, grows a 2 cm
+    offset to 18 cm in 30 s). Refused before any planning, exit 2, naming the file and the gain
+    whose default alone makes the loop damped."""
+    path = tmp_path / "my_cf.yaml"
+    path.write_text(
+        "vehicles:\n  my-cf:\n    base: crazyflie-2.1\n    controller: {kp_xy_Npm: 1.2, kd_xy_Nspm: 0.35}\n"
+    )
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text(
+        "vehicle_file: my_cf.yaml\nworkspace: {min: [-1, -1, 0], max: [1, 1, 2]}\n"
+        "vehicles: {a: {type: my-cf, start: [0, 0, 1], goal: [0.5, 0, 1]}}\n"
+    )
+    res = proxplan("plan", scenario, "--out", tmp_path / "o")
+    _one_line(res, str(path), "vehicles.my-cf.controller.kp_xy_Npm", "hover loop unstable")
+    assert not (tmp_path / "o").exists()

@@ -11,10 +11,8 @@ import pytest
 
 from proxplan.physics import (
     BUILTIN_VEHICLES,
-    disturbance_deflection,
     drag_lead,
     reference_error,
-    torque_equivalent_force_N,
 )
 
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]
@@ -87,22 +85,3 @@ def test_prediction_of_the_compensated_reference_is_the_plan():
     assert lag.value[-1, 0] == pytest.approx(
         NO_KI.drag_rate_ps[0] * NO_KI.mass_kg * v[-1, 0] / (NO_KI.controller.kp_xy_Npm), rel=2e-2
     )
-
-
-def test_deflection_under_a_steady_force_is_the_sag_f_over_kp_then_the_integrator_takes_it():
-    t = np.arange(0.0, 20.0, 0.01)
-    force = np.zeros((t.size, 3))
-    force[t >= 1.0, 2] = -0.05  # a jet pushing down from t = 1 s, N
-    zero = np.zeros_like(force)
-    sag = disturbance_deflection(t, force, zero, NO_KI)
-    assert sag[-1, 2] == pytest.approx(-0.05 / NO_KI.controller.kp_z_Npm, rel=1e-3)
-    with_ki = disturbance_deflection(t, force, zero, CF)
-    assert abs(with_ki[-1, 2]) < 0.01 * abs(sag[-1, 2])  # ki_z removes it within seconds
-    assert with_ki[:, 2].min() < -0.5 * 0.05 / CF.controller.kp_z_Npm  # but not the transient
-
-
-def test_a_torque_tilts_the_vehicle_and_the_thrust_pushes_it_sideways():
-    tau = np.array([[1e-4, 0.0, 0.0], [0.0, 1e-4, 0.0]])  # roll, then pitch torque, N m
-    f = torque_equivalent_force_N(tau, CF)
-    per = CF.mass_kg * 9.81 / CF.controller.kR_xy_Nmprad
-    np.testing.assert_allclose(f, [[0.0, -per * 1e-4, 0.0], [per * 1e-4, 0.0, 0.0]])

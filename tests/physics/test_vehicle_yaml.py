@@ -127,7 +127,7 @@ def test_partial_sections_take_the_rest_from_the_base(tmp_path):
 
 
 def test_controller_gains_and_rotor_drag_override_only_what_they_name(tmp_path):
-    """A user's retune (kp_xy 1.2, kd_xy 0.35) keeps every other firmware default; without a base a
+    """A user's retune (kp_xy 0.8, kd_xy 0.35) keeps every other firmware default; without a base a
     vehicle gets the Crazyflie 2.1's gains scaled to its mass and RotorPy's drag scaled to its rotors;
     both round-trip through the vehicle-YAML form (plan.json, track-limits --out)."""
     from proxplan.physics import BUILTIN_VEHICLES
@@ -135,11 +135,11 @@ def test_controller_gains_and_rotor_drag_override_only_what_they_name(tmp_path):
     cf = BUILTIN_VEHICLES["crazyflie-2.1"]
     path = write(
         tmp_path,
-        "vehicles:\n  retuned:\n    base: crazyflie-2.1\n    controller: {kp_xy_Npm: 1.2, kd_xy_Nspm: 0.35}\n"
+        "vehicles:\n  retuned:\n    base: crazyflie-2.1\n    controller: {kp_xy_Npm: 0.8, kd_xy_Nspm: 0.35}\n"
         "    rotor_drag: {k_z_Ns2pradm: 0.0}\n",
     )
     retuned = load_vehicle_file(path)["retuned"]
-    assert retuned.controller.kp_xy_Npm == 1.2 and retuned.controller.kd_xy_Nspm == 0.35
+    assert retuned.controller.kp_xy_Npm == 0.8 and retuned.controller.kd_xy_Nspm == 0.35
     assert retuned.controller.kp_z_Npm == cf.controller.kp_z_Npm == 1.25
     assert retuned.rotor_drag.k_d_Ns2pradm == cf.rotor_drag.k_d_Ns2pradm and retuned.drag_rate_ps[2] == 0.0
     again = vehicle_from_dict("retuned", vehicle_to_yaml_dict(retuned))

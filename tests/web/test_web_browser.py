@@ -3,8 +3,10 @@
 Starts the app on a free port with a hand-made plan, loads the page, waits for the scene, saves a
 screenshot to test-artifacts/ and checks the 3-D canvas is not blank (grey-level spread well above
 that of an empty scene: a bare viser server with nothing in it). Also reloads the page (disconnect +
-reconnect) and checks the server survives and shuts down cleanly on Ctrl-C; a bad plan file is an
-error at start-up (exit 2, one line), never a page that shows it forever.
+reconnect) and checks the server survives and shuts down cleanly on Ctrl-C (SIGINT), also when the
+test itself runs in the background of a non-interactive shell, whose children inherit SIGINT
+ignored; a bad plan file is an error at start-up (exit 2, one line), never a page that shows it
+forever.
 """
 
 from __future__ import annotations
@@ -144,6 +146,19 @@ def _settled_screenshot(browser: Chromium, timeout_s: float = 40.0) -> bytes:
     return last
 
 
+def _rendered_screenshot(browser: Chromium, needed: float, timeout_s: float = 180.0) -> bytes:
+    """The first settled screenshot whose 3-D view spreads more than ``needed`` (the scene has
+    arrived and rendered), else the last one after ``timeout_s``: headless Chromium renders WebGL
+    in software, and on a busy machine it can hold a half-faded-in frame for seconds, which two
+    equal screenshots in a row do not rule out."""
+    deadline = time.monotonic() + timeout_s
+    shot = _settled_screenshot(browser)
+    while _canvas_spread(shot) <= needed and time.monotonic() < deadline:
+        time.sleep(1.0)
+        shot = _settled_screenshot(browser)
+    return shot
+
+
 EMPTY_SERVER = (
     "import contextlib, json, sys, time, viser\n"
     "with contextlib.redirect_stdout(sys.stderr):\n    s = viser.ViserServer(port=0, verbose=False)\n"
@@ -202,26 +217,26 @@ def test_view_renders_plan_in_headless_chromium(tmp_path):
     empty_proc, empty_url = _start_view(None)
     browser = Chromium()
     try:
-        browser.call("Page.navigate", url=good_url)
-        text = browser.wait_for_text(DEMO_SPEC["name"])
-        browser.wait_for_text("Jet of")  # the layers are built
-        assert "Error" not in text
-        shot = _settled_screenshot(browser)
-        (ARTIFACTS / "web_view_plan.png").write_bytes(shot)
-        plan_spread = _canvas_spread(shot)
-
         browser.call("Page.navigate", url=empty_url)
         time.sleep(2.0)
         empty = _settled_screenshot(browser)
         (ARTIFACTS / "web_view_empty_scene.png").write_bytes(empty)
-        empty_spread = _canvas_spread(empty)
-        assert plan_spread > 2.0 * empty_spread + 3.0, (plan_spread, empty_spread)
+        needed = 2.0 * _canvas_spread(empty) + 3.0  # a scene well above a bare viser page
+
+        browser.call("Page.navigate", url=good_url)
+        text = browser.wait_for_text(DEMO_SPEC["name"])
+        browser.wait_for_text("Jet of")  # the layers are built
+        assert "Error" not in text
+        shot = _rendered_screenshot(browser, needed)
+        (ARTIFACTS / "web_view_plan.png").write_bytes(shot)
+        assert _canvas_spread(shot) > needed, (_canvas_spread(shot), needed)
 
         # reconnect: the page is served again with the same scene, the server is still up
+        browser.call("Page.navigate", url=empty_url)
         browser.call("Page.navigate", url=good_url)
         browser.wait_for_text(DEMO_SPEC["name"])
-        again = _settled_screenshot(browser)
-        assert _canvas_spread(again) > 2.0 * empty_spread + 3.0
+        again = _rendered_screenshot(browser, needed)
+        assert _canvas_spread(again) > needed, (_canvas_spread(again), needed)
         assert good_proc.poll() is None
     finally:
         browser.close()

@@ -1,0 +1,443 @@
+"""The closed loop of a vehicle near hover under its controller, in a jet: the linear state-space
+model, its poles (is the loop damped?) and its response to the jet along a plan.
+
+**The loop** (the controller the simulator flies: the Crazyflie firmware's Mellinger law with the
+vehicle's gains, ``Vehicle.controller``, :mod:`proxplan.physics.controller_gains`), linearised about
+a level hover at yaw 0 with collective thrust T0 (m g minus the jet's vertical force, which the
+integrator holds), deviations from the plan, world frame z up, body = world axes at the trim:
+
+* rigid body: d' = v; m v' = T0 (theta, -phi, 0) + e_z u_T - c m v + f; (phi, theta, psi)' = w;
+  J w' = u_M + tau + D w. c: rotor drag per axis (``Vehicle.drag_rate_ps``); D: the rotor-drag
+  moment of a body rate (rotor i at r_i meets the air at w x r_i: diag(-2 k_z l^2, -2 k_z l^2,
+  -4 k_d l^2) omega_hover, RotorPy's rotor drag, :mod:`proxplan.physics.rotor_drag`); f, tau: the
+  jet's force (N) and torque (N m).
+* motors: the delivered thrust and moments u = (u_T, u_M) follow the commanded ones through the
+  rotors' first-order lag tau_m (``Vehicle.motor_time_constant_s``): tau_m u' = u_cmd - u.
+* controller: Delta F = -k_p d - k_d v + k_i I_p (I_p' = -d); u_T,cmd = Delta F_z; the desired tilt
+  (phi, theta)_des = (-Delta F_y, Delta F_x) / T0; e_R = (phi, theta, psi) - des;
+  u_M,cmd = -k_R e_R - k_w w + k_I I_m - k_dw (w'_x, w'_y, 0) (I_m' = -e_R; the firmware's
+  difference of consecutive rate errors is the derivative of -w at hover).
+* the jet: f = F(t) + G_F d, tau = T(t) + G_T d + [T(t)]x (phi, theta, psi). F, T: the one model's
+  wrench on the vehicle at its planned position; G_F, G_T (3 x 3, N/m and N m/m): its gradients with
+  respect to the vehicle's position (finite differences of the model, :func:`wrench_gradient`);
+  the last term: the model's wrench is that on a level vehicle with its torque about world axes,
+  which the simulator applies in the body frame (R^T T: its attitude gradient is [T]x); its force
+  stays in the world frame (no attitude gradient).
+
+22 states: d (3) m, v (3) m/s, (phi, theta, psi) (3) rad, w (3) rad/s, u (4) N and N m, I_p (3)
+m s, I_m (3) rad s (:data:`STATE_NAMES`). Left out: the controller's 500 Hz sampling and 100 Hz
+set-point hold (delays of ~1-5 ms, a phase of < 2 degrees at the loop's ~1 Hz), the integrators'
+clamps, the motors' saturation, gyroscopic terms (second order at hover), the plan's own
+acceleration in the trim (T0 uses m g).
+
+**Damped or not** (:func:`loop_poles`): the rightmost eigenvalue of A(G_F, G_T) at a configuration.
+Real part < 0: a deviation dies out (rate -Re, 1/s); >= 0: it grows: the vehicle oscillates in the
+jet however good its plan (the margin is -Re).
+
+**Response along a plan** (:func:`jet_response`): the deviation d solves the linear time-varying
+system x' = A(t) x + B (F(t), T(t)) from rest (A(t) from the gradients at each sample), exact for
+inputs and matrices held over each step (zero-order hold). The plan's undisturbed tracking error e
+(|e| <= tube t, measured without a jet) also drives it, through G e: its part of d is bounded by
+t gamma(t), gamma(t) = int_0^t ||C Phi(t, s) B G(s)||_F ds (the spectral norm bounded by the
+Frobenius norm). After the last sample the configuration is held (the plan ends at rest): the tail is
+bounded in closed form from the final loop's modes (A = V diag(lambda) V^-1, every Re lambda < 0):
+|C x(t)| <= |C x_ss| + sum_i |C v_i| |(V^-1 (x_end - x_ss))_i| and the tube's growth over the hold
+by sum_i |C v_i| |(V^-1 B G)_i| / (-Re lambda_i).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
+
+STATE_NAMES = (
+    "d_x_m", "d_y_m", "d_z_m", "v_x_mps", "v_y_mps", "v_z_mps", "roll_rad", "pitch_rad", "yaw_rad",
+    "w_x_radps", "w_y_radps", "w_z_radps", "u_T_N", "u_Mx_Nm", "u_My_Nm", "u_Mz_Nm",
+    "int_ex_ms", "int_ey_ms", "int_ez_ms", "int_eRx_rads", "int_eRy_rads", "int_eRz_rads",
+)  # fmt: skip
+"""The states of the loop, in order (module docstring), with their units."""
+N_STATES = len(STATE_NAMES)
+_P, _V, _E, _W, _U, _IP, _IM = (
+    slice(0, 3),
+    slice(3, 6),
+    slice(6, 9),
+    slice(9, 12),
+    slice(12, 16),
+    slice(16, 19),
+    slice(19, 22),
+)
+
+GRADIENT_STEP_M = 0.005
+"""Step of the central differences of :func:`wrench_gradient`, m: the scale of the deviations the
+loop sees (a tracking tube of 1-2 cm), small against the jet's width (a rotor disk, >= 2.5 cm)."""
+MIN_THRUST_SHARE = 0.1
+"""The trim thrust is kept >= this share of the weight (a jet pushing up harder than the weight
+leaves no hover to linearise about), -."""
+
+
+@dataclass(frozen=True)
+class LoopMatrices:
+    """x' = a x + b (f, tau) per sample: ``a`` (K, 22, 22), ``b`` (K, 22, 6) (force N world, torque
+    N m world axes); ``c`` (3, 22) picks the position deviation d, m."""
+
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+
+
+def loop_matrices(
+    vehicle: Vehicle,
+    force_N: np.ndarray | None = None,
+    torque_Nm: np.ndarray | None = None,
+    force_gradient_Npm: np.ndarray | None = None,
+    torque_gradient_Nmpm: np.ndarray | None = None,
+) -> LoopMatrices:
+    """The loop (module docstring) of ``vehicle`` in a jet with force (K, 3), N, torque (K, 3),
+    N m (world frame) and their gradients (K, 3, 3) with respect to the vehicle's position, N/m and
+    N m/m; None: no jet (one sample)."""
+    arrays = [force_N, torque_Nm, force_gradient_Npm, torque_gradient_Nmpm]
+    k = next((np.asarray(x).shape[0] for x in arrays if x is not None), 1)
+    f0 = np.zeros((k, 3)) if force_N is None else np.asarray(force_N, dtype=float).reshape(k, 3)
+    t0 = np.zeros((k, 3)) if torque_Nm is None else np.asarray(torque_Nm, dtype=float).reshape(k, 3)
+    gf = np.zeros((k, 3, 3)) if force_gradient_Npm is None else np.asarray(force_gradient_Npm, dtype=float)
+    gt = np.zeros((k, 3, 3)) if torque_gradient_Nmpm is None else np.asarray(torque_gradient_Nmpm, dtype=float)
+    g = vehicle.controller
+    m = vehicle.mass_kg
+    jxx, jyy, jzz = vehicle.inertia_diag_kgm2
+    j_inv = np.array([1.0 / jxx, 1.0 / jyy, 1.0 / jzz])
+    thrust = np.maximum(m * GRAVITY_MPS2 - f0[:, 2], MIN_THRUST_SHARE * m * GRAVITY_MPS2)  # T0 (K,), N
+    omega = vehicle.hover_omega_radps * np.sqrt(thrust / (m * GRAVITY_MPS2))  # rotor speed at the trim (K,)
+    rd = vehicle.rotor_drag
+    arm2 = vehicle.arm_length_m**2
+    c_drag = vehicle.drag_rate_ps  # (3,) 1/s at the hover speed
+    kp, kd, ki = g.kp_Npm, g.kd_Nspm, g.ki_Npms
+    k_r = np.array([g.kR_xy_Nmprad, g.kR_xy_Nmprad, g.kR_z_Nmprad])
+    k_w = np.array([g.kw_xy_Nmsprad, g.kw_xy_Nmsprad, g.kw_z_Nmsprad])
+    k_i = np.array([g.ki_m_xy_Nmprads, g.ki_m_xy_Nmprads, g.ki_m_z_Nmprads])
+    k_dw = np.array([g.kd_omega_rp_Nms2prad, g.kd_omega_rp_Nms2prad, 0.0])
+    tau_m = vehicle.motor_time_constant_s
+
+    a = np.zeros((k, N_STATES, N_STATES))
+    b = np.zeros((k, N_STATES, 6))
+    eye3 = np.eye(3)
+    # jet: f = G_F d (+ input), tau = G_T d + [T]x att (+ input)
+    cross_t = np.zeros((k, 3, 3))  # [T]x
+    cross_t[:, 0, 1], cross_t[:, 0, 2], cross_t[:, 1, 2] = -t0[:, 2], t0[:, 1], -t0[:, 0]
+    cross_t[:, 1, 0], cross_t[:, 2, 0], cross_t[:, 2, 1] = t0[:, 2], -t0[:, 1], t0[:, 0]
+    # d' = v
+    a[:, _P, _V] = eye3
+    # m v' = T0 (theta, -phi, 0) + e_z u_T - c m v + f
+    a[:, 3, 7] = thrust / m
+    a[:, 4, 6] = -thrust / m
+    a[:, 5, 12] = 1.0 / m
+    a[:, _V, _V] -= np.sqrt(thrust / (m * GRAVITY_MPS2))[:, None, None] * np.diag(c_drag)[None]
+    a[:, _V, _P] += gf / m
+    b[:, _V, 0:3] = eye3 / m
+    # att' = w
+    a[:, _E, _W] = eye3
+    # J w' = u_M + tau + D w  -> rows of w' (3, 22) per sample
+    damp = -omega[:, None] * np.array([2.0 * rd.k_z_Ns2pradm * arm2, 2.0 * rd.k_z_Ns2pradm * arm2,
+                                       4.0 * rd.k_d_Ns2pradm * arm2])  # fmt: skip
+    wdot = np.zeros((k, 3, N_STATES))
+    wdot[:, :, 13:16] = np.diag(j_inv)[None]
+    wdot[:, :, 9:12] = np.einsum("i,ki,ij->kij", j_inv, damp, eye3)
+    wdot[:, :, 0:3] = j_inv[None, :, None] * gt
+    wdot[:, :, 6:9] = j_inv[None, :, None] * cross_t
+    wdot_b = np.zeros((k, 3, 6))
+    wdot_b[:, :, 3:6] = np.diag(j_inv)[None]
+    a[:, _W, :] = wdot
+    b[:, _W, :] = wdot_b
+    # controller: Delta F rows (3, 22)
+    dforce = np.zeros((3, N_STATES))
+    dforce[:, _P] = -np.diag(kp)
+    dforce[:, _V] = -np.diag(kd)
+    dforce[:, _IP] = np.diag(ki)
+    # e_R = att - (-dF_y, dF_x, 0) / T0
+    e_r = np.zeros((k, 3, N_STATES))
+    e_r[:, :, _E] = eye3
+    e_r[:, 0, :] += dforce[1][None] / thrust[:, None]
+    e_r[:, 1, :] -= dforce[0][None] / thrust[:, None]
+    cmd = np.zeros((k, 4, N_STATES))
+    cmd_b = np.zeros((k, 4, 6))
+    cmd[:, 0, :] = dforce[2]
+    cmd[:, 1:4, :] = -k_r[None, :, None] * e_r - k_dw[None, :, None] * wdot
+    cmd[:, 1:4, _W] -= np.diag(k_w)[None]
+    cmd[:, 1:4, _IM] += np.diag(k_i)[None]
+    cmd_b[:, 1:4, :] = -k_dw[None, :, None] * wdot_b
+    a[:, _U, :] = cmd / tau_m
+    a[:, _U, _U] -= np.eye(4) / tau_m
+    b[:, _U, :] = cmd_b / tau_m
+    a[:, _IP, _P] = -eye3
+    a[:, _IM, :] = -e_r
+    c = np.zeros((3, N_STATES))
+    c[:, _P] = eye3
+    return LoopMatrices(a, b, c)
+
+
+@dataclass(frozen=True)
+class LoopPoles:
+    """Per sample (K,): the rightmost pole's real part ``growth_ps`` (1/s; < 0: damped, a deviation
+    dies out at that rate; >= 0: it grows), its frequency ``frequency_hz`` (Hz) and damping ratio
+    ``damping_ratio`` (-Re / |lambda|)."""
+
+    growth_ps: np.ndarray
+    frequency_hz: np.ndarray
+    damping_ratio: np.ndarray
+
+
+def _live_states(a: np.ndarray) -> np.ndarray:
+    """Indices of the states something depends on: a state no other state reads (a zero column of
+    every sample's A, e.g. an attitude integrator with k_I = 0) is a bare integrator of its own
+    pole 0 that never acts on the vehicle, and is left out of the poles."""
+    live = np.ones(a.shape[-1], dtype=bool)
+    while True:
+        sub = a[:, live][:, :, live]
+        off = np.abs(sub).max(axis=0) * (1.0 - np.eye(sub.shape[-1]))
+        dead = ~(off > 0.0).any(axis=0)
+        if not dead.any():
+            return np.flatnonzero(live)
+        live[np.flatnonzero(live)[dead]] = False
+
+
+def loop_poles(matrices: LoopMatrices) -> LoopPoles:
+    """The rightmost pole of each sample's loop (:class:`LoopPoles`)."""
+    live = _live_states(matrices.a)
+    lam = np.linalg.eigvals(matrices.a[:, live][:, :, live])  # (K, n)
+    pick = np.argmax(lam.real + 1e-9 * np.abs(lam.imag), axis=1)  # of equal real parts the oscillating one
+    top = lam[np.arange(lam.shape[0]), pick]
+    mag = np.maximum(np.abs(top), 1e-12)
+    return LoopPoles(top.real, np.abs(top.imag) / (2.0 * np.pi), -top.real / mag)
+
+
+def wrench_gradient(
+    wrench: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+    positions_m: np.ndarray,
+    step_m: float = GRADIENT_STEP_M,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Gradients (K, 3, 3) of force (N/m) and torque (N m/m) with respect to the target's position,
+    by central differences of ``wrench`` (positions (N, 3), m -> force (N, 3) N, torque (N, 3) N m:
+    one of the model's wrench functions) at ``positions_m`` (K, 3), m; column j: d/d p_j."""
+    pos = np.asarray(positions_m, dtype=float)
+    k = pos.shape[0]
+    shifted = np.concatenate([pos + s * step_m * e for e in np.eye(3) for s in (1.0, -1.0)])  # (6K, 3)
+    force, torque = wrench(shifted)
+    force, torque = force.reshape(3, 2, k, 3), torque.reshape(3, 2, k, 3)
+    gf = np.transpose((force[:, 0] - force[:, 1]) / (2.0 * step_m), (1, 2, 0))
+    gt = np.transpose((torque[:, 0] - torque[:, 1]) / (2.0 * step_m), (1, 2, 0))
+    return gf, gt
+
+
+HOLD_STEP_S = 0.02
+"""Step on which the hold after a plan's end is evaluated in :func:`jet_response`, s (the loop's
+fastest poles that matter, the ~1 Hz lateral mode, change by < 2 % of a period over it)."""
+HOLD_MAX_S = 20.0
+"""Longest hold evaluated in :func:`jet_response` before what is left is bounded by the loop's modes,
+s (the lightly damped lateral modes of a vehicle in a jet that the verifier accepts, >= 0.1 1/s, have
+lost 90 % by then; the integrators' slow modes are weakly excited)."""
+HOLD_RESIDUAL_M = 1e-4
+"""The hold is evaluated until the modal bound of what is left of the deviation stays below this, m,"""
+HOLD_GAIN_RESIDUAL = 1e-3
+"""... and of what is left of the tube gain below this, - (times a tube of 1-2 cm: 10-20 um)."""
+TUBE_BLOCK_SAMPLES = 5
+"""Samples whose tube input is propagated as one block in :func:`jet_response` (the bound's
+integral is taken over blocks of this many steps: exact within a block for inputs of one
+direction), -."""
+
+
+@dataclass(frozen=True)
+class JetResponse:
+    """The loop's response along a plan (:func:`jet_response`) on its grid ``t_s`` (K,), s:
+    ``deflection_m`` (K, 3), m, the deviation the jet's wrench along the plan drives, world frame;
+    ``tube_gain`` (K,), -, gamma: a deviation within the tube t (without the jet) grows by at most
+    t gamma in it; ``hold_deflection_m`` (m) and ``hold_tube_gain`` (-) the same bounds over the hold
+    after the last sample (the final configuration held for ever; inf where the final loop is not
+    damped); ``poles`` (one sample) of the configuration held at the end."""
+
+    t_s: np.ndarray
+    deflection_m: np.ndarray
+    tube_gain: np.ndarray
+    hold_deflection_m: float
+    hold_tube_gain: float
+    poles: LoopPoles
+
+
+def _expm(m: np.ndarray) -> np.ndarray:
+    """exp of a stack of square matrices (K, n, n): scaling and squaring with a degree-12 Taylor
+    polynomial (the scaled 1-norm <= 1/2, so the truncated terms are below 1e-13 of the sum), all
+    samples at once."""
+    norm = float(np.abs(m).sum(axis=-2).max(initial=0.0))
+    squarings = max(0, int(np.ceil(np.log2(max(norm, 1e-300) / 0.5))))
+    x = m / 2.0**squarings
+    eye = np.broadcast_to(np.eye(m.shape[-1]), m.shape)
+    out = eye.copy()
+    for k in range(12, 0, -1):  # Horner: I + x/12 (I + x/11 (...))
+        out = eye + (x @ out) / k
+    for _ in range(squarings):
+        out = out @ out
+    return out
+
+
+def _step_maps(a: np.ndarray, b: np.ndarray, step_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold maps (Phi (K, n, n), Gamma (K, n, m)) of x' = a x + b u over ``step_s``."""
+    k, n, m = b.shape
+    aug = np.zeros((k, n + m, n + m))
+    aug[:, :n, :n] = a
+    aug[:, :n, n:] = b
+    e = _expm(aug * step_s)
+    return e[:, :n, :n], e[:, :n, n:]
+
+
+def jet_response(
+    t_s: np.ndarray,
+    vehicle: Vehicle,
+    force_N: np.ndarray,
+    torque_Nm: np.ndarray,
+    force_gradient_Npm: np.ndarray,
+    torque_gradient_Nmpm: np.ndarray,
+    moving: np.ndarray | None = None,
+) -> JetResponse:
+    """The loop of ``vehicle`` driven along a plan by the jet's force (K, 3), N, and torque (K, 3),
+    N m (world frame), with their gradients (K, 3, 3) (N/m, N m/m), sampled on the uniform grid
+    ``t_s`` (K,), s, from rest (module docstring). The tube's deviation drives the loop where the
+    vehicle moves (``moving`` (K,) bool; None: everywhere; a vehicle at rest has no tracking error,
+    as the verifier's tube), not over the hold after the end."""
+    t = np.asarray(t_s, dtype=float)
+    kk = t.size
+    f = np.asarray(force_N, dtype=float).reshape(kk, 3)
+    tq = np.asarray(torque_Nm, dtype=float).reshape(kk, 3)
+    gf = np.asarray(force_gradient_Npm, dtype=float).reshape(kk, 3, 3)
+    gt = np.asarray(torque_gradient_Nmpm, dtype=float).reshape(kk, 3, 3)
+    mats = loop_matrices(vehicle, f, tq, gf, gt)
+    poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c))  # of the configuration held at the end
+    deflection = np.zeros((kk, 3))
+    gain = np.zeros(kk)
+    if kk < 2:
+        empty = _TubeBlocks(mats.c)
+        return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, np.zeros(N_STATES), empty, f, tq)
+    h = float(t[1] - t[0])
+    u = np.concatenate([f, tq], axis=1)  # (K, 6)
+    g_in = np.concatenate([gf, gt], axis=1)  # (K, 6, 3): the input per unit deviation
+    if moving is not None:
+        g_in = g_in * np.asarray(moving, dtype=bool)[:, None, None]
+    # per step k -> k+1 the matrices and inputs of sample k (zero-order hold); steps with the same
+    # sample values share their maps
+    key = np.concatenate([u, g_in.reshape(kk, -1)], axis=1)[:-1]
+    uniq, inverse = np.unique(key, axis=0, return_inverse=True)
+    first = np.zeros(uniq.shape[0], dtype=np.intp)
+    first[inverse[::-1]] = np.arange(kk - 1)[::-1]
+    phi_u, gam_u = _step_maps(mats.a[first], mats.b[first], h)
+    x = np.zeros(N_STATES)
+    tube = _TubeBlocks(mats.c)
+    for k in range(kk - 1):
+        i = inverse[k]
+        phi, gam = phi_u[i], gam_u[i]
+        x = phi @ x + gam @ u[k]
+        tube.step(phi, gam @ g_in[k])
+        deflection[k + 1] = mats.c @ x
+        gain[k + 1] = tube.gain()
+    return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, x, tube, f, tq)
+
+
+class _TubeBlocks:
+    """The tube's responses Phi(t, s) Gamma G(s) of :func:`jet_response` (n x 3 each), summed over
+    blocks of :data:`TUBE_BLOCK_SAMPLES` steps, propagated to now."""
+
+    def __init__(self, c: np.ndarray):
+        self.c = c
+        n = c.shape[1]
+        self.pending = np.zeros((n, 3))
+        self.n_pending = 0
+        self.blocks = np.zeros((n, 0))
+
+    def step(self, phi: np.ndarray, new: np.ndarray) -> None:
+        """Propagate every block by ``phi`` (n, n) and add this step's input response ``new`` (n, 3)."""
+        if self.blocks.shape[1]:
+            self.blocks = phi @ self.blocks
+        self.pending = phi @ self.pending + new
+        self.n_pending += 1
+        if self.n_pending == TUBE_BLOCK_SAMPLES:
+            self.flush()
+
+    def flush(self) -> None:
+        """Close the pending block."""
+        if np.any(self.pending):
+            self.blocks = np.concatenate([self.blocks, self.pending], axis=1)
+        self.pending = np.zeros_like(self.pending)
+        self.n_pending = 0
+
+    def gain(self) -> float:
+        """gamma now: the sum over the blocks (the pending one included) of ||C block||_F."""
+        out = float(np.linalg.norm(self.c @ self.pending))
+        return out + (_block_norms(self.c, self.blocks) if self.blocks.shape[1] else 0.0)
+
+
+def _block_norms(c: np.ndarray, blocks: np.ndarray) -> float:
+    """Sum over the blocks (columns of 3) of ||C block||_F."""
+    out = (c @ blocks).reshape(3, -1, 3)
+    return float(np.sqrt((out**2).sum(axis=(0, 2))).sum())
+
+
+def _with_hold(resp, mats, x_end, tube: _TubeBlocks, f, tq) -> JetResponse:
+    """``resp`` with the bounds over the hold after its last sample (module docstring): the final
+    configuration held (loop A = V diag(lambda) V^-1, input u, constant), so from the end
+    C x(t) = C x_ss + C V diag(e^{lambda t}) V^-1 (x_end - x_ss), and each tube block likewise
+    without the steady part; evaluated every :data:`HOLD_STEP_S` until what the modes can still
+    add, sum_i |C v_i| |(V^-1 y)_i| e^{Re lambda_i t}, stays below :data:`HOLD_RESIDUAL_M` and
+    :data:`HOLD_GAIN_RESIDUAL` (or for :data:`HOLD_MAX_S`), which is then added."""
+    if resp.poles.growth_ps[0] >= 0.0:
+        return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, np.inf, np.inf, resp.poles)
+    live = _live_states(mats.a[-1:])
+    a, b, c = mats.a[-1][np.ix_(live, live)], mats.b[-1][live], mats.c[:, live]
+    u = np.concatenate([f[-1], tq[-1]])
+    x_ss = -np.linalg.solve(a, b @ u)
+    lam, vec = np.linalg.eig(a)
+    cv = c @ vec  # (3, n)
+    cv_norm = np.linalg.norm(cv, axis=0)
+    tube.flush()
+    start = np.linalg.solve(vec, np.column_stack([x_end[live] - x_ss, tube.blocks[live]]))  # (n, 1 + 3 N)
+    weight = cv_norm[:, None] * np.abs(start)  # (n, 1 + 3N): what each mode can add, at t = 0
+
+    def residual(t: float) -> np.ndarray:  # per column (forced, then the blocks' columns), m
+        return (weight * np.exp(lam.real * t)[:, None]).sum(axis=0)
+
+    def done(t: float) -> bool:
+        rest = residual(t)
+        return rest[0] < HOLD_RESIDUAL_M and float(rest[1:].sum()) < HOLD_GAIN_RESIDUAL
+
+    horizon = 0.0
+    while horizon < HOLD_MAX_S and not done(horizon):
+        horizon = min(2.0 * horizon + HOLD_STEP_S, HOLD_MAX_S)
+    times = np.arange(0.0, horizon + HOLD_STEP_S / 2, HOLD_STEP_S)
+    y_ss = c @ x_ss
+    worst_d, worst_g = 0.0, 0.0
+    for chunk in np.array_split(times, max(1, times.size // 500)):
+        e = np.exp(np.outer(chunk, lam))  # (T, n)
+        traj = ((e[:, None, :] * cv[None]) @ start).real  # (T, 3, 1 + 3N)
+        worst_d = max(worst_d, float(np.linalg.norm(y_ss[None] + traj[:, :, 0], axis=1).max()))
+        if start.shape[1] > 1:
+            blocks = traj[:, :, 1:].reshape(chunk.size, 3, -1, 3)
+            worst_g = max(worst_g, float(np.sqrt((blocks**2).sum(axis=(1, 3))).sum(axis=1).max()))
+    rest = residual(times[-1])
+    worst_d += float(rest[0])
+    worst_g += float(rest[1:].sum())
+    return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, worst_d, worst_g, resp.poles)
+
+
+def weak_jet_bound_m(vehicle: Vehicle, force_max_N: float, torque_max_Nm: float) -> float:
+    """Largest deviation, m, that any force of norm <= ``force_max_N`` (N) and torque of norm <=
+    ``torque_max_Nm`` (N m) can drive in the vehicle's loop without a jet (the jet's gradients left
+    out: for a jet too weak to matter): the L1 norm of the loop's impulse response bounded by its
+    modes, sum_i |C v_i| (|w_i B_F| F + |w_i B_T| T) / -Re lambda_i."""
+    mats = loop_matrices(vehicle)
+    live = _live_states(mats.a)
+    a, b, c = mats.a[0][np.ix_(live, live)], mats.b[0][live], mats.c[:, live]
+    lam, vec = np.linalg.eig(a)
+    w = np.linalg.inv(vec)
+    cv = np.linalg.norm(c @ vec, axis=0)
+    wb = w @ b
+    per = np.linalg.norm(wb[:, :3], axis=1) * force_max_N + np.linalg.norm(wb[:, 3:], axis=1) * torque_max_Nm
+    return float(np.sum(cv * per / -lam.real))
