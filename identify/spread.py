@@ -39,7 +39,7 @@ def unit_spread_features(unit: Unit, model: Model, predictions: Predictions | No
     else:
         per_source = base_wrench_per_source(unit_inputs(unit, model))
     sizes = [model.vehicles[t].size_m for t in unit.source_types]
-    return spread_features([f[:, 2] for f, _ in per_source], list(unit.source_offsets_m), sizes,
+    return spread_features(len(unit), [f[:, 2] for f, _ in per_source], list(unit.source_offsets_m), sizes,
                            model.vehicles[unit.type].weight_N)  # fmt: skip
 
 

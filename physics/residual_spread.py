@@ -52,11 +52,15 @@ class ResidualSpread:
 
 
 def spread_features(
-    source_fz_N: Sequence[np.ndarray], offsets_m: Sequence[np.ndarray], sizes_m: Sequence[float], weight_N: float
+    n: int,
+    source_fz_N: Sequence[np.ndarray],
+    offsets_m: Sequence[np.ndarray],
+    sizes_m: Sequence[float],
+    weight_N: float,
 ) -> np.ndarray:
-    """(N, 3) the regressors of sigma^2: 1, sum_s F_s^2 (N^2), W^2 sum_s g_s^2 (N^2), from each source's base
-    F_z (N,) N, offsets p_target - p_source (N, 3) m and size L (m), and the target's weight (N)."""
-    n = len(offsets_m[0]) if offsets_m else len(source_fz_N[0]) if source_fz_N else 0
+    """(n, 3) the regressors of sigma^2 for n samples: 1, sum_s F_s^2 (N^2), W^2 sum_s g_s^2 (N^2), from each
+    source's base F_z (n,) N, offsets p_target - p_source (n, 3) m and size L (m), and the target's weight
+    (N); a vehicle with no source has only the floor."""
     f2 = np.zeros(n)
     g2 = np.zeros(n)
     for fz, off, size in zip(source_fz_N, offsets_m, sizes_m):
