@@ -368,10 +368,11 @@ def _beyond_thrust_bias(selected: list[str]) -> list[str]:
     return [n for n in selected if n != "thrust_bias"]
 
 
-LIBRARY_FORMS = {("velocity", "v_z"): "own_velocity", ("velocity", "v_xy"): "own_velocity",
-                 ("velocity", "v_xy2"): "own_velocity"}  # fmt: skip
-"""Generated forms that ARE a library effect (own_velocity is W (-c_w v_z + c_mu |v_xy| + c_mu2 |v_xy|^2)):
-keeping that effect is finding what was put in."""
+LIBRARY_FORMS = {("velocity", "v_z"): {"own_velocity", "climb_inflow"}, ("velocity", "v_xy"): {"own_velocity"},
+                 ("velocity", "v_xy2"): {"own_velocity"}, ("thrust", "speed"): {"own_velocity"}}  # fmt: skip
+"""Generated forms that ARE a library effect's shape: own_velocity is W (-c_w v_z + c_mu |v_xy| + c_mu2 |v_xy|^2),
+climb_inflow -g (b_v / k1) v_z T, and a thrust loss T |v_xy| is W |v_xy| within the thrust's spread about
+the weight: keeping that effect is finding what was put in."""
 
 
 def _library_put_in(desc: dict[str, Any]) -> set[str]:
@@ -379,8 +380,7 @@ def _library_put_in(desc: dict[str, Any]) -> set[str]:
         return set().union(*(_library_put_in(p) for p in desc["parts"]))
     if desc["family"] == "lag" and desc["inner"] != "base":
         return {desc["inner"]}
-    form = LIBRARY_FORMS.get((desc["family"], desc.get("form", "")))
-    return {form} if form else set()
+    return set(LIBRARY_FORMS.get((desc["family"], desc.get("form", desc.get("where", ""))), set()))
 
 
 def main() -> None:

@@ -114,14 +114,17 @@ def swap_plan(
     centre_m: Sequence[float] = (0.0, 0.0, 0.8),
     hold_s: float = 1.0,
     dt_s: float = 0.02,
+    cross_offset_m: float = 0.0,
 ) -> Plan:
     """Neural-Swarm-like swaps: both vehicles on a circle of ``radius_m`` at opposite sides,
     ``vertical_gap_m`` apart, swap sides in ``swap_s`` along straight chords, crossing above each
-    other at the centre; repeated ``n_swaps`` times with ``hold_s`` pauses."""
+    other at the centre (``cross_offset_m`` apart sideways, m: the bottom chord is shifted along y,
+    so the jet's roll torque is exercised as on real swaps, which never cross exactly on axis);
+    repeated ``n_swaps`` times with ``hold_s`` pauses."""
     c = np.asarray(centre_m, dtype=float)
     a = c + np.array([radius_m, 0.0, 0.5 * vertical_gap_m])
     b = c + np.array([-radius_m, 0.0, 0.5 * vertical_gap_m])
-    dz = np.array([0.0, 0.0, vertical_gap_m])
+    dz = np.array([0.0, -cross_offset_m, vertical_gap_m])
     top_wp, bot_wp, times = [a, a], [b - dz, b - dz], [0.0, hold_s]  # leading pause
     t = hold_s
     for k in range(n_swaps):

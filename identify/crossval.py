@@ -15,27 +15,34 @@ independent); flights declared ``split: validation`` are only ever held out (nev
 
 **Gain test** (:func:`gain_test`). Each held-out group g gets, per wrench channel c, the log-ratio of its
 mean squared error without and with the candidate, bounded by tanh, and its gain is their sum over the
-channels, gain_g = sum_c tanh(ln(MSE_gc(without k) / MSE_gc(with k)) / 2) = sum_c (MSE_without -
+channels the candidate acts on, gain_g = sum_c tanh(ln(MSE_gc(without k) / MSE_gc(with k)) / 2) = sum_c (MSE_without -
 MSE_with) / (MSE_without + MSE_with), both from fits that did not see g's flight (leave one train flight
 out; validation flights from the fit on every train flight). It is scale-free (flights that hold more
 disturbance do not dominate; a term on one channel is not diluted by the others' noise) and bounded by 1
 per channel either way, so the spread between logs that hold much or little of an effect, or a channel
 whose error is near zero, cannot swamp the mean.
-A candidate is judged on the held-out logs where it acts (its columns are not identically zero there: a
-jet's effect says nothing on a vehicle with no source above), and kept only when the mean gain exceeds
-``z`` standard errors over those logs, SE = sd(gain) / sqrt(G), with z = Phi^-1(1 - ALPHA / m), m the
-number of candidates tested together: a one-sided test at family-wise level :data:`ALPHA` (Bonferroni).
+A candidate is judged on the held-out logs and channels where it acts (its contribution, fitted on every
+train flight, is worth at least one unit of chi-square there: :func:`exposure`; a jet's effect says nothing
+on a vehicle with no source above, a term on F_z nothing on the torques, an effect's far tail nothing
+where the noise hides it), and kept only when the mean gain exceeds ``z`` standard errors FROM FLIGHT TO
+FLIGHT: the gains of one flight's logs are averaged first (they are predicted by the same fit, the one that
+left that flight out, so they are not independent), SE = sd(flight gains) / sqrt(F) over the F flights where
+it acts, and z = t_{F-1}^-1(1 - ALPHA / m), Student's t with F - 1 degrees of freedom (the SE itself is
+estimated from F values), m the number of candidates tested together: a one-sided test at family-wise level
+:data:`ALPHA` (Bonferroni).
 
 **Stability** (:mod:`proxplan.identify.stability`): a candidate must also be chosen in most
 half-samples of the flights.
 
 **Both.** Only a stable candidate can be kept, so the Bonferroni count m of the gain test is the number of
-stable candidates tested together: a candidate no half chose cannot be a false selection.
+stable HYPOTHESES tested together: a candidate no half chose cannot be a false selection, and near-duplicate
+candidates (the members of one feature group: a kernel at two widths, a kernel and its lagged copy) stand
+for one hypothesis.
 
 **Held-out units** (:func:`plan_groups`): a fit leaves a whole flight out (its CLUSTER), and each
-vehicle's log of that flight is one held-out GROUP the gain is measured on (vehicles of one flight meet
-different situations: with three flights, three vehicles give nine gains, not three). **Too few flights**:
-with one train flight (nothing to hold out) or fewer than :data:`MIN_GROUPS` vehicle logs, each train flight
+vehicle's log of that flight is one held-out GROUP the channels' acting is decided on; the gain is then
+averaged per flight. **Too few flights**:
+with one train flight (nothing to hold out) or fewer than :data:`MIN_GROUPS` flights, each train flight
 is cut into :data:`FALLBACK_BLOCKS` contiguous blocks in time, and the blocks are the clusters; the note
 says so (stderr, JSON, report).
 """
@@ -47,12 +54,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import norm
+from scipy.stats import t as student_t
 
 ALPHA = 0.05
 """Family-wise level of the gain test: on data without any of the m candidates of a round, the
 chance that one of them passes, -."""
 MIN_GROUPS = 3
-"""Fewest held-out groups (vehicle logs) a standard error is taken over (2 degrees of freedom); with fewer,
+"""Fewest held-out clusters (flights) a standard error is taken over (2 degrees of freedom); with fewer,
 or a single train flight, the selection falls back to blocks in time."""
 FALLBACK_BLOCKS = 5
 """Blocks per train flight when there are too few flights to hold one out."""
@@ -88,14 +96,14 @@ def plan_groups(
 ) -> GroupPlan:
     """Groups of the (flight, vehicle) pairs of the train (``fit``) and validation (``valid``) logs: one group
     per pair, clustered by flight, when a fit can leave a flight out (two train flights, or a validation
-    flight) and there are at least :data:`MIN_GROUPS` groups to take a standard error over; else the fallback:
+    flight) and there are at least :data:`MIN_GROUPS` flights to take a standard error over; else the fallback:
     each train flight cut into :data:`FALLBACK_BLOCKS` blocks in time (clusters), a group per block and
     vehicle (:func:`block_ids`)."""
     fit, valid = sorted(set(fit)), sorted(set(valid))
     fit_flights = sorted({f for f, _ in fit})
     valid_flights = sorted({f for f, _ in valid})
     holdable = len(valid_flights) + (len(fit_flights) if len(fit_flights) >= 2 else 0)
-    if holdable >= 1 and len(fit_flights) + len(valid_flights) >= 2 and len(fit) + len(valid) >= MIN_GROUPS:
+    if holdable >= 1 and len(fit_flights) + len(valid_flights) >= MIN_GROUPS:
         flights = fit_flights + valid_flights
         pairs = fit + valid
         names = tuple(f"{f}/{v}" for f, v in pairs)
@@ -103,7 +111,7 @@ def plan_groups(
         held = np.array([False] * len(fit) + [True] * len(valid))
         kinds = f"{len(fit_flights)} train" + (f" + {len(valid_flights)} validation" if valid_flights else "")
         note = (f"{what}: each of {kinds} flights held out in turn (grouped cross-validation by flight); the "
-                f"standard error over its {len(pairs)} vehicle logs")  # fmt: skip
+                f"standard error from flight to flight ({len(pairs)} vehicle logs)")  # fmt: skip
         return GroupPlan(names, cluster, held, note)
     blocks = [(f, b) for f in fit_flights for b in range(FALLBACK_BLOCKS)]
     pairs_fb = [(f"{f}#{b}", v) for f, b in blocks for ff, v in fit if ff == f]
@@ -113,7 +121,7 @@ def plan_groups(
     held = np.array([False] * len(pairs_fb) + [True] * len(valid))
     note = (
         f"{what}: too few flights to hold one out ({len(fit_flights)} train, {len(valid_flights)} validation; a fit "
-        f"must leave a flight out and the gains need {MIN_GROUPS} vehicle logs): fell back to {FALLBACK_BLOCKS} "
+        f"must leave a flight out and the gains need {MIN_GROUPS} flights): fell back to {FALLBACK_BLOCKS} "
         "contiguous blocks in time per train flight as what is held out (blocks of one flight share its "
         "conditions: the gains are less certain than a flight's)"
     )
@@ -254,6 +262,27 @@ def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge
     return out
 
 
+def heldout_predictions(
+    sums: GroupSums, x: np.ndarray, group: np.ndarray, cols: np.ndarray, plan: GroupPlan, ridge: Ridge, tau: float
+) -> np.ndarray:
+    """(N, C) each row's prediction by the fit that did not see its cluster (its flight; a validation row: the
+    fit on every train group), from the rows' design ``x`` (N, C, p) over :attr:`GroupSums.columns` and their
+    ``group`` (N,)."""
+    out = np.zeros(x.shape[:2])
+    trainable = trainable_groups(sums, plan)
+    beta_all = solve(sums, cols, trainable, ridge, tau)
+    row_cluster = plan.cluster[group]
+    for c in range(plan.n_clusters):
+        rows = np.flatnonzero(row_cluster == c)
+        if rows.size == 0:
+            continue
+        members = plan.cluster == c
+        mask = trainable * ~members
+        beta = beta_all if plan.held_out_only[members].all() or not mask.any() else solve(sums, cols, mask, ridge, tau)
+        out[rows] = x[rows][:, :, cols] @ beta
+    return out
+
+
 @dataclass(frozen=True)
 class GainTest:
     """The held-out gain of one candidate: per-group gains (bounded log-ratio of held-out MSEs, summed over
@@ -276,40 +305,60 @@ class GainTest:
                 "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups}  # fmt: skip
 
 
-def critical_z(m: int) -> float:
-    """Phi^-1(1 - ALPHA / m): the one-sided Bonferroni multiple for m candidates tested together, -."""
-    return float(norm.ppf(1.0 - ALPHA / max(int(m), 1)))
+def critical_z(m: int, dof: int | None = None) -> float:
+    """The one-sided Bonferroni multiple for m candidates tested together, -: Student's t_dof^-1(1 - ALPHA / m)
+    for a standard error estimated from dof + 1 values, Phi^-1(1 - ALPHA / m) when ``dof`` is None."""
+    q = 1.0 - ALPHA / max(int(m), 1)
+    return float(norm.ppf(q) if dof is None else student_t.ppf(q, max(int(dof), 1)))
 
 
-def relative_gains(mse_without: np.ndarray, mse_with: np.ndarray) -> np.ndarray:
+def relative_gains(mse_without: np.ndarray, mse_with: np.ndarray, acts: np.ndarray | None = None) -> np.ndarray:
     """(G,) per group, the sum over its channels of (MSE without - MSE with) / (MSE without + MSE with) of
     (G, C) held-out MSEs, i.e. tanh(ln(MSE without / MSE with) / 2): the log-ratio of the errors, bounded to
-    +-1 per channel (a channel without error on both sides adds nothing); NaN for a group with no channel."""
+    +-1 per channel, over the channels where the candidate acts (``acts`` (G, C) bool; default all; a
+    channel without error on both sides adds nothing); NaN for a group with no such channel."""
     a, b = np.atleast_2d(mse_without), np.atleast_2d(mse_with)
     ok = np.isfinite(a) & np.isfinite(b) & (a + b > 0)
+    if acts is not None:
+        ok &= acts
     share = np.where(ok, (np.where(ok, a, 0.0) - np.where(ok, b, 0.0)) / np.where(ok, a + b, 1.0), 0.0)
     return np.where(ok.any(axis=1), share.sum(axis=1), np.nan)
 
 
-def exposure(sums: GroupSums, cols: np.ndarray) -> np.ndarray:
-    """(G,) bool: the groups where some column of ``cols`` is not identically zero (the candidate acts there)."""
+def exposure(sums: GroupSums, cols: np.ndarray, beta: np.ndarray, tau: float) -> np.ndarray:
+    """(G, C) bool: the groups and channels where the candidate (columns ``cols`` at coefficients ``beta``,
+    fitted on every train group) ACTS: its contribution there is worth at least one unit of chi-square,
+    beta^T G_cell beta / tau >= 1 (noise units, tau the correlation time), i.e. the log's own noise could
+    tell it from nothing. A log it does not reach says nothing about it (its gain is noise), and an effect
+    with long tails must not be judged on the logs its tails barely touch."""
+    n_groups = len(sums.w) // sums.n_channels
     if cols.size == 0:
-        return np.zeros(len(sums.w) // sums.n_channels, dtype=bool)
-    diag = sums.G[:, cols, cols].sum(axis=1).reshape(-1, sums.n_channels).sum(axis=1)
-    scale = float(diag.max()) if diag.size else 0.0
-    return diag > 1e-20 * max(scale, 1e-300)
+        return np.zeros((n_groups, sums.n_channels), dtype=bool)
+    Gc = sums.G[:, cols][:, :, cols]
+    chi2 = np.einsum("i,kij,j->k", beta, Gc, beta) / tau
+    return (chi2 >= 1.0).reshape(n_groups, sums.n_channels)
 
 
-def gain_test(mse_without: np.ndarray, mse_with: np.ndarray, m: int, acts: np.ndarray | None = None) -> GainTest:
+def gain_test(
+    mse_without: np.ndarray,
+    mse_with: np.ndarray,
+    m: int,
+    acts: np.ndarray | None = None,
+    cluster: np.ndarray | None = None,
+) -> GainTest:
     """The gain test of the module docstring on (G, C) held-out MSEs (:func:`relative_gains`), over the
-    groups where the candidate acts (``acts``, (G,) bool; default all): a log the candidate cannot touch
-    (a vehicle with no source above for a jet's effect) says nothing about it."""
-    lr = relative_gains(mse_without, mse_with)
-    if acts is not None:
-        lr = np.where(acts, lr, np.nan)
-    d = lr[np.isfinite(lr)]
+    groups and channels where the candidate acts (``acts``, (G, C) bool; default all): a log or a channel
+    the candidate cannot touch (a vehicle with no source above for a jet's effect, the torques for a term
+    on F_z) says nothing about it. With ``cluster`` ((G,) int, each group's flight) the groups' gains are
+    averaged per cluster and the test is over clusters (Student's t); without, over groups (normal)."""
+    d = relative_gains(mse_without, mse_with, acts)
+    if cluster is not None:
+        ok = np.isfinite(d)
+        ids = np.unique(cluster[ok])
+        d = np.array([d[ok & (cluster == c)].mean() for c in ids])
+    d = d[np.isfinite(d)]
     n = int(d.size)
-    z = critical_z(m)
+    z = critical_z(m, None if cluster is None else n - 1)
     if n < 2:
         return GainTest(d, float(d.mean()) if n else 0.0, float("inf"), z, False, n)
     mean = float(d.mean())
@@ -351,9 +400,11 @@ def heldout_forward(
     *,
     max_terms: int,
     eligible: set[str] | None = None,
+    hypothesis: dict[str, str] | None = None,
 ) -> ForwardResult:
-    """Greedy forward selection by the held-out :func:`gain_test` (Bonferroni over the round's
-    candidates), then backward: a kept candidate that no longer passes given the others (Bonferroni over
+    """Greedy forward selection by the held-out :func:`gain_test` (Bonferroni over the round's hypotheses
+    that could be kept: ``eligible`` candidates, one per ``hypothesis`` label; each round adds the passing
+    candidate with the largest lower bound mean - z SE of its gain), then backward: a kept candidate that no longer passes given the others (Bonferroni over
     the kept ones) is dropped, the weakest first. ``eligible`` restricts who may be kept (e.g. the stable
     ones); every candidate is still tested and reported."""
     cols_of = {c.name: sums.index(c.columns) for c in candidates}
@@ -367,20 +418,33 @@ def heldout_forward(
     remaining = [c.name for c in candidates]
     while remaining and len(out.chosen) < max_terms:
         tests = {}
-        m = max(1, sum(1 for n in remaining if eligible is None or n in eligible))  # who could be kept
+        # Bonferroni over the hypotheses that could be kept: near-duplicate candidates (``hypothesis``: one
+        # feature group, its members) test one hypothesis, not several
+        open_ = [n for n in remaining if eligible is None or n in eligible]
+        m = max(1, len({hypothesis.get(n, n) if hypothesis else n for n in open_}))
         for name in remaining:
             trial = heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau)
-            tests[name] = gain_test(current, trial, m, exposure(sums, cols_of[name]))
+            acts = _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau)
+            tests[name] = gain_test(current, trial, m, acts, plan.cluster)
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
         if not ok:
             break
-        best = max(ok, key=lambda n: tests[n].mean)
+        # the one most surely better: the largest lower confidence bound of the gain (mean - z SE), so a
+        # candidate whose gain is as large but less consistent over the flights does not pre-empt it
+        best = max(ok, key=lambda n: tests[n].mean - tests[n].z * tests[n].se)
         out.chosen.append(best)
         remaining.remove(best)
         current = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
     _backward(out, cols, cols_of, sums, plan, ridge, tau)
     return out
+
+
+def _acts(sums: GroupSums, cols, others, name, cols_of, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
+    """:func:`exposure` of candidate ``name`` fitted on every train group beside ``others``."""
+    idx = cols(list(others) + [name])
+    beta = solve(sums, idx, trainable_groups(sums, plan), ridge, tau)
+    return exposure(sums, cols_of[name], beta[-len(cols_of[name]) :], tau)
 
 
 def _backward(out: ForwardResult, cols, cols_of, sums: GroupSums, plan: GroupPlan, ridge: Ridge, tau: float) -> None:
@@ -390,8 +454,10 @@ def _backward(out: ForwardResult, cols, cols_of, sums: GroupSums, plan: GroupPla
         full = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
         finals = {}
         for name in out.chosen:
-            without = heldout_mse(sums, cols([n for n in out.chosen if n != name]), plan, ridge, tau)
-            finals[name] = gain_test(without, full, len(out.chosen), exposure(sums, cols_of[name]))
+            others = [n for n in out.chosen if n != name]
+            without = heldout_mse(sums, cols(others), plan, ridge, tau)
+            acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau)
+            finals[name] = gain_test(without, full, len(out.chosen), acts, plan.cluster)
         failing = [n for n, t in finals.items() if not t.passed]
         if not failing:
             out.final_tests = finals

@@ -15,7 +15,7 @@ import numpy as np
 
 from proxplan.fileio import UserError
 from proxplan.identify.flightlog import Flight, FlightEntry, Manifest, VehicleLog, interpolate_position_m, load_flight
-from proxplan.identify.measure import MeasureOptions, kinematic_thrust_z_N, measure_log
+from proxplan.identify.measure import MeasureOptions, kinematic_thrust_z_N, measure_log, smoothed_like_measurement
 from proxplan.identify.thrust_map import (
     CEILING,
     FLOOR,
@@ -316,7 +316,8 @@ def load_units(
                 "thrust_source": source, "scored": v.score} | dict(flight.alignment.get(v.name, {}))  # fmt: skip
             veh = flight.vehicles[v.name]
             logs[(entry.name, v.name)] = (veh, log)
-            meas = measure_log(veh, log, options=measure_options_for(options.measure, veh, manifest.motor_thrust))
+            mopts = measure_options_for(options.measure, veh, manifest.motor_thrust)
+            meas = measure_log(veh, log, options=mopts)
             z_b = Rotation.from_quat(log.quat_xyzw).apply(np.array([0.0, 0.0, 1.0]))
             others = [o for o in entry.vehicles if o.name != v.name]
             units.append(
@@ -331,8 +332,11 @@ def load_units(
                     thrust_z_N=log.motor_thrust_N.sum(axis=1) * z_b[:, 2],
                     thrust_kin_z_N=kinematic_thrust_z_N(veh, log, options=options.measure),
                     source_types=tuple(types_of[o.name] for o in others),
-                    source_offsets_m=tuple(
-                        log.position_m - interpolate_position_m(flight.logs[o.name], log.t_s) for o in others
+                    source_offsets_m=tuple(  # smoothed like the measured wrench (measure.smoothed_like_measurement)
+                        smoothed_like_measurement(
+                            log, log.position_m - interpolate_position_m(flight.logs[o.name], log.t_s), options=mopts
+                        )
+                        for o in others
                     ),
                     force_N=meas.force_N,
                     torque_Nm=meas.torque_Nm,

@@ -21,7 +21,8 @@ place in the room), each on one wrench channel (F_z and the three torques): a te
    near-duplicates the halves split their picks, so a per-feature count would under-rate a real effect;
    which member describes it best is the held-out test's to say.
 2. **Held out.** Every member of a stable group that some half picked enters the joint design beside the
-   tangents and the kept effects; the greedy held-out gain test (:func:`proxplan.identify.crossval.heldout_forward`: every flight predicted
+   tangents and the kept effects (members of one group are one hypothesis: the Bonferroni count is the
+   stable groups'); the greedy held-out gain test (:func:`proxplan.identify.crossval.heldout_forward`: every flight predicted
    by a fit without it; Bonferroni over the round) keeps them, and a backward pass drops any that no
    longer pass given the others.
 
@@ -288,7 +289,7 @@ def discover_terms(
     ridge = ridge_of(sums.columns)
     if stable:
         fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable], sel.plan, ridge, sel.tau,
-                              max_terms=options.max_terms)  # fmt: skip
+                              max_terms=options.max_terms, hypothesis={k: _group_of(k) for k in stable})  # fmt: skip
     names_fit = always_names + fwd.chosen
     trainable = trainable_groups(sums, sel.plan)
     beta = solve(sums, sums.index(names_fit), trainable, ridge, sel.tau) if names_fit else np.zeros(0)

@@ -356,7 +356,7 @@ def _reason(
     stab = f"chosen in {prob:.0%} of half-samples of the flights (needs more than {threshold:.0%})"
     if t is None:
         return f"not tested (the forward pass stopped at {MAX_EFFECTS} effects); {stab}"
-    gain = (f"held-out gain {t.mean:+.3g} +- {t.se:.2g} (bounded log-ratio of held-out errors, summed over channels, {t.n_groups} held-out logs; "
+    gain = (f"held-out gain {t.mean:+.3g} +- {t.se:.2g} (bounded log-ratio of held-out errors, summed over channels, {t.n_groups} held-out flights; "
             f"needs > {t.z:.2f} SE)")  # fmt: skip
     if selected:
         return f"kept: {gain}; {stab}"

@@ -23,7 +23,7 @@ Stages (DESIGN.md section 6; issue 35):
    the Bonferroni multiple of the flight-to-flight standard error AND it is chosen in most half-samples
    of the flights. When the calibration moved a parameter by :data:`proxplan.identify.priors.MOVE_SIGMAS`
    or more (a sign that it absorbed a missing effect), selection also runs around the PRIOR model, and
-   the start whose kept set predicts the held-out flights better wins.
+   it wins when its kept set predicts the held-out flights better beyond flight-to-flight chance.
 7. Errors before (model as given), calibrated and after (calibrated + kept effects) on TEST flights,
    which never choose anything; also per vehicle (the manifest's key).
 
@@ -71,9 +71,8 @@ from proxplan.identify.motor_check import check_loaded
 from proxplan.identify.noise import noise_level
 from proxplan.identify.priors import STACK_SHIELDING_PRIOR
 from proxplan.identify.residuals import correlate, sample_features
-from proxplan.identify.selection import select_and_discover
+from proxplan.identify.selection import other_start_better, select_and_discover
 from proxplan.identify.spread import band_errors, fit_spread
-from proxplan.identify.strata import stratified_sample
 from proxplan.physics import (
     VALIDITY_FACTOR_L,
     CalibratedModel,
@@ -274,17 +273,18 @@ def run_identify(
     if calibration is not None:
         # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
         # undo it only to first order), so selection also starts from the PRIOR model (eta at its prior);
-        # the start whose kept set predicts the held-out flights better wins (same samples, same units)
+        # it wins when its kept set predicts the held-out flights better beyond flight-to-flight chance
+        # (selection.other_start_better; same samples, same units), else the calibrated start stays
         prior = replace(base, options=replace(base.options, stack_shielding=STACK_SHIELDING_PRIOR.center))
         alt = select_and_discover(fit, valid, prior, model_specs(fit, prior), options=options, noise=noise,
                                   test=test_eval, start="prior")  # fmt: skip
         other_total = alt.heldout_total
-        if alt.heldout_total < chosen.heldout_total:
+        if other_start_better(chosen, alt):
             chosen, other_total = alt, chosen.heldout_total
         laps("selection around the prior model")
     final = chosen.model
     after = full_errors(final)
-    spread = fit_spread(stratified_sample(fit, options.max_fit_samples, final.vehicles), final)
+    spread = fit_spread(chosen.rows, final, chosen.heldout_fz_N)  # set on flights the fit did not see
     bands = {k: b.to_json(GRAMS_PER_N)
              for k, b in band_errors(test, final, spread, test_sets(manifest, test), pred).items()}  # fmt: skip
     corr = _residual_analysis(test, final, pred)

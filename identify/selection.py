@@ -11,7 +11,16 @@ from typing import Any
 import numpy as np
 
 from proxplan.identify.calibrate import ParamSpec
-from proxplan.identify.crossval import Candidate, ForwardResult, heldout_backward, heldout_mse, solve, trainable_groups
+from proxplan.identify.crossval import (
+    Candidate,
+    ForwardResult,
+    critical_z,
+    heldout_backward,
+    heldout_mse,
+    heldout_predictions,
+    solve,
+    trainable_groups,
+)
 from proxplan.identify.data import IdentifyOptions, Model, Unit
 from proxplan.identify.design import selection_set
 from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
@@ -32,14 +41,22 @@ class Selection:
     start: str  # "calibrated" | "prior"
     heldout_mse: np.ndarray  # (groups, channels), noise units
     note: str
+    cluster: np.ndarray  # (groups,) int, each held-out group's flight (crossval.GroupPlan.cluster)
+    rows: list[Unit]  # the selection's samples (stratified train sample and validation sample)
+    heldout_fz_N: np.ndarray  # (N,) each row's held-out F_z residual, N (rows in the order of ``rows``)
 
     @property
     def heldout_total(self) -> float:
         """Mean over the held-out groups of the sum over channels of ln(held-out MSE): the score two starts
         are compared by (scale-free, every log and channel alike), lower is better."""
-        m = np.where(np.isfinite(self.heldout_mse) & (self.heldout_mse > 0), np.log(np.abs(self.heldout_mse)), np.nan)
-        per_group = np.nansum(m, axis=1)[np.any(np.isfinite(m), axis=1)]
+        per_group = self.group_totals()
+        per_group = per_group[np.isfinite(per_group)]
         return float(np.mean(per_group)) if per_group.size else float("inf")
+
+    def group_totals(self) -> np.ndarray:
+        """(groups,) each held-out group's sum over channels of ln(held-out MSE) (NaN: no channel)."""
+        m = np.where(np.isfinite(self.heldout_mse) & (self.heldout_mse > 0), np.log(np.abs(self.heldout_mse)), np.nan)
+        return np.where(np.any(np.isfinite(m), axis=1), np.nansum(m, axis=1), np.nan)
 
     def to_json(self) -> dict[str, Any]:
         stab = self.effects.stability
@@ -79,7 +96,7 @@ def select_and_discover(
     discovery = None
     if options.discover:
         discovery = discover_terms(sel, selector.always_columns(effects.selected), selector.ridge_for)
-    model, heldout, joint = joint_model(selector, effects, discovery)
+    model, heldout, joint, heldout_fz = joint_model(selector, effects, discovery)
     if discovery is not None:
         discovery.kept = {k: v for k, v in discovery.kept.items() if k in joint.chosen}
         discovery.forward.dropped.update({k: t for k, t in joint.dropped.items() if k in discovery.columns})
@@ -90,17 +107,39 @@ def select_and_discover(
             trial.reason = (f"dropped: redundant given the discovered terms (held-out gain {t.mean:+.3g} +- {t.se:.2g}, "
                             f"needs > {t.z:.2f} SE)")  # fmt: skip
     effects.selected = [n for n in effects.selected if n in joint.chosen]
-    return Selection(model, effects, discovery, start, heldout, sel.plan.note)
+    if start == "calibrated" and not effects.selected and not (discovery is not None and discovery.kept):
+        # nothing kept: the calibration's own MAP fit (nonlinear, on every train sample) stands; the joint
+        # step exists to refit the vehicle parameters beside kept candidates, and alone it is only the
+        # first-order, subsampled copy of that fit (steps of 1e-4 in ln theta that float32 rounding moves)
+        model = reference
+    return Selection(model, effects, discovery, start, heldout, sel.plan.note, sel.plan.cluster, sel.units, heldout_fz)
+
+
+def other_start_better(default: Selection, other: Selection) -> bool:
+    """Whether ``other`` (the selection around the prior model) predicts the held-out flights better than
+    ``default`` (around the calibrated model) beyond flight-to-flight chance: the per-flight mean of the
+    paired difference of :meth:`Selection.group_totals` must exceed t_{F-1}^-1(1 - ALPHA) standard errors
+    (one-sided, :mod:`proxplan.identify.crossval`). On a tie the calibrated start stays: two near-equal
+    scores must not let rounding in the inputs (a float32 log format) pick the model."""
+    d = default.group_totals() - other.group_totals()
+    ok = np.isfinite(d)
+    flights = [d[ok & (default.cluster == c)].mean() for c in np.unique(default.cluster[ok])]
+    if len(flights) < 2:
+        return False
+    f = np.asarray(flights)
+    se = float(f.std(ddof=1) / np.sqrt(f.size))
+    return bool(f.mean() > 0.0 and f.mean() > critical_z(1, f.size - 1) * se)
 
 
 def joint_model(
     selector: EffectSelector, effects: EffectSelection, discovery: DiscoveryResult | None
-) -> tuple[Model, np.ndarray, ForwardResult]:
+) -> tuple[Model, np.ndarray, ForwardResult, np.ndarray]:
     """The kept library effects and discovered terms judged together: each must still pass the held-out
     gain test given all the others (a library effect that stood in for an undeclared one is dropped once
     the discovered term explains it better); then the survivors and the vehicle parameters' steps are
-    fitted jointly on every train group. Returns the model, the held-out MSE per group and channel, and
-    the backward pass's record."""
+    fitted jointly on every train group. Returns the model, the held-out MSE per group and channel, the
+    backward pass's record, and each selection row's held-out F_z residual (N,) N (measured minus the
+    prediction of the fit that left its flight out: what the spread's interval is set on)."""
     sel = selector.sel
     kept = [Candidate(c.name, tuple(c.columns)) for c in selector.candidates if c.name in effects.selected]
     terms = dict(discovery.kept) if discovery is not None else {}
@@ -124,4 +163,7 @@ def joint_model(
         model = replace(model, effects=model.effects + (Effect(DISCOVERED_NAME, survivors),))
         if discovery is not None:
             discovery.kept = survivors
-    return model, heldout_mse(sums, idx, sel.plan, ridge, sel.tau), back
+    x = np.stack([columns[k] for k in sums.columns], axis=2)  # (N, 4, p) in noise units
+    held = heldout_predictions(sums, x, sel.group, idx, sel.plan, ridge, sel.tau)
+    residual_fz = (sel.residual[:, 0] - held[:, 0]) * sel.row_scale[:, 0]
+    return model, heldout_mse(sums, idx, sel.plan, ridge, sel.tau), back, residual_fz

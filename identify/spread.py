@@ -1,11 +1,13 @@
 """What the model cannot predict (issue 35): the residual's spread by place in the jet, its 90 % interval,
 and the residual split into slow and fast parts.
 
-* :func:`fit_spread` fits :class:`proxplan.physics.ResidualSpread` on the TRAIN flights: per vehicle type,
-  non-negative least squares of the squared F_z residual of the final model on the regressors of
-  :func:`proxplan.physics.residual_spread.spread_features` (weighted like the fits), then the 90 % quantile
-  of the standardised residual |r| / sigma on the same samples (so the interval holds 90 % there by
-  construction; held-out flights say whether it carries over).
+* :func:`fit_spread` fits :class:`proxplan.physics.ResidualSpread` on HELD-OUT residuals: each sample of
+  the selection (:mod:`proxplan.identify.selection`) predicted by the joint fit that left its flight out
+  (validation flights: the fit on every train flight). Per vehicle type, non-negative least squares of the
+  squared residual on the regressors of :func:`proxplan.physics.residual_spread.spread_features` (weighted
+  like the fits), then the 90 % quantile of the standardised residual |r| / sigma on the same samples. An
+  in-sample residual is smaller than a new flight's (the fit saw it): an interval set on it covers less than
+  it says on the test flights.
 * :func:`band_errors` splits a residual at :data:`BAND_HZ` with a zero-phase Butterworth low-pass
   (``scipy.signal.sosfiltfilt``, order :data:`BAND_ORDER`) on each contiguous stretch: the RMSE below and
   above 1 Hz beside the whole (a quasi-steady model of the mean jet cannot follow the fast part).
@@ -43,14 +45,21 @@ def unit_spread_features(unit: Unit, model: Model, predictions: Predictions | No
                            model.vehicles[unit.type].weight_N)  # fmt: skip
 
 
-def fit_spread(units: Sequence[Unit], model: Model) -> ResidualSpread:
-    """The residual spread of ``model`` on ``units`` (train flights; stratified weights used when present)."""
+def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | None = None) -> ResidualSpread:
+    """The residual spread of ``model`` on ``units`` (stratified weights used when present): of the given
+    held-out residuals ``residual_fz_N`` ((N,) over the units in order, N: each sample predicted by a fit that
+    did not see its flight), else of ``model``'s own residual."""
     rows: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
     pred = Predictions()
+    start = 0
     for u in units:
         if not len(u):
             continue
-        r = u.force_N[:, 2] - pred(u, model)[0][:, 2]
+        if residual_fz_N is not None:
+            r = residual_fz_N[start : start + len(u)]
+            start += len(u)
+        else:
+            r = u.force_N[:, 2] - pred(u, model)[0][:, 2]
         w = u.weight if u.weight is not None else np.ones(len(u))
         rows.setdefault(u.type, []).append((unit_spread_features(u, model, pred), r, w))
     by_type: dict[str, TypeSpread] = {}

@@ -35,6 +35,7 @@ from proxplan.physics.controller_gains import (
 )
 from proxplan.physics.disturbance import (
     DEFAULT_OPTIONS,
+    PROFILE_CUTOFF,
     VALIDITY_FACTOR_L,
     ModelOptions,
     disturbance_wrench,
@@ -199,6 +200,7 @@ __all__ = [
     "MOTOR_YAW_SIGNS",
     "PARAMETERS",
     "TARGET_ONLY_EFFECTS",
+    "PROFILE_CUTOFF",
     "VALIDITY_FACTOR_L",
     "CalibratedModel",
     "DownwashSpec",

@@ -40,7 +40,7 @@ from functools import lru_cache
 import numpy as np
 
 from proxplan.costmaps import effects_key, effects_of_key, pair_wrench
-from proxplan.physics import Effect, ModelOptions, Vehicle, motor_thrust_changes_N
+from proxplan.physics import PROFILE_CUTOFF, Effect, ModelOptions, Vehicle, motor_thrust_changes_N
 
 NEGLIGIBLE_USAGE = 1e-12
 """Authority usage, -, below which a source's contribution is left out (per source and sample)."""
@@ -82,8 +82,14 @@ class UsageGrid:
         log-linearly between the two nodes around r, maximised over the vertical nodes from the
         one at or below the interval to the one at or above it. The jet's Gaussian makes log q
         concave in r, so the chord lies below it between nodes, by a factor exp(c_rad h^2 /
-        (4 a^2)) at node spacing h (about 1.02 at the grid's spacing); the factor 2 covers that."""
-        log_hull = np.log(np.maximum(np.maximum.accumulate(self.q[::-1], axis=0)[::-1], 1e-300))
+        (4 a^2)) at node spacing h (about 1.02 at the grid's spacing); the factor 2 covers that.
+        The model leaves rows whose Gaussian exponent exceeds PROFILE_CUTOFF at zero, so q drops
+        from about exp(-PROFILE_CUTOFF) of its peak to 0 between two nodes, where log q is not
+        concave: the hull is floored at max(q) exp(-PROFILE_CUTOFF) (the largest value such a row
+        could have held), 2e-22 of the peak, ten orders below NEGLIGIBLE_USAGE."""
+        hull = np.maximum.accumulate(self.q[::-1], axis=0)[::-1]
+        floor = max(float(self.q.max(initial=0.0)) * math.exp(-PROFILE_CUTOFF), 1e-300)
+        log_hull = np.log(np.maximum(hull, floor))
         i = np.clip(np.searchsorted(self.r_m, r_m, side="right") - 1, 0, self.r_m.size - 1)
         nxt = np.minimum(i + 1, self.r_m.size - 1)
         span = self.r_m[nxt] - self.r_m[i]

@@ -151,6 +151,7 @@ def test_ninety_percent_interval_holds_on_held_out_flights(tmp_path: Path, capsy
     manifest = write_synthetic_manifest(tmp_path, flights, TYPE)
     model = tmp_path / "model.yaml"
     assert main(["identify", str(manifest), "--out", str(tmp_path / "id"), "--save-model", str(model)]) == 0
+    capsys.readouterr()  # identify's own report
     assert main(["evaluate", str(manifest), "--model", str(model), "--out", str(tmp_path / "ev"), "--json"]) == 0
     ev = json.loads(capsys.readouterr().out)
     assert 0.85 <= ev["bands"]["all"]["coverage_90"] <= 0.95, ev["bands"]
