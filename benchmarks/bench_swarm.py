@@ -3,7 +3,7 @@ processes, fixed goals and interchangeable goals (``assign_goals: by_type``).
 
 Usage:
     python benchmarks/bench_swarm.py [--layout pillar grid circle corridor] [--n 32 64 128 256]
-        [--method optimized roadmap sampling] [--assign fixed by_type] [--timeout 600]
+        [--method optimized swarm sampling] [--assign fixed by_type] [--timeout 600]
 
 Layouts (``proxplan.planner.formations.LAYOUTS``): ``pillar`` two staggered layers west of a pillar
 swap layers to the east side; ``grid`` a grid reshuffled by a seeded permutation; ``circle`` every
@@ -57,7 +57,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--layout", nargs="+", default=["pillar", "grid", "circle", "corridor"])
     ap.add_argument("--n", type=int, nargs="+", default=[32, 64, 128, 256], help="swarm sizes")
-    ap.add_argument("--method", nargs="+", default=["optimized"], choices=["optimized", "roadmap", "sampling"])
+    ap.add_argument("--method", nargs="+", default=["optimized"], choices=["optimized", "swarm", "sampling"])
     ap.add_argument("--assign", nargs="+", default=["fixed"], choices=["fixed", "by_type"])
     ap.add_argument("--types", default=None, help="comma-separated vehicle types (default: the layout's mix)")
     ap.add_argument("--timeout", type=float, default=600.0, help="per-run wall-time cap, s")

@@ -13,16 +13,7 @@ import numpy as np
 from proxplan.planner.optimizer.ocp import sample_solution
 from proxplan.planner.optimizer.ocp_problem import OcpProblem, OcpSolution
 from proxplan.planner.optimizer.options import RefineOptions
-
-
-def moving_end_s(plan) -> float:
-    """Time after which no vehicle of ``plan`` moves any more (the makespan of DESIGN.md), s."""
-    end = 0.0
-    for tr in plan.vehicles.values():
-        moving = np.flatnonzero(np.linalg.norm(tr.velocity_mps, axis=1) > 1e-4)
-        if moving.size:
-            end = max(end, float(tr.t_s[min(moving[-1] + 1, tr.t_s.size - 1)]))
-    return end
+from proxplan.planner.timing.plan_grid import moving_end_s
 
 
 def peak_usage(plan, scenario) -> float:

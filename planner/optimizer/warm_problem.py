@@ -10,9 +10,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from proxplan.planner.optimizer.acceptance import moving_end_s
 from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem, scenario_fields
 from proxplan.planner.optimizer.options import RefineOptions, WrenchProvider
+from proxplan.planner.timing.plan_grid import moving_end_s
 
 
 def default_wrench_provider(source, target, scenario):

@@ -1,4 +1,4 @@
-"""Swarm planning: coordinate jointly on a lattice, fly in continuous time (``--method roadmap``,
+"""Swarm planning: coordinate jointly on a lattice, fly in continuous time (``--method swarm``,
 and ``optimized`` for formation changes of ``SWARM_MIN_VEHICLES`` or more).
 
 Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, keep-outs, free
@@ -12,7 +12,8 @@ space) -> :mod:`~proxplan.planner.swarm.assign` (goals of interchangeable vehicl
 """
 
 from proxplan.planner.swarm.assign import Assignment, assign_by_type, assign_group
-from proxplan.planner.swarm.lacam import Lacam, LacamResult, SearchGaveUp
+from proxplan.planner.swarm.info import LatticeInfo, RetimeInfo, SwarmInfo, SwarmStage
+from proxplan.planner.swarm.lacam import Lacam, LacamResult
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.plan import SWARM_MIN_VEHICLES, SwarmOptions, swarm_timed
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
@@ -24,7 +25,10 @@ __all__ = [
     "Lacam",
     "LacamResult",
     "Lattice",
-    "SearchGaveUp",
+    "LatticeInfo",
+    "RetimeInfo",
+    "SwarmInfo",
+    "SwarmStage",
     "SwarmOptions",
     "SwarmProblem",
     "SyncTable",

@@ -1,4 +1,4 @@
-"""Swarm planning (``--method roadmap``; ``optimized`` for swarms of ``SWARM_MIN_VEHICLES`` or
+"""Swarm planning (``--method swarm``; ``optimized`` for swarms of ``SWARM_MIN_VEHICLES`` or
 more): coordinate jointly on a lattice, fly in continuous time.
 
 1. *Straight first* (:mod:`proxplan.planner.swarm.straight`): if every vehicle can fly its straight
@@ -18,36 +18,41 @@ more): coordinate jointly on a lattice, fly in continuous time.
 4. *Re-timing*: Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`), every vehicle against
    the others' tracks in a space-time neighbourhood; never worse, always conflict-free.
 
-The caller (the pipeline) runs the independent verifier on the result as on every plan. The info
-names the ``stage`` that produced the tracks ("straight", "prioritised" or "lattice"); bounds in
-the info: ``lower_bound_s`` (largest straight-line rest-to-rest time of any vehicle) and the
-makespans after each stage.
+The caller (the pipeline) runs the independent verifier on the result as on every plan. The
+:class:`~proxplan.planner.swarm.info.SwarmInfo` names the ``stage`` that produced the tracks
+("straight", "prioritised" or "lattice"), the lower bound (largest straight-line rest-to-rest time
+of any vehicle) and the makespans after each stage.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from proxplan.planfile import Scenario
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-from proxplan.planner.swarm.lacam import Lacam, SearchGaveUp
-from proxplan.planner.swarm.lattice import build_lattice
+from proxplan.planner.swarm.info import LatticeInfo, RetimeInfo, SwarmInfo, SwarmStage
+from proxplan.planner.swarm.lacam import Lacam
+from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.lockstep import lockstep_tracks
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.prioritized import PrioritizedFailed, dependency_order, prioritized_tracks
-from proxplan.planner.swarm.problem import swarm_applicable, swarm_problem
+from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
 from proxplan.planner.swarm.retime import improve, route_chain
 from proxplan.planner.swarm.straight import straight_step_conflicts, straight_tracks
 from proxplan.planner.swarm.sync import SyncTable
-from proxplan.planner.swarm.tracks import GRID_DT_S
+from proxplan.planner.swarm.tracks import GRID_DT_S, Track
 from proxplan.planner.timing.paths import TimedPath
 
 SWARM_MIN_VEHICLES = 16  # formation changes with at least this many vehicles use the swarm layer by default
-HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the lock-step makespan, s
+HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the initial makespan, s
+# prioritised planning's horizon: max(factor x lower bound, lower bound + margin) (a plan that needs
+# longer is not worth having: the lattice plan in lock-step is the answer then)
+PRIORITISED_HORIZON_FACTOR = 4.0
+PRIORITISED_HORIZON_MARGIN_S = 20.0
 
 __all__ = ["SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
 
@@ -62,7 +67,19 @@ class SwarmOptions:
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
     max_restarts: int = 2  # re-orderings of the prioritised planning, per order and waiting time
     seed: int = 0
-    deflection_m: float = 0.0  # every keep-out grown by this (the vehicles' predicted deflections), m
+    # per vehicle name: its predicted deflection under the plan's own disturbance, m; a pair's
+    # keep-out grows by the sum of its two vehicles' values (as in the verifier)
+    deflection_m: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class _Stage:
+    """Tracks of every agent (by agent index) from one stage, and what the stage reports."""
+
+    tracks: list[Track]
+    stage: SwarmStage
+    coordination: str
+    routes: Callable[[int], list[np.ndarray]]  # the stage's own waypoint chain of an agent (re-timing)
 
 
 def swarm_timed(
@@ -71,97 +88,129 @@ def swarm_timed(
     *,
     progress: Callable[[str, float], None] | None = None,
     deadline: float | None = None,
-) -> tuple[dict[str, TimedPath], dict]:
-    """Timed paths of every vehicle and an info dict (see module); :class:`SearchGaveUp` when the
-    coordination search stops on its budget or the ``deadline`` (time.perf_counter() value)."""
+) -> tuple[dict[str, TimedPath], SwarmInfo]:
+    """Timed paths of every vehicle and the :class:`SwarmInfo` (see module);
+    :class:`~proxplan.planner.errors.PlanNotFound` when the coordination search stops on its budget
+    or the ``deadline`` (time.perf_counter() value)."""
     opts = options or SwarmOptions()
     why = swarm_applicable(scenario)
     if why is not None:
         raise ValueError(f"the swarm layer cannot plan this scenario: {why}")
     t0 = time.perf_counter()
     problem = swarm_problem(scenario, deflection_m=opts.deflection_m)
-    info: dict = {"lower_bound_s": lower_bound_makespan_s(scenario), "vehicles": problem.n_agents}
+    lower_bound = lower_bound_makespan_s(scenario)
     conflicts = straight_step_conflicts(problem)
-    configurations = None
-    lattice = None
-    tracks = None
-    if not conflicts:
-        straight = straight_tracks(problem, list(range(problem.n_agents)))
-        tracks = [straight[a] for a in range(problem.n_agents)]
-        info["coordination"] = "one synchronised straight step"
-        info["stage"] = "straight"
-    elif opts.prioritized:
-        horizon = int(round(max(4.0 * info["lower_bound_s"], info["lower_bound_s"] + 20.0) / GRID_DT_S))
-        t1 = time.perf_counter()
-        length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-        orders = {
-            "dependencies first": dependency_order(problem),
-            "longest first": sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a)),
-        }
-        tried = []
-        for label, order in orders.items():
-            try:
-                planned, counts = prioritized_tracks(
-                    problem,
-                    order,
-                    horizon_steps=horizon,
-                    max_restarts=opts.max_restarts,
-                    progress=progress,
-                    deadline=deadline,
-                )
-            except PrioritizedFailed as err:
-                tried.append(f"{label}: gave up after {err.restarts} attempts (" + ", ".join(err.history[-2:]) + ")")
-                continue
-            makespan = max(tr.arrival_s for tr in planned.values())
-            tried.append(f"{label}: {makespan:.2f} s")
-            if tracks is None or makespan < max(tr.arrival_s for tr in tracks):
-                tracks = [planned[a] for a in range(problem.n_agents)]
-                info["stage"] = "prioritised"
-                info["coordination"] = (
-                    f"prioritised continuous planning, {label} ({counts['orders_tried']} attempt(s), "
-                    f"vehicles wait at their starts at most {counts['leave_start_s']:g} s)"
-                )
-        info["prioritized"] = "; ".join(tried)
-        info["prioritized_time_s"] = round(time.perf_counter() - t1, 3)
-    if tracks is None:
+    extra: dict = {}
+    found = _straight_stage(problem) if not conflicts else None
+    if found is None and opts.prioritized:
+        found = _prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
+    if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
-        lattice = build_lattice(problem, max_run=opts.max_run)
-        sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
-        info["lattice"] = {
-            "spacing_m": lattice.spacing_m,
-            "levels_m": lattice.levels_m.tolist(),
-            "vertices": int(lattice.pos_m.shape[0]),
-        }
-        t1 = time.perf_counter()
-        result = Lacam(lattice, sync, seed=opts.seed).solve(
-            max_nodes=opts.max_nodes, deadline=deadline, progress=progress
-        )
-        configurations = result.configurations
-        info["stage"] = "lattice"  # flown in lock-step
-        info["coordination"] = (
-            f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
-        )
-        info["coordination_time_s"] = round(time.perf_counter() - t1, 3)
-        tracks = lockstep_tracks(lattice, configurations)
-    by_agent = {tr.agent: tr for tr in tracks}
-    info["initial_makespan_s"] = max(tr.arrival_s for tr in tracks)
-    horizon = int(round((info["initial_makespan_s"] + HORIZON_MARGIN_S) / GRID_DT_S))
-    occ = Occupancy(problem, tracks, horizon)
-
-    def chains(a: int) -> list[np.ndarray]:
-        out = [np.array([problem.starts_m[a], problem.goals_m[a]])]
-        if lattice is not None and configurations is not None:
-            out.append(route_chain(lattice, configurations, a))
-        return out
-
-    t2 = time.perf_counter()
-    counts = improve(occ, by_agent, chains, passes=opts.passes, progress=progress, deadline=deadline)
-    info["retiming"] = {**counts, "time_s": round(time.perf_counter() - t2, 3)}
-    info["makespan_s"] = max(tr.arrival_s for tr in by_agent.values())
-    info["time_s"] = round(time.perf_counter() - t0, 3)
+        found = _lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+    initial = max(tr.arrival_s for tr in found.tracks)
+    by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
+    info = SwarmInfo(
+        stage=found.stage,
+        coordination=found.coordination,
+        vehicles=problem.n_agents,
+        lower_bound_s=lower_bound,
+        initial_makespan_s=initial,
+        makespan_s=max(tr.arrival_s for tr in by_agent.values()),
+        time_s=round(time.perf_counter() - t0, 3),
+        retiming=retiming,
+        **extra,
+    )
     timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
     return timed, info
 
 
-__all__ += ["SearchGaveUp"]
+def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
+    return lambda a: [np.array([problem.starts_m[a], problem.goals_m[a]])]
+
+
+def _straight_stage(problem: SwarmProblem) -> _Stage:
+    """Every vehicle on its straight line in one synchronised step (no pair conflicts)."""
+    straight = straight_tracks(problem, list(range(problem.n_agents)))
+    tracks = [straight[a] for a in range(problem.n_agents)]
+    return _Stage(tracks, "straight", "one synchronised straight step", _straight(problem))
+
+
+def _prioritised_stage(
+    problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
+) -> _Stage | None:
+    """Prioritised continuous planning in two orders, the shorter plan kept; None when both give up."""
+    horizon_s = max(PRIORITISED_HORIZON_FACTOR * lower_bound_s, lower_bound_s + PRIORITISED_HORIZON_MARGIN_S)
+    horizon = int(round(horizon_s / GRID_DT_S))
+    t1 = time.perf_counter()
+    length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+    orders = {
+        "dependencies first": dependency_order(problem),
+        "longest first": sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a)),
+    }
+    tried = []
+    best: _Stage | None = None
+    for label, order in orders.items():
+        try:
+            planned, counts = prioritized_tracks(
+                problem,
+                order,
+                horizon_steps=horizon,
+                max_restarts=opts.max_restarts,
+                progress=progress,
+                deadline=deadline,
+            )
+        except PrioritizedFailed as err:
+            tried.append(f"{label}: gave up after {err.restarts} attempts (" + ", ".join(err.history[-2:]) + ")")
+            continue
+        makespan = max(tr.arrival_s for tr in planned.values())
+        tried.append(f"{label}: {makespan:.2f} s")
+        if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
+            best = _Stage(
+                [planned[a] for a in range(problem.n_agents)],
+                "prioritised",
+                f"prioritised continuous planning, {label} ({counts['orders_tried']} attempt(s), "
+                f"vehicles wait at their starts at most {counts['leave_start_s']:g} s)",
+                _straight(problem),
+            )
+    extra["prioritised"] = "; ".join(tried)
+    extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
+    return best
+
+
+def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> _Stage:
+    """LaCAM on the lattice, flown in lock-step: the guaranteed answer (or PlanNotFound)."""
+    lattice = build_lattice(problem, max_run=opts.max_run)
+    sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
+    t1 = time.perf_counter()
+    result = Lacam(lattice, sync, seed=opts.seed).solve(max_nodes=opts.max_nodes, deadline=deadline, progress=progress)
+    configurations = result.configurations
+    extra["lattice"] = LatticeInfo(
+        spacing_m=lattice.spacing_m,
+        levels_m=lattice.levels_m.tolist(),
+        vertices=int(lattice.pos_m.shape[0]),
+        steps=len(configurations) - 1,
+        nodes=result.nodes,
+        tests=result.tests,
+        time_s=round(time.perf_counter() - t1, 3),
+    )
+
+    def routes(a: int, lattice: Lattice = lattice) -> list[np.ndarray]:
+        return [np.array([problem.starts_m[a], problem.goals_m[a]]), route_chain(lattice, configurations, a)]
+
+    coordination = (
+        f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
+    )
+    return _Stage(lockstep_tracks(lattice, configurations), "lattice", coordination, routes)
+
+
+def _retime_stage(
+    problem: SwarmProblem, found: _Stage, initial_s: float, opts: SwarmOptions, *, progress, deadline
+) -> tuple[dict[int, Track], RetimeInfo]:
+    """Gauss-Seidel re-timing of every vehicle along its chains (never worse, conflict-free)."""
+    by_agent = {tr.agent: tr for tr in found.tracks}
+    horizon = int(round((initial_s + HORIZON_MARGIN_S) / GRID_DT_S))
+    occ = Occupancy(problem, found.tracks, horizon)
+    t2 = time.perf_counter()
+    counts = improve(occ, by_agent, found.routes, passes=opts.passes, progress=progress, deadline=deadline)
+    return by_agent, RetimeInfo(**counts, time_s=round(time.perf_counter() - t2, 3))

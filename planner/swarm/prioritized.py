@@ -12,7 +12,7 @@ candidate waypoint chains - the straight line, the wavefront route through the o
 (:func:`proxplan.planner.swarm.wave.wave_route`) and optional extra chains - timed exactly
 (:func:`proxplan.planner.swarm.chain.time_chain`), and keeps the earliest arrival. When one cannot be
 planned it moves to the front and planning restarts, at most ``max_restarts`` times (a count). A
-caller's wall-clock ``deadline`` only ever stops it as "not found" (:class:`SearchGaveUp`).
+caller's wall-clock ``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm.chain import time_chain
-from proxplan.planner.swarm.lacam import SearchGaveUp
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GRID_DT_S, Track
@@ -75,7 +75,9 @@ def prioritized_tracks(
             if problem.pinned[a]:
                 continue
             if deadline is not None and time.perf_counter() > deadline:
-                raise SearchGaveUp("no plan found within the time budget (prioritised planning)", nodes=idx)
+                raise PlanNotFound(
+                    "no plan found within the time budget (prioritised planning)", details={"nodes": idx}
+                )
             if progress is not None and idx % 8 == 0:
                 progress(
                     f"continuous planning {idx}/{len(order)} (attempt {attempt + 1})", 0.1 + 0.5 * idx / len(order)

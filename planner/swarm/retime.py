@@ -16,8 +16,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm.chain import time_chain
-from proxplan.planner.swarm.lacam import SearchGaveUp
 from proxplan.planner.swarm.lattice import Lattice
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.tracks import Track
@@ -83,7 +83,7 @@ def improve(
 ) -> dict:
     """Gauss-Seidel passes over ``agents`` (default: all), in place on ``tracks`` / ``occ`` (which
     must hold the same tracks); returns counts (passes run, replacements) and the makespan (s) after
-    each pass. A wall-clock ``deadline`` stops it only as "not found" (:class:`SearchGaveUp`), so the
+    each pass. A wall-clock ``deadline`` stops it only as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`), so the
     plan never depends on the machine's speed."""
     replaced = 0
     done = 0
@@ -96,7 +96,9 @@ def improve(
             if occ.problem.pinned[a]:
                 continue
             if deadline is not None and time.perf_counter() > deadline:
-                raise SearchGaveUp("no plan found within the time budget (continuous re-timing)", nodes=idx)
+                raise PlanNotFound(
+                    "no plan found within the time budget (continuous re-timing)", details={"nodes": idx}
+                )
             if progress is not None and idx % 16 == 0:
                 progress(f"continuous re-timing, pass {p + 1}/{passes}", 0.6 + 0.3 * (p + idx / len(order)) / passes)
             old = tracks[a]

@@ -16,7 +16,7 @@ from proxplan.planner.timing.paths import (
     time_parameterize,
     time_parameterize_through,
 )
-from proxplan.planner.timing.plan_grid import DOCK_SPEED_FACTOR, DT_S, assemble_plan
+from proxplan.planner.timing.plan_grid import DOCK_SPEED_FACTOR, DT_S, assemble_plan, moving_end_s
 from proxplan.planner.timing.segments import ruckig_segment, through_segment
 
 __all__ = [
@@ -28,6 +28,7 @@ __all__ = [
     "common_grid",
     "duration_table",
     "min_segment_duration_s",
+    "moving_end_s",
     "pass_through_velocities",
     "ruckig_segment",
     "through_segment",

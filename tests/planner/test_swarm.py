@@ -133,7 +133,7 @@ def test_assignment_equals_the_brute_force_optimum_on_six_vehicles():
 def _plan(doc: dict, **options):
     sc = _scenario(doc)
     timed, info = swarm_timed(sc, SwarmOptions(**options))
-    return sc, assemble_plan(sc, timed, method="roadmap", notes=[]), info
+    return sc, assemble_plan(sc, timed, method="swarm", notes=[]), info
 
 
 @pytest.mark.parametrize("layout", [grid_reshuffle, circle_swap])
@@ -141,9 +141,9 @@ def test_swarm_plans_pass_the_verifier_and_are_reproducible(layout):
     doc = layout(8)
     sc, plan, info = _plan(doc)
     assert verify_plan(plan, sc) == []
-    assert info["makespan_s"] >= info["lower_bound_s"] - 1e-9
+    assert info.makespan_s >= info.lower_bound_s - 1e-9
     _, again, info2 = _plan(doc)
-    assert info2["makespan_s"] == info["makespan_s"]
+    assert info2.makespan_s == info.makespan_s
     for n, tr in plan.vehicles.items():
         np.testing.assert_array_equal(tr.position_m, again.vehicles[n].position_m)
 
@@ -157,7 +157,7 @@ def test_lockstep_conversion_of_the_coordination_plan_is_conflict_free():
     result = Lacam(lat, SyncTable(problem.keepouts, problem.type_index, lat.pos_mm)).solve(max_nodes=2000)
     tracks = lockstep_tracks(lat, result.configurations)
     timed = {problem.names[t.agent]: t.timed_path() for t in tracks}
-    assert verify_plan(assemble_plan(sc, timed, method="roadmap", notes=[]), sc) == []
+    assert verify_plan(assemble_plan(sc, timed, method="swarm", notes=[]), sc) == []
 
 
 def test_verify_rejects_a_plan_whose_timing_breaks_the_order():
@@ -212,7 +212,8 @@ def test_verify_rejects_a_plan_whose_timing_breaks_the_order():
 def test_predicted_deflections_grow_the_keepout_moving_and_at_rest():
     doc = grid_reshuffle(4, types=["crazyflie-2.1"])
     plain = swarm_problem(_scenario(doc))
-    grown = swarm_problem(_scenario(doc), deflection_m=0.03)
+    sc = _scenario(doc)
+    grown = swarm_problem(sc, deflection_m={n: 0.015 for n in sc.vehicles})  # a pair grows by the sum: 3 cm
     ko, kg = plain.keepouts[(0, 0)], grown.keepouts[(0, 0)]
     for rest in (True, False):
         w = ko.w_rest_m if rest else ko.w_move_m
@@ -224,22 +225,15 @@ def test_predicted_deflections_grow_the_keepout_moving_and_at_rest():
     assert grown.reach_xy_m == pytest.approx(plain.reach_xy_m + 0.03)
 
 
-def test_a_lattice_plan_in_lockstep_gives_way_to_a_shorter_verified_sampling_plan(monkeypatch):
+def test_a_lattice_plan_in_lockstep_gives_way_to_a_shorter_verified_sampling_plan():
     """Where prioritised planning gives up, the swarm layer's answer is the lattice plan flown in
     lock-step; the pipeline also runs the sampling planner and keeps the shorter verified plan."""
-    from dataclasses import dataclass
-
-    import proxplan.planner.swarm as swarm
     from proxplan.planner import plan_scenario
-    from proxplan.planner.optimizer.acceptance import moving_end_s
+    from proxplan.planner.timing import moving_end_s
 
-    @dataclass(frozen=True)
-    class LatticeOnly(swarm.SwarmOptions):
-        prioritized: bool = False  # straight to the lattice coordination, as when PP gives up
-
-    monkeypatch.setattr(swarm, "SwarmOptions", LatticeOnly)
     scenario = _scenario(grid_reshuffle(16))
-    plan = plan_scenario(scenario, method="roadmap", seed=0)
+    # straight to the lattice coordination, as when prioritised planning gives up
+    plan = plan_scenario(scenario, method="swarm", seed=0, swarm_options=SwarmOptions(prioritized=False))
     assert plan.metrics["swarm"]["stage"] == "lattice"
     lattice_s = plan.metrics["swarm"]["makespan_s"]
     assert verify_plan(plan, scenario) == []
