@@ -46,6 +46,8 @@ class SwarmInfo:
     initial_makespan_s: float  # after the stage that produced the tracks
     makespan_s: float  # after re-timing
     time_s: float
+    kept_straight: str | None = None  # straight lines kept, vehicles planned around them, or why not
+    kept_straight_time_s: float | None = None
     prioritised: str | None = None  # what each order of prioritised planning gave
     prioritised_time_s: float | None = None
     lattice: LatticeInfo | None = None

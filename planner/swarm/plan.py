@@ -34,17 +34,18 @@ import numpy as np
 
 from proxplan.planfile import Scenario
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
+from proxplan.planner.swarm.components import interaction_groups, plan_groups
 from proxplan.planner.swarm.info import LatticeInfo, RetimeInfo, SwarmInfo, SwarmStage
 from proxplan.planner.swarm.lacam import Lacam
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.lockstep import lockstep_tracks
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.prioritized import PrioritizedFailed, dependency_order, prioritized_tracks
+from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, dependency_order, prioritized_tracks
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
 from proxplan.planner.swarm.retime import improve, route_chain
-from proxplan.planner.swarm.straight import straight_step_conflicts, straight_tracks
+from proxplan.planner.swarm.straight import kept_straight_lines, straight_step_conflicts, straight_tracks
 from proxplan.planner.swarm.sync import SyncTable
-from proxplan.planner.swarm.tracks import GRID_DT_S, Track
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.paths import TimedPath
 
 SWARM_MIN_VEHICLES = 16  # formation changes with at least this many vehicles use the swarm layer by default
@@ -65,7 +66,16 @@ class SwarmOptions:
     max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
     passes: int = 3  # continuous re-timing passes
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
-    max_restarts: int = 2  # re-orderings of the prioritised planning, per order and waiting time
+    repairs_per_vehicle: int = 2  # prioritised planning's repair budget, per vehicle of a group
+    max_restarts: int = 2  # prioritised planning begun anew with a vehicle it could not repair first
+    orders: tuple[str, ...] = ("dependencies first", "longest first")  # prioritised planning's orders (ORDERS)
+    # a vehicle not planned yet is assumed to hold its start this long, then to leave on its straight
+    # route, s: tried in turn until prioritised planning finds a plan (a longer hold leaves it more
+    # room). No hold (0.0) was measured first and lost on grid and pillar layouts (see docs/planner.md)
+    unplanned_hold_s: tuple[float, ...] = (1.0, 2.5)
+    through_waypoints: bool = True  # fly through waypoints without stopping (else rest to rest)
+    keep_straight: bool = True  # also try: keep the straight lines in no conflict, plan only the others
+    workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     seed: int = 0
     # per vehicle name: its predicted deflection under the plan's own disturbance, m; a pair's
     # keep-out grows by the sum of its two vehicles' values (as in the verifier)
@@ -76,7 +86,7 @@ class SwarmOptions:
 class _Stage:
     """Tracks of every agent (by agent index) from one stage, and what the stage reports."""
 
-    tracks: list[Track]
+    tracks: list[GridTrack]
     stage: SwarmStage
     coordination: str
     routes: Callable[[int], list[np.ndarray]]  # the stage's own waypoint chain of an agent (re-timing)
@@ -103,7 +113,10 @@ def swarm_timed(
     extra: dict = {}
     found = _straight_stage(problem) if not conflicts else None
     if found is None and opts.prioritized:
+        kept = _kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         found = _prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
+        if kept is not None and (found is None or _makespan(kept) < _makespan(found)):
+            found = kept
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
@@ -136,45 +149,123 @@ def _straight_stage(problem: SwarmProblem) -> _Stage:
     return _Stage(tracks, "straight", "one synchronised straight step", _straight(problem))
 
 
+def longest_first(problem: SwarmProblem) -> list[int]:
+    """Planning order: the longer straight line first (it sets the makespan), ties by index."""
+    length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+    return sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a))
+
+
+ORDERS: dict[str, Callable[[SwarmProblem], list[int]]] = {
+    "dependencies first": dependency_order,
+    "longest first": longest_first,
+}
+
+
+def _makespan(stage: _Stage) -> float:
+    return max(tr.arrival_s for tr in stage.tracks)
+
+
+def _horizon_steps(lower_bound_s: float) -> int:
+    horizon_s = max(PRIORITISED_HORIZON_FACTOR * lower_bound_s, lower_bound_s + PRIORITISED_HORIZON_MARGIN_S)
+    return int(round(horizon_s / GRID_DT_S))
+
+
+def _kept_straight_stage(
+    problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
+) -> _Stage | None:
+    """Straight lines where they conflict with nobody, prioritised planning with repair for the
+    rest (:func:`~proxplan.planner.swarm.straight.kept_straight_lines`); None when it gives up or
+    keeps no line (then it is prioritised planning of everyone)."""
+    if not opts.keep_straight:
+        return None
+    horizon = _horizon_steps(lower_bound_s)
+    t1 = time.perf_counter()
+    kept, conflicted = kept_straight_lines(problem, horizon)
+    if not kept:
+        extra["kept_straight"] = "no straight line conflicts with nobody"
+        return None
+    order = [a for a in dependency_order(problem) if a in conflicted]
+    options = PriorityOptions(
+        max_repairs=opts.repairs_per_vehicle * problem.n_agents,
+        max_restarts=opts.max_restarts,
+        hold_s=opts.unplanned_hold_s[0],
+        through=opts.through_waypoints,
+    )
+    try:
+        result = prioritized_tracks(
+            problem, order, options, horizon_steps=horizon, initial=kept, progress=progress, deadline=deadline
+        )
+    except PrioritizedFailed as err:
+        extra["kept_straight"] = f"{len(kept)} kept, {len(conflicted)} planned: gave up ({'; '.join(err.history[-2:])})"
+        extra["kept_straight_time_s"] = round(time.perf_counter() - t1, 3)
+        return None
+    still = sum(1 for a, tr in kept.items() if result.tracks.get(a) is tr)
+    extra["kept_straight"] = f"{len(kept)} kept ({still} after repairs), {len(conflicted)} planned"
+    extra["kept_straight_time_s"] = round(time.perf_counter() - t1, 3)
+    coordination = (
+        f"straight lines of {still} vehicles in no conflict kept, the other {problem.n_agents - still} planned "
+        f"around them ({result.planned} vehicle plannings, {result.repairs} repairs, {result.restarts} restarts)"
+    )
+    return _Stage([result.tracks[a] for a in range(problem.n_agents)], "prioritised", coordination, _straight(problem))
+
+
 def _prioritised_stage(
     problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
 ) -> _Stage | None:
-    """Prioritised continuous planning in two orders, the shorter plan kept; None when both give up."""
-    horizon_s = max(PRIORITISED_HORIZON_FACTOR * lower_bound_s, lower_bound_s + PRIORITISED_HORIZON_MARGIN_S)
-    horizon = int(round(horizon_s / GRID_DT_S))
+    """Prioritised continuous planning of each group of vehicles that interact, in each of
+    ``opts.orders``, the shorter plan kept; with the first of ``opts.unplanned_hold_s`` for which an
+    order finds a plan; None when every one gives up."""
+    import os
+
+    horizon = _horizon_steps(lower_bound_s)
     t1 = time.perf_counter()
-    length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-    orders = {
-        "dependencies first": dependency_order(problem),
-        "longest first": sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a)),
-    }
+    groups = interaction_groups(problem)
+    workers = opts.workers if opts.workers > 0 else (os.cpu_count() or 1)
     tried = []
     best: _Stage | None = None
-    for label, order in orders.items():
-        try:
-            planned, counts = prioritized_tracks(
-                problem,
-                order,
-                horizon_steps=horizon,
-                max_restarts=opts.max_restarts,
-                progress=progress,
-                deadline=deadline,
-            )
-        except PrioritizedFailed as err:
-            tried.append(f"{label}: gave up after {err.restarts} attempts (" + ", ".join(err.history[-2:]) + ")")
-            continue
-        makespan = max(tr.arrival_s for tr in planned.values())
-        tried.append(f"{label}: {makespan:.2f} s")
-        if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
-            best = _Stage(
-                [planned[a] for a in range(problem.n_agents)],
-                "prioritised",
-                f"prioritised continuous planning, {label} ({counts['orders_tried']} attempt(s), "
-                f"vehicles wait at their starts at most {counts['leave_start_s']:g} s)",
-                _straight(problem),
-            )
+    counts = {"groups": len(groups), "planned": 0, "repairs": 0, "restarts": 0}
+    for hold_s in opts.unplanned_hold_s:
+        options = PriorityOptions(
+            max_repairs=opts.repairs_per_vehicle * max(len(g) for g in groups),
+            max_restarts=opts.max_restarts,
+            hold_s=hold_s,
+            through=opts.through_waypoints,
+        )
+        for label in opts.orders:
+            try:
+                result = plan_groups(
+                    problem,
+                    groups,
+                    ORDERS[label],
+                    options,
+                    horizon_steps=horizon,
+                    workers=workers,
+                    progress=progress,
+                    deadline=deadline,
+                )
+            except PrioritizedFailed as err:
+                counts["planned"] += err.planned
+                tried.append(f"{label}, hold {hold_s:g} s: gave up (" + "; ".join(err.history[-2:]) + ")")
+                continue
+            counts["planned"] += result.planned
+            counts["repairs"] += result.repairs
+            counts["restarts"] += result.restarts
+            makespan = max(tr.arrival_s for tr in result.tracks.values())
+            tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s")
+            if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
+                best = _Stage(
+                    [result.tracks[a] for a in range(problem.n_agents)],
+                    "prioritised",
+                    f"prioritised continuous planning, {label}, vehicles not planned yet assumed to leave after "
+                    f"{hold_s:g} s ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
+                    f"repairs, {result.restarts} restarts)",
+                    _straight(problem),
+                )
+        if best is not None:  # a longer hold only where this one found nothing
+            break
     extra["prioritised"] = "; ".join(tried)
     extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
+    extra["counts"] = counts
     return best
 
 
@@ -206,11 +297,19 @@ def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pr
 
 def _retime_stage(
     problem: SwarmProblem, found: _Stage, initial_s: float, opts: SwarmOptions, *, progress, deadline
-) -> tuple[dict[int, Track], RetimeInfo]:
+) -> tuple[dict[int, GridTrack], RetimeInfo]:
     """Gauss-Seidel re-timing of every vehicle along its chains (never worse, conflict-free)."""
     by_agent = {tr.agent: tr for tr in found.tracks}
     horizon = int(round((initial_s + HORIZON_MARGIN_S) / GRID_DT_S))
     occ = Occupancy(problem, found.tracks, horizon)
     t2 = time.perf_counter()
-    counts = improve(occ, by_agent, found.routes, passes=opts.passes, progress=progress, deadline=deadline)
+    counts = improve(
+        occ,
+        by_agent,
+        found.routes,
+        passes=opts.passes,
+        through=opts.through_waypoints,
+        progress=progress,
+        deadline=deadline,
+    )
     return by_agent, RetimeInfo(**counts, time_s=round(time.perf_counter() - t2, 3))

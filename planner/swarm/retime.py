@@ -20,7 +20,7 @@ from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.lattice import Lattice
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.tracks import Track
+from proxplan.planner.swarm.tracks import GridTrack
 
 ROUTE_CORRIDOR_FACTOR = 0.5  # a route shortcut stays within this many lattice spacings of the skipped vertices
 
@@ -73,11 +73,12 @@ def route_chain(lattice: Lattice, configurations: list[tuple[int, ...]], agent: 
 
 def improve(
     occ: Occupancy,
-    tracks: dict[int, Track],
+    tracks: dict[int, GridTrack],
     chains: Callable[[int], list[np.ndarray]],
     *,
     passes: int,
     agents: list[int] | None = None,
+    through: bool = True,
     progress: Callable[[str, float], None] | None = None,
     deadline: float | None = None,
 ) -> dict:
@@ -105,7 +106,7 @@ def improve(
             best = None
             occ.remove(a)
             for W in chains(a):
-                res = time_chain(occ, a, W, arrive_by=old.arrival_step - 1)
+                res = time_chain(occ, a, W, arrive_by=old.arrival_step - 1, through=through)
                 if (
                     res is not None
                     and res.arrival_step < old.arrival_step
