@@ -79,17 +79,18 @@ def plan_groups(
     *,
     horizon_steps: int,
     workers: int,
+    fanout_min_vehicles: int = FANOUT_MIN_VEHICLES,
     progress: Callable[[str, float], None] | None = None,
     deadline: float | None = None,
 ) -> PriorityResult:
     """Prioritised planning of every group (``order_of(group problem)`` gives each its order), put
     together with the agents' own indices; :class:`PrioritizedFailed` (of a global agent) when a
-    group gives up. Groups of at least ``FANOUT_MIN_VEHICLES`` run as Dask tasks when ``workers``
+    group gives up. Groups of at least ``fanout_min_vehicles`` run as Dask tasks when ``workers``
     > 1 and there are two of them or more; the rest, and everything when ``workers`` <= 1, here."""
     from proxplan.fanout import fan_out
 
     subs = [subproblem(problem, g) if len(groups) > 1 else problem for g in groups]
-    big = [k for k, g in enumerate(groups) if len(g) >= FANOUT_MIN_VEHICLES]
+    big = [k for k, g in enumerate(groups) if len(g) >= fanout_min_vehicles]
     remote = big if workers > 1 and len(big) >= 2 else []
     outcomes: dict[int, tuple[str, object]] = {}
     if remote:

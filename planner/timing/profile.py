@@ -39,7 +39,11 @@ class Profile:
     steps: int
     stretch: float  # time-stretch factor c (Ruckig's time = c x grid time), <= 1
     arc_m: np.ndarray  # (steps + 1,) distance covered at k dt_s, m
+    limits: KinematicLimits
     _traj: object  # ruckig.Trajectory (1 DOF)
+
+    def __reduce__(self):  # a Ruckig trajectory does not pickle: rebuild it (Dask tasks return moves)
+        return rest_to_rest, (self.distance_m, self.limits, self.dt_s)
 
     @property
     def duration_s(self) -> float:
@@ -62,7 +66,7 @@ def rest_to_rest(distance_m: float, limits: KinematicLimits, dt_s: float) -> Pro
     from ruckig import InputParameter, Result, Ruckig, Trajectory
 
     if distance_m <= 0.0:
-        return Profile(0.0, dt_s, 0, 1.0, np.zeros(1), None)
+        return Profile(0.0, dt_s, 0, 1.0, np.zeros(1), limits, None)
     inp = InputParameter(1)
     inp.current_position, inp.target_position = [0.0], [float(distance_m)]
     inp.current_velocity, inp.target_velocity = [0.0], [0.0]
@@ -78,7 +82,7 @@ def rest_to_rest(distance_m: float, limits: KinematicLimits, dt_s: float) -> Pro
     stretch = duration / (steps * dt_s)
     arc = np.array([traj.at_time(min(stretch * k * dt_s, duration))[0][0] for k in range(steps + 1)])
     arc[-1] = distance_m
-    return Profile(float(distance_m), dt_s, steps, stretch, arc, traj)
+    return Profile(float(distance_m), dt_s, steps, stretch, arc, limits, traj)
 
 
 class LineMove:
@@ -115,6 +119,7 @@ class RunMove:
         from proxplan.planner.timing.corners import through_run
 
         self.waypoints_m = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
+        self._args = (limits, dt_s, deviation_m)
         self.pieces = through_run(self.waypoints_m, limits, deviation_m=deviation_m)
         self.knots_s = [0.0]  # Ruckig time at the start of each piece, s
         for tr in self.pieces:
@@ -125,6 +130,10 @@ class RunMove:
         self.stretch = total / (self.steps * dt_s)  # Ruckig time = stretch x grid time, <= 1
         self.duration = self.steps * dt_s
         self.end_m = self.waypoints_m[-1].copy()
+
+    def __reduce__(self):  # Ruckig trajectories do not pickle: rebuild them (the same, deterministically)
+        limits, dt_s, deviation_m = self._args
+        return _run_move, (self.waypoints_m, limits, dt_s, deviation_m)
 
     def at_time(self, t_s: float) -> tuple[list[float], list[float], list[float]]:
         """Position m, velocity m/s, acceleration m/s^2 at ``t_s`` after the start (rest outside)."""
@@ -152,3 +161,7 @@ class RunMove:
         arr = np.array(out[: n + 1], dtype=float)
         arr[0], arr[-1] = self.waypoints_m[0], self.end_m
         return arr
+
+
+def _run_move(waypoints_m: np.ndarray, limits: KinematicLimits, dt_s: float, deviation_m: float) -> RunMove:
+    return RunMove(waypoints_m, limits, dt_s, deviation_m=deviation_m)

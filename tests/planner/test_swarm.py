@@ -239,3 +239,32 @@ def test_a_lattice_plan_in_lockstep_gives_way_to_a_shorter_verified_sampling_pla
     assert verify_plan(plan, scenario) == []
     assert moving_end_s(plan) <= lattice_s + plan.dt_s + 1e-9  # the plan grid rounds up by < one step
     assert any("sampling planner" in n for n in plan.notes)  # tried, whichever was kept
+
+
+def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in_turn():
+    """Two formations far apart are two groups of the interaction graph; planned on a Dask local
+    cluster (two workers) they get exactly the tracks they get one after the other."""
+    from proxplan.planner.swarm.components import interaction_groups, plan_groups
+    from proxplan.planner.swarm.plan import longest_first
+    from proxplan.planner.swarm.priority import PriorityOptions
+
+    west, east = grid_reshuffle(6, seed=1), grid_reshuffle(6, seed=2)
+    vehicles = {}
+    for shift, doc in ((-6.0, west), (6.0, east)):
+        for name, v in doc["vehicles"].items():
+            start, goal = list(v["start"]), list(v["goal"])
+            start[0] += shift
+            goal[0] += shift
+            vehicles[f"{'w' if shift < 0 else 'e'}{name}"] = {**v, "start": start, "goal": goal}
+    doc = {**west, "name": "two-groups", "vehicles": vehicles}
+    doc["workspace"] = {"min": [-9.0, -3.0, 0.0], "max": [9.0, 3.0, 3.0]}
+    problem = swarm_problem(_scenario(doc))
+    groups = interaction_groups(problem)
+    assert [len(g) for g in groups] == [6, 6]
+    options = PriorityOptions(max_repairs=12)
+    kw = dict(horizon_steps=1200, fanout_min_vehicles=1)
+    serial = plan_groups(problem, groups, longest_first, options, workers=1, **kw)
+    parallel = plan_groups(problem, groups, longest_first, options, workers=2, **kw)
+    assert sorted(serial.tracks) == list(range(12))
+    for a, tr in serial.tracks.items():
+        np.testing.assert_array_equal(tr.positions_m, parallel.tracks[a].positions_m)
