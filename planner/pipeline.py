@@ -53,9 +53,11 @@ MODE_OF_METHOD: dict[Method, str] = {
     "ellipsoid": "ellipsoid",
 }
 OPTIMIZE_EXTRA_PASSES = 5  # continuous re-timing passes that ``optimized`` adds for swarms
-# the sampling planner is tried beside a lattice plan in lock-step up to this many vehicles (measured
-# at 32 / 64: 2.0-2.2x the lower bound in 5-85 s where it finishes; beyond, its time is unbounded)
+# the sampling planner runs beside the swarm layer's prioritised or lattice plan up to this many
+# vehicles (issue 30: 2.0-2.2x the lower bound at 32 / 64 where it finishes), with a count budget:
 SAMPLING_ALTERNATIVE_MAX_VEHICLES = 64
+ALTERNATIVE_SEARCHES_PER_VEHICLE = 2  # single-vehicle searches per vehicle (re-orderings included)
+ALTERNATIVE_RRT_ITERATIONS = 10000  # RRT iterations per solve (the waiting search finds most paths)
 RETRY_SEED_OFFSET = 7919  # the verification policy's last attempt plans with seed + this (a prime)
 
 __all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "Method", "SwarmOutcome", "deflection_allowance", "plan_scenario"]
@@ -232,11 +234,12 @@ def _sampling_attempt(scenario: Scenario, run: _Run) -> Callable[[Mapping[str, f
 
 
 def _sampling_stage(scenario: Scenario, run: _Run, swarm: SwarmOutcome | None) -> Plan:
-    """The sampling planner's plan where there is no swarm plan; beside a lattice plan in lock-step
-    (up to ``SAMPLING_ALTERNATIVE_MAX_VEHICLES``) the shorter verified of the two; else the swarm plan."""
+    """The sampling planner's plan where there is no swarm plan; beside the swarm layer's prioritised
+    or lattice plan (up to ``SAMPLING_ALTERNATIVE_MAX_VEHICLES``, with a count budget) the shorter
+    verified of the two; else the swarm plan."""
     if swarm is not None and swarm.plan is not None:
-        lattice = swarm.info is not None and swarm.info.stage == "lattice"
-        if lattice and len(scenario.vehicles) <= SAMPLING_ALTERNATIVE_MAX_VEHICLES and not run.past_deadline():
+        searched = swarm.info is not None and swarm.info.stage != "straight"
+        if searched and len(scenario.vehicles) <= SAMPLING_ALTERNATIVE_MAX_VEHICLES and not run.past_deadline():
             return _shorter(scenario, run, swarm.plan)
         swarm.plan.verified = run.mode == "downwash"
         return swarm.plan
@@ -257,27 +260,31 @@ def _sampling_stage(scenario: Scenario, run: _Run, swarm: SwarmOutcome | None) -
     return plan
 
 
-def _shorter(scenario: Scenario, run: _Run, lattice_plan: Plan) -> Plan:
-    """The lattice plan in lock-step or, when shorter and verified, the sampling planner's plan."""
+def _shorter(scenario: Scenario, run: _Run, swarm_plan: Plan) -> Plan:
+    """The swarm plan or, when shorter and verified, the sampling planner's plan within its count
+    budget (``ALTERNATIVE_SEARCHES_PER_VEHICLE`` searches per vehicle of ``ALTERNATIVE_RRT_ITERATIONS``)."""
     from proxplan.verify import verify_plan
 
-    lattice_plan.verified = True
+    swarm_plan.verified = True
+    budget = replace(
+        run.sampling,
+        max_searches=ALTERNATIVE_SEARCHES_PER_VEHICLE * len(scenario.vehicles),
+        max_iterations=min(run.sampling.max_iterations, ALTERNATIVE_RRT_ITERATIONS),
+    )
     try:
-        other = _sampling_attempt(scenario, run)({}, run.seed)
+        other = _sampling_attempt(scenario, replace(run, sampling=budget))({}, run.seed)
     except (InfeasibleError, PlanNotFound) as err:
-        lattice_plan.notes.append(f"the sampling planner was tried as well and found no plan ({err})")
-        return lattice_plan
-    mine, theirs = moving_end_s(lattice_plan), moving_end_s(other)
+        swarm_plan.notes.append(f"the sampling planner was tried as well and found no plan ({err})")
+        return swarm_plan
+    mine, theirs = moving_end_s(swarm_plan), moving_end_s(other)
     if theirs >= mine or verify_plan(other, scenario):
-        lattice_plan.notes.append(
-            f"the sampling planner was tried as well: {theirs:.2f} s, not shorter or not verified"
+        swarm_plan.notes.append(
+            f"the sampling planner was tried as well (count budget): {theirs:.2f} s, not shorter or not verified"
         )
-        return lattice_plan
+        return swarm_plan
     other.method = "sampling"
     other.verified = True
-    other.notes.append(
-        f"sampling planner's plan ({theirs:.2f} s): shorter than the swarm layer's lattice plan in lock-step ({mine:.2f} s)"
-    )
+    other.notes.append(f"sampling planner's plan ({theirs:.2f} s): shorter than the swarm layer's ({mine:.2f} s)")
     return other
 
 
