@@ -25,7 +25,8 @@ the verdict and whole-process time of ``proxplan verify`` on the written plan.js
 ``--child-python PATH`` plans and verifies with another interpreter (another installed version of
 proxplan: before / after in the same run). ``--swarm-options JSON`` plans in a child of this script
 with ``plan_scenario(..., swarm_options=SwarmOptions(**JSON))`` instead of the CLI (to measure one
-cause at a time, e.g. ``{"through_waypoints": false}``); its wall time then includes the same
+cause at a time, e.g. ``{"through_waypoints": false}``; the key ``sampling_alternative: false``
+leaves out the sampling planner beside the swarm layer); its wall time then includes the same
 verification and writing as ``proxplan plan``, not the PNG (neither does the CLI run: ``--no-plot``).
 Children run outside the repository (from its root, ``import proxplan`` would find the checkout).
 """
@@ -73,7 +74,11 @@ def _child(scenario: str, out: str, method: str, options_json: str) -> int:
     from proxplan.verify import verify_plan
 
     sc = load_scenario(scenario)
-    plan = plan_scenario(sc, method=method, seed=0, swarm_options=SwarmOptions(**json.loads(options_json)))
+    options = json.loads(options_json)
+    alternative = options.pop("sampling_alternative", True)
+    plan = plan_scenario(
+        sc, method=method, seed=0, swarm_options=SwarmOptions(**options), sampling_alternative=alternative
+    )
     violations = [] if plan.verified else verify_plan(plan, sc)
     plan.metrics["verify_violations"] = len(violations)
     Path(out).mkdir(parents=True, exist_ok=True)
@@ -98,6 +103,11 @@ def main() -> int:
     ap.add_argument("--timeout", type=float, default=600.0, help="per-run wall-time cap, s")
     ap.add_argument("--child-python", default=sys.executable, help="interpreter that plans and verifies")
     ap.add_argument("--swarm-options", default=None, metavar="JSON", help="plan with these SwarmOptions")
+    ap.add_argument(
+        "--child-method-roadmap",
+        action="store_true",
+        help="the child calls the swarm method 'roadmap' (versions before the rename, for --child-python)",
+    )
     ap.add_argument("--keep", default=None, metavar="DIR", help="keep scenarios and plans in DIR")
     args = ap.parse_args()
 
@@ -147,7 +157,8 @@ def main() -> int:
                         ]
                     else:
                         cmd = [py, "-m", "proxplan.cli", "plan", str(path), "--out", str(out)]
-                        cmd += ["--method", method, "--seed", "0", "--no-plot", "--json"]
+                        name = "roadmap" if args.child_method_roadmap and method == "swarm" else method
+                        cmd += ["--method", name, "--seed", "0", "--no-plot", "--json"]
                     wall, code, mb, text, cpu = _run(cmd, args.timeout)
                     ms = ratio = "-"
                     verdict, v_wall, how = ("timeout" if wall >= args.timeout else f"exit {code}"), "-", ""

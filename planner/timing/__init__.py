@@ -17,7 +17,7 @@ from proxplan.planner.timing.paths import (
     time_parameterize,
     time_parameterize_through,
 )
-from proxplan.planner.timing.plan_grid import DOCK_SPEED_FACTOR, DT_S, assemble_plan, moving_end_s
+from proxplan.planner.timing.plan_grid import DOCK_SPEED_FACTOR, DT_S, assemble_plan, moving_end_s, vehicle_arrival_s
 from proxplan.planner.timing.segments import ruckig_segment, through_segment
 
 __all__ = [
@@ -37,4 +37,5 @@ __all__ = [
     "through_segment",
     "time_parameterize",
     "time_parameterize_through",
+    "vehicle_arrival_s",
 ]

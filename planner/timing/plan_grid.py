@@ -42,11 +42,12 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
     )
 
 
+def vehicle_arrival_s(tr: VehicleTrajectory) -> float:
+    """The time after which ``tr`` no longer moves, s (0 for a vehicle that never moves)."""
+    moving = np.flatnonzero(np.linalg.norm(tr.velocity_mps, axis=1) > MOVING_SPEED_MPS)
+    return float(tr.t_s[min(int(moving[-1]) + 1, tr.t_s.size - 1)]) if moving.size else 0.0
+
+
 def moving_end_s(plan: Plan) -> float:
     """The time after which no vehicle of ``plan`` moves any more (DESIGN.md's makespan), s."""
-    end = 0.0
-    for tr in plan.vehicles.values():
-        moving = np.flatnonzero(np.linalg.norm(tr.velocity_mps, axis=1) > MOVING_SPEED_MPS)
-        if moving.size:
-            end = max(end, float(tr.t_s[min(int(moving[-1]) + 1, tr.t_s.size - 1)]))
-    return end
+    return max([vehicle_arrival_s(tr) for tr in plan.vehicles.values()] + [0.0])
