@@ -81,7 +81,7 @@ class _Run:
     time_budget_s: float | None  # the optimiser's wall-clock budget, s
     t0: float  # time.perf_counter() at the start, s
     deadline: float | None  # time.perf_counter() value of --max-time, s
-    progress: Callable[[str, float], None] | None
+    progress: Callable[..., None] | None  # (message[, fraction]): the planners call it with one or two
     alternative: bool = True  # the sampling planner beside the swarm layer
 
     def past_deadline(self) -> bool:

@@ -14,6 +14,7 @@ first part of its straight route and is then no longer counted (it does not park
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -44,7 +45,7 @@ class GridTrack:
     agent: int
     type: int
     start_m: np.ndarray
-    moves: list[tuple[int, Move]] = field(default_factory=list)
+    moves: Sequence[tuple[int, Move]] = field(default_factory=list)
     vanishes: bool = False  # a prediction: gone after its last sample (it does not park)
     positions_m: np.ndarray = field(init=False)  # (n + 1, 3), m: sample k at k GRID_DT_S
     moving: np.ndarray = field(init=False)  # (n + 1,) bool
