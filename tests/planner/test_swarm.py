@@ -268,3 +268,56 @@ def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in
     assert sorted(serial.tracks) == list(range(12))
     for a, tr in serial.tracks.items():
         np.testing.assert_array_equal(tr.positions_m, parallel.tracks[a].positions_m)
+
+
+def test_a_chain_is_flown_through_its_corner_when_nothing_is_in_the_way():
+    """Safe-interval timing along a chain with a gentle corner: flying through the waypoint arrives
+    earlier than stopping there, and where another vehicle sits on the corner the timing waits for it
+    (it never flies through a conflict)."""
+    from proxplan.planner.swarm.chain import time_chain
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.swarm.tracks import GridTrack
+    from proxplan.planner.timing.profile import LineMove, rest_to_rest
+
+    doc = grid_reshuffle(2, types=["crazyflie-2.1"])
+    doc["workspace"] = {"min": [-3.0, -3.0, 0.0], "max": [3.0, 3.0, 3.0]}
+    doc["obstacles"] = [{"min": [-0.2, -2.0, 0.0], "max": [0.2, -0.7, 3.0]}]  # no straight line from start to goal
+    doc["vehicles"]["v000"].update(start=[-2.0, -1.0, 1.5], goal=[2.0, -0.6, 1.5])
+    doc["vehicles"]["v001"].update(start=[-2.5, 2.5, 1.5], goal=[-2.5, 2.0, 1.5])
+    problem = swarm_problem(_scenario(doc))
+    W = np.array([[-2.0, -1.0, 1.5], [0.0, 0.0, 1.5], [2.0, -0.6, 1.5]])  # a 43-degree corner above the box
+    empty = Occupancy(problem, [], 800)
+    through = time_chain(empty, 0, W, through=True)
+    stops = time_chain(empty, 0, W, through=False)
+    assert through is not None and stops is not None
+    assert through.arrival_step < stops.arrival_step
+    # the other vehicle crosses the corner early on: the chain must not be there at the same time
+    a, b = np.array([0.0, 2.5, 1.5]), np.array([0.0, -0.5, 1.5])  # it comes down over the corner, waits, goes back
+    cross = LineMove(a, b, rest_to_rest(3.0, problem.limits[1], 0.025))
+    other = GridTrack(
+        1,
+        int(problem.type_index[1]),
+        a,
+        [(0, cross), (120, LineMove(b, a, rest_to_rest(3.0, problem.limits[1], 0.025)))],
+    )
+    busy = Occupancy(problem, [other], 800)
+    timed = time_chain(busy, 0, W, through=True)
+    assert timed is not None
+    assert not busy.conflicting_agents(timed.track)
+    assert timed.arrival_step > through.arrival_step  # it let the other one pass
+    assert Occupancy(problem, [other], 800).conflicting_agents(through.track) == {1}  # the free timing would hit it
+
+
+def test_a_vehicle_not_planned_yet_is_predicted_to_leave_on_its_straight_line_and_then_vanish():
+    from proxplan.planner.swarm.priority import predicted_track
+
+    problem = swarm_problem(_scenario(grid_reshuffle(9, seed=4)))
+    a = int(np.argmax(np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)))
+    held = predicted_track(problem, a, hold_s=1.0)
+    assert held.vanishes
+    hold = int(round(1.0 / 0.025))
+    np.testing.assert_allclose(held.positions_m[: hold + 1], np.repeat(problem.starts_m[a][None], hold + 1, axis=0))
+    last = held.positions_m[-1]
+    reach = max(k.reach_xy_m for (ta, _), k in problem.keepouts.items() if ta == int(problem.type_index[a]))
+    assert np.linalg.norm(last[:2] - problem.starts_m[a][:2]) > reach  # it has left its start's reach
+    assert np.linalg.norm(last - problem.goals_m[a]) > 1e-6  # and is not followed to its goal
