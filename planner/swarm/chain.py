@@ -77,9 +77,11 @@ def time_chain(
     goal_ok = [e >= T for _, e in intervals[m]]
     if not any(goal_ok):
         return None
-    moves: dict[tuple[int, int, bool], tuple[Move, np.ndarray] | None] = {}
+    moves: dict[tuple[int, int, bool], Move | None] = {}
+    forbidden: dict[tuple[int, int, bool], tuple[int, np.ndarray]] = {}  # (from step, departures)
 
-    def move(k: int, j: int, run: bool):
+    def move(k: int, j: int, run: bool, t: int):
+        """The move k -> j and its forbidden departures, exact from step t on (None: not free)."""
         key = (k, j, run)
         if key not in moves:
             mv: Move
@@ -90,8 +92,13 @@ def time_chain(
             else:
                 free = problem.segment_free(W[k], W[j])
                 mv = LineMove(W[k], W[j], rest_to_rest(float(np.linalg.norm(W[j] - W[k])), limits, GRID_DT_S))
-            moves[key] = (mv, occ.forbidden_departures(agent, mv.positions())) if free else None
-        return moves[key]
+            moves[key] = mv if free else None
+        mv_ = moves[key]
+        if mv_ is None:
+            return None
+        if key not in forbidden or forbidden[key][0] > t:  # later departures need fewer samples
+            forbidden[key] = (t, occ.forbidden_departures(agent, mv_.positions(), from_step=t))
+        return mv_, forbidden[key][1]
 
     # A*: the rest-to-rest time of the straight line to the end bounds what is left (no flight
     # from rest to rest is faster, and the bound is consistent: straight rest-to-rest times are
@@ -126,7 +133,7 @@ def time_chain(
         for j, run in candidates:
             if t + max(h[k], h[j]) >= done_by:  # cannot arrive at the end earlier through j
                 continue
-            got = move(k, j, run)
+            got = move(k, j, run, t)
             if got is None:
                 continue
             mv, bad = got

@@ -1,10 +1,12 @@
 """What the other vehicles forbid one vehicle: departure times of a move, hold times of a point, on
 the swarm's time grid, against every other vehicle's :class:`~proxplan.planner.swarm.tracks.GridTrack`.
 
-**Space-time hash.** Each track's samples are cut into runs of consecutive samples in one
-horizontal cell (cells of the largest keep-out reach): a cell lists (agent, first step, end step)
-per run, so a query collects only the samples of other tracks that are in a cell within reach of
-the queried place, whatever the tracks do elsewhere and elsewhen. A track parked for good (after its
+**Space-time hash.** Each track's samples are cut into segments (a resting stretch - same place,
+same moving flag - is one segment with its step range; a moving sample is one each), and the
+segments into runs in one horizontal cell (cells of the largest keep-out reach): a cell lists
+(agent, segments) per run, so a query collects only the segments of other tracks that are in a cell
+within reach of the queried place, whatever the tracks do elsewhere and elsewhen, and a vehicle
+waiting somewhere counts once, not once per step. A track parked for good (after its
 last sample) is listed apart, by the cell of its end; a *predicted* track (``vanishes``) is not.
 
 **Departures.** For a move sampled on the grid at q_k (k = 0..K, a straight line or a flight
@@ -42,7 +44,9 @@ class Occupancy:
         self.reach = problem.reach_xy_m + SAMPLING_GROWTH_M
         self.cell = max(MIN_CELL_M, self.reach)
         self.tracks: dict[int, GridTrack] = {}
-        self._runs: dict[tuple[int, int], list[tuple[int, int, int]]] = {}  # cell -> (agent, k0, k1)
+        self._runs: dict[tuple[int, int], list[tuple[int, int, int]]] = {}  # cell -> (agent, segments s0:s1)
+        # agent -> its segments: (positions (S, 3), first step (S,), end step (S,), moving (S,))
+        self._segments: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         self._parked: dict[tuple[int, int], set[int]] = {}  # cell of the end -> agents parked there
         self._cells_of: dict[int, set[tuple[int, int]]] = {}
         for tr in tracks:
@@ -62,16 +66,20 @@ class Occupancy:
         self.remove(track.agent)
         a = track.agent
         self.tracks[a] = track
-        P = track.positions_m[:-1] if not track.vanishes else track.positions_m
+        n = track.positions_m.shape[0] - (0 if track.vanishes else 1)  # the parked end apart
         cells: set[tuple[int, int]] = set()
-        if P.shape[0]:
-            c = self._cell(P[:, :2])
+        if n > 0:
+            P, mv = track.positions_m[:n], track.moving[:n]
+            # segments: a resting stretch (same place, same moving flag) is one, a moving sample one each
+            new = np.r_[True, np.any(P[1:] != P[:-1], axis=1) | (mv[1:] != mv[:-1])]
+            t0 = np.flatnonzero(new)
+            t1 = np.r_[t0[1:], n]
+            c = self._cell(P[t0, :2])
+            self._segments[a] = (P[t0], t0, t1, mv[t0])
             change = np.flatnonzero(np.any(np.diff(c, axis=0) != 0, axis=1)) + 1
-            starts = np.r_[0, change]
-            ends = np.r_[change, P.shape[0]]
-            for k0, k1 in zip(starts.tolist(), ends.tolist()):
-                key = (int(c[k0, 0]), int(c[k0, 1]))
-                self._runs.setdefault(key, []).append((a, k0, k1))
+            for s0, s1 in zip(np.r_[0, change].tolist(), np.r_[change, t0.size].tolist()):
+                key = (int(c[s0, 0]), int(c[s0, 1]))
+                self._runs.setdefault(key, []).append((a, s0, s1))
                 cells.add(key)
         if not track.vanishes:
             end = self._cell(track.end_m[:2])
@@ -82,6 +90,7 @@ class Occupancy:
 
     def remove(self, agent: int) -> GridTrack | None:
         old = self.tracks.pop(agent, None)
+        self._segments.pop(agent, None)
         for key in self._cells_of.pop(agent, set()):
             runs = self._runs.get(key)
             if runs:
@@ -91,30 +100,33 @@ class Occupancy:
                 parked.discard(agent)
         return old
 
-    def samples_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int):
-        """Samples of other tracks (their last one excluded unless the track vanishes) in cells within
-        reach of the box [lo, hi] (m): (positions (M, 3), steps (M,), type (M,), moving (M,), agent (M,))."""
-        chunks_p, chunks_t, chunks_ty, chunks_mv, chunks_a = [], [], [], [], []
+    def samples_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int, from_step: int = 0):
+        """Segments of other tracks (a resting stretch, or one moving sample; the parked end apart) in
+        cells within reach of the box [lo, hi] (m) that last beyond ``from_step``: (positions (M, 3),
+        first step (M,), end step (M,, exclusive), type (M,), moving (M,), agent (M,))."""
+        parts: list[tuple] = []
         for key in self._cells_within(lo, hi):
-            for a, k0, k1 in self._runs.get(key, ()):
+            for a, s0, s1 in self._runs.get(key, ()):
                 if a == exclude:
                     continue
-                tr = self.tracks[a]
-                chunks_p.append(tr.positions_m[k0:k1])
-                chunks_t.append(np.arange(k0, k1))
-                chunks_ty.append(np.full(k1 - k0, tr.type))
-                chunks_mv.append(tr.moving[k0:k1])
-                chunks_a.append(np.full(k1 - k0, a))
-        if not chunks_p:
+                P, t0, t1, mv = self._segments[a]
+                live = np.flatnonzero(t1[s0:s1] > from_step) + s0
+                if live.size == 0:
+                    continue
+                parts.append(
+                    (
+                        P[live],
+                        np.maximum(t0[live], from_step),
+                        t1[live],
+                        np.full(live.size, self.tracks[a].type),
+                        mv[live],
+                        np.full(live.size, a),
+                    )
+                )
+        if not parts:
             z = np.zeros(0, dtype=np.int64)
-            return np.zeros((0, 3)), z, z, np.zeros(0, dtype=bool), z
-        return (
-            np.concatenate(chunks_p),
-            np.concatenate(chunks_t),
-            np.concatenate(chunks_ty),
-            np.concatenate(chunks_mv),
-            np.concatenate(chunks_a),
-        )
+            return np.zeros((0, 3)), z, z, z, np.zeros(0, dtype=bool), z
+        return tuple(np.concatenate([p[i] for p in parts]) for i in range(6))
 
     def parked_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int) -> list[GridTrack]:
         """Tracks parked for good in a cell within reach of the box [lo, hi] (m)."""
@@ -134,9 +146,10 @@ class Occupancy:
         return [self.tracks[a] for a in sorted(found)]
 
     # -- the queries ----------------------------------------------------------------------------------
-    def forbidden_departures(self, agent: int, q_m: np.ndarray) -> np.ndarray:
+    def forbidden_departures(self, agent: int, q_m: np.ndarray, from_step: int = 0) -> np.ndarray:
         """(horizon,) bool: departing at step d along the move sampled on the grid at ``q_m``
-        (K + 1, 3), m, hits another track."""
+        (K + 1, 3), m, hits another track; exact for d >= ``from_step`` (earlier entries are not
+        looked at: only samples from that step on are)."""
         T = self.horizon
         bad = np.zeros(T, dtype=bool)
         q = np.asarray(q_m, dtype=float)
@@ -144,7 +157,7 @@ class Occupancy:
         lo, hi = q.min(axis=0), q.max(axis=0)
         R = self.reach
         ta = int(self.problem.type_index[agent])
-        P, t_of, ty, _, _ = self.samples_near(lo, hi, agent)
+        P, t0, t1, ty, _, _ = self.samples_near(lo, hi, agent, from_step)
         if P.shape[0]:
             n_chunks = int(math.ceil(K / CHUNK))
             pad = np.concatenate([q, np.repeat(q[-1:], n_chunks * CHUNK - K, axis=0)]).reshape(n_chunks, CHUNK, 3)
@@ -163,8 +176,11 @@ class Occupancy:
                 for tb in np.unique(ty[rr]).tolist():
                     m = ty[rr] == tb
                     h[m] = _conflict(self.problem.keepouts[(ta, int(tb))], d[m], False, SAMPLING_GROWTH_M)
-                dep = t_of[rr[h]] - kk[h]
-                bad[dep[(dep >= 0) & (dep < T)]] = True
+                # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
+                lo_d = np.maximum(t0[rr[h]] - kk[h], 0)
+                hi_d = np.minimum(t1[rr[h]] - kk[h], T)  # exclusive
+                span = hi_d > lo_d
+                bad |= _covered(lo_d[span], hi_d[span], T)
         # parked for good after each track's last sample: any d with d + k >= n - 1 for a hit k
         tail_from = T
         for tr in self.parked_near(lo, hi, agent):
@@ -182,7 +198,7 @@ class Occupancy:
         out = np.zeros(T, dtype=bool)
         w = np.asarray(w_m, dtype=float)
         ta = int(self.problem.type_index[agent])
-        P, t_of, ty, mv, _ = self.samples_near(w, w, agent)
+        P, t0, t1, ty, mv, _ = self.samples_near(w, w, agent)
         if P.shape[0]:
             d = P - w[None]
             near = np.flatnonzero((np.abs(d[:, 0]) <= self.reach) & (np.abs(d[:, 1]) <= self.reach))
@@ -194,8 +210,7 @@ class Occupancy:
                         m = (ty[near] == tb) & (mv[near] != rest)
                         if m.any():
                             h[m] = _conflict(ko, d[near[m]], rest, SAMPLING_GROWTH_M)
-                idx = t_of[near[h]]
-                out[idx[idx < T]] = True
+                out |= _covered(np.minimum(t0[near[h]], T), np.minimum(t1[near[h]], T), T)
         for tr in self.parked_near(w, w, agent):
             if (
                 tr.arrival_step < T
@@ -227,6 +242,14 @@ class Occupancy:
             if hit.any():
                 found.add(other.agent)
         return found
+
+
+def _covered(lo: np.ndarray, hi: np.ndarray, T: int) -> np.ndarray:
+    """(T,) bool: the union of the step ranges [lo, hi) (each within [0, T])."""
+    diff = np.zeros(T + 1, dtype=np.int64)
+    np.add.at(diff, lo, 1)
+    np.add.at(diff, hi, -1)
+    return np.cumsum(diff[:T]) > 0
 
 
 def _at(flags: np.ndarray, track: GridTrack, steps: np.ndarray) -> np.ndarray:
