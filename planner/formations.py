@@ -23,6 +23,13 @@ from typing import Any
 
 DEFAULT_TYPES = ("crazyflie-2.1", "crazyflie-parrot", "small-quad")
 LOW_Z_M = 1.0  # height of the lower layer, m
+# the randomised family (random_formation): ranges its seeded draws come from
+FAMILY_PITCH_M = (0.55, 0.9)  # slot pitch within a layer, m
+FAMILY_LAYERS = (1, 2, 3)  # layers of a region (staggered by half a pitch)
+FAMILY_LAYER_GAP_M = (0.4, 0.8)  # height between layers, m
+FAMILY_OBSTACLES = (0, 3)  # boxes between the start and goal regions (inclusive range)
+FAMILY_REGION_GAP_M = (0.0, 3.0)  # horizontal gap between the start and goal regions, m
+FAMILY_DRAWS = 20  # draws per seed until the pre-checks pass (starts and goals valid)
 
 
 def formation_change(
@@ -187,15 +194,6 @@ def corridor(
         "limits": _limits_block(authority_fraction, min_separation_m),
         "vehicles": vehicles,
     }
-
-
-# the randomised family (random_formation): ranges its seeded draws come from
-FAMILY_PITCH_M = (0.55, 0.9)  # slot pitch within a layer, m
-FAMILY_LAYERS = (1, 2, 3)  # layers of a region (staggered by half a pitch)
-FAMILY_LAYER_GAP_M = (0.4, 0.8)  # height between layers, m
-FAMILY_OBSTACLES = (0, 3)  # boxes between the start and goal regions (inclusive range)
-FAMILY_REGION_GAP_M = (0.0, 3.0)  # horizontal gap between the start and goal regions, m
-FAMILY_DRAWS = 20  # draws per seed until the pre-checks pass (starts and goals valid)
 
 
 def random_formation(n_vehicles: int, *, seed: int = 0) -> dict[str, Any]:

@@ -15,6 +15,8 @@ from proxplan.planner.optimizer.ocp_problem import OcpProblem, OcpSolution
 from proxplan.planner.optimizer.options import RefineOptions
 from proxplan.planner.timing.plan_grid import moving_end_s
 
+_KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
+
 
 def peak_usage(plan, scenario) -> float:
     """Largest authority usage of any vehicle along ``plan`` (model evaluated directly), -."""
@@ -66,9 +68,6 @@ def solution_to_plan(solution: OcpSolution, scenario, initial_plan, *, time_scal
         scenario_file=initial_plan.scenario_file,
         scenario_spec=initial_plan.scenario_spec,
     )
-
-
-_KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
 
 
 def _verify(plan, scenario) -> list:

@@ -14,6 +14,10 @@ from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem, scenari
 from proxplan.planner.optimizer.options import RefineOptions, WrenchProvider
 from proxplan.planner.timing.plan_grid import moving_end_s
 
+APPROACH_BAND_M = 0.04  # lateral band around the dock axis over which the approach usage is maximised, m
+APPROACH_DZ_SAMPLES = 80  # dz samples of the approach usage envelope
+APPROACH_TOLERANCE_M = 0.01  # the warm start is "on its final approach" this close to the A-D segment, m
+
 
 def default_wrench_provider(source, target, scenario):
     """The differentiable wrench table of the cost maps (same numbers as proxplan.physics.disturbance)."""
@@ -35,10 +39,6 @@ def table_extent(source, target, scenario):
     options = ModelOptions(field_form=form) if form else ModelOptions()
     effects = getattr(scenario, "effects", ())
     return pair_maps(source, target, options=options, effects=effects).table.scale.half_width_m
-
-
-APPROACH_BAND_M = 0.04  # lateral band around the dock axis over which the approach usage is maximised, m
-APPROACH_DZ_SAMPLES = 80  # dz samples of the approach usage envelope
 
 
 def approach_usage_function(source, target, scenario, dz_max_m: float):
@@ -63,9 +63,6 @@ def approach_usage_function(source, target, scenario, dz_max_m: float):
     usage = authority_usage(target, force, torque).reshape(rr.shape).max(axis=(0, 1))  # (K,)
     x = ca.SX.sym("dz_m")
     return ca.Function("approach_usage", [x], [ca.pw_lin(x, ca.DM(dz), ca.DM(usage))])
-
-
-APPROACH_TOLERANCE_M = 0.01  # the warm start is "on its final approach" this close to the A-D segment, m
 
 
 def approach_start_s(scenario, plan) -> float | None:
