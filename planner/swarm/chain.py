@@ -120,7 +120,7 @@ def time_chain(
                 pk, piv, dep, mv = parent[node]
                 out.append((dep, mv))
                 node = (pk, piv)
-            track = GridTrack(agent, int(problem.type_index[agent]), W[0].copy(), out[::-1])
+            track = GridTrack(agent, int(problem.type_index[agent]), W[0].copy(), out[::-1], route_m=W.copy())
             return ChainResult(track, t)
         _, e_iv = intervals[k][iv]
         candidates = [(j, False) for j in range(k + 1, min(m, k + 1 + MAX_SHORTCUT) + 1)]

@@ -29,6 +29,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -73,7 +74,10 @@ class SwarmOptions:
     # route, s: tried in turn until prioritised planning finds a plan (a longer hold leaves it more
     # room). No hold (0.0) was measured first and lost on grid and pillar layouts (see docs/planner.md)
     unplanned_hold_s: tuple[float, ...] = (1.0, 2.5)
-    through_waypoints: bool = True  # fly through waypoints without stopping (else rest to rest)
+    # fly through waypoints without stopping (else rest to rest at each): "retime" in the re-timing
+    # passes only (each vehicle along its own route, against everyone's final tracks: never worse),
+    # "always" in prioritised planning too, "never"
+    through_waypoints: Literal["never", "retime", "always"] = "retime"
     keep_straight: bool = True  # also try: keep the straight lines in no conflict, plan only the others
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     seed: int = 0
@@ -142,6 +146,20 @@ def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
     return lambda a: [np.array([problem.starts_m[a], problem.goals_m[a]])]
 
 
+def _own_routes(problem: SwarmProblem, tracks: list[GridTrack]) -> Callable[[int], list[np.ndarray]]:
+    """The straight line and the route each vehicle's track was timed along (re-timing)."""
+    routes = {tr.agent: tr.route_m for tr in tracks}
+
+    def chains(a: int) -> list[np.ndarray]:
+        out = [np.array([problem.starts_m[a], problem.goals_m[a]])]
+        r = routes.get(a)
+        if r is not None and len(r) > 2:
+            out.append(r)
+        return out
+
+    return chains
+
+
 def _straight_stage(problem: SwarmProblem) -> _Stage:
     """Every vehicle on its straight line in one synchronised step (no pair conflicts)."""
     straight = straight_tracks(problem, list(range(problem.n_agents)))
@@ -189,7 +207,7 @@ def _kept_straight_stage(
         max_repairs=opts.repairs_per_vehicle * problem.n_agents,
         max_restarts=opts.max_restarts,
         hold_s=opts.unplanned_hold_s[0],
-        through=opts.through_waypoints,
+        through=opts.through_waypoints == "always",
     )
     try:
         result = prioritized_tracks(
@@ -206,7 +224,8 @@ def _kept_straight_stage(
         f"straight lines of {still} vehicles in no conflict kept, the other {problem.n_agents - still} planned "
         f"around them ({result.planned} vehicle plannings, {result.repairs} repairs, {result.restarts} restarts)"
     )
-    return _Stage([result.tracks[a] for a in range(problem.n_agents)], "prioritised", coordination, _straight(problem))
+    tracks = [result.tracks[a] for a in range(problem.n_agents)]
+    return _Stage(tracks, "prioritised", coordination, _own_routes(problem, tracks))
 
 
 def _prioritised_stage(
@@ -229,7 +248,7 @@ def _prioritised_stage(
             max_repairs=opts.repairs_per_vehicle * max(len(g) for g in groups),
             max_restarts=opts.max_restarts,
             hold_s=hold_s,
-            through=opts.through_waypoints,
+            through=opts.through_waypoints == "always",
         )
         for label in opts.orders:
             try:
@@ -253,13 +272,14 @@ def _prioritised_stage(
             makespan = max(tr.arrival_s for tr in result.tracks.values())
             tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s")
             if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
+                tracks = [result.tracks[a] for a in range(problem.n_agents)]
                 best = _Stage(
-                    [result.tracks[a] for a in range(problem.n_agents)],
+                    tracks,
                     "prioritised",
                     f"prioritised continuous planning, {label}, vehicles not planned yet assumed to leave after "
                     f"{hold_s:g} s ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
                     f"repairs, {result.restarts} restarts)",
-                    _straight(problem),
+                    _own_routes(problem, tracks),
                 )
         if best is not None:  # a longer hold only where this one found nothing
             break

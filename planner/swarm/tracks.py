@@ -47,6 +47,7 @@ class GridTrack:
     start_m: np.ndarray
     moves: Sequence[tuple[int, Move]] = field(default_factory=list)
     vanishes: bool = False  # a prediction: gone after its last sample (it does not park)
+    route_m: np.ndarray | None = None  # (m+1, 3) the waypoint chain it was timed along, m (None: none kept)
     positions_m: np.ndarray = field(init=False)  # (n + 1, 3), m: sample k at k GRID_DT_S
     moving: np.ndarray = field(init=False)  # (n + 1,) bool
     in_move: np.ndarray = field(init=False)  # (n + 1,) bool: the sample belongs to a move (its ends included)
@@ -90,7 +91,7 @@ class GridTrack:
 
     def relabel(self, agent: int) -> GridTrack:
         """The same trajectory for agent index ``agent`` (components planned apart)."""
-        return GridTrack(agent, self.type, self.start_m, list(self.moves), self.vanishes)
+        return GridTrack(agent, self.type, self.start_m, list(self.moves), self.vanishes, self.route_m)
 
     @property
     def arrival_step(self) -> int:
