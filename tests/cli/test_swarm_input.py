@@ -102,3 +102,10 @@ def test_a_search_stopped_by_max_time_is_not_found_not_infeasible(proxplan, writ
     report = json.loads(res.stdout)
     assert report["found"] is False and report["feasible"] is None
     assert not (tmp_path / "out").exists()
+
+
+def test_the_cli_offers_exactly_the_planner_methods():
+    from proxplan.commands.plan import METHOD_CHOICES
+    from proxplan.planner import METHODS
+
+    assert METHOD_CHOICES == METHODS
