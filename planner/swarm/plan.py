@@ -76,8 +76,9 @@ class SwarmOptions:
     unplanned_hold_s: tuple[float, ...] = (1.0, 2.5)
     # fly through waypoints without stopping (else rest to rest at each): "retime" in the re-timing
     # passes only (each vehicle along its own route, against everyone's final tracks: never worse),
-    # "always" in prioritised planning too, "never"
-    through_waypoints: Literal["never", "retime", "always"] = "retime"
+    # "always" in prioritised planning too, "never". Off by default: on the named layouts it did not
+    # shorten the makespan for its CPU time (docs/planner.md, "Causes measured one at a time")
+    through_waypoints: Literal["never", "retime", "always"] = "never"
     keep_straight: bool = True  # also try: keep the straight lines in no conflict, plan only the others
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     seed: int = 0
