@@ -329,7 +329,7 @@ def _retime_stage(
         by_agent,
         found.routes,
         passes=opts.passes,
-        through=opts.through_waypoints,
+        through=opts.through_waypoints != "never",
         progress=progress,
         deadline=deadline,
     )
