@@ -2,13 +2,18 @@
 and ``optimized`` for formation changes of ``SWARM_MIN_VEHICLES`` or more).
 
 Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, keep-outs, free
-space) -> :mod:`~proxplan.planner.swarm.assign` (goals of interchangeable vehicles) ->
-:mod:`~proxplan.planner.swarm.lattice` (levels in use, long straight moves) ->
-:mod:`~proxplan.planner.swarm.sync` (exact synchronous conflicts, tabulated) ->
-:mod:`~proxplan.planner.swarm.lacam` (LaCAM + PIBT) -> :mod:`~proxplan.planner.swarm.lockstep`
-(conflict-free trajectories) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing along
-:mod:`~proxplan.planner.swarm.chain`, against :mod:`~proxplan.planner.swarm.occupancy`) ->
-:mod:`~proxplan.planner.swarm.plan` (the whole pipeline).
+space; :mod:`~proxplan.planner.swarm.keepout`) -> :mod:`~proxplan.planner.swarm.assign` and
+:mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles) ->
+:mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept) ->
+:mod:`~proxplan.planner.swarm.priority` (prioritised planning with repairs and predictions) along
+:mod:`~proxplan.planner.swarm.wave` routes timed by :mod:`~proxplan.planner.swarm.chain` against
+:mod:`~proxplan.planner.swarm.occupancy` (the space-time hash of
+:mod:`~proxplan.planner.swarm.tracks`), by groups (:mod:`~proxplan.planner.swarm.components`) ->
+:mod:`~proxplan.planner.swarm.lattice`, :mod:`~proxplan.planner.swarm.sync`,
+:mod:`~proxplan.planner.swarm.lacam`, :mod:`~proxplan.planner.swarm.lockstep` (the guaranteed
+lattice plan) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
+:mod:`~proxplan.planner.swarm.plan` (the stages) and :mod:`~proxplan.planner.swarm.info` (what they
+report, typed).
 """
 
 from proxplan.planner.swarm.assign import Assignment, assign_by_type, assign_group

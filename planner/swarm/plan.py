@@ -1,22 +1,25 @@
 """Swarm planning (``--method swarm``; ``optimized`` for swarms of ``SWARM_MIN_VEHICLES`` or
-more): coordinate jointly on a lattice, fly in continuous time.
+more): coordinate jointly on a lattice, fly in continuous time. One function per stage:
 
-1. *Straight first* (:mod:`proxplan.planner.swarm.straight`): if every vehicle can fly its straight
-   line at once, synchronised (one step, checked exactly pair by pair), that is the plan (the CAPT
-   case of interchangeable goals). (Keeping the straight lines of the vehicles in no conflicting
-   pair and planning the rest around them was tried: it fails where a kept line passes a waiting
-   vehicle's start, and gained nothing on the benchmark layouts.)
-2. *Continuous time, prioritised* (:mod:`proxplan.planner.swarm.prioritized`): one vehicle after
-   another, each along the best of its straight line and a wavefront route through the others'
-   space-time, timed exactly; a vehicle that cannot be planned moves to the front. Two orders are
-   tried (vehicles whose start another's goal needs first; longest line first) and the shorter
-   plan kept.
-3. *Joint coordination*, when prioritised planning gives up: LaCAM with PIBT on the lattice of the
-   levels in use, long straight moves, synchronous conflicts checked exactly
-   (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in lock-step
-   (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the guaranteed answer.
-4. *Re-timing*: Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`), every vehicle against
-   the others' tracks in a space-time neighbourhood; never worse, always conflict-free.
+1. *Straight first* (:func:`_straight_stage`, :mod:`proxplan.planner.swarm.straight`): if every
+   vehicle can fly its straight line at once, synchronised (one step, checked exactly pair by pair),
+   that is the plan (the CAPT case of interchangeable goals).
+2. *Continuous time, prioritised* (:mod:`proxplan.planner.swarm.priority`), two ways, the shorter
+   plan kept: the straight lines in no conflict kept and only the other vehicles planned around
+   them (:func:`_kept_straight_stage`), and every vehicle in each of ``SwarmOptions.orders``
+   (:func:`_prioritised_stage`; groups that never interact apart,
+   :mod:`proxplan.planner.swarm.components`). One vehicle after another along the best of its
+   straight line and a wavefront route through the others' space-time, timed exactly; vehicles
+   not planned yet are predictions; a vehicle that cannot be planned is repaired (the vehicles in
+   conflict with it planned again after it), then the pass restarts with it first.
+3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
+   PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
+   exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
+   lock-step (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the
+   guaranteed answer.
+4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
+   every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
+   conflict-free.
 
 The caller (the pipeline) runs the independent verifier on the result as on every plan. The
 :class:`~proxplan.planner.swarm.info.SwarmInfo` names the ``stage`` that produced the tracks
