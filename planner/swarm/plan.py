@@ -29,6 +29,7 @@ of any vehicle) and the makespans after each stage.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -70,7 +71,10 @@ class SwarmOptions:
     max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
     passes: int = 3  # continuous re-timing passes
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
-    repairs_per_vehicle: int = 2  # prioritised planning's repair budget, per vehicle of a group
+    # prioritised planning's repair budget, per vehicle of a group (rounded up): on the named layouts at
+    # 32 vehicles the plans that repaired at all needed 1-3 repairs; 2 per vehicle let grid-64 run
+    # for minutes on failing passes
+    repairs_per_vehicle: float = 0.25
     max_restarts: int = 2  # prioritised planning begun anew with a vehicle it could not repair first
     orders: tuple[str, ...] = ("dependencies first", "longest first")  # prioritised planning's orders (ORDERS)
     # a vehicle not planned yet is assumed to hold its start this long, then to leave on its straight
@@ -82,7 +86,9 @@ class SwarmOptions:
     # "always" in prioritised planning too, "never". Off by default: on the named layouts it did not
     # shorten the makespan for its CPU time (docs/planner.md, "Causes measured one at a time")
     through_waypoints: Literal["never", "retime", "always"] = "never"
-    keep_straight: bool = True  # also try: keep the straight lines in no conflict, plan only the others
+    # also try: keep the straight lines in no conflict and plan only the others around them. Off by
+    # default: on the named layouts at 32 vehicles it never gave the shorter plan (docs/planner.md)
+    keep_straight: bool = False
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     seed: int = 0
     # per vehicle name: its predicted deflection under the plan's own disturbance, m; a pair's
@@ -208,7 +214,7 @@ def _kept_straight_stage(
         return None
     order = [a for a in dependency_order(problem) if a in conflicted]
     options = PriorityOptions(
-        max_repairs=opts.repairs_per_vehicle * problem.n_agents,
+        max_repairs=math.ceil(opts.repairs_per_vehicle * problem.n_agents),
         max_restarts=opts.max_restarts,
         hold_s=opts.unplanned_hold_s[0],
         through=opts.through_waypoints == "always",
@@ -249,7 +255,7 @@ def _prioritised_stage(
     counts = {"groups": len(groups), "planned": 0, "repairs": 0, "restarts": 0}
     for hold_s in opts.unplanned_hold_s:
         options = PriorityOptions(
-            max_repairs=opts.repairs_per_vehicle * max(len(g) for g in groups),
+            max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
             max_restarts=opts.max_restarts,
             hold_s=hold_s,
             through=opts.through_waypoints == "always",
