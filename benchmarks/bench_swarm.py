@@ -1,14 +1,19 @@
-"""Swarm benchmark (issue 30): formation layouts of N vehicles planned by ``proxplan plan`` in fresh
-processes, fixed goals and interchangeable goals (``assign_goals: by_type``).
+"""Swarm benchmark: formation changes of N vehicles planned by ``proxplan plan`` in fresh processes,
+fixed goals and interchangeable goals (``assign_goals: by_type``), on the named layouts and on a
+seeded family of random layouts.
 
 Usage:
-    python benchmarks/bench_swarm.py [--layout pillar grid circle corridor] [--n 32 64 128 256]
-        [--method optimized roadmap sampling] [--assign fixed by_type] [--timeout 600]
+    python benchmarks/bench_swarm.py [--layout pillar grid circle corridor] [--family K [--family-seed S]]
+        [--n 32 64 128 256] [--method optimized swarm sampling] [--assign fixed by_type] [--timeout 600]
+        [--child-python PATH] [--swarm-options JSON] [--keep DIR]
 
 Layouts (``proxplan.planner.formations.LAYOUTS``): ``pillar`` two staggered layers west of a pillar
 swap layers to the east side; ``grid`` a grid reshuffled by a seeded permutation; ``circle`` every
 vehicle to the antipode (all paths cross the centre); ``corridor`` two groups trade sides through a
 gap in a wall. Vehicle types cycle Crazyflie 2.1, Crazyflie-Parrot, small quad (``--types`` to change).
+``--family K`` adds K layouts of ``proxplan.planner.formations.random_formation`` (seeds S..S+K-1:
+pitch, layers, obstacles, type mix, start and goal regions drawn at random). The swarm layer's
+parameters were set on the named layouts only; report the family as it comes.
 
 Per run it prints the whole ``proxplan plan`` process's wall and CPU time (s; the interpreter +
 import baseline of the same run is printed first, so compare ratios on a loaded machine), the
@@ -16,6 +21,14 @@ makespan against the lower bound (fixed goals: the largest straight-line rest-to
 vehicle; ``by_type``: the same under the assignment, ``assignment_lower_bound_s``), the plan's
 method and how the swarm layer coordinated, the child's peak memory (``resource`` rusage, MB), and
 the verdict and whole-process time of ``proxplan verify`` on the written plan.json.
+
+``--child-python PATH`` plans and verifies with another interpreter (another installed version of
+proxplan: before / after in the same run). ``--swarm-options JSON`` plans in a child of this script
+with ``plan_scenario(..., swarm_options=SwarmOptions(**JSON))`` instead of the CLI (to measure one
+cause at a time, e.g. ``{"through_waypoints": false}``; the key ``sampling_alternative: false``
+leaves out the sampling planner beside the swarm layer); its wall time then includes the same
+verification and writing as ``proxplan plan``, not the PNG (neither does the CLI run: ``--no-plot``).
+Children run outside the repository (from its root, ``import proxplan`` would find the checkout).
 """
 
 from __future__ import annotations
@@ -36,7 +49,7 @@ def _run(cmd: list[str], timeout_s: float) -> tuple[float, int, float, str, floa
     """Wall time (s), exit code, child peak RSS (MB), stdout and CPU time (user + system, s)."""
     t0 = time.perf_counter()
     with tempfile.TemporaryFile() as out:
-        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.DEVNULL, cwd=ROOT)
+        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.DEVNULL, cwd=tempfile.gettempdir())
         deadline = t0 + timeout_s
         while True:
             pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
@@ -53,37 +66,78 @@ def _run(cmd: list[str], timeout_s: float) -> tuple[float, int, float, str, floa
     return wall, os.waitstatus_to_exitcode(status), usage.ru_maxrss / 1024.0, text, usage.ru_utime + usage.ru_stime
 
 
+def _child(scenario: str, out: str, method: str, options_json: str) -> int:
+    """Plan ``scenario`` with swarm options, write plan.json and print the CLI's JSON line."""
+    from proxplan.planfile import load_scenario, write_plan
+    from proxplan.planner import plan_scenario
+    from proxplan.planner.swarm import SwarmOptions
+    from proxplan.verify import verify_plan
+
+    sc = load_scenario(scenario)
+    options = json.loads(options_json)
+    alternative = options.pop("sampling_alternative", True)
+    plan = plan_scenario(
+        sc, method=method, seed=0, swarm_options=SwarmOptions(**options), sampling_alternative=alternative
+    )
+    violations = [] if plan.verified else verify_plan(plan, sc)
+    plan.metrics["verify_violations"] = len(violations)
+    Path(out).mkdir(parents=True, exist_ok=True)
+    write_plan(plan, out)
+    from proxplan.planfile import jsonable
+
+    print(json.dumps({"feasible": True, "method": plan.method, "metrics": jsonable(plan.metrics)}))
+    return 0
+
+
 def main() -> int:
+    if len(sys.argv) > 1 and sys.argv[1] == "--child":
+        return _child(*sys.argv[2:6])
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--layout", nargs="+", default=["pillar", "grid", "circle", "corridor"])
+    ap.add_argument("--layout", nargs="*", default=["pillar", "grid", "circle", "corridor"])
+    ap.add_argument("--family", type=int, default=0, help="also K random layouts of the seeded family")
+    ap.add_argument("--family-seed", type=int, default=0, help="first seed of the family")
     ap.add_argument("--n", type=int, nargs="+", default=[32, 64, 128, 256], help="swarm sizes")
-    ap.add_argument("--method", nargs="+", default=["optimized"], choices=["optimized", "roadmap", "sampling"])
+    ap.add_argument("--method", nargs="+", default=["optimized"], choices=["optimized", "swarm", "sampling"])
     ap.add_argument("--assign", nargs="+", default=["fixed"], choices=["fixed", "by_type"])
     ap.add_argument("--types", default=None, help="comma-separated vehicle types (default: the layout's mix)")
     ap.add_argument("--timeout", type=float, default=600.0, help="per-run wall-time cap, s")
+    ap.add_argument("--child-python", default=sys.executable, help="interpreter that plans and verifies")
+    ap.add_argument("--swarm-options", default=None, metavar="JSON", help="plan with these SwarmOptions")
+    ap.add_argument(
+        "--child-method-roadmap",
+        action="store_true",
+        help="the child calls the swarm method 'roadmap' (versions before the rename, for --child-python)",
+    )
     ap.add_argument("--keep", default=None, metavar="DIR", help="keep scenarios and plans in DIR")
     args = ap.parse_args()
 
     import yaml
 
     from proxplan.planfile import load_scenario
-    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.formations import LAYOUTS, random_formation
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 
-    base_wall, _, base_mb, _, base_cpu = _run([sys.executable, "-m", "proxplan.cli", "--help"], 120)
+    py = args.child_python
+    base_wall, _, base_mb, _, base_cpu = _run([py, "-m", "proxplan.cli", "--help"], 120)
     print(f"baseline (interpreter + CLI start): {base_wall:.2f} s wall, {base_cpu:.2f} s CPU, {base_mb:.0f} MB")
+    print(f"child interpreter: {py}; swarm options: {args.swarm_options or 'defaults'}")
     print(
-        f"{'layout':9s} {'N':>4s} {'goals':8s} {'method':10s} {'wall_s':>7s} {'cpu_s':>6s} {'makespan':>8s} "
+        f"{'layout':14s} {'N':>4s} {'goals':8s} {'method':10s} {'wall_s':>7s} {'cpu_s':>6s} {'makespan':>8s} "
         f"{'LB_s':>6s} {'ms/LB':>6s} {'peak_MB':>7s} {'verify':>6s} {'verify_s':>8s}  how"
     )
     tmp_ctx = tempfile.TemporaryDirectory() if args.keep is None else None
     tmp = Path(args.keep) if args.keep else Path(tmp_ctx.name)  # type: ignore[union-attr]
     tmp.mkdir(parents=True, exist_ok=True)
-    for layout in args.layout:
+    layouts: list[tuple[str, object]] = [(name, LAYOUTS[name]) for name in args.layout]
+    layouts += [
+        (f"random-{seed}", lambda n, seed=seed, **kw: random_formation(n, seed=seed))
+        for seed in range(args.family_seed, args.family_seed + args.family)
+    ]
+    for layout, make in layouts:
         for n in args.n:
             for goals in args.assign:
-                kw = {"types": args.types.split(",")} if args.types else {}
-                doc = LAYOUTS[layout](n, **kw)
+                kw = {"types": args.types.split(",")} if args.types and not layout.startswith("random") else {}
+                doc = make(n, **kw)  # type: ignore[operator]
                 if goals == "by_type":
                     doc["assign_goals"] = "by_type"
                 path = tmp / f"{layout}-{n}-{goals}.yaml"
@@ -91,8 +145,20 @@ def main() -> int:
                 lb = lower_bound_makespan_s(load_scenario(path))
                 for method in args.method:
                     out = tmp / f"out-{layout}-{n}-{goals}-{method}"
-                    cmd = [sys.executable, "-m", "proxplan.cli", "plan", str(path), "--out", str(out)]
-                    cmd += ["--method", method, "--seed", "0", "--no-plot", "--json"]
+                    if args.swarm_options:
+                        cmd = [
+                            py,
+                            str(Path(__file__).resolve()),
+                            "--child",
+                            str(path),
+                            str(out),
+                            method,
+                            args.swarm_options,
+                        ]
+                    else:
+                        cmd = [py, "-m", "proxplan.cli", "plan", str(path), "--out", str(out)]
+                        name = "roadmap" if args.child_method_roadmap and method == "swarm" else method
+                        cmd += ["--method", name, "--seed", "0", "--no-plot", "--json"]
                     wall, code, mb, text, cpu = _run(cmd, args.timeout)
                     ms = ratio = "-"
                     verdict, v_wall, how = ("timeout" if wall >= args.timeout else f"exit {code}"), "-", ""
@@ -103,12 +169,12 @@ def main() -> int:
                         lb_used = float(m.get("assignment_lower_bound_s") or lb)
                         makespan = float(m["makespan_s"])
                         ms, ratio = f"{makespan:.2f}", f"{makespan / lb_used:.2f}"
-                        how = f"{doc_out['method']}: " + str((m.get("swarm") or {}).get("coordination", ""))[:60]
+                        how = f"{doc_out['method']}: " + str((m.get("swarm") or {}).get("coordination", ""))[:70]
                         t_v = time.perf_counter()
                         res = subprocess.run(
-                            [sys.executable, "-m", "proxplan.cli", "verify", str(out / "plan.json")],
+                            [py, "-m", "proxplan.cli", "verify", str(out / "plan.json")],
                             capture_output=True,
-                            cwd=ROOT,
+                            cwd=tempfile.gettempdir(),
                         )
                         v_wall = f"{time.perf_counter() - t_v:.1f}"
                         verdict = "PASS" if res.returncode == 0 else "FAIL"
@@ -118,7 +184,7 @@ def main() -> int:
                         except json.JSONDecodeError:
                             how = text.strip()[-80:]
                     print(
-                        f"{layout:9s} {n:4d} {goals:8s} {method:10s} {wall:7.1f} {cpu:6.1f} {ms:>8s} {lb_used:6.2f} "
+                        f"{layout:14s} {n:4d} {goals:8s} {method:10s} {wall:7.1f} {cpu:6.1f} {ms:>8s} {lb_used:6.2f} "
                         f"{ratio:>6s} {mb:7.0f} {verdict:>6s} {v_wall:>8s}  {how}",
                         flush=True,
                     )

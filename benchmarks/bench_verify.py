@@ -168,7 +168,7 @@ def child_metrics(plan_json: str, png: str) -> int:
     """Print one JSON line: seconds of finish_metrics and plot_plan in this process."""
     from proxplan.planfile import read_plan
     from proxplan.planner import plot_plan
-    from proxplan.planner.pipeline import finish_metrics
+    from proxplan.planner.metrics import finish_metrics
     from proxplan.verify import scenario_of_plan
 
     plan = read_plan(plan_json)

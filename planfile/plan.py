@@ -215,6 +215,9 @@ class Plan:
     scenario_spec: dict | None = None
     format_version: int = PLAN_FORMAT_VERSION
     solver: SolverStats | None = None  # the optimiser's statistics (method "optimized"), else None
+    # the planner ran the verifier on this very plan in this process and it passed (not written to
+    # plan.json: a plan read from a file is checked again by whoever needs the verdict)
+    verified: bool = False
 
     @property
     def t_s(self) -> np.ndarray:

@@ -100,7 +100,7 @@ class PlanFile(FileModel):
     )
     scenario: Text = Field(description="scenario name")
     dt_s: Positive = Field(description="step of the common time grid, s")
-    method: Text = optional("planning method (optimized, sampling, roadmap, ...)")
+    method: Text = optional("planning method (optimized, sampling, swarm, ...)")
     vehicles: Annotated[dict[Name, TrajectoryPart], Field(min_length=1)] = Field(
         description="every vehicle's trajectory by name"
     )

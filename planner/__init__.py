@@ -7,7 +7,7 @@ before it):
 - :mod:`proxplan.planner.sampling`: the single-vehicle OMPL space-time planner and prioritised
   planning with it;
 - :mod:`proxplan.planner.swarm`: swarms - goal assignment, joint coordination on a lattice with
-  exact synchronous conflicts (LaCAM), continuous-time planning and re-timing (``method="roadmap"``,
+  exact synchronous conflicts (LaCAM), continuous-time planning and re-timing (``method="swarm"``,
   and ``"optimized"`` for swarms);
 - :mod:`proxplan.planner.optimizer`: CasADi refinement keeping predicted wrenches within authority.
 

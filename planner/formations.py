@@ -23,6 +23,13 @@ from typing import Any
 
 DEFAULT_TYPES = ("crazyflie-2.1", "crazyflie-parrot", "small-quad")
 LOW_Z_M = 1.0  # height of the lower layer, m
+# the randomised family (random_formation): ranges its seeded draws come from
+FAMILY_PITCH_M = (0.55, 0.9)  # slot pitch within a layer, m
+FAMILY_LAYERS = (1, 2, 3)  # layers of a region (staggered by half a pitch)
+FAMILY_LAYER_GAP_M = (0.4, 0.8)  # height between layers, m
+FAMILY_OBSTACLES = (0, 3)  # boxes between the start and goal regions (inclusive range)
+FAMILY_REGION_GAP_M = (0.0, 3.0)  # horizontal gap between the start and goal regions, m
+FAMILY_DRAWS = 20  # draws per seed until the pre-checks pass (starts and goals valid)
 
 
 def formation_change(
@@ -185,6 +192,120 @@ def corridor(
             {"name": "wall-north", "min": [-wall, 0.5 * gap_m, 0.0], "max": [wall, half_y, 3.0]},
         ],
         "limits": _limits_block(authority_fraction, min_separation_m),
+        "vehicles": vehicles,
+    }
+
+
+def random_formation(n_vehicles: int, *, seed: int = 0) -> dict[str, Any]:
+    """A seeded random formation change (the bench's family of layouts nobody tuned on): a start
+    region and a goal region, each a grid of slots at a random pitch in 1-3 staggered layers,
+    rotated at random and placed a random gap apart; 0-3 random boxes between them; a random mix of
+    the built-in types; every vehicle to a random goal slot. A draw whose starts or goals break the
+    planner's pre-checks (separation, cut-offs at rest) is drawn again from the same generator, up
+    to ``FAMILY_DRAWS`` times (so a seed always gives the same scenario); the name says the seed."""
+    import numpy as np
+
+    from proxplan.fileio import UserError
+    from proxplan.planfile import scenario_from_dict
+    from proxplan.planner.checks.precheck import check_starts_and_goals
+    from proxplan.planner.errors import InfeasibleError
+
+    if n_vehicles < 1:
+        raise ValueError(f"a layout needs at least one vehicle, got {n_vehicles}")
+    rng = np.random.default_rng(seed)
+    for draw in range(FAMILY_DRAWS):
+        doc = _family_draw(n_vehicles, rng, seed)
+        try:
+            check_starts_and_goals(scenario_from_dict(doc, label=doc["name"]), mode="downwash")
+        except (UserError, InfeasibleError):
+            continue
+        doc["description"] = (
+            f"random formation change, seed {seed}, draw {draw + 1} (earlier draws broke the pre-checks)"
+        )
+        return doc
+    raise ValueError(f"random formation seed {seed}: no valid draw in {FAMILY_DRAWS}")
+
+
+def _family_draw(n: int, rng, seed: int) -> dict[str, Any]:
+    import numpy as np
+
+    all_types = list(DEFAULT_TYPES) + ["large-quad"]
+    k = int(rng.integers(1, len(all_types) + 1))
+    mix = list(rng.choice(all_types, size=k, replace=False))
+    share = rng.dirichlet(np.ones(k))
+    types = [str(mix[int(rng.choice(k, p=share))]) for _ in range(n)]
+
+    def region() -> np.ndarray:
+        pitch = float(rng.uniform(*FAMILY_PITCH_M))
+        layers = int(rng.choice(FAMILY_LAYERS))
+        gap = float(rng.uniform(*FAMILY_LAYER_GAP_M))
+        per = math.ceil(n / layers)
+        cols = math.ceil(math.sqrt(per))
+        rows = math.ceil(per / cols)
+        pts = []
+        for i in range(n):
+            layer, j = i % layers, i // layers
+            r, c = divmod(j, cols)
+            stagger = 0.5 * pitch * (layer % 2)
+            pts.append(
+                [(c - 0.5 * (cols - 1)) * pitch + stagger, (r - 0.5 * (rows - 1)) * pitch + stagger, layer * gap]
+            )
+        a = float(rng.uniform(0.0, 2.0 * math.pi))
+        rot = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
+        return np.array(pts) @ rot.T
+
+    starts, goals = region(), region()
+    half = lambda p: float(np.abs(p[:, :2]).max())  # noqa: E731 - half width of a region, m
+    gap = float(rng.uniform(*FAMILY_REGION_GAP_M))
+    direction = float(rng.uniform(0.0, 2.0 * math.pi))
+    offset = (half(starts) + half(goals) + gap) * np.array([math.cos(direction), math.sin(direction)])
+    goals[:, :2] += offset
+    z0 = float(LOW_Z_M)
+    starts[:, 2] += z0
+    goals[:, 2] += z0
+    perm = rng.permutation(n)
+    lo = np.minimum(starts.min(axis=0), goals.min(axis=0))[:2] - 1.2
+    hi = np.maximum(starts.max(axis=0), goals.max(axis=0))[:2] + 1.2
+    top = float(max(starts[:, 2].max(), goals[:, 2].max())) + 1.5
+    obstacles = []
+    for i in range(int(rng.integers(FAMILY_OBSTACLES[0], FAMILY_OBSTACLES[1] + 1))):
+        centre = 0.5 * offset + rng.uniform(-0.5, 0.5, 2) * max(gap, 0.6)  # between the regions
+        size = rng.uniform(0.2, 0.6, 2)
+        obstacles.append(
+            {
+                "name": f"box-{i}",
+                "min": [round(float(centre[0] - size[0] / 2), 4), round(float(centre[1] - size[1] / 2), 4), 0.0],
+                "max": [
+                    round(float(centre[0] + size[0] / 2), 4),
+                    round(float(centre[1] + size[1] / 2), 4),
+                    round(top, 4),
+                ],
+            }
+        )
+    vehicles = {
+        f"v{i:03d}": {
+            "type": types[i],
+            "start": [round(float(x), 4) for x in starts[i]],
+            "goal": [round(float(x), 4) for x in goals[int(perm[i])]],
+        }
+        for i in range(n)
+    }
+
+    # drop boxes that would hold a start or a goal (with a body's margin)
+    def inside(b, p, m=0.5):
+        return all(b["min"][d] - m <= p[d] <= b["max"][d] + m for d in range(2))
+
+    obstacles = [
+        b for b in obstacles if not any(inside(b, v["start"]) or inside(b, v["goal"]) for v in vehicles.values())
+    ]
+    return {
+        "name": f"random-{n}-seed{seed}",
+        "workspace": {
+            "min": [round(float(lo[0]), 4), round(float(lo[1]), 4), 0.0],
+            "max": [round(float(hi[0]), 4), round(float(hi[1]), 4), round(top, 4)],
+        },
+        "obstacles": obstacles,
+        "limits": _limits_block(0.1, 0.25),
         "vehicles": vehicles,
     }
 

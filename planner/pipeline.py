@@ -1,7 +1,24 @@
-"""Multi-vehicle planning pipeline: pre-checks, the chosen planner (prioritised space-time sampling,
-:mod:`proxplan.planner.sampling`, or the swarm layer, :mod:`proxplan.planner.swarm`), the
-independent verifier as a safety net, optional refinement (:func:`proxplan.planner.optimizer.refine_plan`)
-and the plan's metrics.
+"""The planning pipeline, top to bottom: one named stage after another, each with typed inputs and
+outputs (:func:`plan_scenario`).
+
+1. *Prepare* (:func:`_prepare`): goals of interchangeable vehicles (``assign_goals: by_type``,
+   :func:`proxplan.planner.swarm.goals.apply_assignment`), then the checks before any search (user
+   mistakes, proven infeasibility).
+2. *Swarm layer* (:func:`_swarm_stage`; formation changes, :mod:`proxplan.planner.swarm`): its plan
+   once the verifier passes it, or why there is none (:class:`SwarmOutcome`).
+3. *Sampling planner* (:func:`_sampling_stage`, :mod:`proxplan.planner.sampling`): the plan where
+   the swarm layer is not used or gave up; beside the swarm layer's lattice plan flown in lock-step
+   (its guaranteed, slow answer) it runs as well and the shorter verified plan is kept.
+4. *Refine* (:func:`_refine_stage`): ``optimized`` outside the swarm layer refines with CasADi
+   (:func:`proxplan.planner.optimizer.refine_plan`).
+5. *Record* (:func:`_record`): the typed records of the stages into ``plan.metrics``, and the DESIGN
+   metrics (:func:`proxplan.planner.metrics.finish_metrics`).
+
+Every planner's plan goes through one verification policy (:func:`_until_verified`): the verifier
+runs on it; a plan it rejects is planned again once with every disturbed vehicle's tube grown by its
+predicted deflection (:func:`proxplan.planner.metrics.deflection_allowance`; a pair's keep-out grows
+by the sum of its two vehicles' values, as in the verifier), then once more with another seed; the
+plan with the fewest violations is kept, with a note.
 
 Docking: the final straight approach to the dock crosses the invalid zone, where the cutoff rule is
 suspended for the dock pair only (the two must meet there). The plan reports the time spent in the
@@ -11,9 +28,9 @@ invalid zone and ``proxplan verify`` checks the model's extrapolated authority u
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-
-import numpy as np
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from typing import Literal
 
 from proxplan.planfile import Plan, Scenario
 from proxplan.planner.checks.precheck import (
@@ -22,21 +39,67 @@ from proxplan.planner.checks.precheck import (
     check_starts_and_goals,
     check_swarm_size,
 )
-from proxplan.planner.errors import PlanNotFound
+from proxplan.planner.errors import InfeasibleError, PlanNotFound
+from proxplan.planner.metrics import deflection_allowance, finish_metrics
 from proxplan.planner.sampling.prioritized import PLAN_MARGIN_M, sampling_plan
 from proxplan.planner.sampling.spec import SamplingOptions
-from proxplan.planner.timing.plan_grid import DT_S, assemble_plan
+from proxplan.planner.swarm import SWARM_MIN_VEHICLES, SwarmInfo, SwarmOptions, swarm_applicable, swarm_timed
+from proxplan.planner.swarm.goals import apply_assignment
+from proxplan.planner.timing.plan_grid import DT_S, assemble_plan, moving_end_s
 
-__all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "deflection_allowance", "finish_metrics", "plan_scenario"]
-
-METHODS = ("optimized", "sampling", "roadmap", "no-downwash", "ellipsoid")
-MODE_OF_METHOD = {
+Method = Literal["optimized", "sampling", "swarm", "no-downwash", "ellipsoid"]
+METHODS: tuple[Method, ...] = ("optimized", "sampling", "swarm", "no-downwash", "ellipsoid")
+# the constraint set each method plans with (the two baselines plan without the downwash cut-offs)
+MODE_OF_METHOD: dict[Method, str] = {
     "optimized": "downwash",
-    "roadmap": "downwash",
+    "swarm": "downwash",
     "sampling": "downwash",
     "no-downwash": "no-downwash",
     "ellipsoid": "ellipsoid",
 }
+OPTIMIZE_EXTRA_PASSES = 5  # continuous re-timing passes that ``optimized`` adds for swarms
+# the sampling planner runs beside the swarm layer's prioritised or lattice plan up to this many
+# vehicles (issue 30: 2.0-2.2x the lower bound at 32 / 64 where it finishes), with a count budget:
+SAMPLING_ALTERNATIVE_MAX_VEHICLES = 64
+ALTERNATIVE_SEARCHES_PER_VEHICLE = 2  # single-vehicle searches per vehicle (re-orderings included)
+ALTERNATIVE_RRT_ITERATIONS = 10000  # RRT iterations per solve (the waiting search finds most paths)
+RETRY_SEED_OFFSET = 7919  # the verification policy's last attempt plans with seed + this (a prime)
+# ``optimized`` for swarms: the vehicles arriving after this fraction of the makespan set it (as in
+# the decomposed optimiser's later rounds) and are re-optimised; a plan within OPTIMAL_WITHIN of the
+# lower bound is not (the must-show's 5 %)
+MAKESPAN_SETTERS = 0.9
+OPTIMAL_WITHIN = 0.05
+SWARM_OPTIMIZE_BUDGET_S = 20.0  # default wall-clock budget of that re-optimisation (--time-budget), s
+
+__all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "Method", "SwarmOutcome", "deflection_allowance", "plan_scenario"]
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What every stage needs to know about the request (options passed in, never patched)."""
+
+    method: Method
+    mode: str  # constraint set (MODE_OF_METHOD)
+    seed: int
+    sampling: SamplingOptions
+    swarm: SwarmOptions
+    time_budget_s: float | None  # the optimiser's wall-clock budget, s
+    t0: float  # time.perf_counter() at the start, s
+    deadline: float | None  # time.perf_counter() value of --max-time, s
+    progress: Callable[..., None] | None  # (message[, fraction]): the planners call it with one or two
+    alternative: bool = True  # the sampling planner beside the swarm layer
+
+    def past_deadline(self) -> bool:
+        return self.deadline is not None and time.perf_counter() > self.deadline
+
+
+@dataclass
+class SwarmOutcome:
+    """Stage 2: the swarm layer's verified plan and its info, or (None, why not) for a note."""
+
+    plan: Plan | None
+    info: SwarmInfo | None
+    why_not: str | None
 
 
 def plan_scenario(
@@ -46,302 +109,287 @@ def plan_scenario(
     seed: int = 0,
     progress: Callable[[str, float], None] | None = None,
     options: SamplingOptions | None = None,
+    swarm_options: SwarmOptions | None = None,
     time_budget_s: float | None = None,
     max_time_s: float | None = None,
+    sampling_alternative: bool = True,
 ) -> Plan:
-    """Plan every vehicle of ``scenario``; raises :class:`InfeasibleError` when impossible.
+    """Plan every vehicle of ``scenario`` through the stages of the module; raises
+    :class:`InfeasibleError` when proven impossible, :class:`PlanNotFound` when a search gave up.
 
-    ``method``: "optimized" (sampling, then ``proxplan.planner.optimizer.refine_plan`` when available),
-    "roadmap" (the swarm layer, :mod:`proxplan.planner.swarm.plan`; the sampling planner when it
-    cannot plan the scenario or its search gives up, with a note),
-    "sampling", "no-downwash" (separation only) or "ellipsoid" (keep-out ellipsoid baseline).
-    ``progress(message, fraction)`` is called as vehicles are planned. ``time_budget_s``: wall-clock
-    budget of the optimiser (default ``RefineOptions.time_budget_s``), s; it returns the best
-    verified improvement found by then. ``max_time_s``: wall-clock budget of the whole plan, s;
-    a search still running then stops with :class:`PlanNotFound` ("not found within ..."), never
-    with a different plan.
-
-    Swarms (``method="roadmap"``, and ``"optimized"`` for scenarios of
-    ``proxplan.planner.swarm.SWARM_MIN_VEHICLES`` vehicles or more without docks) go through
-    :mod:`proxplan.planner.swarm`; ``assign_goals: by_type`` is applied first
-    (:func:`proxplan.planner.swarm.goals.apply_assignment`) and recorded in ``plan.metrics``.
+    ``method``: one of :data:`METHODS`: "optimized" (sampling, then CasADi refinement; formation
+    changes of ``SWARM_MIN_VEHICLES`` or more without docks go through the swarm layer), "swarm"
+    (the swarm layer; the sampling planner when it cannot plan the scenario or its search gives up,
+    with a note), "sampling", "no-downwash" (separation only) or "ellipsoid" (keep-out ellipsoid
+    baseline). ``options`` / ``swarm_options``: the sampling planner's and the swarm layer's knobs.
+    ``progress(message, fraction)`` is called as work proceeds. ``time_budget_s``: wall-clock
+    budget of the optimiser (default ``RefineOptions.time_budget_s``), s. ``max_time_s``: wall-clock
+    budget of the whole plan, s; a search still running then stops with :class:`PlanNotFound`
+    ("not found within ..."), never with a different plan. ``sampling_alternative``: run the
+    sampling planner beside the swarm layer (stage 3).
     """
+    run = _start(method, seed, progress, options, swarm_options, time_budget_s, max_time_s)
+    run = replace(run, alternative=sampling_alternative)
+    scenario, assignment = _prepare(scenario, run)
+    swarm = _swarm_stage(scenario, run) if _uses_swarm(run.method, scenario) else None
+    plan = _sampling_stage(scenario, run, swarm)
+    plan = _refine_stage(scenario, plan, run, swarm)
+    _record(scenario, plan, run, swarm, assignment)
+    if progress:
+        progress("done", 1.0)
+    return plan
+
+
+# -- stage 0: the request ---------------------------------------------------------------------------
+def _start(method, seed, progress, options, swarm_options, time_budget_s, max_time_s) -> _Run:
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if time_budget_s is not None and not time_budget_s > 0:
         from proxplan.fileio import UserError
 
         raise UserError(f"--time-budget: expected a positive number of seconds, got {time_budget_s:g}")
-    from proxplan.planner.swarm.goals import apply_assignment
-    from proxplan.verify import verify_plan
-
-    options = options or SamplingOptions()
+    swarm = swarm_options or SwarmOptions()
+    extra = OPTIMIZE_EXTRA_PASSES if method == "optimized" else 0
     t0 = time.perf_counter()
-    deadline = None if max_time_s is None else t0 + float(max_time_s)
-    mode = MODE_OF_METHOD[method]
+    return _Run(
+        method=method,
+        mode=MODE_OF_METHOD[method],
+        seed=int(seed),
+        sampling=options or SamplingOptions(),
+        swarm=replace(swarm, seed=int(seed), passes=swarm.passes + extra),
+        time_budget_s=time_budget_s,
+        t0=t0,
+        deadline=None if max_time_s is None else t0 + float(max_time_s),
+        progress=progress,
+    )
+
+
+# -- stage 1: assignment and checks before any search -------------------------------------------
+def _prepare(scenario: Scenario, run: _Run) -> tuple[Scenario, dict | None]:
     check_swarm_size(scenario)
     scenario, assignment = apply_assignment(scenario)
-    check_starts_and_goals(scenario, mode=mode)
-    check_goal_tubes(scenario, mode=mode, margin_m=PLAN_MARGIN_M)
-    if mode == "downwash":
-        check_goal_loops(scenario)
-    swarm = method == "roadmap" or (method == "optimized" and _is_swarm(scenario))
-    plan, why_not = (
-        _swarm_plan(scenario, seed=seed, progress=progress, deadline=deadline, optimize=method == "optimized")
-        if swarm
-        else (None, None)
-    )
-    if (
-        plan is not None
-        and plan.metrics["swarm"]["stage"] == "lattice"
-        and len(scenario.vehicles) <= SAMPLING_ALTERNATIVE_MAX_VEHICLES
-    ):
-        plan = _shorter_with_sampling(
-            scenario, plan, mode=mode, seed=seed, options=options, progress=progress, deadline=deadline
-        )
-    from_swarm = plan is not None
-    if plan is None:
-        if deadline is not None and time.perf_counter() > deadline:
-            raise PlanNotFound(f"no plan found within the time budget of {max_time_s:g} s ({why_not})")
-        plan = sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
-        if why_not:
-            plan.notes.append(why_not)
-            method = "sampling"
-    bad = []
-    if mode == "downwash" and not from_swarm:
-        # safety net: the timed plan is re-checked per vehicle, but the verifier is independent
-        bad = verify_plan(plan, scenario)
-        if bad and not options.deflection_m:
-            plan, bad = _with_deflections(scenario, plan, bad, mode=mode, seed=seed, options=options, progress=progress)
-        if bad:
-            retry = sampling_plan(scenario, mode=mode, seed=seed + 7919, options=options, progress=progress)
-            bad_retry = verify_plan(retry, scenario)
-            note = f"the first sampling plan failed verification ({bad[0]}); re-planned"
-            if len(bad_retry) < len(bad):
-                plan = retry
-            retry_note = note + ("" if not bad_retry else f"; still {len(bad_retry)} violation(s)")
-            plan.notes.append(retry_note)
-            bad = bad_retry if plan is retry else bad
-    if not from_swarm:
-        plan.method = method if method != "optimized" else "sampling"
-    if method == "optimized" and not swarm:
-        plan = _refine(scenario, plan, seed=seed, progress=progress, time_budget_s=time_budget_s)
-    elif mode == "downwash" and not bad:
-        plan.metrics["verified"] = True  # the verifier passed this very plan (the CLI need not re-run it)
-    if assignment is not None:
-        plan.metrics["assignment"] = assignment
-        plan.metrics["assignment_lower_bound_s"] = assignment["lower_bound_s"]
-    finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - t0)
-    if progress:
-        progress("done", 1.0)
-    return plan
+    check_starts_and_goals(scenario, mode=run.mode)
+    check_goal_tubes(scenario, mode=run.mode, margin_m=PLAN_MARGIN_M)
+    if run.mode == "downwash":
+        check_goal_loops(scenario)  # a hold where the vehicle's loop in the jets is not damped
+    return scenario, assignment
 
 
-def deflection_allowance(plan: Plan, scenario: Scenario) -> dict[str, float]:
-    """Per vehicle the largest distance, m, its controller is predicted to be pushed off the plan by
-    the plan's own predicted disturbance (``proxplan.verify.deflection_along_plan``), for vehicles
-    pushed at all: the tube growth the planner's second pass keeps others clear of."""
-    from proxplan.verify import deflection_along_plan, wrench_along_plan
-
-    t = np.arange(0.0, float(plan.t_s[-1]) + 0.005, 0.01)
-    along = wrench_along_plan(plan, scenario, t_s=t)
-    return {n: float(d.max()) for n, d in deflection_along_plan(plan, scenario, along).items() if d.max() > 0.0}
+def _uses_swarm(method: Method, scenario: Scenario) -> bool:
+    """``swarm``, and ``optimized`` for a formation change: enough vehicles and no docks."""
+    if method == "swarm":
+        return True
+    return method == "optimized" and len(scenario.vehicles) >= SWARM_MIN_VEHICLES and swarm_applicable(scenario) is None
 
 
-def _with_deflections(
-    scenario: Scenario, plan: Plan, bad: list, *, mode: str, seed: int, options: SamplingOptions, progress
+# -- the one verification policy ----------------------------------------------------------------
+def _until_verified(
+    scenario: Scenario, run: _Run, attempt: Callable[[Mapping[str, float], int], Plan]
 ) -> tuple[Plan, list]:
-    """A plan that fails the verifier is planned again with each disturbed vehicle's tube grown by
-    its largest predicted deflection in the first plan (:func:`deflection_allowance`): the
-    verifier grows the tube by the deflection where it applies, the planner's checker by its
-    largest value throughout. The plan with fewer violations is kept, with a note."""
-    from dataclasses import replace
-
+    """``attempt(deflections, seed)``'s plan and the verifier's violations of it (see module)."""
     from proxplan.verify import verify_plan
 
-    extra = deflection_allowance(plan, scenario)
-    if not extra:
+    plan = attempt({}, run.seed)
+    bad = verify_plan(plan, scenario)
+    if not bad:
         return plan, bad
-    again = sampling_plan(
-        scenario, mode=mode, seed=seed, options=replace(options, deflection_m=extra), progress=progress
-    )
-    bad_again = verify_plan(again, scenario)
-    grown = ", ".join(f"{n} {100 * d:.1f} cm" for n, d in sorted(extra.items()))
-    if len(bad_again) < len(bad):
-        again.notes.append(
-            f"planned again with the tubes of disturbed vehicles grown by their predicted deflection ({grown}): "
-            f"the first plan failed verification ({bad[0]})"
-        )
-        return again, bad_again
-    plan.notes.append(f"planning again with tubes grown by the predicted deflections ({grown}) did not help")
+    grown = deflection_allowance(plan, scenario)
+    tries = ([(grown, run.seed)] if grown else []) + [(grown, run.seed + RETRY_SEED_OFFSET)]
+    for deflection, seed in tries:
+        again = attempt(deflection, seed)
+        bad_again = verify_plan(again, scenario)
+        how = ", ".join(f"{n} {100 * d:.1f} cm" for n, d in sorted(deflection.items())) or "none"
+        what = f"planned again (tubes grown by the predicted deflections: {how}; seed {seed})"
+        if len(bad_again) < len(bad):
+            again.notes.append(f"{what}: the first plan failed verification ({bad[0]})")
+            plan, bad = again, bad_again
+        else:
+            plan.notes.append(f"{what}: no fewer violations")
+        if not bad:
+            break
     return plan, bad
 
 
-def _shorter_with_sampling(
-    scenario: Scenario, plan: Plan, *, mode: str, seed: int, options: SamplingOptions, progress, deadline
-) -> Plan:
-    """The swarm layer's lattice plan flown in lock-step (its guaranteed answer, when prioritised
-    planning gave up) or, when it is shorter and passes the verifier, the sampling planner's plan
-    (one vehicle at a time in continuous space-time): the two fail on different layouts. It has no
-    deadline of its own: it starts only before the caller's deadline, and only up to
-    ``SAMPLING_ALTERNATIVE_MAX_VEHICLES`` vehicles."""
-    from proxplan.planner.errors import InfeasibleError
-    from proxplan.planner.optimizer.acceptance import moving_end_s
+# -- stage 2: the swarm layer -------------------------------------------------------------------
+def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
+    why = swarm_applicable(scenario)
+    if why is not None:
+        return SwarmOutcome(None, None, f"swarm layer: not used, {why}")
+    infos: dict[int, SwarmInfo] = {}  # id(plan) -> the info of the attempt that made it
+
+    def attempt(deflection: Mapping[str, float], seed: int) -> Plan:
+        options = replace(run.swarm, seed=seed, deflection_m=_merged(run.swarm.deflection_m, deflection))
+        timed, info = swarm_timed(scenario, options, progress=run.progress, deadline=run.deadline)
+        plan = assemble_plan(scenario, timed, method=run.method, notes=list(scenario.load_notes))
+        plan.notes.append(f"swarm layer: {info.coordination}")
+        infos[id(plan)] = info
+        return plan
+
+    try:
+        plan, bad = _until_verified(scenario, run, attempt)
+    except PlanNotFound as err:
+        if run.past_deadline():
+            raise
+        return SwarmOutcome(None, None, f"swarm layer: {err.message}")
+    info = infos[id(plan)]
+    if bad:
+        return SwarmOutcome(None, info, f"swarm layer: plan failed verification ({bad[0]})")
+    return SwarmOutcome(plan, info, None)
+
+
+def _merged(a: Mapping[str, float], b: Mapping[str, float]) -> dict[str, float]:
+    return {n: max(float(a.get(n, 0.0)), float(b.get(n, 0.0))) for n in set(a) | set(b)}
+
+
+# -- stage 3: the sampling planner --------------------------------------------------------------
+def _sampling_attempt(scenario: Scenario, run: _Run) -> Callable[[Mapping[str, float], int], Plan]:
+    def attempt(deflection: Mapping[str, float], seed: int) -> Plan:
+        options = replace(run.sampling, deflection_m=_merged(run.sampling.deflection_m, deflection))
+        return sampling_plan(scenario, mode=run.mode, seed=seed, options=options, progress=run.progress)
+
+    return attempt
+
+
+def _sampling_stage(scenario: Scenario, run: _Run, swarm: SwarmOutcome | None) -> Plan:
+    """The sampling planner's plan where there is no swarm plan; beside the swarm layer's prioritised
+    or lattice plan (up to ``SAMPLING_ALTERNATIVE_MAX_VEHICLES``, with a count budget) the shorter
+    verified of the two; else the swarm plan."""
+    if swarm is not None and swarm.plan is not None:
+        searched = swarm.info is not None and swarm.info.stage != "straight"
+        small = len(scenario.vehicles) <= SAMPLING_ALTERNATIVE_MAX_VEHICLES
+        if run.alternative and searched and small and not run.past_deadline():
+            return _shorter(scenario, run, swarm.plan)
+        swarm.plan.verified = run.mode == "downwash"
+        return swarm.plan
+    if run.past_deadline():
+        why = f" ({swarm.why_not})" if swarm is not None and swarm.why_not else ""
+        raise PlanNotFound(f"no plan found within the time budget{why}")
+    attempt = _sampling_attempt(scenario, run)
+    if run.mode != "downwash":  # the baselines plan without the cut-offs: the verifier judges them, later
+        plan, bad = attempt({}, run.seed), None
+    else:
+        plan, bad = _until_verified(scenario, run, attempt)
+        if bad:
+            plan.notes.append(f"still {len(bad)} violation(s) after planning again")
+    if swarm is not None and swarm.why_not:
+        plan.notes.append(f"{swarm.why_not}; this is the sampling planner's plan")
+    plan.method = "sampling" if run.method in ("swarm", "optimized") else run.method
+    plan.verified = bad == []
+    return plan
+
+
+def _shorter(scenario: Scenario, run: _Run, swarm_plan: Plan) -> Plan:
+    """The swarm plan or, when shorter and verified, the sampling planner's plan within its count
+    budget (``ALTERNATIVE_SEARCHES_PER_VEHICLE`` searches per vehicle of ``ALTERNATIVE_RRT_ITERATIONS``)."""
     from proxplan.verify import verify_plan
 
-    if deadline is not None and time.perf_counter() > deadline:
-        return plan
-    try:
-        other = sampling_plan(scenario, mode=mode, seed=seed, options=options, progress=progress)
-    except (InfeasibleError, PlanNotFound) as err:
-        plan.notes.append(f"the sampling planner was tried as well and found no plan ({err})")
-        return plan
-    mine, theirs = moving_end_s(plan), moving_end_s(other)
-    if theirs >= mine or verify_plan(other, scenario):
-        plan.notes.append(f"the sampling planner was tried as well: {theirs:.2f} s, not shorter or not verified")
-        return plan
-    other.method = plan.method
-    other.metrics.update({k: v for k, v in plan.metrics.items() if k in ("swarm", "lower_bound_s", "seed")})
-    other.metrics["verify_violations"] = 0
-    other.notes.append(
-        f"sampling planner's plan ({theirs:.2f} s): shorter than the swarm layer's lattice plan in lock-step ({mine:.2f} s)"
+    swarm_plan.verified = True
+    budget = replace(
+        run.sampling,
+        max_searches=ALTERNATIVE_SEARCHES_PER_VEHICLE * len(scenario.vehicles),
+        max_iterations=min(run.sampling.max_iterations, ALTERNATIVE_RRT_ITERATIONS),
     )
+    try:
+        other = _sampling_attempt(scenario, replace(run, sampling=budget))({}, run.seed)
+    except (InfeasibleError, PlanNotFound) as err:
+        swarm_plan.notes.append(f"the sampling planner was tried as well and found no plan ({err})")
+        return swarm_plan
+    mine, theirs = moving_end_s(swarm_plan), moving_end_s(other)
+    if theirs >= mine or verify_plan(other, scenario):
+        swarm_plan.notes.append(
+            f"the sampling planner was tried as well (count budget): {theirs:.2f} s, not shorter or not verified"
+        )
+        return swarm_plan
+    other.method = "sampling"
+    other.verified = True
+    other.notes.append(f"sampling planner's plan ({theirs:.2f} s): shorter than the swarm layer's ({mine:.2f} s)")
     return other
 
 
-def _is_swarm(scenario: Scenario) -> bool:
-    """A formation change for the swarm layer: enough vehicles and no docks."""
-    from proxplan.planner.swarm import SWARM_MIN_VEHICLES, swarm_applicable
-
-    return len(scenario.vehicles) >= SWARM_MIN_VEHICLES and swarm_applicable(scenario) is None
-
-
-def _swarm_plan(scenario: Scenario, *, seed: int, progress, deadline, optimize: bool) -> tuple[Plan | None, str | None]:
-    """(the swarm layer's plan (:func:`proxplan.planner.swarm.swarm_timed`), None) when it can plan
-    the scenario and the verifier passes the plan; else (None, why not: a note for the sampling
-    plan that replaces it)."""
-    from dataclasses import replace
-
-    from proxplan.planner.swarm import SearchGaveUp, SwarmOptions, swarm_applicable
-
-    why = swarm_applicable(scenario)
-    if why is not None:
-        return None, f"swarm layer: not used, {why}; this is the sampling planner's plan"
-    options = SwarmOptions(seed=seed, passes=SwarmOptions.passes + (OPTIMIZE_EXTRA_PASSES if optimize else 0))
-    method = "optimized" if optimize else "roadmap"
-    try:
-        plan, bad = _swarm_attempt(scenario, options, method, seed=seed, progress=progress, deadline=deadline)
-        if bad:
-            # the verifier grows a disturbed vehicle's tube by its predicted deflection; plan again
-            # with every keep-out grown by twice the largest one of the first plan (a pair's growth
-            # is the sum of its two vehicles' deflections)
-            extra = deflection_allowance(plan, scenario)
-            if extra:
-                grow_m = 2.0 * max(extra.values())
-                again, bad_again = _swarm_attempt(
-                    scenario,
-                    replace(options, deflection_m=grow_m),
-                    method,
-                    seed=seed,
-                    progress=progress,
-                    deadline=deadline,
-                )
-                if not bad_again:
-                    again.notes.append(
-                        f"swarm layer: keep-outs grown by {100 * grow_m:.1f} cm for the predicted deflections "
-                        f"(the first plan failed verification: {bad[0]})"
-                    )
-                    plan, bad = again, bad_again
-    except SearchGaveUp as err:
-        return None, f"swarm layer: {err.message}; this is the sampling planner's plan"
-    if bad:
-        return None, f"swarm layer: plan failed verification ({bad[0]}); this is the sampling planner's plan"
-    plan.metrics["verify_violations"] = 0
-    return plan, None
-
-
-OPTIMIZE_EXTRA_PASSES = 5  # continuous re-timing passes that ``optimized`` adds for swarms
-# the sampling planner is tried beside a lattice plan in lock-step up to this many vehicles (measured
-# at 32 / 64: 2.0-2.2x the lower bound in 5-85 s where it finishes; beyond, its time is unbounded)
-SAMPLING_ALTERNATIVE_MAX_VEHICLES = 64
-
-
-def _swarm_attempt(scenario: Scenario, options, method: str, *, seed: int, progress, deadline) -> tuple[Plan, list]:
-    """The swarm layer's plan with ``options`` and what the verifier says of it (SearchGaveUp passes)."""
-    from proxplan.planner.swarm import swarm_timed
-    from proxplan.verify import verify_plan
-
-    timed, info = swarm_timed(scenario, options, progress=progress, deadline=deadline)
-    plan = assemble_plan(scenario, timed, method=method, notes=list(scenario.load_notes))
-    plan.notes.append(f"swarm layer: {info['coordination']}")
-    plan.metrics["swarm"] = info
-    plan.metrics["lower_bound_s"] = info["lower_bound_s"]
-    plan.metrics["seed"] = seed
-    return plan, verify_plan(plan, scenario)
-
-
-def _refine(scenario: Scenario, plan: Plan, *, seed: int, progress, time_budget_s: float | None = None) -> Plan:
+# -- stage 4: refinement ------------------------------------------------------------------------
+def _refine_stage(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome | None) -> Plan:
+    if run.method != "optimized":
+        return plan
+    if swarm is not None:
+        return _refine_swarm(scenario, plan, run, swarm)
     from proxplan.planner.optimizer import RefineOptions, refine_plan
 
-    options = RefineOptions() if time_budget_s is None else RefineOptions(time_budget_s=time_budget_s)
+    options = RefineOptions() if run.time_budget_s is None else RefineOptions(time_budget_s=run.time_budget_s)
     try:
-        result = refine_plan(scenario, plan, seed=seed, progress=progress, options=options)
+        result = refine_plan(scenario, plan, seed=run.seed, progress=run.progress, options=options)
     except Exception as err:  # noqa: BLE001 - the optimiser must never lose the sampling plan
-        plan.notes.append(
-            f"optimized: refinement raised {type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}; this is the sampling result"
-        )
+        first = str(err).splitlines()[0] if str(err) else ""
+        plan.notes.append(f"optimized: refinement raised {type(err).__name__}: {first}; this is the sampling result")
         plan.method = "sampling (optimizer failed)"
         return plan
-    refined = result.plan
     if not result.success:
         plan.notes.append(f"optimized: refinement failed ({result.message}); this is the sampling result")
         plan.method = "sampling (optimizer fell back)"
         plan.solver = result.stats  # what IPOPT reported for the attempt that failed
         return plan
+    refined = result.plan
     refined.method = "optimized"
     refined.notes = list(dict.fromkeys(list(plan.notes) + list(refined.notes or [])))  # keep order, once each
-    for key in ("priority_order", "sampling_attempts", "seed"):
+    for key in ("priority_order", "sampling_attempts"):
         refined.metrics.setdefault(key, plan.metrics.get(key))
     refined.metrics["optimizer_solve_time_s"] = result.solve_time_s
     refined.metrics["optimizer_iterations"] = result.iterations
     refined.solver = result.stats
     refined.scenario_file = plan.scenario_file
     refined.scenario_spec = plan.scenario_spec
+    refined.verified = False  # refine_plan verified it, but against its own copy: the CLI checks again
     return refined
 
 
-def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) -> None:
-    """Fill the DESIGN metrics (planning_time_s, max_authority_usage, min_separation_m, makespan_s)
-    and extras (per-vehicle usage, path length, arrival time, invalid-zone time of docks)."""
-    from proxplan.verify import attach_feedforward, separation_summary, wrench_along_plan
+def _refine_swarm(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome) -> Plan:
+    """``optimized`` for swarms: the vehicles that set the makespan (arriving within
+    ``MAKESPAN_SETTERS`` of it) re-optimised with CasADi one at a time against all the others fixed
+    as moving obstacles (:func:`proxplan.planner.optimizer.reoptimize_plan`); the verified shorter
+    plan kept, else a note with the gap to the lower bound."""
+    from proxplan.planner.optimizer import ReoptOptions, default_wrench_provider, reoptimize_plan
+    from proxplan.planner.optimizer.warm_problem import table_extent
+    from proxplan.planner.timing.plan_grid import vehicle_arrival_s
 
-    t = plan.t_s
-    along = wrench_along_plan(plan, scenario, t_s=t)
-    attach_feedforward(plan, along)  # the predicted wrench, for controllers that feed it forward
-    usage = {n: max(0.0, float(a.usage.max())) for n, a in along.items()}
-    sep = separation_summary(plan, scenario)
-    moving_end = 0.0
-    for tr in plan.vehicles.values():
-        moving = np.linalg.norm(tr.velocity_mps, axis=1) > 1e-4
-        if moving.any():
-            moving_end = max(
-                moving_end,
-                float(tr.t_s[np.nonzero(moving)[0][-1] + 1 if np.nonzero(moving)[0][-1] + 1 < tr.t_s.size else -1]),
-            )
-    plan.metrics.update(
-        {
-            "planning_time_s": round(float(planning_time_s), 4),
-            "max_authority_usage": max(usage.values()) if usage else 0.0,
-            "min_separation_m": sep["min_separation_m"],
-            "makespan_s": float(moving_end),
-            "authority_fraction": scenario.limits.authority_fraction,
-            "tracking_margin_m": scenario.limits.tracking_margin_m,
-            "authority_usage_by_vehicle": usage,
-            "invalid_zone_s_by_vehicle": {n: float(a.invalid_zone.sum() * plan.dt_s) for n, a in along.items()},
-            "min_dock_separation_m": sep["min_dock_separation_m"],
-            "path_length_m": {
-                n: float(np.linalg.norm(np.diff(tr.position_m, axis=0), axis=1).sum())
-                for n, tr in plan.vehicles.items()
-            },
-        }
+    makespan = moving_end_s(plan)
+    bound = float(plan.metrics.get("assignment_lower_bound_s") or (swarm.info.lower_bound_s if swarm.info else 0.0))
+    if bound > 0.0 and makespan <= (1.0 + OPTIMAL_WITHIN) * bound:
+        plan.notes.append(
+            f"optimized: the swarm plan ({makespan:.2f} s) is within {100 * OPTIMAL_WITHIN:g} % of the lower bound "
+            f"({bound:.2f} s); not re-optimised"
+        )
+        return plan
+    late = [n for n, tr in plan.vehicles.items() if vehicle_arrival_s(tr) >= MAKESPAN_SETTERS * makespan]
+    budget = SWARM_OPTIMIZE_BUDGET_S if run.time_budget_s is None else run.time_budget_s
+    result = reoptimize_plan(
+        scenario,
+        plan,
+        wrench_provider=default_wrench_provider,
+        extent_provider=table_extent,
+        options=ReoptOptions(time_budget_s=budget),
+        progress=run.progress,
+        vehicles=late,
     )
+    gap = f"{makespan / bound:.2f}x the lower bound {bound:.2f} s" if bound > 0.0 else "no lower bound"
+    if not result.improved:
+        plan.notes.append(f"optimized: {len(late)} vehicle(s) setting the makespan: {result.message} ({gap})")
+        return plan
+    better = result.plan
+    better.method = "optimized"
+    better.verified = True  # reoptimize_plan keeps only plans the verifier passed, this one included
+    better.notes = list(plan.notes) + [f"optimized: {len(late)} vehicle(s) setting the makespan: {result.message}"]
+    return better
+
+
+# -- stage 5: the record ------------------------------------------------------------------------
+def _record(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome | None, assignment: dict | None) -> None:
+    """The stages' typed records into ``plan.metrics`` (one place), then the DESIGN metrics."""
+    plan.metrics["seed"] = run.seed
+    if swarm is not None and swarm.info is not None:
+        plan.metrics["swarm"] = swarm.info.to_metrics()
+        plan.metrics["lower_bound_s"] = swarm.info.lower_bound_s
+    if assignment is not None:
+        plan.metrics["assignment"] = assignment
+        plan.metrics["assignment_lower_bound_s"] = assignment["lower_bound_s"]
+    if plan.verified:
+        plan.metrics["verify_violations"] = 0
+    finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - run.t0)

@@ -18,13 +18,14 @@ refinement), :mod:`~proxplan.planner.optimizer.swarm_field` and
 :mod:`~proxplan.planner.optimizer.reoptimize` (the decomposed optimisation).
 """
 
-from proxplan.planner.optimizer.acceptance import moving_end_s, solution_to_plan
+from proxplan.planner.optimizer.acceptance import solution_to_plan
 from proxplan.planner.optimizer.ocp import build_and_solve, sample_solution
 from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights
 from proxplan.planner.optimizer.options import RefineOptions, RefineResult
 from proxplan.planner.optimizer.refine import check_final_configuration, refine_plan
 from proxplan.planner.optimizer.reoptimize import ReoptOptions, ReoptResult, reoptimize_plan
 from proxplan.planner.optimizer.warm_problem import build_problem, default_wrench_provider
+from proxplan.planner.timing import moving_end_s
 
 __all__ = [
     "OcpAgent",

@@ -13,16 +13,9 @@ import numpy as np
 from proxplan.planner.optimizer.ocp import sample_solution
 from proxplan.planner.optimizer.ocp_problem import OcpProblem, OcpSolution
 from proxplan.planner.optimizer.options import RefineOptions
+from proxplan.planner.timing.plan_grid import moving_end_s
 
-
-def moving_end_s(plan) -> float:
-    """Time after which no vehicle of ``plan`` moves any more (the makespan of DESIGN.md), s."""
-    end = 0.0
-    for tr in plan.vehicles.values():
-        moving = np.flatnonzero(np.linalg.norm(tr.velocity_mps, axis=1) > 1e-4)
-        if moving.size:
-            end = max(end, float(tr.t_s[min(moving[-1] + 1, tr.t_s.size - 1)]))
-    return end
+_KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
 
 
 def peak_usage(plan, scenario) -> float:
@@ -75,9 +68,6 @@ def solution_to_plan(solution: OcpSolution, scenario, initial_plan, *, time_scal
         scenario_file=initial_plan.scenario_file,
         scenario_spec=initial_plan.scenario_spec,
     )
-
-
-_KINEMATIC_KINDS = ("speed", "accel", "jerk", "velocity", "acceleration")
 
 
 def _verify(plan, scenario) -> list:

@@ -8,11 +8,12 @@ import time
 from dataclasses import replace
 
 from proxplan.planfile import SolverStats
-from proxplan.planner.optimizer.acceptance import describe, is_better, moving_end_s, rewarm, sample_and_verify
+from proxplan.planner.optimizer.acceptance import describe, is_better, rewarm, sample_and_verify
 from proxplan.planner.optimizer.ocp import build_and_solve
 from proxplan.planner.optimizer.ocp_problem import OcpSolution
 from proxplan.planner.optimizer.options import RefineOptions, RefineResult
 from proxplan.planner.optimizer.warm_problem import build_problem
+from proxplan.planner.timing.plan_grid import moving_end_s
 
 
 def joint_refine(scenario, initial_plan, options: RefineOptions, wrench_provider, progress) -> RefineResult:

@@ -12,6 +12,8 @@ import numpy as np
 from proxplan.physics import VALIDITY_FACTOR_L
 from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem
 
+INVALID_ZONE_SMOOTHING_M = 0.01  # largest conservatism of the smoothed invalid-zone constraint, m
+
 
 def _warm(values: np.ndarray | None, default: np.ndarray, n: int) -> np.ndarray:
     if values is None:
@@ -25,9 +27,6 @@ def _warm(values: np.ndarray | None, default: np.ndarray, n: int) -> np.ndarray:
 def _check_points_warm(nodes: np.ndarray) -> np.ndarray:
     """Warm positions at the check points: nodes (n+1) then midpoints (n), shape (2n+1, 3)."""
     return np.vstack([nodes, 0.5 * (nodes[:-1] + nodes[1:])])
-
-
-INVALID_ZONE_SMOOTHING_M = 0.01  # largest conservatism of the smoothed invalid-zone constraint, m
 
 
 class OcpBuilder:

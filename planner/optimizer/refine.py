@@ -22,10 +22,10 @@ from collections.abc import Callable
 from dataclasses import replace
 
 from proxplan.planfile import SolverStats
-from proxplan.planner.optimizer.acceptance import moving_end_s
 from proxplan.planner.optimizer.joint import joint_refine
 from proxplan.planner.optimizer.options import RefineOptions, RefineResult, WrenchProvider
 from proxplan.planner.optimizer.warm_problem import default_wrench_provider, table_extent
+from proxplan.planner.timing.plan_grid import moving_end_s
 
 
 def check_final_configuration(scenario) -> None:

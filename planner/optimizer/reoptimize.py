@@ -33,8 +33,7 @@ from proxplan.planner.optimizer.ocp import build_and_solve, sample_solution
 from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
 from proxplan.planner.optimizer.swarm_field import CHECK_DT_S, SwarmField, kinematic_conflict, static_conflict
 from proxplan.planner.timing.durations import min_segment_duration_s
-
-REST_MPS = 1e-4  # speed below which a vehicle counts as arrived, m/s
+from proxplan.planner.timing.plan_grid import vehicle_arrival_s as arrival_s
 
 
 @dataclass(frozen=True)
@@ -77,14 +76,6 @@ class ReoptResult:
     solve_time_s: float  # IPOPT wall time summed over vehicles, s
     last_status: str = "none"  # IPOPT return status of the last solve
     max_violation: float = float("nan")  # largest final constraint violation over the converged solves
-
-
-def arrival_s(tr: VehicleTrajectory) -> float:
-    """Time after which the trajectory no longer moves, s (0 for a vehicle that never moves)."""
-    moving = np.flatnonzero(np.linalg.norm(tr.velocity_mps, axis=1) > REST_MPS)
-    if moving.size == 0:
-        return 0.0
-    return float(tr.t_s[min(moving[-1] + 1, tr.t_s.size - 1)])
 
 
 def retimed_path(tr: VehicleTrajectory, nodes_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -315,17 +306,21 @@ def reoptimize_plan(
     extent_provider: Callable | None = None,
     options: ReoptOptions = ReoptOptions(),
     progress: Callable | None = None,
+    vehicles: list[str] | None = None,
 ) -> ReoptResult:
-    """Re-optimise the moving vehicles of ``plan`` one at a time (latest arrival first) in rounds
-    until no vehicle improves, ``max_rounds`` or the time budget; returns the best plan that passed
-    ``proxplan.verify.verify_plan`` (the input plan when none did better). Scenarios with docks are not
-    decomposed (the dock pair must be optimised together)."""
+    """Re-optimise the moving vehicles of ``plan`` (only ``vehicles`` when given, e.g. those that set
+    a swarm's makespan; the others stay fixed as moving obstacles) one at a time (latest arrival
+    first) in rounds until no vehicle improves, ``max_rounds`` or the time budget; returns the best
+    plan that passed ``proxplan.verify.verify_plan`` (the input plan when none did better). Scenarios
+    with docks are not decomposed (the dock pair must be optimised together)."""
     from proxplan.verify import verify_plan
 
     t0 = time.perf_counter()
     deadline = t0 + options.time_budget_s
     ro = _Reoptimizer(scenario, plan, options, wrench_provider, extent_provider, progress)
     movers = [n for n, t in scenario.vehicles.items() if not t.hover and t.goal_m is not None and t.dock_with is None]
+    if vehicles is not None:
+        movers = [n for n in movers if n in set(vehicles)]
     best, best_makespan = plan, makespan_of(plan)
     start_makespan = best_makespan
     rounds, log, stale = 0, [], 0

@@ -10,9 +10,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from proxplan.planner.optimizer.acceptance import moving_end_s
 from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem, scenario_fields
 from proxplan.planner.optimizer.options import RefineOptions, WrenchProvider
+from proxplan.planner.timing.plan_grid import moving_end_s
+
+APPROACH_BAND_M = 0.04  # lateral band around the dock axis over which the approach usage is maximised, m
+APPROACH_DZ_SAMPLES = 80  # dz samples of the approach usage envelope
+APPROACH_TOLERANCE_M = 0.01  # the warm start is "on its final approach" this close to the A-D segment, m
 
 
 def default_wrench_provider(source, target, scenario):
@@ -37,10 +41,6 @@ def table_extent(source, target, scenario):
     return pair_maps(source, target, options=options, effects=effects).table.scale.half_width_m
 
 
-APPROACH_BAND_M = 0.04  # lateral band around the dock axis over which the approach usage is maximised, m
-APPROACH_DZ_SAMPLES = 80  # dz samples of the approach usage envelope
-
-
 def approach_usage_function(source, target, scenario, dz_max_m: float):
     """casadi Function dz_m -> the largest authority usage of ``target`` (-) at vertical distance
     dz below ``source`` (0 < dz <= dz_max_m) within ``APPROACH_BAND_M`` of the source's axis: the
@@ -63,9 +63,6 @@ def approach_usage_function(source, target, scenario, dz_max_m: float):
     usage = authority_usage(target, force, torque).reshape(rr.shape).max(axis=(0, 1))  # (K,)
     x = ca.SX.sym("dz_m")
     return ca.Function("approach_usage", [x], [ca.pw_lin(x, ca.DM(dz), ca.DM(usage))])
-
-
-APPROACH_TOLERANCE_M = 0.01  # the warm start is "on its final approach" this close to the A-D segment, m
 
 
 def approach_start_s(scenario, plan) -> float | None:

@@ -28,7 +28,7 @@ from proxplan.physics import KinematicLimits
 from proxplan.planfile import Plan, Scenario
 from proxplan.planner.checks.constraints import Track, build_checker
 from proxplan.planner.checks.validity import BatchChecker
-from proxplan.planner.errors import InfeasibleError
+from proxplan.planner.errors import InfeasibleError, PlanNotFound
 from proxplan.planner.sampling.ordering import priority_order, promote
 from proxplan.planner.sampling.space_time import plan_space_time, start_conflict
 from proxplan.planner.sampling.spec import GoalSpec, SamplingOptions
@@ -59,8 +59,12 @@ def plan_order(
     options: SamplingOptions,
     progress,
     keep: dict[str, TimedPath] | None = None,
+    searches: list[int] | None = None,
 ) -> tuple[dict[str, TimedPath], dict]:
-    """Plan the vehicles in ``order``; ``keep`` holds already planned leading vehicles to reuse."""
+    """Plan the vehicles in ``order``; ``keep`` holds already planned leading vehicles to reuse.
+    ``searches``: a one-element counter of single-vehicle searches, checked against
+    ``options.max_searches`` (:class:`PlanNotFound` when spent)."""
+    searches = [0] if searches is None else searches
     timed: dict[str, TimedPath] = {}
     tracks: dict[str, Track] = {}
     info: dict = {"attempts": {}, "rrt_vertices": {}}
@@ -128,6 +132,12 @@ def plan_order(
             window = (max(2.0 * t_direct, t_direct + 6.0, t_busy + 2.0), max(4.0 * t_direct, t_busy + 15.0), horizon)[
                 attempt
             ]
+            searches[0] += 1
+            if options.max_searches is not None and searches[0] > options.max_searches:
+                raise PlanNotFound(
+                    f"the sampling planner's budget of {options.max_searches} single-vehicle searches is spent",
+                    vehicles=[name],
+                )
             sp = plan_space_time(
                 checker,
                 task.start_m,
@@ -220,10 +230,11 @@ def sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: Sampling
     notes: list[str] = list(scenario.load_notes)
     keep: dict[str, TimedPath] = {}
     seen = {tuple(order)}
+    searches = [0]
     for restart in range(MAX_REORDERS + 1):
         try:
             timed, info = plan_order(
-                scenario, order, mode=mode, seed=seed, options=options, progress=progress, keep=keep
+                scenario, order, mode=mode, seed=seed, options=options, progress=progress, keep=keep, searches=searches
             )
             break
         except _VehicleFailed as fail:

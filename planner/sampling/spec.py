@@ -35,6 +35,7 @@ class SamplingOptions:
     direct_accept_ratio: float = 3.0  # (or within this factor of it), -
     dodge_m: float = 0.3  # dodge points of the waiting search beside / above / below start and goal, m
     detour_clearance_m: float = 0.15  # extra clearance of detour via points beyond an inflated obstacle, m
+    max_searches: int | None = None  # single-vehicle searches in one whole plan (re-orderings too), or no cap
     deflection_m: Mapping[str, float] = field(default_factory=dict)  # per vehicle: added to its tube, m
     # (its predicted deflection under the plan's own disturbance; the pipeline's second pass sets it)
 

@@ -1,18 +1,24 @@
-"""Swarm planning: coordinate jointly on a lattice, fly in continuous time (``--method roadmap``,
+"""Swarm planning: coordinate jointly on a lattice, fly in continuous time (``--method swarm``,
 and ``optimized`` for formation changes of ``SWARM_MIN_VEHICLES`` or more).
 
 Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, keep-outs, free
-space) -> :mod:`~proxplan.planner.swarm.assign` (goals of interchangeable vehicles) ->
-:mod:`~proxplan.planner.swarm.lattice` (levels in use, long straight moves) ->
-:mod:`~proxplan.planner.swarm.sync` (exact synchronous conflicts, tabulated) ->
-:mod:`~proxplan.planner.swarm.lacam` (LaCAM + PIBT) -> :mod:`~proxplan.planner.swarm.lockstep`
-(conflict-free trajectories) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing along
-:mod:`~proxplan.planner.swarm.chain`, against :mod:`~proxplan.planner.swarm.occupancy`) ->
-:mod:`~proxplan.planner.swarm.plan` (the whole pipeline).
+space; :mod:`~proxplan.planner.swarm.keepout`) -> :mod:`~proxplan.planner.swarm.assign` and
+:mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles) ->
+:mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept) ->
+:mod:`~proxplan.planner.swarm.priority` (prioritised planning with repairs and predictions) along
+:mod:`~proxplan.planner.swarm.wave` routes timed by :mod:`~proxplan.planner.swarm.chain` against
+:mod:`~proxplan.planner.swarm.occupancy` (the space-time hash of
+:mod:`~proxplan.planner.swarm.tracks`), by groups (:mod:`~proxplan.planner.swarm.components`) ->
+:mod:`~proxplan.planner.swarm.lattice`, :mod:`~proxplan.planner.swarm.sync`,
+:mod:`~proxplan.planner.swarm.lacam`, :mod:`~proxplan.planner.swarm.lockstep` (the guaranteed
+lattice plan) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
+:mod:`~proxplan.planner.swarm.plan` (the stages) and :mod:`~proxplan.planner.swarm.info` (what they
+report, typed).
 """
 
 from proxplan.planner.swarm.assign import Assignment, assign_by_type, assign_group
-from proxplan.planner.swarm.lacam import Lacam, LacamResult, SearchGaveUp
+from proxplan.planner.swarm.info import LatticeInfo, RetimeInfo, SwarmInfo, SwarmStage
+from proxplan.planner.swarm.lacam import Lacam, LacamResult
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.plan import SWARM_MIN_VEHICLES, SwarmOptions, swarm_timed
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
@@ -24,7 +30,10 @@ __all__ = [
     "Lacam",
     "LacamResult",
     "Lattice",
-    "SearchGaveUp",
+    "LatticeInfo",
+    "RetimeInfo",
+    "SwarmInfo",
+    "SwarmStage",
     "SwarmOptions",
     "SwarmProblem",
     "SyncTable",

@@ -1,14 +1,21 @@
 """Earliest arrival of one vehicle along a chain of waypoints, against the others' tracks.
 
-The vehicle starts at rest at W_0 at t = 0 and must end at rest at W_m and hold it for good. It may
-fly straight from any waypoint to any later one (a shortcut) when that line is statically free,
-rest-to-rest at its own limits (:func:`proxplan.planner.timing.profile.rest_to_rest`), and may wait
-at any waypoint while holding it is clear. This is safe-interval path planning (Phillips and
-Likhachev, 2011) on the chain: a state is (waypoint, safe interval of holding it), expanded in
-order of arrival time (Dijkstra); a move from (k, I) departs at the earliest grid step in I that
+The vehicle starts at rest at W_0 at t = 0 and must end at rest at W_m and hold it for good. From a
+waypoint where it rests it may fly to a later one
+
+* straight (a shortcut), rest-to-rest at its own limits
+  (:func:`proxplan.planner.timing.profile.rest_to_rest`), when that line is statically free, or
+* through the waypoints in between without stopping (a :class:`~proxplan.planner.timing.profile.RunMove`:
+  one jerk-limited flight, corners rounded, speeds chosen locally), when its flown path is
+  statically free,
+
+and it may wait at any waypoint while holding it is clear. So it stops only where the search makes
+it wait (or at a turn of 90 degrees or more). This is safe-interval path planning (Phillips and
+Likhachev, 2011) on the chain: a state is (waypoint, safe interval of holding it), expanded in order
+of arrival time plus the straight rest-to-rest time to the end (A*); a move from (k, I) departs at the earliest grid step in I that
 :meth:`Occupancy.forbidden_departures` allows and whose arrival lands in a safe interval of the next
-waypoint. Everything is checked against the tracks exactly on the swarm's grid, so the result is
-conflict-free against them.
+waypoint. Every move is checked on its flown grid samples against the tracks exactly, so the result
+is conflict-free against them.
 """
 
 from __future__ import annotations
@@ -19,10 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.tracks import GRID_DT_S, Track
-from proxplan.planner.timing.profile import LineMove, rest_to_rest
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack, Move
+from proxplan.planner.timing.profile import LineMove, RunMove, rest_to_rest
 
-MAX_SHORTCUT = 6  # a move may skip at most this many waypoints (besides the direct move to the end)
+MAX_SHORTCUT = 6  # a straight move may skip at most this many waypoints (besides the direct move to the end)
+MAX_RUN = 12  # a flight through waypoints spans at most this many (besides the one to the end)
+STATIC_CHECKS_PER_STEP = 2  # a run's flown path is checked against the static free space this often per grid step
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -34,7 +43,7 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 @dataclass(frozen=True)
 class ChainResult:
-    track: Track
+    track: GridTrack
     arrival_step: int
 
 
@@ -43,67 +52,93 @@ def time_chain(
     agent: int,
     waypoints_m: np.ndarray,
     *,
-    leave_start_by: int | None = None,
     arrive_by: int | None = None,
+    through: bool = True,
+    deviation_m: float | None = None,
 ) -> ChainResult | None:
     """The earliest-arrival timing of ``agent`` along ``waypoints_m`` (m+1, 3), or None.
 
-    ``leave_start_by``: the vehicle may not hold its start after this grid step. ``arrive_by``:
-    only results arriving no later than this step are of interest (prunes the search)."""
+    ``arrive_by``: only results arriving no later than this step are of interest (prunes the
+    search). ``through``: also fly through waypoints without stopping (else every move is
+    rest-to-rest); ``deviation_m``: how far a rounding's chord may miss its corner, m (default
+    :data:`proxplan.planner.timing.CORNER_DEVIATION_M`)."""
+    from proxplan.planner.timing import CORNER_DEVIATION_M
+
     problem = occ.problem
     W = np.asarray(waypoints_m, dtype=float)
     m = len(W) - 1
     T = occ.horizon
     limits = problem.limits[agent]
+    dev = CORNER_DEVIATION_M if deviation_m is None else deviation_m
     holds = [occ.forbidden_holds(agent, W[k]) for k in range(m + 1)]
-    if leave_start_by is not None:
-        holds[0][leave_start_by + 1 :] = True
     if holds[0][0]:
         return None
     intervals = [_runs(~h) for h in holds]
     goal_ok = [e >= T for _, e in intervals[m]]
     if not any(goal_ok):
         return None
-    moves: dict[tuple[int, int], tuple[LineMove, np.ndarray] | None] = {}
+    moves: dict[tuple[int, int, bool], Move | None] = {}
+    forbidden: dict[tuple[int, int, bool], tuple[int, np.ndarray]] = {}  # (from step, departures)
 
-    def move(k: int, j: int):
-        if (k, j) not in moves:
-            if not problem.segment_free(W[k], W[j]):
-                moves[(k, j)] = None
+    def move(k: int, j: int, run: bool, t: int):
+        """The move k -> j and its forbidden departures, exact from step t on (None: not free)."""
+        key = (k, j, run)
+        if key not in moves:
+            mv: Move
+            if run:
+                rm = RunMove(W[k : j + 1], limits, GRID_DT_S, deviation_m=dev)
+                free = bool(problem.static_free(rm.positions(STATIC_CHECKS_PER_STEP)).all())
+                mv = rm
             else:
-                dist = float(np.linalg.norm(W[j] - W[k]))
-                mv = LineMove(W[k], W[j], rest_to_rest(dist, limits, GRID_DT_S))
-                moves[(k, j)] = (mv, occ.forbidden_departures(agent, mv.positions(), mv.profile.arc_m))
-        return moves[(k, j)]
+                free = problem.segment_free(W[k], W[j])
+                mv = LineMove(W[k], W[j], rest_to_rest(float(np.linalg.norm(W[j] - W[k])), limits, GRID_DT_S))
+            moves[key] = mv if free else None
+        mv_ = moves[key]
+        if mv_ is None:
+            return None
+        if key not in forbidden or forbidden[key][0] > t:  # later departures need fewer samples
+            forbidden[key] = (t, occ.forbidden_departures(agent, mv_.positions(), from_step=t))
+        return mv_, forbidden[key][1]
 
+    # A*: the rest-to-rest time of the straight line to the end bounds what is left (no flight
+    # from rest to rest is faster, and the bound is consistent: straight rest-to-rest times are
+    # subadditive)
+    h = [rest_to_rest(float(np.linalg.norm(W[m] - W[k])), limits, GRID_DT_S).steps for k in range(m + 1)]
     best: dict[tuple[int, int], int] = {(0, 0): 0}
-    parent: dict[tuple[int, int], tuple[int, int, int, LineMove]] = {}
-    heap = [(0, 0, 0)]
+    parent: dict[tuple[int, int], tuple[int, int, int, Move]] = {}
+    heap = [(h[0], 0, 0, 0)]
     limit = T if arrive_by is None else min(T, arrive_by + 1)
+    done_by = limit  # the earliest arrival at the end found so far, +1 (nothing later is of interest)
     while heap:
-        t, k, iv = heapq.heappop(heap)
-        if best.get((k, iv), T + 1) < t:
+        _, t, k, iv = heapq.heappop(heap)
+        if best.get((k, iv), T + 1) < t or t + h[k] >= done_by:
             continue
         if k == m and goal_ok[iv]:
-            out: list[tuple[int, LineMove]] = []
+            out: list[tuple[int, Move]] = []
             node = (k, iv)
             while node in parent:
                 pk, piv, dep, mv = parent[node]
                 out.append((dep, mv))
                 node = (pk, piv)
-            track = Track(agent, int(problem.type_index[agent]), W[0].copy(), out[::-1])
+            track = GridTrack(agent, int(problem.type_index[agent]), W[0].copy(), out[::-1], route_m=W.copy())
             return ChainResult(track, t)
-        s_iv, e_iv = intervals[k][iv]
-        targets = list(range(k + 1, min(m, k + 1 + MAX_SHORTCUT) + 1))
-        if m not in targets:
-            targets.append(m)
-        for j in targets:
-            got = move(k, j)
+        _, e_iv = intervals[k][iv]
+        candidates = [(j, False) for j in range(k + 1, min(m, k + 1 + MAX_SHORTCUT) + 1)]
+        if (m, False) not in candidates:
+            candidates.append((m, False))
+        if through:
+            candidates += [(j, True) for j in range(k + 2, min(m, k + 1 + MAX_RUN) + 1)]
+            if m >= k + 2 and (m, True) not in candidates:
+                candidates.append((m, True))
+        for j, run in candidates:
+            if t + max(h[k], h[j]) >= done_by:  # cannot arrive at the end earlier through j
+                continue
+            got = move(k, j, run, t)
             if got is None:
                 continue
             mv, bad = got
-            n = mv.profile.steps
-            lo_d, hi_d = t, min(e_iv - 1, limit - 1 - n)
+            n = mv.steps
+            lo_d, hi_d = t, min(e_iv - 1, done_by - 1 - n - h[j])
             if hi_d < lo_d:
                 continue
             deps = np.flatnonzero(~bad[lo_d : hi_d + 1]) + lo_d
@@ -124,5 +159,7 @@ def time_chain(
                 if a0 < best.get((j, i0), T + 1):
                     best[(j, i0)] = a0
                     parent[(j, i0)] = (k, iv, d0, mv)
-                    heapq.heappush(heap, (a0, j, i0))
+                    heapq.heappush(heap, (a0 + h[j], a0, j, i0))
+                    if j == m and goal_ok[i0]:
+                        done_by = min(done_by, a0 + 1)
     return None

@@ -8,7 +8,7 @@ in place. A step is valid when every pair of agents passes :class:`~proxplan.pla
 lazily through a tree of low-level constraints ("agent i goes to v"), and PIBT proposes the next
 configuration under those constraints. The search is complete on finite graphs: it returns a plan
 or proves that none exists within the graph, unless its count budget (``max_nodes``) or the caller's
-deadline stops it first; then it says so (:class:`SearchGaveUp`), it never reports "infeasible".
+deadline stops it first; then it says so (:class:`~proxplan.planner.errors.PlanNotFound`), it never reports "infeasible".
 
 PIBT with large agents: an agent tries its candidate vertices in order of the distance to its goal
 (ties broken by a seeded random order); a candidate must be compatible with every agent already
@@ -27,16 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm.lattice import Lattice
 from proxplan.planner.swarm.sync import SyncTable
-
-
-class SearchGaveUp(Exception):
-    """The coordination search stopped on its budget (a count, or the caller's deadline)."""
-
-    def __init__(self, message: str, *, nodes: int):
-        super().__init__(message)
-        self.message, self.nodes = message, nodes
 
 
 @dataclass(frozen=True)
@@ -170,7 +163,7 @@ class Lacam:
         return sorted(range(self.A), key=lambda i: -priority[i])
 
     def solve(self, *, max_nodes: int, deadline: float | None = None, progress=None) -> LacamResult:
-        """A plan from the starts to the goals; :class:`SearchGaveUp` when the budget ends first or
+        """A plan from the starts to the goals; :class:`~proxplan.planner.errors.PlanNotFound` when the budget ends first or
         the lattice holds none (that proves nothing about continuous space)."""
         start = tuple(int(v) for v in self.lat.start_v)
         priority = [float(self.dist[i][start[i]]) * 1e-3 for i in range(self.A)]
@@ -204,9 +197,9 @@ class Lacam:
                 continue
             n += 1
             if n > max_nodes:
-                raise SearchGaveUp(f"no plan found within {max_nodes} configurations", nodes=n)
+                raise PlanNotFound(f"no plan found within {max_nodes} configurations", details={"nodes": n})
             if deadline is not None and time.perf_counter() > deadline:
-                raise SearchGaveUp("no plan found within the time budget", nodes=n)
+                raise PlanNotFound("no plan found within the time budget", details={"nodes": n})
             if progress is not None and n % 25 == 0:
                 progress(f"coordination: {n} configurations", min(0.5, 0.1 + n / max_nodes))
             pr = [
@@ -216,4 +209,6 @@ class Lacam:
             child = _Node(nxt, node, self._order(pr), pr)
             explored[nxt] = child
             stack.append(child)
-        raise SearchGaveUp(f"the coordination lattice holds no plan (all {n} configurations searched)", nodes=n)
+        raise PlanNotFound(
+            f"the coordination lattice holds no plan (all {n} configurations searched)", details={"nodes": n}
+        )

@@ -15,12 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 from proxplan.planner.swarm.lattice import Lattice
-from proxplan.planner.swarm.tracks import GRID_DT_S, Track
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.profile import LineMove, rest_to_rest
 
 
-def lockstep_tracks(lattice: Lattice, configurations: list[tuple[int, ...]]) -> list[Track]:
-    """One :class:`Track` per agent flying ``configurations`` in lock-step (see module)."""
+def lockstep_tracks(lattice: Lattice, configurations: list[tuple[int, ...]]) -> list[GridTrack]:
+    """One :class:`GridTrack` per agent flying ``configurations`` in lock-step (see module)."""
     problem = lattice.problem
     pos = lattice.pos_m
     A = problem.n_agents
@@ -37,4 +37,4 @@ def lockstep_tracks(lattice: Lattice, configurations: list[tuple[int, ...]]) -> 
         for a in movers.tolist():
             moves[a].append((t, LineMove(pos[u[a]], pos[v[a]], profile)))
         t += profile.steps
-    return [Track(a, int(problem.type_index[a]), pos[configurations[0][a]], moves[a]) for a in range(A)]
+    return [GridTrack(a, int(problem.type_index[a]), pos[configurations[0][a]], moves[a]) for a in range(A)]

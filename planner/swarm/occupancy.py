@@ -1,19 +1,24 @@
-"""What the other vehicles forbid one vehicle: departure times of a straight move, hold times of a
-point, on the swarm's time grid, against every other vehicle's :class:`~proxplan.planner.swarm.tracks.Track`.
+"""What the other vehicles forbid one vehicle: departure times of a move, hold times of a point, on
+the swarm's time grid, against every other vehicle's :class:`~proxplan.planner.swarm.tracks.GridTrack`.
 
-The other tracks live in a horizontal spatial hash (cells of at least twice the largest reach), so
-a query looks only at tracks whose bounding box comes within reach of the move: the space-time
-neighbourhood, not every planned vehicle. For a move flown along a rest-to-rest profile whose
-sample k is at q_k (k = 0..K), departing at grid step d puts the vehicle at q_k at step d + k; a
-sample pair (track j at step t, move sample k) that violates the pair's keep-out forbids the single
-departure d = t - k. Only (t, k) pairs that are horizontally within reach are tested (the samples k
-whose distance along the move is within the reach of j's position at t, from a quadratic), so the
-cost grows with how long others are near the move, not with the horizon. A parked track (after its
-end) forbids a whole range of departures at once. Tests use the moving keep-out (the vehicle
-moves); holds use the resting keep-out where the other vehicle rests too, as the verifier does.
-Samples are ``GRID_DT_S`` apart; the keep-outs are grown for that (the chord between two samples of
-a relative motion of at most 2 v_max GRID_DT_S stays outside a keep-out grown by
-:data:`SAMPLING_GROWTH_M`).
+**Space-time hash.** Each track's samples are cut into segments (a resting stretch - same place,
+same moving flag - is one segment with its step range; a moving sample is one each), and the
+segments into runs in one horizontal cell (cells of the largest keep-out reach): a cell lists
+(agent, segments) per run, so a query collects only the segments of other tracks that are in a cell
+within reach of the queried place, whatever the tracks do elsewhere and elsewhen, and a vehicle
+waiting somewhere counts once, not once per step. A track parked for good (after its
+last sample) is listed apart, by the cell of its end; a *predicted* track (``vanishes``) is not.
+
+**Departures.** For a move sampled on the grid at q_k (k = 0..K, a straight line or a flight
+through waypoints), departing at step d puts the vehicle at q_k at step d + k; a sample pair
+(track j at step t, move sample k) that violates the pair's keep-out forbids the single departure
+d = t - k. The move is cut into chunks of ``CHUNK`` samples with their bounding boxes; only (t, k)
+pairs whose sample comes within reach of k's chunk are tested exactly, so the cost grows with how
+long others are near the move. A parked track forbids a whole range of departures at once. Tests
+use the moving keep-out (the vehicle moves); holds use the resting keep-out where the other vehicle
+rests too, as the verifier does. Samples are ``GRID_DT_S`` apart; the keep-outs are grown for that
+(the chord between two samples of a relative motion of at most 2 v_max GRID_DT_S stays outside a
+keep-out grown by :data:`SAMPLING_GROWTH_M`).
 """
 
 from __future__ import annotations
@@ -23,146 +28,166 @@ import math
 import numpy as np
 
 from proxplan.planner.swarm.problem import SwarmProblem
-from proxplan.planner.swarm.tracks import Track
+from proxplan.planner.swarm.tracks import GridTrack
 
 SAMPLING_GROWTH_M = 0.005  # keep-out growth covering motion between grid samples, m
+CHUNK = 8  # move samples per bounding box in the departure query
+MIN_CELL_M = 0.5  # smallest hash cell, m (a smaller reach would make the hash fine-grained for nothing)
 
 
 class Occupancy:
     """The tracks of every vehicle of ``problem`` but the one being (re)planned (see module)."""
 
-    def __init__(self, problem: SwarmProblem, tracks: list[Track], horizon_steps: int):
+    def __init__(self, problem: SwarmProblem, tracks: list[GridTrack], horizon_steps: int):
         self.problem = problem
         self.horizon = int(horizon_steps)
         self.reach = problem.reach_xy_m + SAMPLING_GROWTH_M
-        self.cell = max(1.0, 2.0 * self.reach)
-        self.tracks: dict[int, Track] = {}
-        self.waiting: dict[int, tuple[np.ndarray, int]] = {}  # agent -> (start, until step): not planned yet
-        self._cells: dict[tuple[int, int], set[int]] = {}
-        self._cells_of: dict[int, list[tuple[int, int]]] = {}
+        self.cell = max(MIN_CELL_M, self.reach)
+        self.tracks: dict[int, GridTrack] = {}
+        self._runs: dict[tuple[int, int], list[tuple[int, int, int]]] = {}  # cell -> (agent, segments s0:s1)
+        # agent -> its segments: (positions (S, 3), first step (S,), end step (S,), moving (S,))
+        self._segments: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._parked: dict[tuple[int, int], set[int]] = {}  # cell of the end -> agents parked there
+        self._cells_of: dict[int, set[tuple[int, int]]] = {}
         for tr in tracks:
             self.put(tr)
 
-    def _span(self, lo: np.ndarray, hi: np.ndarray, pad: float) -> list[tuple[int, int]]:
-        c = self.cell
-        xs = range(int(math.floor((lo[0] - pad) / c)), int(math.floor((hi[0] + pad) / c)) + 1)
-        ys = range(int(math.floor((lo[1] - pad) / c)), int(math.floor((hi[1] + pad) / c)) + 1)
-        return [(x, y) for x in xs for y in ys]
+    # -- the hash -------------------------------------------------------------------------------------
+    def _cell(self, xy: np.ndarray) -> np.ndarray:
+        return np.floor(np.asarray(xy, dtype=float) / self.cell).astype(np.int64)
 
-    def put(self, track: Track) -> None:
+    def _cells_within(self, lo: np.ndarray, hi: np.ndarray) -> list[tuple[int, int]]:
+        c0 = self._cell(np.asarray(lo[:2]) - self.reach)
+        c1 = self._cell(np.asarray(hi[:2]) + self.reach)
+        return [(x, y) for x in range(int(c0[0]), int(c1[0]) + 1) for y in range(int(c0[1]), int(c1[1]) + 1)]
+
+    def put(self, track: GridTrack) -> None:
         """Add ``track`` (replacing that agent's previous one)."""
         self.remove(track.agent)
-        self.tracks[track.agent] = track
-        cells = self._span(track.lo_m, track.hi_m, 0.0)
-        self._cells_of[track.agent] = cells
-        for c in cells:
-            self._cells.setdefault(c, set()).add(track.agent)
+        a = track.agent
+        self.tracks[a] = track
+        n = track.positions_m.shape[0] - (0 if track.vanishes else 1)  # the parked end apart
+        cells: set[tuple[int, int]] = set()
+        if n > 0:
+            P, mv = track.positions_m[:n], track.moving[:n]
+            # segments: a resting stretch (same place, same moving flag) is one, a moving sample one each
+            new = np.r_[True, np.any(P[1:] != P[:-1], axis=1) | (mv[1:] != mv[:-1])]
+            t0 = np.flatnonzero(new)
+            t1 = np.r_[t0[1:], n]
+            c = self._cell(P[t0, :2])
+            self._segments[a] = (P[t0], t0, t1, mv[t0])
+            change = np.flatnonzero(np.any(np.diff(c, axis=0) != 0, axis=1)) + 1
+            for s0, s1 in zip(np.r_[0, change].tolist(), np.r_[change, t0.size].tolist()):
+                key = (int(c[s0, 0]), int(c[s0, 1]))
+                self._runs.setdefault(key, []).append((a, s0, s1))
+                cells.add(key)
+        if not track.vanishes:
+            end = self._cell(track.end_m[:2])
+            key = (int(end[0]), int(end[1]))
+            self._parked.setdefault(key, set()).add(a)
+            cells.add(key)
+        self._cells_of[a] = cells
 
-    def remove(self, agent: int) -> Track | None:
+    def remove(self, agent: int) -> GridTrack | None:
         old = self.tracks.pop(agent, None)
-        for c in self._cells_of.pop(agent, []):
-            self._cells[c].discard(agent)
+        self._segments.pop(agent, None)
+        for key in self._cells_of.pop(agent, set()):
+            runs = self._runs.get(key)
+            if runs:
+                self._runs[key] = [r for r in runs if r[0] != agent]
+            parked = self._parked.get(key)
+            if parked:
+                parked.discard(agent)
         return old
 
-    def near(self, lo: np.ndarray, hi: np.ndarray, exclude: int) -> list[Track]:
-        """Tracks whose bounding box comes within reach of the box [lo, hi] (m)."""
+    def samples_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int, from_step: int = 0):
+        """Segments of other tracks (a resting stretch, or one moving sample; the parked end apart) in
+        cells within reach of the box [lo, hi] (m) that last beyond ``from_step``: (positions (M, 3),
+        first step (M,), end step (M,, exclusive), type (M,), moving (M,), agent (M,))."""
+        parts: list[tuple] = []
+        for key in self._cells_within(lo, hi):
+            for a, s0, s1 in self._runs.get(key, ()):
+                if a == exclude:
+                    continue
+                P, t0, t1, mv = self._segments[a]
+                live = np.flatnonzero(t1[s0:s1] > from_step) + s0
+                if live.size == 0:
+                    continue
+                parts.append(
+                    (
+                        P[live],
+                        np.maximum(t0[live], from_step),
+                        t1[live],
+                        np.full(live.size, self.tracks[a].type),
+                        mv[live],
+                        np.full(live.size, a),
+                    )
+                )
+        if not parts:
+            z = np.zeros(0, dtype=np.int64)
+            return np.zeros((0, 3)), z, z, z, np.zeros(0, dtype=bool), z
+        return tuple(np.concatenate([p[i] for p in parts]) for i in range(6))
+
+    def parked_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int) -> list[GridTrack]:
+        """Tracks parked for good in a cell within reach of the box [lo, hi] (m)."""
         found: set[int] = set()
-        for c in self._span(lo, hi, self.reach):
-            found |= self._cells.get(c, set())
-        r = self.reach
-        out = []
-        for a in sorted(found):
-            if a == exclude:
-                continue
-            tr = self.tracks[a]
-            if (
-                tr.lo_m[0] - r <= hi[0]
-                and tr.hi_m[0] + r >= lo[0]
-                and tr.lo_m[1] - r <= hi[1]
-                and tr.hi_m[1] + r >= lo[1]
-            ):
-                out.append(tr)
-        return out
+        for key in self._cells_within(lo, hi):
+            found |= self._parked.get(key, set())
+        found.discard(exclude)
+        return [self.tracks[a] for a in sorted(found)]
 
-    def _keep(self, agent: int, other: Track):
-        p = self.problem
-        return p.keepouts[(int(p.type_index[agent]), other.type)]
+    def near(self, lo: np.ndarray, hi: np.ndarray, exclude: int) -> list[GridTrack]:
+        """Tracks with a sample, or parked, in a cell within reach of the box [lo, hi] (m)."""
+        found: set[int] = set()
+        for key in self._cells_within(lo, hi):
+            found |= {a for a, _, _ in self._runs.get(key, ())}
+            found |= self._parked.get(key, set())
+        found.discard(exclude)
+        return [self.tracks[a] for a in sorted(found)]
 
-    def waiting_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int):
-        """(agent, start m, until step) of the waiting vehicles within reach of the box [lo, hi]."""
-        r = self.reach
-        for b, (p, until) in self.waiting.items():
-            if b != exclude and lo[0] - r <= p[0] <= hi[0] + r and lo[1] - r <= p[1] <= hi[1] + r:
-                yield b, p, until
-
-    def forbidden_departures(self, agent: int, q_m: np.ndarray, arc_m: np.ndarray) -> np.ndarray:
-        """(horizon,) bool: departing at step d along the move sampled at ``q_m`` (K + 1, 3), whose
-        distance along the move is ``arc_m`` (K + 1,) (non-decreasing), hits another track."""
+    # -- the queries ----------------------------------------------------------------------------------
+    def forbidden_departures(self, agent: int, q_m: np.ndarray, from_step: int = 0) -> np.ndarray:
+        """(horizon,) bool: departing at step d along the move sampled on the grid at ``q_m``
+        (K + 1, 3), m, hits another track; exact for d >= ``from_step`` (earlier entries are not
+        looked at: only samples from that step on are)."""
         T = self.horizon
         bad = np.zeros(T, dtype=bool)
-        p0, p1 = q_m[0], q_m[-1]
-        L = float(np.linalg.norm(p1 - p0))
-        u = (p1 - p0) / L if L > 0 else np.zeros(3)
-        uxy = u[:2]
-        a2 = float(uxy @ uxy)
-        lo, hi = q_m.min(axis=0), q_m.max(axis=0)
+        q = np.asarray(q_m, dtype=float)
+        K = q.shape[0]
+        lo, hi = q.min(axis=0), q.max(axis=0)
         R = self.reach
-        pt = self.problem.type_index
-        ta = int(pt[agent])
-        for b, p, until in self.waiting_near(lo, hi, agent):
-            hit = _conflict(self.problem.keepouts[(ta, int(pt[b]))], p[None] - q_m, False, SAMPLING_GROWTH_M)
-            if hit.any():  # at q_k while b still waits: d + k <= until
-                bad[: max(0, min(T, until - int(np.flatnonzero(hit)[0]) + 1))] = True
-        near = self.near(lo, hi, agent)
-        if not near:
-            return bad
-        # every near track's samples but its last, stacked: (track type, step t, position)
-        P = np.concatenate([tr.positions_m[:-1] for tr in near], axis=0)
-        t_of = np.concatenate([np.arange(tr.positions_m.shape[0] - 1) for tr in near])
-        ty = np.concatenate([np.full(tr.positions_m.shape[0] - 1, tr.type) for tr in near])
-        W = P[:, :2] - p0[None, :2]
-        if a2 > 1e-12:
-            b_ = W @ uxy
-            c = np.einsum("ij,ij->i", W, W) - R * R
-            disc = b_ * b_ - a2 * c
-            ok = disc >= 0.0
-            sq = np.sqrt(np.maximum(disc, 0.0))
-            s_lo, s_hi = (b_ - sq) / a2, (b_ + sq) / a2
-            ok &= (s_hi >= 0.0) & (s_lo <= L)
-        else:
-            ok = np.einsum("ij,ij->i", W, W) <= R * R
-            s_lo = np.full(P.shape[0], -1.0)
-            s_hi = np.full(P.shape[0], L + 1.0)
-        rows = np.flatnonzero(ok)
-        if rows.size:
-            k_lo = np.searchsorted(arc_m, s_lo[rows], side="left")
-            k_hi = np.searchsorted(arc_m, s_hi[rows], side="right")
-            cnt = np.maximum(k_hi - k_lo, 0)
-            total = int(cnt.sum())
-            if total:
-                rr = np.repeat(rows, cnt)
-                kk = np.repeat(k_lo - np.cumsum(np.r_[0, cnt[:-1]]), cnt) + np.arange(total)
-                d = P[rr] - q_m[kk]
-                h = np.zeros(total, dtype=bool)
+        ta = int(self.problem.type_index[agent])
+        P, t0, t1, ty, _, _ = self.samples_near(lo, hi, agent, from_step)
+        if P.shape[0]:
+            n_chunks = int(math.ceil(K / CHUNK))
+            pad = np.concatenate([q, np.repeat(q[-1:], n_chunks * CHUNK - K, axis=0)]).reshape(n_chunks, CHUNK, 3)
+            c_lo, c_hi = pad[:, :, :2].min(axis=1) - R, pad[:, :, :2].max(axis=1) + R
+            hit = np.all((P[:, None, :2] >= c_lo[None]) & (P[:, None, :2] <= c_hi[None]), axis=2)  # (M, chunks)
+            rows, chunks = np.nonzero(hit)
+            if rows.size:
+                kk = (chunks[:, None] * CHUNK + np.arange(CHUNK)[None]).reshape(-1)
+                rr = np.repeat(rows, CHUNK)
+                ok = kk < K
+                rr, kk = rr[ok], kk[ok]
+                d = P[rr] - q[kk]
+                close = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] < R * R  # only these can be in a keep-out
+                rr, kk, d = rr[close], kk[close], d[close]
+                h = np.zeros(rr.size, dtype=bool)
                 for tb in np.unique(ty[rr]).tolist():
                     m = ty[rr] == tb
                     h[m] = _conflict(self.problem.keepouts[(ta, int(tb))], d[m], False, SAMPLING_GROWTH_M)
-                dep = t_of[rr[h]] - kk[h]
-                bad[dep[(dep >= 0) & (dep < T)]] = True
+                # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
+                lo_d = np.maximum(t0[rr[h]] - kk[h], 0)
+                hi_d = np.minimum(t1[rr[h]] - kk[h], T)  # exclusive
+                span = hi_d > lo_d
+                bad |= _covered(lo_d[span], hi_d[span], T)
         # parked for good after each track's last sample: any d with d + k >= n - 1 for a hit k
         tail_from = T
-        last = np.array([tr.positions_m[-1] for tr in near])
-        n_of = np.array([tr.positions_m.shape[0] for tr in near])
-        ty_of = np.array([tr.type for tr in near])
-        K = q_m.shape[0]
-        for tb in np.unique(ty_of).tolist():
-            sel = np.flatnonzero(ty_of == tb)
-            d = (last[sel][:, None, :] - q_m[None, :, :]).reshape(-1, 3)
-            hit = _conflict(self.problem.keepouts[(ta, int(tb))], d, False, SAMPLING_GROWTH_M).reshape(sel.size, K)
-            rows = np.flatnonzero(hit.any(axis=1))
-            if rows.size:
-                k_last = K - 1 - np.argmax(hit[rows, ::-1], axis=1)
-                tail_from = min(tail_from, int(np.maximum(0, n_of[sel[rows]] - 1 - k_last).min()))
+        for tr in self.parked_near(lo, hi, agent):
+            hit_k = _conflict(self.problem.keepouts[(ta, tr.type)], tr.end_m[None] - q, False, SAMPLING_GROWTH_M)
+            if hit_k.any():
+                k_last = K - 1 - int(np.argmax(hit_k[::-1]))
+                tail_from = min(tail_from, max(0, tr.arrival_step - k_last))
         if tail_from < T:
             bad[tail_from:] = True
         return bad
@@ -171,31 +196,68 @@ class Occupancy:
         """(horizon,) bool: resting at ``w_m`` (3,) at step t conflicts with another track."""
         T = self.horizon
         out = np.zeros(T, dtype=bool)
-        R = self.reach
-        pt = self.problem.type_index
-        for b, p, until in self.waiting_near(w_m, w_m, agent):
-            ko = self.problem.keepouts[(int(pt[agent]), int(pt[b]))]
-            if _conflict(ko, (p - w_m)[None], True, SAMPLING_GROWTH_M)[0]:
-                out[: min(T, until + 1)] = True
-        for tr in self.near(w_m, w_m, agent):
-            ko = self._keep(agent, tr)
-            P = tr.positions_m
-            n = P.shape[0]
-            if _conflict(ko, (P[-1] - w_m)[None], True, SAMPLING_GROWTH_M)[0] and n - 1 < T:
-                out[n - 1 :] = True
-            d = P[: n - 1] - w_m[None]
-            near = np.flatnonzero((np.abs(d[:, 0]) <= R) & (np.abs(d[:, 1]) <= R))
-            if near.size == 0:
-                continue
-            mv = tr.moving[near]
-            h = np.zeros(near.size, dtype=bool)
-            if mv.any():
-                h[mv] = _conflict(ko, d[near[mv]], False, SAMPLING_GROWTH_M)
-            if (~mv).any():
-                h[~mv] = _conflict(ko, d[near[~mv]], True, SAMPLING_GROWTH_M)
-            idx = near[h]
-            out[idx[idx < T]] = True
+        w = np.asarray(w_m, dtype=float)
+        ta = int(self.problem.type_index[agent])
+        P, t0, t1, ty, mv, _ = self.samples_near(w, w, agent)
+        if P.shape[0]:
+            d = P - w[None]
+            near = np.flatnonzero((np.abs(d[:, 0]) <= self.reach) & (np.abs(d[:, 1]) <= self.reach))
+            if near.size:
+                h = np.zeros(near.size, dtype=bool)
+                for tb in np.unique(ty[near]).tolist():
+                    ko = self.problem.keepouts[(ta, int(tb))]
+                    for rest in (False, True):
+                        m = (ty[near] == tb) & (mv[near] != rest)
+                        if m.any():
+                            h[m] = _conflict(ko, d[near[m]], rest, SAMPLING_GROWTH_M)
+                out |= _covered(np.minimum(t0[near[h]], T), np.minimum(t1[near[h]], T), T)
+        for tr in self.parked_near(w, w, agent):
+            if (
+                tr.arrival_step < T
+                and _conflict(self.problem.keepouts[(ta, tr.type)], (tr.end_m - w)[None], True, SAMPLING_GROWTH_M)[0]
+            ):
+                out[tr.arrival_step :] = True
         return out
+
+    def conflicting_agents(self, track: GridTrack) -> set[int]:
+        """The agents whose tracks conflict with ``track`` (of its own agent) at some common grid step."""
+        a = track.agent
+        ta = int(self.problem.type_index[a])
+        found: set[int] = set()
+        for other in self.near(track.lo_m, track.hi_m, a):
+            n = max(track.arrival_step, other.arrival_step) + 1
+            steps = np.arange(n)
+            if other.vanishes:
+                steps = steps[: other.arrival_step + 1]
+            d = other.position_at_steps(steps) - track.position_at_steps(steps)
+            # as the queries see it: the moving keep-out along a move of ``track`` (its ends too),
+            # elsewhere the resting one where the other rests as well
+            moving = _at(track.in_move, track, steps) | _at(other.moving, other, steps)
+            ko = self.problem.keepouts[(ta, other.type)]
+            hit = np.zeros(steps.size, dtype=bool)
+            for rest in (False, True):
+                m = moving != rest
+                if m.any():
+                    hit[m] = _conflict(ko, d[m], rest, SAMPLING_GROWTH_M)
+            if hit.any():
+                found.add(other.agent)
+        return found
+
+
+def _covered(lo: np.ndarray, hi: np.ndarray, T: int) -> np.ndarray:
+    """(T,) bool: the union of the step ranges [lo, hi) (each within [0, T])."""
+    diff = np.zeros(T + 1, dtype=np.int64)
+    np.add.at(diff, lo, 1)
+    np.add.at(diff, hi, -1)
+    return np.cumsum(diff[:T]) > 0
+
+
+def _at(flags: np.ndarray, track: GridTrack, steps: np.ndarray) -> np.ndarray:
+    """Per-sample ``flags`` of ``track`` at ``steps`` (False once it is parked)."""
+    inside = steps <= track.arrival_step
+    out = np.zeros(steps.size, dtype=bool)
+    out[inside] = flags[steps[inside]]
+    return out
 
 
 def _conflict(ko, d: np.ndarray, rest: bool, grow_m: float) -> np.ndarray:

@@ -1,53 +1,64 @@
-"""Swarm planning (``--method roadmap``; ``optimized`` for swarms of ``SWARM_MIN_VEHICLES`` or
-more): coordinate jointly on a lattice, fly in continuous time.
+"""Swarm planning (``--method swarm``; ``optimized`` for swarms of ``SWARM_MIN_VEHICLES`` or
+more): coordinate jointly on a lattice, fly in continuous time. One function per stage:
 
-1. *Straight first* (:mod:`proxplan.planner.swarm.straight`): if every vehicle can fly its straight
-   line at once, synchronised (one step, checked exactly pair by pair), that is the plan (the CAPT
-   case of interchangeable goals). (Keeping the straight lines of the vehicles in no conflicting
-   pair and planning the rest around them was tried: it fails where a kept line passes a waiting
-   vehicle's start, and gained nothing on the benchmark layouts.)
-2. *Continuous time, prioritised* (:mod:`proxplan.planner.swarm.prioritized`): one vehicle after
-   another, each along the best of its straight line and a wavefront route through the others'
-   space-time, timed exactly; a vehicle that cannot be planned moves to the front. Two orders are
-   tried (vehicles whose start another's goal needs first; longest line first) and the shorter
-   plan kept.
-3. *Joint coordination*, when prioritised planning gives up: LaCAM with PIBT on the lattice of the
-   levels in use, long straight moves, synchronous conflicts checked exactly
-   (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in lock-step
-   (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the guaranteed answer.
-4. *Re-timing*: Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`), every vehicle against
-   the others' tracks in a space-time neighbourhood; never worse, always conflict-free.
+1. *Straight first* (:func:`_straight_stage`, :mod:`proxplan.planner.swarm.straight`): if every
+   vehicle can fly its straight line at once, synchronised (one step, checked exactly pair by pair),
+   that is the plan (the CAPT case of interchangeable goals).
+2. *Continuous time, prioritised* (:mod:`proxplan.planner.swarm.priority`), two ways, the shorter
+   plan kept: the straight lines in no conflict kept and only the other vehicles planned around
+   them (:func:`_kept_straight_stage`), and every vehicle in each of ``SwarmOptions.orders``
+   (:func:`_prioritised_stage`; groups that never interact apart,
+   :mod:`proxplan.planner.swarm.components`). One vehicle after another along the best of its
+   straight line and a wavefront route through the others' space-time, timed exactly; vehicles
+   not planned yet are predictions; a vehicle that cannot be planned is repaired (the vehicles in
+   conflict with it planned again after it), then the pass restarts with it first.
+3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
+   PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
+   exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
+   lock-step (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the
+   guaranteed answer.
+4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
+   every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
+   conflict-free.
 
-The caller (the pipeline) runs the independent verifier on the result as on every plan. The info
-names the ``stage`` that produced the tracks ("straight", "prioritised" or "lattice"); bounds in
-the info: ``lower_bound_s`` (largest straight-line rest-to-rest time of any vehicle) and the
-makespans after each stage.
+The caller (the pipeline) runs the independent verifier on the result as on every plan. The
+:class:`~proxplan.planner.swarm.info.SwarmInfo` names the ``stage`` that produced the tracks
+("straight", "prioritised" or "lattice"), the lower bound (largest straight-line rest-to-rest time
+of any vehicle) and the makespans after each stage.
 """
 
 from __future__ import annotations
 
+import math
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
 from proxplan.planfile import Scenario
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-from proxplan.planner.swarm.lacam import Lacam, SearchGaveUp
-from proxplan.planner.swarm.lattice import build_lattice
+from proxplan.planner.swarm.components import interaction_groups, plan_groups
+from proxplan.planner.swarm.info import LatticeInfo, RetimeInfo, SwarmInfo, SwarmStage
+from proxplan.planner.swarm.lacam import Lacam
+from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.lockstep import lockstep_tracks
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.prioritized import PrioritizedFailed, dependency_order, prioritized_tracks
-from proxplan.planner.swarm.problem import swarm_applicable, swarm_problem
+from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, dependency_order, prioritized_tracks
+from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
 from proxplan.planner.swarm.retime import improve, route_chain
-from proxplan.planner.swarm.straight import straight_step_conflicts, straight_tracks
+from proxplan.planner.swarm.straight import kept_straight_lines, straight_step_conflicts, straight_tracks
 from proxplan.planner.swarm.sync import SyncTable
-from proxplan.planner.swarm.tracks import GRID_DT_S
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.paths import TimedPath
 
 SWARM_MIN_VEHICLES = 16  # formation changes with at least this many vehicles use the swarm layer by default
-HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the lock-step makespan, s
+HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the initial makespan, s
+# prioritised planning's horizon: max(factor x lower bound, lower bound + margin) (a plan that needs
+# longer is not worth having: the lattice plan in lock-step is the answer then)
+PRIORITISED_HORIZON_FACTOR = 4.0
+PRIORITISED_HORIZON_MARGIN_S = 20.0
 
 __all__ = ["SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
 
@@ -60,9 +71,39 @@ class SwarmOptions:
     max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
     passes: int = 3  # continuous re-timing passes
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
-    max_restarts: int = 2  # re-orderings of the prioritised planning, per order and waiting time
+    # prioritised planning's repair budget, per vehicle of a group (rounded up): on the named layouts at
+    # 32 vehicles the plans that repaired at all needed 1-3 repairs; 2 per vehicle let grid-64 run
+    # for minutes on failing passes
+    repairs_per_vehicle: float = 0.25
+    max_restarts: int = 2  # prioritised planning begun anew with a vehicle it could not repair first
+    orders: tuple[str, ...] = ("dependencies first", "longest first")  # prioritised planning's orders (ORDERS)
+    # a vehicle not planned yet is assumed to hold its start this long, then to leave on its straight
+    # route, s: tried in turn until prioritised planning finds a plan (a longer hold leaves it more
+    # room). No hold (0.0) was measured first and lost on grid and pillar layouts (see docs/planner.md)
+    unplanned_hold_s: tuple[float, ...] = (1.0, 2.5)
+    # fly through waypoints without stopping (else rest to rest at each): "retime" in the re-timing
+    # passes only (each vehicle along its own route, against everyone's final tracks: never worse),
+    # "always" in prioritised planning too, "never". Off by default: on the named layouts it did not
+    # shorten the makespan for its CPU time (docs/planner.md, "Causes measured one at a time")
+    through_waypoints: Literal["never", "retime", "always"] = "never"
+    # also try: keep the straight lines in no conflict and plan only the others around them. Off by
+    # default: on the named layouts at 32 vehicles it never gave the shorter plan (docs/planner.md)
+    keep_straight: bool = False
+    workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     seed: int = 0
-    deflection_m: float = 0.0  # every keep-out grown by this (the vehicles' predicted deflections), m
+    # per vehicle name: its predicted deflection under the plan's own disturbance, m; a pair's
+    # keep-out grows by the sum of its two vehicles' values (as in the verifier)
+    deflection_m: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class _Stage:
+    """Tracks of every agent (by agent index) from one stage, and what the stage reports."""
+
+    tracks: list[GridTrack]
+    stage: SwarmStage
+    coordination: str
+    routes: Callable[[int], list[np.ndarray]]  # the stage's own waypoint chain of an agent (re-timing)
 
 
 def swarm_timed(
@@ -71,97 +112,234 @@ def swarm_timed(
     *,
     progress: Callable[[str, float], None] | None = None,
     deadline: float | None = None,
-) -> tuple[dict[str, TimedPath], dict]:
-    """Timed paths of every vehicle and an info dict (see module); :class:`SearchGaveUp` when the
-    coordination search stops on its budget or the ``deadline`` (time.perf_counter() value)."""
+) -> tuple[dict[str, TimedPath], SwarmInfo]:
+    """Timed paths of every vehicle and the :class:`SwarmInfo` (see module);
+    :class:`~proxplan.planner.errors.PlanNotFound` when the coordination search stops on its budget
+    or the ``deadline`` (time.perf_counter() value)."""
     opts = options or SwarmOptions()
     why = swarm_applicable(scenario)
     if why is not None:
         raise ValueError(f"the swarm layer cannot plan this scenario: {why}")
     t0 = time.perf_counter()
     problem = swarm_problem(scenario, deflection_m=opts.deflection_m)
-    info: dict = {"lower_bound_s": lower_bound_makespan_s(scenario), "vehicles": problem.n_agents}
+    lower_bound = lower_bound_makespan_s(scenario)
     conflicts = straight_step_conflicts(problem)
-    configurations = None
-    lattice = None
-    tracks = None
-    if not conflicts:
-        straight = straight_tracks(problem, list(range(problem.n_agents)))
-        tracks = [straight[a] for a in range(problem.n_agents)]
-        info["coordination"] = "one synchronised straight step"
-        info["stage"] = "straight"
-    elif opts.prioritized:
-        horizon = int(round(max(4.0 * info["lower_bound_s"], info["lower_bound_s"] + 20.0) / GRID_DT_S))
-        t1 = time.perf_counter()
-        length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-        orders = {
-            "dependencies first": dependency_order(problem),
-            "longest first": sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a)),
-        }
-        tried = []
-        for label, order in orders.items():
-            try:
-                planned, counts = prioritized_tracks(
-                    problem,
-                    order,
-                    horizon_steps=horizon,
-                    max_restarts=opts.max_restarts,
-                    progress=progress,
-                    deadline=deadline,
-                )
-            except PrioritizedFailed as err:
-                tried.append(f"{label}: gave up after {err.restarts} attempts (" + ", ".join(err.history[-2:]) + ")")
-                continue
-            makespan = max(tr.arrival_s for tr in planned.values())
-            tried.append(f"{label}: {makespan:.2f} s")
-            if tracks is None or makespan < max(tr.arrival_s for tr in tracks):
-                tracks = [planned[a] for a in range(problem.n_agents)]
-                info["stage"] = "prioritised"
-                info["coordination"] = (
-                    f"prioritised continuous planning, {label} ({counts['orders_tried']} attempt(s), "
-                    f"vehicles wait at their starts at most {counts['leave_start_s']:g} s)"
-                )
-        info["prioritized"] = "; ".join(tried)
-        info["prioritized_time_s"] = round(time.perf_counter() - t1, 3)
-    if tracks is None:
+    extra: dict = {}
+    found = _straight_stage(problem) if not conflicts else None
+    if found is None and opts.prioritized:
+        kept = _kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
+        found = _prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
+        if kept is not None and (found is None or _makespan(kept) < _makespan(found)):
+            found = kept
+    if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
-        lattice = build_lattice(problem, max_run=opts.max_run)
-        sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
-        info["lattice"] = {
-            "spacing_m": lattice.spacing_m,
-            "levels_m": lattice.levels_m.tolist(),
-            "vertices": int(lattice.pos_m.shape[0]),
-        }
-        t1 = time.perf_counter()
-        result = Lacam(lattice, sync, seed=opts.seed).solve(
-            max_nodes=opts.max_nodes, deadline=deadline, progress=progress
-        )
-        configurations = result.configurations
-        info["stage"] = "lattice"  # flown in lock-step
-        info["coordination"] = (
-            f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
-        )
-        info["coordination_time_s"] = round(time.perf_counter() - t1, 3)
-        tracks = lockstep_tracks(lattice, configurations)
-    by_agent = {tr.agent: tr for tr in tracks}
-    info["initial_makespan_s"] = max(tr.arrival_s for tr in tracks)
-    horizon = int(round((info["initial_makespan_s"] + HORIZON_MARGIN_S) / GRID_DT_S))
-    occ = Occupancy(problem, tracks, horizon)
-
-    def chains(a: int) -> list[np.ndarray]:
-        out = [np.array([problem.starts_m[a], problem.goals_m[a]])]
-        if lattice is not None and configurations is not None:
-            out.append(route_chain(lattice, configurations, a))
-        return out
-
-    t2 = time.perf_counter()
-    counts = improve(occ, by_agent, chains, passes=opts.passes, progress=progress, deadline=deadline)
-    info["retiming"] = {**counts, "time_s": round(time.perf_counter() - t2, 3)}
-    info["makespan_s"] = max(tr.arrival_s for tr in by_agent.values())
-    info["time_s"] = round(time.perf_counter() - t0, 3)
+        found = _lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+    initial = max(tr.arrival_s for tr in found.tracks)
+    by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
+    info = SwarmInfo(
+        stage=found.stage,
+        coordination=found.coordination,
+        vehicles=problem.n_agents,
+        lower_bound_s=lower_bound,
+        initial_makespan_s=initial,
+        makespan_s=max(tr.arrival_s for tr in by_agent.values()),
+        time_s=round(time.perf_counter() - t0, 3),
+        retiming=retiming,
+        **extra,
+    )
     timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
     return timed, info
 
 
-__all__ += ["SearchGaveUp"]
+def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
+    return lambda a: [np.array([problem.starts_m[a], problem.goals_m[a]])]
+
+
+def _own_routes(problem: SwarmProblem, tracks: list[GridTrack]) -> Callable[[int], list[np.ndarray]]:
+    """The straight line and the route each vehicle's track was timed along (re-timing)."""
+    routes = {tr.agent: tr.route_m for tr in tracks}
+
+    def chains(a: int) -> list[np.ndarray]:
+        out = [np.array([problem.starts_m[a], problem.goals_m[a]])]
+        r = routes.get(a)
+        if r is not None and len(r) > 2:
+            out.append(r)
+        return out
+
+    return chains
+
+
+def _straight_stage(problem: SwarmProblem) -> _Stage:
+    """Every vehicle on its straight line in one synchronised step (no pair conflicts)."""
+    straight = straight_tracks(problem, list(range(problem.n_agents)))
+    tracks = [straight[a] for a in range(problem.n_agents)]
+    return _Stage(tracks, "straight", "one synchronised straight step", _straight(problem))
+
+
+def longest_first(problem: SwarmProblem) -> list[int]:
+    """Planning order: the longer straight line first (it sets the makespan), ties by index."""
+    length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+    return sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a))
+
+
+ORDERS: dict[str, Callable[[SwarmProblem], list[int]]] = {
+    "dependencies first": dependency_order,
+    "longest first": longest_first,
+}
+
+
+def _makespan(stage: _Stage) -> float:
+    return max(tr.arrival_s for tr in stage.tracks)
+
+
+def _horizon_steps(lower_bound_s: float) -> int:
+    horizon_s = max(PRIORITISED_HORIZON_FACTOR * lower_bound_s, lower_bound_s + PRIORITISED_HORIZON_MARGIN_S)
+    return int(round(horizon_s / GRID_DT_S))
+
+
+def _kept_straight_stage(
+    problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
+) -> _Stage | None:
+    """Straight lines where they conflict with nobody, prioritised planning with repair for the
+    rest (:func:`~proxplan.planner.swarm.straight.kept_straight_lines`); None when it gives up or
+    keeps no line (then it is prioritised planning of everyone)."""
+    if not opts.keep_straight:
+        return None
+    horizon = _horizon_steps(lower_bound_s)
+    t1 = time.perf_counter()
+    kept, conflicted = kept_straight_lines(problem, horizon)
+    if not kept:
+        extra["kept_straight"] = "no straight line conflicts with nobody"
+        return None
+    order = [a for a in dependency_order(problem) if a in conflicted]
+    options = PriorityOptions(
+        max_repairs=math.ceil(opts.repairs_per_vehicle * problem.n_agents),
+        max_restarts=opts.max_restarts,
+        hold_s=opts.unplanned_hold_s[0],
+        through=opts.through_waypoints == "always",
+    )
+    try:
+        result = prioritized_tracks(
+            problem, order, options, horizon_steps=horizon, initial=kept, progress=progress, deadline=deadline
+        )
+    except PrioritizedFailed as err:
+        extra["kept_straight"] = f"{len(kept)} kept, {len(conflicted)} planned: gave up ({'; '.join(err.history[-2:])})"
+        extra["kept_straight_time_s"] = round(time.perf_counter() - t1, 3)
+        return None
+    still = sum(1 for a, tr in kept.items() if result.tracks.get(a) is tr)
+    extra["kept_straight"] = f"{len(kept)} kept ({still} after repairs), {len(conflicted)} planned"
+    extra["kept_straight_time_s"] = round(time.perf_counter() - t1, 3)
+    coordination = (
+        f"straight lines of {still} vehicles in no conflict kept, the other {problem.n_agents - still} planned "
+        f"around them ({result.planned} vehicle plannings, {result.repairs} repairs, {result.restarts} restarts)"
+    )
+    tracks = [result.tracks[a] for a in range(problem.n_agents)]
+    return _Stage(tracks, "prioritised", coordination, _own_routes(problem, tracks))
+
+
+def _prioritised_stage(
+    problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
+) -> _Stage | None:
+    """Prioritised continuous planning of each group of vehicles that interact, in each of
+    ``opts.orders``, the shorter plan kept; with the first of ``opts.unplanned_hold_s`` for which an
+    order finds a plan; None when every one gives up."""
+    import os
+
+    horizon = _horizon_steps(lower_bound_s)
+    t1 = time.perf_counter()
+    groups = interaction_groups(problem)
+    workers = opts.workers if opts.workers > 0 else (os.cpu_count() or 1)
+    tried = []
+    best: _Stage | None = None
+    counts = {"groups": len(groups), "planned": 0, "repairs": 0, "restarts": 0}
+    for hold_s in opts.unplanned_hold_s:
+        options = PriorityOptions(
+            max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
+            max_restarts=opts.max_restarts,
+            hold_s=hold_s,
+            through=opts.through_waypoints == "always",
+        )
+        for label in opts.orders:
+            try:
+                result = plan_groups(
+                    problem,
+                    groups,
+                    ORDERS[label],
+                    options,
+                    horizon_steps=horizon,
+                    workers=workers,
+                    progress=progress,
+                    deadline=deadline,
+                )
+            except PrioritizedFailed as err:
+                counts["planned"] += err.planned
+                tried.append(f"{label}, hold {hold_s:g} s: gave up (" + "; ".join(err.history[-2:]) + ")")
+                continue
+            counts["planned"] += result.planned
+            counts["repairs"] += result.repairs
+            counts["restarts"] += result.restarts
+            makespan = max(tr.arrival_s for tr in result.tracks.values())
+            tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s")
+            if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
+                tracks = [result.tracks[a] for a in range(problem.n_agents)]
+                best = _Stage(
+                    tracks,
+                    "prioritised",
+                    f"prioritised continuous planning, {label}, vehicles not planned yet assumed to leave after "
+                    f"{hold_s:g} s ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
+                    f"repairs, {result.restarts} restarts)",
+                    _own_routes(problem, tracks),
+                )
+        if best is not None:  # a longer hold only where this one found nothing
+            break
+    extra["prioritised"] = "; ".join(tried)
+    extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
+    extra["counts"] = counts
+    return best
+
+
+def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> _Stage:
+    """LaCAM on the lattice, flown in lock-step: the guaranteed answer (or PlanNotFound)."""
+    lattice = build_lattice(problem, max_run=opts.max_run)
+    sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
+    t1 = time.perf_counter()
+    result = Lacam(lattice, sync, seed=opts.seed).solve(max_nodes=opts.max_nodes, deadline=deadline, progress=progress)
+    configurations = result.configurations
+    extra["lattice"] = LatticeInfo(
+        spacing_m=lattice.spacing_m,
+        levels_m=lattice.levels_m.tolist(),
+        vertices=int(lattice.pos_m.shape[0]),
+        steps=len(configurations) - 1,
+        nodes=result.nodes,
+        tests=result.tests,
+        time_s=round(time.perf_counter() - t1, 3),
+    )
+
+    def routes(a: int, lattice: Lattice = lattice) -> list[np.ndarray]:
+        return [np.array([problem.starts_m[a], problem.goals_m[a]]), route_chain(lattice, configurations, a)]
+
+    coordination = (
+        f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
+    )
+    return _Stage(lockstep_tracks(lattice, configurations), "lattice", coordination, routes)
+
+
+def _retime_stage(
+    problem: SwarmProblem, found: _Stage, initial_s: float, opts: SwarmOptions, *, progress, deadline
+) -> tuple[dict[int, GridTrack], RetimeInfo]:
+    """Gauss-Seidel re-timing of every vehicle along its chains (never worse, conflict-free)."""
+    by_agent = {tr.agent: tr for tr in found.tracks}
+    horizon = int(round((initial_s + HORIZON_MARGIN_S) / GRID_DT_S))
+    occ = Occupancy(problem, found.tracks, horizon)
+    t2 = time.perf_counter()
+    counts = improve(
+        occ,
+        by_agent,
+        found.routes,
+        passes=opts.passes,
+        through=opts.through_waypoints != "never",
+        progress=progress,
+        deadline=deadline,
+    )
+    return by_agent, RetimeInfo(**counts, time_s=round(time.perf_counter() - t2, 3))

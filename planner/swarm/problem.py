@@ -12,6 +12,7 @@ obstacle margin (:func:`proxplan.planner.checks.constraints.build_checker`).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,11 +84,15 @@ def swarm_applicable(scenario: Scenario) -> str | None:
     return None
 
 
-def swarm_problem(scenario: Scenario, goals_m: np.ndarray | None = None, *, deflection_m: float = 0.0) -> SwarmProblem:
+def swarm_problem(
+    scenario: Scenario, goals_m: np.ndarray | None = None, *, deflection_m: Mapping[str, float] | None = None
+) -> SwarmProblem:
     """The :class:`SwarmProblem` of ``scenario`` (``goals_m`` (A, 3) overrides the goals, e.g. an
-    assignment); hovering vehicles keep their start as goal and are pinned. ``deflection_m`` (m)
-    grows every keep-out, moving and at rest (predicted deflections of the vehicles, see
-    :func:`~proxplan.planner.swarm.keepout.keepout_for`)."""
+    assignment); hovering vehicles keep their start as goal and are pinned. ``deflection_m`` (m per
+    vehicle name: its predicted deflection) grows the keep-outs moving and at rest: as in the
+    verifier a pair's growth is the sum of its two vehicles' deflections; keep-outs are per pair of
+    types, so each type counts with the largest deflection of its vehicles
+    (:func:`~proxplan.planner.swarm.keepout.keepout_for`)."""
     from proxplan.costmaps import effects_key
     from proxplan.planner.checks.constraints import build_checker
 
@@ -101,6 +106,9 @@ def swarm_problem(scenario: Scenario, goals_m: np.ndarray | None = None, *, defl
             index[v] = len(vehicles)
             vehicles.append(v)
         types.append(index[v])
+    grow = [0.0] * len(vehicles)  # per type: the largest predicted deflection of its vehicles, m
+    for n, t in zip(names, types):
+        grow[t] = max(grow[t], float((deflection_m or {}).get(n, 0.0)))
     fx = effects_key(getattr(scenario, "effects", ()))
     keep = {
         (ia, ib): keepout_for(
@@ -110,7 +118,7 @@ def swarm_problem(scenario: Scenario, goals_m: np.ndarray | None = None, *, defl
             field_form=scenario.field_form,
             effects=fx,
             sample_m=GROWTH_M,
-            deflection_m=deflection_m,
+            deflection_m=grow[ia] + grow[ib],
         )
         for ia, va in enumerate(vehicles)
         for ib, vb in enumerate(vehicles)

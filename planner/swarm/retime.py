@@ -16,11 +16,11 @@ from collections.abc import Callable
 
 import numpy as np
 
+from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm.chain import time_chain
-from proxplan.planner.swarm.lacam import SearchGaveUp
 from proxplan.planner.swarm.lattice import Lattice
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.tracks import Track
+from proxplan.planner.swarm.tracks import GridTrack
 
 ROUTE_CORRIDOR_FACTOR = 0.5  # a route shortcut stays within this many lattice spacings of the skipped vertices
 
@@ -73,17 +73,18 @@ def route_chain(lattice: Lattice, configurations: list[tuple[int, ...]], agent: 
 
 def improve(
     occ: Occupancy,
-    tracks: dict[int, Track],
+    tracks: dict[int, GridTrack],
     chains: Callable[[int], list[np.ndarray]],
     *,
     passes: int,
     agents: list[int] | None = None,
+    through: bool = True,
     progress: Callable[[str, float], None] | None = None,
     deadline: float | None = None,
 ) -> dict:
     """Gauss-Seidel passes over ``agents`` (default: all), in place on ``tracks`` / ``occ`` (which
     must hold the same tracks); returns counts (passes run, replacements) and the makespan (s) after
-    each pass. A wall-clock ``deadline`` stops it only as "not found" (:class:`SearchGaveUp`), so the
+    each pass. A wall-clock ``deadline`` stops it only as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`), so the
     plan never depends on the machine's speed."""
     replaced = 0
     done = 0
@@ -96,14 +97,16 @@ def improve(
             if occ.problem.pinned[a]:
                 continue
             if deadline is not None and time.perf_counter() > deadline:
-                raise SearchGaveUp("no plan found within the time budget (continuous re-timing)", nodes=idx)
+                raise PlanNotFound(
+                    "no plan found within the time budget (continuous re-timing)", details={"nodes": idx}
+                )
             if progress is not None and idx % 16 == 0:
                 progress(f"continuous re-timing, pass {p + 1}/{passes}", 0.6 + 0.3 * (p + idx / len(order)) / passes)
             old = tracks[a]
             best = None
             occ.remove(a)
             for W in chains(a):
-                res = time_chain(occ, a, W, arrive_by=old.arrival_step - 1)
+                res = time_chain(occ, a, W, arrive_by=old.arrival_step - 1, through=through)
                 if (
                     res is not None
                     and res.arrival_step < old.arrival_step

@@ -4,6 +4,12 @@ Every vehicle flying its straight line in one synchronised step (one common rest
 the longest line's at the movers' common limits) moves each pair's relative position along a
 straight segment, checked exactly (:func:`proxplan.planner.swarm.sync.segment_conflict`). When all
 pairs pass, that is the plan (the CAPT case of interchangeable goals).
+
+Where some pairs conflict, :func:`kept_straight_lines` keeps the straight line, each at its
+vehicle's own limits from t = 0, of every vehicle in no conflict (checked on the grid samples
+against all the other straight lines, :meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`),
+and prioritised planning plans only the others around them (repairing kept lines that are in the
+way).
 """
 
 from __future__ import annotations
@@ -13,7 +19,7 @@ from scipy.spatial import cKDTree
 
 from proxplan.planner.swarm.problem import GROWTH_M, SwarmProblem
 from proxplan.planner.swarm.sync import segment_conflict
-from proxplan.planner.swarm.tracks import GRID_DT_S, Track
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.profile import LineMove, rest_to_rest
 
 
@@ -38,11 +44,11 @@ def straight_step_conflicts(problem: SwarmProblem) -> list[tuple[int, int]]:
     return bad
 
 
-def straight_tracks(problem: SwarmProblem, agents: list[int]) -> dict[int, Track]:
+def straight_tracks(problem: SwarmProblem, agents: list[int]) -> dict[int, GridTrack]:
     """``agents`` straight to their goals in one synchronised step (a common profile)."""
     lengths = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
     movers = [a for a in agents if lengths[a] > 0.0]
-    out: dict[int, Track] = {}
+    out: dict[int, GridTrack] = {}
     if not agents:
         return out
     profile = rest_to_rest(
@@ -50,5 +56,32 @@ def straight_tracks(problem: SwarmProblem, agents: list[int]) -> dict[int, Track
     )
     for a in agents:
         mv = [(0, LineMove(problem.starts_m[a], problem.goals_m[a], profile))] if a in movers else []
-        out[a] = Track(a, int(problem.type_index[a]), problem.starts_m[a].copy(), mv)
+        out[a] = GridTrack(a, int(problem.type_index[a]), problem.starts_m[a].copy(), mv)
     return out
+
+
+def kept_straight_lines(problem: SwarmProblem, horizon_steps: int) -> tuple[dict[int, GridTrack], set[int]]:
+    """(the straight tracks of the vehicles in no conflict, each at its own limits from t = 0; the
+    vehicles in conflict): every moving vehicle's straight line against all the others' (see module)."""
+    from proxplan.planner.swarm.occupancy import Occupancy
+
+    tracks = {}
+    for a in range(problem.n_agents):
+        s, g = problem.starts_m[a], problem.goals_m[a]
+        length = float(np.linalg.norm(g - s))
+        mv = (
+            []
+            if length <= 0.0 or problem.pinned[a]
+            else [(0, LineMove(s, g, rest_to_rest(length, problem.limits[a], GRID_DT_S)))]
+        )
+        tracks[a] = GridTrack(a, int(problem.type_index[a]), s.copy(), mv)
+    occ = Occupancy(problem, list(tracks.values()), horizon_steps)
+    conflicted: set[int] = {
+        a for a in range(problem.n_agents) if not problem.segment_free(problem.starts_m[a], problem.goals_m[a])
+    }
+    for a, tr in tracks.items():
+        hit = occ.conflicting_agents(tr)
+        if hit:
+            conflicted |= hit | {a}
+    conflicted -= {a for a in range(problem.n_agents) if problem.pinned[a]}
+    return {a: tr for a, tr in tracks.items() if a not in conflicted}, conflicted

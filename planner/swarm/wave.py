@@ -3,13 +3,14 @@
 The vehicle is treated as moving one grid cell (8-connected, ``CELL_M``) or waiting per layer of
 ``layer_s`` = cell diagonal / (``SPEED_FRACTION`` x its speed limit). Each layer of the grid marks
 the cells within the pair's horizontal keep-out reach of any other vehicle during that layer's
-time span (their track samples, swept; waiting vehicles until they leave; parked vehicles for
-good), so column-exclusive downwash is 2-D here. The set of cells reachable at layer t+1 is the
+time span (their track samples, swept; parked vehicles for good; predicted tracks of vehicles not
+planned yet until they vanish), so column-exclusive downwash is 2-D here. The set of cells reachable at layer t+1 is the
 8-neighbourhood dilation of the set at layer t, restricted to cells free in both layers (numpy
 boolean shifts: the whole search is a few array operations per layer). The first layer at which the
 goal cell is reached and stays free to the horizon gives the route; backtracking prefers waiting.
 
-This is a guide, not a trajectory: the route's corners and waiting places become the waypoints of
+This is a guide, not a trajectory: the route's corners and waiting places, simplified to within a
+cell (Douglas-Peucker: the grid's staircase is not part of the route), become the waypoints of
 :func:`proxplan.planner.swarm.chain.time_chain`, which times them exactly against the same tracks
 (the grid is coarse where the keep-outs are sharp).
 """
@@ -90,17 +91,11 @@ def wave_route(
         key = np.unique(np.stack([lay, cx, cy], axis=1), axis=0)
         mark(key[:, 0], key[:, 1], key[:, 2], disc)
         last = int(lay[-1])
-        if last < n_layers:  # parked for good
+        if last < n_layers and not tr.vanishes:  # parked for good
             ox, oy = disc
             X_, Y_ = cx[-1] + ox, cy[-1] + oy
             ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
             occupied[last:, X_[ok], Y_[ok]] = True
-    for b, pos, until in occ.waiting_near(box_lo, box_hi, agent):
-        ox, oy = _disc((p.keepouts[(ta, int(p.type_index[b]))].reach_xy_m + grow_m) / h)
-        c = np.round((pos[:2] - lo) / h).astype(np.int64)
-        X_, Y_ = c[0] + ox, c[1] + oy
-        ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
-        occupied[: min(n_layers, int(math.ceil(until * GRID_DT_S / layer_s)) + 1), X_[ok], Y_[ok]] = True
     free = ~occupied & free_static[None]
     sx, sy = (int(v) for v in np.round((start_m[:2] - lo) / h))
     gx_, gy_ = (int(v) for v in np.round((goal_m[:2] - lo) / h))
@@ -156,6 +151,7 @@ def _waypoints(cells: list[tuple[int, int]], lo: np.ndarray, h: float, start_m: 
         if (b[0] - a[0], b[1] - a[1]) != (c[0] - b[0], c[1] - b[1]):
             keep.append(k)
     keep.append(len(cells) - 1)
+    keep = _simplified(np.array(cells, dtype=float), keep, tolerance=1.0)  # within one cell
     xy: list[np.ndarray] = []
     for k in keep:
         q = lo + np.array(cells[k], dtype=float) * h
@@ -174,3 +170,34 @@ def _waypoints(cells: list[tuple[int, int]], lo: np.ndarray, h: float, start_m: 
         if float(np.linalg.norm(q - keep_pts[-1])) > 1e-9:
             keep_pts.append(q)
     return np.array(keep_pts if len(keep_pts) > 1 else [out[0], out[-1]])
+
+
+def _simplified(cells: np.ndarray, keep: list[int], *, tolerance: float) -> list[int]:
+    """Douglas-Peucker over the kept corners of a cell route (cells (n, 2), in cells), never
+    dropping a place where the route waits (a repeated cell)."""
+    waits = {k for k in keep if 0 < k < len(cells) - 1 and np.array_equal(cells[k], cells[k - 1])}
+    out: list[int] = []
+
+    def rec(i: int, j: int) -> None:
+        a, b = cells[keep[i]], cells[keep[j]]
+        ab = b - a
+        worst, at = -1.0, -1
+        for m in range(i + 1, j):
+            p = cells[keep[m]]
+            if keep[m] in waits:
+                worst, at = math.inf, m
+                break
+            L2 = float(ab @ ab)
+            s = 0.0 if L2 == 0.0 else min(1.0, max(0.0, float((p - a) @ ab) / L2))
+            dist = float(np.linalg.norm(p - a - s * ab))
+            if dist > worst:
+                worst, at = dist, m
+        if at >= 0 and worst > tolerance:
+            rec(i, at)
+            out.append(keep[at])
+            rec(at, j)
+
+    out.append(keep[0])
+    rec(0, len(keep) - 1)
+    out.append(keep[-1])
+    return sorted(set(out))

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from proxplan.physics import KinematicLimits
-from proxplan.planner.timing.segments import ruckig_segment, through_segment
+from proxplan.planner.timing.corners import through_run
+from proxplan.planner.timing.segments import ruckig_segment
 
 
 @dataclass
@@ -100,35 +101,9 @@ def time_parameterize(
     return TimedPath(np.array(knots), pts.copy(), segments)
 
 
-def pass_through_velocities(pts: np.ndarray, limits: KinematicLimits, *, speed_fraction: float = 0.5) -> np.ndarray:
-    """Velocity (K, 3), m/s, at each waypoint of a moving run: zero at both ends and at turns of
-    more than 90 degrees, else along the bisector of the two directions at
-    ``speed_fraction x max speed x cos(turn / 2)``, capped by what the shorter adjacent segment
-    allows from rest (sqrt(a d)). ``speed_fraction`` <= 1/sqrt(3) keeps every component within the
-    per-axis limits of :func:`through_segment`."""
-    v = np.zeros_like(pts)
-    for m in range(1, len(pts) - 1):
-        d_in, d_out = pts[m] - pts[m - 1], pts[m + 1] - pts[m]
-        l_in, l_out = float(np.linalg.norm(d_in)), float(np.linalg.norm(d_out))
-        if l_in < 1e-9 or l_out < 1e-9:
-            continue
-        u_in, u_out = d_in / l_in, d_out / l_out
-        cos_turn = float(np.dot(u_in, u_out))
-        if cos_turn <= 0.0:
-            continue
-        b = u_in + u_out
-        b /= float(np.linalg.norm(b))
-        half_cos = math.sqrt((1.0 + cos_turn) / 2.0)
-        s = min(
-            speed_fraction * limits.max_speed_mps * half_cos, math.sqrt(limits.max_accel_mps2 * min(l_in, l_out)) * 0.5
-        )
-        v[m] = s * b
-    return v
-
-
 def time_parameterize_through(waypoints_m: np.ndarray, times_s: np.ndarray, limits: KinematicLimits) -> TimedPath:
     """Like :func:`time_parameterize`, but each moving run (consecutive distinct waypoints) passes
-    its interior waypoints at :func:`pass_through_velocities` instead of stopping there, at minimum
+    its interior waypoints without stopping (:func:`through_run`), at minimum
     time; waits (repeated waypoints) end at their scheduled times. State-to-state Ruckig segments
     with target velocities, never Ruckig's intermediate-waypoint feature. Segments are not straight
     lines near the waypoints: the caller re-checks the timed trajectory."""
@@ -147,9 +122,7 @@ def time_parameterize_through(waypoints_m: np.ndarray, times_s: np.ndarray, limi
         j = k + 1
         while j < n - 1 and float(np.linalg.norm(pts[j + 1] - pts[j])) > 1e-9:
             j += 1
-        vel = pass_through_velocities(pts[k : j + 1], limits)
-        for m in range(j - k):
-            traj = through_segment(pts[k + m], pts[k + m + 1], vel[m], vel[m + 1], limits)
+        for traj in through_run(pts[k : j + 1], limits):
             segments.append(traj)
             knots.append(knots[-1] + float(traj.duration))
         k = j

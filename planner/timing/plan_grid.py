@@ -9,6 +9,7 @@ from proxplan.planner.timing.paths import TimedPath, common_grid
 
 DT_S = 0.05  # common time grid of plan.json, s
 DOCK_SPEED_FACTOR = 0.5  # final dock approach at this fraction of the vehicle's limits
+MOVING_SPEED_MPS = 1e-4  # a vehicle faster than this on a sample moves (the makespan is when the last stops), m/s
 
 
 def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: str, notes: list[str]) -> Plan:
@@ -39,3 +40,14 @@ def assemble_plan(scenario: Scenario, timed: dict[str, TimedPath], *, method: st
         scenario_file=scenario.source_path,
         scenario_spec=scenario.to_spec(),
     )
+
+
+def vehicle_arrival_s(tr: VehicleTrajectory) -> float:
+    """The time after which ``tr`` no longer moves, s (0 for a vehicle that never moves)."""
+    moving = np.flatnonzero(np.linalg.norm(tr.velocity_mps, axis=1) > MOVING_SPEED_MPS)
+    return float(tr.t_s[min(int(moving[-1]) + 1, tr.t_s.size - 1)]) if moving.size else 0.0
+
+
+def moving_end_s(plan: Plan) -> float:
+    """The time after which no vehicle of ``plan`` moves any more (DESIGN.md's makespan), s."""
+    return max([vehicle_arrival_s(tr) for tr in plan.vehicles.values()] + [0.0])

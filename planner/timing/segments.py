@@ -52,9 +52,10 @@ class _LazyOTG:
 _OTG = _LazyOTG()
 
 
-def through_segment(p0_m, p1_m, v0_mps, v1_mps, limits: KinematicLimits):
+def through_segment(p0_m, p1_m, v0_mps, v1_mps, limits: KinematicLimits, *, straight: bool = False):
     """One Ruckig segment from ``p0_m`` moving at ``v0_mps`` to ``p1_m`` moving at ``v1_mps`` (3,),
-    time-synchronised, time-optimal; a ``ruckig.Trajectory``.
+    time-optimal; a ``ruckig.Trajectory``. ``straight`` (both velocities along the displacement):
+    phase-synchronised, so the segment is a straight line; else time-synchronised.
 
     Per-axis limits ``L w_i`` with a unit weight vector w (the largest direction cosine of the
     displacement and of both velocities on each axis, normalised), so the norms of velocity,
@@ -76,7 +77,7 @@ def through_segment(p0_m, p1_m, v0_mps, v1_mps, limits: KinematicLimits):
     inp.max_velocity = (limits.max_speed_mps * w + eps).tolist()
     inp.max_acceleration = (limits.max_accel_mps2 * w + eps).tolist()
     inp.max_jerk = (limits.max_jerk_mps3 * w + eps).tolist()
-    inp.synchronization = Synchronization.Time
+    inp.synchronization = Synchronization.Phase if straight else Synchronization.Time
     traj = Trajectory(3)
     result = _OTG.calculate(inp, traj)
     if result not in (Result.Working, Result.Finished):

@@ -11,7 +11,8 @@ import sys
 
 from proxplan.cli_args import add_model_argument, load_model_argument, seed_argument
 
-METHOD_CHOICES = ("optimized", "sampling", "roadmap", "no-downwash", "ellipsoid")
+# the planner's METHODS (proxplan.planner.pipeline), spelled out here so that --help needs no planner import
+METHOD_CHOICES = ("optimized", "sampling", "swarm", "no-downwash", "ellipsoid")
 
 
 def register(subparsers) -> None:
@@ -35,7 +36,7 @@ def register(subparsers) -> None:
         choices=METHOD_CHOICES,
         default="optimized",
         help="optimized (default; sampling + CasADi refinement, or for swarms of 16+ vehicles the swarm layer "
-        "with extra continuous re-timing), sampling, roadmap (the swarm layer: joint coordination on a lattice, "
+        "with extra continuous re-timing), sampling, swarm (the swarm layer: joint coordination on a lattice, "
         "continuous-time planning; falls back to sampling with a note), or the baselines "
         "no-downwash (separation only) and ellipsoid (Crazyswarm keep-out ellipsoid)",
     )
@@ -154,7 +155,7 @@ def _plan(args: argparse.Namespace) -> int:
             return 1
         bar.close()
         t_verify = time.perf_counter()
-        if plan.metrics.get("verified"):  # the pipeline ran this same verifier on this same plan
+        if plan.verified:  # the pipeline ran this same verifier on this same plan
             violations = []
         else:
             planned = scenario_of_plan(plan) if "assignment" in plan.metrics else scenario

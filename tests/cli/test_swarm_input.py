@@ -44,7 +44,7 @@ def test_goal_inside_another_goals_cutoff_names_both(proxplan, write_yaml, tmp_p
     doc = grid_reshuffle(100, types=["crazyflie-2.1"])
     g = doc["vehicles"]["v020"]["goal"]
     doc["vehicles"]["v021"]["goal"] = [g[0] + 0.05, g[1], g[2] + 0.8]
-    res = proxplan("plan", write_yaml(doc), "--out", tmp_path / "out", "--method", "roadmap")
+    res = proxplan("plan", write_yaml(doc), "--out", tmp_path / "out", "--method", "swarm")
     _one_line(res, "vehicles.v020.goal", "cut-off of vehicles.v021.goal")
 
 
@@ -95,10 +95,17 @@ def test_a_search_stopped_by_max_time_is_not_found_not_infeasible(proxplan, writ
 
     doc = grid_reshuffle(16)  # crossing paths: the straight step does not solve it, a search must run
     res = proxplan(
-        "plan", write_yaml(doc), "--out", tmp_path / "out", "--method", "roadmap", "--max-time", "0.001", "--json"
+        "plan", write_yaml(doc), "--out", tmp_path / "out", "--method", "swarm", "--max-time", "0.001", "--json"
     )
     assert res.returncode == 3, (res.returncode, res.stderr)
     assert "Traceback" not in res.stderr and "not found" in res.stderr and "infeasible" not in res.stderr
     report = json.loads(res.stdout)
     assert report["found"] is False and report["feasible"] is None
     assert not (tmp_path / "out").exists()
+
+
+def test_the_cli_offers_exactly_the_planner_methods():
+    from proxplan.commands.plan import METHOD_CHOICES
+    from proxplan.planner import METHODS
+
+    assert METHOD_CHOICES == METHODS

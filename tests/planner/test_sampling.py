@@ -215,3 +215,18 @@ def test_roadmap_nodes_start_first_goal_last_even_when_they_coincide():
         nodes = roadmap_nodes(p, end, [], dodge_m=0.3, clearance_m=0.15)
         assert np.allclose(nodes[0], p) and np.allclose(nodes[-1], end)
         assert not any(np.allclose(q, end) for q in nodes[1:-1])  # no other copy of the goal
+
+
+def test_the_sampling_planner_stops_on_its_count_budget_as_not_found():
+    """``SamplingOptions.max_searches`` bounds the single-vehicle searches of a whole plan: with too
+    small a budget the planner says "not found" (PlanNotFound), never "infeasible"; with enough, it
+    plans the same scenario."""
+    from proxplan.planner.errors import PlanNotFound
+    from proxplan.planner.formations import grid_reshuffle
+    from proxplan.planner.sampling import sampling_plan
+
+    scenario = scenario_from_dict(grid_reshuffle(4, seed=1), label="test")
+    with pytest.raises(PlanNotFound, match="budget of 2 single-vehicle searches"):
+        sampling_plan(scenario, mode="downwash", seed=0, options=SamplingOptions(max_searches=2), progress=None)
+    plan = sampling_plan(scenario, mode="downwash", seed=0, options=SamplingOptions(max_searches=40), progress=None)
+    assert set(plan.vehicles) == set(scenario.vehicles)

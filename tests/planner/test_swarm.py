@@ -133,7 +133,7 @@ def test_assignment_equals_the_brute_force_optimum_on_six_vehicles():
 def _plan(doc: dict, **options):
     sc = _scenario(doc)
     timed, info = swarm_timed(sc, SwarmOptions(**options))
-    return sc, assemble_plan(sc, timed, method="roadmap", notes=[]), info
+    return sc, assemble_plan(sc, timed, method="swarm", notes=[]), info
 
 
 @pytest.mark.parametrize("layout", [grid_reshuffle, circle_swap])
@@ -141,9 +141,9 @@ def test_swarm_plans_pass_the_verifier_and_are_reproducible(layout):
     doc = layout(8)
     sc, plan, info = _plan(doc)
     assert verify_plan(plan, sc) == []
-    assert info["makespan_s"] >= info["lower_bound_s"] - 1e-9
+    assert info.makespan_s >= info.lower_bound_s - 1e-9
     _, again, info2 = _plan(doc)
-    assert info2["makespan_s"] == info["makespan_s"]
+    assert info2.makespan_s == info.makespan_s
     for n, tr in plan.vehicles.items():
         np.testing.assert_array_equal(tr.position_m, again.vehicles[n].position_m)
 
@@ -157,7 +157,7 @@ def test_lockstep_conversion_of_the_coordination_plan_is_conflict_free():
     result = Lacam(lat, SyncTable(problem.keepouts, problem.type_index, lat.pos_mm)).solve(max_nodes=2000)
     tracks = lockstep_tracks(lat, result.configurations)
     timed = {problem.names[t.agent]: t.timed_path() for t in tracks}
-    assert verify_plan(assemble_plan(sc, timed, method="roadmap", notes=[]), sc) == []
+    assert verify_plan(assemble_plan(sc, timed, method="swarm", notes=[]), sc) == []
 
 
 def test_verify_rejects_a_plan_whose_timing_breaks_the_order():
@@ -212,7 +212,8 @@ def test_verify_rejects_a_plan_whose_timing_breaks_the_order():
 def test_predicted_deflections_grow_the_keepout_moving_and_at_rest():
     doc = grid_reshuffle(4, types=["crazyflie-2.1"])
     plain = swarm_problem(_scenario(doc))
-    grown = swarm_problem(_scenario(doc), deflection_m=0.03)
+    sc = _scenario(doc)
+    grown = swarm_problem(sc, deflection_m={n: 0.015 for n in sc.vehicles})  # a pair grows by the sum: 3 cm
     ko, kg = plain.keepouts[(0, 0)], grown.keepouts[(0, 0)]
     for rest in (True, False):
         w = ko.w_rest_m if rest else ko.w_move_m
@@ -224,24 +225,99 @@ def test_predicted_deflections_grow_the_keepout_moving_and_at_rest():
     assert grown.reach_xy_m == pytest.approx(plain.reach_xy_m + 0.03)
 
 
-def test_a_lattice_plan_in_lockstep_gives_way_to_a_shorter_verified_sampling_plan(monkeypatch):
+def test_a_lattice_plan_in_lockstep_gives_way_to_a_shorter_verified_sampling_plan():
     """Where prioritised planning gives up, the swarm layer's answer is the lattice plan flown in
     lock-step; the pipeline also runs the sampling planner and keeps the shorter verified plan."""
-    from dataclasses import dataclass
-
-    import proxplan.planner.swarm as swarm
     from proxplan.planner import plan_scenario
-    from proxplan.planner.optimizer.acceptance import moving_end_s
+    from proxplan.planner.timing import moving_end_s
 
-    @dataclass(frozen=True)
-    class LatticeOnly(swarm.SwarmOptions):
-        prioritized: bool = False  # straight to the lattice coordination, as when PP gives up
-
-    monkeypatch.setattr(swarm, "SwarmOptions", LatticeOnly)
     scenario = _scenario(grid_reshuffle(16))
-    plan = plan_scenario(scenario, method="roadmap", seed=0)
+    # straight to the lattice coordination, as when prioritised planning gives up
+    plan = plan_scenario(scenario, method="swarm", seed=0, swarm_options=SwarmOptions(prioritized=False))
     assert plan.metrics["swarm"]["stage"] == "lattice"
     lattice_s = plan.metrics["swarm"]["makespan_s"]
     assert verify_plan(plan, scenario) == []
     assert moving_end_s(plan) <= lattice_s + plan.dt_s + 1e-9  # the plan grid rounds up by < one step
     assert any("sampling planner" in n for n in plan.notes)  # tried, whichever was kept
+
+
+def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in_turn():
+    """Two formations far apart are two groups of the interaction graph; planned on a Dask local
+    cluster (two workers) they get exactly the tracks they get one after the other."""
+    from proxplan.planner.swarm.components import interaction_groups, plan_groups
+    from proxplan.planner.swarm.plan import longest_first
+    from proxplan.planner.swarm.priority import PriorityOptions
+
+    west, east = grid_reshuffle(6, seed=1), grid_reshuffle(6, seed=2)
+    vehicles = {}
+    for shift, doc in ((-6.0, west), (6.0, east)):
+        for name, v in doc["vehicles"].items():
+            start, goal = list(v["start"]), list(v["goal"])
+            start[0] += shift
+            goal[0] += shift
+            vehicles[f"{'w' if shift < 0 else 'e'}{name}"] = {**v, "start": start, "goal": goal}
+    doc = {**west, "name": "two-groups", "vehicles": vehicles}
+    doc["workspace"] = {"min": [-9.0, -3.0, 0.0], "max": [9.0, 3.0, 3.0]}
+    problem = swarm_problem(_scenario(doc))
+    groups = interaction_groups(problem)
+    assert [len(g) for g in groups] == [6, 6]
+    options = PriorityOptions(max_repairs=12)
+    kw = dict(horizon_steps=1200, fanout_min_vehicles=1)
+    serial = plan_groups(problem, groups, longest_first, options, workers=1, **kw)
+    parallel = plan_groups(problem, groups, longest_first, options, workers=2, **kw)
+    assert sorted(serial.tracks) == list(range(12))
+    for a, tr in serial.tracks.items():
+        np.testing.assert_array_equal(tr.positions_m, parallel.tracks[a].positions_m)
+
+
+def test_a_chain_is_flown_through_its_corner_when_nothing_is_in_the_way():
+    """Safe-interval timing along a chain with a gentle corner: flying through the waypoint arrives
+    earlier than stopping there, and where another vehicle sits on the corner the timing waits for it
+    (it never flies through a conflict)."""
+    from proxplan.planner.swarm.chain import time_chain
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.swarm.tracks import GridTrack
+    from proxplan.planner.timing.profile import LineMove, rest_to_rest
+
+    doc = grid_reshuffle(2, types=["crazyflie-2.1"])
+    doc["workspace"] = {"min": [-3.0, -3.0, 0.0], "max": [3.0, 3.0, 3.0]}
+    doc["obstacles"] = [{"min": [-0.2, -2.0, 0.0], "max": [0.2, -0.7, 3.0]}]  # no straight line from start to goal
+    doc["vehicles"]["v000"].update(start=[-2.0, -1.0, 1.5], goal=[2.0, -0.6, 1.5])
+    doc["vehicles"]["v001"].update(start=[-2.5, 2.5, 1.5], goal=[-2.5, 2.0, 1.5])
+    problem = swarm_problem(_scenario(doc))
+    W = np.array([[-2.0, -1.0, 1.5], [0.0, 0.0, 1.5], [2.0, -0.6, 1.5]])  # a 43-degree corner above the box
+    empty = Occupancy(problem, [], 800)
+    through = time_chain(empty, 0, W, through=True)
+    stops = time_chain(empty, 0, W, through=False)
+    assert through is not None and stops is not None
+    assert through.arrival_step < stops.arrival_step
+    # the other vehicle crosses the corner early on: the chain must not be there at the same time
+    a, b = np.array([0.0, 2.5, 1.5]), np.array([0.0, -0.5, 1.5])  # it comes down over the corner, waits, goes back
+    cross = LineMove(a, b, rest_to_rest(3.0, problem.limits[1], 0.025))
+    other = GridTrack(
+        1,
+        int(problem.type_index[1]),
+        a,
+        [(0, cross), (120, LineMove(b, a, rest_to_rest(3.0, problem.limits[1], 0.025)))],
+    )
+    busy = Occupancy(problem, [other], 800)
+    timed = time_chain(busy, 0, W, through=True)
+    assert timed is not None
+    assert not busy.conflicting_agents(timed.track)
+    assert timed.arrival_step > through.arrival_step  # it let the other one pass
+    assert Occupancy(problem, [other], 800).conflicting_agents(through.track) == {1}  # the free timing would hit it
+
+
+def test_a_vehicle_not_planned_yet_is_predicted_to_leave_on_its_straight_line_and_then_vanish():
+    from proxplan.planner.swarm.priority import predicted_track
+
+    problem = swarm_problem(_scenario(grid_reshuffle(9, seed=4)))
+    a = int(np.argmax(np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)))
+    held = predicted_track(problem, a, hold_s=1.0)
+    assert held.vanishes
+    hold = int(round(1.0 / 0.025))
+    np.testing.assert_allclose(held.positions_m[: hold + 1], np.repeat(problem.starts_m[a][None], hold + 1, axis=0))
+    last = held.positions_m[-1]
+    reach = max(k.reach_xy_m for (ta, _), k in problem.keepouts.items() if ta == int(problem.type_index[a]))
+    assert np.linalg.norm(last[:2] - problem.starts_m[a][:2]) > reach  # it has left its start's reach
+    assert np.linalg.norm(last - problem.goals_m[a]) > 1e-6  # and is not followed to its goal

@@ -38,3 +38,47 @@ def test_waits_end_at_their_scheduled_time_and_reversals_stop():
     assert tp.segments[0] is None and abs(tp.knot_t_s[1] - 2.0) < 1e-12  # wait at the start until t = 2 s
     _, v, _ = tp.sample(np.array([tp.knot_t_s[2]]))
     assert np.linalg.norm(v[0]) < 1e-6  # a 180 degree turn is flown through rest
+
+
+def _polyline_distance(p, pts):
+    best = np.full(len(p), np.inf)
+    for a, b in zip(pts[:-1], pts[1:]):
+        ab = b - a
+        s = np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0)
+        best = np.minimum(best, np.linalg.norm(p - a - s[:, None] * ab, axis=1))
+    return best
+
+
+def test_a_run_rounds_its_corners_within_the_deviation_and_the_limits():
+    """A flight through waypoints (RunMove): corners of less than 90 degrees are passed moving, the
+    path stays within the corner deviation of the polyline, norms stay within the limits, it starts
+    and ends at rest on the grid, and on these corners it is faster than stopping at each."""
+    from proxplan.planner.timing.profile import RunMove, rest_to_rest
+
+    pts = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.7, 0.7, 1.0], [1.7, 2.0, 1.0]])
+    dev = 0.15
+    run = RunMove(pts, LIM, 0.025, deviation_m=dev)
+    stops = sum(rest_to_rest(float(np.linalg.norm(b - a)), LIM, 0.025).duration_s for a, b in zip(pts[:-1], pts[1:]))
+    assert run.duration < 0.9 * stops
+    assert abs(run.duration / 0.025 - run.steps) < 1e-9
+    q = run.positions(4)
+    np.testing.assert_allclose(q[0], pts[0])
+    np.testing.assert_allclose(q[-1], pts[-1])
+    assert _polyline_distance(q, pts).max() <= dev
+    t = np.arange(0.0, run.duration, 0.002)
+    v = np.array([run.at_time(x)[1] for x in t])
+    a = np.array([run.at_time(x)[2] for x in t])
+    assert np.linalg.norm(v, axis=1).max() <= LIM.max_speed_mps * (1 + 1e-6)
+    assert np.linalg.norm(a, axis=1).max() <= LIM.max_accel_mps2 * (1 + 1e-6)
+    assert (np.linalg.norm(np.diff(a, axis=0), axis=1) / 0.002).max() <= LIM.max_jerk_mps3 * 1.05
+    assert np.linalg.norm(run.at_time(run.duration)[1]) == 0.0
+    corner = int(np.argmin(np.linalg.norm(np.array([run.at_time(x)[0] for x in t]) - pts[1], axis=1)))
+    assert np.linalg.norm(v[corner]) > 0.3  # moving at the first corner
+
+
+def test_a_right_angle_is_flown_through_rest():
+    from proxplan.planner.timing import corner_speeds
+
+    pts = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [2.0, 1.0, 1.0]])
+    speeds = corner_speeds(pts, LIM)
+    assert speeds.tolist() == [0.0, 0.0, 0.0, 0.0]

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from proxplan.planfile import plan_from_dict
-from proxplan.planner.pipeline import finish_metrics
+from proxplan.planner.metrics import finish_metrics
 from proxplan.verify import reach, scenario_of_plan, separation_summary, verify_plan, wrench_along_plan
 
 REFERENCE = Path(__file__).resolve().parent / "reference"

@@ -144,7 +144,7 @@ def cases() -> dict:
 
 def expected(plan) -> dict:
     """What the installed verifier says about ``plan`` (see the module docstring)."""
-    from proxplan.planner.pipeline import finish_metrics
+    from proxplan.planner.metrics import finish_metrics
     from proxplan.verify import scenario_of_plan, separation_summary, verify_plan, wrench_along_plan
 
     sc = scenario_of_plan(plan)

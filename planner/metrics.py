@@ -1,0 +1,61 @@
+"""A plan's metrics (DESIGN.md section 4 and extras) and the predicted deflections that grow the
+planners' tubes. World frame, m, s.
+
+* :func:`finish_metrics`: ``planning_time_s``, ``max_authority_usage``, ``min_separation_m``,
+  ``makespan_s`` (the time the last vehicle stops moving) and the per-vehicle extras, from the
+  model evaluated along the plan (:func:`proxplan.verify.wrench_along_plan`), plus the predicted
+  wrench as feed-forward.
+* :func:`deflection_allowance`: per vehicle the largest predicted deflection under the plan's own
+  disturbance (:func:`proxplan.verify.deflection_along_plan`). This is the one deflection policy of
+  the planners: a vehicle's tube grows by its own value, so a pair's keep-out grows by the sum of
+  its two vehicles' values, as in the verifier.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from proxplan.planfile import Plan, Scenario
+from proxplan.planner.timing.plan_grid import moving_end_s
+
+DEFLECTION_DT_S = 0.01  # time step at which the deflections are evaluated along the plan, s (the verifier's default)
+
+__all__ = ["deflection_allowance", "finish_metrics"]
+
+
+def deflection_allowance(plan: Plan, scenario: Scenario) -> dict[str, float]:
+    """Per vehicle the largest distance, m, its controller is predicted to be pushed off the plan by
+    the plan's own predicted disturbance, for vehicles pushed at all (see module)."""
+    from proxplan.verify import deflection_along_plan, wrench_along_plan
+
+    t = np.arange(0.0, float(plan.t_s[-1]) + 0.5 * DEFLECTION_DT_S, DEFLECTION_DT_S)
+    along = wrench_along_plan(plan, scenario, t_s=t)
+    return {n: float(d.max()) for n, d in deflection_along_plan(plan, scenario, along).items() if d.max() > 0.0}
+
+
+def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) -> None:
+    """Fill the DESIGN metrics (planning_time_s, max_authority_usage, min_separation_m, makespan_s)
+    and extras (per-vehicle usage, path length, invalid-zone time of docks)."""
+    from proxplan.verify import attach_feedforward, separation_summary, wrench_along_plan
+
+    along = wrench_along_plan(plan, scenario, t_s=plan.t_s)
+    attach_feedforward(plan, along)  # the predicted wrench, for controllers that feed it forward
+    usage = {n: max(0.0, float(a.usage.max())) for n, a in along.items()}
+    sep = separation_summary(plan, scenario)
+    plan.metrics.update(
+        {
+            "planning_time_s": round(float(planning_time_s), 4),
+            "max_authority_usage": max(usage.values()) if usage else 0.0,
+            "min_separation_m": sep["min_separation_m"],
+            "makespan_s": moving_end_s(plan),
+            "authority_fraction": scenario.limits.authority_fraction,
+            "tracking_margin_m": scenario.limits.tracking_margin_m,
+            "authority_usage_by_vehicle": usage,
+            "invalid_zone_s_by_vehicle": {n: float(a.invalid_zone.sum() * plan.dt_s) for n, a in along.items()},
+            "min_dock_separation_m": sep["min_dock_separation_m"],
+            "path_length_m": {
+                n: float(np.linalg.norm(np.diff(tr.position_m, axis=0), axis=1).sum())
+                for n, tr in plan.vehicles.items()
+            },
+        }
+    )

@@ -1,0 +1,59 @@
+"""What the swarm layer tells its caller about a plan: the stage that produced the tracks, the
+bounds and what each stage did (:class:`SwarmInfo`, a typed record; ``plan.metrics["swarm"]`` is
+its :meth:`SwarmInfo.to_metrics` form)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Literal
+
+# straight: one synchronised straight step (CAPT's case); prioritised: prioritised continuous
+# planning; lattice: the lattice coordination flown in lock-step (prioritised planning gave up)
+SwarmStage = Literal["straight", "prioritised", "lattice"]
+
+
+@dataclass(frozen=True)
+class LatticeInfo:
+    """The coordination lattice and the LaCAM search on it."""
+
+    spacing_m: float
+    levels_m: list[float]
+    vertices: int
+    steps: int  # coordination steps (configurations - 1)
+    nodes: int  # LaCAM configurations generated
+    tests: int  # exact synchronous pair tests computed
+    time_s: float  # wall time of the search, s (reported, never steering)
+
+
+@dataclass(frozen=True)
+class RetimeInfo:
+    """The continuous re-timing passes."""
+
+    passes: int
+    replaced: int
+    makespan_after_pass_s: list[float]
+    time_s: float
+
+
+@dataclass(frozen=True)
+class SwarmInfo:
+    """See module. Times are s; wall times are reported, never used to steer (budgets are counts)."""
+
+    stage: SwarmStage
+    coordination: str  # one line: how the tracks were found
+    vehicles: int
+    lower_bound_s: float  # largest straight-line rest-to-rest time of any vehicle: no plan is shorter
+    initial_makespan_s: float  # after the stage that produced the tracks
+    makespan_s: float  # after re-timing
+    time_s: float
+    kept_straight: str | None = None  # straight lines kept, vehicles planned around them, or why not
+    kept_straight_time_s: float | None = None
+    prioritised: str | None = None  # what each order of prioritised planning gave
+    prioritised_time_s: float | None = None
+    lattice: LatticeInfo | None = None
+    retiming: RetimeInfo | None = None
+    counts: dict[str, int] = field(default_factory=dict)  # search effort (vehicles planned, repairs, ...)
+
+    def to_metrics(self) -> dict:
+        """The plan.json form (``metrics.swarm``)."""
+        return asdict(self)

@@ -1,0 +1,284 @@
+"""Prioritised planning in continuous time with repair of only the vehicles in conflict.
+
+One vehicle after another is planned against the tracks in the
+:class:`~proxplan.planner.swarm.occupancy.Occupancy` (its space-time hash: only tracks within reach
+are looked at). Each tries its candidate waypoint chains - the straight line and the wavefront route
+through the others' space-time (:func:`proxplan.planner.swarm.wave.wave_route`), then a slower,
+wider route - timed exactly, flying through waypoints where it can
+(:func:`proxplan.planner.swarm.chain.time_chain`), and keeps the earliest arrival.
+
+**Vehicles not planned yet.** Each is assumed to leave at once on its straight route: its
+*predicted* track flies the straight line from t = 0 (after ``hold_s``) and vanishes once it is out
+of reach of its start (it does not park), so the vehicles planned before it keep its start clear
+only while it leaves. When it is planned itself, its real track replaces the prediction. A
+prediction is an assumption, not a plan: a vehicle that cannot be planned around the predictions in
+the way of its ideal track is planned once more without them.
+
+**Repair (MAPF-LNS2, Li et al. AAAI 2022: re-plan only the agents in conflict).** When a vehicle
+cannot be planned, the planned vehicles whose tracks conflict with its ideal track (its straight
+line from t = 0, or its route through the static free space) are taken out (their predictions come
+back), the vehicle is planned first, then they are planned again, in their order. A repair puts the
+vehicle before them for good (a partial order, kept transitive, as in priority-based search): a
+vehicle is never taken out for one that must come after it, so repairs cannot go round in circles.
+Every repair is counted; ``max_repairs`` (a count) bounds them. A vehicle still failing then, or failing with
+nobody to take out, starts the pass anew with it first in the order (the whole order changes; at
+most ``max_restarts`` times, a count); then the stage gives up (:class:`PrioritizedFailed`: the
+caller falls back). A caller's
+wall-clock ``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
+
+Order (:func:`dependency_order`): a vehicle whose start another one's goal needs is planned first
+(it must leave before the other arrives); otherwise, and to break cycles, the longer straight line
+first.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from proxplan.planner.errors import PlanNotFound
+from proxplan.planner.swarm.chain import time_chain
+from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
+from proxplan.planner.swarm.wave import wave_route
+from proxplan.planner.timing.profile import LineMove, rest_to_rest
+
+SLOW_PACE = 0.5  # last route attempt: this fraction of the speed limit ...
+SLOW_GROWTH_M = 0.05  # ... and keep-outs this much wider, m
+
+
+@dataclass(frozen=True)
+class PriorityOptions:
+    """Knobs of prioritised planning; budgets are counts."""
+
+    max_repairs: int  # repairs (a failed vehicle planned first, those in conflict with it again) per pass
+    max_restarts: int = 2  # passes begun anew with a vehicle that could not be repaired first
+    hold_s: float = 0.0  # a vehicle not planned yet is assumed to hold its start this long, then leave, s
+    through: bool = True  # fly through waypoints without stopping (else rest to rest at each)
+
+
+@dataclass
+class PriorityResult:
+    tracks: dict[int, GridTrack]
+    planned: int  # vehicle plannings done (repairs plan some again)
+    repairs: int
+    history: list[str] = field(default_factory=list)  # what each repair was for
+    restarts: int = 0
+
+
+class PrioritizedFailed(Exception):
+    def __init__(self, agent: int, repairs: int, history: list[str], *, planned: int = 0):
+        super().__init__(f"agent {agent} could not be planned after {repairs} repairs")
+        self.agent, self.repairs, self.history, self.planned = agent, repairs, history, planned
+
+
+def predicted_track(problem: SwarmProblem, agent: int, *, hold_s: float = 0.0) -> GridTrack:
+    """Where a vehicle not planned yet is assumed to be (a track that vanishes): holding its start
+    ``hold_s``, then flying its straight line rest-to-rest until it is beyond reach of its start. A
+    vehicle whose goal is its start stays there for good."""
+    s, g = problem.starts_m[agent], problem.goals_m[agent]
+    length = float(np.linalg.norm(g - s))
+    ty = int(problem.type_index[agent])
+    hold = int(round(hold_s / GRID_DT_S))
+    if length <= 0.0:
+        return GridTrack(agent, ty, s.copy(), [])
+    mv = LineMove(s, g, rest_to_rest(length, problem.limits[agent], GRID_DT_S))
+    track = GridTrack(agent, ty, s.copy(), [(hold, mv)])
+    reach = max(k.reach_xy_m for (ta, _), k in problem.keepouts.items() if ta == ty)
+    away = np.flatnonzero(np.linalg.norm(track.positions_m[:, :2] - s[:2], axis=1) > reach)
+    return track.vanishing(int(away[0]) + 1 if away.size else track.positions_m.shape[0])
+
+
+def _ideal(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack | None:
+    """The track a vehicle would fly alone: its straight line from t = 0 (None when the line is not
+    statically free: its static route is used then)."""
+    s, g = problem.starts_m[agent], problem.goals_m[agent]
+    W = np.array([s, g])
+    if not problem.segment_free(s, g):
+        empty = Occupancy(problem, [], occ.horizon)
+        route = wave_route(empty, agent, s, g)
+        if route is None:
+            return None
+        W = route
+    res = time_chain(Occupancy(problem, [], occ.horizon), agent, W)
+    return None if res is None else res.track
+
+
+def _plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
+    problem = occ.problem
+    s, g = problem.starts_m[agent], problem.goals_m[agent]
+    chains = [np.array([s, g])]
+    route = wave_route(occ, agent, s, g)
+    if route is not None and len(route) > 2:
+        chains.append(route)
+    best = None
+    for W in chains:
+        res = time_chain(occ, agent, W, arrive_by=None if best is None else best.arrival_step - 1, through=through)
+        if res is not None and (best is None or res.arrival_step < best.arrival_step):
+            best = res
+    if best is None:  # a slower, wider route leaves the exact timing more room
+        slow = wave_route(occ, agent, s, g, pace=SLOW_PACE, grow_m=SLOW_GROWTH_M)
+        if slow is not None:
+            best = time_chain(occ, agent, slow, through=through)
+    return None if best is None else best.track
+
+
+def prioritized_tracks(
+    problem: SwarmProblem,
+    order: list[int],
+    options: PriorityOptions,
+    *,
+    horizon_steps: int,
+    initial: dict[int, GridTrack] | None = None,
+    progress: Callable[[str, float], None] | None = None,
+    deadline: float | None = None,
+) -> PriorityResult:
+    """Tracks of every agent of ``order`` (see module); :class:`PrioritizedFailed` when a vehicle
+    still cannot be planned after ``options.max_restarts`` restarts. ``initial``: tracks in place
+    before the first vehicle of ``order`` is planned (as if planned first; repairs may take them
+    out and plan them again), e.g. straight lines that conflict with nobody."""
+    history: list[str] = []
+    planned_before = 0
+    for restart in range(options.max_restarts + 1):
+        try:
+            result = _in_order(
+                problem,
+                order,
+                options,
+                horizon_steps=horizon_steps,
+                initial=initial or {},
+                progress=progress,
+                deadline=deadline,
+            )
+        except PrioritizedFailed as err:
+            history += err.history + [f"restart with {problem.names[err.agent]} first"]
+            planned_before += err.planned
+            if restart == options.max_restarts:
+                raise PrioritizedFailed(err.agent, err.repairs, history, planned=planned_before) from None
+            order = [err.agent] + [a for a in order if a != err.agent]
+            continue
+        result.planned += planned_before
+        result.history = history + result.history
+        result.restarts = restart
+        return result
+    raise AssertionError("unreachable")
+
+
+def _in_order(
+    problem: SwarmProblem,
+    order: list[int],
+    options: PriorityOptions,
+    *,
+    horizon_steps: int,
+    initial: dict[int, GridTrack],
+    progress: Callable[[str, float], None] | None,
+    deadline: float | None,
+) -> PriorityResult:
+    """One pass in ``order`` with repairs (see module)."""
+    occ = Occupancy(problem, [], horizon_steps)
+    planned: dict[int, GridTrack] = {}
+    order = [a for a in initial if a not in order] + list(order)
+    rank = {a: i for i, a in enumerate([*initial, *(a for a in order if a not in initial)])}
+    after: dict[int, set[int]] = {a: set() for a in order}  # a -> vehicles a goes before (repairs)
+    for a in order:
+        if problem.pinned[a]:
+            planned[a] = GridTrack(a, int(problem.type_index[a]), problem.starts_m[a].copy(), [])
+            occ.put(planned[a])
+        elif a in initial:
+            planned[a] = initial[a]
+            occ.put(initial[a])
+        else:
+            occ.put(predicted_track(problem, a, hold_s=options.hold_s))
+    queue = deque(a for a in order if not problem.pinned[a] and a not in initial)
+    result = PriorityResult(planned, 0, 0)
+    total = len(queue)
+    while queue:
+        a = queue.popleft()
+        if deadline is not None and time.perf_counter() > deadline:
+            raise PlanNotFound(
+                "no plan found within the time budget (prioritised planning)", details={"nodes": result.planned}
+            )
+        if progress is not None and result.planned % 8 == 0:
+            done = len(planned) - int(problem.pinned.sum())
+            progress(f"continuous planning {done}/{total} ({result.repairs} repairs)", 0.1 + 0.5 * done / max(1, total))
+        prediction = occ.remove(a)
+        track = _plan_one(occ, a, options.through)
+        result.planned += 1
+        if track is not None:
+            planned[a] = track
+            occ.put(track)
+            continue
+        ideal = _ideal(problem, occ, a)
+        in_conflict = occ.conflicting_agents(ideal) if ideal is not None else set()
+        guesses = [b for b in in_conflict if b not in planned and b in occ.tracks]
+        if guesses:  # predictions are assumptions: drop those in its way and plan it again
+            result.history.append(
+                f"{problem.names[a]} past the predictions of " + ", ".join(problem.names[b] for b in sorted(guesses))
+            )
+            dropped = [occ.remove(b) for b in guesses]
+            track = _plan_one(occ, a, options.through)
+            result.planned += 1
+            for old in dropped:
+                if old is not None:
+                    occ.put(old)
+            if track is not None:
+                planned[a] = track
+                occ.put(track)
+                continue
+        blockers = sorted(
+            (b for b in in_conflict if b in planned and not problem.pinned[b] and a not in after[b]),
+            key=lambda b: rank[b],
+        )
+        if not blockers or result.repairs >= options.max_repairs:
+            why = "nobody to take out" if not blockers else f"repair budget of {options.max_repairs} spent"
+            result.history.append(f"{problem.names[a]}: {why}")
+            if prediction is not None:
+                occ.put(prediction)
+            raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
+        result.repairs += 1
+        result.history.append(f"{problem.names[a]} before " + ", ".join(problem.names[b] for b in blockers))
+        for b in blockers:  # a goes before b from now on, and before everything b goes before
+            after[a] |= {b} | after[b]
+        for c in after:
+            if a in after[c]:
+                after[c] |= after[a]
+        for b in blockers:
+            del planned[b]
+            occ.put(predicted_track(problem, b, hold_s=options.hold_s))
+        queue.extendleft(reversed([a, *blockers]))
+    return result
+
+
+def dependency_order(problem: SwarmProblem) -> list[int]:
+    """Planning order: a vehicle whose start another's goal needs goes before it (it has to leave
+    first), ties and cycles broken by the longer straight line first (it sets the makespan)."""
+    from scipy.spatial import cKDTree
+
+    A = problem.n_agents
+    length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+    key = {a: (-float(length[a]), a) for a in range(A)}
+    before: dict[int, set[int]] = {a: set() for a in range(A)}  # a -> vehicles that must go before a
+    tree = cKDTree(problem.starts_m[:, :2])
+    for a, near in enumerate(tree.query_ball_point(problem.goals_m[:, :2], problem.reach_xy_m)):
+        for b in near:
+            if b == a:
+                continue
+            ko = problem.keepouts[(int(problem.type_index[a]), int(problem.type_index[b]))]
+            if ko.conflict((problem.starts_m[b] - problem.goals_m[a])[None], rest=True)[0]:
+                before[a].add(b)
+    out: list[int] = []
+    done: set[int] = set()
+    while len(out) < A:
+        ready = [a for a in range(A) if a not in done and before[a] <= done]
+        pick = min(ready or [a for a in range(A) if a not in done], key=lambda a: key[a])
+        out.append(pick)
+        done.add(pick)
+    return out
+
+
+__all__ = ["PrioritizedFailed", "PriorityOptions", "PriorityResult", "dependency_order", "prioritized_tracks"]
