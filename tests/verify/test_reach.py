@@ -85,4 +85,7 @@ def test_the_grids_bound_holds_between_its_nodes():
             a = rng.uniform(0.0, 2.0 * math.pi, 400)
             q = _q(source, target, np.column_stack([rr * np.cos(a), rr * np.sin(a), -zz]))
             assert np.all(q <= bound)
-        assert np.median(bound / np.maximum(q, 1e-300)) < 1e6  # a bound, not a blanket
+        # a bound, not a blanket, where it matters: below NEGLIGIBLE_USAGE the verifier drops a source anyway
+        # (and the bound is floored at the physics' profile cut-off, 2e-22 of the peak, where q is 0)
+        relevant = q > NEGLIGIBLE_USAGE
+        assert relevant.sum() > 20 and np.median(bound[relevant] / q[relevant]) < 1e6
