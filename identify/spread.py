@@ -35,14 +35,17 @@ MAX_GAP_FACTOR = 2.0
 
 
 def unit_spread_features(unit: Unit, model: Model, predictions: Predictions | None = None) -> np.ndarray:
-    """(N, 3) :func:`proxplan.physics.residual_spread.spread_features` of one unit under ``model``."""
+    """(N, 6) :func:`proxplan.physics.residual_spread.spread_features` of one unit under ``model`` (a motor at
+    a limit: the unit's ``motor_limit`` bits)."""
     if predictions is not None:
         per_source = predictions.cache(unit, model).per_source()
     else:
         per_source = base_wrench_per_source(unit_inputs(unit, model))
     sizes = [model.vehicles[t].size_m for t in unit.source_types]
+    veh = model.vehicles[unit.type]
     return spread_features(len(unit), [f[:, 2] for f, _ in per_source], list(unit.source_offsets_m), sizes,
-                           model.vehicles[unit.type].weight_N)  # fmt: skip
+                           veh.weight_N, at_limit=None if unit.motor_limit is None else unit.motor_limit > 0,
+                           height_m=unit.height_above_ground_m, size_m=veh.size_m)  # fmt: skip
 
 
 def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | None = None) -> ResidualSpread:
@@ -74,8 +77,7 @@ def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | 
         coef = coef / scale
         if coef[0] <= 0.0:  # the floor must stay positive: at least the smallest spread seen away from jets
             coef[0] = max(float(np.average(r**2, weights=w)) * 1e-6, 1e-18)
-        spread = TypeSpread(floor_N=float(np.sqrt(coef[0])), force_share=float(np.sqrt(coef[1])),
-                            shear=float(np.sqrt(coef[2])))  # fmt: skip
+        spread = TypeSpread(*(float(v) for v in np.sqrt(coef)))
         by_type[vtype] = spread
         z_all.append(np.abs(r) / np.maximum(spread_N(spread, x), 1e-300))
         w_all.append(w)

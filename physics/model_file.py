@@ -22,7 +22,7 @@ File layout (YAML)::
       residual_spread:              # optional: the F_z spread the model cannot predict
         form: jet-shear-1           # (proxplan.physics.residual_spread), and its 90 % interval
         quantile_90: 1.7
-        by_type: {small-quad: {floor_N: 0.01, force_share: 0.3, shear: 0.02}}
+        by_type: {small-quad: {floor_N: 0.01, force_share: 0.3, shear: 0.02, stack: 0.2, limit: 0.05, ground: 0.1}}
 
 Format 1 (no ``format_version``; what identify wrote before) is read with a note: it has no
 thrust scales or uncertainties. A newer ``format_version`` is a one-line error. Every error is a
@@ -218,6 +218,11 @@ class TypeSpreadEntry(FileModel):
     floor_N: Annotated[Number, Field(ge=0)] = Field(description="spread of F_z away from every jet, N")
     force_share: Annotated[Number, Field(ge=0)] = optional("spread per unit of each source's mean push, -")
     shear: Annotated[Number, Field(ge=0)] = optional("spread in a jet's shear layer per unit of weight, -")
+    stack: Annotated[Number, Field(ge=0)] = optional("spread per unit of the cross terms of merged jets' pushes, -")
+    limit: Annotated[Number, Field(ge=0)] = optional(
+        "spread with a motor at its floor or ceiling, per unit of weight, -"
+    )
+    ground: Annotated[Number, Field(ge=0)] = optional("spread in the ground's recirculation per unit of weight, -")
 
 
 class ResidualSpreadPart(FileModel):
@@ -236,7 +241,8 @@ class ResidualSpreadPart(FileModel):
 
     def spread(self) -> ResidualSpread:
         return ResidualSpread(
-            by_type={t: TypeSpread(float(e.floor_N), float(e.force_share or 0.0), float(e.shear or 0.0))
+            by_type={t: TypeSpread(float(e.floor_N), float(e.force_share or 0.0), float(e.shear or 0.0),
+                                   float(e.stack or 0.0), float(e.limit or 0.0), float(e.ground or 0.0))
                      for t, e in self.by_type.items()},
             quantile_90=float(self.quantile_90) if self.quantile_90 is not None else ResidualSpread().quantile_90,
         )  # fmt: skip
