@@ -388,6 +388,9 @@ class ForwardResult:
     tests: list[dict[str, GainTest]] = field(default_factory=list)
     dropped: dict[str, GainTest] = field(default_factory=dict)
     final_tests: dict[str, GainTest] = field(default_factory=dict)  # each kept one given all the others
+    # kept -> {rival: the kept one's head-to-head gain over the rival}: rivals that also passed in its round
+    # and that the flights do not show worse (the data cannot tell the two apart)
+    rivals: dict[str, dict[str, GainTest]] = field(default_factory=dict)
 
 
 def heldout_forward(
@@ -422,10 +425,12 @@ def heldout_forward(
         # feature group, its members) test one hypothesis, not several
         open_ = [n for n in remaining if eligible is None or n in eligible]
         m = max(1, len({hypothesis.get(n, n) if hypothesis else n for n in open_}))
+        trials = {}
         for name in remaining:
             trial = heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau)
             acts = _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau)
             tests[name] = gain_test(current, trial, m, acts, plan.cluster)
+            trials[name] = (trial, acts)
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
         if not ok:
@@ -433,6 +438,13 @@ def heldout_forward(
         # the one most surely better: the largest lower confidence bound of the gain (mean - z SE), so a
         # candidate whose gain is as large but less consistent over the flights does not pre-empt it
         best = max(ok, key=lambda n: tests[n].mean - tests[n].z * tests[n].se)
+        label = (lambda n: hypothesis.get(n, n)) if hypothesis else (lambda n: n)
+        for name, t in tests.items():  # rivals the flights cannot tell from it (a head-to-head one-sided test)
+            if name == best or not t.passed or label(name) == label(best):
+                continue
+            head = gain_test(trials[name][0], trials[best][0], 1, trials[name][1] | trials[best][1], plan.cluster)
+            if not head.passed:
+                out.rivals.setdefault(best, {})[name] = head
         out.chosen.append(best)
         remaining.remove(best)
         current = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)

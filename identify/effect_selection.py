@@ -150,6 +150,11 @@ class EffectSelection:
     note: str
     steps: dict[str, float]  # the joint fit's step of each vehicle parameter from the reference (u units)
     coefficients: dict[str, float]
+    rivals: dict[str, dict[str, GainTest]] = field(default_factory=dict)  # crossval.ForwardResult.rivals
+
+    def rivals_json(self) -> dict[str, dict[str, Any]]:
+        """Kept effect -> {rival: the kept one's head-to-head held-out gain over it} (crossval's record)."""
+        return {k: {n: t.to_json() for n, t in r.items()} for k, r in self.rivals.items() if k in self.selected}
 
     @property
     def heldout_total(self) -> float:
@@ -279,7 +284,8 @@ class EffectSelector:
         trials = self._trials(fwd, stab, test)
         return EffectSelection(model=model, selected=list(fwd.chosen), trials=trials, stability=stab,
                                heldout_mse=heldout_mse(sums, idx, plan, ridge, tau), note=plan.note,
-                               steps={k: coef[k] for k in self.always}, coefficients=coef)  # fmt: skip
+                               steps={k: coef[k] for k in self.always}, coefficients=coef,
+                               rivals=fwd.rivals)  # fmt: skip
 
     def model_with(self, coef: Mapping[str, float], chosen: Sequence[str]) -> Model:
         """The reference model moved by the tangent steps in ``coef`` (column name -> coefficient) with the
@@ -339,6 +345,7 @@ class EffectSelector:
             selected = cand.name in fwd.chosen
             prob = stab.probability.get(cand.name, 0.0)
             reason = _reason(cand, selected, t_last, fwd.dropped.get(cand.name), prob, stab.threshold)
+            reason += _rival_note(cand.name, fwd.rivals)
             test_err = None
             if test and cand.columns:
                 test_err = errors(test, self.model_with(self._solo(cand), [cand.name]))
@@ -346,6 +353,19 @@ class EffectSelector:
             out.append(EffectTrial(cand.name, cand.effect.full_params(), rnd, test_err, alone, t_last, prob,
                                    selected, reason, shape))  # fmt: skip
         return out
+
+
+def _rival_note(name: str, rivals: Mapping[str, Mapping[str, GainTest]]) -> str:
+    """The indistinguishable rivals of a kept effect, or the kept effect a rival could not be told from."""
+    notes = []
+    for n, t in rivals.get(name, {}).items():
+        notes.append(f"; not shown better than {n} on these flights (head-to-head gain {t.mean:+.3g} +- {t.se:.2g}, "
+                     f"needs > {t.z:.2f} SE): fly more varied flights to tell them apart")  # fmt: skip
+    for kept, r in rivals.items():
+        if name in r:
+            notes.append(f"; the flights cannot tell it from the kept {kept} (its head-to-head gain over this one "
+                         f"{r[name].mean:+.3g} +- {r[name].se:.2g})")  # fmt: skip
+    return "".join(notes)
 
 
 def _reason(

@@ -200,6 +200,10 @@ def selection_lines(result: IdentifyResult) -> list[str]:
         test = _fmt(tr.test.rmse_fz_N) if tr.test is not None else "n/a"
         lines.append(f"| {tr.round} | {tr.name} | {params} | {test} | {gain} | {tr.inclusion:.0%} | "
                      f"{'yes' if tr.selected else ''} | {tr.reason} |")  # fmt: skip
+    for kept, rivals in (sel.get("indistinguishable") or {}).items():
+        lines += ["", f"**{kept}** was kept, but these flights cannot tell it from {', '.join(sorted(rivals))}: "
+                  "each predicts the held-out flights about as well (head-to-head test in the table). Flights that "
+                  "separate their causes (other separations, heights, speeds) would decide."]  # fmt: skip
     return lines
 
 

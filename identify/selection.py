@@ -63,7 +63,8 @@ class Selection:
         out: dict[str, Any] = {"start": self.start, "groups": self.note, "heldout_log_mse": self.heldout_total,
                "effects_stability_threshold": stab.threshold, "effects_mean_chosen_per_half": stab.mean_chosen,
                "effects_expected_false_bound": stab.expected_false_bound,
-               "half_samples": stab.n_halves, "recalibration_step_u": self.effects.steps}  # fmt: skip
+               "half_samples": stab.n_halves, "recalibration_step_u": self.effects.steps,
+               "indistinguishable": self.effects.rivals_json()}  # fmt: skip
         if self.discovery is not None:
             d = self.discovery.stability
             out |= {
