@@ -23,13 +23,17 @@ import numpy as np
 from scipy.optimize import nnls
 from scipy.signal import butter, sosfiltfilt
 
-from proxplan.identify.data import Model, Predictions, Unit, unit_inputs
+from proxplan.identify.data import Model, Predictions, Unit, sources_overhead, unit_inputs
 from proxplan.physics import ResidualSpread, TypeSpread, base_wrench_per_source, spread_features, spread_N
 
 BAND_HZ = 1.0
 """Frequency the residual is split at, Hz (issue 35: the part above is the bobbing in a turbulent jet)."""
 BAND_ORDER = 2
 """Order of the Butterworth low-pass that splits it (applied forward and backward: zero phase)."""
+MIN_CLASS_SAMPLES = 300
+"""Fewest samples a class (sources overhead: 0, 1, 2 or more) needs for a quantile of its own: the coverage of
+a 90 % quantile set on n samples has a binomial standard error sqrt(0.09 / n), 1.7 % at 300; with fewer the
+class keeps the overall quantile."""
 MAX_GAP_FACTOR = 2.0
 """A clock step larger than this many median steps starts a new stretch (the filter never crosses a gap)."""
 
@@ -52,7 +56,7 @@ def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | 
     """The residual spread of ``model`` on ``units`` (stratified weights used when present): of the given
     held-out residuals ``residual_fz_N`` ((N,) over the units in order, N: each sample predicted by a fit that
     did not see its flight), else of ``model``'s own residual."""
-    rows: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+    rows: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
     pred = Predictions()
     start = 0
     for u in units:
@@ -64,9 +68,10 @@ def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | 
         else:
             r = u.force_N[:, 2] - pred(u, model)[0][:, 2]
         w = u.weight if u.weight is not None else np.ones(len(u))
-        rows.setdefault(u.type, []).append((unit_spread_features(u, model, pred), r, w))
+        rows.setdefault(u.type, []).append((unit_spread_features(u, model, pred), r, w,
+                                            sources_overhead(u, model.vehicles)[0]))  # fmt: skip
     by_type: dict[str, TypeSpread] = {}
-    z_all, w_all = [], []
+    z_all, w_all, n_all = [], [], []
     for vtype, parts in rows.items():
         x = np.concatenate([p[0] for p in parts])
         r = np.concatenate([p[1] for p in parts])
@@ -81,10 +86,14 @@ def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | 
         by_type[vtype] = spread
         z_all.append(np.abs(r) / np.maximum(spread_N(spread, x), 1e-300))
         w_all.append(w)
+        n_all.append(np.concatenate([p[3] for p in parts]))
     if not z_all:
         return ResidualSpread()
-    return ResidualSpread(by_type=by_type, quantile_90=_weighted_quantile(np.concatenate(z_all),
-                                                                          np.concatenate(w_all), 0.9))  # fmt: skip
+    z, w, n = np.concatenate(z_all), np.concatenate(w_all), np.minimum(np.concatenate(n_all), 2)
+    overall = _weighted_quantile(z, w, 0.9)
+    by_class = tuple(_weighted_quantile(z[n == k], w[n == k], 0.9) if np.sum(n == k) >= MIN_CLASS_SAMPLES
+                     else overall for k in range(3))  # fmt: skip
+    return ResidualSpread(by_type=by_type, quantile_90=overall, quantile_90_overhead=by_class)
 
 
 def _weighted_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
@@ -101,7 +110,9 @@ def interval_half_width_N(
     t = spread.by_type.get(unit.type)
     if t is None:
         return np.full(len(unit), np.inf)
-    return spread.quantile_90 * spread_N(t, unit_spread_features(unit, model, predictions))
+    return spread.quantile_for(sources_overhead(unit, model.vehicles)[0]) * spread_N(
+        t, unit_spread_features(unit, model, predictions)
+    )
 
 
 def stretches(t_s: np.ndarray) -> list[slice]:

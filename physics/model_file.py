@@ -22,6 +22,7 @@ File layout (YAML)::
       residual_spread:              # optional: the F_z spread the model cannot predict
         form: jet-shear-1           # (proxplan.physics.residual_spread), and its 90 % interval
         quantile_90: 1.7
+        quantile_90_overhead: [1.6, 1.7, 2.1]
         by_type: {small-quad: {floor_N: 0.01, force_share: 0.3, shear: 0.02, stack: 0.2, limit: 0.05, ground: 0.1}}
 
 Format 1 (no ``format_version``; what identify wrote before) is read with a note: it has no
@@ -230,6 +231,9 @@ class ResidualSpreadPart(FileModel):
 
     form: Text = optional(f"the form of the spread model: {SPREAD_FORM}")
     quantile_90: Positive = optional("the 90 % interval is |residual| <= quantile_90 sigma, -")
+    quantile_90_overhead: list[Positive] = optional(
+        "the quantile by the number of sources overhead (0, 1, 2 or more), -"
+    )
     by_type: dict[Name, TypeSpreadEntry] = Field(description="per vehicle type, its spread parameters")
 
     @field_validator("form")
@@ -245,6 +249,7 @@ class ResidualSpreadPart(FileModel):
                                    float(e.stack or 0.0), float(e.limit or 0.0), float(e.ground or 0.0))
                      for t, e in self.by_type.items()},
             quantile_90=float(self.quantile_90) if self.quantile_90 is not None else ResidualSpread().quantile_90,
+            quantile_90_overhead=tuple(float(q) for q in self.quantile_90_overhead or ()),
         )  # fmt: skip
 
 

@@ -59,9 +59,21 @@ class ResidualSpread:
     by_type: Mapping[str, TypeSpread] = field(default_factory=dict)
     quantile_90: float = 1.6448536269514722  # a Gaussian's until fitted
     form: str = SPREAD_FORM
+    # the 90 % quantile by the number of sources overhead (0, 1, 2 or more; a class its fit did not see holds
+    # quantile_90): a stack's turbulence is intermittent, its standardised residual heavier-tailed than a
+    # single jet's, so one quantile covers stacks less than it says
+    quantile_90_overhead: tuple[float, ...] = ()
+
+    def quantile_for(self, n_overhead: np.ndarray) -> np.ndarray:
+        """(N,) the 90 % quantile for samples with ``n_overhead`` (N,) int sources overhead, -."""
+        if not self.quantile_90_overhead:
+            return np.full(np.shape(n_overhead), self.quantile_90)
+        q = np.asarray(self.quantile_90_overhead, dtype=float)
+        return q[np.clip(np.asarray(n_overhead, dtype=int), 0, q.size - 1)]
 
     def to_dict(self) -> dict:
         return {"form": self.form, "quantile_90": float(self.quantile_90),
+                "quantile_90_overhead": [float(q) for q in self.quantile_90_overhead],
                 "by_type": {t: {"floor_N": float(s.floor_N), "force_share": float(s.force_share),
                                 "shear": float(s.shear), "stack": float(s.stack), "limit": float(s.limit),
                                 "ground": float(s.ground)} for t, s in self.by_type.items()}}  # fmt: skip
