@@ -48,11 +48,11 @@ def test_real_manifest_after_beats_before(tmp_path: Path) -> None:
     assert {"swap_sss", "swap_ssl", "swap_sll", "swap_lll"} <= set(doc["sets"])
     assert doc["overhead"]["2+"]["n_samples"] > 1000
     assert doc["overhead"]["2+"]["ratio_fz"] < 1.0
-    assert result.stack_shielding is not None and result.stack_shielding["n_samples"] > 500
+    assert result.stack_shielding is not None and result.stack_shielding["prior"]["informed"]  # the stacks inform eta
     assert "cf100" not in doc["per_vehicle"]  # swap_lll's cf100 is a source only (its IMU is unusable)
     # issue 29: another day's flights validate (they fit nothing), the measurement agrees with its
     # declared motor lag, and every effect trial says why it was kept or rejected
-    assert result.validation.startswith("validation flights (the manifest's): day23_swap_lll")
+    assert "4 validation flights held out" in result.validation and "by flight" in result.validation
     assert result.motor_lag_check["warnings"] == []
     assert all(t.reason for t in result.trials)
     assert sat["cf102"]["floored_samples"] > 100
