@@ -5,7 +5,7 @@ seeded family of random layouts.
 Usage:
     python benchmarks/bench_swarm.py [--layout pillar grid circle corridor] [--family K [--family-seed S]]
         [--n 32 64 128 256] [--method optimized swarm sampling] [--assign fixed by_type] [--timeout 600]
-        [--child-python PATH [PATH ...]] [--child-method-roadmap [PATH ...]] [--swarm-options JSON [JSON ...]]
+        [--cpu-cap S] [--child-python PATH [PATH ...]] [--child-method-roadmap [PATH ...]] [--swarm-options JSON [JSON ...]]
         [--keep DIR]
 
 Layouts (``proxplan.planner.formations.LAYOUTS``): ``pillar`` two staggered layers west of a pillar
@@ -21,7 +21,9 @@ import baseline of the same run is printed first, so compare ratios on a loaded 
 makespan against the lower bound (fixed goals: the largest straight-line rest-to-rest time of any
 vehicle; ``by_type``: the same under the assignment, ``assignment_lower_bound_s``), the plan's
 method and how the swarm layer coordinated, the child's peak memory (``resource`` rusage, MB), and
-the verdict and whole-process time of ``proxplan verify`` on the written plan.json. Column ``arm``:
+the verdict and whole-process time of ``proxplan verify`` on the written plan.json. ``--cpu-cap S``
+stops a run after S s of CPU time (its process tree) as well as after ``--timeout`` of wall time:
+on a shared machine the CPU cap is the same for every run. Column ``arm``:
 interpreter index x number of option sets + option set index.
 
 ``--child-python PATH [PATH ...]`` plans and verifies with these interpreters (other installed
@@ -42,30 +44,51 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+import psutil
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _run(cmd: list[str], timeout_s: float) -> tuple[float, int, float, str, float]:
-    """Wall time (s), exit code, child peak RSS (MB), stdout and CPU time (user + system, s)."""
+def _tree_cpu_s(proc: psutil.Process) -> float:
+    """CPU time (user + system, s) of ``proc`` and its live descendants (Dask workers included)."""
+    total = 0.0
+    for p in [proc, *proc.children(recursive=True)]:
+        try:
+            t = p.cpu_times()
+            total += t.user + t.system
+        except psutil.Error:
+            pass
+    return total
+
+
+def _run(cmd: list[str], timeout_s: float, cpu_cap_s: float | None = None) -> tuple[float, int, float, str, float]:
+    """Wall time (s), exit code, child peak RSS (MB), stdout and CPU time (user + system, s). The child
+    is killed after ``timeout_s`` of wall time or, when given, ``cpu_cap_s`` of CPU time of its process
+    tree (a cap that does not depend on how loaded a shared machine is)."""
     t0 = time.perf_counter()
     with tempfile.TemporaryFile() as out:
         proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.DEVNULL, cwd=tempfile.gettempdir())
+        watch = psutil.Process(proc.pid)
         deadline = t0 + timeout_s
         while True:
             pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
             if pid:
                 break
-            if time.perf_counter() > deadline:
+            over_cpu = cpu_cap_s is not None and _tree_cpu_s(watch) > cpu_cap_s
+            if over_cpu or time.perf_counter() > deadline:
+                for p in watch.children(recursive=True):
+                    p.kill()
                 proc.kill()
                 pid, status, usage = os.wait4(proc.pid, 0)
                 break
-            time.sleep(0.05)
+            time.sleep(0.25)
         wall = time.perf_counter() - t0
         out.seek(0)
         text = out.read().decode(errors="replace")
@@ -107,6 +130,7 @@ def main() -> int:
     ap.add_argument("--assign", nargs="+", default=["fixed"], choices=["fixed", "by_type"])
     ap.add_argument("--types", default=None, help="comma-separated vehicle types (default: the layout's mix)")
     ap.add_argument("--timeout", type=float, default=600.0, help="per-run wall-time cap, s")
+    ap.add_argument("--cpu-cap", type=float, default=None, help="per-run CPU-time cap of the child's processes, s")
     ap.add_argument(
         "--child-python", nargs="+", default=[sys.executable], help="interpreters that plan and verify, in turn"
     )
@@ -180,9 +204,10 @@ def main() -> int:
                         cmd = [py, "-m", "proxplan.cli", "plan", str(path), "--out", str(out)]
                         name = "roadmap" if py in roadmap and method == "swarm" else method
                         cmd += ["--method", name, "--seed", "0", "--no-plot", "--json"]
-                    wall, code, mb, text, cpu = _run(cmd, args.timeout)
+                    wall, code, mb, text, cpu = _run(cmd, args.timeout, args.cpu_cap)
                     ms = ratio = "-"
-                    verdict, v_wall, how = ("timeout" if wall >= args.timeout else f"exit {code}"), "-", ""
+                    capped = code == -signal.SIGKILL  # killed by either cap
+                    verdict, v_wall, how = ("timeout" if capped else f"exit {code}"), "-", ""
                     lb_used = lb
                     if code == 0:
                         doc_out = json.loads(text.strip().splitlines()[-1])
