@@ -21,18 +21,12 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, PriorityResult, prioritized_tracks
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.wave import MARGIN_M
 from proxplan.planner.timing import CORNER_DEVIATION_M
 
 FANOUT_MIN_VEHICLES = 32  # a group is worth a Dask task from this size (a worker process costs seconds to start)
-# prioritised planning's orders run as parallel Dask tasks (when the caller asks, see plan_orders)
-# from this many vehicles: a local cluster of two workers costs 3-6 s of CPU to start (measured on
-# grid-64 by_type: the planning process's CPU 6.6 s serial, 12.5 s with the orders fanned out), an
-# order with fixed goals takes 10-20 s of CPU at 32 vehicles on the named layouts, more at 64
-ORDERS_FANOUT_MIN_VEHICLES = 32
 
 
 def interaction_groups(problem: SwarmProblem) -> list[list[int]]:
@@ -132,72 +126,4 @@ def plan_groups(
     return merged
 
 
-def _plan_order(job: tuple) -> PriorityResult | PrioritizedFailed | PlanNotFound:
-    """Every group in one order (a fan-out task: depends on its job only)."""
-    problem, groups, order_of, options, horizon, deadline = job
-    try:
-        return plan_groups(problem, groups, order_of, options, horizon_steps=horizon, workers=1, deadline=deadline)
-    except (PrioritizedFailed, PlanNotFound) as err:
-        return err
-
-
-def plan_orders(
-    problem: SwarmProblem,
-    groups: list[list[int]],
-    orders: list[Callable[[SwarmProblem], list[int]]],
-    options: PriorityOptions,
-    *,
-    horizon_steps: int,
-    workers: int,
-    in_parallel: bool = True,
-    min_vehicles: int = ORDERS_FANOUT_MIN_VEHICLES,
-    progress: Callable[[str, float], None] | None = None,
-    deadline: float | None = None,
-) -> list[PriorityResult | PrioritizedFailed]:
-    """:func:`plan_groups` in each of ``orders`` (a result or why it gave up, per order). The orders
-    are independent, so when ``in_parallel`` (the caller expects each to take long), ``workers`` > 1,
-    with two orders or more, at least ``min_vehicles`` vehicles and no fan-out of
-    groups inside (fewer than two groups of :data:`FANOUT_MIN_VEHICLES`), they run as parallel Dask
-    tasks, with the same results as one after the other. :class:`~proxplan.planner.errors.PlanNotFound` past the ``deadline``
-    (``time.perf_counter()``: the same monotonic clock in every process of the machine)."""
-    from proxplan.fanout import fan_out
-
-    big = sum(1 for g in groups if len(g) >= FANOUT_MIN_VEHICLES)
-    parallel = in_parallel and workers > 1 and len(orders) > 1 and problem.n_agents >= min_vehicles and big < 2
-    if parallel:
-        if progress is not None:
-            progress(f"continuous planning: {len(orders)} orders in parallel", 0.1)
-        jobs = [(problem, groups, order_of, options, horizon_steps, deadline) for order_of in orders]
-        outcomes = fan_out(_plan_order, jobs, n_workers=min(workers, len(jobs))).results
-        for out in outcomes:
-            if isinstance(out, PlanNotFound):
-                raise PlanNotFound(out.message, details=out.details)
-        return outcomes
-    results: list[PriorityResult | PrioritizedFailed] = []
-    for order_of in orders:
-        try:
-            results.append(
-                plan_groups(
-                    problem,
-                    groups,
-                    order_of,
-                    options,
-                    horizon_steps=horizon_steps,
-                    workers=workers,
-                    progress=progress,
-                    deadline=deadline,
-                )
-            )
-        except PrioritizedFailed as err:
-            results.append(err)
-    return results
-
-
-__all__ = [
-    "FANOUT_MIN_VEHICLES",
-    "ORDERS_FANOUT_MIN_VEHICLES",
-    "interaction_groups",
-    "plan_groups",
-    "plan_orders",
-    "subproblem",
-]
+__all__ = ["FANOUT_MIN_VEHICLES", "interaction_groups", "plan_groups", "subproblem"]

@@ -39,7 +39,7 @@ import numpy as np
 
 from proxplan.planfile import Scenario
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-from proxplan.planner.swarm.components import interaction_groups, plan_orders
+from proxplan.planner.swarm.components import interaction_groups, plan_groups
 from proxplan.planner.swarm.info import LatticeInfo, RetimeInfo, SwarmInfo, SwarmStage
 from proxplan.planner.swarm.lacam import Lacam
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
@@ -59,11 +59,6 @@ HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the initia
 # longer is not worth having: the lattice plan in lock-step is the answer then)
 PRIORITISED_HORIZON_FACTOR = 4.0
 PRIORITISED_HORIZON_MARGIN_S = 20.0
-# prioritised planning's orders run in parallel (components.plan_orders) when the straight lines have
-# at least this many pairwise conflicts per vehicle: on the named layouts at 32-64 vehicles, fixed
-# goals have 2.1-2.2 (an order takes 10 s of CPU or more), by_type 0.3-0.7 (an order takes a few
-# seconds, less than starting the workers costs); set on those measurements
-PARALLEL_ORDERS_CONFLICTS_PER_VEHICLE = 1.0
 
 __all__ = ["SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
 
@@ -133,10 +128,7 @@ def swarm_timed(
     found = _straight_stage(problem) if not conflicts else None
     if found is None and opts.prioritized:
         kept = _kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
-        dense = len(conflicts) >= PARALLEL_ORDERS_CONFLICTS_PER_VEHICLE * problem.n_agents  # long orders
-        found = _prioritised_stage(
-            problem, lower_bound, opts, extra, in_parallel=dense, progress=progress, deadline=deadline
-        )
+        found = _prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         if kept is not None and (found is None or _makespan(kept) < _makespan(found)):
             found = kept
     if found is None:
@@ -247,14 +239,7 @@ def _kept_straight_stage(
 
 
 def _prioritised_stage(
-    problem: SwarmProblem,
-    lower_bound_s: float,
-    opts: SwarmOptions,
-    extra: dict,
-    *,
-    in_parallel: bool = False,
-    progress,
-    deadline,
+    problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
 ) -> _Stage | None:
     """Prioritised continuous planning of each group of vehicles that interact, in each of
     ``opts.orders``, the shorter plan kept; with the first of ``opts.unplanned_hold_s`` for which an
@@ -275,21 +260,21 @@ def _prioritised_stage(
             hold_s=hold_s,
             through=opts.through_waypoints == "always",
         )
-        outcomes = plan_orders(
-            problem,
-            groups,
-            [ORDERS[label] for label in opts.orders],
-            options,
-            horizon_steps=horizon,
-            workers=workers,
-            in_parallel=in_parallel,
-            progress=progress,
-            deadline=deadline,
-        )
-        for label, result in zip(opts.orders, outcomes):
-            if isinstance(result, PrioritizedFailed):
-                counts["planned"] += result.planned
-                tried.append(f"{label}, hold {hold_s:g} s: gave up (" + "; ".join(result.history[-2:]) + ")")
+        for label in opts.orders:
+            try:
+                result = plan_groups(
+                    problem,
+                    groups,
+                    ORDERS[label],
+                    options,
+                    horizon_steps=horizon,
+                    workers=workers,
+                    progress=progress,
+                    deadline=deadline,
+                )
+            except PrioritizedFailed as err:
+                counts["planned"] += err.planned
+                tried.append(f"{label}, hold {hold_s:g} s: gave up (" + "; ".join(err.history[-2:]) + ")")
                 continue
             counts["planned"] += result.planned
             counts["repairs"] += result.repairs

@@ -270,35 +270,17 @@ def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in
         np.testing.assert_array_equal(tr.positions_m, parallel.tracks[a].positions_m)
 
 
-def test_orders_run_in_parallel_give_what_they_give_in_turn_and_a_give_up_comes_back_whole():
-    """Prioritised planning's orders fanned out on a Dask local cluster (two workers) give exactly
-    the tracks (or the give-up) they give one after the other; a give-up pickled back from a
-    worker keeps the vehicle, its repairs and history."""
+def test_a_give_up_pickled_back_from_a_dask_worker_keeps_its_fields():
+    """A group that gives up on a Dask worker comes back as a PrioritizedFailed with its vehicle,
+    repairs, history and count of plannings (the default exception pickling passes the message only,
+    and unpickling failed)."""
     import pickle
 
-    from proxplan.planner.swarm.components import interaction_groups, plan_orders
-    from proxplan.planner.swarm.plan import longest_first
-    from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, dependency_order
+    from proxplan.planner.swarm.priority import PrioritizedFailed
 
     failed = pickle.loads(pickle.dumps(PrioritizedFailed(3, 1, ["v003: nobody to take out"], planned=5)))
+    assert isinstance(failed, PrioritizedFailed)
     assert (failed.agent, failed.repairs, failed.history, failed.planned) == (3, 1, ["v003: nobody to take out"], 5)
-
-    problem = swarm_problem(_scenario(grid_reshuffle(8, seed=3)))
-    groups = interaction_groups(problem)
-    options = PriorityOptions(max_repairs=8)
-    kw = dict(horizon_steps=1200, min_vehicles=1)
-    orders = [dependency_order, longest_first]
-    serial = plan_orders(problem, groups, orders, options, workers=1, **kw)
-    parallel = plan_orders(problem, groups, orders, options, workers=2, **kw)
-    assert not all(isinstance(r, PrioritizedFailed) for r in serial)  # something to compare
-    for one, other in zip(serial, parallel):
-        assert type(one) is type(other)
-        if isinstance(one, PrioritizedFailed):
-            assert (one.agent, one.history) == (other.agent, other.history)
-            continue
-        assert sorted(one.tracks) == sorted(other.tracks) == list(range(8))
-        for a, tr in one.tracks.items():
-            np.testing.assert_array_equal(tr.positions_m, other.tracks[a].positions_m)
 
 
 def test_a_chain_is_flown_through_its_corner_when_nothing_is_in_the_way():
