@@ -5,7 +5,8 @@ seeded family of random layouts.
 Usage:
     python benchmarks/bench_swarm.py [--layout pillar grid circle corridor] [--family K [--family-seed S]]
         [--n 32 64 128 256] [--method optimized swarm sampling] [--assign fixed by_type] [--timeout 600]
-        [--child-python PATH] [--swarm-options JSON] [--keep DIR]
+        [--cpu-cap S] [--child-python PATH [PATH ...]] [--child-method-roadmap [PATH ...]] [--swarm-options JSON [JSON ...]]
+        [--keep DIR]
 
 Layouts (``proxplan.planner.formations.LAYOUTS``): ``pillar`` two staggered layers west of a pillar
 swap layers to the east side; ``grid`` a grid reshuffled by a seeded permutation; ``circle`` every
@@ -20,14 +21,21 @@ import baseline of the same run is printed first, so compare ratios on a loaded 
 makespan against the lower bound (fixed goals: the largest straight-line rest-to-rest time of any
 vehicle; ``by_type``: the same under the assignment, ``assignment_lower_bound_s``), the plan's
 method and how the swarm layer coordinated, the child's peak memory (``resource`` rusage, MB), and
-the verdict and whole-process time of ``proxplan verify`` on the written plan.json.
+the verdict and whole-process time of ``proxplan verify`` on the written plan.json. ``--cpu-cap S``
+stops a run after S s of CPU time (its process tree) as well as after ``--timeout`` of wall time:
+on a shared machine the CPU cap is the same for every run. Column ``arm``:
+interpreter index x number of option sets + option set index.
 
-``--child-python PATH`` plans and verifies with another interpreter (another installed version of
-proxplan: before / after in the same run). ``--swarm-options JSON`` plans in a child of this script
-with ``plan_scenario(..., swarm_options=SwarmOptions(**JSON))`` instead of the CLI (to measure one
-cause at a time, e.g. ``{"through_waypoints": false}``; the key ``sampling_alternative: false``
-leaves out the sampling planner beside the swarm layer); its wall time then includes the same
-verification and writing as ``proxplan plan``, not the PNG (neither does the CLI run: ``--no-plot``).
+``--child-python PATH [PATH ...]`` plans and verifies with these interpreters (other installed
+versions of proxplan), each case with each of them in turn, so before and after share one run and
+the same load; each interpreter's start-up baseline is printed first. ``--child-method-roadmap
+[PATH ...]``: these interpreters (all, without a path) call the swarm method ``roadmap`` (versions
+before the rename). ``--swarm-options JSON [JSON ...]`` plans in a child of this script with
+``plan_scenario(..., swarm_options=SwarmOptions(**JSON))`` instead of the CLI, each case with each
+option set in turn (to measure one cause at a time against ``{}``, the defaults, e.g.
+``{"through_waypoints": "always"}``; the key ``sampling_alternative: false`` leaves out the
+sampling planner beside the swarm layer); its wall time then includes the same verification and
+writing as ``proxplan plan``, not the PNG (neither does the CLI run: ``--no-plot``).
 Children run outside the repository (from its root, ``import proxplan`` would find the checkout).
 """
 
@@ -36,30 +44,51 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+import psutil
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _run(cmd: list[str], timeout_s: float) -> tuple[float, int, float, str, float]:
-    """Wall time (s), exit code, child peak RSS (MB), stdout and CPU time (user + system, s)."""
+def _tree_cpu_s(proc: psutil.Process) -> float:
+    """CPU time (user + system, s) of ``proc`` and its live descendants (Dask workers included)."""
+    total = 0.0
+    for p in [proc, *proc.children(recursive=True)]:
+        try:
+            t = p.cpu_times()
+            total += t.user + t.system
+        except psutil.Error:
+            pass
+    return total
+
+
+def _run(cmd: list[str], timeout_s: float, cpu_cap_s: float | None = None) -> tuple[float, int, float, str, float]:
+    """Wall time (s), exit code, child peak RSS (MB), stdout and CPU time (user + system, s). The child
+    is killed after ``timeout_s`` of wall time or, when given, ``cpu_cap_s`` of CPU time of its process
+    tree (a cap that does not depend on how loaded a shared machine is)."""
     t0 = time.perf_counter()
     with tempfile.TemporaryFile() as out:
         proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.DEVNULL, cwd=tempfile.gettempdir())
+        watch = psutil.Process(proc.pid)
         deadline = t0 + timeout_s
         while True:
             pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
             if pid:
                 break
-            if time.perf_counter() > deadline:
+            over_cpu = cpu_cap_s is not None and _tree_cpu_s(watch) > cpu_cap_s
+            if over_cpu or time.perf_counter() > deadline:
+                for p in watch.children(recursive=True):
+                    p.kill()
                 proc.kill()
                 pid, status, usage = os.wait4(proc.pid, 0)
                 break
-            time.sleep(0.05)
+            time.sleep(0.25)
         wall = time.perf_counter() - t0
         out.seek(0)
         text = out.read().decode(errors="replace")
@@ -101,12 +130,19 @@ def main() -> int:
     ap.add_argument("--assign", nargs="+", default=["fixed"], choices=["fixed", "by_type"])
     ap.add_argument("--types", default=None, help="comma-separated vehicle types (default: the layout's mix)")
     ap.add_argument("--timeout", type=float, default=600.0, help="per-run wall-time cap, s")
-    ap.add_argument("--child-python", default=sys.executable, help="interpreter that plans and verifies")
-    ap.add_argument("--swarm-options", default=None, metavar="JSON", help="plan with these SwarmOptions")
+    ap.add_argument("--cpu-cap", type=float, default=None, help="per-run CPU-time cap of the child's processes, s")
+    ap.add_argument(
+        "--child-python", nargs="+", default=[sys.executable], help="interpreters that plan and verify, in turn"
+    )
+    ap.add_argument(
+        "--swarm-options", nargs="+", default=None, metavar="JSON", help="plan with these SwarmOptions, in turn"
+    )
     ap.add_argument(
         "--child-method-roadmap",
-        action="store_true",
-        help="the child calls the swarm method 'roadmap' (versions before the rename, for --child-python)",
+        nargs="*",
+        default=None,
+        metavar="PATH",
+        help="these interpreters (all, without a path) call the swarm method 'roadmap' (before the rename)",
     )
     ap.add_argument("--keep", default=None, metavar="DIR", help="keep scenarios and plans in DIR")
     args = ap.parse_args()
@@ -117,13 +153,20 @@ def main() -> int:
     from proxplan.planner.formations import LAYOUTS, random_formation
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 
-    py = args.child_python
-    base_wall, _, base_mb, _, base_cpu = _run([py, "-m", "proxplan.cli", "--help"], 120)
-    print(f"baseline (interpreter + CLI start): {base_wall:.2f} s wall, {base_cpu:.2f} s CPU, {base_mb:.0f} MB")
-    print(f"child interpreter: {py}; swarm options: {args.swarm_options or 'defaults'}")
+    pythons = args.child_python
+    roadmap = set(pythons if args.child_method_roadmap == [] else (args.child_method_roadmap or []))
+    for i, py in enumerate(pythons):
+        base_wall, _, base_mb, _, base_cpu = _run([py, "-m", "proxplan.cli", "--help"], 120)
+        print(
+            f"py {i}: {py}; baseline (interpreter + CLI start): {base_wall:.2f} s wall, {base_cpu:.2f} s CPU, "
+            f"{base_mb:.0f} MB"
+        )
+    option_sets: list[str | None] = list(args.swarm_options or [None])
+    for j, opt in enumerate(option_sets):
+        print(f"swarm options {j}: {opt or 'defaults, through the CLI'}")
     print(
-        f"{'layout':14s} {'N':>4s} {'goals':8s} {'method':10s} {'wall_s':>7s} {'cpu_s':>6s} {'makespan':>8s} "
-        f"{'LB_s':>6s} {'ms/LB':>6s} {'peak_MB':>7s} {'verify':>6s} {'verify_s':>8s}  how"
+        f"{'layout':14s} {'N':>4s} {'goals':8s} {'method':10s} {'arm':>3s} {'wall_s':>7s} {'cpu_s':>6s} "
+        f"{'makespan':>8s} {'LB_s':>6s} {'ms/LB':>6s} {'peak_MB':>7s} {'verify':>6s} {'verify_s':>8s}  how"
     )
     tmp_ctx = tempfile.TemporaryDirectory() if args.keep is None else None
     tmp = Path(args.keep) if args.keep else Path(tmp_ctx.name)  # type: ignore[union-attr]
@@ -143,9 +186,11 @@ def main() -> int:
                 path = tmp / f"{layout}-{n}-{goals}.yaml"
                 path.write_text(yaml.safe_dump(doc, sort_keys=False))
                 lb = lower_bound_makespan_s(load_scenario(path))
-                for method in args.method:
-                    out = tmp / f"out-{layout}-{n}-{goals}-{method}"
-                    if args.swarm_options:
+                arms = [(m, p, o) for m in args.method for p in enumerate(pythons) for o in enumerate(option_sets)]
+                for method, (i, py), (j, opt) in arms:
+                    arm = i * len(option_sets) + j
+                    out = tmp / f"out-{layout}-{n}-{goals}-{method}-arm{arm}"
+                    if opt is not None:
                         cmd = [
                             py,
                             str(Path(__file__).resolve()),
@@ -153,15 +198,16 @@ def main() -> int:
                             str(path),
                             str(out),
                             method,
-                            args.swarm_options,
+                            opt,
                         ]
                     else:
                         cmd = [py, "-m", "proxplan.cli", "plan", str(path), "--out", str(out)]
-                        name = "roadmap" if args.child_method_roadmap and method == "swarm" else method
+                        name = "roadmap" if py in roadmap and method == "swarm" else method
                         cmd += ["--method", name, "--seed", "0", "--no-plot", "--json"]
-                    wall, code, mb, text, cpu = _run(cmd, args.timeout)
+                    wall, code, mb, text, cpu = _run(cmd, args.timeout, args.cpu_cap)
                     ms = ratio = "-"
-                    verdict, v_wall, how = ("timeout" if wall >= args.timeout else f"exit {code}"), "-", ""
+                    capped = code == -signal.SIGKILL  # killed by either cap
+                    verdict, v_wall, how = ("timeout" if capped else f"exit {code}"), "-", ""
                     lb_used = lb
                     if code == 0:
                         doc_out = json.loads(text.strip().splitlines()[-1])
@@ -184,7 +230,7 @@ def main() -> int:
                         except json.JSONDecodeError:
                             how = text.strip()[-80:]
                     print(
-                        f"{layout:14s} {n:4d} {goals:8s} {method:10s} {wall:7.1f} {cpu:6.1f} {ms:>8s} {lb_used:6.2f} "
+                        f"{layout:14s} {n:4d} {goals:8s} {method:10s} {arm:3d} {wall:7.1f} {cpu:6.1f} {ms:>8s} {lb_used:6.2f} "
                         f"{ratio:>6s} {mb:7.0f} {verdict:>6s} {v_wall:>8s}  {how}",
                         flush=True,
                     )

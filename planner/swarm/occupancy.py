@@ -49,6 +49,9 @@ class Occupancy:
         self._segments: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         self._parked: dict[tuple[int, int], set[int]] = {}  # cell of the end -> agents parked there
         self._cells_of: dict[int, set[tuple[int, int]]] = {}
+        # cell -> its runs' segments as arrays (samples_near's layout), built when first queried and
+        # dropped when a track in the cell is put or removed (queries far outnumber changes)
+        self._cell_arrays: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
         for tr in tracks:
             self.put(tr)
 
@@ -80,6 +83,7 @@ class Occupancy:
             for s0, s1 in zip(np.r_[0, change].tolist(), np.r_[change, t0.size].tolist()):
                 key = (int(c[s0, 0]), int(c[s0, 1]))
                 self._runs.setdefault(key, []).append((a, s0, s1))
+                self._cell_arrays.pop(key, None)
                 cells.add(key)
         if not track.vanishes:
             end = self._cell(track.end_m[:2])
@@ -95,38 +99,43 @@ class Occupancy:
             runs = self._runs.get(key)
             if runs:
                 self._runs[key] = [r for r in runs if r[0] != agent]
+                self._cell_arrays.pop(key, None)
             parked = self._parked.get(key)
             if parked:
                 parked.discard(agent)
         return old
 
+    def _cell_segments(self, key: tuple[int, int]) -> tuple[np.ndarray, ...] | None:
+        """The segments of every run in cell ``key``, as samples_near returns them (None: empty)."""
+        got = self._cell_arrays.get(key)
+        if got is None:
+            runs = self._runs.get(key)
+            if not runs:
+                return None
+            parts = []
+            for a, s0, s1 in runs:
+                P, t0, t1, mv = self._segments[a]
+                n = s1 - s0
+                parts.append(
+                    (P[s0:s1], t0[s0:s1], t1[s0:s1], np.full(n, self.tracks[a].type), mv[s0:s1], np.full(n, a))
+                )
+            got = tuple(np.concatenate([p[i] for p in parts]) for i in range(6))
+            self._cell_arrays[key] = got
+        return got
+
     def samples_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int, from_step: int = 0):
         """Segments of other tracks (a resting stretch, or one moving sample; the parked end apart) in
         cells within reach of the box [lo, hi] (m) that last beyond ``from_step``: (positions (M, 3),
         first step (M,), end step (M,, exclusive), type (M,), moving (M,), agent (M,))."""
-        parts: list[tuple] = []
-        for key in self._cells_within(lo, hi):
-            for a, s0, s1 in self._runs.get(key, ()):
-                if a == exclude:
-                    continue
-                P, t0, t1, mv = self._segments[a]
-                live = np.flatnonzero(t1[s0:s1] > from_step) + s0
-                if live.size == 0:
-                    continue
-                parts.append(
-                    (
-                        P[live],
-                        np.maximum(t0[live], from_step),
-                        t1[live],
-                        np.full(live.size, self.tracks[a].type),
-                        mv[live],
-                        np.full(live.size, a),
-                    )
-                )
-        if not parts:
+        cells = [c for c in (self._cell_segments(key) for key in self._cells_within(lo, hi)) if c is not None]
+        if not cells:
             z = np.zeros(0, dtype=np.int64)
             return np.zeros((0, 3)), z, z, z, np.zeros(0, dtype=bool), z
-        return tuple(np.concatenate([p[i] for p in parts]) for i in range(6))
+        P, t0, t1, ty, mv, ag = (
+            (np.concatenate([c[i] for c in cells]) for i in range(6)) if len(cells) > 1 else cells[0]
+        )
+        keep = (ag != exclude) & (t1 > from_step)
+        return P[keep], np.maximum(t0[keep], from_step), t1[keep], ty[keep], mv[keep], ag[keep]
 
     def parked_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int) -> list[GridTrack]:
         """Tracks parked for good in a cell within reach of the box [lo, hi] (m)."""

@@ -76,6 +76,13 @@ class PrioritizedFailed(Exception):
         super().__init__(f"agent {agent} could not be planned after {repairs} repairs")
         self.agent, self.repairs, self.history, self.planned = agent, repairs, history, planned
 
+    def __reduce__(self):  # pickled back from a Dask worker with its fields (the default passes args only)
+        return _failed, (self.agent, self.repairs, self.history, self.planned)
+
+
+def _failed(agent: int, repairs: int, history: list[str], planned: int) -> PrioritizedFailed:
+    return PrioritizedFailed(agent, repairs, history, planned=planned)
+
 
 def predicted_track(problem: SwarmProblem, agent: int, *, hold_s: float = 0.0) -> GridTrack:
     """Where a vehicle not planned yet is assumed to be (a track that vanishes): holding its start

@@ -270,6 +270,19 @@ def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in
         np.testing.assert_array_equal(tr.positions_m, parallel.tracks[a].positions_m)
 
 
+def test_a_give_up_pickled_back_from_a_dask_worker_keeps_its_fields():
+    """A group that gives up on a Dask worker comes back as a PrioritizedFailed with its vehicle,
+    repairs, history and count of plannings (the default exception pickling passes the message only,
+    and unpickling failed)."""
+    import pickle
+
+    from proxplan.planner.swarm.priority import PrioritizedFailed
+
+    failed = pickle.loads(pickle.dumps(PrioritizedFailed(3, 1, ["v003: nobody to take out"], planned=5)))
+    assert isinstance(failed, PrioritizedFailed)
+    assert (failed.agent, failed.repairs, failed.history, failed.planned) == (3, 1, ["v003: nobody to take out"], 5)
+
+
 def test_a_chain_is_flown_through_its_corner_when_nothing_is_in_the_way():
     """Safe-interval timing along a chain with a gentle corner: flying through the waypoint arrives
     earlier than stopping there, and where another vehicle sits on the corner the timing waits for it
