@@ -1,17 +1,23 @@
-"""A vehicle in another's jet, in closed loop, along a plan: the predicted deflection that is part
-of its tube, and whether its loop stays damped where it holds.
+"""Every vehicle's closed loop along its plan: how far beyond the tube the verifier grants it is
+predicted to leave its plan (flying its own reference, and in another's jet), and whether its loop
+stays damped where it holds.
 
-For every vehicle the model predicts a disturbance on (:func:`proxplan.verify.wrench_along_plan`),
+Every vehicle flying its plan is off it by e(t), the response of its loop (no jet) to its own
+reference (:func:`proxplan.verify.tracking.tracking_along_plan`,
+:func:`proxplan.physics.tracking_response`: jerk and snap against the attitude and motor loops, the
+set-point hold); the measured tube t covers what that linear model leaves out. For every vehicle
+the model predicts a disturbance on (:func:`proxplan.verify.wrench_along_plan`),
 the jet's force and torque gradients with respect to its position are finite differences of the
 one model (``proxplan.costmaps.sources_wrench``: the sources above it, their stack and the
 scenario's between-vehicle effects; :func:`proxplan.physics.hover_loop.wrench_gradient`), and the
 linearised loop of its controller in that jet (:mod:`proxplan.physics.hover_loop`) is driven along
-the plan by the wrench (:func:`proxplan.physics.hover_loop.jet_response`). Its tube grows by
+the plan by the wrench and by its gradients acting on e (:func:`proxplan.physics.hover_loop.jet_response`).
+Its tube grows by
 
-    |d(t)| + t gamma(t)                                   (t = limits.tracking_margin_m, m)
+    |e(t) + d(t)| + t gamma(t)                            (t = limits.tracking_margin_m, m)
 
-d the deviation the jet's wrench drives, gamma the bound on how far the jet makes a deviation
-within the tube grow. After the plan's end every vehicle holds its final position: the hold's
+d the deviation the jet adds, gamma the bound on how far the jet makes a deviation within the
+tube grow (zero without a jet). After the plan's end every vehicle holds its final position: the hold's
 bounds are part of the last sample. A vehicle whose loop is not damped where it holds at the end
 (rightmost pole with real part >= 0) oscillates there however it is planned:
 :func:`check_jet_loop` names it, the source and the margin. World frame, z up; m, N, s.
@@ -38,6 +44,7 @@ from proxplan.planfile import Plan, Scenario
 from proxplan.verify.along import WrenchAlongPlan, model_options
 from proxplan.verify.reach import MIN_DZ_M
 from proxplan.verify.tolerances import REST_SPEED_MPS
+from proxplan.verify.tracking import tracking_along_plan
 from proxplan.verify.violations import Violation
 
 WEAK_USAGE = 1e-6
@@ -90,8 +97,14 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
     tube = float(scenario.limits.tracking_margin_m) if scenario is not None else 0.0
     cap = _largest_growth_m(scenario, pos)
     for name, w in along.items():
+        track = tracking_along_plan(plan.vehicles[name], t)
+        e = np.linalg.norm(track.error_m, axis=1)
         hit = (np.abs(w.force_N).max(axis=1) > 0.0) | (np.abs(w.torque_Nm).max(axis=1) > 0.0)
         if not hit.any():
+            size = e.copy()
+            if size.size:
+                size[-1] = max(size[-1], track.hold_error_m)
+            out[name] = LoopAlongPlan(None, np.minimum(size, cap), None)
             continue
         vehicle = _vehicle(plan, scenario, name)
         last = {s: float(u[-1]) for s, u in w.usage_by_source.items()}
@@ -103,7 +116,9 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
                 float(np.linalg.norm(w.torque_Nm, axis=1).max()),
             )
             first = int(np.argmax(hit))  # from the first sample the jet reaches it on
-            out[name] = LoopAlongPlan(None, np.where(np.arange(t.size) >= first, bound, 0.0), source)
+            size = e + np.where(np.arange(t.size) >= first, bound, 0.0)
+            size[-1] = max(size[-1], track.hold_error_m + bound)
+            out[name] = LoopAlongPlan(None, np.minimum(size, cap), source)
             continue
         gf = np.zeros((t.size, 3, 3))
         gt = np.zeros((t.size, 3, 3))
@@ -111,10 +126,10 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
             sources = [(_vehicle(plan, scenario, s), pos[s][rows]) for s in key]
             gf[rows], gt[rows] = target_gradients(vehicle, pos[name][rows], sources, opts, effects)
         moving = np.linalg.norm(plan.vehicles[name].sample(t)[1], axis=1) >= REST_SPEED_MPS
-        resp = jet_response(t, vehicle, w.force_N, w.torque_Nm, gf, gt, moving)
-        size = np.linalg.norm(resp.deflection_m, axis=1) + tube * resp.tube_gain
+        resp = jet_response(t, vehicle, w.force_N, w.torque_Nm, gf, gt, moving, track.error_m)
+        size = np.linalg.norm(resp.deflection_m + track.error_m, axis=1) + tube * resp.tube_gain
         if np.isfinite(resp.hold_deflection_m):
-            size[-1] = max(size[-1], resp.hold_deflection_m + tube * resp.hold_tube_gain)
+            size[-1] = max(size[-1], resp.hold_deflection_m + tube * resp.hold_tube_gain + track.hold_error_m)
         out[name] = LoopAlongPlan(resp, np.minimum(size, cap), source)
     return out
 
