@@ -24,6 +24,14 @@ integrator holds), deviations from the plan, world frame z up, body = world axes
   which the simulator applies in the body frame (R^T T: its attitude gradient is [T]x); its force
   stays in the world frame (no attitude gradient).
 
+**A moving reference** (``LoopMatrices.b_ref``, :mod:`proxplan.physics.tracking_loop`): with the
+position and velocity taken as deviations from the plan p and the rest as they are, a vehicle
+flying a reference r obeys x' = A x + B_ref s, s = (r - p, r' - p', r'', w_ref, w_ref', p', p'',
+w_frame): the force feed-forward q = m r'' + k_p (r - p) + k_d (r' - p') adds q_z to the thrust
+command and (q_y, -q_x, 0) / T0 to the desired tilt, the rate feed-forward enters through k_w and
+k_dw, r - p feeds the position integrator, the plan's motion leaves -(c p' + p'') on the velocity,
+and the set-point frame's rate about its z axis w_frame (none fed forward) turns the heading off it.
+
 22 states: d (3) m, v (3) m/s, (phi, theta, psi) (3) rad, w (3) rad/s, u (4) N and N m, I_p (3)
 m s, I_m (3) rad s (:data:`STATE_NAMES`). Left out: the controller's 500 Hz sampling and 100 Hz
 set-point hold (delays of ~1-5 ms, a phase of < 2 degrees at the loop's ~1 Hz), the integrators'
@@ -53,6 +61,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from proxplan.physics.discretize import zoh_maps
+from proxplan.physics.tube_blocks import TubeBlocks
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
 STATE_NAMES = (
@@ -289,10 +298,6 @@ HOLD_RESIDUAL_M = 1e-4
 """The hold is evaluated until the modal bound of what is left of the deviation stays below this, m,"""
 HOLD_GAIN_RESIDUAL = 1e-3
 """... and of what is left of the tube gain below this, - (times a tube of 1-2 cm: 10-20 um)."""
-TUBE_BLOCK_SAMPLES = 5
-"""Samples whose tube input is propagated as one block in :func:`jet_response` (the bound's
-integral is taken over blocks of this many steps: exact within a block for inputs of one
-direction), -."""
 
 
 @dataclass(frozen=True)
@@ -344,7 +349,7 @@ def jet_response(
     deflection = np.zeros((kk, 3))
     gain = np.zeros(kk)
     if kk < 2:
-        empty = _TubeBlocks(mats.c)
+        empty = TubeBlocks(mats.c)
         return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, np.zeros(N_STATES), empty, f, tq)
     h = float(t[1] - t[0])
     u = np.concatenate([f, tq], axis=1)  # (K, 6)
@@ -360,7 +365,7 @@ def jet_response(
     first[inverse[::-1]] = np.arange(kk - 1)[::-1]
     phi_u, gam_u = zoh_maps(mats.a[first], mats.b[first], h)
     x = np.zeros(N_STATES)
-    tube = _TubeBlocks(mats.c)
+    tube = TubeBlocks(mats.c)
     for k in range(kk - 1):
         i = inverse[k]
         phi, gam = phi_u[i], gam_u[i]
@@ -371,46 +376,7 @@ def jet_response(
     return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, x, tube, f, tq)
 
 
-class _TubeBlocks:
-    """The tube's responses Phi(t, s) Gamma G(s) of :func:`jet_response` (n x 3 each), summed over
-    blocks of :data:`TUBE_BLOCK_SAMPLES` steps, propagated to now."""
-
-    def __init__(self, c: np.ndarray):
-        self.c = c
-        n = c.shape[1]
-        self.pending = np.zeros((n, 3))
-        self.n_pending = 0
-        self.blocks = np.zeros((n, 0))
-
-    def step(self, phi: np.ndarray, new: np.ndarray) -> None:
-        """Propagate every block by ``phi`` (n, n) and add this step's input response ``new`` (n, 3)."""
-        if self.blocks.shape[1]:
-            self.blocks = phi @ self.blocks
-        self.pending = phi @ self.pending + new
-        self.n_pending += 1
-        if self.n_pending == TUBE_BLOCK_SAMPLES:
-            self.flush()
-
-    def flush(self) -> None:
-        """Close the pending block."""
-        if np.any(self.pending):
-            self.blocks = np.concatenate([self.blocks, self.pending], axis=1)
-        self.pending = np.zeros_like(self.pending)
-        self.n_pending = 0
-
-    def gain(self) -> float:
-        """gamma now: the sum over the blocks (the pending one included) of ||C block||_F."""
-        out = float(np.linalg.norm(self.c @ self.pending))
-        return out + (_block_norms(self.c, self.blocks) if self.blocks.shape[1] else 0.0)
-
-
-def _block_norms(c: np.ndarray, blocks: np.ndarray) -> float:
-    """Sum over the blocks (columns of 3) of ||C block||_F."""
-    out = (c @ blocks).reshape(3, -1, 3)
-    return float(np.sqrt((out**2).sum(axis=(0, 2))).sum())
-
-
-def _with_hold(resp, mats, x_end, tube: _TubeBlocks, f, tq) -> JetResponse:
+def _with_hold(resp, mats, x_end, tube: TubeBlocks, f, tq) -> JetResponse:
     """``resp`` with the bounds over the hold after its last sample (module docstring): the final
     configuration held (loop A = V diag(lambda) V^-1, input u, constant), so from the end
     C x(t) = C x_ss + C V diag(e^{lambda t}) V^-1 (x_end - x_ss), and each tube block likewise
