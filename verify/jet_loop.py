@@ -57,9 +57,9 @@ without the jet (:func:`proxplan.physics.hover_loop.weak_jet_bound_m`, micrometr
 @dataclass(frozen=True)
 class LoopAlongPlan:
     """One vehicle's loop along the plan: its ``response`` (:class:`proxplan.physics.hover_loop.
-    JetResponse`; None for a jet too weak to matter, :data:`WEAK_USAGE`), its tube growth
-    ``deflection_m`` (M,), m (|d| + t gamma, the hold in the last sample; the plan alone where the
-    final loop is not damped), and ``source``: the vehicle whose jet acts on it most at the end
+    JetResponse`; None for no jet or one too weak to matter, :data:`WEAK_USAGE`), its tube growth
+    ``deflection_m`` (M,), m (|e + d| + t gamma, the hold in the last sample; the plan alone where
+    the final loop is not damped), and ``source``: the vehicle whose jet acts on it most at the end
     (None: none)."""
 
     response: JetResponse | None
@@ -85,7 +85,7 @@ def target_gradients(
 
 
 def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[str, LoopAlongPlan]:
-    """Per vehicle with a predicted disturbance, its loop along the plan (:class:`LoopAlongPlan`);
+    """Per vehicle of ``along``, its loop along the plan (:class:`LoopAlongPlan`);
     ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start."""
     out: dict[str, LoopAlongPlan] = {}
     if not along:
@@ -179,14 +179,15 @@ def check_jet_loop(
                     float(t_s[k]),
                     name,
                     "jet-loop",
-                    f"its closed loop in the jet of {lp.source} moves it farther off its plan than the scenario's "
+                    f"its closed loop {f'in the jet of {lp.source}' if lp.source else 'on its own reference'} moves it "
+                    "farther off its plan than the scenario's "
                     f"separation (up to {float(lp.deflection_m.max()):.3f} m beyond its tracking tube; m)",
                     float(lp.deflection_m.max()),
                     far_m,
                     int(np.clip(np.searchsorted(plan_t_s, t_s[k] + 1e-9, side="right") - 1, 0, plan_t_s.size - 1)),
                 )
             )
-        if lp.response is None:  # a jet too weak to matter: the loop without it, damped
+        if lp.response is None:  # no jet, or one too weak to matter: the loop without it, damped
             continue
         growth = float(lp.response.poles.growth_ps[0])
         if growth < 0.0:
@@ -227,9 +228,9 @@ def _vehicle(plan: Plan, scenario: Scenario | None, name: str) -> Vehicle:
 def deflection_along_plan(
     plan: Plan, scenario: Scenario | None, along: dict[str, WrenchAlongPlan]
 ) -> dict[str, np.ndarray]:
-    """Per vehicle how far (M,), m, it is predicted to leave its plan beyond its tracking tube in the
-    jets the model predicts on it along the plan (``along``, on a uniform grid from the plan's
-    start): :func:`loop_along_plan`'s growth (the hold after the plan's end in the last sample).
-    Part of that vehicle's tube where it applies; zeros for a vehicle nothing acts on."""
+    """Per vehicle how far (M,), m, it is predicted to leave its plan beyond its tracking tube,
+    flying its own reference and in the jets the model predicts on it along the plan (``along``, on
+    a uniform grid from the plan's start): :func:`loop_along_plan`'s growth (the hold after the
+    plan's end in the last sample). Part of that vehicle's tube."""
     loops = loop_along_plan(plan, scenario, along)
     return {name: loops[name].deflection_m if name in loops else np.zeros(w.t_s.size) for name, w in along.items()}
