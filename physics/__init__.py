@@ -121,8 +121,10 @@ from proxplan.physics.stack import (
 )
 from proxplan.physics.tracking_loop import (
     SETPOINT_DELAY_S,
+    TAIL_STEP_S,
     ReferenceSamples,
     TrackingResponse,
+    frame_yaw_rate_radps,
     reference_drive,
     tracking_response,
 )
@@ -152,6 +154,8 @@ from proxplan.physics.vehicles import (
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
+    "TAIL_STEP_S",
+    "frame_yaw_rate_radps",
     "FIRMWARE_CONTROLLER_RATE_HZ",
     "cap_motor_thrusts",
     "FIRMWARE_SETPOINT_RATE_HZ",

@@ -35,6 +35,7 @@ clamps, the motors' saturation; the measured tube the verifier grants besides co
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,9 +69,9 @@ class ReferenceSamples:
 
 @dataclass(frozen=True)
 class TrackingResponse:
-    """The predicted deviation from the plan ``error_m`` (K, 3), m, on ``t_s`` (K,), s (the first
-    ``n_plan`` samples of the drive's grid), and ``hold_error_m`` (m): the largest |deviation| after
-    them (over the reference's tail, then bounded by the loop's modes)."""
+    """The predicted deviation from the plan ``error_m`` (K, 3), m, on ``t_s`` (K,), s, and
+    ``hold_error_m`` (m): the largest |deviation| after them (over the reference's settle tail, then
+    bounded by the loop's modes)."""
 
     t_s: np.ndarray
     error_m: np.ndarray
@@ -118,67 +119,107 @@ def frame_yaw_rate_radps(acc_mps2: np.ndarray, jerk_mps3: np.ndarray) -> np.ndar
     return -np.sum(np.cross(dz, ex) * x, axis=1) / norm_u
 
 
-def tracking_response(vehicle: Vehicle, ref: ReferenceSamples, n_plan: int | None = None) -> TrackingResponse:
-    """The deviation of ``vehicle`` from its plan flying ``ref`` (module docstring), from rest, on
-    the first ``n_plan`` samples (default all); the rest of the grid (the reference's tail) and the
-    modal bound after it give ``hold_error_m``."""
-    t = np.asarray(ref.t_s, dtype=float)
-    k = t.size
-    n_plan = k if n_plan is None else int(n_plan)
-    s = reference_drive(vehicle, ref)
-    mats = loop_matrices(vehicle)
-    live = _live_states(mats.a)
-    a = mats.a[0][np.ix_(live, live)]
-    b = mats.b_ref[0][live]
-    c = mats.c[:, live]
-    err = np.zeros((k, 3))
-    x = np.zeros(live.size)
-    if k >= 2:
-        step = float(t[1] - t[0])
-        phi, g0, g1 = foh_maps(a, b, step)
-        forced = s[:-1] @ (g0 - g1).T + s[1:] @ g1.T  # (K-1, n): the input's part of each step
-        states = np.zeros_like(forced)
-        twist = s[:, 21]
-        turning = np.flatnonzero(np.abs(twist) > 0.0)
-        n_seq = min(k - 1, int(turning[-1]) + 1) if turning.size else 0  # steps with the twist's coupling
-        if n_seq:
-            att = np.searchsorted(live, [6, 7, 8])  # roll, pitch, yaw in the live states
-            b_att = np.zeros((1, live.size, 2))
-            b_att[0, att[0], 0] = b_att[0, att[1], 1] = 1.0
-            gam_att = zoh_maps(a[None], b_att, step)[1][0]
-            w_ff = s[:, 9:11]
-            for i in range(n_seq):  # the heading off the frame turns the roll / pitch feed-forward
-                x = phi @ x + forced[i] + gam_att @ (x[att[2]] * np.array([-w_ff[i, 1], w_ff[i, 0]]))
-                states[i] = x
-        if n_seq < k - 1:
-            rest = forced[n_seq:].copy()
-            rest[0] += phi @ x
-            states[n_seq:] = _recurrence(phi, rest)
-        err[1:] = states @ c.T
-        x = states[-1]
-    after = float(np.linalg.norm(err[n_plan:], axis=1).max(initial=0.0))
-    hold = max(after, _modal_bound(a, b, c, x, s[-1]))
-    return TrackingResponse(t[:n_plan], err[:n_plan], hold)
-
-
+TAIL_STEP_S = 0.05
+"""Step of the grid the reference's settle tail is sampled on, s: the tail's drive (the lead
+unwinding at the integrators' rate, ~0.1 1/s) is smooth, so the first-order hold stays exact to
+well under a micrometre on it."""
 MAX_MODAL_CONDITION = 1e8
 """The recurrence runs in the modes of Phi when its eigenvectors' condition number is below this
 (the modal sums then lose < 1e-8 relative), else step by step, -."""
 
 
-def _recurrence(phi: np.ndarray, forced: np.ndarray) -> np.ndarray:
-    """x[k+1] = phi x[k] + forced[k] from x[0] = 0: the states x[1..K] (K, n). In the modes of phi
-    (phi = V diag(mu) V^-1: each mode a first-order recursion, ``scipy.signal.lfilter``) when V is
-    well conditioned, else step by step."""
+@dataclass(frozen=True)
+class _Maps:
+    """The loop without a jet on its live states, discretised over one step (first-order hold),
+    with Phi's modes (None when ill-conditioned) and the twist's input map (zero-order hold)."""
+
+    live: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    phi: np.ndarray
+    g0: np.ndarray
+    g1: np.ndarray
+    g_att: np.ndarray
+    modes: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+
+
+@functools.lru_cache(maxsize=64)
+def _maps(vehicle: Vehicle, step_s: float) -> _Maps:
+    mats = loop_matrices(vehicle)
+    live = _live_states(mats.a)
+    a = mats.a[0][np.ix_(live, live)]
+    b = mats.b_ref[0][live]
+    phi, g0, g1 = foh_maps(a, b, step_s)
+    att = np.searchsorted(live, [6, 7])  # roll, pitch in the live states
+    b_att = np.zeros((1, live.size, 2))
+    b_att[0, att[0], 0] = b_att[0, att[1], 1] = 1.0
+    g_att = zoh_maps(a[None], b_att, step_s)[1][0]
     mu, vec = np.linalg.eig(phi)
-    if np.linalg.cond(vec) < MAX_MODAL_CONDITION:
-        z = np.linalg.inv(vec) @ forced.T  # (n, K)
-        modes = np.stack([signal.lfilter([1.0], [1.0, -m], row) for m, row in zip(mu, z)])
-        return (vec @ modes).real.T
+    modes = (mu, vec, np.linalg.inv(vec)) if np.linalg.cond(vec) < MAX_MODAL_CONDITION else None
+    return _Maps(live, a, b, mats.c[:, live], phi, g0, g1, g_att, modes)
+
+
+def tracking_response(
+    vehicle: Vehicle, ref: ReferenceSamples, tail: ReferenceSamples | None = None
+) -> TrackingResponse:
+    """The deviation of ``vehicle`` from its plan flying ``ref`` (module docstring), from rest, on
+    ``ref``'s grid; ``hold_error_m`` from the reference's settle ``tail`` (samples from ``ref``'s
+    last time on, on a grid of its own) and the modal bound after it."""
+    t = np.asarray(ref.t_s, dtype=float)
+    s = reference_drive(vehicle, ref)
+    step = float(t[1] - t[0]) if t.size >= 2 else TAIL_STEP_S
+    m = _maps(vehicle, step)
+    states = _run(m, s, np.zeros(m.live.size), twist=True)
+    err = states @ m.c.T
+    x, s_end, after = states[-1], s[-1], 0.0
+    if tail is not None and tail.t_s.size >= 2:
+        s_tail = reference_drive(vehicle, tail)
+        m_tail = _maps(vehicle, float(tail.t_s[1] - tail.t_s[0]))
+        tail_states = _run(m_tail, s_tail, x, twist=False)
+        after = float(np.linalg.norm(tail_states @ m.c.T, axis=1).max())
+        x, s_end = tail_states[-1], s_tail[-1]
+    hold = max(after, _modal_bound(m.a, m.b, m.c, x, s_end))
+    return TrackingResponse(t, err, hold)
+
+
+def _run(m: _Maps, s: np.ndarray, x0: np.ndarray, *, twist: bool) -> np.ndarray:
+    """The states (K, n) on the drive's grid (K samples of ``s``) from ``x0`` at its first sample;
+    with ``twist`` the heading's turn of the roll / pitch feed-forward (module docstring) step by
+    step where the set-point frame turns."""
+    k = s.shape[0]
+    states = np.zeros((k, x0.size))
+    states[0] = x0
+    if k < 2:
+        return states
+    forced = np.einsum("ki,ji->kj", s[:-1], m.g0 - m.g1) + np.einsum("ki,ji->kj", s[1:], m.g1)  # (K-1, n)
+    turning = np.flatnonzero(np.abs(s[:, 21]) > 0.0) if twist else np.zeros(0, dtype=int)
+    n_seq = min(k - 1, int(turning[-1]) + 1) if turning.size else 0
+    yaw = int(np.searchsorted(m.live, 8))
+    x = x0
+    for i in range(n_seq):  # x_att += G_att yaw (-w_ff,y, w_ff,x)
+        x = m.phi @ x + forced[i] + m.g_att @ (x[yaw] * np.array([-s[i, 10], s[i, 9]]))
+        states[i + 1] = x
+    if n_seq < k - 1:
+        rest = forced[n_seq:].copy()
+        rest[0] += m.phi @ x
+        states[n_seq + 1 :] = _recurrence(m, rest)
+    return states
+
+
+def _recurrence(m: _Maps, forced: np.ndarray) -> np.ndarray:
+    """x[k+1] = Phi x[k] + forced[k] from x[0] = 0: the states x[1..K] (K, n). In the modes of Phi
+    (Phi = V diag(mu) V^-1: each mode a first-order recursion, ``scipy.signal.lfilter``) when V is
+    well conditioned, else step by step."""
+    if m.modes is not None:
+        mu, vec, inv = m.modes
+        z = np.einsum("ij,kj->ik", inv, forced)  # (n, K) (einsum: no BLAS threads for these small products)
+        modes = np.stack([signal.lfilter([1.0], [1.0, -u], row) for u, row in zip(mu, z)])
+        return np.einsum("ij,jk->ki", vec, modes).real
     out = np.zeros_like(forced)
-    x = np.zeros(phi.shape[0])
+    x = np.zeros(m.phi.shape[0])
     for i in range(forced.shape[0]):
-        x = phi @ x + forced[i]
+        x = m.phi @ x + forced[i]
         out[i] = x
     return out
 
