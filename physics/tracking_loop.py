@@ -10,7 +10,7 @@ at hover) and its derivative through the rate-error derivative k_dw. In the loop
 (:data:`proxplan.physics.hover_loop.STATE_NAMES`) taken as deviations from the plan p (position and
 velocity; attitude, rates, motor outputs and integrators as they are, about a level hover),
 
-    x' = A x + B_ref s(t),     s = (r - p, r' - p', r'', w_ref, w_ref', p', p'')
+    x' = A x + B_ref s(t),     s = (r - p, r' - p', r'', w_ref, w_ref', p', p'', w_frame)
 
 with A the hover loop without a jet and B_ref its reference drive (``LoopMatrices.b_ref``). A vehicle
 whose loops followed instantly (no inertia, no motor lag, no hold) would stay on the plan: the tilt
@@ -23,13 +23,23 @@ module computes, e(t) = C x(t), from rest, exact for inputs linear between the s
 :data:`SETPOINT_DELAY_S`. The loop is driven by r, r', r'' and w_ref at t - that delay (the held
 steps' ripple around that mean, at 100 Hz, is filtered by the airframe: m/s^2 for a few ms).
 
-**After the plan.** The drive goes on over the reference's settle tail; what may remain of the
+**The heading on curves.** At yaw 0 the attitude set-point's frame is y_B = z_B x e_x normalised;
+where the tilt turns about the vertical (a curve, a diagonal) that frame turns about its own z axis
+at w_frame (:func:`frame_yaw_rate_radps`), which the firmware does not feed forward (it feeds
+z_B,z dyaw/dt = 0, Mellinger & Kumar 2011 eq. 7): the heading psi falls behind (psi' gets
+-w_frame), and a heading off the frame turns the roll / pitch feed-forward about the vertical:
+(phi, theta)' gets psi (-w_ref,y, w_ref,x), the one time-varying term, stepped through (zero-order
+hold of psi) where the frame turns.
+
+**After the plan.** The drive goes on over the reference's settle tail (on a grid of
+:data:`TAIL_STEP_S`); what may remain of the
 deviation after it is bounded by the loop's modes (A = V diag(lambda) V^-1, all damped):
 |C x(t)| <= |C x_ss| + sum_i |C v_i| |(V^-1 (x_end - x_ss))_i|.
 
 What it leaves out: the hover linearisation at large tilts (the thrust's magnitude m |p'' + g|
-changing with the horizontal acceleration, second order), the hold's ripple, the integrators'
-clamps, the motors' saturation; the measured tube the verifier grants besides covers them
+changing with the horizontal acceleration, second order), the hold's ripple and the steps of the
+rate-error derivative at each new set-point (they saturate the motors for a few ms), the
+integrators' clamps; the measured tube the verifier grants besides covers them
 (``Vehicle.tracking_tube_m``). World frame, z up; m, m/s, m/s^2, s, rad.
 """
 
