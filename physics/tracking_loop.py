@@ -189,7 +189,9 @@ def tracking_response(
         tail_states = _run(m_tail, s_tail, x, twist=False)
         after = float(np.linalg.norm(tail_states @ m.c.T, axis=1).max())
         x, s_end = tail_states[-1], s_tail[-1]
-    hold = max(after, _modal_bound(m.a, m.b, m.c, x, s_end))
+    rest = np.zeros_like(s_end)  # held at rest after the tail: only the reference's offset from the plan
+    rest[0:3] = s_end[0:3]
+    hold = max(after, _modal_bound(m.a, m.b, m.c, x, rest))
     return TrackingResponse(t, err, hold)
 
 

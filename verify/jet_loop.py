@@ -5,7 +5,10 @@ stays damped where it holds.
 Every vehicle flying its plan is off it by e(t), the response of its loop (no jet) to its own
 reference (:func:`proxplan.verify.tracking.tracking_along_plan`,
 :func:`proxplan.physics.tracking_response`: jerk and snap against the attitude and motor loops, the
-set-point hold); the measured tube t covers what that linear model leaves out. For every vehicle
+set-point hold); the measured tube t covers what that linear model leaves out. (Not for an export
+read back, ``proxplan.planfile.read_export``: its trajectories are already the uploads' predicted
+flight, resampled every 50 ms, whose interpolant's jerk and snap the prediction would over-state.)
+For every vehicle
 the model predicts a disturbance on (:func:`proxplan.verify.wrench_along_plan`),
 the jet's force and torque gradients with respect to its position are finite differences of the
 one model (``proxplan.costmaps.sources_wrench``: the sources above it, their stack and the
@@ -33,6 +36,7 @@ from proxplan.costmaps import sources_wrench
 from proxplan.physics import (
     JetResponse,
     ModelOptions,
+    TrackingResponse,
     Vehicle,
     jet_response,
     loop_matrices,
@@ -40,7 +44,7 @@ from proxplan.physics import (
     weak_jet_bound_m,
     wrench_gradient,
 )
-from proxplan.planfile import Plan, Scenario
+from proxplan.planfile import PREDICTED_FLIGHT_KEY, Plan, Scenario
 from proxplan.verify.along import WrenchAlongPlan, model_options
 from proxplan.verify.reach import MIN_DZ_M
 from proxplan.verify.tolerances import REST_SPEED_MPS
@@ -96,8 +100,13 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
     effects = tuple(scenario.effects if scenario is not None else plan.effects)
     tube = float(scenario.limits.tracking_margin_m) if scenario is not None else 0.0
     cap = _largest_growth_m(scenario, pos)
+    flight = bool(plan.metrics.get(PREDICTED_FLIGHT_KEY))  # an export read back: no tracking prediction
     for name, w in along.items():
-        track = tracking_along_plan(plan.vehicles[name], t)
+        track = (
+            tracking_along_plan(plan.vehicles[name], t)
+            if not flight
+            else TrackingResponse(t, np.zeros((t.size, 3)), 0.0)
+        )
         e = np.linalg.norm(track.error_m, axis=1)
         hit = (np.abs(w.force_N).max(axis=1) > 0.0) | (np.abs(w.torque_Nm).max(axis=1) > 0.0)
         if not hit.any():
