@@ -5,7 +5,7 @@ firmware's Mellinger law; no sensor noise; ``--settle`` s of hold after the plan
 
 * **unsound**: verify passed, yet a vehicle left its tube + prediction (flown position error minus
   the tube the verifier granted, ``limits.tracking_margin_m``, minus the predicted growth of its
-  tube in the jets, ``proxplan.verify.predicted_tube_growth``, > 0 somewhere, the hold included);
+  tube (its tracking error along its own reference and in the jets, ``proxplan.verify.predicted_tube_growth``), > 0 somewhere, the hold included);
 * **conservative**: verify rejected the plan (or the planner refused the scenario as infeasible
   for a loop not damped where a vehicle holds, re-planned here without that check and flown with a
   hold of three e-folds of the predicted growth, at most a minute), yet the flight stayed within

@@ -11,7 +11,8 @@ Run outcomes: ``authority_exceeded`` (some vehicle's peak usage > the scenario's
 max(min_separation_m, sum of body radii) where the plan keeps that distance, or diverged),
 ``goal_missed`` (a vehicle ends farther than ``goal_tolerance_m`` from its planned final position,
 or diverged), ``left_tube`` (a vehicle flew farther from the plan than the tube the verifier granted
-plus its predicted growth in the jets, ``proxplan.verify.predicted_tube_growth``, the hold after the
+plus its predicted growth (its tracking error along its reference and in the jets,
+``proxplan.verify.predicted_tube_growth``), the hold after the
 end included; or diverged: the promise ``verify`` makes).
 """
 

@@ -21,7 +21,7 @@ Source read (not copied): bitcraze/crazyflie-firmware
 * ``src/modules/src/power_distribution_quadrotor.c``: the legacy mix (thrust +- roll/2 +- pitch/2
   +- yaw per motor) and ``powerDistributionCap``: when the highest motor command exceeds the
   maximum, every motor is lowered by the excess (attitude kept, thrust given up), then each is
-  raised to the idle floor. :func:`cap_motor_thrusts` applies that rule in newtons.
+  raised to the idle floor. :func:`proxplan.physics.cap_motor_thrusts` applies that rule in newtons.
 
 The mixer is the (S0-14) one (``proxplan.physics.authority.mixer_matrix``), which is the legacy
 mix in newtons. The controller's mass parameter is the vehicle's mass (the user sets
@@ -37,12 +37,20 @@ import casadi as ca
 import numpy as np
 
 from proxplan.flightsim.dynamics import GRAVITY_ROTORPY_MPS2, cross, rotation
-from proxplan.physics import Vehicle, mixer_matrix
+from proxplan.physics import (
+    FIRMWARE_CONTROLLER_RATE_HZ,
+    FIRMWARE_SETPOINT_RATE_HZ,
+    Vehicle,
+    cap_motor_thrusts,
+    mixer_matrix,
+)
 
-CONTROLLER_RATE_HZ = 500.0
-"""ATTITUDE_RATE of the firmware (stabilizer_types.h): the controller period is 1/500 s."""
-SETPOINT_RATE_HZ = 100.0
-"""RATE_HL_COMMANDER (stabilizer_types.h): the trajectory is evaluated at 100 Hz and held."""
+CONTROLLER_RATE_HZ = FIRMWARE_CONTROLLER_RATE_HZ
+"""ATTITUDE_RATE of the firmware (stabilizer_types.h): the controller period is 1/500 s
+(:data:`proxplan.physics.FIRMWARE_CONTROLLER_RATE_HZ`)."""
+SETPOINT_RATE_HZ = FIRMWARE_SETPOINT_RATE_HZ
+"""RATE_HL_COMMANDER (stabilizer_types.h): the trajectory is evaluated at 100 Hz and held
+(:data:`proxplan.physics.FIRMWARE_SETPOINT_RATE_HZ`)."""
 CONTROLLER_STATE_SIZE = 10
 """Controller memory per vehicle: int e_p (3) m s, int(-e_R) (3) rad s, previous roll/pitch rate
 errors (2) rad/s, a flag 'previous rate error valid' (1), spare (1)."""
@@ -109,16 +117,6 @@ def reference_body_rates(acc_mps2: np.ndarray, jerk_mps3: np.ndarray) -> np.ndar
     return np.column_stack([-np.sum(h * yb, axis=1), np.sum(h * xb, axis=1), np.zeros(len(acc))])
 
 
-def cap_motor_thrusts(thrusts_N, max_N: float, min_N: float):
-    """The firmware's ``powerDistributionCap`` in newtons (floats or CasADi SX): every motor is
-    lowered by the excess of the highest one over ``max_N``, then raised to ``min_N``."""
-    highest = thrusts_N[0]
-    for f in thrusts_N[1:]:
-        highest = ca.fmax(highest, f)
-    excess = ca.fmax(highest - max_N, 0.0)
-    return [ca.fmax(f - excess, min_N) for f in thrusts_N]
-
-
 def _clamp(val, bound):
     return ca.fmin(ca.fmax(val, -bound), bound)
 
@@ -181,6 +179,6 @@ def mellinger_control(g: MellingerGains, s, ref, mem, dt_s: float, ff_force_N=No
     thrust = ca.fmax(thrust, 0.0)  # the firmware cuts the motors for a non-positive thrust command
     tm = [thrust, moment[0], moment[1], moment[2]]
     cmd = [sum(g.mix_inv[i][j] * tm[j] for j in range(4)) for i in range(4)]
-    capped = cap_motor_thrusts(cmd, g.max_motor_thrust_N, g.min_motor_thrust_N)
+    capped = cap_motor_thrusts(cmd, g.max_motor_thrust_N, g.min_motor_thrust_N, fmax=ca.fmax)
     new_mem = i_p + i_m + [e_w[0], e_w[1], 1.0, 0.0]
     return capped, cmd, thrust, moment, new_mem

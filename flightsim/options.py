@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxplan.flightsim.imu import ImuOptions
+from proxplan.physics import FIRMWARE_SETPOINT_RATE_HZ
 
 CONTROLLERS = ("mellinger", "rotorpy")
 """Names of the simulated tracking controllers (``SimulationOptions.controller``)."""
@@ -32,7 +33,7 @@ class SimulationOptions:
     feedforward: bool = False  # compensate the plan's predicted disturbance wrench in the controller
     controller: str = "mellinger"  # "mellinger" (Crazyflie firmware law) or "rotorpy" (RotorPy's SE(3))
     rate_feedforward: bool = True  # Mellinger: body-rate feed-forward from the reference jerk
-    setpoint_rate_hz: float = 100.0  # Mellinger: set-point evaluation rate (held in between), Hz
+    setpoint_rate_hz: float = FIRMWARE_SETPOINT_RATE_HZ  # Mellinger: set-point evaluation rate (held in between), Hz
     drag_compensation: bool = True  # fly plan + drag lead (what the export uploads), proxplan.planfile.reference
 
 

@@ -45,7 +45,7 @@ class VehicleRecord:
     predicted_torque_Nm: np.ndarray | None = None  # (M, 3) world axes, N m
     setpoint_position_m: np.ndarray | None = None  # (M, 3) the position set-point the controller was given, m
     predicted_deflection_m: np.ndarray | None = None  # (M,) how far the plan predicts it beyond its tube, m
-    # (proxplan.verify.predicted_tube_growth: its closed loop in the jets along the plan, the hold after the end)
+    # (proxplan.verify.predicted_tube_growth: its tracking error and its loop in the jets, the hold after the end)
     tube_m: float | None = None  # the tube the verifier grants it (limits.tracking_margin_m; None: its type's), m
 
     @property

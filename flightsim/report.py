@@ -10,9 +10,9 @@ included: 1 = a motor at its limit); the time spent below another vehicle inside
 value is an extrapolation. Next to the flown authority usage and invalid-zone time stand what the
 plan predicted: the usage of the plan's predicted disturbance (its feed-forward fields, or the
 verifier's model) and the same invalid-zone test on the plan's positions. The tracking error is
-also split by what the plan predicts: how far the vehicle's closed loop in the jets along the plan
-takes it off its plan beyond the tube (``proxplan.verify.predicted_tube_growth``: the deviation the
-jets drive and the growth of a deviation within the tube, the hold after the plan's end; part of the
+also split by what the plan predicts: how far the vehicle's closed loop along the plan takes it off
+its plan beyond the tube (``proxplan.verify.predicted_tube_growth``: its tracking error along its own
+reference, the deviation the jets drive and the growth of a deviation within the tube, the hold after the plan's end; part of the
 vehicle's tube where it applies, as the verifier counts it), the largest error where the plan predicts no disturbance (its
 predicted force below :data:`UNDISTURBED_FORCE_SHARE` of the vehicle's weight and |d| <=
 :data:`UNDISTURBED_M`), and the largest error beyond |d| (to hold within the tube).
@@ -134,8 +134,8 @@ def undisturbed(record, deflection_m: np.ndarray) -> np.ndarray:
 
 
 def predicted_deflection_m(record) -> np.ndarray:
-    """(M,), m: how far the plan predicts ``record``'s vehicle beyond its tube (its closed loop in
-    the jets along the plan, ``proxplan.verify.predicted_tube_growth``; zeros without a prediction)."""
+    """(M,), m: how far the plan predicts ``record``'s vehicle beyond its tube (its closed loop
+    along the plan, its own reference and the jets, ``proxplan.verify.predicted_tube_growth``; zeros without a prediction)."""
     if record.predicted_deflection_m is None:
         return np.zeros(record.t_s.size)
     return np.asarray(record.predicted_deflection_m, dtype=float)

@@ -11,6 +11,7 @@ this one implementation.
 
 from proxplan.physics.authority import (
     authority_usage,
+    cap_motor_thrusts,
     mixer_matrix,
     motor_thrust_changes_N,
     motor_thrusts_N,
@@ -26,7 +27,9 @@ from proxplan.physics.closed_loop import (
 )
 from proxplan.physics.controller_gains import (
     FIRMWARE_ATTITUDE_PWM,
+    FIRMWARE_CONTROLLER_RATE_HZ,
     FIRMWARE_MASS_THRUST_PWM_PER_N,
+    FIRMWARE_SETPOINT_RATE_HZ,
     GAIN_NAMES,
     POSITIVE_GAINS,
     ControllerGains,
@@ -76,6 +79,7 @@ from proxplan.physics.features import (
     weight_scaled,
 )
 from proxplan.physics.hover_loop import (
+    REFERENCE_INPUTS,
     STATE_NAMES,
     JetResponse,
     LoopMatrices,
@@ -115,6 +119,15 @@ from proxplan.physics.stack import (
     shielding_factors,
     shielding_reach_m,
 )
+from proxplan.physics.tracking_loop import (
+    SETPOINT_DELAY_S,
+    TAIL_STEP_S,
+    ReferenceSamples,
+    TrackingResponse,
+    frame_yaw_rate_radps,
+    reference_drive,
+    tracking_response,
+)
 from proxplan.physics.vehicle_yaml import (
     VehicleEntry,
     VehicleFile,
@@ -141,6 +154,17 @@ from proxplan.physics.vehicles import (
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
+    "TAIL_STEP_S",
+    "frame_yaw_rate_radps",
+    "FIRMWARE_CONTROLLER_RATE_HZ",
+    "cap_motor_thrusts",
+    "FIRMWARE_SETPOINT_RATE_HZ",
+    "REFERENCE_INPUTS",
+    "ReferenceSamples",
+    "SETPOINT_DELAY_S",
+    "TrackingResponse",
+    "reference_drive",
+    "tracking_response",
     "TAIL_MAX_S",
     "TAIL_RESIDUAL_M",
     "LoopResponse",

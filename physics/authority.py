@@ -72,3 +72,15 @@ def normalised_motor_map(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray, np.n
     up = np.full(4, vehicle.max_thrust_per_rotor_N - hover)
     down = np.full(4, hover - vehicle.min_motor_thrust_N)
     return a, up, down
+
+
+def cap_motor_thrusts(thrusts_N, max_N: float, min_N: float, fmax=np.maximum):
+    """The Crazyflie firmware's ``powerDistributionCap`` (``power_distribution_quadrotor.c``, read,
+    not copied) in newtons on the motor thrusts ``thrusts_N`` (a sequence of 4: floats, arrays or
+    CasADi SX with ``fmax=casadi.fmax``): every motor is lowered by the excess of the highest one
+    over ``max_N`` (attitude kept, thrust given up), then raised to ``min_N``."""
+    highest = thrusts_N[0]
+    for f in thrusts_N[1:]:
+        highest = fmax(highest, f)
+    excess = fmax(highest - max_N, 0.0)
+    return [fmax(f - excess, min_N) for f in thrusts_N]

@@ -29,6 +29,11 @@ import numpy as np
 
 FIRMWARE_MASS_THRUST_PWM_PER_N = 132000.0
 """``massThrust`` of controller_mellinger.c: PWM of the collective thrust command per N."""
+FIRMWARE_CONTROLLER_RATE_HZ = 500.0
+"""ATTITUDE_RATE of the firmware (``stabilizer_types.h``): the controller runs every 1/500 s, Hz."""
+FIRMWARE_SETPOINT_RATE_HZ = 100.0
+"""RATE_HL_COMMANDER of the firmware (``stabilizer_types.h``): the high-level commander evaluates an
+uploaded trajectory at 100 Hz and the controller holds each set-point until the next, Hz."""
 FIRMWARE_ATTITUDE_PWM = {
     "kR_xy": 70000.0,  # PWM per rad
     "kw_xy": 20000.0,  # PWM per rad/s

@@ -24,6 +24,14 @@ integrator holds), deviations from the plan, world frame z up, body = world axes
   which the simulator applies in the body frame (R^T T: its attitude gradient is [T]x); its force
   stays in the world frame (no attitude gradient).
 
+**A moving reference** (``LoopMatrices.b_ref``, :mod:`proxplan.physics.tracking_loop`): with the
+position and velocity taken as deviations from the plan p and the rest as they are, a vehicle
+flying a reference r obeys x' = A x + B_ref s, s = (r - p, r' - p', r'', w_ref, w_ref', p', p'',
+w_frame): the force feed-forward q = m r'' + k_p (r - p) + k_d (r' - p') adds q_z to the thrust
+command and (q_y, -q_x, 0) / T0 to the desired tilt, the rate feed-forward enters through k_w and
+k_dw, r - p feeds the position integrator, the plan's motion leaves -(c p' + p'') on the velocity,
+and the set-point frame's rate about its z axis w_frame (none fed forward) turns the heading off it.
+
 22 states: d (3) m, v (3) m/s, (phi, theta, psi) (3) rad, w (3) rad/s, u (4) N and N m, I_p (3)
 m s, I_m (3) rad s (:data:`STATE_NAMES`). Left out: the controller's 500 Hz sampling and 100 Hz
 set-point hold (delays of ~1-5 ms, a phase of < 2 degrees at the loop's ~1 Hz), the integrators'
@@ -52,6 +60,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from proxplan.physics.discretize import zoh_maps
+from proxplan.physics.tube_blocks import TubeBlocks
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
 STATE_NAMES = (
@@ -79,14 +89,31 @@ MIN_THRUST_SHARE = 0.1
 leaves no hover to linearise about), -."""
 
 
+REFERENCE_INPUTS = (
+    "lead_x_m", "lead_y_m", "lead_z_m", "lead_vx_mps", "lead_vy_mps", "lead_vz_mps",
+    "ref_ax_mps2", "ref_ay_mps2", "ref_az_mps2", "ref_wx_radps", "ref_wy_radps", "ref_wz_radps",
+    "ref_dwx_radps2", "ref_dwy_radps2", "ref_dwz_radps2", "plan_vx_mps", "plan_vy_mps", "plan_vz_mps",
+    "plan_ax_mps2", "plan_ay_mps2", "plan_az_mps2", "frame_wz_radps",
+)  # fmt: skip
+"""The inputs of the reference drive ``b_ref`` (:func:`loop_matrices`), in order: the set-point
+minus the plan (position m, velocity m/s), the set-point's acceleration (m/s^2), its body-rate
+feed-forward and that rate's derivative (rad/s, rad/s^2), the plan's velocity and acceleration,
+and the rate about its z axis (rad/s) of the frame the attitude set-point follows (the heading
+leaves it at that rate: the firmware feeds none forward)."""
+N_REFERENCE_INPUTS = len(REFERENCE_INPUTS)
+
+
 @dataclass(frozen=True)
 class LoopMatrices:
-    """x' = a x + b (f, tau) per sample: ``a`` (K, 22, 22), ``b`` (K, 22, 6) (force N world, torque
-    N m world axes); ``c`` (3, 22) picks the position deviation d, m."""
+    """x' = a x + b (f, tau) + b_ref s per sample: ``a`` (K, 22, 22), ``b`` (K, 22, 6) (force N
+    world, torque N m world axes), ``b_ref`` (K, 22, 22) the reference drive s
+    (:data:`REFERENCE_INPUTS`: the deviation from the plan of a vehicle flying a moving reference,
+    module docstring); ``c`` (3, 22) picks the position deviation d, m."""
 
     a: np.ndarray
     b: np.ndarray
     c: np.ndarray
+    b_ref: np.ndarray
 
 
 def loop_matrices(
@@ -175,7 +202,36 @@ def loop_matrices(
     a[:, _IM, :] = -e_r
     c = np.zeros((3, N_STATES))
     c[:, _P] = eye3
-    return LoopMatrices(a, b, c)
+    return LoopMatrices(a, b, c, _reference_drive(a, thrust, m, kp, kd, k_r, k_w, k_dw, tau_m))
+
+
+def _reference_drive(a, thrust, m, kp, kd, k_r, k_w, k_dw, tau_m) -> np.ndarray:
+    """b_ref (K, 22, 22) of :class:`LoopMatrices` (module docstring, "a moving reference"): the
+    force feed-forward q = m a_ref + k_p (r - p) + k_d (r' - v_plan) adds to the collective thrust
+    command and tilts the desired attitude by (q_y, -q_x, 0) / T0 (e_R and its integrator); the rate
+    feed-forward w_ref and its derivative enter the moment command through k_w and k_dw; r - p also
+    feeds the position integrator; the plan's own motion leaves (c v_plan + a_plan) on the velocity."""
+    k = a.shape[0]
+    out = np.zeros((k, N_STATES, N_REFERENCE_INPUTS))
+    eye3 = np.eye(3)
+    q = np.zeros((3, N_REFERENCE_INPUTS))  # q per unit input
+    q[:, 0:3] = np.diag(kp)
+    q[:, 3:6] = np.diag(kd)
+    q[:, 6:9] = m * eye3
+    eps = np.zeros((k, 3, N_REFERENCE_INPUTS))  # the extra e_R
+    eps[:, 0, :] = q[1][None] / thrust[:, None]
+    eps[:, 1, :] = -q[0][None] / thrust[:, None]
+    out[:, _V, 15:18] = a[:, _V, _V]  # the plan's velocity against the drag
+    out[:, _V, 18:21] = -eye3
+    out[:, _IP, 0:3] = eye3
+    out[:, _IM, :] = -eps
+    out[:, 12, :] = q[2][None] / tau_m
+    moment = -k_r[None, :, None] * eps
+    moment[:, :, 9:12] += np.diag(k_w)[None]
+    moment[:, :, 12:15] += np.diag(k_dw)[None]
+    out[:, 13:16, :] = moment / tau_m
+    out[:, 8, 21] = -1.0  # the heading relative to the set-point's frame
+    return out
 
 
 @dataclass(frozen=True)
@@ -242,10 +298,6 @@ HOLD_RESIDUAL_M = 1e-4
 """The hold is evaluated until the modal bound of what is left of the deviation stays below this, m,"""
 HOLD_GAIN_RESIDUAL = 1e-3
 """... and of what is left of the tube gain below this, - (times a tube of 1-2 cm: 10-20 um)."""
-TUBE_BLOCK_SAMPLES = 5
-"""Samples whose tube input is propagated as one block in :func:`jet_response` (the bound's
-integral is taken over blocks of this many steps: exact within a block for inputs of one
-direction), -."""
 
 
 @dataclass(frozen=True)
@@ -265,32 +317,6 @@ class JetResponse:
     poles: LoopPoles
 
 
-def _expm(m: np.ndarray) -> np.ndarray:
-    """exp of a stack of square matrices (K, n, n): scaling and squaring with a degree-12 Taylor
-    polynomial (the scaled 1-norm <= 1/2, so the truncated terms are below 1e-13 of the sum), all
-    samples at once."""
-    norm = float(np.abs(m).sum(axis=-2).max(initial=0.0))
-    squarings = max(0, int(np.ceil(np.log2(max(norm, 1e-300) / 0.5))))
-    x = m / 2.0**squarings
-    eye = np.broadcast_to(np.eye(m.shape[-1]), m.shape)
-    out = eye.copy()
-    for k in range(12, 0, -1):  # Horner: I + x/12 (I + x/11 (...))
-        out = eye + (x @ out) / k
-    for _ in range(squarings):
-        out = out @ out
-    return out
-
-
-def _step_maps(a: np.ndarray, b: np.ndarray, step_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-order-hold maps (Phi (K, n, n), Gamma (K, n, m)) of x' = a x + b u over ``step_s``."""
-    k, n, m = b.shape
-    aug = np.zeros((k, n + m, n + m))
-    aug[:, :n, :n] = a
-    aug[:, :n, n:] = b
-    e = _expm(aug * step_s)
-    return e[:, :n, :n], e[:, :n, n:]
-
-
 def jet_response(
     t_s: np.ndarray,
     vehicle: Vehicle,
@@ -299,12 +325,17 @@ def jet_response(
     force_gradient_Npm: np.ndarray,
     torque_gradient_Nmpm: np.ndarray,
     moving: np.ndarray | None = None,
+    tracking_m: np.ndarray | None = None,
 ) -> JetResponse:
     """The loop of ``vehicle`` driven along a plan by the jet's force (K, 3), N, and torque (K, 3),
     N m (world frame), with their gradients (K, 3, 3) (N/m, N m/m), sampled on the uniform grid
     ``t_s`` (K,), s, from rest (module docstring). The tube's deviation drives the loop where the
     vehicle moves (``moving`` (K,) bool; None: everywhere; a vehicle at rest has no tracking error,
-    as the verifier's tube), not over the hold after the end."""
+    as the verifier's tube), not over the hold after the end. ``tracking_m`` (K, 3), m: the
+    vehicle's predicted deviation from its plan without the jet
+    (:func:`proxplan.physics.tracking_response`); the jet's gradients act on it as an input
+    (G e, force and torque), so ``deflection_m`` is what the jet adds to it (by linearity; the
+    jet's shift of the trim thrust acting on the tracking's own tilt is left out, second order)."""
     t = np.asarray(t_s, dtype=float)
     kk = t.size
     f = np.asarray(force_N, dtype=float).reshape(kk, 3)
@@ -312,26 +343,29 @@ def jet_response(
     gf = np.asarray(force_gradient_Npm, dtype=float).reshape(kk, 3, 3)
     gt = np.asarray(torque_gradient_Nmpm, dtype=float).reshape(kk, 3, 3)
     mats = loop_matrices(vehicle, f, tq, gf, gt)
-    poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c))  # of the configuration held at the end
+    poles = loop_poles(
+        LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, mats.b_ref[-1:])
+    )  # of the configuration held at the end
     deflection = np.zeros((kk, 3))
     gain = np.zeros(kk)
     if kk < 2:
-        empty = _TubeBlocks(mats.c)
+        empty = TubeBlocks(mats.c)
         return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, np.zeros(N_STATES), empty, f, tq)
     h = float(t[1] - t[0])
     u = np.concatenate([f, tq], axis=1)  # (K, 6)
-    g_in = np.concatenate([gf, gt], axis=1)  # (K, 6, 3): the input per unit deviation
-    if moving is not None:
-        g_in = g_in * np.asarray(moving, dtype=bool)[:, None, None]
-    # per step k -> k+1 the matrices and inputs of sample k (zero-order hold); steps with the same
-    # sample values share their maps
-    key = np.concatenate([u, g_in.reshape(kk, -1)], axis=1)[:-1]
+    g_full = np.concatenate([gf, gt], axis=1)  # (K, 6, 3): the input per unit deviation
+    g_in = g_full if moving is None else g_full * np.asarray(moving, dtype=bool)[:, None, None]
+    # per step k -> k+1 the matrices of sample k (zero-order hold); steps with the same sample
+    # values share their maps
+    key = np.concatenate([u, g_full.reshape(kk, -1)], axis=1)[:-1]
+    if tracking_m is not None:
+        u = u + np.einsum("kij,kj->ki", g_full, np.asarray(tracking_m, dtype=float).reshape(kk, 3))
     uniq, inverse = np.unique(key, axis=0, return_inverse=True)
     first = np.zeros(uniq.shape[0], dtype=np.intp)
     first[inverse[::-1]] = np.arange(kk - 1)[::-1]
-    phi_u, gam_u = _step_maps(mats.a[first], mats.b[first], h)
+    phi_u, gam_u = zoh_maps(mats.a[first], mats.b[first], h)
     x = np.zeros(N_STATES)
-    tube = _TubeBlocks(mats.c)
+    tube = TubeBlocks(mats.c)
     for k in range(kk - 1):
         i = inverse[k]
         phi, gam = phi_u[i], gam_u[i]
@@ -342,46 +376,7 @@ def jet_response(
     return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, x, tube, f, tq)
 
 
-class _TubeBlocks:
-    """The tube's responses Phi(t, s) Gamma G(s) of :func:`jet_response` (n x 3 each), summed over
-    blocks of :data:`TUBE_BLOCK_SAMPLES` steps, propagated to now."""
-
-    def __init__(self, c: np.ndarray):
-        self.c = c
-        n = c.shape[1]
-        self.pending = np.zeros((n, 3))
-        self.n_pending = 0
-        self.blocks = np.zeros((n, 0))
-
-    def step(self, phi: np.ndarray, new: np.ndarray) -> None:
-        """Propagate every block by ``phi`` (n, n) and add this step's input response ``new`` (n, 3)."""
-        if self.blocks.shape[1]:
-            self.blocks = phi @ self.blocks
-        self.pending = phi @ self.pending + new
-        self.n_pending += 1
-        if self.n_pending == TUBE_BLOCK_SAMPLES:
-            self.flush()
-
-    def flush(self) -> None:
-        """Close the pending block."""
-        if np.any(self.pending):
-            self.blocks = np.concatenate([self.blocks, self.pending], axis=1)
-        self.pending = np.zeros_like(self.pending)
-        self.n_pending = 0
-
-    def gain(self) -> float:
-        """gamma now: the sum over the blocks (the pending one included) of ||C block||_F."""
-        out = float(np.linalg.norm(self.c @ self.pending))
-        return out + (_block_norms(self.c, self.blocks) if self.blocks.shape[1] else 0.0)
-
-
-def _block_norms(c: np.ndarray, blocks: np.ndarray) -> float:
-    """Sum over the blocks (columns of 3) of ||C block||_F."""
-    out = (c @ blocks).reshape(3, -1, 3)
-    return float(np.sqrt((out**2).sum(axis=(0, 2))).sum())
-
-
-def _with_hold(resp, mats, x_end, tube: _TubeBlocks, f, tq) -> JetResponse:
+def _with_hold(resp, mats, x_end, tube: TubeBlocks, f, tq) -> JetResponse:
     """``resp`` with the bounds over the hold after its last sample (module docstring): the final
     configuration held (loop A = V diag(lambda) V^-1, input u, constant), so from the end
     C x(t) = C x_ss + C V diag(e^{lambda t}) V^-1 (x_end - x_ss), and each tube block likewise

@@ -12,6 +12,7 @@ from proxplan.planfile.crazyflie import (
     EXPORT_FORMAT_VERSION,
     EXPORT_MANIFEST,
     N_COEF,
+    PREDICTED_FLIGHT_KEY,
     PolynomialTrajectory,
     is_export_folder,
     read_export,
@@ -45,6 +46,7 @@ from proxplan.planfile.scenario_load import load_scenario, scenario_from_dict
 from proxplan.planfile.scenario_model import MAX_VEHICLES, ScenarioFile
 
 __all__ = [
+    "PREDICTED_FLIGHT_KEY",
     "LEAD_SUBSTEPS",
     "CompensatedReference",
     "compensated_reference",

@@ -46,6 +46,10 @@ EXPORT_FORMAT_VERSION = 2
 READABLE_EXPORT_VERSIONS = (1, 2)
 """Export manifests read: 2 (written; ``drag_compensation``) and 1 (uncompensated uploads)."""
 
+PREDICTED_FLIGHT_KEY = "predicted_flight"
+"""The metric :func:`read_export` sets on the plan it returns: its trajectories are the predicted
+flight of the uploads (the reduced loop's lag), not a plan the vehicles are given to fly."""
+
 
 @dataclass(frozen=True)
 class PolynomialTrajectory:
@@ -212,6 +216,7 @@ def read_export(folder: str | Path) -> Plan:
         for key, arr in zip(("position_m", "velocity_mps", "acceleration_mps2"), flown):
             vehicles[name][key] = arr[on_plan_grid]
     full = dict(plan_doc, dt_s=step, vehicles=vehicles)
+    full["metrics"] = dict(plan_doc.get("metrics") or {}, **{PREDICTED_FLIGHT_KEY: True})
     full["notes"] = list(plan_doc.get("notes") or []) + [
         f"the predicted flight of the Crazyflie polynomials in {folder} (each vehicle lagging its uploads by its "
         f"rotor drag and loop, proxplan.planfile.reference.predicted_path), every {step:g} s"

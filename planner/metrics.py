@@ -5,8 +5,8 @@ planners' tubes. World frame, m, s.
   ``makespan_s`` (the time the last vehicle stops moving) and the per-vehicle extras, from the
   model evaluated along the plan (:func:`proxplan.verify.wrench_along_plan`), plus the predicted
   wrench as feed-forward.
-* :func:`deflection_allowance`: per vehicle the largest predicted deflection under the plan's own
-  disturbance (:func:`proxplan.verify.deflection_along_plan`). This is the one deflection policy of
+* :func:`deflection_allowance`: per vehicle the largest predicted growth of its tube, flying its own
+  reference and under the plan's own disturbance (:func:`proxplan.verify.deflection_along_plan`). This is the one deflection policy of
   the planners: a vehicle's tube grows by its own value, so a pair's keep-out grows by the sum of
   its two vehicles' values, as in the verifier.
 """

@@ -1,8 +1,8 @@
 """Independent verification of a plan against its scenario with the model evaluated directly
 (the physics model, through proxplan.costmaps.pair_wrench for a calibrated model's effects, and the plan-file contract), and the predictions along a plan
 (wrench, authority usage, invalid zone, separations) that planner metrics and the web app show, and
-each disturbed vehicle's closed loop in the jets along the plan (its tube's growth, whether it stays
-damped where it holds).
+every vehicle's closed loop along the plan (its tube's growth by its tracking error along its own
+reference and in the jets, whether it stays damped where it holds).
 """
 
 from proxplan.verify.along import (

@@ -19,10 +19,10 @@ Checks, in this order (a plan that fails the first group is not checked further)
    overlapping footprints, forbidden for non-dock pairs unless ``invalid_zone_rule: model``).
    While either vehicle of a pair moves (plan speed >= ``REST_SPEED_MPS``) both checks add the
    tracking tube ``limits.tracking_margin_m`` t: separation + t, dz <= 3 L + t, footprints + t
-   (a vehicle flown closed-loop may be that far off its plan; a resting one is not). Where the
-   model predicts a disturbance on a vehicle, its predicted deflection d (``deflection_along_plan``:
-   the sag F / k_p and its transient under the plan's own predicted wrench) is part of its tube,
-   moving or not: the pair's tube is t + d_a + d_b.
+   (a vehicle flown closed-loop may be that far off its plan; a resting one is not). Every
+   vehicle's predicted growth d (``deflection_along_plan``: its tracking error along its own
+   reference and its closed loop in the jets the model predicts on it, :mod:`proxplan.verify.jet_loop`)
+   is part of its tube, moving or not: the pair's tube is t + d_a + d_b.
 5. *Authority*: usage <= limits.authority_fraction with the model's numbers everywhere (also where
    it is extrapolated); and, while a pair moves, also with the target at the worst point of the
    tracking tube (plus the target's predicted deflection) for each source (towards the source's

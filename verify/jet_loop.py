@@ -1,17 +1,26 @@
-"""A vehicle in another's jet, in closed loop, along a plan: the predicted deflection that is part
-of its tube, and whether its loop stays damped where it holds.
+"""Every vehicle's closed loop along its plan: how far beyond the tube the verifier grants it is
+predicted to leave its plan (flying its own reference, and in another's jet), and whether its loop
+stays damped where it holds.
 
-For every vehicle the model predicts a disturbance on (:func:`proxplan.verify.wrench_along_plan`),
+Every vehicle flying its plan is off it by e(t), the response of its loop (no jet) to its own
+reference (:func:`proxplan.verify.tracking.tracking_along_plan`,
+:func:`proxplan.physics.tracking_response`: jerk and snap against the attitude and motor loops, the
+set-point hold); the measured tube t covers what that linear model leaves out. (Not for an export
+read back, ``proxplan.planfile.read_export``: its trajectories are already the uploads' predicted
+flight, resampled every 50 ms, whose interpolant's jerk and snap the prediction would over-state.)
+For every vehicle
+the model predicts a disturbance on (:func:`proxplan.verify.wrench_along_plan`),
 the jet's force and torque gradients with respect to its position are finite differences of the
 one model (``proxplan.costmaps.sources_wrench``: the sources above it, their stack and the
 scenario's between-vehicle effects; :func:`proxplan.physics.hover_loop.wrench_gradient`), and the
 linearised loop of its controller in that jet (:mod:`proxplan.physics.hover_loop`) is driven along
-the plan by the wrench (:func:`proxplan.physics.hover_loop.jet_response`). Its tube grows by
+the plan by the wrench and by its gradients acting on e (:func:`proxplan.physics.hover_loop.jet_response`).
+Its tube grows by
 
-    |d(t)| + t gamma(t)                                   (t = limits.tracking_margin_m, m)
+    |e(t) + d(t)| + t gamma(t)                            (t = limits.tracking_margin_m, m)
 
-d the deviation the jet's wrench drives, gamma the bound on how far the jet makes a deviation
-within the tube grow. After the plan's end every vehicle holds its final position: the hold's
+d the deviation the jet adds, gamma the bound on how far the jet makes a deviation within the
+tube grow (zero without a jet). After the plan's end every vehicle holds its final position: the hold's
 bounds are part of the last sample. A vehicle whose loop is not damped where it holds at the end
 (rightmost pole with real part >= 0) oscillates there however it is planned:
 :func:`check_jet_loop` names it, the source and the margin. World frame, z up; m, N, s.
@@ -27,6 +36,7 @@ from proxplan.costmaps import sources_wrench
 from proxplan.physics import (
     JetResponse,
     ModelOptions,
+    TrackingResponse,
     Vehicle,
     jet_response,
     loop_matrices,
@@ -34,10 +44,11 @@ from proxplan.physics import (
     weak_jet_bound_m,
     wrench_gradient,
 )
-from proxplan.planfile import Plan, Scenario
+from proxplan.planfile import PREDICTED_FLIGHT_KEY, Plan, Scenario
 from proxplan.verify.along import WrenchAlongPlan, model_options
 from proxplan.verify.reach import MIN_DZ_M
 from proxplan.verify.tolerances import REST_SPEED_MPS
+from proxplan.verify.tracking import tracking_along_plan
 from proxplan.verify.violations import Violation
 
 WEAK_USAGE = 1e-6
@@ -50,9 +61,9 @@ without the jet (:func:`proxplan.physics.hover_loop.weak_jet_bound_m`, micrometr
 @dataclass(frozen=True)
 class LoopAlongPlan:
     """One vehicle's loop along the plan: its ``response`` (:class:`proxplan.physics.hover_loop.
-    JetResponse`; None for a jet too weak to matter, :data:`WEAK_USAGE`), its tube growth
-    ``deflection_m`` (M,), m (|d| + t gamma, the hold in the last sample; the plan alone where the
-    final loop is not damped), and ``source``: the vehicle whose jet acts on it most at the end
+    JetResponse`; None for no jet or one too weak to matter, :data:`WEAK_USAGE`), its tube growth
+    ``deflection_m`` (M,), m (|e + d| + t gamma, the hold in the last sample; the plan alone where
+    the final loop is not damped), and ``source``: the vehicle whose jet acts on it most at the end
     (None: none)."""
 
     response: JetResponse | None
@@ -78,7 +89,7 @@ def target_gradients(
 
 
 def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[str, LoopAlongPlan]:
-    """Per vehicle with a predicted disturbance, its loop along the plan (:class:`LoopAlongPlan`);
+    """Per vehicle of ``along``, its loop along the plan (:class:`LoopAlongPlan`);
     ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start."""
     out: dict[str, LoopAlongPlan] = {}
     if not along:
@@ -89,9 +100,20 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
     effects = tuple(scenario.effects if scenario is not None else plan.effects)
     tube = float(scenario.limits.tracking_margin_m) if scenario is not None else 0.0
     cap = _largest_growth_m(scenario, pos)
+    flight = bool(plan.metrics.get(PREDICTED_FLIGHT_KEY))  # an export read back: no tracking prediction
     for name, w in along.items():
+        track = (
+            tracking_along_plan(plan.vehicles[name], t)
+            if not flight
+            else TrackingResponse(t, np.zeros((t.size, 3)), 0.0)
+        )
+        e = np.linalg.norm(track.error_m, axis=1)
         hit = (np.abs(w.force_N).max(axis=1) > 0.0) | (np.abs(w.torque_Nm).max(axis=1) > 0.0)
         if not hit.any():
+            size = e.copy()
+            if size.size:
+                size[-1] = max(size[-1], track.hold_error_m)
+            out[name] = LoopAlongPlan(None, np.minimum(size, cap), None)
             continue
         vehicle = _vehicle(plan, scenario, name)
         last = {s: float(u[-1]) for s, u in w.usage_by_source.items()}
@@ -103,7 +125,9 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
                 float(np.linalg.norm(w.torque_Nm, axis=1).max()),
             )
             first = int(np.argmax(hit))  # from the first sample the jet reaches it on
-            out[name] = LoopAlongPlan(None, np.where(np.arange(t.size) >= first, bound, 0.0), source)
+            size = e + np.where(np.arange(t.size) >= first, bound, 0.0)
+            size[-1] = max(size[-1], track.hold_error_m + bound)
+            out[name] = LoopAlongPlan(None, np.minimum(size, cap), source)
             continue
         gf = np.zeros((t.size, 3, 3))
         gt = np.zeros((t.size, 3, 3))
@@ -111,10 +135,10 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
             sources = [(_vehicle(plan, scenario, s), pos[s][rows]) for s in key]
             gf[rows], gt[rows] = target_gradients(vehicle, pos[name][rows], sources, opts, effects)
         moving = np.linalg.norm(plan.vehicles[name].sample(t)[1], axis=1) >= REST_SPEED_MPS
-        resp = jet_response(t, vehicle, w.force_N, w.torque_Nm, gf, gt, moving)
-        size = np.linalg.norm(resp.deflection_m, axis=1) + tube * resp.tube_gain
+        resp = jet_response(t, vehicle, w.force_N, w.torque_Nm, gf, gt, moving, track.error_m)
+        size = np.linalg.norm(resp.deflection_m + track.error_m, axis=1) + tube * resp.tube_gain
         if np.isfinite(resp.hold_deflection_m):
-            size[-1] = max(size[-1], resp.hold_deflection_m + tube * resp.hold_tube_gain)
+            size[-1] = max(size[-1], resp.hold_deflection_m + tube * resp.hold_tube_gain + track.hold_error_m)
         out[name] = LoopAlongPlan(resp, np.minimum(size, cap), source)
     return out
 
@@ -164,14 +188,15 @@ def check_jet_loop(
                     float(t_s[k]),
                     name,
                     "jet-loop",
-                    f"its closed loop in the jet of {lp.source} moves it farther off its plan than the scenario's "
+                    f"its closed loop {f'in the jet of {lp.source}' if lp.source else 'on its own reference'} moves it "
+                    "farther off its plan than the scenario's "
                     f"separation (up to {float(lp.deflection_m.max()):.3f} m beyond its tracking tube; m)",
                     float(lp.deflection_m.max()),
                     far_m,
                     int(np.clip(np.searchsorted(plan_t_s, t_s[k] + 1e-9, side="right") - 1, 0, plan_t_s.size - 1)),
                 )
             )
-        if lp.response is None:  # a jet too weak to matter: the loop without it, damped
+        if lp.response is None:  # no jet, or one too weak to matter: the loop without it, damped
             continue
         growth = float(lp.response.poles.growth_ps[0])
         if growth < 0.0:
@@ -212,9 +237,9 @@ def _vehicle(plan: Plan, scenario: Scenario | None, name: str) -> Vehicle:
 def deflection_along_plan(
     plan: Plan, scenario: Scenario | None, along: dict[str, WrenchAlongPlan]
 ) -> dict[str, np.ndarray]:
-    """Per vehicle how far (M,), m, it is predicted to leave its plan beyond its tracking tube in the
-    jets the model predicts on it along the plan (``along``, on a uniform grid from the plan's
-    start): :func:`loop_along_plan`'s growth (the hold after the plan's end in the last sample).
-    Part of that vehicle's tube where it applies; zeros for a vehicle nothing acts on."""
+    """Per vehicle how far (M,), m, it is predicted to leave its plan beyond its tracking tube,
+    flying its own reference and in the jets the model predicts on it along the plan (``along``, on
+    a uniform grid from the plan's start): :func:`loop_along_plan`'s growth (the hold after the
+    plan's end in the last sample). Part of that vehicle's tube."""
     loops = loop_along_plan(plan, scenario, along)
     return {name: loops[name].deflection_m if name in loops else np.zeros(w.t_s.size) for name, w in along.items()}

@@ -1,5 +1,6 @@
 """What a plan promises about each vehicle's flight, as simulate and certify check it: the tube the
-verifier grants plus its growth in the jets (:mod:`proxplan.verify.jet_loop`), on the verifier's
+verifier grants plus its growth (its tracking error along its own reference and in the jets,
+:mod:`proxplan.verify.jet_loop`), on the verifier's
 grid, from the plan file alone (its embedded scenario)."""
 
 from __future__ import annotations

@@ -7,13 +7,9 @@ import numpy as np
 import pytest
 
 from proxplan.flightsim import SimulationOptions, simulate_plan
-from proxplan.flightsim.mellinger import (
-    cap_motor_thrusts,
-    controller_gains,
-    reference_body_rates,
-)
+from proxplan.flightsim.mellinger import controller_gains, reference_body_rates
 from proxplan.flightsim.scenarios_synthetic import single_hover_plan
-from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits
+from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits, cap_motor_thrusts
 from proxplan.planfile import Plan, VehicleTrajectory
 from proxplan.planner import common_grid, time_parameterize
 

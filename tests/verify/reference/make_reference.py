@@ -17,7 +17,9 @@ Running it again with a later verifier would overwrite the reference with that v
 do not, unless the verifier's numbers are meant to change (and say so in the commit).
 
 Issue 36 changed one input of the pair checks on purpose: a disturbed vehicle's tube now grows by
-its closed loop in the jet (proxplan.verify.jet_loop) instead of the static sag. Only the stored
+its closed loop in the jet (proxplan.verify.jet_loop) instead of the static sag; its follow-up
+grows every vehicle's tube by its predicted tracking error along its own reference
+(proxplan.physics.tracking_loop). Only the stored
 violations were re-made, on the stored plans, with that verifier (``--violations-only``); the
 wrench, usage, invalid zone, separation and metrics are still 51909acc's:
 

@@ -1,0 +1,65 @@
+"""Each vehicle's predicted deviation from its own plan when it flies it (the reference the export
+uploads, with the default controller), on the verifier's grid: the plan's and the reference's
+samples for :func:`proxplan.physics.tracking_response`. World frame; m, s."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from proxplan.physics import (
+    FIRMWARE_SETPOINT_RATE_HZ,
+    SETPOINT_DELAY_S,
+    TAIL_STEP_S,
+    ReferenceSamples,
+    TrackingResponse,
+    tracking_response,
+)
+from proxplan.planfile import VehicleTrajectory, compensated_reference
+
+TAIL_SETTLE_S = 2.0
+"""The tail is run this long past the reference's end, s, before the loop's modes bound the rest:
+the attitude and motor modes (< 0.3 s) have died out by then, so the modal bound (a sum of every
+mode's largest share) is not taken in the middle of a fast transient."""
+
+
+def reference_samples(tr: VehicleTrajectory, t_s: np.ndarray) -> tuple[ReferenceSamples, ReferenceSamples]:
+    """The plan's and its compensated reference's samples on ``t_s`` (K,), s (uniform from the
+    plan's start), and over the reference's settle tail after ``t_s``'s end on a grid of
+    :data:`proxplan.physics.tracking_loop.TAIL_STEP_S` (from ``t_s``'s last time)."""
+    t = np.asarray(t_s, dtype=float)
+    tr = _at_rest_at_the_end(tr)
+    ref = compensated_reference(tr).trajectory
+    end = float(ref.t_s[-1]) + SETPOINT_DELAY_S + TAIL_SETTLE_S
+    n_tail = max(1, int(np.ceil((end - float(t[-1])) / TAIL_STEP_S)))
+    return _samples(tr, ref, t), _samples(tr, ref, float(t[-1]) + TAIL_STEP_S * np.arange(n_tail + 1))
+
+
+def _at_rest_at_the_end(tr: VehicleTrajectory) -> VehicleTrajectory:
+    """``tr`` with its last sample's velocity and acceleration zero: a plan ends at rest (verify
+    allows ``REST_SPEED_MPS`` there, e.g. an export read back still creeping by its lead), and the
+    compensated reference, which holds the plan's end, would otherwise jump there."""
+    if not (np.any(tr.velocity_mps[-1]) or np.any(tr.acceleration_mps2[-1])):
+        return tr
+    v, a = tr.velocity_mps.copy(), tr.acceleration_mps2.copy()
+    v[-1] = a[-1] = 0.0
+    return dataclasses.replace(tr, velocity_mps=v, acceleration_mps2=a)
+
+
+def _samples(tr: VehicleTrajectory, ref: VehicleTrajectory, grid: np.ndarray) -> ReferenceSamples:
+    p, v, a = tr.sample(grid)
+    late = grid - SETPOINT_DELAY_S
+    rp, rv, ra = ref.sample(late)
+    h = 1.0 / FIRMWARE_SETPOINT_RATE_HZ  # the firmware's difference of held set-points, within the reference
+    lo = np.clip(late - h / 2, ref.t_s[0], ref.t_s[-1])
+    hi = np.clip(late + h / 2, ref.t_s[0], ref.t_s[-1])
+    width = np.maximum(hi - lo, 1e-12)[:, None]
+    snap = np.where(hi[:, None] > lo[:, None], (ref.jerk_at(hi) - ref.jerk_at(lo)) / width, 0.0)
+    return ReferenceSamples(grid, p, v, a, rp, rv, ra, ref.jerk_at(late), snap)
+
+
+def tracking_along_plan(tr: VehicleTrajectory, t_s: np.ndarray) -> TrackingResponse:
+    """The predicted deviation of ``tr``'s vehicle from its plan on ``t_s`` (K,), s (uniform, from
+    the plan's start), and the largest after the plan's end (:func:`proxplan.physics.tracking_response`)."""
+    return tracking_response(tr.vehicle, *reference_samples(tr, t_s))
