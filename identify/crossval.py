@@ -351,11 +351,17 @@ def gain_test(
     the candidate cannot touch (a vehicle with no source above for a jet's effect, the torques for a term
     on F_z) says nothing about it. With ``cluster`` ((G,) int, each group's flight) the groups' gains are
     averaged per cluster and the test is over clusters (Student's t); without, over groups (normal)."""
-    d = relative_gains(mse_without, mse_with, acts)
+    return flight_test(relative_gains(mse_without, mse_with, acts), m, cluster)
+
+
+def flight_test(d: np.ndarray, m: int, cluster: np.ndarray | None = None) -> GainTest:
+    """The one-sided test that the mean of per-group values ``d`` ((G,), NaN: the group says nothing) is
+    positive beyond chance, Bonferroni over ``m``: with ``cluster`` ((G,) int, each group's flight) the values
+    are averaged per cluster first and the critical multiple is Student's t over the clusters; without, the
+    normal quantile over the groups."""
     if cluster is not None:
         ok = np.isfinite(d)
-        ids = np.unique(cluster[ok])
-        d = np.array([d[ok & (cluster == c)].mean() for c in ids])
+        d = np.array([d[ok & (cluster == c)].mean() for c in np.unique(cluster[ok])])
     d = d[np.isfinite(d)]
     n = int(d.size)
     z = critical_z(m, None if cluster is None else n - 1)

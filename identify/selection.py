@@ -14,7 +14,7 @@ from proxplan.identify.calibrate import ParamSpec
 from proxplan.identify.crossval import (
     Candidate,
     ForwardResult,
-    critical_z,
+    flight_test,
     heldout_backward,
     heldout_mse,
     heldout_predictions,
@@ -158,14 +158,7 @@ def other_start_better(default: Selection, other: Selection) -> bool:
     paired difference of :meth:`Selection.group_totals` must exceed t_{F-1}^-1(1 - ALPHA) standard errors
     (one-sided, :mod:`proxplan.identify.crossval`). On a tie the calibrated start stays: two near-equal
     scores must not let rounding in the inputs (a float32 log format) pick the model."""
-    d = default.group_totals() - other.group_totals()
-    ok = np.isfinite(d)
-    flights = [d[ok & (default.cluster == c)].mean() for c in np.unique(default.cluster[ok])]
-    if len(flights) < 2:
-        return False
-    f = np.asarray(flights)
-    se = float(f.std(ddof=1) / np.sqrt(f.size))
-    return bool(f.mean() > 0.0 and f.mean() > critical_z(1, f.size - 1) * se)
+    return flight_test(default.group_totals() - other.group_totals(), 1, default.cluster).passed
 
 
 def joint_model(
