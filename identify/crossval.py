@@ -29,7 +29,7 @@ FLIGHT: the gains of one flight's logs are averaged first (they are predicted by
 left that flight out, so they are not independent), SE = sd(flight gains) / sqrt(F) over the F flights where
 it acts, and z = t_{F-1}^-1(1 - ALPHA / m), Student's t with F - 1 degrees of freedom (the SE itself is
 estimated from F values), m the number of candidates tested together: a one-sided test at family-wise level
-:data:`ALPHA` (Bonferroni).
+:data:`proxplan.identify.heldout_select.ALPHA` (Bonferroni).
 
 **Stability** (:mod:`proxplan.identify.stability`): a candidate must also be chosen in most
 half-samples of the flights.
@@ -45,20 +45,18 @@ averaged per flight. **Too few flights**:
 with one train flight (nothing to hold out) or fewer than :data:`MIN_GROUPS` flights, each train flight
 is cut into :data:`FALLBACK_BLOCKS` contiguous blocks in time, and the blocks are the clusters; the note
 says so (stderr, JSON, report).
+
+The gain test and the forward / backward passes built on these held-out fits are in
+:mod:`proxplan.identify.heldout_select`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import norm
-from scipy.stats import t as student_t
 
-ALPHA = 0.05
-"""Family-wise level of the gain test: on data without any of the m candidates of a round, the
-chance that one of them passes, -."""
 MIN_GROUPS = 3
 """Fewest held-out clusters (flights) a standard error is taken over (2 degrees of freedom); with fewer,
 or a single train flight, the selection falls back to blocks in time."""
@@ -280,227 +278,4 @@ def heldout_predictions(
         mask = trainable * ~members
         beta = beta_all if plan.held_out_only[members].all() or not mask.any() else solve(sums, cols, mask, ridge, tau)
         out[rows] = x[rows][:, :, cols] @ beta
-    return out
-
-
-@dataclass(frozen=True)
-class GainTest:
-    """The held-out gain of one candidate: per-group gains (bounded log-ratio of held-out MSEs, summed over
-    the channels, -), their mean and standard error over the groups, the critical multiple z and whether it
-    passed."""
-
-    gains: np.ndarray
-    mean: float
-    se: float
-    z: float
-    passed: bool
-    n_groups: int
-
-    @property
-    def t(self) -> float:
-        return self.mean / self.se if self.se > 0 else (np.inf if self.mean > 0 else 0.0)
-
-    def to_json(self) -> dict[str, float | int | bool | None]:
-        return {"mean_gain": self.mean, "se": self.se, "t": float(self.t) if np.isfinite(self.t) else None,
-                "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups}  # fmt: skip
-
-
-def critical_z(m: int, dof: int | None = None) -> float:
-    """The one-sided Bonferroni multiple for m candidates tested together, -: Student's t_dof^-1(1 - ALPHA / m)
-    for a standard error estimated from dof + 1 values, Phi^-1(1 - ALPHA / m) when ``dof`` is None."""
-    q = 1.0 - ALPHA / max(int(m), 1)
-    return float(norm.ppf(q) if dof is None else student_t.ppf(q, max(int(dof), 1)))
-
-
-def relative_gains(mse_without: np.ndarray, mse_with: np.ndarray, acts: np.ndarray | None = None) -> np.ndarray:
-    """(G,) per group, the sum over its channels of (MSE without - MSE with) / (MSE without + MSE with) of
-    (G, C) held-out MSEs, i.e. tanh(ln(MSE without / MSE with) / 2): the log-ratio of the errors, bounded to
-    +-1 per channel, over the channels where the candidate acts (``acts`` (G, C) bool; default all; a
-    channel without error on both sides adds nothing); NaN for a group with no such channel."""
-    a, b = np.atleast_2d(mse_without), np.atleast_2d(mse_with)
-    ok = np.isfinite(a) & np.isfinite(b) & (a + b > 0)
-    if acts is not None:
-        ok &= acts
-    share = np.where(ok, (np.where(ok, a, 0.0) - np.where(ok, b, 0.0)) / np.where(ok, a + b, 1.0), 0.0)
-    return np.where(ok.any(axis=1), share.sum(axis=1), np.nan)
-
-
-def exposure(sums: GroupSums, cols: np.ndarray, beta: np.ndarray, tau: float) -> np.ndarray:
-    """(G, C) bool: the groups and channels where the candidate (columns ``cols`` at coefficients ``beta``,
-    fitted on every train group) ACTS: its contribution there is worth at least one unit of chi-square,
-    beta^T G_cell beta / tau >= 1 (noise units, tau the correlation time), i.e. the log's own noise could
-    tell it from nothing. A log it does not reach says nothing about it (its gain is noise), and an effect
-    with long tails must not be judged on the logs its tails barely touch."""
-    n_groups = len(sums.w) // sums.n_channels
-    if cols.size == 0:
-        return np.zeros((n_groups, sums.n_channels), dtype=bool)
-    Gc = sums.G[:, cols][:, :, cols]
-    chi2 = np.einsum("i,kij,j->k", beta, Gc, beta) / tau
-    return (chi2 >= 1.0).reshape(n_groups, sums.n_channels)
-
-
-def gain_test(
-    mse_without: np.ndarray,
-    mse_with: np.ndarray,
-    m: int,
-    acts: np.ndarray | None = None,
-    cluster: np.ndarray | None = None,
-) -> GainTest:
-    """The gain test of the module docstring on (G, C) held-out MSEs (:func:`relative_gains`), over the
-    groups and channels where the candidate acts (``acts``, (G, C) bool; default all): a log or a channel
-    the candidate cannot touch (a vehicle with no source above for a jet's effect, the torques for a term
-    on F_z) says nothing about it. With ``cluster`` ((G,) int, each group's flight) the groups' gains are
-    averaged per cluster and the test is over clusters (Student's t); without, over groups (normal)."""
-    return flight_test(relative_gains(mse_without, mse_with, acts), m, cluster)
-
-
-def flight_test(d: np.ndarray, m: int, cluster: np.ndarray | None = None) -> GainTest:
-    """The one-sided test that the mean of per-group values ``d`` ((G,), NaN: the group says nothing) is
-    positive beyond chance, Bonferroni over ``m``: with ``cluster`` ((G,) int, each group's flight) the values
-    are averaged per cluster first and the critical multiple is Student's t over the clusters; without, the
-    normal quantile over the groups."""
-    if cluster is not None:
-        ok = np.isfinite(d)
-        d = np.array([d[ok & (cluster == c)].mean() for c in np.unique(cluster[ok])])
-    d = d[np.isfinite(d)]
-    n = int(d.size)
-    z = critical_z(m, None if cluster is None else n - 1)
-    if n < 2:
-        return GainTest(d, float(d.mean()) if n else 0.0, float("inf"), z, False, n)
-    mean = float(d.mean())
-    se = float(d.std(ddof=1) / np.sqrt(n))
-    passed = mean > 0.0 and (mean > z * se)
-    return GainTest(d, mean, se, z, bool(passed), n)
-
-
-# ------------------------------------------------------------------------------ held-out passes
-
-
-@dataclass
-class Candidate:
-    """A named group of columns entering together (a library effect with several linear parameters, or
-    one discovered feature on one channel)."""
-
-    name: str
-    columns: tuple[str, ...]
-
-
-@dataclass
-class ForwardResult:
-    """What the held-out forward selection chose, every test it ran (round, candidate -> GainTest), and
-    what the backward pass dropped."""
-
-    chosen: list[str] = field(default_factory=list)
-    tests: list[dict[str, GainTest]] = field(default_factory=list)
-    dropped: dict[str, GainTest] = field(default_factory=dict)
-    final_tests: dict[str, GainTest] = field(default_factory=dict)  # each kept one given all the others
-    # kept -> {rival: the kept one's head-to-head gain over the rival}: rivals that also passed in its round
-    # and that the flights do not show worse (the data cannot tell the two apart)
-    rivals: dict[str, dict[str, GainTest]] = field(default_factory=dict)
-
-
-def heldout_forward(
-    sums: GroupSums,
-    always: Sequence[str],
-    candidates: Sequence[Candidate],
-    plan: GroupPlan,
-    ridge: Ridge,
-    tau: float,
-    *,
-    max_terms: int,
-    eligible: set[str] | None = None,
-    hypothesis: dict[str, str] | None = None,
-) -> ForwardResult:
-    """Greedy forward selection by the held-out :func:`gain_test` (Bonferroni over the round's hypotheses
-    that could be kept: ``eligible`` candidates, one per ``hypothesis`` label; each round adds the passing
-    candidate with the largest lower bound mean - z SE of its gain), then backward: a kept candidate that no longer passes given the others (Bonferroni over
-    the kept ones) is dropped, the weakest first. ``eligible`` restricts who may be kept (e.g. the stable
-    ones); every candidate is still tested and reported."""
-    cols_of = {c.name: sums.index(c.columns) for c in candidates}
-    base = sums.index(always) if always else np.zeros(0, dtype=int)
-    out = ForwardResult()
-
-    def cols(names: Sequence[str]) -> np.ndarray:
-        return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
-
-    current = heldout_mse(sums, cols([]), plan, ridge, tau)
-    remaining = [c.name for c in candidates]
-    while remaining and len(out.chosen) < max_terms:
-        tests = {}
-        # Bonferroni over the hypotheses that could be kept: near-duplicate candidates (``hypothesis``: one
-        # feature group, its members) test one hypothesis, not several
-        open_ = [n for n in remaining if eligible is None or n in eligible]
-        m = max(1, len({hypothesis.get(n, n) if hypothesis else n for n in open_}))
-        trials = {}
-        for name in remaining:
-            trial = heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau)
-            acts = _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau)
-            tests[name] = gain_test(current, trial, m, acts, plan.cluster)
-            trials[name] = (trial, acts)
-        out.tests.append(tests)
-        ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
-        if not ok:
-            break
-        # the one most surely better: the largest lower confidence bound of the gain (mean - z SE), so a
-        # candidate whose gain is as large but less consistent over the flights does not pre-empt it
-        best = max(ok, key=lambda n: tests[n].mean - tests[n].z * tests[n].se)
-        label = (lambda n: hypothesis.get(n, n)) if hypothesis else (lambda n: n)
-        for name, t in tests.items():  # rivals the flights cannot tell from it (a head-to-head one-sided test)
-            if name == best or not t.passed or label(name) == label(best):
-                continue
-            head = gain_test(trials[name][0], trials[best][0], 1, trials[name][1] | trials[best][1], plan.cluster)
-            if not head.passed:
-                out.rivals.setdefault(best, {})[name] = head
-        out.chosen.append(best)
-        remaining.remove(best)
-        current = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
-    _backward(out, cols, cols_of, sums, plan, ridge, tau)
-    return out
-
-
-def _acts(sums: GroupSums, cols, others, name, cols_of, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
-    """:func:`exposure` of candidate ``name`` fitted on every train group beside ``others``."""
-    idx = cols(list(others) + [name])
-    beta = solve(sums, idx, trainable_groups(sums, plan), ridge, tau)
-    return exposure(sums, cols_of[name], beta[-len(cols_of[name]) :], tau)
-
-
-def _backward(out: ForwardResult, cols, cols_of, sums: GroupSums, plan: GroupPlan, ridge: Ridge, tau: float) -> None:
-    """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
-    (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
-    while out.chosen:
-        full = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
-        finals = {}
-        for name in out.chosen:
-            others = [n for n in out.chosen if n != name]
-            without = heldout_mse(sums, cols(others), plan, ridge, tau)
-            acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau)
-            finals[name] = gain_test(without, full, len(out.chosen), acts, plan.cluster)
-        failing = [n for n, t in finals.items() if not t.passed]
-        if not failing:
-            out.final_tests = finals
-            return
-        weakest = min(failing, key=lambda n: finals[n].mean)
-        out.dropped[weakest] = finals[weakest]
-        out.chosen.remove(weakest)
-
-
-def heldout_backward(
-    sums: GroupSums,
-    always: Sequence[str],
-    kept: Sequence[Candidate],
-    plan: GroupPlan,
-    ridge: Ridge,
-    tau: float,
-) -> ForwardResult:
-    """The backward pass of :func:`heldout_forward` alone, over candidates kept by different stages (the
-    library effects and the discovered terms): each must still pass given all the others."""
-    cols_of = {c.name: sums.index(c.columns) for c in kept}
-    base = sums.index(always) if always else np.zeros(0, dtype=int)
-
-    def cols(names: Sequence[str]) -> np.ndarray:
-        return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
-
-    out = ForwardResult(chosen=[c.name for c in kept])
-    _backward(out, cols, cols_of, sums, plan, ridge, tau)
     return out

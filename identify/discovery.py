@@ -44,16 +44,10 @@ import numpy as np
 from sklearn import config_context
 from sklearn.linear_model import orthogonal_mp_gram
 
-from proxplan.identify.crossval import (
-    Candidate,
-    ForwardResult,
-    GroupSums,
-    heldout_forward,
-    solve,
-    trainable_groups,
-)
+from proxplan.identify.crossval import GroupSums, solve, trainable_groups
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
+from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_forward
 from proxplan.identify.stability import PI_MIN, Stability, half_samples
 from proxplan.physics import (
     DISCOVERED_PREFIX,

@@ -26,19 +26,10 @@ from typing import Any
 import numpy as np
 
 from proxplan.identify.calibrate import CalibrationResult, ParamSpec, fit_parameters
-from proxplan.identify.crossval import (
-    Candidate,
-    ForwardResult,
-    GainTest,
-    GroupSums,
-    Ridge,
-    heldout_forward,
-    heldout_mse,
-    solve,
-    trainable_groups,
-)
+from proxplan.identify.crossval import GroupSums, Ridge, heldout_mse, solve, trainable_groups
 from proxplan.identify.data import Errors, IdentifyOptions, Model, Unit, errors, progress_bar
 from proxplan.identify.design import SelectionSet, apply_tangent_step, effect_columns, tangent_columns, tangent_ridge
+from proxplan.identify.heldout_select import Candidate, ForwardResult, GainTest, heldout_forward
 from proxplan.identify.priors import effect_prior
 from proxplan.identify.stability import Stability, stability
 from proxplan.physics import PARAMETERS, Effect, effect_wrench

@@ -11,20 +11,12 @@ from typing import Any
 import numpy as np
 
 from proxplan.identify.calibrate import ParamSpec
-from proxplan.identify.crossval import (
-    Candidate,
-    ForwardResult,
-    flight_test,
-    heldout_backward,
-    heldout_mse,
-    heldout_predictions,
-    solve,
-    trainable_groups,
-)
+from proxplan.identify.crossval import heldout_mse, heldout_predictions, solve, trainable_groups
 from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
 from proxplan.identify.design import selection_set
 from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
 from proxplan.identify.effect_selection import EffectSelection, EffectSelector
+from proxplan.identify.heldout_select import Candidate, ForwardResult, flight_test, heldout_backward
 from proxplan.identify.noise import NoiseLevel, stacked
 from proxplan.physics import Effect
 

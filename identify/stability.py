@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from proxplan.identify.crossval import Candidate, GroupPlan, GroupSums, Ridge, group_weights, solve
+from proxplan.identify.crossval import GroupPlan, GroupSums, Ridge, group_weights, solve
+from proxplan.identify.heldout_select import Candidate
 
 N_PAIRS = 25
 """Complementary pairs of half-samples of the flights (at most 50 halves)."""
