@@ -21,9 +21,9 @@ Stages (DESIGN.md section 6; issue 35):
    (:mod:`proxplan.identify.crossval`): the vehicle parameters are refitted jointly with every candidate
    (their tangent columns, with their priors), a candidate is kept only when its held-out gain exceeds
    the Bonferroni multiple of the flight-to-flight standard error AND it is chosen in most half-samples
-   of the flights. When the calibration moved a parameter by :data:`proxplan.identify.priors.MOVE_SIGMAS`
-   or more (a sign that it absorbed a missing effect), selection also runs around the PRIOR model, and
-   it wins when its kept set predicts the held-out flights better beyond flight-to-flight chance.
+   of the flights. The calibration may have absorbed a missing effect into the vehicle parameters, so
+   selection also runs around the PRIOR model, and the start whose kept set predicts the held-out flights
+   better is kept (:func:`proxplan.identify.selection.other_start_better`).
 7. Errors before (model as given), calibrated and after (calibrated + kept effects) on TEST flights,
    which never choose anything; also per vehicle (the manifest's key).
 
@@ -257,6 +257,7 @@ def run_identify(
     before = full_errors(base)
     noise = noise_level(fit, base)
     calibration = None
+    fitted = None  # the calibration's own fit, with its thrust scales
     model = base
     if options.calibrate:  # eta (proxplan.physics.stack) is calibrated with the rest where the data hold stacks
         start = replace(base, options=replace(base.options, stack_shielding=options.stack_shielding))
@@ -267,14 +268,15 @@ def run_identify(
     corr_before = _residual_analysis(subsample(fit, 20000), model)
     specs = model_specs(fit, model)
     test_eval = subsample(test, options.max_eval_samples)
-    chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval)
+    chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval,
+                                 calibrated_thrust_scale=None if fitted is None else fitted.thrust_scale)  # fmt: skip
     laps("selection around the calibrated model")
     other_total = None
     if calibration is not None:
         # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
         # undo it only to first order), so selection also starts from the PRIOR model (eta at its prior);
-        # it wins when its kept set predicts the held-out flights better beyond flight-to-flight chance
-        # (selection.other_start_better; same samples, same units), else the calibrated start stays
+        # it wins when its kept set predicts the held-out flights better (selection.other_start_better;
+        # same samples, same units), else the calibrated start stays
         prior = replace(base, options=replace(base.options, stack_shielding=STACK_SHIELDING_PRIOR.center))
         alt = select_and_discover(fit, valid, prior, model_specs(fit, prior), options=options, noise=noise,
                                   test=test_eval, start="prior")  # fmt: skip
