@@ -6,11 +6,16 @@ becomes columns of the linear design (:mod:`proxplan.identify.design`) around th
 * its shape (a decay length, a wind direction, ...) is fitted first, MAP with its priors
   (:func:`proxplan.identify.priors.effect_prior`), on the train rows of the selection set;
 * then its strength enters linearly — one column per unit of strength at that shape (``scale``), one
-  column per parameter for an effect linear in several (``own_velocity``), and per-type thrust scales
-  for ``thrust_bias`` (a thrust-calibration error is per vehicle type, relative to its thrust).
+  column per parameter for an effect linear in several (``own_velocity``).
 
 The vehicle parameters' tangent columns are always in, with their priors: every fit recalibrates
-jointly with the candidate. :class:`EffectSelector` then runs the two tests of
+jointly with the candidate. ``thrust_bias`` (when the options list it) is not a candidate but a NUISANCE
+parameter fitted beside every candidate: one thrust scale per vehicle type (a thrust map's error is per
+type, relative to its thrust), MAP with its prior (:mod:`proxplan.identify.priors`, N(1, 0.1)). A thrust
+map is never exact, and a scale left out of the design is taken up by whatever candidate correlates with
+it (a place in the room standing in for a thrust error, or an effect whose share of the thrust varies
+from flight to flight making the scale itself fail the held-out test); with its prior, a scale the data
+do not inform stays at 1 and pins nothing out. :class:`EffectSelector` then runs the two tests of
 :mod:`proxplan.identify.crossval`: the held-out gain test (every flight predicted by a fit without it;
 Bonferroni over a round's candidates) in a greedy forward pass with a backward check, and stability
 selection over complementary half-samples of the flights. A candidate is kept only when it passes
@@ -72,7 +77,7 @@ its optimum."""
 @dataclass
 class EffectCandidate:
     """One library effect as columns of the design: the effect at its fitted shape, its column names and
-    arrays, how its coefficients map back to parameters (``linear``, ``scale`` or ``thrust``), and the
+    arrays, how its coefficients map back to parameters (``linear`` or ``scale``), and the
     shape fit (None for a linear effect)."""
 
     name: str
@@ -196,13 +201,9 @@ def fit_shape(
     return Effect(name, fit.as_dict()), fit
 
 
-def effect_candidate(
-    sel: SelectionSet, name: str, thrust_columns: Mapping[str, np.ndarray], tangents: np.ndarray, ridge: Ridge
-) -> EffectCandidate:
+def effect_candidate(sel: SelectionSet, name: str, tangents: np.ndarray, ridge: Ridge) -> EffectCandidate:
     """The design columns of library effect ``name`` (module docstring); ``tangents`` (N, 4, P) and
     ``ridge`` are the always-fitted columns and their priors (:func:`fit_shape`)."""
-    if name == THRUST_BIAS:  # per-type scales of the motors' thrust
-        return EffectCandidate(name, Effect(name, {}), dict(thrust_columns), "thrust")
     if name in LINEAR_PARAMS:
         cols = {}
         for k in LINEAR_PARAMS[name]:
@@ -232,21 +233,22 @@ class EffectSelector:
     def __init__(self, sel: SelectionSet, specs: Sequence[ParamSpec], *, options: IdentifyOptions):
         self.sel = sel
         self.options = options
-        self.specs = [s for s in specs if not s.name.endswith(".thrust_scale")]
-        self.thrust_specs = [s for s in specs if s.name.endswith(".thrust_scale")]
-        self.tangents = tangent_columns(sel, self.specs + self.thrust_specs)
+        # the thrust scales are always fitted when thrust_bias is asked for (a nuisance: module docstring)
+        self.fit_thrust = THRUST_BIAS in options.effects
+        self.thrust_specs = [s for s in specs if s.name.endswith(".thrust_scale")] if self.fit_thrust else []
+        self.specs = [s for s in specs if not s.name.endswith(".thrust_scale")] + self.thrust_specs
+        self.tangents = tangent_columns(sel, self.specs)
         self.always = [s.name for s in self.specs]
         self.candidates: list[EffectCandidate] = []
         self.sums: GroupSums | None = None
         self.ridge: Ridge | None = None
 
     def fit_candidates(self, names: Sequence[str]) -> None:
-        thrust = {s.name: self.tangents[s.name] for s in self.thrust_specs}
         stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
                  else np.zeros((len(self.sel.weight), 4, 0)))  # fmt: skip
         ridge = self.ridge_for(self.always)
-        for name in progress_bar(list(names), "effect shapes", self.options.progress):
-            self.candidates.append(effect_candidate(self.sel, name, thrust, stack, ridge))
+        for name in progress_bar([n for n in names if n != THRUST_BIAS], "effect shapes", self.options.progress):
+            self.candidates.append(effect_candidate(self.sel, name, stack, ridge))
 
     def design(self) -> tuple[GroupSums, Ridge]:
         if self.sums is None:
@@ -265,6 +267,9 @@ class EffectSelector:
         tau, plan = self.sel.tau, self.sel.plan
         stab = stability(sums, self.always, cands, plan, ridge, tau, max_terms=MAX_EFFECTS)
         eligible = {c.name for c in cands if stab.stable(c.name)}
+        # no in-fold selection here (proxplan.identify.stability.fold_eligibility): choosing among the few named
+        # effects biases the test little, and with 3 train flights the in-fold halves are single flights, on
+        # which a true effect is not picked in every half (docs/identify.md, "Selection inside the fold")
         fwd = heldout_forward(sums, self.always, cands, plan, ridge, tau, max_terms=MAX_EFFECTS, eligible=eligible)
         chosen_cols = self.always + [col for n in fwd.chosen for col in next(c for c in live if c.name == n).columns]
         idx = sums.index(chosen_cols)
@@ -273,7 +278,10 @@ class EffectSelector:
         coef = dict(zip(chosen_cols, (float(b) for b in beta)))
         model = self.model_with(coef, fwd.chosen)
         trials = self._trials(fwd, stab, test)
-        return EffectSelection(model=model, selected=list(fwd.chosen), trials=trials, stability=stab,
+        if self.fit_thrust:
+            trials.insert(0, self._thrust_trial(model))
+        return EffectSelection(model=model, selected=[THRUST_BIAS] * self.fit_thrust + list(fwd.chosen),
+                               trials=trials, stability=stab,
                                heldout_mse=heldout_mse(sums, idx, plan, ridge, tau), note=plan.note,
                                steps={k: coef[k] for k in self.always}, coefficients=coef,
                                rivals=fwd.rivals)  # fmt: skip
@@ -282,19 +290,21 @@ class EffectSelector:
         """The reference model moved by the tangent steps in ``coef`` (column name -> coefficient) with the
         library effects ``chosen`` at their coefficients."""
         model = apply_tangent_step(self.sel.model, self.specs, {k: coef[k] for k in self.always})
-        effects = list(model.effects)
-        scales = dict(model.thrust_scale)
-        for cand in self.candidates:
-            if cand.name not in chosen:
-                continue
-            if cand.mode == "thrust":
-                for s in self.thrust_specs:
-                    t = s.name.rsplit(".", 1)[0]
-                    scales[t] = float(np.clip(scales.get(t, 1.0) + coef.get(s.name, 0.0), s.lower, s.upper))
-                effects.append(Effect(THRUST_BIAS, {"force_z_N": 0.0}))
-            else:
-                effects.append(cand.effect_with(coef))
-        return replace(model, effects=tuple(effects), thrust_scale=scales)
+        effects = [e for e in model.effects if e.name != THRUST_BIAS]
+        if self.fit_thrust:  # the marker that the model's thrust scales were fitted (the effect itself is 0)
+            effects.append(Effect(THRUST_BIAS, {"force_z_N": 0.0}))
+        effects += [cand.effect_with(coef) for cand in self.candidates if cand.name in chosen]
+        return replace(model, effects=tuple(effects))
+
+    def _thrust_trial(self, model: Model) -> EffectTrial:
+        """The record of the thrust scales: always fitted, with their prior (module docstring)."""
+        scales = {s.name.rsplit(".", 1)[0]: float(model.thrust_scale.get(s.name.rsplit(".", 1)[0], 1.0))
+                  for s in self.thrust_specs}  # fmt: skip
+        text = ", ".join(f"{t} {v:.4f}" for t, v in sorted(scales.items()))
+        reason = ("kept: a nuisance parameter, always fitted beside every candidate (each vehicle type's thrust "
+                  f"scale, logged over delivered thrust, MAP with its prior N(1, 0.1)): {text}")  # fmt: skip
+        return EffectTrial(THRUST_BIAS, {"force_z_N": 0.0}, 0, None, None, None, 1.0, True, reason,
+                           {"thrust_scale": scales})  # fmt: skip
 
     def always_columns(self, chosen: Sequence[str]) -> dict[str, np.ndarray]:
         """The columns fitted with every later candidate (discovery): the tangents and the chosen effects'."""

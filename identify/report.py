@@ -225,8 +225,9 @@ def calibration_lines(cal) -> list[str]:
         lines.append(
             f"| {n} | {v:.5g} | {std} | {prior} | {move} | {'yes' if r['informed'] else 'no (stays at its prior)'} |"
         )
-    lines += ["", "Thrust scales are nuisance parameters of the calibration (they keep a thrust-sensor error out of "
-              "the aerodynamic parameters); only `thrust_bias`, if kept, carries them into the model."]  # fmt: skip
+    lines += ["", "Thrust scales are nuisance parameters (they keep a thrust-sensor error out of the aerodynamic "
+              "parameters); with `thrust_bias` in the options they are fitted beside every candidate and carried "
+              "into the model."]  # fmt: skip
     return lines
 
 

@@ -27,6 +27,11 @@ so a term built on them acts between vehicles like any effect:
   upwash / ceiling of a vehicle under it);
 * side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
 
+A force off the target's centre is a roll or pitch torque, so the jet kernel of a source above, the
+below kernel and the side kernel also come times the offset's horizontal components over L
+(``above_jet_x_1``, ``below_near_y_1``, ``side_near_x_1``, ...): which side of the target a neighbour is
+on (odd in the offset, where the kernels themselves are even).
+
 Every neighbour is seen, not only the sources above (issue 29): for a neighbour BELOW the target
 (d = -dz > 0 its depth under it) the jet and core kernels are mirrored (``below_jet_1``: the jet
 kernel of d, ``below_core_1``), times the relative speeds, and ``below_cushion_1`` is the
@@ -114,6 +119,10 @@ FEATURE_DOCS: dict[str, str] = {
     "above_near_rel_speed_xy_mps": "near kernel times relative horizontal speed, summed",
     "below_near_1": "below kernel of the sources under the target, summed",
     "side_near_1": "side kernel of level neighbours, summed",
+    "below_near_x_1": "below kernel times offset_x / L, summed (which side the neighbour under is on, for torques)",
+    "below_near_y_1": "below kernel times offset_y / L, summed",
+    "side_near_x_1": "side kernel times offset_x / L, summed (which side a level neighbour is on, for torques)",
+    "side_near_y_1": "side kernel times offset_y / L, summed",
     "below_jet_1": "jet kernel of the depth of the neighbours BELOW (mirrored jet kernel), summed",
     "below_jet_rel_speed_xy_mps": "below jet kernel times relative horizontal speed, summed",
     "below_jet_rel_v_z_mps": "below jet kernel times relative vertical speed (target minus neighbour), summed",
@@ -358,8 +367,12 @@ def feature_matrix(
         below_near = np.where(~above, np.exp(-r / size + np.minimum(dz, 0.0) / size), 0.0)
         f["below_near_1"] += below_near
         f["below_near_rel_speed_xy_mps"] += below_near * rel_xy
+        f["below_near_x_1"] += below_near * off[:, 0] / size
+        f["below_near_y_1"] += below_near * off[:, 1] / size
         side = np.exp(-r / size - (dz / size) ** 2)
         f["side_near_1"] += side
+        f["side_near_x_1"] += side * off[:, 0] / size
+        f["side_near_y_1"] += side * off[:, 1] / size
         f["side_near_rel_speed_xy_mps"] += side * rel_xy
         f["side_near_rel_v_z_mps"] += side * v_rel[:, 2]
         below = dz < 0.0  # the neighbour is under the target, depth d = -dz
