@@ -22,7 +22,9 @@ place in the room), each on one wrench channel (F_z and the three torques): a te
    which member describes it best is the held-out test's to say.
 2. **Held out.** Every member of a stable group that some half picked enters the joint design beside the
    tangents and the kept effects (members of one group are one hypothesis: the Bonferroni count is the
-   stable groups'); the greedy held-out gain test (:func:`proxplan.identify.crossval.heldout_forward`: every flight predicted
+   stable groups'; the group's stability is also judged as if each train flight had been held out, and a
+   term's gain on a flight counts only where that in-fold search would have tested it:
+   :func:`proxplan.identify.stability.fold_eligibility`); the greedy held-out gain test (:func:`proxplan.identify.crossval.heldout_forward`: every flight predicted
    by a fit without it; Bonferroni over the round) keeps them, and a backward pass drops any that no
    longer pass given the others.
 
@@ -48,7 +50,7 @@ from proxplan.identify.crossval import GroupSums, solve, trainable_groups
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_forward
-from proxplan.identify.stability import PI_MIN, Stability, half_samples
+from proxplan.identify.stability import PI_MIN, Stability, fold_eligibility, fold_half_samples, half_samples
 from proxplan.physics import (
     DISCOVERED_PREFIX,
     FEATURE_FAMILIES,
@@ -103,6 +105,8 @@ class DiscoveryResult:
     columns: dict[str, np.ndarray] = field(default_factory=dict)  # term key -> (N, 4) column, noise units
     top: list[tuple[str, float]] = field(default_factory=list)  # the most often picked terms (key, probability)
     member_probability: dict[str, float] = field(default_factory=dict)  # term key -> share of halves picking it
+    # term key -> (G,) bool: would the search without that group's flight have tested it (stability.fold_eligibility)
+    fold_eligible: dict[str, np.ndarray] = field(default_factory=dict)
 
     def report(self) -> list[dict[str, Any]]:
         """One JSON entry per term that was picked in any half-sample (strongest first, at most 12)."""
@@ -239,6 +243,8 @@ def discover_terms(
     names = [FEATURE_NAMES[k] for k in feat_idx]
     y = sel.residual
     halves = half_samples(sel.plan, seed)
+    folds = fold_half_samples(sel.plan, seed)  # the same search as if each train flight had been held out
+    fold_counts: dict[int, dict[str, int]] = {c: {} for c in folds}
     always_names = list(always)
     member_counts: dict[str, int] = {}
     group_counts: dict[str, int] = {}
@@ -263,6 +269,12 @@ def discover_terms(
                 group_counts[g] = group_counts.get(g, 0) + 1
             for f in picked:
                 member_counts[term_key(channel, f)] = member_counts.get(term_key(channel, f), 0) + 1
+        for cl, fold_halves in folds.items():
+            for w in fold_halves:
+                n_eff = max(float(w @ sums.w) / sel.tau, 2.0)
+                picked = [names[usable[j]] for j in omp_bic(sums, w, n_eff, options.max_terms_per_channel)]
+                for g in {f"{channel}|{feature_group(f)}" for f in picked}:
+                    fold_counts[cl][g] = fold_counts[cl].get(g, 0) + 1
     n_halves = max(len(halves), 1)
     group_prob = {g: v / n_halves for g, v in group_counts.items()}
     q = float(n_chosen.mean()) if len(halves) else 0.0
@@ -281,16 +293,20 @@ def discover_terms(
     fwd = ForwardResult()
     sums = sel.sums({**always, **columns})
     ridge = ridge_of(sums.columns)
+    without = {cl: {k for k in stable if counts.get(_group_of(k), 0) > stab.threshold * max(len(folds[cl]), 1)}
+               for cl, counts in fold_counts.items()}  # fmt: skip
+    fold = fold_eligibility(sel.plan, without, stable)
     if stable:
         fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable], sel.plan, ridge, sel.tau,
-                              max_terms=options.max_terms, hypothesis={k: _group_of(k) for k in stable})  # fmt: skip
+                              max_terms=options.max_terms, hypothesis={k: _group_of(k) for k in stable},
+                              fold_eligible=fold)  # fmt: skip
     names_fit = always_names + fwd.chosen
     trainable = trainable_groups(sums, sel.plan)
     beta = solve(sums, sums.index(names_fit), trainable, ridge, sel.tau) if names_fit else np.zeros(0)
     coef = dict(zip(names_fit, (float(v) for v in beta)))
     top = sorted(member_prob.items(), key=lambda kv: -kv[1])[:12]
     return DiscoveryResult(kept={k: coef[k] for k in fwd.chosen}, coefficients=coef, stability=stab, forward=fwd,
-                           columns=columns, top=top, member_probability=member_prob)  # fmt: skip
+                           columns=columns, top=top, member_probability=member_prob, fold_eligible=fold)  # fmt: skip
 
 
 def _group_of(key: str) -> str:

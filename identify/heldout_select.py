@@ -7,7 +7,7 @@ test.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -148,12 +148,15 @@ def heldout_forward(
     max_terms: int,
     eligible: set[str] | None = None,
     hypothesis: dict[str, str] | None = None,
+    fold_eligible: Mapping[str, np.ndarray] | None = None,
 ) -> ForwardResult:
     """Greedy forward selection by the held-out :func:`gain_test` (Bonferroni over the round's hypotheses
     that could be kept: ``eligible`` candidates, one per ``hypothesis`` label; each round adds the passing
     candidate with the largest lower bound mean - z SE of its gain), then backward: a kept candidate that no longer passes given the others (Bonferroni over
     the kept ones) is dropped, the weakest first. ``eligible`` restricts who may be kept (e.g. the stable
-    ones); every candidate is still tested and reported."""
+    ones); every candidate is still tested and reported. ``fold_eligible`` (name -> (G,) bool,
+    :func:`proxplan.identify.stability.fold_eligibility`) zeroes a candidate's gain on the groups whose flight
+    chose it: there the selection run without that flight would not have tested it."""
     cols_of = {c.name: sums.index(c.columns) for c in candidates}
     base = sums.index(always) if always else np.zeros(0, dtype=int)
     out = ForwardResult()
@@ -171,7 +174,9 @@ def heldout_forward(
         m = max(1, len({hypothesis.get(n, n) if hypothesis else n for n in open_}))
         trials = {}
         for name in remaining:
-            trial = heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau)
+            trial = _in_fold(
+                heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau), current, name, fold_eligible
+            )
             acts = _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau)
             tests[name] = gain_test(current, trial, m, acts, plan.cluster)
             trials[name] = (trial, acts)
@@ -192,8 +197,18 @@ def heldout_forward(
         out.chosen.append(best)
         remaining.remove(best)
         current = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
-    _backward(out, cols, cols_of, sums, plan, ridge, tau)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible)
     return out
+
+
+def _in_fold(
+    trial: np.ndarray, without: np.ndarray, name: str, fold_eligible: Mapping[str, np.ndarray] | None
+) -> np.ndarray:
+    """(G, C) held-out MSE with candidate ``name``, set to the MSE ``without`` it on the groups where the
+    selection run without their flight would not have tested it (``fold_eligible``; gain 0 there)."""
+    if fold_eligible is None or name not in fold_eligible:
+        return trial
+    return np.where(fold_eligible[name][:, None], trial, without)
 
 
 def _acts(sums: GroupSums, cols, others, name, cols_of, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
@@ -203,7 +218,16 @@ def _acts(sums: GroupSums, cols, others, name, cols_of, plan: GroupPlan, ridge: 
     return exposure(sums, cols_of[name], beta[-len(cols_of[name]) :], tau)
 
 
-def _backward(out: ForwardResult, cols, cols_of, sums: GroupSums, plan: GroupPlan, ridge: Ridge, tau: float) -> None:
+def _backward(
+    out: ForwardResult,
+    cols,
+    cols_of,
+    sums: GroupSums,
+    plan: GroupPlan,
+    ridge: Ridge,
+    tau: float,
+    fold_eligible: Mapping[str, np.ndarray] | None = None,
+) -> None:
     """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
     (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
     while out.chosen:
@@ -213,7 +237,8 @@ def _backward(out: ForwardResult, cols, cols_of, sums: GroupSums, plan: GroupPla
             others = [n for n in out.chosen if n != name]
             without = heldout_mse(sums, cols(others), plan, ridge, tau)
             acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau)
-            finals[name] = gain_test(without, full, len(out.chosen), acts, plan.cluster)
+            with_it = _in_fold(full, without, name, fold_eligible)
+            finals[name] = gain_test(without, with_it, len(out.chosen), acts, plan.cluster)
         failing = [n for n, t in finals.items() if not t.passed]
         if not failing:
             out.final_tests = finals
@@ -230,9 +255,11 @@ def heldout_backward(
     plan: GroupPlan,
     ridge: Ridge,
     tau: float,
+    fold_eligible: Mapping[str, np.ndarray] | None = None,
 ) -> ForwardResult:
     """The backward pass of :func:`heldout_forward` alone, over candidates kept by different stages (the
-    library effects and the discovered terms): each must still pass given all the others."""
+    library effects and the discovered terms): each must still pass given all the others (``fold_eligible``
+    as in :func:`heldout_forward`)."""
     cols_of = {c.name: sums.index(c.columns) for c in kept}
     base = sums.index(always) if always else np.zeros(0, dtype=int)
 
@@ -240,5 +267,5 @@ def heldout_backward(
         return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
 
     out = ForwardResult(chosen=[c.name for c in kept])
-    _backward(out, cols, cols_of, sums, plan, ridge, tau)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible)
     return out

@@ -12,7 +12,7 @@ E[V] <= q^2 / ((2 pi - 1) p) (q the mean number chosen per half, p the candidate
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -21,6 +21,11 @@ from proxplan.identify.heldout_select import Candidate
 
 N_PAIRS = 25
 """Complementary pairs of half-samples of the flights (at most 50 halves)."""
+FOLD_PAIRS = 5
+"""Complementary pairs of half-samples of the OTHER flights per held-out flight (:func:`fold_half_samples`): the
+in-fold stability only decides whether a candidate would have been tested at all without that flight (a
+yes/no per flight, not a probability that is reported), so fewer halves serve; 5 pairs keep its cost near
+the main stability's on a manifest of 25 flights."""
 PI_MIN = 0.5
 """A kept candidate is chosen in more than this share of the half-samples ("most resamples"), -."""
 
@@ -94,10 +99,10 @@ class Stability:
         return float(self.mean_chosen**2 / ((2.0 * pi - 1.0) * self.n_candidates)) if pi > 0.5 else None
 
 
-def half_samples(plan: GroupPlan, seed: int) -> list[np.ndarray]:
+def half_samples(plan: GroupPlan, seed: int, n_pairs: int = N_PAIRS) -> list[np.ndarray]:
     """Complementary pairs of half-samples of the train clusters (flights), as 0/1 weights per group ((G,)
     each): every distinct split of the train clusters into two halves when there are at most
-    :data:`N_PAIRS` of them (few flights: the exact distribution, each split once), else :data:`N_PAIRS`
+    ``n_pairs`` of them (few flights: the exact distribution, each split once), else ``n_pairs``
     random splits from ``seed``."""
     from itertools import combinations
     from math import comb
@@ -107,16 +112,51 @@ def half_samples(plan: GroupPlan, seed: int) -> list[np.ndarray]:
     if cut == 0:
         return []
     n_splits = comb(len(train_clusters), cut) // (2 if 2 * cut == len(train_clusters) else 1)
-    if n_splits <= N_PAIRS:
+    if n_splits <= n_pairs:
         firsts = [np.array(c) for c in combinations(train_clusters, cut)][:n_splits]
     else:
         rng = np.random.default_rng(seed)
-        firsts = [rng.permutation(train_clusters)[:cut] for _ in range(N_PAIRS)]
+        firsts = [rng.permutation(train_clusters)[:cut] for _ in range(n_pairs)]
     halves = []
     for first in firsts:
         for part in (first, np.setdiff1d(train_clusters, first)):
             halves.append((np.isin(plan.cluster, part) & ~plan.held_out_only).astype(float))
     return halves
+
+
+def fold_half_samples(plan: GroupPlan, seed: int) -> dict[int, list[np.ndarray]]:
+    """For each train cluster (flight) c: complementary half-samples (:func:`half_samples`, at most
+    :data:`FOLD_PAIRS` pairs) of the OTHER train clusters, what stability selection would have seen had c been
+    held out (:func:`fold_eligibility`)."""
+    train_clusters = np.unique(plan.cluster[~plan.held_out_only])
+    out = {}
+    for c in train_clusters:
+        without = replace(plan, held_out_only=plan.held_out_only | (plan.cluster == c))
+        out[int(c)] = half_samples(without, seed, n_pairs=FOLD_PAIRS)
+    return out
+
+
+def fold_eligibility(
+    plan: GroupPlan, eligible_without: dict[int, set[str]], names: Sequence[str]
+) -> dict[str, np.ndarray]:
+    """name -> (G,) bool: whether the candidate would have been eligible (stable) had each group's cluster
+    been held out (``eligible_without``: train cluster -> the names stable on the other train clusters). A
+    group of a cluster that is never fitted (a validation flight) is held out from every fit: there the
+    selection on all train flights is the in-fold one (True for every name given).
+
+    Why: the gain test predicts each flight by a fit that did not see it, but the candidates it tests were
+    CHOSEN (stability selection) on every flight, that one included; a term that fits one flight's noise is
+    then tested where it was picked, and the test is anti-conservative. With this mask the gain of a flight is
+    that of the whole procedure run without it: where the candidate would not have been chosen, it adds
+    nothing there (gain 0; cross-validation of the selection step, Hastie, Tibshirani & Friedman, ESL 7.10.2)."""
+    out = {}
+    for name in names:
+        mask = np.ones(plan.n_groups, dtype=bool)
+        for c, stable in eligible_without.items():
+            if name not in stable:
+                mask[plan.cluster == c] = False
+        out[name] = mask
+    return out
 
 
 def stability(
