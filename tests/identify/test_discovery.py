@@ -63,7 +63,7 @@ def _trajectories(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
     return {"a": a, "b": np.column_stack([x, y, (1 - blend) * z_high + blend * z_low])}
 
 
-def _manifest(tmp: Path, hidden, *, n_flights: int = 4, duration_s: float = 16.0) -> Path:
+def _manifest(tmp: Path, hidden, *, n_flights: int = 6, duration_s: float = 16.0) -> Path:
     t = np.arange(0.0, duration_s, 0.01)
     flights = [
         (f"f{k}", "test" if k == n_flights - 1 else "train", synthetic_logs(
