@@ -309,42 +309,60 @@ def model_specs(units: Sequence[Unit], model: Model) -> list[ParamSpec]:
     return specs
 
 
+def parameter_value(model: Model, name: str) -> float:
+    """The value of calibrated parameter ``name`` (``TYPE.c_ax``, ``TYPE.thrust_scale``,
+    ``model.stack_shielding``, ...: :func:`model_specs`) in ``model``, in its own unit."""
+    vtype, key = name.rsplit(".", 1)
+    if key == "stack_shielding":
+        return float(model.options.stack_shielding)
+    if key == "thrust_scale":
+        return float(model.thrust_scale.get(vtype, 1.0))
+    veh = model.vehicles[vtype]
+    return float({"c_ax": veh.downwash.c_ax, "z0_m": veh.downwash.z0_m, "c_rad": veh.downwash.c_rad,
+                  "b_v": veh.b_v}[key])  # fmt: skip
+
+
 def calibrate_model(
-    units: Sequence[Unit], model: Model, *, options: IdentifyOptions, noise: NoiseLevel
+    units: Sequence[Unit], model: Model, *, options: IdentifyOptions, noise: NoiseLevel, start: Model | None = None
 ) -> tuple[Model, CalibrationResult, Model]:
     """MAP fit of c_ax, z0_m, c_rad (source types), b_v (target types) and thrust scales (all types) on F_z,
     on a stratified, weighted sample of ``units`` (:func:`proxplan.identify.strata.stratified_sample`),
     with the priors of :mod:`proxplan.identify.priors`. The data term is in units of the F_z noise of one
     independent sample: each type's F_z noise unit times sqrt(tau) (:func:`proxplan.identify.noise.noise_level`).
     The thrust scales are nuisance parameters: the model is returned with them at 1 (and ``fitted``, the
-    model with them, is what the measurement noise is judged on)."""
+    model with them, is what the measurement noise is judged on). The priors and bounds are ``model``'s;
+    with ``start`` (a model with effects, e.g. after selection) the fit starts from its values and predicts
+    with its effects and options (the effects held as they are)."""
     fit_units = stratified_sample(units, options.max_fit_samples, model.vehicles)
     sw = np.sqrt(np.concatenate([u.weight for u in fit_units])) / noise.rows(fit_units)[:, 0]
     specs = model_specs(fit_units, model)
+    if start is not None:
+        specs = [replace(s, initial=float(np.clip(parameter_value(start, s.name), s.lower, s.upper))) for s in specs]
     y = np.concatenate([u.force_N[:, 2] for u in fit_units])
+    origin = model if start is None else start
 
     def model_of(theta: np.ndarray) -> Model:
         per_type: dict[str, dict[str, float]] = {}
-        options = model.options
+        options = origin.options
         for spec, val in zip(specs, theta):
             if spec.name == STACK_PARAMETER:
                 options = replace(options, stack_shielding=float(val))
                 continue
             t, key = spec.name.rsplit(".", 1)
             per_type.setdefault(t, {})[key] = float(val)
-        vehicles = dict(model.vehicles)
-        scales = dict(model.thrust_scale)
+        vehicles = dict(origin.vehicles)
+        scales = dict(origin.thrust_scale)
         for t, vals in per_type.items():
             scales[t] = vals.pop("thrust_scale", 1.0)
-            vehicles[t] = apply_vehicle_parameters(model.vehicles[t], **vals)
-        return replace(model, vehicles=vehicles, thrust_scale=scales, options=options)
+            vehicles[t] = apply_vehicle_parameters(origin.vehicles[t], **vals)
+        return replace(origin, vehicles=vehicles, thrust_scale=scales, options=options)
 
     def residual(theta: np.ndarray) -> np.ndarray:
         m = model_of(theta)
         return sw * (np.concatenate([predict(u, m)[0][:, 2] for u in fit_units]) - y)
 
     result = fit_parameters(residual, specs, max_nfev=60 + 10 * len(specs), noise_sigma=float(np.sqrt(noise.tau)))
-    # the thrust scales were nuisance parameters (so a thrust-calibration error does not distort the
-    # aerodynamic ones); whether to keep a thrust correction is decided by held-out flights (thrust_bias)
+    # the thrust scales are nuisance parameters (so a thrust-calibration error does not distort the
+    # aerodynamic ones); selection refits them beside every candidate (thrust_bias)
     calibrated = model_of(result.values)
     return replace(calibrated, thrust_scale=dict(model.thrust_scale)), result, calibrated

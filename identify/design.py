@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from proxplan.identify.calibrate import ParamSpec, apply_vehicle_parameters
+from proxplan.identify.calibrate import ParamSpec, apply_vehicle_parameters, parameter_value
 from proxplan.identify.crossval import GroupPlan, GroupSums, Ridge, block_ids, plan_groups
 from proxplan.identify.data import Model, Unit, predict, subsample, unit_inputs
 from proxplan.identify.noise import CHANNELS, NoiseLevel, stacked
@@ -154,17 +154,6 @@ def _perturbed(model: Model, name: str, value: float) -> Model:
     return replace(model, vehicles=vehicles)
 
 
-def _value(model: Model, name: str) -> float:
-    vtype, key = name.rsplit(".", 1)
-    if key == "stack_shielding":
-        return float(model.options.stack_shielding)
-    if key == "thrust_scale":
-        return float(model.thrust_scale.get(vtype, 1.0))
-    veh = model.vehicles[vtype]
-    return float({"c_ax": veh.downwash.c_ax, "z0_m": veh.downwash.z0_m, "c_rad": veh.downwash.c_rad,
-                  "b_v": veh.b_v}[key])  # fmt: skip
-
-
 def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, np.ndarray]:
     """d prediction / d u of every parameter of ``specs`` at the reference model (module docstring), (N, 4)
     noise units each; a thrust scale's column is analytic (:func:`proxplan.identify.data.thrust_scaled` at
@@ -185,7 +174,7 @@ def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, 
                 start += len(u)
             out[spec.name] = col / sel.row_scale
             continue
-        theta = _value(sel.model, spec.name)
+        theta = parameter_value(sel.model, spec.name)
         if prior is not None and prior.log:
             step = TANGENT_STEP
             moved = theta * np.exp(step)
@@ -200,7 +189,7 @@ def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, 
 
 def tangent_u(model: Model, spec: ParamSpec) -> float:
     """The coordinate u of a parameter at ``model``: ln(theta) for a log prior, theta otherwise."""
-    theta = _value(model, spec.name)
+    theta = parameter_value(model, spec.name)
     return float(np.log(theta)) if spec.prior is not None and spec.prior.log else theta
 
 
@@ -228,7 +217,7 @@ def apply_tangent_step(model: Model, specs: Sequence[ParamSpec], steps: Mapping[
     for spec in specs:
         if spec.name not in steps:
             continue
-        theta = _value(model, spec.name)
+        theta = parameter_value(model, spec.name)
         du = float(steps[spec.name])
         value = theta * np.exp(du) if spec.prior is not None and spec.prior.log else theta + du
         out = _perturbed(out, spec.name, float(np.clip(value, spec.lower, spec.upper)))

@@ -259,9 +259,10 @@ def run_identify(
     calibration = None
     fitted = None  # the calibration's own fit, with its thrust scales
     model = base
-    if options.calibrate:  # eta (proxplan.physics.stack) is calibrated with the rest where the data hold stacks
-        start = replace(base, options=replace(base.options, stack_shielding=options.stack_shielding))
-        model, calibration, fitted = calibrate_model(fit, start, options=options, noise=noise)
+    # the calibration's priors: eta (proxplan.physics.stack) is calibrated with the rest where the data hold stacks
+    prior_start = replace(base, options=replace(base.options, stack_shielding=options.stack_shielding))
+    if options.calibrate:
+        model, calibration, fitted = calibrate_model(fit, prior_start, options=options, noise=noise)
         noise = noise_level(fit, fitted)  # the selection weighs by the noise left around the calibrated model
     calibrated = full_errors(model)
     laps("calibration")
@@ -269,7 +270,8 @@ def run_identify(
     specs = model_specs(fit, model)
     test_eval = subsample(test, options.max_eval_samples)
     chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval,
-                                 calibrated_thrust_scale=None if fitted is None else fitted.thrust_scale)  # fmt: skip
+                                 calibrated_thrust_scale=None if fitted is None else fitted.thrust_scale,
+                                 prior_model=prior_start)  # fmt: skip
     laps("selection around the calibrated model")
     other_total = None
     if calibration is not None:
@@ -279,7 +281,7 @@ def run_identify(
         # same samples, same units), else the calibrated start stays
         prior = replace(base, options=replace(base.options, stack_shielding=STACK_SHIELDING_PRIOR.center))
         alt = select_and_discover(fit, valid, prior, model_specs(fit, prior), options=options, noise=noise,
-                                  test=test_eval, start="prior")  # fmt: skip
+                                  test=test_eval, start="prior", prior_model=prior_start)  # fmt: skip
         other_total = alt.heldout_total
         if other_start_better(chosen, alt):
             chosen, other_total = alt, chosen.heldout_total
