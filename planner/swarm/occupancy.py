@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from proxplan.planner.swarm.keepout import GrownStack, grown_stack
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GridTrack
 
@@ -52,8 +53,19 @@ class Occupancy:
         # cell -> its runs' segments as arrays (samples_near's layout), built when first queried and
         # dropped when a track in the cell is put or removed (queries far outnumber changes)
         self._cell_arrays: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
+        self._n_types = 1 + max(max(k) for k in problem.keepouts)
+        self._stacks: dict[tuple[int, bool], GrownStack] = {}  # (type a, at rest) -> its keep-outs, grown
         for tr in tracks:
             self.put(tr)
+
+    def stack(self, ta: int, rest: bool) -> GrownStack:
+        """Type ``ta``'s keep-outs against every type, grown by :data:`SAMPLING_GROWTH_M`."""
+        key = (ta, rest)
+        got = self._stacks.get(key)
+        if got is None:
+            got = grown_stack(self.problem.keepouts, ta, self._n_types, rest=rest, grow_m=SAMPLING_GROWTH_M)
+            self._stacks[key] = got
+        return got
 
     # -- the hash -------------------------------------------------------------------------------------
     def _cell(self, xy: np.ndarray) -> np.ndarray:
@@ -181,10 +193,7 @@ class Occupancy:
                 d = P[rr] - q[kk]
                 close = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] < R * R  # only these can be in a keep-out
                 rr, kk, d = rr[close], kk[close], d[close]
-                h = np.zeros(rr.size, dtype=bool)
-                for tb in np.unique(ty[rr]).tolist():
-                    m = ty[rr] == tb
-                    h[m] = _conflict(self.problem.keepouts[(ta, int(tb))], d[m], False, SAMPLING_GROWTH_M)
+                h = self.stack(ta, False).conflict(d, ty[rr])
                 # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
                 lo_d = np.maximum(t0[rr[h]] - kk[h], 0)
                 hi_d = np.minimum(t1[rr[h]] - kk[h], T)  # exclusive
@@ -193,7 +202,7 @@ class Occupancy:
         # parked for good after each track's last sample: any d with d + k >= n - 1 for a hit k
         tail_from = T
         for tr in self.parked_near(lo, hi, agent):
-            hit_k = _conflict(self.problem.keepouts[(ta, tr.type)], tr.end_m[None] - q, False, SAMPLING_GROWTH_M)
+            hit_k = self.stack(ta, False).conflict(tr.end_m[None] - q, np.full(K, tr.type))
             if hit_k.any():
                 k_last = K - 1 - int(np.argmax(hit_k[::-1]))
                 tail_from = min(tail_from, max(0, tr.arrival_step - k_last))
@@ -213,18 +222,13 @@ class Occupancy:
             near = np.flatnonzero((np.abs(d[:, 0]) <= self.reach) & (np.abs(d[:, 1]) <= self.reach))
             if near.size:
                 h = np.zeros(near.size, dtype=bool)
-                for tb in np.unique(ty[near]).tolist():
-                    ko = self.problem.keepouts[(ta, int(tb))]
-                    for rest in (False, True):
-                        m = (ty[near] == tb) & (mv[near] != rest)
-                        if m.any():
-                            h[m] = _conflict(ko, d[near[m]], rest, SAMPLING_GROWTH_M)
+                for rest in (False, True):
+                    m = mv[near] != rest
+                    if m.any():
+                        h[m] = self.stack(ta, rest).conflict(d[near[m]], ty[near[m]])
                 out |= _covered(np.minimum(t0[near[h]], T), np.minimum(t1[near[h]], T), T)
         for tr in self.parked_near(w, w, agent):
-            if (
-                tr.arrival_step < T
-                and _conflict(self.problem.keepouts[(ta, tr.type)], (tr.end_m - w)[None], True, SAMPLING_GROWTH_M)[0]
-            ):
+            if tr.arrival_step < T and self.stack(ta, True).conflict((tr.end_m - w)[None], np.array([tr.type]))[0]:
                 out[tr.arrival_step :] = True
         return out
 
@@ -242,12 +246,11 @@ class Occupancy:
             # as the queries see it: the moving keep-out along a move of ``track`` (its ends too),
             # elsewhere the resting one where the other rests as well
             moving = _at(track.in_move, track, steps) | _at(other.moving, other, steps)
-            ko = self.problem.keepouts[(ta, other.type)]
             hit = np.zeros(steps.size, dtype=bool)
             for rest in (False, True):
                 m = moving != rest
                 if m.any():
-                    hit[m] = _conflict(ko, d[m], rest, SAMPLING_GROWTH_M)
+                    hit[m] = self.stack(ta, rest).conflict(d[m], np.full(int(m.sum()), other.type))
             if hit.any():
                 found.add(other.agent)
         return found
@@ -271,7 +274,9 @@ def _at(flags: np.ndarray, track: GridTrack, steps: np.ndarray) -> np.ndarray:
 
 def _conflict(ko, d: np.ndarray, rest: bool, grow_m: float) -> np.ndarray:
     """KeepOut test of relative vectors ``d`` (M, 3), m, with the keep-out grown by ``grow_m``
-    (the vectors are shrunk towards the pair's centre by it, horizontally and in distance)."""
+    (the vectors are shrunk towards the pair's centre by it, horizontally and in distance): the
+    definition; the queries use the same test stacked over types (:class:`GrownStack`, tested
+    equal to this one)."""
     d = np.asarray(d, dtype=float).reshape(-1, 3)
     if grow_m <= 0.0:
         return ko.conflict(d, rest=rest)
