@@ -110,7 +110,6 @@ def plan_groups(
             except PrioritizedFailed as err:
                 outcomes[k] = ("failed", err)
     merged = PriorityResult({}, 0, 0)
-    merged.restarts = 0
     for k, g in enumerate(groups):
         status, out = outcomes[k]
         if status == "failed":
@@ -121,7 +120,7 @@ def plan_groups(
             merged.tracks[g[a_local]] = tr.relabel(g[a_local]) if len(groups) > 1 else tr
         merged.planned += out.planned
         merged.repairs += out.repairs
-        merged.restarts += out.restarts
+        merged.against_order += out.against_order
         merged.history += out.history
     return merged
 

@@ -10,8 +10,8 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    (:func:`_prioritised_stage`; groups that never interact apart,
    :mod:`proxplan.planner.swarm.components`). One vehicle after another along the best of its
    straight line and a wavefront route through the others' space-time, timed exactly; vehicles
-   not planned yet are predictions; a vehicle that cannot be planned is repaired (the vehicles in
-   conflict with it planned again after it), then the pass restarts with it first.
+   not planned yet are predictions; a vehicle that cannot be planned is repaired (only the vehicles
+   in conflict with it planned again, after it), within a count of repairs per pass.
 3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
@@ -75,7 +75,6 @@ class SwarmOptions:
     # 32 vehicles the plans that repaired at all needed 1-3 repairs; 2 per vehicle let grid-64 run
     # for minutes on failing passes
     repairs_per_vehicle: float = 0.25
-    max_restarts: int = 2  # prioritised planning begun anew with a vehicle it could not repair first
     orders: tuple[str, ...] = ("dependencies first", "longest first")  # prioritised planning's orders (ORDERS)
     # a vehicle not planned yet is assumed to hold its start this long, then to leave on its straight
     # route, s: tried in turn until prioritised planning finds a plan (a longer hold leaves it more
@@ -215,7 +214,6 @@ def _kept_straight_stage(
     order = [a for a in dependency_order(problem) if a in conflicted]
     options = PriorityOptions(
         max_repairs=math.ceil(opts.repairs_per_vehicle * problem.n_agents),
-        max_restarts=opts.max_restarts,
         hold_s=opts.unplanned_hold_s[0],
         through=opts.through_waypoints == "always",
     )
@@ -232,7 +230,7 @@ def _kept_straight_stage(
     extra["kept_straight_time_s"] = round(time.perf_counter() - t1, 3)
     coordination = (
         f"straight lines of {still} vehicles in no conflict kept, the other {problem.n_agents - still} planned "
-        f"around them ({result.planned} vehicle plannings, {result.repairs} repairs, {result.restarts} restarts)"
+        f"around them ({result.planned} vehicle plannings, {result.repairs} repairs, {result.against_order} against the order)"
     )
     tracks = [result.tracks[a] for a in range(problem.n_agents)]
     return _Stage(tracks, "prioritised", coordination, _own_routes(problem, tracks))
@@ -252,11 +250,10 @@ def _prioritised_stage(
     workers = opts.workers if opts.workers > 0 else (os.cpu_count() or 1)
     tried = []
     best: _Stage | None = None
-    counts = {"groups": len(groups), "planned": 0, "repairs": 0, "restarts": 0}
+    counts = {"groups": len(groups), "planned": 0, "repairs": 0, "against_order": 0}
     for hold_s in opts.unplanned_hold_s:
         options = PriorityOptions(
             max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
-            max_restarts=opts.max_restarts,
             hold_s=hold_s,
             through=opts.through_waypoints == "always",
         )
@@ -278,7 +275,7 @@ def _prioritised_stage(
                 continue
             counts["planned"] += result.planned
             counts["repairs"] += result.repairs
-            counts["restarts"] += result.restarts
+            counts["against_order"] += result.against_order
             makespan = max(tr.arrival_s for tr in result.tracks.values())
             tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s")
             if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
@@ -288,7 +285,7 @@ def _prioritised_stage(
                     "prioritised",
                     f"prioritised continuous planning, {label}, vehicles not planned yet assumed to leave after "
                     f"{hold_s:g} s ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
-                    f"repairs, {result.restarts} restarts)",
+                    f"repairs, {result.against_order} against the order)",
                     _own_routes(problem, tracks),
                 )
         if best is not None:  # a longer hold only where this one found nothing
