@@ -14,6 +14,7 @@ checks the whole plan as always.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -85,16 +86,24 @@ def plan_groups(
 ) -> PriorityResult:
     """Prioritised planning of every group (``order_of(group problem)`` gives each its order), put
     together with the agents' own indices; :class:`PrioritizedFailed` (of a global agent) when a
-    group gives up. Groups of at least ``fanout_min_vehicles`` run as Dask tasks when ``workers``
+    group gives up. A budget of plannings (``options.max_plannings``) is shared by the groups in
+    proportion to their sizes. Groups of at least ``fanout_min_vehicles`` run as Dask tasks when ``workers``
     > 1 and there are two of them or more; the rest, and everything when ``workers`` <= 1, here."""
     from proxplan.fanout import fan_out
 
     subs = [subproblem(problem, g) if len(groups) > 1 else problem for g in groups]
+    n = sum(len(g) for g in groups)
+    per_group = [
+        options
+        if options.max_plannings is None
+        else replace(options, max_plannings=math.ceil(options.max_plannings * len(g) / n))
+        for g in groups
+    ]
     big = [k for k, g in enumerate(groups) if len(g) >= fanout_min_vehicles]
     remote = big if workers > 1 and len(big) >= 2 else []
     outcomes: dict[int, tuple[str, object]] = {}
     if remote:
-        jobs = [(subs[k], order_of, options, horizon_steps) for k in remote]
+        jobs = [(subs[k], order_of, per_group[k], horizon_steps) for k in remote]
         for k, out in zip(remote, fan_out(_plan_group, jobs, n_workers=min(workers, len(remote))).results):
             outcomes[k] = out
     for k in range(len(groups)):
@@ -104,7 +113,12 @@ def plan_groups(
                 outcomes[k] = (
                     "ok",
                     prioritized_tracks(
-                        sub, order_of(sub), options, horizon_steps=horizon_steps, progress=progress, deadline=deadline
+                        sub,
+                        order_of(sub),
+                        per_group[k],
+                        horizon_steps=horizon_steps,
+                        progress=progress,
+                        deadline=deadline,
                     ),
                 )
             except PrioritizedFailed as err:

@@ -69,6 +69,11 @@ class SwarmOptions:
 
     max_run: int = 4  # longest straight move of one coordination step, in lattice edges
     max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
+    # prioritised planning's budget: single-vehicle plannings over all its passes (orders, holds,
+    # repairs), per vehicle; once spent the best plan found so far is kept, or the lattice plan
+    # is the answer (a count: the same plan on every machine). Set on the named layouts at 64
+    # fixed (docs/planner.md): two orders need 2, a failing pass 1-3, a pass with repairs 2-3
+    plannings_per_vehicle: float = 6.0
     passes: int = 3  # continuous re-timing passes
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
     # prioritised planning's repair budget, per vehicle of a group (rounded up): on the named layouts at
@@ -251,13 +256,19 @@ def _prioritised_stage(
     tried = []
     best: _Stage | None = None
     counts = {"groups": len(groups), "planned": 0, "repairs": 0, "against_order": 0}
+    budget = math.ceil(opts.plannings_per_vehicle * problem.n_agents)
     for hold_s in opts.unplanned_hold_s:
-        options = PriorityOptions(
-            max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
-            hold_s=hold_s,
-            through=opts.through_waypoints == "always",
-        )
         for label in opts.orders:
+            left = budget - counts["planned"]
+            if left <= 0:
+                tried.append(f"{label}, hold {hold_s:g} s: not tried (planning budget of {budget} spent)")
+                continue
+            options = PriorityOptions(
+                max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
+                max_plannings=left,
+                hold_s=hold_s,
+                through=opts.through_waypoints == "always",
+            )
             try:
                 result = plan_groups(
                     problem,
@@ -271,13 +282,17 @@ def _prioritised_stage(
                 )
             except PrioritizedFailed as err:
                 counts["planned"] += err.planned
-                tried.append(f"{label}, hold {hold_s:g} s: gave up (" + "; ".join(err.history[-2:]) + ")")
+                tried.append(
+                    f"{label}, hold {hold_s:g} s: gave up after {err.planned} plannings ("
+                    + "; ".join(err.history[-2:])
+                    + ")"
+                )
                 continue
             counts["planned"] += result.planned
             counts["repairs"] += result.repairs
             counts["against_order"] += result.against_order
             makespan = max(tr.arrival_s for tr in result.tracks.values())
-            tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s")
+            tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s ({result.planned} plannings)")
             if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
                 tracks = [result.tracks[a] for a in range(problem.n_agents)]
                 best = _Stage(

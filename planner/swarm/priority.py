@@ -25,8 +25,8 @@ are taken out all the same and the vehicle goes before them from now on (the ear
 put them first is undone for these pairs) - only these vehicles are planned again, never the
 whole pass. When nothing planned is in the way of its ideal track (only predictions of vehicles
 not planned yet), it flies that track: it is clear of every planned track. Every repair is
-counted; ``max_repairs`` (a count, per pass) bounds them, and a vehicle still failing then gives
-the pass up (:class:`PrioritizedFailed`: the caller falls back). A caller's wall-clock
+counted; ``max_repairs`` (a count, per pass) bounds them, ``max_plannings`` the single-vehicle
+plannings of the pass, and a vehicle still failing then gives the pass up (:class:`PrioritizedFailed`: the caller falls back). A caller's wall-clock
 ``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
 
 Order (:func:`dependency_order`): a vehicle whose start another one's goal needs is planned first
@@ -60,6 +60,7 @@ class PriorityOptions:
     """Knobs of prioritised planning; budgets are counts."""
 
     max_repairs: int  # repairs (a failed vehicle planned first, those in conflict with it again) per pass
+    max_plannings: int | None = None  # single-vehicle plannings of the pass (repairs' included); None: no cap
     hold_s: float = 0.0  # a vehicle not planned yet is assumed to hold its start this long, then leave, s
     through: bool = True  # fly through waypoints without stopping (else rest to rest at each)
 
@@ -121,15 +122,18 @@ def _ideal(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack | Non
 def _plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
     problem = occ.problem
     s, g = problem.starts_m[agent], problem.goals_m[agent]
-    chains = [np.array([s, g])]
-    route = wave_route(occ, agent, s, g)
-    if route is not None and len(route) > 2:
-        chains.append(route)
-    best = None
-    for W in chains:
-        res = time_chain(occ, agent, W, arrive_by=None if best is None else best.arrival_step - 1, through=through)
-        if res is not None and (best is None or res.arrival_step < best.arrival_step):
-            best = res
+    best = time_chain(occ, agent, np.array([s, g]), through=through)
+    # no flight from rest to rest is faster than the straight line's rest-to-rest time: a straight
+    # line flown at once is the best there is, and no route is searched
+    unobstructed = rest_to_rest(float(np.linalg.norm(g - s)), problem.limits[agent], GRID_DT_S).steps
+    if best is None or best.arrival_step > unobstructed:
+        route = wave_route(occ, agent, s, g)
+        if route is not None and len(route) > 2:
+            res = time_chain(
+                occ, agent, route, arrive_by=None if best is None else best.arrival_step - 1, through=through
+            )
+            if res is not None and (best is None or res.arrival_step < best.arrival_step):
+                best = res
     if best is None:  # a slower, wider route leaves the exact timing more room
         slow = wave_route(occ, agent, s, g, pace=SLOW_PACE, grow_m=SLOW_GROWTH_M)
         if slow is not None:
@@ -200,6 +204,9 @@ def _in_order(
         if progress is not None and result.planned % 8 == 0:
             done = len(planned) - int(problem.pinned.sum())
             progress(f"continuous planning {done}/{total} ({result.repairs} repairs)", 0.1 + 0.5 * done / max(1, total))
+        if options.max_plannings is not None and result.planned >= options.max_plannings:
+            result.history.append(f"{problem.names[a]}: planning budget of {options.max_plannings} spent")
+            raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
         prediction = occ.remove(a)
         track = _plan_one(occ, a, options.through)
         result.planned += 1

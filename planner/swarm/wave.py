@@ -17,6 +17,7 @@ cell (Douglas-Peucker: the grid's staircase is not part of the route), become th
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -30,6 +31,7 @@ MARGIN_M = 2.0  # the grid covers the start-goal box grown by this much (clipped
 _NEIGHBOURS = ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1))
 
 
+@functools.lru_cache(maxsize=64)
 def _disc(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
     n = int(math.ceil(radius_cells))
     ix, iy = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
@@ -88,8 +90,12 @@ def wave_route(
         lay = np.floor(k / per_layer + 0.5).astype(np.int64)
         cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
         cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
-        key = np.unique(np.stack([lay, cx, cy], axis=1), axis=0)
-        mark(key[:, 0], key[:, 1], key[:, 2], disc)
+        # distinct (layer, cell) of its samples, one 1-D key each (cells may lie outside the grid)
+        span_x, span_y = int(cx.max() - cx.min()) + 1, int(cy.max() - cy.min()) + 1
+        key = np.unique((lay * span_x + (cx - cx.min())) * span_y + (cy - cy.min()))
+        key_l, rem = np.divmod(key, span_x * span_y)
+        key_x, key_y = np.divmod(rem, span_y)
+        mark(key_l, key_x + cx.min(), key_y + cy.min(), disc)
         last = int(lay[-1])
         if last < n_layers and not tr.vanishes:  # parked for good
             ox, oy = disc
