@@ -69,6 +69,9 @@ class SwarmOptions:
 
     max_run: int = 4  # longest straight move of one coordination step, in lattice edges
     max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
+    # LaCAM's PIBT proposals before it gives up (most fail or revisit a configuration and add none);
+    # set on the named layouts at 64 fixed: grid 60, corridor 2378 to a plan; pillar none in 5800
+    max_proposals: int = 4000
     # prioritised planning's budget: single-vehicle plannings over all its passes (orders, holds,
     # repairs), per vehicle; once spent the best plan found so far is kept, or the lattice plan
     # is the answer (a count: the same plan on every machine). Set on the named layouts at 64
@@ -139,6 +142,9 @@ def swarm_timed(
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
         found = _lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+        if opts.prioritized:  # say why: prioritised planning gave up within its count budget
+            spent = extra.get("counts", {}).get("planned", 0)
+            found.coordination = f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     info = SwarmInfo(
@@ -245,8 +251,9 @@ def _prioritised_stage(
     problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
 ) -> _Stage | None:
     """Prioritised continuous planning of each group of vehicles that interact, in each of
-    ``opts.orders``, the shorter plan kept; with the first of ``opts.unplanned_hold_s`` for which an
-    order finds a plan; None when every one gives up."""
+    ``opts.orders``, the shorter plan kept; each order with the first of ``opts.unplanned_hold_s``
+    for which it finds a plan; all within a count of single-vehicle plannings
+    (``opts.plannings_per_vehicle``); None when every one gives up."""
     import os
 
     horizon = _horizon_steps(lower_bound_s)
@@ -257,8 +264,8 @@ def _prioritised_stage(
     best: _Stage | None = None
     counts = {"groups": len(groups), "planned": 0, "repairs": 0, "against_order": 0}
     budget = math.ceil(opts.plannings_per_vehicle * problem.n_agents)
-    for hold_s in opts.unplanned_hold_s:
-        for label in opts.orders:
+    for label in opts.orders:
+        for hold_s in opts.unplanned_hold_s:
             left = budget - counts["planned"]
             if left <= 0:
                 tried.append(f"{label}, hold {hold_s:g} s: not tried (planning budget of {budget} spent)")
@@ -303,8 +310,7 @@ def _prioritised_stage(
                     f"repairs, {result.against_order} against the order)",
                     _own_routes(problem, tracks),
                 )
-        if best is not None:  # a longer hold only where this one found nothing
-            break
+            break  # a longer hold only where this one found nothing
     extra["prioritised"] = "; ".join(tried)
     extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
     extra["counts"] = counts
@@ -316,7 +322,9 @@ def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pr
     lattice = build_lattice(problem, max_run=opts.max_run)
     sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
     t1 = time.perf_counter()
-    result = Lacam(lattice, sync, seed=opts.seed).solve(max_nodes=opts.max_nodes, deadline=deadline, progress=progress)
+    result = Lacam(lattice, sync, seed=opts.seed).solve(
+        max_nodes=opts.max_nodes, max_proposals=opts.max_proposals, deadline=deadline, progress=progress
+    )
     configurations = result.configurations
     extra["lattice"] = LatticeInfo(
         spacing_m=lattice.spacing_m,
