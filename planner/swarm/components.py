@@ -1,8 +1,9 @@
 """Groups of vehicles that never interact, planned apart (and fanned out on Dask).
 
-Prioritised planning keeps every vehicle within its *region*: the horizontal box of its start and
-goal grown by the wavefront's margin (:data:`proxplan.planner.swarm.wave.MARGIN_M`: its routes stay
-in that box, the moves between their waypoints in its hull) and by the corner cut of a flight
+Prioritised planning keeps every vehicle within its *region*: the horizontal box its wavefront
+routes stay in (:func:`proxplan.planner.swarm.wave.route_box`: start and goal grown by a margin, the
+whole free box where a wall stands between them; the moves between their waypoints stay in its
+hull) grown by the corner cut of a flight
 through waypoints (:data:`proxplan.planner.timing.CORNER_DEVIATION_M`). Two vehicles whose regions
 stay farther apart than the largest keep-out reach can never conflict, so the connected components
 of the graph "regions within reach" (:func:`interaction_groups`) are planned independently, each as
@@ -24,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 
 from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, PriorityResult, prioritized_tracks
 from proxplan.planner.swarm.problem import SwarmProblem
-from proxplan.planner.swarm.wave import MARGIN_M
+from proxplan.planner.swarm.wave import route_box
 from proxplan.planner.timing import CORNER_DEVIATION_M
 
 FANOUT_MIN_VEHICLES = 32  # a group is worth a Dask task from this size (a worker process costs seconds to start)
@@ -34,9 +35,9 @@ def interaction_groups(problem: SwarmProblem) -> list[list[int]]:
     """Connected components (agent index lists, each sorted, ordered by first agent) of the
     interaction graph (see module)."""
     A = problem.n_agents
-    grow = MARGIN_M + CORNER_DEVIATION_M
-    lo = np.minimum(problem.starts_m, problem.goals_m)[:, :2] - grow
-    hi = np.maximum(problem.starts_m, problem.goals_m)[:, :2] + grow
+    boxes = [route_box(problem, problem.starts_m[a], problem.goals_m[a]) for a in range(A)]
+    lo = np.array([b[0] for b in boxes]) - CORNER_DEVIATION_M
+    hi = np.array([b[1] for b in boxes]) + CORNER_DEVIATION_M
     pinned = problem.pinned
     lo[pinned] = problem.starts_m[pinned, :2]  # a hovering vehicle stays where it is
     hi[pinned] = problem.starts_m[pinned, :2]

@@ -31,6 +31,18 @@ MARGIN_M = 2.0  # the grid covers the start-goal box grown by this much (clipped
 _NEIGHBOURS = ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1))
 
 
+def route_box(problem, start_m: np.ndarray, goal_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The horizontal box (lo, hi) (2,), m, that a route from ``start_m`` to ``goal_m`` stays in:
+    the start-goal box grown by ``MARGIN_M`` (clipped to the free box), or the whole free box when
+    the straight line between them is not statically free (the way round a wall may lie farther
+    out than the margin: corridor-256, whose far rows reach the gap 3 m beyond it)."""
+    if not problem.segment_free(start_m, goal_m):
+        return problem.lo_m[:2].copy(), problem.hi_m[:2].copy()
+    lo = np.maximum(np.minimum(start_m, goal_m)[:2] - MARGIN_M, problem.lo_m[:2])
+    hi = np.minimum(np.maximum(start_m, goal_m)[:2] + MARGIN_M, problem.hi_m[:2])
+    return lo, hi
+
+
 @functools.lru_cache(maxsize=64)
 def _disc(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
     n = int(math.ceil(radius_cells))
@@ -57,8 +69,7 @@ def wave_route(
     h = CELL_M
     layer_s = h * math.sqrt(2.0) / (pace * lim.max_speed_mps)
     n_layers = max(2, int(occ.horizon * GRID_DT_S / layer_s))
-    lo = np.maximum(np.minimum(start_m, goal_m)[:2] - MARGIN_M, p.lo_m[:2])
-    hi = np.minimum(np.maximum(start_m, goal_m)[:2] + MARGIN_M, p.hi_m[:2])
+    lo, hi = route_box(p, start_m, goal_m)
     nx = int(math.ceil((hi[0] - lo[0]) / h)) + 1
     ny = int(math.ceil((hi[1] - lo[1]) / h)) + 1
     gx = lo[0] + np.arange(nx) * h
