@@ -184,9 +184,14 @@ def _uses_swarm(method: Method, scenario: Scenario) -> bool:
 
 # -- the one verification policy ----------------------------------------------------------------
 def _until_verified(
-    scenario: Scenario, run: _Run, attempt: Callable[[Mapping[str, float], int], Plan]
+    scenario: Scenario,
+    run: _Run,
+    attempt: Callable[[Mapping[str, float], int], Plan],
+    seed_matters: Callable[[Plan], bool] | None = None,
 ) -> tuple[Plan, list]:
-    """``attempt(deflections, seed)``'s plan and the verifier's violations of it (see module)."""
+    """``attempt(deflections, seed)``'s plan and the verifier's violations of it (see module).
+    ``seed_matters(plan)``: whether another seed could change that plan (None: always); when it
+    could not, the attempt with another seed is not made (it would plan the same again)."""
     from proxplan.verify import verify_plan
 
     plan = attempt({}, run.seed)
@@ -195,8 +200,13 @@ def _until_verified(
         return plan, bad
     grown = deflection_allowance(plan, scenario)
     tries = ([(grown, run.seed)] if grown else []) + [(grown, run.seed + RETRY_SEED_OFFSET)]
+    last = plan  # the plan of the last attempt, planned with the deflections of the seed's retry
     for deflection, seed in tries:
+        if seed != run.seed and seed_matters is not None and not seed_matters(last):
+            plan.notes.append(f"another seed ({seed}) not tried: this plan does not depend on the seed")
+            break
         again = attempt(deflection, seed)
+        last = again
         bad_again = verify_plan(again, scenario)
         how = ", ".join(f"{n} {100 * d:.1f} cm" for n, d in sorted(deflection.items())) or "none"
         what = f"planned again (tubes grown by the predicted deflections: {how}; seed {seed})"
@@ -226,7 +236,8 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
         return plan
 
     try:
-        plan, bad = _until_verified(scenario, run, attempt)
+        # only the lattice's search draws on the seed (prioritised planning and re-timing do not)
+        plan, bad = _until_verified(scenario, run, attempt, seed_matters=lambda p: infos[id(p)].stage == "lattice")
     except PlanNotFound as err:
         if run.past_deadline():
             raise
