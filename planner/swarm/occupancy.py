@@ -294,9 +294,7 @@ class Occupancy:
 
 def _covered(lo: np.ndarray, hi: np.ndarray, T: int) -> np.ndarray:
     """(T,) bool: the union of the step ranges [lo, hi) (each within [0, T])."""
-    diff = np.zeros(T + 1, dtype=np.int64)
-    np.add.at(diff, lo, 1)
-    np.add.at(diff, hi, -1)
+    diff = np.bincount(lo, minlength=T + 1) - np.bincount(hi, minlength=T + 1)
     return np.cumsum(diff[:T]) > 0
 
 
