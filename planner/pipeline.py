@@ -61,6 +61,10 @@ OPTIMIZE_EXTRA_PASSES = 5  # continuous re-timing passes that ``optimized`` adds
 # the sampling planner runs beside the swarm layer's prioritised or lattice plan up to this many
 # vehicles (issue 30: 2.0-2.2x the lower bound at 32 / 64 where it finishes), with a count budget:
 SAMPLING_ALTERNATIVE_MAX_VEHICLES = 64
+# ... and beside a prioritised plan up to this many: at 64 fixed (circle) its count budget took more
+# than 60 s of CPU (3-4 s per vehicle) against 31 s for the swarm layer's whole attempt, and at 64
+# by_type it was never the shorter plan (grid, circle, corridor; docs/planner.md)
+SAMPLING_BESIDE_PRIORITISED_MAX_VEHICLES = 32
 ALTERNATIVE_SEARCHES_PER_VEHICLE = 2  # single-vehicle searches per vehicle (re-orderings included)
 ALTERNATIVE_RRT_ITERATIONS = 10000  # RRT iterations per solve (the waiting search finds most paths)
 RETRY_SEED_OFFSET = 7919  # the verification policy's last attempt plans with seed + this (a prime)
@@ -184,9 +188,14 @@ def _uses_swarm(method: Method, scenario: Scenario) -> bool:
 
 # -- the one verification policy ----------------------------------------------------------------
 def _until_verified(
-    scenario: Scenario, run: _Run, attempt: Callable[[Mapping[str, float], int], Plan]
+    scenario: Scenario,
+    run: _Run,
+    attempt: Callable[[Mapping[str, float], int], Plan],
+    seed_matters: Callable[[Plan], bool] | None = None,
 ) -> tuple[Plan, list]:
-    """``attempt(deflections, seed)``'s plan and the verifier's violations of it (see module)."""
+    """``attempt(deflections, seed)``'s plan and the verifier's violations of it (see module).
+    ``seed_matters(plan)``: whether another seed could change that plan (None: always); when it
+    could not, the attempt with another seed is not made (it would plan the same again)."""
     from proxplan.verify import verify_plan
 
     plan = attempt({}, run.seed)
@@ -195,8 +204,13 @@ def _until_verified(
         return plan, bad
     grown = deflection_allowance(plan, scenario)
     tries = ([(grown, run.seed)] if grown else []) + [(grown, run.seed + RETRY_SEED_OFFSET)]
+    last = plan  # the plan of the last attempt, planned with the deflections of the seed's retry
     for deflection, seed in tries:
+        if seed != run.seed and seed_matters is not None and not seed_matters(last):
+            plan.notes.append(f"another seed ({seed}) not tried: this plan does not depend on the seed")
+            break
         again = attempt(deflection, seed)
+        last = again
         bad_again = verify_plan(again, scenario)
         how = ", ".join(f"{n} {100 * d:.1f} cm" for n, d in sorted(deflection.items())) or "none"
         what = f"planned again (tubes grown by the predicted deflections: {how}; seed {seed})"
@@ -226,7 +240,8 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
         return plan
 
     try:
-        plan, bad = _until_verified(scenario, run, attempt)
+        # only the lattice's search draws on the seed (prioritised planning and re-timing do not)
+        plan, bad = _until_verified(scenario, run, attempt, seed_matters=lambda p: infos[id(p)].stage == "lattice")
     except PlanNotFound as err:
         if run.past_deadline():
             raise
@@ -251,12 +266,16 @@ def _sampling_attempt(scenario: Scenario, run: _Run) -> Callable[[Mapping[str, f
 
 
 def _sampling_stage(scenario: Scenario, run: _Run, swarm: SwarmOutcome | None) -> Plan:
-    """The sampling planner's plan where there is no swarm plan; beside the swarm layer's prioritised
-    or lattice plan (up to ``SAMPLING_ALTERNATIVE_MAX_VEHICLES``, with a count budget) the shorter
-    verified of the two; else the swarm plan."""
+    """The sampling planner's plan where there is no swarm plan; beside the swarm layer's lattice
+    plan (up to ``SAMPLING_ALTERNATIVE_MAX_VEHICLES``) or prioritised plan (up to
+    ``SAMPLING_BESIDE_PRIORITISED_MAX_VEHICLES``), with a count budget, the shorter verified of the
+    two; else the swarm plan."""
     if swarm is not None and swarm.plan is not None:
         searched = swarm.info is not None and swarm.info.stage != "straight"
-        small = len(scenario.vehicles) <= SAMPLING_ALTERNATIVE_MAX_VEHICLES
+        limit = SAMPLING_ALTERNATIVE_MAX_VEHICLES
+        if swarm.info is not None and swarm.info.stage == "prioritised":
+            limit = SAMPLING_BESIDE_PRIORITISED_MAX_VEHICLES
+        small = len(scenario.vehicles) <= limit
         if run.alternative and searched and small and not run.past_deadline():
             return _shorter(scenario, run, swarm.plan)
         swarm.plan.verified = run.mode == "downwash"

@@ -1,8 +1,9 @@
 """Groups of vehicles that never interact, planned apart (and fanned out on Dask).
 
-Prioritised planning keeps every vehicle within its *region*: the horizontal box of its start and
-goal grown by the wavefront's margin (:data:`proxplan.planner.swarm.wave.MARGIN_M`: its routes stay
-in that box, the moves between their waypoints in its hull) and by the corner cut of a flight
+Prioritised planning keeps every vehicle within its *region*: the horizontal box its wavefront
+routes stay in (:func:`proxplan.planner.swarm.wave.route_box`: start and goal grown by a margin, the
+whole free box where a wall stands between them; the moves between their waypoints stay in its
+hull) grown by the corner cut of a flight
 through waypoints (:data:`proxplan.planner.timing.CORNER_DEVIATION_M`). Two vehicles whose regions
 stay farther apart than the largest keep-out reach can never conflict, so the connected components
 of the graph "regions within reach" (:func:`interaction_groups`) are planned independently, each as
@@ -14,6 +15,7 @@ checks the whole plan as always.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -23,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 
 from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, PriorityResult, prioritized_tracks
 from proxplan.planner.swarm.problem import SwarmProblem
-from proxplan.planner.swarm.wave import MARGIN_M
+from proxplan.planner.swarm.wave import route_box
 from proxplan.planner.timing import CORNER_DEVIATION_M
 
 FANOUT_MIN_VEHICLES = 32  # a group is worth a Dask task from this size (a worker process costs seconds to start)
@@ -33,9 +35,9 @@ def interaction_groups(problem: SwarmProblem) -> list[list[int]]:
     """Connected components (agent index lists, each sorted, ordered by first agent) of the
     interaction graph (see module)."""
     A = problem.n_agents
-    grow = MARGIN_M + CORNER_DEVIATION_M
-    lo = np.minimum(problem.starts_m, problem.goals_m)[:, :2] - grow
-    hi = np.maximum(problem.starts_m, problem.goals_m)[:, :2] + grow
+    boxes = [route_box(problem, problem.starts_m[a], problem.goals_m[a]) for a in range(A)]
+    lo = np.array([b[0] for b in boxes]) - CORNER_DEVIATION_M
+    hi = np.array([b[1] for b in boxes]) + CORNER_DEVIATION_M
     pinned = problem.pinned
     lo[pinned] = problem.starts_m[pinned, :2]  # a hovering vehicle stays where it is
     hi[pinned] = problem.starts_m[pinned, :2]
@@ -85,16 +87,24 @@ def plan_groups(
 ) -> PriorityResult:
     """Prioritised planning of every group (``order_of(group problem)`` gives each its order), put
     together with the agents' own indices; :class:`PrioritizedFailed` (of a global agent) when a
-    group gives up. Groups of at least ``fanout_min_vehicles`` run as Dask tasks when ``workers``
+    group gives up. A budget of plannings (``options.max_plannings``) is shared by the groups in
+    proportion to their sizes. Groups of at least ``fanout_min_vehicles`` run as Dask tasks when ``workers``
     > 1 and there are two of them or more; the rest, and everything when ``workers`` <= 1, here."""
     from proxplan.fanout import fan_out
 
     subs = [subproblem(problem, g) if len(groups) > 1 else problem for g in groups]
+    n = sum(len(g) for g in groups)
+    per_group = [
+        options
+        if options.max_plannings is None
+        else replace(options, max_plannings=math.ceil(options.max_plannings * len(g) / n))
+        for g in groups
+    ]
     big = [k for k, g in enumerate(groups) if len(g) >= fanout_min_vehicles]
     remote = big if workers > 1 and len(big) >= 2 else []
     outcomes: dict[int, tuple[str, object]] = {}
     if remote:
-        jobs = [(subs[k], order_of, options, horizon_steps) for k in remote]
+        jobs = [(subs[k], order_of, per_group[k], horizon_steps) for k in remote]
         for k, out in zip(remote, fan_out(_plan_group, jobs, n_workers=min(workers, len(remote))).results):
             outcomes[k] = out
     for k in range(len(groups)):
@@ -104,13 +114,17 @@ def plan_groups(
                 outcomes[k] = (
                     "ok",
                     prioritized_tracks(
-                        sub, order_of(sub), options, horizon_steps=horizon_steps, progress=progress, deadline=deadline
+                        sub,
+                        order_of(sub),
+                        per_group[k],
+                        horizon_steps=horizon_steps,
+                        progress=progress,
+                        deadline=deadline,
                     ),
                 )
             except PrioritizedFailed as err:
                 outcomes[k] = ("failed", err)
     merged = PriorityResult({}, 0, 0)
-    merged.restarts = 0
     for k, g in enumerate(groups):
         status, out = outcomes[k]
         if status == "failed":
@@ -121,7 +135,7 @@ def plan_groups(
             merged.tracks[g[a_local]] = tr.relabel(g[a_local]) if len(groups) > 1 else tr
         merged.planned += out.planned
         merged.repairs += out.repairs
-        merged.restarts += out.restarts
+        merged.against_order += out.against_order
         merged.history += out.history
     return merged
 

@@ -113,3 +113,56 @@ def keepout_for(
         a_on_b_rest=_grown(r_ab, ab.dz_step_m, w_rest),
         b_on_a_rest=_grown(r_ba, ba.dz_step_m, w_rest),
     )
+
+
+@dataclass(frozen=True)
+class GrownStack:
+    """The keep-outs of one type a against every type b, each grown by ``grow_m`` and stacked, so
+    that relative vectors of mixed types are tested in one vectorised call (:meth:`conflict`).
+
+    Growing a keep-out by g (the vectors shrunk towards the pair's centre by g horizontally, and
+    its sphere by g in 3-D) is, for the cut-off, r - g < r_cut(dz), i.e. r < r_cut(dz) + g where
+    r_cut > 0; the shrunk vector's sphere lies inside the grown sphere (triangle inequality), so
+    the test is |d| < separation + w + g or r < r_cut(dz) + g: tables of (r_cut + g)^2, squared
+    distances, no square root."""
+
+    sphere2: np.ndarray  # (n_b,) (separation + w + g)^2, m^2
+    w_m: np.ndarray  # (n_b,) the tube w of the pair (moving or resting), m
+    step_m: np.ndarray  # (n_b,) dz step of the pair's tables, m
+    below2: np.ndarray  # (n_b, L + 1) (r_cut of a on b below + g)^2, 0 beyond the table, m^2
+    above2: np.ndarray  # (n_b, L + 1) (r_cut of b above a + g)^2, m^2
+
+    def conflict(self, d: np.ndarray, tb: np.ndarray) -> np.ndarray:
+        """(P,) bool for relative vectors ``d`` (P, 3), m, of vehicles of types ``tb`` (P,)."""
+        d = np.asarray(d, dtype=float).reshape(-1, 3)
+        tb = np.asarray(tb, dtype=np.int64)
+        r2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
+        dz = d[:, 2]
+        adz = np.abs(dz)
+        k = np.minimum(np.floor(adz / self.step_m[tb]).astype(np.int64), self.below2.shape[1] - 1)
+        rb2 = self.below2[tb, k]
+        ra2 = self.above2[tb, k]
+        rc2 = np.where(adz <= self.w_m[tb] + 1e-12, np.maximum(rb2, ra2), np.where(dz < 0, rb2, ra2))
+        return (r2 + dz * dz < self.sphere2[tb]) | (r2 < rc2)
+
+
+def grown_stack(keepouts, ta: int, n_types: int, *, rest: bool, grow_m: float) -> GrownStack:
+    """The :class:`GrownStack` of type ``ta`` against types 0..``n_types``-1 of ``keepouts``
+    ((type a, type b) -> :class:`KeepOut`), at rest or moving, grown by ``grow_m`` (m)."""
+    kos = [keepouts[(ta, tb)] for tb in range(n_types)]
+    tabs = [(k.a_on_b_rest, k.b_on_a_rest) if rest else (k.a_on_b, k.b_on_a) for k in kos]
+    L = max(max(b.size, a.size) for b, a in tabs)
+
+    def padded(t: np.ndarray) -> np.ndarray:
+        out = np.zeros(L + 1)
+        out[: t.size] = np.where(t > 0.0, (t + grow_m) ** 2, 0.0)
+        return out
+
+    w = np.array([k.w_rest_m if rest else k.w_move_m for k in kos])
+    return GrownStack(
+        sphere2=np.array([(k.separation_m + wk + grow_m) ** 2 for k, wk in zip(kos, w)]),
+        w_m=w,
+        step_m=np.array([k.step_m for k in kos]),
+        below2=np.stack([padded(b) for b, _ in tabs]),
+        above2=np.stack([padded(a) for _, a in tabs]),
+    )

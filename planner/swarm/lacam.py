@@ -162,15 +162,21 @@ class Lacam:
     def _order(self, priority: list[float]) -> list[int]:
         return sorted(range(self.A), key=lambda i: -priority[i])
 
-    def solve(self, *, max_nodes: int, deadline: float | None = None, progress=None) -> LacamResult:
+    def solve(
+        self, *, max_nodes: int, max_proposals: int | None = None, deadline: float | None = None, progress=None
+    ) -> LacamResult:
         """A plan from the starts to the goals; :class:`~proxplan.planner.errors.PlanNotFound` when the budget ends first or
-        the lattice holds none (that proves nothing about continuous space)."""
+        the lattice holds none (that proves nothing about continuous space). The budget counts new
+        configurations (``max_nodes``) and PIBT proposals (``max_proposals``, None: no cap): a
+        search whose proposals keep failing or revisiting configurations adds no configuration
+        and would otherwise run unbounded."""
         start = tuple(int(v) for v in self.lat.start_v)
         priority = [float(self.dist[i][start[i]]) * 1e-3 for i in range(self.A)]
         root = _Node(start, None, self._order(priority), priority)
         explored = {start: root}
         stack = [root]
         n = 1
+        generated = 0  # PIBT proposals (most of the work; many fail or revisit a configuration)
         while stack:
             node = stack[-1]
             if node.config == self.goal:
@@ -189,6 +195,13 @@ class Lacam:
                 vs = self._candidates(i, node.config[i])
                 for v in vs:
                     node.tree.append(_Constraint(c, i, v))
+            generated += 1
+            if max_proposals is not None and generated > max_proposals:
+                raise PlanNotFound(
+                    f"no plan found within {max_proposals} configuration proposals", details={"nodes": n}
+                )
+            if deadline is not None and time.perf_counter() > deadline:
+                raise PlanNotFound("no plan found within the time budget", details={"nodes": n})
             nxt = self._generate(node, c)
             if nxt is None:
                 continue

@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from proxplan.planner.swarm.keepout import GrownStack, grown_stack
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GridTrack
 
@@ -52,8 +53,19 @@ class Occupancy:
         # cell -> its runs' segments as arrays (samples_near's layout), built when first queried and
         # dropped when a track in the cell is put or removed (queries far outnumber changes)
         self._cell_arrays: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
+        self._n_types = 1 + max(max(k) for k in problem.keepouts)
+        self._stacks: dict[tuple[int, bool], GrownStack] = {}  # (type a, at rest) -> its keep-outs, grown
         for tr in tracks:
             self.put(tr)
+
+    def stack(self, ta: int, rest: bool) -> GrownStack:
+        """Type ``ta``'s keep-outs against every type, grown by :data:`SAMPLING_GROWTH_M`."""
+        key = (ta, rest)
+        got = self._stacks.get(key)
+        if got is None:
+            got = grown_stack(self.problem.keepouts, ta, self._n_types, rest=rest, grow_m=SAMPLING_GROWTH_M)
+            self._stacks[key] = got
+        return got
 
     # -- the hash -------------------------------------------------------------------------------------
     def _cell(self, xy: np.ndarray) -> np.ndarray:
@@ -137,6 +149,45 @@ class Occupancy:
         keep = (ag != exclude) & (t1 > from_step)
         return P[keep], np.maximum(t0[keep], from_step), t1[keep], ty[keep], mv[keep], ag[keep]
 
+    def _chunk_candidates(self, c_lo: np.ndarray, c_hi: np.ndarray, exclude: int, from_step: int):
+        """Segments of other tracks lasting beyond ``from_step`` and the chunks whose boxes
+        [c_lo, c_hi] (C, 2), m (already grown by the reach) hold them: (positions (M, 3), first step
+        (M,), end step (M,), type (M,), row (N,), chunk (N,)), one (row, chunk) pair per segment
+        inside a chunk's box. Each chunk looks only at the cells its box touches (a long move's
+        bounding box would hold far more)."""
+        g0 = self._cell(c_lo)
+        g1 = self._cell(c_hi)
+        span = int((g1 - g0).max()) + 1
+        off = np.arange(span)
+        gx = g0[:, 0, None, None] + off[None, :, None]
+        gy = g0[:, 1, None, None] + off[None, None, :]
+        ok = (gx <= g1[:, 0, None, None]) & (gy <= g1[:, 1, None, None])
+        C = c_lo.shape[0]
+        ch = np.broadcast_to(np.arange(C)[:, None, None], ok.shape)[ok]
+        cells = np.stack([np.broadcast_to(gx, ok.shape)[ok], np.broadcast_to(gy, ok.shape)[ok]], axis=1)
+        uniq, inv = np.unique(cells, axis=0, return_inverse=True)
+        inv = inv.reshape(-1)
+        parts, sizes = [], np.zeros(uniq.shape[0], dtype=np.int64)
+        for u, (x, y) in enumerate(uniq.tolist()):
+            got = self._cell_segments((x, y))
+            if got is not None:
+                parts.append(got)
+                sizes[u] = got[0].shape[0]
+        z = np.zeros(0, dtype=np.int64)
+        if not parts:
+            return np.zeros((0, 3)), z, z, z, z, z
+        P, t0, t1, ty, _, ag = (np.concatenate([c[i] for c in parts]) for i in range(6)) if len(parts) > 1 else parts[0]
+        start = np.r_[0, np.cumsum(sizes)[:-1]]
+        n = sizes[inv]  # segments of each (chunk, cell) pair
+        chunk = np.repeat(ch, n)
+        first = np.repeat(start[inv] - np.r_[0, np.cumsum(n)[:-1]], n)
+        row = first + np.arange(chunk.size)
+        keep = (ag[row] != exclude) & (t1[row] > from_step)
+        row, chunk = row[keep], chunk[keep]
+        xy = P[row, :2]
+        inside = np.all((xy >= c_lo[chunk]) & (xy <= c_hi[chunk]), axis=1)
+        return P, np.maximum(t0, from_step), t1, ty, row[inside], chunk[inside]
+
     def parked_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int) -> list[GridTrack]:
         """Tracks parked for good in a cell within reach of the box [lo, hi] (m)."""
         found: set[int] = set()
@@ -166,34 +217,28 @@ class Occupancy:
         lo, hi = q.min(axis=0), q.max(axis=0)
         R = self.reach
         ta = int(self.problem.type_index[agent])
-        P, t0, t1, ty, _, _ = self.samples_near(lo, hi, agent, from_step)
-        if P.shape[0]:
-            n_chunks = int(math.ceil(K / CHUNK))
-            pad = np.concatenate([q, np.repeat(q[-1:], n_chunks * CHUNK - K, axis=0)]).reshape(n_chunks, CHUNK, 3)
-            c_lo, c_hi = pad[:, :, :2].min(axis=1) - R, pad[:, :, :2].max(axis=1) + R
-            hit = np.all((P[:, None, :2] >= c_lo[None]) & (P[:, None, :2] <= c_hi[None]), axis=2)  # (M, chunks)
-            rows, chunks = np.nonzero(hit)
-            if rows.size:
-                kk = (chunks[:, None] * CHUNK + np.arange(CHUNK)[None]).reshape(-1)
-                rr = np.repeat(rows, CHUNK)
-                ok = kk < K
-                rr, kk = rr[ok], kk[ok]
-                d = P[rr] - q[kk]
-                close = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] < R * R  # only these can be in a keep-out
-                rr, kk, d = rr[close], kk[close], d[close]
-                h = np.zeros(rr.size, dtype=bool)
-                for tb in np.unique(ty[rr]).tolist():
-                    m = ty[rr] == tb
-                    h[m] = _conflict(self.problem.keepouts[(ta, int(tb))], d[m], False, SAMPLING_GROWTH_M)
-                # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
-                lo_d = np.maximum(t0[rr[h]] - kk[h], 0)
-                hi_d = np.minimum(t1[rr[h]] - kk[h], T)  # exclusive
-                span = hi_d > lo_d
-                bad |= _covered(lo_d[span], hi_d[span], T)
+        n_chunks = int(math.ceil(K / CHUNK))
+        pad = np.concatenate([q, np.repeat(q[-1:], n_chunks * CHUNK - K, axis=0)]).reshape(n_chunks, CHUNK, 3)
+        c_lo, c_hi = pad[:, :, :2].min(axis=1) - R, pad[:, :, :2].max(axis=1) + R
+        P, t0, t1, ty, rows, chunks = self._chunk_candidates(c_lo, c_hi, agent, from_step)
+        if rows.size:
+            kk = (chunks[:, None] * CHUNK + np.arange(CHUNK)[None]).reshape(-1)
+            rr = np.repeat(rows, CHUNK)
+            ok = kk < K
+            rr, kk = rr[ok], kk[ok]
+            d = P[rr] - q[kk]
+            close = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] < R * R  # only these can be in a keep-out
+            rr, kk, d = rr[close], kk[close], d[close]
+            h = self.stack(ta, False).conflict(d, ty[rr])
+            # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
+            lo_d = np.maximum(t0[rr[h]] - kk[h], 0)
+            hi_d = np.minimum(t1[rr[h]] - kk[h], T)  # exclusive
+            span = hi_d > lo_d
+            bad |= _covered(lo_d[span], hi_d[span], T)
         # parked for good after each track's last sample: any d with d + k >= n - 1 for a hit k
         tail_from = T
         for tr in self.parked_near(lo, hi, agent):
-            hit_k = _conflict(self.problem.keepouts[(ta, tr.type)], tr.end_m[None] - q, False, SAMPLING_GROWTH_M)
+            hit_k = self.stack(ta, False).conflict(tr.end_m[None] - q, np.full(K, tr.type))
             if hit_k.any():
                 k_last = K - 1 - int(np.argmax(hit_k[::-1]))
                 tail_from = min(tail_from, max(0, tr.arrival_step - k_last))
@@ -213,18 +258,13 @@ class Occupancy:
             near = np.flatnonzero((np.abs(d[:, 0]) <= self.reach) & (np.abs(d[:, 1]) <= self.reach))
             if near.size:
                 h = np.zeros(near.size, dtype=bool)
-                for tb in np.unique(ty[near]).tolist():
-                    ko = self.problem.keepouts[(ta, int(tb))]
-                    for rest in (False, True):
-                        m = (ty[near] == tb) & (mv[near] != rest)
-                        if m.any():
-                            h[m] = _conflict(ko, d[near[m]], rest, SAMPLING_GROWTH_M)
+                for rest in (False, True):
+                    m = mv[near] != rest
+                    if m.any():
+                        h[m] = self.stack(ta, rest).conflict(d[near[m]], ty[near[m]])
                 out |= _covered(np.minimum(t0[near[h]], T), np.minimum(t1[near[h]], T), T)
         for tr in self.parked_near(w, w, agent):
-            if (
-                tr.arrival_step < T
-                and _conflict(self.problem.keepouts[(ta, tr.type)], (tr.end_m - w)[None], True, SAMPLING_GROWTH_M)[0]
-            ):
+            if tr.arrival_step < T and self.stack(ta, True).conflict((tr.end_m - w)[None], np.array([tr.type]))[0]:
                 out[tr.arrival_step :] = True
         return out
 
@@ -242,12 +282,11 @@ class Occupancy:
             # as the queries see it: the moving keep-out along a move of ``track`` (its ends too),
             # elsewhere the resting one where the other rests as well
             moving = _at(track.in_move, track, steps) | _at(other.moving, other, steps)
-            ko = self.problem.keepouts[(ta, other.type)]
             hit = np.zeros(steps.size, dtype=bool)
             for rest in (False, True):
                 m = moving != rest
                 if m.any():
-                    hit[m] = _conflict(ko, d[m], rest, SAMPLING_GROWTH_M)
+                    hit[m] = self.stack(ta, rest).conflict(d[m], np.full(int(m.sum()), other.type))
             if hit.any():
                 found.add(other.agent)
         return found
@@ -255,9 +294,7 @@ class Occupancy:
 
 def _covered(lo: np.ndarray, hi: np.ndarray, T: int) -> np.ndarray:
     """(T,) bool: the union of the step ranges [lo, hi) (each within [0, T])."""
-    diff = np.zeros(T + 1, dtype=np.int64)
-    np.add.at(diff, lo, 1)
-    np.add.at(diff, hi, -1)
+    diff = np.bincount(lo, minlength=T + 1) - np.bincount(hi, minlength=T + 1)
     return np.cumsum(diff[:T]) > 0
 
 
@@ -271,7 +308,9 @@ def _at(flags: np.ndarray, track: GridTrack, steps: np.ndarray) -> np.ndarray:
 
 def _conflict(ko, d: np.ndarray, rest: bool, grow_m: float) -> np.ndarray:
     """KeepOut test of relative vectors ``d`` (M, 3), m, with the keep-out grown by ``grow_m``
-    (the vectors are shrunk towards the pair's centre by it, horizontally and in distance)."""
+    (the vectors are shrunk towards the pair's centre by it, horizontally and in distance): the
+    definition; the queries use the same test stacked over types (:class:`GrownStack`, tested
+    equal to this one)."""
     d = np.asarray(d, dtype=float).reshape(-1, 3)
     if grow_m <= 0.0:
         return ko.conflict(d, rest=rest)

@@ -10,8 +10,8 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    (:func:`_prioritised_stage`; groups that never interact apart,
    :mod:`proxplan.planner.swarm.components`). One vehicle after another along the best of its
    straight line and a wavefront route through the others' space-time, timed exactly; vehicles
-   not planned yet are predictions; a vehicle that cannot be planned is repaired (the vehicles in
-   conflict with it planned again after it), then the pass restarts with it first.
+   not planned yet are predictions; a vehicle that cannot be planned is repaired (only the vehicles
+   in conflict with it planned again, after it), within a count of repairs per pass.
 3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
@@ -69,13 +69,20 @@ class SwarmOptions:
 
     max_run: int = 4  # longest straight move of one coordination step, in lattice edges
     max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
+    # LaCAM's PIBT proposals before it gives up (most fail or revisit a configuration and add none);
+    # set on the named layouts at 64 fixed: grid 60, corridor 2378 to a plan; pillar none in 5800
+    max_proposals: int = 4000
+    # prioritised planning's budget: single-vehicle plannings over all its passes (orders, holds,
+    # repairs), per vehicle; once spent the best plan found so far is kept, or the lattice plan
+    # is the answer (a count: the same plan on every machine). Set on the named layouts at 64
+    # fixed (docs/planner.md): two orders need 2, a failing pass 1-3, a pass with repairs 2-3
+    plannings_per_vehicle: float = 6.0
     passes: int = 3  # continuous re-timing passes
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
     # prioritised planning's repair budget, per vehicle of a group (rounded up): on the named layouts at
     # 32 vehicles the plans that repaired at all needed 1-3 repairs; 2 per vehicle let grid-64 run
     # for minutes on failing passes
     repairs_per_vehicle: float = 0.25
-    max_restarts: int = 2  # prioritised planning begun anew with a vehicle it could not repair first
     orders: tuple[str, ...] = ("dependencies first", "longest first")  # prioritised planning's orders (ORDERS)
     # a vehicle not planned yet is assumed to hold its start this long, then to leave on its straight
     # route, s: tried in turn until prioritised planning finds a plan (a longer hold leaves it more
@@ -135,6 +142,9 @@ def swarm_timed(
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
         found = _lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+        if opts.prioritized:  # say why: prioritised planning gave up within its count budget
+            spent = extra.get("counts", {}).get("planned", 0)
+            found.coordination = f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     info = SwarmInfo(
@@ -215,7 +225,6 @@ def _kept_straight_stage(
     order = [a for a in dependency_order(problem) if a in conflicted]
     options = PriorityOptions(
         max_repairs=math.ceil(opts.repairs_per_vehicle * problem.n_agents),
-        max_restarts=opts.max_restarts,
         hold_s=opts.unplanned_hold_s[0],
         through=opts.through_waypoints == "always",
     )
@@ -232,7 +241,7 @@ def _kept_straight_stage(
     extra["kept_straight_time_s"] = round(time.perf_counter() - t1, 3)
     coordination = (
         f"straight lines of {still} vehicles in no conflict kept, the other {problem.n_agents - still} planned "
-        f"around them ({result.planned} vehicle plannings, {result.repairs} repairs, {result.restarts} restarts)"
+        f"around them ({result.planned} vehicle plannings, {result.repairs} repairs, {result.against_order} against the order)"
     )
     tracks = [result.tracks[a] for a in range(problem.n_agents)]
     return _Stage(tracks, "prioritised", coordination, _own_routes(problem, tracks))
@@ -242,8 +251,9 @@ def _prioritised_stage(
     problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
 ) -> _Stage | None:
     """Prioritised continuous planning of each group of vehicles that interact, in each of
-    ``opts.orders``, the shorter plan kept; with the first of ``opts.unplanned_hold_s`` for which an
-    order finds a plan; None when every one gives up."""
+    ``opts.orders``, the shorter plan kept; each order with the first of ``opts.unplanned_hold_s``
+    for which it finds a plan; all within a count of single-vehicle plannings
+    (``opts.plannings_per_vehicle``); None when every one gives up."""
     import os
 
     horizon = _horizon_steps(lower_bound_s)
@@ -252,15 +262,20 @@ def _prioritised_stage(
     workers = opts.workers if opts.workers > 0 else (os.cpu_count() or 1)
     tried = []
     best: _Stage | None = None
-    counts = {"groups": len(groups), "planned": 0, "repairs": 0, "restarts": 0}
-    for hold_s in opts.unplanned_hold_s:
-        options = PriorityOptions(
-            max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
-            max_restarts=opts.max_restarts,
-            hold_s=hold_s,
-            through=opts.through_waypoints == "always",
-        )
-        for label in opts.orders:
+    counts = {"groups": len(groups), "planned": 0, "repairs": 0, "against_order": 0}
+    budget = math.ceil(opts.plannings_per_vehicle * problem.n_agents)
+    for label in opts.orders:
+        for hold_s in opts.unplanned_hold_s:
+            left = budget - counts["planned"]
+            if left <= 0:
+                tried.append(f"{label}, hold {hold_s:g} s: not tried (planning budget of {budget} spent)")
+                continue
+            options = PriorityOptions(
+                max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
+                max_plannings=left,
+                hold_s=hold_s,
+                through=opts.through_waypoints == "always",
+            )
             try:
                 result = plan_groups(
                     problem,
@@ -274,13 +289,17 @@ def _prioritised_stage(
                 )
             except PrioritizedFailed as err:
                 counts["planned"] += err.planned
-                tried.append(f"{label}, hold {hold_s:g} s: gave up (" + "; ".join(err.history[-2:]) + ")")
+                tried.append(
+                    f"{label}, hold {hold_s:g} s: gave up after {err.planned} plannings ("
+                    + "; ".join(err.history[-2:])
+                    + ")"
+                )
                 continue
             counts["planned"] += result.planned
             counts["repairs"] += result.repairs
-            counts["restarts"] += result.restarts
+            counts["against_order"] += result.against_order
             makespan = max(tr.arrival_s for tr in result.tracks.values())
-            tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s")
+            tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s ({result.planned} plannings)")
             if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
                 tracks = [result.tracks[a] for a in range(problem.n_agents)]
                 best = _Stage(
@@ -288,11 +307,10 @@ def _prioritised_stage(
                     "prioritised",
                     f"prioritised continuous planning, {label}, vehicles not planned yet assumed to leave after "
                     f"{hold_s:g} s ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
-                    f"repairs, {result.restarts} restarts)",
+                    f"repairs, {result.against_order} against the order)",
                     _own_routes(problem, tracks),
                 )
-        if best is not None:  # a longer hold only where this one found nothing
-            break
+            break  # a longer hold only where this one found nothing
     extra["prioritised"] = "; ".join(tried)
     extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
     extra["counts"] = counts
@@ -304,7 +322,9 @@ def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pr
     lattice = build_lattice(problem, max_run=opts.max_run)
     sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
     t1 = time.perf_counter()
-    result = Lacam(lattice, sync, seed=opts.seed).solve(max_nodes=opts.max_nodes, deadline=deadline, progress=progress)
+    result = Lacam(lattice, sync, seed=opts.seed).solve(
+        max_nodes=opts.max_nodes, max_proposals=opts.max_proposals, deadline=deadline, progress=progress
+    )
     configurations = result.configurations
     extra["lattice"] = LatticeInfo(
         spacing_m=lattice.spacing_m,

@@ -18,13 +18,16 @@ the way of its ideal track is planned once more without them.
 cannot be planned, the planned vehicles whose tracks conflict with its ideal track (its straight
 line from t = 0, or its route through the static free space) are taken out (their predictions come
 back), the vehicle is planned first, then they are planned again, in their order. A repair puts the
-vehicle before them for good (a partial order, kept transitive, as in priority-based search): a
-vehicle is never taken out for one that must come after it, so repairs cannot go round in circles.
-Every repair is counted; ``max_repairs`` (a count) bounds them. A vehicle still failing then, or failing with
-nobody to take out, starts the pass anew with it first in the order (the whole order changes; at
-most ``max_restarts`` times, a count); then the stage gives up (:class:`PrioritizedFailed`: the
-caller falls back). A caller's
-wall-clock ``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
+vehicle before them (a partial order, kept transitive, as in priority-based search), so repairs
+do not go round in circles while the order allows one. When it does not (every vehicle in the
+way must go before it, by an earlier repair), the repair goes against the order: those vehicles
+are taken out all the same and the vehicle goes before them from now on (the earlier repair that
+put them first is undone for these pairs) - only these vehicles are planned again, never the
+whole pass. When nothing planned is in the way of its ideal track (only predictions of vehicles
+not planned yet), it flies that track: it is clear of every planned track. Every repair is
+counted; ``max_repairs`` (a count, per pass) bounds them, ``max_plannings`` the single-vehicle
+plannings of the pass, and a vehicle still failing then gives the pass up (:class:`PrioritizedFailed`: the caller falls back). A caller's wall-clock
+``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
 
 Order (:func:`dependency_order`): a vehicle whose start another one's goal needs is planned first
 (it must leave before the other arrives); otherwise, and to break cycles, the longer straight line
@@ -57,7 +60,7 @@ class PriorityOptions:
     """Knobs of prioritised planning; budgets are counts."""
 
     max_repairs: int  # repairs (a failed vehicle planned first, those in conflict with it again) per pass
-    max_restarts: int = 2  # passes begun anew with a vehicle that could not be repaired first
+    max_plannings: int | None = None  # single-vehicle plannings of the pass (repairs' included); None: no cap
     hold_s: float = 0.0  # a vehicle not planned yet is assumed to hold its start this long, then leave, s
     through: bool = True  # fly through waypoints without stopping (else rest to rest at each)
 
@@ -68,7 +71,7 @@ class PriorityResult:
     planned: int  # vehicle plannings done (repairs plan some again)
     repairs: int
     history: list[str] = field(default_factory=list)  # what each repair was for
-    restarts: int = 0
+    against_order: int = 0  # repairs that reversed an order set by an earlier repair
 
 
 class PrioritizedFailed(Exception):
@@ -119,15 +122,18 @@ def _ideal(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack | Non
 def _plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
     problem = occ.problem
     s, g = problem.starts_m[agent], problem.goals_m[agent]
-    chains = [np.array([s, g])]
-    route = wave_route(occ, agent, s, g)
-    if route is not None and len(route) > 2:
-        chains.append(route)
-    best = None
-    for W in chains:
-        res = time_chain(occ, agent, W, arrive_by=None if best is None else best.arrival_step - 1, through=through)
-        if res is not None and (best is None or res.arrival_step < best.arrival_step):
-            best = res
+    best = time_chain(occ, agent, np.array([s, g]), through=through)
+    # no flight from rest to rest is faster than the straight line's rest-to-rest time: a straight
+    # line flown at once is the best there is, and no route is searched
+    unobstructed = rest_to_rest(float(np.linalg.norm(g - s)), problem.limits[agent], GRID_DT_S).steps
+    if best is None or best.arrival_step > unobstructed:
+        route = wave_route(occ, agent, s, g)
+        if route is not None and len(route) > 2:
+            res = time_chain(
+                occ, agent, route, arrive_by=None if best is None else best.arrival_step - 1, through=through
+            )
+            if res is not None and (best is None or res.arrival_step < best.arrival_step):
+                best = res
     if best is None:  # a slower, wider route leaves the exact timing more room
         slow = wave_route(occ, agent, s, g, pace=SLOW_PACE, grow_m=SLOW_GROWTH_M)
         if slow is not None:
@@ -146,34 +152,18 @@ def prioritized_tracks(
     deadline: float | None = None,
 ) -> PriorityResult:
     """Tracks of every agent of ``order`` (see module); :class:`PrioritizedFailed` when a vehicle
-    still cannot be planned after ``options.max_restarts`` restarts. ``initial``: tracks in place
-    before the first vehicle of ``order`` is planned (as if planned first; repairs may take them
-    out and plan them again), e.g. straight lines that conflict with nobody."""
-    history: list[str] = []
-    planned_before = 0
-    for restart in range(options.max_restarts + 1):
-        try:
-            result = _in_order(
-                problem,
-                order,
-                options,
-                horizon_steps=horizon_steps,
-                initial=initial or {},
-                progress=progress,
-                deadline=deadline,
-            )
-        except PrioritizedFailed as err:
-            history += err.history + [f"restart with {problem.names[err.agent]} first"]
-            planned_before += err.planned
-            if restart == options.max_restarts:
-                raise PrioritizedFailed(err.agent, err.repairs, history, planned=planned_before) from None
-            order = [err.agent] + [a for a in order if a != err.agent]
-            continue
-        result.planned += planned_before
-        result.history = history + result.history
-        result.restarts = restart
-        return result
-    raise AssertionError("unreachable")
+    still cannot be planned once ``options.max_repairs`` repairs are spent. ``initial``: tracks in
+    place before the first vehicle of ``order`` is planned (as if planned first; repairs may take
+    them out and plan them again), e.g. straight lines that conflict with nobody."""
+    return _in_order(
+        problem,
+        order,
+        options,
+        horizon_steps=horizon_steps,
+        initial=initial or {},
+        progress=progress,
+        deadline=deadline,
+    )
 
 
 def _in_order(
@@ -203,6 +193,7 @@ def _in_order(
             occ.put(predicted_track(problem, a, hold_s=options.hold_s))
     queue = deque(a for a in order if not problem.pinned[a] and a not in initial)
     result = PriorityResult(planned, 0, 0)
+    reversed_for: set[tuple[int, frozenset[int]]] = set()  # repairs against the order made so far
     total = len(queue)
     while queue:
         a = queue.popleft()
@@ -213,6 +204,9 @@ def _in_order(
         if progress is not None and result.planned % 8 == 0:
             done = len(planned) - int(problem.pinned.sum())
             progress(f"continuous planning {done}/{total} ({result.repairs} repairs)", 0.1 + 0.5 * done / max(1, total))
+        if options.max_plannings is not None and result.planned >= options.max_plannings:
+            result.history.append(f"{problem.names[a]}: planning budget of {options.max_plannings} spent")
+            raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
         prediction = occ.remove(a)
         track = _plan_one(occ, a, options.through)
         result.planned += 1
@@ -237,23 +231,44 @@ def _in_order(
                 planned[a] = track
                 occ.put(track)
                 continue
-        blockers = sorted(
-            (b for b in in_conflict if b in planned and not problem.pinned[b] and a not in after[b]),
-            key=lambda b: rank[b],
-        )
-        if not blockers or result.repairs >= options.max_repairs:
-            why = "nobody to take out" if not blockers else f"repair budget of {options.max_repairs} spent"
+        in_way = sorted((b for b in in_conflict if b in planned and not problem.pinned[b]), key=lambda b: rank[b])
+        if ideal is not None and not any(b in planned for b in in_conflict):  # only predictions in its way
+            planned[a] = ideal
+            occ.put(ideal)
+            result.history.append(f"{problem.names[a]} on its ideal track (only predictions in its way)")
+            continue
+        blockers = [b for b in in_way if a not in after[b]]
+        if not in_way or result.repairs >= options.max_repairs:
+            why = "nobody to take out" if not in_way else f"repair budget of {options.max_repairs} spent"
             result.history.append(f"{problem.names[a]}: {why}")
             if prediction is not None:
                 occ.put(prediction)
             raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
         result.repairs += 1
-        result.history.append(f"{problem.names[a]} before " + ", ".join(problem.names[b] for b in blockers))
+        against = not blockers
+        if against:  # every vehicle in its way goes before it: reverse that for these pairs
+            blockers = in_way
+            result.against_order += 1
+            key = (a, frozenset(blockers))
+            if key in reversed_for:  # the same reversal again: the pair goes round in a circle
+                result.history.append(
+                    f"{problem.names[a]}: goes round in a circle with " + ", ".join(problem.names[b] for b in blockers)
+                )
+                if prediction is not None:
+                    occ.put(prediction)
+                raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
+            reversed_for.add(key)
+        result.history.append(
+            f"{problem.names[a]} before "
+            + ", ".join(problem.names[b] for b in blockers)
+            + (" (against the order)" if against else "")
+        )
         for b in blockers:  # a goes before b from now on, and before everything b goes before
-            after[a] |= {b} | after[b]
+            after[b].discard(a)
+            after[a] |= {b} | (after[b] - {a})
         for c in after:
             if a in after[c]:
-                after[c] |= after[a]
+                after[c] |= after[a] - {c}
         for b in blockers:
             del planned[b]
             occ.put(predicted_track(problem, b, hold_s=options.hold_s))

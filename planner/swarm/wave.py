@@ -17,6 +17,7 @@ cell (Douglas-Peucker: the grid's staircase is not part of the route), become th
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -30,6 +31,24 @@ MARGIN_M = 2.0  # the grid covers the start-goal box grown by this much (clipped
 _NEIGHBOURS = ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1))
 
 
+def margin_box(problem, start_m: np.ndarray, goal_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The start-goal box grown by ``MARGIN_M`` (clipped to the free box): (lo, hi) (2,), m."""
+    lo = np.maximum(np.minimum(start_m, goal_m)[:2] - MARGIN_M, problem.lo_m[:2])
+    hi = np.minimum(np.maximum(start_m, goal_m)[:2] + MARGIN_M, problem.hi_m[:2])
+    return lo, hi
+
+
+def route_box(problem, start_m: np.ndarray, goal_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The horizontal box (lo, hi) (2,), m, that a route from ``start_m`` to ``goal_m`` stays in:
+    :func:`margin_box`, or the whole free box when the straight line between them is not
+    statically free (:func:`wave_route` then searches there when the margin box holds no route:
+    the way round a wall may lie farther out, as for corridor-256's far rows, 3 m beyond it)."""
+    if not problem.segment_free(start_m, goal_m):
+        return problem.lo_m[:2].copy(), problem.hi_m[:2].copy()
+    return margin_box(problem, start_m, goal_m)
+
+
+@functools.lru_cache(maxsize=64)
 def _disc(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
     n = int(math.ceil(radius_cells))
     ix, iy = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
@@ -49,14 +68,26 @@ def wave_route(
     """Waypoints (m+1, 3) of a route from start to goal through the others' space-time (see
     module; the height runs linearly with the distance flown), or None when the wavefront dies or
     never reaches a goal that stays free. ``pace``: fraction of the speed limit; ``grow_m``: extra
-    keep-out radius, m (a slower, wider route leaves the exact timing more room)."""
+    keep-out radius, m (a slower, wider route leaves the exact timing more room). The search
+    covers :func:`margin_box`, then, when that holds no route, :func:`route_box` if larger."""
+    p = occ.problem
+    small = margin_box(p, start_m, goal_m)
+    got = _wave_in_box(occ, agent, start_m, goal_m, small, pace=pace, grow_m=grow_m)
+    if got is None:
+        large = route_box(p, start_m, goal_m)
+        if not (np.array_equal(large[0], small[0]) and np.array_equal(large[1], small[1])):
+            got = _wave_in_box(occ, agent, start_m, goal_m, large, pace=pace, grow_m=grow_m)
+    return got
+
+
+def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float) -> np.ndarray | None:
+    """:func:`wave_route` on the grid over ``box`` ((lo, hi) (2,), m)."""
     p = occ.problem
     lim = p.limits[agent]
     h = CELL_M
     layer_s = h * math.sqrt(2.0) / (pace * lim.max_speed_mps)
     n_layers = max(2, int(occ.horizon * GRID_DT_S / layer_s))
-    lo = np.maximum(np.minimum(start_m, goal_m)[:2] - MARGIN_M, p.lo_m[:2])
-    hi = np.minimum(np.maximum(start_m, goal_m)[:2] + MARGIN_M, p.hi_m[:2])
+    lo, hi = box
     nx = int(math.ceil((hi[0] - lo[0]) / h)) + 1
     ny = int(math.ceil((hi[1] - lo[1]) / h)) + 1
     gx = lo[0] + np.arange(nx) * h
@@ -88,8 +119,12 @@ def wave_route(
         lay = np.floor(k / per_layer + 0.5).astype(np.int64)
         cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
         cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
-        key = np.unique(np.stack([lay, cx, cy], axis=1), axis=0)
-        mark(key[:, 0], key[:, 1], key[:, 2], disc)
+        # distinct (layer, cell) of its samples, one 1-D key each (cells may lie outside the grid)
+        span_x, span_y = int(cx.max() - cx.min()) + 1, int(cy.max() - cy.min()) + 1
+        key = np.unique((lay * span_x + (cx - cx.min())) * span_y + (cy - cy.min()))
+        key_l, rem = np.divmod(key, span_x * span_y)
+        key_x, key_y = np.divmod(rem, span_y)
+        mark(key_l, key_x + cx.min(), key_y + cy.min(), disc)
         last = int(lay[-1])
         if last < n_layers and not tr.vanishes:  # parked for good
             ox, oy = disc

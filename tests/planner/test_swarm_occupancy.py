@@ -108,3 +108,25 @@ def test_holds_equal_a_brute_force_check(world):
         np.testing.assert_array_equal(got, want)
         held_somewhere.append(bool(want.any()))
     assert any(held_somewhere), "the test world must forbid a hold somewhere"
+
+
+def test_stacked_keepouts_equal_the_definition(world):
+    """The queries' keep-out test of mixed types in one call (GrownStack) gives the verdict of
+    ``_conflict`` (each pair's keep-out, the vectors shrunk by the growth) on random relative
+    vectors around every pair's boundary, moving and at rest."""
+    problem = world[0]
+    occ = Occupancy(problem, [], HORIZON)
+    rng = np.random.default_rng(3)
+    n_types = 1 + max(max(k) for k in problem.keepouts)
+    for ta in range(n_types):
+        for rest in (False, True):
+            tb = rng.integers(0, n_types, 4000)
+            reach = np.array([problem.keepouts[(ta, int(b))].reach_xy_m for b in tb])
+            d = np.c_[rng.uniform(-1.2, 1.2, (4000, 2)) * reach[:, None], rng.uniform(-3.0, 3.0, 4000)]
+            d[:200, 2] = rng.uniform(-0.02, 0.02, 200)  # within the tube of dz = 0: both directions apply
+            got = occ.stack(ta, rest).conflict(d, tb)
+            want = np.array(
+                [_conflict(problem.keepouts[(ta, int(b))], v[None], rest, SAMPLING_GROWTH_M)[0] for v, b in zip(d, tb)]
+            )
+            assert 0.1 < want.mean() < 0.9, "the vectors must straddle the boundary"
+            np.testing.assert_array_equal(got, want)
