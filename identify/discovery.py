@@ -33,7 +33,7 @@ stability bound and the BIC are derived (docs/identify.md). The kept terms of al
 effect ``Effect("discovered:residual", {key: coefficient})``, the key ``"<channel>*<feature>"`` for a feature that
 is already a force or torque (coefficient per feature unit) and ``"<channel>*W*<feature>"`` for a shape
 (a kernel, a speed), scaled to the target: times its weight W for a force, W L for a torque
-(:func:`proxplan.physics.features.term_scale`; one coefficient serves a 32 g and a 650 g vehicle), applied by :mod:`proxplan.physics.effects` like any effect and saved with the model.
+(:func:`proxplan.physics.feature_terms.term_scale`; one coefficient serves a 32 g and a 650 g vehicle), applied by :mod:`proxplan.physics.effects` like any effect and saved with the model.
 """
 
 from __future__ import annotations
@@ -260,9 +260,9 @@ def discover_terms(
         a = np.column_stack([always[k][:, c] for k in always_names]) if always_names else np.zeros((len(y), 0))
         yr, xr = _residualized(a, y[:, c], xc[:, usable], sel.weight * train_rows)
         sums = GroupSums.build(xr, yr, sel.weight, sel.group, sel.plan.n_groups, [names[j] for j in usable])
+        columns_here = [names[j] for j in usable]
         for h, w in enumerate(halves):
-            n_eff = max(float(w @ sums.w) / sel.tau, 2.0)
-            picked = [names[usable[j]] for j in omp_bic(sums, w, n_eff, options.max_terms_per_channel)]
+            picked = _picked(sums, w, sel.tau, options.max_terms_per_channel, columns_here)
             groups = {f"{channel}|{feature_group(f)}" for f in picked}
             n_chosen[h] += len(groups)
             for g in groups:
@@ -271,8 +271,7 @@ def discover_terms(
                 member_counts[term_key(channel, f)] = member_counts.get(term_key(channel, f), 0) + 1
         for cl, fold_halves in folds.items():
             for w in fold_halves:
-                n_eff = max(float(w @ sums.w) / sel.tau, 2.0)
-                picked = [names[usable[j]] for j in omp_bic(sums, w, n_eff, options.max_terms_per_channel)]
+                picked = _picked(sums, w, sel.tau, options.max_terms_per_channel, columns_here)
                 for g in {f"{channel}|{feature_group(f)}" for f in picked}:
                     fold_counts[cl][g] = fold_counts[cl].get(g, 0) + 1
     n_halves = max(len(halves), 1)
@@ -309,7 +308,13 @@ def discover_terms(
                            columns=columns, top=top, member_probability=member_prob, fold_eligible=fold)  # fmt: skip
 
 
+def _picked(sums: GroupSums, w: np.ndarray, tau: float, max_terms: int, columns: list[str]) -> list[str]:
+    """The features (names of ``sums``' ``columns``) that one half-sample's OMP path picks (:func:`omp_bic`)."""
+    n_eff = max(float(w @ sums.w) / tau, 2.0)
+    return [columns[j] for j in omp_bic(sums, w, n_eff, max_terms)]
+
+
 def _group_of(key: str) -> str:
-    """``"<channel>|<group>"`` of a term key (:func:`proxplan.physics.features.term_key`)."""
+    """``"<channel>|<group>"`` of a term key (:func:`proxplan.physics.feature_terms.term_key`)."""
     channel, feature = parse_term_key(key)
     return f"{channel}|{feature_group(feature)}"

@@ -298,8 +298,8 @@ class EffectSelector:
 
     def _thrust_trial(self, model: Model) -> EffectTrial:
         """The record of the thrust scales: always fitted, with their prior (module docstring)."""
-        scales = {s.name.rsplit(".", 1)[0]: float(model.thrust_scale.get(s.name.rsplit(".", 1)[0], 1.0))
-                  for s in self.thrust_specs}  # fmt: skip
+        types = [s.name.rsplit(".", 1)[0] for s in self.thrust_specs]
+        scales = {t: float(model.thrust_scale.get(t, 1.0)) for t in types}
         text = ", ".join(f"{t} {v:.4f}" for t, v in sorted(scales.items()))
         reason = ("kept: a nuisance parameter, always fitted beside every candidate (each vehicle type's thrust "
                   f"scale, logged over delivered thrust, MAP with its prior N(1, 0.1)): {text}")  # fmt: skip

@@ -105,7 +105,8 @@ def select_and_discover(
                             f"needs > {t.z:.2f} SE)")  # fmt: skip
     effects.selected = [n for n in effects.selected if n in joint.chosen or n == THRUST_BIAS]
     beyond_thrust = [n for n in effects.selected if n != THRUST_BIAS]
-    if start == "calibrated" and not beyond_thrust and not (discovery is not None and discovery.kept):
+    terms_kept = discovery is not None and bool(discovery.kept)
+    if start == "calibrated" and not beyond_thrust and not terms_kept:
         # nothing kept: the calibration's own MAP fit (nonlinear, on every train sample) stands; the joint
         # step exists to refit the vehicle parameters beside kept candidates, and alone it is only the
         # first-order, subsampled copy of that fit (steps of 1e-4 in ln theta that float32 rounding moves).
@@ -115,7 +116,7 @@ def select_and_discover(
             reference = replace(reference, thrust_scale=dict(calibrated_thrust_scale),
                                 effects=(*reference.effects, Effect(THRUST_BIAS, {"force_z_N": 0.0})))  # fmt: skip
         model = reference
-    elif prior_model is not None and options.calibrate and not (discovery is not None and discovery.kept):
+    elif prior_model is not None and options.calibrate and not terms_kept:
         # not with discovered terms: a term on a base feature (base_fz_lag...) was fitted on the base at the
         # reference, and refitting the base under it changes what the term means (and each evaluation of
         # the features costs: on the shipped manifest the polish doubled selection's time)
