@@ -63,6 +63,14 @@ from proxplan.physics.effects import (
     effect_wrench,
     total_wrench,
 )
+from proxplan.physics.feature_terms import (
+    is_wrench_feature,
+    parse_term_key,
+    term_formula,
+    term_key,
+    term_scale,
+    weight_scaled,
+)
 from proxplan.physics.features import (
     CHANNELS,
     FEATURE_DOCS,
@@ -71,12 +79,6 @@ from proxplan.physics.features import (
     feature_family,
     feature_group,
     feature_matrix,
-    is_wrench_feature,
-    parse_term_key,
-    term_formula,
-    term_key,
-    term_scale,
-    weight_scaled,
 )
 from proxplan.physics.hover_loop import (
     REFERENCE_INPUTS,

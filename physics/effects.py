@@ -30,13 +30,8 @@ from proxplan.physics.disturbance import (
     oncoming_speed_per_rotor_mps,
     vertical_point_wrench,
 )
-from proxplan.physics.features import (
-    CHANNELS,
-    feature_matrix,
-    parse_term_key,
-    term_scale,
-    weight_scaled,
-)
+from proxplan.physics.feature_terms import parse_term_key, term_scale, weight_scaled
+from proxplan.physics.features import CHANNELS, feature_matrix
 from proxplan.physics.room import Plane
 from proxplan.physics.stack import shielding_factors
 from proxplan.physics.vehicles import Vehicle
@@ -435,7 +430,7 @@ _EFFECT_FUNCTIONS = {
 
 def _discovered(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """A discovered term: wrench channel c = sum_j params["c*feature_j"] * feature_j (a weight-scaled key
-    ``"c*W*feature_j"`` also times :func:`proxplan.physics.features.term_scale` of the target), the
+    ``"c*W*feature_j"`` also times :func:`proxplan.physics.feature_terms.term_scale` of the target), the
     features of :func:`proxplan.physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
     wrench = np.zeros((inputs.n_samples, 6))
     if p:

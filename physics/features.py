@@ -4,7 +4,8 @@ A discovered term (``Effect("discovered:<label>", params)``, see :mod:`proxplan.
 linear combination of the features below: every parameter is named ``"<channel>*<feature>"`` and is
 the coefficient, in channel units per feature unit, of one feature in one wrench channel
 (:data:`CHANNELS`: world-frame force in N, torque in N m about the target's centre of mass). So a
-term is stored as name + params and the feature list is in the parameter names.
+term is stored as name + params and the feature list is in the parameter names (how a parameter is named,
+scaled and printed: :mod:`proxplan.physics.feature_terms`).
 
 Frames and conventions as in :mod:`proxplan.physics.effects`: world frame, z up; ``offsets_m`` are
 ``p_target - p_source``; dz = -offset_z > 0 when the target is below a source; r the horizontal
@@ -246,11 +247,6 @@ def feature_family(name: str) -> str:
     return "place"
 
 
-def between_vehicle_part(params: dict[str, float]) -> dict[str, float]:
-    """The parameters of a discovered term whose features act between vehicles (sums over sources)."""
-    return {k: v for k, v in params.items() if parse_term_key(k)[1] not in TARGET_ONLY_FEATURES}
-
-
 def _runs(time_s: np.ndarray) -> list[slice]:
     """Contiguous time runs of ``time_s`` (see :data:`MAX_GAP_S`)."""
     dt = np.diff(time_s)
@@ -420,59 +416,3 @@ def feature_matrix(
         f["plane_exp_1"] = np.exp(-d / target.size_m).sum(axis=1)
         f["plane_cb_1"] = ((r_rot / (4.0 * d)) ** 2).sum(axis=1)
     return np.column_stack([f[k] for k in wanted])
-
-
-WRENCH_UNITS = ("N", "Nm", "Nmps")
-"""Unit suffixes of features that are already a force or torque (the base prediction and its copies, the
-thrust from the motion): a term on them is ``coefficient x feature``. Every other feature (a kernel, a
-speed) is a shape; a term on it is scaled to the target vehicle (:func:`term_scale`)."""
-WEIGHT_MARK = "W"
-"""A term key ``"<channel>*W*<feature>"`` is ``coefficient x feature x`` :func:`term_scale`."""
-
-
-def is_wrench_feature(name: str) -> bool:
-    """Whether feature ``name`` is already a force or torque (:data:`WRENCH_UNITS`)."""
-    return name.rsplit("_", 1)[-1] in WRENCH_UNITS
-
-
-def term_scale(channel: str, target: Vehicle) -> float:
-    """What a shape feature is multiplied by in a weight-scaled term on ``channel``: the target's weight W (N)
-    for a force, W times its size L (N m) for a torque. A disturbance the controller must reject is
-    measured against its authority, which scales with W: one coefficient then describes a 32 g and a 650 g
-    vehicle alike."""
-    return target.weight_N * (target.size_m if channel.startswith("torque") else 1.0)
-
-
-def term_key(channel: str, feature: str) -> str:
-    """The parameter name of a term: ``"<channel>*<feature>"`` for a wrench feature, else the weight-scaled
-    ``"<channel>*W*<feature>"``."""
-    return f"{channel}*{feature}" if is_wrench_feature(feature) else f"{channel}*{WEIGHT_MARK}*{feature}"
-
-
-def parse_term_key(key: str) -> tuple[str, str]:
-    """Split a discovered-term parameter name ``"<channel>*<feature>"`` (or the weight-scaled
-    ``"<channel>*W*<feature>"``, :func:`weight_scaled`) into channel and feature; ValueError if unknown."""
-    channel, sep, feature = key.partition("*")
-    if feature.startswith(WEIGHT_MARK + "*"):
-        feature = feature[len(WEIGHT_MARK) + 1 :]
-    if not sep or channel not in CHANNELS or feature not in FEATURE_DOCS:
-        raise ValueError(
-            f"discovered-term parameter {key!r}: expected '<channel>*<feature>' or '<channel>*W*<feature>' with "
-            f"channel one of {', '.join(CHANNELS)} and a feature of proxplan.physics.features.FEATURE_NAMES"
-        )
-    return channel, feature
-
-
-def weight_scaled(key: str) -> bool:
-    """Whether the term ``key`` is scaled to the target vehicle (:func:`term_scale`)."""
-    return key.partition("*")[2].startswith(WEIGHT_MARK + "*")
-
-
-def term_formula(params: dict[str, float]) -> str:
-    """Human-readable formula of a discovered term, one line per channel."""
-    by_channel: dict[str, list[str]] = {}
-    for key, coef in params.items():
-        channel, feature = parse_term_key(key)
-        scale = (" * W * L" if channel.startswith("torque") else " * W") if weight_scaled(key) else ""
-        by_channel.setdefault(channel, []).append(f"{coef:+.4g}{scale} * {feature}")
-    return "; ".join(f"{c} = {' '.join(terms)}" for c, terms in by_channel.items())

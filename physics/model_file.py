@@ -57,7 +57,7 @@ from proxplan.fileio import (
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.disturbance import DEFAULT_OPTIONS, ModelOptions
 from proxplan.physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
-from proxplan.physics.features import between_vehicle_part, parse_term_key
+from proxplan.physics.feature_terms import between_vehicle_part, parse_term_key
 from proxplan.physics.residual_spread import SPREAD_FORM, ResidualSpread, TypeSpread
 from proxplan.physics.stack import MAX_STACK_SHIELDING
 from proxplan.physics.vehicle_yaml import VehicleEntry, build_vehicles, vehicle_to_yaml_dict
