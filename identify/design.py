@@ -63,7 +63,7 @@ class SelectionSet:
         return (self.measured - self.predicted) / self.row_scale
 
     def target_scale(self, channel: str) -> np.ndarray:
-        """(N,) :func:`proxplan.physics.features.term_scale` of each sample's vehicle on ``channel`` (N or N m)."""
+        """(N,) :func:`proxplan.physics.feature_terms.term_scale` of each sample's vehicle on ``channel`` (N or N m)."""
         return np.concatenate([np.full(len(u), term_scale(channel, self.model.vehicles[u.type])) for u in self.units])
 
     def offsets(self) -> list[int]:
