@@ -378,8 +378,8 @@ the weight: keeping that effect is finding what was put in."""
 def _library_put_in(desc: dict[str, Any]) -> set[str]:
     if desc["family"] == "mix":
         return set().union(*(_library_put_in(p) for p in desc["parts"]))
-    if desc["family"] == "lag" and desc["inner"] != "base":
-        return {desc["inner"]}
+    if desc["family"] == "lag":  # the base downwash felt late is wake_memory's form
+        return {desc["inner"] if desc["inner"] != "base" else "wake_memory"}
     return set(LIBRARY_FORMS.get((desc["family"], desc.get("form", desc.get("where", ""))), set()))
 
 

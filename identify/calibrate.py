@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
+from proxplan.identify.delayed import delayed_units, with_rows
 from proxplan.identify.noise import NoiseLevel
 from proxplan.identify.priors import INFORMED_RATIO, MOVE_SIGMAS, STACK_SHIELDING_PRIOR, Prior, vehicle_priors
 from proxplan.identify.strata import MIN_STACK_SAMPLES, stacked_samples, stratified_sample
@@ -332,14 +333,17 @@ def calibrate_model(
     The thrust scales are nuisance parameters: the model is returned with them at 1 (and ``fitted``, the
     model with them, is what the measurement noise is judged on). The priors and bounds are ``model``'s;
     with ``start`` (a model with effects, e.g. after selection) the fit starts from its values and predicts
-    with its effects and options (the effects held as they are)."""
-    fit_units = stratified_sample(units, options.max_fit_samples, model.vehicles)
+    with its effects and options (the effects held as they are; a delayed one on each sample's delayed
+    state, :func:`proxplan.identify.delayed.delayed_unit`)."""
+    sources = with_rows([u for u in units if len(u)])
+    fit_units = stratified_sample(sources, options.max_fit_samples, model.vehicles)
     sw = np.sqrt(np.concatenate([u.weight for u in fit_units])) / noise.rows(fit_units)[:, 0]
     specs = model_specs(fit_units, model)
     if start is not None:
         specs = [replace(s, initial=float(np.clip(parameter_value(start, s.name), s.lower, s.upper))) for s in specs]
     y = np.concatenate([u.force_N[:, 2] for u in fit_units])
     origin = model if start is None else start
+    delayed = delayed_units(fit_units, sources, sorted({e.lag_s for e in origin.effects}))
 
     def model_of(theta: np.ndarray) -> Model:
         per_type: dict[str, dict[str, float]] = {}
@@ -359,7 +363,7 @@ def calibrate_model(
 
     def residual(theta: np.ndarray) -> np.ndarray:
         m = model_of(theta)
-        return sw * (np.concatenate([predict(u, m)[0][:, 2] for u in fit_units]) - y)
+        return sw * (np.concatenate([predict(u, m, delayed=d)[0][:, 2] for u, d in zip(fit_units, delayed)]) - y)
 
     result = fit_parameters(residual, specs, max_nfev=60 + 10 * len(specs), noise_sigma=float(np.sqrt(noise.tau)))
     # the thrust scales are nuisance parameters (so a thrust-calibration error does not distort the

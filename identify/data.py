@@ -135,18 +135,27 @@ def unit_inputs(unit: Unit, model: Model) -> EffectInputs:
     )
 
 
+def delayed_inputs(unit: Unit, model: Model) -> EffectInputs:
+    """The effect inputs of a delayed copy of a unit (:func:`proxplan.identify.delayed.delayed_unit`): no
+    clock, each row the state of its own delay."""
+    return replace(unit_inputs(unit, model), time_s=None)
+
+
 def predict(
     unit: Unit,
     model: Model,
     *,
     base: tuple[np.ndarray, np.ndarray] | None = None,
     cache: BaseCache | None = None,
+    delayed: Mapping[float, Unit] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Predicted measured wrench (force (N, 3) N, torque (N, 3) N m, world) of ``unit``.
 
     ``base`` may pass a precomputed base wrench for the same vehicles (saves the model call), and
     ``cache`` the :class:`proxplan.physics.BaseCache` of ``unit_inputs(unit, model)`` (the sources' base
-    wrenches the effects reuse).
+    wrenches the effects reuse). ``delayed`` (delay s -> the unit's state that much earlier,
+    :func:`proxplan.identify.delayed.delayed_unit`) is where a delayed effect is evaluated at a sparse sample;
+    without it the delay is taken along the unit's clock (a full-rate or strided log).
     """
     inputs = cache.inputs if cache is not None else unit_inputs(unit, model)
     if base is not None:
@@ -159,7 +168,10 @@ def predict(
     else:
         force, torque = base_wrench(inputs)
     for eff in model.effects:
-        f, t = effect_wrench(eff, inputs, cache=cache)
+        if delayed is not None and eff.lag_s > 0.0:
+            f, t = effect_wrench(eff.without_lag(), delayed_inputs(delayed[eff.lag_s], model))
+        else:
+            f, t = effect_wrench(eff, inputs, cache=cache)
         force += f
         torque += t
     return thrust_scaled(force, torque, model.thrust_scale.get(unit.type, 1.0), unit, model)

@@ -26,7 +26,8 @@ import numpy as np
 
 from proxplan.identify.calibrate import ParamSpec, apply_vehicle_parameters, parameter_value
 from proxplan.identify.crossval import GroupPlan, GroupSums, Ridge, block_ids, plan_groups
-from proxplan.identify.data import Model, Unit, predict, subsample, unit_inputs
+from proxplan.identify.data import Model, Unit, delayed_inputs, predict, subsample, unit_inputs
+from proxplan.identify.delayed import delayed_unit
 from proxplan.identify.noise import CHANNELS, NoiseLevel, stacked
 from proxplan.identify.strata import stratified_sample
 from proxplan.physics import BaseCache, Effect, base_cache, effect_wrench, term_scale
@@ -227,6 +228,20 @@ def apply_tangent_step(model: Model, specs: Sequence[ParamSpec], steps: Mapping[
 # ------------------------------------------------------------------------------ effect columns
 
 
-def effect_columns(sel: SelectionSet, effect: Effect) -> np.ndarray:
-    """(N, 4) contribution of ``effect`` on the selection's samples (noise units), with the cached base."""
-    return sel.columns_of([effect_wrench(effect, c.inputs, cache=c) for c in sel.caches])
+def effect_columns(sel: SelectionSet, effect: Effect, caches: Sequence[BaseCache] | None = None) -> np.ndarray:
+    """(N, 4) contribution of ``effect`` on the selection's samples (noise units), with the cached base; an
+    effect with a delay (:attr:`proxplan.physics.Effect.lag_s`) on the inputs of that much earlier
+    (:func:`delayed_caches`), ``caches`` when given (the caches of its delay)."""
+    if caches is None:
+        caches = sel.caches if effect.lag_s == 0.0 else delayed_caches(sel, effect.lag_s)
+    return sel.columns_of([effect_wrench(effect.without_lag(), c.inputs, cache=c) for c in caches])
+
+
+# ------------------------------------------------------------------------------ delayed inputs
+
+
+def delayed_caches(sel: SelectionSet, lag_s: float) -> list[BaseCache]:
+    """A :class:`proxplan.physics.BaseCache` per sampled unit of its inputs ``lag_s`` (s) earlier
+    (:func:`proxplan.identify.delayed.delayed_unit`, on the full-rate ``sel.sources``), without a clock (each
+    row its own state): the exact inputs of a delayed effect at the selection's sparse rows."""
+    return [base_cache(delayed_inputs(delayed_unit(u, sel.sources, lag_s), sel.model)) for u in sel.units]

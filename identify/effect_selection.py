@@ -29,21 +29,30 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from proxplan.identify.calibrate import CalibrationResult, ParamSpec, fit_parameters
 from proxplan.identify.crossval import GroupSums, Ridge, heldout_mse, solve, trainable_groups
 from proxplan.identify.data import Errors, IdentifyOptions, Model, Unit, errors, progress_bar
-from proxplan.identify.design import SelectionSet, apply_tangent_step, effect_columns, tangent_columns, tangent_ridge
+from proxplan.identify.design import (
+    SelectionSet,
+    apply_tangent_step,
+    delayed_caches,
+    effect_columns,
+    tangent_columns,
+    tangent_ridge,
+)
 from proxplan.identify.heldout_select import Candidate, ForwardResult, GainTest, heldout_forward
 from proxplan.identify.priors import effect_prior
 from proxplan.identify.stability import Stability, stability
-from proxplan.physics import PARAMETERS, Effect, effect_wrench
+from proxplan.physics import LAG_BOUNDS_S, LAG_PARAM, LAGS_S, PARAMETERS, BaseCache, Effect
 
 LINEAR_PARAMS: dict[str, tuple[str, ...]] = {
     "own_velocity": ("c_w_spm", "c_mu_spm", "c_mu2_s2pm2"),
     "wake_swirl": ("yaw_per_force_m",),
     "thrust_quadratic": ("b_q_rel_spm",),
     "climb_inflow": ("gain_1",),
+    "wake_memory": ("share_1",),
 }
 """Effects exactly linear in these parameters: one column per parameter (the effect with that parameter
 1 and the others 0); the coefficients ARE the parameters."""
@@ -72,6 +81,18 @@ _START_GRID: dict[str, list[dict[str, float]]] = {
 }
 """Start points of the shape fit (parameters not named keep their defaults): a shape can start far from
 its optimum."""
+LAG_GRID_S = (0.0, *LAGS_S)
+"""Delays every library effect is profiled over, s (:data:`proxplan.physics.LAG_PARAM`): at once, and the
+temporal features' geometric grid (:data:`proxplan.physics.LAGS_S`, 0.05-0.85 s, ratio 1.5: any delay in
+range within 25 % of one). A disturbance may follow its cause late (a wake travelling down, a rotor
+spinning up), and an effect tried only at once is then rejected or leaves most of itself behind."""
+DELAYED_ONLY = ("wake_memory",)
+"""Effects that are something only with a delay: at once ``wake_memory`` is a rescaling of the base model
+(:func:`proxplan.physics.effects._wake_memory`), the calibration's to fit, so it is a candidate only when its
+profile's best delay is not 0."""
+LAG_RESOLUTION_S = 0.002
+"""Resolution of a refined delay, s: a fifth of the logs' 10 ms sample step (within it the inputs are
+interpolated linearly, and the objective is flat below it)."""
 
 
 @dataclass
@@ -102,7 +123,8 @@ class EffectCandidate:
             for k, ref in self.reference.items():
                 p[k] = ref * alpha
         lo_hi = PARAMETERS[self.name]
-        return Effect(self.name, {k: float(np.clip(v, lo_hi[k][1], lo_hi[k][2])) for k, v in p.items()})
+        return Effect(self.name, {k: float(np.clip(v, lo_hi[k][1], lo_hi[k][2])) if k != LAG_PARAM else v
+                                  for k, v in p.items()})  # fmt: skip
 
 
 @dataclass
@@ -161,13 +183,20 @@ class EffectSelection:
 
 
 def fit_shape(
-    sel: SelectionSet, name: str, tangents: np.ndarray, ridge: Ridge, *, max_nfev: int = 60
+    sel: SelectionSet,
+    name: str,
+    tangents: np.ndarray,
+    ridge: Ridge,
+    *,
+    max_nfev: int = 60,
+    caches: Sequence[BaseCache] | None = None,
 ) -> tuple[Effect, CalibrationResult]:
     """MAP fit of every parameter of effect ``name`` (its priors) to the reference residual on the
     selection set's TRAIN rows (all channels, noise units, the data term over tau), with the vehicle
     parameters' steps ``tangents`` ((N, 4, P) columns with their ``ridge`` priors) refitted exactly for
     every trial shape (variable projection): the shape is fitted to the residual the calibration would
-    leave WITH the effect, not to what is left after the calibration absorbed part of it."""
+    leave WITH the effect, not to what is left after the calibration absorbed part of it. ``caches``: the
+    inputs to evaluate it on (a delay's, :func:`proxplan.identify.design.delayed_caches`; default the samples')."""
     keys = list(PARAMETERS[name])
     specs = [ParamSpec(k, PARAMETERS[name][k][0], *PARAMETERS[name][k][1:], prior=effect_prior(name, k)) for k in keys]
     train = ~sel.plan.held_out_only[sel.group]
@@ -181,7 +210,7 @@ def fit_shape(
 
     def residual(theta: np.ndarray) -> np.ndarray:
         eff = Effect(name, {k: float(v) for k, v in zip(keys, theta)})
-        z = y - effect_columns(sel, eff)
+        z = y - effect_columns(sel, eff, caches)
         rhs = (t_flat * w.repeat(4, axis=1).reshape(-1, 1)).T @ z.reshape(-1) / sel.tau
         step = np.linalg.solve(lhs, rhs + ridge.precision * ridge.center) if n_t else np.zeros(0)
         data = (sw * (z - tangents @ step)).reshape(-1)
@@ -201,26 +230,93 @@ def fit_shape(
     return Effect(name, fit.as_dict()), fit
 
 
-def effect_candidate(sel: SelectionSet, name: str, tangents: np.ndarray, ridge: Ridge) -> EffectCandidate:
+def effect_candidate(
+    sel: SelectionSet, name: str, tangents: np.ndarray, ridge: Ridge, delayed: dict[float, Sequence[BaseCache]]
+) -> EffectCandidate:
     """The design columns of library effect ``name`` (module docstring); ``tangents`` (N, 4, P) and
-    ``ridge`` are the always-fitted columns and their priors (:func:`fit_shape`)."""
+    ``ridge`` are the always-fitted columns and their priors (:func:`fit_shape`); ``delayed`` the inputs of
+    every delay of :data:`LAG_GRID_S` (:func:`proxplan.identify.design.delayed_caches`). The effect's delay is
+    the one with the lowest MAP objective on the train rows (:func:`best_lag`: its strength and the tangents
+    refitted at each; a profile likelihood), its shape refitted at that delay."""
+    lag = 0.0
     if name in LINEAR_PARAMS:
-        cols = {}
-        for k in LINEAR_PARAMS[name]:
-            p = {q: 0.0 for q in PARAMETERS[name]} | {k: 1.0}
-            cols[f"{name}.{k}"] = effect_columns(sel, Effect(name, p))
-        return EffectCandidate(name, Effect(name, {}), cols, "linear")
+        units = [Effect(name, {q: 0.0 for q in PARAMETERS[name]} | {k: 1.0}) for k in LINEAR_PARAMS[name]]
+        lag = best_lag(sel, units, tangents, ridge, delayed)
+        if name in DELAYED_ONLY and lag == 0.0:
+            return EffectCandidate(name, Effect(name, {}), {}, "linear",
+                                   note="it fits best at once, where it is the base model's own strength")  # fmt: skip
+        cols = {f"{name}.{k}": effect_columns(sel, e, delayed[lag]) for k, e in zip(LINEAR_PARAMS[name], units)}
+        return EffectCandidate(name, Effect(name, {LAG_PARAM: lag} if lag else {}), cols, "linear")
     eff, fit = fit_shape(sel, name, tangents, ridge)
     strength = SCALE_PARAMS[name]
     ref = {k: float(eff.full_params()[k]) for k in strength}
     size = np.sqrt(sum(v * v for v in ref.values()))
     lo, hi = PARAMETERS[name][strength[0]][1:]
+    # the profile's shape: the fitted one, at the default strength where the fit put it at zero
+    probe = (
+        eff
+        if size > 1e-6 * (hi - lo)
+        else Effect(name, eff.full_params() | {k: PARAMETERS[name][k][0] for k in strength})
+    )
+    lag = best_lag(sel, [probe], tangents, ridge, delayed)
+    if lag:
+        eff, fit = fit_shape(sel, name, tangents, ridge, caches=delayed[lag])
+        eff = Effect(name, eff.full_params() | {LAG_PARAM: lag})
+        ref = {k: float(eff.full_params()[k]) for k in strength}
+        size = np.sqrt(sum(v * v for v in ref.values()))
     if size <= 1e-6 * (hi - lo):
         return EffectCandidate(
             name, eff, {}, "scale", ref, fit, note="its fitted strength is zero (the prior's center)"
         )
-    col = effect_columns(sel, eff)
+    col = effect_columns(sel, eff, delayed[lag])
     return EffectCandidate(name, eff, {f"{name}.scale": col}, "scale", ref, fit)
+
+
+def best_lag(
+    sel: SelectionSet,
+    effects: Sequence[Effect],
+    tangents: np.ndarray,
+    ridge: Ridge,
+    delayed: dict[float, Sequence[BaseCache]],
+) -> float:
+    """The delay (s) at which ``effects`` (one column each, their strengths free) leave the lowest
+    :func:`profiled_objective`: the best of :data:`LAG_GRID_S` (at once on a tie), then, when that is a
+    delay, refined between its neighbours on the grid (bounded Brent, to :data:`LAG_RESOLUTION_S`); the
+    refined delay's inputs are added to ``delayed``."""
+
+    def score(lag: float) -> float:
+        if lag not in delayed:
+            delayed[lag] = delayed_caches(sel, lag)
+        return profiled_objective(sel, tangents, ridge, [effect_columns(sel, e, delayed[lag]) for e in effects])
+
+    scores = [score(lag) for lag in LAG_GRID_S]
+    k = int(np.argmin(scores))
+    if k == 0:
+        return 0.0
+    upper = LAG_GRID_S[k + 1] if k + 1 < len(LAG_GRID_S) else min(LAG_GRID_S[k] * LAG_GRID_S[2] / LAG_GRID_S[1],
+                                                                    LAG_BOUNDS_S[1])  # fmt: skip
+    found = minimize_scalar(lambda x: score(round(float(x), 3)), bounds=(LAG_GRID_S[k - 1], upper),
+                            method="bounded", options={"xatol": LAG_RESOLUTION_S})  # fmt: skip
+    lag = round(float(found.x), 3)
+    return lag if score(lag) < scores[k] else float(LAG_GRID_S[k])
+
+
+def profiled_objective(sel: SelectionSet, tangents: np.ndarray, ridge: Ridge, columns: Sequence[np.ndarray]) -> float:
+    """The MAP objective on the selection's train rows with ``columns`` (each (N, 4), noise units) and the
+    vehicle parameters' ``tangents`` ((N, 4, P), priors ``ridge``) fitted, -: the weighted squared residual
+    over tau plus the tangents' prior penalty (the objective :func:`fit_shape` minimises)."""
+    train = ~sel.plan.held_out_only[sel.group]
+    w = np.repeat(sel.weight * train, 4)
+    x = np.concatenate([tangents, np.stack(columns, axis=2)], axis=2).reshape(len(sel.weight) * 4, -1)
+    y = sel.residual.reshape(-1)
+    n_t = tangents.shape[2]
+    prec = np.concatenate([ridge.precision[:n_t], np.zeros(len(columns))])
+    center = np.concatenate([ridge.center[:n_t], np.zeros(len(columns))])
+    gram = (x * w[:, None]).T @ x / sel.tau
+    lhs = gram + np.diag(prec + 1e-9 * np.maximum(np.diag(gram), 1e-300))
+    beta = np.linalg.solve(lhs, (x * w[:, None]).T @ y / sel.tau + prec * center)
+    r = y - x @ beta
+    return float(np.sum(w * r * r) / sel.tau + np.sum(prec * (beta - center) ** 2))
 
 
 class EffectSelector:
@@ -242,13 +338,15 @@ class EffectSelector:
         self.candidates: list[EffectCandidate] = []
         self.sums: GroupSums | None = None
         self.ridge: Ridge | None = None
+        self.delayed: dict[float, Sequence[BaseCache]] = {}  # delay (s) -> the samples' inputs that much earlier
 
     def fit_candidates(self, names: Sequence[str]) -> None:
         stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
                  else np.zeros((len(self.sel.weight), 4, 0)))  # fmt: skip
         ridge = self.ridge_for(self.always)
+        self.delayed = {lag: (delayed_caches(self.sel, lag) if lag else self.sel.caches) for lag in LAG_GRID_S}
         for name in progress_bar([n for n in names if n != THRUST_BIAS], "effect shapes", self.options.progress):
-            self.candidates.append(effect_candidate(self.sel, name, stack, ridge))
+            self.candidates.append(effect_candidate(self.sel, name, stack, ridge, self.delayed))
 
     def design(self) -> tuple[GroupSums, Ridge]:
         if self.sums is None:
@@ -388,13 +486,3 @@ def _reason(
     if prob < threshold:
         return f"rejected: not stable: {stab} ({gain})"
     return f"not kept: another candidate gained more ({gain}; {stab})"
-
-
-def effect_wrenches(sel: SelectionSet, effects: Sequence[Effect]) -> np.ndarray:
-    """(N, 4) summed contribution of ``effects`` on the selection set (noise units)."""
-    total = np.zeros((len(sel.weight), 4))
-    for eff in effects:
-        if eff.name == THRUST_BIAS:
-            continue
-        total += sel.columns_of([effect_wrench(eff, c.inputs, cache=c) for c in sel.caches])
-    return total

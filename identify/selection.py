@@ -13,6 +13,7 @@ import numpy as np
 from proxplan.identify.calibrate import ParamSpec, calibrate_model
 from proxplan.identify.crossval import heldout_mse, heldout_predictions, solve, trainable_groups
 from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
+from proxplan.identify.delayed import delayed_units
 from proxplan.identify.design import selection_set, tangent_u
 from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
 from proxplan.identify.effect_selection import THRUST_BIAS, EffectSelection, EffectSelector
@@ -134,13 +135,14 @@ def _line_searched(
     chosen: Sequence[str],
     terms: dict[str, float],
     penalty: dict[str, tuple[float, float]],
+    terms_part: np.ndarray | None = None,
 ) -> Model:
     """The joint fit's model, its vehicle-parameter step taken only as far as the NONLINEAR model confirms.
     The joint fit is one Gauss-Newton step on tangents linearised at the reference; a large step (the prior
     start moving b_v by exp(-1.4)) leaves the region where they hold, and the stepped model then predicts
     worse than the linear fit promised. So the model is built at each fraction of :data:`STEP_FRACTIONS` of
-    the step (effects and terms at their fitted coefficients) and the one with the lowest MAP objective on
-    the train rows is kept: weighted squared residual in noise units over tau, plus the tangents' prior
+    the step (effects and terms at their fitted coefficients; ``terms_part`` the terms' contribution, (N, 4)
+    noise units) and the one with the lowest MAP objective on the train rows is kept: weighted squared residual in noise units over tau, plus the tangents' prior
     penalty precision (alpha step - center)^2 (backtracking line search, Nocedal & Wright ch. 3)."""
     best: tuple[float, Model] | None = None
     # a thrust scale enters the prediction linearly (its column is exact): only the other steps are searched
@@ -150,21 +152,35 @@ def _line_searched(
         model = selector.model_with(c, chosen)
         if terms:
             model = replace(model, effects=model.effects + (Effect(DISCOVERED_NAME, terms),))
-        score = map_objective(selector, model, penalty)
+        score = map_objective(selector, model, penalty, terms_part)
         if best is None or score < best[0]:
             best = (score, model)
     assert best is not None
     return best[1]
 
 
-def map_objective(selector: EffectSelector, model: Model, penalty: dict[str, tuple[float, float]]) -> float:
+def map_objective(
+    selector: EffectSelector, model: Model, penalty: dict[str, tuple[float, float]], terms: np.ndarray | None = None
+) -> float:
     """The MAP objective of ``model`` on the selection's train rows, -: the weighted squared residual of the
     four channels in noise units over tau, plus each always-fitted parameter's prior penalty, precision
-    (u - u_ref - center)^2 (u the parameter's coordinate, :func:`proxplan.identify.design.tangent_u`)."""
+    (u - u_ref - center)^2 (u the parameter's coordinate, :func:`proxplan.identify.design.tangent_u`).
+
+    The selection's stratified rows are sparse and out of order in time, so what needs the clock is taken
+    where it is exact: a delayed library effect on each row's delayed state
+    (:func:`proxplan.identify.delayed.delayed_unit`), the discovered terms as ``terms`` ((N, 4) noise units,
+    their columns at their coefficients, the features computed on the full-rate flights; read through each
+    type's thrust scale, :func:`proxplan.identify.data.thrust_scaled`)."""
     sel = selector.sel
     train = (~sel.plan.held_out_only[sel.group]) * sel.weight
-    predicted = np.concatenate([stacked(*predict(u, model)) for u in sel.units])
+    plain = replace(model, effects=tuple(e for e in model.effects if e.name != DISCOVERED_NAME))
+    lags = {e.lag_s for e in plain.effects}
+    delayed = delayed_units(sel.units, sel.sources, sorted(lags))
+    predicted = np.concatenate([stacked(*predict(u, plain, delayed=d)) for u, d in zip(sel.units, delayed)])
     r = (sel.measured - predicted) / sel.row_scale
+    if terms is not None:
+        scale = np.concatenate([np.full(len(u), model.thrust_scale.get(u.type, 1.0)) for u in sel.units])
+        r -= terms / scale[:, None]
     data = float(np.sum(train[:, None] * np.where(np.isfinite(r), r, 0.0) ** 2)) / sel.tau
     step = {s.name: tangent_u(model, s) - tangent_u(sel.model, s) for s in selector.specs}
     return data + sum(p * (step[k] - c0) ** 2 for k, (p, c0) in penalty.items())
@@ -243,7 +259,8 @@ def joint_model(
     coef = dict(zip(names, (float(b) for b in beta)))
     survivors = {k: coef[k] for k in terms if k in back.chosen}
     chosen = [n for n in effects.selected if n in back.chosen]
-    model = _line_searched(selector, coef, chosen, survivors, _penalty(selector))
+    terms_part = sum((v * columns[k] for k, v in survivors.items()), np.zeros_like(sel.residual))
+    model = _line_searched(selector, coef, chosen, survivors, _penalty(selector), terms_part)
     if survivors and discovery is not None:
         discovery.kept = survivors
     x = np.stack([columns[k] for k in sums.columns], axis=2)  # (N, 4, p) in noise units

@@ -31,7 +31,7 @@ from proxplan.physics.disturbance import (
     vertical_point_wrench,
 )
 from proxplan.physics.feature_terms import parse_term_key, term_scale, weight_scaled
-from proxplan.physics.features import CHANNELS, feature_matrix
+from proxplan.physics.features import CHANNELS, feature_matrix, lagged
 from proxplan.physics.room import Plane
 from proxplan.physics.stack import shielding_factors
 from proxplan.physics.vehicles import Vehicle
@@ -48,6 +48,7 @@ EFFECT_NAMES = (
     "ground_jet",
     "climb_inflow",
     "floor_stagnation",
+    "wake_memory",
 )
 
 PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
@@ -70,6 +71,7 @@ PARAMETERS: dict[str, dict[str, tuple[float, float, float]]] = {
     "ground_jet": {"amplitude_1": (0.5, 0.0, 1.0), "decay_L": (2.0, 0.2, 20.0)},
     "climb_inflow": {"gain_1": (1.0, 0.0, 3.0)},
     "floor_stagnation": {"amplitude_1": (1.0, 0.0, 1.0), "decay_widths": (1.0, 0.1, 10.0)},
+    "wake_memory": {"share_1": (0.3, -1.0, 1.0)},
 }
 
 EFFECT_STRENGTHS: dict[str, tuple[str, ...]] = {
@@ -83,10 +85,22 @@ EFFECT_STRENGTHS: dict[str, tuple[str, ...]] = {
     "ground_jet": ("amplitude_1", "decay_L"),
     "climb_inflow": ("gain_1",),
     "floor_stagnation": ("amplitude_1", "decay_widths"),
+    "wake_memory": ("share_1",),
 }
 """Per effect, the parameters whose value 0 switches it off (a decay length of 0 too: the effect then
 vanishes at any distance; every other parameter then does nothing): an effect is identified by data
 when the interval of at least one of them excludes zero (proxplan.identify.effect_selection)."""
+
+LAG_PARAM = "lag_s"
+"""Optional parameter of every library effect: the effect acts ``lag_s`` seconds after its cause (a wake
+travelling down, a rotor spinning up; issue 35's "a lag on any effect"). The effect's wrench at time t is
+its wrench on the inputs of time t - lag_s (:func:`effect_wrench`), so it needs the inputs' clock
+(``EffectInputs.time_s``); a steady state (cost maps, one simulator step, no clock) is the same with or
+without a lag. Left out: 0. Not a key of :data:`PARAMETERS` (no shape fit moves it: identification profiles
+it over a grid, :mod:`proxplan.identify.effect_selection`)."""
+LAG_BOUNDS_S = (0.0, 2.0)
+"""Allowed range of :data:`LAG_PARAM`, s: no effect before its cause; the upper end only bounds what a model
+file may declare (identification searches :data:`proxplan.physics.features.LAGS_S`, up to 0.85 s)."""
 
 DISCOVERED_PREFIX = "discovered:"
 """Name prefix of a term found by sparse regression (proxplan.identify.discovery): its parameters are named
@@ -145,15 +159,29 @@ class Effect:
             return
         if self.name not in PARAMETERS:
             raise ValueError(f"unknown effect {self.name!r}; expected one of {', '.join(EFFECT_NAMES)}")
-        unknown = sorted(set(self.params) - set(PARAMETERS[self.name]))
+        unknown = sorted(set(self.params) - set(PARAMETERS[self.name]) - {LAG_PARAM})
         if unknown:
             raise ValueError(
                 f"effect {self.name!r}: unknown parameter(s) {', '.join(unknown)}; "
-                f"expected {', '.join(PARAMETERS[self.name])}"
+                f"expected {', '.join(PARAMETERS[self.name])} (and optionally {LAG_PARAM})"
             )
         for key, value in self.params.items():
             if not np.isfinite(float(value)):
                 raise ValueError(f"effect {self.name!r}: parameter {key} must be finite")
+        lag = float(self.params.get(LAG_PARAM, 0.0))
+        if not LAG_BOUNDS_S[0] <= lag <= LAG_BOUNDS_S[1]:
+            raise ValueError(
+                f"effect {self.name!r}: {LAG_PARAM} must be in [{LAG_BOUNDS_S[0]:g}, {LAG_BOUNDS_S[1]:g}] s"
+            )
+
+    @property
+    def lag_s(self) -> float:
+        """Delay of the effect behind its cause, s (:data:`LAG_PARAM`; 0 when not given)."""
+        return float(self.params.get(LAG_PARAM, 0.0)) if not self.name.startswith(DISCOVERED_PREFIX) else 0.0
+
+    def without_lag(self) -> Effect:
+        """The same effect acting at once (its parameters without :data:`LAG_PARAM`)."""
+        return Effect(self.name, {k: v for k, v in self.params.items() if k != LAG_PARAM})
 
     @property
     def features(self) -> tuple[str, ...]:
@@ -163,7 +191,7 @@ class Effect:
         return tuple(dict.fromkeys(parse_term_key(k)[1] for k in self.params))
 
     def full_params(self) -> dict[str, float]:
-        """All parameters of this effect, defaults filled in."""
+        """All parameters of this effect, defaults filled in (:data:`LAG_PARAM` only when given)."""
         if self.name.startswith(DISCOVERED_PREFIX):
             return {k: float(v) for k, v in self.params.items()}
         out = {k: spec[0] for k, spec in PARAMETERS[self.name].items()}
@@ -414,6 +442,20 @@ def _climb_inflow(p: dict[str, float], inputs: EffectInputs, base: BaseCache) ->
     return force, torque
 
 
+def _wake_memory(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """A share of the downwash felt late: the wake remembers where its source was (Vendruscolo et al., "Wake Up
+    to the Past", arXiv 2603.22472: wake memory and a transport delay). Extra wrench = ``share_1`` x the base
+    wrench of every source (S0-3..S0-8, shielded as the base), meant with a delay (:data:`LAG_PARAM`): then
+    it is the base wrench of ``lag_s`` earlier. At once it is only a rescaling of the base model (its steady
+    state: a hover under a source feels 1 + share_1 of the base), which the calibration's parameters
+    already hold; identification keeps it only with a delay."""
+    force, torque = _zeros(inputs.n_samples)
+    for f, t in base.per_source():
+        force += p["share_1"] * f
+        torque += p["share_1"] * t
+    return force, torque
+
+
 _EFFECT_FUNCTIONS = {
     "thrust_bias": _thrust_bias,
     "ground_effect": _ground_effect,
@@ -425,6 +467,7 @@ _EFFECT_FUNCTIONS = {
     "ground_jet": _ground_jet,
     "climb_inflow": _climb_inflow,
     "floor_stagnation": _floor_stagnation,
+    "wake_memory": _wake_memory,
 }
 
 
@@ -447,13 +490,28 @@ def _function(name: str):
     return _discovered if name.startswith(DISCOVERED_PREFIX) else _EFFECT_FUNCTIONS[name]
 
 
+def _apply(effect: Effect, inputs: EffectInputs, cache: BaseCache) -> tuple[np.ndarray, np.ndarray]:
+    """The wrench of ``effect`` on ``inputs``, delayed by its :data:`LAG_PARAM` along ``inputs.time_s``."""
+    params = effect.full_params()
+    lag = float(params.pop(LAG_PARAM, 0.0))
+    force, torque = _function(effect.name)(params, inputs, cache)
+    if lag > 0.0 and inputs.time_s is not None:
+        t = np.asarray(inputs.time_s, dtype=float)
+        force = np.column_stack([lagged(force[:, k], t, lag) for k in range(3)])
+        torque = np.column_stack([lagged(torque[:, k], t, lag) for k in range(3)])
+    return force, torque
+
+
 def effect_wrench(
     effect: Effect, inputs: EffectInputs, *, cache: BaseCache | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """ADDITIONAL force (N, 3), N, and torque (N, 3), N m, of ``effect`` beyond the base model,
     world frame, for the N samples of ``inputs``. ``cache`` (a :class:`BaseCache` of the same
-    ``inputs``) reuses the sources' base wrenches across calls (a fit evaluating one effect many times)."""
-    return _function(effect.name)(effect.full_params(), inputs, cache if cache is not None else BaseCache(inputs))
+    ``inputs``) reuses the sources' base wrenches across calls (a fit evaluating one effect many times).
+    An effect with a :data:`LAG_PARAM` is its wrench on the inputs of ``lag_s`` earlier: the samples must then
+    follow each other in time (a full-rate or uniformly strided series; ``time_s`` runs as in
+    :func:`proxplan.physics.features.lagged`)."""
+    return _apply(effect, inputs, cache if cache is not None else BaseCache(inputs))
 
 
 def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[np.ndarray, np.ndarray]:
@@ -462,7 +520,7 @@ def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[
     cache = BaseCache(inputs)
     force, torque = _sum_base(inputs, cache)
     for effect in effects:
-        f, t = _function(effect.name)(effect.full_params(), inputs, cache)
+        f, t = _apply(effect, inputs, cache)
         force += f
         torque += t
     return force, torque

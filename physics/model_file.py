@@ -56,7 +56,15 @@ from proxplan.fileio import (
 )
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.disturbance import DEFAULT_OPTIONS, ModelOptions
-from proxplan.physics.effects import DISCOVERED_PREFIX, EFFECT_NAMES, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
+from proxplan.physics.effects import (
+    DISCOVERED_PREFIX,
+    EFFECT_NAMES,
+    LAG_BOUNDS_S,
+    LAG_PARAM,
+    PARAMETERS,
+    TARGET_ONLY_EFFECTS,
+    Effect,
+)
 from proxplan.physics.feature_terms import between_vehicle_part, parse_term_key
 from proxplan.physics.residual_spread import SPREAD_FORM, ResidualSpread, TypeSpread
 from proxplan.physics.stack import MAX_STACK_SHIELDING
@@ -127,6 +135,13 @@ def _effect_variants(schema: dict[str, Any]) -> None:
         params = {
             key: {"type": "number", "description": f"default {d:g}; fit bounds [{lo:g}, {hi:g}]; unit in the name"}
             for key, (d, lo, hi) in PARAMETERS[name].items()
+        } | {
+            LAG_PARAM: {
+                "type": "number",
+                "minimum": LAG_BOUNDS_S[0],
+                "maximum": LAG_BOUNDS_S[1],
+                "description": "delay of the effect behind its cause, s (default 0)",
+            }
         }
         variants.append({
             "properties": {"name": {"const": name},
@@ -171,10 +186,14 @@ class EffectEntry(FileModel, json_schema_extra=_effect_variants):
                     raise problem(str(exc), at="params") from None
             return self
         for key in params:
-            if key not in PARAMETERS[self.name]:
+            if key not in PARAMETERS[self.name] and key != LAG_PARAM:
                 raise problem(
-                    f"unknown parameter of {self.name}; expected {', '.join(PARAMETERS[self.name])}", at=f"params.{key}"
+                    f"unknown parameter of {self.name}; expected {', '.join(PARAMETERS[self.name])} or {LAG_PARAM}",
+                    at=f"params.{key}",
                 )
+        lag = float(params.get(LAG_PARAM, 0.0))
+        if not LAG_BOUNDS_S[0] <= lag <= LAG_BOUNDS_S[1]:
+            raise problem(f"expected a delay in [{LAG_BOUNDS_S[0]:g}, {LAG_BOUNDS_S[1]:g}] s", at=f"params.{LAG_PARAM}")
         return self
 
     def effect(self) -> Effect:
