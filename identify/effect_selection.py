@@ -45,7 +45,7 @@ from proxplan.identify.design import (
 from proxplan.identify.heldout_select import Candidate, ForwardResult, GainTest, heldout_forward
 from proxplan.identify.priors import effect_prior
 from proxplan.identify.stability import Stability, stability
-from proxplan.physics import LAG_BOUNDS_S, LAG_PARAM, LAGS_S, PARAMETERS, BaseCache, Effect
+from proxplan.physics import LAG_BOUNDS_S, LAG_PARAM, LAGS_S, PARAMETERS, TARGET_ONLY_EFFECTS, BaseCache, Effect
 
 LINEAR_PARAMS: dict[str, tuple[str, ...]] = {
     "own_velocity": ("c_w_spm", "c_mu_spm", "c_mu2_s2pm2"),
@@ -82,10 +82,14 @@ _START_GRID: dict[str, list[dict[str, float]]] = {
 """Start points of the shape fit (parameters not named keep their defaults): a shape can start far from
 its optimum."""
 LAG_GRID_S = (0.0, *LAGS_S)
-"""Delays every library effect is profiled over, s (:data:`proxplan.physics.LAG_PARAM`): at once, and the
-temporal features' geometric grid (:data:`proxplan.physics.LAGS_S`, 0.05-0.85 s, ratio 1.5: any delay in
-range within 25 % of one). A disturbance may follow its cause late (a wake travelling down, a rotor
-spinning up), and an effect tried only at once is then rejected or leaves most of itself behind."""
+"""Delays every library effect of a NEIGHBOUR is profiled over, s (:data:`proxplan.physics.LAG_PARAM`): at
+once, and the temporal features' geometric grid (:data:`proxplan.physics.LAGS_S`, 0.05-0.85 s, ratio 1.5:
+any delay in range within 25 % of one). Another vehicle's disturbance may reach the target late (its wake
+travels down, the target's rotors take time to respond), and an effect tried only at once is then
+rejected or leaves most of itself behind. The target's own effects
+(:data:`proxplan.physics.TARGET_ONLY_EFFECTS`) are tried at once only: no wake carries them, and a delayed
+own speed is a stand-in for a place (on a periodic path the speed a quarter period late IS the position:
+with delays, own_velocity stood in for a wall's suction in tests/identify/test_discovery_wide.py)."""
 DELAYED_ONLY = ("wake_memory",)
 """Effects that are something only with a delay: at once ``wake_memory`` is a rescaling of the base model
 (:func:`proxplan.physics.effects._wake_memory`), the calibration's to fit, so it is a candidate only when its
@@ -238,10 +242,10 @@ def effect_candidate(
     every delay of :data:`LAG_GRID_S` (:func:`proxplan.identify.design.delayed_caches`). The effect's delay is
     the one with the lowest MAP objective on the train rows (:func:`best_lag`: its strength and the tangents
     refitted at each; a profile likelihood), its shape refitted at that delay."""
-    lag = 0.0
+    grid = {0.0: delayed[0.0]} if name in TARGET_ONLY_EFFECTS else delayed
     if name in LINEAR_PARAMS:
         units = [Effect(name, {q: 0.0 for q in PARAMETERS[name]} | {k: 1.0}) for k in LINEAR_PARAMS[name]]
-        lag = best_lag(sel, units, tangents, ridge, delayed)
+        lag = best_lag(sel, units, tangents, ridge, grid)
         if name in DELAYED_ONLY and lag == 0.0:
             return EffectCandidate(name, Effect(name, {}), {}, "linear",
                                    note="it fits best at once, where it is the base model's own strength")  # fmt: skip
@@ -258,7 +262,7 @@ def effect_candidate(
         if size > 1e-6 * (hi - lo)
         else Effect(name, eff.full_params() | {k: PARAMETERS[name][k][0] for k in strength})
     )
-    lag = best_lag(sel, [probe], tangents, ridge, delayed)
+    lag = best_lag(sel, [probe], tangents, ridge, grid)
     if lag:
         eff, fit = fit_shape(sel, name, tangents, ridge, caches=delayed[lag])
         eff = Effect(name, eff.full_params() | {LAG_PARAM: lag})
@@ -280,16 +284,17 @@ def best_lag(
     delayed: dict[float, Sequence[BaseCache]],
 ) -> float:
     """The delay (s) at which ``effects`` (one column each, their strengths free) leave the lowest
-    :func:`profiled_objective`: the best of :data:`LAG_GRID_S` (at once on a tie), then, when that is a
-    delay, refined between its neighbours on the grid (bounded Brent, to :data:`LAG_RESOLUTION_S`); the
-    refined delay's inputs are added to ``delayed``."""
+    :func:`profiled_objective`: the best of the delays of ``delayed`` (:data:`LAG_GRID_S`, or only 0; at
+    once on a tie), then, when that is a delay, refined between its neighbours on the grid (bounded Brent,
+    to :data:`LAG_RESOLUTION_S`); the refined delay's inputs are added to ``delayed``."""
 
     def score(lag: float) -> float:
         if lag not in delayed:
             delayed[lag] = delayed_caches(sel, lag)
         return profiled_objective(sel, tangents, ridge, [effect_columns(sel, e, delayed[lag]) for e in effects])
 
-    scores = [score(lag) for lag in LAG_GRID_S]
+    grid = [lag for lag in LAG_GRID_S if lag in delayed]
+    scores = [score(lag) for lag in grid]
     k = int(np.argmin(scores))
     if k == 0:
         return 0.0
