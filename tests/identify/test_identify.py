@@ -10,6 +10,7 @@ written in the canonical layout), which were the stand-in before the simulator l
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from proxplan.identify import (
     write_canonical_csv,
     write_synthetic_manifest,
 )
+from proxplan.identify.data import errors as model_errors
 from proxplan.physics import BUILTIN_VEHICLES, Effect
 
 VEHICLE_TYPE = "small-quad"
@@ -240,8 +242,15 @@ def test_simulator_logs_no_hidden_effect(tmp_path: Path) -> None:
     assert library <= {"thrust_bias", *SIMULATOR_INFLOW}, result.selected
     _simulator_inflow_ok(result)  # issue 29: climb_inflow is kept here, and it is RotorPy's own k_z
     assert result.after.rmse_fz_N <= 1.01 * result.before.rmse_fz_N
-    assert result.after.rmse_torque_Nm <= result.calibrated.rmse_torque_Nm
-    assert result.after.rmse_tz_Nm <= result.calibrated.rmse_tz_Nm
+    # against the calibrated model read through the thrust scales the final one stands with (result.calibrated
+    # has them at 1; with nothing kept the final model IS the calibration's fit with its fitted scales, and a
+    # scale of 1.0001 moved the torque error by 0.02 %): what discovery keeps never makes it worse
+    test = [u for u in result.units if u.split == "test"]
+    calibrated = model_errors(
+        test, replace(result.calibrated_model, thrust_scale=dict(result.final_model.thrust_scale))
+    )
+    assert result.after.rmse_torque_Nm <= calibrated.rmse_torque_Nm
+    assert result.after.rmse_tz_Nm <= calibrated.rmse_tz_Nm
 
 
 # ----------------------------------------------------------------- residual analysis

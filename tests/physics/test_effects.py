@@ -211,3 +211,33 @@ def test_floor_stagnation_stops_the_jet_at_the_floor_and_not_far_above():
     np.testing.assert_allclose(f[0, 2], -base[0], rtol=1e-9)  # the whole push cancelled at the floor
     assert 0.0 < f[1, 2] / -base[1] < 1.0  # partly in between
     assert abs(f[2, 2]) < 1e-9 * abs(base[2])  # nothing far above the floor
+
+
+def test_a_delayed_effect_is_its_wrench_on_the_inputs_of_that_much_earlier():
+    """LAG_PARAM (issue 35): along a clock the delayed effect is the undelayed one shifted by lag_s (held at
+    the start); without a clock (a steady state) the delay changes nothing."""
+    t = np.arange(0.0, 4.0, 0.01)
+    offsets = np.column_stack([0.3 * np.sin(2.0 * t), 0.1 * np.cos(3.0 * t), -0.4 + 0.1 * np.sin(t)])
+    inputs = EffectInputs(target=SMALL, height_above_ground_m=np.full(len(t), 2.0), velocity_mps=np.zeros((len(t), 3)),
+                          sources=(SourceSample(LARGE, offsets),), time_s=t)  # fmt: skip
+    at_once = effect_wrench(Effect("near_field", {"amplitude": 1.0}), inputs)
+    late = effect_wrench(Effect("near_field", {"amplitude": 1.0, "lag_s": 0.25}), inputs)
+    for now, then in zip(at_once, late):
+        np.testing.assert_allclose(then[25:], now[:-25], atol=1e-15)
+        np.testing.assert_allclose(then[:25], np.repeat(now[:1], 25, axis=0), atol=1e-15)
+    assert np.abs(late[0] - at_once[0]).max() > 0.1 * np.abs(at_once[0]).max()  # the delay matters here
+    steady = EffectInputs(target=SMALL, height_above_ground_m=np.full(3, 2.0), velocity_mps=np.zeros((3, 3)),
+                          sources=(SourceSample(LARGE, offsets[:3]),))  # fmt: skip
+    np.testing.assert_array_equal(effect_wrench(Effect("near_field", {"lag_s": 0.25}), steady)[0],
+                                  effect_wrench(Effect("near_field", {}), steady)[0])  # fmt: skip
+    with pytest.raises(ValueError, match="lag_s"):
+        Effect("near_field", {"lag_s": -0.1})
+
+
+def test_wake_memory_is_a_share_of_the_base_downwash():
+    inputs = _inputs([[0.05, 0.0, -0.5], [0.2, 0.1, -0.8], [0.0, 0.0, 0.4]])
+    f0, t0 = total_wrench(inputs, ())
+    f, t = effect_wrench(Effect("wake_memory", {"share_1": 0.4}), inputs)
+    np.testing.assert_allclose(f, 0.4 * f0, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(t, 0.4 * t0, rtol=1e-12, atol=1e-15)
+    assert abs(f0[0, 2]) > 0.0  # a source above pushes

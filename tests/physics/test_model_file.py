@@ -28,6 +28,7 @@ def _model() -> CalibratedModel:
         effects=(
             Effect("thrust_bias", {"force_z_N": -0.012}),
             Effect("near_field", {"amplitude": 0.7, "decay_L": 2.5}),
+            Effect("wake_memory", {"share_1": 0.2, "lag_s": 0.31}),  # a delay is saved with its effect
         ),
         thrust_scales={"small-quad": 1.031, "large-quad": 0.987},
         uncertainty={"small-quad.c_ax": 0.21},
@@ -41,7 +42,8 @@ def test_round_trip_keeps_every_part(tmp_path: Path) -> None:
     assert back == model
     assert back.vehicles["small-quad"].mass_kg == pytest.approx(0.0371)
     assert back.notes == ()
-    assert [e.name for e in back.between_vehicle_effects] == ["near_field"]
+    assert [e.name for e in back.between_vehicle_effects] == ["near_field", "wake_memory"]
+    assert back.effects[2].lag_s == pytest.approx(0.31)
     (note,) = target_only_notes(back, "m.yaml")
     assert "thrust_bias" in note and "near_field" not in note
 
@@ -67,6 +69,10 @@ def test_older_format_without_version_is_read_with_a_note(tmp_path: Path) -> Non
         (
             "vehicles: {}\nmodel: {effects: [{name: near_field, params: {x: 1}}]}\n",
             "params.x: unknown parameter of near_field",
+        ),
+        (
+            "vehicles: {}\nmodel: {effects: [{name: near_field, params: {lag_s: -0.2}}]}\n",
+            "params.lag_s: expected a delay in \\[0, 2\\] s",
         ),
         ("vehicles: {}\nmodel: {thrust_scales: {a: -1}}\n", "model.thrust_scales.a"),
         ("vehicles: {}\nmodel: {field_form: wide}\n", "model.field_form"),
