@@ -22,9 +22,8 @@ place in the room), each on one wrench channel (F_z and the three torques): a te
    which member describes it best is the held-out test's to say.
 2. **Held out.** Every member of a stable group that some half picked enters the joint design beside the
    tangents and the kept effects (members of one group are one hypothesis: the Bonferroni count is the
-   stable groups'; the same rule is also run as if each train flight had been held out — the member's
-   group stable and the member picked by some half without that flight — and a term's gain on a flight
-   counts only where that in-fold search would have tested it:
+   stable groups'; the group's stability is also judged as if each train flight had been held out, and a
+   term's gain on a flight counts only where that in-fold search would have tested it:
    :func:`proxplan.identify.stability.fold_eligibility`); the greedy held-out gain test (:func:`proxplan.identify.crossval.heldout_forward`: every flight predicted
    by a fit without it; Bonferroni over the round) keeps them, and a backward pass drops any that no
    longer pass given the others.
@@ -245,8 +244,7 @@ def discover_terms(
     y = sel.residual
     halves = half_samples(sel.plan, seed)
     folds = fold_half_samples(sel.plan, seed)  # the same search as if each train flight had been held out
-    fold_counts: dict[int, dict[str, int]] = {c: {} for c in folds}  # groups picked per fold
-    fold_members: dict[int, set[str]] = {c: set() for c in folds}  # members some half of the fold picked
+    fold_counts: dict[int, dict[str, int]] = {c: {} for c in folds}
     always_names = list(always)
     member_counts: dict[str, int] = {}
     group_counts: dict[str, int] = {}
@@ -276,7 +274,6 @@ def discover_terms(
                 picked = _picked(sums, w, sel.tau, options.max_terms_per_channel, columns_here)
                 for g in {f"{channel}|{feature_group(f)}" for f in picked}:
                     fold_counts[cl][g] = fold_counts[cl].get(g, 0) + 1
-                fold_members[cl] |= {term_key(channel, f) for f in picked}
     n_halves = max(len(halves), 1)
     group_prob = {g: v / n_halves for g, v in group_counts.items()}
     q = float(n_chosen.mean()) if len(halves) else 0.0
@@ -295,10 +292,7 @@ def discover_terms(
     fwd = ForwardResult()
     sums = sel.sums({**always, **columns})
     ridge = ridge_of(sums.columns)
-    # the in-fold replica of the rule above: a member of a group stable without that flight, picked by some
-    # half without it
-    without = {cl: {k for k in stable if counts.get(_group_of(k), 0) > stab.threshold * max(len(folds[cl]), 1)
-                    and k in fold_members[cl]}
+    without = {cl: {k for k in stable if counts.get(_group_of(k), 0) > stab.threshold * max(len(folds[cl]), 1)}
                for cl, counts in fold_counts.items()}  # fmt: skip
     fold = fold_eligibility(sel.plan, without, stable)
     if stable:
