@@ -51,7 +51,7 @@ import numpy as np
 from proxplan.physics import KinematicLimits, Vehicle
 from proxplan.planfile import VehicleTrajectory
 from proxplan.planner.timing.profile import rest_to_rest
-from proxplan.verify.tracking import tracking_along_plan
+from proxplan.verify import tracking_along_plan
 
 VERIFY_DT_S = 0.01  # the verifier's grid (verify_plan's dt_fine_s default), s
 PLAN_DT_S = 0.05  # the plan's sample step (planner.timing.plan_grid.DT_S), s

@@ -19,7 +19,7 @@ from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.paths import common_grid
 from proxplan.planner.timing.plan_grid import DT_S
 from proxplan.planner.timing.profile import LineMove, rest_to_rest
-from proxplan.verify.tracking import tracking_along_plan
+from proxplan.verify import tracking_along_plan
 
 LIMITS = KinematicLimits(2.0, 4.0, 16.0)  # the built-in types' measured limits, m/s, m/s^2, m/s^3
 LONGEST_M = 8.0  # the longest straight move of the chains below fits in this, m

@@ -10,7 +10,7 @@ import numpy as np
 from proxplan.physics import BUILTIN_VEHICLES, KinematicLimits
 from proxplan.planfile import VehicleTrajectory
 from proxplan.planner.timing.profile import rest_to_rest
-from proxplan.verify.tracking import tracking_along_plan
+from proxplan.verify import tracking_along_plan
 
 PLAN_DT_S = 0.05  # plan.json's grid, s
 VERIFY_DT_S = 0.01  # the verifier's grid, s
