@@ -21,7 +21,9 @@ import baseline of the same run is printed first, so compare ratios on a loaded 
 makespan against the lower bound (fixed goals: the largest straight-line rest-to-rest time of any
 vehicle; ``by_type``: the same under the assignment, ``assignment_lower_bound_s``), the plan's
 method and how the swarm layer coordinated, the child's peak memory (``resource`` rusage, MB), and
-the verdict and whole-process time of ``proxplan verify`` on the written plan.json. ``--cpu-cap S``
+the verdict and whole-process time of ``proxplan verify`` on the written plan.json, and how many
+times the verification policy planned (``planned 2x``: the first plan failed ``verify`` and the
+plan's notes say "planned again"). ``--cpu-cap S``
 stops a run after S s of CPU time (its process tree) as well as after ``--timeout`` of wall time:
 on a shared machine the CPU cap is the same for every run. Column ``arm``:
 interpreter index x number of option sets + option set index.
@@ -215,7 +217,10 @@ def main() -> int:
                         lb_used = float(m.get("assignment_lower_bound_s") or lb)
                         makespan = float(m["makespan_s"])
                         ms, ratio = f"{makespan:.2f}", f"{makespan / lb_used:.2f}"
-                        how = f"{doc_out['method']}: " + str((m.get("swarm") or {}).get("coordination", ""))[:70]
+                        notes = json.loads((out / "plan.json").read_text()).get("notes", [])
+                        planned = 1 + sum("planned again" in note for note in notes)
+                        how = f"planned {planned}x; {doc_out['method']}: "
+                        how += str((m.get("swarm") or {}).get("coordination", ""))[:70]
                         t_v = time.perf_counter()
                         res = subprocess.run(
                             [py, "-m", "proxplan.cli", "verify", str(out / "plan.json")],

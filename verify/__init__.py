@@ -19,6 +19,7 @@ from proxplan.verify.jet_loop import (
     hold_poles,
     loop_along_plan,
 )
+from proxplan.verify.tracking import tracking_along_plan
 from proxplan.verify.tube_growth import TubeGrowth, predicted_tube_growth
 from proxplan.verify.violations import Violation
 
@@ -37,6 +38,7 @@ __all__ = [
     "deflection_along_plan",
     "scenario_of_plan",
     "separation_summary",
+    "tracking_along_plan",
     "tube_offsets",
     "verify_plan",
     "wrench_along_plan",

@@ -52,10 +52,22 @@ def _samples(tr: VehicleTrajectory, ref: VehicleTrajectory, grid: np.ndarray) ->
     late = grid - SETPOINT_DELAY_S
     rp, rv, ra = ref.sample(late)
     h = 1.0 / FIRMWARE_SETPOINT_RATE_HZ  # the firmware's difference of held set-points, within the reference
-    lo = np.clip(late - h / 2, ref.t_s[0], ref.t_s[-1])
-    hi = np.clip(late + h / 2, ref.t_s[0], ref.t_s[-1])
+    step = np.diff(grid)
+    if step.size and np.allclose(step, h, rtol=0.0, atol=1e-9 * h):
+        # windows that tile time share their edges (one array): a jump of the reference's jerk is
+        # counted in exactly one window, wherever it falls against the grid (computed apart, a jump
+        # on an edge could be counted twice or not at all, by rounding: the prediction then changed
+        # with the plan's start time, 0.7 -> 2.1 cm for one 0.5 m move at 2 m/s, 4 m/s^2, 16 m/s^3)
+        edges = np.clip(late[0] - h / 2 + h * np.arange(grid.size + 1), ref.t_s[0], ref.t_s[-1])
+        lo, hi = edges[:-1], edges[1:]
+        j_edges = ref.jerk_at(edges)
+        j_lo, j_hi = j_edges[:-1], j_edges[1:]
+    else:
+        lo = np.clip(late - h / 2, ref.t_s[0], ref.t_s[-1])
+        hi = np.clip(late + h / 2, ref.t_s[0], ref.t_s[-1])
+        j_lo, j_hi = ref.jerk_at(lo), ref.jerk_at(hi)
     width = np.maximum(hi - lo, 1e-12)[:, None]
-    snap = np.where(hi[:, None] > lo[:, None], (ref.jerk_at(hi) - ref.jerk_at(lo)) / width, 0.0)
+    snap = np.where(hi[:, None] > lo[:, None], (j_hi - j_lo) / width, 0.0)
     return ReferenceSamples(grid, p, v, a, rp, rv, ra, ref.jerk_at(late), snap)
 
 

@@ -78,10 +78,12 @@ def time_chain(
     if not any(goal_ok):
         return None
     moves: dict[tuple[int, int, bool], Move | None] = {}
-    forbidden: dict[tuple[int, int, bool], tuple[int, np.ndarray]] = {}  # (from step, departures)
+    # (from step, until step, departures): exact for departures in [from, until)
+    forbidden: dict[tuple[int, int, bool], tuple[int, int, np.ndarray]] = {}
 
     def move(k: int, j: int, run: bool, t: int):
-        """The move k -> j and its forbidden departures, exact from step t on (None: not free)."""
+        """The move k -> j and its forbidden departures, exact from step t on up to the last
+        departure that could still arrive at the end before ``done_by`` (None: not free)."""
         key = (k, j, run)
         if key not in moves:
             mv: Move
@@ -96,9 +98,12 @@ def time_chain(
         mv_ = moves[key]
         if mv_ is None:
             return None
-        if key not in forbidden or forbidden[key][0] > t:  # later departures need fewer samples
-            forbidden[key] = (t, occ.forbidden_departures(agent, mv_.positions(), from_step=t))
-        return mv_, forbidden[key][1]
+        # departures after done_by - 1 - steps - h[j] cannot improve on the best arrival found, and
+        # done_by only decreases: a query serves every later one that starts no earlier
+        until = done_by - mv_.steps - h[j]
+        if key not in forbidden or forbidden[key][0] > t or forbidden[key][1] < until:
+            forbidden[key] = (t, until, occ.forbidden_departures(agent, mv_.positions(), from_step=t, until_step=until))
+        return mv_, forbidden[key][2]
 
     # A*: the rest-to-rest time of the straight line to the end bounds what is left (no flight
     # from rest to rest is faster, and the bound is consistent: straight rest-to-rest times are

@@ -149,8 +149,8 @@ class Occupancy:
         keep = (ag != exclude) & (t1 > from_step)
         return P[keep], np.maximum(t0[keep], from_step), t1[keep], ty[keep], mv[keep], ag[keep]
 
-    def _chunk_candidates(self, c_lo: np.ndarray, c_hi: np.ndarray, exclude: int, from_step: int):
-        """Segments of other tracks lasting beyond ``from_step`` and the chunks whose boxes
+    def _chunk_candidates(self, c_lo: np.ndarray, c_hi: np.ndarray, exclude: int, from_step: int, before_step: int):
+        """Segments of other tracks lasting beyond ``from_step`` and starting before ``before_step``, and the chunks whose boxes
         [c_lo, c_hi] (C, 2), m (already grown by the reach) hold them: (positions (M, 3), first step
         (M,), end step (M,), type (M,), row (N,), chunk (N,)), one (row, chunk) pair per segment
         inside a chunk's box. Each chunk looks only at the cells its box touches (a long move's
@@ -182,7 +182,7 @@ class Occupancy:
         chunk = np.repeat(ch, n)
         first = np.repeat(start[inv] - np.r_[0, np.cumsum(n)[:-1]], n)
         row = first + np.arange(chunk.size)
-        keep = (ag[row] != exclude) & (t1[row] > from_step)
+        keep = (ag[row] != exclude) & (t1[row] > from_step) & (t0[row] < before_step)
         row, chunk = row[keep], chunk[keep]
         xy = P[row, :2]
         inside = np.all((xy >= c_lo[chunk]) & (xy <= c_hi[chunk]), axis=1)
@@ -206,11 +206,16 @@ class Occupancy:
         return [self.tracks[a] for a in sorted(found)]
 
     # -- the queries ----------------------------------------------------------------------------------
-    def forbidden_departures(self, agent: int, q_m: np.ndarray, from_step: int = 0) -> np.ndarray:
+    def forbidden_departures(
+        self, agent: int, q_m: np.ndarray, from_step: int = 0, until_step: int | None = None
+    ) -> np.ndarray:
         """(horizon,) bool: departing at step d along the move sampled on the grid at ``q_m``
-        (K + 1, 3), m, hits another track; exact for d >= ``from_step`` (earlier entries are not
-        looked at: only samples from that step on are)."""
+        (K + 1, 3), m, hits another track; exact for ``from_step`` <= d < ``until_step`` (None: the
+        horizon). Entries outside are not looked at: only the segments that can forbid a departure
+        in that window are (lasting beyond ``from_step``, starting before ``until_step`` + K), the
+        others' samples within reach of the move in space and in time."""
         T = self.horizon
+        until = T if until_step is None else min(T, max(int(until_step), from_step))
         bad = np.zeros(T, dtype=bool)
         q = np.asarray(q_m, dtype=float)
         K = q.shape[0]
@@ -220,7 +225,7 @@ class Occupancy:
         n_chunks = int(math.ceil(K / CHUNK))
         pad = np.concatenate([q, np.repeat(q[-1:], n_chunks * CHUNK - K, axis=0)]).reshape(n_chunks, CHUNK, 3)
         c_lo, c_hi = pad[:, :, :2].min(axis=1) - R, pad[:, :, :2].max(axis=1) + R
-        P, t0, t1, ty, rows, chunks = self._chunk_candidates(c_lo, c_hi, agent, from_step)
+        P, t0, t1, ty, rows, chunks = self._chunk_candidates(c_lo, c_hi, agent, from_step, until + K)
         if rows.size:
             kk = (chunks[:, None] * CHUNK + np.arange(CHUNK)[None]).reshape(-1)
             rr = np.repeat(rows, CHUNK)

@@ -97,6 +97,10 @@ class SwarmOptions:
     # default: on the named layouts at 32 vehicles it never gave the shorter plan (docs/planner.md)
     keep_straight: bool = False
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
+    # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
+    # layer can time (swarm.tracking_bound), so that the verifier does not reject the first plan
+    # by millimetres (False: only by ``deflection_m``, as before; for measuring the cause alone)
+    tracking_bound: bool = True
     seed: int = 0
     # per vehicle name: its predicted deflection under the plan's own disturbance, m; a pair's
     # keep-out grows by the sum of its two vehicles' values (as in the verifier)
@@ -128,7 +132,7 @@ def swarm_timed(
     if why is not None:
         raise ValueError(f"the swarm layer cannot plan this scenario: {why}")
     t0 = time.perf_counter()
-    problem = swarm_problem(scenario, deflection_m=opts.deflection_m)
+    problem = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
     lower_bound = lower_bound_makespan_s(scenario)
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}

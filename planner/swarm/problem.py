@@ -84,14 +84,38 @@ def swarm_applicable(scenario: Scenario) -> str | None:
     return None
 
 
+def tracking_growth_m(scenario: Scenario) -> dict[str, float]:
+    """Per vehicle the bound on the tracking error the verifier will predict for it in any plan
+    the swarm layer can time, m (:func:`proxplan.planner.swarm.tracking_bound.tracking_bound_m`: its
+    type's moves at its own limits and at every group's common limits, up to the workspace's
+    diagonal)."""
+    from proxplan.planner.swarm.tracking_bound import group_limits, tracking_bound_m
+
+    every = [t.kinematic_limits for t in scenario.vehicles.values()]
+    longest = float(np.linalg.norm(np.asarray(scenario.workspace_max_m) - np.asarray(scenario.workspace_min_m)))
+    out = {}
+    for name, task in scenario.vehicles.items():
+        if task.hover:  # a hovering vehicle never moves: no tracking error along a reference
+            continue
+        limits = tuple(group_limits(every, task.kinematic_limits))
+        out[name] = tracking_bound_m(task.vehicle, limits, round(longest, 3))
+    return out
+
+
 def swarm_problem(
-    scenario: Scenario, goals_m: np.ndarray | None = None, *, deflection_m: Mapping[str, float] | None = None
+    scenario: Scenario,
+    goals_m: np.ndarray | None = None,
+    *,
+    deflection_m: Mapping[str, float] | None = None,
+    tracking_bound: bool = True,
 ) -> SwarmProblem:
     """The :class:`SwarmProblem` of ``scenario`` (``goals_m`` (A, 3) overrides the goals, e.g. an
-    assignment); hovering vehicles keep their start as goal and are pinned. ``deflection_m`` (m per
-    vehicle name: its predicted deflection) grows the keep-outs moving and at rest: as in the
-    verifier a pair's growth is the sum of its two vehicles' deflections; keep-outs are per pair of
-    types, so each type counts with the largest deflection of its vehicles
+    assignment); hovering vehicles keep their start as goal and are pinned. Each vehicle's tube
+    grows by the larger of ``deflection_m`` (m per vehicle name: its predicted deflection in a plan
+    made before) and, with ``tracking_bound``, the bound on its predicted tracking error in any plan
+    the swarm layer can time (:func:`tracking_growth_m`), moving and at rest: as in the verifier a
+    pair's keep-out grows by the sum of its two vehicles' growths; keep-outs are per pair of types,
+    so each type counts with the largest growth of its vehicles
     (:func:`~proxplan.planner.swarm.keepout.keepout_for`)."""
     from proxplan.costmaps import effects_key
     from proxplan.planner.checks.constraints import build_checker
@@ -106,9 +130,10 @@ def swarm_problem(
             index[v] = len(vehicles)
             vehicles.append(v)
         types.append(index[v])
-    grow = [0.0] * len(vehicles)  # per type: the largest predicted deflection of its vehicles, m
+    grow = [0.0] * len(vehicles)  # per type: the largest growth of its vehicles' tubes, m
+    tracking = tracking_growth_m(scenario) if tracking_bound else {}
     for n, t in zip(names, types):
-        grow[t] = max(grow[t], float((deflection_m or {}).get(n, 0.0)))
+        grow[t] = max(grow[t], float((deflection_m or {}).get(n, 0.0)), tracking.get(n, 0.0))
     fx = effects_key(getattr(scenario, "effects", ()))
     keep = {
         (ia, ib): keepout_for(

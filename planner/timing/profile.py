@@ -60,21 +60,34 @@ class Profile:
         return float(p[0]), c * float(v[0]), c * c * float(a[0])
 
 
+# Ruckig 0.x raises on a distance a rounding error off a boundary between its profile types (at
+# 2 m/s, 4 m/s^2, 16 m/s^3: 0.4999999999999999 m, where the acceleration just reaches its limit,
+# 2 a^3 / j^2 = 0.5 m); such a distance is planned once more, longer by this fraction (a nanometre
+# per metre: the move ends within it of its end, and the profile stays within the limits)
+RUCKIG_RETRY_NUDGE = 1e-9
+
+
 @lru_cache(maxsize=4096)
 def rest_to_rest(distance_m: float, limits: KinematicLimits, dt_s: float) -> Profile:
     """The time-optimal rest-to-rest :class:`Profile` over ``distance_m`` (m), on the ``dt_s`` grid."""
-    from ruckig import InputParameter, Result, Ruckig, Trajectory
+    from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
     if distance_m <= 0.0:
         return Profile(0.0, dt_s, 0, 1.0, np.zeros(1), limits, None)
     inp = InputParameter(1)
-    inp.current_position, inp.target_position = [0.0], [float(distance_m)]
     inp.current_velocity, inp.target_velocity = [0.0], [0.0]
     inp.max_velocity = [limits.max_speed_mps]
     inp.max_acceleration = [limits.max_accel_mps2]
     inp.max_jerk = [limits.max_jerk_mps3]
     traj = Trajectory(1)
-    result = Ruckig(1).calculate(inp, traj)
+    for target in (float(distance_m), float(distance_m) * (1.0 + RUCKIG_RETRY_NUDGE)):
+        inp.current_position, inp.target_position = [0.0], [target]
+        try:
+            result = Ruckig(1).calculate(inp, traj)
+            break
+        except RuckigError:  # a distance on a boundary between profile types, by rounding: nudged once
+            if target != float(distance_m):
+                raise
     if result not in (Result.Working, Result.Finished):
         raise RuntimeError(f"Ruckig failed on a rest-to-rest profile ({result})")
     duration = float(traj.duration)

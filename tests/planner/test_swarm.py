@@ -152,14 +152,10 @@ def test_swarm_plans_pass_the_verifier_and_are_reproducible(layout):
         np.testing.assert_array_equal(tr.position_m, again.vehicles[n].position_m)
 
 
-@pytest.mark.xfail(
-    reason="issue 36 (this stop): verify's tube grows by each vehicle's predicted tracking error along its "
-    "reference; the lattice's keep-outs do not yet, so the lock-step plan comes 3.5 mm inside the grown "
-    "separation (the pipeline's second pass grows them: plans through plan_scenario verify)",
-    strict=False,
-)
 def test_lockstep_conversion_of_the_coordination_plan_is_conflict_free():
-    """The lattice coordination plan flown in lock-step (no continuous re-timing) passes the verifier."""
+    """The lattice coordination plan flown in lock-step (no continuous re-timing) passes the verifier,
+    its tube included: the keep-outs grow by the bound on each vehicle's predicted tracking error
+    (swarm.tracking_bound), as the verifier grows each tube by its prediction."""
     doc = grid_reshuffle(9, seed=2)
     sc = _scenario(doc)
     problem = swarm_problem(sc)
@@ -221,9 +217,9 @@ def test_verify_rejects_a_plan_whose_timing_breaks_the_order():
 
 def test_predicted_deflections_grow_the_keepout_moving_and_at_rest():
     doc = grid_reshuffle(4, types=["crazyflie-2.1"])
-    plain = swarm_problem(_scenario(doc))
+    plain = swarm_problem(_scenario(doc), tracking_bound=False)
     sc = _scenario(doc)
-    grown = swarm_problem(sc, deflection_m={n: 0.015 for n in sc.vehicles})  # a pair grows by the sum: 3 cm
+    grown = swarm_problem(sc, deflection_m={n: 0.015 for n in sc.vehicles}, tracking_bound=False)  # a pair: 3 cm
     ko, kg = plain.keepouts[(0, 0)], grown.keepouts[(0, 0)]
     for rest in (True, False):
         w = ko.w_rest_m if rest else ko.w_move_m

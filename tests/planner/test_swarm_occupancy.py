@@ -88,6 +88,11 @@ def test_departures_equal_a_brute_force_check(world):
                     break
         assert want.any() and not want.all(), "the test world must constrain the move somewhere"
         np.testing.assert_array_equal(got, want)
+        # a window of departures: only the segments that can forbid one in it are looked at, and
+        # inside it the answer is the same
+        for lo, hi in ((0, 40), (25, 90), (60, HORIZON)):
+            part = occ.forbidden_departures(me, q, from_step=lo, until_step=hi)
+            np.testing.assert_array_equal(part[lo:hi], want[lo:hi])
 
 
 def test_holds_equal_a_brute_force_check(world):

@@ -82,3 +82,20 @@ def test_a_right_angle_is_flown_through_rest():
     pts = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [2.0, 1.0, 1.0]])
     speeds = corner_speeds(pts, LIM)
     assert speeds.tolist() == [0.0, 0.0, 0.0, 0.0]
+
+
+def test_a_rest_to_rest_move_a_rounding_error_off_a_profile_boundary_is_planned():
+    """At 2 m/s, 4 m/s^2, 16 m/s^3 the acceleration just reaches its limit over 2 a^3 / j^2 = 0.5 m;
+    Ruckig raises on 0.4999999999999999 m (a lattice step computed by rounding, where the swarm
+    layer's lock-step plan crashed on pillar-64): the move is planned, ends where asked, and keeps
+    the limits."""
+    from proxplan.planner.timing.profile import rest_to_rest
+
+    lim = KinematicLimits(2.0, 4.0, 16.0)
+    distance = 0.4999999999999999
+    prof = rest_to_rest(distance, lim, 0.025)
+    assert prof.arc_m[-1] == distance and prof.arc_m.max() <= distance + 1e-9
+    t = np.arange(0.0, prof.duration_s, 0.001)
+    s, v, a = np.array([prof.at(float(tk)) for tk in t]).T
+    assert np.abs(v).max() <= lim.max_speed_mps * (1 + 1e-6)
+    assert np.abs(a).max() <= lim.max_accel_mps2 * (1 + 1e-6)

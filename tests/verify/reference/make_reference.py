@@ -25,6 +25,11 @@ wrench, usage, invalid zone, separation and metrics are still 51909acc's:
 
     python tests/verify/reference/make_reference.py --violations-only
 
+Issue 37 re-made them once more the same way: the tracking prediction's set-point differences now
+count each jump of the reference's jerk in exactly one window (verify/tracking.py; before, a jump
+on a window's edge was counted twice or not at all by rounding, so the prediction changed with a
+move's start time).
+
 Cases: straight synchronised lines of formations (pillar, circle: stacks of several sources,
 separation and invalid-zone violations, authority violations), a seeded random swarm of mixed
 types, the shipped three-high stack, the dock scenarios (dock pairs exempt on their approach), the
