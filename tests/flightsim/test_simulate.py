@@ -219,3 +219,12 @@ def test_grouped_wrench_equals_total_wrench_with_every_source():
         np.testing.assert_allclose(f, f_ref, rtol=1e-10, atol=1e-14)
         np.testing.assert_allclose(t, t_ref, rtol=1e-10, atol=1e-16)
     assert np.abs(_wrench_for(0, pos, vel, vehs, (), opts, 0.0)[0]).max() > 0.0  # the lowest one is hit
+
+
+def test_a_delayed_truth_effect_is_applied_at_once_and_the_notes_say_so():
+    """Each step's wrench is evaluated on that step's state (no history): a truth effect with lag_s acts at
+    once, and the simulation's notes name it (never a silent difference from the logs' effect)."""
+    plan = single_hover_plan(type_name="crazyflie-2.1", position_m=(0.0, 0.0, 1.0), duration_s=0.5)
+    late = simulate_plan(plan, truth_effects=[Effect("ground_effect", {"gain_k": 1.0, "lag_s": 0.2})], settle_s=0.2)
+    assert any("ground_effect" in n and "lag_s" in n for n in late.notes), late.notes
+    assert not any("lag_s" in n for n in simulate_plan(plan, settle_s=0.2).notes)
