@@ -139,7 +139,7 @@ def _prepare(
         if n in pert.force_N:
             extra_f[:, vi] = pert.force_N[n](t_grid - t0)
     start = np.array([pert.start_offset_m.get(n, (0.0, 0.0, 0.0)) for n in names], dtype=float)
-    notes = (ff_note,) if options.feedforward and ff_note else ()
+    notes: tuple[str, ...] = (ff_note,) if options.feedforward and ff_note else ()
     late = [e.name for e in truth.effects if e.lag_s > 0.0]
     if late:  # each step's wrench is evaluated on that step's state alone (no history to delay it along)
         notes += (f"the simulator applies {', '.join(late)} at once: a delay (lag_s) is not simulated",)

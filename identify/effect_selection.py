@@ -29,11 +29,17 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from proxplan.identify.calibrate import CalibrationResult, ParamSpec, fit_parameters
 from proxplan.identify.crossval import GroupSums, Ridge, heldout_mse, solve, trainable_groups
 from proxplan.identify.data import Errors, IdentifyOptions, Model, Unit, errors, progress_bar
+from proxplan.identify.delay_profile import (
+    LAG_GRID_S,
+    LAG_RESOLUTION_S,
+    best_lag,
+    judged_where_delay_shows,
+    shortest_delay_s,
+)
 from proxplan.identify.design import (
     SelectionSet,
     apply_tangent_step,
@@ -45,7 +51,7 @@ from proxplan.identify.design import (
 from proxplan.identify.heldout_select import Candidate, ForwardResult, GainTest, heldout_forward
 from proxplan.identify.priors import effect_prior
 from proxplan.identify.stability import Stability, stability
-from proxplan.physics import LAG_BOUNDS_S, LAG_PARAM, LAGS_S, PARAMETERS, TARGET_ONLY_EFFECTS, BaseCache, Effect
+from proxplan.physics import LAG_PARAM, PARAMETERS, TARGET_ONLY_EFFECTS, BaseCache, Effect
 
 LINEAR_PARAMS: dict[str, tuple[str, ...]] = {
     "own_velocity": ("c_w_spm", "c_mu_spm", "c_mu2_s2pm2"),
@@ -81,38 +87,15 @@ _START_GRID: dict[str, list[dict[str, float]]] = {
 }
 """Start points of the shape fit (parameters not named keep their defaults): a shape can start far from
 its optimum."""
-LAG_GRID_S = (0.0, *LAGS_S)
-"""Delays every library effect of a NEIGHBOUR is profiled over, s (:data:`proxplan.physics.LAG_PARAM`): at
-once, and the temporal features' geometric grid (:data:`proxplan.physics.LAGS_S`, 0.05-0.85 s, ratio 1.5:
-any delay in range within 25 % of one). Another vehicle's disturbance may reach the target late (its wake
-travels down, the target's rotors take time to respond), and an effect tried only at once is then
-rejected or leaves most of itself behind. The target's own effects
-(:data:`proxplan.physics.TARGET_ONLY_EFFECTS`) are tried at once only: no wake carries them, and a delayed
-own speed is a stand-in for a place (on a periodic path the speed a quarter period late IS the position:
-with delays, own_velocity stood in for a wall's suction in tests/identify/test_discovery_wide.py)."""
 LAG_SHAPE_ROUNDS = 3
 """At most this many alternations of the shape fit at a delay and the delay's refinement with that shape: the
 delay is first found with the shape fitted at once, which a late effect distorts (a near_field 0.30 s late
 came out at 0.279 s with it, at 0.300 s with its own shape; each round costs a shape fit, and they settle
 within 2 ms in one or two)."""
-DELAY_CHANNELS = (0, 3)
-"""Channels a delay is chosen on (of F_z, torque x, y, z): F_z and yaw. The measured roll and pitch torques
-hold R J omega_dot, the vehicle's own rotation, which follows any roll or pitch disturbance through its
-attitude loop, late; an error in that term (the Savitzky-Golay derivative's attenuation, the inertia) is a
-delayed image of the disturbance, so a delay chosen there fits the measurement, not the air: on
-closed-loop simulator logs with NO effect (tests/identify/test_identify.py), the roll residual follows the
-derivative of the body rate (49 % of its variance), and thrust_quadratic 35 ms late, chosen on every
-channel, halved the held-out torque error; chosen on these two channels but tested on all, 58 ms late it
-still passed (+0.71 +- 0.12) on the logs with a constant force hidden. So a delayed effect's strength is
-fitted, and its gain tested, on these channels too (:func:`judged_where_delay_shows`); its shape is fitted
-on all four, and saved, it acts on all four."""
 DELAYED_ONLY = ("wake_memory",)
 """Effects that are something only with a delay: at once ``wake_memory`` is a rescaling of the base model
 (:func:`proxplan.physics.effects._wake_memory`), the calibration's to fit, so it is a candidate only when its
 profile's best delay is not 0."""
-LAG_RESOLUTION_S = 0.002
-"""Resolution of a refined delay, s: a fifth of the logs' 10 ms sample step (within it the inputs are
-interpolated linearly, and the objective is flat below it)."""
 
 
 @dataclass
@@ -258,16 +241,19 @@ def effect_candidate(
     tangents: np.ndarray,
     ridge: Ridge,
     delayed: dict[float, Sequence[BaseCache]],
+    *,
+    shortest_s: float = 0.0,
 ) -> EffectCandidate:
     """The design columns of library effect ``name`` (module docstring); ``tangents`` (N, 4, P) and
     ``ridge`` are the always-fitted columns and their priors (:func:`fit_shape`); ``delayed`` the inputs of
-    every delay of :data:`LAG_GRID_S` (:func:`proxplan.identify.design.delayed_caches`). The effect's delay is
+    every delay of :data:`LAG_GRID_S` from ``shortest_s`` on (:func:`proxplan.identify.delay_profile.shortest_delay_s`;
+    :func:`proxplan.identify.design.delayed_caches`). The effect's delay is
     the one with the lowest MAP objective on the train rows (:func:`best_lag`: its strength and the tangents
     refitted at each; a profile likelihood), its shape refitted at that delay."""
     grid = {0.0: delayed[0.0]} if name in TARGET_ONLY_EFFECTS else delayed
     if name in LINEAR_PARAMS:
         units = [Effect(name, {q: 0.0 for q in PARAMETERS[name]} | {k: 1.0}) for k in LINEAR_PARAMS[name]]
-        lag = best_lag(sel, units, tangents, ridge, grid)
+        lag = best_lag(sel, units, tangents, ridge, grid, shortest_s=shortest_s)
         if name in DELAYED_ONLY and lag == 0.0:
             return EffectCandidate(name, Effect(name, {}), {}, "linear",
                                    note="it fits best at once, where it is the base model's own strength")  # fmt: skip
@@ -286,10 +272,10 @@ def effect_candidate(
         if size > 1e-6 * (hi - lo)
         else Effect(name, eff.full_params() | {k: PARAMETERS[name][k][0] for k in strength})
     )
-    lag = best_lag(sel, [probe], tangents, ridge, grid)
+    lag = best_lag(sel, [probe], tangents, ridge, grid, shortest_s=shortest_s)
     for _ in range(LAG_SHAPE_ROUNDS if lag else 0):  # the delay found with the shape fitted at once, refined
         eff, fit = fit_shape(sel, name, tangents, ridge, caches=delayed[lag])  # with the shape at the delay
-        again = best_lag(sel, [eff], tangents, ridge, grid, near=lag)
+        again = best_lag(sel, [eff], tangents, ridge, grid, shortest_s=shortest_s, near=lag)
         if abs(again - lag) <= LAG_RESOLUTION_S:
             break
         lag = again
@@ -307,87 +293,6 @@ def effect_candidate(
     col = effect_columns(sel, eff, delayed[lag])
     return EffectCandidate(name, eff, {f"{name}.scale": judged_where_delay_shows(col, lag)}, "scale", ref, fit,
                            acting={f"{name}.scale": col} if lag else None)  # fmt: skip
-
-
-def judged_where_delay_shows(columns: np.ndarray, lag_s: float) -> np.ndarray:
-    """An effect's design columns ((N, 4) noise units) with, for a delayed one (``lag_s`` > 0 s), the roll and
-    pitch channels left out: a delay is chosen, fitted and tested on :data:`DELAY_CHANNELS` only (the
-    effect, saved, still acts on every channel)."""
-    if lag_s <= 0.0:
-        return columns
-    out = np.zeros_like(columns)
-    out[:, list(DELAY_CHANNELS)] = columns[:, list(DELAY_CHANNELS)]
-    return out
-
-
-def best_lag(
-    sel: SelectionSet,
-    effects: Sequence[Effect],
-    tangents: np.ndarray,
-    ridge: Ridge,
-    delayed: dict[float, Sequence[BaseCache]],
-    *,
-    near: float | None = None,
-) -> float:
-    """The delay (s) at which ``effects`` (one column each, their strengths free) leave the lowest
-    :func:`profiled_objective`: the best of 0 and the delays of :data:`LAG_GRID_S` in ``delayed`` (at once
-    on a tie), chosen on :data:`DELAY_CHANNELS`, then, when that is a delay, refined between its neighbours on
-    the grid (bounded Brent, to :data:`LAG_RESOLUTION_S`); with ``near`` (a delay found before), only
-    that refinement, around the grid point nearest to it, kept if it beats ``near``. The refined delay's
-    inputs are added to ``delayed``."""
-
-    def score(lag: float) -> float:
-        if lag not in delayed:
-            delayed[lag] = delayed_caches(sel, lag)
-        cols = [effect_columns(sel, e, delayed[lag]) for e in effects]
-        return profiled_objective(sel, tangents, ridge, cols, channels=DELAY_CHANNELS)
-
-    grid = [lag for lag in LAG_GRID_S if lag in delayed]
-    if len(grid) == 1:
-        return 0.0
-    if near is not None:
-        k = max(1, int(np.argmin([abs(g - near) for g in grid])))
-        best = score(near)
-    else:
-        listed = [score(lag) for lag in grid]
-        k = int(np.argmin(listed))
-        best = listed[k]
-        if k == 0:
-            return 0.0
-    upper = grid[k + 1] if k + 1 < len(grid) else min(grid[k] * LAG_GRID_S[2] / LAG_GRID_S[1], LAG_BOUNDS_S[1])
-    found = minimize_scalar(lambda x: score(round(float(x), 3)), bounds=(grid[k - 1], upper),
-                            method="bounded", options={"xatol": LAG_RESOLUTION_S})  # fmt: skip
-    lag = round(float(found.x), 3)
-    return lag if score(lag) < best else (near if near is not None else float(grid[k]))
-
-
-def profiled_objective(
-    sel: SelectionSet,
-    tangents: np.ndarray,
-    ridge: Ridge,
-    columns: Sequence[np.ndarray],
-    *,
-    channels: Sequence[int] = (0, 1, 2, 3),
-) -> float:
-    """The MAP objective on the selection's train rows with ``columns`` (each (N, 4), noise units) and the
-    vehicle parameters' ``tangents`` ((N, 4, P), priors ``ridge``) fitted, -: the weighted squared residual
-    over tau on ``channels`` (indices of F_z and the three torques) plus the tangents' prior penalty (the
-    objective :func:`fit_shape` minimises, on every channel)."""
-    train = ~sel.plan.held_out_only[sel.group]
-    mask = np.zeros(4)
-    mask[list(channels)] = 1.0
-    w = (sel.weight * train)[:, None] * mask[None, :]
-    w = w.reshape(-1)
-    x = np.concatenate([tangents, np.stack(columns, axis=2)], axis=2).reshape(len(sel.weight) * 4, -1)
-    y = sel.residual.reshape(-1)
-    n_t = tangents.shape[2]
-    prec = np.concatenate([ridge.precision[:n_t], np.zeros(len(columns))])
-    center = np.concatenate([ridge.center[:n_t], np.zeros(len(columns))])
-    gram = (x * w[:, None]).T @ x / sel.tau
-    lhs = gram + np.diag(prec + 1e-9 * np.maximum(np.diag(gram), 1e-300))
-    beta = np.linalg.solve(lhs, (x * w[:, None]).T @ y / sel.tau + prec * center)
-    r = y - x @ beta
-    return float(np.sum(w * r * r) / sel.tau + np.sum(prec * (beta - center) ** 2))
 
 
 class EffectSelector:
@@ -415,10 +320,11 @@ class EffectSelector:
         stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
                  else np.zeros((len(self.sel.weight), 4, 0)))  # fmt: skip
         ridge = self.ridge_for(self.always)
+        shortest = shortest_delay_s(self.options.measure.window_s)
         self.delayed = {0.0: self.sel.caches}
-        self.delayed.update({lag: delayed_caches(self.sel, lag) for lag in LAG_GRID_S if lag > 0.0})
+        self.delayed.update({lag: delayed_caches(self.sel, lag) for lag in LAG_GRID_S if lag > 0.0 and lag >= shortest})
         for name in progress_bar([n for n in names if n != THRUST_BIAS], "effect shapes", self.options.progress):
-            self.candidates.append(effect_candidate(self.sel, name, stack, ridge, self.delayed))
+            self.candidates.append(effect_candidate(self.sel, name, stack, ridge, self.delayed, shortest_s=shortest))
 
     def design(self) -> tuple[GroupSums, Ridge]:
         if self.sums is None:
