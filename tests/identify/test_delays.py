@@ -47,8 +47,8 @@ def test_a_delayed_effect_at_stratified_rows_is_the_full_rate_delay(tmp_path: Pa
 
 
 @pytest.fixture(scope="module")
-def clean(tmp_path_factory: pytest.TempPathFactory):
-    return _run(tmp_path_factory.mktemp("clean"), None)
+def clean(discovery_clean):
+    return discovery_clean
 
 
 def test_a_late_library_effect_is_found_with_its_delay(tmp_path: Path, clean) -> None:

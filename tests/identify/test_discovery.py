@@ -84,8 +84,8 @@ def _run(tmp: Path, hidden):
 
 
 @pytest.fixture(scope="module")
-def clean(tmp_path_factory: pytest.TempPathFactory):
-    return _run(tmp_path_factory.mktemp("clean"), None)
+def clean(discovery_clean):
+    return discovery_clean
 
 
 def test_clean_logs_keep_nothing(clean) -> None:
