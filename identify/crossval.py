@@ -207,22 +207,58 @@ class Ridge:
 def solve(sums: GroupSums, cols: np.ndarray, train: np.ndarray, ridge: Ridge, tau: float) -> np.ndarray:
     """Coefficients (len(cols),) of the columns ``cols`` fitted on the groups where ``train`` (groups,) is
     True (weights, or 0/1): argmin sum_g train_g (SSE_g / tau) + ridge terms."""
-    train = sums.cells(train)
-    G = np.tensordot(train, sums.G[:, cols][:, :, cols], axes=1) / tau
-    b = np.tensordot(train, sums.b[:, cols], axes=1) / tau
-    prec = ridge.precision[cols]
-    A = G + np.diag(prec + RIDGE_EPS * np.maximum(np.diag(G), 1e-300))
-    rhs = b + prec * ridge.center[cols]
-    try:
-        return np.linalg.solve(A, rhs)
-    except np.linalg.LinAlgError:
-        return np.linalg.lstsq(A, rhs, rcond=None)[0]
+    return _Restricted.of(sums, cols, ridge).solve(train, tau)
 
 
-def group_sse(sums: GroupSums, cols: np.ndarray, beta: np.ndarray, g: int) -> float:
-    """Weighted SSE of group ``g`` with coefficients ``beta`` on ``cols``, noise units."""
-    Gg = sums.G[g][np.ix_(cols, cols)]
-    return float(sums.c[g] - 2.0 * beta @ sums.b[g, cols] + beta @ Gg @ beta)
+@dataclass(frozen=True)
+class _Restricted:
+    """The per-cell sums and the prior restricted to the columns ``cols`` once (a held-out pass fits the
+    same columns once per cluster): G (K, q, q), b (K, q), precision and center (q,)."""
+
+    sums: GroupSums
+    G: np.ndarray
+    b: np.ndarray
+    precision: np.ndarray
+    center: np.ndarray
+
+    @staticmethod
+    def of(sums: GroupSums, cols: np.ndarray, ridge: Ridge) -> _Restricted:
+        return _Restricted(
+            sums, sums.G[:, cols[:, None], cols[None, :]], sums.b[:, cols], ridge.precision[cols], ridge.center[cols]
+        )
+
+    def solve(self, train: np.ndarray, tau: float) -> np.ndarray:
+        """:func:`solve` on these columns."""
+        cells = self.sums.cells(train)
+        return self.solve_sums(np.tensordot(cells, self.G, axes=1), np.tensordot(cells, self.b, axes=1), tau)
+
+    def solve_without(self, total: tuple[np.ndarray, np.ndarray], groups: np.ndarray, tau: float) -> np.ndarray:
+        """:func:`solve` on the 0/1 train groups whose sums are ``total`` (:meth:`sums_of`), less the train
+        groups ``groups`` (int array): leaving a flight out is a subtraction."""
+        cells = (groups[:, None] * self.sums.n_channels + np.arange(self.sums.n_channels)[None, :]).ravel()
+        return self.solve_sums(total[0] - self.G[cells].sum(axis=0), total[1] - self.b[cells].sum(axis=0), tau)
+
+    def sums_of(self, train: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(G (q, q), b (q,)) summed over the groups weighted by ``train`` (groups,)."""
+        cells = self.sums.cells(train)
+        return np.tensordot(cells, self.G, axes=1), np.tensordot(cells, self.b, axes=1)
+
+    def solve_sums(self, G: np.ndarray, b: np.ndarray, tau: float) -> np.ndarray:
+        """:func:`solve` from the train groups' summed G (q, q) and b (q,)."""
+        G, b = G / tau, b / tau
+        A = G + np.diag(self.precision + RIDGE_EPS * np.maximum(np.diag(G), 1e-300))
+        rhs = b + self.precision * self.center
+        try:
+            return np.linalg.solve(A, rhs)
+        except np.linalg.LinAlgError:
+            return np.linalg.lstsq(A, rhs, rcond=None)[0]
+
+    def mse(self, beta: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """(len(cells),) weighted mean squared error of the cells with coefficients ``beta``, noise units
+        (NaN where a cell has no weight)."""
+        sse = self.sums.c[cells] - 2.0 * (self.b[cells] @ beta) + np.einsum("kij,i,j->k", self.G[cells], beta, beta)
+        w = self.sums.w[cells]
+        return np.where(w > 0, sse / np.where(w > 0, w, 1.0), np.nan)
 
 
 def group_weights(sums: GroupSums) -> np.ndarray:
@@ -243,7 +279,9 @@ def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge
     trainable = trainable_groups(sums, plan)
     weights = group_weights(sums)
     out = np.full((plan.n_groups, nc), np.nan)
-    beta_all = solve(sums, cols, trainable, ridge, tau)
+    sub = _Restricted.of(sums, cols, ridge)
+    total = sub.sums_of(trainable)
+    beta_all = sub.solve_sums(*total, tau)
     for c in range(plan.n_clusters):
         members = np.flatnonzero((plan.cluster == c) & (weights > 0))
         if members.size == 0:
@@ -251,15 +289,11 @@ def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge
         if plan.held_out_only[members].all():
             beta = beta_all
         else:
-            mask = trainable * (plan.cluster != c)
-            if not mask.any():
+            if not (trainable * (plan.cluster != c)).any():
                 continue
-            beta = solve(sums, cols, mask, ridge, tau)
-        for g in members:
-            for ch in range(nc):
-                cell = g * nc + ch
-                if sums.w[cell] > 0:
-                    out[g, ch] = group_sse(sums, cols, beta, int(cell)) / sums.w[cell]
+            beta = sub.solve_without(total, np.flatnonzero((plan.cluster == c) & (trainable > 0)), tau)
+        cells = (members[:, None] * nc + np.arange(nc)[None, :]).ravel()
+        out[members] = sub.mse(beta, cells).reshape(members.size, nc)
     return out
 
 
@@ -271,7 +305,8 @@ def heldout_predictions(
     ``group`` (N,)."""
     out = np.zeros(x.shape[:2])
     trainable = trainable_groups(sums, plan)
-    beta_all = solve(sums, cols, trainable, ridge, tau)
+    sub = _Restricted.of(sums, cols, ridge)
+    beta_all = sub.solve(trainable, tau)
     row_cluster = plan.cluster[group]
     for c in range(plan.n_clusters):
         rows = np.flatnonzero(row_cluster == c)
@@ -279,6 +314,6 @@ def heldout_predictions(
             continue
         members = plan.cluster == c
         mask = trainable * ~members
-        beta = beta_all if plan.held_out_only[members].all() or not mask.any() else solve(sums, cols, mask, ridge, tau)
+        beta = beta_all if plan.held_out_only[members].all() or not mask.any() else sub.solve(mask, tau)
         out[rows] = x[rows][:, :, cols] @ beta
     return out

@@ -39,6 +39,7 @@ is already a force or torque (coefficient per feature unit) and ``"<channel>*W*<
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -197,12 +198,26 @@ def _residualized(a: np.ndarray, y: np.ndarray, x: np.ndarray, w: np.ndarray) ->
     return r[:, 0], r[:, 1:]
 
 
-def omp_bic(sums: GroupSums, w: np.ndarray, n_eff: float, max_terms: int) -> list[int]:
-    """Indices of the columns an OMP path picks on the groups weighted by ``w``, the path's length chosen
-    by BIC (module docstring)."""
-    Gp = np.tensordot(w, sums.G, axes=1)
-    bp = np.tensordot(w, sums.b, axes=1)
-    cp = float(w @ sums.c)
+WEIGHTS_PER_PRODUCT = 16
+"""Half-samples whose weighted Gram matrices are formed in one matrix product (memory: this many p x p
+matrices; the same sums as one at a time, up to rounding)."""
+
+
+def _weighted_sums(sums: GroupSums, weights: Sequence[np.ndarray]) -> Iterator[tuple[np.ndarray, np.ndarray, float]]:
+    """For each group weighting ``w`` (G,) of ``weights``: (sum_g w_g G_g (p, p), sum_g w_g b_g (p,),
+    sum_g w_g c_g), formed :data:`WEIGHTS_PER_PRODUCT` at a time in one matrix product."""
+    k, p = sums.G.shape[0], sums.G.shape[1]
+    g_flat = sums.G.reshape(k, p * p)
+    for start in range(0, len(weights), WEIGHTS_PER_PRODUCT):
+        w = np.array(weights[start : start + WEIGHTS_PER_PRODUCT], dtype=float)
+        gp, bp, cp = (w @ g_flat).reshape(-1, p, p), w @ sums.b, w @ sums.c
+        for j in range(w.shape[0]):
+            yield gp[j], bp[j], float(cp[j])
+
+
+def omp_bic(Gp: np.ndarray, bp: np.ndarray, cp: float, weight: float, n_eff: float, max_terms: int) -> list[int]:
+    """Indices of the columns an OMP path picks on one half-sample's weighted sums (Gram ``Gp`` (p, p),
+    ``bp`` (p,), ``cp``, their total ``weight``), the path's length chosen by BIC (module docstring)."""
     d = np.sqrt(np.clip(np.diag(Gp), 0.0, None))
     ok = np.flatnonzero(d > 1e-9 * max(float(d.max()) if d.size else 0.0, 1e-300))
     if ok.size == 0 or cp <= 0.0:
@@ -214,7 +229,6 @@ def omp_bic(sums: GroupSums, w: np.ndarray, n_eff: float, max_terms: int) -> lis
         warnings.simplefilter("ignore")  # the path early; the arguments are ours (validation costs ~10 ms a call)
         path = orthogonal_mp_gram(Gn, bn, n_nonzero_coefs=k_max, return_path=True)
     path = path.reshape(ok.size, -1)
-    weight = max(float(w @ sums.w), 1e-300)
     best_score, best_sel = n_eff * np.log(max(cp, 1e-300) / weight), []
     for k in range(path.shape[1]):
         beta = path[:, k]
@@ -261,8 +275,7 @@ def discover_terms(
         yr, xr = _residualized(a, y[:, c], xc[:, usable], sel.weight * train_rows)
         sums = GroupSums.build(xr, yr, sel.weight, sel.group, sel.plan.n_groups, [names[j] for j in usable])
         columns_here = [names[j] for j in usable]
-        for h, w in enumerate(halves):
-            picked = _picked(sums, w, sel.tau, options.max_terms_per_channel, columns_here)
+        for h, picked in enumerate(_picks(sums, halves, sel.tau, options.max_terms_per_channel, columns_here)):
             groups = {f"{channel}|{feature_group(f)}" for f in picked}
             n_chosen[h] += len(groups)
             for g in groups:
@@ -270,8 +283,7 @@ def discover_terms(
             for f in picked:
                 member_counts[term_key(channel, f)] = member_counts.get(term_key(channel, f), 0) + 1
         for cl, fold_halves in folds.items():
-            for w in fold_halves:
-                picked = _picked(sums, w, sel.tau, options.max_terms_per_channel, columns_here)
+            for picked in _picks(sums, fold_halves, sel.tau, options.max_terms_per_channel, columns_here):
                 for g in {f"{channel}|{feature_group(f)}" for f in picked}:
                     fold_counts[cl][g] = fold_counts[cl].get(g, 0) + 1
     n_halves = max(len(halves), 1)
@@ -308,10 +320,15 @@ def discover_terms(
                            columns=columns, top=top, member_probability=member_prob, fold_eligible=fold)  # fmt: skip
 
 
-def _picked(sums: GroupSums, w: np.ndarray, tau: float, max_terms: int, columns: list[str]) -> list[str]:
-    """The features (names of ``sums``' ``columns``) that one half-sample's OMP path picks (:func:`omp_bic`)."""
-    n_eff = max(float(w @ sums.w) / tau, 2.0)
-    return [columns[j] for j in omp_bic(sums, w, n_eff, max_terms)]
+def _picks(
+    sums: GroupSums, weights: Sequence[np.ndarray], tau: float, max_terms: int, columns: list[str]
+) -> Iterator[list[str]]:
+    """For each half-sample weighting of ``weights``, the features (names of ``sums``' ``columns``) its OMP
+    path picks (:func:`omp_bic`)."""
+    for w, (Gp, bp, cp) in zip(weights, _weighted_sums(sums, weights)):
+        total = float(w @ sums.w)
+        n_eff = max(total / tau, 2.0)
+        yield [columns[j] for j in omp_bic(Gp, bp, cp, max(total, 1e-300), n_eff, max_terms)]
 
 
 def _group_of(key: str) -> str:
