@@ -12,6 +12,7 @@ from scipy.optimize import minimize_scalar
 
 from proxplan.identify.crossval import Ridge
 from proxplan.identify.design import SelectionSet, delayed_caches, effect_columns
+from proxplan.identify.projection import TangentProjection
 from proxplan.physics import LAG_BOUNDS_S, LAGS_S, BaseCache, Effect
 
 LAG_GRID_S = (0.0, *LAGS_S)
@@ -61,17 +62,18 @@ def best_lag(
     near: float | None = None,
 ) -> float:
     """The delay (s) at which ``effects`` (one column each, their strengths free) leave the lowest
-    :func:`profiled_objective`: the best of 0 and the delays of :data:`LAG_GRID_S` in ``delayed`` (at once
+    :meth:`proxplan.identify.projection.TangentProjection.profiled_objective` on :data:`DELAY_CHANNELS`: the best of 0 and the delays of :data:`LAG_GRID_S` in ``delayed`` (at once
     on a tie), chosen on :data:`DELAY_CHANNELS`, then, when that is a delay, refined between its neighbours on
     the grid, not below ``shortest_s`` (:func:`shortest_delay_s`; bounded Brent, to :data:`LAG_RESOLUTION_S`); with ``near`` (a delay found before), only
     that refinement, around the grid point nearest to it, kept if it beats ``near``. The refined delay's
     inputs are added to ``delayed``."""
 
+    projection = TangentProjection.of(sel, tangents, ridge, DELAY_CHANNELS)
+
     def score(lag: float) -> float:
         if lag not in delayed:
             delayed[lag] = delayed_caches(sel, lag)
-        cols = [effect_columns(sel, e, delayed[lag]) for e in effects]
-        return profiled_objective(sel, tangents, ridge, cols, channels=DELAY_CHANNELS)
+        return projection.profiled_objective([effect_columns(sel, e, delayed[lag]) for e in effects])
 
     grid = [lag for lag in LAG_GRID_S if lag in delayed]
     if len(grid) == 1:
@@ -90,35 +92,6 @@ def best_lag(
                             method="bounded", options={"xatol": LAG_RESOLUTION_S})  # fmt: skip
     lag = round(float(found.x), 3)
     return lag if score(lag) < best else (near if near is not None else float(grid[k]))
-
-
-def profiled_objective(
-    sel: SelectionSet,
-    tangents: np.ndarray,
-    ridge: Ridge,
-    columns: Sequence[np.ndarray],
-    *,
-    channels: Sequence[int] = (0, 1, 2, 3),
-) -> float:
-    """The MAP objective on the selection's train rows with ``columns`` (each (N, 4), noise units) and the
-    vehicle parameters' ``tangents`` ((N, 4, P), priors ``ridge``) fitted, -: the weighted squared residual
-    over tau on ``channels`` (indices of F_z and the three torques) plus the tangents' prior penalty (the
-    objective :func:`fit_shape` minimises, on every channel)."""
-    train = ~sel.plan.held_out_only[sel.group]
-    mask = np.zeros(4)
-    mask[list(channels)] = 1.0
-    w = (sel.weight * train)[:, None] * mask[None, :]
-    w = w.reshape(-1)
-    x = np.concatenate([tangents, np.stack(columns, axis=2)], axis=2).reshape(len(sel.weight) * 4, -1)
-    y = sel.residual.reshape(-1)
-    n_t = tangents.shape[2]
-    prec = np.concatenate([ridge.precision[:n_t], np.zeros(len(columns))])
-    center = np.concatenate([ridge.center[:n_t], np.zeros(len(columns))])
-    gram = (x * w[:, None]).T @ x / sel.tau
-    lhs = gram + np.diag(prec + 1e-9 * np.maximum(np.diag(gram), 1e-300))
-    beta = np.linalg.solve(lhs, (x * w[:, None]).T @ y / sel.tau + prec * center)
-    r = y - x @ beta
-    return float(np.sum(w * r * r) / sel.tau + np.sum(prec * (beta - center) ** 2))
 
 
 def shortest_delay_s(window_s: float) -> float:

@@ -50,6 +50,7 @@ from proxplan.identify.design import (
 )
 from proxplan.identify.heldout_select import Candidate, ForwardResult, GainTest, heldout_forward
 from proxplan.identify.priors import effect_prior
+from proxplan.identify.projection import TangentProjection
 from proxplan.identify.stability import Stability, stability
 from proxplan.physics import LAG_PARAM, PARAMETERS, TARGET_ONLY_EFFECTS, BaseCache, Effect
 
@@ -204,23 +205,12 @@ def fit_shape(
     inputs to evaluate it on (a delay's, :func:`proxplan.identify.design.delayed_caches`; default the samples')."""
     keys = list(PARAMETERS[name])
     specs = [ParamSpec(k, PARAMETERS[name][k][0], *PARAMETERS[name][k][1:], prior=effect_prior(name, k)) for k in keys]
-    train = ~sel.plan.held_out_only[sel.group]
-    w = (sel.weight * train)[:, None]
-    sw = np.sqrt(w)
-    y = sel.residual
-    n_t = tangents.shape[2]
-    t_flat = tangents.reshape(len(y) * 4, n_t)
-    gram = (t_flat * w.repeat(4, axis=1).reshape(-1, 1)).T @ t_flat / sel.tau
-    lhs = gram + np.diag(ridge.precision + 1e-9 * np.maximum(np.diag(gram), 1e-300))
+    projection = TangentProjection.of(sel, tangents, ridge)
 
     def residual(theta: np.ndarray) -> np.ndarray:
-        eff = Effect(name, {k: float(v) for k, v in zip(keys, theta)})
-        z = y - effect_columns(sel, eff, caches)
-        rhs = (t_flat * w.repeat(4, axis=1).reshape(-1, 1)).T @ z.reshape(-1) / sel.tau
-        step = np.linalg.solve(lhs, rhs + ridge.precision * ridge.center) if n_t else np.zeros(0)
-        data = (sw * (z - tangents @ step)).reshape(-1)
-        prior = np.sqrt(sel.tau * ridge.precision) * (step - ridge.center)
-        return np.concatenate([data, prior])
+        return projection.residual_vector(
+            effect_columns(sel, Effect(name, {k: float(v) for k, v in zip(keys, theta)}), caches)
+        )
 
     starts = [np.array([s.initial for s in specs])]
     for extra in _START_GRID.get(name, ()):
