@@ -5,7 +5,7 @@ shielding, effect search, discovery over the widened dictionary, before/after er
 ``manifests/neural-swarm.yaml`` (train + validation + test flights of all seven swap sets and the
 take-offs; the logs are read from ``../shared``), then ``evaluate`` of the saved model on the test
 flights. Baseline measured in the same run: loading and measuring every flight alone
-(:func:`proxplan.identify.data.load_units`), reported as a ratio.
+(:func:`proxplan.identify.loading.load_units`), reported as a ratio.
 
     python benchmarks/bench_identify_shipped.py [--manifest manifests/neural-swarm.yaml] [--json]
 """
@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from proxplan.identify import IdentifyOptions, evaluate_model, load_manifest, run_identify
-from proxplan.identify.data import load_units
+from proxplan.identify.loading import load_units
 
 ROOT = Path(__file__).resolve().parents[1]
 BUDGET_S = 120.0

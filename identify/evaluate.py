@@ -34,11 +34,10 @@ from proxplan.identify.data import (
     Model,
     Predictions,
     Unit,
-    load_units,
-    measurement_summary,
     sources_overhead,
 )
 from proxplan.identify.flightlog import Manifest
+from proxplan.identify.loading import load_units, measurement_summary
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import DERIVATIVES, MeasureOptions
 from proxplan.identify.motor_check import check_loaded

@@ -43,7 +43,7 @@ class MeasureOptions:
     polyorder: int = 2  # Savitzky-Golay polynomial order, -
     motor_time_constant_s: float | None = None  # first-order motor lag tau to compensate, s (None: see motor_lag)
     motor_lag: bool = True  # where logs hold COMMANDED thrust, compensate each vehicle's own
-    # Vehicle.motor_time_constant_s (proxplan.identify.data.measure_options_for); an explicit
+    # Vehicle.motor_time_constant_s (proxplan.identify.loading.measure_options_for); an explicit
     # motor_time_constant_s overrides the vehicle's value
     thrust_scale: float = 1.0  # multiplies the logged motor thrusts (calibrated), -
 

@@ -151,9 +151,9 @@ def _spread(group: Sequence[LagSample], tau_s: float, options: MeasureOptions) -
 
 def check_loaded(data: Any, *, motor_thrust: str, options: MeasureOptions) -> dict[str, Any]:
     """:func:`motor_lag_check` on the train and validation flights of a
-    :class:`proxplan.identify.data.LoadedData` (every flight when it has none), with the tau the
-    measurement used per type (:func:`proxplan.identify.data.measure_options_for`)."""
-    from proxplan.identify.data import measure_options_for
+    :class:`proxplan.identify.loading.LoadedData` (every flight when it has none), with the tau the
+    measurement used per type (:func:`proxplan.identify.loading.measure_options_for`)."""
+    from proxplan.identify.loading import measure_options_for
 
     declared = {t: measure_options_for(options, v, motor_thrust).motor_time_constant_s or 0.0
                 for t, v in data.types.items()}  # fmt: skip
@@ -162,7 +162,7 @@ def check_loaded(data: Any, *, motor_thrust: str, options: MeasureOptions) -> di
 
 def lag_samples(data: Any, *, splits: Sequence[str] = ("train", "validation")) -> list[LagSample]:
     """The :class:`LagSample` of every scored vehicle of ``data`` (a
-    :class:`proxplan.identify.data.LoadedData`) on flights of ``splits`` (all its flights when none is):
+    :class:`proxplan.identify.loading.LoadedData`) on flights of ``splits`` (all its flights when none is):
     free flight = no source overhead within r < 3 L, above :data:`FREE_HEIGHT_M`, every motor in range
     (:func:`proxplan.identify.strata.authority_masks`)."""
     from proxplan.identify.data import sources_overhead

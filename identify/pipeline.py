@@ -56,8 +56,6 @@ from proxplan.identify.data import (
     Predictions,
     Unit,
     errors,
-    load_units,
-    measurement_summary,
     predict,
     rmse_fz_by_vehicle,
     subsample,
@@ -65,6 +63,7 @@ from proxplan.identify.data import (
 from proxplan.identify.effect_selection import EffectTrial
 from proxplan.identify.evaluate import GRAMS_PER_N, saved_model
 from proxplan.identify.flightlog import Manifest
+from proxplan.identify.loading import load_units, measurement_summary
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.motor_check import check_loaded

@@ -166,7 +166,7 @@ def motor_check_lines(check: dict) -> list[str]:
 
 def limit_lines(saturation: dict) -> list[str]:
     """Markdown table of the samples with a motor at its ceiling / floor per vehicle (the
-    ``measurement.saturation`` JSON of :func:`proxplan.identify.data.measurement_summary`)."""
+    ``measurement.saturation`` JSON of :func:`proxplan.identify.loading.measurement_summary`)."""
     lines = ["| vehicle | thrust from | at the ceiling (samples, share) | at the floor (samples, share) |",
              "|---|---|---|---|"]  # fmt: skip
     for name, s in saturation.items():

@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from proxplan.identify.data import IdentifyOptions, Model, errors, load_units, predict
+from proxplan.identify.data import IdentifyOptions, Model, errors, predict
 from proxplan.identify.delayed import delayed_units, with_rows
+from proxplan.identify.loading import load_units
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.strata import stratified_sample
 from proxplan.physics import Effect, EffectInputs, ModelOptions, effect_wrench

@@ -296,7 +296,7 @@ def test_logs_writes_a_manifest_evaluate_accepts(tmp_path: Path, flights, capsys
 def test_clock_offset_found_by_cross_correlation_with_mocap(tmp_path: Path, flights) -> None:
     """A uSD log on a boot clock 37.123 s ahead: the mocap track puts it back within the reported error."""
     from proxplan.identify import load_manifest
-    from proxplan.identify.data import load_units
+    from proxplan.identify.loading import load_units
 
     name, split, logs = flights[0]
     paths = {}

@@ -67,7 +67,7 @@ def test_real_floor_spike_is_gone() -> None:
     from dataclasses import replace
 
     from proxplan.identify import load_manifest
-    from proxplan.identify.data import load_units
+    from proxplan.identify.loading import load_units
 
     manifest = load_manifest(MANIFEST)
     one = replace(manifest, flights=tuple(f for f in manifest.flights if f.name == "swap_lll_01"))

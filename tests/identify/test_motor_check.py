@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from proxplan.identify import synthetic_logs, write_synthetic_manifest
-from proxplan.identify.data import IdentifyOptions, load_units
+from proxplan.identify.data import IdentifyOptions
+from proxplan.identify.loading import load_units
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.motor_check import check_loaded

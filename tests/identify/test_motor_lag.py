@@ -1,6 +1,6 @@
 """Logs of COMMANDED motor thrust (a real flight controller's u[N]) reach the air through the motors'
 lag: the manifest says so (``motor_thrust: commanded``) and the measurement compensates each
-vehicle's Vehicle.motor_time_constant_s (proxplan.identify.data.measure_options_for)."""
+vehicle's Vehicle.motor_time_constant_s (proxplan.identify.loading.measure_options_for)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from proxplan.identify import synthetic_logs, write_synthetic_manifest
-from proxplan.identify.data import IdentifyOptions, load_units
+from proxplan.identify.data import IdentifyOptions
+from proxplan.identify.loading import load_units
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.measure import MeasureOptions, motor_command_for_N, motor_lag_compensated_N
 from proxplan.physics import BUILTIN_VEHICLES, EffectInputs, SourceSample, total_wrench
