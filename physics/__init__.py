@@ -46,6 +46,14 @@ from proxplan.physics.disturbance import (
     oncoming_speed_per_rotor_mps,
     validity_mask,
 )
+from proxplan.physics.effect_inputs import (
+    BaseCache,
+    EffectInputs,
+    SourceSample,
+    base_cache,
+    base_wrench,
+    base_wrench_per_source,
+)
 from proxplan.physics.effects import (
     DISCOVERED_PREFIX,
     EFFECT_NAMES,
@@ -54,13 +62,7 @@ from proxplan.physics.effects import (
     LAG_PARAM,
     PARAMETERS,
     TARGET_ONLY_EFFECTS,
-    BaseCache,
     Effect,
-    EffectInputs,
-    SourceSample,
-    base_cache,
-    base_wrench,
-    base_wrench_per_source,
     default_effect,
     effect_wrench,
     total_wrench,

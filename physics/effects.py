@@ -24,17 +24,19 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxplan.physics.disturbance import (
-    DEFAULT_OPTIONS,
-    ModelOptions,
-    disturbance_wrench,
     oncoming_speed_per_rotor_mps,
     vertical_point_wrench,
 )
+from proxplan.physics.effect_inputs import (
+    BaseCache,
+    EffectInputs,
+    SourceSample,
+    base_source_wrench,
+    sum_base,
+    zeros_wrench,
+)
 from proxplan.physics.feature_terms import parse_term_key, term_scale, weight_scaled
 from proxplan.physics.features import CHANNELS, feature_matrix, lagged
-from proxplan.physics.room import Plane
-from proxplan.physics.stack import shielding_factors
-from proxplan.physics.vehicles import Vehicle
 from proxplan.physics.velocity_field import axial_distance_m
 
 EFFECT_NAMES = (
@@ -116,34 +118,6 @@ MAX_GROUND_EFFECT_RATIO = 2.0
 
 
 @dataclass(frozen=True)
-class SourceSample:
-    """One other vehicle acting as a downwash source, per sample."""
-
-    vehicle: Vehicle
-    offsets_m: np.ndarray  # (N, 3) p_target - p_source, world frame, m
-    velocity_mps: np.ndarray | None = None  # (N, 3) the source's own velocity, world, m/s (None: unknown)
-
-
-@dataclass(frozen=True)
-class EffectInputs:
-    """Situation of ONE target vehicle over N samples."""
-
-    target: Vehicle
-    height_above_ground_m: np.ndarray  # (N,) rotor plane above the ground, m
-    velocity_mps: np.ndarray  # (N, 3) the target's own velocity, world frame, m/s
-    sources: tuple[SourceSample, ...] = ()
-    options: ModelOptions = DEFAULT_OPTIONS
-    time_s: np.ndarray | None = None  # (N,) sample times, s (None: independent steady states)
-    thrust_z_N: np.ndarray | None = None  # (N,) own collective thrust along world z, N (None: unknown)
-    position_m: np.ndarray | None = None  # (N, 3) the target's position, world frame, m (None: unknown)
-    planes: tuple[Plane, ...] = ()  # planes of the room (proxplan.physics.room), for place features
-
-    @property
-    def n_samples(self) -> int:
-        return int(np.shape(self.height_above_ground_m)[0])
-
-
-@dataclass(frozen=True)
 class Effect:
     """One named effect with its parameters (missing ones take :data:`PARAMETERS` defaults)."""
 
@@ -204,75 +178,6 @@ def default_effect(name: str) -> Effect:
     return Effect(name, {k: spec[0] for k, spec in PARAMETERS[name].items()})
 
 
-# --------------------------------------------------------------------------- helpers
-
-
-def _zeros(n: int) -> tuple[np.ndarray, np.ndarray]:
-    return np.zeros((n, 3)), np.zeros((n, 3))
-
-
-def _base_source_wrench(source: SourceSample, target: Vehicle, options: ModelOptions) -> tuple[np.ndarray, np.ndarray]:
-    batch = disturbance_wrench(source.vehicle, target, source.offsets_m, options)
-    return batch.force_N, batch.torque_Nm
-
-
-class BaseCache:
-    """Base wrench of each source of one :class:`EffectInputs`, computed once when first needed:
-    (S0-3..S0-8) per source times the share of its jet that reaches the target past the other
-    sources' rotors (:func:`proxplan.physics.stack.shielding_factors`; 1 with a single source above)."""
-
-    def __init__(self, inputs: EffectInputs):
-        self.inputs = inputs
-        self._per_source: list | None = None
-        self._factors: list[np.ndarray] | None = None
-
-    def factors(self) -> list[np.ndarray]:
-        """Per source, the shielding factor (N,), -."""
-        if self._factors is None:
-            srcs = self.inputs.sources
-            self._factors = shielding_factors(
-                [s.offsets_m for s in srcs], [s.vehicle for s in srcs], self.inputs.options.stack_shielding,
-                self.inputs.options.discretisation,
-            )  # fmt: skip
-        return self._factors
-
-    def per_source(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        if self._per_source is None:
-            self._per_source = [
-                (f * s[:, None], t * s[:, None])
-                for (f, t), s in zip(
-                    (_base_source_wrench(src, self.inputs.target, self.inputs.options) for src in self.inputs.sources),
-                    self.factors(),
-                )
-            ]
-        return self._per_source
-
-
-def _sum_base(inputs: EffectInputs, cache: BaseCache) -> tuple[np.ndarray, np.ndarray]:
-    force, torque = _zeros(inputs.n_samples)
-    for f, t in cache.per_source():
-        force += f
-        torque += t
-    return force, torque
-
-
-def base_cache(inputs: EffectInputs) -> BaseCache:
-    """A :class:`BaseCache` of ``inputs`` (pass it to :func:`effect_wrench` to evaluate many effects, or
-    one effect many times, on the same samples with one base-model evaluation)."""
-    return BaseCache(inputs)
-
-
-def base_wrench_per_source(inputs: EffectInputs) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per source, the base wrench (force (N, 3) N, torque (N, 3) N m) as :func:`base_wrench` sums it
-    (S0-3..S0-8 with the stack shielding of :mod:`proxplan.physics.stack`)."""
-    return BaseCache(inputs).per_source()
-
-
-def base_wrench(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
-    """Base model (S0-3..S0-8) summed over all sources: force (N, 3), N; torque (N, 3), N m."""
-    return _sum_base(inputs, BaseCache(inputs))
-
-
 # --------------------------------------------------------------------------- effects
 
 
@@ -281,7 +186,7 @@ def _thrust_bias(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> 
     by the S0-11 measurement as a steady bias (one force for every vehicle type: what models saved before
     issue 35 hold; identification now fits the error as a per-type scale,
     proxplan.identify.data.Model.thrust_scale, and holds this at 0)."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     force[:, 2] = p["force_z_N"]
     return force, torque
 
@@ -291,7 +196,7 @@ def _ground_effect(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -
     h rotor plane height above ground (m), k = ``gain_k`` (1 in the original method-of-images
     derivation). Applied to the target's hover thrust (its weight, N): Delta F_z = W (ratio - 1),
     capped at ratio <= :data:`MAX_GROUND_EFFECT_RATIO`. No torque (level vehicle, equal heights)."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     h_m = np.maximum(np.asarray(inputs.height_above_ground_m, dtype=float), 1e-6)
     r_m = inputs.target.propeller.radius_m
     denom = 1.0 - p["gain_k"] * (r_m / (4.0 * h_m)) ** 2
@@ -304,7 +209,7 @@ def _near_field(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> t
     """Downwash stronger than the far-field model close to the source (the zone of flow
     establishment, S0 II-A): extra wrench = base source wrench * ``amplitude`` *
     exp(-dz / (``decay_L`` * L_source)) for dz > 0 (target below), zero otherwise; L = 2 x arm (m)."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     for src, (f, t) in zip(inputs.sources, base.per_source()):
         dz_m = -np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)[:, 2]
         scale = np.where(
@@ -321,7 +226,7 @@ def _wake_swirl(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> t
     """Yaw torque from the swirl of the source's wake, proportional to the base vertical force it
     causes: tau_z = ``yaw_per_force_m`` * F_z,base (N m; F_z,base < 0 in a downwash, so a positive
     parameter gives a negative, clockwise-from-above torque). No force."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     for f, _ in base.per_source():
         torque[:, 2] += p["yaw_per_force_m"] * f[:, 2]
     return force, torque
@@ -332,7 +237,7 @@ def _wake_advection(p: dict[str, float], inputs: EffectInputs, base: BaseCache) 
     it descends at ``convection_speed_mps``: at depth dz > 0 the wake axis is displaced by
     wind_xy * dz / convection_speed, so the target sees the base field at the effective offset
     offset_xy - wind_xy * dz / convection_speed. Effect = base(effective) - base(actual)."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     wind = np.array([p["wind_x_mps"], p["wind_y_mps"]])
     if not np.any(wind):
         return force, torque
@@ -341,7 +246,7 @@ def _wake_advection(p: dict[str, float], inputs: EffectInputs, base: BaseCache) 
         dz_m = np.maximum(-offsets[:, 2], 0.0)
         shifted = offsets.copy()
         shifted[:, :2] -= wind[None, :] * (dz_m / p["convection_speed_mps"])[:, None]
-        f1, t1 = _base_source_wrench(SourceSample(src.vehicle, shifted), inputs.target, inputs.options)
+        f1, t1 = base_source_wrench(SourceSample(src.vehicle, shifted), inputs.target, inputs.options)
         force += f1 * s[:, None] - f0
         torque += t1 * s[:, None] - t0
     return force, torque
@@ -356,7 +261,7 @@ def _own_velocity(p: dict[str, float], inputs: EffectInputs, base: BaseCache) ->
     W the target's weight (N), v_z its vertical speed (m/s, up positive: climbing raises the inflow
     ratio and lowers thrust for c_w_spm > 0), |v_xy| its horizontal speed (m/s, advance ratio:
     translational lift for positive c_mu). No torque."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     vel = np.asarray(inputs.velocity_mps, dtype=float).reshape(-1, 3)
     v_xy = np.hypot(vel[:, 0], vel[:, 1])
     force[:, 2] = inputs.target.weight_N * (
@@ -371,7 +276,7 @@ def _thrust_quadratic(p: dict[str, float], inputs: EffectInputs, base: BaseCache
     (b_q in N s^4 m^-2 rad^-2; the parameter, s/m, is the ratio b_q / b_v, so one value suits any
     vehicle), v_on,i the disk-averaged oncoming speed of rotor i (m/s), omega_i^2 the hover value
     (rad^2/s^2). Force and torque via the rotor positions (S0-7, S0-8)."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     target = inputs.target
     b_q = p["b_q_rel_spm"] * target.b_v
     for src, s in zip(inputs.sources, base.factors()):
@@ -390,7 +295,7 @@ def _ground_jet(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> t
     ``amplitude_1`` (-), lambda = ``decay_L`` (the stagnation layer's thickness in units of the
     source's size L_s, m); the wrench scales with v^2 (S0-3..S0-6), so the extra wrench is
     base_s * ((1 - a exp(-h / (lambda L_s)))^2 - 1) per source above the target."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     h_m = np.maximum(np.asarray(inputs.height_above_ground_m, dtype=float), 0.0)
     for src, (f, t) in zip(inputs.sources, base.per_source()):
         ratio = 1.0 - p["amplitude_1"] * np.exp(-h_m / (p["decay_L"] * src.vehicle.size_m))
@@ -409,7 +314,7 @@ def _floor_stagnation(p: dict[str, float], inputs: EffectInputs, base: BaseCache
     floor), lambda = ``decay_widths`` (the layer's thickness in jet widths, -). The wrench scales with
     v^2 (S0-3..S0-6): extra wrench base_s ((1 - a exp(-h / (lambda w)))^2 - 1) per source above the
     target. (The earlier ``ground_jet`` scales the layer with the source's size instead.)"""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     h_m = np.maximum(np.asarray(inputs.height_above_ground_m, dtype=float), 0.0)
     for src, (f, t) in zip(inputs.sources, base.per_source()):
         dz_m = -np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)[:, 2]
@@ -434,7 +339,7 @@ def _climb_inflow(p: dict[str, float], inputs: EffectInputs, base: BaseCache) ->
     speed (m/s, up positive), g = ``gain_1`` (1: the S0-6 coefficient as calibrated, nothing new fitted).
     A vehicle falling at 1 m/s with its motors near their ceiling (the loss-of-authority regime) gains
     b_v / k1 ~ 7 % of its thrust, one hovering in a climb loses as much. No torque."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     target = inputs.target
     vel = np.asarray(inputs.velocity_mps, dtype=float).reshape(-1, 3)
     thrust = target.weight_N if inputs.thrust_z_N is None else np.asarray(inputs.thrust_z_N, dtype=float)
@@ -449,7 +354,7 @@ def _wake_memory(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> 
     it is the base wrench of ``lag_s`` earlier. At once it is only a rescaling of the base model (its steady
     state: a hover under a source feels 1 + share_1 of the base), which the calibration's parameters
     already hold; identification keeps it only with a delay."""
-    force, torque = _zeros(inputs.n_samples)
+    force, torque = zeros_wrench(inputs.n_samples)
     for f, t in base.per_source():
         force += p["share_1"] * f
         torque += p["share_1"] * t
@@ -518,7 +423,7 @@ def total_wrench(inputs: EffectInputs, effects: Sequence[Effect] = ()) -> tuple[
     """Base model summed over all sources plus every effect in ``effects``: force (N, 3), N, and
     torque (N, 3), N m, world frame."""
     cache = BaseCache(inputs)
-    force, torque = _sum_base(inputs, cache)
+    force, torque = sum_base(inputs, cache)
     for effect in effects:
         f, t = _apply(effect, inputs, cache)
         force += f

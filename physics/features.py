@@ -302,7 +302,7 @@ def feature_matrix(
     inputs, base_per_source: Sequence[tuple[np.ndarray, np.ndarray]], names: Sequence[str] | None = None
 ) -> np.ndarray:
     """The features ``names`` (default all of :data:`FEATURE_NAMES`, in that order) for ``inputs`` (a
-    :class:`proxplan.physics.effects.EffectInputs`): (N, F) array. ``base_per_source`` holds each source's
+    :class:`proxplan.physics.effect_inputs.EffectInputs`): (N, F) array. ``base_per_source`` holds each source's
     base wrench (force (N, 3) N, torque (N, 3) N m). The lagged and low-pass copies (most of the
     dictionary's cost) are computed only where asked for."""
     wanted = FEATURE_NAMES if names is None else tuple(names)
