@@ -77,7 +77,7 @@ def synthetic_logs(
     the simulator (flightsim).
 
     ``hidden_wrench(inputs)`` (optional) adds a wrench no library effect names (force (N, 3) N,
-    torque (N, 3) N m, world) from the :class:`proxplan.physics.effects.EffectInputs` of each vehicle (with
+    torque (N, 3) N m, world) from the :class:`proxplan.physics.effect_inputs.EffectInputs` of each vehicle (with
     ``time_s``, the sources' velocities, the target's thrust and position and the room's ``planes``
     filled in): a truth for the tests
     of :mod:`proxplan.identify.discovery`. ``motor_noise_N`` adds white noise to each logged motor thrust
