@@ -44,6 +44,9 @@ class IdentifyOptions:
     stack_shielding: float = (
         1.0  # eta the calibration starts from (proxplan.physics.stack), -; then chosen on validation
     )
+    smoothed_prediction: bool = (
+        True  # predictions read through the measurement's smoothing (loading.smoothing_of_prediction)
+    )
 
 
 CEILING_BIT, FLOOR_BIT = 1, 2
@@ -76,6 +79,10 @@ class Unit:
     group: np.ndarray | None = None  # (N,) int: held-out group of each sample (proxplan.identify.crossval)
     row: np.ndarray | None = None  # (N,) int: each sample's row in the full-resolution units it was sampled from
     thrust_kin_z_N: np.ndarray | None = None  # (N,) m (g + dv_z/dt) from the motion (measure.kinematic_thrust_z_N), N
+    # what the measurement's smoothing does to the prior model's wrench, S(p) - p (force (N, 3) N, torque (N, 3)
+    # N m, world; proxplan.identify.loading.smoothing_of_prediction): added to every prediction (predict)
+    smoothing_force_N: np.ndarray | None = None
+    smoothing_torque_Nm: np.ndarray | None = None
 
     def take(self, idx: np.ndarray) -> Unit:
         return replace(
@@ -86,6 +93,8 @@ class Unit:
             group=None if self.group is None else self.group[idx],
             row=None if self.row is None else self.row[idx],
             thrust_kin_z_N=None if self.thrust_kin_z_N is None else self.thrust_kin_z_N[idx],
+            smoothing_force_N=None if self.smoothing_force_N is None else self.smoothing_force_N[idx],
+            smoothing_torque_Nm=None if self.smoothing_torque_Nm is None else self.smoothing_torque_Nm[idx],
             t_s=self.t_s[idx],
             velocity_mps=self.velocity_mps[idx],
             height_above_ground_m=self.height_above_ground_m[idx],
@@ -138,7 +147,9 @@ def predict(
     cache: BaseCache | None = None,
     delayed: Mapping[float, Unit] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted measured wrench (force (N, 3) N, torque (N, 3) N m, world) of ``unit``.
+    """Predicted measured wrench (force (N, 3) N, torque (N, 3) N m, world) of ``unit``: the model's wrench as
+    the measurement reads it (:func:`thrust_scaled`), plus what the measurement's smoothing does to it
+    (:attr:`Unit.smoothing_force_N`, :attr:`Unit.smoothing_torque_Nm`, when the unit has them).
 
     ``base`` may pass a precomputed base wrench for the same vehicles (saves the model call), and
     ``cache`` the :class:`proxplan.physics.BaseCache` of ``unit_inputs(unit, model)`` (the sources' base
@@ -163,7 +174,10 @@ def predict(
             f, t = effect_wrench(eff, inputs, cache=cache)
         force += f
         torque += t
-    return thrust_scaled(force, torque, model.thrust_scale.get(unit.type, 1.0), unit, model)
+    force, torque = thrust_scaled(force, torque, model.thrust_scale.get(unit.type, 1.0), unit, model)
+    if unit.smoothing_force_N is not None and unit.smoothing_torque_Nm is not None:
+        force, torque = force + unit.smoothing_force_N, torque + unit.smoothing_torque_Nm
+    return force, torque
 
 
 def thrust_scaled(
@@ -228,6 +242,8 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
             group=None if any(u.group is None for u in us) else cat("group"),
             row=None if any(u.row is None for u in us) else cat("row"),
             thrust_kin_z_N=None if any(u.thrust_kin_z_N is None for u in us) else cat("thrust_kin_z_N"),
+            smoothing_force_N=None if any(u.smoothing_force_N is None for u in us) else cat("smoothing_force_N"),
+            smoothing_torque_Nm=None if any(u.smoothing_torque_Nm is None for u in us) else cat("smoothing_torque_Nm"),
         ))  # fmt: skip
     return out
 
