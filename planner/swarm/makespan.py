@@ -72,6 +72,9 @@ def shorten_makespan(
         if not order:
             break
         a = order[0]
+        if not _may_meet_the_last(problem, by_agent, a):
+            skip.add(a)  # no vehicle that arrives last can be in its way: nothing to gain
+            continue
         ideal = ideal_track(problem, occ, a)
         way = occ.conflicting_agents(ideal) - {a} if ideal is not None else set()
         others = sorted((b for b in way if not problem.pinned[b]), key=lambda b: (-by_agent[b].arrival_step, b))
@@ -111,6 +114,22 @@ def shorten_makespan(
                 occ.put(track)
         skip.add(a)
     return counts
+
+
+def _may_meet_the_last(problem: SwarmProblem, by_agent: dict[int, GridTrack], a: int) -> bool:
+    """False only when no track of a vehicle arriving last can be in the way of ``a``'s ideal track
+    (an exact filter before that track is built): ``a`` does not arrive last itself, its straight
+    line is statically free (then the ideal track stays in the box of its start and goal) and that
+    box grown by the keep-outs' reach misses the box of every last track."""
+    end = max(t.arrival_step for t in by_agent.values())
+    if by_agent[a].arrival_step == end:
+        return True
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    if not problem.segment_free(s, g):  # its ideal track is a route round the obstacles: anywhere
+        return True
+    grow = np.array([problem.reach_xy_m, problem.reach_xy_m, problem.reach_z_m])
+    lo, hi = np.minimum(s, g) - grow, np.maximum(s, g) + grow
+    return any(bool(np.all(lo <= t.hi_m) and np.all(hi >= t.lo_m)) for t in by_agent.values() if t.arrival_step == end)
 
 
 def _latest(tracks: dict[int, GridTrack]) -> int:
