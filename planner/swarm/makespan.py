@@ -37,7 +37,7 @@ from proxplan.planner.timing.profile import rest_to_rest
 # single-vehicle plannings of the whole search, per vehicle (the unit of prioritised planning's own
 # budget, SwarmOptions.plannings_per_vehicle = 6): one is what one pass of prioritised planning
 # costs. Chosen as that unit, not searched; before it was set, a prototype on grid-64 by_type with
-# 60 and 80 plannings gave the same plan (docs/planner.md)
+# 60 and 80 plannings gave the same makespan (docs/planner.md)
 PLANNINGS_PER_VEHICLE = 1.0
 
 __all__ = ["PLANNINGS_PER_VEHICLE", "budget", "shorten_makespan"]
