@@ -11,7 +11,8 @@ makespan). Here the vehicles are taken in order of decreasing arrival. For one o
 from t = 0, or its route round the obstacles: :func:`~proxplan.planner.swarm.priority.ideal_track`).
 They are taken out and planned again one at a time
 (:func:`~proxplan.planner.swarm.priority.plan_one`) against everyone else's final tracks, in two
-orders (a first; a last), when a vehicle of the neighbourhood arrives last of all (no other
+orders (a first; a last; an order stops at the first vehicle that arrives no earlier than the
+neighbourhood's latest before), when a vehicle of the neighbourhood arrives last of all (no other
 neighbourhood can shorten the plan); the better result replaces them only when the latest arrival
 in the neighbourhood gets strictly earlier. Every new track is planned against all the others, so the plan
 stays conflict-free and its makespan never grows. A vehicle whose neighbourhood gave nothing is
@@ -94,7 +95,7 @@ def shorten_makespan(
             for b in seq:
                 track = plan_one(occ, b, through)
                 counts["plannings"] += 1
-                if track is None:
+                if track is None or track.arrival_step >= worst:  # this order cannot shorten the neighbourhood
                     break
                 new[b] = track
                 occ.put(track)
