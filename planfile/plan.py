@@ -38,6 +38,7 @@ files) read with ``None``; users recompute them and say so (``proxplan simulate 
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass, field
@@ -88,6 +89,12 @@ class VehicleTrajectory:
     disturbance_force_N: np.ndarray | None = None  # (N, 3) predicted, world frame, N (feed-forward)
     disturbance_torque_Nm: np.ndarray | None = None  # (N, 3) predicted, world axes, N m
 
+    def __getstate__(self) -> dict[str, Any]:
+        """The fields only (a pickle, e.g. to a Dask worker, leaves out the cached coefficients)."""
+        state = dict(self.__dict__)
+        state.pop("_coefficients", None)
+        return state
+
     @property
     def has_feedforward(self) -> bool:
         return self.disturbance_force_N is not None and self.disturbance_torque_Nm is not None
@@ -101,20 +108,27 @@ class VehicleTrajectory:
         k = np.clip(np.searchsorted(grid, t, side="right") - 1, 0, grid.size - 2)
         h = grid[k + 1] - grid[k]
         s = np.clip((t - grid[k]) / h, 0.0, 1.0)
-        hh = h[:, None]
+        return self._coefficients[k], s, h[:, None], (t < grid[0]) | (t > grid[-1])
+
+    @functools.cached_property
+    def _coefficients(self) -> np.ndarray:
+        """Quintic coefficients (N - 1, 6, 3) of s^0..s^5 of every grid interval, computed once per
+        trajectory (its arrays are not changed after it is built: the class is frozen): sampling
+        a plan many times (the verifier, the tracking prediction) indexes them."""
+        grid = self.t_s
+        hh = (grid[1:] - grid[:-1])[:, None]
         data = np.stack(
             [
-                self.position_m[k],
-                hh * self.velocity_mps[k],
-                hh**2 * self.acceleration_mps2[k],
-                self.position_m[k + 1],
-                hh * self.velocity_mps[k + 1],
-                hh**2 * self.acceleration_mps2[k + 1],
+                self.position_m[:-1],
+                hh * self.velocity_mps[:-1],
+                hh**2 * self.acceleration_mps2[:-1],
+                self.position_m[1:],
+                hh * self.velocity_mps[1:],
+                hh**2 * self.acceleration_mps2[1:],
             ],
             axis=1,
-        )  # (M, 6, 3)
-        coef = np.einsum("ij,mjd->mid", _QUINTIC, data)  # (M, 6, 3): coefficients of s^0..s^5
-        return coef, s, hh, (t < grid[0]) | (t > grid[-1])
+        )  # (N - 1, 6, 3)
+        return np.einsum("ij,mjd->mid", _QUINTIC, data)
 
     def sample(self, t_s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position_m, velocity_mps, acceleration_mps2), each (M, 3), at times ``t_s`` (M,), s.

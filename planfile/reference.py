@@ -16,6 +16,7 @@ World frame, m, m/s, m/s^2, s.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,13 +32,26 @@ LEAD_SUBSTEPS = 5
 @dataclass(frozen=True)
 class CompensatedReference:
     """A vehicle's compensated reference: ``trajectory`` (plan + lead, over the plan and its settle
-    tail), the plan's end time ``plan_end_s`` (s), the largest lead ``max_lead_m`` (m, over the
-    plan and the tail) and the lead left when the tail ends ``residual_m`` (m)."""
+    tail) of the ``plan``, the plan's end time ``plan_end_s`` (s), the largest lead ``max_lead_m``
+    (m, over the plan and the tail) and the lead left when the tail ends ``residual_m`` (m); the
+    two leads are computed when first asked for (the tracking prediction, which builds a reference
+    per vehicle and per check, never asks)."""
 
     trajectory: VehicleTrajectory
     plan_end_s: float
-    max_lead_m: float
-    residual_m: float
+    plan: VehicleTrajectory
+
+    @functools.cached_property
+    def _lead_norm_m(self) -> np.ndarray:
+        return np.linalg.norm(self.trajectory.position_m - self.plan.sample(self.trajectory.t_s)[0], axis=1)
+
+    @property
+    def max_lead_m(self) -> float:
+        return float(self._lead_norm_m.max())
+
+    @property
+    def residual_m(self) -> float:
+        return float(self._lead_norm_m[-1])
 
     @property
     def tail_s(self) -> float:
@@ -90,8 +104,7 @@ def compensated_reference(tr: VehicleTrajectory, *, tail: bool = True) -> Compen
         np.where(moving, v[rest], 0.0) + lead.rate,
         np.where(moving, a[rest], 0.0) + lead.accel,
     )
-    norm = np.linalg.norm(traj.position_m - tr.sample(traj.t_s)[0], axis=1)
-    return CompensatedReference(traj, float(tr.t_s[-1]), float(norm.max()), float(norm[-1]))
+    return CompensatedReference(traj, float(tr.t_s[-1]), tr)
 
 
 def predicted_path(

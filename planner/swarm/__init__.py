@@ -12,12 +12,13 @@ space; :mod:`~proxplan.planner.swarm.keepout`) -> :mod:`~proxplan.planner.swarm.
 :mod:`~proxplan.planner.swarm.lattice`, :mod:`~proxplan.planner.swarm.sync`,
 :mod:`~proxplan.planner.swarm.lacam`, :mod:`~proxplan.planner.swarm.lockstep` (the guaranteed
 lattice plan) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
+:mod:`~proxplan.planner.swarm.makespan` (the latest vehicles planned again with those in their way) ->
 :mod:`~proxplan.planner.swarm.plan` (the stages) and :mod:`~proxplan.planner.swarm.info` (what they
 report, typed).
 """
 
 from proxplan.planner.swarm.assign import Assignment, assign_by_type, assign_group
-from proxplan.planner.swarm.info import LatticeInfo, RetimeInfo, SwarmInfo, SwarmStage
+from proxplan.planner.swarm.info import LatticeInfo, MakespanRepairInfo, RetimeInfo, SwarmInfo, SwarmStage
 from proxplan.planner.swarm.lacam import Lacam, LacamResult
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.plan import SWARM_MIN_VEHICLES, SwarmOptions, swarm_timed
@@ -31,6 +32,7 @@ __all__ = [
     "LacamResult",
     "Lattice",
     "LatticeInfo",
+    "MakespanRepairInfo",
     "RetimeInfo",
     "SwarmInfo",
     "SwarmStage",

@@ -36,6 +36,18 @@ class RetimeInfo:
 
 
 @dataclass(frozen=True)
+class MakespanRepairInfo:
+    """The neighbourhoods of the latest vehicles planned again (:mod:`proxplan.planner.swarm.makespan`)."""
+
+    makespan_before_s: float
+    makespan_after_s: float
+    tried: int
+    replaced: int
+    plannings: int
+    time_s: float
+
+
+@dataclass(frozen=True)
 class SwarmInfo:
     """See module. Times are s; wall times are reported, never used to steer (budgets are counts)."""
 
@@ -44,7 +56,7 @@ class SwarmInfo:
     vehicles: int
     lower_bound_s: float  # largest straight-line rest-to-rest time of any vehicle: no plan is shorter
     initial_makespan_s: float  # after the stage that produced the tracks
-    makespan_s: float  # after re-timing
+    makespan_s: float  # after re-timing and the makespan repair
     time_s: float
     kept_straight: str | None = None  # straight lines kept, vehicles planned around them, or why not
     kept_straight_time_s: float | None = None
@@ -52,6 +64,9 @@ class SwarmInfo:
     prioritised_time_s: float | None = None
     lattice: LatticeInfo | None = None
     retiming: RetimeInfo | None = None
+    # the latest vehicles planned again with those in their way (swarm.makespan): the makespan
+    # after re-timing and after this, neighbourhoods tried and replaced, single-vehicle plannings
+    makespan_repair: MakespanRepairInfo | None = None
     counts: dict[str, int] = field(default_factory=dict)  # search effort (vehicles planned, repairs, ...)
 
     def to_metrics(self) -> dict:

@@ -20,6 +20,9 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
 4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
    every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
    conflict-free.
+5. *Makespan repair* (:func:`_makespan_stage`, :mod:`proxplan.planner.swarm.makespan`): the latest
+   vehicle planned again together with the vehicles in its way, while that shortens the plan, within
+   a count of plannings; never worse, always conflict-free.
 
 The caller (the pipeline) runs the independent verifier on the result as on every plan. The
 :class:`~proxplan.planner.swarm.info.SwarmInfo` names the ``stage`` that produced the tracks
@@ -40,10 +43,12 @@ import numpy as np
 from proxplan.planfile import Scenario
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm.components import interaction_groups, plan_groups
-from proxplan.planner.swarm.info import LatticeInfo, RetimeInfo, SwarmInfo, SwarmStage
+from proxplan.planner.swarm.info import LatticeInfo, MakespanRepairInfo, RetimeInfo, SwarmInfo, SwarmStage
 from proxplan.planner.swarm.lacam import Lacam
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.lockstep import lockstep_tracks
+from proxplan.planner.swarm.makespan import budget as makespan_budget
+from proxplan.planner.swarm.makespan import shorten_makespan
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, dependency_order, prioritized_tracks
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
@@ -96,6 +101,9 @@ class SwarmOptions:
     # also try: keep the straight lines in no conflict and plan only the others around them. Off by
     # default: on the named layouts at 32 vehicles it never gave the shorter plan (docs/planner.md)
     keep_straight: bool = False
+    # after re-timing, plan the latest vehicles again together with the vehicles in their way
+    # (swarm.makespan; False: for measuring the cause alone)
+    makespan_repair: bool = True
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
     # layer can time (swarm.tracking_bound), so that the verifier does not reject the first plan
@@ -151,6 +159,7 @@ def swarm_timed(
             found.coordination = f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
+    repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
     info = SwarmInfo(
         stage=found.stage,
         coordination=found.coordination,
@@ -160,6 +169,7 @@ def swarm_timed(
         makespan_s=max(tr.arrival_s for tr in by_agent.values()),
         time_s=round(time.perf_counter() - t0, 3),
         retiming=retiming,
+        makespan_repair=repair,
         **extra,
     )
     timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
@@ -367,3 +377,30 @@ def _retime_stage(
         deadline=deadline,
     )
     return by_agent, RetimeInfo(**counts, time_s=round(time.perf_counter() - t2, 3))
+
+
+def _makespan_stage(
+    problem: SwarmProblem, by_agent: dict[int, GridTrack], opts: SwarmOptions, *, progress, deadline
+) -> MakespanRepairInfo | None:
+    """The latest vehicles planned again with those in their way (:mod:`proxplan.planner.swarm.makespan`;
+    ``by_agent`` changed in place; never longer, always conflict-free); None when switched off."""
+    if not opts.makespan_repair:
+        return None
+    before = max(tr.arrival_s for tr in by_agent.values())
+    if progress:
+        progress("makespan repair", 0.9)
+    t0 = time.perf_counter()
+    counts = shorten_makespan(
+        problem,
+        by_agent,
+        int(round((before + HORIZON_MARGIN_S) / GRID_DT_S)),
+        through=opts.through_waypoints == "always",
+        max_plannings=makespan_budget(problem.n_agents),
+        deadline=deadline,
+    )
+    return MakespanRepairInfo(
+        makespan_before_s=before,
+        makespan_after_s=max(tr.arrival_s for tr in by_agent.values()),
+        time_s=round(time.perf_counter() - t0, 3),
+        **counts,
+    )

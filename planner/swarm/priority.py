@@ -104,7 +104,7 @@ def predicted_track(problem: SwarmProblem, agent: int, *, hold_s: float = 0.0) -
     return track.vanishing(int(away[0]) + 1 if away.size else track.positions_m.shape[0])
 
 
-def _ideal(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack | None:
+def ideal_track(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack | None:
     """The track a vehicle would fly alone: its straight line from t = 0 (None when the line is not
     statically free: its static route is used then)."""
     s, g = problem.starts_m[agent], problem.goals_m[agent]
@@ -119,7 +119,10 @@ def _ideal(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack | Non
     return None if res is None else res.track
 
 
-def _plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
+def plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
+    """The earliest-arriving track of ``agent`` against the tracks in ``occ`` (see module: its
+    straight line, else the better of that and a wavefront route, else a slower, wider route), or
+    None."""
     problem = occ.problem
     s, g = problem.starts_m[agent], problem.goals_m[agent]
     best = time_chain(occ, agent, np.array([s, g]), through=through)
@@ -208,13 +211,13 @@ def _in_order(
             result.history.append(f"{problem.names[a]}: planning budget of {options.max_plannings} spent")
             raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
         prediction = occ.remove(a)
-        track = _plan_one(occ, a, options.through)
+        track = plan_one(occ, a, options.through)
         result.planned += 1
         if track is not None:
             planned[a] = track
             occ.put(track)
             continue
-        ideal = _ideal(problem, occ, a)
+        ideal = ideal_track(problem, occ, a)
         in_conflict = occ.conflicting_agents(ideal) if ideal is not None else set()
         guesses = [b for b in in_conflict if b not in planned and b in occ.tracks]
         if guesses:  # predictions are assumptions: drop those in its way and plan it again
@@ -222,7 +225,7 @@ def _in_order(
                 f"{problem.names[a]} past the predictions of " + ", ".join(problem.names[b] for b in sorted(guesses))
             )
             dropped = [occ.remove(b) for b in guesses]
-            track = _plan_one(occ, a, options.through)
+            track = plan_one(occ, a, options.through)
             result.planned += 1
             for old in dropped:
                 if old is not None:
@@ -303,4 +306,12 @@ def dependency_order(problem: SwarmProblem) -> list[int]:
     return out
 
 
-__all__ = ["PrioritizedFailed", "PriorityOptions", "PriorityResult", "dependency_order", "prioritized_tracks"]
+__all__ = [
+    "PrioritizedFailed",
+    "PriorityOptions",
+    "PriorityResult",
+    "dependency_order",
+    "ideal_track",
+    "plan_one",
+    "prioritized_tracks",
+]

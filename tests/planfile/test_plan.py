@@ -46,6 +46,26 @@ def test_sampler_is_exact_for_cubics_and_rests_outside_the_plan():
     assert not v_out.any() and not a_out.any()
 
 
+def test_a_trajectory_samples_the_same_once_its_coefficients_are_kept():
+    """The coefficients are computed once per trajectory: the second sampling, a copy with other
+    samples (``dataclasses.replace``) and a pickled copy (which leaves them out) agree with a
+    trajectory sampled fresh, bit for bit."""
+    import pickle
+
+    tr = _cubic_plan().vehicles["cf"]
+    t = np.linspace(-0.1, tr.t_s[-1] + 0.1, 211)
+    first = (*tr.sample(t), tr.jerk_at(t))
+    again = (*tr.sample(t), tr.jerk_at(t))
+    fresh = dataclasses.replace(tr)
+    for x, y, z in zip(first, again, (*fresh.sample(t), fresh.jerk_at(t))):
+        assert np.array_equal(x, y) and np.array_equal(x, z)
+    copy = pickle.loads(pickle.dumps(tr))
+    assert "_coefficients" not in copy.__dict__
+    assert np.array_equal(copy.sample(t)[0], first[0])
+    moved = dataclasses.replace(tr, position_m=tr.position_m + 1.0)  # new arrays: new coefficients
+    np.testing.assert_allclose(moved.sample(t)[0], first[0] + 1.0, atol=1e-12)
+
+
 def test_round_trip_carries_vehicle_parameters_and_the_scenario(battery_swap_plan, tmp_path):
     plan = read_plan(battery_swap_plan)
     assert plan.format_version == PLAN_FORMAT_VERSION

@@ -1,0 +1,142 @@
+"""Shortening a conflict-free swarm plan where its makespan is set: the latest vehicle planned
+again together with the vehicles in its way (a large-neighbourhood search, MAPF-LNS2, Li et al.
+AAAI 2022: re-plan only a few agents, the others fixed).
+
+Prioritised planning plans each vehicle against *predictions* of the vehicles not planned yet, and
+re-timing (:mod:`proxplan.planner.swarm.retime`) moves one vehicle at a time along its own chains:
+a vehicle that waits for another, or goes round one, keeps doing so although that other one could
+have gone differently (grid-64 by_type: a 0.6 m line, 1.07 s alone, left at 1.70 s and set the
+makespan). Here the vehicles are taken in order of decreasing arrival. For one of them, a, the
+*neighbourhood* is a and the vehicles whose tracks conflict with a's ideal track (its straight line
+from t = 0, or its route round the obstacles: :func:`~proxplan.planner.swarm.priority.ideal_track`).
+They are taken out and planned again one at a time
+(:func:`~proxplan.planner.swarm.priority.plan_one`) against everyone else's final tracks, in two
+orders (a first; a last; an order stops at the first vehicle that arrives no earlier than the
+neighbourhood's latest before), when a vehicle of the neighbourhood arrives last of all (no other
+neighbourhood can shorten the plan); the better result replaces them only when the latest arrival
+in the neighbourhood gets strictly earlier. Every new track is planned against all the others, so the plan
+stays conflict-free and its makespan never grows. A vehicle whose neighbourhood gave nothing is
+skipped until some neighbourhood is replaced (tracks changed). The budget is a count of
+single-vehicle plannings (:data:`PLANNINGS_PER_VEHICLE` per vehicle), so a seed gives the same plan
+on every machine; a wall-clock deadline stops it only as "not found".
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from proxplan.planner.errors import PlanNotFound
+from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.priority import ideal_track, plan_one
+from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
+from proxplan.planner.timing.profile import rest_to_rest
+
+# single-vehicle plannings of the whole search, per vehicle (the unit of prioritised planning's own
+# budget, SwarmOptions.plannings_per_vehicle = 6): one is what one pass of prioritised planning
+# costs. Chosen as that unit, not searched; before it was set, a prototype on grid-64 by_type with
+# 60 and 80 plannings gave the same makespan (docs/planner.md)
+PLANNINGS_PER_VEHICLE = 1.0
+
+__all__ = ["PLANNINGS_PER_VEHICLE", "budget", "shorten_makespan"]
+
+
+def shorten_makespan(
+    problem: SwarmProblem,
+    by_agent: dict[int, GridTrack],
+    horizon_steps: int,
+    *,
+    through: bool,
+    max_plannings: int,
+    deadline: float | None = None,
+) -> dict[str, int]:
+    """Replace neighbourhoods of ``by_agent`` (agent -> track, conflict-free; changed in place) as
+    long as they shorten (see module), within ``max_plannings`` single-vehicle plannings over the
+    ``horizon_steps`` grid; ``through``: fly through waypoints (else rest to rest). Returns the
+    counts: ``plannings``, ``replaced`` (neighbourhoods), ``tried`` (neighbourhoods)."""
+    occ = Occupancy(problem, list(by_agent.values()), horizon_steps)
+    alone = {  # each vehicle's straight line alone, rest to rest, in steps: nothing arrives earlier
+        a: rest_to_rest(
+            float(np.linalg.norm(problem.goals_m[a] - problem.starts_m[a])), problem.limits[a], GRID_DT_S
+        ).steps
+        for a in by_agent
+    }
+    counts = {"plannings": 0, "replaced": 0, "tried": 0}
+    skip: set[int] = {a for a in by_agent if problem.pinned[a]}
+    while counts["plannings"] < max_plannings:
+        if deadline is not None and time.perf_counter() > deadline:
+            raise PlanNotFound("no plan found within the time budget (makespan repair)")
+        order = sorted((a for a in by_agent if a not in skip), key=lambda a: (-by_agent[a].arrival_step, a))
+        if not order:
+            break
+        a = order[0]
+        if not _may_meet_the_last(problem, by_agent, a):
+            skip.add(a)  # no vehicle that arrives last can be in its way: nothing to gain
+            continue
+        ideal = ideal_track(problem, occ, a)
+        way = occ.conflicting_agents(ideal) - {a} if ideal is not None else set()
+        others = sorted((b for b in way if not problem.pinned[b]), key=lambda b: (-by_agent[b].arrival_step, b))
+        group = [a, *others]
+        worst = max(by_agent[b].arrival_step for b in group)
+        last = [b for b in group if by_agent[b].arrival_step == worst]
+        if worst < max(t.arrival_step for t in by_agent.values()) or all(worst <= alone[b] for b in last):
+            skip.add(a)  # it cannot shorten the plan: not the last of all, or the last already as early as alone
+            continue
+        old = {b: occ.remove(b) for b in group}
+        best: dict[int, GridTrack] | None = None
+        counts["tried"] += 1
+        for seq in [group, [*others, a]] if others else [group]:
+            if counts["plannings"] + len(seq) > max_plannings:
+                break
+            new: dict[int, GridTrack] = {}
+            for b in seq:
+                track = plan_one(occ, b, through)
+                counts["plannings"] += 1
+                if track is None or track.arrival_step >= worst:  # this order cannot shorten the neighbourhood
+                    break
+                new[b] = track
+                occ.put(track)
+            for b in new:
+                occ.remove(b)
+            if len(new) == len(group) and (best is None or _latest(new) < _latest(best)):
+                best = new
+        if best is not None and _latest(best) < worst:
+            by_agent.update(best)
+            for track in best.values():
+                occ.put(track)
+            counts["replaced"] += 1
+            skip = {b for b in by_agent if problem.pinned[b]}
+            continue
+        for track in old.values():
+            if track is not None:
+                occ.put(track)
+        skip.add(a)
+    return counts
+
+
+def _may_meet_the_last(problem: SwarmProblem, by_agent: dict[int, GridTrack], a: int) -> bool:
+    """False only when no track of a vehicle arriving last can be in the way of ``a``'s ideal track
+    (an exact filter before that track is built): ``a`` does not arrive last itself, its straight
+    line is statically free (then the ideal track stays in the box of its start and goal) and that
+    box grown by the keep-outs' reach misses the box of every last track."""
+    end = max(t.arrival_step for t in by_agent.values())
+    if by_agent[a].arrival_step == end:
+        return True
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    if not problem.segment_free(s, g):  # its ideal track is a route round the obstacles: anywhere
+        return True
+    grow = np.array([problem.reach_xy_m, problem.reach_xy_m, problem.reach_z_m])
+    lo, hi = np.minimum(s, g) - grow, np.maximum(s, g) + grow
+    return any(bool(np.all(lo <= t.hi_m) and np.all(hi >= t.lo_m)) for t in by_agent.values() if t.arrival_step == end)
+
+
+def _latest(tracks: dict[int, GridTrack]) -> int:
+    return max(t.arrival_step for t in tracks.values())
+
+
+def budget(n_agents: int) -> int:
+    """Single-vehicle plannings of the whole search for ``n_agents`` vehicles."""
+    return math.ceil(PLANNINGS_PER_VEHICLE * n_agents)
