@@ -135,6 +135,8 @@ def plan_scenario(
     run = _start(method, seed, progress, options, swarm_options, time_budget_s, max_time_s)
     run = replace(run, alternative=sampling_alternative)
     scenario, assignment = _prepare(scenario, run)
+    if run.swarm.makespan_repair is None:  # on where goals were assigned, off with fixed goals (SwarmOptions)
+        run = replace(run, swarm=replace(run.swarm, makespan_repair=assignment is not None))
     swarm = _swarm_stage(scenario, run) if _uses_swarm(run.method, scenario) else None
     plan = _sampling_stage(scenario, run, swarm)
     plan = _refine_stage(scenario, plan, run, swarm)

@@ -102,8 +102,12 @@ class SwarmOptions:
     # default: on the named layouts at 32 vehicles it never gave the shorter plan (docs/planner.md)
     keep_straight: bool = False
     # after re-timing, plan the latest vehicles again together with the vehicles in their way
-    # (swarm.makespan; False: for measuring the cause alone)
-    makespan_repair: bool = True
+    # (swarm.makespan; False: for measuring the cause alone). None: on where the goals were assigned
+    # (assign_goals: by_type, decided by planner.pipeline), off with fixed goals: there its neighbourhoods
+    # hold 8-9 vehicles (1-4 by_type) and on circle-64 fixed it cost 16 s of CPU for a 1-2 % shorter plan,
+    # where by_type it gave grid-64 1.91x -> 1.63x for 1-3 s (docs/planner.md, fifth round; a default set
+    # watching those two figures). Called directly (not through the pipeline), None means on.
+    makespan_repair: bool | None = None
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
     # layer can time (swarm.tracking_bound), so that the verifier does not reject the first plan
@@ -384,7 +388,7 @@ def _makespan_stage(
 ) -> MakespanRepairInfo | None:
     """The latest vehicles planned again with those in their way (:mod:`proxplan.planner.swarm.makespan`;
     ``by_agent`` changed in place; never longer, always conflict-free); None when switched off."""
-    if not opts.makespan_repair:
+    if opts.makespan_repair is False:
         return None
     before = max(tr.arrival_s for tr in by_agent.values())
     if progress:

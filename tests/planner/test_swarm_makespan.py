@@ -25,3 +25,19 @@ def test_the_latest_vehicles_planned_again_shorten_a_grid_and_the_plan_verifies(
     assert repair.replaced >= 1 and info.makespan_s == repair.makespan_after_s < repair.makespan_before_s
     assert repair.plannings <= budget(20)
     assert verify_plan(assemble_plan(sc, timed, method="swarm", notes=[]), sc) == []
+
+
+def test_the_pipeline_runs_the_repair_where_goals_were_assigned_only():
+    """``SwarmOptions.makespan_repair`` None (the default): planner.pipeline turns it on for
+    ``assign_goals: by_type`` and off for fixed goals (docs/planner.md, stage 6)."""
+    from proxplan.planner.pipeline import plan_scenario
+
+    repaired = {}
+    for assign in ("by_type", None):
+        doc = grid_reshuffle(20)
+        if assign:
+            doc["assign_goals"] = assign
+        plan = plan_scenario(scenario_from_dict(doc, label="test scenario"), method="swarm",
+                             swarm_options=SwarmOptions(workers=1))  # fmt: skip
+        repaired[assign] = plan.metrics["swarm"]["makespan_repair"]
+    assert repaired["by_type"] is not None and repaired[None] is None
