@@ -58,13 +58,12 @@ def best_lag(
     ridge: Ridge,
     delayed: dict[float, Sequence[BaseCache]],
     *,
-    shortest_s: float = 0.0,
     near: float | None = None,
 ) -> float:
     """The delay (s) at which ``effects`` (one column each, their strengths free) leave the lowest
     :meth:`proxplan.identify.projection.TangentProjection.profiled_objective` on :data:`DELAY_CHANNELS`: the best of 0 and the delays of :data:`LAG_GRID_S` in ``delayed`` (at once
     on a tie), chosen on :data:`DELAY_CHANNELS`, then, when that is a delay, refined between its neighbours on
-    the grid, not below ``shortest_s`` (:func:`shortest_delay_s`; bounded Brent, to :data:`LAG_RESOLUTION_S`); with ``near`` (a delay found before), only
+    the grid (bounded Brent, to :data:`LAG_RESOLUTION_S`); with ``near`` (a delay found before), only
     that refinement, around the grid point nearest to it, kept if it beats ``near``. The refined delay's
     inputs are added to ``delayed``."""
 
@@ -88,18 +87,7 @@ def best_lag(
         if k == 0:
             return 0.0
     upper = grid[k + 1] if k + 1 < len(grid) else min(grid[k] * LAG_GRID_S[2] / LAG_GRID_S[1], LAG_BOUNDS_S[1])
-    found = minimize_scalar(lambda x: score(round(float(x), 3)), bounds=(max(grid[k - 1], shortest_s), upper),
+    found = minimize_scalar(lambda x: score(round(float(x), 3)), bounds=(grid[k - 1], upper),
                             method="bounded", options={"xatol": LAG_RESOLUTION_S})  # fmt: skip
     lag = round(float(found.x), 3)
     return lag if score(lag) < best else (near if near is not None else float(grid[k]))
-
-
-def shortest_delay_s(window_s: float) -> float:
-    """The shortest delay an effect is tried at, s: half the measurement's smoothing window ``window_s``
-    (:attr:`proxplan.identify.measure.MeasureOptions.window_s`, s). The measured wrench is a centred
-    Savitzky-Golay fit over that window; a delay within its half-width shifts the effect inside the filter's
-    own support, where it cannot be told from how the filter weighs the measured wrench and the prediction
-    (the inputs are smoothed alike, but the model is not linear in them). On the discovery benchmark's
-    clean sets 15 and 17 (no effect), ``wake_memory`` was kept at 33 and 37 ms (gains +0.012 +- 0.005 and
-    +0.027 +- 0.006): this rule was set after seeing them; its value is the filter's, not chosen on them."""
-    return 0.5 * float(window_s)

@@ -38,7 +38,6 @@ from proxplan.identify.delay_profile import (
     LAG_RESOLUTION_S,
     best_lag,
     judged_where_delay_shows,
-    shortest_delay_s,
 )
 from proxplan.identify.design import (
     SelectionSet,
@@ -231,19 +230,17 @@ def effect_candidate(
     tangents: np.ndarray,
     ridge: Ridge,
     delayed: dict[float, Sequence[BaseCache]],
-    *,
-    shortest_s: float = 0.0,
 ) -> EffectCandidate:
     """The design columns of library effect ``name`` (module docstring); ``tangents`` (N, 4, P) and
     ``ridge`` are the always-fitted columns and their priors (:func:`fit_shape`); ``delayed`` the inputs of
-    every delay of :data:`LAG_GRID_S` from ``shortest_s`` on (:func:`proxplan.identify.delay_profile.shortest_delay_s`;
-    :func:`proxplan.identify.design.delayed_caches`). The effect's delay is
+    every delay of :data:`LAG_GRID_S`
+    (:func:`proxplan.identify.design.delayed_caches`). The effect's delay is
     the one with the lowest MAP objective on the train rows (:func:`best_lag`: its strength and the tangents
     refitted at each; a profile likelihood), its shape refitted at that delay."""
     grid = {0.0: delayed[0.0]} if name in TARGET_ONLY_EFFECTS else delayed
     if name in LINEAR_PARAMS:
         units = [Effect(name, {q: 0.0 for q in PARAMETERS[name]} | {k: 1.0}) for k in LINEAR_PARAMS[name]]
-        lag = best_lag(sel, units, tangents, ridge, grid, shortest_s=shortest_s)
+        lag = best_lag(sel, units, tangents, ridge, grid)
         if name in DELAYED_ONLY and lag == 0.0:
             return EffectCandidate(name, Effect(name, {}), {}, "linear",
                                    note="it fits best at once, where it is the base model's own strength")  # fmt: skip
@@ -262,10 +259,10 @@ def effect_candidate(
         if size > 1e-6 * (hi - lo)
         else Effect(name, eff.full_params() | {k: PARAMETERS[name][k][0] for k in strength})
     )
-    lag = best_lag(sel, [probe], tangents, ridge, grid, shortest_s=shortest_s)
+    lag = best_lag(sel, [probe], tangents, ridge, grid)
     for _ in range(LAG_SHAPE_ROUNDS if lag else 0):  # the delay found with the shape fitted at once, refined
         eff, fit = fit_shape(sel, name, tangents, ridge, caches=delayed[lag])  # with the shape at the delay
-        again = best_lag(sel, [eff], tangents, ridge, grid, shortest_s=shortest_s, near=lag)
+        again = best_lag(sel, [eff], tangents, ridge, grid, near=lag)
         if abs(again - lag) <= LAG_RESOLUTION_S:
             break
         lag = again
@@ -310,11 +307,10 @@ class EffectSelector:
         stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
                  else np.zeros((len(self.sel.weight), 4, 0)))  # fmt: skip
         ridge = self.ridge_for(self.always)
-        shortest = shortest_delay_s(self.options.measure.window_s)
         self.delayed = {0.0: self.sel.caches}
-        self.delayed.update({lag: delayed_caches(self.sel, lag) for lag in LAG_GRID_S if lag > 0.0 and lag >= shortest})
+        self.delayed.update({lag: delayed_caches(self.sel, lag) for lag in LAG_GRID_S if lag > 0.0})
         for name in progress_bar([n for n in names if n != THRUST_BIAS], "effect shapes", self.options.progress):
-            self.candidates.append(effect_candidate(self.sel, name, stack, ridge, self.delayed, shortest_s=shortest))
+            self.candidates.append(effect_candidate(self.sel, name, stack, ridge, self.delayed))
 
     def design(self) -> tuple[GroupSums, Ridge]:
         if self.sums is None:
