@@ -1,7 +1,8 @@
 """Library effects: fitted on train flights, judged by flights held out (issue 35).
 
 Stage 5 of :mod:`proxplan.identify.pipeline`. Each candidate of :data:`proxplan.physics.effects.EFFECT_NAMES`
-becomes columns of the linear design (:mod:`proxplan.identify.design`) around the reference model:
+becomes columns of the linear design (:mod:`proxplan.identify.design`) around the reference model
+(built in :mod:`proxplan.identify.effect_candidates`):
 
 * its shape (a decay length, a wind direction, ...) is fitted first, MAP with its priors
   (:func:`proxplan.identify.priors.effect_prior`), on the train rows of the selection set;
@@ -30,106 +31,27 @@ from typing import Any
 
 import numpy as np
 
-from proxplan.identify.calibrate import CalibrationResult, ParamSpec, fit_parameters
+from proxplan.identify.calibrate import ParamSpec
 from proxplan.identify.crossval import GroupSums, Ridge, heldout_mse, solve, trainable_groups
 from proxplan.identify.data import Errors, IdentifyOptions, Model, Unit, errors, progress_bar
 from proxplan.identify.delay_profile import (
     LAG_GRID_S,
-    LAG_RESOLUTION_S,
-    best_lag,
-    judged_where_delay_shows,
 )
 from proxplan.identify.design import (
     SelectionSet,
     apply_tangent_step,
     delayed_caches,
-    effect_columns,
     tangent_columns,
     tangent_ridge,
 )
-from proxplan.identify.heldout_select import Candidate, ForwardResult, GainTest, heldout_forward
-from proxplan.identify.priors import effect_prior
-from proxplan.identify.projection import TangentProjection
+from proxplan.identify.effect_candidates import EffectCandidate, effect_candidate
+from proxplan.identify.heldout_select import ForwardResult, GainTest, heldout_forward
 from proxplan.identify.stability import Stability, stability
-from proxplan.physics import LAG_PARAM, PARAMETERS, TARGET_ONLY_EFFECTS, BaseCache, Effect
+from proxplan.physics import BaseCache, Effect
 
-LINEAR_PARAMS: dict[str, tuple[str, ...]] = {
-    "own_velocity": ("c_w_spm", "c_mu_spm", "c_mu2_s2pm2"),
-    "wake_swirl": ("yaw_per_force_m",),
-    "thrust_quadratic": ("b_q_rel_spm",),
-    "climb_inflow": ("gain_1",),
-    "wake_memory": ("share_1",),
-}
-"""Effects exactly linear in these parameters: one column per parameter (the effect with that parameter
-1 and the others 0); the coefficients ARE the parameters."""
-SCALE_PARAMS: dict[str, tuple[str, ...]] = {
-    "ground_effect": ("gain_k",),
-    "near_field": ("amplitude",),
-    "wake_advection": ("wind_x_mps", "wind_y_mps"),
-    "ground_jet": ("amplitude_1",),
-    "floor_stagnation": ("amplitude_1",),
-}
-"""Effects with a shape: the shape is fitted, then one column per unit of these strength parameters
-(scaled together); the coefficient multiplies them (exact where the effect is linear in them, to first
-order otherwise; the final fit, :func:`proxplan.identify.pipeline.polish`, makes it exact)."""
 THRUST_BIAS = "thrust_bias"
 MAX_EFFECTS = 3
 """At most this many library effects are kept (a forward pass stops there)."""
-
-_START_GRID: dict[str, list[dict[str, float]]] = {
-    "wake_advection": [
-        {"wind_x_mps": wx, "wind_y_mps": wy} for wx in (-2.0, -1.0, 0.0, 1.0, 2.0) for wy in (-2.0, -1.0, 0.0, 1.0, 2.0)
-    ],
-    "near_field": [{"decay_L": d, "amplitude": a} for d in (1.0, 3.0, 10.0) for a in (0.3, 1.0, 3.0)],
-    "ground_effect": [{"gain_k": k} for k in (0.5, 2.0, 3.5)],
-    "ground_jet": [{"decay_L": d, "amplitude_1": a} for d in (1.0, 4.0, 10.0) for a in (0.2, 0.6)],
-    "floor_stagnation": [{"decay_widths": d, "amplitude_1": a} for d in (0.3, 1.0, 3.0) for a in (0.3, 1.0)],
-}
-"""Start points of the shape fit (parameters not named keep their defaults): a shape can start far from
-its optimum."""
-LAG_SHAPE_ROUNDS = 3
-"""At most this many alternations of the shape fit at a delay and the delay's refinement with that shape: the
-delay is first found with the shape fitted at once, which a late effect distorts (a near_field 0.30 s late
-came out at 0.279 s with it, at 0.300 s with its own shape; each round costs a shape fit, and they settle
-within 2 ms in one or two)."""
-DELAYED_ONLY = ("wake_memory",)
-"""Effects that are something only with a delay: at once ``wake_memory`` is a rescaling of the base model
-(:func:`proxplan.physics.effects._wake_memory`), the calibration's to fit, so it is a candidate only when its
-profile's best delay is not 0."""
-
-
-@dataclass
-class EffectCandidate:
-    """One library effect as columns of the design: the effect at its fitted shape, its column names and
-    arrays, how its coefficients map back to parameters (``linear`` or ``scale``), and the
-    shape fit (None for a linear effect)."""
-
-    name: str
-    effect: Effect
-    columns: dict[str, np.ndarray]
-    mode: str
-    reference: dict[str, float] = field(default_factory=dict)  # scale mode: the strength the columns are per unit of
-    shape_fit: CalibrationResult | None = None
-    note: str = ""  # why it has no columns (its fit put it at zero)
-    # its columns on every channel where ``columns`` leave some out (a delayed effect: judged_where_delay_shows)
-    acting: dict[str, np.ndarray] | None = None
-
-    def as_candidate(self) -> Candidate:
-        return Candidate(self.name, tuple(self.columns))
-
-    def effect_with(self, coef: Mapping[str, float]) -> Effect:
-        """The effect with the fitted coefficients of its columns (``coef``: column name -> value)."""
-        p = self.effect.full_params()
-        if self.mode == "linear":
-            for k in LINEAR_PARAMS[self.name]:
-                p[k] = float(coef.get(f"{self.name}.{k}", 0.0))
-        elif self.mode == "scale":
-            alpha = float(coef.get(f"{self.name}.scale", 0.0))
-            for k, ref in self.reference.items():
-                p[k] = ref * alpha
-        lo_hi = PARAMETERS[self.name]
-        return Effect(self.name, {k: float(np.clip(v, lo_hi[k][1], lo_hi[k][2])) if k != LAG_PARAM else v
-                                  for k, v in p.items()})  # fmt: skip
 
 
 @dataclass
@@ -185,101 +107,6 @@ class EffectSelection:
         compare."""
         m = self.heldout_mse[np.isfinite(self.heldout_mse)]
         return float(np.mean(m)) if m.size else float("inf")
-
-
-def fit_shape(
-    sel: SelectionSet,
-    name: str,
-    tangents: np.ndarray,
-    ridge: Ridge,
-    *,
-    max_nfev: int = 60,
-    caches: Sequence[BaseCache] | None = None,
-) -> tuple[Effect, CalibrationResult]:
-    """MAP fit of every parameter of effect ``name`` (its priors) to the reference residual on the
-    selection set's TRAIN rows (all channels, noise units, the data term over tau), with the vehicle
-    parameters' steps ``tangents`` ((N, 4, P) columns with their ``ridge`` priors) refitted exactly for
-    every trial shape (variable projection): the shape is fitted to the residual the calibration would
-    leave WITH the effect, not to what is left after the calibration absorbed part of it. ``caches``: the
-    inputs to evaluate it on (a delay's, :func:`proxplan.identify.design.delayed_caches`; default the samples')."""
-    keys = list(PARAMETERS[name])
-    specs = [ParamSpec(k, PARAMETERS[name][k][0], *PARAMETERS[name][k][1:], prior=effect_prior(name, k)) for k in keys]
-    projection = TangentProjection.of(sel, tangents, ridge)
-
-    def residual(theta: np.ndarray) -> np.ndarray:
-        return projection.residual_vector(
-            effect_columns(sel, Effect(name, {k: float(v) for k, v in zip(keys, theta)}), caches)
-        )
-
-    starts = [np.array([s.initial for s in specs])]
-    for extra in _START_GRID.get(name, ()):
-        x0 = starts[0].copy()
-        for k, v in extra.items():
-            x0[keys.index(k)] = v
-        starts.append(x0)
-    if len(starts) > 1:
-        best = min(starts, key=lambda x: float(np.sum(residual(x) ** 2)))
-        specs = [replace(s, initial=float(v)) for s, v in zip(specs, best)]
-    fit = fit_parameters(residual, specs, max_nfev=max_nfev, noise_sigma=float(np.sqrt(sel.tau)))
-    return Effect(name, fit.as_dict()), fit
-
-
-def effect_candidate(
-    sel: SelectionSet,
-    name: str,
-    tangents: np.ndarray,
-    ridge: Ridge,
-    delayed: dict[float, Sequence[BaseCache]],
-) -> EffectCandidate:
-    """The design columns of library effect ``name`` (module docstring); ``tangents`` (N, 4, P) and
-    ``ridge`` are the always-fitted columns and their priors (:func:`fit_shape`); ``delayed`` the inputs of
-    every delay of :data:`LAG_GRID_S`
-    (:func:`proxplan.identify.design.delayed_caches`). The effect's delay is
-    the one with the lowest MAP objective on the train rows (:func:`best_lag`: its strength and the tangents
-    refitted at each; a profile likelihood), its shape refitted at that delay."""
-    grid = {0.0: delayed[0.0]} if name in TARGET_ONLY_EFFECTS else delayed
-    if name in LINEAR_PARAMS:
-        units = [Effect(name, {q: 0.0 for q in PARAMETERS[name]} | {k: 1.0}) for k in LINEAR_PARAMS[name]]
-        lag = best_lag(sel, units, tangents, ridge, grid)
-        if name in DELAYED_ONLY and lag == 0.0:
-            return EffectCandidate(name, Effect(name, {}), {}, "linear",
-                                   note="it fits best at once, where it is the base model's own strength")  # fmt: skip
-        acting = {f"{name}.{k}": effect_columns(sel, e, delayed[lag]) for k, e in zip(LINEAR_PARAMS[name], units)}
-        cols = {k: judged_where_delay_shows(v, lag) for k, v in acting.items()}
-        return EffectCandidate(name, Effect(name, {LAG_PARAM: lag} if lag else {}), cols, "linear",
-                               acting=acting if lag else None)  # fmt: skip
-    eff, fit = fit_shape(sel, name, tangents, ridge)
-    strength = SCALE_PARAMS[name]
-    ref = {k: float(eff.full_params()[k]) for k in strength}
-    size = np.sqrt(sum(v * v for v in ref.values()))
-    lo, hi = PARAMETERS[name][strength[0]][1:]
-    # the profile's shape: the fitted one, at the default strength where the fit put it at zero
-    probe = (
-        eff
-        if size > 1e-6 * (hi - lo)
-        else Effect(name, eff.full_params() | {k: PARAMETERS[name][k][0] for k in strength})
-    )
-    lag = best_lag(sel, [probe], tangents, ridge, grid)
-    for _ in range(LAG_SHAPE_ROUNDS if lag else 0):  # the delay found with the shape fitted at once, refined
-        eff, fit = fit_shape(sel, name, tangents, ridge, caches=delayed[lag])  # with the shape at the delay
-        again = best_lag(sel, [eff], tangents, ridge, grid, near=lag)
-        if abs(again - lag) <= LAG_RESOLUTION_S:
-            break
-        lag = again
-    else:
-        if lag:
-            eff, fit = fit_shape(sel, name, tangents, ridge, caches=delayed[lag])
-    if lag:
-        eff = Effect(name, eff.full_params() | {LAG_PARAM: lag})
-        ref = {k: float(eff.full_params()[k]) for k in strength}
-        size = np.sqrt(sum(v * v for v in ref.values()))
-    if size <= 1e-6 * (hi - lo):
-        return EffectCandidate(
-            name, eff, {}, "scale", ref, fit, note="its fitted strength is zero (the prior's center)"
-        )
-    col = effect_columns(sel, eff, delayed[lag])
-    return EffectCandidate(name, eff, {f"{name}.scale": judged_where_delay_shows(col, lag)}, "scale", ref, fit,
-                           acting={f"{name}.scale": col} if lag else None)  # fmt: skip
 
 
 class EffectSelector:

@@ -1,6 +1,6 @@
 """The vehicle parameters refitted exactly beside a candidate (variable projection, issue 35).
 
-A library effect's shape (:func:`proxplan.identify.effect_selection.fit_shape`) and its delay
+A library effect's shape (:func:`proxplan.identify.effect_candidates.fit_shape`) and its delay
 (:func:`proxplan.identify.delay_profile.profiled_objective`) are both judged on the residual the
 calibration would leave WITH the effect: for every trial, the steps of the calibrated vehicle parameters
 (their tangent columns, with their priors as a ridge) are refitted by linear least squares. The tangents'
