@@ -198,7 +198,7 @@ def write_flight_logs(
 
 
 def vehicle_logs(result, *, logged_thrust: str = "actual", seed: int | None = None) -> dict:
-    """The logs :func:`write_flight_logs` would write, in memory: ``{name: proxplan.identify.flightlog.VehicleLog}``
+    """The logs :func:`write_flight_logs` would write, in memory: ``{name: proxplan.identify.vehicle_log.VehicleLog}``
     (same noise for the same ``seed``; world-frame accelerometer, body gyro, (S0-14) thrusts)."""
     from proxplan.identify import VehicleLog
 

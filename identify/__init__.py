@@ -9,23 +9,20 @@ from proxplan.identify.discovery import DiscoveryOptions, discover_terms
 from proxplan.identify.effect_selection import EffectSelector
 from proxplan.identify.evaluate import EvaluationResult, evaluate_model, saved_model
 from proxplan.identify.evaluate_report import write_evaluation_report
-from proxplan.identify.flightlog import (
-    NEURAL_SWARM_COLUMNS,
-    NEURAL_SWARM_FILE_COLUMNS,
-    FlightEntry,
-    Manifest,
-    VehicleEntry,
-    VehicleLog,
-    load_flight,
-    read_log,
-    write_canonical_csv,
-)
+from proxplan.identify.flightlog import FlightEntry, Manifest, VehicleEntry, load_flight
 from proxplan.identify.formats import describe_log, firmware_columns, manifest_skeleton, read_usdlog, write_usdlog
 from proxplan.identify.manifest import ManifestFile, load_manifest
 from proxplan.identify.measure import MeasuredWrench, MeasureOptions, measure_disturbance, measure_log
 from proxplan.identify.pipeline import IdentifyOptions, IdentifyResult, run_identify
 from proxplan.identify.report import write_report
 from proxplan.identify.synthetic_logs import synthetic_logs, write_synthetic_manifest
+from proxplan.identify.vehicle_log import (
+    NEURAL_SWARM_COLUMNS,
+    NEURAL_SWARM_FILE_COLUMNS,
+    VehicleLog,
+    read_log,
+    write_canonical_csv,
+)
 
 __all__ = [
     "VEHICLE_PARAMETERS",

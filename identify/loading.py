@@ -13,7 +13,7 @@ import numpy as np
 
 from proxplan.fileio import UserError
 from proxplan.identify.data import CEILING_BIT, FLOOR_BIT, IdentifyOptions, Model, Unit, predict, progress_bar
-from proxplan.identify.flightlog import Flight, FlightEntry, Manifest, VehicleLog, interpolate_position_m, load_flight
+from proxplan.identify.flightlog import Flight, FlightEntry, Manifest, load_flight
 from proxplan.identify.measure import MeasureOptions, kinematic_thrust_z_N, measure_log, smoothed_like_measurement
 from proxplan.identify.thrust_map import (
     CEILING,
@@ -24,6 +24,7 @@ from proxplan.identify.thrust_map import (
     fit_thrust_maps,
     motor_limits,
 )
+from proxplan.identify.vehicle_log import VehicleLog, interpolate_position_m
 from proxplan.physics import ModelOptions, Vehicle
 
 

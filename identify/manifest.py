@@ -38,7 +38,9 @@ from proxplan.fileio import (
     read_yaml,
     validate,
 )
-from proxplan.identify.flightlog import FORMATS, FlightEntry, LogFormat, Manifest, QualityOptions, VehicleEntry
+from proxplan.identify.flightlog import FlightEntry, Manifest, VehicleEntry
+from proxplan.identify.log_checks import QualityOptions
+from proxplan.identify.vehicle_log import FORMATS, LogFormat
 from proxplan.physics import BUILTIN_VEHICLES, PlaneList, planes_from_parts
 
 MotorThrust = Literal["commanded", "delivered"]

@@ -194,7 +194,7 @@ def smoothed_like_measurement(log, x: np.ndarray, *, options: MeasureOptions = M
 
 
 def measure_log(vehicle: Vehicle, log, *, options: MeasureOptions = MeasureOptions()) -> MeasuredWrench:
-    """:func:`measure_disturbance` on a :class:`proxplan.identify.flightlog.VehicleLog`."""
+    """:func:`measure_disturbance` on a :class:`proxplan.identify.vehicle_log.VehicleLog`."""
     return measure_disturbance(
         vehicle,
         log.t_s,

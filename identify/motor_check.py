@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from proxplan.identify.flightlog import VehicleLog
 from proxplan.identify.measure import FREE_HEIGHT_M, MeasureOptions, measure_log
+from proxplan.identify.vehicle_log import VehicleLog
 from proxplan.physics import Vehicle
 
 TAU_GRID_S = (0.0, 0.02, 0.035, 0.05, 0.072, 0.09, 0.11, 0.14, 0.18, 0.25)

@@ -42,8 +42,8 @@ from proxplan.fileio import UserError
 from proxplan.identify.thrust_map import CEILING, FLOOR, PWM_FLOOR, ThrustMap
 
 if TYPE_CHECKING:
-    from proxplan.identify.flightlog import VehicleLog
     from proxplan.identify.measure import MeasureOptions
+    from proxplan.identify.vehicle_log import VehicleLog
     from proxplan.physics import Vehicle
 
 PWM_FULL_SCALE = 65536
@@ -155,8 +155,8 @@ def free_flight_mask(log: VehicleLog, ground_z_m: float, others: Sequence[tuple[
     within +-0.2 s (no PWM at its floor or full scale)."""
     from scipy.ndimage import maximum_filter1d
 
-    from proxplan.identify.flightlog import interpolate_position_m
     from proxplan.identify.measure import FREE_HEIGHT_M
+    from proxplan.identify.vehicle_log import interpolate_position_m
 
     free = log.position_m[:, 2] - ground_z_m > FREE_HEIGHT_M
     for size_m, other in others:

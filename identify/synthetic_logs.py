@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from proxplan.identify.flightlog import VehicleLog
+from proxplan.identify.vehicle_log import VehicleLog
 
 
 @dataclass(frozen=True)
@@ -162,7 +162,7 @@ def write_synthetic_manifest(
     normal}); returns the manifest path."""
     import yaml
 
-    from proxplan.identify.flightlog import write_canonical_csv
+    from proxplan.identify.vehicle_log import write_canonical_csv
 
     entries = []
     for name, split, logs in flights:

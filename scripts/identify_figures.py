@@ -142,9 +142,10 @@ def limits_figure(manifest, result, out: Path) -> Path:
     """``identify_limits.png`` on swap_lll_01 cf102 (day-21 train): u[N] vs what the PWM gives, and
     F_z measured with u[N] kept at the floor (issue 13: ceiling only) and at both limits."""
     from proxplan.fileio import save_figure
-    from proxplan.identify.flightlog import check_log, read_log
+    from proxplan.identify.log_checks import check_log
     from proxplan.identify.measure import measure_log
     from proxplan.identify.thrust_map import FLOOR, IN_RANGE, MotorSamples, delivered_thrust_N, motor_limits
+    from proxplan.identify.vehicle_log import read_log
 
     plt = _plt()
     entry = next(f for f in manifest.flights if f.name == "swap_lll_01")

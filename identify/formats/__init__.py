@@ -1,5 +1,5 @@
 """Flight-log formats beyond the CSV layouts: every reader returns the one
-:class:`proxplan.identify.flightlog.VehicleLog` the pipeline consumes, so nothing downstream changes.
+:class:`proxplan.identify.vehicle_log.VehicleLog` the pipeline consumes, so nothing downstream changes.
 
 Public API: :func:`read_vehicle_log` (one manifest vehicle entry -> VehicleLog), :func:`detect_format`,
 :data:`LOG_FORMATS`; the contract table :data:`CRAZYFLIE_VARIABLES` (:mod:`.contract`); the uSD

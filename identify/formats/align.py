@@ -19,8 +19,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from proxplan.fileio import UserError
-from proxplan.identify.flightlog import VehicleEntry, VehicleLog
+from proxplan.identify.flightlog import VehicleEntry
 from proxplan.identify.formats.registry import detect_format, read_vehicle_log
+from proxplan.identify.vehicle_log import VehicleLog
 
 MAX_LAG_S = 30.0
 """The search covers logs that start within this of the track's start (on their own clocks), s."""

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from proxplan.fileio import UserError
-from proxplan.identify.flightlog import VehicleLog
+from proxplan.identify.vehicle_log import VehicleLog
 
 G0_MPS2 = 9.80665
 """Standard gravity: one g of the accelerometer's unit, m/s^2 (the definition of the unit)."""

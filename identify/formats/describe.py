@@ -41,7 +41,7 @@ def describe_log(path: str | Path, *, topics: Mapping[str, Any] | None = None) -
         from proxplan.identify.formats.ulog import describe_ulog
 
         return describe_ulog(path)
-    from proxplan.identify.flightlog import read_log
+    from proxplan.identify.vehicle_log import read_log
 
     log = read_log(path)
     layout = "neural-swarm" if "time[ms]" in _header(path) else "canonical"

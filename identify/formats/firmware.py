@@ -11,8 +11,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from proxplan.fileio import UserError
-from proxplan.identify.flightlog import VehicleLog
 from proxplan.identify.formats.contract import CONTRACT, missing_variables, variable_table, vehicle_log
+from proxplan.identify.vehicle_log import VehicleLog
 
 
 def log_from_streams(

@@ -6,7 +6,8 @@ from dataclasses import replace
 from pathlib import Path
 
 from proxplan.fileio import UserError
-from proxplan.identify.flightlog import VehicleEntry, VehicleLog, read_log
+from proxplan.identify.flightlog import VehicleEntry
+from proxplan.identify.vehicle_log import VehicleLog, read_log
 
 LOG_FORMATS = ("neural-swarm", "canonical", "usdlog", "rosbag", "ulog")
 """Log formats a manifest may name (``format:``); CSV layouts are also told apart by their header,

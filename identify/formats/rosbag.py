@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 
 from proxplan.fileio import UserError
-from proxplan.identify.flightlog import VehicleLog
 from proxplan.identify.formats.contract import DEG, G0_MPS2
+from proxplan.identify.vehicle_log import VehicleLog
 
 LOG_DATA_GENERIC = "crazyflie_interfaces/msg/LogDataGeneric"
 LOG_DATA_GENERIC_MSG = (

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from proxplan.fileio import UserError
-from proxplan.identify.flightlog import VehicleLog
+from proxplan.identify.vehicle_log import VehicleLog
 
 TOPICS = {
     "vehicle_local_position": ("x", "y", "z", "vx", "vy", "vz"),

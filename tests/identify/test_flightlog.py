@@ -11,18 +11,10 @@ import pytest
 import yaml
 
 from proxplan.fileio import UserError
-from proxplan.identify.flightlog import (
-    NEURAL_SWARM_COLUMNS,
-    FlightEntry,
-    QualityOptions,
-    VehicleEntry,
-    VehicleLog,
-    check_log,
-    load_flight,
-    read_log,
-    write_canonical_csv,
-)  # fmt: skip
+from proxplan.identify.flightlog import FlightEntry, VehicleEntry, load_flight
+from proxplan.identify.log_checks import QualityOptions, check_log
 from proxplan.identify.manifest import load_manifest
+from proxplan.identify.vehicle_log import NEURAL_SWARM_COLUMNS, VehicleLog, read_log, write_canonical_csv
 from proxplan.physics import BUILTIN_VEHICLES
 
 CF = BUILTIN_VEHICLES["crazyflie-2.1"]
