@@ -254,6 +254,14 @@ def joint_model(
     back = heldout_backward(sums, selector.always, kept, sel.plan, ridge, sel.tau,
                             discovery.fold_eligible if discovery is not None else None)  # fmt: skip
     names = list(selector.always) + [col for c in kept if c.name in back.chosen for col in c.columns]
+    # a delayed effect is judged on F_z and yaw only (DELAY_CHANNELS), but it acts on all four channels, so
+    # the survivors are fitted with its columns on every channel: judged columns would leave its roll and
+    # pitch torque to the vehicle parameters' tangents, which then absorb the effect near its source
+    acting = {k: v for c in selector.candidates if c.name in back.chosen and c.acting for k, v in c.acting.items()}
+    if acting:
+        columns = columns | acting
+        sums = sel.sums(columns)
+        ridge = selector.ridge_for(sums.columns)
     idx = sums.index(names)
     beta = solve(sums, idx, trainable_groups(sums, sel.plan), ridge, sel.tau)
     coef = dict(zip(names, (float(b) for b in beta)))

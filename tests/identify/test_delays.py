@@ -20,7 +20,10 @@ from .test_discovery import _manifest, _run
 
 LATE_S = 0.3
 """Delay of the hidden effect, s: between two points of the profile's grid (0.253 and 0.38 s)."""
-LATE_NEAR_FIELD = Effect("near_field", {"amplitude": 1.0, "decay_L": 3.0, "lag_s": LATE_S})
+LATE_AMPLITUDE = 3.0
+"""Strength of the hidden effect (near_field's ``amplitude``), -: strong enough that the vehicle parameters could
+absorb part of it (the discovery benchmark draws effects of 1.5-4 times the clean error)."""
+LATE_NEAR_FIELD = Effect("near_field", {"amplitude": LATE_AMPLITUDE, "decay_L": 3.0, "lag_s": LATE_S})
 
 
 def late_near_field(inputs: EffectInputs) -> tuple[np.ndarray, np.ndarray]:
@@ -55,10 +58,17 @@ def clean(discovery_clean):
 def test_a_late_library_effect_is_found_with_its_delay(tmp_path: Path, clean) -> None:
     """near_field felt 0.3 s late, in none of the profile's grid points: selection keeps near_field with its
     delay refined to within 10 ms, and the lower vehicle's test F_z error comes within 1.3x of the same logs
-    without it (tried only at once, its error stayed several times the clean one: docs/identify.md)."""
+    without it (tried only at once, its error stayed several times the clean one: docs/identify.md).
+
+    Its strength comes out within 5 % of the hidden one: the delayed effect is judged on F_z and yaw only but
+    fitted, with the survivors, on every channel it acts on (proxplan.identify.selection.joint_model). Fitted
+    on the judged channels, its roll and pitch torque was left to the vehicle parameters' tangents, which took
+    part of it near the source: 2.71 (10 % low, the source's c_ax moved 4 %), and on the discovery benchmark's
+    draw 0 (a large and a small vehicle) 1.69 of 2.82 with the F_z error 2.0x the clean one."""
     result, test_b = _run(tmp_path, late_near_field)
     (kept,) = [e for e in result.final_model.effects if e.name == "near_field"]
     assert abs(kept.lag_s - LATE_S) <= 0.01, kept
+    assert abs(kept.params["amplitude"] / LATE_AMPLITUDE - 1.0) <= 0.05, kept
     assert set(result.selected) <= {"thrust_bias", "near_field"}, result.selected
     clean_rmse = errors(clean[1], clean[0].final_model).rmse_fz_N
     assert errors(test_b, result.base_model).rmse_fz_N > 2.0 * clean_rmse  # visible
