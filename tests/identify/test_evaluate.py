@@ -71,6 +71,8 @@ def test_round_trip_reproduces_identify_after(tmp_path: Path, capsys) -> None:
     whole = ev["rmse_fz_N"]
     assert (bands["rmse_fz_below_1Hz_N"] ** 2 + bands["rmse_fz_above_1Hz_N"] ** 2) == pytest.approx(whole**2, rel=0.2)
     assert 0.0 < bands["coverage_90"] <= 1.0 and bands["rmse_fz_above_1Hz_g"] > 0.0
+    # the part that is one constant per log lies within the slow part (a low-pass keeps a log's mean)
+    assert 0.0 < bands["rmse_fz_constant_per_log_N"] <= 1.05 * bands["rmse_fz_below_1Hz_N"]
     assert "What the model cannot predict" in (tmp_path / "ev" / "report.md").read_text()
     per = ident["per_vehicle"]
     assert set(per) == {"a", "b"} and all(
