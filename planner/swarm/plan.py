@@ -11,7 +11,9 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    :mod:`proxplan.planner.swarm.components`). One vehicle after another along the best of its
    straight line and a wavefront route through the others' space-time, timed exactly; vehicles
    not planned yet are predictions; a vehicle that cannot be planned is repaired (only the vehicles
-   in conflict with it planned again, after it), within a count of repairs per pass.
+   in conflict with it planned again, after it), within a count of repairs per pass; one still
+   failing then flies in collision and the collisions are repaired at the end of the pass
+   (:mod:`proxplan.planner.swarm.lns`).
 3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in

@@ -26,7 +26,12 @@ put them first is undone for these pairs) - only these vehicles are planned agai
 whole pass. When nothing planned is in the way of its ideal track (only predictions of vehicles
 not planned yet), it flies that track: it is clear of every planned track. Every repair is
 counted; ``max_repairs`` (a count, per pass) bounds them, ``max_plannings`` the single-vehicle
-plannings of the pass, and a vehicle still failing then gives the pass up (:class:`PrioritizedFailed`: the caller falls back). A caller's wall-clock
+plannings of the pass. A vehicle still failing then (repairs spent, nobody to take out, or the
+same reversal again) flies in collision with only the vehicles in its way (planned against all the
+others; its ideal track if even that fails), the pass goes on, and at its end the collisions are
+repaired a neighbourhood at a time (:mod:`proxplan.planner.swarm.lns`, within
+:data:`LNS_PLANNINGS_PER_VEHICLE` plannings per vehicle); collisions still left give the pass up
+(:class:`PrioritizedFailed`: the caller falls back; ``collisions=False`` gives it up at once, as before). A caller's wall-clock
 ``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
 
 Order (:func:`dependency_order`): a vehicle whose start another one's goal needs is planned first
@@ -45,6 +50,7 @@ import numpy as np
 
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm.chain import time_chain
+from proxplan.planner.swarm.lns import remove_collisions
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
@@ -53,6 +59,10 @@ from proxplan.planner.timing.profile import LineMove, rest_to_rest
 
 SLOW_PACE = 0.5  # last route attempt: this fraction of the speed limit ...
 SLOW_GROWTH_M = 0.05  # ... and keep-outs this much wider, m
+# the collision repair's plannings per vehicle of the pass, at most: a whole pass costs 2-3 per vehicle
+# on the named layouts at 64 fixed (docs/planner.md), so the repair may cost up to half a pass more
+# before the next order is tried (set watching those figures, not the randomised family)
+LNS_PLANNINGS_PER_VEHICLE = 1
 
 
 @dataclass(frozen=True)
@@ -63,6 +73,12 @@ class PriorityOptions:
     max_plannings: int | None = None  # single-vehicle plannings of the pass (repairs' included); None: no cap
     hold_s: float = 0.0  # a vehicle not planned yet is assumed to hold its start this long, then leave, s
     through: bool = True  # fly through waypoints without stopping (else rest to rest at each)
+    # a vehicle that cannot be planned within the repairs flies its ideal track in collision, and the
+    # collisions are removed at the end (swarm.lns) within the pass's plannings (False: give the pass up)
+    collisions: bool = True
+    # of the collision repair's draws; the swarm layer leaves it at 0 (its prioritised plans do not
+    # depend on the plan's seed: the verification policy re-plans with another seed only other plans)
+    seed: int = 0
 
 
 @dataclass
@@ -72,6 +88,7 @@ class PriorityResult:
     repairs: int
     history: list[str] = field(default_factory=list)  # what each repair was for
     against_order: int = 0  # repairs that reversed an order set by an earlier repair
+    collision_repairs: int = 0  # neighbourhoods planned again by the collision repair (swarm.lns)
 
 
 class PrioritizedFailed(Exception):
@@ -117,6 +134,26 @@ def ideal_track(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack 
         W = route
     res = time_chain(Occupancy(problem, [], occ.horizon), agent, W)
     return None if res is None else res.track
+
+
+def start_visitors(occ: Occupancy, agent: int) -> set[int]:
+    """The agents whose tracks in ``occ`` come within ``agent``'s keep-out of its start at some
+    time (fly through it or park there): a vehicle that cannot be planned could not leave its start
+    before one of them came."""
+    p = occ.problem
+    return occ.conflicting_agents(GridTrack(agent, int(p.type_index[agent]), p.starts_m[agent].copy(), []))
+
+
+def plan_ignoring(occ: Occupancy, agent: int, ignore: set[int], through: bool) -> GridTrack | None:
+    """:func:`plan_one` against the tracks in ``occ`` but those of ``ignore`` (it may collide with
+    them only), or None."""
+    taken = [occ.remove(b) for b in sorted(ignore) if b != agent]
+    try:
+        return plan_one(occ, agent, through)
+    finally:
+        for tr in taken:
+            if tr is not None:
+                occ.put(tr)
 
 
 def plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
@@ -197,6 +234,7 @@ def _in_order(
     queue = deque(a for a in order if not problem.pinned[a] and a not in initial)
     result = PriorityResult(planned, 0, 0)
     reversed_for: set[tuple[int, frozenset[int]]] = set()  # repairs against the order made so far
+    stuck: list[int] = []  # vehicles left on their ideal tracks, in collision (removed at the end)
     total = len(queue)
     while queue:
         a = queue.popleft()
@@ -241,9 +279,20 @@ def _in_order(
             result.history.append(f"{problem.names[a]} on its ideal track (only predictions in its way)")
             continue
         blockers = [b for b in in_way if a not in after[b]]
+        why = None
         if not in_way or result.repairs >= options.max_repairs:
             why = "nobody to take out" if not in_way else f"repair budget of {options.max_repairs} spent"
+        elif not blockers and (a, frozenset(in_way)) in reversed_for:  # the same reversal again
+            why = "goes round in a circle with " + ", ".join(problem.names[b] for b in in_way)
+        if why is not None:
             result.history.append(f"{problem.names[a]}: {why}")
+            if options.collisions and ideal is not None:  # in collision with those in its way (swarm.lns)
+                track = plan_ignoring(occ, a, set(in_way), options.through)
+                result.planned += 1
+                planned[a] = ideal if track is None else track
+                occ.put(planned[a])
+                stuck.append(a)
+                continue
             if prediction is not None:
                 occ.put(prediction)
             raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
@@ -252,15 +301,7 @@ def _in_order(
         if against:  # every vehicle in its way goes before it: reverse that for these pairs
             blockers = in_way
             result.against_order += 1
-            key = (a, frozenset(blockers))
-            if key in reversed_for:  # the same reversal again: the pair goes round in a circle
-                result.history.append(
-                    f"{problem.names[a]}: goes round in a circle with " + ", ".join(problem.names[b] for b in blockers)
-                )
-                if prediction is not None:
-                    occ.put(prediction)
-                raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
-            reversed_for.add(key)
+            reversed_for.add((a, frozenset(blockers)))
         result.history.append(
             f"{problem.names[a]} before "
             + ", ".join(problem.names[b] for b in blockers)
@@ -276,7 +317,41 @@ def _in_order(
             del planned[b]
             occ.put(predicted_track(problem, b, hold_s=options.hold_s))
         queue.extendleft(reversed([a, *blockers]))
+    if stuck:
+        _remove_collisions(occ, planned, stuck, options, result, deadline)
     return result
+
+
+def _remove_collisions(
+    occ: Occupancy, planned: dict[int, GridTrack], stuck: list[int], options: PriorityOptions, result, deadline
+) -> None:
+    """The collisions of the vehicles left on their ideal tracks removed (:mod:`proxplan.planner.swarm.lns`),
+    within what is left of the pass's plannings; :class:`PrioritizedFailed` when some are left."""
+    problem = occ.problem
+    left = LNS_PLANNINGS_PER_VEHICLE * problem.n_agents
+    if options.max_plannings is not None:
+        left = min(left, options.max_plannings - result.planned)
+    plannings, tried, pairs = remove_collisions(
+        occ,
+        planned,
+        stuck,
+        plan_one=lambda o, b: plan_one(o, b, options.through),
+        plan_ignoring=lambda o, b, others: (
+            plan_ignoring(o, b, others, options.through) or ideal_track(problem, o, b) or planned[b]
+        ),
+        predicted=lambda b: predicted_track(problem, b, hold_s=options.hold_s),
+        extra_neighbours=lambda b: start_visitors(occ, b),
+        budget=max(0, left),
+        seed=options.seed,
+        deadline=deadline,
+    )
+    result.planned += plannings
+    result.collision_repairs += tried
+    result.history.append(
+        f"{len(stuck)} vehicle(s) on ideal tracks in collision: {tried} neighbourhoods, {pairs} pairs left"
+    )
+    if pairs:
+        raise PrioritizedFailed(stuck[-1], result.repairs, result.history, planned=result.planned)
 
 
 def dependency_order(problem: SwarmProblem) -> list[int]:

@@ -1,0 +1,103 @@
+"""Repair of the vehicles left in collision by prioritised planning (MAPF-LNS2, Li et al. AAAI 2022).
+
+When a pass of :mod:`proxplan.planner.swarm.priority` cannot plan a vehicle within its repairs, the
+vehicle is planned against every track but those of the vehicles in its way (so it may collide with
+those only; its *ideal track*, the track it would fly alone, when even that fails), and the pass
+goes on: every vehicle planned after it plans around it as around any other track. What is left is a complete set of tracks in which only known pairs collide
+(:meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`, the queries' own test).
+
+Large neighbourhood search then removes those collisions, a neighbourhood at a time: one vehicle
+in collision (drawn with the pass's seeded generator), the vehicles it collides with and those that
+come to its start (it could not leave before them), at most :data:`NEIGHBOURHOOD` of them, are taken
+out and planned again, one after another in a random order, against everyone else (the vehicles of
+the neighbourhood not planned yet are predictions, as in the pass). A vehicle that still cannot be
+planned flies its ideal track again. The new tracks are kept when the count of colliding pairs did
+not grow (LNS2's acceptance), else the old ones come back. It ends when no pair collides (the tracks
+are then conflict-free: each was planned against every track in place, or its collisions counted),
+or gives up when its count of single-vehicle plannings is spent: a count, so the same seed gives
+the same plan on every machine.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from proxplan.planner.errors import PlanNotFound
+from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.tracks import GridTrack
+
+# vehicles planned again together at most: the largest neighbourhoods LNS2 uses (Li et al. 2022, 4-32
+# agents, their adaptive choice); 8 is the most that one repair of the pass takes out on the named
+# layouts at 64 vehicles (docs/planner.md), so a neighbourhood holds one repair's vehicles
+NEIGHBOURHOOD = 8
+
+
+def colliding_pairs(occ: Occupancy, agents) -> set[tuple[int, int]]:
+    """The pairs (i < j) of tracks in ``occ`` that collide, of which one is in ``agents``."""
+    pairs: set[tuple[int, int]] = set()
+    for a in agents:
+        for b in occ.conflicting_agents(occ.tracks[a]):
+            if not occ.tracks[b].vanishes:
+                pairs.add((min(a, b), max(a, b)))
+    return pairs
+
+
+def remove_collisions(
+    occ: Occupancy,
+    planned: dict[int, GridTrack],
+    in_collision: list[int],
+    *,
+    plan_one: Callable[[Occupancy, int], GridTrack | None],
+    plan_ignoring: Callable[[Occupancy, int, set[int]], GridTrack],
+    predicted: Callable[[int], GridTrack],
+    extra_neighbours: Callable[[int], set[int]],
+    budget: int,
+    seed: int,
+    deadline: float | None = None,
+) -> tuple[int, int, int]:
+    """Remove the collisions of the vehicles ``in_collision`` (see module), ``planned`` and ``occ``
+    changed in place. Returns (plannings, neighbourhoods tried, colliding pairs left): pairs left > 0
+    only when the ``budget`` of plannings was spent."""
+    problem = occ.problem
+    rng = np.random.default_rng(seed)
+    pairs = colliding_pairs(occ, in_collision)
+    plannings = tried = 0
+    while pairs and plannings < budget:
+        if deadline is not None and time.perf_counter() > deadline:
+            raise PlanNotFound("no plan found within the time budget (collision repair)", details={"nodes": plannings})
+        tried += 1
+        involved = sorted({a for p in pairs for a in p if not problem.pinned[a]})
+        if not involved:
+            break
+        a = int(involved[rng.integers(len(involved))])
+        partners = sorted({b for p in pairs if a in p for b in p} - {a})
+        visitors = sorted(extra_neighbours(a) - {a} - set(partners))
+        hood = [a, *(b for b in [*partners, *visitors] if b in planned and not problem.pinned[b])]
+        hood = list(dict.fromkeys(hood))[:NEIGHBOURHOOD]
+        old = {b: planned[b] for b in hood}
+        before = {p for p in pairs if p[0] in old or p[1] in old}
+        for b in hood:
+            occ.put(predicted(b))
+        for b in [hood[i] for i in rng.permutation(len(hood))]:
+            occ.remove(b)
+            track = plan_one(occ, b)
+            plannings += 1
+            if track is None:  # in collision with its neighbourhood only, if it can
+                plannings += 1
+                track = plan_ignoring(occ, b, set(hood))
+            planned[b] = track
+            occ.put(track)
+        after = colliding_pairs(occ, hood)
+        if len(after) <= len(before):
+            pairs = (pairs - before) | after
+        else:  # LNS2's acceptance: never more colliding pairs
+            for b, tr in old.items():
+                planned[b] = tr
+                occ.put(tr)
+    return plannings, tried, len(pairs)
+
+
+__all__ = ["NEIGHBOURHOOD", "colliding_pairs", "remove_collisions"]
