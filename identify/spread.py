@@ -15,7 +15,7 @@ and the residual split into slow and fast parts.
 * :class:`BandAccumulator` also keeps the part of the residual that is one constant per vehicle log (its mean
   over the flight): no quasi-steady model of the air predicts it (a thrust map off at that battery's voltage,
   a battery of another mass), and with few flights per set it sets how far that set's coverage strays from
-  90 % (on the shipped test flights it is 35 % of the day-21 residual's square).
+  90 % (the shipped flights' figures: docs/identify.md, "What the model cannot predict").
 """
 
 from __future__ import annotations
