@@ -9,7 +9,9 @@ per channel (:data:`CHANNELS`: world F_z and the three torques).
 Columns (each (N, 4): one value per sample and channel, in the channels' noise units):
 
 * tangent columns of the vehicle parameters (:func:`tangent_columns`): d prediction / d u, u = ln(theta)
-  for a log-normal prior, theta otherwise, by a forward difference; with their priors as a ridge
+  for a log-normal prior, u = 1 - 1/s for a thrust scale s (the coordinate the measurement is LINEAR in,
+  :func:`thrust_scale_u`), theta otherwise, by a forward difference (a thrust scale's analytically); with
+  their priors as a ridge
   (:func:`tangent_ridge`), so every held-out fit recalibrates too, jointly with the candidate: an
   effect the data hold is no longer absorbed into c_ax before it is tried;
 * a library effect's columns (:func:`effect_columns`): its contribution per unit of its strength at its
@@ -157,21 +159,24 @@ def _perturbed(model: Model, name: str, value: float) -> Model:
 
 def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, np.ndarray]:
     """d prediction / d u of every parameter of ``specs`` at the reference model (module docstring), (N, 4)
-    noise units each; a thrust scale's column is analytic (:func:`proxplan.identify.data.thrust_scaled` at
-    s = 1: the kinematic thrust minus the predicted F_z, minus the predicted torques, for its type)."""
+    noise units each; a thrust scale's column is analytic and exact (:func:`thrust_scale_u`: d/du of
+    F + u (m (g + a_z) - F) is the kinematic thrust minus the disturbance F, and F = s (prediction - u m (g
+    + a_z)) at the reference's s: s times the kinematic thrust minus the prediction on F_z, minus s times
+    the prediction on the torques, for its type)."""
     out: dict[str, np.ndarray] = {}
     for spec in specs:
         prior = spec.prior
         vtype, key = spec.name.rsplit(".", 1)
         if key == "thrust_scale":
+            s_ref = float(parameter_value(sel.model, spec.name))
             col = np.zeros((len(sel.weight), 4))
             start = 0
             for u in sel.units:
                 if u.type == vtype:
                     rows = slice(start, start + len(u))
                     kin = u.thrust_kin_z_N if u.thrust_kin_z_N is not None else sel.model.vehicles[vtype].weight_N
-                    col[rows] = -sel.predicted[rows]
-                    col[rows, 0] += kin
+                    col[rows] = -s_ref * sel.predicted[rows]
+                    col[rows, 0] += s_ref * kin
                 start += len(u)
             out[spec.name] = col / sel.row_scale
             continue
@@ -188,10 +193,36 @@ def tangent_columns(sel: SelectionSet, specs: Sequence[ParamSpec]) -> dict[str, 
     return out
 
 
-def tangent_u(model: Model, spec: ParamSpec) -> float:
-    """The coordinate u of a parameter at ``model``: ln(theta) for a log prior, theta otherwise."""
-    theta = parameter_value(model, spec.name)
+def is_thrust_scale(spec: ParamSpec) -> bool:
+    """Whether ``spec`` is a vehicle type's thrust scale s (delivered over logged thrust, -)."""
+    return spec.name.endswith(".thrust_scale")
+
+
+def thrust_scale_u(s: float) -> float:
+    """The coordinate u = 1 - 1/s of a thrust scale s, -: the measurement reads a disturbance F as
+    F / s + (1 - 1/s) m (g + a_z) (:func:`proxplan.identify.data.thrust_scaled`) = F + u (m (g + a_z) - F),
+    LINEAR in u, so a step in u is exact where a step in s is not: a step of 0.046 in s from 1 reads
+    0.046 m (g + a_z) linearised but 0.044 m (g + a_z) exactly, 1.3 mN on a 67 g vehicle, which the joint
+    fit left as a constant offset on that type's every sample."""
+    return 1.0 - 1.0 / s
+
+
+def _to_u(spec: ParamSpec, theta: float) -> float:
+    if is_thrust_scale(spec):
+        return thrust_scale_u(theta)
     return float(np.log(theta)) if spec.prior is not None and spec.prior.log else theta
+
+
+def _from_u(spec: ParamSpec, u: float) -> float:
+    if is_thrust_scale(spec):
+        return 1.0 / (1.0 - u)
+    return float(np.exp(u)) if spec.prior is not None and spec.prior.log else u
+
+
+def tangent_u(model: Model, spec: ParamSpec) -> float:
+    """The coordinate u of a parameter at ``model``: ln(theta) for a log prior, 1 - 1/s for a thrust scale
+    (:func:`thrust_scale_u`), theta otherwise."""
+    return _to_u(spec, parameter_value(model, spec.name))
 
 
 def tangent_ridge(sel: SelectionSet, specs: Sequence[ParamSpec], names: Sequence[str]) -> Ridge:
@@ -205,8 +236,10 @@ def tangent_ridge(sel: SelectionSet, specs: Sequence[ParamSpec], names: Sequence
         if spec.name not in pos or spec.prior is None or spec.prior.sigma <= 0.0:
             continue
         k = pos[spec.name]
-        u_prior = float(np.log(spec.prior.center)) if spec.prior.log else spec.prior.center
-        prec[k] = 1.0 / spec.prior.sigma**2
+        u_prior = _to_u(spec, spec.prior.center)
+        # a thrust scale's prior N(s0, sigma) in u = 1 - 1/s: sigma du/ds = sigma / s0^2 (delta method)
+        sigma_u = spec.prior.sigma / spec.prior.center**2 if is_thrust_scale(spec) else spec.prior.sigma
+        prec[k] = 1.0 / sigma_u**2
         center[k] = u_prior - tangent_u(sel.model, spec)
     return Ridge(prec, center)
 
@@ -218,10 +251,10 @@ def apply_tangent_step(model: Model, specs: Sequence[ParamSpec], steps: Mapping[
     for spec in specs:
         if spec.name not in steps:
             continue
-        theta = parameter_value(model, spec.name)
-        du = float(steps[spec.name])
-        value = theta * np.exp(du) if spec.prior is not None and spec.prior.log else theta + du
-        out = _perturbed(out, spec.name, float(np.clip(value, spec.lower, spec.upper)))
+        u = _to_u(spec, parameter_value(model, spec.name)) + float(steps[spec.name])
+        # clipped in u (monotonic in theta): 1 - 1/s < 1 always, so a thrust scale stays positive
+        u = float(np.clip(u, _to_u(spec, spec.lower), _to_u(spec, spec.upper)))
+        out = _perturbed(out, spec.name, _from_u(spec, u))
     return out
 
 
