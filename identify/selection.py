@@ -145,7 +145,8 @@ def _line_searched(
     noise units) and the one with the lowest MAP objective on the train rows is kept: weighted squared residual in noise units over tau, plus the tangents' prior
     penalty precision (alpha step - center)^2 (backtracking line search, Nocedal & Wright ch. 3)."""
     best: tuple[float, Model] | None = None
-    # a thrust scale enters the prediction linearly (its column is exact): only the other steps are searched
+    # a thrust scale enters the prediction linearly in its u = 1 - 1/s (design.thrust_scale_u: its column is
+    # exact): only the other steps are searched
     stepped = {k for k in penalty if not k.endswith(".thrust_scale")}
     for alpha in STEP_FRACTIONS:
         c = {k: (alpha * v if k in stepped else v) for k, v in coef.items()}
