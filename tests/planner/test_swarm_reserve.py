@@ -4,10 +4,7 @@ released vehicle is planned next."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
-import pytest
 
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import formation_change
@@ -15,7 +12,6 @@ from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.lns import colliding_pairs
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.priority import (
-    PrioritizedFailed,
     PriorityOptions,
     dependency_order,
     prioritized_tracks,
@@ -41,22 +37,22 @@ def test_a_reserved_start_forbids_every_departure_through_it():
     assert not occ.forbidden_departures(0, away).any()
 
 
-def test_pillar_16_start_traps_with_predictions_and_plans_with_reserved_starts():
-    """pillar-16 (two staggered layers flying past the pillar), dependency order, the swarm layer's
-    per-vehicle repair budget: with every unplanned vehicle predicted to leave after 1 s the pass
-    gives up (later vehicles cannot leave before the earlier ones come through their starts, and the
-    collision repair does not remove every pair); with reserved starts every vehicle is planned
-    (measured when written: 16 plannings, no repair, of a budget of 96), no pair collides, the plan
-    passes the verifier, and the same options give the same tracks."""
+def test_pillar_16_needs_repairs_with_predictions_and_none_with_reserved_starts():
+    """pillar-16 (two staggered layers flying past the pillar), dependency order, vehicles not planned
+    yet predicted to leave after 1 s, budgets far from binding: with predictions the pass needs
+    repairs (measured when written: 10 repairs, 75 plannings; with the swarm layer's budget of 4
+    repairs it gives up); with reserved starts every vehicle is planned once, without a repair. No
+    pair collides, the plan passes the verifier, and the same options give the same tracks."""
     sc = scenario_from_dict(formation_change(16), label="test scenario")
     problem = swarm_problem(sc)
     order = dependency_order(problem)
-    kw = dict(max_repairs=math.ceil(0.25 * 16), max_plannings=6 * 16, hold_s=1.0, through=False)
-    with pytest.raises(PrioritizedFailed):
-        prioritized_tracks(problem, order, PriorityOptions(**kw), horizon_steps=HORIZON)
+    kw = dict(max_repairs=64, max_plannings=1000, hold_s=1.0, through=False)
+    old = prioritized_tracks(problem, order, PriorityOptions(**kw), horizon_steps=HORIZON)
+    assert old.repairs > 0
     result = prioritized_tracks(problem, order, PriorityOptions(**kw, reserve_starts=True), horizon_steps=HORIZON)
     assert sorted(result.tracks) == list(range(problem.n_agents))
-    assert result.collision_repairs == 0
+    assert result.repairs == 0 and result.collision_repairs == 0
+    assert result.planned == problem.n_agents
     occ = Occupancy(problem, list(result.tracks.values()), HORIZON)
     assert colliding_pairs(occ, range(problem.n_agents)) == set()
     timed = {problem.names[a]: tr.timed_path() for a, tr in result.tracks.items()}
