@@ -8,7 +8,8 @@ could not get away before they came (docs/planner.md, sixth round). With ``reser
 start is occupied for good until it is planned (:func:`reserved_track`): nobody plans through it
 unless it is *released* for them (:class:`Reservations`): a vehicle that cannot be planned around
 the reserved starts in the way of its ideal track (:func:`ideal_track`) is planned once more with
-those predicted to leave, and if that succeeds they are planned next, before anyone else can rely on
+those predicted to leave (along their ideal tracks where a straight line is not statically free,
+:func:`leaving_track`), and if that succeeds they are planned next, before anyone else can rely on
 their leaving: the one it reaches first first, and among them each after those whose starts lie in
 its own way (:func:`starts_in_the_way`).
 """
@@ -64,14 +65,27 @@ def ideal_track(problem: SwarmProblem, agent: int, horizon_steps: int) -> GridTr
     return None if res is None else res.track
 
 
-def starts_in_the_way(problem: SwarmProblem, horizon_steps: int) -> dict[int, set[int]]:
-    """Per vehicle, the vehicles whose reserved starts its ideal track comes within keep-out of."""
+def starts_in_the_way(
+    problem: SwarmProblem, ideal: dict[int, GridTrack | None], horizon_steps: int
+) -> dict[int, set[int]]:
+    """Per vehicle, the vehicles whose reserved starts its ``ideal`` track comes within keep-out of."""
     occ = Occupancy(problem, [reserved_track(problem, b) for b in range(problem.n_agents)], horizon_steps)
     out: dict[int, set[int]] = {}
     for a in range(problem.n_agents):
-        ideal = ideal_track(problem, a, horizon_steps)
-        out[a] = set() if ideal is None or problem.pinned[a] else occ.conflicting_agents(ideal) - {a}
+        tr = ideal.get(a)
+        out[a] = set() if tr is None or problem.pinned[a] else occ.conflicting_agents(tr) - {a}
     return out
+
+
+def leaving_track(problem: SwarmProblem, agent: int, ideal: GridTrack | None, *, hold_s: float) -> GridTrack:
+    """A released vehicle predicted to leave: its ``ideal`` track after ``hold_s`` all the way to its
+    goal, parked there (a commitment made for the vehicle planned through its start, which must keep
+    clear of the whole flight: a prediction that vanishes once out of reach of the start let a faster
+    vehicle behind it catch up with it further on); :func:`predicted_track` when it has none."""
+    if ideal is None:
+        return predicted_track(problem, agent, hold_s=hold_s)
+    hold = int(round(hold_s / GRID_DT_S))
+    return GridTrack(agent, ideal.type, problem.starts_m[agent].copy(), [(k0 + hold, mv) for k0, mv in ideal.moves])
 
 
 class Reservations:
@@ -80,7 +94,8 @@ class Reservations:
 
     def __init__(self, problem: SwarmProblem, horizon_steps: int, hold_s: float):
         self.problem, self.hold_s = problem, hold_s
-        self.need = starts_in_the_way(problem, horizon_steps)
+        self.ideal = {a: ideal_track(problem, a, horizon_steps) for a in range(problem.n_agents)}
+        self.need = starts_in_the_way(problem, self.ideal, horizon_steps)
         self.released = 0
 
     def along(self, a: int, agents: list[int]) -> list[int]:
@@ -101,7 +116,7 @@ class Reservations:
     def release(self, occ: Occupancy, agents: list[int]) -> None:
         """``agents`` predicted to leave (a vehicle is planned through their starts)."""
         for b in agents:
-            occ.put(predicted_track(self.problem, b, hold_s=self.hold_s))
+            occ.put(leaving_track(self.problem, b, self.ideal[b], hold_s=self.hold_s))
 
     def reserve(self, occ: Occupancy, agents: list[int]) -> None:
         for b in agents:
@@ -123,6 +138,7 @@ class Reservations:
 __all__ = [
     "Reservations",
     "ideal_track",
+    "leaving_track",
     "predicted_track",
     "reserved_track",
     "starts_in_the_way",
