@@ -95,6 +95,11 @@ class SwarmOptions:
     # route, s: tried in turn until prioritised planning finds a plan (a longer hold leaves it more
     # room). No hold (0.0) was measured first and lost on grid and pillar layouts (see docs/planner.md)
     unplanned_hold_s: tuple[float, ...] = (1.0, 2.5)
+    # a vehicle not planned yet holds its start until it is planned (swarm.reserve), instead of the
+    # prediction above; the hold then applies to the starts released for a vehicle in their way. On:
+    # with fixed goals at 64 the predictions start-trapped every pass on grid and pillar (docs/planner.md,
+    # sixth round); pillar-16/32/64 and grid-20 plan without a repair or with fewer (seventh round)
+    reserve_starts: bool = True
     # fly through waypoints without stopping (else rest to rest at each): "retime" in the re-timing
     # passes only (each vehicle along its own route, against everyone's final tracks: never worse),
     # "always" in prioritised planning too, "never". Off by default: on the named layouts it did not
@@ -246,6 +251,7 @@ def _kept_straight_stage(
     options = PriorityOptions(
         max_repairs=math.ceil(opts.repairs_per_vehicle * problem.n_agents),
         hold_s=opts.unplanned_hold_s[0],
+        reserve_starts=opts.reserve_starts,
         through=opts.through_waypoints == "always",
     )
     try:
@@ -294,6 +300,7 @@ def _prioritised_stage(
                 max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
                 max_plannings=left,
                 hold_s=hold_s,
+                reserve_starts=opts.reserve_starts,
                 through=opts.through_waypoints == "always",
             )
             try:

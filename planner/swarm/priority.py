@@ -12,7 +12,11 @@ wider route - timed exactly, flying through waypoints where it can
 of reach of its start (it does not park), so the vehicles planned before it keep its start clear
 only while it leaves. When it is planned itself, its real track replaces the prediction. A
 prediction is an assumption, not a plan: a vehicle that cannot be planned around the predictions in
-the way of its ideal track is planned once more without them.
+the way of its ideal track is planned once more without them. With ``reserve_starts``
+(:mod:`proxplan.planner.swarm.reserve`) a vehicle not planned yet holds its start for good instead;
+a vehicle that cannot be planned around the reserved starts in the way of its ideal track is planned
+once more with those released (predicted to leave), and they are planned next, the one it reaches
+first first, before anyone else relies on their leaving.
 
 **Repair (MAPF-LNS2, Li et al. AAAI 2022: re-plan only the agents in conflict).** When a vehicle
 cannot be planned, the planned vehicles whose tracks conflict with its ideal track (its straight
@@ -53,9 +57,11 @@ from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.lns import remove_collisions
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.reserve import Reservations, predicted_track, reserved_track
+from proxplan.planner.swarm.reserve import ideal_track as _ideal
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.wave import wave_route
-from proxplan.planner.timing.profile import LineMove, rest_to_rest
+from proxplan.planner.timing.profile import rest_to_rest
 
 SLOW_PACE = 0.5  # last route attempt: this fraction of the speed limit ...
 SLOW_GROWTH_M = 0.05  # ... and keep-outs this much wider, m
@@ -79,6 +85,10 @@ class PriorityOptions:
     # of the collision repair's draws; the swarm layer leaves it at 0 (its prioritised plans do not
     # depend on the plan's seed: the verification policy re-plans with another seed only other plans)
     seed: int = 0
+    # a vehicle not planned yet holds its start (its keep-out occupied) until it is planned, instead of
+    # being predicted to leave; a vehicle that cannot be planned then releases only the starts in the
+    # way of its ideal track (those vehicles predicted to leave, and planned next: see module)
+    reserve_starts: bool = False
 
 
 @dataclass
@@ -89,6 +99,7 @@ class PriorityResult:
     history: list[str] = field(default_factory=list)  # what each repair was for
     against_order: int = 0  # repairs that reversed an order set by an earlier repair
     collision_repairs: int = 0  # neighbourhoods planned again by the collision repair (swarm.lns)
+    released: int = 0  # reserved starts released for a vehicle in their way (reserve_starts)
 
 
 class PrioritizedFailed(Exception):
@@ -104,36 +115,17 @@ def _failed(agent: int, repairs: int, history: list[str], planned: int) -> Prior
     return PrioritizedFailed(agent, repairs, history, planned=planned)
 
 
-def predicted_track(problem: SwarmProblem, agent: int, *, hold_s: float = 0.0) -> GridTrack:
-    """Where a vehicle not planned yet is assumed to be (a track that vanishes): holding its start
-    ``hold_s``, then flying its straight line rest-to-rest until it is beyond reach of its start. A
-    vehicle whose goal is its start stays there for good."""
-    s, g = problem.starts_m[agent], problem.goals_m[agent]
-    length = float(np.linalg.norm(g - s))
-    ty = int(problem.type_index[agent])
-    hold = int(round(hold_s / GRID_DT_S))
-    if length <= 0.0:
-        return GridTrack(agent, ty, s.copy(), [])
-    mv = LineMove(s, g, rest_to_rest(length, problem.limits[agent], GRID_DT_S))
-    track = GridTrack(agent, ty, s.copy(), [(hold, mv)])
-    reach = max(k.reach_xy_m for (ta, _), k in problem.keepouts.items() if ta == ty)
-    away = np.flatnonzero(np.linalg.norm(track.positions_m[:, :2] - s[:2], axis=1) > reach)
-    return track.vanishing(int(away[0]) + 1 if away.size else track.positions_m.shape[0])
+def unplanned_track(problem: SwarmProblem, agent: int, options: PriorityOptions) -> GridTrack:
+    """What the occupancy holds for a vehicle not planned yet: its reserved start or its prediction."""
+    if options.reserve_starts:
+        return reserved_track(problem, agent)
+    return predicted_track(problem, agent, hold_s=options.hold_s)
 
 
 def ideal_track(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack | None:
-    """The track a vehicle would fly alone: its straight line from t = 0 (None when the line is not
-    statically free: its static route is used then)."""
-    s, g = problem.starts_m[agent], problem.goals_m[agent]
-    W = np.array([s, g])
-    if not problem.segment_free(s, g):
-        empty = Occupancy(problem, [], occ.horizon)
-        route = wave_route(empty, agent, s, g)
-        if route is None:
-            return None
-        W = route
-    res = time_chain(Occupancy(problem, [], occ.horizon), agent, W)
-    return None if res is None else res.track
+    """The track a vehicle would fly alone (:func:`proxplan.planner.swarm.reserve.ideal_track`, on
+    ``occ``'s horizon)."""
+    return _ideal(problem, agent, occ.horizon)
 
 
 def start_visitors(occ: Occupancy, agent: int) -> set[int]:
@@ -230,12 +222,13 @@ def _in_order(
             planned[a] = initial[a]
             occ.put(initial[a])
         else:
-            occ.put(predicted_track(problem, a, hold_s=options.hold_s))
+            occ.put(unplanned_track(problem, a, options))
     queue = deque(a for a in order if not problem.pinned[a] and a not in initial)
     result = PriorityResult(planned, 0, 0)
     reversed_for: set[tuple[int, frozenset[int]]] = set()  # repairs against the order made so far
     stuck: list[int] = []  # vehicles left on their ideal tracks, in collision (removed at the end)
     total = len(queue)
+    res = Reservations(problem, horizon_steps, options.hold_s) if options.reserve_starts else None
     while queue:
         a = queue.popleft()
         if deadline is not None and time.perf_counter() > deadline:
@@ -258,6 +251,17 @@ def _in_order(
         ideal = ideal_track(problem, occ, a)
         in_conflict = occ.conflicting_agents(ideal) if ideal is not None else set()
         guesses = [b for b in in_conflict if b not in planned and b in occ.tracks]
+        if res is not None and guesses:  # release the reserved starts in its way: they leave
+            res.release(occ, guesses)
+            track = plan_one(occ, a, options.through)
+            result.planned += 1
+            if track is not None:
+                result.history.append(f"{problem.names[a]} released the starts of " + _names(problem, guesses))
+                planned[a] = track
+                occ.put(track)
+                res.plan_next(a, guesses, occ, queue)
+                continue
+            res.reserve(occ, guesses)
         if guesses:  # predictions are assumptions: drop those in its way and plan it again
             result.history.append(
                 f"{problem.names[a]} past the predictions of " + ", ".join(problem.names[b] for b in sorted(guesses))
@@ -271,12 +275,16 @@ def _in_order(
             if track is not None:
                 planned[a] = track
                 occ.put(track)
+                if res is not None:
+                    res.plan_next(a, guesses, occ, queue)
                 continue
         in_way = sorted((b for b in in_conflict if b in planned and not problem.pinned[b]), key=lambda b: rank[b])
         if ideal is not None and not any(b in planned for b in in_conflict):  # only predictions in its way
             planned[a] = ideal
             occ.put(ideal)
             result.history.append(f"{problem.names[a]} on its ideal track (only predictions in its way)")
+            if res is not None:
+                res.plan_next(a, guesses, occ, queue)
             continue
         blockers = [b for b in in_way if a not in after[b]]
         why = None
@@ -315,11 +323,16 @@ def _in_order(
                 after[c] |= after[a] - {c}
         for b in blockers:
             del planned[b]
-            occ.put(predicted_track(problem, b, hold_s=options.hold_s))
+            occ.put(unplanned_track(problem, b, options))
         queue.extendleft(reversed([a, *blockers]))
+    result.released = 0 if res is None else res.released
     if stuck:
         _remove_collisions(occ, planned, stuck, options, result, deadline)
     return result
+
+
+def _names(problem: SwarmProblem, agents) -> str:
+    return ", ".join(problem.names[b] for b in sorted(agents))
 
 
 def _remove_collisions(
