@@ -96,10 +96,14 @@ class SwarmOptions:
     # room). No hold (0.0) was measured first and lost on grid and pillar layouts (see docs/planner.md)
     unplanned_hold_s: tuple[float, ...] = (1.0, 2.5)
     # a vehicle not planned yet holds its start until it is planned (swarm.reserve), instead of the
-    # prediction above; the hold then applies to the starts released for a vehicle in their way. On:
-    # with fixed goals at 64 the predictions start-trapped every pass on grid and pillar (docs/planner.md,
-    # sixth round); pillar-16/32/64 and grid-20 plan without a repair or with fewer (seventh round)
-    reserve_starts: bool = True
+    # prediction above; the hold then applies to the starts released for a vehicle in their way. None: on
+    # with fixed goals, off where the goals were assigned (assign_goals: by_type, decided by
+    # planner.pipeline, like makespan_repair). With fixed goals at 64 the predictions start-trapped every
+    # pass on grid and pillar (sixth round); reserved starts gave pillar-64 and random-1 plans where there
+    # were none (seventh round). By type they made grid-64 1.63x -> 1.84x and corridor-64 2.23x -> 3.88x
+    # (an assignment rarely puts a goal on another's start; docs/planner.md, seventh round; a default set
+    # watching those named layouts). Called directly (not through the pipeline), None means on.
+    reserve_starts: bool | None = None
     # fly through waypoints without stopping (else rest to rest at each): "retime" in the re-timing
     # passes only (each vehicle along its own route, against everyone's final tracks: never worse),
     # "always" in prioritised planning too, "never". Off by default: on the named layouts it did not
@@ -251,7 +255,7 @@ def _kept_straight_stage(
     options = PriorityOptions(
         max_repairs=math.ceil(opts.repairs_per_vehicle * problem.n_agents),
         hold_s=opts.unplanned_hold_s[0],
-        reserve_starts=opts.reserve_starts,
+        reserve_starts=opts.reserve_starts is not False,
         through=opts.through_waypoints == "always",
     )
     try:
@@ -300,7 +304,7 @@ def _prioritised_stage(
                 max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
                 max_plannings=left,
                 hold_s=hold_s,
-                reserve_starts=opts.reserve_starts,
+                reserve_starts=opts.reserve_starts is not False,
                 through=opts.through_waypoints == "always",
             )
             try:
