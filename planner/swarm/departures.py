@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 # up to one bucket outside a query's window, so a bucket is a fraction of a query's window (the
 # chain's windows span 100-700 steps on corridor-64, docs/planner.md); 40 steps = 1 s of flight.
 # Only the speed depends on it (set watching corridor-64's query CPU), never the answer
-BUCKET_STEPS = 40
+BUCKET_STEPS = 80
 PARKED_END = 2**40  # end step of a parked segment: beyond any horizon (an int64 with room for sums)
 REACH_SLACK = 1e-9  # the pair search's relative widening of the reach (rounding of its distances)
 

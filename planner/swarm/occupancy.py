@@ -54,9 +54,19 @@ class Occupancy:
         self._cell_arrays: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
         self._n_types = 1 + max(max(k) for k in problem.keepouts)
         self._stacks: dict[tuple[int, bool], GrownStack] = {}  # (type a, at rest) -> its keep-outs, grown
+        self._reach_by_type: dict[int, float] = {}
         self._index: DepartureIndex | None = None  # the departure query's index (None: build when asked)
         for tr in tracks:
             self.put(tr)
+
+    def _reach_of(self, ta: int) -> float:
+        """The largest horizontal distance at which type ``ta`` conflicts with any type while
+        moving, grown by :data:`SAMPLING_GROWTH_M`, m (its keep-outs' spheres and cut-offs lie within)."""
+        got = self._reach_by_type.get(ta)
+        if got is None:
+            kos = [ko for (a, _), ko in self.problem.keepouts.items() if a == ta]
+            got = self._reach_by_type[ta] = max(ko.reach_xy_m for ko in kos) + SAMPLING_GROWTH_M
+        return got
 
     def stack(self, ta: int, rest: bool) -> GrownStack:
         """Type ``ta``'s keep-outs against every type, grown by :data:`SAMPLING_GROWTH_M`."""
@@ -179,15 +189,19 @@ class Occupancy:
         and space are tested (:class:`~proxplan.planner.swarm.departures.DepartureIndex`)."""
         T = self.horizon
         until = T if until_step is None else min(T, max(int(until_step), from_step))
+        if until <= from_step:
+            return np.zeros(T, dtype=bool)
         q = np.asarray(q_m, dtype=float)
         ix = self._departure_index()
-        rows, kk = ix.pairs(q, self.reach, from_step, until)
+        ta = int(self.problem.type_index[agent])
+        rows, kk = ix.pairs(q, self._reach_of(ta), from_step, until)
         # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
         lo_d = np.maximum(ix.t0[rows] - kk, from_step)
         hi_d = np.minimum(ix.t1[rows] - kk, until)  # exclusive
-        keep = (hi_d > lo_d) & (ix.ag[rows] != agent)
+        keep = hi_d > lo_d
+        if agent in self.tracks:  # its own track is no obstacle
+            keep &= ix.ag[rows] != agent
         rows, kk, lo_d, hi_d = rows[keep], kk[keep], lo_d[keep], hi_d[keep]
-        ta = int(self.problem.type_index[agent])
         h = self.stack(ta, False).conflict(ix.P[rows] - q[kk], ix.ty[rows])
         return _covered(lo_d[h], hi_d[h], T)
 
