@@ -69,9 +69,8 @@ class DepartureIndex:
         return self._trees[b]
 
     def pairs(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int):
-        """(rows (N,), k (N,)): every (segment, move sample) pair within ``reach_m`` horizontally
-        whose segment starts before ``until_step`` + K - 1 and ends after ``from_step`` (a
-        superset of those that can forbid a departure in [from, until)); some may be listed twice."""
+        """(rows (N,), k (N,)): a superset of the (segment, move sample) pairs within ``reach_m``
+        horizontally that can forbid a departure in [``from_step``, ``until_step``) (see module)."""
         K = q_m.shape[0]
         tq = cKDTree(q_m[:, :2])
         r = reach_m * (1.0 + REACH_SLACK)
@@ -81,18 +80,22 @@ class DepartureIndex:
             got = self._long_tree.sparse_distance_matrix(tq, r, output_type="ndarray")
             rows.append(self.long_rows[got["i"]])
             ks.append(got["j"])
-        # a short segment lies within its first step's bucket b, [b, b + 1) BUCKET_STEPS: it can
-        # meet the window when it ends after from (b >= from // BUCKET_STEPS) and starts before
-        # until + K - 1
-        b_lo = max(0, from_step // BUCKET_STEPS)
-        b_hi = min(self.n_buckets - 1, (until_step + K - 2) // BUCKET_STEPS)
+        # a short segment lies within its first step's bucket b, steps [b B, (b + 1) B) (B =
+        # BUCKET_STEPS): it can forbid a departure in the window with move sample k only when
+        # t0 - k < until and t1 - k > from, i.e. b B - until < k < (b + 1) B - from, so each bucket
+        # is asked with those samples only (none: the bucket is not asked)
+        B = BUCKET_STEPS
+        b_lo = max(0, from_step // B)
+        b_hi = min(self.n_buckets - 1, (until_step + K - 2) // B)
         for b in range(b_lo, b_hi + 1):
-            tree = self._tree(b)
+            k0, k1 = max(0, b * B - until_step + 1), min(K, (b + 1) * B - from_step)
+            tree = self._tree(b) if k1 > k0 else None
             if tree is None:
                 continue
-            got = tree.sparse_distance_matrix(tq, r, output_type="ndarray")
+            tk = tq if (k0, k1) == (0, K) else cKDTree(q_m[k0:k1, :2])
+            got = tree.sparse_distance_matrix(tk, r, output_type="ndarray")
             rows.append(self._order[self._starts[b] + got["i"]])
-            ks.append(got["j"])
+            ks.append(got["j"] + k0)
         if not rows:
             z = np.zeros(0, dtype=np.int64)
             return z, z
