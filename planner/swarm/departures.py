@@ -1,12 +1,12 @@
 """The departure query's index: the others' track segments by time bucket, each bucket a k-d tree
 of their horizontal positions, built once per state of the occupancy (queries far outnumber changes:
-one planning asks 30-70 departure queries of one occupancy, then puts one track).
+one planning asks about 90 departure queries of one occupancy on corridor-64, then puts one track).
 
 A query (a move sampled on the grid at q_k, k = 0..K-1, departing at any step d of a window
 [from, until)) needs the pairs (segment of another track over steps [t0, t1), move sample k) that
 can coincide in time - [t0 - k, t1 - k) meets the window - and in space. Time comes first: only
 the buckets of ``BUCKET_STEPS`` steps that hold a segment starting in [from, until + K - 1) are
-asked, then each bucket's tree gives, in one compiled dual-tree pass
+asked, each with only the move samples k that can meet the window there, then each bucket's tree gives, in one compiled dual-tree pass
 (:meth:`scipy.spatial.cKDTree.sparse_distance_matrix`), the pairs within the horizontal reach of
 the keep-outs - and only those pairs are tested exactly. No pair that conflicts is missed: a
 conflict needs a horizontal distance below the reach (every keep-out's sphere and cut-off radii,
@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 # up to one bucket outside a query's window, so a bucket is a fraction of a query's window (the
 # chain's windows span 100-700 steps on corridor-64, docs/planner.md); 40 steps = 1 s of flight.
 # Only the speed depends on it (set watching corridor-64's query CPU), never the answer
-BUCKET_STEPS = 80
+BUCKET_STEPS = 160
 PARKED_END = 2**40  # end step of a parked segment: beyond any horizon (an int64 with room for sums)
 REACH_SLACK = 1e-9  # the pair search's relative widening of the reach (rounding of its distances)
 
