@@ -22,9 +22,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 # steps per time bucket: a bucket's tree is asked at a fixed cost (~20 us) and returns pairs of
-# up to one bucket outside a query's window, so a bucket is a fraction of a query's window (the
-# chain's windows span 100-700 steps on corridor-64, docs/planner.md); 40 steps = 1 s of flight.
-# Only the speed depends on it (set watching corridor-64's query CPU), never the answer
+# up to one bucket outside a query's window, but only with the move samples that can meet the
+# window there (the chain's windows span 100-700 steps on corridor-64, docs/planner.md); 160 steps
+# = 4 s of flight. Only the speed depends on it, never the answer: set watching corridor-64's query
+# CPU (40, 80 and 160 steps within the noise of a loaded machine of each other)
 BUCKET_STEPS = 160
 PARKED_END = 2**40  # end step of a parked segment: beyond any horizon (an int64 with room for sums)
 REACH_SLACK = 1e-9  # the pair search's relative widening of the reach (rounding of its distances)

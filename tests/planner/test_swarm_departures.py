@@ -18,7 +18,7 @@ from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing import CORNER_DEVIATION_M
 from proxplan.planner.timing.profile import LineMove, RunMove, rest_to_rest
 
-HORIZON = 320  # 8 time buckets: segments in one, rests and parked ends over several
+HORIZON = 4 * BUCKET_STEPS  # 4 time buckets: segments in one, rests and parked ends over several
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +58,7 @@ def _random_track(problem, a: int, rng, centre: np.ndarray) -> GridTrack:
         else:
             mv = _line(problem, a, cur, nxt)
         moves.append((t, mv))
-        t += mv.steps + int(rng.integers(0, 3 * BUCKET_STEPS))  # rests within a bucket and over several
+        t += mv.steps + int(rng.integers(0, 3 * BUCKET_STEPS // 2))  # rests within a bucket and over several
         cur = nxt
     tr = GridTrack(a, ty, s.copy(), moves)
     return tr.vanishing(tr.arrival_step + 1) if kind == 2 else tr
