@@ -81,9 +81,10 @@ def time_chain(
     # (from step, until step, departures): exact for departures in [from, until)
     forbidden: dict[tuple[int, int, bool], tuple[int, int, np.ndarray]] = {}
 
-    def move(k: int, j: int, run: bool, t: int):
+    def move(k: int, j: int, run: bool, t: int, e: int):
         """The move k -> j and its forbidden departures, exact from step t on up to the last
-        departure that could still arrive at the end before ``done_by`` (None: not free)."""
+        departure that could still arrive at the end before ``done_by`` and leaves the hold at k
+        before step ``e`` (the end of its safe interval) (None: not free)."""
         key = (k, j, run)
         if key not in moves:
             mv: Move
@@ -98,9 +99,11 @@ def time_chain(
         mv_ = moves[key]
         if mv_ is None:
             return None
-        # departures after done_by - 1 - steps - h[j] cannot improve on the best arrival found, and
-        # done_by only decreases: a query serves every later one that starts no earlier
-        until = done_by - mv_.steps - h[j]
+        # departures after done_by - 1 - steps - h[j] cannot improve on the best arrival found (and
+        # done_by only decreases), those from e on leave a hold that is no longer safe: a query
+        # serves every later one that starts no earlier and ends no later (a later safe interval
+        # at k starts after e: it asks again)
+        until = min(done_by - mv_.steps - h[j], e)
         if key not in forbidden or forbidden[key][0] > t or forbidden[key][1] < until:
             forbidden[key] = (t, until, occ.forbidden_departures(agent, mv_.positions(), from_step=t, until_step=until))
         return mv_, forbidden[key][2]
@@ -138,7 +141,7 @@ def time_chain(
         for j, run in candidates:
             if t + max(h[k], h[j]) >= done_by:  # cannot arrive at the end earlier through j
                 continue
-            got = move(k, j, run, t)
+            got = move(k, j, run, t, e_iv)
             if got is None:
                 continue
             mv, bad = got

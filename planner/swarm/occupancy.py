@@ -12,9 +12,10 @@ last sample) is listed apart, by the cell of its end; a *predicted* track (``van
 **Departures.** For a move sampled on the grid at q_k (k = 0..K, a straight line or a flight
 through waypoints), departing at step d puts the vehicle at q_k at step d + k; a sample pair
 (track j at step t, move sample k) that violates the pair's keep-out forbids the single departure
-d = t - k. The move is cut into chunks of ``CHUNK`` samples with their bounding boxes; only (t, k)
-pairs whose sample comes within reach of k's chunk are tested exactly, so the cost grows with how
-long others are near the move. A parked track forbids a whole range of departures at once. Tests
+d = t - k, and one that rests over steps [t0, t1) the departures t0 - k .. t1 - 1 - k. Only the
+pairs near in time and space are tested (:mod:`proxplan.planner.swarm.departures`: the segments by
+time bucket, each bucket a k-d tree, built once per state of the occupancy), so the cost grows with
+how long others are near the move. A parked track forbids a whole range of departures at once. Tests
 use the moving keep-out (the vehicle moves); holds use the resting keep-out where the other vehicle
 rests too, as the verifier does. Samples are ``GRID_DT_S`` apart; the keep-outs are grown for that
 (the chord between two samples of a relative motion of at most 2 v_max GRID_DT_S stays outside a
@@ -23,16 +24,14 @@ keep-out grown by :data:`SAMPLING_GROWTH_M`).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from proxplan.planner.swarm.departures import PARKED_END, DepartureIndex
 from proxplan.planner.swarm.keepout import GrownStack, grown_stack
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GridTrack
 
 SAMPLING_GROWTH_M = 0.005  # keep-out growth covering motion between grid samples, m
-CHUNK = 8  # move samples per bounding box in the departure query
 MIN_CELL_M = 0.5  # smallest hash cell, m (a smaller reach would make the hash fine-grained for nothing)
 
 
@@ -55,8 +54,19 @@ class Occupancy:
         self._cell_arrays: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
         self._n_types = 1 + max(max(k) for k in problem.keepouts)
         self._stacks: dict[tuple[int, bool], GrownStack] = {}  # (type a, at rest) -> its keep-outs, grown
+        self._reach_by_type: dict[int, float] = {}
+        self._index: DepartureIndex | None = None  # the departure query's index (None: build when asked)
         for tr in tracks:
             self.put(tr)
+
+    def _reach_of(self, ta: int) -> float:
+        """The largest horizontal distance at which type ``ta`` conflicts with any type while
+        moving, grown by :data:`SAMPLING_GROWTH_M`, m (its keep-outs' spheres and cut-offs lie within)."""
+        got = self._reach_by_type.get(ta)
+        if got is None:
+            kos = [ko for (a, _), ko in self.problem.keepouts.items() if a == ta]
+            got = self._reach_by_type[ta] = max(ko.reach_xy_m for ko in kos) + SAMPLING_GROWTH_M
+        return got
 
     def stack(self, ta: int, rest: bool) -> GrownStack:
         """Type ``ta``'s keep-outs against every type, grown by :data:`SAMPLING_GROWTH_M`."""
@@ -79,6 +89,7 @@ class Occupancy:
     def put(self, track: GridTrack) -> None:
         """Add ``track`` (replacing that agent's previous one)."""
         self.remove(track.agent)
+        self._index = None
         a = track.agent
         self.tracks[a] = track
         n = track.positions_m.shape[0] - (0 if track.vanishes else 1)  # the parked end apart
@@ -106,6 +117,8 @@ class Occupancy:
 
     def remove(self, agent: int) -> GridTrack | None:
         old = self.tracks.pop(agent, None)
+        if old is not None:
+            self._index = None
         self._segments.pop(agent, None)
         for key in self._cells_of.pop(agent, set()):
             runs = self._runs.get(key)
@@ -149,45 +162,6 @@ class Occupancy:
         keep = (ag != exclude) & (t1 > from_step)
         return P[keep], np.maximum(t0[keep], from_step), t1[keep], ty[keep], mv[keep], ag[keep]
 
-    def _chunk_candidates(self, c_lo: np.ndarray, c_hi: np.ndarray, exclude: int, from_step: int, before_step: int):
-        """Segments of other tracks lasting beyond ``from_step`` and starting before ``before_step``, and the chunks whose boxes
-        [c_lo, c_hi] (C, 2), m (already grown by the reach) hold them: (positions (M, 3), first step
-        (M,), end step (M,), type (M,), row (N,), chunk (N,)), one (row, chunk) pair per segment
-        inside a chunk's box. Each chunk looks only at the cells its box touches (a long move's
-        bounding box would hold far more)."""
-        g0 = self._cell(c_lo)
-        g1 = self._cell(c_hi)
-        span = int((g1 - g0).max()) + 1
-        off = np.arange(span)
-        gx = g0[:, 0, None, None] + off[None, :, None]
-        gy = g0[:, 1, None, None] + off[None, None, :]
-        ok = (gx <= g1[:, 0, None, None]) & (gy <= g1[:, 1, None, None])
-        C = c_lo.shape[0]
-        ch = np.broadcast_to(np.arange(C)[:, None, None], ok.shape)[ok]
-        cells = np.stack([np.broadcast_to(gx, ok.shape)[ok], np.broadcast_to(gy, ok.shape)[ok]], axis=1)
-        uniq, inv = np.unique(cells, axis=0, return_inverse=True)
-        inv = inv.reshape(-1)
-        parts, sizes = [], np.zeros(uniq.shape[0], dtype=np.int64)
-        for u, (x, y) in enumerate(uniq.tolist()):
-            got = self._cell_segments((x, y))
-            if got is not None:
-                parts.append(got)
-                sizes[u] = got[0].shape[0]
-        z = np.zeros(0, dtype=np.int64)
-        if not parts:
-            return np.zeros((0, 3)), z, z, z, z, z
-        P, t0, t1, ty, _, ag = (np.concatenate([c[i] for c in parts]) for i in range(6)) if len(parts) > 1 else parts[0]
-        start = np.r_[0, np.cumsum(sizes)[:-1]]
-        n = sizes[inv]  # segments of each (chunk, cell) pair
-        chunk = np.repeat(ch, n)
-        first = np.repeat(start[inv] - np.r_[0, np.cumsum(n)[:-1]], n)
-        row = first + np.arange(chunk.size)
-        keep = (ag[row] != exclude) & (t1[row] > from_step) & (t0[row] < before_step)
-        row, chunk = row[keep], chunk[keep]
-        xy = P[row, :2]
-        inside = np.all((xy >= c_lo[chunk]) & (xy <= c_hi[chunk]), axis=1)
-        return P, np.maximum(t0, from_step), t1, ty, row[inside], chunk[inside]
-
     def parked_near(self, lo: np.ndarray, hi: np.ndarray, exclude: int) -> list[GridTrack]:
         """Tracks parked for good in a cell within reach of the box [lo, hi] (m)."""
         found: set[int] = set()
@@ -210,46 +184,42 @@ class Occupancy:
         self, agent: int, q_m: np.ndarray, from_step: int = 0, until_step: int | None = None
     ) -> np.ndarray:
         """(horizon,) bool: departing at step d along the move sampled on the grid at ``q_m``
-        (K + 1, 3), m, hits another track; exact for ``from_step`` <= d < ``until_step`` (None: the
-        horizon). Entries outside are not looked at: only the segments that can forbid a departure
-        in that window are (lasting beyond ``from_step``, starting before ``until_step`` + K), the
-        others' samples within reach of the move in space and in time."""
+        (K, 3), m, hits another track, for ``from_step`` <= d < ``until_step`` (None: the
+        horizon); False outside that window. Only the pairs (segment, move sample) near in time
+        and space are tested (:class:`~proxplan.planner.swarm.departures.DepartureIndex`)."""
         T = self.horizon
         until = T if until_step is None else min(T, max(int(until_step), from_step))
-        bad = np.zeros(T, dtype=bool)
+        if until <= from_step:
+            return np.zeros(T, dtype=bool)
         q = np.asarray(q_m, dtype=float)
-        K = q.shape[0]
-        lo, hi = q.min(axis=0), q.max(axis=0)
-        R = self.reach
+        ix = self._departure_index()
         ta = int(self.problem.type_index[agent])
-        n_chunks = int(math.ceil(K / CHUNK))
-        pad = np.concatenate([q, np.repeat(q[-1:], n_chunks * CHUNK - K, axis=0)]).reshape(n_chunks, CHUNK, 3)
-        c_lo, c_hi = pad[:, :, :2].min(axis=1) - R, pad[:, :, :2].max(axis=1) + R
-        P, t0, t1, ty, rows, chunks = self._chunk_candidates(c_lo, c_hi, agent, from_step, until + K)
-        if rows.size:
-            kk = (chunks[:, None] * CHUNK + np.arange(CHUNK)[None]).reshape(-1)
-            rr = np.repeat(rows, CHUNK)
-            ok = kk < K
-            rr, kk = rr[ok], kk[ok]
-            d = P[rr] - q[kk]
-            close = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] < R * R  # only these can be in a keep-out
-            rr, kk, d = rr[close], kk[close], d[close]
-            h = self.stack(ta, False).conflict(d, ty[rr])
-            # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
-            lo_d = np.maximum(t0[rr[h]] - kk[h], 0)
-            hi_d = np.minimum(t1[rr[h]] - kk[h], T)  # exclusive
-            span = hi_d > lo_d
-            bad |= _covered(lo_d[span], hi_d[span], T)
-        # parked for good after each track's last sample: any d with d + k >= n - 1 for a hit k
-        tail_from = T
-        for tr in self.parked_near(lo, hi, agent):
-            hit_k = self.stack(ta, False).conflict(tr.end_m[None] - q, np.full(K, tr.type))
-            if hit_k.any():
-                k_last = K - 1 - int(np.argmax(hit_k[::-1]))
-                tail_from = min(tail_from, max(0, tr.arrival_step - k_last))
-        if tail_from < T:
-            bad[tail_from:] = True
-        return bad
+        rows, kk = ix.pairs(q, self._reach_of(ta), from_step, until)
+        # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
+        lo_d = np.maximum(ix.t0[rows] - kk, from_step)
+        hi_d = np.minimum(ix.t1[rows] - kk, until)  # exclusive
+        keep = hi_d > lo_d
+        if agent in self.tracks:  # its own track is no obstacle
+            keep &= ix.ag[rows] != agent
+        rows, kk, lo_d, hi_d = rows[keep], kk[keep], lo_d[keep], hi_d[keep]
+        h = self.stack(ta, False).conflict(ix.P[rows] - q[kk], ix.ty[rows])
+        return _covered(lo_d[h], hi_d[h], T)
+
+    def _departure_index(self) -> DepartureIndex:
+        """The index of every track's segments, the parked ends as segments [arrival, for good)
+        (built when first asked after a change)."""
+        if self._index is None:
+            parts = []
+            for a in sorted(self.tracks):
+                tr = self.tracks[a]
+                seg = self._segments.get(a)
+                if seg is not None:
+                    parts.append((seg[0], seg[1], seg[2], tr.type, a))
+                if not tr.vanishes:
+                    arr = np.array([tr.arrival_step])
+                    parts.append((tr.end_m[None], arr, np.array([PARKED_END]), tr.type, a))
+            self._index = DepartureIndex.of(parts)
+        return self._index
 
     def forbidden_holds(self, agent: int, w_m: np.ndarray) -> np.ndarray:
         """(horizon,) bool: resting at ``w_m`` (3,) at step t conflicts with another track."""
