@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -331,12 +331,17 @@ def _in_order(
     return result
 
 
-def _names(problem: SwarmProblem, agents) -> str:
+def _names(problem: SwarmProblem, agents: Iterable[int]) -> str:
     return ", ".join(problem.names[b] for b in sorted(agents))
 
 
 def _remove_collisions(
-    occ: Occupancy, planned: dict[int, GridTrack], stuck: list[int], options: PriorityOptions, result, deadline
+    occ: Occupancy,
+    planned: dict[int, GridTrack],
+    stuck: list[int],
+    options: PriorityOptions,
+    result: PriorityResult,
+    deadline: float | None,
 ) -> None:
     """The collisions of the vehicles left on their ideal tracks removed (:mod:`proxplan.planner.swarm.lns`),
     within what is left of the pass's plannings; :class:`PrioritizedFailed` when some are left."""
