@@ -41,6 +41,7 @@ from proxplan.identify.design import (
     SelectionSet,
     apply_tangent_step,
     delayed_caches,
+    is_thrust_scale,
     tangent_columns,
     tangent_ridge,
 )
@@ -121,8 +122,8 @@ class EffectSelector:
         self.options = options
         # the thrust scales are always fitted when thrust_bias is asked for (a nuisance: module docstring)
         self.fit_thrust = THRUST_BIAS in options.effects
-        self.thrust_specs = [s for s in specs if s.name.endswith(".thrust_scale")] if self.fit_thrust else []
-        self.specs = [s for s in specs if not s.name.endswith(".thrust_scale")] + self.thrust_specs
+        self.thrust_specs = [s for s in specs if is_thrust_scale(s)] if self.fit_thrust else []
+        self.specs = [s for s in specs if not is_thrust_scale(s)] + self.thrust_specs
         self.tangents = tangent_columns(sel, self.specs)
         self.always = [s.name for s in self.specs]
         self.candidates: list[EffectCandidate] = []
