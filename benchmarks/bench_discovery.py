@@ -31,7 +31,9 @@ Reported (fixed seeds; nothing here was tuned while watching these figures):
 * harm: sets where a vehicle that is NOT affected (the effect's RMS there is below its clean twin's error)
   ends more than 1.3x its clean twin's F_z error: a term fitted on the affected vehicle carried to
   another; power, judged on the affected vehicles only, does not see it;
-* per draw: family, what was kept, grams and ratios.
+* per draw: family, what was kept, grams and ratios;
+* beside each rate, its exact (Clopper-Pearson) 95 % interval: 20 sets cannot show a rate of zero, only
+  bound it (0 of 20 leaves up to 17 %; 1 of 20 is consistent with a 5 % family-wise test level).
 
     python benchmarks/bench_discovery.py [--draws 20] [--seed 0] [--workers 2] [--json] [--keep DIR]
 """
@@ -48,6 +50,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.stats import binomtest
 
 FAMILIES = ("lag", "kernel", "velocity", "thrust", "mix")
 TYPES = ("small-quad", "large-quad", "crazyflie-2.1", "crazyflie-parrot")
@@ -412,7 +415,9 @@ def main() -> None:
     fp = [r for r in results if r["clean_false_positive"]]
     spurious = [r for r in results if r["spurious_library"]]
     summary = {"draws": len(results), "visible_draws": len(visible), "power": power,
+               "power_ci95": rate_interval(sum(r["found"] for r in visible), len(visible)),
                "clean_sets": len(results), "false_positive_sets": len(fp),
+               "false_positive_rate_ci95": rate_interval(len(fp), len(results)),
                "sets_with_spurious_library_effects": len(spurious),
                "sets_harming_unaffected_vehicles": sum(bool(r["harmed"]) for r in results), "wall_s": wall,
                "by_family": {f: {"draws": sum(r["family"] == f for r in visible),
@@ -429,14 +434,26 @@ def main() -> None:
         hidden_g = r["hidden"]["per_vehicle_fz_N"][v] * GRAMS_PER_N
         kept = f"{','.join(r['clean']['selected']) or '-'} | {','.join(r['hidden']['selected']) or '-'}"
         print(f"{r['seed']:>4} {r['family']:8} {eff[:46]:46} {worst:>6} {clean_g:8.2f} {hidden_g:9.2f} {kept}")
-    print(f"power: {power:.0%} of {len(visible)} visible draws within {RATIO_OK}x of the clean twin (target >= 80 %)")
-    print(f"false positives: {len(fp)} of {len(results)} clean sets keep more than thrust_bias (target 0)")
+    lo, hi = summary["power_ci95"]
+    print(f"power: {power:.0%} of {len(visible)} visible draws within {RATIO_OK}x of the clean twin (target >= 80 %; "
+          f"95 % interval {lo:.0%}-{hi:.0%})")  # fmt: skip
+    lo, hi = summary["false_positive_rate_ci95"]
+    print(f"false positives: {len(fp)} of {len(results)} clean sets keep more than thrust_bias (target 0; "
+          f"rate 95 % interval {lo:.0%}-{hi:.0%})")  # fmt: skip
     print(f"library effects kept that the generator did not put in: {len(spurious)} sets (target 0)")
     print(
         f"sets where a vehicle the effect barely touches got worse than {RATIO_OK}x its clean twin: "
         f"{summary['sets_harming_unaffected_vehicles']} (power does not see these)"
     )
     print(f"wall {wall:.0f} s")
+
+
+def rate_interval(k: int, n: int) -> tuple[float, float]:
+    """The exact (Clopper-Pearson) 95 % interval of a rate seen k times in n independent sets, -."""
+    if n <= 0:
+        return (float("nan"), float("nan"))
+    ci = binomtest(int(k), int(n)).proportion_ci(confidence_level=0.95, method="exact")
+    return (float(ci.low), float(ci.high))
 
 
 def _describe(desc: dict[str, Any]) -> str:
