@@ -147,9 +147,10 @@ def predict(
     cache: BaseCache | None = None,
     delayed: Mapping[float, Unit] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted measured wrench (force (N, 3) N, torque (N, 3) N m, world) of ``unit``: the model's wrench as
-    the measurement reads it (:func:`thrust_scaled`), plus what the measurement's smoothing does to it
-    (:attr:`Unit.smoothing_force_N`, :attr:`Unit.smoothing_torque_Nm`, when the unit has them).
+    """Predicted measured wrench (force (N, 3) N, torque (N, 3) N m, world) of ``unit``: the model's wrench plus
+    what the measurement's smoothing does to it (:attr:`Unit.smoothing_force_N`, :attr:`Unit.smoothing_torque_Nm`,
+    when the unit has them), as the measurement reads it (:func:`thrust_scaled`; the smoothing's part is read
+    through the thrust scale too, so a thrust scale's analytic column stays exact).
 
     ``base`` may pass a precomputed base wrench for the same vehicles (saves the model call), and
     ``cache`` the :class:`proxplan.physics.BaseCache` of ``unit_inputs(unit, model)`` (the sources' base
@@ -174,10 +175,12 @@ def predict(
             f, t = effect_wrench(eff, inputs, cache=cache)
         force += f
         torque += t
-    force, torque = thrust_scaled(force, torque, model.thrust_scale.get(unit.type, 1.0), unit, model)
     if unit.smoothing_force_N is not None and unit.smoothing_torque_Nm is not None:
+        # the measurement smooths what it reads, and it reads the smoothed wrench through the thrust scale
+        # like the rest: S(F / s + u m (g + a_z)) = (F + S(F) - F) / s + u m (g + a_z) (the kinematic thrust is
+        # taken from the smoothed motion already)
         force, torque = force + unit.smoothing_force_N, torque + unit.smoothing_torque_Nm
-    return force, torque
+    return thrust_scaled(force, torque, model.thrust_scale.get(unit.type, 1.0), unit, model)
 
 
 def thrust_scaled(

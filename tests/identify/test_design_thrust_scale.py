@@ -70,3 +70,31 @@ def test_the_prior_of_a_thrust_scale_maps_to_u_by_its_slope():
     ridge = tangent_ridge(sel, [spec], [NAME])  # type: ignore[arg-type]
     assert ridge.center[0] == pytest.approx(0.0 - (1.0 - 1.0 / s_ref))  # u_prior - u_ref
     assert ridge.precision[0] == pytest.approx(1.0 / 0.1**2)  # sigma / s0^2 at s0 = 1
+
+
+@pytest.mark.parametrize("s_ref", [1.0, 1.045, 0.95])
+def test_the_smoothing_correction_is_read_through_the_thrust_scale(s_ref: float):
+    """The measurement smooths what it reads, and reads it through the thrust scale: the correction for its
+    smoothing (Unit.smoothing_force_N / smoothing_torque_Nm) scales with 1/s like the wrench it corrects, so a
+    step in u along the analytic column reads exactly what ``predict`` gives at the new scale, on a unit under
+    a jet (added to the reading after the scale, it left (1/s - 1) of the correction behind: 4 % of it at
+    s = 1.045, in every flight)."""
+    from proxplan.identify.data import Unit, predict
+
+    rng = np.random.default_rng(3)
+    n = 150
+    veh = BUILTIN_VEHICLES[TYPE]
+    offsets = np.column_stack([0.05 * rng.normal(size=n), 0.05 * rng.normal(size=n), -0.4 + 0.02 * rng.normal(size=n)])
+    kin = veh.weight_N * (1.0 + 0.05 * rng.normal(size=n))
+    zeros = np.zeros((n, 3))
+    unit = Unit("f", "train", "v", TYPE, np.arange(n) * 0.01, zeros, np.full(n, 1.0), kin, (TYPE,), (offsets,),
+                zeros, zeros, thrust_kin_z_N=kin, smoothing_force_N=0.01 * rng.normal(size=(n, 3)),
+                smoothing_torque_Nm=1e-4 * rng.normal(size=(n, 3)))  # fmt: skip
+    model = Model(vehicles={TYPE: veh}, thrust_scale={TYPE: s_ref})
+    predicted = stacked(*predict(unit, model))
+    sel = SimpleNamespace(units=[unit], model=model, weight=np.ones(n), predicted=predicted, row_scale=np.ones((n, 4)))
+    spec = ParamSpec(NAME, s_ref, 0.7, 1.3, Prior(1.0, 0.1))
+    col = tangent_columns(sel, [spec])[NAME]
+    for du in (0.03, -0.05):
+        moved = apply_tangent_step(model, [spec], {NAME: du})
+        np.testing.assert_allclose(stacked(*predict(unit, moved)), predicted + du * col, rtol=0, atol=1e-12)
