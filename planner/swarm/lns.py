@@ -10,8 +10,11 @@ Large neighbourhood search then removes those collisions, a neighbourhood at a t
 in collision (drawn with the pass's seeded generator), the vehicles it collides with and those that
 come to its start (it could not leave before them), at most :data:`NEIGHBOURHOOD` of them, are taken
 out and planned again, one after another in a random order, against everyone else (the vehicles of
-the neighbourhood not planned yet are predictions, as in the pass). A vehicle that still cannot be
-planned flies its ideal track again. The new tracks are kept when the count of colliding pairs did
+the neighbourhood not planned yet are predictions, as in the pass; with reserved starts,
+:mod:`proxplan.planner.swarm.reserve`, they hold their starts, and a vehicle that cannot be planned
+around those in the way of its ideal track releases them (``release``): planned once more, and if
+that succeeds they are planned next, as in the pass). A vehicle that still cannot be planned flies
+in collision with its neighbourhood only (its ideal track if even that fails). The new tracks are kept when the count of colliding pairs did
 not grow (LNS2's acceptance), else the old ones come back. It ends when no pair collides (the tracks
 are then conflict-free: each was planned against every track in place, or its collisions counted),
 or gives up when its count of single-vehicle plannings is spent: a count, so the same seed gives
@@ -21,6 +24,7 @@ the same plan on every machine.
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -55,6 +59,8 @@ def remove_collisions(
     predicted: Callable[[int], GridTrack],
     extra_neighbours: Callable[[int], set[int]],
     budget: int,
+    release: Callable[[Occupancy, int, list[int]], list[int]] | None = None,
+    reserve: Callable[[Occupancy, list[int]], None] | None = None,
     seed: int,
     deadline: float | None = None,
 ) -> tuple[int, int, int]:
@@ -81,10 +87,23 @@ def remove_collisions(
         before = {p for p in pairs if p[0] in old or p[1] in old}
         for b in hood:
             occ.put(predicted(b))
-        for b in [hood[i] for i in rng.permutation(len(hood))]:
+        pending = deque(hood[i] for i in rng.permutation(len(hood)))
+        while pending:
+            b = pending.popleft()
             occ.remove(b)
             track = plan_one(occ, b)
             plannings += 1
+            if track is None and release is not None and reserve is not None:
+                first = release(occ, b, list(pending))
+                if first:
+                    track = plan_one(occ, b)
+                    plannings += 1
+                    if track is None:
+                        reserve(occ, first)
+                    else:
+                        for c in first:
+                            pending.remove(c)
+                        pending.extendleft(reversed(first))
             if track is None:  # in collision with its neighbourhood only, if it can
                 plannings += 1
                 track = plan_ignoring(occ, b, set(hood))

@@ -327,7 +327,7 @@ def _in_order(
         queue.extendleft(reversed([a, *blockers]))
     result.released = 0 if res is None else res.released
     if stuck:
-        _remove_collisions(occ, planned, stuck, options, result, deadline)
+        _remove_collisions(occ, planned, stuck, options, result, deadline, res)
     return result
 
 
@@ -342,6 +342,7 @@ def _remove_collisions(
     options: PriorityOptions,
     result: PriorityResult,
     deadline: float | None,
+    res: Reservations | None = None,
 ) -> None:
     """The collisions of the vehicles left on their ideal tracks removed (:mod:`proxplan.planner.swarm.lns`),
     within what is left of the pass's plannings; :class:`PrioritizedFailed` when some are left."""
@@ -357,7 +358,15 @@ def _remove_collisions(
         plan_ignoring=lambda o, b, others: (
             plan_ignoring(o, b, others, options.through) or ideal_track(problem, o, b) or planned[b]
         ),
-        predicted=lambda b: predicted_track(problem, b, hold_s=options.hold_s),
+        # with reserved starts, a neighbourhood is planned under the pass's own scheme: its vehicles not
+        # planned again yet hold their starts, released for one that cannot be planned around them
+        predicted=(
+            (lambda b: predicted_track(problem, b, hold_s=options.hold_s))
+            if res is None
+            else (lambda b: reserved_track(problem, b))
+        ),
+        release=None if res is None else res.release_in_way,
+        reserve=None if res is None else res.reserve,
         extra_neighbours=lambda b: start_visitors(occ, b),
         budget=max(0, left),
         seed=options.seed,

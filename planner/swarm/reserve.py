@@ -118,6 +118,18 @@ class Reservations:
         for b in agents:
             occ.put(leaving_track(self.problem, b, self.ideal[b], hold_s=self.hold_s))
 
+    def release_in_way(self, occ: Occupancy, agent: int, candidates: list[int]) -> list[int]:
+        """The vehicles of ``candidates`` whose tracks in ``occ`` are in the way of ``agent``'s ideal
+        track, released (predicted to leave) and returned in the order they should be planned next
+        (:meth:`plan_next`'s); [] when none is in its way."""
+        ideal = self.ideal[agent]
+        if ideal is None:
+            return []
+        hit = occ.conflicting_agents(ideal)
+        first = self.in_need_order(self.along(agent, [b for b in candidates if b in hit]))
+        self.release(occ, first)
+        return first
+
     def reserve(self, occ: Occupancy, agents: list[int]) -> None:
         for b in agents:
             occ.put(reserved_track(self.problem, b))
