@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from proxplan.physics import KinematicLimits, Vehicle
 from proxplan.planfile import Scenario
 from proxplan.planner.swarm.keepout import KeepOut, keepout_for
+from proxplan.planner.swarm.memo import Memo
 
 GROWTH_M = 0.002  # keep-outs grown by this much: positions are compared in whole millimetres, m
 
@@ -39,6 +40,9 @@ class SwarmProblem:
     lo_m: np.ndarray  # (3,) static free box (workspace shrunk by body, tube, margin), m
     hi_m: np.ndarray  # (3,) m
     boxes_m: np.ndarray  # (O, 6) inflated obstacles (min xyz, max xyz), m
+    # answers of the single-vehicle searches against an occupancy's content (swarm.memo); a new, empty
+    # one for every problem, also one made by dataclasses.replace (a subproblem's agents are numbered anew)
+    memo: Memo = field(init=False, default_factory=Memo, compare=False, repr=False)
 
     @property
     def n_agents(self) -> int:

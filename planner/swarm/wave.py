@@ -69,7 +69,18 @@ def wave_route(
     module; the height runs linearly with the distance flown), or None when the wavefront dies or
     never reaches a goal that stays free. ``pace``: fraction of the speed limit; ``grow_m``: extra
     keep-out radius, m (a slower, wider route leaves the exact timing more room). The search
-    covers :func:`margin_box`, then, when that holds no route, :func:`route_box` if larger."""
+    covers :func:`margin_box`, then, when that holds no route, :func:`route_box` if larger. Asked
+    again against the same tracks (:meth:`Occupancy.content_key`) with the same arguments, the
+    answer is given back, not searched again (:mod:`proxplan.planner.swarm.memo`)."""
+    s = np.asarray(start_m, dtype=float)
+    g = np.asarray(goal_m, dtype=float)
+    key = ("wave", occ.content_key(), agent, s.tobytes(), g.tobytes(), pace, grow_m)
+    got = occ.problem.memo.get(key, lambda: _wave_route(occ, agent, s, g, pace=pace, grow_m=grow_m))
+    return None if got is None else got.copy()
+
+
+def _wave_route(occ: Occupancy, agent: int, start_m: np.ndarray, goal_m: np.ndarray, *, pace: float, grow_m: float):
+    """:func:`wave_route` searched."""
     p = occ.problem
     small = margin_box(p, start_m, goal_m)
     got = _wave_in_box(occ, agent, start_m, goal_m, small, pace=pace, grow_m=grow_m)
