@@ -27,6 +27,11 @@ from typing import TypeVar
 # 256 vehicles ask about 6 x 4 x 256 = 6144 answers; each holds one track (a few hundred grid samples,
 # 10-20 kB), so 8192 answers stay below about 160 MB
 MAX_ENTRIES = 8192
+# answers about the static free space kept, at most (SwarmProblem.static_memo): a wavefront grid of the
+# whole free box (at most about 12 m x 12 m of 7.5 cm cells: 26 kB of booleans) per route box and height,
+# and a bool per segment checked (about 60 per planning on corridor-32, of which most recur); 65536
+# answers of either kind stay below about 100 MB even if all were grids of separate boxes
+MAX_STATIC_ENTRIES = 65536
 
 T = TypeVar("T")
 
@@ -61,4 +66,4 @@ class Memo:
         return {"max_entries": self.max_entries, "_answers": {}, "hits": 0, "misses": 0}
 
 
-__all__ = ["MAX_ENTRIES", "Memo"]
+__all__ = ["MAX_ENTRIES", "MAX_STATIC_ENTRIES", "Memo"]

@@ -56,6 +56,21 @@ def _disc(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
     return ix[m], iy[m]
 
 
+def static_grid(problem, gx: np.ndarray, gy: np.ndarray, z_m: float) -> np.ndarray:
+    """(nx, ny) bool: the cells of the grid ``gx`` x ``gy`` (m) at height ``z_m`` whose centre and
+    first half of every move to a neighbour stay in the static free space (sampled at a quarter and
+    half a cell); the same for every vehicle and every state of the others, so
+    :func:`wave_route` asks it once per grid and height (``SwarmProblem.static_memo``)."""
+    h = CELL_M
+    X, Y = np.meshgrid(gx, gy, indexing="ij")
+    free = np.ones(X.shape, dtype=bool)
+    for fx, fy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)):
+        for f in (0.25, 0.5):  # the cell and the first half of every move out of it stay free
+            free &= problem.static_free(np.stack([X + f * fx * h, Y + f * fy * h, np.full_like(X, z_m)], axis=-1))
+    free.flags.writeable = False  # shared by every route on this grid
+    return free
+
+
 def wave_route(
     occ: Occupancy,
     agent: int,
@@ -103,12 +118,9 @@ def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
     ny = int(math.ceil((hi[1] - lo[1]) / h)) + 1
     gx = lo[0] + np.arange(nx) * h
     gy = lo[1] + np.arange(ny) * h
-    X, Y = np.meshgrid(gx, gy, indexing="ij")
     z_mid = 0.5 * (start_m[2] + goal_m[2])
-    free_static = np.ones(X.shape, dtype=bool)
-    for fx, fy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)):
-        for f in (0.25, 0.5):  # the cell and the first half of every move out of it stay free
-            free_static &= p.static_free(np.stack([X + f * fx * h, Y + f * fy * h, np.full_like(X, z_mid)], axis=-1))
+    key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), nx, ny, float(z_mid))
+    free_static = p.static_memo.get(key, lambda: static_grid(p, gx, gy, z_mid))
     occupied = np.zeros((n_layers, nx, ny), dtype=bool)
     ta = int(p.type_index[agent])
     per_layer = layer_s / GRID_DT_S

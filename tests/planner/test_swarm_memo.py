@@ -138,3 +138,29 @@ def test_orders_that_differ_are_both_run():
     _, info = swarm_timed(sc, SwarmOptions(workers=1, reserve_starts=True, makespan_repair=False, passes=1))
     assert "not run again" not in info.prioritised
     assert info.prioritised.count("plannings") == 2
+
+
+def test_static_answers_given_back_equal_the_recomputed_ones():
+    """corridor-64 (a wall with a gap): the wavefront's static grid and the segment check given back
+    by ``static_memo`` equal those computed afresh, for every vehicle's route box, and the wall
+    really blocks some cells and some straight lines."""
+    from proxplan.planner.swarm.wave import CELL_M, margin_box, route_box, static_grid
+
+    _, problem = _problem("corridor", 64)
+    blocked_lines = 0
+    for a in range(0, problem.n_agents, 4):
+        s, g = problem.starts_m[a], problem.goals_m[a]
+        got = problem.segment_free(s, g)
+        assert problem.segment_free(s, g) == got == problem._segment_free(s, g, 0.02)
+        blocked_lines += not got
+        for lo, hi in (margin_box(problem, s, g), route_box(problem, s, g)):
+            gx = lo[0] + np.arange(int(np.ceil((hi[0] - lo[0]) / CELL_M)) + 1) * CELL_M
+            gy = lo[1] + np.arange(int(np.ceil((hi[1] - lo[1]) / CELL_M)) + 1) * CELL_M
+            z = 0.5 * (s[2] + g[2])
+            key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), gx.size, gy.size, float(z))
+            first = problem.static_memo.get(key, lambda gx=gx, gy=gy, z=z: static_grid(problem, gx, gy, z))
+            again = problem.static_memo.get(key, lambda: np.zeros(1, dtype=bool))
+            assert again is first
+            np.testing.assert_array_equal(first, static_grid(problem, gx, gy, z))
+    assert blocked_lines > 0
+    assert problem.static_memo.hits > 0
