@@ -164,3 +164,23 @@ def test_static_answers_given_back_equal_the_recomputed_ones():
             np.testing.assert_array_equal(first, static_grid(problem, gx, gy, z))
     assert blocked_lines > 0
     assert problem.static_memo.hits > 0
+
+
+def test_static_grid_equals_the_point_wise_test():
+    """The static grid tested per axis equals ``static_free`` at every point, on corridor-64's whole
+    free box (two wall boxes) at two heights."""
+    from proxplan.planner.swarm.wave import CELL_M, static_grid
+
+    _, problem = _problem("corridor", 64)
+    lo, hi = problem.lo_m, problem.hi_m
+    gx = lo[0] + np.arange(int(np.ceil((hi[0] - lo[0]) / CELL_M)) + 1) * CELL_M
+    gy = lo[1] + np.arange(int(np.ceil((hi[1] - lo[1]) / CELL_M)) + 1) * CELL_M
+    X, Y = np.meshgrid(gx, gy, indexing="ij")
+    for z in (1.0, 2.5):
+        ref = np.ones(X.shape, dtype=bool)
+        for fx, fy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)):
+            for f in (0.25, 0.5):
+                pts = np.stack([X + f * fx * CELL_M, Y + f * fy * CELL_M, np.full_like(X, z)], axis=-1)
+                ref &= problem.static_free(pts)
+        np.testing.assert_array_equal(static_grid(problem, gx, gy, z), ref)
+        assert ref.any() and not ref.all()
