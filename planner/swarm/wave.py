@@ -134,8 +134,8 @@ def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
     gx = lo[0] + np.arange(nx) * h
     gy = lo[1] + np.arange(ny) * h
     z_mid = 0.5 * (start_m[2] + goal_m[2])
-    key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), nx, ny, float(z_mid))
-    free_static = p.static_memo.get(key, lambda: static_grid(p, gx, gy, z_mid))
+    grid_key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), nx, ny, float(z_mid))
+    free_static = p.static_memo.get(grid_key, lambda: static_grid(p, gx, gy, z_mid))
     occupied = np.zeros((n_layers, nx, ny), dtype=bool)
     ta = int(p.type_index[agent])
     per_layer = layer_s / GRID_DT_S
