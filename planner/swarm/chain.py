@@ -61,7 +61,26 @@ def time_chain(
     ``arrive_by``: only results arriving no later than this step are of interest (prunes the
     search). ``through``: also fly through waypoints without stopping (else every move is
     rest-to-rest); ``deviation_m``: how far a rounding's chord may miss its corner, m (default
-    :data:`proxplan.planner.timing.CORNER_DEVIATION_M`)."""
+    :data:`proxplan.planner.timing.CORNER_DEVIATION_M`). Asked again against the same tracks
+    (:meth:`Occupancy.content_key`) with the same arguments, the answer is given back, not searched
+    again (:mod:`proxplan.planner.swarm.memo`)."""
+    W = np.ascontiguousarray(waypoints_m, dtype=float)
+    key = ("chain", occ.content_key(), agent, W.shape, W.tobytes(), arrive_by, through, deviation_m)
+    return occ.problem.memo.get(
+        key, lambda: _time_chain(occ, agent, W, arrive_by=arrive_by, through=through, deviation_m=deviation_m)
+    )
+
+
+def _time_chain(
+    occ: Occupancy,
+    agent: int,
+    waypoints_m: np.ndarray,
+    *,
+    arrive_by: int | None,
+    through: bool,
+    deviation_m: float | None,
+) -> ChainResult | None:
+    """:func:`time_chain` searched."""
     from proxplan.planner.timing import CORNER_DEVIATION_M
 
     problem = occ.problem

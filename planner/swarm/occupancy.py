@@ -24,6 +24,8 @@ keep-out grown by :data:`SAMPLING_GROWTH_M`).
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 from proxplan.planner.swarm.departures import PARKED_END, DepartureIndex
@@ -56,6 +58,8 @@ class Occupancy:
         self._stacks: dict[tuple[int, bool], GrownStack] = {}  # (type a, at rest) -> its keep-outs, grown
         self._reach_by_type: dict[int, float] = {}
         self._index: DepartureIndex | None = None  # the departure query's index (None: build when asked)
+        self._digests: dict[int, bytes] = {}  # agent -> digest of its track (content_key)
+        self._key: bytes | None = None  # content_key (None: compute when asked)
         for tr in tracks:
             self.put(tr)
 
@@ -92,6 +96,8 @@ class Occupancy:
         self._index = None
         a = track.agent
         self.tracks[a] = track
+        self._digests[a] = track_digest(track)
+        self._key = None
         n = track.positions_m.shape[0] - (0 if track.vanishes else 1)  # the parked end apart
         cells: set[tuple[int, int]] = set()
         if n > 0:
@@ -119,6 +125,8 @@ class Occupancy:
         old = self.tracks.pop(agent, None)
         if old is not None:
             self._index = None
+            self._key = None
+        self._digests.pop(agent, None)
         self._segments.pop(agent, None)
         for key in self._cells_of.pop(agent, set()):
             runs = self._runs.get(key)
@@ -178,6 +186,19 @@ class Occupancy:
             found |= self._parked.get(key, set())
         found.discard(exclude)
         return [self.tracks[a] for a in sorted(found)]
+
+    def content_key(self) -> bytes:
+        """A digest of what every query depends on: the horizon and, per agent, its track's type,
+        samples, moving flags and whether it vanishes (not the order the tracks were put in:
+        every query is a union over the tracks). Equal keys give equal answers (swarm.memo)."""
+        if self._key is None:
+            h = hashlib.blake2b(digest_size=32)
+            h.update(np.int64(self.horizon).tobytes())
+            for a in sorted(self._digests):
+                h.update(np.int64(a).tobytes())
+                h.update(self._digests[a])
+            self._key = h.digest()
+        return self._key
 
     # -- the queries ----------------------------------------------------------------------------------
     def forbidden_departures(
@@ -265,6 +286,16 @@ class Occupancy:
             if hit.any():
                 found.add(other.agent)
         return found
+
+
+def track_digest(track: GridTrack) -> bytes:
+    """Digest of what the queries read of ``track`` (its agent aside): type, whether it vanishes,
+    its grid samples and moving flags (its arrival and end are its last sample)."""
+    h = hashlib.blake2b(digest_size=32)
+    h.update(np.array([track.type, int(track.vanishes), track.positions_m.shape[0]], dtype=np.int64).tobytes())
+    h.update(np.ascontiguousarray(track.positions_m, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(track.moving, dtype=bool).tobytes())
+    return h.digest()
 
 
 def _covered(lo: np.ndarray, hi: np.ndarray, T: int) -> np.ndarray:

@@ -44,7 +44,7 @@ import numpy as np
 
 from proxplan.planfile import Scenario
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-from proxplan.planner.swarm.components import interaction_groups, plan_groups
+from proxplan.planner.swarm.components import interaction_groups, plan_groups, subproblem
 from proxplan.planner.swarm.info import LatticeInfo, MakespanRepairInfo, RetimeInfo, SwarmInfo, SwarmStage
 from proxplan.planner.swarm.lacam import Lacam
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
@@ -52,7 +52,13 @@ from proxplan.planner.swarm.lockstep import lockstep_tracks
 from proxplan.planner.swarm.makespan import budget as makespan_budget
 from proxplan.planner.swarm.makespan import shorten_makespan
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, dependency_order, prioritized_tracks
+from proxplan.planner.swarm.priority import (
+    PrioritizedFailed,
+    PriorityOptions,
+    PriorityResult,
+    dependency_order,
+    prioritized_tracks,
+)
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
 from proxplan.planner.swarm.retime import improve, route_chain
 from proxplan.planner.swarm.straight import kept_straight_lines, straight_step_conflicts, straight_tracks
@@ -175,6 +181,8 @@ def swarm_timed(
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
+    # single-vehicle searches given back by the memo (swarm.memo) and searched, over every stage
+    extra.setdefault("counts", {}).update(searches_recalled=problem.memo.hits, searches_run=problem.memo.misses)
     info = SwarmInfo(
         stage=found.stage,
         coordination=found.coordination,
@@ -294,9 +302,26 @@ def _prioritised_stage(
     best: _Stage | None = None
     counts = {"groups": len(groups), "planned": 0, "repairs": 0, "against_order": 0}
     budget = math.ceil(opts.plannings_per_vehicle * problem.n_agents)
+    # (every group's order, hold) -> (order label, its result or None when it gave up, its plannings)
+    ran: dict[tuple, tuple[str, PriorityResult | None, int]] = {}
     for label in opts.orders:
+        orders = tuple(tuple(ORDERS[label](subproblem(problem, g) if len(groups) > 1 else problem)) for g in groups)
         for hold_s in opts.unplanned_hold_s:
             left = budget - counts["planned"]
+            same = ran.get((orders, hold_s))
+            if same is not None:
+                # a pass is a function of its orders and options: run again on what is left of the
+                # budget it plans the same vehicles in the same sequence and gives the same plan, or
+                # gives up on the budget (the plannings charged are then those of the budget left)
+                first, got, spent = same
+                tried.append(f"{label}, hold {hold_s:g} s: the same orders as {first}, not run again")
+                counts["planned"] += min(spent, max(0, left))
+                if got is not None and spent <= left:
+                    counts["repairs"] += got.repairs
+                    counts["against_order"] += got.against_order
+                    break
+                continue
+            ran[(orders, hold_s)] = (label, None, 0)
             if left <= 0:
                 tried.append(f"{label}, hold {hold_s:g} s: not tried (planning budget of {budget} spent)")
                 continue
@@ -319,6 +344,7 @@ def _prioritised_stage(
                     deadline=deadline,
                 )
             except PrioritizedFailed as err:
+                ran[(orders, hold_s)] = (label, None, err.planned)
                 counts["planned"] += err.planned
                 tried.append(
                     f"{label}, hold {hold_s:g} s: gave up after {err.planned} plannings ("
@@ -326,6 +352,7 @@ def _prioritised_stage(
                     + ")"
                 )
                 continue
+            ran[(orders, hold_s)] = (label, result, result.planned)
             counts["planned"] += result.planned
             counts["repairs"] += result.repairs
             counts["against_order"] += result.against_order

@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from proxplan.physics import KinematicLimits, Vehicle
 from proxplan.planfile import Scenario
 from proxplan.planner.swarm.keepout import KeepOut, keepout_for
+from proxplan.planner.swarm.memo import MAX_STATIC_ENTRIES, Memo
 
 GROWTH_M = 0.002  # keep-outs grown by this much: positions are compared in whole millimetres, m
 
@@ -39,6 +40,12 @@ class SwarmProblem:
     lo_m: np.ndarray  # (3,) static free box (workspace shrunk by body, tube, margin), m
     hi_m: np.ndarray  # (3,) m
     boxes_m: np.ndarray  # (O, 6) inflated obstacles (min xyz, max xyz), m
+    # answers of the single-vehicle searches against an occupancy's content (swarm.memo); a new, empty
+    # one for every problem, also one made by dataclasses.replace (a subproblem's agents are numbered anew)
+    memo: Memo = field(init=False, default_factory=Memo, compare=False, repr=False)
+    # answers about the static free space (segment_free, the wavefront's static grid): they depend on
+    # the box, the obstacles and the question only
+    static_memo: Memo = field(init=False, default_factory=lambda: Memo(MAX_STATIC_ENTRIES), compare=False, repr=False)
 
     @property
     def n_agents(self) -> int:
@@ -70,10 +77,18 @@ class SwarmProblem:
         return ok
 
     def segment_free(self, p0_m: np.ndarray, p1_m: np.ndarray, step_m: float = 0.02) -> bool:
-        """True when the straight segment p0 -> p1 stays in the static free space (every ``step_m``)."""
-        n = max(2, int(math.ceil(float(np.linalg.norm(np.asarray(p1_m) - p0_m)) / step_m)) + 1)
+        """True when the straight segment p0 -> p1 stays in the static free space (every ``step_m``;
+        asked again, given back from ``static_memo``)."""
+        p0 = np.asarray(p0_m, dtype=float)
+        p1 = np.asarray(p1_m, dtype=float)
+        return self.static_memo.get(
+            ("segment", p0.tobytes(), p1.tobytes(), step_m), lambda: self._segment_free(p0, p1, step_m)
+        )
+
+    def _segment_free(self, p0_m: np.ndarray, p1_m: np.ndarray, step_m: float) -> bool:
+        n = max(2, int(math.ceil(float(np.linalg.norm(p1_m - p0_m)) / step_m)) + 1)
         s = np.linspace(0.0, 1.0, n)[:, None]
-        return bool(self.static_free(np.asarray(p0_m) * (1.0 - s) + np.asarray(p1_m) * s).all())
+        return bool(self.static_free(p0_m * (1.0 - s) + p1_m * s).all())
 
 
 def swarm_applicable(scenario: Scenario) -> str | None:

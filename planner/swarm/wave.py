@@ -56,6 +56,36 @@ def _disc(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
     return ix[m], iy[m]
 
 
+def static_grid(problem, gx: np.ndarray, gy: np.ndarray, z_m: float) -> np.ndarray:
+    """(nx, ny) bool: the cells of the grid ``gx`` x ``gy`` (m) at height ``z_m`` whose centre and
+    first half of every move to a neighbour stay in the static free space (sampled at a quarter and
+    half a cell); the same for every vehicle and every state of the others, so
+    :func:`wave_route` asks it once per grid and height (``SwarmProblem.static_memo``)."""
+    h = CELL_M
+    free = np.ones((gx.size, gy.size), dtype=bool)
+    for fx, fy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)):
+        for f in (0.25, 0.5):  # the cell and the first half of every move out of it stay free
+            free &= _free_on_grid(problem, gx + f * fx * h, gy + f * fy * h, z_m)
+    free.flags.writeable = False  # shared by every route on this grid
+    return free
+
+
+def _free_on_grid(problem, xs: np.ndarray, ys: np.ndarray, z_m: float) -> np.ndarray:
+    """(nx, ny) bool: ``problem.static_free`` at the points (xs[i], ys[j], z_m), m, per axis: the
+    free box and the obstacles are axis-aligned boxes, so each test is an outer product of 1-D tests
+    (the same comparisons as the point-wise test)."""
+
+    def inside(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        in_x = (xs >= lo[0]) & (xs <= hi[0])
+        in_y = (ys >= lo[1]) & (ys <= hi[1])
+        return in_x[:, None] & in_y[None, :] & bool(lo[2] <= z_m <= hi[2])
+
+    ok = inside(problem.lo_m, problem.hi_m)
+    for b in problem.boxes_m:
+        ok &= ~inside(b[:3], b[3:])
+    return ok
+
+
 def wave_route(
     occ: Occupancy,
     agent: int,
@@ -69,7 +99,18 @@ def wave_route(
     module; the height runs linearly with the distance flown), or None when the wavefront dies or
     never reaches a goal that stays free. ``pace``: fraction of the speed limit; ``grow_m``: extra
     keep-out radius, m (a slower, wider route leaves the exact timing more room). The search
-    covers :func:`margin_box`, then, when that holds no route, :func:`route_box` if larger."""
+    covers :func:`margin_box`, then, when that holds no route, :func:`route_box` if larger. Asked
+    again against the same tracks (:meth:`Occupancy.content_key`) with the same arguments, the
+    answer is given back, not searched again (:mod:`proxplan.planner.swarm.memo`)."""
+    s = np.asarray(start_m, dtype=float)
+    g = np.asarray(goal_m, dtype=float)
+    key = ("wave", occ.content_key(), agent, s.tobytes(), g.tobytes(), pace, grow_m)
+    got = occ.problem.memo.get(key, lambda: _wave_route(occ, agent, s, g, pace=pace, grow_m=grow_m))
+    return None if got is None else got.copy()
+
+
+def _wave_route(occ: Occupancy, agent: int, start_m: np.ndarray, goal_m: np.ndarray, *, pace: float, grow_m: float):
+    """:func:`wave_route` searched."""
     p = occ.problem
     small = margin_box(p, start_m, goal_m)
     got = _wave_in_box(occ, agent, start_m, goal_m, small, pace=pace, grow_m=grow_m)
@@ -92,12 +133,9 @@ def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
     ny = int(math.ceil((hi[1] - lo[1]) / h)) + 1
     gx = lo[0] + np.arange(nx) * h
     gy = lo[1] + np.arange(ny) * h
-    X, Y = np.meshgrid(gx, gy, indexing="ij")
     z_mid = 0.5 * (start_m[2] + goal_m[2])
-    free_static = np.ones(X.shape, dtype=bool)
-    for fx, fy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)):
-        for f in (0.25, 0.5):  # the cell and the first half of every move out of it stay free
-            free_static &= p.static_free(np.stack([X + f * fx * h, Y + f * fy * h, np.full_like(X, z_mid)], axis=-1))
+    grid_key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), nx, ny, float(z_mid))
+    free_static = p.static_memo.get(grid_key, lambda: static_grid(p, gx, gy, z_mid))
     occupied = np.zeros((n_layers, nx, ny), dtype=bool)
     ta = int(p.type_index[agent])
     per_layer = layer_s / GRID_DT_S

@@ -5,6 +5,8 @@ chain asks the index or a check of every segment against every move sample."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -152,6 +154,7 @@ def test_plannings_give_the_same_tracks_with_every_segment_checked(layout):
     horizon = 600
     runs = []
     for cls in (Occupancy, _EverySegment):
+        problem = replace(problem)  # an empty memo (swarm.memo): every search asks this occupancy
         occ = cls(problem, [predicted_track(problem, a, hold_s=1.0) for a in range(problem.n_agents)], horizon)
         out = []
         for a in dependency_order(problem):
