@@ -76,6 +76,21 @@ class SwarmProblem:
             ok &= ~np.all((p >= b[:3]) & (p <= b[3:]), axis=-1)
         return ok
 
+    def static_free_grid(self, xs_m: np.ndarray, ys_m: np.ndarray, z_m: float) -> np.ndarray:
+        """(nx, ny) bool: :meth:`static_free` at the points (xs_m[i], ys_m[j], z_m), computed per axis: the
+        free box and the obstacles are axis-aligned boxes, so each test is an outer product of 1-D tests
+        (the same comparisons as the point-wise test, without the (nx, ny, 3) array of points)."""
+
+        def inside(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+            in_x = (xs_m >= lo[0]) & (xs_m <= hi[0])
+            in_y = (ys_m >= lo[1]) & (ys_m <= hi[1])
+            return in_x[:, None] & in_y[None, :] & bool(lo[2] <= z_m <= hi[2])
+
+        ok = inside(self.lo_m, self.hi_m)
+        for b in self.boxes_m:
+            ok &= ~inside(b[:3], b[3:])
+        return ok
+
     def segment_free(self, p0_m: np.ndarray, p1_m: np.ndarray, step_m: float = 0.02) -> bool:
         """True when the straight segment p0 -> p1 stays in the static free space (every ``step_m``;
         asked again, given back from ``static_memo``)."""

@@ -65,25 +65,9 @@ def static_grid(problem, gx: np.ndarray, gy: np.ndarray, z_m: float) -> np.ndarr
     free = np.ones((gx.size, gy.size), dtype=bool)
     for fx, fy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)):
         for f in (0.25, 0.5):  # the cell and the first half of every move out of it stay free
-            free &= _free_on_grid(problem, gx + f * fx * h, gy + f * fy * h, z_m)
+            free &= problem.static_free_grid(gx + f * fx * h, gy + f * fy * h, z_m)
     free.flags.writeable = False  # shared by every route on this grid
     return free
-
-
-def _free_on_grid(problem, xs: np.ndarray, ys: np.ndarray, z_m: float) -> np.ndarray:
-    """(nx, ny) bool: ``problem.static_free`` at the points (xs[i], ys[j], z_m), m, per axis: the
-    free box and the obstacles are axis-aligned boxes, so each test is an outer product of 1-D tests
-    (the same comparisons as the point-wise test)."""
-
-    def inside(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        in_x = (xs >= lo[0]) & (xs <= hi[0])
-        in_y = (ys >= lo[1]) & (ys <= hi[1])
-        return in_x[:, None] & in_y[None, :] & bool(lo[2] <= z_m <= hi[2])
-
-    ok = inside(problem.lo_m, problem.hi_m)
-    for b in problem.boxes_m:
-        ok &= ~inside(b[:3], b[3:])
-    return ok
 
 
 def wave_route(
