@@ -108,6 +108,8 @@ class DiscoveryResult:
     member_probability: dict[str, float] = field(default_factory=dict)  # term key -> share of halves picking it
     # term key -> (G,) bool: would the search without that group's flight have tested it (stability.fold_eligibility)
     fold_eligible: dict[str, np.ndarray] = field(default_factory=dict)
+    # term key -> share of halves whose picks stand for it (a pick sharing more than half its variance)
+    represented_probability: dict[str, float] = field(default_factory=dict)
 
     def report(self) -> list[dict[str, Any]]:
         """One JSON entry per term that was picked in any half-sample (strongest first, at most 12)."""
@@ -127,6 +129,7 @@ class DiscoveryResult:
                 "name": DISCOVERED_NAME, "channel": channel, "feature": feature, "family": feature_family(feature),
                 "formula": term_formula({key: self.kept[key]}) if selected else "", "features": [feature],
                 "params": {key: self.kept[key]} if selected else {}, "inclusion_probability": prob,
+                "represented_probability": self.represented_probability.get(key, 0.0),
                 "group": group, "group_inclusion_probability": self.stability.probability.get(group, 0.0),
                 "stable": self.stability.stable(group), "heldout_gain": None if t is None else t.to_json(),
                 "selected": selected, "rmse_fz_N": None,
@@ -261,6 +264,7 @@ def discover_terms(
     fold_counts: dict[int, dict[str, int]] = {c: {} for c in folds}
     always_names = list(always)
     member_counts: dict[str, int] = {}
+    represented: dict[str, int] = {}  # term key -> halves whose picks on its channel stand for it (represented_counts)
     group_counts: dict[str, int] = {}
     n_chosen = np.zeros(len(halves))
     groups_seen: set[str] = set()
@@ -275,13 +279,16 @@ def discover_terms(
         yr, xr = _residualized(a, y[:, c], xc[:, usable], sel.weight * train_rows)
         sums = GroupSums.build(xr, yr, sel.weight, sel.group, sel.plan.n_groups, [names[j] for j in usable])
         columns_here = [names[j] for j in usable]
-        for h, picked in enumerate(_picks(sums, halves, sel.tau, options.max_terms_per_channel, columns_here)):
+        picks = list(_picks(sums, halves, sel.tau, options.max_terms_per_channel, columns_here))
+        for h, picked in enumerate(picks):
             groups = {f"{channel}|{feature_group(f)}" for f in picked}
             n_chosen[h] += len(groups)
             for g in groups:
                 group_counts[g] = group_counts.get(g, 0) + 1
             for f in picked:
                 member_counts[term_key(channel, f)] = member_counts.get(term_key(channel, f), 0) + 1
+        for f, count in represented_counts(sums, (~sel.plan.held_out_only).astype(float), picks).items():
+            represented[term_key(channel, f)] = count
         for cl, fold_halves in folds.items():
             for picked in _picks(sums, fold_halves, sel.tau, options.max_terms_per_channel, columns_here):
                 for g in {f"{channel}|{feature_group(f)}" for f in picked}:
@@ -291,8 +298,8 @@ def discover_terms(
     q = float(n_chosen.mean()) if len(halves) else 0.0
     stab = Stability(group_prob, PI_MIN, q, len(halves), len(groups_seen))
     member_prob = {k: v / n_halves for k, v in member_counts.items()}
-    stable = [k for k, p in sorted(member_prob.items(), key=lambda kv: -kv[1])
-              if stab.stable(_group_of(k))]  # fmt: skip
+    represented_prob = {k: v / n_halves for k, v in represented.items()}
+    stable = tested_members(member_prob, represented_prob, stab)
     columns: dict[str, np.ndarray] = {}
     for key in stable:
         channel, feature = parse_term_key(key)
@@ -317,7 +324,61 @@ def discover_terms(
     coef = dict(zip(names_fit, (float(v) for v in beta)))
     top = sorted(member_prob.items(), key=lambda kv: -kv[1])[:12]
     return DiscoveryResult(kept={k: coef[k] for k in fwd.chosen}, coefficients=coef, stability=stab, forward=fwd,
-                           columns=columns, top=top, member_probability=member_prob, fold_eligible=fold)  # fmt: skip
+                           columns=columns, top=top, member_probability=member_prob, fold_eligible=fold,
+                           represented_probability=represented_prob)  # fmt: skip
+
+
+REPRESENTS_R2 = 0.5
+"""A feature a half-sample picked stands for a term when it shares more than this share of the term's variance
+(squared cosine of their residualized, weighted columns: the R^2 of regressing one on the other), -. "More
+than half", as in "chosen in most halves" (:data:`proxplan.identify.stability.PI_MIN`): near-duplicates (a lag
+and its neighbour, a kernel at the next width) share most of their variance and stand for each other; two
+members of one group that describe different signals do not."""
+
+
+def represented_counts(sums: GroupSums, weights: np.ndarray, picks: Sequence[Sequence[str]]) -> dict[str, int]:
+    """For every feature picked in any half (``picks``: per half, the names of ``sums``' columns it picked), the
+    number of halves that picked it or a feature standing for it (:data:`REPRESENTS_R2`), the columns' Gram
+    taken over the groups weighted by ``weights`` (G,) (the train flights).
+
+    Why: stability is judged per GROUP of near-duplicates (a per-feature count would split a real effect's
+    picks between its copies), and the held-out test then tries the group's members the halves picked. A group
+    is one hypothesis only while its picks describe one signal: when the halves agree on a group but each
+    picks a different, unrelated member, no member was chosen in most resamples, and the best of them on all
+    flights is a pick among many (the stability-selection rule of Meinshausen & Buehlmann 2010 applied to a
+    term and the terms that stand for it, not to a label)."""
+    names = sorted({f for picked in picks for f in picked})
+    if not names:
+        return {}
+    idx = sums.index(names)
+    gram = np.tensordot(weights, sums.G[:, idx][:, :, idx], axes=1)
+    d = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
+    stands = (gram / np.outer(d, d)) ** 2 > REPRESENTS_R2  # (F, F): column j stands for row k
+    pos = {f: k for k, f in enumerate(names)}
+    counts = dict.fromkeys(names, 0)
+    for picked in picks:
+        if picked:
+            hit = np.any(stands[:, [pos[f] for f in picked]], axis=1)
+            for k in np.flatnonzero(hit):
+                counts[names[k]] += 1
+    return counts
+
+
+def tested_members(member_prob: dict[str, float], represented_prob: dict[str, float], stab: Stability) -> list[str]:
+    """The members of the stable groups the held-out test tries (most often picked first): those that most halves'
+    picks stand for (``represented_prob`` above the stability threshold); in a stable group none of whose members
+    is, the one member standing for the most picks (ties: the most often picked itself, then the name), the
+    halves' consensus for that group. One hypothesis per stable group is then tested, never the best of its
+    members on all flights (:func:`represented_counts`)."""
+    order = sorted(member_prob, key=lambda k: (-member_prob[k], k))
+    kept = [k for k in order if stab.stable(_group_of(k)) and represented_prob.get(k, 0.0) > stab.threshold]
+    covered = {_group_of(k) for k in kept}
+    for k in sorted(order, key=lambda k: (-represented_prob.get(k, 0.0), -member_prob[k], k)):
+        group = _group_of(k)
+        if stab.stable(group) and group not in covered:
+            kept.append(k)
+            covered.add(group)
+    return sorted(kept, key=lambda k: (-member_prob[k], k))
 
 
 def _picks(
