@@ -20,7 +20,10 @@ place in the room), each on one wrench channel (F_z and the three torques): a te
    (:data:`proxplan.identify.stability.PI_MIN`). Among
    near-duplicates the halves split their picks, so a per-feature count would under-rate a real effect;
    which member describes it best is the held-out test's to say.
-2. **Held out.** Every member of a stable group that some half picked enters the joint design beside the
+2. **Held out.** The members of a stable group that most halves' picks STAND FOR (a pick sharing more than
+   half of a member's variance stands for it: :func:`represented_counts`), or, where none is, the one member
+   standing for the most picks (:func:`tested_members`; never the best of the group's members on all flights,
+   which would be a pick among many), enter the joint design beside the
    tangents and the kept effects (members of one group are one hypothesis: the Bonferroni count is the
    stable groups'; the group's stability is also judged as if each train flight had been held out, and a
    term's gain on a flight counts only where that in-fold search would have tested it:
