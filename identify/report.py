@@ -305,13 +305,13 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     if result.discovered:
         lines += ["", "## Discovered terms (ensemble sparse regression over half-samples of the flights, kept by "
                   "flights held out; proxplan.identify.discovery)", "",
-                  "| channel | feature | family | inclusion (term / its group) | held-out gain (t, needs) | kept | formula |",
+                  "| channel | feature | family | inclusion (term / stood for / its group) | held-out gain (t, needs) | kept | formula |",
                   "|---|---|---|---|---|---|---|"]  # fmt: skip
         for e in result.discovered:
             g = e["heldout_gain"]
             gain = "not tested" if g is None else f"{g['mean_gain']:+.3g} ({_fmt(g['t'], 3)}, > {g['z_required']:.2f})"
             lines.append(f"| {e['channel']} | {e['feature']} | {e['family']} | {e['inclusion_probability']:.0%} / "
-                         f"{e['group_inclusion_probability']:.0%} | {gain} | {'yes' if e['selected'] else 'no'} | "
+                         f"{e['represented_probability']:.0%} / {e['group_inclusion_probability']:.0%} | {gain} | {'yes' if e['selected'] else 'no'} | "
                          f"{e['formula'] or '-'} |")  # fmt: skip
     v = result.validity
     lines += ["", "## Validity", "", f"Samples below a source (r < 3 L): {v['samples_below_a_source']}; in the model's zone dz > 3 L: "

@@ -93,7 +93,7 @@ def test_clean_logs_keep_nothing(clean) -> None:
     assert set(result.selected) <= {"thrust_bias"}, result.selected
     assert not [e for e in result.discovered if e["selected"]]
     # every term any half-sample picked is reported with its inclusion probability and group
-    assert all({"inclusion_probability", "group_inclusion_probability", "family", "heldout_gain"} <= set(e)
+    assert all({"inclusion_probability", "represented_probability", "group_inclusion_probability", "family", "heldout_gain"} <= set(e)
                for e in result.discovered)  # fmt: skip
 
 
