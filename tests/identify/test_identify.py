@@ -86,15 +86,31 @@ def test_no_hidden_effect_selects_nothing_beyond_thrust_bias(tmp_path: Path) -> 
     assert result.after.rmse_fz_N <= 1.05 * result.before.rmse_fz_N
 
 
-def test_cli_json_report_and_saved_model(tmp_path: Path, capsys) -> None:
+@pytest.fixture(scope="module")
+def one_train_flight_cli(tmp_path_factory: pytest.TempPathFactory) -> tuple[int, str, str, Path, Path]:
+    """``proxplan identify --json --save-model`` run once on one train flight with a hidden thrust bias:
+    (exit code, stdout, stderr, --out folder, saved model). The JSON/report/model test and the fallback
+    test read the same run (what each of them ran, the fallback test without --save-model)."""
+    from contextlib import redirect_stderr, redirect_stdout
+    from io import StringIO
+
     from proxplan.cli import main
+
+    tmp = tmp_path_factory.mktemp("one_train_flight")
+    manifest = make_manifest(tmp, (HIDDEN["thrust_bias"],), n_train=1, duration_s=8.0)
+    out, model = tmp / "out", tmp / "model.yaml"
+    stdout, stderr = StringIO(), StringIO()
+    with redirect_stdout(stdout), redirect_stderr(stderr):
+        code = main(["identify", str(manifest), "--out", str(out), "--json", "--save-model", str(model)])
+    return code, stdout.getvalue(), stderr.getvalue(), out, model
+
+
+def test_cli_json_report_and_saved_model(one_train_flight_cli) -> None:
     from proxplan.physics import load_model_section, load_vehicle_file
 
-    manifest = make_manifest(tmp_path, (HIDDEN["thrust_bias"],), n_train=1, duration_s=8.0)
-    out = tmp_path / "out"
-    model = tmp_path / "model.yaml"
-    assert main(["identify", str(manifest), "--out", str(out), "--json", "--save-model", str(model)]) == 0
-    doc = json.loads(capsys.readouterr().out)
+    code, stdout, _, out, model = one_train_flight_cli
+    assert code == 0
+    doc = json.loads(stdout)
     for key in ("before", "after", "effects", "selected"):
         assert key in doc
     assert {"rmse_fz_N", "rmse_torque_Nm"} <= set(doc["before"]) and {"rmse_fz_N", "rmse_torque_Nm"} <= set(
@@ -194,14 +210,30 @@ def _simulator_inflow_ok(result, hidden: str = "") -> None:
         assert truth / 1.35 < coef < truth * 1.35, (eff, coef, truth)
 
 
+def _simulator_run(tmp: Path, hidden: str):
+    """identify (FAST) on :func:`simulator_manifest`'s flights with ``hidden`` injected."""
+    manifest = simulator_manifest(tmp, [HIDDEN[hidden]], ground=hidden == "ground_effect")
+    return run_identify(manifest, options=FAST, thrust_summary=False)
+
+
+@pytest.fixture(scope="module")
+def thrust_quadratic_run(tmp_path_factory: pytest.TempPathFactory):
+    """The simulator's flights with a hidden thrust_quadratic identified once: the hidden-effect test of
+    thrust_quadratic and test_indistinguishable_effects_are_named read the same run (simulation and identify
+    are seeded: one run is what each of them ran on its own)."""
+    return _simulator_run(tmp_path_factory.mktemp("thrust_quadratic"), "thrust_quadratic")
+
+
 @pytest.mark.parametrize(
     "hidden", [pytest.param(h, marks=SIMULATOR_OPEN[h]) if h in SIMULATOR_OPEN else h for h in HIDDEN]
 )
-def test_simulator_logs_hidden_effect(tmp_path: Path, hidden: str) -> None:
+def test_simulator_logs_hidden_effect(request: pytest.FixtureRequest, tmp_path: Path, hidden: str) -> None:
     """The hidden effect is found, and no library effect the data do not hold is kept beside it (issue
     29): besides it only thrust_bias and the simulator's own induced inflow, with its own coefficient."""
-    manifest = simulator_manifest(tmp_path, [HIDDEN[hidden]], ground=hidden == "ground_effect")
-    result = run_identify(manifest, options=FAST, thrust_summary=False)
+    if hidden == "thrust_quadratic":
+        result = request.getfixturevalue("thrust_quadratic_run")
+    else:
+        result = _simulator_run(tmp_path, hidden)
     assert hidden in result.selected, (result.selected, [(t.name, t.reason) for t in result.trials])
     library = {n for n in result.selected if not n.startswith("discovered:")}
     assert library <= {hidden, "thrust_bias", *SIMULATOR_INFLOW}, result.selected
@@ -212,13 +244,12 @@ def test_simulator_logs_hidden_effect(tmp_path: Path, hidden: str) -> None:
         assert result.after.rmse_fz_N <= 0.5 * result.before.rmse_fz_N
 
 
-def test_indistinguishable_effects_are_named(tmp_path: Path) -> None:
+def test_indistinguishable_effects_are_named(thrust_quadratic_run) -> None:
     """Where the flights cannot tell two library effects apart (a hidden thrust_quadratic, and near_field with
     a fitted decay, on swaps between 0.3 and 1.0 m), identify says so: the kept one's reason, its JSON
     (``selection.indistinguishable``) and the rival's reason name each other, and the kept one still
     explains the data (test F_z error at most half of the prior model's)."""
-    result = run_identify(simulator_manifest(tmp_path, [HIDDEN["thrust_quadratic"]]), options=FAST,
-                          thrust_summary=False)  # fmt: skip
+    result = thrust_quadratic_run
     pairs = result.selection["indistinguishable"]
     kept = [k for k, rivals in pairs.items() if "thrust_quadratic" in rivals or k == "thrust_quadratic"]
     assert "thrust_quadratic" in result.selected or kept, (result.selected, pairs)
@@ -326,18 +357,14 @@ def test_test_flights_never_choose(tmp_path: Path) -> None:
     assert second.after.rmse_fz_N != first.after.rmse_fz_N  # the test flight did change
 
 
-def test_one_train_flight_falls_back_and_says_so(tmp_path: Path, capsys) -> None:
+def test_one_train_flight_falls_back_and_says_so(one_train_flight_cli) -> None:
     """Issue 35: a manifest with too few flights to hold one out: selection falls back to blocks in time
     and says so in one line on stderr, in the JSON and in the report; nothing crashes."""
-    from proxplan.cli import main
-
-    manifest = make_manifest(tmp_path, (HIDDEN["thrust_bias"],), n_train=1, duration_s=8.0)
-    out = tmp_path / "out"
-    assert main(["identify", str(manifest), "--out", str(out), "--json"]) == 0
-    captured = capsys.readouterr()
-    doc = json.loads(captured.out)
+    code, stdout, stderr, out, _ = one_train_flight_cli
+    assert code == 0
+    doc = json.loads(stdout)
     assert doc["selection_fallback"] and "fell back" in doc["selection_fallback"]
-    lines = [ln for ln in captured.err.splitlines() if "fell back" in ln]
+    lines = [ln for ln in stderr.splitlines() if "fell back" in ln]
     assert len(lines) == 1 and "too few flights" in lines[0]
     assert "Selection fell back" in (out / "report.md").read_text()
 
