@@ -31,6 +31,7 @@ at limits no smaller than the step's least), tested. This is the guaranteed conv
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from proxplan.planner.swarm.lattice import Lattice
 from proxplan.planner.swarm.occupancy import SAMPLING_GROWTH_M
@@ -69,18 +70,22 @@ def segment_distance_xy_m(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np
     return np.where(crossing, 0.0, d)
 
 
-def _groups(lattice: Lattice, step: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(near (M, M) bool: moves within reach of each other, group (M,) label: the group's first move)."""
+def _near_pairs(lattice: Lattice, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
+    """(P, 2) pairs i < j of moves (segments p0 -> p1) that come within reach of each other: candidates
+    from a k-d tree of the segments' midpoints (two segments within reach have midpoints within the
+    reach plus half of each length), then the exact segment distance on those alone."""
     problem = lattice.problem
-    near = segment_distance_xy_m(p0[:, None], p1[:, None], p0[None], p1[None]) < problem.reach_xy_m + REACH_GROWTH_M
+    reach = problem.reach_xy_m + REACH_GROWTH_M
+    half = 0.5 * np.linalg.norm((p1 - p0)[:, :2], axis=1)
+    mid = 0.5 * (p0 + p1)[:, :2]
+    cand = cKDTree(mid).query_pairs(reach + 2.0 * float(half.max()), output_type="ndarray")
+    if cand.size == 0:
+        return cand.reshape(0, 2)
+    i, j = cand[:, 0], cand[:, 1]
+    ok = segment_distance_xy_m(p0[i], p1[i], p0[j], p1[j]) < reach
     zlo, zhi = np.minimum(p0[:, 2], p1[:, 2]), np.maximum(p0[:, 2], p1[:, 2])
-    near &= np.maximum(zlo[:, None] - zhi[None], zlo[None] - zhi[:, None]) < problem.reach_z_m + REACH_GROWTH_M
-    label = np.arange(step.size)
-    for i, j in zip(*np.nonzero(np.triu(near & (step[:, None] == step[None]), 1))):
-        a, b = int(label[i]), int(label[j])  # moves in order, so labels are final once i is passed
-        if a != b:
-            label[label == max(a, b)] = min(a, b)
-    return near, label
+    ok &= np.maximum(zlo[i] - zhi[j], zlo[j] - zhi[i]) < problem.reach_z_m + REACH_GROWTH_M
+    return np.sort(cand[ok], axis=1)
 
 
 def lockstep_tracks(
@@ -103,19 +108,28 @@ def lockstep_tracks(
     if step_l:
         step, agent = np.asarray(step_l), np.asarray(agent_l)
         p0, p1 = pos[np.asarray(u_l)], pos[np.asarray(v_l)]
+        M = step.size
+        label = np.arange(M)  # a group's label is its first move (moves are in step order)
+        before: list[list[int]] = [[] for _ in range(M)]  # moves of earlier steps within reach
         if dependencies:
-            near, group = _groups(lattice, step, p0, p1)
-        else:  # one group per step, each after the previous one
-            group = np.searchsorted(step, step)
-            near = step[:, None] != step[None]
+            for i, j in _near_pairs(lattice, p0, p1).tolist():
+                if step[i] == step[j]:
+                    a, b = int(label[i]), int(label[j])
+                    if a != b:
+                        label[label == max(a, b)] = min(a, b)
+                else:
+                    before[j if step[j] > step[i] else i].append(i if step[j] > step[i] else j)
+        else:  # lock-step: one group per step, after the previous one
+            label = np.searchsorted(step, step)
         end: dict[int, int] = {}
-        for g in np.unique(group).tolist():  # in step order: a label is its group's first move
-            members = np.flatnonzero(group == g)
-            before = np.flatnonzero(near[members].any(axis=0) & (step < step[g]))
-            t0 = max((end[int(group[e])] for e in before.tolist()), default=0)
+        last = 0
+        for g in np.unique(label).tolist():  # ascending: earlier steps first
+            members = np.flatnonzero(label == g)
+            t0 = max((end[int(label[e])] for m in members.tolist() for e in before[m]), default=0)
+            t0 = t0 if dependencies else last
             lengths = np.linalg.norm(p1[members] - p0[members], axis=1)
             profile = rest_to_rest(float(lengths.max()), problem.common_limits(agent[members].tolist()), GRID_DT_S)
-            end[g] = t0 + profile.steps
+            end[g] = last = t0 + profile.steps
             for m in members.tolist():
                 moves[int(agent[m])].append((t0, LineMove(p0[m], p1[m], profile)))
     return [
