@@ -31,6 +31,8 @@ at limits no smaller than the step's least), tested. This is the guaranteed conv
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from proxplan.planner.swarm.lattice import Lattice
@@ -70,6 +72,11 @@ def segment_distance_xy_m(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np
     return np.where(crossing, 0.0, d)
 
 
+# exact segment distances are computed this many candidate pairs at a time (bounds the temporaries'
+# memory to a few hundred MB, whatever the plan's size)
+PAIR_CHUNK = 1 << 20
+
+
 def _near_pairs(lattice: Lattice, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
     """(P, 2) pairs i < j of moves (segments p0 -> p1) that come within reach of each other: candidates
     from a k-d tree of the segments' midpoints (two segments within reach have midpoints within the
@@ -79,13 +86,53 @@ def _near_pairs(lattice: Lattice, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
     half = 0.5 * np.linalg.norm((p1 - p0)[:, :2], axis=1)
     mid = 0.5 * (p0 + p1)[:, :2]
     cand = cKDTree(mid).query_pairs(reach + 2.0 * float(half.max()), output_type="ndarray")
-    if cand.size == 0:
-        return cand.reshape(0, 2)
-    i, j = cand[:, 0], cand[:, 1]
-    ok = segment_distance_xy_m(p0[i], p1[i], p0[j], p1[j]) < reach
     zlo, zhi = np.minimum(p0[:, 2], p1[:, 2]), np.maximum(p0[:, 2], p1[:, 2])
-    ok &= np.maximum(zlo[i] - zhi[j], zlo[j] - zhi[i]) < problem.reach_z_m + REACH_GROWTH_M
-    return np.sort(cand[ok], axis=1)
+    keep = []
+    for c in range(0, cand.shape[0], PAIR_CHUNK):
+        i, j = cand[c : c + PAIR_CHUNK, 0], cand[c : c + PAIR_CHUNK, 1]
+        ok = segment_distance_xy_m(p0[i], p1[i], p0[j], p1[j]) < reach
+        ok &= np.maximum(zlo[i] - zhi[j], zlo[j] - zhi[i]) < problem.reach_z_m + REACH_GROWTH_M
+        keep.append(cand[c : c + PAIR_CHUNK][ok])
+    return np.sort(np.concatenate(keep), axis=1) if keep else np.zeros((0, 2), dtype=np.int64)
+
+
+def _start_steps(
+    lattice: Lattice, step: np.ndarray, agent: np.ndarray, p0: np.ndarray, p1: np.ndarray, dependencies: bool
+):
+    """(label (M,): each move's group, named by its first move; start (M,) and profiles per group)."""
+    problem = lattice.problem
+    M = step.size
+    if dependencies:
+        pairs = _near_pairs(lattice, p0, p1)
+        same = step[pairs[:, 0]] == step[pairs[:, 1]]
+        _, comp = connected_components(
+            coo_matrix((np.ones(int(same.sum())), (pairs[same, 0], pairs[same, 1])), shape=(M, M)), directed=False
+        )
+        first = np.full(comp.max() + 1, M)
+        np.minimum.at(first, comp, np.arange(M))
+        label = first[comp]
+        cross = pairs[~same]  # (earlier, later): pairs are i < j and moves are in step order
+    else:  # lock-step: one group per step, after the previous one
+        label = np.searchsorted(step, step)
+        cross = np.zeros((0, 2), dtype=np.int64)
+    cross = cross[np.argsort(step[cross[:, 1]], kind="stable")]
+    bounds = np.searchsorted(step[cross[:, 1]], np.arange(int(step.max()) + 2))
+    end = np.zeros(M, dtype=np.int64)  # by group label
+    start = np.zeros(M, dtype=np.int64)
+    profiles = {}
+    last = 0
+    for k in np.unique(step).tolist():
+        here = cross[bounds[k] : bounds[k + 1]]
+        wait = np.zeros(M, dtype=np.int64)
+        np.maximum.at(wait, label[here[:, 1]], end[label[here[:, 0]]])
+        for g in np.unique(label[step == k]).tolist():
+            members = np.flatnonzero(label == g)
+            lengths = np.linalg.norm(p1[members] - p0[members], axis=1)
+            profile = rest_to_rest(float(lengths.max()), problem.common_limits(agent[members].tolist()), GRID_DT_S)
+            t0 = int(wait[g]) if dependencies else last
+            start[g], end[g], profiles[g] = t0, t0 + profile.steps, profile
+            last = int(end[g])
+    return label, start, profiles
 
 
 def lockstep_tracks(
@@ -108,30 +155,10 @@ def lockstep_tracks(
     if step_l:
         step, agent = np.asarray(step_l), np.asarray(agent_l)
         p0, p1 = pos[np.asarray(u_l)], pos[np.asarray(v_l)]
-        M = step.size
-        label = np.arange(M)  # a group's label is its first move (moves are in step order)
-        before: list[list[int]] = [[] for _ in range(M)]  # moves of earlier steps within reach
-        if dependencies:
-            for i, j in _near_pairs(lattice, p0, p1).tolist():
-                if step[i] == step[j]:
-                    a, b = int(label[i]), int(label[j])
-                    if a != b:
-                        label[label == max(a, b)] = min(a, b)
-                else:
-                    before[j if step[j] > step[i] else i].append(i if step[j] > step[i] else j)
-        else:  # lock-step: one group per step, after the previous one
-            label = np.searchsorted(step, step)
-        end: dict[int, int] = {}
-        last = 0
-        for g in np.unique(label).tolist():  # ascending: earlier steps first
-            members = np.flatnonzero(label == g)
-            t0 = max((end[int(label[e])] for m in members.tolist() for e in before[m]), default=0)
-            t0 = t0 if dependencies else last
-            lengths = np.linalg.norm(p1[members] - p0[members], axis=1)
-            profile = rest_to_rest(float(lengths.max()), problem.common_limits(agent[members].tolist()), GRID_DT_S)
-            end[g] = last = t0 + profile.steps
-            for m in members.tolist():
-                moves[int(agent[m])].append((t0, LineMove(p0[m], p1[m], profile)))
+        label, start, profiles = _start_steps(lattice, step, agent, p0, p1, dependencies)
+        for m in range(step.size):
+            g = int(label[m])
+            moves[int(agent[m])].append((int(start[g]), LineMove(p0[m], p1[m], profiles[g])))
     return [
         GridTrack(a, int(problem.type_index[a]), pos[configurations[0][a]], sorted(moves[a], key=lambda x: x[0]))
         for a in range(A)
