@@ -370,3 +370,39 @@ def test_a_vehicle_not_planned_yet_is_predicted_to_leave_on_its_straight_line_an
     reach = max(k.reach_xy_m for (ta, _), k in problem.keepouts.items() if ta == int(problem.type_index[a]))
     assert np.linalg.norm(last[:2] - problem.starts_m[a][:2]) > reach  # it has left its start's reach
     assert np.linalg.norm(last - problem.goals_m[a]) > 1e-6  # and is not followed to its goal
+
+
+def test_the_sampling_alternative_stops_once_it_cannot_be_shorter_and_the_swarm_plan_is_kept():
+    """Beside a prioritised plan (circle-16) the pipeline's sampling alternative stops at its first
+    vehicle arriving no earlier than the swarm plan's makespan; the swarm plan is returned, verified,
+    the same for the same seed, and the alternative run to its end on the same count budget would
+    indeed not have been shorter."""
+    import re
+
+    from proxplan.planner import plan_scenario
+    from proxplan.planner.errors import InfeasibleError, PlanNotFound
+    from proxplan.planner.pipeline import ALTERNATIVE_RRT_ITERATIONS, ALTERNATIVE_SEARCHES_PER_VEHICLE
+    from proxplan.planner.sampling import SamplingOptions, sampling_plan
+    from proxplan.planner.timing import moving_end_s
+
+    scenario = _scenario(circle_swap(16))
+    plan = plan_scenario(scenario, method="swarm", seed=0)
+    assert plan.method == "swarm" and plan.metrics["swarm"]["stage"] == "prioritised"
+    mine = moving_end_s(plan)
+    stop = [n for n in plan.notes if "could not be shorter" in n]
+    assert len(stop) == 1
+    arrives = float(re.search(r"arrives at ([0-9.]+) s", stop[0]).group(1))
+    assert arrives >= mine - 0.005  # printed to 2 decimals
+    assert verify_plan(plan, scenario) == []
+    again = plan_scenario(scenario, method="swarm", seed=0)
+    for name, tr in plan.vehicles.items():
+        np.testing.assert_array_equal(tr.position_m, again.vehicles[name].position_m)
+    budget = SamplingOptions(
+        max_searches=ALTERNATIVE_SEARCHES_PER_VEHICLE * len(scenario.vehicles),
+        max_iterations=ALTERNATIVE_RRT_ITERATIONS,
+    )
+    try:
+        full = sampling_plan(scenario, mode="downwash", seed=0, options=budget, progress=None)
+    except (InfeasibleError, PlanNotFound):
+        return  # no plan at all within the budget: not shorter either
+    assert moving_end_s(full) >= mine
