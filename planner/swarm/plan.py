@@ -289,9 +289,9 @@ def _prioritised_stage(
     problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
 ) -> _Stage | None:
     """Prioritised continuous planning of each group of vehicles that interact, in each of
-    ``opts.orders``, the shorter plan kept; each order with the first of its :func:`_policies` (hold,
-    reserved starts or predictions) for which it finds a plan; all within a count of single-vehicle
-    plannings (``opts.plannings_per_vehicle``); None when every one gives up."""
+    ``opts.orders``, the shorter plan kept; each order with the first of ``opts.unplanned_hold_s``
+    for which it finds a plan; all within a count of single-vehicle plannings
+    (``opts.plannings_per_vehicle``); None when every one gives up."""
     import os
 
     horizon = _horizon_steps(lower_bound_s)
@@ -306,31 +306,30 @@ def _prioritised_stage(
     ran: dict[tuple, tuple[str, PriorityResult | None, int]] = {}
     for label in opts.orders:
         orders = tuple(tuple(ORDERS[label](subproblem(problem, g) if len(groups) > 1 else problem)) for g in groups)
-        for hold_s, reserve in _policies(opts):
+        for hold_s in opts.unplanned_hold_s:
             left = budget - counts["planned"]
-            how = f"{label}, hold {hold_s:g} s" + ("" if reserve else ", predictions")
-            same = ran.get((orders, hold_s, reserve))
+            same = ran.get((orders, hold_s))
             if same is not None:
                 # a pass is a function of its orders and options: run again on what is left of the
                 # budget it plans the same vehicles in the same sequence and gives the same plan, or
                 # gives up on the budget (the plannings charged are then those of the budget left)
                 first, got, spent = same
-                tried.append(f"{how}: the same orders as {first}, not run again")
+                tried.append(f"{label}, hold {hold_s:g} s: the same orders as {first}, not run again")
                 counts["planned"] += min(spent, max(0, left))
                 if got is not None and spent <= left:
                     counts["repairs"] += got.repairs
                     counts["against_order"] += got.against_order
                     break
                 continue
-            ran[(orders, hold_s, reserve)] = (label, None, 0)
+            ran[(orders, hold_s)] = (label, None, 0)
             if left <= 0:
-                tried.append(f"{how}: not tried (planning budget of {budget} spent)")
+                tried.append(f"{label}, hold {hold_s:g} s: not tried (planning budget of {budget} spent)")
                 continue
             options = PriorityOptions(
                 max_repairs=math.ceil(opts.repairs_per_vehicle * max(len(g) for g in groups)),
                 max_plannings=left,
                 hold_s=hold_s,
-                reserve_starts=reserve,
+                reserve_starts=opts.reserve_starts is not False,
                 through=opts.through_waypoints == "always",
             )
             try:
@@ -345,40 +344,35 @@ def _prioritised_stage(
                     deadline=deadline,
                 )
             except PrioritizedFailed as err:
-                ran[(orders, hold_s, reserve)] = (label, None, err.planned)
+                ran[(orders, hold_s)] = (label, None, err.planned)
                 counts["planned"] += err.planned
-                tried.append(f"{how}: gave up after {err.planned} plannings (" + "; ".join(err.history[-2:]) + ")")
+                tried.append(
+                    f"{label}, hold {hold_s:g} s: gave up after {err.planned} plannings ("
+                    + "; ".join(err.history[-2:])
+                    + ")"
+                )
                 continue
-            ran[(orders, hold_s, reserve)] = (label, result, result.planned)
+            ran[(orders, hold_s)] = (label, result, result.planned)
             counts["planned"] += result.planned
             counts["repairs"] += result.repairs
             counts["against_order"] += result.against_order
             makespan = max(tr.arrival_s for tr in result.tracks.values())
-            tried.append(f"{how}: {makespan:.2f} s ({result.planned} plannings)")
+            tried.append(f"{label}, hold {hold_s:g} s: {makespan:.2f} s ({result.planned} plannings)")
             if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
                 tracks = [result.tracks[a] for a in range(problem.n_agents)]
                 best = _Stage(
                     tracks,
                     "prioritised",
-                    f"prioritised continuous planning, {label}, vehicles not planned yet "
-                    + ("holding their starts until planned" if reserve else f"assumed to leave after {hold_s:g} s")
-                    + f" ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
+                    f"prioritised continuous planning, {label}, vehicles not planned yet assumed to leave after "
+                    f"{hold_s:g} s ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
                     f"repairs, {result.against_order} against the order)",
                     _own_routes(problem, tracks),
                 )
-            break  # another policy only where this one found nothing
+            break  # a longer hold only where this one found nothing
     extra["prioritised"] = "; ".join(tried)
     extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
     extra["counts"] = counts
     return best
-
-
-def _policies(opts: SwarmOptions) -> list[tuple[float, bool]]:
-    """(hold, reserved starts) tried in turn for an order until one plans: each of ``opts.unplanned_hold_s``,
-    and with reserved starts predictions at the first hold second (docs/planner.md, issue 37 round 9A)."""
-    reserve = opts.reserve_starts is not False
-    policies = [(hold, reserve) for hold in opts.unplanned_hold_s]
-    return policies[:1] + [(opts.unplanned_hold_s[0], False)] + policies[1:] if reserve else policies
 
 
 def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> _Stage:

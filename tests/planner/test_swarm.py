@@ -406,30 +406,3 @@ def test_the_sampling_alternative_stops_once_it_cannot_be_shorter_and_the_swarm_
     except (InfeasibleError, PlanNotFound):
         return  # no plan at all within the budget: not shorter either
     assert moving_end_s(full) >= mine
-
-
-def test_predictions_plan_an_order_where_reserved_starts_give_up():
-    """corridor-32 (two groups swap through one gap, every goal another's start): with reserved starts
-    the dependency order gives up; the same order with predictions (the policy tried second) plans it,
-    and the stage's tracks are free of conflicts (each vehicle's timing checked against the others')."""
-    import re
-
-    from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-    from proxplan.planner.swarm.occupancy import Occupancy
-    from proxplan.planner.swarm.plan import _horizon_steps, _prioritised_stage
-
-    scenario = _scenario(corridor(32))
-    problem = swarm_problem(scenario)
-    opts = SwarmOptions(workers=1, reserve_starts=True, orders=("dependencies first",))
-    extra: dict = {}
-    lb = lower_bound_makespan_s(scenario)
-    found = _prioritised_stage(problem, lb, opts, extra, progress=None, deadline=None)
-    tried = extra["prioritised"]
-    assert tried.startswith("dependencies first, hold 1 s: gave up")
-    assert re.search(r"; dependencies first, hold 1 s, predictions: [0-9.]+ s \([0-9]+ plannings\)$", tried)
-    assert found is not None and "assumed to leave after 1 s" in found.coordination
-    occ = Occupancy(problem, found.tracks, _horizon_steps(lb))
-    for tr in found.tracks:
-        occ.remove(tr.agent)
-        assert not occ.conflicting_agents(tr), f"agent {tr.agent} conflicts"
-        occ.put(tr)
