@@ -34,7 +34,7 @@ from proxplan.planner.sampling.space_time import plan_space_time, start_conflict
 from proxplan.planner.sampling.spec import GoalSpec, SamplingOptions
 from proxplan.planner.timing.durations import min_segment_duration_s
 from proxplan.planner.timing.paths import TimedPath, common_grid, time_parameterize, time_parameterize_through
-from proxplan.planner.timing.plan_grid import DOCK_SPEED_FACTOR, DT_S, assemble_plan
+from proxplan.planner.timing.plan_grid import DOCK_SPEED_FACTOR, DT_S, MOVING_SPEED_MPS, assemble_plan
 
 LEAVE_START_S = 2.5  # vehicles not planned yet are assumed to have left their start by then, s
 ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
@@ -177,9 +177,26 @@ def plan_order(
                 f"vehicle {name!r}: no path found; most limiting constraint: '{last_problem}'",
                 dict(timed),
             )
+        if options.beat_s is not None and _arrival_s(accepted) >= options.beat_s:
+            raise PlanNotFound(
+                f"the sampling planner stopped: {name} arrives at {_arrival_s(accepted):.2f} s, not before "
+                f"{options.beat_s:.2f} s, so its plan could not be shorter",
+                vehicles=[name],
+            )
         timed[name] = accepted
         tracks[name] = _track_of(name, task, accepted)
     return timed, info
+
+
+def _arrival_s(tp: TimedPath) -> float:
+    """When ``tp`` stops moving on the plan's grid, s: its ``vehicle_arrival_s`` in the assembled plan
+    (the same grid from 0 and the same speed threshold), so a plan holding it has a makespan >= this."""
+    if not tp.segments:
+        return 0.0
+    grid = common_grid(tp.duration_s, DT_S)
+    _, v, _ = tp.sample(grid)
+    moving = np.flatnonzero(np.linalg.norm(v, axis=1) > MOVING_SPEED_MPS)
+    return float(grid[min(int(moving[-1]) + 1, grid.size - 1)]) if moving.size else 0.0
 
 
 def _track_of(name: str, task, tp: TimedPath) -> Track:

@@ -36,6 +36,10 @@ class SamplingOptions:
     dodge_m: float = 0.3  # dodge points of the waiting search beside / above / below start and goal, m
     detour_clearance_m: float = 0.15  # extra clearance of detour via points beyond an inflated obstacle, m
     max_searches: int | None = None  # single-vehicle searches in one whole plan (re-orderings too), or no cap
+    # the plan is wanted only if it ends before this time, s (None: always): a vehicle whose accepted
+    # track still moves at or after it stops the search (PlanNotFound): the plan's makespan, the latest
+    # vehicle's, could not be shorter (the pipeline sets it to the swarm plan's makespan beside it)
+    beat_s: float | None = None
     deflection_m: Mapping[str, float] = field(default_factory=dict)  # per vehicle: added to its tube, m
     # (its predicted deflection under the plan's own disturbance; the pipeline's second pass sets it)
 

@@ -88,6 +88,28 @@ def segment_conflict(ko: KeepOut, d0_m: np.ndarray, d1_m: np.ndarray, *, rest: b
     return False
 
 
+def horizontal_reach_m(ko: KeepOut, *, rest: bool) -> float:
+    """Largest horizontal distance at which the keep-out (moving, or at rest) holds a point: the
+    sphere's radius separation + w and the widest column, m (``KeepOut.reach_xy_m`` for both kinds)."""
+    below, above = (ko.a_on_b_rest, ko.b_on_a_rest) if rest else (ko.a_on_b, ko.b_on_a)
+    w = ko.w_rest_m if rest else ko.w_move_m
+    return float(max(ko.separation_m + w, below.max(initial=0.0), above.max(initial=0.0)))
+
+
+def far_apart(d_mm: tuple[int, ...], reach_m: float) -> bool:
+    """Does the relative segment d0 -> d1 (``d_mm`` = d0 then d1, whole mm) stay horizontally at least
+    ``reach_m`` (its keep-out's horizontal reach, grown) from the origin? Then it cannot conflict:
+    :func:`segment_conflict` needs a point of it horizontally closer than the sphere's radius or a
+    column's (each at most the reach). Plain floats: the same quadratic as ``_min_r2`` on [0, 1]; a
+    relative margin of 1e-9 keeps rounding on the side of the exact test."""
+    x0, y0 = d_mm[0] * 1e-3, d_mm[1] * 1e-3
+    ex, ey = d_mm[3] * 1e-3 - x0, d_mm[4] * 1e-3 - y0
+    a = ex * ex + ey * ey
+    s = 0.0 if a <= 0.0 else min(max(-(x0 * ex + y0 * ey) / a, 0.0), 1.0)
+    x, y = x0 + s * ex, y0 + s * ey
+    return x * x + y * y > reach_m * reach_m * (1.0 + 1e-9) + 1e-12
+
+
 class SyncTable:
     """Cached synchronous conflict test of two agents' moves on vertices with positions
     ``pos_mm`` (V, 3) integer millimetres (see module)."""
@@ -98,6 +120,14 @@ class SyncTable:
         self.pos = [tuple(int(c) for c in p) for p in np.asarray(pos_mm)]
         self.cache: dict[tuple, bool] = {}
         self.computed = 0  # exact tests run (cache misses)
+        self.far = 0  # of those, settled by the horizontal reach alone (far_apart)
+        # per (type pair, both at rest): the largest horizontal distance at which the keep-out holds a
+        # point, grown as segment_conflict grows it (GROWTH_M at rest), m
+        self.reach_m = {
+            (pair, rest): horizontal_reach_m(ko, rest=rest) + (GROWTH_M if rest else 0.0)
+            for pair, ko in keepouts.items()
+            for rest in (False, True)
+        }
 
     def conflict(self, i: int, ui: int, vi: int, j: int, uj: int, vj: int) -> bool:
         """Do agent i moving ui -> vi and agent j moving uj -> vj in one step conflict?"""
@@ -117,6 +147,10 @@ class SyncTable:
         hit = self.cache.get(key)
         if hit is None:
             self.computed += 1
+            if far_apart(key[2:8], self.reach_m[((key[0], key[1]), key[8])]):
+                self.far += 1
+                self.cache[key] = False
+                return False
             d0 = np.array(key[2:5], dtype=float) * 1e-3
             d1 = np.array(key[5:8], dtype=float) * 1e-3
             hit = segment_conflict(

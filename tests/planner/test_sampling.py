@@ -230,3 +230,30 @@ def test_the_sampling_planner_stops_on_its_count_budget_as_not_found():
         sampling_plan(scenario, mode="downwash", seed=0, options=SamplingOptions(max_searches=2), progress=None)
     plan = sampling_plan(scenario, mode="downwash", seed=0, options=SamplingOptions(max_searches=40), progress=None)
     assert set(plan.vehicles) == set(scenario.vehicles)
+
+
+def test_the_sampling_planner_stops_at_the_first_vehicle_that_arrives_no_earlier_than_beat_s():
+    """``SamplingOptions.beat_s``: the plan is wanted only when it ends before that time. Given its own
+    makespan the planner stops ("could not be shorter", PlanNotFound, never "infeasible") at the
+    vehicle that sets it; given one grid step more it plans the same plan as without the option
+    (the arrival it checks is the assembled plan's, on the same grid)."""
+    from dataclasses import replace
+
+    from proxplan.planner.errors import PlanNotFound
+    from proxplan.planner.formations import grid_reshuffle
+    from proxplan.planner.sampling import sampling_plan
+    from proxplan.planner.timing.plan_grid import DT_S, moving_end_s, vehicle_arrival_s
+
+    scenario = scenario_from_dict(grid_reshuffle(4, seed=1), label="test")
+    options = SamplingOptions(max_searches=40)
+    free = sampling_plan(scenario, mode="downwash", seed=0, options=options, progress=None)
+    makespan = moving_end_s(free)
+    last = {n for n, tr in free.vehicles.items() if vehicle_arrival_s(tr) >= makespan}  # those that set it
+    with pytest.raises(PlanNotFound, match="could not be shorter") as stopped:
+        sampling_plan(scenario, mode="downwash", seed=0, options=replace(options, beat_s=makespan), progress=None)
+    assert len(stopped.value.vehicles) == 1 and stopped.value.vehicles[0] in last
+    again = sampling_plan(
+        scenario, mode="downwash", seed=0, options=replace(options, beat_s=makespan + DT_S), progress=None
+    )
+    for name, tr in free.vehicles.items():
+        np.testing.assert_array_equal(tr.position_m, again.vehicles[name].position_m)

@@ -11,13 +11,14 @@ import pytest
 
 from proxplan.physics import KinematicLimits
 from proxplan.planfile import scenario_from_dict
-from proxplan.planner.formations import circle_swap, grid_reshuffle
+from proxplan.planner.formations import circle_swap, corridor, grid_reshuffle
 from proxplan.planner.swarm import (
     Lacam,
     SwarmOptions,
     SyncTable,
     assign_group,
     build_lattice,
+    segment_conflict,
     swarm_problem,
     swarm_timed,
 )
@@ -86,6 +87,35 @@ def test_synchronous_table_equals_a_brute_force_relative_motion_check():
                 assert _brute(ko, d0, d1, rest, grow + 1e-3), f"table-only conflict is not a graze: {d0} -> {d1}"
     assert checked > 500
     assert agree >= 0.98 * checked
+
+
+def test_a_relative_move_the_horizontal_reach_rules_out_never_conflicts():
+    """``sync.far_apart`` settles a synchronous test without the exact one only where the exact test
+    (``segment_conflict``) finds no conflict: random relative moves of every type pair, moving and at
+    rest, many of them grazing the reach (d0 and d1 drawn around it), whole millimetres as in the table."""
+    from proxplan.planner.swarm.sync import far_apart, horizontal_reach_m
+
+    problem = swarm_problem(_scenario(corridor(6)))
+    rng = np.random.default_rng(0)
+    ruled_out = conflicts = 0
+    for ko in problem.keepouts.values():
+        for rest in (False, True):
+            grow = GROWTH_M if rest else 0.0
+            reach = horizontal_reach_m(ko, rest=rest) + grow
+            for _ in range(400):
+                r = reach * rng.uniform(0.6, 1.6, 2)
+                ang = rng.uniform(0.0, 2.0 * np.pi, 2)
+                dz = rng.uniform(-1.5, 1.5, 2)
+                d = np.column_stack([r * np.cos(ang), r * np.sin(ang), dz])
+                d_mm = tuple(int(v) for v in np.round(d.reshape(-1) * 1e3))
+                exact = segment_conflict(
+                    ko, np.array(d_mm[:3]) * 1e-3, np.array(d_mm[3:]) * 1e-3, rest=rest, growth_m=grow
+                )
+                conflicts += exact
+                if far_apart(d_mm, reach):
+                    ruled_out += 1
+                    assert not exact, f"ruled out, but the exact test finds a conflict: {d_mm} (rest={rest})"
+    assert ruled_out > 100 and conflicts > 100  # both kinds occur
 
 
 def test_following_is_allowed_and_a_head_on_swap_is_not():
@@ -340,3 +370,39 @@ def test_a_vehicle_not_planned_yet_is_predicted_to_leave_on_its_straight_line_an
     reach = max(k.reach_xy_m for (ta, _), k in problem.keepouts.items() if ta == int(problem.type_index[a]))
     assert np.linalg.norm(last[:2] - problem.starts_m[a][:2]) > reach  # it has left its start's reach
     assert np.linalg.norm(last - problem.goals_m[a]) > 1e-6  # and is not followed to its goal
+
+
+def test_the_sampling_alternative_stops_once_it_cannot_be_shorter_and_the_swarm_plan_is_kept():
+    """Beside a prioritised plan (circle-16) the pipeline's sampling alternative stops at its first
+    vehicle arriving no earlier than the swarm plan's makespan; the swarm plan is returned, verified,
+    the same for the same seed, and the alternative run to its end on the same count budget would
+    indeed not have been shorter."""
+    import re
+
+    from proxplan.planner import plan_scenario
+    from proxplan.planner.errors import InfeasibleError, PlanNotFound
+    from proxplan.planner.pipeline import ALTERNATIVE_RRT_ITERATIONS, ALTERNATIVE_SEARCHES_PER_VEHICLE
+    from proxplan.planner.sampling import SamplingOptions, sampling_plan
+    from proxplan.planner.timing import moving_end_s
+
+    scenario = _scenario(circle_swap(16))
+    plan = plan_scenario(scenario, method="swarm", seed=0)
+    assert plan.method == "swarm" and plan.metrics["swarm"]["stage"] == "prioritised"
+    mine = moving_end_s(plan)
+    stop = [n for n in plan.notes if "could not be shorter" in n]
+    assert len(stop) == 1
+    arrives = float(re.search(r"arrives at ([0-9.]+) s", stop[0]).group(1))
+    assert arrives >= mine - 0.005  # printed to 2 decimals
+    assert verify_plan(plan, scenario) == []
+    again = plan_scenario(scenario, method="swarm", seed=0)
+    for name, tr in plan.vehicles.items():
+        np.testing.assert_array_equal(tr.position_m, again.vehicles[name].position_m)
+    budget = SamplingOptions(
+        max_searches=ALTERNATIVE_SEARCHES_PER_VEHICLE * len(scenario.vehicles),
+        max_iterations=ALTERNATIVE_RRT_ITERATIONS,
+    )
+    try:
+        full = sampling_plan(scenario, mode="downwash", seed=0, options=budget, progress=None)
+    except (InfeasibleError, PlanNotFound):
+        return  # no plan at all within the budget: not shorter either
+    assert moving_end_s(full) >= mine
