@@ -55,7 +55,14 @@ class KeepOut:
     @property
     def reach_xy_m(self) -> float:
         """Largest horizontal distance at which the pair can conflict while moving, m."""
-        return float(max(self.separation_m + self.w_move_m, self.a_on_b.max(initial=0.0), self.b_on_a.max(initial=0.0)))
+        return self.horizontal_reach_m(rest=False)
+
+    def horizontal_reach_m(self, *, rest: bool) -> float:
+        """Largest horizontal distance at which the keep-out (moving, or both at rest) holds a point: the
+        sphere's radius separation + w and the widest column, m."""
+        below, above = (self.a_on_b_rest, self.b_on_a_rest) if rest else (self.a_on_b, self.b_on_a)
+        w = self.w_rest_m if rest else self.w_move_m
+        return float(max(self.separation_m + w, below.max(initial=0.0), above.max(initial=0.0)))
 
     @property
     def reach_z_m(self) -> float:

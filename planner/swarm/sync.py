@@ -88,14 +88,6 @@ def segment_conflict(ko: KeepOut, d0_m: np.ndarray, d1_m: np.ndarray, *, rest: b
     return False
 
 
-def horizontal_reach_m(ko: KeepOut, *, rest: bool) -> float:
-    """Largest horizontal distance at which the keep-out (moving, or at rest) holds a point: the
-    sphere's radius separation + w and the widest column, m (``KeepOut.reach_xy_m`` for both kinds)."""
-    below, above = (ko.a_on_b_rest, ko.b_on_a_rest) if rest else (ko.a_on_b, ko.b_on_a)
-    w = ko.w_rest_m if rest else ko.w_move_m
-    return float(max(ko.separation_m + w, below.max(initial=0.0), above.max(initial=0.0)))
-
-
 def far_apart(d_mm: tuple[int, ...], reach_m: float) -> bool:
     """Does the relative segment d0 -> d1 (``d_mm`` = d0 then d1, whole mm) stay horizontally at least
     ``reach_m`` (its keep-out's horizontal reach, grown) from the origin? Then it cannot conflict:
@@ -124,7 +116,7 @@ class SyncTable:
         # per (type pair, both at rest): the largest horizontal distance at which the keep-out holds a
         # point, grown as segment_conflict grows it (GROWTH_M at rest), m
         self.reach_m = {
-            (pair, rest): horizontal_reach_m(ko, rest=rest) + (GROWTH_M if rest else 0.0)
+            (pair, rest): ko.horizontal_reach_m(rest=rest) + (GROWTH_M if rest else 0.0)
             for pair, ko in keepouts.items()
             for rest in (False, True)
         }

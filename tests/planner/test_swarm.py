@@ -93,7 +93,7 @@ def test_a_relative_move_the_horizontal_reach_rules_out_never_conflicts():
     """``sync.far_apart`` settles a synchronous test without the exact one only where the exact test
     (``segment_conflict``) finds no conflict: random relative moves of every type pair, moving and at
     rest, many of them grazing the reach (d0 and d1 drawn around it), whole millimetres as in the table."""
-    from proxplan.planner.swarm.sync import far_apart, horizontal_reach_m
+    from proxplan.planner.swarm.sync import far_apart
 
     problem = swarm_problem(_scenario(corridor(6)))
     rng = np.random.default_rng(0)
@@ -101,7 +101,7 @@ def test_a_relative_move_the_horizontal_reach_rules_out_never_conflicts():
     for ko in problem.keepouts.values():
         for rest in (False, True):
             grow = GROWTH_M if rest else 0.0
-            reach = horizontal_reach_m(ko, rest=rest) + grow
+            reach = ko.horizontal_reach_m(rest=rest) + grow
             for _ in range(400):
                 r = reach * rng.uniform(0.6, 1.6, 2)
                 ang = rng.uniform(0.0, 2.0 * np.pi, 2)
