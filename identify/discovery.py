@@ -21,13 +21,15 @@ place in the room), each on one wrench channel (F_z and the three torques): a te
    near-duplicates the halves split their picks, so a per-feature count would under-rate a real effect;
    which member describes it best is the held-out test's to say.
 2. **Held out.** The members of a stable group that most halves' picks STAND FOR (a pick sharing more than
-   half of a member's variance stands for it: :func:`represented_counts`), or, where none is, the one member
-   standing for the most picks (:func:`tested_members`; never the best of the group's members on all flights,
-   which would be a pick among many), enter the joint design beside the
-   tangents and the kept effects (members of one group are one hypothesis: the Bonferroni count is the
-   stable groups'; the group's stability is also judged as if each train flight had been held out, and a
-   term's gain on a flight counts only where that in-fold search would have tested it:
-   :func:`proxplan.identify.stability.fold_eligibility`); the greedy held-out gain test (:func:`proxplan.identify.crossval.heldout_forward`: every flight predicted
+   half of a member's variance stands for it), or, where none is, the one member standing for the most
+   picks (:mod:`proxplan.identify.consensus`; never the best of the group's members on all flights, which
+   would be a pick among many), enter the joint design beside the tangents and the kept effects (members of
+   one group are one hypothesis: the Bonferroni count is the stable groups'). The same search and the same
+   rule are run as if each train flight had been held out, and a term's gain on a flight counts only where
+   that in-fold search would have tested it or a term standing for it
+   (:meth:`proxplan.identify.consensus.PickTally.eligible`,
+   :func:`proxplan.identify.stability.fold_eligibility`); the greedy held-out gain test
+   (:func:`proxplan.identify.crossval.heldout_forward`: every flight predicted
    by a fit without it; Bonferroni over the round) keeps them, and a backward pass drops any that no
    longer pass given the others.
 
@@ -50,11 +52,12 @@ import numpy as np
 from sklearn import config_context
 from sklearn.linear_model import orthogonal_mp_gram
 
+from proxplan.identify.consensus import PickTally, group_of, stands_for
 from proxplan.identify.crossval import GroupSums, solve, trainable_groups
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_forward
-from proxplan.identify.stability import PI_MIN, Stability, fold_eligibility, fold_half_samples, half_samples
+from proxplan.identify.stability import Stability, fold_eligibility, fold_half_samples, half_samples
 from proxplan.physics import (
     DISCOVERED_PREFIX,
     FEATURE_FAMILIES,
@@ -66,7 +69,6 @@ from proxplan.physics import (
     is_wrench_feature,
     parse_term_key,
     term_formula,
-    term_key,
     weight_scaled,
 )
 
@@ -126,7 +128,7 @@ class DiscoveryResult:
             channel, feature = parse_term_key(key)
             t = last.get(key)
             selected = key in self.kept
-            group = _group_of(key)
+            group = group_of(key)
             prob = self.member_probability.get(key, 0.0)
             out.append({
                 "name": DISCOVERED_NAME, "channel": channel, "feature": feature, "family": feature_family(feature),
@@ -264,15 +266,13 @@ def discover_terms(
     y = sel.residual
     halves = half_samples(sel.plan, seed)
     folds = fold_half_samples(sel.plan, seed)  # the same search as if each train flight had been held out
-    fold_counts: dict[int, dict[str, int]] = {c: {} for c in folds}
+    tally = PickTally(len(halves))
+    fold_tally = {cl: PickTally(len(fold_halves)) for cl, fold_halves in folds.items()}
     always_names = list(always)
-    member_counts: dict[str, int] = {}
-    represented: dict[str, int] = {}  # term key -> halves whose picks on its channel stand for it (represented_counts)
-    group_counts: dict[str, int] = {}
-    n_chosen = np.zeros(len(halves))
     groups_seen: set[str] = set()
     wrench_feature = np.array([is_wrench_feature(n) for n in names])
-    train_rows = ~sel.plan.held_out_only[sel.group]
+    train = ~sel.plan.held_out_only
+    train_rows = train[sel.group]
     for channel in options.channels:
         c = CHANNELS.index(channel)
         xc = np.where(wrench_feature, x, x * sel.target_scale(channel)[:, None]) / sel.row_scale[:, c : c + 1]
@@ -283,26 +283,18 @@ def discover_terms(
         sums = GroupSums.build(xr, yr, sel.weight, sel.group, sel.plan.n_groups, [names[j] for j in usable])
         columns_here = [names[j] for j in usable]
         picks = list(_picks(sums, halves, sel.tau, options.max_terms_per_channel, columns_here))
-        for h, picked in enumerate(picks):
-            groups = {f"{channel}|{feature_group(f)}" for f in picked}
-            n_chosen[h] += len(groups)
-            for g in groups:
-                group_counts[g] = group_counts.get(g, 0) + 1
-            for f in picked:
-                member_counts[term_key(channel, f)] = member_counts.get(term_key(channel, f), 0) + 1
-        for f, count in represented_counts(sums, (~sel.plan.held_out_only).astype(float), picks).items():
-            represented[term_key(channel, f)] = count
-        for cl, fold_halves in folds.items():
-            for picked in _picks(sums, fold_halves, sel.tau, options.max_terms_per_channel, columns_here):
-                for g in {f"{channel}|{feature_group(f)}" for f in picked}:
-                    fold_counts[cl][g] = fold_counts[cl].get(g, 0) + 1
-    n_halves = max(len(halves), 1)
-    group_prob = {g: v / n_halves for g, v in group_counts.items()}
-    q = float(n_chosen.mean()) if len(halves) else 0.0
-    stab = Stability(group_prob, PI_MIN, q, len(halves), len(groups_seen))
-    member_prob = {k: v / n_halves for k, v in member_counts.items()}
-    represented_prob = {k: v / n_halves for k, v in represented.items()}
-    stable = tested_members(member_prob, represented_prob, stab)
+        fold_picks = {
+            cl: list(_picks(sums, fold_halves, sel.tau, options.max_terms_per_channel, columns_here))
+            for cl, fold_halves in folds.items()
+        }
+        picked = sorted({f for ps in [picks, *fold_picks.values()] for p in ps for f in p})
+        tally.add(channel, picks, picked, stands_for(sums, train.astype(float), picked))
+        for cl, ps in fold_picks.items():  # the Gram on the train flights of that fold
+            fold_tally[cl].add(channel, ps, picked, stands_for(sums, (train & (sel.plan.cluster != cl)) * 1.0, picked))
+    stab = tally.stability(len(groups_seen))
+    member_prob = tally.probabilities(tally.member)
+    represented_prob = tally.probabilities(tally.represented)
+    stable = tally.tested(len(groups_seen))
     columns: dict[str, np.ndarray] = {}
     for key in stable:
         channel, feature = parse_term_key(key)
@@ -314,12 +306,11 @@ def discover_terms(
     fwd = ForwardResult()
     sums = sel.sums({**always, **columns})
     ridge = ridge_of(sums.columns)
-    without = {cl: {k for k in stable if counts.get(_group_of(k), 0) > stab.threshold * max(len(folds[cl]), 1)}
-               for cl, counts in fold_counts.items()}  # fmt: skip
+    without = {cl: t.eligible(stable, len(groups_seen)) for cl, t in fold_tally.items()}
     fold = fold_eligibility(sel.plan, without, stable)
     if stable:
         fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable], sel.plan, ridge, sel.tau,
-                              max_terms=options.max_terms, hypothesis={k: _group_of(k) for k in stable},
+                              max_terms=options.max_terms, hypothesis={k: group_of(k) for k in stable},
                               fold_eligible=fold)  # fmt: skip
     names_fit = always_names + fwd.chosen
     trainable = trainable_groups(sums, sel.plan)
@@ -331,59 +322,6 @@ def discover_terms(
                            represented_probability=represented_prob)  # fmt: skip
 
 
-REPRESENTS_R2 = 0.5
-"""A feature a half-sample picked stands for a term when it shares more than this share of the term's variance
-(squared cosine of their residualized, weighted columns: the R^2 of regressing one on the other), -. "More
-than half", as in "chosen in most halves" (:data:`proxplan.identify.stability.PI_MIN`): near-duplicates (a lag
-and its neighbour, a kernel at the next width) share most of their variance and stand for each other; two
-members of one group that describe different signals do not."""
-
-
-def represented_counts(sums: GroupSums, weights: np.ndarray, picks: Sequence[Sequence[str]]) -> dict[str, int]:
-    """For every feature picked in any half (``picks``: per half, the names of ``sums``' columns it picked), the
-    number of halves that picked it or a feature standing for it (:data:`REPRESENTS_R2`), the columns' Gram
-    taken over the groups weighted by ``weights`` (G,) (the train flights).
-
-    Why: stability is judged per GROUP of near-duplicates (a per-feature count would split a real effect's
-    picks between its copies), and the held-out test then tries the group's members the halves picked. A group
-    is one hypothesis only while its picks describe one signal: when the halves agree on a group but each
-    picks a different, unrelated member, no member was chosen in most resamples, and the best of them on all
-    flights is a pick among many (the stability-selection rule of Meinshausen & Buehlmann 2010 applied to a
-    term and the terms that stand for it, not to a label)."""
-    names = sorted({f for picked in picks for f in picked})
-    if not names:
-        return {}
-    idx = sums.index(names)
-    gram = np.tensordot(weights, sums.G[:, idx][:, :, idx], axes=1)
-    d = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
-    stands = (gram / np.outer(d, d)) ** 2 > REPRESENTS_R2  # (F, F): column j stands for row k
-    pos = {f: k for k, f in enumerate(names)}
-    counts = dict.fromkeys(names, 0)
-    for picked in picks:
-        if picked:
-            hit = np.any(stands[:, [pos[f] for f in picked]], axis=1)
-            for k in np.flatnonzero(hit):
-                counts[names[k]] += 1
-    return counts
-
-
-def tested_members(member_prob: dict[str, float], represented_prob: dict[str, float], stab: Stability) -> list[str]:
-    """The members of the stable groups the held-out test tries (most often picked first): those that most halves'
-    picks stand for (``represented_prob`` above the stability threshold); in a stable group none of whose members
-    is, the one member standing for the most picks (ties: the most often picked itself, then the name), the
-    halves' consensus for that group. One hypothesis per stable group is then tested, never the best of its
-    members on all flights (:func:`represented_counts`)."""
-    order = sorted(member_prob, key=lambda k: (-member_prob[k], k))
-    kept = [k for k in order if stab.stable(_group_of(k)) and represented_prob.get(k, 0.0) > stab.threshold]
-    covered = {_group_of(k) for k in kept}
-    for k in sorted(order, key=lambda k: (-represented_prob.get(k, 0.0), -member_prob[k], k)):
-        group = _group_of(k)
-        if stab.stable(group) and group not in covered:
-            kept.append(k)
-            covered.add(group)
-    return sorted(kept, key=lambda k: (-member_prob[k], k))
-
-
 def _picks(
     sums: GroupSums, weights: Sequence[np.ndarray], tau: float, max_terms: int, columns: list[str]
 ) -> Iterator[list[str]]:
@@ -393,9 +331,3 @@ def _picks(
         total = float(w @ sums.w)
         n_eff = max(total / tau, 2.0)
         yield [columns[j] for j in omp_bic(Gp, bp, cp, max(total, 1e-300), n_eff, max_terms)]
-
-
-def _group_of(key: str) -> str:
-    """``"<channel>|<group>"`` of a term key (:func:`proxplan.physics.feature_terms.term_key`)."""
-    channel, feature = parse_term_key(key)
-    return f"{channel}|{feature_group(feature)}"

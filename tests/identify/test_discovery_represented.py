@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from proxplan.identify.crossval import GroupSums
-from proxplan.identify.discovery import REPRESENTS_R2, represented_counts
+from proxplan.identify.consensus import REPRESENTS_R2, represented_counts
 
 
 def _sums(rng: np.random.Generator) -> GroupSums:
@@ -47,7 +47,7 @@ def test_no_picks_no_counts() -> None:
 
 
 def test_the_tested_members_are_the_halves_consensus_not_the_best_of_many() -> None:
-    from proxplan.identify.discovery import tested_members
+    from proxplan.identify.consensus import tested_members
     from proxplan.identify.stability import PI_MIN, Stability
 
     g1, g2, g3 = "force_z_N|temporal:above", "torque_x_Nm|temporal:above", "torque_y_Nm|side"
@@ -71,3 +71,26 @@ def test_the_tested_members_are_the_halves_consensus_not_the_best_of_many() -> N
         "torque_x_Nm*base_ty_lp800ms_Nm",
         "force_z_N*above_near_lag570ms_1",
     ]
+
+
+def test_a_fold_counts_a_term_only_where_its_own_search_would_have_tested_it_or_its_stand_in() -> None:
+    """The cross-validation of the selection step uses the member rule, not the group's stability: a flight's
+    fold that tests another, unrelated member of the group does not make the term eligible there."""
+    from proxplan.identify.consensus import PickTally
+
+    a, a_copy, other = "base_fz_lag50ms_N", "base_fz_lag75ms_N", "base_fz_lowpass_N"  # one group, temporal:above
+    names = [a, a_copy, other]
+    stands = np.array([[1, 1, 0], [1, 1, 0], [0, 0, 1]], dtype=bool)  # a and its copy stand for each other
+    key = "force_z_N*" + a
+
+    def fold(picks: list[list[str]]) -> PickTally:
+        t = PickTally(len(picks))
+        t.add("force_z_N", picks, names, stands)
+        return t
+
+    assert fold([[a], [a], [a], [other]]).eligible([key], 5) == {key}  # tests the term itself
+    assert fold([[a_copy], [a_copy], [a_copy], []]).eligible([key], 5) == {key}  # tests its stand-in
+    assert fold([[other], [other], [other], [a]]).eligible([key], 5) == set()  # tests another signal
+    assert fold([[a], [], [], []]).eligible([key], 5) == set()  # the group is not stable without the flight
+    # the same halves, the group counted as one label, would have made it eligible in the third fold
+    assert fold([[other], [other], [other], [a]]).stability(5).stable("force_z_N|temporal:above")
