@@ -75,7 +75,7 @@ def _counts(stands: np.ndarray, names: Sequence[str], picks: Sequence[Sequence[s
         if picked:
             hit = np.any(stands[:, [pos[f] for f in picked]], axis=1)
             for k in np.flatnonzero(hit):
-                counts[names[k]] += 1
+                counts[names[int(k)]] += 1
     return counts
 
 
@@ -128,7 +128,7 @@ class PickTally:
             if count:
                 self.represented[term_key(channel, f)] = count
         for k, f in enumerate(names):
-            self.similar[term_key(channel, f)] = {term_key(channel, names[j]) for j in np.flatnonzero(stands[k])}
+            self.similar[term_key(channel, f)] = {term_key(channel, names[int(j)]) for j in np.flatnonzero(stands[k])}
 
     def probabilities(self, counts: dict[str, int]) -> dict[str, float]:
         """``counts`` as shares of the halves."""

@@ -1,12 +1,12 @@
 """A discovered term is tested only when most half-samples picked it or a feature standing for it
-(identify.discovery.represented_counts, issue 35)."""
+(identify.consensus, issue 35)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from proxplan.identify.crossval import GroupSums
 from proxplan.identify.consensus import REPRESENTS_R2, represented_counts
+from proxplan.identify.crossval import GroupSums
 
 
 def _sums(rng: np.random.Generator) -> GroupSums:
