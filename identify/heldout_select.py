@@ -40,7 +40,14 @@ class GainTest:
 
     def to_json(self) -> dict[str, float | int | bool | None]:
         return {"mean_gain": self.mean, "se": self.se, "t": float(self.t) if np.isfinite(self.t) else None,
-                "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups}  # fmt: skip
+                "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups,
+                "groups_improved": int(np.sum(self.gains > 0.0))}  # fmt: skip
+
+    @property
+    def undecided(self) -> bool:
+        """Every held-out group (flight) gained, yet the mean is short of z standard errors: the test had too
+        few groups to decide (with n flights the multiple is Student's t with n - 1 degrees of freedom)."""
+        return (not self.passed) and self.n_groups >= 2 and bool(np.all(self.gains > 0.0))
 
 
 def critical_z(m: int, dof: int | None = None) -> float:

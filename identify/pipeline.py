@@ -118,6 +118,18 @@ class IdentifyResult:
         """The model file's content: everything the "after" figure used, and the residual spread."""
         return saved_model(self.final_model, self.measure_options, self.thrust_maps, self.spread)
 
+    def undecided(self) -> list[str]:
+        """One line per effect or discovered term not kept although every held-out flight gained from it
+        (:attr:`proxplan.identify.heldout_select.GainTest.undecided`): the flights were too few to decide."""
+        tests = [(t.name, t.gain_last) for t in self.trials if not t.selected and t.gain_last is not None]
+        lines = [_undecided_line(name, g.to_json()) for name, g in tests if g.undecided]
+        for d in self.discovered:
+            g = d.get("heldout_gain")
+            if not d.get("selected") and g and not g["passed"] and g["n_groups"] >= 2:
+                if g["groups_improved"] == g["n_groups"]:
+                    lines.append(_undecided_line(f"{d['channel']}*{d['feature']}", g))
+        return lines
+
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
         return measurement_summary(self.thrust_maps, self.exclusions, self.notes)
@@ -153,6 +165,7 @@ class IdentifyResult:
             "stack_shielding": self.stack_shielding,
             "motor_lag_check": self.motor_lag_check,
             "warnings": list(self.motor_lag_check.get("warnings", [])),
+            "undecided": self.undecided(),
             "residual_correlations": [
                 {"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations
             ],
@@ -162,6 +175,13 @@ class IdentifyResult:
                 t: {k: v for k, v in d.items() if not k.startswith("_")} for t, d in self.thrust_coefficient.items()
             },
         }
+
+
+def _undecided_line(name: str, gain: dict[str, Any]) -> str:
+    n, t = gain["n_groups"], gain["t"]
+    shown = "inf" if t is None else f"{t:.2f}"
+    return (f"{name}: every one of the {n} held-out flights gained (t = {shown}), but over {n} flights the test "
+            f"needs t > {gain['z_required']:.2f}: not kept; more train flights would decide it")  # fmt: skip
 
 
 def _zone_masks(u: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:

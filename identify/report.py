@@ -269,6 +269,10 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         )
     cut = 100.0 * (1.0 - a.rmse_fz_N / b.rmse_fz_N) if b.rmse_fz_N > 0 else 0.0
     lines += ["", f"Selected effects: **{', '.join(result.selected) or 'none'}**. F_z error cut by {cut:.1f} %.", ""]
+    undecided = result.undecided()
+    if undecided:
+        lines += ["Not decided by these flights (every held-out flight gained, too few flights to pass the test):", ""]
+        lines += [f"- {line}" for line in undecided] + [""]
     lines += ["## Per vehicle (test flights, RMSE F_z [N])", "", "| vehicle | before | calibrated | after | samples |",
               "|---|---|---|---|---|"]  # fmt: skip
     for name, pv in result.per_vehicle.items():

@@ -101,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
         doc["saved_model"] = str(save_model(result, args.save_model))
     for warning in result.motor_lag_check.get("warnings", []):  # the measurement's self-check (motor lag)
         print(f"proxplan identify: warning: {warning}", file=sys.stderr)
+    for line in result.undecided():  # too few flights to decide a term every held-out flight gained from
+        print(f"proxplan identify: note: {line}", file=sys.stderr)
     for note in result.notes:  # e.g. logs without PWM/Vbat: the desired u[N] is used (said once)
         print(f"proxplan identify: note: {note}", file=sys.stderr)
     if result.fallback:  # too few flights to hold one out: what selection fell back to, in one line
