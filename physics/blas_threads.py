@@ -1,0 +1,37 @@
+"""One BLAS thread for a stage made of many small matrix products (:func:`one_blas_thread`).
+
+OpenBLAS hands every product, however small, to all its threads, and after it the threads spin for a
+while waiting for the next one. The identification pipeline is tens of thousands of products of a few
+thousand rows by a few columns: there the hand-offs cost more than the products, and on a machine whose
+cores are shared (the team's 2-core host with other processes running) each hand-off also waits for a
+core. Measured on the synthetic logs of tests/identify/test_discovery.py (docs/identify.md, "Issue 50,
+round 10C"): 101 s wall / 21.5 s CPU with the default threads against 49 s / 4.4 s with one. The
+results do not change: OpenBLAS splits a product's output among its threads, not the sums that make
+each element, so every element is summed in the same order (checked bit for bit on the shipped
+manifest's identify output).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from typing import ParamSpec, TypeVar
+
+from threadpoolctl import threadpool_limits
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+BLAS_THREADS = 1  # threads of the BLAS inside a stage wrapped by one_blas_thread (module docstring), -
+
+
+def one_blas_thread(fn: Callable[_P, _R]) -> Callable[_P, _R]:
+    """``fn`` run with the BLAS limited to :data:`BLAS_THREADS` thread(s), the previous limit restored after
+    (also on an exception; nested calls keep the limit)."""
+
+    @functools.wraps(fn)
+    def wrapped(*args: _P.args, **kwargs: _P.kwargs) -> _R:
+        with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return wrapped
