@@ -44,7 +44,7 @@ from proxplan.identify.motor_check import check_loaded
 from proxplan.identify.spread import BandAccumulator, interval_half_width_N, slow_part
 from proxplan.identify.strata import AUTHORITY_STATES, authority_masks
 from proxplan.identify.thrust_map import ThrustMap
-from proxplan.physics import CalibratedModel, ResidualSpread
+from proxplan.physics import CalibratedModel, ResidualSpread, one_blas_thread
 
 SPLITS = ("test", "validation", "train", "all")
 REGIONS = ("free", "below_source", "below_within_3L", "below_beyond_3L", "stack")
@@ -246,6 +246,7 @@ def _rows(e: Mapping[str, Any]) -> int:
     return int(sum(e[k] for k in keys))
 
 
+@one_blas_thread
 def evaluate_model(
     manifest: Manifest | str | Path,
     model: CalibratedModel,

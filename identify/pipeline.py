@@ -77,6 +77,7 @@ from proxplan.physics import (
     CalibratedModel,
     ModelOptions,
     ResidualSpread,
+    one_blas_thread,
 )
 
 # ------------------------------------------------------------------------------ pipeline
@@ -245,6 +246,7 @@ def _per_vehicle(
                 "n_samples": b[k][1]} for k in b}  # fmt: skip
 
 
+@one_blas_thread
 def run_identify(
     manifest: Manifest | str | Path, *, options: IdentifyOptions | None = None, thrust_summary: bool = True
 ) -> IdentifyResult:

@@ -17,6 +17,7 @@ from proxplan.physics.authority import (
     motor_thrusts_N,
     normalised_motor_map,
 )
+from proxplan.physics.blas_threads import one_blas_thread
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.closed_loop import (
     TAIL_MAX_S,
@@ -161,6 +162,7 @@ from proxplan.physics.vehicles import (
 from proxplan.physics.velocity_field import FIELD_FORMS, centreline_speed_mps, downwash_speed_mps
 
 __all__ = [
+    "one_blas_thread",
     "TAIL_STEP_S",
     "frame_yaw_rate_radps",
     "FIRMWARE_CONTROLLER_RATE_HZ",
