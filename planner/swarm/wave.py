@@ -241,6 +241,20 @@ class _Occupied:
         return out
 
 
+def dilated(cur: np.ndarray) -> np.ndarray:
+    """(nx, ny) bool: the cells of ``cur`` and their 8 neighbours (a new array)."""
+    nxt = cur.copy()
+    nxt[1:, :] |= cur[:-1, :]
+    nxt[:-1, :] |= cur[1:, :]
+    nxt[:, 1:] |= cur[:, :-1]
+    nxt[:, :-1] |= cur[:, 1:]
+    nxt[1:, 1:] |= cur[:-1, :-1]
+    nxt[:-1, :-1] |= cur[1:, 1:]
+    nxt[1:, :-1] |= cur[:-1, 1:]
+    nxt[:-1, 1:] |= cur[1:, :-1]
+    return nxt
+
+
 def _spread(
     reach: np.ndarray,
     occupied: _Occupied,
@@ -267,16 +281,7 @@ def _spread(
             return t
         occupied.mark_upto(t + 2)
         a0, a1, b0, b1 = max(0, x0 - 1), min(nx, x1 + 1), max(0, y0 - 1), min(ny, y1 + 1)
-        cur = reach[t, a0:a1, b0:b1]
-        nxt = cur.copy()
-        nxt[1:, :] |= cur[:-1, :]
-        nxt[:-1, :] |= cur[1:, :]
-        nxt[:, 1:] |= cur[:, :-1]
-        nxt[:, :-1] |= cur[:, 1:]
-        nxt[1:, 1:] |= cur[:-1, :-1]
-        nxt[:-1, :-1] |= cur[1:, 1:]
-        nxt[1:, :-1] |= cur[:-1, 1:]
-        nxt[:-1, 1:] |= cur[1:, :-1]
+        nxt = dilated(reach[t, a0:a1, b0:b1])
         nxt &= free_static[a0:a1, b0:b1]
         nxt &= ~occ[t + 1, a0:a1, b0:b1]
         nxt &= ~occ[t, a0:a1, b0:b1]

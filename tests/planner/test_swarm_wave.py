@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from proxplan.planner.swarm.wave import _disc, _Occupied, _spread
+from proxplan.planner.swarm.wave import _disc, _Occupied, _spread, dilated
 
 
 def _world(seed: int) -> tuple[_Occupied, np.ndarray, np.ndarray]:
@@ -39,7 +39,7 @@ def _world(seed: int) -> tuple[_Occupied, np.ndarray, np.ndarray]:
 
 
 def _spread_whole_grid(full, static, start, goal, hold_from):
-    """The definition: every layer over the whole grid."""
+    """The definition: every layer over the whole grid (the 8-neighbourhood as the module's)."""
     n_layers = full.shape[0]
     free = ~full & static[None]
     reach = np.zeros(full.shape, dtype=bool)
@@ -48,16 +48,7 @@ def _spread_whole_grid(full, static, start, goal, hold_from):
         cur = reach[t]
         if t >= hold_from and cur[goal]:
             return t, reach
-        nxt = cur.copy()
-        nxt[1:, :] |= cur[:-1, :]
-        nxt[:-1, :] |= cur[1:, :]
-        nxt[:, 1:] |= cur[:, :-1]
-        nxt[:, :-1] |= cur[:, 1:]
-        nxt[1:, 1:] |= cur[:-1, :-1]
-        nxt[:-1, :-1] |= cur[1:, 1:]
-        nxt[1:, :-1] |= cur[:-1, 1:]
-        nxt[:-1, 1:] |= cur[1:, :-1]
-        nxt &= free[t + 1] & free[t]
+        nxt = dilated(cur) & free[t + 1] & free[t]
         reach[t + 1] = nxt
         if not nxt.any():
             return None, reach
