@@ -65,7 +65,7 @@ class DepartureIndex:
         self._order = order
         self._trees: dict[int, cKDTree | None] = {}
         self._long_tree = cKDTree(P[self.long_rows, :2]) if self.long_rows.size else None
-        self._by_t0: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # straight moves' slices
+        self._by_t0: tuple[np.ndarray, ...] | None = None  # line_pairs: segments sorted by first step
 
     @classmethod
     def of(cls, segments: list[tuple[np.ndarray, np.ndarray, np.ndarray, int, int]]) -> DepartureIndex:

@@ -8,6 +8,10 @@ planned yet until they vanish), so column-exclusive downwash is 2-D here. The se
 8-neighbourhood dilation of the set at layer t, restricted to cells free in both layers (numpy
 boolean shifts: the whole search is a few array operations per layer). The first layer at which the
 goal cell is reached and stays free to the horizon gives the route; backtracking prefers waiting.
+Layers are marked only as far as the front comes (the goal's and the start's cells read at every
+layer from the marks' list), and each layer is spread only over the bounding box of the cells
+reached at the layer before, grown by one: the same reached cells for less work (tested against
+the whole grid).
 
 This is a guide, not a trajectory: the route's corners and waiting places, simplified to within a
 cell (Douglas-Peucker: the grid's staircase is not part of the route), become the waypoints of
