@@ -14,6 +14,20 @@ grown, lie within it; the pair search uses the reach widened by :data:`REACH_SLA
 rounding), and a segment lies in the bucket of its first step, or, when it spans more than one
 bucket (a vehicle resting there, or parked for good after its last sample: the segment
 [arrival, ``PARKED_END``)), in the one tree of long segments asked by every query.
+
+**Moves that go forward along a line** (every move of a chain timed rest to rest, the default, and
+runs through waypoints that do) are asked without trees: with A + s_k u the foot of sample k on the
+horizontal line from the first sample to the last, s_k non-decreasing (checked; else the trees
+above answer), the samples within reach r of a point P have s_k within sqrt(r'^2 - e^2) of P's
+abscissa on the line (e its distance from it, r' = r plus the samples' largest distance from the
+line: zero for a straight move): one ``searchsorted`` per end.
+Intersected with the samples that can meet the window in time (k in [t0 - until + 1, t1 - from)),
+each segment gives one range of k, and only the pairs in it are tested. The segments asked are a
+slice of those sorted by first step (t0 in [from - ``SHORT_STEPS``, until + K - 1)) and every
+segment lasting longer. No pair that conflicts is missed: a sample within r of P has its foot within
+r' of P (triangle inequality), and r' is widened by rounding slacks. The pairs are
+those within reach that can meet the window, fewer than the trees give (those can be a bucket
+outside it), and the answer of a departure query is the same (tested).
 """
 
 from __future__ import annotations
@@ -29,6 +43,10 @@ from scipy.spatial import cKDTree
 BUCKET_STEPS = 160
 PARKED_END = 2**40  # end step of a parked segment: beyond any horizon (an int64 with room for sums)
 REACH_SLACK = 1e-9  # the pair search's relative widening of the reach (rounding of its distances)
+LINE_SLACK_M = 1e-9  # the straight-move search's absolute widening of the reach, m (rounding of its projections)
+# a segment lasting longer than this many steps is asked by every straight-move query (the others
+# by a slice of the segments sorted by first step); 0.8 s of flight: only the speed depends on it
+SHORT_STEPS = 16
 
 
 class DepartureIndex:
@@ -47,6 +65,7 @@ class DepartureIndex:
         self._order = order
         self._trees: dict[int, cKDTree | None] = {}
         self._long_tree = cKDTree(P[self.long_rows, :2]) if self.long_rows.size else None
+        self._by_t0: tuple[np.ndarray, ...] | None = None  # line_pairs: segments sorted by first step
 
     @classmethod
     def of(cls, segments: list[tuple[np.ndarray, np.ndarray, np.ndarray, int, int]]) -> DepartureIndex:
@@ -71,7 +90,51 @@ class DepartureIndex:
 
     def pairs(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int):
         """(rows (N,), k (N,)): a superset of the (segment, move sample) pairs within ``reach_m``
-        horizontally that can forbid a departure in [``from_step``, ``until_step``) (see module)."""
+        horizontally that can forbid a departure in [``from_step``, ``until_step``) (see module:
+        along a straight move without trees, else by the buckets' trees)."""
+        got = self.line_pairs(q_m, reach_m, from_step, until_step)
+        return got if got is not None else self.tree_pairs(q_m, reach_m, from_step, until_step)
+
+    def _sorted_by_t0(self) -> tuple[np.ndarray, ...]:
+        """The short segments sorted by first step (rows, horizontal positions (S, 2), t0, t1), then
+        the rows lasting longer than ``SHORT_STEPS`` (the same arrays)."""
+        if self._by_t0 is None:
+            lasting = self.t1 - self.t0 > SHORT_STEPS
+            short = np.flatnonzero(~lasting)
+            order = short[np.argsort(self.t0[short], kind="stable")]
+            long_ = np.flatnonzero(lasting)
+            self._by_t0 = tuple(
+                x
+                for rows in (order, long_)
+                for x in (rows, np.ascontiguousarray(self.P[rows, :2]), self.t0[rows], self.t1[rows])
+            )
+        return self._by_t0
+
+    def line_pairs(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int):
+        """:meth:`pairs` for a move whose samples ``q_m`` go forward along the horizontal line from the
+        first to the last (see module), or None when they do not (or barely move horizontally)."""
+        K = q_m.shape[0]
+        a = q_m[0, :2]
+        e = q_m[-1, :2] - a
+        length = float(np.hypot(e[0], e[1]))
+        if K < 2 or length <= LINE_SLACK_M:
+            return None
+        u = e / length
+        d = q_m[:, :2] - a
+        s = d @ u  # abscissae of the samples on the line, m
+        if np.any(s[1:] < s[:-1]):
+            return None
+        r = reach_m * (1.0 + REACH_SLACK) + float(np.abs(d[:, 0] * u[1] - d[:, 1] * u[0]).max()) + LINE_SLACK_M
+        rows_s, P_s, t0_s, t1_s, rows_l, P_l, t0_l, t1_l = self._sorted_by_t0()
+        i0, i1 = np.searchsorted(t0_s, [from_step - SHORT_STEPS, until_step + K - 1])
+        parts = [
+            _line_batch(rows_s[i0:i1], P_s[i0:i1], t0_s[i0:i1], t1_s[i0:i1], a, u, s, r, from_step, until_step),
+            _line_batch(rows_l, P_l, t0_l, t1_l, a, u, s, r, from_step, until_step),
+        ]
+        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+    def tree_pairs(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int):
+        """:meth:`pairs` by the buckets' trees, for any move (see module)."""
         K = q_m.shape[0]
         tq = cKDTree(q_m[:, :2])
         r = reach_m * (1.0 + REACH_SLACK)
@@ -101,3 +164,21 @@ class DepartureIndex:
             z = np.zeros(0, dtype=np.int64)
             return z, z
         return np.concatenate(rows).astype(np.int64), np.concatenate(ks).astype(np.int64)
+
+
+def _line_batch(rows, P, t0, t1, a, u, s, r, from_step: int, until_step: int) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`DepartureIndex.line_pairs` on the segments ``rows`` (positions ``P`` (N, 2), m;
+    steps [t0, t1)) against samples at abscissae ``s`` (K,), m, on the line from ``a`` along ``u``
+    (a unit vector), within ``r`` (m): (rows, k) of the pairs."""
+    K = s.shape[0]
+    px, py = P[:, 0] - a[0], P[:, 1] - a[1]
+    off = px * u[1] - py * u[0]  # signed distance from the line, m
+    near = np.flatnonzero(np.abs(off) <= r)
+    off, along = off[near], px[near] * u[0] + py[near] * u[1]
+    half = np.sqrt(np.maximum(r * r - off * off, 0.0))
+    k_lo = np.maximum(np.maximum(t0[near] - until_step + 1, 0), np.searchsorted(s, along - half, side="left"))
+    k_hi = np.minimum(np.minimum(t1[near] - from_step, K), np.searchsorted(s, along + half, side="right"))
+    n = np.maximum(k_hi - k_lo, 0)
+    first = np.cumsum(n) - n  # where each segment's pairs start in the output
+    total = int(first[-1] + n[-1]) if n.size else 0
+    return np.repeat(rows[near], n).astype(np.int64), np.arange(total, dtype=np.int64) - np.repeat(first - k_lo, n)

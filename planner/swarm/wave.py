@@ -8,6 +8,10 @@ planned yet until they vanish), so column-exclusive downwash is 2-D here. The se
 8-neighbourhood dilation of the set at layer t, restricted to cells free in both layers (numpy
 boolean shifts: the whole search is a few array operations per layer). The first layer at which the
 goal cell is reached and stays free to the horizon gives the route; backtracking prefers waiting.
+Layers are marked only as far as the front comes (the goal's and the start's cells read at every
+layer from the marks' list), and each layer is spread only over the bounding box of the cells
+reached at the layer before, grown by one: the same reached cells for less work (tested against
+the whole grid).
 
 This is a guide, not a trajectory: the route's corners and waiting places, simplified to within a
 cell (Douglas-Peucker: the grid's staircase is not part of the route), become the waypoints of
@@ -120,22 +124,13 @@ def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
     z_mid = 0.5 * (start_m[2] + goal_m[2])
     grid_key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), nx, ny, float(z_mid))
     free_static = p.static_memo.get(grid_key, lambda: static_grid(p, gx, gy, z_mid))
-    occupied = np.zeros((n_layers, nx, ny), dtype=bool)
+    occupied = _Occupied(n_layers, nx, ny)
     ta = int(p.type_index[agent])
     per_layer = layer_s / GRID_DT_S
-
-    def mark(layers: np.ndarray, cx: np.ndarray, cy: np.ndarray, disc) -> None:
-        ox, oy = disc
-        X_ = cx[:, None] + ox[None]
-        Y_ = cy[:, None] + oy[None]
-        L_ = np.broadcast_to(layers[:, None], X_.shape)
-        ok = (L_ >= 0) & (L_ < n_layers) & (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
-        occupied[L_[ok], X_[ok], Y_[ok]] = True
-
     box_lo = np.r_[lo, -np.inf]
     box_hi = np.r_[hi, np.inf]
     for tr in occ.near(box_lo, box_hi, agent):
-        disc = _disc((p.keepouts[(ta, tr.type)].reach_xy_m + grow_m) / h)
+        radius = (p.keepouts[(ta, tr.type)].reach_xy_m + grow_m) / h
         P = tr.positions_m
         k = np.arange(P.shape[0])
         lay = np.floor(k / per_layer + 0.5).astype(np.int64)
@@ -146,44 +141,21 @@ def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
         key = np.unique((lay * span_x + (cx - cx.min())) * span_y + (cy - cy.min()))
         key_l, rem = np.divmod(key, span_x * span_y)
         key_x, key_y = np.divmod(rem, span_y)
-        mark(key_l, key_x + cx.min(), key_y + cy.min(), disc)
+        occupied.add(radius, key_l, key_x + cx.min(), key_y + cy.min())
         last = int(lay[-1])
         if last < n_layers and not tr.vanishes:  # parked for good
-            ox, oy = disc
-            X_, Y_ = cx[-1] + ox, cy[-1] + oy
-            ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
-            occupied[last:, X_[ok], Y_[ok]] = True
-    free = ~occupied & free_static[None]
+            occupied.park(radius, last, int(cx[-1]), int(cy[-1]))
     sx, sy = (int(v) for v in np.round((start_m[:2] - lo) / h))
     gx_, gy_ = (int(v) for v in np.round((goal_m[:2] - lo) / h))
-    if not free[0, sx, sy]:
+    if occupied.column(sx, sy)[0] or not free_static[sx, sy]:
         return None
-    goal_free = free[:, gx_, gy_]
+    goal_free = ~occupied.column(gx_, gy_) & free_static[gx_, gy_]
     blocked = np.flatnonzero(~goal_free)
     hold_from = int(blocked[-1]) + 1 if blocked.size else 0
     if hold_from >= n_layers:
         return None
     reach = np.zeros((n_layers, nx, ny), dtype=bool)
-    reach[0, sx, sy] = True
-    t_goal = None
-    for t in range(n_layers - 1):
-        cur = reach[t]
-        if t >= hold_from and cur[gx_, gy_]:
-            t_goal = t
-            break
-        nxt = cur.copy()
-        nxt[1:, :] |= cur[:-1, :]
-        nxt[:-1, :] |= cur[1:, :]
-        nxt[:, 1:] |= cur[:, :-1]
-        nxt[:, :-1] |= cur[:, 1:]
-        nxt[1:, 1:] |= cur[:-1, :-1]
-        nxt[:-1, :-1] |= cur[1:, 1:]
-        nxt[1:, :-1] |= cur[:-1, 1:]
-        nxt[:-1, 1:] |= cur[1:, :-1]
-        nxt &= free[t + 1] & free[t]
-        reach[t + 1] = nxt
-        if not nxt.any():
-            return None
+    t_goal = _spread(reach, occupied, free_static, (sx, sy), (gx_, gy_), hold_from)
     if t_goal is None:
         return None
     cells = [(gx_, gy_)]
@@ -198,6 +170,132 @@ def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
         cells.append((x, y))
     cells.reverse()
     return _waypoints(cells, lo, h, start_m, goal_m)
+
+
+class _Occupied:
+    """The wavefront's occupied cells, (n_layers, nx, ny) bool, marked only as far as asked: each
+    entry is a disc of ``radius`` cells (the offsets (i, j) with i^2 + j^2 < radius^2) around a
+    cell at a layer (cells and layers outside the grid are ignored), or around a cell from a layer
+    on for good (a parked vehicle). :meth:`mark_upto` marks the layers before n in :attr:`layers`;
+    :meth:`column` gives one cell's occupancy at every layer from the entries, the same as marking
+    every layer and reading it there. The front seldom needs the whole horizon (it reaches the goal
+    or dies first), so layers past it are never marked."""
+
+    FIRST_CHUNK = 32  # layers marked at the first call; each later call marks at least as many again
+
+    def __init__(self, n_layers: int, nx: int, ny: int):
+        self.shape = (n_layers, nx, ny)
+        self.layers = np.zeros(self.shape, dtype=bool)
+        self.done = 0  # layers [0, done) are marked
+        self._keys: dict[float, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self._sorted: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._parked: list[tuple[float, int, int, int]] = []
+
+    def add(self, radius: float, layer: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> None:
+        self._keys.setdefault(radius, []).append((layer, cx, cy))
+        self._sorted = None
+
+    def park(self, radius: float, layer: int, cx: int, cy: int) -> None:
+        self._parked.append((radius, layer, cx, cy))
+
+    def _by_layer(self) -> dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        if self._sorted is None:
+            self._sorted = {}
+            for radius, parts in self._keys.items():
+                L, X, Y = (np.concatenate([q[i] for q in parts]) for i in range(3))
+                o = np.argsort(L, kind="stable")
+                self._sorted[radius] = (L[o], X[o], Y[o])
+        return self._sorted
+
+    def mark_upto(self, n: int) -> None:
+        """Mark the layers before ``n`` (at least, in chunks)."""
+        n_layers, nx, ny = self.shape
+        if n <= self.done:
+            return
+        n = min(n_layers, max(n, self.done + max(self.FIRST_CHUNK, self.done)))
+        for radius, (L, X, Y) in self._by_layer().items():
+            i0, i1 = np.searchsorted(L, [self.done, n])
+            ox, oy = _disc(radius)
+            X_ = X[i0:i1, None] + ox[None]
+            Y_ = Y[i0:i1, None] + oy[None]
+            L_ = np.broadcast_to(L[i0:i1, None], X_.shape)
+            ok = (L_ >= 0) & (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
+            self.layers[L_[ok], X_[ok], Y_[ok]] = True
+        for radius, last, cx, cy in self._parked:
+            if last < n:
+                ox, oy = _disc(radius)
+                X_, Y_ = cx + ox, cy + oy
+                ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
+                self.layers[max(last, self.done) : n, X_[ok], Y_[ok]] = True
+        self.done = n
+
+    def column(self, x: int, y: int) -> np.ndarray:
+        """(n_layers,) bool: whether cell (x, y) of the grid is occupied at each layer."""
+        n_layers = self.shape[0]
+        out = np.zeros(n_layers, dtype=bool)
+        for radius, parts in self._keys.items():
+            r2 = radius * radius
+            for L, X, Y in parts:
+                dx, dy = x - X, y - Y
+                hit = L[(dx * dx + dy * dy < r2) & (L >= 0) & (L < n_layers)]
+                out[hit] = True
+        for radius, last, cx, cy in self._parked:
+            if (x - cx) ** 2 + (y - cy) ** 2 < radius * radius:
+                out[max(last, 0) :] = True
+        return out
+
+
+def dilated(cur: np.ndarray) -> np.ndarray:
+    """(nx, ny) bool: the cells of ``cur`` and their 8 neighbours (a new array)."""
+    nxt = cur.copy()
+    nxt[1:, :] |= cur[:-1, :]
+    nxt[:-1, :] |= cur[1:, :]
+    nxt[:, 1:] |= cur[:, :-1]
+    nxt[:, :-1] |= cur[:, 1:]
+    nxt[1:, 1:] |= cur[:-1, :-1]
+    nxt[:-1, :-1] |= cur[1:, 1:]
+    nxt[1:, :-1] |= cur[:-1, 1:]
+    nxt[:-1, 1:] |= cur[1:, :-1]
+    return nxt
+
+
+def _spread(
+    reach: np.ndarray,
+    occupied: _Occupied,
+    free_static: np.ndarray,
+    start: tuple[int, int],
+    goal: tuple[int, int],
+    hold_from: int,
+) -> int | None:
+    """The wavefront: fills ``reach`` (n_layers, nx, ny), False on entry, layer by layer from the
+    start cell (a cell is reached at layer t + 1 when a neighbour or itself was reached at layer t
+    and it is free at both layers: not ``occupied`` (marked as far as the front has come), free in ``free_static``), and returns the first
+    layer t >= ``hold_from`` at which the goal cell is reached (None: the front dies or the layers
+    end first). Each layer is computed only on the bounding box of the cells reached at the layer
+    before, grown by one cell: every cell outside it stays unreached (it has no reached
+    neighbour), so ``reach`` is the same as computed on the whole grid, for a cost that grows with
+    the front instead of the grid."""
+    n_layers, nx, ny = reach.shape
+    gx, gy = goal
+    occ = occupied.layers
+    reach[0, start[0], start[1]] = True
+    x0, x1, y0, y1 = start[0], start[0] + 1, start[1], start[1] + 1  # the reached cells' bounding box
+    for t in range(n_layers - 1):
+        if t >= hold_from and reach[t, gx, gy]:
+            return t
+        occupied.mark_upto(t + 2)
+        a0, a1, b0, b1 = max(0, x0 - 1), min(nx, x1 + 1), max(0, y0 - 1), min(ny, y1 + 1)
+        nxt = dilated(reach[t, a0:a1, b0:b1])
+        nxt &= free_static[a0:a1, b0:b1]
+        nxt &= ~occ[t + 1, a0:a1, b0:b1]
+        nxt &= ~occ[t, a0:a1, b0:b1]
+        rows = np.flatnonzero(nxt.any(axis=1))
+        if rows.size == 0:
+            return None
+        cols = np.flatnonzero(nxt.any(axis=0))
+        reach[t + 1, a0:a1, b0:b1] = nxt
+        x0, x1, y0, y1 = a0 + int(rows[0]), a0 + int(rows[-1]) + 1, b0 + int(cols[0]), b0 + int(cols[-1]) + 1
+    return None
 
 
 def _waypoints(cells: list[tuple[int, int]], lo: np.ndarray, h: float, start_m: np.ndarray, goal_m: np.ndarray):

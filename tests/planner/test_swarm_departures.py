@@ -12,7 +12,7 @@ import pytest
 
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import corridor, grid_reshuffle
-from proxplan.planner.swarm.departures import BUCKET_STEPS
+from proxplan.planner.swarm.departures import BUCKET_STEPS, DepartureIndex
 from proxplan.planner.swarm.occupancy import SAMPLING_GROWTH_M, Occupancy, _conflict
 from proxplan.planner.swarm.priority import dependency_order, plan_one, predicted_track
 from proxplan.planner.swarm.problem import swarm_problem
@@ -95,11 +95,16 @@ def test_departures_equal_the_definition_on_random_occupancies(problem, seed):
     s, g = problem.starts_m[me], problem.goals_m[me]
     via = centre + np.r_[rng.uniform(-0.6, 0.6, 2), 0.0]
     lim = problem.limits[me]
-    for q in (
-        _line(problem, me, s, g).positions(),
-        RunMove(np.array([s, via, g]), lim, GRID_DT_S, deviation_m=CORNER_DEVIATION_M).positions(),
-        _line(problem, me, via, via + np.r_[0.3, -0.2, 0.0]).positions(),  # short, inside the crowd
+    index = occ._departure_index()
+    for q, straight in (
+        (_line(problem, me, s, g).positions(), True),
+        (RunMove(np.array([s, via, g]), lim, GRID_DT_S, deviation_m=CORNER_DEVIATION_M).positions(), False),
+        (_line(problem, me, via, via + np.r_[0.3, -0.2, 0.0]).positions(), True),  # short, inside the crowd
     ):
+        # a straight move is asked without the trees (DepartureIndex.line_pairs); the run is when it
+        # goes forward along its chord (the reach widened by its distance from it), else by the trees
+        if straight:
+            assert index.line_pairs(q, problem.reach_xy_m, 0, HORIZON) is not None
         want = _brute_force(problem, tracks, me, q)
         assert want.any() and not want.all(), "the random world must constrain the move somewhere"
         np.testing.assert_array_equal(occ.forbidden_departures(me, q), want)
@@ -109,6 +114,25 @@ def test_departures_equal_the_definition_on_random_occupancies(problem, seed):
             got = occ.forbidden_departures(me, q, from_step=lo, until_step=hi)
             np.testing.assert_array_equal(got[lo:hi], want[lo:hi])
             assert not got[:lo].any() and not got[hi:].any(), "nothing is forbidden outside the window"
+
+
+def test_line_pairs_leave_out_what_is_not_a_line(problem):
+    """A vertical move and a line flown back over itself do not go forward along the line from
+    their first to their last sample: the trees answer them (line_pairs gives None)."""
+    occ = Occupancy(problem, [predicted_track(problem, a, hold_s=1.0) for a in range(problem.n_agents)], HORIZON)
+    index: DepartureIndex = occ._departure_index()
+    a = 0
+    p = problem.starts_m[a]
+    up = _line(problem, a, p, p + np.r_[0.0, 0.0, 0.5]).positions()
+    there = _line(problem, a, p, p + np.r_[1.0, 0.0, 0.0]).positions()
+    back = np.r_[there, there[::-1]]
+    for q in (up, back):
+        assert index.line_pairs(q, problem.reach_xy_m, 0, HORIZON) is None
+        assert (
+            index.pairs(q, problem.reach_xy_m, 0, HORIZON)[0].size
+            == index.tree_pairs(q, problem.reach_xy_m, 0, HORIZON)[0].size
+        )
+    assert index.line_pairs(there, problem.reach_xy_m, 0, HORIZON) is not None
 
 
 class _EverySegment(Occupancy):
