@@ -1,7 +1,7 @@
 """The verifier vectorised over vehicle pairs and stacks (issue 30) says what the per-pair, per-triple
 verifier of commit 51909acc said, on the stored small plans of tests/verify/reference (written once
 by make_reference.py with that verifier): the same violations (kind, vehicle, start time and
-sample, detail with its end time and named source, limit; worst value to 1e-7 relative), the same
+sample, detail with its end time and named source, limit; worst value to ``VALUE_RTOL``), the same
 wrench, usage and invalid zone along the plan, separation summary and plan metrics.
 
 Both ways the new code runs: every pair evaluated (what it does on plans this small,
@@ -29,6 +29,14 @@ REFERENCE = Path(__file__).resolve().parent / "reference"
 CASES = sorted(p.name.removesuffix(".plan.json.gz") for p in REFERENCE.glob("*.plan.json.gz"))
 FINE_DT_S = 0.01  # as make_reference.py
 USAGE_ATOL = 1e-9  # authority usage, - (a left-out source changes it by < 1e-12)
+VALUE_RTOL = 1e-3
+"""A violation's worst value, relative, -. The reference was written on one machine; the same plans verified on
+one AMD EPYC with OpenBLAS's Haswell and SkylakeX kernels (``OPENBLAS_CORETYPE``) give worst values up to
+4.1e-4 apart (random-10's separation; 1.4e-4 circle-8's invalid zone), every verdict (kind, vehicle, sample,
+detail, limit) the same: the closed loop's second-order sections (``physics.closed_loop._sections``, state
+space -> zeros and poles) carry the kernel's rounding up 1e4-fold (its coefficients differ by 1.4e-6). So
+1e-7 held only on the reference's kernel; 1e-3 is 2.4x the measured spread (stop 48; the conditioning is
+open)."""
 FORCE_ATOL_N = 1e-9  # force, N; torque, N m
 
 
@@ -67,7 +75,7 @@ def test_same_violations(case):
     for g, w in zip(got, want):
         assert g["t_s"] == pytest.approx(w["t_s"], abs=1e-12)
         assert g["limit"] == w["limit"]
-        assert g["value"] == pytest.approx(w["value"], rel=1e-7, abs=1e-9), (name, g)
+        assert g["value"] == pytest.approx(w["value"], rel=VALUE_RTOL, abs=1e-9), (name, g)
 
 
 def test_same_wrench_along_the_plan(case):
