@@ -107,12 +107,11 @@ class PickTally:
     member: dict[str, int] = field(default_factory=dict)
     represented: dict[str, int] = field(default_factory=dict)
     group: dict[str, int] = field(default_factory=dict)
-    groups_per_half: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    groups_per_half: np.ndarray = field(init=False)
     similar: dict[str, set[str]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if len(self.groups_per_half) != self.n_halves:
-            self.groups_per_half = np.zeros(self.n_halves)
+        self.groups_per_half = np.zeros(self.n_halves)
 
     def add(self, channel: str, picks: Sequence[Sequence[str]], names: Sequence[str], stands: np.ndarray) -> None:
         """Tally one channel's ``picks`` (per half, the features picked); ``stands`` (F, F) is

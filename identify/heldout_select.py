@@ -41,7 +41,7 @@ class GainTest:
     def to_json(self) -> dict[str, float | int | bool | None]:
         return {"mean_gain": self.mean, "se": self.se, "t": float(self.t) if np.isfinite(self.t) else None,
                 "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups,
-                "groups_improved": int(np.sum(self.gains > 0.0))}  # fmt: skip
+                "groups_improved": int(np.sum(self.gains > 0.0)), "undecided": self.undecided}  # fmt: skip
 
     @property
     def undecided(self) -> bool:

@@ -122,14 +122,10 @@ class IdentifyResult:
     def undecided(self) -> list[str]:
         """One line per effect or discovered term not kept although every held-out flight gained from it
         (:attr:`proxplan.identify.heldout_select.GainTest.undecided`): the flights were too few to decide."""
-        tests = [(t.name, t.gain_last) for t in self.trials if not t.selected and t.gain_last is not None]
-        lines = [_undecided_line(name, g.to_json()) for name, g in tests if g.undecided]
-        for d in self.discovered:
-            g = d.get("heldout_gain")
-            if not d.get("selected") and g and not g["passed"] and g["n_groups"] >= 2:
-                if g["groups_improved"] == g["n_groups"]:
-                    lines.append(_undecided_line(f"{d['channel']}*{d['feature']}", g))
-        return lines
+        tests = [(t.name, t.gain_last.to_json()) for t in self.trials if not t.selected and t.gain_last is not None]
+        tests += [(f"{d['channel']}*{d['feature']}", d["heldout_gain"]) for d in self.discovered
+                  if not d.get("selected") and d.get("heldout_gain")]  # fmt: skip
+        return [_undecided_line(name, g) for name, g in tests if g["undecided"]]
 
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
