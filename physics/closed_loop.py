@@ -41,7 +41,7 @@ After a plan ends (v = 0) the lead keeps solving its equation: the integrator wo
 flight unwinds over the *settle tail* (:data:`TAIL_RESIDUAL_M`, :data:`TAIL_MAX_S`).
 
 Everything starts from rest (zero state and integrators: deviations from a steady hover) and is
-solved exactly for inputs linear between samples (first-order hold, ``scipy.signal``). Frames: world, z up;
+solved exactly for inputs linear between samples (first-order hold, :mod:`proxplan.physics.discretize`). Frames: world, z up;
 m, m/s, m/s^2, N, s. What the model leaves out: the airframe's attitude inertia and the motors'
 lag on the torques (the firmware's rate feed-forward covers most of it), the 100 Hz set-point
 hold, the drag's dependence on tilt and rotor speed away from hover, the integrators' clamps.
@@ -53,8 +53,8 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
+from proxplan.physics.discretize import foh_maps, recurrence
 from proxplan.physics.vehicles import Vehicle
 
 TAIL_RESIDUAL_M = 0.0005
@@ -77,22 +77,32 @@ def _solve(t_s: np.ndarray, coefficients: list[list[float]], drive_N: np.ndarray
     """Solve, per axis k, ki int(y) + c0 y + c1 y' + ... + cn y^(n) = drive_k from rest, with
     ``coefficients[k]`` = [ki, c0, ..., cn] (cn != 0, n >= 2) and ``drive_N`` (K, 3) linear
     between the samples of the uniform grid ``t_s`` (K,), s: exact for such inputs (first-order
-    hold discretisation), run as second-order sections."""
+    hold discretisation, :func:`proxplan.physics.discretize.foh_maps`), the states stepped
+    (:func:`proxplan.physics.discretize.recurrence`: no zeros and poles, whose root finding on
+    poles clustered near z = 1 made the result depend on the CPU's BLAS kernel at 3e-4 of the
+    jerk, stop 49)."""
     t = np.asarray(t_s, dtype=float)
     value, rate, accel = (np.zeros((t.size, 3)) for _ in range(3))
     if t.size < 2:
         return LoopResponse(t, value, rate, accel)
     step = float(t[1] - t[0])
-    for k, coef in enumerate(coefficients):
-        sections = _sections(tuple(float(c) for c in coef), step)
-        value[:, k], rate[:, k], accel[:, k] = (signal.sosfilt(sos, drive_N[:, k]) for sos in sections)
+    keys = [tuple(float(c) for c in coef) for coef in coefficients]
+    for key in dict.fromkeys(keys):  # axes with the same equation side by side
+        axes = [k for k in range(len(keys)) if keys[k] == key]
+        phi, g0, g1, out_c, out_d = _maps(key, step)
+        u = np.asarray(drive_N[:, axes], dtype=float).T  # (axes, K)
+        states = np.zeros((g0.size, len(axes), t.size))
+        states[..., 1:] = recurrence(phi, (g0 - g1)[:, None, None] * u[:, :-1] + g1[:, None, None] * u[:, 1:])
+        y = np.einsum("ij,jak->iak", out_c, states) + out_d[:, None, None] * u  # (3, axes, K): y, y', y''
+        value[:, axes], rate[:, axes], accel[:, axes] = (r.T for r in y)
     return LoopResponse(t, value, rate, accel)
 
 
 @functools.lru_cache(maxsize=256)
-def _sections(coef: tuple[float, ...], step_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Second-order sections from the drive to y, y', y'' of :func:`_solve`'s equation, sampled
-    every ``step_s`` (s) with a first-order hold."""
+def _maps(coef: tuple[float, ...], step_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The first-order-hold maps (Phi (n, n), Gamma_0, Gamma_1 (n,)) of :func:`_solve`'s equation
+    over ``step_s`` (s), in the states int(y), y, y', ..., y^(n-1), and the outputs y, y', y'' =
+    out_c (3, n) x + out_d (3,) drive."""
     c = list(coef)
     while c[-1] == 0.0:
         c.pop()
@@ -103,16 +113,15 @@ def _sections(coef: tuple[float, ...], step_s: float) -> tuple[np.ndarray, np.nd
     b = np.zeros((n, 1))
     b[-1, 0] = 1.0 / c[-1]
     out_c = np.zeros((3, n))
-    out_d = np.zeros((3, 1))
+    out_d = np.zeros(3)
     out_c[0, 1] = out_c[1, 2] = 1.0  # y, y'
     if n > 3:
         out_c[2, 3] = 1.0  # y''
     else:  # y'' = (drive - sum c_i state_i) / c_n
         out_c[2] = -np.array(c[:-1]) / c[-1]
-        out_d[2, 0] = 1.0 / c[-1]
-    ad, bd, cd, dd, _ = signal.cont2discrete((a, b, out_c, out_d), step_s, method="foh")
-    y, rate, accel = (signal.zpk2sos(*signal.ss2zpk(ad, bd, cd[r : r + 1], dd[r : r + 1])) for r in range(3))
-    return y, rate, accel
+        out_d[2] = 1.0 / c[-1]
+    phi, g0, g1 = foh_maps(a, b, step_s)
+    return phi, g0[:, 0], g1[:, 0], out_c, out_d
 
 
 @dataclass(frozen=True)

@@ -47,10 +47,11 @@ system x' = A(t) x + B (F(t), T(t)) from rest (A(t) from the gradients at each s
 inputs and matrices held over each step (zero-order hold). The plan's undisturbed tracking error e
 (|e| <= tube t, measured without a jet) also drives it, through G e: its part of d is bounded by
 t gamma(t), gamma(t) = int_0^t ||C Phi(t, s) B G(s)||_F ds (the spectral norm bounded by the
-Frobenius norm). After the last sample the configuration is held (the plan ends at rest): the tail is
-bounded in closed form from the final loop's modes (A = V diag(lambda) V^-1, every Re lambda < 0):
-|C x(t)| <= |C x_ss| + sum_i |C v_i| |(V^-1 (x_end - x_ss))_i| and the tube's growth over the hold
-by sum_i |C v_i| |(V^-1 B G)_i| / (-Re lambda_i).
+Frobenius norm). After the last sample the configuration is held (the plan ends at rest): the hold is
+stepped on a grid (C e^{A k h}, products of the final loop's matrices) and what can follow the grid is
+bounded from the final loop's modes (every Re lambda < 0; one spectral projector P_m per cluster of
+equal eigenvalues, :mod:`proxplan.physics.modal_bound`): |C x(t)| <= |C x_ss| + sum_m |C P_m (x(t_end)
+- x_ss)| e^{Re lambda_m (t - t_end)}, the tube's blocks likewise.
 """
 
 from __future__ import annotations
@@ -60,7 +61,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from proxplan.physics.discretize import zoh_maps
+from proxplan.physics.discretize import expm_stack, zoh_maps
+from proxplan.physics.modal_bound import modal_bound
 from proxplan.physics.tube_blocks import TubeBlocks
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
@@ -378,26 +380,27 @@ def jet_response(
 
 def _with_hold(resp, mats, x_end, tube: TubeBlocks, f, tq) -> JetResponse:
     """``resp`` with the bounds over the hold after its last sample (module docstring): the final
-    configuration held (loop A = V diag(lambda) V^-1, input u, constant), so from the end
-    C x(t) = C x_ss + C V diag(e^{lambda t}) V^-1 (x_end - x_ss), and each tube block likewise
-    without the steady part; evaluated every :data:`HOLD_STEP_S` until what the modes can still
-    add, sum_i |C v_i| |(V^-1 y)_i| e^{Re lambda_i t}, stays below :data:`HOLD_RESIDUAL_M` and
-    :data:`HOLD_GAIN_RESIDUAL` (or for :data:`HOLD_MAX_S`), which is then added."""
-    if resp.poles.growth_ps[0] >= 0.0:
-        return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, np.inf, np.inf, resp.poles)
+    configuration held (loop A, input u, constant), so from the end C x(t) = C x_ss +
+    C e^{At} (x_end - x_ss), and each tube block likewise without the steady part; evaluated every
+    :data:`HOLD_STEP_S` (C e^{A k h} = C Phi^k, Phi = e^{A h}, by doubling: products of the loop's
+    own matrices, no eigenvector basis) until what the modes can still add (the modal bound of
+    :mod:`proxplan.physics.modal_bound`, one spectral projector per cluster of equal eigenvalues:
+    sound, and the same whichever basis of an x-y pair's eigenplane eig returns) stays below
+    :data:`HOLD_RESIDUAL_M` and :data:`HOLD_GAIN_RESIDUAL` (or for :data:`HOLD_MAX_S`), which is
+    then added: the samples plus the bound of all that can follow them."""
     live = _live_states(mats.a[-1:])
     a, b, c = mats.a[-1][np.ix_(live, live)], mats.b[-1][live], mats.c[:, live]
+    bound = modal_bound(a, c) if resp.poles.growth_ps[0] < 0.0 else None
+    if bound is None:
+        return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, np.inf, np.inf, resp.poles)
     u = np.concatenate([f[-1], tq[-1]])
     x_ss = -np.linalg.solve(a, b @ u)
-    lam, vec = np.linalg.eig(a)
-    cv = c @ vec  # (3, n)
-    cv_norm = np.linalg.norm(cv, axis=0)
     tube.flush()
-    start = np.linalg.solve(vec, np.column_stack([x_end[live] - x_ss, tube.blocks[live]]))  # (n, 1 + 3 N)
-    weight = cv_norm[:, None] * np.abs(start)  # (n, 1 + 3N): what each mode can add, at t = 0
+    start = np.column_stack([x_end[live] - x_ss, tube.blocks[live]])  # (n, 1 + 3 N)
+    weight = bound.weights(start)  # (terms, 1 + 3N): what each term can add, at t = 0
 
     def residual(t: float) -> np.ndarray:  # per column (forced, then the blocks' columns), m
-        return (weight * np.exp(lam.real * t)[:, None]).sum(axis=0)
+        return (weight * np.exp(-bound.rate_ps * t)[:, None]).sum(axis=0)
 
     def done(t: float) -> bool:
         rest = residual(t)
@@ -407,11 +410,14 @@ def _with_hold(resp, mats, x_end, tube: TubeBlocks, f, tq) -> JetResponse:
     while horizon < HOLD_MAX_S and not done(horizon):
         horizon = min(2.0 * horizon + HOLD_STEP_S, HOLD_MAX_S)
     times = np.arange(0.0, horizon + HOLD_STEP_S / 2, HOLD_STEP_S)
+    rows, power = c[None], expm_stack(a[None] * HOLD_STEP_S)[0]  # C Phi^k for k < 1, Phi^1
+    while rows.shape[0] < times.size:
+        rows = np.concatenate([rows, rows @ power])  # C Phi^k for k < 2 k_before
+        power = power @ power
     y_ss = c @ x_ss
     worst_d, worst_g = 0.0, 0.0
-    for chunk in np.array_split(times, max(1, times.size // 500)):
-        e = np.exp(np.outer(chunk, lam))  # (T, n)
-        traj = ((e[:, None, :] * cv[None]) @ start).real  # (T, 3, 1 + 3N)
+    for chunk in np.array_split(np.arange(times.size), max(1, times.size // 500)):
+        traj = rows[chunk] @ start  # (T, 3, 1 + 3N)
         worst_d = max(worst_d, float(np.linalg.norm(y_ss[None] + traj[:, :, 0], axis=1).max()))
         if start.shape[1] > 1:
             blocks = traj[:, :, 1:].reshape(chunk.size, 3, -1, 3)
@@ -426,13 +432,14 @@ def weak_jet_bound_m(vehicle: Vehicle, force_max_N: float, torque_max_Nm: float)
     """Largest deviation, m, that any force of norm <= ``force_max_N`` (N) and torque of norm <=
     ``torque_max_Nm`` (N m) can drive in the vehicle's loop without a jet (the jet's gradients left
     out: for a jet too weak to matter): the L1 norm of the loop's impulse response bounded by its
-    modes, sum_i |C v_i| (|w_i B_F| F + |w_i B_T| T) / -Re lambda_i."""
+    modal bound (:mod:`proxplan.physics.modal_bound`: |C e^{At} B u| <= sum_m ||M_m B|| |u| e^{-r_m t}),
+    sum_m (||M_m B_F|| F + ||M_m B_T|| T) / r_m (spectral norms; for a simple eigenvalue
+    ||C P_i B_F|| = |C v_i| |w_i B_F|); inf for a loop that is not damped."""
     mats = loop_matrices(vehicle)
     live = _live_states(mats.a)
     a, b, c = mats.a[0][np.ix_(live, live)], mats.b[0][live], mats.c[:, live]
-    lam, vec = np.linalg.eig(a)
-    w = np.linalg.inv(vec)
-    cv = np.linalg.norm(c @ vec, axis=0)
-    wb = w @ b
-    per = np.linalg.norm(wb[:, :3], axis=1) * force_max_N + np.linalg.norm(wb[:, 3:], axis=1) * torque_max_Nm
-    return float(np.sum(cv * per / -lam.real))
+    bound = modal_bound(a, c)
+    if bound is None:
+        return float(np.inf)
+    per = bound.operator_norms(b[:, :3]) * force_max_N + bound.operator_norms(b[:, 3:]) * torque_max_Nm
+    return float(np.sum(per / bound.rate_ps))

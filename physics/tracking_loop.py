@@ -33,8 +33,9 @@ hold of psi) where the frame turns.
 
 **After the plan.** The drive goes on over the reference's settle tail (on a grid of
 :data:`TAIL_STEP_S`); what may remain of the
-deviation after it is bounded by the loop's modes (A = V diag(lambda) V^-1, all damped):
-|C x(t)| <= |C x_ss| + sum_i |C v_i| |(V^-1 (x_end - x_ss))_i|.
+deviation after it is bounded by the loop's modes (all damped; one spectral projector P_m per cluster
+of equal eigenvalues, :mod:`proxplan.physics.modal_bound`):
+|C x(t)| <= |C x_ss| + sum_m |C P_m (x_end - x_ss)| (+ terms of ~ 1e-16 for pairs split by rounding).
 
 What it leaves out: the hover linearisation at large tilts (the thrust's magnitude m |p'' + g|
 changing with the horizontal acceleration, second order), the hold's ripple and the steps of the
@@ -49,11 +50,11 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 from proxplan.physics.controller_gains import FIRMWARE_SETPOINT_RATE_HZ
-from proxplan.physics.discretize import foh_maps, zoh_maps
+from proxplan.physics.discretize import foh_maps, recurrence, zoh_maps
 from proxplan.physics.hover_loop import _live_states, loop_matrices
+from proxplan.physics.modal_bound import ModalBound, modal_bound
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
 SETPOINT_DELAY_S = 0.5 / FIRMWARE_SETPOINT_RATE_HZ
@@ -133,15 +134,13 @@ TAIL_STEP_S = 0.05
 """Step of the grid the reference's settle tail is sampled on, s: the tail's drive (the lead
 unwinding at the integrators' rate, ~0.1 1/s) is smooth, so the first-order hold stays exact to
 well under a micrometre on it."""
-MAX_MODAL_CONDITION = 1e8
-"""The recurrence runs in the modes of Phi when its eigenvectors' condition number is below this
-(the modal sums then lose < 1e-8 relative), else step by step, -."""
 
 
 @dataclass(frozen=True)
 class _Maps:
     """The loop without a jet on its live states, discretised over one step (first-order hold),
-    with Phi's modes (None when ill-conditioned) and the twist's input map (zero-order hold)."""
+    the twist's input map (zero-order hold) and the bound on what the loop does left to itself
+    (:mod:`proxplan.physics.modal_bound`; None when it is not damped)."""
 
     live: np.ndarray
     a: np.ndarray
@@ -151,7 +150,7 @@ class _Maps:
     g0: np.ndarray
     g1: np.ndarray
     g_att: np.ndarray
-    modes: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+    bound: ModalBound | None
 
 
 @functools.lru_cache(maxsize=64)
@@ -165,9 +164,7 @@ def _maps(vehicle: Vehicle, step_s: float) -> _Maps:
     b_att = np.zeros((1, live.size, 2))
     b_att[0, att[0], 0] = b_att[0, att[1], 1] = 1.0
     g_att = zoh_maps(a[None], b_att, step_s)[1][0]
-    mu, vec = np.linalg.eig(phi)
-    modes = (mu, vec, np.linalg.inv(vec)) if np.linalg.cond(vec) < MAX_MODAL_CONDITION else None
-    return _Maps(live, a, b, mats.c[:, live], phi, g0, g1, g_att, modes)
+    return _Maps(live, a, b, mats.c[:, live], phi, g0, g1, g_att, modal_bound(a, mats.c[:, live]))
 
 
 def tracking_response(
@@ -191,7 +188,7 @@ def tracking_response(
         x, s_end = tail_states[-1], s_tail[-1]
     rest = np.zeros_like(s_end)  # held at rest after the tail: only the reference's offset from the plan
     rest[0:3] = s_end[0:3]
-    hold = max(after, _modal_bound(m.a, m.b, m.c, x, rest))
+    hold = max(after, _modal_bound(m, x, rest))
     return TrackingResponse(t, err, hold)
 
 
@@ -215,33 +212,15 @@ def _run(m: _Maps, s: np.ndarray, x0: np.ndarray, *, twist: bool) -> np.ndarray:
     if n_seq < k - 1:
         rest = forced[n_seq:].copy()
         rest[0] += m.phi @ x
-        states[n_seq + 1 :] = _recurrence(m, rest)
+        states[n_seq + 1 :] = recurrence(m.phi, rest.T).T
     return states
 
 
-def _recurrence(m: _Maps, forced: np.ndarray) -> np.ndarray:
-    """x[k+1] = Phi x[k] + forced[k] from x[0] = 0: the states x[1..K] (K, n). In the modes of Phi
-    (Phi = V diag(mu) V^-1: each mode a first-order recursion, ``scipy.signal.lfilter``) when V is
-    well conditioned, else step by step."""
-    if m.modes is not None:
-        mu, vec, inv = m.modes
-        z = np.einsum("ij,kj->ik", inv, forced)  # (n, K) (einsum: no BLAS threads for these small products)
-        modes = np.stack([signal.lfilter([1.0], [1.0, -u], row) for u, row in zip(mu, z)])
-        return np.einsum("ij,jk->ki", vec, modes).real
-    out = np.zeros_like(forced)
-    x = np.zeros(m.phi.shape[0])
-    for i in range(forced.shape[0]):
-        x = m.phi @ x + forced[i]
-        out[i] = x
-    return out
-
-
-def _modal_bound(a: np.ndarray, b: np.ndarray, c: np.ndarray, x_end: np.ndarray, s_end: np.ndarray) -> float:
+def _modal_bound(m: _Maps, x_end: np.ndarray, s_end: np.ndarray) -> float:
     """Largest |C x(t)|, m, the loop (damped) can still reach from ``x_end`` with the drive held at
-    ``s_end`` (module docstring); inf for a loop that is not damped."""
-    lam, vec = np.linalg.eig(a)
-    if np.max(lam.real) >= 0.0:
+    ``s_end`` (module docstring: |C x_ss| + the modal bound at t = 0); inf for a loop that is not
+    damped."""
+    if m.bound is None:
         return float(np.inf)
-    x_ss = -np.linalg.solve(a, b @ s_end)
-    start = np.linalg.solve(vec, x_end - x_ss)
-    return float(np.linalg.norm(c @ x_ss) + np.sum(np.linalg.norm(c @ vec, axis=0) * np.abs(start)))
+    x_ss = -np.linalg.solve(m.a, m.b @ s_end)
+    return float(np.linalg.norm(m.c @ x_ss) + m.bound.weights((x_end - x_ss)[:, None]).sum())
