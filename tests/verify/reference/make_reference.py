@@ -206,6 +206,9 @@ def main() -> int:
 
     from proxplan.planfile import plan_from_dict, plan_to_dict
 
+    if {"-h", "--help"} & set(sys.argv[1:]):
+        print(__doc__)
+        return 0
     if "--violations-only" in sys.argv[1:]:
         return violations_only()
 
