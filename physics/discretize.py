@@ -66,19 +66,20 @@ def recurrence(phi: np.ndarray, forced: np.ndarray) -> np.ndarray:
     lead = forced.shape[1:-1]
     pad = np.zeros((n, int(np.prod(lead)), blocks * size))
     pad[..., :k] = forced.reshape(n, -1, k)
-    f = pad.reshape(n, -1, size)  # (n, drives x blocks, L)
-    out = np.zeros_like(f)
-    x = np.zeros(f.shape[:-1])
-    for j in range(size):  # every block from rest
-        x = phi @ x + f[..., j]
-        out[..., j] = x
+    steps = np.ascontiguousarray(pad.reshape(n, -1, blocks, size).transpose(3, 0, 1, 2))  # (L, n, drives, blocks)
+    steps = steps.reshape(size, n, -1)
+    x = np.zeros(steps.shape[1:])
+    for j in range(size):  # every block from rest, side by side
+        x = phi @ x + steps[j]
+        steps[j] = x
     powers = phi[None]  # Phi^(j+1), j < L, by doubling
     while powers.shape[0] < size:
         powers = np.concatenate([powers, powers[-1] @ powers])
     powers = powers[:size]
-    per = out.reshape(n, -1, blocks, size)  # (n, drives, blocks, L)
-    start = np.zeros(per.shape[:-1])  # the state entering each block
+    end = steps[-1].reshape(n, -1, blocks)  # each block's last state from rest
+    start = np.zeros((blocks, n, end.shape[1]))  # the state entering each block
     for b in range(1, blocks):
-        start[..., b] = powers[-1] @ start[..., b - 1] + per[..., b - 1, size - 1]
-    per += np.einsum("jil,ldb->idbj", powers, start)
-    return per.reshape(n, *lead, blocks * size)[..., :k]
+        start[b] = powers[-1] @ start[b - 1] + end[..., b - 1]
+    steps += powers @ start.transpose(1, 2, 0).reshape(n, -1)  # + Phi^(j+1) x_start
+    out = steps.reshape(size, n, -1, blocks).transpose(1, 2, 3, 0).reshape(n, -1, blocks * size)
+    return out[..., :k].reshape(n, *lead, k)
