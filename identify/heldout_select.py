@@ -197,7 +197,9 @@ def heldout_forward(
         # Bonferroni over the hypotheses that could be kept: near-duplicate candidates (``hypothesis``: one
         # feature group, its members) test one hypothesis, not several; one that acts on fewer than two
         # flights has no test and cannot be rejected, so it does not count (:func:`can_be_tested`)
-        open_ = [n for n in remaining if (eligible is None or n in eligible) and can_be_tested(trials[n][1], plan.cluster)]
+        open_ = [
+            n for n in remaining if (eligible is None or n in eligible) and can_be_tested(trials[n][1], plan.cluster)
+        ]
         m = max(1, len({label(n) for n in open_}))
         tests = {name: gain_test(current, trial, m, acts, plan.cluster) for name, (trial, acts) in trials.items()}
         out.tests.append(tests)
