@@ -17,9 +17,9 @@ for it, not to a label):
 - tested: the members of stable groups that most halves' picks stand for; in a stable group none of whose
   members is, the one member standing for the most picks, the halves' consensus (:func:`tested_members`).
 
-The named library effects follow the same rule (:func:`sets_standing_for`, :func:`represented_shares`,
-:func:`hypothesis_labels`): an effect may be kept when more than half of the halves picked it or an effect
-standing for it, and effects that stand for one another are one hypothesis.
+The named library effects follow the same rule (:func:`sets_standing_for`, :func:`represented_shares`): an
+effect may be kept when more than half of the halves picked it or an effect standing for it; each is its own
+hypothesis in the Bonferroni count (distinct mechanisms, not copies of one feature).
 """
 
 from __future__ import annotations
@@ -93,20 +93,6 @@ def represented_shares(stab: Stability, names: Sequence[str], stands: np.ndarray
     for the named effects. Two effects that describe nearly the same signal (a jet hitting the floor and the
     floor's stagnation under it) split a real effect's picks between them, neither in most halves."""
     return {k: v / max(stab.n_halves, 1) for k, v in _counts(stands, names, stab.picks).items()}
-
-
-def hypothesis_labels(names: Sequence[str], stands: np.ndarray) -> dict[str, str]:
-    """Each of ``names`` labelled by the first (in order) of the candidates joined to it through a chain of
-    standing for (:func:`sets_standing_for`, ``stands`` (E, E)): candidates that stand for one another test one
-    hypothesis in the Bonferroni count, as the members of a feature group do."""
-    label = list(range(len(names)))
-    for j in range(len(names)):  # union of the chains, smallest index wins
-        for k in np.flatnonzero(stands[j]):
-            a, b = label[j], label[int(k)]
-            if a != b:
-                low, high = min(a, b), max(a, b)
-                label = [low if x == high else x for x in label]
-    return {n: names[label[k]] for k, n in enumerate(names)}
 
 
 def represented_counts(sums: GroupSums, weights: np.ndarray, picks: Sequence[Sequence[str]]) -> dict[str, int]:

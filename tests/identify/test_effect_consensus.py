@@ -1,12 +1,11 @@
 """Library effects follow the discovered terms' rule (identify.consensus, issue 35): an effect may be kept when
-most half-samples picked it or an effect standing for it, effects standing for one another are one hypothesis,
-and a candidate acting on fewer than two flights does not count in the Bonferroni m (Tarone 1990)."""
+most half-samples picked it or an effect standing for it, and a candidate acting on fewer than two flights does not count in the Bonferroni m (Tarone 1990)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from proxplan.identify.consensus import hypothesis_labels, represented_shares, sets_standing_for
+from proxplan.identify.consensus import represented_shares, sets_standing_for
 from proxplan.identify.crossval import GroupSums
 from proxplan.identify.heldout_select import can_be_tested
 from proxplan.identify.stability import PI_MIN, Stability
@@ -52,14 +51,6 @@ def test_a_split_vote_between_effects_standing_for_each_other_counts_for_both() 
     shares = represented_shares(stab, names, stands)
     assert shares == {"e1": 4 / 6, "e2": 4 / 6, "e3": 1 / 6}
     assert not stab.stable("e1") and shares["e1"] > stab.threshold  # neither alone in most halves; together yes
-    labels = hypothesis_labels(names, stands)
-    assert labels["e1"] == labels["e2"] == "e1" and labels["e3"] == "e3"  # one hypothesis for the pair
-
-
-def test_hypothesis_labels_follow_chains() -> None:
-    stands = np.eye(4, dtype=bool)
-    stands[0, 2] = stands[2, 0] = stands[2, 3] = stands[3, 2] = True
-    assert hypothesis_labels(["a", "b", "c", "d"], stands) == {"a": "a", "b": "b", "c": "a", "d": "a"}
 
 
 def test_a_candidate_acting_on_one_flight_is_not_testable() -> None:
