@@ -16,6 +16,10 @@ for it, not to a label):
   (:func:`stands_for`);
 - tested: the members of stable groups that most halves' picks stand for; in a stable group none of whose
   members is, the one member standing for the most picks, the halves' consensus (:func:`tested_members`).
+
+The named library effects follow the same rule (:func:`sets_standing_for`, :func:`represented_shares`): an
+effect may be kept when more than half of the halves picked it or an effect standing for it; each is its own
+hypothesis in the Bonferroni count (distinct mechanisms, not copies of one feature).
 """
 
 from __future__ import annotations
@@ -52,6 +56,43 @@ def stands_for(sums: GroupSums, weights: np.ndarray, names: Sequence[str]) -> np
     gram = np.tensordot(weights, sums.G[:, idx][:, :, idx], axes=1)
     d = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
     return (gram / np.outer(d, d)) ** 2 > REPRESENTS_R2
+
+
+def sets_standing_for(
+    sums: GroupSums, weights: np.ndarray, always: Sequence[str], sets: Sequence[Sequence[str]]
+) -> np.ndarray:
+    """(E, E) bool, symmetric: whether candidate ``sets[j]`` (a library effect's columns of ``sums``) stands for
+    ``sets[k]``: the largest squared canonical correlation of their columns, each residualized on the
+    ``always`` columns (the tangents fitted beside every candidate), exceeds :data:`REPRESENTS_R2`; the Gram over
+    the groups weighted by ``weights`` (G,), each over its channel cells. For one column each it is
+    :func:`stands_for`'s squared cosine; for an effect with several linear parameters (``own_velocity``) it is
+    the share of one's variance the other explains in its best direction."""
+    names = [c for cols in sets for c in cols]
+    idx = sums.index(list(always) + names)
+    gram = np.tensordot(sums.cells(weights), sums.G[:, idx][:, :, idx], axes=1)
+    a = len(always)
+    part = gram[a:, a:] - gram[a:, :a] @ np.linalg.pinv(gram[:a, :a], rcond=1e-12, hermitian=True) @ gram[:a, a:]
+    ends = np.cumsum([0] + [len(cols) for cols in sets])
+    blocks = [slice(int(ends[k]), int(ends[k + 1])) for k in range(len(sets))]
+    out = np.zeros((len(sets), len(sets)), dtype=bool)
+    for j, bj in enumerate(blocks):
+        for k, bk in enumerate(blocks):
+            if j == k:
+                out[j, k] = True
+            elif k > j:
+                inv_j = np.linalg.pinv(part[bj, bj], rcond=1e-12, hermitian=True)
+                inv_k = np.linalg.pinv(part[bk, bk], rcond=1e-12, hermitian=True)
+                rho2 = np.linalg.eigvals(inv_j @ part[bj, bk] @ inv_k @ part[bk, bj]).real
+                out[j, k] = out[k, j] = bool(rho2.size and rho2.max() > REPRESENTS_R2)
+    return out
+
+
+def represented_shares(stab: Stability, names: Sequence[str], stands: np.ndarray) -> dict[str, float]:
+    """For each of ``names`` (library effects, ``stands`` (E, E) from :func:`sets_standing_for`), the share of
+    ``stab``'s halves that picked it or an effect standing for it: the rule of :func:`represented_counts`
+    for the named effects. Two effects that describe nearly the same signal (a jet hitting the floor and the
+    floor's stagnation under it) split a real effect's picks between them, neither in most halves."""
+    return {k: v / max(stab.n_halves, 1) for k, v in _counts(stands, names, stab.picks).items()}
 
 
 def represented_counts(sums: GroupSums, weights: np.ndarray, picks: Sequence[Sequence[str]]) -> dict[str, int]:

@@ -59,8 +59,8 @@ def best_lag(
     delayed: dict[float, Sequence[BaseCache]],
     *,
     near: float | None = None,
-) -> float:
-    """The delay (s) at which ``effects`` (one column each, their strengths free) leave the lowest
+) -> tuple[float, float]:
+    """The delay (s), and the objective there, at which ``effects`` (one column each, their strengths free) leave the lowest
     :meth:`proxplan.identify.projection.TangentProjection.profiled_objective` on :data:`DELAY_CHANNELS`: the best of 0 and the delays of :data:`LAG_GRID_S` in ``delayed`` (at once
     on a tie), chosen on :data:`DELAY_CHANNELS`, then, when that is a delay, refined between its neighbours on
     the grid (bounded Brent, to :data:`LAG_RESOLUTION_S`); with ``near`` (a delay found before), only
@@ -76,7 +76,7 @@ def best_lag(
 
     grid = [lag for lag in LAG_GRID_S if lag in delayed]
     if len(grid) == 1:
-        return 0.0
+        return 0.0, score(0.0)
     if near is not None:
         k = max(1, int(np.argmin([abs(g - near) for g in grid])))
         best = score(near)
@@ -85,9 +85,12 @@ def best_lag(
         k = int(np.argmin(listed))
         best = listed[k]
         if k == 0:
-            return 0.0
+            return 0.0, best
     upper = grid[k + 1] if k + 1 < len(grid) else min(grid[k] * LAG_GRID_S[2] / LAG_GRID_S[1], LAG_BOUNDS_S[1])
     found = minimize_scalar(lambda x: score(round(float(x), 3)), bounds=(grid[k - 1], upper),
                             method="bounded", options={"xatol": LAG_RESOLUTION_S})  # fmt: skip
     lag = round(float(found.x), 3)
-    return lag if score(lag) < best else (near if near is not None else float(grid[k]))
+    refined = score(lag)
+    if refined < best:
+        return lag, refined
+    return (near if near is not None else float(grid[k])), best

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from proxplan.identify.calibrate import ParamSpec
+from proxplan.identify.consensus import represented_shares, sets_standing_for
 from proxplan.identify.crossval import GroupSums, Ridge, heldout_mse, solve, trainable_groups
 from proxplan.identify.data import Errors, IdentifyOptions, Model, Unit, errors, progress_bar
 from proxplan.identify.delay_profile import (
@@ -71,6 +72,7 @@ class EffectTrial:
     selected: bool = False
     reason: str = ""
     shape: dict[str, Any] = field(default_factory=dict)  # the shape fit's parameter report (priors)
+    represented: float = 0.0  # share of halves that picked it or an effect standing for it (consensus rule)
 
     def to_json(self) -> dict[str, Any]:
         t = self.test
@@ -79,7 +81,8 @@ class EffectTrial:
                 "rmse_tz_Nm": None if t is None else t.rmse_tz_Nm,
                 "heldout_gain_alone": None if self.gain_alone is None else self.gain_alone.to_json(),
                 "heldout_gain": None if self.gain_last is None else self.gain_last.to_json(),
-                "inclusion_probability": self.inclusion, "reason": self.reason, "shape_fit": self.shape}  # fmt: skip
+                "inclusion_probability": self.inclusion, "represented_probability": self.represented,
+                "reason": self.reason, "shape_fit": self.shape}  # fmt: skip
 
 
 @dataclass
@@ -130,6 +133,7 @@ class EffectSelector:
         self.sums: GroupSums | None = None
         self.ridge: Ridge | None = None
         self.delayed: dict[float, Sequence[BaseCache]] = {}  # delay (s) -> the samples' inputs that much earlier
+        self.represented: dict[str, float] = {}  # after run: share of halves that picked it or one standing for it
 
     def fit_candidates(self, names: Sequence[str]) -> None:
         stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
@@ -156,7 +160,14 @@ class EffectSelector:
         cands = [c.as_candidate() for c in live]
         tau, plan = self.sel.tau, self.sel.plan
         stab = stability(sums, self.always, cands, plan, ridge, tau, max_terms=MAX_EFFECTS)
-        eligible = {c.name for c in cands if stab.stable(c.name)}
+        # the rule the discovered terms follow (proxplan.identify.consensus): an effect may be kept when most
+        # halves picked it or an effect standing for it. Each eligible effect is its own hypothesis in the
+        # Bonferroni count: the named effects are distinct mechanisms, not copies of one feature, and the
+        # forward pass keeps the best of them on all flights
+        names = [c.name for c in cands]
+        stands = sets_standing_for(sums, trainable_groups(sums, plan), self.always, [c.columns for c in cands])
+        self.represented = represented_shares(stab, names, stands)
+        eligible = {n for n in names if self.represented[n] > stab.threshold}
         # no in-fold selection here (proxplan.identify.stability.fold_eligibility): choosing among the few named
         # effects biases the test little, and with 3 train flights the in-fold halves are single flights, on
         # which a true effect is not picked in every half (docs/identify.md, "Selection inside the fold")
@@ -194,7 +205,7 @@ class EffectSelector:
         reason = ("kept: a nuisance parameter, always fitted beside every candidate (each vehicle type's thrust "
                   f"scale, logged over delivered thrust, MAP with its prior N(1, 0.1)): {text}")  # fmt: skip
         return EffectTrial(THRUST_BIAS, {"force_z_N": 0.0}, 0, None, None, None, 1.0, True, reason,
-                           {"thrust_scale": scales})  # fmt: skip
+                           {"thrust_scale": scales}, 1.0)  # fmt: skip
 
     def always_columns(self, chosen: Sequence[str]) -> dict[str, np.ndarray]:
         """The columns fitted with every later candidate (discovery): the tangents and the chosen effects', on
@@ -237,14 +248,15 @@ class EffectSelector:
             rnd, t_last = last.get(cand.name, (0, None))
             selected = cand.name in fwd.chosen
             prob = stab.probability.get(cand.name, 0.0)
-            reason = _reason(cand, selected, t_last, fwd.dropped.get(cand.name), prob, stab.threshold)
+            shared = self.represented.get(cand.name, prob)
+            reason = _reason(cand, selected, t_last, fwd.dropped.get(cand.name), prob, shared, stab.threshold)
             reason += _rival_note(cand.name, fwd.rivals)
             test_err = None
             if test and cand.columns:
                 test_err = errors(test, self.model_with(self._solo(cand), [cand.name]))
             shape = cand.shape_fit.prior_report() if cand.shape_fit is not None else {}
             out.append(EffectTrial(cand.name, cand.effect.full_params(), rnd, test_err, alone, t_last, prob,
-                                   selected, reason, shape))  # fmt: skip
+                                   selected, reason, shape, shared))  # fmt: skip
         return out
 
 
@@ -262,11 +274,20 @@ def _rival_note(name: str, rivals: Mapping[str, Mapping[str, GainTest]]) -> str:
 
 
 def _reason(
-    cand: EffectCandidate, selected: bool, t: GainTest | None, dropped: GainTest | None, prob: float, threshold: float
+    cand: EffectCandidate,
+    selected: bool,
+    t: GainTest | None,
+    dropped: GainTest | None,
+    prob: float,
+    shared: float,
+    threshold: float,
 ) -> str:
     if not cand.columns:
         return f"rejected: {cand.note}"
     stab = f"chosen in {prob:.0%} of half-samples of the flights (needs more than {threshold:.0%})"
+    if shared > prob:
+        stab = (f"chosen, or an effect standing for it, in {shared:.0%} of half-samples of the flights (itself in "
+                f"{prob:.0%}; needs more than {threshold:.0%})")  # fmt: skip
     if t is None:
         return f"not tested (the forward pass stopped at {MAX_EFFECTS} effects); {stab}"
     gain = (f"held-out gain {t.mean:+.3g} +- {t.se:.2g} (bounded log-ratio of held-out errors, summed over channels, {t.n_groups} held-out flights; "
@@ -277,6 +298,6 @@ def _reason(
         return f"dropped: redundant given the others ({gain})"
     if not t.passed:
         return f"rejected: {gain} does not hold; {stab}"
-    if prob < threshold:
+    if shared <= threshold:
         return f"rejected: not stable: {stab} ({gain})"
     return f"not kept: another candidate gained more ({gain}; {stab})"

@@ -57,6 +57,19 @@ def critical_z(m: int, dof: int | None = None) -> float:
     return float(norm.ppf(q) if dof is None else student_t.ppf(q, max(int(dof), 1)))
 
 
+def can_be_tested(acts: np.ndarray, cluster: np.ndarray | None) -> bool:
+    """Whether a candidate acting on the (G, C) groups and channels ``acts`` can pass the gain test at all: it
+    acts on at least two held-out flights (``cluster`` (G,), each group's flight; without, two groups). On one
+    flight or none there is no standard error and no test, so the candidate cannot be falsely kept, and it does
+    not count in the Bonferroni m: Tarone's modified Bonferroni (Tarone 1990, Biometrics 46: 515-522) counts
+    only the hypotheses whose smallest attainable p-value is below the level, and where there is no test that
+    p-value is 1. Which flights a candidate acts on is decided by its fit on every train flight
+    (:func:`exposure`), not by its held-out gains."""
+    rows = np.flatnonzero(np.atleast_2d(acts).any(axis=1))
+    units = rows if cluster is None else np.unique(np.asarray(cluster)[rows])
+    return int(units.size) >= 2
+
+
 def relative_gains(mse_without: np.ndarray, mse_with: np.ndarray, acts: np.ndarray | None = None) -> np.ndarray:
     """(G,) per group, the sum over its channels of (MSE without - MSE with) / (MSE without + MSE with) of
     (G, C) held-out MSEs, i.e. tanh(ln(MSE without / MSE with) / 2): the log-ratio of the errors, bounded to
@@ -173,20 +186,22 @@ def heldout_forward(
 
     current = heldout_mse(sums, cols([]), plan, ridge, tau)
     remaining = [c.name for c in candidates]
+    label = (lambda n: hypothesis.get(n, n)) if hypothesis else (lambda n: n)
     while remaining and len(out.chosen) < max_terms:
-        tests = {}
-        # Bonferroni over the hypotheses that could be kept: near-duplicate candidates (``hypothesis``: one
-        # feature group, its members) test one hypothesis, not several
-        open_ = [n for n in remaining if eligible is None or n in eligible]
-        m = max(1, len({hypothesis.get(n, n) if hypothesis else n for n in open_}))
         trials = {}
         for name in remaining:
             trial = _in_fold(
                 heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau), current, name, fold_eligible
             )
-            acts = _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau)
-            tests[name] = gain_test(current, trial, m, acts, plan.cluster)
-            trials[name] = (trial, acts)
+            trials[name] = (trial, _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau))
+        # Bonferroni over the hypotheses that could be kept: near-duplicate candidates (``hypothesis``: one
+        # feature group, its members) test one hypothesis, not several; one that acts on fewer than two
+        # flights has no test and cannot be rejected, so it does not count (:func:`can_be_tested`)
+        open_ = [
+            n for n in remaining if (eligible is None or n in eligible) and can_be_tested(trials[n][1], plan.cluster)
+        ]
+        m = max(1, len({label(n) for n in open_}))
+        tests = {name: gain_test(current, trial, m, acts, plan.cluster) for name, (trial, acts) in trials.items()}
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
         if not ok:
@@ -194,7 +209,6 @@ def heldout_forward(
         # the one most surely better: the largest lower confidence bound of the gain (mean - z SE), so a
         # candidate whose gain is as large but less consistent over the flights does not pre-empt it
         best = max(ok, key=lambda n: tests[n].mean - tests[n].z * tests[n].se)
-        label = (lambda n: hypothesis.get(n, n)) if hypothesis else (lambda n: n)
         for name, t in tests.items():  # rivals the flights cannot tell from it (a head-to-head one-sided test)
             if name == best or not t.passed or label(name) == label(best):
                 continue
@@ -239,13 +253,14 @@ def _backward(
     (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
     while out.chosen:
         full = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
-        finals = {}
+        trials = {}
         for name in out.chosen:
             others = [n for n in out.chosen if n != name]
             without = heldout_mse(sums, cols(others), plan, ridge, tau)
             acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau)
-            with_it = _in_fold(full, without, name, fold_eligible)
-            finals[name] = gain_test(without, with_it, len(out.chosen), acts, plan.cluster)
+            trials[name] = (without, _in_fold(full, without, name, fold_eligible), acts)
+        m = max(1, sum(can_be_tested(acts, plan.cluster) for _, _, acts in trials.values()))
+        finals = {name: gain_test(w, v, m, acts, plan.cluster) for name, (w, v, acts) in trials.items()}
         failing = [n for n, t in finals.items() if not t.passed]
         if not failing:
             out.final_tests = finals

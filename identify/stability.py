@@ -85,6 +85,7 @@ class Stability:
     mean_chosen: float
     n_halves: int
     n_candidates: int = 0
+    picks: tuple[tuple[str, ...], ...] = ()  # per half used, the candidates it chose (in order)
 
     def stable(self, name: str) -> bool:
         return self.probability.get(name, 0.0) > self.threshold
@@ -175,16 +176,14 @@ def stability(
     (module docstring), each half choosing by :func:`bic_forward`."""
     halves = list(halves) if halves is not None else half_samples(plan, seed)
     counts = dict.fromkeys((c.name for c in candidates), 0)
-    n_chosen = 0
-    used = 0
+    picks = []
     for w in halves:
         if not np.any(w * group_weights(sums) > 0):
             continue
-        used += 1
-        picked = bic_forward(sums, always, candidates, w, ridge, tau, max_terms=max_terms)
-        n_chosen += len(picked)
-        for name in picked:
+        picks.append(tuple(bic_forward(sums, always, candidates, w, ridge, tau, max_terms=max_terms)))
+        for name in picks[-1]:
             counts[name] += 1
+    used = len(picks)
     prob = {k: v / used if used else 0.0 for k, v in counts.items()}
-    q = n_chosen / used if used else 0.0
-    return Stability(prob, PI_MIN, q, used, len(candidates))
+    q = sum(map(len, picks)) / used if used else 0.0
+    return Stability(prob, PI_MIN, q, used, len(candidates), tuple(picks))
