@@ -159,15 +159,19 @@ def plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
     # line flown at once is the best there is, and no route is searched
     unobstructed = rest_to_rest(float(np.linalg.norm(g - s)), problem.limits[agent], GRID_DT_S).steps
     if best is None or best.arrival_step > unobstructed:
-        route = wave_route(occ, agent, s, g)
-        if route is not None and len(route) > 2:
-            res = time_chain(
-                occ, agent, route, arrive_by=None if best is None else best.arrival_step - 1, through=through
-            )
-            if res is not None and (best is None or res.arrival_step < best.arrival_step):
-                best = res
+        # the wavefront with discs for the heights the route flies at (it passes over and under the
+        # others where their keep-outs are narrow), and with the widest disc at every height (the
+        # route the search took before: never a later arrival than that)
+        for heights in (True, False):
+            route = wave_route(occ, agent, s, g, heights=heights)
+            if route is not None and len(route) > 2:
+                res = time_chain(
+                    occ, agent, route, arrive_by=None if best is None else best.arrival_step - 1, through=through
+                )
+                if res is not None and (best is None or res.arrival_step < best.arrival_step):
+                    best = res
     if best is None:  # a slower, wider route leaves the exact timing more room
-        slow = wave_route(occ, agent, s, g, pace=SLOW_PACE, grow_m=SLOW_GROWTH_M)
+        slow = wave_route(occ, agent, s, g, pace=SLOW_PACE, grow_m=SLOW_GROWTH_M, heights=False)
         if slow is not None:
             best = time_chain(occ, agent, slow, through=through)
     return None if best is None else best.track
