@@ -159,10 +159,12 @@ def plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
     # line flown at once is the best there is, and no route is searched
     unobstructed = rest_to_rest(float(np.linalg.norm(g - s)), problem.limits[agent], GRID_DT_S).steps
     if best is None or best.arrival_step > unobstructed:
-        # the wavefront with discs for the heights the route flies at (it passes over and under the
-        # others where their keep-outs are narrow), and with the widest disc at every height (the
-        # route the search took before: never a later arrival than that)
-        for heights in (True, False):
+        # the wavefront with the widest disc at every height first, then, only when no track is found
+        # along either, with discs for the heights the route flies at (it passes over and under the
+        # others where their keep-outs are narrow; swarm.wave)
+        for heights in (False, True):
+            if heights and best is not None:
+                break
             route = wave_route(occ, agent, s, g, heights=heights)
             if route is not None and len(route) > 2:
                 res = time_chain(
