@@ -26,6 +26,9 @@ def main() -> int:
     ap.add_argument("--layout", nargs="+", default=["pillar"])
     ap.add_argument("--n", nargs="+", type=int, default=[64])
     ap.add_argument("--verbose", action="store_true", help="one line per vehicle not found again")
+    ap.add_argument(
+        "--heights", action="store_true", help="re-plan with plan_one(heights=True) (the plan itself is unchanged)"
+    )
     args = ap.parse_args()
     ns = args.n if len(args.n) == len(args.layout) else [args.n[0]] * len(args.layout)
 
@@ -68,7 +71,7 @@ def main() -> int:
         t0 = time.process_time()
         for a in sorted(tracks):
             own = occ.remove(a)
-            new = plan_one(occ, a, through)
+            new = plan_one(occ, a, through, heights=args.heights)
             if new is None:
                 counts["no track"] += 1
                 chain = time_chain(occ, a, own.route_m, through=through) if own.route_m is not None else None

@@ -148,10 +148,12 @@ def plan_ignoring(occ: Occupancy, agent: int, ignore: set[int], through: bool) -
                 occ.put(tr)
 
 
-def plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
+def plan_one(occ: Occupancy, agent: int, through: bool, *, heights: bool = False) -> GridTrack | None:
     """The earliest-arriving track of ``agent`` against the tracks in ``occ`` (see module: its
     straight line, else the better of that and a wavefront route, else a slower, wider route), or
-    None."""
+    None. ``heights``: when neither the straight line nor the wavefront route gives a track, try a
+    wavefront route with discs for the heights it flies at (:mod:`proxplan.planner.swarm.wave`);
+    off in the pipeline (docs/planner.md, issue 37 round 10C: it changed prioritised plans both ways)."""
     problem = occ.problem
     s, g = problem.starts_m[agent], problem.goals_m[agent]
     best = time_chain(occ, agent, np.array([s, g]), through=through)
@@ -162,10 +164,10 @@ def plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
         # the wavefront with the widest disc at every height first, then, only when no track is found
         # along either, with discs for the heights the route flies at (it passes over and under the
         # others where their keep-outs are narrow; swarm.wave)
-        for heights in (False, True):
-            if heights and best is not None:
+        for by_height in (False, True) if heights else (False,):
+            if by_height and best is not None:
                 break
-            route = wave_route(occ, agent, s, g, heights=heights)
+            route = wave_route(occ, agent, s, g, heights=by_height)
             if route is not None and len(route) > 2:
                 res = time_chain(
                     occ, agent, route, arrive_by=None if best is None else best.arrival_step - 1, through=through
