@@ -75,7 +75,7 @@ def main() -> int:
             if new is None:
                 counts["no track"] += 1
                 chain = time_chain(occ, a, own.route_m, through=through) if own.route_m is not None else None
-                wave = wave_route(occ, a, problem.starts_m[a], problem.goals_m[a])
+                wave = wave_route(occ, a, problem.starts_m[a], problem.goals_m[a], heights=args.heights)
                 lines.append(
                     f"    {problem.names[a]}: own arrival {own.arrival_s:.2f} s, {len(own.moves)} moves; own chain "
                     + ("not found" if chain is None else f"{chain.arrival_step * GRID_DT_S:.2f} s")
