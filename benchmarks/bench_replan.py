@@ -54,7 +54,8 @@ def main() -> int:
             return _stage(problem, by_agent, opts, progress=progress, deadline=deadline)
 
         swarm_plan._makespan_stage = keep
-        options = SwarmOptions(workers=1, reserve_starts=True, makespan_repair=False)
+        # the plan without the second, height-aware prioritised plan (its tail would overwrite the capture)
+        options = SwarmOptions(workers=1, reserve_starts=True, makespan_repair=False, heights=False)
         try:
             t0 = time.process_time()
             _, info = swarm_timed(scenario_from_dict(LAYOUTS[layout](n)), options)
