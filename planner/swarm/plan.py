@@ -252,7 +252,6 @@ def _heights_way(
     )
     if not keep:
         return None
-    extra["prioritised"] = f"{extra.get('prioritised')}; with both wavefronts: {mine['prioritised']}"
     return alt, alt_by_agent, retiming, repair
 
 
