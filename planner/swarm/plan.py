@@ -127,10 +127,13 @@ class SwarmOptions:
     makespan_repair: bool | None = None
     # also plan prioritised with both wavefronts per vehicle (the widest disc at every height and discs
     # for the heights the route flies at, swarm.wave; the earlier arrival kept, priority.plan_one), and
-    # keep the shorter of the two whole plans (each re-timed and repaired; ties: the plan without);
-    # never longer than without, for a second prioritised stage and tail (False: as before, for measuring).
-    # See docs/planner.md, round 11S
-    heights: bool = True
+    # keep the shorter of the two whole plans (each re-timed and repaired; ties: the plan without):
+    # never longer than without, for a second prioritised stage and tail. None: on with fixed goals, off
+    # where the goals were assigned (decided by planner.pipeline): by type at 64 it shortened no named
+    # layout and cost 1.4-16.5 s of CPU (corridor-64 7.4 -> 12.3 s wall); with fixed goals it shortened
+    # pillar, circle and corridor at 16-64 (docs/planner.md, round 11S; a default set watching those
+    # named layouts). Called directly (not through the pipeline), None means on.
+    heights: bool | None = None
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
     # layer can time (swarm.tracking_bound), so that the verifier does not reject the first plan
@@ -188,7 +191,7 @@ def swarm_timed(
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
-    if opts.heights and opts.prioritized and not straight:
+    if opts.heights is not False and opts.prioritized and not straight:
         got = _heights_way(problem, lower_bound, opts, found, by_agent, extra, progress=progress, deadline=deadline)
         if got is not None:
             found, by_agent, retiming, repair = got
