@@ -13,7 +13,10 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    not planned yet are predictions; a vehicle that cannot be planned is repaired (only the vehicles
    in conflict with it planned again, after it), within a count of repairs per pass; one still
    failing then flies in collision and the collisions are repaired at the end of the pass
-   (:mod:`proxplan.planner.swarm.lns`).
+   (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (on with fixed goals), once the
+   plan of stages 2-3 is re-timed and repaired (4-5), prioritised planning runs again with both
+   wavefronts per vehicle (the earlier arrival kept), goes through 4-5 too, and replaces that plan
+   only when it is shorter (:func:`_heights_way`): a vehicle's earlier arrival can lengthen the whole plan.
 3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
