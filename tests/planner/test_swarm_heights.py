@@ -34,20 +34,3 @@ def test_the_shorter_whole_plan_is_kept_and_never_longer_than_without(make):
         again, _ = swarm_timed(scenario, SwarmOptions(workers=1, heights=True))
         for name, path in paths.items():
             np.testing.assert_array_equal(again[name].knot_p_m, path.knot_p_m)
-
-
-def test_the_pipeline_plans_both_ways_with_fixed_goals_only():
-    """``SwarmOptions.heights`` None (the default): planner.pipeline turns it on for fixed goals and
-    off for ``assign_goals: by_type`` (docs/planner.md, round 11S); both plans are prioritised."""
-    from proxplan.planner.pipeline import plan_scenario
-
-    said = {}
-    for assign in ("by_type", None):
-        doc = grid_reshuffle(20)
-        if assign:
-            doc["assign_goals"] = assign
-        plan = plan_scenario(scenario_from_dict(doc, label="test scenario"), method="swarm",
-                             swarm_options=SwarmOptions(workers=1), sampling_alternative=False)  # fmt: skip
-        assert plan.metrics["swarm"]["stage"] == "prioritised"
-        said[assign] = plan.metrics["swarm"]["heights"]
-    assert said["by_type"] is None and said[None] is not None
