@@ -62,6 +62,9 @@ class SwarmInfo:
     kept_straight_time_s: float | None = None
     prioritised: str | None = None  # what each order of prioritised planning gave
     prioritised_time_s: float | None = None
+    # SwarmOptions.heights: what prioritised planning with both wavefronts gave and which whole plan was kept
+    heights: str | None = None
+    heights_time_s: float | None = None
     lattice: LatticeInfo | None = None
     retiming: RetimeInfo | None = None
     # the latest vehicles planned again with those in their way (swarm.makespan): the makespan

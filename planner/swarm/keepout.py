@@ -64,6 +64,28 @@ class KeepOut:
         w = self.w_rest_m if rest else self.w_move_m
         return float(max(self.separation_m + w, below.max(initial=0.0), above.max(initial=0.0)))
 
+    def horizontal_radius_m(self, dz_lo_m: float, dz_hi_m: float) -> float:
+        """Largest horizontal distance at which the pair conflicts while moving at some height
+        difference d_z = z_b - z_a in [``dz_lo_m``, ``dz_hi_m``], m (at most :attr:`reach_xy_m`):
+        the sphere's radius at the smallest |d_z| of the band and the widest cut-off of the table
+        rows :meth:`conflict` reads over it (the cut-off below where d_z <= w, above where d_z >= -w)."""
+        w = self.w_move_m
+        sep = self.separation_m + w
+        least = 0.0 if dz_lo_m <= 0.0 <= dz_hi_m else min(abs(dz_lo_m), abs(dz_hi_m))
+        out = math.sqrt(sep * sep - least * least) if least < sep else 0.0
+        for table, lo, hi in (
+            (self.a_on_b, dz_lo_m, min(dz_hi_m, w + 1e-12)),
+            (self.b_on_a, max(dz_lo_m, -w - 1e-12), dz_hi_m),
+        ):
+            if lo > hi:
+                continue
+            a0 = 0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi))
+            a1 = max(abs(lo), abs(hi))
+            k0, k1 = int(math.floor(a0 / self.step_m)), int(math.floor(a1 / self.step_m))
+            if k0 < table.size:
+                out = max(out, float(table[k0 : k1 + 1].max()))
+        return out
+
     @property
     def reach_z_m(self) -> float:
         """Largest vertical distance at which the pair can conflict while moving, m."""

@@ -13,7 +13,10 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    not planned yet are predictions; a vehicle that cannot be planned is repaired (only the vehicles
    in conflict with it planned again, after it), within a count of repairs per pass; one still
    failing then flies in collision and the collisions are repaired at the end of the pass
-   (:mod:`proxplan.planner.swarm.lns`).
+   (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (on with fixed goals), once the
+   plan of stages 2-3 is re-timed and repaired (4-5), prioritised planning runs again with both
+   wavefronts per vehicle (the earlier arrival kept), goes through 4-5 too, and replaces that plan
+   only when it is shorter (:func:`_heights_way`): a vehicle's earlier arrival can lengthen the whole plan.
 3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
@@ -51,7 +54,7 @@ from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.lockstep import lockstep_tracks
 from proxplan.planner.swarm.makespan import budget as makespan_budget
 from proxplan.planner.swarm.makespan import shorten_makespan
-from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.occupancy import Occupancy, track_digest
 from proxplan.planner.swarm.priority import (
     PrioritizedFailed,
     PriorityOptions,
@@ -125,6 +128,15 @@ class SwarmOptions:
     # where by_type it gave grid-64 1.91x -> 1.63x for 1-3 s (docs/planner.md, fifth round; a default set
     # watching those two figures). Called directly (not through the pipeline), None means on.
     makespan_repair: bool | None = None
+    # also plan prioritised with both wavefronts per vehicle (the widest disc at every height and discs
+    # for the heights the route flies at, swarm.wave; the earlier arrival kept, priority.plan_one), and
+    # keep the shorter of the two whole plans (each re-timed and repaired; ties: the plan without):
+    # never longer than without, for a second prioritised stage and tail. None: on with fixed goals, off
+    # where the goals were assigned (decided by planner.pipeline): by type at 64 it shortened no named
+    # layout and cost 1.4-16.5 s of CPU (corridor-64 7.4 -> 12.3 s wall); with fixed goals it shortened
+    # pillar, circle and corridor at 16-64 (docs/planner.md, round 11S; a default set watching those
+    # named layouts). Called directly (not through the pipeline), None means on.
+    heights: bool | None = None
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
     # layer can time (swarm.tracking_bound), so that the verifier does not reject the first plan
@@ -166,6 +178,7 @@ def swarm_timed(
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
     found = _straight_stage(problem) if not conflicts else None
+    straight = found is not None
     if found is None and opts.prioritized:
         kept = _kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         found = _prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
@@ -181,6 +194,11 @@ def swarm_timed(
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
+    if opts.heights is not False and opts.prioritized and not straight:
+        got = _heights_way(problem, lower_bound, opts, found, by_agent, extra, progress=progress, deadline=deadline)
+        if got is not None:
+            found, by_agent, retiming, repair = got
+            initial = max(tr.arrival_s for tr in found.tracks)
     # single-vehicle searches given back by the memo (swarm.memo) and searched, over every stage
     extra.setdefault("counts", {}).update(searches_recalled=problem.memo.hits, searches_run=problem.memo.misses)
     info = SwarmInfo(
@@ -197,6 +215,50 @@ def swarm_timed(
     )
     timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
     return timed, info
+
+
+def _heights_way(
+    problem: SwarmProblem,
+    lower_bound_s: float,
+    opts: SwarmOptions,
+    found: _Stage,
+    by_agent: dict[int, GridTrack],
+    extra: dict,
+    *,
+    progress,
+    deadline,
+) -> tuple[_Stage, dict[int, GridTrack], RetimeInfo, MakespanRepairInfo | None] | None:
+    """``SwarmOptions.heights``: prioritised planning again with both wavefronts per vehicle, re-timed
+    and repaired as the plan without (``found`` -> ``by_agent``, already through its tail); that
+    whole plan when it is shorter (then (stage, tracks, re-timing, repair)), else None. What it gave
+    is said in ``extra["heights"]``; its plannings are counted apart (``heights_planned``)."""
+    without = max(tr.arrival_s for tr in by_agent.values())
+    mine: dict = {}
+    alt = _prioritised_stage(problem, lower_bound_s, opts, mine, progress=progress, deadline=deadline, heights=True)
+    counts = extra.setdefault("counts", {})
+    counts["heights_planned"] = mine["counts"]["planned"]
+    extra["heights_time_s"] = mine["prioritised_time_s"]
+    if alt is None:
+        extra["heights"] = f"both wavefronts: gave up ({mine['prioritised']}); kept the plan without, {without:.2f} s"
+        return None
+    same = found.stage == "prioritised" and all(
+        track_digest(a) == track_digest(b) for a, b in zip(alt.tracks, found.tracks)
+    )
+    if same:
+        extra["heights"] = f"both wavefronts: the same tracks as without ({mine['prioritised']})"
+        return None
+    initial = max(tr.arrival_s for tr in alt.tracks)
+    alt_by_agent, retiming = _retime_stage(problem, alt, initial, opts, progress=progress, deadline=deadline)
+    repair = _makespan_stage(problem, alt_by_agent, opts, progress=progress, deadline=deadline)
+    makespan = max(tr.arrival_s for tr in alt_by_agent.values())
+    keep = makespan < without
+    extra["heights"] = (
+        f"both wavefronts: {makespan:.2f} s ({mine['prioritised']}); without: {without:.2f} s ({found.stage}); "
+        + ("kept both wavefronts" if keep else "kept the plan without")
+    )
+    if not keep:
+        return None
+    return alt, alt_by_agent, retiming, repair
 
 
 def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
@@ -286,7 +348,14 @@ def _kept_straight_stage(
 
 
 def _prioritised_stage(
-    problem: SwarmProblem, lower_bound_s: float, opts: SwarmOptions, extra: dict, *, progress, deadline
+    problem: SwarmProblem,
+    lower_bound_s: float,
+    opts: SwarmOptions,
+    extra: dict,
+    *,
+    progress,
+    deadline,
+    heights: bool = False,
 ) -> _Stage | None:
     """Prioritised continuous planning of each group of vehicles that interact, in each of
     ``opts.orders``, the shorter plan kept; each order with the first of ``opts.unplanned_hold_s``
@@ -331,6 +400,7 @@ def _prioritised_stage(
                 hold_s=hold_s,
                 reserve_starts=opts.reserve_starts is not False,
                 through=opts.through_waypoints == "always",
+                heights=heights,
             )
             try:
                 result = plan_groups(
@@ -363,7 +433,7 @@ def _prioritised_stage(
                 best = _Stage(
                     tracks,
                     "prioritised",
-                    f"prioritised continuous planning, {label}, vehicles not planned yet assumed to leave after "
+                    f"prioritised continuous planning{', both wavefronts' if heights else ''}, {label}, vehicles not planned yet assumed to leave after "
                     f"{hold_s:g} s ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
                     f"repairs, {result.against_order} against the order)",
                     _own_routes(problem, tracks),

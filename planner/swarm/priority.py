@@ -89,6 +89,8 @@ class PriorityOptions:
     # being predicted to leave; a vehicle that cannot be planned then releases only the starts in the
     # way of its ideal track (those vehicles predicted to leave, and planned next: see module)
     reserve_starts: bool = False
+    # every vehicle planned with both wavefronts, the earlier arrival kept (plan_one's ``heights``)
+    heights: bool = False
 
 
 @dataclass
@@ -136,22 +138,29 @@ def start_visitors(occ: Occupancy, agent: int) -> set[int]:
     return occ.conflicting_agents(GridTrack(agent, int(p.type_index[agent]), p.starts_m[agent].copy(), []))
 
 
-def plan_ignoring(occ: Occupancy, agent: int, ignore: set[int], through: bool) -> GridTrack | None:
+def plan_ignoring(
+    occ: Occupancy, agent: int, ignore: set[int], through: bool, *, heights: bool = False
+) -> GridTrack | None:
     """:func:`plan_one` against the tracks in ``occ`` but those of ``ignore`` (it may collide with
     them only), or None."""
     taken = [occ.remove(b) for b in sorted(ignore) if b != agent]
     try:
-        return plan_one(occ, agent, through)
+        return plan_one(occ, agent, through, heights=heights)
     finally:
         for tr in taken:
             if tr is not None:
                 occ.put(tr)
 
 
-def plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
+def plan_one(occ: Occupancy, agent: int, through: bool, *, heights: bool = False) -> GridTrack | None:
     """The earliest-arriving track of ``agent`` against the tracks in ``occ`` (see module: its
     straight line, else the better of that and a wavefront route, else a slower, wider route), or
-    None."""
+    None. ``heights``: also a wavefront route with discs for the heights it flies at
+    (:mod:`proxplan.planner.swarm.wave`), the earlier arrival of the two kept: never later than
+    without, for this vehicle against these tracks (not for the plan: the vehicles planned after it
+    meet another track; the swarm layer plans both ways and keeps the shorter plan, see
+    :class:`proxplan.planner.swarm.plan.SwarmOptions`).
+    """
     problem = occ.problem
     s, g = problem.starts_m[agent], problem.goals_m[agent]
     best = time_chain(occ, agent, np.array([s, g]), through=through)
@@ -159,15 +168,18 @@ def plan_one(occ: Occupancy, agent: int, through: bool) -> GridTrack | None:
     # line flown at once is the best there is, and no route is searched
     unobstructed = rest_to_rest(float(np.linalg.norm(g - s)), problem.limits[agent], GRID_DT_S).steps
     if best is None or best.arrival_step > unobstructed:
-        route = wave_route(occ, agent, s, g)
-        if route is not None and len(route) > 2:
-            res = time_chain(
-                occ, agent, route, arrive_by=None if best is None else best.arrival_step - 1, through=through
-            )
-            if res is not None and (best is None or res.arrival_step < best.arrival_step):
-                best = res
+        # the wavefront with the widest disc at every height, then (heights) with discs for the heights
+        # the route flies at (it passes over and under the others where their keep-outs are narrow)
+        for by_height in (False, True) if heights else (False,):
+            route = wave_route(occ, agent, s, g, heights=by_height)
+            if route is not None and len(route) > 2:
+                res = time_chain(
+                    occ, agent, route, arrive_by=None if best is None else best.arrival_step - 1, through=through
+                )
+                if res is not None and (best is None or res.arrival_step < best.arrival_step):
+                    best = res
     if best is None:  # a slower, wider route leaves the exact timing more room
-        slow = wave_route(occ, agent, s, g, pace=SLOW_PACE, grow_m=SLOW_GROWTH_M)
+        slow = wave_route(occ, agent, s, g, pace=SLOW_PACE, grow_m=SLOW_GROWTH_M, heights=False)
         if slow is not None:
             best = time_chain(occ, agent, slow, through=through)
     return None if best is None else best.track
@@ -242,7 +254,7 @@ def _in_order(
             result.history.append(f"{problem.names[a]}: planning budget of {options.max_plannings} spent")
             raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
         prediction = occ.remove(a)
-        track = plan_one(occ, a, options.through)
+        track = plan_one(occ, a, options.through, heights=options.heights)
         result.planned += 1
         if track is not None:
             planned[a] = track
@@ -253,7 +265,7 @@ def _in_order(
         guesses = [b for b in in_conflict if b not in planned and b in occ.tracks]
         if res is not None and guesses:  # release the reserved starts in its way: they leave
             res.release(occ, guesses)
-            track = plan_one(occ, a, options.through)
+            track = plan_one(occ, a, options.through, heights=options.heights)
             result.planned += 1
             if track is not None:
                 result.history.append(f"{problem.names[a]} released the starts of " + _names(problem, guesses))
@@ -267,7 +279,7 @@ def _in_order(
                 f"{problem.names[a]} past the predictions of " + ", ".join(problem.names[b] for b in sorted(guesses))
             )
             dropped = [occ.remove(b) for b in guesses]
-            track = plan_one(occ, a, options.through)
+            track = plan_one(occ, a, options.through, heights=options.heights)
             result.planned += 1
             for old in dropped:
                 if old is not None:
@@ -295,7 +307,7 @@ def _in_order(
         if why is not None:
             result.history.append(f"{problem.names[a]}: {why}")
             if options.collisions and ideal is not None:  # in collision with those in its way (swarm.lns)
-                track = plan_ignoring(occ, a, set(in_way), options.through)
+                track = plan_ignoring(occ, a, set(in_way), options.through, heights=options.heights)
                 result.planned += 1
                 planned[a] = ideal if track is None else track
                 occ.put(planned[a])
@@ -354,9 +366,11 @@ def _remove_collisions(
         occ,
         planned,
         stuck,
-        plan_one=lambda o, b: plan_one(o, b, options.through),
+        plan_one=lambda o, b: plan_one(o, b, options.through, heights=options.heights),
         plan_ignoring=lambda o, b, others: (
-            plan_ignoring(o, b, others, options.through) or ideal_track(problem, o, b) or planned[b]
+            plan_ignoring(o, b, others, options.through, heights=options.heights)
+            or ideal_track(problem, o, b)
+            or planned[b]
         ),
         # with reserved starts, a neighbourhood is planned under the pass's own scheme: its vehicles not
         # planned again yet hold their starts, released for one that cannot be planned around them

@@ -57,7 +57,7 @@ def ideal_track(problem: SwarmProblem, agent: int, horizon_steps: int) -> GridTr
     empty = Occupancy(problem, [], horizon_steps)
     W = np.array([s, g])
     if not problem.segment_free(s, g):
-        route = wave_route(empty, agent, s, g)
+        route = wave_route(empty, agent, s, g, heights=False)
         if route is None:
             return None
         W = route

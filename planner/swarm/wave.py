@@ -2,9 +2,16 @@
 
 The vehicle is treated as moving one grid cell (8-connected, ``CELL_M``) or waiting per layer of
 ``layer_s`` = cell diagonal / (``SPEED_FRACTION`` x its speed limit). Each layer of the grid marks
-the cells within the pair's horizontal keep-out reach of any other vehicle during that layer's
-time span (their track samples, swept; parked vehicles for good; predicted tracks of vehicles not
-planned yet until they vanish), so column-exclusive downwash is 2-D here. The set of cells reachable at layer t+1 is the
+the cells round any other vehicle during that layer's time span (their track samples, swept; parked
+vehicles for good; predicted tracks of vehicles not planned yet until they vanish), so
+column-exclusive downwash is 2-D here. With ``heights`` (off by default) a sample's disc is the
+pair's horizontal keep-out at the heights the route flies at within its reach (the route's height
+is a function of the place, :func:`route_heights`: two layers of traffic 0.5 m apart pass within
+the downwash cut-off, not the separation sphere), grown by half a cell's diagonal so that it holds
+every cell centre in conflict with the sample itself; without, the widest keep-out at any height
+difference round the sample's cell (the pipeline's; docs/planner.md, issue 37 round 10C). Each
+sample's disc radius is kept with the sample in the lazy marking below. The set of cells reachable
+at layer t+1 is the
 8-neighbourhood dilation of the set at layer t, restricted to cells free in both layers (numpy
 boolean shifts: the whole search is a few array operations per layer). The first layer at which the
 goal cell is reached and stays free to the horizon gives the route; backtracking prefers waiting.
@@ -82,6 +89,7 @@ def wave_route(
     *,
     pace: float = SPEED_FRACTION,
     grow_m: float = 0.0,
+    heights: bool = False,
 ) -> np.ndarray | None:
     """Waypoints (m+1, 3) of a route from start to goal through the others' space-time (see
     module; the height runs linearly with the distance flown), or None when the wavefront dies or
@@ -92,59 +100,31 @@ def wave_route(
     answer is given back, not searched again (:mod:`proxplan.planner.swarm.memo`)."""
     s = np.asarray(start_m, dtype=float)
     g = np.asarray(goal_m, dtype=float)
-    key = ("wave", occ.content_key(), agent, s.tobytes(), g.tobytes(), pace, grow_m)
-    got = occ.problem.memo.get(key, lambda: _wave_route(occ, agent, s, g, pace=pace, grow_m=grow_m))
+    key = ("wave", occ.content_key(), agent, s.tobytes(), g.tobytes(), pace, grow_m, heights)
+    got = occ.problem.memo.get(key, lambda: _wave_route(occ, agent, s, g, pace=pace, grow_m=grow_m, heights=heights))
     return None if got is None else got.copy()
 
 
-def _wave_route(occ: Occupancy, agent: int, start_m: np.ndarray, goal_m: np.ndarray, *, pace: float, grow_m: float):
+def _wave_route(
+    occ: Occupancy, agent: int, start_m: np.ndarray, goal_m: np.ndarray, *, pace: float, grow_m: float, heights: bool
+):
     """:func:`wave_route` searched."""
     p = occ.problem
     small = margin_box(p, start_m, goal_m)
-    got = _wave_in_box(occ, agent, start_m, goal_m, small, pace=pace, grow_m=grow_m)
+    got = _wave_in_box(occ, agent, start_m, goal_m, small, pace=pace, grow_m=grow_m, heights=heights)
     if got is None:
         large = route_box(p, start_m, goal_m)
         if not (np.array_equal(large[0], small[0]) and np.array_equal(large[1], small[1])):
-            got = _wave_in_box(occ, agent, start_m, goal_m, large, pace=pace, grow_m=grow_m)
+            got = _wave_in_box(occ, agent, start_m, goal_m, large, pace=pace, grow_m=grow_m, heights=heights)
     return got
 
 
-def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float) -> np.ndarray | None:
+def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float, heights: bool) -> np.ndarray | None:
     """:func:`wave_route` on the grid over ``box`` ((lo, hi) (2,), m)."""
-    p = occ.problem
-    lim = p.limits[agent]
+    occupied, free_static = _marks(occ, agent, start_m, goal_m, box, pace=pace, grow_m=grow_m, heights=heights)
+    lo = np.asarray(box[0], dtype=float)
     h = CELL_M
-    layer_s = h * math.sqrt(2.0) / (pace * lim.max_speed_mps)
-    n_layers = max(2, int(occ.horizon * GRID_DT_S / layer_s))
-    lo, hi = box
-    nx = int(math.ceil((hi[0] - lo[0]) / h)) + 1
-    ny = int(math.ceil((hi[1] - lo[1]) / h)) + 1
-    gx = lo[0] + np.arange(nx) * h
-    gy = lo[1] + np.arange(ny) * h
-    z_mid = 0.5 * (start_m[2] + goal_m[2])
-    grid_key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), nx, ny, float(z_mid))
-    free_static = p.static_memo.get(grid_key, lambda: static_grid(p, gx, gy, z_mid))
-    occupied = _Occupied(n_layers, nx, ny)
-    ta = int(p.type_index[agent])
-    per_layer = layer_s / GRID_DT_S
-    box_lo = np.r_[lo, -np.inf]
-    box_hi = np.r_[hi, np.inf]
-    for tr in occ.near(box_lo, box_hi, agent):
-        radius = (p.keepouts[(ta, tr.type)].reach_xy_m + grow_m) / h
-        P = tr.positions_m
-        k = np.arange(P.shape[0])
-        lay = np.floor(k / per_layer + 0.5).astype(np.int64)
-        cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
-        cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
-        # distinct (layer, cell) of its samples, one 1-D key each (cells may lie outside the grid)
-        span_x, span_y = int(cx.max() - cx.min()) + 1, int(cy.max() - cy.min()) + 1
-        key = np.unique((lay * span_x + (cx - cx.min())) * span_y + (cy - cy.min()))
-        key_l, rem = np.divmod(key, span_x * span_y)
-        key_x, key_y = np.divmod(rem, span_y)
-        occupied.add(radius, key_l, key_x + cx.min(), key_y + cy.min())
-        last = int(lay[-1])
-        if last < n_layers and not tr.vanishes:  # parked for good
-            occupied.park(radius, last, int(cx[-1]), int(cy[-1]))
+    n_layers, nx, ny = occupied.shape
     sx, sy = (int(v) for v in np.round((start_m[:2] - lo) / h))
     gx_, gy_ = (int(v) for v in np.round((goal_m[:2] - lo) / h))
     if occupied.column(sx, sy)[0] or not free_static[sx, sy]:
@@ -169,7 +149,72 @@ def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
                 break
         cells.append((x, y))
     cells.reverse()
-    return _waypoints(cells, lo, h, start_m, goal_m)
+    return _waypoints(cells, lo, h, start_m, goal_m, heights=heights)
+
+
+def _marks(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float, heights: bool):
+    """(the others' marks on the grid over ``box`` ((lo, hi) (2,), m; cell i at lo + i ``CELL_M``),
+    not yet spread over the layers (:class:`_Occupied`); the cells statically free (nx, ny) bool)."""
+    p = occ.problem
+    lim = p.limits[agent]
+    h = CELL_M
+    layer_s = h * math.sqrt(2.0) / (pace * lim.max_speed_mps)
+    n_layers = max(2, int(occ.horizon * GRID_DT_S / layer_s))
+    lo, hi = box
+    nx = int(math.ceil((hi[0] - lo[0]) / h)) + 1
+    ny = int(math.ceil((hi[1] - lo[1]) / h)) + 1
+    gx = lo[0] + np.arange(nx) * h
+    gy = lo[1] + np.arange(ny) * h
+    z_mid = 0.5 * (start_m[2] + goal_m[2])
+    grid_key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), nx, ny, float(z_mid))
+    free_static = p.static_memo.get(grid_key, lambda: static_grid(p, gx, gy, z_mid))
+    occupied = _Occupied(n_layers, nx, ny)
+    ta = int(p.type_index[agent])
+    per_layer = layer_s / GRID_DT_S
+    box_lo = np.r_[lo, -np.inf]
+    box_hi = np.r_[hi, np.inf]
+    for tr in occ.near(box_lo, box_hi, agent):
+        ko = p.keepouts[(ta, tr.type)]
+        P = tr.positions_m
+        k = np.arange(P.shape[0])
+        lay = np.floor(k / per_layer + 0.5).astype(np.int64)
+        cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
+        cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
+        if heights:  # a radius per sample: the keep-out at the heights the route flies at near it
+            radii = _radii_cells(ko, P, start_m, goal_m, grow_m)
+            for r in np.unique(radii).tolist():
+                at = np.flatnonzero(radii == r)
+                occupied.add(r, *_distinct(lay[at], cx[at], cy[at]))
+            radius_last = float(radii[-1])
+        else:  # the widest keep-out at any height difference, round the sample's cell
+            radius_last = (ko.reach_xy_m + grow_m) / h
+            occupied.add(radius_last, *_distinct(lay, cx, cy))
+        last = int(lay[-1])
+        if last < n_layers and not tr.vanishes:  # parked for good
+            occupied.park(radius_last, last, int(cx[-1]), int(cy[-1]))
+    return occupied, free_static
+
+
+def _distinct(lay: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distinct (layer, cell x, cell y) of samples, sorted (one 1-D key each; cells may lie
+    outside the grid)."""
+    x0, y0 = int(cx.min()), int(cy.min())
+    span_x, span_y = int(cx.max()) - x0 + 1, int(cy.max()) - y0 + 1
+    key = np.unique((lay * span_x + (cx - x0)) * span_y + (cy - y0))
+    key_l, rem = np.divmod(key, span_x * span_y)
+    key_x, key_y = np.divmod(rem, span_y)
+    return key_l, key_x + x0, key_y + y0
+
+
+def free_layers(
+    occ, agent, start_m, goal_m, box, *, pace: float = SPEED_FRACTION, grow_m: float = 0.0, heights: bool = False
+) -> np.ndarray:
+    """(layers, nx, ny) bool: the cells of the grid over ``box`` ((lo, hi) (2,), m; cell i at
+    lo + i ``CELL_M``) free of the others at every layer (see module), all layers marked (the
+    search marks only as far as its front comes)."""
+    occupied, free_static = _marks(occ, agent, start_m, goal_m, box, pace=pace, grow_m=grow_m, heights=heights)
+    occupied.mark_upto(occupied.shape[0])
+    return ~occupied.layers & free_static[None]
 
 
 class _Occupied:
@@ -298,7 +343,52 @@ def _spread(
     return None
 
 
-def _waypoints(cells: list[tuple[int, int]], lo: np.ndarray, h: float, start_m: np.ndarray, goal_m: np.ndarray):
+def route_heights(start_m: np.ndarray, goal_m: np.ndarray, xy_m: np.ndarray) -> np.ndarray | None:
+    """Heights (n,), m, of a route's points ``xy_m`` (n, 2): the start's height, then linear in the
+    progress along the horizontal start-goal line (the projection, clamped to the line's ends), the
+    goal's at and beyond it - so a point's height does not depend on the way the route took to it,
+    and a vehicle waiting beside its start stays at its start's height. None when start and goal
+    lie within a cell horizontally (no line to project on; the height then runs with the distance
+    flown)."""
+    u = np.asarray(goal_m[:2], dtype=float) - start_m[:2]
+    length2 = float(u @ u)
+    if length2 < CELL_M * CELL_M:
+        return None
+    f = np.clip((np.asarray(xy_m, dtype=float) - start_m[:2]) @ u / length2, 0.0, 1.0)
+    return start_m[2] + (goal_m[2] - start_m[2]) * f
+
+
+def _radii_cells(ko, P: np.ndarray, start_m: np.ndarray, goal_m: np.ndarray, grow_m: float) -> np.ndarray:
+    """(S,) the disc radius, in cells, marked round each
+    sample ``P`` (S, 3), m, of another vehicle with keep-out ``ko``: the widest horizontal keep-out
+    (:meth:`~proxplan.planner.swarm.keepout.KeepOut.horizontal_radius_m`) over the heights
+    (:func:`route_heights`) the route can have within its reach (every height between start and
+    goal when :func:`route_heights` is None); the height bands are widened to the keep-out's table
+    steps, so few distinct bands are asked."""
+    reach = ko.reach_xy_m
+    z_lo, z_hi = min(start_m[2], goal_m[2]), max(start_m[2], goal_m[2])
+    if z_hi - z_lo > 0.0:
+        u = np.asarray(goal_m[:2], dtype=float) - start_m[:2]
+        length = float(np.sqrt(u @ u))
+        if length >= CELL_M:
+            f = (P[:, :2] - start_m[:2]) @ u / (length * length)
+            za = start_m[2] + (goal_m[2] - start_m[2]) * np.clip(f - reach / length, 0.0, 1.0)
+            zb = start_m[2] + (goal_m[2] - start_m[2]) * np.clip(f + reach / length, 0.0, 1.0)
+            z_lo, z_hi = np.minimum(za, zb), np.maximum(za, zb)
+    step = ko.step_m
+    lo_k = np.floor((P[:, 2] - z_hi) / step).astype(np.int64)  # d_z = z_b - z_a, widened to table steps
+    hi_k = np.ceil((P[:, 2] - z_lo) / step).astype(np.int64)
+    bands, inverse = np.unique(np.column_stack([lo_k, hi_k]), axis=0, return_inverse=True)
+    r_m = np.array([ko.horizontal_radius_m(a * step, b * step) for a, b in bands.tolist()])
+    # + half a cell's diagonal: the disc is centred on the sample's cell, up to that far from the sample,
+    # so it holds every cell centre within the keep-out of the sample itself
+    cells = (r_m + grow_m) / CELL_M + 0.5 * math.sqrt(2.0)
+    return cells[np.asarray(inverse).reshape(-1)]
+
+
+def _waypoints(
+    cells: list[tuple[int, int]], lo: np.ndarray, h: float, start_m: np.ndarray, goal_m: np.ndarray, *, heights: bool
+):
     """Corners and waiting places of a cell route as 3-D waypoints, exact start and goal."""
     keep = [0]
     for k in range(1, len(cells) - 1):
@@ -318,7 +408,9 @@ def _waypoints(cells: list[tuple[int, int]], lo: np.ndarray, h: float, start_m: 
     xy[-1] = goal_m[:2].copy()
     pts = np.array(xy)
     s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))]
-    z = start_m[2] + (goal_m[2] - start_m[2]) * (s / s[-1] if s[-1] > 0 else s)
+    z = route_heights(start_m, goal_m, pts) if heights else None
+    if z is None:
+        z = start_m[2] + (goal_m[2] - start_m[2]) * (s / s[-1] if s[-1] > 0 else s)
     out = np.column_stack([pts, z])
     keep_pts = [out[0]]
     for q in out[1:]:

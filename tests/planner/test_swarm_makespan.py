@@ -29,17 +29,22 @@ def test_the_latest_vehicles_planned_again_shorten_a_grid_and_the_plan_verifies(
     assert verify_plan(assemble_plan(sc, timed, method="swarm", notes=[]), sc) == []
 
 
-def test_the_pipeline_runs_the_repair_where_goals_were_assigned_only():
+def test_the_pipeline_repairs_where_goals_were_assigned_and_plans_both_ways_where_fixed():
     """``SwarmOptions.makespan_repair`` None (the default): planner.pipeline turns it on for
-    ``assign_goals: by_type`` and off for fixed goals (docs/planner.md, stage 6)."""
+    ``assign_goals: by_type`` and off for fixed goals (docs/planner.md, stage 6); ``SwarmOptions.heights``
+    None the other way round (round 11S): the second plan with both wavefronts with fixed goals only
+    (both plans prioritised, where it would run)."""
     from proxplan.planner.pipeline import plan_scenario
 
-    repaired = {}
+    repaired, heights = {}, {}
     for assign in ("by_type", None):
         doc = grid_reshuffle(20)
         if assign:
             doc["assign_goals"] = assign
         plan = plan_scenario(scenario_from_dict(doc, label="test scenario"), method="swarm",
                              swarm_options=SwarmOptions(workers=1))  # fmt: skip
+        assert plan.metrics["swarm"]["stage"] == "prioritised"
         repaired[assign] = plan.metrics["swarm"]["makespan_repair"]
+        heights[assign] = plan.metrics["swarm"]["heights"]
     assert repaired["by_type"] is not None and repaired[None] is None
+    assert heights["by_type"] is None and heights[None] is not None

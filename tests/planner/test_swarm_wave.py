@@ -1,13 +1,31 @@
-"""The wavefront's cheaper bookkeeping (proxplan.planner.swarm.wave): cells marked only as far as
-asked, and each layer spread only over the front's bounding box, give the same occupancy and the
-same reached cells as marking every layer and spreading over the whole grid (the definition)."""
+"""The wavefront (proxplan.planner.swarm.wave): its cheaper bookkeeping (cells marked only as far
+as asked, and each layer spread only over the front's bounding box) gives the same occupancy and
+the same reached cells as marking every layer and spreading over the whole grid (the definition);
+its height-aware discs are as wide as the keep-out at the heights the route flies at, no wider than
+the widest keep-out, and hold every cell centre in conflict."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from proxplan.planner.swarm.wave import _disc, _Occupied, _spread, dilated
+from proxplan.planfile import scenario_from_dict
+from proxplan.planner.formations import LAYOUTS
+from proxplan.planner.swarm import swarm_problem
+from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.reserve import reserved_track
+from proxplan.planner.swarm.wave import (
+    CELL_M,
+    _disc,
+    _Occupied,
+    _spread,
+    dilated,
+    free_layers,
+    margin_box,
+    route_heights,
+)
+
+HORIZON = 400
 
 
 def _world(seed: int) -> tuple[_Occupied, np.ndarray, np.ndarray]:
@@ -74,3 +92,63 @@ def test_lazy_marks_and_windowed_front_equal_the_definition(seed):
     assert (t_goal is None) == bool(seed % 2)
     occ.mark_upto(full.shape[0])
     np.testing.assert_array_equal(occ.layers, full)
+
+
+def _problem(layout: str, n: int):
+    return swarm_problem(scenario_from_dict(LAYOUTS[layout](n), label="test scenario"))
+
+
+def test_horizontal_radius_bounds_the_keepout_over_its_height_band():
+    """For random height bands, no relative vector with a height difference in the band and a
+    horizontal distance beyond the radius conflicts; the radius never exceeds the widest reach, and
+    a band over every height difference gives that reach."""
+    problem = _problem("grid", 32)  # three vehicle types
+    rng = np.random.default_rng(7)
+    for ko in problem.keepouts.values():
+        assert ko.horizontal_radius_m(-5.0, 5.0) == ko.reach_xy_m
+        for _ in range(30):
+            lo, hi = np.sort(rng.uniform(-0.8, 0.8, 2))
+            r = ko.horizontal_radius_m(float(lo), float(hi))
+            assert 0.0 <= r <= ko.reach_xy_m
+            dz = np.linspace(lo, hi, 301)
+            ang = rng.uniform(0.0, 2 * np.pi, dz.size)
+            beyond = r + 1e-6
+            d = np.column_stack([beyond * np.cos(ang), beyond * np.sin(ang), dz])
+            assert not ko.conflict(d).any()
+
+
+def test_route_heights_follow_progress_along_the_line():
+    """The start's height at and behind the start (and beside it), the goal's at and beyond the
+    goal, halfway at the midpoint; None for a move within a cell horizontally."""
+    s, g = np.array([0.0, 0.0, 1.0]), np.array([2.0, 0.0, 1.5])
+    z = route_heights(s, g, np.array([[0.0, 0.0], [-0.5, 0.3], [0.0, 0.7], [1.0, -0.4], [2.0, 0.0], [2.6, 0.0]]))
+    assert np.allclose(z, [1.0, 1.0, 1.0, 1.25, 1.5, 1.5])
+    assert route_heights(s, np.array([0.02, 0.0, 1.5]), np.zeros((1, 2))) is None
+
+
+def test_discs_hold_every_conflicting_cell_centre_and_free_what_the_heights_allow():
+    """pillar-64: a vehicle's wavefront grid against a neighbour parked at its start one layer
+    above or below: every cell centre whose exact keep-out (at the route's height there) holds the
+    neighbour is occupied at every layer; with the heights, fewer cells are occupied than with the
+    widest disc at every height."""
+    problem = _problem("pillar", 64)
+    S = problem.starts_m
+    a = 0
+    other = np.flatnonzero(np.abs(S[:, 2] - S[a, 2]) > 0.2)
+    b = int(other[np.argmin(np.linalg.norm(S[other, :2] - S[a, :2], axis=1))])
+    occ = Occupancy(problem, [reserved_track(problem, b)], HORIZON)
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    box = margin_box(problem, s, g)
+    kw = dict(pace=0.8, grow_m=0.0)
+    free = free_layers(occ, a, s, g, box, heights=True, **kw)
+    wide = free_layers(occ, a, s, g, box, heights=False, **kw)
+    nx, ny = free.shape[1:]
+    ix, iy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    xy = np.column_stack([box[0][0] + ix.ravel() * CELL_M, box[0][1] + iy.ravel() * CELL_M])
+    z = route_heights(s, g, xy)
+    d = S[b][None] - np.column_stack([xy, z])
+    ko = problem.keepouts[(int(problem.type_index[a]), int(problem.type_index[b]))]
+    hit = ko.conflict(d).reshape(nx, ny)
+    assert hit.any()
+    assert not (free & hit[None]).any()
+    assert (~free).sum() < (~wide).sum()
