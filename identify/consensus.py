@@ -17,8 +17,9 @@ for it, not to a label):
 - tested: the members of stable groups that most halves' picks stand for; in a stable group none of whose
   members is, the one member standing for the most picks, the halves' consensus (:func:`tested_members`).
 
-The named library effects follow the same rule (:func:`sets_standing_for`, :func:`represented_shares`): an
-effect may be kept when more than half of the halves picked it or an effect standing for it; each is its own
+The named library effects follow the same rule (:func:`sets_standing_for`, :func:`represented_shares`,
+:func:`split_vote_eligible`): an effect may be kept when more than half of the halves picked it, or picked it
+or an effect standing for it while none of those is stable on its own (a split vote); each is its own
 hypothesis in the Bonferroni count (distinct mechanisms, not copies of one feature).
 """
 
@@ -93,6 +94,25 @@ def represented_shares(stab: Stability, names: Sequence[str], stands: np.ndarray
     for the named effects. Two effects that describe nearly the same signal (a jet hitting the floor and the
     floor's stagnation under it) split a real effect's picks between them, neither in most halves."""
     return {k: v / max(stab.n_halves, 1) for k, v in _counts(stands, names, stab.picks).items()}
+
+
+def split_vote_eligible(
+    stab: Stability, names: Sequence[str], stands: np.ndarray, represented: dict[str, float]
+) -> set[str]:
+    """The effects of ``names`` the held-out test may keep: those most halves picked (``stab``), and those
+    most halves picked or an effect standing for them (``represented``, :func:`represented_shares`) when
+    NONE of the effects standing for them is stable on its own: a vote split between near-copies, neither
+    picked in most halves. A signal a stable effect already carries is tested through that effect: an
+    effect that merely lies in its span (``climb_inflow``'s v_z column inside ``own_velocity``'s three) would
+    otherwise enter the Bonferroni count and cost the stable one its test."""
+    out = set()
+    for k, name in enumerate(names):
+        if stab.stable(name):
+            out.add(name)
+        elif represented.get(name, 0.0) > stab.threshold:
+            if not any(stab.stable(names[int(j)]) for j in np.flatnonzero(stands[k]) if int(j) != k):
+                out.add(name)
+    return out
 
 
 def represented_counts(sums: GroupSums, weights: np.ndarray, picks: Sequence[Sequence[str]]) -> dict[str, int]:

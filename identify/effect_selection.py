@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from proxplan.identify.calibrate import ParamSpec
-from proxplan.identify.consensus import represented_shares, sets_standing_for
+from proxplan.identify.consensus import represented_shares, sets_standing_for, split_vote_eligible
 from proxplan.identify.crossval import GroupSums, Ridge, heldout_mse, solve, trainable_groups
 from proxplan.identify.data import Errors, IdentifyOptions, Model, Unit, errors, progress_bar
 from proxplan.identify.delay_profile import (
@@ -160,14 +160,14 @@ class EffectSelector:
         cands = [c.as_candidate() for c in live]
         tau, plan = self.sel.tau, self.sel.plan
         stab = stability(sums, self.always, cands, plan, ridge, tau, max_terms=MAX_EFFECTS)
-        # the rule the discovered terms follow (proxplan.identify.consensus): an effect may be kept when most
-        # halves picked it or an effect standing for it. Each eligible effect is its own hypothesis in the
-        # Bonferroni count: the named effects are distinct mechanisms, not copies of one feature, and the
-        # forward pass keeps the best of them on all flights
+        # the rule the discovered terms follow (proxplan.identify.consensus.split_vote_eligible): an effect may
+        # be kept when most halves picked it, or when most picked it or an effect standing for it and none of
+        # those is stable on its own (a split vote). Each eligible effect is its own hypothesis in the
+        # Bonferroni count: the named effects are distinct mechanisms, not copies of one feature
         names = [c.name for c in cands]
         stands = sets_standing_for(sums, trainable_groups(sums, plan), self.always, [c.columns for c in cands])
         self.represented = represented_shares(stab, names, stands)
-        eligible = {n for n in names if self.represented[n] > stab.threshold}
+        eligible = split_vote_eligible(stab, names, stands, self.represented)
         # no in-fold selection here (proxplan.identify.stability.fold_eligibility): choosing among the few named
         # effects biases the test little, and with 3 train flights the in-fold halves are single flights, on
         # which a true effect is not picked in every half (docs/identify.md, "Selection inside the fold")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from proxplan.identify.consensus import represented_shares, sets_standing_for
+from proxplan.identify.consensus import represented_shares, sets_standing_for, split_vote_eligible
 from proxplan.identify.crossval import GroupSums
 from proxplan.identify.heldout_select import can_be_tested
 from proxplan.identify.stability import PI_MIN, Stability
@@ -51,6 +51,18 @@ def test_a_split_vote_between_effects_standing_for_each_other_counts_for_both() 
     shares = represented_shares(stab, names, stands)
     assert shares == {"e1": 4 / 6, "e2": 4 / 6, "e3": 1 / 6}
     assert not stab.stable("e1") and shares["e1"] > stab.threshold  # neither alone in most halves; together yes
+
+
+def test_only_a_split_vote_makes_an_effect_eligible_through_another() -> None:
+    """Eligible: stable on its own; or represented by most halves while no effect standing for it is stable (a
+    vote split between near-copies). An effect in a stable one's span is tested through that one."""
+    names = ["own", "inside", "a", "b", "lone"]
+    stands = np.eye(5, dtype=bool)
+    stands[0, 1] = stands[1, 0] = True  # "inside" lies in "own"'s span
+    stands[2, 3] = stands[3, 2] = True  # "a" and "b" carry one signal
+    stab = Stability({"own": 1.0, "inside": 0.0, "a": 0.5, "b": 0.5, "lone": 0.3}, PI_MIN, 2.0, 6, 5)
+    represented = {"own": 1.0, "inside": 1.0, "a": 1.0, "b": 1.0, "lone": 0.3}
+    assert split_vote_eligible(stab, names, stands, represented) == {"own", "a", "b"}
 
 
 def test_a_candidate_acting_on_one_flight_is_not_testable() -> None:
