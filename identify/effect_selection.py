@@ -134,6 +134,7 @@ class EffectSelector:
         self.ridge: Ridge | None = None
         self.delayed: dict[float, Sequence[BaseCache]] = {}  # delay (s) -> the samples' inputs that much earlier
         self.represented: dict[str, float] = {}  # after run: share of halves that picked it or one standing for it
+        self.eligible: set[str] = set()  # after run: the effects the held-out test may keep (split_vote_eligible)
 
     def fit_candidates(self, names: Sequence[str]) -> None:
         stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
@@ -167,7 +168,7 @@ class EffectSelector:
         names = [c.name for c in cands]
         stands = sets_standing_for(sums, trainable_groups(sums, plan), self.always, [c.columns for c in cands])
         self.represented = represented_shares(stab, names, stands)
-        eligible = split_vote_eligible(stab, names, stands, self.represented)
+        eligible = self.eligible = split_vote_eligible(stab, names, stands, self.represented)
         # no in-fold selection here (proxplan.identify.stability.fold_eligibility): choosing among the few named
         # effects biases the test little, and with 3 train flights the in-fold halves are single flights, on
         # which a true effect is not picked in every half (docs/identify.md, "Selection inside the fold")
@@ -249,7 +250,8 @@ class EffectSelector:
             selected = cand.name in fwd.chosen
             prob = stab.probability.get(cand.name, 0.0)
             shared = self.represented.get(cand.name, prob)
-            reason = _reason(cand, selected, t_last, fwd.dropped.get(cand.name), prob, shared, stab.threshold)
+            reason = _reason(cand, selected, t_last, fwd.dropped.get(cand.name), prob, shared, stab.threshold,
+                             eligible=cand.name in self.eligible)  # fmt: skip
             reason += _rival_note(cand.name, fwd.rivals)
             test_err = None
             if test and cand.columns:
@@ -281,6 +283,8 @@ def _reason(
     prob: float,
     shared: float,
     threshold: float,
+    *,
+    eligible: bool,
 ) -> str:
     if not cand.columns:
         return f"rejected: {cand.note}"
@@ -298,6 +302,9 @@ def _reason(
         return f"dropped: redundant given the others ({gain})"
     if not t.passed:
         return f"rejected: {gain} does not hold; {stab}"
-    if shared <= threshold:
+    if not eligible and shared > threshold:
+        return (f"rejected: not stable on its own ({stab}); an effect standing for it is, and carries its signal "
+                f"({gain})")  # fmt: skip
+    if not eligible:
         return f"rejected: not stable: {stab} ({gain})"
     return f"not kept: another candidate gained more ({gain}; {stab})"
