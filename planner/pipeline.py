@@ -141,8 +141,6 @@ def plan_scenario(
         run = replace(run, swarm=replace(run.swarm, makespan_repair=assignment is not None))
     if run.swarm.reserve_starts is None:  # on with fixed goals, off where goals were assigned (SwarmOptions)
         run = replace(run, swarm=replace(run.swarm, reserve_starts=assignment is None))
-    if run.swarm.heights is None:  # on with fixed goals, off where goals were assigned (SwarmOptions)
-        run = replace(run, swarm=replace(run.swarm, heights=assignment is None))
     swarm = _swarm_stage(scenario, run) if _uses_swarm(run.method, scenario) else None
     plan = _sampling_stage(scenario, run, swarm)
     plan = _refine_stage(scenario, plan, run, swarm)

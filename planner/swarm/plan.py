@@ -13,7 +13,7 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    not planned yet are predictions; a vehicle that cannot be planned is repaired (only the vehicles
    in conflict with it planned again, after it), within a count of repairs per pass; one still
    failing then flies in collision and the collisions are repaired at the end of the pass
-   (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (on with fixed goals), once the
+   (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (off by default), once the
    plan of stages 2-3 is re-timed and repaired (4-5), prioritised planning runs again with both
    wavefronts per vehicle (the earlier arrival kept), goes through 4-5 too, and replaces that plan
    only when it is shorter (:func:`_heights_way`): a vehicle's earlier arrival can lengthen the whole plan.
@@ -131,12 +131,11 @@ class SwarmOptions:
     # also plan prioritised with both wavefronts per vehicle (the widest disc at every height and discs
     # for the heights the route flies at, swarm.wave; the earlier arrival kept, priority.plan_one), and
     # keep the shorter of the two whole plans (each re-timed and repaired; ties: the plan without):
-    # never longer than without, for a second prioritised stage and tail. None: on with fixed goals, off
-    # where the goals were assigned (decided by planner.pipeline): by type at 64 it shortened no named
-    # layout and cost 1.4-16.5 s of CPU (corridor-64 7.4 -> 12.3 s wall); with fixed goals it shortened
-    # pillar, circle and corridor at 16-64 (docs/planner.md, round 11S; a default set watching those
-    # named layouts). Called directly (not through the pipeline), None means on.
-    heights: bool | None = None
+    # never longer than without, for a second prioritised stage and tail. Off by default: with fixed
+    # goals it shortened pillar-64 3.17x -> 2.73x and circle-256 1.43x -> 1.34x, but cost 1.6-1.8x the
+    # wall time at 64 and 2.25x at circle-256 (144 -> 324 s, past issue 37's 300 s); by type at 64 it
+    # shortened no named layout (docs/planner.md, round 11S and the lead's stop-49 measurement)
+    heights: bool = False
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
     # layer can time (swarm.tracking_bound), so that the verifier does not reject the first plan
@@ -194,7 +193,7 @@ def swarm_timed(
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
-    if opts.heights is not False and opts.prioritized and not straight:
+    if opts.heights and opts.prioritized and not straight:
         got = _heights_way(problem, lower_bound, opts, found, by_agent, extra, progress=progress, deadline=deadline)
         if got is not None:
             found, by_agent, retiming, repair = got
