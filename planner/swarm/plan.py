@@ -359,7 +359,11 @@ def _prioritised_stage(
     """Prioritised continuous planning of each group of vehicles that interact, in each of
     ``opts.orders``, the shorter plan kept; each order with the first of ``opts.unplanned_hold_s``
     for which it finds a plan; all within a count of single-vehicle plannings
-    (``opts.plannings_per_vehicle``); None when every one gives up."""
+    (``opts.plannings_per_vehicle``); None when every one gives up. With one group, a pass whose
+    plannings left cannot plan the vehicles it still has queued gives up at once and is charged
+    the whole budget left (``PriorityOptions.give_up_early``): it would spend it and give up all the
+    same, so the same passes run after it and the plan is the same (``counts["planned"]`` counts
+    the plannings made)."""
     import os
 
     horizon = _horizon_steps(lower_bound_s)
