@@ -129,7 +129,7 @@ def plan_groups(
         status, out = outcomes[k]
         if status == "failed":
             assert isinstance(out, PrioritizedFailed)
-            raise PrioritizedFailed(g[out.agent], out.repairs, out.history, planned=out.planned)
+            raise PrioritizedFailed(g[out.agent], out.repairs, out.history, planned=out.planned, charged=out.charged)
         assert isinstance(out, PriorityResult)
         for a_local, tr in out.tracks.items():
             merged.tracks[g[a_local]] = tr.relabel(g[a_local]) if len(groups) > 1 else tr

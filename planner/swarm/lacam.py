@@ -106,7 +106,7 @@ class Lacam:
         to = [-1] * self.A
         fixed = constraint.fixed()
         nb = self._near(Q)
-        sync = self.sync
+        conflict = self.sync.conflict
         on_stack: set[int] = set()
         failed = [False]
 
@@ -114,7 +114,7 @@ class Lacam:
             ui = Q[i]
             for j in nb[i]:
                 vj = to[j]
-                if vj >= 0 and not (skip_stack and j in on_stack) and sync.conflict(i, ui, v, j, Q[j], vj):
+                if vj >= 0 and not (skip_stack and j in on_stack) and conflict(i, ui, v, j, Q[j], vj):
                     return False
             return True
 
@@ -128,12 +128,12 @@ class Lacam:
                 to[i] = v
                 good = True
                 for k in nb[i]:
-                    if to[k] >= 0 or not sync.conflict(i, ui, v, k, Q[k], Q[k]):
+                    if to[k] >= 0 or not conflict(i, ui, v, k, Q[k], Q[k]):
                         continue
                     if (k in fixed and fixed[k] == Q[k]) or self.pinned[k] or not pibt(k):
                         good = False
                         break
-                    if sync.conflict(i, ui, v, k, Q[k], to[k]):
+                    if conflict(i, ui, v, k, Q[k], to[k]):
                         good = False
                         break
                 if good:
@@ -155,7 +155,7 @@ class Lacam:
             return None
         for i in range(self.A):  # the whole step once more, exactly
             for j in nb[i]:
-                if j > i and sync.conflict(i, Q[i], to[i], j, Q[j], to[j]):
+                if j > i and conflict(i, Q[i], to[i], j, Q[j], to[j]):
                     return None
         return tuple(to)
 

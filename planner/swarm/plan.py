@@ -359,7 +359,11 @@ def _prioritised_stage(
     """Prioritised continuous planning of each group of vehicles that interact, in each of
     ``opts.orders``, the shorter plan kept; each order with the first of ``opts.unplanned_hold_s``
     for which it finds a plan; all within a count of single-vehicle plannings
-    (``opts.plannings_per_vehicle``); None when every one gives up."""
+    (``opts.plannings_per_vehicle``); None when every one gives up. With one group, a pass whose
+    plannings left cannot plan the vehicles it still has queued gives up at once and is charged
+    the whole budget left (``PriorityOptions.give_up_early``): it would spend it and give up all the
+    same, so the same passes run after it and the plan is the same (``counts["planned"]`` counts
+    the plannings made)."""
     import os
 
     horizon = _horizon_steps(lower_bound_s)
@@ -370,12 +374,13 @@ def _prioritised_stage(
     best: _Stage | None = None
     counts = {"groups": len(groups), "planned": 0, "repairs": 0, "against_order": 0}
     budget = math.ceil(opts.plannings_per_vehicle * problem.n_agents)
+    charged = 0  # plannings charged to the budget: those made, or a pass's whole budget when it gave up early
     # (every group's order, hold) -> (order label, its result or None when it gave up, its plannings)
     ran: dict[tuple, tuple[str, PriorityResult | None, int]] = {}
     for label in opts.orders:
         orders = tuple(tuple(ORDERS[label](subproblem(problem, g) if len(groups) > 1 else problem)) for g in groups)
         for hold_s in opts.unplanned_hold_s:
-            left = budget - counts["planned"]
+            left = budget - charged
             same = ran.get((orders, hold_s))
             if same is not None:
                 # a pass is a function of its orders and options: run again on what is left of the
@@ -384,6 +389,7 @@ def _prioritised_stage(
                 first, got, spent = same
                 tried.append(f"{label}, hold {hold_s:g} s: the same orders as {first}, not run again")
                 counts["planned"] += min(spent, max(0, left))
+                charged += min(spent, max(0, left))
                 if got is not None and spent <= left:
                     counts["repairs"] += got.repairs
                     counts["against_order"] += got.against_order
@@ -400,6 +406,10 @@ def _prioritised_stage(
                 reserve_starts=opts.reserve_starts is not False,
                 through=opts.through_waypoints == "always",
                 heights=heights,
+                # one group is given the whole budget left: a pass that could not finish within it
+                # leaves nothing for the next either way (with several, each has its share, and what
+                # a failing group would have spent past its share is not known)
+                give_up_early=len(groups) == 1,
             )
             try:
                 result = plan_groups(
@@ -413,8 +423,9 @@ def _prioritised_stage(
                     deadline=deadline,
                 )
             except PrioritizedFailed as err:
-                ran[(orders, hold_s)] = (label, None, err.planned)
+                ran[(orders, hold_s)] = (label, None, err.charged)
                 counts["planned"] += err.planned
+                charged += err.charged
                 tried.append(
                     f"{label}, hold {hold_s:g} s: gave up after {err.planned} plannings ("
                     + "; ".join(err.history[-2:])
@@ -423,6 +434,7 @@ def _prioritised_stage(
                 continue
             ran[(orders, hold_s)] = (label, result, result.planned)
             counts["planned"] += result.planned
+            charged += result.planned
             counts["repairs"] += result.repairs
             counts["against_order"] += result.against_order
             makespan = max(tr.arrival_s for tr in result.tracks.values())

@@ -91,6 +91,10 @@ class PriorityOptions:
     reserve_starts: bool = False
     # every vehicle planned with both wavefronts, the earlier arrival kept (plan_one's ``heights``)
     heights: bool = False
+    # give the pass up as soon as what is left of ``max_plannings`` cannot plan the vehicles still
+    # queued (each needs one planning at least): it would give up on the budget all the same, later
+    # (the caller then charges the whole budget: ``PrioritizedFailed.charged``)
+    give_up_early: bool = False
 
 
 @dataclass
@@ -105,16 +109,21 @@ class PriorityResult:
 
 
 class PrioritizedFailed(Exception):
-    def __init__(self, agent: int, repairs: int, history: list[str], *, planned: int = 0):
+    """A pass gave up; ``planned``: the single-vehicle plannings it made; ``charged``: those its
+    budget is charged (``planned``, or the whole ``max_plannings`` when it gave up early because
+    they could not suffice: ``PriorityOptions.give_up_early``)."""
+
+    def __init__(self, agent: int, repairs: int, history: list[str], *, planned: int = 0, charged: int | None = None):
         super().__init__(f"agent {agent} could not be planned after {repairs} repairs")
         self.agent, self.repairs, self.history, self.planned = agent, repairs, history, planned
+        self.charged = planned if charged is None else charged
 
     def __reduce__(self):  # pickled back from a Dask worker with its fields (the default passes args only)
-        return _failed, (self.agent, self.repairs, self.history, self.planned)
+        return _failed, (self.agent, self.repairs, self.history, self.planned, self.charged)
 
 
-def _failed(agent: int, repairs: int, history: list[str], planned: int) -> PrioritizedFailed:
-    return PrioritizedFailed(agent, repairs, history, planned=planned)
+def _failed(agent: int, repairs: int, history: list[str], planned: int, charged: int) -> PrioritizedFailed:
+    return PrioritizedFailed(agent, repairs, history, planned=planned, charged=charged)
 
 
 def unplanned_track(problem: SwarmProblem, agent: int, options: PriorityOptions) -> GridTrack:
@@ -253,6 +262,17 @@ def _in_order(
         if options.max_plannings is not None and result.planned >= options.max_plannings:
             result.history.append(f"{problem.names[a]}: planning budget of {options.max_plannings} spent")
             raise PrioritizedFailed(a, result.repairs, result.history, planned=result.planned)
+        # each queued vehicle needs a planning of its own before the queue empties, and the check above
+        # stops the pass once the budget is spent: it cannot end before then (exact)
+        if options.give_up_early and options.max_plannings is not None:
+            if result.planned + 1 + len(queue) > options.max_plannings:
+                result.history.append(
+                    f"{problem.names[a]}: planning budget of {options.max_plannings} cannot plan the "
+                    f"{1 + len(queue)} vehicle(s) left (given up early)"
+                )
+                raise PrioritizedFailed(
+                    a, result.repairs, result.history, planned=result.planned, charged=options.max_plannings
+                )
         prediction = occ.remove(a)
         track = plan_one(occ, a, options.through, heights=options.heights)
         result.planned += 1

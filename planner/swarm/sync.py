@@ -111,6 +111,12 @@ class SyncTable:
         self.types = [int(t) for t in type_index]
         self.pos = [tuple(int(c) for c in p) for p in np.asarray(pos_mm)]
         self.cache: dict[tuple, bool] = {}
+        # the verdicts again by vertices (one int per (type pair, ui, vi, uj, vj)): a step asks the
+        # same four vertices many times, and this key costs less to build and hash than the relative
+        # one above (a memo of the same answers: the plans are the same)
+        self.by_vertices: dict[int, bool] = {}
+        self._n_vertices = len(self.pos)
+        self._n_types = max(self.types, default=0) + 1
         self.computed = 0  # exact tests run (cache misses)
         self.far = 0  # of those, settled by the horizontal reach alone (far_apart)
         # per (type pair, both at rest): the largest horizontal distance at which the keep-out holds a
@@ -123,6 +129,15 @@ class SyncTable:
 
     def conflict(self, i: int, ui: int, vi: int, j: int, uj: int, vj: int) -> bool:
         """Do agent i moving ui -> vi and agent j moving uj -> vj in one step conflict?"""
+        V = self._n_vertices
+        vkey = ((((self.types[i] * self._n_types + self.types[j]) * V + ui) * V + vi) * V + uj) * V + vj
+        hit = self.by_vertices.get(vkey)
+        if hit is None:
+            hit = self.by_vertices[vkey] = self._relative(i, ui, vi, j, uj, vj)
+        return hit
+
+    def _relative(self, i: int, ui: int, vi: int, j: int, uj: int, vj: int) -> bool:
+        """:meth:`conflict` by the relative motion (cached per type pair, d0, d1)."""
         P = self.pos
         pu_i, pv_i, pu_j, pv_j = P[ui], P[vi], P[uj], P[vj]
         key = (

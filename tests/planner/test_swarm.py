@@ -314,9 +314,57 @@ def test_a_give_up_pickled_back_from_a_dask_worker_keeps_its_fields():
 
     from proxplan.planner.swarm.priority import PrioritizedFailed
 
-    failed = pickle.loads(pickle.dumps(PrioritizedFailed(3, 1, ["v003: nobody to take out"], planned=5)))
+    failed = pickle.loads(pickle.dumps(PrioritizedFailed(3, 1, ["v003: nobody to take out"], planned=5, charged=9)))
     assert isinstance(failed, PrioritizedFailed)
-    assert (failed.agent, failed.repairs, failed.history, failed.planned) == (3, 1, ["v003: nobody to take out"], 5)
+    assert (failed.agent, failed.repairs, failed.history, failed.planned, failed.charged) == (
+        3,
+        1,
+        ["v003: nobody to take out"],
+        5,
+        9,
+    )
+
+
+def test_a_pass_given_up_early_is_one_that_would_spend_its_budget():
+    """grid-20 (seed 0), dependencies first, reserved starts: a pass needs P plannings (measured in
+    the test). With a budget of P, giving up early changes nothing (the same tracks); with P - 1 the
+    pass gives up both ways, early after no more plannings, charged the whole budget, and the pass
+    without it spends the budget (here both at the last vehicle); with one planning per vehicle it gives up at its first vehicle
+    planned twice, long before the budget is spent."""
+    from proxplan.planner.sampling.ordering import lower_bound_makespan_s
+    from proxplan.planner.swarm.plan import ORDERS, _horizon_steps
+    from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, prioritized_tracks
+
+    sc = scenario_from_dict(grid_reshuffle(20, seed=0), label="test scenario")
+    problem = swarm_problem(sc)
+    horizon = _horizon_steps(lower_bound_makespan_s(sc))
+    order = ORDERS["dependencies first"](problem)
+    kw = dict(max_repairs=4, hold_s=1.0, reserve_starts=True, through=False)
+    free = prioritized_tracks(problem, order, PriorityOptions(**kw), horizon_steps=horizon)
+    budget = free.planned
+    assert budget > problem.n_agents, "the pass must plan some vehicle more than once"
+    for early in (False, True):
+        got = prioritized_tracks(
+            problem, order, PriorityOptions(**kw, max_plannings=budget, give_up_early=early), horizon_steps=horizon
+        )
+        assert got.planned == budget
+        for a, tr in free.tracks.items():
+            np.testing.assert_array_equal(tr.positions_m, got.tracks[a].positions_m)
+    for short in (budget - 1, problem.n_agents):
+        fails = {}
+        for early in (False, True):
+            with pytest.raises(PrioritizedFailed) as err:
+                prioritized_tracks(
+                    problem,
+                    order,
+                    PriorityOptions(**kw, max_plannings=short, give_up_early=early),
+                    horizon_steps=horizon,
+                )
+            fails[early] = err.value
+        assert fails[False].planned >= short and fails[False].charged == fails[False].planned
+        assert fails[True].planned <= fails[False].planned and fails[True].charged == short
+    assert "given up early" in fails[True].history[-1]
+    assert fails[True].planned < problem.n_agents, "with one planning per vehicle it gives up at its first re-plan"
 
 
 def test_a_chain_is_flown_through_its_corner_when_nothing_is_in_the_way():
