@@ -50,13 +50,9 @@ def group_of(key: str) -> str:
 
 def stands_for(sums: GroupSums, weights: np.ndarray, names: Sequence[str]) -> np.ndarray:
     """(F, F) bool, symmetric: whether column ``names[j]`` of ``sums`` stands for ``names[k]``
-    (:data:`REPRESENTS_R2`), their Gram taken over the groups weighted by ``weights`` (G,)."""
-    if not names:
-        return np.zeros((0, 0), dtype=bool)
-    idx = sums.index(list(names))
-    gram = np.tensordot(weights, sums.G[:, idx][:, :, idx], axes=1)
-    d = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
-    return (gram / np.outer(d, d)) ** 2 > REPRESENTS_R2
+    (:data:`REPRESENTS_R2`), their Gram taken over the groups weighted by ``weights`` (G,): the squared
+    cosine of the two columns (:func:`sets_standing_for` with one column each and nothing residualized)."""
+    return sets_standing_for(sums, weights, [], [(n,) for n in names])
 
 
 def sets_standing_for(
@@ -65,14 +61,21 @@ def sets_standing_for(
     """(E, E) bool, symmetric: whether candidate ``sets[j]`` (a library effect's columns of ``sums``) stands for
     ``sets[k]``: the largest squared canonical correlation of their columns, each residualized on the
     ``always`` columns (the tangents fitted beside every candidate), exceeds :data:`REPRESENTS_R2`; the Gram over
-    the groups weighted by ``weights`` (G,), each over its channel cells. For one column each it is
-    :func:`stands_for`'s squared cosine; for an effect with several linear parameters (``own_velocity``) it is
-    the share of one's variance the other explains in its best direction."""
+    the groups weighted by ``weights`` (G,), each over its channel cells. For one column each it is the
+    squared cosine of the residualized columns; for an effect with several linear parameters (``own_velocity``)
+    it is the share of one's variance the other explains in its best direction."""
+    if not sets:
+        return np.zeros((0, 0), dtype=bool)
     names = [c for cols in sets for c in cols]
     idx = sums.index(list(always) + names)
     gram = np.tensordot(sums.cells(weights), sums.G[:, idx][:, :, idx], axes=1)
     a = len(always)
-    part = gram[a:, a:] - gram[a:, :a] @ np.linalg.pinv(gram[:a, :a], rcond=1e-12, hermitian=True) @ gram[:a, a:]
+    part = gram[a:, a:]
+    if a:
+        part = part - gram[a:, :a] @ np.linalg.pinv(gram[:a, :a], rcond=1e-12, hermitian=True) @ gram[:a, a:]
+    if all(len(cols) == 1 for cols in sets):  # one column each: the squared cosine, all pairs at once
+        d = np.sqrt(np.clip(np.diag(part), 1e-300, None))
+        return (part / np.outer(d, d)) ** 2 > REPRESENTS_R2
     ends = np.cumsum([0] + [len(cols) for cols in sets])
     blocks = [slice(int(ends[k]), int(ends[k + 1])) for k in range(len(sets))]
     out = np.zeros((len(sets), len(sets)), dtype=bool)
