@@ -365,16 +365,13 @@ def _radii_cells(ko, P: np.ndarray, start_m: np.ndarray, goal_m: np.ndarray, gro
     (:func:`route_heights`) the route can have within its reach (every height between start and
     goal when :func:`route_heights` is None); the height bands are widened to the keep-out's table
     steps, so few distinct bands are asked."""
-    reach = ko.reach_xy_m
     z_lo, z_hi = min(start_m[2], goal_m[2]), max(start_m[2], goal_m[2])
-    if z_hi - z_lo > 0.0:
-        u = np.asarray(goal_m[:2], dtype=float) - start_m[:2]
-        length = float(np.sqrt(u @ u))
-        if length >= CELL_M:
-            f = (P[:, :2] - start_m[:2]) @ u / (length * length)
-            za = start_m[2] + (goal_m[2] - start_m[2]) * np.clip(f - reach / length, 0.0, 1.0)
-            zb = start_m[2] + (goal_m[2] - start_m[2]) * np.clip(f + reach / length, 0.0, 1.0)
-            z_lo, z_hi = np.minimum(za, zb), np.maximum(za, zb)
+    u = np.asarray(goal_m[:2], dtype=float) - start_m[:2]
+    along = ko.reach_xy_m * u / max(float(np.sqrt(u @ u)), 1e-300)  # the reach, along the start-goal line
+    za = route_heights(start_m, goal_m, P[:, :2] - along)  # the route's heights a reach before and after
+    zb = route_heights(start_m, goal_m, P[:, :2] + along)
+    if z_hi - z_lo > 0.0 and za is not None and zb is not None:
+        z_lo, z_hi = np.minimum(za, zb), np.maximum(za, zb)
     step = ko.step_m
     lo_k = np.floor((P[:, 2] - z_hi) / step).astype(np.int64)  # d_z = z_b - z_a, widened to table steps
     hi_k = np.ceil((P[:, 2] - z_lo) / step).astype(np.int64)
