@@ -13,23 +13,37 @@ X_g^T W X_g, X_g^T W y_g, y_g^T W y_g): leaving a flight out is a subtraction, a
 flights a weighted sum. A group is a flight (the unit that is held out: samples of one flight are not
 independent); flights declared ``split: validation`` are only ever held out (never fitted).
 
-**Gain test** (:func:`gain_test`). Each held-out group g gets, per wrench channel c, the log-ratio of its
-mean squared error without and with the candidate, bounded by tanh, and its gain is their sum over the
-channels the candidate acts on, gain_g = sum_c tanh(ln(MSE_gc(without k) / MSE_gc(with k)) / 2) = sum_c (MSE_without -
-MSE_with) / (MSE_without + MSE_with), both from fits that did not see g's flight (leave one train flight
-out; validation flights from the fit on every train flight). It is scale-free (flights that hold more
-disturbance do not dominate; a term on one channel is not diluted by the others' noise) and bounded by 1
-per channel either way, so the spread between logs that hold much or little of an effect, or a channel
-whose error is near zero, cannot swamp the mean.
-A candidate is judged on the held-out logs and channels where it acts (its contribution, fitted on every
-train flight, is worth at least one unit of chi-square there: :func:`exposure`; a jet's effect says nothing
-on a vehicle with no source above, a term on F_z nothing on the torques, an effect's far tail nothing
-where the noise hides it), and kept only when the mean gain exceeds ``z`` standard errors FROM FLIGHT TO
-FLIGHT: the gains of one flight's logs are averaged first (they are predicted by the same fit, the one that
-left that flight out, so they are not independent), SE = sd(flight gains) / sqrt(F) over the F flights where
-it acts, and z = t_{F-1}^-1(1 - ALPHA / m), Student's t with F - 1 degrees of freedom (the SE itself is
-estimated from F values), m the number of candidates tested together: a one-sided test at family-wise level
-:data:`proxplan.identify.heldout_select.ALPHA` (Bonferroni).
+**Gain test** (:func:`proxplan.identify.heldout_select.gain_test`). Adding a candidate k replaces the
+held-out fit without it (coefficients beta_0 from a fit that did not see the flight) by the one with it
+(beta_1, from the same flights). On a held-out flight, with r = y - X beta_0 its residual without k and
+d = X (beta_1 - beta_0) what k's fit changes there, both weighted sums over its samples and the channels
+where k acts (noise units):
+
+    gain_f = |r|^2 - |r - d|^2 = 2 <d, r> - |d|^2,    energy_f = |d|^2   (:func:`change_energy`).
+
+If k is no effect of the data, d is fitted to other flights' noise and independent of r on this one:
+E[gain_f] = -energy_f (a change that explains nothing costs its own size), and <d, r> has variance
+sigma^2 energy_f for noise of variance sigma^2 per unit, so Var(gain_f) grows in proportion to energy_f.
+If k is the effect and its fit carries over, r contains d: gain_f = energy_f + 2 <d, noise> (a
+least-squares fit removes what it changes), whatever the flight's exposure to it, a flight that holds
+much of the effect or little. So the held-out evidence is the ratio of the two: the pooled
+R = sum_f gain_f / sum_f energy_f is the weighted least-squares slope of gain on energy through the
+origin with weights 1 / energy_f (the variance above), -1 for a term fitted to noise and 1 for an effect
+that carries over to flights it was not fitted on; R > 0 means the candidate's predictions remove more
+error on new flights than they add. Its standard error is taken FROM FLIGHT TO FLIGHT,
+SE = s / sqrt(sum energy), s^2 = sum_f (gain_f - R energy_f)^2 / energy_f / (F - 1), so a flight whose
+misfit the candidate happens to follow (the model's flight-to-flight error, larger than the noise) widens
+it; the candidate is kept only when R > z SE, z = t_{F-1}^-1(1 - ALPHA / m), Student's t with F - 1 degrees
+of freedom (s is estimated from F flights), m the number of candidates tested together: a one-sided test at
+family-wise level :data:`proxplan.identify.heldout_select.ALPHA` (Bonferroni). (Until stop 50 the test took
+the plain mean of a bounded per-flight log-ratio of errors; a flight holding five times another's
+exposure then made the gains look inconsistent, and an effect every flight gained from was left
+undecided over three flights: docs/identify.md.)
+A flight's logs are summed first (they are predicted by the same fit, the one that left that flight out,
+so they are not independent). A candidate is judged on the held-out logs and channels where it acts (its
+contribution, fitted on every train flight, is worth at least one unit of chi-square there:
+:func:`proxplan.identify.heldout_select.exposure`; a jet's effect says nothing on a vehicle with no source
+above, a term on F_z nothing on the torques, an effect's far tail nothing where the noise hides it).
 
 **Stability** (:mod:`proxplan.identify.stability`): a candidate must also be chosen in most
 half-samples of the flights.
@@ -271,14 +285,31 @@ def trainable_groups(sums: GroupSums, plan: GroupPlan) -> np.ndarray:
     return ((~plan.held_out_only) & (group_weights(sums) > 0)).astype(float)
 
 
-def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
-    """(G, C): per group and channel, the mean squared error (noise units) predicted by a fit that did not
-    see the group's cluster (its flight): each train cluster left out in turn; validation groups from the fit
-    on every train group. NaN where a group has no samples."""
+@dataclass(frozen=True)
+class HeldOutFit:
+    """The held-out predictions of one set of columns: ``mse`` (G, C), per group and channel, the mean squared
+    error (noise units) of the fit that did not see the group's cluster (its flight), NaN where a group has no
+    samples; ``beta`` (G, p) that fit's coefficients over all :attr:`GroupSums.columns` (0 outside ``cols``,
+    NaN rows where there was no fit); ``cols`` the fitted columns (indices into :attr:`GroupSums.columns`)."""
+
+    mse: np.ndarray
+    beta: np.ndarray
+    cols: np.ndarray
+
+    def where(self, keep: np.ndarray, other: HeldOutFit) -> HeldOutFit:
+        """This fit on the groups where ``keep`` (G,) bool, ``other``'s elsewhere."""
+        return HeldOutFit(np.where(keep[:, None], self.mse, other.mse), np.where(keep[:, None], self.beta, other.beta),
+                          np.union1d(self.cols, other.cols))  # fmt: skip
+
+
+def heldout_fit(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge, tau: float) -> HeldOutFit:
+    """The :class:`HeldOutFit` of the columns ``cols``: each train cluster left out in turn; validation groups
+    from the fit on every train group."""
     nc = sums.n_channels
     trainable = trainable_groups(sums, plan)
     weights = group_weights(sums)
     out = np.full((plan.n_groups, nc), np.nan)
+    betas = np.full((plan.n_groups, len(sums.columns)), np.nan)
     sub = _Restricted.of(sums, cols, ridge)
     total = sub.sums_of(trainable)
     beta_all = sub.solve_sums(*total, tau)
@@ -294,7 +325,25 @@ def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge
             beta = sub.solve_without(total, np.flatnonzero((plan.cluster == c) & (trainable > 0)), tau)
         cells = (members[:, None] * nc + np.arange(nc)[None, :]).ravel()
         out[members] = sub.mse(beta, cells).reshape(members.size, nc)
-    return out
+        betas[members] = 0.0
+        betas[np.ix_(members, cols)] = beta
+    return HeldOutFit(out, betas, np.asarray(cols, dtype=int))
+
+
+def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
+    """(G, C): the held-out mean squared errors of :func:`heldout_fit` (noise units)."""
+    return heldout_fit(sums, cols, plan, ridge, tau).mse
+
+
+def change_energy(sums: GroupSums, a: HeldOutFit, b: HeldOutFit) -> np.ndarray:
+    """(G, C) per group and channel, the weighted sum over its samples of the squared difference between the
+    held-out predictions of ``b`` and ``a`` (noise units squared): |X (beta_b - beta_a)|^2, the energy of what
+    replacing fit ``a`` by ``b`` changes on data neither saw. NaN where either has no fit."""
+    cols = np.union1d(a.cols, b.cols)
+    n_groups = a.mse.shape[0]
+    delta = b.beta[:, cols] - a.beta[:, cols]  # (G, q)
+    Gq = sums.G[:, cols[:, None], cols[None, :]].reshape(n_groups, sums.n_channels, len(cols), len(cols))
+    return np.einsum("gi,gcij,gj->gc", delta, Gq, delta)
 
 
 def heldout_predictions(

@@ -294,7 +294,7 @@ def _reason(
                 f"{prob:.0%}; needs more than {threshold:.0%})")  # fmt: skip
     if t is None:
         return f"not tested (the forward pass stopped at {MAX_EFFECTS} effects); {stab}"
-    gain = (f"held-out gain {t.mean:+.3g} +- {t.se:.2g} (bounded log-ratio of held-out errors, summed over channels, {t.n_groups} held-out flights; "
+    gain = (f"held-out gain {t.mean:+.3g} +- {t.se:.2g} (error removed per unit of change on held-out flights, {t.n_groups} flights, {t.share:.1%} of their error; "
             f"needs > {t.z:.2f} SE)")  # fmt: skip
     if selected:
         return f"kept: {gain}; {stab}"

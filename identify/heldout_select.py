@@ -1,6 +1,7 @@
-"""The held-out gain test and the greedy passes built on it (issue 35): :func:`gain_test` (a candidate's
-gain per flight, Student's t over the flights, Bonferroni), :func:`flight_test` (that test on any per-group
-values), :func:`exposure` (where a candidate acts), :func:`heldout_forward` and :func:`heldout_backward`.
+"""The held-out gain test and the greedy passes built on it (issue 35): :func:`gain_test` (the error a
+candidate removes on each held-out flight per unit of what it changes there, pooled, Student's t over the
+flights, Bonferroni), :func:`ratio_test` (that test on per-flight sums), :func:`exposure` (where a candidate
+acts), :func:`heldout_forward` and :func:`heldout_backward`.
 The held-out fits they compare come from :mod:`proxplan.identify.crossval`, whose docstring derives the
 test.
 """
@@ -14,7 +15,16 @@ import numpy as np
 from scipy.stats import norm
 from scipy.stats import t as student_t
 
-from proxplan.identify.crossval import GroupPlan, GroupSums, Ridge, heldout_mse, solve, trainable_groups
+from proxplan.identify.crossval import (
+    GroupPlan,
+    GroupSums,
+    HeldOutFit,
+    Ridge,
+    change_energy,
+    heldout_fit,
+    solve,
+    trainable_groups,
+)
 
 ALPHA = 0.05
 """Family-wise level of the gain test: on data without any of the m candidates of a round, the
@@ -23,9 +33,12 @@ chance that one of them passes, -."""
 
 @dataclass(frozen=True)
 class GainTest:
-    """The held-out gain of one candidate: per-group gains (bounded log-ratio of held-out MSEs, summed over
-    the channels, -), their mean and standard error over the groups, the critical multiple z and whether it
-    passed."""
+    """The held-out gain of one candidate (the module docstring of :mod:`proxplan.identify.crossval` derives
+    it): ``gains`` (n,) per held-out flight, the error the candidate removed per unit of what it changed
+    (gain / energy, -); ``mean`` the pooled ratio R = sum gain / sum energy (-), ``se`` its standard error from
+    flight to flight, ``z`` the critical multiple, ``passed`` whether R > z se; ``n_groups`` the flights it
+    was judged on; ``share`` the held-out squared error it removed over those flights as a share of the error
+    without it (-) and ``share_lower`` that share at R - z se (what the forward pass ranks by)."""
 
     gains: np.ndarray
     mean: float
@@ -33,6 +46,8 @@ class GainTest:
     z: float
     passed: bool
     n_groups: int
+    share: float = 0.0
+    share_lower: float = 0.0
 
     @property
     def t(self) -> float:
@@ -41,7 +56,8 @@ class GainTest:
     def to_json(self) -> dict[str, float | int | bool | None]:
         return {"mean_gain": self.mean, "se": self.se, "t": float(self.t) if np.isfinite(self.t) else None,
                 "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups,
-                "groups_improved": int(np.sum(self.gains > 0.0)), "undecided": self.undecided}  # fmt: skip
+                "groups_improved": int(np.sum(self.gains > 0.0)), "undecided": self.undecided,
+                "share_of_error": self.share}  # fmt: skip
 
     @property
     def undecided(self) -> bool:
@@ -70,19 +86,6 @@ def can_be_tested(acts: np.ndarray, cluster: np.ndarray | None) -> bool:
     return int(units.size) >= 2
 
 
-def relative_gains(mse_without: np.ndarray, mse_with: np.ndarray, acts: np.ndarray | None = None) -> np.ndarray:
-    """(G,) per group, the sum over its channels of (MSE without - MSE with) / (MSE without + MSE with) of
-    (G, C) held-out MSEs, i.e. tanh(ln(MSE without / MSE with) / 2): the log-ratio of the errors, bounded to
-    +-1 per channel, over the channels where the candidate acts (``acts`` (G, C) bool; default all; a
-    channel without error on both sides adds nothing); NaN for a group with no such channel."""
-    a, b = np.atleast_2d(mse_without), np.atleast_2d(mse_with)
-    ok = np.isfinite(a) & np.isfinite(b) & (a + b > 0)
-    if acts is not None:
-        ok &= acts
-    share = np.where(ok, (np.where(ok, a, 0.0) - np.where(ok, b, 0.0)) / np.where(ok, a + b, 1.0), 0.0)
-    return np.where(ok.any(axis=1), share.sum(axis=1), np.nan)
-
-
 def exposure(sums: GroupSums, cols: np.ndarray, beta: np.ndarray, tau: float) -> np.ndarray:
     """(G, C) bool: the groups and channels where the candidate (columns ``cols`` at coefficients ``beta``,
     fitted on every train group) ACTS: its contribution there is worth at least one unit of chi-square,
@@ -98,37 +101,56 @@ def exposure(sums: GroupSums, cols: np.ndarray, beta: np.ndarray, tau: float) ->
 
 
 def gain_test(
-    mse_without: np.ndarray,
-    mse_with: np.ndarray,
+    sums: GroupSums,
+    without: HeldOutFit,
+    with_: HeldOutFit,
     m: int,
     acts: np.ndarray | None = None,
     cluster: np.ndarray | None = None,
 ) -> GainTest:
-    """The gain test of the module docstring on (G, C) held-out MSEs (:func:`relative_gains`), over the
-    groups and channels where the candidate acts (``acts``, (G, C) bool; default all): a log or a channel
-    the candidate cannot touch (a vehicle with no source above for a jet's effect, the torques for a term
-    on F_z) says nothing about it. With ``cluster`` ((G,) int, each group's flight) the groups' gains are
-    averaged per cluster and the test is over clusters (Student's t); without, over groups (normal)."""
-    return flight_test(relative_gains(mse_without, mse_with, acts), m, cluster)
+    """The gain test of :mod:`proxplan.identify.crossval`'s docstring: replacing the held-out fit ``without``
+    by ``with_`` (both :class:`~proxplan.identify.crossval.HeldOutFit` over ``sums``), judged on the groups
+    and channels where the candidate acts (``acts`` (G, C) bool; default all: a log or a channel the
+    candidate cannot touch says nothing about it). Per held-out unit (a flight: the groups of one
+    ``cluster`` value, (G,) int; without, each group) the squared error removed, gain = SSE without - SSE
+    with, and the energy of the change, |X (beta_with - beta_without)|^2 (:func:`change_energy`), summed
+    over its acting cells; then :func:`ratio_test`."""
+    w = sums.w.reshape(without.mse.shape)
+    gain = (without.mse - with_.mse) * w
+    energy = change_energy(sums, without, with_)
+    sse = without.mse * w
+    ok = np.isfinite(gain) & np.isfinite(energy) & (energy > 0.0)
+    if acts is not None:
+        ok &= acts
+    units = np.arange(len(gain)) if cluster is None else np.asarray(cluster)
+    labels = np.unique(units[ok.any(axis=1)])
+    g_u, e_u, s_u = (np.array([np.where(ok, x, 0.0)[units == u].sum() for u in labels]) for x in (gain, energy, sse))
+    return ratio_test(g_u, e_u, s_u, m, clustered=cluster is not None)
 
 
-def flight_test(d: np.ndarray, m: int, cluster: np.ndarray | None = None) -> GainTest:
-    """The one-sided test that the mean of per-group values ``d`` ((G,), NaN: the group says nothing) is
-    positive beyond chance, Bonferroni over ``m``: with ``cluster`` ((G,) int, each group's flight) the values
-    are averaged per cluster first and the critical multiple is Student's t over the clusters; without, the
-    normal quantile over the groups."""
-    if cluster is not None:
-        ok = np.isfinite(d)
-        d = np.array([d[ok & (cluster == c)].mean() for c in np.unique(cluster[ok])])
-    d = d[np.isfinite(d)]
-    n = int(d.size)
-    z = critical_z(m, None if cluster is None else n - 1)
-    if n < 2:
-        return GainTest(d, float(d.mean()) if n else 0.0, float("inf"), z, False, n)
-    mean = float(d.mean())
-    se = float(d.std(ddof=1) / np.sqrt(n))
-    passed = mean > 0.0 and (mean > z * se)
-    return GainTest(d, mean, se, z, bool(passed), n)
+def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *, clustered: bool = True) -> GainTest:
+    """The one-sided test, Bonferroni over ``m``, that a candidate's held-out predictions remove error: per
+    held-out unit (n,) the ``gain`` (squared error removed), the ``energy`` of the change (> 0) and the
+    ``sse`` without it (noise units squared). The pooled ratio R = sum gain / sum energy is the weighted
+    least-squares slope of gain on energy through the origin with weights 1 / energy (the variance of a
+    unit's gain grows with its energy: module docstring of :mod:`proxplan.identify.crossval`); its standard
+    error s / sqrt(sum energy), s^2 = sum (gain - R energy)^2 / energy / (n - 1), is estimated from unit to
+    unit, so the multiple is Student's t with n - 1 degrees of freedom (``clustered``; else the normal
+    quantile)."""
+    n = int(gain.size)
+    z = critical_z(m, (n - 1) if clustered else None)
+    ratios = gain / np.where(energy > 0, energy, np.nan) if n else np.zeros(0)
+    total_e, total_s = float(energy.sum()), float(sse.sum())
+    share = float(gain.sum()) / total_s if total_s > 0 else 0.0
+    if n < 2 or total_e <= 0.0:
+        return GainTest(ratios, float(gain.sum() / total_e) if total_e > 0 else 0.0, float("inf"), z, False, n, share,
+                        -np.inf)  # fmt: skip
+    r = float(gain.sum()) / total_e
+    s2 = float(np.sum((gain - r * energy) ** 2 / energy)) / (n - 1)
+    se = float(np.sqrt(s2 / total_e))
+    passed = r > 0.0 and r > z * se
+    lower = (r - z * se) * total_e / total_s if total_s > 0 else -np.inf
+    return GainTest(ratios, r, se, z, bool(passed), n, share, float(lower))
 
 
 # ------------------------------------------------------------------------------ held-out passes
@@ -184,14 +206,14 @@ def heldout_forward(
     def cols(names: Sequence[str]) -> np.ndarray:
         return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
 
-    current = heldout_mse(sums, cols([]), plan, ridge, tau)
+    current = heldout_fit(sums, cols([]), plan, ridge, tau)
     remaining = [c.name for c in candidates]
     label = (lambda n: hypothesis.get(n, n)) if hypothesis else (lambda n: n)
     while remaining and len(out.chosen) < max_terms:
         trials = {}
         for name in remaining:
             trial = _in_fold(
-                heldout_mse(sums, cols(out.chosen + [name]), plan, ridge, tau), current, name, fold_eligible
+                heldout_fit(sums, cols(out.chosen + [name]), plan, ridge, tau), current, name, fold_eligible
             )
             trials[name] = (trial, _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau))
         # Bonferroni over the hypotheses that could be kept: near-duplicate candidates (``hypothesis``: one
@@ -201,35 +223,37 @@ def heldout_forward(
             n for n in remaining if (eligible is None or n in eligible) and can_be_tested(trials[n][1], plan.cluster)
         ]
         m = max(1, len({label(n) for n in open_}))
-        tests = {name: gain_test(current, trial, m, acts, plan.cluster) for name, (trial, acts) in trials.items()}
+        tests = {name: gain_test(sums, current, trial, m, acts, plan.cluster) for name, (trial, acts) in trials.items()}
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
         if not ok:
             break
-        # the one most surely better: the largest lower confidence bound of the gain (mean - z SE), so a
-        # candidate whose gain is as large but less consistent over the flights does not pre-empt it
-        best = max(ok, key=lambda n: tests[n].mean - tests[n].z * tests[n].se)
+        # the one most surely better: the largest lower confidence bound of the error it removes (the share at
+        # R - z SE), so a candidate whose gain is as large but less consistent over the flights does not
+        # pre-empt it
+        best = max(ok, key=lambda n: tests[n].share_lower)
         for name, t in tests.items():  # rivals the flights cannot tell from it (a head-to-head one-sided test)
             if name == best or not t.passed or label(name) == label(best):
                 continue
-            head = gain_test(trials[name][0], trials[best][0], 1, trials[name][1] | trials[best][1], plan.cluster)
+            head = gain_test(sums, trials[name][0], trials[best][0], 1, trials[name][1] | trials[best][1], plan.cluster)
             if not head.passed:
                 out.rivals.setdefault(best, {})[name] = head
         out.chosen.append(best)
         remaining.remove(best)
-        current = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
+        current = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
     _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible)
     return out
 
 
 def _in_fold(
-    trial: np.ndarray, without: np.ndarray, name: str, fold_eligible: Mapping[str, np.ndarray] | None
-) -> np.ndarray:
-    """(G, C) held-out MSE with candidate ``name``, set to the MSE ``without`` it on the groups where the
-    selection run without their flight would not have tested it (``fold_eligible``; gain 0 there)."""
+    trial: HeldOutFit, without: HeldOutFit, name: str, fold_eligible: Mapping[str, np.ndarray] | None
+) -> HeldOutFit:
+    """The held-out fit with candidate ``name``, set to the fit ``without`` it on the groups where the
+    selection run without their flight would not have tested it (``fold_eligible``; no gain and no change
+    there)."""
     if fold_eligible is None or name not in fold_eligible:
         return trial
-    return np.where(fold_eligible[name][:, None], trial, without)
+    return trial.where(np.asarray(fold_eligible[name], dtype=bool), without)
 
 
 def _acts(sums: GroupSums, cols, others, name, cols_of, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
@@ -252,15 +276,15 @@ def _backward(
     """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
     (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
     while out.chosen:
-        full = heldout_mse(sums, cols(out.chosen), plan, ridge, tau)
+        full = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
         trials = {}
         for name in out.chosen:
             others = [n for n in out.chosen if n != name]
-            without = heldout_mse(sums, cols(others), plan, ridge, tau)
+            without = heldout_fit(sums, cols(others), plan, ridge, tau)
             acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau)
             trials[name] = (without, _in_fold(full, without, name, fold_eligible), acts)
         m = max(1, sum(can_be_tested(acts, plan.cluster) for _, _, acts in trials.values()))
-        finals = {name: gain_test(w, v, m, acts, plan.cluster) for name, (w, v, acts) in trials.items()}
+        finals = {name: gain_test(sums, w, v, m, acts, plan.cluster) for name, (w, v, acts) in trials.items()}
         failing = [n for n, t in finals.items() if not t.passed]
         if not failing:
             out.final_tests = finals

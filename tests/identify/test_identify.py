@@ -140,8 +140,8 @@ def test_cli_bad_manifest_is_one_line_error(tmp_path: Path, capsys) -> None:
 SIMULATOR_OPEN = {  # issue 35, left open (measured on this test's flights; see the issue's note)
     "thrust_quadratic": pytest.mark.xfail(
         reason="issue 35 open: near_field is kept in its place; on these swaps the two are near-collinear "
-        "(held-out gains alone 1.82 +- 0.22 vs 1.76 +- 0.26; head-to-head +0.19 +- 0.31), which identify now "
-        "reports (test_indistinguishable_effects_are_named)",
+        "(each alone removes 81 % / 75 % of the held-out error, R = 1.01 +- 0.04 / 1.06 +- 0.14) and near_field's "
+        "predictions beat thrust_quadratic's on every flight (head-to-head R = 0.87 +- 0.18, stop 50)",
         strict=False,
     ),
 }
@@ -218,9 +218,12 @@ def _simulator_run(tmp: Path, hidden: str):
 
 @pytest.fixture(scope="module")
 def thrust_quadratic_run(tmp_path_factory: pytest.TempPathFactory):
-    """The simulator's flights with a hidden thrust_quadratic identified once: the hidden-effect test of
-    thrust_quadratic and test_indistinguishable_effects_are_named read the same run (simulation and identify
-    are seeded: one run is what each of them ran on its own)."""
+    """The simulator's flights with a hidden thrust_quadratic identified once (simulation and identify are
+    seeded). Until stop 49 test_indistinguishable_effects_are_named read this run too: the flights could not
+    tell near_field from thrust_quadratic (head-to-head +0.19 +- 0.31 in the old bounded log-ratio). With the
+    gain per unit of change (identify.crossval) near_field's predictions beat thrust_quadratic's on every one of
+    the six flights (ratios 0 to 1.4, R = 0.87 +- 0.18): the premise no longer holds, and the rival naming is
+    tested on two near-copies in tests/identify/test_gain_ratio.py."""
     return _simulator_run(tmp_path_factory.mktemp("thrust_quadratic"), "thrust_quadratic")
 
 
@@ -242,23 +245,6 @@ def test_simulator_logs_hidden_effect(request: pytest.FixtureRequest, tmp_path: 
         assert result.after.rmse_tz_Nm <= 0.5 * result.before.rmse_tz_Nm
     else:
         assert result.after.rmse_fz_N <= 0.5 * result.before.rmse_fz_N
-
-
-def test_indistinguishable_effects_are_named(thrust_quadratic_run) -> None:
-    """Where the flights cannot tell two library effects apart (a hidden thrust_quadratic, and near_field with
-    a fitted decay, on swaps between 0.3 and 1.0 m), identify says so: the kept one's reason, its JSON
-    (``selection.indistinguishable``) and the rival's reason name each other, and the kept one still
-    explains the data (test F_z error at most half of the prior model's)."""
-    result = thrust_quadratic_run
-    pairs = result.selection["indistinguishable"]
-    kept = [k for k, rivals in pairs.items() if "thrust_quadratic" in rivals or k == "thrust_quadratic"]
-    assert "thrust_quadratic" in result.selected or kept, (result.selected, pairs)
-    for name in kept:
-        trial = next(t for t in result.trials if t.name == name)
-        assert "not shown better than thrust_quadratic" in trial.reason
-        rival = next(t for t in result.trials if t.name == "thrust_quadratic")
-        assert f"cannot tell it from the kept {name}" in rival.reason
-    assert result.after.rmse_fz_N <= 0.5 * result.before.rmse_fz_N
 
 
 def test_simulator_logs_no_hidden_effect(tmp_path: Path) -> None:
