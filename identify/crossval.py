@@ -296,10 +296,10 @@ class HeldOutFit:
     beta: np.ndarray
     cols: np.ndarray
 
-    def errors_of(self, other: HeldOutFit, where: np.ndarray) -> HeldOutFit:
-        """This fit with ``other``'s errors on the groups where ``where`` (G,) bool: there it is judged to
-        remove nothing, while what it would change (its coefficients) still counts."""
-        return HeldOutFit(np.where(where[:, None], other.mse, self.mse), self.beta, self.cols)
+    def where(self, keep: np.ndarray, other: HeldOutFit) -> HeldOutFit:
+        """This fit on the groups where ``keep`` (G,) bool, ``other``'s elsewhere."""
+        return HeldOutFit(np.where(keep[:, None], self.mse, other.mse), np.where(keep[:, None], self.beta, other.beta),
+                          np.union1d(self.cols, other.cols))  # fmt: skip
 
 
 def heldout_fit(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge, tau: float) -> HeldOutFit:

@@ -248,14 +248,12 @@ def heldout_forward(
 def _in_fold(
     trial: HeldOutFit, without: HeldOutFit, name: str, fold_eligible: Mapping[str, np.ndarray] | None
 ) -> HeldOutFit:
-    """The held-out fit with candidate ``name``, with the errors of the fit ``without`` it on the groups where
-    the selection run without their flight would not have tested it (``fold_eligible``): there the whole
-    procedure, selection included, would have predicted nothing new, so the candidate removes nothing (gain
-    0) while the change it makes where it is fitted still counts in its energy (ratio 0 on that flight, as a
-    gain of 0 counted before stop 50)."""
+    """The held-out fit with candidate ``name``, set to the fit ``without`` it on the groups where the
+    selection run without their flight would not have tested it (``fold_eligible``; no gain and no change
+    there)."""
     if fold_eligible is None or name not in fold_eligible:
         return trial
-    return trial.errors_of(without, ~np.asarray(fold_eligible[name], dtype=bool))
+    return trial.where(np.asarray(fold_eligible[name], dtype=bool), without)
 
 
 def _acts(sums: GroupSums, cols, others, name, cols_of, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
