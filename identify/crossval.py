@@ -53,7 +53,8 @@ stable HYPOTHESES tested together: a candidate no half chose cannot be a false s
 candidates (the members of one feature group: a kernel at two widths, a kernel and its lagged copy) stand
 for one hypothesis. Since stability was judged on every flight, the held-out flight included, a
 discovered term's gain on a flight counts only where the search run WITHOUT that flight would have tested
-it, else 0 (:func:`proxplan.identify.stability.fold_eligibility`: cross-validation of the selection step
+it; elsewhere that procedure changes nothing on the flight (gain and energy 0: the flight drops out of the
+ratio) (:func:`proxplan.identify.stability.fold_eligibility`: cross-validation of the selection step
 itself; for the discovered terms, chosen among some 1500, not the nine named effects).
 
 **Held-out units** (:func:`plan_groups`): a fit leaves a whole flight out (its CLUSTER), and each
