@@ -13,7 +13,8 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    not planned yet are predictions; a vehicle that cannot be planned is repaired (only the vehicles
    in conflict with it planned again, after it), within a count of repairs per pass; one still
    failing then flies in collision and the collisions are repaired at the end of the pass
-   (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (on with fixed goals), once
+   (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (on with fixed goals up to
+   ``HEIGHTS_MAX_VEHICLES``), once
    the prioritised plan is re-timed and repaired (4-5), one more pass runs, in its order and hold,
    with both wavefronts per vehicle (the earlier arrival kept), on what is left of the count budget;
    it goes through 4-5 too and replaces that plan only when it is shorter (:func:`_heights_way`): a
@@ -76,8 +77,14 @@ HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the initia
 # longer is not worth having: the lattice plan in lock-step is the answer then)
 PRIORITISED_HORIZON_FACTOR = 4.0
 PRIORITISED_HORIZON_MARGIN_S = 20.0
+# SwarmOptions.heights None is on with fixed goals for at most this many vehicles: its pass costs about
+# two plain passes (two wavefronts per planning) and more where the wavefront spreads over long horizons;
+# at circle-256 it took the whole process past issue 37's 300 s (main 172 s of CPU, this pass unfinished
+# at 362 s, loaded), at circle-128 it cost 50.9 against 29.3 s (round 11S, loaded; the 128 target is 60 s).
+# Set watching those two named layouts (docs/planner.md, round 12B), not the family
+HEIGHTS_MAX_VEHICLES = 128
 
-__all__ = ["SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
+__all__ = ["HEIGHTS_MAX_VEHICLES", "SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
 
 
 @dataclass(frozen=True)
@@ -134,9 +141,11 @@ class SwarmOptions:
     # priority.plan_one), in the order and hold of the pass that gave the plan without, on what is left
     # of prioritised planning's count budget; the shorter of the two whole plans kept (each re-timed and
     # repaired; ties: the plan without), so never longer than without. No pass where prioritised
-    # planning gave up (its budget spent: the lattice plan). None: on with fixed goals, off where the
-    # goals were assigned (Scenario.assign_goals: by_type). Set watching the named layouts only
-    # (docs/planner.md, round 12B): TODO
+    # planning gave up (its budget spent: the lattice plan). None: on with fixed goals for up to
+    # HEIGHTS_MAX_VEHICLES vehicles, off where the goals were assigned (Scenario.assign_goals: by_type).
+    # Set watching the named layouts only (docs/planner.md, round 12B): fixed goals at 64, pillar 3.17x
+    # -> 2.73x and circle 1.56x -> 1.51x for about +10 / +6 s of CPU, grid and corridor no pass (both
+    # gave up); by type at 64 it shortened no named layout for +1.4 to +16.5 s of CPU (round 11S)
     heights: bool | None = None
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
@@ -197,7 +206,11 @@ def swarm_timed(
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
-    heights = opts.heights if opts.heights is not None else scenario.assign_goals is None
+    heights = opts.heights
+    if heights is None:  # on with fixed goals, up to HEIGHTS_MAX_VEHICLES (SwarmOptions)
+        heights = scenario.assign_goals is None and problem.n_agents <= HEIGHTS_MAX_VEHICLES
+        if scenario.assign_goals is None and not heights:
+            extra["heights"] = f"both wavefronts: not planned (more than {HEIGHTS_MAX_VEHICLES} vehicles)"
     if heights and opts.prioritized and not straight:
         got = _heights_way(problem, lower_bound, opts, found, by_agent, extra, progress=progress, deadline=deadline)
         if got is not None:
