@@ -13,10 +13,12 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    not planned yet are predictions; a vehicle that cannot be planned is repaired (only the vehicles
    in conflict with it planned again, after it), within a count of repairs per pass; one still
    failing then flies in collision and the collisions are repaired at the end of the pass
-   (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (off by default), once the
-   plan of stages 2-3 is re-timed and repaired (4-5), prioritised planning runs again with both
-   wavefronts per vehicle (the earlier arrival kept), goes through 4-5 too, and replaces that plan
-   only when it is shorter (:func:`_heights_way`): a vehicle's earlier arrival can lengthen the whole plan.
+   (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (on with fixed goals up to
+   ``HEIGHTS_MAX_VEHICLES``), once
+   the prioritised plan is re-timed and repaired (4-5), one more pass runs, in its order and hold,
+   with both wavefronts per vehicle (the earlier arrival kept), on what is left of the count budget;
+   it goes through 4-5 too and replaces that plan only when it is shorter (:func:`_heights_way`): a
+   vehicle's earlier arrival can lengthen the whole plan. None where prioritised planning gave up.
 3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
@@ -75,8 +77,15 @@ HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the initia
 # longer is not worth having: the lattice plan in lock-step is the answer then)
 PRIORITISED_HORIZON_FACTOR = 4.0
 PRIORITISED_HORIZON_MARGIN_S = 20.0
+# SwarmOptions.heights None is on with fixed goals for at most this many vehicles: its pass costs about
+# two plain passes (two wavefronts per planning), more where the wavefront spreads over long horizons.
+# Whole processes, main / with it, one run each (docs/planner.md, round 12B; loaded): circle-128 30.5 ->
+# 59.2 s of CPU (issue 37's 128 target is 60 s), circle-256 172 s -> past 362 s (target 300 s); at 64
+# the 30 s target holds (pillar 14.7 -> 25.2 s, circle 8.8 -> 14.7 s). Set watching those named
+# layouts, not the family: the largest size of the bench at which the time targets still hold
+HEIGHTS_MAX_VEHICLES = 64
 
-__all__ = ["SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
+__all__ = ["HEIGHTS_MAX_VEHICLES", "SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
 
 
 @dataclass(frozen=True)
@@ -128,14 +137,17 @@ class SwarmOptions:
     # where by_type it gave grid-64 1.91x -> 1.63x for 1-3 s (docs/planner.md, fifth round; a default set
     # watching those two figures). Called directly (not through the pipeline), None means on.
     makespan_repair: bool | None = None
-    # also plan prioritised with both wavefronts per vehicle (the widest disc at every height and discs
-    # for the heights the route flies at, swarm.wave; the earlier arrival kept, priority.plan_one), and
-    # keep the shorter of the two whole plans (each re-timed and repaired; ties: the plan without):
-    # never longer than without, for a second prioritised stage and tail. Off by default: with fixed
-    # goals it shortened pillar-64 3.17x -> 2.73x and circle-256 1.43x -> 1.34x, but cost 1.6-1.8x the
-    # wall time at 64 and 2.25x at circle-256 (144 -> 324 s, past issue 37's 300 s); by type at 64 it
-    # shortened no named layout (docs/planner.md, round 11S and the lead's stop-49 measurement)
-    heights: bool = False
+    # one more pass of prioritised planning with both wavefronts per vehicle (the widest disc at every
+    # height and discs for the heights the route flies at, swarm.wave; the earlier arrival kept,
+    # priority.plan_one), in the order and hold of the pass that gave the plan without, on what is left
+    # of prioritised planning's count budget; the shorter of the two whole plans kept (each re-timed and
+    # repaired; ties: the plan without), so never longer than without. No pass where prioritised
+    # planning gave up (its budget spent: the lattice plan). None: on with fixed goals for up to
+    # HEIGHTS_MAX_VEHICLES vehicles, off where the goals were assigned (Scenario.assign_goals: by_type).
+    # Set watching the named layouts only (docs/planner.md, round 12B): fixed goals at 64, pillar 3.17x
+    # -> 2.73x and circle 1.56x -> 1.51x for about +10 / +6 s of CPU, grid and corridor no pass (both
+    # gave up); by type at 64 it shortened no named layout for +1.4 to +16.5 s of CPU (round 11S)
+    heights: bool | None = None
     workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
     # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
     # layer can time (swarm.tracking_bound), so that the verifier does not reject the first plan
@@ -155,6 +167,8 @@ class _Stage:
     stage: SwarmStage
     coordination: str
     routes: Callable[[int], list[np.ndarray]]  # the stage's own waypoint chain of an agent (re-timing)
+    # prioritised planning's pass that gave the tracks: (order label, hold s); None for the other stages
+    pass_key: tuple[str, float] | None = None
 
 
 def swarm_timed(
@@ -193,7 +207,12 @@ def swarm_timed(
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
-    if opts.heights and opts.prioritized and not straight:
+    heights = opts.heights
+    if heights is None:  # on with fixed goals, up to HEIGHTS_MAX_VEHICLES (SwarmOptions)
+        heights = scenario.assign_goals is None and problem.n_agents <= HEIGHTS_MAX_VEHICLES
+        if scenario.assign_goals is None and not heights:
+            extra["heights"] = f"both wavefronts: not planned (more than {HEIGHTS_MAX_VEHICLES} vehicles)"
+    if heights and opts.prioritized and not straight:
         got = _heights_way(problem, lower_bound, opts, found, by_agent, extra, progress=progress, deadline=deadline)
         if got is not None:
             found, by_agent, retiming, repair = got
@@ -227,14 +246,39 @@ def _heights_way(
     progress,
     deadline,
 ) -> tuple[_Stage, dict[int, GridTrack], RetimeInfo, MakespanRepairInfo | None] | None:
-    """``SwarmOptions.heights``: prioritised planning again with both wavefronts per vehicle, re-timed
-    and repaired as the plan without (``found`` -> ``by_agent``, already through its tail); that
-    whole plan when it is shorter (then (stage, tracks, re-timing, repair)), else None. What it gave
-    is said in ``extra["heights"]``; its plannings are counted apart (``heights_planned``)."""
+    """``SwarmOptions.heights``: one more pass of prioritised planning, with both wavefronts per
+    vehicle, in the order and hold of the pass that gave the plan without (``found``, already through
+    its tail: ``by_agent``), on what is left of prioritised planning's count budget (a pass that
+    cannot finish within it gives up early, charged the rest); re-timed and repaired as the plan
+    without, that whole plan when it is shorter (then (stage, tracks, re-timing, repair)), else None.
+    No pass where prioritised planning did not give the plan (it gave up: its budget is spent; the
+    lattice plan) or left no budget. What it gave is said in ``extra["heights"]``; its plannings are
+    counted apart (``heights_planned``)."""
     without = max(tr.arrival_s for tr in by_agent.values())
-    mine: dict = {}
-    alt = _prioritised_stage(problem, lower_bound_s, opts, mine, progress=progress, deadline=deadline, heights=True)
     counts = extra.setdefault("counts", {})
+    left = prioritised_budget(problem, opts) - counts.get("charged", 0)
+    if found.pass_key is None or left <= 0:
+        if found.stage == "lattice":
+            why = "prioritised planning gave up: its budget spent"
+        elif found.pass_key is None:
+            why = "the plan with straight lines kept"
+        else:
+            why = "no planning budget left"
+        extra["heights"] = f"both wavefronts: not planned ({why}); kept the plan without, {without:.2f} s"
+        counts["heights_planned"] = 0
+        return None
+    mine: dict = {}
+    alt = _prioritised_stage(
+        problem,
+        lower_bound_s,
+        opts,
+        mine,
+        progress=progress,
+        deadline=deadline,
+        heights=True,
+        only=found.pass_key,
+        budget=left,
+    )
     counts["heights_planned"] = mine["counts"]["planned"]
     extra["heights_time_s"] = mine["prioritised_time_s"]
     if alt is None:
@@ -297,6 +341,12 @@ ORDERS: dict[str, Callable[[SwarmProblem], list[int]]] = {
 }
 
 
+def prioritised_budget(problem: SwarmProblem, opts: SwarmOptions) -> int:
+    """Single-vehicle plannings of prioritised planning over all its passes (``opts.plannings_per_vehicle``
+    per vehicle; the pass with both wavefronts, ``SwarmOptions.heights``, spends what is left)."""
+    return math.ceil(opts.plannings_per_vehicle * problem.n_agents)
+
+
 def _makespan(stage: _Stage) -> float:
     return max(tr.arrival_s for tr in stage.tracks)
 
@@ -355,6 +405,8 @@ def _prioritised_stage(
     progress,
     deadline,
     heights: bool = False,
+    only: tuple[str, float] | None = None,
+    budget: int | None = None,
 ) -> _Stage | None:
     """Prioritised continuous planning of each group of vehicles that interact, in each of
     ``opts.orders``, the shorter plan kept; each order with the first of ``opts.unplanned_hold_s``
@@ -363,7 +415,9 @@ def _prioritised_stage(
     plannings left cannot plan the vehicles it still has queued gives up at once and is charged
     the whole budget left (``PriorityOptions.give_up_early``): it would spend it and give up all the
     same, so the same passes run after it and the plan is the same (``counts["planned"]`` counts
-    the plannings made)."""
+    the plannings made; ``counts["charged"]`` those charged). ``only``: the one (order label, hold)
+    to run; ``budget``: the plannings of the whole stage (default ``opts.plannings_per_vehicle`` per
+    vehicle)."""
     import os
 
     horizon = _horizon_steps(lower_bound_s)
@@ -373,13 +427,14 @@ def _prioritised_stage(
     tried = []
     best: _Stage | None = None
     counts = {"groups": len(groups), "planned": 0, "repairs": 0, "against_order": 0}
-    budget = math.ceil(opts.plannings_per_vehicle * problem.n_agents)
+    if budget is None:
+        budget = prioritised_budget(problem, opts)
     charged = 0  # plannings charged to the budget: those made, or a pass's whole budget when it gave up early
     # (every group's order, hold) -> (order label, its result or None when it gave up, its plannings)
     ran: dict[tuple, tuple[str, PriorityResult | None, int]] = {}
-    for label in opts.orders:
+    for label in opts.orders if only is None else (only[0],):
         orders = tuple(tuple(ORDERS[label](subproblem(problem, g) if len(groups) > 1 else problem)) for g in groups)
-        for hold_s in opts.unplanned_hold_s:
+        for hold_s in opts.unplanned_hold_s if only is None else (only[1],):
             left = budget - charged
             same = ran.get((orders, hold_s))
             if same is not None:
@@ -448,10 +503,12 @@ def _prioritised_stage(
                     f"{hold_s:g} s ({len(groups)} group(s), {result.planned} vehicle plannings, {result.repairs} "
                     f"repairs, {result.against_order} against the order)",
                     _own_routes(problem, tracks),
+                    pass_key=(label, hold_s),
                 )
             break  # a longer hold only where this one found nothing
     extra["prioritised"] = "; ".join(tried)
     extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
+    counts["charged"] = charged
     extra["counts"] = counts
     return best
 

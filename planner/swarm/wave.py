@@ -59,11 +59,22 @@ def route_box(problem, start_m: np.ndarray, goal_m: np.ndarray) -> tuple[np.ndar
     return margin_box(problem, start_m, goal_m)
 
 
-@functools.lru_cache(maxsize=64)
 def _disc(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
-    n = int(math.ceil(radius_cells))
+    """The offsets (i, j) with i^2 + j^2 < ``radius_cells``^2 (two (k,) int arrays)."""
+    return _disc_of(_disc_key(radius_cells))
+
+
+def _disc_key(radius_cells: float) -> int:
+    """The integer K = ceil(radius^2): i^2 + j^2 < radius^2 exactly when i^2 + j^2 < K (both sides of
+    the first are compared as floats, the left an integer), so radii of one K mark the same disc."""
+    return math.ceil(radius_cells * radius_cells)
+
+
+@functools.lru_cache(maxsize=256)
+def _disc_of(key: int) -> tuple[np.ndarray, np.ndarray]:
+    n = math.isqrt(max(key - 1, 0))
     ix, iy = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
-    m = ix * ix + iy * iy < radius_cells * radius_cells
+    m = ix * ix + iy * iy < key
     return ix[m], iy[m]
 
 
@@ -182,9 +193,10 @@ def _marks(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float, heig
         cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
         if heights:  # a radius per sample: the keep-out at the heights the route flies at near it
             radii = _radii_cells(ko, P, start_m, goal_m, grow_m)
-            for r in np.unique(radii).tolist():
-                at = np.flatnonzero(radii == r)
-                occupied.add(r, *_distinct(lay[at], cx[at], cy[at]))
+            keys = np.ceil(radii * radii)  # _disc_key of each: the samples of one disc marked together
+            for k in np.unique(keys).tolist():
+                at = np.flatnonzero(keys == k)
+                occupied.add(float(radii[at[0]]), *_distinct(lay[at], cx[at], cy[at]))
             radius_last = float(radii[-1])
         else:  # the widest keep-out at any height difference, round the sample's cell
             radius_last = (ko.reach_xy_m + grow_m) / h
@@ -232,24 +244,25 @@ class _Occupied:
         self.shape = (n_layers, nx, ny)
         self.layers = np.zeros(self.shape, dtype=bool)
         self.done = 0  # layers [0, done) are marked
-        self._keys: dict[float, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
-        self._sorted: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
-        self._parked: list[tuple[float, int, int, int]] = []
+        self._keys: dict[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}  # disc key -> samples
+        self._sorted: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._parked: list[tuple[int, int, int, int]] = []  # (disc key, layer, cell x, cell y)
 
     def add(self, radius: float, layer: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> None:
-        self._keys.setdefault(radius, []).append((layer, cx, cy))
+        # kept by the disc's key (_disc_key): radii that mark the same disc are marked together
+        self._keys.setdefault(_disc_key(radius), []).append((layer, cx, cy))
         self._sorted = None
 
     def park(self, radius: float, layer: int, cx: int, cy: int) -> None:
-        self._parked.append((radius, layer, cx, cy))
+        self._parked.append((_disc_key(radius), layer, cx, cy))
 
-    def _by_layer(self) -> dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    def _by_layer(self) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
         if self._sorted is None:
             self._sorted = {}
-            for radius, parts in self._keys.items():
+            for key, parts in self._keys.items():
                 L, X, Y = (np.concatenate([q[i] for q in parts]) for i in range(3))
                 o = np.argsort(L, kind="stable")
-                self._sorted[radius] = (L[o], X[o], Y[o])
+                self._sorted[key] = (L[o], X[o], Y[o])
         return self._sorted
 
     def mark_upto(self, n: int) -> None:
@@ -258,17 +271,17 @@ class _Occupied:
         if n <= self.done:
             return
         n = min(n_layers, max(n, self.done + max(self.FIRST_CHUNK, self.done)))
-        for radius, (L, X, Y) in self._by_layer().items():
+        for key, (L, X, Y) in self._by_layer().items():
             i0, i1 = np.searchsorted(L, [self.done, n])
-            ox, oy = _disc(radius)
+            ox, oy = _disc_of(key)
             X_ = X[i0:i1, None] + ox[None]
             Y_ = Y[i0:i1, None] + oy[None]
             L_ = np.broadcast_to(L[i0:i1, None], X_.shape)
             ok = (L_ >= 0) & (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
             self.layers[L_[ok], X_[ok], Y_[ok]] = True
-        for radius, last, cx, cy in self._parked:
+        for key, last, cx, cy in self._parked:
             if last < n:
-                ox, oy = _disc(radius)
+                ox, oy = _disc_of(key)
                 X_, Y_ = cx + ox, cy + oy
                 ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
                 self.layers[max(last, self.done) : n, X_[ok], Y_[ok]] = True
@@ -278,14 +291,13 @@ class _Occupied:
         """(n_layers,) bool: whether cell (x, y) of the grid is occupied at each layer."""
         n_layers = self.shape[0]
         out = np.zeros(n_layers, dtype=bool)
-        for radius, parts in self._keys.items():
-            r2 = radius * radius
+        for key, parts in self._keys.items():
             for L, X, Y in parts:
                 dx, dy = x - X, y - Y
-                hit = L[(dx * dx + dy * dy < r2) & (L >= 0) & (L < n_layers)]
+                hit = L[(dx * dx + dy * dy < key) & (L >= 0) & (L < n_layers)]
                 out[hit] = True
-        for radius, last, cx, cy in self._parked:
-            if (x - cx) ** 2 + (y - cy) ** 2 < radius * radius:
+        for key, last, cx, cy in self._parked:
+            if (x - cx) ** 2 + (y - cy) ** 2 < key:
                 out[max(last, 0) :] = True
         return out
 

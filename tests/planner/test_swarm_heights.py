@@ -1,6 +1,8 @@
-"""The swarm layer's second prioritised plan with both wavefronts per vehicle
+"""The swarm layer's pass of prioritised planning with both wavefronts per vehicle
 (``SwarmOptions.heights``): the shorter whole plan is kept, so the plan is never longer than the
-plan without, it is the plan without to the bit when that one is kept, and the same on every run."""
+plan without, it is the plan without to the bit when that one is kept, and the same on every run;
+the pass runs in the order and hold of the plan without, within what is left of the count budget,
+and not at all where prioritised planning gave up."""
 
 from __future__ import annotations
 
@@ -22,6 +24,9 @@ def test_the_shorter_whole_plan_is_kept_and_never_longer_than_without(make):
     without_paths, without = swarm_timed(scenario, SwarmOptions(workers=1, heights=False))
     paths, info = swarm_timed(scenario, SwarmOptions(workers=1, heights=True))
     assert info.heights is not None and info.counts["heights_planned"] > 0
+    # one pass, in the plan without's order and hold, on what is left of prioritised planning's budget
+    assert info.heights.count("plannings)") == 1 and info.heights.split("(")[1].split(":")[0] in without.prioritised
+    assert info.counts["charged"] + info.counts["heights_planned"] <= 6 * 16
     assert info.makespan_s <= without.makespan_s
     kept = info.heights.endswith("kept both wavefronts")
     assert kept == (info.makespan_s < without.makespan_s)
@@ -34,3 +39,17 @@ def test_the_shorter_whole_plan_is_kept_and_never_longer_than_without(make):
         again, _ = swarm_timed(scenario, SwarmOptions(workers=1, heights=True))
         for name, path in paths.items():
             np.testing.assert_array_equal(again[name].knot_p_m, path.knot_p_m)
+
+
+def test_no_pass_with_both_wavefronts_where_prioritised_planning_gave_up():
+    """A count budget that prioritised planning cannot finish a pass within: it gives up, the lattice
+    plan is the answer, and the plan with heights on is that plan to the bit, with no planning more."""
+    scenario = scenario_from_dict(grid_reshuffle(16), label="test scenario")
+    tight = {"workers": 1, "plannings_per_vehicle": 0.5}
+    without_paths, without = swarm_timed(scenario, SwarmOptions(heights=False, **tight))
+    paths, info = swarm_timed(scenario, SwarmOptions(heights=True, **tight))
+    assert without.stage == info.stage == "lattice"
+    assert info.counts["heights_planned"] == 0 and "not planned" in (info.heights or "")
+    for name, path in without_paths.items():
+        np.testing.assert_array_equal(paths[name].knot_t_s, path.knot_t_s)
+        np.testing.assert_array_equal(paths[name].knot_p_m, path.knot_p_m)

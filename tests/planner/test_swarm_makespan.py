@@ -29,22 +29,22 @@ def test_the_latest_vehicles_planned_again_shorten_a_grid_and_the_plan_verifies(
     assert verify_plan(assemble_plan(sc, timed, method="swarm", notes=[]), sc) == []
 
 
-def test_the_pipeline_repairs_where_goals_were_assigned_and_plans_both_ways_only_when_asked():
+def test_the_pipeline_repairs_where_goals_were_assigned_and_plans_with_heights_where_fixed():
     """``SwarmOptions.makespan_repair`` None (the default): planner.pipeline turns it on for
     ``assign_goals: by_type`` and off for fixed goals (docs/planner.md, stage 6); ``SwarmOptions.heights``
-    is off either way (round 11S: the second plan with both wavefronts costs 1.6-2.3x the time), and on
-    when asked for (both plans prioritised, where it would run)."""
+    None (the default): the swarm layer plans the pass with both wavefronts with fixed goals, not where
+    goals were assigned (docs/planner.md, round 12B), and where asked for (both plans prioritised)."""
     from proxplan.planner.pipeline import plan_scenario
 
     repaired, heights = {}, {}
-    for assign, asked in (("by_type", False), (None, False), (None, True)):
+    for assign, asked in (("by_type", None), (None, None), ("by_type", True)):
         doc = grid_reshuffle(20)
         if assign:
             doc["assign_goals"] = assign
-        options = SwarmOptions(workers=1, heights=True) if asked else SwarmOptions(workers=1)
+        options = SwarmOptions(workers=1, heights=asked)
         plan = plan_scenario(scenario_from_dict(doc, label="test scenario"), method="swarm", swarm_options=options)
         assert plan.metrics["swarm"]["stage"] == "prioritised"
         repaired[assign, asked] = plan.metrics["swarm"]["makespan_repair"]
         heights[assign, asked] = plan.metrics["swarm"]["heights"]
-    assert repaired["by_type", False] is not None and repaired[None, False] is None
-    assert heights["by_type", False] is None and heights[None, False] is None and heights[None, True] is not None
+    assert repaired["by_type", None] is not None and repaired[None, None] is None
+    assert heights["by_type", None] is None and heights[None, None] is not None and heights["by_type", True] is not None
