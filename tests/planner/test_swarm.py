@@ -478,3 +478,24 @@ def test_the_sampling_alternative_stops_once_it_cannot_be_shorter_and_the_swarm_
     except (InfeasibleError, PlanNotFound):
         return  # no plan at all within the budget: not shorter either
     assert moving_end_s(full) >= mine
+
+
+def test_the_sampling_planner_after_the_swarm_layer_gave_up_runs_on_a_count_budget():
+    """Where the swarm layer searched and gave up (here LaCAM on one configuration, prioritised planning
+    off) the sampling planner plans within ALTERNATIVE_SEARCHES_PER_VEHICLE searches per vehicle of at
+    most ALTERNATIVE_RRT_ITERATIONS (a smaller budget passed in is kept), says so, and its plan is
+    verified."""
+    from proxplan.planner import plan_scenario
+    from proxplan.planner.pipeline import ALTERNATIVE_RRT_ITERATIONS, ALTERNATIVE_SEARCHES_PER_VEHICLE, _counted
+    from proxplan.planner.sampling import SamplingOptions
+
+    scenario = _scenario(circle_swap(4))  # every straight line crosses the centre: no straight plan
+    plan = plan_scenario(scenario, method="swarm", seed=0, swarm_options=SwarmOptions(prioritized=False, max_nodes=1))
+    assert plan.method == "sampling" and plan.verified and verify_plan(plan, scenario) == []
+    cap = ALTERNATIVE_SEARCHES_PER_VEHICLE * 4
+    said = f"count budget: {cap} single-vehicle searches of at most {ALTERNATIVE_RRT_ITERATIONS} RRT iterations"
+    assert any("swarm layer: no plan found" in n and said in n for n in plan.notes)
+    assert _counted(SamplingOptions(), 4).max_searches == cap
+    assert _counted(SamplingOptions(max_searches=3, max_iterations=50), 4) == SamplingOptions(
+        max_searches=3, max_iterations=50
+    )
