@@ -11,21 +11,25 @@ or proves that none exists within the graph, unless its count budget (``max_node
 deadline stops it first; then it says so (:class:`~proxplan.planner.errors.PlanNotFound`), it never reports "infeasible".
 
 PIBT with large agents: an agent tries its candidate vertices in order of the distance to its goal
-(ties broken by a seeded random order; staying put is one of them); a candidate must be
-compatible with every agent already decided in this step; agents not decided yet whose staying put
-would conflict with it are asked to move first (priority inheritance, recursively). A candidate
-that fails *undoes every decision made under it* (the agents it pushed, theirs, ...) before the next
-is tried. So after an agent's call returns, every agent decided is compatible with every other
-decided agent and with the staying put of every agent not decided yet (each decision pushed those
-it would hit, and a failed branch leaves no decision behind). An agent called from the top of the
-step can then always stay (no agent on the stack; the current configuration is valid at rest), and
-a proposal fails only where the constraint holds an agent to one vertex it cannot take. Without the
-undo (point-agent PIBT, where an agent left in place never blocks its pusher's other vertices),
-the decisions of a failed branch stayed: a vehicle pushed in it and failing stayed where a
-grand-pusher's move hit it, or a vehicle that moved for a move its pusher then gave up blocked that
-pusher's staying put, and the whole proposal was thrown away; the chance that none of these
-happens falls with every vehicle that interacts, and on grid-128 fixed LaCAM's 4000 proposals
-added one configuration (issue 37, round 12A in docs/planner.md).
+(ties broken by a seeded random order; staying put is one of them); a candidate must be compatible
+with every agent already decided in this step; agents not decided yet whose staying put would
+conflict with it are asked to move first (priority inheritance, recursively). A candidate that fails
+*undoes every decision made under it* (the agents it pushed, theirs, ...) before the next is tried.
+So after an agent's call returns, every agent decided is compatible with every other decided agent
+and with the staying put of every agent not decided yet (each decision pushed those it would hit,
+and a failed branch leaves no decision behind); an agent called from the top of the step can then
+always stay (no agent on the stack; the current configuration is valid at rest), and a proposal
+fails only where the constraint holds an agent to a vertex it cannot take. Undoing can re-try the
+same agents many times (exponentially in a long queue: corridor-128), so it runs within a count of
+candidate tries: as many as PIBT without undo makes at most (each agent decided once, each of its
+candidates tried once). Once spent, PIBT goes on without undo (a failed candidate's decisions stay,
+a pushed agent that cannot move stays) and the step is then *settled*: the movers of every pair in
+conflict stay put until no pair is (all staying is valid), and the proposal fails only if that
+stops an agent the constraint moves. Without undo from the start (point-agent PIBT, where an agent
+left in place never blocks its pusher's other vertices) a proposal was thrown away at the first
+conflict a failed branch left behind; the chance that none is left falls with every vehicle that
+interacts, and on grid-128 fixed LaCAM's 4000 proposals added one configuration (issue 37, round
+12A in docs/planner.md).
 """
 
 from __future__ import annotations
@@ -119,6 +123,9 @@ class Lacam:
         nb = self._near(Q)
         conflict = self.sync.conflict
         trail: list[int] = []  # agents decided, in order (a failed branch undoes its own)
+        # candidate vertices tried with undo: as many as PIBT without undo tries at most (each agent
+        # decided once, each of its candidates tried once); once spent, PIBT goes on without undo
+        tries = [sum(1 if self.pinned[i] else len(self.lat.moves(i, Q[i])) + 1 for i in range(self.A))]
 
         def compatible(i: int, v: int) -> bool:
             ui = Q[i]
@@ -136,6 +143,7 @@ class Lacam:
             ui = Q[i]
             cands = [fixed[i]] if i in fixed else self._candidates(i, ui)
             for v in cands:
+                tries[0] -= 1
                 if not compatible(i, v):
                     continue
                 mark = len(trail)
@@ -150,12 +158,34 @@ class Lacam:
                         break
                 if good:
                     return True
-                undo(mark)
+                if tries[0] > 0:
+                    undo(mark)
+                else:
+                    to[i] = -1
+            if tries[0] <= 0 and to[i] < 0:
+                to[i] = ui
+                trail.append(i)
             return False
 
         for i in list(fixed) + list(node.order):
-            if to[i] < 0 and not pibt(i):
+            if to[i] < 0 and not pibt(i) and tries[0] > 0:
                 return None  # only an agent held by the constraint can fail here (see module)
+        if tries[0] <= 0:  # settle: the movers of a pair in conflict stay put until none is left
+            todo = set(range(self.A))
+            while todo:
+                moved: set[int] = set()
+                for i in todo:
+                    for j in nb[i]:
+                        if conflict(i, Q[i], to[i], j, Q[j], to[j]):
+                            for a in (i, j):
+                                if to[a] != Q[a]:
+                                    to[a] = Q[a]
+                                    moved.add(a)
+                todo = set(moved)
+                for a in moved:
+                    todo.update(nb[a])
+            if any(to[i] != v for i, v in fixed.items()):
+                return None
         for i in range(self.A):  # the whole step once more, exactly
             for j in nb[i]:
                 if j > i and conflict(i, Q[i], to[i], j, Q[j], to[j]):

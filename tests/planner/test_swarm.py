@@ -198,11 +198,12 @@ def test_lockstep_conversion_of_the_coordination_plan_is_conflict_free():
 
 @pytest.mark.parametrize("n", [16, 49])
 def test_pibt_without_a_constraint_always_proposes_a_valid_step(n):
-    """PIBT undoes the decisions of a candidate that failed (lacam module), so without a low-level
-    constraint every proposal is a configuration and every pair of its step (all pairs, not only
-    those near each other) passes the exact synchronous test, along a walk of proposals from the
-    starts, for every seed. (Before the undo, 10 of 20 seeds failed the first proposal of grid-16 and 5
-    of grid-49, seed 1, and LaCAM on grid-128 fixed added one configuration in 4000 proposals.)"""
+    """PIBT undoes the decisions of a candidate that failed, within its count of tries, and settles the
+    step after (lacam module), so without a low-level constraint every proposal is a configuration
+    and every pair of its step (all pairs, not only those near each other) passes the exact
+    synchronous test, along a walk of proposals from the starts, for every seed. (Before, 10 of 20
+    seeds failed the first proposal of grid-16 and 5 of grid-49, seed 1, and LaCAM on grid-128 fixed
+    added one configuration in 4000 proposals.)"""
     from proxplan.planner.swarm.lacam import _Constraint, _Node
 
     problem = swarm_problem(_scenario(grid_reshuffle(n, seed=1)))
