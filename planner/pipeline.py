@@ -7,8 +7,9 @@ outputs (:func:`plan_scenario`).
 2. *Swarm layer* (:func:`_swarm_stage`; formation changes, :mod:`proxplan.planner.swarm`): its plan
    once the verifier passes it, or why there is none (:class:`SwarmOutcome`).
 3. *Sampling planner* (:func:`_sampling_stage`, :mod:`proxplan.planner.sampling`): the plan where
-   the swarm layer is not used or gave up; beside the swarm layer's lattice plan flown in lock-step
-   (its guaranteed, slow answer) it runs as well and the shorter verified plan is kept.
+   the swarm layer is not used or gave up (then within a count budget, :func:`_counted`: it says
+   "not found" once spent); beside the swarm layer's prioritised or lattice plan it runs as well,
+   within the same budget, and the shorter verified plan is kept.
 4. *Refine* (:func:`_refine_stage`): ``optimized`` outside the swarm layer refines with CasADi
    (:func:`proxplan.planner.optimizer.refine_plan`).
 5. *Record* (:func:`_record`): the typed records of the stages into ``plan.metrics``, and the DESIGN
@@ -67,7 +68,10 @@ OPTIMIZE_EXTRA_PASSES = 5  # continuous re-timing passes that ``optimized`` adds
 # replaced grid-64's (6.94x kept in every run since round 6) and on corridor-64 spent its 128 searches (about 140 s of CPU, more than the swarm layer's
 # whole attempt) without a plan, the lattice plan's 9.7x never beaten by any vehicle it planned
 SAMPLING_ALTERNATIVE_MAX_VEHICLES = 32
-ALTERNATIVE_SEARCHES_PER_VEHICLE = 2  # single-vehicle searches per vehicle (re-orderings included)
+# the sampling planner's count budget beside the swarm layer and after it gave up (_counted):
+# single-vehicle searches per vehicle (re-orderings included): one pass through the order needs one
+# per vehicle, the second leaves each vehicle one more seed or re-ordering on average
+ALTERNATIVE_SEARCHES_PER_VEHICLE = 2
 ALTERNATIVE_RRT_ITERATIONS = 10000  # RRT iterations per solve (the waiting search finds most paths)
 RETRY_SEED_OFFSET = 7919  # the verification policy's last attempt plans with seed + this (a prime)
 # ``optimized`` for swarms: the vehicles arriving after this fraction of the makespan set it (as in
@@ -106,6 +110,7 @@ class SwarmOutcome:
     plan: Plan | None
     info: SwarmInfo | None
     why_not: str | None
+    searched: bool = True  # the swarm layer ran (False: it cannot plan this scenario, not used)
 
 
 def plan_scenario(
@@ -234,7 +239,7 @@ def _until_verified(
 def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
     why = swarm_applicable(scenario)
     if why is not None:
-        return SwarmOutcome(None, None, f"swarm layer: not used, {why}")
+        return SwarmOutcome(None, None, f"swarm layer: not used, {why}", searched=False)
     infos: dict[int, SwarmInfo] = {}  # id(plan) -> the info of the attempt that made it
 
     def attempt(deflection: Mapping[str, float], seed: int) -> Plan:
@@ -272,9 +277,10 @@ def _sampling_attempt(scenario: Scenario, run: _Run) -> Callable[[Mapping[str, f
 
 
 def _sampling_stage(scenario: Scenario, run: _Run, swarm: SwarmOutcome | None) -> Plan:
-    """The sampling planner's plan where there is no swarm plan; beside the swarm layer's lattice or
-    prioritised plan (up to ``SAMPLING_ALTERNATIVE_MAX_VEHICLES``), with a count budget, the shorter
-    verified of the two; else the swarm plan."""
+    """The sampling planner's plan where there is no swarm plan (within the count budget of
+    :func:`_counted` where the swarm layer searched and gave up: :class:`PlanNotFound` once spent);
+    beside the swarm layer's lattice or prioritised plan (up to ``SAMPLING_ALTERNATIVE_MAX_VEHICLES``),
+    within that budget, the shorter verified of the two; else the swarm plan."""
     if swarm is not None and swarm.plan is not None:
         searched = swarm.info is not None and swarm.info.stage != "straight"
         small = len(scenario.vehicles) <= SAMPLING_ALTERNATIVE_MAX_VEHICLES
@@ -285,6 +291,8 @@ def _sampling_stage(scenario: Scenario, run: _Run, swarm: SwarmOutcome | None) -
     if run.past_deadline():
         why = f" ({swarm.why_not})" if swarm is not None and swarm.why_not else ""
         raise PlanNotFound(f"no plan found within the time budget{why}")
+    if swarm is not None and swarm.searched:  # the swarm layer gave up: a count budget, "not found" once spent
+        run = replace(run, sampling=_counted(run.sampling, len(scenario.vehicles)))
     attempt = _sampling_attempt(scenario, run)
     if run.mode != "downwash":  # the baselines plan without the cut-offs: the verifier judges them, later
         plan, bad = attempt({}, run.seed), None
@@ -293,15 +301,34 @@ def _sampling_stage(scenario: Scenario, run: _Run, swarm: SwarmOutcome | None) -
         if bad:
             plan.notes.append(f"still {len(bad)} violation(s) after planning again")
     if swarm is not None and swarm.why_not:
-        plan.notes.append(f"{swarm.why_not}; this is the sampling planner's plan")
+        budget = ""
+        if swarm.searched:
+            budget = (
+                f" (count budget: {run.sampling.max_searches} single-vehicle searches of at most "
+                f"{run.sampling.max_iterations} RRT iterations)"
+            )
+        plan.notes.append(f"{swarm.why_not}; this is the sampling planner's plan{budget}")
     plan.method = "sampling" if run.method in ("swarm", "optimized") else run.method
     plan.verified = bad == []
     return plan
 
 
+def _counted(options: SamplingOptions, n_vehicles: int) -> SamplingOptions:
+    """``options`` within the sampling planner's count budget beside or after the swarm layer:
+    ``ALTERNATIVE_SEARCHES_PER_VEHICLE`` single-vehicle searches per vehicle over the whole plan
+    (re-orderings included), each of at most ``ALTERNATIVE_RRT_ITERATIONS`` RRT iterations (a
+    smaller budget passed in is kept)."""
+    cap = ALTERNATIVE_SEARCHES_PER_VEHICLE * n_vehicles
+    return replace(
+        options,
+        max_searches=cap if options.max_searches is None else min(options.max_searches, cap),
+        max_iterations=min(options.max_iterations, ALTERNATIVE_RRT_ITERATIONS),
+    )
+
+
 def _shorter(scenario: Scenario, run: _Run, swarm_plan: Plan) -> Plan:
     """The swarm plan or, when shorter and verified, the sampling planner's plan within its count
-    budget (``ALTERNATIVE_SEARCHES_PER_VEHICLE`` searches per vehicle of ``ALTERNATIVE_RRT_ITERATIONS``).
+    budget (:func:`_counted`).
     The sampling planner stops at the first vehicle it plans that arrives no earlier than the swarm
     plan's makespan (``SamplingOptions.beat_s``): the makespan of a plan holding that track could not
     be shorter. (Exact for its current order; the re-orderings it would make only after a later vehicle
@@ -310,12 +337,8 @@ def _shorter(scenario: Scenario, run: _Run, swarm_plan: Plan) -> Plan:
 
     swarm_plan.verified = True
     mine = moving_end_s(swarm_plan)
-    budget = replace(
-        run.sampling,
-        max_searches=ALTERNATIVE_SEARCHES_PER_VEHICLE * len(scenario.vehicles),
-        max_iterations=min(run.sampling.max_iterations, ALTERNATIVE_RRT_ITERATIONS),
-        beat_s=mine,  # it stops at the first vehicle that arrives no earlier: it could not be shorter
-    )
+    # it stops at the first vehicle that arrives no earlier: it could not be shorter
+    budget = replace(_counted(run.sampling, len(scenario.vehicles)), beat_s=mine)
     try:
         other = _sampling_attempt(scenario, replace(run, sampling=budget))({}, run.seed)
     except (InfeasibleError, PlanNotFound) as err:

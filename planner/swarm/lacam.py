@@ -11,10 +11,25 @@ or proves that none exists within the graph, unless its count budget (``max_node
 deadline stops it first; then it says so (:class:`~proxplan.planner.errors.PlanNotFound`), it never reports "infeasible".
 
 PIBT with large agents: an agent tries its candidate vertices in order of the distance to its goal
-(ties broken by a seeded random order); a candidate must be compatible with every agent already
-decided in this step; agents not decided yet whose staying put would conflict with it are asked to
-move first (priority inheritance, recursively); if none works the agent stays, and a stay that
-conflicts with a decided agent makes the proposal fail.
+(ties broken by a seeded random order; staying put is one of them); a candidate must be compatible
+with every agent already decided in this step; agents not decided yet whose staying put would
+conflict with it are asked to move first (priority inheritance, recursively). A candidate that fails
+*undoes every decision made under it* (the agents it pushed, theirs, ...) before the next is tried.
+So after an agent's call returns, every agent decided is compatible with every other decided agent
+and with the staying put of every agent not decided yet (each decision pushed those it would hit,
+and a failed branch leaves no decision behind); an agent called from the top of the step can then
+always stay (no agent on the stack; the current configuration is valid at rest), and a proposal
+fails only where the constraint holds an agent to a vertex it cannot take. Undoing can re-try the
+same agents many times (exponentially in a long queue: corridor-128), so it runs within a count of
+candidate tries: as many as PIBT without undo makes at most (each agent decided once, each of its
+candidates tried once). Once spent, PIBT goes on without undo (a failed candidate's decisions stay,
+a pushed agent that cannot move stays) and the step is then *settled*: the movers of every pair in
+conflict stay put until no pair is (all staying is valid), and the proposal fails only if that
+stops an agent the constraint moves. Without undo from the start (point-agent PIBT, where an agent
+left in place never blocks its pusher's other vertices) a proposal was thrown away at the first
+conflict a failed branch left behind; the chance that none is left falls with every vehicle that
+interacts, and on grid-128 fixed LaCAM's 4000 proposals added one configuration (issue 37, round
+12A in docs/planner.md).
 """
 
 from __future__ import annotations
@@ -101,31 +116,39 @@ class Lacam:
         return cands
 
     def _generate(self, node: _Node, constraint: _Constraint) -> tuple[int, ...] | None:
-        """PIBT proposal of the next configuration under ``constraint``, or None."""
+        """PIBT proposal of the next configuration under ``constraint``, or None (see module)."""
         Q = node.config
         to = [-1] * self.A
         fixed = constraint.fixed()
         nb = self._near(Q)
         conflict = self.sync.conflict
-        on_stack: set[int] = set()
-        failed = [False]
+        trail: list[int] = []  # agents decided, in order (a failed branch undoes its own)
+        # candidate vertices tried with undo: as many as PIBT without undo tries at most (each agent
+        # decided once, each of its candidates tried once); once spent, PIBT goes on without undo
+        tries = [sum(1 if self.pinned[i] else len(self.lat.moves(i, Q[i])) + 1 for i in range(self.A))]
 
-        def compatible(i: int, v: int, skip_stack: bool) -> bool:
+        def compatible(i: int, v: int) -> bool:
             ui = Q[i]
             for j in nb[i]:
                 vj = to[j]
-                if vj >= 0 and not (skip_stack and j in on_stack) and conflict(i, ui, v, j, Q[j], vj):
+                if vj >= 0 and conflict(i, ui, v, j, Q[j], vj):
                     return False
             return True
+
+        def undo(mark: int) -> None:
+            while len(trail) > mark:
+                to[trail.pop()] = -1
 
         def pibt(i: int) -> bool:
             ui = Q[i]
             cands = [fixed[i]] if i in fixed else self._candidates(i, ui)
-            on_stack.add(i)
             for v in cands:
-                if not compatible(i, v, False):
+                tries[0] -= 1
+                if not compatible(i, v):
                     continue
+                mark = len(trail)
                 to[i] = v
+                trail.append(i)
                 good = True
                 for k in nb[i]:
                     if to[k] >= 0 or not conflict(i, ui, v, k, Q[k], Q[k]):
@@ -133,26 +156,36 @@ class Lacam:
                     if (k in fixed and fixed[k] == Q[k]) or self.pinned[k] or not pibt(k):
                         good = False
                         break
-                    if conflict(i, ui, v, k, Q[k], to[k]):
-                        good = False
-                        break
                 if good:
-                    on_stack.discard(i)
                     return True
-                to[i] = -1
-            on_stack.discard(i)
-            to[i] = ui
-            if (i in fixed and fixed[i] != ui) or not compatible(i, ui, True):
-                failed[0] = True
+                if tries[0] > 0:
+                    undo(mark)
+                else:
+                    to[i] = -1
+            if tries[0] <= 0 and to[i] < 0:
+                to[i] = ui
+                trail.append(i)
             return False
 
         for i in list(fixed) + list(node.order):
-            if to[i] < 0:
-                pibt(i)
-                if failed[0]:
-                    return None
-        if any(to[i] != v for i, v in fixed.items()):
-            return None
+            if to[i] < 0 and not pibt(i) and tries[0] > 0:
+                return None  # only an agent held by the constraint can fail here (see module)
+        if tries[0] <= 0:  # settle: the movers of a pair in conflict stay put until none is left
+            todo = set(range(self.A))
+            while todo:
+                moved: set[int] = set()
+                for i in todo:
+                    for j in nb[i]:
+                        if conflict(i, Q[i], to[i], j, Q[j], to[j]):
+                            for a in (i, j):
+                                if to[a] != Q[a]:
+                                    to[a] = Q[a]
+                                    moved.add(a)
+                todo = set(moved)
+                for a in moved:
+                    todo.update(nb[a])
+            if any(to[i] != v for i, v in fixed.items()):
+                return None
         for i in range(self.A):  # the whole step once more, exactly
             for j in nb[i]:
                 if j > i and conflict(i, Q[i], to[i], j, Q[j], to[j]):

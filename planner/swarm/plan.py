@@ -95,7 +95,8 @@ class SwarmOptions:
     max_run: int = 4  # longest straight move of one coordination step, in lattice edges
     max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
     # LaCAM's PIBT proposals before it gives up (most fail or revisit a configuration and add none);
-    # set on the named layouts at 64 fixed: grid 60, corridor 2378 to a plan; pillar none in 5800
+    # set on the named layouts at 64 fixed: grid 60, corridor 2378 to a plan; pillar none in 5800 (before
+    # round 12A, when most PIBT proposals failed; now one without a constraint never does, swarm.lacam)
     max_proposals: int = 4000
     # prioritised planning's budget: single-vehicle plannings over all its passes (orders, holds,
     # repairs), per vehicle; once spent the best plan found so far is kept, or the lattice plan
