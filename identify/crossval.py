@@ -35,10 +35,8 @@ SE = s / sqrt(sum energy), s^2 = sum_f (gain_f - R energy_f)^2 / energy_f / (F -
 misfit the candidate happens to follow (the model's flight-to-flight error, larger than the noise) widens
 it; the candidate is kept only when R > z SE, z = t_{F-1}^-1(1 - ALPHA / m), Student's t with F - 1 degrees
 of freedom (s is estimated from F flights), m the number of candidates tested together: a one-sided test at
-family-wise level :data:`proxplan.identify.heldout_select.ALPHA` (Bonferroni). (Until stop 50 the test took
-the plain mean of a bounded per-flight log-ratio of errors; a flight holding five times another's
-exposure then made the gains look inconsistent, and an effect every flight gained from was left
-undecided over three flights: docs/identify.md.)
+family-wise level :data:`proxplan.identify.heldout_select.ALPHA` (Bonferroni). (Why it replaced the plain
+mean of a bounded per-flight log-ratio of errors: docs/identify.md, "The gain".)
 A flight's logs are summed first (they are predicted by the same fit, the one that left that flight out,
 so they are not independent). A candidate is judged on the held-out logs and channels where it acts (its
 contribution, fitted on every train flight, is worth at least one unit of chi-square there:

@@ -191,7 +191,7 @@ def selection_lines(result: IdentifyResult) -> list[str]:
                   "flight predicted by a fit without it) exceeds z flight-to-flight standard errors (one-sided "
                   "Bonferroni at 5 %) AND it is chosen in at least the stated share of half-samples of the flights "
                   "(stability selection). Test flights only report.", ""]  # fmt: skip
-    lines += ["| round | effect | params | RMSE F_z test [N] | held-out gain alone | inclusion | kept | why |",
+    lines += ["| round | effect | params | RMSE F_z test [N] | held-out gain alone (R +- SE) | inclusion | kept | why |",
               "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for tr in result.trials:
         params = ", ".join(f"{k}={v:.4g}" for k, v in tr.params.items())
@@ -309,7 +309,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     if result.discovered:
         lines += ["", "## Discovered terms (ensemble sparse regression over half-samples of the flights, kept by "
                   "flights held out; proxplan.identify.discovery)", "",
-                  "| channel | feature | family | inclusion (term / stood for / its group) | held-out gain (t, needs) | kept | formula |",
+                  "| channel | feature | family | inclusion (term / stood for / its group) | held-out gain R (t, needs) | kept | formula |",
                   "|---|---|---|---|---|---|---|"]  # fmt: skip
         for e in result.discovered:
             g = e["heldout_gain"]
