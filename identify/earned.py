@@ -32,16 +32,16 @@ added.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from proxplan.identify.calibrate import STACK_PARAMETER, ParamSpec
-from proxplan.identify.crossval import heldout_fit
+from proxplan.identify.crossval import GroupPlan, GroupSums, HeldOutFit, Ridge, heldout_fit
 from proxplan.identify.design import is_thrust_scale
 from proxplan.identify.heldout_select import GainTest, gain_test
 
-__all__ = ["EarnedParameters", "earned_parameters", "parameter_group"]
+__all__ = ["EarnedParameters", "backward_by_heldout_error", "earned_parameters", "parameter_group"]
 
 
 def parameter_group(name: str) -> str:
@@ -78,23 +78,38 @@ def earned_parameters(selector) -> EarnedParameters:
             groups.setdefault(parameter_group(s.name), []).append(s.name)
     sel = selector.sel
     sums = sel.sums({k: selector.tangents[k] for k in selector.always})
-    ridge = selector.ridge_for(sums.columns)
+    kept, rounds = backward_by_heldout_error(
+        sums, sel.plan, selector.ridge_for(sums.columns), sel.tau, nuisance, groups
+    )
+    held = frozenset(n for g, names in groups.items() if g not in kept for n in names)
+    return EarnedParameters(kept, held, rounds)
 
-    def fitted(names: list[str]):
-        cols = nuisance + [n for g in names for n in groups[g]]
-        return heldout_fit(sums, sums.index(cols), sel.plan, ridge, sel.tau)
+
+def backward_by_heldout_error(
+    sums: GroupSums,
+    plan: GroupPlan,
+    ridge: Ridge,
+    tau: float,
+    always: Sequence[str],
+    groups: Mapping[str, Sequence[str]],
+) -> tuple[list[str], list[dict[str, GainTest]]]:
+    """Backward elimination of column ``groups`` (name -> columns of ``sums``) fitted beside ``always``: while
+    some group, given the others, predicts the held-out flights worse than without it (the gain test's
+    R < 0; a group acting on no held-out flight is not judged), the worst is dropped. Returns the groups kept
+    (in ``groups``' order) and each round's tests (group -> :class:`~proxplan.identify.heldout_select.GainTest`)."""
+
+    def fitted(names: Sequence[str]) -> HeldOutFit:
+        cols = [*always, *(c for g in names for c in groups[g])]
+        return heldout_fit(sums, sums.index(cols), plan, ridge, tau)
 
     kept = list(groups)
     rounds: list[dict[str, GainTest]] = []
     while kept:
         current = fitted(kept)
-        tests = {g: gain_test(sums, fitted([k for k in kept if k != g]), current, 1, None, sel.plan.cluster)
-                 for g in kept}  # fmt: skip
+        tests = {g: gain_test(sums, fitted([k for k in kept if k != g]), current, 1, None, plan.cluster) for g in kept}
         rounds.append(tests)
-        tested = [g for g in kept if tests[g].n_groups > 0]
-        worst = min(tested, key=lambda g: tests[g].mean, default=None)
+        worst = min((g for g in kept if tests[g].n_groups > 0), key=lambda g: tests[g].mean, default=None)
         if worst is None or tests[worst].mean >= 0.0:
             break
         kept.remove(worst)
-    held = frozenset(n for g, names in groups.items() if g not in kept for n in names)
-    return EarnedParameters(kept, held, rounds)
+    return kept, rounds
