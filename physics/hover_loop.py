@@ -110,12 +110,12 @@ class LoopMatrices:
     """x' = a x + b (f, tau) + b_ref s per sample: ``a`` (K, 22, 22), ``b`` (K, 22, 6) (force N
     world, torque N m world axes), ``b_ref`` (K, 22, 22) the reference drive s
     (:data:`REFERENCE_INPUTS`: the deviation from the plan of a vehicle flying a moving reference,
-    module docstring); ``c`` (3, 22) picks the position deviation d, m."""
+    module docstring; None where not asked for); ``c`` (3, 22) picks the position deviation d, m."""
 
     a: np.ndarray
     b: np.ndarray
     c: np.ndarray
-    b_ref: np.ndarray
+    b_ref: np.ndarray | None
 
 
 def loop_matrices(
@@ -124,10 +124,13 @@ def loop_matrices(
     torque_Nm: np.ndarray | None = None,
     force_gradient_Npm: np.ndarray | None = None,
     torque_gradient_Nmpm: np.ndarray | None = None,
+    *,
+    reference: bool = True,
 ) -> LoopMatrices:
     """The loop (module docstring) of ``vehicle`` in a jet with force (K, 3), N, torque (K, 3),
     N m (world frame) and their gradients (K, 3, 3) with respect to the vehicle's position, N/m and
-    N m/m; None: no jet (one sample)."""
+    N m/m; None: no jet (one sample). ``reference=False``: no reference drive (``b_ref`` is
+    None; the jet's response along a plan does not use it)."""
     arrays = [force_N, torque_Nm, force_gradient_Npm, torque_gradient_Nmpm]
     k = next((np.asarray(x).shape[0] for x in arrays if x is not None), 1)
     f0 = np.zeros((k, 3)) if force_N is None else np.asarray(force_N, dtype=float).reshape(k, 3)
@@ -204,7 +207,8 @@ def loop_matrices(
     a[:, _IM, :] = -e_r
     c = np.zeros((3, N_STATES))
     c[:, _P] = eye3
-    return LoopMatrices(a, b, c, _reference_drive(a, thrust, m, kp, kd, k_r, k_w, k_dw, tau_m))
+    b_ref = _reference_drive(a, thrust, m, kp, kd, k_r, k_w, k_dw, tau_m) if reference else None
+    return LoopMatrices(a, b, c, b_ref)
 
 
 def _reference_drive(a, thrust, m, kp, kd, k_r, k_w, k_dw, tau_m) -> np.ndarray:
@@ -344,10 +348,8 @@ def jet_response(
     tq = np.asarray(torque_Nm, dtype=float).reshape(kk, 3)
     gf = np.asarray(force_gradient_Npm, dtype=float).reshape(kk, 3, 3)
     gt = np.asarray(torque_gradient_Nmpm, dtype=float).reshape(kk, 3, 3)
-    mats = loop_matrices(vehicle, f, tq, gf, gt)
-    poles = loop_poles(
-        LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, mats.b_ref[-1:])
-    )  # of the configuration held at the end
+    mats = loop_matrices(vehicle, f, tq, gf, gt, reference=False)
+    poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, None))  # of the configuration held at the end
     if kk < 2:
         zero = JetResponse(t, np.zeros((kk, 3)), np.zeros(kk), 0.0, 0.0, poles)
         return _with_hold(zero, mats, np.zeros(N_STATES), np.zeros((N_STATES, 0)), f, tq)
@@ -367,7 +369,7 @@ def jet_response(
     phi_u, gam_u = zoh_maps(mats.a[first], mats.b[first], h)
     gam = gam_u[inverse]
     drive = np.einsum("kij,kj->ki", gam, u[:-1])
-    deflection, gain, x, blocks = stepped_response(phi_u[inverse], drive, gam @ g_in[:-1], mats.c)
+    deflection, gain, x, blocks = stepped_response(phi_u, inverse, drive, gam @ g_in[:-1], mats.c)
     return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, x, blocks, f, tq)
 
 

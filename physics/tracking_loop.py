@@ -156,6 +156,7 @@ class _Maps:
 @functools.lru_cache(maxsize=64)
 def _maps(vehicle: Vehicle, step_s: float) -> _Maps:
     mats = loop_matrices(vehicle)
+    assert mats.b_ref is not None
     live = _live_states(mats.a)
     a = mats.a[0][np.ix_(live, live)]
     b = mats.b_ref[0][live]
@@ -208,23 +209,21 @@ def _run(m: _Maps, s: np.ndarray, x0: np.ndarray, *, twist: bool) -> np.ndarray:
     turning = np.flatnonzero(np.abs(s[:, 21]) > 0.0) if twist else np.zeros(0, dtype=int)
     n_seq = min(k - 1, int(turning[-1]) + 1) if turning.size else 0
     yaw = int(np.searchsorted(m.live, 8))
-    heading = _heading_states(m, yaw)
-    if n_seq and heading is None:  # not closed: step where the frame turns
-        x = x0
-        for i in range(n_seq):  # x_att += G_att yaw (-w_ff,y, w_ff,x)
-            x = m.phi @ x + forced[i] + m.g_att @ (x[yaw] * np.array([-s[i, 10], s[i, 9]]))
-            states[i + 1] = x
-        x0, forced, first = x, forced[n_seq:], n_seq
-    elif n_seq:
+    heading = _heading_states(m, yaw) if n_seq else None
+    first = 0
+    if heading is not None:
         sub = np.ix_(heading, heading)
         head = forced[:n_seq, heading].copy()
         head[0] += m.phi[sub] @ x0[heading]
         psi = np.concatenate([[x0[yaw]], recurrence(m.phi[sub], head.T)[int(np.searchsorted(heading, yaw))]])
         forced = forced.copy()  # x_att += G_att yaw (-w_ff,y, w_ff,x), the heading known
         forced[:n_seq] += (psi[:n_seq, None] * np.column_stack([-s[:n_seq, 10], s[:n_seq, 9]])) @ m.g_att.T
-        first = 0
-    else:
-        first = 0
+    elif n_seq:  # not closed: step where the frame turns
+        x = x0
+        for i in range(n_seq):  # x_att += G_att yaw (-w_ff,y, w_ff,x)
+            x = m.phi @ x + forced[i] + m.g_att @ (x[yaw] * np.array([-s[i, 10], s[i, 9]]))
+            states[i + 1] = x
+        x0, forced, first = x, forced[n_seq:], n_seq
     if first < k - 1:
         rest = forced.copy()
         rest[0] += m.phi @ x0

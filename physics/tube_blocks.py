@@ -23,13 +23,14 @@ direction), -."""
 
 
 def stepped_response(
-    phi: np.ndarray, drive: np.ndarray, tube_in: np.ndarray, c: np.ndarray
+    maps: np.ndarray, which: np.ndarray, drive: np.ndarray, tube_in: np.ndarray, c: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """x[k+1] = Phi_k x[k] + w_k from x[0] = 0 over S steps (``phi`` (S, n, n), ``drive`` w (S, n)),
-    and the tube's blocks: step k adds ``tube_in`` (S, n, 3) to the block of steps
-    [5 (k // 5), 5 (k // 5) + 5), every block propagated by the Phi of the later steps. Returns
-    (C x (S + 1, 3) (row 0: rest), gamma (S + 1,) (the sum over the blocks begun of ||C block||_F),
-    x[S] (n,), the blocks at S (n, 3 B), those with any input, in order)."""
+    """x[k+1] = Phi_k x[k] + w_k from x[0] = 0 over S steps (Phi_k = ``maps[which[k]]``, ``maps``
+    (U, n, n), ``which`` (S,); ``drive`` w (S, n)), and the tube's blocks: step k adds ``tube_in``
+    (S, n, 3) to the block of steps [5 (k // 5), 5 (k // 5) + 5), every block propagated by the Phi
+    of the later steps. Returns (C x (S + 1, 3) (row 0: rest), gamma (S + 1,) (the sum over the
+    blocks begun of ||C block||_F), x[S] (n,), the blocks at S (n, 3 B), those with any input, in
+    order)."""
     steps, n = drive.shape
     out_y = np.zeros((steps + 1, 3))
     out_g = np.zeros(steps + 1)
@@ -40,11 +41,12 @@ def stepped_response(
     per = span // TUBE_BLOCK_SAMPLES  # blocks per span
     pad = spans * span - steps  # identity steps without input after the end: they change nothing
     # step j of every span side by side (contiguous): (span, spans, ...)
-    phi_p = np.concatenate([phi, np.broadcast_to(np.eye(n), (pad, n, n))]).reshape(spans, span, n, n)
-    phi_p = np.ascontiguousarray(phi_p.swapaxes(0, 1))
+    table = np.concatenate([maps, np.eye(n)[None]])
+    index = np.concatenate([np.asarray(which, dtype=np.intp), np.full(pad, maps.shape[0])])
+    phi_p = table[index.reshape(spans, span).T]
     w_p = np.concatenate([drive, np.zeros((pad, n))]).reshape(spans, span, n).swapaxes(0, 1)[..., None]
     t_p = np.concatenate([tube_in, np.zeros((pad, n, 3))]).reshape(spans, span, n, 3)
-    has = t_p.reshape(spans, per, TUBE_BLOCK_SAMPLES, n * 3).any(axis=(2, 3))  # (spans, per): block with input
+    has: np.ndarray = np.any(t_p.reshape(spans, per, TUBE_BLOCK_SAMPLES, n * 3), axis=(2, 3))  # block with input
     t_p = t_p.swapaxes(0, 1)
     # every span from rest, side by side: products Phi_j ... Phi_0, the drive's and the blocks' states
     prod = np.empty((span, spans, n, n))

@@ -154,7 +154,7 @@ def test_the_response_in_spans_is_the_response_stepped_sample_by_sample(steps):
     tube_in = rng.standard_normal((steps, n, 3)) * (rng.random(steps) < 0.3)[:, None, None]
     c = rng.standard_normal((3, n))
     want = _stepped_sample_by_sample(phi, drive, tube_in, c)
-    got = stepped_response(phi, drive, tube_in, c)
+    got = stepped_response(phi, np.arange(steps), drive, tube_in, c)
     assert got[3].shape == want[3].shape
     for g, w in zip(got, want):
         assert np.allclose(g, w, rtol=1e-12, atol=1e-12 * max(1.0, float(np.abs(w).max(initial=0.0))))
