@@ -45,9 +45,8 @@ from proxplan.physics import (
     wrench_gradient,
 )
 from proxplan.planfile import PREDICTED_FLIGHT_KEY, Plan, Scenario
-from proxplan.verify.along import WrenchAlongPlan, model_options
+from proxplan.verify.along import Samples, WrenchAlongPlan, model_options, moving_mask
 from proxplan.verify.reach import MIN_DZ_M
-from proxplan.verify.tolerances import REST_SPEED_MPS
 from proxplan.verify.tracking import tracking_along_plan
 from proxplan.verify.violations import Violation
 
@@ -88,14 +87,17 @@ def target_gradients(
     return wrench_gradient(wrench, positions_m)
 
 
-def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[str, LoopAlongPlan]:
+def loop_along_plan(
+    plan: Plan, scenario: Scenario | None, along: dict, *, samples: Samples | None = None
+) -> dict[str, LoopAlongPlan]:
     """Per vehicle of ``along``, its loop along the plan (:class:`LoopAlongPlan`);
-    ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start."""
+    ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start;
+    ``samples``: the plan's :data:`proxplan.verify.along.Samples` on that grid, if already taken."""
     out: dict[str, LoopAlongPlan] = {}
     if not along:
         return out
     t = next(iter(along.values())).t_s
-    pos = plan.positions_at(t)
+    pos = {n: s[0] for n, s in samples.items()} if samples is not None else plan.positions_at(t)
     opts = model_options(scenario)
     effects = tuple(scenario.effects if scenario is not None else plan.effects)
     tube = float(scenario.limits.tracking_margin_m) if scenario is not None else 0.0
@@ -103,7 +105,7 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
     flight = bool(plan.metrics.get(PREDICTED_FLIGHT_KEY))  # an export read back: no tracking prediction
     for name, w in along.items():
         track = (
-            tracking_along_plan(plan.vehicles[name], t)
+            tracking_along_plan(plan.vehicles[name], t, samples=samples[name] if samples is not None else None)
             if not flight
             else TrackingResponse(t, np.zeros((t.size, 3)), 0.0)
         )
@@ -134,7 +136,7 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
         for key, rows in _source_sets(name, w, pos, t.size).items():  # those jets together (stacks), per set
             sources = [(_vehicle(plan, scenario, s), pos[s][rows]) for s in key]
             gf[rows], gt[rows] = target_gradients(vehicle, pos[name][rows], sources, opts, effects)
-        moving = np.linalg.norm(plan.vehicles[name].sample(t)[1], axis=1) >= REST_SPEED_MPS
+        moving = moving_mask(plan, [name], t, samples)[0]
         resp = jet_response(t, vehicle, w.force_N, w.torque_Nm, gf, gt, moving, track.error_m)
         size = np.linalg.norm(resp.deflection_m + track.error_m, axis=1) + tube * resp.tube_gain
         if np.isfinite(resp.hold_deflection_m):

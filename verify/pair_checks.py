@@ -14,14 +14,20 @@ import numpy as np
 
 from proxplan.physics import VALIDITY_FACTOR_L, invalid_zone_mask
 from proxplan.planfile import Plan, Scenario
-from proxplan.verify.along import WrenchAlongPlan, dock_exempt
+from proxplan.verify.along import Samples, WrenchAlongPlan, dock_exempt, moving_mask
 from proxplan.verify.reach import NEGLIGIBLE_USAGE, counts_above, every_pair, pairs_within, usage_grid
-from proxplan.verify.tolerances import REST_SPEED_MPS, USAGE_TOLERANCE
+from proxplan.verify.tolerances import USAGE_TOLERANCE
 from proxplan.verify.violations import Violation, add_runs
 
 
 def check_pairs(
-    plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray], deflection: dict[str, np.ndarray]
+    plan: Plan,
+    scenario: Scenario,
+    t: np.ndarray,
+    pos: dict[str, np.ndarray],
+    deflection: dict[str, np.ndarray],
+    *,
+    samples: Samples | None = None,
 ) -> list[Violation]:
     """Separation and invalid zone of every pair, evaluated on the (pair, sample) rows horizontally
     within the largest distance either check can fire at (the separation with the tube, the
@@ -34,7 +40,7 @@ def check_pairs(
     if len(names) < 2:
         return out
     vehicles = [scenario.vehicles[n].vehicle for n in names]
-    moving = np.stack([np.linalg.norm(plan.vehicles[n].sample(t)[1], axis=1) >= REST_SPEED_MPS for n in names])
+    moving = moving_mask(plan, names, t, samples)
     p = np.stack([pos[n] for n in names])  # (N, M, 3)
     rb = np.array([v.body_radius_m for v in vehicles])
     sep0 = np.maximum(lim.min_separation_m, rb[:, None] + rb[None, :])  # (N, N), m
@@ -158,7 +164,13 @@ def tube_offsets(off: np.ndarray, tube_m: float | np.ndarray) -> list[np.ndarray
 
 
 def check_authority_tube(
-    plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray], deflection: dict[str, np.ndarray]
+    plan: Plan,
+    scenario: Scenario,
+    t: np.ndarray,
+    pos: dict[str, np.ndarray],
+    deflection: dict[str, np.ndarray],
+    *,
+    samples: Samples | None = None,
 ) -> list[Violation]:
     """Authority usage with every moving (or deflected) pair's target placed, per source, at the
     worst point of its tube (``limits.tracking_margin_m`` while the pair moves, plus the target's
@@ -186,7 +198,7 @@ def check_authority_tube(
     vehicles = [scenario.vehicles[k].vehicle for k in names]
     kinds = list(dict.fromkeys(vehicles))
     kind = np.array([kinds.index(v) for v in vehicles])
-    moving = np.stack([np.linalg.norm(plan.vehicles[k].sample(t)[1], axis=1) >= REST_SPEED_MPS for k in names])
+    moving = moving_mask(plan, names, t, samples)
     if tube0 <= 0.0:
         moving = np.zeros_like(moving)  # no tracking tube: only the deflections widen a target's tube
     tube_max = max(tube0, 0.0) + float(defl.max(initial=0.0))  # the widest tube of any row, m
