@@ -41,6 +41,7 @@ from proxplan.physics import (
     jet_response,
     loop_matrices,
     loop_poles,
+    one_blas_thread,
     weak_jet_bound_m,
     wrench_gradient,
 )
@@ -87,12 +88,14 @@ def target_gradients(
     return wrench_gradient(wrench, positions_m)
 
 
+@one_blas_thread
 def loop_along_plan(
     plan: Plan, scenario: Scenario | None, along: dict, *, samples: Samples | None = None
 ) -> dict[str, LoopAlongPlan]:
     """Per vehicle of ``along``, its loop along the plan (:class:`LoopAlongPlan`);
     ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start;
-    ``samples``: the plan's :data:`proxplan.verify.along.Samples` on that grid, if already taken."""
+    ``samples``: the plan's :data:`proxplan.verify.along.Samples` on that grid, if already taken.
+    Run with one BLAS thread (:func:`proxplan.physics.one_blas_thread`: many small products)."""
     out: dict[str, LoopAlongPlan] = {}
     if not along:
         return out
