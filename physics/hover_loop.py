@@ -348,9 +348,9 @@ def jet_response(
     tq = np.asarray(torque_Nm, dtype=float).reshape(kk, 3)
     gf = np.asarray(force_gradient_Npm, dtype=float).reshape(kk, 3, 3)
     gt = np.asarray(torque_gradient_Nmpm, dtype=float).reshape(kk, 3, 3)
-    mats = loop_matrices(vehicle, f, tq, gf, gt, reference=False)
-    poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, None))  # of the configuration held at the end
     if kk < 2:
+        mats = loop_matrices(vehicle, f, tq, gf, gt, reference=False)
+        poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, None))  # of the configuration held
         zero = JetResponse(t, np.zeros((kk, 3)), np.zeros(kk), 0.0, 0.0, poles)
         return _with_hold(zero, mats, np.zeros(N_STATES), np.zeros((N_STATES, 0)), f, tq)
     h = float(t[1] - t[0])
@@ -358,15 +358,18 @@ def jet_response(
     g_full = np.concatenate([gf, gt], axis=1)  # (K, 6, 3): the input per unit deviation
     g_in = g_full if moving is None else g_full * np.asarray(moving, dtype=bool)[:, None, None]
     # per step k -> k+1 the matrices of sample k (zero-order hold); consecutive steps with the
-    # same sample values share their maps (each map is the same whichever others it is computed
-    # with: expm_stack's scaling is the largest norm of the distinct matrices)
+    # same sample values (force, torque and gradients: all the loop's matrices depend on) share
+    # their matrices and maps (each map is the same whichever others it is computed with:
+    # expm_stack's scaling is the largest norm of the distinct matrices)
     key = np.concatenate([u, g_full.reshape(kk, -1)], axis=1)[:-1]
     if tracking_m is not None:
         u = u + np.einsum("kij,kj->ki", g_full, np.asarray(tracking_m, dtype=float).reshape(kk, 3))
     change = np.concatenate([[True], (key[1:] != key[:-1]).any(axis=1)])
     inverse = np.cumsum(change) - 1
-    first = np.flatnonzero(change)
-    phi_u, gam_u = zoh_maps(mats.a[first], mats.b[first], h)
+    rows = np.append(np.flatnonzero(change), kk - 1)  # the distinct steps' samples, then the last
+    mats = loop_matrices(vehicle, f[rows], tq[rows], gf[rows], gt[rows], reference=False)
+    poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, None))  # of the configuration held at the end
+    phi_u, gam_u = zoh_maps(mats.a[:-1], mats.b[:-1], h)
     gam = gam_u[inverse]
     drive = np.einsum("kij,kj->ki", gam, u[:-1])
     deflection, gain, x, blocks = stepped_response(phi_u, inverse, drive, gam @ g_in[:-1], mats.c)
