@@ -306,10 +306,10 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
     # the pair checks with each tube grown by at most the separation (a growth beyond it is a violation)
     far = scenario.limits.min_separation_m
     deflection = {n: np.minimum(loops[n].deflection_m, far) if n in loops else np.zeros(t.size) for n in along}
-    out += check_pairs(plan, scenario, t, pos, deflection, samples=samples)
+    out += check_pairs(plan, scenario, t, samples, deflection)
     out += check_authority(scenario, t, along, plan.t_s)
     if not any(v.kind == "authority" for v in out):  # the plain check names the cause first
-        out += check_authority_tube(plan, scenario, t, pos, deflection, samples=samples)
+        out += check_authority_tube(plan, scenario, t, samples, deflection)
     out.sort(key=lambda v: (v.t_s, v.vehicle, v.kind))
     return out
 
