@@ -65,7 +65,7 @@ def stepped_response(
             blk[:, :, : 3 * (q + 1)] = phi_p[j, live] @ blk[:, :, : 3 * (q + 1)]
             blk[:, :, 3 * q : 3 * q + 3] += t_p[j, live]
             cb = (c @ blk[:, :, : 3 * (q + 1)]).reshape(live.size, 3, q + 1, 3)
-            own_g[live, j] = np.sqrt((cb**2).sum(axis=(1, 3))).sum(axis=1)
+            own_g[live, j] = np.sqrt(np.einsum("sibj,sibj->sb", cb, cb)).sum(axis=1)
     prod = prod.swapaxes(0, 1)  # (spans, span, n, n)
     cprod = c @ prod  # (spans, span, 3, n): C Phi_j ... Phi_0
     free = free.swapaxes(0, 1)
@@ -82,8 +82,8 @@ def stepped_response(
         out_y[rows] = cprod[s, :m] @ x_in + free_y[s, :m]
         g = own_g[s, :m]
         if carried.shape[1]:
-            cc = (cprod[s, :m] @ carried).reshape(m, 3, -1, 3)
-            g = g + np.sqrt((cc**2).sum(axis=(1, 3))).sum(axis=1)
+            cc = (cprod[s, :m].reshape(m * 3, n) @ carried).reshape(m, 3, -1, 3)  # one product
+            g = g + np.sqrt(np.einsum("libj,libj->lb", cc, cc)).sum(axis=1)  # (squares summed in one pass)
         out_g[rows] = g
         x_in = prod[s, -1] @ x_in + x_end_rest[s]
         mine = blocks[s].reshape(n, per, 3)[:, has[s]].reshape(n, -1)
