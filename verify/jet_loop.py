@@ -154,17 +154,23 @@ def _source_sets(name: str, w, pos: dict[str, np.ndarray], m: int) -> dict[tuple
     vehicle above it (by more than 1e-6 m, as the checks count "above"; a usage no such source
     explains is the model's value at dz -> 0 of a source level with it, left without gradient)."""
     names = sorted(w.usage_by_source)
-    which = np.stack([w.usage_by_source[s] >= WEAK_USAGE for s in names]) if names else np.zeros((0, m), bool)
+    ks = np.flatnonzero(w.usage >= WEAK_USAGE)
+    which = np.stack([w.usage_by_source[s][ks] >= WEAK_USAGE for s in names]) if names else np.zeros((0, ks.size), bool)
+    by_source = which.any(axis=0)
     others = [o for o in pos if o != name]
-    above = np.stack([pos[o][:, 2] - pos[name][:, 2] > MIN_DZ_M for o in others]) if others else np.zeros((0, m), bool)
-    groups: dict[tuple[str, ...], list[int]] = {}
-    for k in np.flatnonzero(w.usage >= WEAK_USAGE):
-        key = tuple(s for s, on in zip(names, which[:, k]) if on) or tuple(
-            o for o, on in zip(others, above[:, k]) if on
-        )
-        if key:
-            groups.setdefault(key, []).append(int(k))
-    return {key: np.asarray(rows) for key, rows in groups.items()}
+    rest = ks[~by_source]  # no source's own usage reaches it: every vehicle above (only these samples)
+    z = pos[name][rest, 2]
+    above = np.stack([pos[o][rest, 2] - z > MIN_DZ_M for o in others]) if others else np.zeros((0, rest.size), bool)
+    groups: dict[tuple[str, ...], list[np.ndarray]] = {}
+    for pattern, rows, labels in ((which[:, by_source], ks[by_source], names), (above, rest, others)):
+        if not rows.size:
+            continue
+        kinds, inverse = np.unique(pattern.T, axis=0, return_inverse=True)
+        for i, kind in enumerate(kinds):
+            key = tuple(label for label, on in zip(labels, kind) if on)
+            if key:
+                groups.setdefault(key, []).append(rows[inverse.ravel() == i])
+    return {key: np.sort(np.concatenate(parts)) for key, parts in groups.items()}
 
 
 def _largest_growth_m(scenario: Scenario | None, pos: dict[str, np.ndarray]) -> float:
