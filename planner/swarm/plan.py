@@ -30,7 +30,7 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
 5. *Makespan repair* (:func:`_makespan_stage`, :mod:`proxplan.planner.swarm.makespan`), once, on the
    plan kept: the latest vehicle planned again together with the vehicles in its way, while that
    shortens the plan, within a count of plannings; never worse, always conflict-free. Not on the
-   lattice plan with fixed goals (``SwarmOptions.makespan_repair``).
+   lattice plan (``SwarmOptions.makespan_repair``).
 
 The caller (the pipeline) runs the independent verifier on the result as on every plan. The
 :class:`~proxplan.planner.swarm.info.SwarmInfo` names the ``stage`` that produced the tracks
@@ -134,13 +134,13 @@ class SwarmOptions:
     keep_straight: bool = False
     # after re-timing, once on the plan kept, plan the latest vehicles again together with the vehicles
     # in their way (swarm.makespan; False: for measuring the cause alone; True: on every plan). None:
-    # on, but not on the lattice plan with fixed goals. Set watching the named layouts at 64 fixed
-    # (docs/planner.md, round 13A; in-process): on the prioritised plans pillar 2.73x -> 2.62x for 57
-    # plannings, circle unchanged (13); on the lattice plans of grid and corridor nothing shorter
-    # (64 plannings: 0 and 1 neighbourhoods replaced, the makespan unchanged) for 5 and 22 s of CPU:
-    # the vehicles in the latest one's way cannot be planned again among the lock-step tracks. Where
-    # goals were assigned it was on before (by_type grid-64 1.91x -> 1.63x, fifth round) and stays so.
-    # Decided by the swarm layer (no caller sets it)
+    # on, but not on the lattice plan. Set watching the named layouts at 64 (docs/planner.md, round
+    # 13A): on the prioritised plans with fixed goals pillar 2.73x -> 2.62x for 57 plannings, circle
+    # unchanged (13); on the lattice plans nothing shorter: grid and corridor fixed (in-process, 64
+    # plannings: 0 and 1 neighbourhoods replaced, the makespan unchanged, 5 and 22 s of CPU) and pillar
+    # by type (62 plannings, none replaced, 7 s): the vehicles in the latest one's way cannot be planned
+    # again among the lock-step tracks. On the prioritised plans by type it was on before (grid-64
+    # 1.91x -> 1.63x, fifth round) and stays so. Decided by the swarm layer (no caller sets it)
     makespan_repair: bool | None = None
     # one more pass of prioritised planning with both wavefronts per vehicle (the widest disc at every
     # height and discs for the heights the route flies at, swarm.wave; the earlier arrival kept,
@@ -222,7 +222,7 @@ def swarm_timed(
             found, by_agent, retiming = got
             initial = max(tr.arrival_s for tr in found.tracks)
     repair = None
-    if _repairs(opts, scenario, found):  # once, on the plan kept (SwarmOptions.makespan_repair)
+    if _repairs(opts, found):  # once, on the plan kept (SwarmOptions.makespan_repair)
         repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
     # single-vehicle searches given back by the memo (swarm.memo) and searched, over every stage
     extra.setdefault("counts", {}).update(searches_recalled=problem.memo.hits, searches_run=problem.memo.misses)
@@ -568,12 +568,12 @@ def _retime_stage(
     return by_agent, RetimeInfo(**counts, time_s=round(time.perf_counter() - t2, 3))
 
 
-def _repairs(opts: SwarmOptions, scenario: Scenario, found: _Stage) -> bool:
+def _repairs(opts: SwarmOptions, found: _Stage) -> bool:
     """Whether the makespan repair runs on the plan of ``found`` (``SwarmOptions.makespan_repair``;
-    None: not on the lattice plan with fixed goals, on elsewhere)."""
+    None: not on the lattice plan, on elsewhere)."""
     if opts.makespan_repair is not None:
         return opts.makespan_repair
-    return not (found.stage == "lattice" and scenario.assign_goals is None)
+    return found.stage != "lattice"
 
 
 def _makespan_stage(
