@@ -29,9 +29,10 @@ so a term built on them acts between vehicles like any effect:
 * side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
 
 A force off the target's centre is a roll or pitch torque, so the jet kernel of a source above, the
-below kernel and the side kernel also come times the offset's horizontal components over L
-(``above_jet_x_1``, ``below_near_y_1``, ``side_near_x_1``, ...): which side of the target a neighbour is
-on (odd in the offset, where the kernels themselves are even).
+below kernel, the side kernel and every multi-scale kernel (:data:`BASIS_WIDTHS_L` x :data:`BASIS_DECAYS_L`,
+since stop 51) also come times the offset's horizontal components over L (``above_jet_x_1``,
+``below_near_y_1``, ``side_g1L_e4L_x_1``, ...): which side of the target a neighbour is on (odd in the
+offset, where the kernels themselves are even).
 
 Every neighbour is seen, not only the sources above (issue 29): for a neighbour BELOW the target
 (d = -dz > 0 its depth under it) the jet and core kernels are mirrored (``below_jet_1``: the jet
@@ -146,8 +147,9 @@ BASIS_DECAYS_L = (1.0, 4.0)
 """Decay lengths of the multi-scale kernels along the distance from the neighbour, in L, -."""
 
 
-def _basis_name(where: str, width: float, decay: float) -> str:
-    return f"{where}_g{width:g}L_e{decay:g}L_1".replace(".", "p")
+def _basis_name(where: str, width: float, decay: float, axis: str = "") -> str:
+    """The multi-scale kernel's name; ``axis`` "x" or "y": the kernel times that offset over L."""
+    return f"{where}_g{width:g}L_e{decay:g}L_{axis + '_' if axis else ''}1".replace(".", "p")
 
 
 for _where, _what in (
@@ -160,6 +162,10 @@ for _where, _what in (
             FEATURE_DOCS[_basis_name(_where, _w, _d)] = (
                 f"multi-scale kernel of {_what}: exp(-(rho / {_w:g} L)^2) exp(-delta / {_d:g} L), summed"
             )
+            for _axis in "xy":  # which side of the target the neighbour is on: a force off its centre is a torque
+                FEATURE_DOCS[_basis_name(_where, _w, _d, _axis)] = (
+                    f"multi-scale kernel of {_what} ({_w:g} L, {_d:g} L) times offset_{_axis} / L, summed"
+                )
 TIME_FEATURE_SOURCES = (
     "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
     "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
@@ -390,9 +396,12 @@ def feature_matrix(
             for w in BASIS_WIDTHS_L:
                 for d in BASIS_DECAYS_L:
                     along = np.maximum(delta, 0.0) / (d * size)  # beside: Gaussian in the horizontal distance too
-                    f[_basis_name(where, w, d)] += np.where(
+                    basis = np.where(
                         gate, np.exp(-((rho / (w * size)) ** 2) - (along**2 if where == "side" else along)), 0.0
                     )
+                    f[_basis_name(where, w, d)] += basis
+                    f[_basis_name(where, w, d, "x")] += basis * off[:, 0] / size
+                    f[_basis_name(where, w, d, "y")] += basis * off[:, 1] / size
     f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):
