@@ -40,14 +40,14 @@ def main() -> int:
     from proxplan.planner.formations import LAYOUTS
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
     from proxplan.planner.swarm import occupancy, priority
-    from proxplan.planner.swarm.plan import _horizon_steps
+    from proxplan.planner.swarm.prioritised_stage import horizon_steps
     from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, dependency_order
     from proxplan.planner.swarm.problem import swarm_problem
 
     print(f"proxplan from {proxplan.__file__}")
     scenario = scenario_from_dict(LAYOUTS[args.layout](args.n))
     problem = swarm_problem(scenario)
-    horizon = _horizon_steps(lower_bound_makespan_s(scenario))
+    horizon = horizon_steps(lower_bound_makespan_s(scenario))
     options = PriorityOptions(max_repairs=10**6, max_plannings=args.plannings, hold_s=1.0, through=False)
 
     digest = hashlib.sha256()

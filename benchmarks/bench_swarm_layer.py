@@ -1,7 +1,7 @@
 """In-process CPU of the swarm layer, or of its prioritised stage alone, with fixed goals, and a digest
 of the plan, so that two installed versions can be compared for cost and for giving the same plan.
 
-Runs ``swarm_timed`` (``--part layer``), ``swarm.plan._prioritised_stage`` (``--part prioritised``) or
+Runs ``swarm_timed`` (``--part layer``), ``swarm.prioritised_stage.prioritised_stage`` (``--part prioritised``) or
 the joint coordination alone, LaCAM on the lattice then the re-timing of its plan (``--part lattice``,
 ``_lattice_stage`` and ``_retime_stage``, each timed) on a named layout with the options the pipeline uses for fixed goals (reserved starts on, makespan
 repair off; one worker, so the figure is this process's CPU) and prints: the CPU time
@@ -37,7 +37,8 @@ def main() -> int:
     from proxplan.planner.formations import LAYOUTS
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
     from proxplan.planner.swarm import SwarmOptions, swarm_problem, swarm_timed
-    from proxplan.planner.swarm.plan import _lattice_stage, _prioritised_stage, _retime_stage
+    from proxplan.planner.swarm.plan import _lattice_stage, _retime_stage
+    from proxplan.planner.swarm.prioritised_stage import prioritised_stage
 
     print(f"proxplan from {proxplan.__file__}")
     scenario = scenario_from_dict(LAYOUTS[args.layout](args.n))
@@ -76,7 +77,7 @@ def main() -> int:
         extra = {}
         problem = swarm_problem(scenario)
         t0 = time.process_time()  # the stage alone (the problem and its tracking bound apart)
-        found = _prioritised_stage(problem, lower_bound, options, extra, progress=None, deadline=None)
+        found = prioritised_stage(problem, lower_bound, options, extra, progress=None, deadline=None)
         cpu = time.process_time() - t0
         if found is not None:
             for tr in found.tracks:

@@ -5,7 +5,9 @@ Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, k
 space; :mod:`~proxplan.planner.swarm.keepout`) -> :mod:`~proxplan.planner.swarm.assign` and
 :mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles) ->
 :mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept) ->
-:mod:`~proxplan.planner.swarm.priority` (prioritised planning with repairs and predictions) along
+:mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count
+budget; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.heights`) by
+:mod:`~proxplan.planner.swarm.priority` (one pass, with repairs and predictions) along
 :mod:`~proxplan.planner.swarm.wave` routes timed by :mod:`~proxplan.planner.swarm.chain` against
 :mod:`~proxplan.planner.swarm.occupancy` (the space-time hash of
 :mod:`~proxplan.planner.swarm.tracks`), by groups (:mod:`~proxplan.planner.swarm.components`) ->
@@ -13,15 +15,17 @@ space; :mod:`~proxplan.planner.swarm.keepout`) -> :mod:`~proxplan.planner.swarm.
 :mod:`~proxplan.planner.swarm.lacam`, :mod:`~proxplan.planner.swarm.lockstep` (the guaranteed
 lattice plan) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
 :mod:`~proxplan.planner.swarm.makespan` (the latest vehicles planned again with those in their way) ->
-:mod:`~proxplan.planner.swarm.plan` (the stages) and :mod:`~proxplan.planner.swarm.info` (what they
-report, typed).
+:mod:`~proxplan.planner.swarm.plan` (the stages, with the knobs of
+:mod:`~proxplan.planner.swarm.options`, handing on a :mod:`~proxplan.planner.swarm.stage`) and
+:mod:`~proxplan.planner.swarm.info` (what they report, typed).
 """
 
 from proxplan.planner.swarm.assign import Assignment, assign_by_type, assign_group
 from proxplan.planner.swarm.info import LatticeInfo, MakespanRepairInfo, RetimeInfo, SwarmInfo, SwarmStage
 from proxplan.planner.swarm.lacam import Lacam, LacamResult
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
-from proxplan.planner.swarm.plan import SWARM_MIN_VEHICLES, SwarmOptions, swarm_timed
+from proxplan.planner.swarm.options import SwarmOptions
+from proxplan.planner.swarm.plan import SWARM_MIN_VEHICLES, swarm_timed
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
 from proxplan.planner.swarm.sync import SyncTable, segment_conflict
 

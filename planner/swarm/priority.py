@@ -168,7 +168,7 @@ def plan_one(occ: Occupancy, agent: int, through: bool, *, heights: bool = False
     (:mod:`proxplan.planner.swarm.wave`), the earlier arrival of the two kept: never later than
     without, for this vehicle against these tracks (not for the plan: the vehicles planned after it
     meet another track; the swarm layer plans both ways and keeps the shorter plan, see
-    :class:`proxplan.planner.swarm.plan.SwarmOptions`).
+    :class:`proxplan.planner.swarm.options.SwarmOptions`).
     """
     problem = occ.problem
     s, g = problem.starts_m[agent], problem.goals_m[agent]

@@ -306,7 +306,7 @@ def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in
     """Two formations far apart are two groups of the interaction graph; planned on a Dask local
     cluster (two workers) they get exactly the tracks they get one after the other."""
     from proxplan.planner.swarm.components import interaction_groups, plan_groups
-    from proxplan.planner.swarm.plan import longest_first
+    from proxplan.planner.swarm.prioritised_stage import longest_first
     from proxplan.planner.swarm.priority import PriorityOptions
 
     west, east = grid_reshuffle(6, seed=1), grid_reshuffle(6, seed=2)
@@ -357,12 +357,12 @@ def test_a_pass_given_up_early_is_one_that_would_spend_its_budget():
     without it spends the budget (here both at the last vehicle); with one planning per vehicle it gives up at its first vehicle
     planned twice, long before the budget is spent."""
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-    from proxplan.planner.swarm.plan import ORDERS, _horizon_steps
+    from proxplan.planner.swarm.prioritised_stage import ORDERS, horizon_steps
     from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, prioritized_tracks
 
     sc = scenario_from_dict(grid_reshuffle(20, seed=0), label="test scenario")
     problem = swarm_problem(sc)
-    horizon = _horizon_steps(lower_bound_makespan_s(sc))
+    horizon = horizon_steps(lower_bound_makespan_s(sc))
     order = ORDERS["dependencies first"](problem)
     kw = dict(max_repairs=4, hold_s=1.0, reserve_starts=True, through=False)
     free = prioritized_tracks(problem, order, PriorityOptions(**kw), horizon_steps=horizon)

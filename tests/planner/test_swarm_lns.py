@@ -11,7 +11,7 @@ from proxplan.planner.formations import grid_reshuffle
 from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.lns import colliding_pairs
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.plan import longest_first
+from proxplan.planner.swarm.prioritised_stage import longest_first
 from proxplan.planner.swarm.priority import (
     PrioritizedFailed,
     PriorityOptions,

@@ -1,5 +1,5 @@
 """Searches remembered by what they were searched against (proxplan.planner.swarm.memo), and the
-second order of prioritised planning not run when it is the same pass (proxplan.planner.swarm.plan)."""
+second order of prioritised planning not run when it is the same pass (proxplan.planner.swarm.prioritised_stage)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm import SwarmOptions, swarm_problem, swarm_timed
 from proxplan.planner.swarm.memo import Memo
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.plan import ORDERS, _horizon_steps
+from proxplan.planner.swarm.prioritised_stage import ORDERS, horizon_steps
 from proxplan.planner.swarm.priority import PriorityOptions, plan_one, prioritized_tracks
 from proxplan.planner.swarm.reserve import predicted_track, reserved_track
 from proxplan.planner.swarm.wave import wave_route
@@ -89,7 +89,7 @@ def test_prioritised_passes_give_the_same_tracks_with_and_without_the_memo():
     sc, problem = _problem("circle", 16)
     plain = replace(problem)
     object.__setattr__(plain, "memo", Memo(0))
-    horizon = _horizon_steps(lower_bound_makespan_s(sc))
+    horizon = horizon_steps(lower_bound_makespan_s(sc))
     opts = PriorityOptions(
         max_repairs=math.ceil(0.25 * 16), max_plannings=96, hold_s=1.0, reserve_starts=True, through=False
     )
@@ -120,7 +120,7 @@ def test_an_order_equal_to_one_run_is_not_run_again_and_gives_the_same_plan():
     for name in both:
         np.testing.assert_array_equal(both[name].knot_t_s, alone[name].knot_t_s)
         np.testing.assert_array_equal(both[name].knot_p_m, alone[name].knot_p_m)
-    horizon = _horizon_steps(lower_bound_makespan_s(sc))
+    horizon = horizon_steps(lower_bound_makespan_s(sc))
     opts = PriorityOptions(max_repairs=4, max_plannings=96, hold_s=1.0, reserve_starts=True, through=False)
     first = prioritized_tracks(problem, ORDERS["dependencies first"](problem), opts, horizon_steps=horizon)
     plain = replace(problem)

@@ -1,0 +1,85 @@
+"""The knobs of the swarm layer (:class:`SwarmOptions`), read by every stage of
+:mod:`proxplan.planner.swarm.plan`; every budget is a count (the same plan on every machine)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+__all__ = ["SwarmOptions"]
+
+
+@dataclass(frozen=True)
+class SwarmOptions:
+    """Knobs of the swarm layer; every budget is a count (same plan on every machine)."""
+
+    max_run: int = 4  # longest straight move of one coordination step, in lattice edges
+    max_nodes: int = 3000  # LaCAM configurations before the coordination search gives up
+    # LaCAM's PIBT proposals before it gives up (most fail or revisit a configuration and add none);
+    # set on the named layouts at 64 fixed: grid 60, corridor 2378 to a plan; pillar none in 5800 (before
+    # round 12A, when most PIBT proposals failed; now one without a constraint never does, swarm.lacam)
+    max_proposals: int = 4000
+    # prioritised planning's budget: single-vehicle plannings over all its passes (orders, holds,
+    # repairs), per vehicle; once spent the best plan found so far is kept, or the lattice plan
+    # is the answer (a count: the same plan on every machine). Set on the named layouts at 64
+    # fixed (docs/planner.md): two orders need 2, a failing pass 1-3, a pass with repairs 2-3
+    plannings_per_vehicle: float = 6.0
+    passes: int = 3  # continuous re-timing passes
+    prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
+    # prioritised planning's repair budget, per vehicle of a group (rounded up): on the named layouts at
+    # 32 vehicles the plans that repaired at all needed 1-3 repairs; 2 per vehicle let grid-64 run
+    # for minutes on failing passes
+    repairs_per_vehicle: float = 0.25
+    orders: tuple[str, ...] = ("dependencies first", "longest first")  # prioritised planning's orders (ORDERS)
+    # a vehicle not planned yet is assumed to hold its start this long, then to leave on its straight
+    # route, s: tried in turn until prioritised planning finds a plan (a longer hold leaves it more
+    # room). No hold (0.0) was measured first and lost on grid and pillar layouts (see docs/planner.md)
+    unplanned_hold_s: tuple[float, ...] = (1.0, 2.5)
+    # a vehicle not planned yet holds its start until it is planned (swarm.reserve), instead of the
+    # prediction above; the hold then applies to the starts released for a vehicle in their way. None: on
+    # with fixed goals, off where the goals were assigned (assign_goals: by_type, decided by
+    # planner.pipeline). With fixed goals at 64 the predictions start-trapped every
+    # pass on grid and pillar (sixth round); reserved starts gave pillar-64 and random-1 plans where there
+    # were none (seventh round). By type they made grid-64 1.63x -> 1.84x and corridor-64 2.23x -> 3.88x
+    # (an assignment rarely puts a goal on another's start; docs/planner.md, seventh round; a default set
+    # watching those named layouts). Called directly (not through the pipeline), None means on.
+    reserve_starts: bool | None = None
+    # fly through waypoints without stopping (else rest to rest at each): "retime" in the re-timing
+    # passes only (each vehicle along its own route, against everyone's final tracks: never worse),
+    # "always" in prioritised planning too, "never". Off by default: on the named layouts it did not
+    # shorten the makespan for its CPU time (docs/planner.md, "Causes measured one at a time")
+    through_waypoints: Literal["never", "retime", "always"] = "never"
+    # also try: keep the straight lines in no conflict and plan only the others around them. Off by
+    # default: on the named layouts at 32 vehicles it never gave the shorter plan (docs/planner.md)
+    keep_straight: bool = False
+    # after re-timing, once on the plan kept, plan the latest vehicles again together with the vehicles
+    # in their way (swarm.makespan; False: for measuring the cause alone; True: on every plan). None:
+    # on, but not on the lattice plan. Set watching the named layouts at 64 (docs/planner.md, round
+    # 13A): on the prioritised plans with fixed goals pillar 2.73x -> 2.62x for 57 plannings, circle
+    # unchanged (13); on the lattice plans nothing shorter: grid and corridor fixed (in-process, 64
+    # plannings: 0 and 1 neighbourhoods replaced, the makespan unchanged, 5 and 22 s of CPU) and pillar
+    # by type (62 plannings, none replaced, 7 s): the vehicles in the latest one's way cannot be planned
+    # again among the lock-step tracks. On the prioritised plans by type it was on before (grid-64
+    # 1.91x -> 1.63x, fifth round) and stays so. Decided by the swarm layer (no caller sets it)
+    makespan_repair: bool | None = None
+    # one more pass of prioritised planning with both wavefronts per vehicle (the widest disc at every
+    # height and discs for the heights the route flies at, swarm.wave; the earlier arrival kept,
+    # priority.plan_one), in the order and hold of the pass that gave the plan without, on what is left
+    # of prioritised planning's count budget; the shorter of the two whole plans kept (each re-timed and
+    # repaired; ties: the plan without), so never longer than without. No pass where prioritised
+    # planning gave up (its budget spent: the lattice plan). None: on with fixed goals for up to
+    # HEIGHTS_MAX_VEHICLES vehicles, off where the goals were assigned (Scenario.assign_goals: by_type).
+    # Set watching the named layouts only (docs/planner.md, round 12B): fixed goals at 64, pillar 3.17x
+    # -> 2.73x and circle 1.56x -> 1.51x for about +10 / +6 s of CPU, grid and corridor no pass (both
+    # gave up); by type at 64 it shortened no named layout for +1.4 to +16.5 s of CPU (round 11S)
+    heights: bool | None = None
+    workers: int = 0  # Dask workers for groups that never interact (0: one per core; 1: none)
+    # grow every vehicle's keep-outs by the bound on its predicted tracking error in any plan this
+    # layer can time (swarm.tracking_bound), so that the verifier does not reject the first plan
+    # by millimetres (False: only by ``deflection_m``, as before; for measuring the cause alone)
+    tracking_bound: bool = True
+    seed: int = 0
+    # per vehicle name: its predicted deflection under the plan's own disturbance, m; a pair's
+    # keep-out grows by the sum of its two vehicles' values (as in the verifier)
+    deflection_m: Mapping[str, float] = field(default_factory=dict)
