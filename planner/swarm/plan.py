@@ -61,7 +61,7 @@ from proxplan.planner.swarm.options import SwarmOptions
 from proxplan.planner.swarm.prioritised_stage import kept_straight_stage, prioritised_stage
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
 from proxplan.planner.swarm.retime import improve, route_chain
-from proxplan.planner.swarm.stage import Stage as _Stage
+from proxplan.planner.swarm.stage import Stage
 from proxplan.planner.swarm.straight import straight_step_conflicts, straight_tracks
 from proxplan.planner.swarm.sync import SyncTable
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
@@ -111,7 +111,7 @@ def swarm_timed(
     heights = heights_on(opts, scenario.assign_goals is not None, problem.n_agents, extra)
     if heights and opts.prioritized and not straight:
 
-        def retime(stage: _Stage) -> tuple[dict[int, GridTrack], RetimeInfo]:
+        def retime(stage: Stage) -> tuple[dict[int, GridTrack], RetimeInfo]:
             return _retime_stage(problem, stage, _makespan(stage), opts, progress=progress, deadline=deadline)
 
         got = heights_pass(
@@ -145,18 +145,18 @@ def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
     return lambda a: [np.array([problem.starts_m[a], problem.goals_m[a]])]
 
 
-def _straight_stage(problem: SwarmProblem) -> _Stage:
+def _straight_stage(problem: SwarmProblem) -> Stage:
     """Every vehicle on its straight line in one synchronised step (no pair conflicts)."""
     straight = straight_tracks(problem, list(range(problem.n_agents)))
     tracks = [straight[a] for a in range(problem.n_agents)]
-    return _Stage(tracks, "straight", "one synchronised straight step", _straight(problem))
+    return Stage(tracks, "straight", "one synchronised straight step", _straight(problem))
 
 
-def _makespan(stage: _Stage) -> float:
+def _makespan(stage: Stage) -> float:
     return max(tr.arrival_s for tr in stage.tracks)
 
 
-def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> _Stage:
+def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> Stage:
     """LaCAM on the lattice, flown in lock-step: the guaranteed answer (or PlanNotFound)."""
     lattice = build_lattice(problem, max_run=opts.max_run)
     sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
@@ -181,11 +181,11 @@ def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pr
     coordination = (
         f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
     )
-    return _Stage(lockstep_tracks(lattice, configurations), "lattice", coordination, routes)
+    return Stage(lockstep_tracks(lattice, configurations), "lattice", coordination, routes)
 
 
 def _retime_stage(
-    problem: SwarmProblem, found: _Stage, initial_s: float, opts: SwarmOptions, *, progress, deadline
+    problem: SwarmProblem, found: Stage, initial_s: float, opts: SwarmOptions, *, progress, deadline
 ) -> tuple[dict[int, GridTrack], RetimeInfo]:
     """Gauss-Seidel re-timing of every vehicle along its chains (never worse, conflict-free)."""
     by_agent = {tr.agent: tr for tr in found.tracks}
@@ -204,7 +204,7 @@ def _retime_stage(
     return by_agent, RetimeInfo(**counts, time_s=round(time.perf_counter() - t2, 3))
 
 
-def _repairs(opts: SwarmOptions, found: _Stage) -> bool:
+def _repairs(opts: SwarmOptions, found: Stage) -> bool:
     """Whether the makespan repair runs on the plan of ``found`` (``SwarmOptions.makespan_repair``;
     None: not on the lattice plan, on elsewhere)."""
     if opts.makespan_repair is not None:
