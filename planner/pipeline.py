@@ -241,11 +241,21 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
     if why is not None:
         return SwarmOutcome(None, None, f"swarm layer: not used, {why}", searched=False)
     infos: dict[int, SwarmInfo] = {}  # id(plan) -> the info of the attempt that made it
+    gave_up: list[dict[str, float]] = []  # the deflections of the attempts whose prioritised planning gave up
 
     def attempt(deflection: Mapping[str, float], seed: int) -> Plan:
-        options = replace(run.swarm, seed=seed, deflection_m=_merged(run.swarm.deflection_m, deflection))
+        grown = _merged(run.swarm.deflection_m, deflection)
+        again = run.swarm.prioritized and not any(_no_narrower(before, grown) for before in gave_up)
+        options = replace(run.swarm, seed=seed, deflection_m=grown, prioritized=again)
         timed, info = swarm_timed(scenario, options, progress=run.progress, deadline=run.deadline)
+        if again and info.stage == "lattice":  # prioritised planning ran and gave up
+            gave_up.append(grown)
         plan = assemble_plan(scenario, timed, method=run.method, notes=list(scenario.load_notes))
+        if run.swarm.prioritized and not again:
+            plan.notes.append(
+                "swarm layer: prioritised planning not run again (it gave up with keep-outs no wider; "
+                "it does not draw on the seed)"
+            )
         plan.notes.append(f"swarm layer: {info.coordination}")
         infos[id(plan)] = info
         return plan
@@ -261,6 +271,15 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
     if bad:
         return SwarmOutcome(None, info, f"swarm layer: plan failed verification ({bad[0]})")
     return SwarmOutcome(plan, info, None)
+
+
+def _no_narrower(before: Mapping[str, float], now: Mapping[str, float]) -> bool:
+    """Is every vehicle's deflection in ``now`` at least its deflection in ``before`` (m)? Then every
+    pair's keep-out is at least as wide as before, and prioritised planning, which gave up with
+    ``before`` (it does not draw on the seed), is not run again: with the same keep-outs it plans
+    the same and gives up again (exact); wider keep-outs leave every vehicle no more room (not a
+    proof that it gives up: a pass is not monotone in the keep-outs; issue 37 round 13B)."""
+    return all(float(now.get(n, 0.0)) >= float(d) for n, d in before.items())
 
 
 def _merged(a: Mapping[str, float], b: Mapping[str, float]) -> dict[str, float]:
