@@ -134,8 +134,12 @@ def improve(
                 progress(f"continuous re-timing, pass {p + 1}/{passes}", 0.6 + 0.3 * (p + idx / len(order)) / passes)
             old = tracks[a]
             was = idle.get(a)
-            if skip_unchanged and was is not None and not any(
-                _near_box(was[1], was[2], tr, reach_xy, reach_z) for pair in changes[was[0] :] for tr in pair
+            if (
+                skip_unchanged
+                and was is not None
+                and not any(
+                    _near_box(was[1], was[2], tr, reach_xy, reach_z) for pair in changes[was[0] :] for tr in pair
+                )
             ):
                 skipped += 1  # nothing within reach changed since it gave nothing: it would again
                 continue

@@ -18,9 +18,9 @@ from proxplan.planner.swarm.tracks import GRID_DT_S
 def _retimed(skip: bool) -> tuple[list[bytes], dict]:
     problem = swarm_problem(scenario_from_dict(grid_reshuffle(16), label="test scenario"))  # its own memo
     lat = build_lattice(problem)
-    configurations = Lacam(lat, SyncTable(problem.keepouts, problem.type_index, lat.pos_mm)).solve(
-        max_nodes=2000
-    ).configurations
+    configurations = (
+        Lacam(lat, SyncTable(problem.keepouts, problem.type_index, lat.pos_mm)).solve(max_nodes=2000).configurations
+    )
     tracks = lockstep_tracks(lat, configurations)
     by_agent = {tr.agent: tr for tr in tracks}
     occ = Occupancy(problem, tracks, int(round((max(tr.arrival_s for tr in tracks) + 5.0) / GRID_DT_S)))
