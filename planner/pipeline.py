@@ -19,7 +19,8 @@ Every planner's plan goes through one verification policy (:func:`_until_verifie
 runs on it; a plan it rejects is planned again once with every disturbed vehicle's tube grown by its
 predicted deflection (:func:`proxplan.planner.metrics.deflection_allowance`; a pair's keep-out grows
 by the sum of its two vehicles' values, as in the verifier), then once more with another seed; the
-plan with the fewest violations is kept, with a note.
+plan with the fewest violations is kept, with a note. The swarm layer's prioritised planning, where
+it gave up, is not run again in these re-plans (:func:`_no_narrower`).
 
 Docking: the final straight approach to the dock crosses the invalid zone, where the cutoff rule is
 suspended for the dock pair only (the two must meet there). The plan reports the time spent in the
