@@ -27,6 +27,7 @@ from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.lattice import Lattice
 from proxplan.planner.swarm.occupancy import SAMPLING_GROWTH_M, Occupancy
 from proxplan.planner.swarm.tracks import GridTrack
+from proxplan.planner.timing import CORNER_DEVIATION_M
 
 ROUTE_CORRIDOR_FACTOR = 0.5  # a route shortcut stays within this many lattice spacings of the skipped vertices
 
@@ -120,6 +121,10 @@ def improve(
     # a vehicle whose re-timing gave nothing: (the number of changes then, its chains' box)
     idle: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
     changes: list[tuple[GridTrack, GridTrack]] = []  # (old, new) track of every replacement, in order
+    # flying through waypoints, the roundings lie between chord and corner (measured, timing.corners):
+    # the box is grown by the corners' largest deviation all the same, so that one bulging past its
+    # corner by up to that much is still inside
+    margin = CORNER_DEVIATION_M if through else 0.0
     for p in range(passes):
         changed = 0
         order = sorted(who, key=lambda a: (-tracks[a].arrival_step, a))
@@ -162,7 +167,7 @@ def improve(
                 changes.append((old, new))
                 idle.pop(a, None)
             else:
-                idle[a] = (len(changes), *_box(mine, 0.0))
+                idle[a] = (len(changes), *_box(mine, margin))
         replaced += changed
         done += 1
         makespans.append(max(tr.arrival_s for tr in tracks.values()))
