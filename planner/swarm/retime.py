@@ -86,10 +86,12 @@ def _box(chains: list[np.ndarray], margin_m: float) -> tuple[np.ndarray, np.ndar
     return pts.min(axis=0) - margin_m, pts.max(axis=0) + margin_m
 
 
-def _near_box(lo: np.ndarray, hi: np.ndarray, track: GridTrack, reach_xy_m: float, reach_z_m: float) -> bool:
-    """Does ``track``'s bounding box come within reach (horizontal, vertical, m) of the box [lo, hi]?
-    (False: no sample of it can conflict with a vehicle flying inside the box.)"""
-    gap = np.maximum(lo - track.hi_m, track.lo_m - hi)
+def _near_box(
+    lo: np.ndarray, hi: np.ndarray, box: tuple[np.ndarray, np.ndarray], reach_xy_m: float, reach_z_m: float
+) -> bool:
+    """Does a track's bounding ``box`` (lo, hi) come within reach (horizontal, vertical, m) of the box
+    [lo, hi]? (False: no sample of it can conflict with a vehicle flying inside the box.)"""
+    gap = np.maximum(lo - box[1], box[0] - hi)
     return bool(gap[0] < reach_xy_m and gap[1] < reach_xy_m and gap[2] < reach_z_m)
 
 
@@ -120,7 +122,8 @@ def improve(
     reach_z = problem.reach_z_m + SAMPLING_GROWTH_M
     # a vehicle whose re-timing gave nothing: (the number of changes then, its chains' box)
     idle: dict[int, tuple[int, np.ndarray, np.ndarray]] = {}
-    changes: list[tuple[GridTrack, GridTrack]] = []  # (old, new) track of every replacement, in order
+    # the bounding boxes (lo, hi) of the old and the new track of every replacement, in order
+    changes: list[tuple[np.ndarray, np.ndarray]] = []
     # flying through waypoints, the roundings lie between chord and corner (measured, timing.corners):
     # the box is grown by the corners' largest deviation all the same, so that one bulging past its
     # corner by up to that much is still inside
@@ -142,9 +145,7 @@ def improve(
             if (
                 skip_unchanged
                 and was is not None
-                and not any(
-                    _near_box(was[1], was[2], tr, reach_xy, reach_z) for pair in changes[was[0] :] for tr in pair
-                )
+                and not any(_near_box(was[1], was[2], box, reach_xy, reach_z) for box in changes[was[0] :])
             ):
                 skipped += 1  # nothing within reach changed since it gave nothing: it would again
                 continue
@@ -164,7 +165,7 @@ def improve(
             tracks[a] = new
             if best is not None:
                 changed += 1
-                changes.append((old, new))
+                changes += [(old.lo_m, old.hi_m), (new.lo_m, new.hi_m)]
                 idle.pop(a, None)
             else:
                 idle[a] = (len(changes), *_box(mine, margin))
