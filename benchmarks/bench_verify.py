@@ -12,6 +12,13 @@ passes, so verify runs the tracking-tube check too).
 Usage:
     python benchmarks/bench_verify.py [--layout pillar expand shear] [--n 32 64 128 256]
         [--baseline-python PATH] [--baseline-timeout 900] [--checks] [--metrics] [--keep DIR]
+    python benchmarks/bench_verify.py --plans PLAN.json [...] [--baseline-python PATH]
+
+With ``--plans PLAN.json ...`` (plan files, or gzipped ones as tests/verify/reference holds) it
+times ``proxplan verify PLAN --json`` on those plans instead, each in a fresh process under
+``/usr/bin/time -v``: wall, CPU (user + system) and peak memory of this interpreter's and the
+baseline's run, one after the other per plan, and whether the verdicts agree to the equivalence
+tests' tolerance (kind, vehicle, sample, detail, limit; worst value to ``VALUE_RTOL``).
 
 Per plan it prints the whole-process wall time and peak memory (``resource`` rusage of the child,
 MB) of ``proxplan verify plan.json --json`` run by this interpreter, the number of violations and,
@@ -143,23 +150,98 @@ def _same(a: list[dict], b: list[dict]) -> bool:
     return all(abs(x["value"] - y["value"]) <= 1e-7 * max(abs(y["value"]), 1e-2) for x, y in zip(a, b))
 
 
+VALUE_RTOL = 1e-8  # a worst value's relative tolerance, as tests/verify/test_equivalence.py
+
+
+def _timed_verify(python: str, plan_json: Path, timeout_s: float) -> dict:
+    """``proxplan verify PLAN --json`` by ``python`` under ``/usr/bin/time -v`` in a fresh process:
+    wall s, CPU s (user + system), peak RSS MB, exit code, violations."""
+    with tempfile.NamedTemporaryFile(suffix=".time") as tf:
+        cmd = ["/usr/bin/time", "-v", "-o", tf.name, python, "-m", "proxplan.cli", "verify", str(plan_json), "--json"]
+        _, code, _, text = _run(cmd, timeout_s)
+        fields = {}
+        for line in Path(tf.name).read_text().splitlines():
+            key, _, value = line.strip().rpartition(": ")
+            fields[key] = value
+    h_m_s = [float(x) for x in fields.get("Elapsed (wall clock) time (h:mm:ss or m:ss)", "nan").split(":")]
+    wall = sum(x * 60.0**i for i, x in enumerate(reversed(h_m_s)))
+    cpu = float(fields.get("User time (seconds)", "nan")) + float(fields.get("System time (seconds)", "nan"))
+    rss = float(fields.get("Maximum resident set size (kbytes)", "nan")) / 1024.0
+    violations = json.loads(text)["violations"] if code in (0, 1) else None
+    return {"wall_s": wall, "cpu_s": cpu, "rss_mb": rss, "code": code, "violations": violations}
+
+
+def _agree(a: list[dict], b: list[dict]) -> tuple[bool, float]:
+    """(same verdicts: kind, vehicle, sample, detail and limit of every violation, worst values
+    within VALUE_RTOL (abs 1e-9); the largest relative difference of the worst values)."""
+    key = [(v["kind"], v["vehicle"], v["sample"], v["detail"], v["limit"]) for v in a]
+    if key != [(v["kind"], v["vehicle"], v["sample"], v["detail"], v["limit"]) for v in b]:
+        return False, float("nan")
+    rel = [abs(x["value"] - y["value"]) / max(abs(y["value"]), 1e-300) for x, y in zip(a, b)]
+    ok = all(abs(x["value"] - y["value"]) <= VALUE_RTOL * abs(y["value"]) + 1e-9 for x, y in zip(a, b))
+    return ok, max(rel, default=0.0)
+
+
+def bench_plans(plans: list[str], baseline: str | None, timeout_s: float) -> int:
+    """Before / after on given plan files (module docstring, ``--plans``)."""
+    import gzip
+    import shutil
+
+    with tempfile.TemporaryDirectory() as tmp:
+        for given in plans:
+            path = Path(given).resolve()
+            if path.suffix == ".gz":  # verify reads plain JSON: unzip to a temporary file
+                plain = Path(tmp) / path.name.removesuffix(".gz")
+                with gzip.open(path, "rb") as f, plain.open("wb") as g:
+                    shutil.copyfileobj(f, g)
+                path = plain
+            new = _timed_verify(sys.executable, path, timeout_s)
+            line = f"{path.name}: wall {new['wall_s']:.2f} s, CPU {new['cpu_s']:.2f} s, peak {new['rss_mb']:.0f} MB"
+            line += f", {len(new['violations'] or [])} violations"
+            if baseline:
+                old = _timed_verify(baseline, path, timeout_s)
+                if new["violations"] is None or old["violations"] is None:
+                    same, rel = False, float("nan")
+                else:
+                    same, rel = _agree(new["violations"], old["violations"])
+                line += (
+                    f"; baseline wall {old['wall_s']:.2f} s, CPU {old['cpu_s']:.2f} s, peak {old['rss_mb']:.0f} MB; "
+                    f"ratio (baseline / this) wall {old['wall_s'] / new['wall_s']:.2f}, CPU {old['cpu_s'] / new['cpu_s']:.2f}; "
+                    f"same verdicts: {'yes' if same else 'NO'} (worst values differ by {rel:.1e} relative at most)"
+                )
+            print(line, flush=True)
+    return 0
+
+
 def child_checks(plan_json: str) -> int:
-    """Print one JSON line: seconds of each check of verify in this process (the installed code)."""
+    """Print one JSON line: seconds of each check of verify in this process (the installed code;
+    the pair checks without the loops' deflections)."""
     import numpy as np
 
     from proxplan.planfile import read_plan
-    from proxplan.verify import checks, scenario_of_plan
+    from proxplan.verify import checks, loop_along_plan, scenario_of_plan, wrench_along_plan
+    from proxplan.verify.along import plan_samples
 
     plan = read_plan(plan_json)
     sc = scenario_of_plan(plan)
     t = np.arange(0.0, float(plan.t_s[-1]) + FINE_DT_S / 2, FINE_DT_S)
-    pos = plan.positions_at(t)
     out = {}
-    for name in ("_check_tasks", "_check_pairs", "_check_authority", "_check_authority_tube"):
+    t0 = time.perf_counter()
+    samples = plan_samples(plan, t)
+    along = wrench_along_plan(plan, sc, t_s=t, samples=samples)
+    out["wrench"] = round(time.perf_counter() - t0, 3)
+    t0 = time.perf_counter()
+    loop_along_plan(plan, sc, along, samples=samples)
+    out["loops"] = round(time.perf_counter() - t0, 3)
+    zero = {n: np.zeros(t.size) for n in plan.vehicles}
+    for name, run in (
+        ("pairs", lambda: checks.check_pairs(plan, sc, t, samples, zero)),
+        ("authority", lambda: checks.check_authority(sc, t, along, plan.t_s)),
+        ("authority_tube", lambda: checks.check_authority_tube(plan, sc, t, samples, zero)),
+    ):
         t0 = time.perf_counter()
-        fn = getattr(checks, name)
-        fn(plan, sc, t) if name == "_check_authority" else fn(plan, sc, t, pos)
-        out[name.removeprefix("_check_")] = round(time.perf_counter() - t0, 3)
+        run()
+        out[name] = round(time.perf_counter() - t0, 3)
     print(json.dumps(out))
     return 0
 
@@ -198,6 +280,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--checks", action="store_true", help="also time each check in-process")
     parser.add_argument("--metrics", action="store_true", help="also time finish_metrics and plot_plan in-process")
     parser.add_argument("--keep", help="write the plans here (default: a temporary folder)")
+    parser.add_argument("--plans", nargs="+", help="time verify on these plan files (.json or .json.gz) instead")
     parser.add_argument("--child-checks", help=argparse.SUPPRESS)
     parser.add_argument("--child-metrics", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -205,6 +288,8 @@ def main(argv: list[str] | None = None) -> int:
         return child_checks(args.child_checks)
     if args.child_metrics:
         return child_metrics(*args.child_metrics)
+    if args.plans:
+        return bench_plans(args.plans, args.baseline_python, args.baseline_timeout)
 
     from proxplan.planfile import write_plan
 

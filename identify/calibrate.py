@@ -292,11 +292,12 @@ STACK_PARAMETER = "model.stack_shielding"
 """Name of the stack shielding eta among the calibrated parameters."""
 
 
-def model_specs(units: Sequence[Unit], model: Model) -> list[ParamSpec]:
+def model_specs(units: Sequence[Unit], model: Model, held: frozenset[str] = frozenset()) -> list[ParamSpec]:
     """The declared parameters the data can inform, with their priors: c_ax, z0_m, c_rad of every type
     that is a source in ``units``, b_v of every type that receives a downwash, every type's thrust scale
     (names ``TYPE.param``; :func:`proxplan.identify.calibrate.vehicle_param_specs`), and the stack shielding
-    eta where the units hold at least :data:`MIN_STACK_SAMPLES` samples with two or more sources overhead."""
+    eta where the units hold at least :data:`MIN_STACK_SAMPLES` samples with two or more sources overhead;
+    none named in ``held`` (held at the model's value: :mod:`proxplan.identify.earned`)."""
     sources, targets, types = _roles(units)
     specs: list[ParamSpec] = []
     n_stacked = sum(int(np.sum(stacked_samples(u, model))) for u in units)
@@ -307,7 +308,7 @@ def model_specs(units: Sequence[Unit], model: Model) -> list[ParamSpec]:
         specs += vehicle_param_specs(model.vehicles[t], f"{t}.", as_source=t in sources, as_target=t in targets)
         specs.append(ParamSpec(f"{t}.thrust_scale", model.thrust_scale.get(t, 1.0), 0.7, 1.3,
                                vehicle_priors(model.vehicles[t], as_source=False, as_target=False)["thrust_scale"]))  # fmt: skip
-    return specs
+    return [s for s in specs if s.name not in held]
 
 
 def parameter_value(model: Model, name: str) -> float:
@@ -324,7 +325,13 @@ def parameter_value(model: Model, name: str) -> float:
 
 
 def calibrate_model(
-    units: Sequence[Unit], model: Model, *, options: IdentifyOptions, noise: NoiseLevel, start: Model | None = None
+    units: Sequence[Unit],
+    model: Model,
+    *,
+    options: IdentifyOptions,
+    noise: NoiseLevel,
+    start: Model | None = None,
+    held: frozenset[str] = frozenset(),
 ) -> tuple[Model, CalibrationResult, Model]:
     """MAP fit of c_ax, z0_m, c_rad (source types), b_v (target types) and thrust scales (all types) on F_z,
     on a stratified, weighted sample of ``units`` (:func:`proxplan.identify.strata.stratified_sample`),
@@ -334,11 +341,12 @@ def calibrate_model(
     model with them, is what the measurement noise is judged on). The priors and bounds are ``model``'s;
     with ``start`` (a model with effects, e.g. after selection) the fit starts from its values and predicts
     with its effects and options (the effects held as they are; a delayed one on each sample's delayed
-    state, :func:`proxplan.identify.delayed.delayed_unit`)."""
+    state, :func:`proxplan.identify.delayed.delayed_unit`). Parameters named in ``held`` are not fitted:
+    they keep ``start``'s value (else ``model``'s)."""
     sources = with_rows([u for u in units if len(u)])
     fit_units = stratified_sample(sources, options.max_fit_samples, model.vehicles)
     sw = np.sqrt(np.concatenate([u.weight for u in fit_units])) / noise.rows(fit_units)[:, 0]
-    specs = model_specs(fit_units, model)
+    specs = model_specs(fit_units, model, held)
     if start is not None:
         specs = [replace(s, initial=float(np.clip(parameter_value(start, s.name), s.lower, s.upper))) for s in specs]
     y = np.concatenate([u.force_N[:, 2] for u in fit_units])

@@ -200,6 +200,10 @@ def selection_lines(result: IdentifyResult) -> list[str]:
         test = _fmt(tr.test.rmse_fz_N) if tr.test is not None else "n/a"
         lines.append(f"| {tr.round} | {tr.name} | {params} | {test} | {gain} | {tr.inclusion:.0%} | "
                      f"{'yes' if tr.selected else ''} | {tr.reason} |")  # fmt: skip
+    held = (sel.get("vehicle_parameters_heldout") or {}).get("held_at_prior") or []
+    if held:
+        lines += ["", f"Held at their priors at this start: {', '.join(held)} (their recalibration predicted the "
+                  "flights held out worse than the priors: proxplan.identify.earned)."]  # fmt: skip
     for kept, rivals in (sel.get("indistinguishable") or {}).items():
         lines += ["", f"**{kept}** was kept, but these flights cannot tell it from {', '.join(sorted(rivals))}: "
                   "each predicts the held-out flights about as well (head-to-head test in the table). Flights that "

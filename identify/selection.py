@@ -16,6 +16,7 @@ from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
 from proxplan.identify.delayed import delayed_units
 from proxplan.identify.design import selection_set, tangent_u
 from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
+from proxplan.identify.earned import EarnedParameters, earned_parameters
 from proxplan.identify.effect_selection import THRUST_BIAS, EffectSelection, EffectSelector
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_backward
 from proxplan.identify.noise import NoiseLevel, stacked
@@ -37,6 +38,7 @@ class Selection:
     cluster: np.ndarray  # (groups,) int, each held-out group's flight (crossval.GroupPlan.cluster)
     rows: list[Unit]  # the selection's samples (stratified train sample and validation sample)
     heldout_fz_N: np.ndarray  # (N,) each row's held-out F_z residual, N (rows in the order of ``rows``)
+    parameters: EarnedParameters | None = None  # at the prior start: the parameter groups judged by flights held out
 
     @property
     def heldout_total(self) -> float:
@@ -58,6 +60,8 @@ class Selection:
                "effects_expected_false_bound": stab.expected_false_bound,
                "half_samples": stab.n_halves, "recalibration_step_u": self.effects.steps,
                "indistinguishable": self.effects.rivals_json()}  # fmt: skip
+        if self.parameters is not None:
+            out["vehicle_parameters_heldout"] = self.parameters.to_json()
         if self.discovery is not None:
             d = self.discovery.stability
             out |= {
@@ -85,10 +89,17 @@ def select_and_discover(
     terms with the kept effects and the vehicle parameters' tangents refitted jointly, in the noise units
     of ``noise``. ``calibrated_thrust_scale`` (type -> scale) are the thrust scales the calibration fitted
     beside ``reference``'s parameters (on every train sample); they stand with it when nothing is kept. With
-    ``prior_model`` (the calibration's priors), a model that keeps something is polished (:func:`polished`)."""
+    ``prior_model`` (the calibration's priors), a model that keeps something is polished (:func:`polished`).
+    At the prior start the vehicle parameters are recalibrated only in the groups whose tangents pass the
+    held-out gain test (:mod:`proxplan.identify.earned`); the others stay at their priors."""
     sel = selection_set(fit, valid, reference, noise, max_fit_samples=options.max_fit_samples,
                         max_valid_samples=options.max_eval_samples)  # fmt: skip
     selector = EffectSelector(sel, specs, options=options)
+    earned = None
+    if start == "prior":
+        earned = earned_parameters(selector)
+        if earned.held:
+            selector = EffectSelector(sel, [s for s in specs if s.name not in earned.held], options=options)
     selector.fit_candidates(options.effects)
     effects = selector.run(test=test)
     discovery = None
@@ -121,8 +132,10 @@ def select_and_discover(
         # not with discovered terms: a term on a base feature (base_fz_lag...) was fitted on the base at the
         # reference, and refitting the base under it changes what the term means (and each evaluation of
         # the features costs: on the shipped manifest the polish doubled selection's time)
-        model = polished(selector, model, fit, prior_model, options=options, noise=noise)
-    return Selection(model, effects, discovery, start, heldout, sel.plan.note, sel.plan.cluster, sel.units, heldout_fz)
+        held = earned.held if earned is not None else frozenset()
+        model = polished(selector, model, fit, prior_model, options=options, noise=noise, held=held)
+    return Selection(model, effects, discovery, start, heldout, sel.plan.note, sel.plan.cluster, sel.units, heldout_fz,
+                     earned)  # fmt: skip
 
 
 STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.125, 0.0)
@@ -195,14 +208,16 @@ def polished(
     *,
     options: IdentifyOptions,
     noise: NoiseLevel,
+    held: frozenset[str] = frozenset(),
 ) -> Model:
     """``model`` (after the joint step) or, when its MAP objective (:func:`map_objective`) is lower, the same
     effects with the vehicle parameters and thrust scales refitted by the calibration's own NONLINEAR MAP fit
     on every train sample (:func:`proxplan.identify.calibrate.calibrate_model`, priors of ``prior_model``,
     started at ``model``, its effects held). The joint step is one linearised step on a subsample: on
     generated logs with an own-velocity force it left the calibrated Parrot's test error at 0.26 g where the
-    calibration's own fit, with nothing to keep, gave 0.18 g on the same logs without the force."""
-    _, _, refit = calibrate_model(fit, prior_model, options=options, noise=noise, start=model)
+    calibration's own fit, with nothing to keep, gave 0.18 g on the same logs without the force. Parameters in
+    ``held`` stay as they are in ``model``."""
+    _, _, refit = calibrate_model(fit, prior_model, options=options, noise=noise, start=model, held=held)
     penalty = _penalty(selector)
     return refit if map_objective(selector, refit, penalty) < map_objective(selector, model, penalty) else model
 

@@ -65,7 +65,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.signal import lfilter
 
 from proxplan.physics.room import plane_distances_m
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
@@ -269,6 +268,9 @@ def lagged(x: np.ndarray, time_s: np.ndarray | None, lag_s: float = LAG_S) -> np
 def lowpass(x: np.ndarray, time_s: np.ndarray | None, tau_s: float = LOWPASS_TAU_S) -> np.ndarray:
     """First-order low-pass y' = (x - y) / tau of ``x`` (N,) within each time run, started at x[0]
     (exact discretisation for a step-wise constant input at the run's median clock step)."""
+    # imported here: scipy.signal takes ~1 s of CPU to import, and most users of this module never filter
+    from scipy.signal import lfilter
+
     x = np.asarray(x, dtype=float)
     if time_s is None:
         return x.copy()

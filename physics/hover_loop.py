@@ -63,7 +63,7 @@ import numpy as np
 
 from proxplan.physics.discretize import expm_stack, zoh_maps
 from proxplan.physics.modal_bound import modal_bound
-from proxplan.physics.tube_blocks import TubeBlocks
+from proxplan.physics.tube_blocks import stepped_response
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
 STATE_NAMES = (
@@ -110,12 +110,12 @@ class LoopMatrices:
     """x' = a x + b (f, tau) + b_ref s per sample: ``a`` (K, 22, 22), ``b`` (K, 22, 6) (force N
     world, torque N m world axes), ``b_ref`` (K, 22, 22) the reference drive s
     (:data:`REFERENCE_INPUTS`: the deviation from the plan of a vehicle flying a moving reference,
-    module docstring); ``c`` (3, 22) picks the position deviation d, m."""
+    module docstring; None where not asked for); ``c`` (3, 22) picks the position deviation d, m."""
 
     a: np.ndarray
     b: np.ndarray
     c: np.ndarray
-    b_ref: np.ndarray
+    b_ref: np.ndarray | None
 
 
 def loop_matrices(
@@ -124,10 +124,13 @@ def loop_matrices(
     torque_Nm: np.ndarray | None = None,
     force_gradient_Npm: np.ndarray | None = None,
     torque_gradient_Nmpm: np.ndarray | None = None,
+    *,
+    reference: bool = True,
 ) -> LoopMatrices:
     """The loop (module docstring) of ``vehicle`` in a jet with force (K, 3), N, torque (K, 3),
     N m (world frame) and their gradients (K, 3, 3) with respect to the vehicle's position, N/m and
-    N m/m; None: no jet (one sample)."""
+    N m/m; None: no jet (one sample). ``reference=False``: no reference drive (``b_ref`` is
+    None; the jet's response along a plan does not use it)."""
     arrays = [force_N, torque_Nm, force_gradient_Npm, torque_gradient_Nmpm]
     k = next((np.asarray(x).shape[0] for x in arrays if x is not None), 1)
     f0 = np.zeros((k, 3)) if force_N is None else np.asarray(force_N, dtype=float).reshape(k, 3)
@@ -204,7 +207,8 @@ def loop_matrices(
     a[:, _IM, :] = -e_r
     c = np.zeros((3, N_STATES))
     c[:, _P] = eye3
-    return LoopMatrices(a, b, c, _reference_drive(a, thrust, m, kp, kd, k_r, k_w, k_dw, tau_m))
+    b_ref = _reference_drive(a, thrust, m, kp, kd, k_r, k_w, k_dw, tau_m) if reference else None
+    return LoopMatrices(a, b, c, b_ref)
 
 
 def _reference_drive(a, thrust, m, kp, kd, k_r, k_w, k_dw, tau_m) -> np.ndarray:
@@ -344,41 +348,35 @@ def jet_response(
     tq = np.asarray(torque_Nm, dtype=float).reshape(kk, 3)
     gf = np.asarray(force_gradient_Npm, dtype=float).reshape(kk, 3, 3)
     gt = np.asarray(torque_gradient_Nmpm, dtype=float).reshape(kk, 3, 3)
-    mats = loop_matrices(vehicle, f, tq, gf, gt)
-    poles = loop_poles(
-        LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, mats.b_ref[-1:])
-    )  # of the configuration held at the end
-    deflection = np.zeros((kk, 3))
-    gain = np.zeros(kk)
     if kk < 2:
-        empty = TubeBlocks(mats.c)
-        return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, np.zeros(N_STATES), empty, f, tq)
+        mats = loop_matrices(vehicle, f, tq, gf, gt, reference=False)
+        poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, None))  # of the configuration held
+        zero = JetResponse(t, np.zeros((kk, 3)), np.zeros(kk), 0.0, 0.0, poles)
+        return _with_hold(zero, mats, np.zeros(N_STATES), np.zeros((N_STATES, 0)), f, tq)
     h = float(t[1] - t[0])
     u = np.concatenate([f, tq], axis=1)  # (K, 6)
     g_full = np.concatenate([gf, gt], axis=1)  # (K, 6, 3): the input per unit deviation
     g_in = g_full if moving is None else g_full * np.asarray(moving, dtype=bool)[:, None, None]
-    # per step k -> k+1 the matrices of sample k (zero-order hold); steps with the same sample
-    # values share their maps
+    # per step k -> k+1 the matrices of sample k (zero-order hold); consecutive steps with the
+    # same sample values (force, torque and gradients: all the loop's matrices depend on) share
+    # their matrices and maps (each map is the same whichever others it is computed with:
+    # expm_stack's scaling is the largest norm of the distinct matrices)
     key = np.concatenate([u, g_full.reshape(kk, -1)], axis=1)[:-1]
     if tracking_m is not None:
         u = u + np.einsum("kij,kj->ki", g_full, np.asarray(tracking_m, dtype=float).reshape(kk, 3))
-    uniq, inverse = np.unique(key, axis=0, return_inverse=True)
-    first = np.zeros(uniq.shape[0], dtype=np.intp)
-    first[inverse[::-1]] = np.arange(kk - 1)[::-1]
-    phi_u, gam_u = zoh_maps(mats.a[first], mats.b[first], h)
-    x = np.zeros(N_STATES)
-    tube = TubeBlocks(mats.c)
-    for k in range(kk - 1):
-        i = inverse[k]
-        phi, gam = phi_u[i], gam_u[i]
-        x = phi @ x + gam @ u[k]
-        tube.step(phi, gam @ g_in[k])
-        deflection[k + 1] = mats.c @ x
-        gain[k + 1] = tube.gain()
-    return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, x, tube, f, tq)
+    change = np.concatenate([[True], (key[1:] != key[:-1]).any(axis=1)])
+    inverse = np.cumsum(change) - 1
+    rows = np.append(np.flatnonzero(change), kk - 1)  # the distinct steps' samples, then the last
+    mats = loop_matrices(vehicle, f[rows], tq[rows], gf[rows], gt[rows], reference=False)
+    poles = loop_poles(LoopMatrices(mats.a[-1:], mats.b[-1:], mats.c, None))  # of the configuration held at the end
+    phi_u, gam_u = zoh_maps(mats.a[:-1], mats.b[:-1], h)
+    gam = gam_u[inverse]
+    drive = np.einsum("kij,kj->ki", gam, u[:-1])
+    deflection, gain, x, blocks = stepped_response(phi_u, inverse, drive, gam @ g_in[:-1], mats.c)
+    return _with_hold(JetResponse(t, deflection, gain, 0.0, 0.0, poles), mats, x, blocks, f, tq)
 
 
-def _with_hold(resp, mats, x_end, tube: TubeBlocks, f, tq) -> JetResponse:
+def _with_hold(resp, mats, x_end, blocks: np.ndarray, f, tq) -> JetResponse:
     """``resp`` with the bounds over the hold after its last sample (module docstring): the final
     configuration held (loop A, input u, constant), so from the end C x(t) = C x_ss +
     C e^{At} (x_end - x_ss), and each tube block likewise without the steady part; evaluated every
@@ -395,8 +393,7 @@ def _with_hold(resp, mats, x_end, tube: TubeBlocks, f, tq) -> JetResponse:
         return JetResponse(resp.t_s, resp.deflection_m, resp.tube_gain, np.inf, np.inf, resp.poles)
     u = np.concatenate([f[-1], tq[-1]])
     x_ss = -np.linalg.solve(a, b @ u)
-    tube.flush()
-    start = np.column_stack([x_end[live] - x_ss, tube.blocks[live]])  # (n, 1 + 3 N)
+    start = np.column_stack([x_end[live] - x_ss, blocks[live]])  # (n, 1 + 3 N)
     weight = bound.weights(start)  # (terms, 1 + 3N): what each term can add, at t = 0
 
     def residual(t: float) -> np.ndarray:  # per column (forced, then the blocks' columns), m

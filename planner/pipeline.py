@@ -143,8 +143,6 @@ def plan_scenario(
     run = _start(method, seed, progress, options, swarm_options, time_budget_s, max_time_s)
     run = replace(run, alternative=sampling_alternative)
     scenario, assignment = _prepare(scenario, run)
-    if run.swarm.makespan_repair is None:  # on where goals were assigned, off with fixed goals (SwarmOptions)
-        run = replace(run, swarm=replace(run.swarm, makespan_repair=assignment is not None))
     if run.swarm.reserve_starts is None:  # on with fixed goals, off where goals were assigned (SwarmOptions)
         run = replace(run, swarm=replace(run.swarm, reserve_starts=assignment is None))
     swarm = _swarm_stage(scenario, run) if _uses_swarm(run.method, scenario) else None

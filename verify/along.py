@@ -21,6 +21,7 @@ import numpy as np
 from proxplan.physics import ModelOptions, authority_usage
 from proxplan.planfile import Plan, Scenario
 from proxplan.verify.plan_wrench import PlanWrench
+from proxplan.verify.tolerances import REST_SPEED_MPS
 
 DOCK_TUBE_M = 0.1  # radius of the dock-approach tube where a dock pair is exempt, m
 
@@ -48,7 +49,27 @@ class WrenchAlongPlan:
     invalid_zone: np.ndarray
 
 
-def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray) -> dict[str, WrenchAlongPlan]:
+Samples = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+"""Every vehicle's plan sampled once on a grid: {vehicle: (position (M, 3) m, velocity (M, 3) m/s,
+acceleration (M, 3) m/s^2)} (:meth:`proxplan.planfile.VehicleTrajectory.sample`), shared by the
+verifier's checks."""
+
+
+def plan_samples(plan: Plan, t_s: np.ndarray) -> Samples:
+    """:data:`Samples` of every vehicle of ``plan`` at times ``t_s`` (M,), s."""
+    return {name: tr.sample(t_s) for name, tr in plan.vehicles.items()}
+
+
+def moving_mask(plan: Plan, names: list[str], t_s: np.ndarray, samples: Samples | None = None) -> np.ndarray:
+    """(N, M) True where vehicle ``names[i]`` moves at ``t_s`` (plan speed >= ``REST_SPEED_MPS``),
+    from ``samples`` when given (on ``t_s``)."""
+    vel = [samples[n][1] if samples is not None else plan.vehicles[n].sample(t_s)[1] for n in names]
+    return np.stack([np.linalg.norm(v, axis=1) >= REST_SPEED_MPS for v in vel]).reshape(len(names), np.size(t_s))
+
+
+def wrench_along_plan(
+    plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray, samples: Samples | None = None
+) -> dict[str, WrenchAlongPlan]:
     """Per-vehicle disturbance wrench and authority usage at times ``t_s`` (M,), s, summed over
     every other vehicle as a source (those above it), evaluated with the model directly. Without
     a scenario the plan's own vehicle parameters and the default model options are used.
@@ -56,10 +77,11 @@ def wrench_along_plan(plan: Plan, scenario: Scenario | None, *, t_s: np.ndarray)
     Evaluated on the (target, source, sample) rows within the pair's reach, in batches per pair of
     vehicle types, stacks of sources together (:mod:`proxplan.verify.plan_wrench`); a source left
     out changes a usage by less than ``proxplan.verify.reach.NEGLIGIBLE_USAGE``. ``usage_by_source``
-    holds the sources that are ever within reach of the vehicle (the others' usage is below that)."""
+    holds the sources that are ever within reach of the vehicle (the others' usage is below that).
+    ``samples``: the plan's :data:`Samples` on ``t_s``, if already taken."""
     t_s = np.asarray(t_s, dtype=float)
     names = list(plan.vehicles)
-    pos = plan.positions_at(t_s)
+    pos = {n: s[0] for n, s in samples.items()} if samples is not None else plan.positions_at(t_s)
     vehicles = [_vehicle(plan, scenario, n) for n in names]
     effects = tuple(scenario.effects if scenario is not None else plan.effects)
     field = PlanWrench(np.stack([pos[n] for n in names]), vehicles, model_options(scenario), effects)

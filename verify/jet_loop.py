@@ -41,13 +41,13 @@ from proxplan.physics import (
     jet_response,
     loop_matrices,
     loop_poles,
+    one_blas_thread,
     weak_jet_bound_m,
     wrench_gradient,
 )
 from proxplan.planfile import PREDICTED_FLIGHT_KEY, Plan, Scenario
-from proxplan.verify.along import WrenchAlongPlan, model_options
+from proxplan.verify.along import Samples, WrenchAlongPlan, model_options, moving_mask
 from proxplan.verify.reach import MIN_DZ_M
-from proxplan.verify.tolerances import REST_SPEED_MPS
 from proxplan.verify.tracking import tracking_along_plan
 from proxplan.verify.violations import Violation
 
@@ -88,14 +88,19 @@ def target_gradients(
     return wrench_gradient(wrench, positions_m)
 
 
-def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[str, LoopAlongPlan]:
+@one_blas_thread
+def loop_along_plan(
+    plan: Plan, scenario: Scenario | None, along: dict, *, samples: Samples | None = None
+) -> dict[str, LoopAlongPlan]:
     """Per vehicle of ``along``, its loop along the plan (:class:`LoopAlongPlan`);
-    ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start."""
+    ``along``: :func:`proxplan.verify.wrench_along_plan` on a uniform grid from the plan's start;
+    ``samples``: the plan's :data:`proxplan.verify.along.Samples` on that grid, if already taken.
+    Run with one BLAS thread (:func:`proxplan.physics.one_blas_thread`: many small products)."""
     out: dict[str, LoopAlongPlan] = {}
     if not along:
         return out
     t = next(iter(along.values())).t_s
-    pos = plan.positions_at(t)
+    pos = {n: s[0] for n, s in samples.items()} if samples is not None else plan.positions_at(t)
     opts = model_options(scenario)
     effects = tuple(scenario.effects if scenario is not None else plan.effects)
     tube = float(scenario.limits.tracking_margin_m) if scenario is not None else 0.0
@@ -103,7 +108,7 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
     flight = bool(plan.metrics.get(PREDICTED_FLIGHT_KEY))  # an export read back: no tracking prediction
     for name, w in along.items():
         track = (
-            tracking_along_plan(plan.vehicles[name], t)
+            tracking_along_plan(plan.vehicles[name], t, samples=samples[name] if samples is not None else None)
             if not flight
             else TrackingResponse(t, np.zeros((t.size, 3)), 0.0)
         )
@@ -134,7 +139,7 @@ def loop_along_plan(plan: Plan, scenario: Scenario | None, along: dict) -> dict[
         for key, rows in _source_sets(name, w, pos, t.size).items():  # those jets together (stacks), per set
             sources = [(_vehicle(plan, scenario, s), pos[s][rows]) for s in key]
             gf[rows], gt[rows] = target_gradients(vehicle, pos[name][rows], sources, opts, effects)
-        moving = np.linalg.norm(plan.vehicles[name].sample(t)[1], axis=1) >= REST_SPEED_MPS
+        moving = moving_mask(plan, [name], t, samples)[0]
         resp = jet_response(t, vehicle, w.force_N, w.torque_Nm, gf, gt, moving, track.error_m)
         size = np.linalg.norm(resp.deflection_m + track.error_m, axis=1) + tube * resp.tube_gain
         if np.isfinite(resp.hold_deflection_m):
@@ -149,17 +154,23 @@ def _source_sets(name: str, w, pos: dict[str, np.ndarray], m: int) -> dict[tuple
     vehicle above it (by more than 1e-6 m, as the checks count "above"; a usage no such source
     explains is the model's value at dz -> 0 of a source level with it, left without gradient)."""
     names = sorted(w.usage_by_source)
-    which = np.stack([w.usage_by_source[s] >= WEAK_USAGE for s in names]) if names else np.zeros((0, m), bool)
+    ks = np.flatnonzero(w.usage >= WEAK_USAGE)
+    which = np.stack([w.usage_by_source[s][ks] >= WEAK_USAGE for s in names]) if names else np.zeros((0, ks.size), bool)
+    by_source = which.any(axis=0)
     others = [o for o in pos if o != name]
-    above = np.stack([pos[o][:, 2] - pos[name][:, 2] > MIN_DZ_M for o in others]) if others else np.zeros((0, m), bool)
-    groups: dict[tuple[str, ...], list[int]] = {}
-    for k in np.flatnonzero(w.usage >= WEAK_USAGE):
-        key = tuple(s for s, on in zip(names, which[:, k]) if on) or tuple(
-            o for o, on in zip(others, above[:, k]) if on
-        )
-        if key:
-            groups.setdefault(key, []).append(int(k))
-    return {key: np.asarray(rows) for key, rows in groups.items()}
+    rest = ks[~by_source]  # no source's own usage reaches it: every vehicle above (only these samples)
+    z = pos[name][rest, 2]
+    above = np.stack([pos[o][rest, 2] - z > MIN_DZ_M for o in others]) if others else np.zeros((0, rest.size), bool)
+    groups: dict[tuple[str, ...], list[np.ndarray]] = {}
+    for pattern, rows, labels in ((which[:, by_source], ks[by_source], names), (above, rest, others)):
+        if not rows.size:
+            continue
+        kinds, inverse = np.unique(pattern.T, axis=0, return_inverse=True)
+        for i, kind in enumerate(kinds):
+            key = tuple(label for label, on in zip(labels, kind) if on)
+            if key:
+                groups.setdefault(key, []).append(rows[inverse.ravel() == i])
+    return {key: np.sort(np.concatenate(parts)) for key, parts in groups.items()}
 
 
 def _largest_growth_m(scenario: Scenario | None, pos: dict[str, np.ndarray]) -> float:

@@ -14,27 +14,29 @@ import numpy as np
 
 from proxplan.physics import VALIDITY_FACTOR_L, invalid_zone_mask
 from proxplan.planfile import Plan, Scenario
-from proxplan.verify.along import WrenchAlongPlan, dock_exempt
+from proxplan.verify.along import Samples, WrenchAlongPlan, dock_exempt, moving_mask
 from proxplan.verify.reach import NEGLIGIBLE_USAGE, counts_above, every_pair, pairs_within, usage_grid
-from proxplan.verify.tolerances import REST_SPEED_MPS, USAGE_TOLERANCE
+from proxplan.verify.tolerances import USAGE_TOLERANCE
 from proxplan.verify.violations import Violation, add_runs
 
 
 def check_pairs(
-    plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray], deflection: dict[str, np.ndarray]
+    plan: Plan, scenario: Scenario, t: np.ndarray, samples: Samples, deflection: dict[str, np.ndarray]
 ) -> list[Violation]:
     """Separation and invalid zone of every pair, evaluated on the (pair, sample) rows horizontally
     within the largest distance either check can fire at (the separation with the tube, the
     footprints with the tube; :func:`proxplan.verify.reach.pairs_within`); violations in the order
     of a loop over pairs. The tube of a row is ``limits.tracking_margin_m`` while either vehicle
-    moves plus both vehicles' predicted deflections (``deflection``: per vehicle (M,), m)."""
+    moves plus both vehicles' predicted deflections (``deflection``: per vehicle (M,), m);
+    ``samples``: the plan's :data:`proxplan.verify.along.Samples` on ``t``."""
     out: list[Violation] = []
     lim = scenario.limits
     names = list(plan.vehicles)
+    pos = {n: samples[n][0] for n in names}
     if len(names) < 2:
         return out
     vehicles = [scenario.vehicles[n].vehicle for n in names]
-    moving = np.stack([np.linalg.norm(plan.vehicles[n].sample(t)[1], axis=1) >= REST_SPEED_MPS for n in names])
+    moving = moving_mask(plan, names, t, samples)
     p = np.stack([pos[n] for n in names])  # (N, M, 3)
     rb = np.array([v.body_radius_m for v in vehicles])
     sep0 = np.maximum(lim.min_separation_m, rb[:, None] + rb[None, :])  # (N, N), m
@@ -158,7 +160,7 @@ def tube_offsets(off: np.ndarray, tube_m: float | np.ndarray) -> list[np.ndarray
 
 
 def check_authority_tube(
-    plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, np.ndarray], deflection: dict[str, np.ndarray]
+    plan: Plan, scenario: Scenario, t: np.ndarray, samples: Samples, deflection: dict[str, np.ndarray]
 ) -> list[Violation]:
     """Authority usage with every moving (or deflected) pair's target placed, per source, at the
     worst point of its tube (``limits.tracking_margin_m`` while the pair moves, plus the target's
@@ -169,7 +171,8 @@ def check_authority_tube(
     (:mod:`proxplan.verify.reach`), in batches per pair of vehicle types, and only where a bound
     of the usage (:meth:`proxplan.verify.reach.UsageGrid.bound` summed over the sources) exceeds
     the limit; whether a target has a moving pair at all (where the check applies) is counted
-    exactly over every source above it."""
+    exactly over every source above it. ``samples``: the plan's
+    :data:`proxplan.verify.along.Samples` on ``t``."""
     from proxplan.physics import authority_usage, disturbance_wrench
     from proxplan.verify.along import model_options
     from proxplan.verify.plan_wrench import oriented_rows, plan_extent_m
@@ -177,6 +180,7 @@ def check_authority_tube(
     out: list[Violation] = []
     tube0 = scenario.limits.tracking_margin_m
     names = list(plan.vehicles)
+    pos = {k: samples[k][0] for k in names}
     defl = np.stack([deflection[k] for k in names]) if names else np.zeros((0, t.size))  # (N, M), m
     if len(names) < 2 or (tube0 <= 0.0 and not (defl > 0.0).any()):
         return out
@@ -186,7 +190,7 @@ def check_authority_tube(
     vehicles = [scenario.vehicles[k].vehicle for k in names]
     kinds = list(dict.fromkeys(vehicles))
     kind = np.array([kinds.index(v) for v in vehicles])
-    moving = np.stack([np.linalg.norm(plan.vehicles[k].sample(t)[1], axis=1) >= REST_SPEED_MPS for k in names])
+    moving = moving_mask(plan, names, t, samples)
     if tube0 <= 0.0:
         moving = np.zeros_like(moving)  # no tracking tube: only the deflections widen a target's tube
     tube_max = max(tube0, 0.0) + float(defl.max(initial=0.0))  # the widest tube of any row, m

@@ -24,16 +24,22 @@ the attitude and motor modes (< 0.3 s) have died out by then, so the modal bound
 mode's largest share) is not taken in the middle of a fast transient."""
 
 
-def reference_samples(tr: VehicleTrajectory, t_s: np.ndarray) -> tuple[ReferenceSamples, ReferenceSamples]:
+def reference_samples(
+    tr: VehicleTrajectory, t_s: np.ndarray, samples: tuple[np.ndarray, ...] | None = None
+) -> tuple[ReferenceSamples, ReferenceSamples]:
     """The plan's and its compensated reference's samples on ``t_s`` (K,), s (uniform from the
     plan's start), and over the reference's settle tail after ``t_s``'s end on a grid of
-    :data:`proxplan.physics.tracking_loop.TAIL_STEP_S` (from ``t_s``'s last time)."""
+    :data:`proxplan.physics.tracking_loop.TAIL_STEP_S` (from ``t_s``'s last time); ``samples``:
+    ``tr.sample(t_s)`` if already taken."""
     t = np.asarray(t_s, dtype=float)
-    tr = _at_rest_at_the_end(tr)
+    rested = _at_rest_at_the_end(tr)
+    if rested is not tr:  # another trajectory: its own samples
+        tr, samples = rested, None
     ref = compensated_reference(tr).trajectory
     end = float(ref.t_s[-1]) + SETPOINT_DELAY_S + TAIL_SETTLE_S
     n_tail = max(1, int(np.ceil((end - float(t[-1])) / TAIL_STEP_S)))
-    return _samples(tr, ref, t), _samples(tr, ref, float(t[-1]) + TAIL_STEP_S * np.arange(n_tail + 1))
+    tail = float(t[-1]) + TAIL_STEP_S * np.arange(n_tail + 1)
+    return _samples(tr, ref, t, samples), _samples(tr, ref, tail)
 
 
 def _at_rest_at_the_end(tr: VehicleTrajectory) -> VehicleTrajectory:
@@ -47,8 +53,10 @@ def _at_rest_at_the_end(tr: VehicleTrajectory) -> VehicleTrajectory:
     return dataclasses.replace(tr, velocity_mps=v, acceleration_mps2=a)
 
 
-def _samples(tr: VehicleTrajectory, ref: VehicleTrajectory, grid: np.ndarray) -> ReferenceSamples:
-    p, v, a = tr.sample(grid)
+def _samples(
+    tr: VehicleTrajectory, ref: VehicleTrajectory, grid: np.ndarray, samples: tuple[np.ndarray, ...] | None = None
+) -> ReferenceSamples:
+    p, v, a = samples if samples is not None else tr.sample(grid)
     late = grid - SETPOINT_DELAY_S
     rp, rv, ra = ref.sample(late)
     h = 1.0 / FIRMWARE_SETPOINT_RATE_HZ  # the firmware's difference of held set-points, within the reference
@@ -71,7 +79,10 @@ def _samples(tr: VehicleTrajectory, ref: VehicleTrajectory, grid: np.ndarray) ->
     return ReferenceSamples(grid, p, v, a, rp, rv, ra, ref.jerk_at(late), snap)
 
 
-def tracking_along_plan(tr: VehicleTrajectory, t_s: np.ndarray) -> TrackingResponse:
+def tracking_along_plan(
+    tr: VehicleTrajectory, t_s: np.ndarray, *, samples: tuple[np.ndarray, ...] | None = None
+) -> TrackingResponse:
     """The predicted deviation of ``tr``'s vehicle from its plan on ``t_s`` (K,), s (uniform, from
-    the plan's start), and the largest after the plan's end (:func:`proxplan.physics.tracking_response`)."""
-    return tracking_response(tr.vehicle, *reference_samples(tr, t_s))
+    the plan's start), and the largest after the plan's end (:func:`proxplan.physics.tracking_response`);
+    ``samples``: ``tr.sample(t_s)`` if already taken."""
+    return tracking_response(tr.vehicle, *reference_samples(tr, t_s, samples))

@@ -15,9 +15,9 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    failing then flies in collision and the collisions are repaired at the end of the pass
    (:mod:`proxplan.planner.swarm.lns`). With ``SwarmOptions.heights`` (on with fixed goals up to
    ``HEIGHTS_MAX_VEHICLES``), once
-   the prioritised plan is re-timed and repaired (4-5), one more pass runs, in its order and hold,
+   the prioritised plan is re-timed (4), one more pass runs, in its order and hold,
    with both wavefronts per vehicle (the earlier arrival kept), on what is left of the count budget;
-   it goes through 4-5 too and replaces that plan only when it is shorter (:func:`_heights_way`): a
+   it is re-timed too and replaces that plan only when it is shorter (:func:`_heights_way`): a
    vehicle's earlier arrival can lengthen the whole plan. None where prioritised planning gave up.
 3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
@@ -27,9 +27,10 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
 4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
    every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
    conflict-free.
-5. *Makespan repair* (:func:`_makespan_stage`, :mod:`proxplan.planner.swarm.makespan`): the latest
-   vehicle planned again together with the vehicles in its way, while that shortens the plan, within
-   a count of plannings; never worse, always conflict-free.
+5. *Makespan repair* (:func:`_makespan_stage`, :mod:`proxplan.planner.swarm.makespan`), once, on the
+   plan kept: the latest vehicle planned again together with the vehicles in its way, while that
+   shortens the plan, within a count of plannings; never worse, always conflict-free. Not on the
+   lattice plan (``SwarmOptions.makespan_repair``).
 
 The caller (the pipeline) runs the independent verifier on the result as on every plan. The
 :class:`~proxplan.planner.swarm.info.SwarmInfo` names the ``stage`` that produced the tracks
@@ -117,7 +118,7 @@ class SwarmOptions:
     # a vehicle not planned yet holds its start until it is planned (swarm.reserve), instead of the
     # prediction above; the hold then applies to the starts released for a vehicle in their way. None: on
     # with fixed goals, off where the goals were assigned (assign_goals: by_type, decided by
-    # planner.pipeline, like makespan_repair). With fixed goals at 64 the predictions start-trapped every
+    # planner.pipeline). With fixed goals at 64 the predictions start-trapped every
     # pass on grid and pillar (sixth round); reserved starts gave pillar-64 and random-1 plans where there
     # were none (seventh round). By type they made grid-64 1.63x -> 1.84x and corridor-64 2.23x -> 3.88x
     # (an assignment rarely puts a goal on another's start; docs/planner.md, seventh round; a default set
@@ -131,12 +132,15 @@ class SwarmOptions:
     # also try: keep the straight lines in no conflict and plan only the others around them. Off by
     # default: on the named layouts at 32 vehicles it never gave the shorter plan (docs/planner.md)
     keep_straight: bool = False
-    # after re-timing, plan the latest vehicles again together with the vehicles in their way
-    # (swarm.makespan; False: for measuring the cause alone). None: on where the goals were assigned
-    # (assign_goals: by_type, decided by planner.pipeline), off with fixed goals: there its neighbourhoods
-    # hold 8-9 vehicles (1-4 by_type) and on circle-64 fixed it cost 16 s of CPU for a 1-2 % shorter plan,
-    # where by_type it gave grid-64 1.91x -> 1.63x for 1-3 s (docs/planner.md, fifth round; a default set
-    # watching those two figures). Called directly (not through the pipeline), None means on.
+    # after re-timing, once on the plan kept, plan the latest vehicles again together with the vehicles
+    # in their way (swarm.makespan; False: for measuring the cause alone; True: on every plan). None:
+    # on, but not on the lattice plan. Set watching the named layouts at 64 (docs/planner.md, round
+    # 13A): on the prioritised plans with fixed goals pillar 2.73x -> 2.62x for 57 plannings, circle
+    # unchanged (13); on the lattice plans nothing shorter: grid and corridor fixed (in-process, 64
+    # plannings: 0 and 1 neighbourhoods replaced, the makespan unchanged, 5 and 22 s of CPU) and pillar
+    # by type (62 plannings, none replaced, 7 s): the vehicles in the latest one's way cannot be planned
+    # again among the lock-step tracks. On the prioritised plans by type it was on before (grid-64
+    # 1.91x -> 1.63x, fifth round) and stays so. Decided by the swarm layer (no caller sets it)
     makespan_repair: bool | None = None
     # one more pass of prioritised planning with both wavefronts per vehicle (the widest disc at every
     # height and discs for the heights the route flies at, swarm.wave; the earlier arrival kept,
@@ -207,7 +211,6 @@ def swarm_timed(
             found.coordination = f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
-    repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
     heights = opts.heights
     if heights is None:  # on with fixed goals, up to HEIGHTS_MAX_VEHICLES (SwarmOptions)
         heights = scenario.assign_goals is None and problem.n_agents <= HEIGHTS_MAX_VEHICLES
@@ -216,8 +219,11 @@ def swarm_timed(
     if heights and opts.prioritized and not straight:
         got = _heights_way(problem, lower_bound, opts, found, by_agent, extra, progress=progress, deadline=deadline)
         if got is not None:
-            found, by_agent, retiming, repair = got
+            found, by_agent, retiming = got
             initial = max(tr.arrival_s for tr in found.tracks)
+    repair = None
+    if _repairs(opts, found):  # once, on the plan kept (SwarmOptions.makespan_repair)
+        repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
     # single-vehicle searches given back by the memo (swarm.memo) and searched, over every stage
     extra.setdefault("counts", {}).update(searches_recalled=problem.memo.hits, searches_run=problem.memo.misses)
     info = SwarmInfo(
@@ -246,12 +252,13 @@ def _heights_way(
     *,
     progress,
     deadline,
-) -> tuple[_Stage, dict[int, GridTrack], RetimeInfo, MakespanRepairInfo | None] | None:
+) -> tuple[_Stage, dict[int, GridTrack], RetimeInfo] | None:
     """``SwarmOptions.heights``: one more pass of prioritised planning, with both wavefronts per
     vehicle, in the order and hold of the pass that gave the plan without (``found``, already through
     its tail: ``by_agent``), on what is left of prioritised planning's count budget (a pass that
-    cannot finish within it gives up early, charged the rest); re-timed and repaired as the plan
-    without, that whole plan when it is shorter (then (stage, tracks, re-timing, repair)), else None.
+    cannot finish within it gives up early, charged the rest); re-timed as the plan without, that
+    whole plan when it is shorter (then (stage, tracks, re-timing)), else None (the makespan repair
+    runs after this choice, on the plan kept).
     No pass where prioritised planning did not give the plan (it gave up: its budget is spent; the
     lattice plan) or left no budget. What it gave is said in ``extra["heights"]``; its plannings are
     counted apart (``heights_planned``)."""
@@ -293,7 +300,6 @@ def _heights_way(
         return None
     initial = max(tr.arrival_s for tr in alt.tracks)
     alt_by_agent, retiming = _retime_stage(problem, alt, initial, opts, progress=progress, deadline=deadline)
-    repair = _makespan_stage(problem, alt_by_agent, opts, progress=progress, deadline=deadline)
     makespan = max(tr.arrival_s for tr in alt_by_agent.values())
     keep = makespan < without
     extra["heights"] = (
@@ -302,7 +308,7 @@ def _heights_way(
     )
     if not keep:
         return None
-    return alt, alt_by_agent, retiming, repair
+    return alt, alt_by_agent, retiming
 
 
 def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
@@ -562,13 +568,19 @@ def _retime_stage(
     return by_agent, RetimeInfo(**counts, time_s=round(time.perf_counter() - t2, 3))
 
 
+def _repairs(opts: SwarmOptions, found: _Stage) -> bool:
+    """Whether the makespan repair runs on the plan of ``found`` (``SwarmOptions.makespan_repair``;
+    None: not on the lattice plan, on elsewhere)."""
+    if opts.makespan_repair is not None:
+        return opts.makespan_repair
+    return found.stage != "lattice"
+
+
 def _makespan_stage(
     problem: SwarmProblem, by_agent: dict[int, GridTrack], opts: SwarmOptions, *, progress, deadline
-) -> MakespanRepairInfo | None:
+) -> MakespanRepairInfo:
     """The latest vehicles planned again with those in their way (:mod:`proxplan.planner.swarm.makespan`;
-    ``by_agent`` changed in place; never longer, always conflict-free); None when switched off."""
-    if opts.makespan_repair is False:
-        return None
+    ``by_agent`` changed in place; never longer, always conflict-free)."""
     before = max(tr.arrival_s for tr in by_agent.values())
     if progress:
         progress("makespan repair", 0.9)

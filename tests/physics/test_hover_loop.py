@@ -115,3 +115,46 @@ def test_the_tube_gain_bounds_a_deviation_driven_through_the_jet():
         with_loop = jet_response(t, SMALL, f_e, t_e, gfs, gts).deflection_m
         assert np.all(np.linalg.norm(with_loop, axis=1) <= resp.tube_gain + 1e-9)
         assert np.isfinite(driven).all()
+
+
+def _stepped_sample_by_sample(phi, drive, tube_in, c):
+    """The recursion of :func:`proxplan.physics.tube_blocks.stepped_response` stepped one sample at a
+    time (the verifier's loop before round 13C): the state, the open block (flushed every 5 steps
+    if it has any input), the closed blocks."""
+    steps, n = drive.shape
+    x, pending, n_pending, blocks = np.zeros(n), np.zeros((n, 3)), 0, np.zeros((n, 0))
+    y, gain = np.zeros((steps + 1, 3)), np.zeros(steps + 1)
+    for k in range(steps):
+        x = phi[k] @ x + drive[k]
+        blocks = phi[k] @ blocks
+        pending = phi[k] @ pending + tube_in[k]
+        n_pending += 1
+        y[k + 1] = c @ x
+        cb = (c @ blocks).reshape(3, -1, 3)
+        gain[k + 1] = np.linalg.norm(c @ pending) + np.sqrt((cb**2).sum(axis=(0, 2))).sum()
+        if n_pending == 5 or k == steps - 1:
+            if np.any(pending):
+                blocks = np.concatenate([blocks, pending], axis=1)
+            pending, n_pending = np.zeros((n, 3)), 0
+    return y, gain, x, blocks
+
+
+@pytest.mark.parametrize("steps", [1, 4, 5, 37, 403])
+def test_the_response_in_spans_is_the_response_stepped_sample_by_sample(steps):
+    """The spans of stepped_response (each from rest side by side, then chained) give what stepping
+    sample by sample gives, to rounding: the deflection, the tube gain, the final state and the
+    final blocks (only those with input, in order), with tube input in some blocks only."""
+    from proxplan.physics.tube_blocks import stepped_response
+
+    rng = np.random.default_rng(steps)
+    n = 7
+    phi = np.eye(n) + 0.05 * rng.standard_normal((steps, n, n))
+    phi[steps // 2 :] = phi[steps // 2]  # a stretch of equal maps, as out of the jets
+    drive = rng.standard_normal((steps, n))
+    tube_in = rng.standard_normal((steps, n, 3)) * (rng.random(steps) < 0.3)[:, None, None]
+    c = rng.standard_normal((3, n))
+    want = _stepped_sample_by_sample(phi, drive, tube_in, c)
+    got = stepped_response(phi, np.arange(steps), drive, tube_in, c)
+    assert got[3].shape == want[3].shape
+    for g, w in zip(got, want):
+        assert np.allclose(g, w, rtol=1e-12, atol=1e-12 * max(1.0, float(np.abs(w).max(initial=0.0))))

@@ -29,14 +29,15 @@ def test_the_latest_vehicles_planned_again_shorten_a_grid_and_the_plan_verifies(
     assert verify_plan(assemble_plan(sc, timed, method="swarm", notes=[]), sc) == []
 
 
-def test_the_pipeline_repairs_where_goals_were_assigned_and_plans_with_heights_where_fixed():
-    """``SwarmOptions.makespan_repair`` None (the default): planner.pipeline turns it on for
-    ``assign_goals: by_type`` and off for fixed goals (docs/planner.md, stage 6); ``SwarmOptions.heights``
+def test_the_repair_runs_once_on_the_plan_kept_and_plans_with_heights_where_goals_are_fixed():
+    """``SwarmOptions.makespan_repair`` None (the default): on a prioritised plan, where goals were
+    assigned and with fixed goals (docs/planner.md, round 13A), once, on the plan kept after the
+    pass with both wavefronts (it starts from that plan's re-timed makespan); ``SwarmOptions.heights``
     None (the default): the swarm layer plans the pass with both wavefronts with fixed goals, not where
     goals were assigned (docs/planner.md, round 12B), and where asked for (both plans prioritised)."""
     from proxplan.planner.pipeline import plan_scenario
 
-    repaired, heights = {}, {}
+    repaired, heights, retimed = {}, {}, {}
     for assign, asked in (("by_type", None), (None, None), ("by_type", True)):
         doc = grid_reshuffle(20)
         if assign:
@@ -46,5 +47,27 @@ def test_the_pipeline_repairs_where_goals_were_assigned_and_plans_with_heights_w
         assert plan.metrics["swarm"]["stage"] == "prioritised"
         repaired[assign, asked] = plan.metrics["swarm"]["makespan_repair"]
         heights[assign, asked] = plan.metrics["swarm"]["heights"]
-    assert repaired["by_type", None] is not None and repaired[None, None] is None
+        retimed[assign, asked] = plan.metrics["swarm"]["retiming"]["makespan_after_pass_s"][-1]
+    assert all(r is not None for r in repaired.values())
+    for key, r in repaired.items():
+        assert r["makespan_before_s"] == retimed[key] and r["makespan_after_s"] <= r["makespan_before_s"]
     assert heights["by_type", None] is None and heights[None, None] is not None and heights["by_type", True] is not None
+
+
+def test_no_repair_on_the_lattice_plan_unless_asked():
+    """The lattice plan (prioritised planning off, as when it gives up): the makespan repair is off
+    by default, with fixed goals and where goals were assigned (docs/planner.md, round 13A: its
+    neighbourhoods cannot be planned again among the lock-step tracks), and runs when asked for."""
+    got = {}
+    for assign, asked in ((None, None), ("by_type", None), (None, True)):
+        doc = grid_reshuffle(16)
+        if assign:
+            doc["assign_goals"] = assign
+        sc, _ = apply_assignment(scenario_from_dict(doc, label="test scenario"))
+        _, info = swarm_timed(sc, SwarmOptions(workers=1, prioritized=False, makespan_repair=asked))
+        assert info.stage == "lattice"
+        got[assign, asked] = info.makespan_repair
+    assert got[None, None] is None and got["by_type", None] is None
+    repair = got[None, True]
+    assert repair is not None and repair.plannings <= budget(16)
+    assert repair.makespan_after_s <= repair.makespan_before_s

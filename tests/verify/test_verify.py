@@ -185,3 +185,51 @@ def test_authority_is_checked_within_the_tracking_tube():
 def _wrench(source, target, offset):
     w = disturbance_wrench(source, target, np.array([offset], dtype=float))
     return w.force_N, w.torque_Nm
+
+
+def _source_sets_sample_by_sample(name, w, pos, m):
+    """jet_loop._source_sets as it was before round 13C: one key per sample."""
+    from proxplan.verify.jet_loop import MIN_DZ_M, WEAK_USAGE
+
+    names = sorted(w.usage_by_source)
+    which = np.stack([w.usage_by_source[s] >= WEAK_USAGE for s in names]) if names else np.zeros((0, m), bool)
+    others = [o for o in pos if o != name]
+    above = np.stack([pos[o][:, 2] - pos[name][:, 2] > MIN_DZ_M for o in others]) if others else np.zeros((0, m), bool)
+    groups: dict = {}
+    for k in np.flatnonzero(w.usage >= WEAK_USAGE):
+        key = tuple(s for s, on in zip(names, which[:, k]) if on) or tuple(
+            o for o, on in zip(others, above[:, k]) if on
+        )
+        if key:
+            groups.setdefault(key, []).append(int(k))
+    return {key: np.asarray(rows) for key, rows in groups.items()}
+
+
+@pytest.mark.parametrize("case", ["three-high-stack", "pillar-8", "circle-8", "random-10"])
+def test_the_jets_source_sets_grouped_at_once_are_those_sample_by_sample(case):
+    """The sets of sources whose jets act together on a vehicle (for its loop's gradients), grouped
+    over all samples at once, are the per-sample grouping's: the same sets, the same samples
+    (circle-8 and random-10 hold samples where only the sources above together reach WEAK_USAGE)."""
+    import gzip
+    import json
+    from pathlib import Path
+
+    from proxplan.planfile import plan_from_dict
+    from proxplan.verify import scenario_of_plan
+    from proxplan.verify.jet_loop import _source_sets
+
+    path = Path(__file__).resolve().parent / "reference" / f"{case}.plan.json.gz"
+    with gzip.open(path, "rt", encoding="utf-8") as f:
+        plan = plan_from_dict(json.load(f), label=case)
+    sc = scenario_of_plan(plan, label=case)
+    t = np.arange(0.0, float(plan.t_s[-1]) + 0.005, 0.01)
+    pos = plan.positions_at(t)
+    seen = 0
+    for name, w in wrench_along_plan(plan, sc, t_s=t).items():
+        want = _source_sets_sample_by_sample(name, w, pos, t.size)
+        got = _source_sets(name, w, pos, t.size)
+        assert sorted(got) == sorted(want), (case, name)
+        for key in want:
+            assert np.array_equal(got[key], want[key]), (case, name, key)
+        seen += len(want)
+    assert seen > 0  # some vehicle is in a jet that matters
