@@ -19,7 +19,8 @@ Every planner's plan goes through one verification policy (:func:`_until_verifie
 runs on it; a plan it rejects is planned again once with every disturbed vehicle's tube grown by its
 predicted deflection (:func:`proxplan.planner.metrics.deflection_allowance`; a pair's keep-out grows
 by the sum of its two vehicles' values, as in the verifier), then once more with another seed; the
-plan with the fewest violations is kept, with a note.
+plan with the fewest violations is kept, with a note. The swarm layer's prioritised planning, where
+it gave up, is not run again in these re-plans (:func:`_no_narrower`).
 
 Docking: the final straight approach to the dock crosses the invalid zone, where the cutoff rule is
 suspended for the dock pair only (the two must meet there). The plan reports the time spent in the
@@ -239,11 +240,21 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
     if why is not None:
         return SwarmOutcome(None, None, f"swarm layer: not used, {why}", searched=False)
     infos: dict[int, SwarmInfo] = {}  # id(plan) -> the info of the attempt that made it
+    gave_up: list[dict[str, float]] = []  # the deflections of the attempts whose prioritised planning gave up
 
     def attempt(deflection: Mapping[str, float], seed: int) -> Plan:
-        options = replace(run.swarm, seed=seed, deflection_m=_merged(run.swarm.deflection_m, deflection))
+        grown = _merged(run.swarm.deflection_m, deflection)
+        again = run.swarm.prioritized and not any(_no_narrower(before, grown) for before in gave_up)
+        options = replace(run.swarm, seed=seed, deflection_m=grown, prioritized=again)
         timed, info = swarm_timed(scenario, options, progress=run.progress, deadline=run.deadline)
+        if again and info.stage == "lattice":  # prioritised planning ran and gave up
+            gave_up.append(grown)
         plan = assemble_plan(scenario, timed, method=run.method, notes=list(scenario.load_notes))
+        if run.swarm.prioritized and not again:
+            plan.notes.append(
+                "swarm layer: prioritised planning not run again (it gave up with keep-outs no wider; "
+                "it does not draw on the seed)"
+            )
         plan.notes.append(f"swarm layer: {info.coordination}")
         infos[id(plan)] = info
         return plan
@@ -259,6 +270,15 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
     if bad:
         return SwarmOutcome(None, info, f"swarm layer: plan failed verification ({bad[0]})")
     return SwarmOutcome(plan, info, None)
+
+
+def _no_narrower(before: Mapping[str, float], now: Mapping[str, float]) -> bool:
+    """Is every vehicle's deflection in ``now`` at least its deflection in ``before`` (m)? Then every
+    pair's keep-out is at least as wide as before, and prioritised planning, which gave up with
+    ``before`` (it does not draw on the seed), is not run again: with the same keep-outs it plans
+    the same and gives up again (exact); wider keep-outs leave every vehicle no more room (not a
+    proof that it gives up: a pass is not monotone in the keep-outs; issue 37 round 13B)."""
+    return all(float(now.get(n, 0.0)) >= float(d) for n, d in before.items())
 
 
 def _merged(a: Mapping[str, float], b: Mapping[str, float]) -> dict[str, float]:

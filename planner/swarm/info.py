@@ -33,6 +33,7 @@ class RetimeInfo:
     replaced: int
     makespan_after_pass_s: list[float]
     time_s: float
+    skipped: int = 0  # re-timings not run again: nothing within reach changed since they gave nothing
 
 
 @dataclass(frozen=True)

@@ -34,3 +34,42 @@ def test_another_seed_only_where_the_plan_depends_on_it(monkeypatch, seed_matter
         assert made[2] == ({"v0": 0.01}, 5 + pipeline.RETRY_SEED_OFFSET)
     else:
         assert any("not tried" in n for n in plan.notes)
+
+
+class _Info:
+    def __init__(self, stage: str):
+        self.stage, self.coordination = stage, f"{stage} plan"
+
+
+@pytest.mark.parametrize(("stage", "prioritized"), [("lattice", [True, False, False]), ("prioritised", [True, True])])
+def test_prioritised_planning_not_run_again_where_it_gave_up(monkeypatch, stage, prioritized):
+    """The swarm layer's re-plans after a rejected plan: prioritised planning, which gave up (the
+    lattice plan) and does not draw on the seed, is not run again with keep-outs no narrower (issue
+    37 round 13B); where it gave the plan, every attempt runs it."""
+    monkeypatch.setattr(verify, "verify_plan", lambda plan, scenario: ["a violation"])  # every plan rejected
+    monkeypatch.setattr(pipeline, "deflection_allowance", lambda plan, scenario: {"v0": 0.01})
+    monkeypatch.setattr(pipeline, "swarm_applicable", lambda scenario: None)
+    calls = []
+
+    def swarm_timed(scenario, options, **kw):
+        calls.append((options.prioritized, dict(options.deflection_m), options.seed))
+        return {}, _Info(stage)
+
+    monkeypatch.setattr(pipeline, "swarm_timed", swarm_timed)
+    monkeypatch.setattr(pipeline, "assemble_plan", lambda scenario, timed, method, notes: _Plan(0, False))
+
+    class _Scenario:
+        load_notes: list[str] = []
+
+    run = pipeline._start("swarm", 5, None, None, None, None, None)
+    out = pipeline._swarm_stage(_Scenario(), run)
+    assert out.plan is None and "failed verification" in (out.why_not or "")
+    assert [c[0] for c in calls] == prioritized
+    assert calls[0][1] == {} and all(c[1] == {"v0": 0.01} for c in calls[1:])
+
+
+def test_no_narrower():
+    assert pipeline._no_narrower({}, {})
+    assert pipeline._no_narrower({"a": 0.01}, {"a": 0.01, "b": 0.02})
+    assert not pipeline._no_narrower({"a": 0.02}, {"a": 0.01})
+    assert not pipeline._no_narrower({"a": 0.01}, {"b": 0.01})
