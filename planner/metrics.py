@@ -13,6 +13,8 @@ planners' tubes. World frame, m, s.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from proxplan.planfile import Plan, Scenario
@@ -23,14 +25,19 @@ DEFLECTION_DT_S = 0.01  # time step at which the deflections are evaluated along
 __all__ = ["deflection_allowance", "finish_metrics"]
 
 
-def deflection_allowance(plan: Plan, scenario: Scenario) -> dict[str, float]:
+def deflection_allowance(
+    plan: Plan, scenario: Scenario, *, deflections: Mapping[str, np.ndarray] | None = None
+) -> dict[str, float]:
     """Per vehicle the largest distance, m, its controller is predicted to be pushed off the plan by
-    the plan's own predicted disturbance, for vehicles pushed at all (see module)."""
-    from proxplan.verify import deflection_along_plan, wrench_along_plan
+    the plan's own predicted disturbance, for vehicles pushed at all (see module). ``deflections``: the
+    per-vehicle deflections (M,) m the verifier already predicted on the grid of step
+    :data:`DEFLECTION_DT_S` (:func:`proxplan.verify.verify_with_deflections`); None: predicted here."""
+    if deflections is None:
+        from proxplan.verify import deflection_along_plan, wrench_along_plan
 
-    t = np.arange(0.0, float(plan.t_s[-1]) + 0.5 * DEFLECTION_DT_S, DEFLECTION_DT_S)
-    along = wrench_along_plan(plan, scenario, t_s=t)
-    return {n: float(d.max()) for n, d in deflection_along_plan(plan, scenario, along).items() if d.max() > 0.0}
+        t = np.arange(0.0, float(plan.t_s[-1]) + 0.5 * DEFLECTION_DT_S, DEFLECTION_DT_S)
+        deflections = deflection_along_plan(plan, scenario, wrench_along_plan(plan, scenario, t_s=t))
+    return {n: float(d.max()) for n, d in deflections.items() if d.size and d.max() > 0.0}
 
 
 def finish_metrics(scenario: Scenario, plan: Plan, *, planning_time_s: float) -> None:

@@ -42,7 +42,7 @@ from proxplan.planner.checks.precheck import (
     check_swarm_size,
 )
 from proxplan.planner.errors import InfeasibleError, PlanNotFound
-from proxplan.planner.metrics import deflection_allowance, finish_metrics
+from proxplan.planner.metrics import DEFLECTION_DT_S, deflection_allowance, finish_metrics
 from proxplan.planner.sampling.prioritized import PLAN_MARGIN_M, sampling_plan
 from proxplan.planner.sampling.spec import SamplingOptions
 from proxplan.planner.swarm import SWARM_MIN_VEHICLES, SwarmInfo, SwarmOptions, swarm_applicable, swarm_timed
@@ -206,13 +206,13 @@ def _until_verified(
     """``attempt(deflections, seed)``'s plan and the verifier's violations of it (see module).
     ``seed_matters(plan)``: whether another seed could change that plan (None: always); when it
     could not, the attempt with another seed is not made (it would plan the same again)."""
-    from proxplan.verify import verify_plan
+    from proxplan.verify import verify_plan, verify_with_deflections
 
     plan = attempt({}, run.seed)
-    bad = verify_plan(plan, scenario)
+    bad, deflections = verify_with_deflections(plan, scenario, dt_fine_s=DEFLECTION_DT_S)
     if not bad:
         return plan, bad
-    grown = deflection_allowance(plan, scenario)
+    grown = deflection_allowance(plan, scenario, deflections=deflections)  # the verifier's loops, not run again
     tries = ([(grown, run.seed)] if grown else []) + [(grown, run.seed + RETRY_SEED_OFFSET)]
     last = plan  # the plan of the last attempt, planned with the deflections of the seed's retry
     for deflection, seed in tries:

@@ -11,7 +11,14 @@ from proxplan.verify.along import (
     separation_summary,
     wrench_along_plan,
 )
-from proxplan.verify.checks import GOAL_TOLERANCE_M, REST_SPEED_MPS, scenario_of_plan, tube_offsets, verify_plan
+from proxplan.verify.checks import (
+    GOAL_TOLERANCE_M,
+    REST_SPEED_MPS,
+    scenario_of_plan,
+    tube_offsets,
+    verify_plan,
+    verify_with_deflections,
+)
 from proxplan.verify.jet_loop import (
     LoopAlongPlan,
     check_jet_loop,
@@ -41,5 +48,6 @@ __all__ = [
     "tracking_along_plan",
     "tube_offsets",
     "verify_plan",
+    "verify_with_deflections",
     "wrench_along_plan",
 ]

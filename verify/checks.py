@@ -286,15 +286,25 @@ def _check_tasks(plan: Plan, scenario: Scenario, t: np.ndarray, pos: dict[str, n
     return out
 
 
-@one_blas_thread
 def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> list[Violation]:
     """Every violation of ``plan`` against ``scenario`` (empty list = the plan passes), sorted by
-    time; the model checks run on a grid of step ``dt_fine_s``, s. Run with one BLAS thread
-    (:func:`proxplan.physics.one_blas_thread`): the loops along the plan are many small matrix
-    products, which OpenBLAS's threads slow down (corridor-64: 9.6 -> 4.3 s of CPU)."""
+    time; the model checks run on a grid of step ``dt_fine_s``, s (:func:`verify_with_deflections`)."""
+    return verify_with_deflections(plan, scenario, dt_fine_s=dt_fine_s)[0]
+
+
+@one_blas_thread
+def verify_with_deflections(
+    plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01
+) -> tuple[list[Violation], dict[str, np.ndarray]]:
+    """:func:`verify_plan`'s violations and, per vehicle the loops along the plan were run for, the predicted
+    deflection (M,) m on the grid 0, dt_fine_s, ... (``deflection_along_plan``'s, unclipped; empty when the
+    plan fails before the model checks): what the planners' deflection policy grows the tubes by, without
+    running the loops a second time. Run with one BLAS thread (:func:`proxplan.physics.one_blas_thread`):
+    the loops along the plan are many small matrix products, which OpenBLAS's threads slow down
+    (corridor-64: 9.6 -> 4.3 s of CPU)."""
     out = _check_vehicles(plan, scenario)
     if out:
-        return out
+        return out, {}
     out = _check_consistency(plan, scenario)
     t = np.arange(0.0, float(plan.t_s[-1]) + dt_fine_s / 2, dt_fine_s)
     samples = plan_samples(plan, t)  # sampled once, shared by the checks
@@ -311,7 +321,7 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
     if not any(v.kind == "authority" for v in out):  # the plain check names the cause first
         out += check_authority_tube(plan, scenario, t, samples, deflection)
     out.sort(key=lambda v: (v.t_s, v.vehicle, v.kind))
-    return out
+    return out, {n: loop.deflection_m for n, loop in loops.items()}
 
 
 def scenario_of_plan(plan: Plan, *, label: str = "plan.json") -> Scenario:

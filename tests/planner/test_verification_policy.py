@@ -18,7 +18,8 @@ class _Plan:
 @pytest.mark.parametrize(("seed_matters", "attempts"), [(None, 3), (lambda p: True, 3), (lambda p: False, 2)])
 def test_another_seed_only_where_the_plan_depends_on_it(monkeypatch, seed_matters, attempts):
     monkeypatch.setattr(verify, "verify_plan", lambda plan, scenario: ["a violation"])  # every plan rejected
-    monkeypatch.setattr(pipeline, "deflection_allowance", lambda plan, scenario: {"v0": 0.01})
+    monkeypatch.setattr(verify, "verify_with_deflections", lambda plan, scenario, **_: (["a violation"], {}))
+    monkeypatch.setattr(pipeline, "deflection_allowance", lambda plan, scenario, **_: {"v0": 0.01})
     made = []
 
     def attempt(deflection, seed):
@@ -47,7 +48,8 @@ def test_prioritised_planning_not_run_again_where_it_gave_up(monkeypatch, stage,
     lattice plan) and does not draw on the seed, is not run again with keep-outs no narrower (issue
     37 round 13B); where it gave the plan, every attempt runs it."""
     monkeypatch.setattr(verify, "verify_plan", lambda plan, scenario: ["a violation"])  # every plan rejected
-    monkeypatch.setattr(pipeline, "deflection_allowance", lambda plan, scenario: {"v0": 0.01})
+    monkeypatch.setattr(verify, "verify_with_deflections", lambda plan, scenario, **_: (["a violation"], {}))
+    monkeypatch.setattr(pipeline, "deflection_allowance", lambda plan, scenario, **_: {"v0": 0.01})
     monkeypatch.setattr(pipeline, "swarm_applicable", lambda scenario: None)
     calls = []
 

@@ -233,3 +233,29 @@ def test_the_jets_source_sets_grouped_at_once_are_those_sample_by_sample(case):
             assert np.array_equal(got[key], want[key]), (case, name, key)
         seen += len(want)
     assert seen > 0  # some vehicle is in a jet that matters
+
+
+def test_the_verifiers_deflections_are_the_planners_allowance() -> None:
+    """verify_with_deflections returns verify_plan's violations and the loops' deflections it ran, which give
+    the planners' deflection allowance exactly as predicting them again does (the pipeline no longer runs the
+    loops twice on a rejected plan)."""
+    import gzip
+    import json
+    from pathlib import Path
+
+    from proxplan.planfile import plan_from_dict
+    from proxplan.planner.metrics import DEFLECTION_DT_S, deflection_allowance
+    from proxplan.verify import scenario_of_plan, verify_with_deflections
+
+    reference = Path(__file__).resolve().parent / "reference"
+    checked = 0
+    for path in sorted(reference.glob("*.plan.json.gz")):
+        with gzip.open(path, "rt", encoding="utf-8") as f:
+            plan = plan_from_dict(json.load(f), label=path.name)
+        scenario = scenario_of_plan(plan, label=path.name)
+        bad, deflections = verify_with_deflections(plan, scenario, dt_fine_s=DEFLECTION_DT_S)
+        assert [str(v) for v in bad] == [str(v) for v in verify_plan(plan, scenario)]
+        again = deflection_allowance(plan, scenario)
+        assert deflection_allowance(plan, scenario, deflections=deflections) == again
+        checked += bool(again)
+    assert checked >= 1  # at least one reference plan has a vehicle pushed off its plan
