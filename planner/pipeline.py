@@ -212,7 +212,8 @@ def _until_verified(
     bad, deflections = verify_with_deflections(plan, scenario, dt_fine_s=DEFLECTION_DT_S)
     if not bad:
         return plan, bad
-    grown = deflection_allowance(plan, scenario, deflections=deflections)  # the verifier's loops, not run again
+    # the verifier's loops, not run again; none where it stopped before the model checks: predicted here
+    grown = deflection_allowance(plan, scenario, deflections=deflections or None)
     tries = ([(grown, run.seed)] if grown else []) + [(grown, run.seed + RETRY_SEED_OFFSET)]
     last = plan  # the plan of the last attempt, planned with the deflections of the seed's retry
     for deflection, seed in tries:
