@@ -29,7 +29,7 @@ so a term built on them acts between vehicles like any effect:
 * side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
 
 A force off the target's centre is a roll or pitch torque, so the jet kernel of a source above, the
-below kernel, the side kernel and every multi-scale kernel (:data:`BASIS_WIDTHS_L` x :data:`BASIS_DECAYS_L`,
+below kernel, the side kernel and every multi-scale kernel (:data:`BASIS_RADIALS` x :data:`BASIS_WIDTHS_L` x :data:`BASIS_DECAYS_L`,
 since stop 51) also come times the offset's horizontal components over L (``above_jet_x_1``,
 ``below_near_y_1``, ``side_g1L_e4L_x_1``, ...): which side of the target a neighbour is on (odd in the
 offset, where the kernels themselves are even).
@@ -147,9 +147,21 @@ BASIS_DECAYS_L = (1.0, 4.0)
 """Decay lengths of the multi-scale kernels along the distance from the neighbour, in L, -."""
 
 
-def _basis_name(where: str, width: float, decay: float, axis: str = "") -> str:
-    """The multi-scale kernel's name; ``axis`` "x" or "y": the kernel times that offset over L."""
-    return f"{where}_g{width:g}L_e{decay:g}L_{axis + '_' if axis else ''}1".replace(".", "p")
+BASIS_RADIALS = {"above": ("g",), "below": ("g",), "side": ("g", "l")}
+"""Radial profiles of the multi-scale kernels, per place of the neighbour: "g" a Gaussian exp(-(rho / w L)^2),
+"l" a Laplace (exponential) exp(-rho / w L), heavier-tailed: the two bracket a profile between them where the
+flights see few radial positions and a term must carry to others. A neighbour BESIDE the target has its
+radial coordinate in the height difference, which each flight holds nearly fixed (its layers), so the tail
+there decides what carries to a flight at another gap; its reach across the room is still the Gaussian
+decay along the horizontal distance. Above and below, the radial coordinate is the horizontal distance,
+where a Laplace tail would reach across the room (exp(-6) at 15 L for 2.5 L): a jet's profile is Gaussian
+(S0-1), -."""
+
+
+def _basis_name(where: str, width: float, decay: float, axis: str = "", radial: str = "g") -> str:
+    """The multi-scale kernel's name; ``axis`` "x" or "y": the kernel times that offset over L; ``radial``
+    one of :data:`BASIS_RADIALS`."""
+    return f"{where}_{radial}{width:g}L_e{decay:g}L_{axis + '_' if axis else ''}1".replace(".", "p")
 
 
 for _where, _what in (
@@ -157,15 +169,18 @@ for _where, _what in (
     ("below", "a neighbour below (r radial, its depth under the target)"),
     ("side", "a neighbour beside (height difference radial, horizontal distance along)"),
 ):
-    for _w in BASIS_WIDTHS_L:
-        for _d in BASIS_DECAYS_L:
-            FEATURE_DOCS[_basis_name(_where, _w, _d)] = (
-                f"multi-scale kernel of {_what}: exp(-(rho / {_w:g} L)^2) exp(-delta / {_d:g} L), summed"
-            )
-            for _axis in "xy":  # which side of the target the neighbour is on: a force off its centre is a torque
-                FEATURE_DOCS[_basis_name(_where, _w, _d, _axis)] = (
-                    f"multi-scale kernel of {_what} ({_w:g} L, {_d:g} L) times offset_{_axis} / L, summed"
+    for _rad in BASIS_RADIALS[_where]:
+        _profile = "(rho / {w} L)^2" if _rad == "g" else "rho / {w} L"
+        for _w in BASIS_WIDTHS_L:
+            for _d in BASIS_DECAYS_L:
+                _shape = f"exp(-{_profile.format(w=f'{_w:g}')}) exp(-delta / {_d:g} L)"
+                FEATURE_DOCS[_basis_name(_where, _w, _d, radial=_rad)] = (
+                    f"multi-scale kernel of {_what}: {_shape}, summed"
                 )
+                for _axis in "xy":  # which side of the target the neighbour is on: a force off its centre is a torque
+                    FEATURE_DOCS[_basis_name(_where, _w, _d, _axis, _rad)] = (
+                        f"multi-scale kernel of {_what} ({_shape}) times offset_{_axis} / L, summed"
+                    )
 TIME_FEATURE_SOURCES = (
     "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
     "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
@@ -393,15 +408,13 @@ def feature_matrix(
         f["below_cushion_1"] += np.where(below, (r_rot / (4.0 * depth)) ** 2 * np.exp(-((r / size) ** 2)), 0.0)
         for where, rho, delta, gate in (("above", r, dz, above), ("below", r, -dz, below),
                                         ("side", np.abs(dz), r, np.ones(len(r), dtype=bool))):  # fmt: skip
-            for w in BASIS_WIDTHS_L:
-                for d in BASIS_DECAYS_L:
-                    along = np.maximum(delta, 0.0) / (d * size)  # beside: Gaussian in the horizontal distance too
-                    basis = np.where(
-                        gate, np.exp(-((rho / (w * size)) ** 2) - (along**2 if where == "side" else along)), 0.0
-                    )
-                    f[_basis_name(where, w, d)] += basis
-                    f[_basis_name(where, w, d, "x")] += basis * off[:, 0] / size
-                    f[_basis_name(where, w, d, "y")] += basis * off[:, 1] / size
+            for rad, w, d in ((a, b, c) for a in BASIS_RADIALS[where] for b in BASIS_WIDTHS_L for c in BASIS_DECAYS_L):
+                along = np.maximum(delta, 0.0) / (d * size)  # beside: Gaussian in the horizontal distance too
+                across = (rho / (w * size)) ** 2 if rad == "g" else rho / (w * size)
+                basis = np.where(gate, np.exp(-across - (along**2 if where == "side" else along)), 0.0)
+                f[_basis_name(where, w, d, radial=rad)] += basis
+                f[_basis_name(where, w, d, "x", rad)] += basis * off[:, 0] / size
+                f[_basis_name(where, w, d, "y", rad)] += basis * off[:, 1] / size
     f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):

@@ -128,3 +128,17 @@ def test_cost_maps_apply_the_pairwise_part_of_a_discovered_term() -> None:
     core = np.exp(0.0) / (1.0 + 0.3 / (3.0 * VEH.size_m))
     assert f1[0, 2] - f0[0, 2] == pytest.approx(-0.04 * core, rel=1e-9)  # the constant is not a pair effect
     assert f1[1, 2] - f0[1, 2] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_side_kernels_bracket_a_profile_in_the_height_difference() -> None:
+    """A neighbour level with the target (offset only in z): the Gaussian and the Laplace side profiles agree at
+    dz = 0 and the Laplace one keeps more at a larger height difference (a term fitted at one flight's gap carries
+    to another's by its tail); above and below keep one Gaussian profile (no Laplace features there)."""
+    L = VEH.size_m
+    dz = np.array([0.0, 1.0, 3.0]) * L
+    f = _features(_inputs(np.column_stack([np.zeros(3), np.zeros(3), dz])))
+    g, lap = f["side_g1L_e4L_1"], f["side_l1L_e4L_1"]
+    assert g[0] == pytest.approx(1.0) and lap[0] == pytest.approx(1.0)
+    assert lap[1] == pytest.approx(np.exp(-1.0)) and g[1] == pytest.approx(np.exp(-1.0))
+    assert lap[2] == pytest.approx(np.exp(-3.0)) and g[2] == pytest.approx(np.exp(-9.0))
+    assert not any(n.startswith(("above_l", "below_l")) for n in FEATURE_NAMES)
