@@ -23,7 +23,9 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
    lock-step (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the
-   guaranteed answer.
+   guaranteed answer. Beside it (``SwarmOptions.levels``) the *stacked plan*
+   (:func:`_stacked_stage`, :mod:`proxplan.planner.swarm.stacked`): each group of types on a level of
+   its own where the box is tall enough, each level planned apart by these stages; the shorter kept.
 4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
    every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
    conflict-free.
