@@ -248,7 +248,7 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
         again = run.swarm.prioritized and not any(_no_narrower(before, grown) for before in gave_up)
         options = replace(run.swarm, seed=seed, deflection_m=grown, prioritized=again)
         timed, info = swarm_timed(scenario, options, progress=run.progress, deadline=run.deadline)
-        if again and info.stage == "lattice":  # prioritised planning ran and gave up
+        if again and info.stage in ("lattice", "stacked"):  # prioritised planning ran and gave up
             gave_up.append(grown)
         plan = assemble_plan(scenario, timed, method=run.method, notes=list(scenario.load_notes))
         if run.swarm.prioritized and not again:
@@ -261,8 +261,11 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
         return plan
 
     try:
-        # only the lattice's search draws on the seed (prioritised planning and re-timing do not)
-        plan, bad = _until_verified(scenario, run, attempt, seed_matters=lambda p: infos[id(p)].stage == "lattice")
+        # only the lattice's search draws on the seed (prioritised planning and re-timing do not; the
+        # stacked plan's levels may use it)
+        plan, bad = _until_verified(
+            scenario, run, attempt, seed_matters=lambda p: infos[id(p)].stage in ("lattice", "stacked")
+        )
     except PlanNotFound as err:
         if run.past_deadline():
             raise

@@ -13,7 +13,8 @@ budget; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.he
 :mod:`~proxplan.planner.swarm.tracks`), by groups (:mod:`~proxplan.planner.swarm.components`) ->
 :mod:`~proxplan.planner.swarm.lattice`, :mod:`~proxplan.planner.swarm.sync`,
 :mod:`~proxplan.planner.swarm.lacam`, :mod:`~proxplan.planner.swarm.lockstep` (the guaranteed
-lattice plan) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
+lattice plan), beside it :mod:`~proxplan.planner.swarm.levels` and
+:mod:`~proxplan.planner.swarm.stacked` (types on levels of their own, each planned apart) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
 :mod:`~proxplan.planner.swarm.makespan` (the latest vehicles planned again with those in their way) ->
 :mod:`~proxplan.planner.swarm.plan` (the stages, with the knobs of
 :mod:`~proxplan.planner.swarm.options`, handing on a :mod:`~proxplan.planner.swarm.stage`) and

@@ -8,8 +8,9 @@ from dataclasses import asdict, dataclass, field
 from typing import Literal
 
 # straight: one synchronised straight step (CAPT's case); prioritised: prioritised continuous
-# planning; lattice: the lattice coordination flown in lock-step (prioritised planning gave up)
-SwarmStage = Literal["straight", "prioritised", "lattice"]
+# planning; lattice: the lattice coordination flown in lock-step (prioritised planning gave up);
+# stacked: each group of types on a level of its own, planned apart (prioritised planning gave up)
+SwarmStage = Literal["straight", "prioritised", "lattice", "stacked"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,7 @@ class SwarmInfo:
     heights: str | None = None
     heights_time_s: float | None = None
     lattice: LatticeInfo | None = None
+    stacked: str | None = None  # the stacked plan (swarm.stacked): its levels, what it gave or why not
     retiming: RetimeInfo | None = None
     # the latest vehicles planned again with those in their way (swarm.makespan): the makespan
     # after re-timing and after this, neighbourhoods tried and replaced, single-vehicle plannings

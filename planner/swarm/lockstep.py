@@ -37,11 +37,11 @@ from scipy.spatial import cKDTree
 
 from proxplan.planner.swarm.lattice import Lattice
 from proxplan.planner.swarm.occupancy import SAMPLING_GROWTH_M
-from proxplan.planner.swarm.problem import GROWTH_M
+from proxplan.planner.swarm.problem import GROWTH_M, SwarmProblem
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.profile import LineMove, rest_to_rest
 
-__all__ = ["REACH_GROWTH_M", "lockstep_tracks", "segment_distance_xy_m"]
+__all__ = ["REACH_GROWTH_M", "lockstep_tracks", "lockstep_tracks_at", "segment_distance_xy_m"]
 
 # "within reach" uses the keep-outs' largest reach grown by what the two exact tests add: the
 # synchronous table's whole-millimetre growth and the occupancy's growth between grid samples, m
@@ -77,11 +77,28 @@ def segment_distance_xy_m(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np
 PAIR_CHUNK = 1 << 20
 
 
-def _near_pairs(lattice: Lattice, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
-    """(P, 2) pairs i < j of moves (segments p0 -> p1) that come within reach of each other: candidates
-    from a k-d tree of the segments' midpoints (two segments within reach have midpoints within the
-    reach plus half of each length), then the exact segment distance on those alone."""
-    problem = lattice.problem
+def _pair_radius_m(problem, ti: np.ndarray, tj: np.ndarray, dz_lo: np.ndarray, dz_hi: np.ndarray) -> np.ndarray:
+    """(P,) largest horizontal distance at which agents of types ``ti`` and ``tj`` conflict while
+    moving at some height difference z_j - z_i in [dz_lo, dz_hi] (m; both orders of the pair's
+    keep-out, :meth:`KeepOut.horizontal_radius_m`), computed once per distinct (types, band)."""
+    rows = np.stack([ti, tj, dz_lo, dz_hi], axis=1)
+    uniq, inv = np.unique(rows, axis=0, return_inverse=True)
+    out = np.empty(uniq.shape[0])
+    for k, (a, b, lo, hi) in enumerate(uniq.tolist()):
+        ab = problem.keepouts[(int(a), int(b))].horizontal_radius_m(lo, hi)
+        ba = problem.keepouts[(int(b), int(a))].horizontal_radius_m(-hi, -lo)
+        out[k] = max(ab, ba)
+    return out[np.asarray(inv).reshape(-1)]
+
+
+def _near_pairs(problem: SwarmProblem, p0: np.ndarray, p1: np.ndarray, types: np.ndarray) -> np.ndarray:
+    """(P, 2) pairs i < j of moves (segments p0 -> p1, of agents of ``types``) that come within reach
+    of each other: candidates from a k-d tree of the segments' midpoints (two segments within reach
+    have midpoints within the reach plus half of each length), then the exact segment distance on
+    those alone, against the largest reach of any pair (horizontal and vertical) and then against
+    the reach of the two agents' types over the height differences their moves can have
+    (:func:`_pair_radius_m`): vehicles on levels far enough apart for their types never depend on
+    each other."""
     reach = problem.reach_xy_m + REACH_GROWTH_M
     half = 0.5 * np.linalg.norm((p1 - p0)[:, :2], axis=1)
     mid = 0.5 * (p0 + p1)[:, :2]
@@ -92,18 +109,20 @@ def _near_pairs(lattice: Lattice, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
         i, j = cand[c : c + PAIR_CHUNK, 0], cand[c : c + PAIR_CHUNK, 1]
         ok = segment_distance_xy_m(p0[i], p1[i], p0[j], p1[j]) < reach
         ok &= np.maximum(zlo[i] - zhi[j], zlo[j] - zhi[i]) < problem.reach_z_m + REACH_GROWTH_M
-        keep.append(cand[c : c + PAIR_CHUNK][ok])
+        i, j = i[ok], j[ok]
+        radius = _pair_radius_m(problem, types[i], types[j], zlo[j] - zhi[i], zhi[j] - zlo[i]) + REACH_GROWTH_M
+        ok2 = segment_distance_xy_m(p0[i], p1[i], p0[j], p1[j]) < radius
+        keep.append(cand[c : c + PAIR_CHUNK][ok][ok2])
     return np.sort(np.concatenate(keep), axis=1) if keep else np.zeros((0, 2), dtype=np.int64)
 
 
 def _start_steps(
-    lattice: Lattice, step: np.ndarray, agent: np.ndarray, p0: np.ndarray, p1: np.ndarray, dependencies: bool
+    problem: SwarmProblem, step: np.ndarray, agent: np.ndarray, p0: np.ndarray, p1: np.ndarray, dependencies: bool
 ):
     """(label (M,): each move's group, named by its first move; start (M,) and profiles per group)."""
-    problem = lattice.problem
     M = step.size
     if dependencies:
-        pairs = _near_pairs(lattice, p0, p1)
+        pairs = _near_pairs(problem, p0, p1, np.asarray(problem.type_index)[agent])
         same = step[pairs[:, 0]] == step[pairs[:, 1]]
         _, comp = connected_components(
             coo_matrix((np.ones(int(same.sum())), (pairs[same, 0], pairs[same, 1])), shape=(M, M)), directed=False
@@ -138,9 +157,16 @@ def _start_steps(
 def lockstep_tracks(
     lattice: Lattice, configurations: list[tuple[int, ...]], *, dependencies: bool = True
 ) -> list[GridTrack]:
-    """One :class:`GridTrack` per agent flying ``configurations`` (see module)."""
-    problem = lattice.problem
-    pos = lattice.pos_m
+    """One :class:`GridTrack` per agent flying ``configurations`` of ``lattice`` (see module)."""
+    return lockstep_tracks_at(lattice.problem, lattice.pos_m, configurations, dependencies=dependencies)
+
+
+def lockstep_tracks_at(
+    problem: SwarmProblem, pos_m: np.ndarray, configurations: list[tuple[int, ...]], *, dependencies: bool = True
+) -> list[GridTrack]:
+    """:func:`lockstep_tracks` for configurations of indices into any points ``pos_m`` (V, 3), m (every
+    step must pass the synchronous test on them)."""
+    pos = np.asarray(pos_m, dtype=float)
     A = problem.n_agents
     step_l, agent_l, u_l, v_l = [], [], [], []
     for k in range(1, len(configurations)):
@@ -155,7 +181,7 @@ def lockstep_tracks(
     if step_l:
         step, agent = np.asarray(step_l), np.asarray(agent_l)
         p0, p1 = pos[np.asarray(u_l)], pos[np.asarray(v_l)]
-        label, start, profiles = _start_steps(lattice, step, agent, p0, p1, dependencies)
+        label, start, profiles = _start_steps(problem, step, agent, p0, p1, dependencies)
         for m in range(step.size):
             g = int(label[m])
             moves[int(agent[m])].append((int(start[g]), LineMove(p0[m], p1[m], profiles[g])))

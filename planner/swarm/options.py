@@ -26,6 +26,12 @@ class SwarmOptions:
     # fixed (docs/planner.md): two orders need 2, a failing pass 1-3, a pass with repairs 2-3
     plannings_per_vehicle: float = 6.0
     passes: int = 3  # continuous re-timing passes
+    # where prioritised planning gives up, also the stacked plan (swarm.stacked): each group of types
+    # on a level of its own, where the free box is tall enough for the levels never to conflict,
+    # each level planned apart; the shorter of it and the lattice plan kept (False: the lattice plan
+    # alone, for measuring the cause). On: grid-64 fixed 6.13x -> 2.11x, corridor-64 8.96x -> 4.84x
+    # (docs/planner.md, stop 52 round 14A)
+    levels: bool = True
     prioritized: bool = True  # try prioritised continuous planning before the lattice coordination
     # prioritised planning's repair budget, per vehicle of a group (rounded up): on the named layouts at
     # 32 vehicles the plans that repaired at all needed 1-3 repairs; 2 per vehicle let grid-64 run
@@ -55,7 +61,8 @@ class SwarmOptions:
     keep_straight: bool = False
     # after re-timing, once on the plan kept, plan the latest vehicles again together with the vehicles
     # in their way (swarm.makespan; False: for measuring the cause alone; True: on every plan). None:
-    # on, but not on the lattice plan. Set watching the named layouts at 64 (docs/planner.md, round
+    # on, but not on the lattice plan nor the stacked plan (round 14A: nothing replaced on grid-64 and
+    # corridor-64 fixed). Set watching the named layouts at 64 (docs/planner.md, round
     # 13A): on the prioritised plans with fixed goals pillar 2.73x -> 2.62x for 57 plannings, circle
     # unchanged (13); on the lattice plans nothing shorter: grid and corridor fixed (in-process, 64
     # plannings: 0 and 1 neighbourhoods replaced, the makespan unchanged, 5 and 22 s of CPU) and pillar

@@ -293,8 +293,9 @@ def test_a_lattice_plan_in_lockstep_gives_way_to_a_shorter_verified_sampling_pla
     from proxplan.planner.timing import moving_end_s
 
     scenario = _scenario(grid_reshuffle(16))
-    # straight to the lattice coordination, as when prioritised planning gives up
-    plan = plan_scenario(scenario, method="swarm", seed=0, swarm_options=SwarmOptions(prioritized=False))
+    # straight to the lattice coordination, as when prioritised planning gives up (the stacked plan
+    # beside it left out: tests/planner/test_swarm_stacked.py)
+    plan = plan_scenario(scenario, method="swarm", seed=0, swarm_options=SwarmOptions(prioritized=False, levels=False))
     assert plan.metrics["swarm"]["stage"] == "lattice"
     lattice_s = plan.metrics["swarm"]["makespan_s"]
     assert verify_plan(plan, scenario) == []

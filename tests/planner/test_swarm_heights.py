@@ -45,7 +45,7 @@ def test_no_pass_with_both_wavefronts_where_prioritised_planning_gave_up():
     """A count budget that prioritised planning cannot finish a pass within: it gives up, the lattice
     plan is the answer, and the plan with heights on is that plan to the bit, with no planning more."""
     scenario = scenario_from_dict(grid_reshuffle(16), label="test scenario")
-    tight = {"workers": 1, "plannings_per_vehicle": 0.5}
+    tight = {"workers": 1, "plannings_per_vehicle": 0.5, "levels": False}  # the lattice plan alone
     without_paths, without = swarm_timed(scenario, SwarmOptions(heights=False, **tight))
     paths, info = swarm_timed(scenario, SwarmOptions(heights=True, **tight))
     assert without.stage == info.stage == "lattice"

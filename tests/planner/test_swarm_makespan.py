@@ -64,7 +64,8 @@ def test_no_repair_on_the_lattice_plan_unless_asked():
         if assign:
             doc["assign_goals"] = assign
         sc, _ = apply_assignment(scenario_from_dict(doc, label="test scenario"))
-        _, info = swarm_timed(sc, SwarmOptions(workers=1, prioritized=False, makespan_repair=asked))
+        opts = SwarmOptions(workers=1, prioritized=False, makespan_repair=asked, levels=False)  # the lattice plan
+        _, info = swarm_timed(sc, opts)
         assert info.stage == "lattice"
         got[assign, asked] = info.makespan_repair
     assert got[None, None] is None and got["by_type", None] is None

@@ -1,0 +1,123 @@
+"""The stacked plan: each group of vehicle types on a level of its own (:mod:`proxplan.planner.swarm.levels`),
+every level planned apart, joined by vertical steps at the start and at the end.
+
+World frame, z up, m; times on the swarm grid (``GRID_DT_S``). Three phases, one after the other:
+
+1. *down*: every vehicle from its start straight up or down to its level, in synchronous steps that
+   pass the exact pair test (:func:`proxplan.planner.swarm.levels.transition_steps`, flown by
+   :func:`proxplan.planner.swarm.lockstep.lockstep_tracks_at`: conflict-free by construction);
+2. *levels*: from the end of the last vertical move, each level's vehicles fly that level's plan
+   (``plan_level``, a plan of the subproblem of the level's vehicles between their starts and goals
+   moved to the level; the caller's planner, conflict-free within the level). Two vehicles on
+   different levels never conflict (the levels are as far apart as their types need, whatever the
+   horizontal positions, moving or at rest), and every vehicle stays on its level (checked: a level
+   plan that leaves it is not used);
+3. *up*: once every level's plan has ended, every vehicle from its goal on the level to its goal, as
+   in 1.
+
+So the tracks are conflict-free when each level's plan is. Re-timing
+(:mod:`proxplan.planner.swarm.retime`) then moves every vehicle earlier where the others allow,
+along its whole chain (start, the level, its route there, its goal).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from proxplan.planner.swarm.components import subproblem
+from proxplan.planner.swarm.levels import Levels, levelled_endpoints, transition_steps
+from proxplan.planner.swarm.lockstep import lockstep_tracks_at
+from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.sync import SyncTable
+from proxplan.planner.swarm.tracks import GridTrack
+
+__all__ = ["StackedPlan", "stacked_tracks", "types_subproblem"]
+
+# a level plan's samples must stay this close to the level's height, m (whole-millimetre positions)
+LEVEL_TOLERANCE_M = 1e-3
+
+
+@dataclass(frozen=True)
+class StackedPlan:
+    """Tracks by agent index and the waypoint chain of each (start, level, route on it, goal)."""
+
+    tracks: list[GridTrack]
+    chains: list[np.ndarray]  # (m+1, 3) per agent, m
+    down_steps: int  # synchronous vertical steps to the levels
+    up_steps: int  # ... back to the goals
+    level_makespans_s: list[float]  # each level's own plan, s
+
+
+def _shifted(track: GridTrack, steps: int) -> list:
+    return [(k0 + steps, mv) for k0, mv in track.moves]
+
+
+def _chain(points: list[np.ndarray]) -> np.ndarray:
+    out = [np.asarray(points[0], dtype=float)]
+    for p in points[1:]:
+        if float(np.linalg.norm(np.asarray(p) - out[-1])) > 1e-9:
+            out.append(np.asarray(p, dtype=float))
+    return np.array(out)
+
+
+def types_subproblem(problem: SwarmProblem, agents: list[int]) -> SwarmProblem:
+    """The subproblem of ``agents`` (:func:`~proxplan.planner.swarm.components.subproblem`) with only
+    their types, numbered anew (the keep-outs of the types present): its reaches are those of the
+    pairs that can meet on it, not of every type of the swarm."""
+    sub = subproblem(problem, agents)
+    types = sorted({int(t) for t in sub.type_index})
+    new = {t: k for k, t in enumerate(types)}
+    return replace(
+        sub,
+        type_index=np.array([new[int(t)] for t in sub.type_index], dtype=np.asarray(sub.type_index).dtype),
+        vehicles=tuple(sub.vehicles[t] for t in types),
+        keepouts={(new[a], new[b]): ko for (a, b), ko in sub.keepouts.items() if a in new and b in new},
+    )
+
+
+def stacked_tracks(
+    problem: SwarmProblem,
+    levels: Levels,
+    plan_level: Callable[[SwarmProblem], list[GridTrack] | None],
+) -> tuple[StackedPlan | None, str]:
+    """The stacked plan of ``problem`` on ``levels`` (see module) and what it did; None (with why)
+    where the vertical steps cannot be found, a level's plan gives up (``plan_level`` None) or
+    leaves its level."""
+    A = problem.n_agents
+    lev_s, lev_g = levelled_endpoints(problem, levels)
+    pos = np.vstack([problem.starts_m, lev_s, lev_g, problem.goals_m])
+    sync = SyncTable(problem.keepouts, problem.type_index, np.round(pos * 1000.0).astype(np.int64))
+    starts = tuple(range(A))
+    down = transition_steps(sync.conflict, starts, tuple(range(A, 2 * A)))
+    up = transition_steps(sync.conflict, tuple(range(2 * A, 3 * A)), tuple(range(3 * A, 4 * A)))
+    if down is None or up is None:
+        return None, "no conflict-free vertical steps to the levels"
+    down_tracks = lockstep_tracks_at(problem, pos, [starts, *down])
+    t_down = max(tr.arrival_step for tr in down_tracks)
+    on_levels = replace(problem, starts_m=lev_s, goals_m=lev_g)
+    level_tracks: dict[int, GridTrack] = {}
+    makespans = []
+    for group, z in zip(levels.groups, levels.heights_m):
+        agents = [a for a in range(A) if int(problem.type_index[a]) in group]
+        got = plan_level(types_subproblem(on_levels, agents))
+        if got is None:
+            return None, f"the level at {z:.2f} m gave no plan"
+        for k, tr in enumerate(got):
+            if float(np.abs(tr.positions_m[:, 2] - z).max()) > LEVEL_TOLERANCE_M:
+                return None, f"the plan of the level at {z:.2f} m leaves it"
+            level_tracks[agents[k]] = tr
+        makespans.append(max(tr.arrival_s for tr in got))
+    t_up = t_down + max(tr.arrival_step for tr in level_tracks.values())
+    up_tracks = lockstep_tracks_at(problem, pos, [tuple(range(2 * A, 3 * A)), *up])
+    tracks, chains = [], []
+    for a in range(A):
+        lv = level_tracks[a]
+        moves = list(down_tracks[a].moves) + _shifted(lv, t_down) + _shifted(up_tracks[a], t_up)
+        tracks.append(GridTrack(a, int(problem.type_index[a]), problem.starts_m[a], moves))
+        route = lv.route_m if lv.route_m is not None else np.array([lev_s[a], *[mv.end_m for _, mv in lv.moves]])
+        chains.append(_chain([problem.starts_m[a], lev_s[a], *route, lev_g[a], problem.goals_m[a]]))
+    plan = StackedPlan(tracks, chains, len(down), len(up), makespans)
+    return plan, f"{len(down)} + {len(up)} vertical steps"
