@@ -423,6 +423,8 @@ def _refine_swarm(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome
             f"({bound:.2f} s); not re-optimised"
         )
         return plan
+    if run.time_budget_s is not None:
+        plan.notes.append("optimized: --time-budget does not apply to swarms (the joint moves have count budgets)")
     result = joint_moves(
         scenario, plan, wrench_provider=default_wrench_provider, extent_provider=table_extent, progress=run.progress
     )
