@@ -10,20 +10,21 @@ and exact triple-integrator dynamics per mover, pairs among the movers and with 
 within reach, authority with the fixed vehicles' disturbance from outside the problem as their
 background, solved with IPOPT) over a fixed duration T (s) shorter than the makespan:
 
-- *movers*: every vehicle arriving after T (they must all arrive earlier), at most ``max_movers``
-  (T is raised to just above the next vehicle's arrival when more would have to move), then the
-  vehicles whose current tracks come within ``way_radius_m`` (horizontally, at the same time) of a
-  mover's warm path, nearest first, up to ``max_movers`` in all;
-- warm starts: a late mover flies its current path re-timed to T
-  (:func:`~proxplan.planner.optimizer.reoptimize.retimed_path`); a vehicle in the way its current
-  track (it arrives before T already);
-- T: ``fractions`` of the way from the movers' bound (``ReoptOptions.lower_bound_factor`` x their
-  straight-line rest-to-rest time, and the time their goals are free) to the makespan, the shortest
-  first; a move found is kept and the next round starts from the new makespan.
+- a *round* has a target T: ``fractions`` of the way from the latest vehicles' bound
+  (``ReoptOptions.lower_bound_factor`` x their straight-line rest-to-rest time, and the time their
+  goals are free) to the makespan, the shorter first. Every vehicle still arriving after T, latest
+  first, is moved in one problem together with the vehicles whose current tracks come within
+  ``way_radius_m`` (horizontally, at the same time) of its warm path, nearest first, up to
+  ``max_movers`` in all; if that fails, alone. All movers then arrive by T (or, slowed to keep their
+  limits, still before the makespan). A round that cannot bring every late vehicle in is undone;
+  one that can is kept and the next round starts from the new makespan;
+- warm starts: the late vehicle flies its current path re-timed to T
+  (:func:`~proxplan.planner.optimizer.reoptimize.retimed_path`); a vehicle in the way that arrives
+  by T already its current track.
 
 A solution is accepted only when all movers, slowed by one common factor if a limit breaks between
-nodes, pass the direct model check in turn (:class:`~proxplan.planner.optimizer.swarm_field.SwarmField`,
-each against the others already placed) and the whole plan then passes the independent verifier
+nodes, pass the direct model check (:class:`~proxplan.planner.optimizer.swarm_field.SwarmField`, each
+against the others at their new tracks) and the whole plan then passes the independent verifier
 (``proxplan.verify.verify_plan``); anything else is undone. Budgets are counts (IPOPT problems,
 iterations per problem), so the same plan and seed give the same result on any machine (IPOPT's CPU
 limit stays as a safety net). World frame, z up; m, s.
