@@ -75,12 +75,9 @@ SAMPLING_ALTERNATIVE_MAX_VEHICLES = 32
 ALTERNATIVE_SEARCHES_PER_VEHICLE = 2
 ALTERNATIVE_RRT_ITERATIONS = 10000  # RRT iterations per solve (the waiting search finds most paths)
 RETRY_SEED_OFFSET = 7919  # the verification policy's last attempt plans with seed + this (a prime)
-# ``optimized`` for swarms: the vehicles arriving after this fraction of the makespan set it (as in
-# the decomposed optimiser's later rounds) and are re-optimised; a plan within OPTIMAL_WITHIN of the
-# lower bound is not (the must-show's 5 %)
-MAKESPAN_SETTERS = 0.9
+# ``optimized`` for swarms: a plan within OPTIMAL_WITHIN of the lower bound is not re-optimised
+# (the must-show's 5 %); the others get joint moves (optimizer.joint_moves, count budgets)
 OPTIMAL_WITHIN = 0.05
-SWARM_OPTIMIZE_BUDGET_S = 20.0  # default wall-clock budget of that re-optimisation (--time-budget), s
 
 __all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "Method", "SwarmOutcome", "deflection_allowance", "plan_scenario"]
 
@@ -414,13 +411,12 @@ def _refine_stage(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome
 
 
 def _refine_swarm(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome) -> Plan:
-    """``optimized`` for swarms: the vehicles that set the makespan (arriving within
-    ``MAKESPAN_SETTERS`` of it) re-optimised with CasADi one at a time against all the others fixed
-    as moving obstacles (:func:`proxplan.planner.optimizer.reoptimize_plan`); the verified shorter
-    plan kept, else a note with the gap to the lower bound."""
-    from proxplan.planner.optimizer import ReoptOptions, default_wrench_provider, reoptimize_plan
+    """``optimized`` for swarms: joint moves (:func:`proxplan.planner.optimizer.joint_moves`): the
+    vehicles that set the makespan, each with the vehicles in its way, optimised together with
+    CasADi, all the others fixed as moving obstacles, within count budgets (``--time-budget`` does
+    not apply); the verified shorter plan kept, else a note with the gap to the lower bound."""
+    from proxplan.planner.optimizer import default_wrench_provider, joint_moves
     from proxplan.planner.optimizer.warm_problem import table_extent
-    from proxplan.planner.timing.plan_grid import vehicle_arrival_s
 
     makespan = moving_end_s(plan)
     bound = float(plan.metrics.get("assignment_lower_bound_s") or (swarm.info.lower_bound_s if swarm.info else 0.0))
@@ -430,25 +426,20 @@ def _refine_swarm(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome
             f"({bound:.2f} s); not re-optimised"
         )
         return plan
-    late = [n for n, tr in plan.vehicles.items() if vehicle_arrival_s(tr) >= MAKESPAN_SETTERS * makespan]
-    budget = SWARM_OPTIMIZE_BUDGET_S if run.time_budget_s is None else run.time_budget_s
-    result = reoptimize_plan(
-        scenario,
-        plan,
-        wrench_provider=default_wrench_provider,
-        extent_provider=table_extent,
-        options=ReoptOptions(time_budget_s=budget),
-        progress=run.progress,
-        vehicles=late,
+    if run.time_budget_s is not None:
+        plan.notes.append("optimized: --time-budget does not apply to swarms (the joint moves have count budgets)")
+    result = joint_moves(
+        scenario, plan, wrench_provider=default_wrench_provider, extent_provider=table_extent, progress=run.progress
     )
     gap = f"{makespan / bound:.2f}x the lower bound {bound:.2f} s" if bound > 0.0 else "no lower bound"
+    log = f" [{'; '.join(result.log)}]" if result.log else ""
     if not result.improved:
-        plan.notes.append(f"optimized: {len(late)} vehicle(s) setting the makespan: {result.message} ({gap})")
+        plan.notes.append(f"optimized: {result.message} ({gap}){log}")
         return plan
     better = result.plan
     better.method = "optimized"
-    better.verified = True  # reoptimize_plan keeps only plans the verifier passed, this one included
-    better.notes = list(plan.notes) + [f"optimized: {len(late)} vehicle(s) setting the makespan: {result.message}"]
+    better.verified = True  # joint_moves keeps only plans the verifier passed, this one included
+    better.notes = list(plan.notes) + [f"optimized: {result.message}{log}"]
     return better
 
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -138,38 +138,60 @@ class _Reoptimizer:
         idx = np.flatnonzero(bad)
         return 0.0 if idx.size == 0 else float(self.field.t_s[idx[-1]] + CHECK_DT_S)
 
-    def problem(self, name: str, T: float, warm: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> OcpProblem:
+    def problem(
+        self,
+        names: str | Sequence[str],
+        T: float,
+        warm: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]] | None,
+    ) -> OcpProblem:
+        """The problem of the vehicles ``names`` (one, or the group of a joint move,
+        :mod:`proxplan.planner.optimizer.joint_move`) moving together over the fixed duration ``T``
+        (s), every other vehicle within ``reach_m`` of their warm paths a fixed trajectory with the
+        disturbance from outside the problem as its background. ``warm[name]``: (p, v, a) on the
+        n+1 nodes; a mover without one is warm-started on its current path re-timed to T."""
         sc, opt = self.sc, self.opt
-        task = sc.vehicles[name]
+        movers = [names] if isinstance(names, str) else list(names)
         n = int(np.clip(math.ceil(T / opt.interval_s), opt.min_intervals, opt.max_intervals))
         nodes = np.linspace(0.0, T, n + 1)
         tq = np.concatenate([nodes, 0.5 * (nodes[:-1] + nodes[1:])])
-        if warm is None:
-            warm = retimed_path(self.traj[name], nodes)
-        wq = np.vstack([warm[0], 0.5 * (warm[0][:-1] + warm[0][1:])])
-        agents = [
-            OcpAgent(
-                name=name,
-                vehicle=task.vehicle,
-                moving=True,
-                start_m=np.asarray(task.start_m, float),
-                goal_m=np.asarray(task.goal_m, float),
-                max_speed_mps=task.max_speed_mps,
-                max_accel_mps2=task.max_accel_mps2,
-                max_jerk_mps3=task.max_jerk_mps3,
-                body_radius_m=float(task.body_radius_m),
-                warm_position_m=warm[0],
-                warm_velocity_mps=warm[1],
-                warm_acceleration_mps2=warm[2],
+        agents, wqs = [], []
+        for name in movers:
+            task = sc.vehicles[name]
+            w = (warm or {}).get(name) or retimed_path(self.traj[name], nodes)
+            wqs.append(np.vstack([w[0], 0.5 * (w[0][:-1] + w[0][1:])]))
+            agents.append(
+                OcpAgent(
+                    name=name,
+                    vehicle=task.vehicle,
+                    moving=True,
+                    start_m=np.asarray(task.start_m, float),
+                    goal_m=np.asarray(task.goal_m, float),
+                    max_speed_mps=task.max_speed_mps,
+                    max_accel_mps2=task.max_accel_mps2,
+                    max_jerk_mps3=task.max_jerk_mps3,
+                    body_radius_m=float(task.body_radius_m),
+                    warm_position_m=w[0],
+                    warm_velocity_mps=w[1],
+                    warm_acceleration_mps2=w[2],
+                )
             )
-        ]
         wrench, extents = {}, {}
+
+        def pair(a: str, b: str) -> None:
+            wrench[(a, b)], wrench[(b, a)] = self.fn(a, b), self.fn(b, a)
+            if self.extent_provider is not None:  # the table is zero beyond its extent: sparse terms
+                extents[(a, b)], extents[(b, a)] = self.extent(a, b), self.extent(b, a)
+
+        for i, a in enumerate(movers):
+            for b in movers[i + 1 :]:
+                pair(a, b)
         for o in self.field.names:
-            if o == name:
+            if o in movers:
                 continue
             path = self.field.at(o, tq)
-            if np.hypot(*(path - wq)[:, :2].T).min() > opt.reach_m:
-                continue  # sparse pairs: never within reach along the warm start
+            near = [m for m, wq in zip(movers, wqs) if np.hypot(*(path - wq)[:, :2].T).min() <= opt.reach_m]
+            if not near:
+                continue  # sparse pairs: never within reach along the warm starts
             other = sc.vehicles[o]
             agents.append(
                 OcpAgent(
@@ -179,14 +201,11 @@ class _Reoptimizer:
                     start_m=path[0],
                     body_radius_m=float(other.body_radius_m),
                     fixed_path_m=path,
-                    background_wrench=self.field.wrench_at(o, tq, without=name),
+                    background_wrench=self.field.wrench_at(o, tq, without=movers),
                 )
             )
-            wrench[(o, name)] = self.fn(o, name)
-            wrench[(name, o)] = self.fn(name, o)
-            if self.extent_provider is not None:  # the table is zero beyond its extent: sparse terms
-                extents[(o, name)] = self.extent(o, name)
-                extents[(name, o)] = self.extent(name, o)
+            for m in near:
+                pair(o, m)
         return OcpProblem(
             agents=tuple(agents),
             n_intervals=n,
@@ -205,19 +224,29 @@ class _Reoptimizer:
             authority_margin=opt.authority_margin,
         )
 
+    def slowed(self, names: Sequence[str], sol: OcpSolution) -> tuple[float, dict, str]:
+        """The least uniform slow-down (time scale, up to ``max_slowdown``) of the solution at which
+        every vehicle of ``names`` keeps its kinematic limits on the plan grid (one factor for all:
+        their relative timing is kept), their (p, v, a) there, and why not ("" when found)."""
+        scale, why = 1.0, ""
+        while scale <= self.opt.max_slowdown + 1e-9:
+            sampled = sample_solution(sol, self.grid, time_scale=scale)
+            why = ""
+            for name in names:
+                why = why or kinematic_conflict(self.sc.vehicles[name], *sampled[name][1:], float(self.plan.dt_s)) or ""
+            if not why:
+                return scale, sampled, ""
+            scale *= 1.05
+        return scale, {}, why
+
     def candidate(self, name: str, sol: OcpSolution) -> tuple[VehicleTrajectory | None, np.ndarray | None, str]:
         """The solution on the plan grid (uniformly slowed if a limit breaks between nodes) and on
         the check grid, or None and why not."""
         task = self.sc.vehicles[name]
-        scale, why = 1.0, ""
-        while scale <= self.opt.max_slowdown + 1e-9:
-            p, v, a = sample_solution(sol, self.grid, time_scale=scale)[name]
-            why = kinematic_conflict(task, v, a, float(self.plan.dt_s)) or ""
-            if not why:
-                break
-            scale *= 1.05
+        scale, sampled, why = self.slowed([name], sol)
         if why:
             return None, None, why
+        p, v, a = sampled[name]
         pf = sample_solution(sol, self.field.t_s, time_scale=scale)[name][0]
         why = static_conflict(self.sc, name, pf) or ""
         if not why:
@@ -236,7 +265,7 @@ class _Reoptimizer:
         for _ in range(2):
             if time.perf_counter() > deadline:
                 break
-            pb = self.problem(name, T, warm)
+            pb = self.problem(name, T, None if warm is None else {name: warm})
             left = max(0.5, deadline - time.perf_counter())
             pb = replace(pb, max_cpu_time_s=min(pb.max_cpu_time_s, left), max_wall_time_s=left)
             sol = build_and_solve(pb)

@@ -7,6 +7,8 @@ World frame, z up; m, s, N, N m."""
 
 from __future__ import annotations
 
+from collections.abc import Collection
+
 import numpy as np
 
 from proxplan.costmaps import pair_wrench
@@ -176,11 +178,14 @@ class SwarmField:
         p = self.pos[name]
         return np.column_stack([np.interp(t_s, self.t_s, p[:, i]) for i in range(3)])
 
-    def wrench_at(self, name: str, t_s: np.ndarray, *, without: str) -> np.ndarray:
+    def wrench_at(self, name: str, t_s: np.ndarray, *, without: str | Collection[str]) -> np.ndarray:
         """Rows (F_z N, tau_x N m, tau_y N m) (3, K) on ``name`` at ``t_s`` from every source but
-        ``without`` (the vehicle being optimised)."""
-        f_w, q_w = self.current(without, name)
-        f, q = self.force[name] - f_w, self.torque[name] - q_w
+        ``without`` (the vehicle or vehicles being optimised)."""
+        f, q = self.force[name].copy(), self.torque[name].copy()
+        for w in [without] if isinstance(without, str) else without:
+            f_w, q_w = self.current(w, name)
+            f -= f_w
+            q -= q_w
         cols = (f[:, 2], q[:, 0], q[:, 1])
         return np.vstack([np.interp(t_s, self.t_s, c) for c in cols])
 
