@@ -46,7 +46,8 @@ def register(subparsers) -> None:
         default=None,
         metavar="S",
         help="wall-clock budget of the optimiser in s (default 60); it returns the best verified "
-        "improvement found by then, else the sampling plan with a note why",
+        "improvement found by then, else the sampling plan with a note why. A swarm's optimisation "
+        "(formation changes of 16 vehicles or more) runs on count budgets instead and ignores it (a note says so)",
     )
     p.add_argument(
         "--max-time",
