@@ -382,6 +382,7 @@ def _remove_collisions(
     left = LNS_PLANNINGS_PER_VEHICLE * problem.n_agents
     if options.max_plannings is not None:
         left = min(left, options.max_plannings - result.planned)
+    early: list[str] = []
     plannings, tried, pairs = remove_collisions(
         occ,
         planned,
@@ -405,14 +406,18 @@ def _remove_collisions(
         budget=max(0, left),
         seed=options.seed,
         deadline=deadline,
+        early=early,
     )
     result.planned += plannings
     result.collision_repairs += tried
     result.history.append(
         f"{len(stuck)} vehicle(s) on ideal tracks in collision: {tried} neighbourhoods, {pairs} pairs left"
+        + "".join(f" ({why})" for why in early)
     )
     if pairs:
-        raise PrioritizedFailed(stuck[-1], result.repairs, result.history, planned=result.planned)
+        # given up early, the repair is charged the plannings it would have spent (at least its budget)
+        charged = result.planned + (max(0, left) - plannings if early else 0)
+        raise PrioritizedFailed(stuck[-1], result.repairs, result.history, planned=result.planned, charged=charged)
 
 
 def dependency_order(problem: SwarmProblem) -> list[int]:
