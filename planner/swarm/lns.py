@@ -18,7 +18,9 @@ in collision with its neighbourhood only (its ideal track if even that fails). T
 not grow (LNS2's acceptance), else the old ones come back. It ends when no pair collides (the tracks
 are then conflict-free: each was planned against every track in place, or its collisions counted),
 or gives up when its count of single-vehicle plannings is spent: a count, so the same seed gives
-the same plan on every machine.
+the same plan on every machine. It gives up early, before the count is spent, once the count left
+cannot remove the collisions (:func:`plannings_needed`, :data:`HOOD_PLANNINGS`): it would give up
+all the same, later.
 """
 
 from __future__ import annotations
@@ -37,6 +39,24 @@ from proxplan.planner.swarm.tracks import GridTrack
 # agents, their adaptive choice); 8 is the most that one repair of the pass takes out on the named
 # layouts at 64 vehicles (docs/planner.md), so a neighbourhood holds one repair's vehicles
 NEIGHBOURHOOD = 8
+# single-vehicle plannings one neighbourhood can make at most: each of its vehicles is planned, once
+# more after it released reserved starts in its way, and once more in collision (remove_collisions)
+HOOD_PLANNINGS = 3 * NEIGHBOURHOOD
+
+
+def plannings_needed(pairs) -> int:
+    """A lower bound on the single-vehicle plannings that remove every colliding pair of ``pairs``
+    ((i, j) tuples): a pair collides until one of its two vehicles is planned again, so the vehicles
+    planned again cover every pair, and pairs with no vehicle in common (a matching, here a greedy
+    maximal one over the sorted pairs) need one planning each. Counts only, so the decision it
+    supports is the same on every machine."""
+    used: set[int] = set()
+    count = 0
+    for a, b in sorted(pairs):
+        if a not in used and b not in used:
+            used.update((a, b))
+            count += 1
+    return count
 
 
 def colliding_pairs(occ: Occupancy, agents) -> set[tuple[int, int]]:
@@ -63,15 +83,27 @@ def remove_collisions(
     reserve: Callable[[Occupancy, list[int]], None] | None = None,
     seed: int,
     deadline: float | None = None,
+    early: list[str] | None = None,
 ) -> tuple[int, int, int]:
     """Remove the collisions of the vehicles ``in_collision`` (see module), ``planned`` and ``occ``
     changed in place. Returns (plannings, neighbourhoods tried, colliding pairs left): pairs left > 0
-    only when the ``budget`` of plannings was spent."""
+    only when the ``budget`` of plannings was spent, or could not suffice: a neighbourhood starts only
+    while fewer than ``budget`` plannings are made and makes at most :data:`HOOD_PLANNINGS`, so once
+    :func:`plannings_needed` exceeds ``budget`` - plannings - 1 + ``HOOD_PLANNINGS`` the pairs cannot
+    all go (given up early, the reason appended to ``early``)."""
     problem = occ.problem
     rng = np.random.default_rng(seed)
     pairs = colliding_pairs(occ, in_collision)
     plannings = tried = 0
     while pairs and plannings < budget:
+        needed = plannings_needed(pairs)
+        if needed > budget - plannings - 1 + HOOD_PLANNINGS:
+            if early is not None:
+                early.append(
+                    f"given up early: {len(pairs)} colliding pairs need at least {needed} plannings "
+                    f"(disjoint pairs), {budget - plannings} left"
+                )
+            break
         if deadline is not None and time.perf_counter() > deadline:
             raise PlanNotFound("no plan found within the time budget (collision repair)", details={"nodes": plannings})
         tried += 1
@@ -119,4 +151,4 @@ def remove_collisions(
     return plannings, tried, len(pairs)
 
 
-__all__ = ["NEIGHBOURHOOD", "colliding_pairs", "remove_collisions"]
+__all__ = ["HOOD_PLANNINGS", "NEIGHBOURHOOD", "colliding_pairs", "plannings_needed", "remove_collisions"]

@@ -2,7 +2,7 @@
 
 One vehicle after another is planned against the tracks in the
 :class:`~proxplan.planner.swarm.occupancy.Occupancy` (its space-time hash: only tracks within reach
-are looked at). Each tries its candidate waypoint chains - the straight line and the wavefront route
+are looked at; :mod:`proxplan.planner.swarm.single`). Each tries its candidate waypoint chains - the straight line and the wavefront route
 through the others' space-time (:func:`proxplan.planner.swarm.wave.wave_route`), then a slower,
 wider route - timed exactly, flying through waypoints where it can
 (:func:`proxplan.planner.swarm.chain.time_chain`), and keeps the earliest arrival.
@@ -53,18 +53,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxplan.planner.errors import PlanNotFound
-from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.lns import remove_collisions
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.reserve import Reservations, predicted_track, reserved_track
-from proxplan.planner.swarm.reserve import ideal_track as _ideal
-from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
-from proxplan.planner.swarm.wave import wave_route
-from proxplan.planner.timing.profile import rest_to_rest
+from proxplan.planner.swarm.single import ideal_track, plan_ignoring, plan_one, start_visitors
+from proxplan.planner.swarm.tracks import GridTrack
 
-SLOW_PACE = 0.5  # last route attempt: this fraction of the speed limit ...
-SLOW_GROWTH_M = 0.05  # ... and keep-outs this much wider, m
 # the collision repair's plannings per vehicle of the pass, at most: a whole pass costs 2-3 per vehicle
 # on the named layouts at 64 fixed (docs/planner.md), so the repair may cost up to half a pass more
 # before the next order is tried (set watching those figures, not the randomised family)
@@ -131,67 +126,6 @@ def unplanned_track(problem: SwarmProblem, agent: int, options: PriorityOptions)
     if options.reserve_starts:
         return reserved_track(problem, agent)
     return predicted_track(problem, agent, hold_s=options.hold_s)
-
-
-def ideal_track(problem: SwarmProblem, occ: Occupancy, agent: int) -> GridTrack | None:
-    """The track a vehicle would fly alone (:func:`proxplan.planner.swarm.reserve.ideal_track`, on
-    ``occ``'s horizon)."""
-    return _ideal(problem, agent, occ.horizon)
-
-
-def start_visitors(occ: Occupancy, agent: int) -> set[int]:
-    """The agents whose tracks in ``occ`` come within ``agent``'s keep-out of its start at some
-    time (fly through it or park there): a vehicle that cannot be planned could not leave its start
-    before one of them came."""
-    p = occ.problem
-    return occ.conflicting_agents(GridTrack(agent, int(p.type_index[agent]), p.starts_m[agent].copy(), []))
-
-
-def plan_ignoring(
-    occ: Occupancy, agent: int, ignore: set[int], through: bool, *, heights: bool = False
-) -> GridTrack | None:
-    """:func:`plan_one` against the tracks in ``occ`` but those of ``ignore`` (it may collide with
-    them only), or None."""
-    taken = [occ.remove(b) for b in sorted(ignore) if b != agent]
-    try:
-        return plan_one(occ, agent, through, heights=heights)
-    finally:
-        for tr in taken:
-            if tr is not None:
-                occ.put(tr)
-
-
-def plan_one(occ: Occupancy, agent: int, through: bool, *, heights: bool = False) -> GridTrack | None:
-    """The earliest-arriving track of ``agent`` against the tracks in ``occ`` (see module: its
-    straight line, else the better of that and a wavefront route, else a slower, wider route), or
-    None. ``heights``: also a wavefront route with discs for the heights it flies at
-    (:mod:`proxplan.planner.swarm.wave`), the earlier arrival of the two kept: never later than
-    without, for this vehicle against these tracks (not for the plan: the vehicles planned after it
-    meet another track; the swarm layer plans both ways and keeps the shorter plan, see
-    :class:`proxplan.planner.swarm.options.SwarmOptions`).
-    """
-    problem = occ.problem
-    s, g = problem.starts_m[agent], problem.goals_m[agent]
-    best = time_chain(occ, agent, np.array([s, g]), through=through)
-    # no flight from rest to rest is faster than the straight line's rest-to-rest time: a straight
-    # line flown at once is the best there is, and no route is searched
-    unobstructed = rest_to_rest(float(np.linalg.norm(g - s)), problem.limits[agent], GRID_DT_S).steps
-    if best is None or best.arrival_step > unobstructed:
-        # the wavefront with the widest disc at every height, then (heights) with discs for the heights
-        # the route flies at (it passes over and under the others where their keep-outs are narrow)
-        for by_height in (False, True) if heights else (False,):
-            route = wave_route(occ, agent, s, g, heights=by_height)
-            if route is not None and len(route) > 2:
-                res = time_chain(
-                    occ, agent, route, arrive_by=None if best is None else best.arrival_step - 1, through=through
-                )
-                if res is not None and (best is None or res.arrival_step < best.arrival_step):
-                    best = res
-    if best is None:  # a slower, wider route leaves the exact timing more room
-        slow = wave_route(occ, agent, s, g, pace=SLOW_PACE, grow_m=SLOW_GROWTH_M, heights=False)
-        if slow is not None:
-            best = time_chain(occ, agent, slow, through=through)
-    return None if best is None else best.track
 
 
 def prioritized_tracks(
@@ -382,6 +316,7 @@ def _remove_collisions(
     left = LNS_PLANNINGS_PER_VEHICLE * problem.n_agents
     if options.max_plannings is not None:
         left = min(left, options.max_plannings - result.planned)
+    early: list[str] = []
     plannings, tried, pairs = remove_collisions(
         occ,
         planned,
@@ -405,14 +340,18 @@ def _remove_collisions(
         budget=max(0, left),
         seed=options.seed,
         deadline=deadline,
+        early=early,
     )
     result.planned += plannings
     result.collision_repairs += tried
     result.history.append(
         f"{len(stuck)} vehicle(s) on ideal tracks in collision: {tried} neighbourhoods, {pairs} pairs left"
+        + "".join(f" ({why})" for why in early)
     )
     if pairs:
-        raise PrioritizedFailed(stuck[-1], result.repairs, result.history, planned=result.planned)
+        # given up early, the repair is charged the plannings it would have spent (at least its budget)
+        charged = result.planned + (max(0, left) - plannings if early else 0)
+        raise PrioritizedFailed(stuck[-1], result.repairs, result.history, planned=result.planned, charged=charged)
 
 
 def dependency_order(problem: SwarmProblem) -> list[int]:
