@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -101,9 +101,10 @@ def swarm_timed(
 
     fx = effects_key(getattr(scenario, "effects", ()))
     stacking = stacking_keepouts(problem, scenario.limits, scenario.field_form, fx) if opts.levels else None
-    found, by_agent, initial, retiming, repair, extra = _plan(
+    planned = _plan(
         problem, lower_bound, opts, scenario.assign_goals is not None, stacking, progress=progress, deadline=deadline
     )
+    found, by_agent, extra = planned.stage, planned.tracks, planned.extra
     # single-vehicle searches given back by the memo (swarm.memo) and searched, over every stage
     extra.setdefault("counts", {}).update(searches_recalled=problem.memo.hits, searches_run=problem.memo.misses)
     info = SwarmInfo(
@@ -111,15 +112,29 @@ def swarm_timed(
         coordination=found.coordination,
         vehicles=problem.n_agents,
         lower_bound_s=lower_bound,
-        initial_makespan_s=initial,
+        initial_makespan_s=planned.initial_makespan_s,
         makespan_s=max(tr.arrival_s for tr in by_agent.values()),
         time_s=round(time.perf_counter() - t0, 3),
-        retiming=retiming,
-        makespan_repair=repair,
+        retiming=planned.retiming,
+        makespan_repair=planned.repair,
         **extra,
     )
     timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
     return timed, info
+
+
+@dataclass
+class _Planned:
+    """What the stages of :func:`_plan` give: the stage whose tracks were kept, the final tracks by agent,
+    the makespan before re-timing (s), what re-timing and the makespan repair did, and the other stages'
+    records (``SwarmInfo``'s extra fields)."""
+
+    stage: Stage
+    tracks: dict[int, GridTrack]
+    initial_makespan_s: float
+    retiming: RetimeInfo
+    repair: MakespanRepairInfo | None
+    extra: dict
 
 
 def _plan(
@@ -131,11 +146,10 @@ def _plan(
     *,
     progress,
     deadline,
-) -> tuple[Stage, dict[int, GridTrack], float, RetimeInfo, MakespanRepairInfo | None, dict]:
+) -> _Planned:
     """The stages of the module on ``problem`` (``lower_bound``: its straight-line bound, s;
     ``assigned``: the goals were assigned; ``stacking``: the keep-outs the levels of the stacked plan are
-    stacked on, :func:`~proxplan.planner.swarm.levels.stacking_keepouts`): the stage kept, the final tracks by agent, the makespan
-    before re-timing (s), what re-timing and the makespan repair did, and the other stages' records."""
+    stacked on, :func:`~proxplan.planner.swarm.levels.stacking_keepouts`)."""
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
     found = _straight_stage(problem) if not conflicts else None
@@ -176,7 +190,7 @@ def _plan(
     repair = None
     if _repairs(opts, found):  # once, on the plan kept (SwarmOptions.makespan_repair)
         repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
-    return found, by_agent, initial, retiming, repair, extra
+    return _Planned(found, by_agent, initial, retiming, repair, extra)
 
 
 def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
@@ -246,12 +260,11 @@ def _stacked_stage(
             rest_to_rest(float(np.linalg.norm(sub.goals_m[a] - sub.starts_m[a])), sub.limits[a], GRID_DT_S).duration_s
             for a in range(sub.n_agents)
         )
-        kept, by_agent, _, _, _, mine = _plan(
-            sub, bound, level_opts, assigned, None, progress=progress, deadline=deadline
-        )
-        stages.append(kept.stage)
-        counts["planned"] += mine.get("counts", {}).get("planned", 0) + mine.get("counts", {}).get("heights_planned", 0)
-        return [by_agent[a] for a in range(sub.n_agents)]
+        level = _plan(sub, bound, level_opts, assigned, None, progress=progress, deadline=deadline)
+        stages.append(level.stage.stage)
+        made = level.extra.get("counts", {})
+        counts["planned"] += made.get("planned", 0) + made.get("heights_planned", 0)
+        return [level.tracks[a] for a in range(sub.n_agents)]
 
     try:
         plan, what = stacked_tracks(problem, levels, plan_level)

@@ -111,8 +111,9 @@ def test_the_stacked_plan_is_kept_only_when_shorter_than_the_lattice_plan(grid16
     never without levels."""
     _, problem, strict = grid16
     opts = SwarmOptions(workers=1, prioritized=False)
-    found, _, initial, _, repair, extra = _plan(problem, 1.0, opts, False, strict, progress=None, deadline=None)
-    lattice_alone, *_ = _plan(
+    planned = _plan(problem, 1.0, opts, False, strict, progress=None, deadline=None)
+    found, initial, repair, extra = planned.stage, planned.initial_makespan_s, planned.repair, planned.extra
+    lattice_alone = _plan(
         problem,
         1.0,
         SwarmOptions(workers=1, prioritized=False, levels=False),
@@ -120,7 +121,7 @@ def test_the_stacked_plan_is_kept_only_when_shorter_than_the_lattice_plan(grid16
         None,
         progress=None,
         deadline=None,
-    )
+    ).stage
     assert lattice_alone.stage == "lattice"
     lattice_makespan = max(t.arrival_s for t in lattice_alone.tracks)
     if found.stage == "stacked":
