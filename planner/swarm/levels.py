@@ -37,8 +37,8 @@ HEIGHT_RESOLUTION_M = 0.001
 # the target moved by its tube: 0.028-0.094 of 0.1) but by the sum of 2-4 vehicles of the level above
 # (the verifier sums the jets); the densest arrangement the keep-outs allow a level (a hexagonal lattice
 # at 0.30 m) keeps that sum within the fraction only up to 0.66 m below Parrots (the sum grows with the
-# gap: the jets widen and overlap), and there a vehicle riding under another is deflected 10-14 cm by the
-# verifier's loop in the jet (3.4-4.0 cm at 1.16 m; 2.4 cm in the keep-outs): for the built-in types no gap
+# gap: the jets widen and overlap), and there a vehicle riding under another is deflected 8.4-14.1 cm by the
+# verifier's loop in the jet (2.1-2.6 cm at 1.16 m; 2.4 cm in the keep-outs): for the built-in types no gap
 # is free of both a priori. At 0.5 the small quads fly 1.16 m below the others: two sources fit.
 STACK_AUTHORITY_SHARE = 0.5
 
