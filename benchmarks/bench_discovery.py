@@ -14,8 +14,10 @@ Each DRAW hides an undeclared effect drawn at random from families broader than 
   distance (exponential, 1/(1+x), 1/(1+x^2); 1-6 L);
 * ``velocity``: a force growing with the vehicle's own velocity (v_z, v_z|v_z|, |v_xy|, |v_xy|^2,
   v_z |v_xy|) or with the speed relative to a neighbour inside a kernel;
-* ``thrust``: a multiplicative thrust loss, a share of the vehicle's thrust times 1, a jet kernel, a
-  ground proximity or its speed;
+* ``thrust``: a multiplicative thrust loss, a share of the vehicle's thrust times 1, a jet kernel (a
+  Gaussian of width 0.4-1 L growing 0.05-0.25 m per m of depth, without a decay in depth or with one,
+  exponential or 1/(1+x), of 1-6 L), a ground proximity (exp(-x) or 1/(1+x^2), x = h / (0.5-2 L)) or its
+  horizontal speed (|v_xy| or |v_xy|^2) (until stop 53 one fixed jet kernel, one ground shape and |v_xy|);
 * ``mix``: two of the above.
 
 Its amplitude is set so that the effect's RMS on the test flight, in units of each vehicle's clean test

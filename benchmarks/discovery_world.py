@@ -102,7 +102,17 @@ def draw_effect(rng: np.random.Generator, family: str) -> dict[str, Any]:
         return {"family": family, "form": str(rng.choice(["v_z", "v_z_abs", "v_xy", "v_xy2", "v_z_v_xy", "rel"])),
                 "sign": float(rng.choice([-1.0, 1.0]))}  # fmt: skip
     if family == "thrust":
-        return {"family": family, "where": str(rng.choice(["all", "jet", "ground", "speed"]))}
+        where = str(rng.choice(["all", "jet", "ground", "speed"]))
+        if where == "jet":  # a spreading Gaussian (width w L + s dz) with or without a decay in depth
+            return {"family": family, "where": where, "width_L": float(rng.uniform(0.4, 1.0)),
+                    "spread": float(rng.uniform(0.05, 0.25)), "decay": str(rng.choice(["none", "exp", "inv"])),
+                    "decay_L": float(rng.uniform(1.0, 6.0))}  # fmt: skip
+        if where == "ground":
+            return {"family": family, "where": where, "form": str(rng.choice(["exp", "inv2"])),
+                    "scale_L": float(rng.uniform(0.5, 2.0))}  # fmt: skip
+        if where == "speed":
+            return {"family": family, "where": where, "power": int(rng.choice([1, 2]))}
+        return {"family": family, "where": where}
     raise ValueError(family)
 
 
@@ -205,16 +215,19 @@ def hidden_wrench(desc: dict[str, Any], inputs) -> tuple[np.ndarray, np.ndarray]
         if where == "all":
             h = np.ones(n)
         elif where == "ground":
-            h = np.exp(-np.maximum(np.asarray(inputs.height_above_ground_m), 0.0) / inputs.target.size_m)
+            x = np.maximum(np.asarray(inputs.height_above_ground_m), 0.0) / (desc["scale_L"] * inputs.target.size_m)
+            h = np.exp(-x) if desc["form"] == "exp" else 1.0 / (1.0 + x**2)
         elif where == "speed":
-            h = np.hypot(np.asarray(inputs.velocity_mps)[:, 0], np.asarray(inputs.velocity_mps)[:, 1])
+            h = np.hypot(np.asarray(inputs.velocity_mps)[:, 0], np.asarray(inputs.velocity_mps)[:, 1]) ** desc["power"]
         else:
             h = np.zeros(n)
             for src in inputs.sources:
                 off = np.asarray(src.offsets_m)
                 L = src.vehicle.size_m
                 dz = -off[:, 2]
-                h += np.where(dz > 0, np.exp(-0.5 * (np.hypot(off[:, 0], off[:, 1]) / (0.6 * L + 0.15 * dz)) ** 2), 0.0)
+                width = desc["width_L"] * L + desc["spread"] * np.maximum(dz, 0.0)
+                along = 1.0 if desc["decay"] == "none" else _decay(desc["decay"], dz / (desc["decay_L"] * L))
+                h += np.where(dz > 0, np.exp(-0.5 * (np.hypot(off[:, 0], off[:, 1]) / width) ** 2) * along, 0.0)
         force[:, 2] = -thrust * h
         return force, torque
     raise ValueError(fam)

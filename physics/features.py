@@ -92,6 +92,12 @@ MAX_GAP_S = 1.0
 MIN_HEIGHT_FACTOR = 0.5
 """Heights are clipped to at least this many rotor radii in the ground kernels, -."""
 
+THRUST_KERNELS = ("above_jet_1", "above_jet_flat_1", "above_core_1", "above_core_flat_1", "above_near_1")
+"""The kernels of the sources above a multiplicative thrust loss is searched on (feature ``thrust_kin_<kernel>_N``,
+the own thrust from the motion times the kernel): each shape of the above family with a single source width
+(a jet that decays with depth and one that keeps its momentum flux, the narrow core with and without its decay,
+the exponential near kernel), not one guessed shape (issue 35, stop 53)."""
+
 FEATURE_DOCS: dict[str, str] = {
     "one_1": "constant 1 (a bias)",
     "ground_cb_1": "Cheeseman-Bennett ground kernel (R / 4h)^2",
@@ -116,6 +122,7 @@ FEATURE_DOCS: dict[str, str] = {
     "above_core_1": "core kernel of the sources above, summed",
     "above_core_rel_speed_xy_mps": "core kernel times relative horizontal speed, summed",
     "above_core_flat_1": "core kernel without its decay with depth, summed (a wake that keeps its strength)",
+    "above_jet_flat_1": "jet kernel without its decay with depth, summed (a spreading jet that keeps its momentum flux)",
     "above_near_1": "near kernel of the sources above, summed",
     "above_near_rel_speed_xy_mps": "near kernel times relative horizontal speed, summed",
     "below_near_1": "below kernel of the sources under the target, summed",
@@ -136,8 +143,11 @@ FEATURE_DOCS: dict[str, str] = {
     "side_near_rel_v_z_mps": "side kernel times relative vertical speed, summed",
     "v_z_abs_m2ps2": "own vertical speed times its magnitude, v_z |v_z| (a quadratic drag in climb and descent)",
     "v_z_speed_xy_m2ps2": "own vertical speed times its horizontal speed",
-    "thrust_kin_jet_N": "own thrust from the motion, m (g + dv_z/dt) (v from motion capture; W without a clock), "
-    "times the jet kernels of the sources above, summed",
+    **{
+        f"thrust_kin_{k[6:-2]}_N": "own thrust from the motion, m (g + dv_z/dt) (v from motion capture; W without a "
+        f"clock), times the {k[6:-2].replace('_', ' ')} kernels of the sources above, summed"
+        for k in THRUST_KERNELS
+    },
     "thrust_kin_ground_N": "own thrust from the motion times exp(-h / L_target)",
     "thrust_kin_speed_xy_Nmps": "own thrust from the motion times its horizontal speed",
 }
@@ -370,6 +380,7 @@ def feature_matrix(
         f["base_fz_rel_speed_xy_Nmps"] += bf[:, 2] * rel_xy
         f["base_fz_ground_N"] += bf[:, 2] * ground
         f["above_jet_1"] += k
+        f["above_jet_flat_1"] += k * (1.0 + np.maximum(dz, 0.0) / size)
         f["above_jet_rel_speed_xy_mps"] += k * rel_xy
         f["above_jet_rel_v_z_mps"] += k * v_rel[:, 2]
         f["above_jet_ground_1"] += k * ground
@@ -415,7 +426,8 @@ def feature_matrix(
                 f[_basis_name(where, w, d, radial=rad)] += basis
                 f[_basis_name(where, w, d, "x", rad)] += basis * off[:, 0] / size
                 f[_basis_name(where, w, d, "y", rad)] += basis * off[:, 1] / size
-    f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
+    for k in THRUST_KERNELS:
+        f[f"thrust_kin_{k[6:-2]}_N"] = thrust_kin * f[k]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):
             f["above_stack_1"] += kernels[i] * kernels[j]

@@ -60,6 +60,20 @@ def test_pairwise_features_vanish_far_from_sources_and_separate_above_below() ->
     assert f["base_fz_N"][0] < 0.0  # downwash pushes down (S0-7)
 
 
+def test_thrust_loss_is_searched_on_every_kernel_above_and_a_jet_that_keeps_its_momentum() -> None:
+    from proxplan.physics.features import THRUST_KERNELS
+
+    depths = np.array([0.2, 0.6, 1.2, 2.4])  # m below the source, on its axis
+    f = _features(_inputs(np.column_stack([0 * depths, 0 * depths, -depths])))
+    w = VEH.weight_N  # no clock: the own thrust from the motion is the weight
+    for kernel in THRUST_KERNELS:
+        assert np.allclose(f[f"thrust_kin_{kernel[6:-2]}_N"], w * f[kernel])
+    assert np.all(np.diff(f["above_jet_1"]) < 0.0)  # the jet decays with depth ...
+    assert np.allclose(f["above_jet_flat_1"], 1.0)  # ... the one that keeps its momentum flux does not, on its axis
+    off_axis = _features(_inputs(np.array([[0.3, 0.0, -0.3], [0.3, 0.0, -2.0]])))["above_jet_flat_1"]
+    assert off_axis[1] > off_axis[0]  # it spreads: deeper, a point off the axis is inside it
+
+
 def test_relative_speed_from_source_velocity_or_clock() -> None:
     t = np.arange(0.0, 1.0, 0.01)
     offsets = np.column_stack([0.2 * t - 0.1, 0 * t, -0.4 + 0 * t])  # source slides by at 0.2 m/s
