@@ -1,0 +1,180 @@
+"""What sets the makespan of interchangeable vehicles (``assign_goals: by_type``), in-process (issue 37
+item 5; docs/planner.md, "Stop 53, round 15B").
+
+For each named layout of ``benchmarks/bench_swarm.py`` at N vehicles: the assignment and its bound B
+(s), the synchronised straight step's conflicting pairs (``swarm.straight.straight_step_conflicts``),
+the swarm layer's plan (``swarm_timed``) and, among the vehicles arriving after 1.3 B, how many are in
+a straight-step conflict, fly a route of more than one move (a detour) and leave late. Then the
+detour estimate of the worst conflicting pair: for each pair, the cheaper of the two vehicles' two-leg
+rest-to-rest detours through a corner ``reach_xy_m`` aside at mid-line (jerk-limited rest-to-rest
+time of each leg, ``timing.profile.rest_to_rest``), the largest over the pairs, over B. With
+``--milp K [K ...]``: the fewest conflicting pairs of any assignment whose lines take at most K x B
+(every line of a type to every goal of it within that time a binary variable, one goal each, one
+vehicle per goal, a variable per conflicting pair of candidate lines, exact pair test
+``swarm.sync.segment_conflict``; ``scipy.optimize.milp``, HiGHS, ``--milp-time`` s each; first whether an assignment without any
+conflicting pair exists (all pair variables fixed at 0), then the count: "optimal",
+"infeasible" (no assignment at all), or the best found and HiGHS' proven lower bound when the limit stops it).
+
+    cd /tmp && python /path/to/benchmarks/why_by_type.py --layout grid circle corridor pillar --n 64 --milp 1.0 1.3
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+import numpy as np
+
+
+def _detour_s(length_m: float, aside_m: float, limits) -> float:
+    """Two rest-to-rest legs through a corner ``aside_m`` beside the middle of a line of ``length_m``, s."""
+    from proxplan.planner.swarm.tracks import GRID_DT_S
+    from proxplan.planner.timing.profile import rest_to_rest
+
+    return 2.0 * rest_to_rest(math.hypot(0.5 * length_m, aside_m), limits, GRID_DT_S).duration_s
+
+
+def _fewest_conflicts(problem, bound_s: float, time_limit_s: float) -> str:
+    """The MILP of the module on ``problem`` with lines of at most ``bound_s``: its verdict."""
+    from scipy.optimize import Bounds, LinearConstraint, milp
+    from scipy.sparse import coo_matrix
+    from scipy.spatial import cKDTree
+
+    from proxplan.planner.swarm.problem import GROWTH_M
+    from proxplan.planner.swarm.sync import segment_conflict
+    from proxplan.planner.timing.durations import duration_table
+
+    S, G, ty = problem.starts_m, problem.goals_m, problem.type_index
+    n = problem.n_agents
+    cand = [
+        (i, g)
+        for i in range(n)
+        for g in range(n)
+        if ty[i] == ty[g]
+        and duration_table(problem.limits[i]).duration_s(float(np.linalg.norm(G[g] - S[i]))) <= bound_s + 1e-9
+    ]
+    ci = np.array([c[0] for c in cand])
+    cg = np.array([c[1] for c in cand])
+    p0, p1 = S[ci], G[cg]
+    mid = 0.5 * (p0 + p1)[:, :2]
+    half = 0.5 * np.linalg.norm((p1 - p0)[:, :2], axis=1)
+    reach = problem.reach_xy_m
+    conflicts = []
+    for a, b in cKDTree(mid).query_pairs(2.0 * float(half.max()) + reach, output_type="ndarray").tolist():
+        if ci[a] == ci[b] or cg[a] == cg[b] or np.linalg.norm(mid[a] - mid[b]) > half[a] + half[b] + reach:
+            continue
+        rest = bool(np.allclose(p0[a], p1[a]) and np.allclose(p0[b], p1[b]))
+        ko = problem.keepouts[(int(ty[ci[a]]), int(ty[ci[b]]))]
+        if segment_conflict(ko, p0[b] - p0[a], p1[b] - p1[a], rest=rest, growth_m=GROWTH_M if rest else 0.0):
+            conflicts.append((a, b))
+    m, c = len(cand), len(conflicts)
+    rows, cols, vals, lo, hi = [], [], [], [], []
+    for r, (key, idx) in enumerate([(k, ci) for k in range(n)] + [(k, cg) for k in range(n)]):
+        for j in np.flatnonzero(idx == key):
+            rows.append(r)
+            cols.append(int(j))
+            vals.append(1.0)
+        lo.append(1.0)
+        hi.append(1.0)
+    for q, (a, b) in enumerate(conflicts):  # x_a + x_b - y_q <= 1
+        r = 2 * n + q
+        rows += [r, r, r]
+        cols += [a, b, m + q]
+        vals += [1.0, 1.0, -1.0]
+        lo.append(-np.inf)
+        hi.append(1.0)
+    A = coo_matrix((vals, (rows, cols)), shape=(2 * n + c, m + c)).tocsr()
+    # first: is there an assignment with no conflicting pair at all (every y_q = 0)?
+    free = milp(
+        np.zeros(m + c),
+        constraints=LinearConstraint(A, lo, hi),
+        integrality=np.ones(m + c),
+        bounds=Bounds(0, np.r_[np.ones(m), np.zeros(c)]),
+        options={"time_limit": time_limit_s},
+    )
+    if free.status == 0:
+        return f"{m} candidate lines: an assignment without a conflicting pair exists"
+    none = "none without a conflicting pair (infeasible); " if free.status == 2 else ""
+    res = milp(
+        np.r_[np.zeros(m), np.ones(c)],
+        constraints=LinearConstraint(A, lo, hi),
+        integrality=np.ones(m + c),
+        bounds=Bounds(0, 1),
+        options={"time_limit": time_limit_s},
+    )
+    if res.status == 2:
+        return f"{m} candidate lines: no assignment at all (infeasible)"
+    if res.x is None:
+        return f"{m} candidate lines: {none}none found in {time_limit_s:g} s"
+    got = int(round(float(res.x[m:].sum())))
+    bound = getattr(res, "mip_dual_bound", None)  # HiGHS' proven lower bound on the count
+    least = max(math.ceil(float(bound) - 1e-6) if bound is not None else 0, 1 if free.status == 2 else 0)
+    proven = "" if res.status == 0 else f" (at least {least}, proven)"
+    verdict = f"{'optimal' if res.status == 0 else 'best found'} {got}{proven}"
+    return f"{m} candidate lines, {c} conflicting pairs of them: {none}{verdict}"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--layout", nargs="+", default=["grid", "circle", "corridor", "pillar"])
+    ap.add_argument("--n", type=int, default=64)
+    ap.add_argument("--milp", type=float, nargs="*", default=[], help="line-time factors K (x B) for the MILP")
+    ap.add_argument("--milp-time", type=float, default=60.0, help="HiGHS time limit per MILP, s")
+    args = ap.parse_args()
+
+    from proxplan.planfile import scenario_from_dict
+    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.swarm.goals import apply_assignment
+    from proxplan.planner.swarm.options import SwarmOptions
+    from proxplan.planner.swarm.plan import swarm_timed
+    from proxplan.planner.swarm.problem import swarm_problem
+    from proxplan.planner.swarm.straight import straight_step_conflicts
+
+    for layout in args.layout:
+        doc = LAYOUTS[layout](args.n)
+        doc["assign_goals"] = "by_type"
+        scenario, record = apply_assignment(scenario_from_dict(doc))
+        assert record is not None
+        bound = float(record["lower_bound_s"])
+        problem = swarm_problem(scenario)
+        conflicts = straight_step_conflicts(problem)
+        in_conflict = {a for pair in conflicts for a in pair}
+        t0 = time.process_time()
+        # by type the pipeline leaves reserve_starts off (SwarmOptions); called directly, None means on
+        paths, info = swarm_timed(scenario, SwarmOptions(reserve_starts=False))
+        cpu = time.process_time() - t0
+        late = []
+        for a, name in enumerate(problem.names):
+            path = paths[name]
+            if path.duration_s > 1.3 * bound + 1e-9:
+                moves = sum(1 for s in path.segments if s is not None)
+                left = float(path.knot_t_s[1]) if path.segments and path.segments[0] is None else 0.0
+                late.append((a in in_conflict, moves > 1, left > 0.05))
+        length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+        worst = max(
+            (
+                min(_detour_s(float(length[k]), problem.reach_xy_m, problem.limits[k]) for k in (i, j))
+                for i, j in conflicts
+                if i != j
+            ),
+            default=0.0,
+        )
+        print(
+            f"{layout}-{args.n} by_type: B {bound:.3f} s; {len(conflicts)} straight-step conflicts "
+            f"({sum(1 for i, j in conflicts if i == j)} lines through an obstacle); plan ({info.stage}) "
+            f"{info.makespan_s:.2f} s = {info.makespan_s / bound:.2f} B, {cpu:.1f} s CPU; after 1.3 B: {len(late)}, "
+            f"in a conflict {sum(x[0] for x in late)}, detoured {sum(x[1] for x in late)}, left late "
+            f"{sum(x[2] for x in late)}; worst pair's cheaper detour {worst / bound:.2f} B",
+            flush=True,
+        )
+        for k in args.milp:
+            t1 = time.process_time()
+            verdict = _fewest_conflicts(problem, k * bound, args.milp_time)
+            print(f"    fewest conflicting pairs, lines <= {k:g} B: {verdict} ({time.process_time() - t1:.1f} s CPU)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
