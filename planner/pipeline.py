@@ -142,7 +142,7 @@ def plan_scenario(
         run = replace(run, swarm=replace(run.swarm, reserve_starts=assignment is None))
     swarm = _swarm_stage(scenario, run) if _uses_swarm(run.method, scenario) else None
     plan = _sampling_stage(scenario, run, swarm)
-    plan = refine_stage(
+    plan, swarm_info = refine_stage(
         scenario,
         plan,
         method=run.method,
@@ -151,8 +151,10 @@ def plan_scenario(
         progress=run.progress,
         swarm_ran=swarm is not None,
         swarm_info=None if swarm is None else swarm.info,
+        swarm_options=run.swarm,
+        deadline=run.deadline,
     )
-    _record(scenario, plan, run, swarm, assignment)
+    _record(scenario, plan, run, swarm_info, assignment)
     if progress:
         progress("done", 1.0)
     return plan
@@ -383,12 +385,13 @@ def _shorter(scenario: Scenario, run: _Run, swarm_plan: Plan) -> Plan:
 
 
 # -- stage 5: the record ------------------------------------------------------------------------
-def _record(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome | None, assignment: dict | None) -> None:
-    """The stages' typed records into ``plan.metrics`` (one place), then the DESIGN metrics."""
+def _record(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmInfo | None, assignment: dict | None) -> None:
+    """The stages' typed records into ``plan.metrics`` (one place; ``swarm``: what the swarm layer
+    did for the swarm plan returned), then the DESIGN metrics."""
     plan.metrics["seed"] = run.seed
-    if swarm is not None and swarm.info is not None:
-        plan.metrics["swarm"] = swarm.info.to_metrics()
-        plan.metrics["lower_bound_s"] = swarm.info.lower_bound_s
+    if swarm is not None:
+        plan.metrics["swarm"] = swarm.to_metrics()
+        plan.metrics["lower_bound_s"] = swarm.lower_bound_s
     if assignment is not None:
         plan.metrics["assignment"] = assignment
         plan.metrics["assignment_lower_bound_s"] = assignment["lower_bound_s"]
