@@ -10,17 +10,8 @@ import pytest
 
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import corridor, grid_reshuffle
-from proxplan.planner.swarm import (
-    SyncTable,
-    build_lattice,
-    segment_conflict,
-    swarm_problem,
-)
+from proxplan.planner.swarm import SyncTable, build_lattice, segment_conflict, swarm_problem
 from proxplan.planner.swarm.problem import GROWTH_M
-
-
-def _scenario(doc: dict):
-    return scenario_from_dict(doc, label="test scenario")
 
 
 def _brute(ko, d0, d1, rest: bool, grow_m: float = 0.0) -> bool:
@@ -52,7 +43,7 @@ def test_synchronous_table_equals_a_brute_force_relative_motion_check():
             "b": {"type": "small-quad", "start": [0.6, 0.6, 1.5], "goal": [0.0, 0.6, 1.0]},
         },
     }
-    problem = swarm_problem(_scenario(doc))
+    problem = swarm_problem(scenario_from_dict(doc, label="test scenario"))
     lat = build_lattice(problem, max_run=2)
     table = SyncTable(problem.keepouts, problem.type_index, lat.pos_mm)
     centre = int(lat.start_v[0])
@@ -86,7 +77,7 @@ def test_a_relative_move_the_horizontal_reach_rules_out_never_conflicts():
     rest, many of them grazing the reach (d0 and d1 drawn around it), whole millimetres as in the table."""
     from proxplan.planner.swarm.sync import far_apart
 
-    problem = swarm_problem(_scenario(corridor(6)))
+    problem = swarm_problem(scenario_from_dict(corridor(6), label="test scenario"))
     rng = np.random.default_rng(0)
     ruled_out = conflicts = 0
     for ko in problem.keepouts.values():
@@ -121,7 +112,7 @@ def test_following_is_allowed_and_a_head_on_swap_is_not():
             "b": {"type": "crazyflie-2.1", "start": [-0.9, 0.0, 1.0], "goal": [0.0, 0.0, 1.0]},
         },
     }
-    problem = swarm_problem(_scenario(doc))
+    problem = swarm_problem(scenario_from_dict(doc, label="test scenario"))
     lat = build_lattice(problem, max_run=3)
     table = SyncTable(problem.keepouts, problem.type_index, lat.pos_mm)
     a0, a1 = int(lat.start_v[0]), int(lat.goal_v[0])
@@ -132,8 +123,8 @@ def test_following_is_allowed_and_a_head_on_swap_is_not():
 
 def test_predicted_deflections_grow_the_keepout_moving_and_at_rest():
     doc = grid_reshuffle(4, types=["crazyflie-2.1"])
-    plain = swarm_problem(_scenario(doc), tracking_bound=False)
-    sc = _scenario(doc)
+    plain = swarm_problem(scenario_from_dict(doc, label="test scenario"), tracking_bound=False)
+    sc = scenario_from_dict(doc, label="test scenario")
     grown = swarm_problem(sc, deflection_m={n: 0.015 for n in sc.vehicles}, tracking_bound=False)  # a pair: 3 cm
     ko, kg = plain.keepouts[(0, 0)], grown.keepouts[(0, 0)]
     for rest in (True, False):

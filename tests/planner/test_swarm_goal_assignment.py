@@ -9,9 +9,7 @@ import numpy as np
 import pytest
 
 from proxplan.physics import KinematicLimits
-from proxplan.planner.swarm import (
-    assign_group,
-)
+from proxplan.planner.swarm import assign_group
 from proxplan.planner.timing import min_segment_duration_s
 
 

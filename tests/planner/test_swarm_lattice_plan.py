@@ -9,19 +9,10 @@ import pytest
 
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import grid_reshuffle
-from proxplan.planner.swarm import (
-    Lacam,
-    SyncTable,
-    build_lattice,
-    swarm_problem,
-)
+from proxplan.planner.swarm import Lacam, SyncTable, build_lattice, swarm_problem
 from proxplan.planner.swarm.lockstep import lockstep_tracks
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
-
-
-def _scenario(doc: dict):
-    return scenario_from_dict(doc, label="test scenario")
 
 
 def test_lockstep_conversion_of_the_coordination_plan_is_conflict_free():
@@ -29,7 +20,7 @@ def test_lockstep_conversion_of_the_coordination_plan_is_conflict_free():
     its tube included: the keep-outs grow by the bound on each vehicle's predicted tracking error
     (swarm.tracking_bound), as the verifier grows each tube by its prediction."""
     doc = grid_reshuffle(9, seed=2)
-    sc = _scenario(doc)
+    sc = scenario_from_dict(doc, label="test scenario")
     problem = swarm_problem(sc)
     lat = build_lattice(problem)
     result = Lacam(lat, SyncTable(problem.keepouts, problem.type_index, lat.pos_mm)).solve(max_nodes=2000)
@@ -48,7 +39,7 @@ def test_pibt_without_a_constraint_always_proposes_a_valid_step(n):
     added one configuration in 4000 proposals.)"""
     from proxplan.planner.swarm.lacam import _Constraint, _Node
 
-    problem = swarm_problem(_scenario(grid_reshuffle(n, seed=1)))
+    problem = swarm_problem(scenario_from_dict(grid_reshuffle(n, seed=1), label="test scenario"))
     lat = build_lattice(problem)
     table = SyncTable(problem.keepouts, problem.type_index, lat.pos_mm)
     for seed in range(20):

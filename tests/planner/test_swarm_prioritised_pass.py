@@ -9,13 +9,7 @@ import pytest
 
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import grid_reshuffle
-from proxplan.planner.swarm import (
-    swarm_problem,
-)
-
-
-def _scenario(doc: dict):
-    return scenario_from_dict(doc, label="test scenario")
+from proxplan.planner.swarm import swarm_problem
 
 
 def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in_turn():
@@ -35,7 +29,7 @@ def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in
             vehicles[f"{'w' if shift < 0 else 'e'}{name}"] = {**v, "start": start, "goal": goal}
     doc = {**west, "name": "two-groups", "vehicles": vehicles}
     doc["workspace"] = {"min": [-9.0, -3.0, 0.0], "max": [9.0, 3.0, 3.0]}
-    problem = swarm_problem(_scenario(doc))
+    problem = swarm_problem(scenario_from_dict(doc, label="test scenario"))
     groups = interaction_groups(problem)
     assert [len(g) for g in groups] == [6, 6]
     options = PriorityOptions(max_repairs=12)
@@ -122,7 +116,7 @@ def test_a_chain_is_flown_through_its_corner_when_nothing_is_in_the_way():
     doc["obstacles"] = [{"min": [-0.2, -2.0, 0.0], "max": [0.2, -0.7, 3.0]}]  # no straight line from start to goal
     doc["vehicles"]["v000"].update(start=[-2.0, -1.0, 1.5], goal=[2.0, -0.6, 1.5])
     doc["vehicles"]["v001"].update(start=[-2.5, 2.5, 1.5], goal=[-2.5, 2.0, 1.5])
-    problem = swarm_problem(_scenario(doc))
+    problem = swarm_problem(scenario_from_dict(doc, label="test scenario"))
     W = np.array([[-2.0, -1.0, 1.5], [0.0, 0.0, 1.5], [2.0, -0.6, 1.5]])  # a 43-degree corner above the box
     empty = Occupancy(problem, [], 800)
     through = time_chain(empty, 0, W, through=True)
@@ -149,7 +143,7 @@ def test_a_chain_is_flown_through_its_corner_when_nothing_is_in_the_way():
 def test_a_vehicle_not_planned_yet_is_predicted_to_leave_on_its_straight_line_and_then_vanish():
     from proxplan.planner.swarm.priority import predicted_track
 
-    problem = swarm_problem(_scenario(grid_reshuffle(9, seed=4)))
+    problem = swarm_problem(scenario_from_dict(grid_reshuffle(9, seed=4), label="test scenario"))
     a = int(np.argmax(np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)))
     held = predicted_track(problem, a, hold_s=1.0)
     assert held.vanishes

@@ -11,20 +11,13 @@ import pytest
 
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import circle_swap, grid_reshuffle
-from proxplan.planner.swarm import (
-    SwarmOptions,
-    swarm_timed,
-)
+from proxplan.planner.swarm import SwarmOptions, swarm_timed
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
 
 
-def _scenario(doc: dict):
-    return scenario_from_dict(doc, label="test scenario")
-
-
 def _plan(doc: dict, **options):
-    sc = _scenario(doc)
+    sc = scenario_from_dict(doc, label="test scenario")
     timed, info = swarm_timed(sc, SwarmOptions(**options))
     return sc, assemble_plan(sc, timed, method="swarm", notes=[]), info
 
@@ -35,7 +28,7 @@ def test_swarm_plans_pass_the_verifier_and_are_reproducible(layout):
     jet response, issue 36; the swarm layer's first plan keeps the measured tubes only)."""
     from proxplan.planner import plan_scenario
 
-    sc = _scenario(layout(8))
+    sc = scenario_from_dict(layout(8), label="test scenario")
     plan = plan_scenario(sc, method="swarm", seed=0)
     assert plan.verified and verify_plan(plan, sc) == []
     assert plan.metrics["makespan_s"] >= plan.metrics["lower_bound_s"] - 1e-9
@@ -100,7 +93,7 @@ def test_a_lattice_plan_in_lockstep_gives_way_to_a_shorter_verified_sampling_pla
     from proxplan.planner import plan_scenario
     from proxplan.planner.timing import moving_end_s
 
-    scenario = _scenario(grid_reshuffle(16))
+    scenario = scenario_from_dict(grid_reshuffle(16), label="test scenario")
     # straight to the lattice coordination, as when prioritised planning gives up (the stacked plan
     # beside it left out: tests/planner/test_swarm_stacked.py)
     plan = plan_scenario(scenario, method="swarm", seed=0, swarm_options=SwarmOptions(prioritized=False, levels=False))
@@ -124,7 +117,7 @@ def test_the_sampling_alternative_stops_once_it_cannot_be_shorter_and_the_swarm_
     from proxplan.planner.sampling import SamplingOptions, sampling_plan
     from proxplan.planner.timing import moving_end_s
 
-    scenario = _scenario(circle_swap(16))
+    scenario = scenario_from_dict(circle_swap(16), label="test scenario")
     plan = plan_scenario(scenario, method="swarm", seed=0)
     assert plan.method == "swarm" and plan.metrics["swarm"]["stage"] == "prioritised"
     mine = moving_end_s(plan)
@@ -156,7 +149,9 @@ def test_the_sampling_planner_after_the_swarm_layer_gave_up_runs_on_a_count_budg
     from proxplan.planner.pipeline import ALTERNATIVE_RRT_ITERATIONS, ALTERNATIVE_SEARCHES_PER_VEHICLE, _counted
     from proxplan.planner.sampling import SamplingOptions
 
-    scenario = _scenario(circle_swap(4))  # every straight line crosses the centre: no straight plan
+    scenario = scenario_from_dict(
+        circle_swap(4), label="test scenario"
+    )  # every straight line crosses the centre: no straight plan
     plan = plan_scenario(scenario, method="swarm", seed=0, swarm_options=SwarmOptions(prioritized=False, max_nodes=1))
     assert plan.method == "sampling" and plan.verified and verify_plan(plan, scenario) == []
     cap = ALTERNATIVE_SEARCHES_PER_VEHICLE * 4
