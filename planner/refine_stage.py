@@ -115,10 +115,11 @@ def _refine_swarm(
     swarm_options: SwarmOptions,
     deadline: float | None,
 ) -> tuple[Plan, SwarmInfo | None]:
-    """``optimized`` for swarms: the swarm layer's other plans (:func:`_swarm_alternatives`), then joint moves (:func:`proxplan.planner.optimizer.joint_moves`): the
-    vehicles that set the makespan, each with the vehicles in its way, optimised together with
-    CasADi, all the others fixed as moving obstacles, within count budgets (``--time-budget`` does
-    not apply); the verified shorter plan kept, else a note with the gap to the lower bound."""
+    """``optimized`` for swarms: the swarm layer's other plans (:func:`_swarm_alternatives`), then
+    joint moves (:func:`proxplan.planner.optimizer.joint_moves`): the vehicles that set the makespan,
+    each with the vehicles in its way, optimised together with CasADi, all the others fixed as moving
+    obstacles, within count budgets (``--time-budget`` does not apply); the verified shorter plan
+    kept, else a note with the gap to the lower bound."""
     from proxplan.planner.optimizer import default_wrench_provider, joint_moves
     from proxplan.planner.optimizer.warm_problem import table_extent
 
