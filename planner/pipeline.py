@@ -10,8 +10,8 @@ outputs (:func:`plan_scenario`).
    the swarm layer is not used or gave up (then within a count budget, :func:`_counted`: it says
    "not found" once spent); beside the swarm layer's prioritised or lattice plan it runs as well,
    within the same budget, and the shorter verified plan is kept.
-4. *Refine* (:func:`_refine_stage`): ``optimized`` outside the swarm layer refines with CasADi
-   (:func:`proxplan.planner.optimizer.refine_plan`).
+4. *Refine* (:func:`proxplan.planner.refine_stage.refine_stage`): ``optimized`` refines with CasADi
+   (:func:`proxplan.planner.optimizer.refine_plan`; joint moves for swarms).
 5. *Record* (:func:`_record`): the typed records of the stages into ``plan.metrics``, and the DESIGN
    metrics (:func:`proxplan.planner.metrics.finish_metrics`).
 
@@ -43,6 +43,7 @@ from proxplan.planner.checks.precheck import (
 )
 from proxplan.planner.errors import InfeasibleError, PlanNotFound
 from proxplan.planner.metrics import DEFLECTION_DT_S, deflection_allowance, finish_metrics
+from proxplan.planner.refine_stage import refine_stage
 from proxplan.planner.sampling.prioritized import PLAN_MARGIN_M, sampling_plan
 from proxplan.planner.sampling.spec import SamplingOptions
 from proxplan.planner.swarm import SWARM_MIN_VEHICLES, SwarmInfo, SwarmOptions, swarm_applicable, swarm_timed
@@ -75,9 +76,6 @@ SAMPLING_ALTERNATIVE_MAX_VEHICLES = 32
 ALTERNATIVE_SEARCHES_PER_VEHICLE = 2
 ALTERNATIVE_RRT_ITERATIONS = 10000  # RRT iterations per solve (the waiting search finds most paths)
 RETRY_SEED_OFFSET = 7919  # the verification policy's last attempt plans with seed + this (a prime)
-# ``optimized`` for swarms: a plan within OPTIMAL_WITHIN of the lower bound is not re-optimised
-# (the must-show's 5 %); the others get joint moves (optimizer.joint_moves, count budgets)
-OPTIMAL_WITHIN = 0.05
 
 __all__ = ["DT_S", "METHODS", "PLAN_MARGIN_M", "Method", "SwarmOutcome", "deflection_allowance", "plan_scenario"]
 
@@ -144,8 +142,19 @@ def plan_scenario(
         run = replace(run, swarm=replace(run.swarm, reserve_starts=assignment is None))
     swarm = _swarm_stage(scenario, run) if _uses_swarm(run.method, scenario) else None
     plan = _sampling_stage(scenario, run, swarm)
-    plan = _refine_stage(scenario, plan, run, swarm)
-    _record(scenario, plan, run, swarm, assignment)
+    plan, swarm_info = refine_stage(
+        scenario,
+        plan,
+        method=run.method,
+        seed=run.seed,
+        time_budget_s=run.time_budget_s,
+        progress=run.progress,
+        swarm_ran=swarm is not None,
+        swarm_info=None if swarm is None else swarm.info,
+        swarm_options=run.swarm,
+        deadline=run.deadline,
+    )
+    _record(scenario, plan, run, swarm_info, assignment)
     if progress:
         progress("done", 1.0)
     return plan
@@ -375,81 +384,14 @@ def _shorter(scenario: Scenario, run: _Run, swarm_plan: Plan) -> Plan:
     return other
 
 
-# -- stage 4: refinement ------------------------------------------------------------------------
-def _refine_stage(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome | None) -> Plan:
-    if run.method != "optimized":
-        return plan
-    if swarm is not None:
-        return _refine_swarm(scenario, plan, run, swarm)
-    from proxplan.planner.optimizer import RefineOptions, refine_plan
-
-    options = RefineOptions() if run.time_budget_s is None else RefineOptions(time_budget_s=run.time_budget_s)
-    try:
-        result = refine_plan(scenario, plan, seed=run.seed, progress=run.progress, options=options)
-    except Exception as err:  # noqa: BLE001 - the optimiser must never lose the sampling plan
-        first = str(err).splitlines()[0] if str(err) else ""
-        plan.notes.append(f"optimized: refinement raised {type(err).__name__}: {first}; this is the sampling result")
-        plan.method = "sampling (optimizer failed)"
-        return plan
-    if not result.success:
-        plan.notes.append(f"optimized: refinement failed ({result.message}); this is the sampling result")
-        plan.method = "sampling (optimizer fell back)"
-        plan.solver = result.stats  # what IPOPT reported for the attempt that failed
-        return plan
-    refined = result.plan
-    refined.method = "optimized"
-    refined.notes = list(dict.fromkeys(list(plan.notes) + list(refined.notes or [])))  # keep order, once each
-    for key in ("priority_order", "sampling_attempts"):
-        refined.metrics.setdefault(key, plan.metrics.get(key))
-    refined.metrics["optimizer_solve_time_s"] = result.solve_time_s
-    refined.metrics["optimizer_iterations"] = result.iterations
-    refined.solver = result.stats
-    refined.scenario_file = plan.scenario_file
-    refined.scenario_spec = plan.scenario_spec
-    refined.verified = False  # refine_plan verified it, but against its own copy: the CLI checks again
-    return refined
-
-
-def _refine_swarm(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome) -> Plan:
-    """``optimized`` for swarms: joint moves (:func:`proxplan.planner.optimizer.joint_moves`): the
-    vehicles that set the makespan, each with the vehicles in its way, optimised together with
-    CasADi, all the others fixed as moving obstacles, within count budgets (``--time-budget`` does
-    not apply); the verified shorter plan kept, else a note with the gap to the lower bound."""
-    from proxplan.planner.optimizer import default_wrench_provider, joint_moves
-    from proxplan.planner.optimizer.warm_problem import table_extent
-
-    makespan = moving_end_s(plan)
-    bound = float(plan.metrics.get("assignment_lower_bound_s") or (swarm.info.lower_bound_s if swarm.info else 0.0))
-    if bound > 0.0 and makespan <= (1.0 + OPTIMAL_WITHIN) * bound:
-        plan.notes.append(
-            f"optimized: the swarm plan ({makespan:.2f} s) is within {100 * OPTIMAL_WITHIN:g} % of the lower bound "
-            f"({bound:.2f} s); not re-optimised"
-        )
-        return plan
-    if run.time_budget_s is not None:
-        plan.notes.append("optimized: --time-budget does not apply to swarms (the joint moves have count budgets)")
-    result = joint_moves(
-        scenario, plan, wrench_provider=default_wrench_provider, extent_provider=table_extent, progress=run.progress
-    )
-    gap = f"{makespan / bound:.2f}x the lower bound {bound:.2f} s" if bound > 0.0 else "no lower bound"
-    log = f" [{'; '.join(result.log)}]" if result.log else ""
-    if not result.improved:
-        plan.notes.append(f"optimized: {result.message} ({gap}){log}")
-        return plan
-    better = result.plan
-    better.method = "optimized"
-    better.verified = True  # joint_moves keeps only plans the verifier passed, this one included
-    better.notes = list(plan.notes) + [f"optimized: {result.message}{log}"]
-    return better
-
-
 # -- stage 5: the record ------------------------------------------------------------------------
-def _record(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmOutcome | None, assignment: dict | None) -> None:
-    """The stages' typed records into ``plan.metrics`` (one place), then the DESIGN metrics."""
+def _record(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmInfo | None, assignment: dict | None) -> None:
+    """The stages' typed records into ``plan.metrics`` (one place; ``swarm``: what the swarm layer
+    did for the swarm plan returned), then the DESIGN metrics."""
     plan.metrics["seed"] = run.seed
-    if swarm is not None and swarm.info is not None:
-        plan.metrics["swarm"] = swarm.info.to_metrics()
-        plan.metrics["lower_bound_s"] = swarm.info.lower_bound_s
+    if swarm is not None:
+        plan.metrics["swarm"] = swarm.to_metrics()
+        plan.metrics["lower_bound_s"] = swarm.lower_bound_s
     if assignment is not None:
         plan.metrics["assignment"] = assignment
         plan.metrics["assignment_lower_bound_s"] = assignment["lower_bound_s"]

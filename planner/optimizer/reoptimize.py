@@ -32,6 +32,7 @@ from proxplan.planfile import Plan, VehicleTrajectory
 from proxplan.planner.optimizer.ocp import build_and_solve, sample_solution
 from proxplan.planner.optimizer.ocp_problem import OcpAgent, OcpProblem, OcpSolution, OcpWeights, scenario_fields
 from proxplan.planner.optimizer.swarm_field import CHECK_DT_S, SwarmField, kinematic_conflict, static_conflict
+from proxplan.planner.optimizer.warm_problem import task_agent
 from proxplan.planner.timing.durations import min_segment_duration_s
 from proxplan.planner.timing.plan_grid import vehicle_arrival_s as arrival_s
 
@@ -155,26 +156,10 @@ class _Reoptimizer:
         nodes = np.linspace(0.0, T, n + 1)
         tq = np.concatenate([nodes, 0.5 * (nodes[:-1] + nodes[1:])])
         agents, wqs = [], []
-        for name in movers:
-            task = sc.vehicles[name]
+        for name in movers:  # movers have goals and no docks (reoptimize_plan, joint_moves): no dock fields
             w = (warm or {}).get(name) or retimed_path(self.traj[name], nodes)
             wqs.append(np.vstack([w[0], 0.5 * (w[0][:-1] + w[0][1:])]))
-            agents.append(
-                OcpAgent(
-                    name=name,
-                    vehicle=task.vehicle,
-                    moving=True,
-                    start_m=np.asarray(task.start_m, float),
-                    goal_m=np.asarray(task.goal_m, float),
-                    max_speed_mps=task.max_speed_mps,
-                    max_accel_mps2=task.max_accel_mps2,
-                    max_jerk_mps3=task.max_jerk_mps3,
-                    body_radius_m=float(task.body_radius_m),
-                    warm_position_m=w[0],
-                    warm_velocity_mps=w[1],
-                    warm_acceleration_mps2=w[2],
-                )
-            )
+            agents.append(task_agent(sc, name, w, moving=True))
         wrench, extents = {}, {}
 
         def pair(a: str, b: str) -> None:

@@ -94,6 +94,41 @@ def n_intervals(makespan_s: float, n_moving: int, options: RefineOptions) -> int
     return int(np.clip(math.ceil(makespan_s / options.interval_s), options.min_intervals, cap))
 
 
+def task_agent(scenario, name: str, warm: tuple, *, moving: bool) -> OcpAgent:
+    """The :class:`OcpAgent` of ``scenario``'s vehicle ``name``: its task's start, goal, limits and
+    body, the warm start ``warm`` = (p, v, a) on the n+1 nodes (each None for a vehicle that does not
+    move), and for a docking vehicle the dock fields: its partner and offset, the length of the
+    straight final approach (approach point to dock point, from ``scenario.dock_geometry``) and the
+    reach round the dock point within which that approach is axis-bound (the approach's length plus
+    the verifier's goal tolerance, less 2 cm). A vehicle without a dock gets none (the defaults)."""
+    task = scenario.vehicles[name]
+    reach_m = approach_m = 0.0
+    if task.dock_with is not None:
+        from proxplan.verify import GOAL_TOLERANCE_M
+
+        approach, dock = scenario.dock_geometry(name)
+        approach_m = float(np.linalg.norm(approach - dock))
+        reach_m = approach_m + GOAL_TOLERANCE_M - 0.02
+    return OcpAgent(
+        name=name,
+        vehicle=task.vehicle,
+        moving=moving,
+        start_m=np.asarray(task.start_m, float),
+        goal_m=None if task.goal_m is None else np.asarray(task.goal_m, float),
+        dock_with=task.dock_with,
+        dock_offset_m=None if task.dock_offset_m is None else np.asarray(task.dock_offset_m, float),
+        dock_reach_m=reach_m,
+        dock_approach_m=approach_m,
+        max_speed_mps=task.max_speed_mps,
+        max_accel_mps2=task.max_accel_mps2,
+        max_jerk_mps3=task.max_jerk_mps3,
+        body_radius_m=float(task.body_radius_m),
+        warm_position_m=warm[0],
+        warm_velocity_mps=warm[1],
+        warm_acceleration_mps2=warm[2],
+    )
+
+
 def build_problem(
     scenario, initial_plan, *, options: RefineOptions = RefineOptions(), wrench_provider: WrenchProvider | None = None
 ) -> OcpProblem:
@@ -116,36 +151,13 @@ def build_problem(
     stretch = 1.0 / OcpProblem.kinematic_margin
     agents = []
     for name, task in scenario.vehicles.items():
-        moving = not task.hover
-        warm = initial_plan.vehicles[name].sample(t_nodes) if moving else (None, None, None)
-        radius = float(task.body_radius_m)
-        reach = 0.0
-        if task.dock_with is not None:
-            from proxplan.verify import GOAL_TOLERANCE_M
-
-            approach, dock = scenario.dock_geometry(name)
-            approach_m = float(np.linalg.norm(approach - dock))
-            reach = approach_m + GOAL_TOLERANCE_M - 0.02
-        agents.append(
-            OcpAgent(
-                name=name,
-                vehicle=task.vehicle,
-                moving=moving,
-                start_m=np.asarray(task.start_m, float),
-                goal_m=None if task.goal_m is None else np.asarray(task.goal_m, float),
-                dock_with=task.dock_with,
-                dock_offset_m=None if task.dock_offset_m is None else np.asarray(task.dock_offset_m, float),
-                dock_reach_m=reach,
-                dock_approach_m=approach_m if task.dock_with is not None else 0.0,
-                max_speed_mps=task.max_speed_mps,
-                max_accel_mps2=task.max_accel_mps2,
-                max_jerk_mps3=task.max_jerk_mps3,
-                body_radius_m=radius,
-                warm_position_m=warm[0],
-                warm_velocity_mps=None if warm[1] is None else warm[1] / stretch,
-                warm_acceleration_mps2=None if warm[2] is None else warm[2] / stretch**2,
-            )
+        warm = initial_plan.vehicles[name].sample(t_nodes) if not task.hover else (None, None, None)
+        slowed = (
+            warm[0],
+            None if warm[1] is None else warm[1] / stretch,
+            None if warm[2] is None else warm[2] / stretch**2,
         )
+        agents.append(task_agent(scenario, name, slowed, moving=not task.hover))
     cache: dict[tuple[int, int], object] = {}
     extents: dict[tuple[str, str], Callable] = {}
     wrench = {}

@@ -1,7 +1,7 @@
 """Groups of vehicles that never interact, planned apart (and fanned out on Dask).
 
 Prioritised planning keeps every vehicle within its *region*: the horizontal box its wavefront
-routes stay in (:func:`proxplan.planner.swarm.wave.route_box`: start and goal grown by a margin, the
+routes stay in (:func:`proxplan.planner.swarm.wave_grid.route_box`: start and goal grown by a margin, the
 whole free box where a wall stands between them; the moves between their waypoints stay in its
 hull) grown by the corner cut of a flight
 through waypoints (:data:`proxplan.planner.timing.CORNER_DEVIATION_M`). Two vehicles whose regions
@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import connected_components
 
 from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, PriorityResult, prioritized_tracks
 from proxplan.planner.swarm.problem import SwarmProblem
-from proxplan.planner.swarm.wave import route_box
+from proxplan.planner.swarm.wave_grid import route_box
 from proxplan.planner.timing import CORNER_DEVIATION_M
 
 FANOUT_MIN_VEHICLES = 32  # a group is worth a Dask task from this size (a worker process costs seconds to start)

@@ -97,12 +97,21 @@ def swarm_timed(
     t0 = time.perf_counter()
     problem = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
     lower_bound = lower_bound_makespan_s(scenario)
-    from proxplan.costmaps import effects_key  # as swarm_problem does
 
-    fx = effects_key(getattr(scenario, "effects", ()))
-    stacking = stacking_keepouts(problem, scenario.limits, scenario.field_form, fx) if opts.levels else None
+    def stacking() -> dict:  # built only where the stacked plan is tried (prioritised planning gave up)
+        from proxplan.costmaps import effects_key  # as swarm_problem does
+
+        fx = effects_key(getattr(scenario, "effects", ()))
+        return stacking_keepouts(problem, scenario.limits, scenario.field_form, fx)
+
     planned = _plan(
-        problem, lower_bound, opts, scenario.assign_goals is not None, stacking, progress=progress, deadline=deadline
+        problem,
+        lower_bound,
+        opts,
+        scenario.assign_goals is not None,
+        stacking if opts.levels else None,
+        progress=progress,
+        deadline=deadline,
     )
     found, by_agent, extra = planned.stage, planned.tracks, planned.extra
     # single-vehicle searches given back by the memo (swarm.memo) and searched, over every stage
@@ -142,14 +151,15 @@ def _plan(
     lower_bound: float,
     opts: SwarmOptions,
     assigned: bool,
-    stacking: dict | None,
+    stacking: Callable[[], dict] | None,
     *,
     progress,
     deadline,
 ) -> _Planned:
     """The stages of the module on ``problem`` (``lower_bound``: its straight-line bound, s;
-    ``assigned``: the goals were assigned; ``stacking``: the keep-outs the levels of the stacked plan are
-    stacked on, :func:`~proxplan.planner.swarm.levels.stacking_keepouts`)."""
+    ``assigned``: the goals were assigned; ``stacking``: gives the keep-outs the levels of the stacked plan are
+    stacked on, :func:`~proxplan.planner.swarm.levels.stacking_keepouts`, called only where that plan is
+    tried; None: no stacked plan)."""
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
     found = _straight_stage(problem) if not conflicts else None
@@ -164,7 +174,7 @@ def _plan(
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
         found = _lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
         stacked = (
-            _stacked_stage(problem, opts, assigned, stacking, extra, progress=progress, deadline=deadline)
+            _stacked_stage(problem, opts, assigned, stacking(), extra, progress=progress, deadline=deadline)
             if opts.levels and stacking is not None
             else None
         )

@@ -144,7 +144,7 @@ def test_static_answers_given_back_equal_the_recomputed_ones():
     """corridor-64 (a wall with a gap): the wavefront's static grid and the segment check given back
     by ``static_memo`` equal those computed afresh, for every vehicle's route box, and the wall
     really blocks some cells and some straight lines."""
-    from proxplan.planner.swarm.wave import CELL_M, margin_box, route_box, static_grid
+    from proxplan.planner.swarm.wave_grid import CELL_M, margin_box, route_box, static_grid
 
     _, problem = _problem("corridor", 64)
     blocked_lines = 0
@@ -169,7 +169,7 @@ def test_static_answers_given_back_equal_the_recomputed_ones():
 def test_static_grid_equals_the_point_wise_test():
     """The static grid tested per axis equals ``static_free`` at every point, on corridor-64's whole
     free box (two wall boxes) at two heights."""
-    from proxplan.planner.swarm.wave import CELL_M, static_grid
+    from proxplan.planner.swarm.wave_grid import CELL_M, static_grid
 
     _, problem = _problem("corridor", 64)
     lo, hi = problem.lo_m, problem.hi_m

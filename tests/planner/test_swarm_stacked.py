@@ -111,7 +111,7 @@ def test_the_stacked_plan_is_kept_only_when_shorter_than_the_lattice_plan(grid16
     never without levels."""
     _, problem, strict = grid16
     opts = SwarmOptions(workers=1, prioritized=False)
-    planned = _plan(problem, 1.0, opts, False, strict, progress=None, deadline=None)
+    planned = _plan(problem, 1.0, opts, False, lambda: strict, progress=None, deadline=None)
     found, initial, repair, extra = planned.stage, planned.initial_makespan_s, planned.repair, planned.extra
     lattice_alone = _plan(
         problem,

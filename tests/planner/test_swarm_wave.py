@@ -1,4 +1,4 @@
-"""The wavefront (proxplan.planner.swarm.wave): its cheaper bookkeeping (cells marked only as far
+"""The wavefront (proxplan.planner.swarm.wave, wave_marks): its cheaper bookkeeping (cells marked only as far
 as asked, and each layer spread only over the front's bounding box) gives the same occupancy and
 the same reached cells as marking every layer and spreading over the whole grid (the definition);
 its height-aware discs are as wide as the keep-out at the heights the route flies at, no wider than
@@ -14,26 +14,19 @@ from proxplan.planner.formations import LAYOUTS
 from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.reserve import reserved_track
-from proxplan.planner.swarm.wave import (
-    CELL_M,
-    _disc,
-    _Occupied,
-    _spread,
-    dilated,
-    free_layers,
-    margin_box,
-    route_heights,
-)
+from proxplan.planner.swarm.wave import _spread, dilated, free_layers
+from proxplan.planner.swarm.wave_grid import CELL_M, margin_box, route_heights
+from proxplan.planner.swarm.wave_marks import OccupiedCells, disc_offsets
 
 HORIZON = 400
 
 
-def _world(seed: int) -> tuple[_Occupied, np.ndarray, np.ndarray]:
+def _world(seed: int) -> tuple[OccupiedCells, np.ndarray, np.ndarray]:
     """Random discs (moving keys, some off the grid) and parked vehicles on a 40 x 30 grid of 60
     layers: the lazily marked occupancy, the same marked fully by the definition, a static mask."""
     rng = np.random.default_rng(seed)
     shape = (60, 40, 30)
-    occ = _Occupied(*shape)
+    occ = OccupiedCells(*shape)
     full = np.zeros(shape, dtype=bool)
     for _ in range(12):
         radius = float(rng.uniform(1.0, 4.5))
@@ -41,7 +34,7 @@ def _world(seed: int) -> tuple[_Occupied, np.ndarray, np.ndarray]:
         L = np.sort(rng.integers(0, shape[0], n))
         X, Y = rng.integers(-5, shape[1] + 5, n), rng.integers(-5, shape[2] + 5, n)
         occ.add(radius, L, X, Y)
-        ox, oy = _disc(radius)
+        ox, oy = disc_offsets(radius)
         for l_, x, y in zip(L, X, Y):
             for i, j in zip(x + ox, y + oy):
                 if 0 <= i < shape[1] and 0 <= j < shape[2]:

@@ -1,0 +1,195 @@
+"""The others' marks on the wavefront's grid (:mod:`proxplan.planner.swarm.wave`), layer by layer.
+
+Each layer of the grid marks the cells round any other vehicle during that layer's time span (their
+track samples, swept; parked vehicles for good; predicted tracks of vehicles not planned yet until
+they vanish), so column-exclusive downwash is 2-D here. With ``heights`` a sample's disc is the pair's
+horizontal keep-out at the heights the route flies at within its reach
+(:func:`proxplan.planner.swarm.wave_grid.route_heights`: two layers of traffic 0.5 m apart pass within
+the downwash cut-off, not the separation sphere), grown by half a cell's diagonal so that it holds
+every cell centre in conflict with the sample itself; without, the widest keep-out at any height
+difference round the sample's cell (docs/planner.md, issue 37 round 10C). Each sample's disc radius
+is kept with the sample, and layers are marked only as far as asked (:class:`OccupiedCells`): the
+front seldom needs the whole horizon.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from proxplan.planner.swarm.tracks import GRID_DT_S
+from proxplan.planner.swarm.wave_grid import CELL_M, route_heights, static_grid
+
+
+def disc_offsets(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
+    """The offsets (i, j) with i^2 + j^2 < ``radius_cells``^2 (two (k,) int arrays)."""
+    return _disc_of(_disc_key(radius_cells))
+
+
+def _disc_key(radius_cells: float) -> int:
+    """The integer K = ceil(radius^2): i^2 + j^2 < radius^2 exactly when i^2 + j^2 < K (both sides of
+    the first are compared as floats, the left an integer), so radii of one K mark the same disc."""
+    return math.ceil(radius_cells * radius_cells)
+
+
+@functools.lru_cache(maxsize=256)
+def _disc_of(key: int) -> tuple[np.ndarray, np.ndarray]:
+    n = math.isqrt(max(key - 1, 0))
+    ix, iy = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
+    m = ix * ix + iy * iy < key
+    return ix[m], iy[m]
+
+
+def others_marks(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float, heights: bool):
+    """(the others' marks on the grid over ``box`` ((lo, hi) (2,), m; cell i at lo + i ``CELL_M``),
+    not yet spread over the layers (:class:`OccupiedCells`); the cells statically free (nx, ny) bool)."""
+    p = occ.problem
+    lim = p.limits[agent]
+    h = CELL_M
+    layer_s = h * math.sqrt(2.0) / (pace * lim.max_speed_mps)
+    n_layers = max(2, int(occ.horizon * GRID_DT_S / layer_s))
+    lo, hi = box
+    nx = int(math.ceil((hi[0] - lo[0]) / h)) + 1
+    ny = int(math.ceil((hi[1] - lo[1]) / h)) + 1
+    gx = lo[0] + np.arange(nx) * h
+    gy = lo[1] + np.arange(ny) * h
+    z_mid = 0.5 * (start_m[2] + goal_m[2])
+    grid_key = ("wave grid", np.asarray(lo, dtype=float).tobytes(), nx, ny, float(z_mid))
+    free_static = p.static_memo.get(grid_key, lambda: static_grid(p, gx, gy, z_mid))
+    occupied = OccupiedCells(n_layers, nx, ny)
+    ta = int(p.type_index[agent])
+    per_layer = layer_s / GRID_DT_S
+    box_lo = np.r_[lo, -np.inf]
+    box_hi = np.r_[hi, np.inf]
+    for tr in occ.near(box_lo, box_hi, agent):
+        ko = p.keepouts[(ta, tr.type)]
+        P = tr.positions_m
+        k = np.arange(P.shape[0])
+        lay = np.floor(k / per_layer + 0.5).astype(np.int64)
+        cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
+        cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
+        if heights:  # a radius per sample: the keep-out at the heights the route flies at near it
+            radii = _radii_cells(ko, P, start_m, goal_m, grow_m)
+            keys = np.ceil(radii * radii)  # _disc_key of each: the samples of one disc marked together
+            for k in np.unique(keys).tolist():
+                at = np.flatnonzero(keys == k)
+                occupied.add(float(radii[at[0]]), *_distinct(lay[at], cx[at], cy[at]))
+            radius_last = float(radii[-1])
+        else:  # the widest keep-out at any height difference, round the sample's cell
+            radius_last = (ko.reach_xy_m + grow_m) / h
+            occupied.add(radius_last, *_distinct(lay, cx, cy))
+        last = int(lay[-1])
+        if last < n_layers and not tr.vanishes:  # parked for good
+            occupied.park(radius_last, last, int(cx[-1]), int(cy[-1]))
+    return occupied, free_static
+
+
+def _distinct(lay: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distinct (layer, cell x, cell y) of samples, sorted (one 1-D key each; cells may lie
+    outside the grid)."""
+    x0, y0 = int(cx.min()), int(cy.min())
+    span_x, span_y = int(cx.max()) - x0 + 1, int(cy.max()) - y0 + 1
+    key = np.unique((lay * span_x + (cx - x0)) * span_y + (cy - y0))
+    key_l, rem = np.divmod(key, span_x * span_y)
+    key_x, key_y = np.divmod(rem, span_y)
+    return key_l, key_x + x0, key_y + y0
+
+
+class OccupiedCells:
+    """The wavefront's occupied cells, (n_layers, nx, ny) bool, marked only as far as asked: each
+    entry is a disc of ``radius`` cells (the offsets (i, j) with i^2 + j^2 < radius^2) around a
+    cell at a layer (cells and layers outside the grid are ignored), or around a cell from a layer
+    on for good (a parked vehicle). :meth:`mark_upto` marks the layers before n in :attr:`layers`;
+    :meth:`column` gives one cell's occupancy at every layer from the entries, the same as marking
+    every layer and reading it there. The front seldom needs the whole horizon (it reaches the goal
+    or dies first), so layers past it are never marked."""
+
+    FIRST_CHUNK = 32  # layers marked at the first call; each later call marks at least as many again
+
+    def __init__(self, n_layers: int, nx: int, ny: int):
+        self.shape = (n_layers, nx, ny)
+        self.layers = np.zeros(self.shape, dtype=bool)
+        self.done = 0  # layers [0, done) are marked
+        self._keys: dict[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}  # disc key -> samples
+        self._sorted: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._parked: list[tuple[int, int, int, int]] = []  # (disc key, layer, cell x, cell y)
+
+    def add(self, radius: float, layer: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> None:
+        # kept by the disc's key (_disc_key): radii that mark the same disc are marked together
+        self._keys.setdefault(_disc_key(radius), []).append((layer, cx, cy))
+        self._sorted = None
+
+    def park(self, radius: float, layer: int, cx: int, cy: int) -> None:
+        self._parked.append((_disc_key(radius), layer, cx, cy))
+
+    def _by_layer(self) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        if self._sorted is None:
+            self._sorted = {}
+            for key, parts in self._keys.items():
+                L, X, Y = (np.concatenate([q[i] for q in parts]) for i in range(3))
+                o = np.argsort(L, kind="stable")
+                self._sorted[key] = (L[o], X[o], Y[o])
+        return self._sorted
+
+    def mark_upto(self, n: int) -> None:
+        """Mark the layers before ``n`` (at least, in chunks)."""
+        n_layers, nx, ny = self.shape
+        if n <= self.done:
+            return
+        n = min(n_layers, max(n, self.done + max(self.FIRST_CHUNK, self.done)))
+        for key, (L, X, Y) in self._by_layer().items():
+            i0, i1 = np.searchsorted(L, [self.done, n])
+            ox, oy = _disc_of(key)
+            X_ = X[i0:i1, None] + ox[None]
+            Y_ = Y[i0:i1, None] + oy[None]
+            L_ = np.broadcast_to(L[i0:i1, None], X_.shape)
+            ok = (L_ >= 0) & (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
+            self.layers[L_[ok], X_[ok], Y_[ok]] = True
+        for key, last, cx, cy in self._parked:
+            if last < n:
+                ox, oy = _disc_of(key)
+                X_, Y_ = cx + ox, cy + oy
+                ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
+                self.layers[max(last, self.done) : n, X_[ok], Y_[ok]] = True
+        self.done = n
+
+    def column(self, x: int, y: int) -> np.ndarray:
+        """(n_layers,) bool: whether cell (x, y) of the grid is occupied at each layer."""
+        n_layers = self.shape[0]
+        out = np.zeros(n_layers, dtype=bool)
+        for key, parts in self._keys.items():
+            for L, X, Y in parts:
+                dx, dy = x - X, y - Y
+                hit = L[(dx * dx + dy * dy < key) & (L >= 0) & (L < n_layers)]
+                out[hit] = True
+        for key, last, cx, cy in self._parked:
+            if (x - cx) ** 2 + (y - cy) ** 2 < key:
+                out[max(last, 0) :] = True
+        return out
+
+
+def _radii_cells(ko, P: np.ndarray, start_m: np.ndarray, goal_m: np.ndarray, grow_m: float) -> np.ndarray:
+    """(S,) the disc radius, in cells, marked round each
+    sample ``P`` (S, 3), m, of another vehicle with keep-out ``ko``: the widest horizontal keep-out
+    (:meth:`~proxplan.planner.swarm.keepout.KeepOut.horizontal_radius_m`) over the heights
+    (:func:`route_heights`) the route can have within its reach (every height between start and
+    goal when :func:`route_heights` is None); the height bands are widened to the keep-out's table
+    steps, so few distinct bands are asked."""
+    z_lo, z_hi = min(start_m[2], goal_m[2]), max(start_m[2], goal_m[2])
+    u = np.asarray(goal_m[:2], dtype=float) - start_m[:2]
+    along = ko.reach_xy_m * u / max(float(np.sqrt(u @ u)), 1e-300)  # the reach, along the start-goal line
+    za = route_heights(start_m, goal_m, P[:, :2] - along)  # the route's heights a reach before and after
+    zb = route_heights(start_m, goal_m, P[:, :2] + along)
+    if z_hi - z_lo > 0.0 and za is not None and zb is not None:
+        z_lo, z_hi = np.minimum(za, zb), np.maximum(za, zb)
+    step = ko.step_m
+    lo_k = np.floor((P[:, 2] - z_hi) / step).astype(np.int64)  # d_z = z_b - z_a, widened to table steps
+    hi_k = np.ceil((P[:, 2] - z_lo) / step).astype(np.int64)
+    bands, inverse = np.unique(np.column_stack([lo_k, hi_k]), axis=0, return_inverse=True)
+    r_m = np.array([ko.horizontal_radius_m(a * step, b * step) for a, b in bands.tolist()])
+    # + half a cell's diagonal: the disc is centred on the sample's cell, up to that far from the sample,
+    # so it holds every cell centre within the keep-out of the sample itself
+    cells = (r_m + grow_m) / CELL_M + 0.5 * math.sqrt(2.0)
+    return cells[np.asarray(inverse).reshape(-1)]
