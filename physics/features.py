@@ -92,12 +92,6 @@ MAX_GAP_S = 1.0
 MIN_HEIGHT_FACTOR = 0.5
 """Heights are clipped to at least this many rotor radii in the ground kernels, -."""
 
-THRUST_KERNELS = ("above_jet_1", "above_jet_flat_1", "above_core_1", "above_core_flat_1", "above_near_1")
-"""The kernels of the sources above a multiplicative thrust loss is searched on (feature ``thrust_kin_<kernel>_N``,
-the own thrust from the motion times the kernel): each shape of the above family with a single source width
-(a jet that decays with depth and one that keeps its momentum flux, the narrow core with and without its decay,
-the exponential near kernel), not one guessed shape (issue 35, stop 53)."""
-
 FEATURE_DOCS: dict[str, str] = {
     "one_1": "constant 1 (a bias)",
     "ground_cb_1": "Cheeseman-Bennett ground kernel (R / 4h)^2",
@@ -142,25 +136,11 @@ FEATURE_DOCS: dict[str, str] = {
     "side_near_rel_v_z_mps": "side kernel times relative vertical speed, summed",
     "v_z_abs_m2ps2": "own vertical speed times its magnitude, v_z |v_z| (a quadratic drag in climb and descent)",
     "v_z_speed_xy_m2ps2": "own vertical speed times its horizontal speed",
-    **{
-        f"thrust_kin_{k[6:-2]}_N": "own thrust from the motion, m (g + dv_z/dt) (v from motion capture; W without a "
-        f"clock), times the {k[6:-2].replace('_', ' ')} kernels of the sources above, summed"
-        for k in THRUST_KERNELS
-    },
+    "thrust_kin_jet_N": "own thrust from the motion, m (g + dv_z/dt) (v from motion capture; W without a clock), "
+    "times the jet kernels of the sources above, summed",
     "thrust_kin_ground_N": "own thrust from the motion times exp(-h / L_target)",
     "thrust_kin_speed_xy_Nmps": "own thrust from the motion times its horizontal speed",
 }
-THRUST_ONLY_KERNELS = ("above_jet_flat_1",)
-"""Kernels computed only for the thrust loss, not features of their own: the jet kernel without its decay with
-depth (a spreading jet that keeps its momentum flux). Stop 53 tried it as a feature too: beside the core and
-basis kernels above it changed which members the in-fold searches picked, and a swept wake the unit tests hide
-(`tests/identify/test_discovery.py`) went from 1.07x to 1.43x its clean error."""
-THRUST_SHAPES = {f"thrust_kin_{k[6:-2]}_N": k for k in THRUST_KERNELS} | {
-    "thrust_kin_ground_N": "ground_exp_1", "thrust_kin_speed_xy_Nmps": "speed_xy_mps"}  # fmt: skip
-"""Each thrust-loss feature -> the shape it multiplies the own thrust by. The own thrust is the weight W plus
-m dv_z/dt, so thrust x shape and the weight-scaled term W x shape are near-duplicates: they are one group
-(:func:`feature_group`), else a sparse regression splits its picks between two groups and neither looks stable
-(stop 53: a kernel above, picked as `above_near_1` in 0.55 of the halves and `thrust_kin_near_N` in 0.45)."""
 BASIS_WIDTHS_L = (1.0, 2.5)
 """Radial widths of the multi-scale kernels, in the neighbour's size L (a Gaussian of 1 L and of 2.5 L), -."""
 BASIS_DECAYS_L = (1.0, 4.0)
@@ -256,8 +236,6 @@ def feature_group(name: str) -> str:
     feature it delays (``temporal:above``). Features of one group are near-duplicates for a sparse
     regression (a kernel and its 50 ms lag; two widths of one neighbour's kernel): stability is judged per
     group, the member by held-out gain (proxplan.identify.discovery)."""
-    if name in THRUST_SHAPES:  # the own thrust times a shape: the same hypothesis as W times it (thrust ~ W)
-        return feature_group(THRUST_SHAPES[name])
     family = feature_family(name)
     if family != "temporal":
         return family
@@ -358,7 +336,7 @@ def feature_matrix(
     r_rot = target.propeller.radius_m
     hc = np.maximum(h, MIN_HEIGHT_FACTOR * r_rot)
     vel = np.asarray(inputs.velocity_mps, dtype=float).reshape(-1, 3)
-    f: dict[str, np.ndarray] = {k: np.zeros(n) for k in (*FEATURE_NAMES, *THRUST_ONLY_KERNELS)}
+    f: dict[str, np.ndarray] = {k: np.zeros(n) for k in FEATURE_NAMES}
     f["one_1"] = np.ones(n)
     f["ground_cb_1"] = (r_rot / (4.0 * hc)) ** 2
     f["ground_exp_1"] = np.exp(-hc / target.size_m)
@@ -392,7 +370,6 @@ def feature_matrix(
         f["base_fz_rel_speed_xy_Nmps"] += bf[:, 2] * rel_xy
         f["base_fz_ground_N"] += bf[:, 2] * ground
         f["above_jet_1"] += k
-        f["above_jet_flat_1"] += k * (1.0 + np.maximum(dz, 0.0) / size)
         f["above_jet_rel_speed_xy_mps"] += k * rel_xy
         f["above_jet_rel_v_z_mps"] += k * v_rel[:, 2]
         f["above_jet_ground_1"] += k * ground
@@ -438,8 +415,7 @@ def feature_matrix(
                 f[_basis_name(where, w, d, radial=rad)] += basis
                 f[_basis_name(where, w, d, "x", rad)] += basis * off[:, 0] / size
                 f[_basis_name(where, w, d, "y", rad)] += basis * off[:, 1] / size
-    for shape in THRUST_KERNELS:
-        f[f"thrust_kin_{shape[6:-2]}_N"] = thrust_kin * f[shape]
+    f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):
             f["above_stack_1"] += kernels[i] * kernels[j]

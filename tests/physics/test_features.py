@@ -60,31 +60,6 @@ def test_pairwise_features_vanish_far_from_sources_and_separate_above_below() ->
     assert f["base_fz_N"][0] < 0.0  # downwash pushes down (S0-7)
 
 
-def test_thrust_loss_is_searched_on_every_kernel_above_and_a_jet_that_keeps_its_momentum() -> None:
-    from proxplan.physics.features import THRUST_KERNELS
-
-    depths = np.array([0.2, 0.6, 1.2, 2.4])  # m below the source, on its axis
-    f = _features(_inputs(np.column_stack([0 * depths, 0 * depths, -depths])))
-    w = VEH.weight_N  # no clock: the own thrust from the motion is the weight
-    for kernel in (k for k in THRUST_KERNELS if k in f):
-        assert np.allclose(f[f"thrust_kin_{kernel[6:-2]}_N"], w * f[kernel])
-    assert np.all(np.diff(f["above_jet_1"]) < 0.0)  # the jet decays with depth ...
-    assert np.allclose(f["thrust_kin_jet_flat_N"], w)  # ... the one that keeps its momentum flux does not, on its axis
-    off_axis = _features(_inputs(np.array([[0.3, 0.0, -0.3], [0.3, 0.0, -2.0]])))["thrust_kin_jet_flat_N"]
-    assert off_axis[1] > off_axis[0]  # it spreads: deeper, a point off the axis is inside it
-
-
-def test_a_thrust_loss_is_one_hypothesis_with_the_shape_it_multiplies() -> None:
-    from proxplan.physics import feature_family, feature_group
-    from proxplan.physics.features import THRUST_SHAPES
-
-    thrust = [n for n in FEATURE_NAMES if n.startswith("thrust_kin")]
-    assert sorted(thrust) == sorted(THRUST_SHAPES) and all(feature_family(n) == "thrust" for n in thrust)
-    assert feature_group("thrust_kin_near_N") == feature_group("above_near_1") == "above"
-    assert feature_group("thrust_kin_ground_N") == feature_group("ground_exp_1")
-    assert feature_group("thrust_kin_speed_xy_Nmps") == "velocity"
-
-
 def test_relative_speed_from_source_velocity_or_clock() -> None:
     t = np.arange(0.0, 1.0, 0.01)
     offsets = np.column_stack([0.2 * t - 0.1, 0 * t, -0.4 + 0 * t])  # source slides by at 0.2 m/s
