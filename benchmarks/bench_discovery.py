@@ -182,7 +182,10 @@ def main() -> None:
                "sets_with_spurious_library_effects": len(spurious),
                "sets_harming_unaffected_vehicles": sum(bool(r["harmed"]) for r in results), "wall_s": wall,
                "by_family": {f: {"draws": sum(r["family"] == f for r in visible),
-                                 "found": sum(r["found"] for r in visible if r["family"] == f)} for f in FAMILIES}}  # fmt: skip
+                                 "found": sum(r["found"] for r in visible if r["family"] == f)} for f in FAMILIES},
+               "by_train_flights": {str(n): {"draws": sum(r["n_train"] == n for r in visible),
+                                             "found": sum(r["found"] for r in visible if r["n_train"] == n)}
+                                    for n in sorted({r["n_train"] for r in visible})}}  # fmt: skip
     if args.json:
         print(json.dumps({"summary": summary, "draws": results}, indent=1, default=float))
         return
@@ -198,6 +201,8 @@ def main() -> None:
     lo, hi = summary["power_ci95"]
     print(f"power: {power:.0%} of {len(visible)} visible draws within {RATIO_OK}x of the clean twin (target >= 80 %; "
           f"95 % interval {lo:.0%}-{hi:.0%})")  # fmt: skip
+    by_n = ", ".join(f"{n} train flights {v['found']}/{v['draws']}" for n, v in summary["by_train_flights"].items())
+    print(f"power by train flights (the held-out test's t has one degree of freedom fewer than flights): {by_n}")
     lo, hi = summary["false_positive_rate_ci95"]
     print(f"false positives: {len(fp)} of {len(results)} clean sets keep more than thrust_bias (target 0; "
           f"rate 95 % interval {lo:.0%}-{hi:.0%})")  # fmt: skip
