@@ -19,7 +19,10 @@ parameters were set on the named layouts only; report the family as it comes.
 Per run it prints the whole ``proxplan plan`` process's wall and CPU time (s; the interpreter +
 import baseline of the same run is printed first, so compare ratios on a loaded machine), the
 makespan against the lower bound (fixed goals: the largest straight-line rest-to-rest time of any
-vehicle; ``by_type``: the same under the assignment, ``assignment_lower_bound_s``), the plan's
+vehicle, tabulated; ``by_type``: the same under the assignment, ``assignment_lower_bound_s``), and
+beside it, with fixed goals, the certified bound of ``proxplan.planner.bounds.certified_bound``
+(columns ``cLB_s`` and ``ms/cLB``: straight lines at Ruckig's exact optimum, routes round obstacles,
+throughput through an obstacle's slab; docs/planner.md, round 16A; ``-`` with by_type), the plan's
 method and how the swarm layer coordinated, the child's peak memory (``resource`` rusage, MB), and
 the verdict and whole-process time of ``proxplan verify`` on the written plan.json, and how many
 times the verification policy planned (``planned 2x``: the first plan failed ``verify`` and the
@@ -152,6 +155,7 @@ def main() -> int:
     import yaml
 
     from proxplan.planfile import load_scenario
+    from proxplan.planner.bounds import certified_bound
     from proxplan.planner.formations import LAYOUTS, random_formation
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 
@@ -168,7 +172,7 @@ def main() -> int:
         print(f"swarm options {j}: {opt or 'defaults, through the CLI'}")
     print(
         f"{'layout':14s} {'N':>4s} {'goals':8s} {'method':10s} {'arm':>3s} {'wall_s':>7s} {'cpu_s':>6s} "
-        f"{'makespan':>8s} {'LB_s':>6s} {'ms/LB':>6s} {'peak_MB':>7s} {'verify':>6s} {'verify_s':>8s}  how"
+        f"{'makespan':>8s} {'LB_s':>6s} {'ms/LB':>6s} {'cLB_s':>6s} {'ms/cLB':>6s} {'peak_MB':>7s} {'verify':>6s} {'verify_s':>8s}  how"
     )
     tmp_ctx = tempfile.TemporaryDirectory() if args.keep is None else None
     tmp = Path(args.keep) if args.keep else Path(tmp_ctx.name)  # type: ignore[union-attr]
@@ -188,6 +192,8 @@ def main() -> int:
                 path = tmp / f"{layout}-{n}-{goals}.yaml"
                 path.write_text(yaml.safe_dump(doc, sort_keys=False))
                 lb = lower_bound_makespan_s(load_scenario(path))
+                # the certified bound (planner/bounds.py), fixed goals only (per vehicle's own goal)
+                clb = certified_bound(load_scenario(path)).bound_s if goals == "fixed" else None
                 arms = [(m, p, o) for m in args.method for p in enumerate(pythons) for o in enumerate(option_sets)]
                 for method, (i, py), (j, opt) in arms:
                     arm = i * len(option_sets) + j
@@ -207,7 +213,7 @@ def main() -> int:
                         name = "roadmap" if py in roadmap and method == "swarm" else method
                         cmd += ["--method", name, "--seed", "0", "--no-plot", "--json"]
                     wall, code, mb, text, cpu = _run(cmd, args.timeout, args.cpu_cap)
-                    ms = ratio = "-"
+                    ms = ratio = c_ratio = "-"
                     capped = code == -signal.SIGKILL  # killed by either cap
                     verdict, v_wall, how = ("timeout" if capped else f"exit {code}"), "-", ""
                     lb_used = lb
@@ -217,6 +223,7 @@ def main() -> int:
                         lb_used = float(m.get("assignment_lower_bound_s") or lb)
                         makespan = float(m["makespan_s"])
                         ms, ratio = f"{makespan:.2f}", f"{makespan / lb_used:.2f}"
+                        c_ratio = f"{makespan / clb:.2f}" if clb else "-"
                         notes = json.loads((out / "plan.json").read_text()).get("notes", [])
                         planned = 1 + sum("planned again" in note for note in notes)
                         how = f"planned {planned}x; {doc_out['method']}: "
@@ -234,9 +241,10 @@ def main() -> int:
                             how = json.loads(text.strip().splitlines()[-1]).get("message", "")[:80]
                         except json.JSONDecodeError:
                             how = text.strip()[-80:]
+                    clb_s = f"{clb:.2f}" if clb else "-"
                     print(
                         f"{layout:14s} {n:4d} {goals:8s} {method:10s} {arm:3d} {wall:7.1f} {cpu:6.1f} {ms:>8s} {lb_used:6.2f} "
-                        f"{ratio:>6s} {mb:7.0f} {verdict:>6s} {v_wall:>8s}  {how}",
+                        f"{ratio:>6s} {clb_s:>6s} {c_ratio:>6s} {mb:7.0f} {verdict:>6s} {v_wall:>8s}  {how}",
                         flush=True,
                     )
     if tmp_ctx is not None:

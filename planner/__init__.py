@@ -11,12 +11,16 @@ before it):
   and ``"optimized"`` for swarms);
 - :mod:`proxplan.planner.optimizer`: CasADi refinement keeping predicted wrenches within authority.
 
+:mod:`proxplan.planner.bounds` gives certified makespan lower bounds (straight line, round obstacles,
+throughput through an obstacle's slab; :func:`certified_bound`).
+
 At the top level, :mod:`proxplan.planner.pipeline` runs them (pre-checks, planner, verifier safety
 net, refinement, metrics); the independent verifier (package ``verify``) checks every plan it
 returns. :mod:`~proxplan.planner.compare` runs every method on the shipped scenarios and
 :mod:`~proxplan.planner.formations` generates swarm scenarios (both ``python -m``).
 """
 
+from proxplan.planner.bounds import CertifiedBound, certified_bound
 from proxplan.planner.errors import InfeasibleError, PlanNotFound
 from proxplan.planner.optimizer import RefineOptions, RefineResult, refine_plan
 from proxplan.planner.pipeline import DT_S, METHODS, plan_scenario
@@ -25,10 +29,12 @@ from proxplan.planner.summary import plan_summary
 from proxplan.planner.timing import common_grid, time_parameterize
 
 __all__ = [
+    "CertifiedBound",
     "DT_S",
     "METHODS",
     "InfeasibleError",
     "PlanNotFound",
+    "certified_bound",
     "RefineOptions",
     "RefineResult",
     "plan_scenario",

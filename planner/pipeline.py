@@ -31,10 +31,11 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from typing import Literal
 
 from proxplan.planfile import Plan, Scenario
+from proxplan.planner.bounds import certified_bound
 from proxplan.planner.checks.precheck import (
     check_goal_loops,
     check_goal_tubes,
@@ -397,4 +398,15 @@ def _record(scenario: Scenario, plan: Plan, run: _Run, swarm: SwarmInfo | None, 
         plan.metrics["assignment_lower_bound_s"] = assignment["lower_bound_s"]
     if plan.verified:
         plan.metrics["verify_violations"] = 0
+    certified = certified_bound(scenario) if swarm is not None and assignment is None else None
+    if certified is not None:  # fixed goals only: the bound is per vehicle's own goal
+        plan.metrics["certified_lower_bound_s"] = certified.bound_s
+        plan.metrics["certified_bound"] = asdict(certified)
     finish_metrics(scenario, plan, planning_time_s=time.perf_counter() - run.t0)
+    if certified is not None and run.method == "optimized" and certified.bound_s > 0.0:
+        ratio = moving_end_s(plan) / certified.bound_s
+        plan.notes.append(
+            f"optimized: the plan ({moving_end_s(plan):.2f} s) is {ratio:.2f}x the certified lower bound "
+            f"({certified.bound_s:.2f} s, set by {certified.setter}: no plan can be shorter; docs/planner.md, "
+            f"round 16A), within {100 * (ratio - 1.0):.1f} % of it"
+        )
