@@ -7,8 +7,10 @@ a wall at x = 0), with fixed goals:
 1. the certified bound (``planner.bounds.certified_bound``) and the swarm layer's plan
    (``plan_scenario(method="swarm", seed=0)``, the bench's child), its stage and wall / CPU s;
 2. the plan read back: per vehicle the times it enters and leaves the wall's slab (|x| < half the wall's
-   depth), its height and mean speed there, its rest between its first and last motion; how many are in
-   the slab at once, how long the slab is empty between the first entry and the last exit, per height;
+   depth), its height and mean speed there, its rest between its first and last motion (before the slab
+   and after it); how many are in the slab at once, how long the slab is empty between the first entry
+   and the last exit, per height; the median slab entry by start row and arrival by goal row (|x|), and
+   whether a block's pitch leaves an aisle between neighbours;
 3. the swarm layer's keep-outs: horizontal radius at the same height (dz ~ 0) and at the two groups'
    height difference;
 4. the physics behind a bound "through the vertical force": the largest F_z any source exerts on any
