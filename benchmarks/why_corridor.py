@@ -46,7 +46,7 @@ def _plan(scenario):
     return plan, time.perf_counter() - wall, time.process_time() - cpu
 
 
-def _slab_report(plan, half_depth_m: float) -> None:
+def _slab_report(plan, half_depth_m: float) -> list[str]:
     t, dt = plan.t_s, plan.dt_s
     rows, inside = [], []
     for name, tr in plan.vehicles.items():
@@ -91,6 +91,31 @@ def _slab_report(plan, half_depth_m: float) -> None:
     late = sorted(rows, key=lambda r: -r[5])[:6]
     print("longest rests (name, start, rest s, slab entry s): "
           + "; ".join(f"{r[0]} {np.round(r[6], 2).tolist()} {r[5]:.2f} {r[1]:.2f}" for r in late))  # fmt: skip
+    return [r[0] for r in late]
+
+
+def _goal_blockers(plan, pr, names: list[str]) -> None:
+    """For ``names``: the last time another vehicle is within the swarm layer's keep-out (moving) of the
+    vehicle's goal, and which, against the time the vehicle arrives there (its last motion)."""
+    t, dt = plan.t_s, plan.dt_s
+    idx = {n: i for i, n in enumerate(pr.names)}
+    pos = {n: tr.position_m for n, tr in plan.vehicles.items()}
+    out = []
+    for n in names:
+        a = idx[n]
+        goal = pos[n][-1]
+        speed = np.linalg.norm(np.gradient(pos[n], dt, axis=0), axis=1)
+        arrive = float(t[np.flatnonzero(speed > 0.02)[-1]])
+        last, who = -1.0, "-"
+        for m, p in pos.items():
+            if m == n:
+                continue
+            ko = pr.keepouts[(int(pr.type_index[a]), int(pr.type_index[idx[m]]))]
+            hit = np.flatnonzero(ko.conflict(p - goal[None]))
+            if hit.size and t[hit[-1]] > last:
+                last, who = float(t[hit[-1]]), m
+        out.append(f"{n} goal clear from {last + dt:.2f} s ({who}), arrives {arrive:.2f} s")
+    print("goals of the longest rests: " + "; ".join(out))
 
 
 def _keepouts(scenario) -> tuple[float, float, object]:
@@ -225,8 +250,10 @@ def main() -> int:
             info = plan.metrics.get("swarm", {})
             print(f"swarm plan: {plan.makespan_s:.2f} s = {plan.makespan_s / cb.bound_s:.2f}x, {w:.1f} s wall, {c:.1f} s CPU, "
                   f"stage {info.get('stage')}: {info.get('coordination')}")  # fmt: skip
-            _slab_report(plan, half_depth)
+            longest = _slab_report(plan, half_depth)
         same, cross, pr = _keepouts(sc)
+        if not args.no_plan:
+            _goal_blockers(plan, pr, longest)
         _vertical_force_check(sc)
         sep = sc.limits.min_separation_m
         rb = max(t.body_radius_m for t in sc.vehicles.values())
