@@ -324,8 +324,14 @@ def packing_number(free: np.ndarray, cell_m: tuple[float, float], depth_m: float
     return count
 
 
-def throughput_time_s(scenario: Scenario, slab: Slab, cache: dict | None = None) -> float:
+def throughput_time_s(
+    scenario: Scenario, slab: Slab, cache: dict | None = None, *, packing: int | None = None
+) -> float:
     """Bound (s) from the vehicles that must cross ``slab`` (0 when fewer than two do).
+
+    ``packing``: use this count as K instead of the separation sphere's :func:`packing_number` (a
+    caller's hypothesis, e.g. the ceiling of a tighter exclusion; the result is a bound only where
+    that count is one).
 
     Proof: vehicle i crosses the slab (start and goal on opposite sides), so some interval
     [a_i, b_i] has its centre inside the slab all along and crossing it: b_i - a_i >= tau_i =
@@ -353,8 +359,11 @@ def throughput_time_s(scenario: Scenario, slab: Slab, cache: dict | None = None)
         for i, b in enumerate(scenario.obstacles)
         if b.min_m[slab.axis] <= slab.lo_m and b.max_m[slab.axis] >= slab.hi_m
     )  # the boxes that forbid the same set on every plane of the slab
-    section = window(scenario, slab.axis, 0.5 * (slab.lo_m + slab.hi_m), rb_min, boxes=whole)
-    k_max = packing_number(section.free, section.cell_hz_m, depth, sep - OVERLAP_M)
+    if packing is None:
+        section = window(scenario, slab.axis, 0.5 * (slab.lo_m + slab.hi_m), rb_min, boxes=whole)
+        k_max = packing_number(section.free, section.cell_hz_m, depth, sep - OVERLAP_M)
+    else:
+        k_max = packing
     if k_max <= 0:
         return math.inf
     e = np.zeros(len(names))
