@@ -34,7 +34,8 @@ plannings of the pass. A vehicle still failing then (repairs spent, nobody to ta
 same reversal again) flies in collision with only the vehicles in its way (planned against all the
 others; its ideal track if even that fails), the pass goes on, and at its end the collisions are
 repaired a neighbourhood at a time (:mod:`proxplan.planner.swarm.lns`, within
-:data:`LNS_PLANNINGS_PER_VEHICLE` plannings per vehicle); collisions still left give the pass up
+:data:`LNS_PLANNINGS_PER_VEHICLE` plannings per vehicle); collisions still left give the pass up, and so
+does a vehicle in collision beyond ``max_in_collision`` (:func:`in_collision_cap`), at once
 (:class:`PrioritizedFailed`: the caller falls back; ``collisions=False`` gives it up at once, as before). A caller's wall-clock
 ``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
 
