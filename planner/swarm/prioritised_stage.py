@@ -23,6 +23,7 @@ from proxplan.planner.swarm.priority import (
     PriorityOptions,
     PriorityResult,
     dependency_order,
+    in_collision_cap,
     prioritized_tracks,
 )
 from proxplan.planner.swarm.problem import SwarmProblem
@@ -179,6 +180,7 @@ def prioritised_stage(
                 # leaves nothing for the next either way (with several, each has its share, and what
                 # a failing group would have spent past its share is not known)
                 give_up_early=len(groups) == 1,
+                max_in_collision=in_collision_cap(max(len(g) for g in groups)),
             )
             try:
                 result = plan_groups(

@@ -34,7 +34,8 @@ plannings of the pass. A vehicle still failing then (repairs spent, nobody to ta
 same reversal again) flies in collision with only the vehicles in its way (planned against all the
 others; its ideal track if even that fails), the pass goes on, and at its end the collisions are
 repaired a neighbourhood at a time (:mod:`proxplan.planner.swarm.lns`, within
-:data:`LNS_PLANNINGS_PER_VEHICLE` plannings per vehicle); collisions still left give the pass up
+:data:`LNS_PLANNINGS_PER_VEHICLE` plannings per vehicle); collisions still left give the pass up, and so
+does a vehicle in collision beyond ``max_in_collision`` (:func:`in_collision_cap`), at once
 (:class:`PrioritizedFailed`: the caller falls back; ``collisions=False`` gives it up at once, as before). A caller's wall-clock
 ``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
 
@@ -53,7 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxplan.planner.errors import PlanNotFound
-from proxplan.planner.swarm.lns import remove_collisions
+from proxplan.planner.swarm.lns import NEIGHBOURHOOD, remove_collisions
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.reserve import Reservations, predicted_track, reserved_track
@@ -64,6 +65,18 @@ from proxplan.planner.swarm.tracks import GridTrack
 # on the named layouts at 64 fixed (docs/planner.md), so the repair may cost up to half a pass more
 # before the next order is tried (set watching those figures, not the randomised family)
 LNS_PLANNINGS_PER_VEHICLE = 1
+
+
+def in_collision_cap(n_vehicles: int) -> int:
+    """Vehicles a pass may leave in collision before it gives up (``PriorityOptions.max_in_collision``):
+    as many as the collision repair has full neighbourhoods in its count, ``LNS_PLANNINGS_PER_VEHICLE``
+    x ``n_vehicles`` plannings / :data:`~proxplan.planner.swarm.lns.NEIGHBOURHOOD` vehicles each planned
+    once (64 vehicles: 8; 128: 16; 256: 32). A neighbourhood is drawn round one vehicle in collision, so
+    with more of them than that the repair cannot take each out once with its neighbourhood. A decision
+    from counts known before the search, not a proof (a neighbourhood may hold several; the repair has
+    removed every collision only on grids of 16-20 vehicles, none at 64 or more: docs/planner.md); set
+    from the repair's own constants, not watching a layout."""
+    return (LNS_PLANNINGS_PER_VEHICLE * n_vehicles) // NEIGHBOURHOOD
 
 
 @dataclass(frozen=True)
@@ -90,6 +103,11 @@ class PriorityOptions:
     # queued (each needs one planning at least): it would give up on the budget all the same, later
     # (the caller then charges the whole budget: ``PrioritizedFailed.charged``)
     give_up_early: bool = False
+    # give the pass up once more vehicles than this fly in collision (None: no cap; prioritised_stage
+    # passes in_collision_cap): charged what it would be at least if it went on with no more of them,
+    # one planning per vehicle queued, and the collision repair's whole count (what a repair that does
+    # not converge is charged), so the passes after it see about the budget they saw before
+    max_in_collision: int | None = None
 
 
 @dataclass
@@ -266,6 +284,8 @@ def _in_order(
                 planned[a] = ideal if track is None else track
                 occ.put(planned[a])
                 stuck.append(a)
+                if options.max_in_collision is not None and len(stuck) > options.max_in_collision:
+                    raise _too_many_in_collision(problem, stuck, queue, options, result)
                 continue
             if prediction is not None:
                 occ.put(prediction)
@@ -295,6 +315,24 @@ def _in_order(
     if stuck:
         _remove_collisions(occ, planned, stuck, options, result, deadline, res)
     return result
+
+
+def _too_many_in_collision(
+    problem: SwarmProblem, stuck: list[int], queue: deque, options: PriorityOptions, result: PriorityResult
+) -> PrioritizedFailed:
+    """The pass given up on ``PriorityOptions.max_in_collision`` (see there for what it is charged)."""
+    ahead = result.planned + len(queue)  # each vehicle still queued needs one planning at least
+    repair = LNS_PLANNINGS_PER_VEHICLE * problem.n_agents
+    if options.max_plannings is not None:
+        repair = max(0, min(repair, options.max_plannings - ahead))
+    charged = ahead + repair
+    if options.max_plannings is not None:
+        charged = max(result.planned, min(charged, options.max_plannings))
+    result.history.append(
+        f"{len(stuck)} vehicles in collision, more than the {options.max_in_collision} the collision repair "
+        f"has neighbourhoods for (given up early, {len(queue)} vehicle(s) still queued)"
+    )
+    return PrioritizedFailed(stuck[-1], result.repairs, result.history, planned=result.planned, charged=charged)
 
 
 def _names(problem: SwarmProblem, agents: Iterable[int]) -> str:
@@ -387,6 +425,7 @@ __all__ = [
     "PriorityResult",
     "dependency_order",
     "ideal_track",
+    "in_collision_cap",
     "plan_one",
     "prioritized_tracks",
 ]
