@@ -10,7 +10,9 @@ kept, with a note. For swarms (the swarm layer ran), where the plan is not alrea
    own (the plans it makes where prioritised planning gives up: the lattice plan and the stacked
    plan, types on levels of their own; re-timing that flies through waypoints); the shortest that
    passes ``verify`` replaces the fast plan (ties: the fast plan). Their budgets are the swarm
-   layer's counts;
+   layer's counts. Not planned again from the start: the fast plan's own tracks are re-timed
+   through waypoints, and the give-up plans are planned on its problem
+   (:func:`~proxplan.planner.swarm.plan.swarm_again`, the same tracks as planning afresh);
 2. *joint moves* (:func:`proxplan.planner.optimizer.joint_moves`, count budgets) on the plan kept.
 
 Why 1: with fixed goals the vehicles that set the makespan fly long detours round a crowd in one
@@ -28,6 +30,8 @@ from dataclasses import replace
 from proxplan.planfile import Plan, Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm import SwarmInfo, SwarmOptions, swarm_timed
+from proxplan.planner.swarm.plan import swarm_again
+from proxplan.planner.timing.paths import TimedPath
 from proxplan.planner.timing.plan_grid import assemble_plan, moving_end_s
 
 # ``optimized`` for swarms: a plan within OPTIMAL_WITHIN of the lower bound is not re-optimised
@@ -150,6 +154,21 @@ def _refine_swarm(
     return better, swarm_info
 
 
+def _swarm_plan(
+    scenario: Scenario,
+    info: SwarmInfo | None,
+    options: SwarmOptions,
+    progress: Callable[..., None] | None,
+    deadline: float | None,
+) -> tuple[dict[str, TimedPath], SwarmInfo]:
+    """The swarm layer's plan with ``options``: from what the fast plan handed on (its own tracks
+    re-timed again, or other stages on its problem; :func:`~proxplan.planner.swarm.plan.swarm_again`)
+    where it did, else planned afresh."""
+    if info is not None and info.hand_on is not None:
+        return swarm_again(scenario, info.hand_on, options, progress=progress, deadline=deadline)
+    return swarm_timed(scenario, options, progress=progress, deadline=deadline)
+
+
 def _swarm_alternatives(
     scenario: Scenario,
     plan: Plan,
@@ -165,6 +184,8 @@ def _swarm_alternatives(
     from proxplan.verify import verify_plan
 
     best, best_info, best_s = plan, info, moving_end_s(plan)
+    if info is not None and info.hand_on is not None:
+        options = info.hand_on.options  # the options of the attempt that gave the fast plan
     for what, fields in SWARM_ALTERNATIVES:
         if all(getattr(options, k) == v for k, v in fields.items()):
             continue  # the fast plan's own options
@@ -174,7 +195,7 @@ def _swarm_alternatives(
             plan.notes.append(f"optimized: {what} not tried (time budget spent)")
             break
         try:
-            timed, other = swarm_timed(scenario, replace(options, **fields), progress=progress, deadline=deadline)
+            timed, other = _swarm_plan(scenario, info, replace(options, **fields), progress, deadline)
         except PlanNotFound as err:
             plan.notes.append(f"optimized: {what}: no plan ({err.message})")
             continue

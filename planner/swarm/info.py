@@ -4,8 +4,14 @@ its :meth:`SwarmInfo.to_metrics` form)."""
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
-from typing import Literal
+from dataclasses import asdict, dataclass, field, replace
+from typing import TYPE_CHECKING, Literal
+
+if TYPE_CHECKING:  # types only: these modules import this one
+    from proxplan.planner.swarm.levels import Levels
+    from proxplan.planner.swarm.options import SwarmOptions
+    from proxplan.planner.swarm.problem import SwarmProblem
+    from proxplan.planner.swarm.stage import Stage
 
 # straight: one synchronised straight step (CAPT's case); prioritised: prioritised continuous
 # planning; lattice: the lattice coordination flown in lock-step (prioritised planning gave up);
@@ -50,6 +56,45 @@ class MakespanRepairInfo:
 
 
 @dataclass(frozen=True)
+class LevelHandOn:
+    """One level of the stacked plan as first planned (:class:`GiveUpHandOn`)."""
+
+    problem: SwarmProblem  # the level's problem (its vehicles on the level)
+    searched: Stage  # its tracks before re-timing
+    planned: int  # vehicle plannings its search made
+
+
+@dataclass(frozen=True)
+class GiveUpHandOn:
+    """The plans made where prioritised planning gave up, before re-timing (:class:`SwarmHandOn`):
+    the lattice plan, and the stacked plan's stack and levels (their re-timing is inside the stacked
+    plan, so re-timing again re-times each level and joins them again)."""
+
+    lattice: Stage
+    stack: Levels | None  # None: no stack fits the box, or no stacked plan tried
+    levels: tuple[LevelHandOn, ...] | None  # bottom first; None where no stacked plan was made
+
+
+@dataclass(frozen=True)
+class SwarmHandOn:
+    """What a plan of the swarm layer hands on so that ``optimized`` (:mod:`proxplan.planner.refine_stage`)
+    can re-time its own tracks with other options, or plan other stages on the same problem, instead
+    of planning the swarm layer again (:func:`proxplan.planner.swarm.plan.swarm_again`). Not in the
+    plan's metrics."""
+
+    problem: SwarmProblem  # the problem it planned (keep-outs, and the memo of single-vehicle searches)
+    options: SwarmOptions  # the options it planned with
+    lower_bound_s: float  # the straight-line lower bound of the scenario, s
+    assigned: bool  # the goals were assigned (Scenario.assign_goals)
+    searched: Stage  # the tracks of the stage that produced them, before re-timing
+    # the pass with both wavefronts' tracks before re-timing, where that pass gave other tracks (it was
+    # then re-timed and compared with the plan without; swarm.heights); None where it did not
+    heights: Stage | None
+    extra: dict  # the stage records of the plan (SwarmInfo's fields after time_s), as planned
+    give_up: GiveUpHandOn | None = None  # where prioritised planning gave up (or did not run)
+
+
+@dataclass(frozen=True)
 class SwarmInfo:
     """See module. Times are s; wall times are reported, never used to steer (budgets are counts)."""
 
@@ -74,7 +119,11 @@ class SwarmInfo:
     # after re-timing and after this, neighbourhoods tried and replaced, single-vehicle plannings
     makespan_repair: MakespanRepairInfo | None = None
     counts: dict[str, int] = field(default_factory=dict)  # search effort (vehicles planned, repairs, ...)
+    # what ``optimized`` re-times or plans on again (SwarmHandOn); not in the metrics
+    hand_on: SwarmHandOn | None = field(default=None, repr=False, compare=False)
 
     def to_metrics(self) -> dict:
-        """The plan.json form (``metrics.swarm``)."""
-        return asdict(self)
+        """The plan.json form (``metrics.swarm``), without the hand-on."""
+        out = asdict(replace(self, hand_on=None))
+        del out["hand_on"]
+        return out

@@ -54,10 +54,19 @@ from proxplan.planfile import Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm.heights import heights_on, heights_pass
-from proxplan.planner.swarm.info import LatticeInfo, MakespanRepairInfo, RetimeInfo, SwarmInfo
+from proxplan.planner.swarm.info import (
+    GiveUpHandOn,
+    LatticeInfo,
+    LevelHandOn,
+    MakespanRepairInfo,
+    RetimeInfo,
+    SwarmHandOn,
+    SwarmInfo,
+    SwarmStage,
+)
 from proxplan.planner.swarm.lacam import Lacam
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
-from proxplan.planner.swarm.levels import stack_levels, stacking_keepouts
+from proxplan.planner.swarm.levels import Levels, stack_levels, stacking_keepouts
 from proxplan.planner.swarm.lockstep import lockstep_tracks
 from proxplan.planner.swarm.makespan import budget as makespan_budget
 from proxplan.planner.swarm.makespan import shorten_makespan
@@ -77,7 +86,7 @@ from proxplan.planner.timing.profile import rest_to_rest
 SWARM_MIN_VEHICLES = 16  # formation changes with at least this many vehicles use the swarm layer by default
 HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the initial makespan, s
 
-__all__ = ["SWARM_MIN_VEHICLES", "SwarmOptions", "swarm_applicable", "swarm_timed"]
+__all__ = ["SWARM_MIN_VEHICLES", "SwarmHandOn", "SwarmOptions", "swarm_again", "swarm_applicable", "swarm_timed"]
 
 
 def swarm_timed(
@@ -97,25 +106,98 @@ def swarm_timed(
     t0 = time.perf_counter()
     problem = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
     lower_bound = lower_bound_makespan_s(scenario)
-
-    def stacking() -> dict:  # built only where the stacked plan is tried (prioritised planning gave up)
-        from proxplan.costmaps import effects_key  # as swarm_problem does
-
-        fx = effects_key(getattr(scenario, "effects", ()))
-        return stacking_keepouts(problem, scenario.limits, scenario.field_form, fx)
-
     planned = _plan(
         problem,
         lower_bound,
         opts,
         scenario.assign_goals is not None,
-        stacking if opts.levels else None,
+        _stacking(scenario, problem) if opts.levels else None,
         progress=progress,
         deadline=deadline,
     )
+    return _handed_on(problem, lower_bound, opts, scenario.assign_goals is not None, planned, t0, (0, 0))
+
+
+def swarm_again(
+    scenario: Scenario,
+    hand_on: SwarmHandOn,
+    options: SwarmOptions,
+    *,
+    progress: Callable[[str, float], None] | None = None,
+    deadline: float | None = None,
+) -> tuple[dict[str, TimedPath], SwarmInfo]:
+    """What :func:`swarm_timed` gives for ``scenario`` with ``options``, reusing what the plan of
+    ``hand_on`` computed: where ``options`` differ from that plan's only in ``through_waypoints``
+    between "never" and "retime" (the searches are the same: only "always" reaches them), its own
+    tracks before re-timing re-timed again (and the pass with both wavefronts' tracks, where that pass
+    gave other tracks; where prioritised planning gave up, the stacked plan's levels re-timed again and
+    joined, beside the lattice plan; the makespan repair after, on the plan kept); elsewhere, where the problem is
+    the same (``deflection_m``, ``tracking_bound``), the stages planned on that problem (its keep-outs,
+    its memo of single-vehicle searches); else :func:`swarm_timed`. The same tracks as
+    :func:`swarm_timed` with ``options`` (the memo gives back what a search would find)."""
+    before = hand_on.options
+    searches = ("never", "retime")
+    if before.through_waypoints in searches and options.through_waypoints in searches:
+        give_up = hand_on.give_up
+        joined = give_up is None or give_up.stack is None or give_up.levels is not None
+        if replace(options, through_waypoints=before.through_waypoints) == before and joined:
+            return _retimed_again(hand_on, options, progress=progress, deadline=deadline)
+    if (options.deflection_m, options.tracking_bound) != (before.deflection_m, before.tracking_bound):
+        return swarm_timed(scenario, options, progress=progress, deadline=deadline)
+    t0 = time.perf_counter()
+    problem = hand_on.problem
+    memo = (problem.memo.hits, problem.memo.misses)
+    planned = _plan(
+        problem,
+        hand_on.lower_bound_s,
+        options,
+        hand_on.assigned,
+        _stacking(scenario, problem) if options.levels else None,
+        progress=progress,
+        deadline=deadline,
+    )
+    return _handed_on(problem, hand_on.lower_bound_s, options, hand_on.assigned, planned, t0, memo)
+
+
+def _stacking(scenario: Scenario, problem: SwarmProblem) -> Callable[[], dict]:
+    """The keep-outs the stacked plan's levels are stacked on, built only when called (where that plan
+    is tried: prioritised planning gave up)."""
+
+    def stacking() -> dict:
+        from proxplan.costmaps import effects_key  # as swarm_problem does
+
+        fx = effects_key(getattr(scenario, "effects", ()))
+        return stacking_keepouts(problem, scenario.limits, scenario.field_form, fx)
+
+    return stacking
+
+
+def _handed_on(
+    problem: SwarmProblem,
+    lower_bound: float,
+    opts: SwarmOptions,
+    assigned: bool,
+    planned: _Planned,
+    t0: float,
+    memo_before: tuple[int, int],
+) -> tuple[dict[str, TimedPath], SwarmInfo]:
+    """The timed paths and the :class:`SwarmInfo` of ``planned`` (with its :class:`SwarmHandOn`);
+    ``t0``: time.perf_counter() when planning began; ``memo_before``: the memo's (hits, misses) then."""
     found, by_agent, extra = planned.stage, planned.tracks, planned.extra
+    hand_on = SwarmHandOn(
+        problem=problem,
+        options=opts,
+        lower_bound_s=lower_bound,
+        assigned=assigned,
+        searched=planned.searched,
+        heights=planned.heights,
+        give_up=planned.give_up,
+        extra={k: (dict(v) if isinstance(v, dict) else v) for k, v in extra.items()},
+    )
     # single-vehicle searches given back by the memo (swarm.memo) and searched, over every stage
-    extra.setdefault("counts", {}).update(searches_recalled=problem.memo.hits, searches_run=problem.memo.misses)
+    extra.setdefault("counts", {}).update(
+        searches_recalled=problem.memo.hits - memo_before[0], searches_run=problem.memo.misses - memo_before[1]
+    )
     info = SwarmInfo(
         stage=found.stage,
         coordination=found.coordination,
@@ -126,17 +208,70 @@ def swarm_timed(
         time_s=round(time.perf_counter() - t0, 3),
         retiming=planned.retiming,
         makespan_repair=planned.repair,
+        hand_on=hand_on,
         **extra,
     )
     timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
     return timed, info
 
 
+def _retimed_again(
+    hand_on: SwarmHandOn, opts: SwarmOptions, *, progress, deadline
+) -> tuple[dict[str, TimedPath], SwarmInfo]:
+    """:func:`swarm_again` where only the re-timing differs: the tail of :func:`_plan` (re-timing,
+    the choice with the pass with both wavefronts, the makespan repair) on the handed-on tracks."""
+    t0 = time.perf_counter()
+    problem = hand_on.problem
+    memo = (problem.memo.hits, problem.memo.misses)
+    extra = {k: (dict(v) if isinstance(v, dict) else v) for k, v in hand_on.extra.items()}
+    found = hand_on.searched
+    give_up = hand_on.give_up
+    if give_up is not None:  # the stacked plan's levels were re-timed inside it: join them again
+        stacked = None
+        if give_up.levels is not None:
+            records = iter(give_up.levels)
+
+            def plan_level(sub: SwarmProblem) -> tuple[list[GridTrack], SwarmStage, int]:
+                rec = next(records)
+                assert rec.problem.names == sub.names, "the levels are planned in the order of the first run"
+                level, searched = rec.problem, rec.searched
+                by, _ = _retime_stage(
+                    level, searched, _makespan(searched), _level_options(opts), progress=progress, deadline=deadline
+                )
+                return [by[a] for a in range(level.n_agents)], searched.stage, rec.planned
+
+            stacked = _join_levels(problem, give_up.stack, extra, plan_level)
+        found = _gave_up(give_up.lattice, stacked, opts, extra)
+    searched = found
+    by_agent, retiming = _retime_stage(problem, found, _makespan(found), opts, progress=progress, deadline=deadline)
+    if hand_on.heights is not None:  # as heights_pass chose: that plan when shorter once re-timed
+        alt = hand_on.heights
+        alt_by_agent, alt_retiming = _retime_stage(
+            problem, alt, _makespan(alt), opts, progress=progress, deadline=deadline
+        )
+        without = max(tr.arrival_s for tr in by_agent.values())
+        makespan = max(tr.arrival_s for tr in alt_by_agent.values())
+        keep = makespan < without
+        extra["heights"] = (
+            f"both wavefronts (the pass planned before, re-timed again): {makespan:.2f} s; without: "
+            f"{without:.2f} s ({found.stage}); " + ("kept both wavefronts" if keep else "kept the plan without")
+        )
+        if keep:
+            found, by_agent, retiming = alt, alt_by_agent, alt_retiming
+    repair = None
+    if _repairs(opts, found):
+        repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
+    planned = _Planned(found, by_agent, _makespan(found), retiming, repair, extra, searched, hand_on.heights, give_up)
+    return _handed_on(problem, hand_on.lower_bound_s, opts, hand_on.assigned, planned, t0, memo)
+
+
 @dataclass
 class _Planned:
     """What the stages of :func:`_plan` give: the stage whose tracks were kept, the final tracks by agent,
-    the makespan before re-timing (s), what re-timing and the makespan repair did, and the other stages'
-    records (``SwarmInfo``'s extra fields)."""
+    the makespan before re-timing (s), what re-timing and the makespan repair did, the other stages'
+    records (``SwarmInfo``'s extra fields), and what :class:`SwarmHandOn` hands on: the searched stage's
+    tracks before re-timing, the pass with both wavefronts' (where it gave other tracks) and the
+    give-up plans (where prioritised planning gave up)."""
 
     stage: Stage
     tracks: dict[int, GridTrack]
@@ -144,6 +279,9 @@ class _Planned:
     retiming: RetimeInfo
     repair: MakespanRepairInfo | None
     extra: dict
+    searched: Stage
+    heights: Stage | None
+    give_up: GiveUpHandOn | None = None
 
 
 def _plan(
@@ -169,26 +307,28 @@ def _plan(
         found = prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         if kept is not None and (found is None or _makespan(kept) < _makespan(found)):
             found = kept
+    give_up: GiveUpHandOn | None = None
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
-        found = _lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
-        stacked = (
-            _stacked_stage(problem, opts, assigned, stacking(), extra, progress=progress, deadline=deadline)
-            if opts.levels and stacking is not None
-            else None
-        )
-        if stacked is not None and _makespan(stacked) < _makespan(found):
-            found = stacked
-        if opts.prioritized:  # say why: prioritised planning gave up within its count budget
-            spent = extra.get("counts", {}).get("planned", 0)
-            found.coordination = f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
+        lattice = _lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+        stack = stack_levels(problem, stacking()) if opts.levels and stacking is not None else None
+        levels: list[LevelHandOn] = []
+        stacked = None
+        if opts.levels and stacking is not None:
+            planner = _level_planner(opts, assigned, levels, progress=progress, deadline=deadline)
+            stacked = _join_levels(problem, stack, extra, planner)
+        give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
+        found = _gave_up(lattice, stacked, opts, extra)
+    searched = found
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     heights = heights_on(opts, assigned, problem.n_agents, extra)
+    heights_stage: list[Stage] = []  # the pass's tracks, where it gave other tracks (then re-timed here)
     if heights and opts.prioritized and not straight and found.stage != "stacked":
 
         def retime(stage: Stage) -> tuple[dict[int, GridTrack], RetimeInfo]:
+            heights_stage.append(stage)
             return _retime_stage(problem, stage, _makespan(stage), opts, progress=progress, deadline=deadline)
 
         got = heights_pass(
@@ -200,7 +340,8 @@ def _plan(
     repair = None
     if _repairs(opts, found):  # once, on the plan kept (SwarmOptions.makespan_repair)
         repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
-    return _Planned(found, by_agent, initial, retiming, repair, extra)
+    alt = heights_stage[0] if heights_stage else None
+    return _Planned(found, by_agent, initial, retiming, repair, extra, searched, alt, give_up)
 
 
 def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
@@ -246,38 +387,82 @@ def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pr
     return Stage(lockstep_tracks(lattice, configurations), "lattice", coordination, routes)
 
 
+def _gave_up(lattice: Stage, stacked: Stage | None, opts: SwarmOptions, extra: dict) -> Stage:
+    """The shorter of the lattice plan and the stacked plan (where one was made; ties: the lattice
+    plan), saying why where prioritised planning ran and gave up."""
+    found = stacked if stacked is not None and _makespan(stacked) < _makespan(lattice) else lattice
+    if opts.prioritized:  # say why: prioritised planning gave up within its count budget
+        spent = extra.get("counts", {}).get("planned", 0)
+        found = replace(
+            found, coordination=f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
+        )
+    return found
+
+
+def _level_options(opts: SwarmOptions) -> SwarmOptions:
+    """The options each level of the stacked plan is planned with: by the stages of _plan with
+    prioritised planning in the first order only, no pass with both wavefronts and no makespan repair:
+    with all of them corridor-64 fixed took 42.6 s of CPU (the issue's target is 30 s) for the same plan
+    (4.84x) and grid-64 gave 2.11x instead of 2.21x (set watching these two named layouts;
+    docs/planner.md, stop 52 round 14A)."""
+    return replace(opts, levels=False, heights=False, makespan_repair=False, orders=opts.orders[:1])
+
+
 def _stacked_stage(
     problem: SwarmProblem, opts: SwarmOptions, assigned: bool, stacking: dict, extra: dict, *, progress, deadline
 ) -> Stage | None:
-    """Each group of types on a level of its own, each level planned apart (by :func:`_plan`, every
-    stage of the module but this one), joined by vertical steps (:mod:`proxplan.planner.swarm.stacked`);
-    None where no stack fits the box or a step or a level gives no plan (said in ``extra["stacked"]``)."""
-    levels = stack_levels(problem, stacking)
-    if levels is None:
-        extra["stacked"] = "no stack of levels fits the free box"
-        return None
-    # each level by the stages of _plan with prioritised planning in the first order only, no pass with
-    # both wavefronts and no makespan repair: with all of them corridor-64 fixed took 42.6 s of CPU
-    # (the issue's target is 30 s) for the same plan (4.84x) and grid-64 gave 2.11x instead of 2.21x
-    # (set watching these two named layouts; docs/planner.md, stop 52 round 14A)
-    level_opts = replace(opts, levels=False, heights=False, makespan_repair=False, orders=opts.orders[:1])
-    t0 = time.perf_counter()
-    counts = {"planned": 0}
-    stages: list[str] = []
+    """The stacked plan alone (:func:`_join_levels` on :func:`~proxplan.planner.swarm.levels.stack_levels`
+    of ``stacking``, each level planned by :func:`_level_planner`)."""
+    planner = _level_planner(opts, assigned, [], progress=progress, deadline=deadline)
+    return _join_levels(problem, stack_levels(problem, stacking), extra, planner)
 
-    def plan_level(sub: SwarmProblem) -> list[GridTrack]:
+
+def _level_planner(
+    opts: SwarmOptions, assigned: bool, record: list[LevelHandOn], *, progress, deadline
+) -> Callable[[SwarmProblem], tuple[list[GridTrack], SwarmStage, int]]:
+    """Plans one level of the stacked plan by :func:`_plan` with :func:`_level_options` (its tracks,
+    the stage that gave them, the vehicle plannings made), appending what it planned to ``record``."""
+
+    def plan_level(sub: SwarmProblem) -> tuple[list[GridTrack], SwarmStage, int]:
         bound = max(
             rest_to_rest(float(np.linalg.norm(sub.goals_m[a] - sub.starts_m[a])), sub.limits[a], GRID_DT_S).duration_s
             for a in range(sub.n_agents)
         )
-        level = _plan(sub, bound, level_opts, assigned, None, progress=progress, deadline=deadline)
-        stages.append(level.stage.stage)
+        level = _plan(sub, bound, _level_options(opts), assigned, None, progress=progress, deadline=deadline)
         made = level.extra.get("counts", {})
-        counts["planned"] += made.get("planned", 0) + made.get("heights_planned", 0)
-        return [level.tracks[a] for a in range(sub.n_agents)]
+        planned = made.get("planned", 0) + made.get("heights_planned", 0)
+        record.append(LevelHandOn(sub, level.searched, planned))
+        return [level.tracks[a] for a in range(sub.n_agents)], level.stage.stage, planned
+
+    return plan_level
+
+
+def _join_levels(
+    problem: SwarmProblem,
+    levels: Levels | None,
+    extra: dict,
+    plan_level: Callable[[SwarmProblem], tuple[list[GridTrack], SwarmStage, int]],
+) -> Stage | None:
+    """Each group of types on a level of its own (``levels``, :func:`~proxplan.planner.swarm.levels.stack_levels`),
+    each level planned apart by ``plan_level`` (its tracks, the stage that gave them and the vehicle
+    plannings it made; :func:`_level_planner`), joined by vertical steps
+    (:mod:`proxplan.planner.swarm.stacked`); None where no stack fits the box or a step or a level
+    gives no plan (said in ``extra["stacked"]``)."""
+    if levels is None:
+        extra["stacked"] = "no stack of levels fits the free box"
+        return None
+    t0 = time.perf_counter()
+    counts = {"planned": 0}
+    stages: list[str] = []
+
+    def plan_one_level(sub: SwarmProblem) -> list[GridTrack]:
+        tracks, stage, planned = plan_level(sub)
+        stages.append(stage)
+        counts["planned"] += planned
+        return tracks
 
     try:
-        plan, what = stacked_tracks(problem, levels, plan_level)
+        plan, what = stacked_tracks(problem, levels, plan_one_level)
     except PlanNotFound as err:
         plan, what = None, f"a level gave no plan ({err.message})"
     heights = "/".join(f"{z:.2f}" for z in levels.heights_m)
