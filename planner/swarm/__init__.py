@@ -22,12 +22,13 @@ lattice plan), beside it :mod:`~proxplan.planner.swarm.levels` and
 """
 
 from proxplan.planner.swarm.assign import Assignment, assign_by_type, assign_group
-from proxplan.planner.swarm.info import LatticeInfo, MakespanRepairInfo, RetimeInfo, SwarmInfo, SwarmStage
+from proxplan.planner.swarm.info import LatticeInfo, MakespanRepairInfo, RetimeInfo, SwarmInfo
 from proxplan.planner.swarm.lacam import Lacam, LacamResult
 from proxplan.planner.swarm.lattice import Lattice, build_lattice
 from proxplan.planner.swarm.options import SwarmOptions
 from proxplan.planner.swarm.plan import SWARM_MIN_VEHICLES, swarm_timed
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
+from proxplan.planner.swarm.stage import SwarmStage
 from proxplan.planner.swarm.sync import SyncTable, segment_conflict
 
 __all__ = [

@@ -5,18 +5,14 @@ its :meth:`SwarmInfo.to_metrics` form)."""
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
+
+from proxplan.planner.swarm.stage import Stage, SwarmStage
 
 if TYPE_CHECKING:  # types only: these modules import this one
     from proxplan.planner.swarm.levels import Levels
     from proxplan.planner.swarm.options import SwarmOptions
     from proxplan.planner.swarm.problem import SwarmProblem
-    from proxplan.planner.swarm.stage import Stage
-
-# straight: one synchronised straight step (CAPT's case); prioritised: prioritised continuous
-# planning; lattice: the lattice coordination flown in lock-step (prioritised planning gave up);
-# stacked: each group of types on a level of its own, planned apart (prioritised planning gave up)
-SwarmStage = Literal["straight", "prioritised", "lattice", "stacked"]
 
 
 @dataclass(frozen=True)

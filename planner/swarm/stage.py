@@ -5,14 +5,19 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
-from proxplan.planner.swarm.info import SwarmStage
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GridTrack
 
-__all__ = ["Stage", "own_routes"]
+__all__ = ["Stage", "SwarmStage", "own_routes"]
+
+# straight: one synchronised straight step (CAPT's case); prioritised: prioritised continuous
+# planning; lattice: the lattice coordination flown in lock-step (prioritised planning gave up);
+# stacked: each group of types on a level of its own, planned apart (prioritised planning gave up)
+SwarmStage = Literal["straight", "prioritised", "lattice", "stacked"]
 
 
 @dataclass
