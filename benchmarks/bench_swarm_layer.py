@@ -37,7 +37,8 @@ def main() -> int:
     from proxplan.planner.formations import LAYOUTS
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
     from proxplan.planner.swarm import SwarmOptions, swarm_problem, swarm_timed
-    from proxplan.planner.swarm.plan import _lattice_stage, _retime_stage
+    from proxplan.planner.swarm.complete_stages import lattice_stage as _lattice_stage
+    from proxplan.planner.swarm.plan import _retime_stage
     from proxplan.planner.swarm.prioritised_stage import prioritised_stage
 
     print(f"proxplan from {proxplan.__file__}")

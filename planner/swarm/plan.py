@@ -1,7 +1,7 @@
 """Swarm planning (``--method swarm``; ``optimized`` for swarms of ``SWARM_MIN_VEHICLES`` or
 more): coordinate jointly on a lattice, fly in continuous time. One function per stage:
 
-1. *Straight first* (:func:`_straight_stage`, :mod:`proxplan.planner.swarm.straight`): if every
+1. *Straight first* (:func:`~proxplan.planner.swarm.complete_stages.straight_stage`, :mod:`proxplan.planner.swarm.straight`): if every
    vehicle can fly its straight line at once, synchronised (one step, checked exactly pair by pair),
    that is the plan (the CAPT case of interchangeable goals).
 2. *Continuous time, prioritised* (:mod:`proxplan.planner.swarm.prioritised_stage`, planning by
@@ -19,7 +19,7 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    earlier arrival kept), on what is left of the count budget; it is re-timed too and replaces that
    plan only when it is shorter: a vehicle's earlier arrival can lengthen the whole plan. None where
    prioritised planning gave up.
-3. *Joint coordination*, when prioritised planning gives up (:func:`_lattice_stage`): LaCAM with
+3. *Joint coordination*, when prioritised planning gives up (:func:`~proxplan.planner.swarm.complete_stages.lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
    lock-step (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the
@@ -51,12 +51,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from proxplan.planfile import Scenario
-from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
+from proxplan.planner.swarm.complete_stages import gave_up, join_levels, lattice_stage, stage_makespan, straight_stage
 from proxplan.planner.swarm.heights import heights_on, heights_pass
 from proxplan.planner.swarm.info import (
     GiveUpHandOn,
-    LatticeInfo,
     LevelHandOn,
     MakespanRepairInfo,
     RetimeInfo,
@@ -64,21 +63,16 @@ from proxplan.planner.swarm.info import (
     SwarmInfo,
     SwarmStage,
 )
-from proxplan.planner.swarm.lacam import Lacam
-from proxplan.planner.swarm.lattice import Lattice, build_lattice
-from proxplan.planner.swarm.levels import Levels, stack_levels, stacking_keepouts
-from proxplan.planner.swarm.lockstep import lockstep_tracks
+from proxplan.planner.swarm.levels import stack_levels, stacking_keepouts
 from proxplan.planner.swarm.makespan import budget as makespan_budget
 from proxplan.planner.swarm.makespan import shorten_makespan
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.options import SwarmOptions
 from proxplan.planner.swarm.prioritised_stage import kept_straight_stage, prioritised_stage
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
-from proxplan.planner.swarm.retime import improve, route_chain
-from proxplan.planner.swarm.stacked import stacked_tracks
+from proxplan.planner.swarm.retime import improve
 from proxplan.planner.swarm.stage import Stage
-from proxplan.planner.swarm.straight import straight_step_conflicts, straight_tracks
-from proxplan.planner.swarm.sync import SyncTable
+from proxplan.planner.swarm.straight import straight_step_conflicts
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.paths import TimedPath
 from proxplan.planner.timing.profile import rest_to_rest
@@ -236,18 +230,25 @@ def _retimed_again(
                 assert rec.problem.names == sub.names, "the levels are planned in the order of the first run"
                 level, searched = rec.problem, rec.searched
                 by, _ = _retime_stage(
-                    level, searched, _makespan(searched), _level_options(opts), progress=progress, deadline=deadline
+                    level,
+                    searched,
+                    stage_makespan(searched),
+                    _level_options(opts),
+                    progress=progress,
+                    deadline=deadline,
                 )
                 return [by[a] for a in range(level.n_agents)], searched.stage, rec.planned
 
-            stacked = _join_levels(problem, give_up.stack, extra, plan_level)
-        found = _gave_up(give_up.lattice, stacked, opts, extra)
+            stacked = join_levels(problem, give_up.stack, extra, plan_level)
+        found = gave_up(give_up.lattice, stacked, opts, extra)
     searched = found
-    by_agent, retiming = _retime_stage(problem, found, _makespan(found), opts, progress=progress, deadline=deadline)
+    by_agent, retiming = _retime_stage(
+        problem, found, stage_makespan(found), opts, progress=progress, deadline=deadline
+    )
     if hand_on.heights is not None:  # as heights_pass chose: that plan when shorter once re-timed
         alt = hand_on.heights
         alt_by_agent, alt_retiming = _retime_stage(
-            problem, alt, _makespan(alt), opts, progress=progress, deadline=deadline
+            problem, alt, stage_makespan(alt), opts, progress=progress, deadline=deadline
         )
         without = max(tr.arrival_s for tr in by_agent.values())
         makespan = max(tr.arrival_s for tr in alt_by_agent.values())
@@ -261,7 +262,9 @@ def _retimed_again(
     repair = None
     if _repairs(opts, found):
         repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
-    planned = _Planned(found, by_agent, _makespan(found), retiming, repair, extra, searched, hand_on.heights, give_up)
+    planned = _Planned(
+        found, by_agent, stage_makespan(found), retiming, repair, extra, searched, hand_on.heights, give_up
+    )
     return _handed_on(problem, hand_on.lower_bound_s, opts, hand_on.assigned, planned, t0, memo)
 
 
@@ -300,26 +303,26 @@ def _plan(
     tried; None: no stacked plan)."""
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
-    found = _straight_stage(problem) if not conflicts else None
+    found = straight_stage(problem) if not conflicts else None
     straight = found is not None
     if found is None and opts.prioritized:
         kept = kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         found = prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
-        if kept is not None and (found is None or _makespan(kept) < _makespan(found)):
+        if kept is not None and (found is None or stage_makespan(kept) < stage_makespan(found)):
             found = kept
     give_up: GiveUpHandOn | None = None
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
-        lattice = _lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+        lattice = lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
         stack = stack_levels(problem, stacking()) if opts.levels and stacking is not None else None
         levels: list[LevelHandOn] = []
         stacked = None
         if opts.levels and stacking is not None:
             planner = _level_planner(opts, assigned, levels, progress=progress, deadline=deadline)
-            stacked = _join_levels(problem, stack, extra, planner)
+            stacked = join_levels(problem, stack, extra, planner)
         give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
-        found = _gave_up(lattice, stacked, opts, extra)
+        found = gave_up(lattice, stacked, opts, extra)
     searched = found
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
@@ -329,7 +332,7 @@ def _plan(
 
         def retime(stage: Stage) -> tuple[dict[int, GridTrack], RetimeInfo]:
             heights_stage.append(stage)
-            return _retime_stage(problem, stage, _makespan(stage), opts, progress=progress, deadline=deadline)
+            return _retime_stage(problem, stage, stage_makespan(stage), opts, progress=progress, deadline=deadline)
 
         got = heights_pass(
             problem, lower_bound, opts, found, by_agent, extra, retime, progress=progress, deadline=deadline
@@ -344,61 +347,6 @@ def _plan(
     return _Planned(found, by_agent, initial, retiming, repair, extra, searched, alt, give_up)
 
 
-def _straight(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
-    return lambda a: [np.array([problem.starts_m[a], problem.goals_m[a]])]
-
-
-def _straight_stage(problem: SwarmProblem) -> Stage:
-    """Every vehicle on its straight line in one synchronised step (no pair conflicts)."""
-    straight = straight_tracks(problem, list(range(problem.n_agents)))
-    tracks = [straight[a] for a in range(problem.n_agents)]
-    return Stage(tracks, "straight", "one synchronised straight step", _straight(problem))
-
-
-def _makespan(stage: Stage) -> float:
-    return max(tr.arrival_s for tr in stage.tracks)
-
-
-def _lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> Stage:
-    """LaCAM on the lattice, flown in lock-step: the guaranteed answer (or PlanNotFound)."""
-    lattice = build_lattice(problem, max_run=opts.max_run)
-    sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
-    t1 = time.perf_counter()
-    result = Lacam(lattice, sync, seed=opts.seed).solve(
-        max_nodes=opts.max_nodes, max_proposals=opts.max_proposals, deadline=deadline, progress=progress
-    )
-    configurations = result.configurations
-    extra["lattice"] = LatticeInfo(
-        spacing_m=lattice.spacing_m,
-        levels_m=lattice.levels_m.tolist(),
-        vertices=int(lattice.pos_m.shape[0]),
-        steps=len(configurations) - 1,
-        nodes=result.nodes,
-        tests=result.tests,
-        time_s=round(time.perf_counter() - t1, 3),
-    )
-
-    def routes(a: int, lattice: Lattice = lattice) -> list[np.ndarray]:
-        return [np.array([problem.starts_m[a], problem.goals_m[a]]), route_chain(lattice, configurations, a)]
-
-    coordination = (
-        f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
-    )
-    return Stage(lockstep_tracks(lattice, configurations), "lattice", coordination, routes)
-
-
-def _gave_up(lattice: Stage, stacked: Stage | None, opts: SwarmOptions, extra: dict) -> Stage:
-    """The shorter of the lattice plan and the stacked plan (where one was made; ties: the lattice
-    plan), saying why where prioritised planning ran and gave up."""
-    found = stacked if stacked is not None and _makespan(stacked) < _makespan(lattice) else lattice
-    if opts.prioritized:  # say why: prioritised planning gave up within its count budget
-        spent = extra.get("counts", {}).get("planned", 0)
-        found = replace(
-            found, coordination=f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
-        )
-    return found
-
-
 def _level_options(opts: SwarmOptions) -> SwarmOptions:
     """The options each level of the stacked plan is planned with: by the stages of _plan with
     prioritised planning in the first order only, no pass with both wavefronts and no makespan repair:
@@ -411,10 +359,10 @@ def _level_options(opts: SwarmOptions) -> SwarmOptions:
 def _stacked_stage(
     problem: SwarmProblem, opts: SwarmOptions, assigned: bool, stacking: dict, extra: dict, *, progress, deadline
 ) -> Stage | None:
-    """The stacked plan alone (:func:`_join_levels` on :func:`~proxplan.planner.swarm.levels.stack_levels`
+    """The stacked plan alone (:func:`~proxplan.planner.swarm.complete_stages.join_levels` on :func:`~proxplan.planner.swarm.levels.stack_levels`
     of ``stacking``, each level planned by :func:`_level_planner`)."""
     planner = _level_planner(opts, assigned, [], progress=progress, deadline=deadline)
-    return _join_levels(problem, stack_levels(problem, stacking), extra, planner)
+    return join_levels(problem, stack_levels(problem, stacking), extra, planner)
 
 
 def _level_planner(
@@ -435,48 +383,6 @@ def _level_planner(
         return [level.tracks[a] for a in range(sub.n_agents)], level.stage.stage, planned
 
     return plan_level
-
-
-def _join_levels(
-    problem: SwarmProblem,
-    levels: Levels | None,
-    extra: dict,
-    plan_level: Callable[[SwarmProblem], tuple[list[GridTrack], SwarmStage, int]],
-) -> Stage | None:
-    """Each group of types on a level of its own (``levels``, :func:`~proxplan.planner.swarm.levels.stack_levels`),
-    each level planned apart by ``plan_level`` (its tracks, the stage that gave them and the vehicle
-    plannings it made; :func:`_level_planner`), joined by vertical steps
-    (:mod:`proxplan.planner.swarm.stacked`); None where no stack fits the box or a step or a level
-    gives no plan (said in ``extra["stacked"]``)."""
-    if levels is None:
-        extra["stacked"] = "no stack of levels fits the free box"
-        return None
-    t0 = time.perf_counter()
-    counts = {"planned": 0}
-    stages: list[str] = []
-
-    def plan_one_level(sub: SwarmProblem) -> list[GridTrack]:
-        tracks, stage, planned = plan_level(sub)
-        stages.append(stage)
-        counts["planned"] += planned
-        return tracks
-
-    try:
-        plan, what = stacked_tracks(problem, levels, plan_one_level)
-    except PlanNotFound as err:
-        plan, what = None, f"a level gave no plan ({err.message})"
-    heights = "/".join(f"{z:.2f}" for z in levels.heights_m)
-    groups = " | ".join(",".join(problem.vehicles[t].name for t in g) for g in levels.groups)
-    extra["stacked"] = (
-        f"levels {heights} m ({groups}): {what}; levels planned by {', '.join(stages)} in "
-        f"{counts['planned']} vehicle plannings, "
-        f"{time.perf_counter() - t0:.1f} s"
-    )
-    if plan is None:
-        return None
-    makespans = ", ".join(f"{m:.2f}" for m in plan.level_makespans_s)
-    coordination = f"stacked levels {heights} m ({groups}), levels planned apart ({makespans} s), {what}"
-    return Stage(plan.tracks, "stacked", coordination, lambda a: [plan.chains[a]])
 
 
 def _retime_stage(

@@ -1,0 +1,126 @@
+"""The swarm layer's complete stages without a prioritised search (issue 37; :mod:`proxplan.planner.swarm.plan`
+runs them): every vehicle on its straight line in one synchronised step; LaCAM on the lattice flown in
+lock-step (the guaranteed answer); the stacked plan's levels joined by vertical steps (each level planned
+by a planner the caller passes in); and the choice between the last two when prioritised planning gave up."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from proxplan.planner.errors import PlanNotFound
+from proxplan.planner.swarm.info import LatticeInfo
+from proxplan.planner.swarm.lacam import Lacam
+from proxplan.planner.swarm.lattice import Lattice, build_lattice
+from proxplan.planner.swarm.levels import Levels
+from proxplan.planner.swarm.lockstep import lockstep_tracks
+from proxplan.planner.swarm.options import SwarmOptions
+from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.retime import route_chain
+from proxplan.planner.swarm.stacked import stacked_tracks
+from proxplan.planner.swarm.stage import Stage, SwarmStage
+from proxplan.planner.swarm.straight import straight_tracks
+from proxplan.planner.swarm.sync import SyncTable
+from proxplan.planner.swarm.tracks import GridTrack
+
+__all__ = ["gave_up", "join_levels", "lattice_stage", "stage_makespan", "straight_routes", "straight_stage"]
+
+
+def straight_routes(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
+    return lambda a: [np.array([problem.starts_m[a], problem.goals_m[a]])]
+
+
+def straight_stage(problem: SwarmProblem) -> Stage:
+    """Every vehicle on its straight line in one synchronised step (no pair conflicts)."""
+    straight = straight_tracks(problem, list(range(problem.n_agents)))
+    tracks = [straight[a] for a in range(problem.n_agents)]
+    return Stage(tracks, "straight", "one synchronised straight step", straight_routes(problem))
+
+
+def stage_makespan(stage: Stage) -> float:
+    return max(tr.arrival_s for tr in stage.tracks)
+
+
+def lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> Stage:
+    """LaCAM on the lattice, flown in lock-step: the guaranteed answer (or PlanNotFound)."""
+    lattice = build_lattice(problem, max_run=opts.max_run)
+    sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
+    t1 = time.perf_counter()
+    result = Lacam(lattice, sync, seed=opts.seed).solve(
+        max_nodes=opts.max_nodes, max_proposals=opts.max_proposals, deadline=deadline, progress=progress
+    )
+    configurations = result.configurations
+    extra["lattice"] = LatticeInfo(
+        spacing_m=lattice.spacing_m,
+        levels_m=lattice.levels_m.tolist(),
+        vertices=int(lattice.pos_m.shape[0]),
+        steps=len(configurations) - 1,
+        nodes=result.nodes,
+        tests=result.tests,
+        time_s=round(time.perf_counter() - t1, 3),
+    )
+
+    def routes(a: int, lattice: Lattice = lattice) -> list[np.ndarray]:
+        return [np.array([problem.starts_m[a], problem.goals_m[a]]), route_chain(lattice, configurations, a)]
+
+    coordination = (
+        f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests"
+    )
+    return Stage(lockstep_tracks(lattice, configurations), "lattice", coordination, routes)
+
+
+def gave_up(lattice: Stage, stacked: Stage | None, opts: SwarmOptions, extra: dict) -> Stage:
+    """The shorter of the lattice plan and the stacked plan (where one was made; ties: the lattice
+    plan), saying why where prioritised planning ran and gave up."""
+    found = stacked if stacked is not None and stage_makespan(stacked) < stage_makespan(lattice) else lattice
+    if opts.prioritized:  # say why: prioritised planning gave up within its count budget
+        spent = extra.get("counts", {}).get("planned", 0)
+        found = replace(
+            found, coordination=f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
+        )
+    return found
+
+
+def join_levels(
+    problem: SwarmProblem,
+    levels: Levels | None,
+    extra: dict,
+    plan_level: Callable[[SwarmProblem], tuple[list[GridTrack], SwarmStage, int]],
+) -> Stage | None:
+    """Each group of types on a level of its own (``levels``, :func:`~proxplan.planner.swarm.levels.stack_levels`),
+    each level planned apart by ``plan_level`` (its tracks, the stage that gave them and the vehicle
+    plannings it made; :func:`_level_planner`), joined by vertical steps
+    (:mod:`proxplan.planner.swarm.stacked`); None where no stack fits the box or a step or a level
+    gives no plan (said in ``extra["stacked"]``)."""
+    if levels is None:
+        extra["stacked"] = "no stack of levels fits the free box"
+        return None
+    t0 = time.perf_counter()
+    counts = {"planned": 0}
+    stages: list[str] = []
+
+    def plan_one_level(sub: SwarmProblem) -> list[GridTrack]:
+        tracks, stage, planned = plan_level(sub)
+        stages.append(stage)
+        counts["planned"] += planned
+        return tracks
+
+    try:
+        plan, what = stacked_tracks(problem, levels, plan_one_level)
+    except PlanNotFound as err:
+        plan, what = None, f"a level gave no plan ({err.message})"
+    heights = "/".join(f"{z:.2f}" for z in levels.heights_m)
+    groups = " | ".join(",".join(problem.vehicles[t].name for t in g) for g in levels.groups)
+    extra["stacked"] = (
+        f"levels {heights} m ({groups}): {what}; levels planned by {', '.join(stages)} in "
+        f"{counts['planned']} vehicle plannings, "
+        f"{time.perf_counter() - t0:.1f} s"
+    )
+    if plan is None:
+        return None
+    makespans = ", ".join(f"{m:.2f}" for m in plan.level_makespans_s)
+    coordination = f"stacked levels {heights} m ({groups}), levels planned apart ({makespans} s), {what}"
+    return Stage(plan.tracks, "stacked", coordination, lambda a: [plan.chains[a]])
