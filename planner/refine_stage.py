@@ -28,6 +28,7 @@ from collections.abc import Callable
 from dataclasses import replace
 
 from proxplan.planfile import Plan, Scenario
+from proxplan.planner.bounds import certified_bound
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm import SwarmInfo, SwarmOptions, swarm_timed
 from proxplan.planner.swarm.plan import swarm_again
@@ -128,8 +129,6 @@ def _refine_swarm(
     from proxplan.planner.optimizer.warm_problem import table_extent
 
     makespan = moving_end_s(plan)
-    from proxplan.planner.bounds import certified_bound
-
     # fixed goals: the certified bound (planner.bounds; the duration table's rounds up by 0.1-0.2 %, so it is
     # not strictly a lower bound); interchangeable goals: the assignment's
     assigned = plan.metrics.get("assignment_lower_bound_s")
