@@ -82,8 +82,10 @@ def _time_chain(
     arrive_by: int | None,
     through: bool,
     deviation_m: float | None,
+    end_window_steps: int = END_WINDOW_STEPS,
 ) -> ChainResult | None:
-    """:func:`time_chain` searched."""
+    """:func:`time_chain` searched (``end_window_steps``: the first window of a move to the end,
+    :data:`END_WINDOW_STEPS`; the answer does not depend on it, tested)."""
     from proxplan.planner.timing import CORNER_DEVIATION_M
 
     problem = occ.problem
@@ -157,8 +159,8 @@ def _time_chain(
             c0, c1 = lo, lo
         d = lo
         while d <= hi:
-            if d >= c1:  # ask the next window, as long as all asked before it (at least END_WINDOW_STEPS)
-                c2 = min(hi + 1, c1 + max(END_WINDOW_STEPS, c1 - c0))
+            if d >= c1:  # ask the next window, as long as all asked before it (at least end_window_steps)
+                c2 = min(hi + 1, c1 + max(end_window_steps, c1 - c0))
                 bad[c1:c2] = occ.forbidden_departures(agent, mv_.positions(), from_step=c1, until_step=c2)[c1:c2]
                 c1 = c2
                 scanned[(k, run)] = (c0, c1, bad)
