@@ -32,6 +32,9 @@ from proxplan.planner.timing.profile import LineMove, RunMove, rest_to_rest
 MAX_SHORTCUT = 6  # a straight move may skip at most this many waypoints (besides the direct move to the end)
 MAX_RUN = 12  # a flight through waypoints spans at most this many (besides the one to the end)
 STATIC_CHECKS_PER_STEP = 2  # a run's flown path is checked against the static free space this often per grid step
+# a move to the end asks its departures in windows of this many steps at first (1.6 s), each later one
+# as long as all before it: only the cost depends on it, never the answer
+END_WINDOW_STEPS = 64
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -79,8 +82,10 @@ def _time_chain(
     arrive_by: int | None,
     through: bool,
     deviation_m: float | None,
+    end_window_steps: int = END_WINDOW_STEPS,
 ) -> ChainResult | None:
-    """:func:`time_chain` searched."""
+    """:func:`time_chain` searched (``end_window_steps``: the first window of a move to the end,
+    :data:`END_WINDOW_STEPS`; the answer does not depend on it, tested)."""
     from proxplan.planner.timing import CORNER_DEVIATION_M
 
     problem = occ.problem
@@ -100,10 +105,8 @@ def _time_chain(
     # (from step, until step, departures): exact for departures in [from, until)
     forbidden: dict[tuple[int, int, bool], tuple[int, int, np.ndarray]] = {}
 
-    def move(k: int, j: int, run: bool, t: int, e: int):
-        """The move k -> j and its forbidden departures, exact from step t on up to the last
-        departure that could still arrive at the end before ``done_by`` and leaves the hold at k
-        before step ``e`` (the end of its safe interval) (None: not free)."""
+    def flown(k: int, j: int, run: bool) -> Move | None:
+        """The move k -> j (through the waypoints between when ``run``), None where not statically free."""
         key = (k, j, run)
         if key not in moves:
             mv: Move
@@ -115,7 +118,14 @@ def _time_chain(
                 free = problem.segment_free(W[k], W[j])
                 mv = LineMove(W[k], W[j], rest_to_rest(float(np.linalg.norm(W[j] - W[k])), limits, GRID_DT_S))
             moves[key] = mv if free else None
-        mv_ = moves[key]
+        return moves[key]
+
+    def move(k: int, j: int, run: bool, t: int, e: int):
+        """The move k -> j and its forbidden departures, exact from step t on up to the last
+        departure that could still arrive at the end before ``done_by`` and leaves the hold at k
+        before step ``e`` (the end of its safe interval) (None: not free)."""
+        key = (k, j, run)
+        mv_ = flown(k, j, run)
         if mv_ is None:
             return None
         # departures after done_by - 1 - steps - h[j] cannot improve on the best arrival found (and
@@ -126,6 +136,39 @@ def _time_chain(
         if key not in forbidden or forbidden[key][0] > t or forbidden[key][1] < until:
             forbidden[key] = (t, until, occ.forbidden_departures(agent, mv_.positions(), from_step=t, until_step=until))
         return mv_, forbidden[key][2]
+
+    # the end is held for good only from the start of its last safe interval (the one that lasts to
+    # the horizon): an arrival there ends the search, an arrival in an earlier one of its intervals
+    # leads nowhere (no move leaves the end), so a move to the end needs only its first departure
+    # arriving from then on, found by asking the departures in growing windows (the same answer as
+    # asking them all at once; only the cost depends on END_WINDOW_STEPS)
+    goal_iv = len(intervals[m]) - 1
+    goal_from = intervals[m][goal_iv][0]
+    # move key -> (first step, end step, forbidden departures, exact in [first, end))
+    scanned: dict[tuple[int, bool], tuple[int, int, np.ndarray]] = {}
+
+    def first_free(k: int, run: bool, mv_: Move, lo: int, hi: int) -> int | None:
+        """The first departure in [lo, hi] that the others allow along the move k -> m (None: none)."""
+        if hi < lo:
+            return None
+        got = scanned.get((k, run))
+        if got is None or got[0] > lo:
+            got = (lo, lo, np.zeros(T, dtype=bool))
+        c0, c1, bad = got
+        if c1 < lo:  # what was asked ends before lo: ask from lo (the steps between are of no use)
+            c0, c1 = lo, lo
+        d = lo
+        while d <= hi:
+            if d >= c1:  # ask the next window, as long as all asked before it (at least end_window_steps)
+                c2 = min(hi + 1, c1 + max(end_window_steps, c1 - c0))
+                bad[c1:c2] = occ.forbidden_departures(agent, mv_.positions(), from_step=c1, until_step=c2)[c1:c2]
+                c1 = c2
+                scanned[(k, run)] = (c0, c1, bad)
+            free = np.flatnonzero(~bad[d : min(c1, hi + 1)])
+            if free.size:
+                return d + int(free[0])
+            d = c1
+        return None
 
     # A*: the rest-to-rest time of the straight line to the end bounds what is left (no flight
     # from rest to rest is faster, and the bound is consistent: straight rest-to-rest times are
@@ -159,6 +202,20 @@ def _time_chain(
                 candidates.append((m, True))
         for j, run in candidates:
             if t + max(h[k], h[j]) >= done_by:  # cannot arrive at the end earlier through j
+                continue
+            if j == m and k < m:  # to the end: only its first departure into the goal's hold matters
+                mv_end = flown(k, j, run)
+                if mv_end is None:
+                    continue
+                n = mv_end.steps
+                lo_d, hi_d = max(t, goal_from - n), min(e_iv - 1, done_by - 1 - n)
+                d0 = first_free(k, run, mv_end, lo_d, hi_d)
+                if d0 is not None and d0 + n < best.get((m, goal_iv), T + 1):
+                    a0 = d0 + n
+                    best[(m, goal_iv)] = a0
+                    parent[(m, goal_iv)] = (k, iv, d0, mv_end)
+                    heapq.heappush(heap, (a0, a0, m, goal_iv))
+                    done_by = min(done_by, a0 + 1)
                 continue
             got = move(k, j, run, t, e_iv)
             if got is None:

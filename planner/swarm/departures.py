@@ -55,17 +55,25 @@ class DepartureIndex:
 
     def __init__(self, P: np.ndarray, t0: np.ndarray, t1: np.ndarray, ty: np.ndarray, ag: np.ndarray):
         self.P, self.t0, self.t1, self.ty, self.ag = P, t0, t1, ty, ag
-        b0 = t0 // BUCKET_STEPS
-        long = (t1 - 1) // BUCKET_STEPS > b0
+        self._bucketed = False  # the buckets and the long segments' tree: built at the first tree query
+        self._trees: dict[int, cKDTree | None] = {}
+        self._by_t0: tuple[np.ndarray, ...] | None = None  # line_pairs: segments sorted by first step
+
+    def _buckets(self) -> None:
+        """The short segments by first step's bucket and the tree of the long ones (see module; only
+        :meth:`tree_pairs` reads them, and a state asked only along lines never builds them)."""
+        if self._bucketed:
+            return
+        b0 = self.t0 // BUCKET_STEPS
+        long = (self.t1 - 1) // BUCKET_STEPS > b0
         self.long_rows = np.flatnonzero(long)
         short = np.flatnonzero(~long)
         order = short[np.argsort(b0[short], kind="stable")]
         self.n_buckets = int(b0[short].max()) + 1 if short.size else 0
         self._starts = np.searchsorted(b0[order], np.arange(self.n_buckets + 1))
         self._order = order
-        self._trees: dict[int, cKDTree | None] = {}
-        self._long_tree = cKDTree(P[self.long_rows, :2]) if self.long_rows.size else None
-        self._by_t0: tuple[np.ndarray, ...] | None = None  # line_pairs: segments sorted by first step
+        self._long_tree = cKDTree(self.P[self.long_rows, :2]) if self.long_rows.size else None
+        self._bucketed = True
 
     @classmethod
     def of(cls, segments: list[tuple[np.ndarray, np.ndarray, np.ndarray, int, int]]) -> DepartureIndex:
@@ -135,6 +143,7 @@ class DepartureIndex:
 
     def tree_pairs(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int):
         """:meth:`pairs` by the buckets' trees, for any move (see module)."""
+        self._buckets()
         K = q_m.shape[0]
         tq = cKDTree(q_m[:, :2])
         r = reach_m * (1.0 + REACH_SLACK)

@@ -58,6 +58,9 @@ class Occupancy:
         self._stacks: dict[tuple[int, bool], GrownStack] = {}  # (type a, at rest) -> its keep-outs, grown
         self._reach_by_type: dict[int, float] = {}
         self._index: DepartureIndex | None = None  # the departure query's index (None: build when asked)
+        # (type, point bytes) -> forbidden_holds' answer, for this state of the tracks (emptied by put/remove:
+        # a search asks the same points again, e.g. a route's start and end after the straight line's)
+        self._holds: dict[tuple[int, bytes], np.ndarray] = {}
         self._digests: dict[int, bytes] = {}  # agent -> digest of its track (content_key)
         self._key: bytes | None = None  # content_key (None: compute when asked)
         for tr in tracks:
@@ -94,6 +97,7 @@ class Occupancy:
         """Add ``track`` (replacing that agent's previous one)."""
         self.remove(track.agent)
         self._index = None
+        self._holds.clear()
         a = track.agent
         self.tracks[a] = track
         self._digests[a] = track_digest(track)
@@ -126,6 +130,7 @@ class Occupancy:
         if old is not None:
             self._index = None
             self._key = None
+            self._holds.clear()
         self._digests.pop(agent, None)
         self._segments.pop(agent, None)
         for key in self._cells_of.pop(agent, set()):
@@ -243,11 +248,23 @@ class Occupancy:
         return self._index
 
     def forbidden_holds(self, agent: int, w_m: np.ndarray) -> np.ndarray:
-        """(horizon,) bool: resting at ``w_m`` (3,) at step t conflicts with another track."""
+        """(horizon,) bool: resting at ``w_m`` (3,) at step t conflicts with another track (read-only:
+        the answer is kept for this state of the tracks and given back to the same question)."""
+        w = np.ascontiguousarray(w_m, dtype=float)
+        ta = int(self.problem.type_index[agent])
+        key = (ta, w.tobytes()) if agent not in self.tracks else None  # its own track: not the others' state
+        got = self._holds.get(key) if key is not None else None
+        if got is None:
+            got = self._forbidden_holds(agent, ta, w)
+            got.flags.writeable = False
+            if key is not None:
+                self._holds[key] = got
+        return got
+
+    def _forbidden_holds(self, agent: int, ta: int, w: np.ndarray) -> np.ndarray:
+        """:meth:`forbidden_holds` asked."""
         T = self.horizon
         out = np.zeros(T, dtype=bool)
-        w = np.asarray(w_m, dtype=float)
-        ta = int(self.problem.type_index[agent])
         P, t0, t1, ty, mv, _ = self.samples_near(w, w, agent)
         if P.shape[0]:
             d = P - w[None]

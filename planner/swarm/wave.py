@@ -113,16 +113,14 @@ def free_layers(
 
 
 def dilated(cur: np.ndarray) -> np.ndarray:
-    """(nx, ny) bool: the cells of ``cur`` and their 8 neighbours (a new array)."""
-    nxt = cur.copy()
-    nxt[1:, :] |= cur[:-1, :]
-    nxt[:-1, :] |= cur[1:, :]
-    nxt[:, 1:] |= cur[:, :-1]
-    nxt[:, :-1] |= cur[:, 1:]
-    nxt[1:, 1:] |= cur[:-1, :-1]
-    nxt[:-1, :-1] |= cur[1:, 1:]
-    nxt[1:, :-1] |= cur[:-1, 1:]
-    nxt[:-1, 1:] |= cur[1:, :-1]
+    """(nx, ny) bool: the cells of ``cur`` and their 8 neighbours (a new array): the 3 x 3 square is
+    the sum of a 3-cell row and a 3-cell column, so the dilation is along x, then along y."""
+    row = cur.copy()
+    row[1:, :] |= cur[:-1, :]
+    row[:-1, :] |= cur[1:, :]
+    nxt = row.copy()
+    nxt[:, 1:] |= row[:, :-1]
+    nxt[:, :-1] |= row[:, 1:]
     return nxt
 
 
