@@ -264,7 +264,9 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
                 "it does not draw on the seed)"
             )
         plan.notes.append(f"swarm layer: {info.coordination}")
-        infos[id(plan)] = info
+        # only ``optimized``'s refine stage reads the hand-on (its problem, memo and give-up plans): any
+        # other method frees it now, before the verifier and the next attempt run
+        infos[id(plan)] = info if run.method == "optimized" else replace(info, hand_on=None)
         return plan
 
     try:
