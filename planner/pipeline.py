@@ -264,6 +264,10 @@ def _swarm_stage(scenario: Scenario, run: _Run) -> SwarmOutcome:
                 "it does not draw on the seed)"
             )
         plan.notes.append(f"swarm layer: {info.coordination}")
+        # only ``optimized``'s refine stage reads the hand-on (its problem, memo and give-up plans): any
+        # other method frees it now, before the verifier and the next attempt run
+        if run.method != "optimized" and getattr(info, "hand_on", None) is not None:
+            info = replace(info, hand_on=None)
         infos[id(plan)] = info
         return plan
 

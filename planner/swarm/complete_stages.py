@@ -49,9 +49,12 @@ def lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pro
     lattice = build_lattice(problem, max_run=opts.max_run)
     sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
     t1 = time.perf_counter()
-    result = Lacam(lattice, sync, seed=opts.seed).solve(
-        max_nodes=opts.max_nodes, max_proposals=opts.max_proposals, deadline=deadline, progress=progress
-    )
+    try:
+        result = Lacam(lattice, sync, seed=opts.seed).solve(
+            max_nodes=opts.max_nodes, max_proposals=opts.max_proposals, deadline=deadline, progress=progress
+        )
+    finally:  # the search's closures keep the table until a full garbage collection: free its verdicts now
+        sync.clear()
     configurations = result.configurations
     extra["lattice"] = LatticeInfo(
         spacing_m=lattice.spacing_m,

@@ -16,17 +16,25 @@ per dz band); the segment is split where its dz crosses a band edge, and on each
 horizontal distance (a quadratic in s) is compared with that piece's radius. :class:`SyncTable`
 caches the verdict per (type pair, d0, d1) with positions in whole millimetres, so every
 lattice translation of a relative motion is computed once (the same translation-invariant trick as
-a stencil, filled lazily).
+a stencil, filled lazily), under one int key and up to a stated count (``MAX_VERDICTS``).
 """
 
 from __future__ import annotations
 
 import math
+from itertools import islice
 
 import numpy as np
 
 from proxplan.planner.swarm.keepout import KeepOut
 from proxplan.planner.swarm.problem import GROWTH_M
+
+# verdicts a SyncTable keeps, at most: each costs about 90 bytes (an int key of 4-5 30-bit digits,
+# 40-48 bytes, and its dict slot; 2^22 random keys measured: 353 MB, 88 B each), so the table stays
+# below about 400 MB (550 MB while the newer half is copied out), a tenth of the 4 GB that issue 37
+# allows a 256-vehicle plan (the table's only purpose is speed: a verdict dropped is computed again,
+# exactly)
+MAX_VERDICTS = 1 << 22
 
 
 def _column_radius(ko: KeepOut, dz: float, rest: bool) -> float:
@@ -104,21 +112,38 @@ def far_apart(d_mm: tuple[int, ...], reach_m: float) -> bool:
 
 class SyncTable:
     """Cached synchronous conflict test of two agents' moves on vertices with positions
-    ``pos_mm`` (V, 3) integer millimetres (see module)."""
+    ``pos_mm`` (V, 3) integer millimetres (see module).
 
-    def __init__(self, keepouts: dict[tuple[int, int], KeepOut], type_index: np.ndarray, pos_mm: np.ndarray):
+    The verdicts are kept by relative motion, one Python int per (type pair, d0, d1, both at rest)
+    (:meth:`_key`), at most ``max_verdicts`` of them (the older half dropped when full: a verdict
+    dropped is computed again, exactly, so the bound changes the time, never an answer)."""
+
+    def __init__(
+        self,
+        keepouts: dict[tuple[int, int], KeepOut],
+        type_index: np.ndarray,
+        pos_mm: np.ndarray,
+        *,
+        max_verdicts: int = MAX_VERDICTS,
+    ):
         self.keepouts = keepouts
         self.types = [int(t) for t in type_index]
-        self.pos = [tuple(int(c) for c in p) for p in np.asarray(pos_mm)]
-        self.cache: dict[tuple, bool] = {}
-        # the verdicts again by vertices (one int per (type pair, ui, vi, uj, vj)): a step asks the
-        # same four vertices many times, and this key costs less to build and hash than the relative
-        # one above (a memo of the same answers: the plans are the same)
-        self.by_vertices: dict[int, bool] = {}
-        self._n_vertices = len(self.pos)
+        pos = np.asarray(pos_mm, dtype=np.int64).reshape(-1, 3)
+        self.pos = [tuple(int(c) for c in p) for p in pos]
+        self.max_verdicts = int(max_verdicts)
+        self.verdicts: dict[int, bool] = {}
+        # a vertex's position as one int in base B > 2 x the largest span of a coordinate, digits x, y, z:
+        # the difference of two is the difference vector in balanced base B (each digit below B / 2 in
+        # size), so it names that vector alone; two differences d0, d1 (each below B^3 / 2 in size)
+        # combine into d0 B^3 + d1, as unique
+        span = int((pos.max(axis=0) - pos.min(axis=0)).max()) if len(pos) else 0
+        base = 1 << (2 * span + 1).bit_length()
+        self._packed = [(x * base + y) * base + z for x, y, z in self.pos]
+        self._cube = base**3
         self._n_types = max(self.types, default=0) + 1
-        self.computed = 0  # exact tests run (cache misses)
+        self.computed = 0  # exact tests run (verdicts not in the table: new, or dropped by the bound)
         self.far = 0  # of those, settled by the horizontal reach alone (far_apart)
+        self.dropped = 0  # verdicts dropped by the bound
         # per (type pair, both at rest): the largest horizontal distance at which the keep-out holds a
         # point, grown as segment_conflict grows it (GROWTH_M at rest), m
         self.reach_m = {
@@ -127,41 +152,46 @@ class SyncTable:
             for rest in (False, True)
         }
 
+    def __len__(self) -> int:
+        return len(self.verdicts)
+
+    def clear(self) -> None:
+        """Drop every verdict kept (the memory is freed now, whatever still refers to the table)."""
+        self.verdicts = {}
+
+    def _key(self, i: int, ui: int, vi: int, j: int, uj: int, vj: int) -> int:
+        """One int per (type of i, type of j, d0 = p(uj) - p(ui), d1 = p(vj) - p(vi), both at rest)."""
+        P, nt = self._packed, self._n_types
+        rel = (P[uj] - P[ui]) * self._cube + (P[vj] - P[vi])
+        return ((rel * nt + self.types[i]) * nt + self.types[j]) * 2 + (ui == vi and uj == vj)
+
     def conflict(self, i: int, ui: int, vi: int, j: int, uj: int, vj: int) -> bool:
         """Do agent i moving ui -> vi and agent j moving uj -> vj in one step conflict?"""
-        V = self._n_vertices
-        vkey = ((((self.types[i] * self._n_types + self.types[j]) * V + ui) * V + vi) * V + uj) * V + vj
-        hit = self.by_vertices.get(vkey)
+        key = self._key(i, ui, vi, j, uj, vj)
+        hit = self.verdicts.get(key)
         if hit is None:
-            hit = self.by_vertices[vkey] = self._relative(i, ui, vi, j, uj, vj)
+            hit = self._exact(i, ui, vi, j, uj, vj)
+            if len(self.verdicts) >= self.max_verdicts:
+                self._drop_older_half()
+            self.verdicts[key] = hit
         return hit
 
-    def _relative(self, i: int, ui: int, vi: int, j: int, uj: int, vj: int) -> bool:
-        """:meth:`conflict` by the relative motion (cached per type pair, d0, d1)."""
+    def _drop_older_half(self) -> None:
+        """Keep the newer half of the verdicts (dicts keep insertion order): O(n) once per n / 2 insertions."""
+        keep = len(self.verdicts) // 2
+        self.dropped += len(self.verdicts) - keep
+        self.verdicts = dict(islice(self.verdicts.items(), len(self.verdicts) - keep, None))
+
+    def _exact(self, i: int, ui: int, vi: int, j: int, uj: int, vj: int) -> bool:
+        """:meth:`conflict` computed: the relative segment against the type pair's keep-out."""
+        self.computed += 1
         P = self.pos
         pu_i, pv_i, pu_j, pv_j = P[ui], P[vi], P[uj], P[vj]
-        key = (
-            self.types[i],
-            self.types[j],
-            pu_j[0] - pu_i[0],
-            pu_j[1] - pu_i[1],
-            pu_j[2] - pu_i[2],
-            pv_j[0] - pv_i[0],
-            pv_j[1] - pv_i[1],
-            pv_j[2] - pv_i[2],
-            ui == vi and uj == vj,
-        )
-        hit = self.cache.get(key)
-        if hit is None:
-            self.computed += 1
-            if far_apart(key[2:8], self.reach_m[((key[0], key[1]), key[8])]):
-                self.far += 1
-                self.cache[key] = False
-                return False
-            d0 = np.array(key[2:5], dtype=float) * 1e-3
-            d1 = np.array(key[5:8], dtype=float) * 1e-3
-            hit = segment_conflict(
-                self.keepouts[(key[0], key[1])], d0, d1, rest=bool(key[8]), growth_m=GROWTH_M if key[8] else 0.0
-            )
-            self.cache[key] = hit
-        return hit
+        d_mm = tuple(pu_j[k] - pu_i[k] for k in range(3)) + tuple(pv_j[k] - pv_i[k] for k in range(3))
+        pair, rest = (self.types[i], self.types[j]), ui == vi and uj == vj
+        if far_apart(d_mm, self.reach_m[(pair, rest)]):
+            self.far += 1
+            return False
+        d0 = np.array(d_mm[:3], dtype=float) * 1e-3
+        d1 = np.array(d_mm[3:], dtype=float) * 1e-3
+        return segment_conflict(self.keepouts[pair], d0, d1, rest=rest, growth_m=GROWTH_M if rest else 0.0)
