@@ -93,6 +93,7 @@ def stacked_tracks(
     starts = tuple(range(A))
     down = transition_steps(sync.conflict, starts, tuple(range(A, 2 * A)))
     up = transition_steps(sync.conflict, tuple(range(2 * A, 3 * A)), tuple(range(3 * A, 4 * A)))
+    sync.clear()  # its verdicts are not needed while the levels are planned (round 17A: held memory)
     if down is None or up is None:
         return None, "no conflict-free vertical steps to the levels"
     down_tracks = lockstep_tracks_at(problem, pos, [starts, *down])
