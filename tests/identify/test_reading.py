@@ -20,7 +20,8 @@ OPTIONS = MeasureOptions(window_s=0.15)
 def _unit(t: np.ndarray) -> Unit:
     """A vehicle 0.15-0.45 m under another that sweeps across it at up to 1.9 m/s (its jet crossed in ~0.1 s)."""
     n = len(t)
-    offsets = np.column_stack([-0.6 * np.sin(3.2 * t), 0.02 + 0 * t, -0.3 - 0.15 * np.sin(1.1 * t)])  # p_target - p_source, m
+    # p_target - p_source, m
+    offsets = np.column_stack([-0.6 * np.sin(3.2 * t), 0.02 + 0 * t, -0.3 - 0.15 * np.sin(1.1 * t)])
     zeros = np.zeros((n, 3))
     veh = BUILTIN_VEHICLES[TYPE]
     return Unit("f", "train", "low", TYPE, t, zeros, np.full(n, 1.0), np.full(n, veh.weight_N), (TYPE,), (offsets,),
