@@ -5,6 +5,7 @@ tracking reports, Neural-Swarm-layout flight logs of the simulated flights, and 
 a vehicle type's trackable limits and tracking tube (``measure_tracking``).
 """
 
+from proxplan.flightsim.identify_flights import simulated_swap_manifest
 from proxplan.flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_flight_logs
 from proxplan.flightsim.mellinger import controller_gains, reference_body_rates
 from proxplan.flightsim.options import CONTROLLERS, Perturbation, SimulationOptions
@@ -55,6 +56,7 @@ __all__ = [
     "predicted_deflection_m",
     "record_tube_m",
     "simulate_plan",
+    "simulated_swap_manifest",
     "simulation_metrics",
     "single_hover_plan",
     "summary_dict",

@@ -11,9 +11,9 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from proxplan.identify.crossval import Ridge
-from proxplan.identify.design import SelectionSet, delayed_caches, effect_columns
+from proxplan.identify.design import LagInputs, SelectionSet, effect_columns, lag_inputs
 from proxplan.identify.projection import TangentProjection
-from proxplan.physics import LAG_BOUNDS_S, LAGS_S, BaseCache, Effect
+from proxplan.physics import LAG_BOUNDS_S, LAGS_S, Effect
 
 LAG_GRID_S = (0.0, *LAGS_S)
 """Delays every library effect of a NEIGHBOUR is profiled over, s (:data:`proxplan.physics.LAG_PARAM`): at
@@ -56,7 +56,7 @@ def best_lag(
     effects: Sequence[Effect],
     tangents: np.ndarray,
     ridge: Ridge,
-    delayed: dict[float, Sequence[BaseCache]],
+    delayed: dict[float, LagInputs],
     *,
     near: float | None = None,
 ) -> tuple[float, float]:
@@ -71,7 +71,7 @@ def best_lag(
 
     def score(lag: float) -> float:
         if lag not in delayed:
-            delayed[lag] = delayed_caches(sel, lag)
+            delayed[lag] = lag_inputs(sel, lag)
         return projection.profiled_objective([effect_columns(sel, e, delayed[lag]) for e in effects])
 
     grid = [lag for lag in LAG_GRID_S if lag in delayed]

@@ -30,7 +30,9 @@ from proxplan.identify.calibrate import ParamSpec, apply_vehicle_parameters, par
 from proxplan.identify.crossval import GroupPlan, GroupSums, Ridge, block_ids, plan_groups
 from proxplan.identify.data import Model, Unit, delayed_inputs, predict, subsample, unit_inputs
 from proxplan.identify.delayed import delayed_unit
+from proxplan.identify.measure import MeasureOptions
 from proxplan.identify.noise import CHANNELS, NoiseLevel, stacked
+from proxplan.identify.reading import MeasurementReading
 from proxplan.identify.strata import stratified_sample
 from proxplan.physics import BaseCache, Effect, base_cache, effect_wrench, term_scale
 
@@ -54,6 +56,7 @@ class SelectionSet:
     row_scale: np.ndarray  # (N, 4) each sample's noise unit per channel (N, N m)
     sources: list[Unit]  # the full-resolution units the samples come from (fit, then validation)
     rows: np.ndarray  # (N,) each sample's row in the concatenation of ``sources``
+    reading: MeasurementReading | None = None  # library effects read as the measurement reads (identify.reading)
 
     @property
     def tau(self) -> float:
@@ -117,11 +120,13 @@ def selection_set(
     max_fit_samples: int,
     max_valid_samples: int,
     what: str = "selection",
+    measure: MeasureOptions | None = None,
 ) -> SelectionSet:
     """The selection's samples (module docstring) around the reference ``model``: a stratified sample of
     ``fit`` and a uniform sample of ``valid``, grouped by :func:`proxplan.identify.crossval.plan_groups`,
     in the noise units of ``noise`` (two selections around two reference models with the same ``noise``
-    compare in the same units on the same samples)."""
+    compare in the same units on the same samples). ``measure``: the measurement's options, when library
+    effects are to be read through its smoothing (:mod:`proxplan.identify.reading`)."""
     plan = plan_groups([(u.flight, u.name) for u in fit if len(u)], [(u.flight, u.name) for u in valid if len(u)],
                        what=what)  # fmt: skip
     sources = [u for u in fit if len(u)] + [u for u in valid if len(u)]
@@ -139,8 +144,10 @@ def selection_set(
     weight = np.concatenate([u.weight if u.weight is not None else np.ones(len(u)) for u in units])
     group = np.concatenate([u.group for u in units if u.group is not None]).astype(int)
     rows = np.concatenate([u.row for u in units if u.row is not None]).astype(int)
-    return SelectionSet(units, plan, model, caches, measured, predicted, weight, group, noise, noise.rows(units),
-                        sources, rows)  # fmt: skip
+    row_scale = noise.rows(units)
+    reading = None if measure is None else MeasurementReading(sources, rows, row_scale, weight, model, measure)
+    return SelectionSet(units, plan, model, caches, measured, predicted, weight, group, noise, row_scale,
+                        sources, rows, reading)  # fmt: skip
 
 
 # ------------------------------------------------------------------------------ tangent columns
@@ -261,13 +268,35 @@ def apply_tangent_step(model: Model, specs: Sequence[ParamSpec], steps: Mapping[
 # ------------------------------------------------------------------------------ effect columns
 
 
-def effect_columns(sel: SelectionSet, effect: Effect, caches: Sequence[BaseCache] | None = None) -> np.ndarray:
+@dataclass(frozen=True)
+class LagInputs:
+    """The inputs a library effect ``lag_s`` (s) late is evaluated on: a :class:`proxplan.physics.BaseCache`
+    per sampled unit of its state that much earlier (:func:`lag_inputs`)."""
+
+    lag_s: float
+    caches: tuple[BaseCache, ...]
+
+
+def lag_inputs(sel: SelectionSet, lag_s: float) -> LagInputs:
+    """:class:`LagInputs` of the delay ``lag_s`` (s): the samples' own caches at 0 (:func:`delayed_caches`)."""
+    return LagInputs(lag_s, tuple(sel.caches if lag_s == 0.0 else delayed_caches(sel, lag_s)))
+
+
+def effect_columns(
+    sel: SelectionSet, effect: Effect, inputs: LagInputs | None = None, *, exact_reading: bool = True
+) -> np.ndarray:
     """(N, 4) contribution of ``effect`` on the selection's samples (noise units), with the cached base; an
     effect with a delay (:attr:`proxplan.physics.Effect.lag_s`) on the inputs of that much earlier
-    (:func:`delayed_caches`), ``caches`` when given (the caches of its delay)."""
-    if caches is None:
-        caches = sel.caches if effect.lag_s == 0.0 else delayed_caches(sel, effect.lag_s)
-    return sel.columns_of([effect_wrench(effect.without_lag(), c.inputs, cache=c) for c in caches])
+    (:func:`lag_inputs`), ``inputs`` when given (those of its delay). Read as the measurement reads the
+    wrench where ``sel.reading`` is set (:mod:`proxplan.identify.reading`; ``exact_reading=False`` while a
+    shape is fitted: the last exact correction of the effect, scaled)."""
+    if inputs is None:
+        inputs = lag_inputs(sel, effect.lag_s)
+    bare = effect.without_lag()
+    cols = sel.columns_of([effect_wrench(bare, c.inputs, cache=c) for c in inputs.caches])
+    if sel.reading is not None:
+        cols = cols + sel.reading.correction(bare, inputs.lag_s, cols, exact=exact_reading)
+    return cols
 
 
 # ------------------------------------------------------------------------------ delayed inputs

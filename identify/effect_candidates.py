@@ -7,7 +7,7 @@ among the candidates built here.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -20,13 +20,14 @@ from proxplan.identify.delay_profile import (
     judged_where_delay_shows,
 )
 from proxplan.identify.design import (
+    LagInputs,
     SelectionSet,
     effect_columns,
 )
 from proxplan.identify.heldout_select import Candidate
 from proxplan.identify.priors import effect_prior
 from proxplan.identify.projection import TangentProjection
-from proxplan.physics import LAG_PARAM, PARAMETERS, TARGET_ONLY_EFFECTS, BaseCache, Effect
+from proxplan.physics import LAG_PARAM, PARAMETERS, TARGET_ONLY_EFFECTS, Effect
 
 LINEAR_PARAMS: dict[str, tuple[str, ...]] = {
     "own_velocity": ("c_w_spm", "c_mu_spm", "c_mu2_s2pm2"),
@@ -110,21 +111,21 @@ def fit_shape(
     ridge: Ridge,
     *,
     max_nfev: int = 60,
-    caches: Sequence[BaseCache] | None = None,
+    caches: LagInputs | None = None,
 ) -> tuple[Effect, CalibrationResult]:
     """MAP fit of every parameter of effect ``name`` (its priors) to the reference residual on the
     selection set's TRAIN rows (all channels, noise units, the data term over tau), with the vehicle
     parameters' steps ``tangents`` ((N, 4, P) columns with their ``ridge`` priors) refitted exactly for
     every trial shape (variable projection): the shape is fitted to the residual the calibration would
     leave WITH the effect, not to what is left after the calibration absorbed part of it. ``caches``: the
-    inputs to evaluate it on (a delay's, :func:`proxplan.identify.design.delayed_caches`; default the samples')."""
+    inputs to evaluate it on (a delay's, :func:`proxplan.identify.design.lag_inputs`; default the samples')."""
     keys = list(PARAMETERS[name])
     specs = [ParamSpec(k, PARAMETERS[name][k][0], *PARAMETERS[name][k][1:], prior=effect_prior(name, k)) for k in keys]
     projection = TangentProjection.of(sel, tangents, ridge)
 
     def residual(theta: np.ndarray) -> np.ndarray:
         return projection.residual_vector(
-            effect_columns(sel, Effect(name, {k: float(v) for k, v in zip(keys, theta)}), caches)
+            effect_columns(sel, Effect(name, {k: float(v) for k, v in zip(keys, theta)}), caches, exact_reading=False)
         )
 
     starts = [np.array([s.initial for s in specs])]
@@ -153,12 +154,12 @@ def effect_candidate(
     name: str,
     tangents: np.ndarray,
     ridge: Ridge,
-    delayed: dict[float, Sequence[BaseCache]],
+    delayed: dict[float, LagInputs],
 ) -> EffectCandidate:
     """The design columns of library effect ``name`` (module docstring); ``tangents`` (N, 4, P) and
     ``ridge`` are the always-fitted columns and their priors (:func:`fit_shape`); ``delayed`` the inputs of
     every delay of :data:`LAG_GRID_S`
-    (:func:`proxplan.identify.design.delayed_caches`). The effect's delay is
+    (:func:`proxplan.identify.design.lag_inputs`). The effect's delay is
     the one with the lowest MAP objective on the train rows (:func:`best_lag`: its strength and the tangents
     refitted at each; a profile likelihood), its shape refitted at that delay."""
     grid = {0.0: delayed[0.0]} if name in TARGET_ONLY_EFFECTS else delayed

@@ -39,17 +39,18 @@ from proxplan.identify.delay_profile import (
     LAG_GRID_S,
 )
 from proxplan.identify.design import (
+    LagInputs,
     SelectionSet,
     apply_tangent_step,
-    delayed_caches,
     is_thrust_scale,
+    lag_inputs,
     tangent_columns,
     tangent_ridge,
 )
 from proxplan.identify.effect_candidates import EffectCandidate, effect_candidate
 from proxplan.identify.heldout_select import ForwardResult, GainTest, heldout_forward
 from proxplan.identify.stability import Stability, stability
-from proxplan.physics import BaseCache, Effect
+from proxplan.physics import Effect
 
 THRUST_BIAS = "thrust_bias"
 MAX_EFFECTS = 3
@@ -132,7 +133,7 @@ class EffectSelector:
         self.candidates: list[EffectCandidate] = []
         self.sums: GroupSums | None = None
         self.ridge: Ridge | None = None
-        self.delayed: dict[float, Sequence[BaseCache]] = {}  # delay (s) -> the samples' inputs that much earlier
+        self.delayed: dict[float, LagInputs] = {}  # delay (s) -> the samples' inputs that much earlier
         self.represented: dict[str, float] = {}  # after run: share of halves that picked it or one standing for it
         self.eligible: set[str] = set()  # after run: the effects the held-out test may keep (split_vote_eligible)
 
@@ -140,8 +141,7 @@ class EffectSelector:
         stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
                  else np.zeros((len(self.sel.weight), 4, 0)))  # fmt: skip
         ridge = self.ridge_for(self.always)
-        self.delayed = {0.0: self.sel.caches}
-        self.delayed.update({lag: delayed_caches(self.sel, lag) for lag in LAG_GRID_S if lag > 0.0})
+        self.delayed = {lag: lag_inputs(self.sel, lag) for lag in LAG_GRID_S}
         for name in progress_bar([n for n in names if n != THRUST_BIAS], "effect shapes", self.options.progress):
             self.candidates.append(effect_candidate(self.sel, name, stack, ridge, self.delayed))
 

@@ -193,6 +193,32 @@ def smoothed_like_measurement(log, x: np.ndarray, *, options: MeasureOptions = M
     return out
 
 
+MAX_GAP_FACTOR = 2.0
+"""A clock step larger than this many median steps starts a new stretch (a filter never crosses a gap), -."""
+
+
+def stretches(t_s: np.ndarray) -> list[slice]:
+    """Contiguous stretches of a clock (N,) (:data:`MAX_GAP_FACTOR`)."""
+    if len(t_s) < 2:
+        return [slice(0, len(t_s))]
+    dt = np.diff(t_s)
+    med = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
+    cuts = np.flatnonzero((dt <= 0) | (dt > MAX_GAP_FACTOR * med)) + 1
+    edges = np.concatenate([[0], cuts, [len(t_s)]])
+    return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def smoothed_on_clock(t_s: np.ndarray, x: np.ndarray, *, options: MeasureOptions = MeasureOptions()) -> np.ndarray:
+    """``x`` ((N, k) on the clock ``t_s`` (N,), s, any unit) smoothed with the measurement's own filter on each
+    of the clock's :func:`stretches`: what :func:`smoothed_like_measurement` does on a log's segments, for a
+    unit that keeps only its clock."""
+    out = np.array(x, dtype=float, copy=True)
+    for s in stretches(np.asarray(t_s)):
+        if s.stop - s.start > 1:
+            out[s] = _smooth(out[s], float(np.median(np.diff(t_s[s]))), options, deriv=0)
+    return out
+
+
 def measure_log(vehicle: Vehicle, log, *, options: MeasureOptions = MeasureOptions()) -> MeasuredWrench:
     """:func:`measure_disturbance` on a :class:`proxplan.identify.vehicle_log.VehicleLog`."""
     return measure_disturbance(

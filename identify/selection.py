@@ -87,7 +87,8 @@ def select_and_discover(
     beside ``reference``'s parameters (on every train sample); they stand with it when nothing is kept. With
     ``prior_model`` (the calibration's priors), a model that keeps something is polished (:func:`polished`)."""
     sel = selection_set(fit, valid, reference, noise, max_fit_samples=options.max_fit_samples,
-                        max_valid_samples=options.max_eval_samples)  # fmt: skip
+                        max_valid_samples=options.max_eval_samples,
+                        measure=options.measure if options.smoothed_prediction else None)  # fmt: skip
     selector = EffectSelector(sel, specs, options=options)
     selector.fit_candidates(options.effects)
     effects = selector.run(test=test)

@@ -28,6 +28,7 @@ from scipy.optimize import nnls
 from scipy.signal import butter, sosfiltfilt
 
 from proxplan.identify.data import Model, Predictions, Unit, sources_overhead, unit_inputs
+from proxplan.identify.measure import stretches
 from proxplan.physics import ResidualSpread, TypeSpread, base_wrench_per_source, spread_features, spread_N
 
 BAND_HZ = 1.0
@@ -38,8 +39,6 @@ MIN_CLASS_SAMPLES = 300
 """Fewest samples a class (sources overhead: 0, 1, 2 or more) needs for a quantile of its own: the coverage of
 a 90 % quantile set on n samples has a binomial standard error sqrt(0.09 / n), 1.7 % at 300; with fewer the
 class keeps the overall quantile."""
-MAX_GAP_FACTOR = 2.0
-"""A clock step larger than this many median steps starts a new stretch (the filter never crosses a gap)."""
 
 
 def unit_spread_features(unit: Unit, model: Model, predictions: Predictions | None = None) -> np.ndarray:
@@ -117,17 +116,6 @@ def interval_half_width_N(
     return spread.quantile_for(sources_overhead(unit, model.vehicles)[0]) * spread_N(
         t, unit_spread_features(unit, model, predictions)
     )
-
-
-def stretches(t_s: np.ndarray) -> list[slice]:
-    """Contiguous stretches of a clock (N,) (:data:`MAX_GAP_FACTOR`)."""
-    if len(t_s) < 2:
-        return [slice(0, len(t_s))]
-    dt = np.diff(t_s)
-    med = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
-    cuts = np.flatnonzero((dt <= 0) | (dt > MAX_GAP_FACTOR * med)) + 1
-    edges = np.concatenate([[0], cuts, [len(t_s)]])
-    return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
 def slow_part(residual: np.ndarray, t_s: np.ndarray) -> np.ndarray:
