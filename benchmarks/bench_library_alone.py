@@ -5,7 +5,7 @@ Closed-loop RotorPy swaps (:func:`proxplan.flightsim.simulated_swap_manifest`: t
 flights and a test flight; take-off sweeps for ``ground_effect``) with one library effect hidden, simulated
 ``--replicates`` times with other seeds (noise and gusts drawn anew), each identified (``run_identify``, the
 unit tests' sample sizes) at each ``--window-s``. The effects and their strengths are the unit test's
-(tests/identify/test_identify.py ``HIDDEN``); replicate 0 is the unit test's own flights. Per effect and window:
+(:data:`proxplan.flightsim.HIDDEN_EFFECTS`); replicate 0 is the unit test's own flights. Per effect and window:
 how often it is kept, how often alone, what else was kept, and the test flight's F_z RMSE (grams) after and with
 the calibration only. Nothing here was tuned while watching these figures.
 
@@ -24,20 +24,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from proxplan.flightsim import simulated_swap_manifest
+from proxplan.flightsim import HIDDEN_EFFECTS, simulated_swap_manifest
 from proxplan.identify import IdentifyOptions, run_identify
-from proxplan.physics import Effect
 
 TYPE = "small-quad"
-HIDDEN = {  # the unit test's (tests/identify/test_identify.py HIDDEN)
-    "thrust_bias": Effect("thrust_bias", {"force_z_N": 0.06}),
-    "ground_effect": Effect("ground_effect", {"gain_k": 2.5}),
-    "near_field": Effect("near_field", {"amplitude": 1.5, "decay_L": 3.0}),
-    "wake_swirl": Effect("wake_swirl", {"yaw_per_force_m": 0.05}),
-    "wake_advection": Effect("wake_advection", {"wind_x_mps": 1.0, "wind_y_mps": 0.5, "convection_speed_mps": 2.0}),
-    "own_velocity": Effect("own_velocity", {"c_w_spm": 0.12, "c_mu_spm": 0.05, "c_mu2_s2pm2": 0.08}),
-    "thrust_quadratic": Effect("thrust_quadratic", {"b_q_rel_spm": 0.4}),
-}
+HIDDEN = HIDDEN_EFFECTS  # the unit test's effects and strengths
 ALLOWED = {"thrust_bias", "climb_inflow", "own_velocity"}
 """Kept beside the hidden effect without counting against "alone": the nuisance thrust bias and the simulator's
 own induced inflow (RotorPy's k_z, a thrust change with the climb speed: climb_inflow or own_velocity)."""

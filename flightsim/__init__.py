@@ -5,7 +5,7 @@ tracking reports, Neural-Swarm-layout flight logs of the simulated flights, and 
 a vehicle type's trackable limits and tracking tube (``measure_tracking``).
 """
 
-from proxplan.flightsim.identify_flights import simulated_swap_manifest
+from proxplan.flightsim.identify_flights import HIDDEN_EFFECTS, simulated_swap_manifest
 from proxplan.flightsim.logs import NEURAL_SWARM_HEADER, vehicle_logs, write_flight_logs
 from proxplan.flightsim.mellinger import controller_gains, reference_body_rates
 from proxplan.flightsim.options import CONTROLLERS, Perturbation, SimulationOptions
@@ -31,6 +31,7 @@ from proxplan.flightsim.tracking import ERROR_QUANTILE, CourseFlight, TrackingRe
 from proxplan.flightsim.truth import TruthSpec, load_truth_file, merge_truth, model_truth, plan_truth, truth_from_dict
 
 __all__ = [
+    "HIDDEN_EFFECTS",
     "CONTROLLERS",
     "ERROR_QUANTILE",
     "CourseFlight",

@@ -18,6 +18,18 @@ SWAP_CENTRES_Z_M = (1.0, 1.4, 1.0, 0.7, 1.5, 1.2, 0.9)
 """Height of each swap's centre, m: the bottom vehicle's height not tied to the gap."""
 TAKEOFF_LOW_Z_M = (0.06, 0.07, 0.08, 0.10, 0.11, 0.12, 0.09)
 """Start height of each take-off (the ground flights), m: the test flight starts 9 cm up."""
+HIDDEN_EFFECTS = {
+    "thrust_bias": Effect("thrust_bias", {"force_z_N": 0.06}),
+    "ground_effect": Effect("ground_effect", {"gain_k": 2.5}),
+    "near_field": Effect("near_field", {"amplitude": 1.5, "decay_L": 3.0}),
+    "wake_swirl": Effect("wake_swirl", {"yaw_per_force_m": 0.05}),
+    "wake_advection": Effect("wake_advection", {"wind_x_mps": 1.0, "wind_y_mps": 0.5, "convection_speed_mps": 2.0}),
+    "own_velocity": Effect("own_velocity", {"c_w_spm": 0.12, "c_mu_spm": 0.05, "c_mu2_s2pm2": 0.08}),
+    "thrust_quadratic": Effect("thrust_quadratic", {"b_q_rel_spm": 0.4}),
+}
+"""The named library effects, each at the strength the checks hide it at (force_z_N in N, wind in m/s, c_w and b_q
+in s/m, c_mu2 in s^2/m^2, decay in units of the source's size L): one at a time in the simulated air of
+:func:`simulated_swap_manifest` (tests/identify/test_identify.py, benchmarks/bench_library_alone.py)."""
 SEED_STRIDE = 1000
 """Replicate r of a flight k is simulated with seed k + SEED_STRIDE r (noise and gusts drawn anew)."""
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from proxplan.flightsim.identify_flights import HIDDEN_EFFECTS
 from proxplan.identify import (
     IdentifyOptions,
     run_identify,
@@ -24,18 +25,10 @@ from proxplan.identify import (
     write_synthetic_manifest,
 )
 from proxplan.identify.data import errors as model_errors
-from proxplan.physics import BUILTIN_VEHICLES, Effect
+from proxplan.physics import BUILTIN_VEHICLES
 
 VEHICLE_TYPE = "small-quad"
-HIDDEN = {
-    "thrust_bias": Effect("thrust_bias", {"force_z_N": 0.06}),
-    "ground_effect": Effect("ground_effect", {"gain_k": 2.5}),
-    "near_field": Effect("near_field", {"amplitude": 1.5, "decay_L": 3.0}),
-    "wake_swirl": Effect("wake_swirl", {"yaw_per_force_m": 0.05}),
-    "wake_advection": Effect("wake_advection", {"wind_x_mps": 1.0, "wind_y_mps": 0.5, "convection_speed_mps": 2.0}),
-    "own_velocity": Effect("own_velocity", {"c_w_spm": 0.12, "c_mu_spm": 0.05, "c_mu2_s2pm2": 0.08}),
-    "thrust_quadratic": Effect("thrust_quadratic", {"b_q_rel_spm": 0.4}),
-}
+HIDDEN = HIDDEN_EFFECTS  # proxplan.flightsim.identify_flights: the named effects at the strengths hidden here
 FAST = IdentifyOptions(max_fit_samples=3000, max_eval_samples=2500)
 
 
