@@ -35,10 +35,6 @@ STATIC_CHECKS_PER_STEP = 2  # a run's flown path is checked against the static f
 # a move to the end asks its departures in windows of this many steps at first (1.6 s), each later one
 # as long as all before it: only the cost depends on it, never the answer
 END_WINDOW_STEPS = 64
-# a move to a waypoint asks its departures in windows of this many steps at first (1.6 s), each later
-# one as long as all before it, the rest pushed back on the search's heap (issue 37 round 18B: a
-# re-timed vehicle's range ran to its old arrival, thousands of steps): only the cost depends on it
-WINDOW_STEPS = 64
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -87,11 +83,9 @@ def _time_chain(
     through: bool,
     deviation_m: float | None,
     end_window_steps: int = END_WINDOW_STEPS,
-    window_steps: int = WINDOW_STEPS,
 ) -> ChainResult | None:
-    """:func:`time_chain` searched (``end_window_steps``, ``window_steps``: the first window of a move
-    to the end, :data:`END_WINDOW_STEPS`, and to a waypoint, :data:`WINDOW_STEPS`; the answer does not
-    depend on them, tested)."""
+    """:func:`time_chain` searched (``end_window_steps``: the first window of a move to the end,
+    :data:`END_WINDOW_STEPS`; the answer does not depend on it, tested)."""
     from proxplan.planner.timing import CORNER_DEVIATION_M
 
     problem = occ.problem
@@ -108,6 +102,8 @@ def _time_chain(
     if not any(goal_ok):
         return None
     moves: dict[tuple[int, int, bool], Move | None] = {}
+    # (from step, until step, departures): exact for departures in [from, until)
+    forbidden: dict[tuple[int, int, bool], tuple[int, int, np.ndarray]] = {}
 
     def flown(k: int, j: int, run: bool) -> Move | None:
         """The move k -> j (through the waypoints between when ``run``), None where not statically free."""
@@ -124,22 +120,22 @@ def _time_chain(
             moves[key] = mv if free else None
         return moves[key]
 
-    # move key (k, j, run) -> (first step, end step, forbidden departures, exact in [first, end))
-    asked: dict[tuple[int, int, bool], tuple[int, int, np.ndarray]] = {}
-
-    def forbidden(key: tuple[int, int, bool], mv_: Move, lo: int, hi: int) -> np.ndarray:
-        """The departures along ``mv_`` that the others forbid, exact in [lo, hi): what was asked
-        before is kept and only what is missing is asked (from lo where it does not reach lo)."""
-        got = asked.get(key)
-        if got is None or got[0] > lo or got[1] < lo:
-            got = (lo, lo, np.zeros(T, dtype=bool) if got is None else got[2])
-        c0, c1, bad = got
-        if c1 < hi:
-            bad[c1:hi] = occ.forbidden_departures(agent, mv_.positions(), from_step=c1, until_step=hi)[c1:hi]
-            asked[key] = (c0, hi, bad)
-        else:
-            asked[key] = got
-        return bad
+    def move(k: int, j: int, run: bool, t: int, e: int):
+        """The move k -> j and its forbidden departures, exact from step t on up to the last
+        departure that could still arrive at the end before ``done_by`` and leaves the hold at k
+        before step ``e`` (the end of its safe interval) (None: not free)."""
+        key = (k, j, run)
+        mv_ = flown(k, j, run)
+        if mv_ is None:
+            return None
+        # departures after done_by - 1 - steps - h[j] cannot improve on the best arrival found (and
+        # done_by only decreases), those from e on leave a hold that is no longer safe: a query
+        # serves every later one that starts no earlier and ends no later (a later safe interval
+        # at k starts after e: it asks again)
+        until = min(done_by - mv_.steps - h[j], e)
+        if key not in forbidden or forbidden[key][0] > t or forbidden[key][1] < until:
+            forbidden[key] = (t, until, occ.forbidden_departures(agent, mv_.positions(), from_step=t, until_step=until))
+        return mv_, forbidden[key][2]
 
     # the end is held for good only from the start of its last safe interval (the one that lasts to
     # the horizon): an arrival there ends the search, an arrival in an earlier one of its intervals
@@ -148,19 +144,30 @@ def _time_chain(
     # asking them all at once; only the cost depends on END_WINDOW_STEPS)
     goal_iv = len(intervals[m]) - 1
     goal_from = intervals[m][goal_iv][0]
+    # move key -> (first step, end step, forbidden departures, exact in [first, end))
+    scanned: dict[tuple[int, bool], tuple[int, int, np.ndarray]] = {}
 
     def first_free(k: int, run: bool, mv_: Move, lo: int, hi: int) -> int | None:
         """The first departure in [lo, hi] that the others allow along the move k -> m (None: none)."""
+        if hi < lo:
+            return None
+        got = scanned.get((k, run))
+        if got is None or got[0] > lo:
+            got = (lo, lo, np.zeros(T, dtype=bool))
+        c0, c1, bad = got
+        if c1 < lo:  # what was asked ends before lo: ask from lo (the steps between are of no use)
+            c0, c1 = lo, lo
         d = lo
         while d <= hi:
-            got = asked.get((k, m, run))
-            known = got[1] if got is not None and got[0] <= d < got[1] else d  # asked already up to here
-            end = min(hi + 1, known if known > d else d + max(end_window_steps, d - lo))
-            bad = forbidden((k, m, run), mv_, d, end)
-            free = np.flatnonzero(~bad[d:end])
+            if d >= c1:  # ask the next window, as long as all asked before it (at least end_window_steps)
+                c2 = min(hi + 1, c1 + max(end_window_steps, c1 - c0))
+                bad[c1:c2] = occ.forbidden_departures(agent, mv_.positions(), from_step=c1, until_step=c2)[c1:c2]
+                c1 = c2
+                scanned[(k, run)] = (c0, c1, bad)
+            free = np.flatnonzero(~bad[d : min(c1, hi + 1)])
             if free.size:
                 return d + int(free[0])
-            d = end
+            d = c1
         return None
 
     # A*: the rest-to-rest time of the straight line to the end bounds what is left (no flight
@@ -169,70 +176,11 @@ def _time_chain(
     h = [rest_to_rest(float(np.linalg.norm(W[m] - W[k])), limits, GRID_DT_S).steps for k in range(m + 1)]
     best: dict[tuple[int, int], int] = {(0, 0): 0}
     parent: dict[tuple[int, int], tuple[int, int, int, Move]] = {}
-    # who set a state's best arrival: (expansion, candidate) in the order the search made them; of
-    # equal arrivals the first wins, as when every departure was asked at the expansion
-    claimed_by: dict[tuple[int, int], tuple[int, int]] = {}
-    # the heap holds states (f, t, k, iv) and the rest of a move's departures to a waypoint,
-    # (f, t, j, -1, count, what): f and t bound every arrival still to come from them, and -1 puts
-    # them before any state of equal (f, t, j), so each of its arrivals is claimed before its state
-    # could be expanded (the same expansions, in the same order, as asking every departure at once)
-    heap: list[tuple] = [(h[0], 0, 0, 0)]
+    heap = [(h[0], 0, 0, 0)]
     limit = T if arrive_by is None else min(T, arrive_by + 1)
     done_by = limit  # the earliest arrival at the end found so far, +1 (nothing later is of interest)
-    expansions = 0
-    pending = 0  # rest-of-departures entries pushed (their order among equals)
-
-    def claim(j: int, i0: int, a0: int, how: tuple[int, int, int, Move], by: tuple[int, int]) -> None:
-        """The arrival a0 at (j, i0) by ``how`` (parent k, iv, departure, move), made by ``by``."""
-        nonlocal done_by
-        old = best.get((j, i0), T + 1)
-        if a0 < old:
-            if j == m and goal_ok[i0]:  # (a chain of one waypoint: no move to the end before)
-                done_by = min(done_by, a0 + 1)
-            best[(j, i0)] = a0
-            parent[(j, i0)] = how
-            claimed_by[(j, i0)] = by
-            heapq.heappush(heap, (a0 + h[j], a0, j, i0))
-        elif a0 == old and by < claimed_by.get((j, i0), by):  # its entry is still in the heap (see above)
-            parent[(j, i0)] = how
-            claimed_by[(j, i0)] = by
-
-    def departures(k: int, iv: int, j: int, run: bool, mv_: Move, first: int, lo: int, hi: int, seen, by) -> None:
-        """The departures of the move k -> j from (k, iv) in [lo, hi] (asked from ``first`` on), one
-        growing window: each new safe interval of j reached claims its first arrival; the rest of
-        the window's range is pushed back on the heap (see above)."""
-        nonlocal pending
-        n = mv_.steps
-        hi = min(hi, done_by - 1 - n - h[j])
-        if hi < lo:
-            return
-        end = min(hi + 1, lo + max(window_steps if j < m else T, lo - first))
-        bad = forbidden((k, j, run), mv_, lo, end)
-        deps = np.flatnonzero(~bad[lo:end]) + lo
-        arrs = deps + n
-        ok = ~holds[j][arrs]
-        deps, arrs = deps[ok], arrs[ok]
-        if deps.size:
-            ivs = np.searchsorted(starts[j], arrs, side="right") - 1
-            for d0, a0, i0 in zip(deps.tolist(), arrs.tolist(), ivs.tolist()):
-                if i0 in seen:
-                    continue
-                seen.add(i0)
-                claim(j, i0, a0, (k, iv, d0, mv_), by)
-        if end <= hi:
-            pending += 1
-            heapq.heappush(
-                heap, (end + n + h[j], end + n, j, -1, pending, (k, iv, j, run, mv_, first, end, hi, seen, by))
-            )
-
-    starts = [np.array([a for a, _ in intervals[j]]) for j in range(m + 1)]
     while heap:
-        item = heapq.heappop(heap)
-        if item[3] < 0:  # the rest of a move's departures
-            if item[0] < done_by:
-                departures(*item[5])
-            continue
-        _, t, k, iv = item
+        _, t, k, iv = heapq.heappop(heap)
         if best.get((k, iv), T + 1) < t or t + h[k] >= done_by:
             continue
         if k == m and goal_ok[iv]:
@@ -244,7 +192,6 @@ def _time_chain(
                 node = (pk, piv)
             track = GridTrack(agent, int(problem.type_index[agent]), W[0].copy(), out[::-1], route_m=W.copy())
             return ChainResult(track, t)
-        expansions += 1
         _, e_iv = intervals[k][iv]
         candidates = [(j, False) for j in range(k + 1, min(m, k + 1 + MAX_SHORTCUT) + 1)]
         if (m, False) not in candidates:
@@ -253,22 +200,50 @@ def _time_chain(
             candidates += [(j, True) for j in range(k + 2, min(m, k + 1 + MAX_RUN) + 1)]
             if m >= k + 2 and (m, True) not in candidates:
                 candidates.append((m, True))
-        for c, (j, run) in enumerate(candidates):
+        for j, run in candidates:
             if t + max(h[k], h[j]) >= done_by:  # cannot arrive at the end earlier through j
                 continue
-            mv = flown(k, j, run)
-            if mv is None:
-                continue
-            n = mv.steps
             if j == m and k < m:  # to the end: only its first departure into the goal's hold matters
+                mv_end = flown(k, j, run)
+                if mv_end is None:
+                    continue
+                n = mv_end.steps
                 lo_d, hi_d = max(t, goal_from - n), min(e_iv - 1, done_by - 1 - n)
-                d0 = first_free(k, run, mv, lo_d, hi_d)
+                d0 = first_free(k, run, mv_end, lo_d, hi_d)
                 if d0 is not None and d0 + n < best.get((m, goal_iv), T + 1):
                     a0 = d0 + n
                     best[(m, goal_iv)] = a0
-                    parent[(m, goal_iv)] = (k, iv, d0, mv)
+                    parent[(m, goal_iv)] = (k, iv, d0, mv_end)
                     heapq.heappush(heap, (a0, a0, m, goal_iv))
                     done_by = min(done_by, a0 + 1)
                 continue
-            departures(k, iv, j, run, mv, t, t, e_iv - 1, set(), (expansions, c))
+            got = move(k, j, run, t, e_iv)
+            if got is None:
+                continue
+            mv, bad = got
+            n = mv.steps
+            lo_d, hi_d = t, min(e_iv - 1, done_by - 1 - n - h[j])
+            if hi_d < lo_d:
+                continue
+            deps = np.flatnonzero(~bad[lo_d : hi_d + 1]) + lo_d
+            if deps.size == 0:
+                continue
+            arrs = deps + n
+            ok = ~holds[j][arrs]
+            deps, arrs = deps[ok], arrs[ok]
+            if deps.size == 0:
+                continue
+            starts = np.array([a for a, _ in intervals[j]])
+            ivs = np.searchsorted(starts, arrs, side="right") - 1
+            seen: set[int] = set()
+            for d0, a0, i0 in zip(deps.tolist(), arrs.tolist(), ivs.tolist()):
+                if i0 in seen:
+                    continue
+                seen.add(i0)
+                if a0 < best.get((j, i0), T + 1):
+                    best[(j, i0)] = a0
+                    parent[(j, i0)] = (k, iv, d0, mv)
+                    heapq.heappush(heap, (a0 + h[j], a0, j, i0))
+                    if j == m and goal_ok[i0]:
+                        done_by = min(done_by, a0 + 1)
     return None
