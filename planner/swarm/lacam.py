@@ -30,6 +30,15 @@ left in place never blocks its pusher's other vertices) a proposal was thrown aw
 conflict a failed branch left behind; the chance that none is left falls with every vehicle that
 interacts, and on grid-128 fixed LaCAM's 4000 proposals added one configuration (issue 37, round
 12A in docs/planner.md).
+
+The table is asked only about pairs that may come within reach: an agent's neighbours are those
+within the widest keep-out plus two longest moves of it (any pair of moves), and before a pair is
+asked one vectorised test (:func:`~proxplan.planner.swarm.sync.maybe_near`, conservative: it rules
+out only pairs that :func:`~proxplan.planner.swarm.sync.far_apart` clears) takes every candidate of
+an agent against every decided neighbour at once, each move against the staying neighbours, and the
+settle and the final check against every end each agent can take. The same answers, so the same
+search (tested); the table was asked about 40 times per candidate, nearly all pairs far apart
+(issue 37, round 18B).
 """
 
 from __future__ import annotations
