@@ -53,6 +53,7 @@ PARTS = (
     ("occupancy put/remove", "swarm/occupancy.py", "put"),
     ("LaCAM solve", "swarm/lacam.py", "solve"),
     ("  its synchronous conflict tests", "swarm/sync.py", "conflict"),
+    ("  its pre-test of pairs in reach (maybe_near)", "swarm/sync.py", "maybe_near"),
 )
 BIN = 16  # planned-before bins of this many vehicles
 

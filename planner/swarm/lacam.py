@@ -30,6 +30,15 @@ left in place never blocks its pusher's other vertices) a proposal was thrown aw
 conflict a failed branch left behind; the chance that none is left falls with every vehicle that
 interacts, and on grid-128 fixed LaCAM's 4000 proposals added one configuration (issue 37, round
 12A in docs/planner.md).
+
+The table is asked only about pairs that may come within reach: an agent's neighbours are those
+within the widest keep-out plus two longest moves of it (any pair of moves), and before a pair is
+asked one vectorised test (:func:`~proxplan.planner.swarm.sync.maybe_near`, conservative: it rules
+out only pairs that :func:`~proxplan.planner.swarm.sync.far_apart` clears) takes every candidate of
+an agent against every decided neighbour at once, each move against the staying neighbours, and the
+settle and the final check against every end each agent can take. The same answers, so the same
+search (tested); the table was asked about 40 times per candidate, nearly all pairs far apart
+(issue 37, round 18B).
 """
 
 from __future__ import annotations
@@ -44,7 +53,7 @@ from scipy.spatial import cKDTree
 
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.swarm.lattice import Lattice
-from proxplan.planner.swarm.sync import SyncTable
+from proxplan.planner.swarm.sync import SyncTable, maybe_near
 
 
 @dataclass(frozen=True)
@@ -94,8 +103,16 @@ class Lacam:
         self.goal = tuple(int(v) for v in lattice.goal_v)
         assert lattice.dist_to_goal is not None
         self.dist = lattice.dist_to_goal
+        # horizontal vertex positions from the table's whole millimetres, m; agent types; per type pair
+        # the horizontal reach beyond which a relative segment cannot conflict (moving or at rest), m
+        self.xy_m = np.asarray(sync.pos, dtype=float)[:, :2] * 1e-3 if sync.pos else np.zeros((0, 2))
+        self.types = np.asarray(sync.types, dtype=np.intp)
+        self.reach_pair_m = sync.reach_any_m
 
-    def _near(self, config) -> list[list[int]]:
+    def _near(self, config) -> tuple[list[list[int]], np.ndarray]:
+        """Per agent, the agents whose moves from ``config`` may interact with its own (within the
+        reach of the widest keep-out and two longest moves), and those pairs (P, 2), a < b, in the
+        order the lists were built from."""
         p = self.lat.pos_m[list(config)]
         pairs = cKDTree(p[:, :2]).query_pairs(self.r_xy, output_type="ndarray")
         nb: list[list[int]] = [[] for _ in range(self.A)]
@@ -104,7 +121,50 @@ class Lacam:
             for a, b in pairs.tolist():
                 nb[a].append(b)
                 nb[b].append(a)
-        return nb
+        return nb, pairs
+
+    def _near_pairs(self, Q, pairs: np.ndarray, ends_a: tuple, ends_b: tuple) -> list[list[int]]:
+        """Per agent, its partners among ``pairs`` (in the order :meth:`_near` lists them) that may
+        conflict (:func:`~proxplan.planner.swarm.sync.maybe_near`) when the first of a pair moves
+        from Q to any of ``ends_a`` (configurations) and the second to any of ``ends_b``."""
+        out: list[list[int]] = [[] for _ in range(self.A)]
+        if not len(pairs):
+            return out
+        xy = self.xy_m
+        a, b = pairs[:, 0], pairs[:, 1]
+        qa, qb = xy[np.asarray(Q)[a]], xy[np.asarray(Q)[b]]
+        reach = self.reach_pair_m[self.types[a], self.types[b]]
+        keep = np.zeros(len(pairs), dtype=bool)
+        for ea in ends_a:
+            xa = xy[np.asarray(ea)[a]]
+            for eb in ends_b:
+                keep |= maybe_near(qb - qa, xy[np.asarray(eb)[b]] - xa, reach)
+        for i, j in pairs[keep].tolist():
+            out[i].append(j)
+            out[j].append(i)
+        return out
+
+    def _near_decided(self, Q, i: int, cands: list[int], decided: list[int], to: list[int]) -> list[list[bool]]:
+        """Per candidate v of agent i (moving Q[i] -> v), per decided neighbour j (moving Q[j] ->
+        to[j]): may the pair conflict (:func:`~proxplan.planner.swarm.sync.maybe_near`)? One
+        vectorised test of every candidate against every decided neighbour."""
+        xy = self.xy_m
+        dj = np.array(decided, dtype=np.intp)
+        d0 = xy[[Q[j] for j in decided]] - xy[Q[i]]  # (N, 2)
+        d1 = xy[[to[j] for j in decided]][None, :, :] - xy[cands][:, None, :]  # (C, N, 2)
+        reach = self.reach_pair_m[self.types[i], self.types[dj]]
+        return maybe_near(d0[None, :, :], d1, reach[None, :]).tolist()
+
+    def _near_staying(self, Q, i: int, v: int, among: list[int]) -> list[int]:
+        """The agents of ``among`` whose staying put agent i's move Q[i] -> v may reach (the rest
+        cannot conflict with it staying), in the order of ``among``."""
+        if not among:
+            return among
+        xy = self.xy_m
+        k = np.array(among, dtype=np.intp)
+        here = xy[[Q[j] for j in among]]
+        near = maybe_near(here - xy[Q[i]], here - xy[v], self.reach_pair_m[self.types[i], self.types[k]])
+        return [j for j, m in zip(among, near.tolist()) if m]
 
     def _candidates(self, i: int, u: int) -> list[int]:
         if self.pinned[i]:
@@ -120,16 +180,16 @@ class Lacam:
         Q = node.config
         to = [-1] * self.A
         fixed = constraint.fixed()
-        nb = self._near(Q)
+        nb, pairs = self._near(Q)
         conflict = self.sync.conflict
         trail: list[int] = []  # agents decided, in order (a failed branch undoes its own)
         # candidate vertices tried with undo: as many as PIBT without undo tries at most (each agent
         # decided once, each of its candidates tried once); once spent, PIBT goes on without undo
         tries = [sum(1 if self.pinned[i] else len(self.lat.moves(i, Q[i])) + 1 for i in range(self.A))]
 
-        def compatible(i: int, v: int) -> bool:
+        def compatible(i: int, v: int, among: list[int]) -> bool:
             ui = Q[i]
-            for j in nb[i]:
+            for j in among:
                 vj = to[j]
                 if vj >= 0 and conflict(i, ui, v, j, Q[j], vj):
                     return False
@@ -142,15 +202,19 @@ class Lacam:
         def pibt(i: int) -> bool:
             ui = Q[i]
             cands = [fixed[i]] if i in fixed else self._candidates(i, ui)
-            for v in cands:
+            # the decided neighbours each candidate may reach (the rest cannot conflict with it), taken
+            # when the decisions are as at entry and again whenever a failed candidate's stay (no undo)
+            decided = [j for j in nb[i] if to[j] >= 0]
+            near = self._near_decided(Q, i, cands, decided, to) if decided else None
+            for c, v in enumerate(cands):
                 tries[0] -= 1
-                if not compatible(i, v):
+                if near is not None and not compatible(i, v, [j for j, m in zip(decided, near[c]) if m]):
                     continue
                 mark = len(trail)
                 to[i] = v
                 trail.append(i)
                 good = True
-                for k in nb[i]:
+                for k in self._near_staying(Q, i, v, nb[i]):
                     if to[k] >= 0 or not conflict(i, ui, v, k, Q[k], Q[k]):
                         continue
                     if (k in fixed and fixed[k] == Q[k]) or self.pinned[k] or not pibt(k):
@@ -161,7 +225,9 @@ class Lacam:
                 if tries[0] > 0:
                     undo(mark)
                 else:
-                    to[i] = -1
+                    to[i] = -1  # the decisions under v stay: the next candidates see them
+                    decided = [j for j in nb[i] if to[j] >= 0]
+                    near = self._near_decided(Q, i, cands, decided, to) if decided else None
             if tries[0] <= 0 and to[i] < 0:
                 to[i] = ui
                 trail.append(i)
@@ -171,11 +237,13 @@ class Lacam:
             if to[i] < 0 and not pibt(i) and tries[0] > 0:
                 return None  # only an agent held by the constraint can fail here (see module)
         if tries[0] <= 0:  # settle: the movers of a pair in conflict stay put until none is left
+            # every agent ends at its proposal or stays: the pairs that may conflict in any of those
+            nbs = self._near_pairs(Q, pairs, (to, Q), (to, Q))
             todo = set(range(self.A))
             while todo:
                 moved: set[int] = set()
                 for i in todo:
-                    for j in nb[i]:
+                    for j in nbs[i]:
                         if conflict(i, Q[i], to[i], j, Q[j], to[j]):
                             for a in (i, j):
                                 if to[a] != Q[a]:
@@ -186,8 +254,9 @@ class Lacam:
                     todo.update(nb[a])
             if any(to[i] != v for i, v in fixed.items()):
                 return None
+        nbs = self._near_pairs(Q, pairs, (to,), (to,))
         for i in range(self.A):  # the whole step once more, exactly
-            for j in nb[i]:
+            for j in nbs[i]:
                 if j > i and conflict(i, Q[i], to[i], j, Q[j], to[j]):
                     return None
         return tuple(to)

@@ -35,6 +35,10 @@ from proxplan.planner.swarm.problem import GROWTH_M
 # allows a 256-vehicle plan (the table's only purpose is speed: a verdict dropped is computed again,
 # exactly)
 MAX_VERDICTS = 1 << 22
+# relative margin of maybe_near's conservative test over far_apart's (float rounding of a vectorised
+# quadratic on positions of a few metres: about 1e-15 relative; 1e-6 is far from both the rounding
+# and any verdict's margin, and a pair kept by it is only tested exactly, never decided by it)
+NEAR_MARGIN = 1e-6
 
 
 def _column_radius(ko: KeepOut, dz: float, rest: bool) -> float:
@@ -110,6 +114,21 @@ def far_apart(d_mm: tuple[int, ...], reach_m: float) -> bool:
     return x * x + y * y > reach_m * reach_m * (1.0 + 1e-9) + 1e-12
 
 
+def maybe_near(d0_m: np.ndarray, d1_m: np.ndarray, reach_m: np.ndarray) -> np.ndarray:
+    """Vectorised, conservative :func:`far_apart`: False only where the relative segments d0 -> d1
+    (horizontal parts, m, arrays of shape (..., 2) that broadcast) stay horizontally clearly beyond
+    ``reach_m`` (broadcasting with their leading shape) of the origin, so :func:`far_apart` holds there
+    and the pair cannot conflict; True where they may come within reach. The margin (a relative 1e-6
+    over far_apart's 1e-9, positions from whole mm) keeps float rounding on the side of the exact test."""
+    e = d1_m - d0_m
+    a = (e * e).sum(axis=-1)
+    b = (d0_m * e).sum(axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(a > 0.0, np.clip(-b / np.where(a > 0.0, a, 1.0), 0.0, 1.0), 0.0)
+    p = d0_m + s[..., None] * e
+    return (p * p).sum(axis=-1) <= reach_m * reach_m * (1.0 + NEAR_MARGIN) + 1e-9
+
+
 class SyncTable:
     """Cached synchronous conflict test of two agents' moves on vertices with positions
     ``pos_mm`` (V, 3) integer millimetres (see module).
@@ -151,6 +170,12 @@ class SyncTable:
             for pair, ko in keepouts.items()
             for rest in (False, True)
         }
+        # per type pair (nt, nt): the larger of the two reaches above (moving, at rest), m: a pair
+        # whose relative segment stays beyond it cannot conflict, whether or not both stay
+        nt = max([self._n_types] + [max(pair) + 1 for pair in keepouts])
+        self.reach_any_m = np.zeros((nt, nt))
+        for (pair, _rest), r in self.reach_m.items():
+            self.reach_any_m[pair] = max(self.reach_any_m[pair], r)
 
     def __len__(self) -> int:
         return len(self.verdicts)
