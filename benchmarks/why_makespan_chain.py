@@ -144,7 +144,9 @@ def main() -> int:
             mid = (k0 + k1) // 2
             short = float(np.linalg.norm(P.goal[i] - P.p[i, mid]))
             ch = P.chain(i, mid)
-            print(f"    waits {P.t[k0]:.2f}-{P.t[k1]:.2f} s, {short:.2f} m short of its goal; held by " + " <- ".join(ch))
+            print(
+                f"    waits {P.t[k0]:.2f}-{P.t[k1]:.2f} s, {short:.2f} m short of its goal; held by " + " <- ".join(ch)
+            )
             last = ch[-1]
             kind = (
                 "goal-blocking"
