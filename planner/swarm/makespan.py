@@ -137,7 +137,7 @@ def replan(occ: Occupancy, b: int, old: GridTrack | None, worst: int, through: b
     chain it was timed along, where it has more than two points) timed again, else ``old`` itself
     where it arrives in time and still conflicts with no track in ``occ``. ``plan_one`` alone does
     not always find a track where one exists (docs/planner.md, stop 56: on pillar-64 it found none
-    for two of the four latest vehicles against everyone else's tracks, their own included)."""
+    for two of the four latest vehicles against everyone else's tracks, though their own exist)."""
     track = plan_one(occ, b, through)
     route = None if old is None else old.route_m
     if route is not None and len(route) > 2:
