@@ -9,11 +9,13 @@ have gone differently (grid-64 by_type: a 0.6 m line, 1.07 s alone, left at 1.70
 makespan). Here the vehicles are taken in order of decreasing arrival. For one of them, a, the
 *neighbourhood* is a and the vehicles whose tracks conflict with a's ideal track (its straight line
 from t = 0, or its route round the obstacles: :func:`~proxplan.planner.swarm.priority.ideal_track`).
-They are taken out and planned again one at a time
-(:func:`~proxplan.planner.swarm.priority.plan_one`) against everyone else's final tracks, in two
-orders (a first; a last; an order stops at the first vehicle that arrives no earlier than the
-neighbourhood's latest before), when a vehicle of the neighbourhood arrives last of all (no other
-neighbourhood can shorten the plan); the better result replaces them only when the latest arrival
+They are taken out and planned again one at a time (:func:`replan`:
+:func:`~proxplan.planner.swarm.single.plan_one`, or its own route timed again, or its old track
+where it still fits) against everyone else's final tracks, in two orders (a first; a last; an
+order stops at the first vehicle that cannot arrive before the neighbourhood's latest before, and
+that vehicle then goes first in one more order, once per vehicle: a raised priority, as in
+priority-based search), when a vehicle of the neighbourhood arrives last of all (no other
+neighbourhood can shorten the plan); the best result replaces them only when the latest arrival
 in the neighbourhood gets strictly earlier. Every new track is planned against all the others, so the plan
 stays conflict-free and its makespan never grows. A vehicle whose neighbourhood gave nothing is
 skipped until some neighbourhood is replaced (tracks changed). The budget is a count of
@@ -29,6 +31,7 @@ import time
 import numpy as np
 
 from proxplan.planner.errors import PlanNotFound
+from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.priority import ideal_track, plan_one
 from proxplan.planner.swarm.problem import SwarmProblem
@@ -37,11 +40,14 @@ from proxplan.planner.timing.profile import rest_to_rest
 
 # single-vehicle plannings of the whole search, per vehicle (the unit of prioritised planning's own
 # budget, SwarmOptions.plannings_per_vehicle = 6): one is what one pass of prioritised planning
-# costs. Chosen as that unit, not searched; before it was set, a prototype on grid-64 by_type with
-# 60 and 80 plannings gave the same makespan (docs/planner.md)
-PLANNINGS_PER_VEHICLE = 1.0
+# costs. 1 until stop 56 (a prototype on grid-64 by_type with 60 and 80 plannings gave the same
+# makespan); 3 since the neighbourhoods are planned in more orders (a vehicle that cannot be
+# planned goes first): chosen watching grid-32, pillar-64 and circle-64 fixed in-process with 1, 3
+# and 6 (6 took pillar-64's repair to 30 s of CPU alone, the issue's whole target; docs/planner.md,
+# stop 56 round 18C)
+PLANNINGS_PER_VEHICLE = 3.0
 
-__all__ = ["PLANNINGS_PER_VEHICLE", "budget", "shorten_makespan"]
+__all__ = ["PLANNINGS_PER_VEHICLE", "budget", "replan", "shorten_makespan"]
 
 
 def shorten_makespan(
@@ -88,14 +94,19 @@ def shorten_makespan(
         old = {b: occ.remove(b) for b in group}
         best: dict[int, GridTrack] | None = None
         counts["tried"] += 1
-        for seq in [group, [*others, a]] if others else [group]:
+        orders = [group, [*others, a]] if others else [group]
+        promoted: set[int] = set()
+        while orders:
+            seq = orders.pop(0)
             if counts["plannings"] + len(seq) > max_plannings:
                 break
             new: dict[int, GridTrack] = {}
+            stuck = None
             for b in seq:
-                track = plan_one(occ, b, through)
+                track = replan(occ, b, old[b], worst, through)
                 counts["plannings"] += 1
-                if track is None or track.arrival_step >= worst:  # this order cannot shorten the neighbourhood
+                if track is None:  # this order cannot shorten the neighbourhood
+                    stuck = b
                     break
                 new[b] = track
                 occ.put(track)
@@ -103,6 +114,9 @@ def shorten_makespan(
                 occ.remove(b)
             if len(new) == len(group) and (best is None or _latest(new) < _latest(best)):
                 best = new
+            if best is None and stuck is not None and stuck not in promoted:
+                promoted.add(stuck)  # its priority raised: planned first in one more order
+                orders.insert(0, [stuck, *(b for b in seq if b != stuck)])
         if best is not None and _latest(best) < worst:
             by_agent.update(best)
             for track in best.values():
@@ -115,6 +129,25 @@ def shorten_makespan(
                 occ.put(track)
         skip.add(a)
     return counts
+
+
+def replan(occ: Occupancy, b: int, old: GridTrack | None, worst: int, through: bool) -> GridTrack | None:
+    """A track of ``b`` against the tracks in ``occ`` arriving before step ``worst``, or None: the
+    earlier of :func:`~proxplan.planner.swarm.single.plan_one` and ``old``'s own route (the waypoint
+    chain it was timed along, where it has more than two points) timed again, else ``old`` itself
+    where it arrives in time and still conflicts with no track in ``occ``. ``plan_one`` alone does
+    not always find a track where one exists (docs/planner.md, stop 56: on pillar-64 it found none
+    for two of the four latest vehicles against everyone else's tracks, though their own exist)."""
+    track = plan_one(occ, b, through)
+    route = None if old is None else old.route_m
+    if route is not None and len(route) > 2:
+        res = time_chain(occ, b, route, arrive_by=None if track is None else track.arrival_step - 1, through=through)
+        if res is not None and (track is None or res.arrival_step < track.arrival_step):
+            track = res.track
+    if (track is None or track.arrival_step >= worst) and old is not None and old.arrival_step < worst:
+        if not occ.conflicting_agents(old):
+            track = old
+    return None if track is None or track.arrival_step >= worst else track
 
 
 def _may_meet_the_last(problem: SwarmProblem, by_agent: dict[int, GridTrack], a: int) -> bool:
