@@ -23,9 +23,9 @@ lighter source (a Crazyflie's jet on the 145 g small quad uses 6-8 % of its auth
 1/s at 0.8 Hz), and the verifier, which drives the loop along the plan
 (:mod:`proxplan.verify.jet_loop`), predicts a deflection that grows for as long as the target stays
 there (pillar-128, grid-256: 0.1-0.22 m after 3-11 s; the plans failed ``verify``). So each
-table's r_cut(dz) is at least the radius out to which the target's loop held in the source's jet
-is not damped (the verifier's own test, :func:`proxplan.verify.jet_loop.hold_poles`'s pole); the
-growth by the tube and deflections then applies to both alike.
+table, grown as above, also holds the relative positions out to which the target's loop held in
+the source's jet is not damped (the verifier's own test, :func:`proxplan.verify.jet_loop.hold_poles`'s
+pole), not grown by the tube: the verifier takes the loop's gradients at the planned positions.
 """
 
 from __future__ import annotations
@@ -222,25 +222,40 @@ def keepout_for(
     w_move = float(limits.tracking_margin_m) + sample_m + deflection_m
     w_rest = deflection_m
     r_ab, r_ba = np.asarray(ab.r_cut_m), np.asarray(ba.r_cut_m)
-    # the zones where the jet undamps the target's loop are kept out as the cut-off is (module)
+    # the zones where the jet undamps the target's loop (module), at the planned relative positions
     fx = dict(
         level=level if undamped_level is None else max(level, undamped_level),
         rule=limits.invalid_zone_rule,
         field_form=field_form,
         effects=effects,
     )
-    r_ab = np.maximum(r_ab, undamped_radius_m(vehicle_a, vehicle_b, **fx))
-    r_ba = np.maximum(r_ba, undamped_radius_m(vehicle_b, vehicle_a, **fx))
+    z_ab = undamped_radius_m(vehicle_a, vehicle_b, **fx)
+    z_ba = undamped_radius_m(vehicle_b, vehicle_a, **fx)
     return KeepOut(
         separation_m=float(sep),
         w_move_m=w_move,
         w_rest_m=w_rest,
         step_m=float(ab.dz_step_m),
-        a_on_b=_grown(r_ab, ab.dz_step_m, w_move),
-        b_on_a=_grown(r_ba, ba.dz_step_m, w_move),
-        a_on_b_rest=_grown(r_ab, ab.dz_step_m, w_rest),
-        b_on_a_rest=_grown(r_ba, ba.dz_step_m, w_rest),
+        a_on_b=_with_zone(_grown(r_ab, ab.dz_step_m, w_move), z_ab, ab.dz_step_m, sample_m),
+        b_on_a=_with_zone(_grown(r_ba, ba.dz_step_m, w_move), z_ba, ba.dz_step_m, sample_m),
+        a_on_b_rest=_with_zone(_grown(r_ab, ab.dz_step_m, w_rest), z_ab, ab.dz_step_m, sample_m),
+        b_on_a_rest=_with_zone(_grown(r_ba, ba.dz_step_m, w_rest), z_ba, ba.dz_step_m, sample_m),
     )
+
+
+def _with_zone(grown: np.ndarray, zone: np.ndarray, step_m: float, pad_m: float) -> np.ndarray:
+    """The grown cut-off table ``grown`` (m), at least the undamped zone ``zone`` (its radius per dz
+    row, m; :func:`undamped_radius_m`) by the same bracket lookup, plus ``pad_m`` (whole-millimetre
+    positions), where the zone holds a point. Not grown by the tube or the deflections: the verifier
+    judges the loop's poles at the planned positions (:func:`proxplan.verify.jet_loop.loop_along_plan`;
+    the tube enters its growth, not its gradients), so the zone is kept out where the plan puts the
+    pair."""
+    z = _grown(zone, step_m, 0.0)
+    z = np.where(z > 0.0, z + pad_m, 0.0)
+    out = np.zeros(max(grown.size, z.size))
+    out[: grown.size] = grown
+    out[: z.size] = np.maximum(out[: z.size], z)
+    return out
 
 
 @dataclass(frozen=True)
