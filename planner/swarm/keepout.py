@@ -39,11 +39,13 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 # the undamped zone is searched where the source's jet uses at least this share of the target's
 # authority (the cost map's r_cut at this level bounds the scan outward). Set on the model, not on a
-# layout: over the built-in types' nine ordered pairs (crazyflie-2.1, crazyflie-parrot, small-quad;
-# docs/planner.md, round 18A) every undamped configuration uses >= 3 % of the authority and below 3 %
-# the rightmost pole is the vehicle's own loop's (-0.0083 1/s) to four digits (scanned down to 1e-6);
-# 1e-2 is 3x lower. (The verifier runs the loop with the jet wherever the usage is >= 1e-6,
-# jet_loop.WEAK_USAGE: a scan down to 1e-3 took 14 s of CPU for the nine pairs, down to 1e-6 more.)
+# layout (docs/planner.md, round 18A): over the built-in types' nine ordered pairs (crazyflie-2.1,
+# crazyflie-parrot, small-quad; up to 3000 points per band of usage, azimuths 0, 22.5 and 45 degrees)
+# undamped points use 1-3 % of the authority for three pairs (crazyflie-2.1 and -parrot over
+# small-quad, small-quad over itself) and >= 3 % for the others; between 1 % and 1e-6 none was found,
+# the rightmost pole there is the vehicle's own loop's (-0.0083 1/s). (The verifier runs the loop
+# with the jet wherever the usage is >= 1e-6, jet_loop.WEAK_USAGE.) No margin below 1 %: a lower
+# level with a finer step near the axis is the next step (its CPU not measured).
 UNDAMPED_SCAN_USAGE = 1e-2
 # radial step of that search, m: at least this, and at least 1/UNDAMPED_ROW_SAMPLES of the row's
 # span (deep rows, where the jet at 1-10 % of the authority is 0.7-0.9 m wide, hold most samples at
