@@ -14,6 +14,7 @@ the plan-file sampler. World frame, z up; m, N, N m, s.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -36,7 +37,8 @@ class WrenchAlongPlan:
     """Disturbance on one vehicle along the plan at times ``t_s`` (M,), s.
 
     ``force_N`` (M, 3) N and ``torque_Nm`` (M, 3) N m, world frame, summed over all sources above;
-    ``usage`` (M,) authority usage; ``usage_by_source`` {source: (M,)} usage of each source alone;
+    ``usage`` (M,) authority usage; ``usage_by_source`` {source: (M,)} usage of each source alone
+    (a :class:`UsageBySource`: each array built when asked for);
     ``invalid_zone`` (M,) True where the vehicle is in a source's invalid zone (0 < dz <= 3 L) with
     overlapping footprints.
     """
@@ -45,8 +47,29 @@ class WrenchAlongPlan:
     force_N: np.ndarray
     torque_Nm: np.ndarray
     usage: np.ndarray
-    usage_by_source: dict
+    usage_by_source: Mapping[str, np.ndarray]
     invalid_zone: np.ndarray
+
+
+class UsageBySource(Mapping):
+    """{source: (M,) authority usage of that source alone} of one target, each array built when asked
+    for from the samples where the source is in reach (0 on the others): held over those samples only."""
+
+    def __init__(self, m: int, sparse: dict[str, tuple[np.ndarray, np.ndarray]]):
+        self._m = int(m)
+        self._sparse = sparse  # source -> (sample indices (R,), usage (R,))
+
+    def __getitem__(self, source: str) -> np.ndarray:
+        at, usage = self._sparse[source]
+        out = np.zeros(self._m)
+        out[at] = usage
+        return out
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._sparse)
+
+    def __len__(self) -> int:
+        return len(self._sparse)
 
 
 Samples = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -88,7 +111,9 @@ def wrench_along_plan(
     out = {}
     for k, tname in enumerate(names):
         usage = authority_usage(vehicles[k], field.force[k], field.torque[k]) if t_s.size else np.zeros(0)
-        by_source = {names[s]: field.by_source[(k, s)] for s in range(len(names)) if (k, s) in field.by_source}
+        by_source = UsageBySource(
+            t_s.size, {names[s]: field.by_source[(k, s)] for s in range(len(names)) if (k, s) in field.by_source}
+        )
         out[tname] = WrenchAlongPlan(t_s, field.force[k], field.torque[k], usage, by_source, field.invalid[k])
     return out
 

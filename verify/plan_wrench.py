@@ -68,9 +68,11 @@ def _kinds(vehicles: list) -> tuple[list, np.ndarray]:
 
 class PlanWrench:
     """``force`` / ``torque`` (N, M, 3), N / N m, summed over the sources above each vehicle;
-    ``invalid`` (N, M) in a source's invalid zone; ``by_source`` {(target, source): (M,)} authority
-    usage of each source alone (sources ever within reach), for ``vehicles`` (N) at positions
-    ``pos_m`` (N, M, 3), m, with the model ``options`` and between-vehicle ``effects``."""
+    ``invalid`` (N, M) in a source's invalid zone; ``by_source`` {(target, source): (samples (R,),
+    usage (R,))} authority usage of each source alone on the samples where it is in reach (rising
+    sample indices; 0 on the others; sources ever within reach), for ``vehicles`` (N) at positions
+    ``pos_m`` (N, M, 3), m, with the model ``options`` and between-vehicle ``effects``. (Stored over
+    the samples in reach only: an (M,) array per pair ever in reach held 377 MB on grid-256.)"""
 
     def __init__(self, pos_m: np.ndarray, vehicles: list, options: ModelOptions, effects: tuple):
         n, m = pos_m.shape[:2]
@@ -79,7 +81,7 @@ class PlanWrench:
         self.force = np.zeros((n, m, 3))
         self.torque = np.zeros((n, m, 3))
         self.invalid = np.zeros((n, m), dtype=bool)
-        self.by_source: dict[tuple[int, int], np.ndarray] = {}
+        self.by_source: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         if n >= 2 and m:
             self._evaluate()
 
@@ -167,7 +169,7 @@ class PlanWrench:
     def _pairs(self, tgt, src, smp, off, stack) -> tuple[np.ndarray, np.ndarray]:
         """The pair wrench of every row (source above the target); rows above by more than 1e-6 m
         give the usage by source, and make the sum where no stack."""
-        nk, n, m = len(self.kinds), len(self.kind), self.pos.shape[1]
+        nk, n = len(self.kinds), len(self.kind)
         force, torque = np.zeros((tgt.size, 3)), np.zeros((tgt.size, 3))
         group = self.kind[src] * nk + self.kind[tgt]
         for g in np.unique(group):
@@ -177,11 +179,10 @@ class PlanWrench:
             above = sel[-off[sel, 2] > MIN_DZ_M]
             u = authority_usage(target, force[above], torque[above])
             key, at = tgt[above] * n + src[above], smp[above]
-            order = np.argsort(key, kind="stable")
+            order = np.lexsort((at, key))  # by (target, source), then sample
             for rows in np.split(order, np.flatnonzero(np.diff(key[order])) + 1):  # one (target, source) each
                 if rows.size:
-                    arr = self.by_source.setdefault((int(key[rows[0]]) // n, int(key[rows[0]]) % n), np.zeros(m))
-                    arr[at[rows]] = u[rows]
+                    self.by_source[(int(key[rows[0]]) // n, int(key[rows[0]]) % n)] = (at[rows], u[rows])
         lone = np.flatnonzero((-off[:, 2] > MIN_DZ_M) & ~stack[tgt, smp])  # at most one source above
         self.force[tgt[lone], smp[lone]] = force[lone]
         self.torque[tgt[lone], smp[lone]] = torque[lone]

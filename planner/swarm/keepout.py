@@ -15,15 +15,47 @@ growth that covers how positions are compared: whole millimetres in the synchron
 :data:`proxplan.planner.swarm.problem.GROWTH_M`); at rest (both vehicles hold still) w = 0, as
 the verifier leaves the tube out for resting pairs. A pair's predicted deflections (a vehicle
 pushed off its plan by the downwash it flies in) grow both, as in the verifier.
+
+**Where the jet undamps the loop** (:func:`undamped_radius_m`; issue 37, round 18A). The cut-off
+bounds the authority the jet uses, not what it does to the target's closed loop: right below a
+lighter source (a Crazyflie's jet on the 145 g small quad uses 6-8 % of its authority, under the
+10 % cut-off) the jet's gradients make the target's loop undamped (rightmost pole +0.16 to +0.45
+1/s at 0.8 Hz), and the verifier, which drives the loop along the plan
+(:mod:`proxplan.verify.jet_loop`), predicts a deflection that grows for as long as the target stays
+there (pillar-128, grid-256: 0.1-0.22 m after 3-11 s; the plans failed ``verify``). So each
+table, grown as above, also holds the relative positions out to which the target's loop held in
+the source's jet is not damped (the verifier's own test, :func:`proxplan.verify.jet_loop.hold_poles`'s
+pole), not grown by the tube: the verifier takes the loop's gradients at the planned positions.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+
+# the undamped zone is searched where the source's jet uses at least this share of the target's
+# authority (the cost map's r_cut at this level bounds the scan outward). Set on the model, not on a
+# layout (docs/planner.md, round 18A): over the built-in types' nine ordered pairs (crazyflie-2.1,
+# crazyflie-parrot, small-quad; up to 3000 points per band of usage, azimuths 0, 22.5 and 45 degrees)
+# undamped points use 1-3 % of the authority for three pairs (crazyflie-2.1 and -parrot over
+# small-quad, small-quad over itself) and >= 3 % for the others; between 1 % and 1e-6 none was found,
+# the rightmost pole there is the vehicle's own loop's (-0.0083 1/s). (The verifier runs the loop
+# with the jet wherever the usage is >= 1e-6, jet_loop.WEAK_USAGE.) No margin below 1 %: a lower
+# level with a finer step near the axis is the next step (its CPU not measured).
+UNDAMPED_SCAN_USAGE = 1e-2
+# radial step of that search, m: at least this, and at least 1/UNDAMPED_ROW_SAMPLES of the row's
+# span (deep rows, where the jet at 1-10 % of the authority is 0.7-0.9 m wide, hold most samples at
+# a fine step, none of them undamped); the radius found is rounded up to the next sample. A 2 cm
+# step found 1 cm less of crazyflie-parrot over small-quad's zone than 5 mm does, in the same CPU
+UNDAMPED_STEP_M = 0.005
+UNDAMPED_ROW_SAMPLES = 8
+# azimuths of the search (rad): the X-frame target and the axisymmetric jet make every other azimuth
+# a mirror image of one in [0, pi/4] (as the cost map, costmaps/cutoff.py); its two ends are searched
+UNDAMPED_AZIMUTHS_RAD = (0.0, np.pi / 4)
 
 
 def _grown(r_cut: np.ndarray, step_m: float, w_m: float) -> np.ndarray:
@@ -113,12 +145,72 @@ class KeepOut:
         return hit | (r2 < rc * rc)
 
 
+@lru_cache(maxsize=64)
+def undamped_radius_m(source, target, *, level: float, rule: str, field_form: str | None, effects: tuple) -> np.ndarray:
+    """(K,) per row dz = k * the cut-off table's step (target below the source): the largest
+    horizontal distance, m, out to which ``target``'s loop held in ``source``'s jet alone is not
+    damped (rightmost pole with real part >= 0, the verifier's test), searched outside the cut-off
+    at ``level`` (inside it the keep-out holds anyway) out to the cut-off at
+    :data:`UNDAMPED_SCAN_USAGE`, every :data:`UNDAMPED_STEP_M` (or a row's span over
+    :data:`UNDAMPED_ROW_SAMPLES`) at :data:`UNDAMPED_AZIMUTHS_RAD`, rounded up by one step; 0 where
+    none. A keep-out at a stricter level (a larger cut-off) may take this table of the scenario's
+    level: it holds the undamped points outside its own cut-off too. ``rule``, ``field_form``, ``effects``: as
+    :func:`proxplan.planner.checks.constraints.cutoff_table`."""
+    from proxplan.costmaps import effects_of_key, sources_wrench
+    from proxplan.physics import ModelOptions, loop_matrices, loop_poles, wrench_gradient
+    from proxplan.planner.checks.constraints import cutoff_table
+
+    inner = cutoff_table(source, target, level=level, rule=rule, field_form=field_form, effects=effects)
+    outer = cutoff_table(
+        source, target, level=min(level, UNDAMPED_SCAN_USAGE), rule=rule, field_form=field_form, effects=effects
+    )
+    r_in, r_out = np.asarray(inner.r_cut_m), np.asarray(outer.r_cut_m)
+    rows, radii = [], []
+    for k in range(1, r_in.size):
+        if r_out[k] <= r_in[k]:
+            continue
+        step = max(UNDAMPED_STEP_M, (r_out[k] - r_in[k]) / UNDAMPED_ROW_SAMPLES)
+        r = np.arange(r_in[k], r_out[k] + step, step)
+        rows.append(np.full(r.size, k))
+        radii.append(np.column_stack([r, np.full(r.size, step)]))
+    out = np.zeros(r_in.size)
+    if not rows:
+        return out
+    row, both = np.concatenate(rows), np.concatenate(radii)
+    rad, step = both[:, 0], both[:, 1]
+    options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
+    between = effects_of_key(effects)
+
+    def wrench(rel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # rel: target - source, m
+        return sources_wrench(target, [(source, rel)], options, between)
+
+    for phi in UNDAMPED_AZIMUTHS_RAD:
+        rel = np.column_stack([rad * np.cos(phi), rad * np.sin(phi), -row * inner.dz_step_m])
+        force, torque = wrench(rel)
+        gf, gt = wrench_gradient(wrench, rel)
+        growth = loop_poles(loop_matrices(target, force, torque, gf, gt, reference=False)).growth_ps
+        bad = growth >= 0.0
+        np.maximum.at(out, row[bad], rad[bad] + step[bad])
+    return out
+
+
 def keepout_for(
-    vehicle_a, vehicle_b, *, limits, field_form: str | None, effects: tuple, sample_m: float, deflection_m: float = 0.0
+    vehicle_a,
+    vehicle_b,
+    *,
+    limits,
+    field_form: str | None,
+    effects: tuple,
+    sample_m: float,
+    deflection_m: float = 0.0,
+    undamped_level: float | None = None,
 ) -> KeepOut:
     """The :class:`KeepOut` of physics vehicles (a, b) under scenario ``limits``; ``deflection_m``
     (m) grows it moving and at rest alike (the two vehicles' predicted deflections: a disturbed
-    vehicle is off its plan at rest too, as the verifier counts it)."""
+    vehicle is off its plan at rest too, as the verifier counts it). The zones where the jet undamps
+    the target's loop are those of :func:`undamped_radius_m` at ``undamped_level`` (None: the
+    authority fraction of ``limits``; a keep-out at a stricter level passes the scenario's, whose
+    table it shares)."""
     from proxplan.planner.checks.constraints import cutoff_table
 
     level = limits.authority_fraction
@@ -132,16 +224,40 @@ def keepout_for(
     w_move = float(limits.tracking_margin_m) + sample_m + deflection_m
     w_rest = deflection_m
     r_ab, r_ba = np.asarray(ab.r_cut_m), np.asarray(ba.r_cut_m)
+    # the zones where the jet undamps the target's loop (module), at the planned relative positions
+    fx = dict(
+        level=level if undamped_level is None else max(level, undamped_level),
+        rule=limits.invalid_zone_rule,
+        field_form=field_form,
+        effects=effects,
+    )
+    z_ab = undamped_radius_m(vehicle_a, vehicle_b, **fx)
+    z_ba = undamped_radius_m(vehicle_b, vehicle_a, **fx)
     return KeepOut(
         separation_m=float(sep),
         w_move_m=w_move,
         w_rest_m=w_rest,
         step_m=float(ab.dz_step_m),
-        a_on_b=_grown(r_ab, ab.dz_step_m, w_move),
-        b_on_a=_grown(r_ba, ba.dz_step_m, w_move),
-        a_on_b_rest=_grown(r_ab, ab.dz_step_m, w_rest),
-        b_on_a_rest=_grown(r_ba, ba.dz_step_m, w_rest),
+        a_on_b=_with_zone(_grown(r_ab, ab.dz_step_m, w_move), z_ab, ab.dz_step_m, sample_m),
+        b_on_a=_with_zone(_grown(r_ba, ba.dz_step_m, w_move), z_ba, ba.dz_step_m, sample_m),
+        a_on_b_rest=_with_zone(_grown(r_ab, ab.dz_step_m, w_rest), z_ab, ab.dz_step_m, sample_m),
+        b_on_a_rest=_with_zone(_grown(r_ba, ba.dz_step_m, w_rest), z_ba, ba.dz_step_m, sample_m),
     )
+
+
+def _with_zone(grown: np.ndarray, zone: np.ndarray, step_m: float, pad_m: float) -> np.ndarray:
+    """The grown cut-off table ``grown`` (m), at least the undamped zone ``zone`` (its radius per dz
+    row, m; :func:`undamped_radius_m`) by the same bracket lookup, plus ``pad_m`` (whole-millimetre
+    positions), where the zone holds a point. Not grown by the tube or the deflections: the verifier
+    judges the loop's poles at the planned positions (:func:`proxplan.verify.jet_loop.loop_along_plan`;
+    the tube enters its growth, not its gradients), so the zone is kept out where the plan puts the
+    pair."""
+    z = _grown(zone, step_m, 0.0)
+    z = np.where(z > 0.0, z + pad_m, 0.0)
+    out = np.zeros(max(grown.size, z.size))
+    out[: grown.size] = grown
+    out[: z.size] = np.maximum(out[: z.size], z)
+    return out
 
 
 @dataclass(frozen=True)

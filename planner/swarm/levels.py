@@ -99,6 +99,7 @@ def stacking_keepouts(
             effects=effects,
             sample_m=GROWTH_M,
             deflection_m=ko.w_rest_m,
+            undamped_level=limits.authority_fraction,
         )
     return out
 
