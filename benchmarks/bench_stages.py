@@ -30,16 +30,13 @@ def main() -> int:
 
     import proxplan
     from proxplan.planfile.scenario_load import scenario_from_dict
-    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.formations import layout_doc
     from proxplan.planner.pipeline import plan_scenario
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
     from proxplan.planner.timing.plan_grid import moving_end_s
 
     print(f"proxplan from {proxplan.__file__}")
-    doc = LAYOUTS[args.layout](args.n)
-    if args.assign == "by_type":
-        doc["assign_goals"] = "by_type"
-    scenario = scenario_from_dict(doc)
+    scenario = scenario_from_dict(layout_doc(args.layout, args.n, assign=args.assign))
     last: list[str] = [""]
     t0 = time.process_time()
 

@@ -43,12 +43,11 @@ def main(argv: list[str] | None = None) -> int:
 
     import yaml
 
-    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.formations import layout_doc
 
     with tempfile.TemporaryDirectory() as tmp:
         for layout in args.layout:
-            doc = LAYOUTS[layout](args.n)
-            doc["assign_goals"] = "by_type"
+            doc = layout_doc(layout, args.n, assign="by_type")
             path = Path(tmp) / f"{layout}-{args.n}.yaml"
             path.write_text(yaml.safe_dump(doc, sort_keys=False))
             best: dict[int, float] = {}

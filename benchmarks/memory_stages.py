@@ -169,13 +169,10 @@ def main() -> int:
 
     import proxplan
     from proxplan.planfile.scenario_load import scenario_from_dict
-    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.formations import layout_doc
 
     print(f"proxplan from {proxplan.__file__}")
-    doc = LAYOUTS[args.layout](args.n)
-    if args.assign == "by_type":
-        doc["assign_goals"] = "by_type"
-    scenario = scenario_from_dict(doc)
+    scenario = scenario_from_dict(layout_doc(args.layout, args.n, assign=args.assign))
     rec = Recorder(args.tracemalloc, args.live)
     instrument(rec)
     import proxplan.planner.pipeline as pipeline

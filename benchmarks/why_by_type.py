@@ -125,7 +125,7 @@ def main() -> int:
     args = ap.parse_args()
 
     from proxplan.planfile import scenario_from_dict
-    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.formations import layout_doc
     from proxplan.planner.swarm.goals import apply_assignment
     from proxplan.planner.swarm.options import SwarmOptions
     from proxplan.planner.swarm.plan import swarm_timed
@@ -133,9 +133,7 @@ def main() -> int:
     from proxplan.planner.swarm.straight import straight_step_conflicts
 
     for layout in args.layout:
-        doc = LAYOUTS[layout](args.n)
-        doc["assign_goals"] = "by_type"
-        scenario, record = apply_assignment(scenario_from_dict(doc))
+        scenario, record = apply_assignment(scenario_from_dict(layout_doc(layout, args.n, assign="by_type")))
         assert record is not None
         bound = float(record["lower_bound_s"])
         problem = swarm_problem(scenario)

@@ -3,7 +3,8 @@
 ``formation_change`` (two layers around a pillar, below), ``grid_reshuffle`` (a grid whose
 vehicles swap slots by a seeded permutation), ``circle_swap`` (a circle where every vehicle flies to
 the antipode, so every path crosses the centre) and ``corridor`` (two groups trading sides through
-a gap in a wall); ``LAYOUTS`` maps their names to the functions.
+a gap in a wall); ``LAYOUTS`` maps their names to the functions, and :func:`layout_doc` builds one with
+its goal assignment.
 
 Two staggered layers ``layer_gap_m`` apart on the west side of a pillar; every vehicle flies to the
 *other* layer on the east side (the slot mirrored across the pillar), so each crosses the others'
@@ -18,7 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 DEFAULT_TYPES = ("crazyflie-2.1", "crazyflie-parrot", "small-quad")
@@ -310,12 +311,21 @@ def _family_draw(n: int, rng, seed: int) -> dict[str, Any]:
     }
 
 
-LAYOUTS = {
+LAYOUTS: dict[str, Callable[..., dict[str, Any]]] = {
     "pillar": formation_change,
     "grid": grid_reshuffle,
     "circle": circle_swap,
     "corridor": corridor,
 }
+
+
+def layout_doc(layout: str, n_vehicles: int, *, assign: str = "fixed") -> dict[str, Any]:
+    """The scenario mapping of the named layout (:data:`LAYOUTS`) with ``n_vehicles``, its goals fixed or, with
+    ``assign="by_type"``, assigned within each vehicle type (the scenario's ``assign_goals``)."""
+    doc = LAYOUTS[layout](n_vehicles)
+    if assign == "by_type":
+        doc["assign_goals"] = "by_type"
+    return doc
 
 
 def main(argv: list[str] | None = None) -> int:
