@@ -149,6 +149,95 @@ class KeepOut:
 def undamped_radius_m(source, target, *, level: float, rule: str, field_form: str | None, effects: tuple) -> np.ndarray:
     """(K,) per row dz = k * the cut-off table's step (target below the source): the largest
     horizontal distance, m, out to which ``target``'s loop held in ``source``'s jet alone is not
+    damped (:func:`search_undamped_radius_m`); the shipped table of the same facts when there is one
+    (:mod:`proxplan.planner.swarm.zone_store`, keyed on everything the search depends on:
+    :func:`zone_facts`), else searched. Cached per process."""
+    from proxplan.planner.swarm.zone_store import facts_key, shipped_zone
+
+    request = dict(source=source, target=target, level=level, rule=rule, field_form=field_form, effects=effects)
+    shipped = shipped_zone(facts_key(zone_facts(**request)))
+    return shipped if shipped is not None else search_undamped_radius_m(**request)
+
+
+# the tables shipped (zone_store.ship_zones): every ordered pair of built-in vehicles at these
+# authority levels (planner/formations.py's layouts: 0.1; planfile Limits' default: 0.5), the
+# default invalid-zone rule, the default field form and no effects
+SHIPPED_LEVELS = (0.1, 0.5)
+
+
+def default_zone_requests() -> list[dict]:
+    """The arguments of :func:`search_undamped_radius_m` whose tables are shipped (:data:`SHIPPED_LEVELS`)."""
+    from proxplan.costmaps import effects_key
+    from proxplan.physics import BUILTIN_VEHICLES
+    from proxplan.planfile import Limits
+
+    rule = Limits().invalid_zone_rule
+    vs = [BUILTIN_VEHICLES[n] for n in sorted(BUILTIN_VEHICLES)]
+    return [
+        dict(source=s, target=t, level=level, rule=rule, field_form=None, effects=effects_key(()))
+        for level in SHIPPED_LEVELS
+        for s in vs
+        for t in vs
+    ]
+
+
+def ship_undamped_zones() -> str:
+    """Search the tables of :func:`default_zone_requests` and write them as the shipped file
+    (:mod:`proxplan.planner.swarm.zone_store`); its path."""
+    from proxplan.planner.swarm.zone_store import facts_key, write_zones
+
+    entries = {}
+    for request in default_zone_requests():
+        radius = search_undamped_radius_m(**request)
+        entries[facts_key(zone_facts(**request))] = {
+            "source": request["source"].name,
+            "target": request["target"].name,
+            "level": request["level"],
+            "radius_m": [float(v) for v in radius],
+        }
+    return str(write_zones(entries))
+
+
+def zone_facts(source, target, *, level: float, rule: str, field_form: str | None, effects: tuple) -> dict:
+    """Everything :func:`search_undamped_radius_m` depends on, as a JSON-able dict (the key of the
+    shipped tables): both vehicles' parameters, model options, effects, level, rule, the search's
+    constants, the two cut-off tables that bound it (m), the source of the code it runs and NumPy's
+    version (:mod:`proxplan.planner.swarm.zone_store`)."""
+    import dataclasses
+    import inspect
+
+    from proxplan.costmaps import effects_of_key
+    from proxplan.physics import ModelOptions, effects_to_list
+    from proxplan.planner.checks.constraints import cutoff_table
+    from proxplan.planner.swarm.zone_store import code_digest
+
+    def params(v) -> dict:
+        return {k: x for k, x in v.to_dict().items() if k not in ("description", "sources")}
+
+    inner = cutoff_table(source, target, level=level, rule=rule, field_form=field_form, effects=effects)
+    outer = cutoff_table(
+        source, target, level=min(level, UNDAMPED_SCAN_USAGE), rule=rule, field_form=field_form, effects=effects
+    )
+    options = ModelOptions(field_form=field_form) if field_form else ModelOptions()
+    return {
+        "source": params(source),
+        "target": params(target),
+        "options": dataclasses.asdict(options),
+        "effects": effects_to_list(effects_of_key(effects)),
+        "level": float(level),
+        "rule": rule,
+        "constants": [UNDAMPED_SCAN_USAGE, UNDAMPED_STEP_M, UNDAMPED_ROW_SAMPLES, list(UNDAMPED_AZIMUTHS_RAD)],
+        "cutoff": [inner.dz_step_m, list(inner.r_cut_m), outer.dz_step_m, list(outer.r_cut_m)],
+        "code": code_digest(inspect.getsource(search_undamped_radius_m)),
+        "numpy": np.__version__,
+    }
+
+
+def search_undamped_radius_m(
+    source, target, *, level: float, rule: str, field_form: str | None, effects: tuple
+) -> np.ndarray:
+    """(K,) per row dz = k * the cut-off table's step (target below the source): the largest
+    horizontal distance, m, out to which ``target``'s loop held in ``source``'s jet alone is not
     damped (rightmost pole with real part >= 0, the verifier's test), searched outside the cut-off
     at ``level`` (inside it the keep-out holds anyway) out to the cut-off at
     :data:`UNDAMPED_SCAN_USAGE`, every :data:`UNDAMPED_STEP_M` (or a row's span over
@@ -311,3 +400,7 @@ def grown_stack(keepouts, ta: int, n_types: int, *, rest: bool, grow_m: float) -
         below2=np.stack([padded(b) for b, _ in tabs]),
         above2=np.stack([padded(a) for _, a in tabs]),
     )
+
+
+if __name__ == "__main__":  # pragma: no cover - ships the tables again (zone_store)
+    print(ship_undamped_zones())
