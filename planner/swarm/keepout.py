@@ -26,6 +26,9 @@ there (pillar-128, grid-256: 0.1-0.22 m after 3-11 s; the plans failed ``verify`
 table, grown as above, also holds the relative positions out to which the target's loop held in
 the source's jet is not damped (the verifier's own test, :func:`proxplan.verify.jet_loop.hold_poles`'s
 pole), not grown by the tube: the verifier takes the loop's gradients at the planned positions.
+The search costs about 0.4 s of CPU per ordered pair, so the built-in pairs' tables are shipped
+(:data:`SHIPPED_LEVELS`; :mod:`proxplan.planner.swarm.zone_store`, keyed on every fact of
+:func:`zone_facts`) and a table is searched only when its key misses (issue 37, round 19A).
 """
 
 from __future__ import annotations
@@ -56,6 +59,10 @@ UNDAMPED_ROW_SAMPLES = 8
 # azimuths of the search (rad): the X-frame target and the axisymmetric jet make every other azimuth
 # a mirror image of one in [0, pi/4] (as the cost map, costmaps/cutoff.py); its two ends are searched
 UNDAMPED_AZIMUTHS_RAD = (0.0, np.pi / 4)
+# the tables shipped (ship_undamped_zones, module zone_store): every ordered pair of built-in vehicles at these
+# authority levels (planner/formations.py's layouts: 0.1; planfile Limits' default: 0.5), the
+# default invalid-zone rule, the default field form and no effects
+SHIPPED_LEVELS = (0.1, 0.5)
 
 
 def _grown(r_cut: np.ndarray, step_m: float, w_m: float) -> np.ndarray:
@@ -157,12 +164,6 @@ def undamped_radius_m(source, target, *, level: float, rule: str, field_form: st
     request = dict(source=source, target=target, level=level, rule=rule, field_form=field_form, effects=effects)
     shipped = shipped_zone(facts_key(zone_facts(**request)))
     return shipped if shipped is not None else search_undamped_radius_m(**request)
-
-
-# the tables shipped (zone_store.ship_zones): every ordered pair of built-in vehicles at these
-# authority levels (planner/formations.py's layouts: 0.1; planfile Limits' default: 0.5), the
-# default invalid-zone rule, the default field form and no effects
-SHIPPED_LEVELS = (0.1, 0.5)
 
 
 def default_zone_requests() -> list[dict]:
