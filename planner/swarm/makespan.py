@@ -70,8 +70,9 @@ def shorten_makespan(
         ).steps
         for a in by_agent
     }
-    counts = {"plannings": 0, "replaced": 0, "tried": 0}
+    counts = {"plannings": 0, "replaced": 0, "tried": 0, "solo": 0}
     skip: set[int] = {a for a in by_agent if problem.pinned[a]}
+    solo_tried: set[int] = set()  # planned alone since the tracks last changed
     while counts["plannings"] < max_plannings:
         if deadline is not None and time.perf_counter() > deadline:
             raise PlanNotFound("no plan found within the time budget (makespan repair)")
@@ -82,6 +83,20 @@ def shorten_makespan(
         if not _may_meet_the_last(problem, by_agent, a):
             skip.add(a)  # no vehicle that arrives last can be in its way: nothing to gain
             continue
+        end = max(t.arrival_step for t in by_agent.values())
+        if a not in solo_tried and by_agent[a].arrival_step == end > alone[a]:
+            solo_tried.add(a)  # the neighbourhood of a alone first: one planning, the others kept
+            old_a = occ.remove(a)
+            track = replan(occ, a, old_a, end, through)
+            counts["plannings"] += 1
+            occ.put(track if track is not None else old_a)
+            if track is not None:
+                by_agent[a] = track
+                counts["replaced"] += 1
+                counts["solo"] += 1
+                skip = {b for b in by_agent if problem.pinned[b]}
+                solo_tried.clear()
+                continue
         ideal = ideal_track(problem, occ, a)
         way = occ.conflicting_agents(ideal) - {a} if ideal is not None else set()
         others = sorted((b for b in way if not problem.pinned[b]), key=lambda b: (-by_agent[b].arrival_step, b))
@@ -123,6 +138,7 @@ def shorten_makespan(
                 occ.put(track)
             counts["replaced"] += 1
             skip = {b for b in by_agent if problem.pinned[b]}
+            solo_tried.clear()
             continue
         for track in old.values():
             if track is not None:
