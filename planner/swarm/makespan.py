@@ -111,9 +111,11 @@ def shorten_makespan(
         counts["tried"] += 1
         orders = [group, [*others, a]] if others else [group]
         promoted: set[int] = set()
+        # a neighbourhood spends at most the whole search's unit per member (PLANNINGS_PER_VEHICLE)
+        until = min(max_plannings, counts["plannings"] + math.ceil(PLANNINGS_PER_VEHICLE * len(group)))
         while orders:
             seq = orders.pop(0)
-            if counts["plannings"] + len(seq) > max_plannings:
+            if counts["plannings"] + len(seq) > until:
                 break
             new: dict[int, GridTrack] = {}
             stuck = None
@@ -129,6 +131,8 @@ def shorten_makespan(
                 occ.remove(b)
             if len(new) == len(group) and (best is None or _latest(new) < _latest(best)):
                 best = new
+            if stuck is not None and stuck == seq[0]:
+                break  # not even planned first (against the tracks outside alone): no order plans it
             if best is None and stuck is not None and stuck not in promoted:
                 promoted.add(stuck)  # its priority raised: planned first in one more order
                 orders.insert(0, [stuck, *(b for b in seq if b != stuck)])
