@@ -7,7 +7,9 @@ re-timing (:mod:`proxplan.planner.swarm.retime`) moves one vehicle at a time alo
 a vehicle that waits for another, or goes round one, keeps doing so although that other one could
 have gone differently (grid-64 by_type: a 0.6 m line, 1.07 s alone, left at 1.70 s and set the
 makespan). Here the vehicles are taken in order of decreasing arrival. For one of them, a, the
-*neighbourhood* is a and the vehicles whose tracks conflict with a's ideal track (its straight line
+*neighbourhood* is first a alone (planned again against everyone else's tracks, one planning, once
+per vehicle until some track changes; stop 57: on the stacked plan it leaves its level for the free
+heights between the levels), then a and the vehicles whose tracks conflict with a's ideal track (its straight line
 from t = 0, or its route round the obstacles: :func:`~proxplan.planner.swarm.priority.ideal_track`).
 They are taken out and planned again one at a time (:func:`replan`:
 :func:`~proxplan.planner.swarm.single.plan_one`, or its own route timed again, or its old track
@@ -16,7 +18,10 @@ order stops at the first vehicle that cannot arrive before the neighbourhood's l
 that vehicle then goes first in one more order, once per vehicle: a raised priority, as in
 priority-based search), when a vehicle of the neighbourhood arrives last of all (no other
 neighbourhood can shorten the plan); the best result replaces them only when the latest arrival
-in the neighbourhood gets strictly earlier. Every new track is planned against all the others, so the plan
+in the neighbourhood gets strictly earlier. A neighbourhood spends at most
+:data:`PLANNINGS_PER_VEHICLE` plannings per member (its orders stop there; corridor-64's latest
+vehicle's neighbourhood of 14 took 103 plannings for nothing, stop 57), and none more once a member
+cannot be planned even first (against the tracks outside the neighbourhood alone). Every new track is planned against all the others, so the plan
 stays conflict-free and its makespan never grows. A vehicle whose neighbourhood gave nothing is
 skipped until some neighbourhood is replaced (tracks changed). The budget is a count of
 single-vehicle plannings (:data:`PLANNINGS_PER_VEHICLE` per vehicle), so a seed gives the same plan
@@ -86,10 +91,10 @@ def shorten_makespan(
         end = max(t.arrival_step for t in by_agent.values())
         if a not in solo_tried and by_agent[a].arrival_step == end > alone[a]:
             solo_tried.add(a)  # the neighbourhood of a alone first: one planning, the others kept
-            old_a = occ.remove(a)
-            track = replan(occ, a, old_a, end, through)
+            occ.remove(a)
+            track = replan(occ, a, by_agent[a], end, through)
             counts["plannings"] += 1
-            occ.put(track if track is not None else old_a)
+            occ.put(track if track is not None else by_agent[a])
             if track is not None:
                 by_agent[a] = track
                 counts["replaced"] += 1
