@@ -49,6 +49,7 @@ class MakespanRepairInfo:
     replaced: int
     plannings: int
     time_s: float
+    solo: int = 0  # of ``replaced``: the latest vehicle planned again alone, the others kept
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,9 @@ re-timing (:mod:`proxplan.planner.swarm.retime`) moves one vehicle at a time alo
 a vehicle that waits for another, or goes round one, keeps doing so although that other one could
 have gone differently (grid-64 by_type: a 0.6 m line, 1.07 s alone, left at 1.70 s and set the
 makespan). Here the vehicles are taken in order of decreasing arrival. For one of them, a, the
-*neighbourhood* is a and the vehicles whose tracks conflict with a's ideal track (its straight line
+*neighbourhood* is first a alone (planned again against everyone else's tracks, one planning, once
+per vehicle until some track changes; stop 57: on the stacked plan it leaves its level for the free
+heights between the levels), then a and the vehicles whose tracks conflict with a's ideal track (its straight line
 from t = 0, or its route round the obstacles: :func:`~proxplan.planner.swarm.priority.ideal_track`).
 They are taken out and planned again one at a time (:func:`replan`:
 :func:`~proxplan.planner.swarm.single.plan_one`, or its own route timed again, or its old track
@@ -16,7 +18,10 @@ order stops at the first vehicle that cannot arrive before the neighbourhood's l
 that vehicle then goes first in one more order, once per vehicle: a raised priority, as in
 priority-based search), when a vehicle of the neighbourhood arrives last of all (no other
 neighbourhood can shorten the plan); the best result replaces them only when the latest arrival
-in the neighbourhood gets strictly earlier. Every new track is planned against all the others, so the plan
+in the neighbourhood gets strictly earlier. A neighbourhood spends at most
+:data:`PLANNINGS_PER_VEHICLE` plannings per member (its orders stop there; corridor-64's latest
+vehicle's neighbourhood of 14 took 103 plannings for nothing, stop 57), and none more once a member
+cannot be planned even first (against the tracks outside the neighbourhood alone). Every new track is planned against all the others, so the plan
 stays conflict-free and its makespan never grows. A vehicle whose neighbourhood gave nothing is
 skipped until some neighbourhood is replaced (tracks changed). The budget is a count of
 single-vehicle plannings (:data:`PLANNINGS_PER_VEHICLE` per vehicle), so a seed gives the same plan
@@ -70,8 +75,9 @@ def shorten_makespan(
         ).steps
         for a in by_agent
     }
-    counts = {"plannings": 0, "replaced": 0, "tried": 0}
+    counts = {"plannings": 0, "replaced": 0, "tried": 0, "solo": 0}
     skip: set[int] = {a for a in by_agent if problem.pinned[a]}
+    solo_tried: set[int] = set()  # planned alone since the tracks last changed
     while counts["plannings"] < max_plannings:
         if deadline is not None and time.perf_counter() > deadline:
             raise PlanNotFound("no plan found within the time budget (makespan repair)")
@@ -82,6 +88,20 @@ def shorten_makespan(
         if not _may_meet_the_last(problem, by_agent, a):
             skip.add(a)  # no vehicle that arrives last can be in its way: nothing to gain
             continue
+        end = max(t.arrival_step for t in by_agent.values())
+        if a not in solo_tried and by_agent[a].arrival_step == end > alone[a]:
+            solo_tried.add(a)  # the neighbourhood of a alone first: one planning, the others kept
+            occ.remove(a)
+            track = replan(occ, a, by_agent[a], end, through)
+            counts["plannings"] += 1
+            occ.put(track if track is not None else by_agent[a])
+            if track is not None:
+                by_agent[a] = track
+                counts["replaced"] += 1
+                counts["solo"] += 1
+                skip = {b for b in by_agent if problem.pinned[b]}
+                solo_tried.clear()
+                continue
         ideal = ideal_track(problem, occ, a)
         way = occ.conflicting_agents(ideal) - {a} if ideal is not None else set()
         others = sorted((b for b in way if not problem.pinned[b]), key=lambda b: (-by_agent[b].arrival_step, b))
@@ -96,9 +116,11 @@ def shorten_makespan(
         counts["tried"] += 1
         orders = [group, [*others, a]] if others else [group]
         promoted: set[int] = set()
+        # a neighbourhood spends at most the whole search's unit per member (PLANNINGS_PER_VEHICLE)
+        until = min(max_plannings, counts["plannings"] + math.ceil(PLANNINGS_PER_VEHICLE * len(group)))
         while orders:
             seq = orders.pop(0)
-            if counts["plannings"] + len(seq) > max_plannings:
+            if counts["plannings"] + len(seq) > until:
                 break
             new: dict[int, GridTrack] = {}
             stuck = None
@@ -114,6 +136,8 @@ def shorten_makespan(
                 occ.remove(b)
             if len(new) == len(group) and (best is None or _latest(new) < _latest(best)):
                 best = new
+            if stuck is not None and stuck == seq[0]:
+                break  # not even planned first (against the tracks outside alone): no order plans it
             if best is None and stuck is not None and stuck not in promoted:
                 promoted.add(stuck)  # its priority raised: planned first in one more order
                 orders.insert(0, [stuck, *(b for b in seq if b != stuck)])
@@ -123,6 +147,7 @@ def shorten_makespan(
                 occ.put(track)
             counts["replaced"] += 1
             skip = {b for b in by_agent if problem.pinned[b]}
+            solo_tried.clear()
             continue
         for track in old.values():
             if track is not None:
