@@ -51,6 +51,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from proxplan.planfile import Scenario
+from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm.complete_stages import gave_up, join_levels, lattice_stage, stage_makespan, straight_stage
 from proxplan.planner.swarm.heights import heights_on, heights_pass
@@ -70,6 +71,7 @@ from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.options import SwarmOptions
 from proxplan.planner.swarm.prioritised_stage import kept_straight_stage, prioritised_stage
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
+from proxplan.planner.swarm.release import apply_releases, released_problem
 from proxplan.planner.swarm.retime import improve
 from proxplan.planner.swarm.stage import Stage
 from proxplan.planner.swarm.straight import straight_step_conflicts
@@ -98,18 +100,33 @@ def swarm_timed(
     if why is not None:
         raise ValueError(f"the swarm layer cannot plan this scenario: {why}")
     t0 = time.perf_counter()
-    problem = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
+    original = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
+    problem, releases, frozen = released_problem(original)  # frozen pairs at the starts / goals (swarm.release)
     lower_bound = lower_bound_makespan_s(scenario)
-    planned = _plan(
-        problem,
-        lower_bound,
-        opts,
-        scenario.assign_goals is not None,
-        _stacking(scenario, problem) if opts.levels else None,
-        progress=progress,
-        deadline=deadline,
+    try:
+        planned = _plan(
+            problem,
+            lower_bound,
+            opts,
+            scenario.assign_goals is not None,
+            _stacking(scenario, problem) if opts.levels else None,
+            progress=progress,
+            deadline=deadline,
+        )
+    except PlanNotFound as err:
+        if not frozen:
+            raise
+        raise PlanNotFound(f"{err.message} ({frozen})", vehicles=err.vehicles, details=err.details) from err
+    timed, info = _handed_on(problem, lower_bound, opts, scenario.assign_goals is not None, planned, t0, (0, 0))
+    if not releases:
+        return timed, info
+    timed, added = apply_releases(timed, original, releases, GRID_DT_S)
+    return timed, replace(
+        info,
+        coordination=f"{frozen}; {info.coordination}",
+        initial_makespan_s=info.initial_makespan_s + added,
+        makespan_s=max(p.duration_s for p in timed.values()),
     )
-    return _handed_on(problem, lower_bound, opts, scenario.assign_goals is not None, planned, t0, (0, 0))
 
 
 def swarm_again(
@@ -129,6 +146,8 @@ def swarm_again(
     the same (``deflection_m``, ``tracking_bound``), the stages planned on that problem (its keep-outs,
     its memo of single-vehicle searches); else :func:`swarm_timed`. The same tracks as
     :func:`swarm_timed` with ``options`` (the memo gives back what a search would find)."""
+    if _released(scenario, hand_on.problem):  # its release step (swarm.release) is not handed on: afresh
+        return swarm_timed(scenario, options, progress=progress, deadline=deadline)
     before = hand_on.options
     searches = ("never", "retime")
     if before.through_waypoints in searches and options.through_waypoints in searches:
@@ -151,6 +170,14 @@ def swarm_again(
         deadline=deadline,
     )
     return _handed_on(problem, hand_on.lower_bound_s, options, hand_on.assigned, planned, t0, memo)
+
+
+def _released(scenario: Scenario, problem: SwarmProblem) -> bool:
+    """Were ``problem``'s starts or goals moved by a release step (not the scenario's own)?"""
+    vs = [scenario.vehicles[n] for n in problem.names]
+    starts = np.array([v.start_m for v in vs], dtype=float)
+    goals = np.array([v.goal_m if v.goal_m is not None else v.start_m for v in vs], dtype=float)
+    return not (np.array_equal(starts, problem.starts_m) and np.array_equal(goals, problem.goals_m))
 
 
 def _stacking(scenario: Scenario, problem: SwarmProblem) -> Callable[[], dict]:
