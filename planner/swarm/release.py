@@ -116,8 +116,8 @@ def plan_release(problem: SwarmProblem, at: str = "starts") -> tuple[Release | N
     for i, a in enumerate(movers):  # two movers whose moves could come within reach: not released together
         for b in movers[i + 1 :]:
             span = float(np.hypot(*(base[b, :2] - base[a, :2])))
-            moved = float(np.linalg.norm(pts[a] - base[a]) + np.linalg.norm(pts[b] - base[b]))
-            if span - moved <= reach:
+            travel = float(np.linalg.norm(pts[a] - base[a]) + np.linalg.norm(pts[b] - base[b]))
+            if span - travel <= reach:
                 return None, f"frozen pairs at the {at} ({what}): movers {names[a]}, {names[b]} within reach"
     if frozen_pairs(problem, pts):
         return None, f"frozen pairs at the {at} ({what}): still frozen after the release"
@@ -219,8 +219,10 @@ def released_problem(problem: SwarmProblem) -> tuple[SwarmProblem, tuple[Release
             releases.append(release)
     out = problem
     for release in releases:
-        field = "starts_m" if release.at == "starts" else "goals_m"
-        out = replace(out, **{field: release.points_m})
+        if release.at == "starts":
+            out = replace(out, starts_m=release.points_m)
+        else:
+            out = replace(out, goals_m=release.points_m)
     return out, tuple(releases), "; ".join(notes)
 
 
