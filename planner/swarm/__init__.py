@@ -2,7 +2,8 @@
 and ``optimized`` for formation changes of ``SWARM_MIN_VEHICLES`` or more).
 
 Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, keep-outs, free
-space; :mod:`~proxplan.planner.swarm.keepout`) -> :mod:`~proxplan.planner.swarm.assign` and
+space; :mod:`~proxplan.planner.swarm.keepout`; pairs frozen at the starts or goals moved out first,
+:mod:`~proxplan.planner.swarm.frozen`) -> :mod:`~proxplan.planner.swarm.assign` and
 :mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles) ->
 :mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept) ->
 :mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count

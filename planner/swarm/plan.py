@@ -54,6 +54,7 @@ from proxplan.planfile import Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm.complete_stages import gave_up, join_levels, lattice_stage, stage_makespan, straight_stage
+from proxplan.planner.swarm.frozen import apply_unfreezes, unfrozen_problem
 from proxplan.planner.swarm.heights import heights_on, heights_pass
 from proxplan.planner.swarm.info import (
     GiveUpHandOn,
@@ -71,7 +72,6 @@ from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.options import SwarmOptions
 from proxplan.planner.swarm.prioritised_stage import kept_straight_stage, prioritised_stage
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
-from proxplan.planner.swarm.release import apply_releases, released_problem
 from proxplan.planner.swarm.retime import improve
 from proxplan.planner.swarm.stage import Stage
 from proxplan.planner.swarm.straight import straight_step_conflicts
@@ -101,7 +101,7 @@ def swarm_timed(
         raise ValueError(f"the swarm layer cannot plan this scenario: {why}")
     t0 = time.perf_counter()
     original = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
-    problem, releases, frozen = released_problem(original)  # frozen pairs at the starts / goals (swarm.release)
+    problem, unfreezes, frozen = unfrozen_problem(original)  # frozen pairs at the starts / goals (swarm.frozen)
     lower_bound = lower_bound_makespan_s(scenario)
     try:
         planned = _plan(
@@ -118,9 +118,9 @@ def swarm_timed(
             raise
         raise PlanNotFound(f"{err.message} ({frozen})", vehicles=err.vehicles, details=err.details) from err
     timed, info = _handed_on(problem, lower_bound, opts, scenario.assign_goals is not None, planned, t0, (0, 0))
-    if not releases:
+    if not unfreezes:
         return timed, info
-    timed, added = apply_releases(timed, original, releases, GRID_DT_S)
+    timed, added = apply_unfreezes(timed, original, unfreezes, GRID_DT_S)
     return timed, replace(
         info,
         coordination=f"{frozen}; {info.coordination}",
@@ -146,7 +146,7 @@ def swarm_again(
     the same (``deflection_m``, ``tracking_bound``), the stages planned on that problem (its keep-outs,
     its memo of single-vehicle searches); else :func:`swarm_timed`. The same tracks as
     :func:`swarm_timed` with ``options`` (the memo gives back what a search would find)."""
-    if _released(scenario, hand_on.problem):  # its release step (swarm.release) is not handed on: afresh
+    if _unfrozen(scenario, hand_on.problem):  # its unfreeze step (swarm.frozen) is not handed on: afresh
         return swarm_timed(scenario, options, progress=progress, deadline=deadline)
     before = hand_on.options
     searches = ("never", "retime")
@@ -172,8 +172,8 @@ def swarm_again(
     return _handed_on(problem, hand_on.lower_bound_s, options, hand_on.assigned, planned, t0, memo)
 
 
-def _released(scenario: Scenario, problem: SwarmProblem) -> bool:
-    """Were ``problem``'s starts or goals moved by a release step (not the scenario's own)?"""
+def _unfrozen(scenario: Scenario, problem: SwarmProblem) -> bool:
+    """Were ``problem``'s starts or goals moved by an unfreeze step (not the scenario's own)?"""
     vs = [scenario.vehicles[n] for n in problem.names]
     starts = np.array([v.start_m for v in vs], dtype=float)
     goals = np.array([v.goal_m if v.goal_m is not None else v.start_m for v in vs], dtype=float)

@@ -1,4 +1,4 @@
-"""Frozen pairs and the release step (proxplan.planner.swarm.release, issue 37 round 19C): starts or
+"""Frozen pairs and the unfreeze step (proxplan.planner.swarm.frozen, issue 37 round 19C): starts or
 goals clear at rest but inside the keep-out once either vehicle moves can never be left or reached under
 the swarm layer's keep-outs; a short move away first (and back last) makes the plan, which the
 verifier passes."""
@@ -13,7 +13,7 @@ import pytest
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import grid_reshuffle, random_formation
 from proxplan.planner.swarm import SwarmOptions, swarm_problem, swarm_timed
-from proxplan.planner.swarm.release import frozen_pairs, plan_release, released_problem
+from proxplan.planner.swarm.frozen import frozen_pairs, plan_unfreeze, unfrozen_problem
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
 
@@ -57,24 +57,24 @@ def test_frozen_pairs_found_at_starts_and_goals(triangle):
             assert not ko.conflict(d, rest=True)[0] and ko.conflict(d)[0]
 
 
-def test_release_moves_one_vehicle_away_to_a_point_nothing_is_frozen_at(triangle):
+def test_unfreeze_moves_one_vehicle_away_to_a_point_nothing_is_frozen_at(triangle):
     problem = swarm_problem(triangle)
-    release, why = plan_release(problem, "starts")
-    assert release is not None, why
-    assert [problem.names[a] for a in release.movers] == ["v001"]
-    moved = release.points_m - problem.starts_m
+    unfreeze, why = plan_unfreeze(problem, "starts")
+    assert unfreeze is not None, why
+    assert [problem.names[a] for a in unfreeze.movers] == ["v001"]
+    moved = unfreeze.points_m - problem.starts_m
     assert np.count_nonzero(np.abs(moved).sum(axis=1)) == 1 and moved[0, 2] == 0.0  # horizontal, v001 only
     assert 0.0 < float(np.linalg.norm(moved[0])) <= problem.reach_xy_m
-    assert frozen_pairs(problem, release.points_m) == []
+    assert frozen_pairs(problem, unfreeze.points_m) == []
     for b in (1, 2):  # farther from both partners, and clear of them while moving
-        assert np.linalg.norm(release.points_m[b] - release.points_m[0]) > np.linalg.norm(
+        assert np.linalg.norm(unfreeze.points_m[b] - unfreeze.points_m[0]) > np.linalg.norm(
             problem.starts_m[b] - problem.starts_m[0]
         )
         ko = problem.keepouts[(int(problem.type_index[0]), int(problem.type_index[b]))]
-        assert not ko.conflict((release.points_m[b] - release.points_m[0])[None])[0]
+        assert not ko.conflict((unfreeze.points_m[b] - unfreeze.points_m[0])[None])[0]
 
 
-def test_released_plan_starts_and_ends_where_the_scenario_says_and_passes_verify(triangle):
+def test_unfrozen_plan_starts_and_ends_where_the_scenario_says_and_passes_verify(triangle):
     timed, info = swarm_timed(triangle, SwarmOptions(workers=1))
     assert "frozen pairs at the starts" in info.coordination and "frozen pairs at the goals" in info.coordination
     for name, path in timed.items():
@@ -87,5 +87,5 @@ def test_released_plan_starts_and_ends_where_the_scenario_says_and_passes_verify
 
 def test_nothing_frozen_leaves_the_problem_as_it_is():
     problem = swarm_problem(scenario_from_dict(grid_reshuffle(16, seed=0), label="grid-16"))
-    out, releases, note = released_problem(problem)
-    assert out is problem and releases == () and note == ""
+    out, unfreezes, note = unfrozen_problem(problem)
+    assert out is problem and unfreezes == () and note == ""

@@ -1,4 +1,4 @@
-"""Frozen pairs and the release step (issue 37, round 19C): starts (or goals) that the swarm layer's
+"""Frozen pairs and the unfreeze step (issue 37, round 19C): starts (or goals) that the swarm layer's
 keep-outs allow at rest but not once either vehicle moves.
 
 A pair's keep-out while either vehicle moves is its keep-out at rest grown by the tracking tube and the
@@ -11,16 +11,16 @@ verifier is less strict at the plan's start: every vehicle's predicted tracking 
 the tube it adds while moving is the scenario's ``tracking_margin_m`` (the swarm keep-outs add the bound on
 the tracking error at rest and moving alike).
 
-The *release step* (:func:`plan_release`): before the swarm plan, a few vehicles (a greedy cover of the
+The *unfreeze step* (:func:`plan_unfreeze`): before the swarm plan, a few vehicles (a greedy cover of the
 frozen pairs) each fly one short straight rest-to-rest move horizontally away from their frozen partners,
-to the nearest point (in ``RELEASE_STEP_M`` steps, up to the widest horizontal reach of any keep-out)
+to the nearest point (in ``UNFREEZE_STEP_M`` steps, up to the widest horizontal reach of any keep-out)
 where they conflict with no other vehicle's start while moving, and whose move meets no other start
 (exact relative-segment test, :func:`~proxplan.planner.swarm.sync.segment_conflict`); every other vehicle
-holds its start. The swarm layer then plans from the released starts, and the release is put in front of
+holds its start. The swarm layer then plans from the moved starts, and the unfreeze step is put in front of
 its tracks. Only the departure of a frozen pair from inside its moving keep-out is outside the swarm
-layer's model: the verifier judges it, as every plan. The same at the goals (*settle step*): the swarm layer
-plans to the released goals, and once every vehicle has arrived the movers fly back to their goals.
-Movers within reach of each other (their moves could meet) are not released: :func:`plan_release` gives
+layer's model: the verifier judges it, as every plan. The same at the goals (last instead of first): the swarm layer
+plans to the moved goals, and once every vehicle has arrived the movers fly back to their goals.
+Movers within reach of each other (their moves could meet) are not unfrozen: :func:`plan_unfreeze` gives
 None with the reason.
 """
 
@@ -35,15 +35,15 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.sync import segment_conflict
 from proxplan.planner.timing.paths import TimedPath, time_parameterize
 
-# the release distance is searched in steps of this much, m: positions are compared in whole millimetres
+# the unfreeze distance is searched in steps of this much, m: positions are compared in whole millimetres
 # (problem.GROWTH_M covers 2 mm); 5 mm keeps the move short without a fine search. Not watched on a layout
-RELEASE_STEP_M = 0.005
+UNFREEZE_STEP_M = 0.005
 
-__all__ = ["RELEASE_STEP_M", "Release", "frozen_pairs", "plan_release", "with_release"]
+__all__ = ["UNFREEZE_STEP_M", "Unfreeze", "frozen_pairs", "plan_unfreeze", "with_unfreeze"]
 
 
 @dataclass(frozen=True)
-class Release:
+class Unfreeze:
     """Movers and where they go: ``points_m`` (A, 3) are the starts (or goals) with the movers' moved,
     m; ``movers`` the agents that move; ``partners`` per mover the agents it was frozen with."""
 
@@ -93,9 +93,9 @@ def _cover(pairs: list[tuple[int, int]], pinned: np.ndarray) -> dict[int, list[i
     return out
 
 
-def plan_release(problem: SwarmProblem, at: str = "starts") -> tuple[Release | None, str]:
-    """The release step of ``problem``'s frozen pairs at its ``at`` ("starts" or "goals"; see module)
-    and what it did, or (None, why) where nothing is frozen or no release was found."""
+def plan_unfreeze(problem: SwarmProblem, at: str = "starts") -> tuple[Unfreeze | None, str]:
+    """The unfreeze step of ``problem``'s frozen pairs at its ``at`` ("starts" or "goals"; see module)
+    and what it did, or (None, why) where nothing is frozen or no unfreeze was found."""
     base = problem.starts_m if at == "starts" else problem.goals_m
     pairs = frozen_pairs(problem, base)
     if not pairs:
@@ -104,32 +104,32 @@ def plan_release(problem: SwarmProblem, at: str = "starts") -> tuple[Release | N
     cover = _cover(pairs, problem.pinned)
     what = ", ".join(f"{names[a]}-{names[b]}" for a, b in pairs)
     if cover is None:
-        return None, f"frozen pairs at the {at} ({what}), two hovering vehicles: no release"
+        return None, f"frozen pairs at the {at} ({what}), two hovering vehicles: no unfreeze"
     pts = np.array(base, dtype=float)
     reach = problem.reach_xy_m
     for mover, partners in cover.items():
-        end = _release_end(problem, base, mover, partners, reach)
+        end = _unfreeze_end(problem, base, mover, partners, reach)
         if end is None:
-            return None, f"frozen pairs at the {at} ({what}): no release move for {names[mover]} within {reach:.2f} m"
+            return None, f"frozen pairs at the {at} ({what}): no unfreeze move for {names[mover]} within {reach:.2f} m"
         pts[mover] = end
     movers = sorted(cover)
-    for i, a in enumerate(movers):  # two movers whose moves could come within reach: not released together
+    for i, a in enumerate(movers):  # two movers whose moves could come within reach: not unfrozen together
         for b in movers[i + 1 :]:
             span = float(np.hypot(*(base[b, :2] - base[a, :2])))
             travel = float(np.linalg.norm(pts[a] - base[a]) + np.linalg.norm(pts[b] - base[b]))
             if span - travel <= reach:
                 return None, f"frozen pairs at the {at} ({what}): movers {names[a]}, {names[b]} within reach"
     if frozen_pairs(problem, pts):
-        return None, f"frozen pairs at the {at} ({what}): still frozen after the release"
-    release = Release(at, tuple(movers), tuple(tuple(sorted(cover[a])) for a in movers), pts)
-    moved = ", ".join(f"{names[a]} {100 * d:.1f} cm" for a, d in zip(movers, release.distances_m(base)))
-    return release, f"frozen pairs at the {at} ({what}): {'released' if at == 'starts' else 'settled'} by {moved}"
+        return None, f"frozen pairs at the {at} ({what}): still frozen after the unfreeze"
+    unfreeze = Unfreeze(at, tuple(movers), tuple(tuple(sorted(cover[a])) for a in movers), pts)
+    moved = ", ".join(f"{names[a]} {100 * d:.1f} cm" for a, d in zip(movers, unfreeze.distances_m(base)))
+    return unfreeze, f"frozen pairs at the {at} ({what}): moved out by {moved}"
 
 
-def _release_end(
+def _unfreeze_end(
     problem: SwarmProblem, base: np.ndarray, mover: int, partners: list[int], reach_m: float
 ) -> np.ndarray | None:
-    """The nearest point of ``mover``'s release (see module), whole millimetres, or None."""
+    """The nearest point of ``mover``'s unfreeze (see module), whole millimetres, or None."""
     p = base[mover]
     u = np.zeros(2)
     for b in partners:
@@ -143,9 +143,9 @@ def _release_end(
     frozen = set(partners)
     ta = int(problem.type_index[mover])
     for direction in dirs:
-        for k in range(1, int(math.ceil(reach_m / RELEASE_STEP_M)) + 1):
+        for k in range(1, int(math.ceil(reach_m / UNFREEZE_STEP_M)) + 1):
             end = p.copy()
-            end[:2] += k * RELEASE_STEP_M * direction
+            end[:2] += k * UNFREEZE_STEP_M * direction
             end = np.round(end * 1000.0) / 1000.0
             if not problem.segment_free(p, end):
                 break
@@ -161,27 +161,27 @@ def _release_end(
     return None
 
 
-def with_release(
-    timed: dict[str, TimedPath], problem: SwarmProblem, release: Release, original_m: np.ndarray, grid_s: float
+def with_unfreeze(
+    timed: dict[str, TimedPath], problem: SwarmProblem, unfreeze: Unfreeze, original_m: np.ndarray, grid_s: float
 ) -> tuple[dict[str, TimedPath], float]:
-    """``timed`` (the swarm plan between the released points) with the release step: before it (starts:
+    """``timed`` (the swarm plan between the moved points) with the unfreeze step: before it (starts:
     every path shifted by the step's duration, the movers' moves first) or after it (goals: once the
     last vehicle has arrived, the movers fly to their goals); and the step's duration on the grid
-    ``grid_s``, s. ``original_m``: the starts (or goals) before the release, (A, 3) m."""
+    ``grid_s``, s. ``original_m``: the starts (or goals) before the unfreeze, (A, 3) m."""
     moves = {
         a: time_parameterize(
-            np.array([release.points_m[a], original_m[a]])[:: 1 if release.at == "goals" else -1],
+            np.array([unfreeze.points_m[a], original_m[a]])[:: 1 if unfreeze.at == "goals" else -1],
             None,
             problem.limits[a],
         )
-        for a in release.movers
+        for a in unfreeze.movers
     }
     step = math.ceil(max(m.duration_s for m in moves.values()) / grid_s - 1e-9) * grid_s
     out: dict[str, TimedPath] = {}
     end = max(path.duration_s for path in timed.values())
     for a, name in enumerate(problem.names):
         path = timed[name]
-        if release.at == "starts":
+        if unfreeze.at == "starts":
             first = moves.get(a)
             if first is None:  # holds its start during the step
                 knots = np.concatenate([[0.0], path.knot_t_s + step])
@@ -197,43 +197,43 @@ def with_release(
             last = moves.get(a)
             if last is None:
                 out[name] = path
-            else:  # holds its released goal until every vehicle has arrived, then flies to its goal
+            else:  # holds its moved goal until every vehicle has arrived, then flies to its goal
                 knots = np.concatenate([path.knot_t_s, [end], end + last.knot_t_s[1:]])
                 pts = np.vstack([path.knot_p_m, path.knot_p_m[-1:], last.knot_p_m[1:]])
                 out[name] = TimedPath(knots, pts, list(path.segments) + [None] + list(last.segments))
     return out, step
 
 
-def released_problem(problem: SwarmProblem) -> tuple[SwarmProblem, tuple[Release, ...], str]:
-    """``problem`` with its starts and goals released (:func:`plan_release`), the releases made and
+def unfrozen_problem(problem: SwarmProblem) -> tuple[SwarmProblem, tuple[Unfreeze, ...], str]:
+    """``problem`` with its starts and goals unfrozen (:func:`plan_unfreeze`), the unfreezes made and
     what was frozen and done ("" where nothing was frozen)."""
     from dataclasses import replace
 
-    releases: list[Release] = []
+    unfreezes: list[Unfreeze] = []
     notes: list[str] = []
     for at in ("starts", "goals"):
-        release, why = plan_release(problem, at)
+        unfreeze, why = plan_unfreeze(problem, at)
         if why:
             notes.append(why)
-        if release is not None:
-            releases.append(release)
+        if unfreeze is not None:
+            unfreezes.append(unfreeze)
     out = problem
-    for release in releases:
-        if release.at == "starts":
-            out = replace(out, starts_m=release.points_m)
+    for unfreeze in unfreezes:
+        if unfreeze.at == "starts":
+            out = replace(out, starts_m=unfreeze.points_m)
         else:
-            out = replace(out, goals_m=release.points_m)
-    return out, tuple(releases), "; ".join(notes)
+            out = replace(out, goals_m=unfreeze.points_m)
+    return out, tuple(unfreezes), "; ".join(notes)
 
 
-def apply_releases(
-    timed: dict[str, TimedPath], problem: SwarmProblem, releases: tuple[Release, ...], grid_s: float
+def apply_unfreezes(
+    timed: dict[str, TimedPath], problem: SwarmProblem, unfreezes: tuple[Unfreeze, ...], grid_s: float
 ) -> tuple[dict[str, TimedPath], float]:
-    """:func:`with_release` of each release (``problem``: before the release) and the time the steps
+    """:func:`with_unfreeze` of each unfreeze (``problem``: before the unfreeze) and the time the steps
     add, s."""
     added = 0.0
-    for release in releases:
-        original = problem.starts_m if release.at == "starts" else problem.goals_m
-        timed, step = with_release(timed, problem, release, original, grid_s)
+    for unfreeze in unfreezes:
+        original = problem.starts_m if unfreeze.at == "starts" else problem.goals_m
+        timed, step = with_unfreeze(timed, problem, unfreeze, original, grid_s)
         added += step
     return timed, added
