@@ -341,15 +341,24 @@ def _plan(
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
-        lattice = lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+        lacam_not_found: PlanNotFound | None = None
+        try:
+            lattice: Stage | None = lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+        except PlanNotFound as err:  # LaCAM's budget: the stacked plan may still give one (round 19C)
+            if not (opts.levels and stacking is not None) or (deadline is not None and time.perf_counter() > deadline):
+                raise
+            lattice, lacam_not_found = None, err
         stack = stack_levels(problem, stacking()) if opts.levels and stacking is not None else None
         levels: list[LevelHandOn] = []
         stacked = None
         if opts.levels and stacking is not None:
             planner = _level_planner(opts, assigned, levels, progress=progress, deadline=deadline)
             stacked = join_levels(problem, stack, extra, planner)
-        give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
-        found = gave_up(lattice, stacked, opts, extra)
+        if lattice is None:
+            found = _stacked_without_lattice(stacked, lacam_not_found, opts, extra)
+        else:
+            give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
+            found = gave_up(lattice, stacked, opts, extra)
     searched = found
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
@@ -372,6 +381,24 @@ def _plan(
         repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
     alt = heights_stage[0] if heights_stage else None
     return _Planned(found, by_agent, initial, retiming, repair, extra, searched, alt, give_up)
+
+
+def _stacked_without_lattice(
+    stacked: Stage | None, not_found: PlanNotFound | None, opts: SwarmOptions, extra: dict
+) -> Stage:
+    """The stacked plan where LaCAM stopped on its budget (``not_found``), saying so; where there is no
+    stacked plan either, LaCAM's :class:`PlanNotFound` with the stacked plan's reason. Handed on as the
+    searched stage (no lattice plan to choose from again)."""
+    assert not_found is not None
+    if stacked is None:
+        raise PlanNotFound(
+            f"{not_found.message}; stacked plan: {extra.get('stacked', 'not tried')}",
+            vehicles=not_found.vehicles,
+            details=not_found.details,
+        )
+    spent = extra.get("counts", {}).get("planned", 0)
+    why = f"prioritised planning gave up ({spent} vehicle plannings); " if opts.prioritized else ""
+    return replace(stacked, coordination=f"{why}LaCAM: {not_found.message}; {stacked.coordination}")
 
 
 def _level_options(opts: SwarmOptions) -> SwarmOptions:
