@@ -15,7 +15,8 @@ The *unfreeze step* (:func:`plan_unfreeze`): before the swarm plan, a few vehicl
 frozen pairs) each fly one short straight rest-to-rest move horizontally away from their frozen partners,
 to the nearest point (in ``UNFREEZE_STEP_M`` steps, up to the widest horizontal reach of any keep-out)
 where they conflict with no other vehicle's start while moving, and whose move meets no other start
-(exact relative-segment test, :func:`~proxplan.planner.swarm.sync.segment_conflict`); every other vehicle
+(exact relative-segment test, :func:`~proxplan.planner.swarm.sync.segment_conflict`; against a frozen
+partner the keep-out at rest, which the pair starts clear of); every other vehicle
 holds its start. The swarm layer then plans from the moved starts, and the unfreeze step is put in front of
 its tracks. Only the departure of a frozen pair from inside its moving keep-out is outside the swarm
 layer's model: the verifier judges it, as every plan. The same at the goals (last instead of first): the swarm layer
@@ -153,7 +154,9 @@ def _unfreeze_end(
             for b in others:
                 ko = problem.keepouts[(ta, int(problem.type_index[b]))]
                 d0, d1 = base[b] - p, base[b] - end
-                if bool(ko.conflict(d1[None])[0]) or (b not in frozen and segment_conflict(ko, d0, d1, rest=False)):
+                # a frozen partner: the move never comes within its keep-out at rest (it leaves the moving one)
+                met = segment_conflict(ko, d0, d1, rest=b in frozen)
+                if bool(ko.conflict(d1[None])[0]) or met:
                     ok = False
                     break
             if ok:
