@@ -3,7 +3,8 @@ and ``optimized`` for formation changes of ``SWARM_MIN_VEHICLES`` or more).
 
 Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, keep-outs, free
 space; :mod:`~proxplan.planner.swarm.keepout`, its shipped undamped zones
-:mod:`~proxplan.planner.swarm.zone_store`) -> :mod:`~proxplan.planner.swarm.assign` and
+:mod:`~proxplan.planner.swarm.zone_store`; pairs frozen at the starts or goals moved out first,
+:mod:`~proxplan.planner.swarm.frozen`) -> :mod:`~proxplan.planner.swarm.assign` and
 :mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles) ->
 :mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept) ->
 :mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count

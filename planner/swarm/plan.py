@@ -51,8 +51,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from proxplan.planfile import Scenario
+from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm.complete_stages import gave_up, join_levels, lattice_stage, stage_makespan, straight_stage
+from proxplan.planner.swarm.frozen import apply_unfreezes, unfrozen_problem
 from proxplan.planner.swarm.heights import heights_on, heights_pass
 from proxplan.planner.swarm.info import (
     GiveUpHandOn,
@@ -98,18 +100,33 @@ def swarm_timed(
     if why is not None:
         raise ValueError(f"the swarm layer cannot plan this scenario: {why}")
     t0 = time.perf_counter()
-    problem = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
+    original = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
+    problem, unfreezes, frozen = unfrozen_problem(original)  # frozen pairs at the starts / goals (swarm.frozen)
     lower_bound = lower_bound_makespan_s(scenario)
-    planned = _plan(
-        problem,
-        lower_bound,
-        opts,
-        scenario.assign_goals is not None,
-        _stacking(scenario, problem) if opts.levels else None,
-        progress=progress,
-        deadline=deadline,
+    try:
+        planned = _plan(
+            problem,
+            lower_bound,
+            opts,
+            scenario.assign_goals is not None,
+            _stacking(scenario, problem) if opts.levels else None,
+            progress=progress,
+            deadline=deadline,
+        )
+    except PlanNotFound as err:
+        if not frozen:
+            raise
+        raise PlanNotFound(f"{err.message} ({frozen})", vehicles=err.vehicles, details=err.details) from err
+    timed, info = _handed_on(problem, lower_bound, opts, scenario.assign_goals is not None, planned, t0, (0, 0))
+    if not unfreezes:
+        return timed, info
+    timed, added = apply_unfreezes(timed, original, unfreezes, GRID_DT_S)
+    return timed, replace(
+        info,
+        coordination=f"{frozen}; {info.coordination}",
+        initial_makespan_s=info.initial_makespan_s + added,
+        makespan_s=max(p.duration_s for p in timed.values()),
     )
-    return _handed_on(problem, lower_bound, opts, scenario.assign_goals is not None, planned, t0, (0, 0))
 
 
 def swarm_again(
@@ -129,6 +146,8 @@ def swarm_again(
     the same (``deflection_m``, ``tracking_bound``), the stages planned on that problem (its keep-outs,
     its memo of single-vehicle searches); else :func:`swarm_timed`. The same tracks as
     :func:`swarm_timed` with ``options`` (the memo gives back what a search would find)."""
+    if _unfrozen(scenario, hand_on.problem):  # its unfreeze step (swarm.frozen) is not handed on: afresh
+        return swarm_timed(scenario, options, progress=progress, deadline=deadline)
     before = hand_on.options
     searches = ("never", "retime")
     if before.through_waypoints in searches and options.through_waypoints in searches:
@@ -151,6 +170,14 @@ def swarm_again(
         deadline=deadline,
     )
     return _handed_on(problem, hand_on.lower_bound_s, options, hand_on.assigned, planned, t0, memo)
+
+
+def _unfrozen(scenario: Scenario, problem: SwarmProblem) -> bool:
+    """Were ``problem``'s starts or goals moved by an unfreeze step (not the scenario's own)?"""
+    vs = [scenario.vehicles[n] for n in problem.names]
+    starts = np.array([v.start_m for v in vs], dtype=float)
+    goals = np.array([v.goal_m if v.goal_m is not None else v.start_m for v in vs], dtype=float)
+    return not (np.array_equal(starts, problem.starts_m) and np.array_equal(goals, problem.goals_m))
 
 
 def _stacking(scenario: Scenario, problem: SwarmProblem) -> Callable[[], dict]:
@@ -314,15 +341,24 @@ def _plan(
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
-        lattice = lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+        lacam_not_found: PlanNotFound | None = None
+        try:
+            lattice: Stage | None = lattice_stage(problem, opts, extra, progress=progress, deadline=deadline)
+        except PlanNotFound as err:  # LaCAM's budget: the stacked plan may still give one (round 19C)
+            if not (opts.levels and stacking is not None) or (deadline is not None and time.perf_counter() > deadline):
+                raise
+            lattice, lacam_not_found = None, err
         stack = stack_levels(problem, stacking()) if opts.levels and stacking is not None else None
         levels: list[LevelHandOn] = []
         stacked = None
         if opts.levels and stacking is not None:
             planner = _level_planner(opts, assigned, levels, progress=progress, deadline=deadline)
             stacked = join_levels(problem, stack, extra, planner)
-        give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
-        found = gave_up(lattice, stacked, opts, extra)
+        if lattice is None:
+            found = _stacked_without_lattice(stacked, lacam_not_found, opts, extra)
+        else:
+            give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
+            found = gave_up(lattice, stacked, opts, extra)
     searched = found
     initial = max(tr.arrival_s for tr in found.tracks)
     by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
@@ -345,6 +381,24 @@ def _plan(
         repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
     alt = heights_stage[0] if heights_stage else None
     return _Planned(found, by_agent, initial, retiming, repair, extra, searched, alt, give_up)
+
+
+def _stacked_without_lattice(
+    stacked: Stage | None, not_found: PlanNotFound | None, opts: SwarmOptions, extra: dict
+) -> Stage:
+    """The stacked plan where LaCAM stopped on its budget (``not_found``), saying so; where there is no
+    stacked plan either, LaCAM's :class:`PlanNotFound` with the stacked plan's reason. Handed on as the
+    searched stage (no lattice plan to choose from again)."""
+    assert not_found is not None
+    if stacked is None:
+        raise PlanNotFound(
+            f"{not_found.message}; stacked plan: {extra.get('stacked', 'not tried')}",
+            vehicles=not_found.vehicles,
+            details=not_found.details,
+        )
+    spent = extra.get("counts", {}).get("planned", 0)
+    why = f"prioritised planning gave up ({spent} vehicle plannings); " if opts.prioritized else ""
+    return replace(stacked, coordination=f"{why}LaCAM: {not_found.message}; {stacked.coordination}")
 
 
 def _level_options(opts: SwarmOptions) -> SwarmOptions:
