@@ -462,11 +462,13 @@ def _retime_stage(
 def _repairs(opts: SwarmOptions, found: Stage) -> bool:
     """Whether the makespan repair runs on the plan of ``found`` (``SwarmOptions.makespan_repair``;
     None: not on the lattice plan (lock-step tracks: nothing replaced on grid-64 and corridor-64 fixed,
-    round 14A), on elsewhere; on the stacked plan since stop 57 (the latest vehicle planned alone first
-    leaves its level for the free heights between the levels: grid-64 6.93 -> 5.58 s, round 19B))."""
+    round 14A) nor on the stacked plan, on elsewhere. On the stacked plan it shortens grid-64 6.95 -> 5.60 s
+    and grid-128 13.0 -> 11.5 s (round 19B, ``makespan_repair=True``), but its count budget (3 plannings per
+    vehicle) took grid-256 past 300 s of CPU with no plan (145 s and a plan without it; stop 57, lead):
+    off by default there until its cost is bounded)."""
     if opts.makespan_repair is not None:
         return opts.makespan_repair
-    return found.stage != "lattice"
+    return found.stage not in ("lattice", "stacked")
 
 
 def _makespan_stage(

@@ -38,7 +38,7 @@ def _horizon(tracks) -> int:
     return max(t.arrival_step for t in tracks.values()) + HORIZON_MARGIN_STEPS
 
 
-def test_the_stacked_plan_is_repaired_by_default_shorter_conflict_free_and_verified(stacked16):
+def test_the_stacked_plan_repaired_is_shorter_conflict_free_and_verified(stacked16):
     sc, problem, before = stacked16
     by_agent = dict(before)
     counts = shorten_makespan(problem, by_agent, _horizon(before), through=False, max_plannings=budget(16))
