@@ -26,7 +26,15 @@ from proxplan.planner.swarm.straight import straight_tracks
 from proxplan.planner.swarm.sync import SyncTable
 from proxplan.planner.swarm.tracks import GridTrack
 
-__all__ = ["gave_up", "join_levels", "lattice_stage", "stage_makespan", "straight_routes", "straight_stage"]
+__all__ = [
+    "gave_up",
+    "join_levels",
+    "lattice_stage",
+    "stacked_without_lattice",
+    "stage_makespan",
+    "straight_routes",
+    "straight_stage",
+]
 
 
 def straight_routes(problem: SwarmProblem) -> Callable[[int], list[np.ndarray]]:
@@ -127,3 +135,21 @@ def join_levels(
     makespans = ", ".join(f"{m:.2f}" for m in plan.level_makespans_s)
     coordination = f"stacked levels {heights} m ({groups}), levels planned apart ({makespans} s), {what}"
     return Stage(plan.tracks, "stacked", coordination, lambda a: [plan.chains[a]])
+
+
+def stacked_without_lattice(
+    stacked: Stage | None, not_found: PlanNotFound | None, opts: SwarmOptions, extra: dict
+) -> Stage:
+    """The stacked plan where LaCAM stopped on its budget (``not_found``), saying so; where there is no
+    stacked plan either, LaCAM's :class:`PlanNotFound` with the stacked plan's reason. Handed on as the
+    searched stage (no lattice plan to choose from again)."""
+    assert not_found is not None
+    if stacked is None:
+        raise PlanNotFound(
+            f"{not_found.message}; stacked plan: {extra.get('stacked', 'not tried')}",
+            vehicles=not_found.vehicles,
+            details=not_found.details,
+        )
+    spent = extra.get("counts", {}).get("planned", 0)
+    why = f"prioritised planning gave up ({spent} vehicle plannings); " if opts.prioritized else ""
+    return replace(stacked, coordination=f"{why}LaCAM: {not_found.message}; {stacked.coordination}")

@@ -28,10 +28,11 @@ None with the reason.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from proxplan.planfile import Scenario
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.sync import segment_conflict
 from proxplan.planner.timing.paths import TimedPath, time_parameterize
@@ -40,7 +41,16 @@ from proxplan.planner.timing.paths import TimedPath, time_parameterize
 # (problem.GROWTH_M covers 2 mm); 5 mm keeps the move short without a fine search. Not watched on a layout
 UNFREEZE_STEP_M = 0.005
 
-__all__ = ["UNFREEZE_STEP_M", "Unfreeze", "frozen_pairs", "plan_unfreeze", "with_unfreeze"]
+__all__ = [
+    "UNFREEZE_STEP_M",
+    "Unfreeze",
+    "apply_unfreezes",
+    "frozen_pairs",
+    "moved_points",
+    "plan_unfreeze",
+    "unfrozen_problem",
+    "with_unfreeze",
+]
 
 
 @dataclass(frozen=True)
@@ -210,8 +220,6 @@ def with_unfreeze(
 def unfrozen_problem(problem: SwarmProblem) -> tuple[SwarmProblem, tuple[Unfreeze, ...], str]:
     """``problem`` with its starts and goals unfrozen (:func:`plan_unfreeze`), the unfreezes made and
     what was frozen and done ("" where nothing was frozen)."""
-    from dataclasses import replace
-
     unfreezes: list[Unfreeze] = []
     notes: list[str] = []
     for at in ("starts", "goals"):
@@ -240,3 +248,11 @@ def apply_unfreezes(
         timed, step = with_unfreeze(timed, problem, unfreeze, original, grid_s)
         added += step
     return timed, added
+
+
+def moved_points(scenario: Scenario, problem: SwarmProblem) -> bool:
+    """Were ``problem``'s starts or goals moved by an unfreeze step (not the scenario's own)?"""
+    vs = [scenario.vehicles[n] for n in problem.names]
+    starts = np.array([v.start_m for v in vs], dtype=float)
+    goals = np.array([v.goal_m if v.goal_m is not None else v.start_m for v in vs], dtype=float)
+    return not (np.array_equal(starts, problem.starts_m) and np.array_equal(goals, problem.goals_m))

@@ -53,8 +53,15 @@ import numpy as np
 from proxplan.planfile import Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-from proxplan.planner.swarm.complete_stages import gave_up, join_levels, lattice_stage, stage_makespan, straight_stage
-from proxplan.planner.swarm.frozen import apply_unfreezes, unfrozen_problem
+from proxplan.planner.swarm.complete_stages import (
+    gave_up,
+    join_levels,
+    lattice_stage,
+    stacked_without_lattice,
+    stage_makespan,
+    straight_stage,
+)
+from proxplan.planner.swarm.frozen import apply_unfreezes, moved_points, unfrozen_problem
 from proxplan.planner.swarm.heights import heights_on, heights_pass
 from proxplan.planner.swarm.info import (
     GiveUpHandOn,
@@ -146,7 +153,7 @@ def swarm_again(
     the same (``deflection_m``, ``tracking_bound``), the stages planned on that problem (its keep-outs,
     its memo of single-vehicle searches); else :func:`swarm_timed`. The same tracks as
     :func:`swarm_timed` with ``options`` (the memo gives back what a search would find)."""
-    if _unfrozen(scenario, hand_on.problem):  # its unfreeze step (swarm.frozen) is not handed on: afresh
+    if moved_points(scenario, hand_on.problem):  # its unfreeze step (swarm.frozen) is not handed on: afresh
         return swarm_timed(scenario, options, progress=progress, deadline=deadline)
     before = hand_on.options
     searches = ("never", "retime")
@@ -170,14 +177,6 @@ def swarm_again(
         deadline=deadline,
     )
     return _handed_on(problem, hand_on.lower_bound_s, options, hand_on.assigned, planned, t0, memo)
-
-
-def _unfrozen(scenario: Scenario, problem: SwarmProblem) -> bool:
-    """Were ``problem``'s starts or goals moved by an unfreeze step (not the scenario's own)?"""
-    vs = [scenario.vehicles[n] for n in problem.names]
-    starts = np.array([v.start_m for v in vs], dtype=float)
-    goals = np.array([v.goal_m if v.goal_m is not None else v.start_m for v in vs], dtype=float)
-    return not (np.array_equal(starts, problem.starts_m) and np.array_equal(goals, problem.goals_m))
 
 
 def _stacking(scenario: Scenario, problem: SwarmProblem) -> Callable[[], dict]:
@@ -355,7 +354,7 @@ def _plan(
             planner = _level_planner(opts, assigned, levels, progress=progress, deadline=deadline)
             stacked = join_levels(problem, stack, extra, planner)
         if lattice is None:
-            found = _stacked_without_lattice(stacked, lacam_not_found, opts, extra)
+            found = stacked_without_lattice(stacked, lacam_not_found, opts, extra)
         else:
             give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
             found = gave_up(lattice, stacked, opts, extra)
@@ -381,24 +380,6 @@ def _plan(
         repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
     alt = heights_stage[0] if heights_stage else None
     return _Planned(found, by_agent, initial, retiming, repair, extra, searched, alt, give_up)
-
-
-def _stacked_without_lattice(
-    stacked: Stage | None, not_found: PlanNotFound | None, opts: SwarmOptions, extra: dict
-) -> Stage:
-    """The stacked plan where LaCAM stopped on its budget (``not_found``), saying so; where there is no
-    stacked plan either, LaCAM's :class:`PlanNotFound` with the stacked plan's reason. Handed on as the
-    searched stage (no lattice plan to choose from again)."""
-    assert not_found is not None
-    if stacked is None:
-        raise PlanNotFound(
-            f"{not_found.message}; stacked plan: {extra.get('stacked', 'not tried')}",
-            vehicles=not_found.vehicles,
-            details=not_found.details,
-        )
-    spent = extra.get("counts", {}).get("planned", 0)
-    why = f"prioritised planning gave up ({spent} vehicle plannings); " if opts.prioritized else ""
-    return replace(stacked, coordination=f"{why}LaCAM: {not_found.message}; {stacked.coordination}")
 
 
 def _level_options(opts: SwarmOptions) -> SwarmOptions:
