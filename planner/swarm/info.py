@@ -104,6 +104,7 @@ class SwarmInfo:
     time_s: float
     kept_straight: str | None = None  # straight lines kept, vehicles planned around them, or why not
     kept_straight_time_s: float | None = None
+    yielding: str | None = None  # straight lines with one vehicle of each conflicting pair yielding (swarm.yielding)
     prioritised: str | None = None  # what each order of prioritised planning gave
     prioritised_time_s: float | None = None
     # SwarmOptions.heights: what prioritised planning with both wavefronts gave and which whole plan was kept

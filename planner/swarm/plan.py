@@ -77,12 +77,13 @@ from proxplan.planner.swarm.makespan import budget as makespan_budget
 from proxplan.planner.swarm.makespan import shorten_makespan
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.options import SwarmOptions
-from proxplan.planner.swarm.prioritised_stage import kept_straight_stage, prioritised_stage
+from proxplan.planner.swarm.prioritised_stage import horizon_steps, kept_straight_stage, prioritised_stage
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
 from proxplan.planner.swarm.retime import improve
 from proxplan.planner.swarm.stage import Stage
 from proxplan.planner.swarm.straight import straight_step_conflicts
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
+from proxplan.planner.swarm.yielding import yielding_candidate
 from proxplan.planner.timing.paths import TimedPath
 from proxplan.planner.timing.profile import rest_to_rest
 
@@ -336,6 +337,10 @@ def _plan(
         found = prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         if kept is not None and (found is None or stage_makespan(kept) < stage_makespan(found)):
             found = kept
+    if assigned and conflicts and opts.prioritized:  # interchangeable goals: one vehicle of a pair yields (round 20S)
+        yielded = yielding_candidate(problem, horizon_steps(lower_bound), extra)
+        if yielded is not None and (found is None or stage_makespan(yielded) < stage_makespan(found)):
+            found = yielded
     give_up: GiveUpHandOn | None = None
     if found is None:
         if progress:

@@ -1,0 +1,217 @@
+"""Straight lines with yielding vehicles: CAPT's synchronised straight lines where they hold, a
+flown detour for one vehicle of each conflicting pair (issue 37 item 5).
+
+Where the straight step has conflicting pairs (:func:`~proxplan.planner.swarm.straight.straight_step_conflicts`),
+who gives way is decided *before* any planning: in each pair not yet covered, the vehicle with the
+shorter straight line yields (its detour is the cheaper one; ties: the vehicle in more conflicts,
+then the lower index), a greedy vertex cover of the conflict graph. Every other vehicle flies its
+straight line at its own limits from t = 0 (these lines are checked against one another on the grid
+samples, :meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`; a vehicle in such a
+conflict yields too). Then each yielding vehicle, longest line first, is timed against all the
+tracks fixed so far (:func:`~proxplan.planner.swarm.chain.time_chain`: waits at any waypoint, moves
+straight or flown *through* the corner without stopping, exact against the tracks) along the best of
+its straight line and the chains start -> corner -> goal with the corner beside the line's middle, on
+either side horizontally, :data:`ASIDE_REACH_FACTORS` times the widest keep-out's horizontal reach
+aside. The earliest arrival is kept. Where a yielding vehicle has no such timing within the horizon
+the stage gives up (None) and says so; it never claims more.
+
+Measured on grid-64 and circle-64 by type (docs/planner.md, stop 58 round 20S): no relative delay
+of the two straight lines resolves 12 of grid's 19 conflicting pairs nor any of circle's 43 within
+1.3 B (head-on swaps and rotations of three), so a yielding vehicle must leave its line; a
+rest-to-rest detour through a corner costs 1.63-1.67 B there, a flight through the corner less.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from proxplan.planner.swarm.chain import time_chain
+from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.stage import Stage, own_routes
+from proxplan.planner.swarm.straight import straight_step_conflicts
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
+from proxplan.planner.timing.profile import LineMove, rest_to_rest
+
+# how far beside the middle of its line a yielding vehicle's corner lies, in units of the widest
+# keep-out's horizontal reach (problem.reach_xy_m): from half of it (the other's column just cleared
+# by a flight through the corner, whose rounding cuts it) to twice it; set on grid-64 and circle-64
+# by type (round 20S), not on the randomised family
+ASIDE_REACH_FACTORS = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
+# a yielding vehicle that cannot be timed makes the vehicles hemming it in yield too (or, where they
+# all yield already, is timed first among the yielding), then all are placed again: at most this many times (a count, so the same problem gives the same plan); chosen
+# before any run as a small multiple of the rotations of three seen on grid and circle
+MAX_YIELD_ROUNDS = 8
+
+__all__ = [
+    "ASIDE_REACH_FACTORS",
+    "MAX_YIELD_ROUNDS",
+    "YieldResult",
+    "choose_yielders",
+    "yielding_candidate",
+    "yielding_stage",
+]
+
+
+@dataclass(frozen=True)
+class YieldResult:
+    """What :func:`yielding_stage` did: the stage (None: it gave up) and a one-line account."""
+
+    stage: Stage | None
+    yielders: tuple[int, ...]
+    note: str
+
+
+def _line_lengths_m(problem: SwarmProblem) -> np.ndarray:
+    return np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+
+
+def choose_yielders(problem: SwarmProblem, pairs: list[tuple[int, int]]) -> set[int]:
+    """A greedy vertex cover of the conflicting ``pairs`` (i != j): in each pair not covered yet,
+    the vehicle with the shorter straight line, ties by more conflicts, then the lower index."""
+    length = _line_lengths_m(problem)
+    degree: dict[int, int] = {}
+    for i, j in pairs:
+        degree[i] = degree.get(i, 0) + 1
+        degree[j] = degree.get(j, 0) + 1
+    out: set[int] = set()
+    for i, j in pairs:
+        if i in out or j in out or problem.pinned[i] and problem.pinned[j]:
+            continue
+        cands = [a for a in (i, j) if not problem.pinned[a]]
+        out.add(min(cands, key=lambda a: (round(float(length[a]), 9), -degree[a], a)))
+    return out
+
+
+def _straight_track(problem: SwarmProblem, a: int) -> GridTrack:
+    """Agent ``a`` straight to its goal at its own limits from t = 0 (resting where it has no line)."""
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    length = float(np.linalg.norm(g - s))
+    moves = (
+        []
+        if length <= 0.0 or problem.pinned[a]
+        else [(0, LineMove(s, g, rest_to_rest(length, problem.limits[a], GRID_DT_S)))]
+    )
+    return GridTrack(a, int(problem.type_index[a]), s.copy(), moves)
+
+
+def _chains(problem: SwarmProblem, a: int, right_only: bool = False) -> list[np.ndarray]:
+    """The straight line and the corner chains of a yielding vehicle (see module); ``right_only``:
+    only the corners on its right (seen from above, heading to its goal), no straight line."""
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    d = g - s
+    horizontal = np.array([-d[1], d[0], 0.0])
+    norm = float(np.linalg.norm(horizontal))
+    side = horizontal / norm if norm > 1e-9 else np.array([1.0, 0.0, 0.0])  # no horizontal line: x aside
+    mid = 0.5 * (s + g)
+    out = [] if right_only else [np.array([s, g])]
+    for f in ASIDE_REACH_FACTORS:
+        for sign in (-1.0,) if right_only else (1.0, -1.0):
+            corner = mid + sign * f * problem.reach_xy_m * side
+            if problem.static_free(corner[None])[0]:
+                out.append(np.array([s, corner, g]))
+    return out
+
+
+def _blockers(occ: Occupancy, problem: SwarmProblem, a: int) -> set[int]:
+    """The agents whose tracks in ``occ`` meet agent ``a``'s straight line, or ``a`` resting for good
+    at its start or at its goal: the vehicles that hem a yielding vehicle in."""
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    ta = int(problem.type_index[a])
+    out = occ.conflicting_agents(_straight_track(problem, a))
+    out |= occ.conflicting_agents(GridTrack(a, ta, s.copy(), []))
+    out |= occ.conflicting_agents(GridTrack(a, ta, g.copy(), []))
+    return out
+
+
+def _place(
+    problem: SwarmProblem, horizon_steps: int, yielders: set[int], first: list[int], right_hand: bool
+) -> tuple[dict[int, GridTrack] | None, int, set[int]]:
+    """Every vehicle not in ``yielders`` on its straight line, each yielding vehicle timed after them,
+    those of ``first`` first (the last raised first), the others longest line first (see module): (the
+    tracks by agent, or None; the agent that could not be timed, -1 if none; the vehicles hemming it in)."""
+    fixed = {a: _straight_track(problem, a) for a in range(problem.n_agents) if a not in yielders}
+    occ = Occupancy(problem, list(fixed.values()), horizon_steps)
+    length = _line_lengths_m(problem)
+    tracks = dict(fixed)
+    raised = [a for a in reversed(first) if a in yielders]
+    rest = sorted((a for a in yielders if a not in raised), key=lambda a: (-float(length[a]), a))
+    for a in raised + rest:
+        best = None
+        for chain in _chains(problem, a, right_hand) or _chains(problem, a):
+            got = time_chain(occ, a, chain, arrive_by=None if best is None else best.arrival_step - 1, through=True)
+            if got is not None and (best is None or got.arrival_step < best.arrival_step):
+                best = got
+        if best is None:
+            return None, a, _blockers(occ, problem, a)
+        tracks[a] = best.track
+        occ.put(best.track)
+    return tracks, -1, set()
+
+
+def yielding_stage(problem: SwarmProblem, horizon_steps: int, *, right_hand: bool = False) -> YieldResult:
+    """The plan of the module (``horizon_steps``: grid steps of ``GRID_DT_S`` a timing may use;
+    ``right_hand``: every vehicle in a conflicting pair yields, keeping to its right)."""
+    pairs = straight_step_conflicts(problem)
+    if not pairs:
+        return YieldResult(None, (), "no conflicting pair (the synchronised straight step is the plan)")
+    if any(i == j for i, j in pairs):
+        return YieldResult(None, (), "a straight line leaves the static free space: not this stage's case")
+    yielders = (
+        {a for pair in pairs for a in pair if not problem.pinned[a]}
+        if right_hand
+        else choose_yielders(problem, [(i, j) for i, j in pairs])
+    )
+    fixed = {a: _straight_track(problem, a) for a in range(problem.n_agents) if a not in yielders}
+    occ = Occupancy(problem, list(fixed.values()), horizon_steps)
+    for a, tr in fixed.items():  # own-limit lines that meet on the grid (not in the synchronised test)
+        hit = occ.conflicting_agents(tr) - yielders
+        if hit:
+            yielders |= {a} | {b for b in hit if not problem.pinned[b]}
+    rounds = 0
+    first: list[int] = []
+    while True:
+        tracks, stuck, hem = _place(problem, horizon_steps, yielders, first, right_hand)
+        if tracks is not None:
+            break
+        grown = {b for b in hem if not problem.pinned[b]} - yielders
+        rounds += 1
+        raise_it = not grown and (not first or first[-1] != stuck)
+        if not (grown or raise_it) or rounds > MAX_YIELD_ROUNDS:
+            return YieldResult(
+                None,
+                tuple(sorted(yielders)),
+                f"gave up after {rounds} round(s): vehicle {problem.names[stuck]} (yielding) has no timing along "
+                f"its line or a corner beside it within {horizon_steps * GRID_DT_S:.1f} s"
+                + ("" if grown or raise_it else ", first already"),
+            )
+        if grown:
+            yielders |= grown
+        else:  # hemmed in by yielding vehicles timed before it: it goes first (a raised priority)
+            first = [b for b in first if b != stuck] + [stuck]
+    ordered = [tracks[a] for a in range(problem.n_agents)]
+    note = (
+        f"straight lines of {problem.n_agents - len(yielders)} vehicles, {len(yielders)} yielding "
+        f"({len(pairs)} conflicting pairs of the synchronised step, {rounds + 1} round(s))"
+    )
+    return YieldResult(Stage(ordered, "prioritised", note, own_routes(problem, ordered)), tuple(sorted(yielders)), note)
+
+
+def yielding_candidate(problem: SwarmProblem, horizon_steps: int, extra: dict) -> Stage | None:
+    """The shorter of :func:`yielding_stage` with the shorter line of each pair yielding and with every
+    vehicle in a conflict keeping right (None where both give up); what each gave in ``extra["yielding"]``."""
+    best: Stage | None = None
+    said = []
+    for label, right in (("shorter line yields", False), ("keep right", True)):
+        got = yielding_stage(problem, horizon_steps, right_hand=right)
+        if got.stage is None:
+            said.append(f"{label}: {got.note}")
+            continue
+        makespan = max(tr.arrival_s for tr in got.stage.tracks)
+        said.append(f"{label}: {makespan:.2f} s ({got.note})")
+        if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
+            best = Stage(got.stage.tracks, got.stage.stage, f"{got.note}, {label}", got.stage.routes)
+    extra["yielding"] = "; ".join(said)
+    return best
