@@ -1,24 +1,32 @@
 """Straight lines with yielding vehicles: CAPT's synchronised straight lines where they hold, a
-flown detour for one vehicle of each conflicting pair (issue 37 item 5).
+detour for the vehicles of the conflicting pairs (issue 37 item 5).
 
 Where the straight step has conflicting pairs (:func:`~proxplan.planner.swarm.straight.straight_step_conflicts`),
-who gives way is decided *before* any planning: in each pair not yet covered, the vehicle with the
-shorter straight line yields (its detour is the cheaper one; ties: the vehicle in more conflicts,
-then the lower index), a greedy vertex cover of the conflict graph. Every other vehicle flies its
-straight line at its own limits from t = 0 (these lines are checked against one another on the grid
-samples, :meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`; a vehicle in such a
-conflict yields too). Then each yielding vehicle, longest line first, is timed against all the
-tracks fixed so far (:func:`~proxplan.planner.swarm.chain.time_chain`: waits at any waypoint, moves
-straight or flown *through* the corner without stopping, exact against the tracks) along the best of
-its straight line and the chains start -> corner -> goal with the corner beside the line's middle, on
-either side horizontally, :data:`ASIDE_REACH_FACTORS` times the widest keep-out's horizontal reach
-aside. The earliest arrival is kept. Where a yielding vehicle has no such timing within the horizon
-the stage gives up (None) and says so; it never claims more.
+who gives way is decided *before* any planning, two ways (:func:`yielding_candidate` keeps the shorter):
+
+* *the shorter line yields*: in each pair not yet covered, the vehicle with the shorter straight line
+  (its detour the cheaper; ties: more conflicts, then the lower index), a greedy vertex cover;
+* *keep right*: every vehicle in a pair yields, on a corner to its right (seen from above, heading
+  to its goal; head-on partners then pass on opposite sides), except a vehicle whose line is longer
+  than each of its partners', which may keep its line; the yielding vehicles not timed yet are
+  predicted on their smallest bulge to the right (their line for those that may keep it), and the
+  predictions are dropped where they alone hem a vehicle in.
+
+Every other vehicle flies its straight line at its own limits from t = 0 (own-limit lines that meet
+on the grid samples, :meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`, yield
+too). Each yielding vehicle, longest line first, is timed against the tracks fixed so far
+(:func:`~proxplan.planner.swarm.chain.time_chain`: waits at any waypoint, moves straight or flown
+*through* the corner, exact against the tracks) along the best of its straight line and the chains
+start -> corner -> goal, the corner beside the line's middle :data:`ASIDE_REACH_FACTORS` times the
+widest keep-out's horizontal reach aside. Where one cannot be timed, the vehicles hemming it in
+(meeting its line, or it resting at its start or goal) yield too, or where they all yield already it
+is timed first, and all are placed again, at most :data:`MAX_YIELD_ROUNDS` times; then the stage
+gives up (None) and says so. Every track is checked exactly against those timed before it, so the
+plan is conflict-free in the swarm layer's model; the verifier judges it as every plan.
 
 Measured on grid-64 and circle-64 by type (docs/planner.md, stop 58 round 20S): no relative delay
 of the two straight lines resolves 12 of grid's 19 conflicting pairs nor any of circle's 43 within
-1.3 B (head-on swaps and rotations of three), so a yielding vehicle must leave its line; a
-rest-to-rest detour through a corner costs 1.63-1.67 B there, a flight through the corner less.
+1.3 B (head-on swaps and rotations of three), so someone must leave its line.
 """
 
 from __future__ import annotations
@@ -33,7 +41,8 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.straight import straight_step_conflicts
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
-from proxplan.planner.timing.profile import LineMove, rest_to_rest
+from proxplan.planner.timing import CORNER_DEVIATION_M
+from proxplan.planner.timing.profile import LineMove, RunMove, rest_to_rest
 
 # how far beside the middle of its line a yielding vehicle's corner lies, in units of the widest
 # keep-out's horizontal reach (problem.reach_xy_m): from half of it (the other's column just cleared
@@ -126,8 +135,34 @@ def _blockers(occ: Occupancy, problem: SwarmProblem, a: int) -> set[int]:
     return out
 
 
+def _right_prediction(problem: SwarmProblem, a: int) -> GridTrack | None:
+    """Agent ``a`` flown from t = 0 through the nearest corner on its right that is statically free,
+    as a prediction that vanishes on arrival (None: no such corner, or no line)."""
+    chains = _chains(problem, a, right_only=True)
+    if not chains or problem.pinned[a] or np.allclose(problem.starts_m[a], problem.goals_m[a]):
+        return None
+    move = RunMove(chains[0], problem.limits[a], GRID_DT_S, deviation_m=CORNER_DEVIATION_M)
+    track = GridTrack(a, int(problem.type_index[a]), problem.starts_m[a].copy(), [(0, move)])
+    return track.vanishing(track.arrival_step + 1)
+
+
+def _time_yielding(occ: Occupancy, problem: SwarmProblem, a: int, right: bool):
+    """The earliest :func:`time_chain` of agent ``a`` over its chains (:func:`_chains`), or None."""
+    best = None
+    for chain in _chains(problem, a, right) or _chains(problem, a):
+        got = time_chain(occ, a, chain, arrive_by=None if best is None else best.arrival_step - 1, through=True)
+        if got is not None and (best is None or got.arrival_step < best.arrival_step):
+            best = got
+    return best
+
+
 def _place(
-    problem: SwarmProblem, horizon_steps: int, yielders: set[int], first: list[int], right_hand: bool
+    problem: SwarmProblem,
+    horizon_steps: int,
+    yielders: set[int],
+    first: list[int],
+    right_hand: bool,
+    leaders: frozenset[int] = frozenset(),
 ) -> tuple[dict[int, GridTrack] | None, int, set[int]]:
     """Every vehicle not in ``yielders`` on its straight line, each yielding vehicle timed after them,
     those of ``first`` first (the last raised first), the others longest line first (see module): (the
@@ -136,14 +171,28 @@ def _place(
     occ = Occupancy(problem, list(fixed.values()), horizon_steps)
     length = _line_lengths_m(problem)
     tracks = dict(fixed)
+    predicted: set[int] = set()
+    if right_hand:  # the yielding vehicles not timed yet: predicted on their smallest bulge to the right
+        for a in yielders:
+            if a in leaders:
+                line = _straight_track(problem, a)
+                ghost: GridTrack | None = line.vanishing(line.arrival_step + 1)
+            else:
+                ghost = _right_prediction(problem, a)
+            if ghost is not None:
+                occ.put(ghost)
+                predicted.add(a)
     raised = [a for a in reversed(first) if a in yielders]
     rest = sorted((a for a in yielders if a not in raised), key=lambda a: (-float(length[a]), a))
     for a in raised + rest:
-        best = None
-        for chain in _chains(problem, a, right_hand) or _chains(problem, a):
-            got = time_chain(occ, a, chain, arrive_by=None if best is None else best.arrival_step - 1, through=True)
-            if got is not None and (best is None or got.arrival_step < best.arrival_step):
-                best = got
+        occ.remove(a)
+        predicted.discard(a)
+        best = _time_yielding(occ, problem, a, right_hand and a not in leaders)
+        if best is None and predicted:  # the predictions hem it in: they are dropped, not the plan
+            for b in predicted:
+                occ.remove(b)
+            predicted.clear()
+            best = _time_yielding(occ, problem, a, right_hand and a not in leaders)
         if best is None:
             return None, a, _blockers(occ, problem, a)
         tracks[a] = best.track
@@ -170,10 +219,18 @@ def yielding_stage(problem: SwarmProblem, horizon_steps: int, *, right_hand: boo
         hit = occ.conflicting_agents(tr) - yielders
         if hit:
             yielders |= {a} | {b for b in hit if not problem.pinned[b]}
+    length = _line_lengths_m(problem)
+    partners: dict[int, list[int]] = {}
+    for i, j in pairs:
+        partners.setdefault(i, []).append(j)
+        partners.setdefault(j, []).append(i)
+    # keeping right, a vehicle whose line is longer than each of its partners' keeps its line (the
+    # partners' detours are the cheaper ones)
+    leaders = frozenset(a for a, ps in partners.items() if right_hand and all(length[a] > length[b] + 1e-9 for b in ps))
     rounds = 0
     first: list[int] = []
     while True:
-        tracks, stuck, hem = _place(problem, horizon_steps, yielders, first, right_hand)
+        tracks, stuck, hem = _place(problem, horizon_steps, yielders, first, right_hand, leaders)
         if tracks is not None:
             break
         grown = {b for b in hem if not problem.pinned[b]} - yielders

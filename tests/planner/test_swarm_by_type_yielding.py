@@ -91,3 +91,39 @@ def test_where_no_yielding_plan_is_found_the_stage_says_it_gave_up():
     assert got.note.startswith("gave up after")
     rounds = int(got.note.split("gave up after ")[1].split(" ")[0])
     assert 1 <= rounds <= MAX_YIELD_ROUNDS + 1
+
+
+def test_keeping_right_every_vehicle_in_a_conflict_yields_and_the_plan_verifies(circle16):
+    """Keeping right (every vehicle of a conflicting pair yields, on a corner to its right where it
+    leaves its line): every track of a vehicle in no pair is its straight line; no two tracks conflict;
+    a vehicle that left its line, unless its line is longer than each of its partners' (it may keep it),
+    went round a corner on its right; the plan passes the verifier."""
+    scenario, bound, problem = circle16
+    pairs = [(i, j) for i, j in straight_step_conflicts(problem) if i != j]
+    got = yielding_stage(problem, horizon_steps(bound), right_hand=True)
+    assert got.stage is not None, got.note
+    assert {a for pair in pairs for a in pair} <= set(got.yielders)
+    tracks = got.stage.tracks
+    occ = Occupancy(problem, tracks, max(tr.arrival_step for tr in tracks) + 40)
+    assert all(not occ.conflicting_agents(tr) for tr in tracks)
+    length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+    partners: dict[int, list[int]] = {}
+    for i, j in pairs:
+        partners.setdefault(i, []).append(j)
+        partners.setdefault(j, []).append(i)
+    leaders = {a for a, ps in partners.items() if all(length[a] > length[b] + 1e-9 for b in ps)}
+    cornered = 0
+    for tr in tracks:
+        if tr.agent in leaders:
+            continue
+        s, g = problem.starts_m[tr.agent], problem.goals_m[tr.agent]
+        d = (g - s)[:2]
+        for _, move in tr.moves:
+            w = getattr(move, "waypoints_m", None)
+            if w is not None and len(w) == 3:
+                side = float(d[0] * (w[1] - s)[1] - d[1] * (w[1] - s)[0])  # z of d x (corner - start)
+                cornered += 1
+                assert side < 0.0  # on the right, seen from above
+    assert cornered >= 1
+    timed = {problem.names[tr.agent]: tr.timed_path() for tr in tracks}
+    assert verify_plan(assemble_plan(scenario, timed, method="swarm", notes=[]), scenario) == []
