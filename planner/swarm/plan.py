@@ -338,7 +338,8 @@ def _plan(
         if kept is not None and (found is None or stage_makespan(kept) < stage_makespan(found)):
             found = kept
     if assigned and conflicts and opts.prioritized:  # interchangeable goals: one vehicle of a pair yields (round 20S)
-        yielded = yielding_candidate(problem, horizon_steps(lower_bound), extra)
+        in_hand = None if found is None else stage_makespan(found)
+        yielded = yielding_candidate(problem, horizon_steps(lower_bound), extra, shorter_than_s=in_hand)
         if yielded is not None and (found is None or stage_makespan(yielded) < stage_makespan(found)):
             found = yielded
     give_up: GiveUpHandOn | None = None

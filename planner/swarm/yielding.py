@@ -46,13 +46,14 @@ from proxplan.planner.timing.profile import LineMove, RunMove, rest_to_rest
 
 # how far beside the middle of its line a yielding vehicle's corner lies, in units of the widest
 # keep-out's horizontal reach (problem.reach_xy_m): from half of it (the other's column just cleared
-# by a flight through the corner, whose rounding cuts it) to twice it; set on grid-64 and circle-64
-# by type (round 20S), not on the randomised family
+# by a flight through the corner, whose rounding cuts it) to twice it; chosen before any run (a
+# quarter of it as well changed nothing on circle-64 by type, round 20S)
 ASIDE_REACH_FACTORS = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
 # a yielding vehicle that cannot be timed makes the vehicles hemming it in yield too (or, where they
-# all yield already, is timed first among the yielding), then all are placed again: at most this many times (a count, so the same problem gives the same plan); chosen
-# before any run as a small multiple of the rotations of three seen on grid and circle
-MAX_YIELD_ROUNDS = 8
+# all yield already, is timed first among the yielding), then all are placed again: at most this many
+# times (a count, so the same problem gives the same plan); set on the named layouts (round 20S):
+# circle 16-128 need 1 round, grid-16 keeping right 4, grid 32-128 found none within 9
+MAX_YIELD_ROUNDS = 4
 
 __all__ = [
     "ASIDE_REACH_FACTORS",
@@ -146,11 +147,13 @@ def _right_prediction(problem: SwarmProblem, a: int) -> GridTrack | None:
     return track.vanishing(track.arrival_step + 1)
 
 
-def _time_yielding(occ: Occupancy, problem: SwarmProblem, a: int, right: bool):
-    """The earliest :func:`time_chain` of agent ``a`` over its chains (:func:`_chains`), or None."""
+def _time_yielding(occ: Occupancy, problem: SwarmProblem, a: int, right: bool, arrive_by: int | None):
+    """The earliest :func:`time_chain` of agent ``a`` over its chains (:func:`_chains`) arriving by step
+    ``arrive_by`` (None: any), or None."""
     best = None
     for chain in _chains(problem, a, right) or _chains(problem, a):
-        got = time_chain(occ, a, chain, arrive_by=None if best is None else best.arrival_step - 1, through=True)
+        bound = arrive_by if best is None else best.arrival_step - 1
+        got = time_chain(occ, a, chain, arrive_by=bound, through=True)
         if got is not None and (best is None or got.arrival_step < best.arrival_step):
             best = got
     return best
@@ -163,6 +166,7 @@ def _place(
     first: list[int],
     right_hand: bool,
     leaders: frozenset[int] = frozenset(),
+    arrive_by: int | None = None,
 ) -> tuple[dict[int, GridTrack] | None, int, set[int]]:
     """Every vehicle not in ``yielders`` on its straight line, each yielding vehicle timed after them,
     those of ``first`` first (the last raised first), the others longest line first (see module): (the
@@ -187,12 +191,12 @@ def _place(
     for a in raised + rest:
         occ.remove(a)
         predicted.discard(a)
-        best = _time_yielding(occ, problem, a, right_hand and a not in leaders)
+        best = _time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by)
         if best is None and predicted:  # the predictions hem it in: they are dropped, not the plan
             for b in predicted:
                 occ.remove(b)
             predicted.clear()
-            best = _time_yielding(occ, problem, a, right_hand and a not in leaders)
+            best = _time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by)
         if best is None:
             return None, a, _blockers(occ, problem, a)
         tracks[a] = best.track
@@ -200,9 +204,13 @@ def _place(
     return tracks, -1, set()
 
 
-def yielding_stage(problem: SwarmProblem, horizon_steps: int, *, right_hand: bool = False) -> YieldResult:
+def yielding_stage(
+    problem: SwarmProblem, horizon_steps: int, *, right_hand: bool = False, arrive_by: int | None = None
+) -> YieldResult:
     """The plan of the module (``horizon_steps``: grid steps of ``GRID_DT_S`` a timing may use;
-    ``right_hand``: every vehicle in a conflicting pair yields, keeping to its right)."""
+    ``right_hand``: every vehicle in a conflicting pair yields, keeping to its right; ``arrive_by``:
+    only a plan whose every vehicle arrives by this step is of interest, e.g. one shorter than a plan in
+    hand; None: any)."""
     pairs = straight_step_conflicts(problem)
     if not pairs:
         return YieldResult(None, (), "no conflicting pair (the synchronised straight step is the plan)")
@@ -230,7 +238,7 @@ def yielding_stage(problem: SwarmProblem, horizon_steps: int, *, right_hand: boo
     rounds = 0
     first: list[int] = []
     while True:
-        tracks, stuck, hem = _place(problem, horizon_steps, yielders, first, right_hand, leaders)
+        tracks, stuck, hem = _place(problem, horizon_steps, yielders, first, right_hand, leaders, arrive_by)
         if tracks is not None:
             break
         grown = {b for b in hem if not problem.pinned[b]} - yielders
@@ -241,7 +249,8 @@ def yielding_stage(problem: SwarmProblem, horizon_steps: int, *, right_hand: boo
                 None,
                 tuple(sorted(yielders)),
                 f"gave up after {rounds} round(s): vehicle {problem.names[stuck]} (yielding) has no timing along "
-                f"its line or a corner beside it within {horizon_steps * GRID_DT_S:.1f} s"
+                f"its line or a corner beside it arriving within "
+                f"{(horizon_steps if arrive_by is None else arrive_by) * GRID_DT_S:.2f} s"
                 + ("" if grown or raise_it else ", first already"),
             )
         if grown:
@@ -256,13 +265,18 @@ def yielding_stage(problem: SwarmProblem, horizon_steps: int, *, right_hand: boo
     return YieldResult(Stage(ordered, "prioritised", note, own_routes(problem, ordered)), tuple(sorted(yielders)), note)
 
 
-def yielding_candidate(problem: SwarmProblem, horizon_steps: int, extra: dict) -> Stage | None:
+def yielding_candidate(
+    problem: SwarmProblem, horizon_steps: int, extra: dict, *, shorter_than_s: float | None = None
+) -> Stage | None:
     """The shorter of :func:`yielding_stage` with the shorter line of each pair yielding and with every
-    vehicle in a conflict keeping right (None where both give up); what each gave in ``extra["yielding"]``."""
+    vehicle in a conflict keeping right (None where both give up), each asked for a plan shorter than
+    ``shorter_than_s`` (s; the plan in hand) and than the first's; what each gave in ``extra["yielding"]``."""
     best: Stage | None = None
     said = []
     for label, right in (("shorter line yields", False), ("keep right", True)):
-        got = yielding_stage(problem, horizon_steps, right_hand=right)
+        bound_s = shorter_than_s if best is None else max(tr.arrival_s for tr in best.tracks)
+        arrive_by = None if bound_s is None else int(round(bound_s / GRID_DT_S)) - 1
+        got = yielding_stage(problem, horizon_steps, right_hand=right, arrive_by=arrive_by)
         if got.stage is None:
             said.append(f"{label}: {got.note}")
             continue
