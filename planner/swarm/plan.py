@@ -339,7 +339,9 @@ def _plan(
             found = kept
     if assigned and conflicts and opts.prioritized:  # interchangeable goals: one vehicle of a pair yields (round 20S)
         in_hand = None if found is None else stage_makespan(found)
-        yielded = yielding_candidate(problem, horizon_steps(lower_bound), extra, shorter_than_s=in_hand)
+        yielded = yielding_candidate(
+            problem, horizon_steps(lower_bound), extra, shorter_than_s=in_hand, pairs=conflicts
+        )
         if yielded is not None and (found is None or stage_makespan(yielded) < stage_makespan(found)):
             found = yielded
     give_up: GiveUpHandOn | None = None

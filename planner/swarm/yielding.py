@@ -205,13 +205,19 @@ def _place(
 
 
 def yielding_stage(
-    problem: SwarmProblem, horizon_steps: int, *, right_hand: bool = False, arrive_by: int | None = None
+    problem: SwarmProblem,
+    horizon_steps: int,
+    *,
+    right_hand: bool = False,
+    arrive_by: int | None = None,
+    pairs: list[tuple[int, int]] | None = None,
 ) -> YieldResult:
     """The plan of the module (``horizon_steps``: grid steps of ``GRID_DT_S`` a timing may use;
     ``right_hand``: every vehicle in a conflicting pair yields, keeping to its right; ``arrive_by``:
     only a plan whose every vehicle arrives by this step is of interest, e.g. one shorter than a plan in
-    hand; None: any)."""
-    pairs = straight_step_conflicts(problem)
+    hand; None: any; ``pairs``: the straight step's conflicts where already found)."""
+    if pairs is None:
+        pairs = straight_step_conflicts(problem)
     if not pairs:
         return YieldResult(None, (), "no conflicting pair (the synchronised straight step is the plan)")
     if any(i == j for i, j in pairs):
@@ -266,17 +272,25 @@ def yielding_stage(
 
 
 def yielding_candidate(
-    problem: SwarmProblem, horizon_steps: int, extra: dict, *, shorter_than_s: float | None = None
+    problem: SwarmProblem,
+    horizon_steps: int,
+    extra: dict,
+    *,
+    shorter_than_s: float | None = None,
+    pairs: list[tuple[int, int]] | None = None,
 ) -> Stage | None:
     """The shorter of :func:`yielding_stage` with the shorter line of each pair yielding and with every
     vehicle in a conflict keeping right (None where both give up), each asked for a plan shorter than
-    ``shorter_than_s`` (s; the plan in hand) and than the first's; what each gave in ``extra["yielding"]``."""
+    ``shorter_than_s`` (s; the plan in hand) and than the first's (``pairs``: the straight step's
+    conflicts where already found); what each gave in ``extra["yielding"]``."""
+    if pairs is None:
+        pairs = straight_step_conflicts(problem)
     best: Stage | None = None
     said = []
     for label, right in (("shorter line yields", False), ("keep right", True)):
         bound_s = shorter_than_s if best is None else max(tr.arrival_s for tr in best.tracks)
         arrive_by = None if bound_s is None else int(round(bound_s / GRID_DT_S)) - 1
-        got = yielding_stage(problem, horizon_steps, right_hand=right, arrive_by=arrive_by)
+        got = yielding_stage(problem, horizon_steps, right_hand=right, arrive_by=arrive_by, pairs=pairs)
         if got.stage is None:
             said.append(f"{label}: {got.note}")
             continue
