@@ -24,8 +24,10 @@ vehicle's neighbourhood of 14 took 103 plannings for nothing, stop 57), and none
 cannot be planned even first (against the tracks outside the neighbourhood alone). Every new track is planned against all the others, so the plan
 stays conflict-free and its makespan never grows. A vehicle whose neighbourhood gave nothing is
 skipped until some neighbourhood is replaced (tracks changed). The budget is a count of
-single-vehicle plannings (:data:`PLANNINGS_PER_VEHICLE` per vehicle), so a seed gives the same plan
-on every machine; a wall-clock deadline stops it only as "not found".
+single-vehicle plannings (:data:`PLANNINGS_PER_VEHICLE` per vehicle), and it stops earlier once
+:data:`STALL_PLANNINGS` plannings in a row have replaced nothing (stop 58: on the stacked plan of
+grid-256 the first gain came after 431 plannings, each against a 43 s horizon), so a seed gives
+the same plan on every machine; a wall-clock deadline stops it only as "not found".
 """
 
 from __future__ import annotations
@@ -51,8 +53,16 @@ from proxplan.planner.timing.profile import rest_to_rest
 # and 6 (6 took pillar-64's repair to 30 s of CPU alone, the issue's whole target; docs/planner.md,
 # stop 56 round 18C)
 PLANNINGS_PER_VEHICLE = 3.0
+# the search stops once this many plannings in a row have replaced nothing (a count that does not
+# grow with the swarm: at 256 vehicles each planning meets a longer horizon, ~0.35 s of CPU against
+# ~0.05 s at 64). Set watching the named layouts in-process (docs/planner.md, stop 58 round 20A):
+# the longest run of plannings before a gain of the makespan was 47 on grid-64, 81 on grid-128, 61
+# on circle-64, 2 on corridor-64 and pillar-64 (their stacked or prioritised plans); grid-256's
+# stacked plan spent 431 plannings before its first gain (768 in all, ~290 s of CPU): with 96 it
+# stops there after 89 (~35 s of CPU), with the plan it had without the repair
+STALL_PLANNINGS = 96
 
-__all__ = ["PLANNINGS_PER_VEHICLE", "budget", "replan", "shorten_makespan"]
+__all__ = ["PLANNINGS_PER_VEHICLE", "STALL_PLANNINGS", "budget", "replan", "shorten_makespan"]
 
 
 def shorten_makespan(
@@ -78,7 +88,8 @@ def shorten_makespan(
     counts = {"plannings": 0, "replaced": 0, "tried": 0, "solo": 0}
     skip: set[int] = {a for a in by_agent if problem.pinned[a]}
     solo_tried: set[int] = set()  # planned alone since the tracks last changed
-    while counts["plannings"] < max_plannings:
+    gained = 0  # the count of plannings when a track last changed (or at the start)
+    while counts["plannings"] < min(max_plannings, gained + STALL_PLANNINGS):
         if deadline is not None and time.perf_counter() > deadline:
             raise PlanNotFound("no plan found within the time budget (makespan repair)")
         order = sorted((a for a in by_agent if a not in skip), key=lambda a: (-by_agent[a].arrival_step, a))
@@ -99,6 +110,7 @@ def shorten_makespan(
                 by_agent[a] = track
                 counts["replaced"] += 1
                 counts["solo"] += 1
+                gained = counts["plannings"]
                 skip = {b for b in by_agent if problem.pinned[b]}
                 solo_tried.clear()
                 continue
@@ -116,8 +128,13 @@ def shorten_makespan(
         counts["tried"] += 1
         orders = [group, [*others, a]] if others else [group]
         promoted: set[int] = set()
-        # a neighbourhood spends at most the whole search's unit per member (PLANNINGS_PER_VEHICLE)
-        until = min(max_plannings, counts["plannings"] + math.ceil(PLANNINGS_PER_VEHICLE * len(group)))
+        # a neighbourhood spends at most the whole search's unit per member (PLANNINGS_PER_VEHICLE),
+        # and nothing past the stall budget (STALL_PLANNINGS since the last gain)
+        until = min(
+            max_plannings,
+            gained + STALL_PLANNINGS,
+            counts["plannings"] + math.ceil(PLANNINGS_PER_VEHICLE * len(group)),
+        )
         while orders:
             seq = orders.pop(0)
             if counts["plannings"] + len(seq) > until:
@@ -146,6 +163,7 @@ def shorten_makespan(
             for track in best.values():
                 occ.put(track)
             counts["replaced"] += 1
+            gained = counts["plannings"]
             skip = {b for b in by_agent if problem.pinned[b]}
             solo_tried.clear()
             continue

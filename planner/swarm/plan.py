@@ -451,13 +451,12 @@ def _retime_stage(
 def _repairs(opts: SwarmOptions, found: Stage) -> bool:
     """Whether the makespan repair runs on the plan of ``found`` (``SwarmOptions.makespan_repair``;
     None: not on the lattice plan (lock-step tracks: nothing replaced on grid-64 and corridor-64 fixed,
-    round 14A) nor on the stacked plan, on elsewhere. On the stacked plan it shortens grid-64 6.95 -> 5.60 s
-    and grid-128 13.0 -> 11.5 s (round 19B, ``makespan_repair=True``), but its count budget (3 plannings per
-    vehicle) took grid-256 past 300 s of CPU with no plan (145 s and a plan without it; stop 57, lead):
-    off by default there until its cost is bounded)."""
+    round 14A), on elsewhere. On the stacked plan it shortens grid-64 6.95 -> 5.60 s and grid-128 13.0 ->
+    11.5 s (round 19B); its stall budget (``makespan.STALL_PLANNINGS``) keeps grid-256's under 300 s of
+    CPU (stop 58, round 20A; off there in stop 57 for that)."""
     if opts.makespan_repair is not None:
         return opts.makespan_repair
-    return found.stage not in ("lattice", "stacked")
+    return found.stage != "lattice"
 
 
 def _makespan_stage(

@@ -1,0 +1,76 @@
+"""The makespan repair's stall budget (proxplan.planner.swarm.makespan.STALL_PLANNINGS, stop 58 round
+20A): the search stops once that many plannings in a row replaced nothing, the count restarts at
+each gain, and with it bounded the repair runs by default on the stacked plan (not on the lattice plan)."""
+
+from __future__ import annotations
+
+import pytest
+
+from proxplan.planfile import scenario_from_dict
+from proxplan.planner.formations import grid_reshuffle
+from proxplan.planner.swarm import SwarmOptions, swarm_problem
+from proxplan.planner.swarm import makespan as makespan_module
+from proxplan.planner.swarm.levels import stacking_keepouts
+from proxplan.planner.swarm.makespan import budget, shorten_makespan
+from proxplan.planner.swarm.plan import _plan, _repairs
+from proxplan.planner.swarm.stage import Stage
+
+HORIZON_MARGIN_STEPS = 100  # 5 s at the grid's 0.05 s, as the swarm layer's own horizon margin
+NO_STALL = 10**6  # a stall budget never reached on 16 vehicles (their whole budget is 48 plannings)
+
+
+@pytest.fixture(scope="module")
+def stacked16():
+    """grid-16 without prioritised planning: the stacked plan, re-timed, before any repair."""
+    sc = scenario_from_dict(grid_reshuffle(16, seed=0), label="test scenario")
+    problem = swarm_problem(sc)
+    strict = stacking_keepouts(problem, sc.limits, sc.field_form, ())
+    opts = SwarmOptions(workers=1, prioritized=False, makespan_repair=False)
+    planned = _plan(problem, 1.0, opts, False, lambda: strict, progress=None, deadline=None)
+    assert planned.stage.stage == "stacked"
+    return problem, dict(planned.tracks)
+
+
+def _repair(problem, before):
+    by_agent = dict(before)
+    horizon = max(t.arrival_step for t in before.values()) + HORIZON_MARGIN_STEPS
+    counts = shorten_makespan(problem, by_agent, horizon, through=False, max_plannings=budget(problem.n_agents))
+    return counts, by_agent
+
+
+def test_a_search_without_gains_stops_after_the_stall_budget(stacked16, monkeypatch):
+    """With no member ever planned (replan gives None) the search spends more than 2 plannings
+    without a stall budget; with a stall budget of 2 it stops by then (a neighbourhood that does not
+    fit in what is left is not started), no track changed."""
+    problem, before = stacked16
+    monkeypatch.setattr(makespan_module, "replan", lambda occ, b, old, worst, through: None)
+    monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", NO_STALL)
+    unbounded, _ = _repair(problem, before)
+    assert unbounded["plannings"] > 2 and unbounded["replaced"] == 0
+    monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", 2)
+    counts, by_agent = _repair(problem, before)
+    assert 1 <= counts["plannings"] <= 2 and counts["replaced"] == 0
+    assert all(by_agent[a] is before[a] for a in before)
+
+
+def test_the_stall_count_restarts_at_each_gain(stacked16, monkeypatch):
+    """With a stall budget of one planning the search goes on past it after the latest vehicle's
+    solo planning shortens the plan (the count restarts there), and ends no later than without a
+    stall budget, which here gains nothing more."""
+    problem, before = stacked16
+    monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", NO_STALL)
+    _, unbounded = _repair(problem, before)
+    monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", 1)
+    counts, by_agent = _repair(problem, before)
+    assert counts["solo"] >= 1 and counts["plannings"] > 1
+    end_before = max(t.arrival_step for t in before.values())
+    end_after = max(t.arrival_step for t in by_agent.values())
+    assert end_after < end_before
+    assert end_after == max(t.arrival_step for t in unbounded.values())
+
+
+@pytest.mark.parametrize(("stage", "runs"), [("stacked", True), ("lattice", False), ("prioritised", True)])
+def test_the_repair_runs_by_default_on_the_stacked_plan(stage, runs):
+    found = Stage(tracks=[], stage=stage, coordination="", routes=lambda a: [])
+    assert _repairs(SwarmOptions(), found) is runs
+    assert _repairs(SwarmOptions(makespan_repair=False), found) is False
