@@ -28,8 +28,9 @@ from proxplan.planner.swarm.tracks import GridTrack
 
 # LaCAM searches (seeds opts.seed + k) of which the lattice plan arriving first is kept. Its plan depends
 # on the seeded tie-breaks of PIBT: pillar-128 fixed, lock-step makespans of seeds 0-4 61.03, 50.05, 66.48,
-# 43.60, 53.93 s (7.4-11.2x the bound; round 20B, benchmarks/why_128.py); each search costs 5-9 s of CPU
-# there. Set watching pillar-128 and corridor-128 (docs/planner.md, stop 58), not the randomised family
+# 43.60, 53.93 s (7.4-11.2x the bound; round 20B, benchmarks/why_128.py), corridor-128 seeds 0-3 102.33,
+# 102.68, 114.15, 113.25 s; each search costs 5-13 s of CPU there. Set watching pillar-128 and corridor-128
+# (docs/planner.md, stop 58), not the randomised family
 LATTICE_SEEDS = 4
 
 __all__ = [
