@@ -159,8 +159,14 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2, help="Dask workers (0: run in this process)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--keep", default="", help="keep the generated logs under this directory")
-    ap.add_argument("--only", type=int, nargs="+", default=None, metavar="K",
-                    help="run only these draws k of the block (0 <= k < --draws): each the same as in the whole block")
+    ap.add_argument(
+        "--only",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="K",
+        help="run only these draws k of the block (0 <= k < --draws): each the same as in the whole block",
+    )
     args = ap.parse_args()
     ks = range(args.draws) if args.only is None else sorted(set(args.only))
     if any(not 0 <= k < args.draws for k in ks):
