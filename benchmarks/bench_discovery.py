@@ -159,8 +159,19 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2, help="Dask workers (0: run in this process)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--keep", default="", help="keep the generated logs under this directory")
+    ap.add_argument(
+        "--only",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="K",
+        help="run only these draws k of the block (0 <= k < --draws): each the same as in the whole block",
+    )
     args = ap.parse_args()
-    jobs = [(args.seed + k, FAMILIES[k % len(FAMILIES)], args.keep) for k in range(args.draws)]
+    ks = range(args.draws) if args.only is None else sorted(set(args.only))
+    if any(not 0 <= k < args.draws for k in ks):
+        ap.error(f"--only: each K must lie in 0..{args.draws - 1} (the block's draws)")
+    jobs = [(args.seed + k, FAMILIES[k % len(FAMILIES)], args.keep) for k in ks]
     t0 = time.perf_counter()
     if args.workers > 0:
         from proxplan.fanout import fan_out
