@@ -26,15 +26,7 @@ from proxplan.planner.swarm.straight import straight_tracks
 from proxplan.planner.swarm.sync import SyncTable
 from proxplan.planner.swarm.tracks import GridTrack
 
-# LaCAM searches (seeds opts.seed + k) of which the lattice plan arriving first is kept. Its plan depends
-# on the seeded tie-breaks of PIBT: pillar-128 fixed, lock-step makespans of seeds 0-4 61.03, 50.05, 66.48,
-# 43.60, 53.93 s (7.4-11.2x the bound; round 20B, benchmarks/why_128.py), corridor-128 seeds 0-3 102.33,
-# 102.68, 114.15, 113.25 s; each search costs 5-13 s of CPU there. Set watching pillar-128 and corridor-128
-# (docs/planner.md, stop 58), not the randomised family
-LATTICE_SEEDS = 4
-
 __all__ = [
-    "LATTICE_SEEDS",
     "gave_up",
     "join_levels",
     "lattice_stage",
@@ -62,7 +54,7 @@ def stage_makespan(stage: Stage) -> float:
 
 def lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> Stage:
     """LaCAM on the lattice, flown in lock-step: the guaranteed answer (or PlanNotFound). LaCAM is run
-    with :data:`LATTICE_SEEDS` seeds (``opts.seed`` + k), each within the same count budget, and the plan
+    with ``opts.lattice_seeds`` seeds (``opts.seed`` + k), each within the same count budget, and the plan
     whose lock-step tracks arrive first is kept (ties: the lower seed); a search that stops on its budget
     is skipped, and PlanNotFound only when every one stops (the first one's reason). A wall-clock
     ``deadline`` only ever stops it as "not found", so the plan kept never depends on the machine."""
@@ -73,7 +65,7 @@ def lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pro
     first_error: PlanNotFound | None = None
     makespans: list[str] = []
     try:
-        for k in range(LATTICE_SEEDS):
+        for k in range(opts.lattice_seeds):
             try:
                 result = Lacam(lattice, sync, seed=opts.seed + k).solve(
                     max_nodes=opts.max_nodes, max_proposals=opts.max_proposals, deadline=deadline, progress=progress
@@ -111,7 +103,7 @@ def lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pro
 
     coordination = (
         f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests "
-        f"(the first-arriving of {LATTICE_SEEDS} seeds, lock-step makespans {', '.join(makespans)} s)"
+        f"(the first-arriving of {opts.lattice_seeds} seeds, lock-step makespans {', '.join(makespans)} s)"
     )
     return Stage(tracks, "lattice", coordination, routes)
 

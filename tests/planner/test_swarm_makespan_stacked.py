@@ -9,7 +9,7 @@ import pytest
 
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import grid_reshuffle
-from proxplan.planner.swarm import SwarmOptions, complete_stages, swarm_problem
+from proxplan.planner.swarm import SwarmOptions, swarm_problem
 from proxplan.planner.swarm import makespan as makespan_module
 from proxplan.planner.swarm.levels import stacking_keepouts
 from proxplan.planner.swarm.lns import colliding_pairs
@@ -28,12 +28,10 @@ def stacked16():
     sc = scenario_from_dict(grid_reshuffle(16, seed=0), label="test scenario")
     problem = swarm_problem(sc)
     strict = stacking_keepouts(problem, sc.limits, sc.field_form, ())
-    opts = SwarmOptions(workers=1, prioritized=False, makespan_repair=False)
     # one LaCAM search, as before round 20B: with four seeds the lattice plan is the shorter here, and
     # this fixture is the stacked plan
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(complete_stages, "LATTICE_SEEDS", 1)
-        planned = _plan(problem, 1.0, opts, False, lambda: strict, progress=None, deadline=None)
+    opts = SwarmOptions(workers=1, prioritized=False, makespan_repair=False, lattice_seeds=1)
+    planned = _plan(problem, 1.0, opts, False, lambda: strict, progress=None, deadline=None)
     assert planned.stage.stage == "stacked"
     return sc, problem, dict(planned.tracks)
 
