@@ -54,28 +54,38 @@ def stage_makespan(stage: Stage) -> float:
 
 def lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, progress, deadline) -> Stage:
     """LaCAM on the lattice, flown in lock-step: the guaranteed answer (or PlanNotFound). LaCAM is run
-    with ``opts.lattice_seeds`` seeds (``opts.seed`` + k), each within the same count budget, and the plan
-    whose lock-step tracks arrive first is kept (ties: the lower seed); a search that stops on its budget
-    is skipped, and PlanNotFound only when every one stops (the first one's reason). A wall-clock
-    ``deadline`` only ever stops it as "not found", so the plan kept never depends on the machine."""
+    with up to ``opts.lattice_seeds`` seeds (``opts.seed`` + k) that SHARE one count budget
+    (``opts.max_nodes`` configurations, ``opts.max_proposals`` proposals): the first search has all of it,
+    as a single search had, and each further seed what the searches before it left; the plan whose
+    lock-step tracks arrive first is kept (ties: the lower seed). A search that stops on what it was given
+    spends the budget and ends the seeds; PlanNotFound only when the first one stops (its reason). So the
+    stage never costs more than one search's budget (stop 58: four seeds with a budget each took grid-256
+    past its 500 s CPU cap). A wall-clock ``deadline`` only ever stops it as "not found", so the plan kept
+    never depends on the machine."""
     lattice = build_lattice(problem, max_run=opts.max_run)
     sync = SyncTable(problem.keepouts, problem.type_index, lattice.pos_mm)
     t1 = time.perf_counter()
     best: tuple[float, list[GridTrack], LacamResult] | None = None
     first_error: PlanNotFound | None = None
     makespans: list[str] = []
+    nodes_left, proposals_left = opts.max_nodes, opts.max_proposals
     try:
         for k in range(opts.lattice_seeds):
+            if nodes_left <= 1 or (proposals_left is not None and proposals_left <= 0):
+                break
             try:
                 result = Lacam(lattice, sync, seed=opts.seed + k).solve(
-                    max_nodes=opts.max_nodes, max_proposals=opts.max_proposals, deadline=deadline, progress=progress
+                    max_nodes=nodes_left, max_proposals=proposals_left, deadline=deadline, progress=progress
                 )
             except PlanNotFound as err:
                 if deadline is not None and time.perf_counter() > deadline:
                     raise
                 first_error = first_error or err
                 makespans.append("not found")
-                continue
+                break
+            nodes_left -= result.nodes
+            if proposals_left is not None:
+                proposals_left -= result.proposals
             tracks = lockstep_tracks(lattice, result.configurations)
             makespan = max(tr.arrival_s for tr in tracks)
             makespans.append(f"{makespan:.2f}")
@@ -103,7 +113,7 @@ def lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pro
 
     coordination = (
         f"LaCAM: {len(configurations) - 1} steps, {result.nodes} configurations, {result.tests} exact pair tests "
-        f"(the first-arriving of {opts.lattice_seeds} seeds, lock-step makespans {', '.join(makespans)} s)"
+        f"(the first-arriving of {len(makespans)} seeds sharing one budget, lock-step makespans {', '.join(makespans)} s)"
     )
     return Stage(tracks, "lattice", coordination, routes)
 

@@ -61,6 +61,7 @@ class LacamResult:
     configurations: list[tuple[int, ...]]  # Q_0 (starts) .. Q_K (goals), vertex per agent
     nodes: int  # configurations generated
     tests: int  # exact synchronous tests computed (cache misses)
+    proposals: int = 0  # PIBT proposals made (the budget's other count)
 
 
 class _Constraint:
@@ -287,7 +288,7 @@ class Lacam:
                 while cur is not None:
                     out.append(cur.config)
                     cur = cur.parent
-                return LacamResult(out[::-1], n, self.sync.computed)
+                return LacamResult(out[::-1], n, self.sync.computed, generated)
             if not node.tree:
                 stack.pop()
                 continue

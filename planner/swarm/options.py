@@ -25,8 +25,10 @@ class SwarmOptions:
     # is the answer (a count: the same plan on every machine). Set on the named layouts at 64
     # fixed (docs/planner.md): two orders need 2, a failing pass 1-3, a pass with repairs 2-3
     plannings_per_vehicle: float = 6.0
-    # LaCAM searches (seeds seed + k, each within max_nodes / max_proposals) of which the lattice plan
-    # arriving first is kept (swarm.complete_stages.lattice_stage). Its plan depends on the seeded tie-breaks
+    # LaCAM searches (seeds seed + k, SHARING one budget of max_nodes / max_proposals: the first has all of
+    # it, each further one what the others left) of which the lattice plan arriving first is kept
+    # (swarm.complete_stages.lattice_stage; a budget each took grid-256 past 500 s of CPU with no plan,
+    # stop 58). Its plan depends on the seeded tie-breaks
     # of PIBT: pillar-128 fixed, lock-step makespans of seeds 0-4 61.03, 50.05, 66.48, 43.60, 53.93 s (7.4-11.2x
     # the bound; round 20B, benchmarks/why_128.py), corridor-128 seeds 0-3 102.33, 102.68, 114.15, 113.25 s;
     # each search costs 5-13 s of CPU there. Set watching pillar-128 and corridor-128 (docs/planner.md, stop
