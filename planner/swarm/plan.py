@@ -451,12 +451,14 @@ def _retime_stage(
 def _repairs(opts: SwarmOptions, found: Stage) -> bool:
     """Whether the makespan repair runs on the plan of ``found`` (``SwarmOptions.makespan_repair``;
     None: not on the lattice plan (lock-step tracks: nothing replaced on grid-64 and corridor-64 fixed,
-    round 14A), on elsewhere. On the stacked plan it shortens grid-64 6.95 -> 5.60 s and grid-128 13.0 ->
-    11.5 s (round 19B); its stall budget (``makespan.STALL_PLANNINGS``) keeps grid-256's under 300 s of
-    CPU (stop 58, round 20A; off there in stop 57 for that)."""
+    round 14A), nor on the stacked plan, on elsewhere. On the stacked plan it shortens grid-64 6.95 -> 5.60
+    s and grid-128 13.0 -> 11.5 s (round 19B), but on grid-256 it ran past 500 s of CPU with no plan even
+    with its stall budget (``makespan.STALL_PLANNINGS``, round 20A) once round 20B's LaCAM seeds gave
+    another stacked plan (stop 58, lead): off there by default until its cost is bounded in the work of
+    a planning, not only in plannings."""
     if opts.makespan_repair is not None:
         return opts.makespan_repair
-    return found.stage != "lattice"
+    return found.stage not in ("lattice", "stacked")
 
 
 def _makespan_stage(
