@@ -141,8 +141,12 @@ FEATURE_DOCS: dict[str, str] = {
     "thrust_kin_ground_N": "own thrust from the motion times exp(-h / L_target)",
     "thrust_kin_speed_xy_Nmps": "own thrust from the motion times its horizontal speed",
 }
-BASIS_WIDTHS_L = (1.0, 2.5)
-"""Radial widths of the multi-scale kernels, in the neighbour's size L (a Gaussian of 1 L and of 2.5 L), -."""
+BASIS_WIDTHS_L = (0.4, 1.0, 2.5)
+"""Radial widths of the multi-scale kernels, in the neighbour's size L, -: a geometric series of ratio 2.5 (the
+ratio of the two earlier widths, 1 L and 2.5 L) taken one step down to 0.4 L, of the order of one rotor's
+wake (a rotor's radius is 0.22-0.31 L on the built-in types) beside the whole vehicle's jet. Stop 54 found the
+misses of the kernel family beside and below were kernels narrower than the narrowest width (0.77 L against
+1 L), their stable candidates the wider ones that lose on flights held out (docs/identify.md, stop 58)."""
 BASIS_DECAYS_L = (1.0, 4.0)
 """Decay lengths of the multi-scale kernels along the distance from the neighbour, in L, -."""
 
