@@ -141,10 +141,33 @@ FEATURE_DOCS: dict[str, str] = {
     "thrust_kin_ground_N": "own thrust from the motion times exp(-h / L_target)",
     "thrust_kin_speed_xy_Nmps": "own thrust from the motion times its horizontal speed",
 }
-BASIS_WIDTHS_L = (1.0, 2.5)
-"""Radial widths of the multi-scale kernels, in the neighbour's size L (a Gaussian of 1 L and of 2.5 L), -."""
+BASIS_WIDTHS_L = (0.4, 1.0, 2.5)
+"""Radial widths of the multi-scale kernels, in the neighbour's size L, -: a geometric series of ratio 2.5 (the
+ratio of the two earlier widths, 1 L and 2.5 L) taken one step down to 0.4 L, of the order of one rotor's
+wake (a rotor's radius is 0.22-0.31 L on the built-in types) beside the whole vehicle's jet. Stop 54 found the
+misses of the kernel family beside and below were kernels narrower than the narrowest width (0.77 L against
+1 L), their stable candidates the wider ones that lose on flights held out (docs/identify.md, stop 58)."""
 BASIS_DECAYS_L = (1.0, 4.0)
 """Decay lengths of the multi-scale kernels along the distance from the neighbour, in L, -."""
+GROUND_SCALES_L = tuple(w for w in BASIS_WIDTHS_L if w != 1.0)
+"""Height scales of the ground-proximity features besides the vehicle's own size (``ground_exp_1``,
+``thrust_kin_ground_N``), in the target's size L, -: the same geometric series as :data:`BASIS_WIDTHS_L`, so
+a ground proximity decaying over 0.4-2.5 L lies between two scales of the dictionary (stop 58: a thrust loss
+decaying over 1.5 L near the ground was missed with the 1 L scale alone; docs/identify.md)."""
+
+
+def ground_scale_names(scale_L: float) -> tuple[str, str]:
+    """The names of the ground proximity exp(-h / (s L)) and of the own thrust times it, for scale s."""
+    tag = f"{scale_L:g}".replace(".", "p")
+    return f"ground_exp_{tag}L_1", f"thrust_kin_ground_{tag}L_N"
+
+
+for _s in GROUND_SCALES_L:
+    _g, _k = ground_scale_names(_s)
+    FEATURE_DOCS[_g] = f"exp(-h / {_s:g} L_target): ground proximity on {_s:g} times the vehicle's own size"
+    FEATURE_DOCS[_k] = f"own thrust from the motion times exp(-h / {_s:g} L_target)"
+GROUND_SCALE_FEATURES = tuple(n for _s in GROUND_SCALES_L for n in ground_scale_names(_s))
+"""The features of :data:`GROUND_SCALES_L` (target-only)."""
 
 
 BASIS_RADIALS = {"above": ("g",), "below": ("g",), "side": ("g", "l")}
@@ -216,7 +239,7 @@ FEATURE_NAMES = tuple(FEATURE_DOCS)
 
 TARGET_ONLY_FEATURES = (
     "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2",
-    "v_z_speed_xy_m2ps2", *ROOM_FEATURES, "thrust_kin_ground_N", "thrust_kin_speed_xy_Nmps",
+    "v_z_speed_xy_m2ps2", *ROOM_FEATURES, "thrust_kin_ground_N", "thrust_kin_speed_xy_Nmps", *GROUND_SCALE_FEATURES,
 )  # fmt: skip
 """Features of the target alone; every other feature is a sum over sources (zero without one)."""
 
@@ -348,6 +371,10 @@ def feature_matrix(
     accel_z = np.zeros(n) if t is None else offset_rate_mps(vel, t)[:, 2]
     thrust_kin = target.mass_kg * (GRAVITY_MPS2 + accel_z)  # not a feature alone: see FEATURE_FAMILIES
     f["thrust_kin_ground_N"] = thrust_kin * f["ground_exp_1"]
+    for scale in GROUND_SCALES_L:
+        g_name, k_name = ground_scale_names(scale)
+        f[g_name] = np.exp(-hc / (scale * target.size_m))
+        f[k_name] = thrust_kin * f[g_name]
     f["thrust_kin_speed_xy_Nmps"] = thrust_kin * f["speed_xy_mps"]
     kernels = []
     for src, (bf, bt) in zip(inputs.sources, base_per_source):
