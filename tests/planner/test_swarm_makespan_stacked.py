@@ -5,35 +5,15 @@ stopped when a member cannot be planned even first; never longer, conflict-free,
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from proxplan.planfile import scenario_from_dict
-from proxplan.planner.formations import grid_reshuffle
-from proxplan.planner.swarm import SwarmOptions, swarm_problem
 from proxplan.planner.swarm import makespan as makespan_module
-from proxplan.planner.swarm.levels import stacking_keepouts
 from proxplan.planner.swarm.lns import colliding_pairs
 from proxplan.planner.swarm.makespan import budget, shorten_makespan
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.plan import _plan
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
 
 HORIZON_MARGIN_STEPS = 100  # 5 s at the grid's 0.05 s, as the swarm layer's own horizon margin
-
-
-@pytest.fixture(scope="module")
-def stacked16():
-    """grid-16 without prioritised planning: the stacked plan, re-timed, before any repair."""
-    sc = scenario_from_dict(grid_reshuffle(16, seed=0), label="test scenario")
-    problem = swarm_problem(sc)
-    strict = stacking_keepouts(problem, sc.limits, sc.field_form, ())
-    # one LaCAM search, as before round 20B: with four seeds the lattice plan is the shorter here, and
-    # this fixture is the stacked plan
-    opts = SwarmOptions(workers=1, prioritized=False, makespan_repair=False, lattice_seeds=1)
-    planned = _plan(problem, 1.0, opts, False, lambda: strict, progress=None, deadline=None)
-    assert planned.stage.stage == "stacked"
-    return sc, problem, dict(planned.tracks)
 
 
 def _horizon(tracks) -> int:

@@ -6,30 +6,14 @@ from __future__ import annotations
 
 import pytest
 
-from proxplan.planfile import scenario_from_dict
-from proxplan.planner.formations import grid_reshuffle
-from proxplan.planner.swarm import SwarmOptions, swarm_problem
+from proxplan.planner.swarm import SwarmOptions
 from proxplan.planner.swarm import makespan as makespan_module
-from proxplan.planner.swarm.levels import stacking_keepouts
 from proxplan.planner.swarm.makespan import budget, shorten_makespan
-from proxplan.planner.swarm.plan import _plan, _repairs
+from proxplan.planner.swarm.plan import _repairs
 from proxplan.planner.swarm.stage import Stage
 
 HORIZON_MARGIN_STEPS = 100  # 5 s at the grid's 0.05 s, as the swarm layer's own horizon margin
 NO_STALL = 10**6  # a stall budget never reached on 16 vehicles (their whole budget is 48 plannings)
-
-
-@pytest.fixture(scope="module")
-def stacked16():
-    """grid-16 without prioritised planning: the stacked plan, re-timed, before any repair."""
-    sc = scenario_from_dict(grid_reshuffle(16, seed=0), label="test scenario")
-    problem = swarm_problem(sc)
-    strict = stacking_keepouts(problem, sc.limits, sc.field_form, ())
-    # one LaCAM search (round 20B's four make the lattice plan the shorter on grid-16): the stacked plan
-    opts = SwarmOptions(workers=1, prioritized=False, makespan_repair=False, lattice_seeds=1)
-    planned = _plan(problem, 1.0, opts, False, lambda: strict, progress=None, deadline=None)
-    assert planned.stage.stage == "stacked"
-    return problem, dict(planned.tracks)
 
 
 def _repair(problem, before):
@@ -43,7 +27,7 @@ def test_a_search_without_gains_stops_after_the_stall_budget(stacked16, monkeypa
     """With no member ever planned (replan gives None) the search spends more than 2 plannings
     without a stall budget; with a stall budget of 2 it stops by then (a neighbourhood that does not
     fit in what is left is not started), no track changed."""
-    problem, before = stacked16
+    _, problem, before = stacked16
     monkeypatch.setattr(makespan_module, "replan", lambda occ, b, old, worst, through: None)
     monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", NO_STALL)
     unbounded, _ = _repair(problem, before)
@@ -58,7 +42,7 @@ def test_the_stall_count_restarts_at_each_gain(stacked16, monkeypatch):
     """With a stall budget of one planning the search goes on past it after the latest vehicle's
     solo planning shortens the plan (the count restarts there), and ends no later than without a
     stall budget, which here gains nothing more."""
-    problem, before = stacked16
+    _, problem, before = stacked16
     monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", NO_STALL)
     _, unbounded = _repair(problem, before)
     monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", 1)
