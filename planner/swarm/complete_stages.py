@@ -71,8 +71,8 @@ def lattice_stage(problem: SwarmProblem, opts: SwarmOptions, extra: dict, *, pro
     nodes_left, proposals_left = opts.max_nodes, opts.max_proposals
     try:
         for k in range(opts.lattice_seeds):
-            if nodes_left <= 1 or (proposals_left is not None and proposals_left <= 0):
-                break
+            if k and (nodes_left <= 1 or (proposals_left is not None and proposals_left <= 0)):
+                break  # the searches before spent the budget (the first one always runs)
             try:
                 result = Lacam(lattice, sync, seed=opts.seed + k).solve(
                     max_nodes=nodes_left, max_proposals=proposals_left, deadline=deadline, progress=progress
