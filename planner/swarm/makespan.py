@@ -72,12 +72,14 @@ def shorten_makespan(
     *,
     through: bool,
     max_plannings: int,
+    stall_plannings: int = STALL_PLANNINGS,
     deadline: float | None = None,
 ) -> dict[str, int]:
     """Replace neighbourhoods of ``by_agent`` (agent -> track, conflict-free; changed in place) as
     long as they shorten (see module), within ``max_plannings`` single-vehicle plannings over the
-    ``horizon_steps`` grid; ``through``: fly through waypoints (else rest to rest). Returns the
-    counts: ``plannings``, ``replaced`` (neighbourhoods), ``tried`` (neighbourhoods)."""
+    ``horizon_steps`` grid, stopping once ``stall_plannings`` plannings in a row replaced nothing;
+    ``through``: fly through waypoints (else rest to rest). Returns the counts: ``plannings``,
+    ``replaced`` (neighbourhoods), ``tried`` (neighbourhoods)."""
     occ = Occupancy(problem, list(by_agent.values()), horizon_steps)
     alone = {  # each vehicle's straight line alone, rest to rest, in steps: nothing arrives earlier
         a: rest_to_rest(
@@ -89,7 +91,7 @@ def shorten_makespan(
     skip: set[int] = {a for a in by_agent if problem.pinned[a]}
     solo_tried: set[int] = set()  # planned alone since the tracks last changed
     gained = 0  # the count of plannings when a track last changed (or at the start)
-    while counts["plannings"] < min(max_plannings, gained + STALL_PLANNINGS):
+    while counts["plannings"] < min(max_plannings, gained + stall_plannings):
         if deadline is not None and time.perf_counter() > deadline:
             raise PlanNotFound("no plan found within the time budget (makespan repair)")
         order = sorted((a for a in by_agent if a not in skip), key=lambda a: (-by_agent[a].arrival_step, a))
@@ -129,10 +131,10 @@ def shorten_makespan(
         orders = [group, [*others, a]] if others else [group]
         promoted: set[int] = set()
         # a neighbourhood spends at most the whole search's unit per member (PLANNINGS_PER_VEHICLE),
-        # and nothing past the stall budget (STALL_PLANNINGS since the last gain)
+        # and nothing past the stall budget (stall_plannings since the last gain)
         until = min(
             max_plannings,
-            gained + STALL_PLANNINGS,
+            gained + stall_plannings,
             counts["plannings"] + math.ceil(PLANNINGS_PER_VEHICLE * len(group)),
         )
         while orders:

@@ -16,10 +16,12 @@ HORIZON_MARGIN_STEPS = 100  # 5 s at the grid's 0.05 s, as the swarm layer's own
 NO_STALL = 10**6  # a stall budget never reached on 16 vehicles (their whole budget is 48 plannings)
 
 
-def _repair(problem, before):
+def _repair(problem, before, stall: int):
     by_agent = dict(before)
     horizon = max(t.arrival_step for t in before.values()) + HORIZON_MARGIN_STEPS
-    counts = shorten_makespan(problem, by_agent, horizon, through=False, max_plannings=budget(problem.n_agents))
+    counts = shorten_makespan(
+        problem, by_agent, horizon, through=False, max_plannings=budget(problem.n_agents), stall_plannings=stall
+    )
     return counts, by_agent
 
 
@@ -29,24 +31,20 @@ def test_a_search_without_gains_stops_after_the_stall_budget(stacked16, monkeypa
     fit in what is left is not started), no track changed."""
     _, problem, before = stacked16
     monkeypatch.setattr(makespan_module, "replan", lambda occ, b, old, worst, through: None)
-    monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", NO_STALL)
-    unbounded, _ = _repair(problem, before)
+    unbounded, _ = _repair(problem, before, NO_STALL)
     assert unbounded["plannings"] > 2 and unbounded["replaced"] == 0
-    monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", 2)
-    counts, by_agent = _repair(problem, before)
+    counts, by_agent = _repair(problem, before, 2)
     assert 1 <= counts["plannings"] <= 2 and counts["replaced"] == 0
     assert all(by_agent[a] is before[a] for a in before)
 
 
-def test_the_stall_count_restarts_at_each_gain(stacked16, monkeypatch):
+def test_the_stall_count_restarts_at_each_gain(stacked16):
     """With a stall budget of one planning the search goes on past it after the latest vehicle's
     solo planning shortens the plan (the count restarts there), and ends no later than without a
     stall budget, which here gains nothing more."""
     _, problem, before = stacked16
-    monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", NO_STALL)
-    _, unbounded = _repair(problem, before)
-    monkeypatch.setattr(makespan_module, "STALL_PLANNINGS", 1)
-    counts, by_agent = _repair(problem, before)
+    _, unbounded = _repair(problem, before, NO_STALL)
+    counts, by_agent = _repair(problem, before, 1)
     assert counts["solo"] >= 1 and counts["plannings"] > 1
     end_before = max(t.arrival_step for t in before.values())
     end_after = max(t.arrival_step for t in by_agent.values())
