@@ -60,21 +60,25 @@ def straight_tracks(problem: SwarmProblem, agents: list[int]) -> dict[int, GridT
     return out
 
 
+def own_straight_track(problem: SwarmProblem, a: int) -> GridTrack:
+    """Agent ``a`` straight to its goal at its own limits from t = 0, rest to rest (resting where it has
+    no line or is pinned)."""
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    length = float(np.linalg.norm(g - s))
+    moves = (
+        []
+        if length <= 0.0 or problem.pinned[a]
+        else [(0, LineMove(s, g, rest_to_rest(length, problem.limits[a], GRID_DT_S)))]
+    )
+    return GridTrack(a, int(problem.type_index[a]), s.copy(), moves)
+
+
 def kept_straight_lines(problem: SwarmProblem, horizon_steps: int) -> tuple[dict[int, GridTrack], set[int]]:
     """(the straight tracks of the vehicles in no conflict, each at its own limits from t = 0; the
     vehicles in conflict): every moving vehicle's straight line against all the others' (see module)."""
     from proxplan.planner.swarm.occupancy import Occupancy
 
-    tracks = {}
-    for a in range(problem.n_agents):
-        s, g = problem.starts_m[a], problem.goals_m[a]
-        length = float(np.linalg.norm(g - s))
-        mv = (
-            []
-            if length <= 0.0 or problem.pinned[a]
-            else [(0, LineMove(s, g, rest_to_rest(length, problem.limits[a], GRID_DT_S)))]
-        )
-        tracks[a] = GridTrack(a, int(problem.type_index[a]), s.copy(), mv)
+    tracks = {a: own_straight_track(problem, a) for a in range(problem.n_agents)}
     occ = Occupancy(problem, list(tracks.values()), horizon_steps)
     conflicted: set[int] = {
         a for a in range(problem.n_agents) if not problem.segment_free(problem.starts_m[a], problem.goals_m[a])

@@ -39,10 +39,10 @@ from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
-from proxplan.planner.swarm.straight import straight_step_conflicts
+from proxplan.planner.swarm.straight import own_straight_track, straight_step_conflicts
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing import CORNER_DEVIATION_M
-from proxplan.planner.timing.profile import LineMove, RunMove, rest_to_rest
+from proxplan.planner.timing.profile import RunMove
 
 # how far beside the middle of its line a yielding vehicle's corner lies, in units of the widest
 # keep-out's horizontal reach (problem.reach_xy_m): from half of it (the other's column just cleared
@@ -95,18 +95,6 @@ def choose_yielders(problem: SwarmProblem, pairs: list[tuple[int, int]]) -> set[
     return out
 
 
-def _straight_track(problem: SwarmProblem, a: int) -> GridTrack:
-    """Agent ``a`` straight to its goal at its own limits from t = 0 (resting where it has no line)."""
-    s, g = problem.starts_m[a], problem.goals_m[a]
-    length = float(np.linalg.norm(g - s))
-    moves = (
-        []
-        if length <= 0.0 or problem.pinned[a]
-        else [(0, LineMove(s, g, rest_to_rest(length, problem.limits[a], GRID_DT_S)))]
-    )
-    return GridTrack(a, int(problem.type_index[a]), s.copy(), moves)
-
-
 def _chains(problem: SwarmProblem, a: int, right_only: bool = False) -> list[np.ndarray]:
     """The straight line and the corner chains of a yielding vehicle (see module); ``right_only``:
     only the corners on its right (seen from above, heading to its goal), no straight line."""
@@ -130,7 +118,7 @@ def _blockers(occ: Occupancy, problem: SwarmProblem, a: int) -> set[int]:
     at its start or at its goal: the vehicles that hem a yielding vehicle in."""
     s, g = problem.starts_m[a], problem.goals_m[a]
     ta = int(problem.type_index[a])
-    out = occ.conflicting_agents(_straight_track(problem, a))
+    out = occ.conflicting_agents(own_straight_track(problem, a))
     out |= occ.conflicting_agents(GridTrack(a, ta, s.copy(), []))
     out |= occ.conflicting_agents(GridTrack(a, ta, g.copy(), []))
     return out
@@ -171,7 +159,7 @@ def _place(
     """Every vehicle not in ``yielders`` on its straight line, each yielding vehicle timed after them,
     those of ``first`` first (the last raised first), the others longest line first (see module): (the
     tracks by agent, or None; the agent that could not be timed, -1 if none; the vehicles hemming it in)."""
-    fixed = {a: _straight_track(problem, a) for a in range(problem.n_agents) if a not in yielders}
+    fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in yielders}
     occ = Occupancy(problem, list(fixed.values()), horizon_steps)
     length = _line_lengths_m(problem)
     tracks = dict(fixed)
@@ -179,7 +167,7 @@ def _place(
     if right_hand:  # the yielding vehicles not timed yet: predicted on their smallest bulge to the right
         for a in yielders:
             if a in leaders:
-                line = _straight_track(problem, a)
+                line = own_straight_track(problem, a)
                 ghost: GridTrack | None = line.vanishing(line.arrival_step + 1)
             else:
                 ghost = _right_prediction(problem, a)
@@ -227,7 +215,7 @@ def yielding_stage(
         if right_hand
         else choose_yielders(problem, [(i, j) for i, j in pairs])
     )
-    fixed = {a: _straight_track(problem, a) for a in range(problem.n_agents) if a not in yielders}
+    fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in yielders}
     occ = Occupancy(problem, list(fixed.values()), horizon_steps)
     for a, tr in fixed.items():  # own-limit lines that meet on the grid (not in the synchronised test)
         hit = occ.conflicting_agents(tr) - yielders
