@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from proxplan.planner.swarm.arc_timing import time_arc
 from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
@@ -54,8 +55,13 @@ ASIDE_REACH_FACTORS = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
 # times (a count, so the same problem gives the same plan); set on the named layouts (round 20S):
 # circle 16-128 need 1 round, grid-16 keeping right 4, grid 32-128 found none within 9
 MAX_YIELD_ROUNDS = 4
+# the bulges of a yielding vehicle's smooth detours (swarm.arc_timing, timing.arcs), in units of the
+# widest keep-out's horizontal reach, tried beside its corners: from a quarter of it to the widest
+# corner's rounded offset; chosen before any run (round 21S)
+ARC_REACH_FACTORS = (0.25, 0.5, 0.75, 1.0, 1.25)
 
 __all__ = [
+    "ARC_REACH_FACTORS",
     "ASIDE_REACH_FACTORS",
     "MAX_YIELD_ROUNDS",
     "YieldResult",
@@ -135,13 +141,32 @@ def _right_prediction(problem: SwarmProblem, a: int) -> GridTrack | None:
     return track.vanishing(track.arrival_step + 1)
 
 
+def _arc_bulges(problem: SwarmProblem, a: int, right_only: bool) -> list[np.ndarray]:
+    """The bulges (3,), m, of agent ``a``'s arcs: :data:`ARC_REACH_FACTORS` times the widest keep-out's
+    horizontal reach, to either side of its line (to its right only with ``right_only``)."""
+    d = problem.goals_m[a] - problem.starts_m[a]
+    horizontal = np.array([-d[1], d[0], 0.0])
+    norm = float(np.linalg.norm(horizontal))
+    if norm <= 1e-9:  # a vertical line: no side to bulge to (its corners lie along x)
+        return []
+    side = horizontal / norm
+    signs = (-1.0,) if right_only else (1.0, -1.0)
+    return [sign * f * problem.reach_xy_m * side for f in ARC_REACH_FACTORS for sign in signs]
+
+
 def _time_yielding(occ: Occupancy, problem: SwarmProblem, a: int, right: bool, arrive_by: int | None):
-    """The earliest :func:`time_chain` of agent ``a`` over its chains (:func:`_chains`) arriving by step
-    ``arrive_by`` (None: any), or None."""
+    """The earliest :func:`time_chain` of agent ``a`` over its chains (:func:`_chains`) and the earliest
+    :func:`time_arc` over its arcs (:func:`_arc_bulges`, with ``arcs``), arriving by step ``arrive_by``
+    (None: any), or None."""
     best = None
     for chain in _chains(problem, a, right) or _chains(problem, a):
         bound = arrive_by if best is None else best.arrival_step - 1
         got = time_chain(occ, a, chain, arrive_by=bound, through=True)
+        if got is not None and (best is None or got.arrival_step < best.arrival_step):
+            best = got
+    for bulge in _arc_bulges(problem, a, right) if ARC_REACH_FACTORS else ():
+        bound = arrive_by if best is None else best.arrival_step - 1
+        got = time_arc(occ, a, bulge, arrive_by=bound)
         if got is not None and (best is None or got.arrival_step < best.arrival_step):
             best = got
     return best
