@@ -57,4 +57,3 @@ def time_arc(occ: Occupancy, agent: int, bulge_m: np.ndarray, *, arrive_by: int 
     route = np.array([s, 0.5 * (s + g) + np.asarray(bulge_m, dtype=float), g])
     track = GridTrack(agent, int(problem.type_index[agent]), s.copy(), [(d, mv)], route_m=route)
     return ChainResult(track, d + mv.steps)
-
