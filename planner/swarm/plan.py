@@ -345,14 +345,14 @@ def _plan(
         )
         if yielded is not None and found is None:
             found = yielded
-        elif yielded is not None:  # the shorter once re-timed (round 21S: random-1 was shorter before, longer after)
-            retimed = [
+        elif yielded is not None and found is not None:  # the shorter once re-timed (round 21S: random-1 was
+            retimed = [  # shorter before re-timing, longer after); ties: the plan in hand
                 (
                     stage,
                     _retime_stage(problem, stage, stage_makespan(stage), opts, progress=progress, deadline=deadline),
                 )
                 for stage in (found, yielded)
-            ]  # ties: the plan in hand
+            ]
             found, pre_retimed = min(retimed, key=lambda r: max(tr.arrival_s for tr in r[1][0].values()))
     give_up: GiveUpHandOn | None = None
     if found is None:
