@@ -61,12 +61,15 @@ def _norm_peaks(profile: Profile, chord_m: float, bulge_m: np.ndarray, delta_m: 
 
 
 @lru_cache(maxsize=4096)
-def _cached_profile(chord_m: float, bulge_key: tuple[float, float, float], delta_key, limits, dt_s) -> Profile:
-    delta = np.array(delta_key)
-    bulge = np.array(bulge_key)
+def _cached_profile(chord_m: float, bulge_m: float, along_m: float, limits: KinematicLimits, dt_s: float) -> Profile:
+    """:func:`arc_profile` of a chord of ``chord_m`` and a bulge of norm ``bulge_m`` whose component
+    along the chord is ``along_m`` (m): the norms of v, a and j depend on nothing else (a rotation
+    leaves them unchanged), so arcs of the same shape share one profile."""
     first = rest_to_rest(chord_m, limits, dt_s)
-    if not np.any(bulge):
+    if bulge_m <= 0.0:
         return first
+    delta = np.array([chord_m, 0.0, 0.0])
+    bulge = np.array([along_m, math.sqrt(max(bulge_m * bulge_m - along_m * along_m, 0.0)), 0.0])
     v, a, j = _norm_peaks(first, chord_m, bulge, delta)
     f = LIMIT_FRACTION
     c = max(
@@ -83,10 +86,10 @@ def arc_profile(p0_m: np.ndarray, p1_m: np.ndarray, bulge_m: np.ndarray, limits:
     """The profile along the chord (see module) with which the arc p0 -> p1 (m) bulging by ``bulge_m``
     (m) stays within ``limits``, on the ``dt_s`` grid (s)."""
     delta = np.asarray(p1_m, dtype=float) - np.asarray(p0_m, dtype=float)
+    bulge = np.asarray(bulge_m, dtype=float)
     chord = float(np.linalg.norm(delta))
-    key = tuple(round(float(x), 12) for x in np.asarray(bulge_m, dtype=float))
-    dkey = tuple(round(float(x), 12) for x in delta)
-    return _cached_profile(round(chord, 12), key, dkey, limits, dt_s)
+    along = float(np.dot(bulge, delta)) / chord if chord > 0.0 else 0.0
+    return _cached_profile(round(chord, 9), round(float(np.linalg.norm(bulge)), 9), round(along, 9), limits, dt_s)
 
 
 class ArcMove:
