@@ -277,7 +277,7 @@ def yielding_stage(
                 None,
                 tuple(sorted(yielders)),
                 f"gave up after {rounds} round(s): vehicle {problem.names[stuck]} (yielding) has no timing along "
-                f"its line or a corner beside it arriving within "
+                f"its line or a corner or arc beside it arriving within "
                 f"{(horizon_steps if arrive_by is None else arrive_by) * GRID_DT_S:.2f} s"
                 + ("" if grown or raise_it else ", first already"),
             )
