@@ -330,6 +330,7 @@ def _plan(
     tried; None: no stacked plan)."""
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
+    pre_retimed: tuple[dict[int, GridTrack], RetimeInfo] | None = None  # ``found`` re-timed, where already
     found = straight_stage(problem) if not conflicts else None
     straight = found is not None
     if found is None and opts.prioritized:
@@ -342,8 +343,17 @@ def _plan(
         yielded = yielding_candidate(
             problem, horizon_steps(lower_bound), extra, shorter_than_s=in_hand, pairs=conflicts
         )
-        if yielded is not None and (found is None or stage_makespan(yielded) < stage_makespan(found)):
+        if yielded is not None and found is None:
             found = yielded
+        elif yielded is not None and found is not None:  # the shorter once re-timed (round 21S: random-1 was
+            retimed = [  # shorter before re-timing, longer after); ties: the plan in hand
+                (
+                    stage,
+                    _retime_stage(problem, stage, stage_makespan(stage), opts, progress=progress, deadline=deadline),
+                )
+                for stage in (found, yielded)
+            ]
+            found, pre_retimed = min(retimed, key=lambda r: max(tr.arrival_s for tr in r[1][0].values()))
     give_up: GiveUpHandOn | None = None
     if found is None:
         if progress:
@@ -368,7 +378,10 @@ def _plan(
             found = gave_up(lattice, stacked, opts, extra)
     searched = found
     initial = max(tr.arrival_s for tr in found.tracks)
-    by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
+    if pre_retimed is not None:
+        by_agent, retiming = pre_retimed
+    else:
+        by_agent, retiming = _retime_stage(problem, found, initial, opts, progress=progress, deadline=deadline)
     heights = heights_on(opts, assigned, problem.n_agents, extra)
     heights_stage: list[Stage] = []  # the pass's tracks, where it gave other tracks (then re-timed here)
     if heights and opts.prioritized and not straight and found.stage != "stacked":

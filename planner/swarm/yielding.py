@@ -18,7 +18,9 @@ too). Each yielding vehicle, longest line first, is timed against the tracks fix
 (:func:`~proxplan.planner.swarm.chain.time_chain`: waits at any waypoint, moves straight or flown
 *through* the corner, exact against the tracks) along the best of its straight line and the chains
 start -> corner -> goal, the corner beside the line's middle :data:`ASIDE_REACH_FACTORS` times the
-widest keep-out's horizontal reach aside. Where one cannot be timed, the vehicles hemming it in
+widest keep-out's horizontal reach aside, and of the smooth arcs bulging :data:`ARC_REACH_FACTORS` times
+that reach aside (:func:`~proxplan.planner.swarm.arc_timing.time_arc`: a delayed start, then one
+flight timed along the curve without slowing at a corner; round 21S: circle-64 1.42x -> 1.24x). Where one cannot be timed, the vehicles hemming it in
 (meeting its line, or it resting at its start or goal) yield too, or where they all yield already it
 is timed first, and all are placed again, at most :data:`MAX_YIELD_ROUNDS` times; then the stage
 gives up (None) and says so. Every track is checked exactly against those timed before it, so the
@@ -35,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from proxplan.planner.swarm.arc_timing import time_arc
 from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
@@ -54,8 +57,13 @@ ASIDE_REACH_FACTORS = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
 # times (a count, so the same problem gives the same plan); set on the named layouts (round 20S):
 # circle 16-128 need 1 round, grid-16 keeping right 4, grid 32-128 found none within 9
 MAX_YIELD_ROUNDS = 4
+# the bulges of a yielding vehicle's smooth detours (swarm.arc_timing, timing.arcs), in units of the
+# widest keep-out's horizontal reach, tried beside its corners: from a quarter of it to the widest
+# corner's rounded offset; chosen before any run (round 21S)
+ARC_REACH_FACTORS = (0.25, 0.5, 0.75, 1.0, 1.25)
 
 __all__ = [
+    "ARC_REACH_FACTORS",
     "ASIDE_REACH_FACTORS",
     "MAX_YIELD_ROUNDS",
     "YieldResult",
@@ -135,13 +143,34 @@ def _right_prediction(problem: SwarmProblem, a: int) -> GridTrack | None:
     return track.vanishing(track.arrival_step + 1)
 
 
-def _time_yielding(occ: Occupancy, problem: SwarmProblem, a: int, right: bool, arrive_by: int | None):
-    """The earliest :func:`time_chain` of agent ``a`` over its chains (:func:`_chains`) arriving by step
+def _arc_bulges(problem: SwarmProblem, a: int, right_only: bool, factors: tuple[float, ...]) -> list[np.ndarray]:
+    """The bulges (3,), m, of agent ``a``'s arcs: ``factors`` times the widest keep-out's horizontal
+    reach, to either side of its line (to its right only with ``right_only``)."""
+    d = problem.goals_m[a] - problem.starts_m[a]
+    horizontal = np.array([-d[1], d[0], 0.0])
+    norm = float(np.linalg.norm(horizontal))
+    if norm <= 1e-9:  # a vertical line: no side to bulge to (its corners lie along x)
+        return []
+    side = horizontal / norm
+    signs = (-1.0,) if right_only else (1.0, -1.0)
+    return [sign * f * problem.reach_xy_m * side for f in factors for sign in signs]
+
+
+def _time_yielding(
+    occ: Occupancy, problem: SwarmProblem, a: int, right: bool, arrive_by: int | None, arc_factors: tuple[float, ...]
+):
+    """The earliest :func:`time_chain` of agent ``a`` over its chains (:func:`_chains`) and the earliest
+    :func:`time_arc` over its arcs (:func:`_arc_bulges` of ``arc_factors``), arriving by step
     ``arrive_by`` (None: any), or None."""
     best = None
     for chain in _chains(problem, a, right) or _chains(problem, a):
         bound = arrive_by if best is None else best.arrival_step - 1
         got = time_chain(occ, a, chain, arrive_by=bound, through=True)
+        if got is not None and (best is None or got.arrival_step < best.arrival_step):
+            best = got
+    for bulge in _arc_bulges(problem, a, right, arc_factors):
+        bound = arrive_by if best is None else best.arrival_step - 1
+        got = time_arc(occ, a, bulge, arrive_by=bound)
         if got is not None and (best is None or got.arrival_step < best.arrival_step):
             best = got
     return best
@@ -155,6 +184,7 @@ def _place(
     right_hand: bool,
     leaders: frozenset[int] = frozenset(),
     arrive_by: int | None = None,
+    arc_factors: tuple[float, ...] = ARC_REACH_FACTORS,
 ) -> tuple[dict[int, GridTrack] | None, int, set[int]]:
     """Every vehicle not in ``yielders`` on its straight line, each yielding vehicle timed after them,
     those of ``first`` first (the last raised first), the others longest line first (see module): (the
@@ -179,12 +209,12 @@ def _place(
     for a in raised + rest:
         occ.remove(a)
         predicted.discard(a)
-        best = _time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by)
+        best = _time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by, arc_factors)
         if best is None and predicted:  # the predictions hem it in: they are dropped, not the plan
             for b in predicted:
                 occ.remove(b)
             predicted.clear()
-            best = _time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by)
+            best = _time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by, arc_factors)
         if best is None:
             return None, a, _blockers(occ, problem, a)
         tracks[a] = best.track
@@ -199,11 +229,13 @@ def yielding_stage(
     right_hand: bool = False,
     arrive_by: int | None = None,
     pairs: list[tuple[int, int]] | None = None,
+    arc_factors: tuple[float, ...] = ARC_REACH_FACTORS,
 ) -> YieldResult:
     """The plan of the module (``horizon_steps``: grid steps of ``GRID_DT_S`` a timing may use;
     ``right_hand``: every vehicle in a conflicting pair yields, keeping to its right; ``arrive_by``:
     only a plan whose every vehicle arrives by this step is of interest, e.g. one shorter than a plan in
-    hand; None: any; ``pairs``: the straight step's conflicts where already found)."""
+    hand; None: any; ``pairs``: the straight step's conflicts where already found; ``arc_factors``:
+    the bulges of the arcs tried, :data:`ARC_REACH_FACTORS`; () for corners alone)."""
     if pairs is None:
         pairs = straight_step_conflicts(problem)
     if not pairs:
@@ -232,7 +264,9 @@ def yielding_stage(
     rounds = 0
     first: list[int] = []
     while True:
-        tracks, stuck, hem = _place(problem, horizon_steps, yielders, first, right_hand, leaders, arrive_by)
+        tracks, stuck, hem = _place(
+            problem, horizon_steps, yielders, first, right_hand, leaders, arrive_by, arc_factors
+        )
         if tracks is not None:
             break
         grown = {b for b in hem if not problem.pinned[b]} - yielders
@@ -243,7 +277,7 @@ def yielding_stage(
                 None,
                 tuple(sorted(yielders)),
                 f"gave up after {rounds} round(s): vehicle {problem.names[stuck]} (yielding) has no timing along "
-                f"its line or a corner beside it arriving within "
+                f"its line or a corner or arc beside it arriving within "
                 f"{(horizon_steps if arrive_by is None else arrive_by) * GRID_DT_S:.2f} s"
                 + ("" if grown or raise_it else ", first already"),
             )
@@ -266,11 +300,13 @@ def yielding_candidate(
     *,
     shorter_than_s: float | None = None,
     pairs: list[tuple[int, int]] | None = None,
+    arc_factors: tuple[float, ...] = ARC_REACH_FACTORS,
 ) -> Stage | None:
     """The shorter of :func:`yielding_stage` with the shorter line of each pair yielding and with every
     vehicle in a conflict keeping right (None where both give up), each asked for a plan shorter than
     ``shorter_than_s`` (s; the plan in hand) and than the first's (``pairs``: the straight step's
-    conflicts where already found); what each gave in ``extra["yielding"]``."""
+    conflicts where already found; ``arc_factors``: as :func:`yielding_stage`); what each gave in
+    ``extra["yielding"]``."""
     if pairs is None:
         pairs = straight_step_conflicts(problem)
     best: Stage | None = None
@@ -278,7 +314,9 @@ def yielding_candidate(
     for label, right in (("shorter line yields", False), ("keep right", True)):
         bound_s = shorter_than_s if best is None else max(tr.arrival_s for tr in best.tracks)
         arrive_by = None if bound_s is None else int(round(bound_s / GRID_DT_S)) - 1
-        got = yielding_stage(problem, horizon_steps, right_hand=right, arrive_by=arrive_by, pairs=pairs)
+        got = yielding_stage(
+            problem, horizon_steps, right_hand=right, arrive_by=arrive_by, pairs=pairs, arc_factors=arc_factors
+        )
         if got.stage is None:
             said.append(f"{label}: {got.note}")
             continue

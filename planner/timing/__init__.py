@@ -5,6 +5,7 @@ common time grid of plan.json onto which timed paths are assembled into a plan.
 Modules: :mod:`~proxplan.planner.timing.durations` (rest-to-rest minimum times),
 :mod:`~proxplan.planner.timing.segments` (single Ruckig segments),
 :mod:`~proxplan.planner.timing.corners` (runs through waypoints without stopping),
+:mod:`~proxplan.planner.timing.arcs` (a smooth detour timed along its path, ``ArcMove``: import it from there),
 :mod:`~proxplan.planner.timing.paths` (timed waypoint paths),
 :mod:`~proxplan.planner.timing.plan_grid` (the common grid and plan assembly).
 """
