@@ -11,8 +11,18 @@ goals (one worker, reserved starts) and prints:
 * the plan kept: its stage, makespan against the bound, and the latest vehicle of the tracks before
   re-timing: its moves, the time it flies and the time it waits, against its own straight line.
 
+With ``--one-pass`` (round 21B) it runs instead one pass of prioritised planning of the whole swarm in
+the dependency order with the stage's options (reserved starts, hold ``--hold-s``, the stage's repair,
+planning and in-collision counts) and prints how it ended: plannings, CPU, vehicles still queued when it
+gave up, vehicles planned through a holding point (``--holding``: ``PriorityOptions.holding``, swarm.holding),
+and how many ordered pairs (a, b) have a's start AND goal within keep-out of b's track flown alone (a must
+leave before b passes and arrive after it). ``--whole-box``: the wavefront searches the whole free box
+when the start-goal box grown by ``MARGIN_M`` holds no route (not only where the straight line crosses a
+wall; a diagnosis, monkeypatched here).
+
 Usage (from outside the repository, so that the interpreter's installed proxplan is imported):
     cd /tmp && PY /path/to/benchmarks/why_128.py --layout pillar --n 128
+    cd /tmp && PY /path/to/benchmarks/why_128.py --layout pillar --n 128 --one-pass --holding
 """
 
 from __future__ import annotations
@@ -73,11 +83,88 @@ def _print_pass(rec: dict) -> None:
         print(f"    how: {dict(reasons.most_common(4))}")
 
 
+def cycle_pairs(problem, horizon_steps: int) -> int:
+    """Ordered pairs (a, b) with a's start and goal both within keep-out of b's ideal track (its flight
+    alone): a must leave before b passes its start and arrive after b passes its goal."""
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.swarm.reserve import ideal_track, starts_in_the_way
+    from proxplan.planner.swarm.tracks import GridTrack
+
+    A = problem.n_agents
+    ideal = {a: ideal_track(problem, a, horizon_steps) for a in range(A)}
+    starts_on = starts_in_the_way(problem, ideal, horizon_steps)
+    parked = [GridTrack(a, int(problem.type_index[a]), problem.goals_m[a].copy(), []) for a in range(A)]
+    goals = Occupancy(problem, parked, horizon_steps)
+    return sum(len(starts_on[b] & (goals.conflicting_agents(tr) - {b})) for b, tr in ideal.items() if tr is not None)
+
+
+def one_pass(args) -> int:
+    """One prioritised pass of the whole swarm (see module, ``--one-pass``)."""
+    import math
+
+    import proxplan.planner.swarm.wave as wave
+    from proxplan.planfile.scenario_load import scenario_from_dict
+    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.sampling.ordering import lower_bound_makespan_s
+    from proxplan.planner.swarm import SwarmOptions, swarm_problem
+    from proxplan.planner.swarm.frozen import unfrozen_problem
+    from proxplan.planner.swarm.prioritised_stage import horizon_steps, prioritised_budget
+    from proxplan.planner.swarm.priority import (
+        PrioritizedFailed,
+        PriorityOptions,
+        dependency_order,
+        in_collision_cap,
+        prioritized_tracks,
+    )
+
+    if args.whole_box:
+        wave.route_box = lambda problem, s, g: (problem.lo_m[:2].copy(), problem.hi_m[:2].copy())
+    scenario = scenario_from_dict(LAYOUTS[args.layout](args.n))
+    problem, _, _ = unfrozen_problem(swarm_problem(scenario))
+    lower_bound = lower_bound_makespan_s(scenario)
+    horizon = horizon_steps(lower_bound)
+    opts = SwarmOptions()
+    n = problem.n_agents
+    options = PriorityOptions(
+        max_repairs=math.ceil(opts.repairs_per_vehicle * n),
+        max_plannings=prioritised_budget(problem, opts),
+        hold_s=args.hold_s,
+        reserve_starts=True,
+        through=False,
+        give_up_early=True,
+        max_in_collision=in_collision_cap(n),
+        holding=args.holding,
+    )
+    print(
+        f"{args.layout}-{args.n}: {cycle_pairs(problem, horizon)} ordered pairs with start and goal on the other's track"
+    )
+    t0 = time.process_time()
+    try:
+        result = prioritized_tracks(problem, dependency_order(problem), options, horizon_steps=horizon)
+    except PrioritizedFailed as err:
+        print(f"  gave up after {err.planned} plannings, {time.process_time() - t0:.1f} s CPU")
+        print(f"  planned through a holding point: {sum(' via a holding point' in h for h in err.history)}")
+        print(f"  last: {err.history[-1][:200]}")
+        return 0
+    makespan = max(tr.arrival_s for tr in result.tracks.values())
+    print(
+        f"  plan {makespan:.2f} s = {makespan / lower_bound:.2f}x after {result.planned} plannings, "
+        f"{result.repairs} repairs, {result.held} through a holding point, {time.process_time() - t0:.1f} s CPU"
+    )
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--layout", default="pillar")
     ap.add_argument("--n", type=int, default=128)
+    ap.add_argument("--one-pass", action="store_true", help="one prioritised pass only (see module)")
+    ap.add_argument("--hold-s", type=float, default=1.0, help="with --one-pass: the hold of released starts, s")
+    ap.add_argument("--holding", action="store_true", help="with --one-pass: PriorityOptions.holding")
+    ap.add_argument("--whole-box", action="store_true", help="with --one-pass: the wavefront's whole-box fallback")
     args = ap.parse_args()
+    if args.one_pass:
+        return one_pass(args)
 
     import proxplan
     import proxplan.planner.swarm.priority as priority

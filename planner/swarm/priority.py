@@ -31,7 +31,8 @@ whole pass. When nothing planned is in the way of its ideal track (only predicti
 not planned yet), it flies that track: it is clear of every planned track. Every repair is
 counted; ``max_repairs`` (a count, per pass) bounds them, ``max_plannings`` the single-vehicle
 plannings of the pass. A vehicle still failing then (repairs spent, nobody to take out, or the
-same reversal again) flies in collision with only the vehicles in its way (planned against all the
+same reversal again) is planned through a holding point beside its line where ``holding`` is on
+(:mod:`proxplan.planner.swarm.holding`; off by default), else flies in collision with only the vehicles in its way (planned against all the
 others; its ideal track if even that fails), the pass goes on, and at its end the collisions are
 repaired a neighbourhood at a time (:mod:`proxplan.planner.swarm.lns`, within
 :data:`LNS_PLANNINGS_PER_VEHICLE` plannings per vehicle); collisions still left give the pass up, and so
@@ -54,6 +55,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from proxplan.planner.errors import PlanNotFound
+from proxplan.planner.swarm.chain import time_chain
+from proxplan.planner.swarm.holding import held_in_way, holding_points, plan_via_holding
 from proxplan.planner.swarm.lns import NEIGHBOURHOOD, remove_collisions
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
@@ -108,6 +111,10 @@ class PriorityOptions:
     # one planning per vehicle queued, and the collision repair's whole count (what a repair that does
     # not converge is charged), so the passes after it see about the budget they saw before
     max_in_collision: int | None = None
+    # a vehicle about to fly in collision (repairs spent, or going round in a circle) is planned once more
+    # through a holding point beside its line (swarm.holding). Off: at 128 on pillar and corridor it did not
+    # make a pass complete, and it costs CPU (docs/planner.md, stop 59 round 21B)
+    holding: bool = False
 
 
 @dataclass
@@ -119,6 +126,7 @@ class PriorityResult:
     against_order: int = 0  # repairs that reversed an order set by an earlier repair
     collision_repairs: int = 0  # neighbourhoods planned again by the collision repair (swarm.lns)
     released: int = 0  # reserved starts released for a vehicle in their way (reserve_starts)
+    held: int = 0  # vehicles planned through a holding point (PriorityOptions.holding)
 
 
 class PrioritizedFailed(Exception):
@@ -276,6 +284,13 @@ def _in_order(
             why = "nobody to take out" if not in_way else f"repair budget of {options.max_repairs} spent"
         elif not blockers and (a, frozenset(in_way)) in reversed_for:  # the same reversal again
             why = "goes round in a circle with " + ", ".join(problem.names[b] for b in in_way)
+        if why is not None and options.holding:  # wait aside at a holding point for those in its way (swarm.holding)
+            track = _via_holding(occ, a, options, planned, res, queue, result)
+            if track is not None:
+                result.history.append(f"{problem.names[a]}: {why}; via a holding point instead")
+                planned[a] = track
+                occ.put(track)
+                continue
         if why is not None:
             result.history.append(f"{problem.names[a]}: {why}")
             if options.collisions and ideal is not None:  # in collision with those in its way (swarm.lns)
@@ -315,6 +330,42 @@ def _in_order(
     if stuck:
         _remove_collisions(occ, planned, stuck, options, result, deadline, res)
     return result
+
+
+def _via_holding(
+    occ: Occupancy,
+    a: int,
+    options: PriorityOptions,
+    planned: dict[int, GridTrack],
+    res: Reservations | None,
+    queue: deque,
+    result: PriorityResult,
+) -> GridTrack | None:
+    """``a`` through a holding point (:func:`~proxplan.planner.swarm.holding.plan_via_holding`), or None;
+    with reserved starts, where none can be timed, once more through each holding point with the reserved
+    starts in the way of its chain released (as for the ideal track: they are planned next). One planning
+    per attempt (each times at most ``MAX_HOLDING_POINTS`` chains)."""
+    problem = occ.problem
+    track = plan_via_holding(occ, a, options.through)
+    result.planned += 1
+    if track is None and res is not None:
+        held = {b for b in occ.tracks if b not in planned and b != a}
+        result.planned += 1
+        for h in holding_points(occ, a):
+            guesses = res.along(a, held_in_way(occ, a, h, held))
+            if not guesses:
+                continue
+            res.release(occ, guesses)
+            got = time_chain(occ, a, np.array([problem.starts_m[a], h, problem.goals_m[a]]), through=options.through)
+            if got is not None:
+                track = got.track
+                res.plan_next(a, guesses, occ, queue)
+                result.history.append(f"{problem.names[a]} released the starts of {_names(problem, guesses)} to hold")
+                break
+            res.reserve(occ, guesses)
+    if track is not None:
+        result.held += 1
+    return track
 
 
 def _too_many_in_collision(
