@@ -50,6 +50,8 @@ class MakespanRepairInfo:
     plannings: int
     time_s: float
     solo: int = 0  # of ``replaced``: the latest vehicle planned again alone, the others kept
+    # the repaired stacked plan failed the verifier and the tracks before the repair were kept (round 21A)
+    verify_failed: bool = False
 
 
 @dataclass(frozen=True)

@@ -25,8 +25,8 @@ cannot be planned even first (against the tracks outside the neighbourhood alone
 stays conflict-free and its makespan never grows. A vehicle whose neighbourhood gave nothing is
 skipped until some neighbourhood is replaced (tracks changed). The budget is a count of
 single-vehicle plannings (:data:`PLANNINGS_PER_VEHICLE` per vehicle), and it stops earlier once
-:data:`STALL_PLANNINGS` plannings in a row have replaced nothing (stop 58: on the stacked plan of
-grid-256 the first gain came after 431 plannings, each against a 43 s horizon), so a seed gives
+:data:`STALL_WORK_STEPS` of work in a row (plannings x the horizon each searches, in grid steps:
+a planning's cost grows with its horizon, stop 59) have replaced nothing, so a seed gives
 the same plan on every machine; a wall-clock deadline stops it only as "not found".
 """
 
@@ -53,16 +53,15 @@ from proxplan.planner.timing.profile import rest_to_rest
 # and 6 (6 took pillar-64's repair to 30 s of CPU alone, the issue's whole target; docs/planner.md,
 # stop 56 round 18C)
 PLANNINGS_PER_VEHICLE = 3.0
-# the search stops once this many plannings in a row have replaced nothing (a count that does not
-# grow with the swarm: at 256 vehicles each planning meets a longer horizon, ~0.35 s of CPU against
-# ~0.05 s at 64). Set watching the named layouts in-process (docs/planner.md, stop 58 round 20A):
-# the longest run of plannings before a gain of the makespan was 47 on grid-64, 81 on grid-128, 61
-# on circle-64, 2 on corridor-64 and pillar-64 (their stacked or prioritised plans); grid-256's
-# stacked plan spent 431 plannings before its first gain (768 in all, ~290 s of CPU): with 96 it
-# stops there after 89 (~35 s of CPU), with the plan it had without the repair
-STALL_PLANNINGS = 96
-
-__all__ = ["PLANNINGS_PER_VEHICLE", "STALL_PLANNINGS", "budget", "replan", "shorten_makespan"]
+# the search stops once this much WORK in a row has replaced nothing: plannings x the horizon they
+# search, in grid steps (a planning's CPU grows with its horizon: ~0.05 s at grid-64's 477 steps,
+# ~0.35 s at grid-256's 1885; docs/planner.md, stop 59 round 21A). 96 plannings at grid-128's
+# horizon of 720 steps: round 20A set the stall to 96 plannings watching the named layouts (the
+# longest run of plannings before a gain of the makespan: grid-64 48, grid-128 81, circle-64 61,
+# corridor-64 and pillar-64 2); counted in work the budget no longer grows with N^2 (the plannings
+# x the horizon): grid-64 gets 144 plannings, corridor-64 (1123 steps) 61, grid-128 96, grid-256 36
+STALL_WORK_STEPS = 96 * 720
+__all__ = ["PLANNINGS_PER_VEHICLE", "STALL_WORK_STEPS", "budget", "replan", "shorten_makespan", "stall_budget"]
 
 
 def shorten_makespan(
@@ -72,14 +71,17 @@ def shorten_makespan(
     *,
     through: bool,
     max_plannings: int,
-    stall_plannings: int = STALL_PLANNINGS,
+    stall_plannings: int | None = None,
     deadline: float | None = None,
 ) -> dict[str, int]:
     """Replace neighbourhoods of ``by_agent`` (agent -> track, conflict-free; changed in place) as
     long as they shorten (see module), within ``max_plannings`` single-vehicle plannings over the
-    ``horizon_steps`` grid, stopping once ``stall_plannings`` plannings in a row replaced nothing;
+    ``horizon_steps`` grid, stopping once ``stall_plannings`` plannings in a row replaced nothing
+    (None: :func:`stall_budget` of the horizon, :data:`STALL_WORK_STEPS` of work);
     ``through``: fly through waypoints (else rest to rest). Returns the counts: ``plannings``,
     ``replaced`` (neighbourhoods), ``tried`` (neighbourhoods)."""
+    if stall_plannings is None:
+        stall_plannings = stall_budget(horizon_steps)
     occ = Occupancy(problem, list(by_agent.values()), horizon_steps)
     alone = {  # each vehicle's straight line alone, rest to rest, in steps: nothing arrives earlier
         a: rest_to_rest(
@@ -213,6 +215,12 @@ def _may_meet_the_last(problem: SwarmProblem, by_agent: dict[int, GridTrack], a:
 
 def _latest(tracks: dict[int, GridTrack]) -> int:
     return max(t.arrival_step for t in tracks.values())
+
+
+def stall_budget(horizon_steps: int, work_steps: int = STALL_WORK_STEPS) -> int:
+    """Plannings in a row without a gain after which the search stops: ``work_steps`` of work
+    (plannings x ``horizon_steps``, the grid steps each planning searches), at least one."""
+    return max(1, work_steps // max(1, horizon_steps))
 
 
 def budget(n_agents: int) -> int:

@@ -70,10 +70,10 @@ class SwarmOptions:
     keep_straight: bool = False
     # after re-timing, once on the plan kept, plan the latest vehicles again together with the vehicles
     # in their way (swarm.makespan; False: for measuring the cause alone; True: on every plan). None:
-    # on, but not on the lattice plan (round 14A: nothing replaced on grid-64 and corridor-64 fixed), nor
-    # on the stacked plan (round 19B shortened grid-64/128 there, but grid-256 then ran past 300 s of CPU;
-    # with round 20A's stall budget it still ran past 500 s once round 20B's seeds gave another stacked
-    # plan, stop 58: on with True). Set watching the named layouts at 64 (docs/planner.md, round
+    # on, but not on the lattice plan (round 14A: nothing replaced on grid-64 and corridor-64 fixed). On
+    # the stacked plan (round 19B: grid-64/128 shortened) its result is checked by the verifier and given
+    # up where it fails (round 21A: grid-256's repaired plan failed verify, and the pipeline planned
+    # again past the CPU cap, stop 58). Set watching the named layouts at 64 (docs/planner.md, round
     # 13A): on the prioritised plans with fixed goals pillar 2.73x -> 2.62x for 57 plannings, circle
     # unchanged (13); on the lattice plans nothing shorter: grid and corridor fixed (in-process, 64
     # plannings: 0 and 1 neighbourhoods replaced, the makespan unchanged, 5 and 22 s of CPU) and pillar

@@ -88,6 +88,8 @@ from proxplan.planner.timing.paths import TimedPath
 from proxplan.planner.timing.profile import rest_to_rest
 
 SWARM_MIN_VEHICLES = 16  # formation changes with at least this many vehicles use the swarm layer by default
+# whether tracks (agent -> track) pass the verifier (:func:`_verifies`)
+Check = Callable[[dict[int, GridTrack]], bool]
 HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the initial makespan, s
 
 __all__ = ["SWARM_MIN_VEHICLES", "SwarmHandOn", "SwarmOptions", "swarm_again", "swarm_applicable", "swarm_timed"]
@@ -120,6 +122,7 @@ def swarm_timed(
             _stacking(scenario, problem) if opts.levels else None,
             progress=progress,
             deadline=deadline,
+            check=_verifies(scenario, problem, original, unfreezes),
         )
     except PlanNotFound as err:
         if not frozen:
@@ -162,7 +165,8 @@ def swarm_again(
         give_up = hand_on.give_up
         joined = give_up is None or give_up.stack is None or give_up.levels is not None
         if replace(options, through_waypoints=before.through_waypoints) == before and joined:
-            return _retimed_again(hand_on, options, progress=progress, deadline=deadline)
+            check = _verifies(scenario, hand_on.problem, hand_on.problem, ())
+            return _retimed_again(hand_on, options, progress=progress, deadline=deadline, check=check)
     if (options.deflection_m, options.tracking_bound) != (before.deflection_m, before.tracking_bound):
         return swarm_timed(scenario, options, progress=progress, deadline=deadline)
     t0 = time.perf_counter()
@@ -176,8 +180,26 @@ def swarm_again(
         _stacking(scenario, problem) if options.levels else None,
         progress=progress,
         deadline=deadline,
+        check=_verifies(scenario, problem, problem, ()),
     )
     return _handed_on(problem, hand_on.lower_bound_s, options, hand_on.assigned, planned, t0, memo)
+
+
+def _verifies(scenario: Scenario, problem: SwarmProblem, original: SwarmProblem, unfreezes) -> Check:
+    """Whether tracks of ``problem`` (agent -> track) pass the verifier on ``scenario``, as the
+    pipeline will verify them (the unfreeze steps of ``original`` applied first, swarm.frozen): the
+    guard of the makespan repair on the stacked plan (:func:`_makespan_stage`)."""
+
+    def check(by_agent: dict[int, GridTrack]) -> bool:
+        from proxplan.planner.timing.plan_grid import assemble_plan
+        from proxplan.verify import verify_plan
+
+        timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
+        if unfreezes:
+            timed, _ = apply_unfreezes(timed, original, unfreezes, GRID_DT_S)
+        return not verify_plan(assemble_plan(scenario, timed, method="swarm", notes=[]), scenario)
+
+    return check
 
 
 def _stacking(scenario: Scenario, problem: SwarmProblem) -> Callable[[], dict]:
@@ -237,7 +259,7 @@ def _handed_on(
 
 
 def _retimed_again(
-    hand_on: SwarmHandOn, opts: SwarmOptions, *, progress, deadline
+    hand_on: SwarmHandOn, opts: SwarmOptions, *, progress, deadline, check: Check | None = None
 ) -> tuple[dict[str, TimedPath], SwarmInfo]:
     """:func:`swarm_again` where only the re-timing differs: the tail of :func:`_plan` (re-timing,
     the choice with the pass with both wavefronts, the makespan repair) on the handed-on tracks."""
@@ -288,7 +310,8 @@ def _retimed_again(
             found, by_agent, retiming = alt, alt_by_agent, alt_retiming
     repair = None
     if _repairs(opts, found):
-        repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
+        guard = check if found.stage == "stacked" else None
+        repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline, check=guard)
     planned = _Planned(
         found, by_agent, stage_makespan(found), retiming, repair, extra, searched, hand_on.heights, give_up
     )
@@ -323,11 +346,13 @@ def _plan(
     *,
     progress,
     deadline,
+    check: Check | None = None,
 ) -> _Planned:
     """The stages of the module on ``problem`` (``lower_bound``: its straight-line bound, s;
     ``assigned``: the goals were assigned; ``stacking``: gives the keep-outs the levels of the stacked plan are
     stacked on, :func:`~proxplan.planner.swarm.levels.stacking_keepouts`, called only where that plan is
-    tried; None: no stacked plan)."""
+    tried; None: no stacked plan; ``check``: whether tracks pass the verifier, asked after the makespan
+    repair changed the stacked plan, :func:`_verifies`)."""
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
     pre_retimed: tuple[dict[int, GridTrack], RetimeInfo] | None = None  # ``found`` re-timed, where already
@@ -398,7 +423,8 @@ def _plan(
             initial = max(tr.arrival_s for tr in found.tracks)
     repair = None
     if _repairs(opts, found):  # once, on the plan kept (SwarmOptions.makespan_repair)
-        repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline)
+        guard = check if found.stage == "stacked" else None
+        repair = _makespan_stage(problem, by_agent, opts, progress=progress, deadline=deadline, check=guard)
     alt = heights_stage[0] if heights_stage else None
     return _Planned(found, by_agent, initial, retiming, repair, extra, searched, alt, give_up)
 
@@ -464,22 +490,34 @@ def _retime_stage(
 def _repairs(opts: SwarmOptions, found: Stage) -> bool:
     """Whether the makespan repair runs on the plan of ``found`` (``SwarmOptions.makespan_repair``;
     None: not on the lattice plan (lock-step tracks: nothing replaced on grid-64 and corridor-64 fixed,
-    round 14A), nor on the stacked plan, on elsewhere. On the stacked plan it shortens grid-64 6.95 -> 5.60
-    s and grid-128 13.0 -> 11.5 s (round 19B), but on grid-256 it ran past 500 s of CPU with no plan even
-    with its stall budget (``makespan.STALL_PLANNINGS``, round 20A) once round 20B's LaCAM seeds gave
-    another stacked plan (stop 58, lead): off there by default until its cost is bounded in the work of
-    a planning, not only in plannings."""
+    round 14A), on elsewhere. On the stacked plan it shortens grid-64 6.93 -> 5.58 s and grid-128 13.00
+    -> 11.50 s; it was off there after stop 58 (grid-256 past 500 s of CPU): there its repaired plan
+    failed verify (a vehicle flown between the levels adds its jet to the level above's on a vehicle
+    below) and the pipeline planned again; now its result on the stacked plan is verified and given up
+    where it fails, and its stall budget is counted in work (``makespan.STALL_WORK_STEPS``; round 21A)."""
     if opts.makespan_repair is not None:
         return opts.makespan_repair
-    return found.stage not in ("lattice", "stacked")
+    return found.stage != "lattice"
 
 
 def _makespan_stage(
-    problem: SwarmProblem, by_agent: dict[int, GridTrack], opts: SwarmOptions, *, progress, deadline
+    problem: SwarmProblem,
+    by_agent: dict[int, GridTrack],
+    opts: SwarmOptions,
+    *,
+    progress,
+    deadline,
+    check: Check | None = None,
 ) -> MakespanRepairInfo:
     """The latest vehicles planned again with those in their way (:mod:`proxplan.planner.swarm.makespan`;
-    ``by_agent`` changed in place; never longer, always conflict-free)."""
+    ``by_agent`` changed in place; never longer, always conflict-free). ``check`` (the stacked plan:
+    :func:`_verifies`): asked once after the repair replaced tracks; where it fails, the tracks before
+    the repair come back (``MakespanRepairInfo.verify_failed``): the repair plans against the pair
+    keep-outs, and a vehicle it flies between the stacked plan's levels adds its jet to the level
+    above's on a vehicle below (the levels are stacked so that two sources fit, levels.STACK_AUTHORITY_SHARE;
+    grid-256: 0.119 of the 0.1 authority fraction, stop 59 round 21A)."""
     before = max(tr.arrival_s for tr in by_agent.values())
+    kept = dict(by_agent)
     if progress:
         progress("makespan repair", 0.9)
     t0 = time.perf_counter()
@@ -491,9 +529,13 @@ def _makespan_stage(
         max_plannings=makespan_budget(problem.n_agents),
         deadline=deadline,
     )
+    failed = check is not None and counts["replaced"] > 0 and not check(by_agent)
+    if failed:
+        by_agent.update(kept)
     return MakespanRepairInfo(
         makespan_before_s=before,
         makespan_after_s=max(tr.arrival_s for tr in by_agent.values()),
         time_s=round(time.perf_counter() - t0, 3),
+        verify_failed=failed,
         **counts,
     )
