@@ -38,7 +38,9 @@ class GainTest:
     (gain / energy, -); ``mean`` the pooled ratio R = sum gain / sum energy (-), ``se`` its standard error from
     flight to flight, ``z`` the critical multiple, ``passed`` whether R > z se; ``n_groups`` the flights it
     was judged on; ``share`` the held-out squared error it removed over those flights as a share of the error
-    without it (-) and ``share_lower`` that share at R - z se (what the forward pass ranks by)."""
+    without it (-) and ``share_lower`` that share at R - z se (what the forward pass ranks by);
+    ``effective_flights`` Kish's effective number of those flights for the energy-weighted R,
+    (sum e_f)^2 / sum e_f^2 (:func:`effective_units`, -)."""
 
     gains: np.ndarray
     mean: float
@@ -48,6 +50,7 @@ class GainTest:
     n_groups: int
     share: float = 0.0
     share_lower: float = 0.0
+    effective_flights: float = 0.0
 
     @property
     def t(self) -> float:
@@ -57,13 +60,32 @@ class GainTest:
         return {"mean_gain": self.mean, "se": self.se, "t": float(self.t) if np.isfinite(self.t) else None,
                 "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups,
                 "groups_improved": int(np.sum(self.gains > 0.0)), "undecided": self.undecided,
-                "share_of_error": self.share}  # fmt: skip
+                "share_of_error": self.share, "effective_flights": self.effective_flights,
+                "one_flight": self.one_flight}  # fmt: skip
 
     @property
     def undecided(self) -> bool:
         """Every held-out group (flight) gained, yet the mean is short of z standard errors: the test had too
         few groups to decide (with n flights the multiple is Student's t with n - 1 degrees of freedom)."""
         return (not self.passed) and self.n_groups >= 2 and bool(np.all(self.gains > 0.0))
+
+    @property
+    def one_flight(self) -> bool:
+        """Not kept, and what the candidate changes on the held-out flights lies on essentially ONE of them
+        (``effective_flights`` < 2): R is that flight's ratio, and its standard error "from flight to flight"
+        rests on flights that barely count, so the test cannot judge the candidate either way (the same reason
+        :func:`can_be_tested` asks for two flights). Typically the one flight that holds the effect, held out,
+        leaves the others unable to fit what trades with it (docs/identify.md, "Stop 59")."""
+        return (not self.passed) and self.n_groups >= 2 and 0.0 < self.effective_flights < 2.0
+
+
+def effective_units(energy: np.ndarray) -> float:
+    """Kish's effective number of units of a weighted mean with weights ``energy`` (n,) >= 0,
+    (sum e)^2 / sum e^2 (Kish 1965, Survey Sampling): n for equal weights, 1 when one unit carries all of it,
+    0 for no weight. The ratio R of :func:`ratio_test` is the energy-weighted mean of the units' ratios."""
+    e = np.asarray(energy, dtype=float)
+    total, sq = float(e.sum()), float(np.sum(e * e))
+    return total * total / sq if sq > 0.0 else 0.0
 
 
 def critical_z(m: int, dof: int | None = None) -> float:
@@ -142,15 +164,16 @@ def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *,
     ratios = gain / np.where(energy > 0, energy, np.nan) if n else np.zeros(0)
     total_e, total_s = float(energy.sum()), float(sse.sum())
     share = float(gain.sum()) / total_s if total_s > 0 else 0.0
+    n_eff = effective_units(energy)
     if n < 2 or total_e <= 0.0:
         return GainTest(ratios, float(gain.sum() / total_e) if total_e > 0 else 0.0, float("inf"), z, False, n, share,
-                        -np.inf)  # fmt: skip
+                        -np.inf, n_eff)  # fmt: skip
     r = float(gain.sum()) / total_e
     s2 = float(np.sum((gain - r * energy) ** 2 / energy)) / (n - 1)
     se = float(np.sqrt(s2 / total_e))
     passed = r > 0.0 and r > z * se
     lower = (r - z * se) * total_e / total_s if total_s > 0 else -np.inf
-    return GainTest(ratios, r, se, z, bool(passed), n, share, float(lower))
+    return GainTest(ratios, r, se, z, bool(passed), n, share, float(lower), n_eff)
 
 
 # ------------------------------------------------------------------------------ held-out passes
