@@ -215,7 +215,7 @@ class EffectSelector:
         cols = {k: self.tangents[k] for k in self.always}
         for cand in self.candidates:
             if cand.name in chosen:
-                cols.update(cand.acting if cand.acting is not None else cand.columns)
+                cols.update(cand.columns)
         return cols
 
     def ridge_for(self, names: Sequence[str]) -> Ridge:

@@ -182,10 +182,13 @@ def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *,
 @dataclass
 class Candidate:
     """A named group of columns entering together (a library effect with several linear parameters, or
-    one discovered feature on one channel)."""
+    one discovered feature on one channel). ``judged_channels``: the wrench channels (of F_z, torque x, y, z)
+    its held-out gain is judged on (None: every channel it acts on); it is FITTED on all of them either way
+    (a delayed effect: :data:`proxplan.identify.delay_profile.DELAY_CHANNELS`)."""
 
     name: str
     columns: tuple[str, ...]
+    judged_channels: tuple[int, ...] | None = None
 
 
 @dataclass
@@ -223,6 +226,7 @@ def heldout_forward(
     :func:`proxplan.identify.stability.fold_eligibility`) zeroes a candidate's gain on the groups whose flight
     chose it: there the selection run without that flight would not have tested it."""
     cols_of = {c.name: sums.index(c.columns) for c in candidates}
+    judged = {c.name: c.judged_channels for c in candidates}
     base = sums.index(always) if always else np.zeros(0, dtype=int)
     out = ForwardResult()
 
@@ -238,7 +242,7 @@ def heldout_forward(
             trial = _in_fold(
                 heldout_fit(sums, cols(out.chosen + [name]), plan, ridge, tau), current, name, fold_eligible
             )
-            trials[name] = (trial, _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau))
+            trials[name] = (trial, _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau, judged[name]))
         # Bonferroni over the hypotheses that could be kept: near-duplicate candidates (``hypothesis``: one
         # feature group, its members) test one hypothesis, not several; one that acts on fewer than two
         # flights has no test and cannot be rejected, so it does not count (:func:`can_be_tested`)
@@ -264,7 +268,7 @@ def heldout_forward(
         out.chosen.append(best)
         remaining.remove(best)
         current = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
-    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, judged)
     return out
 
 
@@ -279,11 +283,27 @@ def _in_fold(
     return trial.where(np.asarray(fold_eligible[name], dtype=bool), without)
 
 
-def _acts(sums: GroupSums, cols, others, name, cols_of, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
-    """:func:`exposure` of candidate ``name`` fitted on every train group beside ``others``."""
+def _acts(
+    sums: GroupSums,
+    cols,
+    others,
+    name,
+    cols_of,
+    plan: GroupPlan,
+    ridge: Ridge,
+    tau: float,
+    channels: tuple[int, ...] | None = None,
+) -> np.ndarray:
+    """:func:`exposure` of candidate ``name`` fitted on every train group beside ``others``, on its judged
+    ``channels`` only (None: all; :attr:`Candidate.judged_channels`)."""
     idx = cols(list(others) + [name])
     beta = solve(sums, idx, trainable_groups(sums, plan), ridge, tau)
-    return exposure(sums, cols_of[name], beta[-len(cols_of[name]) :], tau)
+    acts = exposure(sums, cols_of[name], beta[-len(cols_of[name]) :], tau)
+    if channels is not None:
+        keep = np.zeros(acts.shape[1], dtype=bool)
+        keep[list(channels)] = True
+        acts &= keep[None, :]
+    return acts
 
 
 def _backward(
@@ -295,16 +315,18 @@ def _backward(
     ridge: Ridge,
     tau: float,
     fold_eligible: Mapping[str, np.ndarray] | None = None,
+    judged: Mapping[str, tuple[int, ...] | None] | None = None,
 ) -> None:
     """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
-    (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
+    (Bonferroni over the kept ones), the weakest first; record each survivor's final test (``judged``: name
+    -> its :attr:`Candidate.judged_channels`)."""
     while out.chosen:
         full = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
         trials = {}
         for name in out.chosen:
             others = [n for n in out.chosen if n != name]
             without = heldout_fit(sums, cols(others), plan, ridge, tau)
-            acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau)
+            acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau, (judged or {}).get(name))
             trials[name] = (without, _in_fold(full, without, name, fold_eligible), acts)
         m = max(1, sum(can_be_tested(acts, plan.cluster) for _, _, acts in trials.values()))
         finals = {name: gain_test(sums, w, v, m, acts, plan.cluster) for name, (w, v, acts) in trials.items()}
@@ -336,5 +358,5 @@ def heldout_backward(
         return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
 
     out = ForwardResult(chosen=[c.name for c in kept])
-    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, {c.name: c.judged_channels for c in kept})
     return out
