@@ -300,6 +300,10 @@ def _reason(
         return f"kept: {gain}; {stab}"
     if dropped is not None:
         return f"dropped: redundant given the others ({gain})"
+    if t.too_large:
+        return (f"rejected: {gain}: R exceeds 1 by more than {t.z:.2f} SE (fitted on every channel, judged on F_z "
+                f"and yaw: those hold more of its shape than its fit gives them, something else; "
+                f"proxplan.identify.heldout_select.ratio_test); {stab}")  # fmt: skip
     if not t.passed:
         return f"rejected: {gain} does not hold; {stab}"
     if not eligible and shared > threshold:

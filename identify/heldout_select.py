@@ -40,7 +40,8 @@ class GainTest:
     was judged on; ``share`` the held-out squared error it removed over those flights as a share of the error
     without it (-) and ``share_lower`` that share at R - z se (what the forward pass ranks by);
     ``effective_flights`` Kish's effective number of those flights for the energy-weighted R,
-    (sum e_f)^2 / sum e_f^2 (:func:`effective_units`, -)."""
+    (sum e_f)^2 / sum e_f^2 (:func:`effective_units`, -); ``too_large``: R exceeds 1 by more than z se, for a
+    candidate fitted on channels it is not judged on (:func:`ratio_test`'s ``at_most_one``)."""
 
     gains: np.ndarray
     mean: float
@@ -51,6 +52,7 @@ class GainTest:
     share: float = 0.0
     share_lower: float = 0.0
     effective_flights: float = 0.0
+    too_large: bool = False
 
     @property
     def t(self) -> float:
@@ -61,7 +63,7 @@ class GainTest:
                 "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups,
                 "groups_improved": int(np.sum(self.gains > 0.0)), "undecided": self.undecided,
                 "share_of_error": self.share, "effective_flights": self.effective_flights,
-                "one_flight": self.one_flight}  # fmt: skip
+                "one_flight": self.one_flight, "too_large": self.too_large}  # fmt: skip
 
     @property
     def undecided(self) -> bool:
@@ -129,6 +131,8 @@ def gain_test(
     m: int,
     acts: np.ndarray | None = None,
     cluster: np.ndarray | None = None,
+    *,
+    at_most_one: bool = False,
 ) -> GainTest:
     """The gain test of :mod:`proxplan.identify.crossval`'s docstring: replacing the held-out fit ``without``
     by ``with_`` (both :class:`~proxplan.identify.crossval.HeldOutFit` over ``sums``), judged on the groups
@@ -136,7 +140,7 @@ def gain_test(
     candidate cannot touch says nothing about it). Per held-out unit (a flight: the groups of one
     ``cluster`` value, (G,) int; without, each group) the squared error removed, gain = SSE without - SSE
     with, and the energy of the change, |X (beta_with - beta_without)|^2 (:func:`change_energy`), summed
-    over its acting cells; then :func:`ratio_test`."""
+    over its acting cells; then :func:`ratio_test` (``at_most_one`` as there)."""
     w = sums.w.reshape(without.mse.shape)
     gain = (without.mse - with_.mse) * w
     energy = change_energy(sums, without, with_)
@@ -147,10 +151,12 @@ def gain_test(
     units = np.arange(len(gain)) if cluster is None else np.asarray(cluster)
     labels = np.unique(units[ok.any(axis=1)])
     g_u, e_u, s_u = (np.array([np.where(ok, x, 0.0)[units == u].sum() for u in labels]) for x in (gain, energy, sse))
-    return ratio_test(g_u, e_u, s_u, m, clustered=cluster is not None)
+    return ratio_test(g_u, e_u, s_u, m, clustered=cluster is not None, at_most_one=at_most_one)
 
 
-def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *, clustered: bool = True) -> GainTest:
+def ratio_test(
+    gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *, clustered: bool = True, at_most_one: bool = False
+) -> GainTest:
     """The one-sided test, Bonferroni over ``m``, that a candidate's held-out predictions remove error: per
     held-out unit (n,) the ``gain`` (squared error removed), the ``energy`` of the change (> 0) and the
     ``sse`` without it (noise units squared). The pooled ratio R = sum gain / sum energy is the weighted
@@ -158,7 +164,13 @@ def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *,
     unit's gain grows with its energy: module docstring of :mod:`proxplan.identify.crossval`); its standard
     error s / sqrt(sum energy), s^2 = sum (gain - R energy)^2 / energy / (n - 1), is estimated from unit to
     unit, so the multiple is Student's t with n - 1 degrees of freedom (``clustered``; else the normal
-    quantile)."""
+    quantile).
+
+    ``at_most_one``: the candidate's coefficients were fitted on channels beside the judged ones (a delayed
+    effect: fitted on all four, judged on F_z and yaw). An effect whose fit carries over has E[R] = 1
+    (:mod:`proxplan.identify.crossval`) on ANY channel it acts on; R above 1 by more than z se says the judged
+    channels hold more of its shape than its fit on every channel gives them, i.e. something else of that shape
+    there: its channels disagree about its strength, it is not that effect, and it does not pass."""
     n = int(gain.size)
     z = critical_z(m, (n - 1) if clustered else None)
     ratios = gain / np.where(energy > 0, energy, np.nan) if n else np.zeros(0)
@@ -171,9 +183,10 @@ def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *,
     r = float(gain.sum()) / total_e
     s2 = float(np.sum((gain - r * energy) ** 2 / energy)) / (n - 1)
     se = float(np.sqrt(s2 / total_e))
-    passed = r > 0.0 and r > z * se
+    too_large = at_most_one and r - 1.0 > z * se
+    passed = r > 0.0 and r > z * se and not too_large
     lower = (r - z * se) * total_e / total_s if total_s > 0 else -np.inf
-    return GainTest(ratios, r, se, z, bool(passed), n, share, float(lower), n_eff)
+    return GainTest(ratios, r, se, z, bool(passed), n, share, float(lower), n_eff, bool(too_large))
 
 
 # ------------------------------------------------------------------------------ held-out passes
@@ -250,7 +263,8 @@ def heldout_forward(
             n for n in remaining if (eligible is None or n in eligible) and can_be_tested(trials[n][1], plan.cluster)
         ]
         m = max(1, len({label(n) for n in open_}))
-        tests = {name: gain_test(sums, current, trial, m, acts, plan.cluster) for name, (trial, acts) in trials.items()}
+        tests = {name: gain_test(sums, current, trial, m, acts, plan.cluster, at_most_one=judged[name] is not None)
+                 for name, (trial, acts) in trials.items()}  # fmt: skip
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
         if not ok:
@@ -329,7 +343,8 @@ def _backward(
             acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau, (judged or {}).get(name))
             trials[name] = (without, _in_fold(full, without, name, fold_eligible), acts)
         m = max(1, sum(can_be_tested(acts, plan.cluster) for _, _, acts in trials.values()))
-        finals = {name: gain_test(sums, w, v, m, acts, plan.cluster) for name, (w, v, acts) in trials.items()}
+        finals = {name: gain_test(sums, w, v, m, acts, plan.cluster, at_most_one=(judged or {}).get(name) is not None)
+                  for name, (w, v, acts) in trials.items()}  # fmt: skip
         failing = [n for n, t in finals.items() if not t.passed]
         if not failing:
             out.final_tests = finals
