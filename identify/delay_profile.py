@@ -32,23 +32,15 @@ delayed image of the disturbance, so a delay chosen there fits the measurement, 
 closed-loop simulator logs with NO effect (tests/identify/test_identify.py), the roll residual follows the
 derivative of the body rate (49 % of its variance), and thrust_quadratic 35 ms late, chosen on every
 channel, halved the held-out torque error; chosen on these two channels but tested on all, 58 ms late it
-still passed (+0.71 +- 0.12) on the logs with a constant force hidden. So a delayed effect's strength is
-fitted, and its gain tested, on these channels too (:func:`judged_where_delay_shows`); its shape is fitted
-on all four, and saved, it acts on all four."""
+still passed (+0.71 +- 0.12) on the logs with a constant force hidden. So a delayed effect's held-out gain
+is tested on these channels too (:attr:`proxplan.identify.effect_candidates.EffectCandidate.judged_channels`).
+Its shape AND its strength are fitted on all four, and saved, it acts on all four: fitted on F_z and yaw alone,
+the F_z of an effect near its source trades with the vehicle parameters' tangents (a jet's decay and virtual
+origin), and a lagged near field came out at -0.2 to -0.3 of the shape fit's strength on every fold of a set
+that holds it (docs/identify.md, "Stop 59")."""
 LAG_RESOLUTION_S = 0.002
 """Resolution of a refined delay, s: a fifth of the logs' 10 ms sample step (within it the inputs are
 interpolated linearly, and the objective is flat below it)."""
-
-
-def judged_where_delay_shows(columns: np.ndarray, lag_s: float) -> np.ndarray:
-    """An effect's design columns ((N, 4) noise units) with, for a delayed one (``lag_s`` > 0 s), the roll and
-    pitch channels left out: a delay is chosen, fitted and tested on :data:`DELAY_CHANNELS` only (the
-    effect, saved, still acts on every channel)."""
-    if lag_s <= 0.0:
-        return columns
-    out = np.zeros_like(columns)
-    out[:, list(DELAY_CHANNELS)] = columns[:, list(DELAY_CHANNELS)]
-    return out
 
 
 def best_lag(

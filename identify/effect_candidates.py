@@ -15,9 +15,9 @@ import numpy as np
 from proxplan.identify.calibrate import CalibrationResult, ParamSpec, fit_parameters
 from proxplan.identify.crossval import Ridge
 from proxplan.identify.delay_profile import (
+    DELAY_CHANNELS,
     LAG_RESOLUTION_S,
     best_lag,
-    judged_where_delay_shows,
 )
 from proxplan.identify.design import (
     LagInputs,
@@ -83,11 +83,16 @@ class EffectCandidate:
     reference: dict[str, float] = field(default_factory=dict)  # scale mode: the strength the columns are per unit of
     shape_fit: CalibrationResult | None = None
     note: str = ""  # why it has no columns (its fit put it at zero)
-    # its columns on every channel where ``columns`` leave some out (a delayed effect: judged_where_delay_shows)
-    acting: dict[str, np.ndarray] | None = None
+    lag_s: float = 0.0  # its delay, s (a delayed one is judged on DELAY_CHANNELS only)
+
+    @property
+    def judged_channels(self) -> tuple[int, ...] | None:
+        """The channels its held-out gain is judged on: a delayed effect's F_z and yaw
+        (:data:`proxplan.identify.delay_profile.DELAY_CHANNELS`), else all (None). It is fitted on all four."""
+        return DELAY_CHANNELS if self.lag_s > 0.0 else None
 
     def as_candidate(self) -> Candidate:
-        return Candidate(self.name, tuple(self.columns))
+        return Candidate(self.name, tuple(self.columns), self.judged_channels)
 
     def effect_with(self, coef: Mapping[str, float]) -> Effect:
         """The effect with the fitted coefficients of its columns (``coef``: column name -> value)."""
@@ -169,10 +174,8 @@ def effect_candidate(
         if name in DELAYED_ONLY and lag == 0.0:
             return EffectCandidate(name, Effect(name, {}), {}, "linear",
                                    note="it fits best at once, where it is the base model's own strength")  # fmt: skip
-        acting = {f"{name}.{k}": effect_columns(sel, e, delayed[lag]) for k, e in zip(LINEAR_PARAMS[name], units)}
-        cols = {k: judged_where_delay_shows(v, lag) for k, v in acting.items()}
-        return EffectCandidate(name, Effect(name, {LAG_PARAM: lag} if lag else {}), cols, "linear",
-                               acting=acting if lag else None)  # fmt: skip
+        cols = {f"{name}.{k}": effect_columns(sel, e, delayed[lag]) for k, e in zip(LINEAR_PARAMS[name], units)}
+        return EffectCandidate(name, Effect(name, {LAG_PARAM: lag} if lag else {}), cols, "linear", lag_s=lag)
     eff, fit = fit_shape(sel, name, tangents, ridge)
     strength = SCALE_PARAMS[name]
     ref = {k: float(eff.full_params()[k]) for k in strength}
@@ -206,5 +209,4 @@ def effect_candidate(
             name, eff, {}, "scale", ref, fit, note="its fitted strength is zero (the prior's center)"
         )
     col = effect_columns(sel, eff, delayed[lag])
-    return EffectCandidate(name, eff, {f"{name}.scale": judged_where_delay_shows(col, lag)}, "scale", ref, fit,
-                           acting={f"{name}.scale": col} if lag else None)  # fmt: skip
+    return EffectCandidate(name, eff, {f"{name}.scale": col}, "scale", ref, fit, lag_s=lag)

@@ -215,7 +215,7 @@ class EffectSelector:
         cols = {k: self.tangents[k] for k in self.always}
         for cand in self.candidates:
             if cand.name in chosen:
-                cols.update(cand.acting if cand.acting is not None else cand.columns)
+                cols.update(cand.columns)
         return cols
 
     def ridge_for(self, names: Sequence[str]) -> Ridge:
@@ -300,6 +300,10 @@ def _reason(
         return f"kept: {gain}; {stab}"
     if dropped is not None:
         return f"dropped: redundant given the others ({gain})"
+    if t.too_large:
+        return (f"rejected: {gain}: R exceeds 1 by more than {t.z:.2f} SE (fitted on every channel, judged on F_z "
+                f"and yaw: those hold more of its shape than its fit gives them, something else; "
+                f"proxplan.identify.heldout_select.ratio_test); {stab}")  # fmt: skip
     if not t.passed:
         return f"rejected: {gain} does not hold; {stab}"
     if not eligible and shared > threshold:

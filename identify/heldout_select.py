@@ -38,7 +38,10 @@ class GainTest:
     (gain / energy, -); ``mean`` the pooled ratio R = sum gain / sum energy (-), ``se`` its standard error from
     flight to flight, ``z`` the critical multiple, ``passed`` whether R > z se; ``n_groups`` the flights it
     was judged on; ``share`` the held-out squared error it removed over those flights as a share of the error
-    without it (-) and ``share_lower`` that share at R - z se (what the forward pass ranks by)."""
+    without it (-) and ``share_lower`` that share at R - z se (what the forward pass ranks by);
+    ``effective_flights`` Kish's effective number of those flights for the energy-weighted R,
+    (sum e_f)^2 / sum e_f^2 (:func:`effective_units`, -); ``too_large``: R exceeds 1 by more than z se, for a
+    candidate fitted on channels it is not judged on (:func:`ratio_test`'s ``at_most_one``)."""
 
     gains: np.ndarray
     mean: float
@@ -48,6 +51,8 @@ class GainTest:
     n_groups: int
     share: float = 0.0
     share_lower: float = 0.0
+    effective_flights: float = 0.0
+    too_large: bool = False
 
     @property
     def t(self) -> float:
@@ -57,13 +62,32 @@ class GainTest:
         return {"mean_gain": self.mean, "se": self.se, "t": float(self.t) if np.isfinite(self.t) else None,
                 "z_required": self.z, "passed": self.passed, "n_groups": self.n_groups,
                 "groups_improved": int(np.sum(self.gains > 0.0)), "undecided": self.undecided,
-                "share_of_error": self.share}  # fmt: skip
+                "share_of_error": self.share, "effective_flights": self.effective_flights,
+                "one_flight": self.one_flight, "too_large": self.too_large}  # fmt: skip
 
     @property
     def undecided(self) -> bool:
         """Every held-out group (flight) gained, yet the mean is short of z standard errors: the test had too
         few groups to decide (with n flights the multiple is Student's t with n - 1 degrees of freedom)."""
         return (not self.passed) and self.n_groups >= 2 and bool(np.all(self.gains > 0.0))
+
+    @property
+    def one_flight(self) -> bool:
+        """Not kept, and what the candidate changes on the held-out flights lies on essentially ONE of them
+        (``effective_flights`` < 2): R is that flight's ratio, and its standard error "from flight to flight"
+        rests on flights that barely count, so the test cannot judge the candidate either way (the same reason
+        :func:`can_be_tested` asks for two flights). Typically the one flight that holds the effect, held out,
+        leaves the others unable to fit what trades with it (docs/identify.md, "Stop 59")."""
+        return (not self.passed) and self.n_groups >= 2 and 0.0 < self.effective_flights < 2.0
+
+
+def effective_units(energy: np.ndarray) -> float:
+    """Kish's effective number of units of a weighted mean with weights ``energy`` (n,) >= 0,
+    (sum e)^2 / sum e^2 (Kish 1965, Survey Sampling): n for equal weights, 1 when one unit carries all of it,
+    0 for no weight. The ratio R of :func:`ratio_test` is the energy-weighted mean of the units' ratios."""
+    e = np.asarray(energy, dtype=float)
+    total, sq = float(e.sum()), float(np.sum(e * e))
+    return total * total / sq if sq > 0.0 else 0.0
 
 
 def critical_z(m: int, dof: int | None = None) -> float:
@@ -107,6 +131,8 @@ def gain_test(
     m: int,
     acts: np.ndarray | None = None,
     cluster: np.ndarray | None = None,
+    *,
+    at_most_one: bool = False,
 ) -> GainTest:
     """The gain test of :mod:`proxplan.identify.crossval`'s docstring: replacing the held-out fit ``without``
     by ``with_`` (both :class:`~proxplan.identify.crossval.HeldOutFit` over ``sums``), judged on the groups
@@ -114,7 +140,7 @@ def gain_test(
     candidate cannot touch says nothing about it). Per held-out unit (a flight: the groups of one
     ``cluster`` value, (G,) int; without, each group) the squared error removed, gain = SSE without - SSE
     with, and the energy of the change, |X (beta_with - beta_without)|^2 (:func:`change_energy`), summed
-    over its acting cells; then :func:`ratio_test`."""
+    over its acting cells; then :func:`ratio_test` (``at_most_one`` as there)."""
     w = sums.w.reshape(without.mse.shape)
     gain = (without.mse - with_.mse) * w
     energy = change_energy(sums, without, with_)
@@ -125,10 +151,12 @@ def gain_test(
     units = np.arange(len(gain)) if cluster is None else np.asarray(cluster)
     labels = np.unique(units[ok.any(axis=1)])
     g_u, e_u, s_u = (np.array([np.where(ok, x, 0.0)[units == u].sum() for u in labels]) for x in (gain, energy, sse))
-    return ratio_test(g_u, e_u, s_u, m, clustered=cluster is not None)
+    return ratio_test(g_u, e_u, s_u, m, clustered=cluster is not None, at_most_one=at_most_one)
 
 
-def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *, clustered: bool = True) -> GainTest:
+def ratio_test(
+    gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *, clustered: bool = True, at_most_one: bool = False
+) -> GainTest:
     """The one-sided test, Bonferroni over ``m``, that a candidate's held-out predictions remove error: per
     held-out unit (n,) the ``gain`` (squared error removed), the ``energy`` of the change (> 0) and the
     ``sse`` without it (noise units squared). The pooled ratio R = sum gain / sum energy is the weighted
@@ -136,21 +164,29 @@ def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *,
     unit's gain grows with its energy: module docstring of :mod:`proxplan.identify.crossval`); its standard
     error s / sqrt(sum energy), s^2 = sum (gain - R energy)^2 / energy / (n - 1), is estimated from unit to
     unit, so the multiple is Student's t with n - 1 degrees of freedom (``clustered``; else the normal
-    quantile)."""
+    quantile).
+
+    ``at_most_one``: the candidate's coefficients were fitted on channels beside the judged ones (a delayed
+    effect: fitted on all four, judged on F_z and yaw). An effect whose fit carries over has E[R] = 1
+    (:mod:`proxplan.identify.crossval`) on ANY channel it acts on; R above 1 by more than z se says the judged
+    channels hold more of its shape than its fit on every channel gives them, i.e. something else of that shape
+    there: its channels disagree about its strength, it is not that effect, and it does not pass."""
     n = int(gain.size)
     z = critical_z(m, (n - 1) if clustered else None)
     ratios = gain / np.where(energy > 0, energy, np.nan) if n else np.zeros(0)
     total_e, total_s = float(energy.sum()), float(sse.sum())
     share = float(gain.sum()) / total_s if total_s > 0 else 0.0
+    n_eff = effective_units(energy)
     if n < 2 or total_e <= 0.0:
         return GainTest(ratios, float(gain.sum() / total_e) if total_e > 0 else 0.0, float("inf"), z, False, n, share,
-                        -np.inf)  # fmt: skip
+                        -np.inf, n_eff)  # fmt: skip
     r = float(gain.sum()) / total_e
     s2 = float(np.sum((gain - r * energy) ** 2 / energy)) / (n - 1)
     se = float(np.sqrt(s2 / total_e))
-    passed = r > 0.0 and r > z * se
+    too_large = at_most_one and r - 1.0 > z * se
+    passed = r > 0.0 and r > z * se and not too_large
     lower = (r - z * se) * total_e / total_s if total_s > 0 else -np.inf
-    return GainTest(ratios, r, se, z, bool(passed), n, share, float(lower))
+    return GainTest(ratios, r, se, z, bool(passed), n, share, float(lower), n_eff, bool(too_large))
 
 
 # ------------------------------------------------------------------------------ held-out passes
@@ -159,10 +195,13 @@ def ratio_test(gain: np.ndarray, energy: np.ndarray, sse: np.ndarray, m: int, *,
 @dataclass
 class Candidate:
     """A named group of columns entering together (a library effect with several linear parameters, or
-    one discovered feature on one channel)."""
+    one discovered feature on one channel). ``judged_channels``: the wrench channels (of F_z, torque x, y, z)
+    its held-out gain is judged on (None: every channel it acts on); it is FITTED on all of them either way
+    (a delayed effect: :data:`proxplan.identify.delay_profile.DELAY_CHANNELS`)."""
 
     name: str
     columns: tuple[str, ...]
+    judged_channels: tuple[int, ...] | None = None
 
 
 @dataclass
@@ -200,6 +239,7 @@ def heldout_forward(
     :func:`proxplan.identify.stability.fold_eligibility`) zeroes a candidate's gain on the groups whose flight
     chose it: there the selection run without that flight would not have tested it."""
     cols_of = {c.name: sums.index(c.columns) for c in candidates}
+    judged = {c.name: c.judged_channels for c in candidates}
     base = sums.index(always) if always else np.zeros(0, dtype=int)
     out = ForwardResult()
 
@@ -215,7 +255,7 @@ def heldout_forward(
             trial = _in_fold(
                 heldout_fit(sums, cols(out.chosen + [name]), plan, ridge, tau), current, name, fold_eligible
             )
-            trials[name] = (trial, _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau))
+            trials[name] = (trial, _acts(sums, cols, out.chosen, name, cols_of, plan, ridge, tau, judged[name]))
         # Bonferroni over the hypotheses that could be kept: near-duplicate candidates (``hypothesis``: one
         # feature group, its members) test one hypothesis, not several; one that acts on fewer than two
         # flights has no test and cannot be rejected, so it does not count (:func:`can_be_tested`)
@@ -223,7 +263,8 @@ def heldout_forward(
             n for n in remaining if (eligible is None or n in eligible) and can_be_tested(trials[n][1], plan.cluster)
         ]
         m = max(1, len({label(n) for n in open_}))
-        tests = {name: gain_test(sums, current, trial, m, acts, plan.cluster) for name, (trial, acts) in trials.items()}
+        tests = {name: gain_test(sums, current, trial, m, acts, plan.cluster, at_most_one=judged[name] is not None)
+                 for name, (trial, acts) in trials.items()}  # fmt: skip
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
         if not ok:
@@ -241,7 +282,7 @@ def heldout_forward(
         out.chosen.append(best)
         remaining.remove(best)
         current = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
-    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, judged)
     return out
 
 
@@ -256,11 +297,27 @@ def _in_fold(
     return trial.where(np.asarray(fold_eligible[name], dtype=bool), without)
 
 
-def _acts(sums: GroupSums, cols, others, name, cols_of, plan: GroupPlan, ridge: Ridge, tau: float) -> np.ndarray:
-    """:func:`exposure` of candidate ``name`` fitted on every train group beside ``others``."""
+def _acts(
+    sums: GroupSums,
+    cols,
+    others,
+    name,
+    cols_of,
+    plan: GroupPlan,
+    ridge: Ridge,
+    tau: float,
+    channels: tuple[int, ...] | None = None,
+) -> np.ndarray:
+    """:func:`exposure` of candidate ``name`` fitted on every train group beside ``others``, on its judged
+    ``channels`` only (None: all; :attr:`Candidate.judged_channels`)."""
     idx = cols(list(others) + [name])
     beta = solve(sums, idx, trainable_groups(sums, plan), ridge, tau)
-    return exposure(sums, cols_of[name], beta[-len(cols_of[name]) :], tau)
+    acts = exposure(sums, cols_of[name], beta[-len(cols_of[name]) :], tau)
+    if channels is not None:
+        keep = np.zeros(acts.shape[1], dtype=bool)
+        keep[list(channels)] = True
+        acts &= keep[None, :]
+    return acts
 
 
 def _backward(
@@ -272,19 +329,22 @@ def _backward(
     ridge: Ridge,
     tau: float,
     fold_eligible: Mapping[str, np.ndarray] | None = None,
+    judged: Mapping[str, tuple[int, ...] | None] | None = None,
 ) -> None:
     """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
-    (Bonferroni over the kept ones), the weakest first; record each survivor's final test."""
+    (Bonferroni over the kept ones), the weakest first; record each survivor's final test (``judged``: name
+    -> its :attr:`Candidate.judged_channels`)."""
     while out.chosen:
         full = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
         trials = {}
         for name in out.chosen:
             others = [n for n in out.chosen if n != name]
             without = heldout_fit(sums, cols(others), plan, ridge, tau)
-            acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau)
+            acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau, (judged or {}).get(name))
             trials[name] = (without, _in_fold(full, without, name, fold_eligible), acts)
         m = max(1, sum(can_be_tested(acts, plan.cluster) for _, _, acts in trials.values()))
-        finals = {name: gain_test(sums, w, v, m, acts, plan.cluster) for name, (w, v, acts) in trials.items()}
+        finals = {name: gain_test(sums, w, v, m, acts, plan.cluster, at_most_one=(judged or {}).get(name) is not None)
+                  for name, (w, v, acts) in trials.items()}  # fmt: skip
         failing = [n for n, t in finals.items() if not t.passed]
         if not failing:
             out.final_tests = finals
@@ -313,5 +373,5 @@ def heldout_backward(
         return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
 
     out = ForwardResult(chosen=[c.name for c in kept])
-    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, {c.name: c.judged_channels for c in kept})
     return out

@@ -119,13 +119,21 @@ class IdentifyResult:
         """The model file's content: everything the "after" figure used, and the residual spread."""
         return saved_model(self.final_model, self.measure_options, self.thrust_maps, self.spread)
 
-    def undecided(self) -> list[str]:
-        """One line per effect or discovered term not kept although every held-out flight gained from it
-        (:attr:`proxplan.identify.heldout_select.GainTest.undecided`): the flights were too few to decide."""
+    def _unkept_tests(self) -> list[tuple[str, dict[str, Any]]]:
         tests = [(t.name, t.gain_last.to_json()) for t in self.trials if not t.selected and t.gain_last is not None]
         tests += [(f"{d['channel']}*{d['feature']}", d["heldout_gain"]) for d in self.discovered
                   if not d.get("selected") and d.get("heldout_gain")]  # fmt: skip
-        return [_undecided_line(name, g) for name, g in tests if g["undecided"]]
+        return tests
+
+    def undecided(self) -> list[str]:
+        """One line per effect or discovered term not kept although every held-out flight gained from it
+        (:attr:`proxplan.identify.heldout_select.GainTest.undecided`): the flights were too few to decide."""
+        return [_undecided_line(name, g) for name, g in self._unkept_tests() if g["undecided"]]
+
+    def one_flight(self) -> list[str]:
+        """One line per effect or discovered term not kept whose held-out change lies on essentially one flight
+        (:attr:`proxplan.identify.heldout_select.GainTest.one_flight`): these flights cannot test it."""
+        return [_one_flight_line(name, g) for name, g in self._unkept_tests() if g.get("one_flight")]
 
     def measurement_json(self) -> dict[str, Any]:
         """Thrust maps, notes and per-vehicle saturation counts (pooled over every flight)."""
@@ -163,6 +171,7 @@ class IdentifyResult:
             "motor_lag_check": self.motor_lag_check,
             "warnings": list(self.motor_lag_check.get("warnings", [])),
             "undecided": self.undecided(),
+            "one_flight": self.one_flight(),
             "residual_correlations": [
                 {"feature": c.feature, "pearson": c.pearson, "eta": c.eta} for c in self.correlations
             ],
@@ -179,6 +188,12 @@ def _undecided_line(name: str, gain: dict[str, Any]) -> str:
     shown = "inf" if t is None else f"{t:.2f}"
     return (f"{name}: every one of the {n} held-out flights gained (t = {shown}), but over {n} flights the test "
             f"needs t > {gain['z_required']:.2f}: not kept; more train flights would decide it")  # fmt: skip
+
+
+def _one_flight_line(name: str, gain: dict[str, Any]) -> str:
+    return (f"{name}: what it changes on the held-out flights lies on essentially one of them (effective flights "
+            f"{gain['effective_flights']:.2f} of {gain['n_groups']}; held-out gain {gain['mean_gain']:+.3g}): the "
+            "test of flights held out cannot judge it either way; fly that situation in more flights")  # fmt: skip
 
 
 def _zone_masks(u: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:

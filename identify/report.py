@@ -273,6 +273,10 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     if undecided:
         lines += ["Not decided by these flights (every held-out flight gained, too few flights to pass the test):", ""]
         lines += [f"- {line}" for line in undecided] + [""]
+    one_flight = result.one_flight()
+    if one_flight:
+        lines += ["Not testable on these flights (what it changes lies on one flight; not kept):", ""]
+        lines += [f"- {line}" for line in one_flight] + [""]
     lines += ["## Per vehicle (test flights, RMSE F_z [N])", "", "| vehicle | before | calibrated | after | samples |",
               "|---|---|---|---|---|"]  # fmt: skip
     for name, pv in result.per_vehicle.items():

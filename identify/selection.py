@@ -250,7 +250,7 @@ def joint_model(
     backward pass's record, and each selection row's held-out F_z residual (N,) N (measured minus the
     prediction of the fit that left its flight out: what the spread's interval is set on)."""
     sel = selector.sel
-    kept = [Candidate(c.name, tuple(c.columns)) for c in selector.candidates if c.name in effects.selected]
+    kept = [c.as_candidate() for c in selector.candidates if c.name in effects.selected]
     terms = dict(discovery.kept) if discovery is not None else {}
     columns = {k: selector.tangents[k] for k in selector.always}
     for cand in selector.candidates:
@@ -264,14 +264,6 @@ def joint_model(
     back = heldout_backward(sums, selector.always, kept, sel.plan, ridge, sel.tau,
                             discovery.fold_eligible if discovery is not None else None)  # fmt: skip
     names = list(selector.always) + [col for c in kept if c.name in back.chosen for col in c.columns]
-    # a delayed effect is judged on F_z and yaw only (DELAY_CHANNELS), but it acts on all four channels, so
-    # the survivors are fitted with its columns on every channel: judged columns would leave its roll and
-    # pitch torque to the vehicle parameters' tangents, which then absorb the effect near its source
-    acting = {k: v for c in selector.candidates if c.name in back.chosen and c.acting for k, v in c.acting.items()}
-    if acting:
-        columns = columns | acting
-        sums = sel.sums(columns)
-        ridge = selector.ridge_for(sums.columns)
     idx = sums.index(names)
     deliver = sums
     if any(k in back.chosen for k in terms):

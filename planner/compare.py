@@ -42,8 +42,9 @@ class ComparisonRow:
     note: str = ""  # method actually used (e.g. optimiser fall-back) or why it failed
 
 
-def run_one(scenario_path: Path, method: str, *, seed: int = 0) -> ComparisonRow:
+def run_one(scenario_path: Path, method: str, *, seed: int = 0, time_budget_s: float | None = None) -> ComparisonRow:
     """Plan the scenario with ``method`` in a fresh ``proxplan plan`` process, verify, summarise.
+    ``time_budget_s``: the optimiser's wall-clock budget (``--time-budget``; None: the CLI's default), s.
 
     Every search seeds its own OMPL generators, so ``optimized`` refines exactly the plan that
     ``sampling`` reports in any process; a fresh process per run makes the planning time the
@@ -60,8 +61,10 @@ def run_one(scenario_path: Path, method: str, *, seed: int = 0) -> ComparisonRow
     with tempfile.TemporaryDirectory() as out:
         cmd = [sys.executable, "-m", "proxplan.cli", "plan", str(scenario_path), "--out", out,
                "--method", method, "--seed", str(seed), "--json", "--no-plot"]  # fmt: skip
+        if time_budget_s is not None:
+            cmd += ["--time-budget", f"{time_budget_s:g}"]
         t0 = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600 + (time_budget_s or 0.0))
         elapsed = time.perf_counter() - t0
         if proc.returncode == 1 and '"feasible": false' in proc.stdout:
             info = json.loads(proc.stdout)

@@ -1,0 +1,35 @@
+"""A candidate whose held-out change lies on essentially one flight is reported as not testable by these flights
+(identify.heldout_select.GainTest.one_flight, effective_units; identify.pipeline.IdentifyResult.one_flight)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from proxplan.identify.heldout_select import effective_units, ratio_test
+from proxplan.identify.pipeline import _one_flight_line
+
+
+def test_kish_effective_units() -> None:
+    assert effective_units(np.ones(4)) == 4.0
+    assert effective_units(np.array([5.0, 0.0, 0.0])) == 1.0
+    assert effective_units(np.zeros(3)) == 0.0
+    assert 1.0 < effective_units(np.array([27759.0, 6.7, 5.9])) < 1.001  # block 18000's draw 15 (docs/identify.md)
+
+
+def test_a_change_on_one_flight_is_reported_not_testable() -> None:
+    # the figures of block 18000's draw 15: 99.9 % of the change on one flight, which it does not carry over to
+    test = ratio_test(np.array([2.34, 14.0, -7090.0]), np.array([6.7, 5.9, 27759.0]), np.full(3, 1e4), 1)
+    assert not test.passed and test.one_flight and not test.undecided
+    doc = test.to_json()
+    assert doc["one_flight"] is True and doc["effective_flights"] < 1.01
+    line = _one_flight_line("near_field", doc)
+    assert "essentially one of them" in line and "of 3" in line and "cannot judge it" in line
+
+
+def test_spread_exposure_or_a_pass_is_not_one_flight() -> None:
+    spread = ratio_test(np.array([1.0, -2.0, 0.5]), np.array([10.0, 12.0, 9.0]), np.full(3, 1e3), 1)
+    assert not spread.passed and not spread.one_flight and spread.effective_flights > 2.5
+    strong = ratio_test(np.array([10.0, 0.1, 0.11]), np.array([10.0, 0.1, 0.1]), np.full(3, 1e3), 1)
+    assert not strong.one_flight  # whatever the exposure, a candidate that passes is kept, not "not testable"
+    single = ratio_test(np.array([3.0]), np.array([3.0]), np.array([10.0]), 1)
+    assert not single.one_flight  # one flight: no test at all (can_be_tested), nothing to report
