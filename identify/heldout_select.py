@@ -73,10 +73,10 @@ class GainTest:
 
     @property
     def one_flight(self) -> bool:
-        """Not kept, and what the candidate changes on the held-out flights lies on essentially ONE of them
-        (``effective_flights`` < 2): R is that flight's ratio, and its standard error "from flight to flight"
-        rests on flights that barely count, so the test cannot judge the candidate either way (the same reason
-        :func:`can_be_tested` asks for two flights). Typically the one flight that holds the effect, held out,
+        """Not kept, and what the candidate changes on the held-out flights lies mostly on ONE of them
+        (``effective_flights`` < 2, less than two equal flights' worth): R is mostly that flight's ratio, and
+        its standard error "from flight to flight" rests on flights that barely count, so the test cannot judge
+        the candidate either way (the same reason :func:`can_be_tested` asks for two flights). Typically the one flight that holds the effect, held out,
         leaves the others unable to fit what trades with it (docs/identify.md, "Stop 59")."""
         return (not self.passed) and self.n_groups >= 2 and 0.0 < self.effective_flights < 2.0
 

@@ -275,7 +275,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         lines += [f"- {line}" for line in undecided] + [""]
     one_flight = result.one_flight()
     if one_flight:
-        lines += ["Not testable on these flights (what it changes lies on one flight; not kept):", ""]
+        lines += ["Not testable on these flights (what it changes lies mostly on one flight; not kept):", ""]
         lines += [f"- {line}" for line in one_flight] + [""]
     lines += ["## Per vehicle (test flights, RMSE F_z [N])", "", "| vehicle | before | calibrated | after | samples |",
               "|---|---|---|---|---|"]  # fmt: skip
