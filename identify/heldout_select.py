@@ -76,8 +76,9 @@ class GainTest:
         """Not kept, and what the candidate changes on the held-out flights lies mostly on ONE of them
         (``effective_flights`` < 2, less than two equal flights' worth): R is mostly that flight's ratio, and
         its standard error "from flight to flight" rests on flights that barely count, so the test cannot judge
-        the candidate either way (the same reason :func:`can_be_tested` asks for two flights). Typically the one flight that holds the effect, held out,
-        leaves the others unable to fit what trades with it (docs/identify.md, "Stop 59")."""
+        the candidate either way (the same reason :func:`can_be_tested` asks for two flights). Typically the
+        one flight that holds the effect, held out, leaves the others unable to fit what trades with it
+        (docs/identify.md, "Stop 59")."""
         return (not self.passed) and self.n_groups >= 2 and 0.0 < self.effective_flights < 2.0
 
 
@@ -328,8 +329,8 @@ def _backward(
     plan: GroupPlan,
     ridge: Ridge,
     tau: float,
-    fold_eligible: Mapping[str, np.ndarray] | None = None,
-    judged: Mapping[str, tuple[int, ...] | None] | None = None,
+    fold_eligible: Mapping[str, np.ndarray] | None,
+    judged: Mapping[str, tuple[int, ...] | None],
 ) -> None:
     """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
     (Bonferroni over the kept ones), the weakest first; record each survivor's final test (``judged``: name
@@ -340,10 +341,10 @@ def _backward(
         for name in out.chosen:
             others = [n for n in out.chosen if n != name]
             without = heldout_fit(sums, cols(others), plan, ridge, tau)
-            acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau, (judged or {}).get(name))
+            acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau, judged[name])
             trials[name] = (without, _in_fold(full, without, name, fold_eligible), acts)
         m = max(1, sum(can_be_tested(acts, plan.cluster) for _, _, acts in trials.values()))
-        finals = {name: gain_test(sums, w, v, m, acts, plan.cluster, at_most_one=(judged or {}).get(name) is not None)
+        finals = {name: gain_test(sums, w, v, m, acts, plan.cluster, at_most_one=judged[name] is not None)
                   for name, (w, v, acts) in trials.items()}  # fmt: skip
         failing = [n for n, t in finals.items() if not t.passed]
         if not failing:

@@ -131,7 +131,7 @@ class IdentifyResult:
         return [_undecided_line(name, g) for name, g in self._unkept_tests() if g["undecided"]]
 
     def one_flight(self) -> list[str]:
-        """One line per effect or discovered term not kept whose held-out change lies on essentially one flight
+        """One line per effect or discovered term not kept whose held-out change lies mostly on one flight
         (:attr:`proxplan.identify.heldout_select.GainTest.one_flight`): these flights cannot test it."""
         return [_one_flight_line(name, g) for name, g in self._unkept_tests() if g.get("one_flight")]
 
