@@ -7,11 +7,14 @@ The stacked plan's levels are stacked so that two sources at half the authority 
 (:data:`proxplan.planner.swarm.levels.STACK_AUTHORITY_SHARE`); a track the makespan repair plans
 again between two levels can put a second full jet on a vehicle below that is already under one
 (grid-256: v118 0.58 m above v107 with v117 1.16 m above it, 0.119 of the 0.1 fraction; stop 59
-round 21A). :class:`VerifyGuard` asks the verifier about the whole plan (the guard of the makespan
-repair on the stacked plan), and (:meth:`VerifyGuard.around`) about the vehicles within reach of the
-changed tracks only (the verifier's own checks on a sub-plan of those vehicles, no second model):
-the changed vehicles, the vehicles near them in space-time (whose sums and loops the change can
-alter) and the vehicles above those, near them then (the other sources of those sums).
+round 21A). :class:`VerifyGuard` asks the verifier about the whole plan (called: the guard of the
+makespan repair on the stacked plan, asked once after it), and filters the tracks the repair plans
+again (:meth:`VerifyGuard.fits`): a track flown flat at a height its type does not fly flat at in
+the plan the repair started from (its level, :func:`level_heights_m`) over a vehicle that is under
+another source then (:func:`adds_a_height`, positions only) is taken only where the verifier's own
+checks that sum the jets pass on a sub-plan around it (:meth:`VerifyGuard.around`, no second model):
+the changed vehicle, the vehicles below it within reach while it differs from its old track (whose
+sums it joins), and the sources above those and above it (:func:`near_agents`).
 
 World frame, z up, m; tracks on the swarm grid (:data:`~proxplan.planner.swarm.tracks.GRID_DT_S`).
 """
@@ -31,23 +34,23 @@ from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.paths import TimedPath
 from proxplan.verify.reach import MIN_DZ_M
 
-# a vehicle is "near" a changed track when it comes within this many times the problem's largest
-# pair reach (problem.reach_xy_m, the full-fraction keep-out's horizontal reach, 0.40 m on the
-# bench's types) of it, horizontally, at the same grid step. Two reaches: the sum that breaks on
-# the stacked plan is of sources each within its pair keep-out at the half share
-# (levels.STACK_AUTHORITY_SHARE), whose cut-off reaches further than the full fraction's; measured
-# on grid-128 / grid-256's repaired stacked plans (stop 60 round 22A): the sub-plan fails wherever
-# the whole plan fails, and passes where it passes
+# the targets and sources of a change are the vehicles within this many times the problem's largest
+# pair reach (problem.reach_xy_m, the full-fraction keep-out's horizontal reach, 0.40 m on the bench's
+# types) of it, horizontally, at the same grid step. One reach, measured (stop 60 round 22A, grid-256's
+# stacked plan replayed): the sub-plan fails where the whole plan fails (v107 under v117 and v118,
+# 0.119 > 0.1) and the repaired plan whose 47 sub-plans passed passes the whole verifier; two reaches
+# made the sub-plans 2-3 times larger (grid-128: 24-59 -> 70-108 vehicles) for the same answers
 NEAR_REACHES = 1.0
-# a changed track differs from its old one where the two are farther apart than this, m (the
-# verifier's position tolerances are of this order: verify.tolerances.GOAL_TOLERANCE_M)
+# a changed track differs from its old one where the two are farther apart than this, m (below the
+# keep-outs' millimetre rounding, problem.GROWTH_M: an unchanged stretch repeats the same samples)
 MOVED_M = 1e-3
 # a source is above a target when higher by more than this, m (the verifier's: verify.reach.MIN_DZ_M)
 ABOVE_M = MIN_DZ_M
 
-# two sources above one vehicle are "at different heights" when their heights differ by more than
-# this, m: the stacked plan's levels are flat (every vehicle of a level at its height), and the
-# stacking keeps two levels' jets legal, not a third height between them (stop 60 round 22A)
+# a track flies on a level when within this of a height its type flies flat at (m): the stacked
+# plan's levels are flat, every vehicle of a level at its height to the millimetre (grid-128 and
+# grid-256: 0.92, 1.50, 2.08 m), and the stacking makes those heights' jets legal together, not a
+# height between them (stop 60 round 22A); 1 cm, half the keep-out tables' dz step (2 cm)
 LEVEL_DZ_M = 0.01
 
 # the sums of jets are checked at this time step, s (verify_plan's default dt_fine_s)
