@@ -52,6 +52,7 @@ class MakespanRepairInfo:
     solo: int = 0  # of ``replaced``: the latest vehicle planned again alone, the others kept
     # the repaired stacked plan failed the verifier and the tracks before the repair were kept (round 21A)
     verify_failed: bool = False
+    refused: int = 0  # tracks planned again the verifier refused around them (VerifyGuard.fits; round 22A)
 
 
 @dataclass(frozen=True)

@@ -32,8 +32,10 @@ the same plan on every machine; a wall-clock deadline stops it only as "not foun
 
 from __future__ import annotations
 
+import functools
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -61,7 +63,17 @@ PLANNINGS_PER_VEHICLE = 3.0
 # corridor-64 and pillar-64 2); counted in work the budget no longer grows with N^2 (the plannings
 # x the horizon): grid-64 gets 144 plannings, corridor-64 (1123 steps) 61, grid-128 96, grid-256 36
 STALL_WORK_STEPS = 96 * 720
-__all__ = ["PLANNINGS_PER_VEHICLE", "STALL_WORK_STEPS", "budget", "replan", "shorten_makespan", "stall_budget"]
+# whether a track planned again may be taken, against the tracks in the occupancy: (occupancy, the
+# track, the vehicle's track before the repair planned it again or None) -> bool
+Fits = Callable[[Occupancy, GridTrack, GridTrack | None], bool]
+__all__ = [
+    "PLANNINGS_PER_VEHICLE",
+    "STALL_WORK_STEPS",
+    "budget",
+    "replan",
+    "shorten_makespan",
+    "stall_budget",
+]
 
 
 def shorten_makespan(
@@ -73,15 +85,20 @@ def shorten_makespan(
     max_plannings: int,
     stall_plannings: int | None = None,
     deadline: float | None = None,
+    fits: Fits | None = None,
 ) -> dict[str, int]:
     """Replace neighbourhoods of ``by_agent`` (agent -> track, conflict-free; changed in place) as
     long as they shorten (see module), within ``max_plannings`` single-vehicle plannings over the
     ``horizon_steps`` grid, stopping once ``stall_plannings`` plannings in a row replaced nothing
     (None: :func:`stall_budget` of the horizon, :data:`STALL_WORK_STEPS` of work);
-    ``through``: fly through waypoints (else rest to rest). Returns the counts: ``plannings``,
-    ``replaced`` (neighbourhoods), ``tried`` (neighbourhoods)."""
+    ``through``: fly through waypoints (else rest to rest). ``fits`` (None: every track): whether a
+    track planned again may be taken (:func:`replan`; on the stacked plan
+    :meth:`~proxplan.planner.swarm.verify_guard.VerifyGuard.fits`: the verifier's sums of jets, which
+    the pair keep-outs do not see). Returns the counts: ``plannings``, ``replaced`` (neighbourhoods),
+    ``tried`` (neighbourhoods), ``solo`` (vehicles alone replaced)."""
     if stall_plannings is None:
         stall_plannings = stall_budget(horizon_steps)
+    plan_again = replan if fits is None else functools.partial(replan, fits=fits)
     occ = Occupancy(problem, list(by_agent.values()), horizon_steps)
     alone = {  # each vehicle's straight line alone, rest to rest, in steps: nothing arrives earlier
         a: rest_to_rest(
@@ -107,7 +124,7 @@ def shorten_makespan(
         if a not in solo_tried and by_agent[a].arrival_step == end > alone[a]:
             solo_tried.add(a)  # the neighbourhood of a alone first: one planning, the others kept
             occ.remove(a)
-            track = replan(occ, a, by_agent[a], end, through)
+            track = plan_again(occ, a, by_agent[a], end, through)
             counts["plannings"] += 1
             occ.put(track if track is not None else by_agent[a])
             if track is not None:
@@ -146,7 +163,7 @@ def shorten_makespan(
             new: dict[int, GridTrack] = {}
             stuck = None
             for b in seq:
-                track = replan(occ, b, old[b], worst, through)
+                track = plan_again(occ, b, old[b], worst, through)
                 counts["plannings"] += 1
                 if track is None:  # this order cannot shorten the neighbourhood
                     stuck = b
@@ -178,21 +195,27 @@ def shorten_makespan(
     return counts
 
 
-def replan(occ: Occupancy, b: int, old: GridTrack | None, worst: int, through: bool) -> GridTrack | None:
+def replan(
+    occ: Occupancy, b: int, old: GridTrack | None, worst: int, through: bool, fits: Fits | None = None
+) -> GridTrack | None:
     """A track of ``b`` against the tracks in ``occ`` arriving before step ``worst``, or None: the
     earlier of :func:`~proxplan.planner.swarm.single.plan_one` and ``old``'s own route (the waypoint
     chain it was timed along, where it has more than two points) timed again, else ``old`` itself
     where it arrives in time and still conflicts with no track in ``occ``. ``plan_one`` alone does
     not always find a track where one exists (docs/planner.md, stop 56: on pillar-64 it found none
-    for two of the four latest vehicles against everyone else's tracks, though their own exist)."""
+    for two of the four latest vehicles against everyone else's tracks, though their own exist).
+    ``fits`` (None: every track): a track it refuses is not taken, the next of those three is."""
     track = plan_one(occ, b, through)
+    if track is not None and fits is not None and not fits(occ, track, old):
+        track = None
     route = None if old is None else old.route_m
     if route is not None and len(route) > 2:
         res = time_chain(occ, b, route, arrive_by=None if track is None else track.arrival_step - 1, through=through)
         if res is not None and (track is None or res.arrival_step < track.arrival_step):
-            track = res.track
+            if fits is None or fits(occ, res.track, old):
+                track = res.track
     if (track is None or track.arrival_step >= worst) and old is not None and old.arrival_step < worst:
-        if not occ.conflicting_agents(old):
+        if not occ.conflicting_agents(old) and (fits is None or fits(occ, old, old)):
             track = old
     return None if track is None or track.arrival_step >= worst else track
 

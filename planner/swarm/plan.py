@@ -83,13 +83,12 @@ from proxplan.planner.swarm.retime import improve
 from proxplan.planner.swarm.stage import Stage
 from proxplan.planner.swarm.straight import straight_step_conflicts
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
+from proxplan.planner.swarm.verify_guard import Check, VerifyGuard
 from proxplan.planner.swarm.yielding import yielding_candidate
 from proxplan.planner.timing.paths import TimedPath
 from proxplan.planner.timing.profile import rest_to_rest
 
 SWARM_MIN_VEHICLES = 16  # formation changes with at least this many vehicles use the swarm layer by default
-# whether tracks (agent -> track) pass the verifier (:func:`_verifies`)
-Check = Callable[[dict[int, GridTrack]], bool]
 HORIZON_MARGIN_S = 5.0  # the re-timing horizon extends this far past the initial makespan, s
 
 __all__ = ["SWARM_MIN_VEHICLES", "SwarmHandOn", "SwarmOptions", "swarm_again", "swarm_applicable", "swarm_timed"]
@@ -122,7 +121,7 @@ def swarm_timed(
             _stacking(scenario, problem) if opts.levels else None,
             progress=progress,
             deadline=deadline,
-            check=_verifies(scenario, problem, original, unfreezes),
+            check=VerifyGuard(scenario, problem, original, unfreezes),
         )
     except PlanNotFound as err:
         if not frozen:
@@ -165,7 +164,7 @@ def swarm_again(
         give_up = hand_on.give_up
         joined = give_up is None or give_up.stack is None or give_up.levels is not None
         if replace(options, through_waypoints=before.through_waypoints) == before and joined:
-            check = _verifies(scenario, hand_on.problem, hand_on.problem, ())
+            check = VerifyGuard(scenario, hand_on.problem, hand_on.problem, ())
             return _retimed_again(hand_on, options, progress=progress, deadline=deadline, check=check)
     if (options.deflection_m, options.tracking_bound) != (before.deflection_m, before.tracking_bound):
         return swarm_timed(scenario, options, progress=progress, deadline=deadline)
@@ -180,26 +179,9 @@ def swarm_again(
         _stacking(scenario, problem) if options.levels else None,
         progress=progress,
         deadline=deadline,
-        check=_verifies(scenario, problem, problem, ()),
+        check=VerifyGuard(scenario, problem, problem, ()),
     )
     return _handed_on(problem, hand_on.lower_bound_s, options, hand_on.assigned, planned, t0, memo)
-
-
-def _verifies(scenario: Scenario, problem: SwarmProblem, original: SwarmProblem, unfreezes) -> Check:
-    """Whether tracks of ``problem`` (agent -> track) pass the verifier on ``scenario``, as the
-    pipeline will verify them (the unfreeze steps of ``original`` applied first, swarm.frozen): the
-    guard of the makespan repair on the stacked plan (:func:`_makespan_stage`)."""
-
-    def check(by_agent: dict[int, GridTrack]) -> bool:
-        from proxplan.planner.timing.plan_grid import assemble_plan
-        from proxplan.verify import verify_plan
-
-        timed = {problem.names[a]: by_agent[a].timed_path() for a in range(problem.n_agents)}
-        if unfreezes:
-            timed, _ = apply_unfreezes(timed, original, unfreezes, GRID_DT_S)
-        return not verify_plan(assemble_plan(scenario, timed, method="swarm", notes=[]), scenario)
-
-    return check
 
 
 def _stacking(scenario: Scenario, problem: SwarmProblem) -> Callable[[], dict]:
@@ -352,7 +334,7 @@ def _plan(
     ``assigned``: the goals were assigned; ``stacking``: gives the keep-outs the levels of the stacked plan are
     stacked on, :func:`~proxplan.planner.swarm.levels.stacking_keepouts`, called only where that plan is
     tried; None: no stacked plan; ``check``: whether tracks pass the verifier, asked after the makespan
-    repair changed the stacked plan, :func:`_verifies`)."""
+    repair changed the stacked plan, :class:`~proxplan.planner.swarm.verify_guard.VerifyGuard`)."""
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
     pre_retimed: tuple[dict[int, GridTrack], RetimeInfo] | None = None  # ``found`` re-timed, where already
@@ -511,11 +493,13 @@ def _makespan_stage(
 ) -> MakespanRepairInfo:
     """The latest vehicles planned again with those in their way (:mod:`proxplan.planner.swarm.makespan`;
     ``by_agent`` changed in place; never longer, always conflict-free). ``check`` (the stacked plan:
-    :func:`_verifies`): asked once after the repair replaced tracks; where it fails, the tracks before
-    the repair come back (``MakespanRepairInfo.verify_failed``): the repair plans against the pair
-    keep-outs, and a vehicle it flies between the stacked plan's levels adds its jet to the level
+    :class:`~proxplan.planner.swarm.verify_guard.VerifyGuard`): the repair plans against the pair
+    keep-outs, and a vehicle it flies between the stacked plan's levels can add its jet to the level
     above's on a vehicle below (the levels are stacked so that two sources fit, levels.STACK_AUTHORITY_SHARE;
-    grid-256: 0.119 of the 0.1 authority fraction, stop 59 round 21A)."""
+    grid-256: 0.119 of the 0.1 authority fraction, stop 59 round 21A), so such a track is taken only
+    where the verifier's sums pass around it (``VerifyGuard.fits``); the whole result is asked once
+    more after the repair replaced tracks, and where that fails the tracks before the repair come back
+    (``MakespanRepairInfo.verify_failed``)."""
     before = max(tr.arrival_s for tr in by_agent.values())
     kept = dict(by_agent)
     if progress:
@@ -528,6 +512,7 @@ def _makespan_stage(
         through=opts.through_waypoints == "always",
         max_plannings=makespan_budget(problem.n_agents),
         deadline=deadline,
+        fits=check.fits if isinstance(check, VerifyGuard) else None,
     )
     failed = check is not None and counts["replaced"] > 0 and not check(by_agent)
     if failed:
@@ -537,5 +522,6 @@ def _makespan_stage(
         makespan_after_s=max(tr.arrival_s for tr in by_agent.values()),
         time_s=round(time.perf_counter() - t0, 3),
         verify_failed=failed,
+        refused=check.refused if isinstance(check, VerifyGuard) else 0,
         **counts,
     )

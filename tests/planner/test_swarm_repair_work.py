@@ -7,7 +7,8 @@ from __future__ import annotations
 from proxplan.planner.swarm import SwarmOptions
 from proxplan.planner.swarm import makespan as makespan_module
 from proxplan.planner.swarm.makespan import STALL_WORK_STEPS, budget, shorten_makespan, stall_budget
-from proxplan.planner.swarm.plan import _makespan_stage, _verifies
+from proxplan.planner.swarm.plan import _makespan_stage
+from proxplan.planner.swarm.verify_guard import VerifyGuard
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
 
@@ -62,10 +63,10 @@ def test_a_repair_that_fails_the_check_gives_the_tracks_before_it_back(stacked16
 
 
 def test_with_the_verifier_as_the_check_the_stage_hands_on_a_plan_that_verifies(stacked16):
-    """The guard the swarm layer builds (plan._verifies) on grid-16's stacked plan: what the stage hands
+    """The guard the swarm layer builds (verify_guard.VerifyGuard) on grid-16's stacked plan: what the stage hands
     on passes the verifier, and the guard agrees with the verifier on it."""
     sc, problem, before = stacked16
-    check = _verifies(sc, problem, problem, ())
+    check = VerifyGuard(sc, problem, problem, ())
     by_agent = dict(before)
     info = _makespan_stage(problem, by_agent, SwarmOptions(), progress=None, deadline=None, check=check)
     timed = {problem.names[a]: t.timed_path() for a, t in by_agent.items()}
