@@ -12,8 +12,8 @@ rounds; grid-32 7.55 -> 7.20 s in one). So here, in rounds, on the tracks the pl
 
 1. every vehicle re-timed through its waypoints along its straight line and its own route
    (:func:`proxplan.planner.swarm.retime.improve`, :data:`RETIME_PASSES` passes; never later);
-2. the makespan repair rest to rest, then through waypoints, each within the fast plan's count
-   budget (:func:`proxplan.planner.swarm.makespan.budget`) and its default stall budget.
+2. the makespan repair, rest to rest (:data:`REPAIR_THROUGH`), within the fast plan's count budget
+   (:func:`proxplan.planner.swarm.makespan.budget`) and its default stall budget.
 
 A round that does not shorten the makespan ends the search; at most :data:`ROUNDS` rounds. Every
 step keeps the tracks conflict-free against the others' and never makes the makespan longer, so the
@@ -36,7 +36,7 @@ from proxplan.planner.swarm.retime import improve
 from proxplan.planner.swarm.stage import own_routes
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 
-__all__ = ["RETIME_PASSES", "ROUNDS", "LongerRepair", "longer_repair"]
+__all__ = ["REPAIR_THROUGH", "RETIME_PASSES", "ROUNDS", "LongerRepair", "longer_repair"]
 
 # rounds of (re-timing, repair rest to rest, repair through waypoints); the search ends earlier at the
 # first round that does not shorten the makespan. Watched on the named layouts at 32 fixed (in-process,
@@ -45,6 +45,11 @@ __all__ = ["RETIME_PASSES", "ROUNDS", "LongerRepair", "longer_repair"]
 ROUNDS = 3
 # re-timing passes per round: the fast plan's own count (SwarmOptions.passes' default)
 RETIME_PASSES = 3
+# the repairs of a round, in turn: fly through waypoints (True) or rest to rest (False). Rest to rest only:
+# in-process at 32 fixed (round 22S) the repair through waypoints after it shortened only corridor-32's third
+# round (12.62 -> 12.53 s), nothing on grid, circle or pillar, and cost about as much CPU again (corridor: 91
+# plannings, ~45 s, in its first round, for nothing)
+REPAIR_THROUGH: tuple[bool, ...] = (False,)
 
 
 @dataclass(frozen=True)
@@ -97,17 +102,17 @@ def longer_repair(
                     max_plannings=budget(problem.n_agents),
                     deadline=deadline,
                 )
-                for through in (False, True)
+                for through in REPAIR_THROUGH
             ]
         except PlanNotFound:
             lines.append(f"round {k + 1}: gave up (time budget), its start kept ({was:.2f} s)")
             return LongerRepair(start, before, _makespan_s(start), tuple(lines), plannings, gave_up=True)
-        plannings += sum(c["plannings"] for c in counts)
+        made = sum(c["plannings"] for c in counts)
+        plannings += made
         now = _makespan_s(by_agent)
         lines.append(
             f"round {k + 1}: {was:.2f} s, re-timed {mid:.2f} s ({retimed['replaced']} tracks), repaired "
-            f"{now:.2f} s ({counts[0]['replaced']} + {counts[1]['replaced']} neighbourhoods, "
-            f"{counts[0]['plannings'] + counts[1]['plannings']} plannings)"
+            f"{now:.2f} s ({sum(c['replaced'] for c in counts)} neighbourhoods, {made} plannings)"
         )
         if now >= was - 1e-9:
             break
