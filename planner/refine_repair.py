@@ -7,7 +7,7 @@ once, rest to rest (or through waypoints where the plan flies so), after re-timi
 (every neighbourhood of the latest vehicles skipped) well inside its budget, and what frees it is
 the re-timing of the others: once they are re-timed through their waypoints, the latest vehicles'
 neighbourhoods plan again into the time the others left (corridor-32 13.70 -> 12.53 s over three
-rounds; grid-32 7.55 -> 7.20 s in one). So here, in rounds, on the tracks the plan was made of
+rounds with the repair through waypoints too, 12.60 s without, in the bench; grid-32 7.55 -> 7.20 s in one). So here, in rounds, on the tracks the plan was made of
 (:attr:`~proxplan.planner.swarm.info.SwarmHandOn.tracks`):
 
 1. every vehicle re-timed through its waypoints along its straight line and its own route
@@ -38,9 +38,9 @@ from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 
 __all__ = ["REPAIR_THROUGH", "RETIME_PASSES", "ROUNDS", "LongerRepair", "longer_repair"]
 
-# rounds of (re-timing, repair rest to rest, repair through waypoints); the search ends earlier at the
-# first round that does not shorten the makespan. Watched on the named layouts at 32 fixed (in-process,
-# round 22S): corridor-32 gained in rounds 1-3 (13.70 -> 13.03 -> 12.62 -> 12.53 s), nothing in round 4
+# rounds of (re-timing, repair); the search ends earlier at the first round that does not shorten the
+# makespan. Watched on the named layouts at 32 fixed (in-process, round 22S, with the repair through
+# waypoints too): corridor-32 gained in rounds 1-3 (13.70 -> 13.03 -> 12.62 -> 12.53 s), nothing in round 4
 # (+48 s of CPU for it); grid-32 gained in round 1 only; circle-32 and pillar-32 in none
 ROUNDS = 3
 # re-timing passes per round: the fast plan's own count (SwarmOptions.passes' default)
