@@ -13,7 +13,10 @@ kept, with a note. For swarms (the swarm layer ran), where the plan is not alrea
    layer's counts. Not planned again from the start: the fast plan's own tracks are re-timed
    through waypoints, and the give-up plans are planned on its problem
    (:func:`~proxplan.planner.swarm.plan.swarm_again`, the same tracks as planning afresh);
-2. *joint moves* (:func:`proxplan.planner.optimizer.joint_moves`, count budgets) on the plan kept.
+2. *the makespan repair, longer* (:func:`_repaired_longer`, :mod:`proxplan.planner.refine_repair`): rounds
+   of re-timing through waypoints and the makespan repair on the kept plan's own tracks, kept only
+   when shorter and verified;
+3. *joint moves* (:func:`proxplan.planner.optimizer.joint_moves`, count budgets) on the plan kept.
 
 Why 1: with fixed goals the vehicles that set the makespan fly long detours round a crowd in one
 plane (grid-32: 6.9-7.8 m against 2.2-2.5 m straight, rest to rest through 5-6 corners, their goals
@@ -43,9 +46,14 @@ OPTIMAL_WITHIN = 0.05
 # fixed goals (in-process, docs/planner.md stop 53 round 15C; against the fast plans 8.55, 6.20, 15.90,
 # 8.40 s): the give-up plans 7.25 (stacked), 7.60 (stacked), 21.05 (lattice), 15.40 s (lattice);
 # re-timing through waypoints 8.20, 6.20, 14.00, 8.20 s. Not watched: the randomised family.
+# Since round 22S also the fast method's own re-timing passes (``--method swarm``: SwarmOptions' default;
+# the pipeline adds OPTIMIZE_EXTRA_PASSES for ``optimized``, and the makespan repair after them then starts
+# elsewhere: in-process at 32 fixed, 3 / 8 passes gave corridor 13.70 / 16.80 s, pillar 7.08 / 7.53 s,
+# grid 8.10 / 7.55 s, circle 5.85 / 5.85 s), so that ``optimized`` is never longer than the fast plan.
 SWARM_ALTERNATIVES: tuple[tuple[str, dict], ...] = (
     ("the plans made where prioritised planning gives up (lattice, stacked levels)", {"prioritized": False}),
     ("re-timing through waypoints", {"through_waypoints": "retime"}),
+    ("the fast method's re-timing passes", {"passes": SwarmOptions().passes}),
 )
 
 
@@ -140,6 +148,10 @@ def _refine_swarm(
         )
         return plan, swarm_info
     plan, swarm_info = _swarm_alternatives(scenario, plan, swarm_info, swarm_options, progress, deadline)
+    longer = _repaired_longer(scenario, plan, swarm_info, progress, deadline)
+    if longer is not plan and swarm_info is not None:  # the record says the kept plan's makespan, s
+        swarm_info = replace(swarm_info, makespan_s=moving_end_s(longer))
+    plan = longer
     makespan = moving_end_s(plan)
     if time_budget_s is not None:
         plan.notes.append("optimized: --time-budget does not apply to swarms (the joint moves have count budgets)")
@@ -217,3 +229,47 @@ def _swarm_alternatives(
         best.verified = True  # verify_plan passed it above
         best.scenario_file, best.scenario_spec = plan.scenario_file, plan.scenario_spec
     return best, best_info
+
+
+def _repaired_longer(
+    scenario: Scenario,
+    plan: Plan,
+    info: SwarmInfo | None,
+    progress: Callable[..., None] | None,
+    deadline: float | None,
+) -> Plan:
+    """``plan`` after the longer makespan repair (:func:`proxplan.planner.refine_repair.longer_repair`) of the
+    swarm plan's own tracks (``info.hand_on.tracks``), where it is shorter and passes ``verify``; else
+    ``plan``; a note either way. Not where the plan is not the swarm layer's (no tracks handed on) or its
+    starts or goals were moved by an unfreeze step (the tracks are not the whole plan, swarm.frozen)."""
+    from proxplan.planner.refine_repair import longer_repair
+    from proxplan.planner.swarm.frozen import moved_points
+    from proxplan.verify import verify_plan
+
+    hand_on = None if info is None else info.hand_on
+    if hand_on is None or hand_on.tracks is None:
+        plan.notes.append("optimized: the makespan repair, longer: not run (not the swarm layer's tracks)")
+        return plan
+    if moved_points(scenario, hand_on.problem):
+        plan.notes.append("optimized: the makespan repair, longer: not run (starts or goals moved by an unfreeze)")
+        return plan
+    if progress:
+        progress("optimized: the makespan repair, longer", 0.92)
+    problem = hand_on.problem
+    got = longer_repair(problem, hand_on.tracks, deadline=deadline)
+    said = f"optimized: the makespan repair, longer: {'; '.join(got.rounds)}"
+    best_s = moving_end_s(plan)
+    if got.makespan_after_s >= got.makespan_before_s - 1e-9:
+        plan.notes.append(said + "; nothing shorter")
+        return plan
+    timed = {problem.names[a]: got.tracks[a].timed_path() for a in range(problem.n_agents)}
+    candidate = assemble_plan(scenario, timed, method="optimized", notes=[])
+    new_s, bad = moving_end_s(candidate), verify_plan(candidate, scenario)
+    if bad or new_s >= best_s - 1e-9:
+        why = f"failed verify: {bad[0]}" if bad else f"not shorter than {best_s:.2f} s"
+        plan.notes.append(f"{said}; {new_s:.2f} s {why}")
+        return plan
+    candidate.notes = list(plan.notes) + [f"{said}; {new_s:.2f} s, shorter than {best_s:.2f} s: kept"]
+    candidate.verified = True  # verify_plan passed it above
+    candidate.scenario_file, candidate.scenario_spec = plan.scenario_file, plan.scenario_spec
+    return candidate

@@ -13,6 +13,7 @@ if TYPE_CHECKING:  # types only: these modules import this one
     from proxplan.planner.swarm.levels import Levels
     from proxplan.planner.swarm.options import SwarmOptions
     from proxplan.planner.swarm.problem import SwarmProblem
+    from proxplan.planner.swarm.tracks import GridTrack
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,9 @@ class SwarmHandOn:
     heights: Stage | None
     extra: dict  # the stage records of the plan (SwarmInfo's fields after time_s), as planned
     give_up: GiveUpHandOn | None = None  # where prioritised planning gave up (or did not run)
+    # the plan's final tracks by agent (after re-timing and the makespan repair; before any unfreeze
+    # step, swarm.frozen): what ``optimized``'s longer makespan repair starts from (refine_stage)
+    tracks: dict[int, GridTrack] | None = None
 
 
 @dataclass(frozen=True)

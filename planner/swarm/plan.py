@@ -217,6 +217,7 @@ def _handed_on(
         searched=planned.searched,
         heights=planned.heights,
         give_up=planned.give_up,
+        tracks=dict(by_agent),
         extra={k: (dict(v) if isinstance(v, dict) else v) for k, v in extra.items()},
     )
     # single-vehicle searches given back by the memo (swarm.memo) and searched, over every stage
