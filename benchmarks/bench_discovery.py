@@ -25,7 +25,11 @@ error channel by channel (F_z in N against that vehicle's F_z error, the torque 
 error), is 1.5-4x on the vehicle it affects most. (Until stop 51 the torque was counted in N as torque / L
 against the F_z error of the vehicle with the largest effect in newtons: a torque effect then sat at up to
 55x its own channel's error, and a small vehicle beside a large one at up to 9x, where no finite basis can
-come within 1.3x.) Every draw has a CLEAN twin (same seed, motions, noise and imperfections, no
+come within 1.3x.) The amplitude is capped at what a hovering vehicle's motors could hold against on every
+sample of every flight of the set (:func:`discovery_world.flyable_amplitude`; since stop 60: set on the test
+flight alone, the tail of a Gaussian there asked for 458x the vehicle's weight on a train flight, logs that
+could not exist); a capped draw whose effect then falls below its twin's error on the test flight affects no
+vehicle and counts only for harm and spurious effects. Every draw has a CLEAN twin (same seed, motions, noise and imperfections, no
 effect); the twins are the clean sets.
 
 Reported (fixed seeds; nothing here was tuned while watching these figures):
@@ -38,6 +42,8 @@ Reported (fixed seeds; nothing here was tuned while watching these figures):
 * harm: sets where a vehicle that is NOT affected (the effect's RMS there is below its clean twin's error)
   ends more than 1.3x its clean twin's F_z error: a term fitted on the affected vehicle carried to
   another; power, judged on the affected vehicles only, does not see it;
+* power by the number of TRAIN flights that hold the effect (at least the affected vehicle's clean test error
+  there; the least exposed affected vehicle): a flight-level test cannot validate what one flight holds;
 * per draw: family, what was kept, grams and ratios;
 * beside each rate, its exact (Clopper-Pearson) 95 % interval: 20 sets cannot show a rate of zero, only
   bound it (0 of 20 leaves up to 17 %; 1 of 20 is consistent with a 5 % family-wise test level).

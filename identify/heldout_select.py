@@ -87,8 +87,10 @@ class GainTest:
         its standard error "from flight to flight" rests on flights that barely count, so the test cannot judge
         the candidate either way (the same reason :func:`can_be_tested` asks for two flights). Typically the
         one flight that holds the effect, held out, leaves the others unable to fit what trades with it
-        (docs/identify.md, "Stop 59")."""
-        return (not self.passed) and self.n_groups >= 2 and 0.0 < self.effective_flights < 2.0
+        (docs/identify.md, "Stop 59"). A candidate that acts on ONE held-out flight only has no test at all
+        (:func:`can_be_tested`) and is reported too (stop 60: that is where a user most needs to hear which
+        situation to fly again; benchmark draw 19001's side kernel, chosen in every half-sample, acted on one)."""
+        return (not self.passed) and self.n_groups >= 1 and 0.0 < self.effective_flights < 2.0
 
 
 def effective_units(energy: np.ndarray) -> float:
