@@ -25,7 +25,11 @@ error channel by channel (F_z in N against that vehicle's F_z error, the torque 
 error), is 1.5-4x on the vehicle it affects most. (Until stop 51 the torque was counted in N as torque / L
 against the F_z error of the vehicle with the largest effect in newtons: a torque effect then sat at up to
 55x its own channel's error, and a small vehicle beside a large one at up to 9x, where no finite basis can
-come within 1.3x.) Every draw has a CLEAN twin (same seed, motions, noise and imperfections, no
+come within 1.3x.) The amplitude is capped at what a hovering vehicle's motors could hold against on every
+sample of every flight of the set (:func:`discovery_world.flyable_amplitude`; since stop 60: set on the test
+flight alone, the tail of a Gaussian there asked for 458x the vehicle's weight on a train flight, logs that
+could not exist); a capped draw whose effect then falls below its twin's error on the test flight affects no
+vehicle and counts only for harm and spurious effects. Every draw has a CLEAN twin (same seed, motions, noise and imperfections, no
 effect); the twins are the clean sets.
 
 Reported (fixed seeds; nothing here was tuned while watching these figures):
@@ -38,6 +42,8 @@ Reported (fixed seeds; nothing here was tuned while watching these figures):
 * harm: sets where a vehicle that is NOT affected (the effect's RMS there is below its clean twin's error)
   ends more than 1.3x its clean twin's F_z error: a term fitted on the affected vehicle carried to
   another; power, judged on the affected vehicles only, does not see it;
+* power by the number of TRAIN flights that hold the effect (at least the affected vehicle's clean test error
+  there; the least exposed affected vehicle): a flight-level test cannot validate what one flight holds;
 * per draw: family, what was kept, grams and ratios;
 * beside each rate, its exact (Clopper-Pearson) 95 % interval: 20 sets cannot show a rate of zero, only
   bound it (0 of 20 leaves up to 17 %; 1 of 20 is consistent with a 5 % family-wise test level).
@@ -59,7 +65,15 @@ import numpy as np
 from scipy.stats import binomtest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the generated world beside this script
-from discovery_world import FAMILIES, SetSpec, draw_spec, effect_rms_on_test, make_set  # noqa: E402
+from discovery_world import (  # noqa: E402
+    FAMILIES,
+    SetSpec,
+    draw_spec,
+    effect_rms,
+    effect_rms_on_test,
+    flyable_amplitude,
+    make_set,
+)
 
 __all__ = ["FAMILIES", "SetSpec", "draw_spec", "make_set", "run_draw"]
 
@@ -103,9 +117,12 @@ def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
         clean = _identify(make_set(spec, base / "clean", None))
         size = relative_size(effect_rms_on_test(spec), clean)
         target = float(np.random.default_rng([spec.seed, 99]).uniform(1.5, 4.0))
-        amplitude = target / max(max(size.values()), 1e-12)
+        wanted = target / max(max(size.values()), 1e-12)
+        flyable = flyable_amplitude(spec)
+        amplitude = min(wanted, flyable)
         hidden = _identify(make_set(spec, base / "effect", amplitude))
     affected = [v for v in size if amplitude * size[v] >= 1.0]
+    exposed = _exposed_train_flights(spec, clean, amplitude, affected)
     ratios = {v: hidden["per_vehicle_fz_N"][v] / clean["per_vehicle_fz_N"][v] for v in clean["per_vehicle_fz_N"]}
     tq_ratios = {v: hidden["per_vehicle_torque_Nm"][v] / max(clean["per_vehicle_torque_Nm"][v], 1e-12)
                  for v in clean["per_vehicle_torque_Nm"]}  # fmt: skip
@@ -115,12 +132,23 @@ def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
     harmed = sorted(v for v in ratios if v not in affected and ratios[v] > RATIO_OK)
     return {
         "seed": seed, "family": family, "effect": spec.effect, "types": spec.types, "n_train": spec.n_train,
-        "commanded": spec.commanded, "amplitude": amplitude, "affected": affected, "ratios": ratios,
+        "commanded": spec.commanded, "amplitude": amplitude, "amplitude_capped": flyable < wanted,
+        "flyable_amplitude": flyable, "affected": affected, "exposed_train_flights": exposed, "ratios": ratios,
         "torque_ratios": tq_ratios, "worst_ratio": worst, "found": worst is not None and worst <= RATIO_OK,
         "harmed": harmed,
         "clean": clean, "hidden": hidden, "clean_false_positive": _beyond_thrust_bias(clean["selected"]),
         "spurious_library": sorted(_library(hidden["selected"]) - put_in) + sorted(_library(clean["selected"])),
     }  # fmt: skip
+
+
+def _exposed_train_flights(
+    spec: SetSpec, clean: dict[str, Any], amplitude: float, affected: list[str]
+) -> dict[str, int]:
+    """Per affected vehicle, the number of TRAIN flights on which the effect is at least that vehicle's clean
+    twin's test error (the same unit as ``affected``; a train flight's own clean error is not measured). A
+    flight-level test cannot validate an effect that only one train flight holds."""
+    per_flight = [relative_size(effect_rms(spec, k), clean) for k in range(spec.n_train)]
+    return {v: sum(amplitude * size[v] >= 1.0 for size in per_flight) for v in affected}
 
 
 def _has_torque(desc: dict[str, Any]) -> bool:
@@ -196,7 +224,11 @@ def main() -> None:
                                  "found": sum(r["found"] for r in visible if r["family"] == f)} for f in FAMILIES},
                "by_train_flights": {str(n): {"draws": sum(r["n_train"] == n for r in visible),
                                              "found": sum(r["found"] for r in visible if r["n_train"] == n)}
-                                    for n in sorted({r["n_train"] for r in visible})}}  # fmt: skip
+                                    for n in sorted({r["n_train"] for r in visible})},
+               "by_exposed_flights": {str(n): {"draws": sum(_exposure(r) == n for r in visible),
+                                               "found": sum(r["found"] for r in visible if _exposure(r) == n)}
+                                      for n in sorted({_exposure(r) for r in visible})},
+               "amplitude_capped": sum(r["amplitude_capped"] for r in results)}  # fmt: skip
     if args.json:
         print(json.dumps({"summary": summary, "draws": results}, indent=1, default=float))
         return
@@ -214,6 +246,9 @@ def main() -> None:
           f"95 % interval {lo:.0%}-{hi:.0%})")  # fmt: skip
     by_n = ", ".join(f"{n} train flights {v['found']}/{v['draws']}" for n, v in summary["by_train_flights"].items())
     print(f"power by train flights (the held-out test's t has one degree of freedom fewer than flights): {by_n}")
+    by_e = ", ".join(f"{n} exposed {v['found']}/{v['draws']}" for n, v in summary["by_exposed_flights"].items())
+    print(f"power by train flights that hold the effect (on its least exposed affected vehicle): {by_e}")
+    print(f"draws whose amplitude was capped to what the motors can fly: {summary['amplitude_capped']}")
     lo, hi = summary["false_positive_rate_ci95"]
     print(f"false positives: {len(fp)} of {len(results)} clean sets keep more than thrust_bias (target 0; "
           f"rate 95 % interval {lo:.0%}-{hi:.0%})")  # fmt: skip
@@ -223,6 +258,11 @@ def main() -> None:
         f"{summary['sets_harming_unaffected_vehicles']} (power does not see these)"
     )
     print(f"wall {wall:.0f} s")
+
+
+def _exposure(r: dict[str, Any]) -> int:
+    """The number of train flights holding the effect on the draw's least exposed affected vehicle."""
+    return min(r["exposed_train_flights"].values())
 
 
 def rate_interval(k: int, n: int) -> tuple[float, float]:

@@ -236,6 +236,13 @@ def hidden_wrench(desc: dict[str, Any], inputs) -> tuple[np.ndarray, np.ndarray]
 # ------------------------------------------------------------------------------ one set
 
 
+def _flight_motions(spec: SetSpec, k: int, sizes: dict[str, float], t: np.ndarray) -> tuple[dict[str, np.ndarray], int]:
+    """Flight ``k``'s motions (m, world, per vehicle) and its noise seed: the same for every caller."""
+    rng = np.random.default_rng([spec.seed, k])
+    motions = _motions(rng, list(sizes), t, bool(k % 2), sizes)
+    return motions, int(rng.integers(1 << 30))
+
+
 def make_set(spec: SetSpec, root: Path, amplitude: float | None) -> Path:
     """Write the set (clean when ``amplitude`` is None) under ``root``; returns its manifest."""
     from proxplan.identify import synthetic_logs, write_synthetic_manifest
@@ -246,9 +253,7 @@ def make_set(spec: SetSpec, root: Path, amplitude: float | None) -> Path:
     hidden = None if amplitude is None else (lambda inputs: _scaled(hidden_wrench(spec.effect, inputs), amplitude))
     flights = []
     for k in range(spec.n_train + 1):
-        rng = np.random.default_rng([spec.seed, k])
-        motions = _motions(rng, list(vehicles), t, bool(k % 2), {n: v.size_m for n, v in vehicles.items()})
-        noise_seed = int(rng.integers(1 << 30))
+        motions, noise_seed = _flight_motions(spec, k, {n: v.size_m for n, v in vehicles.items()}, t)
         taus = {n: (v.motor_time_constant_s if spec.commanded else None) for n, v in vehicles.items()}
         logs = {}
         for tau in set(taus.values()):  # each vehicle's commands through ITS motors' lag (what identify declares)
@@ -267,24 +272,59 @@ def _scaled(w: tuple[np.ndarray, np.ndarray], a: float) -> tuple[np.ndarray, np.
     return w[0] * a, w[1] * a
 
 
-def effect_rms_on_test(spec: SetSpec) -> dict[str, tuple[float, float]]:
-    """RMS of the unit-amplitude hidden F_z (N) and of its torque's norm (N m) per vehicle on the test
-    flight."""
-    from proxplan.identify import synthetic_logs  # noqa: F401  (same trajectories as make_set)
+def _flight_inputs(spec: SetSpec, k: int) -> dict[str, Any]:
+    """Each vehicle's :class:`proxplan.physics.EffectInputs` on flight ``k`` (the exact motions, no noise)."""
     from proxplan.physics import BUILTIN_VEHICLES, GRAVITY_MPS2, EffectInputs, SourceSample
 
     vehicles = {n: BUILTIN_VEHICLES[t] for n, t in spec.types.items()}
     t = np.arange(0.0, spec.duration_s, DT_S)
-    rng = np.random.default_rng([spec.seed, spec.n_train])
-    motions = _motions(rng, list(vehicles), t, bool(spec.n_train % 2), {n: v.size_m for n, v in vehicles.items()})
-    vels = {k: np.gradient(p, t, axis=0) for k, p in motions.items()}
+    motions, _ = _flight_motions(spec, k, {n: v.size_m for n, v in vehicles.items()}, t)
+    vels = {n: np.gradient(p, t, axis=0) for n, p in motions.items()}
     out = {}
     for name, veh in vehicles.items():
         acc = np.gradient(vels[name], t, axis=0)
-        inputs = EffectInputs(target=veh, height_above_ground_m=motions[name][:, 2], velocity_mps=vels[name],
-                              sources=tuple(SourceSample(vehicles[o], motions[name] - motions[o], vels[o])
-                                            for o in vehicles if o != name),
-                              time_s=t, thrust_z_N=veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]), position_m=motions[name])  # fmt: skip
+        out[name] = EffectInputs(target=veh, height_above_ground_m=motions[name][:, 2], velocity_mps=vels[name],
+                                 sources=tuple(SourceSample(vehicles[o], motions[name] - motions[o], vels[o])
+                                               for o in vehicles if o != name),
+                                 time_s=t, thrust_z_N=veh.mass_kg * (GRAVITY_MPS2 + acc[:, 2]), position_m=motions[name])  # fmt: skip
+    return out
+
+
+def effect_rms(spec: SetSpec, k: int) -> dict[str, tuple[float, float]]:
+    """RMS of the unit-amplitude hidden F_z (N) and of its torque's norm (N m) per vehicle on flight ``k``
+    (``spec.n_train``: the test flight)."""
+    out = {}
+    for name, inputs in _flight_inputs(spec, k).items():
         f, tq = hidden_wrench(spec.effect, inputs)
         out[name] = (float(np.sqrt(np.mean(f[:, 2] ** 2))), float(np.sqrt(np.mean(np.sum(tq**2, axis=1)))))
     return out
+
+
+def flyable_amplitude(spec: SetSpec) -> float:
+    """The largest amplitude (-, the factor on :func:`hidden_wrench`) of an effect a hovering vehicle could hold
+    against, on every sample of every flight of the set: the (S0-14) mixer's motor thrusts for the hover thrust
+    minus the effect's F_z and against its torque stay within [``min_motor_thrust_N``, ``max_thrust_N`` / rotors]
+    of the vehicle's type. Affine in the amplitude, so exact; ``inf`` where the effect loads no motor. (Judged at
+    hover, not on the flight: the generated motions under another vehicle's jet may already need more than the
+    motors give, which is the world's, not the effect's.) A larger effect could not be flown, so its logs could
+    not exist; until stop 60 the amplitude was set on the test flight alone, and the tail of a Gaussian there
+    asked for 458x the vehicle's weight on a train flight (seed 19001)."""
+    from proxplan.physics import mixer_matrix
+
+    bound = np.inf
+    for k in range(spec.n_train + 1):
+        for inputs in _flight_inputs(spec, k).values():
+            veh = inputs.target
+            f, tq = hidden_wrench(spec.effect, inputs)
+            slope = np.linalg.solve(mixer_matrix(veh), np.column_stack([-f[:, 2], -tq]).T).T  # N per unit amplitude
+            hover = veh.weight_N / veh.n_rotors
+            up, down = veh.max_thrust_N / veh.n_rotors - hover, veh.min_motor_thrust_N - hover
+            with np.errstate(divide="ignore"):
+                room = np.where(slope > 0, up / slope, np.where(slope < 0, down / slope, np.inf))
+            bound = min(bound, float(np.min(room)))
+    return bound
+
+
+def effect_rms_on_test(spec: SetSpec) -> dict[str, tuple[float, float]]:
+    """:func:`effect_rms` on the test flight."""
+    return effect_rms(spec, spec.n_train)

@@ -191,10 +191,14 @@ def _undecided_line(name: str, gain: dict[str, Any]) -> str:
 
 
 def _one_flight_line(name: str, gain: dict[str, Any]) -> str:
-    return (f"{name}: what it changes on the held-out flights lies mostly on one of them (Kish's effective number "
-            f"of flights {gain['effective_flights']:.2f} of {gain['n_groups']}, under two; held-out gain "
-            f"{gain['mean_gain']:+.3g}): less than two flights' worth of evidence, the test of flights held out "
-            "cannot judge it either way; fly that situation in more flights")  # fmt: skip
+    if gain["n_groups"] == 1:
+        where = f"it acts on one held-out flight only (held-out gain there {gain['mean_gain']:+.3g})"
+    else:
+        where = (f"what it changes on the held-out flights lies mostly on one of them (Kish's effective number of "
+                 f"flights {gain['effective_flights']:.2f} of {gain['n_groups']}, under two; held-out gain "
+                 f"{gain['mean_gain']:+.3g})")  # fmt: skip
+    return (f"{name}: {where}: less than two flights' worth of evidence, the test of flights held out cannot judge "
+            "it either way; fly that situation in more flights")  # fmt: skip
 
 
 def _zone_masks(u: Unit, model: Model) -> tuple[np.ndarray, np.ndarray]:

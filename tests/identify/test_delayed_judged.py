@@ -8,7 +8,7 @@ import numpy as np
 
 from proxplan.identify.delay_profile import DELAY_CHANNELS
 from proxplan.identify.effect_candidates import EffectCandidate
-from proxplan.identify.heldout_select import Candidate, ratio_test
+from proxplan.identify.heldout_select import MOST_ELSEWHERE_R, Candidate, ratio_test
 from proxplan.physics import Effect
 
 
@@ -39,3 +39,14 @@ def test_an_effect_whose_fit_carries_over_passes_with_the_upper_check() -> None:
     assert t.passed and not t.too_large
     noisy = _test([0.2, 2.6, 1.1, 0.4, 1.9, 1.5], at_most_one=True)  # R 1.28: above 1, but within z se
     assert not noisy.too_large
+
+
+def test_mild_disagreement_passes_and_a_majority_elsewhere_fails() -> None:
+    # c = 1.1 (the judged channels want 10 % more than the fit on every channel): R = 2c - 1 = 1.2, tight; a
+    # true effect with an approximate shape (benchmark draw 19010: R = 1.19 +- 0.077), kept since stop 60
+    mild = _test([1.18, 1.22, 1.2, 1.19, 1.21, 1.2], at_most_one=True)
+    assert mild.passed and not mild.too_large and mild.mean - 1.0 > 10 * mild.se
+    # c = 2.5: more than half of what the judged channels hold of that shape is something else
+    most = [2 * 2.5 - 1 + d for d in (-0.02, 0.02, 0.0, 0.01, -0.01, 0.0)]
+    t = _test(most, at_most_one=True)
+    assert MOST_ELSEWHERE_R == 3.0 and t.too_large and not t.passed

@@ -31,5 +31,14 @@ def test_spread_exposure_or_a_pass_is_not_one_flight() -> None:
     assert not spread.passed and not spread.one_flight and spread.effective_flights > 2.5
     strong = ratio_test(np.array([10.0, 0.1, 0.11]), np.array([10.0, 0.1, 0.1]), np.full(3, 1e3), 1)
     assert not strong.one_flight  # whatever the exposure, a candidate that passes is kept, not "not testable"
+    nowhere = ratio_test(np.zeros(0), np.zeros(0), np.zeros(0), 1)
+    assert not nowhere.one_flight  # acts on no held-out flight: nothing to fly again
+
+
+def test_a_candidate_acting_on_one_flight_is_reported_with_what_to_do() -> None:
+    # no test at all (can_be_tested), but the user must hear that one flight holds it (stop 60; until stop 59
+    # it was not reported, e.g. benchmark draw 19001's side kernel, chosen in every half-sample)
     single = ratio_test(np.array([3.0]), np.array([3.0]), np.array([10.0]), 1)
-    assert not single.one_flight  # one flight: no test at all (can_be_tested), nothing to report
+    assert not single.passed and single.one_flight and single.n_groups == 1
+    line = _one_flight_line("force_z_N*side_g1L_e4L_1", single.to_json())
+    assert "acts on one held-out flight only" in line and "fly that situation in more flights" in line
