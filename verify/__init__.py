@@ -8,12 +8,16 @@ reference and in the jets, whether it stays damped where it holds).
 from proxplan.verify.along import (
     WrenchAlongPlan,
     attach_feedforward,
+    plan_samples,
     separation_summary,
     wrench_along_plan,
 )
 from proxplan.verify.checks import (
     GOAL_TOLERANCE_M,
     REST_SPEED_MPS,
+    check_authority,
+    check_authority_tube,
+    check_pairs,
     scenario_of_plan,
     tube_offsets,
     verify_plan,
@@ -26,12 +30,18 @@ from proxplan.verify.jet_loop import (
     hold_poles,
     loop_along_plan,
 )
+from proxplan.verify.reach import MIN_DZ_M
 from proxplan.verify.tracking import tracking_along_plan
 from proxplan.verify.tube_growth import TubeGrowth, predicted_tube_growth
 from proxplan.verify.violations import Violation
 
 __all__ = [
     "GOAL_TOLERANCE_M",
+    "MIN_DZ_M",
+    "check_authority",
+    "check_authority_tube",
+    "check_pairs",
+    "plan_samples",
     "LoopAlongPlan",
     "TubeGrowth",
     "check_jet_loop",

@@ -32,7 +32,7 @@ from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.paths import TimedPath
-from proxplan.verify.reach import MIN_DZ_M
+from proxplan.verify import MIN_DZ_M
 
 # the targets and sources of a change are the vehicles within this many times the problem's largest
 # pair reach (problem.reach_xy_m, the full-fraction keep-out's horizontal reach, 0.40 m on the bench's
@@ -220,9 +220,14 @@ class VerifyGuard:
         lowers what they use). With
         unfreeze steps (which shift every path) it passes everything to the whole plan's check."""
         from proxplan.planner.timing.plan_grid import assemble_plan
-        from proxplan.verify.along import plan_samples, wrench_along_plan
-        from proxplan.verify.checks import check_authority, check_authority_tube, check_pairs
-        from proxplan.verify.jet_loop import loop_along_plan
+        from proxplan.verify import (
+            check_authority,
+            check_authority_tube,
+            check_pairs,
+            loop_along_plan,
+            plan_samples,
+            wrench_along_plan,
+        )
 
         if self.unfreezes:
             return True
