@@ -67,8 +67,10 @@ __all__ = [
     "ASIDE_REACH_FACTORS",
     "MAX_YIELD_ROUNDS",
     "YieldResult",
+    "blockers",
     "choose_yielders",
     "yielding_candidate",
+    "time_yielding",
     "yielding_stage",
 ]
 
@@ -121,7 +123,7 @@ def _chains(problem: SwarmProblem, a: int, right_only: bool = False) -> list[np.
     return out
 
 
-def _blockers(occ: Occupancy, problem: SwarmProblem, a: int) -> set[int]:
+def blockers(occ: Occupancy, problem: SwarmProblem, a: int) -> set[int]:
     """The agents whose tracks in ``occ`` meet agent ``a``'s straight line, or ``a`` resting for good
     at its start or at its goal: the vehicles that hem a yielding vehicle in."""
     s, g = problem.starts_m[a], problem.goals_m[a]
@@ -156,8 +158,13 @@ def _arc_bulges(problem: SwarmProblem, a: int, right_only: bool, factors: tuple[
     return [sign * f * problem.reach_xy_m * side for f in factors for sign in signs]
 
 
-def _time_yielding(
-    occ: Occupancy, problem: SwarmProblem, a: int, right: bool, arrive_by: int | None, arc_factors: tuple[float, ...]
+def time_yielding(
+    occ: Occupancy,
+    problem: SwarmProblem,
+    a: int,
+    right: bool,
+    arrive_by: int | None,
+    arc_factors: tuple[float, ...] = ARC_REACH_FACTORS,
 ):
     """The earliest :func:`time_chain` of agent ``a`` over its chains (:func:`_chains`) and the earliest
     :func:`time_arc` over its arcs (:func:`_arc_bulges` of ``arc_factors``), arriving by step
@@ -209,14 +216,14 @@ def _place(
     for a in raised + rest:
         occ.remove(a)
         predicted.discard(a)
-        best = _time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by, arc_factors)
+        best = time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by, arc_factors)
         if best is None and predicted:  # the predictions hem it in: they are dropped, not the plan
             for b in predicted:
                 occ.remove(b)
             predicted.clear()
-            best = _time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by, arc_factors)
+            best = time_yielding(occ, problem, a, right_hand and a not in leaders, arrive_by, arc_factors)
         if best is None:
-            return None, a, _blockers(occ, problem, a)
+            return None, a, blockers(occ, problem, a)
         tracks[a] = best.track
         occ.put(best.track)
     return tracks, -1, set()
@@ -293,6 +300,12 @@ def yielding_stage(
     return YieldResult(Stage(ordered, "prioritised", note, own_routes(problem, ordered)), tuple(sorted(yielders)), note)
 
 
+def _stage(problem, horizon_steps, right_hand, arrive_by, pairs, arc_factors) -> YieldResult:
+    return yielding_stage(
+        problem, horizon_steps, right_hand=right_hand, arrive_by=arrive_by, pairs=pairs, arc_factors=arc_factors
+    )
+
+
 def yielding_candidate(
     problem: SwarmProblem,
     horizon_steps: int,
@@ -311,12 +324,16 @@ def yielding_candidate(
         pairs = straight_step_conflicts(problem)
     best: Stage | None = None
     said = []
-    for label, right in (("shorter line yields", False), ("keep right", True)):
+    from proxplan.planner.swarm.passes import passing_stage  # passes builds on this module's timing
+
+    ways = (
+        ("pass together", lambda by: passing_stage(problem, horizon_steps, pairs, arrive_by=by)),
+        ("shorter line yields", lambda by: _stage(problem, horizon_steps, False, by, pairs, arc_factors)),
+        ("keep right", lambda by: _stage(problem, horizon_steps, True, by, pairs, arc_factors)),
+    )
+    for label, way in ways:
         bound_s = shorter_than_s if best is None else max(tr.arrival_s for tr in best.tracks)
-        arrive_by = None if bound_s is None else int(round(bound_s / GRID_DT_S)) - 1
-        got = yielding_stage(
-            problem, horizon_steps, right_hand=right, arrive_by=arrive_by, pairs=pairs, arc_factors=arc_factors
-        )
+        got = way(None if bound_s is None else int(round(bound_s / GRID_DT_S)) - 1)
         if got.stage is None:
             said.append(f"{label}: {got.note}")
             continue

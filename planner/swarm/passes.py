@@ -1,0 +1,391 @@
+"""Conflicting vehicles pass together: each group of straight lines in conflict is flown as one joint
+manoeuvre, every member bulging aside at once (issue 37 item 5; round 23S).
+
+Where the synchronised straight step has conflicting pairs
+(:func:`~proxplan.planner.swarm.straight.straight_step_conflicts`), the yielding stage
+(:mod:`proxplan.planner.swarm.yielding`) times the vehicles of a pair one after the other: the first
+is fixed before the second is timed, so two neighbours swapping slots head-on each need the whole
+keep-out's reach aside, and a smooth detour (:class:`~proxplan.planner.timing.arcs.ArcMove`) that far
+aside costs 1.39-1.41 B on grid-64 by type (B: the assignment's bound), against 1.11-1.18 B for each of
+the two bulging half of it to its right (measured, round 23S). Here the vehicles of each connected group
+of conflicting pairs (a *component*: a swap, a rotation of three, a line through a resting slot) are
+timed together:
+
+* the *joint moves* of a component (:func:`joint_moves`): every moving member on an arc bulging
+  :data:`PASS_REACH_FACTORS` times the widest keep-out's horizontal reach aside, all to their right or
+  all to their left (head-on partners then pass on opposite sides), or one member on its straight line
+  and the others bulging; resting members rest. All depart at one grid step; a joint move is kept
+  only where its members' tracks are conflict-free among themselves
+  (:meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`) and statically free;
+* every vehicle in no conflict flies its straight line at its own limits from t = 0; the components,
+  longest line first, are placed at the earliest common departure the tracks fixed so far allow
+  (:func:`place_joint`: holds at the start before it, at the goal after it, the flown samples,
+  exactly as :func:`~proxplan.planner.swarm.arc_timing.time_arc` asks them), the earliest arrival over
+  the joint moves kept;
+* a component no joint move can be placed for makes the straight-flying vehicles hemming it in
+  *late* (or, hemmed in only by components, it is placed first, or its members become late); late
+  vehicles are timed one by one after the components, as the yielding stage times its vehicles
+  (:func:`~proxplan.planner.swarm.yielding.time_yielding`: waits, corners, arcs); at most
+  :data:`MAX_PASS_ROUNDS` rounds, then the stage gives up (None) and says so.
+
+Every track is checked exactly against those placed before it (and the members of a component among
+themselves), so the plan is conflict-free in the swarm layer's model; the verifier judges it as every plan.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.stage import Stage, own_routes
+from proxplan.planner.swarm.straight import own_straight_track
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack, Move
+from proxplan.planner.swarm.yielding import YieldResult, blockers, time_yielding
+from proxplan.planner.timing.arcs import ArcMove
+from proxplan.planner.timing.profile import LineMove, rest_to_rest
+
+# the bulge of each moving member of a joint move, in units of the widest keep-out's horizontal reach
+# (problem.reach_xy_m): from half of it (two head-on partners each half aside clear the reach between
+# them) to all of it (one partner on its line); chosen before any run (round 23S)
+PASS_REACH_FACTORS = (0.5, 0.625, 0.75, 1.0)
+# a component no joint move can be placed for makes the vehicles hemming it in late (or is placed first,
+# or its members become late), then all are placed again: at most this many times (a count, so the
+# same problem gives the same plan); as the yielding stage's MAX_YIELD_ROUNDS, set on the named layouts
+MAX_PASS_ROUNDS = 6
+
+__all__ = [
+    "MAX_PASS_ROUNDS",
+    "PASS_REACH_FACTORS",
+    "JointMove",
+    "conflict_components",
+    "joint_moves",
+    "passing_stage",
+    "place_joint",
+]
+
+
+@dataclass(frozen=True)
+class JointMove:
+    """One joint manoeuvre of a component: per member its moves ((grid steps after the common
+    departure, move), in time order; () where it rests) and the waypoint chain it is flown along (start,
+    the arc's middle, goal; its straight line; start, the point aside, start for a resting member
+    stepping aside; None at rest)."""
+
+    members: tuple[int, ...]
+    moves: tuple[tuple[tuple[int, Move], ...], ...]
+    routes: tuple[np.ndarray | None, ...]
+    label: str
+
+    @property
+    def steps(self) -> int:
+        """Grid steps from the common departure to the last member's arrival."""
+        return max((k + mv.steps for legs in self.moves for k, mv in legs), default=0)
+
+    def tracks(self, problem: SwarmProblem, depart_step: int) -> list[GridTrack]:
+        """The members' tracks departing at ``depart_step``."""
+        out = []
+        for a, legs, route in zip(self.members, self.moves, self.routes):
+            moves = [(depart_step + k, mv) for k, mv in legs]
+            out.append(GridTrack(a, int(problem.type_index[a]), problem.starts_m[a].copy(), moves, route_m=route))
+        return out
+
+
+def conflict_components(pairs: list[tuple[int, int]]) -> list[tuple[int, ...]]:
+    """The connected components (sorted agent tuples, in order of their smallest agent) of the graph
+    whose edges are ``pairs`` (i != j)."""
+    parent: dict[int, int] = {}
+
+    def root(a: int) -> int:
+        while parent.setdefault(a, a) != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for i, j in pairs:
+        ri, rj = root(i), root(j)
+        if ri != rj:
+            parent[max(ri, rj)] = min(ri, rj)
+    groups: dict[int, list[int]] = {}
+    for a in sorted(parent):
+        groups.setdefault(root(a), []).append(a)
+    return [tuple(g) for _, g in sorted(groups.items())]
+
+
+def _left_m(problem: SwarmProblem, a: int) -> np.ndarray | None:
+    """The horizontal unit vector to the left of agent ``a``'s line (seen from above, heading to its
+    goal), or None where the line has no horizontal part."""
+    d = problem.goals_m[a] - problem.starts_m[a]
+    horizontal = np.array([-d[1], d[0], 0.0])
+    norm = float(np.linalg.norm(horizontal))
+    return None if norm <= 1e-9 else horizontal / norm
+
+
+def _moving(problem: SwarmProblem, a: int) -> bool:
+    return not problem.pinned[a] and float(np.linalg.norm(problem.goals_m[a] - problem.starts_m[a])) > 1e-9
+
+
+def _aside_legs(
+    problem: SwarmProblem, a: int, away_m: np.ndarray, offset_steps: int, wait_steps: int
+) -> tuple[tuple[tuple[int, Move], ...], np.ndarray] | None:
+    """A resting agent ``a`` stepping ``away_m`` (3,), m, aside ``offset_steps`` grid steps after the
+    common departure and back, rest to rest, waiting ``wait_steps`` aside (its legs, its route), or None
+    where the point aside is not statically free."""
+    s = problem.starts_m[a]
+    c = s + away_m
+    if not bool(problem.static_free(c[None])[0]):
+        return None
+    prof = rest_to_rest(float(np.linalg.norm(away_m)), problem.limits[a], GRID_DT_S)
+    out, back = LineMove(s, c, prof), LineMove(c, s, prof)
+    return ((offset_steps, out), (offset_steps + out.steps + wait_steps, back)), np.array([s, c, s])
+
+
+def joint_moves(problem: SwarmProblem, members: tuple[int, ...], factors: tuple[float, ...] = PASS_REACH_FACTORS):
+    """The joint moves of the component ``members`` (see module), conflict-free among themselves and
+    statically free, in order of their length (grid steps), ties in the order tried."""
+    movers = [a for a in members if _moving(problem, a)]
+    if not movers or any(_left_m(problem, a) is None for a in movers):
+        return []
+    resting = [a for a in members if a not in movers and not problem.pinned[a]]
+    s, g = problem.starts_m, problem.goals_m
+    line = {
+        a: LineMove(s[a], g[a], rest_to_rest(float(np.linalg.norm(g[a] - s[a])), problem.limits[a], GRID_DT_S))
+        for a in movers
+    }
+    arcs: dict[tuple[int, float], tuple[ArcMove, np.ndarray] | None] = {}
+
+    def arc(a: int, signed_f: float) -> tuple[ArcMove, np.ndarray] | None:
+        key = (a, signed_f)
+        if key not in arcs:
+            bulge = signed_f * problem.reach_xy_m * _left_m(problem, a)
+            mv = ArcMove(s[a], g[a], bulge, problem.limits[a], GRID_DT_S)
+            free = bool(problem.static_free(mv.positions()).all())
+            arcs[key] = (mv, np.array([s[a], 0.5 * (s[a] + g[a]) + bulge, g[a]])) if free else None
+        return arcs[key]
+
+    out: list[JointMove] = []
+    for f in factors:
+        for sign, side in ((-1.0, "right"), (1.0, "left")):
+            for keep in [None] + (movers if len(movers) > 1 else []):
+                legs: dict[int, tuple[tuple[int, Move], ...]] = {}
+                routes: dict[int, np.ndarray | None] = {}
+                for a in movers:
+                    got = (line[a], np.array([s[a], g[a]])) if a == keep else arc(a, sign * f)
+                    if got is None:
+                        break
+                    legs[a], routes[a] = ((0, got[0]),), got[1]
+                else:
+                    label = f"{side} {f:g} reach" + ("" if keep is None else f", {problem.names[keep]} on its line")
+                    out += _with_resting(problem, members, movers, resting, legs, routes, sign * f, label)
+    return sorted(out, key=lambda jm: jm.steps)  # stable: ties in the order tried
+
+
+def _with_resting(
+    problem: SwarmProblem,
+    members: tuple[int, ...],
+    movers: list[int],
+    resting: list[int],
+    legs: dict[int, tuple[tuple[int, Move], ...]],
+    routes: dict[int, np.ndarray | None],
+    signed_f: float,
+    label: str,
+) -> list[JointMove]:
+    """The joint moves of the movers' ``legs`` with the resting members resting, and (where there are
+    any) stepping ``|signed_f|`` reach aside, away from the movers' bulge, and back: leaving at the
+    common departure, at the latest step that has them aside at the movers' middle or half way between,
+    and coming back at once, as the movers arrive or half way between; those conflict-free among
+    themselves."""
+    variants: list[tuple[dict, dict, str]] = [({}, {}, "")]
+    away = -signed_f * sum(_left_m(problem, a) for a in movers) if resting else np.zeros(3)
+    norm = float(np.linalg.norm(away))
+    if norm > 1e-9:
+        away = abs(signed_f) * problem.reach_xy_m * away / norm
+        longest = max(k + mv.steps for a in movers for k, mv in legs[a])
+        leg = rest_to_rest(float(np.linalg.norm(away)), problem.limits[resting[0]], GRID_DT_S).steps
+        early = max(0, longest // 2 - leg)  # the latest step-out that is aside at the movers' middle
+        for offset in sorted({0, early // 2, early}):
+            latest_back = max(offset + leg, longest - leg)  # the return that ends as the movers arrive
+            for back in sorted({offset + leg, (offset + leg + latest_back) // 2, latest_back}):
+                got = {a: _aside_legs(problem, a, away, offset, back - offset - leg) for a in resting}
+                if all(x is not None for x in got.values()):
+                    variants.append(
+                        (
+                            {a: x[0] for a, x in got.items() if x is not None},
+                            {a: x[1] for a, x in got.items() if x is not None},
+                            f", resting ones aside at {offset}-{back} steps",
+                        )
+                    )
+    out = []
+    for extra_legs, extra_routes, extra_label in variants:
+        jm = JointMove(
+            tuple(members),
+            tuple(legs.get(a, extra_legs.get(a, ())) for a in members),
+            tuple(routes.get(a, extra_routes.get(a)) for a in members),
+            label + extra_label,
+        )
+        tracks = jm.tracks(problem, 0)
+        occ = Occupancy(problem, tracks, jm.steps + 2)
+        if all(not occ.conflicting_agents(tr) for tr in tracks):
+            out.append(jm)
+    return out
+
+
+def _first_true(mask: np.ndarray) -> int:
+    hit = np.flatnonzero(mask)
+    return int(hit[0]) if hit.size else mask.size
+
+
+def place_joint(occ: Occupancy, jm: JointMove, *, arrive_by: int | None = None) -> int | None:
+    """The earliest common departure step of ``jm`` against the tracks of ``occ`` (every member
+    holding its start before it, flying its moves from it, holding its end for good after them; a
+    member without moves holding its start for good), arriving by step ``arrive_by`` (None: within the
+    horizon), or None."""
+    problem = occ.problem
+    T = occ.horizon
+    last = T - 1 if arrive_by is None else min(T - 1, arrive_by)
+    allowed = np.zeros(T, dtype=bool)
+    allowed[: max(0, last - jm.steps + 1)] = True
+    for tr in jm.tracks(problem, 0):
+        a = tr.agent
+        if not tr.moves:
+            if occ.forbidden_holds(a, tr.start_m).any():
+                return None
+            continue
+        allowed[_first_true(occ.forbidden_holds(a, tr.start_m)) :] = False
+        goal_bad = np.flatnonzero(occ.forbidden_holds(a, tr.end_m))
+        allowed[: max(0, int(goal_bad[-1]) + 1 - tr.arrival_step) if goal_bad.size else 0] = False
+        window = np.flatnonzero(allowed)
+        if not window.size:
+            return None
+        q = tr.position_at_steps(np.arange(tr.arrival_step + 1))
+        lo, hi = int(window[0]), int(window[-1]) + 1
+        allowed &= ~occ.forbidden_departures(a, q, from_step=lo, until_step=hi)
+    window = np.flatnonzero(allowed)
+    return int(window[0]) if window.size else None
+
+
+def _place_component(
+    occ: Occupancy, problem: SwarmProblem, options: list[JointMove], arrive_by: int | None
+) -> list[GridTrack] | None:
+    """The earliest-arriving placement over the joint moves ``options`` (their tracks), or None."""
+    best: tuple[int, list[GridTrack]] | None = None
+    for jm in options:
+        if best is not None and jm.steps >= best[0]:
+            break  # sorted by length: none later arrives earlier
+        bound = arrive_by if best is None else best[0] - 1
+        d = place_joint(occ, jm, arrive_by=bound)
+        if d is not None and (best is None or d + jm.steps < best[0]):
+            best = (d + jm.steps, jm.tracks(problem, d))
+    return None if best is None else best[1]
+
+
+def passing_stage(
+    problem: SwarmProblem,
+    horizon_steps: int,
+    pairs: list[tuple[int, int]],
+    *,
+    arrive_by: int | None = None,
+) -> YieldResult:
+    """The plan of the module (``horizon_steps``: grid steps a timing may use; ``pairs``: the straight
+    step's conflicts; ``arrive_by``: only a plan whose every vehicle arrives by this step is of interest;
+    None: any). ``YieldResult.yielders``: the vehicles in a component or late."""
+    if not pairs:
+        return YieldResult(None, (), "no conflicting pair (the synchronised straight step is the plan)")
+    if any(i == j for i, j in pairs):
+        return YieldResult(None, (), "a straight line leaves the static free space: not this stage's case")
+    comps = [c for c in conflict_components(pairs) if any(not problem.pinned[a] for a in c)]
+    options = {c: joint_moves(problem, c) for c in comps}
+    late: set[int] = {a for c in comps if not options[c] for a in c if not problem.pinned[a]}
+    comps = [c for c in comps if options[c]]
+    in_comp = {a for c in comps for a in c}
+    fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in in_comp | late}
+    occ = Occupancy(problem, list(fixed.values()), horizon_steps)
+    for a, tr in fixed.items():  # own-limit lines that meet on the grid (not in the synchronised test)
+        hit = occ.conflicting_agents(tr) - in_comp - late
+        if hit:
+            late |= {a} | {b for b in hit if not problem.pinned[b]}
+    length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
+    first: list[tuple[int, ...]] = []
+    rounds = 0
+    while True:
+        tracks, stuck, hem = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
+        if tracks is not None:
+            break
+        rounds += 1
+        grown = {b for b in hem if not problem.pinned[b]} - in_comp - late
+        if rounds > MAX_PASS_ROUNDS:
+            return YieldResult(
+                None,
+                tuple(sorted(in_comp | late)),
+                f"gave up after {rounds} round(s): {'component' if isinstance(stuck, tuple) else 'vehicle'} "
+                f"{_names(problem, stuck)} has no joint move or timing arriving within "
+                f"{(horizon_steps if arrive_by is None else arrive_by) * GRID_DT_S:.2f} s",
+            )
+        if grown:
+            late |= grown
+        elif isinstance(stuck, tuple) and (not first or first[-1] != stuck):
+            first = [c for c in first if c != stuck] + [stuck]  # hemmed in by components: placed first
+        elif isinstance(stuck, tuple):  # first already: its members are timed one by one
+            comps = [c for c in comps if c != stuck]
+            first = [c for c in first if c != stuck]
+            late |= {a for a in stuck if not problem.pinned[a]}
+            in_comp -= set(stuck)
+        else:
+            return YieldResult(
+                None,
+                tuple(sorted(in_comp | late)),
+                f"gave up after {rounds} round(s): vehicle {_names(problem, stuck)} (late) has no timing "
+                f"along its line or a corner or arc beside it, hemmed in by placed vehicles only",
+            )
+    ordered = [tracks[a] for a in range(problem.n_agents)]
+    note = (
+        f"straight lines of {problem.n_agents - len(in_comp | late)} vehicles, {len(comps)} group(s) passing "
+        f"together ({len(in_comp)} vehicles), {len(late)} timed one by one ({len(pairs)} conflicting pairs of "
+        f"the synchronised step, {rounds + 1} round(s))"
+    )
+    return YieldResult(
+        Stage(ordered, "prioritised", note, own_routes(problem, ordered)), tuple(sorted(in_comp | late)), note
+    )
+
+
+def _names(problem: SwarmProblem, stuck: int | tuple[int, ...]) -> str:
+    return "+".join(problem.names[a] for a in (stuck if isinstance(stuck, tuple) else (stuck,)))
+
+
+def _place_all(
+    problem: SwarmProblem,
+    horizon_steps: int,
+    comps: list[tuple[int, ...]],
+    options: dict[tuple[int, ...], list[JointMove]],
+    late: set[int],
+    first: list[tuple[int, ...]],
+    arrive_by: int | None,
+    length: np.ndarray,
+) -> tuple[dict[int, GridTrack] | None, int | tuple[int, ...], set[int]]:
+    """One placement (see module): (the tracks by agent, or None; the component or late agent that could
+    not be placed; the agents hemming it in)."""
+    members = {a for c in comps for a in c}
+    fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in members and a not in late}
+    occ = Occupancy(problem, list(fixed.values()), horizon_steps)
+    tracks = dict(fixed)
+    raised = [c for c in reversed(first) if c in comps]
+    rest = sorted((c for c in comps if c not in raised), key=lambda c: (-max(float(length[a]) for a in c), c))
+    for c in raised + rest:
+        got = _place_component(occ, problem, options[c], arrive_by)
+        if got is None:
+            hem: set[int] = set()
+            for tr in options[c][0].tracks(problem, 0):
+                hem |= occ.conflicting_agents(tr) | blockers(occ, problem, tr.agent)
+            return None, c, hem - set(c)
+        for tr in got:
+            tracks[tr.agent] = tr
+            occ.put(tr)
+    for a in sorted(late, key=lambda a: (-float(length[a]), a)):
+        best = time_yielding(occ, problem, a, False, arrive_by)
+        if best is None:
+            return None, a, blockers(occ, problem, a)
+        tracks[a] = best.track
+        occ.put(best.track)
+    return tracks, -1, set()
