@@ -309,19 +309,39 @@ def passing_stage(
     length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
     first: list[tuple[int, ...]] = []
     rounds = 0
+    optional: set[int] = set()  # late only because they made a component wait
+    stay: set[int] = set()  # such vehicles that could not be timed late: on their straight lines for good
+    # the earliest plan so far: its tracks, late vehicles, vehicles in components, components, round
+    kept: tuple[dict[int, GridTrack], set[int], set[int], int, int] | None = None
     while True:
-        tracks, stuck, hem = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
+        tracks, stuck, hem, delayed = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
         if tracks is not None:
-            break
+            if kept is None or _makespan(tracks) < _makespan(kept[0]):
+                kept = (tracks, set(late), set(in_comp), len(comps), rounds)
+            delayed = {b for b in delayed - late - stay if not problem.pinned[b]}
+            if not delayed or rounds >= MAX_PASS_ROUNDS:
+                break
+            rounds += 1  # the vehicles that made a component wait are timed after the components
+            late |= delayed
+            optional |= delayed
+            continue
         rounds += 1
+        if stuck in optional:  # made late only for a component's sake, and cannot be: back on its line
+            late.discard(stuck)
+            optional.discard(stuck)
+            stay.add(stuck)
+            continue
         grown = {b for b in hem if not problem.pinned[b]} - in_comp - late
-        if rounds > MAX_PASS_ROUNDS:
+        if rounds > MAX_PASS_ROUNDS or not (grown or isinstance(stuck, tuple)):
+            if kept is not None:
+                break
             return YieldResult(
                 None,
                 tuple(sorted(in_comp | late)),
                 f"gave up after {rounds} round(s): {'component' if isinstance(stuck, tuple) else 'vehicle'} "
                 f"{_names(problem, stuck)} has no joint move or timing arriving within "
-                f"{(horizon_steps if arrive_by is None else arrive_by) * GRID_DT_S:.2f} s",
+                f"{(horizon_steps if arrive_by is None else arrive_by) * GRID_DT_S:.2f} s"
+                + ("" if grown or isinstance(stuck, tuple) else ", hemmed in by placed vehicles only"),
             )
         if grown:
             late |= grown
@@ -332,22 +352,20 @@ def passing_stage(
             first = [c for c in first if c != stuck]
             late |= {a for a in stuck if not problem.pinned[a]}
             in_comp -= set(stuck)
-        else:
-            return YieldResult(
-                None,
-                tuple(sorted(in_comp | late)),
-                f"gave up after {rounds} round(s): vehicle {_names(problem, stuck)} (late) has no timing "
-                f"along its line or a corner or arc beside it, hemmed in by placed vehicles only",
-            )
+    tracks, late, in_comp, n_comps, kept_round = kept
     ordered = [tracks[a] for a in range(problem.n_agents)]
     note = (
-        f"straight lines of {problem.n_agents - len(in_comp | late)} vehicles, {len(comps)} group(s) passing "
+        f"straight lines of {problem.n_agents - len(in_comp | late)} vehicles, {n_comps} group(s) passing "
         f"together ({len(in_comp)} vehicles), {len(late)} timed one by one ({len(pairs)} conflicting pairs of "
-        f"the synchronised step, {rounds + 1} round(s))"
+        f"the synchronised step, round {kept_round + 1} of {rounds + 1})"
     )
     return YieldResult(
         Stage(ordered, "prioritised", note, own_routes(problem, ordered)), tuple(sorted(in_comp | late)), note
     )
+
+
+def _makespan(tracks: dict[int, GridTrack]) -> int:
+    return max(tr.arrival_step for tr in tracks.values())
 
 
 def _names(problem: SwarmProblem, stuck: int | tuple[int, ...]) -> str:
@@ -363,29 +381,33 @@ def _place_all(
     first: list[tuple[int, ...]],
     arrive_by: int | None,
     length: np.ndarray,
-) -> tuple[dict[int, GridTrack] | None, int | tuple[int, ...], set[int]]:
+) -> tuple[dict[int, GridTrack] | None, int | tuple[int, ...], set[int], set[int]]:
     """One placement (see module): (the tracks by agent, or None; the component or late agent that could
-    not be placed; the agents hemming it in)."""
+    not be placed; the agents hemming it in; the straight-flying vehicles that made a component wait,
+    i.e. depart after step 0 or take a longer joint move than its shortest)."""
     members = {a for c in comps for a in c}
     fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in members and a not in late}
     occ = Occupancy(problem, list(fixed.values()), horizon_steps)
     tracks = dict(fixed)
     raised = [c for c in reversed(first) if c in comps]
     rest = sorted((c for c in comps if c not in raised), key=lambda c: (-max(float(length[a]) for a in c), c))
+    delayed: set[int] = set()  # straight-flying vehicles that made a component wait
     for c in raised + rest:
         got = _place_component(occ, problem, options[c], arrive_by)
-        if got is None:
+        if got is None or max(tr.arrival_step for tr in got) > options[c][0].steps:
             hem: set[int] = set()
             for tr in options[c][0].tracks(problem, 0):
                 hem |= occ.conflicting_agents(tr) | blockers(occ, problem, tr.agent)
-            return None, c, hem - set(c)
+            if got is None:
+                return None, c, hem - set(c), set()
+            delayed |= hem & set(fixed)
         for tr in got:
             tracks[tr.agent] = tr
             occ.put(tr)
     for a in sorted(late, key=lambda a: (-float(length[a]), a)):
         best = time_yielding(occ, problem, a, False, arrive_by)
         if best is None:
-            return None, a, blockers(occ, problem, a)
+            return None, a, blockers(occ, problem, a), set()
         tracks[a] = best.track
         occ.put(best.track)
-    return tracks, -1, set()
+    return tracks, -1, set(), delayed
