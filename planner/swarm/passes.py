@@ -55,9 +55,13 @@ PASS_REACH_FACTORS = (0.5, 0.625, 0.75, 1.0)
 # or its members become late), then all are placed again: at most this many times (a count, so the
 # same problem gives the same plan); as the yielding stage's MAX_YIELD_ROUNDS, set on the named layouts
 MAX_PASS_ROUNDS = 6
+# then the component (or late vehicle) of the latest vehicle is placed first, at most this many times,
+# while that shortens the plan (a count); chosen before any run, as MAX_PASS_ROUNDS
+MAX_RAISES = 6
 
 __all__ = [
     "MAX_PASS_ROUNDS",
+    "MAX_RAISES",
     "PASS_REACH_FACTORS",
     "JointMove",
     "conflict_components",
@@ -307,7 +311,7 @@ def passing_stage(
         if hit:
             late |= {a} | {b for b in hit if not problem.pinned[b]}
     length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-    first: list[tuple[int, ...]] = []
+    first: list[tuple[int, ...] | int] = []
     rounds = 0
     optional: set[int] = set()  # late only because they made a component wait
     stay: set[int] = set()  # such vehicles that could not be timed late: on their straight lines for good
@@ -326,12 +330,14 @@ def passing_stage(
             optional |= delayed
             continue
         rounds += 1
-        if stuck in optional:  # made late only for a component's sake, and cannot be: back on its line
+        grown = {b for b in hem if not problem.pinned[b]} - in_comp - late - stay
+        if stuck in optional and not grown:  # late only for a component's sake, and cannot be: on its line
             late.discard(stuck)
             optional.discard(stuck)
             stay.add(stuck)
             continue
-        grown = {b for b in hem if not problem.pinned[b]} - in_comp - late
+        if stuck in optional:  # those hemming it in are late for its sake, as optional as it
+            optional |= grown
         if rounds > MAX_PASS_ROUNDS or not (grown or isinstance(stuck, tuple)):
             if kept is not None:
                 break
@@ -352,6 +358,17 @@ def passing_stage(
             first = [c for c in first if c != stuck]
             late |= {a for a in stuck if not problem.pinned[a]}
             in_comp -= set(stuck)
+    for _ in range(MAX_RAISES):  # the unit of the latest vehicle placed first, while that shortens the plan
+        latest = max(kept[0].values(), key=lambda tr: (tr.arrival_step, -tr.agent)).agent
+        unit = next((c for c in comps if latest in c), latest if latest in late else None)
+        if unit is None or (first and first[-1] == unit):
+            break
+        first = [u for u in first if u != unit] + [unit]
+        rounds += 1
+        tracks, *_ = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
+        if tracks is None or _makespan(tracks) >= _makespan(kept[0]):
+            break
+        kept = (tracks, set(late), set(in_comp), len(comps), rounds)
     tracks, late, in_comp, n_comps, kept_round = kept
     ordered = [tracks[a] for a in range(problem.n_agents)]
     note = (
@@ -378,36 +395,39 @@ def _place_all(
     comps: list[tuple[int, ...]],
     options: dict[tuple[int, ...], list[JointMove]],
     late: set[int],
-    first: list[tuple[int, ...]],
+    first: list[tuple[int, ...] | int],
     arrive_by: int | None,
     length: np.ndarray,
 ) -> tuple[dict[int, GridTrack] | None, int | tuple[int, ...], set[int], set[int]]:
-    """One placement (see module): (the tracks by agent, or None; the component or late agent that could
-    not be placed; the agents hemming it in; the straight-flying vehicles that made a component wait,
-    i.e. depart after step 0 or take a longer joint move than its shortest)."""
+    """One placement (see module; ``first``: components and late vehicles placed before the others, the
+    last raised first): (the tracks by agent, or None; the component or late agent that could not be
+    placed; the agents hemming it in; the straight-flying vehicles that made a component wait, i.e.
+    depart after step 0 or take a longer joint move than its shortest)."""
     members = {a for c in comps for a in c}
     fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in members and a not in late}
     occ = Occupancy(problem, list(fixed.values()), horizon_steps)
     tracks = dict(fixed)
-    raised = [c for c in reversed(first) if c in comps]
-    rest = sorted((c for c in comps if c not in raised), key=lambda c: (-max(float(length[a]) for a in c), c))
+    units: list[tuple[int, ...] | int] = list(comps) + sorted(late)
+    raised = [u for u in reversed(first) if u in units]
+    rest_comps = sorted((c for c in comps if c not in raised), key=lambda c: (-max(float(length[a]) for a in c), c))
+    rest_late = sorted((a for a in late if a not in raised), key=lambda a: (-float(length[a]), a))
     delayed: set[int] = set()  # straight-flying vehicles that made a component wait
-    for c in raised + rest:
-        got = _place_component(occ, problem, options[c], arrive_by)
-        if got is None or max(tr.arrival_step for tr in got) > options[c][0].steps:
-            hem: set[int] = set()
-            for tr in options[c][0].tracks(problem, 0):
-                hem |= occ.conflicting_agents(tr) | blockers(occ, problem, tr.agent)
-            if got is None:
-                return None, c, hem - set(c), set()
-            delayed |= hem & set(fixed)
+    for u in raised + rest_comps + rest_late:
+        if isinstance(u, tuple):
+            got = _place_component(occ, problem, options[u], arrive_by)
+            if got is None or max(tr.arrival_step for tr in got) > options[u][0].steps:
+                hem: set[int] = set()
+                for tr in options[u][0].tracks(problem, 0):
+                    hem |= occ.conflicting_agents(tr) | blockers(occ, problem, tr.agent)
+                if got is None:
+                    return None, u, hem - set(u), set()
+                delayed |= hem & set(fixed)
+        else:
+            best = time_yielding(occ, problem, u, False, arrive_by)
+            if best is None:
+                return None, u, blockers(occ, problem, u), set()
+            got = [best.track]
         for tr in got:
             tracks[tr.agent] = tr
             occ.put(tr)
-    for a in sorted(late, key=lambda a: (-float(length[a]), a)):
-        best = time_yielding(occ, problem, a, False, arrive_by)
-        if best is None:
-            return None, a, blockers(occ, problem, a), set()
-        tracks[a] = best.track
-        occ.put(best.track)
     return tracks, -1, set(), delayed
