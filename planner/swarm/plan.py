@@ -330,12 +330,15 @@ def _plan(
     progress,
     deadline,
     check: Check | None = None,
+    level: bool = False,
 ) -> _Planned:
     """The stages of the module on ``problem`` (``lower_bound``: its straight-line bound, s;
     ``assigned``: the goals were assigned; ``stacking``: gives the keep-outs the levels of the stacked plan are
     stacked on, :func:`~proxplan.planner.swarm.levels.stacking_keepouts`, called only where that plan is
     tried; None: no stacked plan; ``check``: whether tracks pass the verifier, asked after the makespan
-    repair changed the stacked plan, :class:`~proxplan.planner.swarm.verify_guard.VerifyGuard`)."""
+    repair changed the stacked plan, :class:`~proxplan.planner.swarm.verify_guard.VerifyGuard`; ``level``:
+    one level of the stacked plan, where the vehicles passing together are not tried: the join re-times
+    their arcs as corner chains, pillar-64 by type 1.83x -> 2.60x, round 23S)."""
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
     pre_retimed: tuple[dict[int, GridTrack], RetimeInfo] | None = None  # ``found`` re-timed, where already
@@ -349,7 +352,7 @@ def _plan(
     if assigned and conflicts and opts.prioritized:  # interchangeable goals: one vehicle of a pair yields (round 20S)
         in_hand = None if found is None else stage_makespan(found)
         yielded = yielding_candidate(
-            problem, horizon_steps(lower_bound), extra, shorter_than_s=in_hand, pairs=conflicts
+            problem, horizon_steps(lower_bound), extra, shorter_than_s=in_hand, pairs=conflicts, together=not level
         )
         if yielded is not None and found is None:
             found = yielded
@@ -441,7 +444,9 @@ def _level_planner(
             rest_to_rest(float(np.linalg.norm(sub.goals_m[a] - sub.starts_m[a])), sub.limits[a], GRID_DT_S).duration_s
             for a in range(sub.n_agents)
         )
-        level = _plan(sub, bound, _level_options(opts), assigned, None, progress=progress, deadline=deadline)
+        level = _plan(
+            sub, bound, _level_options(opts), assigned, None, progress=progress, deadline=deadline, level=True
+        )
         made = level.extra.get("counts", {})
         planned = made.get("planned", 0) + made.get("heights_planned", 0)
         record.append(LevelHandOn(sub, level.searched, planned))

@@ -314,6 +314,7 @@ def yielding_candidate(
     shorter_than_s: float | None = None,
     pairs: list[tuple[int, int]] | None = None,
     arc_factors: tuple[float, ...] = ARC_REACH_FACTORS,
+    together: bool = True,
 ) -> Stage | None:
     """The shorter of :func:`yielding_stage` with the shorter line of each pair yielding and with every
     vehicle in a conflict keeping right (None where both give up), each asked for a plan shorter than
@@ -326,11 +327,12 @@ def yielding_candidate(
     said = []
     from proxplan.planner.swarm.passes import passing_stage  # passes builds on this module's timing
 
-    ways = (
-        ("pass together", lambda by: passing_stage(problem, horizon_steps, pairs, arrive_by=by)),
+    ways = [
         ("shorter line yields", lambda by: _stage(problem, horizon_steps, False, by, pairs, arc_factors)),
         ("keep right", lambda by: _stage(problem, horizon_steps, True, by, pairs, arc_factors)),
-    )
+    ]
+    if together:  # first: its plan bounds the others' search
+        ways.insert(0, ("pass together", lambda by: passing_stage(problem, horizon_steps, pairs, arrive_by=by)))
     for label, way in ways:
         bound_s = shorter_than_s if best is None else max(tr.arrival_s for tr in best.tracks)
         got = way(None if bound_s is None else int(round(bound_s / GRID_DT_S)) - 1)
