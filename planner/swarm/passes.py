@@ -184,7 +184,8 @@ def joint_moves(problem: SwarmProblem, members: tuple[int, ...], factors: tuple[
                 else:
                     label = f"{side} {f:g} reach" + ("" if keep is None else f", {problem.names[keep]} on its line")
                     out += _with_resting(problem, members, movers, resting, legs, routes, sign * f, label)
-    return sorted(out, key=lambda jm: jm.steps)  # stable: ties in the order tried
+    out.sort(key=lambda jm: jm.steps)  # stable: ties in the order tried
+    return [jm for jm in out if _conflict_free(problem, jm)]
 
 
 def _with_resting(
@@ -201,7 +202,7 @@ def _with_resting(
     any) stepping ``|signed_f|`` reach aside, away from the movers' bulge, and back: leaving at the
     common departure, at the latest step that has them aside at the movers' middle or half way between,
     and coming back at once, as the movers arrive or half way between; those conflict-free among
-    themselves."""
+    themselves or not (checked by the caller)."""
     variants: list[tuple[dict, dict, str]] = [({}, {}, "")]
     away = -signed_f * sum(_left_m(problem, a) for a in movers) if resting else np.zeros(3)
     norm = float(np.linalg.norm(away))
@@ -222,19 +223,22 @@ def _with_resting(
                             f", resting ones aside at {offset}-{back} steps",
                         )
                     )
-    out = []
-    for extra_legs, extra_routes, extra_label in variants:
-        jm = JointMove(
+    return [
+        JointMove(
             tuple(members),
             tuple(legs.get(a, extra_legs.get(a, ())) for a in members),
             tuple(routes.get(a, extra_routes.get(a)) for a in members),
             label + extra_label,
         )
-        tracks = jm.tracks(problem, 0)
-        occ = Occupancy(problem, tracks, jm.steps + 2)
-        if all(not occ.conflicting_agents(tr) for tr in tracks):
-            out.append(jm)
-    return out
+        for extra_legs, extra_routes, extra_label in variants
+    ]
+
+
+def _conflict_free(problem: SwarmProblem, jm: JointMove) -> bool:
+    """Whether the members' tracks of ``jm`` are conflict-free among themselves."""
+    tracks = jm.tracks(problem, 0)
+    occ = Occupancy(problem, tracks, jm.steps + 2)
+    return all(not occ.conflicting_agents(tr) for tr in tracks)
 
 
 def _first_true(mask: np.ndarray) -> int:
@@ -321,7 +325,7 @@ def passing_stage(
     # the earliest plan so far: its tracks, late vehicles, vehicles in components, components, round
     kept: tuple[dict[int, GridTrack], set[int], set[int], int, int] | None = None
     while True:
-        tracks, stuck, hem, delayed = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
+        tracks, stuck, delayed = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
         if tracks is not None:
             if kept is None or _makespan(tracks) < _makespan(kept[0]):
                 kept = (tracks, set(late), set(in_comp), len(comps), rounds)
@@ -333,34 +337,39 @@ def passing_stage(
             optional |= delayed
             continue
         rounds += 1
-        grown = {b for b in hem if not problem.pinned[b]} - in_comp - late - stay
-        if stuck in optional and not grown:  # late only for a component's sake, and cannot be: on its line
-            late.discard(stuck)
-            optional.discard(stuck)
-            stay.add(stuck)
-            continue
-        if stuck in optional:  # those hemming it in are late for its sake, as optional as it
-            optional |= grown
-        if rounds > MAX_PASS_ROUNDS or not (grown or isinstance(stuck, tuple)):
+        changed = False
+        for unit, hem in stuck:  # every unit that could not be placed, in the order placed
+            grown = {b for b in hem if not problem.pinned[b]} - in_comp - late - stay
+            if grown:  # those hemming it in are timed late (as optional as it, where it is)
+                late |= grown
+                if unit in optional:
+                    optional |= grown
+            elif unit in optional:  # late only for a component's sake, and cannot be: on its line
+                late.discard(unit)
+                optional.discard(unit)
+                stay.add(unit)
+            elif isinstance(unit, tuple) and unit not in first:  # hemmed in by placed ones: placed first
+                first.append(unit)
+            elif isinstance(unit, tuple):  # placed first already: its members are timed one by one
+                comps = [c for c in comps if c != unit]
+                first = [c for c in first if c != unit]
+                late |= {a for a in unit if not problem.pinned[a]}
+                in_comp -= set(unit)
+            else:
+                continue
+            changed = True
+        if rounds > MAX_PASS_ROUNDS or not changed:
             if kept is not None:
                 break
+            unit = stuck[0][0]
             return YieldResult(
                 None,
                 tuple(sorted(in_comp | late)),
-                f"gave up after {rounds} round(s): {'component' if isinstance(stuck, tuple) else 'vehicle'} "
-                f"{_names(problem, stuck)} has no joint move or timing arriving within "
+                f"gave up after {rounds} round(s): {'component' if isinstance(unit, tuple) else 'vehicle'} "
+                f"{_names(problem, unit)} has no joint move or timing arriving within "
                 f"{(horizon_steps if arrive_by is None else arrive_by) * GRID_DT_S:.2f} s"
-                + ("" if grown or isinstance(stuck, tuple) else ", hemmed in by placed vehicles only"),
+                + ("" if changed else ", hemmed in by placed vehicles only"),
             )
-        if grown:
-            late |= grown
-        elif isinstance(stuck, tuple) and (not first or first[-1] != stuck):
-            first = [c for c in first if c != stuck] + [stuck]  # hemmed in by components: placed first
-        elif isinstance(stuck, tuple):  # first already: its members are timed one by one
-            comps = [c for c in comps if c != stuck]
-            first = [c for c in first if c != stuck]
-            late |= {a for a in stuck if not problem.pinned[a]}
-            in_comp -= set(stuck)
     for _ in range(MAX_RAISES):  # the unit of the latest vehicle placed first, while that shortens the plan
         latest = max(kept[0].values(), key=lambda tr: (tr.arrival_step, -tr.agent)).agent
         unit = next((c for c in comps if latest in c), latest if latest in late else None)
@@ -401,11 +410,12 @@ def _place_all(
     first: list[tuple[int, ...] | int],
     arrive_by: int | None,
     length: np.ndarray,
-) -> tuple[dict[int, GridTrack] | None, int | tuple[int, ...], set[int], set[int]]:
+) -> tuple[dict[int, GridTrack] | None, list[tuple[tuple[int, ...] | int, set[int]]], set[int]]:
     """One placement (see module; ``first``: components and late vehicles placed before the others, the
-    last raised first): (the tracks by agent, or None; the component or late agent that could not be
-    placed; the agents hemming it in; the straight-flying vehicles that made a component wait, i.e.
-    depart after step 0 or take a longer joint move than its shortest)."""
+    last raised first): (the tracks by agent, or None where some unit could not be placed; each such
+    component or late agent with the agents hemming it in, in the order tried; the straight-flying
+    vehicles that made a component wait, i.e. depart after step 0 or take a longer joint move than its
+    shortest). A unit that cannot be placed is left out and the others placed, so one round finds them all."""
     members = {a for c in comps for a in c}
     fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in members and a not in late}
     occ = Occupancy(problem, list(fixed.values()), horizon_steps)
@@ -415,6 +425,7 @@ def _place_all(
     rest_comps = sorted((c for c in comps if c not in raised), key=lambda c: (-max(float(length[a]) for a in c), c))
     rest_late = sorted((a for a in late if a not in raised), key=lambda a: (-float(length[a]), a))
     delayed: set[int] = set()  # straight-flying vehicles that made a component wait
+    stuck: list[tuple[tuple[int, ...] | int, set[int]]] = []
     for u in raised + rest_comps + rest_late:
         if isinstance(u, tuple):
             got = _place_component(occ, problem, options[u], arrive_by)
@@ -423,15 +434,17 @@ def _place_all(
                 for tr in options[u][0].tracks(problem, 0):
                     hem |= occ.conflicting_agents(tr) | blockers(occ, problem, tr.agent)
                 if got is None:
-                    return None, u, hem - set(u), set()
+                    stuck.append((u, hem - set(u)))
+                    continue
                 delayed |= hem & set(fixed)
         else:
             best = time_yielding(occ, problem, u, False, arrive_by)
             track = best.track if best is not None else plan_one(occ, u, through=True)
             if track is None or (arrive_by is not None and track.arrival_step > arrive_by):
-                return None, u, blockers(occ, problem, u), set()
+                stuck.append((u, blockers(occ, problem, u)))
+                continue
             got = [track]
         for tr in got:
             tracks[tr.agent] = tr
             occ.put(tr)
-    return tracks, -1, set(), delayed
+    return (None if stuck else tracks), stuck, delayed
