@@ -338,6 +338,7 @@ def passing_stage(
             continue
         rounds += 1
         changed = False
+        why = stuck[0][0]
         for unit, hem in stuck:  # every unit that could not be placed, in the order placed
             grown = {b for b in hem if not problem.pinned[b]} - in_comp - late - stay
             if grown:  # those hemming it in are timed late (as optional as it, where it is)
@@ -355,13 +356,14 @@ def passing_stage(
                 first = [c for c in first if c != unit]
                 late |= {a for a in unit if not problem.pinned[a]}
                 in_comp -= set(unit)
-            else:
-                continue
+            else:  # a late vehicle hemmed in by placed ones only: no move of this stage frees it
+                changed, why = False, unit
+                break
             changed = True
         if rounds > MAX_PASS_ROUNDS or not changed:
             if kept is not None:
                 break
-            unit = stuck[0][0]
+            unit = why
             return YieldResult(
                 None,
                 tuple(sorted(in_comp | late)),
