@@ -65,6 +65,7 @@ __all__ = [
     "PASS_REACH_FACTORS",
     "JointMove",
     "conflict_components",
+    "conflict_free",
     "joint_moves",
     "passing_stage",
     "place_joint",
@@ -146,9 +147,16 @@ def _aside_legs(
     return ((offset_steps, out), (offset_steps + out.steps + wait_steps, back)), np.array([s, c, s])
 
 
-def joint_moves(problem: SwarmProblem, members: tuple[int, ...], factors: tuple[float, ...] = PASS_REACH_FACTORS):
-    """The joint moves of the component ``members`` (see module), conflict-free among themselves and
-    statically free, in order of their length (grid steps), ties in the order tried."""
+def joint_moves(
+    problem: SwarmProblem,
+    members: tuple[int, ...],
+    factors: tuple[float, ...] = PASS_REACH_FACTORS,
+    *,
+    checked: bool = True,
+) -> list[JointMove]:
+    """The joint moves of the component ``members`` (see module), statically free, in order of their
+    length (grid steps), ties in the order tried; ``checked``: only those conflict-free among themselves
+    (:func:`conflict_free`), else all (the caller checks those it uses: most are never tried)."""
     movers = [a for a in members if _moving(problem, a)]
     if not movers or any(_left_m(problem, a) is None for a in movers):
         return []
@@ -184,7 +192,7 @@ def joint_moves(problem: SwarmProblem, members: tuple[int, ...], factors: tuple[
                     label = f"{side} {f:g} reach" + ("" if keep is None else f", {problem.names[keep]} on its line")
                     out += _with_resting(problem, members, movers, resting, legs, routes, sign * f, label)
     out.sort(key=lambda jm: jm.steps)  # stable: ties in the order tried
-    return [jm for jm in out if _conflict_free(problem, jm)]
+    return [jm for jm in out if conflict_free(problem, jm)] if checked else out
 
 
 def _with_resting(
@@ -233,7 +241,7 @@ def _with_resting(
     ]
 
 
-def _conflict_free(problem: SwarmProblem, jm: JointMove) -> bool:
+def conflict_free(problem: SwarmProblem, jm: JointMove) -> bool:
     """Whether the members' tracks of ``jm`` are conflict-free among themselves."""
     tracks = jm.tracks(problem, 0)
     occ = Occupancy(problem, tracks, jm.steps + 2)
@@ -275,16 +283,21 @@ def place_joint(occ: Occupancy, jm: JointMove, *, arrive_by: int | None = None) 
 
 
 def _place_component(
-    occ: Occupancy, problem: SwarmProblem, options: list[JointMove], arrive_by: int | None
+    occ: Occupancy, problem: SwarmProblem, options: list[JointMove], arrive_by: int | None, checked: dict[int, bool]
 ) -> list[GridTrack] | None:
-    """The earliest-arriving placement over the joint moves ``options`` (their tracks), or None."""
+    """The earliest-arriving placement over the joint moves ``options`` (their tracks) that are
+    conflict-free among themselves (asked once per joint move, kept in ``checked`` by its id), or None."""
     best: tuple[int, list[GridTrack]] | None = None
     for jm in options:
         if best is not None and jm.steps >= best[0]:
             break  # sorted by length: none later arrives earlier
         bound = arrive_by if best is None else best[0] - 1
         d = place_joint(occ, jm, arrive_by=bound)
-        if d is not None and (best is None or d + jm.steps < best[0]):
+        if d is None or (best is not None and d + jm.steps >= best[0]):
+            continue
+        if id(jm) not in checked:
+            checked[id(jm)] = conflict_free(problem, jm)
+        if checked[id(jm)]:
             best = (d + jm.steps, jm.tracks(problem, d))
     return None if best is None else best[1]
 
@@ -306,7 +319,15 @@ def passing_stage(
     comps = [
         c for c in conflict_components([(i, j) for i, j in pairs if i != j]) if any(not problem.pinned[a] for a in c)
     ]
-    options = {c: joint_moves(problem, c) if len(c) > 1 else [] for c in comps}
+    options = {c: joint_moves(problem, c, checked=False) for c in comps}
+    checked: dict[int, bool] = {}  # id of a joint move tried: conflict-free among its members
+    for c in comps:  # a component without any joint move is timed one by one from the start
+        for jm in options[c]:
+            checked[id(jm)] = conflict_free(problem, jm)
+            if checked[id(jm)]:
+                break
+        else:
+            options[c] = []
     late: set[int] = {a for c in comps if not options[c] for a in c if not problem.pinned[a]}
     comps = [c for c in comps if options[c]]
     in_comp = {a for c in comps for a in c}
@@ -324,7 +345,9 @@ def passing_stage(
     # the earliest plan so far: its tracks, late vehicles, vehicles in components, components, round
     kept: tuple[dict[int, GridTrack], set[int], set[int], int, int] | None = None
     while True:
-        tracks, stuck, delayed = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
+        tracks, stuck, delayed = _place_all(
+            problem, horizon_steps, comps, options, late, first, arrive_by, length, checked
+        )
         if tracks is not None:
             if kept is None or _makespan(tracks) < _makespan(kept[0]):
                 kept = (tracks, set(late), set(in_comp), len(comps), rounds)
@@ -378,7 +401,7 @@ def passing_stage(
             break
         first = [u for u in first if u != unit] + [unit]
         rounds += 1
-        tracks, *_ = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
+        tracks, *_ = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length, checked)
         if tracks is None or _makespan(tracks) >= _makespan(kept[0]):
             break
         kept = (tracks, set(late), set(in_comp), len(comps), rounds)
@@ -411,9 +434,10 @@ def _place_all(
     first: list[tuple[int, ...] | int],
     arrive_by: int | None,
     length: np.ndarray,
+    checked: dict[int, bool],
 ) -> tuple[dict[int, GridTrack] | None, list[tuple[tuple[int, ...] | int, set[int]]], set[int]]:
     """One placement (see module; ``first``: components and late vehicles placed before the others, the
-    last raised first): (the tracks by agent, or None where some unit could not be placed; each such
+    last raised first; ``checked``: as :func:`_place_component`): (the tracks by agent, or None where some unit could not be placed; each such
     component or late agent with the agents hemming it in, in the order tried; the straight-flying
     vehicles that made a component wait, i.e. depart after step 0 or take a longer joint move than its
     shortest). A unit that cannot be placed is left out and the others placed, so one round finds them all."""
@@ -429,7 +453,7 @@ def _place_all(
     stuck: list[tuple[tuple[int, ...] | int, set[int]]] = []
     for u in raised + rest_comps + rest_late:
         if isinstance(u, tuple):
-            got = _place_component(occ, problem, options[u], arrive_by)
+            got = _place_component(occ, problem, options[u], arrive_by, checked)
             if got is None or max(tr.arrival_step for tr in got) > options[u][0].steps:
                 hem: set[int] = set()
                 for tr in options[u][0].tracks(problem, 0):
