@@ -14,19 +14,31 @@ timed together:
 * the *joint moves* of a component (:func:`joint_moves`): every moving member on an arc bulging
   :data:`PASS_REACH_FACTORS` times the widest keep-out's horizontal reach aside, all to their right or
   all to their left (head-on partners then pass on opposite sides), or one member on its straight line
-  and the others bulging; resting members rest. All depart at one grid step; a joint move is kept
-  only where its members' tracks are conflict-free among themselves
-  (:meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`) and statically free;
+  and the others bulging; resting members rest, or step as far aside (away from the movers' bulge) and
+  back, rest to rest, at a few offsets. All depart at one grid step; a joint move is used only where
+  its members' tracks are conflict-free among themselves
+  (:meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`, asked when it is first
+  tried) and statically free; a component without any is timed one by one (below);
 * every vehicle in no conflict flies its straight line at its own limits from t = 0; the components,
   longest line first, are placed at the earliest common departure the tracks fixed so far allow
   (:func:`place_joint`: holds at the start before it, at the goal after it, the flown samples,
   exactly as :func:`~proxplan.planner.swarm.arc_timing.time_arc` asks them), the earliest arrival over
-  the joint moves kept;
-* a component no joint move can be placed for makes the straight-flying vehicles hemming it in
-  *late* (or, hemmed in only by components, it is placed first, or its members become late); late
-  vehicles are timed one by one after the components, as the yielding stage times its vehicles
-  (:func:`~proxplan.planner.swarm.yielding.time_yielding`: waits, corners, arcs); at most
-  :data:`MAX_PASS_ROUNDS` rounds, then the stage gives up (None) and says so.
+  its joint moves kept; *late* vehicles are then timed one by one, as the yielding stage times its
+  vehicles (:func:`~proxplan.planner.swarm.yielding.time_yielding`: waits, corners, arcs);
+* rounds (at most :data:`MAX_PASS_ROUNDS`; every unit that cannot be placed is found in one round): the
+  straight-flying vehicles hemming in a component that cannot be placed become late; a component
+  hemmed in by placed ones only is placed first, and where it was already, its members become late; a
+  placed plan whose components had to wait makes the straight-flying vehicles in their way late (as an
+  option: one that then cannot be timed goes back on its line for good); a late vehicle hemmed in by
+  placed ones only ends the rounds (no move of the stage frees it; grid-256 spent 16 s of CPU for
+  nothing before). Then, at most :data:`MAX_RAISES` times, the latest vehicle's component (or late
+  vehicle) is placed first while that shortens the plan. The earliest plan placed is kept; with none
+  the stage gives up (None) and says so.
+
+A straight line that leaves the static free space is not this stage's case (timed late by the
+single-vehicle planner, corridor-64 and pillar-64 by type gave up after 1.6 and 3.1 s of CPU). The
+yielding candidate does not try this stage inside the stacked plan's levels (the join re-times arcs
+as corner chains: pillar-64 by type 1.83x -> 2.60x).
 
 Every track is checked exactly against those placed before it (and the members of a component among
 themselves), so the plan is conflict-free in the swarm layer's model; the verifier judges it as every plan.
@@ -158,7 +170,9 @@ def joint_moves(
     length (grid steps), ties in the order tried; ``checked``: only those conflict-free among themselves
     (:func:`conflict_free`), else all (the caller checks those it uses: most are never tried)."""
     movers = [a for a in members if _moving(problem, a)]
-    if not movers or any(_left_m(problem, a) is None for a in movers):
+    lefts = {a: _left_m(problem, a) for a in movers}
+    left = {a: v for a, v in lefts.items() if v is not None}
+    if not movers or len(left) < len(movers):
         return []
     resting = [a for a in members if a not in movers and not problem.pinned[a]]
     s, g = problem.starts_m, problem.goals_m
@@ -171,7 +185,7 @@ def joint_moves(
     def arc(a: int, signed_f: float) -> tuple[ArcMove, np.ndarray] | None:
         key = (a, signed_f)
         if key not in arcs:
-            bulge = signed_f * problem.reach_xy_m * _left_m(problem, a)
+            bulge = signed_f * problem.reach_xy_m * left[a]
             mv = ArcMove(s[a], g[a], bulge, problem.limits[a], GRID_DT_S)
             free = bool(problem.static_free(mv.positions()).all())
             arcs[key] = (mv, np.array([s[a], 0.5 * (s[a] + g[a]) + bulge, g[a]])) if free else None
@@ -190,7 +204,7 @@ def joint_moves(
                     legs[a], routes[a] = ((0, got[0]),), got[1]
                 else:
                     label = f"{side} {f:g} reach" + ("" if keep is None else f", {problem.names[keep]} on its line")
-                    out += _with_resting(problem, members, movers, resting, legs, routes, sign * f, label)
+                    out += _with_resting(problem, members, left, resting, legs, routes, sign * f, label)
     out.sort(key=lambda jm: jm.steps)  # stable: ties in the order tried
     return [jm for jm in out if conflict_free(problem, jm)] if checked else out
 
@@ -198,7 +212,7 @@ def joint_moves(
 def _with_resting(
     problem: SwarmProblem,
     members: tuple[int, ...],
-    movers: list[int],
+    left: dict[int, np.ndarray],
     resting: list[int],
     legs: dict[int, tuple[tuple[int, Move], ...]],
     routes: dict[int, np.ndarray | None],
@@ -211,7 +225,8 @@ def _with_resting(
     and coming back at once, as the movers arrive or half way between; those conflict-free among
     themselves or not (checked by the caller)."""
     variants: list[tuple[dict, dict, str]] = [({}, {}, "")]
-    away = -signed_f * sum(_left_m(problem, a) for a in movers) if resting else np.zeros(3)
+    movers = list(left)  # the moving members, each with the unit vector to the left of its line
+    away = -signed_f * np.sum([left[a] for a in movers], axis=0) if resting else np.zeros(3)
     norm = float(np.linalg.norm(away))
     if norm > 1e-9:
         away = abs(signed_f) * problem.reach_xy_m * away / norm
@@ -396,10 +411,10 @@ def passing_stage(
             )
     for _ in range(MAX_RAISES):  # the unit of the latest vehicle placed first, while that shortens the plan
         latest = max(kept[0].values(), key=lambda tr: (tr.arrival_step, -tr.agent)).agent
-        unit = next((c for c in comps if latest in c), latest if latest in late else None)
-        if unit is None or (first and first[-1] == unit):
+        raised = next((c for c in comps if latest in c), latest if latest in late else None)
+        if raised is None or (first and first[-1] == raised):
             break
-        first = [u for u in first if u != unit] + [unit]
+        first = [u for u in first if u != raised] + [raised]
         rounds += 1
         tracks, *_ = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length, checked)
         if tracks is None or _makespan(tracks) >= _makespan(kept[0]):
