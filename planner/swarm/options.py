@@ -81,6 +81,10 @@ class SwarmOptions:
     # again among the lock-step tracks. On the prioritised plans by type it was on before (grid-64
     # 1.91x -> 1.63x, fifth round) and stays so. Decided by the swarm layer (no caller sets it)
     makespan_repair: bool | None = None
+    # where goals were assigned, also the vehicles of each group of conflicting straight lines passing
+    # together (swarm.passes; the shorter plan kept): grid-64 by type 1.63x -> 1.32x (round 23S). False:
+    # for measuring the other stages alone (the makespan repair's grid-20 test)
+    pass_together: bool = True
     # one more pass of prioritised planning with both wavefronts per vehicle (the widest disc at every
     # height and discs for the heights the route flies at, swarm.wave; the earlier arrival kept,
     # priority.plan_one), in the order and hold of the pass that gave the plan without, on what is left

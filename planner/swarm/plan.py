@@ -351,8 +351,9 @@ def _plan(
             found = kept
     if assigned and conflicts and opts.prioritized:  # interchangeable goals: one vehicle of a pair yields (round 20S)
         in_hand = None if found is None else stage_makespan(found)
+        together = opts.pass_together and not level
         yielded = yielding_candidate(
-            problem, horizon_steps(lower_bound), extra, shorter_than_s=in_hand, pairs=conflicts, together=not level
+            problem, horizon_steps(lower_bound), extra, shorter_than_s=in_hand, pairs=conflicts, together=together
         )
         if yielded is not None and found is None:
             found = yielded

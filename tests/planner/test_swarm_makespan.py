@@ -21,7 +21,8 @@ def test_the_latest_vehicles_planned_again_shorten_a_grid_and_the_plan_verifies(
     doc = grid_reshuffle(20)
     doc["assign_goals"] = "by_type"
     sc, _ = apply_assignment(scenario_from_dict(doc, label="test scenario"))
-    timed, info = swarm_timed(sc, SwarmOptions(workers=1, reserve_starts=False))
+    # the vehicles passing together (round 23S) give 2.02 s here, a plan the repair does not shorten
+    timed, info = swarm_timed(sc, SwarmOptions(workers=1, reserve_starts=False, pass_together=False))
     repair = info.makespan_repair
     assert repair is not None
     assert repair.replaced >= 1 and info.makespan_s == repair.makespan_after_s < repair.makespan_before_s
