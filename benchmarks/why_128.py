@@ -321,6 +321,9 @@ FLOW_GROUP_COS = 0.5
 # (SwarmProblem.reach_xy_m) to the right and left of the heading, and by these heights, m
 FLOW_LATERAL_REACHES = (0.75, 1.0)
 FLOW_DZ_M = (0.0, 0.5, -0.5)
+# --flow: the sides a lane route may be offset to, +1 right of its heading, -1 left (both: the offsets spread the
+# lanes; right only, --keep-right: opposite streams on opposite sides)
+FLOW_SIDES = (1.0, -1.0)
 # --flow: the flow timing starts again at most this many times, the vehicle it could not time first
 FLOW_RESTARTS = 32
 
@@ -358,14 +361,15 @@ def _footprint(problem, a: int, W: np.ndarray):
     return GridTrack(a, int(problem.type_index[a]), W[0].copy(), moves)
 
 
-def lane_routes(problem, horizon: int) -> tuple[dict, dict]:
+def lane_routes(problem, horizon: int, sides: tuple[float, ...] = FLOW_SIDES) -> tuple[dict, dict]:
     """Per vehicle a lane route start -> start + D -> goal + D -> goal (the middle leg round the obstacles by
     the wavefront in empty space), D one of the offsets FLOW_LATERAL_REACHES x FLOW_DZ_M (and none) to the
-    right or left of its heading and up or down. Of the offsets whose flight alone along the route comes
-    within keep-out of the fewest other starts and goals (those within keep-out of its own start or goal aside:
-    they are timing, not the route), the one taken by the fewest vehicles so far (lanes spread over the
-    offsets, the vehicles assigned longest flight first; ties: the earlier arrival). Returns (routes, (starts
-    hit, goals hit, arrival s flown rest to rest along the route) per vehicle)."""
+    right or left of its heading (``sides``: +1 right, -1 left) and up or down. Of the offsets whose flight
+    alone along the route comes within keep-out of the fewest other starts and goals (those within keep-out
+    of its own start or goal aside: they are timing, not the route), the one taken by the fewest vehicles so
+    far (lanes spread over the offsets, the vehicles assigned longest flight first; ties: the earlier
+    arrival). Returns (routes, (starts hit, goals hit, arrival s flown rest to rest along the route) per
+    vehicle)."""
     from proxplan.planner.swarm.occupancy import Occupancy
     from proxplan.planner.swarm.reserve import reserved_track
     from proxplan.planner.swarm.tracks import GridTrack
@@ -377,7 +381,7 @@ def lane_routes(problem, horizon: int) -> tuple[dict, dict]:
     goals = Occupancy(
         problem, [GridTrack(b, int(problem.type_index[b]), problem.goals_m[b].copy(), []) for b in range(A)], horizon
     )
-    lateral = [0.0] + [sgn * f for f in FLOW_LATERAL_REACHES for sgn in (1.0, -1.0)]
+    lateral = [0.0] + [sgn * f for f in FLOW_LATERAL_REACHES for sgn in sides]
     candidates: dict[int, list] = {}
     for a in range(A):
         s, g = problem.starts_m[a], problem.goals_m[a]
@@ -513,7 +517,7 @@ def flow(args) -> int:
             problem, _, _ = unfrozen_problem(swarm_problem(scenario_from_dict(sub)))
     horizon = 4000
     t0 = time.process_time()
-    routes, hits = lane_routes(problem, horizon)
+    routes, hits = lane_routes(problem, horizon, (1.0,) if args.keep_right else FLOW_SIDES)
     counts = Counter(len(h[0]) + len(h[1]) for h in hits.values())
     print(
         f"lane routes ({time.process_time() - t0:.1f} s CPU): other starts and goals on the route taken, vehicles: "
@@ -552,6 +556,7 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, default=4, help="with --lattice: seeds 0 .. N-1")
     ap.add_argument("--flow", action="store_true", help="direction groups alone, lane routes, flow timing (see module)")
     ap.add_argument("--group", type=int, default=None, help="with --flow: direction group K alone")
+    ap.add_argument("--keep-right", action="store_true", help="with --flow: lane routes offset to the right only")
     args = ap.parse_args()
     if args.flow:
         return flow(args)

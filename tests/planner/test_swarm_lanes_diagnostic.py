@@ -70,6 +70,16 @@ def test_a_lane_route_leaves_the_line_that_passes_anothers_start_and_goal():
     assert len(routes[NEAR]) == 2 and hits[NEAR][:2] == (set(), set())
 
 
+def test_keep_right_offsets_the_lane_to_the_right_of_the_heading_only():
+    """far flies +x: its right is -y. Offset to its right only, its lane lies at y < 0; to its left only, y > 0."""
+    _, problem = _in_line()
+    for side, sign in ((1.0,), -1.0), ((-1.0,), 1.0):
+        routes, hits = why_128.lane_routes(problem, HORIZON, side)
+        assert hits[FAR][:2] == (set(), set())
+        y = routes[FAR][1:-1, 1]
+        assert (np.sign(y) == sign).all() and np.abs(y).min() > 0.5 * problem.reach_xy_m
+
+
 def test_the_flow_timing_is_conflict_free_verifies_and_repeats():
     sc, problem = _in_line()
     routes, hits = why_128.lane_routes(problem, HORIZON)
