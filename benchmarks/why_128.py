@@ -31,10 +31,26 @@ movers); the latest vehicles
 coming back) could be cut by staying there against everyone else's moves, and how many pairs of
 consecutive steps could be flown as one straight step (every pair passing the synchronous test).
 
+The default mode also prints (round 23B) the latest vehicles of the FINAL tracks (re-timed and repaired):
+each rest of 0.25 s or more (at the start, at the goal or aside, from when) and from when the vehicle's goal
+is clear of every other track for good (a vehicle resting at its start until then waits for the stream to
+pass its goal).
+
+With ``--flow`` (round 23B) it measures what streams in lanes could give: the vehicles grouped by direction of
+travel (``direction_groups``), each group planned alone by the swarm layer (no other group in its way: what
+lanes that separate the groups completely would give at best), the lane routes (``lane_routes``: the middle
+leg offset sideways and in height by ``FLOW_LATERAL_REACHES`` x ``FLOW_DZ_M``, the offset whose flight passes
+the fewest other starts and goals kept) and how many other starts and goals the best route of each vehicle
+still passes, and the flow timing along them (``flow_timing``: each vehicle after those whose starts its route
+passes and before those whose goals it passes, ties the longest flight first; exact timing one vehicle after
+another, the others' starts reserved; started again at most ``FLOW_RESTARTS`` times with the vehicle that could
+not be timed first), with its latest vehicles' rests where it times every vehicle.
+
 Usage (from outside the repository, so that the interpreter's installed proxplan is imported):
     cd /tmp && PY /path/to/benchmarks/why_128.py --layout pillar --n 128
     cd /tmp && PY /path/to/benchmarks/why_128.py --layout pillar --n 128 --one-pass --holding
     cd /tmp && PY /path/to/benchmarks/why_128.py --layout corridor --n 128 --lattice --seeds 4
+    cd /tmp && PY /path/to/benchmarks/why_128.py --layout corridor --n 64 --flow
 """
 
 from __future__ import annotations
@@ -299,6 +315,235 @@ def lattice_counts(args) -> int:
     return 0
 
 
+# --flow (round 23B): two headings are one direction group when their cosine exceeds this (within 60 degrees)
+FLOW_GROUP_COS = 0.5
+# --flow: a lane route's middle leg is offset by these multiples of the widest keep-out's horizontal reach
+# (SwarmProblem.reach_xy_m) to the right and left of the heading, and by these heights, m
+FLOW_LATERAL_REACHES = (0.75, 1.0)
+FLOW_DZ_M = (0.0, 0.5, -0.5)
+# --flow: the sides a lane route may be offset to, +1 right of its heading, -1 left (both: the offsets spread the
+# lanes; right only, --keep-right: opposite streams on opposite sides)
+FLOW_SIDES = (1.0, -1.0)
+# --flow: the flow timing starts again at most this many times, the vehicle it could not time first
+FLOW_RESTARTS = 32
+
+
+def direction_groups(problem) -> list[tuple[np.ndarray, list[int]]]:
+    """Vehicles grouped by horizontal heading (start -> goal): each joins the first group whose mean heading
+    is within ``FLOW_GROUP_COS`` of its own (in index order); (mean unit heading, members) per group."""
+    d = (problem.goals_m - problem.starts_m)[:, :2]
+    u = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+    groups: list[list] = []
+    for a in range(problem.n_agents):
+        for grp in groups:
+            if float(grp[0] @ u[a]) / max(float(np.linalg.norm(grp[0])), 1e-9) > FLOW_GROUP_COS:
+                grp[0] = grp[0] + u[a]
+                grp[1].append(a)
+                break
+        else:
+            groups.append([u[a].copy(), [a]])
+    return [(g[0] / max(float(np.linalg.norm(g[0])), 1e-9), g[1]) for g in groups]
+
+
+def _footprint(problem, a: int, W: np.ndarray):
+    """``a`` flown along the chain ``W`` alone, rest to rest on each leg (no shortcut: the route itself), a
+    GridTrack."""
+    from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
+    from proxplan.planner.timing.profile import LineMove, rest_to_rest
+
+    moves, k = [], 0
+    for p0, p1 in zip(W[:-1], W[1:], strict=True):
+        length = float(np.linalg.norm(p1 - p0))
+        if length > 1e-9:
+            mv = LineMove(p0, p1, rest_to_rest(length, problem.limits[a], GRID_DT_S))
+            moves.append((k, mv))
+            k += mv.steps
+    return GridTrack(a, int(problem.type_index[a]), W[0].copy(), moves)
+
+
+def lane_routes(problem, horizon: int, sides: tuple[float, ...] = FLOW_SIDES) -> tuple[dict, dict]:
+    """Per vehicle a lane route start -> start + D -> goal + D -> goal (the middle leg round the obstacles by
+    the wavefront in empty space), D one of the offsets FLOW_LATERAL_REACHES x FLOW_DZ_M (and none) to the
+    right or left of its heading (``sides``: +1 right, -1 left) and up or down. Of the offsets whose flight
+    alone along the route comes within keep-out of the fewest other starts and goals (those within keep-out
+    of its own start or goal aside: they are timing, not the route), the one taken by the fewest vehicles so
+    far (lanes spread over the offsets, the vehicles assigned longest flight first; ties: the earlier
+    arrival). Returns (routes, (starts hit, goals hit, arrival s flown rest to rest along the route) per
+    vehicle)."""
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.swarm.reserve import reserved_track
+    from proxplan.planner.swarm.tracks import GridTrack
+    from proxplan.planner.swarm.wave import wave_route
+
+    A = problem.n_agents
+    empty = Occupancy(problem, [], horizon)
+    starts = Occupancy(problem, [reserved_track(problem, b) for b in range(A)], horizon)
+    goals = Occupancy(
+        problem, [GridTrack(b, int(problem.type_index[b]), problem.goals_m[b].copy(), []) for b in range(A)], horizon
+    )
+    lateral = [0.0] + [sgn * f for f in FLOW_LATERAL_REACHES for sgn in sides]
+    candidates: dict[int, list] = {}
+    for a in range(A):
+        s, g = problem.starts_m[a], problem.goals_m[a]
+        ends = [GridTrack(a, int(problem.type_index[a]), q.copy(), []) for q in (s, g)]
+        own_s = set().union(*(starts.conflicting_agents(e) for e in ends))
+        own_g = set().union(*(goals.conflicting_agents(e) for e in ends))
+        d = (g - s)[:2] / max(float(np.linalg.norm((g - s)[:2])), 1e-9)
+        right = np.array([d[1], -d[0], 0.0])
+        candidates[a] = []
+        for dz in FLOW_DZ_M:
+            for lat in lateral:
+                D = lat * problem.reach_xy_m * right + np.array([0.0, 0.0, dz])
+                P, Q = s + D, g + D
+                if (lat or dz) and not (
+                    problem.static_free(np.array([P, Q])).all()
+                    and problem.segment_free(s, P)
+                    and problem.segment_free(Q, g)
+                ):
+                    continue
+                M = np.array([P, Q]) if problem.segment_free(P, Q) else wave_route(empty, a, P, Q)
+                if M is None:
+                    continue
+                W = M if not (lat or dz) else np.vstack([s[None], M, g[None]])
+                track = _footprint(problem, a, W)
+                hs = starts.conflicting_agents(track) - own_s - {a}
+                hg = goals.conflicting_agents(track) - own_g - {a}
+                candidates[a].append(((lat, dz), len(hs) + len(hg), W, (hs, hg, track.arrival_s)))
+        assert candidates[a], f"{problem.names[a]}: no route at all"
+    taken: Counter = Counter()
+    routes, hits = {}, {}
+    for a in sorted(range(A), key=lambda a: (-min(c[3][2] for c in candidates[a]), a)):
+        fewest = min(c[1] for c in candidates[a])
+        lane, _, W, hit = min((c for c in candidates[a] if c[1] == fewest), key=lambda c: (taken[c[0]], c[3][2], c[0]))
+        taken[lane] += 1
+        routes[a], hits[a] = W, hit
+    return routes, hits
+
+
+def flow_timing(problem, routes: dict, hits: dict, horizon: int) -> tuple[dict, str]:
+    """Every vehicle timed along its lane route (exact safe-interval timing through waypoints against those
+    timed before it, the others' starts reserved until timed; a vehicle whose goal is within keep-out of
+    reserved starts releases them and they are timed next; a failed timing falls back on plan_one), in the
+    flow order: a vehicle after those whose starts its route passes and before those whose goals it passes,
+    cycles broken by the fewest unmet, ties the longest flight first; where a vehicle cannot be timed, all
+    again with it first, at most ``FLOW_RESTARTS`` times (a count). Returns (tracks, how it ended)."""
+    import proxplan.planner.swarm.single as _single
+    from proxplan.planner.swarm.chain import time_chain
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.swarm.reserve import reserved_track
+    from proxplan.planner.swarm.tracks import GridTrack
+
+    A = problem.n_agents
+    before = {a: set(hits[a][0]) for a in range(A)}
+    for a in range(A):
+        for b in hits[a][1]:
+            before[b].add(a)
+    order, done, broken = [], set(), 0
+    while len(order) < A:
+        ready = [a for a in range(A) if a not in done and before[a] <= done]
+        if not ready:
+            broken += 1
+            ready = [min((a for a in range(A) if a not in done), key=lambda a: (len(before[a] - done), -hits[a][2], a))]
+        pick = min(ready, key=lambda a: (-hits[a][2], a))
+        order.append(pick)
+        done.add(pick)
+    fallbacks = 0
+    for restart in range(FLOW_RESTARTS + 1):
+        occ = Occupancy(problem, [reserved_track(problem, b) for b in range(A)], horizon)
+        tracks: dict = {}
+        queue = list(order)
+        failed = None
+        while queue:
+            a = queue.pop(0)
+            occ.remove(a)
+            at_goal = GridTrack(a, int(problem.type_index[a]), problem.goals_m[a].copy(), [])
+            partners = [b for b in sorted(occ.conflicting_agents(at_goal)) if b not in tracks]
+            for b in partners:
+                occ.remove(b)
+            res = time_chain(occ, a, routes[a], through=True)
+            track = None if res is None else res.track
+            if track is None:
+                fallbacks += 1
+                track = _single.plan_one(occ, a, True)
+            if track is None:
+                failed = a
+                break
+            tracks[a] = track
+            occ.put(track)
+            for b in partners:
+                queue.remove(b)
+                queue.insert(0, b)
+        if failed is None:
+            return tracks, f"all timed, {broken} cycles broken, {fallbacks} fallbacks, {restart} restarts"
+        order.remove(failed)
+        order.insert(0, failed)  # the vehicle that could not be timed goes first
+    return (
+        tracks,
+        f"gave up at vehicle {len(tracks)} ({problem.names[failed]}) after {FLOW_RESTARTS} restarts, {broken} cycles "
+        f"broken, {fallbacks} fallbacks",
+    )
+
+
+def flow(args) -> int:
+    """Direction groups planned alone, lane routes' hits and the flow timing, re-timed (``--flow``, round 23B;
+    ``--group K``: lane routes and flow timing of direction group K alone)."""
+    from proxplan.planfile.scenario_load import scenario_from_dict
+    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.sampling.ordering import lower_bound_makespan_s
+    from proxplan.planner.swarm import SwarmOptions, swarm_problem, swarm_timed
+    from proxplan.planner.swarm.frozen import unfrozen_problem
+    from proxplan.planner.swarm.plan import _retime_stage
+    from proxplan.planner.swarm.stage import Stage
+
+    doc = LAYOUTS[args.layout](args.n)
+    scenario = scenario_from_dict(doc)
+    problem, _, _ = unfrozen_problem(swarm_problem(scenario))
+    bound = lower_bound_makespan_s(scenario)
+    groups = direction_groups(problem)
+    print(f"{args.layout}-{args.n}: bound {bound:.2f} s; {len(groups)} direction group(s)")
+    for k, (heading, members) in enumerate(groups):
+        if args.group is not None and k != args.group:
+            continue
+        names = {problem.names[a] for a in members}
+        sub = dict(doc, vehicles={key: v for key, v in doc["vehicles"].items() if key in names})
+        t0 = time.process_time()
+        _, info = swarm_timed(scenario_from_dict(sub), SwarmOptions(workers=1, reserve_starts=True))
+        print(
+            f"  group {k}: heading ({heading[0]:+.2f}, {heading[1]:+.2f}), {len(members)} vehicles, planned alone by "
+            f"the swarm layer: {info.makespan_s:.2f} s = {info.makespan_s / bound:.2f}x ({info.stage}; before "
+            f"re-timing {info.initial_makespan_s:.2f} s), {time.process_time() - t0:.1f} s CPU"
+        )
+        if args.group is not None:
+            problem, _, _ = unfrozen_problem(swarm_problem(scenario_from_dict(sub)))
+    horizon = 4000
+    t0 = time.process_time()
+    routes, hits = lane_routes(problem, horizon, (1.0,) if args.keep_right else FLOW_SIDES)
+    counts = Counter(len(h[0]) + len(h[1]) for h in hits.values())
+    print(
+        f"lane routes ({time.process_time() - t0:.1f} s CPU): other starts and goals on the route taken, vehicles: "
+        f"{dict(sorted(counts.items()))}"
+    )
+    t0 = time.process_time()
+    tracks, how = flow_timing(problem, routes, hits, horizon)
+    if len(tracks) < problem.n_agents:
+        print(f"flow timing: {how}, {time.process_time() - t0:.1f} s CPU")
+        return 0
+    before = max(tr.arrival_s for tr in tracks.values())
+
+    def chains(a: int) -> list[np.ndarray]:
+        return [np.array([problem.starts_m[a], problem.goals_m[a]]), routes[a]]
+
+    stage = Stage([tracks[a] for a in range(problem.n_agents)], "prioritised", "flow timing", chains)
+    final, _ = _retime_stage(problem, stage, before, SwarmOptions(), progress=None, deadline=None)
+    after = max(tr.arrival_s for tr in final.values())
+    print(
+        f"flow timing: {how}, {before:.2f} s = {before / bound:.2f}x, re-timed {after:.2f} s = {after / bound:.2f}x, "
+        f"{time.process_time() - t0:.1f} s CPU"
+    )
+    _print_rests(problem, final, 5)
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--layout", default="pillar")
@@ -309,7 +554,12 @@ def main() -> int:
     ap.add_argument("--whole-box", action="store_true", help="with --one-pass: the wavefront's whole-box fallback")
     ap.add_argument("--lattice", action="store_true", help="LaCAM alone on the stage's lattice (see module)")
     ap.add_argument("--seeds", type=int, default=4, help="with --lattice: seeds 0 .. N-1")
+    ap.add_argument("--flow", action="store_true", help="direction groups alone, lane routes, flow timing (see module)")
+    ap.add_argument("--group", type=int, default=None, help="with --flow: direction group K alone")
+    ap.add_argument("--keep-right", action="store_true", help="with --flow: lane routes offset to the right only")
     args = ap.parse_args()
+    if args.flow:
+        return flow(args)
     if args.one_pass:
         return one_pass(args)
     if args.lattice:
@@ -372,7 +622,61 @@ def main() -> int:
             f"{alone:.2f} s, {length:.2f} m); {len(tr.moves)} moves, {route:.2f} m flown; flies {flying:.2f} s, "
             f"waits {tr.arrival_s - flying:.2f} s (first move at {first:.2f} s)"
         )
+    final = hand_on.tracks
+    if final is not None:
+        print("\nthe latest vehicles of the final tracks (re-timed and repaired): rests of 0.25 s or more, where")
+        _print_rests(problem, final, 5)
     return 0
+
+
+def _rests(tr, min_s: float = 0.25) -> list[tuple[float, float, np.ndarray]]:
+    """(from s, duration s, position m) of each rest of ``tr`` lasting ``min_s`` or more before its arrival."""
+    still = ~tr.moving[: tr.arrival_step + 1]
+    out = []
+    k = 0
+    while k < still.size:
+        if still[k]:
+            j = k
+            while j < still.size and still[j]:
+                j += 1
+            if j < still.size and (j - k) * 0.025 >= min_s:
+                out.append((k * 0.025, (j - k) * 0.025, tr.positions_m[k]))
+            k = j
+        else:
+            k += 1
+    return out
+
+
+def _print_rests(problem, tracks: dict, count: int) -> None:
+    """The ``count`` latest of ``tracks`` (by agent): each rest (at its start, at its goal or aside) and
+    when its goal is clear of every other track for good (the stream has passed it), s."""
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.timing.profile import rest_to_rest
+
+    horizon = max(tr.arrival_step for tr in tracks.values()) + 2
+    occ = Occupancy(problem, list(tracks.values()), horizon)
+    for tr in sorted(tracks.values(), key=lambda tr: -tr.arrival_s)[:count]:
+        a = tr.agent
+        s, g = problem.starts_m[a], problem.goals_m[a]
+        alone = rest_to_rest(float(np.linalg.norm(g - s)), problem.limits[a], 0.025).duration_s
+        occ.remove(a)
+        busy = np.flatnonzero(occ.forbidden_holds(a, g))
+        occ.put(tr)
+        clear = (busy[-1] + 1) * 0.025 if busy.size else 0.0
+        where = []
+        for t0, dt, q in _rests(tr):
+            at = (
+                "start"
+                if np.linalg.norm(q - s) < 1e-6
+                else "goal"
+                if np.linalg.norm(q - g) < 1e-6
+                else (f"aside ({q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f})")
+            )
+            where.append(f"{dt:.2f} s at {at} from {t0:.2f} s")
+        print(
+            f"  {problem.names[a]}: arrives {tr.arrival_s:.2f} s ({alone:.2f} s alone); its goal clear of the others "
+            f"for good from {clear:.2f} s; rests: {'; '.join(where) or 'none'}"
+        )
 
 
 def _starts(tr):
