@@ -1,8 +1,8 @@
 """Harm from what selection does not keep (docs/identify.md, "Stop 61 (lead)").
 
-* The delivered joint fit takes the vehicle parameters on F_z only, whatever is kept
-  (:func:`proxplan.identify.selection.joint_model`): an unexplained torque on one vehicle no longer moves another
-  type's thrust scale through its jet (benchmark draw 20006).
+* The delivered joint fit takes the vehicle parameters on all four channels or on F_z only, whichever predicts
+  the held-out flights' F_z better (:func:`proxplan.identify.selection.delivered_tangents`): an unexplained
+  torque on one vehicle no longer moves another type's thrust scale through its jet (benchmark draw 20006).
 * A stable discovered term the flights held out cannot test (:func:`proxplan.identify.discovery.untested_terms`)
   is fitted beside the vehicle parameters as a nuisance column and left out of the model (draw 19001)."""
 
