@@ -130,3 +130,15 @@ def test_the_key_sees_every_array_and_the_order():
     swapped = dataclasses.replace(plan, vehicles={"low": plan.vehicles["low"], "top": plan.vehicles["top"]})
     assert plan_key(swapped, 0.01) != key
     assert plan_key(plan, 0.02) != key
+
+
+def test_a_scenario_changed_in_place_is_not_the_one_answered_for():
+    sc = _scenario()
+    plan = _plan(sc)
+    verify_with_deflections(plan, sc)
+    task = sc.vehicles["low"]
+    sc.vehicles["low"] = dataclasses.replace(task, goal_m=task.goal_m + np.array([0.0, 0.5, 0.0]))
+    misses = checks.LAST.misses
+    got = verify_with_deflections(plan, sc)
+    assert checks.LAST.misses == misses + 1
+    assert any(v.kind.startswith("goal") for v in got[0])  # the moved goal is not reached
