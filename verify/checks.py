@@ -42,6 +42,7 @@ from proxplan.physics import one_blas_thread
 from proxplan.planfile import Plan, Scenario, load_scenario, scenario_from_dict
 from proxplan.verify.along import plan_samples, wrench_along_plan
 from proxplan.verify.jet_loop import check_jet_loop, loop_along_plan
+from proxplan.verify.memo import VerifyMemo
 from proxplan.verify.pair_checks import check_authority, check_authority_tube, check_pairs, tube_offsets
 from proxplan.verify.tolerances import (
     GOAL_TOLERANCE_M,
@@ -53,6 +54,9 @@ from proxplan.verify.tolerances import (
     VELOCITY_CONSISTENCY_MPS,
 )
 from proxplan.verify.violations import Violation, add_runs
+
+# the verifier's answer for the plan it checked last (verify_with_deflections)
+LAST = VerifyMemo()
 
 __all__ = [
     "GOAL_TOLERANCE_M",
@@ -292,16 +296,24 @@ def verify_plan(plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01) -> l
     return verify_with_deflections(plan, scenario, dt_fine_s=dt_fine_s)[0]
 
 
-@one_blas_thread
 def verify_with_deflections(
     plan: Plan, scenario: Scenario, *, dt_fine_s: float = 0.01
 ) -> tuple[list[Violation], dict[str, np.ndarray]]:
     """:func:`verify_plan`'s violations and, per vehicle the loops along the plan were run for, the predicted
     deflection (M,) m on the grid 0, dt_fine_s, ... (``deflection_along_plan``'s, unclipped; empty when the
     plan fails before the model checks): what the planners' deflection policy grows the tubes by, without
-    running the loops a second time. Run with one BLAS thread (:func:`proxplan.physics.one_blas_thread`):
-    the loops along the plan are many small matrix products, which OpenBLAS's threads slow down
-    (corridor-64: 9.6 -> 4.3 s of CPU)."""
+    running the loops a second time. Asked about the plan it checked last (the same scenario object, the
+    same sampled trajectories and step), it gives that answer back, not computed again
+    (:class:`proxplan.verify.memo.VerifyMemo`: the swarm layer's guard and the pipeline verify the same
+    repaired plan)."""
+    return LAST.get(plan, scenario, dt_fine_s, lambda: _verified(plan, scenario, dt_fine_s))
+
+
+@one_blas_thread
+def _verified(plan: Plan, scenario: Scenario, dt_fine_s: float) -> tuple[list[Violation], dict[str, np.ndarray]]:
+    """:func:`verify_with_deflections` computed. Run with one BLAS thread
+    (:func:`proxplan.physics.one_blas_thread`): the loops along the plan are many small matrix
+    products, which OpenBLAS's threads slow down (corridor-64: 9.6 -> 4.3 s of CPU)."""
     out = _check_vehicles(plan, scenario)
     if out:
         return out, {}

@@ -204,20 +204,64 @@ def replan(
     where it arrives in time and still conflicts with no track in ``occ``. ``plan_one`` alone does
     not always find a track where one exists (docs/planner.md, stop 56: on pillar-64 it found none
     for two of the four latest vehicles against everyone else's tracks, though their own exist).
-    ``fits`` (None: every track): a track it refuses is not taken, the next of those three is."""
+    ``fits`` (None: every track): a track it refuses is not taken, the next of those three is; it is
+    asked only about a track that would be taken (:func:`_fitting`)."""
     track = plan_one(occ, b, through)
-    if track is not None and fits is not None and not fits(occ, track, old):
-        track = None
     route = None if old is None else old.route_m
-    if route is not None and len(route) > 2:
+    timed = route is not None and len(route) > 2
+    if fits is not None:
+        track = _fitting(occ, b, old, worst, through, fits, track, route if timed else None)
+    elif route is not None and timed:
         res = time_chain(occ, b, route, arrive_by=None if track is None else track.arrival_step - 1, through=through)
         if res is not None and (track is None or res.arrival_step < track.arrival_step):
-            if fits is None or fits(occ, res.track, old):
-                track = res.track
+            track = res.track
     if (track is None or track.arrival_step >= worst) and old is not None and old.arrival_step < worst:
         if not occ.conflicting_agents(old) and (fits is None or fits(occ, old, old)):
             track = old
     return None if track is None or track.arrival_step >= worst else track
+
+
+def _fitting(
+    occ: Occupancy,
+    b: int,
+    old: GridTrack | None,
+    worst: int,
+    through: bool,
+    fits: Fits,
+    found: GridTrack | None,
+    route: np.ndarray | None,
+) -> GridTrack | None:
+    """:func:`replan`'s choice between ``found`` (plan_one's track) and ``route`` timed again (None: not
+    timed) under ``fits``, before the fall-back to the old track; ``fits`` asked only where its answer
+    decides: the same track as asking about ``found`` first (then timing the route to arrive before
+    it where ``fits`` takes it, and at all where it refuses it), asking about the route's track where
+    that is earlier, then taking the earlier one that fits (stop 61 round 23A: corridor-64's guard
+    built a sub-plan for every track planned, also for a track arriving too late to be taken or
+    beaten by the route's). Exact because: a track arriving at or after ``worst`` is never returned
+    (the old track or None follows whatever ``fits`` says of it); and the route's earliest timing is
+    the same track whether or not its search is told to arrive before ``found`` (:func:`time_chain`'s
+    ``arrive_by`` only prunes what arrives later), so asking for it with ``arrive_by`` gives the
+    track the search without it gives whenever that one arrives earlier than ``found``."""
+    if found is None:
+        if route is None:
+            return None
+        res = time_chain(occ, b, route, arrive_by=None, through=through)
+        return res.track if res is not None and fits(occ, res.track, old) else None
+    if route is not None:
+        res = time_chain(occ, b, route, arrive_by=found.arrival_step - 1, through=through)
+        if res is not None and fits(occ, res.track, old):
+            return res.track  # earlier than found, and taken whatever fits says of found
+        if res is None:  # nothing earlier than found on the route
+            if found.arrival_step >= worst:
+                return None
+            if fits(occ, found, old):
+                return found
+            # found refused: the route timed with no bound (it arrives no earlier than found)
+            res = time_chain(occ, b, route, arrive_by=None, through=through)
+            return res.track if res is not None and fits(occ, res.track, old) else None
+    if found.arrival_step >= worst:
+        return None  # never taken: the old track or none follows, whatever fits says
+    return found if fits(occ, found, old) else None
 
 
 def _may_meet_the_last(problem: SwarmProblem, by_agent: dict[int, GridTrack], a: int) -> bool:

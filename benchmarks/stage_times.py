@@ -1,0 +1,133 @@
+"""Where the CPU of one ``proxplan plan`` goes, by stage of the pipeline and the swarm layer, in this
+process (stop 61 round 23A).
+
+Runs the CLI's ``plan`` on a scenario in-process with each function of :data:`STAGES` wrapped by a
+timer (CPU: ``time.process_time``; wall: ``time.perf_counter``; inclusive, the outermost call of each
+function counted once, so a stage that calls itself, as a level of the stacked plan calls the
+swarm layer's ``_plan``, is not counted twice). A wrapper costs a few microseconds per call, not the
+several-fold inflation of a tracing profiler on Python-heavy code (cProfile made corridor-64's plan
+JSON writing 15 s of CPU; it is 0.4 s). Stages nest (the guard's sub-plans run inside the makespan
+repair; the verifier inside the guard and the pipeline), so the shares do not add up to 100 %.
+
+Usage (from outside the repository, so that the interpreter's installed proxplan is imported):
+    cd /tmp && PY /path/to/benchmarks/stage_times.py SCENARIO.yaml [--method swarm] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import importlib
+import io
+import json
+import sys
+import tempfile
+import time
+
+_P = "proxplan.planner."
+# (module, function or Class.method): the stages timed
+STAGES = (
+    (_P + "pipeline", "plan_scenario"),
+    (_P + "pipeline", "_prepare"),
+    (_P + "pipeline", "_swarm_stage"),
+    (_P + "pipeline", "_sampling_stage"),
+    (_P + "refine_stage", "refine_stage"),
+    (_P + "pipeline", "_record"),
+    (_P + "swarm.plan", "swarm_timed"),
+    (_P + "swarm.problem", "swarm_problem"),
+    (_P + "swarm.straight", "straight_step_conflicts"),
+    (_P + "swarm.prioritised_stage", "kept_straight_stage"),
+    (_P + "swarm.prioritised_stage", "prioritised_stage"),
+    (_P + "swarm.complete_stages", "lattice_stage"),
+    (_P + "swarm.complete_stages", "join_levels"),
+    (_P + "swarm.plan", "_retime_stage"),
+    (_P + "swarm.heights", "heights_pass"),
+    (_P + "swarm.plan", "_makespan_stage"),
+    (_P + "swarm.makespan", "shorten_makespan"),
+    (_P + "swarm.verify_guard", "VerifyGuard.__call__"),
+    (_P + "swarm.verify_guard", "VerifyGuard.around"),
+    (_P + "swarm.single", "plan_one"),
+    ("proxplan.verify.checks", "verify_with_deflections"),
+    ("proxplan.verify.checks", "_verified"),
+    (_P + "metrics", "finish_metrics"),
+    ("proxplan.planfile.plan", "write_plan"),
+)
+
+
+def _wrap(module: str, name: str, table: dict[str, list]) -> None:
+    """Time ``module.name`` (a function or ``Class.method``) into ``table[name]`` = [calls, CPU s, wall s],
+    replacing every reference to it held by a proxplan module (``from x import f`` included)."""
+    mod = importlib.import_module(module)
+    parts = name.split(".")
+    owner = mod
+    for p in parts[:-1]:
+        owner = getattr(owner, p)
+    orig = getattr(owner, parts[-1])
+    rec = table.setdefault(name, [0, 0.0, 0.0])
+    depth = [0]
+
+    @functools.wraps(orig)
+    def timed(*args, **kwargs):
+        if depth[0]:
+            return orig(*args, **kwargs)
+        depth[0] += 1
+        c0, t0 = time.process_time(), time.perf_counter()
+        try:
+            return orig(*args, **kwargs)
+        finally:
+            depth[0] -= 1
+            rec[0] += 1
+            rec[1] += time.process_time() - c0
+            rec[2] += time.perf_counter() - t0
+
+    setattr(owner, parts[-1], timed)
+    if len(parts) == 1:
+        for m in list(sys.modules.values()):
+            if m is not None and getattr(m, "__name__", "").startswith("proxplan"):
+                for key, value in list(vars(m).items()):
+                    if value is orig:
+                        setattr(m, key, timed)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scenario")
+    ap.add_argument("--method", default="swarm")
+    ap.add_argument("--out", default=None, help="plan folder (default: a temporary one)")
+    args = ap.parse_args()
+    c0, t0 = time.process_time(), time.perf_counter()
+    table: dict[str, list] = {}
+    for module, _ in STAGES:
+        importlib.import_module(module)
+    imports = (time.process_time() - c0, time.perf_counter() - t0)
+    for module, name in STAGES:
+        try:
+            _wrap(module, name, table)
+        except AttributeError:  # not in this version of proxplan
+            table[name] = [0, 0.0, 0.0]
+    from proxplan.cli import main as cli
+
+    out = args.out or tempfile.mkdtemp(prefix="stage-times-")
+    buf = io.StringIO()
+    c1, t1 = time.process_time(), time.perf_counter()
+    with contextlib.redirect_stdout(buf):
+        cli(["plan", args.scenario, "--out", out, "--method", args.method, "--seed", "0", "--no-plot", "--json"])
+    cpu, wall = time.process_time() - c1, time.perf_counter() - t1
+    doc = json.loads(buf.getvalue().strip().splitlines()[-1])
+    print(
+        f"{args.scenario}: makespan {doc['metrics']['makespan_s']:.3f} s, verify passed {doc['verify']['passed']}; "
+        f"plan: CPU {cpu:.1f} s, wall {wall:.1f} s; imports before it: CPU {imports[0]:.1f} s, wall {imports[1]:.1f} s"
+    )
+    print(f"{'stage (function)':32s} {'calls':>6s} {'cpu_s':>7s} {'share':>6s} {'wall_s':>7s}")
+    for _, name in STAGES:
+        n, c, w = table[name]
+        if n:
+            print(f"{name:32s} {n:6d} {c:7.2f} {100.0 * c / cpu:5.1f}% {w:7.2f}")
+    swarm = doc["metrics"].get("swarm") or {}
+    print("makespan repair:", json.dumps(swarm.get("makespan_repair")))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
