@@ -334,20 +334,6 @@ def heldout_mse(sums: GroupSums, cols: np.ndarray, plan: GroupPlan, ridge: Ridge
     return heldout_fit(sums, cols, plan, ridge, tau).mse
 
 
-def group_log_mse(mse: np.ndarray) -> np.ndarray:
-    """(G,) each held-out group's sum over channels of ln(held-out MSE) from ``mse`` (G, C) (NaN: no channel)."""
-    m = np.where(np.isfinite(mse) & (mse > 0), np.log(np.abs(mse)), np.nan)
-    return np.where(np.any(np.isfinite(m), axis=1), np.nansum(m, axis=1), np.nan)
-
-
-def log_mse_score(mse: np.ndarray) -> float:
-    """Mean over the held-out groups of :func:`group_log_mse` (scale-free: every log and channel alike), lower is
-    better; inf without any group."""
-    per_group = group_log_mse(mse)
-    per_group = per_group[np.isfinite(per_group)]
-    return float(np.mean(per_group)) if per_group.size else float("inf")
-
-
 def change_energy(sums: GroupSums, a: HeldOutFit, b: HeldOutFit) -> np.ndarray:
     """(G, C) per group and channel, the weighted sum over its samples of the squared difference between the
     held-out predictions of ``b`` and ``a`` (noise units squared): |X (beta_b - beta_a)|^2, the energy of what

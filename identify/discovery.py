@@ -56,7 +56,7 @@ from proxplan.identify.consensus import PickTally, group_of, stands_for
 from proxplan.identify.crossval import GroupSums, solve, trainable_groups
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
-from proxplan.identify.heldout_select import Candidate, ForwardResult, GainTest, heldout_forward
+from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_forward
 from proxplan.identify.stability import Stability, fold_eligibility, fold_half_samples, half_samples
 from proxplan.physics import (
     DISCOVERED_PREFIX,
@@ -115,22 +115,14 @@ class DiscoveryResult:
     fold_eligible: dict[str, np.ndarray] = field(default_factory=dict)
     # term key -> share of halves whose picks stand for it (a pick sharing more than half its variance)
     represented_probability: dict[str, float] = field(default_factory=dict)
-    # stable terms the flights could not test (:func:`untested_terms`): fitted beside the vehicle parameters
-    # in the delivered fit, never predicted
-    untested: list[str] = field(default_factory=list)
-
-    def last_tests(self) -> dict[str, GainTest]:
-        """Each tested term's last held-out gain test (the forward rounds, then the kept ones given the others)."""
-        last: dict[str, GainTest] = {}
-        for tests in self.forward.tests:
-            last.update(tests)
-        last.update(self.forward.final_tests)
-        return last
 
     def report(self) -> list[dict[str, Any]]:
         """One JSON entry per term that was picked in any half-sample (strongest first, at most 12)."""
         out = []
-        last = self.last_tests()
+        last: dict[str, Any] = {}
+        for tests in self.forward.tests:
+            last.update(tests)
+        last.update(self.forward.final_tests)
         keys = list(self.kept) + [k for k, _ in self.top if k not in self.kept]
         for key in keys[:12]:
             channel, feature = parse_term_key(key)
@@ -145,7 +137,7 @@ class DiscoveryResult:
                 "represented_probability": self.represented_probability.get(key, 0.0),
                 "group": group, "group_inclusion_probability": self.stability.probability.get(group, 0.0),
                 "stable": self.stability.stable(group), "heldout_gain": None if t is None else t.to_json(),
-                "selected": selected, "untested_nuisance": key in self.untested, "rmse_fz_N": None,
+                "selected": selected, "rmse_fz_N": None,
             })  # fmt: skip
         return out
 
@@ -325,34 +317,9 @@ def discover_terms(
     beta = solve(sums, sums.index(names_fit), trainable, ridge, sel.tau) if names_fit else np.zeros(0)
     coef = dict(zip(names_fit, (float(v) for v in beta)))
     top = sorted(member_prob.items(), key=lambda kv: -kv[1])[:12]
-    result = DiscoveryResult(kept={k: coef[k] for k in fwd.chosen}, coefficients=coef, stability=stab, forward=fwd,
-                             columns=columns, top=top, member_probability=member_prob, fold_eligible=fold,
-                             represented_probability=represented_prob)  # fmt: skip
-    result.untested = untested_terms(result.last_tests(), fwd.chosen)
-    return result
-
-
-def untested_terms(tests: dict[str, GainTest], kept: Sequence[str]) -> list[str]:
-    """The stable terms (every key of ``tests`` is one) that are not kept because the flights held out could not
-    TEST them, one per group (:func:`proxplan.identify.consensus.group_of`; its member of largest held-out ratio
-    R): what they change lies on one held-out flight (:attr:`proxplan.identify.heldout_select.GainTest.one_flight`)
-    and that flight does not contradict them (R > 0).
-
-    Such a term is in the data (chosen in most half-samples) but cannot be validated, so it is never
-    predicted; left out of the fit altogether, though, its force is taken up by whatever shared parameter
-    correlates with it: on benchmark draw 19001 (stop 61) a side kernel up to the motors' limit on ONE train
-    flight moved both vehicle types' thrust scales (small-quad 0.991 against the drawn 0.972), and the test
-    F_z of both vehicles came out 11x and 20x their clean twins'. Fitted beside the vehicle parameters as a
-    nuisance column, it takes its own force (Frisch-Waugh-Lovell: the parameters are estimated on what the
-    term does not explain), and the delivered model leaves it out."""
-    best: dict[str, tuple[float, str]] = {}
-    for key, t in tests.items():
-        if key in kept or not (t.one_flight and t.mean > 0.0):
-            continue
-        g = group_of(key)
-        if g not in best or t.mean > best[g][0]:
-            best[g] = (t.mean, key)
-    return sorted(k for _, k in best.values())
+    return DiscoveryResult(kept={k: coef[k] for k in fwd.chosen}, coefficients=coef, stability=stab, forward=fwd,
+                           columns=columns, top=top, member_probability=member_prob, fold_eligible=fold,
+                           represented_probability=represented_prob)  # fmt: skip
 
 
 def _picks(

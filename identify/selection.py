@@ -11,15 +11,7 @@ from typing import Any
 import numpy as np
 
 from proxplan.identify.calibrate import ParamSpec, calibrate_model
-from proxplan.identify.crossval import (
-    GroupSums,
-    group_log_mse,
-    heldout_mse,
-    heldout_predictions,
-    log_mse_score,
-    solve,
-    trainable_groups,
-)
+from proxplan.identify.crossval import heldout_mse, heldout_predictions, solve, trainable_groups
 from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
 from proxplan.identify.delayed import delayed_units
 from proxplan.identify.design import selection_set, tangent_u
@@ -50,11 +42,14 @@ class Selection:
     def heldout_total(self) -> float:
         """Mean over the held-out groups of the sum over channels of ln(held-out MSE): the score two starts
         are compared by (scale-free, every log and channel alike), lower is better."""
-        return log_mse_score(self.heldout_mse)
+        per_group = self.group_totals()
+        per_group = per_group[np.isfinite(per_group)]
+        return float(np.mean(per_group)) if per_group.size else float("inf")
 
     def group_totals(self) -> np.ndarray:
         """(groups,) each held-out group's sum over channels of ln(held-out MSE) (NaN: no channel)."""
-        return group_log_mse(self.heldout_mse)
+        m = np.where(np.isfinite(self.heldout_mse) & (self.heldout_mse > 0), np.log(np.abs(self.heldout_mse)), np.nan)
+        return np.where(np.any(np.isfinite(m), axis=1), np.nansum(m, axis=1), np.nan)
 
     def to_json(self) -> dict[str, Any]:
         stab = self.effects.stability
@@ -245,27 +240,6 @@ def other_start_better(default: Selection, other: Selection) -> bool:
     return other.heldout_total < default.heldout_total - SCORE_RESOLUTION
 
 
-def delivered_tangents(selector: EffectSelector, columns: dict[str, np.ndarray], fitted: list[str]) -> GroupSums:
-    """The sums the delivered fit of ``fitted`` (names of ``columns``) is solved on: the vehicle parameters'
-    tangents on all four channels, or on F_z only (:func:`fz_only`), whichever predicts the held-out flights' F_z
-    better (:func:`proxplan.identify.crossval.log_mse_score` of F_z alone; a tie keeps F_z only, the channel they
-    are calibrated on). On all four channels a parameter of a SOURCE is informed by the torques its jet puts on
-    the vehicles below, which a model that explains those torques gains from; where a torque is left unexplained
-    they bend to it at F_z's cost: beside kept torque terms (stop 58, the clean simulator's swaps), or with none
-    (stop 61: benchmark draw 20006, a torque on one vehicle moved ANOTHER type's thrust scale through its jet,
-    small-quad 0.9937 -> 0.9802, its test F_z 6.4x its clean twin's). F_z is what the model is judged by, so the
-    held-out F_z decides which it is here."""
-    sel = selector.sel
-    fz = sel.sums(columns | {k: fz_only(columns[k]) for k in selector.always})
-    full = sel.sums(columns)
-
-    def score(sums: GroupSums) -> float:
-        mse = heldout_mse(sums, sums.index(fitted), sel.plan, selector.ridge_for(sums.columns), sel.tau)
-        return log_mse_score(mse[:, :1])
-
-    return full if score(full) < score(fz) else fz
-
-
 def joint_model(
     selector: EffectSelector, effects: EffectSelection, discovery: DiscoveryResult | None
 ) -> tuple[Model, np.ndarray, ForwardResult, np.ndarray]:
@@ -291,18 +265,15 @@ def joint_model(
                             discovery.fold_eligible if discovery is not None else None)  # fmt: skip
     names = list(selector.always) + [col for c in kept if c.name in back.chosen for col in c.columns]
     idx = sums.index(names)
-    # the delivered fit, with the stable terms the flights could not test (discovery.untested_terms) fitted beside
-    # the vehicle parameters as nuisance columns (so that the parameters do not take up their force; the model
-    # leaves them out), and the vehicle parameters' tangents on all four channels or on F_z only, as they are
-    # calibrated: whichever predicts the held-out flights' F_z better (:func:`delivered_tangents`). Judged
-    # (held-out errors below, the start choice) with the full tangents, as selection was
-    nuisance = [k for k in (discovery.untested if discovery is not None else []) if k not in names]
-    extra = {k: discovery.columns[k] for k in nuisance if discovery is not None}
-    fitted = names + nuisance
-    deliver = delivered_tangents(selector, columns | extra, fitted)
-    beta = solve(deliver, deliver.index(fitted), trainable_groups(deliver, sel.plan), selector.ridge_for(deliver.columns),
-                 sel.tau)  # fmt: skip
-    coef = {k: float(b) for k, b in zip(fitted, beta) if k in names}
+    deliver = sums
+    if any(k in back.chosen for k in terms):
+        # the delivered fit beside kept discovered terms: the vehicle parameters' tangents on F_z only
+        # (they are calibrated on F_z); on all four channels they bend to fit roll and pitch, which the
+        # kept torque terms are for, and lose F_z on flights held out (docs/identify.md, stop 58). Judged
+        # (held-out errors below, the start choice) with the full tangents, as selection was
+        deliver = sel.sums(columns | {k: fz_only(columns[k]) for k in selector.always})
+    beta = solve(deliver, deliver.index(names), trainable_groups(deliver, sel.plan), ridge, sel.tau)
+    coef = dict(zip(names, (float(b) for b in beta)))
     survivors = {k: coef[k] for k in terms if k in back.chosen}
     chosen = [n for n in effects.selected if n in back.chosen]
     terms_part = sum((v * columns[k] for k, v in survivors.items()), np.zeros_like(sel.residual))
