@@ -20,8 +20,9 @@ from proxplan.planner.swarm.tracks import GRID_DT_S
 from proxplan.planner.swarm.yielding import yielding_candidate, yielding_stage
 from proxplan.planner.timing import assemble_plan
 from proxplan.planner.timing.arcs import ArcMove
-from proxplan.planner.timing.profile import LineMove
 from proxplan.verify import verify_plan
+
+from .test_swarm_by_type_yielding import assert_lines_unless_yielding
 
 
 def _assigned(layout: str, n: int):
@@ -98,11 +99,7 @@ def test_passing_together_is_conflict_free_verifies_and_beats_yielding_one_by_on
     got = passing_stage(problem, horizon_steps(bound), pairs)
     assert got.stage is not None, got.note
     tracks = got.stage.tracks
-    for tr in tracks:
-        if tr.agent not in got.yielders and not np.allclose(problem.starts_m[tr.agent], problem.goals_m[tr.agent]):
-            assert len(tr.moves) == 1 and tr.moves[0][0] == 0 and isinstance(tr.moves[0][1], LineMove)
-    occ = Occupancy(problem, tracks, max(tr.arrival_step for tr in tracks) + 40)
-    assert all(not occ.conflicting_agents(tr) for tr in tracks)
+    assert_lines_unless_yielding(got, problem)
     timed = {problem.names[tr.agent]: tr.timed_path() for tr in tracks}
     assert verify_plan(assemble_plan(scenario, timed, method="swarm", notes=[]), scenario) == []
     assert yielding_stage(problem, horizon_steps(bound)).stage is None

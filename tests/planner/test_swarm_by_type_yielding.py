@@ -47,6 +47,17 @@ def test_the_yielding_vehicles_cover_every_conflicting_pair_with_the_shorter_lin
     assert len(ys) < len({a for pair in pairs for a in pair})  # one per pair, not both
 
 
+def assert_lines_unless_yielding(got, problem) -> None:
+    """Every moving vehicle of ``got`` (a yielding or passing stage's result) that does not yield flies one
+    straight line from t = 0, and no two of its tracks conflict (the swarm layer's exact test)."""
+    tracks = got.stage.tracks
+    for tr in tracks:
+        if tr.agent not in got.yielders and not np.allclose(problem.starts_m[tr.agent], problem.goals_m[tr.agent]):
+            assert len(tr.moves) == 1 and tr.moves[0][0] == 0 and isinstance(tr.moves[0][1], LineMove)
+    occ = Occupancy(problem, tracks, max(tr.arrival_step for tr in tracks) + 40)
+    assert all(not occ.conflicting_agents(tr) for tr in tracks)
+
+
 def test_straight_lines_with_yielding_vehicles_are_conflict_free_and_verify(circle16):
     """circle-16 by type: every vehicle that does not yield flies its straight line from t = 0 at its
     own limits; no two tracks conflict (the swarm layer's exact test on the grid samples); the plan
@@ -56,11 +67,7 @@ def test_straight_lines_with_yielding_vehicles_are_conflict_free_and_verify(circ
     got = yielding_stage(problem, horizon_steps(bound))
     assert got.stage is not None, got.note
     tracks = got.stage.tracks
-    for tr in tracks:
-        if tr.agent not in got.yielders and not np.allclose(problem.starts_m[tr.agent], problem.goals_m[tr.agent]):
-            assert len(tr.moves) == 1 and tr.moves[0][0] == 0 and isinstance(tr.moves[0][1], LineMove)
-    occ = Occupancy(problem, tracks, max(tr.arrival_step for tr in tracks) + 40)
-    assert all(not occ.conflicting_agents(tr) for tr in tracks)
+    assert_lines_unless_yielding(got, problem)
     makespan = max(tr.arrival_s for tr in tracks)
     assert makespan < 1.4 * bound
     timed = {problem.names[tr.agent]: tr.timed_path() for tr in tracks}

@@ -23,24 +23,10 @@ from proxplan.planner.timing import assemble_plan  # noqa: E402
 from proxplan.planner.timing.profile import LineMove, rest_to_rest  # noqa: E402
 from proxplan.verify import verify_plan  # noqa: E402
 
+from .test_swarm_128_holding import _in_line  # noqa: E402  (one height, far flies through near's start and goal)
+
 HORIZON = 1200
 FAR, NEAR = 0, 1
-
-
-def _in_line():
-    """``far`` (6 m) flies through ``near``'s start and goal (2 m, in the middle of its line), one height,
-    a 2.4 m wide free band round the line."""
-    doc = {
-        "name": "in-line",
-        "workspace": {"min": [-4.0, -1.2, 0.0], "max": [4.0, 1.2, 3.0]},
-        "limits": {"authority_fraction": 0.1, "min_separation_m": 0.25},
-        "vehicles": {
-            "far": {"type": "crazyflie-2.1", "start": [-3.0, 0.0, 1.5], "goal": [3.0, 0.0, 1.5]},
-            "near": {"type": "crazyflie-2.1", "start": [-1.0, 0.0, 1.5], "goal": [1.0, 0.0, 1.5]},
-        },
-    }
-    sc = scenario_from_dict(doc, label="test scenario")
-    return sc, swarm_problem(sc)
 
 
 def test_direction_groups_follow_the_headings():
