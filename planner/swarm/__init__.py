@@ -8,7 +8,8 @@ space; :mod:`~proxplan.planner.swarm.keepout`, its shipped undamped zones
 :mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles) ->
 :mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept; by type, the groups in
 conflict passing together, :mod:`~proxplan.planner.swarm.passes`, or the others yielding on corners
-or arcs, :mod:`~proxplan.planner.swarm.yielding` with :mod:`~proxplan.planner.swarm.arc_timing`) ->
+or arcs, :mod:`~proxplan.planner.swarm.yielding` with :mod:`~proxplan.planner.swarm.arc_timing`; the
+choice among them, :mod:`~proxplan.planner.swarm.give_way`) ->
 :mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count
 budget; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.heights`) by
 :mod:`~proxplan.planner.swarm.priority` (one pass, with repairs and predictions; one vehicle at a

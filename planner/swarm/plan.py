@@ -62,6 +62,7 @@ from proxplan.planner.swarm.complete_stages import (
     straight_stage,
 )
 from proxplan.planner.swarm.frozen import apply_unfreezes, moved_points, unfrozen_problem
+from proxplan.planner.swarm.give_way import yielding_candidate
 from proxplan.planner.swarm.heights import heights_on, heights_pass
 from proxplan.planner.swarm.info import (
     GiveUpHandOn,
@@ -84,7 +85,6 @@ from proxplan.planner.swarm.stage import Stage
 from proxplan.planner.swarm.straight import straight_step_conflicts
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.verify_guard import Check, VerifyGuard
-from proxplan.planner.swarm.yielding import yielding_candidate
 from proxplan.planner.timing.paths import TimedPath
 from proxplan.planner.timing.profile import rest_to_rest
 

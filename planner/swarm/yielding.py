@@ -2,7 +2,8 @@
 detour for the vehicles of the conflicting pairs (issue 37 item 5).
 
 Where the straight step has conflicting pairs (:func:`~proxplan.planner.swarm.straight.straight_step_conflicts`),
-who gives way is decided *before* any planning, two ways (:func:`yielding_candidate` keeps the shorter):
+who gives way is decided *before* any planning, two ways (:func:`~proxplan.planner.swarm.give_way.yielding_candidate`
+keeps the shorter, after the vehicles passing together of :mod:`~proxplan.planner.swarm.passes`):
 
 * *the shorter line yields*: in each pair not yet covered, the vehicle with the shorter straight line
   (its detour the cheaper; ties: more conflicts, then the lower index), a greedy vertex cover;
@@ -69,7 +70,6 @@ __all__ = [
     "YieldResult",
     "blockers",
     "choose_yielders",
-    "yielding_candidate",
     "time_yielding",
     "yielding_stage",
 ]
@@ -298,50 +298,3 @@ def yielding_stage(
         f"({len(pairs)} conflicting pairs of the synchronised step, {rounds + 1} round(s))"
     )
     return YieldResult(Stage(ordered, "prioritised", note, own_routes(problem, ordered)), tuple(sorted(yielders)), note)
-
-
-def _stage(problem, horizon_steps, right_hand, arrive_by, pairs, arc_factors) -> YieldResult:
-    return yielding_stage(
-        problem, horizon_steps, right_hand=right_hand, arrive_by=arrive_by, pairs=pairs, arc_factors=arc_factors
-    )
-
-
-def yielding_candidate(
-    problem: SwarmProblem,
-    horizon_steps: int,
-    extra: dict,
-    *,
-    shorter_than_s: float | None = None,
-    pairs: list[tuple[int, int]] | None = None,
-    arc_factors: tuple[float, ...] = ARC_REACH_FACTORS,
-    together: bool = True,
-) -> Stage | None:
-    """The shorter of :func:`yielding_stage` with the shorter line of each pair yielding and with every
-    vehicle in a conflict keeping right (None where both give up), each asked for a plan shorter than
-    ``shorter_than_s`` (s; the plan in hand) and than the first's (``pairs``: the straight step's
-    conflicts where already found; ``arc_factors``: as :func:`yielding_stage`); what each gave in
-    ``extra["yielding"]``."""
-    if pairs is None:
-        pairs = straight_step_conflicts(problem)
-    best: Stage | None = None
-    said = []
-    from proxplan.planner.swarm.passes import passing_stage  # passes builds on this module's timing
-
-    ways = [
-        ("shorter line yields", lambda by: _stage(problem, horizon_steps, False, by, pairs, arc_factors)),
-        ("keep right", lambda by: _stage(problem, horizon_steps, True, by, pairs, arc_factors)),
-    ]
-    if together:  # first: its plan bounds the others' search
-        ways.insert(0, ("pass together", lambda by: passing_stage(problem, horizon_steps, pairs, arrive_by=by)))
-    for label, way in ways:
-        bound_s = shorter_than_s if best is None else max(tr.arrival_s for tr in best.tracks)
-        got = way(None if bound_s is None else int(round(bound_s / GRID_DT_S)) - 1)
-        if got.stage is None:
-            said.append(f"{label}: {got.note}")
-            continue
-        makespan = max(tr.arrival_s for tr in got.stage.tracks)
-        said.append(f"{label}: {makespan:.2f} s ({got.note})")
-        if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
-            best = Stage(got.stage.tracks, got.stage.stage, f"{got.note}, {label}", got.stage.routes)
-    extra["yielding"] = "; ".join(said)
-    return best

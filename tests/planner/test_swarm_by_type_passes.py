@@ -10,6 +10,7 @@ import pytest
 
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import layout_doc
+from proxplan.planner.swarm.give_way import yielding_candidate
 from proxplan.planner.swarm.goals import apply_assignment
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.passes import conflict_components, joint_moves, passing_stage, place_joint
@@ -17,7 +18,7 @@ from proxplan.planner.swarm.prioritised_stage import horizon_steps
 from proxplan.planner.swarm.problem import swarm_problem
 from proxplan.planner.swarm.straight import own_straight_track, straight_step_conflicts
 from proxplan.planner.swarm.tracks import GRID_DT_S
-from proxplan.planner.swarm.yielding import yielding_candidate, yielding_stage
+from proxplan.planner.swarm.yielding import yielding_stage
 from proxplan.planner.timing import assemble_plan
 from proxplan.planner.timing.arcs import ArcMove
 from proxplan.verify import verify_plan
