@@ -33,11 +33,12 @@ def yielding_candidate(
     arc_factors: tuple[float, ...] = ARC_REACH_FACTORS,
     together: bool = True,
 ) -> Stage | None:
-    """The shorter of :func:`yielding_stage` with the shorter line of each pair yielding and with every
-    vehicle in a conflict keeping right (None where both give up), each asked for a plan shorter than
-    ``shorter_than_s`` (s; the plan in hand) and than the first's (``pairs``: the straight step's
-    conflicts where already found; ``arc_factors``: as :func:`yielding_stage`); what each gave in
-    ``extra["yielding"]``."""
+    """The shortest of the vehicles passing together (:func:`~proxplan.planner.swarm.passes.passing_stage`,
+    tried first where ``together``), :func:`~proxplan.planner.swarm.yielding.yielding_stage` with the shorter
+    line of each pair yielding, and with every vehicle in a conflict keeping right (None where all give up),
+    each asked for a plan shorter than ``shorter_than_s`` (s; the plan in hand) and than the best so far
+    (``pairs``: the straight step's conflicts where already found; ``arc_factors``: as ``yielding_stage``);
+    what each gave in ``extra["yielding"]``."""
     if pairs is None:
         pairs = straight_step_conflicts(problem)
     best: Stage | None = None

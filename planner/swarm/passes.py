@@ -49,13 +49,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.straight import own_straight_track
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack, Move
-from proxplan.planner.swarm.yielding import YieldResult, blockers, time_yielding
+from proxplan.planner.swarm.yielding import YieldResult, blockers, left_of_line, time_yielding
 from proxplan.planner.timing.arcs import ArcMove
 from proxplan.planner.timing.profile import LineMove, rest_to_rest
 
@@ -112,32 +114,19 @@ class JointMove:
 
 def conflict_components(pairs: list[tuple[int, int]]) -> list[tuple[int, ...]]:
     """The connected components (sorted agent tuples, in order of their smallest agent) of the graph
-    whose edges are ``pairs`` (i != j)."""
-    parent: dict[int, int] = {}
-
-    def root(a: int) -> int:
-        while parent.setdefault(a, a) != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    for i, j in pairs:
-        ri, rj = root(i), root(j)
-        if ri != rj:
-            parent[max(ri, rj)] = min(ri, rj)
+    whose edges are ``pairs`` (i != j), over the agents the pairs name."""
+    agents = sorted({a for pair in pairs for a in pair})
+    if not agents:
+        return []
+    index = {a: k for k, a in enumerate(agents)}
+    i = [index[p[0]] for p in pairs]
+    j = [index[p[1]] for p in pairs]
+    graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(len(agents), len(agents)))
+    _, label = connected_components(graph, directed=False)
     groups: dict[int, list[int]] = {}
-    for a in sorted(parent):
-        groups.setdefault(root(a), []).append(a)
-    return [tuple(g) for _, g in sorted(groups.items())]
-
-
-def _left_m(problem: SwarmProblem, a: int) -> np.ndarray | None:
-    """The horizontal unit vector to the left of agent ``a``'s line (seen from above, heading to its
-    goal), or None where the line has no horizontal part."""
-    d = problem.goals_m[a] - problem.starts_m[a]
-    horizontal = np.array([-d[1], d[0], 0.0])
-    norm = float(np.linalg.norm(horizontal))
-    return None if norm <= 1e-9 else horizontal / norm
+    for a, c in zip(agents, label):
+        groups.setdefault(int(c), []).append(a)
+    return sorted((tuple(g) for g in groups.values()), key=lambda g: g[0])
 
 
 def _moving(problem: SwarmProblem, a: int) -> bool:
@@ -170,7 +159,7 @@ def joint_moves(
     length (grid steps), ties in the order tried; ``checked``: only those conflict-free among themselves
     (:func:`conflict_free`), else all (the caller checks those it uses: most are never tried)."""
     movers = [a for a in members if _moving(problem, a)]
-    lefts = {a: _left_m(problem, a) for a in movers}
+    lefts = {a: left_of_line(problem, a) for a in movers}
     left = {a: v for a, v in lefts.items() if v is not None}
     if not movers or len(left) < len(movers):
         return []

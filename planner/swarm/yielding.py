@@ -70,6 +70,7 @@ __all__ = [
     "YieldResult",
     "blockers",
     "choose_yielders",
+    "left_of_line",
     "time_yielding",
     "yielding_stage",
 ]
@@ -105,14 +106,21 @@ def choose_yielders(problem: SwarmProblem, pairs: list[tuple[int, int]]) -> set[
     return out
 
 
+def left_of_line(problem: SwarmProblem, a: int) -> np.ndarray | None:
+    """(3,) the horizontal unit vector to the left of agent ``a``'s straight line (seen from above, heading to
+    its goal; its right is minus it), or None where the line has no horizontal part."""
+    d = problem.goals_m[a] - problem.starts_m[a]
+    horizontal = np.array([-d[1], d[0], 0.0])
+    norm = float(np.linalg.norm(horizontal))
+    return None if norm <= 1e-9 else horizontal / norm
+
+
 def _chains(problem: SwarmProblem, a: int, right_only: bool = False) -> list[np.ndarray]:
     """The straight line and the corner chains of a yielding vehicle (see module); ``right_only``:
     only the corners on its right (seen from above, heading to its goal), no straight line."""
     s, g = problem.starts_m[a], problem.goals_m[a]
-    d = g - s
-    horizontal = np.array([-d[1], d[0], 0.0])
-    norm = float(np.linalg.norm(horizontal))
-    side = horizontal / norm if norm > 1e-9 else np.array([1.0, 0.0, 0.0])  # no horizontal line: x aside
+    left = left_of_line(problem, a)
+    side = left if left is not None else np.array([1.0, 0.0, 0.0])  # no horizontal line: x aside
     mid = 0.5 * (s + g)
     out = [] if right_only else [np.array([s, g])]
     for f in ASIDE_REACH_FACTORS:
@@ -148,12 +156,9 @@ def _right_prediction(problem: SwarmProblem, a: int) -> GridTrack | None:
 def _arc_bulges(problem: SwarmProblem, a: int, right_only: bool, factors: tuple[float, ...]) -> list[np.ndarray]:
     """The bulges (3,), m, of agent ``a``'s arcs: ``factors`` times the widest keep-out's horizontal
     reach, to either side of its line (to its right only with ``right_only``)."""
-    d = problem.goals_m[a] - problem.starts_m[a]
-    horizontal = np.array([-d[1], d[0], 0.0])
-    norm = float(np.linalg.norm(horizontal))
-    if norm <= 1e-9:  # a vertical line: no side to bulge to (its corners lie along x)
+    side = left_of_line(problem, a)
+    if side is None:  # a vertical line: no side to bulge to (its corners lie along x)
         return []
-    side = horizontal / norm
     signs = (-1.0,) if right_only else (1.0, -1.0)
     return [sign * f * problem.reach_xy_m * side for f in factors for sign in signs]
 
