@@ -60,6 +60,11 @@ from proxplan.physics import (
 from proxplan.planfile.plan_model import PLAN_FORMAT_VERSION, PlanFile, SolverPart
 
 PLAN_FILENAME = "plan.json"
+# how plan.json is written: compact JSON (no indent, no space after separators), so that json's C
+# encoder writes it (an indent makes json use its pure-Python encoder: corridor-64's plan 0.48 s of
+# CPU against 0.07 s, 6.2 MB against 2.4 MB; grid-256's 4.9 s, stop 62 round 24A). Only the layout
+# of the text: a reader parses any JSON layout, so plans written indented read as before
+PLAN_JSON_SEPARATORS = (",", ":")
 
 # quintic Hermite: p(s) = sum_k s^k (C @ [p0, h v0, h^2 a0, p1, h v1, h^2 a1])_k, s in [0, 1]
 _QUINTIC = np.array(
@@ -270,6 +275,8 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [jsonable(v) for v in value]
     if isinstance(value, np.ndarray):
+        if value.dtype.kind in "biu" or (value.dtype.kind == "f" and bool(np.isfinite(value).all())):
+            return value.tolist()  # already JSON types (Python bools, ints, finite floats): nothing to turn
         return jsonable(value.tolist())
     if isinstance(value, (np.floating, float)):
         v = float(value)
@@ -318,8 +325,9 @@ def plan_to_dict(plan: Plan) -> dict:
 
 
 def write_plan(plan: Plan, out_dir: str | Path) -> Path:
-    """Write ``out_dir/plan.json`` atomically; returns its path."""
-    return atomic_write_text(Path(out_dir) / PLAN_FILENAME, json.dumps(plan_to_dict(plan), indent=1))
+    """Write ``out_dir/plan.json`` atomically, compact (:data:`PLAN_JSON_SEPARATORS`); returns its path."""
+    text = json.dumps(plan_to_dict(plan), separators=PLAN_JSON_SEPARATORS)
+    return atomic_write_text(Path(out_dir) / PLAN_FILENAME, text)
 
 
 def plan_vehicle_types(doc: Any, label: str = "<plan>") -> dict[str, Vehicle]:
