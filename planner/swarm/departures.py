@@ -32,6 +32,10 @@ outside it), and the answer of a departure query is the same (tested).
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -49,6 +53,34 @@ LINE_SLACK_M = 1e-9  # the straight-move search's absolute widening of the reach
 SHORT_STEPS = 16
 
 
+@dataclass(frozen=True)
+class _Slice:
+    """Segments of a :class:`DepartureIndex` in one order, as contiguous arrays: rows of the index,
+    horizontal positions as x + iy (m; one complex product gives a point's abscissa and distance
+    along and from a line), heights z (m), first and end steps, types, agents."""
+
+    rows: np.ndarray
+    xy: np.ndarray
+    z: np.ndarray
+    t0: np.ndarray
+    t1: np.ndarray
+    ty: np.ndarray
+    ag: np.ndarray
+
+    @classmethod
+    def of(cls, ix: DepartureIndex, rows: np.ndarray) -> _Slice:
+        P = ix.P[rows]
+        return cls(
+            rows,
+            P[:, 0] + 1j * P[:, 1],
+            np.ascontiguousarray(P[:, 2]),
+            ix.t0[rows],
+            ix.t1[rows],
+            ix.ty[rows],
+            ix.ag[rows],
+        )
+
+
 class DepartureIndex:
     """Segments (positions (M, 3), m; first step t0, end step t1 (exclusive); type; agent) by
     time bucket (see module)."""
@@ -57,7 +89,7 @@ class DepartureIndex:
         self.P, self.t0, self.t1, self.ty, self.ag = P, t0, t1, ty, ag
         self._bucketed = False  # the buckets and the long segments' tree: built at the first tree query
         self._trees: dict[int, cKDTree | None] = {}
-        self._by_t0: tuple[np.ndarray, ...] | None = None  # line_pairs: segments sorted by first step
+        self._by_t0: tuple[_Slice, _Slice] | None = None  # the line queries' segments: by first step, then the long
 
     def _buckets(self) -> None:
         """The short segments by first step's bucket and the tree of the long ones (see module; only
@@ -103,43 +135,108 @@ class DepartureIndex:
         got = self.line_pairs(q_m, reach_m, from_step, until_step)
         return got if got is not None else self.tree_pairs(q_m, reach_m, from_step, until_step)
 
-    def _sorted_by_t0(self) -> tuple[np.ndarray, ...]:
-        """The short segments sorted by first step (rows, horizontal positions (S, 2), t0, t1), then
-        the rows lasting longer than ``SHORT_STEPS`` (the same arrays)."""
+    def _sorted_by_t0(self) -> tuple[_Slice, _Slice]:
+        """The short segments sorted by first step, then the segments lasting longer than
+        ``SHORT_STEPS`` (see :class:`_Slice`)."""
         if self._by_t0 is None:
             lasting = self.t1 - self.t0 > SHORT_STEPS
             short = np.flatnonzero(~lasting)
-            order = short[np.argsort(self.t0[short], kind="stable")]
-            long_ = np.flatnonzero(lasting)
-            self._by_t0 = tuple(
-                x
-                for rows in (order, long_)
-                for x in (rows, np.ascontiguousarray(self.P[rows, :2]), self.t0[rows], self.t1[rows])
+            self._by_t0 = (
+                _Slice.of(self, short[np.argsort(self.t0[short], kind="stable")]),
+                _Slice.of(self, np.flatnonzero(lasting)),
             )
         return self._by_t0
+
+    def _line_near(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int, exclude: int):
+        """The segments near a move going forward along its line (see module), each with the range of
+        move samples k it pairs with: (rows (N,), xy (N,) complex: x + iy, m, z (N,), m, t0 (N,),
+        t1 (N,), type (N,), first k (N,), number of k (N,) > 0), or None where the move does not go
+        forward along a line. Segments of agent ``exclude`` are left out (-1: none)."""
+        K = q_m.shape[0]
+        a0, a1 = float(q_m[0, 0]), float(q_m[0, 1])
+        e0, e1 = float(q_m[-1, 0]) - a0, float(q_m[-1, 1]) - a1
+        length = math.hypot(e0, e1)
+        if K < 2 or length <= LINE_SLACK_M:
+            return None
+        u0, u1 = e0 / length, e1 / length
+        dx, dy = q_m[:, 0] - a0, q_m[:, 1] - a1
+        s = dx * u0 + dy * u1  # abscissae of the samples on the line, m
+        if (s[1:] < s[:-1]).any():
+            return None
+        r = reach_m * (1.0 + REACH_SLACK) + float(np.abs(dx * u1 - dy * u0).max()) + LINE_SLACK_M
+        short, long_ = self._sorted_by_t0()
+        i0, i1 = np.searchsorted(short.t0, [from_step - SHORT_STEPS, until_step + K - 1])
+        a, turn = complex(a0, a1), complex(u0, -u1)  # (p - a) * turn = along + i (signed distance from the line)
+        parts = []
+        for sl, lo in ((short, int(i0)), (long_, 0)):
+            hi = int(i1) if sl is short else sl.rows.size
+            w = (sl.xy[lo:hi] - a) * turn
+            keep = np.abs(w.imag) <= r
+            if exclude >= 0:
+                keep &= sl.ag[lo:hi] != exclude
+            idx = np.flatnonzero(keep)
+            parts.append((idx + lo, w[idx], sl))
+        idx_s, w_s, _ = parts[0]
+        idx_l, w_l, _ = parts[1]
+        w = np.concatenate([w_s, w_l])
+        t0 = np.concatenate([short.t0[idx_s], long_.t0[idx_l]])
+        t1 = np.concatenate([short.t1[idx_s], long_.t1[idx_l]])
+        half = np.sqrt(np.maximum(r * r - w.imag * w.imag, 0.0))
+        k_lo = np.maximum(np.maximum(t0 - until_step + 1, 0), np.searchsorted(s, w.real - half, side="left"))
+        k_hi = np.minimum(np.minimum(t1 - from_step, K), np.searchsorted(s, w.real + half, side="right"))
+        n = k_hi - k_lo
+        some = np.flatnonzero(n > 0)
+        cat = np.concatenate
+        return (
+            cat([short.rows[idx_s], long_.rows[idx_l]])[some],
+            cat([short.xy[idx_s], long_.xy[idx_l]])[some],
+            cat([short.z[idx_s], long_.z[idx_l]])[some],
+            t0[some],
+            t1[some],
+            cat([short.ty[idx_s], long_.ty[idx_l]])[some],
+            k_lo[some],
+            n[some],
+        )
 
     def line_pairs(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int):
         """:meth:`pairs` for a move whose samples ``q_m`` go forward along the horizontal line from the
         first to the last (see module), or None when they do not (or barely move horizontally)."""
-        K = q_m.shape[0]
-        a = q_m[0, :2]
-        e = q_m[-1, :2] - a
-        length = float(np.hypot(e[0], e[1]))
-        if K < 2 or length <= LINE_SLACK_M:
+        near = self._line_near(q_m, reach_m, from_step, until_step, -1)
+        if near is None:
             return None
-        u = e / length
-        d = q_m[:, :2] - a
-        s = d @ u  # abscissae of the samples on the line, m
-        if np.any(s[1:] < s[:-1]):
+        seg, k = _expand(near[6], near[7])
+        return near[0][seg].astype(np.int64), k
+
+    def line_forbidden(
+        self,
+        q_m: np.ndarray,
+        reach_m: float,
+        from_step: int,
+        until_step: int,
+        exclude: int,
+        conflict: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        horizon_steps: int,
+    ) -> np.ndarray | None:
+        """(horizon,) bool: the departures in [``from_step``, ``until_step``) that a segment of an
+        agent other than ``exclude`` forbids along a move going forward along its line (None: it does
+        not; see module), ``conflict(d, types)`` the exact test of relative vectors (P, 3), m. The
+        pairs of :meth:`line_pairs` (those of ``exclude`` left out), each tested once, gathered from the
+        near segments only and windowed only where they conflict: a pair (segment [t0, t1), k) of
+        :meth:`line_pairs` has t0 - k < until and t1 - k > from, so its departures
+        [max(t0 - k, from), min(t1 - k, until)) are never empty."""
+        near = self._line_near(q_m, reach_m, from_step, until_step, exclude)
+        if near is None:
             return None
-        r = reach_m * (1.0 + REACH_SLACK) + float(np.abs(d[:, 0] * u[1] - d[:, 1] * u[0]).max()) + LINE_SLACK_M
-        rows_s, P_s, t0_s, t1_s, rows_l, P_l, t0_l, t1_l = self._sorted_by_t0()
-        i0, i1 = np.searchsorted(t0_s, [from_step - SHORT_STEPS, until_step + K - 1])
-        parts = [
-            _line_batch(rows_s[i0:i1], P_s[i0:i1], t0_s[i0:i1], t1_s[i0:i1], a, u, s, r, from_step, until_step),
-            _line_batch(rows_l, P_l, t0_l, t1_l, a, u, s, r, from_step, until_step),
-        ]
-        return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+        _, xy, z, t0, t1, ty, k_lo, n = near
+        seg, k = _expand(k_lo, n)
+        dxy = xy[seg] - (q_m[:, 0] + 1j * q_m[:, 1])[k]
+        d = np.empty((k.size, 3))
+        d[:, 0] = dxy.real
+        d[:, 1] = dxy.imag
+        d[:, 2] = z[seg] - q_m[k, 2]
+        hit = np.flatnonzero(conflict(d, ty[seg]))
+        seg, k = seg[hit], k[hit]
+        return covered(np.maximum(t0[seg] - k, from_step), np.minimum(t1[seg] - k, until_step), horizon_steps)
 
     def tree_pairs(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int):
         """:meth:`pairs` by the buckets' trees, for any move (see module)."""
@@ -175,19 +272,15 @@ class DepartureIndex:
         return np.concatenate(rows).astype(np.int64), np.concatenate(ks).astype(np.int64)
 
 
-def _line_batch(rows, P, t0, t1, a, u, s, r, from_step: int, until_step: int) -> tuple[np.ndarray, np.ndarray]:
-    """:meth:`DepartureIndex.line_pairs` on the segments ``rows`` (positions ``P`` (N, 2), m;
-    steps [t0, t1)) against samples at abscissae ``s`` (K,), m, on the line from ``a`` along ``u``
-    (a unit vector), within ``r`` (m): (rows, k) of the pairs."""
-    K = s.shape[0]
-    px, py = P[:, 0] - a[0], P[:, 1] - a[1]
-    off = px * u[1] - py * u[0]  # signed distance from the line, m
-    near = np.flatnonzero(np.abs(off) <= r)
-    off, along = off[near], px[near] * u[0] + py[near] * u[1]
-    half = np.sqrt(np.maximum(r * r - off * off, 0.0))
-    k_lo = np.maximum(np.maximum(t0[near] - until_step + 1, 0), np.searchsorted(s, along - half, side="left"))
-    k_hi = np.minimum(np.minimum(t1[near] - from_step, K), np.searchsorted(s, along + half, side="right"))
-    n = np.maximum(k_hi - k_lo, 0)
+def _expand(k_lo: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(segment (P,), k (P,)): segment i repeated n_i times with k = k_lo_i .. k_lo_i + n_i - 1."""
     first = np.cumsum(n) - n  # where each segment's pairs start in the output
     total = int(first[-1] + n[-1]) if n.size else 0
-    return np.repeat(rows[near], n).astype(np.int64), np.arange(total, dtype=np.int64) - np.repeat(first - k_lo, n)
+    seg = np.repeat(np.arange(n.size), n)
+    return seg, np.arange(total, dtype=np.int64) - (first - k_lo)[seg]
+
+
+def covered(lo: np.ndarray, hi: np.ndarray, T: int) -> np.ndarray:
+    """(T,) bool: the union of the step ranges [lo, hi) (each within [0, T])."""
+    diff = np.bincount(lo, minlength=T + 1) - np.bincount(hi, minlength=T + 1)
+    return np.cumsum(diff[:T]) > 0

@@ -28,7 +28,7 @@ import hashlib
 
 import numpy as np
 
-from proxplan.planner.swarm.departures import PARKED_END, DepartureIndex
+from proxplan.planner.swarm.departures import PARKED_END, DepartureIndex, covered
 from proxplan.planner.swarm.keepout import GrownStack, grown_stack
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GridTrack
@@ -220,7 +220,12 @@ class Occupancy:
         q = np.asarray(q_m, dtype=float)
         ix = self._departure_index()
         ta = int(self.problem.type_index[agent])
-        rows, kk = ix.pairs(q, self._reach_of(ta), from_step, until)
+        exclude = agent if agent in self.tracks else -1  # its own track is no obstacle
+        stack = self.stack(ta, False)
+        along = ix.line_forbidden(q, self._reach_of(ta), from_step, until, exclude, stack.conflict, T)
+        if along is not None:  # a move going forward along its line: the same pairs, tested in one pass
+            return along
+        rows, kk = ix.tree_pairs(q, self._reach_of(ta), from_step, until)
         # a hit of segment [t0, t1) with move sample k forbids the departures t0 - k .. t1 - 1 - k
         lo_d = np.maximum(ix.t0[rows] - kk, from_step)
         hi_d = np.minimum(ix.t1[rows] - kk, until)  # exclusive
@@ -228,8 +233,8 @@ class Occupancy:
         if agent in self.tracks:  # its own track is no obstacle
             keep &= ix.ag[rows] != agent
         rows, kk, lo_d, hi_d = rows[keep], kk[keep], lo_d[keep], hi_d[keep]
-        h = self.stack(ta, False).conflict(ix.P[rows] - q[kk], ix.ty[rows])
-        return _covered(lo_d[h], hi_d[h], T)
+        h = stack.conflict(ix.P[rows] - q[kk], ix.ty[rows])
+        return covered(lo_d[h], hi_d[h], T)
 
     def _departure_index(self) -> DepartureIndex:
         """The index of every track's segments, the parked ends as segments [arrival, for good)
@@ -275,7 +280,7 @@ class Occupancy:
                     m = mv[near] != rest
                     if m.any():
                         h[m] = self.stack(ta, rest).conflict(d[near[m]], ty[near[m]])
-                out |= _covered(np.minimum(t0[near[h]], T), np.minimum(t1[near[h]], T), T)
+                out |= covered(np.minimum(t0[near[h]], T), np.minimum(t1[near[h]], T), T)
         for tr in self.parked_near(w, w, agent):
             if tr.arrival_step < T and self.stack(ta, True).conflict((tr.end_m - w)[None], np.array([tr.type]))[0]:
                 out[tr.arrival_step :] = True
@@ -313,12 +318,6 @@ def track_digest(track: GridTrack) -> bytes:
     h.update(np.ascontiguousarray(track.positions_m, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(track.moving, dtype=bool).tobytes())
     return h.digest()
-
-
-def _covered(lo: np.ndarray, hi: np.ndarray, T: int) -> np.ndarray:
-    """(T,) bool: the union of the step ranges [lo, hi) (each within [0, T])."""
-    diff = np.bincount(lo, minlength=T + 1) - np.bincount(hi, minlength=T + 1)
-    return np.cumsum(diff[:T]) > 0
 
 
 def _at(flags: np.ndarray, track: GridTrack, steps: np.ndarray) -> np.ndarray:

@@ -57,7 +57,7 @@ def test_compact_plan_file_reads_as_the_plan_and_an_indented_one_still_reads(bat
     plan = read_plan(battery_swap_plan)
     write_plan(plan, tmp_path / "compact")
     text = (tmp_path / "compact" / PLAN_FILENAME).read_text()
-    assert "\n" not in text and text.startswith(f"{{\"format_version\":{PLAN_FORMAT_VERSION},")  # compact: the C encoder
+    assert "\n" not in text and text.startswith(f'{{"format_version":{PLAN_FORMAT_VERSION},')  # compact: the C encoder
     assert json.loads(text) == _jsonable_by_element(plan_to_dict(plan))
     (tmp_path / "indented").mkdir()
     (tmp_path / "indented" / PLAN_FILENAME).write_text(json.dumps(json.loads(text), indent=1))
