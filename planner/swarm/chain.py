@@ -102,6 +102,16 @@ def _time_chain(
     if not any(goal_ok):
         return None
     moves: dict[tuple[int, int, bool], Move | None] = {}
+    # the moves' grid samples, computed once each (a run's are a Ruckig evaluation per step, and every
+    # window of its departures asked again needs them)
+    samples: dict[int, np.ndarray] = {}
+
+    def sampled(mv_: Move) -> np.ndarray:  # by identity: every move lives in ``moves`` until the search ends
+        got = samples.get(id(mv_))
+        if got is None:
+            got = samples[id(mv_)] = mv_.positions()
+        return got
+
     # (from step, until step, departures): exact for departures in [from, until)
     forbidden: dict[tuple[int, int, bool], tuple[int, int, np.ndarray]] = {}
 
@@ -134,7 +144,7 @@ def _time_chain(
         # at k starts after e: it asks again)
         until = min(done_by - mv_.steps - h[j], e)
         if key not in forbidden or forbidden[key][0] > t or forbidden[key][1] < until:
-            forbidden[key] = (t, until, occ.forbidden_departures(agent, mv_.positions(), from_step=t, until_step=until))
+            forbidden[key] = (t, until, occ.forbidden_departures(agent, sampled(mv_), from_step=t, until_step=until))
         return mv_, forbidden[key][2]
 
     # the end is held for good only from the start of its last safe interval (the one that lasts to
@@ -161,7 +171,7 @@ def _time_chain(
         while d <= hi:
             if d >= c1:  # ask the next window, as long as all asked before it (at least end_window_steps)
                 c2 = min(hi + 1, c1 + max(end_window_steps, c1 - c0))
-                bad[c1:c2] = occ.forbidden_departures(agent, mv_.positions(), from_step=c1, until_step=c2)[c1:c2]
+                bad[c1:c2] = occ.forbidden_departures(agent, sampled(mv_), from_step=c1, until_step=c2)[c1:c2]
                 c1 = c2
                 scanned[(k, run)] = (c0, c1, bad)
             free = np.flatnonzero(~bad[d : min(c1, hi + 1)])
