@@ -27,7 +27,9 @@ slice of those sorted by first step (t0 in [from - ``SHORT_STEPS``, until + K - 
 segment lasting longer. No pair that conflicts is missed: a sample within r of P has its foot within
 r' of P (triangle inequality), and r' is widened by rounding slacks. The pairs are
 those within reach that can meet the window, fewer than the trees give (those can be a bucket
-outside it), and the answer of a departure query is the same (tested).
+outside it), and the answer of a departure query is the same (tested). The occupancy asks them in one
+pass (:meth:`DepartureIndex.line_forbidden`: the pairs tested and windowed without a list of pairs
+of the whole index; stop 62 round 24A).
 """
 
 from __future__ import annotations
