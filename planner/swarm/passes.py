@@ -318,10 +318,11 @@ def passing_stage(
     None: any). ``YieldResult.yielders``: the vehicles in a component or late."""
     if not pairs:
         return YieldResult(None, (), "no conflicting pair (the synchronised straight step is the plan)")
-    if any(i == j for i, j in pairs):  # (timed late by plan_one: corridor-64 and pillar-64 gave up, 1.6 / 3.1 s)
-        return YieldResult(None, (), "a straight line leaves the static free space: not this stage's case")
+    through = {i for i, j in pairs if i == j and not problem.pinned[i]}  # lines through an obstacle: late
     comps = [
-        c for c in conflict_components([(i, j) for i, j in pairs if i != j]) if any(not problem.pinned[a] for a in c)
+        c
+        for c in conflict_components([(i, j) for i, j in pairs if i != j and not {i, j} & through])
+        if any(not problem.pinned[a] for a in c)
     ]
     options = {c: joint_moves(problem, c, checked=False) for c in comps}
     checked: dict[int, bool] = {}  # id of a joint move tried: conflict-free among its members
@@ -332,7 +333,7 @@ def passing_stage(
                 break
         else:
             options[c] = []
-    late: set[int] = {a for c in comps if not options[c] for a in c if not problem.pinned[a]}
+    late: set[int] = {a for c in comps if not options[c] for a in c if not problem.pinned[a]} | through
     comps = [c for c in comps if options[c]]
     in_comp = {a for c in comps for a in c}
     fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in in_comp | late}
@@ -382,7 +383,9 @@ def passing_stage(
                 first = [c for c in first if c != unit]
                 late |= {a for a in unit if not problem.pinned[a]}
                 in_comp -= set(unit)
-            else:  # a late vehicle hemmed in by placed ones only: no move of this stage frees it
+            elif unit not in first:  # a late vehicle hemmed in by placed ones only: placed first, once
+                first.append(unit)
+            else:  # placed first already and still hemmed in: no move of this stage frees it
                 changed, why = False, unit
                 break
             changed = True
