@@ -19,7 +19,8 @@ too). Each yielding vehicle, longest line first, is timed against the tracks fix
 (:func:`~proxplan.planner.swarm.chain.time_chain`: waits at any waypoint, moves straight or flown
 *through* the corner, exact against the tracks) along the best of its straight line and the chains
 start -> corner -> goal, the corner beside the line's middle :data:`ASIDE_REACH_FACTORS` times the
-widest keep-out's horizontal reach aside, and of the smooth arcs bulging :data:`ARC_REACH_FACTORS` times
+widest keep-out's horizontal reach aside (for a line through an obstacle, instead, the chains round it:
+:func:`around_obstacle`), and of the smooth arcs bulging :data:`ARC_REACH_FACTORS` times
 that reach aside (:func:`~proxplan.planner.swarm.arc_timing.time_arc`: a delayed start, then one
 flight timed along the curve without slowing at a corner; round 21S: circle-64 1.42x -> 1.24x). Where one cannot be timed, the vehicles hemming it in
 (meeting its line, or it resting at its start or goal) yield too, or where they all yield already it
@@ -175,11 +176,18 @@ def _chains(problem: SwarmProblem, a: int, right_only: bool = False) -> list[np.
 
 
 def blockers(occ: Occupancy, problem: SwarmProblem, a: int) -> set[int]:
-    """The agents whose tracks in ``occ`` meet agent ``a``'s straight line, or ``a`` resting for good
-    at its start or at its goal: the vehicles that hem a yielding vehicle in."""
+    """The agents whose tracks in ``occ`` meet agent ``a``'s straight line (where it leaves the static free
+    space: its chains round the obstacle, :func:`around_obstacle`, each flown through its corner from t = 0),
+    or ``a`` resting for good at its start or at its goal: the vehicles that hem a yielding vehicle in."""
     s, g = problem.starts_m[a], problem.goals_m[a]
     ta = int(problem.type_index[a])
-    out = occ.conflicting_agents(own_straight_track(problem, a))
+    if problem.segment_free(s, g):
+        out = occ.conflicting_agents(own_straight_track(problem, a))
+    else:  # its routes round the obstacle (pillar-16 by type: hemmed in by the goals beside them, round 24S)
+        out = set()
+        for chain in around_obstacle(problem, a):
+            move = RunMove(chain, problem.limits[a], GRID_DT_S, deviation_m=CORNER_DEVIATION_M)
+            out |= occ.conflicting_agents(GridTrack(a, ta, s.copy(), [(0, move)]))
     out |= occ.conflicting_agents(GridTrack(a, ta, s.copy(), []))
     out |= occ.conflicting_agents(GridTrack(a, ta, g.copy(), []))
     return out
