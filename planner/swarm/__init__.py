@@ -5,13 +5,14 @@ Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, k
 space; :mod:`~proxplan.planner.swarm.keepout`, its shipped undamped zones
 :mod:`~proxplan.planner.swarm.zone_store`; pairs frozen at the starts or goals moved out first,
 :mod:`~proxplan.planner.swarm.frozen`) -> :mod:`~proxplan.planner.swarm.assign` and
-:mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles) ->
+:mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles, their costs round the obstacles
+:mod:`~proxplan.planner.swarm.obstacle_costs`) ->
 :mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept; by type, the groups in
 conflict passing together, :mod:`~proxplan.planner.swarm.passes`, or the others yielding on corners
 or arcs, :mod:`~proxplan.planner.swarm.yielding` with :mod:`~proxplan.planner.swarm.arc_timing`; the
 choice among them, :mod:`~proxplan.planner.swarm.give_way`) ->
 :mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count
-budget; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.heights`) by
+budget, by type :mod:`~proxplan.planner.swarm.assigned_budget`; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.heights`) by
 :mod:`~proxplan.planner.swarm.priority` (one pass, with repairs and predictions; one vehicle at a
 time, :mod:`~proxplan.planner.swarm.single`; waiting aside, :mod:`~proxplan.planner.swarm.holding`) along :mod:`~proxplan.planner.swarm.wave` routes timed by :mod:`~proxplan.planner.swarm.chain` against
 :mod:`~proxplan.planner.swarm.occupancy` (the space-time hash of
