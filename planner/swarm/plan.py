@@ -53,7 +53,6 @@ import numpy as np
 from proxplan.planfile import Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
-from proxplan.planner.swarm.assigned_budget import assigned_budget
 from proxplan.planner.swarm.complete_stages import (
     gave_up,
     join_levels,
@@ -347,10 +346,7 @@ def _plan(
     straight = found is not None
     if found is None and opts.prioritized:
         kept = kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
-        budget = assigned_budget(problem, opts) if assigned and not level else None  # by type: round 24S
-        found = prioritised_stage(
-            problem, lower_bound, opts, extra, progress=progress, deadline=deadline, budget=budget
-        )
+        found = prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         if kept is not None and (found is None or stage_makespan(kept) < stage_makespan(found)):
             found = kept
     if assigned and conflicts and opts.prioritized:  # interchangeable goals: one vehicle of a pair yields (round 20S)
