@@ -12,7 +12,7 @@ conflict passing together, :mod:`~proxplan.planner.swarm.passes`, or the others 
 or arcs, :mod:`~proxplan.planner.swarm.yielding` with :mod:`~proxplan.planner.swarm.arc_timing`; the
 choice among them, :mod:`~proxplan.planner.swarm.give_way`) ->
 :mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count
-budget, by type :mod:`~proxplan.planner.swarm.assigned_budget`; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.heights`) by
+budget; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.heights`) by
 :mod:`~proxplan.planner.swarm.priority` (one pass, with repairs and predictions; one vehicle at a
 time, :mod:`~proxplan.planner.swarm.single`; waiting aside, :mod:`~proxplan.planner.swarm.holding`) along :mod:`~proxplan.planner.swarm.wave` routes timed by :mod:`~proxplan.planner.swarm.chain` against
 :mod:`~proxplan.planner.swarm.occupancy` (the space-time hash of
