@@ -5,6 +5,8 @@ For each named layout of ``benchmarks/bench_swarm.py`` at N vehicles: the assign
 (s), the synchronised straight step's conflicting pairs (``swarm.straight.straight_step_conflicts``),
 the swarm layer's plan (``swarm_timed``) and, among the vehicles arriving after 1.3 B, how many are in
 a straight-step conflict, fly a route of more than one move (a detour) and leave late. Then the
+certified single-vehicle bound round the obstacles under the assignment (does B route round them?) and
+the lines through an obstacle each flown alone round it (``yielding.around_obstacle``; round 24S). Then the
 detour estimate of the worst conflicting pair: for each pair, the cheaper of the two vehicles' two-leg
 rest-to-rest detours through a corner ``reach_xy_m`` aside at mid-line (jerk-limited rest-to-rest
 time of each leg, ``timing.profile.rest_to_rest``), the largest over the pairs, over B. With
@@ -34,6 +36,32 @@ def _detour_s(length_m: float, aside_m: float, limits) -> float:
     from proxplan.planner.timing.profile import rest_to_rest
 
     return 2.0 * rest_to_rest(math.hypot(0.5 * length_m, aside_m), limits, GRID_DT_S).duration_s
+
+
+def _round_obstacles(scenario, problem, conflicts, bound_s: float) -> str:
+    """Whether the assignment's bound routes round the obstacles: the largest certified single-vehicle bound
+    under the assignment (``bounds.vehicle_bound_s``: through the free windows of each obstacle's planes)
+    over B, and the lines through an obstacle each flown alone round it (``yielding.around_obstacle``, timed
+    by ``chain.time_chain`` through the corner against nobody), the slowest over B."""
+    from proxplan.planner.bounds import vehicle_bound_s
+    from proxplan.planner.swarm.chain import time_chain
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.swarm.prioritised_stage import horizon_steps
+    from proxplan.planner.swarm.yielding import around_obstacle
+
+    cache: dict = {}
+    certified = max(vehicle_bound_s(scenario, name, cache)[0] for name in problem.names)
+    through = sorted({i for i, j in conflicts if i == j})
+    occ = Occupancy(problem, [], horizon_steps(bound_s))
+    alone = []
+    for a in through:
+        times = [time_chain(occ, a, chain, through=True) for chain in around_obstacle(problem, a)]
+        alone.append(min((t.track.arrival_s for t in times if t is not None), default=math.inf))
+    slowest = f"{max(alone) / bound_s:.2f} B" if alone else "-"
+    return (
+        f"certified bound round the obstacles {certified:.3f} s = {certified / bound_s:.3f} B; {len(through)} lines "
+        f"through an obstacle, the slowest flown alone round it {slowest}"
+    )
 
 
 def _fewest_conflicts(problem, bound_s: float, time_limit_s: float) -> str:
@@ -159,6 +187,7 @@ def main() -> int:
             ),
             default=0.0,
         )
+        print(f"{layout}-{args.n} by_type: {_round_obstacles(scenario, problem, conflicts, bound)}", flush=True)
         print(
             f"{layout}-{args.n} by_type: B {bound:.3f} s; {len(conflicts)} straight-step conflicts "
             f"({sum(1 for i, j in conflicts if i == j)} lines through an obstacle); plan ({info.stage}) "

@@ -5,7 +5,8 @@ Data flow, one module per job: :mod:`~proxplan.planner.swarm.problem` (agents, k
 space; :mod:`~proxplan.planner.swarm.keepout`, its shipped undamped zones
 :mod:`~proxplan.planner.swarm.zone_store`; pairs frozen at the starts or goals moved out first,
 :mod:`~proxplan.planner.swarm.frozen`) -> :mod:`~proxplan.planner.swarm.assign` and
-:mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles) ->
+:mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles, their costs round the obstacles
+:mod:`~proxplan.planner.swarm.obstacle_costs`) ->
 :mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept; by type, the groups in
 conflict passing together, :mod:`~proxplan.planner.swarm.passes`, or the others yielding on corners
 or arcs, :mod:`~proxplan.planner.swarm.yielding` with :mod:`~proxplan.planner.swarm.arc_timing`; the

@@ -10,6 +10,11 @@ over the sorted costs with a perfect-matching test
 (``scipy.sparse.csgraph.maximum_bipartite_matching``), the sum by ``scipy.optimize.linear_sum_assignment``
 on the costs with every pair above the bottleneck excluded. The assignment's lower bound (no plan
 can finish earlier) is the largest single-vehicle minimum time under it.
+
+Where a straight line would pass through an obstacle, its cost is the larger of that time and a certified
+bound on the time round the obstacle (``floor_s``, :mod:`~proxplan.planner.swarm.obstacle_costs`; round
+24S): the bound stays a lower bound, and an assignment avoids sending a vehicle the long way round where
+another as short exists.
 """
 
 from __future__ import annotations
@@ -54,14 +59,20 @@ def _bottleneck(cost: np.ndarray) -> float:
     return float(values[lo])
 
 
-def assign_group(starts_m: np.ndarray, goals_m: np.ndarray, limits: KinematicLimits) -> tuple[np.ndarray, float]:
+def assign_group(
+    starts_m: np.ndarray, goals_m: np.ndarray, limits: KinematicLimits, floor_s: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
     """Bottleneck-then-sum-of-squares assignment of one type's vehicles (starts (n, 3), m) to its
-    goals (n, 3): (goal index per vehicle, bottleneck time s)."""
+    goals (n, 3): (goal index per vehicle, bottleneck time s). ``floor_s`` (n, n), s: a lower bound on
+    each start-goal pair's time round the obstacles (:func:`~proxplan.planner.swarm.obstacle_costs.pair_bounds_s`);
+    a pair's cost is the larger of it and the straight line's time."""
     starts = np.asarray(starts_m, dtype=float)
     goals = np.asarray(goals_m, dtype=float)
     if len(starts) == 0:
         return np.zeros(0, dtype=np.int64), 0.0
     times = _min_times(starts, goals, limits)
+    if floor_s is not None:
+        times = np.maximum(times, floor_s)
     bottleneck = _bottleneck(times)
     sq = np.sum((starts[:, None, :] - goals[None, :, :]) ** 2, axis=2)
     big = float(sq.max()) * len(starts) * 10.0 + 1.0
@@ -73,17 +84,23 @@ def assign_group(starts_m: np.ndarray, goals_m: np.ndarray, limits: KinematicLim
 
 
 def assign_by_type(
-    starts_m: np.ndarray, goals_m: np.ndarray, type_names: list[str], limits: list[KinematicLimits]
+    starts_m: np.ndarray,
+    goals_m: np.ndarray,
+    type_names: list[str],
+    limits: list[KinematicLimits],
+    floor_s: np.ndarray | None = None,
 ) -> Assignment:
     """The assignment of every vehicle (starts (A, 3), m; the goals listed for them (A, 3), m;
-    their type names and limits) to a goal of its own type (see module)."""
+    their type names and limits) to a goal of its own type (see module); ``floor_s`` (A, A), s: as
+    :func:`assign_group`'s, vehicle i's start to the goal listed for vehicle g."""
     starts = np.asarray(starts_m, dtype=float)
     goals = np.asarray(goals_m, dtype=float)
     goal_of = np.arange(len(starts))
     lb = 0.0
     for t in sorted(set(type_names)):
         members = np.array([i for i, n in enumerate(type_names) if n == t], dtype=np.int64)
-        g, b = assign_group(starts[members], goals[members], limits[int(members[0])])
+        floor = None if floor_s is None else np.asarray(floor_s, dtype=float)[np.ix_(members, members)]
+        g, b = assign_group(starts[members], goals[members], limits[int(members[0])], floor)
         goal_of[members] = members[g]
         lb = max(lb, b)
     return Assignment(goal_of, lb)

@@ -16,6 +16,7 @@ import numpy as np
 from proxplan.fileio import UserError
 from proxplan.planfile import Scenario
 from proxplan.planner.swarm.assign import assign_by_type
+from proxplan.planner.swarm.obstacle_costs import pair_bounds_s
 
 
 def apply_assignment(scenario: Scenario) -> tuple[Scenario, dict | None]:
@@ -51,6 +52,7 @@ def apply_assignment(scenario: Scenario) -> tuple[Scenario, dict | None]:
         np.array([t.goal_m for t in tasks]),
         [t.type_name for t in tasks],
         [t.kinematic_limits for t in tasks],
+        pair_bounds_s(scenario, movers) if scenario.obstacles else None,
     )
     vehicles = dict(scenario.vehicles)
     goal_of = {}

@@ -19,7 +19,8 @@ too). Each yielding vehicle, longest line first, is timed against the tracks fix
 (:func:`~proxplan.planner.swarm.chain.time_chain`: waits at any waypoint, moves straight or flown
 *through* the corner, exact against the tracks) along the best of its straight line and the chains
 start -> corner -> goal, the corner beside the line's middle :data:`ASIDE_REACH_FACTORS` times the
-widest keep-out's horizontal reach aside, and of the smooth arcs bulging :data:`ARC_REACH_FACTORS` times
+widest keep-out's horizontal reach aside (for a line through an obstacle, instead, the chains round it:
+:func:`around_obstacle`), and of the smooth arcs bulging :data:`ARC_REACH_FACTORS` times
 that reach aside (:func:`~proxplan.planner.swarm.arc_timing.time_arc`: a delayed start, then one
 flight timed along the curve without slowing at a corner; round 21S: circle-64 1.42x -> 1.24x). Where one cannot be timed, the vehicles hemming it in
 (meeting its line, or it resting at its start or goal) yield too, or where they all yield already it
@@ -62,12 +63,22 @@ MAX_YIELD_ROUNDS = 4
 # widest keep-out's horizontal reach, tried beside its corners: from a quarter of it to the widest
 # corner's rounded offset; chosen before any run (round 21S)
 ARC_REACH_FACTORS = (0.25, 0.5, 0.75, 1.0, 1.25)
+# a straight line that leaves the static free space (through an obstacle) is flown round it instead, through
+# a corner beside the middle of its blocked stretch: the nearest corner on each side whose two legs are
+# statically free, searched in steps of half the widest keep-out's horizontal reach (the finest step of
+# ASIDE_REACH_FACTORS), at most this many steps aside (a count: 16 half-reaches, 2.4-3.2 m here, beyond
+# the widest obstacle of the named layouts; round 24S)
+AROUND_STEPS = 16
+AROUND_STEP_REACH = 0.5  # the step of that search, in units of the widest keep-out's horizontal reach
+BLOCKED_SAMPLE_M = 0.02  # the line is sampled this often to find its blocked stretch, m (as segment_free)
 
 __all__ = [
     "ARC_REACH_FACTORS",
     "ASIDE_REACH_FACTORS",
     "MAX_YIELD_ROUNDS",
+    "AROUND_STEPS",
     "YieldResult",
+    "around_obstacle",
     "blockers",
     "choose_yielders",
     "left_of_line",
@@ -115,10 +126,43 @@ def left_of_line(problem: SwarmProblem, a: int) -> np.ndarray | None:
     return None if norm <= 1e-9 else horizontal / norm
 
 
+def around_obstacle(problem: SwarmProblem, a: int) -> list[np.ndarray]:
+    """The chains start -> corner -> goal of agent ``a`` round the obstacle its straight line passes
+    through: per side (its left, then its right), the corner nearest the middle of the line's blocked
+    stretch, :data:`AROUND_STEP_REACH` reach apart, at most :data:`AROUND_STEPS` steps aside, whose two legs
+    are statically free ([] where its line is free, or no corner within the search is)."""
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    if problem.segment_free(s, g):
+        return []
+    left = left_of_line(problem, a)
+    side = left if left is not None else np.array([1.0, 0.0, 0.0])  # no horizontal line: x aside
+    n = max(2, int(np.ceil(float(np.linalg.norm(g - s)) / BLOCKED_SAMPLE_M)) + 1)
+    points = s[None] + np.linspace(0.0, 1.0, n)[:, None] * (g - s)[None]
+    blocked = np.flatnonzero(~problem.static_free(points))
+    if not blocked.size:
+        return []
+    middle = points[(int(blocked[0]) + int(blocked[-1])) // 2]
+    out = []
+    for sign in (1.0, -1.0):
+        for k in range(1, AROUND_STEPS + 1):
+            corner = middle + sign * k * AROUND_STEP_REACH * problem.reach_xy_m * side
+            if (
+                problem.static_free(corner[None])[0]
+                and problem.segment_free(s, corner)
+                and problem.segment_free(corner, g)
+            ):
+                out.append(np.array([s, corner, g]))
+                break
+    return out
+
+
 def _chains(problem: SwarmProblem, a: int, right_only: bool = False) -> list[np.ndarray]:
     """The straight line and the corner chains of a yielding vehicle (see module); ``right_only``:
-    only the corners on its right (seen from above, heading to its goal), no straight line."""
+    only the corners on its right (seen from above, heading to its goal), no straight line. A line
+    through an obstacle: its chains round it (:func:`around_obstacle`), both sides."""
     s, g = problem.starts_m[a], problem.goals_m[a]
+    if not problem.segment_free(s, g):
+        return around_obstacle(problem, a)
     left = left_of_line(problem, a)
     side = left if left is not None else np.array([1.0, 0.0, 0.0])  # no horizontal line: x aside
     mid = 0.5 * (s + g)
@@ -132,11 +176,18 @@ def _chains(problem: SwarmProblem, a: int, right_only: bool = False) -> list[np.
 
 
 def blockers(occ: Occupancy, problem: SwarmProblem, a: int) -> set[int]:
-    """The agents whose tracks in ``occ`` meet agent ``a``'s straight line, or ``a`` resting for good
-    at its start or at its goal: the vehicles that hem a yielding vehicle in."""
+    """The agents whose tracks in ``occ`` meet agent ``a``'s straight line (where it leaves the static free
+    space: its chains round the obstacle, :func:`around_obstacle`, each flown through its corner from t = 0),
+    or ``a`` resting for good at its start or at its goal: the vehicles that hem a yielding vehicle in."""
     s, g = problem.starts_m[a], problem.goals_m[a]
     ta = int(problem.type_index[a])
-    out = occ.conflicting_agents(own_straight_track(problem, a))
+    if problem.segment_free(s, g):
+        out = occ.conflicting_agents(own_straight_track(problem, a))
+    else:  # its routes round the obstacle (pillar-16 by type: hemmed in by the goals beside them, round 24S)
+        out = set()
+        for chain in around_obstacle(problem, a):
+            move = RunMove(chain, problem.limits[a], GRID_DT_S, deviation_m=CORNER_DEVIATION_M)
+            out |= occ.conflicting_agents(GridTrack(a, ta, s.copy(), [(0, move)]))
     out |= occ.conflicting_agents(GridTrack(a, ta, s.copy(), []))
     out |= occ.conflicting_agents(GridTrack(a, ta, g.copy(), []))
     return out
