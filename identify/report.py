@@ -191,6 +191,12 @@ def selection_lines(result: IdentifyResult) -> list[str]:
                   "flight predicted by a fit without it) exceeds z flight-to-flight standard errors (one-sided "
                   "Bonferroni at 5 %) AND it is chosen in at least the stated share of half-samples of the flights "
                   "(stability selection). Test flights only report.", ""]  # fmt: skip
+        channels = sel.get("channel_heldout_mse") or {}
+        if channels:
+            per = "; ".join(f"{t}: " + ", ".join(f"{c} {'n/a' if m is None else f'{m:.3g}'}" for c, m in ms.items())
+                            for t, ms in channels.items())  # fmt: skip
+            lines += ["Held-out error per channel, in noise units (1: predicted to the noise; the delivered fit weighs "
+                      f"each channel by 1 / max(this, 1)): {per}.", ""]  # fmt: skip
     lines += ["| round | effect | params | RMSE F_z test [N] | held-out gain alone (R +- SE) | inclusion | kept | why |",
               "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for tr in result.trials:

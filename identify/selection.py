@@ -5,12 +5,13 @@ the held-out tests of :mod:`proxplan.identify.crossval`)."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from proxplan.identify.calibrate import ParamSpec, calibrate_model
+from proxplan.identify.channel_variance import structural_row_weight
 from proxplan.identify.crossval import heldout_mse, heldout_predictions, solve, trainable_groups
 from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
 from proxplan.identify.delayed import delayed_units
@@ -18,7 +19,7 @@ from proxplan.identify.design import selection_set, tangent_u
 from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
 from proxplan.identify.effect_selection import THRUST_BIAS, EffectSelection, EffectSelector
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_backward
-from proxplan.identify.noise import NoiseLevel, stacked
+from proxplan.identify.noise import CHANNELS, NoiseLevel, stacked
 from proxplan.physics import Effect
 
 
@@ -37,6 +38,9 @@ class Selection:
     cluster: np.ndarray  # (groups,) int, each held-out group's flight (crossval.GroupPlan.cluster)
     rows: list[Unit]  # the selection's samples (stratified train sample and validation sample)
     heldout_fz_N: np.ndarray  # (N,) each row's held-out F_z residual, N (rows in the order of ``rows``)
+    # type -> (4,) held-out MSE per channel (noise units) of the kept set: what sets the delivered fit's channel
+    # weights (identify.channel_variance); well above 1: structure in that channel nothing kept explains
+    channel_mse: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def heldout_total(self) -> float:
@@ -57,7 +61,9 @@ class Selection:
                "effects_stability_threshold": stab.threshold, "effects_mean_chosen_per_half": stab.mean_chosen,
                "effects_expected_false_bound": stab.expected_false_bound,
                "half_samples": stab.n_halves, "recalibration_step_u": self.effects.steps,
-               "indistinguishable": self.effects.rivals_json()}  # fmt: skip
+               "indistinguishable": self.effects.rivals_json(),
+               "channel_heldout_mse": {t: dict(zip(CHANNELS, (None if not np.isfinite(v) else float(v) for v in m)))
+                                       for t, m in self.channel_mse.items()}}  # fmt: skip
         if self.discovery is not None:
             d = self.discovery.stability
             out |= {
@@ -95,7 +101,8 @@ def select_and_discover(
     discovery = None
     if options.discover:
         discovery = discover_terms(sel, selector.always_columns(effects.selected), selector.ridge_for)
-    model, heldout, joint, heldout_fz = joint_model(selector, effects, discovery)
+    jf = joint_model(selector, effects, discovery)
+    model, heldout, joint, heldout_fz = jf.model, jf.heldout_mse, jf.backward, jf.heldout_fz_N
     if discovery is not None:
         discovery.kept = {k: v for k, v in discovery.kept.items() if k in joint.chosen}
         discovery.forward.dropped.update({k: t for k, t in joint.dropped.items() if k in discovery.columns})
@@ -122,8 +129,9 @@ def select_and_discover(
         # not with discovered terms: a term on a base feature (base_fz_lag...) was fitted on the base at the
         # reference, and refitting the base under it changes what the term means (and each evaluation of
         # the features costs: on the shipped manifest the polish doubled selection's time)
-        model = polished(selector, model, fit, prior_model, options=options, noise=noise)
-    return Selection(model, effects, discovery, start, heldout, sel.plan.note, sel.plan.cluster, sel.units, heldout_fz)
+        model = polished(selector, model, fit, prior_model, options=options, noise=noise, row_weight=jf.row_weight)
+    return Selection(model, effects, discovery, start, heldout, sel.plan.note, sel.plan.cluster, sel.units, heldout_fz,
+                     jf.channel_mse)  # fmt: skip
 
 
 def fz_only(column: np.ndarray) -> np.ndarray:
@@ -145,13 +153,15 @@ def _line_searched(
     terms: dict[str, float],
     penalty: dict[str, tuple[float, float]],
     terms_part: np.ndarray | None = None,
+    row_weight: np.ndarray | None = None,
 ) -> Model:
     """The joint fit's model, its vehicle-parameter step taken only as far as the NONLINEAR model confirms.
     The joint fit is one Gauss-Newton step on tangents linearised at the reference; a large step (the prior
     start moving b_v by exp(-1.4)) leaves the region where they hold, and the stepped model then predicts
     worse than the linear fit promised. So the model is built at each fraction of :data:`STEP_FRACTIONS` of
     the step (effects and terms at their fitted coefficients; ``terms_part`` the terms' contribution, (N, 4)
-    noise units) and the one with the lowest MAP objective on the train rows is kept: weighted squared residual in noise units over tau, plus the tangents' prior
+    noise units) and the one with the lowest MAP objective on the train rows is kept: weighted squared residual in noise units over tau
+    (each row and channel times ``row_weight``, :mod:`proxplan.identify.channel_variance`), plus the tangents' prior
     penalty precision (alpha step - center)^2 (backtracking line search, Nocedal & Wright ch. 3)."""
     best: tuple[float, Model] | None = None
     # a thrust scale enters the prediction linearly in its u = 1 - 1/s (design.thrust_scale_u: its column is
@@ -162,7 +172,7 @@ def _line_searched(
         model = selector.model_with(c, chosen)
         if terms:
             model = replace(model, effects=model.effects + (Effect(DISCOVERED_NAME, terms),))
-        score = map_objective(selector, model, penalty, terms_part)
+        score = map_objective(selector, model, penalty, terms_part, row_weight)
         if best is None or score < best[0]:
             best = (score, model)
     assert best is not None
@@ -170,10 +180,15 @@ def _line_searched(
 
 
 def map_objective(
-    selector: EffectSelector, model: Model, penalty: dict[str, tuple[float, float]], terms: np.ndarray | None = None
+    selector: EffectSelector,
+    model: Model,
+    penalty: dict[str, tuple[float, float]],
+    terms: np.ndarray | None = None,
+    row_weight: np.ndarray | None = None,
 ) -> float:
     """The MAP objective of ``model`` on the selection's train rows, -: the weighted squared residual of the
-    four channels in noise units over tau, plus each always-fitted parameter's prior penalty, precision
+    four channels in noise units over tau (each row and channel times ``row_weight`` (N, 4), the delivered
+    fit's weights of :mod:`proxplan.identify.channel_variance`; None: 1), plus each always-fitted parameter's prior penalty, precision
     (u - u_ref - center)^2 (u the parameter's coordinate, :func:`proxplan.identify.design.tangent_u`).
 
     The selection's stratified rows are sparse and out of order in time, so what needs the clock is taken
@@ -191,6 +206,8 @@ def map_objective(
     if terms is not None:
         scale = np.concatenate([np.full(len(u), model.thrust_scale.get(u.type, 1.0)) for u in sel.units])
         r -= terms / scale[:, None]
+    if row_weight is not None:
+        r = r * row_weight
     data = float(np.sum(train[:, None] * np.where(np.isfinite(r), r, 0.0) ** 2)) / sel.tau
     step = {s.name: tangent_u(model, s) - tangent_u(sel.model, s) for s in selector.specs}
     return data + sum(p * (step[k] - c0) ** 2 for k, (p, c0) in penalty.items())
@@ -204,8 +221,10 @@ def polished(
     *,
     options: IdentifyOptions,
     noise: NoiseLevel,
+    row_weight: np.ndarray | None = None,
 ) -> Model:
-    """``model`` (after the joint step) or, when its MAP objective (:func:`map_objective`) is lower, the same
+    """``model`` (after the joint step) or, when its MAP objective (:func:`map_objective`, rows and channels
+    weighted by ``row_weight``, the joint fit's) is lower, the same
     effects with the vehicle parameters and thrust scales refitted by the calibration's own NONLINEAR MAP fit
     on every train sample (:func:`proxplan.identify.calibrate.calibrate_model`, priors of ``prior_model``,
     started at ``model``, its effects held). The joint step is one linearised step on a subsample: on
@@ -213,7 +232,8 @@ def polished(
     calibration's own fit, with nothing to keep, gave 0.18 g on the same logs without the force."""
     _, _, refit = calibrate_model(fit, prior_model, options=options, noise=noise, start=model)
     penalty = _penalty(selector)
-    return refit if map_objective(selector, refit, penalty) < map_objective(selector, model, penalty) else model
+    before = map_objective(selector, model, penalty, row_weight=row_weight)
+    return refit if map_objective(selector, refit, penalty, row_weight=row_weight) < before else model
 
 
 def _penalty(selector: EffectSelector) -> dict[str, tuple[float, float]]:
@@ -240,15 +260,28 @@ def other_start_better(default: Selection, other: Selection) -> bool:
     return other.heldout_total < default.heldout_total - SCORE_RESOLUTION
 
 
-def joint_model(
-    selector: EffectSelector, effects: EffectSelection, discovery: DiscoveryResult | None
-) -> tuple[Model, np.ndarray, ForwardResult, np.ndarray]:
+@dataclass
+class JointFit:
+    """What :func:`joint_model` delivers: the model; the held-out MSE per group and channel (noise units) of the
+    kept set; the backward pass's record; each selection row's held-out F_z residual (N,) N (measured minus the
+    prediction of the fit that left its flight out: what the spread's interval is set on); and the rows'
+    channel weights (N, 4) the delivered fit used (:mod:`proxplan.identify.channel_variance`), with each
+    type's held-out MSE per channel they come from (noise units)."""
+
+    model: Model
+    heldout_mse: np.ndarray
+    backward: ForwardResult
+    heldout_fz_N: np.ndarray
+    row_weight: np.ndarray
+    channel_mse: dict[str, np.ndarray]
+
+
+def joint_model(selector: EffectSelector, effects: EffectSelection, discovery: DiscoveryResult | None) -> JointFit:
     """The kept library effects and discovered terms judged together: each must still pass the held-out
     gain test given all the others (a library effect that stood in for an undeclared one is dropped once
     the discovered term explains it better); then the survivors and the vehicle parameters' steps are
-    fitted jointly on every train group. Returns the model, the held-out MSE per group and channel, the
-    backward pass's record, and each selection row's held-out F_z residual (N,) N (measured minus the
-    prediction of the fit that left its flight out: what the spread's interval is set on)."""
+    fitted jointly on every train group, each row and channel weighted by its error variance, noise plus
+    what the kept set leaves unexplained on flights held out (:mod:`proxplan.identify.channel_variance`)."""
     sel = selector.sel
     kept = [c.as_candidate() for c in selector.candidates if c.name in effects.selected]
     terms = dict(discovery.kept) if discovery is not None else {}
@@ -265,22 +298,27 @@ def joint_model(
                             discovery.fold_eligible if discovery is not None else None)  # fmt: skip
     names = list(selector.always) + [col for c in kept if c.name in back.chosen for col in c.columns]
     idx = sums.index(names)
-    deliver = sums
+    x = np.stack([columns[k] for k in sums.columns], axis=2)  # (N, 4, p) in noise units
+    held = heldout_predictions(sums, x, sel.group, idx, sel.plan, ridge, sel.tau)
+    train = (~sel.plan.held_out_only[sel.group]) * sel.weight
+    types = np.concatenate([np.full(len(u), u.type, dtype=object) for u in sel.units])
+    row_weight, channel_mse = structural_row_weight(sel.residual - held, types, train)
+    delivered = dict(columns)
     if any(k in back.chosen for k in terms):
         # the delivered fit beside kept discovered terms: the vehicle parameters' tangents on F_z only
         # (they are calibrated on F_z); on all four channels they bend to fit roll and pitch, which the
         # kept torque terms are for, and lose F_z on flights held out (docs/identify.md, stop 58). Judged
         # (held-out errors below, the start choice) with the full tangents, as selection was
-        deliver = sel.sums(columns | {k: fz_only(columns[k]) for k in selector.always})
+        delivered |= {k: fz_only(columns[k]) for k in selector.always}
+    deliver = sel.sums({k: v * row_weight for k, v in delivered.items()}, target=sel.residual * row_weight)
     beta = solve(deliver, deliver.index(names), trainable_groups(deliver, sel.plan), ridge, sel.tau)
     coef = dict(zip(names, (float(b) for b in beta)))
     survivors = {k: coef[k] for k in terms if k in back.chosen}
     chosen = [n for n in effects.selected if n in back.chosen]
     terms_part = sum((v * columns[k] for k, v in survivors.items()), np.zeros_like(sel.residual))
-    model = _line_searched(selector, coef, chosen, survivors, _penalty(selector), terms_part)
+    model = _line_searched(selector, coef, chosen, survivors, _penalty(selector), terms_part, row_weight)
     if survivors and discovery is not None:
         discovery.kept = survivors
-    x = np.stack([columns[k] for k in sums.columns], axis=2)  # (N, 4, p) in noise units
-    held = heldout_predictions(sums, x, sel.group, idx, sel.plan, ridge, sel.tau)
     residual_fz = (sel.residual[:, 0] - held[:, 0]) * sel.row_scale[:, 0]
-    return model, heldout_mse(sums, idx, sel.plan, ridge, sel.tau), back, residual_fz
+    return JointFit(model, heldout_mse(sums, idx, sel.plan, ridge, sel.tau), back, residual_fz, row_weight,
+                    channel_mse)  # fmt: skip
