@@ -25,7 +25,11 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    lock-step (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the
    guaranteed answer. Beside it (``SwarmOptions.levels``) the *stacked plan*
    (:func:`_stacked_stage`, :mod:`proxplan.planner.swarm.stacked`): each group of types on a level of
-   its own where the box is tall enough, each level planned apart by these stages; the shorter kept.
+   its own where the box is tall enough, each level planned apart by these stages (prioritised
+   planning in the first order and in the goal block filled from its far side,
+   :mod:`proxplan.planner.swarm.fill_order`; the shorter level kept); the shorter kept. With fixed
+   goals the stacked plan is also made beside a prioritised plan (2), and kept where it is shorter
+   before re-timing (:func:`~proxplan.planner.swarm.complete_stages.stacked_beside`; round 24B).
 4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
    every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
    conflict-free.
