@@ -1,7 +1,8 @@
 """The swarm layer's complete stages without a prioritised search (issue 37; :mod:`proxplan.planner.swarm.plan`
 runs them): every vehicle on its straight line in one synchronised step; LaCAM on the lattice flown in
 lock-step (the guaranteed answer); the stacked plan's levels joined by vertical steps (each level planned
-by a planner the caller passes in); and the choice between the last two when prioritised planning gave up."""
+by a planner the caller passes in); the choice between the last two when prioritised planning gave up; and the choice between the prioritised
+plan and the stacked plan made beside it (round 24B: pillar-64, where prioritised planning finds a plan)."""
 
 from __future__ import annotations
 
@@ -30,6 +31,7 @@ __all__ = [
     "gave_up",
     "join_levels",
     "lattice_stage",
+    "stacked_beside",
     "stacked_without_lattice",
     "stage_makespan",
     "straight_routes",
@@ -128,6 +130,21 @@ def gave_up(lattice: Stage, stacked: Stage | None, opts: SwarmOptions, extra: di
             found, coordination=f"prioritised planning gave up ({spent} vehicle plannings); " + found.coordination
         )
     return found
+
+
+def stacked_beside(prioritised: Stage, stacked: Stage | None, extra: dict) -> Stage:
+    """The stacked plan made beside a prioritised plan where it is shorter before re-timing (ties: the
+    prioritised plan; the rule :func:`gave_up` applies to the lattice plan), said in ``extra["stacked"]``."""
+    if stacked is None:
+        return prioritised
+    mine, theirs = stage_makespan(stacked), stage_makespan(prioritised)
+    keep = mine < theirs
+    extra["stacked"] = f"{extra.get('stacked', '')}; beside the prioritised plan ({theirs:.2f} s): {mine:.2f} s, " + (
+        "kept" if keep else "not kept"
+    )
+    if not keep:
+        return prioritised
+    return replace(stacked, coordination=f"shorter than the prioritised plan ({theirs:.2f} s); " + stacked.coordination)
 
 
 def join_levels(

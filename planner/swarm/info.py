@@ -69,7 +69,9 @@ class LevelHandOn:
 class GiveUpHandOn:
     """The plans made where prioritised planning gave up, before re-timing (:class:`SwarmHandOn`):
     the lattice plan, and the stacked plan's stack and levels (their re-timing is inside the stacked
-    plan, so re-timing again re-times each level and joins them again)."""
+    plan, so re-timing again re-times each level and joins them again). Where the stacked plan was
+    made beside a prioritised plan (fixed goals, round 24B), ``lattice`` holds that prioritised plan
+    (its ``stage`` says which)."""
 
     lattice: Stage
     stack: Levels | None  # None: no stack fits the box, or no stacked plan tried
@@ -92,7 +94,8 @@ class SwarmHandOn:
     # then re-timed and compared with the plan without; swarm.heights); None where it did not
     heights: Stage | None
     extra: dict  # the stage records of the plan (SwarmInfo's fields after time_s), as planned
-    give_up: GiveUpHandOn | None = None  # where prioritised planning gave up (or did not run)
+    # where prioritised planning gave up (or did not run), or where the stacked plan was made beside it
+    give_up: GiveUpHandOn | None = None
     # the plan's final tracks by agent (after re-timing and the makespan repair; before any unfreeze
     # step, swarm.frozen): what ``optimized``'s longer makespan repair starts from (refine_stage)
     tracks: dict[int, GridTrack] | None = None

@@ -25,7 +25,11 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    lock-step (:mod:`proxplan.planner.swarm.lockstep`): conflict-free by construction, the
    guaranteed answer. Beside it (``SwarmOptions.levels``) the *stacked plan*
    (:func:`_stacked_stage`, :mod:`proxplan.planner.swarm.stacked`): each group of types on a level of
-   its own where the box is tall enough, each level planned apart by these stages; the shorter kept.
+   its own where the box is tall enough, each level planned apart by these stages (prioritised
+   planning in the first order and in the goal block filled from its far side,
+   :mod:`proxplan.planner.swarm.fill_order`; the shorter level kept); the shorter kept. With fixed
+   goals the stacked plan is also made beside a prioritised plan (2), and kept where it is shorter
+   before re-timing (:func:`~proxplan.planner.swarm.complete_stages.stacked_beside`; round 24B).
 4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
    every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
    conflict-free.
@@ -57,6 +61,7 @@ from proxplan.planner.swarm.complete_stages import (
     gave_up,
     join_levels,
     lattice_stage,
+    stacked_beside,
     stacked_without_lattice,
     stage_makespan,
     straight_stage,
@@ -78,7 +83,12 @@ from proxplan.planner.swarm.makespan import budget as makespan_budget
 from proxplan.planner.swarm.makespan import shorten_makespan
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.options import SwarmOptions
-from proxplan.planner.swarm.prioritised_stage import horizon_steps, kept_straight_stage, prioritised_stage
+from proxplan.planner.swarm.prioritised_stage import (
+    FAR_GOALS_FIRST,
+    horizon_steps,
+    kept_straight_stage,
+    prioritised_stage,
+)
 from proxplan.planner.swarm.problem import SwarmProblem, swarm_applicable, swarm_problem
 from proxplan.planner.swarm.retime import improve
 from proxplan.planner.swarm.stage import Stage
@@ -272,7 +282,10 @@ def _retimed_again(
                 return [by[a] for a in range(level.n_agents)], searched.stage, rec.planned
 
             stacked = join_levels(problem, give_up.stack, extra, plan_level)
-        found = gave_up(give_up.lattice, stacked, opts, extra)
+        if give_up.lattice.stage == "lattice":
+            found = gave_up(give_up.lattice, stacked, opts, extra)
+        else:  # the stacked plan made beside the prioritised plan
+            found = stacked_beside(give_up.lattice, stacked, extra)
     searched = found
     by_agent, retiming = _retime_stage(
         problem, found, stage_makespan(found), opts, progress=progress, deadline=deadline
@@ -367,6 +380,14 @@ def _plan(
             ]
             found, pre_retimed = min(retimed, key=lambda r: max(tr.arrival_s for tr in r[1][0].values()))
     give_up: GiveUpHandOn | None = None
+    if found is not None and not straight and not assigned and opts.levels and stacking is not None:
+        # the stacked plan beside the prioritised plan, the shorter kept (round 24B)
+        stack = stack_levels(problem, stacking())
+        beside: list[LevelHandOn] = []
+        planner = _level_planner(opts, assigned, beside, progress=progress, deadline=deadline)
+        stacked = join_levels(problem, stack, extra, planner)
+        give_up = GiveUpHandOn(found, stack, tuple(beside) if stacked is not None else None)
+        found = stacked_beside(found, stacked, extra)
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
@@ -418,11 +439,14 @@ def _plan(
 
 def _level_options(opts: SwarmOptions) -> SwarmOptions:
     """The options each level of the stacked plan is planned with: by the stages of _plan with
-    prioritised planning in the first order only, no pass with both wavefronts and no makespan repair:
+    prioritised planning in the first order and the goal block filled from its far side (swarm.fill_order;
+    the shorter kept, ties the first: a level of pillar-64 9.88 s against 11.35 s, corridor-64 4.27x ->
+    4.13x, grid-64 the same plan; round 24B), no pass with both wavefronts and no makespan repair:
     with all of them corridor-64 fixed took 42.6 s of CPU (the issue's target is 30 s) for the same plan
     (4.84x) and grid-64 gave 2.11x instead of 2.21x (set watching these two named layouts;
     docs/planner.md, stop 52 round 14A)."""
-    return replace(opts, levels=False, heights=False, makespan_repair=False, orders=opts.orders[:1])
+    orders = tuple(dict.fromkeys((opts.orders[0], FAR_GOALS_FIRST)))
+    return replace(opts, levels=False, heights=False, makespan_repair=False, orders=orders)
 
 
 def _stacked_stage(

@@ -17,6 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from proxplan.planner.swarm.components import interaction_groups, plan_groups, subproblem
+from proxplan.planner.swarm.fill_order import fill_order
 from proxplan.planner.swarm.options import SwarmOptions
 from proxplan.planner.swarm.priority import (
     PrioritizedFailed,
@@ -37,6 +38,7 @@ PRIORITISED_HORIZON_FACTOR = 4.0
 PRIORITISED_HORIZON_MARGIN_S = 20.0
 
 __all__ = [
+    "FAR_GOALS_FIRST",
     "ORDERS",
     "PRIORITISED_HORIZON_FACTOR",
     "PRIORITISED_HORIZON_MARGIN_S",
@@ -54,9 +56,14 @@ def longest_first(problem: SwarmProblem) -> list[int]:
     return sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a))
 
 
+# the goal block filled from its far side (swarm.fill_order): the stacked plan's levels are planned in it
+# beside their first order (plan._level_options; round 24B)
+FAR_GOALS_FIRST = "far goals first"
+
 ORDERS: dict[str, Callable[[SwarmProblem], list[int]]] = {
     "dependencies first": dependency_order,
     "longest first": longest_first,
+    FAR_GOALS_FIRST: fill_order,
 }
 
 

@@ -21,8 +21,10 @@ from proxplan.verify import verify_plan
 @pytest.mark.parametrize("make", [grid_reshuffle, formation_change], ids=["grid-16", "pillar-16"])
 def test_the_shorter_whole_plan_is_kept_and_never_longer_than_without(make):
     scenario = scenario_from_dict(make(16), label="test scenario")
-    without_paths, without = swarm_timed(scenario, SwarmOptions(workers=1, heights=False))
-    paths, info = swarm_timed(scenario, SwarmOptions(workers=1, heights=True))
+    # no stacked plan beside the prioritised plan (round 24B: on grid-16 it is the shorter, and the pass
+    # with both wavefronts runs only on a prioritised plan kept)
+    without_paths, without = swarm_timed(scenario, SwarmOptions(workers=1, heights=False, levels=False))
+    paths, info = swarm_timed(scenario, SwarmOptions(workers=1, heights=True, levels=False))
     assert info.heights is not None and info.counts["heights_planned"] > 0
     # one pass, in the plan without's order and hold, on what is left of prioritised planning's budget
     assert info.heights.count("plannings)") == 1 and info.heights.split("(")[1].split(":")[0] in without.prioritised
@@ -36,7 +38,7 @@ def test_the_shorter_whole_plan_is_kept_and_never_longer_than_without(make):
             np.testing.assert_array_equal(paths[name].knot_p_m, path.knot_p_m)
     assert verify_plan(assemble_plan(scenario, paths, method="swarm", notes=[]), scenario) == []
     if kept:  # the same plan again (counts only steer both ways)
-        again, _ = swarm_timed(scenario, SwarmOptions(workers=1, heights=True))
+        again, _ = swarm_timed(scenario, SwarmOptions(workers=1, heights=True, levels=False))
         for name, path in paths.items():
             np.testing.assert_array_equal(again[name].knot_p_m, path.knot_p_m)
 
