@@ -8,23 +8,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from proxplan.planfile import scenario_from_dict
-from proxplan.planner.formations import layout_doc
-from proxplan.planner.swarm.goals import apply_assignment
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.passes import passing_stage
 from proxplan.planner.swarm.prioritised_stage import horizon_steps
-from proxplan.planner.swarm.problem import swarm_problem
 from proxplan.planner.swarm.straight import straight_step_conflicts
 from proxplan.planner.swarm.yielding import AROUND_STEPS, around_obstacle
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
 
-
-def _assigned(layout: str, n: int):
-    scenario, record = apply_assignment(scenario_from_dict(layout_doc(layout, n, assign="by_type"), label="test"))
-    assert record is not None
-    return scenario, float(record["lower_bound_s"]), swarm_problem(scenario)
+from .test_swarm_by_type_passes import _assigned
 
 
 @pytest.fixture(scope="module")
