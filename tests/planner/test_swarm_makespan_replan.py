@@ -19,15 +19,20 @@ from proxplan.verify import verify_plan
 HORIZON_MARGIN_STEPS = 100  # 5 s at the grid's 0.05 s, as the swarm layer's own horizon margin
 
 
-@pytest.fixture(scope="module")
-def planned():
-    sc = scenario_from_dict(grid_reshuffle(16), label="test scenario")
-    timed, info = swarm_timed(sc, SwarmOptions(workers=1, reserve_starts=True, makespan_repair=False))
+def searched_before_repair(doc: dict):
+    """(problem, the swarm layer's searched tracks before the makespan repair, horizon steps) of ``doc``."""
+    sc = scenario_from_dict(doc, label="test scenario")
+    _, info = swarm_timed(sc, SwarmOptions(workers=1, reserve_starts=True, makespan_repair=False))
     hand = info.hand_on
     assert hand is not None
     tracks = list(hand.searched.tracks)
     horizon = max(t.arrival_step for t in tracks) + HORIZON_MARGIN_STEPS
     return hand.problem, tracks, horizon
+
+
+@pytest.fixture(scope="module")
+def planned():
+    return searched_before_repair(grid_reshuffle(16))
 
 
 def _latest(tracks, k):

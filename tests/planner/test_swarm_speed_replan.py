@@ -12,26 +12,18 @@ import hashlib
 import numpy as np
 import pytest
 
-from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import LAYOUTS
-from proxplan.planner.swarm import SwarmOptions, swarm_timed
 from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.makespan import replan
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.priority import plan_one
 
-HORIZON_MARGIN_STEPS = 100  # 5 s at the grid's 0.05 s, as the swarm layer's own horizon margin
+from .test_swarm_makespan_replan import searched_before_repair
 
 
 @pytest.fixture(scope="module")
 def planned():
-    sc = scenario_from_dict(LAYOUTS["pillar"](16), label="test scenario")
-    _, info = swarm_timed(sc, SwarmOptions(workers=1, reserve_starts=True, makespan_repair=False))
-    hand = info.hand_on
-    assert hand is not None
-    tracks = list(hand.searched.tracks)
-    horizon = max(t.arrival_step for t in tracks) + HORIZON_MARGIN_STEPS
-    return hand.problem, tracks, horizon
+    return searched_before_repair(LAYOUTS["pillar"](16))
 
 
 def _digest(track) -> str | None:

@@ -10,57 +10,21 @@ import dataclasses
 
 import numpy as np
 
-from proxplan.physics import BUILTIN_VEHICLES
-from proxplan.planfile import Plan, VehicleTrajectory, scenario_from_dict
 from proxplan.verify import checks, verify_plan, verify_with_deflections
 from proxplan.verify.memo import VerifyMemo, plan_key
 
-DT = 0.05
+from . import test_verify as hand_made
+
+LOW_START_M, LOW_GOAL_M = (-1.5, 0.0, 0.8), (1.5, 0.0, 0.8)
 
 
 def _scenario():
-    return scenario_from_dict(
-        {
-            "name": "hand-made",
-            "workspace": {"min": [-3, -3, 0], "max": [3, 3, 3]},
-            "limits": {"authority_fraction": 0.15, "min_separation_m": 0.3},
-            "vehicles": {
-                "top": {"type": "large-quad", "start": [0, 0, 2.0], "hover": True},
-                "low": {"type": "small-quad", "start": [-1.5, 0, 0.8], "goal": [1.5, 0, 0.8], "max_jerk_mps3": 15},
-            },
-        }
-    )
+    return hand_made._scenario(LOW_START_M, LOW_GOAL_M)
 
 
 def _plan(scenario, duration_s=3.0, total_s=4.0):
     """The small quad on a cosine line under the hovering large quad (its jet reaches it)."""
-    t = np.arange(0.0, total_s + DT / 2, DT)
-    u = np.clip(t / duration_s, 0.0, 1.0)
-    s = 0.5 - 0.5 * np.cos(np.pi * u)
-    ds = np.where(u < 1, 0.5 * np.pi / duration_s * np.sin(np.pi * u), 0.0)
-    dds = np.where(u < 1, 0.5 * (np.pi / duration_s) ** 2 * np.cos(np.pi * u), 0.0)
-    p0, p1 = scenario.vehicles["low"].start_m, scenario.vehicles["low"].goal_m
-    d = p1 - p0
-    top = scenario.vehicles["top"].start_m
-    z = np.zeros((t.size, 3))
-    return Plan(
-        scenario=scenario.name,
-        dt_s=DT,
-        vehicles={
-            "top": VehicleTrajectory(
-                "top", "large-quad", BUILTIN_VEHICLES["large-quad"], t, np.repeat(top[None], t.size, axis=0), z, z
-            ),
-            "low": VehicleTrajectory(
-                "low",
-                "small-quad",
-                BUILTIN_VEHICLES["small-quad"],
-                t,
-                p0 + s[:, None] * d,
-                ds[:, None] * d,
-                dds[:, None] * d,
-            ),
-        },
-    )
+    return hand_made._plan(scenario, hand_made._line(LOW_START_M, LOW_GOAL_M, duration_s, total_s=total_s))
 
 
 def _same(a, b) -> bool:
