@@ -68,14 +68,15 @@ class LevelHandOn:
 @dataclass(frozen=True)
 class GiveUpHandOn:
     """The plans made where prioritised planning gave up, before re-timing (:class:`SwarmHandOn`):
-    the lattice plan, and the stacked plan's stack and levels (their re-timing is inside the stacked
-    plan, so re-timing again re-times each level and joins them again). Where the stacked plan was
-    made beside a prioritised plan (fixed goals, round 24B), ``lattice`` holds that prioritised plan
-    (its ``stage`` says which)."""
+    the plan the stacked plan was weighed against (``rival``: the lattice plan, or, where the stacked plan
+    was made beside a prioritised plan (fixed goals, round 24B; ``beside_prioritised``), that prioritised
+    plan), and the stacked plan's stack and levels (their re-timing is inside the stacked plan, so
+    re-timing again re-times each level and joins them again)."""
 
-    lattice: Stage
+    rival: Stage
     stack: Levels | None  # None: no stack fits the box, or no stacked plan tried
     levels: tuple[LevelHandOn, ...] | None  # bottom first; None where no stacked plan was made
+    beside_prioritised: bool = False  # rival is a prioritised plan that was found, not the lattice plan
 
 
 @dataclass(frozen=True)

@@ -282,10 +282,10 @@ def _retimed_again(
                 return [by[a] for a in range(level.n_agents)], searched.stage, rec.planned
 
             stacked = join_levels(problem, give_up.stack, extra, plan_level)
-        if give_up.lattice.stage == "lattice":
-            found = gave_up(give_up.lattice, stacked, opts, extra)
-        else:  # the stacked plan made beside the prioritised plan
-            found = stacked_beside(give_up.lattice, stacked, extra)
+        if give_up.beside_prioritised:
+            found = stacked_beside(give_up.rival, stacked, extra)
+        else:
+            found = gave_up(give_up.rival, stacked, opts, extra)
     searched = found
     by_agent, retiming = _retime_stage(
         problem, found, stage_makespan(found), opts, progress=progress, deadline=deadline
@@ -386,7 +386,7 @@ def _plan(
         beside: list[LevelHandOn] = []
         planner = _level_planner(opts, assigned, beside, progress=progress, deadline=deadline)
         stacked = join_levels(problem, stack, extra, planner)
-        give_up = GiveUpHandOn(found, stack, tuple(beside) if stacked is not None else None)
+        give_up = GiveUpHandOn(found, stack, tuple(beside) if stacked is not None else None, beside_prioritised=True)
         found = stacked_beside(found, stacked, extra)
     if found is None:
         if progress:
