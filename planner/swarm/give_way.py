@@ -59,5 +59,6 @@ def yielding_candidate(
         said.append(f"{label}: {makespan:.2f} s ({got.note})")
         if best is None or makespan < max(tr.arrival_s for tr in best.tracks):
             best = Stage(got.stage.tracks, got.stage.stage, f"{got.note}, {label}", got.stage.routes)
-    extra["yielding"] = "; ".join(said)
+    before = extra.get("yielding")  # an earlier attempt's record (plan._plan: within the enough factor first)
+    extra["yielding"] = "; ".join(([before] if before else []) + said)
     return best

@@ -357,12 +357,25 @@ def _plan(
     pre_retimed: tuple[dict[int, GridTrack], RetimeInfo] | None = None  # ``found`` re-timed, where already
     found = straight_stage(problem) if not conflicts else None
     straight = found is not None
+    early = None  # interchangeable goals: a plan giving way within enough_factor of the bound (round 25S)
+    if found is None and assigned and opts.prioritized and opts.enough_factor is not None and not level:
+        early = yielding_candidate(
+            problem,
+            horizon_steps(lower_bound),
+            extra,
+            shorter_than_s=opts.enough_factor * lower_bound,
+            pairs=conflicts,
+            together=opts.pass_together,
+        )
+        found = early
+        if early is None:  # said again below, after the plan in hand
+            extra["yielding"] = f"within {opts.enough_factor:g}x the bound, before prioritised planning: {extra['yielding']}"
     if found is None and opts.prioritized:
         kept = kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         found = prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         if kept is not None and (found is None or stage_makespan(kept) < stage_makespan(found)):
             found = kept
-    if assigned and conflicts and opts.prioritized:  # interchangeable goals: one vehicle of a pair yields (round 20S)
+    if assigned and conflicts and opts.prioritized and early is None:  # interchangeable goals: one vehicle of a pair yields (round 20S)
         in_hand = None if found is None else stage_makespan(found)
         together = opts.pass_together and not level
         yielded = yielding_candidate(
