@@ -256,6 +256,19 @@ def conflict_free(problem: SwarmProblem, jm: JointMove) -> bool:
     return all(not occ.conflicting_agents(tr) for tr in tracks)
 
 
+def _options(problem: SwarmProblem, members: tuple[int, ...]) -> list[JointMove]:
+    """:func:`joint_moves` of the component ``members`` (unchecked), asked once per problem: a function
+    of the problem alone, kept in ``problem.static_memo`` (the stage runs twice where goals were assigned,
+    before and after prioritised planning; round 25S)."""
+    return problem.static_memo.get(("joint moves", members), lambda: joint_moves(problem, members, checked=False))
+
+
+def _free(problem: SwarmProblem, jm: JointMove) -> bool:
+    """:func:`conflict_free` of ``jm``, asked once per problem (kept in ``problem.static_memo`` under its
+    members and label, unique among a component's joint moves; 30 % of the stage's CPU on grid-256 by type)."""
+    return problem.static_memo.get(("joint move free", jm.members, jm.label), lambda: conflict_free(problem, jm))
+
+
 def _first_true(mask: np.ndarray) -> int:
     hit = np.flatnonzero(mask)
     return int(hit[0]) if hit.size else mask.size
@@ -291,10 +304,10 @@ def place_joint(occ: Occupancy, jm: JointMove, *, arrive_by: int | None = None) 
 
 
 def _place_component(
-    occ: Occupancy, problem: SwarmProblem, options: list[JointMove], arrive_by: int | None, checked: dict[int, bool]
+    occ: Occupancy, problem: SwarmProblem, options: list[JointMove], arrive_by: int | None
 ) -> list[GridTrack] | None:
     """The earliest-arriving placement over the joint moves ``options`` (their tracks) that are
-    conflict-free among themselves (asked once per joint move, kept in ``checked`` by its id), or None."""
+    conflict-free among themselves (:func:`_free`), or None."""
     best: tuple[int, list[GridTrack]] | None = None
     for jm in options:
         if best is not None and jm.steps >= best[0]:
@@ -303,9 +316,7 @@ def _place_component(
         d = place_joint(occ, jm, arrive_by=bound)
         if d is None or (best is not None and d + jm.steps >= best[0]):
             continue
-        if id(jm) not in checked:
-            checked[id(jm)] = conflict_free(problem, jm)
-        if checked[id(jm)]:
+        if _free(problem, jm):
             best = (d + jm.steps, jm.tracks(problem, d))
     return None if best is None else best[1]
 
@@ -328,12 +339,10 @@ def passing_stage(
         for c in conflict_components([(i, j) for i, j in pairs if i != j and not {i, j} & through])
         if any(not problem.pinned[a] for a in c)
     ]
-    options = {c: joint_moves(problem, c, checked=False) for c in comps}
-    checked: dict[int, bool] = {}  # id of a joint move tried: conflict-free among its members
+    options = {c: _options(problem, c) for c in comps}
     for c in comps:  # a component without any joint move is timed one by one from the start
         for jm in options[c]:
-            checked[id(jm)] = conflict_free(problem, jm)
-            if checked[id(jm)]:
+            if _free(problem, jm):
                 break
         else:
             options[c] = []
@@ -355,7 +364,7 @@ def passing_stage(
     kept: tuple[dict[int, GridTrack], set[int], set[int], int, int] | None = None
     while True:
         tracks, stuck, delayed = _place_all(
-            problem, horizon_steps, comps, options, late, first, arrive_by, length, checked
+            problem, horizon_steps, comps, options, late, first, arrive_by, length
         )
         if tracks is not None:
             if kept is None or _makespan(tracks) < _makespan(kept[0]):
@@ -412,7 +421,7 @@ def passing_stage(
             break
         first = [u for u in first if u != raised] + [raised]
         rounds += 1
-        tracks, *_ = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length, checked)
+        tracks, *_ = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
         if tracks is None or _makespan(tracks) >= _makespan(kept[0]):
             break
         kept = (tracks, set(late), set(in_comp), len(comps), rounds)
@@ -445,10 +454,9 @@ def _place_all(
     first: list[tuple[int, ...] | int],
     arrive_by: int | None,
     length: np.ndarray,
-    checked: dict[int, bool],
 ) -> tuple[dict[int, GridTrack] | None, list[tuple[tuple[int, ...] | int, set[int]]], set[int]]:
     """One placement (see module; ``first``: components and late vehicles placed before the others, the
-    last raised first; ``checked``: as :func:`_place_component`): (the tracks by agent, or None where some unit could not be placed; each such
+    last raised first): (the tracks by agent, or None where some unit could not be placed; each such
     component or late agent with the agents hemming it in, in the order tried; the straight-flying
     vehicles that made a component wait, i.e. depart after step 0 or take a longer joint move than its
     shortest). A unit that cannot be placed is left out and the others placed, so one round finds them all."""
@@ -464,7 +472,7 @@ def _place_all(
     stuck: list[tuple[tuple[int, ...] | int, set[int]]] = []
     for u in raised + rest_comps + rest_late:
         if isinstance(u, tuple):
-            got = _place_component(occ, problem, options[u], arrive_by, checked)
+            got = _place_component(occ, problem, options[u], arrive_by)
             if got is None or max(tr.arrival_step for tr in got) > options[u][0].steps:
                 hem: set[int] = set()
                 for tr in options[u][0].tracks(problem, 0):
