@@ -6,7 +6,8 @@ For each named layout of ``benchmarks/bench_swarm.py`` at N vehicles: the assign
 the swarm layer's plan (``swarm_timed``) and, among the vehicles arriving after 1.3 B, how many are in
 a straight-step conflict, fly a route of more than one move (a detour) and leave late. Then the
 certified single-vehicle bound round the obstacles under the assignment (does B route round them?) and
-the lines through an obstacle each flown alone round it (``yielding.around_obstacle``; round 24S). Then the
+the lines through an obstacle each flown alone round it (``yielding.around_obstacle``; round 24S), and what the
+stages giving way (``SwarmInfo.yielding``) and prioritised planning gave or gave up on (round 25S). Then the
 detour estimate of the worst conflicting pair: for each pair, the cheaper of the two vehicles' two-leg
 rest-to-rest detours through a corner ``reach_xy_m`` aside at mid-line (jerk-limited rest-to-rest
 time of each leg, ``timing.profile.rest_to_rest``), the largest over the pairs, over B. With
@@ -196,6 +197,8 @@ def main() -> int:
             f"{sum(x[2] for x in late)}; worst pair's cheaper detour {worst / bound:.2f} B",
             flush=True,
         )
+        # what the stages giving way and prioritised planning gave or gave up on (round 25S)
+        print(f"    giving way: {info.yielding}\n    prioritised: {info.prioritised}", flush=True)
         for k in args.milp:
             t1 = time.process_time()
             verdict = _fewest_conflicts(problem, k * bound, args.milp_time)

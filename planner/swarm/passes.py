@@ -363,9 +363,7 @@ def passing_stage(
     # the earliest plan so far: its tracks, late vehicles, vehicles in components, components, round
     kept: tuple[dict[int, GridTrack], set[int], set[int], int, int] | None = None
     while True:
-        tracks, stuck, delayed = _place_all(
-            problem, horizon_steps, comps, options, late, first, arrive_by, length
-        )
+        tracks, stuck, delayed = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
         if tracks is not None:
             if kept is None or _makespan(tracks) < _makespan(kept[0]):
                 kept = (tracks, set(late), set(in_comp), len(comps), rounds)

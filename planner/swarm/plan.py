@@ -18,7 +18,10 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    re-timed (4), one more pass runs, in its order and hold, with both wavefronts per vehicle (the
    earlier arrival kept), on what is left of the count budget; it is re-timed too and replaces that
    plan only when it is shorter: a vehicle's earlier arrival can lengthen the whole plan. None where
-   prioritised planning gave up.
+   prioritised planning gave up. Where goals were assigned, the vehicles giving way
+   (:mod:`proxplan.planner.swarm.give_way`: passing together, yielding) are tried first, asked for a plan
+   within ``SwarmOptions.enough_factor`` of the lower bound; where they give one, prioritised planning is
+   not run (round 25S); else they are asked again after it, for a plan shorter than its plan.
 3. *Joint coordination*, when prioritised planning gives up (:func:`~proxplan.planner.swarm.complete_stages.lattice_stage`): LaCAM with
    PIBT on the lattice of the levels in use, long straight moves, synchronous conflicts checked
    exactly (:mod:`proxplan.planner.swarm.lacam`, a count of configurations bounds it), flown in
@@ -369,13 +372,15 @@ def _plan(
         )
         found = early
         if early is None:  # said again below, after the plan in hand
-            extra["yielding"] = f"within {opts.enough_factor:g}x the bound, before prioritised planning: {extra['yielding']}"
+            extra["yielding"] = (
+                f"within {opts.enough_factor:g}x the bound, before prioritised planning: {extra['yielding']}"
+            )
     if found is None and opts.prioritized:
         kept = kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         found = prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         if kept is not None and (found is None or stage_makespan(kept) < stage_makespan(found)):
             found = kept
-    if assigned and conflicts and opts.prioritized and early is None:  # interchangeable goals: one vehicle of a pair yields (round 20S)
+    if assigned and conflicts and opts.prioritized and early is None:  # one vehicle of a pair yields (round 20S)
         in_hand = None if found is None else stage_makespan(found)
         together = opts.pass_together and not level
         yielded = yielding_candidate(
