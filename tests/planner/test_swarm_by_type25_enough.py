@@ -65,3 +65,21 @@ def test_a_factor_no_plan_can_meet_leaves_prioritised_planning_to_run_and_says_s
     early = info.yielding.split("; shorter line yields")[0]
     assert "gave up" in early
     assert verify_plan(assemble_plan(scenario, paths, method="swarm", notes=[]), scenario) == []
+
+
+def test_joint_moves_are_told_apart_by_their_labels():
+    """The passing stage keeps each joint move's conflict-free verdict under its members and label
+    (``passes._free``, in ``problem.static_memo``): within a component no two joint moves share a label, and
+    the kept verdict is the one computed afresh."""
+    from proxplan.planner.swarm.passes import _free, conflict_components, conflict_free, joint_moves
+    from proxplan.planner.swarm.straight import straight_step_conflicts
+
+    _, _, problem = _assigned("grid", 16)
+    comps = conflict_components([(i, j) for i, j in straight_step_conflicts(problem) if i != j])
+    assert comps
+    for comp in comps:
+        moves = joint_moves(problem, comp, checked=False)
+        labels = [jm.label for jm in moves]
+        assert len(labels) == len(set(labels))
+        for jm in moves[:4]:
+            assert _free(problem, jm) == conflict_free(problem, jm)
