@@ -58,6 +58,7 @@ from proxplan.planfile import Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm.complete_stages import (
+    BesideLevels,
     gave_up,
     join_levels,
     lattice_stage,
@@ -385,9 +386,14 @@ def _plan(
         stack = stack_levels(problem, stacking())
         beside: list[LevelHandOn] = []
         planner = _level_planner(opts, assigned, beside, progress=progress, deadline=deadline)
-        stacked = join_levels(problem, stack, extra, planner)
-        give_up = GiveUpHandOn(found, stack, tuple(beside) if stacked is not None else None, beside_prioritised=True)
-        found = stacked_beside(found, stacked, extra)
+        bounded = BesideLevels(problem, stack, stage_makespan(found), planner)  # only while it can be shorter (25A)
+        if bounded.can_be_shorter():  # else no level depends on the options: nothing handed on (swarm_again)
+            stacked = join_levels(problem, stack, extra, bounded)
+            give_up = GiveUpHandOn(
+                found, stack, tuple(beside) if stacked is not None else None, beside_prioritised=True
+            )
+            found = stacked_beside(found, stacked, extra)
+        extra["stacked"] = bounded.stopped or extra["stacked"]
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
