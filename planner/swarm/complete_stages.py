@@ -155,7 +155,8 @@ LevelPlanner = Callable[[SwarmProblem], tuple[list[GridTrack], SwarmStage, int]]
 class BesideLevels:
     """The planner of the stacked plan's levels where that plan is made beside a prioritised plan of
     makespan ``rival_s`` (s, before re-timing; :func:`stacked_beside` keeps the stacked plan only where
-    strictly shorter): each level planned by ``plan_level`` only while some stacked plan can still be
+    strictly shorter), or beside the lattice plan (:func:`gave_up`, the same rule; ``rival``: which):
+    each level planned by ``plan_level`` only while some stacked plan can still be
     shorter (:class:`~proxplan.planner.swarm.stacked.StackedBound` on ``levels``, with the makespans of
     the levels planned so far), else None (no later level is planned:
     :func:`~proxplan.planner.swarm.stacked.stacked_tracks`), said in ``stopped``. Exact: a plan stopped
@@ -166,6 +167,7 @@ class BesideLevels:
     levels: Levels | None
     rival_s: float
     plan_level: LevelPlanner
+    rival: str = "the prioritised plan"  # what the stacked plan is weighed against, said in ``stopped``
     planned: int = 0  # levels planned
     planned_steps: int = 0  # the longest of their plans, grid steps
     stopped: str | None = None  # why no more levels were planned, None: not stopped
@@ -185,7 +187,7 @@ class BesideLevels:
         if least_s < self.rival_s:
             return True
         self.stopped = (
-            f"not made beside the prioritised plan ({self.rival_s:.2f} s): after {self.planned} of "
+            f"not made beside {self.rival} ({self.rival_s:.2f} s): after {self.planned} of "
             f"{len(self.levels.groups)} levels planned, no stacked plan on levels "
             f"{'/'.join(f'{z:.2f}' for z in self.levels.heights_m)} m arrives before {least_s:.2f} s"
         )

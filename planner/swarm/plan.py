@@ -48,6 +48,7 @@ of any vehicle) and the makespans after each stage. The knobs of every stage are
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -407,13 +408,20 @@ def _plan(
         stack = stack_levels(problem, stacking()) if opts.levels and stacking is not None else None
         levels: list[LevelHandOn] = []
         stacked = None
+        bound_first = False  # no stacked plan could be shorter, whatever its levels' plans (nothing handed on)
         if opts.levels and stacking is not None:
             planner = _level_planner(opts, assigned, levels, progress=progress, deadline=deadline)
-            stacked = join_levels(problem, stack, extra, planner)
+            rival_s = math.inf if lattice is None else stage_makespan(lattice)
+            bounded = BesideLevels(problem, stack, rival_s, planner, rival="the lattice plan")  # round 25A
+            bound_first = not bounded.can_be_shorter()
+            if not bound_first:
+                stacked = join_levels(problem, stack, extra, bounded)
+            extra["stacked"] = bounded.stopped or extra["stacked"]
         if lattice is None:
             found = stacked_without_lattice(stacked, lacam_not_found, opts, extra)
         else:
-            give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
+            handed = None if bound_first else stack  # swarm_again: the lattice plan again, as here
+            give_up = GiveUpHandOn(lattice, handed, tuple(levels) if stacked is not None else None)
             found = gave_up(lattice, stacked, opts, extra)
     searched = found
     initial = max(tr.arrival_s for tr in found.tracks)
