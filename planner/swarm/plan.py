@@ -29,7 +29,9 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    planning in the first order and in the goal block filled from its far side,
    :mod:`proxplan.planner.swarm.fill_order`; the shorter level kept); the shorter kept. With fixed
    goals the stacked plan is also made beside a prioritised plan (2), and kept where it is shorter
-   before re-timing (:func:`~proxplan.planner.swarm.complete_stages.stacked_beside`; round 24B).
+   before re-timing (:func:`~proxplan.planner.swarm.complete_stages.stacked_beside`; round 24B). Beside
+   either plan its levels are planned only while it can still be shorter
+   (:class:`~proxplan.planner.swarm.complete_stages.BesideLevels`; round 25A).
 4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
    every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
    conflict-free.
