@@ -74,7 +74,7 @@ class GiveUpHandOn:
     re-timing again re-times each level and joins them again)."""
 
     rival: Stage
-    stack: Levels | None  # None: no stack fits the box, or no stacked plan tried
+    stack: Levels | None  # None: no stack fits the box, no stacked plan tried, or none could be shorter (25A)
     levels: tuple[LevelHandOn, ...] | None  # bottom first; None where no stacked plan was made
     beside_prioritised: bool = False  # rival is a prioritised plan that was found, not the lattice plan
 

@@ -32,7 +32,9 @@ more): coordinate jointly on a lattice, fly in continuous time. One function per
    planning in the first order and in the goal block filled from its far side,
    :mod:`proxplan.planner.swarm.fill_order`; the shorter level kept); the shorter kept. With fixed
    goals the stacked plan is also made beside a prioritised plan (2), and kept where it is shorter
-   before re-timing (:func:`~proxplan.planner.swarm.complete_stages.stacked_beside`; round 24B).
+   before re-timing (:func:`~proxplan.planner.swarm.complete_stages.stacked_beside`; round 24B). Beside
+   either plan its levels are planned only while it can still be shorter
+   (:class:`~proxplan.planner.swarm.complete_stages.BesideLevels`; round 25A).
 4. *Re-timing* (:func:`_retime_stage`): Gauss-Seidel passes (:mod:`proxplan.planner.swarm.retime`),
    every vehicle against the others' tracks in a space-time neighbourhood; never worse, always
    conflict-free.
@@ -51,6 +53,7 @@ of any vehicle) and the makespans after each stage. The knobs of every stage are
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -61,6 +64,7 @@ from proxplan.planfile import Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm.complete_stages import (
+    BesideLevels,
     gave_up,
     join_levels,
     lattice_stage,
@@ -403,9 +407,14 @@ def _plan(
         stack = stack_levels(problem, stacking())
         beside: list[LevelHandOn] = []
         planner = _level_planner(opts, assigned, beside, progress=progress, deadline=deadline)
-        stacked = join_levels(problem, stack, extra, planner)
-        give_up = GiveUpHandOn(found, stack, tuple(beside) if stacked is not None else None, beside_prioritised=True)
-        found = stacked_beside(found, stacked, extra)
+        bounded = BesideLevels(problem, stack, stage_makespan(found), planner)  # only while it can be shorter (25A)
+        if bounded.can_be_shorter():  # else no level depends on the options: nothing handed on (swarm_again)
+            stacked = join_levels(problem, stack, extra, bounded)
+            give_up = GiveUpHandOn(
+                found, stack, tuple(beside) if stacked is not None else None, beside_prioritised=True
+            )
+            found = stacked_beside(found, stacked, extra)
+        extra["stacked"] = bounded.stopped or extra["stacked"]
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
@@ -419,13 +428,20 @@ def _plan(
         stack = stack_levels(problem, stacking()) if opts.levels and stacking is not None else None
         levels: list[LevelHandOn] = []
         stacked = None
+        bound_first = False  # no stacked plan could be shorter, whatever its levels' plans (nothing handed on)
         if opts.levels and stacking is not None:
             planner = _level_planner(opts, assigned, levels, progress=progress, deadline=deadline)
-            stacked = join_levels(problem, stack, extra, planner)
+            rival_s = math.inf if lattice is None else stage_makespan(lattice)
+            bounded = BesideLevels(problem, stack, rival_s, planner, rival="the lattice plan")  # round 25A
+            bound_first = not bounded.can_be_shorter()
+            if not bound_first:
+                stacked = join_levels(problem, stack, extra, bounded)
+            extra["stacked"] = bounded.stopped or extra["stacked"]
         if lattice is None:
             found = stacked_without_lattice(stacked, lacam_not_found, opts, extra)
         else:
-            give_up = GiveUpHandOn(lattice, stack, tuple(levels) if stacked is not None else None)
+            handed = None if bound_first else stack  # swarm_again: the lattice plan again, as here
+            give_up = GiveUpHandOn(lattice, handed, tuple(levels) if stacked is not None else None)
             found = gave_up(lattice, stacked, opts, extra)
     searched = found
     initial = max(tr.arrival_s for tr in found.tracks)

@@ -32,9 +32,10 @@ from proxplan.planner.swarm.levels import Levels, levelled_endpoints, transition
 from proxplan.planner.swarm.lockstep import lockstep_tracks_at
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.sync import SyncTable
-from proxplan.planner.swarm.tracks import GridTrack
+from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
+from proxplan.planner.timing.profile import rest_to_rest
 
-__all__ = ["StackedPlan", "stacked_tracks", "types_subproblem"]
+__all__ = ["StackedPlan", "StackedBound", "stacked_bound", "stacked_tracks", "types_subproblem"]
 
 # a level plan's samples must stay this close to the level's height, m (whole-millimetre positions)
 LEVEL_TOLERANCE_M = 1e-3
@@ -78,14 +79,13 @@ def types_subproblem(problem: SwarmProblem, agents: list[int]) -> SwarmProblem:
     )
 
 
-def stacked_tracks(
-    problem: SwarmProblem,
-    levels: Levels,
-    plan_level: Callable[[SwarmProblem], list[GridTrack] | None],
-) -> tuple[StackedPlan | None, str]:
-    """The stacked plan of ``problem`` on ``levels`` (see module) and what it did; None (with why)
-    where the vertical steps cannot be found, a level's plan gives up (``plan_level`` None) or
-    leaves its level."""
+def _vertical(
+    problem: SwarmProblem, levels: Levels
+) -> tuple[np.ndarray, list[tuple[int, ...]], list[tuple[int, ...]], list[GridTrack], list[GridTrack]] | None:
+    """The vertical phases of the stacked plan (1 and 3 of the module): the points (starts, starts on
+    the levels, goals on the levels, goals; (4 A, 3), m), the configurations of the steps down and up
+    (indices into those points) and their lock-step tracks (each phase from its own step 0); None
+    where the vertical steps cannot be found."""
     A = problem.n_agents
     lev_s, lev_g = levelled_endpoints(problem, levels)
     pos = np.vstack([problem.starts_m, lev_s, lev_g, problem.goals_m])
@@ -95,8 +95,69 @@ def stacked_tracks(
     up = transition_steps(sync.conflict, tuple(range(2 * A, 3 * A)), tuple(range(3 * A, 4 * A)))
     sync.clear()  # its verdicts are not needed while the levels are planned (round 17A: held memory)
     if down is None or up is None:
-        return None, "no conflict-free vertical steps to the levels"
+        return None
     down_tracks = lockstep_tracks_at(problem, pos, [starts, *down])
+    up_tracks = lockstep_tracks_at(problem, pos, [tuple(range(2 * A, 3 * A)), *up])
+    return pos, down, up, down_tracks, up_tracks
+
+
+@dataclass(frozen=True)
+class StackedBound:
+    """What bounds the makespan of every stacked plan of a problem on its levels, in grid steps
+    (:func:`stacked_bound`): the steps down end at ``down_steps``; every level's plan starts there and
+    the steps up start once the last has ended, L steps later; they end ``up_steps`` after that (their
+    lock-step tracks' latest arrival, 0 where none moves). So the plan's makespan is down + L + up
+    steps, and L is at least ``alone_steps``: a level's plan carries each of its vehicles from its start
+    to its goal on the level, from rest to rest, so no earlier than its time-optimal rest-to-rest profile
+    over that straight distance (:func:`~proxplan.planner.timing.profile.rest_to_rest`, in grid steps:
+    nothing arrives earlier, as :func:`~proxplan.planner.swarm.makespan.shorten_makespan` counts
+    ``alone``), and at least the makespan of any level already planned."""
+
+    down_steps: int
+    alone_steps: int
+    up_steps: int
+
+    def steps(self, planned_steps: int = 0) -> int:
+        """The least makespan (grid steps) of a stacked plan one of whose levels' plans takes
+        ``planned_steps``."""
+        return self.down_steps + max(self.alone_steps, planned_steps) + self.up_steps
+
+
+def stacked_bound(problem: SwarmProblem, levels: Levels) -> StackedBound | None:
+    """The :class:`StackedBound` of every stacked plan of ``problem`` on ``levels`` (:func:`stacked_tracks`,
+    whatever its levels' plans), or None where it makes none (no vertical steps). The vertical phases are
+    those :func:`stacked_tracks` flies (the same function). Round 25A: the stacked plan made beside a
+    prioritised plan only while it can be shorter."""
+    vertical = _vertical(problem, levels)
+    if vertical is None:
+        return None
+    _, _, _, down_tracks, up_tracks = vertical
+    lev_s, lev_g = levelled_endpoints(problem, levels)
+    alone = max(
+        rest_to_rest(float(np.linalg.norm(lev_g[a] - lev_s[a])), problem.limits[a], GRID_DT_S).steps
+        for a in range(problem.n_agents)
+    )
+    return StackedBound(
+        down_steps=max(tr.arrival_step for tr in down_tracks),
+        alone_steps=alone,
+        up_steps=max(tr.arrival_step for tr in up_tracks),
+    )
+
+
+def stacked_tracks(
+    problem: SwarmProblem,
+    levels: Levels,
+    plan_level: Callable[[SwarmProblem], list[GridTrack] | None],
+) -> tuple[StackedPlan | None, str]:
+    """The stacked plan of ``problem`` on ``levels`` (see module) and what it did; None (with why)
+    where the vertical steps cannot be found, a level's plan gives up or is not made (``plan_level``
+    None; no later level is planned) or leaves its level."""
+    A = problem.n_agents
+    lev_s, lev_g = levelled_endpoints(problem, levels)
+    vertical = _vertical(problem, levels)
+    if vertical is None:
+        return None, "no conflict-free vertical steps to the levels"
+    pos, down, up, down_tracks, up_tracks = vertical
     t_down = max(tr.arrival_step for tr in down_tracks)
     on_levels = replace(problem, starts_m=lev_s, goals_m=lev_g)
     level_tracks: dict[int, GridTrack] = {}
@@ -112,7 +173,6 @@ def stacked_tracks(
             level_tracks[agents[k]] = tr
         makespans.append(max(tr.arrival_s for tr in got))
     t_up = t_down + max(tr.arrival_step for tr in level_tracks.values())
-    up_tracks = lockstep_tracks_at(problem, pos, [tuple(range(2 * A, 3 * A)), *up])
     tracks, chains = [], []
     for a in range(A):
         lv = level_tracks[a]

@@ -21,6 +21,9 @@ World frame, z up, m; tracks on the swarm grid (:data:`~proxplan.planner.swarm.t
 
 from __future__ import annotations
 
+import hashlib
+import io
+import pickle
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
@@ -179,13 +182,39 @@ def near_agents(
     return targets, {agents[k] for k in np.flatnonzero(sources).tolist()} - changed - targets, differs
 
 
+def _sub_plan_key(keep: list[int], by_agent: Mapping[int, GridTrack], end_step: int, looped: list[int]) -> bytes:
+    """What :meth:`VerifyGuard.around`'s verdict depends on (its scenario aside, the guard's own): the
+    agents of the sub-plan, each one's track as its timed path is built from it (start and moves:
+    :meth:`GridTrack.timed_path`), the last grid step checked and the agents whose loops run. Moves
+    pickle as the arguments they are rebuilt from, deterministically (``Profile.__reduce__``,
+    ``RunMove.__reduce__``), so equal keys give equal sub-plans; tracks equal but pickled otherwise
+    only miss the memo (round 25A: corridor-64 asked 3 of its 23 sub-plans twice)."""
+    tracks = [(a, np.asarray(by_agent[a].start_m, dtype=float), list(by_agent[a].moves)) for a in keep]
+    out = io.BytesIO()
+    pickler = _KeyPickler(out, protocol=pickle.HIGHEST_PROTOCOL)
+    pickler.fast = True  # no memo: an object held twice is written twice, as two equal objects are
+    pickler.dump((tracks, end_step, looped))
+    return hashlib.sha256(out.getvalue()).digest()
+
+
+class _KeyPickler(pickle.Pickler):
+    """Pickles arrays by their dtype, shape and values only (not how they are held in memory: an array
+    read back from a pickle pickles otherwise by default)."""
+
+    def reducer_override(self, obj):
+        if isinstance(obj, np.ndarray):
+            return np.ndarray, (obj.shape, obj.dtype.str, np.ascontiguousarray(obj).tobytes())
+        return NotImplemented
+
+
 @dataclass
 class VerifyGuard:
     """Whether tracks of ``problem`` (agent -> track) pass the verifier on ``scenario`` as the pipeline
     will verify them (the unfreeze steps of ``original`` applied first, :mod:`proxplan.planner.swarm.frozen`):
     called, about the whole plan (the guard of the makespan repair on the stacked plan); :meth:`around`,
     about the vehicles within reach of changed tracks only (see module). Counts what it was asked
-    (``whole`` / ``whole_failed``, ``local`` / ``local_failed``, ``sizes``: the vehicles of each sub-plan)."""
+    (``whole`` / ``whole_failed``, ``local`` / ``local_failed``, ``sizes``: the vehicles of each sub-plan;
+    ``recalled``: the sub-plans asked again, answered by its memo of verdicts, :func:`_sub_plan_key`)."""
 
     scenario: Scenario
     problem: SwarmProblem
@@ -197,6 +226,8 @@ class VerifyGuard:
     local_failed: int = 0
     sizes: list[int] = field(default_factory=list)
     refused: int = 0
+    recalled: int = 0  # sub-plans answered by the memo of verdicts (of ``local``)
+    _verdicts: dict[bytes, bool] = field(default_factory=dict, repr=False)  # _sub_plan_key -> verdict
     _levels: dict[int, np.ndarray] | None = field(default=None, repr=False)  # type -> its levels, m
     _paths: dict[int, tuple[GridTrack, TimedPath]] = field(default_factory=dict, repr=False)
 
@@ -240,14 +271,22 @@ class VerifyGuard:
         self.local += 1
         keep = sorted(set(old) | targets | sources)
         self.sizes.append(len(keep))
+        end = int(np.flatnonzero(differs)[-1])
+        looped_agents = sorted(set(old) | targets)
+        key = _sub_plan_key(keep, by_agent, end, looped_agents)
+        known = self._verdicts.get(key)
+        if known is not None:  # the same sub-plan asked before (a neighbourhood's track planned again alike)
+            self.recalled += 1
+            self.local_failed += not known
+            return known
         names = [self.problem.names[a] for a in keep]
         sub = replace(self.scenario, vehicles={n: self.scenario.vehicles[n] for n in names})
         timed = {self.problem.names[a]: self._path(a, by_agent[a]) for a in keep}
         plan = assemble_plan(sub, timed, method="swarm", notes=[])
-        t = np.arange(0.0, np.flatnonzero(differs)[-1] * GRID_DT_S + FINE_DT_S / 2, FINE_DT_S)
+        t = np.arange(0.0, end * GRID_DT_S + FINE_DT_S / 2, FINE_DT_S)
         samples = plan_samples(plan, t)
         along = wrench_along_plan(plan, sub, t_s=t, samples=samples)
-        looped = {self.problem.names[a] for a in set(old) | targets}
+        looped = {self.problem.names[a] for a in looped_agents}
         loops = loop_along_plan(plan, sub, {n: w for n, w in along.items() if n in looped}, samples=samples)
         far = self.scenario.limits.min_separation_m  # as the verifier clips them
         deflection = {n: np.minimum(loops[n].deflection_m, far) if n in loops else np.zeros(t.size) for n in names}
@@ -255,6 +294,7 @@ class VerifyGuard:
         out += check_authority(sub, t, along, plan.t_s)
         out += check_authority_tube(plan, sub, t, samples, deflection)
         self.local_failed += bool(out)
+        self._verdicts[key] = not out
         return not out
 
     def fits(self, occ: Occupancy, track: GridTrack, old: GridTrack | None) -> bool:
