@@ -32,7 +32,8 @@ A force off the target's centre is a roll or pitch torque, so the jet kernel of 
 below kernel, the side kernel and every multi-scale kernel (:data:`BASIS_RADIALS` x :data:`BASIS_WIDTHS_L` x :data:`BASIS_DECAYS_L`,
 since stop 51) also come times the offset's horizontal components over L (``above_jet_x_1``,
 ``below_near_y_1``, ``side_g1L_e4L_x_1``, ...): which side of the target a neighbour is on (odd in the
-offset, where the kernels themselves are even).
+offset, where the kernels themselves are even); every multi-scale kernel also comes times the relative
+horizontal speed (``side_l2p5L_e1L_rel_speed_xy_mps``, :data:`BASIS_SPEED`, since stop 63).
 
 Every neighbour is seen, not only the sources above (issue 29): for a neighbour BELOW the target
 (d = -dz > 0 its depth under it) the jet and core kernels are mirrored (``below_jet_1``: the jet
@@ -182,9 +183,23 @@ where a Laplace tail would reach across the room (exp(-6) at 15 L for 2.5 L): a 
 
 
 def _basis_name(where: str, width: float, decay: float, axis: str = "", radial: str = "g") -> str:
-    """The multi-scale kernel's name; ``axis`` "x" or "y": the kernel times that offset over L; ``radial``
-    one of :data:`BASIS_RADIALS`."""
-    return f"{where}_{radial}{width:g}L_e{decay:g}L_{axis + '_' if axis else ''}1".replace(".", "p")
+    """The multi-scale kernel's name; ``axis`` "x" or "y": the kernel times that offset over L, "speed": the
+    kernel times the relative horizontal speed (:data:`BASIS_SPEED`); ``radial`` one of :data:`BASIS_RADIALS`."""
+    stem = f"{where}_{radial}{width:g}L_e{decay:g}L".replace(".", "p")
+    if axis == "speed":
+        return f"{stem}_{BASIS_SPEED}"
+    return f"{stem}_{axis + '_' if axis else ''}1"
+
+
+BASIS_SPEED = "rel_speed_xy_mps"
+"""Every multi-scale kernel also comes times the relative horizontal speed of its neighbour (m/s), named
+``<kernel>_rel_speed_xy_mps`` (since stop 63): a force that grows with how fast two vehicles pass each other
+may have any spatial shape the basis spans, not only the jet, core and near kernels' (the velocity family
+crossed with the spatial ones). Stop 62 traced a miss (docs/identify.md, stop 62, draw 22019) to a
+relative-speed force acting from neighbours above AND below, exp(-|dz| / 3 L), that only one-sided
+kernels times the speed could carry, each on half of the data; the side family's Laplace profile in the
+height difference spans such a two-sided shape. Declared as the whole cross product (every place, profile,
+width and decay), not the one shape traced."""
 
 
 for _where, _what in (
@@ -204,6 +219,9 @@ for _where, _what in (
                     FEATURE_DOCS[_basis_name(_where, _w, _d, _axis, _rad)] = (
                         f"multi-scale kernel of {_what} ({_shape}) times offset_{_axis} / L, summed"
                     )
+                FEATURE_DOCS[_basis_name(_where, _w, _d, "speed", _rad)] = (
+                    f"multi-scale kernel of {_what} ({_shape}) times the relative horizontal speed, summed"
+                )
 TIME_FEATURE_SOURCES = (
     "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
     "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
@@ -442,6 +460,7 @@ def feature_matrix(
                 f[_basis_name(where, w, d, radial=rad)] += basis
                 f[_basis_name(where, w, d, "x", rad)] += basis * off[:, 0] / size
                 f[_basis_name(where, w, d, "y", rad)] += basis * off[:, 1] / size
+                f[_basis_name(where, w, d, "speed", rad)] += basis * rel_xy
     f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):
