@@ -83,17 +83,22 @@ def test_a_line_between_the_levels_over_a_vehicle_under_a_jet_is_flagged_only_of
     assert not adds_a_height(others, far[mid], reach, np.array([HIGH_Z_M]))
 
 
+def line_case(line_y_m: float):
+    """The line between the levels at ``line_y_m`` (0: under the high Crazyflie; FAR_Y_M: aside): its scenario,
+    problem, tracks, the changed vehicle's index and whether the whole plan verifies."""
+    sc = _scenario(line_y_m)
+    problem = swarm_problem(sc)
+    tracks = _tracks(sc, problem)
+    return sc, problem, tracks, problem.names.index("mid"), _verifies(sc, problem, tracks)
+
+
 @pytest.mark.parametrize("line_y_m", [0.0, FAR_Y_M])
 def test_the_check_around_a_changed_track_agrees_with_the_verifier(line_y_m):
     """The line between the levels right under the high Crazyflie (it uses more than the authority
     fraction there: the sub-plan holds the sources above a changed track too) and far aside (it
     passes): the sub-plan's answer is the whole plan's. (Three vehicles do not break a sum alone
     here: on grid-256 the sum on v107 needed its predicted loop in the jets, stop 59 round 21A.)"""
-    sc = _scenario(line_y_m)
-    problem = swarm_problem(sc)
-    tracks = _tracks(sc, problem)
-    mid = problem.names.index("mid")
-    whole = _verifies(sc, problem, tracks)
+    sc, problem, tracks, mid, whole = line_case(line_y_m)
     guard = VerifyGuard(sc, problem, problem, ())
     assert guard.around(tracks, {mid: None}) == whole
     assert guard(tracks) == whole

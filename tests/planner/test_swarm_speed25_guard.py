@@ -10,7 +10,7 @@ from proxplan.planner.swarm.problem import swarm_problem
 from proxplan.planner.swarm.tracks import GridTrack
 from proxplan.planner.swarm.verify_guard import VerifyGuard, _sub_plan_key
 
-from .test_swarm_repair_sum import FAR_Y_M, _scenario, _tracks, _verifies
+from .test_swarm_repair_sum import FAR_Y_M, _scenario, _tracks, line_case
 
 
 @pytest.mark.parametrize("line_y_m", [0.0, FAR_Y_M])
@@ -18,11 +18,7 @@ def test_a_sub_plan_asked_again_is_answered_as_the_first_time(line_y_m: float) -
     """Under the high Crazyflie the line fails, far aside it passes (test_swarm_repair_sum): asked twice,
     and once more with the same tracks rebuilt (equal, other objects), the guard answers as the verifier
     each time, building the sub-plan once."""
-    sc = _scenario(line_y_m)
-    problem = swarm_problem(sc)
-    tracks = _tracks(sc, problem)
-    mid = problem.names.index("mid")
-    whole = _verifies(sc, problem, tracks)
+    sc, problem, tracks, mid, whole = line_case(line_y_m)
     guard = VerifyGuard(sc, problem, problem, ())
     assert guard.around(tracks, {mid: None}) == whole
     assert guard.around(tracks, {mid: None}) == whole
