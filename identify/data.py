@@ -47,9 +47,6 @@ class IdentifyOptions:
     smoothed_prediction: bool = (
         True  # predictions read through the measurement's smoothing (loading.smoothing_of_prediction)
     )
-    # Dask workers for the selections around the calibrated and the prior model (identify.two_starts): 0 or 1
-    # runs them here one after the other; the results are the same either way
-    workers: int = 0
 
 
 CEILING_BIT, FLOOR_BIT = 1, 2

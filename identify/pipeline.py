@@ -70,9 +70,8 @@ from proxplan.identify.motor_check import check_loaded
 from proxplan.identify.noise import noise_level
 from proxplan.identify.priors import STACK_SHIELDING_PRIOR
 from proxplan.identify.residuals import correlate, sample_features
-from proxplan.identify.selection import other_start_better
+from proxplan.identify.selection import other_start_better, select_and_discover
 from proxplan.identify.spread import band_errors, fit_spread
-from proxplan.identify.two_starts import SelectionJob, run_starts
 from proxplan.physics import (
     VALIDITY_FACTOR_L,
     CalibratedModel,
@@ -307,29 +306,23 @@ def run_identify(
     corr_before = _residual_analysis(subsample(fit, 20000), model)
     specs = model_specs(fit, model)
     test_eval = subsample(test, options.max_eval_samples)
-    calibrated_job = SelectionJob(fit, valid, model, specs, options, noise, test_eval, "calibrated",
-                                  None if fitted is None else fitted.thrust_scale, prior_start)  # fmt: skip
-    jobs = [calibrated_job]
+    chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval,
+                                 calibrated_thrust_scale=None if fitted is None else fitted.thrust_scale,
+                                 prior_model=prior_start)  # fmt: skip
+    laps("selection around the calibrated model")
+    other_total = None
     if calibration is not None:
         # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
         # undo it only to first order), so selection also starts from the PRIOR model (eta at its prior);
         # it wins when its kept set predicts the held-out flights better (selection.other_start_better;
-        # same samples, same units), else the calibrated start stays. The two are independent: side by
-        # side on options.workers Dask workers, the same results (identify.two_starts)
+        # same samples, same units), else the calibrated start stays
         prior = replace(base, options=replace(base.options, stack_shielding=STACK_SHIELDING_PRIOR.center))
-        jobs.append(replace(calibrated_job, reference=prior, specs=model_specs(fit, prior), start="prior",
-                            calibrated_thrust_scale=None))  # fmt: skip
-    starts = run_starts(jobs, workers=options.workers)
-    laps("selection" if len(starts) == 1 else "selection around both starts")
-    laps.add("selection around the calibrated model (own wall)", starts[0].wall_s)
-    chosen = starts[0].selection
-    other_total = None
-    if len(starts) > 1:
-        alt = starts[1].selection
-        laps.add("selection around the prior model (own wall)", starts[1].wall_s)
+        alt = select_and_discover(fit, valid, prior, model_specs(fit, prior), options=options, noise=noise,
+                                  test=test_eval, start="prior", prior_model=prior_start)  # fmt: skip
         other_total = alt.heldout_total
         if other_start_better(chosen, alt):
             chosen, other_total = alt, chosen.heldout_total
+        laps("selection around the prior model")
     final = chosen.model
     after = full_errors(final)
     spread = fit_spread(chosen.rows, final, chosen.heldout_fz_N)  # set on flights the fit did not see
@@ -371,10 +364,6 @@ class _Laps:
         now = time.perf_counter()
         self.seconds[stage] = now - self._t
         self._t = now
-
-    def add(self, stage: str, seconds: float) -> None:
-        """A stage timed elsewhere (a selection on a worker: its own wall time), s."""
-        self.seconds[stage] = seconds
 
 
 def _stack_record(calibration: CalibrationResult | None, final: Model) -> dict | None:

@@ -49,10 +49,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="use the logged motor thrusts as delivered even where the manifest says they are commands",
     )
-    p.add_argument("--workers", type=int, default=2, metavar="N",
-                   help="Dask worker processes on this machine for the two selections (around the calibrated and the "
-                   "prior model), run side by side; 0 runs them here one after the other; the results are the same "
-                   "(default 2)")  # fmt: skip
     p.set_defaults(func=run)
 
 
@@ -79,8 +75,6 @@ def run(args: argparse.Namespace) -> int:
     from proxplan.fileio import UserError, check_output_file, output_folder
     from proxplan.identify import IdentifyOptions, MeasureOptions, load_manifest, run_identify, write_report
 
-    if args.workers < 0:
-        raise UserError(f"--workers {args.workers}: expected a count of worker processes >= 0 (0: none)")
     if args.window_s <= 0 or (args.motor_tau_s is not None and args.motor_tau_s <= 0):
         raise UserError("--window-s and --motor-tau-s must be positive numbers of seconds")
     manifest = load_manifest(args.manifest)
@@ -96,7 +90,6 @@ def run(args: argparse.Namespace) -> int:
         ),
         calibrate=not args.no_calibrate,
         progress=True,
-        workers=args.workers,
     )
     with output_folder(out) as stage:  # the report lands whole, or not at all
         result = run_identify(manifest, options=options)
