@@ -33,6 +33,7 @@ __all__ = [
     "join_levels",
     "lattice_stage",
     "stacked_beside",
+    "stacked_while_shorter",
     "stacked_without_lattice",
     "stage_makespan",
     "straight_routes",
@@ -200,6 +201,17 @@ class BesideLevels:
         self.planned += 1
         self.planned_steps = max(self.planned_steps, max(tr.arrival_step for tr in got[0]))
         return got
+
+
+def stacked_while_shorter(problem: SwarmProblem, extra: dict, bounded: BesideLevels) -> tuple[Stage | None, bool]:
+    """The stacked plan on ``bounded.levels`` (:func:`join_levels`), its levels planned by ``bounded`` only while
+    it can still be shorter than ``bounded``'s rival (round 25A), why it stopped said in ``extra["stacked"]``:
+    (the stacked plan or None, whether any stacked plan could be shorter at all before a level was planned;
+    False: no level was planned, so nothing depends on the level options)."""
+    could = bounded.can_be_shorter()
+    stacked = join_levels(problem, bounded.levels, extra, bounded) if could else None
+    extra["stacked"] = bounded.stopped or extra["stacked"]
+    return stacked, could
 
 
 def join_levels(

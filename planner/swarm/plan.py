@@ -69,6 +69,7 @@ from proxplan.planner.swarm.complete_stages import (
     join_levels,
     lattice_stage,
     stacked_beside,
+    stacked_while_shorter,
     stacked_without_lattice,
     stage_makespan,
     straight_stage,
@@ -408,13 +409,12 @@ def _plan(
         beside: list[LevelHandOn] = []
         planner = _level_planner(opts, assigned, beside, progress=progress, deadline=deadline)
         bounded = BesideLevels(problem, stack, stage_makespan(found), planner)  # only while it can be shorter (25A)
-        if bounded.can_be_shorter():  # else no level depends on the options: nothing handed on (swarm_again)
-            stacked = join_levels(problem, stack, extra, bounded)
+        stacked, could = stacked_while_shorter(problem, extra, bounded)
+        if could:  # else no level depends on the options: nothing handed on (swarm_again)
             give_up = GiveUpHandOn(
                 found, stack, tuple(beside) if stacked is not None else None, beside_prioritised=True
             )
             found = stacked_beside(found, stacked, extra)
-        extra["stacked"] = bounded.stopped or extra["stacked"]
     if found is None:
         if progress:
             progress(f"coordination: lattice ({len(conflicts)} straight-line conflicts)", 0.05)
@@ -433,10 +433,8 @@ def _plan(
             planner = _level_planner(opts, assigned, levels, progress=progress, deadline=deadline)
             rival_s = math.inf if lattice is None else stage_makespan(lattice)
             bounded = BesideLevels(problem, stack, rival_s, planner, rival="the lattice plan")  # round 25A
-            bound_first = not bounded.can_be_shorter()
-            if not bound_first:
-                stacked = join_levels(problem, stack, extra, bounded)
-            extra["stacked"] = bounded.stopped or extra["stacked"]
+            stacked, could = stacked_while_shorter(problem, extra, bounded)
+            bound_first = not could
         if lattice is None:
             found = stacked_without_lattice(stacked, lacam_not_found, opts, extra)
         else:
