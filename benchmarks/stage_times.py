@@ -21,6 +21,7 @@ import functools
 import importlib
 import io
 import json
+import os
 import sys
 import tempfile
 import time
@@ -39,6 +40,8 @@ STAGES = (
     (_P + "swarm.straight", "straight_step_conflicts"),
     (_P + "swarm.prioritised_stage", "kept_straight_stage"),
     (_P + "swarm.prioritised_stage", "prioritised_stage"),
+    (_P + "swarm.components", "plan_groups"),
+    ("proxplan.fanout.engine", "fan_out"),
     (_P + "swarm.complete_stages", "lattice_stage"),
     (_P + "swarm.complete_stages", "join_levels"),
     (_P + "swarm.plan", "_retime_stage"),
@@ -129,13 +132,21 @@ def main() -> int:
     out = args.out or tempfile.mkdtemp(prefix="stage-times-")
     buf = io.StringIO()
     c1, t1 = time.process_time(), time.perf_counter()
+    k1 = os.times()
     with contextlib.redirect_stdout(buf):
         cli(["plan", args.scenario, "--out", out, "--method", args.method, "--seed", "0", "--no-plot", "--json"])
     cpu, wall = time.process_time() - c1, time.perf_counter() - t1
+    k2 = os.times()
     doc = json.loads(buf.getvalue().strip().splitlines()[-1])
     print(
         f"{args.scenario}: makespan {doc['metrics']['makespan_s']:.3f} s, verify passed {doc['verify']['passed']}; "
         f"plan: CPU {cpu:.1f} s, wall {wall:.1f} s; imports before it: CPU {imports[0]:.1f} s, wall {imports[1]:.1f} s"
+    )
+    # worker processes (a Dask fan-out's LocalCluster) are not in the process time above: their CPU,
+    # and this process's system CPU (a numpy-heavy worker under Dask's malloc trim shows it)
+    print(
+        f"child processes: user {k2.children_user - k1.children_user:.1f} s, system "
+        f"{k2.children_system - k1.children_system:.1f} s; this process's system CPU {k2.system - k1.system:.1f} s"
     )
     print(f"{'stage (function)':32s} {'calls':>6s} {'cpu_s':>7s} {'share':>6s} {'wall_s':>7s}")
     for _, name in STAGES:

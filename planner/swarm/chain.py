@@ -94,11 +94,22 @@ def _time_chain(
     T = occ.horizon
     limits = problem.limits[agent]
     dev = CORNER_DEVIATION_M if deviation_m is None else deviation_m
-    holds = [occ.forbidden_holds(agent, W[k]) for k in range(m + 1)]
-    if holds[0][0]:
+    # a waypoint's forbidden holds, safe intervals and their first steps, asked when the search first
+    # needs them (a waypoint it never reaches is never asked; the answers are the same)
+    hold_of: dict[int, tuple[np.ndarray, list[tuple[int, int]], np.ndarray]] = {}
+
+    def held(k: int) -> tuple[np.ndarray, list[tuple[int, int]], np.ndarray]:
+        got = hold_of.get(k)
+        if got is None:
+            hk = occ.forbidden_holds(agent, W[k])
+            runs = _runs(~hk)
+            got = hold_of[k] = (hk, runs, np.array([a for a, _ in runs], dtype=np.int64))
+        return got
+
+    if held(0)[0][0]:
         return None
-    intervals = [_runs(~h) for h in holds]
-    goal_ok = [e >= T for _, e in intervals[m]]
+    goal_intervals = held(m)[1]
+    goal_ok = [e >= T for _, e in goal_intervals]
     if not any(goal_ok):
         return None
     moves: dict[tuple[int, int, bool], Move | None] = {}
@@ -130,30 +141,22 @@ def _time_chain(
             moves[key] = mv if free else None
         return moves[key]
 
-    def move(k: int, j: int, run: bool, t: int, e: int):
-        """The move k -> j and its forbidden departures, exact from step t on up to the last
-        departure that could still arrive at the end before ``done_by`` and leaves the hold at k
-        before step ``e`` (the end of its safe interval) (None: not free)."""
+    def departures(k: int, j: int, run: bool, mv_: Move, lo: int, until: int) -> np.ndarray:
+        """The move k -> j's forbidden departures, exact in [lo, until): a query serves every later
+        one that starts no earlier and ends no later (a later safe interval at k starts after the
+        end of this one: it asks again)."""
         key = (k, j, run)
-        mv_ = flown(k, j, run)
-        if mv_ is None:
-            return None
-        # departures after done_by - 1 - steps - h[j] cannot improve on the best arrival found (and
-        # done_by only decreases), those from e on leave a hold that is no longer safe: a query
-        # serves every later one that starts no earlier and ends no later (a later safe interval
-        # at k starts after e: it asks again)
-        until = min(done_by - mv_.steps - h[j], e)
-        if key not in forbidden or forbidden[key][0] > t or forbidden[key][1] < until:
-            forbidden[key] = (t, until, occ.forbidden_departures(agent, sampled(mv_), from_step=t, until_step=until))
-        return mv_, forbidden[key][2]
+        if key not in forbidden or forbidden[key][0] > lo or forbidden[key][1] < until:
+            forbidden[key] = (lo, until, occ.forbidden_departures(agent, sampled(mv_), from_step=lo, until_step=until))
+        return forbidden[key][2]
 
     # the end is held for good only from the start of its last safe interval (the one that lasts to
     # the horizon): an arrival there ends the search, an arrival in an earlier one of its intervals
     # leads nowhere (no move leaves the end), so a move to the end needs only its first departure
     # arriving from then on, found by asking the departures in growing windows (the same answer as
     # asking them all at once; only the cost depends on END_WINDOW_STEPS)
-    goal_iv = len(intervals[m]) - 1
-    goal_from = intervals[m][goal_iv][0]
+    goal_iv = len(goal_intervals) - 1
+    goal_from = goal_intervals[goal_iv][0]
     # move key -> (first step, end step, forbidden departures, exact in [first, end))
     scanned: dict[tuple[int, bool], tuple[int, int, np.ndarray]] = {}
 
@@ -202,7 +205,7 @@ def _time_chain(
                 node = (pk, piv)
             track = GridTrack(agent, int(problem.type_index[agent]), W[0].copy(), out[::-1], route_m=W.copy())
             return ChainResult(track, t)
-        _, e_iv = intervals[k][iv]
+        _, e_iv = held(k)[1][iv]
         candidates = [(j, False) for j in range(k + 1, min(m, k + 1 + MAX_SHORTCUT) + 1)]
         if (m, False) not in candidates:
             candidates.append((m, False))
@@ -227,23 +230,31 @@ def _time_chain(
                     heapq.heappush(heap, (a0, a0, m, goal_iv))
                     done_by = min(done_by, a0 + 1)
                 continue
-            got = move(k, j, run, t, e_iv)
-            if got is None:
+            mv = flown(k, j, run)
+            if mv is None:
                 continue
-            mv, bad = got
             n = mv.steps
+            # departures after done_by - 1 - steps - h[j] cannot improve on the best arrival found (and
+            # done_by only decreases), those from e on leave a hold that is no longer safe
             lo_d, hi_d = t, min(e_iv - 1, done_by - 1 - n - h[j])
             if hi_d < lo_d:
                 continue
+            # only departures arriving where holding j is safe lead anywhere: the others' tracks are
+            # asked from the first such departure to the last (the same departures are kept)
+            hold_j, _, starts = held(j)
+            safe = np.flatnonzero(~hold_j[lo_d + n : hi_d + n + 1])
+            if safe.size == 0:
+                continue
+            lo_d, hi_d = lo_d + int(safe[0]), lo_d + int(safe[-1])
+            bad = departures(k, j, run, mv, lo_d, hi_d + 1)
             deps = np.flatnonzero(~bad[lo_d : hi_d + 1]) + lo_d
             if deps.size == 0:
                 continue
             arrs = deps + n
-            ok = ~holds[j][arrs]
+            ok = ~hold_j[arrs]
             deps, arrs = deps[ok], arrs[ok]
             if deps.size == 0:
                 continue
-            starts = np.array([a for a, _ in intervals[j]])
             ivs = np.searchsorted(starts, arrs, side="right") - 1
             seen: set[int] = set()
             for d0, a0, i0 in zip(deps.tolist(), arrs.tolist(), ivs.tolist()):
