@@ -230,10 +230,10 @@ def _time_chain(
                     heapq.heappush(heap, (a0, a0, m, goal_iv))
                     done_by = min(done_by, a0 + 1)
                 continue
-            mv = flown(k, j, run)
-            if mv is None:
+            mv_j = flown(k, j, run)
+            if mv_j is None:
                 continue
-            n = mv.steps
+            n = mv_j.steps
             # departures after done_by - 1 - steps - h[j] cannot improve on the best arrival found (and
             # done_by only decreases), those from e on leave a hold that is no longer safe
             lo_d, hi_d = t, min(e_iv - 1, done_by - 1 - n - h[j])
@@ -246,7 +246,7 @@ def _time_chain(
             if safe.size == 0:
                 continue
             lo_d, hi_d = lo_d + int(safe[0]), lo_d + int(safe[-1])
-            bad = departures(k, j, run, mv, lo_d, hi_d + 1)
+            bad = departures(k, j, run, mv_j, lo_d, hi_d + 1)
             deps = np.flatnonzero(~bad[lo_d : hi_d + 1]) + lo_d
             if deps.size == 0:
                 continue
@@ -263,7 +263,7 @@ def _time_chain(
                 seen.add(i0)
                 if a0 < best.get((j, i0), T + 1):
                     best[(j, i0)] = a0
-                    parent[(j, i0)] = (k, iv, d0, mv)
+                    parent[(j, i0)] = (k, iv, d0, mv_j)
                     heapq.heappush(heap, (a0 + h[j], a0, j, i0))
                     if j == m and goal_ok[i0]:
                         done_by = min(done_by, a0 + 1)
