@@ -58,10 +58,9 @@ class Occupancy:
         self._stacks: dict[tuple[int, bool], GrownStack] = {}  # (type a, at rest) -> its keep-outs, grown
         self._reach_by_type: dict[int, float] = {}
         self._index: DepartureIndex | None = None  # the departure query's index (None: build when asked)
-        # (type, agent left out (-1: none), point bytes) -> forbidden_holds' answer, for this state of
-        # the tracks (emptied by put/remove: a search asks the same points again, e.g. a route's start
-        # and end after the straight line's, and a vehicle re-timed or repaired in place its own)
-        self._holds: dict[tuple[int, int, bytes], np.ndarray] = {}
+        # (type, point bytes) -> forbidden_holds' answer, for this state of the tracks (emptied by put/remove:
+        # a search asks the same points again, e.g. a route's start and end after the straight line's)
+        self._holds: dict[tuple[int, bytes], np.ndarray] = {}
         self._digests: dict[int, bytes] = {}  # agent -> digest of its track (content_key)
         self._key: bytes | None = None  # content_key (None: compute when asked)
         for tr in tracks:
@@ -255,16 +254,16 @@ class Occupancy:
 
     def forbidden_holds(self, agent: int, w_m: np.ndarray) -> np.ndarray:
         """(horizon,) bool: resting at ``w_m`` (3,) at step t conflicts with another track (read-only:
-        the answer is kept for this state of the tracks and given back to the same question; an agent
-        whose own track is in, left out of its answer, asks its own question)."""
+        the answer is kept for this state of the tracks and given back to the same question)."""
         w = np.ascontiguousarray(w_m, dtype=float)
         ta = int(self.problem.type_index[agent])
-        key = (ta, agent if agent in self.tracks else -1, w.tobytes())
-        got = self._holds.get(key)
+        key = (ta, w.tobytes()) if agent not in self.tracks else None  # its own track: not the others' state
+        got = self._holds.get(key) if key is not None else None
         if got is None:
             got = self._forbidden_holds(agent, ta, w)
             got.flags.writeable = False
-            self._holds[key] = got
+            if key is not None:
+                self._holds[key] = got
         return got
 
     def _forbidden_holds(self, agent: int, ta: int, w: np.ndarray) -> np.ndarray:
