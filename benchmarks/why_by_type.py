@@ -65,6 +65,40 @@ def _round_obstacles(scenario, problem, conflicts, bound_s: float) -> str:
     )
 
 
+def _passing_detail(problem, conflicts, bound_s: float) -> str:
+    """What the passing stage (``passes.passing_stage``, no arrival bound) does with the conflicting lines:
+    the components without a conflict-free joint move (their sizes: their members are timed one by one),
+    and in its plan (horizon as the pipeline's, from ``bound_s``, s) the latest vehicle, how long it waits at its start, its component and the vehicles
+    whose tracks its component's shortest joint move meets when departing at once (round 26S)."""
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.swarm.passes import conflict_components, conflict_free, joint_moves, passing_stage
+    from proxplan.planner.swarm.prioritised_stage import horizon_steps
+    from proxplan.planner.swarm.tracks import GRID_DT_S
+
+    comps = conflict_components([(i, j) for i, j in conflicts if i != j])
+    free = {c: [jm for jm in joint_moves(problem, c, checked=False) if conflict_free(problem, jm)] for c in comps}
+    sizes = sorted((len(c) for c in comps if not free[c]), reverse=True)
+    head = f"{len(comps)} components, {len(sizes)} without a joint move (sizes {sizes})"
+    got = passing_stage(problem, horizon_steps(bound_s), conflicts)
+    if got.stage is None:
+        return f"{head}; unbounded: {got.note}"
+    tracks = {tr.agent: tr for tr in got.stage.tracks}
+    late = max(tracks.values(), key=lambda tr: (tr.arrival_step, -tr.agent))
+    wait = late.moves[0][0] if late.moves else 0
+    comp = next((c for c in comps if late.agent in c), None)
+    names = problem.names
+    if comp is None or not free[comp]:
+        return f"{head}; unbounded: latest {names[late.agent]} timed one by one, waits {wait * GRID_DT_S:.2f} s"
+    occ = Occupancy(problem, [tr for a, tr in tracks.items() if a not in comp], late.arrival_step + 2)
+    shortest = min(free[comp], key=lambda jm: jm.steps)
+    hem = sorted({b for tr in shortest.tracks(problem, 0) for b in occ.conflicting_agents(tr)})
+    return (
+        f"{head}; unbounded: latest {names[late.agent]} ({'+'.join(names[a] for a in comp)}, shortest joint move "
+        f"{shortest.steps * GRID_DT_S:.2f} s, '{shortest.label}') departs after {wait * GRID_DT_S:.2f} s; "
+        f"departing at once it meets {', '.join(names[b] for b in hem) or 'nobody'}"
+    )
+
+
 def _fewest_conflicts(problem, bound_s: float, time_limit_s: float) -> str:
     """The MILP of the module on ``problem`` with lines of at most ``bound_s``: its verdict."""
     from scipy.optimize import Bounds, LinearConstraint, milp
@@ -199,6 +233,7 @@ def main() -> int:
         )
         # what the stages giving way and prioritised planning gave or gave up on (round 25S)
         print(f"    giving way: {info.yielding}\n    prioritised: {info.prioritised}", flush=True)
+        print(f"    passing stage: {_passing_detail(problem, conflicts, bound)}", flush=True)
         for k in args.milp:
             t1 = time.process_time()
             verdict = _fewest_conflicts(problem, k * bound, args.milp_time)
