@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from proxplan.fileio import UserError
+from proxplan.identify.measure import motor_lag_compensated_N
 from proxplan.identify.vehicle_log import VehicleLog
 
 
@@ -92,7 +93,12 @@ def impact_guard(
 
 
 def check_log(
-    log: VehicleLog, *, weight_N: float, ground_z_m: float = 0.0, options: QualityOptions = QualityOptions()
+    log: VehicleLog,
+    *,
+    weight_N: float,
+    ground_z_m: float = 0.0,
+    options: QualityOptions = QualityOptions(),
+    motor_time_constant_s: float | None = None,
 ) -> tuple[VehicleLog, Exclusions]:
     """Clean one log: drop NaN rows, split at gaps, drop short segments and ground contact.
 
@@ -100,6 +106,12 @@ def check_log(
         log: as read by :func:`read_log`.
         weight_N: the vehicle's weight (idle-motor check), N.
         ground_z_m: ground height in the log's world frame, m.
+        motor_time_constant_s: where the log's motor thrust is COMMANDED, the motors' first-order lag that
+            the measurement compensates (:func:`proxplan.identify.loading.measure_options_for`), s; the idle
+            test then sums the thrust the motors deliver, not the command: a command dipping below the idle
+            share for less than the lag is no idle motor (stop 64: one such 10 ms dip in flight, 0.74 m up,
+            split a generated log there and restarted the lag at a wild command, 19 mN RMS of transient).
+            None: the logged thrust is delivered.
     Returns:
         The cleaned log (``segment`` numbers contiguous stretches) and the exclusion counts.
     Raises:
@@ -126,9 +138,10 @@ def check_log(
     # ground contact / idle motors (before segmenting, so they split segments too); a motor asked for a
     # negative force is off (its floor), so the idle test sums the desired forces clipped at zero
     on_ground = log.position_m[:, 2] - ground_z_m <= options.ground_clearance_m
-    airborne = ~on_ground & (
-        np.clip(log.motor_thrust_N, 0.0, None).sum(axis=1) > options.min_thrust_fraction * weight_N
-    )
+    thrust_N = np.clip(log.motor_thrust_N, 0.0, None)
+    if motor_time_constant_s and len(log) > 1:
+        thrust_N = motor_lag_compensated_N(thrust_N, float(np.median(np.diff(log.t_s))), motor_time_constant_s)
+    airborne = ~on_ground & (thrust_N.sum(axis=1) > options.min_thrust_fraction * weight_N)
     ground = int((~airborne).sum())
     guard, n_impacts = impact_guard(log.t_s, log.velocity_mps[:, 2], on_ground, options)
     guard &= airborne
