@@ -84,16 +84,21 @@ def load_flight(
     *,
     options: QualityOptions = QualityOptions(),
     reader: Callable[[VehicleEntry], tuple[VehicleLog, dict]] | None = None,
+    motor_time_constants_s: Mapping[str, float | None] | None = None,
 ) -> Flight:
     """Read, check and time-align the logs of one flight (each vehicle keeps its own clock).
 
     ``vehicles`` maps each vehicle name of the entry to its :class:`Vehicle`. Samples outside the
     time overlap of all the flight's vehicles are excluded (counted); no overlap is a UserError.
+    ``motor_time_constants_s`` maps a vehicle name to its motors' lag where its logged thrust is commanded
+    (s; :func:`check_log`'s idle test on the delivered thrust), absent or None where it is delivered.
     """
     logs, excl, alignment = {}, {}, {}
     for v in entry.vehicles:
         raw, alignment[v.name] = reader(v) if reader is not None else (read_log(v.log), {})
-        log, ex = check_log(raw, weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options)
+        tau = (motor_time_constants_s or {}).get(v.name)
+        log, ex = check_log(raw, weight_N=vehicles[v.name].weight_N, ground_z_m=v.ground_z_m, options=options,
+                            motor_time_constant_s=tau)  # fmt: skip
         if len(log) == 0:
             raise UserError(f"{v.log}: no usable samples after quality checks (ground/idle/NaN); flight {entry.name}")
         logs[v.name], excl[v.name] = log, ex

@@ -91,7 +91,10 @@ def load_units(
             vehicles[v.name] = types.setdefault(
                 v.type, resolve_vehicle(v.type, custom, where=f"{manifest.path}: flight {entry.name}: {v.name}.type")
             )
-        flights.append((entry, load_flight(entry, vehicles, options=manifest.quality, reader=reader)))
+        lags = {n: measure_options_for(options.measure, veh, manifest.motor_thrust).motor_time_constant_s
+                for n, veh in vehicles.items()}  # fmt: skip
+        flights.append((entry, load_flight(entry, vehicles, options=manifest.quality, reader=reader,
+                                           motor_time_constants_s=lags)))  # fmt: skip
     if thrust_maps is None:
         per_type: dict[str, list[MotorSamples]] = {}
         for entry, flight in flights:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from proxplan.fileio import UserError
+from proxplan.identify.measure import motor_lag_compensated_N
 from proxplan.identify.vehicle_log import VehicleLog
 
 
@@ -91,8 +92,32 @@ def impact_guard(
     return guard, impacts
 
 
+def _idle_motors(log: VehicleLog, idle_N: float, motor_time_constant_s: float | None) -> np.ndarray:
+    """(N,) bool: the motors idle, their summed thrust (a negative desired force counts as 0: the motor is off)
+    at or below ``idle_N`` (N). A log of COMMANDED thrust (``motor_time_constant_s`` its motors' lag, s) reaches
+    the air through the lag: a stretch of idle commands counts only where the thrust the motors deliver (the
+    command through the lag, :func:`proxplan.identify.measure.motor_lag_compensated_N`) falls to the idle share
+    within it, and then from the stretch's first sample (a cut to land is idle from the cut, as before)."""
+    thrust_N = np.clip(log.motor_thrust_N, 0.0, None)
+    idle = thrust_N.sum(axis=1) <= idle_N
+    if not motor_time_constant_s or len(log) < 2 or not idle.any():
+        return idle
+    delivered_N = motor_lag_compensated_N(thrust_N, float(np.median(np.diff(log.t_s))), motor_time_constant_s).sum(
+        axis=1
+    )
+    starts = np.flatnonzero(idle & ~np.concatenate([[False], idle[:-1]]))  # first sample of each idle stretch
+    run = np.cumsum(np.isin(np.arange(len(idle)), starts)) - 1  # stretch number of every sample (idle ones)
+    lowest_N = np.minimum.reduceat(np.where(idle, delivered_N, np.inf), starts)  # per stretch
+    return idle & (lowest_N[np.maximum(run, 0)] <= idle_N)
+
+
 def check_log(
-    log: VehicleLog, *, weight_N: float, ground_z_m: float = 0.0, options: QualityOptions = QualityOptions()
+    log: VehicleLog,
+    *,
+    weight_N: float,
+    ground_z_m: float = 0.0,
+    options: QualityOptions = QualityOptions(),
+    motor_time_constant_s: float | None = None,
 ) -> tuple[VehicleLog, Exclusions]:
     """Clean one log: drop NaN rows, split at gaps, drop short segments and ground contact.
 
@@ -100,6 +125,12 @@ def check_log(
         log: as read by :func:`read_log`.
         weight_N: the vehicle's weight (idle-motor check), N.
         ground_z_m: ground height in the log's world frame, m.
+        motor_time_constant_s: where the log's motor thrust is COMMANDED, the motors' first-order lag that
+            the measurement compensates (:func:`proxplan.identify.loading.measure_options_for`), s; the idle
+            test then asks the thrust the motors deliver to reach the idle share too (:func:`_idle_motors`): a
+            command dipping below it for much less than the lag is no idle motor (stop 64: one such 10 ms dip in
+            flight, 0.74 m up, split a generated log there and restarted the lag at a wild command, 19 mN RMS).
+            None: the logged thrust is delivered.
     Returns:
         The cleaned log (``segment`` numbers contiguous stretches) and the exclusion counts.
     Raises:
@@ -126,9 +157,8 @@ def check_log(
     # ground contact / idle motors (before segmenting, so they split segments too); a motor asked for a
     # negative force is off (its floor), so the idle test sums the desired forces clipped at zero
     on_ground = log.position_m[:, 2] - ground_z_m <= options.ground_clearance_m
-    airborne = ~on_ground & (
-        np.clip(log.motor_thrust_N, 0.0, None).sum(axis=1) > options.min_thrust_fraction * weight_N
-    )
+    idle = _idle_motors(log, options.min_thrust_fraction * weight_N, motor_time_constant_s)
+    airborne = ~on_ground & ~idle
     ground = int((~airborne).sum())
     guard, n_impacts = impact_guard(log.t_s, log.velocity_mps[:, 2], on_ground, options)
     guard &= airborne

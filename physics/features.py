@@ -29,8 +29,8 @@ so a term built on them acts between vehicles like any effect:
 * side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
 
 A force off the target's centre is a roll or pitch torque, so the jet kernel of a source above, the
-below kernel, the side kernel and every multi-scale kernel (:data:`BASIS_RADIALS` x :data:`BASIS_WIDTHS_L` x :data:`BASIS_DECAYS_L`,
-since stop 51) also come times the offset's horizontal components over L (``above_jet_x_1``,
+below kernel, the side kernel and every multi-scale kernel (:data:`BASIS_RADIALS` x :data:`BASIS_WIDTHS_L` x
+:data:`BASIS_DECAY_FORMS` x :data:`BASIS_DECAYS_L`, since stop 51; algebraic forms since stop 64) also come times the offset's horizontal components over L (``above_jet_x_1``,
 ``below_near_y_1``, ``side_g1L_e4L_x_1``, ...): which side of the target a neighbour is on (odd in the
 offset, where the kernels themselves are even); every multi-scale kernel also comes times the relative
 horizontal speed (``side_l2p5L_e1L_rel_speed_xy_mps``, :data:`BASIS_SPEED`, since stop 63).
@@ -150,6 +150,14 @@ misses of the kernel family beside and below were kernels narrower than the narr
 1 L), their stable candidates the wider ones that lose on flights held out (docs/identify.md, stop 58)."""
 BASIS_DECAYS_L = (1.0, 4.0)
 """Decay lengths of the multi-scale kernels along the distance from the neighbour, in L, -."""
+BASIS_DECAY_FORMS = {"above": ("e", "i"), "below": ("e", "i"), "side": ("e",)}
+"""Forms of the decay along the depth x = delta / (d L) from the neighbour, per place (since stop 64): "e"
+exponential exp(-x), "i" algebraic 1 / (1 + x). An exponential decay cannot carry a heavy tail to a flight
+at another depth (it falls e-fold per decay length, a power law does not): a round jet's centre-line velocity
+falls as 1 / depth in its far field, the form of the jet kernel's 1 / (1 + dz / L) (S0-1, S0-2), so the
+algebraic form is the far field of the same physics at the basis's decay lengths. Beside the target the
+coordinate along is the horizontal distance, whose reach across the room stays Gaussian (a heavy tail there
+would couple every pair in the room), so "e" alone; the name keeps "e" for that Gaussian, -."""
 GROUND_SCALES_L = tuple(w for w in BASIS_WIDTHS_L if w != 1.0)
 """Height scales of the ground-proximity features besides the vehicle's own size (``ground_exp_1``,
 ``thrust_kin_ground_N``), in the target's size L, -: the same geometric series as :data:`BASIS_WIDTHS_L`, so
@@ -167,25 +175,48 @@ for _s in GROUND_SCALES_L:
     _g, _k = ground_scale_names(_s)
     FEATURE_DOCS[_g] = f"exp(-h / {_s:g} L_target): ground proximity on {_s:g} times the vehicle's own size"
     FEATURE_DOCS[_k] = f"own thrust from the motion times exp(-h / {_s:g} L_target)"
-GROUND_SCALE_FEATURES = tuple(n for _s in GROUND_SCALES_L for n in ground_scale_names(_s))
-"""The features of :data:`GROUND_SCALES_L` (target-only)."""
+GROUND_INV_SCALES_L = BASIS_WIDTHS_L
+"""Height scales s of the algebraic ground proximity 1 / (1 + (h / s L)^2) and of the own thrust times it,
+in the target's size L, - (since stop 64): the method of images gives the ground's far field as an inverse
+square of the height (Cheeseman-Bennett's (R / 4h)^2, ``ground_cb_1``), whose singularity at h -> 0 makes it
+the wrong shape near the ground; the same h^-2 tail made finite at contact, on the basis's scales, carries
+a ground proximity that is neither exponential nor the singular image term."""
 
 
-BASIS_RADIALS = {"above": ("g",), "below": ("g",), "side": ("g", "l")}
+def ground_inv_names(scale_L: float) -> tuple[str, str]:
+    """The names of the algebraic ground proximity 1 / (1 + (h / s L)^2) and the own thrust times it."""
+    tag = f"{scale_L:g}".replace(".", "p")
+    return f"ground_inv_{tag}L_1", f"thrust_kin_ground_inv_{tag}L_N"
+
+
+for _s in GROUND_INV_SCALES_L:
+    _g, _k = ground_inv_names(_s)
+    FEATURE_DOCS[_g] = f"1 / (1 + (h / {_s:g} L_target)^2): algebraic ground proximity on {_s:g} L"
+    FEATURE_DOCS[_k] = f"own thrust from the motion times 1 / (1 + (h / {_s:g} L_target)^2)"
+GROUND_SCALE_FEATURES = tuple(n for _s in GROUND_SCALES_L for n in ground_scale_names(_s)) + tuple(
+    n for _s in GROUND_INV_SCALES_L for n in ground_inv_names(_s)
+)
+"""The features of :data:`GROUND_SCALES_L` and :data:`GROUND_INV_SCALES_L` (target-only)."""
+
+
+BASIS_RADIALS = {"above": ("g",), "below": ("g",), "side": ("g", "l", "c")}
 """Radial profiles of the multi-scale kernels, per place of the neighbour: "g" a Gaussian exp(-(rho / w L)^2),
 "l" a Laplace (exponential) exp(-rho / w L), heavier-tailed: the two bracket a profile between them where the
 flights see few radial positions and a term must carry to others. A neighbour BESIDE the target has its
 radial coordinate in the height difference, which each flight holds nearly fixed (its layers), so the tail
 there decides what carries to a flight at another gap; its reach across the room is still the Gaussian
-decay along the horizontal distance. Above and below, the radial coordinate is the horizontal distance,
-where a Laplace tail would reach across the room (exp(-6) at 15 L for 2.5 L): a jet's profile is Gaussian
-(S0-1), -."""
+decay along the horizontal distance; "c" a Cauchy (Lorentzian) 1 / (1 + (rho / w L)^2) there since stop 64:
+the far field of a point disturbance (a tip vortex, a source) falls algebraically with distance, which neither
+exponential profile carries to a flight at another gap. Above and below, the radial coordinate is the horizontal
+distance, where a Laplace tail would reach across the room (exp(-6) at 15 L for 2.5 L): a jet's profile is
+Gaussian (S0-1), -."""
 
 
-def _basis_name(where: str, width: float, decay: float, axis: str = "", radial: str = "g") -> str:
+def _basis_name(where: str, width: float, decay: float, axis: str = "", radial: str = "g", form: str = "e") -> str:
     """The multi-scale kernel's name; ``axis`` "x" or "y": the kernel times that offset over L, "speed": the
-    kernel times the relative horizontal speed (:data:`BASIS_SPEED`); ``radial`` one of :data:`BASIS_RADIALS`."""
-    stem = f"{where}_{radial}{width:g}L_e{decay:g}L".replace(".", "p")
+    kernel times the relative horizontal speed (:data:`BASIS_SPEED`); ``radial`` one of :data:`BASIS_RADIALS`,
+    ``form`` one of :data:`BASIS_DECAY_FORMS`."""
+    stem = f"{where}_{radial}{width:g}L_{form}{decay:g}L".replace(".", "p")
     if axis == "speed":
         return f"{stem}_{BASIS_SPEED}"
     return f"{stem}_{axis + '_' if axis else ''}1"
@@ -202,26 +233,36 @@ height difference spans such a two-sided shape. Declared as the whole cross prod
 width and decay), not the one shape traced."""
 
 
+def _basis_kernels(where: str) -> list[tuple[str, float, str, float]]:
+    """(radial profile, width in L, decay form, decay length in L) of every multi-scale kernel at ``where``."""
+    return [
+        (rad, w, form, d)
+        for rad in BASIS_RADIALS[where]
+        for w in BASIS_WIDTHS_L
+        for form in BASIS_DECAY_FORMS[where]
+        for d in BASIS_DECAYS_L
+    ]
+
+
 for _where, _what in (
     ("above", "a neighbour above (r radial, depth below it along the axis)"),
     ("below", "a neighbour below (r radial, its depth under the target)"),
     ("side", "a neighbour beside (height difference radial, horizontal distance along)"),
 ):
-    for _rad in BASIS_RADIALS[_where]:
-        _profile = "(rho / {w} L)^2" if _rad == "g" else "rho / {w} L"
-        for _w in BASIS_WIDTHS_L:
-            for _d in BASIS_DECAYS_L:
-                _shape = f"exp(-{_profile.format(w=f'{_w:g}')}) exp(-delta / {_d:g} L)"
-                FEATURE_DOCS[_basis_name(_where, _w, _d, radial=_rad)] = (
-                    f"multi-scale kernel of {_what}: {_shape}, summed"
-                )
-                for _axis in "xy":  # which side of the target the neighbour is on: a force off its centre is a torque
-                    FEATURE_DOCS[_basis_name(_where, _w, _d, _axis, _rad)] = (
-                        f"multi-scale kernel of {_what} ({_shape}) times offset_{_axis} / L, summed"
-                    )
-                FEATURE_DOCS[_basis_name(_where, _w, _d, "speed", _rad)] = (
-                    f"multi-scale kernel of {_what} ({_shape}) times the relative horizontal speed, summed"
-                )
+    for _rad, _w, _form, _d in _basis_kernels(_where):
+        _across = {"g": "exp(-(rho / {w} L)^2)", "l": "exp(-rho / {w} L)", "c": "1 / (1 + (rho / {w} L)^2)"}[_rad]
+        _along = {"e": "exp(-delta / {d} L)", "i": "1 / (1 + delta / {d} L)"}[_form]
+        _shape = f"{_across.format(w=f'{_w:g}')} {_along.format(d=f'{_d:g}')}"
+        FEATURE_DOCS[_basis_name(_where, _w, _d, radial=_rad, form=_form)] = (
+            f"multi-scale kernel of {_what}: {_shape}, summed"
+        )
+        for _axis in "xy":  # which side of the target the neighbour is on: a force off its centre is a torque
+            FEATURE_DOCS[_basis_name(_where, _w, _d, _axis, _rad, _form)] = (
+                f"multi-scale kernel of {_what} ({_shape}) times offset_{_axis} / L, summed"
+            )
+        FEATURE_DOCS[_basis_name(_where, _w, _d, "speed", _rad, _form)] = (
+            f"multi-scale kernel of {_what} ({_shape}) times the relative horizontal speed, summed"
+        )
 TIME_FEATURE_SOURCES = (
     "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
     "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
@@ -355,6 +396,21 @@ def offset_rate_mps(offsets_m: np.ndarray, time_s: np.ndarray) -> np.ndarray:
     return out
 
 
+def _basis_value(where: str, radial: str, form: str, rho_1: np.ndarray, along_1: np.ndarray) -> np.ndarray:
+    """One multi-scale kernel (-) of the radial coordinate over its width ``rho_1`` and the coordinate along over
+    its decay length ``along_1`` (both -, before the place's gate): :data:`BASIS_RADIALS`, :data:`BASIS_DECAY_FORMS`;
+    beside the target the decay along is Gaussian."""
+    x = np.maximum(along_1, 0.0)
+    along_exp = x**2 if where == "side" else (x if form == "e" else None)  # the exponent along, where exponential
+    if radial == "c":
+        across = 1.0 / (1.0 + rho_1**2)
+        return across * (np.exp(-along_exp) if along_exp is not None else 1.0 / (1.0 + x))
+    across_exp = rho_1**2 if radial == "g" else rho_1
+    if along_exp is None:
+        return np.exp(-across_exp) / (1.0 + x)
+    return np.exp(-across_exp - along_exp)
+
+
 def jet_kernel(dz_m: np.ndarray, r_m: np.ndarray, size_m: float) -> np.ndarray:
     """Jet kernel of one source above (see the module docstring), -."""
     dzp = np.maximum(dz_m, 0.0)
@@ -392,6 +448,10 @@ def feature_matrix(
     for scale in GROUND_SCALES_L:
         g_name, k_name = ground_scale_names(scale)
         f[g_name] = np.exp(-hc / (scale * target.size_m))
+        f[k_name] = thrust_kin * f[g_name]
+    for scale in GROUND_INV_SCALES_L:
+        g_name, k_name = ground_inv_names(scale)
+        f[g_name] = 1.0 / (1.0 + (hc / (scale * target.size_m)) ** 2)
         f[k_name] = thrust_kin * f[g_name]
     f["thrust_kin_speed_xy_Nmps"] = thrust_kin * f["speed_xy_mps"]
     kernels = []
@@ -453,14 +513,12 @@ def feature_matrix(
         f["below_cushion_1"] += np.where(below, (r_rot / (4.0 * depth)) ** 2 * np.exp(-((r / size) ** 2)), 0.0)
         for where, rho, delta, gate in (("above", r, dz, above), ("below", r, -dz, below),
                                         ("side", np.abs(dz), r, np.ones(len(r), dtype=bool))):  # fmt: skip
-            for rad, w, d in ((a, b, c) for a in BASIS_RADIALS[where] for b in BASIS_WIDTHS_L for c in BASIS_DECAYS_L):
-                along = np.maximum(delta, 0.0) / (d * size)  # beside: Gaussian in the horizontal distance too
-                across = (rho / (w * size)) ** 2 if rad == "g" else rho / (w * size)
-                basis = np.where(gate, np.exp(-across - (along**2 if where == "side" else along)), 0.0)
-                f[_basis_name(where, w, d, radial=rad)] += basis
-                f[_basis_name(where, w, d, "x", rad)] += basis * off[:, 0] / size
-                f[_basis_name(where, w, d, "y", rad)] += basis * off[:, 1] / size
-                f[_basis_name(where, w, d, "speed", rad)] += basis * rel_xy
+            for rad, w, form, d in _basis_kernels(where):
+                basis = np.where(gate, _basis_value(where, rad, form, rho / (w * size), delta / (d * size)), 0.0)
+                f[_basis_name(where, w, d, radial=rad, form=form)] += basis
+                f[_basis_name(where, w, d, "x", rad, form)] += basis * off[:, 0] / size
+                f[_basis_name(where, w, d, "y", rad, form)] += basis * off[:, 1] / size
+                f[_basis_name(where, w, d, "speed", rad, form)] += basis * rel_xy
     f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):

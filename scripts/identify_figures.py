@@ -151,7 +151,8 @@ def limits_figure(manifest, result, out: Path) -> Path:
     entry = next(f for f in manifest.flights if f.name == "swap_lll_01")
     v = next(x for x in entry.vehicles if x.name == "cf102")
     veh = result.base_model.vehicles[v.type]
-    log, _ = check_log(read_log(v.log), weight_N=veh.weight_N, ground_z_m=v.ground_z_m, options=manifest.quality)
+    log, _ = check_log(read_log(v.log), weight_N=veh.weight_N, ground_z_m=v.ground_z_m, options=manifest.quality,
+                       motor_time_constant_s=veh.motor_time_constant_s)  # fmt: skip
     tmap = result.thrust_maps[v.type]
     s = MotorSamples(log.motor_thrust_N, log.motor_pwm, log.vbat_V)
     lim = motor_limits(tmap, s)
