@@ -165,16 +165,6 @@ a ground proximity decaying over 0.4-2.5 L lies between two scales of the dictio
 decaying over 1.5 L near the ground was missed with the 1 L scale alone; docs/identify.md)."""
 
 
-def ground_scale_names(scale_L: float) -> tuple[str, str]:
-    """The names of the ground proximity exp(-h / (s L)) and of the own thrust times it, for scale s."""
-    tag = f"{scale_L:g}".replace(".", "p")
-    return f"ground_exp_{tag}L_1", f"thrust_kin_ground_{tag}L_N"
-
-
-for _s in GROUND_SCALES_L:
-    _g, _k = ground_scale_names(_s)
-    FEATURE_DOCS[_g] = f"exp(-h / {_s:g} L_target): ground proximity on {_s:g} times the vehicle's own size"
-    FEATURE_DOCS[_k] = f"own thrust from the motion times exp(-h / {_s:g} L_target)"
 GROUND_INV_SCALES_L = BASIS_WIDTHS_L
 """Height scales s of the algebraic ground proximity 1 / (1 + (h / s L)^2) and of the own thrust times it,
 in the target's size L, - (since stop 64): the method of images gives the ground's far field as an inverse
@@ -183,19 +173,26 @@ the wrong shape near the ground; the same h^-2 tail made finite at contact, on t
 a ground proximity that is neither exponential nor the singular image term."""
 
 
-def ground_inv_names(scale_L: float) -> tuple[str, str]:
-    """The names of the algebraic ground proximity 1 / (1 + (h / s L)^2) and the own thrust times it."""
+GROUND_FORMS = {
+    "exp": ("exp(-h / {s} L_target)", GROUND_SCALES_L),
+    "inv": ("1 / (1 + (h / {s} L_target)^2)", GROUND_INV_SCALES_L),
+}
+"""The ground proximities of the target alone beside ``ground_exp_1``: form -> (shape, its scales s in L)."""
+
+
+def ground_names(scale_L: float, form: str = "exp") -> tuple[str, str]:
+    """The names of the ground proximity of ``form`` (:data:`GROUND_FORMS`) at scale s and of the own thrust times it."""
     tag = f"{scale_L:g}".replace(".", "p")
-    return f"ground_inv_{tag}L_1", f"thrust_kin_ground_inv_{tag}L_N"
+    stem = "" if form == "exp" else f"{form}_"
+    return f"ground_{form}_{tag}L_1", f"thrust_kin_ground_{stem}{tag}L_N"
 
 
-for _s in GROUND_INV_SCALES_L:
-    _g, _k = ground_inv_names(_s)
-    FEATURE_DOCS[_g] = f"1 / (1 + (h / {_s:g} L_target)^2): algebraic ground proximity on {_s:g} L"
-    FEATURE_DOCS[_k] = f"own thrust from the motion times 1 / (1 + (h / {_s:g} L_target)^2)"
-GROUND_SCALE_FEATURES = tuple(n for _s in GROUND_SCALES_L for n in ground_scale_names(_s)) + tuple(
-    n for _s in GROUND_INV_SCALES_L for n in ground_inv_names(_s)
-)
+for _form, (_shape, _scales) in GROUND_FORMS.items():
+    for _s in _scales:
+        _g, _k = ground_names(_s, _form)
+        FEATURE_DOCS[_g] = f"{_shape.format(s=f'{_s:g}')}: ground proximity on {_s:g} times the vehicle's own size"
+        FEATURE_DOCS[_k] = f"own thrust from the motion times {_shape.format(s=f'{_s:g}')}"
+GROUND_SCALE_FEATURES = tuple(n for _f, (_, _sc) in GROUND_FORMS.items() for _s in _sc for n in ground_names(_s, _f))
 """The features of :data:`GROUND_SCALES_L` and :data:`GROUND_INV_SCALES_L` (target-only)."""
 
 
@@ -445,14 +442,12 @@ def feature_matrix(
     accel_z = np.zeros(n) if t is None else offset_rate_mps(vel, t)[:, 2]
     thrust_kin = target.mass_kg * (GRAVITY_MPS2 + accel_z)  # not a feature alone: see FEATURE_FAMILIES
     f["thrust_kin_ground_N"] = thrust_kin * f["ground_exp_1"]
-    for scale in GROUND_SCALES_L:
-        g_name, k_name = ground_scale_names(scale)
-        f[g_name] = np.exp(-hc / (scale * target.size_m))
-        f[k_name] = thrust_kin * f[g_name]
-    for scale in GROUND_INV_SCALES_L:
-        g_name, k_name = ground_inv_names(scale)
-        f[g_name] = 1.0 / (1.0 + (hc / (scale * target.size_m)) ** 2)
-        f[k_name] = thrust_kin * f[g_name]
+    for form, (_, scales) in GROUND_FORMS.items():
+        for scale in scales:
+            g_name, k_name = ground_names(scale, form)
+            x = hc / (scale * target.size_m)
+            f[g_name] = np.exp(-x) if form == "exp" else 1.0 / (1.0 + x**2)
+            f[k_name] = thrust_kin * f[g_name]
     f["thrust_kin_speed_xy_Nmps"] = thrust_kin * f["speed_xy_mps"]
     kernels = []
     for src, (bf, bt) in zip(inputs.sources, base_per_source):

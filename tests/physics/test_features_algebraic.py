@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from proxplan.physics import BUILTIN_VEHICLES, FEATURE_NAMES, EffectInputs, SourceSample, feature_matrix
-from proxplan.physics.features import feature_group, ground_inv_names
+from proxplan.physics.features import feature_group, ground_names
 
 VEH = BUILTIN_VEHICLES["small-quad"]
 L = VEH.size_m
@@ -47,7 +47,7 @@ def test_the_cauchy_profile_beside_is_lorentzian_in_the_height_difference() -> N
 def test_the_algebraic_ground_proximity_is_half_at_its_scale() -> None:
     """1 / (1 + (h / s L)^2) at h = s L is 1/2, at h = 3 s L 1/10, for each scale; a target-only feature (no source)."""
     for scale in (0.4, 1.0, 2.5):
-        name, _ = ground_inv_names(scale)
+        name, _ = ground_names(scale, "inv")
         at = _f(np.array([[9.0, 0.0, 0.0]]), h_m=scale * L)[name][0]
         far = _f(np.array([[9.0, 0.0, 0.0]]), h_m=3.0 * scale * L)[name][0]
         assert abs(at - 0.5) < 1e-12 and abs(far - 0.1) < 1e-12
