@@ -102,9 +102,8 @@ def _idle_motors(log: VehicleLog, idle_N: float, motor_time_constant_s: float | 
     idle = thrust_N.sum(axis=1) <= idle_N
     if not motor_time_constant_s or len(log) < 2 or not idle.any():
         return idle
-    delivered_N = motor_lag_compensated_N(thrust_N, float(np.median(np.diff(log.t_s))), motor_time_constant_s).sum(
-        axis=1
-    )
+    dt_s = float(np.median(np.diff(log.t_s)))
+    delivered_N = motor_lag_compensated_N(thrust_N, dt_s, motor_time_constant_s).sum(axis=1)
     starts = np.flatnonzero(idle & ~np.concatenate([[False], idle[:-1]]))  # first sample of each idle stretch
     run = np.cumsum(np.isin(np.arange(len(idle)), starts)) - 1  # stretch number of every sample (idle ones)
     lowest_N = np.minimum.reduceat(np.where(idle, delivered_N, np.inf), starts)  # per stretch
