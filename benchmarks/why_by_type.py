@@ -71,12 +71,15 @@ def _passing_detail(problem, conflicts, bound_s: float) -> str:
     and in its plan (horizon as the pipeline's, from ``bound_s``, s) the latest vehicle, how long it waits at its start, its component and the vehicles
     whose tracks its component's shortest joint move meets when departing at once (round 26S)."""
     from proxplan.planner.swarm.occupancy import Occupancy
-    from proxplan.planner.swarm.passes import conflict_components, conflict_free, joint_moves, passing_stage
+    from proxplan.planner.swarm.passes import conflict_components, fitted, joint_moves, passing_stage
     from proxplan.planner.swarm.prioritised_stage import horizon_steps
     from proxplan.planner.swarm.tracks import GRID_DT_S
 
     comps = conflict_components([(i, j) for i, j in conflicts if i != j])
-    free = {c: [jm for jm in joint_moves(problem, c, checked=False) if conflict_free(problem, jm)] for c in comps}
+    free = {
+        c: [f for f in (fitted(problem, jm) for jm in joint_moves(problem, c, checked=False)) if f is not None]
+        for c in comps
+    }
     sizes = sorted((len(c) for c in comps if not free[c]), reverse=True)
     head = f"{len(comps)} components, {len(sizes)} without a joint move (sizes {sizes})"
     got = passing_stage(problem, horizon_steps(bound_s), conflicts)
@@ -95,8 +98,23 @@ def _passing_detail(problem, conflicts, bound_s: float) -> str:
     return (
         f"{head}; unbounded: latest {names[late.agent]} ({'+'.join(names[a] for a in comp)}, shortest joint move "
         f"{shortest.steps * GRID_DT_S:.2f} s, '{shortest.label}') departs after {wait * GRID_DT_S:.2f} s; "
-        f"departing at once it meets {', '.join(names[b] for b in hem) or 'nobody'}"
+        f"departing at once it meets {', '.join(names[b] for b in hem) or 'nobody'}; {_arc_gaps(problem, shortest)}"
     )
+
+
+def _arc_gaps(problem, jm) -> str:
+    """Each arc of the joint move ``jm``: its time (s, its law, ``timing.path_law``) against the speed-and-
+    acceleration floor of its path (``path_law.speed_accel_floor_s``, a lower bound; round 27S)."""
+    from proxplan.planner.timing.arcs import ArcMove
+    from proxplan.planner.timing.path_law import speed_accel_floor_s
+
+    out = []
+    for a, legs in zip(jm.members, jm.moves):
+        for _, mv in legs:
+            if isinstance(mv, ArcMove):
+                floor = speed_accel_floor_s(mv.delta, mv.bulge, problem.limits[a])
+                out.append(f"{problem.names[a]} arc {mv.duration:.3f} s (floor {floor:.3f} s)")
+    return "; ".join(out) or "no arc"
 
 
 def _fewest_conflicts(problem, bound_s: float, time_limit_s: float) -> str:

@@ -70,6 +70,12 @@ from proxplan.planner.timing.profile import LineMove, rest_to_rest
 # (problem.reach_xy_m): from half of it (two head-on partners each half aside clear the reach between
 # them) to all of it (one partner on its line); chosen before any run (round 23S)
 PASS_REACH_FACTORS = (0.5, 0.625, 0.75, 1.0)
+# a joint move's member leaves at most this many grid steps after the common departure where the members
+# conflict leaving together (:func:`_staggered`; 0.4 s: a joint move one reach-factor wider costs 2-5 steps,
+# so a longer delay rarely pays; a count, not tuned; round 27S)
+MAX_STAGGER_STEPS = 16
+# a goal this close to another member's start is that start (m): goals and starts are given points
+SAME_POINT_M = 1e-6
 # a component no joint move can be placed for makes the vehicles hemming it in late (or is placed first,
 # or its members become late), then all are placed again: at most this many times (a count, so the
 # same problem gives the same plan); as the yielding stage's MAX_YIELD_ROUNDS, set on the named layouts
@@ -81,10 +87,13 @@ MAX_RAISES = 6
 __all__ = [
     "MAX_PASS_ROUNDS",
     "MAX_RAISES",
+    "MAX_STAGGER_STEPS",
     "PASS_REACH_FACTORS",
+    "SAME_POINT_M",
     "JointMove",
     "conflict_components",
     "conflict_free",
+    "fitted",
     "joint_moves",
     "passing_stage",
     "place_joint",
@@ -271,6 +280,60 @@ def _free(problem: SwarmProblem, jm: JointMove) -> bool:
     return problem.static_memo.get(("joint move free", jm.members, jm.label), lambda: _pairs_free(problem, jm))
 
 
+def fitted(problem: SwarmProblem, jm: JointMove) -> JointMove | None:
+    """``jm`` where it is conflict-free among its members (:func:`_free`), else ``jm`` staggered
+    (:func:`_staggered`), or None; asked once per problem (``problem.static_memo``)."""
+    return problem.static_memo.get(
+        ("joint move fitted", jm.members, jm.label), lambda: jm if _free(problem, jm) else _staggered(problem, jm)
+    )
+
+
+def _leaving_order(problem: SwarmProblem, members: tuple[int, ...]) -> list[int]:
+    """Indices into ``members``: a member before those whose goal is its start (it leaves what they
+    reach), else in the members' order (also round a cycle: a swap, a rotation)."""
+    s, g = problem.starts_m, problem.goals_m
+    after = {
+        i: {j for j, b in enumerate(members) if j != i and np.linalg.norm(g[b] - s[members[i]]) <= SAME_POINT_M}
+        for i in range(len(members))
+    }
+    waits_for = {j: {i for i in after if j in after[i]} for j in range(len(members))}
+    order: list[int] = []
+    while len(order) < len(members):
+        left = [j for j in range(len(members)) if j not in order]
+        ready = [j for j in left if not waits_for[j] - set(order)]
+        order.append(min(ready) if ready else min(left))
+    return order
+
+
+def _staggered(problem: SwarmProblem, jm: JointMove) -> JointMove | None:
+    """``jm`` with its members leaving one after another: in :func:`_leaving_order`, each member's moves
+    delayed by the fewest grid steps (0 to :data:`MAX_STAGGER_STEPS`) that leave it conflict-free against
+    the members delayed before it (pair by pair, :func:`_pair_free`), or None where one has no such delay.
+    (A member's fastest arc, timing.path_law, may reach a partner's start before the partner has left it;
+    round 27S.)"""
+    moves = list(jm.moves)
+    keys: dict[int, tuple] = {}
+    tracks: dict[int, GridTrack] = {}
+    delays = []
+    for i in _leaving_order(problem, jm.members):
+        a, route = jm.members[i], jm.routes[i]
+        for d in range(MAX_STAGGER_STEPS + 1) if jm.moves[i] else (0,):
+            legs = tuple((k + d, mv) for k, mv in jm.moves[i])
+            key = _member_key(a, legs, route)
+            tr = GridTrack(a, int(problem.type_index[a]), problem.starts_m[a].copy(), list(legs), route_m=route)
+            if all(
+                problem.static_memo.get(("pair free", key, keys[j]), partial(_pair_free, problem, tr, tracks[j]))
+                for j in keys
+            ):
+                break
+        else:
+            return None
+        moves[i], keys[i], tracks[i] = legs, key, tr
+        if d:
+            delays.append(f"{problem.names[a]} +{d}")
+    return JointMove(jm.members, tuple(moves), jm.routes, f"{jm.label}, staggered ({', '.join(delays)})")
+
+
 def _pairs_free(problem: SwarmProblem, jm: JointMove) -> bool:
     """:func:`conflict_free` of ``jm`` from its members' pairs: a track conflicts with a set of tracks where
     it does with one of them (``Occupancy.conflicting_agents`` tests each other track on its own, over the
@@ -340,18 +403,20 @@ def place_joint(occ: Occupancy, jm: JointMove, *, arrive_by: int | None = None) 
 def _place_component(
     occ: Occupancy, problem: SwarmProblem, options: list[JointMove], arrive_by: int | None
 ) -> list[GridTrack] | None:
-    """The earliest-arriving placement over the joint moves ``options`` (their tracks) that are
-    conflict-free among themselves (:func:`_free`), or None."""
+    """The earliest-arriving placement over the joint moves ``options`` (their tracks), each conflict-free
+    among its members as it is or staggered (:func:`fitted`), or None."""
     best: tuple[int, list[GridTrack]] | None = None
     for jm in options:
         if best is not None and jm.steps >= best[0]:
             break  # sorted by length: none later arrives earlier
-        bound = arrive_by if best is None else best[0] - 1
-        d = place_joint(occ, jm, arrive_by=bound)
-        if d is None or (best is not None and d + jm.steps >= best[0]):
+        fit = fitted(problem, jm)
+        if fit is None:
             continue
-        if _free(problem, jm):
-            best = (d + jm.steps, jm.tracks(problem, d))
+        bound = arrive_by if best is None else best[0] - 1
+        d = place_joint(occ, fit, arrive_by=bound)
+        if d is None or (best is not None and d + fit.steps >= best[0]):
+            continue
+        best = (d + fit.steps, fit.tracks(problem, d))
     return None if best is None else best[1]
 
 
@@ -376,7 +441,7 @@ def passing_stage(
     options = {c: _options(problem, c) for c in comps}
     for c in comps:  # a component without any joint move is timed one by one from the start
         for jm in options[c]:
-            if _free(problem, jm):
+            if fitted(problem, jm) is not None:
                 break
         else:
             options[c] = []
@@ -394,6 +459,7 @@ def passing_stage(
     rounds = 0
     optional: set[int] = set()  # late only because they made a component wait
     stay: set[int] = set()  # such vehicles that could not be timed late: on their straight lines for good
+    before_all: set[int] = set()  # late vehicles moved to be placed before every other raised one
     # the earliest plan so far: its tracks, late vehicles, vehicles in components, components, round
     kept: tuple[dict[int, GridTrack], set[int], set[int], int, int] | None = None
     while True:
@@ -430,6 +496,9 @@ def passing_stage(
                 in_comp -= set(unit)
             elif unit not in first:  # a late vehicle hemmed in by placed ones only: placed first, once
                 first.append(unit)
+            elif first[-1] != unit and unit not in before_all:  # raised with others, placed after them: before
+                first = [u for u in first if u != unit] + [unit]  # all of them, once (pillar-12 by type, 27S)
+                before_all.add(unit)
             else:  # placed first already and still hemmed in: no move of this stage frees it
                 changed, why = False, unit
                 break
