@@ -75,6 +75,8 @@ class ArcMove:
         self.duration = self.law.duration_s
         self.steps = self.law.steps
         self.waypoints_m = np.array([self.p0, self.p0 + 0.5 * self.delta + self.bulge, self.end_m])
+        self._grid = self._point(self.law.sigma_grid())
+        self._grid[-1] = self.end_m
 
     def __reduce__(self):  # rebuilt from its arguments (the law is cached by shape, deterministically)
         return ArcMove, (self.p0, self.end_m, self.bulge, *self._args)
@@ -97,6 +99,4 @@ class ArcMove:
 
     def positions(self) -> np.ndarray:
         """Positions at every grid time 0, dt, ..., duration (steps + 1, 3), m."""
-        out = self._point(self.law.sigma_grid())
-        out[-1] = self.end_m
-        return out
+        return self._grid.copy()

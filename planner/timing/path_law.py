@@ -223,32 +223,38 @@ class PathLaw:
     def duration_s(self) -> float:
         return self.steps * self.dt_s
 
-    def at(self, t_s: float) -> tuple[float, float, float]:
-        """sigma (-), sigma' (1/s) and sigma'' (1/s^2) at ``t_s`` (s) after the start (rest outside)."""
+    def states(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """sigma (-), sigma' (1/s) and sigma'' (1/s^2) at the times ``t_s`` (s) after the start (rest outside)."""
         T = self.duration_s
-        if t_s <= 0.0:
-            return 0.0, 0.0, 0.0
-        if t_s >= T:
-            return 1.0, 0.0, 0.0
-        tn = t_s / T
+        tn = np.clip(np.asarray(t_s, dtype=float) / T, 0.0, 1.0)
         mirrored = tn > 0.5
-        x = 1.0 - tn if mirrored else tn
+        x = np.where(mirrored, 1.0 - tn, tn)
         n = len(self.half_jerk)
         h = 0.5 / n
-        k = min(int(x / h), n - 1)
+        k = np.minimum((x / h).astype(int), n - 1)
         _, knots, _ = _maps(n, FIT_SAMPLES)
-        s, sd, sdd = knots[k] @ self.half_jerk
+        at_knots = knots @ self.half_jerk  # (n + 1, 3): sigma, sigma', sigma'' at the knots
+        s, sd, sdd = at_knots[k].T
         d = x - k * h
-        u = float(self.half_jerk[k])
+        u = self.half_jerk[k]
         s, sd, sdd = s + sd * d + sdd * d * d / 2.0 + u * d**3 / 6.0, sd + sdd * d + u * d * d / 2.0, sdd + u * d
-        if mirrored:
-            s, sdd = 1.0 - s, -sdd
-        return float(s), float(sd) / T, float(sdd) / (T * T)
+        s = np.where(mirrored, 1.0 - s, s)
+        sdd = np.where(mirrored, -sdd, sdd)
+        return s, sd / T, sdd / (T * T)
+
+    def at(self, t_s: float) -> tuple[float, float, float]:
+        """sigma (-), sigma' (1/s) and sigma'' (1/s^2) at ``t_s`` (s) after the start (rest outside)."""
+        if t_s <= 0.0:
+            return 0.0, 0.0, 0.0
+        if t_s >= self.duration_s:
+            return 1.0, 0.0, 0.0
+        s, sd, sdd = self.states(np.array([t_s]))
+        return float(s[0]), float(sd[0]), float(sdd[0])
 
     def sigma_grid(self) -> np.ndarray:
         """sigma at every grid time 0, dt, ..., duration (steps + 1,)."""
-        out = np.array([self.at(k * self.dt_s)[0] for k in range(self.steps + 1)])
-        out[-1] = 1.0
+        out = self.states(np.arange(self.steps + 1) * self.dt_s)[0]
+        out[0], out[-1] = 0.0, 1.0
         return out
 
 
