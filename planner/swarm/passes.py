@@ -456,7 +456,6 @@ def passing_stage(
     rounds = 0
     optional: set[int] = set()  # late only because they made a component wait
     stay: set[int] = set()  # such vehicles that could not be timed late: on their straight lines for good
-    before_all: set[int] = set()  # late vehicles moved to be placed before every other raised one
     # the earliest plan so far: its tracks, late vehicles, vehicles in components, components, round
     kept: tuple[dict[int, GridTrack], set[int], set[int], int, int] | None = None
     while True:
@@ -493,9 +492,6 @@ def passing_stage(
                 in_comp -= set(unit)
             elif unit not in first:  # a late vehicle hemmed in by placed ones only: placed first, once
                 first.append(unit)
-            elif first[-1] != unit and unit not in before_all:  # raised with others, placed after them: before
-                first = [u for u in first if u != unit] + [unit]  # all of them, once (pillar-12 by type, 27S)
-                before_all.add(unit)
             else:  # placed first already and still hemmed in: no move of this stage frees it
                 changed, why = False, unit
                 break

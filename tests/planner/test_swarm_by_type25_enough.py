@@ -21,8 +21,10 @@ OPTIONS = SwarmOptions(workers=1, reserve_starts=False)  # as the pipeline plans
 
 
 @pytest.fixture(scope="module")
-def pillar12():
-    scenario, _, _ = _assigned("pillar", 12)
+def pillar10():
+    # pillar-10 since round 27S: with the faster arcs (timing.path_law) pillar-12's early attempt gives up
+    # (1.15 B after prioritised planning; 1.22 B before, by the early attempt)
+    scenario, _, _ = _assigned("pillar", 10)
     return scenario, lower_bound_makespan_s(scenario)
 
 
@@ -30,11 +32,11 @@ def _key(paths) -> list:
     return sorted((name, round(p.duration_s, 9), len(p.segments)) for name, p in paths.items())
 
 
-def test_a_passing_plan_within_the_factor_is_kept_without_prioritised_planning(pillar12):
-    """pillar-12 by type: the vehicles giving way arrive within 1.3x the bound (1.22 B when written), so
+def test_a_passing_plan_within_the_factor_is_kept_without_prioritised_planning(pillar10):
+    """pillar-10 by type: the vehicles giving way arrive within 1.3x the bound (1.09 B when written), so
     prioritised planning is not run (no record of it); the plan passes the verifier, lies within the
     factor, and a second run gives the same plan."""
-    scenario, bound = pillar12
+    scenario, bound = pillar10
     paths, info = swarm_timed(scenario, OPTIONS)
     assert info.prioritised is None
     assert "pass together" in info.coordination
@@ -44,10 +46,10 @@ def test_a_passing_plan_within_the_factor_is_kept_without_prioritised_planning(p
     assert _key(again) == _key(paths)
 
 
-def test_without_the_factor_prioritised_planning_runs_first_and_the_same_plan_is_kept(pillar12):
+def test_without_the_factor_prioritised_planning_runs_first_and_the_same_plan_is_kept(pillar10):
     """``enough_factor=None``: prioritised planning runs first (its record is there), the vehicles giving way
     after it; the shorter kept is the same passing plan as with the factor."""
-    scenario, _ = pillar12
+    scenario, _ = pillar10
     first, _ = swarm_timed(scenario, OPTIONS)
     paths, info = swarm_timed(scenario, replace(OPTIONS, enough_factor=None))
     assert info.prioritised is not None
@@ -55,10 +57,10 @@ def test_without_the_factor_prioritised_planning_runs_first_and_the_same_plan_is
     assert _key(paths) == _key(first)
 
 
-def test_a_factor_no_plan_can_meet_leaves_prioritised_planning_to_run_and_says_so(pillar12):
+def test_a_factor_no_plan_can_meet_leaves_prioritised_planning_to_run_and_says_so(pillar10):
     """With a factor of 1 (a plan arriving before the lower bound: none exists) the early attempt gives
     up and says so, prioritised planning runs, and the plan kept still passes the verifier."""
-    scenario, _ = pillar12
+    scenario, _ = pillar10
     paths, info = swarm_timed(scenario, replace(OPTIONS, enough_factor=1.0))
     assert info.prioritised is not None
     assert info.yielding is not None and info.yielding.startswith("within 1x the bound, before prioritised planning:")
