@@ -281,10 +281,18 @@ def _free(problem: SwarmProblem, jm: JointMove) -> bool:
 
 
 def fitted(problem: SwarmProblem, jm: JointMove) -> JointMove | None:
-    """``jm`` where it is conflict-free among its members (:func:`_free`), else ``jm`` staggered
-    (:func:`_staggered`), or None; asked once per problem (``problem.static_memo``)."""
+    """``jm`` where it is conflict-free among its members (:func:`_free`), else, where every member moves
+    (no resting member: those step aside in time with the movers), ``jm`` staggered (:func:`_staggered`);
+    or None. Asked once per problem (``problem.static_memo``)."""
     return problem.static_memo.get(
-        ("joint move fitted", jm.members, jm.label), lambda: jm if _free(problem, jm) else _staggered(problem, jm)
+        ("joint move fitted", jm.members, jm.label),
+        lambda: (
+            jm
+            if _free(problem, jm)
+            else _staggered(problem, jm)
+            if all(map(partial(_moving, problem), jm.members))
+            else None
+        ),
     )
 
 
