@@ -11,7 +11,7 @@ from proxplan.physics import KinematicLimits
 from proxplan.planner.swarm.passes import conflict_free, fitted, joint_moves
 from proxplan.planner.swarm.tracks import GRID_DT_S
 from proxplan.planner.timing.arcs import ArcMove
-from proxplan.planner.timing.path_law import _cached_law, quadratic_law, speed_accel_floor_s
+from proxplan.planner.timing.path_law import _cached_law, _shape_law, quadratic_law, speed_accel_floor_s
 from proxplan.planner.timing.profile import rest_to_rest
 
 from .test_swarm_by_type_passes import _assigned
@@ -75,6 +75,7 @@ def test_the_law_is_the_same_when_computed_again():
     args = (np.zeros(3), np.array([0.85, 0.0, 0.0]), np.array([0.0, 0.25, 0.0]), LIMITS, GRID_DT_S)
     first = quadratic_law(*args)
     _cached_law.cache_clear()
+    _shape_law.cache_clear()
     again = quadratic_law(*args)
     assert again.steps == first.steps and np.array_equal(again.half_jerk, first.half_jerk)
 
