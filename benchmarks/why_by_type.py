@@ -7,7 +7,9 @@ the swarm layer's plan (``swarm_timed``) and, among the vehicles arriving after 
 a straight-step conflict, fly a route of more than one move (a detour) and leave late. Then the
 certified single-vehicle bound round the obstacles under the assignment (does B route round them?) and
 the lines through an obstacle each flown alone round it (``yielding.around_obstacle``; round 24S), and what the
-stages giving way (``SwarmInfo.yielding``) and prioritised planning gave or gave up on (round 25S). Then the
+stages giving way (``SwarmInfo.yielding``) and prioritised planning gave or gave up on (round 25S); the passing
+stage's latest group's arcs, each timed against its path's speed-and-acceleration floor
+(``timing.path_law.speed_accel_floor_s``; round 27S). Then the
 detour estimate of the worst conflicting pair: for each pair, the cheaper of the two vehicles' two-leg
 rest-to-rest detours through a corner ``reach_xy_m`` aside at mid-line (jerk-limited rest-to-rest
 time of each leg, ``timing.profile.rest_to_rest``), the largest over the pairs, over B. With
