@@ -69,6 +69,9 @@ from collections import Counter
 
 import numpy as np
 
+# the --flow diagnostic's lane routes and flow timing (round 23B) live in the planner since round 27A
+from proxplan.planner.swarm.lanes import BOTH_SIDES, KEEP_RIGHT, direction_groups, flow_timing, lane_routes
+
 # a vehicle's name in a pass's history (swarm.priority writes "v012: why" for a vehicle that failed)
 FAILED = re.compile(r"^(v\d+): (.*)$")
 # head-on: headings more than this far apart (deg); collinear: both ends within this of the line (m)
@@ -427,7 +430,6 @@ def flow(args) -> int:
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
     from proxplan.planner.swarm import SwarmOptions, swarm_problem, swarm_timed
     from proxplan.planner.swarm.frozen import unfrozen_problem
-    from proxplan.planner.swarm.lanes import BOTH_SIDES, KEEP_RIGHT, direction_groups, flow_timing, lane_routes
     from proxplan.planner.swarm.plan import _retime_stage
     from proxplan.planner.swarm.stage import Stage
 
