@@ -174,7 +174,9 @@ def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -
     for a in range(A):
         for b in hits[a][1]:
             before[b].add(a)
-    order, done, broken = [], set(), 0
+    order: list[int] = []
+    done: set[int] = set()
+    broken = 0
     while len(order) < A:
         ready = [a for a in range(A) if a not in done and before[a] <= done]
         if not ready:
@@ -188,7 +190,7 @@ def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -
         occ = Occupancy(problem, [reserved_track(problem, b) for b in range(A)], horizon)
         tracks: dict = {}
         queue = list(order)
-        failed = None
+        failed: int | None = None
         while queue:
             a = queue.pop(0)
             occ.remove(a)
@@ -214,6 +216,7 @@ def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -
             return tracks, f"all timed, {broken} cycles broken, {fallbacks} fallbacks, {restart} restarts"
         order.remove(failed)
         order.insert(0, failed)  # the vehicle that could not be timed goes first
+    assert failed is not None
     return (
         tracks,
         f"gave up at vehicle {len(tracks)} ({problem.names[failed]}) after {FLOW_RESTARTS} restarts, {broken} cycles "

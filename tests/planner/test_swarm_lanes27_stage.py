@@ -33,7 +33,9 @@ def _two_way(n: int):
 
 def _bound_s(problem) -> float:
     return max(
-        rest_to_rest(float(np.linalg.norm(problem.goals_m[a] - problem.starts_m[a])), problem.limits[a], GRID_DT_S).duration_s
+        rest_to_rest(
+            float(np.linalg.norm(problem.goals_m[a] - problem.starts_m[a])), problem.limits[a], GRID_DT_S
+        ).duration_s
         for a in range(problem.n_agents)
     )
 
