@@ -69,6 +69,9 @@ from collections import Counter
 
 import numpy as np
 
+# the --flow diagnostic's lane routes and flow timing (round 23B) live in the planner since round 27A
+from proxplan.planner.swarm.lanes import BOTH_SIDES, KEEP_RIGHT, direction_groups, flow_timing, lane_routes
+
 # a vehicle's name in a pass's history (swarm.priority writes "v012: why" for a vehicle that failed)
 FAILED = re.compile(r"^(v\d+): (.*)$")
 # head-on: headings more than this far apart (deg); collinear: both ends within this of the line (m)
@@ -171,9 +174,10 @@ def level_alone(args) -> int:
     from proxplan.planner.formations import LAYOUTS
     from proxplan.planner.swarm import SwarmOptions, swarm_problem
     from proxplan.planner.swarm.frozen import unfrozen_problem
+    from proxplan.planner.swarm.lanes import lanes_stage
     from proxplan.planner.swarm.levels import stack_levels
     from proxplan.planner.swarm.prioritised_stage import horizon_steps, prioritised_stage
-    from proxplan.planner.swarm.stacked import levelled_endpoints, types_subproblem
+    from proxplan.planner.swarm.stacked import level_subproblem, levelled_endpoints
     from proxplan.planner.swarm.tracks import GRID_DT_S
     from proxplan.planner.timing.profile import rest_to_rest
 
@@ -187,7 +191,8 @@ def level_alone(args) -> int:
     lev_s, lev_g = levelled_endpoints(problem, levels)
     on_levels = replace(problem, starts_m=lev_s, goals_m=lev_g)
     group, z = levels.groups[args.level], levels.heights_m[args.level]
-    sub = types_subproblem(on_levels, [a for a in range(problem.n_agents) if int(problem.type_index[a]) in group])
+    agents = [a for a in range(problem.n_agents) if int(problem.type_index[a]) in group]
+    sub = level_subproblem(on_levels, agents, levels.band_m(args.level))
     bound = max(
         rest_to_rest(float(np.linalg.norm(sub.goals_m[a] - sub.starts_m[a])), sub.limits[a], GRID_DT_S).duration_s
         for a in range(sub.n_agents)
@@ -213,6 +218,11 @@ def level_alone(args) -> int:
     print(f"  {extra['counts']}, {time.process_time() - t0:.1f} s CPU")
     if got is not None:
         print(f"  plan {max(tr.arrival_s for tr in got.tracks):.2f} s")
+    else:  # what the level's planner asks next (round 27A)
+        t0 = time.process_time()
+        lanes = lanes_stage(sub, bound, extra)
+        made = "" if lanes is None else f", {max(tr.arrival_s for tr in lanes.tracks) / bound:.2f}x the bound"
+        print(f"  {extra['lanes']}{made}, {time.process_time() - t0:.1f} s CPU")
     for rec in records:
         _print_pass(rec)
     failed = next((rec for rec in records if rec["outcome"] == "gave up"), None)
@@ -412,175 +422,6 @@ def lattice_counts(args) -> int:
     return 0
 
 
-# --flow (round 23B): two headings are one direction group when their cosine exceeds this (within 60 degrees)
-FLOW_GROUP_COS = 0.5
-# --flow: a lane route's middle leg is offset by these multiples of the widest keep-out's horizontal reach
-# (SwarmProblem.reach_xy_m) to the right and left of the heading, and by these heights, m
-FLOW_LATERAL_REACHES = (0.75, 1.0)
-FLOW_DZ_M = (0.0, 0.5, -0.5)
-# --flow: the sides a lane route may be offset to, +1 right of its heading, -1 left (both: the offsets spread the
-# lanes; right only, --keep-right: opposite streams on opposite sides)
-FLOW_SIDES = (1.0, -1.0)
-# --flow: the flow timing starts again at most this many times, the vehicle it could not time first
-FLOW_RESTARTS = 32
-
-
-def direction_groups(problem) -> list[tuple[np.ndarray, list[int]]]:
-    """Vehicles grouped by horizontal heading (start -> goal): each joins the first group whose mean heading
-    is within ``FLOW_GROUP_COS`` of its own (in index order); (mean unit heading, members) per group."""
-    d = (problem.goals_m - problem.starts_m)[:, :2]
-    u = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
-    groups: list[list] = []
-    for a in range(problem.n_agents):
-        for grp in groups:
-            if float(grp[0] @ u[a]) / max(float(np.linalg.norm(grp[0])), 1e-9) > FLOW_GROUP_COS:
-                grp[0] = grp[0] + u[a]
-                grp[1].append(a)
-                break
-        else:
-            groups.append([u[a].copy(), [a]])
-    return [(g[0] / max(float(np.linalg.norm(g[0])), 1e-9), g[1]) for g in groups]
-
-
-def _footprint(problem, a: int, W: np.ndarray):
-    """``a`` flown along the chain ``W`` alone, rest to rest on each leg (no shortcut: the route itself), a
-    GridTrack."""
-    from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
-    from proxplan.planner.timing.profile import LineMove, rest_to_rest
-
-    moves, k = [], 0
-    for p0, p1 in zip(W[:-1], W[1:], strict=True):
-        length = float(np.linalg.norm(p1 - p0))
-        if length > 1e-9:
-            mv = LineMove(p0, p1, rest_to_rest(length, problem.limits[a], GRID_DT_S))
-            moves.append((k, mv))
-            k += mv.steps
-    return GridTrack(a, int(problem.type_index[a]), W[0].copy(), moves)
-
-
-def lane_routes(problem, horizon: int, sides: tuple[float, ...] = FLOW_SIDES) -> tuple[dict, dict]:
-    """Per vehicle a lane route start -> start + D -> goal + D -> goal (the middle leg round the obstacles by
-    the wavefront in empty space), D one of the offsets FLOW_LATERAL_REACHES x FLOW_DZ_M (and none) to the
-    right or left of its heading (``sides``: +1 right, -1 left) and up or down. Of the offsets whose flight
-    alone along the route comes within keep-out of the fewest other starts and goals (those within keep-out
-    of its own start or goal aside: they are timing, not the route), the one taken by the fewest vehicles so
-    far (lanes spread over the offsets, the vehicles assigned longest flight first; ties: the earlier
-    arrival). Returns (routes, (starts hit, goals hit, arrival s flown rest to rest along the route) per
-    vehicle)."""
-    from proxplan.planner.swarm.occupancy import Occupancy
-    from proxplan.planner.swarm.reserve import reserved_track
-    from proxplan.planner.swarm.tracks import GridTrack
-    from proxplan.planner.swarm.wave import wave_route
-
-    A = problem.n_agents
-    empty = Occupancy(problem, [], horizon)
-    starts = Occupancy(problem, [reserved_track(problem, b) for b in range(A)], horizon)
-    goals = Occupancy(
-        problem, [GridTrack(b, int(problem.type_index[b]), problem.goals_m[b].copy(), []) for b in range(A)], horizon
-    )
-    lateral = [0.0] + [sgn * f for f in FLOW_LATERAL_REACHES for sgn in sides]
-    candidates: dict[int, list] = {}
-    for a in range(A):
-        s, g = problem.starts_m[a], problem.goals_m[a]
-        ends = [GridTrack(a, int(problem.type_index[a]), q.copy(), []) for q in (s, g)]
-        own_s = set().union(*(starts.conflicting_agents(e) for e in ends))
-        own_g = set().union(*(goals.conflicting_agents(e) for e in ends))
-        d = (g - s)[:2] / max(float(np.linalg.norm((g - s)[:2])), 1e-9)
-        right = np.array([d[1], -d[0], 0.0])
-        candidates[a] = []
-        for dz in FLOW_DZ_M:
-            for lat in lateral:
-                D = lat * problem.reach_xy_m * right + np.array([0.0, 0.0, dz])
-                P, Q = s + D, g + D
-                if (lat or dz) and not (
-                    problem.static_free(np.array([P, Q])).all()
-                    and problem.segment_free(s, P)
-                    and problem.segment_free(Q, g)
-                ):
-                    continue
-                M = np.array([P, Q]) if problem.segment_free(P, Q) else wave_route(empty, a, P, Q)
-                if M is None:
-                    continue
-                W = M if not (lat or dz) else np.vstack([s[None], M, g[None]])
-                track = _footprint(problem, a, W)
-                hs = starts.conflicting_agents(track) - own_s - {a}
-                hg = goals.conflicting_agents(track) - own_g - {a}
-                candidates[a].append(((lat, dz), len(hs) + len(hg), W, (hs, hg, track.arrival_s)))
-        assert candidates[a], f"{problem.names[a]}: no route at all"
-    taken: Counter = Counter()
-    routes, hits = {}, {}
-    for a in sorted(range(A), key=lambda a: (-min(c[3][2] for c in candidates[a]), a)):
-        fewest = min(c[1] for c in candidates[a])
-        lane, _, W, hit = min((c for c in candidates[a] if c[1] == fewest), key=lambda c: (taken[c[0]], c[3][2], c[0]))
-        taken[lane] += 1
-        routes[a], hits[a] = W, hit
-    return routes, hits
-
-
-def flow_timing(problem, routes: dict, hits: dict, horizon: int) -> tuple[dict, str]:
-    """Every vehicle timed along its lane route (exact safe-interval timing through waypoints against those
-    timed before it, the others' starts reserved until timed; a vehicle whose goal is within keep-out of
-    reserved starts releases them and they are timed next; a failed timing falls back on plan_one), in the
-    flow order: a vehicle after those whose starts its route passes and before those whose goals it passes,
-    cycles broken by the fewest unmet, ties the longest flight first; where a vehicle cannot be timed, all
-    again with it first, at most ``FLOW_RESTARTS`` times (a count). Returns (tracks, how it ended)."""
-    import proxplan.planner.swarm.single as _single
-    from proxplan.planner.swarm.chain import time_chain
-    from proxplan.planner.swarm.occupancy import Occupancy
-    from proxplan.planner.swarm.reserve import reserved_track
-    from proxplan.planner.swarm.tracks import GridTrack
-
-    A = problem.n_agents
-    before = {a: set(hits[a][0]) for a in range(A)}
-    for a in range(A):
-        for b in hits[a][1]:
-            before[b].add(a)
-    order, done, broken = [], set(), 0
-    while len(order) < A:
-        ready = [a for a in range(A) if a not in done and before[a] <= done]
-        if not ready:
-            broken += 1
-            ready = [min((a for a in range(A) if a not in done), key=lambda a: (len(before[a] - done), -hits[a][2], a))]
-        pick = min(ready, key=lambda a: (-hits[a][2], a))
-        order.append(pick)
-        done.add(pick)
-    fallbacks = 0
-    for restart in range(FLOW_RESTARTS + 1):
-        occ = Occupancy(problem, [reserved_track(problem, b) for b in range(A)], horizon)
-        tracks: dict = {}
-        queue = list(order)
-        failed = None
-        while queue:
-            a = queue.pop(0)
-            occ.remove(a)
-            at_goal = GridTrack(a, int(problem.type_index[a]), problem.goals_m[a].copy(), [])
-            partners = [b for b in sorted(occ.conflicting_agents(at_goal)) if b not in tracks]
-            for b in partners:
-                occ.remove(b)
-            res = time_chain(occ, a, routes[a], through=True)
-            track = None if res is None else res.track
-            if track is None:
-                fallbacks += 1
-                track = _single.plan_one(occ, a, True)
-            if track is None:
-                failed = a
-                break
-            tracks[a] = track
-            occ.put(track)
-            for b in partners:
-                queue.remove(b)
-                queue.insert(0, b)
-        if failed is None:
-            return tracks, f"all timed, {broken} cycles broken, {fallbacks} fallbacks, {restart} restarts"
-        order.remove(failed)
-        order.insert(0, failed)  # the vehicle that could not be timed goes first
-    return (
-        tracks,
-        f"gave up at vehicle {len(tracks)} ({problem.names[failed]}) after {FLOW_RESTARTS} restarts, {broken} cycles "
-        f"broken, {fallbacks} fallbacks",
-    )
-
-
 def flow(args) -> int:
     """Direction groups planned alone, lane routes' hits and the flow timing, re-timed (``--flow``, round 23B;
     ``--group K``: lane routes and flow timing of direction group K alone)."""
@@ -614,7 +455,7 @@ def flow(args) -> int:
             problem, _, _ = unfrozen_problem(swarm_problem(scenario_from_dict(sub)))
     horizon = 4000
     t0 = time.process_time()
-    routes, hits = lane_routes(problem, horizon, (1.0,) if args.keep_right else FLOW_SIDES)
+    routes, hits = lane_routes(problem, horizon, KEEP_RIGHT if args.keep_right else BOTH_SIDES)
     counts = Counter(len(h[0]) + len(h[1]) for h in hits.values())
     print(
         f"lane routes ({time.process_time() - t0:.1f} s CPU): other starts and goals on the route taken, vehicles: "

@@ -20,7 +20,8 @@ time, :mod:`~proxplan.planner.swarm.single`; waiting aside, :mod:`~proxplan.plan
 :mod:`~proxplan.planner.swarm.lattice`, :mod:`~proxplan.planner.swarm.sync`,
 :mod:`~proxplan.planner.swarm.lacam`, :mod:`~proxplan.planner.swarm.lockstep` (the guaranteed
 lattice plan), beside it :mod:`~proxplan.planner.swarm.levels` and
-:mod:`~proxplan.planner.swarm.stacked` (types on levels of their own, each planned apart) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
+:mod:`~proxplan.planner.swarm.stacked` (types on levels of their own, each planned apart; a level where
+prioritised planning gave up by :mod:`~proxplan.planner.swarm.lanes`, two-way lanes kept right) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
 :mod:`~proxplan.planner.swarm.makespan` (the latest vehicles planned again with those in their way) ->
 :mod:`~proxplan.planner.swarm.plan` (the stages, with the knobs of
 :mod:`~proxplan.planner.swarm.options`, handing on a :mod:`~proxplan.planner.swarm.stage`) and

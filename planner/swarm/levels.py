@@ -69,6 +69,24 @@ class Levels:
     groups: tuple[tuple[int, ...], ...]  # type indices per level, bottom first
     heights_m: tuple[float, ...]  # height of each level, m
     agent_z_m: np.ndarray  # (A,) the level of each agent, m
+    # (lowest, highest) height each level's plan may fly at, m (:func:`level_bands_m`); None: its height only
+    bands_m: tuple[tuple[float, float], ...] | None = None
+
+    def band_m(self, k: int) -> tuple[float, float]:
+        """(lowest, highest) height level ``k``'s plan may fly at, m."""
+        z = self.heights_m[k]
+        return (z, z) if self.bands_m is None else self.bands_m[k]
+
+
+def level_bands_m(heights_m: tuple[float, ...], lo_z_m: float, hi_z_m: float) -> tuple[tuple[float, float], ...]:
+    """Per level (bottom first) the heights its vehicles may fly at without meeting another level's, m: the
+    bottom level down to the free box's floor ``lo_z_m``, the top level up to its ceiling ``hi_z_m``, every
+    other level its own height only. Exact from :func:`free_height_m`: a pair free at a height difference
+    d_z is free at every larger one inside the box, and flying down from the bottom level (up from the top)
+    only widens its differences to every other level; a middle level moving would narrow one of them (round
+    27A: the top level's vehicles pass over the rows of starts and goals that wall a single height)."""
+    n = len(heights_m)
+    return tuple((lo_z_m if k == 0 else z, hi_z_m if k == n - 1 else z) for k, z in enumerate(heights_m))
 
 
 def _ordered_partitions(items: list[int]):
@@ -151,7 +169,12 @@ def stack_levels(problem: SwarmProblem, keepouts: dict[tuple[int, int], KeepOut]
     if best is None:
         return None
     _, groups, heights, agent_z = best
-    return Levels(groups=groups, heights_m=heights, agent_z_m=np.asarray(agent_z, dtype=float))
+    return Levels(
+        groups=groups,
+        heights_m=heights,
+        agent_z_m=np.asarray(agent_z, dtype=float),
+        bands_m=level_bands_m(heights, lo_z, hi_z),
+    )
 
 
 def levelled_endpoints(problem: SwarmProblem, levels: Levels) -> tuple[np.ndarray, np.ndarray]:

@@ -86,6 +86,7 @@ from proxplan.planner.swarm.info import (
     SwarmInfo,
     SwarmStage,
 )
+from proxplan.planner.swarm.lanes import lanes_stage
 from proxplan.planner.swarm.levels import stack_levels, stacking_keepouts
 from proxplan.planner.swarm.makespan import budget as makespan_budget
 from proxplan.planner.swarm.makespan import shorten_makespan
@@ -385,6 +386,8 @@ def _plan(
         found = prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         if kept is not None and (found is None or stage_makespan(kept) < stage_makespan(found)):
             found = kept
+        if found is None and level:  # two-way lanes where prioritised planning gave up on a level (round 27A)
+            found = lanes_stage(problem, lower_bound, extra)
     if assigned and conflicts and opts.prioritized and early is None:  # one vehicle of a pair yields (round 20S)
         in_hand = None if found is None else stage_makespan(found)
         together = opts.pass_together and not level

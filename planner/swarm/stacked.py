@@ -10,8 +10,9 @@ World frame, z up, m; times on the swarm grid (``GRID_DT_S``). Three phases, one
    (``plan_level``, a plan of the subproblem of the level's vehicles between their starts and goals
    moved to the level; the caller's planner, conflict-free within the level). Two vehicles on
    different levels never conflict (the levels are as far apart as their types need, whatever the
-   horizontal positions, moving or at rest), and every vehicle stays on its level (checked: a level
-   plan that leaves it is not used);
+   horizontal positions, moving or at rest), and every vehicle stays within its level's band (its
+   height; the bottom level down to the floor, the top one up to the ceiling:
+   :func:`~proxplan.planner.swarm.levels.level_bands_m`; checked: a level plan that leaves it is not used);
 3. *up*: once every level's plan has ended, every vehicle from its goal on the level to its goal, as
    in 1.
 
@@ -35,7 +36,14 @@ from proxplan.planner.swarm.sync import SyncTable
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing.profile import rest_to_rest
 
-__all__ = ["StackedPlan", "StackedBound", "stacked_bound", "stacked_tracks", "types_subproblem"]
+__all__ = [
+    "StackedBound",
+    "StackedPlan",
+    "level_subproblem",
+    "stacked_bound",
+    "stacked_tracks",
+    "types_subproblem",
+]
 
 # a level plan's samples must stay this close to the level's height, m (whole-millimetre positions)
 LEVEL_TOLERANCE_M = 1e-3
@@ -77,6 +85,20 @@ def types_subproblem(problem: SwarmProblem, agents: list[int]) -> SwarmProblem:
         vehicles=tuple(sub.vehicles[t] for t in types),
         keepouts={(new[a], new[b]): ko for (a, b), ko in sub.keepouts.items() if a in new and b in new},
     )
+
+
+def level_subproblem(on_levels: SwarmProblem, agents: list[int], band_m: tuple[float, float]) -> SwarmProblem:
+    """The subproblem of one level (:func:`types_subproblem` of ``agents`` of ``on_levels``, the problem
+    with its starts and goals on their levels) with its free box cut to the level's band ``band_m``
+    ((lowest, highest) height, m; :func:`~proxplan.planner.swarm.levels.level_bands_m`, give or take
+    ``LEVEL_TOLERANCE_M``)."""
+    sub = types_subproblem(on_levels, agents)
+    lo, hi = sub.lo_m.copy(), sub.hi_m.copy()
+    # the band's edges eased by the check's tolerance: a level's own height sits on an edge, where rounding
+    # would put its starts outside the box
+    lo[2] = max(float(lo[2]), band_m[0] - LEVEL_TOLERANCE_M)
+    hi[2] = min(float(hi[2]), band_m[1] + LEVEL_TOLERANCE_M)
+    return replace(sub, lo_m=lo, hi_m=hi)
 
 
 def _vertical(
@@ -162,14 +184,16 @@ def stacked_tracks(
     on_levels = replace(problem, starts_m=lev_s, goals_m=lev_g)
     level_tracks: dict[int, GridTrack] = {}
     makespans = []
-    for group, z in zip(levels.groups, levels.heights_m):
+    for j, (group, z) in enumerate(zip(levels.groups, levels.heights_m)):
         agents = [a for a in range(A) if int(problem.type_index[a]) in group]
-        got = plan_level(types_subproblem(on_levels, agents))
+        band = levels.band_m(j)
+        got = plan_level(level_subproblem(on_levels, agents, band))
         if got is None:
             return None, f"the level at {z:.2f} m gave no plan"
         for k, tr in enumerate(got):
-            if float(np.abs(tr.positions_m[:, 2] - z).max()) > LEVEL_TOLERANCE_M:
-                return None, f"the plan of the level at {z:.2f} m leaves it"
+            zs = tr.positions_m[:, 2]
+            if float(zs.min()) < band[0] - LEVEL_TOLERANCE_M or float(zs.max()) > band[1] + LEVEL_TOLERANCE_M:
+                return None, f"the plan of the level at {z:.2f} m leaves its band {band[0]:.2f}-{band[1]:.2f} m"
             level_tracks[agents[k]] = tr
         makespans.append(max(tr.arrival_s for tr in got))
     t_up = t_down + max(tr.arrival_step for tr in level_tracks.values())
