@@ -222,7 +222,7 @@ class Occupancy:
         ta = int(self.problem.type_index[agent])
         exclude = agent if agent in self.tracks else -1  # its own track is no obstacle
         stack = self.stack(ta, False)
-        along = ix.line_forbidden(q, self._reach_of(ta), from_step, until, exclude, stack.conflict, T)
+        along = ix.line_forbidden(q, self._reach_of(ta), from_step, until, exclude, stack.conflict_rz, T)
         if along is not None:  # a move going forward along its line: the same pairs, tested in one pass
             return along
         rows, kk = ix.tree_pairs(q, self._reach_of(ta), from_step, until)
