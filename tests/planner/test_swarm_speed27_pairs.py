@@ -147,3 +147,61 @@ def test_line_near_segments_are_the_two_slice_scan(problem, seed):
                 for a, b in zip(got, want):
                     np.testing.assert_array_equal(a, b)
     assert found > 0, "some segments must lie near the moves"
+
+
+def _reference_holds(occ: Occupancy, agent: int, w: np.ndarray) -> np.ndarray:
+    """``Occupancy._forbidden_holds`` as it read before round 27B: each parked end tested alone."""
+    from proxplan.planner.swarm.departures import covered
+
+    T, ta = occ.horizon, int(occ.problem.type_index[agent])
+    out = np.zeros(T, dtype=bool)
+    P, t0, t1, ty, mv, _ = occ.samples_near(w, w, agent)
+    d = P - w[None]
+    near = np.flatnonzero((np.abs(d[:, 0]) <= occ.reach) & (np.abs(d[:, 1]) <= occ.reach))
+    h = np.zeros(near.size, dtype=bool)
+    for rest in (False, True):
+        m = mv[near] != rest
+        if m.any():
+            h[m] = occ.stack(ta, rest).conflict(d[near[m]], ty[near[m]])
+    out |= covered(np.minimum(t0[near[h]], T), np.minimum(t1[near[h]], T), T)
+    for tr in occ.parked_near(w, w, agent):
+        if tr.arrival_step < T and occ.stack(ta, True).conflict((tr.end_m - w)[None], np.array([tr.type]))[0]:
+            out[tr.arrival_step :] = True
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_holds_with_the_parked_ends_in_one_test_are_the_same(problem, seed):
+    rng = np.random.default_rng(2700 + seed)
+    me = int(rng.integers(0, problem.n_agents))
+    centre = 0.5 * (problem.starts_m[me] + problem.goals_m[me])
+    tracks = [_random_track(problem, a, rng, centre) for a in range(problem.n_agents) if a != me]
+    occ = Occupancy(problem, tracks, HORIZON)
+    parked_hits = 0
+    for tr in tracks:  # at every parked end (the test fires there), and around the centre
+        for w in (tr.end_m, tr.end_m + np.r_[rng.uniform(-0.3, 0.3, 2), 0.0]):
+            got = occ._forbidden_holds(me, int(problem.type_index[me]), np.ascontiguousarray(w, dtype=float))
+            np.testing.assert_array_equal(got, _reference_holds(occ, me, w))
+            parked_hits += bool(got[-1])
+    assert parked_hits > 0, "some holds must be forbidden for good"
+
+
+def test_holds_forbidden_from_the_earliest_parked_end_in_reach(problem):
+    """Two tracks parked for good beside a hold, arriving at different steps: the hold is forbidden
+    from the earlier arrival on, as when each end was tested alone."""
+    from proxplan.planner.swarm.tracks import GridTrack
+
+    me, a, b = 0, 1, 2
+    w = np.array([0.0, 0.0, 1.0])
+    tracks = []
+    for agent, side, dep in ((a, 1.0, 40), (b, -1.0, 5)):
+        end = w + np.r_[0.15 * side, 0.0, 0.0]  # inside the keep-out of a vehicle held at w
+        start = end + np.r_[side, 0.0, 0.0]
+        tracks.append(
+            GridTrack(agent, int(problem.type_index[agent]), start, [(dep, _line(problem, agent, start, end))])
+        )
+    occ = Occupancy(problem, tracks, HORIZON)
+    got = occ._forbidden_holds(me, int(problem.type_index[me]), w)
+    np.testing.assert_array_equal(got, _reference_holds(occ, me, w))
+    first = min(tr.arrival_step for tr in tracks)
+    assert got[first:].all() and first < max(tr.arrival_step for tr in tracks)
