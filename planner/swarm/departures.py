@@ -41,6 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from proxplan.planner.swarm.memo import Memo
+
 # steps per time bucket: a bucket's tree is asked at a fixed cost (~20 us) and returns pairs of
 # up to one bucket outside a query's window, but only with the move samples that can meet the
 # window there (the chain's windows span 100-700 steps on corridor-64, docs/planner.md); 160 steps
@@ -50,9 +52,14 @@ BUCKET_STEPS = 160
 PARKED_END = 2**40  # end step of a parked segment: beyond any horizon (an int64 with room for sums)
 REACH_SLACK = 1e-9  # the pair search's relative widening of the reach (rounding of its distances)
 LINE_SLACK_M = 1e-9  # the straight-move search's absolute widening of the reach, m (rounding of its projections)
+# the lines of the moves asked (_line_of), kept by their samples: a move is asked against many states of
+# the occupancy (its chain's windows, the searches of every pass); a line holds its K abscissae (~60 on
+# corridor-64, 0.5 kB), so 4096 lines stay below a few MB. Only the speed depends on it
+MAX_LINES = 4096
 # a segment lasting longer than this many steps is asked by every straight-move query (the others
 # by a slice of the segments sorted by first step); 0.8 s of flight: only the speed depends on it
 SHORT_STEPS = 16
+_LINES = Memo(MAX_LINES)  # (shape, samples' bytes) -> _line_of
 
 
 @dataclass(frozen=True)
@@ -155,17 +162,11 @@ class DepartureIndex:
         segments asked (a slice by first step) and the long ones are scanned as one array, the
         short first."""
         K = q_m.shape[0]
-        a0, a1 = float(q_m[0, 0]), float(q_m[0, 1])
-        e0, e1 = float(q_m[-1, 0]) - a0, float(q_m[-1, 1]) - a1
-        length = math.hypot(e0, e1)
-        if K < 2 or length <= LINE_SLACK_M:
+        line = _LINES.get((q_m.shape, q_m.tobytes()), lambda: _line_of(q_m))
+        if line is None:
             return None
-        u0, u1 = e0 / length, e1 / length
-        dx, dy = q_m[:, 0] - a0, q_m[:, 1] - a1
-        s = dx * u0 + dy * u1  # abscissae of the samples on the line, m
-        if (s[1:] < s[:-1]).any():
-            return None
-        r = reach_m * (1.0 + REACH_SLACK) + float(np.abs(dx * u1 - dy * u0).max()) + LINE_SLACK_M
+        a0, a1, u0, u1, s, off_m = line
+        r = reach_m * (1.0 + REACH_SLACK) + off_m + LINE_SLACK_M
         sl, n_short = self._sorted_by_t0()
         i0, i1 = (int(i) for i in np.searchsorted(sl.t0[:n_short], [from_step - SHORT_STEPS, until_step + K - 1]))
         a, turn = complex(a0, a1), complex(u0, -u1)  # (p - a) * turn = along + i (signed distance from the line)
@@ -259,6 +260,25 @@ class DepartureIndex:
             z = np.zeros(0, dtype=np.int64)
             return z, z
         return np.concatenate(rows).astype(np.int64), np.concatenate(ks).astype(np.int64)
+
+
+def _line_of(q_m: np.ndarray) -> tuple[float, float, float, float, np.ndarray, float] | None:
+    """A move's line (see module): its first sample's horizontal position (a0, a1), m, the unit
+    vector (u0, u1) to its last, the samples' abscissae on it (K,), m, and their largest distance
+    from it, m; None where the samples do not go forward along it (or barely move horizontally)."""
+    K = q_m.shape[0]
+    a0, a1 = float(q_m[0, 0]), float(q_m[0, 1])
+    e0, e1 = float(q_m[-1, 0]) - a0, float(q_m[-1, 1]) - a1
+    length = math.hypot(e0, e1)
+    if K < 2 or length <= LINE_SLACK_M:
+        return None
+    u0, u1 = e0 / length, e1 / length
+    dx, dy = q_m[:, 0] - a0, q_m[:, 1] - a1
+    s = dx * u0 + dy * u1  # abscissae of the samples on the line, m
+    if (s[1:] < s[:-1]).any():
+        return None
+    s.flags.writeable = False
+    return a0, a1, u0, u1, s, float(np.abs(dx * u1 - dy * u0).max())
 
 
 def _expand(k_lo: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
