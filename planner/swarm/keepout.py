@@ -34,7 +34,7 @@ The search costs about 0.4 s of CPU per ordered pair, so the built-in pairs' tab
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -366,6 +366,9 @@ class GrownStack:
     step_m: np.ndarray  # (n_b,) dz step of the pair's tables, m
     below2: np.ndarray  # (n_b, L + 1) (r_cut of a on b below + g)^2, 0 beyond the table, m^2
     above2: np.ndarray  # (n_b, L + 1) (r_cut of b above a + g)^2, m^2
+    _cut2: np.ndarray = field(init=False, repr=False, compare=False)  # (3 n_b (L + 1),) m^2: see __post_init__
+    _band_m: np.ndarray = field(init=False, repr=False, compare=False)  # (n_b,) w + 1e-12, m
+    _step: float | None = field(init=False, repr=False, compare=False)  # the one dz step, m (None: they differ)
 
     def __post_init__(self) -> None:
         # the three tables a pair reads, flat, one lookup (:meth:`conflict_rz`): [above, below, the
