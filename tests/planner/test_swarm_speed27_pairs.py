@@ -24,15 +24,20 @@ from proxplan.planner.timing.profile import RunMove
 from .test_swarm_departures import HORIZON, _line, _random_track
 
 
-def _reference_conflict(st: GrownStack, d: np.ndarray, tb: np.ndarray) -> np.ndarray:
-    """The pair test as it read before round 27B (two 2-D lookups, the band chosen by nested wheres)."""
-    r2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
-    dz = d[:, 2]
+def _reference_rz(st: GrownStack, r2: np.ndarray, dz: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """The pair test as it read before round 27B (two 2-D lookups, the band chosen by nested wheres),
+    of squared horizontal distances ``r2`` and heights ``dz``."""
+    tb = np.asarray(tb, dtype=np.int64)
     adz = np.abs(dz)
     k = np.minimum(np.floor(adz / st.step_m[tb]).astype(np.int64), st.below2.shape[1] - 1)
     rb2, ra2 = st.below2[tb, k], st.above2[tb, k]
     rc2 = np.where(adz <= st.w_m[tb] + 1e-12, np.maximum(rb2, ra2), np.where(dz < 0, rb2, ra2))
     return (r2 + dz * dz < st.sphere2[tb]) | (r2 < rc2)
+
+
+def _reference_conflict(st: GrownStack, d: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """:func:`_reference_rz` of relative vectors ``d`` (P, 3), m."""
+    return _reference_rz(st, d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1], d[:, 2], tb)
 
 
 @pytest.fixture(scope="module")
@@ -205,3 +210,28 @@ def test_holds_forbidden_from_the_earliest_parked_end_in_reach(problem):
     np.testing.assert_array_equal(got, _reference_holds(occ, me, w))
     first = min(tr.arrival_step for tr in tracks)
     assert got[first:].all() and first < max(tr.arrival_step for tr in tracks)
+
+
+def test_swarm_plan_is_the_same_with_the_reference_tests(monkeypatch):
+    """A whole swarm plan (corridor-12: prioritised planning, re-timing, makespan repair) with round
+    27B's pair test, line scan and holds, then with the references above in their place: the same
+    stage and the same tracks, sample for sample."""
+    from proxplan.planner.swarm.plan import swarm_timed
+
+    doc = corridor(12)
+    runs = []
+    for reference in (False, True):
+        if reference:
+            monkeypatch.setattr(GrownStack, "conflict_rz", _reference_rz)
+            monkeypatch.setattr(DepartureIndex, "_line_near", _reference_line_near)
+            monkeypatch.setattr(
+                Occupancy, "_forbidden_holds", lambda self, agent, ta, w: _reference_holds(self, agent, w)
+            )
+        runs.append(swarm_timed(scenario_from_dict(doc, label="test")))
+    (a, ia), (b, ib) = runs
+    assert ia.stage == ib.stage and ia.makespan_s == ib.makespan_s
+    assert a.keys() == b.keys()
+    for name in a:
+        np.testing.assert_array_equal(a[name].knot_t_s, b[name].knot_t_s)
+        t = np.arange(0.0, a[name].duration_s + 0.1, 0.01)
+        np.testing.assert_array_equal(a[name].sample(t)[0], b[name].sample(t)[0])
