@@ -63,6 +63,7 @@ STAGES = (
     (_P + "swarm.departures", "DepartureIndex._line_near"),
     (_P + "swarm.departures", "DepartureIndex.tree_pairs"),
     (_P + "swarm.keepout", "GrownStack.conflict"),
+    (_P + "swarm.keepout", "GrownStack.conflict_rz"),
     (_P + "timing.profile", "RunMove.__init__"),
     (_P + "timing.profile", "RunMove.positions"),
     (_P + "timing.profile", "LineMove.positions"),

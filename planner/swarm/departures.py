@@ -41,6 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from proxplan.planner.swarm.memo import Memo
+
 # steps per time bucket: a bucket's tree is asked at a fixed cost (~20 us) and returns pairs of
 # up to one bucket outside a query's window, but only with the move samples that can meet the
 # window there (the chain's windows span 100-700 steps on corridor-64, docs/planner.md); 160 steps
@@ -50,9 +52,14 @@ BUCKET_STEPS = 160
 PARKED_END = 2**40  # end step of a parked segment: beyond any horizon (an int64 with room for sums)
 REACH_SLACK = 1e-9  # the pair search's relative widening of the reach (rounding of its distances)
 LINE_SLACK_M = 1e-9  # the straight-move search's absolute widening of the reach, m (rounding of its projections)
+# the lines of the moves asked (_line_of), kept by their samples: a move is asked against many states of
+# the occupancy (its chain's windows, the searches of every pass); a line holds its K abscissae (~60 on
+# corridor-64, 0.5 kB), so 4096 lines stay below a few MB. Only the speed depends on it
+MAX_LINES = 4096
 # a segment lasting longer than this many steps is asked by every straight-move query (the others
 # by a slice of the segments sorted by first step); 0.8 s of flight: only the speed depends on it
 SHORT_STEPS = 16
+_LINES = Memo(MAX_LINES)  # (shape, samples' bytes) -> _line_of
 
 
 @dataclass(frozen=True)
@@ -91,7 +98,7 @@ class DepartureIndex:
         self.P, self.t0, self.t1, self.ty, self.ag = P, t0, t1, ty, ag
         self._bucketed = False  # the buckets and the long segments' tree: built at the first tree query
         self._trees: dict[int, cKDTree | None] = {}
-        self._by_t0: tuple[_Slice, _Slice] | None = None  # the line queries' segments: by first step, then the long
+        self._by_t0: tuple[_Slice, int] | None = None  # the line queries' segments: by first step, then the long
 
     def _buckets(self) -> None:
         """The short segments by first step's bucket and the tree of the long ones (see module; only
@@ -137,68 +144,50 @@ class DepartureIndex:
         got = self.line_pairs(q_m, reach_m, from_step, until_step)
         return got if got is not None else self.tree_pairs(q_m, reach_m, from_step, until_step)
 
-    def _sorted_by_t0(self) -> tuple[_Slice, _Slice]:
+    def _sorted_by_t0(self) -> tuple[_Slice, int]:
         """The short segments sorted by first step, then the segments lasting longer than
-        ``SHORT_STEPS`` (see :class:`_Slice`)."""
+        ``SHORT_STEPS``, in one :class:`_Slice`, and the number of short ones."""
         if self._by_t0 is None:
             lasting = self.t1 - self.t0 > SHORT_STEPS
             short = np.flatnonzero(~lasting)
-            self._by_t0 = (
-                _Slice.of(self, short[np.argsort(self.t0[short], kind="stable")]),
-                _Slice.of(self, np.flatnonzero(lasting)),
-            )
+            rows = np.concatenate([short[np.argsort(self.t0[short], kind="stable")], np.flatnonzero(lasting)])
+            self._by_t0 = (_Slice.of(self, rows), int(short.size))
         return self._by_t0
 
     def _line_near(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int, exclude: int):
         """The segments near a move going forward along its line (see module), each with the range of
         move samples k it pairs with: (rows (N,), xy (N,) complex: x + iy, m, z (N,), m, t0 (N,),
         t1 (N,), type (N,), first k (N,), number of k (N,) > 0), or None where the move does not go
-        forward along a line. Segments of agent ``exclude`` are left out (-1: none)."""
+        forward along a line. Segments of agent ``exclude`` are left out (-1: none). The short
+        segments asked (a slice by first step) and the long ones are scanned as one array, the
+        short first."""
         K = q_m.shape[0]
-        a0, a1 = float(q_m[0, 0]), float(q_m[0, 1])
-        e0, e1 = float(q_m[-1, 0]) - a0, float(q_m[-1, 1]) - a1
-        length = math.hypot(e0, e1)
-        if K < 2 or length <= LINE_SLACK_M:
+        line = _LINES.get((q_m.shape, q_m.tobytes()), lambda: _line_of(q_m))
+        if line is None:
             return None
-        u0, u1 = e0 / length, e1 / length
-        dx, dy = q_m[:, 0] - a0, q_m[:, 1] - a1
-        s = dx * u0 + dy * u1  # abscissae of the samples on the line, m
-        if (s[1:] < s[:-1]).any():
-            return None
-        r = reach_m * (1.0 + REACH_SLACK) + float(np.abs(dx * u1 - dy * u0).max()) + LINE_SLACK_M
-        short, long_ = self._sorted_by_t0()
-        i0, i1 = np.searchsorted(short.t0, [from_step - SHORT_STEPS, until_step + K - 1])
+        a0, a1, u0, u1, s, off_m = line
+        r = reach_m * (1.0 + REACH_SLACK) + off_m + LINE_SLACK_M
+        sl, n_short = self._sorted_by_t0()
+        i0, i1 = (int(i) for i in np.searchsorted(sl.t0[:n_short], [from_step - SHORT_STEPS, until_step + K - 1]))
         a, turn = complex(a0, a1), complex(u0, -u1)  # (p - a) * turn = along + i (signed distance from the line)
-        parts = []
-        for sl, lo in ((short, int(i0)), (long_, 0)):
-            hi = int(i1) if sl is short else sl.rows.size
-            w = (sl.xy[lo:hi] - a) * turn
-            keep = np.abs(w.imag) <= r
-            if exclude >= 0:
-                keep &= sl.ag[lo:hi] != exclude
-            idx = np.flatnonzero(keep)
-            parts.append((idx + lo, w[idx], sl))
-        idx_s, w_s, _ = parts[0]
-        idx_l, w_l, _ = parts[1]
-        w = np.concatenate([w_s, w_l])
-        t0 = np.concatenate([short.t0[idx_s], long_.t0[idx_l]])
-        t1 = np.concatenate([short.t1[idx_s], long_.t1[idx_l]])
+        n_in = i1 - i0  # the short segments asked: sl[i0:i1], then the long: sl[n_short:]
+        xy = np.concatenate([sl.xy[i0:i1], sl.xy[n_short:]])
+        w = (xy - a) * turn
+        keep = np.abs(w.imag) <= r
+        if exclude >= 0:
+            keep &= np.concatenate([sl.ag[i0:i1], sl.ag[n_short:]]) != exclude
+        idx = np.flatnonzero(keep)
+        w = w[idx]
+        at = idx + np.where(idx < n_in, i0, n_short - n_in)  # their places in sl
+        t0 = sl.t0[at]
+        t1 = sl.t1[at]
         half = np.sqrt(np.maximum(r * r - w.imag * w.imag, 0.0))
         k_lo = np.maximum(np.maximum(t0 - until_step + 1, 0), np.searchsorted(s, w.real - half, side="left"))
         k_hi = np.minimum(np.minimum(t1 - from_step, K), np.searchsorted(s, w.real + half, side="right"))
         n = k_hi - k_lo
         some = np.flatnonzero(n > 0)
-        cat = np.concatenate
-        return (
-            cat([short.rows[idx_s], long_.rows[idx_l]])[some],
-            cat([short.xy[idx_s], long_.xy[idx_l]])[some],
-            cat([short.z[idx_s], long_.z[idx_l]])[some],
-            t0[some],
-            t1[some],
-            cat([short.ty[idx_s], long_.ty[idx_l]])[some],
-            k_lo[some],
-            n[some],
-        )
+        at = at[some]
+        return sl.rows[at], sl.xy[at], sl.z[at], t0[some], t1[some], sl.ty[at], k_lo[some], n[some]
 
     def line_pairs(self, q_m: np.ndarray, reach_m: float, from_step: int, until_step: int):
         """:meth:`pairs` for a move whose samples ``q_m`` go forward along the horizontal line from the
@@ -216,12 +205,14 @@ class DepartureIndex:
         from_step: int,
         until_step: int,
         exclude: int,
-        conflict: Callable[[np.ndarray, np.ndarray], np.ndarray],
+        conflict: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
         horizon_steps: int,
     ) -> np.ndarray | None:
         """(horizon,) bool: the departures in [``from_step``, ``until_step``) that a segment of an
         agent other than ``exclude`` forbids along a move going forward along its line (None: it does
-        not; see module), ``conflict(d, types)`` the exact test of relative vectors (P, 3), m. The
+        not; see module), ``conflict(r2, dz, types)`` the exact test of relative vectors given as their
+        squared horizontal distances (P,), m^2, and heights (P,), m
+        (:meth:`~proxplan.planner.swarm.keepout.GrownStack.conflict_rz`). The
         pairs of :meth:`line_pairs` (those of ``exclude`` left out), each tested once, gathered from the
         near segments only and windowed only where they conflict: a pair (segment [t0, t1), k) of
         :meth:`line_pairs` has t0 - k < until and t1 - k > from, so its departures
@@ -232,11 +223,8 @@ class DepartureIndex:
         _, xy, z, t0, t1, ty, k_lo, n = near
         seg, k = _expand(k_lo, n)
         dxy = xy[seg] - (q_m[:, 0] + 1j * q_m[:, 1])[k]
-        d = np.empty((k.size, 3))
-        d[:, 0] = dxy.real
-        d[:, 1] = dxy.imag
-        d[:, 2] = z[seg] - q_m[k, 2]
-        hit = np.flatnonzero(conflict(d, ty[seg]))
+        dx, dy = dxy.real, dxy.imag
+        hit = np.flatnonzero(conflict(dx * dx + dy * dy, z[seg] - q_m[:, 2][k], ty[seg]))
         seg, k = seg[hit], k[hit]
         return covered(np.maximum(t0[seg] - k, from_step), np.minimum(t1[seg] - k, until_step), horizon_steps)
 
@@ -272,6 +260,25 @@ class DepartureIndex:
             z = np.zeros(0, dtype=np.int64)
             return z, z
         return np.concatenate(rows).astype(np.int64), np.concatenate(ks).astype(np.int64)
+
+
+def _line_of(q_m: np.ndarray) -> tuple[float, float, float, float, np.ndarray, float] | None:
+    """A move's line (see module): its first sample's horizontal position (a0, a1), m, the unit
+    vector (u0, u1) to its last, the samples' abscissae on it (K,), m, and their largest distance
+    from it, m; None where the samples do not go forward along it (or barely move horizontally)."""
+    K = q_m.shape[0]
+    a0, a1 = float(q_m[0, 0]), float(q_m[0, 1])
+    e0, e1 = float(q_m[-1, 0]) - a0, float(q_m[-1, 1]) - a1
+    length = math.hypot(e0, e1)
+    if K < 2 or length <= LINE_SLACK_M:
+        return None
+    u0, u1 = e0 / length, e1 / length
+    dx, dy = q_m[:, 0] - a0, q_m[:, 1] - a1
+    s = dx * u0 + dy * u1  # abscissae of the samples on the line, m
+    if (s[1:] < s[:-1]).any():
+        return None
+    s.flags.writeable = False
+    return a0, a1, u0, u1, s, float(np.abs(dx * u1 - dy * u0).max())
 
 
 def _expand(k_lo: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -34,7 +34,7 @@ The search costs about 0.4 s of CPU per ordered pair, so the built-in pairs' tab
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -366,18 +366,37 @@ class GrownStack:
     step_m: np.ndarray  # (n_b,) dz step of the pair's tables, m
     below2: np.ndarray  # (n_b, L + 1) (r_cut of a on b below + g)^2, 0 beyond the table, m^2
     above2: np.ndarray  # (n_b, L + 1) (r_cut of b above a + g)^2, m^2
+    _cut2: np.ndarray = field(init=False, repr=False, compare=False)  # (3 n_b (L + 1),) m^2: see __post_init__
+    _band_m: np.ndarray = field(init=False, repr=False, compare=False)  # (n_b,) w + 1e-12, m
+    _step: float | None = field(init=False, repr=False, compare=False)  # the one dz step, m (None: they differ)
+
+    def __post_init__(self) -> None:
+        # the three tables a pair reads, flat, one lookup (:meth:`conflict_rz`): [above, below, the
+        # larger of the two (within |dz| <= w)] x type b x row k; the bound of the band |dz| <= w; one
+        # dz step for every type where they share it (the same division, a scalar)
+        both = np.maximum(self.below2, self.above2)
+        object.__setattr__(self, "_cut2", np.stack([self.above2, self.below2, both]).ravel())
+        object.__setattr__(self, "_band_m", self.w_m + 1e-12)
+        step = self.step_m
+        object.__setattr__(self, "_step", float(step[0]) if step.size and (step == step[0]).all() else None)
 
     def conflict(self, d: np.ndarray, tb: np.ndarray) -> np.ndarray:
         """(P,) bool for relative vectors ``d`` (P, 3), m, of vehicles of types ``tb`` (P,)."""
         d = np.asarray(d, dtype=float).reshape(-1, 3)
+        return self.conflict_rz(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1], d[:, 2], tb)
+
+    def conflict_rz(self, r2: np.ndarray, dz: np.ndarray, tb: np.ndarray) -> np.ndarray:
+        """:meth:`conflict` of relative vectors given as their squared horizontal distances ``r2``
+        (P,), m^2, and heights ``dz`` (P,), m (b above a: dz > 0), of types ``tb`` (P,): the same
+        tables read in one lookup of the flat stack of [above, below, their larger] (the larger
+        within |dz| <= w, else below for dz < 0 and above otherwise), the same booleans."""
         tb = np.asarray(tb, dtype=np.int64)
-        r2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
-        dz = d[:, 2]
         adz = np.abs(dz)
-        k = np.minimum(np.floor(adz / self.step_m[tb]).astype(np.int64), self.below2.shape[1] - 1)
-        rb2 = self.below2[tb, k]
-        ra2 = self.above2[tb, k]
-        rc2 = np.where(adz <= self.w_m[tb] + 1e-12, np.maximum(rb2, ra2), np.where(dz < 0, rb2, ra2))
+        n_b, row = self.below2.shape
+        step = self._step if self._step is not None else self.step_m[tb]
+        k = np.minimum(np.floor(adz / step).astype(np.int64), row - 1)
+        which = np.where(adz <= self._band_m[tb], 2, dz < 0)  # 0 above, 1 below, 2 both
+        rc2 = self._cut2.take((which * n_b + tb) * row + k)
         return (r2 + dz * dz < self.sphere2[tb]) | (r2 < rc2)
 
 

@@ -222,7 +222,7 @@ class Occupancy:
         ta = int(self.problem.type_index[agent])
         exclude = agent if agent in self.tracks else -1  # its own track is no obstacle
         stack = self.stack(ta, False)
-        along = ix.line_forbidden(q, self._reach_of(ta), from_step, until, exclude, stack.conflict, T)
+        along = ix.line_forbidden(q, self._reach_of(ta), from_step, until, exclude, stack.conflict_rz, T)
         if along is not None:  # a move going forward along its line: the same pairs, tested in one pass
             return along
         rows, kk = ix.tree_pairs(q, self._reach_of(ta), from_step, until)
@@ -281,9 +281,12 @@ class Occupancy:
                     if m.any():
                         h[m] = self.stack(ta, rest).conflict(d[near[m]], ty[near[m]])
                 out |= covered(np.minimum(t0[near[h]], T), np.minimum(t1[near[h]], T), T)
-        for tr in self.parked_near(w, w, agent):
-            if tr.arrival_step < T and self.stack(ta, True).conflict((tr.end_m - w)[None], np.array([tr.type]))[0]:
-                out[tr.arrival_step :] = True
+        parked = [tr for tr in self.parked_near(w, w, agent) if tr.arrival_step < T]
+        if parked:  # the parked ends in one test
+            ends = np.stack([tr.end_m for tr in parked]) - w[None]
+            hit = self.stack(ta, True).conflict(ends, np.array([tr.type for tr in parked]))
+            if hit.any():
+                out[min(tr.arrival_step for tr, h in zip(parked, hit) if h) :] = True
         return out
 
     def conflicting_agents(self, track: GridTrack) -> set[int]:

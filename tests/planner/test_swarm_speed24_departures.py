@@ -58,7 +58,7 @@ def test_line_pass_answers_what_the_trees_answer(seed):
             if hi <= lo:
                 continue
             exclude = me if me in occ.tracks else -1
-            got = ix.line_forbidden(q, occ._reach_of(ta), lo, hi, exclude, occ.stack(ta, False).conflict, HORIZON)
+            got = ix.line_forbidden(q, occ._reach_of(ta), lo, hi, exclude, occ.stack(ta, False).conflict_rz, HORIZON)
             if got is None:  # not forward along a line: the trees answer it (forbidden_departures)
                 continue
             asked += 1
