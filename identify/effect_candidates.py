@@ -109,6 +109,24 @@ class EffectCandidate:
                                   for k, v in p.items()})  # fmt: skip
 
 
+def sign_excluded(name: str, key: str, value: float) -> bool:
+    """Whether ``value`` of parameter ``key`` of effect ``name`` lies on a side of zero its range
+    (:data:`proxplan.physics.PARAMETERS`) excludes: a one-sided range is the effect's physics (``climb_inflow``'s
+    gain >= 0: a climb LOSES thrust, S0-6), and an effect fitted with the other sign is not that effect. A
+    linear effect's coefficients are fitted unbounded (:func:`effect_candidate`); the model it would enter
+    clips them to the range (:meth:`EffectCandidate.effect_with`), so a test of the unbounded column would judge
+    an effect the model never holds (stop 65: benchmark draws 25012 and 26007 kept ``climb_inflow`` at gain 0,
+    an effect that does nothing, for a force rising with the climb)."""
+    _, lo, hi = PARAMETERS[name][key]
+    return (lo >= 0.0 and value < 0.0) or (hi <= 0.0 and value > 0.0)
+
+
+def _excluded_note(name: str, excluded: Mapping[str, float]) -> str:
+    ranges = ", ".join(f"{k} = {v:+.3g} outside [{PARAMETERS[name][k][1]:g}, {PARAMETERS[name][k][2]:g}]"
+                       for k, v in excluded.items())  # fmt: skip
+    return f"its strength fitted alone has the sign its range excludes ({ranges}): the data ask for the opposite"
+
+
 def fit_shape(
     sel: SelectionSet,
     name: str,
@@ -175,7 +193,13 @@ def effect_candidate(
             return EffectCandidate(name, Effect(name, {}), {}, "linear",
                                    note="it fits best at once, where it is the base model's own strength")  # fmt: skip
         cols = {f"{name}.{k}": effect_columns(sel, e, delayed[lag]) for k, e in zip(LINEAR_PARAMS[name], units)}
-        return EffectCandidate(name, Effect(name, {LAG_PARAM: lag} if lag else {}), cols, "linear", lag_s=lag)
+        at_lag = Effect(name, {LAG_PARAM: lag} if lag else {})
+        strengths = TangentProjection.of(sel, tangents, ridge).profiled_strengths(list(cols.values()))
+        excluded = {k: float(v) for k, v in zip(LINEAR_PARAMS[name], strengths) if sign_excluded(name, k, float(v))}
+        if len(excluded) == len(cols):
+            return EffectCandidate(name, at_lag, {}, "linear", note=_excluded_note(name, excluded))
+        cols = {c: v for c, v in cols.items() if c.split(".", 1)[1] not in excluded}
+        return EffectCandidate(name, at_lag, cols, "linear", lag_s=lag)
     eff, fit = fit_shape(sel, name, tangents, ridge)
     strength = SCALE_PARAMS[name]
     ref = {k: float(eff.full_params()[k]) for k in strength}

@@ -84,6 +84,15 @@ class TangentProjection:
         """The MAP objective, -, with ``columns`` (each (N, 4), noise units; their strengths free, no prior)
         and the steps fitted jointly: the weighted squared residual over tau (from the normal equations'
         sums, so no residual over the 4 N rows is formed) plus the steps' prior penalty."""
+        return self._profiled(columns)[0]
+
+    def profiled_strengths(self, columns: Sequence[np.ndarray]) -> np.ndarray:
+        """(k,) the strengths of ``columns`` (each (N, 4), noise units, per unit of strength) at the minimum of
+        :meth:`profiled_objective`: fitted jointly with the vehicle parameters' steps, unbounded."""
+        return self._profiled(columns)[1][self.n_params :]
+
+    def _profiled(self, columns: Sequence[np.ndarray]) -> tuple[float, np.ndarray]:
+        """The objective of :meth:`profiled_objective` and the (P + k,) solution (steps, then strengths)."""
         n_t = self.n_params
         c = np.stack([col.reshape(-1) for col in columns], axis=1)  # (4 N, k)
         wc = c * (self.weight / self.tau)[:, None]
@@ -99,4 +108,4 @@ class TangentProjection:
         # the weighted squared residual from the normal equations' sums: y'Wy - 2 beta'X'Wy + beta'X'WX beta
         gram = np.block([[self.gram, cross.T], [cross, gram_c]])
         sse = self.y_y - 2.0 * beta @ np.concatenate([self.t_y, c_y]) + beta @ gram @ beta
-        return float(sse + np.sum(self.precision * (beta[:n_t] - self.center) ** 2))
+        return float(sse + np.sum(self.precision * (beta[:n_t] - self.center) ** 2)), beta
