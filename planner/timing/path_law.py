@@ -39,8 +39,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from proxplan.physics import KinematicLimits
-from proxplan.physics.blas_threads import one_blas_thread
+from proxplan.physics import KinematicLimits, one_blas_thread
 
 # the norms are kept within this fraction of the vehicle's limits (the same margin as round 21S's
 # uniform arc timing: the verifier allows 2 % on speed and acceleration and 10 % on jerk, and checks
