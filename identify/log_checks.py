@@ -104,10 +104,10 @@ def _idle_motors(log: VehicleLog, idle_N: float, motor_time_constant_s: float | 
         return idle
     dt_s = float(np.median(np.diff(log.t_s)))
     delivered_N = motor_lag_compensated_N(thrust_N, dt_s, motor_time_constant_s).sum(axis=1)
-    starts = np.flatnonzero(idle & ~np.concatenate([[False], idle[:-1]]))  # first sample of each idle stretch
-    run = np.cumsum(np.isin(np.arange(len(idle)), starts)) - 1  # stretch number of every sample (idle ones)
-    lowest_N = np.minimum.reduceat(np.where(idle, delivered_N, np.inf), starts)  # per stretch
-    return idle & (lowest_N[np.maximum(run, 0)] <= idle_N)
+    first = idle & ~np.concatenate([[False], idle[:-1]])  # first sample of each idle stretch
+    run = np.maximum(np.cumsum(first) - 1, 0)  # the stretch each sample follows (read at idle samples only)
+    lowest_N = np.minimum.reduceat(np.where(idle, delivered_N, np.inf), np.flatnonzero(first))  # per stretch
+    return idle & (lowest_N[run] <= idle_N)
 
 
 def check_log(
