@@ -18,8 +18,10 @@ from proxplan.identify.measure import MeasureOptions, kinematic_thrust_z_N, meas
 from proxplan.identify.thrust_map import (
     CEILING,
     FLOOR,
+    IN_RANGE,
     MotorSamples,
     ThrustMap,
+    delivered_log_limits,
     delivered_thrust_N,
     fit_thrust_maps,
     motor_limits,
@@ -136,8 +138,17 @@ def load_units(
             elif log.has_pwm and tmap is not None and tmap.usable:
                 motor = _motor_samples(log)
                 lim = motor_limits(tmap, motor, dt_s=float(np.median(np.diff(log.t_s))) if len(log) > 1 else 0.01)
-                limit_bits = (np.any(lim == CEILING, axis=1) * CEILING_BIT
-                              + np.any(lim == FLOOR, axis=1) * FLOOR_BIT).astype(np.uint8)  # fmt: skip
+                if manifest.motor_thrust == "delivered":  # u[N] is the rotors' force: replaced only where no motor
+                    from proxplan.identify.pwm_thrust import pwm_limits  # gives it (thrust_map.delivered_log_limits)
+
+                    veh = flight.vehicles[v.name]
+                    lim = delivered_log_limits(lim, motor, min_thrust_N=veh.min_motor_thrust_N,
+                                               max_thrust_N=veh.max_thrust_per_rotor_N)  # fmt: skip
+                    bits = np.where(lim != IN_RANGE, lim, pwm_limits(log.motor_pwm))
+                else:
+                    bits = lim
+                limit_bits = (np.any(bits == CEILING, axis=1) * CEILING_BIT
+                              + np.any(bits == FLOOR, axis=1) * FLOOR_BIT).astype(np.uint8)  # fmt: skip
                 n_sat, n_floor = int(np.sum(limit_bits & CEILING_BIT > 0)), int(np.sum(limit_bits & FLOOR_BIT > 0))
                 log = replace(log, motor_thrust_N=delivered_thrust_N(tmap, motor, lim))
                 source = "pwm"

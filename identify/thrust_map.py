@@ -201,6 +201,35 @@ def motor_limits(thrust_map: ThrustMap, s: MotorSamples, *, dt_s: float = 0.01) 
     return out
 
 
+def delivered_log_limits(
+    limits: np.ndarray, s: MotorSamples, *, min_thrust_N: float, max_thrust_N: float
+) -> np.ndarray:
+    """(N, 4) int8 per motor: :func:`motor_limits`' ``limits`` of a log whose ``u[N]`` the manifest declares
+    DELIVERED (the rotors' force: a simulator's k_eta omega^2, a vehicle with rotor-speed feedback), kept only
+    where ``u[N]`` could not be a delivered force.
+
+    Why: on a commanded log a ``u[N]`` that disagrees with its PWM at a limit is a desired force the motor does
+    not give, and :func:`delivered_thrust_N` puts the PWM's force there. A delivered ``u[N]`` disagrees with the
+    PWM by the motor lag (the PWM is always a command) and by the map's error where the map is an
+    extrapolation: a map fitted on hover-range PWM gives D(0) = P(0) and D(x_max) = P(x_max) from its
+    polynomial's ends (on a simulator's small quad 0.055 N and 1.02 N per motor, where the motor gives 0 and
+    1.15 N). Replacing such a ``u[N]`` put the unlagged, extrapolated command in place of the measured force:
+    4-8 g of F_z error on flights whose motors saturate (a hidden yaw torque of 0.05 m x F_z on two small
+    quads), which the selection then explained with a lagged share of the downwash. A delivered force is
+    bounded by what the motor can give: a limit stretch is kept only when it holds a ``u[N]`` below
+    ``min_thrust_N`` or above ``max_thrust_N`` (the vehicle's facts, N) by more than :data:`SATURATION_REL` of
+    ``max_thrust_N`` (a desired force in a log declared delivered: a mis-declared log); the motors at a limit
+    otherwise are those whose PWM sits at an end of its range (:func:`proxplan.identify.pwm_thrust.pwm_limits`,
+    the caller's), their force left as logged."""
+    u = s.commanded_N
+    tol = SATURATION_REL * max_thrust_N
+    out = np.zeros(u.shape, dtype=np.int8)
+    for k in range(u.shape[1]):
+        out[_runs_holding(limits[:, k] == CEILING, u[:, k] > max_thrust_N + tol), k] = CEILING
+        out[_runs_holding(limits[:, k] == FLOOR, u[:, k] < min_thrust_N - tol), k] = FLOOR
+    return out
+
+
 def saturated_motors(thrust_map: ThrustMap, s: MotorSamples) -> np.ndarray:
     """(N, 4) bool: the motor is at a limit, its ceiling or its floor (:func:`motor_limits`)."""
     return motor_limits(thrust_map, s) != IN_RANGE
