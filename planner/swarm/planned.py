@@ -14,7 +14,7 @@ __all__ = ["Planned"]
 
 @dataclass
 class Planned:
-    """What the stages of :func:`plan_stages` give: the stage whose tracks were kept, the final tracks by agent,
+    """What the stages of :func:`~proxplan.planner.swarm.stages.plan_stages` give: the stage whose tracks were kept, the final tracks by agent,
     the makespan before re-timing (s), what re-timing and the makespan repair did, the other stages'
     records (``SwarmInfo``'s extra fields), and what :class:`SwarmHandOn` hands on: the searched stage's
     tracks before re-timing, the pass with both wavefronts' (where it gave other tracks) and the
