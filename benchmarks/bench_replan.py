@@ -33,27 +33,27 @@ def main() -> int:
     ns = args.n if len(args.n) == len(args.layout) else [args.n[0]] * len(args.layout)
 
     import proxplan
-    import proxplan.planner.swarm.plan as swarm_plan
+    import proxplan.planner.swarm.stages as swarm_stages
     from proxplan.planfile.scenario_load import scenario_from_dict
     from proxplan.planner.formations import LAYOUTS
     from proxplan.planner.swarm import SwarmOptions, swarm_timed
     from proxplan.planner.swarm.chain import time_chain
     from proxplan.planner.swarm.occupancy import Occupancy
-    from proxplan.planner.swarm.plan import HORIZON_MARGIN_S
     from proxplan.planner.swarm.priority import plan_one
+    from proxplan.planner.swarm.retime_stage import HORIZON_MARGIN_S
     from proxplan.planner.swarm.tracks import GRID_DT_S
     from proxplan.planner.swarm.wave import wave_route
 
     print(f"proxplan from {proxplan.__file__}")
     for layout, n in zip(args.layout, ns):
         got: dict = {}
-        stage = swarm_plan._makespan_stage
+        stage = swarm_stages.makespan_stage
 
         def keep(problem, by_agent, opts, *, progress, deadline, _stage=stage, _got=got):
             _got["problem"], _got["tracks"] = problem, dict(by_agent)  # the final tracks, before the repair
             return _stage(problem, by_agent, opts, progress=progress, deadline=deadline)
 
-        swarm_plan._makespan_stage = keep
+        swarm_stages.makespan_stage = keep
         # the plan without the second, height-aware prioritised plan (its tail would overwrite the capture)
         options = SwarmOptions(workers=1, reserve_starts=True, makespan_repair=False, heights=False)
         try:
@@ -61,7 +61,7 @@ def main() -> int:
             _, info = swarm_timed(scenario_from_dict(LAYOUTS[layout](n)), options)
             cpu_plan = time.process_time() - t0
         finally:
-            swarm_plan._makespan_stage = stage
+            swarm_stages.makespan_stage = stage
         problem, tracks = got["problem"], got["tracks"]
         makespan = max(tr.arrival_s for tr in tracks.values())
         horizon = int(round((makespan + HORIZON_MARGIN_S) / GRID_DT_S))

@@ -23,8 +23,10 @@ lattice plan), beside it :mod:`~proxplan.planner.swarm.levels` and
 :mod:`~proxplan.planner.swarm.stacked` (types on levels of their own, each planned apart; a level where
 prioritised planning gave up by :mod:`~proxplan.planner.swarm.lanes`, two-way lanes kept right) -> :mod:`~proxplan.planner.swarm.retime` (continuous re-timing) ->
 :mod:`~proxplan.planner.swarm.makespan` (the latest vehicles planned again with those in their way) ->
-:mod:`~proxplan.planner.swarm.plan` (the stages, with the knobs of
-:mod:`~proxplan.planner.swarm.options`, handing on a :mod:`~proxplan.planner.swarm.stage`) and
+:mod:`~proxplan.planner.swarm.plan` (the entry points; the stages in order in
+:mod:`~proxplan.planner.swarm.stages`, re-timing and the repair in :mod:`~proxplan.planner.swarm.retime_stage`
+and :mod:`~proxplan.planner.swarm.repair_stage`, what a plan hands on in :mod:`~proxplan.planner.swarm.hand_on`;
+with the knobs of :mod:`~proxplan.planner.swarm.options`, handing on a :mod:`~proxplan.planner.swarm.stage`) and
 :mod:`~proxplan.planner.swarm.info` (what they report, typed).
 """
 

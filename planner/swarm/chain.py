@@ -25,7 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from proxplan.physics import KinematicLimits
 from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack, Move
 from proxplan.planner.timing.profile import LineMove, RunMove, rest_to_rest
 
@@ -42,6 +44,72 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     m = np.concatenate([[False], mask, [False]]).astype(np.int8)
     d = np.diff(m)
     return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+
+
+def _live_arrivals(
+    best: dict[tuple[int, int], int],
+    j: int,
+    runs: list[tuple[int, int]],
+    starts: np.ndarray,
+    a_lo: int,
+    a_hi: int,
+    T: int,
+) -> tuple[int, int] | None:
+    """The arrivals at waypoint ``j`` in [``a_lo``, ``a_hi``] (both safe to hold: in its safe
+    intervals ``runs``, [first, end) steps, first steps ``starts``) that can still improve the search, as one range
+    [first, last], or None: an interval that already has an arrival (``best``: (waypoint, interval)
+    -> step) no later than the earliest one could be there (the later of ``a_lo`` and its first step)
+    gains nothing from this move (the search keeps only strictly earlier arrivals, and only the
+    first arrival in an interval), so the range runs from the first interval that can gain to the
+    last. The departures of the move are asked only for those arrivals (exact, round 28B)."""
+    i_lo = max(int(np.searchsorted(starts, a_lo, side="right")) - 1, 0)
+    i_hi = int(np.searchsorted(starts, a_hi, side="right")) - 1
+    live = [i for i in range(i_lo, i_hi + 1) if best.get((j, i), T + 1) > max(runs[i][0], a_lo)]
+    if not live:
+        return None
+    return max(a_lo, runs[live[0]][0]), min(a_hi, runs[live[-1]][1] - 1)
+
+
+class _Flown:
+    """A move of a chain and its positions on the grid (computed when first asked: a run's are a
+    Ruckig evaluation per step)."""
+
+    __slots__ = ("move", "_samples")
+
+    def __init__(self, move: Move):
+        self.move = move
+        self._samples: np.ndarray | None = None
+
+    def samples(self) -> np.ndarray:
+        if self._samples is None:
+            self._samples = self.move.positions()
+            self._samples.flags.writeable = False
+        return self._samples
+
+
+def _flown(
+    problem: SwarmProblem, limits: KinematicLimits, W: np.ndarray, k: int, j: int, run: bool, dev: float
+) -> _Flown | None:
+    """The move W[k] -> W[j] at ``limits`` (through the waypoints between when ``run``, corners cut
+    by at most ``dev``, m), None where it is not statically free. A move depends only on its
+    waypoints, the limits, ``dev`` and the problem's static free space, so it is built once per
+    problem (kept in ``problem.static_memo``) and every search along the same waypoints (a vehicle's
+    chains re-timed pass after pass, planned again by the makespan repair) flies the same object."""
+    pts = W[k : j + 1] if run else W[[k, j]]
+    key = ("chain move", run, pts.shape, pts.tobytes(), limits, dev)
+
+    def build() -> _Flown | None:
+        mv: Move
+        if run:
+            rm = RunMove(pts, limits, GRID_DT_S, deviation_m=dev)
+            free = bool(problem.static_free(rm.positions(STATIC_CHECKS_PER_STEP)).all())
+            mv = rm
+        else:
+            free = problem.segment_free(pts[0], pts[1])
+            mv = LineMove(pts[0], pts[1], rest_to_rest(float(np.linalg.norm(pts[1] - pts[0])), limits, GRID_DT_S))
+        return _Flown(mv) if free else None
+
+    return problem.static_memo.get(key, build)
 
 
 @dataclass(frozen=True)
@@ -112,16 +180,13 @@ def _time_chain(
     goal_ok = [e >= T for _, e in goal_intervals]
     if not any(goal_ok):
         return None
-    moves: dict[tuple[int, int, bool], Move | None] = {}
-    # the moves' grid samples, computed once each (a run's are a Ruckig evaluation per step, and every
-    # window of its departures asked again needs them)
-    samples: dict[int, np.ndarray] = {}
+    # the moves, each with its grid samples, built once per problem (_flown: every search along the
+    # same waypoints flies the same moves), and by identity the record of each move asked here
+    moves: dict[tuple[int, int, bool], _Flown | None] = {}
+    record: dict[int, _Flown] = {}
 
-    def sampled(mv_: Move) -> np.ndarray:  # by identity: every move lives in ``moves`` until the search ends
-        got = samples.get(id(mv_))
-        if got is None:
-            got = samples[id(mv_)] = mv_.positions()
-        return got
+    def sampled(mv_: Move) -> np.ndarray:
+        return record[id(mv_)].samples()
 
     # (from step, until step, departures): exact for departures in [from, until)
     forbidden: dict[tuple[int, int, bool], tuple[int, int, np.ndarray]] = {}
@@ -130,16 +195,11 @@ def _time_chain(
         """The move k -> j (through the waypoints between when ``run``), None where not statically free."""
         key = (k, j, run)
         if key not in moves:
-            mv: Move
-            if run:
-                rm = RunMove(W[k : j + 1], limits, GRID_DT_S, deviation_m=dev)
-                free = bool(problem.static_free(rm.positions(STATIC_CHECKS_PER_STEP)).all())
-                mv = rm
-            else:
-                free = problem.segment_free(W[k], W[j])
-                mv = LineMove(W[k], W[j], rest_to_rest(float(np.linalg.norm(W[j] - W[k])), limits, GRID_DT_S))
-            moves[key] = mv if free else None
-        return moves[key]
+            got = moves[key] = _flown(problem, limits, W, k, j, run, dev)
+            if got is not None:
+                record[id(got.move)] = got
+        got = moves[key]
+        return None if got is None else got.move
 
     def departures(k: int, j: int, run: bool, mv_: Move, lo: int, until: int) -> np.ndarray:
         """The move k -> j's forbidden departures, exact in [lo, until): a query serves every later
@@ -246,6 +306,10 @@ def _time_chain(
             if safe.size == 0:
                 continue
             lo_d, hi_d = lo_d + int(safe[0]), lo_d + int(safe[-1])
+            live = _live_arrivals(best, j, held(j)[1], starts, lo_d + n, hi_d + n, T)
+            if live is None:
+                continue  # no arrival of this move can improve on one found: not asked
+            lo_d, hi_d = live[0] - n, live[1] - n
             bad = departures(k, j, run, mv_j, lo_d, hi_d + 1)
             deps = np.flatnonzero(~bad[lo_d : hi_d + 1]) + lo_d
             if deps.size == 0:

@@ -8,7 +8,7 @@ from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import grid_reshuffle
 from proxplan.planner.swarm import SwarmOptions, swarm_problem
 from proxplan.planner.swarm.levels import stacking_keepouts
-from proxplan.planner.swarm.plan import _plan
+from proxplan.planner.swarm.stages import plan_stages as _plan
 
 
 @pytest.fixture(scope="module")

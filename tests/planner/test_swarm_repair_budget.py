@@ -9,7 +9,7 @@ import pytest
 from proxplan.planner.swarm import SwarmOptions
 from proxplan.planner.swarm import makespan as makespan_module
 from proxplan.planner.swarm.makespan import budget, shorten_makespan
-from proxplan.planner.swarm.plan import _repairs
+from proxplan.planner.swarm.repair_stage import repairs as _repairs
 from proxplan.planner.swarm.stage import Stage
 
 HORIZON_MARGIN_STEPS = 100  # 5 s at the grid's 0.05 s, as the swarm layer's own horizon margin

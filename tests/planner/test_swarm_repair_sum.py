@@ -10,8 +10,8 @@ import pytest
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.swarm import SwarmOptions
 from proxplan.planner.swarm.makespan import budget, shorten_makespan
-from proxplan.planner.swarm.plan import _makespan_stage
 from proxplan.planner.swarm.problem import swarm_problem
+from proxplan.planner.swarm.repair_stage import makespan_stage as _makespan_stage
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.verify_guard import VerifyGuard, adds_a_height, level_heights_m, near_agents
 from proxplan.planner.timing import assemble_plan

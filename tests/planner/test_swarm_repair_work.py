@@ -7,7 +7,7 @@ from __future__ import annotations
 from proxplan.planner.swarm import SwarmOptions
 from proxplan.planner.swarm import makespan as makespan_module
 from proxplan.planner.swarm.makespan import STALL_WORK_STEPS, budget, shorten_makespan, stall_budget
-from proxplan.planner.swarm.plan import _makespan_stage
+from proxplan.planner.swarm.repair_stage import makespan_stage as _makespan_stage
 from proxplan.planner.swarm.verify_guard import VerifyGuard
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan

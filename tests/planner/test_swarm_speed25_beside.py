@@ -13,10 +13,12 @@ from proxplan.planner.swarm import SwarmOptions
 from proxplan.planner.swarm import complete_stages as cs
 from proxplan.planner.swarm.complete_stages import BesideLevels, join_levels, stage_makespan
 from proxplan.planner.swarm.frozen import unfrozen_problem
+from proxplan.planner.swarm.hand_on import level_stacking as _stacking
 from proxplan.planner.swarm.levels import levelled_endpoints, stack_levels
-from proxplan.planner.swarm.plan import _level_planner, _stacking, swarm_timed
+from proxplan.planner.swarm.plan import swarm_timed
 from proxplan.planner.swarm.problem import swarm_problem
 from proxplan.planner.swarm.stacked import stacked_bound
+from proxplan.planner.swarm.stages import level_planner as _level_planner
 from proxplan.planner.swarm.tracks import GRID_DT_S
 
 

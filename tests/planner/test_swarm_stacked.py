@@ -13,7 +13,8 @@ from proxplan.planner.swarm import SwarmOptions, SyncTable, swarm_problem
 from proxplan.planner.swarm.levels import free_height_m, stack_levels, stacking_keepouts, transition_steps
 from proxplan.planner.swarm.lns import colliding_pairs
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.plan import _plan, _stacked_stage
+from proxplan.planner.swarm.stages import plan_stages as _plan
+from proxplan.planner.swarm.stages import stacked_stage as _stacked_stage
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
 

@@ -1,0 +1,63 @@
+"""Round 28B (issue 37): ``planner/swarm/plan.py`` split into modules with one job each (entry points;
+what a plan hands on; the stages in order; the re-timing and repair stages; what the stages give). The
+same plans: each case's digest (stage, makespan, every vehicle's knots and positions sampled every
+10 ms, bit for bit) was recorded on main 8cfd46f before the split, for :func:`swarm_timed` and for
+:func:`swarm_again` from its hand-on (the re-timed-again path)."""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from proxplan.planfile import scenario_from_dict
+from proxplan.planner.formations import LAYOUTS
+from proxplan.planner.swarm import plan as plan_module
+from proxplan.planner.swarm.hand_on import level_stacking
+from proxplan.planner.swarm.plan import swarm_again, swarm_timed
+from proxplan.planner.swarm.retime_stage import HORIZON_MARGIN_S, retime_stage
+from proxplan.planner.swarm.stages import level_options
+
+# (layout, vehicles, goals) -> (stage, digest of swarm_timed's plan, of swarm_again's), main 8cfd46f
+PLANS = {
+    ("corridor", 12, "fixed"): ("prioritised", "ae7c025dc5022a52", "ae7c025dc5022a52"),
+    ("grid", 16, "fixed"): ("stacked", "26b52377723c83c6", "26b52377723c83c6"),
+    ("circle", 16, "by_type"): ("prioritised", "91aa2e0177bec7df", "91aa2e0177bec7df"),
+    ("grid", 32, "fixed"): ("stacked", "00d621ed52a9c42b", "00d621ed52a9c42b"),
+}
+
+
+def _digest(timed, info) -> str:
+    h = hashlib.sha256()
+    h.update(info.stage.encode())
+    h.update(repr(info.makespan_s).encode())
+    for name in sorted(timed):
+        path = timed[name]
+        h.update(name.encode())
+        h.update(np.asarray(path.knot_t_s).tobytes())
+        t = np.arange(0.0, path.duration_s + 0.1, 0.01)
+        h.update(np.ascontiguousarray(path.sample(t)[0]).tobytes())
+    return h.hexdigest()[:16]
+
+
+@pytest.mark.parametrize("case", sorted(PLANS), ids=lambda c: f"{c[0]}-{c[1]}-{c[2]}")
+def test_the_split_plans_as_main_did(case):
+    layout, n, goals = case
+    doc = LAYOUTS[layout](n)
+    if goals == "by_type":
+        doc["assign_goals"] = "by_type"
+    sc = scenario_from_dict(doc, label="test")
+    timed, info = swarm_timed(sc)
+    stage, first, again = PLANS[case]
+    assert info.stage == stage
+    assert _digest(timed, info) == first
+    assert _digest(*swarm_again(sc, info.hand_on, info.hand_on.options)) == again
+
+
+def test_the_names_imported_from_plan_are_the_stages_themselves():
+    """refine_repair and benchmarks/why_128.py import these from plan.py: the same objects, not copies."""
+    assert plan_module.HORIZON_MARGIN_S == HORIZON_MARGIN_S
+    assert plan_module._retime_stage is retime_stage
+    assert plan_module._level_options is level_options
+    assert plan_module._stacking is level_stacking
