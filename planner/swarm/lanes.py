@@ -19,7 +19,8 @@ World frame, z up, m; times on the swarm grid (``GRID_DT_S``).
   within keep-out of its goal and those its lane route passes, and they are timed next; where its lane route cannot be
   timed, :func:`~proxplan.planner.swarm.single.plan_one` stopping at its waypoints). A vehicle whose start is within
   keep-out of another's goal is timed before that one where no cycle forbids it (``ORDER_BY_ENDS``). Where a vehicle cannot be timed, everything
-  again with it first, at most ``FLOW_RESTARTS`` times (a count: the same problem gives the same plan).
+  again with it first, at most ``FLOW_RESTARTS`` times (a count: the same problem gives the same plan), and
+  never an order timed before (the timing is a function of the order: it would fail the same way).
   Every track is conflict-free against those timed before it, so the whole plan is.
 * **The stage** (:func:`lanes_stage`): the flow timing on a horizon of ``LANES_HORIZON_FACTOR`` x the
   bound; the stacked plan's levels ask it where prioritised planning gave up (round 27A).
@@ -80,6 +81,7 @@ __all__ = [
     "KEEP_RIGHT",
     "LANES_HORIZON_FACTOR",
     "direction_groups",
+    "flow_order",
     "flow_timing",
     "lane_routes",
     "lanes_stage",
@@ -172,15 +174,11 @@ def lane_routes(problem: SwarmProblem, horizon: int, sides: tuple[float, ...] = 
     return routes, hits
 
 
-def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -> tuple[dict, str]:
-    """Every vehicle timed along its lane route (exact safe-interval timing through waypoints against those
-    timed before it, the others' starts reserved until timed; a vehicle whose goal is within keep-out of
-    reserved starts releases them and they are timed next; a failed timing falls back on plan_one), in the
-    flow order: a vehicle after those whose starts its route passes or whose starts are within keep-out of its
-    goal (``ORDER_BY_ENDS``) and before those whose goals it passes,
-    cycles broken by the fewest unmet, ties the longest flight first; where a vehicle cannot be timed, all
-    again with it first, at most ``FLOW_RESTARTS`` times (a count). Returns (tracks, how it ended)."""
-
+def flow_order(problem: SwarmProblem, hits: dict, horizon: int) -> tuple[list[int], int]:
+    """The flow order of :func:`flow_timing` (``hits`` from :func:`lane_routes`): a vehicle after those whose
+    starts its route passes and, with ``ORDER_BY_ENDS``, those whose starts are within keep-out of its goal (they
+    leave before it arrives), and before those whose goals its route passes; where none is ready (a cycle), the
+    one with the fewest unmet, ties the longest flight first. Returns (order, cycles broken)."""
     A = problem.n_agents
     before = {a: set(hits[a][0]) for a in range(A)}
     for a in range(A):
@@ -202,8 +200,26 @@ def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -
         pick = min(ready, key=lambda a: (-hits[a][2], a))
         order.append(pick)
         done.add(pick)
+    return order, broken
+
+
+def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -> tuple[dict, str]:
+    """Every vehicle timed along its lane route (exact safe-interval timing through waypoints against those
+    timed before it, the others' starts reserved until timed; a vehicle whose goal is within keep-out of
+    reserved starts releases them and they are timed next; a failed timing falls back on plan_one), in the
+    flow order: a vehicle after those whose starts its route passes or whose starts are within keep-out of its
+    goal (``ORDER_BY_ENDS``) and before those whose goals it passes,
+    cycles broken by the fewest unmet, ties the longest flight first; where a vehicle cannot be timed, all
+    again with it first, at most ``FLOW_RESTARTS`` times (a count). Returns (tracks, how it ended)."""
+
+    A = problem.n_agents
+    order, broken = flow_order(problem, hits, horizon)
     fallbacks = 0
+    tried: set[tuple[int, ...]] = set()  # the orders timed: the timing is a function of the order (exact)
     for restart in range(FLOW_RESTARTS + 1):
+        if tuple(order) in tried:  # timed before, failed at the same vehicle: no later restart differs
+            break
+        tried.add(tuple(order))
         occ = Occupancy(problem, [reserved_track(problem, b) for b in range(A)], horizon)
         tracks: dict = {}
         queue = list(order)
@@ -234,10 +250,13 @@ def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -
         order.remove(failed)
         order.insert(0, failed)  # the vehicle that could not be timed goes first
     assert failed is not None
+    why = (
+        f"{FLOW_RESTARTS} restarts" if len(tried) > FLOW_RESTARTS else f"{len(tried) - 1} restarts (the order repeats)"
+    )
     return (
         tracks,
-        f"gave up at vehicle {len(tracks)} ({problem.names[failed]}) after {FLOW_RESTARTS} restarts, {broken} cycles "
-        f"broken, {fallbacks} fallbacks",
+        f"gave up at vehicle {len(tracks)} ({problem.names[failed]}) after {why}, {broken} cycles broken, "
+        f"{fallbacks} fallbacks",
     )
 
 
