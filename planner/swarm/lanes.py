@@ -17,8 +17,10 @@ World frame, z up, m; times on the swarm grid (``GRID_DT_S``).
   timed exactly through its waypoints (:func:`~proxplan.planner.swarm.chain.time_chain`) against those
   timed before it, the others' starts reserved until they are timed (a vehicle releases the reserved starts
   within keep-out of its goal and those its lane route passes, and they are timed next; where its lane route cannot be
-  timed, :func:`~proxplan.planner.swarm.single.plan_one`). Where a vehicle cannot be timed, everything
-  again with it first, at most ``FLOW_RESTARTS`` times (a count: the same problem gives the same plan).
+  timed, :func:`~proxplan.planner.swarm.single.plan_one` stopping at its waypoints). A vehicle whose start is within
+  keep-out of another's goal is timed before that one where no cycle forbids it (``ORDER_BY_ENDS``). Where a vehicle cannot be timed, everything
+  again with it first, at most ``FLOW_RESTARTS`` times (a count: the same problem gives the same plan), and
+  never an order timed before (the timing is a function of the order: it would fail the same way).
   Every track is conflict-free against those timed before it, so the whole plan is.
 * **The stage** (:func:`lanes_stage`): the flow timing on a horizon of ``LANES_HORIZON_FACTOR`` x the
   bound; the stacked plan's levels ask it where prioritised planning gave up (round 27A).
@@ -57,6 +59,16 @@ FLOW_RESTARTS = 32
 # a vehicle about to be timed releases the reserved starts its lane route passes as well as those at its goal,
 # and they are timed next (corridor-128's Crazyflie level alone: 6.63x, 108.7 s CPU -> 6.12x, 43.9 s; round 27A)
 RELEASE_ON_ROUTE = True
+# the flow order also puts b before a where b's start is within keep-out of a's goal (b leaves before a
+# arrives), not only by the starts and goals a's route passes. Round 28A, corridor-128's Crazyflie level
+# alone: a lane route failed where a vehicle timed before it sat at its goal by the route's start (50
+# plan_one fallbacks, 4 restarts -> 26 fallbacks, 0 restarts)
+ORDER_BY_ENDS = True
+# a lane route that cannot be timed falls back on plan_one stopping at its route's waypoints (False) or
+# flying through them (True): through, its timing of a wavefront route of many waypoints was ~1 s a
+# fallback (round 28A, same level: the stage 37.3 -> 10.1 s CPU with both changes, 6.12x -> 6.23x before
+# re-timing, which flies through the waypoints afterwards)
+FALLBACK_THROUGH = False
 # the stage's horizon: this many times the level's straight-line bound (a count of grid steps). The plan it
 # replaces where it runs, the lattice plan in lock-step, was 7.4-17.2x at 128 (pillar, corridor: round 26B)
 LANES_HORIZON_FACTOR = 12.0
@@ -69,6 +81,7 @@ __all__ = [
     "KEEP_RIGHT",
     "LANES_HORIZON_FACTOR",
     "direction_groups",
+    "flow_order",
     "flow_timing",
     "lane_routes",
     "lanes_stage",
@@ -161,19 +174,21 @@ def lane_routes(problem: SwarmProblem, horizon: int, sides: tuple[float, ...] = 
     return routes, hits
 
 
-def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -> tuple[dict, str]:
-    """Every vehicle timed along its lane route (exact safe-interval timing through waypoints against those
-    timed before it, the others' starts reserved until timed; a vehicle whose goal is within keep-out of
-    reserved starts releases them and they are timed next; a failed timing falls back on plan_one), in the
-    flow order: a vehicle after those whose starts its route passes and before those whose goals it passes,
-    cycles broken by the fewest unmet, ties the longest flight first; where a vehicle cannot be timed, all
-    again with it first, at most ``FLOW_RESTARTS`` times (a count). Returns (tracks, how it ended)."""
-
+def flow_order(problem: SwarmProblem, hits: dict, horizon: int) -> tuple[list[int], int]:
+    """The flow order of :func:`flow_timing` (``hits`` from :func:`lane_routes`): a vehicle after those whose
+    starts its route passes and, with ``ORDER_BY_ENDS``, those whose starts are within keep-out of its goal (they
+    leave before it arrives), and before those whose goals its route passes; where none is ready (a cycle), the
+    one with the fewest unmet, ties the longest flight first. Returns (order, cycles broken)."""
     A = problem.n_agents
     before = {a: set(hits[a][0]) for a in range(A)}
     for a in range(A):
         for b in hits[a][1]:
             before[b].add(a)
+    if ORDER_BY_ENDS:  # b leaves before a arrives where b's start is within keep-out of a's goal
+        starts = Occupancy(problem, [reserved_track(problem, b) for b in range(A)], horizon)
+        for a in range(A):
+            at_goal = GridTrack(a, int(problem.type_index[a]), problem.goals_m[a].copy(), [])
+            before[a] |= starts.conflicting_agents(at_goal) - {a}
     order: list[int] = []
     done: set[int] = set()
     broken = 0
@@ -185,8 +200,26 @@ def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -
         pick = min(ready, key=lambda a: (-hits[a][2], a))
         order.append(pick)
         done.add(pick)
+    return order, broken
+
+
+def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -> tuple[dict, str]:
+    """Every vehicle timed along its lane route (exact safe-interval timing through waypoints against those
+    timed before it, the others' starts reserved until timed; a vehicle whose goal is within keep-out of
+    reserved starts releases them and they are timed next; a failed timing falls back on plan_one), in the
+    flow order: a vehicle after those whose starts its route passes or whose starts are within keep-out of its
+    goal (``ORDER_BY_ENDS``) and before those whose goals it passes,
+    cycles broken by the fewest unmet, ties the longest flight first; where a vehicle cannot be timed, all
+    again with it first, at most ``FLOW_RESTARTS`` times (a count). Returns (tracks, how it ended)."""
+
+    A = problem.n_agents
+    order, broken = flow_order(problem, hits, horizon)
     fallbacks = 0
+    tried: set[tuple[int, ...]] = set()  # the orders timed: the timing is a function of the order (exact)
     for restart in range(FLOW_RESTARTS + 1):
+        if tuple(order) in tried:  # timed before, failed at the same vehicle: no later restart differs
+            break
+        tried.add(tuple(order))
         occ = Occupancy(problem, [reserved_track(problem, b) for b in range(A)], horizon)
         tracks: dict = {}
         queue = list(order)
@@ -203,7 +236,7 @@ def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -
             track = None if res is None else res.track
             if track is None:
                 fallbacks += 1
-                track = plan_one(occ, a, True)
+                track = plan_one(occ, a, FALLBACK_THROUGH)
             if track is None:
                 failed = a
                 break
@@ -217,10 +250,13 @@ def flow_timing(problem: SwarmProblem, routes: dict, hits: dict, horizon: int) -
         order.remove(failed)
         order.insert(0, failed)  # the vehicle that could not be timed goes first
     assert failed is not None
+    why = (
+        f"{FLOW_RESTARTS} restarts" if len(tried) > FLOW_RESTARTS else f"{len(tried) - 1} restarts (the order repeats)"
+    )
     return (
         tracks,
-        f"gave up at vehicle {len(tracks)} ({problem.names[failed]}) after {FLOW_RESTARTS} restarts, {broken} cycles "
-        f"broken, {fallbacks} fallbacks",
+        f"gave up at vehicle {len(tracks)} ({problem.names[failed]}) after {why}, {broken} cycles broken, "
+        f"{fallbacks} fallbacks",
     )
 
 
