@@ -114,7 +114,7 @@ def staggered(problem: SwarmProblem, jm: JointMove) -> JointMove | None:
         if d is None:
             return None
         moves[i] = tuple((k + d, mv) for k, mv in jm.moves[i])
-        placed.add(one.tracks(problem, d))
+        placed.add(problem.static_memo.get(("stagger track", keys[i], d), partial(one.tracks, problem, d)))
         prefix += ((keys[i], d),)
         if d:
             delays.append(f"{problem.names[jm.members[i]]} +{d}")
