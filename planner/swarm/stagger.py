@@ -32,6 +32,7 @@ member by member on grid-64 and pillar-64 by type).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
@@ -48,7 +49,7 @@ MAX_STAGGER_STEPS = 16
 # a goal this close to another member's start is that start (m): goals and starts are given points
 SAME_POINT_M = 1e-6
 
-__all__ = ["MAX_STAGGER_STEPS", "SAME_POINT_M", "leaving_order", "staggered"]
+__all__ = ["MAX_STAGGER_STEPS", "SAME_POINT_M", "Partial", "leaving_order", "staggered"]
 
 
 def leaving_order(problem: SwarmProblem, members: tuple[int, ...]) -> list[int]:
@@ -98,14 +99,25 @@ class _Placed:
         return place_joint(self.occ, one, arrive_by=one.steps + MAX_STAGGER_STEPS)
 
 
-def staggered(problem: SwarmProblem, jm: JointMove) -> JointMove | None:
+@dataclass
+class Partial:
+    """A staggering stopped early: the members placed before it already arrive at step ``arrival_lower`` or
+    later, so the staggered joint move arrives no earlier (its arrival is the latest member's)."""
+
+    arrival_lower: int
+
+
+def staggered(problem: SwarmProblem, jm: JointMove, *, below: int | None = None) -> JointMove | Partial | None:
     """``jm`` with its members leaving one after another (see module), or None where a member has no
-    delay up to :data:`MAX_STAGGER_STEPS`."""
+    delay up to :data:`MAX_STAGGER_STEPS`; with ``below``: a :class:`Partial` as soon as the members placed
+    arrive at step ``below`` or later (the caller wants only an earlier arrival; nothing of the joint move
+    is kept but the members' delays, so asked again it goes on from there at the cost of lookups)."""
     moves = list(jm.moves)
     keys = [member_key(a, legs, route) for a, legs, route in zip(jm.members, jm.moves, jm.routes)]
     placed = _Placed(problem, jm)
     prefix: tuple = ()  # (key, delay) of each member placed, in leaving order
     delays = []
+    arrival = 0  # the latest arrival of the members placed (grid steps after the common departure)
     for i in leaving_order(problem, jm.members):
         one = jm.member(i)
         d: int | None = 0
@@ -114,6 +126,9 @@ def staggered(problem: SwarmProblem, jm: JointMove) -> JointMove | None:
         if d is None:
             return None
         moves[i] = tuple((k + d, mv) for k, mv in jm.moves[i])
+        arrival = max(arrival, d + one.steps)
+        if below is not None and arrival >= below:
+            return Partial(arrival)
         placed.add(problem.static_memo.get(("stagger track", keys[i], d), partial(one.tracks, problem, d)))
         prefix += ((keys[i], d),)
         if d:

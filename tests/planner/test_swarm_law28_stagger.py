@@ -67,3 +67,28 @@ def test_tracks_at_zero_are_the_tracks_departing_at_zero():
         assert a.agent == b.agent and np.array_equal(a.positions_m, b.positions_m)
         assert np.array_equal(a.moving, b.moving)
     assert jm.tracks_at_zero(problem) is jm.tracks_at_zero(problem)
+
+
+def test_a_bounded_fitting_stops_only_where_the_joint_move_arrives_too_late():
+    """grid-64 by type's v012+v020+v027+v028 (every joint move staggered): asked for an arrival before step
+    ``below``, the fitting stops early (a Partial) only where the full fitting arrives at ``below`` or later,
+    at most at that arrival, and otherwise gives the full fitting; asked in full after it, the same."""
+    from proxplan.planner.swarm.passes import _fitted, fitted
+    from proxplan.planner.swarm.stagger import Partial
+
+    problems = [_assigned("grid", 64)[2] for _ in range(2)]  # one fitted in full, one bounded first
+    full_p, bounded_p = problems
+    members = tuple(sorted(full_p.names.index(n) for n in ("v012", "v020", "v027", "v028")))
+    stopped = 0
+    for jm, jm_b in zip(joint_moves(full_p, members, checked=False), joint_moves(bounded_p, members, checked=False)):
+        full = fitted(full_p, jm)
+        for below in (jm.steps, jm.steps + 4, 10**6):
+            got = _fitted(bounded_p, jm_b, below)
+            if isinstance(got, Partial):
+                stopped += 1
+                assert below <= got.arrival_lower and (full is None or got.arrival_lower <= full.steps)
+                assert full is None or full.steps >= below
+            else:
+                assert _offsets(got) == _offsets(full) and (got is None or got.label == full.label)
+        assert _offsets(fitted(bounded_p, jm_b)) == _offsets(full)
+    assert stopped >= 5
