@@ -18,7 +18,8 @@ timed together:
   back, rest to rest, at a few offsets. All depart at one grid step; a joint move is used only where
   its members' tracks are conflict-free among themselves
   (:meth:`~proxplan.planner.swarm.occupancy.Occupancy.conflicting_agents`, asked when it is first
-  tried) and statically free; a component without any is timed one by one (below);
+  tried), or made so by staggering its members' departures (:mod:`proxplan.planner.swarm.stagger`),
+  and statically free (the joint move and its placement: :mod:`proxplan.planner.swarm.joint`); a component without any is timed one by one (below);
 * every vehicle in no conflict flies its straight line at its own limits from t = 0; the components,
   longest line first, are placed at the earliest common departure the tracks fixed so far allow
   (:func:`place_joint`: holds at the start before it, at the goal after it, the flown samples,
@@ -57,9 +58,11 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from proxplan.planner.swarm.joint import JointMove, member_key, moving, place_joint
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
+from proxplan.planner.swarm.stagger import Partial, staggered
 from proxplan.planner.swarm.straight import own_straight_track
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack, Move
 from proxplan.planner.swarm.yielding import YieldResult, blockers, left_of_line, time_yielding
@@ -70,12 +73,6 @@ from proxplan.planner.timing.profile import LineMove, rest_to_rest
 # (problem.reach_xy_m): from half of it (two head-on partners each half aside clear the reach between
 # them) to all of it (one partner on its line); chosen before any run (round 23S)
 PASS_REACH_FACTORS = (0.5, 0.625, 0.75, 1.0)
-# a joint move's member leaves at most this many grid steps after the common departure where the members
-# conflict leaving together (:func:`_staggered`; 0.4 s: a joint move one reach-factor wider costs 2-5 steps,
-# so a longer delay rarely pays; a count, not tuned; round 27S)
-MAX_STAGGER_STEPS = 16
-# a goal this close to another member's start is that start (m): goals and starts are given points
-SAME_POINT_M = 1e-6
 # a component no joint move can be placed for makes the vehicles hemming it in late (or is placed first,
 # or its members become late), then all are placed again: at most this many times (a count, so the
 # same problem gives the same plan); as the yielding stage's MAX_YIELD_ROUNDS, set on the named layouts
@@ -87,9 +84,7 @@ MAX_RAISES = 6
 __all__ = [
     "MAX_PASS_ROUNDS",
     "MAX_RAISES",
-    "MAX_STAGGER_STEPS",
     "PASS_REACH_FACTORS",
-    "SAME_POINT_M",
     "JointMove",
     "conflict_components",
     "conflict_free",
@@ -98,32 +93,6 @@ __all__ = [
     "passing_stage",
     "place_joint",
 ]
-
-
-@dataclass(frozen=True)
-class JointMove:
-    """One joint manoeuvre of a component: per member its moves ((grid steps after the common
-    departure, move), in time order; () where it rests) and the waypoint chain it is flown along (start,
-    the arc's middle, goal; its straight line; start, the point aside, start for a resting member
-    stepping aside; None at rest)."""
-
-    members: tuple[int, ...]
-    moves: tuple[tuple[tuple[int, Move], ...], ...]
-    routes: tuple[np.ndarray | None, ...]
-    label: str
-
-    @property
-    def steps(self) -> int:
-        """Grid steps from the common departure to the last member's arrival."""
-        return max((k + mv.steps for legs in self.moves for k, mv in legs), default=0)
-
-    def tracks(self, problem: SwarmProblem, depart_step: int) -> list[GridTrack]:
-        """The members' tracks departing at ``depart_step``."""
-        out = []
-        for a, legs, route in zip(self.members, self.moves, self.routes):
-            moves = [(depart_step + k, mv) for k, mv in legs]
-            out.append(GridTrack(a, int(problem.type_index[a]), problem.starts_m[a].copy(), moves, route_m=route))
-        return out
 
 
 def conflict_components(pairs: list[tuple[int, int]]) -> list[tuple[int, ...]]:
@@ -141,10 +110,6 @@ def conflict_components(pairs: list[tuple[int, int]]) -> list[tuple[int, ...]]:
     for a, c in zip(agents, label):
         groups.setdefault(int(c), []).append(a)
     return sorted((tuple(g) for g in groups.values()), key=lambda g: g[0])
-
-
-def _moving(problem: SwarmProblem, a: int) -> bool:
-    return not problem.pinned[a] and float(np.linalg.norm(problem.goals_m[a] - problem.starts_m[a])) > 1e-9
 
 
 def _aside_legs(
@@ -172,7 +137,7 @@ def joint_moves(
     """The joint moves of the component ``members`` (see module), statically free, in order of their
     length (grid steps), ties in the order tried; ``checked``: only those conflict-free among themselves
     (:func:`conflict_free`), else all (the caller checks those it uses: most are never tried)."""
-    movers = [a for a in members if _moving(problem, a)]
+    movers = [a for a in members if moving(problem, a)]
     lefts = {a: left_of_line(problem, a) for a in movers}
     left = {a: v for a, v in lefts.items() if v is not None}
     if not movers or len(left) < len(movers):
@@ -261,7 +226,7 @@ def _with_resting(
 
 def conflict_free(problem: SwarmProblem, jm: JointMove) -> bool:
     """Whether the members' tracks of ``jm`` are conflict-free among themselves."""
-    tracks = jm.tracks(problem, 0)
+    tracks = jm.tracks_at_zero(problem)
     occ = Occupancy(problem, tracks, jm.steps + 2)
     return all(not occ.conflicting_agents(tr) for tr in tracks)
 
@@ -280,63 +245,47 @@ def _free(problem: SwarmProblem, jm: JointMove) -> bool:
     return problem.static_memo.get(("joint move free", jm.members, jm.label), lambda: _pairs_free(problem, jm))
 
 
+@dataclass
+class _Fitting:
+    """What is known of a joint move's fitting (kept per problem, ``problem.static_memo``): ``done`` with
+    its ``result`` (:func:`fitted`), or else the least arrival its staggering has shown (``lower``, grid
+    steps after the common departure)."""
+
+    done: bool = False
+    result: JointMove | None = None
+    lower: int = 0
+
+
 def fitted(problem: SwarmProblem, jm: JointMove) -> JointMove | None:
     """``jm`` where it is conflict-free among its members (:func:`_free`), else, where every member moves
-    (no resting member: those step aside in time with the movers), ``jm`` staggered (:func:`_staggered`);
-    or None. Asked once per problem (``problem.static_memo``)."""
-    return problem.static_memo.get(
-        ("joint move fitted", jm.members, jm.label),
-        lambda: (
-            jm
-            if _free(problem, jm)
-            else _staggered(problem, jm)
-            if all(map(partial(_moving, problem), jm.members))
-            else None
-        ),
-    )
+    (no resting member: those step aside in time with the movers), ``jm`` staggered
+    (:func:`~proxplan.planner.swarm.stagger.staggered`); or None. Asked once per problem
+    (``problem.static_memo``)."""
+    got = _fitted(problem, jm, None)
+    assert not isinstance(got, Partial)  # only asked with a bound
+    return got
 
 
-def _leaving_order(problem: SwarmProblem, members: tuple[int, ...]) -> list[int]:
-    """Indices into ``members``: a member before those whose goal is its start (it leaves what they
-    reach), else in the members' order (also round a cycle: a swap, a rotation)."""
-    s, g = problem.starts_m, problem.goals_m
-    after = {
-        i: {j for j, b in enumerate(members) if j != i and np.linalg.norm(g[b] - s[members[i]]) <= SAME_POINT_M}
-        for i in range(len(members))
-    }
-    waits_for = {j: {i for i in after if j in after[i]} for j in range(len(members))}
-    order: list[int] = []
-    while len(order) < len(members):
-        left = [j for j in range(len(members)) if j not in order]
-        ready = [j for j in left if not waits_for[j] - set(order)]
-        order.append(min(ready) if ready else min(left))
-    return order
-
-
-def _staggered(problem: SwarmProblem, jm: JointMove) -> JointMove | None:
-    """``jm`` with its members leaving one after another: in :func:`_leaving_order`, each member's moves
-    delayed by the fewest grid steps (0 to :data:`MAX_STAGGER_STEPS`) that leave it conflict-free against
-    the members delayed before it (:func:`place_joint` of the member alone against their tracks: the test
-    by which the stage places a component against the tracks fixed before it); or None where a member has
-    no such delay. (A member's fastest arc, timing.path_law, may reach a partner's start before the
-    partner has left it; round 27S. Checking the result again pair by pair, :func:`_pairs_free`, cost
-    pillar-64 by type 16 s of CPU and changed nothing on the named layouts.)"""
-    moves = list(jm.moves)
-    placed: list[GridTrack] = []
-    delays = []
-    for i in _leaving_order(problem, jm.members):
-        one = JointMove((jm.members[i],), (jm.moves[i],), (jm.routes[i],), jm.label)
-        d: int | None = 0
-        if placed:
-            horizon = max(tr.arrival_step for tr in placed) + one.steps + MAX_STAGGER_STEPS + 2
-            d = place_joint(Occupancy(problem, placed, horizon), one, arrive_by=one.steps + MAX_STAGGER_STEPS)
-        if d is None:
-            return None
-        moves[i] = tuple((k + d, mv) for k, mv in jm.moves[i])
-        placed += one.tracks(problem, d)
-        if d:
-            delays.append(f"{problem.names[jm.members[i]]} +{d}")
-    return JointMove(jm.members, tuple(moves), jm.routes, f"{jm.label}, staggered ({', '.join(delays)})")
+def _fitted(problem: SwarmProblem, jm: JointMove, below: int | None) -> JointMove | Partial | None:
+    """:func:`fitted`, or, with ``below`` (a caller wanting only an arrival before that step), a
+    :class:`~proxplan.planner.swarm.stagger.Partial` where the staggering shows, before it is finished, that
+    the joint move arrives at that step or later (pillar-64 by type: 239 of 340 staggered joint moves were
+    not wanted; round 28S)."""
+    fit = problem.static_memo.get(("joint move fitted", jm.members, jm.label), _Fitting)
+    if not fit.done:
+        if below is not None and fit.lower >= below:
+            return Partial(fit.lower)
+        if _free(problem, jm):
+            got: JointMove | Partial | None = jm
+        elif all(moving(problem, a) for a in jm.members):
+            got = staggered(problem, jm, below=below)
+        else:
+            got = None
+        if isinstance(got, Partial):
+            fit.lower = max(fit.lower, got.arrival_lower)
+            return got
+        fit.done, fit.result = True, got
+    return fit.result
 
 
 def _pairs_free(problem: SwarmProblem, jm: JointMove) -> bool:
@@ -345,8 +294,8 @@ def _pairs_free(problem: SwarmProblem, jm: JointMove) -> bool:
     steps until the later of the two arrives), so the members are conflict-free among themselves where every
     pair is, each pair asked once per problem (round 26S: the joint moves of a component share most of their
     members' moves: a group of 8 on grid-256 by type has 72 joint moves, none conflict-free)."""
-    tracks = jm.tracks(problem, 0)
-    keys = [_member_key(a, legs, route) for a, legs, route in zip(jm.members, jm.moves, jm.routes)]
+    tracks = jm.tracks_at_zero(problem)
+    keys = [member_key(a, legs, route) for a, legs, route in zip(jm.members, jm.moves, jm.routes)]
     for x in range(len(tracks)):
         for y in range(x + 1, len(tracks)):
             key = ("pair free", keys[x], keys[y])
@@ -355,54 +304,12 @@ def _pairs_free(problem: SwarmProblem, jm: JointMove) -> bool:
     return True
 
 
-def _member_key(a: int, legs: tuple[tuple[int, Move], ...], route: np.ndarray | None) -> tuple:
-    """What fixes a member's track in a joint move: its agent, its legs' offsets (grid steps) and its waypoint
-    chain (each move is the rest-to-rest line, the arc through the chain's middle or the step aside and back
-    that the chain and the offsets name, :func:`joint_moves`), with the kinds of its moves."""
-    kinds = tuple((k, type(mv).__name__, mv.steps) for k, mv in legs)
-    return (a, kinds, None if route is None else np.asarray(route, dtype=float).tobytes())
-
-
 def _pair_free(problem: SwarmProblem, ta: GridTrack, tb: GridTrack) -> bool:
     """Whether two tracks are conflict-free, each asked against the other (:func:`conflict_free`'s test)."""
     horizon = max(ta.arrival_step, tb.arrival_step) + 2
     return not Occupancy(problem, [tb], horizon).conflicting_agents(ta) and not Occupancy(
         problem, [ta], horizon
     ).conflicting_agents(tb)
-
-
-def _first_true(mask: np.ndarray) -> int:
-    hit = np.flatnonzero(mask)
-    return int(hit[0]) if hit.size else mask.size
-
-
-def place_joint(occ: Occupancy, jm: JointMove, *, arrive_by: int | None = None) -> int | None:
-    """The earliest common departure step of ``jm`` against the tracks of ``occ`` (every member
-    holding its start before it, flying its moves from it, holding its end for good after them; a
-    member without moves holding its start for good), arriving by step ``arrive_by`` (None: within the
-    horizon), or None."""
-    problem = occ.problem
-    T = occ.horizon
-    last = T - 1 if arrive_by is None else min(T - 1, arrive_by)
-    allowed = np.zeros(T, dtype=bool)
-    allowed[: max(0, last - jm.steps + 1)] = True
-    for tr in jm.tracks(problem, 0):
-        a = tr.agent
-        if not tr.moves:
-            if occ.forbidden_holds(a, tr.start_m).any():
-                return None
-            continue
-        allowed[_first_true(occ.forbidden_holds(a, tr.start_m)) :] = False
-        goal_bad = np.flatnonzero(occ.forbidden_holds(a, tr.end_m))
-        allowed[: max(0, int(goal_bad[-1]) + 1 - tr.arrival_step) if goal_bad.size else 0] = False
-        window = np.flatnonzero(allowed)
-        if not window.size:
-            return None
-        q = tr.position_at_steps(np.arange(tr.arrival_step + 1))
-        lo, hi = int(window[0]), int(window[-1]) + 1
-        allowed &= ~occ.forbidden_departures(a, q, from_step=lo, until_step=hi)
-    window = np.flatnonzero(allowed)
-    return int(window[0]) if window.size else None
 
 
 def _place_component(
@@ -414,9 +321,9 @@ def _place_component(
     for jm in options:
         if best is not None and jm.steps >= best[0]:
             break  # sorted by length: none later arrives earlier
-        fit = fitted(problem, jm)
-        if fit is None:
-            continue
+        fit = _fitted(problem, jm, None if best is None else best[0])
+        if fit is None or isinstance(fit, Partial) or (best is not None and fit.steps >= best[0]):
+            continue  # (place_joint could only arrive at best[0] or later)
         bound = arrive_by if best is None else best[0] - 1
         d = place_joint(occ, fit, arrive_by=bound)
         if d is None or (best is not None and d + fit.steps >= best[0]):
@@ -577,7 +484,7 @@ def _place_all(
             got = _place_component(occ, problem, options[u], arrive_by)
             if got is None or max(tr.arrival_step for tr in got) > options[u][0].steps:
                 hem: set[int] = set()
-                for tr in options[u][0].tracks(problem, 0):
+                for tr in options[u][0].tracks_at_zero(problem):
                     hem |= occ.conflicting_agents(tr) | blockers(occ, problem, tr.agent)
                 if got is None:
                     stuck.append((u, hem - set(u)))

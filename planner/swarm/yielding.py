@@ -36,6 +36,7 @@ of the two straight lines resolves 12 of grid's 19 conflicting pairs nor any of 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -179,18 +180,27 @@ def blockers(occ: Occupancy, problem: SwarmProblem, a: int) -> set[int]:
     """The agents whose tracks in ``occ`` meet agent ``a``'s straight line (where it leaves the static free
     space: its chains round the obstacle, :func:`around_obstacle`, each flown through its corner from t = 0),
     or ``a`` resting for good at its start or at its goal: the vehicles that hem a yielding vehicle in."""
+    out: set[int] = set()
+    for track in problem.static_memo.get(("blocker tracks", a), partial(_blocker_tracks, problem, a)):
+        out |= occ.conflicting_agents(track)
+    return out
+
+
+def _blocker_tracks(problem: SwarmProblem, a: int) -> tuple[GridTrack, ...]:
+    """The tracks :func:`blockers` asks about (a function of the problem alone, kept in
+    ``problem.static_memo``: the passing stage asks them for every group placed late; read-only)."""
     s, g = problem.starts_m[a], problem.goals_m[a]
     ta = int(problem.type_index[a])
     if problem.segment_free(s, g):
-        out = occ.conflicting_agents(own_straight_track(problem, a))
+        out = [own_straight_track(problem, a)]
     else:  # its routes round the obstacle (pillar-16 by type: hemmed in by the goals beside them, round 24S)
-        out = set()
-        for chain in around_obstacle(problem, a):
-            move = RunMove(chain, problem.limits[a], GRID_DT_S, deviation_m=CORNER_DEVIATION_M)
-            out |= occ.conflicting_agents(GridTrack(a, ta, s.copy(), [(0, move)]))
-    out |= occ.conflicting_agents(GridTrack(a, ta, s.copy(), []))
-    out |= occ.conflicting_agents(GridTrack(a, ta, g.copy(), []))
-    return out
+        out = [
+            GridTrack(
+                a, ta, s.copy(), [(0, RunMove(chain, problem.limits[a], GRID_DT_S, deviation_m=CORNER_DEVIATION_M))]
+            )
+            for chain in around_obstacle(problem, a)
+        ]
+    return (*out, GridTrack(a, ta, s.copy(), []), GridTrack(a, ta, g.copy(), []))
 
 
 def _right_prediction(problem: SwarmProblem, a: int) -> GridTrack | None:

@@ -129,9 +129,10 @@ def _norms2(u: np.ndarray, maps: np.ndarray, delta: np.ndarray, bulge: np.ndarra
     return (v * v).sum(1), (a * a).sum(1), (j * j).sum(1), (s, sd, sdd, sddd, dp, v, a, j)
 
 
-def _grads(u: np.ndarray, maps: np.ndarray, delta: np.ndarray, bulge: np.ndarray, mirror: bool = True):
-    """Gradients over u of the squared norms of v, a, j at the sampled instants (chain rule, see module)."""
-    _, _, _, (s, sd, sdd, sddd, dp, v, a, j) = _norms2(u, maps, delta, bulge, mirror)
+def _grads(u: np.ndarray, maps: np.ndarray, delta: np.ndarray, bulge: np.ndarray, mirror: bool = True, norms=None):
+    """Gradients over u of the squared norms of v, a, j at the sampled instants (chain rule, see module);
+    ``norms``: :func:`_norms2` of the same arguments where already computed."""
+    _, _, _, (s, sd, sdd, sddd, dp, v, a, j) = norms if norms is not None else _norms2(u, maps, delta, bulge, mirror)
     m0, m1, m2, m3 = maps
     if mirror:  # d sigma / du, ... on both halves
         ds, dsd, dsdd, dsddd = np.vstack([m0, -m0]), np.vstack([m1, m1]), np.vstack([m2, -m2]), np.vstack([m3, m3])
@@ -181,13 +182,22 @@ def _optimise(delta: np.ndarray, bulge: np.ndarray, limits: KinematicLimits) -> 
     mirror = abs(float(np.dot(delta, bulge))) > 1e-12 * float(np.dot(delta, delta))
     kv, ka, kj = ((f * x) ** -2 for x in (limits.max_speed_mps, limits.max_accel_mps2, limits.max_jerk_mps3))
 
+    last_norms: dict[bytes, tuple] = {}  # the norms at the last point asked (SLSQP asks cons, then its Jacobian)
+
+    def norms(z):
+        key = z.tobytes()
+        if key not in last_norms:
+            last_norms.clear()
+            last_norms[key] = _norms2(z[:-1], maps, delta, bulge, mirror)
+        return last_norms[key]
+
     def cons(z):
-        v2, a2, j2, _ = _norms2(z[:-1], maps, delta, bulge, mirror)
+        v2, a2, j2, _ = norms(z)
         t = z[-1]
         return np.concatenate([t * t - kv * v2, t**4 - ka * a2, t**6 - kj * j2])
 
     def cons_jac(z):
-        gv, ga, gj = _grads(z[:-1], maps, delta, bulge, mirror)
+        gv, ga, gj = _grads(z[:-1], maps, delta, bulge, mirror, norms(z))
         t = z[-1]
         m = len(gv)
         col = np.concatenate([np.full(m, 2.0 * t), np.full(m, 4.0 * t**3), np.full(m, 6.0 * t**5)])
