@@ -22,8 +22,8 @@ Stages (DESIGN.md section 6; issue 35):
    (their tangent columns, with their priors), a candidate is kept only when its held-out gain exceeds
    the Bonferroni multiple of the flight-to-flight standard error AND it is chosen in most half-samples
    of the flights. The calibration may have absorbed a missing effect into the vehicle parameters, so
-   selection also runs around the PRIOR model, and the start whose kept set predicts the held-out flights'
-   F_z better is kept (:func:`proxplan.identify.selection.other_start_better`).
+   selection also runs around the PRIOR model, and the start whose kept set predicts the held-out flights
+   better is kept (:func:`proxplan.identify.selection.other_start_better`).
 7. Errors before (model as given), calibrated and after (calibrated + kept effects) on TEST flights,
    which never choose anything; also per vehicle (the manifest's key).
 
@@ -314,14 +314,14 @@ def run_identify(
     if calibration is not None:
         # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
         # undo it only to first order), so selection also starts from the PRIOR model (eta at its prior);
-        # it wins when its kept set predicts the held-out flights' F_z better (selection.other_start_better;
+        # it wins when its kept set predicts the held-out flights better (selection.other_start_better;
         # same samples, same units), else the calibrated start stays
         prior = replace(base, options=replace(base.options, stack_shielding=STACK_SHIELDING_PRIOR.center))
         alt = select_and_discover(fit, valid, prior, model_specs(fit, prior), options=options, noise=noise,
                                   test=test_eval, start="prior", prior_model=prior_start)  # fmt: skip
-        other_total = (alt.heldout_total, alt.heldout_fz_total)
+        other_total = alt.heldout_total
         if other_start_better(chosen, alt):
-            chosen, other_total = alt, (chosen.heldout_total, chosen.heldout_fz_total)
+            chosen, other_total = alt, chosen.heldout_total
         laps("selection around the prior model")
     final = chosen.model
     after = full_errors(final)
@@ -338,10 +338,7 @@ def run_identify(
         if entry["selected"]:
             entry["rmse_fz_N"] = after.rmse_fz_N
     thrust = thrust_coefficient_summary(fit) if thrust_summary else {}
-    selection = chosen.to_json() | {
-        "other_start_heldout_mse": None if other_total is None else other_total[0],
-        "other_start_heldout_mse_fz": None if other_total is None else other_total[1],
-    }
+    selection = chosen.to_json() | {"other_start_heldout_mse": other_total}
     laps("spread, errors and analysis")
     return IdentifyResult(
         before=before, after=after, calibrated=calibrated, trials=chosen.effects.trials,

@@ -184,10 +184,9 @@ def selection_lines(result: IdentifyResult) -> list[str]:
     if result.fallback:
         lines += [f"**Selection fell back**: {result.validation}.", ""]
     if sel:
-        other = sel.get("other_start_heldout_mse_fz")
-        lines += [f"Selection around the **{sel['start']}** model (held-out F_z score {sel['heldout_log_mse_fz']:.4g}"
-                  + (f"; the other start {other:.4g}" if other is not None else "")
-                  + f"; lower is better; all channels {sel['heldout_log_mse']:.4g}). "
+        other = sel.get("other_start_heldout_mse")
+        lines += [f"Selection around the **{sel['start']}** model (held-out score {sel['heldout_log_mse']:.4g}"
+                  + (f"; the other start {other:.4g}" if other is not None else "") + "; lower is better). "
                   "A candidate is kept when its held-out gain (sum over channels of ln(MSE without / MSE with), every "
                   "flight predicted by a fit without it) exceeds z flight-to-flight standard errors (one-sided "
                   "Bonferroni at 5 %) AND it is chosen in at least the stated share of half-samples of the flights "

@@ -22,9 +22,6 @@ from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_b
 from proxplan.identify.noise import CHANNELS, NoiseLevel, stacked
 from proxplan.physics import Effect
 
-FZ_CHANNEL = CHANNELS.index("force_z_N")
-"""Column of F_z in a held-out MSE (groups, channels) array, -."""
-
 
 @dataclass
 class Selection:
@@ -53,14 +50,6 @@ class Selection:
         per_group = per_group[np.isfinite(per_group)]
         return float(np.mean(per_group)) if per_group.size else float("inf")
 
-    @property
-    def heldout_fz_total(self) -> float:
-        """Mean over the held-out groups of ln(held-out F_z MSE) (noise units; the F_z channel of
-        :attr:`heldout_mse`): the score two starts are compared by (:func:`other_start_better`), lower is better."""
-        m = self.heldout_mse[:, FZ_CHANNEL]
-        m = m[np.isfinite(m) & (m > 0)]
-        return float(np.mean(np.log(m))) if m.size else float("inf")
-
     def group_totals(self) -> np.ndarray:
         """(groups,) each held-out group's sum over channels of ln(held-out MSE) (NaN: no channel)."""
         m = np.where(np.isfinite(self.heldout_mse) & (self.heldout_mse > 0), np.log(np.abs(self.heldout_mse)), np.nan)
@@ -69,7 +58,6 @@ class Selection:
     def to_json(self) -> dict[str, Any]:
         stab = self.effects.stability
         out: dict[str, Any] = {"start": self.start, "groups": self.note, "heldout_log_mse": self.heldout_total,
-                               "heldout_log_mse_fz": self.heldout_fz_total,
                "effects_stability_threshold": stab.threshold, "effects_mean_chosen_per_half": stab.mean_chosen,
                "effects_expected_false_bound": stab.expected_false_bound,
                "half_samples": stab.n_halves, "recalibration_step_u": self.effects.steps,
@@ -261,23 +249,15 @@ above what float32 rounding in a log format moves it (1e-6)."""
 
 
 def other_start_better(default: Selection, other: Selection) -> bool:
-    """Whether ``other`` (the selection around the prior model) predicts the held-out flights' F_z better than
-    ``default`` (around the calibrated model): a lower :attr:`Selection.heldout_fz_total` by more than
+    """Whether ``other`` (the selection around the prior model) predicts the held-out flights better than
+    ``default`` (around the calibrated model): a lower :attr:`Selection.heldout_total` by more than
     :data:`SCORE_RESOLUTION`. Both are scored on the same held-out flights, samples and noise units, and
     neither start is the more natural null: the calibration may have absorbed a missing effect into the
     vehicle parameters (its tangents undo that only to first order), or the prior may be off, so the
     better-predicting one is kept (with few flights a test "beyond chance" would keep the calibrated one
     whatever the flights say). Within the resolution the calibrated start stays, so rounding in the inputs
-    never picks the model.
-
-    Scored on F_z alone: that is the question the two starts answer. The calibration is a MAP fit on F_z
-    (:func:`proxplan.identify.calibrate.calibrate_model`), so what it can absorb is an F_z effect; each
-    channel's kept terms are decided by their own held-out tests inside each start. Summed over the four
-    channels, a torque term one start's search kept and the other's did not chose the vehicle parameters: on
-    simulated swaps with a hidden near_field (replicate 0) the prior start found it (F_z held-out MSE 1.036,
-    test 0.583 g) and lost to the calibrated start's thrust_quadratic (F_z 1.069, test 0.788 g) through two
-    lagged base-torque terms on torque_y (0.117 against 0.189) (docs/identify.md, stop 66)."""
-    return other.heldout_fz_total < default.heldout_fz_total - SCORE_RESOLUTION
+    never picks the model."""
+    return other.heldout_total < default.heldout_total - SCORE_RESOLUTION
 
 
 @dataclass
