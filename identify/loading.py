@@ -15,6 +15,7 @@ from proxplan.fileio import UserError
 from proxplan.identify.data import CEILING_BIT, FLOOR_BIT, IdentifyOptions, Model, Unit, predict, progress_bar
 from proxplan.identify.flightlog import Flight, FlightEntry, Manifest, load_flight
 from proxplan.identify.measure import MeasureOptions, kinematic_thrust_z_N, measure_log, smoothed_like_measurement
+from proxplan.identify.pwm_thrust import forceless_maps, pwm_limits, thrust_source_of
 from proxplan.identify.thrust_map import (
     CEILING,
     FLOOR,
@@ -106,8 +107,6 @@ def load_units(
                         per_type.setdefault(v.type, []).append(_motor_samples(flight.logs[v.name]))
         thrust_maps = fit_thrust_maps(per_type)
         if any(not log.thrust_logged for _, fl in flights for log in fl.logs.values()):  # PWM-only logs (uSD, ...)
-            from proxplan.identify.pwm_thrust import forceless_maps
-
             thrust_maps |= forceless_maps(
                 flights, types, lambda veh: measure_options_for(options.measure, veh, manifest.motor_thrust)
             )[0]
@@ -124,8 +123,6 @@ def load_units(
             n_sat = n_floor = 0
             source, limit_bits = "logged_u", None
             if not log.thrust_logged:  # no force logged: the type's PWM*Vbat map gives it (identify.pwm_thrust)
-                from proxplan.identify.pwm_thrust import pwm_limits, thrust_source_of
-
                 if tmap is None:
                     raise UserError(f"{log.source}: the log holds no motor force and the model has no PWM thrust "
                                     f"map for type {v.type}; identify it on such logs first")  # fmt: skip
@@ -139,9 +136,7 @@ def load_units(
                 motor = _motor_samples(log)
                 lim = motor_limits(tmap, motor, dt_s=float(np.median(np.diff(log.t_s))) if len(log) > 1 else 0.01)
                 if manifest.motor_thrust == "delivered":  # u[N] is the rotors' force: replaced only where no motor
-                    from proxplan.identify.pwm_thrust import pwm_limits  # gives it (thrust_map.delivered_log_limits)
-
-                    veh = flight.vehicles[v.name]
+                    veh = flight.vehicles[v.name]  # gives it (thrust_map.delivered_log_limits)
                     lim = delivered_log_limits(lim, motor, min_thrust_N=veh.min_motor_thrust_N,
                                                max_thrust_N=veh.max_thrust_per_rotor_N)  # fmt: skip
                     bits = np.where(lim != IN_RANGE, lim, pwm_limits(log.motor_pwm))
