@@ -72,6 +72,11 @@ ARC_REACH_FACTORS = (0.25, 0.5, 0.75, 1.0, 1.25)
 AROUND_STEPS = 16
 AROUND_STEP_REACH = 0.5  # the step of that search, in units of the widest keep-out's horizontal reach
 BLOCKED_SAMPLE_M = 0.02  # the line is sampled this often to find its blocked stretch, m (as segment_free)
+# ... and flown round it on a smooth arc as well (round 29S: corridor-64 by type, the line setting B through
+# the wall flown alone through one corner 1.57 B, through the shortest path's two corners 1.63 B, on the
+# smallest free arc 1.19 B): per side the smallest bulge, in the same steps as the corners, whose curve is
+# statically free (the curve sampled every BLOCKED_SAMPLE_M of its chord, finer than the grid's samples)
+ROUND_ARCS = True
 
 __all__ = [
     "ARC_REACH_FACTORS",
@@ -80,6 +85,7 @@ __all__ = [
     "AROUND_STEPS",
     "YieldResult",
     "around_obstacle",
+    "round_arc_bulges",
     "blockers",
     "choose_yielders",
     "left_of_line",
@@ -157,6 +163,36 @@ def around_obstacle(problem: SwarmProblem, a: int) -> list[np.ndarray]:
     return out
 
 
+def round_arc_bulges(problem: SwarmProblem, a: int) -> list[np.ndarray]:
+    """The bulges (3,), m, of agent ``a``'s arcs round the obstacle its straight line passes through:
+    per side (its left, then its right), the smallest multiple of :data:`AROUND_STEP_REACH` reach, at most
+    :data:`AROUND_STEPS` steps, whose curve (:class:`~proxplan.planner.timing.arcs.ArcMove`'s quadratic,
+    sampled every :data:`BLOCKED_SAMPLE_M` of its chord) is statically free ([] where its line is free,
+    has no horizontal part, or :data:`ROUND_ARCS` is off). A function of the problem: kept in
+    ``problem.static_memo``."""
+    if not ROUND_ARCS:
+        return []
+    return problem.static_memo.get(("round arcs", a), partial(_round_arc_bulges, problem, a))
+
+
+def _round_arc_bulges(problem: SwarmProblem, a: int) -> list[np.ndarray]:
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    side = left_of_line(problem, a)
+    if side is None or problem.segment_free(s, g):
+        return []
+    n = max(2, int(np.ceil(float(np.linalg.norm(g - s)) / BLOCKED_SAMPLE_M)) + 1)
+    sigma = np.linspace(0.0, 1.0, n)[:, None]
+    line = s[None] + sigma * (g - s)[None]
+    out = []
+    for sign in (1.0, -1.0):
+        for k in range(1, AROUND_STEPS + 1):
+            bulge = sign * k * AROUND_STEP_REACH * problem.reach_xy_m * side
+            if bool(problem.static_free(line + 4.0 * sigma * (1.0 - sigma) * bulge[None]).all()):
+                out.append(bulge)
+                break
+    return out
+
+
 def _chains(problem: SwarmProblem, a: int, right_only: bool = False) -> list[np.ndarray]:
     """The straight line and the corner chains of a yielding vehicle (see module); ``right_only``:
     only the corners on its right (seen from above, heading to its goal), no straight line. A line
@@ -221,7 +257,9 @@ def _arc_bulges(problem: SwarmProblem, a: int, right_only: bool, factors: tuple[
     if side is None:  # a vertical line: no side to bulge to (its corners lie along x)
         return []
     signs = (-1.0,) if right_only else (1.0, -1.0)
-    return [sign * f * problem.reach_xy_m * side for f in factors for sign in signs]
+    return [sign * f * problem.reach_xy_m * side for f in factors for sign in signs] + (
+        round_arc_bulges(problem, a) if factors else []
+    )
 
 
 def time_yielding(
