@@ -45,26 +45,54 @@ def _round_obstacles(scenario, problem, conflicts, bound_s: float) -> str:
     """Whether the assignment's bound routes round the obstacles: the largest certified single-vehicle bound
     under the assignment (``bounds.vehicle_bound_s``: through the free windows of each obstacle's planes)
     over B, and the lines through an obstacle each flown alone round it (``yielding.around_obstacle``, timed
-    by ``chain.time_chain`` through the corner against nobody), the slowest over B."""
+    by ``chain.time_chain`` through the corner against nobody; and on its smallest free arc round it,
+    ``yielding.round_arc_bulges`` timed by ``arc_timing.time_arc``, round 29S), the slowest over B."""
     from proxplan.planner.bounds import vehicle_bound_s
+    from proxplan.planner.swarm.arc_timing import time_arc
     from proxplan.planner.swarm.chain import time_chain
     from proxplan.planner.swarm.occupancy import Occupancy
     from proxplan.planner.swarm.prioritised_stage import horizon_steps
-    from proxplan.planner.swarm.yielding import around_obstacle
+    from proxplan.planner.swarm.yielding import around_obstacle, round_arc_bulges
 
     cache: dict = {}
     certified = max(vehicle_bound_s(scenario, name, cache)[0] for name in problem.names)
     through = sorted({i for i, j in conflicts if i == j})
     occ = Occupancy(problem, [], horizon_steps(bound_s))
-    alone = []
+    alone, arcs = [], []
     for a in through:
         times = [time_chain(occ, a, chain, through=True) for chain in around_obstacle(problem, a)]
         alone.append(min((t.track.arrival_s for t in times if t is not None), default=math.inf))
-    slowest = f"{max(alone) / bound_s:.2f} B" if alone else "-"
+        got = [time_arc(occ, a, bulge) for bulge in round_arc_bulges(problem, a)]
+        arcs.append(min((t.track.arrival_s for t in got if t is not None), default=math.inf))
+    slowest = f"{max(alone) / bound_s:.2f} B, on its arc {max(arcs) / bound_s:.2f} B" if alone else "-"
     return (
         f"certified bound round the obstacles {certified:.3f} s = {certified / bound_s:.3f} B; {len(through)} lines "
-        f"through an obstacle, the slowest flown alone round it {slowest}"
+        f"through an obstacle ({', '.join(problem.names[a] for a in through) or '-'}), the slowest flown alone "
+        f"round it {slowest}; {_forced_across(scenario)}"
     )
+
+
+def _forced_across(scenario) -> str:
+    """Per obstacle's extent along x or y (``bounds.slabs``) and type, how many vehicles every assignment
+    sends across it: the difference between the type's starts and the goals listed for it below the extent
+    (the assignment keeps types; each crossing vehicle changes the count by one; round 29S)."""
+    from proxplan.planner.bounds import slabs
+
+    tasks = [t for t in scenario.vehicles.values() if t.goal_m is not None and not t.hover and t.dock_with is None]
+    out: list[str] = []
+    seen = set()
+    for slab in slabs(scenario):
+        k = slab.axis
+        if (k, slab.lo_m, slab.hi_m) in seen:  # two boxes with one extent (corridor's walls)
+            continue
+        seen.add((k, slab.lo_m, slab.hi_m))
+        for name in sorted({t.type_name for t in tasks}):
+            own = [t for t in tasks if t.type_name == name]
+            diff = sum(t.start_m[k] < slab.lo_m for t in own) - sum(t.goal_m[k] < slab.lo_m for t in own)
+            if diff:
+                way = "+" if diff > 0 else "-"
+                out.append(f"{abs(diff)} {name} towards {way}{'xy'[k]} across [{slab.lo_m:g}, {slab.hi_m:g}]")
+    return "forced across: " + ("; ".join(out) if out else "none")
 
 
 def _passing_detail(problem, conflicts, bound_s: float) -> str:
