@@ -9,7 +9,8 @@ space; :mod:`~proxplan.planner.swarm.keepout`, its shipped undamped zones
 :mod:`~proxplan.planner.swarm.obstacle_costs`) ->
 :mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept; by type, the groups in
 conflict passing together, :mod:`~proxplan.planner.swarm.passes` (a joint move placed, :mod:`~proxplan.planner.swarm.joint`;
-its members staggered, :mod:`~proxplan.planner.swarm.stagger`), or the others yielding on corners
+its members staggered, :mod:`~proxplan.planner.swarm.stagger`; late vehicles hemming one another in passing
+together, :mod:`~proxplan.planner.swarm.hemmed`), or the others yielding on corners
 or arcs, :mod:`~proxplan.planner.swarm.yielding` with :mod:`~proxplan.planner.swarm.arc_timing`; the
 choice among them, :mod:`~proxplan.planner.swarm.give_way`) ->
 :mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count
