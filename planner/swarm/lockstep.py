@@ -81,12 +81,18 @@ def _pair_radius_m(problem, ti: np.ndarray, tj: np.ndarray, dz_lo: np.ndarray, d
     """(P,) largest horizontal distance at which agents of types ``ti`` and ``tj`` conflict while
     moving at some height difference z_j - z_i in [dz_lo, dz_hi] (m; both orders of the pair's
     keep-out, :meth:`KeepOut.horizontal_radius_m`), computed once per distinct (types, band)."""
-    rows = np.stack([ti, tj, dz_lo, dz_hi], axis=1)
-    uniq, inv = np.unique(rows, axis=0, return_inverse=True)
-    out = np.empty(uniq.shape[0])
-    for k, (a, b, lo, hi) in enumerate(uniq.tolist()):
-        ab = problem.keepouts[(int(a), int(b))].horizontal_radius_m(lo, hi)
-        ba = problem.keepouts[(int(b), int(a))].horizontal_radius_m(-hi, -lo)
+    # the distinct rows by one integer key of the columns' distinct values (a sort of P integers, not of
+    # P rows of four floats: round 29B; the same radius per pair)
+    key = np.zeros(np.shape(ti), dtype=np.int64)
+    for col in (ti, tj, dz_lo, dz_hi):
+        values, idx = np.unique(col, return_inverse=True)
+        key = key * len(values) + np.asarray(idx).reshape(-1)
+    uniq_key, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    out = np.empty(uniq_key.shape[0])
+    for k, m in enumerate(first.tolist()):
+        a, b, lo, hi = int(ti[m]), int(tj[m]), float(dz_lo[m]), float(dz_hi[m])
+        ab = problem.keepouts[(a, b)].horizontal_radius_m(lo, hi)
+        ba = problem.keepouts[(b, a)].horizontal_radius_m(-hi, -lo)
         out[k] = max(ab, ba)
     return out[np.asarray(inv).reshape(-1)]
 
@@ -107,12 +113,18 @@ def _near_pairs(problem: SwarmProblem, p0: np.ndarray, p1: np.ndarray, types: np
     keep = []
     for c in range(0, cand.shape[0], PAIR_CHUNK):
         i, j = cand[c : c + PAIR_CHUNK, 0], cand[c : c + PAIR_CHUNK, 1]
-        ok = segment_distance_xy_m(p0[i], p1[i], p0[j], p1[j]) < reach
+        # two cheap necessary conditions first (round 29B, the same pairs): every point of a segment lies
+        # within half its length of its midpoint, so segments within ``reach`` have midpoints within
+        # ``reach`` plus both halves; and the height bands within the vertical reach
+        ok = np.hypot(*(mid[i] - mid[j]).T) < reach + half[i] + half[j]
         ok &= np.maximum(zlo[i] - zhi[j], zlo[j] - zhi[i]) < problem.reach_z_m + REACH_GROWTH_M
-        i, j = i[ok], j[ok]
+        sel = np.flatnonzero(ok)
+        i, j = i[sel], j[sel]
+        d = segment_distance_xy_m(p0[i], p1[i], p0[j], p1[j])
+        near = d < reach
+        sel, i, j, d = sel[near], i[near], j[near], d[near]
         radius = _pair_radius_m(problem, types[i], types[j], zlo[j] - zhi[i], zhi[j] - zlo[i]) + REACH_GROWTH_M
-        ok2 = segment_distance_xy_m(p0[i], p1[i], p0[j], p1[j]) < radius
-        keep.append(cand[c : c + PAIR_CHUNK][ok][ok2])
+        keep.append(cand[c : c + PAIR_CHUNK][sel[d < radius]])
     return np.sort(np.concatenate(keep), axis=1) if keep else np.zeros((0, 2), dtype=np.int64)
 
 
