@@ -37,6 +37,9 @@ from proxplan.planner.swarm.tracks import GRID_DT_S
 PRIORITISED_HORIZON_FACTOR = 4.0
 PRIORITISED_HORIZON_MARGIN_S = 20.0
 
+# every vehicle of a pass also along its routes raised over the others (swarm.raised; round 29A)
+RAISED = True
+
 __all__ = [
     "FAR_GOALS_FIRST",
     "ORDERS",
@@ -188,6 +191,7 @@ def prioritised_stage(
                 # a failing group would have spent past its share is not known)
                 give_up_early=len(groups) == 1,
                 max_in_collision=in_collision_cap(max(len(g) for g in groups)),
+                raised=RAISED,
             )
             try:
                 result = plan_groups(
