@@ -26,6 +26,7 @@ import numpy as np
 
 from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.wave import wave_route
 from proxplan.planner.timing.profile import rest_to_rest
@@ -40,7 +41,19 @@ RAISE_DZ_M = (0.5, 0.9)
 # one step of the keep-out tables' height rows (2 cm) is kept
 SIDE_MARGIN_M = 0.02
 
-__all__ = ["RAISE_DZ_M", "SIDE_MARGIN_M", "raised_chains", "raised_or"]
+# starts and goals within this of one height make a problem flat (a level of the stacked plan), m: the
+# stacked plan's own tolerance (stacked.LEVEL_TOLERANCE_M)
+FLAT_TOLERANCE_M = 1e-3
+
+__all__ = ["FLAT_TOLERANCE_M", "RAISE_DZ_M", "SIDE_MARGIN_M", "flat", "raised_chains", "raised_or"]
+
+
+def flat(problem: SwarmProblem) -> bool:
+    """Every start and goal of ``problem`` at one height (within :data:`FLAT_TOLERANCE_M`): a level of the
+    stacked plan, whose flat routes can pass nobody on their line (prioritised planning raises routes there
+    only, :mod:`proxplan.planner.swarm.prioritised_stage`)."""
+    z = np.concatenate([problem.starts_m[:, 2], problem.goals_m[:, 2]])
+    return bool(z.size == 0 or float(z.max() - z.min()) <= FLAT_TOLERANCE_M)
 
 
 def _side_m(occ: Occupancy, agent: int, dz_m: float) -> float:
