@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from proxplan.planfile import scenario_from_dict
+from proxplan.planner.formations import LAYOUTS
 from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.occupancy import Occupancy
@@ -113,3 +114,27 @@ def test_a_pass_with_raised_routes_plans_the_pair_the_same_every_time():
     assert occ.conflicting_agents(one.tracks[FAR]) == set()
     for a in (NEAR, FAR):
         np.testing.assert_array_equal(one.tracks[a].positions_m, two.tracks[a].positions_m)
+
+
+def test_raised_routes_only_on_a_top_or_bottom_level_of_the_stacked_plan():
+    """corridor-16: the whole swarm (two heights) is not a level; each of its stacked plan's levels is (its
+    starts and goals at the level's height, the floor or ceiling of its band); grid-16, flat with room
+    above and below, is not."""
+    from dataclasses import replace as _replace
+
+    from proxplan.planner.swarm.hand_on import level_stacking
+    from proxplan.planner.swarm.levels import levelled_endpoints, stack_levels
+    from proxplan.planner.swarm.raised import a_level
+    from proxplan.planner.swarm.stacked import level_subproblem
+
+    sc = scenario_from_dict(LAYOUTS["corridor"](16), label="corridor-16")
+    problem = swarm_problem(sc)
+    assert not a_level(problem)
+    levels = stack_levels(problem, level_stacking(sc, problem)())
+    assert levels is not None and len(levels.groups) >= 2
+    lev_s, lev_g = levelled_endpoints(problem, levels)
+    on_levels = _replace(problem, starts_m=lev_s, goals_m=lev_g)
+    for k, group in enumerate(levels.groups):
+        agents = [a for a in range(problem.n_agents) if int(problem.type_index[a]) in group]
+        assert a_level(level_subproblem(on_levels, agents, levels.band_m(k)))
+    assert not a_level(swarm_problem(scenario_from_dict(LAYOUTS["grid"](16), label="grid-16")))
