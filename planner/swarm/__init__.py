@@ -16,7 +16,7 @@ choice among them, :mod:`~proxplan.planner.swarm.give_way`) ->
 :mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count
 budget; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.heights`) by
 :mod:`~proxplan.planner.swarm.priority` (one pass, with repairs and predictions; one vehicle at a
-time, :mod:`~proxplan.planner.swarm.single`; waiting aside, :mod:`~proxplan.planner.swarm.holding`) along :mod:`~proxplan.planner.swarm.wave` routes timed by :mod:`~proxplan.planner.swarm.chain` against
+time, :mod:`~proxplan.planner.swarm.single`; waiting aside, :mod:`~proxplan.planner.swarm.holding`; on a level, routes raised over the others, :mod:`~proxplan.planner.swarm.raised`) along :mod:`~proxplan.planner.swarm.wave` routes timed by :mod:`~proxplan.planner.swarm.chain` against
 :mod:`~proxplan.planner.swarm.occupancy` (the space-time hash of
 :mod:`~proxplan.planner.swarm.tracks`), by groups (:mod:`~proxplan.planner.swarm.components`) ->
 :mod:`~proxplan.planner.swarm.lattice`, :mod:`~proxplan.planner.swarm.sync`,

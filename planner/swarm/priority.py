@@ -60,6 +60,7 @@ from proxplan.planner.swarm.holding import held_in_way, holding_points, plan_via
 from proxplan.planner.swarm.lns import NEIGHBOURHOOD, remove_collisions
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.raised import raised_or
 from proxplan.planner.swarm.reserve import Reservations, predicted_track, reserved_track
 from proxplan.planner.swarm.single import ideal_track, plan_ignoring, plan_one, start_visitors
 from proxplan.planner.swarm.tracks import GridTrack
@@ -115,6 +116,8 @@ class PriorityOptions:
     # through a holding point beside its line (swarm.holding). Off: at 128 on pillar and corridor it did not
     # make a pass complete, and it costs CPU (docs/planner.md, stop 59 round 21B)
     holding: bool = False
+    # every vehicle also along its route raised over the others (swarm.raised), the earlier arrival kept
+    raised: bool = False
 
 
 @dataclass
@@ -234,7 +237,7 @@ def _in_order(
                     a, result.repairs, result.history, planned=result.planned, charged=options.max_plannings
                 )
         prediction = occ.remove(a)
-        track = plan_one(occ, a, options.through, heights=options.heights)
+        track = _plan(occ, a, options)
         result.planned += 1
         if track is not None:
             planned[a] = track
@@ -245,7 +248,7 @@ def _in_order(
         guesses = [b for b in in_conflict if b not in planned and b in occ.tracks]
         if res is not None and guesses:  # release the reserved starts in its way: they leave
             res.release(occ, guesses)
-            track = plan_one(occ, a, options.through, heights=options.heights)
+            track = _plan(occ, a, options)
             result.planned += 1
             if track is not None:
                 result.history.append(f"{problem.names[a]} released the starts of " + _names(problem, guesses))
@@ -259,7 +262,7 @@ def _in_order(
                 f"{problem.names[a]} past the predictions of " + ", ".join(problem.names[b] for b in sorted(guesses))
             )
             dropped = [occ.remove(b) for b in guesses]
-            track = plan_one(occ, a, options.through, heights=options.heights)
+            track = _plan(occ, a, options)
             result.planned += 1
             for old in dropped:
                 if old is not None:
@@ -330,6 +333,14 @@ def _in_order(
     if stuck:
         _remove_collisions(occ, planned, stuck, options, result, deadline, res)
     return result
+
+
+def _plan(occ: Occupancy, a: int, options: PriorityOptions) -> GridTrack | None:
+    """``a`` planned against ``occ`` (:func:`~proxplan.planner.swarm.single.plan_one`), and with
+    ``options.raised`` also along its raised routes (:func:`~proxplan.planner.swarm.raised.raised_or`: the
+    earlier arrival kept)."""
+    track = plan_one(occ, a, options.through, heights=options.heights)
+    return raised_or(occ, a, options.through, track) if options.raised else track
 
 
 def _via_holding(
@@ -410,7 +421,7 @@ def _remove_collisions(
         occ,
         planned,
         stuck,
-        plan_one=lambda o, b: plan_one(o, b, options.through, heights=options.heights),
+        plan_one=lambda o, b: _plan(o, b, options),
         plan_ignoring=lambda o, b, others: (
             plan_ignoring(o, b, others, options.through, heights=options.heights)
             or ideal_track(problem, o, b)

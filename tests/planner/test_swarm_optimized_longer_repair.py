@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import proxplan.planner.swarm.prioritised_stage as prioritised_stage
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import grid_reshuffle
 from proxplan.planner.refine_repair import ROUNDS, longer_repair
@@ -22,9 +23,13 @@ OPTIONS = SwarmOptions(seed=0, passes=8, reserve_starts=True)
 
 @pytest.fixture(scope="module")
 def grid9():
-    """grid-9 fixed: its fast plan (3.18 s when written) is shortened to 2.45 s by the longer repair."""
+    """grid-9 fixed: its fast plan (3.18 s when written) is shortened to 2.45 s by the longer repair. Planned
+    without routes raised over the others on a level of the stacked plan (round 29A: with them the fast
+    plan is already 2.95 s, and the longer repair shortens nothing)."""
     scenario = scenario_from_dict(grid_reshuffle(9), label="grid-9")
-    timed, info = swarm_timed(scenario, OPTIONS)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(prioritised_stage, "RAISED", False)
+        timed, info = swarm_timed(scenario, OPTIONS)
     return scenario, timed, info
 
 
