@@ -51,6 +51,10 @@ class SwarmOptions:
     # route, s: tried in turn until prioritised planning finds a plan (a longer hold leaves it more
     # room). No hold (0.0) was measured first and lost on grid and pillar layouts (see docs/planner.md)
     unplanned_hold_s: tuple[float, ...] = (1.0, 2.5)
+    # on a level of the stacked plan (swarm.raised.a_level) every vehicle of a pass also along its routes
+    # raised over the others (swarm.raised; round 29A): corridor-64's Crazyflie level alone 21.12 -> 14.12 s,
+    # pillar-64's 10.60 -> 9.25 s. Not on the whole swarm: corridor-64 then ran past 400 s (95 s CPU)
+    raised_routes: bool = True
     # a vehicle not planned yet holds its start until it is planned (swarm.reserve), instead of the
     # prediction above; the hold then applies to the starts released for a vehicle in their way. None: on
     # with fixed goals, off where the goals were assigned (assign_goals: by_type, decided by

@@ -38,10 +38,6 @@ from proxplan.planner.swarm.tracks import GRID_DT_S
 PRIORITISED_HORIZON_FACTOR = 4.0
 PRIORITISED_HORIZON_MARGIN_S = 20.0
 
-# on a level of the stacked plan (swarm.raised.a_level) every vehicle of a pass also along its
-# routes raised over the others (swarm.raised; round 29A): corridor-64's Crazyflie level alone 21.12 ->
-# 14.12 s, pillar-64's 10.60 -> 9.25 s. Not on the whole swarm: corridor-64 then ran past 400 s (95 s CPU)
-RAISED = True
 
 __all__ = [
     "FAR_GOALS_FIRST",
@@ -194,7 +190,7 @@ def prioritised_stage(
                 # a failing group would have spent past its share is not known)
                 give_up_early=len(groups) == 1,
                 max_in_collision=in_collision_cap(max(len(g) for g in groups)),
-                raised=RAISED and a_level(problem),
+                raised=opts.raised_routes and a_level(problem),
             )
             try:
                 result = plan_groups(

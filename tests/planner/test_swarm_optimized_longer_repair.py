@@ -4,10 +4,11 @@ plan twice, kept only when shorter and verified; the swarm layer hands its final
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-import proxplan.planner.swarm.prioritised_stage as prioritised_stage
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import grid_reshuffle
 from proxplan.planner.refine_repair import ROUNDS, longer_repair
@@ -27,9 +28,7 @@ def grid9():
     without routes raised over the others on a level of the stacked plan (round 29A: with them the fast
     plan is already 2.95 s, and the longer repair shortens nothing)."""
     scenario = scenario_from_dict(grid_reshuffle(9), label="grid-9")
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(prioritised_stage, "RAISED", False)
-        timed, info = swarm_timed(scenario, OPTIONS)
+    timed, info = swarm_timed(scenario, replace(OPTIONS, raised_routes=False))
     return scenario, timed, info
 
 

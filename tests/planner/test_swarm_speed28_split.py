@@ -11,9 +11,9 @@ import hashlib
 import numpy as np
 import pytest
 
-import proxplan.planner.swarm.prioritised_stage as prioritised_stage
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import LAYOUTS
+from proxplan.planner.swarm import SwarmOptions
 from proxplan.planner.swarm import plan as plan_module
 from proxplan.planner.swarm.hand_on import level_stacking
 from proxplan.planner.swarm.plan import swarm_again, swarm_timed
@@ -29,11 +29,9 @@ PLANS = {
 }
 
 
-@pytest.fixture(autouse=True)
-def _flat_levels(monkeypatch):
-    """The digests were recorded before round 29A's routes raised over the others on a level of the stacked
-    plan (swarm.raised), which change these plans by design: the split is checked without them."""
-    monkeypatch.setattr(prioritised_stage, "RAISED", False)
+# the digests were recorded before round 29A's routes raised over the others on a level of the stacked plan
+# (swarm.raised), which change these plans by design: the split is checked without them
+FLAT_LEVELS = SwarmOptions(raised_routes=False)
 
 
 def _digest(timed, info) -> str:
@@ -58,7 +56,7 @@ def test_the_split_plans_as_main_did(case):
     if goals == "by_type":
         doc["assign_goals"] = "by_type"
     sc = scenario_from_dict(doc, label="test")
-    timed, info = swarm_timed(sc)
+    timed, info = swarm_timed(sc, FLAT_LEVELS)
     stage, first, again = PLANS[case]
     assert info.stage == stage
     assert _digest(timed, info) == first
