@@ -338,7 +338,8 @@ def feature_group(name: str) -> str:
     group, the member by held-out gain (proxplan.identify.discovery). The own thrust times a shape is in the
     shape's group (stop 67): at hover the thrust is the weight, so T x g(h) and the weight-scaled W x g(h) differ
     only by the thrust's few-per-cent swings, and the half-samples split their picks between the two (discovery
-    benchmark draw 20008: 0.50 and 0.50 in two groups, neither stable; in one group, 1.0)."""
+    benchmark draw 20008: 0.50 and 0.50 in two groups, neither stable; in one group the term is kept, 1.00x its
+    clean twin's error)."""
     if name in THRUST_SHAPES:
         return feature_group(THRUST_SHAPES[name])
     family = feature_family(name)
