@@ -67,6 +67,7 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.stagger import Partial, staggered
 from proxplan.planner.swarm.straight import own_straight_track
+from proxplan.planner.swarm.through_first import through_first
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack, Move
 from proxplan.planner.swarm.yielding import YieldResult, blockers, left_of_line
 from proxplan.planner.timing.arcs import ArcMove
@@ -352,10 +353,37 @@ def passing_stage(
 ) -> YieldResult:
     """The plan of the module (``horizon_steps``: grid steps a timing may use; ``pairs``: the straight
     step's conflicts; ``arrive_by``: only a plan whose every vehicle arrives by this step is of interest;
-    None: any). ``YieldResult.yielders``: the vehicles in a component or late."""
+    None: any). ``YieldResult.yielders``: the vehicles in a component or late. Where lines through an
+    obstacle meet one another's timings (:func:`~proxplan.planner.swarm.through_first.through_first`), the
+    stage with them timed first, and the stage as before asked for a shorter plan than that one; the
+    shorter kept."""
     if not pairs:
         return YieldResult(None, (), "no conflicting pair (the synchronised straight step is the plan)")
     through = {i for i, j in pairs if i == j and not problem.pinned[i]}  # lines through an obstacle: late
+    pre = through_first(problem, horizon_steps, through, arrive_by)
+    if pre is None:
+        return _passing(problem, horizon_steps, pairs, through, arrive_by, {})
+    first = _passing(problem, horizon_steps, pairs, through, arrive_by, pre)
+    if first.stage is None:
+        plain = _passing(problem, horizon_steps, pairs, through, arrive_by, {})
+        return plain if plain.stage is not None else YieldResult(None, plain.yielders, f"{plain.note}; {first.note}")
+    shorter = _makespan({tr.agent: tr for tr in first.stage.tracks}) - 1
+    plain = _passing(
+        problem, horizon_steps, pairs, through, shorter if arrive_by is None else min(arrive_by, shorter), {}
+    )
+    return plain if plain.stage is not None else first
+
+
+def _passing(
+    problem: SwarmProblem,
+    horizon_steps: int,
+    pairs: list[tuple[int, int]],
+    through: set[int],
+    arrive_by: int | None,
+    pre: dict[int, GridTrack],
+) -> YieldResult:
+    """:func:`passing_stage` with the lines through an obstacle ``through`` late, but those with a track in
+    ``pre``: fixed on it from the start."""
     comps = [
         c
         for c in conflict_components([(i, j) for i, j in pairs if i != j and not {i, j} & through])
@@ -365,15 +393,18 @@ def passing_stage(
     for c in comps:  # a component without any joint move is timed one by one from the start
         if not _has_move(problem, c):
             options[c] = []
-    late: set[int] = {a for c in comps if not options[c] for a in c if not problem.pinned[a]} | through
+    late: set[int] = ({a for c in comps if not options[c] for a in c if not problem.pinned[a]} | through) - set(pre)
     comps = [c for c in comps if options[c]]
     in_comp = {a for c in comps for a in c}
-    fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in in_comp | late}
-    occ = Occupancy(problem, list(fixed.values()), horizon_steps)
+    fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in in_comp | late | set(pre)}
+    occ = Occupancy(problem, list(fixed.values()) + list(pre.values()), horizon_steps)
     for a, tr in fixed.items():  # own-limit lines that meet on the grid (not in the synchronised test)
-        hit = occ.conflicting_agents(tr) - in_comp - late
+        met = occ.conflicting_agents(tr)
+        hit = met - in_comp - late - set(pre)
         if hit:
             late |= {a} | {b for b in hit if not problem.pinned[b]}
+        elif met & set(pre):  # in the way of a line timed first: late
+            late.add(a)
     length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
     first: list[tuple[int, ...] | int] = []
     rounds = 0
@@ -382,7 +413,7 @@ def passing_stage(
     # the earliest plan so far: its tracks, late vehicles, vehicles in components, components, round
     kept: tuple[dict[int, GridTrack], set[int], set[int], int, int] | None = None
     while True:
-        tracks, stuck, delayed = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
+        tracks, stuck, delayed = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length, pre)
         if tracks is not None:
             if kept is None or _makespan(tracks) < _makespan(kept[0]):
                 kept = (tracks, set(late), set(in_comp), len(comps), rounds)
@@ -397,7 +428,7 @@ def passing_stage(
         changed = False
         why = stuck[0][0]
         for unit, hem in stuck:  # every unit that could not be placed, in the order placed
-            grown = {b for b in hem if not problem.pinned[b]} - in_comp - late - stay
+            grown = {b for b in hem if not problem.pinned[b]} - in_comp - late - stay - set(pre)
             if grown:  # those hemming it in are timed late (as optional as it, where it is)
                 late |= grown
                 if unit in optional:
@@ -432,7 +463,7 @@ def passing_stage(
             unit = why
             return YieldResult(
                 None,
-                tuple(sorted(in_comp | late)),
+                tuple(sorted(in_comp | late | set(pre))),
                 f"gave up after {rounds} round(s): {'component' if isinstance(unit, tuple) else 'vehicle'} "
                 f"{_names(problem, unit)} has no joint move or timing arriving within "
                 f"{(horizon_steps if arrive_by is None else arrive_by) * GRID_DT_S:.2f} s"
@@ -445,19 +476,22 @@ def passing_stage(
             break
         first = [u for u in first if u != raised] + [raised]
         rounds += 1
-        tracks, *_ = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length)
+        tracks, *_ = _place_all(problem, horizon_steps, comps, options, late, first, arrive_by, length, pre)
         if tracks is None or _makespan(tracks) >= _makespan(kept[0]):
             break
         kept = (tracks, set(late), set(in_comp), len(comps), rounds)
     tracks, late, in_comp, n_comps, kept_round = kept
     ordered = [tracks[a] for a in range(problem.n_agents)]
     note = (
-        f"straight lines of {problem.n_agents - len(in_comp | late)} vehicles, {n_comps} group(s) passing "
-        f"together ({len(in_comp)} vehicles), {len(late)} timed one by one ({len(pairs)} conflicting pairs of "
-        f"the synchronised step, round {kept_round + 1} of {rounds + 1})"
+        f"straight lines of {problem.n_agents - len(in_comp | late | set(pre))} vehicles, {n_comps} group(s) passing "
+        f"together ({len(in_comp)} vehicles), {len(late)} timed one by one"
+        + (f", {len(pre)} lines through an obstacle timed first" if pre else "")
+        + f" ({len(pairs)} conflicting pairs of the synchronised step, round {kept_round + 1} of {rounds + 1})"
     )
     return YieldResult(
-        Stage(ordered, "prioritised", note, own_routes(problem, ordered)), tuple(sorted(in_comp | late)), note
+        Stage(ordered, "prioritised", note, own_routes(problem, ordered)),
+        tuple(sorted(in_comp | late | set(pre))),
+        note,
     )
 
 
@@ -478,16 +512,21 @@ def _place_all(
     first: list[tuple[int, ...] | int],
     arrive_by: int | None,
     length: np.ndarray,
+    pre: dict[int, GridTrack],
 ) -> tuple[dict[int, GridTrack] | None, list[tuple[tuple[int, ...] | int, set[int]]], set[int]]:
     """One placement (see module; ``first``: components and late vehicles placed before the others, the
     last raised first): (the tracks by agent, or None where some unit could not be placed; each such
     component or late agent with the agents hemming it in, in the order tried; the straight-flying
     vehicles that made a component wait, i.e. depart after step 0 or take a longer joint move than its
-    shortest). A unit that cannot be placed is left out and the others placed, so one round finds them all."""
+    shortest; ``pre``: tracks fixed from the start, lines through an obstacle timed first). A unit that cannot be placed is left out and the others placed, so one round finds them all."""
     members = {a for c in comps for a in c}
-    fixed = {a: own_straight_track(problem, a) for a in range(problem.n_agents) if a not in members and a not in late}
-    occ = Occupancy(problem, list(fixed.values()), horizon_steps)
-    tracks = dict(fixed)
+    fixed = {
+        a: own_straight_track(problem, a)
+        for a in range(problem.n_agents)
+        if a not in members and a not in late and a not in pre
+    }
+    occ = Occupancy(problem, list(fixed.values()) + list(pre.values()), horizon_steps)
+    tracks = dict(fixed) | pre
     units: list[tuple[int, ...] | int] = list(comps) + sorted(late)
     raised = [u for u in reversed(first) if u in units]
     rest_comps = sorted((c for c in comps if c not in raised), key=lambda c: (-max(float(length[a]) for a in c), c))

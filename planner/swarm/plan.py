@@ -67,6 +67,7 @@ from dataclasses import replace
 from proxplan.planfile import Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
+from proxplan.planner.swarm.enough import enough_bound_s
 from proxplan.planner.swarm.frozen import apply_unfreezes, moved_points, unfrozen_problem
 from proxplan.planner.swarm.hand_on import handed_on, level_stacking, retimed_again
 from proxplan.planner.swarm.info import SwarmHandOn, SwarmInfo
@@ -123,6 +124,7 @@ def swarm_timed(
             progress=progress,
             deadline=deadline,
             check=VerifyGuard(scenario, problem, original, unfreezes),
+            enough_bound_s=enough_bound_s(scenario, problem, lower_bound),
         )
     except PlanNotFound as err:
         if not frozen:

@@ -67,6 +67,7 @@ def plan_stages(
     deadline,
     check: Check | None = None,
     level: bool = False,
+    enough_bound_s: float | None = None,
 ) -> Planned:
     """The stages of the module on ``problem`` (``lower_bound``: its straight-line bound, s;
     ``assigned``: the goals were assigned; ``stacking``: gives the keep-outs the levels of the stacked plan are
@@ -74,7 +75,9 @@ def plan_stages(
     tried; None: no stacked plan; ``check``: whether tracks pass the verifier, asked after the makespan
     repair changed the stacked plan, :class:`~proxplan.planner.swarm.verify_guard.VerifyGuard`; ``level``:
     one level of the stacked plan, where the vehicles passing together are not tried: the join re-times
-    their arcs as corner chains, pillar-64 by type 1.83x -> 2.60x, round 23S)."""
+    their arcs as corner chains, pillar-64 by type 1.83x -> 2.60x, round 23S; ``enough_bound_s``: the bound
+    ``opts.enough_factor`` multiplies, :func:`~proxplan.planner.swarm.enough.enough_bound_s`, s; None:
+    ``lower_bound``)."""
     conflicts = straight_step_conflicts(problem)
     extra: dict = {}
     pre_retimed: tuple[dict[int, GridTrack], RetimeInfo] | None = None  # ``found`` re-timed, where already
@@ -86,7 +89,7 @@ def plan_stages(
             problem,
             horizon_steps(lower_bound),
             extra,
-            shorter_than_s=opts.enough_factor * lower_bound,
+            shorter_than_s=opts.enough_factor * (lower_bound if enough_bound_s is None else enough_bound_s),
             pairs=conflicts,
             together=opts.pass_together,
         )
