@@ -1,0 +1,200 @@
+"""A kept multi-scale kernel's width and decay length, refined off the declared grid by flights held out (issue 35).
+
+The dictionary holds the kernels of a neighbour above, below or beside on a coarse grid of scales
+(:data:`proxplan.physics.basis.BASIS_WIDTHS_L`, ratio 2.5; :data:`~proxplan.physics.basis.BASIS_DECAYS_L`, ratio 4):
+a finer grid would multiply a dictionary of ~580 features for every search. But a term fitted at the nearest
+grid scale carries the train flights' coefficient to other distances with the wrong shape: the error of an
+exponential decay fitted at q times the true length grows as exp(x |1 - 1/q|) with the depth x (in decay
+lengths), and with q up to sqrt(4) = 2 a term fitted where two vehicles passed close is half again too strong
+or too weak on a flight two decay lengths further apart (the same argument that put the ground proximity on a
+fine series, stop 67; :data:`proxplan.physics.features.GROUND_SCALE_STEPS`).
+
+So, once discovery has KEPT a kernel term (its hypothesis tested as before, at its grid scale), its width and
+decay length are refined continuously within one grid step of the kept scale on each side (the neighbours'
+territory: the grid's own ratios, :data:`WIDTH_RATIO`, :data:`DECAY_RATIO`), each in turn, by the same
+criterion selection uses to judge it: the error of every train flight predicted by the joint fit that did not
+see it (the kept effects, the vehicle parameters' tangents and the other kept terms refitted beside it,
+:func:`proxplan.identify.crossval.heldout_fit`). The grid scale is one of the points searched, so the refined
+term's held-out error is never above the grid term's; nothing is kept that was not kept before, and no
+threshold enters (a scale is a parameter of a kept term, chosen by its held-out error like a coefficient by
+its fit). A refined term is named by its scales (``above_g0p774L_e2p31L_1``) and evaluated by that name
+(:func:`proxplan.physics.basis.parse_basis_name`).
+
+Search (counts, the same on every machine): per coordinate a log-spaced scan of :data:`SCAN_POINTS` points over
+the bracket, then :data:`GOLDEN_STEPS` golden-section steps between the best point's neighbours; width then
+decay length, :data:`SWEEPS` times.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from proxplan.identify.crossval import Ridge, heldout_fit, trainable_groups
+from proxplan.identify.data import unit_inputs
+from proxplan.identify.design import CHANNELS, SelectionSet
+from proxplan.physics import parse_term_key, weight_scaled
+from proxplan.physics.basis import BASIS_DECAYS_L, BASIS_WIDTHS_L, BasisKernel, basis_columns, parse_basis_name
+from proxplan.physics.features import neighbour_motion
+
+__all__ = ["DECAY_RATIO", "GOLDEN_STEPS", "SCAN_POINTS", "SWEEPS", "WIDTH_RATIO", "Refined", "refine_kernel_terms"]
+
+WIDTH_RATIO = BASIS_WIDTHS_L[1] / BASIS_WIDTHS_L[0]
+"""A width is searched within this ratio of the kept grid width on each side (the grid's own step: 2.5), -."""
+DECAY_RATIO = BASIS_DECAYS_L[1] / BASIS_DECAYS_L[0]
+"""A decay length is searched within this ratio of the kept grid length on each side (the grid's step: 4), -."""
+SCAN_POINTS = 9
+"""Log-spaced points of the scan over a bracket (the kept scale its middle one): a step of ratio
+ratio^(1/4) (1.26 for the width, 1.41 for the decay), the golden steps then resolve within it, -."""
+GOLDEN_STEPS = 8
+"""Golden-section steps within the best scan point's neighbours: the interval shrinks 0.618^8 = 0.021 times,
+to a ratio under 1.01 of the scale, -."""
+SWEEPS = 2
+"""Passes over (width, decay length): the second re-tunes each at the other's refined value, -."""
+
+
+@dataclass(frozen=True)
+class Refined:
+    """One kept term refined: ``key`` its new term key, ``origin`` the grid term's key, the summed held-out mean
+    squared error of the train flights (noise units) at the grid scale and at the refined one."""
+
+    key: str
+    origin: str
+    heldout_grid: float
+    heldout_refined: float
+    evaluations: int
+    column: np.ndarray = field(repr=False, compare=False)  # (N, 4) the refined term's column, noise units
+
+    def to_json(self) -> dict[str, object]:
+        return {"key": self.key, "from": self.origin, "heldout_mse_grid": self.heldout_grid,
+                "heldout_mse_refined": self.heldout_refined, "evaluations": self.evaluations}  # fmt: skip
+
+
+class _Neighbours:
+    """Per selection sample, each neighbour's offset, size and relative velocity (full-resolution units,
+    taken at the sampled rows), so a kernel at any scale is one vectorised call."""
+
+    def __init__(self, sel: SelectionSet) -> None:
+        order = np.argsort(sel.rows, kind="stable")
+        rows_sorted = sel.rows[order]
+        self.parts: list[tuple[np.ndarray, list[tuple[np.ndarray, float, np.ndarray]]]] = []
+        start = 0
+        for u in sel.sources:
+            lo, hi = np.searchsorted(rows_sorted, [start, start + len(u)])
+            if hi > lo:
+                at = rows_sorted[lo:hi] - start
+                motion = neighbour_motion(unit_inputs(u, sel.model))
+                self.parts.append((order[lo:hi], [(off[at], size, v[at]) for off, size, v in motion]))
+            start += len(u)
+        self.n = len(sel.rows)
+
+    def feature(self, kernel: BasisKernel, axis: str) -> np.ndarray:
+        """(N,) the feature ``kernel.name(axis)`` at every selection sample."""
+        out = np.zeros(self.n)
+        name = kernel.name(axis)
+        for where, motion in self.parts:
+            for off, size, v_rel in motion:
+                out[where] += basis_columns(kernel, (axis,), off, size, np.hypot(v_rel[:, 0], v_rel[:, 1]))[name]
+        return out
+
+
+def term_column(sel: SelectionSet, key: str, x: np.ndarray) -> np.ndarray:
+    """(N, 4) the column of term ``key`` (noise units) from its feature's values ``x`` (N,): on its channel, scaled
+    to the target where the term is weight-scaled (:func:`proxplan.physics.feature_terms.term_scale`)."""
+    channel, _ = parse_term_key(key)
+    c = CHANNELS.index(channel)
+    col = np.zeros((len(x), len(CHANNELS)))
+    scale = sel.target_scale(channel) if weight_scaled(key) else 1.0
+    col[:, c] = x * scale / sel.row_scale[:, c]
+    return col
+
+
+def _golden_min(f: Callable[[float], float], a: float, b: float, steps: int) -> tuple[float, float]:
+    """The best (x, f(x)) a golden-section search of ``steps`` steps finds on [a, b]."""
+    g = (np.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = f(c), f(d)
+    for _ in range(steps):
+        if fc <= fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = f(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = f(d)
+    return (c, fc) if fc <= fd else (d, fd)
+
+
+def refine_kernel_terms(
+    sel: SelectionSet,
+    fixed: Mapping[str, np.ndarray],
+    kept: list[str],
+    ridge_of: Callable[[tuple[str, ...]], Ridge],
+) -> list[Refined]:
+    """Refine each multi-scale kernel term of ``kept`` (term keys; module docstring) with the columns ``fixed``
+    (name -> (N, 4), noise units: the always-fitted columns and every kept term, the one refined replaced in
+    turn) fitted beside it; each later term is refined given the earlier ones' refined columns. Returns one
+    :class:`Refined` per term whose refined scale predicts the held-out train flights better than its grid
+    scale (the others stay as they are)."""
+    targets = [(k, parse_basis_name(parse_term_key(k)[1])) for k in kept]
+    if not any(p is not None for _, p in targets):
+        return []
+    neighbours = _Neighbours(sel)
+    columns = dict(fixed)
+    out: list[Refined] = []
+    for key, parsed in targets:
+        if parsed is None:
+            continue
+        kernel, axis = parsed
+        others = {k: v for k, v in columns.items() if k != key}
+        count = [0]
+        memo: dict[tuple[float, float], float] = {}
+
+        def cost(width_L: float, decay_L: float, kernel=kernel, axis=axis, key=key, others=others, count=count,
+                 memo=memo) -> float:  # fmt: skip
+            at = (float(f"{width_L:.3g}"), float(f"{decay_L:.3g}"))  # the scales the name will hold
+            if at not in memo:
+                count[0] += 1
+                col = term_column(sel, key, neighbours.feature(replace(kernel, width_L=at[0], decay_L=at[1]), axis))
+                memo[at] = _heldout_sse(sel, {**others, key: col}, ridge_of)
+            return memo[at]
+
+        grid = cost(kernel.width_L, kernel.decay_L)
+        width, decay = kernel.width_L, kernel.decay_L
+        for _ in range(SWEEPS):
+            width = _line(lambda w, d=decay: cost(w, d), kernel.width_L, WIDTH_RATIO)
+            decay = _line(lambda d, w=width: cost(w, d), kernel.decay_L, DECAY_RATIO)
+        best = cost(width, decay)
+        new = replace(kernel, width_L=float(f"{width:.3g}"), decay_L=float(f"{decay:.3g}"))
+        if best < grid and new != kernel:
+            channel, feature = parse_term_key(key)
+            new_key = key[: len(key) - len(feature)] + new.name(axis)
+            col = term_column(sel, new_key, neighbours.feature(new, axis))
+            columns.pop(key, None)
+            columns[new_key] = col
+            out.append(Refined(new_key, key, grid, best, count[0], col))
+    return out
+
+
+def _line(f: Callable[[float], float], centre: float, ratio: float) -> float:
+    """The scale in [centre / ratio, centre x ratio] that minimises ``f``: a log-spaced scan, then golden steps."""
+    logs = np.linspace(np.log(centre / ratio), np.log(centre * ratio), SCAN_POINTS)
+    values = [f(float(np.exp(v))) for v in logs]
+    k = int(np.argmin(values))
+    lo, hi = logs[max(k - 1, 0)], logs[min(k + 1, SCAN_POINTS - 1)]
+    x, fx = _golden_min(lambda v: f(float(np.exp(v))), float(lo), float(hi), GOLDEN_STEPS)
+    return float(np.exp(x)) if fx < values[k] else float(np.exp(logs[k]))
+
+
+def _heldout_sse(sel: SelectionSet, columns: Mapping[str, np.ndarray], ridge_of) -> float:
+    """The summed held-out squared error (noise units) of the train flights: each predicted by the joint fit of
+    ``columns`` on the other train flights (:func:`proxplan.identify.crossval.heldout_fit`)."""
+    sums = sel.sums(columns)
+    fit = heldout_fit(sums, np.arange(len(sums.columns)), sel.plan, ridge_of(sums.columns), sel.tau)
+    train = trainable_groups(sums, sel.plan) > 0
+    w = sums.w.reshape(-1, sums.n_channels)
+    sse = np.where(np.isfinite(fit.mse), fit.mse, 0.0) * w
+    return float(sse[train].sum())
