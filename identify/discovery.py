@@ -116,12 +116,13 @@ class DiscoveryResult:
     fold_eligible: dict[str, np.ndarray] = field(default_factory=dict)
     # term key -> share of halves whose picks stand for it (a pick sharing more than half its variance)
     represented_probability: dict[str, float] = field(default_factory=dict)
-    # kept multi-scale kernel terms whose width and decay length were refined off the grid (identify.refine)
+    # kept multi-scale kernel terms whose width and decay length were searched off the grid (identify.refine;
+    # the accepted ones stand in ``kept`` under their refined keys)
     refined: list[Refined] = field(default_factory=list)
 
     def origin(self, key: str) -> str:
         """The term key ``key`` was tested as: its grid term where it was refined, else itself."""
-        return next((r.origin for r in self.refined if r.key == key), key)
+        return next((r.origin for r in self.refined if r.key == key and r.accepted), key)
 
     def report(self) -> list[dict[str, Any]]:
         """One JSON entry per term that was picked in any half-sample (strongest first, at most 12)."""
@@ -139,7 +140,7 @@ class DiscoveryResult:
             selected = key in self.kept
             group = group_of(key)
             prob = self.member_probability.get(origin, 0.0)
-            refined = next((r.to_json() for r in self.refined if r.key == key), None)
+            refined = next((r.to_json() for r in self.refined if key in (r.key, r.origin)), None)
             out.append({
                 "name": DISCOVERED_NAME, "channel": channel, "feature": feature, "family": feature_family(feature),
                 "formula": term_formula({key: self.kept[key]}) if selected else "", "features": [feature],
@@ -323,12 +324,12 @@ def discover_terms(
                               max_terms=options.max_terms, hypothesis={k: group_of(k) for k in stable},
                               fold_eligible=fold)  # fmt: skip
     refined = refine_kernel_terms(sel, {**always, **{k: columns[k] for k in fwd.chosen}}, list(fwd.chosen), ridge_of)
-    renamed = {r.origin: r.key for r in refined}
-    for r in refined:  # the refined term stands where its grid term was tested
+    renamed = {r.origin: r.key for r in refined if r.accepted}
+    for r in (r for r in refined if r.accepted):  # the refined term stands where its grid term was tested
         columns[r.key] = r.column
         fold[r.key] = fold[r.origin]
     chosen = [renamed.get(k, k) for k in fwd.chosen]
-    if refined:
+    if renamed:
         sums = sel.sums({**always, **{k: columns[k] for k in chosen}})
         ridge = ridge_of(sums.columns)
     names_fit = always_names + chosen

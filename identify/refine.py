@@ -10,15 +10,20 @@ or too weak on a flight two decay lengths further apart (the same argument that 
 fine series, stop 67; :data:`proxplan.physics.features.GROUND_SCALE_STEPS`).
 
 So, once discovery has KEPT a kernel term (its hypothesis tested as before, at its grid scale), its width and
-decay length are refined continuously within one grid step of the kept scale on each side (the neighbours'
-territory: the grid's own ratios, :data:`WIDTH_RATIO`, :data:`DECAY_RATIO`), each in turn, by the same
-criterion selection uses to judge it: the error of every train flight predicted by the joint fit that did not
-see it (the kept effects, the vehicle parameters' tangents and the other kept terms refitted beside it,
-:func:`proxplan.identify.crossval.heldout_fit`). The grid scale is one of the points searched, so the refined
-term's held-out error is never above the grid term's; nothing is kept that was not kept before, and no
-threshold enters (a scale is a parameter of a kept term, chosen by its held-out error like a coefficient by
-its fit). A refined term is named by its scales (``above_g0p774L_e2p31L_1``) and evaluated by that name
-(:func:`proxplan.physics.basis.parse_basis_name`).
+decay length are searched continuously within one grid step of the kept scale on each side (the neighbours'
+territory: the grid's own ratios, :data:`WIDTH_RATIO`, :data:`DECAY_RATIO`), each in turn, by the criterion
+selection uses to judge it: the error of every train flight predicted by the joint fit that did not see it (the
+kept effects, the vehicle parameters' tangents and the other kept terms refitted beside it,
+:func:`proxplan.identify.crossval.heldout_fit`).
+
+The best scales found are chosen BY those held-out errors, so their own held-out error is optimistic: searched
+over ~40 scales, noise alone finds a "better" one. The refined term therefore replaces the grid term only where
+it passes the gain test every term passes (:func:`proxplan.identify.heldout_select.gain_test`, one hypothesis at
+the level :data:`proxplan.identify.heldout_select.ALPHA`), with each flight judged at the scales the search would
+have chosen without that flight's error (the scales tried that minimise the OTHER train flights' held-out error;
+selection inside the fold, so the flight judged played no part in choosing them). No constant is set here: the
+level is the term test's, the bracket the grid's. A refined term is named by its scales
+(``above_g0p774L_e2p31L_1``) and evaluated by that name (:func:`proxplan.physics.basis.parse_basis_name`).
 
 Search (counts, the same on every machine): per coordinate a log-spaced scan of :data:`SCAN_POINTS` points over
 the bracket, then :data:`GOLDEN_STEPS` golden-section steps between the best point's neighbours; width then
@@ -32,9 +37,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from proxplan.identify.crossval import Ridge, heldout_fit, trainable_groups
+from proxplan.identify.crossval import HeldOutFit, Ridge, heldout_fit, trainable_groups
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
+from proxplan.identify.heldout_select import GainTest, gain_test
 from proxplan.physics import parse_term_key, weight_scaled
 from proxplan.physics.basis import BASIS_DECAYS_L, BASIS_WIDTHS_L, BasisKernel, basis_columns, parse_basis_name
 from proxplan.physics.features import neighbour_motion
@@ -57,19 +63,28 @@ SWEEPS = 2
 
 @dataclass(frozen=True)
 class Refined:
-    """One kept term refined: ``key`` its new term key, ``origin`` the grid term's key, the summed held-out mean
-    squared error of the train flights (noise units) at the grid scale and at the refined one."""
+    """One kept kernel term's refinement: ``origin`` the grid term's key, ``key`` the refined term's key (the
+    scales searched best), the summed held-out squared error of the train flights (noise units) at the grid scales
+    and at the refined ones, ``test`` the gain test of replacing the grid term by the refined one with its scales
+    chosen without the flight judged (module docstring), ``accepted`` whether it passed (then ``key`` stands in
+    the model), ``evaluations`` the scales evaluated."""
 
     key: str
     origin: str
     heldout_grid: float
     heldout_refined: float
+    test: GainTest
     evaluations: int
     column: np.ndarray = field(repr=False, compare=False)  # (N, 4) the refined term's column, noise units
 
+    @property
+    def accepted(self) -> bool:
+        return self.test.passed
+
     def to_json(self) -> dict[str, object]:
-        return {"key": self.key, "from": self.origin, "heldout_mse_grid": self.heldout_grid,
-                "heldout_mse_refined": self.heldout_refined, "evaluations": self.evaluations}  # fmt: skip
+        return {"key": self.key, "from": self.origin, "accepted": self.accepted, "heldout_mse_grid": self.heldout_grid,
+                "heldout_mse_refined": self.heldout_refined, "test": self.test.to_json(),
+                "evaluations": self.evaluations}  # fmt: skip
 
 
 class _Neighbours:
@@ -128,6 +143,75 @@ def _golden_min(f: Callable[[float], float], a: float, b: float, steps: int) -> 
     return (c, fc) if fc <= fd else (d, fd)
 
 
+class _ScaleSearch:
+    """The held-out error of one kept kernel term at the scales tried: each train flight's summed squared error
+    (noise units) predicted by the joint fit of the term at those scales and the ``others`` columns on the other
+    train flights, memoised per (width, decay length) as rounded in the name."""
+
+    def __init__(self, sel: SelectionSet, neighbours: _Neighbours, key: str, kernel: BasisKernel, axis: str,
+                 others: Mapping[str, np.ndarray], ridge_of: Callable[[tuple[str, ...]], Ridge]) -> None:  # fmt: skip
+        self.sel, self.neighbours, self.key, self.kernel, self.axis = sel, neighbours, key, kernel, axis
+        self.others, self.ridge_of = dict(others), ridge_of
+        self.per_flight: dict[tuple[float, float], np.ndarray] = {}  # scales -> (clusters,) held-out SSE
+
+    @staticmethod
+    def rounded(width_L: float, decay_L: float) -> tuple[float, float]:
+        """The scales as the feature's name holds them (three significant digits), in L."""
+        return float(f"{width_L:.3g}"), float(f"{decay_L:.3g}")
+
+    def scaled(self, at: tuple[float, float]) -> BasisKernel:
+        return replace(self.kernel, width_L=at[0], decay_L=at[1])
+
+    def column(self, at: tuple[float, float]) -> np.ndarray:
+        """(N, 4) the term's column at the scales ``at``, noise units."""
+        return term_column(self.sel, self.key, self.neighbours.feature(self.scaled(at), self.axis))
+
+    def cost(self, width_L: float, decay_L: float) -> float:
+        """The summed held-out squared error of the train flights at these scales (noise units)."""
+        at = self.rounded(width_L, decay_L)
+        if at not in self.per_flight:
+            sums = self.sel.sums({**self.others, self.key: self.column(at)})
+            fit = heldout_fit(sums, np.arange(len(sums.columns)), self.sel.plan, self.ridge_of(sums.columns),
+                              self.sel.tau)  # fmt: skip
+            self.per_flight[at] = _per_train_flight(sums, fit, self.sel.plan)
+        return float(self.per_flight[at].sum())
+
+    def chosen_without(self, cluster: int) -> tuple[float, float]:
+        """The scales tried that predict the train flights other than ``cluster``'s best (the choice a search
+        that never saw that flight's error would make)."""
+        return min(self.per_flight, key=lambda at: float(self.per_flight[at].sum() - self.per_flight[at][cluster]))
+
+    def test(self, best: tuple[float, float]) -> GainTest:
+        """The gain test (:func:`proxplan.identify.heldout_select.gain_test`, one hypothesis) of replacing the
+        grid term by the term at the scales each flight's own search would choose without it
+        (:meth:`chosen_without`; a flight no fit trains on: ``best``)."""
+        plan = self.sel.plan
+        trained = np.unique(plan.cluster[~plan.held_out_only])
+        choice = {int(c): (self.chosen_without(int(c)) if c in trained else best) for c in np.unique(plan.cluster)}
+        distinct = sorted(set(choice.values()))
+        grid = (self.kernel.width_L, self.kernel.decay_L)
+        names = {at: f"{self.key}@{k}" for k, at in enumerate(distinct)}
+        sums = self.sel.sums({**self.others, self.key: self.column(grid), **{names[at]: self.column(at) for at in distinct}})
+        ridge = self.ridge_of(sums.columns)
+        base = list(self.others)
+
+        def fit(name: str) -> HeldOutFit:
+            return heldout_fit(sums, sums.index([*base, name]), plan, ridge, self.sel.tau)
+
+        fits = {at: fit(names[at]) for at in distinct}
+        nested = fits[distinct[0]]
+        for c, at in choice.items():
+            nested = fits[at].where(plan.cluster == c, nested)
+        return gain_test(sums, fit(self.key), nested, 1, cluster=plan.cluster)
+
+
+def _per_train_flight(sums, fit: HeldOutFit, plan) -> np.ndarray:
+    """(clusters,) each train flight's held-out squared error summed over its groups and channels (0 elsewhere)."""
+    sse = np.where(np.isfinite(fit.mse), fit.mse, 0.0) * sums.w.reshape(fit.mse.shape)
+    train = trainable_groups(sums, plan) > 0
+    return np.bincount(plan.cluster[train], weights=sse[train].sum(axis=1), minlength=plan.n_clusters)
+
+
 def refine_kernel_terms(
     sel: SelectionSet,
     fixed: Mapping[str, np.ndarray],
@@ -136,9 +220,9 @@ def refine_kernel_terms(
 ) -> list[Refined]:
     """Refine each multi-scale kernel term of ``kept`` (term keys; module docstring) with the columns ``fixed``
     (name -> (N, 4), noise units: the always-fitted columns and every kept term, the one refined replaced in
-    turn) fitted beside it; each later term is refined given the earlier ones' refined columns. Returns one
-    :class:`Refined` per term whose refined scale predicts the held-out train flights better than its grid
-    scale (the others stay as they are)."""
+    turn) fitted beside it; each later term is refined given the earlier ones' accepted refinements. Returns one
+    :class:`Refined` per kernel term searched (accepted or not; a term whose best scales are its grid scales
+    is not reported)."""
     targets = [(k, parse_basis_name(parse_term_key(k)[1])) for k in kept]
     if not any(p is not None for _, p in targets):
         return []
@@ -149,33 +233,24 @@ def refine_kernel_terms(
         if parsed is None:
             continue
         kernel, axis = parsed
-        others = {k: v for k, v in columns.items() if k != key}
-        count = [0]
-        memo: dict[tuple[float, float], float] = {}
-
-        def cost(width_L: float, decay_L: float, kernel=kernel, axis=axis, key=key, others=others, count=count,
-                 memo=memo) -> float:  # fmt: skip
-            at = (float(f"{width_L:.3g}"), float(f"{decay_L:.3g}"))  # the scales the name will hold
-            if at not in memo:
-                count[0] += 1
-                col = term_column(sel, key, neighbours.feature(replace(kernel, width_L=at[0], decay_L=at[1]), axis))
-                memo[at] = _heldout_sse(sel, {**others, key: col}, ridge_of)
-            return memo[at]
-
-        grid = cost(kernel.width_L, kernel.decay_L)
+        search = _ScaleSearch(sel, neighbours, key, kernel, axis, {k: v for k, v in columns.items() if k != key},
+                              ridge_of)  # fmt: skip
+        grid = search.cost(kernel.width_L, kernel.decay_L)
         width, decay = kernel.width_L, kernel.decay_L
         for _ in range(SWEEPS):
-            width = _line(lambda w, d=decay: cost(w, d), kernel.width_L, WIDTH_RATIO)
-            decay = _line(lambda d, w=width: cost(w, d), kernel.decay_L, DECAY_RATIO)
-        best = cost(width, decay)
-        new = replace(kernel, width_L=float(f"{width:.3g}"), decay_L=float(f"{decay:.3g}"))
-        if best < grid and new != kernel:
-            channel, feature = parse_term_key(key)
-            new_key = key[: len(key) - len(feature)] + new.name(axis)
-            col = term_column(sel, new_key, neighbours.feature(new, axis))
+            width = _line(lambda w, d=decay: search.cost(w, d), kernel.width_L, WIDTH_RATIO)
+            decay = _line(lambda d, w=width: search.cost(w, d), kernel.decay_L, DECAY_RATIO)
+        best_at = search.rounded(width, decay)
+        if best_at == search.rounded(kernel.width_L, kernel.decay_L):
+            continue
+        channel, feature = parse_term_key(key)
+        new_key = key[: len(key) - len(feature)] + search.scaled(best_at).name(axis)
+        col = term_column(sel, new_key, neighbours.feature(search.scaled(best_at), axis))
+        refined = Refined(new_key, key, grid, search.cost(*best_at), search.test(best_at), len(search.per_flight), col)
+        out.append(refined)
+        if refined.accepted:
             columns.pop(key, None)
             columns[new_key] = col
-            out.append(Refined(new_key, key, grid, best, count[0], col))
     return out
 
 
@@ -187,14 +262,3 @@ def _line(f: Callable[[float], float], centre: float, ratio: float) -> float:
     lo, hi = logs[max(k - 1, 0)], logs[min(k + 1, SCAN_POINTS - 1)]
     x, fx = _golden_min(lambda v: f(float(np.exp(v))), float(lo), float(hi), GOLDEN_STEPS)
     return float(np.exp(x)) if fx < values[k] else float(np.exp(logs[k]))
-
-
-def _heldout_sse(sel: SelectionSet, columns: Mapping[str, np.ndarray], ridge_of) -> float:
-    """The summed held-out squared error (noise units) of the train flights: each predicted by the joint fit of
-    ``columns`` on the other train flights (:func:`proxplan.identify.crossval.heldout_fit`)."""
-    sums = sel.sums(columns)
-    fit = heldout_fit(sums, np.arange(len(sums.columns)), sel.plan, ridge_of(sums.columns), sel.tau)
-    train = trainable_groups(sums, sel.plan) > 0
-    w = sums.w.reshape(-1, sums.n_channels)
-    sse = np.where(np.isfinite(fit.mse), fit.mse, 0.0) * w
-    return float(sse[train].sum())
