@@ -176,6 +176,14 @@ class _ScaleSearch:
             self.per_flight[at] = _per_train_flight(sums, fit, self.sel.plan)
         return float(self.per_flight[at].sum())
 
+    def best_width(self, decay_L: float) -> float:
+        """The width (L) within the bracket round the grid width with the lowest :meth:`cost` at ``decay_L``."""
+        return _line(lambda w: self.cost(w, decay_L), self.kernel.width_L, WIDTH_RATIO)
+
+    def best_decay(self, width_L: float) -> float:
+        """The decay length (L) within the bracket round the grid one with the lowest :meth:`cost` at ``width_L``."""
+        return _line(lambda d: self.cost(width_L, d), self.kernel.decay_L, DECAY_RATIO)
+
     def chosen_without(self, cluster: int) -> tuple[float, float]:
         """The scales tried that predict the train flights other than ``cluster``'s best (the choice a search
         that never saw that flight's error would make)."""
@@ -191,7 +199,9 @@ class _ScaleSearch:
         distinct = sorted(set(choice.values()))
         grid = (self.kernel.width_L, self.kernel.decay_L)
         names = {at: f"{self.key}@{k}" for k, at in enumerate(distinct)}
-        sums = self.sel.sums({**self.others, self.key: self.column(grid), **{names[at]: self.column(at) for at in distinct}})
+        sums = self.sel.sums(
+            {**self.others, self.key: self.column(grid), **{names[at]: self.column(at) for at in distinct}}
+        )
         ridge = self.ridge_of(sums.columns)
         base = list(self.others)
 
@@ -238,8 +248,8 @@ def refine_kernel_terms(
         grid = search.cost(kernel.width_L, kernel.decay_L)
         width, decay = kernel.width_L, kernel.decay_L
         for _ in range(SWEEPS):
-            width = _line(lambda w, d=decay: search.cost(w, d), kernel.width_L, WIDTH_RATIO)
-            decay = _line(lambda d, w=width: search.cost(w, d), kernel.decay_L, DECAY_RATIO)
+            width = search.best_width(decay)
+            decay = search.best_decay(width)
         best_at = search.rounded(width, decay)
         if best_at == search.rounded(kernel.width_L, kernel.decay_L):
             continue

@@ -151,9 +151,7 @@ def basis_name(where: str, width: float, decay: float, axis: str = "", radial: s
 
 
 _SCALE = r"(\d+(?:p\d+)?)"
-_NAME = re.compile(
-    rf"^(above|below|side)_([glc]){_SCALE}L_([ei]){_SCALE}L_(?:(x|y)_1|1|({BASIS_SPEED}))$"
-)
+_NAME = re.compile(rf"^(above|below|side)_([glc]){_SCALE}L_([ei]){_SCALE}L_(?:(x|y)_1|1|({BASIS_SPEED}))$")
 
 
 def parse_basis_name(name: str) -> tuple[BasisKernel, str] | None:

@@ -29,11 +29,11 @@ so a term built on them acts between vehicles like any effect:
 * side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
 
 A force off the target's centre is a roll or pitch torque, so the jet kernel of a source above, the
-below kernel, the side kernel and every multi-scale kernel (:data:`BASIS_RADIALS` x :data:`BASIS_WIDTHS_L` x
-:data:`BASIS_DECAY_FORMS` x :data:`BASIS_DECAYS_L`, since stop 51; algebraic forms since stop 64) also come times the offset's horizontal components over L (``above_jet_x_1``,
+below kernel, the side kernel and every multi-scale kernel (:mod:`proxplan.physics.basis`: profiles x widths x
+decay forms x decay lengths, since stop 51; algebraic forms since stop 64) also come times the offset's horizontal components over L (``above_jet_x_1``,
 ``below_near_y_1``, ``side_g1L_e4L_x_1``, ...): which side of the target a neighbour is on (odd in the
 offset, where the kernels themselves are even); every multi-scale kernel also comes times the relative
-horizontal speed (``side_l2p5L_e1L_rel_speed_xy_mps``, :data:`BASIS_SPEED`, since stop 63).
+horizontal speed (``side_l2p5L_e1L_rel_speed_xy_mps``, :data:`proxplan.physics.basis.BASIS_SPEED`, since stop 63).
 
 Every neighbour is seen, not only the sources above (issue 29): for a neighbour BELOW the target
 (d = -dz > 0 its depth under it) the jet and core kernels are mirrored (``below_jet_1``: the jet
@@ -70,11 +70,7 @@ import numpy as np
 
 from proxplan.physics.basis import (
     AXES,
-    BASIS_DECAY_FORMS,
-    BASIS_DECAYS_L,
     BASIS_PLACES,
-    BASIS_RADIALS,
-    BASIS_SPEED,
     BASIS_WIDTHS_L,
     BasisKernel,
     basis_columns,
@@ -250,6 +246,7 @@ ROOM_FEATURES = {
 }
 FEATURE_DOCS.update(ROOM_FEATURES)
 FEATURE_NAMES = tuple(FEATURE_DOCS)
+
 
 def is_feature(name: str) -> bool:
     """Whether ``name`` is a feature :func:`feature_matrix` computes: one of :data:`FEATURE_NAMES`, or a
@@ -492,8 +489,8 @@ def feature_matrix(
         depth = np.maximum(-dz, MIN_HEIGHT_FACTOR * r_rot)
         f["below_cushion_1"] += np.where(below, (r_rot / (4.0 * depth)) ** 2 * np.exp(-((r / size) ** 2)), 0.0)
         for kernel, axes in kernels_wanted.items():
-            for name, col in basis_columns(kernel, axes, off, size, rel_xy).items():
-                f[name] += col
+            for name, values in basis_columns(kernel, axes, off, size, rel_xy).items():
+                f[name] += values
     f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from proxplan.physics import BUILTIN_VEHICLES, FEATURE_NAMES, EffectInputs, SourceSample, feature_matrix
-from proxplan.physics.basis import BASIS_PLACES, AXES, BasisKernel, basis_kernels, parse_basis_name
+from proxplan.physics.basis import AXES, BASIS_PLACES, BasisKernel, basis_kernels, parse_basis_name
 from proxplan.physics.feature_terms import parse_term_key
 from proxplan.physics.features import feature_doc, feature_group, is_feature
 
@@ -60,7 +60,9 @@ def test_a_grid_kernel_asked_alone_equals_its_column_of_the_whole_dictionary() -
         np.testing.assert_array_equal(feature_matrix(_inputs(off), base, [name])[:, 0], whole[name])
 
 
-@pytest.mark.parametrize("name", ["side_g1L_i4L_1", "above_l1L_e4L_1", "above_g0L_e4L_1", "above_g1L_e4L_z_1", "nope_1"])
+@pytest.mark.parametrize(
+    "name", ["side_g1L_i4L_1", "above_l1L_e4L_1", "above_g0L_e4L_1", "above_g1L_e4L_z_1", "nope_1"]
+)
 def test_a_name_no_family_declares_is_refused(name: str) -> None:
     """Beside the target the decay along is Gaussian only; above, the profile Gaussian only; scales positive."""
     assert parse_basis_name(name) is None and not is_feature(name)
