@@ -57,6 +57,7 @@ from proxplan.identify.crossval import GroupSums, solve, trainable_groups
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_forward
+from proxplan.identify.refine import Refined, refine_kernel_terms
 from proxplan.identify.stability import Stability, fold_eligibility, fold_half_samples, half_samples
 from proxplan.physics import (
     DISCOVERED_PREFIX,
@@ -115,6 +116,13 @@ class DiscoveryResult:
     fold_eligible: dict[str, np.ndarray] = field(default_factory=dict)
     # term key -> share of halves whose picks stand for it (a pick sharing more than half its variance)
     represented_probability: dict[str, float] = field(default_factory=dict)
+    # kept multi-scale kernel terms whose width and decay length were searched off the grid (identify.refine;
+    # the accepted ones stand in ``kept`` under their refined keys)
+    refined: list[Refined] = field(default_factory=list)
+
+    def origin(self, key: str) -> str:
+        """The term key ``key`` was tested as: its grid term where it was refined, else itself."""
+        return next((r.origin for r in self.refined if r.key == key and r.accepted), key)
 
     def report(self) -> list[dict[str, Any]]:
         """One JSON entry per term that was picked in any half-sample (strongest first, at most 12)."""
@@ -123,18 +131,21 @@ class DiscoveryResult:
         for tests in self.forward.tests:
             last.update(tests)
         last.update(self.forward.final_tests)
-        keys = list(self.kept) + [k for k, _ in self.top if k not in self.kept]
+        origins = {self.origin(k) for k in self.kept}
+        keys = list(self.kept) + [k for k, _ in self.top if k not in self.kept and k not in origins]
         for key in keys[:12]:
             channel, feature = parse_term_key(key)
-            t = last.get(key)
+            origin = self.origin(key)
+            t = last.get(origin)
             selected = key in self.kept
             group = group_of(key)
-            prob = self.member_probability.get(key, 0.0)
+            prob = self.member_probability.get(origin, 0.0)
+            refined = next((r.to_json() for r in self.refined if key in (r.key, r.origin)), None)
             out.append({
                 "name": DISCOVERED_NAME, "channel": channel, "feature": feature, "family": feature_family(feature),
                 "formula": term_formula({key: self.kept[key]}) if selected else "", "features": [feature],
                 "params": {key: self.kept[key]} if selected else {}, "inclusion_probability": prob,
-                "represented_probability": self.represented_probability.get(key, 0.0),
+                "represented_probability": self.represented_probability.get(origin, 0.0), "refined": refined,
                 "group": group, "group_inclusion_probability": self.stability.probability.get(group, 0.0),
                 "stable": self.stability.stable(group), "heldout_gain": None if t is None else t.to_json(),
                 "selected": selected, "rmse_fz_N": None,
@@ -312,14 +323,23 @@ def discover_terms(
         fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable], sel.plan, ridge, sel.tau,
                               max_terms=options.max_terms, hypothesis={k: group_of(k) for k in stable},
                               fold_eligible=fold)  # fmt: skip
-    names_fit = always_names + fwd.chosen
+    refined = refine_kernel_terms(sel, {**always, **{k: columns[k] for k in fwd.chosen}}, list(fwd.chosen), ridge_of)
+    renamed = {r.origin: r.key for r in refined if r.accepted}
+    for r in (r for r in refined if r.accepted):  # the refined term stands where its grid term was tested
+        columns[r.key] = r.column
+        fold[r.key] = fold[r.origin]
+    chosen = [renamed.get(k, k) for k in fwd.chosen]
+    if renamed:
+        sums = sel.sums({**always, **{k: columns[k] for k in chosen}})
+        ridge = ridge_of(sums.columns)
+    names_fit = always_names + chosen
     trainable = trainable_groups(sums, sel.plan)
     beta = solve(sums, sums.index(names_fit), trainable, ridge, sel.tau) if names_fit else np.zeros(0)
     coef = dict(zip(names_fit, (float(v) for v in beta)))
     top = sorted(member_prob.items(), key=lambda kv: -kv[1])[:12]
-    return DiscoveryResult(kept={k: coef[k] for k in fwd.chosen}, coefficients=coef, stability=stab, forward=fwd,
+    return DiscoveryResult(kept={k: coef[k] for k in chosen}, coefficients=coef, stability=stab, forward=fwd,
                            columns=columns, top=top, member_probability=member_prob, fold_eligible=fold,
-                           represented_probability=represented_prob)  # fmt: skip
+                           represented_probability=represented_prob, refined=refined)  # fmt: skip
 
 
 def _picks(

@@ -324,7 +324,19 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         for e in result.discovered:
             g = e["heldout_gain"]
             gain = "not tested" if g is None else f"{g['mean_gain']:+.3g} ({_fmt(g['t'], 3)}, > {g['z_required']:.2f})"
-            lines.append(f"| {e['channel']} | {e['feature']} | {e['family']} | {e['inclusion_probability']:.0%} / "
+            r = e.get("refined")
+            feature = e["feature"]
+            if r and r["accepted"]:
+                feature += (
+                    f" (scales refined from {r['from'].rsplit('*', 1)[1]}, t {_fmt(r['test']['t'], 3)} > "
+                    f"{r['test']['z_required']:.2f})"
+                )
+            elif r:
+                feature += (
+                    f" (scales searched, best {r['key'].rsplit('*', 1)[1]}: not better on flights held out, t "
+                    f"{_fmt(r['test']['t'], 3)}, needs > {r['test']['z_required']:.2f})"
+                )
+            lines.append(f"| {e['channel']} | {feature} | {e['family']} | {e['inclusion_probability']:.0%} / "
                          f"{e['represented_probability']:.0%} / {e['group_inclusion_probability']:.0%} | {gain} | {'yes' if e['selected'] else 'no'} | "
                          f"{e['formula'] or '-'} |")  # fmt: skip
     v = result.validity

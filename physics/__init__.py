@@ -82,9 +82,11 @@ from proxplan.physics.features import (
     FEATURE_FAMILIES,
     FEATURE_NAMES,
     LAGS_S,
+    feature_doc,
     feature_family,
     feature_group,
     feature_matrix,
+    is_feature,
 )
 from proxplan.physics.hover_loop import (
     REFERENCE_INPUTS,
@@ -229,6 +231,8 @@ __all__ = [
     "base_cache",
     "FEATURE_DOCS",
     "FEATURE_NAMES",
+    "feature_doc",
+    "is_feature",
     "FIELD_FORMS",
     "GRAVITY_MPS2",
     "MODEL_FORMAT_VERSION",

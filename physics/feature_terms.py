@@ -7,7 +7,7 @@ feature unit) or ``"<channel>*W*<feature>"`` (a shape scaled to the target vehic
 
 from __future__ import annotations
 
-from proxplan.physics.features import CHANNELS, FEATURE_DOCS, TARGET_ONLY_FEATURES
+from proxplan.physics.features import CHANNELS, TARGET_ONLY_FEATURES, is_feature
 from proxplan.physics.vehicles import Vehicle
 
 WRENCH_UNITS = ("N", "Nm", "Nmps")
@@ -43,10 +43,11 @@ def parse_term_key(key: str) -> tuple[str, str]:
     channel, sep, feature = key.partition("*")
     if feature.startswith(WEIGHT_MARK + "*"):
         feature = feature[len(WEIGHT_MARK) + 1 :]
-    if not sep or channel not in CHANNELS or feature not in FEATURE_DOCS:
+    if not sep or channel not in CHANNELS or not is_feature(feature):
         raise ValueError(
             f"discovered-term parameter {key!r}: expected '<channel>*<feature>' or '<channel>*W*<feature>' with "
-            f"channel one of {', '.join(CHANNELS)} and a feature of proxplan.physics.features.FEATURE_NAMES"
+            f"channel one of {', '.join(CHANNELS)} and a feature of proxplan.physics.features.FEATURE_NAMES (a "
+            "multi-scale kernel at any scale)"
         )
     return channel, feature
 

@@ -29,11 +29,11 @@ so a term built on them acts between vehicles like any effect:
 * side kernel: exp(-r / L) exp(-(dz / L)^2) (a neighbour level with the target).
 
 A force off the target's centre is a roll or pitch torque, so the jet kernel of a source above, the
-below kernel, the side kernel and every multi-scale kernel (:data:`BASIS_RADIALS` x :data:`BASIS_WIDTHS_L` x
-:data:`BASIS_DECAY_FORMS` x :data:`BASIS_DECAYS_L`, since stop 51; algebraic forms since stop 64) also come times the offset's horizontal components over L (``above_jet_x_1``,
+below kernel, the side kernel and every multi-scale kernel (:mod:`proxplan.physics.basis`: profiles x widths x
+decay forms x decay lengths, since stop 51; algebraic forms since stop 64) also come times the offset's horizontal components over L (``above_jet_x_1``,
 ``below_near_y_1``, ``side_g1L_e4L_x_1``, ...): which side of the target a neighbour is on (odd in the
 offset, where the kernels themselves are even); every multi-scale kernel also comes times the relative
-horizontal speed (``side_l2p5L_e1L_rel_speed_xy_mps``, :data:`BASIS_SPEED`, since stop 63).
+horizontal speed (``side_l2p5L_e1L_rel_speed_xy_mps``, :data:`proxplan.physics.basis.BASIS_SPEED`, since stop 63).
 
 Every neighbour is seen, not only the sources above (issue 29): for a neighbour BELOW the target
 (d = -dz > 0 its depth under it) the jet and core kernels are mirrored (``below_jet_1``: the jet
@@ -68,6 +68,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from proxplan.physics.basis import (
+    AXES,
+    BASIS_PLACES,
+    BASIS_WIDTHS_L,
+    BasisKernel,
+    basis_columns,
+    basis_kernels,
+    parse_basis_name,
+)
 from proxplan.physics.room import plane_distances_m
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
@@ -142,22 +151,6 @@ FEATURE_DOCS: dict[str, str] = {
     "thrust_kin_ground_N": "own thrust from the motion times exp(-h / L_target)",
     "thrust_kin_speed_xy_Nmps": "own thrust from the motion times its horizontal speed",
 }
-BASIS_WIDTHS_L = (0.4, 1.0, 2.5)
-"""Radial widths of the multi-scale kernels, in the neighbour's size L, -: a geometric series of ratio 2.5 (the
-ratio of the two earlier widths, 1 L and 2.5 L) taken one step down to 0.4 L, of the order of one rotor's
-wake (a rotor's radius is 0.22-0.31 L on the built-in types) beside the whole vehicle's jet. Stop 54 found the
-misses of the kernel family beside and below were kernels narrower than the narrowest width (0.77 L against
-1 L), their stable candidates the wider ones that lose on flights held out (docs/identify.md, stop 58)."""
-BASIS_DECAYS_L = (1.0, 4.0)
-"""Decay lengths of the multi-scale kernels along the distance from the neighbour, in L, -."""
-BASIS_DECAY_FORMS = {"above": ("e", "i"), "below": ("e", "i"), "side": ("e",)}
-"""Forms of the decay along the depth x = delta / (d L) from the neighbour, per place (since stop 64): "e"
-exponential exp(-x), "i" algebraic 1 / (1 + x). An exponential decay cannot carry a heavy tail to a flight
-at another depth (it falls e-fold per decay length, a power law does not): a round jet's centre-line velocity
-falls as 1 / depth in its far field, the form of the jet kernel's 1 / (1 + dz / L) (S0-1, S0-2), so the
-algebraic form is the far field of the same physics at the basis's decay lengths. Beside the target the
-coordinate along is the horizontal distance, whose reach across the room stays Gaussian (a heavy tail there
-would couple every pair in the room), so "e" alone; the name keeps "e" for that Gaussian, -."""
 GROUND_SCALE_STEPS = 20
 """Steps of the geometric series of ground-proximity scales from the narrowest to the widest basis width
 (0.4 L to 2.5 L), - (stop 67; it was the basis's own three widths, ratio 2.5). A term fitted at one scale
@@ -217,70 +210,10 @@ GROUND_SCALE_FEATURES = tuple(n for _f, (_, _sc) in GROUND_FORMS.items() for _s 
 """The features of :data:`GROUND_SCALES_L` and :data:`GROUND_INV_SCALES_L` (target-only)."""
 
 
-BASIS_RADIALS = {"above": ("g",), "below": ("g",), "side": ("g", "l", "c")}
-"""Radial profiles of the multi-scale kernels, per place of the neighbour: "g" a Gaussian exp(-(rho / w L)^2),
-"l" a Laplace (exponential) exp(-rho / w L), heavier-tailed: the two bracket a profile between them where the
-flights see few radial positions and a term must carry to others. A neighbour BESIDE the target has its
-radial coordinate in the height difference, which each flight holds nearly fixed (its layers), so the tail
-there decides what carries to a flight at another gap; its reach across the room is still the Gaussian
-decay along the horizontal distance; "c" a Cauchy (Lorentzian) 1 / (1 + (rho / w L)^2) there since stop 64:
-the far field of a point disturbance (a tip vortex, a source) falls algebraically with distance, which neither
-exponential profile carries to a flight at another gap. Above and below, the radial coordinate is the horizontal
-distance, where a Laplace tail would reach across the room (exp(-6) at 15 L for 2.5 L): a jet's profile is
-Gaussian (S0-1), -."""
-
-
-def _basis_name(where: str, width: float, decay: float, axis: str = "", radial: str = "g", form: str = "e") -> str:
-    """The multi-scale kernel's name; ``axis`` "x" or "y": the kernel times that offset over L, "speed": the
-    kernel times the relative horizontal speed (:data:`BASIS_SPEED`); ``radial`` one of :data:`BASIS_RADIALS`,
-    ``form`` one of :data:`BASIS_DECAY_FORMS`."""
-    stem = f"{where}_{radial}{width:g}L_{form}{decay:g}L".replace(".", "p")
-    if axis == "speed":
-        return f"{stem}_{BASIS_SPEED}"
-    return f"{stem}_{axis + '_' if axis else ''}1"
-
-
-BASIS_SPEED = "rel_speed_xy_mps"
-"""Every multi-scale kernel also comes times the relative horizontal speed of its neighbour (m/s), named
-``<kernel>_rel_speed_xy_mps`` (since stop 63): a force that grows with how fast two vehicles pass each other
-may have any spatial shape the basis spans, not only the jet, core and near kernels' (the velocity family
-crossed with the spatial ones). Stop 62 traced a miss (docs/identify.md, stop 62, draw 22019) to a
-relative-speed force acting from neighbours above AND below, exp(-|dz| / 3 L), that only one-sided
-kernels times the speed could carry, each on half of the data; the side family's Laplace profile in the
-height difference spans such a two-sided shape. Declared as the whole cross product (every place, profile,
-width and decay), not the one shape traced."""
-
-
-def _basis_kernels(where: str) -> list[tuple[str, float, str, float]]:
-    """(radial profile, width in L, decay form, decay length in L) of every multi-scale kernel at ``where``."""
-    return [
-        (rad, w, form, d)
-        for rad in BASIS_RADIALS[where]
-        for w in BASIS_WIDTHS_L
-        for form in BASIS_DECAY_FORMS[where]
-        for d in BASIS_DECAYS_L
-    ]
-
-
-for _where, _what in (
-    ("above", "a neighbour above (r radial, depth below it along the axis)"),
-    ("below", "a neighbour below (r radial, its depth under the target)"),
-    ("side", "a neighbour beside (height difference radial, horizontal distance along)"),
-):
-    for _rad, _w, _form, _d in _basis_kernels(_where):
-        _across = {"g": "exp(-(rho / {w} L)^2)", "l": "exp(-rho / {w} L)", "c": "1 / (1 + (rho / {w} L)^2)"}[_rad]
-        _along = {"e": "exp(-delta / {d} L)", "i": "1 / (1 + delta / {d} L)"}[_form]
-        _shape = f"{_across.format(w=f'{_w:g}')} {_along.format(d=f'{_d:g}')}"
-        FEATURE_DOCS[_basis_name(_where, _w, _d, radial=_rad, form=_form)] = (
-            f"multi-scale kernel of {_what}: {_shape}, summed"
-        )
-        for _axis in "xy":  # which side of the target the neighbour is on: a force off its centre is a torque
-            FEATURE_DOCS[_basis_name(_where, _w, _d, _axis, _rad, _form)] = (
-                f"multi-scale kernel of {_what} ({_shape}) times offset_{_axis} / L, summed"
-            )
-        FEATURE_DOCS[_basis_name(_where, _w, _d, "speed", _rad, _form)] = (
-            f"multi-scale kernel of {_what} ({_shape}) times the relative horizontal speed, summed"
-        )
+for _where in BASIS_PLACES:
+    for _kernel in basis_kernels(_where):
+        for _axis in AXES:
+            FEATURE_DOCS[_kernel.name(_axis)] = _kernel.doc(_axis)
 TIME_FEATURE_SOURCES = (
     "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
     "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
@@ -313,6 +246,23 @@ ROOM_FEATURES = {
 }
 FEATURE_DOCS.update(ROOM_FEATURES)
 FEATURE_NAMES = tuple(FEATURE_DOCS)
+
+
+def is_feature(name: str) -> bool:
+    """Whether ``name`` is a feature :func:`feature_matrix` computes: one of :data:`FEATURE_NAMES`, or a
+    multi-scale kernel at a scale off the declared grid (:func:`proxplan.physics.basis.parse_basis_name`)."""
+    return name in FEATURE_DOCS or parse_basis_name(name) is not None
+
+
+def feature_doc(name: str) -> str:
+    """One line saying what feature ``name`` (:func:`is_feature`) is."""
+    if name in FEATURE_DOCS:
+        return FEATURE_DOCS[name]
+    parsed = parse_basis_name(name)
+    if parsed is None:
+        raise ValueError(f"feature {name!r}: not a feature of proxplan.physics.features.FEATURE_NAMES")
+    return parsed[0].doc(parsed[1])
+
 
 TARGET_ONLY_FEATURES = (
     "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2",
@@ -420,19 +370,24 @@ def offset_rate_mps(offsets_m: np.ndarray, time_s: np.ndarray) -> np.ndarray:
     return out
 
 
-def _basis_value(where: str, radial: str, form: str, rho_1: np.ndarray, along_1: np.ndarray) -> np.ndarray:
-    """One multi-scale kernel (-) of the radial coordinate over its width ``rho_1`` and the coordinate along over
-    its decay length ``along_1`` (both -, before the place's gate): :data:`BASIS_RADIALS`, :data:`BASIS_DECAY_FORMS`;
-    beside the target the decay along is Gaussian."""
-    x = np.maximum(along_1, 0.0)
-    along_exp = x**2 if where == "side" else (x if form == "e" else None)  # the exponent along, where exponential
-    if radial == "c":
-        across = 1.0 / (1.0 + rho_1**2)
-        return across * (np.exp(-along_exp) if along_exp is not None else 1.0 / (1.0 + x))
-    across_exp = rho_1**2 if radial == "g" else rho_1
-    if along_exp is None:
-        return np.exp(-across_exp) / (1.0 + x)
-    return np.exp(-across_exp - along_exp)
+def neighbour_motion(inputs) -> list[tuple[np.ndarray, float, np.ndarray]]:
+    """Per source of ``inputs`` (:class:`proxplan.physics.effect_inputs.EffectInputs`): its offsets (N, 3)
+    p_target - p_source (m, world frame), its size L (m) and the target's velocity relative to it (N, 3) (m/s):
+    from ``SourceSample.velocity_mps`` when given, else the time derivative of the offsets when ``time_s`` is,
+    else the source at rest."""
+    vel = np.asarray(inputs.velocity_mps, dtype=float).reshape(-1, 3)
+    t = None if inputs.time_s is None else np.asarray(inputs.time_s, dtype=float)
+    out = []
+    for src in inputs.sources:
+        off = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
+        if src.velocity_mps is not None:
+            v_rel = vel - np.asarray(src.velocity_mps, dtype=float).reshape(-1, 3)
+        elif t is not None:
+            v_rel = offset_rate_mps(off, t)
+        else:
+            v_rel = vel
+        out.append((off, float(src.vehicle.size_m), v_rel))
+    return out
 
 
 def jet_kernel(dz_m: np.ndarray, r_m: np.ndarray, size_m: float) -> np.ndarray:
@@ -457,7 +412,15 @@ def feature_matrix(
     r_rot = target.propeller.radius_m
     hc = np.maximum(h, MIN_HEIGHT_FACTOR * r_rot)
     vel = np.asarray(inputs.velocity_mps, dtype=float).reshape(-1, 3)
-    f: dict[str, np.ndarray] = {k: np.zeros(n) for k in FEATURE_NAMES}
+    kernels_wanted: dict[BasisKernel, tuple[str, ...]] = {}  # the multi-scale kernels asked for, on the grid or off it
+    for name in dict.fromkeys(wanted):
+        parsed = parse_basis_name(name)
+        if parsed is None:
+            if name not in FEATURE_DOCS:
+                raise ValueError(f"feature {name!r}: not a feature of proxplan.physics.features.FEATURE_NAMES")
+            continue
+        kernels_wanted[parsed[0]] = (*kernels_wanted.get(parsed[0], ()), parsed[1])
+    f: dict[str, np.ndarray] = {k: np.zeros(n) for k in (*FEATURE_NAMES, *wanted)}
     f["one_1"] = np.ones(n)
     f["ground_cb_1"] = (r_rot / (4.0 * hc)) ** 2
     f["ground_exp_1"] = np.exp(-hc / target.size_m)
@@ -477,16 +440,8 @@ def feature_matrix(
             f[k_name] = thrust_kin * f[g_name]
     f["thrust_kin_speed_xy_Nmps"] = thrust_kin * f["speed_xy_mps"]
     kernels = []
-    for src, (bf, bt) in zip(inputs.sources, base_per_source):
-        off = np.asarray(src.offsets_m, dtype=float).reshape(-1, 3)
-        size = src.vehicle.size_m
+    for (off, size, v_rel), (bf, bt) in zip(neighbour_motion(inputs), base_per_source):
         dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
-        if src.velocity_mps is not None:
-            v_rel = vel - np.asarray(src.velocity_mps, dtype=float).reshape(-1, 3)
-        elif t is not None:
-            v_rel = offset_rate_mps(off, t)
-        else:
-            v_rel = vel
         rel_xy = np.hypot(v_rel[:, 0], v_rel[:, 1])
         k = jet_kernel(dz, r, size)
         kernels.append(k)
@@ -533,14 +488,9 @@ def feature_matrix(
         f["below_core_flat_1"] += core_flat_b
         depth = np.maximum(-dz, MIN_HEIGHT_FACTOR * r_rot)
         f["below_cushion_1"] += np.where(below, (r_rot / (4.0 * depth)) ** 2 * np.exp(-((r / size) ** 2)), 0.0)
-        for where, rho, delta, gate in (("above", r, dz, above), ("below", r, -dz, below),
-                                        ("side", np.abs(dz), r, np.ones(len(r), dtype=bool))):  # fmt: skip
-            for rad, w, form, d in _basis_kernels(where):
-                basis = np.where(gate, _basis_value(where, rad, form, rho / (w * size), delta / (d * size)), 0.0)
-                f[_basis_name(where, w, d, radial=rad, form=form)] += basis
-                f[_basis_name(where, w, d, "x", rad, form)] += basis * off[:, 0] / size
-                f[_basis_name(where, w, d, "y", rad, form)] += basis * off[:, 1] / size
-                f[_basis_name(where, w, d, "speed", rad, form)] += basis * rel_xy
+        for kernel, axes in kernels_wanted.items():
+            for name, values in basis_columns(kernel, axes, off, size, rel_xy).items():
+                f[name] += values
     f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
         for j in range(i + 1, len(kernels)):

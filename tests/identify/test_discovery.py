@@ -130,6 +130,25 @@ def test_hidden_effect_is_discovered(
     assert again.features and {e["feature"] for e in kept} <= set(again.features)
 
 
+def test_the_kept_kernel_is_refined_toward_the_hidden_scales(swept_wake_run) -> None:
+    """The swept wake is exp(-(r / 0.8 L)^2 - dz / 6 L) times the relative speed, between the grid's widths (0.4, 1,
+    2.5 L) and decay lengths (1, 4 L): the kept kernel term's width and decay length, refined by flights held out
+    (proxplan.identify.refine), lie nearer the hidden ones than its grid scales do, and it predicts the held-out
+    train flights better, by the gain test with each flight judged at the scales chosen without it."""
+    from proxplan.physics.basis import parse_basis_name
+
+    result, _ = swept_wake_run
+    refined = [e for e in result.discovered if e["selected"] and e["refined"] and e["refined"]["accepted"]]
+    assert refined, [e["feature"] for e in result.discovered if e["selected"]]
+    for e in refined:
+        new, _axis = parse_basis_name(e["feature"])
+        old, _axis = parse_basis_name(e["refined"]["from"].rsplit("*", 1)[1])
+        assert new.where == "above" and e["refined"]["heldout_mse_refined"] < e["refined"]["heldout_mse_grid"]
+        assert e["refined"]["test"]["passed"] and e["refined"]["test"]["groups_improved"] >= 3
+        assert abs(np.log(new.width_L / 0.8)) < abs(np.log(old.width_L / 0.8)) or old.width_L == 0.8
+        assert abs(np.log(new.decay_L / 6.0)) < abs(np.log(old.decay_L / 6.0))
+
+
 def test_saved_model_predicts_as_identify_did(tmp_path: Path, swept_wake_run) -> None:
     """The discovered term is saved with the model (with the residual spread) and read back: the same
     prediction; the report names it."""
