@@ -50,6 +50,13 @@ STAGES = (
     (_P + "swarm.makespan", "shorten_makespan"),
     (_P + "swarm.verify_guard", "VerifyGuard.__call__"),
     (_P + "swarm.verify_guard", "VerifyGuard.around"),
+    # the verifier's parts that the guard's sub-plans and the whole-plan check spend their CPU in (round
+    # 30S: corridor-64's 32 sub-plans, 23.5 s, were the loops in the jets and the wrenches along the plan)
+    ("proxplan.verify.jet_loop", "loop_along_plan"),
+    ("proxplan.verify.along", "wrench_along_plan"),
+    ("proxplan.verify.pair_checks", "check_pairs"),
+    ("proxplan.verify.pair_checks", "check_authority_tube"),
+    ("proxplan.physics.discretize", "zoh_maps"),
     (_P + "swarm.single", "plan_one"),
     (_P + "swarm.retime", "improve"),
     (_P + "swarm.chain", "time_chain"),
