@@ -69,6 +69,8 @@ def through_segment(p0_m, p1_m, v0_mps, v1_mps, limits: KinematicLimits, *, stra
         n = float(np.linalg.norm(vec))
         if n > 1e-12:
             w = np.maximum(w, np.abs(vec) / n)
+    if not w.any():  # no displacement, at rest at both ends: a segment of no duration (any weights keep it so)
+        w = np.ones(3)
     w = w / float(np.linalg.norm(w))
     eps = 1e-9
     inp = InputParameter(3)

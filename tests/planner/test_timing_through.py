@@ -99,3 +99,15 @@ def test_a_rest_to_rest_move_a_rounding_error_off_a_profile_boundary_is_planned(
     s, v, a = np.array([prof.at(float(tk)) for tk in t]).T
     assert np.abs(v).max() <= lim.max_speed_mps * (1 + 1e-6)
     assert np.abs(a).max() <= lim.max_accel_mps2 * (1 + 1e-6)
+
+
+def test_a_leg_of_no_length_at_rest_is_a_segment_of_no_duration() -> None:
+    """A route that repeats a waypoint where the vehicle is at rest (a lane's flow timing on grid-256, stop 68: the
+    weights were 0 / 0 and Ruckig got NaN limits): a segment of zero duration at that point, either synchronisation."""
+    from proxplan.planner.timing.segments import through_segment
+
+    for straight in (False, True):
+        traj = through_segment([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], [0.0] * 3, [0.0] * 3, KinematicLimits(1.0, 2.0, 8.0),
+                               straight=straight)  # fmt: skip
+        position, velocity, _ = traj.at_time(0.0)
+        assert traj.duration == 0.0 and position == [1.0, 2.0, 3.0] and velocity == [0.0, 0.0, 0.0]
