@@ -24,6 +24,28 @@ import numpy as np
 DELAY_BINS = (0, 10, 20, 40, 80)
 
 
+def level_problem(layout: str, n: int, k: int):
+    """(level ``k``'s subproblem of the stacked plan of the named ``layout`` with ``n`` vehicles, its levels), or
+    None where no stack of levels fits (the levels' problems as the swarm layer makes them)."""
+    import proxplan.planner.swarm.plan as swarm_plan
+    from proxplan.planfile.scenario_load import scenario_from_dict
+    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.swarm import swarm_problem
+    from proxplan.planner.swarm.frozen import unfrozen_problem
+    from proxplan.planner.swarm.levels import stack_levels
+    from proxplan.planner.swarm.stacked import level_subproblem, levelled_endpoints
+
+    scenario = scenario_from_dict(LAYOUTS[layout](n))
+    problem, _, _ = unfrozen_problem(swarm_problem(scenario))
+    levels = stack_levels(problem, swarm_plan._stacking(scenario, problem)())
+    if levels is None:
+        return None
+    lev_s, lev_g = levelled_endpoints(problem, levels)
+    on_levels = replace(problem, starts_m=lev_s, goals_m=lev_g)
+    agents = [a for a in range(problem.n_agents) if int(problem.type_index[a]) in levels.groups[k]]
+    return level_subproblem(on_levels, agents, levels.band_m(k)), levels
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--layout", default="corridor")
@@ -34,30 +56,18 @@ def main() -> int:
 
     import proxplan.planner.swarm.plan as swarm_plan
     import proxplan.planner.swarm.priority as priority
-    from proxplan.planfile.scenario_load import scenario_from_dict
-    from proxplan.planner.formations import LAYOUTS
-    from proxplan.planner.swarm import SwarmOptions, swarm_problem
-    from proxplan.planner.swarm.frozen import unfrozen_problem
-    from proxplan.planner.swarm.levels import stack_levels
+    from proxplan.planner.swarm import SwarmOptions
     from proxplan.planner.swarm.prioritised_stage import prioritised_stage
-    from proxplan.planner.swarm.stacked import level_subproblem, levelled_endpoints
+    from proxplan.planner.swarm.stacked import alone_steps
     from proxplan.planner.swarm.tracks import GRID_DT_S
     from proxplan.planner.timing.profile import rest_to_rest
 
-    scenario = scenario_from_dict(LAYOUTS[args.layout](args.n))
-    problem, _, _ = unfrozen_problem(swarm_problem(scenario))
-    levels = stack_levels(problem, swarm_plan._stacking(scenario, problem)())
-    if levels is None:
+    got_level = level_problem(args.layout, args.n, args.level)
+    if got_level is None:
         print(f"{args.layout}-{args.n}: no stack of levels fits the free box")
         return 0
-    lev_s, lev_g = levelled_endpoints(problem, levels)
-    on_levels = replace(problem, starts_m=lev_s, goals_m=lev_g)
-    agents = [a for a in range(problem.n_agents) if int(problem.type_index[a]) in levels.groups[args.level]]
-    sub = level_subproblem(on_levels, agents, levels.band_m(args.level))
-    bound = max(
-        rest_to_rest(float(np.linalg.norm(sub.goals_m[a] - sub.starts_m[a])), sub.limits[a], GRID_DT_S).duration_s
-        for a in range(sub.n_agents)
-    )
+    sub, levels = got_level
+    bound = alone_steps(sub) * GRID_DT_S
     changes = {k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(args.options).items()}
     opts = replace(swarm_plan._level_options(SwarmOptions(workers=1, reserve_starts=True)), **changes)
     band = levels.band_m(args.level)

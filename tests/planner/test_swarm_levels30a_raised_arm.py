@@ -12,8 +12,8 @@ import numpy as np
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.swarm import SwarmOptions, swarm_problem
 from proxplan.planner.swarm.prioritised_stage import prioritised_stage, raised_arm
+from proxplan.planner.swarm.stacked import alone_steps
 from proxplan.planner.swarm.tracks import GRID_DT_S
-from proxplan.planner.timing.profile import rest_to_rest
 
 
 def _line_level(top_m: float = 3.0, half_width_m: float = 0.45):
@@ -38,12 +38,7 @@ def _line_level(top_m: float = 3.0, half_width_m: float = 0.45):
 
 
 def _bound_s(problem) -> float:
-    return max(
-        rest_to_rest(
-            float(np.linalg.norm(problem.goals_m[a] - problem.starts_m[a])), problem.limits[a], GRID_DT_S
-        ).duration_s
-        for a in range(problem.n_agents)
-    )
+    return alone_steps(problem) * GRID_DT_S
 
 
 def _plan(problem, **changes):
