@@ -60,7 +60,7 @@ class SwarmOptions:
     # the raised arm's single-vehicle plannings over all its passes, per vehicle of the level (rounded up;
     # a pass that cannot plan its queued vehicles within what is left gives up at once). Set watching the
     # levels of corridor and pillar at 64 and 128 (round 30A, benchmarks/why_raised.py): their raised
-    # passes that found a plan made 1.02-1.21 plannings per vehicle; corridor-128's, which gives up, 391
+    # passes that found a plan made 1.01-1.21 plannings per vehicle; corridor-128's, which gives up, 391
     # plannings for 86 vehicles at ~0.5 s of CPU each
     raised_plannings_per_vehicle: float = 1.5
     # a vehicle not planned yet holds its start until it is planned (swarm.reserve), instead of the
