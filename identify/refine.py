@@ -41,9 +41,16 @@ from proxplan.identify.crossval import HeldOutFit, Ridge, heldout_fit, trainable
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.heldout_select import GainTest, gain_test
-from proxplan.physics import parse_term_key, weight_scaled
-from proxplan.physics.basis import BASIS_DECAYS_L, BASIS_WIDTHS_L, BasisKernel, basis_columns, parse_basis_name
-from proxplan.physics.features import neighbour_motion
+from proxplan.physics import (
+    BASIS_DECAYS_L,
+    BASIS_WIDTHS_L,
+    BasisKernel,
+    basis_columns,
+    neighbour_motion,
+    parse_basis_name,
+    parse_term_key,
+    weight_scaled,
+)
 
 __all__ = ["DECAY_RATIO", "GOLDEN_STEPS", "SCAN_POINTS", "SWEEPS", "WIDTH_RATIO", "Refined", "refine_kernel_terms"]
 

@@ -17,6 +17,13 @@ from proxplan.physics.authority import (
     motor_thrusts_N,
     normalised_motor_map,
 )
+from proxplan.physics.basis import (
+    BASIS_DECAYS_L,
+    BASIS_WIDTHS_L,
+    BasisKernel,
+    basis_columns,
+    parse_basis_name,
+)
 from proxplan.physics.blas_threads import one_blas_thread
 from proxplan.physics.builtin_vehicles import BUILTIN_VEHICLES
 from proxplan.physics.closed_loop import (
@@ -87,6 +94,7 @@ from proxplan.physics.features import (
     feature_group,
     feature_matrix,
     is_feature,
+    neighbour_motion,
 )
 from proxplan.physics.hover_loop import (
     REFERENCE_INPUTS,
@@ -233,6 +241,12 @@ __all__ = [
     "FEATURE_NAMES",
     "feature_doc",
     "is_feature",
+    "neighbour_motion",
+    "BASIS_DECAYS_L",
+    "BASIS_WIDTHS_L",
+    "BasisKernel",
+    "basis_columns",
+    "parse_basis_name",
     "FIELD_FORMS",
     "GRAVITY_MPS2",
     "MODEL_FORMAT_VERSION",
