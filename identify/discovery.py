@@ -57,7 +57,7 @@ from proxplan.identify.crossval import GroupSums, solve, trainable_groups
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_forward
-from proxplan.identify.refine import Refined, refine_kernel_terms
+from proxplan.identify.refine import Refined, refine_kernel_terms, term_column
 from proxplan.identify.stability import Stability, fold_eligibility, fold_half_samples, half_samples
 from proxplan.physics import (
     DISCOVERED_PREFIX,
@@ -70,7 +70,6 @@ from proxplan.physics import (
     is_wrench_feature,
     parse_term_key,
     term_formula,
-    weight_scaled,
 )
 
 DISCOVERED_NAME = f"{DISCOVERED_PREFIX}residual"
@@ -308,12 +307,7 @@ def discover_terms(
     stable = tally.tested(len(groups_seen))
     columns: dict[str, np.ndarray] = {}
     for key in stable:
-        channel, feature = parse_term_key(key)
-        col = np.zeros_like(y)
-        c = CHANNELS.index(channel)
-        scale = sel.target_scale(channel) if weight_scaled(key) else 1.0
-        col[:, c] = x[:, names.index(feature)] * scale / sel.row_scale[:, c]
-        columns[key] = col
+        columns[key] = term_column(sel, key, x[:, names.index(parse_term_key(key)[1])])
     fwd = ForwardResult()
     sums = sel.sums({**always, **columns})
     ridge = ridge_of(sums.columns)

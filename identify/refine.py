@@ -52,7 +52,16 @@ from proxplan.physics import (
     weight_scaled,
 )
 
-__all__ = ["DECAY_RATIO", "GOLDEN_STEPS", "SCAN_POINTS", "SWEEPS", "WIDTH_RATIO", "Refined", "refine_kernel_terms"]
+__all__ = [
+    "DECAY_RATIO",
+    "GOLDEN_STEPS",
+    "SCAN_POINTS",
+    "SWEEPS",
+    "WIDTH_RATIO",
+    "Refined",
+    "refine_kernel_terms",
+    "term_column",
+]
 
 WIDTH_RATIO = BASIS_WIDTHS_L[1] / BASIS_WIDTHS_L[0]
 """A width is searched within this ratio of the kept grid width on each side (the grid's own step: 2.5), -."""
@@ -262,7 +271,7 @@ def refine_kernel_terms(
             continue
         channel, feature = parse_term_key(key)
         new_key = key[: len(key) - len(feature)] + search.scaled(best_at).name(axis)
-        col = term_column(sel, new_key, neighbours.feature(search.scaled(best_at), axis))
+        col = search.column(best_at)  # the same feature and scaling under the refined name
         refined = Refined(new_key, key, grid, search.cost(*best_at), search.test(best_at), len(search.per_flight), col)
         out.append(refined)
         if refined.accepted:
