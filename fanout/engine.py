@@ -38,7 +38,7 @@ class FanoutResult:
     scheduler: str  # address of the scheduler used
 
 
-def _connect(scheduler: str | None, n_workers: int | None, connect_timeout_s: float):
+def connect(scheduler: str | None, n_workers: int | None, connect_timeout_s: float):
     from distributed import Client, LocalCluster
 
     if scheduler is None:
@@ -80,11 +80,10 @@ def fan_out(
 ) -> FanoutResult:
     """Run ``fn(item)`` for every item; ``progress(done, total)`` is called as tasks finish."""
     from distributed import as_completed
-    from distributed.scheduler import KilledWorker
 
     if not items:
         return FanoutResult([], 0, 0, scheduler or "")
-    client, cluster = _connect(scheduler, n_workers, connect_timeout_s)
+    client, cluster = connect(scheduler, n_workers, connect_timeout_s)
     try:
         workers = len(client.scheduler_info().get("workers", {}))
         futures = client.map(fn, list(items), pure=False, retries=retries)
@@ -92,13 +91,7 @@ def fan_out(
         results: list[Any] = [None] * len(futures)
         done = 0
         for future in as_completed(futures):
-            try:
-                results[index[future.key]] = future.result()
-            except KilledWorker as err:  # the task took down every worker it was tried on
-                raise UserError(
-                    f"task {index[future.key]} was lost: each worker that ran it died (Dask's allowed-failures; "
-                    f"out of memory or a crash in the task): {err}"
-                ) from None
+            results[index[future.key]] = future_result(future, f"task {index[future.key]}")
             done += 1
             if progress is not None:
                 progress(done, len(futures))
@@ -108,6 +101,20 @@ def fan_out(
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def future_result(future, label: str) -> Any:
+    """``future.result()``; a task that took down every worker it was tried on is a one-line UserError
+    naming ``label`` (its exception, if it raised one, propagates as raised)."""
+    from distributed.scheduler import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker as err:
+        raise UserError(
+            f"{label} was lost: each worker that ran it died (Dask's allowed-failures; "
+            f"out of memory or a crash in the task): {err}"
+        ) from None
 
 
 def _count_suspicious(dask_scheduler, keys: list) -> int:

@@ -47,6 +47,7 @@ class IdentifyOptions:
     smoothed_prediction: bool = (
         True  # predictions read through the measurement's smoothing (loading.smoothing_of_prediction)
     )
+    workers: int = 1  # processes, -: above 1, independent stages run beside each other (pipeline.run_identify)
 
 
 CEILING_BIT, FLOOR_BIT = 1, 2

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from proxplan.fanout import Background, background
 from proxplan.fileio import UserError
 from proxplan.identify.calibrate import (
     STACK_PARAMETER,
@@ -266,16 +267,31 @@ def _per_vehicle(
 def run_identify(
     manifest: Manifest | str | Path, *, options: IdentifyOptions | None = None, thrust_summary: bool = True
 ) -> IdentifyResult:
-    """The whole pipeline on a manifest; errors are on TEST flights."""
+    """The whole pipeline on a manifest; errors are on TEST flights. With ``options.workers`` > 1 the
+    motor-lag check runs beside the calibration and the selection around the prior model beside the one
+    around the calibrated model, in a worker process (:func:`proxplan.fanout.background`); the result is
+    the same as with 1 (every stage depends on its arguments only)."""
     options = options or IdentifyOptions()
     if not isinstance(manifest, Manifest):
         manifest = load_manifest(manifest)
+    with background(min(options.workers, PARALLEL_STAGES) - 1) as side:
+        return _run(manifest, options, side, thrust_summary)
+
+
+PARALLEL_STAGES = 2
+"""Stages of :func:`run_identify` that can run at once, -: the pipeline has two independent branches at
+most (the motor-lag check beside the calibration, then the two starts of the selection), so a worker
+beyond one process beside the caller would idle."""
+
+
+def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_summary: bool) -> IdentifyResult:
+    """:func:`run_identify` with the stages that may run beside the caller submitted to ``side``."""
     laps = _Laps()
     data = load_units(manifest, options=options)
     units, exclusions, types = data.units, data.exclusions, data.types
     laps("load and measure")
-    lag_check = check_loaded(data, motor_thrust=manifest.motor_thrust, options=options.measure)
-    laps("motor lag check")
+    lag_task = side.submit("the motor lag check", check_loaded, data, motor_thrust=manifest.motor_thrust,
+                           options=options.measure)  # fmt: skip
     fit = [u for u in units if u.split == "train" and u.scored and len(u)]
     test = [u for u in units if u.split == "test" and u.scored and len(u)]
     valid = [u for u in units if u.split == "validation" and u.scored and len(u)]
@@ -303,26 +319,34 @@ def run_identify(
         noise = noise_level(fit, fitted)  # the selection weighs by the noise left around the calibrated model
     calibrated = full_errors(model)
     laps("calibration")
-    corr_before = _residual_analysis(subsample(fit, 20000), model)
-    specs = model_specs(fit, model)
     test_eval = subsample(test, options.max_eval_samples)
-    chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval,
-                                 calibrated_thrust_scale=None if fitted is None else fitted.thrust_scale,
-                                 prior_model=prior_start)  # fmt: skip
-    laps("selection around the calibrated model")
-    other_total = None
+    alt_task = None
     if calibration is not None:
         # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
         # undo it only to first order), so selection also starts from the PRIOR model (eta at its prior);
         # it wins when its kept set predicts the held-out flights better (selection.other_start_better;
         # same samples, same units), else the calibrated start stays
         prior = replace(base, options=replace(base.options, stack_shielding=STACK_SHIELDING_PRIOR.center))
-        alt = select_and_discover(fit, valid, prior, model_specs(fit, prior), options=options, noise=noise,
-                                  test=test_eval, start="prior", prior_model=prior_start)  # fmt: skip
+        quiet = replace(options, progress=options.progress and side.workers == 0)  # one process draws the bars
+        alt_task = side.submit("the selection around the prior model", select_and_discover, fit, valid, prior,
+                               model_specs(fit, prior), options=quiet, noise=noise, test=test_eval, start="prior",
+                               prior_model=prior_start)  # fmt: skip
+    corr_before = _residual_analysis(subsample(fit, 20000), model)
+    specs = model_specs(fit, model)
+    chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval,
+                                 calibrated_thrust_scale=None if fitted is None else fitted.thrust_scale,
+                                 prior_model=prior_start)  # fmt: skip
+    laps("selection around the calibrated model")
+    other_total = None
+    if alt_task is not None:
+        alt = alt_task.result()
         other_total = alt.heldout_total
         if other_start_better(chosen, alt):
             chosen, other_total = alt, chosen.heldout_total
-        laps("selection around the prior model")
+        laps.stage("selection around the prior model", alt_task.seconds)
+    lag_check = lag_task.result()
+    laps.stage("motor lag check", lag_task.seconds)
+    laps("waiting for the stages beside")
     final = chosen.model
     after = full_errors(final)
     spread = fit_spread(chosen.rows, final, chosen.heldout_fz_N)  # set on flights the fit did not see
@@ -354,16 +378,23 @@ def run_identify(
 
 
 class _Laps:
-    """Wall time of each stage, s (``identify.json["timings_s"]``)."""
+    """Wall time of each stage, s (``identify.json["timings_s"]``): the caller's stages lap by lap; a stage
+    run beside it (:func:`proxplan.fanout.background`) with its own wall time, so stages may overlap and
+    ``"total"`` is the whole run's wall time."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
-        self._t = time.perf_counter()
+        self._t0 = self._t = time.perf_counter()
 
     def __call__(self, stage: str) -> None:
         now = time.perf_counter()
         self.seconds[stage] = now - self._t
+        self.seconds["total"] = now - self._t0
         self._t = now
+
+    def stage(self, stage: str, seconds: float) -> None:
+        """Record a stage that ran beside the caller, ``seconds`` (s) of its own."""
+        self.seconds[stage] = seconds
 
 
 def _stack_record(calibration: CalibrationResult | None, final: Model) -> dict | None:

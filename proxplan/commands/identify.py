@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -49,6 +50,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="use the logged motor thrusts as delivered even where the manifest says they are commands",
     )
+    p.add_argument("--workers", type=int, metavar="K", default=None,
+                   help="processes (default: one per core; 1 runs every stage in this process; the pipeline has "
+                        "two independent branches, so more than 2 act as 2); the result does not depend on it")  # fmt: skip
     p.set_defaults(func=run)
 
 
@@ -77,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.window_s <= 0 or (args.motor_tau_s is not None and args.motor_tau_s <= 0):
         raise UserError("--window-s and --motor-tau-s must be positive numbers of seconds")
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers: expected a whole number >= 1, got {args.workers}")
     manifest = load_manifest(args.manifest)
     out = Path(args.out)
     if args.save_model:
@@ -90,6 +96,7 @@ def run(args: argparse.Namespace) -> int:
         ),
         calibrate=not args.no_calibrate,
         progress=True,
+        workers=args.workers if args.workers is not None else os.cpu_count() or 1,
     )
     with output_folder(out) as stage:  # the report lands whole, or not at all
         result = run_identify(manifest, options=options)

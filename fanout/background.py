@@ -1,0 +1,94 @@
+"""Stages of one pipeline run beside each other: ``with background(workers) as side: task =
+side.submit(fn, *args)`` starts ``fn`` in a worker process of a local Dask cluster (``dask.distributed``,
+127.0.0.1) while the caller goes on, and ``task.result()`` waits for it.
+
+Where :func:`proxplan.fanout.fan_out` maps one function over many items, this runs a few DIFFERENT
+independent stages of one computation (e.g. ``proxplan identify``'s motor-lag check beside the
+calibration, its selection around the prior model beside the one around the calibrated model).
+
+* ``workers=0``: no cluster; a task runs in the calling process when its result is first asked for, so
+  the stages run one after the other in the order their results are used (the serial pipeline,
+  exactly; library calls, tests and benchmarks that already fan out use this).
+* ``workers>=1``: a cluster of that many single-threaded worker processes, started when the ``with``
+  block is entered and closed when it is left (also on an exception).
+
+Determinism is the caller's: a task must depend on its arguments only. Its arguments and result are
+pickled (copied) between processes, so a task must not rely on mutating an argument the caller
+reads after. ``task.seconds`` is the wall time the task itself ran, s.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+from proxplan.fanout.engine import connect, future_result
+
+_CONNECT_TIMEOUT_S = 10.0
+"""Seconds a local cluster may take to start its workers (as :func:`proxplan.fanout.fan_out`'s default)."""
+
+
+def _timed(fn: Callable[..., Any], args: tuple, kwargs: dict) -> tuple[Any, float]:
+    """``fn(*args, **kwargs)`` and the wall time it took, s (runs in the worker)."""
+    t0 = time.perf_counter()
+    value = fn(*args, **kwargs)
+    return value, time.perf_counter() - t0
+
+
+class Task:
+    """One submitted stage: :meth:`result` (waits), :attr:`seconds` (its own wall time, s, once done)."""
+
+    def __init__(self, label: str, run: Callable[[], tuple[Any, float]]):
+        self.label = label
+        self._run = run
+        self._done = False
+        self._value: Any = None
+        self.seconds = float("nan")
+
+    def result(self) -> Any:
+        """The stage's return value (its exception, raised here, if it raised one)."""
+        if not self._done:
+            self._value, self.seconds = self._run()
+            self._done = True
+        return self._value
+
+
+class Background:
+    """Submits stages (module docstring); made by :func:`background`."""
+
+    def __init__(self, client: Any | None):
+        self._client = client
+
+    @property
+    def workers(self) -> int:
+        """Worker processes beside the caller (0: stages run in the calling process)."""
+        if self._client is None:
+            return 0
+        return len(self._client.scheduler_info().get("workers", {}))
+
+    def submit(self, label: str, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Task:
+        """Start ``fn(*args, **kwargs)`` (a module-level function: it is pickled) and return its :class:`Task`;
+        ``label`` names it in a lost-worker error."""
+        if self._client is None:
+            return Task(label, lambda: _timed(fn, args, kwargs))
+        future = self._client.submit(_timed, fn, args, kwargs, pure=False)
+        return Task(label, lambda: future_result(future, label))
+
+
+@contextmanager
+def background(workers: int) -> Iterator[Background]:
+    """A :class:`Background` with ``workers`` worker processes (0: none, stages run in this process)."""
+    if workers < 0:
+        raise ValueError(f"workers must be >= 0, got {workers}")
+    if workers == 0:
+        yield Background(None)
+        return
+    client, cluster = connect(None, workers, _CONNECT_TIMEOUT_S)
+    try:
+        yield Background(client)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
