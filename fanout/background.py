@@ -28,6 +28,13 @@ from proxplan.fanout.engine import connect, future_result
 
 _CONNECT_TIMEOUT_S = 10.0
 """Seconds a local cluster may take to start its workers (as :func:`proxplan.fanout.fan_out`'s default)."""
+WORKER_ENVIRON = {"MALLOC_TRIM_THRESHOLD_": 1 << 30}
+"""Added to the workers' environment: glibc gives freed memory back to the system only above 1 GiB. Dask
+starts workers with 64 KiB (``distributed.nanny.pre-spawn-environ``), so numpy's large temporaries are
+returned and faulted in again on every allocation: the identify pipeline's selection ran about twice as
+slow in a worker as in the caller, with 42 s of system CPU, and 1.5x with 1 GiB (docs/identify.md, "Speed",
+stop 63). The caller's process runs with glibc's own adaptive threshold; this matches it for stages
+that live one pipeline long."""
 
 
 def _timed(fn: Callable[..., Any], args: tuple, kwargs: dict) -> tuple[Any, float]:
@@ -85,7 +92,7 @@ def background(workers: int) -> Iterator[Background]:
     if workers == 0:
         yield Background(None)
         return
-    client, cluster = connect(None, workers, _CONNECT_TIMEOUT_S)
+    client, cluster = connect(None, workers, _CONNECT_TIMEOUT_S, environ=WORKER_ENVIRON)
     try:
         yield Background(client)
     finally:

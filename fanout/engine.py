@@ -38,15 +38,23 @@ class FanoutResult:
     scheduler: str  # address of the scheduler used
 
 
-def connect(scheduler: str | None, n_workers: int | None, connect_timeout_s: float):
+def connect(
+    scheduler: str | None, n_workers: int | None, connect_timeout_s: float, *, environ: dict[str, Any] | None = None
+):
+    """A client of ``scheduler``, or of a new local cluster of ``n_workers`` single-threaded worker processes
+    (default one per core) with ``environ`` added to the environment they are started with (Dask's
+    ``distributed.nanny.pre-spawn-environ``); returns (client, the local cluster or None)."""
+    import dask
     from distributed import Client, LocalCluster
 
     if scheduler is None:
         n = n_workers or os.cpu_count() or 1
-        cluster = LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-            dashboard_address=None, silence_logs=50,
-        )  # fmt: skip
+        spawn = dict(dask.config.get("distributed.nanny.pre-spawn-environ")) | dict(environ or {})
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": spawn}):
+            cluster = LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                dashboard_address=None, silence_logs=50,
+            )  # fmt: skip
         return Client(cluster), cluster
     if not _ADDRESS.match(scheduler):
         raise UserError(f"--scheduler {scheduler}: expected tcp://HOST:PORT (or tls://HOST:PORT) of a 'dask scheduler'")

@@ -8,10 +8,15 @@ import os
 import pytest
 
 from proxplan.fanout import background
+from proxplan.fanout.background import WORKER_ENVIRON
 
 
 def _pid_and_sum(a: int, b: int = 0) -> tuple[int, int]:
     return os.getpid(), a + b
+
+
+def _environ() -> tuple[str | None, str | None]:
+    return os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OPENBLAS_NUM_THREADS")
 
 
 def _fails(message: str) -> None:
@@ -25,6 +30,12 @@ def test_a_stage_runs_in_a_worker_process_while_the_caller_goes_on():
         pid, total = task.result()
     assert total == 5 and pid != os.getpid()
     assert task.seconds >= 0.0
+
+
+def test_workers_keep_freed_memory_and_one_blas_thread():
+    with background(1) as side:
+        trim, blas = side.submit("the environment", _environ).result()
+    assert int(trim) == WORKER_ENVIRON["MALLOC_TRIM_THRESHOLD_"] and blas == "1"
 
 
 def test_without_workers_a_stage_runs_here_when_its_result_is_asked_for():
