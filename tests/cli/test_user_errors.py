@@ -121,3 +121,9 @@ def test_gains_that_make_the_hover_loop_unstable_are_refused_naming_file_and_gai
     res = proxplan("plan", scenario, "--out", tmp_path / "o")
     _one_line(res, str(path), "vehicles.my-cf.controller.kp_xy_Npm", "hover loop unstable")
     assert not (tmp_path / "o").exists()
+
+
+def test_identify_workers_below_one_is_one_line(generated_manifest, tmp_path, proxplan):
+    res = proxplan("identify", generated_manifest, "--out", tmp_path / "o", "--workers", "0")
+    _one_line(res, "--workers", "expected a whole number >= 1")
+    assert not (tmp_path / "o").exists()
