@@ -167,9 +167,12 @@ class _TermScales(Protocol):
     """A kind of scaled term: its grid scales, the ratio of its grid's step per coordinate, what its siblings
     share (``identity``), its scales as its name rounds them, its name and its values at any scales."""
 
-    grid: Scales
-    ratios: Scales
-    identity: object
+    @property
+    def grid(self) -> Scales: ...
+    @property
+    def ratios(self) -> Scales: ...
+    @property
+    def identity(self) -> object: ...
 
     def rounded(self, at: Scales) -> Scales: ...
     def name(self, at: Scales) -> str: ...
@@ -179,12 +182,12 @@ class _TermScales(Protocol):
 class _KernelScales:
     """A multi-scale kernel's (width L, decay length L) (:mod:`proxplan.physics.basis`)."""
 
-    ratios = (WIDTH_RATIO, DECAY_RATIO)
+    ratios: Scales = (WIDTH_RATIO, DECAY_RATIO)
 
     def __init__(self, neighbours: Callable[[], _Neighbours], kernel: BasisKernel, axis: str) -> None:
         self.neighbours, self.kernel, self.axis = neighbours, kernel, axis
-        self.grid = (kernel.width_L, kernel.decay_L)
-        self.identity = ("kernel", replace(kernel, width_L=0.0, decay_L=0.0), axis)
+        self.grid: Scales = (kernel.width_L, kernel.decay_L)
+        self.identity: object = ("kernel", replace(kernel, width_L=0.0, decay_L=0.0), axis)
 
     def rounded(self, at: Scales) -> Scales:
         """The scales as the feature's name holds them (three significant digits), in L."""
@@ -203,9 +206,9 @@ class _TimeScales:
     def __init__(self, sel: SelectionSet, parts: Callable[[], list[UnitPart]], source: str, kind: str,
                  seconds: float) -> None:  # fmt: skip
         self.sel, self.parts, self.source, self.kind = sel, parts, source, kind
-        self.grid = (seconds,)
-        self.ratios = (LAG_RATIO if kind == "lag" else LOWPASS_RATIO,)
-        self.identity = ("time", source, kind)
+        self.grid: Scales = (seconds,)
+        self.ratios: Scales = (LAG_RATIO if kind == "lag" else LOWPASS_RATIO,)
+        self.identity: object = ("time", source, kind)
 
     def rounded(self, at: Scales) -> Scales:
         """The seconds as the feature's name holds them (whole milliseconds, at least one), s."""
