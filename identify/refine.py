@@ -55,7 +55,7 @@ import numpy as np
 from proxplan.identify.crossval import HeldOutFit, Ridge, heldout_fit, trainable_groups
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.heldout_select import GainTest, gain_test
-from proxplan.identify.sampled import UnitPart, sampled_features, unit_parts
+from proxplan.identify.sampled import SampledSource, UnitPart, unit_parts
 from proxplan.physics import (
     BASIS_DECAYS_L,
     BASIS_WIDTHS_L,
@@ -206,6 +206,7 @@ class _TimeScales:
     def __init__(self, sel: SelectionSet, parts: Callable[[], list[UnitPart]], source: str, kind: str,
                  seconds: float) -> None:  # fmt: skip
         self.sel, self.parts, self.source, self.kind = sel, parts, source, kind
+        self._sampled: SampledSource | None = None
         self.grid: Scales = (seconds,)
         self.ratios: Scales = (LAG_RATIO if kind == "lag" else LOWPASS_RATIO,)
         self.identity: object = ("time", source, kind)
@@ -218,7 +219,9 @@ class _TimeScales:
         return time_name(self.source, self.kind, at[0])
 
     def values(self, at: Scales) -> np.ndarray:
-        return sampled_features(self.sel, [self.name(at)], self.parts())[:, 0]
+        if self._sampled is None:  # the source at full resolution once; each copy one filter
+            self._sampled = SampledSource(self.sel, self.parts(), self.source)
+        return self._sampled.copy(self.kind, at[0])
 
 
 def term_column(sel: SelectionSet, key: str, x: np.ndarray) -> np.ndarray:

@@ -16,9 +16,9 @@ import numpy as np
 
 from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import SelectionSet
-from proxplan.physics import EffectInputs, base_wrench_per_source, feature_matrix
+from proxplan.physics import EffectInputs, base_wrench_per_source, feature_matrix, lagged, lowpass
 
-__all__ = ["BASE_RATE_HZ", "UnitPart", "sampled_features", "unit_parts"]
+__all__ = ["BASE_RATE_HZ", "SampledSource", "UnitPart", "sampled_features", "unit_parts"]
 
 BASE_RATE_HZ = 20.0
 """Rate the sources' base wrench is evaluated at for the features, Hz, then interpolated to every sample:
@@ -86,3 +86,25 @@ def sampled_features(sel: SelectionSet, names: Sequence[str], parts: list[UnitPa
     for part in unit_parts(sel) if parts is None else parts:
         out[part.where] = feature_matrix(part.inputs, part.base, list(names))[part.at]
     return out
+
+
+class SampledSource:
+    """A feature of :data:`proxplan.physics.features.TIME_FEATURE_SOURCES` at full resolution on every unit part,
+    computed once, so its time copy at any delay or time constant costs one filter per unit: the same values as
+    :func:`sampled_features` of the copy's name (:func:`proxplan.physics.feature_matrix` filters the same source
+    column with the same :func:`proxplan.physics.lagged` / :func:`proxplan.physics.lowpass`)."""
+
+    def __init__(self, sel: SelectionSet, parts: list[UnitPart], source: str) -> None:
+        self.n, self.source = len(sel.rows), source
+        self.columns = [
+            (part, feature_matrix(part.inputs, part.base, [source])[:, 0],
+             None if part.inputs.time_s is None else np.asarray(part.inputs.time_s, dtype=float))
+            for part in parts if part.inputs.sources
+        ]  # fmt: skip
+
+    def copy(self, kind: str, seconds: float) -> np.ndarray:
+        """(N,) the feature ``time_name(source, kind, seconds)`` at the selection's samples."""
+        out = np.zeros(self.n)
+        for part, x, t in self.columns:
+            out[part.where] = (lagged(x, t, seconds) if kind == "lag" else lowpass(x, t, seconds))[part.at]
+        return out
