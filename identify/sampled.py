@@ -18,7 +18,7 @@ from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import SelectionSet
 from proxplan.physics import EffectInputs, base_wrench_per_source, feature_matrix, lagged, lowpass
 
-__all__ = ["BASE_RATE_HZ", "SampledSource", "UnitPart", "sampled_features", "unit_parts"]
+__all__ = ["BASE_RATE_HZ", "SampledSource", "UnitPart", "interpolated_base", "sampled_features", "unit_parts"]
 
 BASE_RATE_HZ = 20.0
 """Rate the sources' base wrench is evaluated at for the features, Hz, then interpolated to every sample:
