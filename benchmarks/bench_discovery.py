@@ -97,6 +97,7 @@ def _identify(manifest: Path) -> dict[str, Any]:
     return {"selected": list(r.selected), "per_vehicle_fz_N": per, "per_vehicle_torque_Nm": tq,
             "after_fz_N": r.after.rmse_fz_N, "before_fz_N": r.before.rmse_fz_N,
             "discovered": [d["channel"] + "*" + d["feature"] for d in r.discovered if d["selected"]],
+            "refined": [d["refined"] for d in r.discovered if d.get("refined")],
             "fallback": r.fallback}  # fmt: skip
 
 

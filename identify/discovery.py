@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -54,19 +54,17 @@ from sklearn.linear_model import orthogonal_mp_gram
 
 from proxplan.identify.consensus import PickTally, group_of, stands_for
 from proxplan.identify.crossval import GroupSums, solve, trainable_groups
-from proxplan.identify.data import unit_inputs
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_forward
-from proxplan.identify.refine import Refined, refine_kernel_terms, term_column
+from proxplan.identify.refine import Refined, refine_scaled_terms, term_column
+from proxplan.identify.sampled import sampled_features, unit_parts
 from proxplan.identify.stability import Stability, fold_eligibility, fold_half_samples, half_samples
 from proxplan.physics import (
     DISCOVERED_PREFIX,
     FEATURE_FAMILIES,
     FEATURE_NAMES,
-    base_wrench_per_source,
     feature_family,
     feature_group,
-    feature_matrix,
     is_wrench_feature,
     parse_term_key,
     term_formula,
@@ -115,13 +113,26 @@ class DiscoveryResult:
     fold_eligible: dict[str, np.ndarray] = field(default_factory=dict)
     # term key -> share of halves whose picks stand for it (a pick sharing more than half its variance)
     represented_probability: dict[str, float] = field(default_factory=dict)
-    # kept multi-scale kernel terms whose width and decay length were searched off the grid (identify.refine;
-    # the accepted ones stand in ``kept`` under their refined keys)
+    # kept terms whose scales were searched off the grid (a kernel's width and decay length, a time copy's delay or
+    # time constant; identify.refine; the accepted ones stand in ``kept`` under their refined keys)
     refined: list[Refined] = field(default_factory=list)
 
     def origin(self, key: str) -> str:
-        """The term key ``key`` was tested as: its grid term where it was refined, else itself."""
+        """The term key ``key`` was tested as: its grid term where it was refined (of merged siblings, the first
+        kept), else itself."""
         return next((r.origin for r in self.refined if r.key == key and r.accepted), key)
+
+    def replaced(self) -> set[str]:
+        """The grid terms an accepted refinement stands for."""
+        return {k for r in self.refined if r.accepted for k in r.replaces}
+
+    def refinements(self, key: str) -> tuple[Refined | None, Refined | None]:
+        """(the refinement reported for term ``key``: the accepted one it is, else the last search of it; the
+        search of its siblings as one term, where that was not accepted and is not the first)."""
+        of = [r for r in self.refined if key == r.key and r.accepted] or [r for r in self.refined if key in r.replaces]
+        shown = of[-1] if of else None
+        sibling = next((r for r in self.refined if r.merged and key in r.replaces and r is not shown), None)
+        return shown, sibling
 
     def report(self) -> list[dict[str, Any]]:
         """One JSON entry per term that was picked in any half-sample (strongest first, at most 12)."""
@@ -130,7 +141,7 @@ class DiscoveryResult:
         for tests in self.forward.tests:
             last.update(tests)
         last.update(self.forward.final_tests)
-        origins = {self.origin(k) for k in self.kept}
+        origins = {self.origin(k) for k in self.kept} | self.replaced()
         keys = list(self.kept) + [k for k, _ in self.top if k not in self.kept and k not in origins]
         for key in keys[:12]:
             channel, feature = parse_term_key(key)
@@ -139,67 +150,19 @@ class DiscoveryResult:
             selected = key in self.kept
             group = group_of(key)
             prob = self.member_probability.get(origin, 0.0)
-            refined = next((r.to_json() for r in self.refined if key in (r.key, r.origin)), None)
+            shown, sibling = self.refinements(key)
+            refined = None if shown is None else shown.to_json()
             out.append({
                 "name": DISCOVERED_NAME, "channel": channel, "feature": feature, "family": feature_family(feature),
                 "formula": term_formula({key: self.kept[key]}) if selected else "", "features": [feature],
                 "params": {key: self.kept[key]} if selected else {}, "inclusion_probability": prob,
                 "represented_probability": self.represented_probability.get(origin, 0.0), "refined": refined,
+                "sibling_merge": None if sibling is None else sibling.to_json(),
                 "group": group, "group_inclusion_probability": self.stability.probability.get(group, 0.0),
                 "stable": self.stability.stable(group), "heldout_gain": None if t is None else t.to_json(),
                 "selected": selected, "rmse_fz_N": None,
             })  # fmt: skip
         return out
-
-
-BASE_RATE_HZ = 20.0
-"""Rate the sources' base wrench is evaluated at for the features, Hz, then interpolated to every sample:
-it follows the vehicles' relative positions, whose motion has no content near 10 Hz (the Nyquist rate of
-20 Hz), while the model call is the costliest part of the features."""
-
-
-def _interpolated_base(inputs) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Each source's base wrench (:func:`proxplan.physics.base_wrench_per_source`) evaluated every k-th sample
-    (:data:`BASE_RATE_HZ`) and interpolated linearly in the sample index to every sample."""
-    n = inputs.n_samples
-    t = inputs.time_s
-    dt = float(np.median(np.diff(t))) if t is not None and n > 1 else 0.0
-    k = max(1, int(1.0 / (BASE_RATE_HZ * dt))) if dt > 0 else 1
-    if k == 1 or n < 4 * k:
-        return base_wrench_per_source(inputs)
-    idx = np.unique(np.concatenate([np.arange(0, n, k), [n - 1]]))
-    sub = replace(inputs, height_above_ground_m=np.asarray(inputs.height_above_ground_m)[idx],
-                  velocity_mps=np.asarray(inputs.velocity_mps)[idx],
-                  sources=tuple(replace(s, offsets_m=np.asarray(s.offsets_m)[idx],
-                                        velocity_mps=None if s.velocity_mps is None else np.asarray(s.velocity_mps)[idx])
-                                for s in inputs.sources),
-                  time_s=None if t is None else np.asarray(t)[idx],
-                  thrust_z_N=None if inputs.thrust_z_N is None else np.asarray(inputs.thrust_z_N)[idx],
-                  position_m=None if inputs.position_m is None else np.asarray(inputs.position_m)[idx])  # fmt: skip
-    full = np.arange(n)
-
-    def up(a: np.ndarray) -> np.ndarray:
-        return np.column_stack([np.interp(full, idx, a[:, j]) for j in range(a.shape[1])])
-
-    return [(up(f), up(tq)) for f, tq in base_wrench_per_source(sub)]
-
-
-def sampled_features(sel: SelectionSet, feature_idx: np.ndarray) -> np.ndarray:
-    """(N, F) features ``feature_idx`` of :data:`FEATURE_NAMES` at the selection's samples: computed on the
-    full-resolution source units (lags and low-passes need the clock) at the reference model, the sources'
-    base wrench at :data:`BASE_RATE_HZ`, then taken at the sampled rows."""
-    order = np.argsort(sel.rows, kind="stable")
-    rows_sorted = sel.rows[order]
-    out = np.zeros((len(sel.rows), len(feature_idx)))
-    start = 0
-    for u in sel.sources:
-        lo, hi = np.searchsorted(rows_sorted, [start, start + len(u)])
-        if hi > lo:
-            inputs = unit_inputs(u, sel.model)
-            x = feature_matrix(inputs, _interpolated_base(inputs), [FEATURE_NAMES[k] for k in feature_idx])
-            out[order[lo:hi]] = x[rows_sorted[lo:hi] - start]
-        start += len(u)
-    return out
 
 
 def _residualized(a: np.ndarray, y: np.ndarray, x: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -271,8 +234,9 @@ def discover_terms(
     ``always`` are the always-fitted columns (name -> (N, 4), noise units: tangents and kept effects);
     ``ridge_of(names)`` gives their priors over a column list (:func:`proxplan.identify.design.tangent_ridge`)."""
     feat_idx = np.array([k for k, f in enumerate(FEATURE_NAMES) if feature_family(f) in options.families])
-    x = sampled_features(sel, feat_idx)
     names = [FEATURE_NAMES[k] for k in feat_idx]
+    parts = unit_parts(sel)
+    x = sampled_features(sel, names, parts)
     y = sel.residual
     halves = half_samples(sel.plan, seed)
     folds = fold_half_samples(sel.plan, seed)  # the same search as if each train flight had been held out
@@ -317,12 +281,14 @@ def discover_terms(
         fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable], sel.plan, ridge, sel.tau,
                               max_terms=options.max_terms, hypothesis={k: group_of(k) for k in stable},
                               fold_eligible=fold)  # fmt: skip
-    refined = refine_kernel_terms(sel, {**always, **{k: columns[k] for k in fwd.chosen}}, list(fwd.chosen), ridge_of)
-    renamed = {r.origin: r.key for r in refined if r.accepted}
-    for r in (r for r in refined if r.accepted):  # the refined term stands where its grid term was tested
+    refined = refine_scaled_terms(sel, {**always, **{k: columns[k] for k in fwd.chosen}}, list(fwd.chosen), ridge_of,
+                                  parts)  # fmt: skip
+    renamed: dict[str, str] = {}
+    for r in (r for r in refined if r.accepted):  # the refined term stands where its grid term(s) were tested
         columns[r.key] = r.column
-        fold[r.key] = fold[r.origin]
-    chosen = [renamed.get(k, k) for k in fwd.chosen]
+        fold[r.key] = np.logical_or.reduce([fold[k] for k in r.replaces])
+        renamed.update({k: r.key for k in r.replaces})
+    chosen = list(dict.fromkeys(renamed.get(k, k) for k in fwd.chosen))  # merged siblings: one term
     if renamed:
         sums = sel.sums({**always, **{k: columns[k] for k in chosen}})
         ridge = ridge_of(sums.columns)

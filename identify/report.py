@@ -324,18 +324,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         for e in result.discovered:
             g = e["heldout_gain"]
             gain = "not tested" if g is None else f"{g['mean_gain']:+.3g} ({_fmt(g['t'], 3)}, > {g['z_required']:.2f})"
-            r = e.get("refined")
-            feature = e["feature"]
-            if r and r["accepted"]:
-                feature += (
-                    f" (scales refined from {r['from'].rsplit('*', 1)[1]}, t {_fmt(r['test']['t'], 3)} > "
-                    f"{r['test']['z_required']:.2f})"
-                )
-            elif r:
-                feature += (
-                    f" (scales searched, best {r['key'].rsplit('*', 1)[1]}: not better on flights held out, t "
-                    f"{_fmt(r['test']['t'], 3)}, needs > {r['test']['z_required']:.2f})"
-                )
+            feature = e["feature"] + refined_words(e.get("refined"), e.get("sibling_merge"))
             lines.append(f"| {e['channel']} | {feature} | {e['family']} | {e['inclusion_probability']:.0%} / "
                          f"{e['represented_probability']:.0%} / {e['group_inclusion_probability']:.0%} | {gain} | {'yes' if e['selected'] else 'no'} | "
                          f"{e['formula'] or '-'} |")  # fmt: skip
@@ -354,6 +343,42 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     lines += exclusion_lines(result.exclusions)
     lines += ["", "## Plots", ""] + [f"![{p.stem}]({p.name})" for p in plots]
     return "\n".join(lines) + "\n"
+
+
+def _feature_of(key: str) -> str:
+    return key.rsplit("*", 1)[1]
+
+
+def refined_words(r: dict | None, sibling: dict | None = None) -> str:
+    """What the refinement of a kept term's scales (proxplan.identify.refine) did, in words for its report row:
+    ``r`` the refinement reported for it, ``sibling`` the search of its kept siblings as one term where that was
+    refused (the JSON of :class:`proxplan.identify.refine.Refined`)."""
+    words = ""
+    if sibling is not None:
+        words += (
+            f" (kept beside its siblings: {' + '.join(_feature_of(k) for k in sibling['replaces'])} together "
+            f"better on flights held out than one term at {_feature_of(sibling['key'])}, t {_fmt(sibling['test']['t'], 3)} "
+            f"> {sibling['test']['z_required']:.2f})"
+        )
+    if r is None:
+        return words
+    t, z = _fmt(r["test"]["t"], 3), f"{r['test']['z_required']:.2f}"
+    replaces = r.get("replaces") or [r["from"]]
+    if r.get("merged") and r["accepted"]:
+        return words + (
+            f" (one term for {' + '.join(_feature_of(k) for k in replaces)}: the grid terms together not better on "
+            f"flights held out, t {t}, needs > {z})"
+        )
+    if r.get("merged"):
+        return words + (
+            f" (kept beside its siblings: {' + '.join(_feature_of(k) for k in replaces)} together better on flights "
+            f"held out than one term at {_feature_of(r['key'])}, t {t} > {z})"
+        )
+    if r["accepted"]:
+        return words + f" (scales refined from {_feature_of(r['from'])}, t {t} > {z})"
+    return words + (
+        f" (scales searched, best {_feature_of(r['key'])}: not better on flights held out, t {t}, needs > {z})"
+    )
 
 
 def write_report(result: IdentifyResult, out_dir: str | Path, *, manifest: str = "") -> Path:

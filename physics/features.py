@@ -46,7 +46,8 @@ Lagged and low-pass copies of EVERY relative-motion feature (:data:`TIME_FEATURE
 prediction and each kernel, with and without relative speeds) at the delays :data:`LAGS_S` and the time
 constants :data:`LOWPASS_TAUS_S`: a wake takes time to travel down and a rotor to spin up, so an
 effect of another vehicle may follow its cause late or smoothed. Named ``<stem>_lag<ms>ms_<unit>`` and
-``<stem>_lp<ms>ms_<unit>``.
+``<stem>_lp<ms>ms_<unit>`` (:func:`time_name`); a copy at any whole number of milliseconds off those grids is a
+feature too (:func:`parse_time_name`: discovery refines a kept copy's delay or time constant, issue 35).
 
 Place in the room (:data:`ROOM_FEATURES`): the target's absolute position (x, y, z and their squares,
 world frame, m; zero when ``EffectInputs.position_m`` is unknown) and, for the planes the manifest
@@ -64,6 +65,7 @@ derivative of the offsets when ``time_s`` is given; otherwise the source is take
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -224,16 +226,44 @@ TIME_FEATURE_SOURCES = (
 """Relative-motion features that get lagged and low-pass copies."""
 
 
-def _time_name(feature: str, kind: str, seconds: float) -> str:
+TIME_KINDS = {"lag": LAGS_S, "lp": LOWPASS_TAUS_S}
+"""The kinds of time copy (name marker -> its declared grid, s): ``lag`` a delay, ``lp`` a first-order low-pass's
+time constant. A copy at any whole number of milliseconds is a feature (:func:`parse_time_name`); the dictionary
+holds the grids."""
+
+_TIME_NAME = re.compile(r"^(?P<stem>.+)_(?P<kind>lag|lp)(?P<ms>[1-9][0-9]*)ms_(?P<unit>[^_]+)$")
+
+
+def time_name(feature: str, kind: str, seconds: float) -> str:
+    """The name of ``feature``'s time copy of ``kind`` (:data:`TIME_KINDS`) at ``seconds`` (s, held to whole
+    milliseconds): ``<stem>_<kind><ms>ms_<unit>``."""
     stem, unit = feature.rsplit("_", 1)
     return f"{stem}_{kind}{int(round(1000 * seconds))}ms_{unit}"
 
 
+def parse_time_name(name: str) -> tuple[str, str, float] | None:
+    """(source feature, kind ``"lag"`` or ``"lp"``, seconds) of a time copy named by :func:`time_name` of a
+    feature of :data:`TIME_FEATURE_SOURCES` at any positive whole number of milliseconds (on the declared grids or
+    off them); None for any other name."""
+    m = _TIME_NAME.match(name)
+    if m is None:
+        return None
+    source = f"{m['stem']}_{m['unit']}"
+    if source not in TIME_FEATURE_SOURCES:
+        return None
+    return source, m["kind"], int(m["ms"]) / 1000.0
+
+
+def _time_doc(source: str, kind: str, seconds: float) -> str:
+    if kind == "lag":
+        return f"{source} delayed by {seconds:g} s"
+    return f"{source} through a first-order low-pass, tau {seconds:g} s"
+
+
 for _f in TIME_FEATURE_SOURCES:
-    for _lag in LAGS_S:
-        FEATURE_DOCS[_time_name(_f, "lag", _lag)] = f"{_f} delayed by {_lag:g} s"
-    for _tau in LOWPASS_TAUS_S:
-        FEATURE_DOCS[_time_name(_f, "lp", _tau)] = f"{_f} through a first-order low-pass, tau {_tau:g} s"
+    for _kind, _grid in TIME_KINDS.items():
+        for _s in _grid:
+            FEATURE_DOCS[time_name(_f, _kind, _s)] = _time_doc(_f, _kind, _s)
 ROOM_FEATURES = {
     "pos_x_m": "target's x position, world frame",
     "pos_y_m": "target's y position, world frame",
@@ -249,15 +279,19 @@ FEATURE_NAMES = tuple(FEATURE_DOCS)
 
 
 def is_feature(name: str) -> bool:
-    """Whether ``name`` is a feature :func:`feature_matrix` computes: one of :data:`FEATURE_NAMES`, or a
-    multi-scale kernel at a scale off the declared grid (:func:`proxplan.physics.basis.parse_basis_name`)."""
-    return name in FEATURE_DOCS or parse_basis_name(name) is not None
+    """Whether ``name`` is a feature :func:`feature_matrix` computes: one of :data:`FEATURE_NAMES`, a
+    multi-scale kernel at a scale off the declared grid (:func:`proxplan.physics.basis.parse_basis_name`), or a
+    time copy at a delay or time constant off its grid (:func:`parse_time_name`)."""
+    return name in FEATURE_DOCS or parse_basis_name(name) is not None or parse_time_name(name) is not None
 
 
 def feature_doc(name: str) -> str:
     """One line saying what feature ``name`` (:func:`is_feature`) is."""
     if name in FEATURE_DOCS:
         return FEATURE_DOCS[name]
+    timed = parse_time_name(name)
+    if timed is not None:
+        return _time_doc(*timed)
     parsed = parse_basis_name(name)
     if parsed is None:
         raise ValueError(f"feature {name!r}: not a feature of proxplan.physics.features.FEATURE_NAMES")
@@ -416,7 +450,7 @@ def feature_matrix(
     for name in dict.fromkeys(wanted):
         parsed = parse_basis_name(name)
         if parsed is None:
-            if name not in FEATURE_DOCS:
+            if not is_feature(name):
                 raise ValueError(f"feature {name!r}: not a feature of proxplan.physics.features.FEATURE_NAMES")
             continue
         kernels_wanted[parsed[0]] = (*kernels_wanted.get(parsed[0], ()), parsed[1])
@@ -497,15 +531,12 @@ def feature_matrix(
             f["above_stack_1"] += kernels[i] * kernels[j]
     f["base_fz_lag_N"] = lagged(f["base_fz_N"], t)
     f["base_fz_lowpass_N"] = lowpass(f["base_fz_N"], t)
-    asked = set(wanted)
-    for name in TIME_FEATURE_SOURCES:
-        if inputs.sources:
-            for lag in LAGS_S:
-                if _time_name(name, "lag", lag) in asked:
-                    f[_time_name(name, "lag", lag)] = lagged(f[name], t, lag)
-            for tau in LOWPASS_TAUS_S:
-                if _time_name(name, "lp", tau) in asked:
-                    f[_time_name(name, "lp", tau)] = lowpass(f[name], t, tau)
+    if inputs.sources:  # the time copies asked for, on their grids or off them (zero without a source)
+        for name in dict.fromkeys(wanted):
+            timed = parse_time_name(name)
+            if timed is not None:
+                source, kind, seconds = timed
+                f[name] = lagged(f[source], t, seconds) if kind == "lag" else lowpass(f[source], t, seconds)
     pos = inputs.position_m
     if pos is not None:
         pos = np.asarray(pos, dtype=float).reshape(-1, 3)
