@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 from why_128_common import _passes_recorder, _print_pass
+from why_raised import level_problem
 
 # head-on: headings more than this far apart (deg); collinear: both ends within this of the line (m)
 HEAD_ON_DEG = 150.0
@@ -44,33 +45,20 @@ def level_alone(args) -> int:
 
     import proxplan.planner.swarm.plan as swarm_plan
     import proxplan.planner.swarm.priority as priority
-    from proxplan.planfile.scenario_load import scenario_from_dict
-    from proxplan.planner.formations import LAYOUTS
-    from proxplan.planner.swarm import SwarmOptions, swarm_problem
-    from proxplan.planner.swarm.frozen import unfrozen_problem
+    from proxplan.planner.swarm import SwarmOptions
     from proxplan.planner.swarm.lanes import lanes_stage
-    from proxplan.planner.swarm.levels import stack_levels
     from proxplan.planner.swarm.prioritised_stage import horizon_steps, prioritised_stage
-    from proxplan.planner.swarm.stacked import level_subproblem, levelled_endpoints
+    from proxplan.planner.swarm.stacked import alone_steps
     from proxplan.planner.swarm.tracks import GRID_DT_S
-    from proxplan.planner.timing.profile import rest_to_rest
 
-    scenario = scenario_from_dict(LAYOUTS[args.layout](args.n))
-    opts = SwarmOptions(workers=1, reserve_starts=True)
-    problem, _, _ = unfrozen_problem(swarm_problem(scenario))
-    levels = stack_levels(problem, swarm_plan._stacking(scenario, problem)())
-    if levels is None:
+    got_level = level_problem(args.layout, args.n, args.level)
+    if got_level is None:
         print(f"{args.layout}-{args.n}: no stack of levels fits the free box")
         return 0
-    lev_s, lev_g = levelled_endpoints(problem, levels)
-    on_levels = replace(problem, starts_m=lev_s, goals_m=lev_g)
-    group, z = levels.groups[args.level], levels.heights_m[args.level]
-    agents = [a for a in range(problem.n_agents) if int(problem.type_index[a]) in group]
-    sub = level_subproblem(on_levels, agents, levels.band_m(args.level))
-    bound = max(
-        rest_to_rest(float(np.linalg.norm(sub.goals_m[a] - sub.starts_m[a])), sub.limits[a], GRID_DT_S).duration_s
-        for a in range(sub.n_agents)
-    )
+    sub, levels = got_level
+    z = levels.heights_m[args.level]
+    opts = SwarmOptions(workers=1, reserve_starts=True)
+    bound = alone_steps(sub) * GRID_DT_S
     changes = json.loads(args.level_options)
     changes = {k: tuple(v) if isinstance(v, list) else v for k, v in changes.items()}
     level_opts = replace(swarm_plan._level_options(opts), **changes)

@@ -54,7 +54,15 @@ class SwarmOptions:
     # on a level of the stacked plan (swarm.raised.a_level) every vehicle of a pass also along its routes
     # raised over the others (swarm.raised; round 29A): corridor-64's Crazyflie level alone 21.12 -> 14.12 s,
     # pillar-64's 10.60 -> 9.25 s. Not on the whole swarm: corridor-64 then ran past 400 s (95 s CPU)
+    # (round 30A: planned as a second arm beside the flat passes, the shorter kept, ties the flat arm's:
+    # prioritised_stage.prioritised_stage)
     raised_routes: bool = True
+    # the raised arm's single-vehicle plannings over all its passes, per vehicle of the level (rounded up;
+    # a pass that cannot plan its queued vehicles within what is left gives up at once). Set watching the
+    # levels of corridor and pillar at 64 and 128 (round 30A, benchmarks/why_raised.py): their raised
+    # passes that found a plan made 1.01-1.21 plannings per vehicle; corridor-128's, which gives up, 391
+    # plannings for 86 vehicles at ~0.5 s of CPU each
+    raised_plannings_per_vehicle: float = 1.5
     # a vehicle not planned yet holds its start until it is planned (swarm.reserve), instead of the
     # prediction above; the hold then applies to the starts released for a vehicle in their way. None: on
     # with fixed goals, off where the goals were assigned (assign_goals: by_type, decided by

@@ -13,6 +13,7 @@ import math
 import os
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -28,7 +29,7 @@ from proxplan.planner.swarm.priority import (
     prioritized_tracks,
 )
 from proxplan.planner.swarm.problem import SwarmProblem
-from proxplan.planner.swarm.raised import a_level
+from proxplan.planner.swarm.raised import RAISE_DZ_M, a_level
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.straight import kept_straight_lines
 from proxplan.planner.swarm.tracks import GRID_DT_S
@@ -49,6 +50,7 @@ __all__ = [
     "longest_first",
     "prioritised_budget",
     "prioritised_stage",
+    "raised_arm",
 ]
 
 
@@ -143,9 +145,76 @@ def prioritised_stage(
     same, so the same passes run after it and the plan is the same (``counts["planned"]`` counts
     the plannings made; ``counts["charged"]`` those charged). ``only``: the one (order label, hold)
     to run; ``budget``: the plannings of the whole stage (default ``opts.plannings_per_vehicle`` per
-    vehicle)."""
-    horizon = horizon_steps(lower_bound_s)
+    vehicle).
+
+    On a top or bottom level of the stacked plan with room above its vehicles (:func:`raised_arm`), these
+    passes are planned flat (the *flat arm*), then again with routes raised over the others
+    (:mod:`~proxplan.planner.swarm.raised`; the *raised arm*, ``opts.raised_routes``), within
+    ``opts.raised_plannings_per_vehicle`` plannings per vehicle, unless the flat arm's plan already
+    arrives at ``lower_bound_s`` (nothing is earlier); the shorter plan of the two kept, ties the flat
+    arm's: never longer than the flat arm (round 30A: a greedy earlier arrival per vehicle made family
+    random-0's level longer)."""
     t1 = time.perf_counter()
+    flat = _passes(problem, lower_bound_s, opts, progress, deadline, heights, only, budget, raised=False)
+    best, tried, counts = flat
+    if raised_arm(problem, opts):
+        bound_steps = int(round(lower_bound_s / GRID_DT_S))
+        if best is not None and _makespan_steps(best) <= bound_steps:
+            tried.append("routes raised: not tried (the flat plan arrives at the bound)")
+        else:
+            raised_budget = math.ceil(opts.raised_plannings_per_vehicle * problem.n_agents)
+            if budget is not None:
+                raised_budget = min(raised_budget, budget)
+            up, up_tried, up_counts = _passes(
+                problem, lower_bound_s, opts, progress, deadline, heights, only, raised_budget, raised=True
+            )
+            tried.extend(f"routes raised, {t}" for t in up_tried)
+            for key in ("planned", "repairs", "against_order", "charged"):
+                counts[key] += up_counts[key]
+            counts["raised_planned"] = up_counts["planned"]
+            if up is not None and (best is None or _makespan_steps(up) < _makespan_steps(best)):
+                best = replace(
+                    up,
+                    coordination=up.coordination.replace(
+                        "prioritised continuous planning", "prioritised continuous planning, routes raised", 1
+                    ),
+                )
+    extra["prioritised"] = "; ".join(tried)
+    extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
+    extra["counts"] = counts
+    return best
+
+
+def _makespan_steps(stage: Stage) -> int:
+    return max(tr.arrival_step for tr in stage.tracks)
+
+
+def raised_arm(problem: SwarmProblem, opts: SwarmOptions) -> bool:
+    """Whether :func:`prioritised_stage` plans ``problem`` a second time with routes raised: ``opts.raised_routes``,
+    a top or bottom level of the stacked plan (:func:`~proxplan.planner.swarm.raised.a_level`) and room
+    above its vehicles for the least raise (:data:`~proxplan.planner.swarm.raised.RAISE_DZ_M`; a bottom
+    level's vehicles sit at its band's top: no raised route there, round 30A)."""
+    if not (opts.raised_routes and a_level(problem)):
+        return False
+    top = max(float(problem.starts_m[:, 2].max()), float(problem.goals_m[:, 2].max()))
+    return top + min(RAISE_DZ_M) <= float(problem.hi_m[2])
+
+
+def _passes(
+    problem: SwarmProblem,
+    lower_bound_s: float,
+    opts: SwarmOptions,
+    progress,
+    deadline,
+    heights: bool,
+    only: tuple[str, float] | None,
+    budget: int | None,
+    *,
+    raised: bool,
+) -> tuple[Stage | None, list[str], dict]:
+    """The passes of :func:`prioritised_stage` (see there), routes raised or not: (the shortest plan or
+    None, what each pass did, the counts)."""
+    horizon = horizon_steps(lower_bound_s)
     groups = interaction_groups(problem)
     workers = opts.workers if opts.workers > 0 else (os.cpu_count() or 1)
     tried = []
@@ -190,7 +259,7 @@ def prioritised_stage(
                 # a failing group would have spent past its share is not known)
                 give_up_early=len(groups) == 1,
                 max_in_collision=in_collision_cap(max(len(g) for g in groups)),
-                raised=opts.raised_routes and a_level(problem),
+                raised=raised,
             )
             try:
                 result = plan_groups(
@@ -232,8 +301,5 @@ def prioritised_stage(
                     pass_key=(label, hold_s),
                 )
             break  # a longer hold only where this one found nothing
-    extra["prioritised"] = "; ".join(tried)
-    extra["prioritised_time_s"] = round(time.perf_counter() - t1, 3)
     counts["charged"] = charged
-    extra["counts"] = counts
-    return best
+    return best, tried, counts

@@ -38,6 +38,7 @@ from proxplan.planner.timing.profile import rest_to_rest
 
 __all__ = [
     "StackedBound",
+    "alone_steps",
     "StackedPlan",
     "level_subproblem",
     "stacked_bound",
@@ -145,6 +146,17 @@ class StackedBound:
         return self.down_steps + max(self.alone_steps, planned_steps) + self.up_steps
 
 
+def alone_steps(problem: SwarmProblem) -> int:
+    """The latest of ``problem``'s vehicles' time-optimal rest-to-rest flights straight from start to goal,
+    in grid steps (``GRID_DT_S``): no plan of ``problem`` ends earlier (a level's bound, :class:`StackedBound`)."""
+    return max(
+        rest_to_rest(
+            float(np.linalg.norm(problem.goals_m[a] - problem.starts_m[a])), problem.limits[a], GRID_DT_S
+        ).steps
+        for a in range(problem.n_agents)
+    )
+
+
 def stacked_bound(problem: SwarmProblem, levels: Levels) -> StackedBound | None:
     """The :class:`StackedBound` of every stacked plan of ``problem`` on ``levels`` (:func:`stacked_tracks`,
     whatever its levels' plans), or None where it makes none (no vertical steps). The vertical phases are
@@ -155,10 +167,7 @@ def stacked_bound(problem: SwarmProblem, levels: Levels) -> StackedBound | None:
         return None
     _, _, _, down_tracks, up_tracks = vertical
     lev_s, lev_g = levelled_endpoints(problem, levels)
-    alone = max(
-        rest_to_rest(float(np.linalg.norm(lev_g[a] - lev_s[a])), problem.limits[a], GRID_DT_S).steps
-        for a in range(problem.n_agents)
-    )
+    alone = alone_steps(replace(problem, starts_m=lev_s, goals_m=lev_g))
     return StackedBound(
         down_steps=max(tr.arrival_step for tr in down_tracks),
         alone_steps=alone,

@@ -232,8 +232,17 @@ class VerifyGuard:
     _paths: dict[int, tuple[GridTrack, TimedPath]] = field(default_factory=dict, repr=False)
 
     def __call__(self, by_agent: Mapping[int, GridTrack]) -> bool:
+        """Whether the tracks of ``by_agent`` pass the whole verifier: every agent's, or, with agents
+        left out (not flying, as in :meth:`around`: the members of a neighbourhood of the makespan
+        repair not planned again yet), those in place on the scenario without the others (round 32A:
+        :meth:`around`'s answer to a change that moves nothing, asked in such a neighbourhood, looked
+        up the agents left out and raised a KeyError)."""
         self.whole += 1
-        ok = _passes(self.scenario, self._timed(by_agent))
+        names = [self.problem.names[a] for a in sorted(by_agent)]
+        scenario = self.scenario
+        if len(names) < self.problem.n_agents:
+            scenario = replace(scenario, vehicles={n: scenario.vehicles[n] for n in names})
+        ok = _passes(scenario, self._timed(by_agent))
         self.whole_failed += not ok
         return ok
 
@@ -250,7 +259,8 @@ class VerifyGuard:
         own sums are not whole in the sub-plan, so they are checked with no deflection, which only
         lowers what they use). With
         unfreeze steps (which shift every path) it passes everything to the whole plan's check; a change
-        that moves no track by more than :data:`MOVED_M` is judged by the whole plan's check."""
+        that moves no track by more than :data:`MOVED_M` is judged by the whole plan's check of the
+        tracks in ``by_agent`` (:meth:`__call__`)."""
         from proxplan.planner.timing.plan_grid import assemble_plan
         from proxplan.verify import (
             check_authority,
@@ -266,7 +276,7 @@ class VerifyGuard:
         targets, sources, differs = near_agents(by_agent, old, NEAR_REACHES * self.problem.reach_xy_m)
         if not differs.any():
             # no changed track moves by more than MOVED_M: no step bounds a sub-plan, and the change is
-            # judged as any other, on the whole plan
+            # judged on the whole plan of the tracks in place (agents left out are not flying)
             return self(by_agent)
         self.local += 1
         keep = sorted(set(old) | targets | sources)
@@ -324,8 +334,11 @@ class VerifyGuard:
         return got[1]
 
     def _timed(self, by_agent: Mapping[int, GridTrack]) -> dict[str, TimedPath]:
-        """Every vehicle's timed path as the pipeline will verify it (each track's path built once)."""
-        timed = {self.problem.names[a]: self._path(a, by_agent[a]) for a in range(self.problem.n_agents)}
+        """The timed path of every vehicle of ``by_agent`` as the pipeline will verify it (each track's path
+        built once); with unfreeze steps (which shift every path) ``by_agent`` must hold every agent."""
+        timed = {self.problem.names[a]: self._path(a, by_agent[a]) for a in sorted(by_agent)}
         if self.unfreezes:
+            if len(timed) < self.problem.n_agents:
+                raise ValueError("the unfreeze steps are applied to the whole plan only")
             timed, _ = apply_unfreezes(timed, self.original, self.unfreezes, GRID_DT_S)
         return timed
