@@ -2,7 +2,8 @@
 
 Fixtures: ``proxplan`` runs the command line in a fresh process (exit code, stdout, stderr);
 ``battery_swap_plan`` is the shipped battery swap planned once per session (sampling method, seed 0,
-in a fresh process); ``write_yaml`` writes a mapping as a YAML file.
+in a fresh process; ``battery_swap_planned`` the same run with its finished process); ``shipped_plans`` every
+shipped scenario planned so, once per session; ``write_yaml`` writes a mapping as a YAML file.
 """
 
 from __future__ import annotations
@@ -36,12 +37,36 @@ def proxplan() -> Callable[..., subprocess.CompletedProcess]:
 
 
 @pytest.fixture(scope="session")
-def battery_swap_plan(tmp_path_factory) -> Path:
-    """Folder holding plan.json of the shipped battery swap (sampling, seed 0)."""
+def battery_swap_planned(tmp_path_factory) -> tuple[Path, subprocess.CompletedProcess]:
+    """``proxplan plan scenarios/battery_swap.yaml --method sampling --json`` (seed 0, with plots) run once
+    in a fresh process: (the --out folder, the finished process with its JSON report on stdout)."""
     out = tmp_path_factory.mktemp("battery_swap_plan")
     res = run_proxplan("plan", SCENARIOS / "battery_swap.yaml", "--out", out, "--method", "sampling", "--json")
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout)["verify"]["passed"]
+    return out, res
+
+
+@pytest.fixture(scope="session")
+def battery_swap_plan(battery_swap_planned) -> Path:
+    """Folder holding plan.json of the shipped battery swap (sampling, seed 0)."""
+    return battery_swap_planned[0]
+
+
+@pytest.fixture(scope="session")
+def shipped_plans(tmp_path_factory, battery_swap_plan: Path) -> dict[str, Path]:
+    """Every shipped scenario planned once per session by ``proxplan plan --method sampling --json`` (seed 0,
+    a fresh process each; the battery swap is ``battery_swap_plan``, the others with --no-plot): scenario
+    stem -> the --out folder holding plan.json. Read-only: tests write their own copies."""
+    out = {}
+    for path in sorted(SCENARIOS.glob("*.yaml")):
+        if path.stem == "battery_swap":
+            out[path.stem] = battery_swap_plan
+            continue
+        folder = tmp_path_factory.mktemp(f"shipped_{path.stem}")
+        res = run_proxplan("plan", path, "--out", folder, "--method", "sampling", "--no-plot", "--json")
+        assert res.returncode == 0, res.stderr
+        out[path.stem] = folder
     return out
 
 

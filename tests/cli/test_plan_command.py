@@ -26,11 +26,10 @@ def _run(*args, timeout=180):
 
 
 @pytest.fixture(scope="module")
-def battery_plan(tmp_path_factory):
-    out = tmp_path_factory.mktemp("bs")
-    res = _run("plan", ROOT / "scenarios" / "battery_swap.yaml", "--out", out, "--method", "sampling", "--json")
-    assert res.returncode == 0, res.stderr
-    return out, res
+def battery_plan(battery_swap_planned):
+    """``proxplan plan scenarios/battery_swap.yaml --out OUT --method sampling --json`` in a fresh process: the
+    session's run (tests/conftest.py, the same command; read-only here): (OUT, the finished process)."""
+    return battery_swap_planned
 
 
 def test_plan_writes_design_files_and_one_json_object(battery_plan):

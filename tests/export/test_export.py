@@ -43,19 +43,14 @@ TIGHT_M = 0.001  # tolerance of the wiggly plan tests, m
 
 
 @pytest.fixture(scope="module")
-def exported(tmp_path_factory, battery_swap_plan: Path) -> dict[str, tuple[Plan, Path]]:
-    """Every shipped scenario planned (sampling, seed 0, fresh process) and exported. The battery swap is the
-    session's ``battery_swap_plan`` (tests/conftest.py: the same command in a fresh process, with plots)."""
+def exported(tmp_path_factory, shipped_plans: dict[str, Path]) -> dict[str, tuple[Plan, Path]]:
+    """Every shipped scenario planned (sampling, seed 0, fresh process) and exported. The plans are the
+    session's ``shipped_plans`` (tests/conftest.py: the same command, once per session; the planner's
+    tests/planner/test_scenarios_shipped.py verifies the same plans)."""
     out = {}
     for name in SHIPPED:
         folder = tmp_path_factory.mktemp(name)
-        if name == "battery_swap":
-            plan = read_plan(battery_swap_plan)
-        else:
-            res = run_proxplan("plan", SCENARIOS / f"{name}.yaml", "--out", folder / "plan", "--method", "sampling",
-                               "--no-plot", "--json")  # fmt: skip
-            assert res.returncode == 0, res.stderr
-            plan = read_plan(folder / "plan")
+        plan = read_plan(shipped_plans[name])
         export_crazyflie(plan, scenario_of_plan(plan), folder / "cf")
         out[name] = (plan, folder / "cf")
     return out

@@ -234,8 +234,22 @@ def thrust_quadratic_run(tmp_path_factory: pytest.TempPathFactory):
     return _simulator_run(tmp_path_factory.mktemp("thrust_quadratic"), "thrust_quadratic")
 
 
+SIMULATOR_SLOW = ("near_field",)
+"""Hidden effects whose simulator run is marked slow (round 32S): near_field's is a non-strict xfail (issue 35 open,
+above), which no outcome of fails, so the default run spent ~1 min on it to gate nothing. near_field found in
+logs stays covered by default tests: test_every_trial_says_why_with_its_held_out_gain_and_inclusion (kept, with
+its held-out gain and inclusion) and tests/identify/test_delays.py::test_a_late_library_effect_is_found_with_its_delay
+(kept with its delay and strength); identify on simulator logs by this test's other effects."""
+
+
 @pytest.mark.parametrize(
-    "hidden", [pytest.param(h, marks=SIMULATOR_OPEN[h]) if h in SIMULATOR_OPEN else h for h in HIDDEN]
+    "hidden",
+    [
+        pytest.param(h, marks=[SIMULATOR_OPEN[h], *([pytest.mark.slow] if h in SIMULATOR_SLOW else [])])
+        if h in SIMULATOR_OPEN
+        else h
+        for h in HIDDEN
+    ],
 )
 def test_simulator_logs_hidden_effect(request: pytest.FixtureRequest, tmp_path: Path, hidden: str) -> None:
     """The hidden effect is found, and no library effect the data do not hold is kept beside it (issue
