@@ -28,13 +28,14 @@ from proxplan.fanout.engine import connect, future_result
 
 _CONNECT_TIMEOUT_S = 10.0
 """Seconds a local cluster may take to start its workers (as :func:`proxplan.fanout.fan_out`'s default)."""
-WORKER_ENVIRON = {"MALLOC_TRIM_THRESHOLD_": 1 << 30}
-"""Added to the workers' environment: glibc gives freed memory back to the system only above 1 GiB. Dask
-starts workers with 64 KiB (``distributed.nanny.pre-spawn-environ``), so numpy's large temporaries are
-returned and faulted in again on every allocation: the identify pipeline's selection ran about twice as
-slow in a worker as in the caller, with 42 s of system CPU, and 1.5x with 1 GiB (docs/identify.md, "Speed",
-stop 63). The caller's process runs with glibc's own adaptive threshold; this matches it for stages
-that live one pipeline long."""
+WORKER_ENVIRON: dict[str, Any] = {"MALLOC_TRIM_THRESHOLD_": None}
+"""Changes to the environment Dask starts workers with: glibc's malloc left at its own defaults, as in the
+caller's process. Dask sets ``MALLOC_TRIM_THRESHOLD_=65536`` (``distributed.nanny.pre-spawn-environ``), and
+setting it at all also fixes glibc's mmap threshold at 128 KiB (no longer adaptive), so every numpy array
+above it is mapped and unmapped, its pages faulted in anew. Measured on ``proxplan identify
+manifests/neural-swarm.yaml``, quiet, stop 70: with the threshold set to 1 GiB (this module's first try) the
+selection around the prior model took 128-130 s in a worker (38 s of system CPU in the run) against 77 s in
+the caller; with Dask's 64 KiB, about twice its serial time (stop 63, docs/identify.md "Speed")."""
 
 
 def _timed(fn: Callable[..., Any], args: tuple, kwargs: dict) -> tuple[Any, float]:

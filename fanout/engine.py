@@ -42,14 +42,16 @@ def connect(
     scheduler: str | None, n_workers: int | None, connect_timeout_s: float, *, environ: dict[str, Any] | None = None
 ):
     """A client of ``scheduler``, or of a new local cluster of ``n_workers`` single-threaded worker processes
-    (default one per core) with ``environ`` added to the environment they are started with (Dask's
-    ``distributed.nanny.pre-spawn-environ``); returns (client, the local cluster or None)."""
+    (default one per core) with ``environ`` changing the environment variables Dask starts them with
+    (``distributed.nanny.pre-spawn-environ``; a value None removes that variable: the worker inherits the
+    caller's); returns (client, the local cluster or None)."""
     import dask
     from distributed import Client, LocalCluster
 
     if scheduler is None:
         n = n_workers or os.cpu_count() or 1
         spawn = dict(dask.config.get("distributed.nanny.pre-spawn-environ")) | dict(environ or {})
+        spawn = {k: v for k, v in spawn.items() if v is not None}
         with dask.config.set({"distributed.nanny.pre-spawn-environ": spawn}):
             cluster = LocalCluster(
                 n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
