@@ -84,6 +84,12 @@ from proxplan.physics import (
 # ------------------------------------------------------------------------------ pipeline
 
 
+PARALLEL_STAGES = 2
+"""Stages of :func:`run_identify` that can run at once, -: the pipeline has two independent branches at
+most (the motor-lag check beside the calibration, then the two starts of the selection), so a worker
+beyond one process beside the caller would idle."""
+
+
 @dataclass(frozen=True)
 class IdentifyResult:
     before: Errors
@@ -276,12 +282,6 @@ def run_identify(
         manifest = load_manifest(manifest)
     with background(min(options.workers, PARALLEL_STAGES) - 1) as side:
         return _run(manifest, options, side, thrust_summary)
-
-
-PARALLEL_STAGES = 2
-"""Stages of :func:`run_identify` that can run at once, -: the pipeline has two independent branches at
-most (the motor-lag check beside the calibration, then the two starts of the selection), so a worker
-beyond one process beside the caller would idle."""
 
 
 def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_summary: bool) -> IdentifyResult:
