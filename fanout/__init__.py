@@ -5,7 +5,7 @@ leaves the calling process; certification, swarm planning and cost maps for many
 each other with :func:`background`.
 """
 
-from proxplan.fanout.background import Background, Task, background
+from proxplan.fanout.background import Background, Shared, Task, background
 from proxplan.fanout.engine import FanoutResult, fan_out
 
-__all__ = ["Background", "FanoutResult", "Task", "background", "fan_out"]
+__all__ = ["Background", "FanoutResult", "Shared", "Task", "background", "fan_out"]
