@@ -122,7 +122,8 @@ def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | 
         coef = coef / scale
         if coef[0] <= 0.0:  # the floor must stay positive: at least the smallest spread seen away from jets
             coef[0] = max(float(np.average(within**2, weights=w)) * 1e-6, 1e-18)
-        spread = TypeSpread(*(float(v) for v in np.sqrt(coef)), flight_N=flight_N)
+        c = [float(v) for v in np.sqrt(coef)]
+        spread = TypeSpread(c[0], c[1], c[2], c[3], c[4], c[5], flight_N=flight_N)
         by_type[vtype] = spread
         place = np.sqrt(np.maximum(x @ spread.coefficients(), 0.0))
         parts.append((within, place, np.full(len(r), flight_N), np.full(len(r), float(len(offsets))), w,
