@@ -106,6 +106,8 @@ def new_flight_quantile(
                      np.abs(within) <= half)  # fmt: skip
         return float(np.sum(w * p))
 
+    if cover(0.0) >= level:  # residuals that are zero (exactly) at the level asked: no width needed
+        return 0.0
     lo, hi = 0.0, 1.0
     while cover(hi) < level and hi < 1e6:
         lo, hi = hi, 2.0 * hi
