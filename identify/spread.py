@@ -4,10 +4,11 @@ and the residual split into slow and fast parts.
 * :func:`fit_spread` fits :class:`proxplan.physics.ResidualSpread` on HELD-OUT residuals: each sample of
   the selection (:mod:`proxplan.identify.selection`) predicted by the joint fit that left its flight out
   (validation flights: the fit on every train flight). Per vehicle type, non-negative least squares of the
-  squared residual on the regressors of :func:`proxplan.physics.residual_spread.spread_features` (weighted
-  like the fits), then the 90 % quantile of the standardised residual |r| / sigma on the same samples. An
-  in-sample residual is smaller than a new flight's (the fit saw it): an interval set on it covers less than
-  it says on the test flights.
+  squared residual less its log's mean on the regressors of
+  :func:`proxplan.physics.residual_spread.spread_features` (weighted like the fits), the spread of the logs'
+  means (``flight_N``, :mod:`proxplan.identify.per_flight`), then the 90 % quantile of a new flight's
+  standardised residual (:func:`fit_spread`). An in-sample residual is smaller than a new flight's (the fit
+  saw it): an interval set on it covers less than it says on the test flights.
 * :func:`band_errors` splits a residual at :data:`BAND_HZ` with a zero-phase Butterworth low-pass
   (``scipy.signal.sosfiltfilt``, order :data:`BAND_ORDER`) on each contiguous stretch: the RMSE below and
   above 1 Hz beside the whole (a quasi-steady model of the mean jet cannot follow the fast part).
@@ -15,7 +16,8 @@ and the residual split into slow and fast parts.
 * :class:`BandAccumulator` also keeps the part of the residual that is one constant per vehicle log (its mean
   over the flight): no quasi-steady model of the air predicts it (a thrust map off at that battery's voltage,
   a battery of another mass), and with few flights per set it sets how far that set's coverage strays from
-  90 % (the shipped flights' figures: docs/identify.md, "What the model cannot predict").
+  90 % (the shipped flights' figures: docs/identify.md, "What the model cannot predict"); so the coverage is
+  reported with its interval over flights (:func:`proxplan.identify.per_flight.coverage_interval`).
 """
 
 from __future__ import annotations
