@@ -304,7 +304,7 @@ def evaluate_model(
         slow = slow_part(dfz, u.t_s)
         half = interval_half_width_N(u, m, spread, pred) if spread is not None else None
         for acc_b in (bands["all"], bands.setdefault(set_of[u.flight], BandAccumulator())):
-            acc_b.add(dfz, slow, half)
+            acc_b.add(dfz, slow, half, u.flight)
         fz0, tq0 = u.force_N[:, 2], np.linalg.norm(u.torque_Nm, axis=1)
         for acc in (overall, flights.setdefault(u.flight, _Acc()), per_vehicle.setdefault(u.name, _Acc())):
             acc.add(dfz, dtq, fz0, tq0)

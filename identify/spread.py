@@ -4,10 +4,11 @@ and the residual split into slow and fast parts.
 * :func:`fit_spread` fits :class:`proxplan.physics.ResidualSpread` on HELD-OUT residuals: each sample of
   the selection (:mod:`proxplan.identify.selection`) predicted by the joint fit that left its flight out
   (validation flights: the fit on every train flight). Per vehicle type, non-negative least squares of the
-  squared residual on the regressors of :func:`proxplan.physics.residual_spread.spread_features` (weighted
-  like the fits), then the 90 % quantile of the standardised residual |r| / sigma on the same samples. An
-  in-sample residual is smaller than a new flight's (the fit saw it): an interval set on it covers less than
-  it says on the test flights.
+  squared residual less its log's mean on the regressors of
+  :func:`proxplan.physics.residual_spread.spread_features` (weighted like the fits), the spread of the logs'
+  means (``flight_N``, :mod:`proxplan.identify.per_flight`), then the 90 % quantile of a new flight's
+  standardised residual (:func:`fit_spread`). An in-sample residual is smaller than a new flight's (the fit
+  saw it): an interval set on it covers less than it says on the test flights.
 * :func:`band_errors` splits a residual at :data:`BAND_HZ` with a zero-phase Butterworth low-pass
   (``scipy.signal.sosfiltfilt``, order :data:`BAND_ORDER`) on each contiguous stretch: the RMSE below and
   above 1 Hz beside the whole (a quasi-steady model of the mean jet cannot follow the fast part).
@@ -15,13 +16,14 @@ and the residual split into slow and fast parts.
 * :class:`BandAccumulator` also keeps the part of the residual that is one constant per vehicle log (its mean
   over the flight): no quasi-steady model of the air predicts it (a thrust map off at that battery's voltage,
   a battery of another mass), and with few flights per set it sets how far that set's coverage strays from
-  90 % (the shipped flights' figures: docs/identify.md, "What the model cannot predict").
+  90 % (the shipped flights' figures: docs/identify.md, "What the model cannot predict"); so the coverage is
+  reported with its interval over flights (:func:`proxplan.identify.per_flight.coverage_interval`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import nnls
@@ -29,6 +31,14 @@ from scipy.signal import butter, sosfiltfilt
 
 from proxplan.identify.data import Model, Predictions, Unit, sources_overhead, unit_inputs
 from proxplan.identify.measure import stretches
+from proxplan.identify.per_flight import (
+    COVERAGE_LEVEL,
+    CoverageInterval,
+    between_log_variance,
+    coverage_interval,
+    log_offset,
+    new_flight_quantile,
+)
 from proxplan.physics import ResidualSpread, TypeSpread, base_wrench_per_source, spread_features, spread_N
 
 BAND_HZ = 1.0
@@ -55,11 +65,32 @@ def unit_spread_features(unit: Unit, model: Model, predictions: Predictions | No
                            height_m=unit.height_above_ground_m, size_m=veh.size_m)  # fmt: skip
 
 
+@dataclass
+class _TypeRows:
+    """One vehicle type's samples for :func:`fit_spread`, gathered log by log (flight and vehicle name)."""
+
+    features: list[np.ndarray] = field(default_factory=list)
+    residual: list[np.ndarray] = field(default_factory=list)
+    weight: list[np.ndarray] = field(default_factory=list)
+    overhead: list[np.ndarray] = field(default_factory=list)
+    t_s: list[np.ndarray] = field(default_factory=list)
+    log: list[np.ndarray] = field(default_factory=list)  # (N,) each sample's log
+
+
 def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | None = None) -> ResidualSpread:
     """The residual spread of ``model`` on ``units`` (stratified weights used when present): of the given
     held-out residuals ``residual_fz_N`` ((N,) over the units in order, N: each sample predicted by a fit that
-    did not see its flight), else of ``model``'s own residual."""
-    rows: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
+    did not see its flight), else of ``model``'s own residual.
+
+    A new flight's residual is its log's constant plus a part that varies within the log (module docstring of
+    :mod:`proxplan.physics.residual_spread`). Per vehicle type: ``flight_N`` is the between-log spread of the
+    logs' mean residuals (:func:`proxplan.identify.per_flight.between_log_variance`); the place part is fitted
+    on the residual less its log's mean. The quantile is that of a NEW flight's standardised residual: each
+    held-out sample's within-log part plus a constant drawn from the predictive law of the next log's
+    (:func:`proxplan.identify.per_flight.new_flight_quantile`). The samples' own |r| / sigma would take the
+    k logs' constants as that law: with the constant dominant, a 90 % quantile of k draws covers the next
+    one j / (k + 1) of the time, j = ceil(0.9 k) (2/3 with two logs)."""
+    rows: dict[str, _TypeRows] = {}
     pred = Predictions()
     start = 0
     for u in units:
@@ -70,39 +101,42 @@ def fit_spread(units: Sequence[Unit], model: Model, residual_fz_N: np.ndarray | 
             start += len(u)
         else:
             r = u.force_N[:, 2] - pred(u, model)[0][:, 2]
-        w = u.weight if u.weight is not None else np.ones(len(u))
-        rows.setdefault(u.type, []).append((unit_spread_features(u, model, pred), r, w,
-                                            sources_overhead(u, model.vehicles)[0]))  # fmt: skip
+        t = rows.setdefault(u.type, _TypeRows())
+        t.features.append(unit_spread_features(u, model, pred))
+        t.residual.append(r)
+        t.weight.append(u.weight if u.weight is not None else np.ones(len(u)))
+        t.overhead.append(sources_overhead(u, model.vehicles)[0])
+        t.t_s.append(np.asarray(u.t_s, dtype=float))
+        # a log's samples: its held-out group (a merged selection unit holds several logs), else the unit
+        t.log.append(u.group if u.group is not None else np.full(len(u), f"{u.flight}\x00{u.name}"))
     by_type: dict[str, TypeSpread] = {}
-    z_all, w_all, n_all = [], [], []
-    for vtype, parts in rows.items():
-        x = np.concatenate([p[0] for p in parts])
-        r = np.concatenate([p[1] for p in parts])
-        w = np.concatenate([p[2] for p in parts])
+    parts: list[tuple[np.ndarray, ...]] = []  # per type: within part, sigma_place, sigma_flight, dof, weight, class
+    for vtype, t in rows.items():
+        x, r, w = np.concatenate(t.features), np.concatenate(t.residual), np.concatenate(t.weight)
+        clock = np.concatenate(t.t_s)
+        _, log_id = np.unique(np.concatenate([np.asarray(g).astype(str) for g in t.log]), return_inverse=True)
+        offsets = [log_offset(r[log_id == i], w[log_id == i], clock[log_id == i]) for i in range(log_id.max() + 1)]
+        within = r - np.array([m for m, _ in offsets])[log_id]  # less each log's constant
+        flight_N = float(np.sqrt(between_log_variance([m for m, _ in offsets], [v for _, v in offsets])))
         sw = np.sqrt(w)
         scale = np.maximum(np.sqrt(np.mean(x**2, axis=0)), 1e-300)
-        coef, _ = nnls((x / scale) * sw[:, None], r**2 * sw)
+        coef, _ = nnls((x / scale) * sw[:, None], within**2 * sw)
         coef = coef / scale
         if coef[0] <= 0.0:  # the floor must stay positive: at least the smallest spread seen away from jets
-            coef[0] = max(float(np.average(r**2, weights=w)) * 1e-6, 1e-18)
-        spread = TypeSpread(*(float(v) for v in np.sqrt(coef)))
+            coef[0] = max(float(np.average(within**2, weights=w)) * 1e-6, 1e-18)
+        c = [float(v) for v in np.sqrt(coef)]
+        spread = TypeSpread(c[0], c[1], c[2], c[3], c[4], c[5], flight_N=flight_N)
         by_type[vtype] = spread
-        z_all.append(np.abs(r) / np.maximum(spread_N(spread, x), 1e-300))
-        w_all.append(w)
-        n_all.append(np.concatenate([p[3] for p in parts]))
-    if not z_all:
+        place = np.sqrt(np.maximum(x @ spread.coefficients(), 0.0))
+        parts.append((within, place, np.full(len(r), flight_N), np.full(len(r), float(len(offsets))), w,
+                      np.minimum(np.concatenate(t.overhead), 2)))  # fmt: skip
+    if not parts:
         return ResidualSpread()
-    z, w, n = np.concatenate(z_all), np.concatenate(w_all), np.minimum(np.concatenate(n_all), 2)
-    overall = _weighted_quantile(z, w, 0.9)
-    by_class = tuple(_weighted_quantile(z[n == k], w[n == k], 0.9) if np.sum(n == k) >= MIN_CLASS_SAMPLES
-                     else overall for k in range(3))  # fmt: skip
+    within, place, flight, dof, w, n = (np.concatenate([p[i] for p in parts]) for i in range(6))
+    overall = new_flight_quantile(within, place, flight, dof, w, 0.9)
+    by_class = tuple(new_flight_quantile(within[n == k], place[n == k], flight[n == k], dof[n == k], w[n == k], 0.9)
+                     if np.sum(n == k) >= MIN_CLASS_SAMPLES else overall for k in range(3))  # fmt: skip
     return ResidualSpread(by_type=by_type, quantile_90=overall, quantile_90_overhead=by_class)
-
-
-def _weighted_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
-    order = np.argsort(x)
-    cw = np.cumsum(w[order])
-    return float(x[order][min(int(np.searchsorted(cw, q * cw[-1])), len(x) - 1)])
 
 
 def interval_half_width_N(
@@ -139,7 +173,8 @@ def slow_part(residual: np.ndarray, t_s: np.ndarray) -> np.ndarray:
 @dataclass
 class BandAccumulator:
     """Running sums for the residual's RMSE below / above :data:`BAND_HZ`, its part that is one constant per
-    log, and the interval's coverage."""
+    log, and the interval's coverage, with its samples inside and counted per flight (the coverage's
+    interval takes the flight as the unit: :func:`proxplan.identify.per_flight.coverage_interval`)."""
 
     n: int = 0
     sse_low: float = 0.0
@@ -147,9 +182,11 @@ class BandAccumulator:
     sse_constant: float = 0.0
     inside: int = 0
     n_interval: int = 0
+    inside_by_flight: dict[str, int] = field(default_factory=dict)
+    n_by_flight: dict[str, int] = field(default_factory=dict)
 
-    def add(self, residual: np.ndarray, slow: np.ndarray, half_width: np.ndarray | None) -> None:
-        """One vehicle's log of one flight: its F_z residual (N,) N, the part of it below :data:`BAND_HZ` (N,) N,
+    def add(self, residual: np.ndarray, slow: np.ndarray, half_width: np.ndarray | None, flight: str = "") -> None:
+        """One vehicle's log of ``flight``: its F_z residual (N,) N, the part of it below :data:`BAND_HZ` (N,) N,
         and the interval's half-width (N,) N (None: no spread)."""
         self.n += int(residual.size)
         self.sse_low += float(np.sum(slow**2))
@@ -158,19 +195,36 @@ class BandAccumulator:
             self.sse_constant += float(residual.size * np.mean(residual) ** 2)
         if half_width is not None:
             ok = np.isfinite(half_width)
-            self.inside += int(np.sum(np.abs(residual[ok]) <= half_width[ok]))
-            self.n_interval += int(ok.sum())
+            inside, counted = int(np.sum(np.abs(residual[ok]) <= half_width[ok])), int(ok.sum())
+            self.inside += inside
+            self.n_interval += counted
+            self.inside_by_flight[flight] = self.inside_by_flight.get(flight, 0) + inside
+            self.n_by_flight[flight] = self.n_by_flight.get(flight, 0) + counted
 
-    def to_json(self, grams_per_N: float) -> dict[str, float | int | None]:
+    def coverage(self) -> CoverageInterval | None:
+        """The coverage with its interval over the flights (None: no interval was given)."""
+        if not self.n_interval:
+            return None
+        flights = [f for f, k in self.n_by_flight.items() if k]
+        return coverage_interval([self.inside_by_flight[f] for f in flights], [self.n_by_flight[f] for f in flights])
+
+    def to_json(self, grams_per_N: float) -> dict[str, float | int | bool | list[float] | None]:
         low = float(np.sqrt(self.sse_low / self.n)) if self.n else None
         high = float(np.sqrt(self.sse_high / self.n)) if self.n else None
         const = float(np.sqrt(self.sse_constant / self.n)) if self.n else None
+        cov = self.coverage()
         return {"rmse_fz_below_1Hz_N": low, "rmse_fz_above_1Hz_N": high,
                 "rmse_fz_below_1Hz_g": None if low is None else low * grams_per_N,
                 "rmse_fz_above_1Hz_g": None if high is None else high * grams_per_N,
                 "rmse_fz_constant_per_log_N": const,
                 "rmse_fz_constant_per_log_g": None if const is None else const * grams_per_N,
-                "coverage_90": self.inside / self.n_interval if self.n_interval else None,
+                "coverage_90": None if cov is None else cov.coverage,
+                "coverage_90_interval": None if cov is None else [cov.low, cov.high],
+                "coverage_90_level": COVERAGE_LEVEL,
+                "coverage_90_holds": None if cov is None else cov.holds(0.9),
+                "coverage_90_design_effect": None if cov is None or not np.isfinite(cov.design_effect)
+                                             else cov.design_effect,
+                "n_flights": len(self.n_by_flight) if cov is not None else None,
                 "n_samples": self.n}  # fmt: skip
 
 
@@ -195,5 +249,5 @@ def band_errors(
         half = interval_half_width_N(u, model, spread, pred) if spread is not None else None
         for g, flights in groups.items():
             if u.flight in flights:
-                acc[g].add(r, slow, half)
+                acc[g].add(r, slow, half, u.flight)
     return acc

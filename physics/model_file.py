@@ -23,7 +23,8 @@ File layout (YAML)::
         form: jet-shear-1           # (proxplan.physics.residual_spread), and its 90 % interval
         quantile_90: 1.7
         quantile_90_overhead: [1.6, 1.7, 2.1]
-        by_type: {small-quad: {floor_N: 0.01, force_share: 0.3, shear: 0.02, stack: 0.2, limit: 0.05, ground: 0.1}}
+        by_type: {small-quad: {floor_N: 0.01, force_share: 0.3, shear: 0.02, stack: 0.2, limit: 0.05, ground: 0.1,
+                               flight_N: 0.012}}   # flight_N optional (absent: 0, a file saved before stop 71)
 
 Format 1 (no ``format_version``; what identify wrote before) is read with a note: it has no
 thrust scales or uncertainties. A newer ``format_version`` is a one-line error. Every error is a
@@ -243,6 +244,9 @@ class TypeSpreadEntry(FileModel):
         "spread with a motor at its floor or ceiling, per unit of weight, -"
     )
     ground: Annotated[Number, Field(ge=0)] = optional("spread in the ground's recirculation per unit of weight, -")
+    flight_N: Annotated[Number, Field(ge=0)] = optional(
+        "spread between vehicle logs of the constant part of the residual (one per log), N (absent: 0)"
+    )
 
 
 class ResidualSpreadPart(FileModel):
@@ -265,7 +269,8 @@ class ResidualSpreadPart(FileModel):
     def spread(self) -> ResidualSpread:
         return ResidualSpread(
             by_type={t: TypeSpread(float(e.floor_N), float(e.force_share or 0.0), float(e.shear or 0.0),
-                                   float(e.stack or 0.0), float(e.limit or 0.0), float(e.ground or 0.0))
+                                   float(e.stack or 0.0), float(e.limit or 0.0), float(e.ground or 0.0),
+                                   float(e.flight_N or 0.0))
                      for t, e in self.by_type.items()},
             quantile_90=float(self.quantile_90) if self.quantile_90 is not None else ResidualSpread().quantile_90,
             quantile_90_overhead=tuple(float(q) for q in self.quantile_90_overhead or ()),

@@ -20,6 +20,16 @@ and the ground's recirculation (the ground effect's size, (R / 4h)^2 in Cheesema
 R the rotor radius, taken here as (L / 4h)^2 with the frame size L, squared for a variance; L the target's size, h its height above
 the ground). A model file keeps it (``model.residual_spread``) with the quantile that makes the 90 %
 interval: |residual| <= quantile_90 sigma. A file without the last three terms reads them as zero.
+
+A new flight's residual is one constant for the whole vehicle log (a thrust map off at that battery's voltage,
+a battery of another mass: no model of the air predicts it) plus the part above, which varies within the log.
+The interval of a new flight holds both (issue 35, stop 71):
+
+    sigma_total^2 = sigma^2 + flight_N^2,
+
+``flight_N`` (N) the spread of that per-log constant between the vehicle logs of one type
+(:func:`proxplan.identify.spread.fit_spread` derives it). A file without it reads it as zero (the interval of
+a model saved before: the place part alone, fitted then on the residual with the offsets in it).
 """
 
 from __future__ import annotations
@@ -37,7 +47,9 @@ SPREAD_FORM = "jet-shear-1"
 
 @dataclass(frozen=True)
 class TypeSpread:
-    """The spread parameters of one vehicle type: ``floor_N`` (N), ``force_share`` (-), ``shear`` (-)."""
+    """The spread parameters of one vehicle type: ``floor_N`` (N), ``force_share`` (-), ``shear`` (-), ``stack``
+    (-), ``limit`` (-), ``ground`` (-) of the place part, and ``flight_N`` (N): the spread of the constant per
+    vehicle log (module docstring)."""
 
     floor_N: float
     force_share: float = 0.0
@@ -45,6 +57,7 @@ class TypeSpread:
     stack: float = 0.0
     limit: float = 0.0
     ground: float = 0.0
+    flight_N: float = 0.0
 
     def coefficients(self) -> np.ndarray:
         """(6,) the squared coefficients, in the order of :func:`spread_features`' columns."""
@@ -76,7 +89,8 @@ class ResidualSpread:
                 "quantile_90_overhead": [float(q) for q in self.quantile_90_overhead],
                 "by_type": {t: {"floor_N": float(s.floor_N), "force_share": float(s.force_share),
                                 "shear": float(s.shear), "stack": float(s.stack), "limit": float(s.limit),
-                                "ground": float(s.ground)} for t, s in self.by_type.items()}}  # fmt: skip
+                                "ground": float(s.ground), "flight_N": float(s.flight_N)}
+                            for t, s in self.by_type.items()}}  # fmt: skip
 
 
 def spread_features(
@@ -117,5 +131,6 @@ def spread_features(
 
 
 def spread_N(spread: TypeSpread, features: np.ndarray) -> np.ndarray:
-    """(N,) sigma of the F_z residual, N, from :func:`spread_features` (N, 6)."""
-    return np.sqrt(np.maximum(features @ spread.coefficients(), 0.0))
+    """(N,) sigma_total of a new flight's F_z residual, N, from :func:`spread_features` (N, 6): the place part
+    and the per-log constant's spread ``flight_N`` (module docstring)."""
+    return np.sqrt(np.maximum(features @ spread.coefficients(), 0.0) + spread.flight_N**2)
