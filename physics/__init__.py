@@ -88,19 +88,12 @@ from proxplan.physics.features import (
     FEATURE_DOCS,
     FEATURE_FAMILIES,
     FEATURE_NAMES,
-    LAGS_S,
-    LOWPASS_TAUS_S,
-    TIME_KINDS,
     feature_doc,
     feature_family,
     feature_group,
     feature_matrix,
     is_feature,
-    lagged,
-    lowpass,
     neighbour_motion,
-    parse_time_name,
-    time_name,
 )
 from proxplan.physics.hover_loop import (
     REFERENCE_INPUTS,
@@ -142,6 +135,15 @@ from proxplan.physics.stack import (
     pass_through_share,
     shielding_factors,
     shielding_reach_m,
+)
+from proxplan.physics.time_copies import (
+    LAGS_S,
+    LOWPASS_TAUS_S,
+    TIME_KINDS,
+    lagged,
+    lowpass,
+    parse_time_name,
+    time_name,
 )
 from proxplan.physics.tracking_loop import (
     SETPOINT_DELAY_S,
