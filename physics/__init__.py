@@ -5,7 +5,8 @@ included), the built-in types and vehicle YAML files, the linearised closed loop
 its position controller (drag lead of the reference, prediction of the flown path) and of a vehicle
 in another's jet (its poles, its response along a plan), the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
 below another (S0-3..S0-8), controller-authority usage (DESIGN.md section 3), and the library of
-effects beyond the base model. Cost maps, planner, verifier, simulator and identification all use
+effects beyond the base model, with the feature dictionary of discovered terms (its multi-scale kernels,
+:mod:`~proxplan.physics.basis`; its time copies, :mod:`~proxplan.physics.time_copies`). Cost maps, planner, verifier, simulator and identification all use
 this one implementation.
 """
 
