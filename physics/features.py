@@ -226,6 +226,22 @@ ROOM_FEATURES = {
 FEATURE_DOCS.update(ROOM_FEATURES)
 FEATURE_NAMES = tuple(FEATURE_DOCS)
 
+TARGET_ONLY_FEATURES = (
+    "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2",
+    "v_z_speed_xy_m2ps2", *ROOM_FEATURES, "thrust_kin_ground_N", "thrust_kin_speed_xy_Nmps", *GROUND_SCALE_FEATURES,
+)  # fmt: skip
+"""Features of the target alone; every other feature is a sum over sources (zero without one)."""
+
+FEATURE_FAMILIES = ("temporal", "above", "below", "side", "velocity", "thrust", "place", "bias")
+"""Declared families of the dictionary (issue 35): ``temporal`` — lagged and low-pass copies (a filter
+bank) of each neighbour's predicted disturbance and relative state; ``above``, ``below``, ``side`` —
+spatial kernels of every neighbour by where it is (with their relative speeds); ``velocity`` — the
+vehicle's own speed; ``thrust`` — a multiplicative thrust loss (own thrust from the motion, times a
+kernel; the loss of a constant share of the thrust is ``thrust_bias``'s per-type scale, and the own thrust
+alone is no feature: beside the logged thrust of that scale it spans the measured force itself, a circular
+term that "explains" the motors' logging noise); ``place`` — ground, walls and position in the room;
+``bias`` — a constant."""
+
 
 def is_feature(name: str) -> bool:
     """Whether ``name`` is a feature :func:`feature_matrix` computes: one of :data:`FEATURE_NAMES`, a
@@ -245,23 +261,6 @@ def feature_doc(name: str) -> str:
     if parsed is None:
         raise ValueError(f"feature {name!r}: not a feature of proxplan.physics.features.FEATURE_NAMES")
     return parsed[0].doc(parsed[1])
-
-
-TARGET_ONLY_FEATURES = (
-    "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2",
-    "v_z_speed_xy_m2ps2", *ROOM_FEATURES, "thrust_kin_ground_N", "thrust_kin_speed_xy_Nmps", *GROUND_SCALE_FEATURES,
-)  # fmt: skip
-"""Features of the target alone; every other feature is a sum over sources (zero without one)."""
-
-FEATURE_FAMILIES = ("temporal", "above", "below", "side", "velocity", "thrust", "place", "bias")
-"""Declared families of the dictionary (issue 35): ``temporal`` — lagged and low-pass copies (a filter
-bank) of each neighbour's predicted disturbance and relative state; ``above``, ``below``, ``side`` —
-spatial kernels of every neighbour by where it is (with their relative speeds); ``velocity`` — the
-vehicle's own speed; ``thrust`` — a multiplicative thrust loss (own thrust from the motion, times a
-kernel; the loss of a constant share of the thrust is ``thrust_bias``'s per-type scale, and the own thrust
-alone is no feature: beside the logged thrust of that scale it spans the measured force itself, a circular
-term that "explains" the motors' logging noise); ``place`` — ground, walls and position in the room;
-``bias`` — a constant."""
 
 
 def feature_group(name: str) -> str:

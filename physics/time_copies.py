@@ -21,10 +21,12 @@ import re
 import numpy as np
 
 LAG_S = 0.1
-"""Delay of the lagged base prediction, s (order of the motor + wake transport time)."""
+"""Delay of the lagged base prediction, s (order of the motor + wake transport time; set when the dictionary
+was written, commit 9a2cf90, not tuned on a figure)."""
 
 LOWPASS_TAU_S = 0.3
-"""Time constant of the first-order low-pass copy of the base prediction, s."""
+"""Time constant of the first-order low-pass copy of the base prediction, s (set with :data:`LAG_S`, not tuned on
+a figure)."""
 
 LAGS_S = tuple(round(0.05 * 1.5**k, 3) for k in range(8))
 """Delays of the lagged copies of every relative-motion feature: a geometric grid 0.05..0.85 s
@@ -34,7 +36,8 @@ LOWPASS_TAUS_S = tuple(round(0.05 * 2.0**k, 3) for k in range(5))
 """Time constants of the low-pass copies of every relative-motion feature: 0.05..0.8 s (ratio 2), s."""
 
 MAX_GAP_S = 1.0
-"""A clock step larger than this (or not positive) starts a new time run, s."""
+"""A clock step larger than this (or not positive) starts a new time run, s: far above any logged sample step
+(milliseconds); set with :data:`LAG_S`, not tuned on a figure."""
 
 TIME_FEATURE_SOURCES = (
     "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
