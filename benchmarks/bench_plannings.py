@@ -41,7 +41,8 @@ def main() -> int:
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
     from proxplan.planner.swarm import occupancy, priority
     from proxplan.planner.swarm.prioritised_stage import horizon_steps
-    from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, dependency_order
+    from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions
+    from proxplan.planner.swarm.priority_order import dependency_order
     from proxplan.planner.swarm.problem import swarm_problem
 
     print(f"proxplan from {proxplan.__file__}")

@@ -32,13 +32,9 @@ def one_pass(args) -> int:
     from proxplan.planner.swarm import SwarmOptions, swarm_problem
     from proxplan.planner.swarm.frozen import unfrozen_problem
     from proxplan.planner.swarm.prioritised_stage import horizon_steps, prioritised_budget
-    from proxplan.planner.swarm.priority import (
-        PrioritizedFailed,
-        PriorityOptions,
-        dependency_order,
-        in_collision_cap,
-        prioritized_tracks,
-    )
+    from proxplan.planner.swarm.priority import in_collision_cap, prioritized_tracks
+    from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions
+    from proxplan.planner.swarm.priority_order import dependency_order
 
     if args.whole_box:
         wave.route_box = lambda problem, s, g: (problem.lo_m[:2].copy(), problem.hi_m[:2].copy())

@@ -101,7 +101,8 @@ def _passing_detail(problem, conflicts, bound_s: float) -> str:
     and in its plan (horizon as the pipeline's, from ``bound_s``, s) the latest vehicle, how long it waits at its start, its component and the vehicles
     whose tracks its component's shortest joint move meets when departing at once (round 26S)."""
     from proxplan.planner.swarm.occupancy import Occupancy
-    from proxplan.planner.swarm.passes import conflict_components, fitted, joint_moves, passing_stage
+    from proxplan.planner.swarm.pass_moves import conflict_components, fitted, joint_moves
+    from proxplan.planner.swarm.passes import passing_stage
     from proxplan.planner.swarm.prioritised_stage import horizon_steps
     from proxplan.planner.swarm.tracks import GRID_DT_S
 

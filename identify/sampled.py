@@ -89,7 +89,7 @@ def sampled_features(sel: SelectionSet, names: Sequence[str], parts: list[UnitPa
 
 
 class SampledSource:
-    """A feature of :data:`proxplan.physics.features.TIME_FEATURE_SOURCES` at full resolution on every unit part,
+    """A feature of :data:`proxplan.physics.time_copies.TIME_FEATURE_SOURCES` at full resolution on every unit part,
     computed once, so its time copy at any delay or time constant costs one filter per unit: the same values as
     :func:`sampled_features` of the copy's name (:func:`proxplan.physics.feature_matrix` filters the same source
     column with the same :func:`proxplan.physics.lagged` / :func:`proxplan.physics.lowpass`)."""

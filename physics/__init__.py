@@ -5,7 +5,8 @@ included), the built-in types and vehicle YAML files, the linearised closed loop
 its position controller (drag lead of the reference, prediction of the flown path) and of a vehicle
 in another's jet (its poles, its response along a plan), the downwash velocity field (S0-1, S0-2), the drag and thrust-change wrench on a vehicle
 below another (S0-3..S0-8), controller-authority usage (DESIGN.md section 3), and the library of
-effects beyond the base model. Cost maps, planner, verifier, simulator and identification all use
+effects beyond the base model, with the feature dictionary of discovered terms (its multi-scale kernels,
+:mod:`~proxplan.physics.basis`; its time copies, :mod:`~proxplan.physics.time_copies`). Cost maps, planner, verifier, simulator and identification all use
 this one implementation.
 """
 
@@ -88,19 +89,12 @@ from proxplan.physics.features import (
     FEATURE_DOCS,
     FEATURE_FAMILIES,
     FEATURE_NAMES,
-    LAGS_S,
-    LOWPASS_TAUS_S,
-    TIME_KINDS,
     feature_doc,
     feature_family,
     feature_group,
     feature_matrix,
     is_feature,
-    lagged,
-    lowpass,
     neighbour_motion,
-    parse_time_name,
-    time_name,
 )
 from proxplan.physics.hover_loop import (
     REFERENCE_INPUTS,
@@ -142,6 +136,15 @@ from proxplan.physics.stack import (
     pass_through_share,
     shielding_factors,
     shielding_reach_m,
+)
+from proxplan.physics.time_copies import (
+    LAGS_S,
+    LOWPASS_TAUS_S,
+    TIME_KINDS,
+    lagged,
+    lowpass,
+    parse_time_name,
+    time_name,
 )
 from proxplan.physics.tracking_loop import (
     SETPOINT_DELAY_S,

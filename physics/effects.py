@@ -36,7 +36,8 @@ from proxplan.physics.effect_inputs import (
     zeros_wrench,
 )
 from proxplan.physics.feature_terms import parse_term_key, term_scale, weight_scaled
-from proxplan.physics.features import CHANNELS, feature_matrix, lagged
+from proxplan.physics.features import CHANNELS, feature_matrix
+from proxplan.physics.time_copies import lagged
 from proxplan.physics.velocity_field import axial_distance_m
 
 EFFECT_NAMES = (
@@ -102,7 +103,7 @@ without a lag. Left out: 0. Not a key of :data:`PARAMETERS` (no shape fit moves 
 it over a grid, :mod:`proxplan.identify.effect_selection`)."""
 LAG_BOUNDS_S = (0.0, 2.0)
 """Allowed range of :data:`LAG_PARAM`, s: no effect before its cause; the upper end only bounds what a model
-file may declare (identification searches :data:`proxplan.physics.features.LAGS_S`, up to 0.85 s)."""
+file may declare (identification searches :data:`proxplan.physics.time_copies.LAGS_S`, up to 0.85 s)."""
 
 DISCOVERED_PREFIX = "discovered:"
 """Name prefix of a term found by sparse regression (proxplan.identify.discovery): its parameters are named
@@ -415,7 +416,7 @@ def effect_wrench(
     ``inputs``) reuses the sources' base wrenches across calls (a fit evaluating one effect many times).
     An effect with a :data:`LAG_PARAM` is its wrench on the inputs of ``lag_s`` earlier: the samples must then
     follow each other in time (a full-rate or uniformly strided series; ``time_s`` runs as in
-    :func:`proxplan.physics.features.lagged`)."""
+    :func:`proxplan.physics.time_copies.lagged`)."""
     return _apply(effect, inputs, cache if cache is not None else BaseCache(inputs))
 
 

@@ -42,12 +42,11 @@ ground-effect shape of a partial floor, [dz < 0] (R / 4 d)^2 exp(-(r / L)^2) (me
 vehicle below as the image plane); a LEVEL neighbour's side kernel also comes times the relative
 horizontal and vertical speeds.
 
-Lagged and low-pass copies of EVERY relative-motion feature (:data:`TIME_FEATURE_SOURCES`: the base
-prediction and each kernel, with and without relative speeds) at the delays :data:`LAGS_S` and the time
-constants :data:`LOWPASS_TAUS_S`: a wake takes time to travel down and a rotor to spin up, so an
-effect of another vehicle may follow its cause late or smoothed. Named ``<stem>_lag<ms>ms_<unit>`` and
-``<stem>_lp<ms>ms_<unit>`` (:func:`time_name`); a copy at any whole number of milliseconds off those grids is a
-feature too (:func:`parse_time_name`: discovery refines a kept copy's delay or time constant, issue 35).
+Lagged and low-pass copies of EVERY relative-motion feature
+(:data:`~proxplan.physics.time_copies.TIME_FEATURE_SOURCES`: the base prediction and each kernel, with and
+without relative speeds) at the delays :data:`~proxplan.physics.time_copies.LAGS_S` and the time constants
+:data:`~proxplan.physics.time_copies.LOWPASS_TAUS_S`, named ``<stem>_lag<ms>ms_<unit>`` and ``<stem>_lp<ms>ms_<unit>``, at any
+whole number of milliseconds: the time copies, their names and filters are :mod:`proxplan.physics.time_copies`.
 
 Place in the room (:data:`ROOM_FEATURES`): the target's absolute position (x, y, z and their squares,
 world frame, m; zero when ``EffectInputs.position_m`` is unknown) and, for the planes the manifest
@@ -55,17 +54,14 @@ declares (``EffectInputs.planes``, :mod:`proxplan.physics.room`), the kernels ex
 (R / 4 d)^2 of the distance d to each plane, summed over planes (the ground-effect shape of a wall or
 ceiling). These are features of the target alone.
 
-Time features (lagged and low-pass copies) need ``EffectInputs.time_s``;
-without it (cost maps, static checks) every sample is a steady state and they equal the
-instantaneous value. Time runs are split where the clock does not advance or jumps by more than
-:data:`MAX_GAP_S` (pooled or sub-sampled series). Relative velocities come from
-``SourceSample.velocity_mps`` (the source's own velocity) when given; otherwise from the time
-derivative of the offsets when ``time_s`` is given; otherwise the source is taken to be at rest.
+Time features (lagged and low-pass copies) need ``EffectInputs.time_s``; without it (cost maps, static checks)
+they equal the instantaneous value (:mod:`proxplan.physics.time_copies`). Relative velocities come from
+``SourceSample.velocity_mps`` (the source's own velocity) when given; otherwise from the time derivative of the
+offsets (within each time run) when ``time_s`` is given; otherwise the source is taken to be at rest.
 """
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -80,26 +76,22 @@ from proxplan.physics.basis import (
     parse_basis_name,
 )
 from proxplan.physics.room import plane_distances_m
+from proxplan.physics.time_copies import (
+    LAG_S,
+    LOWPASS_TAU_S,
+    TIME_FEATURE_SOURCES,
+    TIME_KINDS,
+    lagged,
+    lowpass,
+    offset_rate_mps,
+    parse_time_name,
+    time_doc,
+    time_name,
+)
 from proxplan.physics.vehicles import GRAVITY_MPS2, Vehicle
 
 CHANNELS = ("force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
 """Wrench channels a discovered term may act on (world frame), in the order of (force, torque)."""
-
-LAG_S = 0.1
-"""Delay of the lagged base prediction, s (order of the motor + wake transport time)."""
-
-LOWPASS_TAU_S = 0.3
-"""Time constant of the first-order low-pass copy of the base prediction, s."""
-
-LAGS_S = tuple(round(0.05 * 1.5**k, 3) for k in range(8))
-"""Delays of the lagged copies of every relative-motion feature: a geometric grid 0.05..0.85 s
-(ratio 1.5, so any delay in range is within 25 % of one), s."""
-
-LOWPASS_TAUS_S = tuple(round(0.05 * 2.0**k, 3) for k in range(5))
-"""Time constants of the low-pass copies of every relative-motion feature: 0.05..0.8 s (ratio 2), s."""
-
-MAX_GAP_S = 1.0
-"""A clock step larger than this (or not positive) starts a new time run, s."""
 
 MIN_HEIGHT_FACTOR = 0.5
 """Heights are clipped to at least this many rotor radii in the ground kernels, -."""
@@ -216,54 +208,11 @@ for _where in BASIS_PLACES:
     for _kernel in basis_kernels(_where):
         for _axis in AXES:
             FEATURE_DOCS[_kernel.name(_axis)] = _kernel.doc(_axis)
-TIME_FEATURE_SOURCES = (
-    "base_fz_N", "base_tx_Nm", "base_ty_Nm", "base_fz_rel_speed_xy_Nmps", "above_jet_1",
-    "above_jet_rel_speed_xy_mps", "above_jet_rel_v_z_mps", "above_jet_x_1", "above_jet_y_1", "above_stack_1",
-    "above_core_1", "above_core_flat_1", "above_near_1", "below_near_1", "side_near_1",
-    "below_jet_1", "below_jet_rel_v_z_mps", "below_core_1", "below_core_flat_1", "below_cushion_1",
-    "side_near_rel_v_z_mps",
-)  # fmt: skip
-"""Relative-motion features that get lagged and low-pass copies."""
-
-
-TIME_KINDS = {"lag": LAGS_S, "lp": LOWPASS_TAUS_S}
-"""The kinds of time copy (name marker -> its declared grid, s): ``lag`` a delay, ``lp`` a first-order low-pass's
-time constant. A copy at any whole number of milliseconds is a feature (:func:`parse_time_name`); the dictionary
-holds the grids."""
-
-_TIME_NAME = re.compile(r"^(?P<stem>.+)_(?P<kind>lag|lp)(?P<ms>[1-9][0-9]*)ms_(?P<unit>[^_]+)$")
-
-
-def time_name(feature: str, kind: str, seconds: float) -> str:
-    """The name of ``feature``'s time copy of ``kind`` (:data:`TIME_KINDS`) at ``seconds`` (s, held to whole
-    milliseconds): ``<stem>_<kind><ms>ms_<unit>``."""
-    stem, unit = feature.rsplit("_", 1)
-    return f"{stem}_{kind}{int(round(1000 * seconds))}ms_{unit}"
-
-
-def parse_time_name(name: str) -> tuple[str, str, float] | None:
-    """(source feature, kind ``"lag"`` or ``"lp"``, seconds) of a time copy named by :func:`time_name` of a
-    feature of :data:`TIME_FEATURE_SOURCES` at any positive whole number of milliseconds (on the declared grids or
-    off them); None for any other name."""
-    m = _TIME_NAME.match(name)
-    if m is None:
-        return None
-    source = f"{m['stem']}_{m['unit']}"
-    if source not in TIME_FEATURE_SOURCES:
-        return None
-    return source, m["kind"], int(m["ms"]) / 1000.0
-
-
-def _time_doc(source: str, kind: str, seconds: float) -> str:
-    if kind == "lag":
-        return f"{source} delayed by {seconds:g} s"
-    return f"{source} through a first-order low-pass, tau {seconds:g} s"
-
 
 for _f in TIME_FEATURE_SOURCES:
     for _kind, _grid in TIME_KINDS.items():
         for _s in _grid:
-            FEATURE_DOCS[time_name(_f, _kind, _s)] = _time_doc(_f, _kind, _s)
+            FEATURE_DOCS[time_name(_f, _kind, _s)] = time_doc(_f, _kind, _s)
 ROOM_FEATURES = {
     "pos_x_m": "target's x position, world frame",
     "pos_y_m": "target's y position, world frame",
@@ -276,27 +225,6 @@ ROOM_FEATURES = {
 }
 FEATURE_DOCS.update(ROOM_FEATURES)
 FEATURE_NAMES = tuple(FEATURE_DOCS)
-
-
-def is_feature(name: str) -> bool:
-    """Whether ``name`` is a feature :func:`feature_matrix` computes: one of :data:`FEATURE_NAMES`, a
-    multi-scale kernel at a scale off the declared grid (:func:`proxplan.physics.basis.parse_basis_name`), or a
-    time copy at a delay or time constant off its grid (:func:`parse_time_name`)."""
-    return name in FEATURE_DOCS or parse_basis_name(name) is not None or parse_time_name(name) is not None
-
-
-def feature_doc(name: str) -> str:
-    """One line saying what feature ``name`` (:func:`is_feature`) is."""
-    if name in FEATURE_DOCS:
-        return FEATURE_DOCS[name]
-    timed = parse_time_name(name)
-    if timed is not None:
-        return _time_doc(*timed)
-    parsed = parse_basis_name(name)
-    if parsed is None:
-        raise ValueError(f"feature {name!r}: not a feature of proxplan.physics.features.FEATURE_NAMES")
-    return parsed[0].doc(parsed[1])
-
 
 TARGET_ONLY_FEATURES = (
     "one_1", "ground_cb_1", "ground_exp_1", "v_z_mps", "speed_xy_mps", "speed_xy_sq_m2ps2", "v_z_abs_m2ps2",
@@ -313,6 +241,26 @@ kernel; the loss of a constant share of the thrust is ``thrust_bias``'s per-type
 alone is no feature: beside the logged thrust of that scale it spans the measured force itself, a circular
 term that "explains" the motors' logging noise); ``place`` — ground, walls and position in the room;
 ``bias`` — a constant."""
+
+
+def is_feature(name: str) -> bool:
+    """Whether ``name`` is a feature :func:`feature_matrix` computes: one of :data:`FEATURE_NAMES`, a
+    multi-scale kernel at a scale off the declared grid (:func:`proxplan.physics.basis.parse_basis_name`), or a
+    time copy at a delay or time constant off its grid (:func:`~proxplan.physics.time_copies.parse_time_name`)."""
+    return name in FEATURE_DOCS or parse_basis_name(name) is not None or parse_time_name(name) is not None
+
+
+def feature_doc(name: str) -> str:
+    """One line saying what feature ``name`` (:func:`is_feature`) is."""
+    if name in FEATURE_DOCS:
+        return FEATURE_DOCS[name]
+    timed = parse_time_name(name)
+    if timed is not None:
+        return time_doc(*timed)
+    parsed = parse_basis_name(name)
+    if parsed is None:
+        raise ValueError(f"feature {name!r}: not a feature of proxplan.physics.features.FEATURE_NAMES")
+    return parsed[0].doc(parsed[1])
 
 
 def feature_group(name: str) -> str:
@@ -355,53 +303,6 @@ def feature_family(name: str) -> str:
     if name == "one_1":
         return "bias"
     return "place"
-
-
-def _runs(time_s: np.ndarray) -> list[slice]:
-    """Contiguous time runs of ``time_s`` (see :data:`MAX_GAP_S`)."""
-    dt = np.diff(time_s)
-    cuts = np.flatnonzero((dt <= 0.0) | (dt > MAX_GAP_S)) + 1
-    edges = np.concatenate([[0], cuts, [len(time_s)]])
-    return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
-
-
-def lagged(x: np.ndarray, time_s: np.ndarray | None, lag_s: float = LAG_S) -> np.ndarray:
-    """``x`` (N,) delayed by ``lag_s`` within each time run (held at the run's first value)."""
-    if time_s is None:
-        return np.asarray(x, dtype=float).copy()
-    out = np.empty(len(x))
-    for s in _runs(time_s):
-        t = time_s[s]
-        out[s] = np.interp(t - lag_s, t, x[s])
-    return out
-
-
-def lowpass(x: np.ndarray, time_s: np.ndarray | None, tau_s: float = LOWPASS_TAU_S) -> np.ndarray:
-    """First-order low-pass y' = (x - y) / tau of ``x`` (N,) within each time run, started at x[0]
-    (exact discretisation for a step-wise constant input at the run's median clock step)."""
-    # imported here: scipy.signal takes ~1 s of CPU to import, and most users of this module never filter
-    from scipy.signal import lfilter
-
-    x = np.asarray(x, dtype=float)
-    if time_s is None:
-        return x.copy()
-    out = np.empty(len(x))
-    for s in _runs(time_s):
-        xs = x[s]
-        dt_s = float(np.median(np.diff(time_s[s]))) if len(xs) > 1 else 0.0
-        a = 1.0 - np.exp(-dt_s / tau_s)
-        y, _ = lfilter([a], [1.0, a - 1.0], xs, zi=np.array([(1.0 - a) * xs[0]]))
-        out[s] = y
-    return out
-
-
-def offset_rate_mps(offsets_m: np.ndarray, time_s: np.ndarray) -> np.ndarray:
-    """Time derivative of ``offsets_m`` (N, 3) within each time run (zero on single-sample runs), m/s."""
-    out = np.zeros_like(offsets_m, dtype=float)
-    for s in _runs(time_s):
-        if s.stop - s.start > 1:
-            out[s] = np.gradient(offsets_m[s], time_s[s], axis=0)
-    return out
 
 
 def neighbour_motion(inputs) -> list[tuple[np.ndarray, float, np.ndarray]]:

@@ -8,14 +8,18 @@ space; :mod:`~proxplan.planner.swarm.keepout`, its shipped undamped zones
 :mod:`~proxplan.planner.swarm.goals` (goals of interchangeable vehicles, their costs round the obstacles
 :mod:`~proxplan.planner.swarm.obstacle_costs`) ->
 :mod:`~proxplan.planner.swarm.straight` (straight lines, synchronised or kept; by type, the groups in
-conflict passing together, :mod:`~proxplan.planner.swarm.passes` (a joint move placed, :mod:`~proxplan.planner.swarm.joint`;
+conflict passing together, :mod:`~proxplan.planner.swarm.passes` (a component's joint moves,
+:mod:`~proxplan.planner.swarm.pass_moves`, placed in rounds, :mod:`~proxplan.planner.swarm.pass_rounds`; a joint
+move placed, :mod:`~proxplan.planner.swarm.joint`;
 its members staggered, :mod:`~proxplan.planner.swarm.stagger`; late vehicles hemming one another in passing
 together, :mod:`~proxplan.planner.swarm.hemmed`), or the others yielding on corners
 or arcs, :mod:`~proxplan.planner.swarm.yielding` with :mod:`~proxplan.planner.swarm.arc_timing`; the
 choice among them, :mod:`~proxplan.planner.swarm.give_way`) ->
 :mod:`~proxplan.planner.swarm.prioritised_stage` (prioritised planning in each order, within a count
 budget; the pass with both wavefronts after it, :mod:`~proxplan.planner.swarm.heights`) by
-:mod:`~proxplan.planner.swarm.priority` (one pass, with repairs and predictions; one vehicle at a
+:mod:`~proxplan.planner.swarm.priority` (one pass, with repairs and predictions, asked and answered in
+:mod:`~proxplan.planner.swarm.priority_options`, in the order of :mod:`~proxplan.planner.swarm.priority_order`;
+one vehicle at a
 time, :mod:`~proxplan.planner.swarm.single`; waiting aside, :mod:`~proxplan.planner.swarm.holding`; on a level, routes raised over the others, :mod:`~proxplan.planner.swarm.raised`) along :mod:`~proxplan.planner.swarm.wave` routes timed by :mod:`~proxplan.planner.swarm.chain` against
 :mod:`~proxplan.planner.swarm.occupancy` (the space-time hash of
 :mod:`~proxplan.planner.swarm.tracks`), by groups (:mod:`~proxplan.planner.swarm.components`) ->

@@ -23,7 +23,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, PriorityResult, prioritized_tracks
+from proxplan.planner.swarm.priority import prioritized_tracks
+from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions, PriorityResult
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.wave_grid import route_box
 from proxplan.planner.timing import CORNER_DEVIATION_M

@@ -68,7 +68,7 @@ def moving(problem: SwarmProblem, a: int) -> bool:
 def member_key(a: int, legs: tuple[tuple[int, Move], ...], route: np.ndarray | None) -> tuple:
     """What fixes a member's track in a joint move: its agent, its legs' offsets (grid steps) and its waypoint
     chain (each move is the rest-to-rest line, the arc through the chain's middle or the step aside and back
-    that the chain and the offsets name, :func:`~proxplan.planner.swarm.passes.joint_moves`), with the kinds
+    that the chain and the offsets name, :func:`~proxplan.planner.swarm.pass_moves.joint_moves`), with the kinds
     of its moves."""
     kinds = tuple((k, type(mv).__name__, mv.steps) for k, mv in legs)
     return (a, kinds, None if route is None else np.asarray(route, dtype=float).tobytes())

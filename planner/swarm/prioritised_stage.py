@@ -20,14 +20,9 @@ import numpy as np
 from proxplan.planner.swarm.components import interaction_groups, plan_groups, subproblem
 from proxplan.planner.swarm.fill_order import fill_order
 from proxplan.planner.swarm.options import SwarmOptions
-from proxplan.planner.swarm.priority import (
-    PrioritizedFailed,
-    PriorityOptions,
-    PriorityResult,
-    dependency_order,
-    in_collision_cap,
-    prioritized_tracks,
-)
+from proxplan.planner.swarm.priority import in_collision_cap, prioritized_tracks
+from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions, PriorityResult
+from proxplan.planner.swarm.priority_order import dependency_order
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.raised import RAISE_DZ_M, a_level
 from proxplan.planner.swarm.stage import Stage, own_routes

@@ -40,9 +40,10 @@ does a vehicle in collision beyond ``max_in_collision`` (:func:`in_collision_cap
 (:class:`PrioritizedFailed`: the caller falls back; ``collisions=False`` gives it up at once, as before). A caller's wall-clock
 ``deadline`` only ever stops it as "not found" (:class:`~proxplan.planner.errors.PlanNotFound`).
 
-Order (:func:`dependency_order`): a vehicle whose start another one's goal needs is planned first
-(it must leave before the other arrives); otherwise, and to break cycles, the longer straight line
-first.
+Order (:func:`~proxplan.planner.swarm.priority_order.dependency_order`): a vehicle whose start another one's
+goal needs is planned first (it must leave before the other arrives); otherwise, and to break cycles, the longer
+straight line first. What a pass is asked and hands back (:class:`PriorityOptions`, :class:`PriorityResult`,
+:class:`PrioritizedFailed`) is :mod:`proxplan.planner.swarm.priority_options`.
 """
 
 from __future__ import annotations
@@ -50,7 +51,6 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -59,6 +59,8 @@ from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.holding import held_in_way, holding_points, plan_via_holding
 from proxplan.planner.swarm.lns import NEIGHBOURHOOD, remove_collisions
 from proxplan.planner.swarm.occupancy import Occupancy
+from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions, PriorityResult
+from proxplan.planner.swarm.priority_order import dependency_order
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.raised import raised_or
 from proxplan.planner.swarm.reserve import Reservations, predicted_track, reserved_track
@@ -81,73 +83,6 @@ def in_collision_cap(n_vehicles: int) -> int:
     removed every collision only on grids of 16-20 vehicles, none at 64 or more: docs/planner.md); set
     from the repair's own constants, not watching a layout."""
     return (LNS_PLANNINGS_PER_VEHICLE * n_vehicles) // NEIGHBOURHOOD
-
-
-@dataclass(frozen=True)
-class PriorityOptions:
-    """Knobs of prioritised planning; budgets are counts."""
-
-    max_repairs: int  # repairs (a failed vehicle planned first, those in conflict with it again) per pass
-    max_plannings: int | None = None  # single-vehicle plannings of the pass (repairs' included); None: no cap
-    hold_s: float = 0.0  # a vehicle not planned yet is assumed to hold its start this long, then leave, s
-    through: bool = True  # fly through waypoints without stopping (else rest to rest at each)
-    # a vehicle that cannot be planned within the repairs flies its ideal track in collision, and the
-    # collisions are removed at the end (swarm.lns) within the pass's plannings (False: give the pass up)
-    collisions: bool = True
-    # of the collision repair's draws; the swarm layer leaves it at 0 (its prioritised plans do not
-    # depend on the plan's seed: the verification policy re-plans with another seed only other plans)
-    seed: int = 0
-    # a vehicle not planned yet holds its start (its keep-out occupied) until it is planned, instead of
-    # being predicted to leave; a vehicle that cannot be planned then releases only the starts in the
-    # way of its ideal track (those vehicles predicted to leave, and planned next: see module)
-    reserve_starts: bool = False
-    # every vehicle planned with both wavefronts, the earlier arrival kept (plan_one's ``heights``)
-    heights: bool = False
-    # give the pass up as soon as what is left of ``max_plannings`` cannot plan the vehicles still
-    # queued (each needs one planning at least): it would give up on the budget all the same, later
-    # (the caller then charges the whole budget: ``PrioritizedFailed.charged``)
-    give_up_early: bool = False
-    # give the pass up once more vehicles than this fly in collision (None: no cap; prioritised_stage
-    # passes in_collision_cap): charged what it would be at least if it went on with no more of them,
-    # one planning per vehicle queued, and the collision repair's whole count (what a repair that does
-    # not converge is charged), so the passes after it see about the budget they saw before
-    max_in_collision: int | None = None
-    # a vehicle about to fly in collision (repairs spent, or going round in a circle) is planned once more
-    # through a holding point beside its line (swarm.holding). Off: at 128 on pillar and corridor it did not
-    # make a pass complete, and it costs CPU (docs/planner.md, stop 59 round 21B)
-    holding: bool = False
-    # every vehicle also along its route raised over the others (swarm.raised), the earlier arrival kept
-    raised: bool = False
-
-
-@dataclass
-class PriorityResult:
-    tracks: dict[int, GridTrack]
-    planned: int  # vehicle plannings done (repairs plan some again)
-    repairs: int
-    history: list[str] = field(default_factory=list)  # what each repair was for
-    against_order: int = 0  # repairs that reversed an order set by an earlier repair
-    collision_repairs: int = 0  # neighbourhoods planned again by the collision repair (swarm.lns)
-    released: int = 0  # reserved starts released for a vehicle in their way (reserve_starts)
-    held: int = 0  # vehicles planned through a holding point (PriorityOptions.holding)
-
-
-class PrioritizedFailed(Exception):
-    """A pass gave up; ``planned``: the single-vehicle plannings it made; ``charged``: those its
-    budget is charged (``planned``, or the whole ``max_plannings`` when it gave up early because
-    they could not suffice: ``PriorityOptions.give_up_early``)."""
-
-    def __init__(self, agent: int, repairs: int, history: list[str], *, planned: int = 0, charged: int | None = None):
-        super().__init__(f"agent {agent} could not be planned after {repairs} repairs")
-        self.agent, self.repairs, self.history, self.planned = agent, repairs, history, planned
-        self.charged = planned if charged is None else charged
-
-    def __reduce__(self):  # pickled back from a Dask worker with its fields (the default passes args only)
-        return _failed, (self.agent, self.repairs, self.history, self.planned, self.charged)
-
-
-def _failed(agent: int, repairs: int, history: list[str], planned: int, charged: int) -> PrioritizedFailed:
-    return PrioritizedFailed(agent, repairs, history, planned=planned, charged=charged)
 
 
 def unplanned_track(problem: SwarmProblem, agent: int, options: PriorityOptions) -> GridTrack:
@@ -454,33 +389,8 @@ def _remove_collisions(
         raise PrioritizedFailed(stuck[-1], result.repairs, result.history, planned=result.planned, charged=charged)
 
 
-def dependency_order(problem: SwarmProblem) -> list[int]:
-    """Planning order: a vehicle whose start another's goal needs goes before it (it has to leave
-    first), ties and cycles broken by the longer straight line first (it sets the makespan)."""
-    from scipy.spatial import cKDTree
-
-    A = problem.n_agents
-    length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-    key = {a: (-float(length[a]), a) for a in range(A)}
-    before: dict[int, set[int]] = {a: set() for a in range(A)}  # a -> vehicles that must go before a
-    tree = cKDTree(problem.starts_m[:, :2])
-    for a, near in enumerate(tree.query_ball_point(problem.goals_m[:, :2], problem.reach_xy_m)):
-        for b in near:
-            if b == a:
-                continue
-            ko = problem.keepouts[(int(problem.type_index[a]), int(problem.type_index[b]))]
-            if ko.conflict((problem.starts_m[b] - problem.goals_m[a])[None], rest=True)[0]:
-                before[a].add(b)
-    out: list[int] = []
-    done: set[int] = set()
-    while len(out) < A:
-        ready = [a for a in range(A) if a not in done and before[a] <= done]
-        pick = min(ready or [a for a in range(A) if a not in done], key=lambda a: key[a])
-        out.append(pick)
-        done.add(pick)
-    return out
-
-
+# PriorityOptions, PriorityResult, PrioritizedFailed, dependency_order and single's planners re-exported: their
+# import path from this module kept
 __all__ = [
     "PrioritizedFailed",
     "PriorityOptions",

@@ -1,6 +1,6 @@
 """A joint move whose members conflict leaving together, flown with its members leaving one after
 another (issue 37 item 5; round 27S, made cheaper in round 28S; used by
-:func:`proxplan.planner.swarm.passes.fitted`).
+:func:`proxplan.planner.swarm.pass_moves.fitted`).
 
 A member's fastest arc (:mod:`proxplan.planner.timing.path_law`) may reach a partner's start before the
 partner has left it. :func:`staggered` then takes the members in :func:`leaving_order` (a member before

@@ -17,7 +17,7 @@ from proxplan.physics import (
     feature_matrix,
     total_wrench,
 )
-from proxplan.physics.features import lagged, lowpass
+from proxplan.physics.time_copies import lagged, lowpass
 
 VEH = BUILTIN_VEHICLES["small-quad"]
 

@@ -22,7 +22,7 @@ from proxplan.physics import (
     parse_time_name,
     time_name,
 )
-from proxplan.physics.features import TIME_FEATURE_SOURCES
+from proxplan.physics.time_copies import TIME_FEATURE_SOURCES
 
 
 def _inputs(seed: int, target: str, source: str, n: int = 300) -> tuple[EffectInputs, list]:

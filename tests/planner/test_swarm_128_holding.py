@@ -11,7 +11,7 @@ from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.holding import HOLDING_REACHES, MAX_HOLDING_POINTS, holding_points, plan_via_holding
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.priority import PriorityOptions
+from proxplan.planner.swarm.priority_options import PriorityOptions
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
 

@@ -71,9 +71,9 @@ def test_a_factor_no_plan_can_meet_leaves_prioritised_planning_to_run_and_says_s
 
 def test_joint_moves_are_told_apart_by_their_labels():
     """The passing stage keeps each joint move's conflict-free verdict under its members and label
-    (``passes._free``, in ``problem.static_memo``): within a component no two joint moves share a label, and
+    (``pass_moves._free``, in ``problem.static_memo``): within a component no two joint moves share a label, and
     the kept verdict is the one computed afresh."""
-    from proxplan.planner.swarm.passes import _free, conflict_components, conflict_free, joint_moves
+    from proxplan.planner.swarm.pass_moves import _free, conflict_components, conflict_free, joint_moves
     from proxplan.planner.swarm.straight import straight_step_conflicts
 
     _, _, problem = _assigned("grid", 16)

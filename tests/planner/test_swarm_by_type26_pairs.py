@@ -9,7 +9,7 @@ import pytest
 from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import layout_doc
 from proxplan.planner.swarm.goals import apply_assignment
-from proxplan.planner.swarm.passes import _free, _pairs_free, conflict_components, conflict_free, joint_moves
+from proxplan.planner.swarm.pass_moves import _free, _pairs_free, conflict_components, conflict_free, joint_moves
 from proxplan.planner.swarm.problem import swarm_problem
 from proxplan.planner.swarm.straight import straight_step_conflicts
 

@@ -12,8 +12,10 @@ from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import layout_doc
 from proxplan.planner.swarm.give_way import yielding_candidate
 from proxplan.planner.swarm.goals import apply_assignment
+from proxplan.planner.swarm.joint import place_joint
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.passes import conflict_components, joint_moves, passing_stage, place_joint
+from proxplan.planner.swarm.pass_moves import conflict_components, joint_moves
+from proxplan.planner.swarm.passes import passing_stage
 from proxplan.planner.swarm.prioritised_stage import horizon_steps
 from proxplan.planner.swarm.problem import swarm_problem
 from proxplan.planner.swarm.straight import own_straight_track, straight_step_conflicts

@@ -14,7 +14,8 @@ from proxplan.planfile import scenario_from_dict
 from proxplan.planner.formations import corridor, grid_reshuffle
 from proxplan.planner.swarm.departures import BUCKET_STEPS, DepartureIndex
 from proxplan.planner.swarm.occupancy import SAMPLING_GROWTH_M, Occupancy, _conflict
-from proxplan.planner.swarm.priority import dependency_order, plan_one, predicted_track
+from proxplan.planner.swarm.priority import plan_one, predicted_track
+from proxplan.planner.swarm.priority_order import dependency_order
 from proxplan.planner.swarm.problem import swarm_problem
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing import CORNER_DEVIATION_M

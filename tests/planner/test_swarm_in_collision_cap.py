@@ -11,13 +11,8 @@ from proxplan.planner.formations import grid_reshuffle
 from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.lns import NEIGHBOURHOOD
 from proxplan.planner.swarm.prioritised_stage import longest_first
-from proxplan.planner.swarm.priority import (
-    LNS_PLANNINGS_PER_VEHICLE,
-    PrioritizedFailed,
-    PriorityOptions,
-    in_collision_cap,
-    prioritized_tracks,
-)
+from proxplan.planner.swarm.priority import LNS_PLANNINGS_PER_VEHICLE, in_collision_cap, prioritized_tracks
+from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions
 
 
 def test_the_cap_is_the_collision_repairs_full_neighbourhoods():

@@ -11,7 +11,7 @@ import pytest
 
 from proxplan.planner.swarm.joint import JointMove, moving, place_joint
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.passes import conflict_components, conflict_free, joint_moves
+from proxplan.planner.swarm.pass_moves import conflict_components, conflict_free, joint_moves
 from proxplan.planner.swarm.stagger import MAX_STAGGER_STEPS, leaving_order, staggered
 from proxplan.planner.swarm.straight import straight_step_conflicts
 
@@ -73,7 +73,7 @@ def test_a_bounded_fitting_stops_only_where_the_joint_move_arrives_too_late():
     """grid-64 by type's v012+v020+v027+v028 (every joint move staggered): asked for an arrival before step
     ``below``, the fitting stops early (a Partial) only where the full fitting arrives at ``below`` or later,
     at most at that arrival, and otherwise gives the full fitting; asked in full after it, the same."""
-    from proxplan.planner.swarm.passes import _fitted, fitted
+    from proxplan.planner.swarm.pass_moves import fitted, fitted_below
     from proxplan.planner.swarm.stagger import Partial
 
     problems = [_assigned("grid", 64)[2] for _ in range(2)]  # one fitted in full, one bounded first
@@ -83,7 +83,7 @@ def test_a_bounded_fitting_stops_only_where_the_joint_move_arrives_too_late():
     for jm, jm_b in zip(joint_moves(full_p, members, checked=False), joint_moves(bounded_p, members, checked=False)):
         full = fitted(full_p, jm)
         for below in (jm.steps, jm.steps + 4, 10**6):
-            got = _fitted(bounded_p, jm_b, below)
+            got = fitted_below(bounded_p, jm_b, below)
             if isinstance(got, Partial):
                 stopped += 1
                 assert below <= got.arrival_lower and (full is None or got.arrival_lower <= full.steps)

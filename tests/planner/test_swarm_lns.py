@@ -12,11 +12,8 @@ from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.lns import colliding_pairs
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.prioritised_stage import longest_first
-from proxplan.planner.swarm.priority import (
-    PrioritizedFailed,
-    PriorityOptions,
-    prioritized_tracks,
-)
+from proxplan.planner.swarm.priority import prioritized_tracks
+from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions
 from proxplan.planner.timing import assemble_plan
 from proxplan.verify import verify_plan
 

@@ -15,7 +15,8 @@ from proxplan.planner.swarm import SwarmOptions, swarm_problem, swarm_timed
 from proxplan.planner.swarm.memo import Memo
 from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.prioritised_stage import ORDERS, horizon_steps
-from proxplan.planner.swarm.priority import PriorityOptions, plan_one, prioritized_tracks
+from proxplan.planner.swarm.priority import plan_one, prioritized_tracks
+from proxplan.planner.swarm.priority_options import PriorityOptions
 from proxplan.planner.swarm.reserve import predicted_track, reserved_track
 from proxplan.planner.swarm.wave import wave_route
 

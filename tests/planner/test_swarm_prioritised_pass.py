@@ -17,7 +17,7 @@ def test_groups_that_never_interact_are_planned_apart_the_same_in_parallel_as_in
     cluster (two workers) they get exactly the tracks they get one after the other."""
     from proxplan.planner.swarm.components import interaction_groups, plan_groups
     from proxplan.planner.swarm.prioritised_stage import longest_first
-    from proxplan.planner.swarm.priority import PriorityOptions
+    from proxplan.planner.swarm.priority_options import PriorityOptions
 
     west, east = grid_reshuffle(6, seed=1), grid_reshuffle(6, seed=2)
     vehicles = {}
@@ -47,7 +47,7 @@ def test_a_give_up_pickled_back_from_a_dask_worker_keeps_its_fields():
     and unpickling failed)."""
     import pickle
 
-    from proxplan.planner.swarm.priority import PrioritizedFailed
+    from proxplan.planner.swarm.priority_options import PrioritizedFailed
 
     failed = pickle.loads(pickle.dumps(PrioritizedFailed(3, 1, ["v003: nobody to take out"], planned=5, charged=9)))
     assert isinstance(failed, PrioritizedFailed)
@@ -68,7 +68,8 @@ def test_a_pass_given_up_early_is_one_that_would_spend_its_budget():
     planned twice, long before the budget is spent."""
     from proxplan.planner.sampling.ordering import lower_bound_makespan_s
     from proxplan.planner.swarm.prioritised_stage import ORDERS, horizon_steps
-    from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, prioritized_tracks
+    from proxplan.planner.swarm.priority import prioritized_tracks
+    from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions
 
     sc = scenario_from_dict(grid_reshuffle(20, seed=0), label="test scenario")
     problem = swarm_problem(sc)

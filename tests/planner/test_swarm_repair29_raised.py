@@ -15,7 +15,8 @@ from proxplan.planner.formations import LAYOUTS
 from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.chain import time_chain
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.priority import PrioritizedFailed, PriorityOptions, prioritized_tracks
+from proxplan.planner.swarm.priority import prioritized_tracks
+from proxplan.planner.swarm.priority_options import PrioritizedFailed, PriorityOptions
 from proxplan.planner.swarm.raised import RAISE_DZ_M, SIDE_MARGIN_M, raised_chains, raised_or
 from proxplan.planner.swarm.single import plan_one
 from proxplan.planner.timing import assemble_plan

@@ -12,7 +12,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import why_gives_up  # noqa: E402
 
 import proxplan.planner.swarm.priority as priority  # noqa: E402
-from proxplan.planner.swarm.priority import PriorityOptions  # noqa: E402
+from proxplan.planner.swarm.priority_options import PriorityOptions  # noqa: E402
 
 
 def test_failures_count_each_time_a_vehicle_failed_not_each_vehicle():

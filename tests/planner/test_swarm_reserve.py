@@ -11,11 +11,9 @@ from proxplan.planner.formations import formation_change, grid_reshuffle
 from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.lns import colliding_pairs
 from proxplan.planner.swarm.occupancy import Occupancy
-from proxplan.planner.swarm.priority import (
-    PriorityOptions,
-    dependency_order,
-    prioritized_tracks,
-)
+from proxplan.planner.swarm.priority import prioritized_tracks
+from proxplan.planner.swarm.priority_options import PriorityOptions
+from proxplan.planner.swarm.priority_order import dependency_order
 from proxplan.planner.swarm.reserve import Reservations, reserved_track
 from proxplan.planner.swarm.tracks import GRID_DT_S
 from proxplan.planner.timing import assemble_plan

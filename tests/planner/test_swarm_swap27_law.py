@@ -1,6 +1,6 @@
 """The swap manoeuvre timed by a near time-optimal law along its path (proxplan.planner.timing.path_law,
 issue 37 items 1 and 5, round 27S), and joint moves staggered where their members conflict leaving
-together (proxplan.planner.swarm.passes.fitted)."""
+together (proxplan.planner.swarm.pass_moves.fitted)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from proxplan.physics import KinematicLimits
-from proxplan.planner.swarm.passes import conflict_free, fitted, joint_moves
+from proxplan.planner.swarm.pass_moves import conflict_free, fitted, joint_moves
 from proxplan.planner.swarm.tracks import GRID_DT_S
 from proxplan.planner.timing.arcs import ArcMove
 from proxplan.planner.timing.path_law import _cached_law, _shape_law, quadratic_law, speed_accel_floor_s
