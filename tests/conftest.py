@@ -4,6 +4,11 @@ Fixtures: ``proxplan`` runs the command line in a fresh process (exit code, stdo
 ``battery_swap_plan`` is the shipped battery swap planned once per session (sampling method, seed 0,
 in a fresh process; ``battery_swap_planned`` the same run with its finished process); ``shipped_plans`` every
 shipped scenario planned so, once per session; ``write_yaml`` writes a mapping as a YAML file.
+
+Parallel runs (README's ``-n auto --dist loadgroup``, pytest-xdist): each test is marked
+``xdist_group`` with its module, so a module's tests and its module fixtures stay on one worker; the
+modules that read one of the costly session fixtures (``SESSION_GROUPS``) share one group, so the
+fixture is built once in the run, not once per worker.
 """
 
 from __future__ import annotations
@@ -21,6 +26,30 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "scenarios"
 SHARED = REPO.parent / "shared"
+
+# session fixture -> the xdist group of every module whose tests read it (directly or through another
+# fixture). Each is a planner or identify run in fresh processes (shipped_plans ~90 s loaded, the battery
+# swap ~10 s, discovery_clean ~40 s): built once per worker that runs a reader, so the readers share a worker.
+SESSION_GROUPS = {
+    "battery_swap_planned": "shipped_plans",
+    "battery_swap_plan": "shipped_plans",
+    "shipped_plans": "shipped_plans",
+    "discovery_clean": "discovery_clean",  # tests/identify/conftest.py
+}
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the marks (it appends the group to the node id)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark every test ``xdist_group``: its module's path, or the ``SESSION_GROUPS`` group of a session
+    fixture that a test of its module reads (one group for a module that reads two). Without
+    ``--dist loadgroup`` the marks do nothing."""
+    groups: dict[Path, str] = {}
+    for item in items:
+        readers = sorted({SESSION_GROUPS[name] for name in item.fixturenames if name in SESSION_GROUPS})
+        if readers:
+            groups[item.path] = "+".join(sorted({*readers, *groups.get(item.path, "").split("+")} - {""}))
+    for item in items:
+        item.add_marker(pytest.mark.xdist_group(groups.get(item.path) or item.path.relative_to(REPO).as_posix()))
 
 
 def run_proxplan(*args: Any, timeout: float = 300.0, cwd: Path = REPO) -> subprocess.CompletedProcess:

@@ -161,8 +161,8 @@ def _rendered_screenshot(browser: Chromium, needed: float, timeout_s: float = 18
 
 EMPTY_SERVER = (
     "import contextlib, json, sys, time, viser\n"
-    "with contextlib.redirect_stdout(sys.stderr):\n    s = viser.ViserServer(port=0, verbose=False)\n"
-    "print(json.dumps({'url': f'http://localhost:{s.get_port()}'}), flush=True)\ntime.sleep(600)\n"
+    "with contextlib.redirect_stdout(sys.stderr):\n    s = viser.ViserServer(host='127.0.0.1', port=0, verbose=False)\n"
+    "print(json.dumps({'url': f'http://127.0.0.1:{s.get_port()}'}), flush=True)\ntime.sleep(600)\n"
 )
 
 
