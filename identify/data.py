@@ -7,7 +7,7 @@ and thrust scales that predict it.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -47,7 +47,7 @@ class IdentifyOptions:
     smoothed_prediction: bool = (
         True  # predictions read through the measurement's smoothing (loading.smoothing_of_prediction)
     )
-    workers: int = 1  # worker processes, -: above 1, independent stages run on them (pipeline.run_identify)
+    workers: int = 1  # processes, -: above 1, independent stages run beside each other (pipeline.run_identify)
 
 
 CEILING_BIT, FLOOR_BIT = 1, 2
@@ -208,13 +208,12 @@ def thrust_scaled(
     return force, torque / s
 
 
-def progress_bar(items: Iterable, desc: str, enabled: bool, *, total: int | None = None, unit: str = "item"):
-    """``items`` with a progress bar on stderr when ``enabled`` (``total``: their count, for an iterator)."""
+def progress_bar(items: Sequence, desc: str, enabled: bool):
     if not enabled:
         return items
     from tqdm import tqdm
 
-    return tqdm(items, desc=desc, unit=unit, leave=False, total=total)
+    return tqdm(items, desc=desc, unit="item", leave=False)
 
 
 def merge_units(units: Sequence[Unit]) -> list[Unit]:

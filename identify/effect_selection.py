@@ -114,12 +114,6 @@ class EffectSelection:
         return float(np.mean(m)) if m.size else float("inf")
 
 
-def candidate_names(names: Sequence[str]) -> list[str]:
-    """The effects of ``names`` that get a candidate of their own (``thrust_bias`` is the thrust scales, always
-    fitted beside the tangents: :class:`EffectSelector`)."""
-    return [n for n in names if n != THRUST_BIAS]
-
-
 class EffectSelector:
     """One selection of library effects around a reference model (module docstring).
 
@@ -140,27 +134,16 @@ class EffectSelector:
         self.sums: GroupSums | None = None
         self.ridge: Ridge | None = None
         self.delayed: dict[float, LagInputs] = {}  # delay (s) -> the samples' inputs that much earlier
-        self._candidate_setup: tuple[np.ndarray, Ridge] | None = None  # the tangents stacked (N, 4, P), their ridge
         self.represented: dict[str, float] = {}  # after run: share of halves that picked it or one standing for it
         self.eligible: set[str] = set()  # after run: the effects the held-out test may keep (split_vote_eligible)
 
     def fit_candidates(self, names: Sequence[str]) -> None:
-        for name in progress_bar(candidate_names(names), "effect shapes", self.options.progress):
-            self.candidates.append(self.candidate(name))
-
-    def candidate(self, name: str) -> EffectCandidate:
-        """Library effect ``name``'s candidate around this selector's reference (its columns, shape and delay;
-        :func:`proxplan.identify.effect_candidates.effect_candidate`), not added to :attr:`candidates`. Each
-        effect's is the same whichever others were fitted before it here (what the fits leave behind, the
-        delayed inputs and the measurement reading's evaluations, are caches of pure functions; the reading's
-        last exact parameters are kept per effect), so the effects may be fitted in different processes."""
-        if self._candidate_setup is None:
-            stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
-                     else np.zeros((len(self.sel.weight), 4, 0)))  # fmt: skip
-            self._candidate_setup = stack, self.ridge_for(self.always)
-            self.delayed = {lag: lag_inputs(self.sel, lag) for lag in LAG_GRID_S}
-        stack, ridge = self._candidate_setup
-        return effect_candidate(self.sel, name, stack, ridge, self.delayed)
+        stack = (np.stack([self.tangents[k] for k in self.always], axis=2) if self.always
+                 else np.zeros((len(self.sel.weight), 4, 0)))  # fmt: skip
+        ridge = self.ridge_for(self.always)
+        self.delayed = {lag: lag_inputs(self.sel, lag) for lag in LAG_GRID_S}
+        for name in progress_bar([n for n in names if n != THRUST_BIAS], "effect shapes", self.options.progress):
+            self.candidates.append(effect_candidate(self.sel, name, stack, ridge, self.delayed))
 
     def design(self) -> tuple[GroupSums, Ridge]:
         if self.sums is None:

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from proxplan.fanout import Background, Task, background
+from proxplan.fanout import Background, background
 from proxplan.fileio import UserError
 from proxplan.identify.calibrate import (
     STACK_PARAMETER,
@@ -58,7 +58,6 @@ from proxplan.identify.data import (
     Unit,
     errors,
     predict,
-    progress_bar,
     rmse_fz_by_vehicle,
     subsample,
 )
@@ -72,14 +71,7 @@ from proxplan.identify.motor_check import check_loaded
 from proxplan.identify.noise import noise_level
 from proxplan.identify.priors import STACK_SHIELDING_PRIOR
 from proxplan.identify.residuals import correlate, sample_features
-from proxplan.identify.selection import (
-    Selection,
-    SelectionStart,
-    finish_selection,
-    other_start_better,
-    select_around,
-    start_candidate,
-)
+from proxplan.identify.selection import other_start_better, select_and_discover
 from proxplan.identify.spread import band_errors, fit_spread
 from proxplan.physics import (
     VALIDITY_FACTOR_L,
@@ -90,6 +82,12 @@ from proxplan.physics import (
 )
 
 # ------------------------------------------------------------------------------ pipeline
+
+
+PARALLEL_STAGES = 2
+"""Stages of :func:`run_identify` that can run at once, -: the pipeline has two independent branches at
+most (the motor-lag check beside the calibration, then the two starts of the selection), so a worker
+beyond one process beside the caller would idle."""
 
 
 @dataclass(frozen=True)
@@ -275,15 +273,14 @@ def _per_vehicle(
 def run_identify(
     manifest: Manifest | str | Path, *, options: IdentifyOptions | None = None, thrust_summary: bool = True
 ) -> IdentifyResult:
-    """The whole pipeline on a manifest; errors are on TEST flights. With ``options.workers`` K > 1, K worker
-    processes (:func:`proxplan.fanout.background`) run the motor-lag check beside the calibration, then the
-    two starts of the selection, each cut into one task per library effect's candidate and one that
-    finishes the start (:func:`_selection_task`); the result is the same as with 1 (every stage depends on
-    its arguments only)."""
+    """The whole pipeline on a manifest; errors are on TEST flights. With ``options.workers`` > 1 the
+    motor-lag check runs beside the calibration and the selection around the prior model beside the one
+    around the calibrated model, in a worker process (:func:`proxplan.fanout.background`); the result is
+    the same as with 1 (every stage depends on its arguments only)."""
     options = options or IdentifyOptions()
     if not isinstance(manifest, Manifest):
         manifest = load_manifest(manifest)
-    with background(options.workers if options.workers > 1 else 0) as side:
+    with background(min(options.workers, PARALLEL_STAGES) - 1) as side:
         return _run(manifest, options, side, thrust_summary)
 
 
@@ -316,38 +313,30 @@ def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_
     fitted = None  # the calibration's own fit, with its thrust scales
     model = base
     # the calibration's priors: eta (proxplan.physics.stack) is calibrated with the rest where the data hold stacks
-    prior_model = replace(base, options=replace(base.options, stack_shielding=options.stack_shielding))
+    prior_start = replace(base, options=replace(base.options, stack_shielding=options.stack_shielding))
     if options.calibrate:
-        model, calibration, fitted = calibrate_model(fit, prior_model, options=options, noise=noise)
+        model, calibration, fitted = calibrate_model(fit, prior_start, options=options, noise=noise)
         noise = noise_level(fit, fitted)  # the selection weighs by the noise left around the calibrated model
     calibrated = full_errors(model)
     laps("calibration")
     test_eval = subsample(test, options.max_eval_samples)
-    prior_start = None
+    alt_task = None
     if calibration is not None:
         # the calibration may have absorbed a missing effect into the vehicle parameters (their tangents
         # undo it only to first order), so selection also starts from the PRIOR model (eta at its prior);
         # it wins when its kept set predicts the held-out flights better (selection.other_start_better;
         # same samples, same units), else the calibrated start stays
         prior = replace(base, options=replace(base.options, stack_shielding=STACK_SHIELDING_PRIOR.center))
-        prior_start = SelectionStart(fit, valid, prior, model_specs(fit, prior), options, noise, test_eval, "prior",
-                                     prior_model=prior_model)  # fmt: skip
-    calibrated_start = SelectionStart(fit, valid, model, model_specs(fit, model), options, noise, test_eval,
-                                      calibrated_thrust_scale=None if fitted is None else fitted.thrust_scale,
-                                      prior_model=prior_model)  # fmt: skip
-    # submitted in this order, Dask runs them in it: the prior start first, the longer one on the shipped manifest
-    # (stop 70: 77-80 s against 51-54 s serial), so its finishing task is not the last to start
-    alt_task = (
-        None if prior_start is None else _selection_task(side, prior_start, "the selection around the prior model")
-    )
-    chosen_task = _selection_task(side, calibrated_start, "the selection around the calibrated model")
+        quiet = replace(options, progress=options.progress and side.workers == 0)  # one process draws the bars
+        alt_task = side.submit("the selection around the prior model", select_and_discover, fit, valid, prior,
+                               model_specs(fit, prior), options=quiet, noise=noise, test=test_eval, start="prior",
+                               prior_model=prior_start)  # fmt: skip
     corr_before = _residual_analysis(subsample(fit, 20000), model)
-    if side.workers and options.progress:  # the workers draw no bars: one here, over every task of both starts
-        tasks = [t for s in (alt_task, chosen_task) if s is not None for t in (*s.candidates, s.finish)]
-        for _ in progress_bar(side.as_completed(tasks), "selection stages", True, total=len(tasks), unit="stage"):
-            pass
-    chosen = chosen_task.result()
-    laps.stage("selection around the calibrated model", chosen_task.seconds)
+    specs = model_specs(fit, model)
+    chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval,
+                                 calibrated_thrust_scale=None if fitted is None else fitted.thrust_scale,
+                                 prior_model=prior_start)  # fmt: skip
+    laps("selection around the calibrated model")
     other_total = None
     if alt_task is not None:
         alt = alt_task.result()
@@ -357,7 +346,7 @@ def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_
         laps.stage("selection around the prior model", alt_task.seconds)
     lag_check = lag_task.result()
     laps.stage("motor lag check", lag_task.seconds)
-    laps("selection (both starts) and the stages beside")
+    laps("waiting for the stages beside")
     final = chosen.model
     after = full_errors(final)
     spread = fit_spread(chosen.rows, final, chosen.heldout_fz_N)  # set on flights the fit did not see
@@ -386,38 +375,6 @@ def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_
         stack_shielding=_stack_record(calibration, final), motor_lag_check=lag_check,
         selection=selection, fallback="fell back" in chosen.note, spread=spread, bands=bands, timings=laps.seconds,
     )  # fmt: skip
-
-
-@dataclass
-class _StartTasks:
-    """The tasks of one start of the selection: its effect candidates (none when it runs as one task) and the
-    task that finishes it."""
-
-    candidates: list[Task]
-    finish: Task
-
-    def result(self) -> Selection:
-        return self.finish.result()
-
-    @property
-    def seconds(self) -> float:
-        """The tasks' own wall times summed, s (they may have run in several processes at once); waits for them."""
-        for t in (*self.candidates, self.finish):
-            t.result()  # a task's time comes back with its result
-        return self.finish.seconds + sum(t.seconds for t in self.candidates)
-
-
-def _selection_task(side: Background, one: SelectionStart, label: str) -> _StartTasks:
-    """Submit one start of the selection: with workers, one task per effect candidate (independent of each
-    other, :func:`proxplan.identify.selection.start_candidate`) and one that finishes the start given them,
-    so the two starts' candidates spread over the workers (the selection set is built once per worker,
-    :class:`proxplan.identify.selection.SelectionStart`); without, the start as one stage in this process,
-    with its progress bars."""
-    if side.workers == 0:
-        return _StartTasks([], side.submit(label, select_around, one))
-    shared = side.share(replace(one, options=replace(one.options, progress=False)))  # no bars from workers
-    candidates = [side.submit(f"{label}: {name}", start_candidate, shared, name) for name in one.effect_names()]
-    return _StartTasks(candidates, side.submit(label, finish_selection, shared, candidates))
 
 
 class _Laps:

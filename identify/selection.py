@@ -17,8 +17,7 @@ from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
 from proxplan.identify.delayed import delayed_units
 from proxplan.identify.design import selection_set, tangent_u
 from proxplan.identify.discovery import DISCOVERED_NAME, DiscoveryResult, discover_terms
-from proxplan.identify.effect_candidates import EffectCandidate
-from proxplan.identify.effect_selection import THRUST_BIAS, EffectSelection, EffectSelector, candidate_names
+from proxplan.identify.effect_selection import THRUST_BIAS, EffectSelection, EffectSelector
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_backward
 from proxplan.identify.noise import CHANNELS, NoiseLevel, stacked
 from proxplan.physics import Effect
@@ -75,55 +74,6 @@ class Selection:
         return out
 
 
-@dataclass
-class SelectionStart:
-    """Everything stages 5 and 6 need around one reference model (the arguments of :func:`select_and_discover`):
-    the train units ``fit``, the validation units ``valid``, the ``reference`` model, its parameters' ``specs``,
-    the identify ``options``, the ``noise`` units, the ``test`` units the report scores, which ``start``
-    ("calibrated" | "prior"), the thrust scales the calibration fitted beside ``reference`` (type -> -), and
-    the calibration's priors ``prior_model``.
-
-    The selection set and its :class:`~proxplan.identify.effect_selection.EffectSelector` are built once per
-    process on first use (:meth:`selector`) and cached on this object, so the stages of one start may run in
-    different processes (:func:`start_candidate`, :func:`finish_selection`), each building it once; the cache
-    is never pickled."""
-
-    fit: Sequence[Unit]
-    valid: Sequence[Unit]
-    reference: Model
-    specs: Sequence[ParamSpec]
-    options: IdentifyOptions
-    noise: NoiseLevel
-    test: Sequence[Unit] = ()
-    start: str = "calibrated"
-    calibrated_thrust_scale: Mapping[str, float] | None = None
-    prior_model: Model | None = None
-    _selector: EffectSelector | None = field(default=None, repr=False, compare=False)
-
-    def selector(self) -> EffectSelector:
-        """The selection set around :attr:`reference` and its effect selector, built here once."""
-        if self._selector is None:
-            o = self.options
-            sel = selection_set(self.fit, self.valid, self.reference, self.noise, max_fit_samples=o.max_fit_samples,
-                                max_valid_samples=o.max_eval_samples,
-                                measure=o.measure if o.smoothed_prediction else None)  # fmt: skip
-            self._selector = EffectSelector(sel, self.specs, options=o)
-        return self._selector
-
-    def effect_names(self) -> list[str]:
-        """The library effects that get a candidate of their own, in the options' order."""
-        return candidate_names(self.options.effects)
-
-    def __getstate__(self) -> dict[str, Any]:
-        return self.__dict__ | {"_selector": None}
-
-
-def start_candidate(start: SelectionStart, name: str) -> EffectCandidate:
-    """Library effect ``name``'s candidate around ``start``'s reference (one task of a start: the candidates are
-    independent of each other, :meth:`proxplan.identify.effect_selection.EffectSelector.candidate`)."""
-    return start.selector().candidate(name)
-
-
 def select_and_discover(
     fit: Sequence[Unit],
     valid: Sequence[Unit],
@@ -141,27 +91,13 @@ def select_and_discover(
     terms with the kept effects and the vehicle parameters' tangents refitted jointly, in the noise units
     of ``noise``. ``calibrated_thrust_scale`` (type -> scale) are the thrust scales the calibration fitted
     beside ``reference``'s parameters (on every train sample); they stand with it when nothing is kept. With
-    ``prior_model`` (the calibration's priors), a model that keeps something is polished (:func:`polished`).
-    In this process, one stage after the other; :func:`start_candidate` and :func:`finish_selection` are
-    the same stages for running a start's effect candidates in several processes."""
-    return select_around(SelectionStart(fit, valid, reference, specs, options, noise, test, start,
-                                        calibrated_thrust_scale, prior_model))  # fmt: skip
-
-
-def select_around(one: SelectionStart) -> Selection:
-    """:func:`select_and_discover` of ``one``, in this process."""
-    selector = one.selector()
-    selector.fit_candidates(one.effect_names())
-    return finish_selection(one, selector.candidates)
-
-
-def finish_selection(one: SelectionStart, candidates: Sequence[EffectCandidate]) -> Selection:
-    """:func:`select_and_discover` of ``one`` given its effect ``candidates`` (in :meth:`SelectionStart.effect_names`
-    order, from :func:`start_candidate`): the forward selection of the effects, discovery, the joint fit."""
-    selector = one.selector()
-    selector.candidates = list(candidates)
-    sel, options, reference, start = selector.sel, one.options, one.reference, one.start
-    effects = selector.run(test=one.test)
+    ``prior_model`` (the calibration's priors), a model that keeps something is polished (:func:`polished`)."""
+    sel = selection_set(fit, valid, reference, noise, max_fit_samples=options.max_fit_samples,
+                        max_valid_samples=options.max_eval_samples,
+                        measure=options.measure if options.smoothed_prediction else None)  # fmt: skip
+    selector = EffectSelector(sel, specs, options=options)
+    selector.fit_candidates(options.effects)
+    effects = selector.run(test=test)
     discovery = None
     if options.discover:
         discovery = discover_terms(sel, selector.always_columns(effects.selected), selector.ridge_for)
@@ -185,16 +121,15 @@ def finish_selection(one: SelectionStart, candidates: Sequence[EffectCandidate])
         # first-order, subsampled copy of that fit (steps of 1e-4 in ln theta that float32 rounding moves).
         # With it stand the thrust scales it fitted (the nuisance it set back to 1 in ``reference``), when
         # thrust_bias is asked for.
-        if THRUST_BIAS in options.effects and one.calibrated_thrust_scale is not None:
-            reference = replace(reference, thrust_scale=dict(one.calibrated_thrust_scale),
+        if THRUST_BIAS in options.effects and calibrated_thrust_scale is not None:
+            reference = replace(reference, thrust_scale=dict(calibrated_thrust_scale),
                                 effects=(*reference.effects, Effect(THRUST_BIAS, {"force_z_N": 0.0})))  # fmt: skip
         model = reference
-    elif one.prior_model is not None and options.calibrate and not terms_kept:
+    elif prior_model is not None and options.calibrate and not terms_kept:
         # not with discovered terms: a term on a base feature (base_fz_lag...) was fitted on the base at the
         # reference, and refitting the base under it changes what the term means (and each evaluation of
         # the features costs: on the shipped manifest the polish doubled selection's time)
-        model = polished(selector, model, one.fit, one.prior_model, options=options, noise=one.noise,
-                         row_weight=jf.row_weight)  # fmt: skip
+        model = polished(selector, model, fit, prior_model, options=options, noise=noise, row_weight=jf.row_weight)
     return Selection(model, effects, discovery, start, heldout, sel.plan.note, sel.plan.cluster, sel.units, heldout_fz,
                      jf.channel_mse)  # fmt: skip
 

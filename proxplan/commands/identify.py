@@ -51,9 +51,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="use the logged motor thrusts as delivered even where the manifest says they are commands",
     )
     p.add_argument("--workers", type=int, metavar="K", default=None,
-                   help="worker processes (default: one per core; 1 runs every stage in this process; with more, "
-                        "the selection's effect candidates and both starts spread over them); the result does "
-                        "not depend on it")  # fmt: skip
+                   help="processes (default: one per core; 1 runs every stage in this process; the pipeline has "
+                        "two independent branches, so more than 2 act as 2); the result does not depend on it")  # fmt: skip
     p.set_defaults(func=run)
 
 

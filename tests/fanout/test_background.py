@@ -66,39 +66,12 @@ def test_a_negative_count_is_refused():
             pass
 
 
-def _total(parts: list[tuple[int, int]], extra: dict[str, tuple[int, int]]) -> int:
-    return sum(s for _, s in parts) + extra["k"][1]
-
-
-class _Counter:
-    """A shared value that tasks cache on (a setup every task of a worker needs)."""
-
-    def __init__(self) -> None:
-        self.calls = 0
-
-
-def _count(counter: _Counter) -> tuple[int, int]:
-    counter.calls += 1
-    return os.getpid(), counter.calls
-
-
-@pytest.mark.parametrize("workers", [0, 1, 2])
-def test_a_stage_given_other_stages_runs_on_their_results(workers: int):
-    with background(workers) as side:
-        parts = [side.submit(f"part {k}", _pid_and_sum, k, b=1) for k in range(4)]
-        total = side.submit("the total", _total, parts, {"k": side.submit("k", _pid_and_sum, 10)})
-        assert total.result() == (1 + 2 + 3 + 4) + 10
-        assert [p.result()[1] for p in parts] == [1, 2, 3, 4]
-        done = list(side.as_completed(parts))
-        assert sorted(t.label for t in done) == [p.label for p in parts]
+def _size(values: list[int], *, extra: list[int]) -> int:
+    return len(values) + len(extra)
 
 
 @pytest.mark.parametrize("workers", [0, 1])
-def test_a_shared_value_is_one_object_for_every_stage_of_a_worker(workers: int):
+def test_a_shared_value_reaches_the_stage_as_the_value(workers: int):
     with background(workers) as side:
-        counter = _Counter()
-        shared = side.share(counter)
-        seen = [side.submit(f"count {k}", _count, shared).result() for k in range(3)]
-    assert [n for _, n in seen] == [1, 2, 3]  # each stage saw what the one before left on the object
-    assert (counter.calls == 3) == (workers == 0)  # with workers the caller's object is a copy's source only
-    assert len({pid for pid, _ in seen}) == 1
+        big = side.share(list(range(100_000)))
+        assert side.submit("sizes", _size, big, extra=side.share([1, 2])).result() == 100_002
