@@ -57,16 +57,11 @@ class Shared:
         self.future = future
 
 
-def _values(args: tuple, kwargs: dict) -> tuple[tuple, dict]:
-    """``args`` and ``kwargs`` with each :class:`Shared` replaced by its value (in this process)."""
-    return (tuple(a.value if isinstance(a, Shared) else a for a in args),
-            {k: v.value if isinstance(v, Shared) else v for k, v in kwargs.items()})  # fmt: skip
-
-
-def _futures(args: tuple, kwargs: dict) -> tuple[tuple, dict]:
-    """``args`` and ``kwargs`` with each :class:`Shared` replaced by its Dask future (resolved by the worker)."""
-    return (tuple(a.future if isinstance(a, Shared) else a for a in args),
-            {k: v.future if isinstance(v, Shared) else v for k, v in kwargs.items()})  # fmt: skip
+def _swapped(args: tuple, kwargs: dict, swap: Callable[[Shared], Any]) -> tuple[tuple, dict]:
+    """``args`` and ``kwargs`` with each :class:`Shared` replaced by ``swap(it)`` (its value here, or its Dask
+    future, which the worker resolves)."""
+    return (tuple(swap(a) if isinstance(a, Shared) else a for a in args),
+            {k: swap(v) if isinstance(v, Shared) else v for k, v in kwargs.items()})  # fmt: skip
 
 
 class Task:
@@ -110,8 +105,8 @@ class Background:
         """Start ``fn(*args, **kwargs)`` (a module-level function: it is pickled) and return its :class:`Task`;
         ``label`` names it in a lost-worker error."""
         if self._client is None:
-            return Task(label, lambda: _timed(fn, *_values(args, kwargs)))
-        future = self._client.submit(_timed, fn, *_futures(args, kwargs), pure=False)
+            return Task(label, lambda: _timed(fn, *_swapped(args, kwargs, lambda x: x.value)))
+        future = self._client.submit(_timed, fn, *_swapped(args, kwargs, lambda x: x.future), pure=False)
         return Task(label, lambda: future_result(future, label))
 
 
