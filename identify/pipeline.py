@@ -317,8 +317,6 @@ def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_
     if options.calibrate:
         model, calibration, fitted = calibrate_model(fit, prior_start, options=options, noise=noise)
         noise = noise_level(fit, fitted)  # the selection weighs by the noise left around the calibrated model
-    calibrated = full_errors(model)
-    laps("calibration")
     test_eval = subsample(test, options.max_eval_samples)
     alt_task = None
     if calibration is not None:
@@ -331,6 +329,8 @@ def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_
         alt_task = side.submit("the selection around the prior model", select_and_discover, fit, valid, prior,
                                model_specs(fit, prior), options=quiet, noise=noise, test=test_eval, start="prior",
                                prior_model=prior_start)  # fmt: skip
+    calibrated = full_errors(model)  # after the submission: the worker need not wait for these test errors
+    laps("calibration")
     corr_before = _residual_analysis(subsample(fit, 20000), model)
     specs = model_specs(fit, model)
     chosen = select_and_discover(fit, valid, model, specs, options=options, noise=noise, test=test_eval,
