@@ -20,9 +20,11 @@ assume a uniform sample time within a segment (the median step).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
-from scipy.signal import lfilter, lfilter_zi, savgol_filter
+from scipy.ndimage import convolve1d
+from scipy.signal import lfilter, lfilter_zi, savgol_coeffs, savgol_filter
 from scipy.signal.windows import triang
 from scipy.spatial.transform import Rotation
 
@@ -65,13 +67,42 @@ def _window_samples(window_s: float, dt_s: float, n: int, polyorder: int) -> int
     return min(w, n if n % 2 else n - 1)
 
 
+@lru_cache(maxsize=256)
+def _savgol_operator(w: int, polyorder: int, deriv: int, delta_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Savitzky-Golay filter of ``savgol_filter(x, w, polyorder, deriv, delta_s, mode="interp")`` as linear
+    maps, built once per window: its convolution coefficients (w,) and its two edges, (w // 2, w) each: the
+    polynomial fitted to the first (last) w samples evaluated at the first (last) w // 2. The edges are
+    scipy's own edge fit applied to the identity (each column the filter's response to one unit sample), so
+    they are the same least-squares fit, rounded once here instead of at every call (scipy fits each
+    edge again per call: two ``lstsq`` of a w-row Vandermonde matrix, 2/3 of the filter's time on the
+    identify pipeline's many short stretches). Units: the output's per ``delta_s`` (s) ** ``deriv``."""
+    coeffs = savgol_coeffs(w, polyorder, deriv=deriv, delta=delta_s)
+    response = savgol_filter(np.eye(w), w, polyorder, deriv=deriv, delta=delta_s, axis=0, mode="interp")
+    h = w // 2
+    return coeffs, response[:h], response[w - h :]
+
+
+def _savgol(x: np.ndarray, w: int, polyorder: int, deriv: int, dt_s: float) -> np.ndarray:
+    """``scipy.signal.savgol_filter(x, w, polyorder, deriv, delta=dt_s, axis=0, mode="interp")`` of ``x`` (n, ...)
+    with n >= w, through :func:`_savgol_operator` (the interior the same floats; the edges equal to rounding:
+    tests/identify/test_measure_savgol.py)."""
+    # the smoothed value (deriv 0) does not depend on the step: one operator for every clock
+    coeffs, left, right = _savgol_operator(w, polyorder, deriv, float(dt_s) if deriv else 1.0)
+    x = np.asarray(x, dtype=float)
+    y = convolve1d(x, coeffs, axis=0, mode="constant")
+    h, n = w // 2, x.shape[0]
+    y[:h] = np.tensordot(left, x[:w], axes=1)
+    y[n - h :] = np.tensordot(right, x[n - w :], axes=1)
+    return y
+
+
 def _smooth(x: np.ndarray, dt_s: float, options: MeasureOptions, *, deriv: int) -> np.ndarray:
     """Smoothed signal or its time derivative (deriv=1), rows = time, one segment."""
     n = x.shape[0]
     if options.derivative == "savgol" and n > options.polyorder + 1:
         w = _window_samples(options.window_s, dt_s, n, options.polyorder)
         if w > options.polyorder:
-            return savgol_filter(x, w, options.polyorder, deriv=deriv, delta=dt_s, axis=0, mode="interp")
+            return _savgol(x, w, options.polyorder, deriv, dt_s)
     if options.derivative == "triangular" and n >= 3:
         w = min(max(int(round(options.window_s / dt_s)) | 1, 3), n if n % 2 else n - 1)
         kern = triang(w)
