@@ -243,9 +243,9 @@ def band_lines(bands: Mapping[str, Mapping], title: str = "What the model cannot
     force falls inside the model's 90 % interval (proxplan.identify.spread)."""
     lines = [f"## {title}", "",
              "The residual split at 1 Hz (zero-phase low-pass): a quasi-steady model of the mean jet cannot follow "
-             "the fast part. Constant per log: the RMS of each vehicle log's mean residual (a thrust map off at "
-             "that flight's battery, a battery of another mass; part of the slow part, and no model of the air "
-             "predicts it). Coverage: the share of samples inside the saved 90 % interval (target 85-95 %); "
+             "the fast part. Constant per log: the RMS of each vehicle log's mean residual (part of the slow "
+             "part; no model of the air predicts it, and it follows none of the battery figures the logs hold: "
+             "docs/identify.md, stop 72). Coverage: the share of samples inside the saved 90 % interval (target 85-95 %); "
              f"beside it its {100 * COVERAGE_LEVEL:.0f} % interval with the FLIGHT as the unit (samples of one flight share its constant: "
              "a ratio estimator over flights, proxplan.identify.per_flight), and whether 90 % lies inside it "
              "(a set of few flights whose interval holds 90 % is no miss).", "",

@@ -14,8 +14,11 @@ and the residual split into slow and fast parts.
   above 1 Hz beside the whole (a quasi-steady model of the mean jet cannot follow the fast part).
 * :func:`coverage` counts the samples whose |residual| lies inside the 90 % interval.
 * :class:`BandAccumulator` also keeps the part of the residual that is one constant per vehicle log (its mean
-  over the flight): no quasi-steady model of the air predicts it (a thrust map off at that battery's voltage,
-  a battery of another mass), and with few flights per set it sets how far that set's coverage strays from
+  over the flight): no quasi-steady model of the air predicts it, and its cause is not traced. It is NOT the
+  battery as the logs record it (mean Vbat, Vbat at hover, sag, internal resistance, the firmware map's
+  PWM*Vbat per newton: none explains it held out on the shipped train flights) nor a mass error (a mass error
+  dm gives dm*g as the constant and dm as the slope on the vertical specific force: they disagree); docs/identify.md,
+  "Stop 72, round 34V". With few flights per set it sets how far that set's coverage strays from
   90 % (the shipped flights' figures: docs/identify.md, "What the model cannot predict"); so the coverage is
   reported with its interval over flights (:func:`proxplan.identify.per_flight.coverage_interval`).
 """
@@ -191,7 +194,7 @@ class BandAccumulator:
         self.n += int(residual.size)
         self.sse_low += float(np.sum(slow**2))
         self.sse_high += float(np.sum((residual - slow) ** 2))
-        if residual.size:  # the log's mean residual: a thrust-map, battery or mass error of that flight
+        if residual.size:  # the log's mean residual: one constant per log, its cause not traced (module docstring)
             self.sse_constant += float(residual.size * np.mean(residual) ** 2)
         if half_width is not None:
             ok = np.isfinite(half_width)

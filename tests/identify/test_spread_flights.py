@@ -1,5 +1,5 @@
-"""The 90 % interval of a NEW flight (issue 35, stop 71): a per-flight constant in the residual (a thrust map off
-at that battery) and the coverage judged with the flight as the unit (proxplan.identify.per_flight,
+"""The 90 % interval of a NEW flight (issue 35, stop 71): a per-flight constant in the residual (drawn here;
+on the shipped flights its cause is not traced: docs/identify.md, stop 72) and the coverage judged with the flight as the unit (proxplan.identify.per_flight,
 proxplan.identify.spread.fit_spread)."""
 
 from __future__ import annotations
