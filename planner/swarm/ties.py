@@ -32,6 +32,7 @@ __all__ = [
     "TIME_RESOLUTION_S",
     "canonical_assignment",
     "quantised",
+    "shorter",
     "tie_key",
 ]
 
@@ -40,6 +41,12 @@ def tie_key(value: float, resolution: float) -> int:
     """``value`` rounded to a multiple of ``resolution`` (same unit), as an integer: the key two candidates of equal
     cost on any machine compare equal by (then by their index or name, given after it in a key tuple)."""
     return int(round(float(value) / resolution))
+
+
+def shorter(a_s: float, b_s: float) -> bool:
+    """``a_s`` shorter than ``b_s`` (s) by at least ``TIME_RESOLUTION_S`` after rounding: the test by which a plan
+    replaces the plan in hand (equal plans: the one in hand stays, on every machine)."""
+    return tie_key(a_s, TIME_RESOLUTION_S) < tie_key(b_s, TIME_RESOLUTION_S)
 
 
 def quantised(values: np.ndarray, resolution: float) -> np.ndarray:
