@@ -215,10 +215,10 @@ def _place_all(
     raised = [u for u in reversed(first) if u in units]
     rest_comps = sorted(
         (c for c in comps if c not in raised),
-        key=lambda c: (-max(tie_key(length[a], LENGTH_RESOLUTION_M) for a in c), c),
+        key=lambda c: (-max(tie_key(float(length[a]), LENGTH_RESOLUTION_M) for a in c), c),
     )
     rest_late = sorted(
-        (a for a in late if a not in raised), key=lambda a: (-tie_key(length[a], LENGTH_RESOLUTION_M), a)
+        (a for a in late if a not in raised), key=lambda a: (-tie_key(float(length[a]), LENGTH_RESOLUTION_M), a)
     )
     delayed: set[int] = set()  # straight-flying vehicles that made a component wait
     stuck: list[tuple[tuple[int, ...] | int, set[int]]] = []

@@ -53,7 +53,7 @@ __all__ = [
 def longest_first(problem: SwarmProblem) -> list[int]:
     """Planning order: the longer straight line first (it sets the makespan), ties by index."""
     length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-    return sorted(range(problem.n_agents), key=lambda a: (-tie_key(length[a], LENGTH_RESOLUTION_M), a))
+    return sorted(range(problem.n_agents), key=lambda a: (-tie_key(float(length[a]), LENGTH_RESOLUTION_M), a))
 
 
 # the goal block filled from its far side (swarm.fill_order): the stacked plan's levels are planned in it

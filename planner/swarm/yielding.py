@@ -121,7 +121,7 @@ def choose_yielders(problem: SwarmProblem, pairs: list[tuple[int, int]]) -> set[
         if i in out or j in out or problem.pinned[i] and problem.pinned[j]:
             continue
         cands = [a for a in (i, j) if not problem.pinned[a]]
-        out.add(min(cands, key=lambda a: (tie_key(length[a], LENGTH_RESOLUTION_M), -degree[a], a)))
+        out.add(min(cands, key=lambda a: (tie_key(float(length[a]), LENGTH_RESOLUTION_M), -degree[a], a)))
     return out
 
 
@@ -317,7 +317,9 @@ def _place(
                 occ.put(ghost)
                 predicted.add(a)
     raised = [a for a in reversed(first) if a in yielders]
-    rest = sorted((a for a in yielders if a not in raised), key=lambda a: (-tie_key(length[a], LENGTH_RESOLUTION_M), a))
+    rest = sorted(
+        (a for a in yielders if a not in raised), key=lambda a: (-tie_key(float(length[a]), LENGTH_RESOLUTION_M), a)
+    )
     for a in raised + rest:
         occ.remove(a)
         predicted.discard(a)
