@@ -8,7 +8,9 @@ achieve it, the sum of squared straight-line distances, which makes synchronised
 collision-free when starts and goals are far enough apart. The bottleneck is found by bisection
 over the sorted costs with a perfect-matching test
 (``scipy.sparse.csgraph.maximum_bipartite_matching``), the sum by ``scipy.optimize.linear_sum_assignment``
-on the costs with every pair above the bottleneck excluded. The assignment's lower bound (no plan
+on the costs with every pair above the bottleneck excluded; both on the costs rounded to a stated resolution,
+the lexicographically smallest of the assignments of least sum taken (:mod:`~proxplan.planner.swarm.ties`,
+round 34W: the same assignment on every machine and in any order of the vehicles). The assignment's lower bound (no plan
 can finish earlier) is the largest single-vehicle minimum time under it.
 
 Where a straight line would pass through an obstacle, its cost is the larger of that time and a certified
@@ -22,11 +24,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from proxplan.physics import KinematicLimits
+from proxplan.planner.swarm.ties import (
+    LENGTH_RESOLUTION_M,
+    SQUARED_LENGTH_RESOLUTION_M2,
+    TIME_RESOLUTION_S,
+    canonical_assignment,
+    quantised,
+)
 from proxplan.planner.timing.durations import duration_table
 
 
@@ -37,14 +45,19 @@ class Assignment:
 
 
 def _min_times(starts: np.ndarray, goals: np.ndarray, limits: KinematicLimits) -> np.ndarray:
-    """(n, n) straight-line rest-to-rest minimum time from each start to each goal, s."""
-    d = np.linalg.norm(starts[:, None, :] - goals[None, :, :], axis=2)
+    """(n, n) straight-line rest-to-rest minimum time from each start to each goal, s. The table is a step
+    function of the distance (its next node up), so each distance is first rounded to ``LENGTH_RESOLUTION_M``
+    (swarm.ties): a line of 1 m on a node, 1 ulp longer on another machine, would take the next node's time."""
+    d = (
+        quantised(np.linalg.norm(starts[:, None, :] - goals[None, :, :], axis=2), LENGTH_RESOLUTION_M)
+        * LENGTH_RESOLUTION_M
+    )
     table = duration_table(limits)
     return np.vectorize(table.duration_s, otypes=[float])(d)
 
 
-def _bottleneck(cost: np.ndarray) -> float:
-    """Smallest threshold c such that a perfect matching uses only pairs of cost <= c."""
+def _bottleneck(cost: np.ndarray) -> int:
+    """Smallest threshold c such that a perfect matching uses only pairs of cost <= c (integer costs, exact)."""
     values = np.unique(cost)
     lo, hi = 0, values.size - 1
     n = cost.shape[0]
@@ -56,7 +69,7 @@ def _bottleneck(cost: np.ndarray) -> float:
             hi = mid
         else:
             lo = mid + 1
-    return float(values[lo])
+    return int(values[lo])
 
 
 def assign_group(
@@ -73,14 +86,14 @@ def assign_group(
     times = _min_times(starts, goals, limits)
     if floor_s is not None:
         times = np.maximum(times, floor_s)
-    bottleneck = _bottleneck(times)
-    sq = np.sum((starts[:, None, :] - goals[None, :, :]) ** 2, axis=2)
-    big = float(sq.max()) * len(starts) * 10.0 + 1.0
-    cost = np.where(times <= bottleneck, sq, big)
-    rows, cols = linear_sum_assignment(cost)
-    goal_of = np.empty(len(starts), dtype=np.int64)
-    goal_of[rows] = cols
-    return goal_of, bottleneck
+    # costs compared as integers at a stated resolution (swarm.ties): equal costs on one machine are equal on
+    # every machine, and among assignments of equal cost the lexicographically smallest is taken (round 34W)
+    steps = quantised(times, TIME_RESOLUTION_S)
+    bottleneck = _bottleneck(steps)
+    sq = quantised(np.sum((starts[:, None, :] - goals[None, :, :]) ** 2, axis=2), SQUARED_LENGTH_RESOLUTION_M2)
+    big = int(sq.max()) * len(starts) * 10 + 1
+    goal_of = canonical_assignment(np.where(steps <= bottleneck, sq, big))
+    return goal_of, float(times[np.arange(len(starts)), goal_of].max())
 
 
 def assign_by_type(

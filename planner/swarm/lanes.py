@@ -39,6 +39,7 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.reserve import reserved_track
 from proxplan.planner.swarm.single import plan_one
 from proxplan.planner.swarm.stage import Stage
+from proxplan.planner.swarm.ties import TIME_RESOLUTION_S, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.wave import wave_route
 from proxplan.planner.timing.profile import LineMove, rest_to_rest
@@ -166,9 +167,12 @@ def lane_routes(problem: SwarmProblem, horizon: int, sides: tuple[float, ...] = 
         assert candidates[a], f"{problem.names[a]}: no route at all"
     taken: Counter = Counter()
     routes, hits = {}, {}
-    for a in sorted(range(A), key=lambda a: (-min(c[3][2] for c in candidates[a]), a)):
+    for a in sorted(range(A), key=lambda a: (-tie_key(min(c[3][2] for c in candidates[a]), TIME_RESOLUTION_S), a)):
         fewest = min(c[1] for c in candidates[a])
-        lane, _, W, hit = min((c for c in candidates[a] if c[1] == fewest), key=lambda c: (taken[c[0]], c[3][2], c[0]))
+        lane, _, W, hit = min(
+            (c for c in candidates[a] if c[1] == fewest),
+            key=lambda c: (taken[c[0]], tie_key(c[3][2], TIME_RESOLUTION_S), c[0]),
+        )
         taken[lane] += 1
         routes[a], hits[a] = W, hit
     return routes, hits

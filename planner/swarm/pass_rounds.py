@@ -20,6 +20,7 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.stagger import Partial
 from proxplan.planner.swarm.straight import own_straight_track
+from proxplan.planner.swarm.ties import LENGTH_RESOLUTION_M, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.yielding import YieldResult, blockers
 
@@ -212,8 +213,13 @@ def _place_all(
     tracks = dict(fixed) | pre
     units: list[tuple[int, ...] | int] = list(comps) + sorted(late)
     raised = [u for u in reversed(first) if u in units]
-    rest_comps = sorted((c for c in comps if c not in raised), key=lambda c: (-max(float(length[a]) for a in c), c))
-    rest_late = sorted((a for a in late if a not in raised), key=lambda a: (-float(length[a]), a))
+    rest_comps = sorted(
+        (c for c in comps if c not in raised),
+        key=lambda c: (-max(tie_key(float(length[a]), LENGTH_RESOLUTION_M) for a in c), c),
+    )
+    rest_late = sorted(
+        (a for a in late if a not in raised), key=lambda a: (-tie_key(float(length[a]), LENGTH_RESOLUTION_M), a)
+    )
     delayed: set[int] = set()  # straight-flying vehicles that made a component wait
     stuck: list[tuple[tuple[int, ...] | int, set[int]]] = []
     for u in raised + rest_comps + rest_late:

@@ -27,6 +27,7 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.raised import RAISE_DZ_M, a_level
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.straight import kept_straight_lines
+from proxplan.planner.swarm.ties import LENGTH_RESOLUTION_M, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S
 
 # prioritised planning's horizon: max(factor x lower bound, lower bound + margin) (a plan that needs
@@ -52,7 +53,7 @@ __all__ = [
 def longest_first(problem: SwarmProblem) -> list[int]:
     """Planning order: the longer straight line first (it sets the makespan), ties by index."""
     length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-    return sorted(range(problem.n_agents), key=lambda a: (-float(length[a]), a))
+    return sorted(range(problem.n_agents), key=lambda a: (-tie_key(float(length[a]), LENGTH_RESOLUTION_M), a))
 
 
 # the goal block filled from its far side (swarm.fill_order): the stacked plan's levels are planned in it

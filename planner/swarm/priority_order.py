@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from proxplan.planner.swarm.problem import SwarmProblem
+from proxplan.planner.swarm.ties import LENGTH_RESOLUTION_M, tie_key
 
 __all__ = ["dependency_order"]
 
@@ -19,7 +20,7 @@ def dependency_order(problem: SwarmProblem) -> list[int]:
 
     A = problem.n_agents
     length = np.linalg.norm(problem.goals_m - problem.starts_m, axis=1)
-    key = {a: (-float(length[a]), a) for a in range(A)}
+    key = {a: (-tie_key(float(length[a]), LENGTH_RESOLUTION_M), a) for a in range(A)}
     before: dict[int, set[int]] = {a: set() for a in range(A)}  # a -> vehicles that must go before a
     tree = cKDTree(problem.starts_m[:, :2])
     for a, near in enumerate(tree.query_ball_point(problem.goals_m[:, :2], problem.reach_xy_m)):

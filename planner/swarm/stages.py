@@ -49,6 +49,7 @@ from proxplan.planner.swarm.repair_stage import makespan_stage, repairs
 from proxplan.planner.swarm.retime_stage import retime_stage
 from proxplan.planner.swarm.stage import Stage
 from proxplan.planner.swarm.straight import straight_step_conflicts
+from proxplan.planner.swarm.ties import TIME_RESOLUTION_S, shorter, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.verify_guard import Check
 from proxplan.planner.timing.profile import rest_to_rest
@@ -101,7 +102,7 @@ def plan_stages(
     if found is None and opts.prioritized:
         kept = kept_straight_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
         found = prioritised_stage(problem, lower_bound, opts, extra, progress=progress, deadline=deadline)
-        if kept is not None and (found is None or stage_makespan(kept) < stage_makespan(found)):
+        if kept is not None and (found is None or shorter(stage_makespan(kept), stage_makespan(found))):
             found = kept
         if found is None and level:  # two-way lanes where prioritised planning gave up on a level (round 27A)
             found = lanes_stage(problem, lower_bound, extra)
@@ -121,7 +122,9 @@ def plan_stages(
                 )
                 for stage in (found, yielded)
             ]
-            found, pre_retimed = min(retimed, key=lambda r: max(tr.arrival_s for tr in r[1][0].values()))
+            found, pre_retimed = min(
+                retimed, key=lambda r: tie_key(max(tr.arrival_s for tr in r[1][0].values()), TIME_RESOLUTION_S)
+            )
     give_up: GiveUpHandOn | None = None
     if found is not None and not straight and not assigned and opts.levels and stacking is not None:
         # the stacked plan beside the prioritised plan, the shorter kept (round 24B)

@@ -46,6 +46,7 @@ from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.straight import own_straight_track, straight_step_conflicts
+from proxplan.planner.swarm.ties import LENGTH_RESOLUTION_M, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.timing import CORNER_DEVIATION_M
 from proxplan.planner.timing.profile import RunMove
@@ -120,7 +121,7 @@ def choose_yielders(problem: SwarmProblem, pairs: list[tuple[int, int]]) -> set[
         if i in out or j in out or problem.pinned[i] and problem.pinned[j]:
             continue
         cands = [a for a in (i, j) if not problem.pinned[a]]
-        out.add(min(cands, key=lambda a: (round(float(length[a]), 9), -degree[a], a)))
+        out.add(min(cands, key=lambda a: (tie_key(float(length[a]), LENGTH_RESOLUTION_M), -degree[a], a)))
     return out
 
 
@@ -316,7 +317,9 @@ def _place(
                 occ.put(ghost)
                 predicted.add(a)
     raised = [a for a in reversed(first) if a in yielders]
-    rest = sorted((a for a in yielders if a not in raised), key=lambda a: (-float(length[a]), a))
+    rest = sorted(
+        (a for a in yielders if a not in raised), key=lambda a: (-tie_key(float(length[a]), LENGTH_RESOLUTION_M), a)
+    )
     for a in raised + rest:
         occ.remove(a)
         predicted.discard(a)
