@@ -21,8 +21,9 @@ R the rotor radius, taken here as (L / 4h)^2 with the frame size L, squared for 
 the ground). A model file keeps it (``model.residual_spread``) with the quantile that makes the 90 %
 interval: |residual| <= quantile_90 sigma. A file without the last three terms reads them as zero.
 
-A new flight's residual is one constant for the whole vehicle log (a thrust map off at that battery's voltage,
-a battery of another mass: no model of the air predicts it) plus the part above, which varies within the log.
+A new flight's residual is one constant for the whole vehicle log (no model of the air predicts it; its cause is
+not traced: not the battery as the logs record it, nor a mass error, docs/identify.md "Stop 72, round 34V") plus
+the part above, which varies within the log.
 The interval of a new flight holds both (issue 35, stop 71):
 
     sigma_total^2 = sigma^2 + flight_N^2,
