@@ -37,16 +37,16 @@ import json
 from dataclasses import dataclass
 
 import numpy as np
+from sklearn.model_selection import LeaveOneGroupOut
 
 from proxplan.identify.data import IdentifyOptions, Model, Predictions
 from proxplan.identify.evaluate import GRAMS_PER_N, measurement_from_model
 from proxplan.identify.loading import load_units
 from proxplan.identify.manifest import load_manifest
 from proxplan.identify.thrust_map import IN_RANGE, MotorSamples, motor_limits
+from proxplan.physics import GRAVITY_MPS2
 from proxplan.physics.model_file import load_model_file
 
-G_MPS2 = 9.80665
-"""Standard gravity, m/s^2."""
 HOVER_BAND = 0.15
 """A sample is at hover when the total u lies within this fraction of the vehicle's weight, -."""
 LOW_THRUST_QUANTILE = 0.1
@@ -106,7 +106,7 @@ def measure(manifest_path: str, model_path: str) -> list[LogFigures]:
         total_N, t_s, acc_z = motor_N.sum(axis=1), log.t_s - log.t_s[0], log.accel_mps2[:, 2]
         tmap = maps[u.type]
         in_range = np.all(motor_limits(tmap, MotorSamples(commanded_N=motor_N, pwm=pwm, vbat_V=v)) == IN_RANGE, axis=1)
-        weight_N = veh.mass_kg * G_MPS2
+        weight_N = veh.weight_N
         hover = in_range & (np.abs(total_N - weight_N) < HOVER_BAND * weight_N)
         low = total_N <= np.quantile(total_N, LOW_THRUST_QUANTILE)
         drain = np.linalg.lstsq(np.column_stack([np.ones_like(t_s), t_s, total_N]), v, rcond=None)[0]
@@ -126,7 +126,7 @@ def measure(manifest_path: str, model_path: str) -> list[LogFigures]:
         out.append(LogFigures(flight=u.flight, name=u.name, type=u.type, split=u.split,
                               constant_g=float(res_g.mean()), covariates=cov,
                               slope_on_V_g_per_V=_slope(v, res_g), slope_on_t_g_per_s=_slope(t_s, res_g),
-                              mass_error_g=G_MPS2 * _slope(acc_z, res_g)))  # fmt: skip
+                              mass_error_g=GRAVITY_MPS2 * _slope(acc_z, res_g)))  # fmt: skip
     return out
 
 
@@ -134,8 +134,7 @@ def lofo_r2(c: np.ndarray, x: np.ndarray, flights: np.ndarray) -> float:
     """Held-out R^2 of c ~ a + b x, each flight's logs predicted by the fit without that flight, against the
     held-out mean of c (-)."""
     sse_line = sse_mean = 0.0
-    for f in np.unique(flights):
-        fit, held = flights != f, flights == f
+    for fit, held in LeaveOneGroupOut().split(x, groups=flights):
         b = np.polyfit(x[fit], c[fit], 1)
         sse_line += float(np.sum((c[held] - np.polyval(b, x[held])) ** 2))
         sse_mean += float(np.sum((c[held] - c[fit].mean()) ** 2))
