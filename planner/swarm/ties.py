@@ -89,11 +89,11 @@ def canonical_assignment(cost: np.ndarray) -> np.ndarray:
     rows, cols = linear_sum_assignment(c.astype(float))
     col_of = np.empty(n, dtype=np.int64)
     col_of[rows] = cols
-    while True:
+    v, improved = _residual_potentials(c, col_of)
+    while v is None:  # the solver's answer was not of least sum (float rounding): one negative cycle applied
+        assert improved is not None
+        col_of = improved
         v, improved = _residual_potentials(c, col_of)
-        if v is not None:
-            break
-        col_of = improved  # the solver's answer was not of least sum (float rounding): one negative cycle applied
     u = c[np.arange(n), col_of] - v[col_of]
     reduced = c - u[:, None] - v[None, :]
     assert int(reduced.min()) >= 0, "canonical_assignment: potentials not dual feasible"
