@@ -5,10 +5,13 @@ alone, on seeded random integer costs: ``distinct`` (0..10^12, almost no ties) a
 
 Usage:
     python benchmarks/bench_assignment.py [--n 64 128 256] [--repeat 3] [--seed 0] [--no-baseline]
+        [--apply pillar-256 grid-256 ...]
 
 The arms alternate within each case (baseline, new, LSA, then again), each timed by ``time.process_time`` (CPU s of
 this process); the table gives the medians and the ratios baseline/new and new/LSA of the same run, and whether the
-baseline and the new answer agree (they must).
+baseline and the new answer agree (they must). ``--apply LAYOUT-N ...``: also the whole by-type goal assignment
+(``proxplan.planner.swarm.goals.apply_assignment``) of those layouts (``proxplan.planner.formations.LAYOUTS``) with
+each arm in ``assign.assign_group`` (the baseline patched in), alternated, min of ``--repeat`` CPU s.
 """
 
 from __future__ import annotations
@@ -77,6 +80,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3, help="alternations of the arms per case")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-baseline", action="store_true", help="leave out the (slow) baseline arm")
+    ap.add_argument("--apply", nargs="*", default=[], metavar="LAYOUT-N", help="also apply_assignment on these")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     arms = {"lsa": _lsa, "new": canonical_assignment}
@@ -101,7 +105,39 @@ def main() -> int:
                 + "  ".join(f"{med[a]:10.4f}" for a in arms)
                 + f" {base} {med['new'] / med['lsa']:10.1f}  {same}"
             )
+    for case in args.apply:
+        _apply(case, args.repeat)
     return 0
+
+
+def _apply(case: str, repeat: int) -> None:
+    """apply_assignment of ``case`` (layout-N, by type) with the baseline and the new arm in turn."""
+    from proxplan.planfile import scenario_from_dict
+    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.swarm import assign
+    from proxplan.planner.swarm.goals import apply_assignment
+
+    layout, n = case.rsplit("-", 1)
+    doc = LAYOUTS[layout](int(n))
+    doc["assign_goals"] = "by_type"
+    sc = scenario_from_dict(doc, label="bench")
+    times: dict[str, list[float]] = {"baseline": [], "new": []}
+    goals: dict[str, dict] = {}
+    try:
+        for _ in range(repeat):
+            for name, fn in (("baseline", baseline_row_by_row), ("new", canonical_assignment)):
+                assign.canonical_assignment = fn
+                t0 = time.process_time()
+                _, record = apply_assignment(sc)
+                times[name].append(time.process_time() - t0)
+                goals[name] = record["goal_of"]
+    finally:
+        assign.canonical_assignment = canonical_assignment
+    b, k = min(times["baseline"]), min(times["new"])
+    print(
+        f"apply_assignment {case} by_type: baseline {b:.2f} s, new {k:.2f} s CPU (min of {repeat}), "
+        f"ratio {b / k:.1f}, same goals {goals['baseline'] == goals['new']}"
+    )
 
 
 if __name__ == "__main__":
