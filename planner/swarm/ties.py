@@ -124,8 +124,6 @@ def _residual_potentials(c: np.ndarray, col_of: np.ndarray) -> tuple[np.ndarray 
         dist = np.where(lower, best, dist)
         pred = np.where(lower, best_row, pred)
     # a negative cycle: walk back n steps from a column lowered in the last pass to land on the cycle
-    row_of_col = np.empty(n, dtype=np.int64)
-    row_of_col[col_of] = rows
     j = int(np.flatnonzero(lower)[0])
     for _ in range(n):
         j = int(col_of[pred[j]])
