@@ -16,8 +16,6 @@ swarm layer's 0.025 s time grid).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -58,39 +56,137 @@ def canonical_assignment(cost: np.ndarray) -> np.ndarray:
     """The column of each row of the least-sum assignment of the square integer ``cost`` matrix, the
     lexicographically smallest (by row, the lowest column) among the assignments of least sum: one answer whatever
     order the rows and columns came in and whatever optimum ``scipy.optimize.linear_sum_assignment`` would pick.
-    Integer costs (:func:`quantised`) make the sums exact. Row by row, the lowest column that still allows the least
-    sum is fixed: at most one assignment problem per column below the column of an optimum found."""
+
+    Round 35A: one ``linear_sum_assignment``, then exact integer work of about its cost. (1) Dual potentials
+    ``u`` (rows), ``v`` (columns) of the assignment found, with ``c[i, j] - u[i] - v[j] >= 0`` everywhere and ``== 0``
+    on the assignment: ``v`` the shortest distances in the graph of the moves of one row to another column
+    (:func:`_residual_potentials`; it has no negative cycle at a least sum, and when it has one, the solver's
+    answer was not of least sum and the cycle is applied, exactly, until none is left). Both conditions are
+    asserted. (2) Complementary slackness: an assignment has the least sum exactly when it uses only tight pairs
+    (``c[i, j] == u[i] + v[j]``) of an optimal dual, and every perfect matching of the tight pairs has the sum
+    ``sum(u) + sum(v)``. So the answer is the lexicographically smallest perfect matching of the tight pairs
+    (:func:`_lowest_perfect_matching`), which does not depend on the optimum the solver returned (nor on which
+    optimal dual: any one's tight pairs hold every optimum, and only optima). Round 34W's definition (row by row
+    the lowest column that keeps the least sum) is the same answer; its implementation (up to one assignment
+    problem per column) took 16 s on 256 x 256 distinct costs.
+
+    Exact in int64: the costs are first reduced (each row's minimum, then each column's, subtracted: every
+    assignment's sum drops by the same amount, so the same optima in the same order) to ``0..R``; potentials are
+    then within ``n R`` and reduced costs within ``(2 n + 1) R``; ``R (2 n + 2) < 2^62`` is required (ValueError
+    otherwise; the swarm layer's CAPT costs: ``R`` < 3e15 at 256 vehicles, 1.5e18 of 4.6e18)."""
     c = np.asarray(cost)
     if not np.issubdtype(c.dtype, np.integer):
         raise ValueError("canonical_assignment needs integer costs (quantised first)")
     n = c.shape[0]
-    cf = c.astype(float)
-
-    def least(rows: np.ndarray, cols: np.ndarray) -> tuple[float, np.ndarray]:
-        if rows.size == 0:
-            return 0.0, np.zeros(0, dtype=np.int64)
-        sub = cf[np.ix_(rows, cols)]
-        r, k = linear_sum_assignment(sub)
-        out = np.empty(rows.size, dtype=np.int64)
-        out[r] = cols[k]
-        return float(sub[r, k].sum()), out
-
-    out = np.empty(n, dtype=np.int64)
-    free = np.arange(n)
-    total, current = least(np.arange(n), free)
-    for i in range(n):
-        rest_rows = np.arange(i + 1, n)
-        chosen = int(current[0])
-        for j in free[free < chosen]:  # a lower column with the same least sum wins
-            others = free[free != j]
-            if rest_rows.size and cf[i, j] + cf[np.ix_(rest_rows, others)].min(axis=1).sum() > total + 0.5:
-                continue  # not even each remaining row's cheapest column reaches the least sum
-            s, sol = least(rest_rows, others)
-            if math.isclose(cf[i, j] + s, total, rel_tol=0.0, abs_tol=0.5):  # integer sums: equal or >= 1 apart
-                chosen, current = int(j), np.concatenate([[j], sol])
-                break
-        out[i] = chosen
-        total -= cf[i, chosen]
-        free = free[free != chosen]
-        current = current[1:]
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    c = c.astype(np.int64)
+    c = c - c.min(axis=1, keepdims=True)
+    c = c - c.min(axis=0, keepdims=True)
+    span = int(c.max())
+    if span * (2 * n + 2) >= 2**62:
+        raise ValueError(f"canonical_assignment: costs span {span}, too wide for exact int64 potentials at n = {n}")
+    rows, cols = linear_sum_assignment(c.astype(float))
+    col_of = np.empty(n, dtype=np.int64)
+    col_of[rows] = cols
+    v, improved = _residual_potentials(c, col_of)
+    while v is None:  # the solver's answer was not of least sum (float rounding): one negative cycle applied
+        assert improved is not None
+        col_of = improved
+        v, improved = _residual_potentials(c, col_of)
+    u = c[np.arange(n), col_of] - v[col_of]
+    reduced = c - u[:, None] - v[None, :]
+    assert int(reduced.min()) >= 0, "canonical_assignment: potentials not dual feasible"
+    assert not reduced[np.arange(n), col_of].any(), "canonical_assignment: assignment not tight"
+    out = _lowest_perfect_matching(reduced == 0, col_of)
+    assert not reduced[np.arange(n), out].any()
     return out
+
+
+def _residual_potentials(c: np.ndarray, col_of: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Column potentials ``v`` (int64, n) for the assignment ``col_of`` of the integer matrix ``c``: the shortest
+    distances, from a source joined to every column at 0, in the graph whose edge ``col_of[i] -> j`` weighs
+    ``c[i, j] - c[i, col_of[i]]`` (row ``i`` moved from its column to ``j``). Bellman-Ford, every edge relaxed at once
+    per pass (numpy, exact in int64). Returns ``(v, None)``; when a pass ``n`` still relaxes, the assignment is not of
+    least sum and ``(None, improved)`` is returned instead: ``col_of`` with one negative cycle of moves applied."""
+    n = c.shape[0]
+    rows = np.arange(n)
+    weight = c - c[rows, col_of][:, None]  # weight[i, j]: edge col_of[i] -> j
+    dist = np.zeros(n, dtype=np.int64)
+    pred = np.full(n, -1, dtype=np.int64)  # pred[j]: the row whose move last lowered dist[j]
+    for _ in range(n + 1):
+        through = dist[col_of][:, None] + weight  # (rows, columns)
+        best_row = np.argmin(through, axis=0)
+        best = through[best_row, np.arange(n)]
+        lower = best < dist
+        if not lower.any():
+            return dist, None
+        dist = np.where(lower, best, dist)
+        pred = np.where(lower, best_row, pred)
+    # a negative cycle: walk back n steps from a column lowered in the last pass to land on the cycle
+    j = int(np.flatnonzero(lower)[0])
+    for _ in range(n):
+        j = int(col_of[pred[j]])
+    cycle, k = [], j
+    while True:
+        i = int(pred[k])
+        cycle.append((i, k))  # row i moves to column k
+        k = int(col_of[i])
+        if k == j:
+            break
+    improved = col_of.copy()
+    for i, k in cycle:
+        improved[i] = k
+    return None, improved
+
+
+def _lowest_perfect_matching(tight: np.ndarray, col_of: np.ndarray) -> np.ndarray:
+    """The lexicographically smallest perfect matching (by row, the lowest column) of the bipartite graph ``tight``
+    (n x n bool, row i may take column j), given one perfect matching ``col_of`` of it. Rows are fixed in order.
+    Row ``i`` can take column ``j`` (its current column ``col_of[i]``, or another held by row ``r``) exactly when the
+    rows not yet fixed, without ``i``, can still be matched to the columns not yet fixed, without ``j``: when ``r``
+    reaches ``col_of[i]`` by an alternating path (a tight edge to a column, that column's row, its tight edge...).
+    One breadth-first search backwards from ``col_of[i]`` finds every such ``r`` at once; the lowest tight column of
+    ``i`` among theirs and ``col_of[i]`` is fixed, and the matching is re-routed along the path found."""
+    n = tight.shape[0]
+    col_of = col_of.copy()
+    row_of = np.empty(n, dtype=np.int64)
+    row_of[col_of] = np.arange(n)
+    open_rows = np.ones(n, dtype=bool)  # rows not yet fixed
+    open_cols = np.ones(n, dtype=bool)  # their columns
+    for i in range(n):
+        open_rows[i] = False
+        home = int(col_of[i])
+        if int(np.argmax(tight[i] & open_cols)) == home:  # no lower column to try (one tight column, often)
+            open_cols[home] = False
+            continue
+        next_col = np.full(n, -1, dtype=np.int64)  # next_col[r]: the column row r moves to, towards home
+        seen = ~open_rows  # rows fixed (and i) are never on a path
+        frontier = np.zeros(n, dtype=bool)
+        frontier[home] = True
+        reached_cols = frontier.copy()
+        while frontier.any():
+            to_frontier = tight[:, frontier] & ~seen[:, None]
+            new_rows = np.flatnonzero(to_frontier.any(axis=1))
+            if new_rows.size == 0:
+                break
+            frontier_cols = np.flatnonzero(frontier)
+            next_col[new_rows] = frontier_cols[np.argmax(to_frontier[new_rows], axis=1)]
+            seen[new_rows] = True
+            frontier = np.zeros(n, dtype=bool)
+            frontier[col_of[new_rows]] = True
+            frontier &= ~reached_cols
+            reached_cols |= frontier
+        j = int(np.flatnonzero(tight[i] & reached_cols)[0])  # home is tight and reached: never empty
+        open_cols[j] = False
+        if j != home:
+            r = int(row_of[j])
+            col_of[i], row_of[j] = j, i
+            while True:  # r takes next_col[r], whose row takes its next, ... until home is taken
+                k = int(next_col[r])
+                displaced = int(row_of[k]) if k != home else -1
+                col_of[r], row_of[k] = k, r
+                if k == home:
+                    break
+                r = displaced
+    return col_of

@@ -22,7 +22,10 @@ from proxplan.planner.swarm.stages import level_options
 
 # (layout, vehicles, goals) -> (stage, digest of swarm_timed's plan, of swarm_again's), main 8cfd46f
 PLANS = {
-    ("corridor", 12, "fixed"): ("prioritised", "dce9a4e801defc31", "dce9a4e801defc31"),
+    # round 35A: the digest blind to the sign of zero (see circle-16) re-hashes the same plans of two cases, each
+    # checked to give its old digest (in the comment) on the same code just before: corridor-12 dce9a4e801defc31,
+    # grid-32 db04b66a397f3de8 (grid-16 and the others have no -0.0 and kept theirs)
+    ("corridor", 12, "fixed"): ("prioritised", "f02e55d2b5dc673d", "f02e55d2b5dc673d"),
     ("grid", 16, "fixed"): ("stacked", "992d856974eae234", "992d856974eae234"),
     # recorded 26d43be78b7e2a4a on main 8cfd46f's machine; the same code gives e373fcd75be511dc on a fresh machine of
     # stop 70 (AMD EPYC, AVX2; packages installed fresh from the registry; numpy's SIMD and OpenBLAS's kernel
@@ -35,9 +38,14 @@ PLANS = {
     # numpy's sqrt, sin/cos/arctan2/hypot and exp/log/power each 1 ulp up. One that parts it: np.linalg.norm 1 ulp up
     # (non-zero values) in straight.own_straight_track alone -> adc0ab3f46fa848c, with the same step count (92) and
     # the profile's arc moved by 4e-16 m: a comparison downstream is decided at the last bit of a track's position
-    # (Ruckig's profile, a compiled library, is such a last bit). Not traced further: still unchecked
-    ("circle", 16, "by_type"): ("prioritised", None, None),
-    ("grid", 32, "fixed"): ("stacked", "db04b66a397f3de8", "db04b66a397f3de8"),
+    # (Ruckig's profile, a compiled library, is such a last bit). Not traced further: still unchecked.
+    # Round 35A: no comparison parts it; the plans are the same (positions within 9e-16 m, the same knots): this
+    # digest hashed np.round(x, 6)'s bytes, and a position of 0 computed as -2.2e-16 on one machine and 0 on
+    # another rounds to -0.0 against 0.0. Flipping the sign of the one zero of v000's x at t = 1.60 s in this
+    # machine's digest gives exactly 26d43be78b7e2a4a (8cfd46f's machine), of v014's x at 1.15 s adc0ab3f46fa848c
+    # (the norm probe). The digest now adds 0.0 after rounding (-0.0 -> 0.0): corridor-12 and grid-32 re-hashed (above).
+    ("circle", 16, "by_type"): ("prioritised", "fe57c25503c9fbb2", "fe57c25503c9fbb2"),
+    ("grid", 32, "fixed"): ("stacked", "e90b1e3708cf4277", "e90b1e3708cf4277"),
 }
 
 
@@ -55,9 +63,9 @@ def _digest(timed, info) -> str:
     for name in sorted(timed):
         path = timed[name]
         h.update(name.encode())
-        h.update(np.round(np.asarray(path.knot_t_s), 6).tobytes())
+        h.update((np.round(np.asarray(path.knot_t_s), 6) + 0.0).tobytes())  # + 0.0: -0.0 hashed as 0.0 (round 35A)
         t = np.arange(0.0, path.duration_s + 0.1, 0.01)
-        h.update(np.round(np.ascontiguousarray(path.sample(t)[0]), 6).tobytes())
+        h.update((np.round(np.ascontiguousarray(path.sample(t)[0]), 6) + 0.0).tobytes())
     return h.hexdigest()[:16]
 
 
