@@ -223,6 +223,33 @@ def solve(sums: GroupSums, cols: np.ndarray, train: np.ndarray, ridge: Ridge, ta
     return _Restricted.of(sums, cols, ridge).solve(train, tau)
 
 
+def solve_carried(
+    sums: GroupSums,
+    cols: np.ndarray,
+    carried: np.ndarray,
+    train: np.ndarray,
+    ridge: Ridge,
+    tau: float,
+) -> np.ndarray:
+    """Coefficients (len(cols),) of the columns ``cols`` where each column ``cols[j]`` with ``carried[j] >= 0``
+    also drags the column ``carried[j]`` (an index into :attr:`GroupSums.columns`) along at the SAME
+    coefficient, without that column informing it: the prediction is sum_j beta_j (x_cols[j] + x_carried[j]),
+    and beta is the fixed point at which :func:`solve` on ``cols`` against the target LESS the carried part
+    returns beta again. Normal equations of that fit, G_cc beta = b_c - G_c,carried beta (sums over the train
+    groups, ridge as :func:`solve`), solved directly as one (non-symmetric) linear system, so no iteration.
+
+    Used where the vehicle parameters' steps are fitted on F_z alone but act on every channel
+    (:func:`proxplan.identify.selection.joint_model`): ``cols`` hold their F_z parts, ``carried`` their torque
+    parts, and the terms fitted on the torque channels see the residual the steps leave there."""
+    restricted = _Restricted.of(sums, cols, ridge)
+    G, b = restricted.sums_of(train)
+    cells = sums.cells(train)
+    for j in np.flatnonzero(np.asarray(carried) >= 0):
+        # the carried column at coefficient beta_j moves to the left side: G[:, j] += X_c^T W x_carried
+        G[:, j] = G[:, j] + np.tensordot(cells, sums.G[:, cols, int(carried[j])], axes=1)
+    return restricted.solve_sums(G, b, tau)
+
+
 @dataclass(frozen=True)
 class _Restricted:
     """The per-cell sums and the prior restricted to the columns ``cols`` once (a held-out pass fits the

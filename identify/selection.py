@@ -12,7 +12,7 @@ import numpy as np
 
 from proxplan.identify.calibrate import ParamSpec, calibrate_model
 from proxplan.identify.channel_variance import structural_row_weight
-from proxplan.identify.crossval import heldout_mse, heldout_predictions, solve, trainable_groups
+from proxplan.identify.crossval import heldout_mse, heldout_predictions, solve_carried, trainable_groups
 from proxplan.identify.data import IdentifyOptions, Model, Unit, predict
 from proxplan.identify.delayed import delayed_units
 from proxplan.identify.design import selection_set, tangent_u
@@ -141,6 +141,10 @@ def fz_only(column: np.ndarray) -> np.ndarray:
     out[:, 0] = column[:, 0]
     return out
 
+
+CARRIED_SUFFIX = "|torque_part"
+"""Suffix of the name of a vehicle parameter's tangent restricted to the torque channels, carried at the
+coefficient its F_z part is fitted with (:func:`joint_model`, :func:`proxplan.identify.crossval.solve_carried`)."""
 
 STEP_FRACTIONS = (1.0, 0.5, 0.25, 0.125, 0.0)
 """Fractions of the vehicle parameters' joint step tried on the nonlinear model (:func:`_line_searched`)."""
@@ -304,14 +308,21 @@ def joint_model(selector: EffectSelector, effects: EffectSelection, discovery: D
     types = np.concatenate([np.full(len(u), u.type, dtype=object) for u in sel.units])
     row_weight, channel_mse = structural_row_weight(sel.residual - held, types, train)
     delivered = dict(columns)
+    carried: dict[str, str] = {}
     if any(k in back.chosen for k in terms):
         # the delivered fit beside kept discovered terms: the vehicle parameters' tangents on F_z only
         # (they are calibrated on F_z); on all four channels they bend to fit roll and pitch, which the
         # kept torque terms are for, and lose F_z on flights held out (docs/identify.md, stop 58). Judged
-        # (held-out errors below, the start choice) with the full tangents, as selection was
+        # (held-out errors below, the start choice) with the full tangents, as selection was. The delivered
+        # model applies the steps on every channel, so their torque parts are carried at the F_z-fitted
+        # coefficients, and the terms are fitted to what the steps leave on roll and pitch (stop 73: with the
+        # steps' torque left in the target, a torque term counted it twice, 2.1x on bench draw 29001)
         delivered |= {k: fz_only(columns[k]) for k in selector.always}
+        carried = {k: f"{k}{CARRIED_SUFFIX}" for k in selector.always}
+        delivered |= {carried[k]: columns[k] - delivered[k] for k in selector.always}
     deliver = sel.sums({k: v * row_weight for k, v in delivered.items()}, target=sel.residual * row_weight)
-    beta = solve(deliver, deliver.index(names), trainable_groups(deliver, sel.plan), ridge, sel.tau)
+    drag = np.array([deliver.index([carried[k]])[0] if k in carried else -1 for k in names], dtype=int)
+    beta = solve_carried(deliver, deliver.index(names), drag, trainable_groups(deliver, sel.plan), ridge, sel.tau)
     coef = dict(zip(names, (float(b) for b in beta)))
     survivors = {k: coef[k] for k in terms if k in back.chosen}
     chosen = [n for n in effects.selected if n in back.chosen]
