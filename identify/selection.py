@@ -285,7 +285,10 @@ def joint_model(selector: EffectSelector, effects: EffectSelection, discovery: D
     gain test given all the others (a library effect that stood in for an undeclared one is dropped once
     the discovered term explains it better); then the survivors and the vehicle parameters' steps are
     fitted jointly on every train group, each row and channel weighted by its error variance, noise plus
-    what the kept set leaves unexplained on flights held out (:mod:`proxplan.identify.channel_variance`)."""
+    what the kept set leaves unexplained on flights held out (:mod:`proxplan.identify.channel_variance`).
+    Beside kept discovered terms the steps are fitted on F_z alone and carried onto the torque channels at the
+    same coefficients (:func:`proxplan.identify.crossval.solve_carried`): the delivered model applies them on
+    every channel, so the terms are fitted to what they leave there."""
     sel = selector.sel
     kept = [c.as_candidate() for c in selector.candidates if c.name in effects.selected]
     terms = dict(discovery.kept) if discovery is not None else {}
