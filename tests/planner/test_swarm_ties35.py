@@ -1,55 +1,24 @@
 """Round 35A (issue 37): ``canonical_assignment`` in about one assignment problem gives the same answer as round
-34W's row-by-row search (kept here only, as the reference) and as brute force over permutations: the
-lexicographically smallest assignment of least sum, whatever optimum (or non-optimum) the solver returns."""
+34W's row-by-row search (the reference: the baseline arm of benchmarks/bench_assignment.py) and as brute force
+over permutations: the lexicographically smallest assignment of least sum, whatever optimum (or non-optimum) the
+solver returns."""
 
 from __future__ import annotations
 
 import itertools
-import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.optimize import linear_sum_assignment
 
 from proxplan.planner.swarm import ties as ties_module
 from proxplan.planner.swarm.ties import canonical_assignment
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
-def _row_by_row(cost: np.ndarray) -> np.ndarray:
-    """Round 34W's implementation (the reference): row by row the lowest column that keeps the least sum, one
-    assignment problem per column tried."""
-    c = np.asarray(cost)
-    n = c.shape[0]
-    cf = c.astype(float)
-
-    def least(rows: np.ndarray, cols: np.ndarray) -> tuple[float, np.ndarray]:
-        if rows.size == 0:
-            return 0.0, np.zeros(0, dtype=np.int64)
-        sub = cf[np.ix_(rows, cols)]
-        r, k = linear_sum_assignment(sub)
-        out = np.empty(rows.size, dtype=np.int64)
-        out[r] = cols[k]
-        return float(sub[r, k].sum()), out
-
-    out = np.empty(n, dtype=np.int64)
-    free = np.arange(n)
-    total, current = least(np.arange(n), free)
-    for i in range(n):
-        rest_rows = np.arange(i + 1, n)
-        chosen = int(current[0])
-        for j in free[free < chosen]:
-            others = free[free != j]
-            if rest_rows.size and cf[i, j] + cf[np.ix_(rest_rows, others)].min(axis=1).sum() > total + 0.5:
-                continue
-            s, sol = least(rest_rows, others)
-            if math.isclose(cf[i, j] + s, total, rel_tol=0.0, abs_tol=0.5):
-                chosen, current = int(j), np.concatenate([[j], sol])
-                break
-        out[i] = chosen
-        total -= cf[i, chosen]
-        free = free[free != chosen]
-        current = current[1:]
-    return out
+# round 34W's row-by-row search, the reference: kept once, as the benchmark's baseline arm
+from bench_assignment import baseline_row_by_row as _row_by_row  # noqa: E402
 
 
 def _brute_force(cost: np.ndarray) -> list[int]:
