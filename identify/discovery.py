@@ -59,6 +59,7 @@ from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_f
 from proxplan.identify.refine import Refined, refine_scaled_terms, term_column
 from proxplan.identify.sampled import sampled_features, unit_parts
 from proxplan.identify.stability import Stability, fold_eligibility, fold_half_samples, half_samples
+from proxplan.identify.type_split import TypeSplit, split_by_type
 from proxplan.physics import (
     DISCOVERED_PREFIX,
     FEATURE_FAMILIES,
@@ -68,6 +69,8 @@ from proxplan.physics import (
     is_wrench_feature,
     parse_term_key,
     term_formula,
+    term_type,
+    untyped_key,
 )
 
 DISCOVERED_NAME = f"{DISCOVERED_PREFIX}residual"
@@ -116,11 +119,19 @@ class DiscoveryResult:
     # kept terms whose scales were searched off the grid (a kernel's width and decay length, a time copy's delay or
     # time constant; identify.refine; the accepted ones stand in ``kept`` under their refined keys)
     refined: list[Refined] = field(default_factory=list)
+    # kept terms tested with one coefficient per target type (identify.type_split; the accepted ones stand in
+    # ``kept`` as their per-type keys "<key>@<type>")
+    splits: list[TypeSplit] = field(default_factory=list)
 
     def origin(self, key: str) -> str:
         """The term key ``key`` was tested as: its grid term where it was refined (of merged siblings, the first
-        kept), else itself."""
+        kept), else itself; a per-type term's, the term it was split from."""
+        key = next((s.key for s in self.splits if s.accepted and key in s.typed), key)
         return next((r.origin for r in self.refined if r.key == key and r.accepted), key)
+
+    def split_of(self, key: str) -> TypeSplit | None:
+        """The split by target type tested on term ``key`` (or that ``key`` is a per-type term of), if any."""
+        return next((s for s in self.splits if key == s.key or key in s.typed), None)
 
     def replaced(self) -> set[str]:
         """The grid terms an accepted refinement stands for."""
@@ -150,7 +161,8 @@ class DiscoveryResult:
             selected = key in self.kept
             group = group_of(key)
             prob = self.member_probability.get(origin, 0.0)
-            shown, sibling = self.refinements(key)
+            shown, sibling = self.refinements(untyped_key(key))
+            split = self.split_of(key)
             refined = None if shown is None else shown.to_json()
             out.append({
                 "name": DISCOVERED_NAME, "channel": channel, "feature": feature, "family": feature_family(feature),
@@ -158,6 +170,7 @@ class DiscoveryResult:
                 "params": {key: self.kept[key]} if selected else {}, "inclusion_probability": prob,
                 "represented_probability": self.represented_probability.get(origin, 0.0), "refined": refined,
                 "sibling_merge": None if sibling is None else sibling.to_json(),
+                "type_split": None if split is None else split.to_json(), "target_type": term_type(key),
                 "group": group, "group_inclusion_probability": self.stability.probability.get(group, 0.0),
                 "stable": self.stability.stable(group), "heldout_gain": None if t is None else t.to_json(),
                 "selected": selected, "rmse_fz_N": None,
@@ -289,7 +302,13 @@ def discover_terms(
         fold[r.key] = np.logical_or.reduce([fold[k] for k in r.replaces])
         renamed.update({k: r.key for k in r.replaces})
     chosen = list(dict.fromkeys(renamed.get(k, k) for k in fwd.chosen))  # merged siblings: one term
-    if renamed:
+    splits = split_by_type(sel, {**always, **{k: columns[k] for k in chosen}}, chosen, ridge_of)
+    for sp in (sp for sp in splits if sp.accepted):  # one coefficient per target type where it stands
+        columns.update(sp.columns)
+        fold.update({k: fold[sp.key] for k in sp.typed})
+        at = chosen.index(sp.key)
+        chosen[at : at + 1] = sp.typed
+    if renamed or any(sp.accepted for sp in splits):
         sums = sel.sums({**always, **{k: columns[k] for k in chosen}})
         ridge = ridge_of(sums.columns)
     names_fit = always_names + chosen
@@ -299,7 +318,7 @@ def discover_terms(
     top = sorted(member_prob.items(), key=lambda kv: -kv[1])[:12]
     return DiscoveryResult(kept={k: coef[k] for k in chosen}, coefficients=coef, stability=stab, forward=fwd,
                            columns=columns, top=top, member_probability=member_prob, fold_eligible=fold,
-                           represented_probability=represented_prob, refined=refined)  # fmt: skip
+                           represented_probability=represented_prob, refined=refined, splits=splits)  # fmt: skip
 
 
 def _picks(
