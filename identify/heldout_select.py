@@ -243,6 +243,7 @@ def heldout_forward(
     eligible: set[str] | None = None,
     hypothesis: dict[str, str] | None = None,
     fold_eligible: Mapping[str, np.ndarray] | None = None,
+    alternatives: Mapping[str, str] | None = None,
 ) -> ForwardResult:
     """Greedy forward selection by the held-out :func:`gain_test` (Bonferroni over the round's hypotheses
     that could be kept: ``eligible`` candidates, one per ``hypothesis`` label; each round adds the passing
@@ -250,7 +251,9 @@ def heldout_forward(
     the kept ones) is dropped, the weakest first. ``eligible`` restricts who may be kept (e.g. the stable
     ones); every candidate is still tested and reported. ``fold_eligible`` (name -> (G,) bool,
     :func:`proxplan.identify.stability.fold_eligibility`) zeroes a candidate's gain on the groups whose flight
-    chose it: there the selection run without that flight would not have tested it."""
+    chose it: there the selection run without that flight would not have tested it. ``alternatives`` (name ->
+    label): candidates of one label are forms of ONE term (a term with one coefficient and with one per target
+    type, :mod:`proxplan.identify.type_split`); once one is kept the others leave the search."""
     cols_of = {c.name: sums.index(c.columns) for c in candidates}
     judged = {c.name: c.judged_channels for c in candidates}
     base = sums.index(always) if always else np.zeros(0, dtype=int)
@@ -286,6 +289,7 @@ def heldout_forward(
         # R - z SE), so a candidate whose gain is as large but less consistent over the flights does not
         # pre-empt it
         best = max(ok, key=lambda n: tests[n].share_lower)
+        best = _simplest_standing(best, ok, trials, cols_of, alternatives, sums, plan)
         for name, t in tests.items():  # rivals the flights cannot tell from it (a head-to-head one-sided test)
             if name == best or not t.passed or label(name) == label(best):
                 continue
@@ -294,9 +298,27 @@ def heldout_forward(
                 out.rivals.setdefault(best, {})[name] = head
         out.chosen.append(best)
         remaining.remove(best)
+        if alternatives is not None and best in alternatives:
+            remaining = [n for n in remaining if alternatives.get(n) != alternatives[best]]
         current = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
     _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, judged)
     return out
+
+
+def _simplest_standing(best: str, passed: Sequence[str], trials, cols_of, alternatives: Mapping[str, str] | None,
+                       sums: GroupSums, plan: GroupPlan) -> str:  # fmt: skip
+    """``best``, or a form of the same term with fewer columns that also ``passed`` where the flights do not show
+    ``best`` better than it (the head-to-head gain test, one hypothesis, as a rival's): of two forms of one term
+    the larger (one coefficient per target type) is kept only where the data ask for it, never on a near tie."""
+    if alternatives is None or best not in alternatives:
+        return best
+    simpler = [n for n in passed if n != best and alternatives.get(n) == alternatives[best]
+               and len(cols_of[n]) < len(cols_of[best])]  # fmt: skip
+    for name in sorted(simpler, key=lambda n: len(cols_of[n])):
+        head = gain_test(sums, trials[name][0], trials[best][0], 1, trials[name][1] | trials[best][1], plan.cluster)
+        if not head.passed:
+            return name
+    return best
 
 
 def _in_fold(

@@ -393,15 +393,18 @@ def refined_words(r: dict | None, sibling: dict | None = None) -> str:
 
 
 def split_words(entry: dict) -> str:
-    """What the split of a kept term by target type (proxplan.identify.type_split) did, in words for its report
-    row (``entry`` one of :attr:`IdentifyResult.discovered`)."""
+    """Which form of a kept term (one coefficient, or one per target type: proxplan.identify.type_split) was
+    kept, in words for its report row (``entry`` one of :attr:`IdentifyResult.discovered`)."""
     split = entry.get("type_split")
-    if split is None:
+    if split is None or not entry.get("selected"):
         return ""
-    t, z = _fmt(split["test"]["t"], 3), f"{split['test']['z_required']:.2f}"
-    if split["accepted"]:
-        return f" on {entry.get('target_type')} only (one coefficient per target type, t {t} > {z})"
-    return f" (one coefficient for {', '.join(split['types'])}: per type not better on flights held out, t {t}, needs > {z})"
+    one, per = split["test_one_coefficient"], split["test_per_type"]
+    tests = (
+        "" if one is None or per is None else f", held-out t {_fmt(per['t'], 3)} per type, {_fmt(one['t'], 3)} with one"
+    )
+    if entry.get("target_type"):
+        return f" on {entry['target_type']} only (one coefficient per target type{tests})"
+    return f" (one coefficient for {', '.join(split['types'])}{tests})"
 
 
 def write_report(result: IdentifyResult, out_dir: str | Path, *, manifest: str = "") -> Path:
