@@ -283,13 +283,13 @@ def heldout_forward(
                  for name, (trial, acts) in trials.items()}  # fmt: skip
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
+        ok = [n for n in ok if not _needless(n, ok, trials, cols_of, alternatives, sums, plan)]
         if not ok:
             break
         # the one most surely better: the largest lower confidence bound of the error it removes (the share at
         # R - z SE), so a candidate whose gain is as large but less consistent over the flights does not
         # pre-empt it
         best = max(ok, key=lambda n: tests[n].share_lower)
-        best = _simplest_standing(best, ok, trials, cols_of, alternatives, sums, plan)
         for name, t in tests.items():  # rivals the flights cannot tell from it (a head-to-head one-sided test)
             if name == best or not t.passed or label(name) == label(best):
                 continue
@@ -305,20 +305,18 @@ def heldout_forward(
     return out
 
 
-def _simplest_standing(best: str, passed: Sequence[str], trials, cols_of, alternatives: Mapping[str, str] | None,
-                       sums: GroupSums, plan: GroupPlan) -> str:  # fmt: skip
-    """``best``, or a form of the same term with fewer columns that also ``passed`` where the flights do not show
-    ``best`` better than it (the head-to-head gain test, one hypothesis, as a rival's): of two forms of one term
-    the larger (one coefficient per target type) is kept only where the data ask for it, never on a near tie."""
-    if alternatives is None or best not in alternatives:
-        return best
-    simpler = [n for n in passed if n != best and alternatives.get(n) == alternatives[best]
-               and len(cols_of[n]) < len(cols_of[best])]  # fmt: skip
-    for name in sorted(simpler, key=lambda n: len(cols_of[n])):
-        head = gain_test(sums, trials[name][0], trials[best][0], 1, trials[name][1] | trials[best][1], plan.cluster)
-        if not head.passed:
-            return name
-    return best
+def _needless(name: str, passed: Sequence[str], trials, cols_of, alternatives: Mapping[str, str] | None,
+              sums: GroupSums, plan: GroupPlan) -> bool:  # fmt: skip
+    """Whether candidate ``name`` is a larger form of a term one of whose smaller forms (fewer columns) also
+    ``passed``, and the flights do not show ``name`` better than it (the head-to-head gain test, one hypothesis, as
+    a rival's): of two forms of one term the larger (one coefficient per target type) competes only where the data
+    ask for it, so where they do not, the round is the round without it."""
+    if alternatives is None or name not in alternatives:
+        return False
+    simpler = [n for n in passed if n != name and alternatives.get(n) == alternatives[name]
+               and len(cols_of[n]) < len(cols_of[name])]  # fmt: skip
+    return any(not gain_test(sums, trials[n][0], trials[name][0], 1, trials[n][1] | trials[name][1],
+                             plan.cluster).passed for n in simpler)  # fmt: skip
 
 
 def _in_fold(

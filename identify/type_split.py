@@ -17,9 +17,10 @@ second form, its column masked to each target type's rows (keys ``"<key>@<type>"
 :func:`proxplan.physics.feature_terms.typed_key`), as ONE candidate of several columns
 (:class:`TypeSplit`, named :func:`split_name`). The two forms test one hypothesis (the term's group, so the
 Bonferroni count is unchanged: the same as several members of one group, each a form of one effect) and are
-ALTERNATIVES: the forward pass keeps the form whose held-out gain has the larger lower bound, and once one is
-kept the other leaves the search (:func:`proxplan.identify.heldout_select.heldout_forward`), so a term is never
-kept twice. The per-type form has K - 1 more coefficients; the gain test judges each flight by the fit that did
+ALTERNATIVES: once one is kept the other leaves the search, so a term is never kept twice; and the per-type
+form competes in a round only where it passes and, where the one-coefficient form passes too, beats it head to
+head (:func:`proxplan.identify.heldout_select.heldout_forward`): where no per-type form is needed, the rounds are
+the rounds without them, and a near tie never splits a term. The per-type form has K - 1 more coefficients; the gain test judges each flight by the fit that did
 not see it, so coefficients the data do not inform cost held-out error rather than win it. Its typed keys are
 refined, kept and dropped together (:mod:`proxplan.identify.selection`'s backward pass). No constant is set
 here.
