@@ -96,7 +96,8 @@ def _identify(manifest: Path) -> dict[str, Any]:
         tq[u.name] = float(np.sqrt(np.mean(np.sum((u.torque_Nm - t_pred) ** 2, axis=1))))
     return {"selected": list(r.selected), "per_vehicle_fz_N": per, "per_vehicle_torque_Nm": tq,
             "after_fz_N": r.after.rmse_fz_N, "before_fz_N": r.before.rmse_fz_N,
-            "discovered": [d["channel"] + "*" + d["feature"] for d in r.discovered if d["selected"]],
+            "discovered": [d["channel"] + "*" + d["feature"] + (f"@{d['target_type']}" if d.get("target_type") else "")
+                           for d in r.discovered if d["selected"]],
             "refined": [d["refined"] for d in r.discovered if d.get("refined")],
             "fallback": r.fallback}  # fmt: skip
 

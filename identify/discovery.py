@@ -44,7 +44,7 @@ is already a force or torque (coefficient per feature unit) and ``"<channel>*W*<
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -59,6 +59,7 @@ from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_f
 from proxplan.identify.refine import Refined, refine_scaled_terms, term_column
 from proxplan.identify.sampled import sampled_features, unit_parts
 from proxplan.identify.stability import Stability, fold_eligibility, fold_half_samples, half_samples
+from proxplan.identify.type_split import TypeSplit, split_candidates, split_name
 from proxplan.physics import (
     DISCOVERED_PREFIX,
     FEATURE_FAMILIES,
@@ -68,6 +69,8 @@ from proxplan.physics import (
     is_wrench_feature,
     parse_term_key,
     term_formula,
+    term_type,
+    untyped_key,
 )
 
 DISCOVERED_NAME = f"{DISCOVERED_PREFIX}residual"
@@ -116,11 +119,38 @@ class DiscoveryResult:
     # kept terms whose scales were searched off the grid (a kernel's width and decay length, a time copy's delay or
     # time constant; identify.refine; the accepted ones stand in ``kept`` under their refined keys)
     refined: list[Refined] = field(default_factory=list)
+    # candidate terms also offered with one coefficient per target type (identify.type_split); a kept one stands in
+    # ``kept`` as its per-type keys "<key>@<type>"
+    splits: list[TypeSplit] = field(default_factory=list)
+    # each kept term as the candidate it was kept as (a term key, or a split's name) -> its keys in ``kept``
+    groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
     def origin(self, key: str) -> str:
-        """The term key ``key`` was tested as: its grid term where it was refined (of merged siblings, the first
-        kept), else itself."""
-        return next((r.origin for r in self.refined if r.key == key and r.accepted), key)
+        """The term key ``key`` was picked as: its grid term where it was refined (of merged siblings, the first
+        kept), else itself; a per-type term's, the term with one coefficient."""
+        key = next((r.origin for r in self.refined if r.key == key and r.accepted), key)
+        return untyped_key(key)
+
+    def tested_as(self, key: str) -> str:
+        """The candidate the forward pass tested term ``key`` as: a per-type key's split, else its origin."""
+        grid = next((r.origin for r in self.refined if r.key == key and r.accepted), key)
+        return split_name(untyped_key(grid)) if term_type(grid) is not None else untyped_key(grid)
+
+    def keys_of(self, names: Collection[str]) -> set[str]:
+        """The term keys of the kept candidates ``names`` (:attr:`groups`)."""
+        return {k for n, keys in self.groups.items() if n in names for k in keys}
+
+    def split_record(self, key: str) -> dict[str, Any] | None:
+        """How term ``key``'s two forms (one coefficient, one per target type) fared in the forward pass: the
+        types, the form kept, and each form's test in the last round that tested both (None: not offered)."""
+        origin = self.origin(key)
+        split = next((sp for sp in self.splits if sp.key == origin), None)
+        if split is None:
+            return None
+        both = [t for t in self.forward.tests if origin in t and split.name in t]
+        return {"types": list(split.types), "form": "per target type" if term_type(key) else "one coefficient",
+                "test_one_coefficient": both[-1][origin].to_json() if both else None,
+                "test_per_type": both[-1][split.name].to_json() if both else None}  # fmt: skip
 
     def replaced(self) -> set[str]:
         """The grid terms an accepted refinement stands for."""
@@ -146,7 +176,7 @@ class DiscoveryResult:
         for key in keys[:12]:
             channel, feature = parse_term_key(key)
             origin = self.origin(key)
-            t = last.get(origin)
+            t = last.get(self.tested_as(key))
             selected = key in self.kept
             group = group_of(key)
             prob = self.member_probability.get(origin, 0.0)
@@ -158,6 +188,7 @@ class DiscoveryResult:
                 "params": {key: self.kept[key]} if selected else {}, "inclusion_probability": prob,
                 "represented_probability": self.represented_probability.get(origin, 0.0), "refined": refined,
                 "sibling_merge": None if sibling is None else sibling.to_json(),
+                "type_split": self.split_record(key), "target_type": term_type(key),
                 "group": group, "group_inclusion_probability": self.stability.probability.get(group, 0.0),
                 "stable": self.stability.stable(group), "heldout_gain": None if t is None else t.to_json(),
                 "selected": selected, "rmse_fz_N": None,
@@ -272,23 +303,36 @@ def discover_terms(
     columns: dict[str, np.ndarray] = {}
     for key in stable:
         columns[key] = term_column(sel, key, x[:, names.index(parse_term_key(key)[1])])
+    splits = split_candidates(sel, stable, columns)  # each term's second form: one coefficient per target type
+    by_name = {sp.name: sp for sp in splits}
+    for sp in splits:
+        columns.update(sp.columns)
     fwd = ForwardResult()
     sums = sel.sums({**always, **columns})
     ridge = ridge_of(sums.columns)
     without = {cl: t.eligible(stable, len(groups_seen)) for cl, t in fold_tally.items()}
     fold = fold_eligibility(sel.plan, without, stable)
+    fold.update({n: fold[sp.key] for sp in splits for n in (sp.name, *sp.typed)})
     if stable:
-        fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable], sel.plan, ridge, sel.tau,
-                              max_terms=options.max_terms, hypothesis={k: group_of(k) for k in stable},
-                              fold_eligible=fold)  # fmt: skip
-    refined = refine_scaled_terms(sel, {**always, **{k: columns[k] for k in fwd.chosen}}, list(fwd.chosen), ridge_of,
-                                  parts)  # fmt: skip
+        fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable]
+                              + [Candidate(sp.name, sp.typed) for sp in splits], sel.plan, ridge, sel.tau,
+                              max_terms=options.max_terms,
+                              hypothesis={k: group_of(k) for k in stable} | {sp.name: group_of(sp.key) for sp in splits},
+                              fold_eligible=fold, alternatives={n: sp.key for sp in splits for n in (sp.key, sp.name)})  # fmt: skip
+    kept_keys = [k for n in fwd.chosen for k in (by_name[n].typed if n in by_name else (n,))]
+    refined = refine_scaled_terms(sel, {**always, **{k: columns[k] for k in kept_keys}}, kept_keys, ridge_of, parts)
     renamed: dict[str, str] = {}
     for r in (r for r in refined if r.accepted):  # the refined term stands where its grid term(s) were tested
         columns[r.key] = r.column
         fold[r.key] = np.logical_or.reduce([fold[k] for k in r.replaces])
         renamed.update({k: r.key for k in r.replaces})
-    chosen = list(dict.fromkeys(renamed.get(k, k) for k in fwd.chosen))  # merged siblings: one term
+    groups: dict[str, tuple[str, ...]] = {}  # kept candidate -> its keys (a split: its per-type keys)
+    for n in fwd.chosen:
+        keys = tuple(dict.fromkeys(renamed.get(k, k) for k in (by_name[n].typed if n in by_name else (n,))))
+        keys = tuple(k for k in keys if all(k not in g for g in groups.values()))  # merged siblings: one term
+        if keys:
+            groups[n if n in by_name else keys[0]] = keys
+    chosen = [k for keys in groups.values() for k in keys]
     if renamed:
         sums = sel.sums({**always, **{k: columns[k] for k in chosen}})
         ridge = ridge_of(sums.columns)
@@ -299,7 +343,8 @@ def discover_terms(
     top = sorted(member_prob.items(), key=lambda kv: -kv[1])[:12]
     return DiscoveryResult(kept={k: coef[k] for k in chosen}, coefficients=coef, stability=stab, forward=fwd,
                            columns=columns, top=top, member_probability=member_prob, fold_eligible=fold,
-                           represented_probability=represented_prob, refined=refined)  # fmt: skip
+                           represented_probability=represented_prob, refined=refined, splits=splits,
+                           groups=groups)  # fmt: skip
 
 
 def _picks(

@@ -243,6 +243,7 @@ def heldout_forward(
     eligible: set[str] | None = None,
     hypothesis: dict[str, str] | None = None,
     fold_eligible: Mapping[str, np.ndarray] | None = None,
+    alternatives: Mapping[str, str] | None = None,
 ) -> ForwardResult:
     """Greedy forward selection by the held-out :func:`gain_test` (Bonferroni over the round's hypotheses
     that could be kept: ``eligible`` candidates, one per ``hypothesis`` label; each round adds the passing
@@ -250,7 +251,9 @@ def heldout_forward(
     the kept ones) is dropped, the weakest first. ``eligible`` restricts who may be kept (e.g. the stable
     ones); every candidate is still tested and reported. ``fold_eligible`` (name -> (G,) bool,
     :func:`proxplan.identify.stability.fold_eligibility`) zeroes a candidate's gain on the groups whose flight
-    chose it: there the selection run without that flight would not have tested it."""
+    chose it: there the selection run without that flight would not have tested it. ``alternatives`` (name ->
+    label): candidates of one label are forms of ONE term (a term with one coefficient and with one per target
+    type, :mod:`proxplan.identify.type_split`); once one is kept the others leave the search."""
     cols_of = {c.name: sums.index(c.columns) for c in candidates}
     judged = {c.name: c.judged_channels for c in candidates}
     base = sums.index(always) if always else np.zeros(0, dtype=int)
@@ -280,6 +283,7 @@ def heldout_forward(
                  for name, (trial, acts) in trials.items()}  # fmt: skip
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
+        ok = [n for n in ok if not _needless(n, ok, trials, cols_of, alternatives, sums, plan)]
         if not ok:
             break
         # the one most surely better: the largest lower confidence bound of the error it removes (the share at
@@ -294,9 +298,25 @@ def heldout_forward(
                 out.rivals.setdefault(best, {})[name] = head
         out.chosen.append(best)
         remaining.remove(best)
+        if alternatives is not None and best in alternatives:
+            remaining = [n for n in remaining if alternatives.get(n) != alternatives[best]]
         current = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
     _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, judged)
     return out
+
+
+def _needless(name: str, passed: Sequence[str], trials, cols_of, alternatives: Mapping[str, str] | None,
+              sums: GroupSums, plan: GroupPlan) -> bool:  # fmt: skip
+    """Whether candidate ``name`` is a larger form of a term one of whose smaller forms (fewer columns) also
+    ``passed``, and the flights do not show ``name`` better than it (the head-to-head gain test, one hypothesis, as
+    a rival's): of two forms of one term the larger (one coefficient per target type) competes only where the data
+    ask for it, so where they do not, the round is the round without it."""
+    if alternatives is None or name not in alternatives:
+        return False
+    simpler = [n for n in passed if n != name and alternatives.get(n) == alternatives[name]
+               and len(cols_of[n]) < len(cols_of[name])]  # fmt: skip
+    return any(not gain_test(sums, trials[n][0], trials[name][0], 1, trials[n][1] | trials[name][1],
+                             plan.cluster).passed for n in simpler)  # fmt: skip
 
 
 def _in_fold(

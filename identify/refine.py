@@ -67,7 +67,10 @@ from proxplan.physics import (
     parse_basis_name,
     parse_term_key,
     parse_time_name,
+    term_type,
     time_name,
+    typed_key,
+    untyped_key,
     weight_scaled,
 )
 
@@ -226,12 +229,16 @@ class _TimeScales:
 
 def term_column(sel: SelectionSet, key: str, x: np.ndarray) -> np.ndarray:
     """(N, 4) the column of term ``key`` (noise units) from its feature's values ``x`` (N,): on its channel, scaled
-    to the target where the term is weight-scaled (:func:`proxplan.physics.feature_terms.term_scale`)."""
+    to the target where the term is weight-scaled (:func:`proxplan.physics.feature_terms.term_scale`), on the
+    rows of its target type only where it names one (:func:`proxplan.physics.feature_terms.typed_key`)."""
     channel, _ = parse_term_key(key)
     c = CHANNELS.index(channel)
     col = np.zeros((len(x), len(CHANNELS)))
     scale = sel.target_scale(channel) if weight_scaled(key) else 1.0
     col[:, c] = x * scale / sel.row_scale[:, c]
+    vehicle_type = term_type(key)
+    if vehicle_type is not None:
+        col *= np.concatenate([np.full(len(u), u.type == vehicle_type) for u in sel.units])[:, None]
     return col
 
 
@@ -349,9 +356,12 @@ def _bracket(grids: list[Scales], ratios: Scales) -> tuple[Scales, Scales, Scale
     return tuple(float(v) for v in np.exp(g.mean(axis=0))), lo, hi
 
 
-def _prefix(key: str) -> str:
-    """The term key without its feature (``"force_z_N*W*"``)."""
-    return key[: len(key) - len(parse_term_key(key)[1])]
+def _renamed(key: str, feature: str) -> str:
+    """Term ``key`` with its feature replaced by ``feature`` (its channel, weight mark and target type kept)."""
+    untyped = untyped_key(key)
+    renamed = untyped[: len(untyped) - len(parse_term_key(key)[1])] + feature
+    vehicle_type = term_type(key)
+    return renamed if vehicle_type is None else typed_key(renamed, vehicle_type)
 
 
 def _refine_one(sel: SelectionSet, key: str, scales: _TermScales, columns: Mapping[str, np.ndarray],
@@ -364,7 +374,7 @@ def _refine_one(sel: SelectionSet, key: str, scales: _TermScales, columns: Mappi
         return None
     col = search.column(best)
     test = search.test(best, {key: columns[key]})
-    return Refined(_prefix(key) + scales.name(best), key, grid, search.cost(best), test, len(search.per_flight), col,
+    return Refined(_renamed(key, scales.name(best)), key, grid, search.cost(best), test, len(search.per_flight), col,
                    (key,))  # fmt: skip
 
 
@@ -380,7 +390,7 @@ def _merge(sel: SelectionSet, members: list[str], scales: Mapping[str, _TermScal
     best = search.best(*_bracket([scales[k].grid for k in members], first.ratios))
     col = search.column(best)
     test = search.test(best, grid_columns)
-    return Refined(_prefix(members[0]) + first.name(best), members[0], grid, search.cost(best), test,
+    return Refined(_renamed(members[0], first.name(best)), members[0], grid, search.cost(best), test,
                    len(search.per_flight), col, tuple(members), merged=True)  # fmt: skip
 
 
@@ -411,9 +421,9 @@ def refine_scaled_terms(
         return cache["neighbours"]  # type: ignore[return-value]
 
     scaled = {k: s for k in kept if (s := _scales_of(sel, parse_term_key(k)[1], get_neighbours, get_parts))}
-    families: dict[tuple[str, bool, object], list[str]] = {}
+    families: dict[tuple[str, bool, str | None, object], list[str]] = {}  # siblings: one channel, form, target type
     for k, s in scaled.items():
-        families.setdefault((parse_term_key(k)[0], weight_scaled(k), s.identity), []).append(k)
+        families.setdefault((parse_term_key(k)[0], weight_scaled(k), term_type(k), s.identity), []).append(k)
     columns = dict(fixed)
     out: list[Refined] = []
     for members in families.values():

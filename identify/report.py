@@ -335,7 +335,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
         for e in result.discovered:
             g = e["heldout_gain"]
             gain = "not tested" if g is None else f"{g['mean_gain']:+.3g} ({_fmt(g['t'], 3)}, > {g['z_required']:.2f})"
-            feature = e["feature"] + refined_words(e.get("refined"), e.get("sibling_merge"))
+            feature = e["feature"] + refined_words(e.get("refined"), e.get("sibling_merge")) + split_words(e)
             lines.append(f"| {e['channel']} | {feature} | {e['family']} | {e['inclusion_probability']:.0%} / "
                          f"{e['represented_probability']:.0%} / {e['group_inclusion_probability']:.0%} | {gain} | {'yes' if e['selected'] else 'no'} | "
                          f"{e['formula'] or '-'} |")  # fmt: skip
@@ -390,6 +390,21 @@ def refined_words(r: dict | None, sibling: dict | None = None) -> str:
     return words + (
         f" (scales searched, best {_feature_of(r['key'])}: not better on flights held out, t {t}, needs > {z})"
     )
+
+
+def split_words(entry: dict) -> str:
+    """Which form of a kept term (one coefficient, or one per target type: proxplan.identify.type_split) was
+    kept, in words for its report row (``entry`` one of :attr:`IdentifyResult.discovered`)."""
+    split = entry.get("type_split")
+    if split is None or not entry.get("selected"):
+        return ""
+    one, per = split["test_one_coefficient"], split["test_per_type"]
+    tests = (
+        "" if one is None or per is None else f", held-out t {_fmt(per['t'], 3)} per type, {_fmt(one['t'], 3)} with one"
+    )
+    if entry.get("target_type"):
+        return f" on {entry['target_type']} only (one coefficient per target type{tests})"
+    return f" (one coefficient for {', '.join(split['types'])}{tests})"
 
 
 def write_report(result: IdentifyResult, out_dir: str | Path, *, manifest: str = "") -> Path:

@@ -104,8 +104,9 @@ def select_and_discover(
     jf = joint_model(selector, effects, discovery)
     model, heldout, joint, heldout_fz = jf.model, jf.heldout_mse, jf.backward, jf.heldout_fz_N
     if discovery is not None:
-        discovery.kept = {k: v for k, v in discovery.kept.items() if k in joint.chosen}
-        discovery.forward.dropped.update({k: t for k, t in joint.dropped.items() if k in discovery.columns})
+        standing = discovery.keys_of(joint.chosen)
+        discovery.kept = {k: v for k, v in discovery.kept.items() if k in standing}
+        discovery.forward.dropped.update({k: t for k, t in joint.dropped.items() if k in discovery.groups})
     for trial in effects.trials:
         if trial.name in joint.dropped:
             t = joint.dropped[trial.name]
@@ -292,13 +293,14 @@ def joint_model(selector: EffectSelector, effects: EffectSelection, discovery: D
     sel = selector.sel
     kept = [c.as_candidate() for c in selector.candidates if c.name in effects.selected]
     terms = dict(discovery.kept) if discovery is not None else {}
+    groups = dict(discovery.groups) if discovery is not None else {}  # a split term's per-type keys: one candidate
     columns = {k: selector.tangents[k] for k in selector.always}
     for cand in selector.candidates:
         if cand.name in effects.selected:
             columns.update(cand.columns)
     if discovery is not None:
         columns.update({k: discovery.columns[k] for k in terms})
-    kept += [Candidate(k, (k,)) for k in terms]
+    kept += [Candidate(name, keys) for name, keys in groups.items()]
     sums = sel.sums(columns)
     ridge = selector.ridge_for(sums.columns)
     back = heldout_backward(sums, selector.always, kept, sel.plan, ridge, sel.tau,
@@ -312,7 +314,7 @@ def joint_model(selector: EffectSelector, effects: EffectSelection, discovery: D
     row_weight, channel_mse = structural_row_weight(sel.residual - held, types, train)
     delivered = dict(columns)
     carried: dict[str, str] = {}
-    if any(k in back.chosen for k in terms):
+    if any(name in back.chosen for name in groups):
         # the delivered fit beside kept discovered terms: the vehicle parameters' tangents on F_z only
         # (they are calibrated on F_z); on all four channels they bend to fit roll and pitch, which the
         # kept torque terms are for, and lose F_z on flights held out (docs/identify.md, stop 58). Judged
@@ -327,7 +329,7 @@ def joint_model(selector: EffectSelector, effects: EffectSelection, discovery: D
     drag = np.array([deliver.index([carried[k]])[0] if k in carried else -1 for k in names], dtype=int)
     beta = solve_carried(deliver, deliver.index(names), drag, trainable_groups(deliver, sel.plan), ridge, sel.tau)
     coef = dict(zip(names, (float(b) for b in beta)))
-    survivors = {k: coef[k] for k in terms if k in back.chosen}
+    survivors = {k: coef[k] for name, keys in groups.items() if name in back.chosen for k in keys}
     chosen = [n for n in effects.selected if n in back.chosen]
     terms_part = sum((v * columns[k] for k, v in survivors.items()), np.zeros_like(sel.residual))
     model = _line_searched(selector, coef, chosen, survivors, _penalty(selector), terms_part, row_weight)

@@ -82,6 +82,9 @@ from proxplan.physics.feature_terms import (
     term_formula,
     term_key,
     term_scale,
+    term_type,
+    typed_key,
+    untyped_key,
     weight_scaled,
 )
 from proxplan.physics.features import (
@@ -319,6 +322,9 @@ __all__ = [
     "term_key",
     "term_scale",
     "weight_scaled",
+    "term_type",
+    "typed_key",
+    "untyped_key",
     "ResidualSpread",
     "TypeSpread",
     "spread_features",

@@ -35,7 +35,7 @@ from proxplan.physics.effect_inputs import (
     sum_base,
     zeros_wrench,
 )
-from proxplan.physics.feature_terms import parse_term_key, term_scale, weight_scaled
+from proxplan.physics.feature_terms import parse_term_key, term_scale, term_type, weight_scaled
 from proxplan.physics.features import CHANNELS, feature_matrix
 from proxplan.physics.time_copies import lagged
 from proxplan.physics.velocity_field import axial_distance_m
@@ -379,9 +379,11 @@ _EFFECT_FUNCTIONS = {
 
 def _discovered(p: dict[str, float], inputs: EffectInputs, base: BaseCache) -> tuple[np.ndarray, np.ndarray]:
     """A discovered term: wrench channel c = sum_j params["c*feature_j"] * feature_j (a weight-scaled key
-    ``"c*W*feature_j"`` also times :func:`proxplan.physics.feature_terms.term_scale` of the target), the
-    features of :func:`proxplan.physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
+    ``"c*W*feature_j"`` also times :func:`proxplan.physics.feature_terms.term_scale` of the target; a key ending
+    in ``"@<type>"`` only where the target's ``name`` is that type), the features of
+    :func:`proxplan.physics.features.feature_matrix` (pairwise ones vanish far from every source)."""
     wrench = np.zeros((inputs.n_samples, 6))
+    p = {k: v for k, v in p.items() if term_type(k) in (None, inputs.target.name)}
     if p:
         names = list(dict.fromkeys(parse_term_key(k)[1] for k in p))
         x = feature_matrix(inputs, base.per_source(), names)

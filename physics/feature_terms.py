@@ -3,6 +3,9 @@
 A discovered term is ``Effect("discovered:<label>", params)``; every parameter is named
 ``"<channel>*<feature>"`` (a feature that already is a force or torque: the coefficient in channel units per
 feature unit) or ``"<channel>*W*<feature>"`` (a shape scaled to the target vehicle, :func:`term_scale`).
+Either may end in ``"@<type>"`` (:func:`typed_key`): the term then acts on vehicles of that type only (its
+``Vehicle.name``), one coefficient per target type where one shared coefficient did not describe them all
+(:mod:`proxplan.identify.type_split`).
 """
 
 from __future__ import annotations
@@ -16,6 +19,8 @@ thrust from the motion): a term on them is ``coefficient x feature``. Every othe
 speed) is a shape; a term on it is scaled to the target vehicle (:func:`term_scale`)."""
 WEIGHT_MARK = "W"
 """A term key ``"<channel>*W*<feature>"`` is ``coefficient x feature x`` :func:`term_scale`."""
+TYPE_MARK = "@"
+"""A term key ``"<key>@<type>"`` acts on target vehicles of that type only (:func:`typed_key`)."""
 
 
 def is_wrench_feature(name: str) -> bool:
@@ -37,16 +42,37 @@ def term_key(channel: str, feature: str) -> str:
     return f"{channel}*{feature}" if is_wrench_feature(feature) else f"{channel}*{WEIGHT_MARK}*{feature}"
 
 
+def typed_key(key: str, vehicle_type: str) -> str:
+    """The term ``key`` restricted to target vehicles of type ``vehicle_type`` (``"<key>@<type>"``)."""
+    if term_type(key) is not None:
+        raise ValueError(f"discovered-term parameter {key!r} already names a target type")
+    return f"{key}{TYPE_MARK}{vehicle_type}"
+
+
+def term_type(key: str) -> str | None:
+    """The target vehicle type a term acts on (``"<key>@<type>"``), None for every target."""
+    _, mark, vehicle_type = key.partition(TYPE_MARK)
+    return vehicle_type if mark else None
+
+
+def untyped_key(key: str) -> str:
+    """``key`` without its target type (:func:`typed_key`)."""
+    return key.partition(TYPE_MARK)[0]
+
+
 def parse_term_key(key: str) -> tuple[str, str]:
     """Split a discovered-term parameter name ``"<channel>*<feature>"`` (or the weight-scaled
-    ``"<channel>*W*<feature>"``, :func:`weight_scaled`) into channel and feature; ValueError if unknown."""
-    channel, sep, feature = key.partition("*")
+    ``"<channel>*W*<feature>"``, :func:`weight_scaled`; either may end in ``"@<type>"``, :func:`typed_key`) into
+    channel and feature; ValueError if unknown."""
+    if term_type(key) == "":
+        raise ValueError(f"discovered-term parameter {key!r}: expected a vehicle type after '{TYPE_MARK}'")
+    channel, sep, feature = untyped_key(key).partition("*")
     if feature.startswith(WEIGHT_MARK + "*"):
         feature = feature[len(WEIGHT_MARK) + 1 :]
     if not sep or channel not in CHANNELS or not is_feature(feature):
         raise ValueError(
-            f"discovered-term parameter {key!r}: expected '<channel>*<feature>' or '<channel>*W*<feature>' with "
-            f"channel one of {', '.join(CHANNELS)} and a feature of proxplan.physics.features.FEATURE_NAMES (a "
+            f"discovered-term parameter {key!r}: expected '<channel>*<feature>' or '<channel>*W*<feature>' (either "
+            f"optionally ending in '{TYPE_MARK}<vehicle type>') with channel one of {', '.join(CHANNELS)} and a feature of proxplan.physics.features.FEATURE_NAMES (a "
             "multi-scale kernel at any scale)"
         )
     return channel, feature
@@ -63,7 +89,8 @@ def term_formula(params: dict[str, float]) -> str:
     for key, coef in params.items():
         channel, feature = parse_term_key(key)
         scale = (" * W * L" if channel.startswith("torque") else " * W") if weight_scaled(key) else ""
-        by_channel.setdefault(channel, []).append(f"{coef:+.4g}{scale} * {feature}")
+        only = "" if term_type(key) is None else f" [on {term_type(key)}]"
+        by_channel.setdefault(channel, []).append(f"{coef:+.4g}{scale} * {feature}{only}")
     return "; ".join(f"{c} = {' '.join(terms)}" for c, terms in by_channel.items())
 
 

@@ -152,7 +152,9 @@ def _effect_variants(schema: dict[str, Any]) -> None:
     variants.append({
         "properties": {"name": {"type": "string", "pattern": f"^{DISCOVERED_PREFIX}"},
                        "params": {"type": "object", "additionalProperties": {"type": "number"},
-                                  "description": "coefficients named '<channel>*<feature>' (proxplan.physics.features)"}},
+                                  "description": "coefficients named '<channel>*<feature>' or '<channel>*W*<feature>', "
+                                                 "either optionally ending in '@<vehicle type>' (acting on that "
+                                                 "type only; proxplan.physics.feature_terms)"}},
         "required": ["name", "params"],
     })  # fmt: skip
     schema["oneOf"] = variants
