@@ -46,10 +46,10 @@ def cell_route_waypoints(
     keep = _simplified(grid, corners, tolerance=1.0)  # within one cell
     out, spans = _waypoints(cells, keep, lo, h, start_m, goal_m, heights=heights)
     while segment_free is not None:
-        added = _corners_back(grid, corners, out, spans, segment_free)
-        if not added:
+        grown = sorted(set(keep) | _corners_back(grid, corners, out, spans, segment_free))
+        if len(grown) == len(keep):  # every leg free, or no corner left to put back: kept corners only grow
             break
-        keep = sorted(set(keep) | added)
+        keep = grown
         out, spans = _waypoints(cells, keep, lo, h, start_m, goal_m, heights=heights)
     return out
 

@@ -79,3 +79,15 @@ def test_corner_put_back_only_where_a_leg_is_not_free():
     np.testing.assert_array_equal(free, plain)
     corner = cell_route_waypoints(cells, lo, h, start, goal, heights=False, segment_free=lambda p0, p1: True)
     np.testing.assert_allclose(corner[:, :2], [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+
+
+def test_put_back_ends_where_no_leg_is_ever_free():
+    """A route that waits at its start, with a static test that frees no leg (the worst case for the loop):
+    the put-back ends once every corner is back, with the exact start and goal."""
+    cells = [(3, 3), (3, 3), (3, 3), (4, 4), (4, 4)]
+    lo, h = np.zeros(2), 0.1
+    start, goal = np.array([0.3, 0.3, 1.0]), np.array([0.4, 0.4, 1.2])
+    plain = cell_route_waypoints(cells, lo, h, start, goal, heights=False)
+    never = cell_route_waypoints(cells, lo, h, start, goal, heights=False, segment_free=lambda p0, p1: False)
+    assert len(never) >= len(plain)
+    assert np.array_equal(never[0], start) and np.array_equal(never[-1], goal)
