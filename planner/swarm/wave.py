@@ -12,7 +12,7 @@ box of the cells reached at the layer before, grown by one: the same reached cel
 (tested against the whole grid).
 
 This is a guide, not a trajectory: the route's corners and waiting places, simplified to within a
-cell (:mod:`~proxplan.planner.swarm.wave_path`), become the waypoints of
+cell with every leg kept statically free (:mod:`~proxplan.planner.swarm.wave_path`), become the waypoints of
 :func:`proxplan.planner.swarm.chain.time_chain`, which times them exactly against the same tracks
 (the grid is coarse where the keep-outs are sharp).
 """
@@ -98,7 +98,7 @@ def _wave_in_box(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
                 break
         cells.append((x, y))
     cells.reverse()
-    return cell_route_waypoints(cells, lo, h, start_m, goal_m, heights=heights)
+    return cell_route_waypoints(cells, lo, h, start_m, goal_m, heights=heights, segment_free=occ.problem.segment_free)
 
 
 def free_layers(
