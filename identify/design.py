@@ -68,6 +68,10 @@ class SelectionSet:
         """(N, 4) measured minus reference prediction, noise units."""
         return (self.measured - self.predicted) / self.row_scale
 
+    def target_types(self) -> np.ndarray:
+        """(N,) each sample's target vehicle type (object array of the type names)."""
+        return np.concatenate([np.full(len(u), u.type, dtype=object) for u in self.units])
+
     def target_scale(self, channel: str) -> np.ndarray:
         """(N,) :func:`proxplan.physics.feature_terms.term_scale` of each sample's vehicle on ``channel`` (N or N m)."""
         return np.concatenate([np.full(len(u), term_scale(channel, self.model.vehicles[u.type])) for u in self.units])

@@ -125,16 +125,19 @@ class DiscoveryResult:
     # each kept term as the candidate it was kept as (a term key, or a split's name) -> its keys in ``kept``
     groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
+    def _grid(self, key: str) -> str:
+        """Term ``key``'s grid term where it was refined (of merged siblings, the first kept), else itself."""
+        return next((r.origin for r in self.refined if r.key == key and r.accepted), key)
+
     def origin(self, key: str) -> str:
-        """The term key ``key`` was picked as: its grid term where it was refined (of merged siblings, the first
-        kept), else itself; a per-type term's, the term with one coefficient."""
-        key = next((r.origin for r in self.refined if r.key == key and r.accepted), key)
-        return untyped_key(key)
+        """The term key ``key`` was picked as: its grid term (:meth:`_grid`); a per-type term's, the term with one
+        coefficient."""
+        return untyped_key(self._grid(key))
 
     def tested_as(self, key: str) -> str:
         """The candidate the forward pass tested term ``key`` as: a per-type key's split, else its origin."""
-        grid = next((r.origin for r in self.refined if r.key == key and r.accepted), key)
-        return split_name(untyped_key(grid)) if term_type(grid) is not None else untyped_key(grid)
+        origin = self.origin(key)
+        return split_name(origin) if term_type(key) is not None else origin
 
     def keys_of(self, names: Collection[str]) -> set[str]:
         """The term keys of the kept candidates ``names`` (:attr:`groups`)."""

@@ -238,7 +238,7 @@ def term_column(sel: SelectionSet, key: str, x: np.ndarray) -> np.ndarray:
     col[:, c] = x * scale / sel.row_scale[:, c]
     vehicle_type = term_type(key)
     if vehicle_type is not None:
-        col *= np.concatenate([np.full(len(u), u.type == vehicle_type) for u in sel.units])[:, None]
+        col *= (sel.target_types() == vehicle_type)[:, None]
     return col
 
 

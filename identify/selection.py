@@ -310,7 +310,7 @@ def joint_model(selector: EffectSelector, effects: EffectSelection, discovery: D
     x = np.stack([columns[k] for k in sums.columns], axis=2)  # (N, 4, p) in noise units
     held = heldout_predictions(sums, x, sel.group, idx, sel.plan, ridge, sel.tau)
     train = (~sel.plan.held_out_only[sel.group]) * sel.weight
-    types = np.concatenate([np.full(len(u), u.type, dtype=object) for u in sel.units])
+    types = sel.target_types()
     row_weight, channel_mse = structural_row_weight(sel.residual - held, types, train)
     delivered = dict(columns)
     carried: dict[str, str] = {}

@@ -20,8 +20,9 @@ Bonferroni count is unchanged: the same as several members of one group, each a 
 ALTERNATIVES: once one is kept the other leaves the search, so a term is never kept twice; and the per-type
 form competes in a round only where it passes and, where the one-coefficient form passes too, beats it head to
 head (:func:`proxplan.identify.heldout_select.heldout_forward`): where no per-type form is needed, the rounds are
-the rounds without them, and a near tie never splits a term. The per-type form has K - 1 more coefficients; the gain test judges each flight by the fit that did
-not see it, so coefficients the data do not inform cost held-out error rather than win it. Its typed keys are
+the rounds without them, and a near tie never splits a term. The per-type form has K - 1 more coefficients; the
+gain test judges each flight by the fit that did not see it, so coefficients the data do not inform cost held-out
+error rather than win it. Its typed keys are
 refined, kept and dropped together (:mod:`proxplan.identify.selection`'s backward pass). No constant is set
 here.
 
@@ -39,7 +40,7 @@ import numpy as np
 from proxplan.identify.design import SelectionSet
 from proxplan.physics import term_type, typed_key
 
-__all__ = ["SPLIT_SUFFIX", "TypeSplit", "row_types", "split_candidates", "split_name", "split_types"]
+__all__ = ["SPLIT_SUFFIX", "TypeSplit", "split_candidates", "split_name", "split_types"]
 
 SPLIT_SUFFIX = " per target type"
 """A split candidate's name is its term key and this (not a term key: the candidate stands for its typed keys)."""
@@ -65,25 +66,20 @@ class TypeSplit:
         return split_name(self.key)
 
 
-def row_types(sel: SelectionSet) -> np.ndarray:
-    """(N,) each selection sample's target vehicle type."""
-    return np.concatenate([np.full(len(u), u.type, dtype=object) for u in sel.units])
-
-
 def split_types(sel: SelectionSet, column: np.ndarray) -> tuple[str, ...]:
     """The target types on whose train rows the term ``column`` ((N, 4), noise units) is not zero, in the model's
     order; () where a type's vehicle in the model is not named by its type (a per-type key could not act)."""
     if any(v.name != t for t, v in sel.model.vehicles.items()):
         return ()
     train = ~sel.plan.held_out_only[sel.group] & (sel.weight > 0)
-    present = set(row_types(sel)[train & np.any(column != 0.0, axis=1)])
+    present = set(sel.target_types()[train & np.any(column != 0.0, axis=1)])
     return tuple(t for t in sel.model.vehicles if t in present)
 
 
 def split_candidates(sel: SelectionSet, keys: Sequence[str], columns: Mapping[str, np.ndarray]) -> list[TypeSplit]:
     """The per-type form of every term of ``keys`` (untyped keys of ``columns``, name -> (N, 4) noise units) that
     acts on two or more target types among the train flights."""
-    types_of_row = row_types(sel)
+    types_of_row = sel.target_types()
     out = []
     for key in keys:
         if term_type(key) is not None:
