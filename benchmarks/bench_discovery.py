@@ -65,6 +65,7 @@ import numpy as np
 from scipy.stats import binomtest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the generated world beside this script
+from discovery_oracle import oracle_test  # noqa: E402
 from discovery_world import (  # noqa: E402
     FAMILIES,
     SetSpec,
@@ -83,7 +84,8 @@ RATIO_OK = 1.3
 """A draw is found when every affected vehicle's test error is within this multiple of its clean twin's (issue 35)."""
 
 
-def _identify(manifest: Path) -> dict[str, Any]:
+def _identify(manifest: Path) -> tuple[dict[str, Any], Any]:
+    """identify on ``manifest``: the draw's summary (JSON) and the :class:`proxplan.identify.IdentifyResult`."""
     from proxplan.identify import IdentifyOptions, run_identify
 
     r = run_identify(manifest, options=IdentifyOptions(), thrust_summary=False)
@@ -99,7 +101,7 @@ def _identify(manifest: Path) -> dict[str, Any]:
             "discovered": [d["channel"] + "*" + d["feature"] + (f"@{d['target_type']}" if d.get("target_type") else "")
                            for d in r.discovered if d["selected"]],
             "refined": [d["refined"] for d in r.discovered if d.get("refined")],
-            "fallback": r.fallback}  # fmt: skip
+            "fallback": r.fallback}, r  # fmt: skip
 
 
 def relative_size(rms: dict[str, tuple[float, float]], clean: dict[str, Any]) -> dict[str, float]:
@@ -116,19 +118,24 @@ def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
     spec = draw_spec(seed, family)
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(keep) / f"draw{seed}" if keep else Path(tmp)
-        clean = _identify(make_set(spec, base / "clean", None))
+        clean, clean_run = _identify(make_set(spec, base / "clean", None))
         size = relative_size(effect_rms_on_test(spec), clean)
         target = float(np.random.default_rng([spec.seed, 99]).uniform(1.5, 4.0))
         wanted = target / max(max(size.values()), 1e-12)
         flyable = flyable_amplitude(spec)
         amplitude = min(wanted, flyable)
-        hidden = _identify(make_set(spec, base / "effect", amplitude))
+        hidden, hidden_run = _identify(make_set(spec, base / "effect", amplitude))
     affected = [v for v in size if amplitude * size[v] >= 1.0]
+    torque_effect = _has_torque(spec.effect)
+    oracle = None
+    if affected:  # the ceiling: the exact effect's held-out test on the train flights (discovery_oracle)
+        units_err = {v: (clean["per_vehicle_fz_N"][v], clean["per_vehicle_torque_Nm"][v]) for v in affected}
+        held = _exposed_flights(spec, clean, amplitude, affected)
+        oracle = oracle_test(spec, hidden_run.units, clean_run.final_model, affected, units_err, torque_effect, held)
     exposed = _exposed_train_flights(spec, clean, amplitude, affected)
     ratios = {v: hidden["per_vehicle_fz_N"][v] / clean["per_vehicle_fz_N"][v] for v in clean["per_vehicle_fz_N"]}
     tq_ratios = {v: hidden["per_vehicle_torque_Nm"][v] / max(clean["per_vehicle_torque_Nm"][v], 1e-12)
                  for v in clean["per_vehicle_torque_Nm"]}  # fmt: skip
-    torque_effect = _has_torque(spec.effect)
     worst = max((max(ratios[v], tq_ratios[v]) if torque_effect else ratios[v]) for v in affected) if affected else None
     put_in = _library_put_in(spec.effect)
     harmed = sorted(v for v in ratios if v not in affected and ratios[v] > RATIO_OK)
@@ -137,10 +144,17 @@ def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
         "commanded": spec.commanded, "amplitude": amplitude, "amplitude_capped": flyable < wanted,
         "flyable_amplitude": flyable, "affected": affected, "exposed_train_flights": exposed, "ratios": ratios,
         "torque_ratios": tq_ratios, "worst_ratio": worst, "found": worst is not None and worst <= RATIO_OK,
-        "harmed": harmed,
+        "harmed": harmed, "oracle": oracle, "decidable": bool(oracle and oracle["passed"]),
         "clean": clean, "hidden": hidden, "clean_false_positive": _beyond_thrust_bias(clean["selected"]),
         "spurious_library": sorted(_library(hidden["selected"]) - put_in) + sorted(_library(clean["selected"])),
     }  # fmt: skip
+
+
+def _exposed_flights(spec: SetSpec, clean: dict[str, Any], amplitude: float, affected: list[str]) -> set[str]:
+    """The TRAIN flights (names ``f<k>``) on which the effect is at least some affected vehicle's clean twin's test
+    error (the unit of :func:`_exposed_train_flights`)."""
+    return {f"f{k}" for k in range(spec.n_train)
+            if any(amplitude * relative_size(effect_rms(spec, k), clean)[v] >= 1.0 for v in affected)}  # fmt: skip
 
 
 def _exposed_train_flights(
@@ -230,6 +244,9 @@ def main() -> None:
                "by_exposed_flights": {str(n): {"draws": sum(_exposure(r) == n for r in visible),
                                                "found": sum(r["found"] for r in visible if _exposure(r) == n)}
                                       for n in sorted({_exposure(r) for r in visible})},
+               "decidable_draws": sum(r["decidable"] for r in visible),
+               "found_of_decidable": sum(r["found"] for r in visible if r["decidable"]),
+               "found_of_undecidable": sum(r["found"] for r in visible if not r["decidable"]),
                "amplitude_capped": sum(r["amplitude_capped"] for r in results)}  # fmt: skip
     if args.json:
         print(json.dumps({"summary": summary, "draws": results}, indent=1, default=float))
@@ -250,6 +267,10 @@ def main() -> None:
     print(f"power by train flights (the held-out test's t has one degree of freedom fewer than flights): {by_n}")
     by_e = ", ".join(f"{n} exposed {v['found']}/{v['draws']}" for n, v in summary["by_exposed_flights"].items())
     print(f"power by train flights that hold the effect (on its least exposed affected vehicle): {by_e}")
+    n_dec = summary["decidable_draws"]
+    print(f"decidable draws (the exact effect passes the held-out test on the train flights, discovery_oracle): "
+          f"{n_dec} of {len(visible)}; found among them {summary['found_of_decidable']}/{n_dec}, among the others "
+          f"{summary['found_of_undecidable']}/{len(visible) - n_dec}")  # fmt: skip
     print(f"draws whose amplitude was capped to what the motors can fly: {summary['amplitude_capped']}")
     lo, hi = summary["false_positive_rate_ci95"]
     print(f"false positives: {len(fp)} of {len(results)} clean sets keep more than thrust_bias (target 0; "

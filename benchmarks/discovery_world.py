@@ -272,7 +272,7 @@ def _scaled(w: tuple[np.ndarray, np.ndarray], a: float) -> tuple[np.ndarray, np.
     return w[0] * a, w[1] * a
 
 
-def _flight_inputs(spec: SetSpec, k: int) -> dict[str, Any]:
+def flight_inputs(spec: SetSpec, k: int) -> dict[str, Any]:
     """Each vehicle's :class:`proxplan.physics.EffectInputs` on flight ``k`` (the exact motions, no noise)."""
     from proxplan.physics import BUILTIN_VEHICLES, GRAVITY_MPS2, EffectInputs, SourceSample
 
@@ -294,7 +294,7 @@ def effect_rms(spec: SetSpec, k: int) -> dict[str, tuple[float, float]]:
     """RMS of the unit-amplitude hidden F_z (N) and of its torque's norm (N m) per vehicle on flight ``k``
     (``spec.n_train``: the test flight)."""
     out = {}
-    for name, inputs in _flight_inputs(spec, k).items():
+    for name, inputs in flight_inputs(spec, k).items():
         f, tq = hidden_wrench(spec.effect, inputs)
         out[name] = (float(np.sqrt(np.mean(f[:, 2] ** 2))), float(np.sqrt(np.mean(np.sum(tq**2, axis=1)))))
     return out
@@ -313,7 +313,7 @@ def flyable_amplitude(spec: SetSpec) -> float:
 
     bound = np.inf
     for k in range(spec.n_train + 1):
-        for inputs in _flight_inputs(spec, k).values():
+        for inputs in flight_inputs(spec, k).values():
             veh = inputs.target
             f, tq = hidden_wrench(spec.effect, inputs)
             slope = np.linalg.solve(mixer_matrix(veh), np.column_stack([-f[:, 2], -tq]).T).T  # N per unit amplitude

@@ -19,7 +19,7 @@ def _motor_range(spec: world.SetSpec, amplitude: float) -> tuple[float, float]:
     """The largest excess over the top (N) and below the floor (N) of any motor at hover against the effect."""
     over, under = -np.inf, -np.inf
     for k in range(spec.n_train + 1):
-        for inputs in world._flight_inputs(spec, k).values():
+        for inputs in world.flight_inputs(spec, k).values():
             veh = inputs.target
             f, tq = world.hidden_wrench(spec.effect, inputs)
             demand = np.column_stack([veh.weight_N - amplitude * f[:, 2], -amplitude * tq])
