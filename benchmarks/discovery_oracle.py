@@ -50,14 +50,12 @@ def oracle_test(
     exposed: Collection[str],
 ) -> dict[str, Any]:
     """The held-out test of the exact effect on the train flights (module docstring). ``hidden_units``: the
-        identify result's units of the set with the effect; ``clean_model``: the clean twin's final model;
-        ``clean_error``: per vehicle, its clean twin's test RMSE per channel (F_z in N, then the torque norm in N m,
-        each channel's noise unit here); ``exposed``: the train flights (names) that hold the effect, the only ones
-    judged (as identify judges a candidate only where it acts; :func:`bench_discovery._exposed_train_flights`'s
-    unit: the effect's RMS there at least an affected vehicle's clean test error). Returns the test's JSON (t, the multiple required, passed, the share of
-        the held-out error removed) and the fitted amplitude per held-out flight."""
+    identify result's units of the set with the effect; ``clean_model``: the clean twin's final model;
+    ``clean_error``: per vehicle, its clean twin's test RMSE per channel (F_z in N, then the torque norm in N m:
+    each channel's unit here); ``exposed``: the train flights (names) that hold the effect, the only ones judged
+    (as identify judges a candidate only where it acts; the unit of ``bench_discovery._exposed_train_flights``:
+    the effect's RMS there at least an affected vehicle's clean test error). Returns :func:`heldout_oracle`'s."""
     from proxplan.identify.data import predict
-    from proxplan.identify.heldout_select import ratio_test
 
     rows: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}  # train flight -> (X, y) per affected vehicle
     names = sorted(affected)
@@ -70,32 +68,40 @@ def oracle_test(
         scale = np.array([fz_unit] + ([tq_unit] * 3 if with_torque else []))
         shape = oracle_columns(spec, u, with_torque) / scale
         y = (np.column_stack(meas) / scale).ravel()
-        x_eff = shape.ravel()
         # a thrust scale per affected vehicle: its column is the logged thrust on F_z, 0 on the torques
         x_thr = np.zeros((len(y), len(names)))
         x_thr[:: shape.shape[1], names.index(u.name)] = u.thrust_z_N / fz_unit
-        rows.setdefault(u.flight, []).append((np.column_stack([x_eff, x_thr]), y))
-    flights = sorted(rows)
-    if len(flights) < 2:
-        return {"passed": False, "n_flights": len(flights), "note": "fewer than two train flights hold the vehicle"}
-    stacked = {f: (np.vstack([x for x, _ in rows[f]]), np.concatenate([y for _, y in rows[f]])) for f in flights}
+        rows.setdefault(u.flight, []).append((np.column_stack([shape.ravel(), x_thr]), y))
+    stacked = {f: (np.vstack([x for x, _ in r]), np.concatenate([y for _, y in r])) for f, r in rows.items()}
+    return heldout_oracle(stacked, exposed)
+
+
+def heldout_oracle(stacked: Mapping[str, tuple[np.ndarray, np.ndarray]], exposed: Collection[str]) -> dict[str, Any]:
+    """Each flight of ``stacked`` (flight -> (X (n, 1 + k), y (n,)), noise units; column 0 the effect's shape, the
+    others nuisance columns) held out in turn: the fit on the other flights with column 0 and without it, the
+    held-out gain (squared error removed), the energy of the change and the squared error without, judged on the
+    ``exposed`` flights by :func:`proxplan.identify.heldout_select.ratio_test` with m = 1. Returns the test's JSON
+    (t, the multiple required, passed, the share of the held-out error removed), ``n_flights`` judged and the
+    fitted column-0 coefficient per held-out flight; ``passed`` False with a ``note`` where fewer than two exposed
+    flights can be judged (no standard error, no test)."""
+    from proxplan.identify.heldout_select import ratio_test
+
+    flights = sorted(stacked)
+    judged = [f for f in flights if f in exposed]
+    if len(flights) < 2 or len(judged) < 2:
+        return {"passed": False, "n_flights": len(judged), "note": "fewer than two train flights hold the effect"}
     gains, energies, sse, amplitudes = [], [], [], []
-    for held in flights:
+    for held in judged:
         x_fit = np.vstack([stacked[f][0] for f in flights if f != held])
         y_fit = np.concatenate([stacked[f][1] for f in flights if f != held])
-        thr = x_fit[:, 1:]
-        beta0 = np.linalg.lstsq(thr, y_fit, rcond=None)[0]  # without the effect: the thrust scales alone
+        beta0 = np.linalg.lstsq(x_fit[:, 1:], y_fit, rcond=None)[0]  # without the effect: the nuisance alone
         beta1 = np.linalg.lstsq(x_fit, y_fit, rcond=None)[0]
         x, y = stacked[held]
         r0 = y - x[:, 1:] @ beta0
-        r1 = y - x @ beta1
-        gains.append(float(r0 @ r0 - r1 @ r1))
         d = x @ beta1 - x[:, 1:] @ beta0
+        gains.append(float(r0 @ r0 - (r0 - d) @ (r0 - d)))
         energies.append(float(d @ d))
         sse.append(float(r0 @ r0))
         amplitudes.append(float(beta1[0]))
-    judged = np.array([f in exposed for f in flights])
-    if int(judged.sum()) < 2:
-        return {"passed": False, "n_flights": int(judged.sum()), "note": "fewer than two train flights hold the effect"}
-    test = ratio_test(np.array(gains)[judged], np.array(energies)[judged], np.array(sse)[judged], 1)
-    return test.to_json() | {"n_flights": int(judged.sum()), "amplitude_per_heldout_flight": amplitudes}
+    test = ratio_test(np.array(gains), np.array(energies), np.array(sse), 1)
+    return test.to_json() | {"n_flights": len(judged), "amplitude_per_heldout_flight": amplitudes}
