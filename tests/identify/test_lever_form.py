@@ -10,6 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from proxplan.identify import run_identify, synthetic_logs, write_synthetic_manifest
 from proxplan.identify.data import IdentifyOptions, errors
@@ -100,6 +101,7 @@ def _run(tmp: Path, hidden, n_flights: int = 7, duration_s: float = 16.0):
     return run_identify(write_synthetic_manifest(tmp, flights, TYPES), options=OPTIONS, thrust_summary=False)
 
 
+@pytest.mark.slow
 def test_a_torque_at_its_lever_arm_is_kept_in_the_lever_form(tmp_path: Path) -> None:
     """Three types, the Parrot under the small and the large quad: the hidden roll is the lever form of a grid
     kernel. The lever form is kept with one coefficient near C, and every vehicle's test torque is within 1.3x of
