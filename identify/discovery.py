@@ -56,6 +56,7 @@ from proxplan.identify.consensus import PickTally, group_of, stands_for
 from proxplan.identify.crossval import GroupSums, solve, trainable_groups
 from proxplan.identify.design import CHANNELS, SelectionSet
 from proxplan.identify.heldout_select import Candidate, ForwardResult, heldout_forward
+from proxplan.identify.lever_form import lever_forms
 from proxplan.identify.refine import Refined, refine_scaled_terms, term_column
 from proxplan.identify.sampled import sampled_features, unit_parts
 from proxplan.identify.stability import Stability, fold_eligibility, fold_half_samples, half_samples
@@ -124,6 +125,8 @@ class DiscoveryResult:
     splits: list[TypeSplit] = field(default_factory=list)
     # each kept term as the candidate it was kept as (a term key, or a split's name) -> its keys in ``kept``
     groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    # a stable term's lever form (identify.lever_form) -> the stable term it is a form of
+    lever_of: dict[str, str] = field(default_factory=dict)
 
     def _grid(self, key: str) -> str:
         """Term ``key``'s grid term where it was refined (of merged siblings, the first kept), else itself."""
@@ -182,14 +185,15 @@ class DiscoveryResult:
             t = last.get(self.tested_as(key))
             selected = key in self.kept
             group = group_of(key)
-            prob = self.member_probability.get(origin, 0.0)
+            prob = self.member_probability.get(self.lever_of.get(origin, origin), 0.0)
             shown, sibling = self.refinements(key)
             refined = None if shown is None else shown.to_json()
             out.append({
                 "name": DISCOVERED_NAME, "channel": channel, "feature": feature, "family": feature_family(feature),
                 "formula": term_formula({key: self.kept[key]}) if selected else "", "features": [feature],
                 "params": {key: self.kept[key]} if selected else {}, "inclusion_probability": prob,
-                "represented_probability": self.represented_probability.get(origin, 0.0), "refined": refined,
+                "represented_probability": self.represented_probability.get(self.lever_of.get(origin, origin), 0.0),
+                "refined": refined, "lever_form_of": self.lever_of.get(origin),
                 "sibling_merge": None if sibling is None else sibling.to_json(),
                 "type_split": self.split_record(key), "target_type": term_type(key),
                 "group": group, "group_inclusion_probability": self.stability.probability.get(group, 0.0),
@@ -306,7 +310,12 @@ def discover_terms(
     columns: dict[str, np.ndarray] = {}
     for key in stable:
         columns[key] = term_column(sel, key, x[:, names.index(parse_term_key(key)[1])])
-    splits = split_candidates(sel, stable, columns)  # each term's second form: one coefficient per target type
+    levers = lever_forms(sel, stable)  # a side-axis torque term's second form: the force at its lever arm
+    if levers:
+        x_lever = sampled_features(sel, [parse_term_key(lk)[1] for lk in levers.values()], parts)
+        for j, lk in enumerate(levers.values()):
+            columns[lk] = term_column(sel, lk, x_lever[:, j])
+    splits = split_candidates(sel, stable, columns)  # each term's third form: one coefficient per target type
     by_name = {sp.name: sp for sp in splits}
     for sp in splits:
         columns.update(sp.columns)
@@ -316,12 +325,17 @@ def discover_terms(
     without = {cl: t.eligible(stable, len(groups_seen)) for cl, t in fold_tally.items()}
     fold = fold_eligibility(sel.plan, without, stable)
     fold.update({n: fold[sp.key] for sp in splits for n in (sp.name, *sp.typed)})
-    if stable:
+    fold.update({lk: fold[k] for k, lk in levers.items()})
+    if stable:  # the forms of one term in this order: one coefficient, its lever form, one per target type
+        alternatives = {n: sp.key for sp in splits for n in (sp.key, sp.name)} | {
+            n: k for k, lk in levers.items() for n in (k, lk)}  # fmt: skip
         fwd = heldout_forward(sums, always_names, [Candidate(k, (k,)) for k in stable]
+                              + [Candidate(lk, (lk,)) for lk in levers.values()]
                               + [Candidate(sp.name, sp.typed) for sp in splits], sel.plan, ridge, sel.tau,
                               max_terms=options.max_terms,
-                              hypothesis={k: group_of(k) for k in stable} | {sp.name: group_of(sp.key) for sp in splits},
-                              fold_eligible=fold, alternatives={n: sp.key for sp in splits for n in (sp.key, sp.name)})  # fmt: skip
+                              hypothesis={k: group_of(k) for k in stable} | {sp.name: group_of(sp.key) for sp in splits}
+                              | {lk: group_of(k) for k, lk in levers.items()},
+                              fold_eligible=fold, alternatives=alternatives)  # fmt: skip
     kept_keys = [k for n in fwd.chosen for k in (by_name[n].typed if n in by_name else (n,))]
     refined = refine_scaled_terms(sel, {**always, **{k: columns[k] for k in kept_keys}}, kept_keys, ridge_of, parts)
     renamed: dict[str, str] = {}
@@ -347,7 +361,7 @@ def discover_terms(
     return DiscoveryResult(kept={k: coef[k] for k in chosen}, coefficients=coef, stability=stab, forward=fwd,
                            columns=columns, top=top, member_probability=member_prob, fold_eligible=fold,
                            represented_probability=represented_prob, refined=refined, splits=splits,
-                           groups=groups)  # fmt: skip
+                           groups=groups, lever_of={lk: k for k, lk in levers.items()})  # fmt: skip
 
 
 def _picks(

@@ -256,6 +256,7 @@ def heldout_forward(
     type, :mod:`proxplan.identify.type_split`); once one is kept the others leave the search."""
     cols_of = {c.name: sums.index(c.columns) for c in candidates}
     judged = {c.name: c.judged_channels for c in candidates}
+    order = {c.name: i for i, c in enumerate(candidates)}
     base = sums.index(always) if always else np.zeros(0, dtype=int)
     out = ForwardResult()
 
@@ -283,7 +284,7 @@ def heldout_forward(
                  for name, (trial, acts) in trials.items()}  # fmt: skip
         out.tests.append(tests)
         ok = [n for n, t in tests.items() if t.passed and (eligible is None or n in eligible)]
-        ok = [n for n in ok if not _needless(n, ok, trials, cols_of, alternatives, sums, plan)]
+        ok = [n for n in ok if not _needless(n, ok, trials, cols_of, alternatives, sums, plan, order)]
         if not ok:
             break
         # the one most surely better: the largest lower confidence bound of the error it removes (the share at
@@ -306,15 +307,17 @@ def heldout_forward(
 
 
 def _needless(name: str, passed: Sequence[str], trials, cols_of, alternatives: Mapping[str, str] | None,
-              sums: GroupSums, plan: GroupPlan) -> bool:  # fmt: skip
-    """Whether candidate ``name`` is a larger form of a term one of whose smaller forms (fewer columns) also
-    ``passed``, and the flights do not show ``name`` better than it (the head-to-head gain test, one hypothesis, as
-    a rival's): of two forms of one term the larger (one coefficient per target type) competes only where the data
+              sums: GroupSums, plan: GroupPlan, order: Mapping[str, int]) -> bool:  # fmt: skip
+    """Whether candidate ``name`` is a larger form of a term one of whose smaller forms (fewer columns; of as many
+    columns, one offered earlier in ``order``) also ``passed``, and the flights do not show ``name`` better than it
+    (the head-to-head gain test, one hypothesis, as a rival's): of two forms of one term the larger (one coefficient
+    per target type) or the later (a lever form, :mod:`proxplan.identify.lever_form`) competes only where the data
     ask for it, so where they do not, the round is the round without it."""
     if alternatives is None or name not in alternatives:
         return False
+    rank = (len(cols_of[name]), order[name])
     simpler = [n for n in passed if n != name and alternatives.get(n) == alternatives[name]
-               and len(cols_of[n]) < len(cols_of[name])]  # fmt: skip
+               and (len(cols_of[n]), order[n]) < rank]  # fmt: skip
     return any(not gain_test(sums, trials[n][0], trials[name][0], 1, trials[n][1] | trials[name][1],
                              plan.cluster).passed for n in simpler)  # fmt: skip
 

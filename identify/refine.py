@@ -150,19 +150,21 @@ class _Neighbours:
     taken at the sampled rows), so a kernel at any scale is one vectorised call."""
 
     def __init__(self, sel: SelectionSet, parts: list[UnitPart]) -> None:
-        self.parts: list[tuple[np.ndarray, list[tuple[np.ndarray, float, np.ndarray]]]] = []
+        self.parts: list[tuple[np.ndarray, float, list[tuple[np.ndarray, float, np.ndarray]]]] = []
         for part in parts:
             motion = neighbour_motion(part.inputs)
-            self.parts.append((part.where, [(off[part.at], size, v[part.at]) for off, size, v in motion]))
+            self.parts.append((part.where, part.inputs.target.size_m,
+                               [(off[part.at], size, v[part.at]) for off, size, v in motion]))  # fmt: skip
         self.n = len(sel.rows)
 
     def feature(self, kernel: BasisKernel, axis: str) -> np.ndarray:
         """(N,) the feature ``kernel.name(axis)`` at every selection sample."""
         out = np.zeros(self.n)
         name = kernel.name(axis)
-        for where, motion in self.parts:
+        for where, target_size, motion in self.parts:
             for off, size, v_rel in motion:
-                out[where] += basis_columns(kernel, (axis,), off, size, np.hypot(v_rel[:, 0], v_rel[:, 1]))[name]
+                speed = np.hypot(v_rel[:, 0], v_rel[:, 1])
+                out[where] += basis_columns(kernel, (axis,), off, size, speed, target_size)[name]
         return out
 
 

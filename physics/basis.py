@@ -29,6 +29,7 @@ __all__ = [
     "BASIS_RADIALS",
     "BASIS_SPEED",
     "BASIS_WIDTHS_L",
+    "LEVER_AXES",
     "BasisKernel",
     "basis_columns",
     "basis_kernels",
@@ -77,6 +78,15 @@ height difference spans such a two-sided shape. Declared as the whole cross prod
 width and decay), not the one shape traced."""
 AXES = ("", "x", "y", "speed")
 """What a kernel is multiplied by: nothing, the offset's x or y over L, the relative horizontal speed."""
+LEVER_AXES = {"x": "xt", "y": "yt"}
+"""A side axis's LEVER form (issue 35, round 37K): the kernel times the offset's x or y over the TARGET's size
+L_t (``_xt_1``, ``_yt_1``), not the neighbour's. On a torque channel a weight-scaled term is c W L_t x feature
+(:func:`proxplan.physics.feature_terms.term_scale`), so the side axis gives c W L_t k y / L (the lever arm
+rescaled by L_t / L: a coefficient that depends on the pair's sizes) and its lever form c W k y: the force
+c W k off the target's centre at its lever arm y (m), one coefficient for any pair of sizes. Which of the two
+describes a neighbour's torque is not known a priori (:mod:`proxplan.identify.type_split`'s docstring): the
+lever form is offered as an alternative form of a stable side-axis term, not searched as a grid feature, so it
+is not in :data:`AXES` (the declared grid)."""
 _ACROSS = {"g": "exp(-(rho / {w} L)^2)", "l": "exp(-rho / {w} L)", "c": "1 / (1 + (rho / {w} L)^2)"}
 _ALONG = {"e": "exp(-delta / {d} L)", "i": "1 / (1 + delta / {d} L)"}
 _WHAT = {
@@ -116,6 +126,11 @@ class BasisKernel:
                  f"{_ALONG[self.form].format(d=f'{self.decay_L:g}')}")  # fmt: skip
         if axis in ("x", "y"):
             return f"multi-scale kernel of {_WHAT[self.where]} ({shape}) times offset_{axis} / L, summed"
+        if axis in LEVER_AXES.values():
+            return (
+                f"multi-scale kernel of {_WHAT[self.where]} ({shape}) times offset_{axis[0]} / L_target (the "
+                "target's size), summed"
+            )
         if axis == "speed":
             return f"multi-scale kernel of {_WHAT[self.where]} ({shape}) times the relative horizontal speed, summed"
         return f"multi-scale kernel of {_WHAT[self.where]}: {shape}, summed"
@@ -151,7 +166,7 @@ def basis_name(where: str, width: float, decay: float, axis: str = "", radial: s
 
 
 _SCALE = r"(\d+(?:p\d+)?)"
-_NAME = re.compile(rf"^(above|below|side)_([glc]){_SCALE}L_([ei]){_SCALE}L_(?:(x|y)_1|1|({BASIS_SPEED}))$")
+_NAME = re.compile(rf"^(above|below|side)_([glc]){_SCALE}L_([ei]){_SCALE}L_(?:(xt|yt|x|y)_1|1|({BASIS_SPEED}))$")
 
 
 def parse_basis_name(name: str) -> tuple[BasisKernel, str] | None:
@@ -170,11 +185,17 @@ def parse_basis_name(name: str) -> tuple[BasisKernel, str] | None:
 
 
 def basis_columns(
-    kernel: BasisKernel, axes: tuple[str, ...], off_m: np.ndarray, size_m: float, rel_speed_xy_mps: np.ndarray
+    kernel: BasisKernel,
+    axes: tuple[str, ...],
+    off_m: np.ndarray,
+    size_m: float,
+    rel_speed_xy_mps: np.ndarray,
+    target_size_m: float | None = None,
 ) -> dict[str, np.ndarray]:
     """The features ``kernel.name(axis)`` for each of ``axes`` of ONE neighbour at ``off_m`` (N, 3)
     (p_target - p_neighbour, m) of size ``size_m`` (m) moving at ``rel_speed_xy_mps`` (N,) relative to the
-    target: name -> (N,) array (a feature is the sum of these over the neighbours)."""
+    target: name -> (N,) array (a feature is the sum of these over the neighbours). A lever axis
+    (:data:`LEVER_AXES`) needs the target's size ``target_size_m`` (m)."""
     dz, r = -off_m[:, 2], np.hypot(off_m[:, 0], off_m[:, 1])
     if kernel.where == "above":
         rho, delta, gate = r, dz, dz > 0.0
@@ -184,4 +205,8 @@ def basis_columns(
         rho, delta, gate = np.abs(dz), r, np.ones(len(r), dtype=bool)
     k = np.where(gate, kernel.value(rho / (kernel.width_L * size_m), delta / (kernel.decay_L * size_m)), 0.0)
     by_axis = {"": k, "x": k * off_m[:, 0] / size_m, "y": k * off_m[:, 1] / size_m, "speed": k * rel_speed_xy_mps}
+    if any(a in LEVER_AXES.values() for a in axes):
+        if target_size_m is None:
+            raise ValueError(f"{kernel.name(axes[0])}: a lever axis needs the target's size")
+        by_axis |= {"xt": k * off_m[:, 0] / target_size_m, "yt": k * off_m[:, 1] / target_size_m}
     return {kernel.name(a): by_axis[a] for a in axes}

@@ -424,7 +424,7 @@ def feature_matrix(
         depth = np.maximum(-dz, MIN_HEIGHT_FACTOR * r_rot)
         f["below_cushion_1"] += np.where(below, (r_rot / (4.0 * depth)) ** 2 * np.exp(-((r / size) ** 2)), 0.0)
         for kernel, axes in kernels_wanted.items():
-            for name, values in basis_columns(kernel, axes, off, size, rel_xy).items():
+            for name, values in basis_columns(kernel, axes, off, size, rel_xy, target.size_m).items():
                 f[name] += values
     f["thrust_kin_jet_N"] = thrust_kin * f["above_jet_1"]
     for i in range(len(kernels)):
