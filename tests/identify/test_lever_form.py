@@ -12,8 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from proxplan.identify import run_identify, synthetic_logs, write_synthetic_manifest
-from proxplan.identify.data import IdentifyOptions, errors
+from proxplan.identify.data import IdentifyOptions
 from proxplan.identify.lever_form import lever_key
 from proxplan.physics import (
     BUILTIN_VEHICLES,
@@ -26,6 +25,7 @@ from proxplan.physics import (
     is_feature,
     parse_basis_name,
 )
+from tests.identify.synthetic_runs import identify_flights, kept_terms, torque_rmse_on_test_Nm
 
 KERNEL = "above_g1L_e4L_1"
 """The hidden torque's kernel: exp(-(r / L)^2 - dz / 4 L) of the neighbours above (L the neighbour's size), a
@@ -88,17 +88,9 @@ def _stack(t: np.ndarray, phase: float, large_on_top: bool) -> dict[str, np.ndar
             "c": path(0.07, 0.28, 4.4, 3.7, 0.8, phase + 2.3)}  # fmt: skip
 
 
-def _run(tmp: Path, hidden, n_flights: int = 7, duration_s: float = 16.0):
-    t = np.arange(0.0, duration_s, 0.01)
-    vehicles = {v: BUILTIN_VEHICLES[typ] for v, typ in TYPES.items()}
-    flights = [
-        (f"f{k}", "test" if k >= n_flights - 2 else "train", synthetic_logs(
-            vehicles, _stack(t, 0.9 * k, k % 2 == 0), t, hidden_wrench=hidden, accel_noise_mps2=0.02,
-            motor_noise_N=0.004, seed=k,
-        ))
-        for k in range(n_flights)
-    ]  # fmt: skip
-    return run_identify(write_synthetic_manifest(tmp, flights, TYPES), options=OPTIONS, thrust_summary=False)
+def _run(tmp: Path, hidden):
+    return identify_flights(tmp, TYPES, lambda t, k: _stack(t, 0.9 * k, k % 2 == 0), hidden, options=OPTIONS,
+                            n_flights=7, n_test=2)  # fmt: skip
 
 
 @pytest.mark.slow
@@ -110,14 +102,10 @@ def test_a_torque_at_its_lever_arm_is_kept_in_the_lever_form(tmp_path: Path) -> 
     clean = _run(tmp_path / "clean", None)
     result = _run(tmp_path / "effect", _roll_at_lever_arm)
     assert not [e for e in clean.discovered if e["selected"]]
-    kept = {k: v for e in result.discovered if e["selected"] for k, v in e["params"].items()}
+    kept = kept_terms(result)
     lever = {k: v for k, v in kept.items() if k.startswith("torque_x_Nm*W*above_") and "_yt_1" in k}
     assert len(lever) == 1 and not any("@" in k for k in kept), kept
     assert abs(next(iter(lever.values())) / LEVER_C - 1.0) < 0.3, kept
 
-    def torque(res, vehicle: str) -> float:
-        units = [u for u in res.units if u.split == "test" and u.name == vehicle]
-        return errors(units, res.final_model).rmse_torque_Nm
-
     for vehicle in TYPES:
-        assert torque(result, vehicle) <= 1.3 * torque(clean, vehicle), (vehicle, kept)
+        assert torque_rmse_on_test_Nm(result, vehicle) <= 1.3 * torque_rmse_on_test_Nm(clean, vehicle), (vehicle, kept)

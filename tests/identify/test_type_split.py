@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from proxplan.identify import run_identify, synthetic_logs, write_synthetic_manifest
 from proxplan.identify.data import IdentifyOptions, errors
 from proxplan.physics import (
     BUILTIN_VEHICLES,
@@ -26,6 +25,7 @@ from proxplan.physics import (
     typed_key,
     untyped_key,
 )
+from tests.identify.synthetic_runs import identify_flights, kept_terms, torque_rmse_on_test_Nm
 
 SOURCE, SMALL, PARROT = "large-quad", "small-quad", "crazyflie-parrot"
 TYPES = {"a": SOURCE, "b": SMALL, "c": PARROT}
@@ -65,23 +65,10 @@ def _trajectories(t: np.ndarray, phase: float) -> dict[str, np.ndarray]:
     return {"a": a, "b": b, "c": c}
 
 
-def _run(tmp: Path, per_type: dict[str, float] | None, n_flights: int = 6, duration_s: float = 16.0):
-    t = np.arange(0.0, duration_s, 0.01)
-    vehicles = {v: BUILTIN_VEHICLES[typ] for v, typ in TYPES.items()}
+def _run(tmp: Path, per_type: dict[str, float] | None):
     hidden = None if per_type is None else _hidden(per_type)
-    flights = [
-        (f"f{k}", "test" if k == n_flights - 1 else "train", synthetic_logs(
-            vehicles, _trajectories(t, 0.7 * k), t, hidden_wrench=hidden, accel_noise_mps2=0.02,
-            motor_noise_N=0.004, seed=k,
-        ))
-        for k in range(n_flights)
-    ]  # fmt: skip
-    result = run_identify(write_synthetic_manifest(tmp, flights, TYPES), options=OPTIONS, thrust_summary=False)
-    return result
-
-
-def _kept(result) -> dict[str, float]:
-    return {k: v for e in result.discovered if e["selected"] for k, v in e["params"].items()}
+    return identify_flights(tmp, TYPES, lambda t, k: _trajectories(t, 0.7 * k), hidden, options=OPTIONS,
+                            n_flights=6, n_test=1)  # fmt: skip
 
 
 def test_typed_keys_parse_and_act_on_their_type_only() -> None:
@@ -124,7 +111,7 @@ def test_a_term_whose_coefficient_differs_by_target_type_is_split(tmp_path: Path
     kept term is split (its per-type form beat the one-coefficient form in the forward pass), each type's coefficient near its own, and each target's test F_z within 1.3x of the
     clean twin's (a shared coefficient would sit between the two and miss both)."""
     result = _run(tmp_path, PER_TYPE)
-    kept = _kept(result)
+    kept = kept_terms(result)
     coef = {term_type(k): v for k, v in kept.items() if untyped_key(k) == KEY}
     assert set(coef) == {SMALL, PARROT} and all(term_type(k) for k in kept if untyped_key(k) == KEY), kept
     for t, value in coef.items():
@@ -142,7 +129,7 @@ def test_a_term_one_coefficient_describes_stays_shared(tmp_path: Path, clean) ->
     """The same force with one coefficient for both types: the term is kept shared (its split tested and refused),
     its coefficient near the truth, and each target's test F_z within 1.3x of the clean twin's."""
     result = _run(tmp_path, SHARED)
-    kept = _kept(result)
+    kept = kept_terms(result)
     assert KEY in kept and not any(term_type(k) for k in kept), kept
     assert abs(-kept[KEY] / SHARED[SMALL] - 1.0) < 0.2, kept
     forms = [e["type_split"] for e in result.discovered if e["selected"]]
@@ -181,17 +168,9 @@ def _swapping(t: np.ndarray, phase: float, small_on_top: bool) -> dict[str, np.n
     return {"a": top, "b": low} if small_on_top else {"a": low, "b": top}
 
 
-def _run_swapping(tmp: Path, hidden, n_flights: int = 7, duration_s: float = 16.0):
-    t = np.arange(0.0, duration_s, 0.01)
-    vehicles = {v: BUILTIN_VEHICLES[typ] for v, typ in SWAP.items()}
-    flights = [
-        (f"f{k}", "test" if k >= n_flights - 2 else "train", synthetic_logs(
-            vehicles, _swapping(t, 0.7 * k, k % 2 == 0), t, hidden_wrench=hidden, accel_noise_mps2=0.02,
-            motor_noise_N=0.004, seed=k,
-        ))
-        for k in range(n_flights)
-    ]  # fmt: skip
-    return run_identify(write_synthetic_manifest(tmp, flights, SWAP), options=OPTIONS, thrust_summary=False)
+def _run_swapping(tmp: Path, hidden):
+    return identify_flights(tmp, SWAP, lambda t, k: _swapping(t, 0.7 * k, k % 2 == 0), hidden, options=OPTIONS,
+                            n_flights=7, n_test=2)  # fmt: skip
 
 
 def test_a_torque_scaling_with_the_source_is_kept_in_its_lever_form(tmp_path: Path) -> None:
@@ -205,14 +184,10 @@ def test_a_torque_scaling_with_the_source_is_kept_in_its_lever_form(tmp_path: Pa
     clean = _run_swapping(tmp_path / "clean", None)
     result = _run_swapping(tmp_path / "effect", _roll_from_above)
     assert not [e for e in clean.discovered if e["selected"]]
-    kept = _kept(result)
+    kept = kept_terms(result)
     roll = {k: v for k, v in kept.items() if k.startswith("torque_x_Nm*W*above_")}
     assert len(roll) == 1 and all(term_type(k) is None and k.endswith("_yt_1") for k in roll), kept
     assert abs(next(iter(roll.values())) / ROLL_C - 1.0) < 0.3, kept
 
-    def torque(res, vehicle: str) -> float:
-        units = [u for u in res.units if u.split == "test" and u.name == vehicle]
-        return errors(units, res.final_model).rmse_torque_Nm
-
     for vehicle in SWAP:
-        assert torque(result, vehicle) <= 1.3 * torque(clean, vehicle), (vehicle, kept)
+        assert torque_rmse_on_test_Nm(result, vehicle) <= 1.3 * torque_rmse_on_test_Nm(clean, vehicle), (vehicle, kept)
