@@ -28,8 +28,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from proxplan.identify.design import SelectionSet
-from proxplan.physics import parse_basis_name, parse_term_key, term_type, weight_scaled
-from proxplan.physics.basis import LEVER_AXES
+from proxplan.physics import LEVER_AXES, parse_basis_name, parse_term_key, term_type, weight_scaled
 
 __all__ = ["lever_forms", "lever_key"]
 

@@ -21,6 +21,7 @@ from proxplan.physics.authority import (
 from proxplan.physics.basis import (
     BASIS_DECAYS_L,
     BASIS_WIDTHS_L,
+    LEVER_AXES,
     BasisKernel,
     basis_columns,
     parse_basis_name,
@@ -265,6 +266,7 @@ __all__ = [
     "BasisKernel",
     "basis_columns",
     "parse_basis_name",
+    "LEVER_AXES",
     "FIELD_FORMS",
     "GRAVITY_MPS2",
     "MODEL_FORMAT_VERSION",
