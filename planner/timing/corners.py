@@ -42,6 +42,21 @@ MAX_BACKOFFS = 6  # ... at most this many times (then the corner is flown throug
 # turns of 90 degrees or more (cosine at or below this) are flown through rest: a rounded right
 # angle at the corner speed the jerk allows takes as long as stopping there (measured with Ruckig)
 MAX_TURN_COS = 0.0
+# the turn's cosine is compared with MAX_TURN_COS after rounding to this resolution (dimensionless), as
+# :func:`proxplan.planner.swarm.ties.tie_key` rounds the swarm layer's keys (issue 37, round 37U): a right angle
+# is common by construction (a lane route's offset legs are perpendicular to its middle leg), and its cosine,
+# 0 exactly, comes out as +-1e-17 by the last bits of its legs, which differ from machine to machine (numpy's
+# SIMD kernels). Far above float64's error on a cosine of unit vectors (~1e-16), far below any turn a run
+# resolves (1e-9 rad off a right angle)
+TURN_COS_RESOLUTION = 1e-9
+
+
+def passes_moving(cos_turn: float) -> bool:
+    """A turn of cosine ``cos_turn`` is passed moving (rounded): under 90 degrees, its cosine above
+    ``MAX_TURN_COS`` once both are rounded to ``TURN_COS_RESOLUTION`` (a right angle within float64's
+    error is flown through rest on every machine)."""
+    res = TURN_COS_RESOLUTION
+    return int(round(float(cos_turn) / res)) > int(round(MAX_TURN_COS / res))
 
 
 def _geometry(pts: np.ndarray, deviation_m: float):
@@ -57,7 +72,7 @@ def _geometry(pts: np.ndarray, deviation_m: float):
             continue
         cos_turn = float(np.clip(np.dot(u[m - 1], u[m]), -1.0, 1.0))
         half_sin[m] = math.sqrt((1.0 - cos_turn) / 2.0)
-        if cos_turn > MAX_TURN_COS and half_sin[m] > 1e-9:
+        if passes_moving(cos_turn) and half_sin[m] > 1e-9:
             radius[m] = min(deviation_m / half_sin[m], 0.5 * length[m - 1], 0.5 * length[m])
     return length, u, radius, half_sin
 
@@ -108,7 +123,7 @@ def corner_speeds(pts: np.ndarray, limits: KinematicLimits, *, deviation_m: floa
     length, u, radius, half_sin = _geometry(pts, deviation_m)
     vmax, amax = limits.max_speed_mps, limits.max_accel_mps2
     for m in range(1, K - 1):
-        if length[m - 1] < 1e-9 or length[m] < 1e-9 or float(np.dot(u[m - 1], u[m])) <= MAX_TURN_COS:
+        if length[m - 1] < 1e-9 or length[m] < 1e-9 or not passes_moving(float(np.dot(u[m - 1], u[m]))):
             continue
         if radius[m] <= 0.0:  # straight on
             speed[m] = vmax
