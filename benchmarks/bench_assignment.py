@@ -1,5 +1,5 @@
 """Canonical assignment benchmark (round 35A, issue 37): round 34W's row-by-row search (the BASELINE arm, copied
-here, not used by the project) against ``proxplan.planner.swarm.ties.canonical_assignment`` (one assignment problem,
+here, not used by the project) against ``proxplan.planner.ties.canonical_assignment`` (one assignment problem,
 exact dual potentials, the lowest perfect matching of the tight pairs), and ``scipy.optimize.linear_sum_assignment``
 alone, on seeded random integer costs: ``distinct`` (0..10^12, almost no ties) and ``tied`` (0..3, many ties).
 
@@ -24,7 +24,7 @@ import time
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from proxplan.planner.swarm.ties import canonical_assignment
+from proxplan.planner.ties import canonical_assignment
 
 
 def baseline_row_by_row(cost: np.ndarray) -> np.ndarray:

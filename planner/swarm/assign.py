@@ -9,7 +9,7 @@ collision-free when starts and goals are far enough apart. The bottleneck is fou
 over the sorted costs with a perfect-matching test
 (``scipy.sparse.csgraph.maximum_bipartite_matching``), the sum by ``scipy.optimize.linear_sum_assignment``
 on the costs with every pair above the bottleneck excluded; both on the costs rounded to a stated resolution,
-the lexicographically smallest of the assignments of least sum taken (:mod:`~proxplan.planner.swarm.ties`,
+the lexicographically smallest of the assignments of least sum taken (:mod:`~proxplan.planner.ties`,
 round 34W: the same assignment on every machine and in any order of the vehicles). The assignment's lower bound (no plan
 can finish earlier) is the largest single-vehicle minimum time under it.
 
@@ -28,7 +28,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
 from proxplan.physics import KinematicLimits
-from proxplan.planner.swarm.ties import (
+from proxplan.planner.ties import (
     LENGTH_RESOLUTION_M,
     SQUARED_LENGTH_RESOLUTION_M2,
     TIME_RESOLUTION_S,
@@ -47,7 +47,7 @@ class Assignment:
 def _min_times(starts: np.ndarray, goals: np.ndarray, limits: KinematicLimits) -> np.ndarray:
     """(n, n) straight-line rest-to-rest minimum time from each start to each goal, s. The table is a step
     function of the distance (its next node up), so each distance is first rounded to ``LENGTH_RESOLUTION_M``
-    (swarm.ties): a line of 1 m on a node, 1 ulp longer on another machine, would take the next node's time."""
+    (planner.ties): a line of 1 m on a node, 1 ulp longer on another machine, would take the next node's time."""
     d = (
         quantised(np.linalg.norm(starts[:, None, :] - goals[None, :, :], axis=2), LENGTH_RESOLUTION_M)
         * LENGTH_RESOLUTION_M
@@ -86,7 +86,7 @@ def assign_group(
     times = _min_times(starts, goals, limits)
     if floor_s is not None:
         times = np.maximum(times, floor_s)
-    # costs compared as integers at a stated resolution (swarm.ties): equal costs on one machine are equal on
+    # costs compared as integers at a stated resolution (planner.ties): equal costs on one machine are equal on
     # every machine, and among assignments of equal cost the lexicographically smallest is taken (round 34W)
     steps = quantised(times, TIME_RESOLUTION_S)
     bottleneck = _bottleneck(steps)

@@ -39,9 +39,9 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.reserve import reserved_track
 from proxplan.planner.swarm.single import plan_one
 from proxplan.planner.swarm.stage import Stage
-from proxplan.planner.swarm.ties import TIME_RESOLUTION_S, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.wave import wave_route
+from proxplan.planner.ties import TIME_RESOLUTION_S, tie_key
 from proxplan.planner.timing.profile import LineMove, rest_to_rest
 
 # two headings are one direction group when their cosine exceeds this (within 60 degrees; why_128 --flow)

@@ -20,9 +20,9 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.stagger import Partial
 from proxplan.planner.swarm.straight import own_straight_track
-from proxplan.planner.swarm.ties import LENGTH_RESOLUTION_M, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.yielding import YieldResult, blockers
+from proxplan.planner.ties import LENGTH_RESOLUTION_M, tie_key
 
 # a component no joint move can be placed for makes the vehicles hemming it in late (or is placed first,
 # or its members become late), then all are placed again: at most this many times (a count, so the

@@ -27,8 +27,8 @@ from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.raised import RAISE_DZ_M, a_level
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.straight import kept_straight_lines
-from proxplan.planner.swarm.ties import LENGTH_RESOLUTION_M, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S
+from proxplan.planner.ties import LENGTH_RESOLUTION_M, tie_key
 
 # prioritised planning's horizon: max(factor x lower bound, lower bound + margin) (a plan that needs
 # longer is not worth having: the lattice plan in lock-step is the answer then)

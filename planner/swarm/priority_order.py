@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from proxplan.planner.swarm.problem import SwarmProblem
-from proxplan.planner.swarm.ties import LENGTH_RESOLUTION_M, tie_key
+from proxplan.planner.ties import LENGTH_RESOLUTION_M, tie_key
 
 __all__ = ["dependency_order"]
 

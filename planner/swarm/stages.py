@@ -49,9 +49,9 @@ from proxplan.planner.swarm.repair_stage import makespan_stage, repairs
 from proxplan.planner.swarm.retime_stage import retime_stage
 from proxplan.planner.swarm.stage import Stage
 from proxplan.planner.swarm.straight import straight_step_conflicts
-from proxplan.planner.swarm.ties import TIME_RESOLUTION_S, shorter, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
 from proxplan.planner.swarm.verify_guard import Check
+from proxplan.planner.ties import TIME_RESOLUTION_S, shorter, tie_key
 from proxplan.planner.timing.profile import rest_to_rest
 
 __all__ = ["level_options", "level_planner", "plan_stages", "stacked_stage"]

@@ -46,8 +46,8 @@ from proxplan.planner.swarm.occupancy import Occupancy
 from proxplan.planner.swarm.problem import SwarmProblem
 from proxplan.planner.swarm.stage import Stage, own_routes
 from proxplan.planner.swarm.straight import own_straight_track, straight_step_conflicts
-from proxplan.planner.swarm.ties import LENGTH_RESOLUTION_M, tie_key
 from proxplan.planner.swarm.tracks import GRID_DT_S, GridTrack
+from proxplan.planner.ties import LENGTH_RESOLUTION_M, tie_key
 from proxplan.planner.timing import CORNER_DEVIATION_M
 from proxplan.planner.timing.profile import RunMove
 

@@ -29,6 +29,7 @@ import math
 import numpy as np
 
 from proxplan.physics import KinematicLimits
+from proxplan.planner.ties import tie_key
 from proxplan.planner.timing.segments import through_segment
 
 # how far the chord of a rounding may miss its corner, m (the flown rounding lies between chord and
@@ -42,8 +43,8 @@ MAX_BACKOFFS = 6  # ... at most this many times (then the corner is flown throug
 # turns of 90 degrees or more (cosine at or below this) are flown through rest: a rounded right
 # angle at the corner speed the jerk allows takes as long as stopping there (measured with Ruckig)
 MAX_TURN_COS = 0.0
-# the turn's cosine is compared with MAX_TURN_COS after rounding to this resolution (dimensionless), as
-# :func:`proxplan.planner.swarm.ties.tie_key` rounds the swarm layer's keys (issue 37, round 37U): a right angle
+# the turn's cosine is compared with MAX_TURN_COS after rounding to this resolution (dimensionless), by
+# :func:`proxplan.planner.ties.tie_key` as every machine-independent choice is (issue 37, round 37U): a right angle
 # is common by construction (a lane route's offset legs are perpendicular to its middle leg), and its cosine,
 # 0 exactly, comes out as +-1e-17 by the last bits of its legs, which differ from machine to machine (numpy's
 # SIMD kernels). Far above float64's error on a cosine of unit vectors (~1e-16), far below any turn a run
@@ -55,8 +56,7 @@ def passes_moving(cos_turn: float) -> bool:
     """A turn of cosine ``cos_turn`` is passed moving (rounded): under 90 degrees, its cosine above
     ``MAX_TURN_COS`` once both are rounded to ``TURN_COS_RESOLUTION`` (a right angle within float64's
     error is flown through rest on every machine)."""
-    res = TURN_COS_RESOLUTION
-    return int(round(float(cos_turn) / res)) > int(round(MAX_TURN_COS / res))
+    return tie_key(cos_turn, TURN_COS_RESOLUTION) > tie_key(MAX_TURN_COS, TURN_COS_RESOLUTION)
 
 
 def _geometry(pts: np.ndarray, deviation_m: float):

@@ -33,7 +33,7 @@ PLANS = {
     # a likely place for such a split. Its plan is not a machine-independent figure, so only what holds on any
     # machine is checked: the stage, and the re-timed-again path giving the same plan.
     # Round 34W: not the goal assignment (swarm_timed does not assign: the flag only steers the stages) nor a float
-    # key of a choice (none within 1e-9 on this case; every such key now goes through swarm.ties). Probes on the
+    # key of a choice (none within 1e-9 on this case; every such key now goes through planner.ties). Probes on the
     # stop-72 machine, all e373fcd75be511dc: OPENBLAS_NUM_THREADS=1 and 2; NPY_DISABLE_CPU_FEATURES=AVX2,FMA3,AVX512*;
     # numpy's sqrt, sin/cos/arctan2/hypot and exp/log/power each 1 ulp up. One that parts it: np.linalg.norm 1 ulp up
     # (non-zero values) in straight.own_straight_track alone -> adc0ab3f46fa848c, with the same step count (92) and

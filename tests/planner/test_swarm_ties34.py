@@ -1,5 +1,5 @@
 """Round 34W (issue 37, "the same seed gives the same plan"): a choice among candidates of equal cost is the same
-on every machine (proxplan.planner.swarm.ties). A machine differs from another by the last bits of a cost, or by
+on every machine (proxplan.planner.ties). A machine differs from another by the last bits of a cost, or by
 which of several optimal assignments its solver returns; both are simulated here on cases with exact ties."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from proxplan.physics import KinematicLimits
+from proxplan.planner import ties as ties_module
 from proxplan.planner.swarm import assign_group
-from proxplan.planner.swarm import ties as ties_module
-from proxplan.planner.swarm.ties import canonical_assignment, quantised, tie_key
+from proxplan.planner.ties import canonical_assignment, quantised, tie_key
 
 LIMITS = KinematicLimits(1.5, 3.0, 12.0)
 

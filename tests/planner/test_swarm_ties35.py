@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from proxplan.planner.swarm import ties as ties_module
-from proxplan.planner.swarm.ties import canonical_assignment
+from proxplan.planner import ties as ties_module
+from proxplan.planner.ties import canonical_assignment
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 

@@ -1,5 +1,7 @@
 """Choices among candidates of equal cost, broken the same way on every machine (round 34W, issue 37: "the same
-seed gives the same plan").
+seed gives the same plan"). Used by the swarm layer and by timing (a turn's cosine against the right angle,
+:func:`proxplan.planner.timing.corners.passes_moving`); it imports nothing of the planner, so any of its
+packages can use it (it was ``planner/swarm/ties.py`` until stop 76).
 
 A cost computed in floating point may differ in its last bits from one machine to another (numpy's SIMD kernels,
 a compiled library such as Ruckig, the order of a reduction): two candidates of equal cost on one machine may be
