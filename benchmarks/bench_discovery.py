@@ -127,12 +127,13 @@ def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
         hidden, hidden_run = _identify(make_set(spec, base / "effect", amplitude))
     affected = [v for v in size if amplitude * size[v] >= 1.0]
     torque_effect = _has_torque(spec.effect)
+    flights_holding = _flights_holding(spec, clean, amplitude, affected)
+    exposed = {v: len(f) for v, f in flights_holding.items()}
     oracle = None
     if affected:  # the ceiling: the exact effect's held-out test on the train flights (discovery_oracle)
         units_err = {v: (clean["per_vehicle_fz_N"][v], clean["per_vehicle_torque_Nm"][v]) for v in affected}
-        held = _exposed_flights(spec, clean, amplitude, affected)
+        held = set().union(*flights_holding.values())  # the flights holding it on some affected vehicle
         oracle = oracle_test(spec, hidden_run.units, clean_run.final_model, affected, units_err, torque_effect, held)
-    exposed = _exposed_train_flights(spec, clean, amplitude, affected)
     ratios = {v: hidden["per_vehicle_fz_N"][v] / clean["per_vehicle_fz_N"][v] for v in clean["per_vehicle_fz_N"]}
     tq_ratios = {v: hidden["per_vehicle_torque_Nm"][v] / max(clean["per_vehicle_torque_Nm"][v], 1e-12)
                  for v in clean["per_vehicle_torque_Nm"]}  # fmt: skip
@@ -150,21 +151,14 @@ def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
     }  # fmt: skip
 
 
-def _exposed_flights(spec: SetSpec, clean: dict[str, Any], amplitude: float, affected: list[str]) -> set[str]:
-    """The TRAIN flights (names ``f<k>``) on which the effect is at least some affected vehicle's clean twin's test
-    error (the unit of :func:`_exposed_train_flights`)."""
-    return {f"f{k}" for k in range(spec.n_train)
-            if any(amplitude * relative_size(effect_rms(spec, k), clean)[v] >= 1.0 for v in affected)}  # fmt: skip
-
-
-def _exposed_train_flights(
+def _flights_holding(
     spec: SetSpec, clean: dict[str, Any], amplitude: float, affected: list[str]
-) -> dict[str, int]:
-    """Per affected vehicle, the number of TRAIN flights on which the effect is at least that vehicle's clean
+) -> dict[str, set[str]]:
+    """Per affected vehicle, the TRAIN flights (names ``f<k>``) on which the effect is at least that vehicle's clean
     twin's test error (the same unit as ``affected``; a train flight's own clean error is not measured). A
     flight-level test cannot validate an effect that only one train flight holds."""
-    per_flight = [relative_size(effect_rms(spec, k), clean) for k in range(spec.n_train)]
-    return {v: sum(amplitude * size[v] >= 1.0 for size in per_flight) for v in affected}
+    per_flight = {f"f{k}": relative_size(effect_rms(spec, k), clean) for k in range(spec.n_train)}
+    return {v: {f for f, size in per_flight.items() if amplitude * size[v] >= 1.0} for v in affected}
 
 
 def _has_torque(desc: dict[str, Any]) -> bool:

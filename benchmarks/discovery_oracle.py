@@ -53,7 +53,7 @@ def oracle_test(
     identify result's units of the set with the effect; ``clean_model``: the clean twin's final model;
     ``clean_error``: per vehicle, its clean twin's test RMSE per channel (F_z in N, then the torque norm in N m:
     each channel's unit here); ``exposed``: the train flights (names) that hold the effect, the only ones judged
-    (as identify judges a candidate only where it acts; the unit of ``bench_discovery._exposed_train_flights``:
+    (as identify judges a candidate only where it acts; the unit of ``bench_discovery._flights_holding``:
     the effect's RMS there at least an affected vehicle's clean test error). Returns :func:`heldout_oracle`'s."""
     from proxplan.identify.data import predict
 
