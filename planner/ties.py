@@ -18,6 +18,8 @@ swarm layer's 0.025 s time grid).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -32,6 +34,7 @@ __all__ = [
     "TIME_RESOLUTION_S",
     "canonical_assignment",
     "quantised",
+    "rounded_up",
     "shorter",
     "tie_key",
 ]
@@ -41,6 +44,19 @@ def tie_key(value: float, resolution: float) -> int:
     """``value`` rounded to a multiple of ``resolution`` (same unit), as an integer: the key two candidates of equal
     cost on any machine compare equal by (then by their index or name, given after it in a key tuple)."""
     return int(round(float(value) / resolution))
+
+
+def rounded_up(value: float, resolution: float) -> float:
+    """``value`` rounded up to a multiple of ``resolution`` (same unit), as a float: the least multiple not below it.
+    The result is an integer times ``resolution``, so two values that differ in their last bits (one machine's float
+    path and another's) give the same float unless a multiple lies between them. For a bound made in floating point
+    and used by exact comparisons downstream (round 37V: the tracking bound, :mod:`proxplan.planner.swarm.tracking_bound`):
+    rounded up, a bound stays a bound, grown by less than ``resolution``."""
+    k = math.ceil(float(value) / resolution)
+    out = k * resolution
+    if out < value:  # the division rounded down onto the multiple below
+        out = (k + 1) * resolution
+    return out
 
 
 def shorter(a_s: float, b_s: float) -> bool:

@@ -54,6 +54,7 @@ import numpy as np
 
 from proxplan.physics import KinematicLimits, Vehicle
 from proxplan.planfile import VehicleTrajectory
+from proxplan.planner.ties import rounded_up
 from proxplan.planner.timing.profile import rest_to_rest
 from proxplan.verify import tracking_along_plan
 
@@ -68,13 +69,27 @@ DISTANCE_FRACTIONS = (0.05, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0)
 # 1.6 s after the start at 2 m/s, 4 m/s^2, 16 m/s^3, and is the same for longer ones), as long as
 # the move fits the workspace's diagonal
 CRUISE_S = (0.5, 1.0, 2.0, 4.0)
+# The bound is rounded UP to a multiple of this, m (round 37V, issue 37: "the same seed gives the same plan on any
+# machine"). It is made through numpy, whose SIMD kernels are picked at run time, and its last bits differ with them:
+# 0.024008902785347490 m (AVX-512) vs 0.024008902785347504 m (AVX2) for a Crazyflie 2.1, up to 1.2e-14 m on a
+# pair's w. Every keep-out's w, reach, lane offset and waypoint is built from it, so an exact threshold downstream
+# decided differently on the two paths (a right angle's cosine, round 37U). Rounded to a multiple, it is the same
+# float on both unless a multiple lies between the two values (odds ~ 1e-14 / 1e-9 = 1e-5 per bound).
+# Derivation. Below: the float error of the bound. It is a loop response over at most ~2000 samples of the
+# verifier's grid (a move across the workspace's diagonal plus SETTLE_S, at VERIFY_DT_S), then a sum over a chain of
+# ~10-20 moves: relative error <~ 2000 x 1.1e-16 = 2e-13, so <~ 1e-14 m on a 2.5 cm bound (measured: 1.2e-14 m,
+# 5e-13 relative); 1e-9 m is 1e5 times that. Above: what a plan resolves. The verifier's separation test has a
+# 1e-6 m tolerance (verify/pair_checks.py, ``d < sep + tube - 1e-6``) and the swarm layer compares positions in whole
+# millimetres (problem.GROWTH_M): rounding up grows a keep-out by < 1e-9 m, 1e3 below the first, 1e6 below the
+# second. Conservative: the bound only grows. (The same value as planner.ties.LENGTH_RESOLUTION_M, derived alike.)
+TRACKING_BOUND_RESOLUTION_M = 1e-9
 DIRECTIONS = (  # unit vectors: x, the horizontal diagonal (the heading turns most), z
     (1.0, 0.0, 0.0),
     (math.sqrt(0.5), math.sqrt(0.5), 0.0),
     (0.0, 0.0, 1.0),
 )
 
-__all__ = ["chain_bound_m", "group_limits", "tracking_bound_m"]
+__all__ = ["TRACKING_BOUND_RESOLUTION_M", "chain_bound_m", "group_limits", "tracking_bound_m"]
 
 
 def full_speed_distance_m(limits: KinematicLimits) -> float:
@@ -155,7 +170,8 @@ def chain_bound_m(norms_m: list[np.ndarray], durations: np.ndarray) -> float:
 @functools.lru_cache(maxsize=64)
 def tracking_bound_m(vehicle: Vehicle, limits: tuple[KinematicLimits, ...], longest_m: float) -> float:
     """The bound (module docstring), m, for ``vehicle`` flying moves of up to ``longest_m`` (m) at
-    any of ``limits`` (:func:`group_limits`)."""
+    any of ``limits`` (:func:`group_limits`), rounded up to :data:`TRACKING_BOUND_RESOLUTION_M` (the same float
+    whatever numpy's SIMD kernels)."""
     norms, durations, holds = [], [], []
     for lim in limits:
         for dist in family_distances_m(lim, longest_m):
@@ -164,4 +180,4 @@ def tracking_bound_m(vehicle: Vehicle, limits: tuple[KinematicLimits, ...], long
                 norms.append(n)
                 durations.append(e)
                 holds.append(hold)
-    return max(chain_bound_m(norms, np.array(durations)), max(holds))
+    return rounded_up(max(chain_bound_m(norms, np.array(durations)), max(holds)), TRACKING_BOUND_RESOLUTION_M)
