@@ -14,6 +14,9 @@ antipodal lines, a grid's equal moves), computed by different sums of the same t
 The resolutions are far above float64's error on the quantities they round (relative 1e-16, so 1e-15 m on a 10 m
 line, 1e-14 s on a 100 s plan) and far below any difference a plan can resolve (the verifier's 1e-6 m, the
 swarm layer's 0.025 s time grid).
+
+A bound made in floating point and read by exact comparisons downstream is rounded up to a stated resolution instead
+(:func:`rounded_up`), so that it too is one float on every machine (round 37V: the swarm layer's tracking bound).
 """
 
 from __future__ import annotations
@@ -50,8 +53,9 @@ def rounded_up(value: float, resolution: float) -> float:
     """``value`` rounded up to a multiple of ``resolution`` (same unit), as a float: the least multiple not below it.
     The result is an integer times ``resolution``, so two values that differ in their last bits (one machine's float
     path and another's) give the same float unless a multiple lies between them. For a bound made in floating point
-    and used by exact comparisons downstream (round 37V: the tracking bound, :mod:`proxplan.planner.swarm.tracking_bound`):
-    rounded up, a bound stays a bound, grown by less than ``resolution``."""
+    and used by exact comparisons downstream (round 37V: the tracking bound,
+    :mod:`proxplan.planner.swarm.tracking_bound`): rounded up, a bound stays a bound, grown by less than
+    ``resolution``."""
     k = math.ceil(float(value) / resolution)
     out = k * resolution
     if out < value:  # the division rounded down onto the multiple below

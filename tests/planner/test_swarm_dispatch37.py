@@ -37,7 +37,9 @@ from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.lanes import lanes_stage
 from proxplan.planner.swarm.plan import swarm_timed
 from proxplan.planner.swarm.problem import tracking_growth_m
+from proxplan.planner.swarm.tracking_bound import TRACKING_BOUND_RESOLUTION_M
 from proxplan.planner.swarm.tracks import GRID_DT_S
+from proxplan.planner.ties import rounded_up
 from proxplan.planner.timing.profile import rest_to_rest
 
 from .test_swarm_speed28_split import FLAT_LEVELS, PLANS, _digest
@@ -163,3 +165,17 @@ def test_lane_plans_and_recorded_plans_are_the_same_under_both_kernels(child, he
         layout, n, _ = case
         stage, digest, _ = PLANS[case]
         assert child[f"plan {layout}-{n}"] == [stage, digest], case
+
+
+def test_the_two_kernels_bounds_round_up_to_one_float():
+    """Runs on any machine: the Crazyflie 2.1's raw bound under the AVX-512 and the AVX2 kernels (round 37V, pillar-256
+    by type, 6.0e-15 m apart), rounded up, are one float, a multiple of the resolution, above both by less than it."""
+    avx512, avx2 = float.fromhex("0x1.895ca311a8199p-6"), float.fromhex("0x1.895ca311a885fp-6")
+    assert avx512 != avx2
+    up = rounded_up(avx512, TRACKING_BOUND_RESOLUTION_M)
+    assert up == rounded_up(avx2, TRACKING_BOUND_RESOLUTION_M)
+    assert 0.0 < up - max(avx512, avx2) < TRACKING_BOUND_RESOLUTION_M
+    assert up == round(up / TRACKING_BOUND_RESOLUTION_M) * TRACKING_BOUND_RESOLUTION_M
+    for exact in (0.0, 0.024, 1.0):  # a multiple stays itself; a float of a multiple is never rounded below
+        assert rounded_up(exact, TRACKING_BOUND_RESOLUTION_M) >= exact
+        assert rounded_up(exact, TRACKING_BOUND_RESOLUTION_M) - exact < 1e-15
