@@ -265,7 +265,11 @@ def heldout_forward(
 
     current = heldout_fit(sums, cols([]), plan, ridge, tau)
     remaining = [c.name for c in candidates]
-    label = (lambda n: hypothesis.get(n, n)) if hypothesis else (lambda n: n)
+    hyp = dict(hypothesis or {})
+
+    def label(name: str) -> str:  # the hypothesis a candidate tests (its own name where none is given)
+        return hyp.get(name, name)
+
     while remaining and len(out.chosen) < max_terms:
         trials = {}
         for name in remaining:
