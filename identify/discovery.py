@@ -125,9 +125,6 @@ class DiscoveryResult:
     splits: list[TypeSplit] = field(default_factory=list)
     # each kept term as the candidate it was kept as (a term key, or a split's name) -> its keys in ``kept``
     groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
-    # each of ``groups``' candidates -> its hypothesis (``"<channel>|<feature group>"``, consensus.group_of): what the
-    # held-out passes count as one in their Bonferroni m
-    group_hypothesis: dict[str, str] = field(default_factory=dict)
     # a stable term's lever form (identify.lever_form) -> the stable term it is a form of
     lever_of: dict[str, str] = field(default_factory=dict)
 
@@ -329,9 +326,6 @@ def discover_terms(
     fold = fold_eligibility(sel.plan, without, stable)
     fold.update({n: fold[sp.key] for sp in splits for n in (sp.name, *sp.typed)})
     fold.update({lk: fold[k] for k, lk in levers.items()})
-    # each candidate's hypothesis (its feature group on its channel): the near-duplicates of one group are one
-    hypothesis = ({k: group_of(k) for k in stable} | {sp.name: group_of(sp.key) for sp in splits}
-                  | {lk: group_of(k) for k, lk in levers.items()})  # fmt: skip
     if stable:  # the forms of one term in this order: one coefficient, its lever form, one per target type
         alternatives = {n: sp.key for sp in splits for n in (sp.key, sp.name)} | {
             n: k for k, lk in levers.items() for n in (k, lk)}  # fmt: skip
@@ -339,7 +333,9 @@ def discover_terms(
                               + [Candidate(lk, (lk,)) for lk in levers.values()]
                               + [Candidate(sp.name, sp.typed) for sp in splits], sel.plan, ridge, sel.tau,
                               max_terms=options.max_terms,
-                              hypothesis=hypothesis, fold_eligible=fold, alternatives=alternatives)  # fmt: skip
+                              hypothesis={k: group_of(k) for k in stable} | {sp.name: group_of(sp.key) for sp in splits}
+                              | {lk: group_of(k) for k, lk in levers.items()},
+                              fold_eligible=fold, alternatives=alternatives)  # fmt: skip
     kept_keys = [k for n in fwd.chosen for k in (by_name[n].typed if n in by_name else (n,))]
     refined = refine_scaled_terms(sel, {**always, **{k: columns[k] for k in kept_keys}}, kept_keys, ridge_of, parts)
     renamed: dict[str, str] = {}
@@ -348,13 +344,11 @@ def discover_terms(
         fold[r.key] = np.logical_or.reduce([fold[k] for k in r.replaces])
         renamed.update({k: r.key for k in r.replaces})
     groups: dict[str, tuple[str, ...]] = {}  # kept candidate -> its keys (a split: its per-type keys)
-    group_hypothesis: dict[str, str] = {}
     for n in fwd.chosen:
         keys = tuple(dict.fromkeys(renamed.get(k, k) for k in (by_name[n].typed if n in by_name else (n,))))
         keys = tuple(k for k in keys if all(k not in g for g in groups.values()))  # merged siblings: one term
         if keys:
             groups[n if n in by_name else keys[0]] = keys
-            group_hypothesis[n if n in by_name else keys[0]] = hypothesis[n]
     chosen = [k for keys in groups.values() for k in keys]
     if renamed:
         sums = sel.sums({**always, **{k: columns[k] for k in chosen}})
@@ -367,8 +361,7 @@ def discover_terms(
     return DiscoveryResult(kept={k: coef[k] for k in chosen}, coefficients=coef, stability=stab, forward=fwd,
                            columns=columns, top=top, member_probability=member_prob, fold_eligible=fold,
                            represented_probability=represented_prob, refined=refined, splits=splits,
-                           groups=groups, group_hypothesis=group_hypothesis,
-                           lever_of={lk: k for k, lk in levers.items()})  # fmt: skip
+                           groups=groups, lever_of={lk: k for k, lk in levers.items()})  # fmt: skip
 
 
 def _picks(

@@ -8,7 +8,7 @@ test.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -265,11 +265,7 @@ def heldout_forward(
 
     current = heldout_fit(sums, cols([]), plan, ridge, tau)
     remaining = [c.name for c in candidates]
-    hyp = dict(hypothesis or {})
-
-    def label(name: str) -> str:  # the hypothesis a candidate tests (its own name where none is given)
-        return hyp.get(name, name)
-
+    label = (lambda n: hypothesis.get(n, n)) if hypothesis else (lambda n: n)
     while remaining and len(out.chosen) < max_terms:
         trials = {}
         for name in remaining:
@@ -306,7 +302,7 @@ def heldout_forward(
         if alternatives is not None and best in alternatives:
             remaining = [n for n in remaining if alternatives.get(n) != alternatives[best]]
         current = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
-    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, judged, label)
+    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, judged)
     return out
 
 
@@ -370,15 +366,10 @@ def _backward(
     tau: float,
     fold_eligible: Mapping[str, np.ndarray] | None,
     judged: Mapping[str, tuple[int, ...] | None],
-    label: Callable[[str], str],
 ) -> None:
     """Drop from ``out.chosen`` every candidate that no longer passes the gain test given all the others
-    (Bonferroni over the kept hypotheses), the weakest first; record each survivor's final test (``judged``: name
-    -> its :attr:`Candidate.judged_channels`). The hypotheses are counted as the forward pass counts them
-    (``label``: name -> its hypothesis, :func:`heldout_forward`'s ``hypothesis``): two kept members of one feature
-    group are one hypothesis in both passes, so a term is never held to a stricter multiple going back than the
-    one it was kept at for the same family (stop 76, bench draw 35016: the forward pass kept two members of one
-    group at m = 1, the backward pass counted m = 3 and dropped both)."""
+    (Bonferroni over the kept ones), the weakest first; record each survivor's final test (``judged``: name
+    -> its :attr:`Candidate.judged_channels`)."""
     while out.chosen:
         full = heldout_fit(sums, cols(out.chosen), plan, ridge, tau)
         trials = {}
@@ -387,7 +378,7 @@ def _backward(
             without = heldout_fit(sums, cols(others), plan, ridge, tau)
             acts = _acts(sums, cols, others, name, cols_of, plan, ridge, tau, judged[name])
             trials[name] = (without, _in_fold(full, without, name, fold_eligible), acts)
-        m = max(1, len({label(n) for n, (_, _, acts) in trials.items() if can_be_tested(acts, plan.cluster)}))
+        m = max(1, sum(can_be_tested(acts, plan.cluster) for _, _, acts in trials.values()))
         finals = {name: gain_test(sums, w, v, m, acts, plan.cluster, at_most_one=judged[name] is not None)
                   for name, (w, v, acts) in trials.items()}  # fmt: skip
         failing = [n for n, t in finals.items() if not t.passed]
@@ -407,11 +398,10 @@ def heldout_backward(
     ridge: Ridge,
     tau: float,
     fold_eligible: Mapping[str, np.ndarray] | None = None,
-    hypothesis: Mapping[str, str] | None = None,
 ) -> ForwardResult:
     """The backward pass of :func:`heldout_forward` alone, over candidates kept by different stages (the
     library effects and the discovered terms): each must still pass given all the others (``fold_eligible``
-    and ``hypothesis`` as in :func:`heldout_forward`; a name not in ``hypothesis`` is its own)."""
+    as in :func:`heldout_forward`)."""
     cols_of = {c.name: sums.index(c.columns) for c in kept}
     base = sums.index(always) if always else np.zeros(0, dtype=int)
 
@@ -419,7 +409,5 @@ def heldout_backward(
         return np.concatenate([base] + [cols_of[n] for n in names]) if names else base
 
     out = ForwardResult(chosen=[c.name for c in kept])
-    hyp = dict(hypothesis or {})
-    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, {c.name: c.judged_channels for c in kept},
-              lambda n: hyp.get(n, n))  # fmt: skip
+    _backward(out, cols, cols_of, sums, plan, ridge, tau, fold_eligible, {c.name: c.judged_channels for c in kept})
     return out

@@ -304,8 +304,7 @@ def joint_model(selector: EffectSelector, effects: EffectSelection, discovery: D
     sums = sel.sums(columns)
     ridge = selector.ridge_for(sums.columns)
     back = heldout_backward(sums, selector.always, kept, sel.plan, ridge, sel.tau,
-                            discovery.fold_eligible if discovery is not None else None,
-                            discovery.group_hypothesis if discovery is not None else None)  # fmt: skip
+                            discovery.fold_eligible if discovery is not None else None)  # fmt: skip
     names = list(selector.always) + [col for c in kept if c.name in back.chosen for col in c.columns]
     idx = sums.index(names)
     x = np.stack([columns[k] for k in sums.columns], axis=2)  # (N, 4, p) in noise units

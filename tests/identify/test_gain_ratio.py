@@ -70,27 +70,3 @@ def test_two_effects_the_flights_cannot_tell_apart_are_named_as_rivals() -> None
     assert other in out.rivals[kept]
     assert f"not shown better than {other}" in _rival_note(kept, out.rivals)
     assert f"cannot tell it from the kept {kept}" in _rival_note(other, out.rivals)
-
-
-def test_the_backward_pass_counts_kept_members_of_one_group_as_one_hypothesis() -> None:
-    """Two kept terms of one feature group (one ``hypothesis`` label) are tested going back at the multiple of one
-    hypothesis, as the forward pass counts them (stop 77, bench draw 35016); without the labels, at that of two."""
-    from proxplan.identify.heldout_select import critical_z, heldout_backward
-
-    rng = np.random.default_rng(3)
-    n, n_flights, rows, flights = 4000, 5, [], []
-    for f in range(n_flights):
-        t, a, b = rng.normal(size=n), EXPOSURE[f % 4] * rng.normal(size=n), rng.normal(size=n)
-        rows.append(np.column_stack([t, a, b, t + 0.2 * a + 0.2 * b + rng.normal(size=n)]))
-        flights.append(np.full(n, f))
-    data = np.vstack(rows)
-    sums = GroupSums.build(data[:, :3], data[:, 3], np.ones(len(data)), np.concatenate(flights), n_flights,
-                           ["t", "a", "b"])  # fmt: skip
-    plan = plan_groups([(f"f{k}", "v") for k in range(n_flights)], [])
-    ridge = Ridge(np.zeros(3), np.zeros(3))
-    kept = [Candidate("a", ("a",)), Candidate("b", ("b",))]
-    one = heldout_backward(sums, ["t"], kept, plan, ridge, 1.0, hypothesis={"a": "fz|g", "b": "fz|g"})
-    two = heldout_backward(sums, ["t"], kept, plan, ridge, 1.0)
-    assert one.chosen == two.chosen == ["a", "b"]
-    assert {t.z for t in one.final_tests.values()} == {critical_z(1, n_flights - 1)}
-    assert {t.z for t in two.final_tests.values()} == {critical_z(2, n_flights - 1)}
