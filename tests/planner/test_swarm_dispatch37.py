@@ -9,7 +9,13 @@ highest group of kernels this machine has (the AVX-512 ones where present, else 
   :data:`proxplan.planner.swarm.tracking_bound.TRACKING_BOUND_RESOLUTION_M`), on pillar-8 (three types);
 - the same two-way lane plans (:func:`proxplan.planner.swarm.lanes.lanes_stage`: lane routes with right-angle
   corners, offsets built from the keep-outs' w) on pillar-8 and circle-24, digest of the grid tracks to 1e-6 m;
-- the digests recorded in ``test_swarm_speed28_split.PLANS`` for corridor-12 (prioritised) and grid-16 (stacked).
+- the digests recorded in ``test_swarm_speed28_split.PLANS`` for corridor-12 (prioritised) and grid-16 (stacked);
+- (round 37W) the same deflection allowance, bit for bit, of a plan that fails verify: scenarios/swap_8.yaml
+  planned "no-downwash" (separation only; 7 violations), the verifier's deflections made into the allowance as
+  ``pipeline._until_verified`` does after a failed verify (it grows the re-plan's keep-outs). The allowance is
+  rounded up where it is made (:data:`proxplan.planner.metrics.DEFLECTION_RESOLUTION_M`); the raw deflections
+  differ between the AVX-512 and the AVX2 kernels in 6 of 8 vehicles (cf7: 0x1.1322c9d5bbae2p-6 vs
+  0x1.1322c9d5bbb03p-6 m).
 
 What it guards, measured on an AVX-512 machine (round 37V): with the rounding of the bound undone, the keep-outs
 differ between the two kernels (the first assertion fails); with that and round 37U's rounding of the right
@@ -31,8 +37,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from proxplan.planfile import scenario_from_dict
+from proxplan.planfile import load_scenario, scenario_from_dict
 from proxplan.planner.formations import LAYOUTS
+from proxplan.planner.metrics import DEFLECTION_DT_S, DEFLECTION_RESOLUTION_M, deflection_allowance
+from proxplan.planner.pipeline import plan_scenario
 from proxplan.planner.swarm import swarm_problem
 from proxplan.planner.swarm.lanes import lanes_stage
 from proxplan.planner.swarm.plan import swarm_timed
@@ -41,6 +49,7 @@ from proxplan.planner.swarm.tracking_bound import TRACKING_BOUND_RESOLUTION_M
 from proxplan.planner.swarm.tracks import GRID_DT_S
 from proxplan.planner.ties import rounded_up
 from proxplan.planner.timing.profile import rest_to_rest
+from proxplan.verify import verify_with_deflections
 
 from .test_swarm_speed28_split import FLAT_LEVELS, PLANS, _digest
 
@@ -53,6 +62,7 @@ ENV = "NPY_DISABLE_CPU_FEATURES"
 KEEPOUT_CASE = ("pillar", 8)  # three vehicle types: nine keep-outs
 LANE_CASES = [("pillar", 8), ("circle", 24)]
 PLAN_CASES = [("corridor", 12, "fixed"), ("grid", 16, "fixed")]
+DEFLECTION_CASE = ("swap_8", "no-downwash")  # scenarios/<name>.yaml and the method of a plan that fails verify
 REPORT_TAG = "DISPATCH37:"  # the child's report line on stdout
 CHILD_TIMEOUT_S = 300.0  # s; the child takes about 10 s on a loaded 2-core machine
 
@@ -106,6 +116,12 @@ def report(plans: bool = True) -> dict:
         stage = lanes_stage(problem, lower_s, {})
         assert stage is not None
         out[f"lanes {layout}-{n}"] = [_lane_digest(stage.tracks), max(tr.arrival_step for tr in stage.tracks)]
+    name, method = DEFLECTION_CASE
+    scenario = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" / f"{name}.yaml")
+    plan = plan_scenario(scenario, method=method, seed=0)
+    bad, deflections = verify_with_deflections(plan, scenario, dt_fine_s=DEFLECTION_DT_S)
+    allowance = deflection_allowance(plan, scenario, deflections=deflections or None)  # as pipeline._until_verified
+    out["deflection case"] = [len(bad), {k: v.hex() for k, v in sorted(allowance.items())}]
     for layout, n, _ in PLAN_CASES if plans else []:
         timed, info = swarm_timed(scenario_from_dict(LAYOUTS[layout](n), label="test"), FLAT_LEVELS)
         out[f"plan {layout}-{n}"] = [info.stage, _digest(timed, info)]
@@ -165,6 +181,25 @@ def test_lane_plans_and_recorded_plans_are_the_same_under_both_kernels(child, he
         layout, n, _ = case
         stage, digest, _ = PLANS[case]
         assert child[f"plan {layout}-{n}"] == [stage, digest], case
+
+
+def test_the_deflection_allowance_of_a_failed_plan_is_bit_identical_under_both_kernels(child, here):
+    """Round 37W: after a failed verify the allowance grows the re-plan's keep-outs; it must be one float per
+    vehicle on both kernels (the plan does fail verify, and some vehicle is pushed, so the test is not vacuous)."""
+    violations, allowance = here["deflection case"]
+    assert violations > 0 and allowance
+    assert child["deflection case"] == here["deflection case"]
+
+
+def test_the_two_kernels_deflections_round_up_to_one_float():
+    """Runs on any machine: cf7's raw deflection in the failed swap_8 plan under the AVX-512 and the AVX2 kernels
+    (round 37W, 1.1e-16 m apart), rounded up as the allowance is, are one float, above both by less than the
+    resolution."""
+    avx512, avx2 = float.fromhex("0x1.1322c9d5bbae2p-6"), float.fromhex("0x1.1322c9d5bbb03p-6")
+    assert avx512 != avx2
+    up = rounded_up(avx512, DEFLECTION_RESOLUTION_M)
+    assert up == rounded_up(avx2, DEFLECTION_RESOLUTION_M)
+    assert 0.0 < up - max(avx512, avx2) < DEFLECTION_RESOLUTION_M
 
 
 def test_the_two_kernels_bounds_round_up_to_one_float():
