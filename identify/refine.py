@@ -19,9 +19,12 @@ continuously within one grid step of the kept scale on each side (the neighbours
 ratios, :data:`WIDTH_RATIO`, :data:`DECAY_RATIO`, :data:`LAG_RATIO`, :data:`LOWPASS_RATIO`), each in turn, by the
 criterion selection uses to judge it: the error of every train flight predicted by the joint fit that did not
 see it (the kept effects, the vehicle parameters' tangents and the other kept terms refitted beside it,
-:func:`proxplan.identify.crossval.heldout_fit`). Kept SIBLINGS (one channel, one kernel or one source's copies
-of one kind, at other grid scales: lag380ms + lag570ms) are searched as ONE term over the span of their
-brackets.
+:func:`proxplan.identify.crossval.heldout_fit`), on the logs and channels the grid term ACTS on
+(:func:`proxplan.identify.heldout_select.exposure`, as selection judges a candidate; since round 35T: summed over
+every log, bench draw 36001's width search was decided by another vehicle's log, where a sibling's coefficient is
+unidentified once its flight is held out and its error moved with the width only through the shared columns).
+Kept SIBLINGS (one channel, one kernel or one source's copies of one kind, at other grid scales: lag380ms +
+lag570ms) are searched as ONE term over the span of their brackets.
 
 The best scales found are chosen BY those held-out errors, so their own held-out error is optimistic: searched
 over ~40 scales, noise alone finds a "better" one. So each flight is judged at the scales the search would have
