@@ -19,9 +19,12 @@ continuously within one grid step of the kept scale on each side (the neighbours
 ratios, :data:`WIDTH_RATIO`, :data:`DECAY_RATIO`, :data:`LAG_RATIO`, :data:`LOWPASS_RATIO`), each in turn, by the
 criterion selection uses to judge it: the error of every train flight predicted by the joint fit that did not
 see it (the kept effects, the vehicle parameters' tangents and the other kept terms refitted beside it,
-:func:`proxplan.identify.crossval.heldout_fit`). Kept SIBLINGS (one channel, one kernel or one source's copies
-of one kind, at other grid scales: lag380ms + lag570ms) are searched as ONE term over the span of their
-brackets.
+:func:`proxplan.identify.crossval.heldout_fit`), on the logs and channels the grid term ACTS on
+(:func:`proxplan.identify.heldout_select.exposure`, as selection judges a candidate; since round 35T: summed over
+every log, bench draw 36001's width search was decided by another vehicle's log, where a sibling's coefficient is
+unidentified once its flight is held out and its error moved with the width only through the shared columns).
+Kept SIBLINGS (one channel, one kernel or one source's copies of one kind, at other grid scales: lag380ms +
+lag570ms) are searched as ONE term over the span of their brackets.
 
 The best scales found are chosen BY those held-out errors, so their own held-out error is optimistic: searched
 over ~40 scales, noise alone finds a "better" one. So each flight is judged at the scales the search would have
@@ -52,9 +55,9 @@ from typing import Protocol
 
 import numpy as np
 
-from proxplan.identify.crossval import HeldOutFit, Ridge, heldout_fit, trainable_groups
+from proxplan.identify.crossval import HeldOutFit, Ridge, heldout_fit, solve, trainable_groups
 from proxplan.identify.design import CHANNELS, SelectionSet
-from proxplan.identify.heldout_select import GainTest, gain_test
+from proxplan.identify.heldout_select import GainTest, exposure, gain_test
 from proxplan.identify.sampled import SampledSource, UnitPart, unit_parts
 from proxplan.physics import (
     BASIS_DECAYS_L,
@@ -267,9 +270,20 @@ class _ScaleSearch:
     ``others`` columns on the other train flights, memoised per scales as rounded in the name."""
 
     def __init__(self, sel: SelectionSet, scales: _TermScales, key: str, others: Mapping[str, np.ndarray],
-                 ridge_of: Callable[[tuple[str, ...]], Ridge]) -> None:  # fmt: skip
+                 ridge_of: Callable[[tuple[str, ...]], Ridge], grid: Mapping[str, np.ndarray]) -> None:  # fmt: skip
         self.sel, self.scales, self.key, self.others, self.ridge_of = sel, scales, key, dict(others), ridge_of
         self.per_flight: dict[Scales, np.ndarray] = {}  # scales -> (clusters,) held-out SSE
+        self.acts = self.exposure(grid)  # (G, C): the cells the grid term(s) act on, where every scale is judged
+
+    def exposure(self, columns: Mapping[str, np.ndarray]) -> np.ndarray:
+        """(G, C) bool: the groups and channels where the term(s) ``columns`` (name -> (N, 4)), fitted on every
+        train group beside the other columns, act (:func:`proxplan.identify.heldout_select.exposure`: the cells
+        selection judges a candidate on; a log the term does not reach says nothing about its scales)."""
+        sums = self.sel.sums({**self.others, **columns})
+        beta = solve(sums, np.arange(len(sums.columns)), trainable_groups(sums, self.sel.plan),
+                     self.ridge_of(sums.columns), self.sel.tau)  # fmt: skip
+        idx = sums.index(list(columns))
+        return exposure(sums, idx, beta[idx], self.sel.tau)
 
     def column(self, at: Scales) -> np.ndarray:
         """(N, 4) the term's column at the scales ``at``, noise units."""
@@ -279,7 +293,7 @@ class _ScaleSearch:
         sums = self.sel.sums({**self.others, **columns})
         fit = heldout_fit(sums, np.arange(len(sums.columns)), self.sel.plan, self.ridge_of(sums.columns),
                           self.sel.tau)  # fmt: skip
-        return _per_train_flight(sums, fit, self.sel.plan)
+        return _per_train_flight(sums, fit, self.sel.plan, self.acts)
 
     def cost(self, at: Scales) -> float:
         """The summed held-out squared error of the train flights at these scales (noise units)."""
@@ -327,14 +341,18 @@ class _ScaleSearch:
         refined = fits[distinct[0]]
         for c, at in choice.items():
             refined = fits[at].where(plan.cluster == c, refined)
+        acts = self.acts | self.exposure({self.key: self.column(best)})
         if len(grid) == 1:
-            return gain_test(sums, fit(*grid), refined, 1, cluster=plan.cluster)
-        return gain_test(sums, refined, fit(*grid), 1, cluster=plan.cluster)
+            return gain_test(sums, fit(*grid), refined, 1, acts, cluster=plan.cluster)
+        return gain_test(sums, refined, fit(*grid), 1, acts, cluster=plan.cluster)
 
 
-def _per_train_flight(sums, fit: HeldOutFit, plan) -> np.ndarray:
-    """(clusters,) each train flight's held-out squared error summed over its groups and channels (0 elsewhere)."""
+def _per_train_flight(sums, fit: HeldOutFit, plan, acts: np.ndarray | None = None) -> np.ndarray:
+    """(clusters,) each train flight's held-out squared error summed over its groups and channels (0 elsewhere),
+    over the cells ``acts`` (G, C) only where given."""
     sse = np.where(np.isfinite(fit.mse), fit.mse, 0.0) * sums.w.reshape(fit.mse.shape)
+    if acts is not None:
+        sse = np.where(acts, sse, 0.0)
     train = trainable_groups(sums, plan) > 0
     return np.bincount(plan.cluster[train], weights=sse[train].sum(axis=1), minlength=plan.n_clusters)
 
@@ -369,7 +387,8 @@ def _renamed(key: str, feature: str) -> str:
 def _refine_one(sel: SelectionSet, key: str, scales: _TermScales, columns: Mapping[str, np.ndarray],
                 ridge_of: Callable[[tuple[str, ...]], Ridge]) -> Refined | None:  # fmt: skip
     """One kept term refined within its grid step (None where its best scales are its grid scales)."""
-    search = _ScaleSearch(sel, scales, key, {k: v for k, v in columns.items() if k != key}, ridge_of)
+    search = _ScaleSearch(sel, scales, key, {k: v for k, v in columns.items() if k != key}, ridge_of,
+                          {key: columns[key]})  # fmt: skip
     grid = search.cost(scales.grid)
     best = search.best(*_bracket([scales.grid], scales.ratios))
     if best == scales.rounded(scales.grid):
@@ -386,8 +405,8 @@ def _merge(sel: SelectionSet, members: list[str], scales: Mapping[str, _TermScal
     tested against it (module docstring)."""
     first = scales[members[0]]
     others = {k: v for k, v in columns.items() if k not in members}
-    search = _ScaleSearch(sel, first, members[0], others, ridge_of)
     grid_columns = {k: columns[k] for k in members}
+    search = _ScaleSearch(sel, first, members[0], others, ridge_of, grid_columns)
     grid = float(search._per_flight(grid_columns).sum())
     best = search.best(*_bracket([scales[k].grid for k in members], first.ratios))
     col = search.column(best)
