@@ -1,7 +1,7 @@
 """The held-out gain test and the greedy passes built on it (issue 35): :func:`gain_test` (the error a
 candidate removes on each held-out flight per unit of what it changes there, pooled, Student's t over the
 flights, Bonferroni), :func:`ratio_test` (that test on per-flight sums), :func:`exposure` (where a candidate
-acts), :func:`heldout_forward` and :func:`heldout_backward`.
+acts; :func:`fitted_exposure`, at a fit's coefficients), :func:`heldout_forward` and :func:`heldout_backward`.
 The held-out fits they compare come from :mod:`proxplan.identify.crossval`, whose docstring derives the
 test.
 """
@@ -134,6 +134,17 @@ def exposure(sums: GroupSums, cols: np.ndarray, beta: np.ndarray, tau: float) ->
     Gc = sums.G[:, cols][:, :, cols]
     chi2 = np.einsum("i,kij,j->k", beta, Gc, beta) / tau
     return (chi2 >= 1.0).reshape(n_groups, sums.n_channels)
+
+
+def fitted_exposure(
+    sums: GroupSums, idx: np.ndarray, term: np.ndarray, plan: GroupPlan, ridge: Ridge, tau: float
+) -> np.ndarray:
+    """(G, C) bool: :func:`exposure` of the columns ``term`` (indices into ``sums``' columns, each among ``idx``) at
+    their coefficients in the fit of the columns ``idx`` on every train group: where a candidate acts, as the
+    held-out passes and the refinement of its scales (:mod:`proxplan.identify.refine`) judge it."""
+    beta = solve(sums, idx, trainable_groups(sums, plan), ridge, tau)
+    where = {int(j): k for k, j in enumerate(idx)}
+    return exposure(sums, term, beta[[where[int(j)] for j in term]], tau)
 
 
 def gain_test(
@@ -346,9 +357,7 @@ def _acts(
 ) -> np.ndarray:
     """:func:`exposure` of candidate ``name`` fitted on every train group beside ``others``, on its judged
     ``channels`` only (None: all; :attr:`Candidate.judged_channels`)."""
-    idx = cols(list(others) + [name])
-    beta = solve(sums, idx, trainable_groups(sums, plan), ridge, tau)
-    acts = exposure(sums, cols_of[name], beta[-len(cols_of[name]) :], tau)
+    acts = fitted_exposure(sums, cols(list(others) + [name]), cols_of[name], plan, ridge, tau)
     if channels is not None:
         keep = np.zeros(acts.shape[1], dtype=bool)
         keep[list(channels)] = True

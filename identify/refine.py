@@ -55,9 +55,9 @@ from typing import Protocol
 
 import numpy as np
 
-from proxplan.identify.crossval import HeldOutFit, Ridge, heldout_fit, solve, trainable_groups
+from proxplan.identify.crossval import HeldOutFit, Ridge, heldout_fit, trainable_groups
 from proxplan.identify.design import CHANNELS, SelectionSet
-from proxplan.identify.heldout_select import GainTest, exposure, gain_test
+from proxplan.identify.heldout_select import GainTest, fitted_exposure, gain_test
 from proxplan.identify.sampled import SampledSource, UnitPart, unit_parts
 from proxplan.physics import (
     BASIS_DECAYS_L,
@@ -277,13 +277,11 @@ class _ScaleSearch:
 
     def exposure(self, columns: Mapping[str, np.ndarray]) -> np.ndarray:
         """(G, C) bool: the groups and channels where the term(s) ``columns`` (name -> (N, 4)), fitted on every
-        train group beside the other columns, act (:func:`proxplan.identify.heldout_select.exposure`: the cells
+        train group beside the other columns, act (:func:`proxplan.identify.heldout_select.fitted_exposure`: the cells
         selection judges a candidate on; a log the term does not reach says nothing about its scales)."""
         sums = self.sel.sums({**self.others, **columns})
-        beta = solve(sums, np.arange(len(sums.columns)), trainable_groups(sums, self.sel.plan),
-                     self.ridge_of(sums.columns), self.sel.tau)  # fmt: skip
-        idx = sums.index(list(columns))
-        return exposure(sums, idx, beta[idx], self.sel.tau)
+        return fitted_exposure(sums, np.arange(len(sums.columns)), sums.index(list(columns)), self.sel.plan,
+                               self.ridge_of(sums.columns), self.sel.tau)  # fmt: skip
 
     def column(self, at: Scales) -> np.ndarray:
         """(N, 4) the term's column at the scales ``at``, noise units."""
