@@ -139,8 +139,9 @@ def check_goal_tubes(scenario: Scenario, *, mode: str, margin_m: float = 0.0) ->
 class _PairNeed:
     """How far a goal lies from another vehicle's final position and how far the keep-out it breaks
     reaches there: at rest, grown by the tracking tube, and grown by the tube and the search margin, m.
-    ``lateral``: the keep-out is a downwash cut-off (horizontal distances at ``dz_m``); else a sphere
-    (separation or ellipsoid radius, 3-D distances)."""
+    ``lateral``: the keep-out is a downwash cut-off (horizontal distances at ``dz_m``); else the
+    separation sphere (3-D distance) or the keep-out ellipsoid (radius against the distance with its
+    vertical part divided by 3, the ellipsoid's 3 r semi-axis)."""
 
     lateral: bool
     distance_m: float  # horizontal (lateral) or 3-D distance between the two points, m
@@ -190,7 +191,12 @@ def _pair_need(
             reach.append(0.0 if table is None else rule.cutoff_m(table, abs(dz)))
         else:
             reach.append(rule.separation_m if rule.ellipsoid_r_m is None else rule.ellipsoid_r_m)
-    dist = float(np.hypot(rel[0], rel[1])) if lateral else float(np.linalg.norm(rel))
+    if lateral:
+        dist = float(np.hypot(rel[0], rel[1]))
+    elif bad.startswith("ellipsoid"):  # the ellipsoid's semi-axis is 3 r vertically: its scaled distance
+        dist = float(np.sqrt(rel[0] ** 2 + rel[1] ** 2 + (rel[2] / 3.0) ** 2))
+    else:
+        dist = float(np.linalg.norm(rel))
     return _PairNeed(lateral, dist, dz, reach[0], reach[1], reach[2])
 
 
