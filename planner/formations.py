@@ -202,18 +202,14 @@ def random_formation(n_vehicles: int, *, seed: int = 0) -> dict[str, Any]:
     region and a goal region, each a grid of slots at a random pitch in 1-3 staggered layers,
     rotated at random and placed a random gap apart; 0-3 random boxes between them; a random mix of
     the built-in types; every vehicle to a random goal slot. A draw whose starts or goals break the
-    planner's checks before any search (:func:`proxplan.planner.checks.precheck.check_before_search`,
-    the pipeline's own rule: separation and cut-offs at rest, each goal clear of the others' keep-outs
-    grown by the tracking tube and the search margin ``PLAN_MARGIN_M``) is drawn again from the same
-    generator, up to ``FAMILY_DRAWS`` times (so a seed always gives the same scenario); the name says
-    the seed."""
+    planner's pre-checks (separation, cut-offs at rest) is drawn again from the same generator, up
+    to ``FAMILY_DRAWS`` times (so a seed always gives the same scenario); the name says the seed."""
     import numpy as np
 
     from proxplan.fileio import UserError
     from proxplan.planfile import scenario_from_dict
-    from proxplan.planner.checks.precheck import check_before_search
+    from proxplan.planner.checks.precheck import check_starts_and_goals
     from proxplan.planner.errors import InfeasibleError
-    from proxplan.planner.sampling import PLAN_MARGIN_M
 
     if n_vehicles < 1:
         raise ValueError(f"a layout needs at least one vehicle, got {n_vehicles}")
@@ -221,7 +217,7 @@ def random_formation(n_vehicles: int, *, seed: int = 0) -> dict[str, Any]:
     for draw in range(FAMILY_DRAWS):
         doc = _family_draw(n_vehicles, rng, seed)
         try:
-            check_before_search(scenario_from_dict(doc, label=doc["name"]), mode="downwash", margin_m=PLAN_MARGIN_M)
+            check_starts_and_goals(scenario_from_dict(doc, label=doc["name"]), mode="downwash")
         except (UserError, InfeasibleError):
             continue
         doc["description"] = (

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from proxplan.planfile import scenario_from_dict
-from proxplan.planner import InfeasibleError, formations, plan_scenario
+from proxplan.planner import InfeasibleError, plan_scenario
 from proxplan.planner.checks.constraints import Track, build_checker
-from proxplan.planner.checks.precheck import check_before_search, check_goal_tubes, check_starts_and_goals
+from proxplan.planner.checks.precheck import check_goal_tubes, check_starts_and_goals
 from proxplan.planner.sampling import PLAN_MARGIN_M
 
 DZ_M = 0.7  # b's goal above a's, m
@@ -67,13 +67,3 @@ def test_the_pipeline_rejects_it_before_any_search():
     with pytest.raises(InfeasibleError) as info:
         plan_scenario(scenario_from_dict(_doc(_in_margin_m())), method="swarm", seed=0)
     assert info.value.details["kind"] == "goal-in-tube"
-
-
-def test_the_family_draws_again_where_the_pipelines_check_rejects(monkeypatch):
-    bad, good = _doc(_in_margin_m()), _doc(_reach_m(True, PLAN_MARGIN_M) + 0.05)
-    check_before_search(scenario_from_dict(good), mode="downwash", margin_m=PLAN_MARGIN_M)
-    draws = iter([bad, good])
-    monkeypatch.setattr(formations, "_family_draw", lambda n, rng, seed: next(draws))
-    doc = formations.random_formation(2, seed=0)
-    assert doc["vehicles"]["b"]["goal"] == good["vehicles"]["b"]["goal"]
-    assert "draw 2" in doc["description"]
