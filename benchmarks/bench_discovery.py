@@ -77,6 +77,7 @@ from discovery_oracle import oracle_test  # noqa: E402
 from discovery_world import (  # noqa: E402
     FAMILIES,
     SetSpec,
+    UNDER_CONTROL_SATURATED_SHARE,
     closed_loop_effect,
     draw_spec,
     effect_rms,
@@ -149,7 +150,8 @@ def run_draw(job: tuple[int, str, str] | tuple[int, str, str, str]) -> dict[str,
         spec = replace(spec, effect=closed_loop_effect(spec.effect))
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(keep) / f"draw{seed}" if keep else Path(tmp)
-        clean, clean_run = _identify(_make(world, spec, base / "clean", None)[0])
+        made, flown_clean = _make(world, spec, base / "clean", None)
+        clean, clean_run = _identify(made)
         size = relative_size(effect_rms_on_test(spec), clean)
         target = float(np.random.default_rng([spec.seed, 99]).uniform(1.5, 4.0))
         wanted = target / max(max(size.values()), 1e-12)
@@ -173,7 +175,8 @@ def run_draw(job: tuple[int, str, str] | tuple[int, str, str, str]) -> dict[str,
     put_in = _library_put_in(spec.effect)
     harmed = sorted(v for v in ratios if v not in affected and ratios[v] > RATIO_OK)
     return {
-        "seed": seed, "world": world, **flown, "family": family, "effect": spec.effect, "types": spec.types,
+        "seed": seed, "world": world, **flown, "flyable": _flyable(flown_clean) and _flyable(flown),
+        "family": family, "effect": spec.effect, "types": spec.types,
         "n_train": spec.n_train,
         "commanded": spec.commanded, "amplitude": amplitude, "amplitude_capped": flyable < wanted,
         "flyable_amplitude": flyable, "affected": affected, "exposed_train_flights": exposed, "ratios": ratios,
@@ -194,6 +197,12 @@ def _flights_holding(
     flight-level test cannot validate an effect that only one train flight holds."""
     per_flight = {f"f{k}": relative_size(effect_rms(spec, k), clean) for k in range(spec.n_train)}
     return {v: {f for f, size in per_flight.items() if amplitude * size[v] >= 1.0} for v in affected}
+
+
+def _flyable(flown: dict[str, Any]) -> bool:
+    """Whether every vehicle of a flown set stayed under control (:data:`discovery_world.UNDER_CONTROL_SATURATED_SHARE`);
+    a scripted set always is (its motions are cancelled exactly)."""
+    return flown.get("most_saturated_share", 0.0) <= UNDER_CONTROL_SATURATED_SHARE
 
 
 def _has_torque(desc: dict[str, Any]) -> bool:
