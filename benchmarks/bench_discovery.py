@@ -76,8 +76,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # the generated world 
 from discovery_oracle import oracle_test  # noqa: E402
 from discovery_world import (  # noqa: E402
     FAMILIES,
-    SetSpec,
     UNDER_CONTROL_SATURATED_SHARE,
+    SetSpec,
     closed_loop_effect,
     draw_spec,
     effect_rms,
@@ -182,6 +182,7 @@ def run_draw(job: tuple[int, str, str] | tuple[int, str, str, str]) -> dict[str,
         "flyable_amplitude": flyable, "affected": affected, "exposed_train_flights": exposed, "ratios": ratios,
         "torque_ratios": tq_ratios, "worst_ratio": worst, "found": worst is not None and worst <= RATIO_OK,
         "harmed": harmed, "oracle": oracle, "decidable": bool(oracle and oracle["passed"]),
+        "decidable_each_part": bool(oracle and oracle.get("each_part_passed", oracle["passed"])),
         "clean": clean, "hidden": hidden,
         "clean_false_positive": _beyond_thrust_bias(clean["selected"], WORLD_EFFECTS[world]),
         "spurious_library": sorted(_library(hidden["selected"], WORLD_EFFECTS[world]) - put_in)
@@ -268,16 +269,19 @@ def main() -> None:
     else:
         results = [run_draw(j) for j in jobs]
     wall = time.perf_counter() - t0
-    visible = [r for r in results if r["affected"]]
+    unflyable = [r["seed"] for r in results if not r.get("flyable", True)]
+    judged = [r for r in results if r.get("flyable", True)]  # every rate below is over the flyable sets
+    visible = [r for r in judged if r["affected"]]
     power = sum(r["found"] for r in visible) / len(visible) if visible else float("nan")
-    fp = [r for r in results if r["clean_false_positive"]]
-    spurious = [r for r in results if r["spurious_library"]]
-    summary = {"world": args.world, "draws": len(results), "visible_draws": len(visible), "power": power,
+    fp = [r for r in judged if r["clean_false_positive"]]
+    spurious = [r for r in judged if r["spurious_library"]]
+    summary = {"world": args.world, "draws": len(results), "unflyable_draws": unflyable, "visible_draws": len(visible),
+               "power": power,
                "power_ci95": rate_interval(sum(r["found"] for r in visible), len(visible)),
-               "clean_sets": len(results), "false_positive_sets": len(fp),
-               "false_positive_rate_ci95": rate_interval(len(fp), len(results)),
+               "clean_sets": len(judged), "false_positive_sets": len(fp),
+               "false_positive_rate_ci95": rate_interval(len(fp), len(judged)),
                "sets_with_spurious_library_effects": len(spurious),
-               "sets_harming_unaffected_vehicles": sum(bool(r["harmed"]) for r in results), "wall_s": wall,
+               "sets_harming_unaffected_vehicles": sum(bool(r["harmed"]) for r in judged), "wall_s": wall,
                "by_family": {f: {"draws": sum(r["family"] == f for r in visible),
                                  "found": sum(r["found"] for r in visible if r["family"] == f)} for f in FAMILIES},
                "by_train_flights": {str(n): {"draws": sum(r["n_train"] == n for r in visible),
@@ -289,7 +293,10 @@ def main() -> None:
                "decidable_draws": sum(r["decidable"] for r in visible),
                "found_of_decidable": sum(r["found"] for r in visible if r["decidable"]),
                "found_of_undecidable": sum(r["found"] for r in visible if not r["decidable"]),
-               "amplitude_capped": sum(r["amplitude_capped"] for r in results)}  # fmt: skip
+               # a mix decidable part by part (discovery_oracle's module docstring); other draws as "decidable"
+               "decidable_each_part_draws": sum(r["decidable_each_part"] for r in visible),
+               "found_of_decidable_each_part": sum(r["found"] for r in visible if r["decidable_each_part"]),
+               "amplitude_capped": sum(r["amplitude_capped"] for r in judged)}  # fmt: skip
     if args.json:
         print(json.dumps({"summary": summary, "draws": results}, indent=1, default=float))
         return
@@ -313,9 +320,14 @@ def main() -> None:
     print(f"decidable draws (the exact effect passes the held-out test on the train flights, discovery_oracle): "
           f"{n_dec} of {len(visible)}; found among them {summary['found_of_decidable']}/{n_dec}, among the others "
           f"{summary['found_of_undecidable']}/{len(visible) - n_dec}")  # fmt: skip
+    n_part = summary["decidable_each_part_draws"]
+    print(f"decidable part by part (a mix: each part passes given the others): {n_part} of {len(visible)}; found "
+          f"among them {summary['found_of_decidable_each_part']}/{n_part}")  # fmt: skip
     print(f"draws whose amplitude was capped to what the motors can fly: {summary['amplitude_capped']}")
     lo, hi = summary["false_positive_rate_ci95"]
-    print(f"false positives: {len(fp)} of {len(results)} clean sets keep more than thrust_bias (target 0; "
+    if unflyable:
+        print(f"not flyable (a vehicle not under control in a flown set; left out of every rate): seeds {unflyable}")
+    print(f"false positives: {len(fp)} of {len(judged)} clean sets keep more than thrust_bias (target 0; "
           f"rate 95 % interval {lo:.0%}-{hi:.0%})")  # fmt: skip
     print(f"library effects kept that the generator did not put in: {len(spurious)} sets (target 0)")
     print(
