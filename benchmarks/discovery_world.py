@@ -39,6 +39,7 @@ class SetSpec:
     accel_noise_mps2: float
     family: str
     effect: dict[str, Any]  # the hidden effect's description (family-specific)
+    redraws: tuple[int, ...] = ()  # per flight, which draw of its motions (0 where absent: the scripted world's)
 
 
 MIN_GAP_L = 1.5
@@ -240,8 +241,10 @@ def hidden_wrench(desc: dict[str, Any], inputs) -> tuple[np.ndarray, np.ndarray]
 
 
 def _flight_motions(spec: SetSpec, k: int, sizes: dict[str, float], t: np.ndarray) -> tuple[dict[str, np.ndarray], int]:
-    """Flight ``k``'s motions (m, world, per vehicle) and its noise seed: the same for every caller."""
-    rng = np.random.default_rng([spec.seed, k])
+    """Flight ``k``'s motions (m, world, per vehicle) and its noise seed: the same for every caller (draw
+    ``spec.redraws[k]`` of them; the first, 0, is the scripted world's)."""
+    redraw = spec.redraws[k] if k < len(spec.redraws) else 0
+    rng = np.random.default_rng([spec.seed, k] if redraw == 0 else [spec.seed, k, redraw])
     motions = _motions(rng, list(sizes), t, bool(k % 2), sizes)
     return motions, int(rng.integers(1 << 30))
 
@@ -278,6 +281,10 @@ tracking error only, so the force it feels changes little between passes: on a v
 weight (far above the benchmark's amplitudes) the mismatch fell 16 %, 3 %, 0.7 % over passes 1-3, and at the
 benchmark's amplitude (draw 80002) to 0.2 % after one pass. Each set reports what is left
 (``fixed_point_mismatch``), so a reader sees whether the passes sufficed, -."""
+MOTION_REDRAWS = 8
+"""Draws of a flight's motions the closed-loop world tries before it calls the set not flyable: a flight whose
+clean flown twin leaves a vehicle not under control (:func:`_under_control`) is drawn again (``spec.redraws``),
+as a pilot would not fly it; the effect set flies the same draws. A count, not a threshold, -."""
 UNDER_CONTROL_SATURATED_SHARE = 0.5
 """A flown vehicle whose motors sit at a limit on more than this share of its samples is not under control:
 its controller's demand goes unmet most of the time (the majority rule, as selection's other 1/2s). A set
@@ -347,20 +354,30 @@ def make_set_closed_loop(spec: SetSpec, root: Path, amplitude: float | None) -> 
     unlike :func:`make_set` they hold no thrust-map error (``spec.thrust_error`` is not applied). Returns the
     manifest and ``{"fixed_point_mismatch": RMS of the force on the last states minus the force applied, over the
     RMS applied, every vehicle and flight pooled, -; "most_saturated_share": the largest share of samples any
-    vehicle of any flight spent with a motor at a limit, -}`` (:data:`UNDER_CONTROL_SATURATED_SHARE`)."""
+    vehicle of any flight spent with a motor at a limit, -; "flyable": every vehicle of every flight under control
+    (:func:`_under_control`); "redraws": per flight, the draw of its motions flown (:data:`MOTION_REDRAWS`: the
+    clean set chooses them, the effect set is given them in ``spec.redraws``)}``."""
     from proxplan.flightsim import simulate_plan, write_flight_logs
     from proxplan.physics import BUILTIN_VEHICLES
 
     vehicles = {n: BUILTIN_VEHICLES[t] for n, t in spec.types.items()}
+    sizes = {n: v.size_m for n, v in vehicles.items()}
     t = np.arange(0.0, spec.duration_s, DT_S)
     logged = "commanded" if spec.commanded else "actual"
     manifest, left, size = root / "manifest.yaml", 0.0, 0.0  # squared force left and applied, N^2
-    saturated = 0.0
+    saturated, redraws, flyable = 0.0, list(spec.redraws), True
     root.mkdir(parents=True, exist_ok=True)
     for k in range(spec.n_train + 1):
-        motions, noise_seed = _flight_motions(spec, k, {n: v.size_m for n, v in vehicles.items()}, t)
-        plan = _motion_plan(spec, vehicles, motions, t)
-        flown = simulate_plan(plan, seed=noise_seed, controller=CLOSED_LOOP_CONTROLLER)
+        tries = [redraws[k]] if k < len(redraws) else range(MOTION_REDRAWS)
+        for redraw in tries:  # the first draw of the flight's motions a vehicle can fly
+            here = replace(spec, redraws=(*redraws[:k], redraw))
+            motions, noise_seed = _flight_motions(here, k, sizes, t)
+            plan = _motion_plan(spec, vehicles, motions, t)
+            flown = simulate_plan(plan, seed=noise_seed, controller=CLOSED_LOOP_CONTROLLER)
+            if _under_control(flown):
+                break
+        redraws[k:] = [redraw]
+        flyable = flyable and _under_control(flown)
         if amplitude is not None:
             for _ in range(FIXED_POINT_PASSES):
                 t_rec, applied = _force_on_flown(spec, flown, amplitude)
@@ -369,11 +386,23 @@ def make_set_closed_loop(spec: SetSpec, root: Path, amplitude: float | None) -> 
             _, felt = _force_on_flown(spec, flown, amplitude)
             left += sum(float(np.sum((felt[n] - applied[n]) ** 2)) for n in felt)
             size += sum(float(np.sum(applied[n] ** 2)) for n in felt)
+            flyable = flyable and _under_control(flown)
         saturated = max([saturated] + [float(np.mean(r.saturated)) for r in flown.records.values()])
         manifest = write_flight_logs(flown, root, flight_name=f"f{k}", split="test" if k == spec.n_train else "train",
                                      seed=noise_seed, logged_thrust=logged)  # fmt: skip
     mismatch = float(np.sqrt(left / size)) if size > 0.0 else 0.0
-    return manifest, {"fixed_point_mismatch": mismatch, "most_saturated_share": saturated}
+    return manifest, {"fixed_point_mismatch": mismatch, "most_saturated_share": saturated, "flyable": flyable,
+                      "redraws": redraws}  # fmt: skip
+
+
+def _under_control(result: Any) -> bool:
+    """Whether every vehicle of a simulated flight flew it to the end with its motors at a limit on at most
+    :data:`UNDER_CONTROL_SATURATED_SHARE` of its samples."""
+    from proxplan.flightsim import SimulationStatus
+
+    return result.status == SimulationStatus.COMPLETE and all(
+        float(np.mean(r.saturated)) <= UNDER_CONTROL_SATURATED_SHARE for r in result.records.values()
+    )
 
 
 def _scaled(w: tuple[np.ndarray, np.ndarray], a: float) -> tuple[np.ndarray, np.ndarray]:

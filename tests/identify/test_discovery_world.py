@@ -55,8 +55,10 @@ def test_the_closed_loop_world_flies_the_effect_on_its_own_states(tmp_path: Path
 
     spec = world.draw_spec(80002, "velocity")  # a force growing with |v_xy| on three vehicles
     spec = replace(spec, effect=world.closed_loop_effect(spec.effect), n_train=1, duration_s=6.0)
-    clean, _ = world.make_set_closed_loop(spec, tmp_path / "clean", None)
+    clean, flown = world.make_set_closed_loop(spec, tmp_path / "clean", None)
+    assert flown["flyable"] and len(flown["redraws"]) == 2
     amplitude = 0.05  # 5 % of each vehicle's weight per m/s of horizontal speed
+    spec = replace(spec, redraws=tuple(flown["redraws"]))  # the effect set flies the clean set's motions
     effect, info = world.make_set_closed_loop(spec, tmp_path / "effect", amplitude)
     assert info["fixed_point_mismatch"] < 0.01  # measured 9e-6 here (each pass ~5x closer)
     ratios = []
