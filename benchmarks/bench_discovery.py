@@ -48,7 +48,14 @@ Reported (fixed seeds; nothing here was tuned while watching these figures):
 * beside each rate, its exact (Clopper-Pearson) 95 % interval: 20 sets cannot show a rate of zero, only
   bound it (0 of 20 leaves up to 17 %; 1 of 20 is consistent with a 5 % family-wise test level).
 
+With ``--world closed-loop`` the same draws are FLOWN (:func:`discovery_world.make_set_closed_loop`): RotorPy
+dynamics under an SE(3) tracking law (:data:`discovery_world.CLOSED_LOOP_CONTROLLER`) track each flight's scripted motions, the base downwash
+acts on them, and the effect is a residual force on their own flown states; the logs are the simulator's
+(IMU noise, motor dynamics, attitude and body rates that are not zero). The effect is its force form only, and
+the logged thrust has no thrust-map error. The scripted world (default) cancels every wrench exactly, level.
+
     python benchmarks/bench_discovery.py [--draws 20] [--seed 0] [--workers 2] [--json] [--keep DIR]
+                                         [--world scripted|closed-loop]
 """
 
 from __future__ import annotations
@@ -58,6 +65,7 @@ import json
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -69,11 +77,13 @@ from discovery_oracle import oracle_test  # noqa: E402
 from discovery_world import (  # noqa: E402
     FAMILIES,
     SetSpec,
+    closed_loop_effect,
     draw_spec,
     effect_rms,
     effect_rms_on_test,
     flyable_amplitude,
     make_set,
+    make_set_closed_loop,
 )
 
 __all__ = ["FAMILIES", "SetSpec", "draw_spec", "make_set", "run_draw"]
@@ -112,19 +122,46 @@ def relative_size(rms: dict[str, tuple[float, float]], clean: dict[str, Any]) ->
             for v, (fz, tq) in rms.items()}  # fmt: skip
 
 
-def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
-    """One draw: its clean twin and the set with the effect, identified; the comparison."""
-    seed, family, keep = job
+WORLDS = ("scripted", "closed-loop")
+"""How a set's logs are made: scripted (:func:`discovery_world.make_set`, every wrench cancelled exactly) or
+flown closed loop (:func:`discovery_world.make_set_closed_loop`)."""
+
+
+WORLD_EFFECTS = {"scripted": frozenset(), "closed-loop": frozenset({"climb_inflow", "own_velocity"})}
+"""Library effects a world holds in every set, clean or not: the flown world's rotors feel RotorPy's axial
+inflow (``k_z``, :mod:`proxplan.physics.rotor_drag`: a thrust change of -n omega k_z v_z with the climb speed),
+which is ``climb_inflow``'s form (and ``own_velocity``'s v_z part). Kept there, they find the world: not a false
+positive nor a spurious effect (as :data:`bench_library_alone.ALLOWED`)."""
+
+
+def _make(world: str, spec: SetSpec, root: Path, amplitude: float | None) -> tuple[Path, dict[str, Any]]:
+    if world == "closed-loop":
+        return make_set_closed_loop(spec, root, amplitude)
+    return make_set(spec, root, amplitude), {}
+
+
+def run_draw(job: tuple[int, str, str] | tuple[int, str, str, str]) -> dict[str, Any]:
+    """One draw (seed, family, keep directory or "", world: :data:`WORLDS`, scripted when left out): its clean
+    twin and the set with the effect, identified; the comparison."""
+    seed, family, keep, world = (*job, "scripted")[:4]
     spec = draw_spec(seed, family)
+    if world == "closed-loop":
+        spec = replace(spec, effect=closed_loop_effect(spec.effect))
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(keep) / f"draw{seed}" if keep else Path(tmp)
-        clean, clean_run = _identify(make_set(spec, base / "clean", None))
+        made, flown_clean = _make(world, spec, base / "clean", None)
+        spec = replace(spec, redraws=tuple(flown_clean.get("redraws", ())))  # the motions flown (closed loop)
+        if not flown_clean.get("flyable", True):  # no flight a vehicle could fly: no logs to identify
+            return {"seed": seed, "world": world, **flown_clean, "family": family, "effect": spec.effect,
+                    "types": spec.types, "n_train": spec.n_train}  # fmt: skip
+        clean, clean_run = _identify(made)
         size = relative_size(effect_rms_on_test(spec), clean)
         target = float(np.random.default_rng([spec.seed, 99]).uniform(1.5, 4.0))
         wanted = target / max(max(size.values()), 1e-12)
         flyable = flyable_amplitude(spec)
         amplitude = min(wanted, flyable)
-        hidden, hidden_run = _identify(make_set(spec, base / "effect", amplitude))
+        made, flown = _make(world, spec, base / "effect", amplitude)
+        hidden, hidden_run = _identify(made)
     affected = [v for v in size if amplitude * size[v] >= 1.0]
     torque_effect = _has_torque(spec.effect)
     flights_holding = _flights_holding(spec, clean, amplitude, affected)
@@ -141,14 +178,18 @@ def run_draw(job: tuple[int, str, str]) -> dict[str, Any]:
     put_in = _library_put_in(spec.effect)
     harmed = sorted(v for v in ratios if v not in affected and ratios[v] > RATIO_OK)
     return {
-        "seed": seed, "family": family, "effect": spec.effect, "types": spec.types, "n_train": spec.n_train,
+        "seed": seed, "world": world, **flown, "flyable": flown.get("flyable", True), "family": family,
+        "effect": spec.effect, "types": spec.types,
+        "n_train": spec.n_train,
         "commanded": spec.commanded, "amplitude": amplitude, "amplitude_capped": flyable < wanted,
         "flyable_amplitude": flyable, "affected": affected, "exposed_train_flights": exposed, "ratios": ratios,
         "torque_ratios": tq_ratios, "worst_ratio": worst, "found": worst is not None and worst <= RATIO_OK,
         "harmed": harmed, "oracle": oracle, "decidable": bool(oracle and oracle["passed"]),
         "decidable_each_part": bool(oracle and oracle.get("each_part_passed", oracle["passed"])),
-        "clean": clean, "hidden": hidden, "clean_false_positive": _beyond_thrust_bias(clean["selected"]),
-        "spurious_library": sorted(_library(hidden["selected"]) - put_in) + sorted(_library(clean["selected"])),
+        "clean": clean, "hidden": hidden,
+        "clean_false_positive": _beyond_thrust_bias(clean["selected"], WORLD_EFFECTS[world]),
+        "spurious_library": sorted(_library(hidden["selected"], WORLD_EFFECTS[world]) - put_in)
+                            + sorted(_library(clean["selected"], WORLD_EFFECTS[world])),
     }  # fmt: skip
 
 
@@ -163,17 +204,19 @@ def _flights_holding(
 
 
 def _has_torque(desc: dict[str, Any]) -> bool:
+    if desc.get("force_only"):
+        return False
     if desc["family"] == "mix":
         return any(_has_torque(p) for p in desc["parts"])
     return bool(desc.get("torque")) or (desc["family"] == "lag" and desc["inner"] == "wake_swirl")
 
 
-def _library(selected: list[str]) -> set[str]:
-    return {n for n in selected if not n.startswith("discovered:") and n != "thrust_bias"}
+def _library(selected: list[str], world_holds: frozenset[str] = frozenset()) -> set[str]:
+    return {n for n in selected if not n.startswith("discovered:") and n != "thrust_bias" and n not in world_holds}
 
 
-def _beyond_thrust_bias(selected: list[str]) -> list[str]:
-    return [n for n in selected if n != "thrust_bias"]
+def _beyond_thrust_bias(selected: list[str], world_holds: frozenset[str] = frozenset()) -> list[str]:
+    return [n for n in selected if n != "thrust_bias" and n not in world_holds]
 
 
 LIBRARY_FORMS = {("velocity", "v_z"): {"own_velocity", "climb_inflow"}, ("velocity", "v_xy"): {"own_velocity"},
@@ -198,6 +241,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2, help="Dask workers (0: run in this process)")
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     ap.add_argument("--keep", default="", help="keep the generated logs under this directory")
+    ap.add_argument("--world", choices=WORLDS, default="scripted",
+                    help="how the logs are made: scripted (every wrench cancelled exactly) or flown closed loop")  # fmt: skip
     ap.add_argument(
         "--only",
         type=int,
@@ -210,7 +255,7 @@ def main() -> None:
     ks = range(args.draws) if args.only is None else sorted(set(args.only))
     if any(not 0 <= k < args.draws for k in ks):
         ap.error(f"--only: each K must lie in 0..{args.draws - 1} (the block's draws)")
-    jobs = [(args.seed + k, FAMILIES[k % len(FAMILIES)], args.keep) for k in ks]
+    jobs = [(args.seed + k, FAMILIES[k % len(FAMILIES)], args.keep, args.world) for k in ks]
     t0 = time.perf_counter()
     if args.workers > 0:
         from proxplan.fanout import fan_out
@@ -221,16 +266,19 @@ def main() -> None:
     else:
         results = [run_draw(j) for j in jobs]
     wall = time.perf_counter() - t0
-    visible = [r for r in results if r["affected"]]
+    unflyable = [r["seed"] for r in results if not r.get("flyable", True)]
+    judged = [r for r in results if r.get("flyable", True)]  # every rate below is over the flyable sets
+    visible = [r for r in judged if r["affected"]]
     power = sum(r["found"] for r in visible) / len(visible) if visible else float("nan")
-    fp = [r for r in results if r["clean_false_positive"]]
-    spurious = [r for r in results if r["spurious_library"]]
-    summary = {"draws": len(results), "visible_draws": len(visible), "power": power,
+    fp = [r for r in judged if r["clean_false_positive"]]
+    spurious = [r for r in judged if r["spurious_library"]]
+    summary = {"world": args.world, "draws": len(results), "unflyable_draws": unflyable, "visible_draws": len(visible),
+               "power": power,
                "power_ci95": rate_interval(sum(r["found"] for r in visible), len(visible)),
-               "clean_sets": len(results), "false_positive_sets": len(fp),
-               "false_positive_rate_ci95": rate_interval(len(fp), len(results)),
+               "clean_sets": len(judged), "false_positive_sets": len(fp),
+               "false_positive_rate_ci95": rate_interval(len(fp), len(judged)),
                "sets_with_spurious_library_effects": len(spurious),
-               "sets_harming_unaffected_vehicles": sum(bool(r["harmed"]) for r in results), "wall_s": wall,
+               "sets_harming_unaffected_vehicles": sum(bool(r["harmed"]) for r in judged), "wall_s": wall,
                "by_family": {f: {"draws": sum(r["family"] == f for r in visible),
                                  "found": sum(r["found"] for r in visible if r["family"] == f)} for f in FAMILIES},
                "by_train_flights": {str(n): {"draws": sum(r["n_train"] == n for r in visible),
@@ -245,12 +293,12 @@ def main() -> None:
                # a mix decidable part by part (discovery_oracle's module docstring); other draws as "decidable"
                "decidable_each_part_draws": sum(r["decidable_each_part"] for r in visible),
                "found_of_decidable_each_part": sum(r["found"] for r in visible if r["decidable_each_part"]),
-               "amplitude_capped": sum(r["amplitude_capped"] for r in results)}  # fmt: skip
+               "amplitude_capped": sum(r["amplitude_capped"] for r in judged)}  # fmt: skip
     if args.json:
         print(json.dumps({"summary": summary, "draws": results}, indent=1, default=float))
         return
     print(f"{'seed':>4} {'family':8} {'effect':46} {'worst':>6} {'clean g':>8} {'hidden g':>9} kept (clean | effect)")
-    for r in results:
+    for r in judged:
         eff = _describe(r["effect"])
         v = max(r["ratios"], key=lambda k: r["ratios"][k])
         worst = "-" if r["worst_ratio"] is None else f"{r['worst_ratio']:.2f}"
@@ -274,7 +322,9 @@ def main() -> None:
           f"among them {summary['found_of_decidable_each_part']}/{n_part}")  # fmt: skip
     print(f"draws whose amplitude was capped to what the motors can fly: {summary['amplitude_capped']}")
     lo, hi = summary["false_positive_rate_ci95"]
-    print(f"false positives: {len(fp)} of {len(results)} clean sets keep more than thrust_bias (target 0; "
+    if unflyable:
+        print(f"not flyable (a vehicle not under control in a flown set; left out of every rate): seeds {unflyable}")
+    print(f"false positives: {len(fp)} of {len(judged)} clean sets keep more than thrust_bias (target 0; "
           f"rate 95 % interval {lo:.0%}-{hi:.0%})")  # fmt: skip
     print(f"library effects kept that the generator did not put in: {len(spurious)} sets (target 0)")
     print(
