@@ -7,7 +7,7 @@ their ranges are described in :mod:`bench_discovery`'s docstring.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -274,13 +274,6 @@ def make_set(spec: SetSpec, root: Path, amplitude: float | None) -> Path:
                                     motor_thrust="commanded" if spec.commanded else "delivered")  # fmt: skip
 
 
-FIXED_POINT_PASSES = 2
-"""Closed-loop flights after the clean one, per flight of a set with an effect: pass i applies the effect
-evaluated on the states of pass i - 1 (:func:`make_set_closed_loop`). The effect moves a vehicle by its
-tracking error only, so the force it feels changes little between passes: on a velocity draw at 30 % of the
-weight (far above the benchmark's amplitudes) the mismatch fell 16 %, 3 %, 0.7 % over passes 1-3, and at the
-benchmark's amplitude (draw 80002) to 0.2 % after one pass. Each set reports what is left
-(``fixed_point_mismatch``), so a reader sees whether the passes sufficed, -."""
 MOTION_REDRAWS = 8
 """Draws of a flight's motions the closed-loop world tries before it calls the set not flyable: a flight whose
 clean flown twin leaves a vehicle not under control (:func:`_under_control`) is drawn again (``spec.redraws``),
@@ -335,36 +328,65 @@ def _force_on_flown(spec: SetSpec, result: Any, amplitude: float) -> tuple[np.nd
     return t, {n: amplitude * hidden_wrench(spec.effect, x)[0] for n, x in inputs.items()}
 
 
-def _as_perturbation(t: np.ndarray, forces: dict[str, np.ndarray]):
-    from proxplan.flightsim import Perturbation
+def _max_lag_s(desc: dict[str, Any]) -> float:
+    """The longest delay (s) of effect ``desc`` (0 without one)."""
+    if desc["family"] == "mix":
+        return max(_max_lag_s(p) for p in desc["parts"])
+    return float(desc.get("lag_s", 0.0))
 
-    def along(f: np.ndarray):
-        return lambda tt: np.column_stack([np.interp(tt, t, f[:, d]) for d in range(3)])
 
-    return Perturbation(force_N={n: along(f) for n, f in forces.items()})
+@dataclass
+class _HiddenForce:
+    """The hidden effect at ``amplitude`` as :attr:`proxplan.flightsim.Perturbation.force_of_state`: evaluated by
+    :func:`hidden_wrench` on the states the simulator predicts over each wrench horizon (a few milliseconds), with
+    the flight's own past for a delay (the state at each earlier horizon's start, kept for the effect's longest
+    delay). ``vehicles``: name -> :class:`proxplan.physics.Vehicle` in the plan's order."""
+
+    effect: dict[str, Any]
+    vehicles: dict[str, Any]
+    amplitude: float
+    past: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+
+    def __call__(self, t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> np.ndarray:
+        keep_s = _max_lag_s(self.effect) + 2.0 * float(t[-1] - t[0] + 1e-9)
+        self.past = [p for p in self.past if p[0] >= t[0] - keep_s]
+        times = np.array([p[0] for p in self.past] + list(t))
+        stacked = [np.concatenate([np.array([p[i] for p in self.past]).reshape(-1, *pos.shape[1:]), x])
+                   for i, x in ((1, pos), (2, vel), (3, acc))]  # fmt: skip
+        self.past.append((float(t[0]), pos[0], vel[0], acc[0]))
+        names = list(self.vehicles)
+        inputs = motion_inputs(self.vehicles, {n: stacked[0][:, i] for i, n in enumerate(names)}, times,
+                               {n: stacked[1][:, i] for i, n in enumerate(names)},
+                               {n: stacked[2][:, i] for i, n in enumerate(names)})  # fmt: skip
+        out = np.zeros_like(pos)
+        for i, n in enumerate(names):
+            out[:, i] = self.amplitude * hidden_wrench(self.effect, inputs[n])[0][-len(t) :]
+        return out
 
 
 def make_set_closed_loop(spec: SetSpec, root: Path, amplitude: float | None) -> tuple[Path, dict[str, Any]]:
     """The set flown CLOSED LOOP (:func:`proxplan.flightsim.simulate_plan`: RotorPy dynamics under
     :data:`CLOSED_LOOP_CONTROLLER`, motor dynamics and IMU noise), clean when ``amplitude`` is None: each flight's
     scripted motions (:func:`_flight_motions`) become a plan the vehicles track, and the world's downwash is
-    the base model's. The effect (``spec.effect`` as :func:`closed_loop_effect` gives it) is applied as a
-    residual force on the vehicles' own flown states by :data:`FIXED_POINT_PASSES` passes. The logs are what
+    the base model's. The effect (``spec.effect`` as :func:`closed_loop_effect` gives it) is a residual force
+    the simulator evaluates on the vehicles' own states as it flies them (:class:`_HiddenForce`, with their past
+    for a delay; until stop 78's last round, fixed-point passes that left 10-70 % of it on five sets of block
+    83000). The logs are what
     :func:`proxplan.flightsim.write_flight_logs` writes (commanded or delivered thrust as ``spec.commanded``);
     unlike :func:`make_set` they hold no thrust-map error (``spec.thrust_error`` is not applied). Returns the
-    manifest and ``{"fixed_point_mismatch": RMS of the force on the last states minus the force applied, over the
-    RMS applied, every vehicle and flight pooled, -; "most_saturated_share": the largest share of samples any
+    manifest and ``{"applied_mismatch": RMS of the force applied minus the effect on the recorded states, over
+    the effect's RMS, every vehicle and flight pooled (the horizon's prediction and the past's sampling), -; "most_saturated_share": the largest share of samples any
     vehicle of any flight spent with a motor at a limit, -; "flyable": every vehicle of every flight under control
     (:func:`_under_control`); "redraws": per flight, the draw of its motions flown (:data:`MOTION_REDRAWS`: the
     clean set chooses them, the effect set is given them in ``spec.redraws``)}``."""
-    from proxplan.flightsim import simulate_plan, write_flight_logs
+    from proxplan.flightsim import Perturbation, simulate_plan, write_flight_logs
     from proxplan.physics import BUILTIN_VEHICLES
 
     vehicles = {n: BUILTIN_VEHICLES[t] for n, t in spec.types.items()}
     sizes = {n: v.size_m for n, v in vehicles.items()}
     t = np.arange(0.0, spec.duration_s, DT_S)
     logged = "commanded" if spec.commanded else "actual"
-    manifest, left, size = root / "manifest.yaml", 0.0, 0.0  # squared force left and applied, N^2
+    manifest, left, size = root / "manifest.yaml", 0.0, 0.0  # squared force mismatch and effect, N^2
     saturated, redraws, flyable = 0.0, list(spec.redraws), True
     root.mkdir(parents=True, exist_ok=True)
     for k in range(spec.n_train + 1):
@@ -379,19 +401,20 @@ def make_set_closed_loop(spec: SetSpec, root: Path, amplitude: float | None) -> 
         redraws[k:] = [redraw]
         flyable = flyable and _under_control(flown)
         if amplitude is not None:
-            for _ in range(FIXED_POINT_PASSES):
-                t_rec, applied = _force_on_flown(spec, flown, amplitude)
-                flown = simulate_plan(plan, seed=noise_seed, controller=CLOSED_LOOP_CONTROLLER,
-                                      perturbation=_as_perturbation(t_rec, applied))  # fmt: skip
-            _, felt = _force_on_flown(spec, flown, amplitude)
-            left += sum(float(np.sum((felt[n] - applied[n]) ** 2)) for n in felt)
-            size += sum(float(np.sum(applied[n] ** 2)) for n in felt)
+            hidden = _HiddenForce(spec.effect, dict(zip(plan.vehicles, vehicles.values())), amplitude)
+            flown = simulate_plan(plan, seed=noise_seed, controller=CLOSED_LOOP_CONTROLLER,
+                                  perturbation=Perturbation(force_of_state=hidden))  # fmt: skip
+            t_rec, felt = _force_on_flown(spec, flown, amplitude)
+            for n, r in flown.records.items():
+                applied = r.applied_force_N - r.model_force_N
+                left += float(np.sum((felt[n] - applied) ** 2))
+                size += float(np.sum(felt[n] ** 2))
             flyable = flyable and _under_control(flown)
         saturated = max([saturated] + [float(np.mean(r.saturated)) for r in flown.records.values()])
         manifest = write_flight_logs(flown, root, flight_name=f"f{k}", split="test" if k == spec.n_train else "train",
                                      seed=noise_seed, logged_thrust=logged)  # fmt: skip
     mismatch = float(np.sqrt(left / size)) if size > 0.0 else 0.0
-    return manifest, {"fixed_point_mismatch": mismatch, "most_saturated_share": saturated, "flyable": flyable,
+    return manifest, {"applied_mismatch": mismatch, "most_saturated_share": saturated, "flyable": flyable,
                       "redraws": redraws}  # fmt: skip
 
 

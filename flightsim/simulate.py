@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,7 +38,7 @@ from proxplan.flightsim.references import FlightReferences, flight_references
 from proxplan.flightsim.stepper import CompiledStepper
 from proxplan.flightsim.truth import TruthSpec, merge_truth, plan_truth
 from proxplan.flightsim.vehicle_params import quad_params
-from proxplan.flightsim.wrench import fill_horizon, predicted_wrench, wrench_on
+from proxplan.flightsim.wrench import fill_horizon, horizon_states, predicted_wrench, wrench_on
 from proxplan.physics import Effect, ModelOptions, Vehicle
 from proxplan.planfile import Plan, VehicleTrajectory, read_plan
 
@@ -66,6 +66,7 @@ class _Flight:
     extra_force_N: np.ndarray  # (K, V, 3) residual force beyond the model (perturbation)
     start_offset_m: np.ndarray  # (V, 3)
     notes: tuple[str, ...]
+    force_of_state: Callable | None = None  # Perturbation.force_of_state: its force goes into extra_force_N
 
     @property
     def t0_s(self) -> float:
@@ -146,7 +147,7 @@ def _prepare(
     return _Flight(
         plan, names, trajs, vehs, [quad_params(v) for v in vehs], tuple(truth.effects),
         ModelOptions(field_form=truth.field_form), truth, t_grid, log_every, refs, pred_f, pred_t, extra_f,
-        start, notes,
+        start, notes, pert.force_of_state,
     )  # fmt: skip
 
 
@@ -197,6 +198,17 @@ def _initial_stepper(flight: _Flight, options: SimulationOptions) -> CompiledSte
     return stepper
 
 
+def _add_force_of_state(flight: _Flight, k: int, tau: np.ndarray, s: np.ndarray, acc: np.ndarray) -> None:
+    """Add :attr:`Perturbation.force_of_state` over the horizon that starts at physics step ``k`` (offsets
+    ``tau`` (K,), s) to ``flight.extra_force_N``, on the states predicted from state ``s`` (V, 17) and the
+    acceleration estimate ``acc`` (V, 3) as :func:`proxplan.flightsim.wrench.fill_horizon` predicts them."""
+    n = min(len(tau), len(flight.t_grid_s) - k)
+    tau = tau[:n]
+    pos, vel = horizon_states(s[:, 0:3], s[:, 3:6], acc, tau)
+    t = flight.t_grid_s[k : k + n] - flight.t0_s
+    flight.extra_force_N[k : k + n] += flight.force_of_state(t, pos, vel, np.repeat(acc[None], n, axis=0))
+
+
 def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
     """The flight loop: (log, saturated physics steps per vehicle (V,), status, status detail)."""
     dt = options.physics_dt_s
@@ -224,6 +236,8 @@ def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
             if j == 0:
                 fill_horizon(buf_f, buf_t, s[:, 0:3], s[:, 3:6], acc_est, tau, flight.vehicles, flight.effects,
                              flight.model_options, options.ground_z_m)  # fmt: skip
+                if flight.force_of_state is not None:
+                    _add_force_of_state(flight, k, tau, s, acc_est)
             stepper.ref[:] = setpoints[k]
             if ki_rate > 0.0:
                 integral_ms += (s[:, 0:3] - setpoints[k][:, 0:3]) * dt

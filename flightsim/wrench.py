@@ -123,6 +123,13 @@ def wrench_on(
     return force, torque
 
 
+def horizon_states(x: np.ndarray, v: np.ndarray, acc: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities (K, V, 3), m and m/s, world, predicted at offsets ``tau`` (K,), s, from
+    positions, velocities and accelerations (V, 3): x + v tau + a tau^2 / 2 and v + a tau."""
+    t = tau[:, None, None]
+    return x[None] + t * v[None] + 0.5 * t**2 * acc[None], v[None] + t * acc[None]
+
+
 def fill_horizon(
     buf_f,
     buf_t,
@@ -137,8 +144,7 @@ def fill_horizon(
 ) -> None:
     """Wrench on every vehicle at the positions predicted over the next horizon from positions,
     velocities and accelerations (V, 3) (buffers (V, K, 3))."""
-    pred_x = x[None] + tau[:, None, None] * v[None] + 0.5 * tau[:, None, None] ** 2 * acc[None]
-    pred_v = v[None] + tau[:, None, None] * acc[None]  # (K, V, 3)
+    pred_x, pred_v = horizon_states(x, v, acc, tau)
     for i in range(len(vehs)):
         f, t = wrench_on(i, pred_x, pred_v[:, i], vehs, effects, model_options, ground_z_m)
         buf_f[i] = f
