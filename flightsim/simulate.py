@@ -198,15 +198,17 @@ def _initial_stepper(flight: _Flight, options: SimulationOptions) -> CompiledSte
     return stepper
 
 
-def _add_force_of_state(flight: _Flight, k: int, tau: np.ndarray, s: np.ndarray, acc: np.ndarray) -> None:
-    """Add :attr:`Perturbation.force_of_state` over the horizon that starts at physics step ``k`` (offsets
-    ``tau`` (K,), s) to ``flight.extra_force_N``, on the states predicted from state ``s`` (V, 17) and the
-    acceleration estimate ``acc`` (V, 3) as :func:`proxplan.flightsim.wrench.fill_horizon` predicts them."""
+def _add_force_of_state(
+    flight: _Flight, force_of_state: Callable, k: int, tau: np.ndarray, s: np.ndarray, acc: np.ndarray
+) -> None:
+    """Add ``force_of_state`` (:attr:`Perturbation.force_of_state`) over the horizon that starts at physics step
+    ``k`` (offsets ``tau`` (K,), s) to ``flight.extra_force_N``, on the states predicted from state ``s`` (V, 17)
+    and the acceleration estimate ``acc`` (V, 3) as :func:`proxplan.flightsim.wrench.fill_horizon` predicts them."""
     n = min(len(tau), len(flight.t_grid_s) - k)
     tau = tau[:n]
     pos, vel = horizon_states(s[:, 0:3], s[:, 3:6], acc, tau)
     t = flight.t_grid_s[k : k + n] - flight.t0_s
-    flight.extra_force_N[k : k + n] += flight.force_of_state(t, pos, vel, np.repeat(acc[None], n, axis=0))
+    flight.extra_force_N[k : k + n] += force_of_state(t, pos, vel, np.repeat(acc[None], n, axis=0))
 
 
 def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
@@ -237,7 +239,7 @@ def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
                 fill_horizon(buf_f, buf_t, s[:, 0:3], s[:, 3:6], acc_est, tau, flight.vehicles, flight.effects,
                              flight.model_options, options.ground_z_m)  # fmt: skip
                 if flight.force_of_state is not None:
-                    _add_force_of_state(flight, k, tau, s, acc_est)
+                    _add_force_of_state(flight, flight.force_of_state, k, tau, s, acc_est)
             stepper.ref[:] = setpoints[k]
             if ki_rate > 0.0:
                 integral_ms += (s[:, 0:3] - setpoints[k][:, 0:3]) * dt
