@@ -36,7 +36,12 @@ from typing import Literal
 
 from proxplan.planfile import Plan, Scenario
 from proxplan.planner.bounds import certified_bound
-from proxplan.planner.checks.precheck import check_before_search, check_goal_loops, check_swarm_size
+from proxplan.planner.checks.precheck import (
+    check_goal_loops,
+    check_goal_tubes,
+    check_starts_and_goals,
+    check_swarm_size,
+)
 from proxplan.planner.errors import InfeasibleError, PlanNotFound
 from proxplan.planner.metrics import DEFLECTION_DT_S, deflection_allowance, finish_metrics
 from proxplan.planner.refine_stage import refine_stage
@@ -184,7 +189,8 @@ def _start(method, seed, progress, options, swarm_options, time_budget_s, max_ti
 def _prepare(scenario: Scenario, run: _Run) -> tuple[Scenario, dict | None]:
     check_swarm_size(scenario)
     scenario, assignment = apply_assignment(scenario)
-    check_before_search(scenario, mode=run.mode, margin_m=PLAN_MARGIN_M)  # the family's draws pass the same
+    check_starts_and_goals(scenario, mode=run.mode)
+    check_goal_tubes(scenario, mode=run.mode, margin_m=PLAN_MARGIN_M)
     if run.mode == "downwash":
         check_goal_loops(scenario)  # a hold where the vehicle's loop in the jets is not damped
     return scenario, assignment

@@ -1,7 +1,6 @@
 """Round 37Y (issue 37): a goal clear of the other's keep-out grown by the tracking tube alone but not by the
 tube and the planner's search margin. The CLI's pre-check names the pair, the distance and what is needed
-(at rest, with the tube alone, with the margin), and the bench family's generator draws again where the
-pipeline's check before any search (one function, ``check_before_search``) rejects a draw."""
+(at rest, with the tube alone, with the margin), and the pipeline rejects it before any search."""
 
 from __future__ import annotations
 
