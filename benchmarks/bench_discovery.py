@@ -48,9 +48,10 @@ Reported (fixed seeds; nothing here was tuned while watching these figures):
 * beside each rate, its exact (Clopper-Pearson) 95 % interval: 20 sets cannot show a rate of zero, only
   bound it (0 of 20 leaves up to 17 %; 1 of 20 is consistent with a 5 % family-wise test level).
 
-With ``--world closed-loop`` the same draws are FLOWN (:func:`discovery_world.make_set_closed_loop`): RotorPy
-dynamics under an SE(3) tracking law (:data:`discovery_world.CLOSED_LOOP_CONTROLLER`) track each flight's scripted motions, the base downwash
-acts on them, and the effect is a residual force on their own flown states; the logs are the simulator's
+With ``--world closed-loop`` the same draws are FLOWN (:func:`discovery_flown.make_set_closed_loop`): RotorPy
+dynamics under an SE(3) tracking law (:data:`discovery_flown.CLOSED_LOOP_CONTROLLER`) track each flight's
+scripted motions, the base downwash acts on them, and the effect is a residual force on their own flown states;
+the logs are the simulator's
 (IMU noise, motor dynamics, attitude and body rates that are not zero). The effect is its force form only, and
 the logged thrust has no thrust-map error. The scripted world (default) cancels every wrench exactly, level.
 
@@ -73,17 +74,16 @@ import numpy as np
 from scipy.stats import binomtest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the generated world beside this script
+from discovery_flown import closed_loop_effect, make_set_closed_loop  # noqa: E402
 from discovery_oracle import oracle_test  # noqa: E402
 from discovery_world import (  # noqa: E402
     FAMILIES,
     SetSpec,
-    closed_loop_effect,
     draw_spec,
     effect_rms,
     effect_rms_on_test,
     flyable_amplitude,
     make_set,
-    make_set_closed_loop,
 )
 
 __all__ = ["FAMILIES", "SetSpec", "draw_spec", "make_set", "run_draw"]
@@ -116,7 +116,7 @@ def _identify(manifest: Path) -> tuple[dict[str, Any], Any]:
 
 def _identify_flown(manifest: Path, world: str) -> tuple[dict[str, Any] | None, Any, str]:
     """:func:`_identify`, except that a flown set whose logs identify rejects (a vehicle left with no usable
-    sample: it sat on the floor or idled, which :func:`discovery_world._under_control` does not see) gives
+    sample: it sat on the floor or idled, which :func:`discovery_flown._under_control` does not see) gives
     ``(None, None, the reason)``: no such log would be flown. A scripted set's rejection is the bench's bug and
     raises."""
     from proxplan.fileio import UserError
@@ -140,7 +140,7 @@ def relative_size(rms: dict[str, tuple[float, float]], clean: dict[str, Any]) ->
 
 WORLDS = ("scripted", "closed-loop")
 """How a set's logs are made: scripted (:func:`discovery_world.make_set`, every wrench cancelled exactly) or
-flown closed loop (:func:`discovery_world.make_set_closed_loop`)."""
+flown closed loop (:func:`discovery_flown.make_set_closed_loop`)."""
 
 
 WORLD_EFFECTS = {"scripted": frozenset(), "closed-loop": frozenset({"climb_inflow", "own_velocity"})}
