@@ -74,7 +74,7 @@ import numpy as np
 from scipy.stats import binomtest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the generated world beside this script
-from discovery_flown import closed_loop_effect, make_set_closed_loop  # noqa: E402
+from discovery_flown import make_set_closed_loop  # noqa: E402
 from discovery_oracle import oracle_test  # noqa: E402
 from discovery_world import (  # noqa: E402
     FAMILIES,
@@ -161,8 +161,6 @@ def run_draw(job: tuple[int, str, str] | tuple[int, str, str, str]) -> dict[str,
     twin and the set with the effect, identified; the comparison."""
     seed, family, keep, world = (*job, "scripted")[:4]
     spec = draw_spec(seed, family)
-    if world == "closed-loop":
-        spec = replace(spec, effect=closed_loop_effect(spec.effect))
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(keep) / f"draw{seed}" if keep else Path(tmp)
         made, flown_clean = _make(world, spec, base / "clean", None)
@@ -227,8 +225,6 @@ def _flights_holding(
 
 
 def _has_torque(desc: dict[str, Any]) -> bool:
-    if desc.get("force_only"):
-        return False
     if desc["family"] == "mix":
         return any(_has_torque(p) for p in desc["parts"])
     return bool(desc.get("torque")) or (desc["family"] == "lag" and desc["inner"] == "wake_swirl")

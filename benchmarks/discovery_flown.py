@@ -1,6 +1,6 @@
 """The FLOWN world of the discovery benchmark (``bench_discovery.py --world closed-loop``): the draws of
 :mod:`discovery_world` (vehicles, motions, effect) flown closed loop in :mod:`proxplan.flightsim`, the effect a
-residual force the simulator evaluates on the vehicles' own states (:func:`make_set_closed_loop`), and what a
+residual wrench the simulator evaluates on the vehicles' own states (:func:`make_set_closed_loop`), and what a
 vehicle can fly (:func:`_under_control`, :data:`MOTION_REDRAWS`).
 """
 
@@ -30,19 +30,6 @@ firmware's gains: on these motions the 145 g small-quad saturates its motors wit
 steps) and ends metres off its path, which is a controller the vehicle would not fly with."""
 
 
-def closed_loop_effect(desc: dict[str, Any]) -> dict[str, Any]:
-    """``desc`` as the closed-loop world flies it: a force only (the simulator's residual disturbance is a force,
-    :class:`proxplan.flightsim.Perturbation`), so a kernel's torque form becomes its F_z form and any other
-    torque part is dropped (``force_only``)."""
-
-    def no_torque(d: dict[str, Any]) -> dict[str, Any]:
-        if d["family"] == "mix":
-            return d | {"parts": [no_torque(p) for p in d["parts"]]}
-        return d | {"torque": False} if "torque" in d else d
-
-    return no_torque(desc) | {"force_only": True}
-
-
 def _motion_plan(spec: SetSpec, vehicles: dict[str, Any], motions: dict[str, np.ndarray], t: np.ndarray):
     """The flight's scripted motions (m, world, on clock ``t`` s) as a plan the simulated vehicles track."""
     from proxplan.planfile import Plan, VehicleTrajectory
@@ -56,15 +43,21 @@ def _motion_plan(spec: SetSpec, vehicles: dict[str, Any], motions: dict[str, np.
     return Plan(f"discovery-{spec.seed}", DT_S, trajs, method="synthetic")
 
 
-def _force_on_flown(spec: SetSpec, result: Any, amplitude: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The hidden effect's force (N, 3) N, world, at ``amplitude`` on each vehicle of a simulated flight, on its
-    recorded (true) states; and the records' clock (N,), s since the plan start."""
+def _wrench_on_flown(
+    spec: SetSpec, result: Any, amplitude: float
+) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]]]:
+    """The hidden effect's wrench at ``amplitude`` on each vehicle of a simulated flight, on its recorded (true)
+    states: force (N, 3) N and torque (N, 3) N m, world; and the records' clock (N,), s since the plan start."""
     recs = result.records
     t = next(iter(recs.values())).t_s
     inputs = motion_inputs({n: r.vehicle for n, r in recs.items()}, {n: r.position_m for n, r in recs.items()}, t,
                            {n: r.velocity_mps for n, r in recs.items()},
                            {n: r.acceleration_mps2 for n, r in recs.items()})  # fmt: skip
-    return t, {n: amplitude * hidden_wrench(spec.effect, x)[0] for n, x in inputs.items()}
+    out = {}
+    for n, x in inputs.items():
+        force_N, torque_Nm = hidden_wrench(spec.effect, x)
+        out[n] = (amplitude * force_N, amplitude * torque_Nm)
+    return t, out
 
 
 def _max_lag_s(desc: dict[str, Any]) -> float:
@@ -75,18 +68,20 @@ def _max_lag_s(desc: dict[str, Any]) -> float:
 
 
 @dataclass
-class _HiddenForce:
-    """The hidden effect at ``amplitude`` as :attr:`proxplan.flightsim.Perturbation.force_of_state`: evaluated by
-    :func:`hidden_wrench` on the states the simulator predicts over each wrench horizon (a few milliseconds), with
-    the flight's own past for a delay (the state at each earlier horizon's start, kept for the effect's longest
-    delay). ``vehicles``: name -> :class:`proxplan.physics.Vehicle` in the plan's order."""
+class _HiddenWrench:
+    """The hidden effect at ``amplitude`` as :attr:`proxplan.flightsim.Perturbation.wrench_of_state`: its force and
+    torque, evaluated by :func:`hidden_wrench` on the states the simulator predicts over each wrench horizon (a few
+    milliseconds), with the flight's own past for a delay (the state at each earlier horizon's start, kept for the
+    effect's longest delay). ``vehicles``: name -> :class:`proxplan.physics.Vehicle` in the plan's order."""
 
     effect: dict[str, Any]
     vehicles: dict[str, Any]
     amplitude: float
     past: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
 
-    def __call__(self, t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> np.ndarray:
+    def __call__(
+        self, t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         keep_s = _max_lag_s(self.effect) + 2.0 * float(t[-1] - t[0] + 1e-9)
         self.past = [p for p in self.past if p[0] >= t[0] - keep_s]
         times = np.array([p[0] for p in self.past] + list(t))
@@ -97,23 +92,25 @@ class _HiddenForce:
         inputs = motion_inputs(self.vehicles, {n: stacked[0][:, i] for i, n in enumerate(names)}, times,
                                {n: stacked[1][:, i] for i, n in enumerate(names)},
                                {n: stacked[2][:, i] for i, n in enumerate(names)})  # fmt: skip
-        out = np.zeros_like(pos)
+        force_N, torque_Nm = np.zeros_like(pos), np.zeros_like(pos)
         for i, n in enumerate(names):
-            out[:, i] = self.amplitude * hidden_wrench(self.effect, inputs[n])[0][-len(t) :]
-        return out
+            f, tq = hidden_wrench(self.effect, inputs[n])
+            force_N[:, i], torque_Nm[:, i] = self.amplitude * f[-len(t) :], self.amplitude * tq[-len(t) :]
+        return force_N, torque_Nm
 
 
 def make_set_closed_loop(spec: SetSpec, root: Path, amplitude: float | None) -> tuple[Path, dict[str, Any]]:
     """The set flown CLOSED LOOP (:func:`proxplan.flightsim.simulate_plan`: RotorPy dynamics under
     :data:`CLOSED_LOOP_CONTROLLER`, motor dynamics and IMU noise), clean when ``amplitude`` is None: each flight's
     scripted motions (:func:`_flight_motions`) become a plan the vehicles track, and the world's downwash is
-    the base model's. The effect (``spec.effect`` as :func:`closed_loop_effect` gives it) is a residual force
-    the simulator evaluates on the vehicles' own states as it flies them (:class:`_HiddenForce`, with their past
-    for a delay). The logs are what :func:`proxplan.flightsim.write_flight_logs` writes (commanded or delivered
+    the base model's. The effect (``spec.effect``, force and torque as drawn) is a residual wrench the simulator
+    evaluates on the vehicles' own states as it flies them (:class:`_HiddenWrench`, with their past for a
+    delay). The logs are what :func:`proxplan.flightsim.write_flight_logs` writes (commanded or delivered
     thrust as ``spec.commanded``); unlike :func:`discovery_world.make_set` they hold no thrust-map error
     (``spec.thrust_error`` is not applied). Returns the manifest and ``{"applied_mismatch": RMS of the force
-    applied minus the effect on the recorded states, over the effect's RMS, every vehicle and flight pooled (the
-    horizon's prediction and the past's sampling), -; "most_saturated_share": the largest share of samples any
+    applied minus the effect's on the recorded states, over the effect's RMS, every vehicle and flight pooled (the
+    horizon's prediction and the past's sampling), -; "applied_torque_mismatch": the same for the torque (0 for an
+    effect without one), -; "most_saturated_share": the largest share of samples any
     vehicle of any flight spent with a motor at a limit, -; "flyable": every vehicle of every flight under control
     (:func:`_under_control`); "redraws": per flight, the draw of its motions flown (:data:`MOTION_REDRAWS`: the
     clean set chooses them, the effect set is given them in ``spec.redraws``)}``."""
@@ -124,7 +121,8 @@ def make_set_closed_loop(spec: SetSpec, root: Path, amplitude: float | None) -> 
     sizes = {n: v.size_m for n, v in vehicles.items()}
     t = np.arange(0.0, spec.duration_s, DT_S)
     logged = "commanded" if spec.commanded else "actual"
-    manifest, left, size = root / "manifest.yaml", 0.0, 0.0  # squared force mismatch and effect, N^2
+    manifest = root / "manifest.yaml"
+    left, size = np.zeros(2), np.zeros(2)  # squared mismatch and effect: force N^2, torque (N m)^2
     saturated, redraws, flyable = 0.0, list(spec.redraws), True
     root.mkdir(parents=True, exist_ok=True)
     for k in range(spec.n_train + 1):
@@ -139,21 +137,22 @@ def make_set_closed_loop(spec: SetSpec, root: Path, amplitude: float | None) -> 
         redraws[k:] = [redraw]
         flyable = flyable and _under_control(flown)
         if amplitude is not None:
-            hidden = _HiddenForce(spec.effect, dict(zip(plan.vehicles, vehicles.values())), amplitude)
+            hidden = _HiddenWrench(spec.effect, dict(zip(plan.vehicles, vehicles.values())), amplitude)
             flown = simulate_plan(plan, seed=noise_seed, controller=CLOSED_LOOP_CONTROLLER,
-                                  perturbation=Perturbation(force_of_state=hidden))  # fmt: skip
-            t_rec, felt = _force_on_flown(spec, flown, amplitude)
+                                  perturbation=Perturbation(wrench_of_state=hidden))  # fmt: skip
+            _, felt = _wrench_on_flown(spec, flown, amplitude)
             for n, r in flown.records.items():
-                applied = r.applied_force_N - r.model_force_N
-                left += float(np.sum((felt[n] - applied) ** 2))
-                size += float(np.sum(felt[n] ** 2))
+                applied = (r.applied_force_N - r.model_force_N, r.applied_torque_Nm - r.model_torque_Nm)
+                for i in range(2):
+                    left[i] += float(np.sum((felt[n][i] - applied[i]) ** 2))
+                    size[i] += float(np.sum(felt[n][i] ** 2))
             flyable = flyable and _under_control(flown)
         saturated = max([saturated] + [float(np.mean(r.saturated)) for r in flown.records.values()])
         manifest = write_flight_logs(flown, root, flight_name=f"f{k}", split="test" if k == spec.n_train else "train",
                                      seed=noise_seed, logged_thrust=logged)  # fmt: skip
-    mismatch = float(np.sqrt(left / size)) if size > 0.0 else 0.0
-    return manifest, {"applied_mismatch": mismatch, "most_saturated_share": saturated, "flyable": flyable,
-                      "redraws": redraws}  # fmt: skip
+    force_mis, torque_mis = (float(np.sqrt(left[i] / size[i])) if size[i] > 0.0 else 0.0 for i in range(2))
+    return manifest, {"applied_mismatch": force_mis, "applied_torque_mismatch": torque_mis,
+                      "most_saturated_share": saturated, "flyable": flyable, "redraws": redraws}  # fmt: skip
 
 
 def _under_control(result: Any) -> bool:

@@ -154,9 +154,6 @@ def hidden_wrench(desc: dict[str, Any], inputs) -> tuple[np.ndarray, np.ndarray]
     later), on one vehicle's inputs."""
     from proxplan.physics import Effect, base_wrench, default_effect, effect_wrench
 
-    if desc.get("force_only"):  # the flown world applies a force only (:func:`discovery_flown.closed_loop_effect`)
-        force, _ = hidden_wrench({k: v for k, v in desc.items() if k != "force_only"}, inputs)
-        return force, np.zeros_like(force)
     n = inputs.n_samples
     force, torque = np.zeros((n, 3)), np.zeros((n, 3))
     fam = desc["family"]

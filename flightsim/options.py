@@ -50,12 +50,13 @@ class Perturbation:
     * ``estimate_error_m`` / ``estimate_error_mps``: error of the position / velocity estimate the
       controller sees, m and m/s. The controllers use only x - x_ref and v - v_ref, so an estimate
       x + n is flown exactly as the reference x_ref - n, which is how it is applied;
-    * ``force_of_state``: a residual force that depends on the flown state, or None. Called once per wrench
+    * ``wrench_of_state``: a residual wrench that depends on the flown state, or None. Called once per wrench
       horizon (``SimulationOptions.wrench_horizon_steps``), in time order, as ``f(t_s, position_m, velocity_mps,
       acceleration_mps2)`` with the horizon's times since the plan start (K,), s, and every vehicle's state
-      predicted over it (K, V, 3), world frame, m, m/s, m/s^2 (vehicles in the plan's order); returns (K, V, 3),
-      N, added to ``force_N``'s (applied and counted alike). A callable that needs the past (a delay) keeps it
-      from its earlier calls.
+      predicted over it (K, V, 3), world frame, m, m/s, m/s^2 (vehicles in the plan's order); returns the force
+      (K, V, 3), N, and the torque (K, V, 3), N m, world axes about the vehicle's centre of mass (the model's
+      wrench convention), added to the applied wrench (the force beside ``force_N``'s; applied and counted
+      alike). A callable that needs the past (a delay) keeps it from its earlier calls.
     """
 
     start_offset_m: Mapping[str, Sequence[float]] = field(default_factory=dict)
@@ -63,4 +64,6 @@ class Perturbation:
     force_N: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
     estimate_error_m: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
     estimate_error_mps: Mapping[str, Callable[[np.ndarray], np.ndarray]] = field(default_factory=dict)
-    force_of_state: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
+    wrench_of_state: (
+        Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None
+    ) = None

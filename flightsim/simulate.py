@@ -63,10 +63,11 @@ class _Flight:
     refs: FlightReferences
     predicted_force_N: np.ndarray  # (K, V, 3) the plan's predicted disturbance, world frame
     predicted_torque_Nm: np.ndarray  # (K, V, 3) world axes
-    extra_force_N: np.ndarray  # (K, V, 3) residual force beyond the model (perturbation)
+    extra_force_N: np.ndarray  # (K, V, 3) residual force beyond the model (perturbation), N, world
+    extra_torque_Nm: np.ndarray  # (K, V, 3) residual torque beyond the model (perturbation), N m, world axes
     start_offset_m: np.ndarray  # (V, 3)
     notes: tuple[str, ...]
-    force_of_state: Callable | None = None  # Perturbation.force_of_state: its force goes into extra_force_N
+    wrench_of_state: Callable | None = None  # Perturbation.wrench_of_state: into extra_force_N / extra_torque_Nm
 
     @property
     def t0_s(self) -> float:
@@ -147,7 +148,7 @@ def _prepare(
     return _Flight(
         plan, names, trajs, vehs, [quad_params(v) for v in vehs], tuple(truth.effects),
         ModelOptions(field_form=truth.field_form), truth, t_grid, log_every, refs, pred_f, pred_t, extra_f,
-        start, notes, pert.force_of_state,
+        np.zeros_like(extra_f), start, notes, pert.wrench_of_state,
     )  # fmt: skip
 
 
@@ -198,17 +199,20 @@ def _initial_stepper(flight: _Flight, options: SimulationOptions) -> CompiledSte
     return stepper
 
 
-def _add_force_of_state(
-    flight: _Flight, force_of_state: Callable, k: int, tau: np.ndarray, s: np.ndarray, acc: np.ndarray
+def _add_wrench_of_state(
+    flight: _Flight, wrench_of_state: Callable, k: int, tau: np.ndarray, s: np.ndarray, acc: np.ndarray
 ) -> None:
-    """Add ``force_of_state`` (:attr:`Perturbation.force_of_state`) over the horizon that starts at physics step
-    ``k`` (offsets ``tau`` (K,), s) to ``flight.extra_force_N``, on the states predicted from state ``s`` (V, 17)
-    and the acceleration estimate ``acc`` (V, 3) as :func:`proxplan.flightsim.wrench.fill_horizon` predicts them."""
+    """Add ``wrench_of_state`` (:attr:`Perturbation.wrench_of_state`) over the horizon that starts at physics step
+    ``k`` (offsets ``tau`` (K,), s) to ``flight.extra_force_N`` and ``flight.extra_torque_Nm``, on the states
+    predicted from state ``s`` (V, 17) and the acceleration estimate ``acc`` (V, 3) as
+    :func:`proxplan.flightsim.wrench.fill_horizon` predicts them."""
     n = min(len(tau), len(flight.t_grid_s) - k)
     tau = tau[:n]
     pos, vel = horizon_states(s[:, 0:3], s[:, 3:6], acc, tau)
     t = flight.t_grid_s[k : k + n] - flight.t0_s
-    flight.extra_force_N[k : k + n] += force_of_state(t, pos, vel, np.repeat(acc[None], n, axis=0))
+    force_N, torque_Nm = wrench_of_state(t, pos, vel, np.repeat(acc[None], n, axis=0))
+    flight.extra_force_N[k : k + n] += force_N
+    flight.extra_torque_Nm[k : k + n] += torque_Nm
 
 
 def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
@@ -238,8 +242,8 @@ def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
             if j == 0:
                 fill_horizon(buf_f, buf_t, s[:, 0:3], s[:, 3:6], acc_est, tau, flight.vehicles, flight.effects,
                              flight.model_options, options.ground_z_m)  # fmt: skip
-                if flight.force_of_state is not None:
-                    _add_force_of_state(flight, flight.force_of_state, k, tau, s, acc_est)
+                if flight.wrench_of_state is not None:
+                    _add_wrench_of_state(flight, flight.wrench_of_state, k, tau, s, acc_est)
             stepper.ref[:] = setpoints[k]
             if ki_rate > 0.0:
                 integral_ms += (s[:, 0:3] - setpoints[k][:, 0:3]) * dt
@@ -247,7 +251,7 @@ def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
                         out=integral_ms)  # fmt: skip
                 stepper.ref[:, 0:3] -= ki_rate * integral_ms
             stepper.ext_force_N[:] = buf_f[:, j] + flight.extra_force_N[k]
-            stepper.ext_torque_Nm[:] = buf_t[:, j]
+            stepper.ext_torque_Nm[:] = buf_t[:, j] + flight.extra_torque_Nm[k]
             if options.feedforward:
                 stepper.ff_force_N[:] = flight.predicted_force_N[k]
                 stepper.ff_torque_Nm[:] = flight.predicted_torque_Nm[k]
@@ -262,7 +266,8 @@ def _fly(flight: _Flight, options: SimulationOptions, progress: bool):
                     setpoint_position_m=setpoints[k][:, 0:3],
                     motor_thrust_N=k_eta * s[:, 13:17] ** 2, cmd_motor_thrust_N=stepper.cmd_thrust_N,
                     cmd_thrust_N=stepper.ctbm[:, 0], cmd_moment_Nm=stepper.ctbm[:, 1:4],
-                    applied_force_N=buf_f[:, j] + flight.extra_force_N[k], applied_torque_Nm=buf_t[:, j],
+                    applied_force_N=buf_f[:, j] + flight.extra_force_N[k],
+                    applied_torque_Nm=buf_t[:, j] + flight.extra_torque_Nm[k],
                 )  # fmt: skip
                 log.saturated[i] = stepper.saturated > 0.5
             acc_est = (stepper.next_state[:, 3:6] - s[:, 3:6]) / dt
@@ -318,7 +323,7 @@ def _result(
             )
     else:
         arr["model_force_N"][:] = arr["applied_force_N"] - flight.extra_force_N[::every][:n_logged]
-        arr["model_torque_Nm"][:] = arr["applied_torque_Nm"]
+        arr["model_torque_Nm"][:] = arr["applied_torque_Nm"] - flight.extra_torque_Nm[::every][:n_logged]
     t_log = (flight.t_grid_s[::every] - flight.t0_s)[:n_logged]
     growth = tube_growth if tube_growth is not None else _tube_growth(flight.plan)
     records = {
