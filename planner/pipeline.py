@@ -190,7 +190,7 @@ def _prepare(scenario: Scenario, run: _Run) -> tuple[Scenario, dict | None]:
     check_swarm_size(scenario)
     scenario, assignment = apply_assignment(scenario)
     check_starts_and_goals(scenario, mode=run.mode)
-    check_goal_tubes(scenario, mode=run.mode, margin_m=PLAN_MARGIN_M)
+    check_goal_tubes(scenario, mode=run.mode)  # the verifier's rule: no planner's search margin
     if run.mode == "downwash":
         check_goal_loops(scenario)  # a hold where the vehicle's loop in the jets is not damped
     return scenario, assignment

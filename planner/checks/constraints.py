@@ -23,7 +23,7 @@ Scalar Python math is used per state because OMPL calls the checker once per sta
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
@@ -330,6 +330,7 @@ def build_checker(
     until_margin_s: float = 0.0,
     tube: bool = True,
     extra_tube_m: Mapping[str, float] | None = None,
+    no_margin: Collection[str] = (),
 ) -> ConflictChecker:
     """The checker of vehicle ``name`` against ``tracks`` (other vehicles) for one ``mode``.
 
@@ -346,6 +347,8 @@ def build_checker(
     vehicle holds) leaves it out for tracks that rest too, as the verifier does for pairs at rest.
     ``extra_tube_m`` (m per vehicle name) grows a pair's tube by both vehicles' entries: their
     predicted deflections under the plan's own disturbance (the verifier adds them too).
+    ``no_margin``: the tracks (names) whose rules leave ``margin_m`` out (the verifier's rule: pairs a
+    planner searches without its margin, :func:`proxplan.planner.sampling.prioritized.margin_free`).
     """
     from proxplan.costmaps import effects_key
 
@@ -369,7 +372,8 @@ def build_checker(
         other = tr.vehicle
         deflection_m = extra.get(name, 0.0) + extra.get(tr.name, 0.0) if tube else 0.0
         pair_tube_m = tube_m + deflection_m
-        sep = max(lim.min_separation_m, rb + other.body_radius_m) + margin_m + pair_tube_m
+        pair_margin_m = 0.0 if tr.name in no_margin else margin_m
+        sep = max(lim.min_separation_m, rb + other.body_radius_m) + pair_margin_m + pair_tube_m
         cut_from = cut_on = ell = None
         form, fx = scenario.field_form, effects_key(getattr(scenario, "effects", ()))
         usage_from = usage_table(other, task.vehicle, field_form=form, effects=fx)
@@ -381,8 +385,10 @@ def build_checker(
                 task.vehicle, other, level=level, rule=lim.invalid_zone_rule, field_form=form, effects=fx
             )
         elif mode == "ellipsoid":
-            ell = rb + other.body_radius_m + margin_m + pair_tube_m
+            ell = rb + other.body_radius_m + pair_margin_m + pair_tube_m
         rules.append(
-            PairRule(tr, sep, cut_from, cut_on, ell, usage_from, margin_m, until_margin_s, pair_tube_m, deflection_m)
+            PairRule(
+                tr, sep, cut_from, cut_on, ell, usage_from, pair_margin_m, until_margin_s, pair_tube_m, deflection_m
+            )
         )
     return ConflictChecker(name, tuple(lo.tolist()), tuple(hi.tolist()), boxes, rules)

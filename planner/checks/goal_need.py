@@ -1,6 +1,6 @@
-"""How far a goal is from the keep-out it breaks, and how far that keep-out reaches at rest, with the tracking
-tube and with the search margin (:func:`pair_need`): the figures :func:`proxplan.planner.checks.precheck.
-check_goal_tubes` names in its error."""
+"""How far a goal is from the keep-out it breaks, and how far that keep-out reaches at rest and grown by the
+tracking tube (:func:`pair_need`): the figures :func:`proxplan.planner.checks.precheck.check_goal_tubes` names in
+its error."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ __all__ = ["PairNeed", "pair_need"]
 @dataclass(frozen=True)
 class PairNeed:
     """How far a goal lies from another vehicle's final position and how far the keep-out it breaks
-    reaches there: at rest, grown by the tracking tube, and grown by the tube and the search margin, m.
+    reaches there: at rest, and grown by the tracking tube (the verifier's rule while either moves), m.
     ``lateral``: the keep-out is a downwash cut-off (horizontal distances at ``dz_m``); else the
     separation sphere (3-D distance) or the keep-out ellipsoid (radius against the distance with its
     vertical part divided by 3, the ellipsoid's 3 r semi-axis)."""
@@ -27,7 +27,6 @@ class PairNeed:
     dz_m: float  # height of the other vehicle above this one (negative: below), m
     rest_m: float  # the keep-out's reach at rest, m
     tube_m: float  # grown by the tracking tube (what the verifier applies while either moves), m
-    searched_m: float  # grown by the tube and the search margin (what the check applied), m
 
     def text(self, other: str) -> str:
         if self.lateral:
@@ -36,8 +35,8 @@ class PairNeed:
         else:
             what = f"{self.distance_m:.3f} m from {other}'s final position"
         return (
-            f"it is {what}; the pair needs {self.searched_m:.3f} m ({self.rest_m:.3f} m at rest, "
-            f"{self.tube_m:.3f} m with the tube alone), {self.searched_m - self.distance_m:.3f} m more"
+            f"it is {what}; the pair needs {self.tube_m:.3f} m ({self.rest_m:.3f} m at rest), "
+            f"{self.tube_m - self.distance_m:.3f} m more"
         )
 
     def details(self) -> dict:
@@ -45,9 +44,8 @@ class PairNeed:
             "distance_m": round(self.distance_m, 6),
             "distance_is_lateral": self.lateral,
             "dz_m": round(self.dz_m, 6),
-            "needed_m": round(self.searched_m, 6),
+            "needed_m": round(self.tube_m, 6),
             "needed_at_rest_m": round(self.rest_m, 6),
-            "needed_with_tube_m": round(self.tube_m, 6),
         }
 
 
@@ -60,7 +58,6 @@ def pair_need(
     other_m: np.ndarray,
     *,
     mode: str,
-    margin_m: float,
 ) -> PairNeed:
     """:class:`PairNeed` of ``name``'s goal against vehicle ``other`` of ``bad`` (the constraint
     :func:`check_goal_tubes` found broken) resting at ``other_m``, from the same :func:`build_checker`
@@ -70,8 +67,8 @@ def pair_need(
     dz = float(rel[2])
     lateral = bad.startswith("downwash")
     reach = []
-    for tube, m in ((False, 0.0), (True, 0.0), (True, margin_m)):
-        rule = build_checker(scenario, name, [track], mode=mode, tube=tube, margin_m=m).rules[0]
+    for tube in (False, True):
+        rule = build_checker(scenario, name, [track], mode=mode, tube=tube).rules[0]
         if lateral:
             table = rule.cut_from_other if bad.startswith("downwash of") else rule.cut_on_other
             reach.append(0.0 if table is None else rule.cutoff_m(table, abs(dz)))
@@ -83,4 +80,4 @@ def pair_need(
         dist = float(np.sqrt(rel[0] ** 2 + rel[1] ** 2 + (rel[2] / 3.0) ** 2))
     else:
         dist = float(np.linalg.norm(rel))
-    return PairNeed(lateral, dist, dz, reach[0], reach[1], reach[2])
+    return PairNeed(lateral, dist, dz, reach[0], reach[1])

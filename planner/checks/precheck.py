@@ -11,16 +11,23 @@ violation of the planner's pair rules (downwash cut-offs both ways, keep-out ell
 ``--method``) is an :class:`InfeasibleError` naming the vehicle and the constraint, with the same
 verdicts as the per-state checker (:func:`proxplan.planner.checks.validity.rule_kind`).
 
-A goal is reached *moving*: while a vehicle flies, the planner and the verifier grow every keep-out
-(separation, downwash cut-off, invalid zone) by the tracking tube ``limits.tracking_margin_m``.
-A goal that is valid at rest but inside such a grown keep-out cannot be approached at all;
-:func:`check_goal_tubes` says so before any search, naming the vehicle, the source of the keep-out,
-how far the goal lies inside it and the nearest goal clear of it (one vectorised check of candidate
-points on spheres around the goal).
+A goal is reached *moving*: while either vehicle of a pair flies, the verifier grows the pair's
+keep-out (separation, downwash cut-off, invalid zone) by the tracking tube ``limits.tracking_margin_m``
+(``verify/pair_checks.py``, ``check_pairs``), and so does the planners' checker. Of two goals the
+later arrival is made moving, so a goal valid at rest but inside the keep-out of another vehicle's
+final position grown by the tube fails the verifier whatever the plan; :func:`check_goal_tubes` says
+so before any search, naming the vehicle, the source of the keep-out, how far the goal lies inside it
+and the nearest goal clear of it (one vectorised check of candidate points on spheres around the
+goal). The rule is :func:`rest_pair_conflicts`, the verifier's: the tube and no more. A planner that
+searches with a margin of its own (the sampling planner's ``PLAN_MARGIN_M``) imports the same rule
+to find the pairs that only its margin would keep apart at a goal or a start, and searches those
+with the verifier's rule (issue 37, round 37Z).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +35,7 @@ import numpy as np
 from proxplan.fileio import UserError
 from proxplan.physics import Vehicle
 from proxplan.planfile import MAX_VEHICLES, Scenario
-from proxplan.planner.checks.constraints import MODES, Track, build_checker, cutoff_table
+from proxplan.planner.checks.constraints import MODES, ConflictChecker, Track, build_checker, cutoff_table
 from proxplan.planner.checks.goal_need import pair_need
 from proxplan.planner.checks.validity import BatchChecker, bracket_table, cutoff_lookup, rule_kind, stack_tables
 from proxplan.planner.errors import InfeasibleError
@@ -43,6 +50,7 @@ __all__ = [
     "check_starts_and_goals",
     "check_swarm_size",
     "nearest_clear_goal",
+    "rest_pair_conflicts",
 ]
 
 
@@ -78,12 +86,45 @@ def nearest_clear_goal(batch: BatchChecker, goal_m: np.ndarray) -> np.ndarray | 
     return None if ok.size == 0 else pts[ok[0]]
 
 
-def check_goal_tubes(scenario: Scenario, *, mode: str, margin_m: float = 0.0) -> None:
-    """InfeasibleError for the first goal that is valid at rest but lies inside another vehicle's
-    keep-out grown by the tracking tube (the vehicle arrives moving, so the tube applies), with
-    ``details``: the other vehicle, the tube, how far the goal must move, the nearest clear goal.
-    Keep-outs include ``margin_m`` (m), the margin the planner searches with (a goal inside it is
-    one the search cannot reach)."""
+def rest_pair_conflicts(
+    scenario: Scenario,
+    name: str,
+    point_m: np.ndarray,
+    others_m: Mapping[str, np.ndarray],
+    *,
+    mode: str,
+    margin_m: float = 0.0,
+    extra_tube_m: Mapping[str, float] | None = None,
+) -> dict[str, str]:
+    """The vehicles of ``others_m`` (name -> where it rests, m) whose keep-out holds ``name`` at
+    ``point_m`` (3,), m, while either of the two moves, each with the constraint broken (named as
+    ``ConflictChecker.conflict`` names it), in the order of ``others_m``: the verifier's rule for a
+    pair of which one arrives at, or leaves, its resting point (the keep-out grown by the tracking
+    tube ``limits.tracking_margin_m`` and by both vehicles' ``extra_tube_m``, their predicted
+    deflections, m), grown by ``margin_m`` (m; 0: the verifier's rule alone). Pairs only; the
+    workspace and obstacles are not checked here."""
+    point = np.asarray(point_m, dtype=float)
+    tracks = [
+        Track.static(o, scenario.vehicles[o].vehicle, np.asarray(p, dtype=float))
+        for o, p in others_m.items()
+        if o != name
+    ]
+    chk = build_checker(scenario, name, tracks, mode=mode, tube=True, margin_m=margin_m, extra_tube_m=extra_tube_m)
+    free = (-math.inf,) * 3, (math.inf,) * 3
+    out = {}
+    for rule in chk.rules:
+        bad = ConflictChecker(name, free[0], free[1], [], [rule]).conflict(*(float(c) for c in point), 0.0)
+        if bad is not None:
+            out[rule.track.name] = bad
+    return out
+
+
+def check_goal_tubes(scenario: Scenario, *, mode: str) -> None:
+    """InfeasibleError for the first goal that is valid at rest but lies inside the keep-out of
+    another vehicle's final position grown by the tracking tube (:func:`rest_pair_conflicts`, the
+    verifier's rule while either moves: the later of the two arrives moving), with ``details``: the
+    other vehicle, the tube, how far the goal must move, the nearest clear goal. No planner's search
+    margin: a goal the verifier can pass is not rejected here."""
     tube = float(scenario.limits.tracking_margin_m)
     if tube <= 0.0:
         return
@@ -91,21 +132,19 @@ def check_goal_tubes(scenario: Scenario, *, mode: str, margin_m: float = 0.0) ->
     for name, task in scenario.vehicles.items():
         if task.hover or task.dock_with is not None or task.goal_m is None:
             continue  # docks meet on purpose (exempt on their approach); hovering vehicles do not arrive
-        others = [
-            Track.static(o, scenario.vehicles[o].vehicle, p)
-            for o, p in final.items()
-            if o != name and scenario.vehicles[o].dock_with != name
-        ]
-        batch = BatchChecker.from_checker(
-            build_checker(scenario, name, others, mode=mode, tube=True, margin_m=margin_m)
-        )
+        others = {o: p for o, p in final.items() if o != name and scenario.vehicles[o].dock_with != name}
         goal = np.asarray(task.goal_m, dtype=float)
-        _, bad = batch.first_conflict(goal[None, :], np.zeros(1))
-        if bad is None or bad == "workspace" or bad.startswith("obstacle"):
+        checker = build_checker(
+            scenario, name, [Track.static(o, scenario.vehicles[o].vehicle, p) for o, p in others.items()], mode=mode
+        )
+        if checker.static_conflict(*(float(c) for c in goal)) is not None:
+            continue  # outside the workspace or in an obstacle: the planner names it
+        hits = rest_pair_conflicts(scenario, name, goal, others, mode=mode)
+        if not hits:
             continue
-        other = bad.split(" ")[-1]
-        need = pair_need(scenario, name, other, bad, goal, final[other], mode=mode, margin_m=margin_m)
-        clear = nearest_clear_goal(batch, goal)
+        other, bad = next(iter(hits.items()))
+        need = pair_need(scenario, name, other, bad, goal, final[other], mode=mode)
+        clear = nearest_clear_goal(BatchChecker.from_checker(checker), goal)
         shift = None if clear is None else float(np.linalg.norm(clear - goal))
         where = f"{scenario.source_path}: vehicles.{name}.goal: " if scenario.source_path else ""
         suggestion = (
@@ -117,16 +156,14 @@ def check_goal_tubes(scenario: Scenario, *, mode: str, margin_m: float = 0.0) ->
             name,
             bad,
             f"{where}vehicle {name!r}: its goal {np.round(goal, 4).tolist()} is clear at rest but inside the "
-            f"'{bad}' keep-out grown by the tracking tube (limits.tracking_margin_m = {tube:g} m"
-            + (f", plus the planner's {margin_m:g} m search margin" if margin_m > 0 else "")
-            + f"), which applies while it arrives; {need.text(other)}; {suggestion}",
+            f"'{bad}' keep-out grown by the tracking tube (limits.tracking_margin_m = {tube:g} m), which applies "
+            f"while it arrives; {need.text(other)}; {suggestion}",
             details={
                 "kind": "goal-in-tube",
                 "vehicle": name,
                 "other_vehicle": other,
                 "constraint": bad,
                 "tracking_margin_m": tube,
-                "search_margin_m": margin_m,
                 "goal_m": goal.tolist(),
                 "shortfall_m": shift,
                 "suggested_goal_m": None if clear is None else np.round(clear, 4).tolist(),

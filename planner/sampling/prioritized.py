@@ -12,6 +12,15 @@ cannot be planned, :func:`proxplan.planner.sampling.ordering.promote` moves it b
 that blocked it and planning restarts (the vehicles in front keep their plans); after
 ``MAX_REORDERS`` re-orderings :class:`InfeasibleError` names the vehicle and constraint.
 
+The search keeps ``PLAN_MARGIN_M`` more than the nominal keep-outs (a search device: its timed
+trajectory is re-checked with the nominal rules, which sample the motion differently), except against
+the vehicles of :func:`margin_free` (issue 37, round 37Z): where the margin alone would keep the pair
+apart at the vehicle's goal (the other resting at its final position) or at its start, the margin
+would forbid an arrival or a departure the verifier passes, so that pair is searched with the
+nominal rule, the verifier's (``proxplan.planner.checks.precheck.rest_pair_conflicts``, the rule the
+pipeline's pre-check applies before any search). Every timed trajectory is re-checked with the
+nominal rules and every plan verified, as before.
+
 Docking: the search ends at an approach point on the dock axis, outside the source's invalid zone
 (dz > 3 L, S0 II-A); the final straight approach to the dock at ``DOCK_SPEED_FACTOR`` of the limits
 crosses the invalid zone, where the cutoff rule is suspended for the dock pair only (the two must
@@ -21,12 +30,14 @@ meet there).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
 from proxplan.physics import KinematicLimits
 from proxplan.planfile import Plan, Scenario
 from proxplan.planner.checks.constraints import Track, build_checker
+from proxplan.planner.checks.precheck import rest_pair_conflicts
 from proxplan.planner.checks.validity import BatchChecker
 from proxplan.planner.errors import InfeasibleError, PlanNotFound
 from proxplan.planner.sampling.ordering import priority_order, promote
@@ -90,7 +101,14 @@ def plan_order(
         ]
         extra = options.deflection_m
         checker = build_checker(
-            scenario, name, others, mode=mode, margin_m=PLAN_MARGIN_M, until_margin_s=PLAN_MARGIN_S, extra_tube_m=extra
+            scenario,
+            name,
+            others,
+            mode=mode,
+            margin_m=PLAN_MARGIN_M,
+            until_margin_s=PLAN_MARGIN_S,
+            extra_tube_m=extra,
+            no_margin=margin_free(scenario, name, mode=mode, extra_tube_m=extra),
         )
         nominal = build_checker(scenario, name, others, mode=mode, extra_tube_m=extra)
         bad = start_conflict(nominal, task.start_m)
@@ -186,6 +204,28 @@ def plan_order(
         timed[name] = accepted
         tracks[name] = _track_of(name, task, accepted)
     return timed, info
+
+
+def margin_free(
+    scenario: Scenario, name: str, *, mode: str, extra_tube_m: Mapping[str, float] | None = None
+) -> frozenset[str]:
+    """The other vehicles that ``name`` is searched against without ``PLAN_MARGIN_M`` (module
+    docstring): those whose keep-out while either moves (the verifier's rule,
+    :func:`~proxplan.planner.checks.precheck.rest_pair_conflicts`, with the predicted deflections
+    ``extra_tube_m``, m) grown by the margin holds ``name``'s goal where they end, or ``name``'s start
+    where they start. Empty where no goal or start lies within a margin of another vehicle's."""
+    task = scenario.vehicles[name]
+    if task.hover:
+        return frozenset()
+    others = [o for o in scenario.vehicles if o != name]
+    rule = dict(mode=mode, margin_m=PLAN_MARGIN_M, extra_tube_m=extra_tube_m)
+    out = set(
+        rest_pair_conflicts(scenario, name, task.start_m, {o: scenario.vehicles[o].start_m for o in others}, **rule)
+    )
+    if task.dock_with is None and task.goal_m is not None:
+        final = {o: scenario.final_position_m(o) for o in others if scenario.vehicles[o].dock_with != name}
+        out |= set(rest_pair_conflicts(scenario, name, task.goal_m, final, **rule))
+    return frozenset(out)
 
 
 def _arrival_s(tp: TimedPath) -> float:

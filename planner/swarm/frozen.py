@@ -9,7 +9,7 @@ search spends its whole budget first (random-3-64 of the bench's family: two tri
 0.584 m apart horizontally at 0.716 m height difference, rest keep-out 0.565 m, moving 0.587 m). The
 verifier is less strict at the plan's start: every vehicle's predicted tracking error is zero there, and
 the tube it adds while moving is the scenario's ``tracking_margin_m`` (the swarm keep-outs add the bound on
-the tracking error at rest and moving alike).
+the tracking error while moving, and at rest the bound while held, which is smaller: round 37Z).
 
 The *unfreeze step* (:func:`plan_unfreeze`): before the swarm plan, a few vehicles (a greedy cover of the
 frozen pairs) each fly one short straight rest-to-rest move horizontally away from their frozen partners,

@@ -14,7 +14,9 @@ invalid-zone rule (:func:`proxplan.planner.checks.constraints.cutoff_table`, the
 growth that covers how positions are compared: whole millimetres in the synchronous table,
 :data:`proxplan.planner.swarm.problem.GROWTH_M`); at rest (both vehicles hold still) w = 0, as
 the verifier leaves the tube out for resting pairs. A pair's predicted deflections (a vehicle
-pushed off its plan by the downwash it flies in) grow both, as in the verifier.
+pushed off its plan by the downwash it flies in, or off its reference by its tracking error) grow
+both, as in the verifier, each by what it can be while moving and while held
+(``deflection_m``, ``rest_deflection_m`` of :func:`keepout_for`).
 
 **Where the jet undamps the loop** (:func:`undamped_radius_m`; issue 37, round 18A). The cut-off
 bounds the authority the jet uses, not what it does to the target's closed loop: right below a
@@ -90,6 +92,7 @@ class KeepOut:
     b_on_a: np.ndarray  # grown r_cut of b (above) on a (below), moving, m
     a_on_b_rest: np.ndarray
     b_on_a_rest: np.ndarray
+    deflection_m: float = 0.0  # the pair's deflections while moving (part of w_move_m), m
 
     @property
     def reach_xy_m(self) -> float:
@@ -293,11 +296,13 @@ def keepout_for(
     effects: tuple,
     sample_m: float,
     deflection_m: float = 0.0,
+    rest_deflection_m: float | None = None,
     undamped_level: float | None = None,
 ) -> KeepOut:
     """The :class:`KeepOut` of physics vehicles (a, b) under scenario ``limits``; ``deflection_m``
-    (m) grows it moving and at rest alike (the two vehicles' predicted deflections: a disturbed
-    vehicle is off its plan at rest too, as the verifier counts it). The zones where the jet undamps
+    (m) grows it while either moves, ``rest_deflection_m`` (m; None: ``deflection_m``) while both
+    rest (the two vehicles' predicted deflections: a disturbed vehicle is off its plan at rest too,
+    as the verifier counts it, by what it can be there). The zones where the jet undamps
     the target's loop are those of :func:`undamped_radius_m` at ``undamped_level`` (None: the
     authority fraction of ``limits``; a keep-out at a stricter level passes the scenario's, whose
     table it shares)."""
@@ -312,7 +317,7 @@ def keepout_for(
     )
     sep = max(limits.min_separation_m, vehicle_a.body_radius_m + vehicle_b.body_radius_m)
     w_move = float(limits.tracking_margin_m) + sample_m + deflection_m
-    w_rest = deflection_m
+    w_rest = deflection_m if rest_deflection_m is None else float(rest_deflection_m)
     r_ab, r_ba = np.asarray(ab.r_cut_m), np.asarray(ba.r_cut_m)
     # the zones where the jet undamps the target's loop (module), at the planned relative positions
     fx = dict(
@@ -332,6 +337,7 @@ def keepout_for(
         b_on_a=_with_zone(_grown(r_ba, ba.dz_step_m, w_move), z_ba, ba.dz_step_m, sample_m),
         a_on_b_rest=_with_zone(_grown(r_ab, ab.dz_step_m, w_rest), z_ab, ab.dz_step_m, sample_m),
         b_on_a_rest=_with_zone(_grown(r_ba, ba.dz_step_m, w_rest), z_ba, ba.dz_step_m, sample_m),
+        deflection_m=float(deflection_m),
     )
 
 

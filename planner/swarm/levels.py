@@ -116,7 +116,8 @@ def stacking_keepouts(
             field_form=field_form,
             effects=effects,
             sample_m=GROWTH_M,
-            deflection_m=ko.w_rest_m,
+            deflection_m=ko.deflection_m,
+            rest_deflection_m=ko.w_rest_m,
             undamped_level=limits.authority_fraction,
         )
     return out

@@ -3,7 +3,8 @@ goals, kinematic limits, pairwise keep-outs and the static free space.
 
 World frame, z up, m. Agents are indexed in the scenario's file order; ``type_index`` maps each
 agent to its vehicle type (one :class:`~proxplan.planner.swarm.keepout.KeepOut` per ordered type
-pair). Keep-outs are grown by the tracking tube (while either vehicle moves) and by
+pair). Keep-outs are grown by the tracking tube (while either vehicle moves), by the bounds on the
+two vehicles' tracking errors (moving, or held: :func:`swarm_problem`) and by
 ``GROWTH_M`` (rounding of positions to whole millimetres in the conflict tables); the static free
 space is the workspace shrunk, and the obstacles inflated, by the widest body, the tube and the
 obstacle margin (:func:`proxplan.planner.checks.constraints.build_checker`).
@@ -114,13 +115,15 @@ def swarm_applicable(scenario: Scenario) -> str | None:
     return None
 
 
-def tracking_growth_m(scenario: Scenario) -> dict[str, float]:
+def tracking_growth_m(scenario: Scenario, *, held: bool = False) -> dict[str, float]:
     """Per vehicle the bound on the tracking error the verifier will predict for it in any plan
     the swarm layer can time, m (:func:`proxplan.planner.swarm.tracking_bound.tracking_bound_m`: its
     type's moves at its own limits and at every group's common limits, up to the workspace's
-    diagonal)."""
-    from proxplan.planner.swarm.tracking_bound import group_limits, tracking_bound_m
+    diagonal); ``held``: the bound while it is held, after its last move ended
+    (:func:`~proxplan.planner.swarm.tracking_bound.held_bound_m`, at most the other)."""
+    from proxplan.planner.swarm.tracking_bound import group_limits, held_bound_m, tracking_bound_m
 
+    bound = held_bound_m if held else tracking_bound_m
     every = [t.kinematic_limits for t in scenario.vehicles.values()]
     longest = float(np.linalg.norm(np.asarray(scenario.workspace_max_m) - np.asarray(scenario.workspace_min_m)))
     out = {}
@@ -128,7 +131,7 @@ def tracking_growth_m(scenario: Scenario) -> dict[str, float]:
         if task.hover:  # a hovering vehicle never moves: no tracking error along a reference
             continue
         limits = tuple(group_limits(every, task.kinematic_limits))
-        out[name] = tracking_bound_m(task.vehicle, limits, round(longest, 3))
+        out[name] = bound(task.vehicle, limits, round(longest, 3))
     return out
 
 
@@ -143,10 +146,18 @@ def swarm_problem(
     assignment); hovering vehicles keep their start as goal and are pinned. Each vehicle's tube
     grows by the larger of ``deflection_m`` (m per vehicle name: its predicted deflection in a plan
     made before) and, with ``tracking_bound``, the bound on its predicted tracking error in any plan
-    the swarm layer can time (:func:`tracking_growth_m`), moving and at rest: as in the verifier a
-    pair's keep-out grows by the sum of its two vehicles' growths; keep-outs are per pair of types,
-    so each type counts with the largest growth of its vehicles
-    (:func:`~proxplan.planner.swarm.keepout.keepout_for`)."""
+    the swarm layer can time (:func:`tracking_growth_m`): as in the verifier a pair's keep-out grows
+    by the sum of its two vehicles' growths, moving and at rest (the verifier adds both vehicles'
+    predicted deflections at every sample, ``verify.pair_checks.check_pairs``); keep-outs are per pair
+    of types, so each type counts with the largest growth of its vehicles
+    (:func:`~proxplan.planner.swarm.keepout.keepout_for`).
+
+    At rest the growth is the verifier's at-rest rule (issue 37, round 37Z): the pair's keep-out
+    without the tube (the verifier adds ``tracking_margin_m`` only while either vehicle moves), grown
+    by the two vehicles' deflections there: ``deflection_m`` (a prediction, which the verifier adds at
+    rest too) or, the larger, the bound on the tracking error of a vehicle *held* after its last move
+    (``tracking_growth_m(held=True)``, B_held of :mod:`~proxplan.planner.swarm.tracking_bound`), not the
+    bound while it moves: two vehicles held at rest are both past the end of their moves."""
     from proxplan.costmaps import effects_key
     from proxplan.planner.checks.constraints import build_checker
 
@@ -160,10 +171,14 @@ def swarm_problem(
             index[v] = len(vehicles)
             vehicles.append(v)
         types.append(index[v])
-    grow = [0.0] * len(vehicles)  # per type: the largest growth of its vehicles' tubes, m
+    grow = [0.0] * len(vehicles)  # per type: the largest growth of its vehicles' tubes while moving, m
+    held = [0.0] * len(vehicles)  # per type: the same while held (at rest), m
     tracking = tracking_growth_m(scenario) if tracking_bound else {}
+    tracking_held = tracking_growth_m(scenario, held=True) if tracking_bound else {}
     for n, t in zip(names, types):
-        grow[t] = max(grow[t], float((deflection_m or {}).get(n, 0.0)), tracking.get(n, 0.0))
+        predicted = float((deflection_m or {}).get(n, 0.0))
+        grow[t] = max(grow[t], predicted, tracking.get(n, 0.0))
+        held[t] = max(held[t], predicted, tracking_held.get(n, 0.0))
     fx = effects_key(getattr(scenario, "effects", ()))
     keep = {
         (ia, ib): keepout_for(
@@ -174,6 +189,7 @@ def swarm_problem(
             effects=fx,
             sample_m=GROWTH_M,
             deflection_m=grow[ia] + grow[ib],
+            rest_deflection_m=held[ia] + held[ib],
         )
         for ia, va in enumerate(vehicles)
         for ib, vb in enumerate(vehicles)

@@ -41,6 +41,19 @@ left then is at most 0.4 mm per move on the family of the built-in types). The h
 (the loop's modal bound) is the floor. The family is finite: the bound is the maximum over it (a
 denser one, 16 distances counted for 8 s, gave 2.46 cm against 2.43 cm for a Crazyflie 2.1).
 
+**While the vehicle is held** (:func:`held_bound_m`; issue 37, round 37Z). The verifier grows a pair's
+keep-out by the tube only while either vehicle moves, but by both vehicles' predicted deflections at
+every sample, at rest too (:func:`proxplan.verify.pair_checks.check_pairs`: tube = tracking_margin_m
+while moving + d_a + d_b). A vehicle the swarm layer holds (between moves, at its goal) is past the
+end of its last move, so its tracking error there is bounded by the same programme with the last move
+m counted only from its end on:
+
+    B_held = max over moves m and times i >= E_m of  n_m(i) + F(i),
+
+and the hold after the plan's end (the verifier's last sample) as the floor; before its first move a
+vehicle's error is zero. B_held <= B: the swarm layer's keep-out between two held vehicles grows by
+their two B_held, not by their B (:func:`proxplan.planner.swarm.problem.swarm_problem`).
+
 World frame; m, s.
 """
 
@@ -89,7 +102,7 @@ DIRECTIONS = (  # unit vectors: x, the horizontal diagonal (the heading turns mo
     (0.0, 0.0, 1.0),
 )
 
-__all__ = ["TRACKING_BOUND_RESOLUTION_M", "chain_bound_m", "group_limits", "tracking_bound_m"]
+__all__ = ["TRACKING_BOUND_RESOLUTION_M", "chain_bound_m", "group_limits", "held_bound_m", "tracking_bound_m"]
 
 
 def full_speed_distance_m(limits: KinematicLimits) -> float:
@@ -147,10 +160,11 @@ def _move_error_m(vehicle: Vehicle, limits: KinematicLimits, delta_m: np.ndarray
     return norm, int(round((end - start) / VERIFY_DT_S)), float(resp.hold_error_m)
 
 
-def chain_bound_m(norms_m: list[np.ndarray], durations: np.ndarray) -> float:
+def chain_bound_m(norms_m: list[np.ndarray], durations: np.ndarray, *, held: bool = False) -> float:
     """The largest sum of error norms of a chain of moves (module docstring): ``norms_m`` each
     move's error norm alone, m, by samples since its start (zero after its last sample);
-    ``durations`` (M,) in samples."""
+    ``durations`` (M,) in samples. ``held``: only at times after the chain's last move ended
+    (i >= E_m, the vehicle held: B_held of the module docstring)."""
     h = max(n.size for n in norms_m)
     table = np.zeros((len(norms_m), h))
     for k, n in enumerate(norms_m):
@@ -164,14 +178,19 @@ def chain_bound_m(norms_m: list[np.ndarray], durations: np.ndarray) -> float:
         if ok.any():
             best = max(best, float((table[ok, idx[ok]] + f[idx[ok]]).max()))
         f[u] = best
-    return float((table + f[None, :h]).max())
+    total = table + f[None, :h]
+    if held:
+        total = np.where(np.arange(h)[None, :] >= dur[:, None], total, 0.0)
+    return float(total.max())
 
 
 @functools.lru_cache(maxsize=64)
-def tracking_bound_m(vehicle: Vehicle, limits: tuple[KinematicLimits, ...], longest_m: float) -> float:
-    """The bound (module docstring), m, for ``vehicle`` flying moves of up to ``longest_m`` (m) at
-    any of ``limits`` (:func:`group_limits`), rounded up to :data:`TRACKING_BOUND_RESOLUTION_M` (the same float
-    whatever numpy's SIMD kernels)."""
+def _family_errors(
+    vehicle: Vehicle, limits: tuple[KinematicLimits, ...], longest_m: float
+) -> tuple[tuple[np.ndarray, ...], np.ndarray, float]:
+    """The family's moves (module docstring) of ``vehicle`` at any of ``limits``, up to ``longest_m``
+    (m): each move's error norm alone (m, by samples since its start), durations (samples) and the
+    largest hold bound after a move (m). Cached per process (both bounds read it)."""
     norms, durations, holds = [], [], []
     for lim in limits:
         for dist in family_distances_m(lim, longest_m):
@@ -180,4 +199,22 @@ def tracking_bound_m(vehicle: Vehicle, limits: tuple[KinematicLimits, ...], long
                 norms.append(n)
                 durations.append(e)
                 holds.append(hold)
-    return rounded_up(max(chain_bound_m(norms, np.array(durations)), max(holds)), TRACKING_BOUND_RESOLUTION_M)
+    return tuple(norms), np.array(durations), max(holds)
+
+
+@functools.lru_cache(maxsize=64)
+def tracking_bound_m(vehicle: Vehicle, limits: tuple[KinematicLimits, ...], longest_m: float) -> float:
+    """The bound (module docstring), m, for ``vehicle`` flying moves of up to ``longest_m`` (m) at
+    any of ``limits`` (:func:`group_limits`), rounded up to :data:`TRACKING_BOUND_RESOLUTION_M` (the same float
+    whatever numpy's SIMD kernels)."""
+    norms, durations, hold = _family_errors(vehicle, limits, longest_m)
+    return rounded_up(max(chain_bound_m(list(norms), durations), hold), TRACKING_BOUND_RESOLUTION_M)
+
+
+@functools.lru_cache(maxsize=64)
+def held_bound_m(vehicle: Vehicle, limits: tuple[KinematicLimits, ...], longest_m: float) -> float:
+    """B_held (module docstring), m: the bound on ``vehicle``'s tracking error while it is held after
+    any chain of the family's moves (as :func:`tracking_bound_m`, the last move counted from its end
+    on; the hold after the plan's end the floor), rounded up alike; at most :func:`tracking_bound_m`."""
+    norms, durations, hold = _family_errors(vehicle, limits, longest_m)
+    return rounded_up(max(chain_bound_m(list(norms), durations, held=True), hold), TRACKING_BOUND_RESOLUTION_M)
