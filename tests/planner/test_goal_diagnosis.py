@@ -14,7 +14,6 @@ import yaml
 from proxplan.planfile import load_scenario, scenario_from_dict
 from proxplan.planner import InfeasibleError
 from proxplan.planner.checks.precheck import check_goal_tubes, check_starts_and_goals
-from proxplan.planner.sampling import PLAN_MARGIN_M
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -37,7 +36,7 @@ def test_goal_on_the_cutoff_edge_is_named_with_the_nearest_clear_goal():
     scenario = _stack([0.14, 0.0, 0.6])  # the old neural-swarm-stack goal
     check_starts_and_goals(scenario, mode="downwash")  # clear at rest
     with pytest.raises(InfeasibleError) as info:
-        check_goal_tubes(scenario, mode="downwash", margin_m=PLAN_MARGIN_M)
+        check_goal_tubes(scenario, mode="downwash")
     err = info.value
     assert err.vehicle == "low" and "top" in err.constraint
     d = err.details
@@ -47,11 +46,11 @@ def test_goal_on_the_cutoff_edge_is_named_with_the_nearest_clear_goal():
     assert 0.0 < d["shortfall_m"] < 0.2
     assert str(np.round(suggested, 3).tolist()) in err.message and "\n" not in err.message
     # the suggestion passes the same check (no error), the original does not
-    check_goal_tubes(_stack(suggested), mode="downwash", margin_m=PLAN_MARGIN_M)
+    check_goal_tubes(_stack(suggested), mode="downwash")
 
 
 def test_without_a_tube_the_same_goal_is_accepted():
-    check_goal_tubes(_stack([0.14, 0.0, 0.6], tube=0.0), mode="downwash", margin_m=PLAN_MARGIN_M)
+    check_goal_tubes(_stack([0.14, 0.0, 0.6], tube=0.0), mode="downwash")
 
 
 def test_the_shipped_neural_swarm_stack_has_no_special_case_and_a_clear_goal():
@@ -60,7 +59,7 @@ def test_the_shipped_neural_swarm_stack_has_no_special_case_and_a_clear_goal():
     assert "tracking_margin_m" not in doc["limits"]
     scenario = load_scenario(path)
     assert scenario.limits.tracking_margin_m > 0.0
-    check_goal_tubes(scenario, mode="downwash", margin_m=PLAN_MARGIN_M)
+    check_goal_tubes(scenario, mode="downwash")
 
 
 def test_cli_reports_the_diagnosis_in_one_line_and_json(tmp_path, capsys):
