@@ -111,9 +111,10 @@ def rest_pair_conflicts(
     ]
     chk = build_checker(scenario, name, tracks, mode=mode, tube=True, margin_m=margin_m, extra_tube_m=extra_tube_m)
     free = (-math.inf,) * 3, (math.inf,) * 3
+    x, y, z = (float(c) for c in point)
     out = {}
     for rule in chk.rules:
-        bad = ConflictChecker(name, free[0], free[1], [], [rule]).conflict(*(float(c) for c in point), 0.0)
+        bad = ConflictChecker(name, free[0], free[1], [], [rule]).conflict(x, y, z, 0.0)
         if bad is not None:
             out[rule.track.name] = bad
     return out

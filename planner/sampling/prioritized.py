@@ -218,13 +218,18 @@ def margin_free(
     if task.hover:
         return frozenset()
     others = [o for o in scenario.vehicles if o != name]
-    rule = dict(mode=mode, margin_m=PLAN_MARGIN_M, extra_tube_m=extra_tube_m)
-    out = set(
-        rest_pair_conflicts(scenario, name, task.start_m, {o: scenario.vehicles[o].start_m for o in others}, **rule)
-    )
+
+    def held_by(point_m: np.ndarray, rests_m: Mapping[str, np.ndarray]) -> set[str]:
+        return set(
+            rest_pair_conflicts(
+                scenario, name, point_m, rests_m, mode=mode, margin_m=PLAN_MARGIN_M, extra_tube_m=extra_tube_m
+            )
+        )
+
+    out = held_by(task.start_m, {o: scenario.vehicles[o].start_m for o in others})
     if task.dock_with is None and task.goal_m is not None:
         final = {o: scenario.final_position_m(o) for o in others if scenario.vehicles[o].dock_with != name}
-        out |= set(rest_pair_conflicts(scenario, name, task.goal_m, final, **rule))
+        out |= held_by(task.goal_m, final)
     return frozenset(out)
 
 
