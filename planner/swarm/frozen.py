@@ -46,6 +46,7 @@ __all__ = [
     "Unfreeze",
     "apply_unfreezes",
     "frozen_pairs",
+    "frozen_unmoved",
     "moved_points",
     "plan_unfreeze",
     "unfrozen_problem",
@@ -83,6 +84,19 @@ def frozen_pairs(problem: SwarmProblem, points_m: np.ndarray) -> list[tuple[int,
             if bool(ko.conflict(rel)[0]) and not bool(ko.conflict(rel, rest=True)[0]):
                 out.append((a, b))
     return out
+
+
+def frozen_unmoved(problem: SwarmProblem) -> list[str]:
+    """Names (in ``problem``'s order) of the vehicles in a frozen pair at its starts or goals of which at least
+    one vehicle is not pinned: the departure (or the later arrival) of that pair lies inside its moving
+    keep-out, so no stage of the swarm layer can plan it (see module). Run after :func:`unfrozen_problem`: what
+    the unfreeze step could not move. Two pinned (hovering) vehicles never move, so their pair is no obstacle."""
+    out: set[int] = set()
+    for points in (problem.starts_m, problem.goals_m):
+        for a, b in frozen_pairs(problem, points):
+            if not (problem.pinned[a] and problem.pinned[b]):
+                out |= {a, b}
+    return [problem.names[i] for i in sorted(out)]
 
 
 def _cover(pairs: list[tuple[int, int]], pinned: np.ndarray) -> dict[int, list[int]] | None:

@@ -68,7 +68,7 @@ from proxplan.planfile import Scenario
 from proxplan.planner.errors import PlanNotFound
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s
 from proxplan.planner.swarm.enough import enough_bound_s
-from proxplan.planner.swarm.frozen import apply_unfreezes, moved_points, unfrozen_problem
+from proxplan.planner.swarm.frozen import apply_unfreezes, frozen_unmoved, moved_points, unfrozen_problem
 from proxplan.planner.swarm.hand_on import handed_on, level_stacking, retimed_again
 from proxplan.planner.swarm.info import SwarmHandOn, SwarmInfo
 from proxplan.planner.swarm.options import SwarmOptions
@@ -105,7 +105,8 @@ def swarm_timed(
 ) -> tuple[dict[str, TimedPath], SwarmInfo]:
     """Timed paths of every vehicle and the :class:`SwarmInfo` (see module);
     :class:`~proxplan.planner.errors.PlanNotFound` when the coordination search stops on its budget
-    or the ``deadline`` (time.perf_counter() value)."""
+    or the ``deadline`` (time.perf_counter() value), or before it when the unfreeze step leaves a frozen pair
+    (:func:`~proxplan.planner.swarm.frozen.frozen_unmoved`: no stage can plan it)."""
     opts = options or SwarmOptions()
     why = swarm_applicable(scenario)
     if why is not None:
@@ -113,6 +114,9 @@ def swarm_timed(
     t0 = time.perf_counter()
     original = swarm_problem(scenario, deflection_m=opts.deflection_m, tracking_bound=opts.tracking_bound)
     problem, unfreezes, frozen = unfrozen_problem(original)  # frozen pairs at the starts / goals (swarm.frozen)
+    stuck = frozen_unmoved(problem)
+    if stuck:  # no stage can plan a frozen pair: give up before the search instead of after its budget
+        raise PlanNotFound(f"the swarm layer cannot plan {frozen}: no stage of it moves a frozen pair", vehicles=stuck)
     lower_bound = lower_bound_makespan_s(scenario)
     try:
         planned = plan_stages(
