@@ -4,8 +4,9 @@ keep-outs allow at rest but not once either vehicle moves.
 A pair's keep-out while either vehicle moves is its keep-out at rest grown by the tracking tube and the
 millimetre growth (:mod:`proxplan.planner.swarm.keepout`). Two vehicles whose starts lie between the two
 (clear at rest, in conflict moving) are *frozen*: every move of either starts inside the moving keep-out,
-so no stage of the swarm layer (prioritised planning, LaCAM, the stacked plan) can ever move them, and a
-search spends its whole budget first (random-3-64 of the bench's family: two triangles of large quads,
+so no stage of the swarm layer (prioritised planning, LaCAM, the stacked plan) can ever move them; a search
+would spend its whole budget first, so where the unfreeze step leaves one (:func:`frozen_unmoved`) the layer
+gives up before it (random-3-64 of the bench's family: two triangles of large quads,
 0.584 m apart horizontally at 0.716 m height difference, rest keep-out 0.565 m, moving 0.587 m). The
 verifier is less strict at the plan's start: every vehicle's predicted tracking error is zero there, and
 the tube it adds while moving is the scenario's ``tracking_margin_m`` (the swarm keep-outs add the bound on
