@@ -10,7 +10,8 @@ disturbance sources) and the start positions of vehicles not planned yet (assume
 trajectory is re-checked on the time grid; a failed check retries with another seed. When a vehicle
 cannot be planned, :func:`proxplan.planner.sampling.ordering.promote` moves it before the vehicle
 that blocked it and planning restarts (the vehicles in front keep their plans); after
-``MAX_REORDERS`` re-orderings :class:`InfeasibleError` names the vehicle and constraint.
+``MAX_REORDERS`` re-orderings (or an order already tried) it gives up: :class:`PlanNotFound` names the
+vehicle and constraint. A sampling search that gave up proves nothing, so it is never "infeasible".
 
 The search keeps ``PLAN_MARGIN_M`` more than the nominal keep-outs (a search device: its timed
 trajectory is re-checked with the nominal rules, which sample the motion differently), except against
@@ -51,7 +52,7 @@ LEAVE_START_S = 2.5  # vehicles not planned yet are assumed to have left their s
 ATTEMPTS = 3  # seeds tried per vehicle before it counts as failed
 PLAN_MARGIN_M = 0.02  # the search keeps this much more than the nominal limits, m (see build_checker)
 PLAN_MARGIN_S = 0.2  # and assumes not-yet-planned vehicles leave their start this much later, s
-MAX_REORDERS = 8  # conflict-driven re-orderings before a vehicle counts as infeasible
+MAX_REORDERS = 8  # conflict-driven re-orderings before the sampling planner gives up (PlanNotFound), -
 
 
 class _VehicleFailed(Exception):
@@ -301,8 +302,12 @@ def sampling_plan(scenario: Scenario, *, mode: str, seed: int, options: Sampling
             break
         except _VehicleFailed as fail:
             new, n_keep = promote(scenario, order, fail.vehicle, fail.constraint)
-            if restart == MAX_REORDERS or tuple(new) in seen:
-                raise InfeasibleError(fail.vehicle, fail.constraint, fail.message) from None
+            if restart == MAX_REORDERS or tuple(new) in seen:  # a search's verdict, not a proof: it gave up
+                raise PlanNotFound(
+                    f"the sampling planner gave up after {restart} re-ordering(s): {fail.message}",
+                    vehicles=[fail.vehicle],
+                    details={"constraint": fail.constraint, "reorderings": restart},
+                ) from None
             seen.add(tuple(new))
             notes.append(
                 f"re-ordering: {fail.vehicle} failed ({fail.constraint}); planned as number {new.index(fail.vehicle) + 1}"

@@ -7,7 +7,7 @@ import pytest
 import proxplan.planner.sampling.prioritized as prioritized
 from proxplan.fileio import UserError
 from proxplan.planfile import scenario_from_dict
-from proxplan.planner import InfeasibleError, plan_scenario
+from proxplan.planner import InfeasibleError, PlanNotFound, plan_scenario
 from proxplan.planner.sampling import SamplingOptions
 from proxplan.planner.sampling.ordering import lower_bound_makespan_s, priority_order, promote
 from proxplan.verify import verify_plan
@@ -54,9 +54,9 @@ def test_reordering_solves_what_the_fixed_order_cannot(monkeypatch):
     sc = _junction()
     with monkeypatch.context() as m:
         m.setattr(prioritized, "MAX_REORDERS", 0)  # the fixed longest-first order
-        with pytest.raises(InfeasibleError) as err:
+        with pytest.raises(PlanNotFound, match="gave up after 0 re-ordering") as err:  # not "infeasible": it is not
             plan_scenario(sc, method="sampling", options=FAST)
-        assert err.value.vehicle == "branch"
+        assert err.value.vehicles == ["branch"] and err.value.details["reorderings"] == 0
     plan = plan_scenario(sc, method="sampling", options=FAST)
     assert plan.metrics["priority_order"] == ["branch", "slow"]
     assert any(n.startswith("re-ordering: branch failed") for n in plan.notes)
