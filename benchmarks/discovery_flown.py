@@ -43,21 +43,16 @@ def _motion_plan(spec: SetSpec, vehicles: dict[str, Any], motions: dict[str, np.
     return Plan(f"discovery-{spec.seed}", DT_S, trajs, method="synthetic")
 
 
-def _wrench_on_flown(
-    spec: SetSpec, result: Any, amplitude: float
-) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]]]:
+def _wrench_on_flown(spec: SetSpec, result: Any, amplitude: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The hidden effect's wrench at ``amplitude`` on each vehicle of a simulated flight, on its recorded (true)
-    states: force (N, 3) N and torque (N, 3) N m, world; and the records' clock (N,), s since the plan start."""
+    states: force (N, 3) N and torque (N, 3) N m, world."""
     recs = result.records
     t = next(iter(recs.values())).t_s
     inputs = motion_inputs({n: r.vehicle for n, r in recs.items()}, {n: r.position_m for n, r in recs.items()}, t,
                            {n: r.velocity_mps for n, r in recs.items()},
                            {n: r.acceleration_mps2 for n, r in recs.items()})  # fmt: skip
-    out = {}
-    for n, x in inputs.items():
-        force_N, torque_Nm = hidden_wrench(spec.effect, x)
-        out[n] = (amplitude * force_N, amplitude * torque_Nm)
-    return t, out
+    wrenches = {n: hidden_wrench(spec.effect, x) for n, x in inputs.items()}
+    return {n: (amplitude * force_N, amplitude * torque_Nm) for n, (force_N, torque_Nm) in wrenches.items()}
 
 
 def _max_lag_s(desc: dict[str, Any]) -> float:
@@ -140,7 +135,7 @@ def make_set_closed_loop(spec: SetSpec, root: Path, amplitude: float | None) -> 
             hidden = _HiddenWrench(spec.effect, dict(zip(plan.vehicles, vehicles.values())), amplitude)
             flown = simulate_plan(plan, seed=noise_seed, controller=CLOSED_LOOP_CONTROLLER,
                                   perturbation=Perturbation(wrench_of_state=hidden))  # fmt: skip
-            _, felt = _wrench_on_flown(spec, flown, amplitude)
+            felt = _wrench_on_flown(spec, flown, amplitude)
             for n, r in flown.records.items():
                 applied = (r.applied_force_N - r.model_force_N, r.applied_torque_Nm - r.model_torque_Nm)
                 for i in range(2):
