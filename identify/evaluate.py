@@ -61,6 +61,7 @@ def measurement_dict(options: MeasureOptions, thrust_maps: Mapping[str, ThrustMa
         "polyorder": int(options.polyorder),
         "motor_time_constant_s": options.motor_time_constant_s,
         "motor_lag": bool(options.motor_lag),
+        "command_interpolation": {t: float(p) for t, p in options.command_interpolation_by_type},
         "thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()},
     }
 
@@ -76,7 +77,16 @@ def measurement_from_model(
                 "with the default derivative and the logged u[N] (saturated motors not corrected)")  # fmt: skip
         return MeasureOptions(), {}, [note]
     unknown = sorted(
-        set(raw) - {"derivative", "window_s", "polyorder", "motor_time_constant_s", "motor_lag", "thrust_maps"}
+        set(raw)
+        - {
+            "derivative",
+            "window_s",
+            "polyorder",
+            "motor_time_constant_s",
+            "motor_lag",
+            "command_interpolation",
+            "thrust_maps",
+        }  # fmt: skip
     )
     if unknown:
         raise UserError(f"{where}: unknown key {unknown[0]!r}")
@@ -91,9 +101,15 @@ def measurement_from_model(
             polyorder=int(raw.get("polyorder", 2)),
             motor_time_constant_s=None if tau is None else float(tau),
             motor_lag=bool(raw.get("motor_lag", False)),  # models saved before the key: no lag compensation
+            command_interpolation_by_type=tuple(  # models saved before the key: held (p = 0)
+                (str(t), float(p)) for t, p in dict(raw.get("command_interpolation") or {}).items()
+            ),
         )
     except (TypeError, ValueError):
-        raise UserError(f"{where}: window_s, polyorder, motor_time_constant_s: expected numbers") from None
+        raise UserError(
+            f"{where}: window_s, polyorder, motor_time_constant_s, command_interpolation: expected numbers "
+            "(command_interpolation: a mapping TYPE: p)"
+        ) from None
     maps_raw = raw.get("thrust_maps") or {}
     if not isinstance(maps_raw, Mapping):
         raise UserError(f"{where}.thrust_maps: expected a mapping TYPE: {{coef, x_max_V}}")

@@ -163,6 +163,9 @@ def load_units(
             veh = flight.vehicles[v.name]
             logs[(entry.name, v.name)] = (veh, log)
             mopts = measure_options_for(options.measure, veh, manifest.motor_thrust)
+            held = dict(mopts.command_interpolation_by_type)
+            if v.type in held:  # how this type's logged command runs between samples (identify.command_check)
+                mopts = replace(mopts, command_interpolation=held[v.type])
             measured_with[(entry.name, v.name)] = mopts
             meas = measure_log(veh, log, options=mopts)
             z_b = Rotation.from_quat(log.quat_xyzw).apply(np.array([0.0, 0.0, 1.0]))

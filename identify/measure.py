@@ -48,6 +48,12 @@ class MeasureOptions:
     # Vehicle.motor_time_constant_s (proxplan.identify.loading.measure_options_for); an explicit
     # motor_time_constant_s overrides the vehicle's value
     thrust_scale: float = 1.0  # multiplies the logged motor thrusts (calibrated), -
+    command_interpolation: float = 0.0  # how the logged command runs between two samples, -: 0 held from each
+    # sample to the next (zero-order hold), 1 linear from each sample to the next (first-order hold); the
+    # motor lag's input (motor_lag_compensated_N)
+    command_interpolation_by_type: tuple[tuple[str, float], ...] = ()  # (vehicle type, p) chosen by
+    # proxplan.identify.command_check; load_units sets command_interpolation from it per vehicle (types not
+    # named: command_interpolation as given)
 
     def __post_init__(self) -> None:
         if self.derivative not in DERIVATIVES:
@@ -117,13 +123,20 @@ def _smooth(x: np.ndarray, dt_s: float, options: MeasureOptions, *, deriv: int) 
     return np.concatenate([d, d[-1:]], axis=0) if len(d) else np.zeros_like(x)
 
 
-def motor_lag_compensated_N(commanded_N: np.ndarray, dt_s: float, time_constant_s: float) -> np.ndarray:
+def motor_lag_compensated_N(
+    commanded_N: np.ndarray, dt_s: float, time_constant_s: float, *, interpolation: float = 0.0
+) -> np.ndarray:
     """Actual thrusts (N, 4) of first-order motors f' = (f_cmd - f)/tau fed ``commanded_N`` (N, 4), N.
 
-    Exact discretisation for a zero-order-hold command; starts at steady state.
+    Exact discretisation of the lag for a command that runs between samples k-1 and k as
+    u(s) = u[k-1] + p (u[k] - u[k-1]) s / dt, s in [0, dt], p = ``interpolation`` (0: zero-order hold, the
+    command held from each sample to the next; 1: first-order hold, linear between samples). With
+    a = exp(-dt/tau) and c = 1 - (1 - a) tau / dt (the ramp's share that reaches the output within the step):
+    f[k] = a f[k-1] + ((1 - a) - p c) u[k-1] + p c u[k]. Unit gain at steady state for every p; starts there.
     """
     a = float(np.exp(-dt_s / time_constant_s))
-    b_coef, a_coef = [0.0, 1.0 - a], [1.0, -a]  # f[k] = a f[k-1] + (1 - a) f_cmd[k-1]
+    c = interpolation * (1.0 - (1.0 - a) * time_constant_s / dt_s)
+    b_coef, a_coef = [c, 1.0 - a - c], [1.0, -a]
     zi = lfilter_zi(b_coef, a_coef)[:, None] * commanded_N[0][None, :]
     out, _ = lfilter(b_coef, a_coef, commanded_N, axis=0, zi=zi)
     return out
@@ -175,7 +188,9 @@ def measure_disturbance(
         dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.01
         thrust = motor_thrust_N[idx] * options.thrust_scale
         if options.motor_time_constant_s:
-            thrust = motor_lag_compensated_N(thrust, dt, options.motor_time_constant_s)
+            thrust = motor_lag_compensated_N(
+                thrust, dt, options.motor_time_constant_s, interpolation=options.command_interpolation
+            )
         r = rot[idx]
         z_b = r.apply(np.array([0.0, 0.0, 1.0]))  # (M, 3) body z in world
         f_a = vehicle.mass_kg * accel_mps2[idx] - thrust.sum(axis=1)[:, None] * z_b  # (S0-11)

@@ -55,6 +55,7 @@ class LagSample:
     vehicle: Vehicle
     log: VehicleLog
     free: np.ndarray
+    flight: str = ""  # the flight the log belongs to (the unit a check resamples)
 
 
 def motor_lag_check(
@@ -179,5 +180,5 @@ def lag_samples(data: Any, *, splits: Sequence[str] = ("train", "validation")) -
             & (u.height_above_ground_m > FREE_HEIGHT_M)
             & authority_masks(u, data.types)["in_range"]
         )
-        out.append(LagSample(u.type, veh, log, free))
+        out.append(LagSample(u.type, veh, log, free, u.flight))
     return out

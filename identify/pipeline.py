@@ -50,6 +50,7 @@ from proxplan.identify.calibrate import (
     calibrate_model,
     model_specs,
 )
+from proxplan.identify.command_check import check_loaded_holds
 from proxplan.identify.data import (
     Errors,
     IdentifyOptions,
@@ -116,6 +117,7 @@ class IdentifyResult:
     validation: str = ""  # how the flights were held out (proxplan.identify.crossval.plan_groups), fallback said
     stack_shielding: dict | None = None  # eta of the stacks (proxplan.physics.stack): calibrated with its prior
     motor_lag_check: dict = field(default_factory=dict)  # proxplan.identify.motor_check (warnings inside)
+    command_hold: dict = field(default_factory=dict)  # type -> proxplan.identify.command_check.CommandHold
     selection: dict = field(default_factory=dict)  # Selection.to_json of the start that won (+ the other's total)
     fallback: bool = False  # selection fell back to blocks in time (too few flights)
     spread: ResidualSpread | None = None  # what the final model cannot predict (proxplan.identify.spread)
@@ -176,6 +178,7 @@ class IdentifyResult:
             "timings_s": self.timings,
             "stack_shielding": self.stack_shielding,
             "motor_lag_check": self.motor_lag_check,
+            "command_hold": {t: h.to_dict() for t, h in self.command_hold.items()},
             "warnings": list(self.motor_lag_check.get("warnings", [])),
             "undecided": self.undecided(),
             "one_flight": self.one_flight(),
@@ -288,8 +291,22 @@ def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_
     """:func:`run_identify` with the stages that may run beside the caller submitted to ``side``."""
     laps = _Laps()
     data = load_units(manifest, options=options)
-    units, exclusions, types = data.units, data.exclusions, data.types
     laps("load and measure")
+    holds: dict = {}
+    if not options.measure.command_interpolation_by_type:  # how each type's command runs between log samples
+        holds = check_loaded_holds(data, motor_thrust=manifest.motor_thrust, options=options.measure)
+        chosen_holds = tuple((t, h.interpolation) for t, h in holds.items() if h.interpolation != 0.0)
+        laps("command hold check")
+        if chosen_holds:  # measured again with the chosen hold (identify.command_check)
+            options = replace(options, measure=replace(options.measure, command_interpolation_by_type=chosen_holds))
+            data = load_units(manifest, options=options)
+            data.notes.extend(
+                f"{t}: the logged motor command enters the motor lag interpolated between log samples (p = {p:g}; "
+                "the free-flight wrench is steadier so: identify.command_check)"
+                for t, p in chosen_holds
+            )
+            laps("measure again with the command hold")
+    units, exclusions, types = data.units, data.exclusions, data.types
     lag_task = side.submit("the motor lag check", check_loaded, side.share(data), motor_thrust=manifest.motor_thrust,
                            options=options.measure)  # fmt: skip
     fit = [u for u in units if u.split == "train" and u.scored and len(u)]
@@ -373,7 +390,7 @@ def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_
         measure_options=options.measure, per_vehicle=_per_vehicle(test, base, model, final, pred),
         validation=chosen.note, calibrated_model=model, discovered=discovered,
         stack_shielding=_stack_record(calibration, final), motor_lag_check=lag_check,
-        selection=selection, fallback="fell back" in chosen.note, spread=spread, bands=bands, timings=laps.seconds,
+        command_hold=holds, selection=selection, fallback="fell back" in chosen.note, spread=spread, bands=bands, timings=laps.seconds,
     )  # fmt: skip
 
 

@@ -165,6 +165,25 @@ def motor_check_lines(check: dict) -> list[str]:
     return lines + [""] + [f"- **warning**: {w}" for w in check.get("warnings", [])] + [""]
 
 
+def command_hold_lines(holds: dict) -> list[str]:
+    """Markdown of how each type's logged command runs between samples (the ``command_hold`` JSON of
+    :mod:`proxplan.identify.command_check`)."""
+    if not holds:
+        return []
+    lines = ["## Command hold (how the logged motor command runs between samples into the motor lag)", "",
+             "p = 0: held to the next sample; 1: linear to it. Spread = RMS about each log's mean on free-flight "
+             "samples; t = mean over flights of 0.5 ln(SSE_p / SSE_0) over its standard error.", "",
+             "| type | flights | p taken | F_z spread p=0 / 1 [mN] | roll torque spread p=0 / 1 [mN m] | t (p=1: F_z, tau_x, tau_y) | why |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for t, h in holds.items():
+        sp, ts = h.get("spread") or {}, (h.get("t_stat") or {}).get("1", {})
+        fz = f"{1000 * sp['0']['F_z']:.2f} / {1000 * sp['1']['F_z']:.2f}" if "0" in sp and "1" in sp else "-"
+        tx = f"{1000 * sp['0']['tau_x']:.3f} / {1000 * sp['1']['tau_x']:.3f}" if "0" in sp and "1" in sp else "-"
+        tt = ", ".join(f"{v:+.1f}" for v in ts.values()) if ts else "-"
+        lines.append(f"| {t} | {h['n_flights']} | {h['interpolation']:g} | {fz} | {tx} | {tt} | {h['reason']} |")
+    return lines + [""]
+
+
 def limit_lines(saturation: dict) -> list[str]:
     """Markdown table of the samples with a motor at its ceiling / floor per vehicle (the
     ``measurement.saturation`` JSON of :func:`proxplan.identify.loading.measurement_summary`)."""
@@ -302,6 +321,7 @@ def markdown(result: IdentifyResult, *, manifest: str = "", plots: Sequence[Path
     lines += ["", "## Measurement (delivered motor thrust)", ""]
     lines += limit_lines(result.measurement_json()["saturation"])
     lines += [""] + motor_check_lines(result.motor_lag_check)
+    lines += command_hold_lines({t: h.to_dict() for t, h in result.command_hold.items()})
     lines.append("")
     for t, m in result.thrust_maps.items():
         lines.append(f"- {t}: f = P(pwm Vbat), coefficients {', '.join(f'{c:.4g}' for c in m.coef)}; "

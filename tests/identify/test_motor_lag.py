@@ -26,6 +26,26 @@ def test_command_inverse_is_exact() -> None:
     np.testing.assert_allclose(motor_lag_compensated_N(cmd, 0.01, 0.072)[300 // 2 :], delivered[300 // 2 :], atol=1e-9)
 
 
+def test_interpolated_command_is_the_lag_of_a_ramp() -> None:
+    """p = 1: the command runs linearly between samples; the lag of that ramp, integrated finely (1000 steps a
+    sample, exact per fine step for the fine ramp), is what the discretisation gives; p = 0 holds each sample."""
+    rng = np.random.default_rng(1)
+    dt, tau, fine = 0.01, 0.05, 1000
+    cmd = 0.08 + 0.02 * rng.normal(size=(60, 1))
+    for p in (0.0, 0.5, 1.0):
+        f, out = float(cmd[0, 0]), [float(cmd[0, 0])]
+        h, a = dt / fine, np.exp(-dt / fine / tau)
+        for k in range(1, len(cmd)):
+            for j in range(fine):
+                u = cmd[k - 1, 0] + p * (cmd[k, 0] - cmd[k - 1, 0]) * (j + 0.5) * h / dt
+                f = a * f + (1 - a) * u
+            out.append(f)
+        got = motor_lag_compensated_N(cmd, dt, tau, interpolation=p)[:, 0]
+        np.testing.assert_allclose(got, out, atol=2e-7)
+    held = motor_lag_compensated_N(cmd, dt, tau)
+    assert np.abs(motor_lag_compensated_N(cmd, dt, tau, interpolation=1.0) - held).max() > 1e-3
+
+
 def _errors(tmp: Path, motor_thrust: str, motor_lag: bool = True) -> float:
     t = 0.01 * np.arange(1200)
     low = np.column_stack([0.1 * np.sin(1.3 * t), 0 * t, 0.6 + 0.05 * np.sin(9.0 * t)])
