@@ -47,6 +47,9 @@ ALPHA = 0.025
 """One-sided level of each channel's test (worse / better beyond chance), -."""
 MIN_FLIGHTS = 3
 """Fewer flights with free-flight samples of a type than this: no verdict, p = 0 kept."""
+NUMERICAL_ZERO = 1e-9
+"""A channel whose free-flight spread is below this (N or N m) at p = 0 holds nothing to judge (a simulated
+vehicle whose motors always turn together has no roll or pitch torque): left out of the test."""
 MIN_FREE_SAMPLES = 20
 """A log with fewer free-flight samples than this adds nothing to its flight's spread."""
 CHANNELS = ("F_z", "tau_x", "tau_y")
@@ -103,7 +106,8 @@ def _choose(vtype: str, group: Sequence[LagSample], options_of) -> CommandHold:
         d = np.array([0.5 * np.log(sse[p][f][:3] / sse[0.0][f][:3]) for f in flights])  # (n, 3)
         mean = d.mean(axis=0)
         se = d.std(axis=0, ddof=1) / np.sqrt(n)
-        t = np.where(se > 0, mean / np.where(se > 0, se, 1.0), 0.0)
+        live = np.array([spread["0"][c] >= NUMERICAL_ZERO for c in CHANNELS])
+        t = np.where(live & (se > 0), mean / np.where(se > 0, se, 1.0), 0.0)
         t_stat[f"{p:g}"] = dict(zip(CHANNELS, t.tolist()))
         means[f"{p:g}"] = dict(zip(CHANNELS, mean.tolist()))
         if np.all(t <= q) and np.any(t < -q):

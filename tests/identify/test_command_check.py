@@ -1,0 +1,88 @@
+"""How the logged motor command runs between samples is chosen per vehicle type from free flight
+(proxplan.identify.command_check): a log that writes the command once per sample is held (p = 0, the
+exact inverse); a log that samples a command written five times faster is read interpolated, and the
+measured free-flight force comes out steadier so."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from proxplan.identify import synthetic_logs, write_synthetic_manifest
+from proxplan.identify.command_check import check_loaded_holds
+from proxplan.identify.data import IdentifyOptions
+from proxplan.identify.loading import load_units
+from proxplan.identify.manifest import load_manifest
+from proxplan.identify.measure import MeasureOptions
+
+TYPE = "crazyflie-2.1"
+OPTIONS = MeasureOptions()
+
+
+def _holds(tmp: Path, *, written_per_sample: int, n_flights: int = 4) -> dict:
+    """Single-vehicle flights weaving at 1-2 Hz well above the ground (free flight), their commanded thrust
+    written ``written_per_sample`` times per 10 ms log sample by the controller (the motors' exact
+    zero-order-hold inverse at that rate) and logged every 10 ms."""
+    from proxplan.physics import BUILTIN_VEHICLES
+
+    cf = BUILTIN_VEHICLES[TYPE]
+    dt = 0.01 / written_per_sample
+    t = dt * np.arange(int(round(12.0 / dt)))
+    flights = []
+    for k in range(n_flights):
+        w = 6.0 + 0.7 * k
+        pos = np.column_stack([0.05 * np.sin(w * t), 0.04 * np.sin(0.8 * w * t + k), 0.9 + 0.01 * np.sin(1.7 * w * t)])
+        logs = synthetic_logs({"a": cf}, {"a": pos}, t, accel_noise_mps2=0.01, seed=k,
+                              motor_time_constant_s=cf.motor_time_constant_s)  # fmt: skip
+        rows = np.arange(0, len(t), written_per_sample)
+        keep = np.zeros(len(t), dtype=bool)
+        keep[rows] = True
+        flights.append(
+            (f"f_{k:02d}", "train" if k < n_flights - 1 else "test", {n: g.take(keep) for n, g in logs.items()})
+        )
+    path = write_synthetic_manifest(tmp / f"w{written_per_sample}_{n_flights}", flights, TYPE, motor_thrust="commanded")
+    manifest = load_manifest(path)
+    data = load_units(manifest, options=IdentifyOptions(measure=OPTIONS), thrust_coefficient_samples=False)
+    return check_loaded_holds(data, motor_thrust="commanded", options=OPTIONS)
+
+
+def test_a_command_written_once_per_sample_is_held(tmp_path: Path) -> None:
+    hold = _holds(tmp_path, written_per_sample=1)[TYPE]
+    assert hold.interpolation == 0.0, hold
+    assert hold.n_flights == 3  # train flights only: the test flight is never looked at
+    # p = 0 is the exact inverse: interpolating makes F_z less steady beyond chance (t of 126 measured)
+    assert hold.t_stat["1"]["F_z"] > 10.0, hold.t_stat
+
+
+def test_a_command_written_faster_than_logged_is_interpolated(tmp_path: Path) -> None:
+    hold = _holds(tmp_path, written_per_sample=5)[TYPE]
+    assert hold.interpolation > 0.0, hold
+    best = f"{hold.interpolation:g}"
+    # the synthetic vehicle's motors turn together (no roll or pitch torque), so F_z carries the evidence:
+    # 1.72 mN held, 1.09 mN interpolated (measured)
+    assert hold.spread[best]["F_z"] < 0.8 * hold.spread["0"]["F_z"], hold.spread
+
+
+@pytest.mark.parametrize("n_flights", [3])
+def test_too_few_flights_keep_the_hold_and_say_so(tmp_path: Path, n_flights: int) -> None:
+    hold = _holds(tmp_path, written_per_sample=5, n_flights=n_flights)[TYPE]
+    assert hold.interpolation == 0.0 and hold.n_flights == 2
+    assert "fewer than 3" in hold.reason
+
+
+def test_the_chosen_hold_is_saved_with_the_model_and_read_back() -> None:
+    """evaluate measures other days as identify did: the hold per type travels in ``model.measurement``."""
+    from proxplan.identify.evaluate import measurement_dict, measurement_from_model
+    from proxplan.physics import CalibratedModel
+
+    opts = MeasureOptions(command_interpolation_by_type=((TYPE, 1.0),))
+    saved = CalibratedModel(vehicles={}, measurement=measurement_dict(opts, {}))
+    assert saved.measurement["command_interpolation"] == {TYPE: 1.0}
+    back, _, notes = measurement_from_model(saved, "m.yaml")
+    assert back.command_interpolation_by_type == ((TYPE, 1.0),) and notes == []
+    older = CalibratedModel(
+        vehicles={}, measurement={k: v for k, v in saved.measurement.items() if k != "command_interpolation"}
+    )
+    assert measurement_from_model(older, "m.yaml")[0].command_interpolation_by_type == ()
