@@ -111,7 +111,8 @@ def _identify(manifest: Path) -> tuple[dict[str, Any], Any]:
             "discovered": [d["channel"] + "*" + d["feature"] + (f"@{d['target_type']}" if d.get("target_type") else "")
                            for d in r.discovered if d["selected"]],
             "refined": [d["refined"] for d in r.discovered if d.get("refined")],
-            "fallback": r.fallback}, r  # fmt: skip
+            "fallback": r.fallback,
+            "command_hold": {t: h.interpolation for t, h in r.command_hold.items()}}, r  # fmt: skip
 
 
 def _identify_flown(manifest: Path, world: str) -> tuple[dict[str, Any] | None, Any, str]:
