@@ -39,7 +39,7 @@ from proxplan.identify.data import (
 from proxplan.identify.flightlog import Manifest
 from proxplan.identify.loading import load_units, measurement_summary
 from proxplan.identify.manifest import load_manifest
-from proxplan.identify.measure import DERIVATIVES, TORQUE_FORMS, MeasureOptions
+from proxplan.identify.measure import DERIVATIVES, MeasureOptions
 from proxplan.identify.motor_check import check_loaded
 from proxplan.identify.spread import BandAccumulator, interval_half_width_N, slow_part
 from proxplan.identify.strata import AUTHORITY_STATES, authority_masks
@@ -61,7 +61,6 @@ def measurement_dict(options: MeasureOptions, thrust_maps: Mapping[str, ThrustMa
         "polyorder": int(options.polyorder),
         "motor_time_constant_s": options.motor_time_constant_s,
         "motor_lag": bool(options.motor_lag),
-        "torque_form": options.torque_form,
         "command_interpolation": {t: float(p) for t, p in options.command_interpolation_by_type},
         "thrust_maps": {t: m.to_dict() for t, m in thrust_maps.items()},
     }
@@ -86,18 +85,14 @@ def measurement_from_model(
             "motor_time_constant_s",
             "motor_lag",
             "command_interpolation",
-            "torque_form",
             "thrust_maps",
-        }
+        }  # fmt: skip
     )
     if unknown:
         raise UserError(f"{where}: unknown key {unknown[0]!r}")
     derivative = raw.get("derivative", "savgol")
     if derivative not in DERIVATIVES:
         raise UserError(f"{where}.derivative: expected one of {', '.join(DERIVATIVES)}, got {derivative!r}")
-    torque_form = raw.get("torque_form", "smoothed")  # models saved before the key: smoothed
-    if torque_form not in TORQUE_FORMS:
-        raise UserError(f"{where}.torque_form: expected one of {', '.join(TORQUE_FORMS)}, got {torque_form!r}")
     try:
         tau = raw.get("motor_time_constant_s")
         options = MeasureOptions(
@@ -106,7 +101,6 @@ def measurement_from_model(
             polyorder=int(raw.get("polyorder", 2)),
             motor_time_constant_s=None if tau is None else float(tau),
             motor_lag=bool(raw.get("motor_lag", False)),  # models saved before the key: no lag compensation
-            torque_form=torque_form,
             command_interpolation_by_type=tuple(  # models saved before the key: held (p = 0)
                 (str(t), float(p)) for t, p in dict(raw.get("command_interpolation") or {}).items()
             ),

@@ -227,7 +227,7 @@ def smoothing_of_prediction(unit: Unit, log: VehicleLog, prior: Model, options: 
         return unit
     force, torque = predict(unit, prior)
     return replace(unit, smoothing_force_N=smoothed_like_measurement(log, force, options=options) - force,
-                   smoothing_torque_Nm=smoothed_like_measurement(log, torque, options=options, torque=True) - torque)  # fmt: skip
+                   smoothing_torque_Nm=smoothed_like_measurement(log, torque, options=options) - torque)  # fmt: skip
 
 
 def measurement_summary(thrust_maps: dict, exclusions: dict, notes: list[str]) -> dict[str, Any]:

@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.integrate import cumulative_trapezoid
 from scipy.ndimage import convolve1d
 from scipy.signal import lfilter, lfilter_zi, savgol_coeffs, savgol_filter
 from scipy.signal.windows import triang
@@ -32,13 +31,6 @@ from scipy.spatial.transform import Rotation
 from proxplan.physics import Vehicle
 
 DERIVATIVES = ("savgol", "triangular", "difference")
-TORQUE_FORMS = ("smoothed", "impulse")
-"""How (S0-13) balances the rate gyro against the motors' torque: ``smoothed``, J S'(omega) + S(omega x J omega)
-- S(tau_p), each side through its own filter (the derivative S' and the smoother S are different kernels, so a
-torque with no disturbance leaves J (S'(omega) - S(omega_dot)) behind: 12-53 % of J omega_dot's RMS on flown
-clean logs, issue 35 round 35Z); ``impulse``, S'(J omega - integral(tau_p - omega x J omega) dt): the known
-torques integrated to an angular impulse and the whole balance through the ONE derivative filter, so both
-sides see the same kernel (:func:`impulse_smoothed`)."""
 FREE_HEIGHT_M = 0.3
 """Free flight: rotor plane at least this high above the ground (out of ground effect), m (used by the
 motor-lag self-check and the free-flight thrust scale)."""
@@ -59,7 +51,6 @@ class MeasureOptions:
     command_interpolation: float = 0.0  # how the logged command runs between two samples, -: 0 held from each
     # sample to the next (zero-order hold), 1 linear from each sample to the next (first-order hold); the
     # motor lag's input (motor_lag_compensated_N)
-    torque_form: str = "smoothed"  # one of TORQUE_FORMS
     command_interpolation_by_type: tuple[tuple[str, float], ...] = ()  # (vehicle type, p) chosen by
     # proxplan.identify.command_check; load_units sets command_interpolation from it per vehicle (types not
     # named: command_interpolation as given)
@@ -67,8 +58,6 @@ class MeasureOptions:
     def __post_init__(self) -> None:
         if self.derivative not in DERIVATIVES:
             raise ValueError(f"derivative must be one of {DERIVATIVES}, got {self.derivative!r}")
-        if self.torque_form not in TORQUE_FORMS:
-            raise ValueError(f"torque_form must be one of {TORQUE_FORMS}, got {self.torque_form!r}")
 
 
 @dataclass(frozen=True)
@@ -206,13 +195,10 @@ def measure_disturbance(
         z_b = r.apply(np.array([0.0, 0.0, 1.0]))  # (M, 3) body z in world
         f_a = vehicle.mass_kg * accel_mps2[idx] - thrust.sum(axis=1)[:, None] * z_b  # (S0-11)
         w = gyro_radps[idx]
+        w_dot = _smooth(w, dt, options, deriv=1)
+        w_s = _smooth(w, dt, options, deriv=0)
         tau_p = thrust @ mix.T  # body torque of the motors (S0-14)
-        if options.torque_form == "impulse":  # S'(J w - int(tau_p - w x J w) dt): one kernel on both sides
-            known = cumulative_trapezoid(tau_p - np.cross(w, J * w), dx=dt, axis=0, initial=0.0)
-            body = _smooth(J * w - known, dt, options, deriv=1)
-        else:
-            w_s = _smooth(w, dt, options, deriv=0)
-            body = J * _smooth(w, dt, options, deriv=1) + np.cross(w_s, J * w_s) - _smooth(tau_p, dt, options, deriv=0)
+        body = J * w_dot + np.cross(w_s, J * w_s) - _smooth(tau_p, dt, options, deriv=0)
         force[idx] = _smooth(f_a, dt, options, deriv=0)
         torque[idx] = r.apply(body)  # (S0-13): tau_a = R J w_dot (+ gyroscopic) - R tau_p
     return MeasuredWrench(force_N=force, torque_Nm=torque)
@@ -236,32 +222,20 @@ def kinematic_thrust_z_N(vehicle: Vehicle, log, *, options: MeasureOptions = Mea
     return vehicle.mass_kg * (GRAVITY_MPS2 + accel_z)
 
 
-def impulse_smoothed(x: np.ndarray, dt_s: float, options: MeasureOptions) -> np.ndarray:
-    """``x`` (N, k), one contiguous segment sampled every ``dt_s`` (s), as the ``impulse`` torque form sees a torque:
-    integrated (trapezoid) and differentiated by the measurement's derivative filter, S'(integral x dt)."""
-    return _smooth(cumulative_trapezoid(x, dx=dt_s, axis=0, initial=0.0), dt_s, options, deriv=1)
-
-
-def smoothed_like_measurement(
-    log, x: np.ndarray, *, options: MeasureOptions = MeasureOptions(), torque: bool = False
-) -> np.ndarray:
+def smoothed_like_measurement(log, x: np.ndarray, *, options: MeasureOptions = MeasureOptions()) -> np.ndarray:
     """``x`` ((N, k) on the log's samples, any unit) smoothed per contiguous segment of ``log`` with the
     measurement's own filter (``options.window_s``, the derivative's kind): the measured wrench of
     :func:`measure_disturbance` is a smoothed quantity, so a prediction made from the logged positions
     (offsets to the sources, height above ground) is made from positions smoothed alike. Motion-capture
     noise on an offset is otherwise turned into wrench noise the measurement does not hold (near a jet's
-    axis the torque is proportional to the offset: 0.5 mm of noise is a roll torque where none acts).
-    ``torque``: ``x`` is a torque, seen as the measured torque sees one (:data:`TORQUE_FORMS`)."""
+    axis the torque is proportional to the offset: 0.5 mm of noise is a roll torque where none acts)."""
     n = len(log.t_s)
     segment = np.zeros(n, dtype=int) if log.segment is None else np.asarray(log.segment)
     out = np.array(x, dtype=float, copy=True)
     for sid in np.unique(segment):
         idx = np.flatnonzero(segment == sid)
         dt = float(np.median(np.diff(log.t_s[idx]))) if len(idx) > 1 else 0.01
-        if torque and options.torque_form == "impulse":
-            out[idx] = impulse_smoothed(out[idx], dt, options)
-        else:
-            out[idx] = _smooth(out[idx], dt, options, deriv=0)
+        out[idx] = _smooth(out[idx], dt, options, deriv=0)
     return out
 
 
@@ -280,23 +254,14 @@ def stretches(t_s: np.ndarray) -> list[slice]:
     return [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
-def smoothed_on_clock(
-    t_s: np.ndarray, x: np.ndarray, *, options: MeasureOptions = MeasureOptions(), torque_from: int | None = None
-) -> np.ndarray:
+def smoothed_on_clock(t_s: np.ndarray, x: np.ndarray, *, options: MeasureOptions = MeasureOptions()) -> np.ndarray:
     """``x`` ((N, k) on the clock ``t_s`` (N,), s, any unit) smoothed with the measurement's own filter on each
     of the clock's :func:`stretches`: what :func:`smoothed_like_measurement` does on a log's segments, for a
-    unit that keeps only its clock. Columns from ``torque_from`` on are torques (seen as the measured torque
-    sees one, :data:`TORQUE_FORMS`)."""
+    unit that keeps only its clock."""
     out = np.array(x, dtype=float, copy=True)
-    impulse = torque_from is not None and options.torque_form == "impulse"
     for s in stretches(np.asarray(t_s)):
         if s.stop - s.start > 1:
-            dt = float(np.median(np.diff(t_s[s])))
-            if impulse:
-                out[s, :torque_from] = _smooth(out[s, :torque_from], dt, options, deriv=0)
-                out[s, torque_from:] = impulse_smoothed(out[s, torque_from:], dt, options)
-            else:
-                out[s] = _smooth(out[s], dt, options, deriv=0)
+            out[s] = _smooth(out[s], float(np.median(np.diff(t_s[s]))), options, deriv=0)
     return out
 
 

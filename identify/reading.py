@@ -105,7 +105,7 @@ class MeasurementReading:
         for u, cache in zip(self.sources, self._caches):
             e = stacked(*effect_wrench(effect, cache.inputs, cache=cache))
             values.append(e.astype(np.float32))
-            deltas.append((smoothed_on_clock(u.t_s, e, options=self.options, torque_from=1) - e).astype(np.float32))
+            deltas.append((smoothed_on_clock(u.t_s, e, options=self.options) - e).astype(np.float32))
         self._full[key] = out = (np.concatenate(values), np.concatenate(deltas))
         while len(self._full) > KEPT_FULL_RATE:
             self._full.popitem(last=False)
