@@ -119,25 +119,55 @@ class OccupiedCells:
     on for good (a parked vehicle). :meth:`mark_upto` marks the layers before n in :attr:`layers`;
     :meth:`column` gives one cell's occupancy at every layer from the entries, the same as marking
     every layer and reading it there. The front seldom needs the whole horizon (it reaches the goal
-    or dies first), so layers past it are never marked."""
+    or dies first), so layers past it are never marked.
+
+    **Marking by flat offsets** (round 37A). :attr:`layers` is a view of a buffer padded by twice the
+    widest disc's half-width p on every side (allocated when first asked, once every entry is in): a
+    disc centred within p cells of the grid then lies inside the buffer, so its cells are the
+    centre's flat index plus the disc's flat offsets, written at once with no test per cell; a
+    centre farther out marks no cell of the grid (|i|, |j| <= p) and is left out. The same cells as
+    testing every disc cell against the grid's bounds (the definition, tested), for one addition
+    and one write per cell instead of a dozen array operations (the marks were 15 % of the swarm
+    layer's CPU on the randomised family's random-10 at 64 fixed)."""
 
     FIRST_CHUNK = 32  # layers marked at the first call; each later call marks at least as many again
 
     def __init__(self, n_layers: int, nx: int, ny: int):
         self.shape = (n_layers, nx, ny)
-        self.layers = np.zeros(self.shape, dtype=bool)
+        self._layers: np.ndarray | None = None  # the grid's view of the padded buffer (built when first asked)
+        self._buffer: np.ndarray | None = None
+        self._pad = 0  # cells of padding on each side of the buffer
         self.done = 0  # layers [0, done) are marked
         self._keys: dict[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}  # disc key -> samples
         self._sorted: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._parked: list[tuple[int, int, int, int]] = []  # (disc key, layer, cell x, cell y)
 
+    @property
+    def layers(self) -> np.ndarray:
+        """(n_layers, nx, ny) bool: the marks (layers before :attr:`done` complete)."""
+        if self._layers is None:
+            keys = [*self._keys, *(k for k, _, _, _ in self._parked)]
+            half = max((math.isqrt(max(k - 1, 0)) for k in keys), default=0)  # the widest disc's |i|, |j|
+            self._pad = pad = 2 * half
+            n_layers, nx, ny = self.shape
+            self._buffer = np.zeros((n_layers, nx + 2 * pad, ny + 2 * pad), dtype=bool)
+            self._layers = self._buffer[:, pad : pad + nx, pad : pad + ny]
+        return self._layers
+
     def add(self, radius: float, layer: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> None:
         # kept by the disc's key (_disc_key): radii that mark the same disc are marked together
+        self._add_key(_disc_key(radius))
         self._keys.setdefault(_disc_key(radius), []).append((layer, cx, cy))
         self._sorted = None
 
     def park(self, radius: float, layer: int, cx: int, cy: int) -> None:
+        self._add_key(_disc_key(radius))
         self._parked.append((_disc_key(radius), layer, cx, cy))
+
+    def _add_key(self, key: int) -> None:
+        """An entry of disc ``key`` comes in: the buffer's padding must hold its disc."""
+        if self._layers is not None and 2 * math.isqrt(max(key - 1, 0)) > self._pad:
+            raise ValueError("an entry wider than the padding came in after the marks were begun")
 
     def _by_layer(self) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
         if self._sorted is None:
@@ -153,21 +183,30 @@ class OccupiedCells:
         n_layers, nx, ny = self.shape
         if n <= self.done:
             return
+        layers = self.layers
+        buf, pad = self._buffer, self._pad
+        assert buf is not None
         n = min(n_layers, max(n, self.done + max(self.FIRST_CHUNK, self.done)))
+        NX, NY = buf.shape[1], buf.shape[2]
+        flat = buf.reshape(-1)  # a view: the buffer is contiguous
         for key, (L, X, Y) in self._by_layer().items():
             i0, i1 = np.searchsorted(L, [self.done, n])
+            if i1 <= i0:
+                continue
+            half = math.isqrt(max(key - 1, 0))
+            x, y, lay = X[i0:i1], Y[i0:i1], L[i0:i1]
+            near = (x >= -half) & (x < nx + half) & (y >= -half) & (y < ny + half)  # else no cell on the grid
+            if not near.all():
+                x, y, lay = x[near], y[near], lay[near]
             ox, oy = _disc_of(key)
-            X_ = X[i0:i1, None] + ox[None]
-            Y_ = Y[i0:i1, None] + oy[None]
-            L_ = np.broadcast_to(L[i0:i1, None], X_.shape)
-            ok = (L_ >= 0) & (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
-            self.layers[L_[ok], X_[ok], Y_[ok]] = True
+            centre = (lay * NX + (x + pad)) * NY + (y + pad)
+            flat[centre[:, None] + (ox * NY + oy)[None]] = True
         for key, last, cx, cy in self._parked:
             if last < n:
                 ox, oy = _disc_of(key)
                 X_, Y_ = cx + ox, cy + oy
                 ok = (X_ >= 0) & (X_ < nx) & (Y_ >= 0) & (Y_ < ny)
-                self.layers[max(last, self.done) : n, X_[ok], Y_[ok]] = True
+                layers[max(last, self.done) : n, X_[ok], Y_[ok]] = True
         self.done = n
 
     def column(self, x: int, y: int) -> np.ndarray:
