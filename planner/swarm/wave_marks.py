@@ -112,6 +112,30 @@ def _distinct(lay: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tuple[np.ndarr
     return key_l, key_x + x0, key_y + y0
 
 
+def mark_discs(
+    buffer: np.ndarray, pad: int, grid: tuple[int, int], key: int, layer: np.ndarray, cx: np.ndarray, cy: np.ndarray
+) -> None:
+    """Mark the disc of ``key`` (:func:`_disc_key`) round each cell (``layer``, ``cx``, ``cy``) (k,) of a grid
+    of ``grid`` = (nx, ny) cells held in ``buffer`` (n_layers, nx + 2 pad, ny + 2 pad) bool, C-contiguous,
+    cell (i, j) at [pad + i, pad + j]; ``pad`` at least twice the disc's half-width h (its largest |i|).
+    A centre more than h cells off the grid has no disc cell on it and is left out; every other disc
+    then lies inside the buffer, so its cells are the centre's flat index plus the disc's flat offsets,
+    written at once with no test per cell (round 37A; cells in the padding are never read). The grid's
+    cells marked are those of testing each disc cell against the grid's bounds (tested); ``layer``
+    must lie in [0, n_layers)."""
+    nx, ny = grid
+    half = math.isqrt(max(key - 1, 0))
+    if pad < 2 * half:
+        raise ValueError(f"a padding of {pad} cells cannot hold a disc of half-width {half}")
+    near = (cx >= -half) & (cx < nx + half) & (cy >= -half) & (cy < ny + half)  # else no cell on the grid
+    if not near.all():
+        layer, cx, cy = layer[near], cx[near], cy[near]
+    NX, NY = buffer.shape[1], buffer.shape[2]
+    ox, oy = _disc_of(key)
+    centre = (np.asarray(layer, dtype=np.int64) * NX + (cx + pad)) * NY + (cy + pad)
+    buffer.reshape(-1)[centre[:, None] + (ox * NY + oy)[None]] = True
+
+
 class OccupiedCells:
     """The wavefront's occupied cells, (n_layers, nx, ny) bool, marked only as far as asked: each
     entry is a disc of ``radius`` cells (the offsets (i, j) with i^2 + j^2 < radius^2) around a
@@ -122,13 +146,11 @@ class OccupiedCells:
     or dies first), so layers past it are never marked.
 
     **Marking by flat offsets** (round 37A). :attr:`layers` is a view of a buffer padded by twice the
-    widest disc's half-width p on every side (allocated when first asked, once every entry is in): a
-    disc centred within p cells of the grid then lies inside the buffer, so its cells are the
-    centre's flat index plus the disc's flat offsets, written at once with no test per cell; a
-    centre farther out marks no cell of the grid (|i|, |j| <= p) and is left out. The same cells as
-    testing every disc cell against the grid's bounds (the definition, tested), for one addition
-    and one write per cell instead of a dozen array operations (the marks were 15 % of the swarm
-    layer's CPU on the randomised family's random-10 at 64 fixed)."""
+    widest disc's half-width on every side (allocated when first asked, once every entry is in), and
+    the moving entries are marked by :func:`mark_discs`: the same cells as testing every disc cell
+    against the grid's bounds (the definition, tested), for one addition and one write per cell
+    instead of a dozen array operations (the marks were 15 % of the plan's CPU on the randomised
+    family's random-10 at 64 fixed, 5 % after)."""
 
     FIRST_CHUNK = 32  # layers marked at the first call; each later call marks at least as many again
 
@@ -185,22 +207,12 @@ class OccupiedCells:
             return
         layers = self.layers
         buf, pad = self._buffer, self._pad
-        assert buf is not None
+        assert buf is not None  # built with layers
         n = min(n_layers, max(n, self.done + max(self.FIRST_CHUNK, self.done)))
-        NX, NY = buf.shape[1], buf.shape[2]
-        flat = buf.reshape(-1)  # a view: the buffer is contiguous
         for key, (L, X, Y) in self._by_layer().items():
             i0, i1 = np.searchsorted(L, [self.done, n])
-            if i1 <= i0:
-                continue
-            half = math.isqrt(max(key - 1, 0))
-            x, y, lay = X[i0:i1], Y[i0:i1], L[i0:i1]
-            near = (x >= -half) & (x < nx + half) & (y >= -half) & (y < ny + half)  # else no cell on the grid
-            if not near.all():
-                x, y, lay = x[near], y[near], lay[near]
-            ox, oy = _disc_of(key)
-            centre = (lay * NX + (x + pad)) * NY + (y + pad)
-            flat[centre[:, None] + (ox * NY + oy)[None]] = True
+            if i1 > i0:
+                mark_discs(buf, pad, (nx, ny), key, L[i0:i1], X[i0:i1], Y[i0:i1])
         for key, last, cx, cy in self._parked:
             if last < n:
                 ox, oy = _disc_of(key)
