@@ -63,33 +63,55 @@ def others_marks(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float
     per_layer = layer_s / GRID_DT_S
     box_lo = np.r_[lo, -np.inf]
     box_hi = np.r_[hi, np.inf]
-    # without heights every sample of one other type marks the same disc: the samples of all the tracks
-    # of a type are marked together (the marks are a union: the same layers as track by track)
-    by_type: dict[int, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
-    for tr in occ.near(box_lo, box_hi, agent):
-        ko = p.keepouts[(ta, tr.type)]
-        P = tr.positions_m
-        k = np.arange(P.shape[0])
-        lay = np.floor(k / per_layer + 0.5).astype(np.int64)
-        cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
-        cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
-        if heights:  # a radius per sample: the keep-out at the heights the route flies at near it
+    near = occ.near(box_lo, box_hi, agent)
+    if heights:  # a radius per sample: the keep-out at the heights the route flies at near it
+        for tr in near:
+            ko = p.keepouts[(ta, tr.type)]
+            P = tr.positions_m
+            lay, cx, cy = _cells(P, np.arange(P.shape[0]), per_layer, lo, h)
             radii = _radii_cells(ko, P, start_m, goal_m, grow_m)
             keys = np.ceil(radii * radii)  # _disc_key of each: the samples of one disc marked together
             for k in np.unique(keys).tolist():
                 at = np.flatnonzero(keys == k)
                 occupied.add(float(radii[at[0]]), *_distinct(lay[at], cx[at], cy[at]))
-            radius_last = float(radii[-1])
-        else:  # the widest keep-out at any height difference, round the sample's cell
-            radius_last = (ko.reach_xy_m + grow_m) / h
-            by_type.setdefault(tr.type, []).append(_changes(lay, cx, cy))
-        last = int(lay[-1])
-        if last < n_layers and not tr.vanishes:  # parked for good
-            occupied.park(radius_last, last, int(cx[-1]), int(cy[-1]))
-    for tb, parts in by_type.items():
+            last = int(lay[-1])
+            if last < n_layers and not tr.vanishes:  # parked for good
+                occupied.park(float(radii[-1]), last, int(cx[-1]), int(cy[-1]))
+        return occupied, free_static
+    # without heights every sample of one other type marks the same disc, the widest keep-out at any
+    # height difference round the sample's cell: the samples of all the tracks of a type are marked
+    # together (the marks are a union: the same layers as track by track), and the cells of every
+    # track are found in one pass over their samples laid end to end (round 37A: the same values as
+    # track by track, for a few array operations per call instead of a dozen per track)
+    if not near:
+        return occupied, free_static
+    sizes = np.array([tr.positions_m.shape[0] for tr in near])
+    first = np.cumsum(sizes) - sizes  # where each track's samples begin
+    k = np.arange(int(sizes.sum())) - np.repeat(first, sizes)  # each sample's index in its track
+    lay, cx, cy = _cells(np.concatenate([tr.positions_m for tr in near]), k, per_layer, lo, h)
+    new = np.ones(lay.size, dtype=bool)  # _changes, track by track: a track's first sample is new
+    new[1:] = (lay[1:] != lay[:-1]) | (cx[1:] != cx[:-1]) | (cy[1:] != cy[:-1])
+    new[first] = True
+    types = np.repeat(np.array([tr.type for tr in near]), sizes)
+    ends = first + sizes - 1
+    for tr, e in zip(near, ends.tolist()):
+        if int(lay[e]) < n_layers and not tr.vanishes:  # parked for good
+            radius_last = (p.keepouts[(ta, tr.type)].reach_xy_m + grow_m) / h
+            occupied.park(radius_last, int(lay[e]), int(cx[e]), int(cy[e]))
+    for tb in dict.fromkeys(tr.type for tr in near):  # the types in the order of their first track
         radius = (p.keepouts[(ta, tb)].reach_xy_m + grow_m) / h
-        occupied.add(radius, *(np.concatenate([q[i] for q in parts]) for i in range(3)))
+        at = np.flatnonzero(new & (types == tb))
+        occupied.add(radius, lay[at], cx[at], cy[at])
     return occupied, free_static
+
+
+def _cells(P: np.ndarray, k: np.ndarray, per_layer: float, lo, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The layer and the grid cell (x, y) of samples ``P`` (S, 3), m, at grid steps ``k`` (S,) of their
+    track: layer round(k / ``per_layer``), cell round((p - ``lo``) / ``h``)."""
+    lay = np.floor(k / per_layer + 0.5).astype(np.int64)
+    cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
+    cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
+    return lay, cx, cy
 
 
 def _changes(lay: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from proxplan.planner.swarm.wave_grid import CELL_M
 from proxplan.planner.swarm.wave_marks import OccupiedCells, _disc_key, disc_offsets, mark_discs
 
 
@@ -78,3 +79,62 @@ def test_occupied_cells_refuse_a_wider_entry_once_the_marks_are_begun():
         occ.add(4.0, np.array([5]), np.array([2]), np.array([2]))
     with pytest.raises(ValueError, match="wider than the padding"):
         occ.park(4.0, 5, 2, 2)
+
+
+def _marks_track_by_track(occ, agent, start_m, goal_m, box, *, pace: float, grow_m: float) -> np.ndarray:
+    """others_marks without heights as it was before round 37A (the definition): each track's cells in
+    turn, a disc of the widest keep-out round each, parked tracks from their last layer on; every layer
+    marked."""
+    from proxplan.planner.swarm.tracks import GRID_DT_S
+    from proxplan.planner.swarm.wave_marks import others_marks
+
+    p = occ.problem
+    h = CELL_M
+    layer_s = h * math.sqrt(2.0) / (pace * p.limits[agent].max_speed_mps)
+    want, _ = others_marks(occ, agent, start_m, goal_m, box, pace=pace, grow_m=grow_m, heights=False)
+    n_layers, nx, ny = want.shape
+    ref = OccupiedCells(n_layers, nx, ny)
+    lo = box[0]
+    ta = int(p.type_index[agent])
+    for tr in occ.near(np.r_[lo, -np.inf], np.r_[box[1], np.inf], agent):
+        radius = (p.keepouts[(ta, tr.type)].reach_xy_m + grow_m) / h
+        P = tr.positions_m
+        lay = np.floor(np.arange(P.shape[0]) / (layer_s / GRID_DT_S) + 0.5).astype(np.int64)
+        cx = np.round((P[:, 0] - lo[0]) / h).astype(np.int64)
+        cy = np.round((P[:, 1] - lo[1]) / h).astype(np.int64)
+        ref.add(radius, lay, cx, cy)
+        if int(lay[-1]) < n_layers and not tr.vanishes:
+            ref.park(radius, int(lay[-1]), int(cx[-1]), int(cy[-1]))
+    ref.mark_upto(n_layers)
+    want.mark_upto(n_layers)
+    return want.layers, ref.layers
+
+
+@pytest.mark.parametrize("layout", ["grid", "pillar"])
+def test_marks_of_all_tracks_at_once_equal_track_by_track(layout):
+    """others_marks lays every near track's samples end to end (round 37A): the same marks as track by
+    track, with planned tracks (parked at their goals), predictions that vanish and reserved starts."""
+    from proxplan.planfile import scenario_from_dict
+    from proxplan.planner.formations import LAYOUTS
+    from proxplan.planner.swarm import swarm_problem
+    from proxplan.planner.swarm.occupancy import Occupancy
+    from proxplan.planner.swarm.reserve import ideal_track, predicted_track, reserved_track
+    from proxplan.planner.swarm.wave_grid import margin_box
+
+    problem = swarm_problem(scenario_from_dict(LAYOUTS[layout](16), label="test scenario"))
+    horizon = 400
+    tracks = []
+    for b in range(1, problem.n_agents):
+        if b % 3 == 0:
+            tracks.append(reserved_track(problem, b))
+        elif b % 3 == 1:
+            tracks.append(predicted_track(problem, b, hold_s=0.5))
+        else:
+            tracks.append(ideal_track(problem, b, horizon) or reserved_track(problem, b))
+    occ = Occupancy(problem, tracks, horizon)
+    a = 0
+    s, g = problem.starts_m[a], problem.goals_m[a]
+    for grow_m in (0.0, 0.05):
+        got, want = _marks_track_by_track(occ, a, s, g, margin_box(problem, s, g), pace=0.8, grow_m=grow_m)
+        assert want.any()
+        np.testing.assert_array_equal(got, want)
