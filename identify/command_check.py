@@ -36,10 +36,11 @@ from typing import Any
 import numpy as np
 from scipy.stats import t as student_t
 
-from proxplan.identify.measure import MeasureOptions, measure_log
+from proxplan.identify.measure import MeasureOptions, measure_log, motor_lag_compensated_N
 from proxplan.identify.motor_check import LagSample, lag_samples
+from proxplan.identify.vehicle_log import VehicleLog
 
-__all__ = ["ALPHA", "HOLDS", "MIN_FLIGHTS", "CommandHold", "command_hold_check", "check_loaded_holds"]
+__all__ = ["ALPHA", "HOLDS", "MIN_FLIGHTS", "CommandHold", "check_loaded_holds", "command_hold_check", "phase_of_hold"]
 
 HOLDS = (0.0, 0.5, 1.0)
 """Candidate command interpolations p, -: 0 held to the next sample, 1 linear to it."""
@@ -75,13 +76,55 @@ class CommandHold:
                 "spread": self.spread, "t_stat": self.t_stat, "mean_log_ratio": self.mean_log_ratio}  # fmt: skip
 
 
+def phase_of_hold(x: np.ndarray, dt_s: float, tau_s: float, p: float) -> np.ndarray:
+    """``x`` (N, k), the lagged thrust of ONE contiguous segment sampled every ``dt_s`` (s) as the held command
+    (p = 0) gives it, moved to the timing of interpolation ``p``: an all-pass (|H| = 1, zero-padded FFT about the
+    segment's mean, circular so that it keeps the segment's power exactly) with the phase of H_p / H_0, H_p(z) = (p c + ((1 - a) - p c) z^-1) / (1 - a z^-1) the lag's
+    discretisation (:func:`proxplan.identify.measure.motor_lag_compensated_N`; a = exp(-dt/tau),
+    c = 1 - (1 - a) tau / dt). Interpolating also averages neighbouring samples, which lowers the spread of any
+    command noise whatever the timing; the all-pass keeps the noise's power, so only timing is evidence (as
+    the motor-lag check does, :func:`proxplan.identify.motor_check.phase_of_lag`). Circular, not zero-padded: a
+    padded all-pass spills part of the segment's energy past its end, a loss (0.1 % on 1000 samples of white
+    noise) that would make every p > 0 look steadier where noise dominates; wrapping the segment's end onto its
+    start instead adds a little at the edges, which can only favour the held command. The Nyquist bin, real for
+    an even length, keeps its phase."""
+    if p == 0.0 or len(x) < 4:
+        return x
+    n = len(x)
+    a = float(np.exp(-dt_s / tau_s))
+    c = 1.0 - (1.0 - a) * tau_s / dt_s
+    mean = x.mean(axis=0)
+    spec = np.fft.rfft(x - mean, n, axis=0)
+    z1 = np.exp(-1j * 2.0 * np.pi * np.fft.rfftfreq(n, dt_s) * dt_s)  # z^-1 on the unit circle
+    phase = np.angle(p * c + ((1.0 - a) - p * c) * z1) - np.angle((1.0 - a) * z1)
+    if n % 2 == 0:
+        phase[-1] = 0.0
+    return np.fft.irfft(spec * np.exp(1j * phase)[:, None], n, axis=0) + mean
+
+
+def _held_then_timed(log: VehicleLog, tau_s: float, p: float) -> VehicleLog:
+    """``log`` with its commanded thrust through the motor lag (held command) and then :func:`phase_of_hold`, per
+    contiguous segment: measured with no further lag."""
+    thrust = np.array(log.motor_thrust_N, dtype=float, copy=True)
+    seg = np.zeros(len(log), dtype=int) if log.segment is None else np.asarray(log.segment)
+    for sid in np.unique(seg):
+        idx = np.flatnonzero(seg == sid)
+        dt = float(np.median(np.diff(log.t_s[idx]))) if len(idx) > 1 else 0.01
+        thrust[idx] = phase_of_hold(motor_lag_compensated_N(thrust[idx], dt, tau_s), dt, tau_s, p)
+    return replace(log, motor_thrust_N=thrust)
+
+
 def _flight_sse(group: Sequence[LagSample], options_of, p: float) -> dict[str, np.ndarray]:
-    """Per flight: (3,) sums of squares of F_z, tau_x, tau_y about each log's free-flight mean, and counts."""
+    """Per flight: (3,) sums of squares of F_z, tau_x, tau_y about each log's free-flight mean, and counts, the
+    command's timing that of interpolation ``p`` (:func:`phase_of_hold`)."""
     out: dict[str, np.ndarray] = {}
     for s in group:
         if s.free.sum() < MIN_FREE_SAMPLES:
             continue
-        w = measure_log(s.vehicle, s.log, options=replace(options_of(s), command_interpolation=p))
+        opts = options_of(s)
+        tau = float(opts.motor_time_constant_s or 0.0)
+        log = _held_then_timed(s.log, tau, p)
+        w = measure_log(s.vehicle, log, options=replace(opts, motor_time_constant_s=None, thrust_scale=1.0))
         x = np.column_stack([w.force_N[s.free, 2], w.torque_Nm[s.free, 0], w.torque_Nm[s.free, 1]])
         acc = out.setdefault(s.flight, np.zeros(4))
         acc[:3] += np.sum((x - x.mean(axis=0)) ** 2, axis=0)

@@ -21,7 +21,7 @@ TYPE = "crazyflie-2.1"
 OPTIONS = MeasureOptions()
 
 
-def _holds(tmp: Path, *, written_per_sample: int, n_flights: int = 4) -> dict:
+def _holds(tmp: Path, *, written_per_sample: int, n_flights: int = 4, motor_noise_N: float = 0.0) -> dict:
     """Single-vehicle flights weaving at 1-2 Hz well above the ground (free flight), their commanded thrust
     written ``written_per_sample`` times per 10 ms log sample by the controller (the motors' exact
     zero-order-hold inverse at that rate) and logged every 10 ms."""
@@ -34,7 +34,7 @@ def _holds(tmp: Path, *, written_per_sample: int, n_flights: int = 4) -> dict:
     for k in range(n_flights):
         w = 6.0 + 0.7 * k
         pos = np.column_stack([0.05 * np.sin(w * t), 0.04 * np.sin(0.8 * w * t + k), 0.9 + 0.01 * np.sin(1.7 * w * t)])
-        logs = synthetic_logs({"a": cf}, {"a": pos}, t, accel_noise_mps2=0.01, seed=k,
+        logs = synthetic_logs({"a": cf}, {"a": pos}, t, accel_noise_mps2=0.01, seed=k, motor_noise_N=motor_noise_N,
                               motor_time_constant_s=cf.motor_time_constant_s)  # fmt: skip
         rows = np.arange(0, len(t), written_per_sample)
         keep = np.zeros(len(t), dtype=bool)
@@ -42,7 +42,9 @@ def _holds(tmp: Path, *, written_per_sample: int, n_flights: int = 4) -> dict:
         flights.append(
             (f"f_{k:02d}", "train" if k < n_flights - 1 else "test", {n: g.take(keep) for n, g in logs.items()})
         )
-    path = write_synthetic_manifest(tmp / f"w{written_per_sample}_{n_flights}", flights, TYPE, motor_thrust="commanded")
+    path = write_synthetic_manifest(
+        tmp / f"w{written_per_sample}_{n_flights}_{motor_noise_N:g}", flights, TYPE, motor_thrust="commanded"
+    )
     manifest = load_manifest(path)
     data = load_units(manifest, options=IdentifyOptions(measure=OPTIONS), thrust_coefficient_samples=False)
     return check_loaded_holds(data, motor_thrust="commanded", options=OPTIONS)
@@ -63,6 +65,14 @@ def test_a_command_written_faster_than_logged_is_interpolated(tmp_path: Path) ->
     # the synthetic vehicle's motors turn together (no roll or pitch torque), so F_z carries the evidence:
     # 1.72 mN held, 1.09 mN interpolated (measured)
     assert hold.spread[best]["F_z"] < 0.8 * hold.spread["0"]["F_z"], hold.spread
+
+
+def test_command_noise_is_no_evidence_of_interpolation(tmp_path: Path) -> None:
+    """Interpolating averages neighbouring samples and so steadies any command noise whatever the timing; a
+    command written once per sample with noise on it (4 mN a motor) stays held: only timing is evidence
+    (command_check.phase_of_hold keeps the noise's power)."""
+    hold = _holds(tmp_path, written_per_sample=1, motor_noise_N=0.004)[TYPE]
+    assert hold.interpolation == 0.0, hold
 
 
 @pytest.mark.parametrize("n_flights", [3])
