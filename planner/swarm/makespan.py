@@ -226,13 +226,13 @@ def replan(
     for two of the four latest vehicles against everyone else's tracks, though their own exist).
     ``fits`` (None: every track): a track it refuses is not taken, the next of those three is; it is
     asked only about a track that would be taken (:func:`_fitting`)."""
-    track = plan_one(occ, b, through)
+    track = plan_one(occ, b, through, arrive_by=worst - 1)  # a later track is never taken (round 37B)
     route = None if old is None else old.route_m
     timed = route is not None and len(route) > 2
     if fits is not None:
         track = _fitting(occ, b, old, worst, through, fits, track, route if timed else None)
     elif route is not None and timed:
-        res = time_chain(occ, b, route, arrive_by=None if track is None else track.arrival_step - 1, through=through)
+        res = time_chain(occ, b, route, arrive_by=_before(track, worst), through=through)
         if res is not None and (track is None or res.arrival_step < track.arrival_step):
             track = res.track
     if (track is None or track.arrival_step >= worst) and old is not None and old.arrival_step < worst:
@@ -265,10 +265,10 @@ def _fitting(
     if found is None:
         if route is None:
             return None
-        res = time_chain(occ, b, route, arrive_by=None, through=through)
+        res = time_chain(occ, b, route, arrive_by=worst - 1, through=through)
         return res.track if res is not None and fits(occ, res.track, old) else None
     if route is not None:
-        res = time_chain(occ, b, route, arrive_by=found.arrival_step - 1, through=through)
+        res = time_chain(occ, b, route, arrive_by=_before(found, worst), through=through)
         if res is not None and fits(occ, res.track, old):
             return res.track  # earlier than found, and taken whatever fits says of found
         if res is None:  # nothing earlier than found on the route
@@ -277,11 +277,17 @@ def _fitting(
             if fits(occ, found, old):
                 return found
             # found refused: the route timed with no bound (it arrives no earlier than found)
-            res = time_chain(occ, b, route, arrive_by=None, through=through)
+            res = time_chain(occ, b, route, arrive_by=worst - 1, through=through)
             return res.track if res is not None and fits(occ, res.track, old) else None
     if found.arrival_step >= worst:
         return None  # never taken: the old track or none follows, whatever fits says
     return found if fits(occ, found, old) else None
+
+
+def _before(found: GridTrack | None, worst: int) -> int:
+    """The last grid step a route's timing in :func:`replan` may arrive at and matter: before ``found``
+    (plan_one's track; None: none) and before ``worst``."""
+    return worst - 1 if found is None else min(found.arrival_step, worst) - 1
 
 
 def _may_meet_the_last(problem: SwarmProblem, by_agent: dict[int, GridTrack], a: int) -> bool:

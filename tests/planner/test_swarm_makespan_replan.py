@@ -53,7 +53,7 @@ def test_a_replanned_member_arrives_in_time_and_meets_no_track(planned):
 
 def test_the_old_track_is_kept_where_the_single_vehicle_planner_finds_nothing(planned, monkeypatch):
     problem, tracks, horizon = planned
-    monkeypatch.setattr(makespan_module, "plan_one", lambda occ, b, through: None)
+    monkeypatch.setattr(makespan_module, "plan_one", lambda occ, b, through, **kw: None)
     old = _latest(tracks, 1)[0]
     occ = Occupancy(problem, tracks, horizon)
     occ.remove(old.agent)
