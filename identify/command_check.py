@@ -48,7 +48,8 @@ __all__ = ["ALPHA", "HOLDS", "MIN_FLIGHTS", "CommandHold", "check_loaded_holds",
 HOLDS = (0.0, 0.5, 1.0)
 """Candidate command interpolations p, -: 0 held to the next sample, 1 linear to it."""
 ALPHA = 0.025
-"""One-sided level of each channel's test (worse / better beyond chance), -."""
+"""Family-wise one-sided level per vehicle type, -: each of its (candidates x channels) tests runs at ALPHA / that
+number (Bonferroni)."""
 MIN_FLIGHTS = 3
 """Fewer flights with free-flight samples of a type than this: no verdict, p = 0 kept."""
 NUMERICAL_ZERO = 1e-9
@@ -81,9 +82,9 @@ class CommandHold:
 
 def phase_of_hold(x: np.ndarray, dt_s: float, tau_s: float, p: float) -> np.ndarray:
     """``x`` (N, k), the lagged thrust of ONE contiguous segment sampled every ``dt_s`` (s) as the held command
-    (p = 0) gives it, moved to the timing of interpolation ``p``: an all-pass (|H| = 1, zero-padded FFT about the
-    segment's mean, circular so that it keeps the segment's power exactly) with the phase of H_p / H_0, H_p(z) = (p c + ((1 - a) - p c) z^-1) / (1 - a z^-1) the lag's
-    discretisation (:func:`proxplan.identify.measure.motor_lag_compensated_N`; a = exp(-dt/tau),
+    (p = 0) gives it, moved to the timing of interpolation ``p``: an all-pass (|H| = 1; a circular FFT about the segment's
+    mean, so that it keeps the segment's power exactly) with the phase of H_p / H_0,
+    H_p(z) = (p c + ((1 - a) - p c) z^-1) / (1 - a z^-1) the lag's discretisation (:func:`proxplan.identify.measure.motor_lag_compensated_N`; a = exp(-dt/tau),
     c = 1 - (1 - a) tau / dt). Interpolating also averages neighbouring samples, which lowers the spread of any
     command noise whatever the timing; the all-pass keeps the noise's power, so only timing is evidence (as
     the motor-lag check does, :func:`proxplan.identify.motor_check.phase_of_lag`). Circular, not zero-padded: a
@@ -149,15 +150,17 @@ def _choose(vtype: str, group: Sequence[LagSample], options_of) -> CommandHold:
     means: dict[str, dict[str, float]] = {}
     admissible: list[tuple[float, float]] = []
     for p in HOLDS[1:]:
-        d = np.array([0.5 * np.log(sse[p][f][:3] / sse[0.0][f][:3]) for f in flights])  # (n, 3)
+        live = np.array([spread["0"][c] >= NUMERICAL_ZERO for c in CHANNELS])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = np.array([0.5 * np.log(sse[p][f][:3] / sse[0.0][f][:3]) for f in flights])  # (n, 3)
+        d[:, ~live] = 0.0
         mean = d.mean(axis=0)
         se = d.std(axis=0, ddof=1) / np.sqrt(n)
-        live = np.array([spread["0"][c] >= NUMERICAL_ZERO for c in CHANNELS])
         t = np.where(live & (se > 0), mean / np.where(se > 0, se, 1.0), 0.0)
         t_stat[f"{p:g}"] = dict(zip(CHANNELS, t.tolist()))
         means[f"{p:g}"] = dict(zip(CHANNELS, mean.tolist()))
         if np.all(t <= q) and np.any(t < -q):
-            admissible.append((float(mean.mean()), p))
+            admissible.append((float(mean[live].mean()), p))
     if not admissible:
         return CommandHold(vtype, 0.0, f"no interpolation steadier on one channel without being worse on another "
                            f"(family-wise one-sided {ALPHA:g} level over {n} flights): held (p = 0) kept", n, spread, t_stat, means)  # fmt: skip
