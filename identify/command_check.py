@@ -43,7 +43,16 @@ from proxplan.identify.measure import MeasureOptions, measure_log, motor_lag_com
 from proxplan.identify.motor_check import LagSample, lag_samples
 from proxplan.identify.vehicle_log import VehicleLog
 
-__all__ = ["ALPHA", "HOLDS", "MIN_FLIGHTS", "CommandHold", "check_loaded_holds", "command_hold_check", "phase_of_hold"]
+__all__ = [
+    "ALPHA",
+    "HOLDS",
+    "MIN_FLIGHTS",
+    "CommandHold",
+    "check_loaded_holds",
+    "command_hold_check",
+    "measured_with_holds",
+    "phase_of_hold",
+]
 
 HOLDS = (0.0, 0.5, 1.0)
 """Candidate command interpolations p, -: 0 held to the next sample, 1 linear to it."""
@@ -192,3 +201,26 @@ def check_loaded_holds(data: Any, *, motor_thrust: str, options: MeasureOptions)
     return command_hold_check(
         lag_samples(data), options_of=lambda s: measure_options_for(options, s.vehicle, motor_thrust)
     )
+
+
+def measured_with_holds(manifest: Any, options: Any, data: Any) -> tuple[Any, Any, dict[str, CommandHold]]:
+    """identify's stage: the hold of each type chosen on ``data`` (a :class:`proxplan.identify.loading.LoadedData` of
+    ``manifest`` measured with ``options``, an :class:`proxplan.identify.data.IdentifyOptions`), and, where one is
+    not held, the options with the choice and the flights measured again with it (the thrust maps as fitted
+    already), with a note per such type. Options that already name the holds are kept, with no check."""
+    from proxplan.identify.loading import load_units
+
+    if options.measure.command_interpolation_by_type:
+        return options, data, {}
+    holds = check_loaded_holds(data, motor_thrust=manifest.motor_thrust, options=options.measure)
+    chosen = tuple((t, h.interpolation) for t, h in holds.items() if h.interpolation != 0.0)
+    if not chosen:
+        return options, data, holds
+    options = replace(options, measure=replace(options.measure, command_interpolation_by_type=chosen))
+    data = load_units(manifest, options=options, thrust_maps=data.thrust_maps)
+    data.notes.extend(
+        f"{t}: the logged motor command enters the motor lag interpolated between log samples (p = {p:g}; "
+        "the free-flight wrench is steadier so: identify.command_check)"
+        for t, p in chosen
+    )
+    return options, data, holds

@@ -50,7 +50,7 @@ from proxplan.identify.calibrate import (
     calibrate_model,
     model_specs,
 )
-from proxplan.identify.command_check import check_loaded_holds
+from proxplan.identify.command_check import measured_with_holds
 from proxplan.identify.data import (
     Errors,
     IdentifyOptions,
@@ -292,20 +292,8 @@ def _run(manifest: Manifest, options: IdentifyOptions, side: Background, thrust_
     laps = _Laps()
     data = load_units(manifest, options=options)
     laps("load and measure")
-    holds: dict = {}
-    if not options.measure.command_interpolation_by_type:  # how each type's command runs between log samples
-        holds = check_loaded_holds(data, motor_thrust=manifest.motor_thrust, options=options.measure)
-        chosen_holds = tuple((t, h.interpolation) for t, h in holds.items() if h.interpolation != 0.0)
-        laps("command hold check")
-        if chosen_holds:  # measured again with the chosen hold (identify.command_check)
-            options = replace(options, measure=replace(options.measure, command_interpolation_by_type=chosen_holds))
-            data = load_units(manifest, options=options)
-            data.notes.extend(
-                f"{t}: the logged motor command enters the motor lag interpolated between log samples (p = {p:g}; "
-                "the free-flight wrench is steadier so: identify.command_check)"
-                for t, p in chosen_holds
-            )
-            laps("measure again with the command hold")
+    options, data, holds = measured_with_holds(manifest, options, data)  # identify.command_check
+    laps("command hold check (and measured again where a type is not held)")
     units, exclusions, types = data.units, data.exclusions, data.types
     lag_task = side.submit("the motor lag check", check_loaded, side.share(data), motor_thrust=manifest.motor_thrust,
                            options=options.measure)  # fmt: skip
