@@ -10,8 +10,9 @@ otherwise meet as an effect: the roll and pitch torque of (S0-13, S0-14) are mot
 faster than the sum, and a hold half a sample late leaves them a residual that tracks the vehicle's
 own angular acceleration (issue 35, round 35Z: the flown clean sets' kept terms).
 
-**The check.** In free flight (the samples of :func:`proxplan.identify.motor_check.lag_samples`: no source
-overhead, out of ground effect, every motor in range) the disturbance is small and steady, so the
+**The check.** In free flight, flown ALONE (the samples of :func:`proxplan.identify.motor_check.lag_samples` with
+``alone``: no source overhead, no neighbour beside or below within the same reach, out of ground effect, every
+motor in range) the disturbance is small and steady, so the
 measured wrench varies there mostly by measurement error. For each candidate p of :data:`HOLDS` and each
 channel c of F_z, tau_x, tau_y (world frame), the spread of each FLIGHT's free-flight samples about their
 mean is compared with p = 0's as d_fc = 0.5 ln(SSE_p / SSE_0) (per flight, so the flight is the unit that is
@@ -26,6 +27,11 @@ exact inverse of a once-per-sample command) otherwise. ALPHA is the conventional
 (A first version tested each channel at ALPHA alone; its family-wise chance of a false switch is up to
 6 x 2.5 % per type, and on the scripted world's block 39000, whose commands are the exact held inverse, it
 switched a type in 4 of 20 draws: the correction restores the level the rule was meant to have.)
+
+Why alone, not only free of a source overhead: an effect beside or below a vehicle acts in "free" samples, and a
+wrench that varies with the neighbours is judged there as measurement error; the same logger then got different
+holds on a set and on its twin without the effect (stop 80, flown bench block 90000: 6 of 10 commanded draws),
+which compares two different measurements. The hold is the logger's, so it is chosen where no neighbour is near.
 
 Logs of DELIVERED thrust pass through no lag, so there is nothing to choose (p = 0, reported as such).
 """
@@ -199,7 +205,7 @@ def check_loaded_holds(data: Any, *, motor_thrust: str, options: MeasureOptions)
     from proxplan.identify.loading import measure_options_for
 
     return command_hold_check(
-        lag_samples(data), options_of=lambda s: measure_options_for(options, s.vehicle, motor_thrust)
+        lag_samples(data, alone=True), options_of=lambda s: measure_options_for(options, s.vehicle, motor_thrust)
     )
 
 

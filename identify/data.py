@@ -252,19 +252,35 @@ def merge_units(units: Sequence[Unit]) -> list[Unit]:
     return out
 
 
+NEIGHBOUR_REACH_L = 3.0
+"""A source overhead counts within this many of its sizes L off the target's vertical axis (r < 3 L): the jet's
+edge of (S0-1, S0-2) at the separations flown, -; :func:`neighbours_near` takes the same reach in any direction."""
+
+
 def sources_overhead(u: Unit, vehicles: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample of ``u``: the number of sources above within r < 3 L (N,) int, and whether one of
-    them is closer than dz < 3 L (N,) bool."""
+    """Per sample of ``u``: the number of sources above within r < 3 L (N,) int (:data:`NEIGHBOUR_REACH_L`), and
+    whether one of them is closer than dz < 3 L (N,) bool."""
     n = len(u)
     above = np.zeros(n, dtype=int)
     near = np.zeros(n, dtype=bool)
     for t, off in zip(u.source_types, u.source_offsets_m):
         L = vehicles[t].size_m
         dz, r = -off[:, 2], np.hypot(off[:, 0], off[:, 1])
-        here = (dz > 0.0) & (r < 3.0 * L)
+        here = (dz > 0.0) & (r < NEIGHBOUR_REACH_L * L)
         above += here
         near |= here & (dz < VALIDITY_FACTOR_L * L)
     return above, near
+
+
+def neighbours_near(u: Unit, vehicles: Mapping[str, Any]) -> np.ndarray:
+    """Per sample of ``u`` (N,) bool: some other vehicle of the flight, above, beside or below, lies within
+    :data:`NEIGHBOUR_REACH_L` times the larger of its and the target's size L (3-D distance, m over m). Its
+    complement, with no source overhead, is a vehicle flying ALONE: no neighbour's air, known or not, is near."""
+    near = np.zeros(len(u), dtype=bool)
+    own_L = vehicles[u.type].size_m
+    for t, off in zip(u.source_types, u.source_offsets_m):
+        near |= np.linalg.norm(off, axis=1) < NEIGHBOUR_REACH_L * max(vehicles[t].size_m, own_L)
+    return near
 
 
 def subsample(units: Sequence[Unit], max_samples: int) -> list[Unit]:

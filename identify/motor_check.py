@@ -161,12 +161,16 @@ def check_loaded(data: Any, *, motor_thrust: str, options: MeasureOptions) -> di
     return motor_lag_check(lag_samples(data), motor_thrust=motor_thrust, options=options, declared_tau_s=declared)
 
 
-def lag_samples(data: Any, *, splits: Sequence[str] = ("train", "validation")) -> list[LagSample]:
+def lag_samples(
+    data: Any, *, splits: Sequence[str] = ("train", "validation"), alone: bool = False
+) -> list[LagSample]:
     """The :class:`LagSample` of every scored vehicle of ``data`` (a
     :class:`proxplan.identify.loading.LoadedData`) on flights of ``splits`` (all its flights when none is):
     free flight = no source overhead within r < 3 L, above :data:`FREE_HEIGHT_M`, every motor in range
-    (:func:`proxplan.identify.strata.authority_masks`)."""
-    from proxplan.identify.data import sources_overhead
+    (:func:`proxplan.identify.strata.authority_masks`); ``alone``: also no neighbour beside or below within the
+    same reach (:func:`proxplan.identify.data.neighbours_near`), so that no neighbour's air, modelled or not, is
+    in the samples."""
+    from proxplan.identify.data import neighbours_near, sources_overhead
     from proxplan.identify.strata import authority_masks
 
     units = [u for u in data.units if u.scored and len(u) and (u.flight, u.name) in data.logs]
@@ -180,5 +184,7 @@ def lag_samples(data: Any, *, splits: Sequence[str] = ("train", "validation")) -
             & (u.height_above_ground_m > FREE_HEIGHT_M)
             & authority_masks(u, data.types)["in_range"]
         )
+        if alone:
+            free &= ~neighbours_near(u, data.types)
         out.append(LagSample(u.type, veh, log, free, u.flight))
     return out

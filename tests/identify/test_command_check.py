@@ -96,3 +96,37 @@ def test_the_chosen_hold_is_saved_with_the_model_and_read_back() -> None:
         vehicles={}, measurement={k: v for k, v in saved.measurement.items() if k != "command_interpolation"}
     )
     assert measurement_from_model(older, "m.yaml")[0].command_interpolation_by_type == ()
+
+
+def test_the_hold_is_chosen_on_samples_flown_alone(tmp_path: Path) -> None:
+    """A neighbour BESIDE (no source overhead: still "free flight") is near for the first half of each flight and
+    far for the second: the check's samples (``alone``) leave out the first half, the motor-lag check's keep it."""
+    from proxplan.identify.data import NEIGHBOUR_REACH_L, neighbours_near
+    from proxplan.identify.motor_check import lag_samples
+    from proxplan.physics import BUILTIN_VEHICLES
+
+    cf = BUILTIN_VEHICLES[TYPE]
+    t = 0.01 * np.arange(800)
+    near_m = 0.5 * NEIGHBOUR_REACH_L * cf.size_m  # beside at half the reach, then 4 reaches away
+    far_m = 4.0 * NEIGHBOUR_REACH_L * cf.size_m
+    gap = np.where(t < 4.0, near_m, far_m)
+    flights = []
+    for k in range(3):
+        a = np.column_stack([0.03 * np.sin(6.0 * t + k), np.zeros_like(t), np.full_like(t, 1.0)])
+        b = a + np.column_stack([gap, np.zeros_like(t), np.full_like(t, -0.02)])  # level, a little lower: not overhead
+        logs = synthetic_logs({"a": cf, "b": cf}, {"a": a, "b": b}, t, accel_noise_mps2=0.01, seed=k)
+        flights.append((f"f_{k}", "train" if k < 2 else "test", logs))
+    data = load_units(load_manifest(write_synthetic_manifest(tmp_path / "beside", flights, TYPE)),
+                      options=IdentifyOptions(measure=OPTIONS), thrust_coefficient_samples=False)  # fmt: skip
+    for u in data.units:
+        near = neighbours_near(u, data.types)
+        assert near[u.t_s < 3.9].all() and not near[u.t_s > 4.1].any()
+    units = [u for u in data.units if u.split == "train"]  # lag_samples' own order: train flights, every vehicle
+    free, alone = lag_samples(data), lag_samples(data, alone=True)
+    assert [s.flight for s in free] == [u.flight for u in units] == [s.flight for s in alone]
+    beside_only = 0
+    for u, f, a in zip(units, free, alone):
+        near = neighbours_near(u, data.types)
+        assert np.array_equal(a.free, f.free & ~near)
+        beside_only += int(np.sum(f.free & near))
+    assert beside_only > 300  # vehicle a's first half: free flight, yet its neighbour is beside it
