@@ -161,9 +161,7 @@ def check_loaded(data: Any, *, motor_thrust: str, options: MeasureOptions) -> di
     return motor_lag_check(lag_samples(data), motor_thrust=motor_thrust, options=options, declared_tau_s=declared)
 
 
-def lag_samples(
-    data: Any, *, splits: Sequence[str] = ("train", "validation"), alone: bool = False
-) -> list[LagSample]:
+def lag_samples(data: Any, *, splits: Sequence[str] = ("train", "validation"), alone: bool = False) -> list[LagSample]:
     """The :class:`LagSample` of every scored vehicle of ``data`` (a
     :class:`proxplan.identify.loading.LoadedData`) on flights of ``splits`` (all its flights when none is):
     free flight = no source overhead within r < 3 L, above :data:`FREE_HEIGHT_M`, every motor in range

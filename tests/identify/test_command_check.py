@@ -130,3 +130,30 @@ def test_the_hold_is_chosen_on_samples_flown_alone(tmp_path: Path) -> None:
         assert np.array_equal(a.free, f.free & ~near)
         beside_only += int(np.sum(f.free & near))
     assert beside_only > 300  # vehicle a's first half: free flight, yet its neighbour is beside it
+
+
+def test_one_hold_for_the_log_source_every_type_pooled(tmp_path: Path) -> None:
+    """Two types logged by one logger (a command written once per sample, held): one verdict for both (the same
+    flights, the same t statistics), each type with its own free-flight spreads."""
+    from proxplan.physics import BUILTIN_VEHICLES
+
+    types = {"a": "crazyflie-2.1", "b": "crazyflie-parrot"}
+    assert {BUILTIN_VEHICLES[ty].motor_time_constant_s for ty in types.values()} == {0.072}  # the logs' own lag
+    t = 0.01 * np.arange(1200)
+    flights = []
+    for k in range(4):
+        w = 6.0 + 0.7 * k
+        a = np.column_stack([0.05 * np.sin(w * t), 0.04 * np.sin(0.8 * w * t + k), 0.9 + 0.01 * np.sin(1.7 * w * t)])
+        b = a[:, [1, 0, 2]] + np.array([5.0, 0.0, 0.3])  # far off: each flies alone
+        logs = synthetic_logs({n: BUILTIN_VEHICLES[ty] for n, ty in types.items()}, {"a": a, "b": b}, t,
+                              accel_noise_mps2=0.01, seed=k, motor_time_constant_s=0.072)  # fmt: skip
+        flights.append((f"f_{k:02d}", "train" if k < 3 else "test", logs))
+    path = write_synthetic_manifest(tmp_path / "two", flights, types, motor_thrust="commanded")
+    data = load_units(load_manifest(path), options=IdentifyOptions(measure=OPTIONS), thrust_coefficient_samples=False)
+    holds = check_loaded_holds(data, motor_thrust="commanded", options=OPTIONS)
+    assert set(holds) == set(types.values())
+    cf, parrot = holds["crazyflie-2.1"], holds["crazyflie-parrot"]
+    assert cf.interpolation == parrot.interpolation == 0.0, (cf, parrot)
+    assert cf.n_flights == parrot.n_flights == 3 and cf.t_stat == parrot.t_stat and cf.t_stat
+    assert "2 vehicle type(s) of the log source pooled" in cf.reason
+    assert cf.spread and parrot.spread and cf.spread["0"] != parrot.spread["0"]
