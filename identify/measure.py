@@ -7,11 +7,18 @@ Torque (S0-13) plus the gyroscopic term S0-13 omits, world frame:
     with tau_p the body torque of the motors from the (S0-14) mixer (arms l/sqrt2, k_t), taken from
     :func:`proxplan.physics.authority.mixer_matrix` so the mixer exists once.
 
-omega_dot comes from a Savitzky-Golay derivative of the gyro (default; ``scipy.signal.savgol_filter``
-over ``window_s``), or from the paper's smoothing — a triangular moving average followed by the
-forward difference (S0-12) — or from the raw forward difference. The same smoother is applied to
-the measured force and torque. Optional first-order motor-lag compensation passes the commanded
-thrusts through f' = (f_cmd - f) / tau_motor before they enter (S0-11, S0-14).
+Both sides of (S0-13) pass ONE filter: per sample the balance J omega_dot + omega x J omega - tau_p is formed,
+omega_dot the central difference of the gyro (omega[k+1] - omega[k-1]) / 2h, the mean angular acceleration over
+the two steps around the sample, and the balance is then smoothed as a whole by the measurement's smoother: a
+Savitzky-Golay fit over ``window_s`` (default; ``scipy.signal.savgol_filter``) or the paper's triangular moving
+average (S0-12); the force is smoothed by the same smoother. ``derivative="difference"`` keeps the raw forward
+difference (S0-12) with no smoothing. (Until stop 81 the Savitzky-Golay DERIVATIVE of omega met the Savitzky-Golay
+SMOOTHING of tau_p: two kernels (the window's slope averages omega_dot with a parabolic weight, the order-2 fit
+passes more of a fast change), so wherever a vehicle rotates, its controller's motor torque and its angular
+acceleration were averaged two ways and the difference was measured as a disturbance that lags the true one. On
+the flown bench world's clean sets that was 25-45 % of the true torque's RMS (measured minus applied, both
+smoothed alike), 3-4 % with one filter (docs/identify.md, stop 81).) Optional first-order motor-lag compensation
+passes the commanded thrusts through f' = (f_cmd - f) / tau_motor before they enter (S0-11, S0-14).
 
 Derivatives and smoothing run per contiguous segment (``segment`` ids from the log checks) and
 assume a uniform sample time within a segment (the median step).
@@ -195,10 +202,12 @@ def measure_disturbance(
         z_b = r.apply(np.array([0.0, 0.0, 1.0]))  # (M, 3) body z in world
         f_a = vehicle.mass_kg * accel_mps2[idx] - thrust.sum(axis=1)[:, None] * z_b  # (S0-11)
         w = gyro_radps[idx]
-        w_dot = _smooth(w, dt, options, deriv=1)
-        w_s = _smooth(w, dt, options, deriv=0)
         tau_p = thrust @ mix.T  # body torque of the motors (S0-14)
-        body = J * w_dot + np.cross(w_s, J * w_s) - _smooth(tau_p, dt, options, deriv=0)
+        if options.derivative == "difference" or len(idx) < 3:  # (S0-12) raw, nothing smoothed (module docstring)
+            body = J * _smooth(w, dt, options, deriv=1) + np.cross(w, J * w) - tau_p
+        else:  # (S0-13) formed per sample, then ONE filter (module docstring)
+            w_dot = np.gradient(w, dt, axis=0)  # mean over [t_k-1, t_k+1]; one-sided at the ends
+            body = _smooth(J * w_dot + np.cross(w, J * w) - tau_p, dt, options, deriv=0)
         force[idx] = _smooth(f_a, dt, options, deriv=0)
         torque[idx] = r.apply(body)  # (S0-13): tau_a = R J w_dot (+ gyroscopic) - R tau_p
     return MeasuredWrench(force_N=force, torque_Nm=torque)
